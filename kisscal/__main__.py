@@ -1,0 +1,3 @@
+from kisscal.cli import main
+
+main()

@@ -1,0 +1,1 @@
+"""Blob detection: run-length pixel grouping, noise removal, merge/split tests, centroids."""

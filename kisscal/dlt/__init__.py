@@ -1,0 +1,1 @@
+"""DLT calibration: 11-parameter DLT, MDLT, rod recognition, projection, decomposition."""

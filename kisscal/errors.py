@@ -1,0 +1,21 @@
+"""User-facing errors.
+
+Anything a user can cause (a missing folder, a bad number, a degenerate calibration)
+raises :class:`KisscalError`; the CLI prints its message on one line and exits with
+code 2. Programming errors keep their tracebacks.
+"""
+
+from __future__ import annotations
+
+
+class KisscalError(Exception):
+    """An error caused by the user's input, reported on one line without a traceback."""
+
+    exit_code: int = 2
+
+
+class NotBuiltError(KisscalError):
+    """A pipeline stage that this version of kisscal does not provide yet."""
+
+    def __init__(self, command: str, stage: str) -> None:
+        super().__init__(f"kisscal {command}: the {stage} stage is not built yet")

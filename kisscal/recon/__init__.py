@@ -1,0 +1,1 @@
+"""3D reconstruction: stationary-ghost filter, epipolar matching, triangulation, grouping."""

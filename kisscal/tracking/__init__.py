@@ -1,0 +1,1 @@
+"""Trajectory generation: predictors, Kalman filter, gating, blending, gap filling, labels."""
