@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
-from kisscal.detect.groups import GroupTable, measure_groups
+from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs
 
@@ -158,7 +158,33 @@ def split_groups(
     return Grouping(merged, flags, parent, centre_x, centre_y)
 
 
-def overlap_split(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+def principal_axes(
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    cov_xy: NDArray[np.float64],
+    spread_px2: float,
+    pixel_aspect: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Principal axes of spot moments in round units (x divided by ``pixel_aspect``).
+
+    Returns the major and minor variances (round units squared, pixel-area spread
+    ``spread_px2`` removed) and the major axis direction ``(ux, uy)`` in round units.
+    """
+    a = (var_x - spread_px2) / pixel_aspect**2
+    c = var_y - spread_px2
+    b = cov_xy / pixel_aspect
+    mean = (a + c) / 2
+    half = np.sqrt(((a - c) / 2) ** 2 + b * b)
+    theta = 0.5 * np.arctan2(2 * b, a - c)
+    return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
+
+
+def overlap_split(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    core: tuple[NDArray[np.float64], ...] | None = None,
+) -> Grouping:
     """Split ul / ur overlapped pairs (section 2.3.2, equations 4-6).
 
     A group with WhitePixels / TotalPixels below ``overlap_ratio_max`` is an overlapped
@@ -168,19 +194,37 @@ def overlap_split(grouping: Grouping, table: GroupTable, params: DetectionParams
     x_m^u and x_m^l with widths 2 (x_m^u - brect.x1) and 2 (brect.x2 - x_m^l) (ul; mirrored
     for ur); their heights follow from the widths through ``pixel_aspect`` and they touch
     the top and bottom of the rectangle.
+
+    Small spots overlapping diagonally rarely meet equation (6) (rows are too few for the
+    mid-point shift), so with ``core`` moments ``(x, y, var_x, var_y, cov_xy)`` of each
+    group's white pixels a group also counts as an overlapped pair when its major axis is
+    at least ``overlap_angle_deg`` away from both image axes (round units) and its
+    elongation reaches ``overlap_min_elongation``. Two equal spots ``D`` apart add
+    ``D^2 / 4`` to the major variance, so their centres are the centroid
+    ``+- sqrt(major - minor)`` along the major axis.
     """
     x_mu = (table.top_x1 + table.top_x2) * 0.5
     x_ml = (table.bottom_x1 + table.bottom_x2) * 0.5
     shift = x_ml - x_mu
     half_top = x_mu - table.top_x1
-    candidate = (
-        (table.fill < params.overlap_ratio_max)
-        & (table.pixels >= params.long_wide_min_pixels)
+    big_enough = table.pixels >= params.long_wide_min_pixels
+    eq6 = (
+        big_enough
+        & (table.fill < params.overlap_ratio_max)
         & (np.abs(shift) > half_top)
         & (np.abs(shift) > params.overlap_shift_px)
         & (table.height >= 3)
     )
-    idx = np.flatnonzero(candidate)
+    by_moments = np.zeros(len(table), dtype=bool)
+    if core is not None:
+        mx, my, vx, vy, cxy = core
+        major, minor, ux, uy = principal_axes(vx, vy, cxy, 1.0 / 12.0, params.pixel_aspect)
+        angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
+        diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
+        by_moments = (
+            big_enough & ~eq6 & diagonal & (np.sqrt(major / minor) >= params.overlap_min_elongation)
+        )
+    idx = np.flatnonzero(eq6 | by_moments)
     if idx.size == 0:
         return grouping
     left = table.x1[idx] - 0.5
@@ -194,6 +238,18 @@ def overlap_split(grouping: Grouping, table: GroupTable, params: DetectionParams
     h_l = np.minimum(width_l / params.pixel_aspect, height)
     cy_u = table.y1[idx] - 0.5 + h_u / 2
     cy_l = table.y2[idx] + 0.5 - h_l / 2
+    if core is not None:
+        m = by_moments[idx]
+        half_d = np.sqrt(np.maximum(major[idx] - minor[idx], 0.0))
+        # the upper centre first; uy >= 0 points down the image
+        sign = np.where(uy[idx] >= 0, -1.0, 1.0)
+        dx = sign * half_d * ux[idx] * params.pixel_aspect
+        dy = sign * half_d * uy[idx]
+        xu = np.where(m, mx[idx] + dx, xu)
+        xl = np.where(m, mx[idx] - dx, xl)
+        cy_u = np.where(m, my[idx] + dy, cy_u)
+        cy_l = np.where(m, my[idx] - dy, cy_l)
+        ul = np.where(m, xu < xl, ul)
     flag = np.where(ul, fl.SPLIT_UL, fl.SPLIT_UR)
     return split_groups(
         grouping,
@@ -205,26 +261,53 @@ def overlap_split(grouping: Grouping, table: GroupTable, params: DetectionParams
     )
 
 
-def long_wide_split(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+def elongation(
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    spread_px2: float,
+    pixel_aspect: float,
+) -> NDArray[np.float64]:
+    """Height-to-width ratio of spots from their second moments, 1 for a round marker.
+
+    The spread that every spot gets whatever its size (pixel integration, ``spread_px2`` in
+    pixels squared) is removed before the ratio is taken: it would make small round
+    markers look tall in non-square pixels. Moments rather than the bounding rectangle of
+    section 2.3.3 because a marker two or three lines high has a rectangle ratio that
+    jumps with its sub-pixel position, while its moments change smoothly.
+    """
+    tiny = 1e-3
+    return pixel_aspect * np.sqrt(
+        np.maximum(var_y - spread_px2, tiny) / np.maximum(var_x - spread_px2, tiny)
+    )
+
+
+def long_wide_split(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    ratio: NDArray[np.float64],
+) -> Grouping:
     """Split long and wide groups into marker-sized parts (section 2.3.3).
 
-    ``ratio = h * pixel_aspect / w`` is 1 for a round marker. Below ``min_ratio`` a group is
-    wide and is cut into ``round(1 / ratio)`` (at least 2) markers of diameter ``h`` (in
-    scan lines, i.e. ``h * pixel_aspect`` columns) spread evenly from its left to its right
-    end; above ``max_ratio`` it is long and is cut likewise from top to bottom. The other
-    coordinate of each part is the group's binary centroid.
+    ``ratio`` (h / w, 1 for a round marker, see :func:`elongation`) below ``min_ratio``
+    makes a group wide, above ``max_ratio`` long. A wide group of width ``w`` and height
+    ``h`` is cut into ``round(w / (h * pixel_aspect))`` (at least 2) markers of diameter
+    ``h * pixel_aspect`` spread evenly from its left to its right end; a long one likewise
+    from top to bottom. The other coordinate of each part is the group's binary centroid.
     """
     w = table.width.astype(float)
     h = table.height.astype(float)
-    ratio = h * params.pixel_aspect / w
-    testable = table.pixels >= params.long_wide_min_pixels
+    # Parts of an overlapped pair were already cut to marker size by section 2.3.2.
+    overlap_part = (grouping.flags[table.label] & (fl.SPLIT_UL | fl.SPLIT_UR)) != 0
+    testable = (table.pixels >= params.long_wide_min_pixels) & ~overlap_part
     wide = testable & (ratio < params.min_ratio)
     long = testable & (ratio > params.max_ratio)
     idx = np.flatnonzero(wide | long)
     if idx.size == 0:
         return grouping
     is_wide = wide[idx]
-    k = np.where(is_wide, np.floor(1 / ratio[idx] + 0.5), np.floor(ratio[idx] + 0.5))
+    box_ratio = h[idx] * params.pixel_aspect / w[idx]
+    k = np.where(is_wide, np.floor(1 / box_ratio + 0.5), np.floor(box_ratio + 0.5))
     k = np.maximum(k, 2).astype(np.int64)
     kmax = int(k.max())
     j = np.arange(kmax)[None, :]
@@ -255,28 +338,3 @@ def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
     )
     small = table.pixels < params.min_pixels
     return np.where(large, fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)
-
-
-def analyse(runs: Runs, params: DetectionParams) -> tuple[Grouping, GroupTable]:
-    """Noise removal then the switched-on advanced tests, in the paper's order.
-
-    Returns the final grouping and its measured table (one row per remaining group).
-    """
-    from kisscal.detect.noise import noise_groups
-
-    grouping = Grouping.start(runs)
-    table = measure_groups(grouping.runs)
-    noise = noise_groups(table, params)
-    if noise.any():
-        grouping = grouping.keep_groups(table.label[noise])
-        table = measure_groups(grouping.runs)
-    if params.merge_submarkers and len(table):
-        grouping = merge_submarkers(grouping, table, params)
-        table = measure_groups(grouping.runs)
-    if params.split_overlaps and len(table):
-        grouping = overlap_split(grouping, table, params)
-        table = measure_groups(grouping.runs)
-    if params.split_long_wide and len(table):
-        grouping = long_wide_split(grouping, table, params)
-        table = measure_groups(grouping.runs)
-    return grouping, table

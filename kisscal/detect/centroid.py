@@ -1,19 +1,43 @@
-"""Intensity-weighted sub-pixel centroids (DESIGN.md centroid convention).
+"""Intensity-weighted sub-pixel centroids and spot moments (DESIGN.md centroid convention).
 
 The binary centroid of equation (2) only sees the pixels above the threshold, so it moves
 in steps as the marker's sub-pixel position changes. The weighted centroid sums
 ``(I - background)`` over the group's bounding rectangle grown by a margin, so the blurred
 rim below the threshold counts too; subtracting the background keeps the flat surround
-from pulling the centroid towards the window's centre.
+from pulling the centroid towards the window's centre. White pixels of *other* groups
+(neighbouring markers, noise pixels) inside the window are left out, and the parts of a
+split group share the window by nearest estimated centre.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.groups import GroupTable
+
+
+@dataclass(frozen=True)
+class SpotMoments:
+    """Weighted moments of each group's window: total weight, centroid, central moments.
+
+    ``core_var_x`` / ``core_var_y`` are the central moments over the group's own white
+    pixels only (same weights): insensitive to the background level and to noise in the
+    window's wide margin, which dominate the full-window second moments of small spots.
+    """
+
+    total: NDArray[np.float64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    var_x: NDArray[np.float64]
+    var_y: NDArray[np.float64]
+    cov_xy: NDArray[np.float64]
+    core_var_x: NDArray[np.float64]
+    core_var_y: NDArray[np.float64]
+    core_cov_xy: NDArray[np.float64]
 
 
 def estimate_background(image: NDArray) -> float:
@@ -29,25 +53,41 @@ def estimate_background(image: NDArray) -> float:
     return float(np.median(sample))
 
 
-def weighted_centroids(
+def owner_image(shape: tuple[int, int], grouping: Grouping) -> NDArray[np.int32]:
+    """Image of ``label + 1`` at every white pixel of a remaining group, 0 elsewhere."""
+    owner = np.zeros(shape, dtype=np.int32)  # calloc: untouched pages cost nothing
+    runs = grouping.runs
+    count = runs.length
+    run_of = np.repeat(np.arange(len(runs)), count)
+    x = runs.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
+    owner[runs.y[run_of], x] = runs.group[run_of] + 1
+    return owner
+
+
+def window_moments(
     image: NDArray,
+    white: NDArray[np.bool_],
+    owner: NDArray[np.int32],
     grouping: Grouping,
     table: GroupTable,
     margin_x_px: int,
     margin_y_px: int,
     background: float,
     pixel_aspect: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Background-subtracted intensity-weighted centroid of each group in ``table``.
+) -> SpotMoments:
+    """Background-subtracted weighted moments of each group in ``table`` over its window.
 
     Parameters
     ----------
     image : ndarray, shape (h, w)
-        Grayscale image the groups were found in.
+        Grey image (or the boolean image itself, then each own white pixel weighs 1).
+    white : ndarray of bool
+        The thresholded image: white pixels not owned by the group get no weight.
+    owner : ndarray of int32
+        :func:`owner_image` of ``grouping``.
     grouping : Grouping
-        Gives, for parts of a split group, their parent and estimated centres: a window
-        pixel counts for a part only when it is nearer its centre than any sibling's, so
-        the shared rim is divided between the overlapping markers.
+        For parts of a split group, their parent and estimated centres: a window pixel
+        counts for a part only when it is nearer its centre than any sibling's.
     table : GroupTable
         Bounding rectangles of the groups.
     margin_x_px, margin_y_px : int
@@ -59,8 +99,8 @@ def weighted_centroids(
 
     Returns
     -------
-    x, y : ndarray of float
-        Centroids in pixels; the binary centroid where the weights sum to <= 0.
+    SpotMoments
+        Centroid falls back to the binary centroid where the weights sum to <= 0.
     """
     height, width = image.shape
     n = len(table)
@@ -74,18 +114,34 @@ def weighted_centroids(
     k = np.arange(g.size) - np.repeat(np.cumsum(area) - area, area)
     ys = y0[g] + k // ncol[g]
     xs = x0[g] + k % ncol[g]
-    weight = image[ys, xs].astype(np.float64) - background
-    parent = grouping.parent[table.label]
+    own = owner[ys, xs] == table.label[g] + 1
+    if image.dtype == np.bool_:
+        weight = own.astype(np.float64)
+    else:
+        weight = image[ys, xs].astype(np.float64) - background
+        weight[white[ys, xs] & ~own] = 0.0
     split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
     if split.size:
-        weight *= _nearest_part_mask(g, xs, ys, split, parent, grouping, table, pixel_aspect)
+        weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
     total = np.bincount(g, weight, minlength=n)
-    sx = np.bincount(g, weight * xs, minlength=n)
-    sy = np.bincount(g, weight * ys, minlength=n)
     ok = total > 0
-    x = np.where(ok, sx / np.where(ok, total, 1), table.x_binary)
-    y = np.where(ok, sy / np.where(ok, total, 1), table.y_binary)
-    return x, y
+    safe = np.where(ok, total, 1.0)
+    mx = np.where(ok, np.bincount(g, weight * xs, minlength=n) / safe, table.x_binary)
+    my = np.where(ok, np.bincount(g, weight * ys, minlength=n) / safe, table.y_binary)
+    dx = xs - mx[g]
+    dy = ys - my[g]
+    var_x = np.bincount(g, weight * dx * dx, minlength=n) / safe
+    var_y = np.bincount(g, weight * dy * dy, minlength=n) / safe
+    cov = np.bincount(g, weight * dx * dy, minlength=n) / safe
+    core = weight * own
+    core_total = np.bincount(g, core, minlength=n)
+    core_safe = np.where(core_total > 0, core_total, 1.0)
+    cx = np.bincount(g, core * xs, minlength=n) / core_safe
+    cy = np.bincount(g, core * ys, minlength=n) / core_safe
+    core_var_x = np.bincount(g, core * (xs - cx[g]) ** 2, minlength=n) / core_safe
+    core_var_y = np.bincount(g, core * (ys - cy[g]) ** 2, minlength=n) / core_safe
+    core_cov = np.bincount(g, core * (xs - cx[g]) * (ys - cy[g]), minlength=n) / core_safe
+    return SpotMoments(total, mx, my, var_x, var_y, cov, core_var_x, core_var_y, core_cov)
 
 
 def _nearest_part_mask(
@@ -93,21 +149,20 @@ def _nearest_part_mask(
     xs: NDArray[np.int64],
     ys: NDArray[np.int64],
     split: NDArray[np.int64],
-    parent: NDArray[np.int64],
     grouping: Grouping,
     table: GroupTable,
     pixel_aspect: float,
 ) -> NDArray[np.float64]:
     """1.0 where a window pixel of a split part is nearer its own centre than a sibling's."""
     keep = np.ones(g.size)
+    parent = grouping.parent[table.label]
     cx = grouping.centre_x[table.label]
     cy = grouping.centre_y[table.label]
-    for p in np.unique(parent[split]):
+    for p in np.unique(parent[split]):  # one pass per split group: a few per image
         members = split[parent[split] == p]
         rows = np.isin(g, members)
         d = ((xs[rows, None] - cx[members]) / pixel_aspect) ** 2 + (
             ys[rows, None] - cy[members]
         ) ** 2
-        nearest = members[np.argmin(d, axis=1)]
-        keep[rows] = nearest == g[rows]
+        keep[rows] = members[np.argmin(d, axis=1)] == g[rows]
     return keep

@@ -61,17 +61,25 @@ class DetectionParams:
     overlap_shift_px : float
         Equation (6), second condition: minimum horizontal shift (pixels) between the
         mid-points of the top and bottom rows (the paper uses 3).
+    overlap_min_elongation : float
+        Major / minor axis ratio (round units, from the second moments of the group's white
+        pixels) at or above which a diagonally elongated group is an overlapped pair even
+        when equation (6) misses it (small spots have too few rows for it). Two round
+        markers one radius apart give about 1.4.
+    overlap_angle_deg : float
+        How far (degrees, round units) the major axis must be from both image axes for
+        that moment test; closer to an axis the long/wide test is the one that applies.
     split_long_wide : bool
         Section 2.3.3 switch.
     min_ratio, max_ratio : float
-        minR and maxR of section 2.3.3, applied to the aspect-corrected ratio
-        ``h * pixel_aspect / w`` (1 for a round marker): below ``min_ratio`` a group is wide,
-        above ``max_ratio`` long, and it is split into ``round(1 / ratio)`` or
-        ``round(ratio)`` marker-sized parts.
+        minR and maxR of section 2.3.3, applied to the aspect-corrected height-to-width
+        ratio of the spot's second moments over its white pixels (about 1 for a round
+        marker, 0.95-1.4 for small ones with blur and blooming): below ``min_ratio`` a group
+        is wide, above ``max_ratio`` long. Two markers one radius or more apart give at
+        most about 0.8-0.9 (side by side) or at least 1.5 (one above the other).
     long_wide_min_pixels : int
-        Groups with fewer white pixels are too small for the ratio to mean anything (a
-        marker two rows high has a bounding-box ratio that jumps with sub-pixel position)
-        and are not tested.
+        Groups with fewer white pixels are not tested for overlap, long or wide: their
+        shape is a handful of pixels and says nothing about how many markers they hold.
     pixel_aspect : float
         Width / height in pixels of the image of a round marker (pixel height / pixel width);
         1.94 for 4:3 frames of 752 x 582 pixels scanned as 291-line fields.
@@ -111,10 +119,12 @@ class DetectionParams:
     split_overlaps: bool = True
     overlap_ratio_max: float = 0.6
     overlap_shift_px: float = 3.0
+    overlap_min_elongation: float = 1.3
+    overlap_angle_deg: float = 20.0
     split_long_wide: bool = True
-    min_ratio: float = 0.6
-    max_ratio: float = 1.6
-    long_wide_min_pixels: int = 12
+    min_ratio: float = 0.88
+    max_ratio: float = 1.45
+    long_wide_min_pixels: int = 16
     pixel_aspect: float = 1.94
     apply_size_limits: bool = True
     max_pixels: int = 400
@@ -135,6 +145,7 @@ class DetectionParams:
             "closeness_x_px",
             "submarker_max_pixels",
             "overlap_shift_px",
+            "overlap_angle_deg",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",

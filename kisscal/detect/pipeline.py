@@ -11,9 +11,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
-from kisscal.detect.advanced import analyse, size_flags
+from kisscal.detect.advanced import (
+    Grouping,
+    elongation,
+    long_wide_split,
+    merge_submarkers,
+    overlap_split,
+    size_flags,
+)
 from kisscal.detect.blobs import Blobs
-from kisscal.detect.centroid import estimate_background, weighted_centroids
+from kisscal.detect.centroid import (
+    SpotMoments,
+    estimate_background,
+    owner_image,
+    window_moments,
+)
+from kisscal.detect.groups import measure_groups
+from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
 from kisscal.errors import KisscalError
@@ -61,10 +75,10 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     Returns
     -------
     Blobs
-        One row per group in scan order of the first pixel of the group it came from.
+        One row per group, sorted by the top-left corner of its bounding rectangle.
         Centroids are intensity-weighted (rim included, background subtracted) for grey
         images when ``params.weighted_centroid``; otherwise the binary centroid of
-        equation (2).
+        equation (2). An image without white pixels gives an empty table.
 
     Notes
     -----
@@ -78,17 +92,26 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     runs = group_runs(white, params.closeness_x_px, params.closeness_rows)
     if len(runs) == 0:
         return Blobs.empty()
-    grouping, table = analyse(runs, params)
+    background = 0.0
+    if grey:
+        background = estimate_background(image) if params.background is None else params.background
+    grouping = Grouping.start(runs)
+    table = measure_groups(grouping.runs)
+    noise = noise_groups(table, params)
+    if noise.any():
+        grouping = grouping.keep_groups(table.label[noise])
+        table = measure_groups(grouping.runs)
+    if params.merge_submarkers and len(table):
+        grouping = merge_submarkers(grouping, table, params)
+        table = measure_groups(grouping.runs)
     if len(table) == 0:
         return Blobs.empty()
-    flags = grouping.flags[table.label]
-    if params.apply_size_limits:
-        flags = flags | size_flags(table, params)
-    xb, yb = table.x_binary, table.y_binary
-    if grey and params.weighted_centroid:
-        background = estimate_background(image) if params.background is None else params.background
-        x, y = weighted_centroids(
+
+    def moments() -> SpotMoments:
+        return window_moments(
             image,
+            white,
+            owner_image(white.shape, grouping),
             grouping,
             table,
             params.centroid_margin_x_px,
@@ -96,8 +119,28 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
             background,
             params.pixel_aspect,
         )
-    else:
-        x, y = xb, yb
+
+    # Moments are recomputed only when a test actually split a group (rare).
+    spot = moments()
+    if params.split_overlaps:
+        core = (spot.x, spot.y, spot.core_var_x, spot.core_var_y, spot.core_cov_xy)
+        split = overlap_split(grouping, table, params, core)
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
+    if params.split_long_wide:
+        ratio = elongation(spot.core_var_x, spot.core_var_y, 1.0 / 12.0, params.pixel_aspect)
+        split = long_wide_split(grouping, table, params, ratio)
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
+    flags = grouping.flags[table.label]
+    if params.apply_size_limits:
+        flags = flags | size_flags(table, params)
+    xb, yb = table.x_binary, table.y_binary
+    x, y = (spot.x, spot.y) if grey and params.weighted_centroid else (xb, yb)
     order = np.lexsort((table.x1, table.y1))
     return Blobs(
         x_px=x[order],

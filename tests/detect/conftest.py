@@ -40,8 +40,7 @@ def render(
             ((xs[None, :, None, :] - cx) / r) ** 2 + ((ys[:, None, :, None] - cy) / ry) ** 2
         ) <= 1
         cover = inside.mean(axis=(2, 3))
-        image[y0 : y1 + 1, x0 : x1 + 1] = np.maximum(image[y0 : y1 + 1, x0 : x1 + 1],
-                                                     cover * peak)
+        image[y0 : y1 + 1, x0 : x1 + 1] = np.maximum(image[y0 : y1 + 1, x0 : x1 + 1], cover * peak)
     if blur_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur_px)
     image += background

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from fixtures.fig9 import INVALID, fig9_params, make_fig9, truth_xy
-from kisscal.detect import detect_blobs
 from kisscal.detect import blobs as fl
+from kisscal.detect import detect_blobs
 
 
 @pytest.fixture(scope="module")

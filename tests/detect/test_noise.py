@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-
 from conftest import render
+
 from kisscal.detect import DetectionParams, detect_blobs
 
 

@@ -66,7 +66,7 @@ def test_group_measures_match_direct_computation(rng):
     white = rng.random((30, 40)) < 0.35
     runs = group_runs(white)
     table = measure_groups(runs)
-    n, lab = cv2.connectedComponents(white.astype(np.uint8), connectivity=8)
+    _n, lab = cv2.connectedComponents(white.astype(np.uint8), connectivity=8)
     for i, label in enumerate(table.label):
         cv_label = lab[runs.y[runs.group == label][0], runs.x1[runs.group == label][0]]
         ys, xs = np.nonzero(lab == cv_label)
