@@ -184,6 +184,7 @@ def overlap_split(
     table: GroupTable,
     params: DetectionParams,
     core: tuple[NDArray[np.float64], ...] | None = None,
+    inside: NDArray[np.bool_] | None = None,
 ) -> Grouping:
     """Split ul / ur overlapped pairs (section 2.3.2, equations 4-6).
 
@@ -202,12 +203,17 @@ def overlap_split(
     elongation reaches ``overlap_min_elongation``. Two equal spots ``D`` apart add
     ``D^2 / 4`` to the major variance, so their centres are the centroid
     ``+- sqrt(major - minor)`` along the major axis.
+
+    Groups where ``inside`` is False (cut by the image border) are left alone: their shape
+    is truncated, not overlapped.
     """
     x_mu = (table.top_x1 + table.top_x2) * 0.5
     x_ml = (table.bottom_x1 + table.bottom_x2) * 0.5
     shift = x_ml - x_mu
     half_top = x_mu - table.top_x1
     big_enough = table.pixels >= params.long_wide_min_pixels
+    if inside is not None:
+        big_enough &= inside
     eq6 = (
         big_enough
         & (table.fill < params.overlap_ratio_max)
@@ -286,6 +292,7 @@ def long_wide_split(
     table: GroupTable,
     params: DetectionParams,
     ratio: NDArray[np.float64],
+    inside: NDArray[np.bool_] | None = None,
 ) -> Grouping:
     """Split long and wide groups into marker-sized parts (section 2.3.3).
 
@@ -294,12 +301,15 @@ def long_wide_split(
     ``h`` is cut into ``round(w / (h * pixel_aspect))`` (at least 2) markers of diameter
     ``h * pixel_aspect`` spread evenly from its left to its right end; a long one likewise
     from top to bottom. The other coordinate of each part is the group's binary centroid.
+    Groups where ``inside`` is False (cut by the image border) are not tested.
     """
     w = table.width.astype(float)
     h = table.height.astype(float)
     # Parts of an overlapped pair were already cut to marker size by section 2.3.2.
     overlap_part = (grouping.flags[table.label] & (fl.SPLIT_UL | fl.SPLIT_UR)) != 0
     testable = (table.pixels >= params.long_wide_min_pixels) & ~overlap_part
+    if inside is not None:
+        testable &= inside
     wide = testable & (ratio < params.min_ratio)
     long = testable & (ratio > params.max_ratio)
     idx = np.flatnonzero(wide | long)

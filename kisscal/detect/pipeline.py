@@ -26,7 +26,7 @@ from kisscal.detect.centroid import (
     owner_image,
     window_moments,
 )
-from kisscal.detect.groups import measure_groups
+from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
@@ -124,14 +124,14 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     spot = moments()
     if params.split_overlaps:
         core = (spot.x, spot.y, spot.core_var_x, spot.core_var_y, spot.core_cov_xy)
-        split = overlap_split(grouping, table, params, core)
+        split = overlap_split(grouping, table, params, core, _inside(table, white.shape))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
             spot = moments()
     if params.split_long_wide:
         ratio = elongation(spot.core_var_x, spot.core_var_y, 1.0 / 12.0, params.pixel_aspect)
-        split = long_wide_split(grouping, table, params, ratio)
+        split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
@@ -153,6 +153,12 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
         valid=(flags[order] & fl.INVALID_FLAGS) == 0,
         flags=flags[order],
     )
+
+
+def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
+    """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
+    height, width = shape
+    return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
 
 
 def _detect_one(index: int, source: Callable[[int], NDArray], params: DetectionParams) -> Blobs:

@@ -60,7 +60,7 @@ def draw_overlay(
         ax = blobs.w_px[i] * sx / 2 * one
         ay = blobs.h_px[i] * sy / 2 * one
         centre = (round(cx), round(cy))
-        cv2.ellipse(rgb, centre, (round(ax), round(ay)), 0, 0, 360, colour, 1, cv2.LINE_AA, _SHIFT)
+        cv2.ellipse(rgb, centre, (round(ax), round(ay)), 0, 0, 360, colour, 1, cv2.LINE_8, _SHIFT)
         arm = 3 * one
         cv2.line(
             rgb,
@@ -68,7 +68,7 @@ def draw_overlay(
             (centre[0] + arm, centre[1]),
             colour,
             1,
-            cv2.LINE_AA,
+            cv2.LINE_8,
             _SHIFT,
         )
         cv2.line(
@@ -77,7 +77,7 @@ def draw_overlay(
             (centre[0], centre[1] + arm),
             colour,
             1,
-            cv2.LINE_AA,
+            cv2.LINE_8,
             _SHIFT,
         )
     return rgb

@@ -32,15 +32,15 @@ def render(
     image = np.zeros((h, w))
     for (cx, cy), r in zip(centres_px, rx, strict=True):
         ry = r / ASPECT
-        x0, x1 = int(np.floor(cx - r - 1)), int(np.ceil(cx + r + 1))
-        y0, y1 = int(np.floor(cy - ry - 1)), int(np.ceil(cy + ry + 1))
+        x0, x1 = max(int(np.floor(cx - r - 1)), 0), min(int(np.ceil(cx + r + 1)), w - 1)
+        y0, y1 = max(int(np.floor(cy - ry - 1)), 0), min(int(np.ceil(cy + ry + 1)), h - 1)
         xs = np.arange(x0, x1 + 1)[:, None] + sub[None, :]
         ys = np.arange(y0, y1 + 1)[:, None] + sub[None, :]
         inside = (
             ((xs[None, :, None, :] - cx) / r) ** 2 + ((ys[:, None, :, None] - cy) / ry) ** 2
         ) <= 1
-        cover = inside.mean(axis=(2, 3))
-        image[y0 : y1 + 1, x0 : x1 + 1] = np.maximum(image[y0 : y1 + 1, x0 : x1 + 1], cover * peak)
+        patch = image[y0 : y1 + 1, x0 : x1 + 1]
+        np.maximum(patch, inside.mean(axis=(2, 3)) * peak, out=patch)
     if blur_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur_px)
     image += background
