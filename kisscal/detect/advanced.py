@@ -43,7 +43,9 @@ class Grouping:
 
     def keep_groups(self, drop_labels: NDArray[np.int64]) -> Grouping:
         """Remove every run of the given labels."""
-        keep = ~np.isin(self.runs.group, drop_labels)
+        dropped = np.zeros(self.flags.size, dtype=bool)
+        dropped[drop_labels] = True
+        keep = ~dropped[self.runs.group]
         return Grouping(self.runs.take(keep), self.flags, self.parent, self.centre_x, self.centre_y)
 
 
@@ -138,22 +140,22 @@ def split_groups(
     base = grouping.flags.size
     new_label = base + ps * k + part
     # Back to runs: a new run starts where the label, the line or column contiguity changes.
-    brk = np.r_[True, (new_label[1:] != new_label[:-1]) | (py[1:] != py[:-1])]
-    brk |= np.r_[True, px[1:] != px[:-1] + 1]
+    brk = np.ones(px.size, dtype=bool)
+    brk[1:] = (new_label[1:] != new_label[:-1]) | (py[1:] != py[:-1]) | (px[1:] != px[:-1] + 1)
     starts = np.flatnonzero(brk)
-    ends = np.r_[starts[1:], px.size] - 1
+    ends = np.append(starts[1:], px.size) - 1
     parts = Runs(py[starts], px[starts], px[ends], new_label[starts])
     n_new = labels.size * k
-    flags = np.r_[grouping.flags, np.repeat(grouping.flags[labels] | flag, k)]
-    parent = np.r_[grouping.parent, np.repeat(grouping.parent[labels], k)]
-    centre_x = np.r_[grouping.centre_x, centres_x.reshape(n_new)]
-    centre_y = np.r_[grouping.centre_y, centres_y.reshape(n_new)]
+    flags = np.concatenate([grouping.flags, np.repeat(grouping.flags[labels] | flag, k)])
+    parent = np.concatenate([grouping.parent, np.repeat(grouping.parent[labels], k)])
+    centre_x = np.concatenate([grouping.centre_x, centres_x.reshape(n_new)])
+    centre_y = np.concatenate([grouping.centre_y, centres_y.reshape(n_new)])
     # Parts keep scan order within themselves; groups need not be contiguous in Runs.
     merged = Runs(
-        np.r_[keep.y, parts.y],
-        np.r_[keep.x1, parts.x1],
-        np.r_[keep.x2, parts.x2],
-        np.r_[keep.group, parts.group],
+        np.concatenate([keep.y, parts.y]),
+        np.concatenate([keep.x1, parts.x1]),
+        np.concatenate([keep.x2, parts.x2]),
+        np.concatenate([keep.group, parts.group]),
     )
     return Grouping(merged, flags, parent, centre_x, centre_y)
 

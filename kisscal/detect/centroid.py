@@ -110,38 +110,61 @@ def window_moments(
     y1 = np.minimum(table.y2 + margin_y_px, height - 1)
     ncol = x1 - x0 + 1
     area = ncol * (y1 - y0 + 1)
+    first = np.cumsum(area) - area
     g = np.repeat(np.arange(n), area)
-    k = np.arange(g.size) - np.repeat(np.cumsum(area) - area, area)
-    ys = y0[g] + k // ncol[g]
-    xs = x0[g] + k % ncol[g]
-    own = owner[ys, xs] == table.label[g] + 1
+    k = np.arange(g.size) - first[g]
+    row, col = np.divmod(k, ncol[g])
+    ys = y0[g] + row
+    xs = x0[g] + col
+    flat = ys * width + xs
+    own = owner.ravel().take(flat) == table.label[g] + 1
     if image.dtype == np.bool_:
         weight = own.astype(np.float64)
     else:
-        weight = image[ys, xs].astype(np.float64) - background
-        weight[white[ys, xs] & ~own] = 0.0
+        weight = image.ravel().take(flat).astype(np.float64) - background
+        weight[white.ravel().take(flat) & ~own] = 0.0
     split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
     if split.size:
         weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
-    total = np.bincount(g, weight, minlength=n)
-    ok = total > 0
-    safe = np.where(ok, total, 1.0)
-    mx = np.where(ok, np.bincount(g, weight * xs, minlength=n) / safe, table.x_binary)
-    my = np.where(ok, np.bincount(g, weight * ys, minlength=n) / safe, table.y_binary)
-    dx = xs - mx[g]
-    dy = ys - my[g]
-    var_x = np.bincount(g, weight * dx * dx, minlength=n) / safe
-    var_y = np.bincount(g, weight * dy * dy, minlength=n) / safe
-    cov = np.bincount(g, weight * dx * dy, minlength=n) / safe
+    # Raw moments about each window's corner (small numbers: no cancellation), all in one
+    # segment reduction since each window's pixels are contiguous.
+    lx = col.astype(np.float64)
+    ly = row.astype(np.float64)
     core = weight * own
-    core_total = np.bincount(g, core, minlength=n)
-    core_safe = np.where(core_total > 0, core_total, 1.0)
-    cx = np.bincount(g, core * xs, minlength=n) / core_safe
-    cy = np.bincount(g, core * ys, minlength=n) / core_safe
-    core_var_x = np.bincount(g, core * (xs - cx[g]) ** 2, minlength=n) / core_safe
-    core_var_y = np.bincount(g, core * (ys - cy[g]) ** 2, minlength=n) / core_safe
-    core_cov = np.bincount(g, core * (xs - cx[g]) * (ys - cy[g]), minlength=n) / core_safe
-    return SpotMoments(total, mx, my, var_x, var_y, cov, core_var_x, core_var_y, core_cov)
+    terms = np.stack(
+        [
+            weight,
+            weight * lx,
+            weight * ly,
+            weight * lx * lx,
+            weight * ly * ly,
+            weight * lx * ly,
+            core,
+            core * lx,
+            core * ly,
+            core * lx * lx,
+            core * ly * ly,
+            core * lx * ly,
+        ]
+    )
+    sums = np.add.reduceat(terms, first, axis=1)
+    total, core_total = sums[0], sums[6]
+    ok = total > 0
+    t = np.where(ok, total, 1.0)
+    ct = np.where(core_total > 0, core_total, 1.0)
+    mx, my = sums[1] / t, sums[2] / t
+    cx, cy = sums[7] / ct, sums[8] / ct
+    return SpotMoments(
+        total=total,
+        x=np.where(ok, x0 + mx, table.x_binary),
+        y=np.where(ok, y0 + my, table.y_binary),
+        var_x=sums[3] / t - mx * mx,
+        var_y=sums[4] / t - my * my,
+        cov_xy=sums[5] / t - mx * my,
+        core_var_x=sums[9] / ct - cx * cx,
+        core_var_y=sums[10] / ct - cy * cy,
+        core_cov_xy=sums[11] / ct - cx * cy,
+    )
 
 
 def _nearest_part_mask(

@@ -79,22 +79,22 @@ def measure_groups(runs: Runs) -> GroupTable:
         e = np.zeros(0, dtype=np.int64)
         f = np.zeros(0, dtype=float)
         return GroupTable(e, e, e, e, e, e, e, f, f, e, e, e, e)
-    new_group = np.r_[True, g[1:] != g[:-1]]
+    new_group = _changes(g)
     starts = np.flatnonzero(new_group)
-    ends = np.r_[starts[1:], g.size] - 1
+    ends = _segment_ends(starts, g.size)
     length = x2 - x1 + 1
     pixels = np.add.reduceat(length, starts)
     # The mean column of a run is its mid-point (equation 3), so a run contributes
     # length * mid-point to the column sum.
     sum_x = np.add.reduceat(length * (x1 + x2) * 0.5, starts)
     sum_y = np.add.reduceat((length * y).astype(float), starts)
-    new_line = new_group | np.r_[True, y[1:] != y[:-1]]
+    new_line = new_group | _changes(y)
     line_id = np.cumsum(new_line) - 1
     line_starts = np.flatnonzero(new_line)
     rows = np.add.reduceat(new_line.astype(np.int64), starts)
     # Runs of one line are sorted by column: its first run holds the left boundary, its
     # last run the right one.
-    line_ends = np.r_[line_starts[1:], g.size] - 1
+    line_ends = _segment_ends(line_starts, g.size)
     line_x1 = x1[line_starts]
     line_x2 = x2[line_ends]
     top_line = line_id[starts]
@@ -114,3 +114,19 @@ def measure_groups(runs: Runs) -> GroupTable:
         bottom_x1=line_x1[bottom_line],
         bottom_x2=line_x2[bottom_line],
     )
+
+
+def _changes(values: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """True where a sorted segment starts: the first entry and wherever the value changes."""
+    out = np.empty(values.size, dtype=bool)
+    out[0] = True
+    np.not_equal(values[1:], values[:-1], out=out[1:])
+    return out
+
+
+def _segment_ends(starts: NDArray[np.int64], size: int) -> NDArray[np.int64]:
+    """Last index of each segment given the segments' first indices."""
+    ends = np.empty_like(starts)
+    ends[:-1] = starts[1:] - 1
+    ends[-1] = size - 1
+    return ends

@@ -48,13 +48,19 @@ def scan_runs(white: NDArray[np.bool_]) -> tuple[NDArray[np.int64], ...]:
     if rows.size == 0:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, empty
-    lines = white[rows].view(np.int8)
-    padded = np.zeros((rows.size, lines.shape[1] + 2), dtype=np.int8)
-    padded[:, 1:-1] = lines
-    step = np.diff(padded, axis=1)
-    start_line, x1 = np.nonzero(step == 1)
-    _, x2_excl = np.nonzero(step == -1)
-    return rows[start_line].astype(np.int64), x1.astype(np.int64), x2_excl.astype(np.int64) - 1
+    width = white.shape[1]
+    index = np.flatnonzero(white[rows])
+    line, x = np.divmod(index, width)
+    # Adding the line number makes pixels of different lines never consecutive, so a run
+    # is a maximal stretch of consecutive keys.
+    key = index + line
+    start = np.ones(key.size, dtype=bool)
+    np.not_equal(key[1:], key[:-1] + 1, out=start[1:])
+    first = np.flatnonzero(start)
+    last = np.empty_like(first)
+    last[:-1] = first[1:] - 1
+    last[-1] = key.size - 1
+    return rows[line[first]].astype(np.int64), x[first].astype(np.int64), x[last].astype(np.int64)
 
 
 def _neighbour_pairs(
@@ -144,5 +150,8 @@ def group_runs(
     y, x1, x2 = scan_runs(white)
     a, b = _neighbour_pairs(y, x1, x2, white.shape[1], closeness_x_px, closeness_rows)
     label = _components(y.size, a, b)
-    _, group = np.unique(label, return_inverse=True)
-    return Runs(y, x1, x2, group.astype(np.int64))
+    # Roots are the first run of their group, so numbering roots in index order numbers
+    # groups in scan order (no sort needed).
+    is_root = label == np.arange(label.size)
+    group = np.cumsum(is_root)[label] - 1
+    return Runs(y, x1, x2, group)
