@@ -75,6 +75,66 @@ def normalisation(
     return (float(c[0]), float(c[1])), float(max(hi - lo) / 2)
 
 
+def _reframe(optimal: OptimalGrid, m: NDArray[np.float64], grid: NDArray[np.float64]):
+    """The optimal grid mapped by the plane projective map ``m`` (3 x 3, px to px)."""
+    matrix = m @ optimal.matrix
+    uv = optimal.uv @ m[:2, :2].T + m[:2, 2]
+    uv = uv / (optimal.uv @ m[2, :2] + m[2, 2])[:, None]
+    aspect = optimal.pixel_aspect
+    if aspect is not None:
+        aspect = float(np.linalg.norm(matrix[1, :2]) / np.linalg.norm(matrix[0, :2]))
+    return replace(optimal, matrix=matrix, pixel_aspect=aspect, uv=uv, rms_px=rms_px(grid - uv))
+
+
+def _perspective_matrix(
+    eps: NDArray[np.float64], centre: tuple[float, float], scale: float
+) -> NDArray[np.float64]:
+    """``y -> c + (y - c) / (1 + eps · (y - c) / s)``: pure perspective about the centre."""
+    t = np.array([[1.0, 0.0, centre[0]], [0.0, 1.0, centre[1]], [0.0, 0.0, 1.0]])
+    k = np.eye(3)
+    k[2, :2] = np.asarray(eps) / scale
+    return t @ k @ np.linalg.inv(t)
+
+
+def _lens_centre_perspective(
+    grid: NDArray[np.float64],
+    optimal_uv: NDArray[np.float64],
+    centre: tuple[float, float],
+    scale: float,
+) -> NDArray[np.float64]:
+    """Perspective (2 numbers) to add to a homography optimal grid so that the anchored
+    correction has the least 2nd-order terms at the lens centre.
+
+    From a single planar view, the perspective of the grid and the quadratic part of the
+    lens correction are interchangeable up to 4th order, so the data cannot separate
+    them; the least-squares homography settles it by where the distortion happens to
+    fall, which varies by up to 0.1 px with the subset of dots found. Radial distortion
+    about the lens centre has no 2nd-order terms there, so asking for none pins the
+    perspective down by the lens instead (decentring distortion, which does have them,
+    is then partly taken for perspective: a plane projective map of the corrected image,
+    which the DLT absorbs).
+    """
+
+    def quad(eps: NDArray[np.float64]) -> NDArray[np.float64]:
+        m = _perspective_matrix(eps, centre, scale)
+        target = optimal_uv @ m[:2, :2].T + m[:2, 2]
+        target = target / (optimal_uv @ m[2, :2] + m[2, 2])[:, None]
+        lin = fit_polynomial(grid, target, centre, scale)
+        lin = compose_affine(anchor_affine(lin, centre), lin)
+        return np.concatenate([lin.x[3:6], lin.y[3:6]])
+
+    eps = np.zeros(2)
+    h = 1e-4
+    for _ in range(5):
+        q0 = quad(eps)
+        jac = np.column_stack([(quad(eps + h * e) - q0) / h for e in np.eye(2)])
+        step, *_ = np.linalg.lstsq(jac, -q0, rcond=None)
+        eps = eps + step
+        if np.abs(step).max() < 1e-10:
+            break
+    return eps
+
+
 def fit_linearisation(
     dots_uv: ArrayLike,
     index: LatticeIndex,
@@ -110,20 +170,16 @@ def fit_linearisation(
     optimal = optimal_grid(primary, pts, index, p)
     grid = pts[index.indexed]
     centre, scale = normalisation(grid, size_px)
+    if p.model == "homography" and p.perspective == "lens_centre":
+        eps = _lens_centre_perspective(grid, optimal.uv, centre, scale)
+        optimal = _reframe(optimal, _perspective_matrix(eps, centre, scale), grid)
     lin = fit_polynomial(grid, optimal.uv, centre, scale)
     if p.anchor_centre:
         # Same affine map on the polynomial and on the optimal grid: residuals unchanged
         # in meaning, the corrected frame now matches the lens centre's (see GridParams).
         a = anchor_affine(lin, centre)
         lin = compose_affine(a, lin)
-        matrix = a @ optimal.matrix
-        aspect = optimal.pixel_aspect
-        if aspect is not None:
-            aspect = float(np.linalg.norm(matrix[1, :2]) / np.linalg.norm(matrix[0, :2]))
-        uv = optimal.uv @ a[:2, :2].T + a[:2, 2]
-        optimal = replace(
-            optimal, matrix=matrix, pixel_aspect=aspect, uv=uv, rms_px=rms_px(grid - uv)
-        )
+        optimal = _reframe(optimal, a, grid)
     corrected = apply_linearisation(lin, grid)
     res = np.linalg.norm(corrected - optimal.uv, axis=1)
     row, col = index.row[index.indexed], index.col[index.indexed]

@@ -47,6 +47,12 @@ class GridParams:
         keeps the scale, pixel aspect and orientation the lens has there, instead of the
         least-squares compromise of eq. 2.1 over the distorted field, which radial
         distortion biases (by up to 0.2 px at the field edge for 10 px corner distortion).
+    perspective : {"lens_centre", "least_squares"}
+        How the ``homography`` model settles the grid's perspective, which one planar
+        view cannot separate from the quadratic part of the lens correction:
+        ``"lens_centre"`` asks the correction to have no 2nd-order terms at the centre
+        (as radial distortion has none); ``"least_squares"`` keeps the least-squares
+        homography of the distorted dots.
     """
 
     rows: int = 15
@@ -59,6 +65,7 @@ class GridParams:
     outlier_px: float = 1.0
     outlier_sigmas: float = 6.0
     anchor_centre: bool = True
+    perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
 
     def __post_init__(self) -> None:
         if self.rows < 5 or self.cols < 5:
@@ -66,6 +73,10 @@ class GridParams:
         if self.model not in ("similarity", "homography"):
             raise KisscalError(
                 f"grid model must be 'similarity' or 'homography', got {self.model!r}"
+            )
+        if self.perspective not in ("lens_centre", "least_squares"):
+            raise KisscalError(
+                f"perspective must be 'lens_centre' or 'least_squares', got {self.perspective!r}"
             )
         if self.pixel_aspect is not None and not self.pixel_aspect > 0:
             raise KisscalError(f"pixel_aspect must be positive, got {self.pixel_aspect}")

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pytest
 
 
 @dataclass(frozen=True)
@@ -109,8 +108,3 @@ def fit_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 
 def rms(d: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(np.asarray(d) ** 2, axis=-1))))
-
-
-@pytest.fixture
-def grid_view() -> GridView:
-    return make_grid_view()
