@@ -18,6 +18,7 @@ from kisscal.grid.poly import (
     apply_linearisation,
     compose_affine,
     fit_polynomial,
+    poly_terms,
 )
 from kisscal.grid.quality import leave_rows_out_rms, rms_px, straightness_rms
 
@@ -96,39 +97,68 @@ def _perspective_matrix(
     return t @ k @ np.linalg.inv(t)
 
 
+# 2nd-order patterns of a plane map in the square-pixel frame, as coefficients of
+# (du: x², xy, y²; dv: x², xy, y²). Perspective (eps1, eps2) of the grid plane moves a point
+# e by -(eps·e) e; decentring of the lens (tangential distortion p1, p2, or radial
+# distortion about a point off the centre, which has the same form) by
+# (q1 (3x² + y²) + 2 q2 xy, q2 (x² + 3y²) + 2 q1 xy).
+N_PERSPECTIVE_TERMS = 10
+_SECOND_ORDER = np.array(
+    [
+        [-1, 0, 0, 0, -1, 0],  # perspective eps1
+        [0, -1, 0, 0, 0, -1],  # perspective eps2
+        [3, 0, 1, 0, 2, 0],  # decentring q1
+        [0, 2, 0, 1, 0, 3],  # decentring q2
+    ],
+    dtype=float,
+).T
+
+
 def _lens_centre_perspective(
     grid: NDArray[np.float64],
     optimal_uv: NDArray[np.float64],
     centre: tuple[float, float],
     scale: float,
+    aspect: float,
 ) -> NDArray[np.float64]:
     """Perspective (2 numbers) to add to a homography optimal grid so that the anchored
-    correction has the least 2nd-order terms at the lens centre.
+    lens correction has no perspective-shaped 2nd-order terms at the centre.
 
-    From a single planar view, the perspective of the grid and the quadratic part of the
+    From a single planar view the perspective of the grid and the quadratic part of the
     lens correction are interchangeable up to 4th order, so the data cannot separate
     them; the least-squares homography settles it by where the distortion happens to
-    fall, which varies by up to 0.1 px with the subset of dots found. Radial distortion
-    about the lens centre has no 2nd-order terms there, so asking for none pins the
-    perspective down by the lens instead (decentring distortion, which does have them,
-    is then partly taken for perspective: a plane projective map of the corrected image,
-    which the DLT absorbs).
+    fall (and moves by up to 0.1 px with the subset of dots found). In the Brown lens
+    model the 2nd-order terms at a point near the lens centre are decentring-shaped
+    (tangential distortion, or radial distortion about a slightly different centre),
+    which differs from the perspective shape. Decomposing the correction's quadratic
+    coefficients (in the square-pixel frame, ``v`` divided by the pixel aspect) into the
+    two shapes and asking for no perspective part pins the grid's perspective down.
     """
+    to_square = np.array(
+        [1.0, aspect, aspect**2, 1.0 / aspect, 1.0, aspect]
+    )  # un^i vn^j with vn = aspect * y; dv divided by aspect
+    # Terms up to N_PERSPECTIVE_TERMS only: the quadratic coefficients of a cubic fit are
+    # less noisy than those of the quartic one, and lens quartic terms are small.
+    z = poly_terms((grid[:, 0] - centre[0]) / scale, (grid[:, 1] - centre[1]) / scale)
+    z = z[:, :N_PERSPECTIVE_TERMS]
 
-    def quad(eps: NDArray[np.float64]) -> NDArray[np.float64]:
+    def perspective_part(eps: NDArray[np.float64]) -> NDArray[np.float64]:
         m = _perspective_matrix(eps, centre, scale)
         target = optimal_uv @ m[:2, :2].T + m[:2, 2]
         target = target / (optimal_uv @ m[2, :2] + m[2, 2])[:, None]
-        lin = fit_polynomial(grid, target, centre, scale)
-        lin = compose_affine(anchor_affine(lin, centre), lin)
-        return np.concatenate([lin.x[3:6], lin.y[3:6]])
+        coef, *_ = np.linalg.lstsq(z, target, rcond=None)
+        # At the normalisation centre the linear coefficients are the Jacobian (x s);
+        # anchoring multiplies the quadratic ones by its inverse.
+        quad = (np.linalg.inv(coef[1:3].T) @ coef[3:6].T).ravel() * to_square
+        shape, *_ = np.linalg.lstsq(_SECOND_ORDER, quad, rcond=None)
+        return shape[:2]
 
     eps = np.zeros(2)
     h = 1e-4
     for _ in range(5):
-        q0 = quad(eps)
-        jac = np.column_stack([(quad(eps + h * e) - q0) / h for e in np.eye(2)])
-        step, *_ = np.linalg.lstsq(jac, -q0, rcond=None)
+        r0 = perspective_part(eps)
+        jac = np.column_stack([(perspective_part(eps + h * e) - r0) / h for e in np.eye(2)])
+        step = np.linalg.solve(jac, -r0)
         eps = eps + step
         if np.abs(step).max() < 1e-10:
             break
@@ -171,7 +201,8 @@ def fit_linearisation(
     grid = pts[index.indexed]
     centre, scale = normalisation(grid, size_px)
     if p.model == "homography" and p.perspective == "lens_centre":
-        eps = _lens_centre_perspective(grid, optimal.uv, centre, scale)
+        aspect = primary.spacing_v_px / primary.spacing_u_px / p.cell_aspect
+        eps = _lens_centre_perspective(grid, optimal.uv, centre, scale, aspect)
         optimal = _reframe(optimal, _perspective_matrix(eps, centre, scale), grid)
     lin = fit_polynomial(grid, optimal.uv, centre, scale)
     if p.anchor_centre:

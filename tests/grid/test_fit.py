@@ -27,7 +27,9 @@ def _corner_distortion(view) -> float:
     )
 
 
-@pytest.mark.parametrize("camera", [BrownCamera(k1=-0.1, k2=0.0), BrownCamera(k1=0.08, k2=0.0)])
+@pytest.mark.parametrize(
+    "camera", [BrownCamera(k1=-0.07, k2=0.0), BrownCamera(k1=0.06, k2=0.0, p1=-5e-4)]
+)
 def test_square_grid_meets_the_issue_bars(camera):
     """Grid square to the camera, thesis similarity, 0.05 px centroid noise."""
     view = make_grid_view(seed=11, camera=camera, tilt_deg=(0.0, 0.0), noise_px=0.05)
@@ -52,27 +54,51 @@ def test_straightness_improves_twenty_fold():
     assert q.straightness_rms_before_px >= 20 * q.straightness_rms_after_px
 
 
-def test_tilted_grid_needs_the_homography_model():
+@pytest.mark.parametrize(
+    "camera",
+    [BrownCamera(), BrownCamera(k1=-0.1, k2=0.0, cx=390.0, cy=150.0)],  # lens centre off
+)
+def test_tilted_grid_needs_the_homography_model(camera):
     """A grid tilted 2 degrees: its perspective must stay out of the polynomial."""
-    camera = BrownCamera()
     view = make_grid_view(seed=13, camera=camera, tilt_deg=(2.0, -1.5), noise_px=0.05)
     ideal, raw = _fov_points(camera)
     err = {}
     for model in ("similarity", "homography"):
         fit = linearise_dots(view.dots_uv, GridParams(model=model), size_px=SIZE)
-        assert fit.linearisation.quality.residual_rms_after_px <= 0.08
+        # 0.08 px is the bar at 5-8 px corner distortion; the second camera has 11 px, where
+        # the 4th-order polynomial alone leaves 0.033 px (noise-free)
+        assert fit.linearisation.quality.residual_rms_after_px <= 0.09
         corrected = apply_linearisation(fit.linearisation, raw)
         err[model] = rms(fit_similarity(ideal, corrected) - corrected)
     assert err["similarity"] > 1.0  # the tilt's keystone was taken for lens distortion
-    assert err["homography"] <= 0.15
+    assert err["homography"] <= 0.1
 
 
-def test_missing_dots_and_extra_blobs_barely_change_the_correction():
+def test_perspective_from_least_squares_is_the_weaker_choice():
+    """The least-squares homography mistakes some radial distortion for perspective."""
+    camera = BrownCamera(k1=-0.1, k2=0.0, cx=390.0, cy=150.0)
+    view = make_grid_view(seed=16, camera=camera, tilt_deg=(2.0, -1.5), noise_px=0.0)
+    ideal, raw = _fov_points(camera)
+    err = {}
+    for how in ("lens_centre", "least_squares"):
+        params = GridParams(model="homography", perspective=how)
+        corrected = apply_linearisation(
+            linearise_dots(view.dots_uv, params, SIZE).linearisation, raw
+        )
+        err[how] = rms(fit_similarity(ideal, corrected) - corrected)
+    assert err["lens_centre"] < 0.06 < 0.15 < err["least_squares"]
+
+
+@pytest.mark.parametrize(
+    ("model", "tilt_deg"), [("similarity", (0.0, 0.0)), ("homography", (2.0, -1.5))]
+)
+@pytest.mark.parametrize("seed", [0, 3])
+def test_missing_dots_and_extra_blobs_barely_change_the_correction(model, tilt_deg, seed):
     camera = BrownCamera(k1=-0.08, k2=0.0)
-    view = make_grid_view(seed=14, camera=camera, tilt_deg=(0.0, 0.0), noise_px=0.05)
-    params = GridParams()
+    view = make_grid_view(seed=seed, camera=camera, tilt_deg=tilt_deg, noise_px=0.05)
+    params = GridParams(model=model)
     full = linearise_dots(view.dots_uv, params, size_px=SIZE).linearisation
-    rng = np.random.default_rng(14)
+    rng = np.random.default_rng(seed)
     keep = np.ones(300, dtype=bool)
     keep[rng.choice(300, 15, replace=False)] = False
     extra = rng.uniform([0, 0], [SIZE[0] - 1, SIZE[1] - 1], size=(10, 2))
