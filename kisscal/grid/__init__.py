@@ -8,7 +8,7 @@ Küçük 2005, section 2.2 and 3.3.2; Shafiq et al. 2001, section 3.2. Typical u
 """
 
 from kisscal.grid.fit import GridFit, fit_linearisation, linearise_dots, normalisation
-from kisscal.grid.frames import average_frames, dots_from_frames
+from kisscal.grid.frames import average_frames, dots_from_frames, linearise_frames
 from kisscal.grid.lattice import LatticeIndex, index_lattice, lattice_vectors
 from kisscal.grid.optimal import OptimalGrid, PrimaryGrid, optimal_grid, primary_grid
 from kisscal.grid.params import GridParams
@@ -45,6 +45,7 @@ __all__ = [
     "leave_rows_out_rms",
     "line_distances",
     "linearise_dots",
+    "linearise_frames",
     "normalisation",
     "optimal_grid",
     "poly_terms",

@@ -9,6 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import KisscalError
+from kisscal.grid.fit import GridFit, linearise_dots
+from kisscal.grid.params import GridParams
 
 if TYPE_CHECKING:  # detection is a sibling stage; imported only where it is used
     from kisscal.detect import DetectionParams
@@ -61,3 +63,30 @@ def dots_from_frames(
     blobs = detect_blobs(image, detection or DetectionParams())
     ok = np.asarray(blobs.valid, dtype=bool)
     return np.column_stack([blobs.x_px[ok], blobs.y_px[ok]]).astype(float)
+
+
+def linearise_frames(
+    frames: Sequence[NDArray],
+    params: GridParams | None = None,
+    detection: DetectionParams | None = None,
+) -> GridFit:
+    """The whole grid stage for one camera: frames -> averaged image -> dots -> linearisation.
+
+    Parameters
+    ----------
+    frames : sequence of ndarray, shape (h, w)
+        Grey frames of the grid (one camera); their shape gives the image size used for
+        the normalisation.
+    params : GridParams, optional
+        Grid size, optimal-grid model, tolerances.
+    detection : DetectionParams, optional
+        Detection thresholds.
+
+    Returns
+    -------
+    GridFit
+        ``fit.linearisation`` is what ``out/linearisation/<camera>.json`` stores.
+    """
+    dots = dots_from_frames(frames, detection)
+    h, w = np.asarray(frames[0]).shape
+    return linearise_dots(dots, params, size_px=(w, h))
