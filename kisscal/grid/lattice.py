@@ -130,48 +130,64 @@ def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
 _STEPS = ((0, 1), (0, -1), (1, 0), (-1, 0))
 
 
+def _predict(
+    key: tuple[int, int],
+    at: dict[tuple[int, int], int],
+    pts: NDArray[np.float64],
+    e_col: NDArray[np.float64],
+    e_row: NDArray[np.float64],
+) -> NDArray[np.float64] | None:
+    """Predicted position of lattice position ``key`` from the dots indexed around it.
+
+    Every local rule that applies votes: linear extrapolation along a row or column
+    (``2 p[k-d] - p[k-2d]``) and the parallelogram of two neighbours and their common
+    diagonal neighbour (``p[k-d1] + p[k-d2] - p[k-d1-d2]``); both follow the slow bending
+    of the lattice under lens distortion. The median of the votes keeps one wrongly
+    accepted blob from steering the growth. With a single indexed neighbour, the global
+    lattice vector is used.
+    """
+    r, c = key
+    votes = []
+    for dr, dc in _STEPS:
+        a, b = (r - dr, c - dc), (r - 2 * dr, c - 2 * dc)
+        if a in at and b in at:
+            votes.append(2 * pts[at[a]] - pts[at[b]])
+    for dr in (1, -1):
+        for dc in (1, -1):
+            a, b, d = (r - dr, c), (r, c - dc), (r - dr, c - dc)
+            if a in at and b in at and d in at:
+                votes.append(pts[at[a]] + pts[at[b]] - pts[at[d]])
+    if votes:
+        return np.median(np.array(votes), axis=0)
+    for dr, dc in _STEPS:
+        a = (r - dr, c - dc)
+        if a in at:
+            return pts[at[a]] + dr * e_row + dc * e_col
+    return None
+
+
 def _grow(
     pts: NDArray[np.float64],
     tree: cKDTree,
     seed: int,
     e_col: NDArray[np.float64],
     e_row: NDArray[np.float64],
-    match_tol: float,
+    tol_px: float,
 ) -> dict[tuple[int, int], int]:
     """Breadth-first growth of the lattice from a seed dot; returns {(row, col): dot}."""
     at: dict[tuple[int, int], int] = {(0, 0): seed}
     taken = np.zeros(len(pts), dtype=bool)
     taken[seed] = True
     queue = deque([(0, 0)])
-    default = {(0, 1): e_col, (1, 0): e_row}
     while queue:
         r, c = queue.popleft()
-        p = pts[at[(r, c)]]
         for dr, dc in _STEPS:
             key = (r + dr, c + dc)
             if key in at:
                 continue
-            ar, ac = abs(dr), abs(dc)
-            # Local step along this axis: from the nearest known pair on this line or,
-            # failing that, on the two parallel lines beside it (follows the bending).
-            step = None
-            for off in (0, 1, -1):
-                base = (r + ac * off, c + ar * off)
-                for lo in (
-                    (base[0] - ar, base[1] - ac),
-                    (base[0], base[1]),
-                ):
-                    hi = (lo[0] + ar, lo[1] + ac)
-                    if lo in at and hi in at:
-                        step = pts[at[hi]] - pts[at[lo]]
-                        break
-                if step is not None:
-                    break
-            if step is None:
-                step = default[(ar, ac)]
-            pred = p + (dr + dc) * step
+            pred = _predict(key, at, pts, e_col, e_row)
             dist, j = tree.query(pred)
-            if dist <= match_tol * np.linalg.norm(step) and not taken[j]:
+            if dist <= tol_px and not taken[j]:
                 at[key] = int(j)
                 taken[j] = True
                 queue.append(key)
@@ -254,7 +270,7 @@ def index_lattice(dots_uv: ArrayLike, params: GridParams | None = None) -> Latti
         if np.all(d <= tol):
             seed = int(i)
             break
-    at = _grow(pts, tree, seed, e_col, e_row, p.match_tol)
+    at = _grow(pts, tree, seed, e_col, e_row, tol)
 
     keys = np.array(list(at.keys()), dtype=np.int64)
     idx = np.array(list(at.values()), dtype=np.int64)
