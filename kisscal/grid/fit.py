@@ -55,6 +55,40 @@ class GridFit:
         """The indexed dots after linearisation."""
         return apply_linearisation(self.linearisation, self.grid_uv)
 
+    def warnings(self, max_residual_px: float = 0.1, max_cv_ratio: float = 2.0) -> list[str]:
+        """One-line warnings a technician should read before using this linearisation.
+
+        Parameters
+        ----------
+        max_residual_px : float
+            Fit residual (RMS, px) above which the dots or the detection are suspect.
+        max_cv_ratio : float
+            Leave-one-row-out residual over fit residual above which the polynomial is
+            following noise (over-fitting).
+        """
+        q = self.linearisation.quality
+        out = []
+        if q is None:
+            return out
+        if q.dots_missing:
+            where = ", ".join(f"({r},{c})" for r, c in self.index.missing_rc[:8])
+            more = " ..." if q.dots_missing > 8 else ""
+            out.append(f"{q.dots_missing} grid dots missing at (row,col) {where}{more}")
+        if q.blobs_rejected:
+            out.append(f"{q.blobs_rejected} blobs were not grid dots and were ignored")
+        if q.residual_rms_after_px > max_residual_px:
+            out.append(
+                f"grid residual {q.residual_rms_after_px:.3f} px RMS exceeds "
+                f"{max_residual_px} px: check focus and dot detection"
+            )
+        if q.cv_rms_px > max_cv_ratio * q.residual_rms_after_px:
+            out.append(
+                f"leave-one-row-out residual {q.cv_rms_px:.3f} px is more than {max_cv_ratio:g}x "
+                f"the fit residual {q.residual_rms_after_px:.3f} px: the polynomial may be "
+                "over-fitting; use a grid that fills the view"
+            )
+        return out
+
 
 def normalisation(
     dots_uv: ArrayLike, size_px: tuple[int, int] | None = None

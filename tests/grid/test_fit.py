@@ -30,18 +30,20 @@ def _corner_distortion(view) -> float:
 @pytest.mark.parametrize(
     "camera", [BrownCamera(k1=-0.07, k2=0.0), BrownCamera(k1=0.06, k2=0.0, p1=-5e-4)]
 )
-def test_square_grid_meets_the_issue_bars(camera):
-    """Grid square to the camera, thesis similarity, 0.05 px centroid noise."""
+@pytest.mark.parametrize("model", ["similarity", "homography"])
+def test_square_grid_meets_the_issue_bars(camera, model):
+    """Grid square to the camera, 0.05 px centroid noise, 6-8 px corner distortion."""
     view = make_grid_view(seed=11, camera=camera, tilt_deg=(0.0, 0.0), noise_px=0.05)
     assert np.abs(view.distorted_uv - view.ideal_uv).max() >= 5.0
-    fit = linearise_dots(view.dots_uv, GridParams(model="similarity"), size_px=SIZE)
+    fit = linearise_dots(view.dots_uv, GridParams(model=model), size_px=SIZE)
     q = fit.linearisation.quality
     assert q.residual_rms_after_px <= 0.08
     assert q.residual_rms_before_px > 20 * q.residual_rms_after_px
     # cross-validation: no over-fitting with 300 dots and 15 terms per axis
     assert q.cv_rms_px < 1.5 * q.residual_rms_after_px
-    # the fitted pixel aspect is the camera's fy / fx
-    assert q.pixel_aspect == pytest.approx(camera.fy / camera.fx, rel=1e-3)
+    if model == "similarity":  # the fitted pixel aspect is the camera's fy / fx
+        assert q.pixel_aspect == pytest.approx(camera.fy / camera.fx, rel=1e-3)
+    assert fit.warnings() == []
     ideal, raw = _fov_points(camera)
     corrected = apply_linearisation(fit.linearisation, raw)
     assert rms(fit_similarity(ideal, corrected) - corrected) <= 0.15
@@ -122,3 +124,13 @@ def test_fit_without_image_size_normalises_on_the_dots():
     np.testing.assert_allclose(lin.center_px, (lo + hi) / 2)
     assert lin.scale_px == pytest.approx(max(hi - lo) / 2)
     assert lin.quality.residual_rms_after_px < 0.08
+
+
+def test_warnings_name_missing_dots_and_blobs():
+    view = make_grid_view(seed=17)
+    dots = np.vstack([view.dots_uv[2:], [[3.0, 280.0]]])
+    warnings = linearise_dots(dots, size_px=SIZE).warnings()
+    assert warnings[0] == "2 grid dots missing at (row,col) (0,0), (0,1)"
+    assert warnings[1] == "1 blobs were not grid dots and were ignored"
+    noisy = make_grid_view(seed=17, noise_px=0.3)
+    assert "exceeds 0.1 px" in " ".join(linearise_dots(noisy.dots_uv, size_px=SIZE).warnings())
