@@ -73,8 +73,9 @@ def hatze_violation(L: ArrayLike) -> float:
     With ``a = (L1, L2, L3)``, ``b = (L5, L6, L7)``, ``c = (L9, L10, L11)`` the constraint
     is ``(a.c)(b.c) = (a.b)(c.c)``. The returned value is
     ``((a.c)(b.c) - (a.b)(c.c)) / (|a| |b| |c|^2)``, dimensionless; it equals
-    ``-skew * fv / (|a| |b|)`` so it vanishes exactly for a zero-skew camera and is about
-    ``-skew / fu`` otherwise.
+    ``-skew * fv / (|a| |b|)`` (with ``|a| = sqrt(fu^2 + skew^2 + u0^2)``,
+    ``|b| = sqrt(fv^2 + v0^2)`` once ``|c| = 1``), so it vanishes exactly for a zero-skew
+    camera and is of the order of ``skew / fu`` otherwise.
     """
     L = np.asarray(L, dtype=float)
     a, b, c = L[0:3], L[4:7], L[8:11]

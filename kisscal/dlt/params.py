@@ -155,6 +155,14 @@ class RodMatch:
     missing: tuple[str, ...]
     unused_blobs: NDArray[np.int64]
 
+    def marker_uv(self, uv_px: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Pixel coordinates per rod marker, shape (n_rods, n_markers, 2), NaN if not found."""
+        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        out = np.full((*self.blob_index.shape, 2), np.nan)
+        found = self.blob_index >= 0
+        out[found] = uv[self.blob_index[found]]
+        return out
+
     def control_points(
         self, uv_px: NDArray[np.float64], rods: tuple[Rod, ...]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[str, ...]]:

@@ -27,7 +27,7 @@ A rod configuration is refused up front when its spacings are not projectively d
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
@@ -170,10 +170,10 @@ def validate_rods(rods: Sequence[Rod], params: DltParams = DEFAULT_PARAMS) -> No
     if len(rods) < 2:
         return
     d = rod_distinctness(rods, n_full, params.rods_upright)
-    ia, ib = np.unravel_index(np.argmin(d), d.shape)
+    ia, ib = sorted(np.unravel_index(np.argmin(d), d.shape))
     if d[ia, ib] < params.rod_min_distinct:
         raise KisscalError(
-            f"rods: marker spacings are not unique: rods {rods[ib].name} and {rods[ia].name} "
+            f"rods: marker spacings are not unique: rods {rods[ia].name} and {rods[ib].name} "
             f"differ by only {d[ia, ib]:.2%} of the rod length under perspective "
             f"(need {params.rod_min_distinct:.1%}); give every rod its own spacing pattern"
         )
@@ -272,7 +272,8 @@ class _Candidate:
     rod: int
     blobs: NDArray[np.int64]  # blob index per rod marker, -1 if not matched
     rms_px: float
-    shifted_rival: bool = False  # another ordering of the same line fits as well
+    # Blob sets of other orderings of the same line that fit as well (shifted patterns)
+    rivals: list[set[int]] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -298,7 +299,7 @@ def _line_candidates(
             continue
         best = assign[0].copy()
         n0 = int((best >= 0).sum())
-        shifted = False
+        rivals = []
         for a, r, g in zip(assign[1:], rms[1:], gap[1:], strict=True):
             if int((a >= 0).sum()) != n0 or r >= _near(rms[0], params):
                 continue
@@ -309,7 +310,7 @@ def _line_candidates(
                 int(np.flatnonzero(a == b)[0]) != int(np.flatnonzero(best == b)[0])
                 for b in same_markers
             ):
-                shifted = True
+                rivals.append({int(line[x]) for x in a[a >= 0]})
                 continue
             # Otherwise another blob stands in for some marker(s): keep the nearer blob
             # only when it is clearly nearer, else leave that marker unidentified.
@@ -318,7 +319,7 @@ def _line_candidates(
                 if best[i] >= 0 and g[i] < _near(gap[0][i], params):
                     best[i] = -1
         blobs = np.where(best >= 0, line[np.maximum(best, 0)], -1)
-        out.append(_Candidate(ir, blobs, float(rms[0]), shifted))
+        out.append(_Candidate(ir, blobs, float(rms[0]), rivals))
     return out
 
 
@@ -409,12 +410,13 @@ def _check_ambiguity(
     """Refuse when a rival explains a chosen rod's markers as well (never guess silently)."""
     for ia, a in chosen.items():
         name = rods[ia].name
-        if a.shifted_rival:
+        others = set().union(*(c.blob_set for i, c in chosen.items() if i != ia))
+        # A rival ordering that borrows blobs another rod explains is no rival.
+        if any(not (r - a.blob_set) & others for r in a.rivals):
             raise KisscalError(
                 f"camera {camera}: the markers of rod {name} fit two different orderings "
                 "equally well; refusing to guess"
             )
-        others = set().union(*(c.blob_set for i, c in chosen.items() if i != ia))
         for c in cands:
             if c is a or c.n != a.n or c.rms_px >= _near(a.rms_px, params):
                 continue
