@@ -32,7 +32,7 @@ def test_recognition_on_20_rigs_with_noise_and_a_hidden_marker(seed):
 
 def test_control_points_and_marker_uv(rig):
     rng = np.random.default_rng(2)
-    blobs, truth = rod_image(rig, 0, rng, hide=7)
+    blobs, _ = rod_image(rig, 0, rng, hide=7)
     match = recognise_rods(blobs, rig.rods)
     xyz, uv, labels = match.control_points(blobs, rig.rods)
     assert len(xyz) == len(uv) == len(labels) == 23
@@ -61,7 +61,7 @@ def test_spacings_that_are_not_unique_are_refused():
     scaled = 1900 - 0.8 * (1900 - z)
     rods = make_rods([("A", [[0, 0, v] for v in z]), ("B", [[0, 1400, v] for v in scaled])])
     assert rod_distinctness(rods, 6)[0, 1] < 1e-9
-    with pytest.raises(KisscalError, match="rods B and A|rods A and B"):
+    with pytest.raises(KisscalError, match=r"rods A and B"):
         recognise_rods(np.zeros((12, 2)), rods)
 
 
@@ -99,7 +99,7 @@ def test_rod_config_errors():
 
 def test_tolerances_are_parameters(rig):
     rng = np.random.default_rng(9)
-    blobs, truth = rod_image(rig, 1, rng, noise_px=1.5)
+    blobs, _ = rod_image(rig, 1, rng, noise_px=1.5)
     strict = recognise_rods(blobs, rig.rods, DltParams(rod_fit_tol_px=0.2, rod_line_tol_px=0.2))
     assert len(strict.missing) > 0
 
