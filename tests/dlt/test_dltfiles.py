@@ -72,7 +72,8 @@ def test_dltdv_round_trip(rig, tmp_path):
 
 def test_dltdv_with_header_and_bad_rows(rig, tmp_path):
     path = tmp_path / "coefs.csv"
-    rows = ["left,right"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(rig.L[0], rig.L[1], strict=True)]
+    pairs = zip(rig.L[0].tolist(), rig.L[1].tolist(), strict=True)
+    rows = ["left,right"] + [f"{a!r},{b!r}" for a, b in pairs]
     path.write_text("\n".join(rows) + "\n")
     back = read_dltdv_csv(path)
     assert list(back) == ["left", "right"]
