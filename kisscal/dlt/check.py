@@ -40,7 +40,7 @@ def triangulate_dlt(
     Returns
     -------
     xyz_mm : ndarray, shape (N, 3)
-        NaN for points seen by fewer than two cameras.
+        NaN for points seen by fewer than two cameras or with (nearly) parallel rays.
     n_cameras : ndarray of int, shape (N,)
     """
     L = np.asarray(L, dtype=float)
@@ -61,9 +61,12 @@ def triangulate_dlt(
     xyz = np.full((uv.shape[1], 3), np.nan)
     for it in range(iterations + 1):
         Aw = A * w[..., None]
-        AtA = np.einsum("cni,cnj->nij", Aw, Aw)[ok]
-        Atb = np.einsum("cni,cn->ni", Aw, b * w)[ok]
-        xyz[ok] = np.linalg.solve(AtA, Atb[..., None])[..., 0]
+        AtA = np.einsum("cni,cnj->nij", Aw, Aw)
+        Atb = np.einsum("cni,cn->ni", Aw, b * w)
+        if it == 0:
+            # Rays (nearly) parallel, e.g. cameras at one place: the point is undetermined.
+            ok[ok] = np.linalg.cond(AtA[ok]) < 1e12
+        xyz[ok] = np.linalg.solve(AtA[ok], Atb[ok][..., None])[..., 0]
         if it < iterations:
             den = np.einsum("ci,ni->cn", L[:, 8:11], np.nan_to_num(xyz)) + 1.0
             w = np.concatenate([seen / den, seen / den], axis=0)

@@ -52,3 +52,10 @@ def test_leave_one_rod_out_reports_each_rod():
     assert exact.overall_max_mm < 1e-6
     refined = leave_one_rod_out(muv, rig.rods, DltParams(mdlt=True, refine=True))
     assert np.isfinite(refined.overall_mean_mm)
+
+
+def test_parallel_rays_give_nan_not_an_exception(rig):
+    xyz = rod_xyz(rig)
+    uv = np.stack([project(rig.L[0], xyz)] * 3)
+    rec, n_cam = triangulate_dlt(np.stack([rig.L[0]] * 3), uv)
+    assert np.isnan(rec).all() and np.all(n_cam == 3)
