@@ -6,6 +6,8 @@ Typical use for one camera (arrays only; reading and writing files is :mod:`kiss
     match = recognise_rods(uv_px, rods, params, camera)  # linearised blobs of a rod image
     xyz, uv, labels = match.control_points(uv_px, rods)
     result = calibrate_camera(xyz, uv, params, camera)   # DltResult
+
+or for the whole rig at once: ``calibrate_rods({camera: blobs_px, ...}, rods, params)``.
 """
 
 from kisscal.dlt.calibrate import calibrate_camera
@@ -15,6 +17,7 @@ from kisscal.dlt.linear import reprojection_residuals, rms_px, solve_dlt
 from kisscal.dlt.model import dlt_from_krt, dlt_to_matrix, matrix_to_dlt, project
 from kisscal.dlt.nonlinear import correct_lens, refine_dlt, solve_mdlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult, Rod, RodCheck, RodMatch
+from kisscal.dlt.rig import RodCalibration, calibrate_rods
 from kisscal.dlt.rods import make_rods, recognise_rods, rod_distinctness, validate_rods
 
 __all__ = [
@@ -22,9 +25,11 @@ __all__ = [
     "DltParams",
     "DltResult",
     "Rod",
+    "RodCalibration",
     "RodCheck",
     "RodMatch",
     "calibrate_camera",
+    "calibrate_rods",
     "compose_dlt",
     "correct_lens",
     "decompose_dlt",

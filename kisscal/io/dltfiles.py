@@ -242,3 +242,45 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
         cam: DltFile(camera=cam, L=_eleven(table[:, i], f"{path}: column {i + 1}"))
         for i, cam in enumerate(names)
     }
+
+
+CONTROL_COLUMNS = ("u_px", "v_px", "x_mm", "y_mm", "z_mm")
+
+
+def read_control_points_csv(
+    path: str | Path,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[str, ...]]:
+    """Read ``[calibration] points`` control points of one camera (DESIGN.md).
+
+    Columns ``u_px,v_px,x_mm,y_mm,z_mm`` (raw pixel coordinates, not yet linearised) and
+    optionally ``label``; other columns are an error, so typos are not silently ignored.
+
+    Returns
+    -------
+    uv_px : ndarray, shape (N, 2)
+    xyz_mm : ndarray, shape (N, 3)
+    labels : tuple of str
+        The ``label`` column, or ``P1``, ``P2``, ... .
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: control point file not found") from None
+    reader = csv.DictReader(text.splitlines())
+    fields = [f.strip() for f in reader.fieldnames or []]
+    missing = [c for c in CONTROL_COLUMNS if c not in fields]
+    unknown = [f for f in fields if f not in (*CONTROL_COLUMNS, "label")]
+    if missing or unknown:
+        raise KisscalError(
+            f"{path}: control points need columns {','.join(CONTROL_COLUMNS)}[,label]"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; unknown {', '.join(unknown)}" if unknown else "")
+        )
+    rows = [{k.strip(): v for k, v in r.items()} for r in reader]
+    try:
+        table = np.array([[float(r[c]) for c in CONTROL_COLUMNS] for r in rows]).reshape(-1, 5)
+    except (TypeError, ValueError):
+        raise KisscalError(f"{path}: control point coordinates must be numbers") from None
+    labels = tuple((r.get("label") or f"P{i + 1}").strip() for i, r in enumerate(rows))
+    return table[:, :2], table[:, 2:], labels

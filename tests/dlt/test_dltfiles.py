@@ -81,3 +81,26 @@ def test_dltdv_with_header_and_bad_rows(rig, tmp_path):
     path.write_text("\n".join(rows[:8]) + "\n")
     with pytest.raises(KisscalError, match="expected 11 rows"):
         read_dltdv_csv(path)
+
+
+def test_control_points_csv(rig, tmp_path):
+    from kisscal.io.dltfiles import read_control_points_csv
+
+    xyz = rod_xyz(rig)
+    uv = project(rig.L[0], xyz)
+    path = tmp_path / "cam1.csv"
+    lines = ["label,u_px,v_px,x_mm,y_mm,z_mm"]
+    lines += [
+        f"F{i},{u!r},{v!r},{x!r},{y!r},{z!r}"
+        for i, (u, v, x, y, z) in enumerate(np.hstack([uv, xyz]).tolist())
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    uv2, xyz2, labels = read_control_points_csv(path)
+    np.testing.assert_array_equal(uv2, uv)
+    np.testing.assert_array_equal(xyz2, xyz)
+    assert labels[3] == "F3"
+    result = calibrate_camera(xyz2, uv2, DltParams())
+    assert result.rms_px < 1e-6
+    path.write_text("u_px,v_px,x_mm,y_mm,zz_mm\n1,2,3,4,5\n")
+    with pytest.raises(KisscalError, match="missing z_mm; unknown zz_mm"):
+        read_control_points_csv(path)
