@@ -62,11 +62,10 @@ def fundamental_from_dlt(L_i: ArrayLike, L_j: ArrayLike) -> NDArray[np.float64]:
     P_j = dlt_to_matrix(L_j)
     C_i = np.append(camera_centre_mm(L_i), 1.0)
     e_j = P_j @ C_i
-    F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
-    norm = np.linalg.norm(F)
-    if norm == 0:
+    if np.linalg.norm(e_j) <= 1e-9 * np.linalg.norm(P_j) * np.linalg.norm(C_i):
         raise KisscalError("two cameras share a projection centre: no epipolar geometry")
-    return F / norm
+    F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
+    return F / np.linalg.norm(F)
 
 
 def epipolar_lines(F: ArrayLike, uv_i: ArrayLike) -> NDArray[np.float64]:
