@@ -11,12 +11,15 @@ import itertools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from kisscal.dlt.model import project
 from kisscal.errors import KisscalError
-from kisscal.recon.epipolar import all_fundamentals, candidate_pairs, distance_matrix_px
+from kisscal.recon.epipolar import (
+    all_fundamentals,
+    candidate_pairs,
+    distance_matrix_px,
+    field_pairs,
+)
 from kisscal.recon.group import merge_groups, split_or_drop
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.triangulate import triangulate_observations
@@ -139,6 +142,68 @@ def _two_camera(
     return marker
 
 
+def _project_rows(
+    dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Project point k into camera ``camera[k]``, for many (camera, point) rows at once."""
+    L = dlts[camera]
+    den = np.einsum("ij,ij->i", L[:, 8:11], xyz) + 1.0
+    u = (np.einsum("ij,ij->i", L[:, 0:3], xyz) + L[:, 3]) / den
+    v = (np.einsum("ij,ij->i", L[:, 4:7], xyz) + L[:, 7]) / den
+    return np.column_stack([u, v])
+
+
+def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
+    order = np.lexsort((np.arange(len(key)), score, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    return order[first]
+
+
+def _extend_all(
+    marker: NDArray[np.int64],
+    new_ids: NDArray[np.int64],
+    new_xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    radius_px: float,
+) -> None:
+    """Extend new markers to their other cameras (Shafiq et al. 2001, 4.1), all at once.
+
+    Each free blob within ``radius_px`` of a new marker's projection in the blob's camera,
+    where the marker has no blob yet, is a candidate; closest first, a blob joins one
+    marker and a marker takes one blob per camera. ``marker`` is updated in place.
+    """
+    n_cam = len(dlts)
+    free = np.flatnonzero(marker < 0)
+    if len(free) == 0 or len(new_ids) == 0:
+        return
+    rows = np.flatnonzero(np.isin(marker, new_ids))
+    has = np.zeros((len(new_ids), n_cam), dtype=bool)
+    slot = np.searchsorted(new_ids, marker[rows])
+    has[slot, camera[rows]] = True
+    m_field = np.zeros(len(new_ids), dtype=np.int64)
+    m_field[slot] = field[rows]
+    fo = np.argsort(field[free], kind="stable")
+    free = free[fo]
+    mo = np.argsort(m_field, kind="stable")
+    fi, mi = field_pairs(field[free], m_field[mo])
+    b, m = free[fi], mo[mi]
+    lacking = ~has[m, camera[b]]
+    b, m = b[lacking], m[lacking]
+    if len(b) == 0:
+        return
+    d = np.linalg.norm(uv[b] - _project_rows(dlts, camera[b], new_xyz[m]), axis=1)
+    near = d <= radius_px
+    b, m, d = b[near], m[near], d[near]
+    keep = _first_per_key(b, d)  # a blob joins its closest marker
+    b, m, d = b[keep], m[keep], d[keep]
+    keep = _first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
+    marker[b[keep]] = new_ids[m[keep]]
+
+
 def match_triple(
     field: ArrayLike,
     camera: ArrayLike,
@@ -147,15 +212,16 @@ def match_triple(
     params: ReconParams = DEFAULT_PARAMS,
     F: NDArray[np.float64] | None = None,
 ) -> NDArray[np.int64]:
-    """Triple matching over a whole trial (Küçük 2005, 3.3.5-3.3.7).
+    """Triple matching over a whole trial (Küçük 2005, 3.3.5-3.3.7), vectorised.
 
     Three blobs of three cameras form a triple when every one lies within the epipolar band
     of the other two's lines (eq. 3.9) and their 3-camera DLT solution reprojects within
-    ``max_rms_px``. Triples sharing blobs are one 3D point group (the thesis' "clouds");
-    a group holding at most one blob per camera is one marker, triangulated from all its
-    blobs. A group claiming two blobs of one camera (two markers bridged by a ghost triple,
-    or an overlap) is resolved greedily: best triple first, extended to the group's other
-    cameras within ``search_radius_px`` of its projection, blobs used once.
+    ``max_rms_px``. Triples become markers best (lowest ``rms_px``) first, each blob used
+    once: in rounds, every triple that is the best remaining triple of all three of its
+    blobs is accepted (the same outcome as taking them one by one), then extended to the
+    cameras it lacks with the free blob nearest its projection within ``search_radius_px``.
+    Finally 3D points of one field closer than ``group_radius_mm`` that do not conflict are
+    united (3.3.7) and markers over ``max_rms_px`` are split or dropped.
 
     Parameters
     ----------
@@ -195,46 +261,23 @@ def match_triple(
             camera[tri].ravel(),
             uv[tri].reshape(-1, 2),
             len(tri),
-            0,  # a filter only: the linear solution is close enough to judge a triple
+            0,  # the linear solution is close enough to rank triples and seed markers
         )
         good = t.rms_px <= params.max_rms_px
         tri, tri_rms, tri_xyz = tri[good], t.rms_px[good], t.xyz_mm[good]
-    if len(tri):
-        src = np.concatenate([tri[:, 0], tri[:, 1]])
-        dst = np.concatenate([tri[:, 1], tri[:, 2]])
-        graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n, n))
-        _, label = connected_components(graph, directed=False)
-        in_group = np.zeros(n, dtype=bool)
-        in_group[tri.ravel()] = True
-        n_cam = len(dlts)
-        per_cam = np.bincount(
-            label[in_group] * n_cam + camera[in_group], minlength=(label.max() + 1) * n_cam
-        ).reshape(-1, n_cam)
-        conflict = (per_cam > 1).any(axis=1)
-        clean = in_group & ~conflict[label]
-        marker[clean] = label[clean]
-        next_id = int(label.max()) + 1
-        tri_label = label[tri[:, 0]]
-        bad = conflict[tri_label]
-        if bad.any():
-            btri, brms, bxyz, blab = tri[bad], tri_rms[bad], tri_xyz[bad], tri_label[bad]
-            srt = np.lexsort((brms, blab))
-            btri, bxyz, blab = btri[srt], bxyz[srt], blab[srt]
-            cuts = np.flatnonzero(np.r_[True, blab[1:] != blab[:-1], True])
-            for s, e in itertools.pairwise(cuts):
-                group_rows = np.unique(btri[s:e])
-                for k in range(s, e):
-                    if (marker[btri[k]] >= 0).any():
-                        continue
-                    free = group_rows[marker[group_rows] < 0]
-                    members = {int(camera[r]): int(r) for r in btri[k]}
-                    rows = _extend(
-                        members, bxyz[k], free, camera, uv, dlts, params.search_radius_px
-                    )
-                    rows = _accept(rows, camera, uv, dlts, params, 3)
-                    if rows:
-                        marker[rows] = next_id
-                        next_id += 1
+    next_id = 0
+    while len(tri):
+        tid = np.repeat(np.arange(len(tri)), 3)
+        best_of_blob = np.full(n, -1, dtype=np.int64)
+        first = _first_per_key(tri.ravel(), tri_rms[tid])
+        best_of_blob[tri.ravel()[first]] = tid[first]
+        won = np.all(best_of_blob[tri] == np.arange(len(tri))[:, None], axis=1)
+        ids = next_id + np.arange(int(won.sum()))
+        next_id += len(ids)
+        marker[tri[won]] = ids[:, None]
+        _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
+        alive = np.all(marker[tri] < 0, axis=1)
+        tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
     if params.allow_two_camera:
         marker = _two_camera(marker, pa, pb, pd, camera, uv, dlts, params)
     return _finish(marker, field, camera, uv, dlts, params)
