@@ -141,27 +141,29 @@ def merge_groups(
             k = parent[k]
         return k
 
-    dist = np.linalg.norm(pts[idx[pairs[:, 0]]] - pts[idx[pairs[:, 1]]], axis=1)
-    for p, q in idx[pairs[np.argsort(dist)]]:
+    pairs = idx[pairs]
+    dist = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
+    pairs = pairs[np.argsort(dist, kind="stable")]
+    bp, bq = blob[pairs[:, 0]], blob[pairs[:, 1]]
+    compatible = ~np.any((bp >= 0) & (bq >= 0) & (bp != bq), axis=1)
+    pairs, bp, bq = pairs[compatible], bp[compatible], bq[compatible]
+    if len(pairs) == 0:
+        return marker
+    # judge every candidate union in one batch; chains of unions are rare (a marker split
+    # in three) and are re-checked by the caller's residual limit
+    union = np.where(bp >= 0, bp, bq)
+    k, cam = np.nonzero(union >= 0)
+    obs = union[k, cam]
+    t = triangulate_observations(dlts, k, camera[obs], uv[obs], len(pairs), reweight_iterations)
+    for (p, q), ok in zip(pairs, t.rms_px <= max_rms_px, strict=True):
         rp, rq = root(int(p)), root(int(q))
-        if rp == rq:
+        if not ok or rp == rq:
             continue
-        bp, bq = blob[rp], blob[rq]
-        if np.any((bp >= 0) & (bq >= 0) & (bp != bq)):
+        brp, brq = blob[rp], blob[rq]
+        if np.any((brp >= 0) & (brq >= 0) & (brp != brq)):
             continue
-        union = np.where(bp >= 0, bp, bq)
-        obs = union[union >= 0]
-        t = triangulate_observations(
-            dlts,
-            np.zeros(len(obs), dtype=np.int64),
-            camera[obs],
-            uv[obs],
-            1,
-            reweight_iterations,
-        )
-        if not t.rms_px[0] <= max_rms_px:
-            continue
+        merged = np.where(brp >= 0, brp, brq)
         parent[rq] = rp
-        blob[rp] = union
-        marker[obs] = rp
+        blob[rp] = merged
+        marker[merged[merged >= 0]] = rp
     return renumber(marker, field)

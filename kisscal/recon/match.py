@@ -292,17 +292,7 @@ def _finish(
     params: ReconParams,
 ) -> NDArray[np.int64]:
     min_cameras = 2 if params.allow_two_camera else 3
-    marker = split_or_drop(
-        marker,
-        field,
-        camera,
-        uv,
-        dlts,
-        params.max_rms_px,
-        min_cameras,
-        params.reweight_iterations,
-    )
-    return merge_groups(
+    marker = merge_groups(
         marker,
         field,
         camera,
@@ -310,6 +300,16 @@ def _finish(
         dlts,
         params.group_radius_mm,
         params.max_rms_px,
+        params.reweight_iterations,
+    )
+    return split_or_drop(
+        marker,
+        field,
+        camera,
+        uv,
+        dlts,
+        params.max_rms_px,
+        min_cameras,
         params.reweight_iterations,
     )
 
