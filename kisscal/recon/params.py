@@ -43,7 +43,8 @@ class ReconParams:
     stationary_filter : bool
         Remove stationary false detections (Küçük 2005, 3.3.1) before matching.
     stationary_radius_px : float
-        Neighbourhood radius (px) within which detections count as "the same place".
+        Neighbourhood (px) within which detections count as "the same place" (a square
+        window of half-side ``ceil(stationary_radius_px)`` pixels).
     stationary_fraction : float
         A detection is stationary if blobs sit within ``stationary_radius_px`` of it in more
         than this fraction of the trial's fields (0..1).

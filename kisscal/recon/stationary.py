@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from kisscal.errors import KisscalError
 
@@ -33,7 +32,8 @@ def stationary_mask(
     uv : array_like, shape (n, 2)
         Pixel coordinates (px).
     radius_px : float
-        Neighbourhood radius (px): detections closer than this are "at the same place".
+        Neighbourhood (px): detections in the square of half-side ``ceil(radius_px)``
+        pixels around a detection's pixel are "at the same place".
     fraction : float
         A detection is stationary if more than ``fraction`` of the trial's fields hold a
         detection of the same camera within ``radius_px`` of it.
@@ -54,11 +54,19 @@ def stationary_mask(
     if len(field) == 0:
         return mask
     n_fields = len(np.unique(field))
+    half = int(np.ceil(radius_px))
     for cam in np.unique(camera):
         rows = np.flatnonzero(camera == cam)
-        tree = cKDTree(uv[rows])
-        # Counting neighbours (not distinct fields) is exact unless two detections of one
-        # field lie within radius_px of each other, which the detector has already merged.
-        counts = tree.query_ball_point(uv[rows], r=radius_px, return_length=True)
-        mask[rows] = counts > fraction * n_fields
+        # the thesis' detections-per-pixel count: an image of counts, summed over the
+        # neighbourhood with an integral image, read back at each detection's pixel
+        ij = np.rint(uv[rows]).astype(np.int64)
+        ij -= ij.min(axis=0) - half
+        w, h = ij.max(axis=0) + half + 1
+        counts = np.bincount(ij[:, 1] * w + ij[:, 0], minlength=w * h).reshape(h, w)
+        integral = np.zeros((h + 1, w + 1), dtype=np.int64)
+        integral[1:, 1:] = counts.cumsum(axis=0).cumsum(axis=1)
+        u0, u1 = ij[:, 0] - half, ij[:, 0] + half + 1
+        v0, v1 = ij[:, 1] - half, ij[:, 1] + half + 1
+        near = integral[v1, u1] - integral[v0, u1] - integral[v1, u0] + integral[v0, u0]
+        mask[rows] = near > fraction * n_fields
     return mask
