@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import KisscalError
 from kisscal.recon.epipolar import all_fundamentals, epipolar_lines
+from kisscal.recon.reconstruct import Points3D
 
 
 def clip_lines(lines: NDArray[np.float64], width: int, height: int) -> NDArray[np.float64]:
@@ -115,3 +116,48 @@ def epipolar_figure(
     if title:
         fig.suptitle(title)
     return fig
+
+
+def trial_field_figure(
+    points: Points3D,
+    field_index: int,
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv: ArrayLike,
+    dlts: ArrayLike,
+    size_px: list[tuple[int, int]] | tuple[int, int],
+    camera_ids: list[str] | None = None,
+) -> Figure:
+    """:func:`epipolar_figure` of one field of a reconstructed trial.
+
+    Parameters
+    ----------
+    points : Points3D
+        Result of :func:`kisscal.recon.reconstruct_trial` on the table (field, camera, uv).
+    field_index : int
+        The field to draw.
+    field, camera, uv : array_like
+        The long-format 2D table the points came from (linearised px).
+    dlts, size_px, camera_ids
+        As for :func:`epipolar_figure`.
+    """
+    field = np.asarray(field)
+    camera = np.asarray(camera)
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    n_cam = len(np.asarray(dlts))
+    rows = [np.flatnonzero((field == field_index) & (camera == c)) for c in range(n_cam)]
+    local = {int(r): (c, k) for c in range(n_cam) for k, r in enumerate(rows[c])}
+    matches: dict[int, dict[int, int]] = {}
+    for r, (c, k) in local.items():
+        if points.marker[r] >= 0 and not points.stationary[r]:
+            matches.setdefault(int(points.marker[r]), {})[c] = k
+    n_still = int(sum(points.stationary[r].sum() for r in rows))
+    return epipolar_figure(
+        [uv[r] for r in rows],
+        dlts,
+        size_px,
+        list(matches.values()),
+        camera_ids,
+        title=f"field {field_index}: {len(matches)} markers"
+        + (f", {n_still} stationary blobs" if n_still else ""),
+    )

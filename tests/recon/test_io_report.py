@@ -12,7 +12,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.points3d import blob_index_in_field, read_points3d, write_trial_points
 from kisscal.recon import ReconParams, match_field, reconstruct_trial
 from kisscal.recon.epipolar import epipolar_lines, fundamental_from_dlt
-from kisscal.report.epipolar import clip_lines, epipolar_figure
+from kisscal.report.epipolar import clip_lines, epipolar_figure, trial_field_figure
 
 from .rig import make_rig, make_table, random_markers
 
@@ -75,3 +75,15 @@ def test_epipolar_figure_has_one_panel_per_camera_with_all_lines() -> None:
         assert len(ax.collections[0].get_segments()) == 5 * 5
     with pytest.raises(KisscalError):
         epipolar_figure(points[:3], dlts, (752, 291))
+
+
+def test_trial_field_figure_colours_the_reconstructed_markers(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    dlts = make_rig(3)
+    xyz = random_markers(rng, 30, 6)
+    field, camera, uv, _, _ = make_table(rng, dlts, xyz, n_leds=1)
+    pts = reconstruct_trial(field, camera, uv, dlts)
+    fig = trial_field_figure(pts, 4, field, camera, uv, dlts, (752, 291))
+    assert fig.texts[0].get_text().startswith(f"field 4: {int((pts.field == 4).sum())} markers")
+    fig.savefig(tmp_path / "epi.png")
+    assert (tmp_path / "epi.png").stat().st_size > 10_000
