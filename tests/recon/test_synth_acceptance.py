@@ -56,3 +56,13 @@ def test_thrown_marker_gives_gravity(seed: int) -> None:
     trial = make_trial("throw", seed)
     g = thrown_g_m_s2(reconstruct(trial, ReconParams()), trial)
     assert abs(g - G_M_S2) / G_M_S2 < 0.005  # seed 003: 9.724, 0.8 % off
+
+
+def test_leds_sit_on_epipoles_so_the_stationary_filter_is_needed() -> None:
+    # a camera's LED seen by another camera is that pair's epipole: every epipolar line of
+    # the first camera passes through it, so unfiltered LEDs make consistent ghost triples
+    trial = make_trial("walk", 5, n_fields=60, noise_blobs=0)
+    on = score(reconstruct(trial, ReconParams()), trial.xyz, trial.visible)
+    off = score(reconstruct(trial, ReconParams(stationary_filter=False)), trial.xyz, trial.visible)
+    assert on.n_ghosts == 0
+    assert off.n_ghosts > 0.01 * off.n_points
