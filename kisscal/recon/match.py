@@ -12,7 +12,6 @@ import itertools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.model import project
 from kisscal.errors import KisscalError
 from kisscal.recon.epipolar import (
     all_fundamentals,
@@ -40,6 +39,24 @@ def _check_table(
     return field, camera, uv
 
 
+def _solve_one(
+    L: NDArray[np.float64], uv: NDArray[np.float64], reweight_iterations: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One point from its rows of DLT parameters ``L`` (n, 11) and pixels ``uv`` (n, 2):
+    the eq. 10 least-squares solution (+ reweighted steps) and each observation's residual.
+    The per-field strategy calls this thousands of times, so it avoids batch overheads."""
+    lower = L[:, 8:11]
+    A = np.concatenate([L[:, 0:3] - uv[:, :1] * lower, L[:, 4:7] - uv[:, 1:] * lower])
+    b = np.concatenate([uv[:, 0] - L[:, 3], uv[:, 1] - L[:, 7]])
+    w = np.ones(len(b))
+    for _ in range(reweight_iterations + 1):
+        xyz = np.linalg.lstsq(A * w[:, None], b * w, rcond=None)[0]
+        den = lower @ xyz + 1.0
+        w = np.concatenate([1.0 / den, 1.0 / den])
+    res = (L[:, [0, 1, 2, 4, 5, 6]].reshape(-1, 2, 3) @ xyz + L[:, [3, 7]]) / den[:, None] - uv
+    return xyz, np.hypot(res[:, 0], res[:, 1])
+
+
 def _accept(
     rows: list[int],
     camera: NDArray[np.int64],
@@ -52,17 +69,10 @@ def _accept(
     rows = list(rows)
     while len(rows) >= min_cameras:
         r = np.asarray(rows)
-        t = triangulate_observations(
-            dlts,
-            np.zeros(len(r), dtype=np.int64),
-            camera[r],
-            uv[r],
-            1,
-            params.reweight_iterations,
-        )
-        if t.rms_px[0] <= params.max_rms_px:
+        _, res = _solve_one(dlts[camera[r]], uv[r], params.reweight_iterations)
+        if np.sqrt(np.mean(res**2)) <= params.max_rms_px:
             return rows
-        rows.pop(int(np.nanargmax(t.residual_px)))
+        rows.pop(int(np.argmax(res)))
     return []
 
 
@@ -82,7 +92,7 @@ def _extend(
         if int(k) in members:
             continue
         cand = free_rows[camera[free_rows] == k]
-        d = np.linalg.norm(uv[cand] - project(dlts[k], xyz), axis=1)
+        d = np.linalg.norm(uv[cand] - _project_rows(dlts, camera[cand], xyz[None, :]), axis=1)
         best = int(np.argmin(d))
         if d[best] <= radius_px:
             rows.append(int(cand[best]))
@@ -329,15 +339,17 @@ def _transfer_ok(
     parallel (collinear camera centres), where the line intersection is not.
     """
     r = np.asarray(rows)
-    pairs = np.array([[1, 2], [0, 2], [0, 1]])
-    obs = r[pairs].ravel()
-    t = triangulate_observations(dlts, np.repeat(np.arange(3), 2), camera[obs], uv[obs], 3, 0)
-    for k in range(3):
-        if not np.all(np.isfinite(t.xyz_mm[k])):
-            return False, t.xyz_mm[0]
-        if np.linalg.norm(project(dlts[camera[r[k]]], t.xyz_mm[k]) - uv[r[k]]) > radius_px:
-            return False, t.xyz_mm[0]
-    return True, t.xyz_mm.mean(axis=0)
+    L = dlts[camera[r]]
+    points = []
+    for k, (i, j) in enumerate(((1, 2), (0, 2), (0, 1))):
+        xyz, _ = _solve_one(L[[i, j]], uv[r[[i, j]]], 0)
+        if not np.all(np.isfinite(xyz)):
+            return False, xyz
+        d = _project_rows(dlts, camera[r[k : k + 1]], xyz[None, :])[0] - uv[r[k]]
+        if np.hypot(d[0], d[1]) > radius_px:
+            return False, xyz
+        points.append(xyz)
+    return True, np.mean(points, axis=0)
 
 
 def match_central(
