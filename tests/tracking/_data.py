@@ -95,16 +95,14 @@ def gait_truth(n_fields: int, seed: int = 0, speed_mm_s: float = 1300.0) -> np.n
 
 def template(rotation_deg: float = 0.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Standing-pose template (15, 3), rotated about Z and moved (any frame)."""
-    t = np.zeros(1)
     pel = np.array([[-110.0, 0.0, 40.0], [60.0, -125.0, 30.0], [60.0, 125.0, 30.0]])
-    right = _leg(t, -np.pi / 2, -1.0)[0] * 0  # placeholder shape
     # Standing: hip, knee flex, foot angles zero.
     legs = []
     for side in (-1.0, 1.0):
         y = side * 90.0
         hip = np.array([0.0, y, -70.0])
-        knee = hip + [0, 0, -420.0]
-        ankle = knee + [0, 0, -410.0]
+        knee = hip + np.array([0, 0, -420.0])
+        ankle = knee + np.array([0, 0, -410.0])
         lat = np.array([0.0, side, 0.0])
         legs.append(
             np.stack(
@@ -113,13 +111,12 @@ def template(rotation_deg: float = 0.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
                     knee + 55 * lat,
                     0.5 * (knee + ankle) + 50 * lat,
                     ankle + 40 * lat,
-                    ankle + [-55.0, 0, -45.0],
-                    ankle + [150.0, 0, -60.0],
+                    ankle + np.array([-55.0, 0, -45.0]),
+                    ankle + np.array([150.0, 0, -60.0]),
                 ]
             )
         )
-    del right
-    pts = np.concatenate([pel, *legs]) + [0, 0, 950.0]
+    pts = np.concatenate([pel, *legs]) + np.array([0, 0, 950.0])
     a = np.deg2rad(rotation_deg)
     rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
     return pts @ rz.T + np.asarray(offset)
