@@ -196,21 +196,25 @@ def refine_by_swaps(
 
     best = cost(p)
     for _ in range(max_passes):
-        improved = False
+        # Steepest descent: take the best single exchange of the pass, so that one very
+        # wrong pair is fixed before the search wanders off after small gains.
+        step = (best, None)
         for a in range(p.size):
-            options = [("swap", b) for b in range(a + 1, p.size)]
-            options += [("move", j) for j in np.setdiff1d(np.arange(n_names), p)]
-            for kind, other in options:
+            for b in range(a + 1, p.size):
                 q = p.copy()
-                if kind == "swap":
-                    q[a], q[other] = p[other], p[a]
-                else:
-                    q[a] = other
+                q[a], q[b] = p[b], p[a]
                 c = cost(q)
-                if c < best - 1e-9:
-                    best, p, improved = c, q, True
-        if not improved:
+                if c < step[0] - 1e-9:
+                    step = (c, q)
+            for j in np.setdiff1d(np.arange(n_names), p):
+                q = p.copy()
+                q[a] = j
+                c = cost(q)
+                if c < step[0] - 1e-9:
+                    step = (c, q)
+        if step[1] is None:
             break
+        best, p = step
     assign[rows] = p
     return assign
 

@@ -32,9 +32,10 @@ class TrackingParams:
     gate_k_mm_per_field : tuple of float
         Velocity threshold ``k`` per axis (mm/field) below which the gate keeps its
         minimum half-width ``m*k``.
-    coast_gate_growth : float
-        While a track coasts, its gate grows by this fraction of itself per missed field, for
-        the prediction error of an accelerating marker grows with every field predicted.
+    coast_accel_mm_per_field2 : float
+        Largest acceleration per axis (mm/field²) the gate allows for while a track coasts:
+        after n missed fields the gate grows by a (n+1)²/2 - a/2, the drift of a constant-
+        velocity prediction from a marker accelerating at a (5 mm/field² = 12.5 m/s² at 50 Hz).
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
@@ -47,6 +48,10 @@ class TrackingParams:
     max_coasted_fields : int
         Consecutive fields without a point in the gate after which a Kalman track ends (the
         predicted position stands in for the missing point meanwhile).
+    min_reacquired_fields : int
+        After coasting, a track must find points in this many consecutive fields for them
+        to count; shorter runs (typically ghosts caught by a coasting gate after the marker
+        left the view) are removed from the track.
     blend_gap_fields : int
         Largest number of missing fields between the end of one track piece and the start of
         another for automatic blending (Shafiq et al. 2001 §4.3 use two fields).
@@ -81,11 +86,12 @@ class TrackingParams:
     initial_error: float = 1.0
     gate_m: tuple[float, float, float] = (0.6, 0.6, 0.6)
     gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
-    coast_gate_growth: float = 0.5
+    coast_accel_mm_per_field2: float = 5.0
     initial_gate_mm: float = 60.0
     initial_gate_factor: float = 0.6
     min_initial_length: int = 3
     max_coasted_fields: int = 5
+    min_reacquired_fields: int = 3
     blend_gap_fields: int = 2
     blend_tolerance_mm: float = 20.0
     min_track_length: int = 10

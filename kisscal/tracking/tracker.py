@@ -37,7 +37,7 @@ _FAR = 1e12
 
 
 def associate(
-    predicted: NDArray, half_width: NDArray, points: NDArray
+    predicted: NDArray, half_width: NDArray, points: NDArray, extra_cost: NDArray | None = None
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """One-to-one assignment of points to track gates.
 
@@ -46,6 +46,8 @@ def associate(
     predicted : (T, 3) predicted positions (mm).
     half_width : (T, 3) gate half-widths per axis (mm).
     points : (M, 3) candidate points (mm).
+    extra_cost : (T, M) array, optional
+        Added to the cost of each pair (e.g. a look-ahead term).
 
     Returns
     -------
@@ -63,6 +65,8 @@ def associate(
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
     cost = np.einsum("tmc,tmc->tm", scaled, scaled)
+    if extra_cost is not None:
+        cost = cost + extra_cost
     sub_inside = inside[np.ix_(rows_any, cols_any)]
     sub = np.where(sub_inside, cost[np.ix_(rows_any, cols_any)], _FAR)
     r, c = linear_sum_assignment(sub)
@@ -97,6 +101,26 @@ class _Live:
         self.cov = np.concatenate([self.cov, np.zeros((k, 2, 2))])
         self.kalman = np.concatenate([self.kalman, np.zeros(k, dtype=bool)])
         self.misses = np.concatenate([self.misses, np.zeros(k, dtype=np.int64)])
+
+
+def lookahead_cost(
+    start: NDArray, candidates: NDArray, later: NDArray, half_width: float
+) -> NDArray[np.float64]:
+    """Cost of continuing one-point tracks through each candidate, judged one field on.
+
+    A track with one point has no velocity, so its nearest next point may be another
+    marker (a heel marker moving into the place an ankle marker just left). Offline, the
+    field after next is known: the pair (start, candidate) is extrapolated linearly
+    (thesis eq. 3.11) and the squared distance of the nearest point there, in units of
+    ``half_width``, is the cost (capped at 4 when nothing is near).
+
+    Returns (T, M) for ``start`` (T, 3), ``candidates`` (M, 3), ``later`` (K, 3).
+    """
+    if later.shape[0] == 0:
+        return np.zeros((start.shape[0], candidates.shape[0]))
+    ahead = 2.0 * candidates[None, :, :] - start[:, None, :]  # (T, M, 3)
+    d2 = ((ahead[:, :, None, :] - later[None, None, :, :]) ** 2).sum(axis=3).min(axis=2)
+    return np.minimum(d2 / half_width**2, 4.0)
 
 
 def _check_points(field: ArrayLike, xyz_mm: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -143,6 +167,7 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         return make_tracks(e, e, np.empty((0, 3)), np.empty((0, 3)), e, e)
     first, last = int(sorted_field[0]), int(sorted_field[-1])
     starts = np.searchsorted(sorted_field, np.arange(first, last + 2))
+    n_span = last - first + 1
 
     m_axes = np.asarray(params.gate_m)
     k_axes = np.asarray(params.gate_k_mm_per_field)
@@ -177,9 +202,8 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
                     live.state[kal], live.cov[kal], params.pnc
                 )
                 pred[kal] = live.state[kal, :, 0]
-                half[kal] = gate_half_width(live.state[kal, :, 1], m_axes, k_axes) * (
-                    1.0 + params.coast_gate_growth * live.misses[kal, None]
-                )
+                drift = 0.5 * params.coast_accel_mm_per_field2 * ((live.misses[kal] + 1) ** 2 - 1)
+                half[kal] = gate_half_width(live.state[kal, :, 1], m_axes, k_axes) + drift[:, None]
             ini = ~kal
             if ini.any():
                 pred[ini] = extrapolate(live.history[ini], live.n[ini])
@@ -188,13 +212,21 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
                     params.initial_gate_factor * step, 0.5 * params.initial_gate_mm
                 )
                 half[ini & (live.n == 1)] = params.initial_gate_mm
-            # Kalman tracks choose first; initial tracks take from what is left.
-            for tier in (kal, ini):
+            # Kalman tracks choose first; initial tracks take from what is left, those
+            # with a velocity before those of one point.
+            single = ini & (live.n == 1)
+            for tier in (kal, ini & ~single, single):
                 rows = np.flatnonzero(tier)
                 if rows.size == 0:
                     continue
                 free = np.flatnonzero(~taken)
-                r, c = associate(pred[rows], half[rows], points[free])
+                extra = None
+                if tier is single and free.size:
+                    later = xyz[order[starts[f - first + 1] : starts[min(f - first + 2, n_span)]]]
+                    extra = lookahead_cost(
+                        pred[rows], points[free], later, 0.5 * params.initial_gate_mm
+                    )
+                r, c = associate(pred[rows], half[rows], points[free], extra)
                 hit[rows[r]] = True
                 hit_point[rows[r]] = free[c]
                 taken[free[c]] = True
@@ -255,7 +287,34 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         np.concatenate(rec_status),
         np.concatenate(rec_point),
     )
-    return trim_predicted_ends(tracks)
+    return drop_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+
+
+def drop_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
+    """Remove runs of fewer than ``min_run`` measured fields that follow a coasted field.
+
+    A coasting gate that catches a ghost after the marker has gone (out of view, or hidden
+    for long) would otherwise extend the track with a wrong point; a real marker found
+    again keeps being found. The removed fields become gaps (filled later, or trimmed at
+    a track's end).
+    """
+    for _ in range(8):
+        if tracks.field.size == 0 or min_run <= 1:
+            return tracks
+        meas = tracks.status == MEASURED
+        same = np.r_[False, tracks.track[1:] == tracks.track[:-1]]
+        consecutive = same & np.r_[False, np.diff(tracks.field) == 1]
+        run_start = meas & ~(consecutive & np.r_[False, meas[:-1]])
+        run_id = np.cumsum(run_start) - 1
+        run_len = np.bincount(run_id[meas], minlength=int(run_start.sum()))
+        after_coast = run_start & same & np.r_[False, tracks.status[:-1] == PREDICTED]
+        short_runs = np.zeros(run_len.size, dtype=bool)
+        short_runs[run_id[after_coast]] = run_len[run_id[after_coast]] < min_run
+        drop = meas & short_runs[np.maximum(run_id, 0)]
+        if not drop.any():
+            return tracks
+        tracks = trim_predicted_ends(tracks.select(~drop))
+    return tracks
 
 
 def trim_predicted_ends(tracks: Tracks) -> Tracks:
