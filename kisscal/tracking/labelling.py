@@ -274,6 +274,8 @@ def label_tracks(
     dense = tracks.positions()
     present = np.isfinite(dense[..., 0])
     rich = _rich_fields(present)
+    if rich.size == 0:  # never three tracks at once: no body to match
+        return Labelling(tracks, generic, False, (), names, float("nan"))
     if rich.size > params.label_fields:
         rich = rich[np.linspace(0, rich.size - 1, params.label_fields).round().astype(int)]
     # Core: tracks seen in most rich fields. Their median pairwise distances over the

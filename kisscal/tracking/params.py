@@ -36,6 +36,10 @@ class TrackingParams:
         Largest acceleration per axis (mm/field²) the gate allows for while a track coasts:
         after n missed fields the gate grows by a (n+1)²/2 - a/2, the drift of a constant-
         velocity prediction from a marker accelerating at a (5 mm/field² = 12.5 m/s² at 50 Hz).
+    lag_widening : bool
+        Widen each Kalman gate per axis by the distance between the filter's prediction and
+        Shafiq's five-point parabola through the track's last positions, so that filters
+        with little process noise (which lag accelerating markers) keep their tracks.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
@@ -50,11 +54,13 @@ class TrackingParams:
         predicted position stands in for the missing point meanwhile).
     min_reacquired_fields : int
         After coasting, a track must find points in this many consecutive fields for them
-        to count; shorter runs (typically ghosts caught by a coasting gate after the marker
-        left the view) are removed from the track.
+        to stay on it; shorter runs (typically ghosts caught by a coasting gate after the
+        marker left the view) are split off as pieces of their own, for blending to decide.
     blend_gap_fields : int
         Largest number of missing fields between the end of one track piece and the start of
-        another for automatic blending (Shafiq et al. 2001 §4.3 use two fields).
+        another for automatic blending (Shafiq et al. 2001 §4.3 use two fields; the
+        continuity check guards longer gaps, which ghost run splits and flickering
+        visibility at the edge of the volume create).
     blend_tolerance_mm : float
         Largest distance between a piece's first (last) point and the other piece's
         extrapolation for the continuity of a blend to be accepted.
@@ -87,12 +93,13 @@ class TrackingParams:
     gate_m: tuple[float, float, float] = (0.6, 0.6, 0.6)
     gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
     coast_accel_mm_per_field2: float = 5.0
+    lag_widening: bool = True
     initial_gate_mm: float = 60.0
     initial_gate_factor: float = 0.6
-    min_initial_length: int = 3
+    min_initial_length: int = 5
     max_coasted_fields: int = 5
-    min_reacquired_fields: int = 3
-    blend_gap_fields: int = 2
+    min_reacquired_fields: int = 5
+    blend_gap_fields: int = 5
     blend_tolerance_mm: float = 20.0
     min_track_length: int = 10
     max_fill_gap_fields: int = 25

@@ -57,9 +57,8 @@ def build_trajectories(
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
-    Steps: :func:`track_points` (Küçük 2005 §3.3.8-3.3.9); removal of initial tracks that
-    never reached ``min_initial_length`` points (the thesis initialises Kalman filters only
-    on those that do); :func:`blend_tracks` and :func:`clean_up` (Shafiq et al. 2001 §4.3);
+    Steps: :func:`track_points` (Küçük 2005 §3.3.8-3.3.9); :func:`blend_tracks` and
+    :func:`clean_up` (Shafiq et al. 2001 §4.3);
     :func:`label_tracks` (joins pieces that take the same name); :func:`fill_gaps`; and
     :func:`smooth_tracks` when ``params.smoothing``.
 
@@ -75,8 +74,7 @@ def build_trajectories(
     """
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
-    pieces = clean_up(raw, params.with_(min_track_length=params.min_initial_length))
-    blended = clean_up(blend_tracks(pieces, params), params)
+    blended = clean_up(blend_tracks(raw, params), params)
     labelling = label_tracks(blended, names, params, template_mm)
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)

@@ -204,6 +204,12 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
                 pred[kal] = live.state[kal, :, 0]
                 drift = 0.5 * params.coast_accel_mm_per_field2 * ((live.misses[kal] + 1) ** 2 - 1)
                 half[kal] = gate_half_width(live.state[kal, :, 1], m_axes, k_axes) + drift[:, None]
+                if params.lag_widening:
+                    # A filter with little process noise lags an accelerating marker; the
+                    # distance from its prediction to Shafiq's five-point parabola through
+                    # the track's last positions measures that lag, and widens the gate.
+                    parabola = extrapolate(live.history[kal], live.n[kal])
+                    half[kal] += np.abs(parabola - pred[kal])
             ini = ~kal
             if ini.any():
                 pred[ini] = extrapolate(live.history[ini], live.n[ini])
@@ -287,16 +293,16 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         np.concatenate(rec_status),
         np.concatenate(rec_point),
     )
-    return drop_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+    return split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
 
 
-def drop_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
-    """Remove runs of fewer than ``min_run`` measured fields that follow a coasted field.
+def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
+    """Split off runs of fewer than ``min_run`` measured fields that follow a coasted field.
 
     A coasting gate that catches a ghost after the marker has gone (out of view, or hidden
-    for long) would otherwise extend the track with a wrong point; a real marker found
-    again keeps being found. The removed fields become gaps (filled later, or trimmed at
-    a track's end).
+    for long) would otherwise extend the track with wrong points, while a real marker found
+    again keeps being found. Such a run becomes a piece of its own: blending reconnects it
+    if it continues the track, the clean-up removes it if not.
     """
     for _ in range(8):
         if tracks.field.size == 0 or min_run <= 1:
@@ -310,10 +316,22 @@ def drop_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
         after_coast = run_start & same & np.r_[False, tracks.status[:-1] == PREDICTED]
         short_runs = np.zeros(run_len.size, dtype=bool)
         short_runs[run_id[after_coast]] = run_len[run_id[after_coast]] < min_run
-        drop = meas & short_runs[np.maximum(run_id, 0)]
-        if not drop.any():
+        split = meas & short_runs[np.maximum(run_id, 0)]
+        if not split.any():
             return tracks
-        tracks = trim_predicted_ends(tracks.select(~drop))
+        # New piece numbers for the split runs, beyond every existing number.
+        new_track = np.where(split, tracks.n_tracks + run_id, tracks.track)
+        # Predictions between the track and the split run now end the track: drop them.
+        tracks = trim_predicted_ends(
+            make_tracks(
+                tracks.field,
+                new_track,
+                tracks.xyz_mm,
+                tracks.corrected_mm,
+                tracks.status,
+                tracks.point,
+            )
+        )
     return tracks
 
 
