@@ -1,0 +1,128 @@
+"""Atomic file writing and long-format CSV tables.
+
+Every output is written to a temporary file in the same folder and moved into place
+with :func:`os.replace`, so a crash never leaves a half-written file that a later run
+would trust.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import os
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from kisscal.errors import KisscalError
+
+
+@contextlib.contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; move it onto ``path`` if the block succeeds."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def write_text(path: Path, text: str) -> None:
+    write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path: Path, obj: object) -> None:
+    write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
+
+
+def _json_default(obj: object) -> object:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot write {type(obj).__name__} to JSON")
+
+
+def _format(value: object) -> str:
+    if isinstance(value, (float, np.floating)):
+        if not np.isfinite(value):
+            return ""
+        return f"{value:.6f}".rstrip("0").rstrip(".") if value != 0 else "0"
+    if isinstance(value, (bool, np.bool_)):
+        return "1" if value else "0"
+    return str(value)
+
+
+def table_to_csv(columns: Mapping[str, object]) -> str:
+    """Format equal-length columns as CSV text (floats to 1e-6, NaN as empty)."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n]) for n in names]
+    lengths = {len(a) for a in arrays}
+    if len(lengths) > 1:
+        raise ValueError(
+            f"columns differ in length: {dict(zip(names, map(len, arrays), strict=True))}"
+        )
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
+    for row in zip(*arrays, strict=True):
+        writer.writerow([_format(v) for v in row])
+    return buf.getvalue()
+
+
+def write_table(path: Path, columns: Mapping[str, object]) -> None:
+    """Write a long-format table atomically."""
+    write_text(path, table_to_csv(columns))
+
+
+def read_table(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+    """Read a CSV table into columns (numeric columns as float arrays, others as str).
+
+    Raises :class:`KisscalError` naming the file when it is missing, empty or lacks a
+    ``required`` column.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: file not found") from None
+    except UnicodeDecodeError:
+        raise KisscalError(f"{path}: not a text CSV file") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise KisscalError(f"{path}: empty file, expected a header line")
+    header, body = rows[0], rows[1:]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise KisscalError(
+            f"{path}: missing column(s) {', '.join(missing)}; found {', '.join(header)}"
+        )
+    bad = [i + 2 for i, r in enumerate(body) if len(r) != len(header)]
+    if bad:
+        raise KisscalError(
+            f"{path}: line {bad[0]} has a different number of fields than the header"
+        )
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        col = [r[j] for r in body]
+        try:
+            out[name] = np.array([float(v) if v != "" else np.nan for v in col], dtype=float)
+        except ValueError:
+            out[name] = np.array(col, dtype=str)
+    return out

@@ -1,0 +1,161 @@
+"""Writing a synthetic session to disk in the DESIGN.md layout, with its ground truth.
+
+The session is assembled in a temporary sibling folder and moved into place at the end,
+so an interrupted run leaves nothing that looks like a finished session.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import cv2
+import numpy as np
+import tomli_w
+
+from kisscal.errors import KisscalError
+from kisscal.io.c3d import read_c3d_points
+from kisscal.io.files import table_to_csv, write_json, write_table
+from kisscal.synth.motion import Motion, replay_trial
+from kisscal.synth.plan import (
+    SynthPlan,
+    render_grid,
+    render_rods,
+    render_trial,
+    session_config,
+    trial_visibility,
+)
+
+#: PNG compression level: fixed so that the same seed gives the same bytes.
+_PNG_LEVEL = 3
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, _PNG_LEVEL])
+    if not ok:  # pragma: no cover - OpenCV failure
+        raise OSError(f"could not encode {path}")
+    path.write_bytes(buf.tobytes())
+
+
+def load_walking5(path: Path) -> Motion:
+    """The real Vicon walking trial (walking5.c3d) as a :class:`Motion` inside the volume.
+
+    Virtual points (joint centres, names ending in ``JC``) are dropped from the markers
+    and used instead as the ends of thigh and shank capsules that occlude them.
+    """
+    labels, xyz, rate = read_c3d_points(path)
+    physical = [i for i, n in enumerate(labels) if not n.upper().endswith("JC")]
+    joints = {n: xyz[:, i] for i, n in enumerate(labels) if n.upper().endswith("JC")}
+    return replay_trial(tuple(labels[i] for i in physical), xyz[:, physical], rate, joints)
+
+
+def _job(args: tuple[SynthPlan, str, str, int, Path]) -> dict:
+    """Render and write one camera's images of one kind; return its truth columns."""
+    plan, kind, trial, ci, root = args
+    cam = plan.rig[ci]
+    if kind == "grid":
+        frames, truth = render_grid(plan, ci)
+        folder = root / "grid" / cam.id
+    elif kind == "rods":
+        frames, truth, leds = render_rods(plan, ci)
+        folder = root / "rods" / cam.id
+        write_table(root / "truth" / "leds" / f"{cam.id}.csv", leds)
+    else:
+        folder = root / "trials" / trial / cam.id
+        folder.mkdir(parents=True, exist_ok=True)
+        motion = plan.trials[trial]
+        rows: dict[str, list] = {
+            k: [] for k in ("field", "marker", "u", "v", "ui", "vi", "rx", "ry", "iso")
+        }
+        for f, image, t in render_trial(plan, trial, ci):
+            _write_png(folder / f"{f:06d}.png", image)
+            idx = np.flatnonzero(t.visible)
+            rows["field"].append(np.full(len(idx), f))
+            rows["marker"].append(np.asarray(motion.names)[idx])
+            rows["u"].append(t.uv_px[idx, 0])
+            rows["v"].append(t.uv_px[idx, 1])
+            rows["ui"].append(t.uv_ideal_px[idx, 0])
+            rows["vi"].append(t.uv_ideal_px[idx, 1])
+            rows["rx"].append(t.radii_px[idx, 0])
+            rows["ry"].append(t.radii_px[idx, 1])
+            rows["iso"].append(t.isolated[idx])
+        cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in rows.items()}
+        return {
+            "field": cat["field"].astype(int),
+            "camera": np.full(len(cat["field"]), cam.id),
+            "marker": cat["marker"],
+            "u_px": cat["u"],
+            "v_px": cat["v"],
+            "u_ideal_px": cat["ui"],
+            "v_ideal_px": cat["vi"],
+            "rx_px": cat["rx"],
+            "ry_px": cat["ry"],
+            "isolated": cat["iso"].astype(bool),
+        }
+    folder.mkdir(parents=True, exist_ok=True)
+    for k, image in enumerate(frames):
+        _write_png(folder / f"{k:06d}.png", image)
+    write_table(root / "truth" / kind / f"{cam.id}.csv", truth)
+    return {}
+
+
+def _markers_truth(plan: SynthPlan, trial: str) -> dict:
+    motion = plan.trials[trial]
+    vis = trial_visibility(plan, trial)  # (F, M, C)
+    f, m = np.meshgrid(np.arange(motion.n_fields), np.arange(len(motion.names)), indexing="ij")
+    xyz = motion.xyz_mm.reshape(-1, 3)
+    keep = np.all(np.isfinite(xyz), axis=1)
+    cols = {
+        "field": f.ravel()[keep],
+        "marker": np.asarray(motion.names)[m.ravel()][keep],
+        "x_mm": xyz[keep, 0],
+        "y_mm": xyz[keep, 1],
+        "z_mm": xyz[keep, 2],
+    }
+    for ci, cam in enumerate(plan.rig):
+        cols[f"visible_{cam.id}"] = vis[..., ci].ravel()[keep]
+    return cols
+
+
+def write_synthetic_session(
+    out: Path, plan: SynthPlan, name: str, *, force: bool = False, n_jobs: int = 2
+) -> Path:
+    """Render ``plan`` and write the session folder ``out`` (images, session.toml, truth/)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise KisscalError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise KisscalError(f"{out}: folder is not empty (use --force to overwrite it)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        (root / "session.toml").write_text(tomli_w.dumps(session_config(plan, name)))
+        write_json(root / "truth" / "cameras.json", {"cameras": [c.as_dict() for c in plan.rig]})
+        jobs = [
+            (plan, kind, "", ci, root) for kind in ("grid", "rods") for ci in range(len(plan.rig))
+        ]
+        jobs += [(plan, "trial", t, ci, root) for t in plan.trials for ci in range(len(plan.rig))]
+        if n_jobs > 1:
+            with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+                results = list(pool.map(_job, jobs))
+        else:
+            results = [_job(j) for j in jobs]
+        for trial in plan.trials:
+            parts = [
+                r for j, r in zip(jobs, results, strict=True) if j[1] == "trial" and j[2] == trial
+            ]
+            cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+            order = np.lexsort((cols["marker"], cols["camera"], cols["field"]))
+            cols = {k: v[order] for k, v in cols.items()}
+            tdir = root / "truth" / "trials" / trial
+            write_table(tdir / "centroids.csv", cols)
+            (tdir / "markers.csv").write_text(table_to_csv(_markers_truth(plan, trial)))
+        if out.exists():
+            shutil.rmtree(out)
+        root.rename(out)
+    finally:
+        if root.exists():
+            shutil.rmtree(root, ignore_errors=True)
+    return out

@@ -1,0 +1,383 @@
+"""Marker motion for synthetic trials: a kinematic walker, the seeds' stick and thrown marker.
+
+The walker is a sagittal-plane chain (pelvis, thighs, shanks, feet) driven by normative
+hip, knee and ankle flexion curves over the gait cycle; its forward speed is the one at
+which the stance foot does not slip. Markers follow the KISS set (Küçük 2005: pelvis,
+thigh, knee, shank, ankle, heel and toe on both legs) with two anterior pelvis markers
+for the 15-marker set. Knee and ankle markers sit on the joint axes, so the distances
+knee-ankle, knee-shank, ankle-heel and so on are fixed: ``segments`` lists them.
+Body segments are also returned as capsules, which block lines of sight (occlusion).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline
+
+#: Gravitational acceleration used for the thrown marker (Ankara, seed 003 section 5.1).
+G_MM_S2 = 9806.0
+#: Length of the validation stick between its two marker centres (seed 003 section 5.1).
+STICK_LENGTH_MM = 502.5
+#: Marker sphere radius (25 mm markers, seed 003 section 1).
+MARKER_RADIUS_MM = 12.5
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Marker trajectories of one trial, with the body capsules that occlude them.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Marker names, one per column of ``xyz_mm``.
+    xyz_mm : ndarray, shape (n_fields, n_markers, 3)
+        Marker centres in lab millimetres (NaN where the marker does not exist).
+    capsules_mm : ndarray, shape (n_fields, n_capsules, 2, 3)
+        End points of the body capsules per field.
+    capsule_radius_mm : ndarray, shape (n_capsules,)
+    rate_hz : float
+    segments : tuple of (str, str)
+        Marker pairs whose distance does not change.
+    """
+
+    names: tuple[str, ...]
+    xyz_mm: NDArray[np.float64]
+    capsules_mm: NDArray[np.float64]
+    capsule_radius_mm: NDArray[np.float64]
+    rate_hz: float
+    segments: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def n_fields(self) -> int:
+        return self.xyz_mm.shape[0]
+
+
+# Normative sagittal joint angles (degrees) at 0, 10, ..., 90 % of the gait cycle, heel
+# strike at 0 %: hip flexion, knee flexion, ankle dorsiflexion. Periodic splines through
+# these knots give smooth curves with the textbook shape.
+_PHASE_KNOTS = np.linspace(0.0, 1.0, 11)
+_HIP_DEG = np.array([30, 25, 16, 6, -4, -10, -4, 14, 27, 32, 30], dtype=float)
+_KNEE_DEG = np.array([5, 17, 13, 6, 4, 14, 40, 62, 38, 10, 5], dtype=float)
+_ANKLE_DEG = np.array([0, -6, 2, 8, 10, 2, -15, -6, 2, 2, 0], dtype=float)
+
+# Body dimensions (mm) of the walker.
+_THIGH_MM, _SHANK_MM = 430.0, 420.0
+_HIP_HALF_WIDTH_MM = 85.0
+_STRIDE_SAMPLES = 400
+
+
+def _joint_curves() -> tuple[CubicSpline, CubicSpline, CubicSpline]:
+    return tuple(
+        CubicSpline(_PHASE_KNOTS, np.radians(k), bc_type="periodic")
+        for k in (_HIP_DEG, _KNEE_DEG, _ANKLE_DEG)
+    )
+
+
+def _leg_points(phase: NDArray[np.float64], side: float) -> dict[str, NDArray[np.float64]]:
+    """Points of one leg at gait-cycle phases ``phase`` (see :func:`_leg_from_angles`)."""
+    hip_c, knee_c, ankle_c = _joint_curves()
+    return _leg_from_angles(hip_c(phase % 1.0), knee_c(phase % 1.0), ankle_c(phase % 1.0), side)
+
+
+def _leg_from_angles(
+    th: NDArray[np.float64], tk: NDArray[np.float64], ta: NDArray[np.float64], side: float
+) -> dict[str, NDArray[np.float64]]:
+    """Points of one leg in the pelvis frame (x forward, y left, z up), shape (n, 3) each.
+
+    ``th, tk, ta`` are hip flexion, knee flexion and ankle dorsiflexion in radians;
+    ``side`` is -1 for the right leg and +1 for the left.
+    """
+    n = len(th)
+    lat = np.array([0.0, side, 0.0])
+    hip = np.tile([0.0, side * _HIP_HALF_WIDTH_MM, 0.0], (n, 1))
+
+    def along(angle: NDArray) -> NDArray:  # unit vector down a limb flexed forward by angle
+        return np.stack([np.sin(angle), np.zeros(n), -np.cos(angle)], axis=1)
+
+    thigh_dir = along(th)
+    knee = hip + _THIGH_MM * thigh_dir
+    shank_angle = th - tk
+    ankle = knee + _SHANK_MM * along(shank_angle)
+    foot_angle = shank_angle + ta
+    fwd = np.stack([np.cos(foot_angle), np.zeros(n), np.sin(foot_angle)], axis=1)
+    up = np.stack([-np.sin(foot_angle), np.zeros(n), np.cos(foot_angle)], axis=1)
+    heel_end = ankle - 40 * fwd - 40 * up
+    toe_end = ankle + 130 * fwd - 50 * up
+    return {
+        "hip": hip,
+        "knee": knee,
+        "ankle": ankle,
+        "heel_end": heel_end,
+        "toe_end": toe_end,
+        "THI": hip + 0.55 * _THIGH_MM * thigh_dir + 95 * lat,
+        "KNE": knee + 70 * lat,
+        "TIB": knee + 0.5 * _SHANK_MM * along(shank_angle) + 70 * lat,
+        "ANK": ankle + 60 * lat,
+        "HEE": ankle - 85 * fwd - 30 * up,
+        "TOE": ankle + 140 * fwd - 5 * up,
+    }
+
+
+_PELVIS_MARKERS = {
+    "SACR": np.array([-110.0, 0.0, 80.0]),
+    "RASI": np.array([100.0, -120.0, 60.0]),
+    "LASI": np.array([100.0, 120.0, 60.0]),
+}
+_LEG_MARKERS = ("THI", "KNE", "TIB", "ANK", "HEE", "TOE")
+#: Capsules: (name, radius mm); leg capsules per side.
+_LEG_CAPSULES = (("thigh", 65.0), ("shank", 45.0), ("foot", 30.0))
+_PELVIS_RADIUS_MM = 90.0
+_PELVIS_HALF_LENGTH_MM = 80.0
+
+
+def gait_marker_names(n_markers: int = 15) -> tuple[str, ...]:
+    """The KISS marker set: 13 (sacrum + 6 per leg) or 15 (plus both ASIS)."""
+    if n_markers not in (13, 15):
+        raise ValueError(f"the gait marker set has 13 or 15 markers, not {n_markers}")
+    pelvis = ["SACR"] if n_markers == 13 else ["SACR", "RASI", "LASI"]
+    return tuple(pelvis + [s + m for s in "RL" for m in _LEG_MARKERS])
+
+
+def gait_segments(names: tuple[str, ...]) -> tuple[tuple[str, str], ...]:
+    """Marker pairs on one rigid segment of the walker (fixed distances)."""
+    pairs = [("RASI", "LASI"), ("RASI", "SACR"), ("LASI", "SACR")]
+    for s in "RL":
+        pairs += [
+            (f"{s}THI", f"{s}KNE"),
+            (f"{s}KNE", f"{s}TIB"),
+            (f"{s}KNE", f"{s}ANK"),
+            (f"{s}TIB", f"{s}ANK"),
+            (f"{s}ANK", f"{s}HEE"),
+            (f"{s}ANK", f"{s}TOE"),
+            (f"{s}HEE", f"{s}TOE"),
+        ]
+    return tuple((a, b) for a, b in pairs if a in names and b in names)
+
+
+def _stride_geometry() -> tuple[float, float]:
+    """Stride length (mm) per unit cycle and the pelvis height (mm) over a cycle's phases.
+
+    The forward speed is the mean backward speed of the stance ankle relative to the
+    pelvis over the stance phase (0-60 %): at that speed the stance foot does not slip.
+    """
+    phase = np.linspace(0.0, 1.0, _STRIDE_SAMPLES, endpoint=False)
+    leg = _leg_points(phase, -1.0)
+    stance = phase < 0.6
+    dx = np.gradient(leg["ankle"][:, 0], phase)
+    stride_mm = -np.mean(dx[stance])
+    return stride_mm, phase
+
+
+def _pelvis_height(phase: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Pelvis height that puts the lower foot on the floor, smoothed to 6 harmonics."""
+    grid = np.linspace(0.0, 1.0, _STRIDE_SAMPLES, endpoint=False)
+    lowest = np.full(len(grid), np.inf)
+    for side, offset in ((-1.0, 0.0), (1.0, 0.5)):
+        leg = _leg_points(grid + offset, side)
+        for key in ("heel_end", "toe_end"):
+            lowest = np.minimum(lowest, leg[key][:, 2] - 30.0)
+    height = -lowest
+    spectrum = np.fft.rfft(height)
+    spectrum[7:] = 0.0
+    smooth = np.fft.irfft(spectrum, len(grid))
+    return np.interp(phase % 1.0, grid, smooth, period=1.0)
+
+
+def walking_trial(
+    seed: int,
+    n_fields: int,
+    rate_hz: float = 50.0,
+    n_markers: int = 15,
+    path_mm: float = 3400.0,
+) -> Motion:
+    """A subject walking along the lab X axis through the control volume.
+
+    The walking speed is chosen so that the subject covers ``path_mm`` (the 2.4 m volume
+    plus a margin) during the trial, between 0.5 and 1.3 m/s; the cadence follows from
+    the stride length. Direction (+X or -X), lateral offset and starting phase vary with
+    the seed. Markers outside the cameras' view are the renderer's business.
+    """
+    rng = np.random.default_rng([seed, 2002])
+    names = gait_marker_names(n_markers)
+    t = np.arange(n_fields) / rate_hz
+    speed = np.clip(path_mm / max(t[-1], 1e-9), 500.0, 1300.0)
+    stride_mm, _ = _stride_geometry()
+    cycle_s = stride_mm / speed
+    phase = t / cycle_s + rng.uniform(0, 1)
+    heading = rng.choice([0.0, np.pi]) + rng.uniform(-0.05, 0.05)
+    lateral = rng.uniform(-150, 150)
+    forward = speed * (t - t[-1] / 2)
+
+    yaw = np.radians(4.0) * np.sin(2 * np.pi * phase)
+    sway = 15.0 * np.sin(2 * np.pi * phase)
+    height = _pelvis_height(phase)
+    origin_local = np.stack([forward, lateral + sway, height], axis=1)
+
+    def to_lab(p_pelvis: NDArray) -> NDArray:
+        """Pelvis-frame points (n, 3) -> lab, with the pelvis yaw and the walking heading."""
+        c, s = np.cos(yaw), np.sin(yaw)
+        x = c * p_pelvis[:, 0] - s * p_pelvis[:, 1]
+        y = s * p_pelvis[:, 0] + c * p_pelvis[:, 1]
+        local = np.stack([x, y, p_pelvis[:, 2]], axis=1) + origin_local
+        ch, sh = np.cos(heading), np.sin(heading)
+        return np.stack(
+            [ch * local[:, 0] - sh * local[:, 1], sh * local[:, 0] + ch * local[:, 1], local[:, 2]],
+            axis=1,
+        )
+
+    legs = {"R": _leg_points(phase, -1.0), "L": _leg_points(phase + 0.5, 1.0)}
+    markers = []
+    for name in names:
+        if name in _PELVIS_MARKERS:
+            markers.append(to_lab(np.tile(_PELVIS_MARKERS[name], (n_fields, 1))))
+        else:
+            markers.append(to_lab(legs[name[0]][name[1:]]))
+    capsules = [
+        np.stack(
+            [
+                to_lab(np.tile([0.0, -_PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
+                to_lab(np.tile([0.0, _PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
+            ],
+            axis=1,
+        )
+    ]
+    radii = [_PELVIS_RADIUS_MM]
+    for side in "RL":
+        leg = legs[side]
+        ends = {
+            "thigh": ("hip", "knee"),
+            "shank": ("knee", "ankle"),
+            "foot": ("heel_end", "toe_end"),
+        }
+        for cap, radius in _LEG_CAPSULES:
+            a, b = ends[cap]
+            capsules.append(np.stack([to_lab(leg[a]), to_lab(leg[b])], axis=1))
+            radii.append(radius)
+    return Motion(
+        names=names,
+        xyz_mm=np.stack(markers, axis=1),
+        capsules_mm=np.stack(capsules, axis=1),
+        capsule_radius_mm=np.asarray(radii),
+        rate_hz=rate_hz,
+        segments=gait_segments(names),
+    )
+
+
+def standing_template(names: tuple[str, ...]) -> NDArray[np.float64]:
+    """Marker positions (mm) of the walker standing upright, feet flat, facing +X."""
+    zero = np.zeros(1)
+    legs = {
+        "R": _leg_from_angles(zero, zero, zero, -1.0),
+        "L": _leg_from_angles(zero, zero, zero, 1.0),
+    }
+    floor_offset = -min(legs["R"][k][0, 2] for k in ("heel_end", "toe_end")) + 30.0
+    out = [
+        _PELVIS_MARKERS[name] if name in _PELVIS_MARKERS else legs[name[0]][name[1:]][0]
+        for name in names
+    ]
+    return np.asarray(out) + [0.0, 0.0, floor_offset]
+
+
+def stick_trial(seed: int, n_fields: int = 200, rate_hz: float = 50.0) -> Motion:
+    """Seed 003 section 5.1: a stick with two markers 502.5 mm apart moved through the volume.
+
+    The stick's centre follows a Lissajous path that visits the whole control volume
+    while the stick turns through varying orientations; nothing occludes it.
+    """
+    rng = np.random.default_rng([seed, 3003])
+    t = np.arange(n_fields) / rate_hz
+    ph = rng.uniform(0, 2 * np.pi, 6)
+    centre = np.stack(
+        [
+            880.0 * np.sin(2 * np.pi * 0.25 * t + ph[0]),
+            400.0 * np.sin(2 * np.pi * 0.35 * t + ph[1]),
+            1000.0 + 600.0 * np.sin(2 * np.pi * 0.3 * t + ph[2]),
+        ],
+        axis=1,
+    )
+    azimuth = 2 * np.pi * 0.3 * t + ph[3]
+    elevation = 0.9 * np.sin(2 * np.pi * 0.4 * t + ph[4])
+    direction = np.stack(
+        [
+            np.cos(elevation) * np.cos(azimuth),
+            np.cos(elevation) * np.sin(azimuth),
+            np.sin(elevation),
+        ],
+        axis=1,
+    )
+    half = 0.5 * STICK_LENGTH_MM * direction
+    xyz = np.stack([centre - half, centre + half], axis=1)
+    return Motion(
+        names=("S1", "S2"),
+        xyz_mm=xyz,
+        capsules_mm=np.zeros((n_fields, 0, 2, 3)),
+        capsule_radius_mm=np.zeros(0),
+        rate_hz=rate_hz,
+        segments=(("S1", "S2"),),
+    )
+
+
+def throw_trial(seed: int, rate_hz: float = 50.0) -> Motion:
+    """Seed 003 section 5.1: a marker thrown across the volume (ballistic, g = 9.806 m/s^2).
+
+    The marker flies from one end of the volume to the other in 0.9 s, rising about
+    0.8 m, and stays inside the volume.
+    """
+    rng = np.random.default_rng([seed, 4004])
+    duration_s = 0.9
+    t = np.arange(round(duration_s * rate_hz) + 1) / rate_hz
+    start = np.array([-1100.0, rng.uniform(-300, 300), rng.uniform(500, 700)])
+    velocity = np.array([2200.0 / duration_s, rng.uniform(-200, 200), rng.uniform(3800, 4100)])
+    xyz = start + t[:, None] * velocity
+    xyz[:, 2] -= 0.5 * G_MM_S2 * t**2
+    n = len(t)
+    return Motion(
+        names=("BALL",),
+        xyz_mm=xyz[:, None, :],
+        capsules_mm=np.zeros((n, 0, 2, 3)),
+        capsule_radius_mm=np.zeros(0),
+        rate_hz=rate_hz,
+        segments=(),
+    )
+
+
+def replay_trial(
+    names: tuple[str, ...],
+    xyz_mm: NDArray[np.float64],
+    rate_hz: float,
+    joint_centres_mm: dict[str, NDArray[np.float64]] | None = None,
+    out_rate_hz: float = 50.0,
+) -> Motion:
+    """A recorded trial (e.g. the Vicon walking5.c3d) moved into the control volume.
+
+    The trial is resampled from ``rate_hz`` to ``out_rate_hz`` (every k-th sample), shifted
+    so that the middle of its path lies at the centre of the volume's floor. Joint centres
+    named ``{L,R}{HJC,KJC,AJC}`` give thigh and shank capsules for occlusion.
+    """
+    step = max(1, round(rate_hz / out_rate_hz))
+    xyz = np.asarray(xyz_mm, dtype=float)[::step]
+    mean_xy = np.nanmean(xyz[..., :2].reshape(-1, 2), axis=0)
+    valid_x = np.where(np.isfinite(xyz[..., 0]), xyz[..., 0], np.nan)
+    mid_x = 0.5 * (np.nanmin(valid_x) + np.nanmax(valid_x))
+    shift = np.array([-mid_x, -mean_xy[1], 0.0])
+    xyz = xyz + shift
+    capsules, radii = [], []
+    jc = joint_centres_mm or {}
+    for s in "LR":
+        for a, b, r in ((f"{s}HJC", f"{s}KJC", 65.0), (f"{s}KJC", f"{s}AJC", 45.0)):
+            if a in jc and b in jc:
+                capsules.append(np.stack([jc[a][::step] + shift, jc[b][::step] + shift], axis=1))
+                radii.append(r)
+    n = xyz.shape[0]
+    caps = np.stack(capsules, axis=1) if capsules else np.zeros((n, 0, 2, 3))
+    return Motion(
+        names=tuple(names),
+        xyz_mm=xyz,
+        capsules_mm=np.nan_to_num(caps, nan=1e9),
+        capsule_radius_mm=np.asarray(radii),
+        rate_hz=out_rate_hz,
+        segments=(),
+    )
