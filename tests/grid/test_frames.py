@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from grid_synth import make_grid_view
 
 from kisscal.errors import KisscalError
 from kisscal.grid import average_frames, dots_from_frames, linearise_dots
+from tests.grid.grid_synth import make_grid_view
 
 
 def render_dots(uv: np.ndarray, size_px=(752, 291), sigma_px=(1.6, 0.85), peak=200.0):
