@@ -39,6 +39,8 @@ class RodCalibration:
         frames where identified), NaN where never identified.
     labels : dict
         Camera id -> names (``"R1[0]"``...) of the control points used, in fit order.
+    control_xyz_mm, control_uv_px : dict
+        Camera id -> the control points used, (M, 3) and (M, 2), in fit order.
     in_sample_mm : ndarray, shape (n_rods, n_markers)
         3D error of each rod marker reconstructed from all calibrated cameras (mm).
     check : RodCheck or None
@@ -49,8 +51,45 @@ class RodCalibration:
     matches: dict[str, RodMatch]
     marker_uv_px: dict[str, NDArray[np.float64]]
     labels: dict[str, tuple[str, ...]]
+    control_xyz_mm: dict[str, NDArray[np.float64]]
+    control_uv_px: dict[str, NDArray[np.float64]]
     in_sample_mm: NDArray[np.float64]
     check: RodCheck | None
+
+    def summary(self) -> dict:
+        """JSON-ready figures for ``summary.json`` (rms_px is the Euclidean RMS)."""
+        out: dict = {
+            "cameras": {
+                cam: {
+                    "method": r.method,
+                    "rms_px": r.rms_px,
+                    "n_points": len(r.residuals_px),
+                    "missing": list(self.matches[cam].missing),
+                    "centre_mm": r.centre_mm.tolist(),
+                    "constraint_violation": r.constraint,
+                    "constraint_violation_linear": r.constraint_linear,
+                }
+                for cam, r in self.results.items()
+            },
+            "rods_in_sample_mean_mm": float(np.nanmean(self.in_sample_mm)),
+            "rods_in_sample_max_mm": float(np.nanmax(self.in_sample_mm)),
+        }
+        if self.check is not None:
+            out["leave_one_rod_out"] = {
+                "mean_mm": self.check.overall_mean_mm,
+                "max_mm": self.check.overall_max_mm,
+                "per_rod": {
+                    name: {"mean_mm": float(m), "max_mm": float(x), "n_markers": int(n)}
+                    for name, m, x, n in zip(
+                        self.check.rod_names,
+                        self.check.mean_mm,
+                        self.check.max_mm,
+                        self.check.n_markers,
+                        strict=True,
+                    )
+                },
+            }
+        return out
 
 
 def _frames(blobs: ArrayLike | Sequence[ArrayLike]) -> list[NDArray[np.float64]]:
@@ -96,7 +135,7 @@ def calibrate_rods(
     for ir, rod in enumerate(rods):
         truth[ir, : len(rod.points_mm)] = rod.points_mm
     names = [f"{r.name}[{i}]" for r in rods for i in range(n_markers)]
-    results, matches, muvs, labels = {}, {}, {}, {}
+    results, matches, muvs, labels, cxyz, cuv = {}, {}, {}, {}, {}, {}
     for cam, blobs in blobs_px.items():
         frames = _frames(blobs)
         per_frame = []
@@ -118,6 +157,7 @@ def calibrate_rods(
         results[cam] = result
         muvs[cam] = muv
         labels[cam] = tuple(n for n, f in zip(names, found.ravel(), strict=True) if f)
+        cxyz[cam], cuv[cam] = truth[found], muv[found]
     cams = list(results)
     Ls = np.array([results[c].L for c in cams])
     obs = np.stack(
@@ -128,7 +168,7 @@ def calibrate_rods(
     check = None
     if leave_one_out and len(rods) >= 3 and not params.lens:
         check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
-    return RodCalibration(results, matches, muvs, labels, in_sample, check)
+    return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check)
 
 
 def _calibrate_or_explain(

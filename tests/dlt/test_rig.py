@@ -10,14 +10,18 @@ from kisscal.dlt import DltParams, calibrate_rods
 from kisscal.errors import KisscalError
 
 
-def test_calibrate_rods_with_frames_and_a_hidden_marker():
+def _calibration():
     rig = kiss_rig(4)
     rng = np.random.default_rng(4)
     blobs = {}
     for cam in range(6):
         frames = [rod_image(rig, cam, rng, hide=3 if cam == 2 else None)[0] for _ in range(4)]
         blobs[f"cam{cam + 1}"] = frames
-    cal = calibrate_rods(blobs, rig.rods, DltParams(mdlt=True))
+    return rig, blobs, calibrate_rods(blobs, rig.rods, DltParams(mdlt=True))
+
+
+def test_calibrate_rods_with_frames_and_a_hidden_marker():
+    rig, blobs, cal = _calibration()
     assert cal.matches["cam3"].missing == ("R1[3]",)
     assert len(cal.labels["cam3"]) == 23 and "R1[3]" not in cal.labels["cam3"]
     for k, cam in enumerate(blobs):
@@ -28,6 +32,24 @@ def test_calibrate_rods_with_frames_and_a_hidden_marker():
         assert abs(r.constraint) < 1e-9
     assert np.nanmean(cal.in_sample_mm) < 0.3
     assert cal.check is not None and cal.check.overall_mean_mm < 2
+    summary = cal.summary()
+    assert summary["cameras"]["cam3"]["missing"] == ["R1[3]"]
+    assert summary["leave_one_rod_out"]["mean_mm"] == cal.check.overall_mean_mm
+
+
+def test_write_dlt_outputs(tmp_path):
+    import json
+
+    from kisscal.io.dltfiles import read_dlt_json, read_dltdv_csv, write_dlt_outputs
+
+    cal = _calibration()[2]
+    paths = write_dlt_outputs(tmp_path / "out/dlt", cal)
+    assert sorted(p.name for p in paths) == [*(f"cam{i}.json" for i in range(1, 7)), "dltdv.csv"]
+    doc = json.loads((tmp_path / "out/dlt/cam3.json").read_text())
+    assert doc["rods"]["missing"] == ["R1[3]"] and len(doc["points"]) == 23
+    assert doc["rig"]["leave_one_rod_out"]["mean_mm"] > 0
+    back = read_dltdv_csv(tmp_path / "out/dlt/dltdv.csv", [f"cam{i}" for i in range(1, 7)])
+    np.testing.assert_array_equal(back["cam3"].L, read_dlt_json(paths[2]).L)
 
 
 def test_a_camera_seeing_too_little_is_named():
