@@ -166,7 +166,7 @@ def calibrate_rods(
     xyz, _ = triangulate_dlt(Ls, obs)
     in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(len(rods), n_markers)
     check = None
-    if leave_one_out and len(rods) >= 3 and not params.lens:
+    if leave_one_out and len(rods) >= 3:
         check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
     return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check)
 

@@ -300,24 +300,22 @@ def _line_candidates(
         best = assign[0].copy()
         n0 = int((best >= 0).sum())
         rivals = []
+        drop = np.zeros(len(best), dtype=bool)
         for a, r, g in zip(assign[1:], rms[1:], gap[1:], strict=True):
             if int((a >= 0).sum()) != n0 or r >= _near(rms[0], params):
                 continue
-            common = (a >= 0) & (best >= 0)
-            same_markers = {int(x) for x in a[a >= 0]} & {int(x) for x in best[best >= 0]}
-            # A blob given another marker index: the pattern fits shifted (ordering doubt).
-            if any(
-                int(np.flatnonzero(a == b)[0]) != int(np.flatnonzero(best == b)[0])
-                for b in same_markers
-            ):
+            # Line blobs both hypotheses use: given another marker index, the pattern
+            # fits shifted along the rod (an ordering doubt, judged in _check_ambiguity).
+            shared = np.intersect1d(a[a >= 0], best[best >= 0])
+            if any(np.flatnonzero(a == x)[0] != np.flatnonzero(best == x)[0] for x in shared):
                 rivals.append({int(line[x]) for x in a[a >= 0]})
                 continue
-            # Otherwise another blob stands in for some marker(s): keep the nearer blob
-            # only when it is clearly nearer, else leave that marker unidentified.
-            differ = (a != best) & ~(~common & (a < 0))
-            for i in np.flatnonzero(differ & (a >= 0)):
-                if best[i] >= 0 and g[i] < _near(gap[0][i], params):
-                    best[i] = -1
+            # Otherwise another blob stands in for some marker: keep the best hypothesis'
+            # blob only when it is clearly nearer the prediction, else leave the marker
+            # unidentified (two blobs this close would merge in a real image anyway).
+            swapped = (a >= 0) & (best >= 0) & (a != best)
+            drop |= swapped & (g < np.array([_near(x, params) for x in gap[0]]))
+        best[drop] = -1
         blobs = np.where(best >= 0, line[np.maximum(best, 0)], -1)
         out.append(_Candidate(ir, blobs, float(rms[0]), rivals))
     return out
