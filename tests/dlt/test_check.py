@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import kiss_rig, rod_xyz
 
 from kisscal.dlt import DltParams, leave_one_rod_out, project, triangulate_dlt
+from tests.dlt.conftest import kiss_rig, rod_xyz
 
 
 def test_triangulation_is_exact_on_exact_data(rig):

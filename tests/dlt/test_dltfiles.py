@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
-from conftest import rod_xyz
 
 from kisscal.dlt import DltParams, calibrate_camera, project
 from kisscal.errors import KisscalError
 from kisscal.io.dltfiles import read_dlt_json, read_dltdv_csv, write_dlt_json, write_dltdv_csv
+from tests.dlt.conftest import rod_xyz
 
 
 def _result(rig, cam, params):

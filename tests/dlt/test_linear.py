@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import rod_xyz
 
 from kisscal.dlt import DltParams, calibrate_camera, project, reprojection_residuals, rms_px
 from kisscal.dlt.linear import solve_dlt
 from kisscal.errors import KisscalError
+from tests.dlt.conftest import rod_xyz
 
 
 def test_exact_data_gives_the_true_parameters(rig):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import rod_xyz
 
 from kisscal.dlt import (
     DltParams,
@@ -18,6 +17,7 @@ from kisscal.dlt import (
 from kisscal.dlt.linear import solve_dlt
 from kisscal.dlt.nonlinear import lens_offsets
 from kisscal.errors import KisscalError
+from tests.dlt.conftest import rod_xyz
 
 K = np.array([[720.0, 0, 376], [0, 374.4, 145], [0, 0, 1]])
 LEVEL_ALONG_Y = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])

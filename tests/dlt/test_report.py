@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import rod_xyz
 
 from kisscal.dlt import calibrate_camera, project
 from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
+from tests.dlt.conftest import rod_xyz
 
 
 def test_residual_and_rig_figures(rig, tmp_path):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import kiss_rig, rod_image
 
 from kisscal.dlt import DltParams, calibrate_rods
 from kisscal.errors import KisscalError
+from tests.dlt.conftest import kiss_rig, rod_image
 
 
 def _calibration():

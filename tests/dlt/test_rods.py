@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROD_XY_MM, ROD_Z_MM, kiss_rig, rod_image
 
 from kisscal.dlt import DltParams, make_rods, project, recognise_rods, rod_distinctness
 from kisscal.errors import KisscalError
+from tests.dlt.conftest import ROD_XY_MM, ROD_Z_MM, kiss_rig, rod_image
 
 
 @pytest.mark.parametrize("seed", range(20))
