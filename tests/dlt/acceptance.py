@@ -4,7 +4,7 @@ Linearised rod-image blobs are stood in for by the true cameras' ideal projectio
 Gaussian noise (``NOISE_PX`` per coordinate), with the other cameras' LED rings and a few
 random noise blobs present and, in one camera per seed, one rod marker hidden.
 
-Run ``python tests/dlt/acceptance.py`` from the worktree root for the table.
+Run ``python -m tests.dlt.acceptance`` from the worktree root for the table.
 """
 
 from __future__ import annotations

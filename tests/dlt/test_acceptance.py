@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from acceptance import METHODS, measure, rod_images
 
 from kisscal.dlt import recognise_rods
+from tests.dlt.acceptance import METHODS, measure, rod_images
 
 
 @pytest.mark.parametrize("seed", range(20))
