@@ -19,7 +19,15 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
 from kisscal.dlt.nonlinear import correct_lens
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult, Rod, RodCheck, RodMatch
+from kisscal.dlt.params import (
+    DEFAULT_PARAMS,
+    DltParams,
+    DltResult,
+    Rod,
+    RodCheck,
+    RodMatch,
+    marker_label,
+)
 from kisscal.dlt.rods import recognise_rods, validate_rods
 from kisscal.errors import KisscalError
 
@@ -38,7 +46,7 @@ class RodCalibration:
         Camera id -> (n_rods, n_markers, 2) image coordinates used (averaged over the
         frames where identified), NaN where never identified.
     labels : dict
-        Camera id -> names (``"R1[0]"``...) of the control points used, in fit order.
+        Camera id -> names (``"R1.1"``...) of the control points used, in fit order.
     control_xyz_mm, control_uv_px : dict
         Camera id -> the control points used, (M, 3) and (M, 2), in fit order.
     in_sample_mm : ndarray, shape (n_rods, n_markers)
@@ -134,7 +142,7 @@ def calibrate_rods(
     truth = np.full((len(rods), n_markers, 3), np.nan)
     for ir, rod in enumerate(rods):
         truth[ir, : len(rod.points_mm)] = rod.points_mm
-    names = [f"{r.name}[{i}]" for r in rods for i in range(n_markers)]
+    names = [marker_label(r.name, i) for r in rods for i in range(n_markers)]
     results, matches, muvs, labels, cxyz, cuv = {}, {}, {}, {}, {}, {}
     for cam, blobs in blobs_px.items():
         frames = _frames(blobs)
@@ -183,7 +191,7 @@ def _calibrate_or_explain(
     except KisscalError as exc:
         if not match.missing:
             raise
-        absent = sorted({m.split("[")[0] for m in match.missing})
+        absent = [n for n, b in zip(match.rod_names, match.blob_index, strict=True) if (b < 0).any()]
         raise KisscalError(
             f"{exc}; rod markers not identified: {len(match.missing)} (rods {', '.join(absent)})"
         ) from None

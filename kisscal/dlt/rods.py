@@ -33,7 +33,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch, marker_label
 from kisscal.errors import KisscalError
 
 
@@ -386,7 +386,7 @@ def recognise_rods(
             b = chosen[ir].blobs
             blob_index[ir, :k] = np.where(b >= 0, finite[np.maximum(b, 0)], -1)
             fit_rms[ir] = chosen[ir].rms_px
-        missing += [f"{rod.name}[{i}]" for i in range(k) if blob_index[ir, i] < 0]
+        missing += [marker_label(rod.name, i) for i in range(k) if blob_index[ir, i] < 0]
     unused = np.setdiff1d(np.arange(len(uv)), blob_index[blob_index >= 0])
     return RodMatch(
         camera=camera,

@@ -132,7 +132,7 @@ def write_dlt_json(
     result : DltResult
         The calibration.
     xyz_mm, uv_px, labels : optional
-        Control points (as fitted) and their names (e.g. ``"R1[0]"``), for the
+        Control points (as fitted) and their names (e.g. ``"R1.1"``), for the
         per-point residual table.
     extra : mapping, optional
         More keys (e.g. rod recognition report, linearisation used).

@@ -22,8 +22,8 @@ def _calibration():
 
 def test_calibrate_rods_with_frames_and_a_hidden_marker():
     rig, blobs, cal = _calibration()
-    assert cal.matches["cam3"].missing == ("R1[3]",)
-    assert len(cal.labels["cam3"]) == 23 and "R1[3]" not in cal.labels["cam3"]
+    assert cal.matches["cam3"].missing == ("R1.4",)
+    assert len(cal.labels["cam3"]) == 23 and "R1.4" not in cal.labels["cam3"]
     for k, cam in enumerate(blobs):
         r = cal.results[cam]
         # Averaging 4 frames halves the noise: rms about 0.062 / 2
@@ -33,7 +33,7 @@ def test_calibrate_rods_with_frames_and_a_hidden_marker():
     assert np.nanmean(cal.in_sample_mm) < 0.3
     assert cal.check is not None and cal.check.overall_mean_mm < 2
     summary = cal.summary()
-    assert summary["cameras"]["cam3"]["missing"] == ["R1[3]"]
+    assert summary["cameras"]["cam3"]["missing"] == ["R1.4"]
     assert summary["leave_one_rod_out"]["mean_mm"] == cal.check.overall_mean_mm
 
 
@@ -46,7 +46,7 @@ def test_write_dlt_outputs(tmp_path):
     paths = write_dlt_outputs(tmp_path / "out/dlt", cal)
     assert sorted(p.name for p in paths) == [*(f"cam{i}.json" for i in range(1, 7)), "dltdv.csv"]
     doc = json.loads((tmp_path / "out/dlt/cam3.json").read_text())
-    assert doc["rods"]["missing"] == ["R1[3]"] and len(doc["points"]) == 23
+    assert doc["rods"]["missing"] == ["R1.4"] and len(doc["points"]) == 23
     assert doc["rig"]["leave_one_rod_out"]["mean_mm"] > 0
     back = read_dltdv_csv(tmp_path / "out/dlt/dltdv.csv", [f"cam{i}" for i in range(1, 7)])
     np.testing.assert_array_equal(back["cam3"].L, read_dlt_json(paths[2]).L)
