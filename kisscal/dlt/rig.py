@@ -191,7 +191,8 @@ def _calibrate_or_explain(
     except KisscalError as exc:
         if not match.missing:
             raise
-        absent = [n for n, b in zip(match.rod_names, match.blob_index, strict=True) if (b < 0).any()]
+        rows = zip(match.rod_names, match.blob_index, strict=True)
+        absent = [name for name, b in rows if (b < 0).any()]
         raise KisscalError(
             f"{exc}; rod markers not identified: {len(match.missing)} (rods {', '.join(absent)})"
         ) from None
