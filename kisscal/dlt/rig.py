@@ -50,9 +50,10 @@ class RodCalibration:
     control_xyz_mm, control_uv_px : dict
         Camera id -> the control points used, (M, 3) and (M, 2), in fit order.
     in_sample_mm : ndarray, shape (n_rods, n_markers)
-        3D error of each rod marker reconstructed from all calibrated cameras (mm).
+        3D error of each rod marker reconstructed from all calibrated cameras (mm);
+        NaN where fewer than two cameras saw it (all NaN with a single camera).
     check : RodCheck or None
-        Leave-one-rod-out result (None when fewer than 3 rods).
+        Leave-one-rod-out result (None with fewer than 3 rods or 2 cameras).
     """
 
     results: dict[str, DltResult]
@@ -79,10 +80,11 @@ class RodCalibration:
                 }
                 for cam, r in self.results.items()
             },
-            "rods_in_sample_mean_mm": float(np.nanmean(self.in_sample_mm)),
-            "rods_in_sample_max_mm": float(np.nanmax(self.in_sample_mm)),
         }
-        if self.check is not None:
+        if np.isfinite(self.in_sample_mm).any():
+            out["rods_in_sample_mean_mm"] = float(np.nanmean(self.in_sample_mm))
+            out["rods_in_sample_max_mm"] = float(np.nanmax(self.in_sample_mm))
+        if self.check is not None and np.isfinite(self.check.errors_mm).any():
             out["leave_one_rod_out"] = {
                 "mean_mm": self.check.overall_mean_mm,
                 "max_mm": self.check.overall_max_mm,
@@ -167,15 +169,17 @@ def calibrate_rods(
         labels[cam] = tuple(n for n, f in zip(names, found.ravel(), strict=True) if f)
         cxyz[cam], cuv[cam] = truth[found], muv[found]
     cams = list(results)
-    Ls = np.array([results[c].L for c in cams])
-    obs = np.stack(
-        [correct_lens(results[c].L, results[c].lens, muvs[c].reshape(-1, 2)) for c in cams]
-    )
-    xyz, _ = triangulate_dlt(Ls, obs)
-    in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(len(rods), n_markers)
+    in_sample = np.full((len(rods), n_markers), np.nan)
     check = None
-    if leave_one_out and len(rods) >= 3:
-        check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
+    if len(cams) >= 2:  # 3D checks need two cameras (``--camera C`` calibrates one)
+        Ls = np.array([results[c].L for c in cams])
+        obs = np.stack(
+            [correct_lens(results[c].L, results[c].lens, muvs[c].reshape(-1, 2)) for c in cams]
+        )
+        xyz, _ = triangulate_dlt(Ls, obs)
+        in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(in_sample.shape)
+        if leave_one_out and len(rods) >= 3:
+            check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
     return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check)
 
 

@@ -83,3 +83,15 @@ def test_lens_terms_through_the_whole_rig():
     for cam in blobs:
         assert with_lens.results[cam].rms_px < 0.5 * plain.results[cam].rms_px
     assert np.nanmean(with_lens.in_sample_mm) < np.nanmean(plain.in_sample_mm)
+
+
+def test_one_camera_alone(recwarn):
+    # kisscal calibrate --camera C: no 3D check possible, no NaN warnings, no NaN in summary
+    rig = kiss_rig(4)
+    blobs, _ = rod_image(rig, 0, np.random.default_rng(0))
+    cal = calibrate_rods({"cam1": blobs}, rig.rods)
+    assert cal.check is None and np.isnan(cal.in_sample_mm).all()
+    assert cal.results["cam1"].rms_px < 0.08
+    summary = cal.summary()
+    assert "rods_in_sample_mean_mm" not in summary and "leave_one_rod_out" not in summary
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
