@@ -11,7 +11,7 @@ figure, Shafiq et al. 2001 §3.3) and leave-one-rod-out (the harsher figure).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -41,7 +41,8 @@ class RodCalibration:
     results : dict
         Camera id -> :class:`DltResult`.
     matches : dict
-        Camera id -> :class:`RodMatch` of the first frame (what was found, what is missing).
+        Camera id -> :class:`RodMatch` of the first frame (blob indices refer to it);
+        ``missing`` lists the markers identified in no frame at all.
     marker_uv_px : dict
         Camera id -> (n_rods, n_markers, 2) image coordinates used (averaged over the
         frames where identified), NaN where never identified.
@@ -163,6 +164,13 @@ def calibrate_rods(
                 np.nan,
             )
         found = np.isfinite(muv).all(axis=-1) & np.isfinite(truth).all(axis=-1)
+        never = [
+            marker_label(r.name, i)
+            for ir, r in enumerate(rods)
+            for i in range(len(r.points_mm))
+            if not found[ir, i]
+        ]
+        matches[cam] = replace(matches[cam], missing=tuple(never))
         result = _calibrate_or_explain(truth[found], muv[found], params, cam, matches[cam])
         results[cam] = result
         muvs[cam] = muv

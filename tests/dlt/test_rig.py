@@ -95,3 +95,14 @@ def test_one_camera_alone(recwarn):
     summary = cal.summary()
     assert "rods_in_sample_mean_mm" not in summary and "leave_one_rod_out" not in summary
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_markers_hidden_in_some_frames_only_are_not_missing():
+    rig = kiss_rig(4)
+    rng = np.random.default_rng(3)
+    frames = [rod_image(rig, 0, rng, hide=h)[0] for h in (5, 5, None)]
+    blobs = {"cam1": frames, "cam2": rod_image(rig, 1, rng, hide=9)[0]}
+    cal = calibrate_rods(blobs, rig.rods)
+    assert cal.matches["cam1"].missing == ()
+    assert cal.matches["cam2"].missing == ("R2.4",)
+    assert len(cal.labels["cam1"]) == 24
