@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.calibrate import calibrate_camera
+from kisscal.dlt.nonlinear import correct_lens
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
 from kisscal.errors import KisscalError
 
@@ -121,7 +122,7 @@ def leave_one_rod_out(
             except KisscalError:
                 continue
             Ls.append(result.L)
-            obs.append(muv[ic, out])
+            obs.append(correct_lens(result.L, result.lens, muv[ic, out]))
         if len(Ls) < 2:
             continue
         xyz_rec, _ = triangulate_dlt(np.array(Ls), np.array(obs))

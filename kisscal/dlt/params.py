@@ -119,6 +119,11 @@ class DltResult:
     iterations: int = 0
 
 
+def marker_label(rod: str, index: int) -> str:
+    """Name of a rod marker: ``"R1.1"`` is the top marker of rod R1 (``index`` 0-based)."""
+    return f"{rod}.{index + 1}"
+
+
 @dataclass(frozen=True)
 class Rod:
     """One calibration rod: its name and surveyed marker centres, top to bottom (mm)."""
@@ -143,7 +148,8 @@ class RodMatch:
         RMS distance (px) along each rod's line between blobs and the fitted 1D
         projectivity; NaN for rods not recognised.
     missing : tuple of str
-        Markers not found, as ``"R1[3]"`` (rod name, 0-based index from the top).
+        Markers not found, as ``"R1.4"`` (see :func:`marker_label`: rod R1, fourth marker
+        from the top).
     unused_blobs : ndarray of int
         Blobs not assigned to any rod (strobes, noise).
     """
@@ -170,7 +176,7 @@ class RodMatch:
         xyz = np.concatenate([r.points_mm for r in rods])
         idx = self.blob_index.ravel()
         found = idx >= 0
-        labels = tuple(f"{r.name}[{i}]" for r in rods for i in range(len(r.points_mm)))
+        labels = tuple(marker_label(r.name, i) for r in rods for i in range(len(r.points_mm)))
         uv = np.asarray(uv_px, dtype=float)[idx[found]]
         return xyz[found], uv, tuple(lab for lab, f in zip(labels, found, strict=True) if f)
 

@@ -33,7 +33,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch, marker_label
 from kisscal.errors import KisscalError
 
 
@@ -300,24 +300,22 @@ def _line_candidates(
         best = assign[0].copy()
         n0 = int((best >= 0).sum())
         rivals = []
+        drop = np.zeros(len(best), dtype=bool)
         for a, r, g in zip(assign[1:], rms[1:], gap[1:], strict=True):
             if int((a >= 0).sum()) != n0 or r >= _near(rms[0], params):
                 continue
-            common = (a >= 0) & (best >= 0)
-            same_markers = {int(x) for x in a[a >= 0]} & {int(x) for x in best[best >= 0]}
-            # A blob given another marker index: the pattern fits shifted (ordering doubt).
-            if any(
-                int(np.flatnonzero(a == b)[0]) != int(np.flatnonzero(best == b)[0])
-                for b in same_markers
-            ):
+            # Line blobs both hypotheses use: given another marker index, the pattern
+            # fits shifted along the rod (an ordering doubt, judged in _check_ambiguity).
+            shared = np.intersect1d(a[a >= 0], best[best >= 0])
+            if any(np.flatnonzero(a == x)[0] != np.flatnonzero(best == x)[0] for x in shared):
                 rivals.append({int(line[x]) for x in a[a >= 0]})
                 continue
-            # Otherwise another blob stands in for some marker(s): keep the nearer blob
-            # only when it is clearly nearer, else leave that marker unidentified.
-            differ = (a != best) & ~(~common & (a < 0))
-            for i in np.flatnonzero(differ & (a >= 0)):
-                if best[i] >= 0 and g[i] < _near(gap[0][i], params):
-                    best[i] = -1
+            # Otherwise another blob stands in for some marker: keep the best hypothesis'
+            # blob only when it is clearly nearer the prediction, else leave the marker
+            # unidentified (two blobs this close would merge in a real image anyway).
+            swapped = (a >= 0) & (best >= 0) & (a != best)
+            drop |= swapped & (g < np.array([_near(x, params) for x in gap[0]]))
+        best[drop] = -1
         blobs = np.where(best >= 0, line[np.maximum(best, 0)], -1)
         out.append(_Candidate(ir, blobs, float(rms[0]), rivals))
     return out
@@ -388,7 +386,7 @@ def recognise_rods(
             b = chosen[ir].blobs
             blob_index[ir, :k] = np.where(b >= 0, finite[np.maximum(b, 0)], -1)
             fit_rms[ir] = chosen[ir].rms_px
-        missing += [f"{rod.name}[{i}]" for i in range(k) if blob_index[ir, i] < 0]
+        missing += [marker_label(rod.name, i) for i in range(k) if blob_index[ir, i] < 0]
     unused = np.setdiff1d(np.arange(len(uv)), blob_index[blob_index >= 0])
     return RodMatch(
         camera=camera,
