@@ -39,7 +39,9 @@ class GridParams:
         position to the dot accepted there while indexing.
     outlier_px : float
         Smallest residual, in px, at which an indexed dot is rejected as a mis-indexed blob
-        against a smooth (4th-order) fit of dot position over (row, col).
+        against a smooth (4th-order) fit of dot position over (row, col). That fit follows
+        a 4-16 px distorted, tilted grid to 0.01-0.05 px, so a stray blob near a missing
+        dot's place is caught unless it lies within about this distance of it.
     outlier_sigmas : float
         Residuals above this many robust standard deviations are rejected too (whichever
         of ``outlier_px`` and this is larger is the limit).
@@ -65,8 +67,8 @@ class GridParams:
     cell_aspect: float = 1.0
     min_indexed_fraction: float = 0.9
     match_tol: float = 0.3
-    outlier_px: float = 1.0
-    outlier_sigmas: float = 6.0
+    outlier_px: float = 0.25
+    outlier_sigmas: float = 4.0
     anchor_centre: bool = True
     perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
 
