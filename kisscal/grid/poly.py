@@ -246,23 +246,30 @@ def apply_linearisation(lin: Linearisation, uv: ArrayLike) -> NDArray[np.float64
     return out.reshape(pts.shape)
 
 
+def _derivative_matrix(axis: int) -> NDArray[np.float64]:
+    """(15, 15) map from coefficients to those of the derivative along ``un`` (0) or ``vn`` (1).
+
+    d/du of u^a v^b is a u^(a-1) v^b, again a term of the thesis' basis (degree <= 3).
+    """
+    index = {(int(a), int(b)): k for k, (a, b) in enumerate(TERM_POWERS)}
+    d = np.zeros((N_TERMS, N_TERMS))
+    for k, (a, b) in enumerate(TERM_POWERS):
+        power = (a, b)[axis]
+        if power > 0:
+            lower = (a - 1, b) if axis == 0 else (a, b - 1)
+            d[index[lower], k] = power
+    return d
+
+
+_D_UN = _derivative_matrix(0)
+_D_VN = _derivative_matrix(1)
+
+
 def _jacobian(lin: Linearisation, uv: NDArray[np.float64]) -> NDArray[np.float64]:
     """d(u', v') / d(u, v) at ``uv``, shape ``(..., 2, 2)`` (px per px)."""
-    un = (uv[..., 0] - lin.center_px[0]) / lin.scale_px
-    vn = (uv[..., 1] - lin.center_px[1]) / lin.scale_px
-    # d/du of u^a v^b is a u^(a-1) v^b (absent when a = 0); likewise for v.
-    du = np.zeros((*un.shape, N_TERMS))
-    dv = np.zeros((*un.shape, N_TERMS))
-    for k, (pa, pb) in enumerate(TERM_POWERS):
-        if pa > 0:
-            du[..., k] = pa * un ** (pa - 1) * vn**pb
-        if pb > 0:
-            dv[..., k] = pb * un**pa * vn ** (pb - 1)
-    jac = np.empty((*uv.shape[:-1], 2, 2))
-    jac[..., 0, 0] = du @ lin.x
-    jac[..., 0, 1] = dv @ lin.x
-    jac[..., 1, 0] = du @ lin.y
-    jac[..., 1, 1] = dv @ lin.y
+    d_un = Linearisation(lin.center_px, lin.scale_px, _D_UN @ lin.x, _D_UN @ lin.y)
+    d_vn = Linearisation(lin.center_px, lin.scale_px, _D_VN @ lin.x, _D_VN @ lin.y)
+    jac = np.stack([apply_linearisation(d_un, uv), apply_linearisation(d_vn, uv)], axis=-1)
     return jac / lin.scale_px
 
 
