@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from grid_synth import BrownCamera, fit_similarity, make_grid_view, rms
 from scipy.spatial import Delaunay
 
 from kisscal.grid import GridParams, apply_linearisation, linearise_dots
+from tests.grid.grid_synth import BrownCamera, fit_similarity, make_grid_view, rms
 
 SIZE = (752, 291)
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from grid_synth import make_grid_view
 
 from kisscal.errors import KisscalError
 from kisscal.grid import average_frames, dots_from_frames, linearise_dots
+from tests.grid.grid_synth import make_grid_view
 
 
 def render_dots(uv: np.ndarray, size_px=(752, 291), sigma_px=(1.6, 0.85), peak=200.0):
@@ -39,6 +39,7 @@ def test_average_frames_is_the_mean_and_checks_shapes():
 
 
 def test_rendered_grid_frames_give_every_dot():
+    """Dots about 7 x 3 px: detection's long/wide split would halve some (off for grids)."""
     pytest.importorskip("kisscal.detect.pipeline", reason="detection stage not merged yet")
     view = make_grid_view(seed=41, noise_px=0.0, pitch_over_z=0.043)  # all inside
     clean = render_dots(view.distorted_uv) + 12.0

@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
-from grid_synth import make_grid_view
 
 from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation, linearise_dots
 from kisscal.io.linearisation import read_linearisation, write_linearisation
+from tests.grid.grid_synth import make_grid_view
 
 
 @pytest.fixture(scope="module")

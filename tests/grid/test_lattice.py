@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from grid_synth import BrownCamera, make_grid_view
 
 from kisscal.errors import KisscalError
 from kisscal.grid import GridParams, index_lattice
+from tests.grid.grid_synth import BrownCamera, make_grid_view
 
 
 @pytest.mark.parametrize(

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from grid_synth import make_grid_view
 from matplotlib.figure import Figure
 
 from kisscal.grid import linearise_dots
 from kisscal.report.grid import grid_correction_figure, straightness_figure
+from tests.grid.grid_synth import make_grid_view
 
 
 def test_figures_show_dots_vectors_and_lines(tmp_path):

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from grid_synth import fit_similarity, rms
 from scipy.spatial import Delaunay
 
 from kisscal.grid import GridParams, apply_linearisation, linearise_dots
 from kisscal.synth.plan import SynthOptions, plan_session, render_grid
 from kisscal.synth.scene import grid_view
+from tests.grid.grid_synth import fit_similarity, rms
 
 SEED = 1
 

@@ -8,10 +8,10 @@ import json
 import cv2
 import numpy as np
 import pytest
-from grid_synth import fit_similarity, rms
 
 from kisscal.grid import apply_linearisation
 from kisscal.io.linearisation import read_linearisation, write_linearisation
+from tests.grid.grid_synth import fit_similarity, rms
 
 # Module level, so that the session fixture is not synthesised just to be skipped.
 pytest.importorskip("kisscal.detect.pipeline", reason="detection stage not merged yet")
