@@ -25,6 +25,14 @@ def _linearisation():
     )
 
 
+def _after_similarity(a, b) -> float:
+    """RMS Euclidean residual (px) of ``b`` after the least-squares similarity ``a -> b``."""
+    za, zb = a[:, 0] + 1j * a[:, 1], b[:, 0] + 1j * b[:, 1]
+    m = np.column_stack([za, np.ones_like(za)])
+    coef, *_ = np.linalg.lstsq(m, zb, rcond=None)
+    return float(np.sqrt(np.mean(np.abs(m @ coef - zb) ** 2)))
+
+
 def accuracy_lines(seed: int = 1, noise_px: float = 0.05) -> list[str]:
     """Issue 3's accuracy figures on the synthetic rig's true dots plus centroid noise.
 
@@ -35,13 +43,6 @@ def accuracy_lines(seed: int = 1, noise_px: float = 0.05) -> list[str]:
     from kisscal.grid import GridParams, apply_linearisation, linearise_dots
     from kisscal.synth.plan import SynthOptions, plan_session
     from kisscal.synth.scene import grid_view
-
-    def after_similarity(a, b):
-        # least-squares similarity a -> b, complex form; RMS Euclidean residual
-        za, zb = a[:, 0] + 1j * a[:, 1], b[:, 0] + 1j * b[:, 1]
-        m = np.column_stack([za, np.ones_like(za)])
-        coef, *_ = np.linalg.lstsq(m, zb, rcond=None)
-        return float(np.sqrt(np.mean(np.abs(m @ coef - zb) ** 2)))
 
     plan = plan_session(SynthOptions(seed=seed, fields=60, stick_fields=10))
     xyz = plan.trials["walk01"].xyz_mm.reshape(-1, 3)
@@ -59,10 +60,10 @@ def accuracy_lines(seed: int = 1, noise_px: float = 0.05) -> list[str]:
         q = lin.quality
         raw = cam.project(xyz)
         ok = cam.in_image(raw)
-        trial = after_similarity(cam.project_ideal(xyz)[ok], apply_linearisation(lin, raw[ok]))
+        trial = _after_similarity(cam.project_ideal(xyz)[ok], apply_linearisation(lin, raw[ok]))
         w, h = cam.size_px
         ideal = rng.uniform([0, 0], [w - 1, h - 1], size=(3000, 2))
-        fov = after_similarity(ideal, apply_linearisation(lin, cam.distort_px(ideal)))
+        fov = _after_similarity(ideal, apply_linearisation(lin, cam.distort_px(ideal)))
         keep = np.ones(len(dots), dtype=bool)
         keep[rng.choice(len(dots), 15, replace=False)] = False
         extra = rng.uniform([0, 0], [w - 1, h - 1], size=(10, 2))
@@ -77,6 +78,39 @@ def accuracy_lines(seed: int = 1, noise_px: float = 0.05) -> list[str]:
             f"{q.residual_rms_after_px:10.3f}"
             f"{q.straightness_rms_before_px / q.straightness_rms_after_px:11.1f}"
             f"{trial:10.3f}{fov:8.3f}{np.hypot(*change.T).max():10.3f}"
+        )
+    return lines
+
+
+def rendered_lines(seed: int = 1) -> list[str]:
+    """The whole stage on the rig's rendered grid frames (average, detect, index, fit)."""
+    from kisscal.grid import apply_linearisation, linearise_frames
+    from kisscal.synth.plan import SynthOptions, plan_session, render_grid
+
+    plan = plan_session(SynthOptions(seed=seed, fields=60, stick_fields=10))
+    xyz = plan.trials["walk01"].xyz_mm.reshape(-1, 3)
+    xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
+    rng = np.random.default_rng(seed)
+    lines = [
+        f"rig seed {seed}, rendered grid frames -> kisscal.detect -> linearisation (homography):",
+        f"{'camera':8s}{'dots':>6s}{'resid px':>10s}{'straight':>18s}{'ratio':>7s}"
+        f"{'cv px':>8s}{'trial px':>10s}{'FOV px':>8s}",
+    ]
+    for k, cam in enumerate(plan.rig):
+        frames, _ = render_grid(plan, k)
+        fit = linearise_frames(frames)
+        lin, q = fit.linearisation, fit.linearisation.quality
+        raw = cam.project(xyz)
+        ok = cam.in_image(raw)
+        trial = _after_similarity(cam.project_ideal(xyz)[ok], apply_linearisation(lin, raw[ok]))
+        w, h = cam.size_px
+        ideal = rng.uniform([0, 0], [w - 1, h - 1], size=(3000, 2))
+        fov = _after_similarity(ideal, apply_linearisation(lin, cam.distort_px(ideal)))
+        lines.append(
+            f"{cam.id:8s}{q.dots_used:6d}{q.residual_rms_after_px:10.3f}"
+            f"{q.straightness_rms_before_px:9.3f} ->{q.straightness_rms_after_px:6.3f}"
+            f"{q.straightness_rms_before_px / q.straightness_rms_after_px:7.1f}"
+            f"{q.cv_rms_px:8.3f}{trial:10.3f}{fov:8.3f}"
         )
     return lines
 
@@ -120,4 +154,5 @@ def main() -> list[str]:
         report(inv_t),
         f"issue 3 bar: 1e6 points in {apply_t.seconds:.3f} s (< 0.2 s): {verdict}",
         *accuracy_lines(),
+        *rendered_lines(),
     ]
