@@ -58,6 +58,12 @@ class GridParams:
         ``"lens_centre"`` asks the correction to have no 2nd-order terms at the centre
         (as radial distortion has none); ``"least_squares"`` keeps the least-squares
         homography of the distorted dots.
+    warn_residual_px : float
+        Fit residual (RMS, px) above which a warning says the dots or their detection are
+        suspect (rendered rig grids fit to 0.01-0.02 px).
+    warn_cv_ratio : float
+        Leave-one-row-out residual over fit residual above which a warning says the
+        polynomial may be over-fitting.
     """
 
     rows: int = 15
@@ -71,6 +77,8 @@ class GridParams:
     outlier_sigmas: float = 4.0
     anchor_centre: bool = True
     perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
+    warn_residual_px: float = 0.1
+    warn_cv_ratio: float = 2.0
 
     def __post_init__(self) -> None:
         if self.rows < 5 or self.cols < 5:
