@@ -116,7 +116,13 @@ def _load(root: Path) -> Any:
 
 
 def _detect_frames(
-    frames: Sequence[np.ndarray], params: Any, cache_file: Path, key: str, echo: Echo, what: str
+    frames: Sequence[np.ndarray],
+    params: Any,
+    cache_file: Path,
+    key: str,
+    echo: Echo,
+    what: str,
+    workers: int | None = None,
 ) -> list:
     """Blobs of every frame, from the cache when its key matches."""
     from kisscal.detect import detect_sequence
@@ -126,7 +132,7 @@ def _detect_frames(
         echo(f"  detect {what}: {len(frames)} frames (cached)")
         return load_blob_frames(cache_file)
     t0 = time.perf_counter()
-    blobs = detect_sequence(frames.__getitem__, params, count=len(frames))
+    blobs = detect_sequence(frames.__getitem__, params, count=len(frames), workers=workers)
     save_blob_frames(cache_file, blobs)
     mark_current(cache_file, key)
     echo(f"  detect {what}: {len(frames)} frames in {time.perf_counter() - t0:.1f} s")
@@ -220,6 +226,15 @@ def linearise(
         write_linearisation(
             out, fit.linearisation, cam.id, fit.index.missing_rc, fit.index.missing_uv
         )
+        _figure(
+            root,
+            f"grid_{cam.id}",
+            "kisscal.report.grid",
+            "grid_correction_figure",
+            fit,
+            cam.id,
+            cam.size_px,
+        )
         mark_current(out, key)
         lin = fit.linearisation
         q = lin.quality
@@ -262,6 +277,7 @@ def calibrate(
     lens: bool = False,
     overrides: Overrides | None = None,
     echo: Echo = _quiet,
+    workers: int | None = None,
 ) -> dict[str, Any]:
     """``kisscal calibrate``: DLT parameters of each camera from rods or control points.
 
@@ -293,7 +309,7 @@ def calibrate(
             key = cache_key("detect", list(frames.paths), params.detection)
             cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
             frame_blobs = _detect_frames(
-                frames, params.detection, cache, key, echo, f"rods {cam.id}"
+                frames, params.detection, cache, key, echo, f"rods {cam.id}", workers
             )
             blobs_px[cam.id] = [
                 apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
@@ -321,6 +337,30 @@ def calibrate(
                 f"  calibrate {cam.id}: {res.method}, {int(used.sum())} rod markers, "
                 f"rms {res.rms_px:.3f} px, centre {np.round(res.centre_mm).tolist()} mm"
             )
+        sizes = {c.id: c.size_px for c in config.cameras}
+        from kisscal.report.dlt import CameraResiduals
+
+        residuals = {
+            c: CameraResiduals(
+                cal.marker_uv_px[c].reshape(-1, 2)[
+                    np.all(np.isfinite(cal.marker_uv_px[c].reshape(-1, 2)), axis=1)
+                ],
+                r.residuals_px,
+                sizes[c],
+                r.rms_px,
+            )
+            for c, r in cal.results.items()
+        }
+        _figure(root, "dlt_residuals", "kisscal.report.dlt", "residual_figure", residuals)
+        _figure(
+            root,
+            "rig",
+            "kisscal.report.dlt",
+            "rig_figure",
+            {c: r.centre_mm for c, r in cal.results.items()},
+            [(r.name, r.points_mm) for r in rods],
+            {c: r.R for c, r in cal.results.items()},
+        )
         in_sample = np.nanmean(cal.in_sample_mm)
         check_doc = {"in_sample_mean_mm": float(in_sample)}
         if check is not None:
@@ -386,7 +426,12 @@ def _read_dlts(root: Path, config: Any, required: bool = True) -> dict[str, np.n
 
 
 def _trial_blobs(
-    root: Path, config: Any, trial: Any, params: StageParams, echo: Echo
+    root: Path,
+    config: Any,
+    trial: Any,
+    params: StageParams,
+    echo: Echo,
+    workers: int | None = None,
 ) -> dict[str, list]:
     """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays."""
     from kisscal.io.cache import cache_key
@@ -417,13 +462,19 @@ def _trial_blobs(
         inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
         key = cache_key("detect", inputs, params.detection)
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
-        blobs = _detect_frames(seq, params.detection, cache, key, echo, f"{trial.name} {cam}")
+        blobs = _detect_frames(
+            seq, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
+        )
         out[cam] = [b.valid_only().xy_px for b in blobs]
     return out
 
 
 def reconstruct(
-    root: Path, trial_name: str, overrides: Overrides | None = None, echo: Echo = _quiet
+    root: Path,
+    trial_name: str,
+    overrides: Overrides | None = None,
+    echo: Echo = _quiet,
+    workers: int | None = None,
 ) -> Any:
     """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv``."""
     from kisscal.grid import apply_linearisation
@@ -435,7 +486,7 @@ def reconstruct(
     params = stage_params(config, overrides)
     lins = _linearisations(root, config, echo)
     dlts = _read_dlts(root, config)
-    blobs = _trial_blobs(root, config, trial, params, echo)
+    blobs = _trial_blobs(root, config, trial, params, echo, workers)
     fields, cams, uvs = [], [], []
     for ci, cam in enumerate(config.camera_ids):
         for f, xy in enumerate(blobs[cam]):
@@ -453,6 +504,22 @@ def reconstruct(
     )
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
+        busiest = int(np.bincount(points.field).argmax())
+        _figure(
+            root,
+            f"epipolar_{trial.name}",
+            "kisscal.report.epipolar",
+            "trial_field_figure",
+            points,
+            busiest,
+            field_idx,
+            cam_idx,
+            uv,
+            np.stack([dlts[c] for c in config.camera_ids]),
+            [c.size_px for c in config.cameras],
+            list(config.camera_ids),
+        )
     n_fields = max(len(v) for v in blobs.values())
     echo(
         f"  reconstruct {trial.name}: {len(points)} points in {n_fields} fields, "
@@ -460,6 +527,28 @@ def reconstruct(
         f"({time.perf_counter() - t0:.1f} s)"
     )
     return points
+
+
+def _figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:
+    """Draw a stage figure into ``out/figures/<name>.png``.
+
+    A figure that cannot be drawn (e.g. a degenerate trial) is skipped: figures
+    illustrate the numbers, which are already written.
+    """
+    import importlib
+    import warnings
+
+    from kisscal.report.html import save_figure
+
+    try:
+        draw = getattr(importlib.import_module(module), function)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            save_figure(draw(*args), out_dir(root) / "figures" / f"{name}.png")
+    except (ImportError, AttributeError):
+        return
+    except (ValueError, IndexError, KisscalError):
+        return
 
 
 # --------------------------------------------------------------------------- tracking
@@ -499,6 +588,18 @@ def track(
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
     write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    segments = config.markers.segments if config.markers else ()
+    _figure(
+        root, f"trajectories_{trial.name}", "kisscal.report.tracking", "trajectories_figure", result
+    )
+    _figure(
+        root,
+        f"segments_{trial.name}",
+        "kisscal.report.tracking",
+        "segment_length_figure",
+        result,
+        segments,
+    )
     echo(
         f"  track {trial.name}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
         f"({', '.join(result.labels[:20])}{' ...' if len(result.labels) > 20 else ''}) "
@@ -518,8 +619,15 @@ def track(
 # ------------------------------------------------------------------------- whole runs
 
 
-def run(root: Path, overrides: Overrides | None = None, echo: Echo = _quiet) -> dict[str, Any]:
+def run(
+    root: Path,
+    overrides: Overrides | None = None,
+    echo: Echo = _quiet,
+    workers: int | None = None,
+) -> dict[str, Any]:
     """``kisscal run``: linearise, calibrate, then reconstruct and track every trial.
+
+    ``workers`` is the number of detection processes (default: one per core).
 
     Detection and calibration are cached: re-running after changing a tracking
     parameter redoes only tracking. Writes ``out/summary.json`` and returns it.
@@ -536,12 +644,12 @@ def run(root: Path, overrides: Overrides | None = None, echo: Echo = _quiet) -> 
     timings["linearise_s"] = time.perf_counter() - t
     t = time.perf_counter()
     echo("[2/4] calibration")
-    calibrate(root, overrides=overrides, echo=echo)
+    calibrate(root, overrides=overrides, echo=echo, workers=workers)
     timings["calibrate_s"] = time.perf_counter() - t
     for trial in config.trials:
         t = time.perf_counter()
         echo(f"[3/4] reconstruction: {trial.name}")
-        reconstruct(root, trial.name, overrides, echo)
+        reconstruct(root, trial.name, overrides, echo, workers)
         timings[f"reconstruct_{trial.name}_s"] = time.perf_counter() - t
         t = time.perf_counter()
         echo(f"[4/4] tracking: {trial.name}")
@@ -550,6 +658,7 @@ def run(root: Path, overrides: Overrides | None = None, echo: Echo = _quiet) -> 
     summary = summarise(root)
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
     write_json(out_dir(root) / "summary.json", summary)
+    report(root, echo=echo)
     return summary
 
 
@@ -654,6 +763,68 @@ def check(
     return failures
 
 
+# ------------------------------------------------------------------------------ batch
+
+
+def _run_quietly(root: str) -> dict[str, Any]:
+    """One session of a batch, run in a Dask worker (single process: the batch is the
+    parallelism); returns its summary, or ``{"error": message}`` for a user error."""
+    try:
+        return run(Path(root), workers=1)
+    except KisscalError as exc:
+        return {"error": str(exc)}
+
+
+def batch(
+    sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = _quiet
+) -> list[Path]:
+    """``kisscal batch``: run many sessions in parallel on Dask; return the ones that failed.
+
+    Without ``scheduler`` a local cluster (one single-threaded worker process per core)
+    is started; with it, the sessions go to that Dask scheduler (a lab cluster), which
+    must see the same paths. A session that fails is reported and does not stop the others.
+    """
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    paths = [Path(s).resolve() for s in sessions]
+    if not paths:
+        raise KisscalError("kisscal batch: give at least one session folder")
+    # Worker processes must be able to start the detection's own process pool.
+    with dask.config.set({"distributed.worker.daemon": False, "logging.distributed": "error"}):
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise KisscalError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+            cluster = None
+        else:
+            n = max(1, min(len(paths), os.cpu_count() or 1))
+            cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, dashboard_address=None, silence_logs=40
+            )
+            client = Client(cluster)
+        try:
+            futures = client.map(_run_quietly, [str(p) for p in paths], pure=False)
+            failed = []
+            for path, future in zip(paths, futures, strict=True):
+                try:
+                    summary = future.result()
+                    if "error" in summary:
+                        raise KisscalError(summary["error"])
+                    n_traj = sum(t.get("trajectories", 0) for t in summary["trials"].values())
+                    echo(f"ok      {path}: {len(summary['trials'])} trials, {n_traj} trajectories")
+                except Exception as exc:  # one failed session must not stop the others
+                    failed.append(path)
+                    echo(f"FAILED  {path}: {exc}")
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    echo(f"{len(paths) - len(failed)} of {len(paths)} sessions processed")
+    return failed
+
+
 # ------------------------------------------------------------------------------ synth
 
 
@@ -721,6 +892,113 @@ def synthesise(
     return Path(out)
 
 
-def demo(out: Path, *, seed: int = 1, echo: Echo = _quiet) -> None:
-    """Synthesise a KISS-like session into ``out`` and process it."""
-    raise KisscalError("kisscal demo: the session pipeline is not wired yet")
+def evaluate(root: Path) -> dict[str, Any]:
+    """Score a processed synthetic session against its ``truth/`` (no truth: empty dict).
+
+    Gait trials: trajectories vs true markers (labels, switches, RMSE, coverage); the
+    stick trial: length error (seed 003, 5.1); the thrown marker: g from a parabola fit.
+    """
+    from kisscal.io.files import read_table
+    from kisscal.synth.evaluate import (
+        gravity_error,
+        score_trajectories,
+        stick_length_error,
+        thrown_gravity,
+    )
+
+    config = _load(root)
+    truth_dir = Path(root) / "truth" / "trials"
+    result: dict[str, Any] = {}
+    for trial in config.trials:
+        traj_path = out_dir(root) / "trials" / trial.name / "trajectories.csv"
+        truth_path = truth_dir / trial.name / "markers.csv"
+        if not (traj_path.is_file() and truth_path.is_file()):
+            continue
+        tr = read_table(traj_path)
+        truth = read_table(truth_path)
+        field_t = tr["field"].astype(int)
+        xyz = np.column_stack([tr["x_mm"], tr["y_mm"], tr["z_mm"]])
+        vis = np.column_stack([truth[f"visible_{c}"] for c in config.camera_ids])
+        score = score_trajectories(
+            field_t,
+            tr["label"],
+            xyz,
+            tr["status"],
+            truth["field"].astype(int),
+            truth["marker"],
+            np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]),
+            vis.sum(axis=1) >= 2,
+        )
+        entry: dict[str, Any] = dataclasses.asdict(score)
+        if trial.name == "stick":
+            mae, sd, n = stick_length_error(field_t, tr["label"], xyz, tr["status"])
+            entry["stick_length"] = {"mean_abs_error_mm": mae, "sd_mm": sd, "samples": n}
+        if trial.name == "throw":
+            measured = tr["status"] == "measured"
+            g = thrown_gravity(field_t[measured], xyz[measured], config.rate_hz)
+            entry["gravity"] = {"g_m_s2": g, "relative_error": gravity_error(g)}
+        result[trial.name] = entry
+    return result
+
+
+def demo(out: Path, *, seed: int = 1, echo: Echo = _quiet) -> dict[str, Any]:
+    """``kisscal demo``: synthesise a KISS-like session into ``out``, run it, print figures.
+
+    The printed figures are the ones written to ``out/out/summary.json`` (``truth`` holds
+    the comparison with the synthetic ground truth).
+    """
+    from kisscal.io.files import write_json
+
+    out = Path(out)
+    t0 = time.perf_counter()
+    if (out / "session.toml").is_file():
+        echo(f"using the existing session in {out}")
+    else:
+        synthesise(out, seed=seed, echo=echo)
+    summary = run(out, echo=echo)
+    summary["truth"] = evaluate(out)
+    summary["timings"]["total_s"] = round(time.perf_counter() - t0, 1)
+    write_json(out_dir(out) / "summary.json", summary)
+    try:
+        report_path = report(out)
+    except Exception as exc:  # the figures are a convenience; the numbers are already written
+        echo(f"report not written: {exc}")
+        report_path = None
+    echo("")
+    echo(f"kisscal demo: {summary['session']} ({summary['timings']['total_s']} s)")
+    echo(f"{'camera':<8}{'grid rms px':>12}{'DLT rms px':>12}")
+    for cam, entry in summary["cameras"].items():
+        g = entry.get("grid", {}).get("rms_px", float("nan"))
+        d = entry.get("dlt", {}).get("rms_px", float("nan"))
+        echo(f"{cam:<8}{g:>12.3f}{d:>12.3f}")
+    rods = summary.get("rods", {})
+    if rods:
+        echo(
+            f"rod markers, in-sample 3D error: {rods.get('in_sample_mean_mm', float('nan')):.3f} mm; "
+            f"leave-one-rod-out: {rods.get('leave_one_rod_out_mean_mm', float('nan')):.3f} mm"
+        )
+    for trial, t in summary["truth"].items():
+        line = (
+            f"{trial}: {t['n_trajectories']} trajectories for {t['n_true_markers']} markers, "
+            f"{t['correctly_labelled']} labelled right, 3D RMSE {t['rmse_measured_mm']:.2f} mm "
+            f"(filled {t['rmse_filled_mm']:.2f} mm), coverage {100 * t['coverage']:.1f} %"
+        )
+        if "stick_length" in t:
+            sl = t["stick_length"]
+            line += f"; stick length error {sl['mean_abs_error_mm']:.2f} +/- {sl['sd_mm']:.2f} mm"
+        if "gravity" in t:
+            line += f"; g = {t['gravity']['g_m_s2']:.3f} m/s^2"
+        echo(line)
+    echo(f"summary: {out_dir(out) / 'summary.json'}")
+    if report_path is not None:
+        echo(f"report:  {report_path}")
+    return summary
+
+
+def report(root: Path, echo: Echo = _quiet) -> Path:
+    """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
+    from kisscal.report.html import build_report
+
+    path = build_report(Path(root))
+    echo(f"report: {path}")
+    return path
