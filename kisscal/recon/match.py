@@ -19,7 +19,7 @@ from kisscal.recon.epipolar import (
     distance_matrix_px,
     field_pairs,
 )
-from kisscal.recon.group import merge_groups, split_or_drop
+from kisscal.recon.group import merge_groups, renumber, split_or_drop, triangulate_markers
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.triangulate import triangulate_observations
 
@@ -166,6 +166,8 @@ def _project_rows(
 def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
     """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
     order = np.lexsort((np.arange(len(key)), score, key))
+    if len(order) == 0:
+        return order
     first = np.r_[True, key[order][1:] != key[order][:-1]]
     return order[first]
 
@@ -293,6 +295,17 @@ def match_triple(
     return _finish(marker, field, camera, uv, dlts, params)
 
 
+def residual_limit_px(rms_px: NDArray[np.float64], params: ReconParams) -> float:
+    """The reprojection limit of a trial: ``max_rms_px``, tightened to
+    ``outlier_rms_factor`` times the median ``rms_px`` of the trial's markers (never below
+    ``outlier_floor_px``), so that a marker far noisier than its trial is treated as wrong."""
+    rms_px = rms_px[np.isfinite(rms_px)]
+    if params.outlier_rms_factor <= 0 or len(rms_px) == 0:
+        return params.max_rms_px
+    adaptive = max(params.outlier_floor_px, params.outlier_rms_factor * float(np.median(rms_px)))
+    return min(params.max_rms_px, adaptive)
+
+
 def _finish(
     marker: NDArray[np.int64],
     field: NDArray[np.int64],
@@ -301,6 +314,7 @@ def _finish(
     dlts: NDArray[np.float64],
     params: ReconParams,
 ) -> NDArray[np.int64]:
+    """3D grouping, then the residual limit: split or drop markers over it."""
     min_cameras = 2 if params.allow_two_camera else 3
     marker = merge_groups(
         marker,
@@ -312,13 +326,16 @@ def _finish(
         params.max_rms_px,
         params.reweight_iterations,
     )
+    if not (marker >= 0).any():
+        return marker
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
     return split_or_drop(
         marker,
         field,
         camera,
         uv,
         dlts,
-        params.max_rms_px,
+        residual_limit_px(tri.rms_px, params),
         min_cameras,
         params.reweight_iterations,
     )
@@ -471,7 +488,17 @@ def match_trial(
         Marker of each blob, -1 for unmatched blobs.
     """
     fn = match_triple if params.strategy == "triple" else match_central
-    return fn(field, camera, uv, dlts, params)
+    marker = fn(field, camera, uv, dlts, params)
+    free = np.flatnonzero(marker < 0)
+    if len(free) >= 3 and (marker >= 0).any():
+        # second chance for blobs freed by the residual limit (a blob wrongly attached to
+        # a neighbour is split off there, and may complete its own marker now)
+        field = np.asarray(field, dtype=np.int64)
+        again = fn(field[free], np.asarray(camera)[free], np.asarray(uv)[free], dlts, params)
+        found = again >= 0
+        marker[free[found]] = again[found] + marker.max() + 1
+        marker = renumber(marker, field)
+    return marker
 
 
 def match_field(

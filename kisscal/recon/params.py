@@ -34,6 +34,13 @@ class ReconParams:
     max_rms_px : float
         Largest reprojection ``rms_px`` of an accepted 3D marker (px); worse markers lose
         their worst observation (split) or are dropped.
+    outlier_rms_factor : float
+        The residual limit of a trial is tightened to this many times the median
+        ``rms_px`` of its markers (a marker far noisier than its trial holds a wrong or
+        merged blob); 0 keeps ``max_rms_px`` alone.
+    outlier_floor_px : float
+        The tightened limit never goes below this (px), so that near-perfect data does not
+        make the limit vanish.
     reweight_iterations : int
         Iteratively reweighted least-squares steps after the linear DLT solution
         (Woltring & Huiskes 1990, sec. 3); 0 keeps the plain eq. 10 solution.
@@ -56,6 +63,8 @@ class ReconParams:
     max_candidates: int = 5
     allow_two_camera: bool = False
     max_rms_px: float = 1.0
+    outlier_rms_factor: float = 5.0
+    outlier_floor_px: float = 0.2
     reweight_iterations: int = 2
     group_radius_mm: float = 10.0
     stationary_filter: bool = True
@@ -71,6 +80,7 @@ class ReconParams:
             "epipolar_band_px",
             "search_radius_px",
             "max_rms_px",
+            "outlier_floor_px",
             "group_radius_mm",
             "stationary_radius_px",
         ):
@@ -78,6 +88,10 @@ class ReconParams:
                 raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")
         if self.max_candidates < 1:
             raise KisscalError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
+        if self.outlier_rms_factor < 0:
+            raise KisscalError(
+                f"recon outlier_rms_factor must be >= 0, got {self.outlier_rms_factor}"
+            )
         if self.reweight_iterations < 0:
             raise KisscalError(
                 f"recon reweight_iterations must be >= 0, got {self.reweight_iterations}"
