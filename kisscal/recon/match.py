@@ -8,6 +8,7 @@ at most one marker.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -494,7 +495,13 @@ def match_trial(
         # second chance for blobs freed by the residual limit (a blob wrongly attached to
         # a neighbour is split off there, and may complete its own marker now)
         field = np.asarray(field, dtype=np.int64)
-        again = fn(field[free], np.asarray(camera)[free], np.asarray(uv)[free], dlts, params)
+        camera = np.asarray(camera, dtype=np.int64)
+        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+        dlts = np.asarray(dlts, dtype=float)
+        # the leftovers are the trial's worst blobs: keep the limit the whole trial set
+        rms = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).rms_px
+        fixed = replace(params, max_rms_px=residual_limit_px(rms, params), outlier_rms_factor=0.0)
+        again = fn(field[free], camera[free], uv[free], dlts, fixed)
         found = again >= 0
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
