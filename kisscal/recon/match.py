@@ -234,7 +234,8 @@ def match_triple(
     blobs is accepted (the same outcome as taking them one by one), then extended to the
     cameras it lacks with the free blob nearest its projection within ``search_radius_px``.
     Finally 3D points of one field closer than ``group_radius_mm`` that do not conflict are
-    united (3.3.7) and markers over ``max_rms_px`` are split or dropped.
+    united (3.3.7) and markers over the residual limit (:func:`residual_limit_px`) are split
+    or dropped.
 
     Parameters
     ----------
