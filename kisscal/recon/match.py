@@ -231,8 +231,10 @@ def match_triple(
     of the other two's lines (eq. 3.9) and their 3-camera DLT solution reprojects within
     ``max_rms_px``. Triples become markers best (lowest ``rms_px``) first, each blob used
     once: in rounds, every triple that is the best remaining triple of all three of its
-    blobs is accepted (the same outcome as taking them one by one), then extended to the
-    cameras it lacks with the free blob nearest its projection within ``search_radius_px``.
+    blobs is accepted, then extended to the cameras it lacks with the free blob nearest its
+    projection within ``search_radius_px``. (Taking triples one by one would be a Python
+    loop; when two disjoint triples of one marker win in the same round, the 3D grouping
+    below unites them.)
     Finally 3D points of one field closer than ``group_radius_mm`` that do not conflict are
     united (3.3.7) and markers over the residual limit (:func:`residual_limit_px`) are split
     or dropped.
