@@ -166,7 +166,7 @@ def _project_rows(
 
 def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
     """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
-    order = np.lexsort((np.arange(len(key)), score, key))
+    order = np.lexsort((score, key))  # stable: equal scores keep index order
     if len(order) == 0:
         return order
     first = np.r_[True, key[order][1:] != key[order][:-1]]

@@ -58,11 +58,11 @@ class ReconParams:
     """
 
     strategy: str = "triple"
-    epipolar_band_px: float = 1.5
-    search_radius_px: float = 2.0
+    epipolar_band_px: float = 3.0
+    search_radius_px: float = 3.0
     max_candidates: int = 5
     allow_two_camera: bool = False
-    max_rms_px: float = 1.0
+    max_rms_px: float = 2.0
     outlier_rms_factor: float = 5.0
     outlier_floor_px: float = 0.2
     reweight_iterations: int = 2
