@@ -230,8 +230,9 @@ def candidate_pairs(
             rows_j = order[bounds[j] : bounds[j + 1]]
             if len(rows_i) == 0 or len(rows_j) == 0:
                 continue
-            lines_j = epipolar_lines(F[i, j], uv[rows_i])  # one line per blob, not per pair
-            lines_i = epipolar_lines(F[j, i], uv[rows_j])
+            uv_i, uv_j = uv[rows_i], uv[rows_j]
+            lines_j = epipolar_lines(F[i, j], uv_i)  # one line per blob, not per pair
+            lines_i = epipolar_lines(F[j, i], uv_j)
             # bound the temporary pair arrays on long trials: whole blobs of camera i per chunk
             n_pairs = np.searchsorted(field[rows_j], field[rows_i], side="right")
             n_pairs -= np.searchsorted(field[rows_j], field[rows_i], side="left")
@@ -241,15 +242,16 @@ def candidate_pairs(
                     continue
                 ia, jb = field_pairs(field[rows_i[lo:hi]], field[rows_j])
                 ia += lo
-                a, b = rows_i[ia], rows_j[jb]
-                lj, li = lines_j[ia], lines_i[jb]
-                d = np.maximum(
-                    np.abs(lj[:, 0] * uv[b, 0] + lj[:, 1] * uv[b, 1] + lj[:, 2]),
-                    np.abs(li[:, 0] * uv[a, 0] + li[:, 1] * uv[a, 1] + li[:, 2]),
-                )
+                # one direction first: it rejects most pairs, the other is computed for the rest
+                lj, uvb = lines_j[ia], uv_j[jb]
+                d = np.abs(lj[:, 0] * uvb[:, 0] + lj[:, 1] * uvb[:, 1] + lj[:, 2])
+                near = np.flatnonzero(d < band_px)
+                ia, jb, d = ia[near], jb[near], d[near]
+                li, uva = lines_i[jb], uv_i[ia]
+                d = np.maximum(d, np.abs(li[:, 0] * uva[:, 0] + li[:, 1] * uva[:, 1] + li[:, 2]))
                 keep = d < band_px
-                out_a.append(a[keep])
-                out_b.append(b[keep])
+                out_a.append(rows_i[ia[keep]])
+                out_b.append(rows_j[jb[keep]])
                 out_d.append(d[keep])
     if not out_a:
         empty = np.zeros(0, dtype=np.int64)
