@@ -370,7 +370,8 @@ def calibrate(
             write_dlt_json(out / f"{cam.id}.json", cam.id, res, xyz, uv, labels)
             summary[cam.id] = res
             echo(
-                f"  calibrate {cam.id}: {res.method}, {len(xyz)} control points, rms {res.rms_px:.3f} px"
+                f"  calibrate {cam.id}: {res.method}, {len(xyz)} control points, "
+                f"rms {res.rms_px:.3f} px"
             )
     else:
         raise KisscalError(
@@ -488,6 +489,9 @@ def reconstruct(
     )
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    from kisscal.io.files import write_json
+
+    write_json(path.with_name("recon.json"), points.summary())
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
         _figure(
@@ -676,10 +680,8 @@ def summarise(root: Path) -> dict[str, Any]:
     for trial in config.trials:
         tdir = out / "trials" / trial.name
         entry = {}
-        if (tdir / "points3d.csv").is_file():
-            pts = read_table(tdir / "points3d.csv")
-            entry["points"] = len(pts["field"])
-            entry["median_rms_px"] = float(np.median(pts["rms_px"])) if len(pts["field"]) else None
+        if (tdir / "recon.json").is_file():
+            entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
         if (tdir / "trajectories.csv").is_file():
             tr = read_table(tdir / "trajectories.csv")
             labels = sorted(set(tr["label"].tolist()))
@@ -959,10 +961,8 @@ def demo(out: Path, *, seed: int = 1, echo: Echo = _quiet) -> dict[str, Any]:
     rods = summary.get("rods", {})
     if rods:
         loo = rods.get("leave_one_rod_out", {}).get("mean_mm", float("nan"))
-        echo(
-            f"rod markers, in-sample 3D error: {rods.get('rods_in_sample_mean_mm', float('nan')):.3f}"
-            f" mm; leave-one-rod-out: {loo:.3f} mm"
-        )
+        in_sample = rods.get("rods_in_sample_mean_mm", float("nan"))
+        echo(f"rod markers, 3D error in-sample {in_sample:.3f} mm, leave-one-rod-out {loo:.3f} mm")
     for trial, t in summary["truth"].items():
         line = (
             f"{trial}: {t['n_trajectories']} trajectories for {t['n_true_markers']} markers, "
