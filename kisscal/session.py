@@ -914,7 +914,7 @@ def evaluate(root: Path) -> dict[str, Any]:
             truth["field"].astype(int),
             truth["marker"],
             np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]),
-            vis.sum(axis=1) >= 2,
+            vis.sum(axis=1) >= 3,
         )
         entry: dict[str, Any] = dataclasses.asdict(score)
         if trial.name == "stick":
