@@ -52,6 +52,20 @@ class DltParams:
     rods_upright : bool
         Rods appear top-up in every image (the top marker has the smaller ``v``), as for
         an upright camera. Halves the hypotheses; set False for a camera mounted upside down.
+    rod_refuse_unlisted : bool
+        Refuse a rod image in which the blobs left over after recognition hold a rod-like
+        line (at least ``rod_min_markers`` blobs within ``rod_line_tol_px`` of a line,
+        roughly parallel to and of the length scale of the recognised rods): a rod hanging
+        in the volume but missing from ``[[rods.rod]]``. Set False when the lab
+        deliberately hangs extra rods or rod-like objects.
+    rod_unlisted_angle_deg : float
+        Largest angle (degrees) between such a line and the nearest recognised rod's
+        image line for it to count as a rod (image lines of plumb rods converge only
+        slowly towards the vertical vanishing point).
+    rod_unlisted_length_ratio : float
+        Such a line counts as a rod when its length (px, first to last blob) lies within
+        this factor of the recognised rods' image lengths (shortest / ratio to longest
+        * ratio); the factor covers depth differences and a hidden end marker.
     """
 
     mdlt: bool = False
@@ -67,6 +81,9 @@ class DltParams:
     rod_min_distinct: float = 0.005
     rod_ambiguity_ratio: float = 3.0
     rods_upright: bool = True
+    rod_refuse_unlisted: bool = True
+    rod_unlisted_angle_deg: float = 15.0
+    rod_unlisted_length_ratio: float = 2.5
 
     @property
     def method(self) -> str:

@@ -44,8 +44,11 @@ class RodImages:
     cameras: tuple
 
 
-def rod_images(seed: int, hide: bool = True) -> RodImages:
-    """Blobs of each camera's rod image: markers, LED rings of facing cameras, noise."""
+def rod_images(seed: int, hide: bool = True, n_noise: int = N_NOISE_BLOBS) -> RodImages:
+    """Blobs of each camera's rod image: markers, LED rings of facing cameras, noise.
+
+    ``n_noise`` random noise blobs are added per image, each at least 4 px from a marker.
+    """
     rng = np.random.default_rng([seed, 8008])
     cams = kiss_rig(seed)
     rods = make_rods([(r.name, r.points_mm) for r in rod_set(seed)])
@@ -60,7 +63,7 @@ def rod_images(seed: int, hide: bool = True) -> RodImages:
         led = led[cam.in_image(led, margin_px=2)]
         extra = list(led)
         w, h = cam.size_px
-        while len(extra) < len(led) + N_NOISE_BLOBS:
+        while len(extra) < len(led) + n_noise:
             p = rng.uniform([0, 0], [w - 1, h - 1])
             if np.linalg.norm(uv - p, axis=1).min() > 4:
                 extra.append(p)
