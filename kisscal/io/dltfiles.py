@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
 
@@ -140,7 +141,7 @@ def write_dlt_json(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = dlt_document(camera, result, xyz_mm, uv_px, labels, extra)
-    path.write_text(json.dumps(doc, indent=1, allow_nan=True) + "\n")
+    write_text(path, json.dumps(doc, indent=1, allow_nan=True) + "\n")
     return path
 
 
@@ -192,7 +193,7 @@ def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> P
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     cols = [_eleven(L, f"camera {cam}: L") for cam, L in L_by_camera.items()]
-    with path.open("w", newline="") as f:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         for row in np.array(cols).T:
             writer.writerow([repr(float(x)) for x in row])
