@@ -1,10 +1,11 @@
 """Blending of track pieces and clean-up of short tracks (Shafiq et al. 2001 §4.3).
 
-Pieces that end and start within a few fields are connectable; continuity is checked by
-extrapolating each piece across the gap with the extrapolator its length allows (two-point
-line, three-point least-squares line, five-point parabola), forward from the end of the
-first and backward from the start of the second. Accepted pairs are chosen one-to-one
-(``linear_sum_assignment``) and chained. The clean-up then removes tracks with too few
+Pieces that end and start within a few fields are connectable. Each piece is extrapolated
+across the gap with the extrapolator its length allows (two-point line, three-point
+least-squares line, five-point parabola), forward from the end of the first and backward
+from the start of the second, as a coarse gate; continuity is then judged by one cubic
+fitted through both sides. Accepted pairs are chosen one-to-one (``linear_sum_assignment``)
+and chained. The clean-up then removes tracks with too few
 measured points: most ghost tracks are short.
 """
 
@@ -21,9 +22,9 @@ from kisscal.tracking.tracks import MEASURED, Tracks
 _FAR = 1e12
 
 
-def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArray]:
-    """Field of the first/last measured sample per track, its last/first up to 5 measured
-    positions (nearest last) and how many there are."""
+def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Per track: field of the last (first) measured sample, its last (first) up to 5
+    measured positions (nearest last), how many there are, and their fields."""
     n = tracks.n_tracks
     m = np.flatnonzero(tracks.status == MEASURED)
     tr = tracks.track[m]
@@ -31,13 +32,34 @@ def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArr
     stop = np.searchsorted(tr, np.arange(n), "right")
     count = np.minimum(stop - start, 5)
     history = np.zeros((n, 5, 3))
+    fields = np.zeros((n, 5), dtype=np.int64)
     for j in range(5):
         # j-th point counted from the piece's end (or start), placed nearest-last.
         ok = count > j
         rows = (stop - 1 - j) if from_end else (start + j)
         history[ok, 4 - j] = tracks.xyz_mm[m[rows[ok]]]
+        fields[ok, 4 - j] = tracks.field[m[rows[ok]]]
     edge = tracks.field[m[np.where(from_end, stop - 1, start)]] if n else np.empty(0, int)
-    return edge, history, count
+    return edge, history, count, fields
+
+
+def bridge_residual_mm(
+    fields_a: NDArray, xyz_a: NDArray, fields_b: NDArray, xyz_b: NDArray
+) -> float:
+    """RMS residual (mm) of one least-squares polynomial through the end of one piece and
+    the start of the next: small when both are the same smooth marker path.
+
+    The degree is 3, or lower when few points are given (at least two points are left
+    over for the residual).
+    """
+    f = np.r_[fields_a, fields_b].astype(float)
+    x = np.r_[xyz_a, xyz_b]
+    degree = min(3, f.size - 3)
+    if degree < 1:
+        return float("inf")
+    vander = np.vander(f - f.mean(), degree + 1)
+    coef, *_ = np.linalg.lstsq(vander, x, rcond=None)
+    return float(np.sqrt(np.mean(np.sum((x - vander @ coef) ** 2, axis=1))))
 
 
 def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArray:
@@ -53,14 +75,18 @@ def blend_pairs(tracks: Tracks, params: TrackingParams) -> tuple[NDArray, NDArra
     """Pairs (earlier piece, later piece) that blending connects.
 
     A later piece must start 1 .. ``blend_gap_fields + 1`` fields after the earlier one
-    ends, and both extrapolations across the gap must land within
-    ``blend_tolerance_mm`` (times the number of fields crossed) of the other piece.
+    ends. Shafiq's extrapolations from both sides across the gap must land within
+    ``blend_reach_mm`` per field crossed of the other piece (a coarse gate), and one cubic
+    through the last and first ``blend_points`` measured points of the two pieces must
+    fit them within ``blend_tolerance_mm`` RMS (the continuity test: extrapolations of a
+    fast foot over a few fields miss by centimetres, a wrong join leaves a jump no smooth
+    curve absorbs). Pairs are then chosen one-to-one by that residual.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
         return e, e
-    end_field, end_hist, end_n = _end_points(tracks, from_end=True)
-    start_field, start_hist, start_n = _end_points(tracks, from_end=False)
+    end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
+    start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
     step = start_field[None, :] - end_field[:, None]
     a, b = np.nonzero((step >= 1) & (step <= params.blend_gap_fields + 1))
     if a.size == 0:
@@ -71,13 +97,27 @@ def blend_pairs(tracks: Tracks, params: TrackingParams) -> tuple[NDArray, NDArra
     backward = _extrapolate_gap(start_hist[b], start_n[b], ahead)
     miss_f = np.linalg.norm(forward - start_hist[b, -1], axis=1)
     miss_b = np.linalg.norm(backward - end_hist[a, -1], axis=1)
-    tol = params.blend_tolerance_mm * ahead
-    ok = (miss_f <= tol) & (miss_b <= tol)
+    reach = params.blend_reach_mm * ahead
+    near = (miss_f <= reach) & (miss_b <= reach)
+    a, b = a[near], b[near]
+    k = params.blend_points
+    residual = np.array(
+        [
+            bridge_residual_mm(
+                end_fields[i, 5 - min(k, end_n[i]) :],
+                end_hist[i, 5 - min(k, end_n[i]) :],
+                start_fields[j, 5 - min(k, start_n[j]) :][::-1],
+                start_hist[j, 5 - min(k, start_n[j]) :][::-1],
+            )
+            for i, j in zip(a, b, strict=True)
+        ]
+    )
+    ok = residual <= params.blend_tolerance_mm if residual.size else np.zeros(0, bool)
     a, b = a[ok], b[ok]
     if a.size == 0:
         return a, b
     cost = np.full((tracks.n_tracks, tracks.n_tracks), _FAR)
-    cost[a, b] = (miss_f + miss_b)[ok]
+    cost[a, b] = residual[ok]
     ra = np.unique(a)
     cb = np.unique(b)
     r, c = linear_sum_assignment(cost[np.ix_(ra, cb)])

@@ -25,7 +25,7 @@ from scipy.optimize import linear_sum_assignment
 
 from kisscal.errors import KisscalError
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.tracks import Tracks, numbering
+from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks, numbering
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,10 @@ _CUBE = _cube_rotations()
 # Floor (mm) of the spread of a pair's distance in the swap search weights: about the
 # noise of a distance between two measured markers.
 _SPREAD_FLOOR_MM = 3.0
+# Two labelled tracks are taken to be on one rigid segment when their distance varies by
+# less than this (SD, mm) and matches the template's within _RIGID_MATCH_MM.
+_RIGID_SPREAD_MM = 5.0
+_RIGID_MATCH_MM = 15.0
 
 
 def _principal_frame(points: NDArray) -> NDArray[np.float64]:
@@ -235,33 +239,142 @@ def _field_fits(
     return np.asarray(out)
 
 
+def _mirror_permutation(template: NDArray, tolerance_mm: float) -> NDArray[np.int64] | None:
+    """The name each name becomes in the marker set's mirror image (RASI <-> LASI, SACR
+    stays), or None when the set has no mirror symmetry within ``tolerance_mm`` / 4."""
+    centred = template - template.mean(axis=0)
+    assign, rms = match_to_template(-centred, centred, tolerance_mm)
+    if (assign < 0).any() or not rms <= tolerance_mm / 4:
+        return None
+    return assign
+
+
+def _generic(tracks: Tracks, params: TrackingParams, names: tuple, fit_rms: float) -> Labelling:
+    """No marker set fits: clean up short tracks and name the rest M1, M2, ..."""
+    tracks = tracks.select(tracks.n_status(MEASURED)[tracks.track] >= params.min_track_length)
+    generic = tuple(f"M{i + 1}" for i in range(tracks.n_tracks))
+    return Labelling(tracks, generic, False, (), names, fit_rms)
+
+
+def _rigid_pairs(
+    dense: NDArray,
+    label_of: NDArray,
+    fields: NDArray,
+    template_distance: NDArray,
+    names: tuple[str, ...],
+    segments: list | tuple | None,
+) -> NDArray[np.bool_]:
+    """Name pairs on one rigid segment: given ``segments``, plus labelled tracks whose
+    distance barely varies over ``fields`` and equals the template's."""
+    n = len(names)
+    rigid = np.zeros((n, n), dtype=bool)
+    index = {name: i for i, name in enumerate(names)}
+    for pair in segments or ():
+        if len(pair) == 2 and pair[0] in index and pair[1] in index:
+            rigid[index[pair[0]], index[pair[1]]] = rigid[index[pair[1]], index[pair[0]]] = True
+    rows = np.flatnonzero(label_of >= 0)
+    if rows.size >= 2:
+        spread = _distance_spread(dense, rows, fields)
+        median = _median_distances(dense, rows, fields)
+        lab = label_of[rows]
+        ok = (spread < _RIGID_SPREAD_MM) & (
+            np.abs(median - template_distance[np.ix_(lab, lab)]) < _RIGID_MATCH_MM
+        )
+        np.fill_diagonal(ok, False)
+        rigid[np.ix_(lab, lab)] |= ok
+    return rigid
+
+
+def _by_segments(
+    dense: NDArray,
+    t: int,
+    fields_t: NDArray,
+    free: NDArray,
+    holder: NDArray,
+    rigid: NDArray,
+    template_distance: NDArray,
+    params: TrackingParams,
+) -> int:
+    """Free name whose rigid partners keep their template distance from piece ``t``."""
+    best, best_rms = -1, np.inf
+    for j in free:
+        residuals = []
+        partners = np.flatnonzero(rigid[j])
+        for k in partners:
+            h = holder[k, fields_t]
+            ok = h >= 0
+            if not ok.any():
+                continue
+            d = np.linalg.norm(dense[t, fields_t[ok]] - dense[h[ok], fields_t[ok]], axis=1)
+            residuals.append(d - template_distance[j, k])
+        # One partner leaves the piece anywhere on a sphere around it, which a ghost near
+        # the body may touch by chance; two or more pin it down.
+        if not residuals or len(residuals) < min(2, partners.size):
+            continue
+        r = np.concatenate(residuals)
+        rms = float(np.sqrt(np.mean(r**2)))
+        if rms < best_rms:
+            best, best_rms = int(j), rms
+    return best if best_rms <= params.label_segment_tolerance_mm else -1
+
+
+def _by_body_fit(
+    dense: NDArray,
+    t: int,
+    fields_t: NDArray,
+    free: NDArray,
+    label_of: NDArray,
+    present: NDArray,
+    template: NDArray,
+    params: TrackingParams,
+) -> int:
+    """Majority over up to 9 fields of the nearest free name after a rigid body fit."""
+    votes = np.zeros(template.shape[0])
+    pick = fields_t[np.linspace(0, fields_t.size - 1, min(9, fields_t.size)).round().astype(int)]
+    for f in pick:
+        held = np.flatnonzero((label_of >= 0) & present[:, f])
+        if held.size < 3:
+            continue
+        r, tr = kabsch(dense[held, f], template[label_of[held]])
+        d = np.linalg.norm(template[free] - (dense[t, f] @ r.T + tr), axis=1)
+        if d.min() <= params.label_tolerance_mm:
+            votes[free[np.argmin(d)]] += 1
+    if votes.sum() == 0 or votes.max() <= 0.5 * votes.sum():
+        return -1
+    return int(votes.argmax())
+
+
 def label_tracks(
     tracks: Tracks,
     names: tuple[str, ...] | list[str] | None,
     params: TrackingParams,
     template_mm: ArrayLike | None = None,
+    segments: list[tuple[str, str]] | tuple | None = None,
 ) -> Labelling:
     """Name tracks from the marker set (DESIGN.md ``[markers]``).
 
     Parameters
     ----------
     tracks : Tracks
-        Cleaned, blended tracks.
+        Blended track pieces, short ones included: a short piece that fits a name joins
+        that name's trajectory, one that fits none is dropped (Shafiq's clean-up of ghost
+        tracks, ``min_track_length``); long pieces that fit none are reported.
     names : sequence of str or None
         Marker names. Without names or without a template, tracks are named M1, M2, ...
     params : TrackingParams
         ``label_tolerance_mm``, ``label_fields``, ``min_label_fraction``.
     template_mm : (n, 3) array, optional
         Marker positions in a standing pose, same order as ``names``, any frame.
+    segments : sequence of (str, str), optional
+        Pairs of names on one rigid segment; added to the pairs found rigid in the data.
 
     Returns
     -------
     Labelling
     """
     n_tracks = tracks.n_tracks
-    generic = tuple(f"M{i + 1}" for i in range(n_tracks))
     if not names or template_mm is None or n_tracks == 0:
-        return Labelling(tracks, generic, False, (), tuple(names or ()), float("nan"))
+        return _generic(tracks, params, tuple(names or ()), float("nan"))
     names = tuple(names)
     template = np.asarray(template_mm, dtype=float)
     if template.shape != (len(names), 3):
@@ -275,23 +388,25 @@ def label_tracks(
     present = np.isfinite(dense[..., 0])
     rich = _rich_fields(present)
     if rich.size == 0:  # never three tracks at once: no body to match
-        return Labelling(tracks, generic, False, (), names, float("nan"))
+        return _generic(tracks, params, names, float("nan"))
     if rich.size > params.label_fields:
         rich = rich[np.linspace(0, rich.size - 1, params.label_fields).round().astype(int)]
     # Core: tracks seen in most rich fields. Their median pairwise distances over the
     # trial describe an average pose; classical MDS turns it into points (up to a rigid
     # motion and a mirror image) that are matched to the standing template. The median
     # averages out the swing of the legs, which a single field's rigid fit cannot.
-    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.5)
+    long_enough = tracks.n_status(MEASURED) >= params.min_track_length
+    core = np.flatnonzero((present[:, rich].mean(axis=1) >= 0.5) & long_enough)
+    template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     label_of = np.full(n_tracks, -1, dtype=np.int64)
     fit_rms = float("nan")
     if core.size >= 3:
         median = _median_distances(dense, core, rich)
         weight = 1.0 / (_distance_spread(dense, core, rich) ** 2 + _SPREAD_FLOOR_MM**2)
         np.fill_diagonal(weight, 0.0)
-        template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
         embedded = classical_mds(median)
         candidates = []
+        mirror_of = _mirror_permutation(template, params.label_tolerance_mm)
         for mirror in (1.0, -1.0):
             assign, _ = match_to_template(
                 embedded * [1.0, 1.0, mirror], template, params.label_tolerance_mm
@@ -304,58 +419,64 @@ def label_tracks(
             loose = np.flatnonzero(assign < 0)[: free.size]
             assign[loose] = free[: loose.size]
             assign = refine_by_swaps(median, weight, template_distance, assign)
-            ok = assign >= 0
-            # The mirror image of the right correspondence swaps left and right; only the
-            # right one fits the real fields with a proper rotation.
-            rms = _field_fits(dense, rich, core[ok], assign[ok], template)
-            candidates.append((float(np.median(rms)) if rms.size else np.inf, assign))
+            # Distances cannot tell left from right: the mirror image of a correspondence
+            # (left and right names exchanged) costs the same, so it is tried too; only
+            # the right one fits the real fields with a proper rotation.
+            tries = [assign]
+            if mirror_of is not None:
+                tries.append(np.where(assign >= 0, mirror_of[np.maximum(assign, 0)], -1))
+            for cand in tries:
+                ok = cand >= 0
+                rms = _field_fits(dense, rich, core[ok], cand[ok], template)
+                candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
         if candidates:
             fit_rms, assign = min(candidates, key=lambda c: c[0])
             label_of[core[assign >= 0]] = assign[assign >= 0]
-    votes = np.zeros((n_tracks, len(names)))
-    # Other pieces: at each of their fields, place the core on the template by a rigid
-    # fit and take the nearest template position that no core track holds there.
-    for t in np.flatnonzero(label_of < 0):
-        f_all = np.flatnonzero(present[t])
-        for f in f_all[np.linspace(0, f_all.size - 1, min(9, f_all.size)).round().astype(int)]:
-            held = np.flatnonzero((label_of >= 0) & present[:, f])
-            if held.size < 3:
-                continue
-            r, tr = kabsch(dense[held, f], template[label_of[held]])
-            p = dense[t, f] @ r.T + tr
-            d = np.linalg.norm(template - p, axis=1)
-            d[label_of[held]] = np.inf
-            j = int(np.argmin(d))
-            if d[j] <= params.label_tolerance_mm:
-                votes[t, j] += 1
-    for t in np.flatnonzero(label_of < 0):
-        if votes[t].sum() > 0 and votes[t].max() > 0.5 * votes[t].sum():
-            label_of[t] = int(votes[t].argmax())
-    votes[np.arange(n_tracks)[label_of >= 0], label_of[label_of >= 0]] += 1e6
-
-    # One label may hold several pieces if they do not overlap in time; otherwise the
-    # piece with the most votes keeps it.
-    first = np.array([np.flatnonzero(r)[0] for r in present])
-    last = np.array([np.flatnonzero(r)[-1] for r in present])
-    strength = votes[np.arange(n_tracks), np.maximum(label_of, 0)]
-    for j in np.unique(label_of[label_of >= 0]):
-        members = np.flatnonzero(label_of == j)
-        members = members[np.argsort(-strength[members], kind="stable")]
-        kept: list[int] = []
-        for t in members:
-            if all(last[t] < first[u] or first[t] > last[u] for u in kept):
-                kept.append(int(t))
-            else:
-                label_of[t] = -1
+    if not np.any(label_of >= 0):
+        return _generic(tracks, params, names, fit_rms)
+    template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    rigid = _rigid_pairs(dense, label_of, rich, template_distance, names, segments)
+    n_measured = tracks.n_status(MEASURED)
+    holder = np.full((len(names), present.shape[1]), -1, dtype=np.int64)
+    for t in np.flatnonzero(label_of >= 0):
+        holder[label_of[t], present[t]] = t
+    # Other pieces, longest first: a name is free for a piece if no track holds it in the
+    # piece's fields; among free names the piece takes the one whose rigid partners (on
+    # the same body segment) stay at the template's distance from it. Pieces without
+    # partners in view fall back to the nearest free name after a rigid fit of the body.
+    for t in np.flatnonzero(label_of < 0)[np.argsort(-n_measured[label_of < 0], kind="stable")]:
+        if n_measured[t] < params.min_label_points:
+            continue
+        fields_t = np.flatnonzero(present[t])
+        free = np.flatnonzero((holder[:, fields_t] < 0).all(axis=1))
+        if free.size == 0:
+            continue
+        j = _by_segments(dense, t, fields_t, free, holder, rigid, template_distance, params)
+        if j < 0 and n_measured[t] >= params.min_track_length:
+            j = _by_body_fit(dense, t, fields_t, free, label_of, present, template, params)
+        if j >= 0:
+            label_of[t] = j
+            holder[j, fields_t] = t
+    # Short pieces that fit no name are ghosts (Shafiq's clean-up); long ones are reported.
+    keep = (label_of >= 0) | (n_measured >= params.min_track_length)
     matched = np.unique(label_of[label_of >= 0])
     fits = matched.size >= params.min_label_fraction * len(names)
     if not fits:
-        return Labelling(tracks, generic, False, (), names, fit_rms)
+        return _generic(tracks, params, names, fit_rms)
 
     # Join same-label pieces; unlabelled tracks keep their own group.
     group = np.where(label_of >= 0, label_of, len(names) + np.arange(n_tracks))
-    joined = tracks.renumber(group)
-    ids, rank, _ = numbering(tracks.field, group[tracks.track])
+    rows = keep[tracks.track]
+    sample_group = group[tracks.track][rows]
+    joined = make_tracks(
+        tracks.field[rows],
+        sample_group,
+        tracks.xyz_mm[rows],
+        tracks.corrected_mm[rows],
+        tracks.status[rows],
+        tracks.point[rows],
+    )
+    ids, rank, _ = numbering(tracks.field[rows], sample_group)
     new_group = np.empty(ids.size, dtype=np.int64)
     new_group[rank] = ids
     labels = []

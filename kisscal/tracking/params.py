@@ -61,9 +61,14 @@ class TrackingParams:
         another for automatic blending (Shafiq et al. 2001 §4.3 use two fields; the
         continuity check guards longer gaps, which ghost run splits and flickering
         visibility at the edge of the volume create).
+    blend_reach_mm : float
+        Coarse gate of blending: Shafiq's extrapolations from both pieces across the gap
+        must land within this distance (mm) per field crossed of the other piece.
+    blend_points : int
+        Measured points taken from each side of a gap for the continuity fit.
     blend_tolerance_mm : float
-        Largest distance between a piece's first (last) point and the other piece's
-        extrapolation for the continuity of a blend to be accepted.
+        Largest RMS residual (mm) of the cubic through both sides of a gap for the two
+        pieces to be blended (about 4 x the residual of a true join at 0.5 mm noise).
     min_track_length : int
         Tracks with fewer measured points are removed in the clean-up (short ghost tracks).
     max_fill_gap_fields : int
@@ -77,6 +82,11 @@ class TrackingParams:
     label_tolerance_mm : float
         Largest RMS distance (mm) of a track from its template position, after the per-field
         rigid fit, for the track to take that label.
+    label_segment_tolerance_mm : float
+        Largest RMS difference (mm) between a piece's distances to the rigid partners of a
+        name and the template's for the piece to take that name.
+    min_label_points : int
+        Measured points a piece needs to be considered for a name at all.
     label_fields : int
         Number of fields sampled for template matching.
     min_label_fraction : float
@@ -94,18 +104,22 @@ class TrackingParams:
     gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
     coast_accel_mm_per_field2: float = 5.0
     lag_widening: bool = True
-    initial_gate_mm: float = 60.0
+    initial_gate_mm: float = 120.0
     initial_gate_factor: float = 0.6
     min_initial_length: int = 5
     max_coasted_fields: int = 5
     min_reacquired_fields: int = 5
     blend_gap_fields: int = 5
-    blend_tolerance_mm: float = 20.0
+    blend_reach_mm: float = 40.0
+    blend_points: int = 3
+    blend_tolerance_mm: float = 3.0
     min_track_length: int = 10
-    max_fill_gap_fields: int = 25
+    max_fill_gap_fields: int = 5
     fill_context_fields: int = 6
     refill_predicted: bool = True
     label_tolerance_mm: float = 120.0
+    label_segment_tolerance_mm: float = 6.0
+    min_label_points: int = 2
     label_fields: int = 40
     min_label_fraction: float = 0.5
     smoothing: bool = False
@@ -118,6 +132,7 @@ class TrackingParams:
             "initial_gate_mm",
             "initial_gate_factor",
             "blend_tolerance_mm",
+            "blend_reach_mm",
             "label_tolerance_mm",
         ):
             value = getattr(self, name)
@@ -134,6 +149,7 @@ class TrackingParams:
             "blend_gap_fields",
             "min_track_length",
             "max_fill_gap_fields",
+            "blend_points",
             "fill_context_fields",
             "label_fields",
         ):

@@ -33,11 +33,16 @@ from kisscal.tracking.predictors import (
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
 
 _HISTORY = 5
+_SINGLE_STEP_WEIGHT = 0.1
 _FAR = 1e12
 
 
 def associate(
-    predicted: NDArray, half_width: NDArray, points: NDArray, extra_cost: NDArray | None = None
+    predicted: NDArray,
+    half_width: NDArray,
+    points: NDArray,
+    extra_cost: NDArray | None = None,
+    distance_weight: float = 1.0,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """One-to-one assignment of points to track gates.
 
@@ -48,6 +53,8 @@ def associate(
     points : (M, 3) candidate points (mm).
     extra_cost : (T, M) array, optional
         Added to the cost of each pair (e.g. a look-ahead term).
+    distance_weight : float
+        Weight of the gate-normalised squared distance in the cost.
 
     Returns
     -------
@@ -64,7 +71,7 @@ def associate(
     if rows_any.size == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
-    cost = np.einsum("tmc,tmc->tm", scaled, scaled)
+    cost = distance_weight * np.einsum("tmc,tmc->tm", scaled, scaled)
     if extra_cost is not None:
         cost = cost + extra_cost
     sub_inside = inside[np.ix_(rows_any, cols_any)]
@@ -232,7 +239,11 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
                     extra = lookahead_cost(
                         pred[rows], points[free], later, 0.5 * params.initial_gate_mm
                     )
-                r, c = associate(pred[rows], half[rows], points[free], extra)
+                # A one-point track has no velocity: how far the candidate lies says
+                # little (a fast foot moves more than a slow marker's neighbour is away);
+                # whether the pair continues into the next field says much.
+                weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
+                r, c = associate(pred[rows], half[rows], points[free], extra, weight)
                 hit[rows[r]] = True
                 hit_point[rows[r]] = free[c]
                 taken[free[c]] = True
