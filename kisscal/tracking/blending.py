@@ -17,7 +17,7 @@ from scipy.optimize import linear_sum_assignment
 
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, shafiq_rule
-from kisscal.tracking.tracks import MEASURED, Tracks
+from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks
 
 _FAR = 1e12
 
@@ -71,16 +71,124 @@ def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArra
     return out
 
 
-def blend_pairs(tracks: Tracks, params: TrackingParams) -> tuple[NDArray, NDArray]:
+def _window_residuals(tracks: Tracks, side: int) -> tuple[NDArray, NDArray, NDArray]:
+    """RMS residual (mm) of a least-squares cubic (in the field index) through every run of
+    ``2 * side`` consecutive measured samples of one track.
+
+    Returns the rows of the measured samples, the window's first measured index per
+    window, and the residual per window.
+    """
+    m = np.flatnonzero(tracks.status == MEASURED)
+    w = 2 * side
+    if m.size < w:
+        return m, np.empty(0, dtype=np.int64), np.empty(0)
+    idx = np.arange(m.size - w + 1)[:, None] + np.arange(w)
+    tr = tracks.track[m]
+    idx = idx[tr[idx[:, 0]] == tr[idx[:, -1]]]
+    if idx.size == 0:
+        return m, np.empty(0, dtype=np.int64), np.empty(0)
+    f = tracks.field[m[idx]].astype(float)
+    f = (f - f.mean(axis=1, keepdims=True)) / side
+    x = tracks.xyz_mm[m[idx]]
+    vander = f[:, :, None] ** np.arange(4)
+    vt = np.transpose(vander, (0, 2, 1))
+    coef = np.linalg.solve(vt @ vander, vt @ x)
+    residual = np.sqrt(np.mean(np.sum((x - vander @ coef) ** 2, axis=2), axis=1))
+    return m, idx[:, 0], residual
+
+
+def smoothness_mm(tracks: Tracks, side: int = 3) -> float:
+    """Median cubic-fit residual of 6-sample windows over all tracks: the trial's own
+    noise level (about the per-axis measurement noise), which scales the continuity
+    tolerances so that noisier data are not cut into pieces."""
+    _, _, residual = _window_residuals(tracks, side)
+    return float(np.median(residual)) if residual.size else 0.0
+
+
+def split_discontinuities(tracks: Tracks, tolerance_mm: float, side: int = 3) -> Tracks:
+    """Split tracks where their measured path is not smooth (a jump to another marker).
+
+    For every run of ``2 * side`` consecutive measured samples of a track, a cubic in the
+    field index is fitted (least squares); where its RMS residual exceeds
+    ``tolerance_mm`` and is the largest of the neighbouring windows, the track is cut
+    between the two halves. This is blending's continuity test applied inside tracks: it
+    catches a coasting gate or an initial track that took a neighbouring marker.
+    """
+    m, first, residual = _window_residuals(tracks, side)
+    if residual.size == 0:
+        return tracks
+    # Residual per cut position (between measured samples i-1 and i).
+    score = np.zeros(m.size)
+    score[first + side] = residual
+    neighbourhood = np.lib.stride_tricks.sliding_window_view(
+        np.pad(score, side - 1), 2 * side - 1
+    ).max(axis=1)
+    cut = (score > tolerance_mm) & (score >= neighbourhood)
+    if not cut.any():
+        return tracks
+    new_piece = np.zeros(tracks.field.size, dtype=np.int64)
+    new_piece[m[cut]] = 1
+    new_piece[1:] += tracks.track[1:] != tracks.track[:-1]
+    piece = np.cumsum(new_piece)
+    return make_tracks(
+        tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
+    )
+
+
+def split_stray_ends(tracks: Tracks, tolerance_mm: float, fit_points: int = 5) -> Tracks:
+    """Split off a track's first or last measured sample when the parabola through the
+    next (previous) ``fit_points`` measured samples misses it by more than ``tolerance_mm``.
+
+    A track started on a ghost that lay where the real marker appeared next field (or
+    ended on one) has a stray end that :func:`split_discontinuities` cannot see, for it
+    needs samples on both sides of a cut.
+    """
+    for from_end in (False, True):
+        m = np.flatnonzero(tracks.status == MEASURED)
+        if m.size < fit_points + 1:
+            continue
+        tr = tracks.track[m]
+        ids = np.arange(tracks.n_tracks)
+        lo = np.searchsorted(tr, ids, "left")
+        hi = np.searchsorted(tr, ids, "right")
+        ok = hi - lo >= fit_points + 3
+        edge = np.where(from_end, hi - 1, lo)[ok]
+        step = -1 if from_end else 1
+        fit = edge[:, None] + step * np.arange(1, fit_points + 1)
+        f_fit = tracks.field[m[fit]].astype(float)
+        f_edge = tracks.field[m[edge]].astype(float)
+        centre = f_fit.mean(axis=1, keepdims=True)
+        # A parabola: a cubic extrapolated one field amplifies noise five-fold.
+        vander = ((f_fit - centre) / fit_points)[:, :, None] ** np.arange(3)
+        vt = np.transpose(vander, (0, 2, 1))
+        coef = np.linalg.solve(vt @ vander, vt @ tracks.xyz_mm[m[fit]])
+        at = ((f_edge[:, None] - centre) / fit_points) ** np.arange(3)
+        predicted = np.einsum("nk,nkc->nc", at, coef)
+        miss = np.linalg.norm(predicted - tracks.xyz_mm[m[edge]], axis=1)
+        stray = m[edge[miss > tolerance_mm]]
+        if stray.size == 0:
+            continue
+        piece = tracks.track.copy()
+        piece[stray] = tracks.n_tracks + np.arange(stray.size)
+        tracks = make_tracks(
+            tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
+        )
+    return tracks
+
+
+def blend_pairs(
+    tracks: Tracks, params: TrackingParams, noise_mm: float | None = None
+) -> tuple[NDArray, NDArray]:
     """Pairs (earlier piece, later piece) that blending connects.
 
     A later piece must start 1 .. ``blend_gap_fields + 1`` fields after the earlier one
     ends. Shafiq's extrapolations from both sides across the gap must land within
     ``blend_reach_mm`` per field crossed of the other piece (a coarse gate), and one cubic
     through the last and first ``blend_points`` measured points of the two pieces must
-    fit them within ``blend_tolerance_mm`` RMS (the continuity test: extrapolations of a
-    fast foot over a few fields miss by centimetres, a wrong join leaves a jump no smooth
-    curve absorbs). Pairs are then chosen one-to-one by that residual.
+    fit them within ``max(blend_tolerance_mm, blend_noise_factor * noise_mm)`` RMS (the
+    continuity test: extrapolations of a fast foot over a few fields miss by centimetres,
+    a wrong join leaves a jump no smooth curve absorbs). Pairs are then chosen one-to-one
+    by that residual. ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
@@ -112,7 +220,10 @@ def blend_pairs(tracks: Tracks, params: TrackingParams) -> tuple[NDArray, NDArra
             for i, j in zip(a, b, strict=True)
         ]
     )
-    ok = residual <= params.blend_tolerance_mm if residual.size else np.zeros(0, bool)
+    if noise_mm is None:
+        noise_mm = smoothness_mm(tracks)
+    tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
+    ok = residual <= tolerance if residual.size else np.zeros(0, bool)
     a, b = a[ok], b[ok]
     if a.size == 0:
         return a, b
@@ -140,12 +251,12 @@ def chain_labels(n_tracks: int, earlier: NDArray, later: NDArray) -> NDArray[np.
     return group
 
 
-def blend_tracks(tracks: Tracks, params: TrackingParams) -> Tracks:
+def blend_tracks(tracks: Tracks, params: TrackingParams, noise_mm: float | None = None) -> Tracks:
     """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3).
 
     The missing fields of a blended gap are left empty for :func:`fill_gaps`.
     """
-    earlier, later = blend_pairs(tracks, params)
+    earlier, later = blend_pairs(tracks, params, noise_mm)
     if earlier.size == 0:
         return tracks
     return tracks.renumber(chain_labels(tracks.n_tracks, earlier, later))

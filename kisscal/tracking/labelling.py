@@ -76,6 +76,10 @@ _SPREAD_FLOOR_MM = 3.0
 # less than this (SD, mm) and matches the template's within _RIGID_MATCH_MM.
 _RIGID_SPREAD_MM = 5.0
 _RIGID_MATCH_MM = 15.0
+# A piece seen for at least this many fields at a distance varying by less than this SD
+# (mm) from a labelled track is taken to share a rigid segment with it.
+_OBSERVED_RIGID_FIELDS = 8
+_OBSERVED_SPREAD_MM = 3.0
 
 
 def _principal_frame(points: NDArray) -> NDArray[np.float64]:
@@ -294,28 +298,49 @@ def _by_segments(
     rigid: NDArray,
     template_distance: NDArray,
     params: TrackingParams,
-) -> int:
-    """Free name whose rigid partners keep their template distance from piece ``t``."""
+) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+    """Free name whose rigid partners keep their template distance from piece ``t``.
+
+    Returns the name pinned by two or more partners (-1 if none), the free names that one
+    partner allows, and those without any partner in view.
+
+    Partners are the name pairs known to be rigid (given segments, or found rigid among
+    labelled tracks) and, for pieces of at least ``_OBSERVED_RIGID_FIELDS`` fields, any
+    labelled track whose distance to the piece stays constant (within
+    ``_OBSERVED_SPREAD_MM`` SD) while both are seen: a constant distance in a walking body
+    means one segment, so the name must sit at that distance in the template too.
+    """
+    distances = {}
+    for k in np.flatnonzero((holder[:, fields_t] >= 0).any(axis=1)):
+        h = holder[k, fields_t]
+        ok = h >= 0
+        distances[int(k)] = np.linalg.norm(
+            dense[t, fields_t[ok]] - dense[h[ok], fields_t[ok]], axis=1
+        )
+    observed = [
+        k
+        for k, d in distances.items()
+        if d.size >= _OBSERVED_RIGID_FIELDS and d.std() < _OBSERVED_SPREAD_MM
+    ]
     best, best_rms = -1, np.inf
+    one_partner, unknown = [], []
     for j in free:
-        residuals = []
-        partners = np.flatnonzero(rigid[j])
-        for k in partners:
-            h = holder[k, fields_t]
-            ok = h >= 0
-            if not ok.any():
-                continue
-            d = np.linalg.norm(dense[t, fields_t[ok]] - dense[h[ok], fields_t[ok]], axis=1)
-            residuals.append(d - template_distance[j, k])
+        partners = set(np.flatnonzero(rigid[j]).tolist())
+        used = [k for k in partners | set(observed) if k in distances and k != j]
+        if not used:
+            unknown.append(int(j))
+            continue
+        r = np.concatenate([distances[k] - template_distance[j, k] for k in used])
+        rms = float(np.sqrt(np.mean(r**2)))
+        if rms > params.label_segment_tolerance_mm:
+            continue
         # One partner leaves the piece anywhere on a sphere around it, which a ghost near
         # the body may touch by chance; two or more pin it down.
-        if not residuals or len(residuals) < min(2, partners.size):
-            continue
-        r = np.concatenate(residuals)
-        rms = float(np.sqrt(np.mean(r**2)))
-        if rms < best_rms:
+        if len(used) < 2:
+            one_partner.append(int(j))
+        elif rms < best_rms:
             best, best_rms = int(j), rms
-    return best if best_rms <= params.label_segment_tolerance_mm else -1
+    return best, np.asarray(one_partner, dtype=np.int64), np.asarray(unknown, dtype=np.int64)
 
 
 def _by_body_fit(
@@ -323,25 +348,45 @@ def _by_body_fit(
     t: int,
     fields_t: NDArray,
     free: NDArray,
-    label_of: NDArray,
-    present: NDArray,
+    holder: NDArray,
     template: NDArray,
     params: TrackingParams,
 ) -> int:
-    """Majority over up to 9 fields of the nearest free name after a rigid body fit."""
-    votes = np.zeros(template.shape[0])
+    """Free name whose expected position, seen from its nearest labelled neighbours, the
+    piece ``t`` keeps closest to, if clearly closer than any other free name.
+
+    At each of up to 9 fields of the piece the body's orientation R comes from a rigid fit
+    of every labelled marker to the template; name j is then expected at
+    P_k + R^T (T_j - T_k) from each of its four template-nearest labelled neighbours k
+    (local, so that bent joints far away do not matter). The median distance over the
+    fields decides; the best must be within ``label_tolerance_mm / 2`` and the runner-up
+    at least 1.5 times farther.
+    """
     pick = fields_t[np.linspace(0, fields_t.size - 1, min(9, fields_t.size)).round().astype(int)]
-    for f in pick:
-        held = np.flatnonzero((label_of >= 0) & present[:, f])
+    dist = np.full((pick.size, free.size), np.nan)
+    for i, f in enumerate(pick):
+        held = np.flatnonzero(holder[:, f] >= 0)
         if held.size < 3:
             continue
-        r, tr = kabsch(dense[held, f], template[label_of[held]])
-        d = np.linalg.norm(template[free] - (dense[t, f] @ r.T + tr), axis=1)
-        if d.min() <= params.label_tolerance_mm:
-            votes[free[np.argmin(d)]] += 1
-    if votes.sum() == 0 or votes.max() <= 0.5 * votes.sum():
+        pos = dense[holder[held, f], f]
+        r, _ = kabsch(pos, template[held])
+        for col, j in enumerate(free):
+            near = held[np.argsort(np.linalg.norm(template[held] - template[j], axis=1))[:4]]
+            expect = dense[holder[near, f], f] + (template[j] - template[near]) @ r
+            dist[i, col] = np.linalg.norm(dense[t, f] - expect.mean(axis=0))
+    if np.isnan(dist).all():
         return -1
-    return int(votes.argmax())
+    score = np.nanmedian(dist, axis=0)
+    order = np.argsort(score)
+    best = score[order[0]]
+    second = score[order[1]] if order.size > 1 else np.inf
+    # A lone candidate has already passed the rigid-partner test; the body fit only has to
+    # agree roughly. Several candidates need a clear winner.
+    if order.size == 1 and best <= params.label_tolerance_mm:
+        return int(free[order[0]])
+    if best <= params.label_tolerance_mm / 2 and second >= 1.5 * best:
+        return int(free[order[0]])
+    return -1
 
 
 def label_tracks(
@@ -396,7 +441,15 @@ def label_tracks(
     # motion and a mirror image) that are matched to the standing template. The median
     # averages out the swing of the legs, which a single field's rigid fit cannot.
     long_enough = tracks.n_status(MEASURED) >= params.min_track_length
-    core = np.flatnonzero((present[:, rich].mean(axis=1) >= 0.5) & long_enough)
+    core = np.flatnonzero((present[:, rich].mean(axis=1) >= 0.6) & long_enough)
+    # Every pair of core tracks must share rich fields for a median distance; drop the
+    # track missing most pairs until they all do (two pieces of one marker never meet).
+    while core.size >= 3:
+        both = present[np.ix_(core, rich)].astype(int) @ present[np.ix_(core, rich)].T.astype(int)
+        never = (both == 0).sum(axis=1)
+        if never.max() == 0:
+            break
+        core = np.delete(core, int(np.argmax(never)))
     template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     label_of = np.full(n_tracks, -1, dtype=np.int64)
     fit_rms = float("nan")
@@ -444,19 +497,36 @@ def label_tracks(
     # piece's fields; among free names the piece takes the one whose rigid partners (on
     # the same body segment) stay at the template's distance from it. Pieces without
     # partners in view fall back to the nearest free name after a rigid fit of the body.
-    for t in np.flatnonzero(label_of < 0)[np.argsort(-n_measured[label_of < 0], kind="stable")]:
-        if n_measured[t] < params.min_label_points:
-            continue
-        fields_t = np.flatnonzero(present[t])
-        free = np.flatnonzero((holder[:, fields_t] < 0).all(axis=1))
-        if free.size == 0:
-            continue
-        j = _by_segments(dense, t, fields_t, free, holder, rigid, template_distance, params)
-        if j < 0 and n_measured[t] >= params.min_track_length:
-            j = _by_body_fit(dense, t, fields_t, free, label_of, present, template, params)
-        if j >= 0:
-            label_of[t] = j
-            holder[j, fields_t] = t
+    # Naming one piece gives its neighbours a partner: repeat until nothing changes.
+    for _ in range(6):
+        changed = False
+        waiting = np.flatnonzero((label_of < 0) & (n_measured >= params.min_label_points))
+        for t in waiting[np.argsort(-n_measured[waiting], kind="stable")]:
+            fields_t = np.flatnonzero(present[t])
+            free = np.flatnonzero((holder[:, fields_t] < 0).all(axis=1))
+            if free.size == 0:
+                continue
+            j, one_partner, unknown = _by_segments(
+                dense, t, fields_t, free, holder, rigid, template_distance, params
+            )
+            if (
+                j < 0
+                and one_partner.size == 1
+                and unknown.size == 0
+                and n_measured[t] >= params.min_track_length
+            ):
+                # Every other free name is ruled out by its partners: a long piece (not a
+                # ghost) that one partner confirms is that name.
+                j = int(one_partner[0])
+            undecided = np.r_[one_partner, unknown]
+            if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
+                j = _by_body_fit(dense, t, fields_t, undecided, holder, template, params)
+            if j >= 0:
+                label_of[t] = j
+                holder[j, fields_t] = t
+                changed = True
+        if not changed:
+            break
     # Short pieces that fit no name are ghosts (Shafiq's clean-up); long ones are reported.
     keep = (label_of >= 0) | (n_measured >= params.min_track_length)
     matched = np.unique(label_of[label_of >= 0])

@@ -56,6 +56,12 @@ class TrackingParams:
         After coasting, a track must find points in this many consecutive fields for them
         to stay on it; shorter runs (typically ghosts caught by a coasting gate after the
         marker left the view) are split off as pieces of their own, for blending to decide.
+    split_tolerance_mm : float
+        A track is cut where a cubic through three measured samples on each side fits them
+        worse than this RMS (mm): the path jumped to another marker.
+    split_noise_factor : float
+        The split tolerance is at least this many times the trial's own smoothness
+        residual (median cubic-fit residual of 6-sample windows, about the noise).
     blend_gap_fields : int
         Largest number of missing fields between the end of one track piece and the start of
         another for automatic blending (Shafiq et al. 2001 §4.3 use two fields; the
@@ -69,6 +75,8 @@ class TrackingParams:
     blend_tolerance_mm : float
         Largest RMS residual (mm) of the cubic through both sides of a gap for the two
         pieces to be blended (about 4 x the residual of a true join at 0.5 mm noise).
+    blend_noise_factor : float
+        The blend tolerance is at least this many times the trial's smoothness residual.
     min_track_length : int
         Tracks with fewer measured points are removed in the clean-up (short ghost tracks).
     max_fill_gap_fields : int
@@ -87,6 +95,9 @@ class TrackingParams:
         name and the template's for the piece to take that name.
     min_label_points : int
         Measured points a piece needs to be considered for a name at all.
+    min_body_fit_points : int
+        Measured points a piece needs to be named from the body's rigid fit alone, when no
+        rigid partner of any free name is in view (more than a ghost usually lives).
     label_fields : int
         Number of fields sampled for template matching.
     min_label_fraction : float
@@ -107,12 +118,15 @@ class TrackingParams:
     initial_gate_mm: float = 120.0
     initial_gate_factor: float = 0.6
     min_initial_length: int = 5
-    max_coasted_fields: int = 5
+    max_coasted_fields: int = 3
     min_reacquired_fields: int = 5
-    blend_gap_fields: int = 5
+    split_tolerance_mm: float = 5.0
+    split_noise_factor: float = 8.0
+    blend_gap_fields: int = 4
     blend_reach_mm: float = 40.0
     blend_points: int = 3
     blend_tolerance_mm: float = 3.0
+    blend_noise_factor: float = 5.0
     min_track_length: int = 10
     max_fill_gap_fields: int = 5
     fill_context_fields: int = 6
@@ -120,6 +134,7 @@ class TrackingParams:
     label_tolerance_mm: float = 120.0
     label_segment_tolerance_mm: float = 6.0
     min_label_points: int = 2
+    min_body_fit_points: int = 5
     label_fields: int = 40
     min_label_fraction: float = 0.5
     smoothing: bool = False

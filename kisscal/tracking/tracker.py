@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from kisscal.errors import KisscalError
+from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import (
     extrapolate,
@@ -304,7 +305,11 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         np.concatenate(rec_status),
         np.concatenate(rec_point),
     )
-    return split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+    tracks = split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+    tolerance = max(params.split_tolerance_mm, params.split_noise_factor * smoothness_mm(tracks))
+    # One-sided extrapolation is twice as uncertain as the two-sided fit.
+    tracks = split_stray_ends(split_discontinuities(tracks, tolerance), 2.0 * tolerance)
+    return trim_predicted_ends(tracks)
 
 
 def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
