@@ -196,6 +196,11 @@ def blend_pairs(
     end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
     start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
     step = start_field[None, :] - end_field[:, None]
+    # Only pieces that became Kalman tracks take part: shorter ones are initial tracks
+    # that died, mostly ghosts, and a few points can line up with anything.
+    grown = tracks.n_status(MEASURED) >= params.min_initial_length
+    step[~grown, :] = -1
+    step[:, ~grown] = -1
     a, b = np.nonzero((step >= 1) & (step <= params.blend_gap_fields + 1))
     if a.size == 0:
         e = np.empty(0, dtype=np.int64)

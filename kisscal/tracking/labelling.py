@@ -332,7 +332,9 @@ def _by_segments(
             continue
         r = np.concatenate([distances[k] - template_distance[j, k] for k in used])
         rms = float(np.sqrt(np.mean(r**2)))
-        if rms > params.label_segment_tolerance_mm:
+        # Short pieces are mostly ghosts: ask them for a closer fit.
+        short = fields_t.size < params.min_track_length
+        if rms > params.label_segment_tolerance_mm * (0.5 if short else 1.0):
             continue
         # One partner leaves the piece anywhere on a sphere around it, which a ghost near
         # the body may touch by chance; two or more pin it down.
