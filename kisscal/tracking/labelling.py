@@ -17,6 +17,7 @@ named ``M1``, ``M2``, ... .
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,10 +77,6 @@ _SPREAD_FLOOR_MM = 3.0
 # less than this (SD, mm) and matches the template's within _RIGID_MATCH_MM.
 _RIGID_SPREAD_MM = 5.0
 _RIGID_MATCH_MM = 15.0
-# A piece seen for at least this many fields at a distance varying by less than this SD
-# (mm) from a labelled track is taken to share a rigid segment with it.
-_OBSERVED_RIGID_FIELDS = 8
-_OBSERVED_SPREAD_MM = 3.0
 
 
 def _principal_frame(points: NDArray) -> NDArray[np.float64]:
@@ -261,14 +258,13 @@ def _generic(tracks: Tracks, params: TrackingParams, names: tuple, fit_rms: floa
 
 
 def _rigid_pairs(
-    dense: NDArray,
-    label_of: NDArray,
+    name_pos: NDArray,
     fields: NDArray,
     template_distance: NDArray,
     names: tuple[str, ...],
     segments: list | tuple | None,
 ) -> NDArray[np.bool_]:
-    """Name pairs on one rigid segment: given ``segments``, plus labelled tracks whose
+    """Name pairs on one rigid segment: given ``segments``, plus named trajectories whose
     distance barely varies over ``fields`` and equals the template's."""
     n = len(names)
     rigid = np.zeros((n, n), dtype=bool)
@@ -276,117 +272,88 @@ def _rigid_pairs(
     for pair in segments or ():
         if len(pair) == 2 and pair[0] in index and pair[1] in index:
             rigid[index[pair[0]], index[pair[1]]] = rigid[index[pair[1]], index[pair[0]]] = True
-    rows = np.flatnonzero(label_of >= 0)
-    if rows.size >= 2:
-        spread = _distance_spread(dense, rows, fields)
-        median = _median_distances(dense, rows, fields)
-        lab = label_of[rows]
-        ok = (spread < _RIGID_SPREAD_MM) & (
-            np.abs(median - template_distance[np.ix_(lab, lab)]) < _RIGID_MATCH_MM
-        )
-        np.fill_diagonal(ok, False)
-        rigid[np.ix_(lab, lab)] |= ok
-    return rigid
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        spread = _distance_spread(name_pos, np.arange(n), fields)
+        median = _median_distances(name_pos, np.arange(n), fields)
+        ok = (spread < _RIGID_SPREAD_MM) & (np.abs(median - template_distance) < _RIGID_MATCH_MM)
+    np.fill_diagonal(ok, False)
+    return rigid | ok
 
 
 def _by_segments(
-    dense: NDArray,
-    t: int,
-    fields_t: NDArray,
+    piece_fields: NDArray,
+    piece_xyz: NDArray,
     free: NDArray,
-    holder: NDArray,
+    name_pos: NDArray,
     rigid: NDArray,
     template_distance: NDArray,
     params: TrackingParams,
 ) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
-    """Free name whose rigid partners keep their template distance from piece ``t``.
+    """Free name whose rigid partners keep their template distance from a piece.
+
+    Partners are the name pairs known to be rigid: given segments, or found rigid among
+    the trajectories named from the average pose.
 
     Returns the name pinned by two or more partners (-1 if none), the free names that one
     partner allows, and those without any partner in view.
-
-    Partners are the name pairs known to be rigid (given segments, or found rigid among
-    labelled tracks) and, for pieces of at least ``_OBSERVED_RIGID_FIELDS`` fields, any
-    labelled track whose distance to the piece stays constant (within
-    ``_OBSERVED_SPREAD_MM`` SD) while both are seen: a constant distance in a walking body
-    means one segment, so the name must sit at that distance in the template too.
     """
-    distances = {}
-    for k in np.flatnonzero((holder[:, fields_t] >= 0).any(axis=1)):
-        h = holder[k, fields_t]
-        ok = h >= 0
-        distances[int(k)] = np.linalg.norm(
-            dense[t, fields_t[ok]] - dense[h[ok], fields_t[ok]], axis=1
-        )
-    observed = [
-        k
-        for k, d in distances.items()
-        if d.size >= _OBSERVED_RIGID_FIELDS and d.std() < _OBSERVED_SPREAD_MM
-    ]
-    best, best_rms = -1, np.inf
-    one_partner, unknown = [], []
-    for j in free:
-        partners = set(np.flatnonzero(rigid[j]).tolist())
-        used = [k for k in partners | set(observed) if k in distances and k != j]
-        if not used:
-            unknown.append(int(j))
-            continue
-        r = np.concatenate([distances[k] - template_distance[j, k] for k in used])
-        rms = float(np.sqrt(np.mean(r**2)))
-        # Short pieces are mostly ghosts: ask them for a closer fit.
-        short = fields_t.size < params.min_track_length
-        if rms > params.label_segment_tolerance_mm * (0.5 if short else 1.0):
-            continue
-        # One partner leaves the piece anywhere on a sphere around it, which a ghost near
-        # the body may touch by chance; two or more pin it down.
-        if len(used) < 2:
-            one_partner.append(int(j))
-        elif rms < best_rms:
-            best, best_rms = int(j), rms
-    return best, np.asarray(one_partner, dtype=np.int64), np.asarray(unknown, dtype=np.int64)
+    d = np.linalg.norm(name_pos[:, piece_fields] - piece_xyz[None], axis=2)  # (n, F)
+    seen = np.isfinite(d)
+    used = rigid[free] & seen.any(axis=1)[None, :]  # (J, n)
+    # Short pieces are mostly ghosts: ask them for a closer fit.
+    short = piece_fields.size < params.min_track_length
+    tolerance = params.label_segment_tolerance_mm * (0.5 if short else 1.0)
+    residual2 = (np.nan_to_num(d)[None, :, :] - template_distance[free][:, :, None]) ** 2
+    weight = used[:, :, None] & seen[None, :, :]
+    count = weight.sum(axis=(1, 2))
+    rms = np.sqrt(np.where(weight, residual2, 0.0).sum(axis=(1, 2)) / np.maximum(count, 1))
+    n_used = used.sum(axis=1)
+    fits = (n_used > 0) & (rms <= tolerance)
+    # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
+    # body may touch by chance; two or more pin it down.
+    pinned = fits & (n_used >= 2)
+    best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
+    return best, free[fits & (n_used == 1)], free[n_used == 0]
 
 
 def _by_body_fit(
-    dense: NDArray,
-    t: int,
-    fields_t: NDArray,
+    piece_fields: NDArray,
+    piece_xyz: NDArray,
     free: NDArray,
-    holder: NDArray,
+    name_pos: NDArray,
     template: NDArray,
     params: TrackingParams,
 ) -> int:
-    """Free name whose expected position, seen from its nearest labelled neighbours, the
-    piece ``t`` keeps closest to, if clearly closer than any other free name.
+    """Free name whose expected position, seen from its nearest named neighbours, the
+    piece keeps closest to, if clearly closer than any other free name.
 
     At each of up to 9 fields of the piece the body's orientation R comes from a rigid fit
-    of every labelled marker to the template; name j is then expected at
-    P_k + R^T (T_j - T_k) from each of its four template-nearest labelled neighbours k
+    of every named marker to the template; name j is then expected at
+    P_k + R^T (T_j - T_k) from each of its four template-nearest named neighbours k
     (local, so that bent joints far away do not matter). The median distance over the
-    fields decides; the best must be within ``label_tolerance_mm / 2`` and the runner-up
-    at least 1.5 times farther.
+    fields decides; the best must be within ``label_tolerance_mm`` and the runner-up at
+    least 1.5 times farther.
     """
-    pick = fields_t[np.linspace(0, fields_t.size - 1, min(9, fields_t.size)).round().astype(int)]
+    pick = np.linspace(0, piece_fields.size - 1, min(9, piece_fields.size)).round().astype(int)
     dist = np.full((pick.size, free.size), np.nan)
-    for i, f in enumerate(pick):
-        held = np.flatnonzero(holder[:, f] >= 0)
+    for i, row in enumerate(pick):
+        f = piece_fields[row]
+        held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
         if held.size < 3:
             continue
-        pos = dense[holder[held, f], f]
-        r, _ = kabsch(pos, template[held])
+        r, _ = kabsch(name_pos[held, f], template[held])
         for col, j in enumerate(free):
             near = held[np.argsort(np.linalg.norm(template[held] - template[j], axis=1))[:4]]
-            expect = dense[holder[near, f], f] + (template[j] - template[near]) @ r
-            dist[i, col] = np.linalg.norm(dense[t, f] - expect.mean(axis=0))
+            expect = name_pos[near, f] + (template[j] - template[near]) @ r
+            dist[i, col] = np.linalg.norm(piece_xyz[row] - expect.mean(axis=0))
     if np.isnan(dist).all():
         return -1
     score = np.nanmedian(dist, axis=0)
     order = np.argsort(score)
     best = score[order[0]]
     second = score[order[1]] if order.size > 1 else np.inf
-    # A lone candidate has already passed the rigid-partner test; the body fit only has to
-    # agree roughly. Several candidates need a clear winner.
-    if order.size == 1 and best <= params.label_tolerance_mm:
-        return int(free[order[0]])
-    if best <= params.label_tolerance_mm / 2 and second >= 1.5 * best:
+    if best <= params.label_tolerance_mm and second >= 1.5 * best:
         return int(free[order[0]])
     return -1
 
@@ -409,7 +376,8 @@ def label_tracks(
     names : sequence of str or None
         Marker names. Without names or without a template, tracks are named M1, M2, ...
     params : TrackingParams
-        ``label_tolerance_mm``, ``label_fields``, ``min_label_fraction``.
+        ``label_tolerance_mm``, ``label_segment_tolerance_mm``, ``label_fields``,
+        ``min_label_fraction``, ``min_label_points``, ``min_body_fit_points``.
     template_mm : (n, 3) array, optional
         Marker positions in a standing pose, same order as ``names``, any frame.
     segments : sequence of (str, str), optional
@@ -419,8 +387,7 @@ def label_tracks(
     -------
     Labelling
     """
-    n_tracks = tracks.n_tracks
-    if not names or template_mm is None or n_tracks == 0:
+    if not names or template_mm is None or tracks.n_tracks == 0:
         return _generic(tracks, params, tuple(names or ()), float("nan"))
     names = tuple(names)
     template = np.asarray(template_mm, dtype=float)
@@ -431,29 +398,38 @@ def label_tracks(
         )
     if len(set(names)) != len(names):
         raise KisscalError("markers: names must be unique")
-    dense = tracks.positions()
+    n_names = len(names)
+    n_measured = tracks.n_status(MEASURED)
+    # Long tracks get a dense (track, field) table; the many short pieces (mostly ghosts)
+    # are read from their own rows only.
+    long_ids = np.flatnonzero(n_measured >= params.min_track_length)
+    if long_ids.size < 3:
+        return _generic(tracks, params, names, float("nan"))
+    n_fields = int(tracks.field.max()) + 1
+    rows = np.isin(tracks.track, long_ids)
+    dense = np.full((long_ids.size, n_fields, 3), np.nan)
+    dense[np.searchsorted(long_ids, tracks.track[rows]), tracks.field[rows]] = tracks.xyz_mm[rows]
     present = np.isfinite(dense[..., 0])
     rich = _rich_fields(present)
     if rich.size == 0:  # never three tracks at once: no body to match
         return _generic(tracks, params, names, float("nan"))
     if rich.size > params.label_fields:
         rich = rich[np.linspace(0, rich.size - 1, params.label_fields).round().astype(int)]
-    # Core: tracks seen in most rich fields. Their median pairwise distances over the
+    # Core: long tracks seen in most rich fields. Their median pairwise distances over the
     # trial describe an average pose; classical MDS turns it into points (up to a rigid
     # motion and a mirror image) that are matched to the standing template. The median
     # averages out the swing of the legs, which a single field's rigid fit cannot.
-    long_enough = tracks.n_status(MEASURED) >= params.min_track_length
-    core = np.flatnonzero((present[:, rich].mean(axis=1) >= 0.6) & long_enough)
+    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.6)
     # Every pair of core tracks must share rich fields for a median distance; drop the
     # track missing most pairs until they all do (two pieces of one marker never meet).
     while core.size >= 3:
-        both = present[np.ix_(core, rich)].astype(int) @ present[np.ix_(core, rich)].T.astype(int)
-        never = (both == 0).sum(axis=1)
+        seen = present[np.ix_(core, rich)].astype(int)
+        never = ((seen @ seen.T) == 0).sum(axis=1)
         if never.max() == 0:
             break
         core = np.delete(core, int(np.argmax(never)))
     template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
-    label_of = np.full(n_tracks, -1, dtype=np.int64)
+    label_of = np.full(tracks.n_tracks, -1, dtype=np.int64)
     fit_rms = float("nan")
     if core.size >= 3:
         median = _median_distances(dense, core, rich)
@@ -470,7 +446,7 @@ def label_tracks(
                 continue
             # Tracks too far from any name in the average pose still get a free name to
             # start from; the swap search then places them by their rigid partners.
-            free = np.setdiff1d(np.arange(len(names)), assign[assign >= 0])
+            free = np.setdiff1d(np.arange(n_names), assign[assign >= 0])
             loose = np.flatnonzero(assign < 0)[: free.size]
             assign[loose] = free[: loose.size]
             assign = refine_by_swaps(median, weight, template_distance, assign)
@@ -486,58 +462,52 @@ def label_tracks(
                 candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
         if candidates:
             fit_rms, assign = min(candidates, key=lambda c: c[0])
-            label_of[core[assign >= 0]] = assign[assign >= 0]
+            label_of[long_ids[core[assign >= 0]]] = assign[assign >= 0]
     if not np.any(label_of >= 0):
         return _generic(tracks, params, names, fit_rms)
-    template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
-    rigid = _rigid_pairs(dense, label_of, rich, template_distance, names, segments)
-    n_measured = tracks.n_status(MEASURED)
-    holder = np.full((len(names), present.shape[1]), -1, dtype=np.int64)
+
+    start, stop = tracks.bounds()
+    name_pos = np.full((n_names, n_fields, 3), np.nan)
     for t in np.flatnonzero(label_of >= 0):
-        holder[label_of[t], present[t]] = t
-    # Other pieces, longest first: a name is free for a piece if no track holds it in the
-    # piece's fields; among free names the piece takes the one whose rigid partners (on
-    # the same body segment) stay at the template's distance from it. Pieces without
-    # partners in view fall back to the nearest free name after a rigid fit of the body.
-    # Naming one piece gives its neighbours a partner: repeat until nothing changes.
+        name_pos[label_of[t], tracks.field[start[t] : stop[t]]] = tracks.xyz_mm[start[t] : stop[t]]
+    rigid = _rigid_pairs(name_pos, rich, template_distance, names, segments)
+    # Other pieces, longest first: a name is free for a piece if no trajectory holds it in
+    # the piece's fields; among free names the piece takes the one whose rigid partners
+    # (on the same body segment) stay at the template's distance from it. Naming one piece
+    # gives its neighbours a partner, so this repeats until nothing changes.
     for _ in range(6):
         changed = False
         waiting = np.flatnonzero((label_of < 0) & (n_measured >= params.min_label_points))
         for t in waiting[np.argsort(-n_measured[waiting], kind="stable")]:
-            fields_t = np.flatnonzero(present[t])
-            free = np.flatnonzero((holder[:, fields_t] < 0).all(axis=1))
+            f_t = tracks.field[start[t] : stop[t]]
+            xyz_t = tracks.xyz_mm[start[t] : stop[t]]
+            free = np.flatnonzero(~np.isfinite(name_pos[:, f_t, 0]).any(axis=1))
             if free.size == 0:
                 continue
             j, one_partner, unknown = _by_segments(
-                dense, t, fields_t, free, holder, rigid, template_distance, params
+                f_t, xyz_t, free, name_pos, rigid, template_distance, params
             )
-            if (
-                j < 0
-                and one_partner.size == 1
-                and unknown.size == 0
-                and n_measured[t] >= params.min_track_length
-            ):
-                # Every other free name is ruled out by its partners: a long piece (not a
-                # ghost) that one partner confirms is that name.
-                j = int(one_partner[0])
             undecided = np.r_[one_partner, unknown]
+            if j < 0 and undecided.size == 1 and n_measured[t] >= params.min_track_length:
+                # Every other free name is ruled out by its rigid partners: a long piece
+                # (not a ghost) takes the one name left.
+                j = int(undecided[0])
             if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
-                j = _by_body_fit(dense, t, fields_t, undecided, holder, template, params)
+                j = _by_body_fit(f_t, xyz_t, undecided, name_pos, template, params)
             if j >= 0:
                 label_of[t] = j
-                holder[j, fields_t] = t
+                name_pos[j, f_t] = xyz_t
                 changed = True
         if not changed:
             break
     # Short pieces that fit no name are ghosts (Shafiq's clean-up); long ones are reported.
     keep = (label_of >= 0) | (n_measured >= params.min_track_length)
     matched = np.unique(label_of[label_of >= 0])
-    fits = matched.size >= params.min_label_fraction * len(names)
-    if not fits:
+    if matched.size < params.min_label_fraction * n_names:
         return _generic(tracks, params, names, fit_rms)
 
     # Join same-label pieces; unlabelled tracks keep their own group.
-    group = np.where(label_of >= 0, label_of, len(names) + np.arange(n_tracks))
+    group = np.where(label_of >= 0, label_of, n_names + np.arange(tracks.n_tracks))
     rows = keep[tracks.track]
     sample_group = group[tracks.track][rows]
     joined = make_tracks(
@@ -553,13 +523,11 @@ def label_tracks(
     new_group[rank] = ids
     labels = []
     unlabelled = []
-    extra = 0
     for i, g in enumerate(new_group):
-        if g < len(names):
+        if g < n_names:
             labels.append(names[g])
         else:
-            extra += 1
-            labels.append(f"M{extra}")
             unlabelled.append(i)
+            labels.append(f"M{len(unlabelled)}")
     missing = tuple(n for j, n in enumerate(names) if j not in set(matched.tolist()))
     return Labelling(joined, tuple(labels), True, tuple(unlabelled), missing, fit_rms)
