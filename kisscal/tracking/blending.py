@@ -71,9 +71,11 @@ def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArra
     return out
 
 
-def _window_residuals(tracks: Tracks, side: int) -> tuple[NDArray, NDArray, NDArray]:
+def _window_residuals(
+    tracks: Tracks, side: int, stride: int = 1
+) -> tuple[NDArray, NDArray, NDArray]:
     """RMS residual (mm) of a least-squares cubic (in the field index) through every run of
-    ``2 * side`` consecutive measured samples of one track.
+    ``2 * side`` consecutive measured samples of one track (every ``stride``-th run).
 
     Returns the rows of the measured samples, the window's first measured index per
     window, and the residual per window.
@@ -82,26 +84,40 @@ def _window_residuals(tracks: Tracks, side: int) -> tuple[NDArray, NDArray, NDAr
     w = 2 * side
     if m.size < w:
         return m, np.empty(0, dtype=np.int64), np.empty(0)
-    idx = np.arange(m.size - w + 1)[:, None] + np.arange(w)
+    first = np.arange(0, m.size - w + 1, stride)
     tr = tracks.track[m]
-    idx = idx[tr[idx[:, 0]] == tr[idx[:, -1]]]
-    if idx.size == 0:
-        return m, np.empty(0, dtype=np.int64), np.empty(0)
+    first = first[tr[first] == tr[first + w - 1]]
+    if first.size == 0:
+        return m, first, np.empty(0)
+    idx = first[:, None] + np.arange(w)
     f = tracks.field[m[idx]].astype(float)
-    f = (f - f.mean(axis=1, keepdims=True)) / side
     x = tracks.xyz_mm[m[idx]]
-    vander = f[:, :, None] ** np.arange(4)
-    vt = np.transpose(vander, (0, 2, 1))
-    coef = np.linalg.solve(vt @ vander, vt @ x)
-    residual = np.sqrt(np.mean(np.sum((x - vander @ coef) ** 2, axis=2), axis=1))
-    return m, idx[:, 0], residual
+    residual = np.empty(first.size)
+    # Windows without missing fields share one design matrix: their residual is a fixed
+    # projection. The few with gaps are solved one by one in a batch.
+    plain = f[:, -1] - f[:, 0] == w - 1
+    t = (np.arange(w) - (w - 1) / 2) / side
+    vander = t[:, None] ** np.arange(4)
+    annihilate = np.eye(w) - vander @ np.linalg.pinv(vander)
+    res = np.einsum("ij,njc->nic", annihilate, x[plain])
+    residual[plain] = np.sqrt(np.mean(np.sum(res**2, axis=2), axis=1))
+    if (~plain).any():
+        fg = f[~plain]
+        fg = (fg - fg.mean(axis=1, keepdims=True)) / side
+        vg = fg[:, :, None] ** np.arange(4)
+        vt = np.transpose(vg, (0, 2, 1))
+        coef = np.linalg.solve(vt @ vg, vt @ x[~plain])
+        residual[~plain] = np.sqrt(np.mean(np.sum((x[~plain] - vg @ coef) ** 2, axis=2), axis=1))
+    return m, first, residual
 
 
 def smoothness_mm(tracks: Tracks, side: int = 3) -> float:
     """Median cubic-fit residual of 6-sample windows over all tracks: the trial's own
     noise level (about the per-axis measurement noise), which scales the continuity
-    tolerances so that noisier data are not cut into pieces."""
-    _, _, residual = _window_residuals(tracks, side)
+    tolerances so that noisier data are not cut into pieces. A median of at most about
+    20 000 windows (evenly strided) is plenty."""
+    n = int((tracks.status == MEASURED).sum())
+    _, _, residual = _window_residuals(tracks, side, stride=max(1, n // 20000))
     return float(np.median(residual)) if residual.size else 0.0
 
 
@@ -195,17 +211,23 @@ def blend_pairs(
         return e, e
     end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
     start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
-    step = start_field[None, :] - end_field[:, None]
     # Only pieces that became Kalman tracks take part: shorter ones are initial tracks
     # that died, mostly ghosts, and a few points can line up with anything.
-    grown = tracks.n_status(MEASURED) >= params.min_initial_length
-    step[~grown, :] = -1
-    step[:, ~grown] = -1
-    a, b = np.nonzero((step >= 1) & (step <= params.blend_gap_fields + 1))
+    grown = np.flatnonzero(tracks.n_status(MEASURED) >= params.min_initial_length)
+    by_start = grown[np.argsort(start_field[grown], kind="stable")]
+    starts_sorted = start_field[by_start]
+    lo = np.searchsorted(starts_sorted, end_field[grown] + 1, "left")
+    hi = np.searchsorted(starts_sorted, end_field[grown] + params.blend_gap_fields + 2, "left")
+    a = np.repeat(grown, hi - lo)
+    b = (
+        by_start[np.concatenate([np.arange(x, y) for x, y in zip(lo, hi, strict=True)])]
+        if a.size
+        else a
+    )
     if a.size == 0:
         e = np.empty(0, dtype=np.int64)
         return e, e
-    ahead = step[a, b]
+    ahead = start_field[b] - end_field[a]
     forward = _extrapolate_gap(end_hist[a], end_n[a], ahead)
     backward = _extrapolate_gap(start_hist[b], start_n[b], ahead)
     miss_f = np.linalg.norm(forward - start_hist[b, -1], axis=1)
@@ -232,12 +254,12 @@ def blend_pairs(
     a, b = a[ok], b[ok]
     if a.size == 0:
         return a, b
-    cost = np.full((tracks.n_tracks, tracks.n_tracks), _FAR)
-    cost[a, b] = residual[ok]
-    ra = np.unique(a)
-    cb = np.unique(b)
-    r, c = linear_sum_assignment(cost[np.ix_(ra, cb)])
-    keep = cost[ra[r], cb[c]] < _FAR
+    ra, ia = np.unique(a, return_inverse=True)
+    cb, ib = np.unique(b, return_inverse=True)
+    cost = np.full((ra.size, cb.size), _FAR)
+    cost[ia, ib] = residual[ok]
+    r, c = linear_sum_assignment(cost)
+    keep = cost[r, c] < _FAR
     return ra[r[keep]], cb[c[keep]]
 
 

@@ -77,6 +77,12 @@ _SPREAD_FLOOR_MM = 3.0
 # less than this (SD, mm) and matches the template's within _RIGID_MATCH_MM.
 _RIGID_SPREAD_MM = 5.0
 _RIGID_MATCH_MM = 15.0
+# Passes over the unnamed pieces; each pass only retries pieces near newly named ones.
+_MAX_SWEEPS = 200
+# Windows matched to the template after the first, where unnamed long pieces remain.
+_MAX_WINDOWS = 12
+# Rigid matches of the average pose (per mirror image) from which the swap search starts.
+_SWAP_STARTS = 4
 
 
 def _principal_frame(points: NDArray) -> NDArray[np.float64]:
@@ -104,13 +110,28 @@ def match_to_template(
     Returns the template index per point (-1 when unmatched or farther than
     ``outlier_mm`` after the fit) and the RMS distance of the matched points (mm).
     """
+    found = rigid_matches(points, template, outlier_mm, iterations)
+    if not found:
+        return np.full(points.shape[0], -1, dtype=np.int64), float("inf")
+    return found[0]
+
+
+def rigid_matches(
+    points: NDArray, template: NDArray, outlier_mm: float, iterations: int = 10
+) -> list[tuple[NDArray[np.int64], float]]:
+    """Distinct rigid correspondences of ``points`` to ``template``, best first.
+
+    Iterated Hungarian assignment and Kabsch fit, started from the 24 axis-aligned
+    orientations of the two principal-axis frames; each start gives one local optimum.
+    Returns (template index per point or -1, RMS distance of the matched points in mm).
+    """
     k = points.shape[0]
-    best = (np.full(k, -1, dtype=np.int64), np.inf, -1)
     if k < 3:
-        return best[0], best[1]
+        return []
     cp, ctm = points.mean(axis=0), template.mean(axis=0)
     fp, ft = _principal_frame(points), _principal_frame(template)
     cap = outlier_mm**2
+    results: dict[tuple, tuple[float, NDArray, float]] = {}
     for g in _CUBE:
         r = ft @ g @ fp.T
         t = ctm - r @ cp
@@ -130,16 +151,17 @@ def match_to_template(
         moved = points @ r.T + t
         d2 = ((moved[:, None, :] - template[None, :, :]) ** 2).sum(axis=2)
         rows, cols = linear_sum_assignment(np.minimum(d2, cap))
-        trimmed = np.minimum(d2[rows, cols], cap)
         # Unmatched points cost as much as an outlier, so larger matches are preferred.
-        score = trimmed.sum() + cap * (k - rows.size)
-        if score < best[1] * 1.0 - 1e-9 or best[2] < 0:
-            assign = np.full(k, -1, dtype=np.int64)
-            ok = d2[rows, cols] < cap
-            assign[rows[ok]] = cols[ok]
-            rms = float(np.sqrt(d2[rows[ok], cols[ok]].mean())) if ok.any() else np.inf
-            best = (assign, score, rms)
-    return best[0], float(best[2])
+        score = float(np.minimum(d2[rows, cols], cap).sum() + cap * (k - rows.size))
+        assign = np.full(k, -1, dtype=np.int64)
+        ok = d2[rows, cols] < cap
+        assign[rows[ok]] = cols[ok]
+        rms = float(np.sqrt(d2[rows[ok], cols[ok]].mean())) if ok.any() else np.inf
+        key = tuple(assign)
+        if key not in results or score < results[key][0]:
+            results[key] = (score, assign, rms)
+    ranked = sorted(results.values(), key=lambda v: v[0])
+    return [(assign, rms) for _, assign, rms in ranked]
 
 
 def _rich_fields(present: NDArray) -> NDArray[np.int64]:
@@ -343,10 +365,10 @@ def _by_body_fit(
         if held.size < 3:
             continue
         r, _ = kabsch(name_pos[held, f], template[held])
-        for col, j in enumerate(free):
-            near = held[np.argsort(np.linalg.norm(template[held] - template[j], axis=1))[:4]]
-            expect = name_pos[near, f] + (template[j] - template[near]) @ r
-            dist[i, col] = np.linalg.norm(piece_xyz[row] - expect.mean(axis=0))
+        gap = np.linalg.norm(template[free][:, None] - template[held][None], axis=2)
+        near = held[np.argsort(gap, axis=1)[:, :4]]  # (J, 4) nearest named neighbours
+        expect = name_pos[near, f] + (template[free][:, None, :] - template[near]) @ r
+        dist[i] = np.linalg.norm(piece_xyz[row] - expect.mean(axis=1), axis=1)
     if np.isnan(dist).all():
         return -1
     score = np.nanmedian(dist, axis=0)
@@ -356,6 +378,103 @@ def _by_body_fit(
     if best <= params.label_tolerance_mm and second >= 1.5 * best:
         return int(free[order[0]])
     return -1
+
+
+def _match_window(
+    dense: NDArray,
+    present: NDArray,
+    centre: int,
+    window: int,
+    template: NDArray,
+    template_distance: NDArray,
+    mirror_of: NDArray | None,
+    params: TrackingParams,
+) -> tuple[NDArray | None, NDArray, float, NDArray]:
+    """Names for the long tracks seen through most of a window of fields.
+
+    Core: long tracks seen in most rich fields of the window. Their median pairwise
+    distances describe an average pose; classical MDS turns it into points (up to a
+    rigid motion and a mirror image) that are matched to the standing template, the
+    correspondence is improved by :func:`refine_by_swaps`, and of it and its mirror image
+    the one that fits the real fields with a proper rotation is kept. The median
+    averages out the swing of the legs, which a single field's rigid fit cannot.
+
+    Returns (core rows of ``dense`` or None, name per core row or -1, median fit RMS in
+    mm, the rich fields used).
+    """
+    n_fields = present.shape[1]
+    in_window = np.zeros(n_fields, dtype=bool)
+    lo = min(max(centre - window // 2, 0), max(n_fields - window, 0))
+    in_window[lo : lo + window] = True
+    rich = _rich_fields(present & in_window[None, :])
+    if rich.size > params.label_fields:
+        rich = rich[np.linspace(0, rich.size - 1, params.label_fields).round().astype(int)]
+    none = (None, np.empty(0, dtype=np.int64), float("nan"), rich)
+    if rich.size == 0:  # never three tracks at once: no body to match
+        return none
+    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.6)
+    # Every pair of core tracks must share rich fields for a median distance; drop the
+    # track missing most pairs until they all do (two pieces of one marker never meet).
+    while core.size >= 3:
+        seen = present[np.ix_(core, rich)].astype(int)
+        never = ((seen @ seen.T) == 0).sum(axis=1)
+        if never.max() == 0:
+            break
+        core = np.delete(core, int(np.argmax(never)))
+    if core.size < 3:
+        return none
+    n_names = template.shape[0]
+    median = _median_distances(dense, core, rich)
+    weight = 1.0 / (_distance_spread(dense, core, rich) ** 2 + _SPREAD_FLOOR_MM**2)
+    np.fill_diagonal(weight, 0.0)
+    embedded = classical_mds(median)
+
+    def swap_cost(q: NDArray) -> float:
+        ok = q >= 0
+        qq = q[ok]
+        diff = median[np.ix_(ok, ok)] - template_distance[np.ix_(qq, qq)]
+        return float((weight[np.ix_(ok, ok)] * diff**2).sum())
+
+    refined = []
+    for mirror in (1.0, -1.0):
+        # Several rigid matches of the average pose serve as starts: the swap search
+        # only descends, and one start can sit in a wrong valley.
+        for assign, _ in rigid_matches(
+            embedded * [1.0, 1.0, mirror], template, params.label_tolerance_mm
+        )[:_SWAP_STARTS]:
+            if (assign >= 0).sum() < 3:
+                continue
+            # Tracks too far from any name in the average pose still get a free name to
+            # start from; the swap search then places them by their rigid partners.
+            free = np.setdiff1d(np.arange(n_names), assign[assign >= 0])
+            loose = np.flatnonzero(assign < 0)[: free.size]
+            assign[loose] = free[: loose.size]
+            assign = refine_by_swaps(median, weight, template_distance, assign)
+            refined.append((swap_cost(assign), assign))
+    if not refined:
+        return none
+    lowest = min(c for c, _ in refined)
+    candidates = []
+    seen_keys = set()
+    for cost, assign in refined:
+        # Only the distance-wise best (and equally good) correspondences go on to the
+        # left/right test.
+        if cost > lowest * 1.05 + 1e-9 or tuple(assign) in seen_keys:
+            continue
+        seen_keys.add(tuple(assign))
+        # Distances cannot tell left from right: the mirror image of a correspondence
+        # (left and right names exchanged) costs the same, so it is tried too.
+        tries = [assign]
+        if mirror_of is not None:
+            tries.append(np.where(assign >= 0, mirror_of[np.maximum(assign, 0)], -1))
+        for cand in tries:
+            ok = cand >= 0
+            rms = _field_fits(dense, rich, core[ok], cand[ok], template)
+            candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
+    if not candidates:
+        return none
+    fit_rms, assign = min(candidates, key=lambda c: c[0])
+    return core, assign, fit_rms, rich
 
 
 def label_tracks(
@@ -410,96 +529,89 @@ def label_tracks(
     dense = np.full((long_ids.size, n_fields, 3), np.nan)
     dense[np.searchsorted(long_ids, tracks.track[rows]), tracks.field[rows]] = tracks.xyz_mm[rows]
     present = np.isfinite(dense[..., 0])
-    rich = _rich_fields(present)
-    if rich.size == 0:  # never three tracks at once: no body to match
-        return _generic(tracks, params, names, float("nan"))
-    if rich.size > params.label_fields:
-        rich = rich[np.linspace(0, rich.size - 1, params.label_fields).round().astype(int)]
-    # Core: long tracks seen in most rich fields. Their median pairwise distances over the
-    # trial describe an average pose; classical MDS turns it into points (up to a rigid
-    # motion and a mirror image) that are matched to the standing template. The median
-    # averages out the swing of the legs, which a single field's rigid fit cannot.
-    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.6)
-    # Every pair of core tracks must share rich fields for a median distance; drop the
-    # track missing most pairs until they all do (two pieces of one marker never meet).
-    while core.size >= 3:
-        seen = present[np.ix_(core, rich)].astype(int)
-        never = ((seen @ seen.T) == 0).sum(axis=1)
-        if never.max() == 0:
-            break
-        core = np.delete(core, int(np.argmax(never)))
     template_distance = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    mirror_of = _mirror_permutation(template, params.label_tolerance_mm)
     label_of = np.full(tracks.n_tracks, -1, dtype=np.int64)
-    fit_rms = float("nan")
-    if core.size >= 3:
-        median = _median_distances(dense, core, rich)
-        weight = 1.0 / (_distance_spread(dense, core, rich) ** 2 + _SPREAD_FLOOR_MM**2)
-        np.fill_diagonal(weight, 0.0)
-        embedded = classical_mds(median)
-        candidates = []
-        mirror_of = _mirror_permutation(template, params.label_tolerance_mm)
-        for mirror in (1.0, -1.0):
-            assign, _ = match_to_template(
-                embedded * [1.0, 1.0, mirror], template, params.label_tolerance_mm
-            )
-            if (assign >= 0).sum() < 3:
-                continue
-            # Tracks too far from any name in the average pose still get a free name to
-            # start from; the swap search then places them by their rigid partners.
-            free = np.setdiff1d(np.arange(n_names), assign[assign >= 0])
-            loose = np.flatnonzero(assign < 0)[: free.size]
-            assign[loose] = free[: loose.size]
-            assign = refine_by_swaps(median, weight, template_distance, assign)
-            # Distances cannot tell left from right: the mirror image of a correspondence
-            # (left and right names exchanged) costs the same, so it is tried too; only
-            # the right one fits the real fields with a proper rotation.
-            tries = [assign]
-            if mirror_of is not None:
-                tries.append(np.where(assign >= 0, mirror_of[np.maximum(assign, 0)], -1))
-            for cand in tries:
-                ok = cand >= 0
-                rms = _field_fits(dense, rich, core[ok], cand[ok], template)
-                candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
-        if candidates:
-            fit_rms, assign = min(candidates, key=lambda c: c[0])
-            label_of[long_ids[core[assign >= 0]]] = assign[assign >= 0]
-    if not np.any(label_of >= 0):
+    # The average pose is taken over a window of the trial where most long tracks are
+    # seen together (in a long trial no piece spans the whole of it); names then spread
+    # to the other pieces through their rigid partners, and windows where unnamed long
+    # pieces remain are matched again.
+    window = min(params.label_window_fields, n_fields)
+    box = np.ones(window)
+    centre = int(np.argmax(np.convolve(present.sum(axis=0), box, mode="same")))
+    core, assign, fit_rms, rich = _match_window(
+        dense, present, centre, window, template, template_distance, mirror_of, params
+    )
+    if core is None or not np.any(assign >= 0):
         return _generic(tracks, params, names, fit_rms)
+    label_of[long_ids[core[assign >= 0]]] = assign[assign >= 0]
 
     start, stop = tracks.bounds()
     name_pos = np.full((n_names, n_fields, 3), np.nan)
     for t in np.flatnonzero(label_of >= 0):
         name_pos[label_of[t], tracks.field[start[t] : stop[t]]] = tracks.xyz_mm[start[t] : stop[t]]
-    rigid = _rigid_pairs(name_pos, rich, template_distance, names, segments)
-    # Other pieces, longest first: a name is free for a piece if no trajectory holds it in
-    # the piece's fields; among free names the piece takes the one whose rigid partners
-    # (on the same body segment) stay at the template's distance from it. Naming one piece
-    # gives its neighbours a partner, so this repeats until nothing changes.
-    for _ in range(6):
-        changed = False
-        waiting = np.flatnonzero((label_of < 0) & (n_measured >= params.min_label_points))
-        for t in waiting[np.argsort(-n_measured[waiting], kind="stable")]:
-            f_t = tracks.field[start[t] : stop[t]]
-            xyz_t = tracks.xyz_mm[start[t] : stop[t]]
-            free = np.flatnonzero(~np.isfinite(name_pos[:, f_t, 0]).any(axis=1))
-            if free.size == 0:
-                continue
-            j, one_partner, unknown = _by_segments(
-                f_t, xyz_t, free, name_pos, rigid, template_distance, params
-            )
-            undecided = np.r_[one_partner, unknown]
-            if j < 0 and undecided.size == 1 and n_measured[t] >= params.min_track_length:
-                # Every other free name is ruled out by its rigid partners: a long piece
-                # (not a ghost) takes the one name left.
-                j = int(undecided[0])
-            if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
-                j = _by_body_fit(f_t, xyz_t, undecided, name_pos, template, params)
-            if j >= 0:
-                label_of[t] = j
-                name_pos[j, f_t] = xyz_t
-                changed = True
-        if not changed:
+
+    def name_piece(t: int, j: int) -> None:
+        label_of[t] = j
+        name_pos[j, tracks.field[start[t] : stop[t]]] = tracks.xyz_mm[start[t] : stop[t]]
+
+    def propagate() -> None:
+        # Other pieces, longest first: a name is free for a piece if no trajectory holds it
+        # in the piece's fields; among free names the piece takes the one whose rigid
+        # partners (on the same body segment) stay at the template's distance from it.
+        # Naming one piece gives its neighbours a partner, so this repeats.
+        rigid = _rigid_pairs(name_pos, rich, template_distance, names, segments)
+        stamp = np.zeros(n_fields, dtype=np.int64)  # last pass that named something there
+        for sweep in range(1, _MAX_SWEEPS + 1):
+            changed = False
+            waiting = np.flatnonzero((label_of < 0) & (n_measured >= params.min_label_points))
+            for t in waiting[np.argsort(-n_measured[waiting], kind="stable")]:
+                f_t = tracks.field[start[t] : stop[t]]
+                if sweep > 1 and stamp[f_t].max() < sweep - 1:
+                    continue  # nothing new around this piece since it was last tried
+                xyz_t = tracks.xyz_mm[start[t] : stop[t]]
+                free = np.flatnonzero(~np.isfinite(name_pos[:, f_t, 0]).any(axis=1))
+                if free.size == 0:
+                    continue
+                j, one_partner, unknown = _by_segments(
+                    f_t, xyz_t, free, name_pos, rigid, template_distance, params
+                )
+                undecided = np.r_[one_partner, unknown]
+                if j < 0 and undecided.size == 1 and n_measured[t] >= params.min_track_length:
+                    # Every other free name is ruled out by its rigid partners: a long
+                    # piece (not a ghost) takes the one name left.
+                    j = int(undecided[0])
+                if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
+                    j = _by_body_fit(f_t, xyz_t, undecided, name_pos, template, params)
+                if j >= 0:
+                    name_piece(t, j)
+                    stamp[f_t] = sweep
+                    changed = True
+            if not changed:
+                break
+            # Newly named pieces may show more rigid pairs (a name absent from the average
+            # pose had none yet).
+            rigid = _rigid_pairs(name_pos, rich, template_distance, names, segments)
+
+    tried = np.zeros(n_fields, dtype=bool)
+    for _ in range(_MAX_WINDOWS):
+        propagate()
+        unnamed = label_of[long_ids] < 0
+        busy = np.convolve(present[unnamed].sum(axis=0), box, mode="same")
+        busy[tried] = 0
+        if not unnamed.any() or busy.max() < 3 * window * 0.5:
             break
+        centre = int(np.argmax(busy))
+        tried[max(centre - window // 2, 0) : centre + window // 2] = True
+        core, assign, _, _ = _match_window(
+            dense, present, centre, window, template, template_distance, mirror_of, params
+        )
+        if core is None:
+            continue
+        for k, j in zip(core, assign, strict=True):
+            t = long_ids[k]
+            if j >= 0 and label_of[t] < 0 and not np.isfinite(name_pos[j, present[k], 0]).any():
+                name_piece(t, int(j))
     # Short pieces that fit no name are ghosts (Shafiq's clean-up); long ones are reported.
     keep = (label_of >= 0) | (n_measured >= params.min_track_length)
     matched = np.unique(label_of[label_of >= 0])

@@ -98,6 +98,9 @@ class TrackingParams:
     min_body_fit_points : int
         Measured points a piece needs to be named from the body's rigid fit alone, when no
         rigid partner of any free name is in view (more than a ghost usually lives).
+    label_window_fields : int
+        Length (fields) of the stretch of the trial, the one where most long tracks are
+        seen together, whose average pose is matched to the template.
     label_fields : int
         Number of fields sampled for template matching.
     min_label_fraction : float
@@ -135,6 +138,7 @@ class TrackingParams:
     label_segment_tolerance_mm: float = 6.0
     min_label_points: int = 2
     min_body_fit_points: int = 5
+    label_window_fields: int = 500
     label_fields: int = 40
     min_label_fraction: float = 0.5
     smoothing: bool = False
