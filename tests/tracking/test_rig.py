@@ -27,7 +27,7 @@ def _run(seed, path_mm):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_synth_walk_meets_every_bar(seed):
-    r, res, s = _run(seed, 3400.0)
+    _, res, s = _run(seed, 3400.0)
     assert s.one_per_marker and s.n_tracks == 15
     assert s.labels_correct == 15
     assert s.identity_switches == 0
