@@ -1,0 +1,352 @@
+"""Advanced analysis (seeds/003 section 2.3): sub-marker merging, overlap (ul/ur) splitting,
+long/wide splitting and marker size limits.
+
+Groups are carried as labelled runs (:class:`Grouping`). Splitting a group creates one new
+label per marker centre estimated by the test, and every white pixel of the group goes to
+the nearest centre (distance measured with x scaled by the pixel aspect, so that distance
+is round for a round marker); runs crossing the boundary are cut there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import blobs as fl
+from kisscal.detect.groups import GroupTable
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.scan import Runs
+
+
+@dataclass(frozen=True)
+class Grouping:
+    """Labelled runs plus per-label bookkeeping (arrays indexed by label).
+
+    ``flags`` holds each label's flag bits; ``parent`` the label it was split from (itself
+    when never split); ``centre_x`` / ``centre_y`` the marker centre the split estimated
+    (NaN when not split), used to share the blurred rim between the parts.
+    """
+
+    runs: Runs
+    flags: NDArray[np.int64]
+    parent: NDArray[np.int64]
+    centre_x: NDArray[np.float64]
+    centre_y: NDArray[np.float64]
+
+    @classmethod
+    def start(cls, runs: Runs) -> Grouping:
+        n = int(runs.group.max()) + 1 if len(runs) else 0
+        nan = np.full(n, np.nan)
+        return cls(runs, np.zeros(n, dtype=np.int64), np.arange(n), nan, nan.copy())
+
+    def keep_groups(self, drop_labels: NDArray[np.int64]) -> Grouping:
+        """Remove every run of the given labels."""
+        dropped = np.zeros(self.flags.size, dtype=bool)
+        dropped[drop_labels] = True
+        keep = ~dropped[self.runs.group]
+        return Grouping(self.runs.take(keep), self.flags, self.parent, self.centre_x, self.centre_y)
+
+
+def merge_submarkers(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+    """Merge small groups lying (almost) within a larger group's rectangle (section 2.3.1).
+
+    A group is small when it has at most ``submarker_max_pixels`` white pixels and at most
+    ``submarker_max_rows`` scan lines. It is merged into the non-small group whose bounding
+    rectangle, grown by ``submarker_margin_px``, covers the largest fraction of its own
+    rectangle, when that fraction reaches ``submarker_overlap``.
+    """
+    small = (table.pixels <= params.submarker_max_pixels) & (
+        table.rows <= params.submarker_max_rows
+    )
+    big = ~small
+    if not small.any() or not big.any():
+        return grouping
+    m = params.submarker_margin_px
+    s = np.flatnonzero(small)
+    b = np.flatnonzero(big)
+    # Rectangles as pixel areas: columns x1..x2 cover [x1 - 0.5, x2 + 0.5].
+    ox = np.minimum(table.x2[s, None], table.x2[None, b] + m) - np.maximum(
+        table.x1[s, None], table.x1[None, b] - m
+    )
+    oy = np.minimum(table.y2[s, None], table.y2[None, b] + m) - np.maximum(
+        table.y1[s, None], table.y1[None, b] - m
+    )
+    covered = np.clip(ox + 1, 0, None) * np.clip(oy + 1, 0, None)
+    fraction = covered / (table.width[s] * table.height[s])[:, None]
+    best = np.argmax(fraction, axis=1)
+    ok = fraction[np.arange(s.size), best] >= params.submarker_overlap
+    if not ok.any():
+        return grouping
+    target_of = np.arange(grouping.flags.size)
+    target_of[table.label[s[ok]]] = table.label[b[best[ok]]]
+    flags = grouping.flags.copy()
+    flags[table.label[b[best[ok]]]] |= fl.MERGED
+    runs = grouping.runs
+    merged = Runs(runs.y, runs.x1, runs.x2, target_of[runs.group])
+    return Grouping(merged, flags, grouping.parent, grouping.centre_x, grouping.centre_y)
+
+
+def split_groups(
+    grouping: Grouping,
+    labels: NDArray[np.int64],
+    centres_x: NDArray[np.float64],
+    centres_y: NDArray[np.float64],
+    flag: NDArray[np.int64],
+    pixel_aspect: float,
+) -> Grouping:
+    """Replace each group in ``labels`` by one group per estimated marker centre.
+
+    Parameters
+    ----------
+    grouping : Grouping
+        Current groups.
+    labels : ndarray of int, shape (n,)
+        Groups to split.
+    centres_x, centres_y : ndarray of float, shape (n, k)
+        Marker centres for each group, NaN-padded where a group has fewer than k parts.
+    flag : ndarray of int, shape (n,)
+        Flag bit to set on the parts.
+    pixel_aspect : float
+        Width / height of a round marker in pixels, for the nearest-centre distance.
+
+    Returns
+    -------
+    Grouping
+        Groups with the split ones replaced; parts are labelled after all existing labels.
+    """
+    if labels.size == 0:
+        return grouping
+    runs = grouping.runs
+    slot = np.full(grouping.flags.size, -1)
+    slot[labels] = np.arange(labels.size)
+    which = slot[runs.group]
+    inside = which >= 0
+    keep = runs.take(~inside)
+    cut = runs.take(inside)
+    cut_slot = which[inside]
+    # Expand the split groups' runs to pixels (few pixels: only split groups).
+    count = cut.length
+    run_of = np.repeat(np.arange(len(cut)), count)
+    px = cut.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
+    py = cut.y[run_of]
+    ps = cut_slot[run_of]
+    dx = (px[:, None] - centres_x[ps]) / pixel_aspect
+    dy = py[:, None] - centres_y[ps]
+    dist = np.where(np.isnan(dx), np.inf, dx * dx + dy * dy)
+    part = np.argmin(dist, axis=1)
+    k = centres_x.shape[1]
+    base = grouping.flags.size
+    new_label = base + ps * k + part
+    # Back to runs: a new run starts where the label, the line or column contiguity changes.
+    brk = np.ones(px.size, dtype=bool)
+    brk[1:] = (new_label[1:] != new_label[:-1]) | (py[1:] != py[:-1]) | (px[1:] != px[:-1] + 1)
+    starts = np.flatnonzero(brk)
+    ends = np.append(starts[1:], px.size) - 1
+    parts = Runs(py[starts], px[starts], px[ends], new_label[starts])
+    n_new = labels.size * k
+    flags = np.concatenate([grouping.flags, np.repeat(grouping.flags[labels] | flag, k)])
+    parent = np.concatenate([grouping.parent, np.repeat(grouping.parent[labels], k)])
+    centre_x = np.concatenate([grouping.centre_x, centres_x.reshape(n_new)])
+    centre_y = np.concatenate([grouping.centre_y, centres_y.reshape(n_new)])
+    # Parts keep scan order within themselves; groups need not be contiguous in Runs.
+    merged = Runs(
+        np.concatenate([keep.y, parts.y]),
+        np.concatenate([keep.x1, parts.x1]),
+        np.concatenate([keep.x2, parts.x2]),
+        np.concatenate([keep.group, parts.group]),
+    )
+    return Grouping(merged, flags, parent, centre_x, centre_y)
+
+
+def principal_axes(
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    cov_xy: NDArray[np.float64],
+    spread_px2: float,
+    pixel_aspect: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Principal axes of spot moments in round units (x divided by ``pixel_aspect``).
+
+    Returns the major and minor variances (round units squared, pixel-area spread
+    ``spread_px2`` removed) and the major axis direction ``(ux, uy)`` in round units.
+    """
+    a = (var_x - spread_px2) / pixel_aspect**2
+    c = var_y - spread_px2
+    b = cov_xy / pixel_aspect
+    mean = (a + c) / 2
+    half = np.sqrt(((a - c) / 2) ** 2 + b * b)
+    theta = 0.5 * np.arctan2(2 * b, a - c)
+    return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
+
+
+def overlap_split(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    core: tuple[NDArray[np.float64], ...] | None = None,
+    inside: NDArray[np.bool_] | None = None,
+) -> Grouping:
+    """Split ul / ur overlapped pairs (section 2.3.2, equations 4-6).
+
+    A group with WhitePixels / TotalPixels below ``overlap_ratio_max`` is an overlapped
+    pair when the mid-points of its top and bottom rows (x_m^u, x_m^l) are further apart
+    than half the top row and than ``overlap_shift_px``. Upper-left (ul) when the top row
+    lies left of the bottom row, upper-right (ur) otherwise. The two markers are centred at
+    x_m^u and x_m^l with widths 2 (x_m^u - brect.x1) and 2 (brect.x2 - x_m^l) (ul; mirrored
+    for ur); their heights follow from the widths through ``pixel_aspect`` and they touch
+    the top and bottom of the rectangle.
+
+    Small spots overlapping diagonally rarely meet equation (6) (rows are too few for the
+    mid-point shift), so with ``core`` moments ``(x, y, var_x, var_y, cov_xy)`` of each
+    group's white pixels a group also counts as an overlapped pair when its major axis is
+    at least ``overlap_angle_deg`` away from both image axes (round units) and its
+    elongation reaches ``overlap_min_elongation``. Two equal spots ``D`` apart add
+    ``D^2 / 4`` to the major variance, so their centres are the centroid
+    ``+- sqrt(major - minor)`` along the major axis.
+
+    Groups where ``inside`` is False (cut by the image border) are left alone: their shape
+    is truncated, not overlapped.
+    """
+    x_mu = (table.top_x1 + table.top_x2) * 0.5
+    x_ml = (table.bottom_x1 + table.bottom_x2) * 0.5
+    shift = x_ml - x_mu
+    half_top = x_mu - table.top_x1
+    big_enough = table.pixels >= params.long_wide_min_pixels
+    if inside is not None:
+        big_enough &= inside
+    eq6 = (
+        big_enough
+        & (table.fill < params.overlap_ratio_max)
+        & (np.abs(shift) > half_top)
+        & (np.abs(shift) > params.overlap_shift_px)
+        & (table.height >= 3)
+    )
+    by_moments = np.zeros(len(table), dtype=bool)
+    if core is not None:
+        mx, my, vx, vy, cxy = core
+        major, minor, ux, uy = principal_axes(vx, vy, cxy, 1.0 / 12.0, params.pixel_aspect)
+        angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
+        diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
+        by_moments = (
+            big_enough & ~eq6 & diagonal & (np.sqrt(major / minor) >= params.overlap_min_elongation)
+        )
+    idx = np.flatnonzero(eq6 | by_moments)
+    if idx.size == 0:
+        return grouping
+    left = table.x1[idx] - 0.5
+    right = table.x2[idx] + 0.5
+    ul = shift[idx] > 0
+    xu, xl = x_mu[idx], x_ml[idx]
+    width_u = np.where(ul, 2 * (xu - left), 2 * (right - xu))
+    width_l = np.where(ul, 2 * (right - xl), 2 * (xl - left))
+    height = table.height[idx].astype(float)
+    h_u = np.minimum(width_u / params.pixel_aspect, height)
+    h_l = np.minimum(width_l / params.pixel_aspect, height)
+    cy_u = table.y1[idx] - 0.5 + h_u / 2
+    cy_l = table.y2[idx] + 0.5 - h_l / 2
+    if core is not None:
+        m = by_moments[idx]
+        half_d = np.sqrt(np.maximum(major[idx] - minor[idx], 0.0))
+        # the upper centre first; uy >= 0 points down the image
+        sign = np.where(uy[idx] >= 0, -1.0, 1.0)
+        dx = sign * half_d * ux[idx] * params.pixel_aspect
+        dy = sign * half_d * uy[idx]
+        xu = np.where(m, mx[idx] + dx, xu)
+        xl = np.where(m, mx[idx] - dx, xl)
+        cy_u = np.where(m, my[idx] + dy, cy_u)
+        cy_l = np.where(m, my[idx] - dy, cy_l)
+        ul = np.where(m, xu < xl, ul)
+    flag = np.where(ul, fl.SPLIT_UL, fl.SPLIT_UR)
+    return split_groups(
+        grouping,
+        table.label[idx],
+        np.column_stack([xu, xl]),
+        np.column_stack([cy_u, cy_l]),
+        flag,
+        params.pixel_aspect,
+    )
+
+
+def elongation(
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    spread_px2: float,
+    pixel_aspect: float,
+) -> NDArray[np.float64]:
+    """Height-to-width ratio of spots from their second moments, 1 for a round marker.
+
+    The spread that every spot gets whatever its size (pixel integration, ``spread_px2`` in
+    pixels squared) is removed before the ratio is taken: it would make small round
+    markers look tall in non-square pixels. Moments rather than the bounding rectangle of
+    section 2.3.3 because a marker two or three lines high has a rectangle ratio that
+    jumps with its sub-pixel position, while its moments change smoothly.
+    """
+    tiny = 1e-3
+    return pixel_aspect * np.sqrt(
+        np.maximum(var_y - spread_px2, tiny) / np.maximum(var_x - spread_px2, tiny)
+    )
+
+
+def long_wide_split(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    ratio: NDArray[np.float64],
+    inside: NDArray[np.bool_] | None = None,
+) -> Grouping:
+    """Split long and wide groups into marker-sized parts (section 2.3.3).
+
+    ``ratio`` (h / w, 1 for a round marker, see :func:`elongation`) below ``min_ratio``
+    makes a group wide, above ``max_ratio`` long. A wide group of width ``w`` and height
+    ``h`` is cut into ``round(w / (h * pixel_aspect))`` (at least 2) markers of diameter
+    ``h * pixel_aspect`` spread evenly from its left to its right end; a long one likewise
+    from top to bottom. The other coordinate of each part is the group's binary centroid.
+    Groups where ``inside`` is False (cut by the image border) are not tested.
+    """
+    w = table.width.astype(float)
+    h = table.height.astype(float)
+    # Parts of an overlapped pair were already cut to marker size by section 2.3.2.
+    overlap_part = (grouping.flags[table.label] & (fl.SPLIT_UL | fl.SPLIT_UR)) != 0
+    testable = (table.pixels >= params.long_wide_min_pixels) & ~overlap_part
+    if inside is not None:
+        testable &= inside
+    wide = testable & (ratio < params.min_ratio)
+    long = testable & (ratio > params.max_ratio)
+    idx = np.flatnonzero(wide | long)
+    if idx.size == 0:
+        return grouping
+    is_wide = wide[idx]
+    box_ratio = h[idx] * params.pixel_aspect / w[idx]
+    k = np.where(is_wide, np.floor(1 / box_ratio + 0.5), np.floor(box_ratio + 0.5))
+    k = np.maximum(k, 2).astype(np.int64)
+    kmax = int(k.max())
+    j = np.arange(kmax)[None, :]
+    valid_part = j < k[:, None]
+    # Along the split axis: extent of the group and the marker diameter along it.
+    start = np.where(is_wide, table.x1[idx], table.y1[idx]) - 0.5
+    extent = np.where(is_wide, w[idx], h[idx])
+    diameter = np.where(is_wide, h[idx] * params.pixel_aspect, w[idx] / params.pixel_aspect)
+    diameter = np.minimum(diameter, extent / k)
+    step = (extent - diameter) / (k - 1)
+    along = start[:, None] + diameter[:, None] / 2 + j * step[:, None]
+    along = np.where(valid_part, along, np.nan)
+    across = np.where(is_wide, table.y_binary[idx], table.x_binary[idx])[:, None]
+    across = np.where(valid_part, across, np.nan)
+    cx = np.where(is_wide[:, None], along, across)
+    cy = np.where(is_wide[:, None], across, along)
+    flag = np.where(is_wide, fl.SPLIT_WIDE, fl.SPLIT_LONG)
+    return split_groups(grouping, table.label[idx], cx, cy, flag, params.pixel_aspect)
+
+
+def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
+    """Flag bits of the marker size limits (section 2.3.4): oversized groups (LED rings of
+    facing cameras) get ``too_large``, undersized ones ``too_small``; neither is split."""
+    large = (
+        (table.pixels > params.max_pixels)
+        | (table.width > params.max_width_px)
+        | (table.height > params.max_height_px)
+    )
+    small = table.pixels < params.min_pixels
+    return np.where(large, fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)

@@ -1,0 +1,227 @@
+"""Blob detection of one image and of image sequences (seeds/003 section 2)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from functools import partial
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import blobs as fl
+from kisscal.detect.advanced import (
+    Grouping,
+    elongation,
+    long_wide_split,
+    merge_submarkers,
+    overlap_split,
+    size_flags,
+)
+from kisscal.detect.blobs import Blobs
+from kisscal.detect.centroid import (
+    SpotMoments,
+    estimate_background,
+    owner_image,
+    window_moments,
+)
+from kisscal.detect.groups import GroupTable, measure_groups
+from kisscal.detect.noise import noise_groups
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.scan import group_runs
+from kisscal.errors import KisscalError
+
+DEFAULT_PARAMS = DetectionParams()
+
+
+def check_image(image: object) -> NDArray:
+    """Return ``image`` as a 2-D array or raise :class:`KisscalError` saying what is wrong.
+
+    Accepted: 2-D boolean (already thresholded), unsigned-integer or float grey images.
+    """
+    if not isinstance(image, np.ndarray):
+        raise KisscalError(f"detect: expected a 2-D numpy image, got {type(image).__name__}")
+    if image.ndim == 3:
+        raise KisscalError(
+            f"detect: expected a single-channel image, got {image.shape[2]} channels "
+            f"(shape {image.shape}); convert to grey first"
+        )
+    if image.ndim != 2:
+        raise KisscalError(f"detect: expected a 2-D image, got shape {image.shape}")
+    if image.size == 0:
+        raise KisscalError(f"detect: empty image (shape {image.shape})")
+    if not (
+        image.dtype == np.bool_
+        or np.issubdtype(image.dtype, np.unsignedinteger)
+        or np.issubdtype(image.dtype, np.floating)
+    ):
+        raise KisscalError(
+            f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
+        )
+    return image
+
+
+def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Blobs:
+    """Find the marker images of one field: grouping, noise removal, advanced analysis.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w)
+        Grey IR image (uint8, uint16 or float) or an already thresholded boolean image.
+    params : DetectionParams
+        Thresholds and switches.
+
+    Returns
+    -------
+    Blobs
+        One row per group, sorted by the top-left corner of its bounding rectangle.
+        Centroids are intensity-weighted (rim included, background subtracted) for grey
+        images when ``params.weighted_centroid``; otherwise the binary centroid of
+        equation (2). An image without white pixels gives an empty table.
+
+    Notes
+    -----
+    Steps: run-length scan and grouping by run mid-points (section 2.1, eq. 3); noise
+    removal (2.2); sub-marker merge (2.3.1); ul/ur overlap split (2.3.2, eqs. 4-6);
+    long/wide split (2.3.3); size limits (2.3.4). Coordinates keep the non-square pixels.
+    """
+    image = check_image(image)
+    grey = image.dtype != np.bool_
+    white = image >= params.threshold if grey else image
+    runs = group_runs(white, params.closeness_x_px, params.closeness_rows)
+    if len(runs) == 0:
+        return Blobs.empty()
+    background = 0.0
+    if grey:
+        background = estimate_background(image) if params.background is None else params.background
+    grouping = Grouping.start(runs)
+    table = measure_groups(grouping.runs)
+    noise = noise_groups(table, params)
+    if noise.any():
+        grouping = grouping.keep_groups(table.label[noise])
+        table = measure_groups(grouping.runs)
+    if params.merge_submarkers and len(table):
+        grouping = merge_submarkers(grouping, table, params)
+        table = measure_groups(grouping.runs)
+    if len(table) == 0:
+        return Blobs.empty()
+
+    def moments() -> SpotMoments:
+        return window_moments(
+            image,
+            white,
+            owner_image(white.shape, grouping),
+            grouping,
+            table,
+            params.centroid_margin_x_px,
+            params.centroid_margin_y_px,
+            background,
+            params.pixel_aspect,
+        )
+
+    # Moments are recomputed only when a test actually split a group (rare).
+    spot = moments()
+    if params.split_overlaps:
+        core = (spot.x, spot.y, spot.core_var_x, spot.core_var_y, spot.core_cov_xy)
+        split = overlap_split(grouping, table, params, core, _inside(table, white.shape))
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
+    if params.split_long_wide:
+        ratio = elongation(spot.core_var_x, spot.core_var_y, 1.0 / 12.0, params.pixel_aspect)
+        split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
+    flags = grouping.flags[table.label]
+    if params.apply_size_limits:
+        flags = flags | size_flags(table, params)
+    xb, yb = table.x_binary, table.y_binary
+    x, y = (spot.x, spot.y) if grey and params.weighted_centroid else (xb, yb)
+    order = np.lexsort((table.x1, table.y1))
+    return Blobs(
+        x_px=x[order],
+        y_px=y[order],
+        x_binary_px=xb[order],
+        y_binary_px=yb[order],
+        pixels=table.pixels[order],
+        w_px=table.width[order],
+        h_px=table.height[order],
+        valid=(flags[order] & fl.INVALID_FLAGS) == 0,
+        flags=flags[order],
+    )
+
+
+def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
+    """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
+    height, width = shape
+    return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
+
+
+def _detect_one(index: int, source: Callable[[int], NDArray], params: DetectionParams) -> Blobs:
+    return detect_blobs(source(index), params)
+
+
+def detect_sequence(
+    images: Sequence[NDArray] | Callable[[int], NDArray],
+    params: DetectionParams = DEFAULT_PARAMS,
+    *,
+    count: int | None = None,
+    workers: int | None = None,
+    chunksize: int = 16,
+) -> list[Blobs]:
+    """Detect blobs in many images, in parallel across processes.
+
+    Parameters
+    ----------
+    images : sequence of ndarray, or callable ``index -> ndarray``
+        The images, or a picklable function that loads image ``index`` (e.g. the io layer's
+        reader bound with :func:`functools.partial`): with a loader, decoding happens in
+        the worker processes as well.
+    params : DetectionParams
+        Shared by all images.
+    count : int, optional
+        Number of images when ``images`` is a callable (required then).
+    workers : int, optional
+        Processes to use; ``None`` uses all cores, 1 runs in this process.
+    chunksize : int
+        Images handed to a worker at a time.
+
+    Returns
+    -------
+    list of Blobs
+        One table per image, in input order.
+    """
+    if callable(images):
+        if count is None:
+            raise KisscalError("detect: count is required when images is a loader function")
+        source = images
+        n = count
+    else:
+        n = len(images)
+        source = images.__getitem__
+    if workers is None:
+        workers = os.cpu_count() or 1
+    if workers < 1:
+        raise KisscalError(f"detect: workers must be >= 1, got {workers}")
+    if workers == 1 or n <= 1:
+        return [detect_blobs(source(i), params) for i in range(n)]
+    if not callable(images):
+        # Ship each worker its slice of images once instead of one pickle per image.
+        chunks = [list(images[i : i + chunksize]) for i in range(0, n, chunksize)]
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            results = pool.map(partial(_detect_chunk, params=params), chunks)
+            return [b for chunk in results for b in chunk]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        return list(
+            pool.map(
+                partial(_detect_one, source=source, params=params), range(n), chunksize=chunksize
+            )
+        )
+
+
+def _detect_chunk(images: list[NDArray], params: DetectionParams) -> list[Blobs]:
+    return [detect_blobs(image, params) for image in images]

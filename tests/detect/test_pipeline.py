@@ -1,0 +1,91 @@
+"""detect_blobs / detect_sequence: inputs, outputs, bad input."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import pytest
+
+from kisscal.detect import Blobs, DetectionParams, detect_blobs, detect_sequence
+from kisscal.errors import KisscalError
+from tests.detect.conftest import render
+
+TRUTH = np.array([[100.2, 50.7], [300.6, 120.1], [500.5, 200.4], [650.1, 30.3]])
+
+
+def test_black_image_gives_empty_table():
+    blobs = detect_blobs(np.zeros((291, 752), dtype=np.uint8))
+    assert len(blobs) == 0
+    assert isinstance(blobs, Blobs)
+    assert len(blobs.valid_only()) == 0
+
+
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        (np.zeros((0, 5), dtype=np.uint8), "empty"),
+        (np.zeros((10, 10, 3), dtype=np.uint8), "3 channels"),
+        (np.zeros((10, 10), dtype=np.int32), "dtype"),
+        (np.zeros(10, dtype=np.uint8), "2-D"),
+        ("image.png", "str"),
+    ],
+)
+def test_bad_input_raises_one_clear_error(bad, message):
+    with pytest.raises(KisscalError, match=message):
+        detect_blobs(bad)
+
+
+def test_bad_parameters_raise():
+    with pytest.raises(KisscalError, match="min_ratio"):
+        DetectionParams(min_ratio=1.2)
+    with pytest.raises(KisscalError, match="unknown parameter"):
+        DetectionParams().replace(treshold=3)
+
+
+def test_boolean_and_grey_images_agree_on_groups():
+    grey = render(TRUTH, 3.5)
+    params = DetectionParams()
+    from_grey = detect_blobs(grey, params)
+    from_bool = detect_blobs(grey >= params.threshold, params)
+    assert np.array_equal(from_grey.pixels, from_bool.pixels)
+    # a thresholded image has no grey levels: its centroid is the binary one
+    assert np.array_equal(from_bool.x_px, from_bool.x_binary_px)
+    assert np.allclose(from_grey.x_binary_px, from_bool.x_binary_px)
+
+
+def test_uint16_and_float_images():
+    grey = render(TRUTH, 3.5)
+    ref = detect_blobs(grey)
+    as16 = detect_blobs(grey.astype(np.uint16) * 256, DetectionParams(threshold=40 * 256))
+    asf = detect_blobs(grey.astype(np.float32))
+    assert np.allclose(as16.x_px, ref.x_px)
+    assert np.allclose(asf.x_px, ref.x_px)
+
+
+def test_markers_at_the_image_border_are_found():
+    truth = np.array([[1.5, 100.3], [750.2, 150.0], [400.0, 0.8], [200.0, 289.9]])
+    blobs = detect_blobs(render(truth, 3.0))
+    assert len(blobs.valid_only()) == 4
+
+
+def _frame(i: int) -> np.ndarray:
+    return render(TRUTH + np.array([i * 0.1, 0.0]), 3.5)
+
+
+def test_sequence_matches_single_images_in_order():
+    frames = [_frame(i) for i in range(5)]
+    serial = [detect_blobs(f) for f in frames]
+    for result in (
+        detect_sequence(frames, workers=2, chunksize=2),
+        detect_sequence(_frame, count=5, workers=2, chunksize=2),
+        detect_sequence(partial(_frame), count=5, workers=1),
+    ):
+        assert len(result) == 5
+        for a, b in zip(result, serial, strict=True):
+            assert np.array_equal(a.x_px, b.x_px)
+
+
+def test_sequence_needs_count_with_a_loader():
+    with pytest.raises(KisscalError, match="count"):
+        detect_sequence(_frame)
