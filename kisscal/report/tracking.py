@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import FILLED, MEASURED, Tracks
 
 _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
@@ -40,15 +41,21 @@ def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -
     return fig
 
 
+def trajectories_figure(result: Trajectories, title: str = "") -> Figure:
+    """:func:`trajectory_views` of a :class:`~kisscal.tracking.Trajectories` result."""
+    return trajectory_views(result.tracks, result.labels, title)
+
+
 def segment_length_figure(
-    tracks: Tracks,
-    labels: tuple[str, ...],
+    result: Trajectories,
     segments: list[tuple[str, str]] | tuple,
-    rate_hz: float,
+    rate_hz: float | None = None,
     title: str = "",
 ) -> Figure:
     """Length of each segment over time, from measured points (solid) and from the Kalman
-    a-posteriori estimates (dashed), as in Küçük 2005 chapter 5."""
+    a-posteriori estimates (dashed), as in Küçük 2005 chapter 5. Time in seconds when
+    ``rate_hz`` is given, else in fields."""
+    tracks, labels = result.tracks, result.labels
     index = {name: k for k, name in enumerate(labels)}
     pairs = [p for p in segments if p[0] in index and p[1] in index]
     fig = Figure(figsize=(10, 1.8 + 1.6 * max(len(pairs), 1)), layout="constrained")
@@ -62,14 +69,14 @@ def segment_length_figure(
     measured[tracks.track[m], tracks.field[m]] = tracks.xyz_mm[m]
     corrected = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     corrected[tracks.track, tracks.field] = tracks.corrected_mm
-    time_s = np.arange(n_fields) / rate_hz
+    time_axis = np.arange(n_fields) / (rate_hz or 1.0)
     for ax, (a, b) in zip(axes, pairs, strict=False):
         for dense, style, name in ((measured, "-", "measured"), (corrected, "--", "corrected")):
             length = np.linalg.norm(dense[index[a]] - dense[index[b]], axis=1)
-            ax.plot(time_s, length, style, lw=0.8, label=name)
+            ax.plot(time_axis, length, style, lw=0.8, label=name)
         ax.set_ylabel(f"{a}-{b}\n(mm)")
     axes[0].legend(fontsize=7)
-    axes[-1].set_xlabel("time (s)")
+    axes[-1].set_xlabel("time (s)" if rate_hz else "field")
     if title:
         fig.suptitle(title)
     return fig

@@ -2,7 +2,7 @@ import io
 
 import numpy as np
 
-from kisscal.report.tracking import segment_length_figure, trajectory_views
+from kisscal.report.tracking import segment_length_figure, trajectories_figure
 from kisscal.tracking import TrackingParams, build_trajectories
 from tests.tracking._data import NAMES, SEGMENTS, gait_truth, observe, template
 
@@ -15,7 +15,7 @@ def _result():
 
 def test_figures_render_with_one_line_per_track_and_segment():
     res = _result()
-    fig = trajectory_views(res.tracks, res.labels, title="walk")
+    fig = trajectories_figure(res, title="walk")
     axes = fig.get_axes()
     assert len(axes) == 3
     assert (
@@ -25,7 +25,7 @@ def test_figures_render_with_one_line_per_track_and_segment():
     line = axes[0].get_lines()[0]
     x = np.asarray(line.get_xdata(), dtype=float)
     assert np.nanmax(x) == np.nanmax(res.tracks.xyz_mm[res.tracks.track == 0, 0])
-    seg = segment_length_figure(res.tracks, res.labels, SEGMENTS, 50.0)
+    seg = segment_length_figure(res, SEGMENTS, 50.0)
     assert len(seg.get_axes()) == len(SEGMENTS)
     length = np.asarray(seg.get_axes()[0].get_lines()[0].get_ydata(), dtype=float)
     assert np.nanstd(length) < 3.0  # RKNE-RANK keeps its length
