@@ -83,6 +83,8 @@ _MAX_SWEEPS = 200
 _MAX_WINDOWS = 12
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 _SWAP_STARTS = 4
+# Largest number of joint name choices tried for a group of unnamed pieces.
+_MAX_GROUP_CHOICES = 20000
 
 
 def _principal_frame(points: NDArray) -> NDArray[np.float64]:
@@ -346,6 +348,7 @@ def _by_body_fit(
     name_pos: NDArray,
     template: NDArray,
     params: TrackingParams,
+    prefer: NDArray | None = None,
 ) -> int:
     """Free name whose expected position, seen from its nearest named neighbours, the
     piece keeps closest to, if clearly closer than any other free name.
@@ -355,7 +358,8 @@ def _by_body_fit(
     P_k + R^T (T_j - T_k) from each of its four template-nearest named neighbours k
     (local, so that bent joints far away do not matter). The median distance over the
     fields decides; the best must be within ``label_tolerance_mm`` and the runner-up at
-    least 1.5 times farther.
+    least 1.5 times farther. A single name in ``prefer`` (confirmed by one rigid partner)
+    is taken when within ``label_tolerance_mm`` and no other is 1.5 times closer.
     """
     pick = np.linspace(0, piece_fields.size - 1, min(9, piece_fields.size)).round().astype(int)
     dist = np.full((pick.size, free.size), np.nan)
@@ -377,7 +381,157 @@ def _by_body_fit(
     second = score[order[1]] if order.size > 1 else np.inf
     if best <= params.label_tolerance_mm and second >= 1.5 * best:
         return int(free[order[0]])
+    if prefer is not None and prefer.size == 1:
+        # The one name a rigid partner confirms wins unless the body clearly disagrees.
+        k = int(np.flatnonzero(free == prefer[0])[0])
+        others = np.delete(score, k)
+        if score[k] <= params.label_tolerance_mm and not (others < score[k] / 1.5).any():
+            return int(prefer[0])
     return -1
+
+
+def _unnamed_groups(
+    tracks: Tracks,
+    label_of: NDArray,
+    n_measured: NDArray,
+    start: NDArray,
+    stop: NDArray,
+    params: TrackingParams,
+) -> list[NDArray[np.int64]]:
+    """Groups of 2 to 4 unnamed pieces of at least ``min_body_fit_points`` points, each
+    sharing at least three fields with another of its group."""
+    cand = np.flatnonzero((label_of < 0) & (n_measured >= params.min_body_fit_points))
+    if cand.size < 2:
+        return []
+    spans = [set(tracks.field[start[t] : stop[t]].tolist()) for t in cand]
+    parent = list(range(cand.size))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i in range(cand.size):
+        for k in range(i + 1, cand.size):
+            if len(spans[i] & spans[k]) >= 3:
+                parent[root(k)] = root(i)
+    groups: dict[int, list[int]] = {}
+    for i in range(cand.size):
+        groups.setdefault(root(i), []).append(int(cand[i]))
+    return [np.asarray(g) for g in groups.values() if 2 <= len(g) <= 4]
+
+
+def _name_group(
+    pieces: list[tuple[NDArray, NDArray]],
+    name_pos: NDArray,
+    rigid: NDArray,
+    template_distance: NDArray,
+    template: NDArray,
+    params: TrackingParams,
+) -> NDArray[np.int64] | None:
+    """Names for a group of unnamed pieces, chosen jointly by their rigid distances.
+
+    Every one-to-one choice of free names is scored by the RMS difference between the
+    template lengths and the distances of the pairs it makes rigid: among the pieces, and
+    from each piece to named partners. Every piece must take part in at least one rigid
+    pair, the best choice must fit within ``label_segment_tolerance_mm`` and be at least
+    twice better than any choice that differs in more than a left/right mirror; between a
+    choice and its mirror image the rigid fit of the body decides. Returns None when the
+    group cannot be named safely.
+    """
+    free_sets = [
+        set(np.flatnonzero(~np.isfinite(name_pos[:, f, 0]).any(axis=1)).tolist()) for f, _ in pieces
+    ]
+    # Distances among the pieces (median over shared fields) and to named markers.
+    k = len(pieces)
+    between = np.full((k, k), np.nan)
+    for a in range(k):
+        for b in range(a + 1, k):
+            fa, xa = pieces[a]
+            fb, xb = pieces[b]
+            shared, ia, ib = np.intersect1d(fa, fb, return_indices=True)
+            if shared.size >= 3:
+                between[a, b] = between[b, a] = np.median(np.linalg.norm(xa[ia] - xb[ib], axis=1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # names never seen with a piece
+        to_named = [
+            np.nanmedian(np.linalg.norm(name_pos[:, f] - x[None], axis=2), axis=1)
+            for f, x in pieces
+        ]
+    scored = []
+    # A name stays a candidate for a piece only if its named rigid partners in view
+    # agree with it.
+    options_per_piece = []
+    for i in range(k):
+        keep = []
+        for j in sorted(free_sets[i]):
+            partners = np.flatnonzero(rigid[j] & np.isfinite(to_named[i]))
+            miss = to_named[i][partners] - template_distance[j, partners]
+            if partners.size == 0 or np.sqrt(np.mean(miss**2)) <= params.label_segment_tolerance_mm:
+                keep.append(j)
+        options_per_piece.append(keep)
+    if np.prod([len(o) for o in options_per_piece], dtype=float) > _MAX_GROUP_CHOICES:
+        return None
+    for choice in itertools.product(*options_per_piece):
+        if len(set(choice)) < k:
+            continue
+        residuals = []
+        involved = np.zeros(k, dtype=bool)
+        for a in range(k):
+            for b in range(a + 1, k):
+                if rigid[choice[a], choice[b]] and np.isfinite(between[a, b]):
+                    residuals.append(between[a, b] - template_distance[choice[a], choice[b]])
+                    involved[[a, b]] = True
+            partners = np.flatnonzero(rigid[choice[a]] & np.isfinite(to_named[a]))
+            for q in partners:
+                residuals.append(to_named[a][q] - template_distance[choice[a], q])
+                involved[a] = True
+        if not involved.all():
+            continue
+        scored.append((float(np.sqrt(np.mean(np.square(residuals)))), choice))
+    if not scored:
+        return None
+    scored.sort()
+    best_rms, best = scored[0]
+    if best_rms > params.label_segment_tolerance_mm:
+        return None
+    rivals = [c for r, c in scored[1:] if r < 2.0 * max(best_rms, 1.0)]
+    if rivals:
+        # Only the mirror image of the best names, or the same names in another order
+        # (two pieces whose distance fits either way round) may rival it: the body's
+        # rigid fit picks among those.
+        mirror = _mirror_permutation(template, params.label_tolerance_mm)
+        same = {frozenset(best)}
+        if mirror is not None:
+            same.add(frozenset(mirror[list(best)].tolist()))
+        if any(frozenset(c) not in same for c in rivals):
+            return None
+        options = [best, *rivals]
+        # Compare the vectors between the pieces, turned into the template's frame by the
+        # body's orientation, with the template's: a heel and a toe swapped point the
+        # wrong way whatever the joints do.
+        fits = []
+        for choice in options:
+            d = []
+            for a in range(k):
+                for b in range(a + 1, k):
+                    fa, xa = pieces[a]
+                    fb, xb = pieces[b]
+                    shared, ia, ib = np.intersect1d(fa, fb, return_indices=True)
+                    for n_row in range(0, shared.size, max(1, shared.size // 5)):
+                        f = shared[n_row]
+                        held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
+                        if held.size < 3:
+                            continue
+                        r, _ = kabsch(name_pos[held, f], template[held])
+                        seen = (xa[ia[n_row]] - xb[ib[n_row]]) @ r.T
+                        d.append(np.linalg.norm(seen - (template[choice[a]] - template[choice[b]])))
+            fits.append(np.median(d) if d else np.inf)
+        order = np.argsort(fits)
+        if not fits[order[1]] > 1.5 * fits[order[0]]:
+            return None
+        best = options[order[0]]
+    return np.asarray(best, dtype=np.int64)
 
 
 def _match_window(
@@ -582,7 +736,9 @@ def label_tracks(
                     # piece (not a ghost) takes the one name left.
                     j = int(undecided[0])
                 if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
-                    j = _by_body_fit(f_t, xyz_t, undecided, name_pos, template, params)
+                    j = _by_body_fit(
+                        f_t, xyz_t, undecided, name_pos, template, params, prefer=one_partner
+                    )
                 if j >= 0:
                     name_piece(t, j)
                     stamp[f_t] = sweep
@@ -612,6 +768,18 @@ def label_tracks(
             t = long_ids[k]
             if j >= 0 and label_of[t] < 0 and not np.isfinite(name_pos[j, present[k], 0]).any():
                 name_piece(t, int(j))
+    # Pieces of one segment that entered the view together (a whole foot at the edge of
+    # the volume) have no named partner to go by: name them jointly.
+    rigid = _rigid_pairs(name_pos, rich, template_distance, names, segments)
+    for group in _unnamed_groups(tracks, label_of, n_measured, start, stop, params):
+        pieces = [
+            (tracks.field[start[t] : stop[t]], tracks.xyz_mm[start[t] : stop[t]]) for t in group
+        ]
+        names_for = _name_group(pieces, name_pos, rigid, template_distance, template, params)
+        if names_for is not None:
+            for t, j in zip(group, names_for, strict=True):
+                name_piece(int(t), int(j))
+            propagate()
     # Short pieces that fit no name are ghosts (Shafiq's clean-up); long ones are reported.
     keep = (label_of >= 0) | (n_measured >= params.min_track_length)
     matched = np.unique(label_of[label_of >= 0])
