@@ -136,7 +136,7 @@ class TrackingParams:
     refill_predicted: bool = True
     label_tolerance_mm: float = 120.0
     label_segment_tolerance_mm: float = 6.0
-    min_label_points: int = 2
+    min_label_points: int = 1
     min_body_fit_points: int = 5
     label_window_fields: int = 500
     label_fields: int = 40
