@@ -1,17 +1,24 @@
 """Automatic labelling of tracks with a marker set (beyond the seeds, which left it to the
 operator).
 
-With a template (marker positions in a standing pose, in any coordinate frame), a sample of
-fields is matched to the template: at each field the points present are registered to the
-template by a proper rigid motion with the correspondence found jointly (iterated
-Hungarian assignment and Kabsch fit, started from the 24 axis-aligned orientations of the
-two principal-axis frames), so neither where the subject stands nor where it faces
-matters, and a mirrored (left/right swapped) match is impossible because reflections are
-excluded. Each field votes a label for each track it contains; a track takes its majority
-label when the votes and the fit distance support it. Pieces of one marker that share a
-label and do not overlap in time are joined. Tracks that fit no label are reported and
-named ``M<k>``; when too few names are matched (a stick, a thrown ball) all tracks are
-named ``M1``, ``M2``, ... .
+Input: blended pieces and the ``[markers]`` set (names, a template of positions in a
+standing pose in any coordinate frame, optional rigid segments). Nothing depends on where
+the subject stands or faces:
+
+1. Average pose: in a window where most long pieces are seen together, the median
+   distance between every pair of pieces is taken (it averages out the swing of the
+   legs) and turned into points by classical MDS; these are matched to the template by
+   rigid fits (24 starts, Hungarian + Kabsch), refined by exchanging names to fit the
+   distances that stay constant (markers on one segment), and of a correspondence and its
+   left/right mirror image (equal in distances) the one that fits the real fields with a
+   proper rotation is kept.
+2. Spreading: other pieces take the free name (not held in their fields) whose rigid
+   partners keep the template distance from them; repeated as names spread through time;
+   windows where unnamed long pieces remain are matched again; groups of unnamed pieces
+   that entered the view together (a whole foot) are named jointly.
+3. Pieces sharing a name are joined. Short pieces that fit no name are ghosts and are
+   dropped (Shafiq's clean-up); long ones are kept, named ``M<k>`` and reported. When too
+   few names are matched (a stick, a thrown ball), all tracks are named M1, M2, ... .
 """
 
 from __future__ import annotations

@@ -78,7 +78,9 @@ class TrackingParams:
     blend_noise_factor : float
         The blend tolerance is at least this many times the trial's smoothness residual.
     min_track_length : int
-        Tracks with fewer measured points are removed in the clean-up (short ghost tracks).
+        Pieces with fewer measured points that take no name (or all pieces, when no marker
+        set fits) are removed in the clean-up (short ghost tracks, Shafiq et al. §4.3);
+        longer ones that take no name are kept and reported.
     max_fill_gap_fields : int
         Largest gap (fields) inside one labelled trajectory that gap filling bridges.
     fill_context_fields : int
@@ -88,8 +90,8 @@ class TrackingParams:
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
         in the statistics. False keeps them as ``predicted``.
     label_tolerance_mm : float
-        Largest RMS distance (mm) of a track from its template position, after the per-field
-        rigid fit, for the track to take that label.
+        Outlier distance (mm) of the rigid template matching, and the largest distance of a
+        piece from where the body's rigid fit expects a name for it to take that name.
     label_segment_tolerance_mm : float
         Largest RMS difference (mm) between a piece's distances to the rigid partners of a
         name and the template's for the piece to take that name.
@@ -102,7 +104,7 @@ class TrackingParams:
         Length (fields) of the stretch of the trial, the one where most long tracks are
         seen together, whose average pose is matched to the template.
     label_fields : int
-        Number of fields sampled for template matching.
+        Number of fields of the window sampled for template matching.
     min_label_fraction : float
         Fraction of the marker names that must be matched for a trial to fit the marker set;
         below it the tracks are named M1, M2, ...

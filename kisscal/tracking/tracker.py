@@ -12,7 +12,13 @@ the track ends and its trailing predictions are dropped.
 
 Association is one-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment``
 on gate-normalised squared distances), Kalman tracks first, then initial tracks on the
-points left, rather than first-come nearest neighbour.
+points left, rather than first-come nearest neighbour. A one-point track looks one field
+ahead (offline, the next field is known) to tell which candidate continues.
+
+The pieces are then checked, because a gate can take the wrong point: a short run of
+points after coasting is split off (a ghost caught after the marker left), and a track is
+cut where its path is not smooth (a cubic through three samples on each side misses them)
+or where its first or last point strays from the rest.
 """
 
 from __future__ import annotations
