@@ -52,19 +52,26 @@ def run(seeds=range(1, 9), n_fields: int = 300) -> list[str]:
 
 
 def sweep(path: str, seed: int = 1, n_fields: int = 300) -> str:
-    r = rig_gait(seed, n_fields, path_mm=3400.0, ghosts_per_field=1.0)
+    """The thesis' PNC x MNC table on the out-of-view scenario (where tracks coast)."""
+    r = rig_gait(seed, n_fields, path_mm=7000.0, ghosts_per_field=1.0)
     rows = sweep_noise(r.field, r.xyz_mm, r.segments, names=r.names, template_mm=r.template_mm)
     write_sweep_csv(path, rows)
     out = [f"wrote {path}"]
     for row in rows:
         stats = {(s.segment, s.kind): s for s in row.segments}
-        knee = stats.get((("RKNE", "RANK"), "measured")), stats.get((("RKNE", "RANK"), "corrected"))
-        if knee[0] and knee[1]:
-            out.append(
-                f"PNC {row.pnc:<6} MNC {row.mnc:<6} RKNE-RANK mean {knee[0].mean_mm:8.2f}/"
-                f"{knee[1].mean_mm:8.2f} SD {knee[0].sd_mm:5.2f}/{knee[1].sd_mm:5.2f} "
-                f"(measured/corrected); predictions {sum(row.predictions.values())}"
-            )
+        for seg in (("RKNE", "RANK"), ("LKNE", "LANK")):
+            m, c = stats.get((seg, "measured")), stats.get((seg, "corrected"))
+            if m and c:
+                out.append(
+                    f"PNC {row.pnc:<6} MNC {row.mnc:<6} {seg[0]}-{seg[1]} mean "
+                    f"{m.mean_mm:7.2f}/{c.mean_mm:7.2f} var {m.variance_mm2:6.3f}/"
+                    f"{c.variance_mm2:6.3f} SD {m.sd_mm:5.3f}/{c.sd_mm:5.3f} SD/mean "
+                    f"{m.sd_over_mean:.5f}/{c.sd_over_mean:.5f} (measured/corrected)"
+                )
+        out.append(
+            f"PNC {row.pnc:<6} MNC {row.mnc:<6} missing-point predictions: "
+            + " ".join(f"{k}={v}" for k, v in sorted(row.predictions.items()))
+        )
     return "\n".join(out)
 
 
