@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from kisscal.errors import KisscalError
+from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks, numbering
 
@@ -89,7 +90,7 @@ _MAX_SWEEPS = 200
 # Windows matched to the template after the first, where unnamed long pieces remain.
 _MAX_WINDOWS = 12
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
-_SWAP_STARTS = 4
+_SWAP_STARTS = 24
 # Largest number of joint name choices tried for a group of unnamed pieces.
 _MAX_GROUP_CHOICES = 20000
 
@@ -204,6 +205,48 @@ def _distance_spread(dense: NDArray, tracks: NDArray, fields: NDArray) -> NDArra
     return np.nanstd(d, axis=2)
 
 
+def _cycle_changes(w: NDArray, d: NDArray, gpp: NDArray, tpp: NDArray) -> NDArray:
+    """Cost change of every 3-cycle of names (a takes b's, b takes c's, c takes a's) for
+    the cost of :func:`refine_by_swaps`; ``gpp[i, j]`` is track i's share were it named as
+    track j, ``tpp`` the template distances between the current names. (k, k, k), +inf
+    where indices repeat."""
+    k = w.shape[0]
+    a, b, c = np.meshgrid(np.arange(k), np.arange(k), np.arange(k), indexing="ij")
+
+    def term(i: NDArray, j: NDArray, t: NDArray) -> NDArray:
+        return w[i, j] * (d[i, j] - t) ** 2
+
+    # Each track's share with its new name, minus the part that pairs it with the other
+    # two (counted with their old names in gpp), ...
+    share = gpp[a, b] - gpp[a, a] + gpp[b, c] - gpp[b, b] + gpp[c, a] - gpp[c, c]
+    inner = (
+        term(a, b, tpp[b, b])
+        - term(a, b, tpp[a, b])
+        + term(a, c, tpp[b, c])
+        - term(a, c, tpp[a, c])
+        + term(b, a, tpp[c, a])
+        - term(b, a, tpp[b, a])
+        + term(b, c, tpp[c, c])
+        - term(b, c, tpp[b, c])
+        + term(c, a, tpp[a, a])
+        - term(c, a, tpp[c, a])
+        + term(c, b, tpp[a, b])
+        - term(c, b, tpp[c, b])
+    )
+    # ... plus the exact change of the three pairs inside the cycle.
+    within = 2.0 * (
+        term(a, b, tpp[b, c])
+        - term(a, b, tpp[a, b])
+        + term(a, c, tpp[b, a])
+        - term(a, c, tpp[a, c])
+        + term(b, c, tpp[c, a])
+        - term(b, c, tpp[b, c])
+    )
+    out = 2.0 * (share - inner) + within
+    out[(a == b) | (b == c) | (a == c)] = np.inf
+    return out
+
+
 def refine_by_swaps(
     distance: NDArray,
     weight: NDArray,
@@ -224,33 +267,37 @@ def refine_by_swaps(
         return assign
     d = np.nan_to_num(distance[np.ix_(rows, rows)])
     w = np.nan_to_num(weight[np.ix_(rows, rows)])
-    p = assign[rows]
-    n_names = template_distance.shape[0]
+    p = assign[rows].copy()
 
-    def cost(q: NDArray) -> float:
-        return float((w * (d - template_distance[np.ix_(q, q)]) ** 2).sum())
-
-    best = cost(p)
-    for _ in range(max_passes):
-        # Steepest descent: take the best single exchange of the pass, so that one very
-        # wrong pair is fixed before the search wanders off after small gains.
-        step = (best, None)
-        for a in range(p.size):
-            for b in range(a + 1, p.size):
-                q = p.copy()
-                q[a], q[b] = p[b], p[a]
-                c = cost(q)
-                if c < step[0] - 1e-9:
-                    step = (c, q)
-            for j in np.setdiff1d(np.arange(n_names), p):
-                q = p.copy()
-                q[a] = j
-                c = cost(q)
-                if c < step[0] - 1e-9:
-                    step = (c, q)
-        if step[1] is None:
+    wd = w * d
+    wdd = (wd * d).sum(axis=1)
+    idx = np.arange(p.size)
+    for _ in range(max_passes * p.size):
+        # Steepest descent over all single exchanges, their cost changes computed at once:
+        # g[a, x] is track a's share of the cost were it named x.
+        tp = template_distance[:, p]  # (n_names, k)
+        g = wdd[:, None] - 2.0 * wd @ tp.T + w @ (tp.T**2)
+        own = g[idx, p]
+        t_ab = template_distance[np.ix_(p, p)]
+        keep_ab = w * ((d - t_ab) ** 2 - d**2)  # the a-b term, unchanged by the exchange
+        swap = 2.0 * (g[:, p] - own[:, None] + g[:, p].T - own[None, :] + 2.0 * keep_ab)
+        np.fill_diagonal(swap, 0.0)
+        move = 2.0 * (g - own[:, None])
+        move[:, p] = 0.0  # names already held are exchanged, not taken
+        cycle = _cycle_changes(w, d, g[:, p], t_ab)
+        a, b = np.unravel_index(np.argmin(swap), swap.shape)
+        am, x = np.unravel_index(np.argmin(move), move.shape)
+        ca, cb, cc = np.unravel_index(np.argmin(cycle), cycle.shape)
+        gains = (swap[a, b], move[am, x], cycle[ca, cb, cc])
+        if min(gains) > -1e-9:
             break
-        best, p = step
+        kind = int(np.argmin(gains))
+        if kind == 0:
+            p[a], p[b] = p[b], p[a]
+        elif kind == 1:
+            p[am] = x
+        else:
+            p[ca], p[cb], p[cc] = p[cb], p[cc], p[ca]
     assign[rows] = p
     return assign
 
@@ -342,8 +389,9 @@ def _by_segments(
     n_used = used.sum(axis=1)
     fits = (n_used > 0) & (rms <= tolerance)
     # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
-    # body may touch by chance; two or more pin it down.
-    pinned = fits & (n_used >= 2)
+    # body may touch by chance; two pin it to a circle, enough for a piece that moves
+    # along it for a few fields; a point or two needs three.
+    pinned = fits & (n_used >= (3 if piece_fields.size < 3 else 2))
     best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
     return best, free[fits & (n_used == 1)], free[n_used == 0]
 
@@ -395,6 +443,25 @@ def _by_body_fit(
         if score[k] <= params.label_tolerance_mm and not (others < score[k] / 1.5).any():
             return int(prefer[0])
     return -1
+
+
+def _continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: TrackingParams) -> bool:
+    """Whether a piece continues a named trajectory smoothly where they are close in time.
+
+    The trajectory's samples up to ``max_fill_gap_fields + 1`` fields before and after
+    the piece and the piece itself must fit one polynomial (cubic, or lower with few
+    points) within ``split_tolerance_mm`` RMS; with no such samples the piece passes.
+    """
+    reach = params.max_fill_gap_fields + 1
+    near = np.r_[
+        np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1)
+    ]
+    near = near[(near >= 0) & (near < track_pos.shape[0])]
+    near = near[np.isfinite(track_pos[near, 0])]
+    if near.size < 2:
+        return True
+    residual = bridge_residual_mm(near, track_pos[near], fields, xyz)
+    return not residual > params.split_tolerance_mm
 
 
 def _unnamed_groups(
@@ -746,6 +813,11 @@ def label_tracks(
                     j = _by_body_fit(
                         f_t, xyz_t, undecided, name_pos, template, params, prefer=one_partner
                     )
+                if j >= 0 and n_measured[t] < params.min_track_length:
+                    # A short piece next to its name's trajectory must continue it: a ghost
+                    # by a marker that just went out of sight need not.
+                    if not _continues(name_pos[j], f_t, xyz_t, params):
+                        j = -1
                 if j >= 0:
                     name_piece(t, j)
                     stamp[f_t] = sweep
