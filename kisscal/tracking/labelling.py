@@ -390,8 +390,10 @@ def _by_segments(
     fits = (n_used > 0) & (rms <= tolerance)
     # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
     # body may touch by chance; two pin it to a circle, enough for a piece that moves
-    # along it for a few fields; a point or two needs three.
-    pinned = fits & (n_used >= (3 if piece_fields.size < 3 else 2))
+    # along it for a few fields; a point or two needs three when the name has three.
+    n_partners = rigid[free].sum(axis=1)
+    pinned = fits & (n_used >= np.minimum(3 if piece_fields.size < 3 else 2, n_partners))
+    pinned &= n_used >= 2
     best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
     return best, free[fits & (n_used == 1)], free[n_used == 0]
 
