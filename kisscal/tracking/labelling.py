@@ -438,6 +438,10 @@ def _by_body_fit(
     second = score[order[1]] if order.size > 1 else np.inf
     if best <= params.label_tolerance_mm and second >= 1.5 * best:
         return int(free[order[0]])
+    if free.size == 1 and best <= 2.0 * params.label_tolerance_mm:
+        # The only name the rigid partners leave: the body fit need only roughly agree
+        # (the other side's marker of the pair would lie farther still).
+        return int(free[0])
     if prefer is not None and prefer.size == 1:
         # The one name a rigid partner confirms wins unless the body clearly disagrees.
         k = int(np.flatnonzero(free == prefer[0])[0])
@@ -619,6 +623,7 @@ def _match_window(
     template_distance: NDArray,
     mirror_of: NDArray | None,
     params: TrackingParams,
+    given_rigid: NDArray | None = None,
 ) -> tuple[NDArray | None, NDArray, float, NDArray]:
     """Names for the long tracks seen through most of a window of fields.
 
@@ -628,6 +633,11 @@ def _match_window(
     correspondence is improved by :func:`refine_by_swaps`, and of it and its mirror image
     the one that fits the real fields with a proper rotation is kept. The median
     averages out the swing of the legs, which a single field's rigid fit cannot.
+
+    With ``given_rigid`` (the session's segments as a name x name mask), two core tracks
+    named as a rigid pair must keep the template's distance; tracks that break it are
+    left unnamed here (the averaged pose of a leg half out of view can shift names along
+    it), for the rigid-partner spreading to name later.
 
     Returns (core rows of ``dense`` or None, name per core row or -1, median fit RMS in
     mm, the rich fields used).
@@ -704,6 +714,29 @@ def _match_window(
     if not candidates:
         return none
     fit_rms, assign = min(candidates, key=lambda c: c[0])
+    if given_rigid is not None:
+        # Two markers of one segment seen without their neighbours (a heel and a toe of a
+        # foot whose ankle is hidden) can swap names at no cost in distances; the real
+        # fields' rigid fit decides.
+        for a, b in zip(*np.nonzero(np.triu(given_rigid[np.ix_(assign, assign)], 1)), strict=True):
+            if assign[a] < 0 or assign[b] < 0:
+                continue
+            variant = assign.copy()
+            variant[[a, b]] = assign[[b, a]]
+            ok = variant >= 0
+            rms = _field_fits(dense, rich, core[ok], variant[ok], template)
+            if rms.size and np.median(rms) < 0.95 * fit_rms:
+                fit_rms, assign = float(np.median(rms)), variant
+        spread = _distance_spread(dense, core, rich)
+        named = np.flatnonzero(assign >= 0)
+        pa, pb = np.meshgrid(named, named, indexing="ij")
+        pair = given_rigid[assign[pa], assign[pb]]
+        broken = pair & (
+            (np.abs(median[pa, pb] - template_distance[assign[pa], assign[pb]]) > _RIGID_MATCH_MM)
+            | (spread[pa, pb] > _RIGID_SPREAD_MM)
+        )
+        assign = assign.copy()
+        assign[named[broken.any(axis=1)]] = -1
     return core, assign, fit_rms, rich
 
 
@@ -766,11 +799,28 @@ def label_tracks(
     # seen together (in a long trial no piece spans the whole of it); names then spread
     # to the other pieces through their rigid partners, and windows where unnamed long
     # pieces remain are matched again.
+    given_rigid = None
+    if segments:
+        given_rigid = _rigid_pairs(
+            np.full((n_names, 1, 3), np.nan),
+            np.zeros(1, dtype=np.int64),
+            template_distance,
+            names,
+            segments,
+        )
     window = min(params.label_window_fields, n_fields)
     box = np.ones(window)
     centre = int(np.argmax(np.convolve(present.sum(axis=0), box, mode="same")))
     core, assign, fit_rms, rich = _match_window(
-        dense, present, centre, window, template, template_distance, mirror_of, params
+        dense,
+        present,
+        centre,
+        window,
+        template,
+        template_distance,
+        mirror_of,
+        params,
+        given_rigid,
     )
     if core is None or not np.any(assign >= 0):
         return _generic(tracks, params, names, fit_rms)
@@ -807,9 +857,14 @@ def label_tracks(
                     f_t, xyz_t, free, name_pos, rigid, template_distance, params
                 )
                 undecided = np.r_[one_partner, unknown]
-                if j < 0 and undecided.size == 1 and n_measured[t] >= params.min_track_length:
-                    # Every other free name is ruled out by its rigid partners: a long
-                    # piece (not a ghost) takes the one name left.
+                if (
+                    j < 0
+                    and undecided.size == 1
+                    and one_partner.size == 1
+                    and n_measured[t] >= params.min_track_length
+                ):
+                    # Every other free name is ruled out by its rigid partners and one
+                    # partner confirms this one: a long piece (not a ghost) takes it.
                     j = int(undecided[0])
                 if j < 0 and undecided.size and n_measured[t] >= params.min_body_fit_points:
                     j = _by_body_fit(
@@ -841,7 +896,15 @@ def label_tracks(
         centre = int(np.argmax(busy))
         tried[max(centre - window // 2, 0) : centre + window // 2] = True
         core, assign, _, _ = _match_window(
-            dense, present, centre, window, template, template_distance, mirror_of, params
+            dense,
+            present,
+            centre,
+            window,
+            template,
+            template_distance,
+            mirror_of,
+            params,
+            given_rigid,
         )
         if core is None:
             continue
