@@ -555,6 +555,7 @@ def track(
     PNC x MNC segment-length table as ``sweep.csv``.
     """
     from kisscal.io.export import write_c3d, write_trc
+    from kisscal.io.files import write_json
     from kisscal.io.points3d import read_points3d
     from kisscal.io.trajectories import write_trajectories_csv
     from kisscal.tracking import build_trajectories
@@ -572,10 +573,26 @@ def track(
     names = config.markers.names if config.markers else None
     template = config.markers.template_mm if config.markers else None
     t0 = time.perf_counter()
-    result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template)
+    segments = config.markers.segments if config.markers else ()
+    result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template, segments)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
     write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    lab = result.labelling
+    write_json(
+        tdir / "tracking.json",
+        {
+            "pieces": result.n_pieces,
+            "pieces_after_blending": result.n_pieces_blended,
+            "trajectories": len(result.labels),
+            "fits_marker_set": bool(lab.fits_marker_set),
+            "unlabelled": list(lab.unlabelled),
+            "missing": list(lab.missing),
+            "predictions_per_track": dict(
+                zip(result.labels, np.asarray(result.n_predicted).tolist(), strict=True)
+            ),
+        },
+    )
     segments = config.markers.segments if config.markers else ()
     _figure(
         root, f"trajectories_{trial.name}", "kisscal.report.tracking", "trajectories_figure", result
@@ -587,6 +604,7 @@ def track(
         "segment_length_figure",
         result,
         segments,
+        config.rate_hz,
     )
     echo(
         f"  track {trial.name}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
@@ -680,6 +698,8 @@ def summarise(root: Path) -> dict[str, Any]:
     for trial in config.trials:
         tdir = out / "trials" / trial.name
         entry = {}
+        if (tdir / "tracking.json").is_file():
+            entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
         if (tdir / "recon.json").is_file():
             entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
         if (tdir / "trajectories.csv").is_file():
