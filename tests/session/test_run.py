@@ -76,6 +76,7 @@ def test_gait_trajectories_are_labelled(processed: Path) -> None:
     assert walk["coverage"] > 0.99
 
 
+@pytest.mark.filterwarnings("ignore:No analog data")
 def test_c3d_matches_csv(processed: Path) -> None:
     import c3d
 
