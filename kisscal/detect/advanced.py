@@ -300,8 +300,9 @@ def long_wide_split(
 
     ``ratio`` (h / w, 1 for a round marker, see :func:`elongation`) below ``min_ratio``
     makes a group wide, above ``max_ratio`` long. A wide group of width ``w`` and height
-    ``h`` is cut into ``round(w / (h * pixel_aspect))`` (at least 2) markers of diameter
-    ``h * pixel_aspect`` spread evenly from its left to its right end; a long one likewise
+    ``h`` holds markers of diameter ``d = (h - e) * pixel_aspect + e`` columns, with ``e``
+    the ``edge_growth_px`` of a thresholded spot; it is cut into ``round(w / d)`` (at
+    least 2) markers spread evenly from its left to its right end; a long one likewise
     from top to bottom. The other coordinate of each part is the group's binary centroid.
     Groups where ``inside`` is False (cut by the image border) are not tested.
     """
@@ -318,16 +319,19 @@ def long_wide_split(
     if idx.size == 0:
         return grouping
     is_wide = wide[idx]
-    box_ratio = h[idx] * params.pixel_aspect / w[idx]
-    k = np.where(is_wide, np.floor(1 / box_ratio + 0.5), np.floor(box_ratio + 0.5))
-    k = np.maximum(k, 2).astype(np.int64)
+    # Diameter of one marker along the split axis, from the group's extent across it: the
+    # thresholded extent of a spot is its outline plus about ``edge_growth_px`` (blur and
+    # blooming), which does not scale with the pixel aspect.
+    g = params.edge_growth_px
+    asp = params.pixel_aspect
+    diameter = np.where(is_wide, (h[idx] - g) * asp + g, (w[idx] - g) / asp + g)
+    diameter = np.maximum(diameter, 1.0)
+    extent = np.where(is_wide, w[idx], h[idx])
+    k = np.maximum(np.floor(extent / diameter + 0.5), 2).astype(np.int64)
     kmax = int(k.max())
     j = np.arange(kmax)[None, :]
     valid_part = j < k[:, None]
-    # Along the split axis: extent of the group and the marker diameter along it.
     start = np.where(is_wide, table.x1[idx], table.y1[idx]) - 0.5
-    extent = np.where(is_wide, w[idx], h[idx])
-    diameter = np.where(is_wide, h[idx] * params.pixel_aspect, w[idx] / params.pixel_aspect)
     diameter = np.minimum(diameter, extent / k)
     step = (extent - diameter) / (k - 1)
     along = start[:, None] + diameter[:, None] / 2 + j * step[:, None]

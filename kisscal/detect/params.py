@@ -80,6 +80,10 @@ class DetectionParams:
     long_wide_min_pixels : int
         Groups with fewer white pixels are not tested for overlap, long or wide: their
         shape is a handful of pixels and says nothing about how many markers they hold.
+    edge_growth_px : float
+        How much wider and taller (pixels) the thresholded image of a marker is than its
+        outline: blur and blooming add about the same in both directions, independent of
+        the pixel aspect. Used to estimate a marker's diameter when splitting.
     pixel_aspect : float
         Width / height in pixels of the image of a round marker (pixel height / pixel width);
         1.94 for 4:3 frames of 752 x 582 pixels scanned as 291-line fields.
@@ -87,7 +91,9 @@ class DetectionParams:
         Section 2.3.4 switch: oversized and undersized groups are marked invalid (kept in
         the table with ``too_large`` / ``too_small``), never split.
     max_pixels : int
-        A group with more white pixels is too large (LED rings of facing cameras).
+        A group with more white pixels is too large (LED rings of facing cameras). On the
+        KISS-like rig, 25 mm markers at 2.5-7 m give 13-40 white pixels (at most 9 x 6)
+        and the LED rings 128-176 (at least 15 x 10): the limits sit between.
     max_width_px, max_height_px : int
         A group wider or higher than this is too large.
     min_pixels : int
@@ -125,11 +131,12 @@ class DetectionParams:
     min_ratio: float = 0.88
     max_ratio: float = 1.45
     long_wide_min_pixels: int = 16
+    edge_growth_px: float = 1.0
     pixel_aspect: float = 1.94
     apply_size_limits: bool = True
-    max_pixels: int = 400
-    max_width_px: int = 40
-    max_height_px: int = 24
+    max_pixels: int = 80
+    max_width_px: int = 14
+    max_height_px: int = 9
     min_pixels: int = 3
     weighted_centroid: bool = True
     centroid_margin_x_px: int = 3
@@ -146,6 +153,7 @@ class DetectionParams:
             "submarker_max_pixels",
             "overlap_shift_px",
             "overlap_angle_deg",
+            "edge_growth_px",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",
