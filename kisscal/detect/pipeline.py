@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -161,8 +161,18 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
 
 
-def _detect_one(index: int, source: Callable[[int], NDArray], params: DetectionParams) -> Blobs:
-    return detect_blobs(source(index), params)
+_WORKER: dict[str, object] = {}
+
+
+def _init_worker(source: Callable[[int], NDArray], params: DetectionParams) -> None:
+    _WORKER["source"] = source
+    _WORKER["params"] = params
+
+
+def _detect_range(start: int, stop: int) -> list[Blobs]:
+    source = _WORKER["source"]
+    params = _WORKER["params"]
+    return [detect_blobs(source(i), params) for i in range(start, stop)]  # type: ignore[operator,arg-type]
 
 
 def detect_sequence(
@@ -171,16 +181,16 @@ def detect_sequence(
     *,
     count: int | None = None,
     workers: int | None = None,
-    chunksize: int = 16,
+    chunksize: int = 32,
 ) -> list[Blobs]:
     """Detect blobs in many images, in parallel across processes.
 
     Parameters
     ----------
     images : sequence of ndarray, or callable ``index -> ndarray``
-        The images, or a picklable function that loads image ``index`` (e.g. the io layer's
-        reader bound with :func:`functools.partial`): with a loader, decoding happens in
-        the worker processes as well.
+        The images, or a function that loads image ``index`` (e.g. the io layer's reader
+        bound with :func:`functools.partial`): with a loader, decoding happens in the
+        worker processes as well.
     params : DetectionParams
         Shared by all images.
     count : int, optional
@@ -188,12 +198,18 @@ def detect_sequence(
     workers : int, optional
         Processes to use; ``None`` uses all cores, 1 runs in this process.
     chunksize : int
-        Images handed to a worker at a time.
+        Consecutive images handed to a worker at a time.
 
     Returns
     -------
     list of Blobs
         One table per image, in input order.
+
+    Notes
+    -----
+    Workers receive the images (or the loader) once, when they start: on POSIX they are
+    forked and share the parent's memory, so nothing is copied per image; elsewhere the
+    images or loader must be picklable.
     """
     if callable(images):
         if count is None:
@@ -207,21 +223,19 @@ def detect_sequence(
         workers = os.cpu_count() or 1
     if workers < 1:
         raise KisscalError(f"detect: workers must be >= 1, got {workers}")
-    if workers == 1 or n <= 1:
+    if chunksize < 1:
+        raise KisscalError(f"detect: chunksize must be >= 1, got {chunksize}")
+    workers = min(workers, -(-n // chunksize)) if n else 1
+    if workers <= 1:
         return [detect_blobs(source(i), params) for i in range(n)]
-    if not callable(images):
-        # Ship each worker its slice of images once instead of one pickle per image.
-        chunks = [list(images[i : i + chunksize]) for i in range(0, n, chunksize)]
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = pool.map(partial(_detect_chunk, params=params), chunks)
-            return [b for chunk in results for b in chunk]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(
-            pool.map(
-                partial(_detect_one, source=source, params=params), range(n), chunksize=chunksize
-            )
-        )
-
-
-def _detect_chunk(images: list[NDArray], params: DetectionParams) -> list[Blobs]:
-    return [detect_blobs(image, params) for image in images]
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    starts = list(range(0, n, chunksize))
+    stops = [min(s + chunksize, n) for s in starts]
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=context,
+        initializer=_init_worker,
+        initargs=(source, params),
+    ) as pool:
+        return [b for chunk in pool.map(_detect_range, starts, stops) for b in chunk]
