@@ -87,6 +87,14 @@ class DetectionParams:
     pixel_aspect : float
         Width / height in pixels of the image of a round marker (pixel height / pixel width);
         1.94 for 4:3 frames of 752 x 582 pixels scanned as 291-line fields.
+    detach_from_large : bool
+        Separate markers touching an oversized blob (LED ring) from it before the size
+        limits; not in seeds/003 (there such a marker is lost with the invalid blob).
+    detach_kernel_px : (int, int)
+        Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
+        and removes markers: larger than a marker image, smaller than an LED ring.
+    detach_min_pixels : int
+        Least white pixels of a piece sticking out of an oversized blob to be a marker.
     apply_size_limits : bool
         Section 2.3.4 switch: oversized and undersized groups are marked invalid (kept in
         the table with ``too_large`` / ``too_small``), never split.
@@ -133,6 +141,9 @@ class DetectionParams:
     long_wide_min_pixels: int = 16
     edge_growth_px: float = 1.0
     pixel_aspect: float = 1.94
+    detach_from_large: bool = True
+    detach_kernel_px: tuple[int, int] = (11, 7)
+    detach_min_pixels: int = 8
     apply_size_limits: bool = True
     max_pixels: int = 80
     max_width_px: int = 14

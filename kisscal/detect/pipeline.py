@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
+    detach_from_large,
     elongation,
     long_wide_split,
     merge_submarkers,
@@ -103,6 +104,9 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
         table = measure_groups(grouping.runs)
     if params.merge_submarkers and len(table):
         grouping = merge_submarkers(grouping, table, params)
+        table = measure_groups(grouping.runs)
+    if params.detach_from_large and params.apply_size_limits and len(table):
+        grouping = detach_from_large(grouping, table, params)
         table = measure_groups(grouping.runs)
     if len(table) == 0:
         return Blobs.empty()

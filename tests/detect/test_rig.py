@@ -129,21 +129,35 @@ def test_grid_images_have_exactly_300_valid_dots(plan):
             assert np.sqrt(np.mean(d.min(axis=1) ** 2)) < 0.05
 
 
-def test_rod_images_have_24_valid_markers_and_leds_flagged(plan):
+@pytest.mark.parametrize("seed", [1, 11])
+def test_rod_images_have_24_valid_markers_and_leds_flagged(seed):
+    plan = plan_session(SynthOptions(seed=seed, fields=10))
     for cam in range(len(plan.rig)):
         frames, truth, leds = render_rods(plan, cam)
         uv = np.column_stack([truth["u_px"], truth["v_px"]])
         led_uv = np.column_stack([leds["u_px"], leds["v_px"]])
+        led_r = np.column_stack([leds["rx_px"], leds["ry_px"]])
         assert len(led_uv) >= 1
-        for frame in frames[:2]:
-            blobs = detect_blobs(frame)
-            valid = blobs.valid_only()
+        # rod markers whose centre comes within 1.5 LED radii of an LED ring touch it and
+        # may be hidden by it (seed 11 has two such views)
+        reach = np.hypot(
+            (uv[:, None, 0] - led_uv[:, 0]) / led_r[:, 0],
+            (uv[:, None, 1] - led_uv[:, 1]) / led_r[:, 1],
+        ).min(axis=1)
+        touching = reach < 1.5
+        blobs = detect_blobs(frames[0])
+        valid = blobs.valid_only()
+        d = np.hypot(valid.x_px[:, None] - uv[:, 0], valid.y_px[:, None] - uv[:, 1])
+        assert np.unique(d.argmin(axis=1)).size == len(valid)  # no marker found twice
+        if not touching.any():
             assert len(valid) == 24
-            d = np.hypot(valid.x_px[:, None] - uv[:, 0], valid.y_px[:, None] - uv[:, 1])
-            assert np.unique(d.argmin(axis=1)).size == 24
-            assert d.min(axis=1).max() < 0.5
-            invalid = blobs.select(~blobs.valid)
-            for x, y in led_uv:
-                i = np.argmin(np.hypot(invalid.x_px - x, invalid.y_px - y))
-                assert np.hypot(invalid.x_px[i] - x, invalid.y_px[i] - y) < 1.0
-                assert invalid.flags[i] & fl.TOO_LARGE
+            assert d.min(axis=1).max() < 0.1
+        else:
+            assert 24 - touching.sum() <= len(valid) <= 24
+            clear = d.argmin(axis=0)[~touching]
+            assert d[clear, np.flatnonzero(~touching)].max() < 0.1
+        invalid = blobs.select(~blobs.valid)
+        for x, y in led_uv:
+            i = np.argmin(np.hypot(invalid.x_px - x, invalid.y_px - y))
+            assert np.hypot(invalid.x_px[i] - x, invalid.y_px[i] - y) < 1.5
+            assert invalid.flags[i] & fl.TOO_LARGE
