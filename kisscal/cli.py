@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from kisscal.errors import KisscalError, NotBuiltError
+from kisscal.errors import KisscalError
 
 try:  # recent typer vendors click; older releases use the click package
     from typer._click.exceptions import ClickException, UsageError
@@ -79,7 +79,9 @@ def detect(
     overlay: Annotated[Path | None, typer.Option(help="Folder for overlay PNGs.")] = None,
 ) -> None:
     """Detect marker blobs in images and write their centroids."""
-    raise NotBuiltError("detect", "blob detection")
+    from kisscal import session
+
+    session.detect_images(images, out, overlay, echo=typer.echo)
 
 
 @app.command()
@@ -91,7 +93,9 @@ def linearise(
     ),
 ) -> None:
     """Fit each camera's lens linearisation from its dot-grid images."""
-    raise NotBuiltError("linearise", "grid linearisation")
+    from kisscal import session
+
+    session.linearise(session_dir, camera=camera, model=model, echo=typer.echo)
 
 
 @app.command()
@@ -103,7 +107,11 @@ def calibrate(
     lens: Annotated[bool, typer.Option(help="Also fit lens terms L12-L16.")] = False,
 ) -> None:
     """Compute each camera's DLT parameters from the rod images."""
-    raise NotBuiltError("calibrate", "DLT calibration")
+    from kisscal import session
+
+    session.calibrate(
+        session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=typer.echo
+    )
 
 
 @app.command()
@@ -112,22 +120,40 @@ def reconstruct(
     trial: Annotated[str, typer.Argument(help="Trial name from session.toml.")],
 ) -> None:
     """Reconstruct 3D marker positions of a trial, field by field."""
-    raise NotBuiltError("reconstruct", "3D reconstruction")
+    from kisscal import session
+
+    session.reconstruct(session_dir, trial, echo=typer.echo)
 
 
 @app.command()
 def track(
     session_dir: SessionArg,
     trial: Annotated[str, typer.Argument(help="Trial name from session.toml.")],
+    pnc: Annotated[float | None, typer.Option(help="Kalman process noise (thesis PNC).")] = None,
+    mnc: Annotated[
+        float | None, typer.Option(help="Kalman measurement noise (thesis MNC).")
+    ] = None,
+    smooth: Annotated[bool, typer.Option(help="GCV smoothing spline on the result.")] = False,
+    sweep: Annotated[
+        bool, typer.Option(help="Also write the thesis' PNC x MNC segment-length table.")
+    ] = False,
 ) -> None:
     """Turn a trial's 3D points into labelled marker trajectories."""
-    raise NotBuiltError("track", "tracking")
+    from kisscal import session
+
+    tracking = {k: v for k, v in (("pnc", pnc), ("mnc", mnc)) if v is not None}
+    if smooth:
+        tracking["smoothing"] = True
+    overrides = session.Overrides(tracking=tracking)
+    session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
 
 
 @app.command()
 def run(session_dir: SessionArg) -> None:
     """Run the whole session: detect, linearise, calibrate, reconstruct, track."""
-    raise NotBuiltError("run", "session pipeline")
+    from kisscal import session
+
+    session.run(session_dir, echo=typer.echo)
 
 
 @app.command()
@@ -138,13 +164,27 @@ def check(
     max_3d_mm: Annotated[float | None, typer.Option(help="Limit on leave-out 3D error.")] = None,
 ) -> None:
     """CI gate: exit 1 when a camera's residuals exceed the limits."""
-    raise NotBuiltError("check", "quality check")
+    from kisscal import session
+
+    if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
+        raise KisscalError(
+            "kisscal check: give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm"
+        )
+    failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
+    if failures:
+        typer.echo(f"{'camera':<8} {'figure':<28} {'value':>10} {'limit':>10}")
+        for f in failures:
+            typer.echo(f"{f.camera:<8} {f.figure:<28} {f.value:>10.4f} {f.limit:>10.4f}")
+        raise typer.Exit(1)
+    typer.echo("check passed: every figure is within its limit")
 
 
 @app.command()
 def report(session_dir: SessionArg) -> None:
     """Rebuild the session report (out/report.html)."""
-    raise NotBuiltError("report", "report")
+    from kisscal import session
+
+    session.report(session_dir, echo=typer.echo)
 
 
 @app.command()
@@ -153,7 +193,11 @@ def batch(
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address.")] = None,
 ) -> None:
     """Run many sessions in parallel on Dask."""
-    raise NotBuiltError("batch", "batch")
+    from kisscal import session
+
+    failed = session.batch(sessions, scheduler=scheduler, echo=typer.echo)
+    if failed:
+        raise typer.Exit(1)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,1 +1,53 @@
-"""DLT calibration: 11-parameter DLT, MDLT, rod recognition, projection, decomposition."""
+"""DLT calibration: 11-parameter DLT, MDLT, rod recognition, projection, decomposition.
+
+Typical use for one camera (arrays only; reading and writing files is :mod:`kisscal.io`)::
+
+    rods = make_rods([(name, points_mm), ...])          # [[rods.rod]] of session.toml
+    match = recognise_rods(uv_px, rods, params, camera)  # linearised blobs of a rod image
+    xyz, uv, labels = match.control_points(uv_px, rods)
+    result = calibrate_camera(xyz, uv, params, camera)   # DltResult
+
+or for the whole rig at once: ``calibrate_rods({camera: blobs_px, ...}, rods, params)``.
+"""
+
+from kisscal.dlt.calibrate import calibrate_camera
+from kisscal.dlt.camera import compose_dlt, decompose_dlt, hatze_violation, principal_point_px
+from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
+from kisscal.dlt.linear import reprojection_residuals, rms_px, solve_dlt
+from kisscal.dlt.model import dlt_from_krt, dlt_to_matrix, matrix_to_dlt, project
+from kisscal.dlt.nonlinear import correct_lens, refine_dlt, solve_mdlt
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult, Rod, RodCheck, RodMatch
+from kisscal.dlt.rig import RodCalibration, calibrate_rods
+from kisscal.dlt.rods import make_rods, recognise_rods, rod_distinctness, validate_rods
+
+__all__ = [
+    "DEFAULT_PARAMS",
+    "DltParams",
+    "DltResult",
+    "Rod",
+    "RodCalibration",
+    "RodCheck",
+    "RodMatch",
+    "calibrate_camera",
+    "calibrate_rods",
+    "compose_dlt",
+    "correct_lens",
+    "decompose_dlt",
+    "dlt_from_krt",
+    "dlt_to_matrix",
+    "hatze_violation",
+    "leave_one_rod_out",
+    "make_rods",
+    "matrix_to_dlt",
+    "principal_point_px",
+    "project",
+    "recognise_rods",
+    "refine_dlt",
+    "reprojection_residuals",
+    "rms_px",
+    "rod_distinctness",
+    "solve_dlt",
+    "solve_mdlt",
+    "triangulate_dlt",
+    "validate_rods",
+]

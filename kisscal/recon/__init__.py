@@ -1,1 +1,42 @@
-"""3D reconstruction: stationary-ghost filter, epipolar matching, triangulation, grouping."""
+"""3D reconstruction: stationary-ghost filter, epipolar matching, triangulation, grouping.
+
+Typical use on a whole trial (long-format 2D table of linearised blobs)::
+
+    from kisscal.recon import ReconParams, reconstruct_trial
+    points = reconstruct_trial(field, camera, uv, dlts, ReconParams())
+"""
+
+from kisscal.recon.epipolar import (
+    all_fundamentals,
+    candidate_pairs,
+    distance_matrix_px,
+    epipolar_lines,
+    fundamental_from_dlt,
+    pair_distances_px,
+)
+from kisscal.recon.match import match_central, match_field, match_trial, match_triple
+from kisscal.recon.params import ReconParams
+from kisscal.recon.reconstruct import Points3D, points_from_markers, reconstruct_trial
+from kisscal.recon.stationary import stationary_mask
+from kisscal.recon.triangulate import Triangulation, triangulate, triangulate_observations
+
+__all__ = [
+    "Points3D",
+    "ReconParams",
+    "Triangulation",
+    "all_fundamentals",
+    "candidate_pairs",
+    "distance_matrix_px",
+    "epipolar_lines",
+    "fundamental_from_dlt",
+    "match_central",
+    "match_field",
+    "match_trial",
+    "match_triple",
+    "pair_distances_px",
+    "points_from_markers",
+    "reconstruct_trial",
+    "stationary_mask",
+    "triangulate",
+    "triangulate_observations",
+]

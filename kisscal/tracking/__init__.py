@@ -1,1 +1,48 @@
-"""Trajectory generation: predictors, Kalman filter, gating, blending, gap filling, labels."""
+"""Trajectory generation: predictors, Kalman filter, gating, blending, gap filling, labels.
+
+Typical use::
+
+    from kisscal.tracking import TrackingParams, build_trajectories
+    result = build_trajectories(field, xyz_mm, TrackingParams(), names, template_mm)
+"""
+
+from kisscal.tracking.blending import blend_tracks, clean_up
+from kisscal.tracking.gaps import fill_gaps, smooth_tracks
+from kisscal.tracking.labelling import Labelling, label_tracks
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.pipeline import (
+    THESIS_MNC,
+    THESIS_PNC,
+    SweepRow,
+    Trajectories,
+    build_trajectories,
+    sweep_noise,
+)
+from kisscal.tracking.stats import SegmentStats, segment_statistics
+from kisscal.tracking.tracker import associate, track_points
+from kisscal.tracking.tracks import FILLED, MEASURED, PREDICTED, STATUS_NAMES, Tracks
+
+__all__ = [
+    "FILLED",
+    "MEASURED",
+    "PREDICTED",
+    "STATUS_NAMES",
+    "THESIS_MNC",
+    "THESIS_PNC",
+    "Labelling",
+    "SegmentStats",
+    "SweepRow",
+    "TrackingParams",
+    "Tracks",
+    "Trajectories",
+    "associate",
+    "blend_tracks",
+    "build_trajectories",
+    "clean_up",
+    "fill_gaps",
+    "label_tracks",
+    "segment_statistics",
+    "smooth_tracks",
+    "sweep_noise",
+    "track_points",
+]

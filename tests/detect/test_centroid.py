@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import render
 
 from kisscal.detect import DetectionParams, detect_blobs
 from kisscal.detect.centroid import estimate_background
+from tests.detect.conftest import render
 
 
 def _scattered(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import render
 
 from kisscal.detect import DetectionParams, detect_blobs
+from tests.detect.conftest import render
 
 
 def test_lonely_pixels_and_streaks_are_removed():

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ASPECT, render
 
 from kisscal.detect import detect_blobs
+from tests.detect.conftest import ASPECT, render
 
 
 def _pairs(rng: np.random.Generator, angle_deg: tuple[float, float], n: int = 60):

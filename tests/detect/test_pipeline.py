@@ -6,10 +6,10 @@ from functools import partial
 
 import numpy as np
 import pytest
-from conftest import render
 
 from kisscal.detect import Blobs, DetectionParams, detect_blobs, detect_sequence
 from kisscal.errors import KisscalError
+from tests.detect.conftest import render
 
 TRUTH = np.array([[100.2, 50.7], [300.6, 120.1], [500.5, 200.4], [650.1, 30.3]])
 

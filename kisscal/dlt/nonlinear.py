@@ -1,0 +1,222 @@
+"""Iterative DLT solvers: the modified DLT (MDLT) and refinement in pixels, with lens terms.
+
+MDLT (Kolahi et al. 2007, section 4, eqs. 10-14): the 11 DLT parameters have only 10
+degrees of freedom for a real camera; Hatze's constraint (eq. 10) ties them together.
+Kolahi enforces it by eliminating L1 and iterating linearised least squares; eliminating
+L1 divides by ``L5 L9 + L6 L10 + L7 L11 - ...`` terms that vanish for a level camera
+looking along the lab Y axis (an ordinary gait-lab camera). kisscal instead parametrises
+the camera so that the constraint holds identically: the constraint is equivalent to a
+zero skew (see :func:`kisscal.dlt.camera.hatze_violation`), so the DLT matrix is built as
+``K R0 exp([w]x) [I | -C]`` with ``K = [[fu, 0, u0], [0, fv, v0], [0, 0, 1]]``, the
+rotation an increment ``w`` on the starting rotation ``R0`` (never near a singularity of
+the rotation vector) and ``C`` the centre. The same algebraic residual as the linear DLT
+is then minimised by Gauss-Newton/Levenberg-Marquardt to convergence.
+
+Refinement (Woltring & Huiskes 1990, bias of the linear estimator and iterative
+adjustment): the linear DLT minimises an algebraic error, biased when image coordinates
+are noisy; refinement minimises the reprojection error in pixels (optionally under the
+zero-skew constraint, optionally with Kolahi's lens terms L12..L16, eqs. 2-3).
+
+Both work on the Hartley-normalised coordinates of :mod:`kisscal.dlt.linear` (similarity
+transforms keep rotations orthogonal and skew zero) and convert back to L1..L11.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.optimize
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from kisscal.dlt.camera import decompose_matrix
+from kisscal.dlt.linear import check_control_points, similarity_normaliser, solve_dlt
+from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
+from kisscal.errors import KisscalError
+
+N_LENS = 5
+
+
+def lens_offsets(
+    uv: NDArray[np.float64], centre: NDArray[np.float64], lens: ArrayLike
+) -> NDArray[np.float64]:
+    """Kolahi et al. 2007 eqs. 2-3: image corrections ``(du, dv)`` for L12..L16.
+
+    ``xi, eta = u - u0, v - v0``, ``r^2 = xi^2 + eta^2``;
+    ``du = xi (L12 r^2 + L13 r^4 + L14 r^6) + L15 (r^2 + 2 xi^2) + L16 xi eta``,
+    ``dv = eta (L12 r^2 + L13 r^4 + L14 r^6) + L16 (r^2 + 2 eta^2) + L15 xi eta``
+    (written exactly as in the paper). Corrected coordinates are ``uv + offsets``.
+    """
+    k1, k2, k3, p1, p2 = np.asarray(lens, dtype=float)
+    d = uv - centre
+    xi, eta = d[..., 0], d[..., 1]
+    r2 = xi**2 + eta**2
+    radial = k1 * r2 + k2 * r2**2 + k3 * r2**3
+    du = xi * radial + p1 * (r2 + 2 * xi**2) + p2 * xi * eta
+    dv = eta * radial + p2 * (r2 + 2 * eta**2) + p1 * xi * eta
+    return np.stack([du, dv], axis=-1)
+
+
+def correct_lens(L: ArrayLike, lens: ArrayLike | None, uv_px: ArrayLike) -> NDArray[np.float64]:
+    """Apply Kolahi's lens correction (eq. 1): pixel coordinates the 11 DLT terms map to.
+
+    The projection point ``(u0, v0)`` of eq. 3 is the principal point of ``L``.
+    With ``lens`` None the coordinates are returned unchanged.
+    """
+    uv = np.asarray(uv_px, dtype=float)
+    if lens is None:
+        return uv
+    return uv + lens_offsets(uv, _principal_point(dlt_to_matrix(L)), lens)
+
+
+def _principal_point(P: NDArray[np.float64]) -> NDArray[np.float64]:
+    c = P[2, :3]
+    cc = c @ c
+    return np.array([P[0, :3] @ c / cc, P[1, :3] @ c / cc])
+
+
+class _Problem:
+    """Control points on normalised coordinates and a camera parametrisation."""
+
+    def __init__(
+        self, xyz: NDArray[np.float64], uv: NDArray[np.float64], L0: NDArray[np.float64]
+    ) -> None:
+        self.T3 = similarity_normaliser(xyz)
+        self.T2 = similarity_normaliser(uv)
+        self.X = np.hstack([xyz @ self.T3[:3, :3].T + self.T3[:3, 3], np.ones((len(xyz), 1))])
+        self.u = uv @ self.T2[:2, :2].T + self.T2[:2, 2]
+        P0n = self.T2 @ dlt_to_matrix(L0) @ np.linalg.inv(self.T3)
+        K, self.R0, C = decompose_matrix(P0n)
+        self.theta_constrained = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(3), C]
+        self.theta_free = (P0n / P0n[2, 3]).ravel()[:11]
+
+    def matrix(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
+        if not constrained:
+            return np.append(theta[:11], 1.0).reshape(3, 4)
+        fu, fv, u0, v0 = theta[:4]
+        K = np.array([[fu, 0.0, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
+        R = self.R0 @ Rotation.from_rotvec(theta[4:7]).as_matrix()
+        return K @ np.hstack([R, -(R @ theta[7:10])[:, None]])
+
+    def n_camera(self, constrained: bool) -> int:
+        return 10 if constrained else 11
+
+    def algebraic(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        P = self.matrix(theta, constrained=True)
+        h = self.X @ P.T
+        return (h[:, :2] - self.u * h[:, 2:3]).ravel()
+
+    def geometric(
+        self, theta: NDArray[np.float64], constrained: bool, lens: bool
+    ) -> NDArray[np.float64]:
+        P = self.matrix(theta, constrained)
+        h = self.X @ P.T
+        proj = h[:, :2] / h[:, 2:3]
+        u = self.u
+        if lens:
+            u = u + lens_offsets(u, _principal_point(P), theta[self.n_camera(constrained) :])
+        return (u - proj).ravel()
+
+    def to_dlt(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
+        P = np.linalg.solve(self.T2, self.matrix(theta, constrained) @ self.T3)
+        return matrix_to_dlt(P)
+
+    def lens_to_px(self, lens_n: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Normalised pixels are a * pixels + shift; the shift cancels in xi, eta.
+        a = self.T2[0, 0]
+        return lens_n * np.array([a**2, a**4, a**6, a, a])
+
+
+def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str):
+    result = scipy.optimize.least_squares(
+        fun,
+        theta0,
+        method="lm",
+        xtol=params.tolerance,
+        ftol=params.tolerance,
+        gtol=params.tolerance,
+        max_nfev=params.max_iterations,
+    )
+    if result.status <= 0 or not np.isfinite(result.x).all():
+        raise KisscalError(
+            f"camera {camera}: the DLT iteration did not converge ({result.message})"
+        )
+    return result
+
+
+def solve_mdlt(
+    xyz_mm: ArrayLike,
+    uv_px: ArrayLike,
+    params: DltParams = DEFAULT_PARAMS,
+    camera: str = "",
+    L0: ArrayLike | None = None,
+) -> tuple[NDArray[np.float64], int]:
+    """Modified DLT: linear-DLT residuals under Hatze's constraint (Kolahi et al. 2007, eq. 10).
+
+    Parameters
+    ----------
+    xyz_mm, uv_px : array_like, shapes (N, 3) and (N, 2)
+        Control points (lab mm) and their linearised pixel coordinates.
+    params : DltParams
+        Tolerances and iteration cap.
+    camera : str
+        Camera id for messages.
+    L0 : array_like, shape (11,), optional
+        Starting DLT (default: the linear DLT of the same points, Kolahi's step 1).
+
+    Returns
+    -------
+    L : ndarray, shape (11,)
+        DLT parameters satisfying the constraint to rounding error (zero-skew camera).
+    n_evaluations : int
+        Residual evaluations used.
+    """
+    xyz, uv = check_control_points(xyz_mm, uv_px, params, camera)
+    L0 = solve_dlt(xyz, uv, params, camera) if L0 is None else np.asarray(L0, dtype=float)
+    prob = _Problem(xyz, uv, L0)
+    res = _solve(prob.algebraic, prob.theta_constrained, params, camera)
+    return prob.to_dlt(res.x, constrained=True), int(res.nfev)
+
+
+def refine_dlt(
+    xyz_mm: ArrayLike,
+    uv_px: ArrayLike,
+    L0: ArrayLike,
+    params: DltParams = DEFAULT_PARAMS,
+    camera: str = "",
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int]:
+    """Minimise the reprojection error in pixels, started from ``L0`` (iterative adjustment).
+
+    Parameters
+    ----------
+    xyz_mm, uv_px : array_like, shapes (N, 3) and (N, 2)
+        Control points and their pixel coordinates.
+    L0 : array_like, shape (11,)
+        Starting DLT parameters (linear DLT or MDLT).
+    params : DltParams
+        ``mdlt`` keeps Hatze's constraint (zero-skew parametrisation, 10 unknowns);
+        ``lens`` adds Kolahi's L12..L16; tolerances and iteration cap.
+    camera : str
+        Camera id for messages.
+
+    Returns
+    -------
+    L : ndarray, shape (11,)
+    lens : ndarray, shape (5,) or None
+        L12..L16 in pixel units (Kolahi eq. 2) when ``params.lens``.
+    n_evaluations : int
+    """
+    xyz, uv = check_control_points(xyz_mm, uv_px, params, camera)
+    if params.lens and len(xyz) < 11:
+        raise KisscalError(
+            f"camera {camera}: the 16-parameter DLT needs at least 11 control points, "
+            f"got {len(xyz)}"
+        )
+    prob = _Problem(xyz, uv, np.asarray(L0, dtype=float))
+    constrained = params.mdlt
+    theta0 = prob.theta_constrained if constrained else prob.theta_free
+    if params.lens:
+        theta0 = np.r_[theta0, np.zeros(N_LENS)]
+    res = _solve(lambda th: prob.geometric(th, constrained, params.lens), theta0, params, camera)
+    lens = prob.lens_to_px(res.x[prob.n_camera(constrained) :]) if params.lens else None
+    return prob.to_dlt(res.x, constrained), lens, int(res.nfev)

@@ -1,0 +1,212 @@
+"""Parameters and results of the DLT stage (frozen dataclasses, every default in one place)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class DltParams:
+    """Every setting of DLT calibration and rod recognition, with its default and unit.
+
+    Attributes
+    ----------
+    mdlt : bool
+        Enforce Hatze's orthogonality constraint (Kolahi et al. 2007, eq. 10), i.e. a
+        zero-skew camera, by the iterative modified DLT (``--mdlt``).
+    refine : bool
+        Minimise the reprojection error in pixels, started from the linear (or MDLT)
+        solution: Woltring & Huiskes' iterative adjustment (``--refine``). With ``mdlt``
+        the constraint is kept during refinement.
+    lens : bool
+        Also estimate Kolahi's lens terms L12..L16 (eq. 2) during refinement (``--lens``);
+        implies ``refine``. Off by default: kisscal linearises pixels from the grid first.
+    min_points : int
+        Fewest control points accepted per camera (the 11-parameter DLT needs 6).
+    min_spread_ratio : float
+        Smallest accepted ratio of the control points' least to largest principal spread
+        (dimensionless); below it the points count as coplanar and the DLT is undefined.
+    max_iterations : int
+        Cap on function evaluations of the nonlinear solvers (MDLT, refinement).
+    tolerance : float
+        Relative convergence tolerance of the nonlinear solvers (scipy ``xtol``/``ftol``).
+    rod_line_tol_px : float
+        Largest distance (pixels) of a blob from a rod's image line to count as on it.
+    rod_fit_tol_px : float
+        Largest distance (pixels) along the line between a blob and the rod marker
+        position predicted by the 1D projectivity fitted to the rod.
+    rod_min_markers : int
+        Fewest identified markers for a rod to count as recognised in a camera (with 4
+        the projective check has a single degree of freedom; 5 leaves two).
+    rod_min_distinct : float
+        Smallest accepted projective distinctness of the rod configuration: the RMS
+        residual (fraction of the rod length) of the best 1D projectivity that maps all
+        markers of one rod onto another rod. Configurations below it are refused as not
+        unique (partial views are checked per image, see ``rod_ambiguity_ratio``).
+    rod_ambiguity_ratio : float
+        An identification is refused as ambiguous when a competing hypothesis with as
+        many markers fits within this factor of the best one's residual.
+    rods_upright : bool
+        Rods appear top-up in every image (the top marker has the smaller ``v``), as for
+        an upright camera. Halves the hypotheses; set False for a camera mounted upside down.
+    """
+
+    mdlt: bool = False
+    refine: bool = False
+    lens: bool = False
+    min_points: int = 6
+    min_spread_ratio: float = 1e-3
+    max_iterations: int = 2000
+    tolerance: float = 1e-12
+    rod_line_tol_px: float = 1.5
+    rod_fit_tol_px: float = 1.5
+    rod_min_markers: int = 5
+    rod_min_distinct: float = 0.005
+    rod_ambiguity_ratio: float = 3.0
+    rods_upright: bool = True
+
+    @property
+    def method(self) -> str:
+        """The method name written to ``out/dlt/<camera>.json``: dlt, mdlt or refined."""
+        if self.refine or self.lens:
+            return "refined"
+        return "mdlt" if self.mdlt else "dlt"
+
+
+@dataclass(frozen=True)
+class DltResult:
+    """One camera's calibration.
+
+    Attributes
+    ----------
+    L : ndarray, shape (11,)
+        DLT parameters L1..L11 mapping lab mm to (linearised) pixels.
+    method : str
+        ``"dlt"``, ``"mdlt"`` or ``"refined"``.
+    lens : ndarray, shape (5,) or None
+        Kolahi's L12..L16 (pixel units, eq. 2) when estimated, else None.
+    residuals_px : ndarray, shape (N, 2)
+        Per control point ``(du, dv)`` = observed - projected, pixels (after the lens
+        correction when ``lens`` is set).
+    rms_px : float
+        sqrt(mean(du^2 + dv^2)): RMS Euclidean reprojection distance in pixels.
+    constraint_linear : float
+        Relative violation of Hatze's constraint by the linear DLT solution.
+    constraint : float
+        Relative violation of Hatze's constraint by ``L`` (see
+        :func:`kisscal.dlt.camera.hatze_violation`).
+    K, R : ndarray, shape (3, 3)
+        Intrinsic matrix (``K[2, 2] = 1``) and rotation (``x_cam = R (X - centre)``).
+    centre_mm : ndarray, shape (3,)
+        Projection centre in lab mm.
+    iterations : int
+        Function evaluations used by the nonlinear solver (0 for the linear DLT).
+    """
+
+    L: NDArray[np.float64]
+    method: str
+    lens: NDArray[np.float64] | None
+    residuals_px: NDArray[np.float64]
+    rms_px: float
+    constraint_linear: float
+    constraint: float
+    K: NDArray[np.float64]
+    R: NDArray[np.float64]
+    centre_mm: NDArray[np.float64]
+    iterations: int = 0
+
+
+@dataclass(frozen=True)
+class Rod:
+    """One calibration rod: its name and surveyed marker centres, top to bottom (mm)."""
+
+    name: str
+    points_mm: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RodMatch:
+    """Rod markers identified among one camera's blobs.
+
+    Attributes
+    ----------
+    camera : str
+        Camera id (for messages).
+    rod_names : tuple of str
+        The rods, in configuration order.
+    blob_index : ndarray of int, shape (n_rods, n_markers)
+        Index into the blob array of each rod marker, -1 where it was not found.
+    fit_rms_px : ndarray, shape (n_rods,)
+        RMS distance (px) along each rod's line between blobs and the fitted 1D
+        projectivity; NaN for rods not recognised.
+    missing : tuple of str
+        Markers not found, as ``"R1[3]"`` (rod name, 0-based index from the top).
+    unused_blobs : ndarray of int
+        Blobs not assigned to any rod (strobes, noise).
+    """
+
+    camera: str
+    rod_names: tuple[str, ...]
+    blob_index: NDArray[np.int64]
+    fit_rms_px: NDArray[np.float64]
+    missing: tuple[str, ...]
+    unused_blobs: NDArray[np.int64]
+
+    def marker_uv(self, uv_px: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Pixel coordinates per rod marker, shape (n_rods, n_markers, 2), NaN if not found."""
+        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        out = np.full((*self.blob_index.shape, 2), np.nan)
+        found = self.blob_index >= 0
+        out[found] = uv[self.blob_index[found]]
+        return out
+
+    def control_points(
+        self, uv_px: NDArray[np.float64], rods: tuple[Rod, ...]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[str, ...]]:
+        """Return ``(xyz_mm (M, 3), uv_px (M, 2), labels)`` of the identified markers."""
+        xyz = np.concatenate([r.points_mm for r in rods])
+        idx = self.blob_index.ravel()
+        found = idx >= 0
+        labels = tuple(f"{r.name}[{i}]" for r in rods for i in range(len(r.points_mm)))
+        uv = np.asarray(uv_px, dtype=float)[idx[found]]
+        return xyz[found], uv, tuple(lab for lab, f in zip(labels, found, strict=True) if f)
+
+
+@dataclass(frozen=True)
+class RodCheck:
+    """Leave-one-rod-out check: calibrate on the other rods, reconstruct the left-out one.
+
+    Attributes
+    ----------
+    rod_names : tuple of str
+        Left-out rod of each row.
+    mean_mm, max_mm : ndarray, shape (n_rods,)
+        Mean and largest 3D error (mm) of the left-out rod's reconstructed markers.
+    n_markers : ndarray of int, shape (n_rods,)
+        Markers of the left-out rod seen by at least two cameras.
+    errors_mm : ndarray, shape (n_rods, n_markers)
+        Per marker 3D error, NaN where not reconstructed.
+    """
+
+    rod_names: tuple[str, ...]
+    mean_mm: NDArray[np.float64]
+    max_mm: NDArray[np.float64]
+    n_markers: NDArray[np.int64]
+    errors_mm: NDArray[np.float64]
+
+    @property
+    def overall_mean_mm(self) -> float:
+        """Mean 3D error over every reconstructed left-out marker (mm)."""
+        return float(np.nanmean(self.errors_mm))
+
+    @property
+    def overall_max_mm(self) -> float:
+        """Largest 3D error over every reconstructed left-out marker (mm)."""
+        return float(np.nanmax(self.errors_mm))
+
+
+DEFAULT_PARAMS = DltParams()
+"""The defaults, shared as a module-level constant (frozen, so safe as an argument default)."""

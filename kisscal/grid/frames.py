@@ -1,0 +1,92 @@
+"""From recorded grid frames to dot centroids (Küçük 2005, section 2.2)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.errors import KisscalError
+from kisscal.grid.fit import GridFit, linearise_dots
+from kisscal.grid.params import GridParams
+
+if TYPE_CHECKING:  # detection is a sibling stage; imported only where it is used
+    from kisscal.detect import DetectionParams
+
+
+def average_frames(frames: Sequence[NDArray]) -> NDArray[np.float64]:
+    """Mean of the grid frames, as float (the thesis linearises "the average of the images").
+
+    Averaging n frames divides the pixel noise by sqrt(n) before any centroid is taken.
+
+    Raises
+    ------
+    KisscalError
+        No frames, or frames that are not 2-D images of one common shape.
+    """
+    if len(frames) == 0:
+        raise KisscalError("no grid frames to average")
+    first = np.asarray(frames[0])
+    if first.ndim != 2:
+        raise KisscalError(f"grid frames must be 2-D grey images, got shape {first.shape}")
+    acc = np.zeros(first.shape, dtype=float)
+    for k, frame in enumerate(frames):
+        f = np.asarray(frame)
+        if f.shape != first.shape:
+            raise KisscalError(f"grid frame {k} has shape {f.shape}, the first one {first.shape}")
+        acc += f
+    return acc / len(frames)
+
+
+def dots_from_frames(
+    frames: Sequence[NDArray], detection: DetectionParams | None = None
+) -> NDArray[np.float64]:
+    """Average the grid frames and detect the dots with :mod:`kisscal.detect`.
+
+    Parameters
+    ----------
+    frames : sequence of ndarray, shape (h, w)
+        Grey frames of the grid from one camera (uint8 or float).
+    detection : DetectionParams, optional
+        Detection thresholds (session ``[detection]`` overrides).
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Centroids ``(u, v)`` in px of the blobs detection judged valid.
+    """
+    from kisscal.detect import DetectionParams, detect_blobs
+
+    image = average_frames(frames)
+    blobs = detect_blobs(image, detection or DetectionParams())
+    ok = np.asarray(blobs.valid, dtype=bool)
+    return np.column_stack([blobs.x_px[ok], blobs.y_px[ok]]).astype(float)
+
+
+def linearise_frames(
+    frames: Sequence[NDArray],
+    params: GridParams | None = None,
+    detection: DetectionParams | None = None,
+) -> GridFit:
+    """The whole grid stage for one camera: frames -> averaged image -> dots -> linearisation.
+
+    Parameters
+    ----------
+    frames : sequence of ndarray, shape (h, w)
+        Grey frames of the grid (one camera); their shape gives the image size used for
+        the normalisation.
+    params : GridParams, optional
+        Grid size, optimal-grid model, tolerances.
+    detection : DetectionParams, optional
+        Detection thresholds.
+
+    Returns
+    -------
+    GridFit
+        ``fit.linearisation`` is what ``out/linearisation/<camera>.json`` stores.
+    """
+    dots = dots_from_frames(frames, detection)
+    h, w = np.asarray(frames[0]).shape
+    return linearise_dots(dots, params, size_px=(w, h))

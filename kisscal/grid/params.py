@@ -1,0 +1,93 @@
+"""Every default of the grid linearisation stage, in one frozen dataclass."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from kisscal.errors import KisscalError
+
+OptimalModel = Literal["similarity", "homography"]
+
+
+@dataclass(frozen=True)
+class GridParams:
+    """Parameters of grid linearisation (Küçük 2005, section 2.2; Shafiq et al. 2001, 3.2).
+
+    Attributes
+    ----------
+    rows, cols : int
+        Dots per column and per row of the linearisation grid (the KISS grid: 15 x 20).
+    model : {"homography", "similarity"}
+        Transform from the primary grid to the optimal grid. ``"similarity"`` is the thesis'
+        eq. 2.1 (scale, rotation, translation), carried out in the square-pixel frame (see
+        :func:`kisscal.grid.optimal.optimal_grid`); it assumes the grid square to the camera.
+        ``"homography"`` (beyond the seeds, the default) also takes up the perspective of a
+        grid tilted a few degrees, which the similarity leaves in the polynomial: 2 px of
+        keystone over a 752 x 291 field at 2 degrees of tilt. On a grid square to the camera
+        both give the same correction within 0.03 px.
+    pixel_aspect : float or None
+        Height over width of one pixel as it images the grid (fy / fx, about 0.52 for the
+        752 x 291 fields). None: fitted by least squares together with the similarity.
+        Only used by the ``"similarity"`` model.
+    cell_aspect : float
+        Row pitch over column pitch of the physical grid, in mm / mm (1 for square cells).
+    min_indexed_fraction : float
+        Fewest dots, as a fraction of ``rows * cols``, that must be indexed before fitting.
+    match_tol : float
+        Largest distance, as a fraction of the local dot spacing, from a predicted lattice
+        position to the dot accepted there while indexing.
+    outlier_px : float
+        Smallest residual, in px, at which an indexed dot is rejected as a mis-indexed blob
+        against a smooth (4th-order) fit of dot position over (row, col).
+    outlier_sigmas : float
+        Residuals above this many robust standard deviations are rejected too (whichever
+        of ``outlier_px`` and this is larger is the limit).
+    anchor_centre : bool
+        Re-express the optimal grid so that the correction and its gradient vanish at the
+        normalisation centre (the image centre when the image size is known). Lens
+        distortion vanishes to first order at the lens centre, so the corrected image
+        keeps the scale, pixel aspect and orientation the lens has there, instead of the
+        least-squares compromise of eq. 2.1 over the distorted field, which radial
+        distortion biases (by up to 0.2 px at the field edge for 10 px corner distortion).
+    perspective : {"lens_centre", "least_squares"}
+        How the ``homography`` model settles the grid's perspective, which one planar
+        view cannot separate from the quadratic part of the lens correction:
+        ``"lens_centre"`` asks the correction to have no 2nd-order terms at the centre
+        (as radial distortion has none); ``"least_squares"`` keeps the least-squares
+        homography of the distorted dots.
+    """
+
+    rows: int = 15
+    cols: int = 20
+    model: OptimalModel = "homography"
+    pixel_aspect: float | None = None
+    cell_aspect: float = 1.0
+    min_indexed_fraction: float = 0.9
+    match_tol: float = 0.3
+    outlier_px: float = 1.0
+    outlier_sigmas: float = 6.0
+    anchor_centre: bool = True
+    perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
+
+    def __post_init__(self) -> None:
+        if self.rows < 5 or self.cols < 5:
+            raise KisscalError(f"grid must have at least 5 x 5 dots, got {self.rows} x {self.cols}")
+        if self.model not in ("similarity", "homography"):
+            raise KisscalError(
+                f"grid model must be 'similarity' or 'homography', got {self.model!r}"
+            )
+        if self.perspective not in ("lens_centre", "least_squares"):
+            raise KisscalError(
+                f"perspective must be 'lens_centre' or 'least_squares', got {self.perspective!r}"
+            )
+        if self.pixel_aspect is not None and not self.pixel_aspect > 0:
+            raise KisscalError(f"pixel_aspect must be positive, got {self.pixel_aspect}")
+        if not self.cell_aspect > 0:
+            raise KisscalError(f"cell_aspect must be positive, got {self.cell_aspect}")
+        if not 0 < self.min_indexed_fraction <= 1:
+            raise KisscalError(
+                f"min_indexed_fraction must be in (0, 1], got {self.min_indexed_fraction}"
+            )
+        if not 0 < self.match_tol < 0.5:
+            raise KisscalError(f"match_tol must be in (0, 0.5), got {self.match_tol}")

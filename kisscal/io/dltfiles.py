@@ -1,0 +1,286 @@
+"""DLT parameter files: ``out/dlt/<camera>.json`` and ``out/dlt/dltdv.csv`` (DESIGN.md).
+
+Both can be read back, so a lab can bring DLT coefficients from another tool:
+
+* ``<camera>.json``: at least ``{"camera": ..., "L": [11 numbers]}``; kisscal writes the
+  method, ``rms_px`` (= sqrt(mean(du^2 + dv^2)), stated in the file), per-point
+  residuals, the camera centre, K, R, Hatze's constraint violation and lens terms.
+* ``dltdv.csv``: 11 rows (L1..L11), one column per camera, no header: the layout DLT
+  digitising tools (e.g. DLTdv) read. An optional first row of camera names is accepted
+  when reading.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.dlt.params import DltResult
+from kisscal.errors import KisscalError
+
+RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
+
+
+@dataclass(frozen=True)
+class DltFile:
+    """DLT parameters read from a file.
+
+    Attributes
+    ----------
+    camera : str
+    L : ndarray, shape (11,)
+        L1..L11 (lab mm -> linearised pixels).
+    method : str
+        As written (``"dlt"``, ``"mdlt"``, ``"refined"``) or ``"external"`` when absent.
+    lens : ndarray, shape (5,) or None
+        Kolahi's L12..L16 when present.
+    rms_px : float
+        NaN when the file does not give it.
+    data : dict
+        The whole JSON document (empty for dltdv.csv).
+    """
+
+    camera: str
+    L: NDArray[np.float64]
+    method: str = "external"
+    lens: NDArray[np.float64] | None = None
+    rms_px: float = math.nan
+    data: dict[str, Any] | None = None
+
+
+def _floats(a: ArrayLike) -> list:
+    return np.asarray(a, dtype=float).tolist()
+
+
+def dlt_document(
+    camera: str,
+    result: DltResult,
+    xyz_mm: ArrayLike | None = None,
+    uv_px: ArrayLike | None = None,
+    labels: Sequence[str] | None = None,
+    extra: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The JSON document of one camera's calibration (see :func:`write_dlt_json`)."""
+    doc: dict[str, Any] = {
+        "camera": camera,
+        "L": _floats(result.L),
+        "method": result.method,
+        "rms_px": float(result.rms_px),
+        "rms_definition": RMS_DEFINITION,
+        "n_points": len(result.residuals_px),
+        "centre_mm": _floats(result.centre_mm),
+        "K": _floats(result.K),
+        "R": _floats(result.R),
+        "constraint_violation": float(result.constraint),
+        "constraint_violation_linear": float(result.constraint_linear),
+        "lens": None if result.lens is None else _floats(result.lens),
+        "lens_model": "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels",
+        "iterations": int(result.iterations),
+    }
+    n = len(result.residuals_px)
+    labels = list(labels) if labels is not None else [f"P{i + 1}" for i in range(n)]
+    xyz = np.full((n, 3), np.nan) if xyz_mm is None else np.asarray(xyz_mm, dtype=float)
+    uv = np.full((n, 2), np.nan) if uv_px is None else np.asarray(uv_px, dtype=float)
+    if len(labels) != n or xyz.shape != (n, 3) or uv.shape != (n, 2):
+        raise ValueError("labels, xyz_mm and uv_px must match the result's control points")
+    doc["points"] = [
+        {
+            "label": lab,
+            "x_mm": x[0],
+            "y_mm": x[1],
+            "z_mm": x[2],
+            "u_px": u[0],
+            "v_px": u[1],
+            "du_px": r[0],
+            "dv_px": r[1],
+        }
+        for lab, x, u, r in zip(
+            labels, xyz.tolist(), uv.tolist(), _floats(result.residuals_px), strict=True
+        )
+    ]
+    if extra:
+        doc.update(extra)
+    return doc
+
+
+def write_dlt_json(
+    path: str | Path,
+    camera: str,
+    result: DltResult,
+    xyz_mm: ArrayLike | None = None,
+    uv_px: ArrayLike | None = None,
+    labels: Sequence[str] | None = None,
+    extra: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write ``out/dlt/<camera>.json``.
+
+    Parameters
+    ----------
+    path : path
+        File to write (parent folders are created).
+    camera : str
+        Camera id.
+    result : DltResult
+        The calibration.
+    xyz_mm, uv_px, labels : optional
+        Control points (as fitted) and their names (e.g. ``"R1[0]"``), for the
+        per-point residual table.
+    extra : mapping, optional
+        More keys (e.g. rod recognition report, linearisation used).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = dlt_document(camera, result, xyz_mm, uv_px, labels, extra)
+    path.write_text(json.dumps(doc, indent=1, allow_nan=True) + "\n")
+    return path
+
+
+def read_dlt_json(path: str | Path) -> DltFile:
+    """Read a ``<camera>.json`` DLT file (kisscal's or any with ``camera`` and ``L``).
+
+    Raises
+    ------
+    KisscalError
+        Missing file, invalid JSON, or no 11 finite numbers under ``L``.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: DLT file not found") from None
+    except json.JSONDecodeError as exc:
+        raise KisscalError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    if not isinstance(doc, dict) or "L" not in doc:
+        raise KisscalError(f'{path}: a DLT file needs an "L" list of 11 numbers')
+    L = _eleven(doc["L"], f'{path}: "L"')
+    lens = doc.get("lens")
+    if lens is not None:
+        lens = np.asarray(lens, dtype=float)
+        if lens.shape != (5,):
+            raise KisscalError(f'{path}: "lens" must hold 5 numbers (L12..L16)')
+    return DltFile(
+        camera=str(doc.get("camera", path.stem)),
+        L=L,
+        method=str(doc.get("method", "external")),
+        lens=lens,
+        rms_px=float(doc.get("rms_px", math.nan)),
+        data=doc,
+    )
+
+
+def _eleven(values: Any, where: str) -> NDArray[np.float64]:
+    try:
+        L = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise KisscalError(f"{where} must be 11 numbers") from None
+    if L.shape != (11,) or not np.isfinite(L).all():
+        raise KisscalError(f"{where} must be 11 finite numbers, got shape {L.shape}")
+    return L
+
+
+def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> Path:
+    """Write ``dltdv.csv``: 11 rows (L1..L11), one column per camera, in mapping order."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = [_eleven(L, f"camera {cam}: L") for cam, L in L_by_camera.items()]
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        for row in np.array(cols).T:
+            writer.writerow([repr(float(x)) for x in row])
+    return path
+
+
+def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> dict[str, DltFile]:
+    """Read an 11-row DLT coefficient CSV (one column per camera).
+
+    Parameters
+    ----------
+    path : path
+        The CSV. A first row of camera names is allowed.
+    cameras : sequence of str, optional
+        Camera ids in column order (session.toml order); required unless the file has a
+        header row; when both are given they must agree in number.
+
+    Returns
+    -------
+    dict
+        Camera id -> :class:`DltFile` (method ``"external"``).
+    """
+    path = Path(path)
+    try:
+        rows = [r for r in csv.reader(path.read_text().splitlines()) if any(c.strip() for c in r)]
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: DLT coefficient file not found") from None
+    header = None
+    if rows:
+        try:
+            [float(c) for c in rows[0]]
+        except ValueError:
+            header = [c.strip() for c in rows[0]]
+            rows = rows[1:]
+    if len(rows) != 11:
+        raise KisscalError(f"{path}: expected 11 rows of DLT coefficients, got {len(rows)}")
+    try:
+        table = np.array([[float(c) for c in r] for r in rows])
+    except ValueError:
+        raise KisscalError(f"{path}: DLT coefficients must be numbers") from None
+    n_cam = table.shape[1]
+    names = list(cameras) if cameras is not None else header
+    if names is None:
+        raise KisscalError(f"{path}: no header row; give the camera ids in column order")
+    if len(names) != n_cam:
+        raise KisscalError(f"{path}: {n_cam} columns of coefficients for {len(names)} cameras")
+    return {
+        cam: DltFile(camera=cam, L=_eleven(table[:, i], f"{path}: column {i + 1}"))
+        for i, cam in enumerate(names)
+    }
+
+
+CONTROL_COLUMNS = ("u_px", "v_px", "x_mm", "y_mm", "z_mm")
+
+
+def read_control_points_csv(
+    path: str | Path,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[str, ...]]:
+    """Read ``[calibration] points`` control points of one camera (DESIGN.md).
+
+    Columns ``u_px,v_px,x_mm,y_mm,z_mm`` (raw pixel coordinates, not yet linearised) and
+    optionally ``label``; other columns are an error, so typos are not silently ignored.
+
+    Returns
+    -------
+    uv_px : ndarray, shape (N, 2)
+    xyz_mm : ndarray, shape (N, 3)
+    labels : tuple of str
+        The ``label`` column, or ``P1``, ``P2``, ... .
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: control point file not found") from None
+    reader = csv.DictReader(text.splitlines())
+    fields = [f.strip() for f in reader.fieldnames or []]
+    missing = [c for c in CONTROL_COLUMNS if c not in fields]
+    unknown = [f for f in fields if f not in (*CONTROL_COLUMNS, "label")]
+    if missing or unknown:
+        raise KisscalError(
+            f"{path}: control points need columns {','.join(CONTROL_COLUMNS)}[,label]"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; unknown {', '.join(unknown)}" if unknown else "")
+        )
+    rows = [{k.strip(): v for k, v in r.items()} for r in reader]
+    try:
+        table = np.array([[float(r[c]) for c in CONTROL_COLUMNS] for r in rows]).reshape(-1, 5)
+    except (TypeError, ValueError):
+        raise KisscalError(f"{path}: control point coordinates must be numbers") from None
+    labels = tuple((r.get("label") or f"P{i + 1}").strip() for i, r in enumerate(rows))
+    return table[:, :2], table[:, 2:], labels

@@ -1,0 +1,169 @@
+"""Markers as sets of 2D observations: final triangulation, splitting, 3D point groups.
+
+A marker is represented by ``marker`` — one integer per 2D blob, the marker the blob belongs
+to or -1 — so that "each 2D blob ends in at most one 3D marker" holds by construction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from kisscal.recon.triangulate import Triangulation, triangulate_observations
+
+
+def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1."""
+    out = np.full(len(marker), -1, dtype=np.int64)
+    used = marker >= 0
+    if not used.any():
+        return out
+    ids, first = np.unique(marker[used], return_index=True)
+    fields = field[used][first]
+    order = np.lexsort((ids, fields))
+    new_id = np.empty(len(ids), dtype=np.int64)
+    new_id[order] = np.arange(len(ids))
+    out[used] = new_id[np.searchsorted(ids, marker[used])]
+    return out
+
+
+def triangulate_markers(
+    marker: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    reweight_iterations: int,
+) -> Triangulation:
+    """Triangulate every marker from all its observations (markers must be 0..m-1)."""
+    rows = np.flatnonzero(marker >= 0)
+    n = int(marker.max()) + 1 if len(rows) else 0
+    return triangulate_observations(
+        dlts, marker[rows], camera[rows], uv[rows], n, reweight_iterations
+    )
+
+
+def split_or_drop(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    max_rms_px: float,
+    min_cameras: int,
+    reweight_iterations: int,
+) -> NDArray[np.int64]:
+    """Enforce the residual limit: drop worst observations of bad markers, then bad markers.
+
+    A marker whose reprojection ``rms_px`` exceeds ``max_rms_px`` loses its single worst
+    observation (that blob is split off and becomes unmatched) and is re-triangulated, until
+    it is good or has fewer than ``min_cameras`` observations, when it is dropped. All bad
+    markers are handled together, one observation per round.
+
+    Returns
+    -------
+    ndarray of int
+        The new ``marker`` array, renumbered 0..m-1 in field order.
+    """
+    marker = renumber(marker, field)
+    while True:
+        counts = np.bincount(marker[marker >= 0]) if (marker >= 0).any() else np.zeros(0, int)
+        small = counts < min_cameras
+        if small.any():
+            marker = np.where((marker >= 0) & small[np.maximum(marker, 0)], -1, marker)
+            marker = renumber(marker, field)
+            continue
+        if not (marker >= 0).any():
+            return marker
+        tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+        bad = ~(tri.rms_px <= max_rms_px)
+        if not bad.any():
+            return marker
+        rows = np.flatnonzero(marker >= 0)
+        in_bad = bad[marker[rows]]
+        rows, resid = rows[in_bad], tri.residual_px[in_bad]
+        # worst observation of each bad marker: last of its rows sorted by residual
+        order = np.lexsort((np.nan_to_num(resid, nan=np.inf), marker[rows]))
+        m_sorted = marker[rows][order]
+        last = np.r_[m_sorted[1:] != m_sorted[:-1], True]
+        marker = marker.copy()
+        marker[rows[order][last]] = -1
+        marker = renumber(marker, field)
+
+
+def merge_groups(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    radius_mm: float,
+    max_rms_px: float,
+    reweight_iterations: int,
+) -> NDArray[np.int64]:
+    """Unite 3D points of one field that belong to one marker (Küçük 2005, 3.3.7).
+
+    Points of the same field closer than ``radius_mm`` form a group ("cloud"); two points are
+    united when they do not claim different blobs of the same camera and the union,
+    re-triangulated from all its 2D observations, keeps ``rms_px <= max_rms_px``.
+
+    Returns
+    -------
+    ndarray of int
+        The new ``marker`` array, renumbered.
+    """
+    marker = renumber(marker, field)
+    if not (marker >= 0).any():
+        return marker
+    n_cam = len(dlts)
+    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+    rows = np.flatnonzero(marker >= 0)
+    m_field = np.zeros(len(tri.xyz_mm), dtype=np.int64)
+    m_field[marker[rows]] = field[rows]
+    finite = np.all(np.isfinite(tri.xyz_mm), axis=1)
+    # separate fields by far more than any radius so one tree serves the whole trial
+    pts = tri.xyz_mm.copy()
+    pts[:, 0] += m_field * 1e7
+    idx = np.flatnonzero(finite)
+    if len(idx) < 2:
+        return marker
+    pairs = cKDTree(pts[idx]).query_pairs(radius_mm, output_type="ndarray")
+    if len(pairs) == 0:
+        return marker
+    # blob row of each (marker, camera); -1 where the marker has no observation there
+    blob = np.full((len(tri.xyz_mm), n_cam), -1, dtype=np.int64)
+    blob[marker[rows], camera[rows]] = rows
+    marker = marker.copy()
+    parent = np.arange(len(tri.xyz_mm))
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            k = parent[k]
+        return k
+
+    pairs = idx[pairs]
+    dist = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
+    pairs = pairs[np.argsort(dist, kind="stable")]
+    bp, bq = blob[pairs[:, 0]], blob[pairs[:, 1]]
+    compatible = ~np.any((bp >= 0) & (bq >= 0) & (bp != bq), axis=1)
+    pairs, bp, bq = pairs[compatible], bp[compatible], bq[compatible]
+    if len(pairs) == 0:
+        return marker
+    # judge every candidate union in one batch; chains of unions are rare (a marker split
+    # in three) and are re-checked by the caller's residual limit
+    union = np.where(bp >= 0, bp, bq)
+    k, cam = np.nonzero(union >= 0)
+    obs = union[k, cam]
+    t = triangulate_observations(dlts, k, camera[obs], uv[obs], len(pairs), reweight_iterations)
+    for (p, q), ok in zip(pairs, t.rms_px <= max_rms_px, strict=True):
+        rp, rq = root(int(p)), root(int(q))
+        if not ok or rp == rq:
+            continue
+        brp, brq = blob[rp], blob[rq]
+        if np.any((brp >= 0) & (brq >= 0) & (brp != brq)):
+            continue
+        merged = np.where(brp >= 0, brp, brq)
+        parent[rq] = rp
+        blob[rp] = merged
+        marker[merged[merged >= 0]] = rp
+    return renumber(marker, field)

@@ -1,0 +1,509 @@
+"""Matching 2D blobs across cameras: the thesis' triple matching and Shafiq's central strategy.
+
+Both strategies take a whole trial in long format (one row per blob: field, camera, u, v)
+and return ``marker``: for every blob, the marker it was assigned to or -1. A blob ends in
+at most one marker.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.errors import KisscalError
+from kisscal.recon.epipolar import (
+    all_fundamentals,
+    candidate_pairs,
+    distance_matrix_px,
+    field_pairs,
+)
+from kisscal.recon.group import merge_groups, split_or_drop
+from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
+from kisscal.recon.triangulate import triangulate_observations
+
+
+def _check_table(
+    field: ArrayLike, camera: ArrayLike, uv: ArrayLike, n_cameras: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    field = np.asarray(field, dtype=np.int64).ravel()
+    camera = np.asarray(camera, dtype=np.int64).ravel()
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    if not (len(field) == len(camera) == len(uv)):
+        raise KisscalError("2D table: field, camera and uv must have one row per blob")
+    if len(camera) and (camera.min() < 0 or camera.max() >= n_cameras):
+        raise KisscalError(f"2D table: camera index outside 0..{n_cameras - 1}")
+    if not np.all(np.isfinite(uv)):
+        raise KisscalError("2D table: pixel coordinates contain NaN or inf")
+    return field, camera, uv
+
+
+def _solve_one(
+    L: NDArray[np.float64], uv: NDArray[np.float64], reweight_iterations: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One point from its rows of DLT parameters ``L`` (n, 11) and pixels ``uv`` (n, 2):
+    the eq. 10 least-squares solution (+ reweighted steps) and each observation's residual.
+    The per-field strategy calls this thousands of times, so it avoids batch overheads."""
+    lower = L[:, 8:11]
+    A = np.concatenate([L[:, 0:3] - uv[:, :1] * lower, L[:, 4:7] - uv[:, 1:] * lower])
+    b = np.concatenate([uv[:, 0] - L[:, 3], uv[:, 1] - L[:, 7]])
+    w = np.ones(len(b))
+    for _ in range(reweight_iterations + 1):
+        xyz = np.linalg.lstsq(A * w[:, None], b * w, rcond=None)[0]
+        den = lower @ xyz + 1.0
+        w = np.concatenate([1.0 / den, 1.0 / den])
+    res = (L[:, [0, 1, 2, 4, 5, 6]].reshape(-1, 2, 3) @ xyz + L[:, [3, 7]]) / den[:, None] - uv
+    return xyz, np.hypot(res[:, 0], res[:, 1])
+
+
+def _accept(
+    rows: list[int],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+    min_cameras: int,
+) -> list[int]:
+    """Observations of one marker after dropping worst ones until ``rms_px`` is in bounds."""
+    rows = list(rows)
+    while len(rows) >= min_cameras:
+        r = np.asarray(rows)
+        _, res = _solve_one(dlts[camera[r]], uv[r], params.reweight_iterations)
+        if np.sqrt(np.mean(res**2)) <= params.max_rms_px:
+            return rows
+        rows.pop(int(np.argmax(res)))
+    return []
+
+
+def _extend(
+    members: dict[int, int],
+    xyz: NDArray[np.float64],
+    free_rows: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    radius_px: float,
+) -> list[int]:
+    """Add, in each camera not yet in ``members``, the free blob nearest to the marker's
+    projection if it lies within ``radius_px`` (Shafiq et al. 2001, 4.1, extension)."""
+    rows = list(members.values())
+    for k in np.unique(camera[free_rows]):
+        if int(k) in members:
+            continue
+        cand = free_rows[camera[free_rows] == k]
+        d = np.linalg.norm(uv[cand] - _project_rows(dlts, camera[cand], xyz[None, :]), axis=1)
+        best = int(np.argmin(d))
+        if d[best] <= radius_px:
+            rows.append(int(cand[best]))
+    return rows
+
+
+def _triangles(
+    a: NDArray[np.int64], b: NDArray[np.int64], n: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """All triangles x < y < z of the graph with edges (a, b), a < b, without Python loops."""
+    order = np.lexsort((b, a))
+    a, b = a[order], b[order]
+    key = a * n + b
+    start = np.searchsorted(a, b, side="left")
+    stop = np.searchsorted(a, b, side="right")
+    cnt = stop - start
+    e = np.repeat(np.arange(len(a)), cnt)
+    first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+    f = np.repeat(start, cnt) + (np.arange(len(e)) - first)
+    x, y, z = a[e], b[e], b[f]
+    want = x * n + z
+    pos = np.minimum(np.searchsorted(key, want), max(len(key) - 1, 0))
+    closed = key[pos] == want if len(key) else np.zeros(0, dtype=bool)
+    return x[closed], y[closed], z[closed]
+
+
+def _two_camera(
+    marker: NDArray[np.int64],
+    pa: NDArray[np.int64],
+    pb: NDArray[np.int64],
+    pd: NDArray[np.float64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+) -> NDArray[np.int64]:
+    """Pair remaining blobs two by two, closest epipolar pairs first, when allowed."""
+    free = (marker[pa] < 0) & (marker[pb] < 0)
+    pa, pb, pd = pa[free], pb[free], pd[free]
+    if len(pa) == 0:
+        return marker
+    t = triangulate_observations(
+        dlts,
+        np.repeat(np.arange(len(pa)), 2),
+        np.column_stack([camera[pa], camera[pb]]).ravel(),
+        np.stack([uv[pa], uv[pb]], axis=1).reshape(-1, 2),
+        len(pa),
+        params.reweight_iterations,
+    )
+    good = t.rms_px <= params.max_rms_px
+    next_id = int(marker.max()) + 1
+    marker = marker.copy()
+    for k in np.flatnonzero(good)[np.argsort(pd[good], kind="stable")]:
+        if marker[pa[k]] < 0 and marker[pb[k]] < 0:
+            marker[pa[k]] = marker[pb[k]] = next_id
+            next_id += 1
+    return marker
+
+
+def _project_rows(
+    dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Project point k into camera ``camera[k]``, for many (camera, point) rows at once."""
+    L = dlts[camera]
+    den = np.einsum("ij,ij->i", L[:, 8:11], xyz) + 1.0
+    u = (np.einsum("ij,ij->i", L[:, 0:3], xyz) + L[:, 3]) / den
+    v = (np.einsum("ij,ij->i", L[:, 4:7], xyz) + L[:, 7]) / den
+    return np.column_stack([u, v])
+
+
+def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
+    order = np.lexsort((np.arange(len(key)), score, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    return order[first]
+
+
+def _extend_all(
+    marker: NDArray[np.int64],
+    new_ids: NDArray[np.int64],
+    new_xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    radius_px: float,
+) -> None:
+    """Extend new markers to their other cameras (Shafiq et al. 2001, 4.1), all at once.
+
+    Each free blob within ``radius_px`` of a new marker's projection in the blob's camera,
+    where the marker has no blob yet, is a candidate; closest first, a blob joins one
+    marker and a marker takes one blob per camera. ``marker`` is updated in place.
+    """
+    n_cam = len(dlts)
+    free = np.flatnonzero(marker < 0)
+    if len(free) == 0 or len(new_ids) == 0:
+        return
+    rows = np.flatnonzero(np.isin(marker, new_ids))
+    has = np.zeros((len(new_ids), n_cam), dtype=bool)
+    slot = np.searchsorted(new_ids, marker[rows])
+    has[slot, camera[rows]] = True
+    m_field = np.zeros(len(new_ids), dtype=np.int64)
+    m_field[slot] = field[rows]
+    fo = np.argsort(field[free], kind="stable")
+    free = free[fo]
+    mo = np.argsort(m_field, kind="stable")
+    fi, mi = field_pairs(field[free], m_field[mo])
+    b, m = free[fi], mo[mi]
+    lacking = ~has[m, camera[b]]
+    b, m = b[lacking], m[lacking]
+    if len(b) == 0:
+        return
+    d = np.linalg.norm(uv[b] - _project_rows(dlts, camera[b], new_xyz[m]), axis=1)
+    near = d <= radius_px
+    b, m, d = b[near], m[near], d[near]
+    keep = _first_per_key(b, d)  # a blob joins its closest marker
+    b, m, d = b[keep], m[keep], d[keep]
+    keep = _first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
+    marker[b[keep]] = new_ids[m[keep]]
+
+
+def match_triple(
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv: ArrayLike,
+    dlts: ArrayLike,
+    params: ReconParams = DEFAULT_PARAMS,
+    F: NDArray[np.float64] | None = None,
+) -> NDArray[np.int64]:
+    """Triple matching over a whole trial (Küçük 2005, 3.3.5-3.3.7), vectorised.
+
+    Three blobs of three cameras form a triple when every one lies within the epipolar band
+    of the other two's lines (eq. 3.9) and their 3-camera DLT solution reprojects within
+    ``max_rms_px``. Triples become markers best (lowest ``rms_px``) first, each blob used
+    once: in rounds, every triple that is the best remaining triple of all three of its
+    blobs is accepted (the same outcome as taking them one by one), then extended to the
+    cameras it lacks with the free blob nearest its projection within ``search_radius_px``.
+    Finally 3D points of one field closer than ``group_radius_mm`` that do not conflict are
+    united (3.3.7) and markers over ``max_rms_px`` are split or dropped.
+
+    Parameters
+    ----------
+    field, camera : array_like of int, shape (n,)
+        Field and camera index of each blob.
+    uv : array_like, shape (n, 2)
+        Linearised pixel coordinates.
+    dlts : array_like, shape (n_cameras, 11)
+        DLT parameters of each camera.
+    params : ReconParams
+    F : ndarray, optional
+        Precomputed :func:`~kisscal.recon.epipolar.all_fundamentals`.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Marker of each blob (-1: unmatched), markers numbered in field order.
+    """
+    dlts = np.asarray(dlts, dtype=float)
+    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    n = len(field)
+    marker = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return marker
+    F = all_fundamentals(dlts) if F is None else F
+    pa, pb, pd = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
+    # rank blobs by (field, camera) so that every pair and triple is increasing in rank
+    order = np.lexsort((camera, field))
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n)
+    x, y, z = _triangles(rank[pa], rank[pb], n)
+    tri = np.column_stack([order[x], order[y], order[z]])
+    if len(tri):
+        t = triangulate_observations(
+            dlts,
+            np.repeat(np.arange(len(tri)), 3),
+            camera[tri].ravel(),
+            uv[tri].reshape(-1, 2),
+            len(tri),
+            0,  # the linear solution is close enough to rank triples and seed markers
+        )
+        good = t.rms_px <= params.max_rms_px
+        tri, tri_rms, tri_xyz = tri[good], t.rms_px[good], t.xyz_mm[good]
+    next_id = 0
+    while len(tri):
+        tid = np.repeat(np.arange(len(tri)), 3)
+        best_of_blob = np.full(n, -1, dtype=np.int64)
+        first = _first_per_key(tri.ravel(), tri_rms[tid])
+        best_of_blob[tri.ravel()[first]] = tid[first]
+        won = np.all(best_of_blob[tri] == np.arange(len(tri))[:, None], axis=1)
+        ids = next_id + np.arange(int(won.sum()))
+        next_id += len(ids)
+        marker[tri[won]] = ids[:, None]
+        _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
+        alive = np.all(marker[tri] < 0, axis=1)
+        tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
+    if params.allow_two_camera:
+        marker = _two_camera(marker, pa, pb, pd, camera, uv, dlts, params)
+    return _finish(marker, field, camera, uv, dlts, params)
+
+
+def _finish(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+) -> NDArray[np.int64]:
+    min_cameras = 2 if params.allow_two_camera else 3
+    marker = merge_groups(
+        marker,
+        field,
+        camera,
+        uv,
+        dlts,
+        params.group_radius_mm,
+        params.max_rms_px,
+        params.reweight_iterations,
+    )
+    return split_or_drop(
+        marker,
+        field,
+        camera,
+        uv,
+        dlts,
+        params.max_rms_px,
+        min_cameras,
+        params.reweight_iterations,
+    )
+
+
+def _transfer_ok(
+    rows: tuple[int, int, int],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    radius_px: float,
+) -> tuple[bool, NDArray[np.float64]]:
+    """Verify a candidate triplet in all three cameras (Shafiq et al. 2001, Fig. 16).
+
+    Each point must lie within ``radius_px`` of the intersection of the epipolar lines of
+    the other two. That intersection is the projection of the two other points' 3D
+    intersection; computing it that way keeps the test defined when the two lines are
+    parallel (collinear camera centres), where the line intersection is not.
+    """
+    r = np.asarray(rows)
+    L = dlts[camera[r]]
+    points = []
+    for k, (i, j) in enumerate(((1, 2), (0, 2), (0, 1))):
+        xyz, _ = _solve_one(L[[i, j]], uv[r[[i, j]]], 0)
+        if not np.all(np.isfinite(xyz)):
+            return False, xyz
+        d = _project_rows(dlts, camera[r[k : k + 1]], xyz[None, :])[0] - uv[r[k]]
+        if np.hypot(d[0], d[1]) > radius_px:
+            return False, xyz
+        points.append(xyz)
+    return True, np.mean(points, axis=0)
+
+
+def match_central(
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv: ArrayLike,
+    dlts: ArrayLike,
+    params: ReconParams = DEFAULT_PARAMS,
+    F: NDArray[np.float64] | None = None,
+) -> NDArray[np.int64]:
+    """Shafiq et al. (2001, 4.1) central strategy, field by field.
+
+    For each base camera in turn and each of its unmatched blobs: the other cameras' unmatched
+    blobs within the epipolar band are candidates (closest ``max_candidates`` per camera);
+    cameras are prioritised by their closest candidate. Candidate triplets (base, priority
+    camera r, priority camera s) are tried best candidates first; a triplet is verified when
+    each point lies within ``search_radius_px`` of the intersection of the other two's
+    epipolar lines. A verified triplet is extended to the remaining cameras and its blobs are
+    excluded from further search. When only one candidate camera exists and
+    ``allow_two_camera`` is set, the base blob is paired with its closest candidate.
+
+    Parameters and return value as :func:`match_triple`.
+    """
+    dlts = np.asarray(dlts, dtype=float)
+    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    n = len(field)
+    marker = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return marker
+    F = all_fundamentals(dlts) if F is None else F
+    n_cam = len(dlts)
+    order = np.lexsort((camera, field))
+    f_sorted = field[order]
+    cuts = np.flatnonzero(np.r_[True, f_sorted[1:] != f_sorted[:-1], True])
+    next_id = 0
+    band = params.epipolar_band_px
+    for s0, e0 in itertools.pairwise(cuts):
+        rows_f = order[s0:e0]
+        cam_rows = [rows_f[camera[rows_f] == c] for c in range(n_cam)]
+        dist: dict[tuple[int, int], NDArray[np.float64]] = {}
+        for i in range(n_cam):
+            for j in range(i + 1, n_cam):
+                if len(cam_rows[i]) and len(cam_rows[j]):
+                    dist[i, j] = distance_matrix_px(F[i, j], uv[cam_rows[i]], uv[cam_rows[j]])
+                    dist[j, i] = dist[i, j].T
+        for c1 in range(n_cam):
+            for p_local, p in enumerate(cam_rows[c1]):
+                if marker[p] >= 0:
+                    continue
+                cands: dict[int, NDArray[np.int64]] = {}
+                best: dict[int, float] = {}
+                for k in range(n_cam):
+                    if (c1, k) not in dist:
+                        continue
+                    d = dist[c1, k][p_local]
+                    ok = np.flatnonzero((d < band) & (marker[cam_rows[k]] < 0))
+                    if len(ok):
+                        ok = ok[np.argsort(d[ok], kind="stable")][: params.max_candidates]
+                        cands[k] = cam_rows[k][ok]
+                        best[k] = float(d[ok[0]])
+                priority = sorted(cands, key=best.__getitem__)
+                found = False
+                for ir, r in enumerate(priority):
+                    for s in priority[ir + 1 :]:
+                        for qr in cands[r]:
+                            for qs in cands[s]:
+                                ok, xyz = _transfer_ok(
+                                    (int(p), int(qr), int(qs)),
+                                    camera,
+                                    uv,
+                                    dlts,
+                                    params.search_radius_px,
+                                )
+                                if not ok:
+                                    continue
+                                members = {c1: int(p), r: int(qr), s: int(qs)}
+                                free = rows_f[marker[rows_f] < 0]
+                                got = _extend(
+                                    members,
+                                    xyz,
+                                    free,
+                                    camera,
+                                    uv,
+                                    dlts,
+                                    params.search_radius_px,
+                                )
+                                got = _accept(got, camera, uv, dlts, params, 3)
+                                if got:
+                                    marker[got] = next_id
+                                    next_id += 1
+                                    found = True
+                                    break
+                            if found:
+                                break
+                        if found:
+                            break
+                    if found:
+                        break
+                if not found and len(priority) == 1 and params.allow_two_camera:
+                    got = _accept([int(p), int(cands[priority[0]][0])], camera, uv, dlts, params, 2)
+                    if got:
+                        marker[got] = next_id
+                        next_id += 1
+    return _finish(marker, field, camera, uv, dlts, params)
+
+
+def match_trial(
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv: ArrayLike,
+    dlts: ArrayLike,
+    params: ReconParams = DEFAULT_PARAMS,
+) -> NDArray[np.int64]:
+    """Match a whole trial with the strategy named by ``params.strategy``.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Marker of each blob, -1 for unmatched blobs.
+    """
+    fn = match_triple if params.strategy == "triple" else match_central
+    return fn(field, camera, uv, dlts, params)
+
+
+def match_field(
+    points_per_camera: list[ArrayLike],
+    dlts: ArrayLike,
+    params: ReconParams = DEFAULT_PARAMS,
+) -> list[dict[int, int]]:
+    """Match the blobs of one field.
+
+    Parameters
+    ----------
+    points_per_camera : list of array_like, each shape (n_c, 2)
+        Linearised blob centroids of each camera (camera order = rows of ``dlts``).
+    dlts : array_like, shape (n_cameras, 11)
+    params : ReconParams
+
+    Returns
+    -------
+    list of dict
+        One dict per marker: camera index -> blob index within that camera's list.
+    """
+    dlts = np.asarray(dlts, dtype=float)
+    if len(points_per_camera) != len(dlts):
+        raise KisscalError(
+            f"match_field: {len(points_per_camera)} point lists for {len(dlts)} cameras"
+        )
+    pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points_per_camera]
+    camera = np.concatenate([np.full(len(p), c) for c, p in enumerate(pts)]).astype(np.int64)
+    local = np.concatenate([np.arange(len(p)) for p in pts]).astype(np.int64)
+    uv = np.concatenate(pts) if pts else np.zeros((0, 2))
+    marker = match_trial(np.zeros(len(uv), dtype=np.int64), camera, uv, dlts, params)
+    out: list[dict[int, int]] = [{} for _ in range(int(marker.max()) + 1 if len(marker) else 0)]
+    for r in np.flatnonzero(marker >= 0):
+        out[marker[r]][int(camera[r])] = int(local[r])
+    return out

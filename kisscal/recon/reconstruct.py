@@ -1,0 +1,124 @@
+"""A whole trial from linearised 2D blobs to 3D points: filter, match, triangulate."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.errors import KisscalError
+from kisscal.recon.group import triangulate_markers
+from kisscal.recon.match import _check_table, match_trial
+from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
+from kisscal.recon.stationary import stationary_mask
+
+
+@dataclass(frozen=True)
+class Points3D:
+    """3D points of a trial, one per reconstructed marker per field.
+
+    Attributes
+    ----------
+    field : ndarray of int, shape (n_points,)
+        Field index of each point (ascending).
+    xyz_mm : ndarray, shape (n_points, 3)
+        Lab coordinates (mm).
+    n_cameras : ndarray of int, shape (n_points,)
+        Cameras whose blobs formed the point.
+    rms_px : ndarray, shape (n_points,)
+        Reprojection RMS over those blobs, ``sqrt(mean(du^2 + dv^2))`` (px).
+    blob_row : ndarray of int, shape (n_points, n_cameras_total)
+        For each camera, the row of the input 2D table that the point used, -1 if none.
+    marker : ndarray of int, shape (n_blobs,)
+        For each input row, the point (row of this table) it ended in, -1 if unmatched.
+    stationary : ndarray of bool, shape (n_blobs,)
+        Input rows removed as stationary false detections.
+    """
+
+    field: NDArray[np.int64]
+    xyz_mm: NDArray[np.float64]
+    n_cameras: NDArray[np.int64]
+    rms_px: NDArray[np.float64]
+    blob_row: NDArray[np.int64]
+    marker: NDArray[np.int64]
+    stationary: NDArray[np.bool_]
+
+    def __len__(self) -> int:
+        return len(self.field)
+
+
+def points_from_markers(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    reweight_iterations: int,
+    stationary: NDArray[np.bool_] | None = None,
+) -> Points3D:
+    """Triangulate every marker (ids 0..m-1 in field order) from all its blobs."""
+    n_cam = len(dlts)
+    rows = np.flatnonzero(marker >= 0)
+    m = int(marker.max()) + 1 if len(rows) else 0
+    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+    blob_row = np.full((m, n_cam), -1, dtype=np.int64)
+    blob_row[marker[rows], camera[rows]] = rows
+    pfield = np.zeros(m, dtype=np.int64)
+    pfield[marker[rows]] = field[rows]
+    if stationary is None:
+        stationary = np.zeros(len(marker), dtype=bool)
+    return Points3D(
+        pfield,
+        tri.xyz_mm,
+        tri.n_cameras[:m].astype(np.int64),
+        tri.rms_px,
+        blob_row,
+        marker,
+        stationary,
+    )
+
+
+def reconstruct_trial(
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv: ArrayLike,
+    dlts: ArrayLike,
+    params: ReconParams = DEFAULT_PARAMS,
+) -> Points3D:
+    """Reconstruct the 3D points of a trial from its linearised 2D blobs.
+
+    Steps: stationary false detections removed per camera over the whole trial (Küçük 2005,
+    3.3.1; if ``params.stationary_filter``), blobs matched across cameras with
+    ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001, 4.1), each marker triangulated
+    from all its blobs by least squares (eq. 10) plus reweighted steps, markers over
+    ``max_rms_px`` split or dropped, and 3D point groups united (3.3.7).
+
+    Parameters
+    ----------
+    field, camera : array_like of int, shape (n,)
+        Field and camera index (row of ``dlts``) of each blob.
+    uv : array_like, shape (n, 2)
+        Linearised pixel coordinates of each blob.
+    dlts : array_like, shape (n_cameras, 11)
+        DLT parameters mapping lab mm to linearised px.
+    params : ReconParams
+
+    Returns
+    -------
+    Points3D
+    """
+    dlts = np.asarray(dlts, dtype=float)
+    if dlts.ndim != 2 or dlts.shape[1] != 11 or len(dlts) < 2:
+        raise KisscalError(f"reconstruction needs >= 2 cameras' DLT (n, 11), got {dlts.shape}")
+    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    if params.stationary_filter:
+        still = stationary_mask(
+            field, camera, uv, params.stationary_radius_px, params.stationary_fraction
+        )
+    else:
+        still = np.zeros(len(field), dtype=bool)
+    keep = np.flatnonzero(~still)
+    marker = np.full(len(field), -1, dtype=np.int64)
+    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params)
+    return points_from_markers(marker, field, camera, uv, dlts, params.reweight_iterations, still)

@@ -1,0 +1,153 @@
+"""Figures of the DLT calibration: residual vectors per camera, cameras and rods in 3D.
+
+Figures are built with :class:`matplotlib.figure.Figure` (no pyplot state, Agg canvas),
+so they are safe in tests and batch runs; save them with ``fig.savefig(path)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from numpy.typing import ArrayLike
+
+
+@dataclass(frozen=True)
+class CameraResiduals:
+    """What the residual figure shows for one camera.
+
+    Attributes
+    ----------
+    uv_px : array_like, shape (N, 2)
+        Control point image positions (pixels).
+    residuals_px : array_like, shape (N, 2)
+        Observed - projected (pixels).
+    size_px : tuple of int
+        Image width and height (pixels).
+    rms_px : float
+        sqrt(mean(du^2 + dv^2)).
+    """
+
+    uv_px: ArrayLike
+    residuals_px: ArrayLike
+    size_px: tuple[int, int]
+    rms_px: float
+
+
+def residual_figure(
+    cameras: Mapping[str, CameraResiduals], scale: float | None = None, columns: int = 2
+) -> Figure:
+    """Residual vectors of every camera's control points, drawn in the image frame.
+
+    Parameters
+    ----------
+    cameras : mapping
+        Camera id -> :class:`CameraResiduals`.
+    scale : float, optional
+        Arrow magnification (arrow length in pixels per pixel of residual); by default
+        the largest residual is drawn 40 px long. The same scale is used for every panel.
+    columns : int
+        Panels per row.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    names = list(cameras)
+    n = max(len(names), 1)
+    cols = min(columns, n)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(5.5 * cols, 2.8 * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    largest = max(
+        (float(np.abs(np.asarray(c.residuals_px)).max(initial=0)) for c in cameras.values()),
+        default=0.0,
+    )
+    if scale is None:
+        scale = 40.0 / largest if largest > 0 else 1.0
+    for k, name in enumerate(names):
+        c = cameras[name]
+        ax = fig.add_subplot(rows, cols, k + 1)
+        uv = np.asarray(c.uv_px, dtype=float).reshape(-1, 2)
+        r = np.asarray(c.residuals_px, dtype=float).reshape(-1, 2)
+        w, h = c.size_px
+        ax.plot(
+            [-0.5, w - 0.5, w - 0.5, -0.5, -0.5], [-0.5, -0.5, h - 0.5, h - 0.5, -0.5], "k-", lw=0.5
+        )
+        ax.plot(uv[:, 0], uv[:, 1], "o", ms=2.5, color="tab:blue")
+        ax.quiver(
+            uv[:, 0],
+            uv[:, 1],
+            r[:, 0] * scale,
+            r[:, 1] * scale,
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color="tab:red",
+            width=0.004,
+        )
+        ax.set_xlim(-10, w + 10)
+        ax.set_ylim(h + 10, -10)  # image y axis points down
+        ax.set_aspect("equal")
+        ax.set_title(f"{name}: rms {c.rms_px:.3f} px (Euclidean), arrows x{scale:.0f}", fontsize=9)
+        ax.tick_params(labelsize=7)
+    return fig
+
+
+def rig_figure(
+    centres_mm: Mapping[str, ArrayLike],
+    rods_mm: Sequence[tuple[str, ArrayLike]],
+    rotations: Mapping[str, ArrayLike] | None = None,
+    reconstructed_mm: ArrayLike | None = None,
+    axis_length_mm: float = 600.0,
+) -> Figure:
+    """Cameras and calibration rods in the lab frame (3D).
+
+    Parameters
+    ----------
+    centres_mm : mapping
+        Camera id -> projection centre (mm).
+    rods_mm : sequence of (name, points_mm (k, 3))
+        Surveyed rod markers.
+    rotations : mapping, optional
+        Camera id -> rotation lab -> camera; the optical axis is drawn when given.
+    reconstructed_mm : array_like, shape (M, 3), optional
+        Reconstructed rod markers, drawn as crosses over the surveyed ones.
+    axis_length_mm : float
+        Length of the drawn optical axes (mm).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = Figure(figsize=(7, 6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    for name, pts in rods_mm:
+        p = np.asarray(pts, dtype=float)
+        ax.plot(p[:, 0], p[:, 1], p[:, 2], "-o", ms=3, lw=1)
+        ax.text(*p[0], name, fontsize=8)
+    for cam, c in centres_mm.items():
+        c = np.asarray(c, dtype=float)
+        ax.scatter(*c, marker="s", s=25, color="k")
+        ax.text(*c, f" {cam}", fontsize=8)
+        if rotations is not None and cam in rotations:
+            axis = np.asarray(rotations[cam], dtype=float)[2] * axis_length_mm
+            ax.plot(*np.stack([c, c + axis]).T, color="tab:gray", lw=1)
+    if reconstructed_mm is not None:
+        q = np.asarray(reconstructed_mm, dtype=float).reshape(-1, 3)
+        ax.scatter(q[:, 0], q[:, 1], q[:, 2], marker="x", s=20, color="tab:red")
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel("Y (mm)")
+    ax.set_zlabel("Z (mm)")
+    pts = [np.asarray(p, dtype=float) for _, p in rods_mm]
+    pts += [np.asarray(c, dtype=float)[None] for c in centres_mm.values()]
+    if pts:
+        allp = np.concatenate(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        ax.set_box_aspect(np.maximum(hi - lo, 1.0))
+    ax.set_title("Cameras and calibration rods (lab frame)")
+    return fig

@@ -1,0 +1,137 @@
+"""Figures of a grid linearisation: dots before/after with residual vectors, straightness.
+
+Functions return matplotlib Figures (Agg canvas, no pyplot state); writing them is the
+session layer's job.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from kisscal.grid.fit import GridFit
+from kisscal.grid.quality import line_distances
+
+
+def _figure(width_in: float, height_in: float) -> Figure:
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def grid_correction_figure(
+    fit: GridFit,
+    camera: str = "",
+    size_px: tuple[int, int] | None = None,
+    vector_gain: float = 200.0,
+) -> Figure:
+    """Distorted dots, corrected dots and the residual vectors of the fit.
+
+    Parameters
+    ----------
+    fit : GridFit
+        Result of :func:`kisscal.grid.linearise_dots`.
+    camera : str
+        Camera id for the titles.
+    size_px : (int, int), optional
+        Image width and height, px, to draw the frame of the field of view.
+    vector_gain : float
+        Magnification of the residual vectors (they are hundredths of a pixel).
+
+    Returns
+    -------
+    Figure
+        Top: distorted dots, corrected dots, optimal grid, missing and rejected positions.
+        Bottom: residual vectors (corrected - optimal), magnified ``vector_gain`` times.
+    """
+    lin = fit.linearisation
+    q = lin.quality
+    dist = fit.grid_uv
+    corr = fit.corrected_uv
+    opt = fit.optimal.uv
+    fig = _figure(9.0, 7.5)
+    ax, bx = fig.subplots(2, 1)
+    ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
+    ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
+    if len(fit.index.missing_uv):
+        m = fit.index.missing_uv
+        ax.plot(m[:, 0], m[:, 1], "o", mfc="none", color="tab:orange", label="missing dot")
+    if len(fit.index.rejected):
+        r = fit.dots_uv[fit.index.rejected]
+        ax.plot(r[:, 0], r[:, 1], "x", color="0.4", label="rejected blob")
+    title = f"grid linearisation {camera}".strip()
+    if q is not None:
+        title += (
+            f": residual {q.residual_rms_before_px:.2f} -> {q.residual_rms_after_px:.3f} px RMS,"
+            f" {q.dots_used} dots, {q.dots_missing} missing, {q.optimal_model} optimal grid"
+        )
+    ax.set_title(title, fontsize=9)
+    res = corr - opt
+    bx.quiver(
+        opt[:, 0],
+        opt[:, 1],
+        res[:, 0] * vector_gain,
+        res[:, 1] * vector_gain,
+        angles="xy",
+        scale_units="xy",
+        scale=1.0,
+        width=0.002,
+        color="tab:blue",
+    )
+    bx.set_title(f"residual vectors (corrected - optimal grid) x {vector_gain:g}", fontsize=9)
+    for a in (ax, bx):
+        if size_px is not None:
+            w, h = size_px
+            a.plot(
+                [-0.5, w - 0.5, w - 0.5, -0.5, -0.5],
+                [-0.5, -0.5, h - 0.5, h - 0.5, -0.5],
+                color="0.7",
+                lw=0.8,
+            )
+        a.set_aspect("equal")
+        a.invert_yaxis()
+        a.set_xlabel("u (px)")
+        a.set_ylabel("v (px)")
+    ax.legend(fontsize=7, loc="upper right", framealpha=0.8)
+    return fig
+
+
+def straightness_figure(fit: GridFit, camera: str = "") -> Figure:
+    """RMS distance of the dots to each fitted row and column line, before and after.
+
+    Returns
+    -------
+    Figure
+        Two bar panels (rows, columns), before and after correction, log scale.
+    """
+    dist = fit.grid_uv
+    corr = fit.corrected_uv
+    idx = fit.index
+    row, col = idx.row[idx.indexed], idx.col[idx.indexed]
+    fig = _figure(9.0, 4.5)
+    axes = fig.subplots(1, 2)
+    for a, lines, n, name in ((axes[0], row, idx.rows, "row"), (axes[1], col, idx.cols, "column")):
+        per = []
+        for pts in (dist, corr):
+            d = line_distances(pts, lines)
+            sq = np.bincount(lines, np.nan_to_num(d) ** 2, minlength=n)
+            cnt = np.bincount(lines, np.isfinite(d).astype(float), minlength=n)
+            per.append(np.sqrt(sq / np.maximum(cnt, 1)))
+        k = np.arange(n)
+        a.bar(k - 0.2, per[0], width=0.4, color="tab:red", label="before")
+        a.bar(k + 0.2, per[1], width=0.4, color="tab:blue", label="after")
+        a.set_yscale("log")
+        a.set_xlabel(f"grid {name}")
+        a.set_ylabel("RMS distance to straight line (px)")
+        a.legend(fontsize=7)
+    q = fit.linearisation.quality
+    title = f"straightness {camera}".strip()
+    if q is not None:
+        ratio = q.straightness_rms_before_px / max(q.straightness_rms_after_px, 1e-12)
+        title += (
+            f": {q.straightness_rms_before_px:.3f} -> {q.straightness_rms_after_px:.4f} px RMS"
+            f" ({ratio:.0f}x)"
+        )
+    fig.suptitle(title, fontsize=9)
+    return fig

@@ -1,0 +1,154 @@
+"""Every default of the tracking stage, in one frozen dataclass.
+
+Units: positions in lab millimetres, time in fields (one field = one image, ``1 / rate_hz``
+seconds), so velocities are in mm/field. The Kalman noise covariances follow the thesis
+(Küçük 2005, §3.3.9 and chapter 5) as it set them in OpenCV: ``Q = pnc * I`` (2 x 2, on
+(mm, mm/field)), ``R = mnc`` (mm²), ``P0 = initial_error * I``, one filter per lab axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+from kisscal.errors import KisscalError
+
+
+@dataclass(frozen=True)
+class TrackingParams:
+    """Parameters of tracking, blending, gap filling, labelling and smoothing.
+
+    Attributes
+    ----------
+    pnc : float
+        Process noise covariance of each per-axis constant-velocity Kalman filter
+        (``Q = pnc * I``; mm² and (mm/field)²). The thesis swept 0.005, 0.05, 0.5.
+    mnc : float
+        Measurement noise covariance (``R = mnc``, mm²). The thesis swept 0.1, 0.05, 0.025.
+    initial_error : float
+        Initial a-posteriori error covariance (``P0 = initial_error * I``).
+    gate_m : tuple of float
+        Gate factor ``m`` per axis (x, y, z) of the thesis' gate f(v) = m*|v| for |v| >= k,
+        else m*k (eq. 3.16); dimensionless. The gate is a box of half-width f(v) per axis.
+    gate_k_mm_per_field : tuple of float
+        Velocity threshold ``k`` per axis (mm/field) below which the gate keeps its
+        minimum half-width ``m*k``.
+    coast_accel_mm_per_field2 : float
+        Largest acceleration per axis (mm/field²) the gate allows for while a track coasts:
+        after n missed fields the gate grows by a (n+1)²/2 - a/2, the drift of a constant-
+        velocity prediction from a marker accelerating at a (5 mm/field² = 12.5 m/s² at 50 Hz).
+    lag_widening : bool
+        Widen each Kalman gate per axis by the distance between the filter's prediction and
+        Shafiq's five-point parabola through the track's last positions, so that filters
+        with little process noise (which lag accelerating markers) keep their tracks.
+    initial_gate_mm : float
+        Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
+        the start point is its own prediction).
+    initial_gate_factor : float
+        While a track is still an initial track (fewer than ``min_initial_length`` points),
+        its gate is this many times the extrapolated step length, at least ``initial_gate_mm``
+        / 2 (the thesis' constant neighbouring distance grown with speed).
+    min_initial_length : int
+        Points an initial track needs before its three Kalman filters are initialised on it.
+    max_coasted_fields : int
+        Consecutive fields without a point in the gate after which a Kalman track ends (the
+        predicted position stands in for the missing point meanwhile).
+    min_reacquired_fields : int
+        After coasting, a track must find points in this many consecutive fields for them
+        to stay on it; shorter runs (typically ghosts caught by a coasting gate after the
+        marker left the view) are split off as pieces of their own, for blending to decide.
+    blend_gap_fields : int
+        Largest number of missing fields between the end of one track piece and the start of
+        another for automatic blending (Shafiq et al. 2001 §4.3 use two fields; the
+        continuity check guards longer gaps, which ghost run splits and flickering
+        visibility at the edge of the volume create).
+    blend_tolerance_mm : float
+        Largest distance between a piece's first (last) point and the other piece's
+        extrapolation for the continuity of a blend to be accepted.
+    min_track_length : int
+        Tracks with fewer measured points are removed in the clean-up (short ghost tracks).
+    max_fill_gap_fields : int
+        Largest gap (fields) inside one labelled trajectory that gap filling bridges.
+    fill_context_fields : int
+        Measured samples on each side of a gap that the filling spline is fitted to.
+    refill_predicted : bool
+        Replace the Kalman predictions of coasted fields inside a trajectory by the
+        two-sided gap fill (status ``filled``); the count of predictions per track is kept
+        in the statistics. False keeps them as ``predicted``.
+    label_tolerance_mm : float
+        Largest RMS distance (mm) of a track from its template position, after the per-field
+        rigid fit, for the track to take that label.
+    label_fields : int
+        Number of fields sampled for template matching.
+    min_label_fraction : float
+        Fraction of the marker names that must be matched for a trial to fit the marker set;
+        below it the tracks are named M1, M2, ...
+    smoothing : bool
+        Smooth final trajectories with a generalised cross-validation spline (Woltring 1986;
+        ``scipy.interpolate.make_smoothing_spline``). Off by default.
+    """
+
+    pnc: float = 0.5
+    mnc: float = 0.025
+    initial_error: float = 1.0
+    gate_m: tuple[float, float, float] = (0.6, 0.6, 0.6)
+    gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
+    coast_accel_mm_per_field2: float = 5.0
+    lag_widening: bool = True
+    initial_gate_mm: float = 60.0
+    initial_gate_factor: float = 0.6
+    min_initial_length: int = 5
+    max_coasted_fields: int = 5
+    min_reacquired_fields: int = 5
+    blend_gap_fields: int = 5
+    blend_tolerance_mm: float = 20.0
+    min_track_length: int = 10
+    max_fill_gap_fields: int = 25
+    fill_context_fields: int = 6
+    refill_predicted: bool = True
+    label_tolerance_mm: float = 120.0
+    label_fields: int = 40
+    min_label_fraction: float = 0.5
+    smoothing: bool = False
+
+    def __post_init__(self) -> None:
+        for name in (
+            "pnc",
+            "mnc",
+            "initial_error",
+            "initial_gate_mm",
+            "initial_gate_factor",
+            "blend_tolerance_mm",
+            "label_tolerance_mm",
+        ):
+            value = getattr(self, name)
+            if not value > 0:
+                raise KisscalError(f"tracking: {name} must be > 0, got {value}")
+        for name in ("gate_m", "gate_k_mm_per_field"):
+            value = tuple(getattr(self, name))
+            if len(value) != 3 or min(value) <= 0:
+                raise KisscalError(f"tracking: {name} needs 3 positive numbers, got {value}")
+            object.__setattr__(self, name, tuple(float(v) for v in value))
+        for name in (
+            "min_initial_length",
+            "max_coasted_fields",
+            "blend_gap_fields",
+            "min_track_length",
+            "max_fill_gap_fields",
+            "fill_context_fields",
+            "label_fields",
+        ):
+            value = getattr(self, name)
+            if int(value) != value or value < 0:
+                raise KisscalError(f"tracking: {name} must be a whole number >= 0, got {value}")
+        if self.min_initial_length < 2:
+            raise KisscalError("tracking: min_initial_length must be >= 2")
+        if not 0 <= self.min_label_fraction <= 1:
+            raise KisscalError("tracking: min_label_fraction must be in [0, 1]")
+
+    def with_(self, **changes: object) -> TrackingParams:
+        """Return a copy with some fields changed (unknown names raise KisscalError)."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise KisscalError(f"tracking: unknown parameter(s) {', '.join(unknown)}")
+        return replace(self, **changes)

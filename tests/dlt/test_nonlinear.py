@@ -1,0 +1,111 @@
+"""MDLT (Hatze's constraint) and refinement in pixels, with and without lens terms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.dlt import (
+    DltParams,
+    calibrate_camera,
+    compose_dlt,
+    correct_lens,
+    hatze_violation,
+    project,
+    solve_mdlt,
+)
+from kisscal.dlt.linear import solve_dlt
+from kisscal.dlt.nonlinear import lens_offsets
+from kisscal.errors import KisscalError
+from tests.dlt.conftest import rod_xyz
+
+K = np.array([[720.0, 0, 376], [0, 374.4, 145], [0, 0, 1]])
+LEVEL_ALONG_Y = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+LEVEL_ALONG_MINUS_Y = np.array([[-1.0, 0, 0], [0, 0, -1], [0, -1, 0]])
+
+
+def _kolahi_l1_coefficient(L):
+    """Coefficient of L1 in eq. 10 of Kolahi et al.: zero means L1 cannot be eliminated."""
+    b, c = L[4:7], L[8:11]
+    return L[8] * (b @ c) - L[4] * (c @ c)
+
+
+@pytest.mark.parametrize(
+    ("R", "centre"),
+    [(LEVEL_ALONG_Y, [1200.0, -3500, 1000]), (LEVEL_ALONG_MINUS_Y, [1200.0, 4900, 1000])],
+)
+def test_mdlt_level_camera_looking_along_y(rig, R, centre):
+    L_true = compose_dlt(K, R, centre)
+    # This is the pose where eliminating L1 (Kolahi's step 2) divides by zero.
+    assert abs(_kolahi_l1_coefficient(L_true)) < 1e-15 * np.abs(L_true).max() ** 3
+    xyz = rod_xyz(rig)
+    rng = np.random.default_rng(7)
+    uv = project(L_true, xyz) + rng.normal(0, 0.05, (len(xyz), 2))
+    result = calibrate_camera(xyz, uv, DltParams(mdlt=True), camera="level")
+    assert abs(result.constraint_linear) > 1e-6  # the noisy linear DLT violates it
+    assert abs(result.constraint) < 1e-9
+    assert result.method == "mdlt"
+    assert result.rms_px < 0.08
+    assert np.linalg.norm(result.centre_mm - centre) < 10
+    np.testing.assert_allclose(result.R, R, atol=2e-3)
+
+
+def test_mdlt_on_exact_data_is_the_true_camera(rig):
+    xyz = rod_xyz(rig)
+    for L_true in rig.L:
+        L, _ = solve_mdlt(xyz, project(L_true, xyz))
+        assert np.abs(project(L, xyz) - project(L_true, xyz)).max() < 1e-6
+        assert abs(hatze_violation(L)) < 1e-12
+
+
+def test_refinement_never_increases_the_pixel_error(rig):
+    xyz = rod_xyz(rig)
+    rng = np.random.default_rng(11)
+    for L_true in rig.L:
+        uv = project(L_true, xyz) + rng.normal(0, 0.3, (len(xyz), 2))
+        linear = calibrate_camera(xyz, uv)
+        refined = calibrate_camera(xyz, uv, DltParams(refine=True))
+        both = calibrate_camera(xyz, uv, DltParams(mdlt=True, refine=True))
+        assert refined.method == both.method == "refined"
+        assert refined.rms_px <= linear.rms_px + 1e-12
+        assert abs(both.constraint) < 1e-9
+        assert refined.rms_px <= both.rms_px + 1e-12  # fewer constraints, smaller error
+
+
+def _distort(L, lens, uv_ideal):
+    """Observed pixels whose Kolahi correction gives ``uv_ideal`` (fixed-point inverse)."""
+    from kisscal.dlt.camera import principal_point_px
+
+    uv = uv_ideal.copy()
+    for _ in range(30):
+        uv = uv_ideal - lens_offsets(uv, principal_point_px(L), lens)
+    return uv
+
+
+def test_lens_terms_are_recovered(rig):
+    rng = np.random.default_rng(5)
+    xyz = rng.uniform([0, 0, 0], [2400, 1400, 2000], (80, 3))
+    L_true = rig.L[2]
+    lens_true = np.array([-4e-7, 1e-12, 0.0, 2e-5, -1e-5])
+    uv = _distort(L_true, lens_true, project(L_true, xyz)) + rng.normal(0, 0.05, (80, 2))
+    assert np.abs(correct_lens(L_true, lens_true, uv) - project(L_true, xyz)).max() < 0.3
+    plain = calibrate_camera(xyz, uv, DltParams(refine=True))
+    lens = calibrate_camera(xyz, uv, DltParams(lens=True))
+    assert plain.rms_px > 0.5
+    assert lens.rms_px < 0.08
+    assert lens.lens is not None and lens.lens[0] == pytest.approx(-4e-7, rel=0.05)
+
+
+def test_lens_needs_eleven_points(rig):
+    xyz = rod_xyz(rig)[[0, 2, 4, 6, 8, 10, 12, 14, 16, 18]]
+    with pytest.raises(KisscalError, match="16-parameter DLT needs at least 11"):
+        calibrate_camera(xyz, project(rig.L[0], xyz), DltParams(lens=True), camera="c")
+
+
+def test_linear_is_the_start_of_mdlt(rig):
+    xyz = rod_xyz(rig)
+    uv = project(rig.L[0], xyz)
+    L0 = solve_dlt(xyz, uv)
+    L, n_eval = solve_mdlt(xyz, uv, L0=L0)
+    assert n_eval >= 1
+    np.testing.assert_allclose(project(L, xyz), uv, atol=1e-6)

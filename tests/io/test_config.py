@@ -1,0 +1,88 @@
+"""session.toml validation: every error names the file, the key and what was expected."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from kisscal.errors import KisscalError
+from kisscal.io.config import load_session, load_toml
+from kisscal.io.frames import read_image, trial_frames
+
+
+def edited(small_session: Path, tmp_path: Path, edit) -> Path:
+    root = tmp_path / "s"
+    root.mkdir()
+    data = load_toml(small_session / "session.toml")
+    edit(data)
+    (root / "session.toml").write_text(tomli_w.dumps(data))
+    return root
+
+
+def test_synthetic_session_loads(small_session: Path) -> None:
+    config = load_session(small_session)
+    assert config.camera_ids == tuple(f"cam{i}" for i in range(1, 7))
+    assert config.grid is not None and (config.grid.rows, config.grid.cols) == (15, 20)
+    assert [r.points_mm.shape for r in config.rods.rods] == [(6, 3)] * 4
+    assert config.trial("walk01").source == "images"
+
+
+def test_unknown_key_suggests_the_right_one(small_session: Path, tmp_path: Path) -> None:
+    root = edited(small_session, tmp_path, lambda d: d["session"].update(rate_hzz=50))
+    with pytest.raises(
+        KisscalError, match=r"session.toml: unknown key session.'rate_hzz'.*'rate_hz'"
+    ):
+        load_session(root)
+
+
+def test_missing_key_is_named(small_session: Path, tmp_path: Path) -> None:
+    root = edited(small_session, tmp_path, lambda d: d["session"].pop("rate_hz"))
+    with pytest.raises(KisscalError, match=r"missing key session.'rate_hz'"):
+        load_session(root)
+
+
+def test_coplanar_rods_are_refused(small_session: Path, tmp_path: Path) -> None:
+    def flatten(d: dict) -> None:
+        for rod in d["rods"]["rod"]:
+            for p in rod["points_mm"]:
+                p[1] = 0.0  # every rod in the plane y = 0
+
+    with pytest.raises(KisscalError, match="coplanar"):
+        load_session(edited(small_session, tmp_path, flatten))
+
+
+def test_too_few_rod_points(small_session: Path, tmp_path: Path) -> None:
+    def shrink(d: dict) -> None:
+        d["rods"]["rod"] = d["rods"]["rod"][:1]
+        d["rods"]["rod"][0]["points_mm"] = d["rods"]["rod"][0]["points_mm"][:5]
+
+    with pytest.raises(KisscalError, match="at least 6"):
+        load_session(edited(small_session, tmp_path, shrink))
+
+
+def test_unknown_trial_is_named(small_session: Path) -> None:
+    with pytest.raises(KisscalError, match=r"no trial named 'walk1'.*did you mean 'walk01'"):
+        load_session(small_session).trial("walk1")
+
+
+def test_unequal_frame_counts(small_session: Path, tmp_path: Path) -> None:
+    root = tmp_path / "copy"
+    shutil.copytree(small_session / "trials" / "throw", root / "trials" / "throw")
+    next(iter(sorted((root / "trials" / "throw" / "cam2").glob("*.png")))).unlink()
+    with pytest.raises(KisscalError, match=r"different numbers of frames.*cam2: 45"):
+        trial_frames(root, "trials/throw/{camera}/*.png", ["cam1", "cam2"], "throw")
+
+
+def test_corrupt_png_is_named(tmp_path: Path) -> None:
+    bad = tmp_path / "000001.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n" + b"garbage" * 10)
+    with pytest.raises(KisscalError, match=r"000001.png: not a readable image"):
+        read_image(bad)
+
+
+def test_missing_camera_folder(small_session: Path) -> None:
+    with pytest.raises(KisscalError, match="no trial 'walk01' images for camera cam9"):
+        trial_frames(small_session, "trials/walk01/{camera}/*.png", ["cam1", "cam9"], "walk01")

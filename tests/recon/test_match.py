@@ -1,0 +1,103 @@
+"""Matching: correct correspondences, one marker per blob, overlaps, the two-camera option."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.dlt.model import project
+from kisscal.errors import KisscalError
+from kisscal.recon.epipolar import camera_centre_mm
+from kisscal.recon.match import match_field, match_trial
+from kisscal.recon.params import ReconParams
+
+from .rig import make_rig, make_table, random_markers
+
+STRATEGIES = ["triple", "central"]
+
+
+def _truth_consistency(marker: np.ndarray, truth: np.ndarray, camera: np.ndarray) -> None:
+    """Every marker holds blobs of one true marker, at most one per camera."""
+    for m in np.unique(marker[marker >= 0]):
+        rows = marker == m
+        assert len(set(truth[rows])) == 1, "a marker mixes blobs of different true markers"
+        assert len(set(camera[rows])) == rows.sum(), "a marker holds two blobs of one camera"
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_match_field_finds_the_true_correspondences(strategy: str) -> None:
+    rng = np.random.default_rng(5)
+    dlts = make_rig(5)
+    xyz = random_markers(rng, 1, 15)[0]
+    perms = [rng.permutation(15) for _ in range(6)]
+    points = [project(dlts[c], xyz[perms[c]]) + rng.normal(0, 0.05, (15, 2)) for c in range(6)]
+    matches = match_field(points, dlts, ReconParams(strategy=strategy))
+    assert len(matches) == 15
+    for m in matches:
+        assert len(m) == 6
+        true_ids = {int(perms[c][b]) for c, b in m.items()}
+        assert len(true_ids) == 1
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_ghost_blobs_do_not_make_markers_and_blobs_are_used_once(strategy: str) -> None:
+    rng = np.random.default_rng(6)
+    dlts = make_rig(6)
+    xyz = random_markers(rng, 40, 15)
+    field, camera, uv, truth, visible = make_table(rng, dlts, xyz, n_noise=3)
+    marker = match_trial(field, camera, uv, dlts, ReconParams(strategy=strategy))
+    assert not np.any((marker >= 0) & (truth < 0)), "a noise blob ended in a marker"
+    _truth_consistency(marker, truth, camera)
+    seen3 = visible.sum(axis=2) >= 3
+    n_found = sum(len(np.unique(truth[(field == f) & (marker >= 0)])) for f in range(len(xyz)))
+    assert n_found >= 0.995 * seen3.sum()
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_an_overlap_blob_serves_one_marker_and_both_markers_survive(strategy: str) -> None:
+    rng = np.random.default_rng(7)
+    dlts = make_rig(7)
+    a = np.array([100.0, 50.0, 900.0])
+    ray = a - camera_centre_mm(dlts[0])
+    b = a + 60.0 * ray / np.linalg.norm(ray)  # same image place in camera 0: one merged blob
+    others = random_markers(rng, 1, 8)[0]
+    xyz = np.vstack([a, b, others])
+    points, ids = [], []
+    for c in range(6):
+        keep = np.arange(len(xyz)) if c else np.delete(np.arange(len(xyz)), 1)
+        points.append(project(dlts[c], xyz[keep]) + rng.normal(0, 0.05, (len(keep), 2)))
+        ids.append(keep)
+    matches = match_field(points, dlts, ReconParams(strategy=strategy))
+    by_true = {}
+    for m in matches:
+        # the merged blob (camera 0, blob 0) is an image of both a and b
+        true_ids = {int(ids[c][k]) for c, k in m.items() if (c, k) != (0, 0)}
+        assert len(true_ids) == 1
+        by_true[true_ids.pop()] = m
+    assert set(by_true) == set(range(len(xyz)))
+    assert (by_true[0].get(0) == 0) != (by_true[1].get(0) == 0), "merged blob used once"
+    assert all(len(m) >= 5 for m in matches)
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_two_camera_markers_only_when_allowed(strategy: str) -> None:
+    rng = np.random.default_rng(8)
+    dlts = make_rig(8)
+    xyz = random_markers(rng, 1, 4)[0]
+    points = []
+    for c in range(6):
+        # marker 0 only in cameras 0 and 3
+        keep = np.arange(4) if c in (0, 3) else np.arange(1, 4)
+        points.append(project(dlts[c], xyz[keep]))
+    off = match_field(points, dlts, ReconParams(strategy=strategy))
+    on = match_field(points, dlts, ReconParams(strategy=strategy, allow_two_camera=True))
+    assert len(off) == 3 and all(len(m) == 6 for m in off)
+    assert len(on) == 4 and sorted(len(m) for m in on) == [2, 6, 6, 6]
+
+
+def test_bad_tables_raise() -> None:
+    dlts = make_rig(0)
+    with pytest.raises(KisscalError):
+        match_trial([0], [7], [[1.0, 2.0]], dlts)
+    with pytest.raises(KisscalError):
+        match_field([np.zeros((1, 2))], dlts)

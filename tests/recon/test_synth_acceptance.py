@@ -1,0 +1,68 @@
+"""The issue's acceptance numbers on the synthetic KISS-like rig (needs ``kisscal.synth``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.recon import ReconParams
+
+pytest.importorskip("kisscal.synth.cameras")
+
+from .scenario import score
+from .synth_trials import (
+    G_M_S2,
+    make_trial,
+    reconstruct,
+    stick_errors_mm,
+    thrown_g_m_s2,
+)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_gait_trial_recall_ghosts_and_rmse(seed: int) -> None:
+    trial = make_trial("walk", seed, n_fields=120)
+    pts = reconstruct(trial, ReconParams())
+    s = score(pts, trial.xyz, trial.visible)
+    assert s.recall >= 0.995, s
+    assert s.ghost_fraction <= 0.005, s
+    assert s.rmse_mm <= 1.0, s
+    # every blob ended in at most one point, and no stationary LED survived as a point
+    rows = pts.blob_row[pts.blob_row >= 0]
+    assert len(rows) == len(np.unique(rows))
+    assert not np.any(pts.marker[pts.stationary] >= 0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [3])
+@pytest.mark.parametrize("strategy", ["triple", "central"])
+def test_both_strategies_meet_the_bars(seed: int, strategy: str) -> None:
+    trial = make_trial("walk", seed, n_fields=100)
+    s = score(reconstruct(trial, ReconParams(strategy=strategy)), trial.xyz, trial.visible)
+    assert s.recall >= 0.995 and s.ghost_fraction <= 0.005 and s.rmse_mm <= 1.0, s
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_stick_length_beats_the_seed(seed: int) -> None:
+    trial = make_trial("stick", seed)
+    e = stick_errors_mm(reconstruct(trial, ReconParams()), trial)
+    assert len(e) >= 0.99 * len(trial.xyz)
+    assert np.mean(np.abs(e)) < 1.1  # seed 003, 5.1: 1.1 mm mean absolute error
+    assert np.std(e) < 1.5  # and 1.5 mm standard deviation
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_thrown_marker_gives_gravity(seed: int) -> None:
+    trial = make_trial("throw", seed)
+    g = thrown_g_m_s2(reconstruct(trial, ReconParams()), trial)
+    assert abs(g - G_M_S2) / G_M_S2 < 0.005  # seed 003: 9.724, 0.8 % off
+
+
+def test_leds_sit_on_epipoles_so_the_stationary_filter_is_needed() -> None:
+    # a camera's LED seen by another camera is that pair's epipole: every epipolar line of
+    # the first camera passes through it, so unfiltered LEDs make consistent ghost triples
+    trial = make_trial("walk", 5, n_fields=60, noise_blobs=0)
+    on = score(reconstruct(trial, ReconParams()), trial.xyz, trial.visible)
+    off = score(reconstruct(trial, ReconParams(stationary_filter=False)), trial.xyz, trial.visible)
+    assert on.n_ghosts == 0
+    assert off.n_ghosts > 0.01 * off.n_points

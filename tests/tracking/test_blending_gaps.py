@@ -1,0 +1,88 @@
+import numpy as np
+
+from kisscal.tracking import (
+    FILLED,
+    MEASURED,
+    TrackingParams,
+    blend_tracks,
+    clean_up,
+    fill_gaps,
+    smooth_tracks,
+)
+from kisscal.tracking.tracks import make_tracks
+
+
+def _tracks(pieces):
+    field, track, xyz = [], [], []
+    for k, (f, p) in enumerate(pieces):
+        field.append(f)
+        track.append(np.full(f.size, k))
+        xyz.append(p)
+    n = sum(f.size for f, _ in pieces)
+    return make_tracks(
+        np.concatenate(field),
+        np.concatenate(track),
+        np.concatenate(xyz),
+        np.full((n, 3), np.nan),
+        np.zeros(n),
+        np.arange(n),
+    )
+
+
+def _curve(f):
+    f = np.asarray(f, dtype=float)
+    return np.stack([15.0 * f, 100 * np.sin(f / 10), 800 + 40 * np.cos(f / 7)], axis=1)
+
+
+def test_blending_joins_pieces_two_fields_apart_and_continuous():
+    a = np.arange(0, 30)
+    b = np.arange(33, 60)  # fields 30-32 missing
+    far = np.arange(33, 60)
+    tracks = _tracks([(a, _curve(a)), (b, _curve(b)), (far, _curve(far) + np.array([0, 300, 0]))])
+    out = blend_tracks(tracks, TrackingParams(blend_gap_fields=3))
+    assert out.n_tracks == 2
+    joined = out.track[out.field == 0][0]
+    assert set(out.field[out.track == joined]) == set(a) | set(b)
+
+
+def test_blending_refuses_gaps_longer_than_allowed():
+    a = np.arange(0, 30)
+    b = np.arange(35, 60)
+    tracks = _tracks([(a, _curve(a)), (b, _curve(b))])
+    assert blend_tracks(tracks, TrackingParams(blend_gap_fields=2)).n_tracks == 2
+
+
+def test_clean_up_removes_short_tracks():
+    a = np.arange(0, 30)
+    g = np.arange(5, 9)
+    tracks = _tracks([(a, _curve(a)), (g, _curve(g) + 500)])
+    out = clean_up(tracks, TrackingParams(min_track_length=10))
+    assert out.n_tracks == 1 and out.field.size == 30
+
+
+def test_fill_gaps_is_accurate_on_smooth_motion_and_marks_filled():
+    f = np.r_[np.arange(0, 40), np.arange(48, 80)]
+    tracks = _tracks([(f, _curve(f))])
+    out = fill_gaps(tracks, TrackingParams())
+    filled = out.status == FILLED
+    assert out.field[filled].tolist() == list(range(40, 48))
+    err = np.linalg.norm(out.xyz_mm[filled] - _curve(out.field[filled]), axis=1)
+    assert err.max() < 2.0
+    assert (out.status == MEASURED).sum() == f.size
+
+
+def test_fill_gaps_leaves_long_gaps():
+    f = np.r_[np.arange(0, 40), np.arange(80, 120)]
+    out = fill_gaps(_tracks([(f, _curve(f))]), TrackingParams(max_fill_gap_fields=25))
+    assert not (out.status == FILLED).any()
+
+
+def test_gcv_smoothing_reduces_noise_error():
+    rng = np.random.default_rng(0)
+    f = np.arange(200)
+    truth = _curve(f)
+    tracks = _tracks([(f, truth + rng.normal(0, 1.0, truth.shape))])
+    smooth = smooth_tracks(tracks)
+    before = np.sqrt(np.mean(np.sum((tracks.xyz_mm - truth) ** 2, axis=1)))
+    after = np.sqrt(np.mean(np.sum((smooth.xyz_mm - truth) ** 2, axis=1)))
+    assert after < 0.7 * before

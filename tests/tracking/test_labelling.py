@@ -1,0 +1,90 @@
+import numpy as np
+import pytest
+
+from kisscal.errors import KisscalError
+from kisscal.tracking import TrackingParams, build_trajectories, label_tracks
+from kisscal.tracking.labelling import classical_mds, kabsch
+from tests.tracking._data import NAMES, gait_truth, observe, template
+from tests.tracking._eval import score
+
+
+def _rotation(axis, deg):
+    a = np.deg2rad(deg)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [k for k in range(3) if k != axis]
+    r = np.eye(3)
+    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+    return r
+
+
+def test_kabsch_recovers_a_proper_rotation():
+    rng = np.random.default_rng(0)
+    pts = rng.normal(0, 100, (10, 3))
+    r = _rotation(2, 40) @ _rotation(0, 75)
+    moved = pts @ r.T + [5, -7, 300]
+    r_est, t_est = kabsch(pts, moved)
+    np.testing.assert_allclose(r_est, r, atol=1e-9)
+    np.testing.assert_allclose(t_est, [5, -7, 300], atol=1e-7)
+
+
+def test_classical_mds_reproduces_distances():
+    pts = np.random.default_rng(1).normal(0, 50, (8, 3))
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    e = classical_mds(d)
+    np.testing.assert_allclose(np.linalg.norm(e[:, None] - e[None], axis=2), d, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("seed", "heading_deg", "template_rotation"),
+    [
+        (0, 0.0, np.eye(3)),
+        (1, 180.0, _rotation(2, 123.0)),  # walks the other way; template turned
+        (2, 63.0, _rotation(0, 90.0)),  # template in a Y-up frame
+        (3, -110.0, _rotation(1, 35.0) @ _rotation(2, -70.0)),
+    ],
+)
+def test_labels_do_not_depend_on_where_subject_stands_or_faces(
+    seed, heading_deg, template_rotation
+):
+    truth = gait_truth(300, seed)
+    turn = _rotation(2, heading_deg)
+    truth = truth @ turn.T + [400.0, -900.0, 0.0]
+    field, xyz, _, visible = observe(truth, seed, volume_x=None, ghosts_per_field=1.0)
+    tmpl = template() @ template_rotation.T + [2000.0, 50.0, -300.0]
+    result = build_trajectories(field, xyz, TrackingParams(), NAMES, tmpl)
+    s = score(result, truth, visible, NAMES)
+    assert result.labelling.fits_marker_set
+    assert s.one_per_marker
+    assert s.labels_correct == len(NAMES)
+
+
+def test_stick_or_ball_gets_generic_names():
+    f = np.arange(100.0)[:, None]
+    a = np.hstack([10 * f, 0 * f, 1000 + 0 * f])
+    b = a + np.array([0, 502.5, 0])
+    field = np.r_[np.arange(100), np.arange(100)]
+    xyz = np.r_[a, b]
+    result = build_trajectories(field, xyz, TrackingParams(), NAMES, template())
+    assert not result.labelling.fits_marker_set
+    assert result.labels == ("M1", "M2")
+
+
+def test_track_outside_the_marker_set_is_reported_not_dropped():
+    truth = gait_truth(300, 4)
+    extra = truth[0] + [0.0, 0.0, 450.0]  # a marker high on the back, not in the set
+    field, xyz, _, visible = observe(np.concatenate([truth, extra[None]]), 4, volume_x=None)
+    result = build_trajectories(field, xyz, TrackingParams(), NAMES, template())
+    assert result.tracks.n_tracks == 16
+    assert len(result.labelling.unlabelled) == 1
+    t = result.labelling.unlabelled[0]
+    assert result.labels[t].startswith("M")
+    s = score(result, np.concatenate([truth, extra[None]]), visible, (*NAMES, "EXTRA"))
+    assert s.labels_correct == 15
+
+
+def test_template_shape_is_checked():
+    truth = gait_truth(100, 0)
+    field, xyz, _, _ = observe(truth, 0, volume_x=None)
+    tracks = build_trajectories(field, xyz).tracks
+    with pytest.raises(KisscalError):
+        label_tracks(tracks, NAMES, TrackingParams(), template()[:5])

@@ -1,0 +1,66 @@
+import numpy as np
+import pytest
+
+from kisscal.tracking.predictors import (
+    extrapolate,
+    extrapolation_weights,
+    gate_half_width,
+    kalman_correct,
+    kalman_predict,
+)
+
+
+def test_two_point_rule_is_thesis_eq_3_11():
+    np.testing.assert_allclose(extrapolation_weights(2, 1), [-1.0, 2.0], atol=1e-12)
+
+
+def test_three_point_least_squares_line():
+    # LSQ line through x1, x2, x3 at t = -2, -1, 0, evaluated at t = 1.
+    np.testing.assert_allclose(extrapolation_weights(3, 1), [-2 / 3, 1 / 3, 4 / 3], atol=1e-12)
+
+
+@pytest.mark.parametrize("ahead", [1, 2, 3])
+def test_five_point_parabola_is_exact_on_parabolas(ahead):
+    t = np.arange(5.0)
+    x = 3.0 - 2.0 * t + 0.7 * t**2
+    tn = 4.0 + ahead
+    assert extrapolation_weights(5, 2, ahead) @ x == pytest.approx(3 - 2 * tn + 0.7 * tn**2)
+
+
+def test_extrapolate_uses_shafiq_rule_per_track_length():
+    t = np.arange(5.0)
+    quad = np.stack([t**2, 0 * t, 0 * t], axis=1)
+    history = np.stack([quad, quad, quad, quad])
+    pred = extrapolate(history, np.array([1, 2, 3, 5]))
+    assert pred[0, 0] == pytest.approx(16.0)  # one point: stays
+    assert pred[1, 0] == pytest.approx(16 + 7)  # two points: linear
+    assert pred[2, 0] == pytest.approx(np.polyval(np.polyfit([2, 3, 4], [4, 9, 16], 1), 5))
+    assert pred[3, 0] == pytest.approx(25.0)  # parabola is exact
+
+
+def test_gate_follows_thesis_eq_3_16():
+    v = np.array([[1.0, -30.0, 50.0]])
+    g = gate_half_width(v, np.array([2.0, 2.0, 2.0]), np.array([10.0, 10.0, 10.0]))
+    np.testing.assert_allclose(g, [[20.0, 60.0, 100.0]])
+
+
+def test_kalman_matches_a_plain_matrix_implementation():
+    rng = np.random.default_rng(3)
+    a = np.array([[1.0, 1.0], [0.0, 1.0]])
+    h = np.array([[1.0, 0.0]])
+    q, r = 0.05 * np.eye(2), 0.1
+    x = np.array([[0.0, 2.0], [5.0, -1.0], [1.0, 0.5]])  # three axes, (pos, vel)
+    p = np.eye(2)
+    state = x[None].copy()
+    cov = p[None].copy()
+    for _ in range(20):
+        z = rng.normal(0, 3, 3)
+        xs = x @ a.T
+        ps = a @ p @ a.T + q
+        k = ps @ h.T / (h @ ps @ h.T + r)
+        x = xs + (z[:, None] - xs[:, :1]) * k.T
+        p = (np.eye(2) - k @ h) @ ps
+        state, cov = kalman_predict(state, cov, 0.05)
+        state, cov = kalman_correct(state, cov, z[None], 0.1)
+        np.testing.assert_allclose(state[0], x, atol=1e-10)
+        np.testing.assert_allclose(cov[0], p, atol=1e-12)

@@ -1,0 +1,127 @@
+import numpy as np
+import pytest
+
+from kisscal.errors import KisscalError
+from kisscal.tracking import MEASURED, PREDICTED, TrackingParams, associate, track_points
+from kisscal.tracking.tracker import lookahead_cost, split_short_reacquisitions
+
+
+def _cloud(paths, seed=0, noise_mm=1.0, missing=()):
+    """Points of several (n_fields, 3) paths; ``missing`` = (path, field) pairs left out."""
+    rng = np.random.default_rng(seed)
+    field, xyz, who = [], [], []
+    for k, path in enumerate(paths):
+        for f in range(path.shape[0]):
+            if (k, f) in missing:
+                continue
+            field.append(f)
+            xyz.append(path[f] + rng.normal(0, noise_mm, 3))
+            who.append(k)
+    return np.array(field), np.array(xyz), np.array(who)
+
+
+def _identities(tracks, who):
+    """Set of true paths seen in each track's measured samples."""
+    out = []
+    for t in range(tracks.n_tracks):
+        rows = (tracks.track == t) & (tracks.status == MEASURED)
+        out.append(set(who[tracks.point[rows]].tolist()))
+    return out
+
+
+def test_associate_is_one_to_one_and_globally_best():
+    # Greedy nearest-first would give point 0 to track 0 and leave track 1 without a point.
+    predicted = np.array([[0.0, 0, 0], [8.0, 0, 0]])
+    half = np.full((2, 3), 10.0)
+    points = np.array([[5.0, 0, 0], [-4.0, 0, 0]])
+    rows, cols = associate(predicted, half, points)
+    assert sorted(zip(rows.tolist(), cols.tolist(), strict=True)) == [(0, 1), (1, 0)]
+
+
+def test_associate_respects_box_gate_per_axis():
+    rows, _ = associate(np.zeros((1, 3)), np.array([[10.0, 10.0, 2.0]]), np.array([[0, 0, 3.0]]))
+    assert rows.size == 0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("gap_mm", [25.0, 12.0])
+def test_crossing_markers_within_30_mm_keep_identities(seed, gap_mm):
+    f = np.arange(120.0)[:, None]
+    # A fast marker crosses the path of a slow one gap_mm above it, at different speeds.
+    a = np.hstack([-700 + 12.0 * f, 0 * f, 1000 + 0 * f])
+    b = np.hstack([0 * f, -420 + 7.0 * f, 1000 - gap_mm + 0 * f])
+    # And a marker overtakes another at gap_mm lateral distance.
+    c = np.hstack([-300 + 9.0 * f, 500 + 0 * f, 600 + 0 * f])
+    d = np.hstack([-50 + 5.0 * f, 500 + gap_mm + 0 * f, 600 + 0 * f])
+    closest = min(np.linalg.norm(a - b, axis=1).min(), np.linalg.norm(c - d, axis=1).min())
+    assert closest < 30.0
+    field, xyz, who = _cloud([a, b, c, d], seed=seed)
+    tracks = track_points(field, xyz, TrackingParams())
+    ids = _identities(tracks, who)
+    assert all(len(s) == 1 for s in ids)
+    long = [s for t, s in enumerate(ids) if (tracks.track == t).sum() > 100]
+    assert sorted(next(iter(s)) for s in long) == [0, 1, 2, 3]
+
+
+def test_coasting_bridges_dropouts_with_predictions():
+    f = np.arange(80.0)[:, None]
+    path = np.hstack([10.0 * f, 200 + 30 * np.sin(f / 8), 900 + 0 * f])
+    missing = {(0, 40), (0, 41), (0, 42)}
+    field, xyz, _ = _cloud([path], missing=missing)
+    tracks = track_points(field, xyz, TrackingParams())
+    assert tracks.n_tracks == 1
+    pred = tracks.field[tracks.status == PREDICTED]
+    assert pred.tolist() == [40, 41, 42]
+    err = np.linalg.norm(tracks.xyz_mm[tracks.status == PREDICTED] - path[40:43], axis=1)
+    assert err.max() < 10.0
+
+
+def test_track_ends_after_max_coasted_fields():
+    f = np.arange(60.0)[:, None]
+    path = np.hstack([8.0 * f, 0 * f, 0 * f])
+    missing = {(0, k) for k in range(25, 35)}
+    params = TrackingParams(max_coasted_fields=3)
+    field, xyz, _ = _cloud([path], missing=missing)
+    tracks = track_points(field, xyz, params)
+    assert tracks.n_tracks == 2
+    # Trailing predictions of the ended track are dropped.
+    first = tracks.field[tracks.track == 0]
+    assert first.max() == 24
+
+
+def test_lookahead_prefers_the_continuation_that_continues():
+    start = np.array([[0.0, 0, 0]])
+    cands = np.array([[10.0, 0, 0], [3.0, 0, 0]])
+    later = np.array([[20.0, 0, 0]])
+    cost = lookahead_cost(start, cands, later, 10.0)
+    assert cost[0, 0] < cost[0, 1]
+
+
+def test_short_reacquisition_after_coasting_is_split_off():
+    f = np.arange(50.0)[:, None]
+    path = np.hstack([5.0 * f, 0 * f, 0 * f])
+    field, xyz, _ = _cloud([path], missing={(0, k) for k in range(30, 50)})
+    ghost_field = np.array([33])
+    ghost = np.array([[5.0 * 33 + 8, 4.0, 0]])
+    field = np.r_[field, ghost_field]
+    xyz = np.r_[xyz, ghost]
+    tracks = track_points(field, xyz, TrackingParams())
+    # The ghost caught while coasting becomes a piece of its own; the track ends at 29.
+    assert tracks.n_tracks == 2
+    assert tracks.field[tracks.track == 0].max() == 29
+    assert tracks.field[tracks.track == 1].tolist() == [33]
+    again = split_short_reacquisitions(tracks, 3)
+    assert again.field.size == tracks.field.size
+
+
+@pytest.mark.parametrize(
+    ("field", "xyz"),
+    [
+        (np.array([0, 1]), np.zeros((3, 3))),
+        (np.array([0, -1]), np.zeros((2, 3))),
+        (np.array([0, 1]), np.array([[0, 0, np.nan], [0, 0, 0]])),
+    ],
+)
+def test_bad_points_raise(field, xyz):
+    with pytest.raises(KisscalError):
+        track_points(field, xyz, TrackingParams())
