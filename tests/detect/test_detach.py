@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import render
 
 from kisscal.detect import DetectionParams, detect_blobs
 from kisscal.detect import blobs as fl
+from tests.detect.conftest import render
 
 
 def _scene(gap_px: float) -> tuple[np.ndarray, np.ndarray]:
