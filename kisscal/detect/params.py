@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
+
 from kisscal.errors import KisscalError
 
 
@@ -155,6 +157,29 @@ class DetectionParams:
     background: float | None = None
 
     def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            kind = str(f.type)
+            if kind == "bool":
+                ok = isinstance(value, bool | np.bool_)
+            elif kind == "int":
+                ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
+            elif kind.startswith("float"):
+                ok = (value is None and "None" in kind) or (
+                    isinstance(value, int | float | np.integer | np.floating)
+                    and not isinstance(value, bool)
+                )
+            else:  # the opening kernel: two odd positive integers
+                ok = (
+                    isinstance(value, tuple)
+                    and len(value) == 2
+                    and all(isinstance(v, int) and v > 0 and v % 2 == 1 for v in value)
+                )
+            if not ok:
+                raise KisscalError(
+                    f"detection: {f.name} must be {kind.replace('tuple[int, int]', 'two odd ints')}"
+                    f", got {value!r}"
+                )
         positive = ("closeness_rows", "pixel_aspect", "max_pixels", "max_width_px")
         for name in (*positive, "max_height_px", "submarker_max_rows"):
             if not getattr(self, name) > 0:
