@@ -221,7 +221,8 @@ def overlap_split(
 
     Small spots overlapping diagonally rarely meet equation (6) (rows are too few for the
     mid-point shift), so with ``core`` moments ``(x, y, var_x, var_y, cov_xy)`` of each
-    group's white pixels a group also counts as an overlapped pair when its major axis is
+    group's white pixels (corrected for spot growth, :mod:`kisscal.detect.shape`) a group
+    also counts as an overlapped pair when its major axis is
     at least ``overlap_angle_deg`` away from both image axes (round units) and its
     elongation reaches ``overlap_min_elongation``. Two equal spots ``D`` apart add
     ``D^2 / 4`` to the major variance, so their centres are the centroid
@@ -247,7 +248,7 @@ def overlap_split(
     by_moments = np.zeros(len(table), dtype=bool)
     if core is not None:
         mx, my, vx, vy, cxy = core
-        major, minor, ux, uy = principal_axes(vx, vy, cxy, 1.0 / 12.0, params.pixel_aspect)
+        major, minor, ux, uy = principal_axes(vx, vy, cxy, 0.0, params.pixel_aspect)
         angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
         diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
         by_moments = (

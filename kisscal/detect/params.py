@@ -82,6 +82,13 @@ class DetectionParams:
     long_wide_min_pixels : int
         Groups with fewer white pixels are not tested for overlap, long or wide: their
         shape is a handful of pixels and says nothing about how many markers they hold.
+    growth_px : float
+        Spread (standard deviation, pixels) that blur, blooming and thresholding add to
+        every spot in x and y alike; removed from the spot moments before the shape tests
+        (:mod:`kisscal.detect.shape`). Estimated per image from its marker-sized groups;
+        this value is used when an image has fewer than ``growth_min_groups`` of them.
+    growth_min_groups : int
+        Least number of marker-sized groups for the per-image growth estimate.
     edge_growth_px : float
         How much wider and taller (pixels) the thresholded image of a marker is than its
         outline: blur and blooming add about the same in both directions, independent of
@@ -138,9 +145,11 @@ class DetectionParams:
     overlap_min_elongation: float = 1.3
     overlap_angle_deg: float = 20.0
     split_long_wide: bool = True
-    min_ratio: float = 0.88
-    max_ratio: float = 1.45
+    min_ratio: float = 0.78
+    max_ratio: float = 1.3
     long_wide_min_pixels: int = 16
+    growth_px: float = 0.35
+    growth_min_groups: int = 5
     edge_growth_px: float = 1.0
     pixel_aspect: float = 1.94
     detach_from_large: bool = True
@@ -190,6 +199,8 @@ class DetectionParams:
             "overlap_shift_px",
             "overlap_angle_deg",
             "edge_growth_px",
+            "growth_px",
+            "growth_min_groups",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",

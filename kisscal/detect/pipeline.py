@@ -31,6 +31,7 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
+from kisscal.detect.shape import corrected_moments, estimate_growth, spreads
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -126,15 +127,27 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
 
     # Moments are recomputed only when a test actually split a group (rare).
     spot = moments()
+    growth = params.growth_px
+    if params.split_overlaps or params.split_long_wide:
+        # One growth estimate per image, from the groups before any split.
+        sx, sy = spreads(spot.core_var_x, spot.core_var_y)
+        inside = _inside(table, white.shape)
+        usable = inside & (table.pixels >= params.long_wide_min_pixels)
+        usable &= table.pixels <= params.max_pixels
+        growth = estimate_growth(
+            sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
+        )
     if params.split_overlaps:
-        core = (spot.x, spot.y, spot.core_var_x, spot.core_var_y, spot.core_cov_xy)
+        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        core = (spot.x, spot.y, vx, vy, cxy)
         split = overlap_split(grouping, table, params, core, _inside(table, white.shape))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
             spot = moments()
     if params.split_long_wide:
-        ratio = elongation(spot.core_var_x, spot.core_var_y, 1.0 / 12.0, params.pixel_aspect)
+        vx, vy, _ = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        ratio = elongation(vx, vy, 0.0, params.pixel_aspect)
         split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
         if split is not grouping:
             grouping = split
