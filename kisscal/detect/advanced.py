@@ -19,6 +19,7 @@ from kisscal.detect import blobs as fl
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs
+from kisscal.detect.shape import principal_axes
 
 
 @dataclass(frozen=True)
@@ -181,27 +182,6 @@ def split_groups(
     return Grouping(merged, flags, parent, centre_x, centre_y, radius)
 
 
-def principal_axes(
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    cov_xy: NDArray[np.float64],
-    spread_px2: float,
-    pixel_aspect: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Principal axes of spot moments in round units (x divided by ``pixel_aspect``).
-
-    Returns the major and minor variances (round units squared, pixel-area spread
-    ``spread_px2`` removed) and the major axis direction ``(ux, uy)`` in round units.
-    """
-    a = (var_x - spread_px2) / pixel_aspect**2
-    c = var_y - spread_px2
-    b = cov_xy / pixel_aspect
-    mean = (a + c) / 2
-    half = np.sqrt(((a - c) / 2) ** 2 + b * b)
-    theta = 0.5 * np.arctan2(2 * b, a - c)
-    return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
-
-
 def overlap_split(
     grouping: Grouping,
     table: GroupTable,
@@ -248,7 +228,7 @@ def overlap_split(
     by_moments = np.zeros(len(table), dtype=bool)
     if core is not None:
         mx, my, vx, vy, cxy = core
-        major, minor, ux, uy = principal_axes(vx, vy, cxy, 0.0, params.pixel_aspect)
+        major, minor, ux, uy = principal_axes(vx, vy, cxy, params.pixel_aspect)
         angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
         diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
         by_moments = (
@@ -291,26 +271,6 @@ def overlap_split(
     )
 
 
-def elongation(
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    spread_px2: float,
-    pixel_aspect: float,
-) -> NDArray[np.float64]:
-    """Height-to-width ratio of spots from their second moments, 1 for a round marker.
-
-    The spread that every spot gets whatever its size (pixel integration, ``spread_px2`` in
-    pixels squared) is removed before the ratio is taken: it would make small round
-    markers look tall in non-square pixels. Moments rather than the bounding rectangle of
-    section 2.3.3 because a marker two or three lines high has a rectangle ratio that
-    jumps with its sub-pixel position, while its moments change smoothly.
-    """
-    tiny = 1e-3
-    return pixel_aspect * np.sqrt(
-        np.maximum(var_y - spread_px2, tiny) / np.maximum(var_x - spread_px2, tiny)
-    )
-
-
 def long_wide_split(
     grouping: Grouping,
     table: GroupTable,
@@ -320,7 +280,8 @@ def long_wide_split(
 ) -> Grouping:
     """Split long and wide groups into marker-sized parts (section 2.3.3).
 
-    ``ratio`` (h / w, 1 for a round marker, see :func:`elongation`) below ``min_ratio``
+    ``ratio`` (h / w, 1 for a round marker, see :func:`kisscal.detect.shape.height_ratio`)
+    below ``min_ratio``
     makes a group wide, above ``max_ratio`` long. A wide group of width ``w`` and height
     ``h`` holds markers of diameter ``d = (h - e) * pixel_aspect + e`` columns, with ``e``
     the ``edge_growth_px`` of a thresholded spot; it is cut into ``round(w / d)`` (at

@@ -14,7 +14,6 @@ from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
     detach_from_large,
-    elongation,
     long_wide_split,
     merge_submarkers,
     overlap_split,
@@ -31,7 +30,7 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
-from kisscal.detect.shape import corrected_moments, estimate_growth, spreads
+from kisscal.detect.shape import corrected_moments, estimate_growth, height_ratio, spreads
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -147,7 +146,7 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
             spot = moments()
     if params.split_long_wide:
         vx, vy, _ = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
-        ratio = elongation(vx, vy, 0.0, params.pixel_aspect)
+        ratio = height_ratio(vx, vy, params.pixel_aspect)
         split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
         if split is not grouping:
             grouping = split
