@@ -17,6 +17,7 @@ SPLIT_LONG = 16
 TOO_LARGE = 32
 TOO_SMALL = 64
 DETACHED = 128
+SPLIT_TOUCHING = 256
 FLAG_NAMES: dict[int, str] = {
     MERGED: "merged",
     SPLIT_UL: "split_ul",
@@ -26,6 +27,7 @@ FLAG_NAMES: dict[int, str] = {
     TOO_LARGE: "too_large",
     TOO_SMALL: "too_small",
     DETACHED: "detached",
+    SPLIT_TOUCHING: "split_touching",
 }
 INVALID_FLAGS = TOO_LARGE | TOO_SMALL
 

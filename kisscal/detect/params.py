@@ -55,6 +55,14 @@ class DetectionParams:
         (margin-grown) bounding rectangle of the larger group it is merged into.
     submarker_margin_px : int
         Pixels by which the larger group's bounding rectangle is grown for that test.
+    split_touching : bool
+        Split groups whose distance transform has several peaks (touching markers, e.g.
+        three foot markers in a cluster) into one group per peak, before the overlap
+        test; not in seeds/003. Only groups whose shape or size is not that of one marker
+        are examined.
+    touching_separation : float
+        Two distance-transform peaks are two markers when they are further apart than
+        this many times the larger one's height (marker radius).
     split_overlaps : bool
         Section 2.3.2 switch (ul / ur overlapped pairs, equation 6).
     overlap_ratio_max : float
@@ -139,6 +147,8 @@ class DetectionParams:
     submarker_max_rows: int = 2
     submarker_overlap: float = 0.5
     submarker_margin_px: int = 1
+    split_touching: bool = True
+    touching_separation: float = 1.2
     split_overlaps: bool = True
     overlap_ratio_max: float = 0.6
     overlap_shift_px: float = 3.0
@@ -201,6 +211,7 @@ class DetectionParams:
             "edge_growth_px",
             "growth_px",
             "growth_min_groups",
+            "touching_separation",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",
@@ -230,9 +241,11 @@ class DetectionParams:
         return dataclasses.replace(self, **changes)
 
     def without_advanced_analysis(self) -> DetectionParams:
-        """These parameters with every section 2.3 test switched off."""
+        """These parameters with every section 2.3 test (and kisscal's additions) off."""
         return self.replace(
             merge_submarkers=False,
+            detach_from_large=False,
+            split_touching=False,
             split_overlaps=False,
             split_long_wide=False,
             apply_size_limits=False,

@@ -30,7 +30,14 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
-from kisscal.detect.shape import corrected_moments, estimate_growth, height_ratio, spreads
+from kisscal.detect.shape import (
+    corrected_moments,
+    estimate_growth,
+    height_ratio,
+    principal_axes,
+    spreads,
+)
+from kisscal.detect.touching import split_touching
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -127,7 +134,7 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     # Moments are recomputed only when a test actually split a group (rare).
     spot = moments()
     growth = params.growth_px
-    if params.split_overlaps or params.split_long_wide:
+    if params.split_overlaps or params.split_long_wide or params.split_touching:
         # One growth estimate per image, from the groups before any split.
         sx, sy = spreads(spot.core_var_x, spot.core_var_y)
         inside = _inside(table, white.shape)
@@ -136,10 +143,18 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
         growth = estimate_growth(
             sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
         )
+    if params.split_touching:
+        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
+        split = split_touching(grouping, table, params, candidates)
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
     if params.split_overlaps:
         vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
         core = (spot.x, spot.y, vx, vy, cxy)
-        split = overlap_split(grouping, table, params, core, _inside(table, white.shape))
+        split = overlap_split(grouping, table, params, core, _testable(grouping, table, white))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
@@ -147,7 +162,7 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     if params.split_long_wide:
         vx, vy, _ = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
         ratio = height_ratio(vx, vy, params.pixel_aspect)
-        split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
+        split = long_wide_split(grouping, table, params, ratio, _testable(grouping, table, white))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
@@ -175,6 +190,47 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
     height, width = shape
     return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
+
+
+def _testable(grouping: Grouping, table: GroupTable, white: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Groups the overlap and long/wide tests may split.
+
+    Not those cut by the image border, and not the parts of a touching-marker split unless
+    they are large enough to hold two markers (1.6 times the image's typical marker): a
+    part cut at a neck has a flattened side that the shape tests would misread.
+    """
+    inside = _inside(table, white.shape)
+    part = (grouping.flags[table.label] & fl.SPLIT_TOUCHING) != 0
+    if not part.any():
+        return inside
+    whole = inside & ~part
+    typical = float(np.median(table.pixels[whole])) if whole.any() else 0.0
+    return inside & (~part | (table.pixels > 1.6 * typical))
+
+
+def _not_single(
+    table: GroupTable,
+    params: DetectionParams,
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    cov_xy: NDArray[np.float64],
+    inside: NDArray[np.bool_],
+) -> NDArray[np.bool_]:
+    """Groups worth the distance-transform test: not shaped or sized like one marker.
+
+    Cheap moment and size checks keep the (per-group) distance transform off the many
+    groups that are plainly single markers, and off LED rings (several times a typical
+    marker's size).
+    """
+    ratio = height_ratio(var_x, var_y, params.pixel_aspect)
+    major, minor, _, _ = principal_axes(var_x, var_y, cov_xy, params.pixel_aspect)
+    sized = (table.pixels >= params.long_wide_min_pixels) & inside
+    marker = sized & (table.pixels <= params.max_pixels)
+    typical = float(np.median(table.pixels[marker])) if marker.any() else np.inf
+    odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
+    # Up to about three typical markers; beyond that a round group is an LED ring.
+    clustered = (table.pixels > 1.6 * typical) & (table.pixels < 3.5 * typical)
+    return sized & (odd_shape | clustered) & (table.pixels < 3.5 * typical)
 
 
 _WORKER: dict[str, object] = {}
