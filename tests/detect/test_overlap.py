@@ -61,7 +61,8 @@ def test_splitting_off_keeps_pairs_merged(rng):
     truth, radius = _pairs(rng, (0.0, 0.0))
     from kisscal.detect import DetectionParams
 
-    blobs = detect_blobs(render(truth, radius), DetectionParams(split_long_wide=False, split_touching=False))
+    params = DetectionParams(split_long_wide=False, split_touching=False)
+    blobs = detect_blobs(render(truth, radius), params)
     assert len(blobs) == len(truth) - 30
 
 

@@ -80,11 +80,13 @@ class Score:
         ).tolist()
 
 
-def score_gait(seed: int, fields: int) -> Score:
-    plan = plan_session(SynthOptions(seed=seed, fields=fields))
+def score_gait(seed: int, fields: int, trial: str = "walk01", replay=None) -> Score:
+    plan = plan_session(SynthOptions(seed=seed, fields=fields), replay=replay)
     score = Score()
     for cam in range(len(plan.rig)):
-        for _, image, truth in render_trial(plan, "walk01", cam):
+        for field_index, image, truth in render_trial(plan, trial, cam):
+            if field_index >= fields:
+                break
             v = truth.visible
             score.add(detect_blobs(image), truth.uv_px[v], truth.radii_px[v], truth.isolated[v])
     return score
@@ -106,6 +108,23 @@ def test_gait_recall_precision_and_centroids(seed):
 @pytest.mark.parametrize("seed", [4, 5, 6, 7])
 def test_gait_more_seeds_longer(seed):
     score = score_gait(seed, fields=80)
+    assert score.recall >= 0.995
+    assert score.precision >= 0.995
+    assert score.isolated_rms_px <= 0.05
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_replayed_walking5_trial(seed):
+    """The real Vicon walking trial replayed in the rig: denser foot markers than walk01."""
+    from kisscal.io.synthetic import load_walking5
+    from kisscal.session import default_walking5_path
+
+    path = default_walking5_path()
+    if path is None:
+        pytest.skip("walking5.c3d is not available")
+    score = score_gait(seed, fields=100, trial="walk5", replay=load_walking5(path))
+    assert score.markers > 4000
     assert score.recall >= 0.995
     assert score.precision >= 0.995
     assert score.isolated_rms_px <= 0.05
