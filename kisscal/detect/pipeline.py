@@ -91,8 +91,11 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     Notes
     -----
     Steps: run-length scan and grouping by run mid-points (section 2.1, eq. 3); noise
-    removal (2.2); sub-marker merge (2.3.1); ul/ur overlap split (2.3.2, eqs. 4-6);
-    long/wide split (2.3.3); size limits (2.3.4). Coordinates keep the non-square pixels.
+    removal (2.2); sub-marker merge (2.3.1); markers touching an LED ring separated from
+    it and touching markers split at distance-transform peaks (kisscal's additions, each
+    switchable); ul/ur overlap split (2.3.2, eqs. 4-6, plus a moment test for small
+    diagonal pairs); long/wide split (2.3.3, ratio from growth-corrected moments); size
+    limits (2.3.4). Coordinates keep the non-square pixels.
     """
     image = check_image(image)
     grey = image.dtype != np.bool_
