@@ -88,9 +88,10 @@ def detect(
 def linearise(
     session_dir: SessionArg,
     camera: Annotated[str | None, typer.Option(help="Only this camera.")] = None,
-    model: Annotated[str, typer.Option(help="Optimal grid: similarity or homography.")] = (
-        "similarity"
-    ),
+    model: Annotated[
+        str | None,
+        typer.Option(help="Optimal grid: homography (default) or similarity (the thesis')."),
+    ] = None,
 ) -> None:
     """Fit each camera's lens linearisation from its dot-grid images."""
     from kisscal import session

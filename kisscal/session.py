@@ -211,7 +211,9 @@ def linearise(
             result[cam.id] = identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
             continue
         frames = camera_frames(config.root, config.grid.images, cam.id, "grid")
-        key = cache_key("linearise", list(frames.paths), params.grid, params.detection)
+        key = cache_key(
+            "linearise", _file_keys(frames.paths, config.root), params.grid, params.detection
+        )
         if is_current(out, key):
             result[cam.id] = read_linearisation(out)[1]
             echo(f"  linearise {cam.id}: cached")
@@ -300,13 +302,14 @@ def calibrate(
     if config.rods is not None:
         from kisscal.dlt import calibrate_rods, make_rods
         from kisscal.io.cache import cache_key
+        from kisscal.io.dltfiles import write_dlt_outputs
         from kisscal.io.frames import camera_frames
 
         rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
         blobs_px = {}
-        for cam in config.cameras:  # all cameras: leave-one-rod-out needs the whole rig
+        for cam in cameras:
             frames = camera_frames(config.root, config.rods.images, cam.id, "rod")
-            key = cache_key("detect", list(frames.paths), params.detection)
+            key = cache_key("detect", _file_keys(frames.paths, config.root), params.detection)
             cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
             frame_blobs = _detect_frames(
                 frames, params.detection, cache, key, echo, f"rods {cam.id}", workers
@@ -315,40 +318,35 @@ def calibrate(
                 apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
             ]
         t0 = time.perf_counter()
-        cal = calibrate_rods(blobs_px, rods, params.dlt)
-        check = cal.check
-        for cam in cameras:
-            res = cal.results[cam.id]
-            uv = cal.marker_uv_px[cam.id].reshape(-1, 2)
-            xyz = np.concatenate([r.points_mm for r in rods])
-            used = np.all(np.isfinite(uv), axis=1)
-            match = cal.matches[cam.id]
-            write_dlt_json(
-                out / f"{cam.id}.json",
-                cam.id,
-                res,
-                xyz[used],
-                uv[used],
-                cal.labels[cam.id],
-                extra={"missing_markers": list(getattr(match, "missing", []) or [])},
-            )
-            summary[cam.id] = res
+        cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=camera is None)
+        write_dlt_outputs(out, cal)
+        rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
+        if camera is None:
+            write_json(out / "check.json", rig)
+            summary["_check"] = rig
+        for cam_id, res in cal.results.items():
+            summary[cam_id] = res
             echo(
-                f"  calibrate {cam.id}: {res.method}, {int(used.sum())} rod markers, "
+                f"  calibrate {cam_id}: {res.method}, {len(res.residuals_px)} rod markers, "
                 f"rms {res.rms_px:.3f} px, centre {np.round(res.centre_mm).tolist()} mm"
+                + (
+                    f", missing {', '.join(cal.matches[cam_id].missing)}"
+                    if cal.matches[cam_id].missing
+                    else ""
+                )
+            )
+        if "rods_in_sample_mean_mm" in rig:
+            loo = rig.get("leave_one_rod_out", {})
+            echo(
+                f"  rods reconstructed in-sample: mean {rig['rods_in_sample_mean_mm']:.3f} mm"
+                + (f"; leave-one-rod-out mean {loo['mean_mm']:.3f} mm" if loo else "")
+                + f" ({time.perf_counter() - t0:.1f} s)"
             )
         sizes = {c.id: c.size_px for c in config.cameras}
         from kisscal.report.dlt import CameraResiduals
 
         residuals = {
-            c: CameraResiduals(
-                cal.marker_uv_px[c].reshape(-1, 2)[
-                    np.all(np.isfinite(cal.marker_uv_px[c].reshape(-1, 2)), axis=1)
-                ],
-                r.residuals_px,
-                sizes[c],
-                r.rms_px,
-            )
+            c: CameraResiduals(cal.control_uv_px[c], r.residuals_px, sizes[c], r.rms_px)
             for c, r in cal.results.items()
         }
         _figure(root, "dlt_residuals", "kisscal.report.dlt", "residual_figure", residuals)
@@ -361,21 +359,6 @@ def calibrate(
             [(r.name, r.points_mm) for r in rods],
             {c: r.R for c, r in cal.results.items()},
         )
-        in_sample = np.nanmean(cal.in_sample_mm)
-        check_doc = {"in_sample_mean_mm": float(in_sample)}
-        if check is not None:
-            check_doc.update(_rod_check_doc(check))
-        write_json(out / "check.json", check_doc)
-        summary["_check"] = check_doc
-        echo(
-            f"  rods reconstructed in-sample: mean {in_sample:.3f} mm"
-            + (
-                f"; leave-one-rod-out mean {check_doc['leave_one_rod_out_mean_mm']:.3f} mm"
-                if "leave_one_rod_out_mean_mm" in check_doc
-                else ""
-            )
-            + f" ({time.perf_counter() - t0:.1f} s)"
-        )
     elif config.calibration is not None:
         from kisscal.dlt import calibrate_camera
 
@@ -387,7 +370,8 @@ def calibrate(
             write_dlt_json(out / f"{cam.id}.json", cam.id, res, xyz, uv, labels)
             summary[cam.id] = res
             echo(
-                f"  calibrate {cam.id}: {res.method}, {len(xyz)} control points, rms {res.rms_px:.3f} px"
+                f"  calibrate {cam.id}: {res.method}, {len(xyz)} control points, "
+                f"rms {res.rms_px:.3f} px"
             )
     else:
         raise KisscalError(
@@ -398,15 +382,16 @@ def calibrate(
     return summary
 
 
-def _rod_check_doc(check: Any) -> dict[str, Any]:
-    """Leave-one-rod-out figures: mean over rods of each rod's mean error, worst error."""
-    return {
-        "leave_one_rod_out_mean_mm": float(np.nanmean(check.mean_mm)),
-        "leave_one_rod_out_max_mm": float(np.nanmax(check.max_mm)),
-        "leave_one_rod_out_per_rod_mm": {
-            r: float(m) for r, m in zip(check.rod_names, check.mean_mm, strict=True)
-        },
-    }
+def _file_keys(paths: Sequence[Path], root: Path) -> list[tuple[str, int, int]]:
+    """Input files for a cache key: path inside the session, size and modification time.
+
+    Paths are relative so that a copied or moved session keeps its cache.
+    """
+    keys = []
+    for p in paths:
+        st = Path(p).stat()
+        keys.append((Path(p).relative_to(root).as_posix(), st.st_size, st.st_mtime_ns))
+    return keys
 
 
 def _read_dlts(root: Path, config: Any, required: bool = True) -> dict[str, np.ndarray]:
@@ -460,7 +445,7 @@ def _trial_blobs(
     out = {}
     for cam, seq in frames.items():
         inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
-        key = cache_key("detect", inputs, params.detection)
+        key = cache_key("detect", _file_keys(inputs, config.root), params.detection)
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
         blobs = _detect_frames(
             seq, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
@@ -504,6 +489,9 @@ def reconstruct(
     )
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    from kisscal.io.files import write_json
+
+    write_json(path.with_name("recon.json"), points.summary())
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
         _figure(
@@ -692,10 +680,8 @@ def summarise(root: Path) -> dict[str, Any]:
     for trial in config.trials:
         tdir = out / "trials" / trial.name
         entry = {}
-        if (tdir / "points3d.csv").is_file():
-            pts = read_table(tdir / "points3d.csv")
-            entry["points"] = len(pts["field"])
-            entry["median_rms_px"] = float(np.median(pts["rms_px"])) if len(pts["field"]) else None
+        if (tdir / "recon.json").is_file():
+            entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
         if (tdir / "trajectories.csv").is_file():
             tr = read_table(tdir / "trajectories.csv")
             labels = sorted(set(tr["label"].tolist()))
@@ -757,7 +743,8 @@ def check(
         if not path.is_file():
             raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
         doc = json.loads(path.read_text())
-        value = float(doc.get("leave_one_rod_out_mean_mm", doc.get("in_sample_mean_mm", np.nan)))
+        loo = doc.get("leave_one_rod_out", {})
+        value = float(loo.get("mean_mm", doc.get("rods_in_sample_mean_mm", np.nan)))
         if not value <= max_3d_mm:
             failures.append(CheckFailure("all", "leave-one-rod-out mean mm", value, max_3d_mm))
     return failures
@@ -927,7 +914,7 @@ def evaluate(root: Path) -> dict[str, Any]:
             truth["field"].astype(int),
             truth["marker"],
             np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]),
-            vis.sum(axis=1) >= 2,
+            vis.sum(axis=1) >= 3,
         )
         entry: dict[str, Any] = dataclasses.asdict(score)
         if trial.name == "stick":
@@ -973,10 +960,9 @@ def demo(out: Path, *, seed: int = 1, echo: Echo = _quiet) -> dict[str, Any]:
         echo(f"{cam:<8}{g:>12.3f}{d:>12.3f}")
     rods = summary.get("rods", {})
     if rods:
-        echo(
-            f"rod markers, in-sample 3D error: {rods.get('in_sample_mean_mm', float('nan')):.3f} mm; "
-            f"leave-one-rod-out: {rods.get('leave_one_rod_out_mean_mm', float('nan')):.3f} mm"
-        )
+        loo = rods.get("leave_one_rod_out", {}).get("mean_mm", float("nan"))
+        in_sample = rods.get("rods_in_sample_mean_mm", float("nan"))
+        echo(f"rod markers, 3D error in-sample {in_sample:.3f} mm, leave-one-rod-out {loo:.3f} mm")
     for trial, t in summary["truth"].items():
         line = (
             f"{trial}: {t['n_trajectories']} trajectories for {t['n_true_markers']} markers, "

@@ -16,7 +16,15 @@ from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
 from kisscal.dlt.linear import reprojection_residuals, rms_px, solve_dlt
 from kisscal.dlt.model import dlt_from_krt, dlt_to_matrix, matrix_to_dlt, project
 from kisscal.dlt.nonlinear import correct_lens, refine_dlt, solve_mdlt
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult, Rod, RodCheck, RodMatch
+from kisscal.dlt.params import (
+    DEFAULT_PARAMS,
+    DltParams,
+    DltResult,
+    Rod,
+    RodCheck,
+    RodMatch,
+    marker_label,
+)
 from kisscal.dlt.rig import RodCalibration, calibrate_rods
 from kisscal.dlt.rods import make_rods, recognise_rods, rod_distinctness, validate_rods
 
@@ -38,6 +46,7 @@ __all__ = [
     "hatze_violation",
     "leave_one_rod_out",
     "make_rods",
+    "marker_label",
     "matrix_to_dlt",
     "principal_point_px",
     "project",

@@ -1,8 +1,8 @@
 """Quality checks of a calibration: n-camera triangulation and the leave-one-rod-out test.
 
-The triangulation here is the minimal least-squares n-camera DLT reconstruction
-(Küçük 2005, eqs. 2.14 ff.; Shafiq et al. 2001, section 4) the check needs; the full
-reconstruction stage lives in :mod:`kisscal.recon`.
+The triangulation is the least-squares n-camera DLT reconstruction (Küçük 2005,
+eqs. 2.14 ff.; Shafiq et al. 2001, section 4) of the reconstruction stage,
+:func:`kisscal.recon.triangulate.triangulate`, called here in the rods' array layout.
 """
 
 from __future__ import annotations
@@ -13,8 +13,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.calibrate import calibrate_camera
+from kisscal.dlt.nonlinear import correct_lens
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
 from kisscal.errors import KisscalError
+from kisscal.recon.triangulate import triangulate
 
 
 def triangulate_dlt(
@@ -42,35 +44,23 @@ def triangulate_dlt(
     xyz_mm : ndarray, shape (N, 3)
         NaN for points seen by fewer than two cameras or with (nearly) parallel rays.
     n_cameras : ndarray of int, shape (N,)
+
+    Raises
+    ------
+    KisscalError
+        ``L`` not of shape (C, 11) or not finite, or ``uv_px`` not of shape (C, N, 2).
+
+    See Also
+    --------
+    kisscal.recon.triangulate.triangulate : the solver used, points-first layout.
     """
-    L = np.asarray(L, dtype=float)
+    # One method, one implementation: the reconstruction stage's batched solver
+    # (same equations and reweighting), which takes points first, cameras second.
     uv = np.asarray(uv_px, dtype=float)
-    seen = np.isfinite(uv).all(axis=2)  # (C, N)
-    u = np.where(seen, uv[..., 0], 0.0)
-    v = np.where(seen, uv[..., 1], 0.0)
-    # Rows per camera and point: coefficients (C, N, 3) and right-hand sides (C, N).
-    au = L[:, None, 0:3] - u[..., None] * L[:, None, 8:11]
-    av = L[:, None, 4:7] - v[..., None] * L[:, None, 8:11]
-    bu = u - L[:, None, 3]
-    bv = v - L[:, None, 7]
-    A = np.concatenate([au, av], axis=0)  # (2C, N, 3)
-    b = np.concatenate([bu, bv], axis=0)
-    w = np.concatenate([seen, seen], axis=0).astype(float)
-    n_cam = seen.sum(axis=0)
-    ok = n_cam >= 2
-    xyz = np.full((uv.shape[1], 3), np.nan)
-    for it in range(iterations + 1):
-        Aw = A * w[..., None]
-        AtA = np.einsum("cni,cnj->nij", Aw, Aw)
-        Atb = np.einsum("cni,cn->ni", Aw, b * w)
-        if it == 0:
-            # Rays (nearly) parallel, e.g. cameras at one place: the point is undetermined.
-            ok[ok] = np.linalg.cond(AtA[ok]) < 1e12
-        xyz[ok] = np.linalg.solve(AtA[ok], Atb[ok][..., None])[..., 0]
-        if it < iterations:
-            den = np.einsum("ci,ni->cn", L[:, 8:11], np.nan_to_num(xyz)) + 1.0
-            w = np.concatenate([seen / den, seen / den], axis=0)
-    return xyz, n_cam
+    if uv.ndim != 3:
+        raise KisscalError(f"uv_px must have shape (n_cameras, n_points, 2), got {uv.shape}")
+    tri = triangulate(L, np.swapaxes(uv, 0, 1), reweight_iterations=iterations)
+    return tri.xyz_mm, tri.n_cameras
 
 
 def leave_one_rod_out(
@@ -121,7 +111,7 @@ def leave_one_rod_out(
             except KisscalError:
                 continue
             Ls.append(result.L)
-            obs.append(muv[ic, out])
+            obs.append(correct_lens(result.L, result.lens, muv[ic, out]))
         if len(Ls) < 2:
             continue
         xyz_rec, _ = triangulate_dlt(np.array(Ls), np.array(obs))

@@ -3,8 +3,9 @@
 MDLT (Kolahi et al. 2007, section 4, eqs. 10-14): the 11 DLT parameters have only 10
 degrees of freedom for a real camera; Hatze's constraint (eq. 10) ties them together.
 Kolahi enforces it by eliminating L1 and iterating linearised least squares; eliminating
-L1 divides by ``L5 L9 + L6 L10 + L7 L11 - ...`` terms that vanish for a level camera
-looking along the lab Y axis (an ordinary gait-lab camera). kisscal instead parametrises
+L1 divides by its coefficient in eq. 10, ``L9 (L5 L9 + L6 L10 + L7 L11) - L5 (L9^2 + L10^2 +
+L11^2)``, which is zero when ``L5 = L9 = 0``: a level camera looking along the lab Y axis
+(an ordinary gait-lab camera). kisscal instead parametrises
 the camera so that the constraint holds identically: the constraint is equivalent to a
 zero skew (see :func:`kisscal.dlt.camera.hatze_violation`), so the DLT matrix is built as
 ``K R0 exp([w]x) [I | -C]`` with ``K = [[fu, 0, u0], [0, fv, v0], [0, 0, 1]]``, the

@@ -52,6 +52,20 @@ class DltParams:
     rods_upright : bool
         Rods appear top-up in every image (the top marker has the smaller ``v``), as for
         an upright camera. Halves the hypotheses; set False for a camera mounted upside down.
+    rod_refuse_unlisted : bool
+        Refuse a rod image in which the blobs left over after recognition hold a rod-like
+        line (at least ``rod_min_markers`` blobs within ``rod_line_tol_px`` of a line,
+        roughly parallel to and of the length scale of the recognised rods): a rod hanging
+        in the volume but missing from ``[[rods.rod]]``. Set False when the lab
+        deliberately hangs extra rods or rod-like objects.
+    rod_unlisted_angle_deg : float
+        Largest angle (degrees) between such a line and the nearest recognised rod's
+        image line for it to count as a rod (image lines of plumb rods converge only
+        slowly towards the vertical vanishing point).
+    rod_unlisted_length_ratio : float
+        Such a line counts as a rod when its length (px, first to last blob) lies within
+        this factor of the recognised rods' image lengths (shortest / ratio to longest
+        * ratio); the factor covers depth differences and a hidden end marker.
     """
 
     mdlt: bool = False
@@ -67,6 +81,9 @@ class DltParams:
     rod_min_distinct: float = 0.005
     rod_ambiguity_ratio: float = 3.0
     rods_upright: bool = True
+    rod_refuse_unlisted: bool = True
+    rod_unlisted_angle_deg: float = 15.0
+    rod_unlisted_length_ratio: float = 2.5
 
     @property
     def method(self) -> str:
@@ -119,6 +136,11 @@ class DltResult:
     iterations: int = 0
 
 
+def marker_label(rod: str, index: int) -> str:
+    """Name of a rod marker: ``"R1.1"`` is the top marker of rod R1 (``index`` 0-based)."""
+    return f"{rod}.{index + 1}"
+
+
 @dataclass(frozen=True)
 class Rod:
     """One calibration rod: its name and surveyed marker centres, top to bottom (mm)."""
@@ -143,7 +165,8 @@ class RodMatch:
         RMS distance (px) along each rod's line between blobs and the fitted 1D
         projectivity; NaN for rods not recognised.
     missing : tuple of str
-        Markers not found, as ``"R1[3]"`` (rod name, 0-based index from the top).
+        Markers not found, as ``"R1.4"`` (see :func:`marker_label`: rod R1, fourth marker
+        from the top).
     unused_blobs : ndarray of int
         Blobs not assigned to any rod (strobes, noise).
     """
@@ -170,7 +193,7 @@ class RodMatch:
         xyz = np.concatenate([r.points_mm for r in rods])
         idx = self.blob_index.ravel()
         found = idx >= 0
-        labels = tuple(f"{r.name}[{i}]" for r in rods for i in range(len(r.points_mm)))
+        labels = tuple(marker_label(r.name, i) for r in rods for i in range(len(r.points_mm)))
         uv = np.asarray(uv_px, dtype=float)[idx[found]]
         return xyz[found], uv, tuple(lab for lab, f in zip(labels, found, strict=True) if f)
 

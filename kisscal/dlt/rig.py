@@ -11,7 +11,7 @@ figure, Shafiq et al. 2001 §3.3) and leave-one-rod-out (the harsher figure).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,7 +19,15 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
 from kisscal.dlt.nonlinear import correct_lens
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult, Rod, RodCheck, RodMatch
+from kisscal.dlt.params import (
+    DEFAULT_PARAMS,
+    DltParams,
+    DltResult,
+    Rod,
+    RodCheck,
+    RodMatch,
+    marker_label,
+)
 from kisscal.dlt.rods import recognise_rods, validate_rods
 from kisscal.errors import KisscalError
 
@@ -33,24 +41,66 @@ class RodCalibration:
     results : dict
         Camera id -> :class:`DltResult`.
     matches : dict
-        Camera id -> :class:`RodMatch` of the first frame (what was found, what is missing).
+        Camera id -> :class:`RodMatch` of the first frame (blob indices refer to it);
+        ``missing`` lists the markers identified in no frame at all.
     marker_uv_px : dict
         Camera id -> (n_rods, n_markers, 2) image coordinates used (averaged over the
         frames where identified), NaN where never identified.
     labels : dict
-        Camera id -> names (``"R1[0]"``...) of the control points used, in fit order.
+        Camera id -> names (``"R1.1"``...) of the control points used, in fit order.
+    control_xyz_mm, control_uv_px : dict
+        Camera id -> the control points used, (M, 3) and (M, 2), in fit order.
     in_sample_mm : ndarray, shape (n_rods, n_markers)
-        3D error of each rod marker reconstructed from all calibrated cameras (mm).
+        3D error of each rod marker reconstructed from all calibrated cameras (mm);
+        NaN where fewer than two cameras saw it (all NaN with a single camera).
     check : RodCheck or None
-        Leave-one-rod-out result (None when fewer than 3 rods).
+        Leave-one-rod-out result (None with fewer than 3 rods or 2 cameras).
     """
 
     results: dict[str, DltResult]
     matches: dict[str, RodMatch]
     marker_uv_px: dict[str, NDArray[np.float64]]
     labels: dict[str, tuple[str, ...]]
+    control_xyz_mm: dict[str, NDArray[np.float64]]
+    control_uv_px: dict[str, NDArray[np.float64]]
     in_sample_mm: NDArray[np.float64]
     check: RodCheck | None
+
+    def summary(self) -> dict:
+        """JSON-ready figures for ``summary.json`` (rms_px is the Euclidean RMS)."""
+        out: dict = {
+            "cameras": {
+                cam: {
+                    "method": r.method,
+                    "rms_px": r.rms_px,
+                    "n_points": len(r.residuals_px),
+                    "missing": list(self.matches[cam].missing),
+                    "centre_mm": r.centre_mm.tolist(),
+                    "constraint_violation": r.constraint,
+                    "constraint_violation_linear": r.constraint_linear,
+                }
+                for cam, r in self.results.items()
+            },
+        }
+        if np.isfinite(self.in_sample_mm).any():
+            out["rods_in_sample_mean_mm"] = float(np.nanmean(self.in_sample_mm))
+            out["rods_in_sample_max_mm"] = float(np.nanmax(self.in_sample_mm))
+        if self.check is not None and np.isfinite(self.check.errors_mm).any():
+            out["leave_one_rod_out"] = {
+                "mean_mm": self.check.overall_mean_mm,
+                "max_mm": self.check.overall_max_mm,
+                "per_rod": {
+                    name: {"mean_mm": float(m), "max_mm": float(x), "n_markers": int(n)}
+                    for name, m, x, n in zip(
+                        self.check.rod_names,
+                        self.check.mean_mm,
+                        self.check.max_mm,
+                        self.check.n_markers,
+                        strict=True,
+                    )
+                },
+            }
+        return out
 
 
 def _frames(blobs: ArrayLike | Sequence[ArrayLike]) -> list[NDArray[np.float64]]:
@@ -95,8 +145,8 @@ def calibrate_rods(
     truth = np.full((len(rods), n_markers, 3), np.nan)
     for ir, rod in enumerate(rods):
         truth[ir, : len(rod.points_mm)] = rod.points_mm
-    names = [f"{r.name}[{i}]" for r in rods for i in range(n_markers)]
-    results, matches, muvs, labels = {}, {}, {}, {}
+    names = [marker_label(r.name, i) for r in rods for i in range(n_markers)]
+    results, matches, muvs, labels, cxyz, cuv = {}, {}, {}, {}, {}, {}
     for cam, blobs in blobs_px.items():
         frames = _frames(blobs)
         per_frame = []
@@ -114,21 +164,31 @@ def calibrate_rods(
                 np.nan,
             )
         found = np.isfinite(muv).all(axis=-1) & np.isfinite(truth).all(axis=-1)
+        never = [
+            marker_label(r.name, i)
+            for ir, r in enumerate(rods)
+            for i in range(len(r.points_mm))
+            if not found[ir, i]
+        ]
+        matches[cam] = replace(matches[cam], missing=tuple(never))
         result = _calibrate_or_explain(truth[found], muv[found], params, cam, matches[cam])
         results[cam] = result
         muvs[cam] = muv
         labels[cam] = tuple(n for n, f in zip(names, found.ravel(), strict=True) if f)
+        cxyz[cam], cuv[cam] = truth[found], muv[found]
     cams = list(results)
-    Ls = np.array([results[c].L for c in cams])
-    obs = np.stack(
-        [correct_lens(results[c].L, results[c].lens, muvs[c].reshape(-1, 2)) for c in cams]
-    )
-    xyz, _ = triangulate_dlt(Ls, obs)
-    in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(len(rods), n_markers)
+    in_sample = np.full((len(rods), n_markers), np.nan)
     check = None
-    if leave_one_out and len(rods) >= 3 and not params.lens:
-        check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
-    return RodCalibration(results, matches, muvs, labels, in_sample, check)
+    if len(cams) >= 2:  # 3D checks need two cameras (``--camera C`` calibrates one)
+        Ls = np.array([results[c].L for c in cams])
+        obs = np.stack(
+            [correct_lens(results[c].L, results[c].lens, muvs[c].reshape(-1, 2)) for c in cams]
+        )
+        xyz, _ = triangulate_dlt(Ls, obs)
+        in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(in_sample.shape)
+        if leave_one_out and len(rods) >= 3:
+            check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
+    return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check)
 
 
 def _calibrate_or_explain(
@@ -143,7 +203,8 @@ def _calibrate_or_explain(
     except KisscalError as exc:
         if not match.missing:
             raise
-        absent = sorted({m.split("[")[0] for m in match.missing})
+        rows = zip(match.rod_names, match.blob_index, strict=True)
+        absent = [name for name, b in rows if (b < 0).any()]
         raise KisscalError(
             f"{exc}; rod markers not identified: {len(match.missing)} (rods {', '.join(absent)})"
         ) from None

@@ -20,6 +20,10 @@ rod can be automatically recognised". kisscal recognises them as follows.
    set for the same rod, the same blobs as another rod, or a shifted assignment), the
    camera is refused with a message naming the rods: never a silent guess.
 
+4. Blobs left over that still form a rod-like line (``rod_min_markers`` blobs on a line,
+   parallel to and as long as the recognised rods' lines) refuse the camera: a rod hangs
+   there that ``[[rods.rod]]`` does not list (``DltParams.rod_refuse_unlisted``).
+
 A rod configuration is refused up front when its spacings are not projectively distinct
 (:func:`validate_rods`), since then no image could tell the rods apart.
 """
@@ -33,7 +37,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch, marker_label
 from kisscal.errors import KisscalError
 
 
@@ -300,24 +304,22 @@ def _line_candidates(
         best = assign[0].copy()
         n0 = int((best >= 0).sum())
         rivals = []
+        drop = np.zeros(len(best), dtype=bool)
         for a, r, g in zip(assign[1:], rms[1:], gap[1:], strict=True):
             if int((a >= 0).sum()) != n0 or r >= _near(rms[0], params):
                 continue
-            common = (a >= 0) & (best >= 0)
-            same_markers = {int(x) for x in a[a >= 0]} & {int(x) for x in best[best >= 0]}
-            # A blob given another marker index: the pattern fits shifted (ordering doubt).
-            if any(
-                int(np.flatnonzero(a == b)[0]) != int(np.flatnonzero(best == b)[0])
-                for b in same_markers
-            ):
+            # Line blobs both hypotheses use: given another marker index, the pattern
+            # fits shifted along the rod (an ordering doubt, judged in _check_ambiguity).
+            shared = np.intersect1d(a[a >= 0], best[best >= 0])
+            if any(np.flatnonzero(a == x)[0] != np.flatnonzero(best == x)[0] for x in shared):
                 rivals.append({int(line[x]) for x in a[a >= 0]})
                 continue
-            # Otherwise another blob stands in for some marker(s): keep the nearer blob
-            # only when it is clearly nearer, else leave that marker unidentified.
-            differ = (a != best) & ~(~common & (a < 0))
-            for i in np.flatnonzero(differ & (a >= 0)):
-                if best[i] >= 0 and g[i] < _near(gap[0][i], params):
-                    best[i] = -1
+            # Otherwise another blob stands in for some marker: keep the best hypothesis'
+            # blob only when it is clearly nearer the prediction, else leave the marker
+            # unidentified (two blobs this close would merge in a real image anyway).
+            swapped = (a >= 0) & (best >= 0) & (a != best)
+            drop |= swapped & (g < np.array([_near(x, params) for x in gap[0]]))
+        best[drop] = -1
         blobs = np.where(best >= 0, line[np.maximum(best, 0)], -1)
         out.append(_Candidate(ir, blobs, float(rms[0]), rivals))
     return out
@@ -353,8 +355,10 @@ def recognise_rods(
     Raises
     ------
     KisscalError
-        Non-unique rod spacings (:func:`validate_rods`) or an ambiguous identification
-        (message names the camera and rods).
+        Non-unique rod spacings (:func:`validate_rods`), an ambiguous identification
+        (message names the camera and rods), or, with ``params.rod_refuse_unlisted``, a
+        rod-like line of left-over blobs that matches no configured rod (a rod missing
+        from ``[[rods.rod]]``).
     """
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
     validate_rods(rods, params)
@@ -377,6 +381,8 @@ def recognise_rods(
         chosen[c.rod] = c
         used |= c.blob_set
     _check_ambiguity(chosen, cands, rods, params, camera)
+    if params.rod_refuse_unlisted:
+        _check_unlisted(uvf, chosen, rods, params, camera)
 
     n_markers = max(len(r.points_mm) for r in rods)
     blob_index = np.full((len(rods), n_markers), -1, dtype=np.int64)
@@ -388,7 +394,7 @@ def recognise_rods(
             b = chosen[ir].blobs
             blob_index[ir, :k] = np.where(b >= 0, finite[np.maximum(b, 0)], -1)
             fit_rms[ir] = chosen[ir].rms_px
-        missing += [f"{rod.name}[{i}]" for i in range(k) if blob_index[ir, i] < 0]
+        missing += [marker_label(rod.name, i) for i in range(k) if blob_index[ir, i] < 0]
     unused = np.setdiff1d(np.arange(len(uv)), blob_index[blob_index >= 0])
     return RodMatch(
         camera=camera,
@@ -432,6 +438,62 @@ def _check_ambiguity(
                     f"{rods[c.rod].name} equally well ({a.rms_px:.2f} px and {c.rms_px:.2f} px); "
                     "refusing to guess"
                 )
+
+
+def _check_unlisted(
+    uv: NDArray[np.float64],
+    chosen: dict[int, _Candidate],
+    rods: Sequence[Rod],
+    params: DltParams,
+    camera: str,
+) -> None:
+    """Refuse a rod-like line among the blobs no rod explains (a rod missing from the config).
+
+    The rods hang plumb side by side (Shafiq et al. 2001, section 3.3), so in one image
+    their lines are nearly parallel and of one length scale. Left-over blobs forming such
+    a line of at least ``rod_min_markers`` blobs are most likely a rod the configuration
+    does not list; calibrating without it would silently discard a quarter of the control
+    points. Stray strobes, noise and LED rings seldom line up five times within
+    ``rod_line_tol_px``, and when they do they are rarely parallel to the rods and of
+    their length as well.
+
+    Raises
+    ------
+    KisscalError
+        Naming the camera, the number of blobs and where the line is (``u``, px).
+    """
+    if not chosen:
+        return  # nothing to compare a line with: the DLT then fails for lack of points
+    used = set().union(*(c.blob_set for c in chosen.values()))
+    spare = np.setdiff1d(np.arange(len(uv)), np.fromiter(used, dtype=np.int64))
+    if len(spare) < params.rod_min_markers:
+        return
+    # Recognised rods' image lines: unit directions (sign-free) and lengths, first to last
+    # identified marker.
+    ends = np.array([uv[c.blobs[c.blobs >= 0][[0, -1]]] for c in chosen.values()])
+    rod_dir = ends[:, 1] - ends[:, 0]
+    rod_len = np.linalg.norm(rod_dir, axis=1)
+    rod_dir = rod_dir / rod_len[:, None]
+    ratio = params.rod_unlisted_length_ratio
+    cos_tol = np.cos(np.deg2rad(params.rod_unlisted_angle_deg))
+    lines = _candidate_lines(uv[spare], params)
+    for line in sorted(lines, key=len, reverse=True):
+        p = uv[spare[line]]
+        d = p[-1] - p[0]
+        length = float(np.linalg.norm(d))
+        if length <= 0:
+            continue
+        parallel = np.abs(rod_dir @ (d / length)).max() >= cos_tol
+        if parallel and rod_len.min() / ratio <= length <= rod_len.max() * ratio:
+            unseen = [rods[i].name for i in range(len(rods)) if i not in chosen]
+            hint = "is a rod missing from session.toml?"
+            if unseen:
+                names = ", ".join(unseen)
+                hint = f"is a rod missing from session.toml, or are points_mm of {names} wrong?"
+            raise KisscalError(
+                f"camera {camera}: {len(line)} blobs on a line near u={p[:, 0].mean():.0f} px "
+                f"match no rod in [[rods.rod]] ({hint})"
+            )
 
 
 def _strictly_increasing(assign: NDArray[np.int64]) -> NDArray[np.bool_]:

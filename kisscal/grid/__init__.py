@@ -2,9 +2,12 @@
 
 Küçük 2005, section 2.2 and 3.3.2; Shafiq et al. 2001, section 3.2. Typical use::
 
-    dots = dots_from_frames(frames)                    # average frames, detect dots
-    fit = linearise_dots(dots, GridParams(), size_px=(752, 291))
+    fit = linearise_frames(frames, GridParams(), detection_params)  # one camera
+    fit.linearisation            # 30 coefficients + normalisation + quality figures
+    fit.warnings()               # missing dots, rejected blobs, over-fitting
     corrected = apply_linearisation(fit.linearisation, uv)
+
+or, from dot centroids, ``linearise_dots(dots_uv, GridParams(), size_px=(752, 291))``.
 """
 
 from kisscal.grid.fit import GridFit, fit_linearisation, linearise_dots, normalisation

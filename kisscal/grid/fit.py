@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,6 +37,8 @@ class GridFit:
         The two reference grids of Küçük 2005, section 2.2.
     dots_uv : ndarray, shape (N, 2)
         The detected dots as given (all of them, including rejected blobs), px.
+    params : GridParams
+        The parameters of the fit (warning limits included).
     """
 
     linearisation: Linearisation
@@ -44,6 +46,7 @@ class GridFit:
     primary: PrimaryGrid
     optimal: OptimalGrid
     dots_uv: NDArray[np.float64]
+    params: GridParams = field(default_factory=GridParams)
 
     @property
     def grid_uv(self) -> NDArray[np.float64]:
@@ -55,17 +58,11 @@ class GridFit:
         """The indexed dots after linearisation."""
         return apply_linearisation(self.linearisation, self.grid_uv)
 
-    def warnings(self, max_residual_px: float = 0.1, max_cv_ratio: float = 2.0) -> list[str]:
-        """One-line warnings a technician should read before using this linearisation.
-
-        Parameters
-        ----------
-        max_residual_px : float
-            Fit residual (RMS, px) above which the dots or the detection are suspect.
-        max_cv_ratio : float
-            Leave-one-row-out residual over fit residual above which the polynomial is
-            following noise (over-fitting).
-        """
+    def warnings(self) -> list[str]:
+        """One-line warnings a technician should read before using this linearisation
+        (limits ``warn_residual_px`` and ``warn_cv_ratio`` of :class:`GridParams`)."""
+        max_residual_px = self.params.warn_residual_px
+        max_cv_ratio = self.params.warn_cv_ratio
         q = self.linearisation.quality
         out = []
         if q is None:
@@ -192,7 +189,7 @@ def _lens_centre_perspective(
     for _ in range(5):
         r0 = perspective_part(eps)
         jac = np.column_stack([(perspective_part(eps + h * e) - r0) / h for e in np.eye(2)])
-        step = np.linalg.solve(jac, -r0)
+        step, *_ = np.linalg.lstsq(jac, -r0, rcond=None)
         eps = eps + step
         if np.abs(step).max() < 1e-10:
             break
@@ -264,7 +261,7 @@ def fit_linearisation(
         cv_rms_px=leave_rows_out_rms(grid, optimal.uv, row, centre, scale),
     )
     lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
-    return GridFit(lin, index, primary, optimal, pts)
+    return GridFit(lin, index, primary, optimal, pts, p)
 
 
 def linearise_dots(

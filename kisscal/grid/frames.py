@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -56,11 +57,18 @@ def dots_from_frames(
     -------
     ndarray, shape (N, 2)
         Centroids ``(u, v)`` in px of the blobs detection judged valid.
+
+    Notes
+    -----
+    Grid dots never touch, so the overlap and long/wide splits of Shafiq et al. 2001,
+    sections 2.3.2-2.3.3 (meant for markers in motion) are switched off here: a large,
+    slightly blurred dot would otherwise be cut in two halves 2-3 px apart.
     """
     from kisscal.detect import DetectionParams, detect_blobs
 
     image = average_frames(frames)
-    blobs = detect_blobs(image, detection or DetectionParams())
+    params = replace(detection or DetectionParams(), split_overlaps=False, split_long_wide=False)
+    blobs = detect_blobs(image, params)
     ok = np.asarray(blobs.valid, dtype=bool)
     return np.column_stack([blobs.x_px[ok], blobs.y_px[ok]]).astype(float)
 

@@ -39,7 +39,9 @@ class GridParams:
         position to the dot accepted there while indexing.
     outlier_px : float
         Smallest residual, in px, at which an indexed dot is rejected as a mis-indexed blob
-        against a smooth (4th-order) fit of dot position over (row, col).
+        against a smooth (4th-order) fit of dot position over (row, col). That fit follows
+        a 4-16 px distorted, tilted grid to 0.01-0.05 px, so a stray blob near a missing
+        dot's place is caught unless it lies within about this distance of it.
     outlier_sigmas : float
         Residuals above this many robust standard deviations are rejected too (whichever
         of ``outlier_px`` and this is larger is the limit).
@@ -56,6 +58,12 @@ class GridParams:
         ``"lens_centre"`` asks the correction to have no 2nd-order terms at the centre
         (as radial distortion has none); ``"least_squares"`` keeps the least-squares
         homography of the distorted dots.
+    warn_residual_px : float
+        Fit residual (RMS, px) above which a warning says the dots or their detection are
+        suspect (rendered rig grids fit to 0.01-0.02 px).
+    warn_cv_ratio : float
+        Leave-one-row-out residual over fit residual above which a warning says the
+        polynomial may be over-fitting.
     """
 
     rows: int = 15
@@ -65,10 +73,12 @@ class GridParams:
     cell_aspect: float = 1.0
     min_indexed_fraction: float = 0.9
     match_tol: float = 0.3
-    outlier_px: float = 1.0
-    outlier_sigmas: float = 6.0
+    outlier_px: float = 0.25
+    outlier_sigmas: float = 4.0
     anchor_centre: bool = True
     perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
+    warn_residual_px: float = 0.1
+    warn_cv_ratio: float = 2.0
 
     def __post_init__(self) -> None:
         if self.rows < 5 or self.cols < 5:

@@ -24,7 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.params import DltResult
+from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
 
@@ -131,7 +133,7 @@ def write_dlt_json(
     result : DltResult
         The calibration.
     xyz_mm, uv_px, labels : optional
-        Control points (as fitted) and their names (e.g. ``"R1[0]"``), for the
+        Control points (as fitted) and their names (e.g. ``"R1.1"``), for the
         per-point residual table.
     extra : mapping, optional
         More keys (e.g. rod recognition report, linearisation used).
@@ -139,7 +141,7 @@ def write_dlt_json(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = dlt_document(camera, result, xyz_mm, uv_px, labels, extra)
-    path.write_text(json.dumps(doc, indent=1, allow_nan=True) + "\n")
+    write_text(path, json.dumps(doc, indent=1, allow_nan=True) + "\n")
     return path
 
 
@@ -191,7 +193,7 @@ def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> P
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     cols = [_eleven(L, f"camera {cam}: L") for cam, L in L_by_camera.items()]
-    with path.open("w", newline="") as f:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         for row in np.array(cols).T:
             writer.writerow([repr(float(x)) for x in row])
@@ -284,3 +286,40 @@ def read_control_points_csv(
         raise KisscalError(f"{path}: control point coordinates must be numbers") from None
     labels = tuple((r.get("label") or f"P{i + 1}").strip() for i, r in enumerate(rows))
     return table[:, :2], table[:, 2:], labels
+
+
+def write_dlt_outputs(out_dir: str | Path, calibration: RodCalibration) -> list[Path]:
+    """Write ``<out_dir>/<camera>.json`` for every camera and ``<out_dir>/dltdv.csv``.
+
+    ``calibration`` is the result of :func:`kisscal.dlt.calibrate_rods`; the JSON files also
+    carry the rod recognition report (markers missing, unused blobs) and the rig's
+    in-sample and leave-one-rod-out 3D errors. Returns the paths written.
+    """
+    out_dir = Path(out_dir)
+    paths = []
+    summary = calibration.summary()
+    for cam, result in calibration.results.items():
+        match = calibration.matches[cam]
+        extra = {
+            "rods": {
+                "missing": list(match.missing),
+                "fit_rms_px": dict(zip(match.rod_names, match.fit_rms_px.tolist(), strict=True)),
+                "unused_blobs": len(match.unused_blobs),
+            },
+            "rig": {k: v for k, v in summary.items() if k != "cameras"},
+        }
+        paths.append(
+            write_dlt_json(
+                out_dir / f"{cam}.json",
+                cam,
+                result,
+                calibration.control_xyz_mm[cam],
+                calibration.control_uv_px[cam],
+                calibration.labels[cam],
+                extra,
+            )
+        )
+    paths.append(
+        write_dltdv_csv(out_dir / "dltdv.csv", {c: r.L for c, r in calibration.results.items()})
+    )
+    return paths

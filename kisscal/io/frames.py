@@ -17,6 +17,12 @@ from kisscal.errors import KisscalError
 
 IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".bmp"}
 
+# OpenCV prints its own warnings for corrupt files; kisscal reports them in one line.
+try:
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+except AttributeError:  # pragma: no cover - builds without the logging module
+    pass
+
 
 def read_image(path: Path) -> np.ndarray:
     """One grayscale frame (8 or 16 bit) from an image file.

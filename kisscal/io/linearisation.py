@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from kisscal.errors import KisscalError
 from kisscal.grid.poly import TERM_NAMES, Linearisation, LinearisationQuality
+from kisscal.io.files import write_text
 
 FORMAT_VERSION = 1
 _QUALITY_KEYS = {f.name for f in fields(LinearisationQuality)}
@@ -129,7 +130,7 @@ def write_linearisation(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = linearisation_to_dict(lin, camera, missing_rc, missing_uv)
-    path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(doc, indent=2) + "\n")
     return path
 
 

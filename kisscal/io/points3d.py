@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path
 from kisscal.recon.reconstruct import Points3D
 
 BASE_COLUMNS = ("field", "x_mm", "y_mm", "z_mm", "n_cameras", "rms_px")
@@ -85,7 +86,7 @@ def write_points3d(
     if not (len(xyz) == len(n_cam) == len(rms) == len(field)):
         raise KisscalError("points3d: columns of different lengths")
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow([*BASE_COLUMNS, *(f"blob_{c}" for c in camera_ids)])
         for k in range(len(field)):

@@ -10,11 +10,15 @@ thesis' band test approximates and which stays defined for vertical lines.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.model import dlt_to_matrix
 from kisscal.errors import KisscalError
+
+_CHUNK = 1_000_000  # candidate pairs evaluated at once (memory bound on long trials)
 
 
 def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
@@ -226,20 +230,29 @@ def candidate_pairs(
             rows_j = order[bounds[j] : bounds[j + 1]]
             if len(rows_i) == 0 or len(rows_j) == 0:
                 continue
-            ia, jb = field_pairs(field[rows_i], field[rows_j])
-            a, b = rows_i[ia], rows_j[jb]
-            # one line per blob, gathered per pair: far fewer lines than pairs
-            line_j = epipolar_lines(F[i, j], uv[rows_i])[ia]
-            line_i = epipolar_lines(F[j, i], uv[rows_j])[jb]
-            ua, va, ub, vb = uv[a, 0], uv[a, 1], uv[b, 0], uv[b, 1]
-            d = np.maximum(
-                np.abs(line_j[:, 0] * ub + line_j[:, 1] * vb + line_j[:, 2]),
-                np.abs(line_i[:, 0] * ua + line_i[:, 1] * va + line_i[:, 2]),
-            )
-            keep = d < band_px
-            out_a.append(a[keep])
-            out_b.append(b[keep])
-            out_d.append(d[keep])
+            uv_i, uv_j = uv[rows_i], uv[rows_j]
+            lines_j = epipolar_lines(F[i, j], uv_i)  # one line per blob, not per pair
+            lines_i = epipolar_lines(F[j, i], uv_j)
+            # bound the temporary pair arrays on long trials: whole blobs of camera i per chunk
+            n_pairs = np.searchsorted(field[rows_j], field[rows_i], side="right")
+            n_pairs -= np.searchsorted(field[rows_j], field[rows_i], side="left")
+            ends = np.searchsorted(np.cumsum(n_pairs), np.arange(1, 1 + n_pairs.sum() // _CHUNK))
+            for lo, hi in itertools.pairwise([0, *np.unique(ends).tolist(), len(rows_i)]):
+                if hi <= lo:
+                    continue
+                ia, jb = field_pairs(field[rows_i[lo:hi]], field[rows_j])
+                ia += lo
+                # one direction first: it rejects most pairs, the other is computed for the rest
+                lj, uvb = lines_j[ia], uv_j[jb]
+                d = np.abs(lj[:, 0] * uvb[:, 0] + lj[:, 1] * uvb[:, 1] + lj[:, 2])
+                near = np.flatnonzero(d < band_px)
+                ia, jb, d = ia[near], jb[near], d[near]
+                li, uva = lines_i[jb], uv_i[ia]
+                d = np.maximum(d, np.abs(li[:, 0] * uva[:, 0] + li[:, 1] * uva[:, 1] + li[:, 2]))
+                keep = d < band_px
+                out_a.append(rows_i[ia[keep]])
+                out_b.append(rows_j[jb[keep]])
+                out_d.append(d[keep])
     if not out_a:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, np.zeros(0)

@@ -8,6 +8,7 @@ at most one marker.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,7 +20,7 @@ from kisscal.recon.epipolar import (
     distance_matrix_px,
     field_pairs,
 )
-from kisscal.recon.group import merge_groups, split_or_drop
+from kisscal.recon.group import merge_groups, renumber, split_or_drop, triangulate_markers
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.triangulate import triangulate_observations
 
@@ -165,7 +166,9 @@ def _project_rows(
 
 def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
     """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
-    order = np.lexsort((np.arange(len(key)), score, key))
+    order = np.lexsort((score, key))  # stable: equal scores keep index order
+    if len(order) == 0:
+        return order
     first = np.r_[True, key[order][1:] != key[order][:-1]]
     return order[first]
 
@@ -228,10 +231,13 @@ def match_triple(
     of the other two's lines (eq. 3.9) and their 3-camera DLT solution reprojects within
     ``max_rms_px``. Triples become markers best (lowest ``rms_px``) first, each blob used
     once: in rounds, every triple that is the best remaining triple of all three of its
-    blobs is accepted (the same outcome as taking them one by one), then extended to the
-    cameras it lacks with the free blob nearest its projection within ``search_radius_px``.
+    blobs is accepted, then extended to the cameras it lacks with the free blob nearest its
+    projection within ``search_radius_px``. (Taking triples one by one would be a Python
+    loop; when two disjoint triples of one marker win in the same round, the 3D grouping
+    below unites them.)
     Finally 3D points of one field closer than ``group_radius_mm`` that do not conflict are
-    united (3.3.7) and markers over ``max_rms_px`` are split or dropped.
+    united (3.3.7) and markers over the residual limit (:func:`residual_limit_px`) are split
+    or dropped.
 
     Parameters
     ----------
@@ -293,6 +299,17 @@ def match_triple(
     return _finish(marker, field, camera, uv, dlts, params)
 
 
+def residual_limit_px(rms_px: NDArray[np.float64], params: ReconParams) -> float:
+    """The reprojection limit of a trial: ``max_rms_px``, tightened to
+    ``outlier_rms_factor`` times the median ``rms_px`` of the trial's markers (never below
+    ``outlier_floor_px``), so that a marker far noisier than its trial is treated as wrong."""
+    rms_px = rms_px[np.isfinite(rms_px)]
+    if params.outlier_rms_factor <= 0 or len(rms_px) == 0:
+        return params.max_rms_px
+    adaptive = max(params.outlier_floor_px, params.outlier_rms_factor * float(np.median(rms_px)))
+    return min(params.max_rms_px, adaptive)
+
+
 def _finish(
     marker: NDArray[np.int64],
     field: NDArray[np.int64],
@@ -301,6 +318,7 @@ def _finish(
     dlts: NDArray[np.float64],
     params: ReconParams,
 ) -> NDArray[np.int64]:
+    """3D grouping, then the residual limit: split or drop markers over it."""
     min_cameras = 2 if params.allow_two_camera else 3
     marker = merge_groups(
         marker,
@@ -312,13 +330,16 @@ def _finish(
         params.max_rms_px,
         params.reweight_iterations,
     )
+    if not (marker >= 0).any():
+        return marker
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
     return split_or_drop(
         marker,
         field,
         camera,
         uv,
         dlts,
-        params.max_rms_px,
+        residual_limit_px(tri.rms_px, params),
         min_cameras,
         params.reweight_iterations,
     )
@@ -471,7 +492,23 @@ def match_trial(
         Marker of each blob, -1 for unmatched blobs.
     """
     fn = match_triple if params.strategy == "triple" else match_central
-    return fn(field, camera, uv, dlts, params)
+    marker = fn(field, camera, uv, dlts, params)
+    free = np.flatnonzero(marker < 0)
+    if len(free) >= 3 and (marker >= 0).any():
+        # second chance for blobs freed by the residual limit (a blob wrongly attached to
+        # a neighbour is split off there, and may complete its own marker now)
+        field = np.asarray(field, dtype=np.int64)
+        camera = np.asarray(camera, dtype=np.int64)
+        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+        dlts = np.asarray(dlts, dtype=float)
+        # the leftovers are the trial's worst blobs: keep the limit the whole trial set
+        rms = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).rms_px
+        fixed = replace(params, max_rms_px=residual_limit_px(rms, params), outlier_rms_factor=0.0)
+        again = fn(field[free], camera[free], uv[free], dlts, fixed)
+        found = again >= 0
+        marker[free[found]] = again[found] + marker.max() + 1
+        marker = renumber(marker, field)
+    return marker
 
 
 def match_field(

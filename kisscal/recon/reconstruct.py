@@ -47,6 +47,32 @@ class Points3D:
     def __len__(self) -> int:
         return len(self.field)
 
+    def summary(self) -> dict[str, float | int | list[int]]:
+        """Counts and residuals for ``summary.json``.
+
+        Returns
+        -------
+        dict
+            ``points``, ``fields_with_points``, ``blobs``, ``blobs_used``,
+            ``blobs_stationary``, ``blobs_unmatched``, ``rms_px_median``, ``rms_px_max``
+            and ``points_by_n_cameras`` (index = number of cameras).
+        """
+        used = int((self.marker >= 0).sum())
+        rms = self.rms_px[np.isfinite(self.rms_px)]
+        return {
+            "points": len(self),
+            "fields_with_points": len(np.unique(self.field)),
+            "blobs": len(self.marker),
+            "blobs_used": used,
+            "blobs_stationary": int(self.stationary.sum()),
+            "blobs_unmatched": len(self.marker) - used - int(self.stationary.sum()),
+            "rms_px_median": float(np.median(rms)) if len(rms) else float("nan"),
+            "rms_px_max": float(rms.max()) if len(rms) else float("nan"),
+            "points_by_n_cameras": np.bincount(
+                self.n_cameras, minlength=self.blob_row.shape[1] + 1
+            ).tolist(),
+        }
+
 
 def points_from_markers(
     marker: NDArray[np.int64],
@@ -90,9 +116,10 @@ def reconstruct_trial(
 
     Steps: stationary false detections removed per camera over the whole trial (Küçük 2005,
     3.3.1; if ``params.stationary_filter``), blobs matched across cameras with
-    ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001, 4.1), each marker triangulated
-    from all its blobs by least squares (eq. 10) plus reweighted steps, markers over
-    ``max_rms_px`` split or dropped, and 3D point groups united (3.3.7).
+    ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001, 4.1), 3D point groups united
+    (3.3.7), each marker triangulated from all its blobs by least squares (Shafiq eq. 10)
+    plus reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
+    split or dropped, and the blobs this frees matched once more.
 
     Parameters
     ----------
@@ -111,6 +138,9 @@ def reconstruct_trial(
     dlts = np.asarray(dlts, dtype=float)
     if dlts.ndim != 2 or dlts.shape[1] != 11 or len(dlts) < 2:
         raise KisscalError(f"reconstruction needs >= 2 cameras' DLT (n, 11), got {dlts.shape}")
+    if not np.all(np.isfinite(dlts)):
+        bad = sorted({int(k) for k in np.nonzero(~np.isfinite(dlts))[0]})
+        raise KisscalError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
     field, camera, uv = _check_table(field, camera, uv, len(dlts))
     if params.stationary_filter:
         still = stationary_mask(

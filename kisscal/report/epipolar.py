@@ -102,12 +102,18 @@ def epipolar_figure(
             colours += [colour_of.get((i, b), grey) for b in range(len(pts[i]))]
         if segs:
             ax.add_collection(LineCollection(np.concatenate(segs), colors=colours, linewidths=0.5))
-        for b, (u, v) in enumerate(pts[j]):
-            colour = colour_of.get((j, b))
-            if colour is None:
-                ax.plot(u, v, "x", color="0.3", ms=5)
-            else:
-                ax.plot(u, v, "o", mfc="none", mec=colour, ms=7, mew=1.5)
+        matched = np.array([(j, b) in colour_of for b in range(len(pts[j]))], dtype=bool)
+        if matched.any():
+            ax.scatter(
+                pts[j][matched, 0],
+                pts[j][matched, 1],
+                s=45,
+                facecolors="none",
+                edgecolors=[colour_of[j, b] for b in np.flatnonzero(matched)],
+                linewidths=1.5,
+            )
+        if (~matched).any():
+            ax.scatter(pts[j][~matched, 0], pts[j][~matched, 1], s=25, c="0.3", marker="x")
         ax.set_xlim(-0.5, w - 0.5)
         ax.set_ylim(h - 0.5, -0.5)
         ax.set_aspect("equal")

@@ -25,6 +25,7 @@ def grid_correction_figure(
     camera: str = "",
     size_px: tuple[int, int] | None = None,
     vector_gain: float = 200.0,
+    correction_gain: float = 5.0,
 ) -> Figure:
     """Distorted dots, corrected dots and the residual vectors of the fit.
 
@@ -38,11 +39,14 @@ def grid_correction_figure(
         Image width and height, px, to draw the frame of the field of view.
     vector_gain : float
         Magnification of the residual vectors (they are hundredths of a pixel).
+    correction_gain : float
+        Magnification of the correction vectors (distorted -> corrected, a few px).
 
     Returns
     -------
     Figure
-        Top: distorted dots, corrected dots, optimal grid, missing and rejected positions.
+        Top: distorted dots, corrected dots, the correction between them (magnified
+        ``correction_gain`` times), missing and rejected positions.
         Bottom: residual vectors (corrected - optimal), magnified ``vector_gain`` times.
     """
     lin = fit.linearisation
@@ -54,6 +58,18 @@ def grid_correction_figure(
     ax, bx = fig.subplots(2, 1)
     ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
     ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
+    ax.quiver(
+        dist[:, 0],
+        dist[:, 1],
+        (corr[:, 0] - dist[:, 0]) * correction_gain,
+        (corr[:, 1] - dist[:, 1]) * correction_gain,
+        angles="xy",
+        scale_units="xy",
+        scale=1.0,
+        width=0.0015,
+        color="0.3",
+        label=f"correction x {correction_gain:g}",
+    )
     if len(fit.index.missing_uv):
         m = fit.index.missing_uv
         ax.plot(m[:, 0], m[:, 1], "o", mfc="none", color="tab:orange", label="missing dot")
@@ -122,6 +138,7 @@ def straightness_figure(fit: GridFit, camera: str = "") -> Figure:
         a.bar(k - 0.2, per[0], width=0.4, color="tab:red", label="before")
         a.bar(k + 0.2, per[1], width=0.4, color="tab:blue", label="after")
         a.set_yscale("log")
+        a.set_xticks(k[:: max(1, n // 10)])
         a.set_xlabel(f"grid {name}")
         a.set_ylabel("RMS distance to straight line (px)")
         a.legend(fontsize=7)

@@ -70,8 +70,9 @@ def build_report(root: Path) -> Path:
         "table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px}"
         "img{max-width:100%}</style></head><body>",
         f"<h1>kisscal session report: {html.escape(str(summary.get('session', '')))}</h1>",
-        "<p>Residuals are <code>rms_px = sqrt(mean(du&sup2; + dv&sup2;))</code>, the RMS Euclidean "
-        "distance in pixels (tools that report per-coordinate RMS give about 1/&radic;2 of it).</p>",
+        "<p>Residuals are <code>rms_px = sqrt(mean(du&sup2; + dv&sup2;))</code>, the RMS "
+        "Euclidean distance in pixels (tools that report per-coordinate RMS give about "
+        "1/&radic;2 of it).</p>",
     ]
     used: set[Path] = set()
     for prefix, title in SECTIONS:

@@ -31,8 +31,9 @@ class TrajectoryScore:
     rmse_measured_mm, rmse_filled_mm : float
         3D error of measured and of gap-filled samples against the followed marker.
     coverage : float
-        Fraction of true marker-fields (markers seen by >= 2 cameras) that a trajectory
-        covers with a measured or filled sample.
+        Fraction of true marker-fields (the ``truth_seen`` ones: markers that enough
+        cameras see to be reconstructed) that a trajectory covers with a measured or
+        filled sample within 20 mm.
     """
 
     n_trajectories: int

@@ -73,9 +73,13 @@ class Spots:
         return np.sqrt(np.sum(self.shape**2, axis=2))
 
 
-def draw_spots(image: NDArray[np.float64], spots: Spots) -> None:
+def draw_spots(image: NDArray[np.float64], spots: Spots, supersample: int = 4) -> None:
     """Draw anti-aliased elliptical spots into a float image (in place, overlaps take the max).
 
+    A pixel's grey value is the spot's peak times the fraction of the pixel inside the
+    ellipse, estimated on ``supersample`` x ``supersample`` sub-pixels, each of which uses
+    the signed distance of its centre to the outline over a ramp one sub-pixel wide. The
+    centroid of a rendered spot is then its true centre to about 0.01 px.
     Vectorised over all spots of a field: every spot is evaluated on a patch of the same
     size, and the patches are combined with ``np.maximum.at``.
     """
@@ -90,17 +94,19 @@ def draw_spots(image: NDArray[np.float64], spots: Spots) -> None:
     cv = np.rint(spots.centre_px[:, 1]).astype(int)
     px = cu[:, None, None] + offs[None, None, :]  # (n, 1, P)
     py = cv[:, None, None] + offs[None, :, None]  # (n, P, 1)
-    du = px - spots.centre_px[:, 0, None, None]
-    dv = py - spots.centre_px[:, 1, None, None]
+    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     inv = np.linalg.inv(spots.shape)
-    a = inv[:, 0, 0, None, None] * du + inv[:, 0, 1, None, None] * dv
-    b = inv[:, 1, 0, None, None] * du + inv[:, 1, 1, None, None] * dv
-    rho = np.sqrt(a * a + b * b)  # 1 on the outline
-    dist = np.hypot(du, dv)
-    # signed distance (pixels) of the pixel centre outside the outline, along the ray
-    outside_px = dist * (1.0 - 1.0 / np.maximum(rho, 1e-9))
-    coverage = np.clip(0.5 - outside_px, 0.0, 1.0)
-    value = coverage * spots.peak[:, None, None]
+    coverage = np.zeros((n, len(offs), len(offs)))
+    for sy in sub:  # supersample**2 passes, each vectorised over all spots and pixels
+        for sx in sub:
+            du = px + sx - spots.centre_px[:, 0, None, None]
+            dv = py + sy - spots.centre_px[:, 1, None, None]
+            a = inv[:, 0, 0, None, None] * du + inv[:, 0, 1, None, None] * dv
+            b = inv[:, 1, 0, None, None] * du + inv[:, 1, 1, None, None] * dv
+            rho = np.sqrt(a * a + b * b)  # 1 on the outline
+            outside_px = np.hypot(du, dv) * (1.0 - 1.0 / np.maximum(rho, 1e-9))
+            coverage += np.clip(0.5 - outside_px * supersample, 0.0, 1.0)
+    value = coverage / supersample**2 * spots.peak[:, None, None]
     pyb, pxb = np.broadcast_arrays(py, px)
     ok = (pxb >= 0) & (pxb < w) & (pyb >= 0) & (pyb < h) & (value > 0)
     np.maximum.at(image, (pyb[ok], pxb[ok]), value[ok])

@@ -235,6 +235,14 @@ def render_markers(
     image = render_field(camera.size_px, everything, rng, params)
     iso = np.zeros(len(safe), dtype=bool)
     iso[visible] = isolated(everything)[: int(visible.sum())]
+    # a spot cut by the image border is not a clean, whole marker image either
+    w, h = camera.size_px
+    reach = spots.radii_px + 2.5
+    inside = np.all(spots.centre_px - reach >= -0.5, axis=1)
+    inside &= (spots.centre_px[:, 0] + reach[:, 0] <= w - 0.5) & (
+        spots.centre_px[:, 1] + reach[:, 1] <= h - 0.5
+    )
+    iso &= inside
     truth = FieldTruth(
         visible=visible,
         uv_px=spots.centre_px,

@@ -21,7 +21,7 @@ def _result(rig, cam, params):
 
 def test_json_round_trip(rig, tmp_path):
     xyz, uv, result = _result(rig, 0, DltParams(mdlt=True))
-    labels = [f"R{i // 6 + 1}[{i % 6}]" for i in range(24)]
+    labels = [f"R{i // 6 + 1}.{i % 6 + 1}" for i in range(24)]
     path = write_dlt_json(tmp_path / "out/dlt/cam1.json", "cam1", result, xyz, uv, labels)
     back = read_dlt_json(path)
     assert back.camera == "cam1" and back.method == "mdlt" and back.lens is None
@@ -29,7 +29,7 @@ def test_json_round_trip(rig, tmp_path):
     assert back.rms_px == result.rms_px
     doc = json.loads(path.read_text())
     assert "sqrt(mean(du^2 + dv^2))" in doc["rms_definition"]
-    assert doc["points"][7]["label"] == "R2[1]"
+    assert doc["points"][7]["label"] == "R2.2"
     du = np.array([[p["du_px"], p["dv_px"]] for p in doc["points"]])
     assert np.sqrt(np.mean((du**2).sum(axis=1))) == pytest.approx(doc["rms_px"])
     np.testing.assert_allclose(doc["centre_mm"], result.centre_mm)

@@ -22,10 +22,10 @@ def test_recognition_on_20_rigs_with_noise_and_a_hidden_marker(seed):
         match = recognise_rods(blobs, rig.rods, camera=f"cam{cam + 1}")
         np.testing.assert_array_equal(match.blob_index.ravel(), truth)
         # Hidden or merged markers (rods aligned in the view), named in the report
-        absent = tuple(f"R{j // 6 + 1}[{j % 6}]" for j in np.flatnonzero(truth < 0))
+        absent = tuple(f"R{j // 6 + 1}.{j % 6 + 1}" for j in np.flatnonzero(truth < 0))
         assert match.missing == absent
         if hide is not None:
-            assert f"R{hidden // 6 + 1}[{hidden % 6}]" in absent
+            assert f"R{hidden // 6 + 1}.{hidden % 6 + 1}" in absent
         assert np.all(match.fit_rms_px < 0.3)
         assert len(match.unused_blobs) == 8
 
@@ -36,7 +36,7 @@ def test_control_points_and_marker_uv(rig):
     match = recognise_rods(blobs, rig.rods)
     xyz, uv, labels = match.control_points(blobs, rig.rods)
     assert len(xyz) == len(uv) == len(labels) == 23
-    assert "R2[1]" not in labels and labels[0] == "R1[0]"
+    assert "R2.2" not in labels and labels[0] == "R1.1"
     np.testing.assert_allclose(uv, project(rig.L[0], xyz), atol=0.3)
     muv = match.marker_uv(blobs)
     assert muv.shape == (4, 6, 2) and np.isnan(muv[1, 1]).all()
@@ -47,7 +47,7 @@ def test_rod_out_of_view_is_reported_missing(rig):
     blobs, truth = rod_image(rig, 3, rng, n_extra=3)
     keep = np.setdiff1d(np.arange(len(blobs)), truth[12:18])  # R3 out of the picture
     match = recognise_rods(blobs[keep], rig.rods, camera="cam4")
-    assert match.missing == tuple(f"R3[{i}]" for i in range(6))
+    assert match.missing == tuple(f"R3.{i}" for i in range(1, 7))
     assert np.all(match.blob_index[2] == -1)
     assert np.isnan(match.fit_rms_px[2])
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial import Delaunay
 
 from kisscal.grid import GridParams, apply_linearisation, linearise_dots
 from tests.grid.grid_synth import BrownCamera, fit_similarity, make_grid_view, rms
@@ -107,10 +108,11 @@ def test_missing_dots_and_extra_blobs_barely_change_the_correction(model, tilt_d
     fit = linearise_dots(np.vstack([view.dots_uv[keep], extra]), params, size_px=SIZE)
     assert fit.linearisation.quality.dots_missing == 15
     assert fit.linearisation.quality.blobs_rejected == 10
-    # anywhere in the grid area: a dense sampling of the dots' bounding box
+    # anywhere in the grid area: a dense sampling of the dots' convex hull
     lo, hi = view.distorted_uv.min(axis=0), view.distorted_uv.max(axis=0)
     uu, vv = np.meshgrid(np.linspace(lo[0], hi[0], 120), np.linspace(lo[1], hi[1], 60))
     pts = np.column_stack([uu.ravel(), vv.ravel()])
+    pts = pts[Delaunay(view.distorted_uv).find_simplex(pts) >= 0]  # the grid area: dots' hull
     change = np.linalg.norm(
         apply_linearisation(fit.linearisation, pts) - apply_linearisation(full, pts), axis=1
     )

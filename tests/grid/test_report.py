@@ -17,8 +17,10 @@ def test_figures_show_dots_vectors_and_lines(tmp_path):
     fig = grid_correction_figure(fit, "cam1", size_px=(752, 291))
     assert isinstance(fig, Figure) and len(fig.axes) == 2
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert labels == ["distorted dots", "corrected dots", "missing dot", "rejected blob"]
-    quiver = fig.axes[1].collections[0]
+    assert labels == [
+        "distorted dots", "corrected dots", "correction x 5", "missing dot", "rejected blob",
+    ]  # fmt: skip
+    quiver = fig.axes[1].collections[0]  # residual vectors
     assert len(quiver.get_offsets()) == fit.index.n_indexed
     fig.savefig(tmp_path / "grid.png")
     fig2 = straightness_figure(fit, "cam1")

@@ -87,3 +87,20 @@ def test_shared_centre_is_an_error() -> None:
     dlts = make_rig(0)
     with pytest.raises(KisscalError):
         fundamental_from_dlt(dlts[0], dlts[0])
+
+
+def test_candidate_pairs_do_not_depend_on_the_chunk_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    import kisscal.recon.epipolar as epipolar
+
+    dlts = make_rig(5)
+    F = all_fundamentals(dlts)
+    rng = np.random.default_rng(5)
+    xyz = random_markers(rng, 30, 8)
+    field = np.repeat(np.arange(30), 8 * 6)
+    camera = np.tile(np.repeat(np.arange(6), 8), 30)
+    uv = np.concatenate([project(dlts[c], xyz[f]) for f in range(30) for c in range(6)])
+    whole = candidate_pairs(field, camera, uv, F, 3.0)
+    monkeypatch.setattr(epipolar, "_CHUNK", 37)
+    chunked = candidate_pairs(field, camera, uv, F, 3.0)
+    key = lambda r: sorted(zip(r[0].tolist(), r[1].tolist(), strict=True))  # noqa: E731
+    assert key(whole) == key(chunked) and len(whole[0]) >= 30 * 8 * 15

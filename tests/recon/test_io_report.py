@@ -87,3 +87,20 @@ def test_trial_field_figure_colours_the_reconstructed_markers(tmp_path: Path) ->
     assert fig.texts[0].get_text().startswith(f"field 4: {int((pts.field == 4).sum())} markers")
     fig.savefig(tmp_path / "epi.png")
     assert (tmp_path / "epi.png").stat().st_size > 10_000
+
+
+def test_summary_counts_every_blob_once() -> None:
+    rng = np.random.default_rng(4)
+    dlts = make_rig(4)
+    xyz = random_markers(rng, 20, 8)
+    field, camera, uv, _, _ = make_table(rng, dlts, xyz, n_leds=1, n_noise=1)
+    pts = reconstruct_trial(field, camera, uv, dlts)
+    s = pts.summary()
+    assert s["blobs"] == len(field)
+    assert s["blobs_used"] + s["blobs_stationary"] + s["blobs_unmatched"] == len(field)
+    assert s["blobs_used"] == int(pts.n_cameras.sum())
+    assert sum(s["points_by_n_cameras"]) == s["points"] == len(pts)
+    assert s["blobs_stationary"] >= 6 * 20  # one LED per camera in every field
+    assert s["rms_px_max"] <= ReconParams().max_rms_px
+    with pytest.raises(KisscalError):
+        reconstruct_trial(field, camera, uv, np.where(np.arange(11) == 3, np.nan, dlts))

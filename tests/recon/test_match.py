@@ -101,3 +101,60 @@ def test_bad_tables_raise() -> None:
         match_trial([0], [7], [[1.0, 2.0]], dlts)
     with pytest.raises(KisscalError):
         match_field([np.zeros((1, 2))], dlts)
+
+
+def test_extension_with_no_blob_in_reach_leaves_the_triple_alone() -> None:
+    # a spare blob far from every projection: extension finds no candidate at all
+    dlts = make_rig(9)
+    xyz = random_markers(np.random.default_rng(9), 1, 1)[0]
+    points = [project(dlts[c], xyz) for c in range(3)] + [np.zeros((0, 2))] * 2
+    points.append(project(dlts[5], xyz) + [40.0, 0.0])
+    matches = match_field(points, dlts)
+    assert matches == [{0: 0, 1: 0, 2: 0}]
+
+
+def test_residual_limit_tightens_to_the_trials_noise_but_not_below_the_floor() -> None:
+    from kisscal.recon.match import residual_limit_px
+
+    p = ReconParams(max_rms_px=1.0, outlier_rms_factor=5.0, outlier_floor_px=0.2)
+    assert residual_limit_px(np.array([0.05, 0.06, 0.06, 0.9]), p) == pytest.approx(0.3)
+    assert residual_limit_px(np.array([1e-9, 2e-9]), p) == pytest.approx(0.2)
+    assert residual_limit_px(np.array([0.4, 0.5, 0.6]), p) == pytest.approx(1.0)
+    off = ReconParams(outlier_rms_factor=0.0)
+    assert residual_limit_px(np.array([0.05, 0.06]), off) == off.max_rms_px
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_a_blob_wrongly_attached_to_an_occluded_neighbour_is_split_off(strategy: str) -> None:
+    # marker b is hidden from camera 5, where marker a's blob lies 1.5 px from b's image:
+    # extension attaches it to b; the trial's residual limit must split it off again
+    rng = np.random.default_rng(10)
+    dlts = make_rig(10)
+    xyz = random_markers(rng, 30, 2)
+    xyz[:, 1] = xyz[:, 0] + [0.0, 0.0, 60.0]
+    fields, cams, uvs, truth = [], [], [], []
+    for f in range(30):
+        for c in range(6):
+            for m in range(2):
+                if m == 1 and c == 5:
+                    continue
+                uv = project(dlts[c], xyz[f, m]) + rng.normal(0, 0.05, 2)
+                if m == 0 and c == 5:
+                    uv = project(dlts[c], xyz[f, 1]) + [1.5, 0.0]  # near b's image
+                fields.append(f)
+                cams.append(c)
+                uvs.append(uv)
+                truth.append(m)
+    field, camera, uv, truth = map(np.asarray, (fields, cams, uvs, truth))
+    # plenty of clean markers elsewhere set the trial's noise level
+    extra = random_markers(rng, 30, 10)
+    for f in range(30):
+        for c in range(6):
+            p = project(dlts[c], extra[f]) + rng.normal(0, 0.05, (10, 2))
+            field = np.r_[field, np.full(10, f)]
+            camera = np.r_[camera, np.full(10, c)]
+            uv = np.vstack([uv, p])
+            truth = np.r_[truth, 2 + np.arange(10)]
+    marker = match_trial(field, camera, uv, dlts, ReconParams(strategy=strategy))
+    for m in np.unique(marker[marker >= 0]):
+        assert len(set(truth[marker == m])) == 1

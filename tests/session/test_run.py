@@ -1,0 +1,129 @@
+"""`kisscal run` end to end on a synthetic session: outputs, truth, caching, C3D."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kisscal import session
+from kisscal.io.files import read_table
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def processed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Seed 5, six cameras, a 120-field gait trial, processed by `kisscal run`."""
+    root = tmp_path_factory.mktemp("run") / "s5"
+    session.synthesise(root, seed=5, fields=120, walking5=False)
+    log: list[str] = []
+    session.run(root, echo=log.append)
+    (root / "run.log").write_text("\n".join(log))
+    return root
+
+
+def test_outputs_follow_the_design(processed: Path) -> None:
+    out = processed / "out"
+    for cam in range(1, 7):
+        lin = json.loads((out / "linearisation" / f"cam{cam}.json").read_text())
+        assert lin["model"] == "poly4" and len(lin["x"]) == 15 and len(lin["y"]) == 15
+        dlt = json.loads((out / "dlt" / f"cam{cam}.json").read_text())
+        assert len(dlt["L"]) == 11 and dlt["method"] == "dlt"
+    assert len((out / "dlt" / "dltdv.csv").read_text().strip().splitlines()) >= 11
+    for trial in ("walk01", "stick", "throw"):
+        tdir = out / "trials" / trial
+        pts = read_table(
+            tdir / "points3d.csv", required=("field", "x_mm", "y_mm", "z_mm", "n_cameras", "rms_px")
+        )
+        assert len(pts["field"]) > 0
+        tr = read_table(
+            tdir / "trajectories.csv",
+            required=("field", "track", "label", "x_mm", "y_mm", "z_mm", "status"),
+        )
+        assert set(tr["status"]) <= {"measured", "predicted", "filled"}
+        assert (tdir / "trajectories.c3d").is_file() and (tdir / "trajectories.trc").is_file()
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["cameras"]) == {f"cam{i}" for i in range(1, 7)}
+    html = (out / "report.html").read_text()
+    assert html.count("data:image/png;base64,") >= 6  # grid x6 at least, rig, residuals, epipolar
+
+
+def test_calibration_and_3d_accuracy_against_truth(processed: Path) -> None:
+    truth = json.loads((processed / "truth" / "cameras.json").read_text())["cameras"]
+    for cam in truth:
+        dlt = json.loads((processed / "out" / "dlt" / f"{cam['id']}.json").read_text())
+        assert dlt["rms_px"] < 0.08
+        assert np.linalg.norm(np.subtract(dlt["centre_mm"], cam["centre_mm"])) < 10.0
+    score = session.evaluate(processed)
+    stick = score["stick"]["stick_length"]
+    assert stick["mean_abs_error_mm"] < 1.1 and stick["sd_mm"] < 1.5  # seed 003: 1.1 / 1.5 mm
+    assert score["throw"]["gravity"]["relative_error"] < 0.005
+    walk = score["walk01"]
+    assert walk["rmse_measured_mm"] < 1.0
+    assert walk["identity_switches"] == 0
+
+
+def test_gait_trajectories_are_labelled(processed: Path) -> None:
+    walk = session.evaluate(processed)["walk01"]
+    assert walk["n_trajectories"] == walk["n_true_markers"] == 15
+    assert walk["correctly_labelled"] == 15
+    assert walk["coverage"] > 0.99
+
+
+def test_c3d_matches_csv(processed: Path) -> None:
+    import c3d
+
+    tdir = processed / "out" / "trials" / "stick"
+    tr = read_table(tdir / "trajectories.csv")
+    with open(tdir / "trajectories.c3d", "rb") as fh:
+        reader = c3d.Reader(fh)
+        labels = [s.strip() for s in reader.point_labels]
+        frames = [points.copy() for _, points, _ in reader.read_frames()]
+        rate = reader.point_rate
+    assert rate == pytest.approx(50.0)
+    first = int(tr["field"].min())
+    for k, label in enumerate(labels):
+        rows = tr["label"] == label
+        for f, x, y, z in zip(
+            tr["field"][rows], tr["x_mm"][rows], tr["y_mm"][rows], tr["z_mm"][rows], strict=True
+        ):
+            assert frames[int(f) - first][k, :3] == pytest.approx([x, y, z], abs=1e-3)
+
+
+def test_rerun_after_a_tracking_change_reuses_detection(processed: Path, tmp_path: Path) -> None:
+    root = tmp_path / "copy"
+    shutil.copytree(processed, root)
+    log: list[str] = []
+    session.run(root, overrides=session.Overrides(tracking={"pnc": 0.05}), echo=log.append)
+    detect_lines = [line for line in log if "detect " in line]
+    assert detect_lines and all("(cached)" in line for line in detect_lines)
+    assert any("linearise" in line and "cached" in line for line in log)
+
+
+def kisscal(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "kisscal", *args], capture_output=True, text=True, timeout=600
+    )
+
+
+def test_check_gate(processed: Path) -> None:
+    ok = kisscal(
+        "check",
+        str(processed),
+        "--max-reproj-px",
+        "0.08",
+        "--max-grid-px",
+        "0.08",
+        "--max-3d-mm",
+        "1.0",
+    )
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    bad = kisscal("check", str(processed), "--max-reproj-px", "0.001")
+    assert bad.returncode == 1
+    assert "dlt rms_px" in bad.stdout and "cam1" in bad.stdout
