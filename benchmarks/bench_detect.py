@@ -20,15 +20,62 @@ import cv2
 import numpy as np
 
 from benchmarks._harness import Timing, best_of, report
-from kisscal.detect import DetectionParams, detect_blobs, detect_sequence
+from kisscal.detect import Blobs, DetectionParams, detect_blobs, detect_sequence
 from kisscal.synth.plan import SynthOptions, plan_session, render_trial
+from kisscal.synth.scene import FieldTruth
 
 
-def _fields(n_fields: int, seed: int = 1) -> list[np.ndarray]:
+def _fields(n_fields: int, seed: int = 1) -> tuple[list[np.ndarray], list[FieldTruth]]:
     plan = plan_session(SynthOptions(seed=seed, fields=n_fields))
-    return [
-        image for cam in range(len(plan.rig)) for _, image, _ in render_trial(plan, "walk01", cam)
+    rendered = [
+        (image, truth)
+        for cam in range(len(plan.rig))
+        for _, image, truth in render_trial(plan, "walk01", cam)
     ]
+    return [r[0] for r in rendered], [r[1] for r in rendered]
+
+
+def _accuracy(blobs: list[Blobs], truths: list[FieldTruth]) -> str:
+    """Recall, precision and isolated-marker centroid RMS against the rig's truth.
+
+    Same rules as tests/detect/test_rig.py: a marker is found by a valid blob within half
+    its radius (round units); recall counts markers at least one radius from any other.
+    """
+    markers = found = valid_blobs = true_blobs = 0
+    errors: list[float] = []
+    for b, truth in zip(blobs, truths, strict=True):
+        valid = b.valid_only()
+        uv = truth.uv_px[truth.visible]
+        r = truth.radii_px[truth.visible]
+        iso = truth.isolated[truth.visible]
+        apart = np.hypot(
+            (uv[:, None, 0] - uv[None, :, 0]) / r[:, None, 0],
+            (uv[:, None, 1] - uv[None, :, 1]) / r[:, None, 1],
+        )
+        np.fill_diagonal(apart, np.inf)
+        separate = apart.min(axis=1, initial=np.inf) >= 1.0
+        markers += int(separate.sum())
+        valid_blobs += len(valid)
+        if len(valid) == 0 or len(uv) == 0:
+            continue
+        d = np.hypot(
+            (valid.x_px[:, None] - uv[:, 0]) / r[:, 0], (valid.y_px[:, None] - uv[:, 1]) / r[:, 1]
+        )
+        nearest = d.argmin(axis=0)
+        ok = d[nearest, np.arange(len(uv))] < 0.5
+        found += int((ok & separate).sum())
+        marker_of = d.argmin(axis=1)
+        true_blobs += np.unique(marker_of[d[np.arange(len(valid)), marker_of] < 0.5]).size
+        j = np.flatnonzero(iso & ok)
+        errors += np.hypot(
+            valid.x_px[nearest[j]] - uv[j, 0], valid.y_px[nearest[j]] - uv[j, 1]
+        ).tolist()
+    rms = float(np.sqrt(np.mean(np.square(errors)))) if errors else float("nan")
+    return (
+        f"accuracy: recall {100 * found / max(markers, 1):.2f} % of {markers} markers, "
+        f"precision {100 * true_blobs / max(valid_blobs, 1):.2f} % of {valid_blobs} valid "
+        f"blobs, isolated centroid rms {rms:.4f} px ({len(errors)} markers)"
+    )
 
 
 def _opencv(image: np.ndarray, threshold: int) -> np.ndarray:
@@ -39,7 +86,7 @@ def _opencv(image: np.ndarray, threshold: int) -> np.ndarray:
 
 def main() -> list[str]:
     n_fields = int(os.environ.get("KISSCAL_BENCH_FIELDS", "500"))
-    images = _fields(n_fields)
+    images, truths = _fields(n_fields)
     n = len(images)
     params = DetectionParams()
     threshold = int(params.threshold)
@@ -90,6 +137,7 @@ def main() -> list[str]:
             f"{1e6 * ref.seconds / n:.0f} us, PNG decode {1e6 * decode.seconds / n:.0f} us"
         )
         lines.append(_summary(ours, ref))
+        lines.append(_accuracy([detect_blobs(im, params) for im in images], truths))
     finally:
         cv2.setNumThreads(previous)
     return lines
