@@ -287,7 +287,9 @@ def long_wide_split(
     the ``edge_growth_px`` of a thresholded spot; it is cut into ``round(w / d)`` (at
     least 2) markers spread evenly from its left to its right end; a long one likewise
     from top to bottom. The other coordinate of each part is the group's binary centroid.
-    Groups where ``inside`` is False (cut by the image border) are not tested.
+    A small group (under 1.5 ``long_wide_min_pixels``) shorter than ``split_min_extent``
+    diameters along the cut is left whole, and groups where ``inside`` is False (cut by
+    the image border) are not tested.
     """
     w = table.width.astype(float)
     h = table.height.astype(float)
@@ -310,6 +312,13 @@ def long_wide_split(
     diameter = np.where(is_wide, (h[idx] - g) * asp + g, (w[idx] - g) / asp + g)
     diameter = np.maximum(diameter, 1.0)
     extent = np.where(is_wide, w[idx], h[idx])
+    # For a small group the shape alone is too noisy: its extent must agree, a group
+    # shorter than ``split_min_extent`` marker diameters along the cut is one spot.
+    small = table.pixels[idx] < 1.5 * params.long_wide_min_pixels
+    agree = ~small | (extent >= params.split_min_extent * diameter)
+    if not agree.any():
+        return grouping
+    idx, is_wide, diameter, extent = idx[agree], is_wide[agree], diameter[agree], extent[agree]
     k = np.maximum(np.floor(extent / diameter + 0.5), 2).astype(np.int64)
     kmax = int(k.max())
     j = np.arange(kmax)[None, :]

@@ -97,6 +97,11 @@ class DetectionParams:
         this value is used when an image has fewer than ``growth_min_groups`` of them.
     growth_min_groups : int
         Least number of marker-sized groups for the per-image growth estimate.
+    split_min_extent : float
+        A small long or wide group (fewer than 1.5 ``long_wide_min_pixels``) is cut only
+        when it is at least this many marker diameters long along the cut (two markers
+        one radius apart measure about 1.4): the moment ratio of a small single spot is
+        noisy, its extent less so.
     edge_growth_px : float
         How much wider and taller (pixels) the thresholded image of a marker is than its
         outline: blur and blooming add about the same in both directions, independent of
@@ -160,6 +165,7 @@ class DetectionParams:
     long_wide_min_pixels: int = 16
     growth_px: float = 0.35
     growth_min_groups: int = 5
+    split_min_extent: float = 1.25
     edge_growth_px: float = 1.0
     pixel_aspect: float = 1.94
     detach_from_large: bool = True
@@ -212,6 +218,7 @@ class DetectionParams:
             "growth_px",
             "growth_min_groups",
             "touching_separation",
+            "split_min_extent",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",

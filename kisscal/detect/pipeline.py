@@ -198,12 +198,13 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
 def _testable(grouping: Grouping, table: GroupTable, white: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Groups the overlap and long/wide tests may split.
 
-    Not those cut by the image border, and not the parts of a touching-marker split unless
-    they are large enough to hold two markers (1.6 times the image's typical marker): a
-    part cut at a neck has a flattened side that the shape tests would misread.
+    Not those cut by the image border, and not the parts of a touching-marker split or
+    markers detached from an LED ring unless they are large enough to hold two markers
+    (1.6 times the image's typical marker): a part cut at a neck has a flattened side
+    that the shape tests would misread.
     """
     inside = _inside(table, white.shape)
-    part = (grouping.flags[table.label] & fl.SPLIT_TOUCHING) != 0
+    part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
     if not part.any():
         return inside
     whole = inside & ~part
