@@ -112,12 +112,17 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     if noise.any():
         grouping = grouping.keep_groups(table.label[noise])
         table = measure_groups(grouping.runs)
+    # Each test returns the grouping itself when it changed nothing: no re-measuring then.
     if params.merge_submarkers and len(table):
-        grouping = merge_submarkers(grouping, table, params)
-        table = measure_groups(grouping.runs)
+        merged = merge_submarkers(grouping, table, params)
+        if merged is not grouping:
+            grouping = merged
+            table = measure_groups(grouping.runs)
     if params.detach_from_large and params.apply_size_limits and len(table):
-        grouping = detach_from_large(grouping, table, params)
-        table = measure_groups(grouping.runs)
+        detached = detach_from_large(grouping, table, params)
+        if detached is not grouping:
+            grouping = detached
+            table = measure_groups(grouping.runs)
     if len(table) == 0:
         return Blobs.empty()
 
