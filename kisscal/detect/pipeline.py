@@ -139,7 +139,7 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
             params.pixel_aspect,
         )
 
-    # Moments are recomputed only when a test actually split a group (rare).
+    # Moments are recomputed only after a test actually split a group.
     spot = moments()
     growth = params.growth_px
     if params.split_overlaps or params.split_long_wide or params.split_touching:
