@@ -300,15 +300,31 @@ def calibrate(
     out = out_dir(root) / "dlt"
     summary: dict[str, Any] = {}
     if config.rods is not None:
+        import json
+
         from kisscal.dlt import calibrate_rods, make_rods
-        from kisscal.io.cache import cache_key
+        from kisscal.io.cache import cache_key, is_current, mark_current
         from kisscal.io.dltfiles import write_dlt_outputs
         from kisscal.io.frames import camera_frames
 
         rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
+        rod_frames = {
+            cam.id: camera_frames(config.root, config.rods.images, cam.id, "rod") for cam in cameras
+        }
+        stage_key = cache_key(
+            "calibrate",
+            {c: _file_keys(f.paths, config.root) for c, f in rod_frames.items()},
+            {c: (lins[c].x, lins[c].y, lins[c].center_px, lins[c].scale_px) for c in rod_frames},
+            params.detection,
+            params.dlt,
+            [(r.name, r.points_mm) for r in config.rods.rods],
+        )
+        if camera is None and is_current(out / "check.json", stage_key):
+            echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
+            return {"_check": json.loads((out / "check.json").read_text())}
         blobs_px = {}
         for cam in cameras:
-            frames = camera_frames(config.root, config.rods.images, cam.id, "rod")
+            frames = rod_frames[cam.id]
             key = cache_key("detect", _file_keys(frames.paths, config.root), params.detection)
             cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
             frame_blobs = _detect_frames(
@@ -323,6 +339,7 @@ def calibrate(
         rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
         if camera is None:
             write_json(out / "check.json", rig)
+            mark_current(out / "check.json", stage_key)
             summary["_check"] = rig
         for cam_id, res in cal.results.items():
             summary[cam_id] = res
@@ -410,6 +427,27 @@ def _read_dlts(root: Path, config: Any, required: bool = True) -> dict[str, np.n
 # --------------------------------------------------------------------- reconstruction
 
 
+def _trial_input_keys(config: Any, trial: Any) -> dict[str, Any]:
+    """Per camera, the files a trial's 2D data come from (for cache keys)."""
+    from kisscal.io.frames import trial_frames
+
+    if trial.source == "centroids":
+        paths = {
+            c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
+        }
+    else:
+        pattern = trial.images or trial.video
+        frames = trial_frames(
+            config.root, pattern, config.camera_ids, trial.name, video=trial.source == "video"
+        )
+        paths = {c: list(f.paths) if hasattr(f, "paths") else [f.path] for c, f in frames.items()}
+    for c, ps in paths.items():
+        for p in ps:
+            if not p.is_file():
+                raise KisscalError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
+    return {c: _file_keys(ps, config.root) for c, ps in paths.items()}
+
+
 def _trial_blobs(
     root: Path,
     config: Any,
@@ -463,7 +501,9 @@ def reconstruct(
 ) -> Any:
     """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv``."""
     from kisscal.grid import apply_linearisation
-    from kisscal.io.points3d import write_trial_points
+    from kisscal.io.cache import cache_key, is_current, mark_current
+    from kisscal.io.files import write_json
+    from kisscal.io.points3d import read_points3d, write_trial_points
     from kisscal.recon import reconstruct_trial
 
     config = _load(root)
@@ -471,6 +511,18 @@ def reconstruct(
     params = stage_params(config, overrides)
     lins = _linearisations(root, config, echo)
     dlts = _read_dlts(root, config)
+    path = out_dir(root) / "trials" / trial.name / "points3d.csv"
+    stage_key = cache_key(
+        "reconstruct",
+        _trial_input_keys(config, trial),
+        {c: (lins[c].x, lins[c].y, lins[c].center_px, lins[c].scale_px) for c in lins},
+        dlts,
+        params.detection,
+        params.recon,
+    )
+    if is_current(path, stage_key):
+        echo(f"  reconstruct {trial.name}: cached")
+        return read_points3d(path)
     blobs = _trial_blobs(root, config, trial, params, echo, workers)
     fields, cams, uvs = [], [], []
     for ci, cam in enumerate(config.camera_ids):
@@ -487,11 +539,9 @@ def reconstruct(
     points = reconstruct_trial(
         field_idx, cam_idx, uv, np.stack([dlts[c] for c in config.camera_ids]), params.recon
     )
-    path = out_dir(root) / "trials" / trial.name / "points3d.csv"
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
-    from kisscal.io.files import write_json
-
     write_json(path.with_name("recon.json"), points.summary())
+    mark_current(path, stage_key)
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
         _figure(
@@ -555,6 +605,7 @@ def track(
     PNC x MNC segment-length table as ``sweep.csv``.
     """
     from kisscal.io.export import write_c3d, write_trc
+    from kisscal.io.files import write_json
     from kisscal.io.points3d import read_points3d
     from kisscal.io.trajectories import write_trajectories_csv
     from kisscal.tracking import build_trajectories
@@ -572,10 +623,26 @@ def track(
     names = config.markers.names if config.markers else None
     template = config.markers.template_mm if config.markers else None
     t0 = time.perf_counter()
-    result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template)
+    segments = config.markers.segments if config.markers else ()
+    result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template, segments)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
     write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    lab = result.labelling
+    write_json(
+        tdir / "tracking.json",
+        {
+            "pieces": result.n_pieces,
+            "pieces_after_blending": result.n_pieces_blended,
+            "trajectories": len(result.labels),
+            "fits_marker_set": bool(lab.fits_marker_set),
+            "unlabelled": list(lab.unlabelled),
+            "missing": list(lab.missing),
+            "predictions_per_track": dict(
+                zip(result.labels, np.asarray(result.n_predicted).tolist(), strict=True)
+            ),
+        },
+    )
     segments = config.markers.segments if config.markers else ()
     _figure(
         root, f"trajectories_{trial.name}", "kisscal.report.tracking", "trajectories_figure", result
@@ -587,6 +654,7 @@ def track(
         "segment_length_figure",
         result,
         segments,
+        config.rate_hz,
     )
     echo(
         f"  track {trial.name}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
@@ -680,6 +748,8 @@ def summarise(root: Path) -> dict[str, Any]:
     for trial in config.trials:
         tdir = out / "trials" / trial.name
         entry = {}
+        if (tdir / "tracking.json").is_file():
+            entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
         if (tdir / "recon.json").is_file():
             entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
         if (tdir / "trajectories.csv").is_file():

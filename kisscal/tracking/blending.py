@@ -1,10 +1,11 @@
 """Blending of track pieces and clean-up of short tracks (Shafiq et al. 2001 §4.3).
 
-Pieces that end and start within a few fields are connectable; continuity is checked by
-extrapolating each piece across the gap with the extrapolator its length allows (two-point
-line, three-point least-squares line, five-point parabola), forward from the end of the
-first and backward from the start of the second. Accepted pairs are chosen one-to-one
-(``linear_sum_assignment``) and chained. The clean-up then removes tracks with too few
+Pieces that end and start within a few fields are connectable. Each piece is extrapolated
+across the gap with the extrapolator its length allows (two-point line, three-point
+least-squares line, five-point parabola), forward from the end of the first and backward
+from the start of the second, as a coarse gate; continuity is then judged by one cubic
+fitted through both sides. Accepted pairs are chosen one-to-one (``linear_sum_assignment``)
+and chained. The clean-up then removes tracks with too few
 measured points: most ghost tracks are short.
 """
 
@@ -16,14 +17,14 @@ from scipy.optimize import linear_sum_assignment
 
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, shafiq_rule
-from kisscal.tracking.tracks import MEASURED, Tracks
+from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks
 
 _FAR = 1e12
 
 
-def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArray]:
-    """Field of the first/last measured sample per track, its last/first up to 5 measured
-    positions (nearest last) and how many there are."""
+def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Per track: field of the last (first) measured sample, its last (first) up to 5
+    measured positions (nearest last), how many there are, and their fields."""
     n = tracks.n_tracks
     m = np.flatnonzero(tracks.status == MEASURED)
     tr = tracks.track[m]
@@ -31,13 +32,34 @@ def _end_points(tracks: Tracks, from_end: bool) -> tuple[NDArray, NDArray, NDArr
     stop = np.searchsorted(tr, np.arange(n), "right")
     count = np.minimum(stop - start, 5)
     history = np.zeros((n, 5, 3))
+    fields = np.zeros((n, 5), dtype=np.int64)
     for j in range(5):
         # j-th point counted from the piece's end (or start), placed nearest-last.
         ok = count > j
         rows = (stop - 1 - j) if from_end else (start + j)
         history[ok, 4 - j] = tracks.xyz_mm[m[rows[ok]]]
+        fields[ok, 4 - j] = tracks.field[m[rows[ok]]]
     edge = tracks.field[m[np.where(from_end, stop - 1, start)]] if n else np.empty(0, int)
-    return edge, history, count
+    return edge, history, count, fields
+
+
+def bridge_residual_mm(
+    fields_a: NDArray, xyz_a: NDArray, fields_b: NDArray, xyz_b: NDArray
+) -> float:
+    """RMS residual (mm) of one least-squares polynomial through the end of one piece and
+    the start of the next: small when both are the same smooth marker path.
+
+    The degree is 3, or lower when few points are given (at least two points are left
+    over for the residual).
+    """
+    f = np.r_[fields_a, fields_b].astype(float)
+    x = np.r_[xyz_a, xyz_b]
+    degree = min(3, f.size - 3)
+    if degree < 1:
+        return float("inf")
+    vander = np.vander(f - f.mean(), degree + 1)
+    coef, *_ = np.linalg.lstsq(vander, x, rcond=None)
+    return float(np.sqrt(np.mean(np.sum((x - vander @ coef) ** 2, axis=1))))
 
 
 def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArray:
@@ -49,39 +71,195 @@ def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArra
     return out
 
 
-def blend_pairs(tracks: Tracks, params: TrackingParams) -> tuple[NDArray, NDArray]:
+def _window_residuals(
+    tracks: Tracks, side: int, stride: int = 1
+) -> tuple[NDArray, NDArray, NDArray]:
+    """RMS residual (mm) of a least-squares cubic (in the field index) through every run of
+    ``2 * side`` consecutive measured samples of one track (every ``stride``-th run).
+
+    Returns the rows of the measured samples, the window's first measured index per
+    window, and the residual per window.
+    """
+    m = np.flatnonzero(tracks.status == MEASURED)
+    w = 2 * side
+    if m.size < w:
+        return m, np.empty(0, dtype=np.int64), np.empty(0)
+    first = np.arange(0, m.size - w + 1, stride)
+    tr = tracks.track[m]
+    first = first[tr[first] == tr[first + w - 1]]
+    if first.size == 0:
+        return m, first, np.empty(0)
+    idx = first[:, None] + np.arange(w)
+    f = tracks.field[m[idx]].astype(float)
+    x = tracks.xyz_mm[m[idx]]
+    residual = np.empty(first.size)
+    # Windows without missing fields share one design matrix: their residual is a fixed
+    # projection. The few with gaps are solved one by one in a batch.
+    plain = f[:, -1] - f[:, 0] == w - 1
+    t = (np.arange(w) - (w - 1) / 2) / side
+    vander = t[:, None] ** np.arange(4)
+    annihilate = np.eye(w) - vander @ np.linalg.pinv(vander)
+    res = np.einsum("ij,njc->nic", annihilate, x[plain])
+    residual[plain] = np.sqrt(np.mean(np.sum(res**2, axis=2), axis=1))
+    if (~plain).any():
+        fg = f[~plain]
+        fg = (fg - fg.mean(axis=1, keepdims=True)) / side
+        vg = fg[:, :, None] ** np.arange(4)
+        vt = np.transpose(vg, (0, 2, 1))
+        coef = np.linalg.solve(vt @ vg, vt @ x[~plain])
+        residual[~plain] = np.sqrt(np.mean(np.sum((x[~plain] - vg @ coef) ** 2, axis=2), axis=1))
+    return m, first, residual
+
+
+def smoothness_mm(tracks: Tracks, side: int = 3) -> float:
+    """Median cubic-fit residual of 6-sample windows over all tracks: the trial's own
+    noise level (about the per-axis measurement noise), which scales the continuity
+    tolerances so that noisier data are not cut into pieces. A median of at most about
+    20 000 windows (evenly strided) is plenty."""
+    n = int((tracks.status == MEASURED).sum())
+    _, _, residual = _window_residuals(tracks, side, stride=max(1, n // 20000))
+    return float(np.median(residual)) if residual.size else 0.0
+
+
+def split_discontinuities(tracks: Tracks, tolerance_mm: float, side: int = 3) -> Tracks:
+    """Split tracks where their measured path is not smooth (a jump to another marker).
+
+    For every run of ``2 * side`` consecutive measured samples of a track, a cubic in the
+    field index is fitted (least squares); where its RMS residual exceeds
+    ``tolerance_mm`` and is the largest of the neighbouring windows, the track is cut
+    between the two halves. This is blending's continuity test applied inside tracks: it
+    catches a coasting gate or an initial track that took a neighbouring marker.
+    """
+    m, first, residual = _window_residuals(tracks, side)
+    if residual.size == 0:
+        return tracks
+    # Residual per cut position (between measured samples i-1 and i).
+    score = np.zeros(m.size)
+    score[first + side] = residual
+    neighbourhood = np.lib.stride_tricks.sliding_window_view(
+        np.pad(score, side - 1), 2 * side - 1
+    ).max(axis=1)
+    cut = (score > tolerance_mm) & (score >= neighbourhood)
+    if not cut.any():
+        return tracks
+    new_piece = np.zeros(tracks.field.size, dtype=np.int64)
+    new_piece[m[cut]] = 1
+    new_piece[1:] += tracks.track[1:] != tracks.track[:-1]
+    piece = np.cumsum(new_piece)
+    return make_tracks(
+        tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
+    )
+
+
+def split_stray_ends(tracks: Tracks, tolerance_mm: float, fit_points: int = 5) -> Tracks:
+    """Split off a track's first or last measured sample when the parabola through the
+    next (previous) ``fit_points`` measured samples misses it by more than ``tolerance_mm``.
+
+    A track started on a ghost that lay where the real marker appeared next field (or
+    ended on one) has a stray end that :func:`split_discontinuities` cannot see, for it
+    needs samples on both sides of a cut.
+    """
+    for from_end in (False, True):
+        m = np.flatnonzero(tracks.status == MEASURED)
+        if m.size < fit_points + 1:
+            continue
+        tr = tracks.track[m]
+        ids = np.arange(tracks.n_tracks)
+        lo = np.searchsorted(tr, ids, "left")
+        hi = np.searchsorted(tr, ids, "right")
+        ok = hi - lo >= fit_points + 3
+        edge = np.where(from_end, hi - 1, lo)[ok]
+        step = -1 if from_end else 1
+        fit = edge[:, None] + step * np.arange(1, fit_points + 1)
+        f_fit = tracks.field[m[fit]].astype(float)
+        f_edge = tracks.field[m[edge]].astype(float)
+        centre = f_fit.mean(axis=1, keepdims=True)
+        # A parabola: a cubic extrapolated one field amplifies noise five-fold.
+        vander = ((f_fit - centre) / fit_points)[:, :, None] ** np.arange(3)
+        vt = np.transpose(vander, (0, 2, 1))
+        coef = np.linalg.solve(vt @ vander, vt @ tracks.xyz_mm[m[fit]])
+        at = ((f_edge[:, None] - centre) / fit_points) ** np.arange(3)
+        predicted = np.einsum("nk,nkc->nc", at, coef)
+        miss = np.linalg.norm(predicted - tracks.xyz_mm[m[edge]], axis=1)
+        stray = m[edge[miss > tolerance_mm]]
+        if stray.size == 0:
+            continue
+        piece = tracks.track.copy()
+        piece[stray] = tracks.n_tracks + np.arange(stray.size)
+        tracks = make_tracks(
+            tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
+        )
+    return tracks
+
+
+def blend_pairs(
+    tracks: Tracks, params: TrackingParams, noise_mm: float | None = None
+) -> tuple[NDArray, NDArray]:
     """Pairs (earlier piece, later piece) that blending connects.
 
     A later piece must start 1 .. ``blend_gap_fields + 1`` fields after the earlier one
-    ends, and both extrapolations across the gap must land within
-    ``blend_tolerance_mm`` (times the number of fields crossed) of the other piece.
+    ends. Shafiq's extrapolations from both sides across the gap must land within
+    ``blend_reach_mm`` per field crossed of the other piece (a coarse gate), and one cubic
+    through the last and first ``blend_points`` measured points of the two pieces must
+    fit them within ``max(blend_tolerance_mm, blend_noise_factor * noise_mm)`` RMS (the
+    continuity test: extrapolations of a fast foot over a few fields miss by centimetres,
+    a wrong join leaves a jump no smooth curve absorbs). Pairs are then chosen one-to-one
+    by that residual. ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
         return e, e
-    end_field, end_hist, end_n = _end_points(tracks, from_end=True)
-    start_field, start_hist, start_n = _end_points(tracks, from_end=False)
-    step = start_field[None, :] - end_field[:, None]
-    a, b = np.nonzero((step >= 1) & (step <= params.blend_gap_fields + 1))
+    end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
+    start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
+    # Only pieces that became Kalman tracks take part: shorter ones are initial tracks
+    # that died, mostly ghosts, and a few points can line up with anything.
+    grown = np.flatnonzero(tracks.n_status(MEASURED) >= params.min_initial_length)
+    by_start = grown[np.argsort(start_field[grown], kind="stable")]
+    starts_sorted = start_field[by_start]
+    lo = np.searchsorted(starts_sorted, end_field[grown] + 1, "left")
+    hi = np.searchsorted(starts_sorted, end_field[grown] + params.blend_gap_fields + 2, "left")
+    a = np.repeat(grown, hi - lo)
+    b = (
+        by_start[np.concatenate([np.arange(x, y) for x, y in zip(lo, hi, strict=True)])]
+        if a.size
+        else a
+    )
     if a.size == 0:
         e = np.empty(0, dtype=np.int64)
         return e, e
-    ahead = step[a, b]
+    ahead = start_field[b] - end_field[a]
     forward = _extrapolate_gap(end_hist[a], end_n[a], ahead)
     backward = _extrapolate_gap(start_hist[b], start_n[b], ahead)
     miss_f = np.linalg.norm(forward - start_hist[b, -1], axis=1)
     miss_b = np.linalg.norm(backward - end_hist[a, -1], axis=1)
-    tol = params.blend_tolerance_mm * ahead
-    ok = (miss_f <= tol) & (miss_b <= tol)
+    reach = params.blend_reach_mm * ahead
+    near = (miss_f <= reach) & (miss_b <= reach)
+    a, b = a[near], b[near]
+    k = params.blend_points
+    residual = np.array(
+        [
+            bridge_residual_mm(
+                end_fields[i, 5 - min(k, end_n[i]) :],
+                end_hist[i, 5 - min(k, end_n[i]) :],
+                start_fields[j, 5 - min(k, start_n[j]) :][::-1],
+                start_hist[j, 5 - min(k, start_n[j]) :][::-1],
+            )
+            for i, j in zip(a, b, strict=True)
+        ]
+    )
+    if noise_mm is None:
+        noise_mm = smoothness_mm(tracks)
+    tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
+    ok = residual <= tolerance if residual.size else np.zeros(0, bool)
     a, b = a[ok], b[ok]
     if a.size == 0:
         return a, b
-    cost = np.full((tracks.n_tracks, tracks.n_tracks), _FAR)
-    cost[a, b] = (miss_f + miss_b)[ok]
-    ra = np.unique(a)
-    cb = np.unique(b)
-    r, c = linear_sum_assignment(cost[np.ix_(ra, cb)])
-    keep = cost[ra[r], cb[c]] < _FAR
+    ra, ia = np.unique(a, return_inverse=True)
+    cb, ib = np.unique(b, return_inverse=True)
+    cost = np.full((ra.size, cb.size), _FAR)
+    cost[ia, ib] = residual[ok]
+    r, c = linear_sum_assignment(cost)
+    keep = cost[r, c] < _FAR
     return ra[r[keep]], cb[c[keep]]
 
 
@@ -100,12 +278,12 @@ def chain_labels(n_tracks: int, earlier: NDArray, later: NDArray) -> NDArray[np.
     return group
 
 
-def blend_tracks(tracks: Tracks, params: TrackingParams) -> Tracks:
+def blend_tracks(tracks: Tracks, params: TrackingParams, noise_mm: float | None = None) -> Tracks:
     """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3).
 
     The missing fields of a blended gap are left empty for :func:`fill_gaps`.
     """
-    earlier, later = blend_pairs(tracks, params)
+    earlier, later = blend_pairs(tracks, params, noise_mm)
     if earlier.size == 0:
         return tracks
     return tracks.renumber(chain_labels(tracks.n_tracks, earlier, later))

@@ -56,16 +56,31 @@ class TrackingParams:
         After coasting, a track must find points in this many consecutive fields for them
         to stay on it; shorter runs (typically ghosts caught by a coasting gate after the
         marker left the view) are split off as pieces of their own, for blending to decide.
+    split_tolerance_mm : float
+        A track is cut where a cubic through three measured samples on each side fits them
+        worse than this RMS (mm): the path jumped to another marker.
+    split_noise_factor : float
+        The split tolerance is at least this many times the trial's own smoothness
+        residual (median cubic-fit residual of 6-sample windows, about the noise).
     blend_gap_fields : int
         Largest number of missing fields between the end of one track piece and the start of
         another for automatic blending (Shafiq et al. 2001 §4.3 use two fields; the
         continuity check guards longer gaps, which ghost run splits and flickering
         visibility at the edge of the volume create).
+    blend_reach_mm : float
+        Coarse gate of blending: Shafiq's extrapolations from both pieces across the gap
+        must land within this distance (mm) per field crossed of the other piece.
+    blend_points : int
+        Measured points taken from each side of a gap for the continuity fit.
     blend_tolerance_mm : float
-        Largest distance between a piece's first (last) point and the other piece's
-        extrapolation for the continuity of a blend to be accepted.
+        Largest RMS residual (mm) of the cubic through both sides of a gap for the two
+        pieces to be blended (about 4 x the residual of a true join at 0.5 mm noise).
+    blend_noise_factor : float
+        The blend tolerance is at least this many times the trial's smoothness residual.
     min_track_length : int
-        Tracks with fewer measured points are removed in the clean-up (short ghost tracks).
+        Pieces with fewer measured points that take no name (or all pieces, when no marker
+        set fits) are removed in the clean-up (short ghost tracks, Shafiq et al. §4.3);
+        longer ones that take no name are kept and reported.
     max_fill_gap_fields : int
         Largest gap (fields) inside one labelled trajectory that gap filling bridges.
     fill_context_fields : int
@@ -75,10 +90,21 @@ class TrackingParams:
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
         in the statistics. False keeps them as ``predicted``.
     label_tolerance_mm : float
-        Largest RMS distance (mm) of a track from its template position, after the per-field
-        rigid fit, for the track to take that label.
+        Outlier distance (mm) of the rigid template matching, and the largest distance of a
+        piece from where the body's rigid fit expects a name for it to take that name.
+    label_segment_tolerance_mm : float
+        Largest RMS difference (mm) between a piece's distances to the rigid partners of a
+        name and the template's for the piece to take that name.
+    min_label_points : int
+        Measured points a piece needs to be considered for a name at all.
+    min_body_fit_points : int
+        Measured points a piece needs to be named from the body's rigid fit alone, when no
+        rigid partner of any free name is in view (more than a ghost usually lives).
+    label_window_fields : int
+        Length (fields) of the stretch of the trial, the one where most long tracks are
+        seen together, whose average pose is matched to the template.
     label_fields : int
-        Number of fields sampled for template matching.
+        Number of fields of the window sampled for template matching.
     min_label_fraction : float
         Fraction of the marker names that must be matched for a trial to fit the marker set;
         below it the tracks are named M1, M2, ...
@@ -94,18 +120,27 @@ class TrackingParams:
     gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
     coast_accel_mm_per_field2: float = 5.0
     lag_widening: bool = True
-    initial_gate_mm: float = 60.0
+    initial_gate_mm: float = 120.0
     initial_gate_factor: float = 0.6
     min_initial_length: int = 5
-    max_coasted_fields: int = 5
+    max_coasted_fields: int = 3
     min_reacquired_fields: int = 5
-    blend_gap_fields: int = 5
-    blend_tolerance_mm: float = 20.0
+    split_tolerance_mm: float = 5.0
+    split_noise_factor: float = 8.0
+    blend_gap_fields: int = 4
+    blend_reach_mm: float = 40.0
+    blend_points: int = 3
+    blend_tolerance_mm: float = 3.0
+    blend_noise_factor: float = 5.0
     min_track_length: int = 10
-    max_fill_gap_fields: int = 25
+    max_fill_gap_fields: int = 5
     fill_context_fields: int = 6
     refill_predicted: bool = True
     label_tolerance_mm: float = 120.0
+    label_segment_tolerance_mm: float = 6.0
+    min_label_points: int = 1
+    min_body_fit_points: int = 5
+    label_window_fields: int = 500
     label_fields: int = 40
     min_label_fraction: float = 0.5
     smoothing: bool = False
@@ -118,6 +153,7 @@ class TrackingParams:
             "initial_gate_mm",
             "initial_gate_factor",
             "blend_tolerance_mm",
+            "blend_reach_mm",
             "label_tolerance_mm",
         ):
             value = getattr(self, name)
@@ -134,6 +170,7 @@ class TrackingParams:
             "blend_gap_fields",
             "min_track_length",
             "max_fill_gap_fields",
+            "blend_points",
             "fill_context_fields",
             "label_fields",
         ):

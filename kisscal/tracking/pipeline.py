@@ -54,6 +54,7 @@ def build_trajectories(
     params: TrackingParams | None = None,
     names: list[str] | tuple[str, ...] | None = None,
     template_mm: ArrayLike | None = None,
+    segments: list[tuple[str, str]] | tuple | None = None,
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
@@ -69,13 +70,13 @@ def build_trajectories(
     xyz_mm : (N, 3) float array
         The points (mm), e.g. ``points3d.csv`` of one trial.
     params : TrackingParams, optional
-    names, template_mm : optional
-        The ``[markers]`` set of the session (names and standing-pose template).
+    names, template_mm, segments : optional
+        The ``[markers]`` set of the session (names, standing-pose template, rigid pairs).
     """
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
-    blended = clean_up(blend_tracks(raw, params), params)
-    labelling = label_tracks(blended, names, params, template_mm)
+    blended = blend_tracks(raw, params)
+    labelling = label_tracks(blended, names, params, template_mm, segments)
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
     tracks = fill_gaps(tracks, params)
@@ -87,7 +88,7 @@ def build_trajectories(
         labelling=labelling,
         n_predicted=n_predicted,
         n_pieces=raw.n_tracks,
-        n_pieces_blended=blended.n_tracks,
+        n_pieces_blended=clean_up(blended, params).n_tracks,
     )
 
 
@@ -122,6 +123,8 @@ def sweep_noise(
     rows = []
     for pnc in pnc_values:
         for mnc in mnc_values:
+            # ``segments`` here are the pairs to tabulate (the thesis' include joints that
+            # bend), so they are not handed to labelling as rigid pairs.
             result = build_trajectories(
                 field, xyz_mm, params.with_(pnc=pnc, mnc=mnc), names, template_mm
             )

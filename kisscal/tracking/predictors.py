@@ -23,8 +23,8 @@ def extrapolation_weights(n_points: int, degree: int, ahead: int = 1) -> NDArray
 
     ``(2, 1)`` is the two-point linear rule ``2 x_i - x_{i-1}`` (thesis eq. 3.11),
     ``(3, 1)`` Shafiq's three-point least-squares line, ``(5, 2)`` the five-point parabola.
-    Negative ``ahead`` extrapolates before the first point when weights are applied to the
-    points in reverse order.
+    Applied to a piece's first points in reverse order, the same weights extrapolate
+    backwards in time (blending checks continuity from both sides).
     """
     t = np.arange(n_points, dtype=float) - (n_points - 1)
     vander = np.vander(t, degree + 1, increasing=True)

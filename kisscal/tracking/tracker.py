@@ -12,7 +12,13 @@ the track ends and its trailing predictions are dropped.
 
 Association is one-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment``
 on gate-normalised squared distances), Kalman tracks first, then initial tracks on the
-points left, rather than first-come nearest neighbour.
+points left, rather than first-come nearest neighbour. A one-point track looks one field
+ahead (offline, the next field is known) to tell which candidate continues.
+
+The pieces are then checked, because a gate can take the wrong point: a short run of
+points after coasting is split off (a ghost caught after the marker left), and a track is
+cut where its path is not smooth (a cubic through three samples on each side misses them)
+or where its first or last point strays from the rest.
 """
 
 from __future__ import annotations
@@ -22,22 +28,28 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from kisscal.errors import KisscalError
+from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import (
-    extrapolate,
     extrapolation_weights,
     gate_half_width,
     kalman_correct,
     kalman_predict,
+    shafiq_rule,
 )
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
 
 _HISTORY = 5
+_SINGLE_STEP_WEIGHT = 0.1
 _FAR = 1e12
 
 
 def associate(
-    predicted: NDArray, half_width: NDArray, points: NDArray, extra_cost: NDArray | None = None
+    predicted: NDArray,
+    half_width: NDArray,
+    points: NDArray,
+    extra_cost: NDArray | None = None,
+    distance_weight: float = 1.0,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """One-to-one assignment of points to track gates.
 
@@ -48,6 +60,8 @@ def associate(
     points : (M, 3) candidate points (mm).
     extra_cost : (T, M) array, optional
         Added to the cost of each pair (e.g. a look-ahead term).
+    distance_weight : float
+        Weight of the gate-normalised squared distance in the cost.
 
     Returns
     -------
@@ -64,7 +78,7 @@ def associate(
     if rows_any.size == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
-    cost = np.einsum("tmc,tmc->tm", scaled, scaled)
+    cost = distance_weight * np.einsum("tmc,tmc->tm", scaled, scaled)
     if extra_cost is not None:
         cost = cost + extra_cost
     sub_inside = inside[np.ix_(rows_any, cols_any)]
@@ -75,32 +89,58 @@ def associate(
 
 
 class _Live:
-    """Struct of arrays for the tracks alive at the current field."""
+    """Struct of arrays for the tracks alive at the current field, with spare rows.
 
-    def __init__(self) -> None:
-        self.ids = np.empty(0, dtype=np.int64)
-        self.n = np.empty(0, dtype=np.int64)
-        self.history = np.empty((0, _HISTORY, 3))
-        self.state = np.empty((0, 3, 2))
-        self.cov = np.empty((0, 2, 2))
-        self.kalman = np.empty(0, dtype=bool)
-        self.misses = np.empty(0, dtype=np.int64)
+    Every row is computed on each field whether alive or not: on a few dozen rows one
+    numpy call costs the same as on the live ones, and it spares gathers and scatters.
+    """
 
-    def keep(self, mask: NDArray) -> None:
-        for name in ("ids", "n", "history", "state", "cov", "kalman", "misses"):
-            setattr(self, name, getattr(self, name)[mask])
+    def __init__(self, capacity: int = 64) -> None:
+        self.ids = np.full(capacity, -1, dtype=np.int64)
+        self.n = np.ones(capacity, dtype=np.int64)
+        self.history = np.zeros((capacity, _HISTORY, 3))
+        self.state = np.zeros((capacity, 3, 2))
+        self.cov = np.tile(np.eye(2), (capacity, 1, 1))
+        self.kalman = np.zeros(capacity, dtype=bool)
+        self.misses = np.zeros(capacity, dtype=np.int64)
+        self.alive = np.zeros(capacity, dtype=bool)
 
     def add(self, ids: NDArray, xyz: NDArray) -> None:
-        k = ids.size
-        history = np.zeros((k, _HISTORY, 3))
-        history[:, -1] = xyz
-        self.ids = np.concatenate([self.ids, ids])
-        self.n = np.concatenate([self.n, np.ones(k, dtype=np.int64)])
-        self.history = np.concatenate([self.history, history])
-        self.state = np.concatenate([self.state, np.zeros((k, 3, 2))])
-        self.cov = np.concatenate([self.cov, np.zeros((k, 2, 2))])
-        self.kalman = np.concatenate([self.kalman, np.zeros(k, dtype=bool)])
-        self.misses = np.concatenate([self.misses, np.zeros(k, dtype=np.int64)])
+        slots = np.flatnonzero(~self.alive)
+        if slots.size < ids.size:
+            self._grow(ids.size - slots.size)
+            slots = np.flatnonzero(~self.alive)
+        slots = slots[: ids.size]
+        self.ids[slots] = ids
+        self.n[slots] = 1
+        self.history[slots] = 0.0
+        self.history[slots, -1] = xyz
+        self.state[slots] = 0.0
+        self.cov[slots] = np.eye(2)
+        self.kalman[slots] = False
+        self.misses[slots] = 0
+        self.alive[slots] = True
+
+    def _grow(self, extra: int) -> None:
+        more = max(extra, self.ids.size)
+        self.ids = np.r_[self.ids, np.full(more, -1, dtype=np.int64)]
+        self.n = np.r_[self.n, np.ones(more, dtype=np.int64)]
+        self.history = np.concatenate([self.history, np.zeros((more, _HISTORY, 3))])
+        self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
+        self.cov = np.concatenate([self.cov, np.tile(np.eye(2), (more, 1, 1))])
+        self.kalman = np.r_[self.kalman, np.zeros(more, dtype=bool)]
+        self.misses = np.r_[self.misses, np.zeros(more, dtype=np.int64)]
+        self.alive = np.r_[self.alive, np.zeros(more, dtype=bool)]
+
+
+def _shafiq_weights(ahead: int = 1) -> NDArray[np.float64]:
+    """(6, 5) weights: row n applies Shafiq's extrapolator for a track of n points
+    (n >= 5 in the last row) to its last five positions (oldest first)."""
+    out = np.zeros((_HISTORY + 1, _HISTORY))
+    for n in range(1, _HISTORY + 1):
+        used, degree = shafiq_rule(n)
+        out[n, _HISTORY - used :] = extrapolation_weights(used, degree, ahead)
+    return out
 
 
 def lookahead_cost(
@@ -178,6 +218,8 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
 
     live = _Live()
     next_id = 0
+    shafiq = _shafiq_weights()
+    accel = params.coast_accel_mm_per_field2
     rec_track: list[NDArray] = []
     rec_point: list[NDArray] = []
     rec_xyz: list[NDArray] = []
@@ -189,63 +231,74 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         idx = order[starts[f - first] : starts[f - first + 1]]
         points = xyz[idx]
         taken = np.zeros(idx.size, dtype=bool)
-        n_live = live.ids.size
-        measured = np.full((n_live, 3), np.nan)
-        hit = np.zeros(n_live, dtype=bool)
-        hit_point = np.full(n_live, -1, dtype=np.int64)
-        if n_live:
+        rows_alive = np.flatnonzero(live.alive)
+        if rows_alive.size:
+            # Predictions of every row: Kalman (thesis eq. 3.14) and Shafiq's extrapolator.
+            live.state, live.cov = kalman_predict(live.state, live.cov, params.pnc)
             kal = live.kalman
-            pred = np.empty((n_live, 3))
-            half = np.empty((n_live, 3))
-            if kal.any():
-                live.state[kal], live.cov[kal] = kalman_predict(
-                    live.state[kal], live.cov[kal], params.pnc
-                )
-                pred[kal] = live.state[kal, :, 0]
-                drift = 0.5 * params.coast_accel_mm_per_field2 * ((live.misses[kal] + 1) ** 2 - 1)
-                half[kal] = gate_half_width(live.state[kal, :, 1], m_axes, k_axes) + drift[:, None]
-                if params.lag_widening:
-                    # A filter with little process noise lags an accelerating marker; the
-                    # distance from its prediction to Shafiq's five-point parabola through
-                    # the track's last positions measures that lag, and widens the gate.
-                    parabola = extrapolate(live.history[kal], live.n[kal])
-                    half[kal] += np.abs(parabola - pred[kal])
-            ini = ~kal
-            if ini.any():
-                pred[ini] = extrapolate(live.history[ini], live.n[ini])
-                step = np.abs(pred[ini] - live.history[ini, -1])
-                half[ini] = np.maximum(
-                    params.initial_gate_factor * step, 0.5 * params.initial_gate_mm
-                )
-                half[ini & (live.n == 1)] = params.initial_gate_mm
-            # Kalman tracks choose first; initial tracks take from what is left, those
-            # with a velocity before those of one point.
-            single = ini & (live.n == 1)
-            for tier in (kal, ini & ~single, single):
-                rows = np.flatnonzero(tier)
-                if rows.size == 0:
-                    continue
-                free = np.flatnonzero(~taken)
-                extra = None
-                if tier is single and free.size:
-                    later = xyz[order[starts[f - first + 1] : starts[min(f - first + 2, n_span)]]]
-                    extra = lookahead_cost(
-                        pred[rows], points[free], later, 0.5 * params.initial_gate_mm
-                    )
-                r, c = associate(pred[rows], half[rows], points[free], extra)
-                hit[rows[r]] = True
-                hit_point[rows[r]] = free[c]
-                taken[free[c]] = True
-            measured[hit] = points[hit_point[hit]]
+            parabola = np.einsum("tk,tkc->tc", shafiq[np.minimum(live.n, _HISTORY)], live.history)
+            pred = np.where(kal[:, None], live.state[:, :, 0], parabola)
+            drift = 0.5 * accel * ((live.misses + 1) ** 2 - 1)
+            half_kalman = gate_half_width(live.state[:, :, 1], m_axes, k_axes) + drift[:, None]
+            if params.lag_widening:
+                # A filter with little process noise lags an accelerating marker; the
+                # distance from its prediction to Shafiq's five-point parabola through
+                # the track's last positions measures that lag, and widens the gate.
+                half_kalman = half_kalman + np.abs(parabola - live.state[:, :, 0])
+            half_initial = np.maximum(
+                params.initial_gate_factor * np.abs(parabola - live.history[:, -1]),
+                0.5 * params.initial_gate_mm,
+            )
+            single = ~kal & (live.n == 1)
+            half = np.where(kal[:, None], half_kalman, half_initial)
+            half[single] = params.initial_gate_mm
 
-            ends = ~hit & (~kal | (live.misses >= params.max_coasted_fields))
-            coast = ~hit & kal & ~ends
-            z = np.where(hit[:, None], measured, pred)
-            if kal.any():
-                # A missing point is replaced by the prediction, as if measured (§3.3.9).
-                live.state[kal], live.cov[kal] = kalman_correct(
-                    live.state[kal], live.cov[kal], z[kal], params.mnc
-                )
+            hit = np.zeros(kal.size, dtype=bool)
+            hit_point = np.full(kal.size, -1, dtype=np.int64)
+            if idx.size:
+                scaled = (points[None, :, :] - pred[rows_alive, None, :]) / half[
+                    rows_alive, None, :
+                ]
+                inside = (np.abs(scaled) <= 1.0).all(axis=2)
+                if inside.sum(axis=0).max() <= 1 and inside.sum(axis=1).max() <= 1:
+                    # No point is wanted by two gates and no gate holds two points: the
+                    # assignment is the gating itself.
+                    r, c = np.nonzero(inside)
+                    hit[rows_alive[r]] = True
+                    hit_point[rows_alive[r]] = c
+                    taken[c] = True
+                else:
+                    # Kalman tracks choose first; initial tracks take from what is left,
+                    # those with a velocity before those of one point.
+                    for tier in (kal, ~kal & ~single, single):
+                        rows = rows_alive[tier[rows_alive]]
+                        free = np.flatnonzero(~taken)
+                        if rows.size == 0 or free.size == 0:
+                            continue
+                        extra = None
+                        if tier is single:
+                            later = xyz[
+                                order[starts[f - first + 1] : starts[min(f - first + 2, n_span)]]
+                            ]
+                            extra = lookahead_cost(
+                                pred[rows], points[free], later, 0.5 * params.initial_gate_mm
+                            )
+                        # A one-point track has no velocity: how far the candidate lies
+                        # says little (a fast foot moves more than a slow marker's
+                        # neighbour is away); whether the pair continues says much.
+                        weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
+                        r, c = associate(pred[rows], half[rows], points[free], extra, weight)
+                        hit[rows[r]] = True
+                        hit_point[rows[r]] = free[c]
+                        taken[free[c]] = True
+
+            alive = live.alive
+            ends = alive & ~hit & (~kal | (live.misses >= params.max_coasted_fields))
+            coast = alive & ~hit & kal & ~ends
+            z = pred.copy()
+            z[hit] = points[hit_point[hit]]
+            # A missing point is replaced by the prediction, as if measured (§3.3.9).
+            live.state, live.cov = kalman_correct(live.state, live.cov, z, params.mnc)
             live.misses = np.where(hit, 0, live.misses + 1)
             live.history[:, :-1] = live.history[:, 1:]
             live.history[:, -1] = z
@@ -259,20 +312,16 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
                 live.cov[born] = p0
                 live.kalman[born] = True
 
-            out = hit | coast
-            if out.any():
+            out = np.flatnonzero(hit | coast)
+            if out.size:
                 rec_track.append(live.ids[out])
-                point_row = np.full(int(out.sum()), -1, dtype=np.int64)
                 hp = hit_point[out]
-                point_row[hp >= 0] = idx[hp[hp >= 0]]
-                rec_point.append(point_row)
+                rec_point.append(np.where(hp >= 0, idx[np.maximum(hp, 0)] if idx.size else -1, -1))
                 rec_xyz.append(z[out])
-                corr = np.where(live.kalman[out, None], live.state[out, :, 0], np.nan)
-                rec_corr.append(corr)
+                rec_corr.append(np.where(live.kalman[out, None], live.state[out, :, 0], np.nan))
                 rec_status.append(np.where(hit[out], MEASURED, PREDICTED).astype(np.int8))
-                rec_field.append(np.full(int(out.sum()), f, dtype=np.int64))
-            if ends.any():
-                live.keep(~ends)
+                rec_field.append(np.full(out.size, f, dtype=np.int64))
+            live.alive &= ~ends
         new = np.flatnonzero(~taken)
         if new.size:
             ids = np.arange(next_id, next_id + new.size)
@@ -293,7 +342,11 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
         np.concatenate(rec_status),
         np.concatenate(rec_point),
     )
-    return split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+    tracks = split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
+    tolerance = max(params.split_tolerance_mm, params.split_noise_factor * smoothness_mm(tracks))
+    # One-sided extrapolation is twice as uncertain as the two-sided fit.
+    tracks = split_stray_ends(split_discontinuities(tracks, tolerance), 2.0 * tolerance)
+    return trim_predicted_ends(tracks)
 
 
 def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:

@@ -130,20 +130,26 @@ def observe(
     max_dropout: int = 4,
     ghosts_per_field: float = 1.0,
     volume_x: tuple[float, float] | None = (-1200.0, 2500.0),
+    visible: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Points per field from truth: noise, dropouts, ghosts, a limited capture volume.
+
+    With ``visible`` (n_markers, n_fields) given (e.g. the rig's "seen by >= 2 cameras"),
+    it replaces the volume and the random dropouts.
 
     Returns field (N,), xyz (N, 3), marker (N,) (-1 for ghosts) and the visibility mask
     (n_markers, n_fields).
     """
     rng = np.random.default_rng(seed + 1000)
     n_markers, n_fields, _ = truth.shape
-    visible = np.ones((n_markers, n_fields), dtype=bool)
-    if volume_x is not None:
-        visible &= (truth[..., 0] > volume_x[0]) & (truth[..., 0] < volume_x[1])
-    starts = rng.random((n_markers, n_fields)) < dropout_rate
-    for m, f in zip(*np.nonzero(starts), strict=True):
-        visible[m, f : f + rng.integers(1, max_dropout + 1)] = False
+    if visible is None:
+        visible = np.ones((n_markers, n_fields), dtype=bool)
+        if volume_x is not None:
+            visible &= (truth[..., 0] > volume_x[0]) & (truth[..., 0] < volume_x[1])
+        starts = rng.random((n_markers, n_fields)) < dropout_rate
+        for m, f in zip(*np.nonzero(starts), strict=True):
+            visible[m, f : f + rng.integers(1, max_dropout + 1)] = False
+    visible = visible & np.isfinite(truth).all(axis=2)
     m_idx, f_idx = np.nonzero(visible)
     xyz = truth[m_idx, f_idx] + rng.normal(0, noise_mm, (m_idx.size, 3))
     fields = [f_idx]
@@ -153,7 +159,10 @@ def observe(
     if n_ghosts:
         born = rng.integers(0, n_fields, n_ghosts)
         life = rng.integers(1, 5, n_ghosts)
-        centre = truth[rng.integers(0, n_markers, n_ghosts), born]
+        seen_m, seen_f = np.nonzero(visible)
+        pick = rng.integers(0, seen_m.size, n_ghosts)
+        born = seen_f[pick]
+        centre = truth[seen_m[pick], born]
         start = centre + rng.normal(0, 150, (n_ghosts, 3))
         vel = rng.normal(0, 15, (n_ghosts, 3))
         for g in range(n_ghosts):

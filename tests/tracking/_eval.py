@@ -17,6 +17,7 @@ class Score:
     labels_correct: int
     identity_switches: int
     coverage: float
+    coverage_visible: float
     rmse_measured_mm: float
     rmse_filled_mm: float
     rmse_predicted_mm: float
@@ -29,8 +30,9 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
 
     Each sample belongs to the true marker nearest to it at its field; a track's marker
     is its majority; an identity switch is a track with samples of more than one marker
-    (measured samples only). Coverage is over the fields between each marker's first and
-    last visible field.
+    (measured samples only). ``coverage`` is over the fields between each marker's first
+    and last visible field; ``coverage_visible`` over the fields where it is visible (the
+    marker-fields reconstruction can deliver).
     """
     tr = result.tracks
     n_markers = truth.shape[0]
@@ -59,6 +61,7 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
         if f.size:
             span[m, f[0] : f[-1] + 1] = True
     coverage = (covered & span).sum() / span.sum()
+    coverage_visible = (covered & visible).sum() / visible.sum()
     own = truth[track_marker[tr.track], tr.field]
     err = np.linalg.norm(tr.xyz_mm - own, axis=1)
 
@@ -73,6 +76,7 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
         labels_correct,
         switches,
         float(coverage),
+        float(coverage_visible),
         rmse(MEASURED),
         rmse(FILLED),
         rmse(PREDICTED),

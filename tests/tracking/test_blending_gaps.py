@@ -63,7 +63,7 @@ def test_clean_up_removes_short_tracks():
 def test_fill_gaps_is_accurate_on_smooth_motion_and_marks_filled():
     f = np.r_[np.arange(0, 40), np.arange(48, 80)]
     tracks = _tracks([(f, _curve(f))])
-    out = fill_gaps(tracks, TrackingParams())
+    out = fill_gaps(tracks, TrackingParams(max_fill_gap_fields=10))
     filled = out.status == FILLED
     assert out.field[filled].tolist() == list(range(40, 48))
     err = np.linalg.norm(out.xyz_mm[filled] - _curve(out.field[filled]), axis=1)

@@ -88,3 +88,34 @@ def test_template_shape_is_checked():
     tracks = build_trajectories(field, xyz).tracks
     with pytest.raises(KisscalError):
         label_tracks(tracks, NAMES, TrackingParams(), template()[:5])
+
+
+def test_swap_search_recovers_names_needing_exchanges_and_cycles():
+    from kisscal.tracking.labelling import _cycle_changes, refine_by_swaps
+
+    rng = np.random.default_rng(1)
+    template = rng.normal(0, 300, (15, 3))
+    tdist = np.linalg.norm(template[:, None] - template[None], axis=2)
+    truth = rng.permutation(15)[:12]
+    d = tdist[np.ix_(truth, truth)] + rng.normal(0, 1, (12, 12))
+    d = (d + d.T) / 2
+    np.fill_diagonal(d, 0)
+    w = rng.random((12, 12))
+    w = (w + w.T) / 2
+    np.fill_diagonal(w, 0)
+
+    def cost(q):
+        return float((w * (d - tdist[np.ix_(q, q)]) ** 2).sum())
+
+    start = truth.copy()
+    rng.shuffle(start)
+    # The closed-form change of a 3-cycle equals the recomputed cost change.
+    wd = w * d
+    tp = tdist[:, start]
+    g = (wd * d).sum(1)[:, None] - 2 * wd @ tp.T + w @ (tp.T**2)
+    cyc = _cycle_changes(w, d, g[:, start], tdist[np.ix_(start, start)])
+    q = start.copy()
+    q[3], q[7], q[5] = start[7], start[5], start[3]
+    assert cyc[3, 7, 5] == pytest.approx(cost(q) - cost(start), abs=1e-6)
+    out = refine_by_swaps(d, w, tdist, start)
+    np.testing.assert_array_equal(out, truth)
