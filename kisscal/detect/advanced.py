@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,6 +19,7 @@ from kisscal.detect import blobs as fl
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs
+from kisscal.detect.shape import principal_axes
 
 
 @dataclass(frozen=True)
@@ -26,7 +28,8 @@ class Grouping:
 
     ``flags`` holds each label's flag bits; ``parent`` the label it was split from (itself
     when never split); ``centre_x`` / ``centre_y`` the marker centre the split estimated
-    (NaN when not split), used to share the blurred rim between the parts.
+    (NaN when not split) and ``radius`` its size (scan lines), used to share the blurred
+    rim between the parts: a pixel goes to the part with the smallest distance / radius.
     """
 
     runs: Runs
@@ -34,19 +37,31 @@ class Grouping:
     parent: NDArray[np.int64]
     centre_x: NDArray[np.float64]
     centre_y: NDArray[np.float64]
+    radius: NDArray[np.float64]
 
     @classmethod
     def start(cls, runs: Runs) -> Grouping:
         n = int(runs.group.max()) + 1 if len(runs) else 0
         nan = np.full(n, np.nan)
-        return cls(runs, np.zeros(n, dtype=np.int64), np.arange(n), nan, nan.copy())
+        return cls(runs, np.zeros(n, dtype=np.int64), np.arange(n), nan, nan.copy(), np.ones(n))
+
+    def relabel(self, runs: Runs, flags: NDArray[np.int64] | None = None) -> Grouping:
+        """The same bookkeeping over new runs (and optionally new flags)."""
+        return Grouping(
+            runs,
+            self.flags if flags is None else flags,
+            self.parent,
+            self.centre_x,
+            self.centre_y,
+            self.radius,
+        )
 
     def keep_groups(self, drop_labels: NDArray[np.int64]) -> Grouping:
         """Remove every run of the given labels."""
         dropped = np.zeros(self.flags.size, dtype=bool)
         dropped[drop_labels] = True
         keep = ~dropped[self.runs.group]
-        return Grouping(self.runs.take(keep), self.flags, self.parent, self.centre_x, self.centre_y)
+        return self.relabel(self.runs.take(keep))
 
 
 def merge_submarkers(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
@@ -85,7 +100,7 @@ def merge_submarkers(grouping: Grouping, table: GroupTable, params: DetectionPar
     flags[table.label[b[best[ok]]]] |= fl.MERGED
     runs = grouping.runs
     merged = Runs(runs.y, runs.x1, runs.x2, target_of[runs.group])
-    return Grouping(merged, flags, grouping.parent, grouping.centre_x, grouping.centre_y)
+    return grouping.relabel(merged, flags)
 
 
 def split_groups(
@@ -95,6 +110,7 @@ def split_groups(
     centres_y: NDArray[np.float64],
     flag: NDArray[np.int64],
     pixel_aspect: float,
+    radii: NDArray[np.float64] | None = None,
 ) -> Grouping:
     """Replace each group in ``labels`` by one group per estimated marker centre.
 
@@ -110,6 +126,9 @@ def split_groups(
         Flag bit to set on the parts.
     pixel_aspect : float
         Width / height of a round marker in pixels, for the nearest-centre distance.
+    radii : ndarray of float, shape (n, k), optional
+        Size of each part (scan lines); distances are divided by it, so a small marker
+        touching a large blob takes only the pixels near it. Equal parts when omitted.
 
     Returns
     -------
@@ -134,9 +153,11 @@ def split_groups(
     ps = cut_slot[run_of]
     dx = (px[:, None] - centres_x[ps]) / pixel_aspect
     dy = py[:, None] - centres_y[ps]
-    dist = np.where(np.isnan(dx), np.inf, dx * dx + dy * dy)
-    part = np.argmin(dist, axis=1)
     k = centres_x.shape[1]
+    if radii is None:
+        radii = np.ones((labels.size, k))
+    dist = np.where(np.isnan(dx), np.inf, (dx * dx + dy * dy) / radii[ps] ** 2)
+    part = np.argmin(dist, axis=1)
     base = grouping.flags.size
     new_label = base + ps * k + part
     # Back to runs: a new run starts where the label, the line or column contiguity changes.
@@ -150,6 +171,7 @@ def split_groups(
     parent = np.concatenate([grouping.parent, np.repeat(grouping.parent[labels], k)])
     centre_x = np.concatenate([grouping.centre_x, centres_x.reshape(n_new)])
     centre_y = np.concatenate([grouping.centre_y, centres_y.reshape(n_new)])
+    radius = np.concatenate([grouping.radius, radii.reshape(n_new)])
     # Parts keep scan order within themselves; groups need not be contiguous in Runs.
     merged = Runs(
         np.concatenate([keep.y, parts.y]),
@@ -157,28 +179,7 @@ def split_groups(
         np.concatenate([keep.x2, parts.x2]),
         np.concatenate([keep.group, parts.group]),
     )
-    return Grouping(merged, flags, parent, centre_x, centre_y)
-
-
-def principal_axes(
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    cov_xy: NDArray[np.float64],
-    spread_px2: float,
-    pixel_aspect: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Principal axes of spot moments in round units (x divided by ``pixel_aspect``).
-
-    Returns the major and minor variances (round units squared, pixel-area spread
-    ``spread_px2`` removed) and the major axis direction ``(ux, uy)`` in round units.
-    """
-    a = (var_x - spread_px2) / pixel_aspect**2
-    c = var_y - spread_px2
-    b = cov_xy / pixel_aspect
-    mean = (a + c) / 2
-    half = np.sqrt(((a - c) / 2) ** 2 + b * b)
-    theta = 0.5 * np.arctan2(2 * b, a - c)
-    return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
+    return Grouping(merged, flags, parent, centre_x, centre_y, radius)
 
 
 def overlap_split(
@@ -200,7 +201,8 @@ def overlap_split(
 
     Small spots overlapping diagonally rarely meet equation (6) (rows are too few for the
     mid-point shift), so with ``core`` moments ``(x, y, var_x, var_y, cov_xy)`` of each
-    group's white pixels a group also counts as an overlapped pair when its major axis is
+    group's white pixels (corrected for spot growth, :mod:`kisscal.detect.shape`) a group
+    also counts as an overlapped pair when its major axis is
     at least ``overlap_angle_deg`` away from both image axes (round units) and its
     elongation reaches ``overlap_min_elongation``. Two equal spots ``D`` apart add
     ``D^2 / 4`` to the major variance, so their centres are the centroid
@@ -226,7 +228,7 @@ def overlap_split(
     by_moments = np.zeros(len(table), dtype=bool)
     if core is not None:
         mx, my, vx, vy, cxy = core
-        major, minor, ux, uy = principal_axes(vx, vy, cxy, 1.0 / 12.0, params.pixel_aspect)
+        major, minor, ux, uy = principal_axes(vx, vy, cxy, params.pixel_aspect)
         angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
         diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
         by_moments = (
@@ -269,26 +271,6 @@ def overlap_split(
     )
 
 
-def elongation(
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    spread_px2: float,
-    pixel_aspect: float,
-) -> NDArray[np.float64]:
-    """Height-to-width ratio of spots from their second moments, 1 for a round marker.
-
-    The spread that every spot gets whatever its size (pixel integration, ``spread_px2`` in
-    pixels squared) is removed before the ratio is taken: it would make small round
-    markers look tall in non-square pixels. Moments rather than the bounding rectangle of
-    section 2.3.3 because a marker two or three lines high has a rectangle ratio that
-    jumps with its sub-pixel position, while its moments change smoothly.
-    """
-    tiny = 1e-3
-    return pixel_aspect * np.sqrt(
-        np.maximum(var_y - spread_px2, tiny) / np.maximum(var_x - spread_px2, tiny)
-    )
-
-
 def long_wide_split(
     grouping: Grouping,
     table: GroupTable,
@@ -298,12 +280,16 @@ def long_wide_split(
 ) -> Grouping:
     """Split long and wide groups into marker-sized parts (section 2.3.3).
 
-    ``ratio`` (h / w, 1 for a round marker, see :func:`elongation`) below ``min_ratio``
+    ``ratio`` (h / w, 1 for a round marker, see :func:`kisscal.detect.shape.height_ratio`)
+    below ``min_ratio``
     makes a group wide, above ``max_ratio`` long. A wide group of width ``w`` and height
-    ``h`` is cut into ``round(w / (h * pixel_aspect))`` (at least 2) markers of diameter
-    ``h * pixel_aspect`` spread evenly from its left to its right end; a long one likewise
+    ``h`` holds markers of diameter ``d = (h - e) * pixel_aspect + e`` columns, with ``e``
+    the ``edge_growth_px`` of a thresholded spot; it is cut into ``round(w / d)`` (at
+    least 2) markers spread evenly from its left to its right end; a long one likewise
     from top to bottom. The other coordinate of each part is the group's binary centroid.
-    Groups where ``inside`` is False (cut by the image border) are not tested.
+    A small group (under 1.5 ``long_wide_min_pixels``) shorter than ``split_min_extent``
+    diameters along the cut is left whole, and groups where ``inside`` is False (cut by
+    the image border) are not tested.
     """
     w = table.width.astype(float)
     h = table.height.astype(float)
@@ -318,16 +304,26 @@ def long_wide_split(
     if idx.size == 0:
         return grouping
     is_wide = wide[idx]
-    box_ratio = h[idx] * params.pixel_aspect / w[idx]
-    k = np.where(is_wide, np.floor(1 / box_ratio + 0.5), np.floor(box_ratio + 0.5))
-    k = np.maximum(k, 2).astype(np.int64)
+    # Diameter of one marker along the split axis, from the group's extent across it: the
+    # thresholded extent of a spot is its outline plus about ``edge_growth_px`` (blur and
+    # blooming), which does not scale with the pixel aspect.
+    g = params.edge_growth_px
+    asp = params.pixel_aspect
+    diameter = np.where(is_wide, (h[idx] - g) * asp + g, (w[idx] - g) / asp + g)
+    diameter = np.maximum(diameter, 1.0)
+    extent = np.where(is_wide, w[idx], h[idx])
+    # For a small group the shape alone is too noisy: its extent must agree, a group
+    # shorter than ``split_min_extent`` marker diameters along the cut is one spot.
+    small = table.pixels[idx] < 1.5 * params.long_wide_min_pixels
+    agree = ~small | (extent >= params.split_min_extent * diameter)
+    if not agree.any():
+        return grouping
+    idx, is_wide, diameter, extent = idx[agree], is_wide[agree], diameter[agree], extent[agree]
+    k = np.maximum(np.floor(extent / diameter + 0.5), 2).astype(np.int64)
     kmax = int(k.max())
     j = np.arange(kmax)[None, :]
     valid_part = j < k[:, None]
-    # Along the split axis: extent of the group and the marker diameter along it.
     start = np.where(is_wide, table.x1[idx], table.y1[idx]) - 0.5
-    extent = np.where(is_wide, w[idx], h[idx])
-    diameter = np.where(is_wide, h[idx] * params.pixel_aspect, w[idx] / params.pixel_aspect)
     diameter = np.minimum(diameter, extent / k)
     step = (extent - diameter) / (k - 1)
     along = start[:, None] + diameter[:, None] / 2 + j * step[:, None]
@@ -350,3 +346,86 @@ def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
     )
     small = table.pixels < params.min_pixels
     return np.where(large, fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)
+
+
+def detach_from_large(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+    """Separate markers touching an oversized blob (an LED ring) before the size limits.
+
+    Not in seeds/003, where such a marker is lost inside the invalid LED group. The
+    group's white pixels are opened with an elliptical kernel of ``detach_kernel_px``
+    (larger than any marker, smaller than an LED ring): what the opening removes and does
+    not border the opened blob is a marker sticking out of it when it has at least
+    ``detach_min_pixels`` pixels, provided the opened blob alone still has more than
+    ``max_pixels`` pixels. The group is then split between the blob and those
+    markers by distance relative to each one's size (:func:`split_groups`).
+    """
+    large = (
+        (table.pixels > params.max_pixels)
+        | (table.width > params.max_width_px)
+        | (table.height > params.max_height_px)
+    )
+    idx = np.flatnonzero(large)
+    if idx.size == 0:
+        return grouping
+    kw, kh = params.detach_kernel_px
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (int(kw), int(kh)))
+    grow = np.ones((3, 3), np.uint8)
+    runs = grouping.runs
+    labels, centres = [], []
+    order = np.argsort(runs.group, kind="stable")
+    bounds = np.searchsorted(runs.group[order], table.label[idx])
+    ends = np.searchsorted(runs.group[order], table.label[idx], side="right")
+    for i, lo, hi in zip(idx, bounds, ends, strict=True):  # LED rings: a few per image
+        mine = order[lo:hi]
+        x0, y0 = table.x1[i] - 1, table.y1[i] - 1
+        crop = np.zeros((table.height[i] + 2, table.width[i] + 2), np.uint8)
+        count = runs.x2[mine] - runs.x1[mine] + 1
+        row = np.repeat(runs.y[mine] - y0, count)
+        col = np.repeat(runs.x1[mine] - x0, count) + (
+            np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+        )
+        crop[row, col] = 1
+        core = cv2.morphologyEx(crop, cv2.MORPH_OPEN, kernel)
+        # Only a blob that stays oversized without the pieces is an LED ring; overlapping
+        # markers have no such core and are left to the overlap and long/wide tests.
+        if np.count_nonzero(core) <= params.max_pixels:
+            continue
+        residual = crop & (1 - cv2.dilate(core, grow))
+        n, _, stats, cents = cv2.connectedComponentsWithStats(residual, connectivity=8)
+        pieces = [
+            j
+            for j in range(1, n)
+            if stats[j, cv2.CC_STAT_AREA] >= params.detach_min_pixels
+            and stats[j, cv2.CC_STAT_WIDTH] >= 2
+            and stats[j, cv2.CC_STAT_HEIGHT] >= 2
+        ]
+        if not pieces:
+            continue
+        cy, cx = np.nonzero(core)
+        blob = (x0 + cx.mean(), y0 + cy.mean(), np.sqrt(cx.size / (np.pi * params.pixel_aspect)))
+        parts = [blob] + [
+            (
+                x0 + cents[j][0],
+                y0 + cents[j][1],
+                np.sqrt(stats[j, cv2.CC_STAT_AREA] / (np.pi * params.pixel_aspect)),
+            )
+            for j in pieces
+        ]
+        labels.append(table.label[i])
+        centres.append(parts)
+    if not labels:
+        return grouping
+    k = max(len(p) for p in centres)
+    table_xyr = np.full((len(labels), k, 3), np.nan)
+    for row, parts in enumerate(centres):
+        table_xyr[row, : len(parts)] = parts
+    radii = np.where(np.isnan(table_xyr[:, :, 2]), 1.0, table_xyr[:, :, 2])
+    return split_groups(
+        grouping,
+        np.asarray(labels, dtype=np.int64),
+        table_xyr[:, :, 0],
+        table_xyr[:, :, 1],
+        np.full(len(labels), fl.DETACHED),
+        params.pixel_aspect,
+        radii,
+    )

@@ -16,6 +16,8 @@ SPLIT_WIDE = 8
 SPLIT_LONG = 16
 TOO_LARGE = 32
 TOO_SMALL = 64
+DETACHED = 128
+SPLIT_TOUCHING = 256
 FLAG_NAMES: dict[int, str] = {
     MERGED: "merged",
     SPLIT_UL: "split_ul",
@@ -24,6 +26,8 @@ FLAG_NAMES: dict[int, str] = {
     SPLIT_LONG: "split_long",
     TOO_LARGE: "too_large",
     TOO_SMALL: "too_small",
+    DETACHED: "detached",
+    SPLIT_TOUCHING: "split_touching",
 }
 INVALID_FLAGS = TOO_LARGE | TOO_SMALL
 

@@ -181,11 +181,13 @@ def _nearest_part_mask(
     parent = grouping.parent[table.label]
     cx = grouping.centre_x[table.label]
     cy = grouping.centre_y[table.label]
+    r2 = grouping.radius[table.label] ** 2
     for p in np.unique(parent[split]):  # one pass per split group: a few per image
         members = split[parent[split] == p]
         rows = np.isin(g, members)
-        d = ((xs[rows, None] - cx[members]) / pixel_aspect) ** 2 + (
-            ys[rows, None] - cy[members]
-        ) ** 2
+        d = (
+            ((xs[rows, None] - cx[members]) / pixel_aspect) ** 2
+            + (ys[rows, None] - cy[members]) ** 2
+        ) / r2[members]
         keep[rows] = members[np.argmin(d, axis=1)] == g[rows]
     return keep

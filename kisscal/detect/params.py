@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
+
 from kisscal.errors import KisscalError
 
 
@@ -53,6 +55,14 @@ class DetectionParams:
         (margin-grown) bounding rectangle of the larger group it is merged into.
     submarker_margin_px : int
         Pixels by which the larger group's bounding rectangle is grown for that test.
+    split_touching : bool
+        Split groups whose distance transform has several peaks (touching markers, e.g.
+        three foot markers in a cluster) into one group per peak, before the overlap
+        test; not in seeds/003. Only groups whose shape or size is not that of one marker
+        are examined.
+    touching_separation : float
+        Two distance-transform peaks are two markers when they are further apart than
+        this many times the larger one's height (marker radius).
     split_overlaps : bool
         Section 2.3.2 switch (ul / ur overlapped pairs, equation 6).
     overlap_ratio_max : float
@@ -80,14 +90,40 @@ class DetectionParams:
     long_wide_min_pixels : int
         Groups with fewer white pixels are not tested for overlap, long or wide: their
         shape is a handful of pixels and says nothing about how many markers they hold.
+    growth_px : float
+        Spread (standard deviation, pixels) that blur, blooming and thresholding add to
+        every spot in x and y alike; removed from the spot moments before the shape tests
+        (:mod:`kisscal.detect.shape`). Estimated per image from its marker-sized groups;
+        this value is used when an image has fewer than ``growth_min_groups`` of them.
+    growth_min_groups : int
+        Least number of marker-sized groups for the per-image growth estimate.
+    split_min_extent : float
+        A small long or wide group (fewer than 1.5 ``long_wide_min_pixels``) is cut only
+        when it is at least this many marker diameters long along the cut (two markers
+        one radius apart measure about 1.4): the moment ratio of a small single spot is
+        noisy, its extent less so.
+    edge_growth_px : float
+        How much wider and taller (pixels) the thresholded image of a marker is than its
+        outline: blur and blooming add about the same in both directions, independent of
+        the pixel aspect. Used to estimate a marker's diameter when splitting.
     pixel_aspect : float
         Width / height in pixels of the image of a round marker (pixel height / pixel width);
         1.94 for 4:3 frames of 752 x 582 pixels scanned as 291-line fields.
+    detach_from_large : bool
+        Separate markers touching an oversized blob (LED ring) from it before the size
+        limits; not in seeds/003 (there such a marker is lost with the invalid blob).
+    detach_kernel_px : (int, int)
+        Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
+        and removes markers: larger than a marker image, smaller than an LED ring.
+    detach_min_pixels : int
+        Least white pixels of a piece sticking out of an oversized blob to be a marker.
     apply_size_limits : bool
         Section 2.3.4 switch: oversized and undersized groups are marked invalid (kept in
         the table with ``too_large`` / ``too_small``), never split.
     max_pixels : int
-        A group with more white pixels is too large (LED rings of facing cameras).
+        A group with more white pixels is too large (LED rings of facing cameras). On the
+        KISS-like rig, 25 mm markers at 2.5-7 m give 13-40 white pixels (at most 9 x 6)
+        and the LED rings 128-176 (at least 15 x 10): the limits sit between.
     max_width_px, max_height_px : int
         A group wider or higher than this is too large.
     min_pixels : int
@@ -116,20 +152,29 @@ class DetectionParams:
     submarker_max_rows: int = 2
     submarker_overlap: float = 0.5
     submarker_margin_px: int = 1
+    split_touching: bool = True
+    touching_separation: float = 1.2
     split_overlaps: bool = True
     overlap_ratio_max: float = 0.6
     overlap_shift_px: float = 3.0
     overlap_min_elongation: float = 1.3
     overlap_angle_deg: float = 20.0
     split_long_wide: bool = True
-    min_ratio: float = 0.88
-    max_ratio: float = 1.45
+    min_ratio: float = 0.78
+    max_ratio: float = 1.3
     long_wide_min_pixels: int = 16
+    growth_px: float = 0.35
+    growth_min_groups: int = 5
+    split_min_extent: float = 1.25
+    edge_growth_px: float = 1.0
     pixel_aspect: float = 1.94
+    detach_from_large: bool = True
+    detach_kernel_px: tuple[int, int] = (11, 7)
+    detach_min_pixels: int = 8
     apply_size_limits: bool = True
-    max_pixels: int = 400
-    max_width_px: int = 40
-    max_height_px: int = 24
+    max_pixels: int = 80
+    max_width_px: int = 14
+    max_height_px: int = 9
     min_pixels: int = 3
     weighted_centroid: bool = True
     centroid_margin_x_px: int = 3
@@ -137,6 +182,29 @@ class DetectionParams:
     background: float | None = None
 
     def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            kind = str(f.type)
+            if kind == "bool":
+                ok = isinstance(value, bool | np.bool_)
+            elif kind == "int":
+                ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
+            elif kind.startswith("float"):
+                ok = (value is None and "None" in kind) or (
+                    isinstance(value, int | float | np.integer | np.floating)
+                    and not isinstance(value, bool)
+                )
+            else:  # the opening kernel: two odd positive integers
+                ok = (
+                    isinstance(value, tuple)
+                    and len(value) == 2
+                    and all(isinstance(v, int) and v > 0 and v % 2 == 1 for v in value)
+                )
+            if not ok:
+                raise KisscalError(
+                    f"detection: {f.name} must be {kind.replace('tuple[int, int]', 'two odd ints')}"
+                    f", got {value!r}"
+                )
         positive = ("closeness_rows", "pixel_aspect", "max_pixels", "max_width_px")
         for name in (*positive, "max_height_px", "submarker_max_rows"):
             if not getattr(self, name) > 0:
@@ -146,6 +214,11 @@ class DetectionParams:
             "submarker_max_pixels",
             "overlap_shift_px",
             "overlap_angle_deg",
+            "edge_growth_px",
+            "growth_px",
+            "growth_min_groups",
+            "touching_separation",
+            "split_min_extent",
             "min_pixels",
             "long_wide_min_pixels",
             "centroid_margin_x_px",
@@ -175,9 +248,11 @@ class DetectionParams:
         return dataclasses.replace(self, **changes)
 
     def without_advanced_analysis(self) -> DetectionParams:
-        """These parameters with every section 2.3 test switched off."""
+        """These parameters with every section 2.3 test (and kisscal's additions) off."""
         return self.replace(
             merge_submarkers=False,
+            detach_from_large=False,
+            split_touching=False,
             split_overlaps=False,
             split_long_wide=False,
             apply_size_limits=False,

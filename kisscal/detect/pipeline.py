@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
-    elongation,
+    detach_from_large,
     long_wide_split,
     merge_submarkers,
     overlap_split,
@@ -30,6 +30,14 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
+from kisscal.detect.shape import (
+    corrected_moments,
+    estimate_growth,
+    height_ratio,
+    principal_axes,
+    spreads,
+)
+from kisscal.detect.touching import split_touching
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -83,8 +91,11 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     Notes
     -----
     Steps: run-length scan and grouping by run mid-points (section 2.1, eq. 3); noise
-    removal (2.2); sub-marker merge (2.3.1); ul/ur overlap split (2.3.2, eqs. 4-6);
-    long/wide split (2.3.3); size limits (2.3.4). Coordinates keep the non-square pixels.
+    removal (2.2); sub-marker merge (2.3.1); markers touching an LED ring separated from
+    it and touching markers split at distance-transform peaks (kisscal's additions, each
+    switchable); ul/ur overlap split (2.3.2, eqs. 4-6, plus a moment test for small
+    diagonal pairs); long/wide split (2.3.3, ratio from growth-corrected moments); size
+    limits (2.3.4). Coordinates keep the non-square pixels.
     """
     image = check_image(image)
     grey = image.dtype != np.bool_
@@ -101,9 +112,17 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     if noise.any():
         grouping = grouping.keep_groups(table.label[noise])
         table = measure_groups(grouping.runs)
+    # Each test returns the grouping itself when it changed nothing: no re-measuring then.
     if params.merge_submarkers and len(table):
-        grouping = merge_submarkers(grouping, table, params)
-        table = measure_groups(grouping.runs)
+        merged = merge_submarkers(grouping, table, params)
+        if merged is not grouping:
+            grouping = merged
+            table = measure_groups(grouping.runs)
+    if params.detach_from_large and params.apply_size_limits and len(table):
+        detached = detach_from_large(grouping, table, params)
+        if detached is not grouping:
+            grouping = detached
+            table = measure_groups(grouping.runs)
     if len(table) == 0:
         return Blobs.empty()
 
@@ -120,18 +139,38 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
             params.pixel_aspect,
         )
 
-    # Moments are recomputed only when a test actually split a group (rare).
+    # Moments are recomputed only after a test actually split a group.
     spot = moments()
+    growth = params.growth_px
+    if params.split_overlaps or params.split_long_wide or params.split_touching:
+        # One growth estimate per image, from the groups before any split.
+        sx, sy = spreads(spot.core_var_x, spot.core_var_y)
+        inside = _inside(table, white.shape)
+        usable = inside & (table.pixels >= params.long_wide_min_pixels)
+        usable &= table.pixels <= params.max_pixels
+        growth = estimate_growth(
+            sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
+        )
+    if params.split_touching:
+        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
+        split = split_touching(grouping, table, params, candidates)
+        if split is not grouping:
+            grouping = split
+            table = measure_groups(grouping.runs)
+            spot = moments()
     if params.split_overlaps:
-        core = (spot.x, spot.y, spot.core_var_x, spot.core_var_y, spot.core_cov_xy)
-        split = overlap_split(grouping, table, params, core, _inside(table, white.shape))
+        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        core = (spot.x, spot.y, vx, vy, cxy)
+        split = overlap_split(grouping, table, params, core, _testable(grouping, table, white))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
             spot = moments()
     if params.split_long_wide:
-        ratio = elongation(spot.core_var_x, spot.core_var_y, 1.0 / 12.0, params.pixel_aspect)
-        split = long_wide_split(grouping, table, params, ratio, _inside(table, white.shape))
+        vx, vy, _ = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
+        ratio = height_ratio(vx, vy, params.pixel_aspect)
+        split = long_wide_split(grouping, table, params, ratio, _testable(grouping, table, white))
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
@@ -161,8 +200,60 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
 
 
-def _detect_one(index: int, source: Callable[[int], NDArray], params: DetectionParams) -> Blobs:
-    return detect_blobs(source(index), params)
+def _testable(grouping: Grouping, table: GroupTable, white: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Groups the overlap and long/wide tests may split.
+
+    Not those cut by the image border, and not the parts of a touching-marker split or
+    markers detached from an LED ring unless they are large enough to hold two markers
+    (1.6 times the image's typical marker): a part cut at a neck has a flattened side
+    that the shape tests would misread.
+    """
+    inside = _inside(table, white.shape)
+    part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
+    if not part.any():
+        return inside
+    whole = inside & ~part
+    typical = float(np.median(table.pixels[whole])) if whole.any() else 0.0
+    return inside & (~part | (table.pixels > 1.6 * typical))
+
+
+def _not_single(
+    table: GroupTable,
+    params: DetectionParams,
+    var_x: NDArray[np.float64],
+    var_y: NDArray[np.float64],
+    cov_xy: NDArray[np.float64],
+    inside: NDArray[np.bool_],
+) -> NDArray[np.bool_]:
+    """Groups worth the distance-transform test: not shaped or sized like one marker.
+
+    Cheap moment and size checks keep the (per-group) distance transform off the many
+    groups that are plainly single markers, and off LED rings (several times a typical
+    marker's size).
+    """
+    ratio = height_ratio(var_x, var_y, params.pixel_aspect)
+    major, minor, _, _ = principal_axes(var_x, var_y, cov_xy, params.pixel_aspect)
+    sized = (table.pixels >= params.long_wide_min_pixels) & inside
+    marker = sized & (table.pixels <= params.max_pixels)
+    typical = float(np.median(table.pixels[marker])) if marker.any() else np.inf
+    odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
+    # Up to about three typical markers; beyond that a round group is an LED ring.
+    clustered = (table.pixels > 1.6 * typical) & (table.pixels < 3.5 * typical)
+    return sized & (odd_shape | clustered) & (table.pixels < 3.5 * typical)
+
+
+_WORKER: dict[str, object] = {}
+
+
+def _init_worker(source: Callable[[int], NDArray], params: DetectionParams) -> None:
+    _WORKER["source"] = source
+    _WORKER["params"] = params
+
+
+def _detect_range(start: int, stop: int) -> list[Blobs]:
+    source = _WORKER["source"]
+    params = _WORKER["params"]
+    return [detect_blobs(source(i), params) for i in range(start, stop)]  # type: ignore[operator,arg-type]
 
 
 def detect_sequence(
@@ -171,16 +262,16 @@ def detect_sequence(
     *,
     count: int | None = None,
     workers: int | None = None,
-    chunksize: int = 16,
+    chunksize: int = 32,
 ) -> list[Blobs]:
     """Detect blobs in many images, in parallel across processes.
 
     Parameters
     ----------
     images : sequence of ndarray, or callable ``index -> ndarray``
-        The images, or a picklable function that loads image ``index`` (e.g. the io layer's
-        reader bound with :func:`functools.partial`): with a loader, decoding happens in
-        the worker processes as well.
+        The images, or a function that loads image ``index`` (e.g. the io layer's reader
+        bound with :func:`functools.partial`): with a loader, decoding happens in the
+        worker processes as well.
     params : DetectionParams
         Shared by all images.
     count : int, optional
@@ -188,12 +279,18 @@ def detect_sequence(
     workers : int, optional
         Processes to use; ``None`` uses all cores, 1 runs in this process.
     chunksize : int
-        Images handed to a worker at a time.
+        Consecutive images handed to a worker at a time.
 
     Returns
     -------
     list of Blobs
         One table per image, in input order.
+
+    Notes
+    -----
+    Workers receive the images (or the loader) once, when they start: on POSIX they are
+    forked and share the parent's memory, so nothing is copied per image; elsewhere the
+    images or loader must be picklable.
     """
     if callable(images):
         if count is None:
@@ -207,21 +304,19 @@ def detect_sequence(
         workers = os.cpu_count() or 1
     if workers < 1:
         raise KisscalError(f"detect: workers must be >= 1, got {workers}")
-    if workers == 1 or n <= 1:
+    if chunksize < 1:
+        raise KisscalError(f"detect: chunksize must be >= 1, got {chunksize}")
+    workers = min(workers, -(-n // chunksize)) if n else 1
+    if workers <= 1:
         return [detect_blobs(source(i), params) for i in range(n)]
-    if not callable(images):
-        # Ship each worker its slice of images once instead of one pickle per image.
-        chunks = [list(images[i : i + chunksize]) for i in range(0, n, chunksize)]
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = pool.map(partial(_detect_chunk, params=params), chunks)
-            return [b for chunk in results for b in chunk]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(
-            pool.map(
-                partial(_detect_one, source=source, params=params), range(n), chunksize=chunksize
-            )
-        )
-
-
-def _detect_chunk(images: list[NDArray], params: DetectionParams) -> list[Blobs]:
-    return [detect_blobs(image, params) for image in images]
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    starts = list(range(0, n, chunksize))
+    stops = [min(s + chunksize, n) for s in starts]
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=context,
+        initializer=_init_worker,
+        initargs=(source, params),
+    ) as pool:
+        return [b for chunk in pool.map(_detect_range, starts, stops) for b in chunk]

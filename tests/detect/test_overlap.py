@@ -9,15 +9,21 @@ from kisscal.detect import detect_blobs
 from tests.detect.conftest import ASPECT, render
 
 
-def _pairs(rng: np.random.Generator, angle_deg: tuple[float, float], n: int = 60):
-    """n well-separated pairs of equal markers, centres 1-2 radii apart (round units)."""
+def _pairs(rng: np.random.Generator, angle_deg: tuple[float, float], n: int = 30):
+    """n well-separated pairs of equal markers, centres 1-2 radii apart (round units).
+
+    Pairs fill every other lattice cell; single markers fill the rest, so that, as in a
+    real field, most groups are single markers (the spot growth is estimated from them).
+    """
     gx, gy = np.meshgrid(np.linspace(40, 700, 10), np.linspace(30, 260, 6))
-    first = np.column_stack([gx.ravel(), gy.ravel()])[:n]
+    first = np.column_stack([gx.ravel(), gy.ravel()])[: 2 * n : 2]
     radius = rng.uniform(3.0, 5.0, n)
     spacing = rng.uniform(1.0, 2.0, n) * radius
     angle = np.radians(rng.uniform(*angle_deg, n))
     second = first + np.column_stack([spacing * np.cos(angle), spacing * np.sin(angle) / ASPECT])
-    return np.vstack([first, second]), np.r_[radius, radius]
+    singles = np.column_stack([gx.ravel(), gy.ravel()])[1 : 2 * n : 2] + 3.0
+    single_r = rng.uniform(2.0, 5.0, len(singles))
+    return np.vstack([first, second, singles]), np.r_[radius, radius, single_r]
 
 
 def _recall(blobs, truth, radius):
@@ -55,5 +61,15 @@ def test_splitting_off_keeps_pairs_merged(rng):
     truth, radius = _pairs(rng, (0.0, 0.0))
     from kisscal.detect import DetectionParams
 
-    blobs = detect_blobs(render(truth, radius), DetectionParams(split_long_wide=False))
-    assert len(blobs) == len(truth) // 2
+    params = DetectionParams(split_long_wide=False, split_touching=False)
+    blobs = detect_blobs(render(truth, radius), params)
+    assert len(blobs) == len(truth) - 30
+
+
+@pytest.mark.parametrize("blur_px", [0.0, 0.3, 0.6, 0.8])
+def test_single_markers_are_never_split_whatever_the_blur(rng, blur_px):
+    gx, gy = np.meshgrid(np.linspace(40, 700, 12), np.linspace(30, 260, 7))
+    truth = np.column_stack([gx.ravel(), gy.ravel()]) + rng.uniform(-3, 3, (84, 2))
+    blobs = detect_blobs(render(truth, rng.uniform(1.8, 5.0, 84), blur_px=blur_px))
+    assert len(blobs) == 84
+    assert not blobs.flags.any()

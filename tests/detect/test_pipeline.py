@@ -41,6 +41,12 @@ def test_bad_parameters_raise():
         DetectionParams(min_ratio=1.2)
     with pytest.raises(KisscalError, match="unknown parameter"):
         DetectionParams().replace(treshold=3)
+    with pytest.raises(KisscalError, match="threshold must be float"):
+        DetectionParams(threshold="bright")
+    with pytest.raises(KisscalError, match="merge_submarkers must be bool"):
+        DetectionParams(merge_submarkers=1)
+    with pytest.raises(KisscalError, match="two odd ints"):
+        DetectionParams(detach_kernel_px=(10, 7))
 
 
 def test_boolean_and_grey_images_agree_on_groups():

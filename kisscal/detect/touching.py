@@ -1,0 +1,141 @@
+"""Touching markers: one group per marker by the peaks of the distance transform.
+
+Not in seeds/003. Its overlap (ul/ur) and long/wide tests cut a group into two, or into
+equal parts along one axis; a cluster of three markers that touch (foot markers seen
+along the foot) defeats both. Markers that touch, or overlap by less than about half a
+radius, leave a neck between them: inside the group's white pixels, the distance to the
+background then has one peak per marker. The group is stretched vertically by the pixel
+aspect first so that distances are round, and each peak's height is its marker's radius.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import blobs as fl
+from kisscal.detect.advanced import Grouping, split_groups
+from kisscal.detect.groups import GroupTable
+from kisscal.detect.params import DetectionParams
+
+NECK = 0.8  # a neck is lower than this fraction of the lower of the two peaks
+
+
+def _neck(
+    dist: NDArray[np.float32], a: tuple[float, float], b: tuple[float, float], stretch: int
+) -> float:
+    """Lowest distance-transform value on the segment between two peaks (rows stretched)."""
+    t = np.linspace(0.0, 1.0, 16)
+    xs = np.rint(a[0] + t * (b[0] - a[0])).astype(int)
+    ys = np.rint((a[1] + t * (b[1] - a[1]) + 0.5) * stretch - 0.5).astype(int)
+    ys = np.clip(ys, 0, dist.shape[0] - 1)
+    return float(dist[ys, xs].min())
+
+
+def marker_peaks(
+    crop: NDArray[np.uint8], pixel_aspect: float, min_separation: float
+) -> NDArray[np.float64]:
+    """Peaks of the distance transform of a group's mask, one per marker.
+
+    Parameters
+    ----------
+    crop : ndarray of uint8, shape (h, w)
+        The group's white pixels (1) with a one-pixel background border.
+    pixel_aspect : float
+        Width / height of a round marker in pixels: rows are repeated this many times
+        (rounded) so that distances are round.
+    min_separation : float
+        Two peaks count as two markers only when they are further apart than this many
+        times the larger of their heights (radii) and the distance transform drops
+        between them below ``NECK`` times the lower one (a neck); otherwise they are
+        maxima along one marker's ridge.
+
+    Returns
+    -------
+    ndarray, shape (k, 3)
+        ``x, y`` of each peak in crop pixel coordinates and its height (the marker's
+        radius in scan lines), highest first.
+    """
+    stretch = max(round(pixel_aspect), 1)
+    tall = np.repeat(crop, stretch, axis=0)
+    dist = cv2.distanceTransform(tall, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    top = float(dist.max())
+    if top <= 0:
+        return np.zeros((0, 3))
+    ridge = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (dist >= 0.5 * top)
+    n, labels = cv2.connectedComponents(ridge.astype(np.uint8), connectivity=8)
+    peaks = []
+    for j in range(1, n):  # a handful of maxima per group
+        ys, xs = np.nonzero(labels == j)
+        height = float(dist[ys, xs].max())
+        peaks.append((xs.mean(), (ys.mean() + 0.5) / stretch - 0.5, height))
+    peaks.sort(key=lambda p: -p[2])
+    kept: list[tuple[float, float, float]] = []
+    for x, y, height in peaks:
+        # distance in round units (scan lines): x divided by the aspect
+        if all(
+            np.hypot((x - kx) / pixel_aspect, y - ky)
+            > min_separation * max(height, kh) / pixel_aspect
+            and _neck(dist, (x, y), (kx, ky), stretch) < NECK * min(height, kh)
+            for kx, ky, kh in kept
+        ):
+            kept.append((x, y, height))
+    out = np.array(kept, dtype=float).reshape(-1, 3)
+    out[:, 2] /= pixel_aspect  # x-pixel units to scan lines (round units)
+    return out
+
+
+def split_touching(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    candidates: NDArray[np.bool_],
+) -> Grouping:
+    """Split candidate groups with several distance-transform peaks into one per marker.
+
+    Each part is centred on its peak and gets the pixels nearest to it relative to the
+    peak's height (its radius), so that markers of different sizes share the neck
+    fairly; parts are flagged ``split_touching``.
+    """
+    idx = np.flatnonzero(candidates)
+    if idx.size == 0:
+        return grouping
+    runs = grouping.runs
+    order = np.argsort(runs.group, kind="stable")
+    sorted_groups = runs.group[order]
+    lo = np.searchsorted(sorted_groups, table.label[idx])
+    hi = np.searchsorted(sorted_groups, table.label[idx], side="right")
+    labels, found = [], []
+    for i, a, b in zip(idx, lo, hi, strict=True):  # candidates: a few groups per image
+        mine = order[a:b]
+        x0, y0 = table.x1[i] - 1, table.y1[i] - 1
+        crop = np.zeros((table.height[i] + 2, table.width[i] + 2), np.uint8)
+        count = runs.x2[mine] - runs.x1[mine] + 1
+        row = np.repeat(runs.y[mine] - y0, count)
+        col = np.repeat(runs.x1[mine] - x0, count) + (
+            np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+        )
+        crop[row, col] = 1
+        peaks = marker_peaks(crop, params.pixel_aspect, params.touching_separation)
+        if len(peaks) >= 2:
+            peaks[:, 0] += x0
+            peaks[:, 1] += y0
+            labels.append(table.label[i])
+            found.append(peaks)
+    if not labels:
+        return grouping
+    k = max(len(p) for p in found)
+    packed = np.full((len(labels), k, 3), np.nan)
+    for row_index, peaks in enumerate(found):
+        packed[row_index, : len(peaks)] = peaks
+    radii = np.where(np.isnan(packed[:, :, 2]), 1.0, np.maximum(packed[:, :, 2], 0.5))
+    return split_groups(
+        grouping,
+        np.asarray(labels, dtype=np.int64),
+        packed[:, :, 0],
+        packed[:, :, 1],
+        np.full(len(labels), fl.SPLIT_TOUCHING),
+        params.pixel_aspect,
+        radii,
+    )
