@@ -47,6 +47,7 @@ def check_image(image: object) -> NDArray:
     """Return ``image`` as a 2-D array or raise :class:`KisscalError` saying what is wrong.
 
     Accepted: 2-D boolean (already thresholded), unsigned-integer or float grey images.
+    Integer images wider than 8 bits are returned as float32 on the 8-bit grey scale.
     """
     if not isinstance(image, np.ndarray):
         raise KisscalError(f"detect: expected a 2-D numpy image, got {type(image).__name__}")
@@ -67,6 +68,10 @@ def check_image(image: object) -> NDArray:
         raise KisscalError(
             f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
         )
+    if np.issubdtype(image.dtype, np.unsignedinteger) and image.dtype.itemsize > 1:
+        # 16-bit cameras: bring grey levels to the 8-bit scale so that ``threshold`` and the
+        # other grey-level parameters mean the same for 8- and 16-bit frames of one scene.
+        return image.astype(np.float32) * np.float32(255.0 / np.iinfo(image.dtype).max)
     return image
 
 

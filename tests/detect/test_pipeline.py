@@ -63,7 +63,7 @@ def test_boolean_and_grey_images_agree_on_groups():
 def test_uint16_and_float_images():
     grey = render(TRUTH, 3.5)
     ref = detect_blobs(grey)
-    as16 = detect_blobs(grey.astype(np.uint16) * 256, DetectionParams(threshold=40 * 256))
+    as16 = detect_blobs(grey.astype(np.uint16) * 257)  # grey levels on the 8-bit scale
     asf = detect_blobs(grey.astype(np.float32))
     assert np.allclose(as16.x_px, ref.x_px)
     assert np.allclose(asf.x_px, ref.x_px)
@@ -95,3 +95,30 @@ def test_sequence_matches_single_images_in_order():
 def test_sequence_needs_count_with_a_loader():
     with pytest.raises(KisscalError, match="count"):
         detect_sequence(_frame)
+
+
+def test_16_bit_frames_give_the_same_blobs_as_8_bit() -> None:
+    """A 16-bit camera frame of the same scene finds the same markers at the same places."""
+    from kisscal.synth.cameras import kiss_rig
+    from kisscal.synth.motion import walking_trial
+    from kisscal.synth.render import RenderParams
+    from kisscal.synth.scene import image_rng, led_spots, render_markers, visibility
+
+    rig = kiss_rig(2)
+    cam = rig[0]
+    motion = walking_trial(2, 60)
+    vis = visibility(cam, motion)
+    params = RenderParams()
+    image, _ = render_markers(
+        cam,
+        motion.xyz_mm[30],
+        vis[30],
+        led_spots(cam, rig, params),
+        image_rng(2, "trial", 0, 30),
+        params,
+    )
+    b8 = detect_blobs(image)
+    b16 = detect_blobs(image.astype(np.uint16) * 257)
+    assert len(b8) == len(b16) > 5
+    np.testing.assert_allclose(b16.x_px, b8.x_px, atol=1e-3)
+    np.testing.assert_array_equal(b16.valid, b8.valid)
