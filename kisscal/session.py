@@ -166,10 +166,12 @@ def detect_images(
         from kisscal.io.files import write_bytes
         from kisscal.report.overlay import draw_overlay
 
-        for p, image, b in zip(paths, images, blobs, strict=True):
+        for k, (p, image, b) in enumerate(zip(paths, images, blobs, strict=True)):
             rgb = draw_overlay(image, b)
             _ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-            write_bytes(Path(overlay_dir) / f"{Path(p).stem}_overlay.png", buf.tobytes())
+            # numbered and with the folder: frames of different cameras share file names
+            name = f"{k:04d}_{Path(p).parent.name}_{Path(p).stem}_overlay.png"
+            write_bytes(Path(overlay_dir) / name, buf.tobytes())
     total = sum(len(b) for b in blobs)
     valid = sum(int(b.valid.sum()) for b in blobs)
     echo(f"{len(paths)} images: {total} blobs ({valid} valid)")
