@@ -6,7 +6,9 @@ Every user error is reported on one line (``kisscal <command>: ...``) with exit 
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -28,6 +30,42 @@ app = typer.Typer(
 )
 
 SessionArg = Annotated[Path, typer.Argument(help="Session folder (holds session.toml).")]
+
+
+@contextlib.contextmanager
+def progress_bars() -> Iterator[Callable[[str], object]]:
+    """A progress bar per pipeline stage on a terminal; plain lines when output is redirected.
+
+    Yields the function that prints the pipeline's messages (above the bars on a terminal).
+    """
+    from kisscal import session
+
+    try:
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+    except ImportError:  # pragma: no cover - rich comes with typer
+        yield typer.echo
+        return
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        yield typer.echo
+        return
+
+    class Bars(session.Progress):
+        def __init__(self, bars: Progress) -> None:
+            self.bars = bars
+            self.task: int | None = None
+
+        def start(self, stage: str, total: int) -> None:
+            self.task = self.bars.add_task(stage, total=max(total, 1))
+
+        def advance(self, steps: int = 1) -> None:
+            if self.task is not None:
+                self.bars.advance(self.task, steps)
+
+    columns = (TextColumn("{task.description:<34}"), BarColumn(), MofNCompleteColumn())
+    with Progress(*columns, console=console) as bars, session.reporting_progress(Bars(bars)):
+        yield lambda line: bars.console.print(line, markup=False, highlight=False)
 
 
 @app.command()
@@ -96,7 +134,8 @@ def linearise(
     """Fit each camera's lens linearisation from its dot-grid images."""
     from kisscal import session
 
-    session.linearise(session_dir, camera=camera, model=model, echo=typer.echo)
+    with progress_bars() as echo:
+        session.linearise(session_dir, camera=camera, model=model, echo=echo)
 
 
 @app.command()
@@ -110,9 +149,10 @@ def calibrate(
     """Compute each camera's DLT parameters from the rod images."""
     from kisscal import session
 
-    session.calibrate(
-        session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=typer.echo
-    )
+    with progress_bars() as echo:
+        session.calibrate(
+            session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=echo
+        )
 
 
 @app.command()
@@ -123,7 +163,8 @@ def reconstruct(
     """Reconstruct 3D marker positions of a trial, field by field."""
     from kisscal import session
 
-    session.reconstruct(session_dir, trial, echo=typer.echo)
+    with progress_bars() as echo:
+        session.reconstruct(session_dir, trial, echo=echo)
 
 
 @app.command()
@@ -154,7 +195,8 @@ def run(session_dir: SessionArg) -> None:
     """Run the whole session: detect, linearise, calibrate, reconstruct, track."""
     from kisscal import session
 
-    session.run(session_dir, echo=typer.echo)
+    with progress_bars() as echo:
+        session.run(session_dir, echo=echo)
 
 
 @app.command()

@@ -9,11 +9,13 @@ the functions here; tests call them directly.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import difflib
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +29,46 @@ Echo = Callable[[str], object]
 
 def _quiet(_: str) -> None:
     return None
+
+
+class Progress:
+    """Where the pipeline reports how far a stage has got; the base class ignores it.
+
+    The CLI installs a progress bar with :func:`reporting_progress`; library calls and
+    tests stay silent. Like logging, this is set for the running context rather than passed
+    through every stage call.
+    """
+
+    def start(self, stage: str, total: int) -> None:
+        """A stage of ``total`` steps begins."""
+
+    def advance(self, steps: int = 1) -> None:
+        """Steps of the current stage are done."""
+
+
+_PROGRESS: contextvars.ContextVar[Progress | None] = contextvars.ContextVar(
+    "kisscal_progress", default=None
+)
+
+
+def _steps(items: Sequence[Any], stage: str) -> Iterator[Any]:
+    """Iterate over ``items``, reporting each one done (after its loop body) as a step."""
+    progress = _PROGRESS.get() or Progress()
+    items = list(items)
+    progress.start(stage, len(items))
+    for item in items:
+        yield item
+        progress.advance()
+
+
+@contextlib.contextmanager
+def reporting_progress(progress: Progress) -> Iterator[None]:
+    """Report the progress of pipeline stages run inside the block to ``progress``."""
+    token = _PROGRESS.set(progress)
+    try:
+        yield
+    finally:
+        _PROGRESS.reset(token)
 
 
 # ----------------------------------------------------------------------------- params
@@ -204,7 +246,7 @@ def linearise(
     params = stage_params(config, o)
     cameras = _select_cameras(config, camera)
     result = {}
-    for cam in cameras:
+    for cam in _steps(cameras, "linearise"):
         out = out_dir(root) / "linearisation" / f"{cam.id}.json"
         if config.grid is None:
             from kisscal.grid import identity_linearisation
@@ -266,8 +308,17 @@ def _select_cameras(config: Any, camera: str | None) -> tuple:
 
 
 def _linearisations(root: Path, config: Any, echo: Echo) -> dict[str, Any]:
-    """The current linearisation of every camera (computing what is missing or stale)."""
-    return linearise(root, echo=echo)
+    """The current linearisation of every camera (computing what is missing or stale).
+
+    Later stages call this; it stays quiet about linearisations that are already current.
+    """
+
+    def news(line: str) -> None:
+        if not line.endswith("cached"):
+            echo(line)
+
+    with reporting_progress(Progress()):
+        return linearise(root, echo=news)
 
 
 # ------------------------------------------------------------------------ calibration
@@ -325,7 +376,7 @@ def calibrate(
             echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
             return {"_check": json.loads((out / "check.json").read_text())}
         blobs_px = {}
-        for cam in cameras:
+        for cam in _steps(cameras, "calibrate: detect rods"):
             frames = rod_frames[cam.id]
             key = cache_key("detect", _file_keys(frames.paths, config.root), params.detection)
             cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
@@ -483,7 +534,7 @@ def _trial_blobs(
         config.root, pattern, config.camera_ids, trial.name, video=trial.source == "video"
     )
     out = {}
-    for cam, seq in frames.items():
+    for cam, seq in _steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
         inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
         key = cache_key("detect", _file_keys(inputs, config.root), params.detection)
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
