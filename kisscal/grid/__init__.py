@@ -25,7 +25,13 @@ from kisscal.grid.poly import (
     invert_linearisation,
     poly_terms,
 )
-from kisscal.grid.quality import leave_rows_out_rms, line_distances, rms_px, straightness_rms
+from kisscal.grid.quality import (
+    leave_rows_out_rms,
+    line_distances,
+    rms_px,
+    straightness_noise_floor_px,
+    straightness_rms,
+)
 
 __all__ = [
     "TERM_NAMES",
@@ -54,5 +60,6 @@ __all__ = [
     "poly_terms",
     "primary_grid",
     "rms_px",
+    "straightness_noise_floor_px",
     "straightness_rms",
 ]

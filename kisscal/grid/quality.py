@@ -71,6 +71,38 @@ def straightness_rms(uv: ArrayLike, row: ArrayLike, col: ArrayLike) -> float:
     return float(np.sqrt(np.mean(d * d))) if len(d) else float("nan")
 
 
+def straightness_noise_floor_px(noise_px: float, row: ArrayLike, col: ArrayLike) -> float:
+    """Expected :func:`straightness_rms` of perfectly straight grid lines carrying noise.
+
+    With independent centroid noise of ``noise_px`` per coordinate, the perpendicular
+    distance of a dot to the least-squares line through the n dots of its row (or column)
+    has expected square ``noise_px² (n - 2) / n``: the line's two parameters absorb two
+    of the n degrees of freedom. No linearisation can bring the corrected grid's
+    straightness below this floor, so the before/after ratio is bounded by
+    ``before / floor`` however good the lens model is (15 x 20 grid: floor = 0.94 noise).
+
+    Parameters
+    ----------
+    noise_px : float
+        Centroid noise, standard deviation per coordinate, px.
+    row, col : array_like of int, shape (N,)
+        Lattice positions of the dots (lines with fewer than three dots are skipped, as in
+        :func:`straightness_rms`).
+
+    Returns
+    -------
+    float
+        Expected straightness RMS, px.
+    """
+    factors = []
+    for group in (np.asarray(row), np.asarray(col)):
+        _, inv, counts = np.unique(group, return_inverse=True, return_counts=True)
+        n = counts[inv].astype(float)
+        factors.append(((n - 2) / n)[n >= 3])
+    f = np.concatenate(factors)
+    return float(noise_px * np.sqrt(np.mean(f))) if len(f) else float("nan")
+
+
 def leave_rows_out_rms(
     distorted_uv: ArrayLike,
     optimal_uv: ArrayLike,
