@@ -31,6 +31,7 @@ from kisscal.synth.scene import (
     led_spots,
     render_markers,
     rod_set,
+    rods_clear_of_leds,
     visibility,
 )
 
@@ -98,10 +99,15 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
     }
     if replay is not None:
         trials["walk5"] = replay
+    rods = rod_set(options.seed)
+    for attempt in range(1, 50):  # re-hang the rods until no LED ring hides a marker
+        if rods_clear_of_leds(rig, rods, options.render):
+            break
+        rods = rod_set(options.seed, attempt=attempt)
     return SynthPlan(
         options=options,
         rig=rig,
-        rods=rod_set(options.seed),
+        rods=rods,
         trials=trials,
         marker_names=gait.names,
         template_mm=standing_template(gait.names),

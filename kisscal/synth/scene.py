@@ -107,14 +107,21 @@ _ROD_GAPS = (
 _ROD_XY_MM = ((-1150.0, -650.0), (1150.0, -650.0), (1150.0, 650.0), (-1150.0, 650.0))
 
 
-def rod_set(seed: int, top_mm: float = 1900.0, bottom_mm: float = 100.0) -> tuple[Rod, ...]:
-    """The four rods R1..R4 hanging plumb near the vertical edges of the volume."""
-    rng = np.random.default_rng([seed, 5005])
+def rod_set(
+    seed: int, top_mm: float = 1900.0, bottom_mm: float = 100.0, attempt: int = 0
+) -> tuple[Rod, ...]:
+    """The four rods R1..R4 hanging plumb near the vertical edges of the volume.
+
+    ``attempt`` draws another small placement for the same seed (see
+    :func:`rods_clear_of_leds`).
+    """
+    rng = np.random.default_rng([seed, 5005, attempt] if attempt else [seed, 5005])
     rods = []
     for i, gaps in enumerate(_ROD_GAPS):
         g = np.asarray(gaps) / np.sum(gaps) * (top_mm - bottom_mm)
         z = top_mm - np.concatenate([[0.0], np.cumsum(g)])
-        xy = np.asarray(_ROD_XY_MM[i]) + rng.uniform(-30, 30, 2)
+        spread = 30.0 + 15.0 * attempt  # later attempts move the rods further
+        xy = np.asarray(_ROD_XY_MM[i]) + rng.uniform(-spread, spread, 2)
         pts = np.column_stack([np.full(6, xy[0]), np.full(6, xy[1]), z])
         rods.append(Rod(f"R{i + 1}", np.round(pts, 1)))
     return tuple(rods)
@@ -133,6 +140,27 @@ def led_spots(camera: SynthCamera, rig: Sequence[SynthCamera], params: RenderPar
     spots = sphere_spots(camera, others, params.led_radius_mm, 255.0, params.bloom_px + 1.5)
     keep = camera.in_image(spots.centre_px, margin_px=-4.0)
     return Spots(spots.centre_px[keep], spots.shape[keep], spots.peak[keep])
+
+
+def rods_clear_of_leds(
+    rig: Sequence[SynthCamera], rods: Sequence[Rod], params: RenderParams, margin_px: float = 4.0
+) -> bool:
+    """True when no rod marker's image touches an LED ring's in any camera.
+
+    A technician hangs the rods so that every marker is seen on its own; a marker hidden
+    behind a facing camera's LED ring could not be measured.
+    """
+    points = np.concatenate([r.points_mm for r in rods])
+    for cam in rig:
+        leds = led_spots(cam, rig, params)
+        if len(leds.centre_px) == 0:
+            continue
+        markers = sphere_spots(cam, points, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
+        gap = np.abs(markers.centre_px[:, None, :] - leds.centre_px[None, :, :])
+        reach = markers.radii_px[:, None, :] + leds.radii_px[None, :, :] + margin_px
+        if np.any(np.all(gap < reach, axis=2)):
+            return False
+    return True
 
 
 # ------------------------------------------------------------------------------- grid
