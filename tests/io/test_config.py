@@ -86,3 +86,27 @@ def test_corrupt_png_is_named(tmp_path: Path) -> None:
 def test_missing_camera_folder(small_session: Path) -> None:
     with pytest.raises(KisscalError, match="no trial 'walk01' images for camera cam9"):
         trial_frames(small_session, "trials/walk01/{camera}/*.png", ["cam1", "cam9"], "walk01")
+
+
+@pytest.mark.parametrize("suffix", [".tif", ".bmp", ".png"])
+@pytest.mark.parametrize("dtype", ["uint8", "uint16", "bool"])
+def test_frame_formats(tmp_path: Path, suffix: str, dtype: str) -> None:
+    """PNG, TIFF and BMP frames, 8- or 16-bit or binary, read back as grey images."""
+    import cv2
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    grey = rng.integers(0, 255, (29, 75)).astype(np.uint8)
+    if dtype == "uint16":
+        if suffix == ".bmp":
+            pytest.skip("BMP holds no 16-bit grey")
+        data = grey.astype(np.uint16) * 257
+    elif dtype == "bool":
+        data = np.where(grey > 128, 255, 0).astype(np.uint8)
+    else:
+        data = grey
+    path = tmp_path / f"frame{suffix}"
+    assert cv2.imwrite(str(path), data)
+    image = read_image(path)
+    assert image.shape == (29, 75) and image.dtype == data.dtype
+    np.testing.assert_array_equal(image, data)
