@@ -631,13 +631,11 @@ def _figure(root: Path, name: str, module: str, function: str, *args: Any) -> No
 
     from kisscal.report.html import save_figure
 
+    draw = getattr(importlib.import_module(module), function)
     try:
-        draw = getattr(importlib.import_module(module), function)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             save_figure(draw(*args), out_dir(root) / "figures" / f"{name}.png")
-    except (ImportError, AttributeError):
-        return
     except (ValueError, IndexError, KisscalError):
         return
 
