@@ -259,6 +259,10 @@ def main(argv: list[str] | None = None) -> None:
     except KisscalError as exc:
         typer.echo(f"kisscal: error: {exc}", err=True)
         sys.exit(exc.exit_code)
+    except OSError as exc:  # a path the user gave cannot be read or written
+        where = f": {exc.filename}" if exc.filename else ""
+        typer.echo(f"kisscal: error: {exc.strerror or exc}{where}", err=True)
+        sys.exit(2)
     except ClickException as exc:
         typer.echo(f"kisscal: error: {exc.format_message()}", err=True)
         sys.exit(exc.exit_code)

@@ -1105,6 +1105,7 @@ def report(root: Path, echo: Echo = _quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report
 
+    _load(root)  # a session folder, not just any path
     path = build_report(Path(root))
     echo(f"report: {path}")
     return path
