@@ -129,7 +129,7 @@ def stage_params(config: Any, overrides: Overrides | None = None) -> StageParams
     grid_cfg = {}
     if config.grid is not None:
         grid_cfg = {"rows": config.grid.rows, "cols": config.grid.cols}
-        grid_cfg.update(config.sections.get("grid_extra", {}))
+        grid_cfg.update(config.sections.get("grid", {}))
     return StageParams(
         detection=_params(DetectionParams, "detection", config.detection, o.detection),
         grid=_params(GridParams, "grid", grid_cfg, o.grid),

@@ -127,10 +127,10 @@ class SessionConfig:
 # Keys each table accepts. Stage sections ([detection], [grid] tuning ...) are checked
 # against the stage's parameter dataclass by the session layer.
 _TOP = {"session", "cameras", "grid", "rods", "calibration", "detection", "markers", "trials"}
-_TOP_OPTIONAL_STAGES = {"linearisation", "dlt", "recon", "tracking"}
+_TOP_OPTIONAL_STAGES = {"dlt", "recon", "tracking"}
 _SESSION_KEYS = {"name", "rate_hz"}
 _CAMERA_KEYS = {"id", "size"}
-_GRID_KEYS = {"rows", "cols", "images", "model"}
+_GRID_KEYS = {"rows", "cols", "images"}  # other [grid] keys tune the grid stage (GridParams)
 _RODS_KEYS = {"images", "rod"}
 _ROD_KEYS = {"name", "points_mm"}
 _CALIBRATION_KEYS = {"points"}
@@ -215,7 +215,6 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     grid = None
     if "grid" in data:
         g = data["grid"]
-        _check_keys(path, "grid.", g, _GRID_KEYS)
         grid = GridConfig(
             rows=_number(path, "grid.rows", g.get("rows", 15), int),
             cols=_number(path, "grid.cols", g.get("cols", 20), int),
@@ -303,7 +302,12 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
         detection=dict(detection),
         markers=markers,
         trials=tuple(trials),
-        sections={k: dict(data[k]) for k in _TOP_OPTIONAL_STAGES if k in data},
+        sections={
+            **{k: dict(data[k]) for k in _TOP_OPTIONAL_STAGES if k in data},
+            # [grid] keys beyond rows/cols/images are grid-stage parameters, checked
+            # (with a did-you-mean) against GridParams by the session layer
+            "grid": {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS},
+        },
     )
 
 

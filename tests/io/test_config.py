@@ -110,3 +110,30 @@ def test_frame_formats(tmp_path: Path, suffix: str, dtype: str) -> None:
     image = read_image(path)
     assert image.shape == (29, 75) and image.dtype == data.dtype
     np.testing.assert_array_equal(image, data)
+
+
+def test_grid_and_stage_sections_reach_the_stages(small_session: Path, tmp_path: Path) -> None:
+    from kisscal import session
+
+    def tune(d: dict) -> None:
+        d["grid"]["model"] = "similarity"
+        d["tracking"] = {"pnc": 0.05}
+        d["recon"] = {"strategy": "central"}
+
+    params = session.stage_params(load_session(edited(small_session, tmp_path, tune)))
+    assert params.grid.model == "similarity" and params.grid.rows == 15
+    assert params.tracking.pnc == 0.05 and params.recon.strategy == "central"
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "hint"),
+    [("grid", "modle", "model"), ("tracking", "pcn", "pnc"), ("dlt", "mldt", "mdlt")],
+)
+def test_misspelt_stage_parameter(
+    small_session: Path, tmp_path: Path, section: str, key: str, hint: str
+) -> None:
+    from kisscal import session
+
+    root = edited(small_session, tmp_path, lambda d: d.setdefault(section, {}).update({key: 1}))
+    with pytest.raises(KisscalError, match=rf"\[{section}\] unknown parameter '{key}'.*'{hint}'"):
+        session.stage_params(load_session(root))
