@@ -14,6 +14,7 @@ import numpy as np
 
 from kisscal.detect.blobs import Blobs, flag_string, parse_flags
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path
 
 COLUMNS = ("image", "x_px", "y_px", "pixels", "w_px", "h_px", "valid", "flags")
 
@@ -24,7 +25,7 @@ def write_blobs(path: str | Path, tables: Iterable[tuple[str, Blobs]]) -> int:
     Centroids are written with 4 decimals (0.1 milli-pixel, far below their accuracy).
     """
     n = 0
-    with open(path, "w", newline="") as f:
+    with atomic_path(Path(path)) as tmp, tmp.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(COLUMNS)
         for image, blobs in tables:

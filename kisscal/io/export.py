@@ -13,6 +13,7 @@ import ezc3d
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path, write_text
 from kisscal.tracking.tracks import Tracks
 
 
@@ -42,7 +43,8 @@ def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     c3d["data"]["points"] = points
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    c3d.write(str(path))
+    with atomic_path(path) as tmp:
+        c3d.write(str(tmp))
     return path
 
 
@@ -66,5 +68,5 @@ def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     text = np.where(np.isfinite(values), np.char.mod("%.3f", np.nan_to_num(values)), "")
     for f in range(n_fields):
         lines.append(f"{f + 1}\t{f / rate_hz:.5f}\t" + "\t".join(text[f]))
-    path.write_text("\n".join(lines) + "\n")
+    write_text(path, "\n".join(lines) + "\n")
     return path

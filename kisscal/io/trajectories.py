@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path
 from kisscal.tracking.pipeline import SweepRow
 from kisscal.tracking.tracks import STATUS_NAMES, Tracks
 
@@ -56,7 +57,7 @@ def write_trajectories_csv(path: str | Path, tracks: Tracks, labels: tuple[str, 
     path.parent.mkdir(parents=True, exist_ok=True)
     names = np.asarray(labels, dtype=object)[tracks.track]
     status = np.asarray(STATUS_NAMES, dtype=object)[tracks.status]
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(HEADER)
         for f, t, lab, (x, y, z), st in zip(
@@ -95,7 +96,7 @@ def write_sweep_csv(path: str | Path, rows: list[SweepRow]) -> Path:
     missing-point predictions per (pnc, mnc, label) (thesis table 5.13)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(SWEEP_HEADER)
         for row in rows:
@@ -114,7 +115,7 @@ def write_sweep_csv(path: str | Path, rows: list[SweepRow]) -> Path:
                     )
                 )
     pred_path = path.with_name(f"{path.stem}_predictions.csv")
-    with pred_path.open("w", newline="") as fh:
+    with atomic_path(pred_path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(PREDICTION_HEADER)
         for row in rows:
