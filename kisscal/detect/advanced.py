@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
-from kisscal.detect.groups import GroupTable
+from kisscal.detect.groups import GroupTable, group_crops
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs
 from kisscal.detect.shape import principal_axes
@@ -370,21 +370,8 @@ def detach_from_large(grouping: Grouping, table: GroupTable, params: DetectionPa
     kw, kh = params.detach_kernel_px
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (int(kw), int(kh)))
     grow = np.ones((3, 3), np.uint8)
-    runs = grouping.runs
     labels, centres = [], []
-    order = np.argsort(runs.group, kind="stable")
-    bounds = np.searchsorted(runs.group[order], table.label[idx])
-    ends = np.searchsorted(runs.group[order], table.label[idx], side="right")
-    for i, lo, hi in zip(idx, bounds, ends, strict=True):  # LED rings: a few per image
-        mine = order[lo:hi]
-        x0, y0 = table.x1[i] - 1, table.y1[i] - 1
-        crop = np.zeros((table.height[i] + 2, table.width[i] + 2), np.uint8)
-        count = runs.x2[mine] - runs.x1[mine] + 1
-        row = np.repeat(runs.y[mine] - y0, count)
-        col = np.repeat(runs.x1[mine] - x0, count) + (
-            np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
-        )
-        crop[row, col] = 1
+    for i, x0, y0, crop in group_crops(grouping.runs, table, idx):  # LED rings: a few per image
         core = cv2.morphologyEx(crop, cv2.MORPH_OPEN, kernel)
         # Only a blob that stays oversized without the pieces is an LED ring; overlapping
         # markers have no such core and are left to the overlap and long/wide tests.

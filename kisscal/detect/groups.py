@@ -4,6 +4,7 @@ centroid (equation 2)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,3 +131,29 @@ def _segment_ends(starts: NDArray[np.int64], size: int) -> NDArray[np.int64]:
     ends[:-1] = starts[1:] - 1
     ends[-1] = size - 1
     return ends
+
+
+def group_crops(
+    runs: Runs, table: GroupTable, idx: NDArray[np.int64]
+) -> Iterator[tuple[int, int, int, NDArray[np.uint8]]]:
+    """Yield ``(row, x0, y0, crop)`` for the groups at rows ``idx`` of ``table``.
+
+    ``crop`` is the group's white pixels as a binary image with a one-pixel black border;
+    its pixel ``(0, 0)`` is image pixel ``(x0, y0)``. Rasterised from the run-length scan,
+    never from the full image, so only the few groups asked for cost anything.
+    """
+    order = np.argsort(runs.group, kind="stable")
+    sorted_groups = runs.group[order]
+    lo = np.searchsorted(sorted_groups, table.label[idx])
+    hi = np.searchsorted(sorted_groups, table.label[idx], side="right")
+    for i, a, b in zip(idx, lo, hi, strict=True):
+        mine = order[a:b]
+        x0, y0 = int(table.x1[i]) - 1, int(table.y1[i]) - 1
+        crop = np.zeros((table.height[i] + 2, table.width[i] + 2), np.uint8)
+        count = runs.x2[mine] - runs.x1[mine] + 1
+        row = np.repeat(runs.y[mine] - y0, count)
+        col = np.repeat(runs.x1[mine] - x0, count) + (
+            np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+        )
+        crop[row, col] = 1
+        yield int(i), x0, y0, crop

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import Grouping, split_groups
-from kisscal.detect.groups import GroupTable
+from kisscal.detect.groups import GroupTable, group_crops
 from kisscal.detect.params import DetectionParams
 
 NECK = 0.8  # a neck is lower than this fraction of the lower of the two peaks
@@ -101,22 +101,8 @@ def split_touching(
     idx = np.flatnonzero(candidates)
     if idx.size == 0:
         return grouping
-    runs = grouping.runs
-    order = np.argsort(runs.group, kind="stable")
-    sorted_groups = runs.group[order]
-    lo = np.searchsorted(sorted_groups, table.label[idx])
-    hi = np.searchsorted(sorted_groups, table.label[idx], side="right")
     labels, found = [], []
-    for i, a, b in zip(idx, lo, hi, strict=True):  # candidates: a few groups per image
-        mine = order[a:b]
-        x0, y0 = table.x1[i] - 1, table.y1[i] - 1
-        crop = np.zeros((table.height[i] + 2, table.width[i] + 2), np.uint8)
-        count = runs.x2[mine] - runs.x1[mine] + 1
-        row = np.repeat(runs.y[mine] - y0, count)
-        col = np.repeat(runs.x1[mine] - x0, count) + (
-            np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
-        )
-        crop[row, col] = 1
+    for i, x0, y0, crop in group_crops(grouping.runs, table, idx):  # a few groups per image
         peaks = marker_peaks(crop, params.pixel_aspect, params.touching_separation)
         if len(peaks) >= 2:
             peaks[:, 0] += x0
