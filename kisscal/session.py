@@ -367,7 +367,7 @@ def calibrate(
         stage_key = cache_key(
             "calibrate",
             {c: _file_keys(f.paths, config.root) for c, f in rod_frames.items()},
-            {c: (lins[c].x, lins[c].y, lins[c].center_px, lins[c].scale_px) for c in rod_frames},
+            _linearisation_key({c: lins[c] for c in rod_frames}),
             params.detection,
             params.dlt,
             [(r.name, r.points_mm) for r in config.rods.rods],
@@ -450,6 +450,11 @@ def calibrate(
     all_L = _read_dlts(root, config, required=False)
     write_dltdv_csv(out / "dltdv.csv", {c: all_L[c] for c in config.camera_ids if c in all_L})
     return summary
+
+
+def _linearisation_key(lins: Mapping[str, Any]) -> dict[str, tuple]:
+    """What of each camera's linearisation a cache key depends on."""
+    return {c: (lin.x, lin.y, lin.center_px, lin.scale_px) for c, lin in lins.items()}
 
 
 def _file_keys(paths: Sequence[Path], root: Path) -> list[tuple[str, int, int]]:
@@ -568,7 +573,7 @@ def reconstruct(
     stage_key = cache_key(
         "reconstruct",
         _trial_input_keys(config, trial),
-        {c: (lins[c].x, lins[c].y, lins[c].center_px, lins[c].scale_px) for c in lins},
+        _linearisation_key(lins),
         dlts,
         params.detection,
         params.recon,
