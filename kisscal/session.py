@@ -942,13 +942,13 @@ def batch(
 
 
 def default_walking5_path() -> Path | None:
-    """The real walking trial shipped beside the project (``../shared/data/walking5.c3d``)."""
+    """The real walking trial shipped with kisscal (``kisscal/data/walking5.c3d``).
+
+    ``KISSCAL_WALKING5`` names another copy; ``None`` when neither is a file.
+    """
     env = os.environ.get("KISSCAL_WALKING5")
     candidates = [Path(env)] if env else []
-    repo = Path(__file__).resolve().parents[1]  # the source tree, when run from it
-    for base in (repo, Path.cwd()):  # an installed copy: the checkout it is run from
-        candidates.append(base.parent / "shared" / "data" / "walking5.c3d")
-    candidates.append(repo / "fixtures" / "walking5.c3d")
+    candidates.append(Path(__file__).resolve().parent / "data" / "walking5.c3d")
     return next((p for p in candidates if p.is_file()), None)
 
 
