@@ -8,8 +8,11 @@ code 2. Programming errors keep their tracebacks.
 from __future__ import annotations
 
 
-class KisscalError(Exception):
-    """An error caused by the user's input, reported on one line without a traceback."""
+class KisscalError(ValueError):
+    """An error caused by the user's input, reported on one line without a traceback.
+
+    A :class:`ValueError`, so that library callers catching bad values catch it too.
+    """
 
     exit_code: int = 2
 

@@ -87,6 +87,10 @@ class Overrides:
 
 def _params(cls: type, section: str, *layers: Mapping[str, Any], ignore: Sequence[str] = ()) -> Any:
     """Build a stage's parameter dataclass from config/CLI layers; unknown keys are errors."""
+    from kisscal.params import Params
+
+    if issubclass(cls, Params):
+        return cls.from_layers(*layers, ignore=ignore)
     names = {f.name: f for f in dataclasses.fields(cls)}
     values: dict[str, Any] = {}
     for layer in layers:

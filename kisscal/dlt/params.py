@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.params import Params, param
+
 
 @dataclass(frozen=True)
-class DltParams:
+class DltParams(Params):
     """Every setting of DLT calibration and rod recognition, with its default and unit.
 
     Attributes
@@ -68,22 +71,24 @@ class DltParams:
         * ratio); the factor covers depth differences and a hidden end marker.
     """
 
-    mdlt: bool = False
-    refine: bool = False
-    lens: bool = False
-    min_points: int = 6
-    min_spread_ratio: float = 1e-3
-    max_iterations: int = 2000
-    tolerance: float = 1e-12
-    rod_line_tol_px: float = 1.5
-    rod_fit_tol_px: float = 1.5
-    rod_min_markers: int = 5
-    rod_min_distinct: float = 0.005
-    rod_ambiguity_ratio: float = 3.0
-    rods_upright: bool = True
-    rod_refuse_unlisted: bool = True
-    rod_unlisted_angle_deg: float = 15.0
-    rod_unlisted_length_ratio: float = 2.5
+    section: ClassVar[str] = "dlt"
+
+    mdlt: bool = param(False)
+    refine: bool = param(False)
+    lens: bool = param(False)
+    min_points: int = param(6, ge=6)
+    min_spread_ratio: float = param(1e-3, gt=0, lt=1)
+    max_iterations: int = param(2000, ge=1)
+    tolerance: float = param(1e-12, gt=0, lt=1)
+    rod_line_tol_px: float = param(1.5, unit="px", gt=0)
+    rod_fit_tol_px: float = param(1.5, unit="px", gt=0)
+    rod_min_markers: int = param(5, ge=4)
+    rod_min_distinct: float = param(0.005, ge=0)
+    rod_ambiguity_ratio: float = param(3.0, ge=1)
+    rods_upright: bool = param(True)
+    rod_refuse_unlisted: bool = param(True)
+    rod_unlisted_angle_deg: float = param(15.0, unit="deg", gt=0, le=90)
+    rod_unlisted_length_ratio: float = param(2.5, ge=1)
 
     @property
     def method(self) -> str:

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
-from kisscal.errors import KisscalError
+from kisscal.params import Params, param
 
 OptimalModel = Literal["similarity", "homography"]
 
 
 @dataclass(frozen=True)
-class GridParams:
+class GridParams(Params):
     """Parameters of grid linearisation (Küçük 2005, section 2.2; Shafiq et al. 2001, 3.2).
 
     Attributes
@@ -66,38 +66,18 @@ class GridParams:
         polynomial may be over-fitting.
     """
 
-    rows: int = 15
-    cols: int = 20
-    model: OptimalModel = "homography"
-    pixel_aspect: float | None = None
-    cell_aspect: float = 1.0
-    min_indexed_fraction: float = 0.9
-    match_tol: float = 0.3
-    outlier_px: float = 0.25
-    outlier_sigmas: float = 4.0
-    anchor_centre: bool = True
-    perspective: Literal["lens_centre", "least_squares"] = "lens_centre"
-    warn_residual_px: float = 0.1
-    warn_cv_ratio: float = 2.0
+    section: ClassVar[str] = "grid"
 
-    def __post_init__(self) -> None:
-        if self.rows < 5 or self.cols < 5:
-            raise KisscalError(f"grid must have at least 5 x 5 dots, got {self.rows} x {self.cols}")
-        if self.model not in ("similarity", "homography"):
-            raise KisscalError(
-                f"grid model must be 'similarity' or 'homography', got {self.model!r}"
-            )
-        if self.perspective not in ("lens_centre", "least_squares"):
-            raise KisscalError(
-                f"perspective must be 'lens_centre' or 'least_squares', got {self.perspective!r}"
-            )
-        if self.pixel_aspect is not None and not self.pixel_aspect > 0:
-            raise KisscalError(f"pixel_aspect must be positive, got {self.pixel_aspect}")
-        if not self.cell_aspect > 0:
-            raise KisscalError(f"cell_aspect must be positive, got {self.cell_aspect}")
-        if not 0 < self.min_indexed_fraction <= 1:
-            raise KisscalError(
-                f"min_indexed_fraction must be in (0, 1], got {self.min_indexed_fraction}"
-            )
-        if not 0 < self.match_tol < 0.5:
-            raise KisscalError(f"match_tol must be in (0, 0.5), got {self.match_tol}")
+    rows: int = param(15, ge=5)
+    cols: int = param(20, ge=5)
+    model: OptimalModel = param("homography")
+    pixel_aspect: float | None = param(None, gt=0)
+    cell_aspect: float = param(1.0, gt=0)
+    min_indexed_fraction: float = param(0.9, gt=0, le=1)
+    match_tol: float = param(0.3, gt=0, lt=0.5)
+    outlier_px: float = param(0.25, unit="px", gt=0)
+    outlier_sigmas: float = param(4.0, gt=0)
+    anchor_centre: bool = param(True)
+    perspective: Literal["lens_centre", "least_squares"] = param("lens_centre")
+    warn_residual_px: float = param(0.1, unit="px", gt=0)
+    warn_cv_ratio: float = param(2.0, gt=0)
