@@ -1,0 +1,76 @@
+"""Runs a lab session: finds each stage's inputs in the session folder, caches its
+results under ``out/cache`` keyed by a hash of inputs and parameters, and writes every
+output atomically through :mod:`kisscal.io`.
+
+The stages (:mod:`kisscal.detect`, :mod:`kisscal.grid`, :mod:`kisscal.dlt`,
+:mod:`kisscal.recon`, :mod:`kisscal.tracking`) work on arrays; one module here runs each
+of them for a session. The CLI (:mod:`kisscal.cli`) is a thin layer over these functions;
+tests call them directly.
+
+Modules: :mod:`~kisscal.session.params` (parameters and CLI overrides),
+:mod:`~kisscal.session.inputs` (config, output folder, cache-key parts, figures),
+:mod:`~kisscal.session.progress`, one module per stage (``detection``, ``linearise``,
+``calibrate``, ``reconstruct``, ``track``), ``summary`` (``summary.json``, ``check``),
+``report``, ``run`` and ``batch`` (Dask). Synthetic sessions and the demo live beside
+the synthetic rigs (:mod:`kisscal.synth.session`, :mod:`kisscal.synth.demo`) and are
+re-exported here.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from kisscal.session.calibrate import calibrate
+from kisscal.session.detection import detect_images
+from kisscal.session.inputs import out_dir
+from kisscal.session.linearise import linearise
+from kisscal.session.params import Overrides, StageParams, stage_params
+from kisscal.session.progress import Progress, reporting_progress
+from kisscal.session.reconstruct import reconstruct
+from kisscal.session.report import report
+from kisscal.session.run import run
+from kisscal.session.summary import CheckFailure, check, summarise
+from kisscal.session.track import track
+
+# Imported on first use: the demo runs the session (a cycle if imported here), the batch
+# imports Dask, and synthesis is not needed to process a real session.
+_LAZY = {
+    "batch": "kisscal.session.batch",
+    "demo": "kisscal.synth.demo",
+    "synthesise": "kisscal.synth.session",
+    "evaluate": "kisscal.synth.session",
+    "default_walking5_path": "kisscal.synth.session",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'kisscal.session' has no attribute {name!r}")
+
+
+__all__ = [
+    "CheckFailure",
+    "Overrides",
+    "Progress",
+    "StageParams",
+    "batch",
+    "calibrate",
+    "check",
+    "default_walking5_path",
+    "demo",
+    "detect_images",
+    "evaluate",
+    "linearise",
+    "out_dir",
+    "reconstruct",
+    "report",
+    "reporting_progress",
+    "run",
+    "stage_params",
+    "summarise",
+    "synthesise",
+    "track",
+]

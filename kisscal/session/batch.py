@@ -1,0 +1,75 @@
+"""``kisscal batch``: many sessions in parallel on Dask (the only module that imports Dask)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import dask
+from dask.distributed import Client, LocalCluster
+
+from kisscal.errors import KisscalError
+from kisscal.session.progress import Echo, quiet
+from kisscal.session.run import run
+
+
+def _run_quietly(root: str) -> dict[str, Any]:
+    """One session of a batch, run in a Dask worker (single process: the batch is the
+    parallelism); returns its summary, or ``{"error": message}`` for a user error."""
+    try:
+        return run(Path(root), workers=1)
+    except KisscalError as exc:
+        return {"error": str(exc)}
+
+
+def batch(sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = quiet) -> list[Path]:
+    """``kisscal batch``: run many sessions in parallel on Dask; return the ones that failed.
+
+    Without ``scheduler`` a local cluster (one single-threaded worker process per core)
+    is started; with it, the sessions go to that Dask scheduler (a lab cluster), which
+    must see the same paths. A session that fails is reported and does not stop the others.
+    """
+    paths = [Path(s).resolve() for s in sessions]
+    if not paths:
+        raise KisscalError("kisscal batch: give at least one session folder")
+    # Worker processes must be able to start the detection's own process pool.
+    with dask.config.set({"distributed.worker.daemon": False, "logging.distributed": "error"}):
+        client, cluster = _connect(scheduler, len(paths))
+        try:
+            futures = client.map(_run_quietly, [str(p) for p in paths], pure=False)
+            failed = [p for p, f in zip(paths, futures, strict=True) if not _report(p, f, echo)]
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    echo(f"{len(paths) - len(failed)} of {len(paths)} sessions processed")
+    return failed
+
+
+def _connect(scheduler: str | None, n_sessions: int) -> tuple[Client, LocalCluster | None]:
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except OSError as exc:
+            raise KisscalError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+    n = max(1, min(n_sessions, os.cpu_count() or 1))
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, dashboard_address=None, silence_logs=40
+    )
+    return Client(cluster), cluster
+
+
+def _report(path: Path, future: Any, echo: Echo) -> bool:
+    """Print one session's outcome; True when it succeeded."""
+    try:
+        summary = future.result()
+        if "error" in summary:
+            raise KisscalError(summary["error"])
+    except Exception as exc:  # one failed session must not stop the others
+        echo(f"FAILED  {path}: {exc}")
+        return False
+    n_traj = sum(t.get("trajectories", 0) for t in summary["trials"].values())
+    echo(f"ok      {path}: {len(summary['trials'])} trials, {n_traj} trajectories")
+    return True

@@ -1,0 +1,102 @@
+"""``kisscal linearise``: each camera's lens linearisation from its dot-grid frames."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+from kisscal.errors import KisscalError
+from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.frames import camera_frames
+from kisscal.io.linearisation import read_linearisation, write_linearisation
+from kisscal.session.inputs import figure, file_keys, load_config, out_dir, select_cameras
+from kisscal.session.params import Overrides, StageParams, stage_params
+from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
+
+
+def linearise(
+    root: Path,
+    camera: str | None = None,
+    model: str | None = None,
+    overrides: Overrides | None = None,
+    echo: Echo = quiet,
+) -> dict[str, Linearisation]:
+    """``kisscal linearise``: each camera's linearisation from its grid frames.
+
+    Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
+    A session without ``[grid]`` gets the identity linearisation.
+    """
+    config = load_config(root)
+    o = overrides or Overrides()
+    if model is not None:
+        o = dataclasses.replace(o, grid={**o.grid, "model": model})
+    params = stage_params(config, o)
+    result = {}
+    for cam in steps(select_cameras(config, camera), "linearise"):
+        if config.grid is None:
+            w, h = cam.size_px
+            result[cam.id] = identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
+        else:
+            result[cam.id] = _linearise_camera(Path(root), config, cam, params, echo)
+    return result
+
+
+def _linearise_camera(
+    root: Path, config: SessionConfig, cam: CameraConfig, params: StageParams, echo: Echo
+) -> Linearisation:
+    """One camera's linearisation: from the cache, or fitted and written with its figure."""
+    assert config.grid is not None
+    out = out_dir(root) / "linearisation" / f"{cam.id}.json"
+    frames = camera_frames(config.root, config.grid.images, cam.id, "grid")
+    key = cache_key(
+        "linearise", file_keys(frames.paths, config.root), params.grid, params.detection
+    )
+    if is_current(out, key):
+        echo(f"  linearise {cam.id}: cached")
+        return read_linearisation(out)[1]
+    t0 = time.perf_counter()
+    try:
+        fit = linearise_frames(list(frames), params.grid, params.detection)
+    except KisscalError as exc:
+        raise KisscalError(f"camera {cam.id} grid: {exc}") from None
+    write_linearisation(out, fit.linearisation, cam.id, fit.index.missing_rc, fit.index.missing_uv)
+    figure(
+        root,
+        f"grid_{cam.id}",
+        "kisscal.report.grid",
+        "grid_correction_figure",
+        fit,
+        cam.id,
+        cam.size_px,
+    )
+    mark_current(out, key)
+    _say_fitted(echo, cam.id, fit, time.perf_counter() - t0)
+    return fit.linearisation
+
+
+def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:
+    q = fit.linearisation.quality
+    echo(
+        f"  linearise {camera}: {q.dots_used} dots, residual {q.residual_rms_after_px:.3f} px, "
+        f"straightness {q.straightness_rms_before_px:.2f} -> "
+        f"{q.straightness_rms_after_px:.3f} px ({seconds:.1f} s)"
+    )
+    for warning in fit.warnings():
+        echo(f"  warning: {camera}: {warning}")
+
+
+def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+    """The current linearisation of every camera (computing what is missing or stale).
+
+    Later stages call this; it stays quiet about linearisations that are already current.
+    """
+
+    def news(line: str) -> None:
+        if not line.endswith("cached"):
+            echo(line)
+
+    with reporting_progress(Progress()):
+        return linearise(root, echo=news)

@@ -1,0 +1,171 @@
+"""``kisscal reconstruct``: a trial's 2D blobs (or centroid files) to 3D points per field."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.errors import KisscalError
+from kisscal.grid import Linearisation, apply_linearisation
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.config import SessionConfig, TrialConfig
+from kisscal.io.files import read_table, write_json
+from kisscal.io.frames import trial_frames
+from kisscal.io.points3d import read_points3d, write_trial_points
+from kisscal.recon import reconstruct_trial
+from kisscal.session.calibrate import read_dlts
+from kisscal.session.detection import detect_frames
+from kisscal.session.inputs import figure, file_keys, linearisation_key, load_config, out_dir
+from kisscal.session.linearise import current_linearisations
+from kisscal.session.params import Overrides, StageParams, stage_params
+from kisscal.session.progress import Echo, quiet, steps
+
+
+def reconstruct(
+    root: Path,
+    trial_name: str,
+    overrides: Overrides | None = None,
+    echo: Echo = quiet,
+    workers: int | None = None,
+) -> Any:
+    """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv``."""
+    root = Path(root)
+    config = load_config(root)
+    trial = config.trial(trial_name)
+    params = stage_params(config, overrides)
+    lins = current_linearisations(root, echo)
+    dlts = read_dlts(root, config)
+    path = out_dir(root) / "trials" / trial.name / "points3d.csv"
+    stage_key = cache_key(
+        "reconstruct",
+        trial_input_keys(config, trial),
+        linearisation_key(lins),
+        dlts,
+        params.detection,
+        params.recon,
+    )
+    if is_current(path, stage_key):
+        echo(f"  reconstruct {trial.name}: cached")
+        return read_points3d(path)
+    blobs = trial_blobs(root, config, trial, params, echo, workers)
+    field_idx, cam_idx, uv = _observations(config, blobs, lins)
+    t0 = time.perf_counter()
+    L = np.stack([dlts[c] for c in config.camera_ids])
+    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon)
+    write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    write_json(path.with_name("recon.json"), points.summary())
+    mark_current(path, stage_key)
+    if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
+        busiest = int(np.bincount(points.field).argmax())
+        figure(
+            root,
+            f"epipolar_{trial.name}",
+            "kisscal.report.epipolar",
+            "trial_field_figure",
+            points,
+            busiest,
+            field_idx,
+            cam_idx,
+            uv,
+            L,
+            [c.size_px for c in config.cameras],
+            list(config.camera_ids),
+        )
+    n_fields = max(len(v) for v in blobs.values())
+    median_rms = np.median(points.rms_px) if len(points) else float("nan")
+    echo(
+        f"  reconstruct {trial.name}: {len(points)} points in {n_fields} fields, "
+        f"median rms {median_rms:.3f} px ({time.perf_counter() - t0:.1f} s)"
+    )
+    return points
+
+
+def _observations(
+    config: SessionConfig, blobs: dict[str, list[NDArray]], lins: dict[str, Linearisation]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """The long table of linearised 2D observations: field, camera index, (u, v)."""
+    fields, cams, uvs = [], [], []
+    for ci, cam in enumerate(config.camera_ids):
+        for f, xy in enumerate(blobs[cam]):
+            fields.append(np.full(len(xy), f))
+            cams.append(np.full(len(xy), ci))
+            uvs.append(apply_linearisation(lins[cam], xy) if len(xy) else np.zeros((0, 2)))
+    field_idx = np.concatenate(fields).astype(int)
+    cam_idx = np.concatenate(cams).astype(int)
+    uv = np.concatenate(uvs)
+    order = np.lexsort((cam_idx, field_idx))
+    return field_idx[order], cam_idx[order], uv[order]
+
+
+def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
+    """Per camera, the files a trial's 2D data come from (for cache keys)."""
+    if trial.source == "centroids":
+        assert trial.centroids is not None
+        paths = {
+            c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
+        }
+    else:
+        frames = trial_frames(
+            config.root,
+            trial.images or trial.video or "",
+            config.camera_ids,
+            trial.name,
+            video=trial.source == "video",
+        )
+        paths = {c: list(f.paths) if hasattr(f, "paths") else [f.path] for c, f in frames.items()}
+    for c, ps in paths.items():
+        for p in ps:
+            if not p.is_file():
+                raise KisscalError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
+    return {c: file_keys(ps, config.root) for c, ps in paths.items()}
+
+
+def trial_blobs(
+    root: Path,
+    config: SessionConfig,
+    trial: TrialConfig,
+    params: StageParams,
+    echo: Echo,
+    workers: int | None = None,
+) -> dict[str, list[NDArray]]:
+    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays."""
+    if trial.source == "centroids":
+        return _centroid_files(config, trial)
+    frames = trial_frames(
+        config.root,
+        trial.images or trial.video or "",
+        config.camera_ids,
+        trial.name,
+        video=trial.source == "video",
+    )
+    out = {}
+    for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
+        inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
+        key = cache_key("detect", file_keys(inputs, config.root), params.detection)
+        cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
+        blobs = detect_frames(
+            seq, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
+        )
+        out[cam] = [b.valid_only().xy_px for b in blobs]
+    return out
+
+
+def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
+    """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
+    assert trial.centroids is not None
+    out = {}
+    for cam in config.camera_ids:
+        path = config.root / trial.centroids.replace("{camera}", cam)
+        table = read_table(path, required=("field", "x_px", "y_px"))
+        f = table["field"].astype(int)
+        if len(f) and f.min() < 0:
+            raise KisscalError(f"{path}: field numbers must be 0 or more")
+        n = int(f.max()) + 1 if len(f) else 0
+        xy = np.column_stack([table["x_px"], table["y_px"]])
+        out[cam] = [xy[f == i] for i in range(n)]
+    n_fields = max(len(v) for v in out.values())
+    return {c: v + [np.zeros((0, 2))] * (n_fields - len(v)) for c, v in out.items()}

@@ -1,0 +1,114 @@
+"""What a processed session reports: ``summary.json`` and the ``kisscal check`` gate."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.errors import KisscalError
+from kisscal.io.files import read_table
+from kisscal.session.inputs import load_config, out_dir
+
+
+def summarise(root: Path) -> dict[str, Any]:
+    """Every quality figure of a processed session, read back from ``out/``."""
+    config = load_config(root)
+    out = out_dir(root)
+    cams = {cam: _camera_summary(out, cam) for cam in config.camera_ids}
+    trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
+    check_path = out / "dlt" / "check.json"
+    check = json.loads(check_path.read_text()) if check_path.is_file() else {}
+    return {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+
+
+def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
+    entry: dict[str, Any] = {}
+    lin_path = out / "linearisation" / f"{cam}.json"
+    if lin_path.is_file():
+        doc = json.loads(lin_path.read_text())
+        entry["grid"] = {
+            k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
+        }
+    dlt_path = out / "dlt" / f"{cam}.json"
+    if dlt_path.is_file():
+        doc = json.loads(dlt_path.read_text())
+        entry["dlt"] = {
+            "method": doc.get("method"),
+            "rms_px": doc.get("rms_px"),
+            "centre_mm": doc.get("centre_mm"),
+        }
+    return entry
+
+
+def _trial_summary(tdir: Path) -> dict[str, Any]:
+    entry: dict[str, Any] = {}
+    if (tdir / "tracking.json").is_file():
+        entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
+    if (tdir / "recon.json").is_file():
+        entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
+    if (tdir / "trajectories.csv").is_file():
+        tr = read_table(tdir / "trajectories.csv")
+        labels = sorted(set(tr["label"].tolist()))
+        entry["trajectories"] = len(labels)
+        entry["labels"] = labels
+        status = tr["status"]
+        entry["samples"] = {
+            s: int(np.sum(status == s)) for s in ("measured", "predicted", "filled")
+        }
+    return entry
+
+
+@dataclass(frozen=True)
+class CheckFailure:
+    """A figure over its limit in ``kisscal check``."""
+
+    camera: str
+    figure: str
+    value: float
+    limit: float
+
+
+def check(
+    root: Path,
+    max_reproj_px: float | None = None,
+    max_grid_px: float | None = None,
+    max_3d_mm: float | None = None,
+) -> list[CheckFailure]:
+    """``kisscal check``: every figure over its limit (an empty list when all pass).
+
+    Reads the outputs of ``kisscal linearise`` and ``kisscal calibrate``; no truth needed.
+    """
+    config = load_config(root)
+    out = out_dir(root)
+    failures = []
+    for cam in config.camera_ids:
+        if max_grid_px is not None and config.grid is not None:
+            path = out / "linearisation" / f"{cam}.json"
+            value = _figure_from(path, "rms_px", f"kisscal linearise {root}")
+            if not value <= max_grid_px:
+                failures.append(CheckFailure(cam, "grid rms_px", value, max_grid_px))
+        if max_reproj_px is not None:
+            path = out / "dlt" / f"{cam}.json"
+            value = _figure_from(path, "rms_px", f"kisscal calibrate {root}")
+            if not value <= max_reproj_px:
+                failures.append(CheckFailure(cam, "dlt rms_px", value, max_reproj_px))
+    if max_3d_mm is not None:
+        path = out / "dlt" / "check.json"
+        if not path.is_file():
+            raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
+        doc = json.loads(path.read_text())
+        loo = doc.get("leave_one_rod_out", {})
+        value = float(loo.get("mean_mm", doc.get("rods_in_sample_mean_mm", np.nan)))
+        if not value <= max_3d_mm:
+            failures.append(CheckFailure("all", "leave-one-rod-out mean mm", value, max_3d_mm))
+    return failures
+
+
+def _figure_from(path: Path, key: str, command: str) -> float:
+    if not path.is_file():
+        raise KisscalError(f"{path}: missing; run `{command}` first")
+    return float(json.loads(path.read_text())[key])

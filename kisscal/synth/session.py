@@ -1,0 +1,143 @@
+"""Synthetic sessions on disk: write one (``kisscal synth``) and score its outputs.
+
+Orchestration beside the synthetic rigs: :func:`synthesise` plans a rig with
+:mod:`kisscal.synth.plan` and writes it through :mod:`kisscal.io.synthetic`;
+:func:`evaluate` compares a processed session's ``out/`` with its ``truth/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.errors import KisscalError
+from kisscal.io.config import load_session
+from kisscal.io.files import read_table
+from kisscal.io.synthetic import load_walking5, write_synthetic_session
+from kisscal.synth.evaluate import (
+    gravity_error,
+    score_trajectories,
+    stick_length_error,
+    thrown_gravity,
+)
+from kisscal.synth.plan import SynthOptions, plan_session
+from kisscal.synth.render import RenderParams
+
+
+def default_walking5_path() -> Path | None:
+    """The real walking trial shipped with kisscal (``kisscal/data/walking5.c3d``).
+
+    ``KISSCAL_WALKING5`` names another copy; ``None`` when neither is a file.
+    """
+    env = os.environ.get("KISSCAL_WALKING5")
+    candidates = [Path(env)] if env else []
+    candidates.append(Path(__file__).resolve().parents[1] / "data" / "walking5.c3d")
+    return next((p for p in candidates if p.is_file()), None)
+
+
+def _silent(_: str) -> None:
+    return None
+
+
+def synthesise(
+    out: Path,
+    *,
+    seed: int = 1,
+    fields: int = 200,
+    n_cameras: int = 6,
+    n_markers: int = 15,
+    blur_px: float | None = None,
+    walking5: bool = True,
+    force: bool = False,
+    n_jobs: int | None = None,
+    echo: Callable[[str], object] | None = None,
+) -> Path:
+    """Write a synthetic KISS-like session (images, ``session.toml``, ``truth/``) to ``out``.
+
+    The same arguments give byte-identical files. With ``walking5`` the real Vicon trial
+    is replayed through the synthetic cameras as trial ``walk5`` when it can be found.
+    """
+    echo = echo or _silent
+    if n_markers not in (13, 15):
+        raise KisscalError(f"--markers must be 13 or 15, got {n_markers}")
+    if not 2 <= n_cameras <= 6:
+        raise KisscalError(f"--cameras must be between 2 and 6, got {n_cameras}")
+    if fields < 10:
+        raise KisscalError(f"--fields must be at least 10, got {fields}")
+    render = RenderParams() if blur_px is None else RenderParams(blur_px=blur_px)
+    options = SynthOptions(
+        seed=seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, render=render
+    )
+    replay = None
+    if walking5:
+        path = default_walking5_path()
+        if path is None:
+            echo("walking5.c3d not found: the real-trial replay (walk5) is skipped")
+        else:
+            replay = load_walking5(path)
+    plan = plan_session(options, replay)
+    t0 = time.perf_counter()
+    write_synthetic_session(
+        Path(out), plan, f"synth-seed{seed}", force=force, n_jobs=n_jobs or os.cpu_count() or 1
+    )
+    echo(
+        f"wrote {out}: {len(plan.rig)} cameras, grid and rod frames, trials "
+        f"{', '.join(f'{t} ({m.n_fields} fields)' for t, m in plan.trials.items())}, "
+        f"truth/ ({time.perf_counter() - t0:.1f} s)"
+    )
+    return Path(out)
+
+
+def evaluate(root: Path) -> dict[str, Any]:
+    """Score a processed synthetic session against its ``truth/`` (no truth: empty dict).
+
+    Gait trials: trajectories vs true markers (labels, switches, RMSE, coverage); the
+    stick trial: length error (Shafiq et al. 2001, section 5.1); the thrown marker: g
+    from a parabola fit.
+    """
+    root = Path(root)
+    config = load_session(root)
+    result: dict[str, Any] = {}
+    for trial in config.trials:
+        traj_path = root / "out" / "trials" / trial.name / "trajectories.csv"
+        truth_path = root / "truth" / "trials" / trial.name / "markers.csv"
+        if traj_path.is_file() and truth_path.is_file():
+            result[trial.name] = _score_trial(
+                trial.name, traj_path, truth_path, config.camera_ids, config.rate_hz
+            )
+    return result
+
+
+def _score_trial(
+    name: str, traj_path: Path, truth_path: Path, cameras: tuple[str, ...], rate_hz: float
+) -> dict[str, Any]:
+    tr = read_table(traj_path)
+    truth = read_table(truth_path)
+    field_t = tr["field"].astype(int)
+    xyz = np.column_stack([tr["x_mm"], tr["y_mm"], tr["z_mm"]])
+    vis = np.column_stack([truth[f"visible_{c}"] for c in cameras])
+    score = score_trajectories(
+        field_t,
+        tr["label"],
+        xyz,
+        tr["status"],
+        truth["field"].astype(int),
+        truth["marker"],
+        np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]),
+        vis.sum(axis=1) >= 3,
+    )
+    entry: dict[str, Any] = dataclasses.asdict(score)
+    if name == "stick":
+        mae, sd, n = stick_length_error(field_t, tr["label"], xyz, tr["status"])
+        entry["stick_length"] = {"mean_abs_error_mm": mae, "sd_mm": sd, "samples": n}
+    if name == "throw":
+        measured = tr["status"] == "measured"
+        g = thrown_gravity(field_t[measured], xyz[measured], rate_hz)
+        entry["gravity"] = {"g_m_s2": g, "relative_error": gravity_error(g)}
+    return entry
