@@ -58,14 +58,24 @@ def check_control_points(
             f"{where}the 11-parameter DLT needs at least {params.min_points} control points, "
             f"got {len(xyz)}"
         )
-    spread = np.linalg.svd(xyz - xyz.mean(axis=0), compute_uv=False)
-    if spread[0] == 0 or spread[2] / spread[0] < params.min_spread_ratio:
+    ratio = spread_ratio(xyz)
+    if not ratio >= params.min_spread_ratio:
         raise KisscalError(
             f"{where}the {len(xyz)} control points are coplanar (thickness/extent "
-            f"{spread[2] / max(spread[0], 1e-300):.1e} < {params.min_spread_ratio:g}); "
-            "the DLT needs a 3D distribution"
+            f"{ratio:.1e} < {params.min_spread_ratio:g}); the DLT needs a 3D distribution"
         )
     return xyz, uv
+
+
+def spread_ratio(xyz_mm: ArrayLike) -> float:
+    """Least over largest principal spread of 3D points: 0 for coplanar or collinear points.
+
+    The one coplanarity measure of kisscal: configurations below
+    ``DltParams.min_spread_ratio`` cannot determine an 11-parameter DLT.
+    """
+    xyz = np.asarray(xyz_mm, dtype=float)
+    spread = np.linalg.svd(xyz - xyz.mean(axis=0), compute_uv=False)
+    return float(spread[2] / spread[0]) if spread[0] > 0 else 0.0
 
 
 def solve_dlt_matrix(

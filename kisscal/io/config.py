@@ -1,20 +1,24 @@
-"""Session configuration: ``session.toml`` (DESIGN.md, "Session on disk", version 1).
+"""Session configuration: ``session.toml`` (DESIGN.md, "Session on disk", versions 1 and 2).
 
 :func:`load_session` parses and validates the file into frozen dataclasses. Every error
 names the file, the key and what was expected; unknown keys are errors with a
-did-you-mean, never silently ignored.
+did-you-mean, never silently ignored. One small parser per table keeps each rule next to
+the key it checks.
 """
 
 from __future__ import annotations
 
 import difflib
 import sys
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from kisscal.dlt.linear import spread_ratio
+from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 
 if sys.version_info >= (3, 11):
@@ -22,23 +26,37 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+#: How interlaced video frames are split into fields (``None``: frames are used whole).
+FieldOrder = Literal["top-first", "bottom-first"]
+FIELD_ORDERS: tuple[str, ...] = ("top-first", "bottom-first")
+
 
 def load_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a missing or malformed file is a :class:`KisscalError`."""
+    """Parse a TOML file; a missing or malformed file is a :class:`KisscalError`.
+
+    A UTF-8 byte-order mark and Windows line ends are accepted (files saved by Notepad).
+    """
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        text = path.read_bytes().decode("utf-8-sig")
     except FileNotFoundError:
         raise KisscalError(f"{path}: file not found") from None
+    except UnicodeDecodeError as exc:
+        raise KisscalError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise KisscalError(f"{path}: cannot be read ({exc.strerror})") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise KisscalError(f"{path}: not valid TOML ({exc})") from None
 
 
 @dataclass(frozen=True)
 class CameraConfig:
+    """A camera: its id and, when given, its image size (width, height) in pixels."""
+
     id: str
-    size_px: tuple[int, int]
+    size_px: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -46,6 +64,7 @@ class GridConfig:
     rows: int = 15
     cols: int = 20
     images: str = "grid/{camera}/*.png"
+    fields: FieldOrder | None = None
 
 
 @dataclass(frozen=True)
@@ -60,34 +79,86 @@ class RodConfig:
 class RodsConfig:
     images: str
     rods: tuple[RodConfig, ...]
+    fields: FieldOrder | None = None
 
 
 @dataclass(frozen=True)
 class CalibrationConfig:
-    """Control points given directly: one CSV per camera (u_px,v_px,x_mm,y_mm,z_mm)."""
+    """A calibration from elsewhere: exactly one route.
 
-    points: str
+    ``points``: control points per camera (CSV ``u_px,v_px,x_mm,y_mm,z_mm``, raw pixels);
+    ``cameras``: an anipose / Pose2Sim ``cameras.toml``; ``dlt``: DLTdv coefficients
+    (11 rows x one column per camera); ``target`` with ``images`` and ``seeds``: a known
+    calibration object matched automatically from a few clicked points per camera.
+    """
+
+    points: str | None = None
+    cameras: str | None = None
+    dlt: str | None = None
+    target: str | None = None
+    images: str | None = None
+    seeds: str | None = None
+    fields: FieldOrder | None = None
+
+    @property
+    def route(self) -> str:
+        """``points``, ``cameras``, ``dlt`` or ``target``."""
+        return next(k for k in ("points", "cameras", "dlt", "target") if getattr(self, k))
+
+
+@dataclass(frozen=True)
+class WandConfig:
+    """A wand waved through the volume: the trial it is in, its markers along its axis (mm)."""
+
+    trial: str
+    markers_mm: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class AxesConfig:
+    """A static object fixing the lab frame: its images and its markers in lab mm."""
+
+    images: str
+    points_mm: np.ndarray
+    fields: FieldOrder | None = None
 
 
 @dataclass(frozen=True)
 class MarkersConfig:
-    names: tuple[str, ...]
+    """The marker set: a shipped ``set`` and/or names, template and rigid segments."""
+
+    names: tuple[str, ...] = ()
     template_mm: np.ndarray | None = None
     segments: tuple[tuple[str, str], ...] = ()
+    set: str | None = None
+    static: str | None = None
 
 
 @dataclass(frozen=True)
 class TrialConfig:
-    """A trial: exactly one of frame images, a video per camera, or centroid CSVs."""
+    """A trial: exactly one of frame images, a video per camera, centroid CSVs or a C3D."""
 
     name: str
     images: str | None = None
     video: str | None = None
     centroids: str | None = None
+    c3d: str | None = None
+    fields: FieldOrder | None = None
 
     @property
     def source(self) -> str:
-        return "images" if self.images else "video" if self.video else "centroids"
+        """``images``, ``video``, ``centroids`` or ``c3d``."""
+        return next(k for k in TRIAL_SOURCES if getattr(self, k))
+
+
+TRIAL_SOURCES: tuple[str, ...] = ("images", "video", "centroids", "c3d")
+
+
+@dataclass(frozen=True)
+class ExportConfig:
+    """How trajectories are exported: ``trc_up`` is the TRC's vertical axis (OpenSim: y)."""
+
+    trc_up: Literal["z", "y"] = "z"
 
 
 @dataclass(frozen=True)
@@ -105,6 +176,9 @@ class SessionConfig:
     markers: MarkersConfig | None = None
     trials: tuple[TrialConfig, ...] = ()
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)
+    wand: WandConfig | None = None
+    axes: AxesConfig | None = None
+    export: ExportConfig = field(default_factory=ExportConfig)
 
     @property
     def path(self) -> Path:
@@ -124,54 +198,88 @@ class SessionConfig:
         )
 
 
-# Keys each table accepts. Stage sections ([detection], [grid] tuning ...) are checked
-# against the stage's parameter dataclass by the session layer.
-_TOP = {"session", "cameras", "grid", "rods", "calibration", "detection", "markers", "trials"}
-_TOP_OPTIONAL_STAGES = {"dlt", "recon", "tracking"}
-_SESSION_KEYS = {"name", "rate_hz"}
-_CAMERA_KEYS = {"id", "size"}
-_GRID_KEYS = {"rows", "cols", "images"}  # other [grid] keys tune the grid stage (GridParams)
-_RODS_KEYS = {"images", "rod"}
-_ROD_KEYS = {"name", "points_mm"}
-_CALIBRATION_KEYS = {"points"}
-_MARKERS_KEYS = {"names", "template_mm", "segments"}
-_TRIAL_KEYS = {"name", "images", "video", "centroids"}
+# Stage sections whose keys are checked against the stage's parameter dataclass by the
+# session layer (with a did-you-mean there).
+STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking")
+_GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
 
 
-def _suggest(key: str, allowed: list[str] | set[str]) -> str:
+def _suggest(key: str, allowed: Iterable[str]) -> str:
     close = difflib.get_close_matches(key, sorted(allowed), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def _check_keys(path: Path, where: str, table: dict, allowed: set[str]) -> None:
-    for key in table:
-        if key not in allowed:
-            raise KisscalError(
-                f"{path}: unknown key {where}{key!r}{_suggest(key, allowed)}; "
-                f"expected one of {', '.join(sorted(allowed))}"
+@dataclass(frozen=True)
+class _Table:
+    """One TOML table being parsed: where it sits (for messages) and its content."""
+
+    path: Path
+    where: str
+    data: dict[str, Any]
+
+    def fail(self, message: str) -> KisscalError:
+        return KisscalError(f"{self.path}: {message}")
+
+    def allow(self, allowed: Iterable[str]) -> _Table:
+        allowed = set(allowed)
+        for key in self.data:
+            if key not in allowed:
+                raise self.fail(
+                    f"unknown key {self.where}{key!r}{_suggest(key, allowed)}; "
+                    f"expected one of {', '.join(sorted(allowed))}"
+                )
+        return self
+
+    def required(self, key: str) -> Any:
+        if key not in self.data:
+            raise self.fail(f"missing key {self.where}{key!r}")
+        return self.data[key]
+
+    def string(self, key: str, default: str | None = None) -> str | None:
+        value = self.data.get(key, default)
+        if value is None:
+            return None
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(f"{self.where}{key} must be a non-empty string, got {value!r}")
+        return value
+
+    def number(self, key: str, default: Any = None, kind: type = float) -> Any:
+        value = self.data.get(key, default)
+        return _number(self.path, f"{self.where}{key}", value, kind)
+
+    def choice(self, key: str, choices: tuple[str, ...]) -> Any:
+        value = self.data.get(key)
+        if value is not None and value not in choices:
+            raise self.fail(
+                f"{self.where}{key} must be one of {', '.join(map(repr, choices))}, got {value!r}"
             )
+        return value
 
+    def points(self, key: str) -> np.ndarray:
+        return _points(self.path, f"{self.where}{key}", self.required(key))
 
-def _require(path: Path, where: str, table: dict, key: str) -> Any:
-    if key not in table:
-        raise KisscalError(f"{path}: missing key {where}{key!r}")
-    return table[key]
+    def sub(self, key: str, index: int | None = None) -> _Table:
+        value = self.data[key] if index is None else self.data[key][index]
+        where = f"{self.where}{key}." if index is None else f"{self.where}{key}[{index}]."
+        if not isinstance(value, dict):
+            raise self.fail(f"{where[:-1]} must be a table")
+        return _Table(self.path, where, value)
+
+    def list_of_tables(self, key: str) -> list[_Table]:
+        value = self.data.get(key, [])
+        if not isinstance(value, list):
+            raise self.fail(f"{self.where}{key} must be a list of tables ([[{key}]])")
+        return [self.sub(key, i) for i in range(len(value))]
 
 
 def _number(path: Path, where: str, value: Any, kind: type = float, positive: bool = True) -> Any:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise KisscalError(f"{path}: {where} must be a number, got {value!r}")
     if kind is int and int(value) != value:
         raise KisscalError(f"{path}: {where} must be a whole number, got {value!r}")
     if positive and value <= 0:
         raise KisscalError(f"{path}: {where} must be positive, got {value!r}")
     return kind(value)
-
-
-def _string(path: Path, where: str, value: Any) -> str:
-    if not isinstance(value, str) or not value:
-        raise KisscalError(f"{path}: {where} must be a non-empty string, got {value!r}")
-    return value
 
 
 def _points(path: Path, where: str, value: Any) -> np.ndarray:
@@ -186,138 +294,241 @@ def _points(path: Path, where: str, value: Any) -> np.ndarray:
     return pts
 
 
+# --------------------------------------------------------------------------- tables
+
+
+def _session(top: _Table, root: Path) -> tuple[str, float]:
+    sess = top.sub("session") if "session" in top.data else None
+    if sess is None:
+        raise top.fail("missing table [session] (name, rate_hz)")
+    sess.allow({"name", "rate_hz"})
+    return sess.string("name", Path(root).resolve().name) or "", sess.number(
+        "rate_hz", sess.required("rate_hz")
+    )
+
+
+def _cameras(top: _Table) -> tuple[CameraConfig, ...]:
+    tables = top.list_of_tables("cameras")
+    if not tables:
+        raise top.fail("[[cameras]] must list at least one camera")
+    cameras = []
+    for t in tables:
+        t.allow({"id", "size"})
+        cid = t.string("id", t.required("id")) or ""
+        size = t.data.get("size")
+        if size is not None:
+            if not (isinstance(size, list) and len(size) == 2):
+                raise t.fail(f"{t.where}size must be [width, height] in pixels, got {size!r}")
+            size = (
+                _number(top.path, f"{t.where}size[0]", size[0], int),
+                _number(top.path, f"{t.where}size[1]", size[1], int),
+            )
+        cameras.append(CameraConfig(cid, size))
+    ids = [c.id for c in cameras]
+    repeated = sorted({i for i in ids if ids.count(i) > 1})
+    if repeated:
+        raise top.fail(f"camera ids must be unique; repeated: {', '.join(repeated)}")
+    return tuple(cameras)
+
+
+def _grid(t: _Table) -> GridConfig:
+    return GridConfig(
+        rows=t.number("rows", 15, int),
+        cols=t.number("cols", 20, int),
+        images=t.string("images", GridConfig.images) or GridConfig.images,
+        fields=t.choice("fields", FIELD_ORDERS),
+    )
+
+
+def _rods(t: _Table) -> RodsConfig:
+    t.allow({"images", "rod", "fields"})
+    rods = []
+    for r in t.list_of_tables("rod"):
+        r.allow({"name", "points_mm"})
+        rods.append(RodConfig(r.string("name", r.required("name")) or "", r.points("points_mm")))
+    if not rods:
+        raise t.fail("[rods] needs at least one [[rods.rod]] with name and points_mm")
+    _check_control_points(t.path, "rods.rod", np.concatenate([x.points_mm for x in rods]))
+    names = [r.name for r in rods]
+    if len(set(names)) != len(names):
+        raise t.fail(f"rod names must be unique, got {', '.join(names)}")
+    images = t.string("images", t.required("images")) or ""
+    return RodsConfig(images, tuple(rods), t.choice("fields", FIELD_ORDERS))
+
+
+def _calibration(t: _Table) -> CalibrationConfig:
+    t.allow({"points", "cameras", "dlt", "target", "images", "seeds", "fields"})
+    routes = [k for k in ("points", "cameras", "dlt", "target") if k in t.data]
+    if len(routes) != 1:
+        raise t.fail(
+            "[calibration] needs exactly one of points, cameras, dlt or target, "
+            f"got {', '.join(routes) or 'none'}"
+        )
+    if routes == ["target"]:
+        for key in ("images", "seeds"):
+            t.required(key)
+    else:
+        extra = [k for k in ("images", "seeds") if k in t.data]
+        if extra:
+            raise t.fail(f"calibration.{extra[0]} belongs to a target calibration (target = ...)")
+    values = {k: t.string(k) for k in ("points", "cameras", "dlt", "target", "images", "seeds")}
+    return CalibrationConfig(**values, fields=t.choice("fields", FIELD_ORDERS))
+
+
+def _wand(t: _Table) -> WandConfig:
+    t.allow({"trial", "markers_mm"})
+    trial = t.string("trial", t.required("trial")) or ""
+    raw = t.required("markers_mm")
+    try:
+        markers = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise t.fail(f"wand.markers_mm must be a list of numbers (mm), got {raw!r}") from None
+    if markers.ndim != 1 or len(markers) < 2 or not np.all(np.isfinite(markers)):
+        raise t.fail(f"wand.markers_mm must list 2 or more positions in mm, got {raw!r}")
+    if np.min(np.diff(np.sort(markers))) <= 0:
+        raise t.fail(f"wand.markers_mm positions must be distinct, got {raw!r}")
+    return WandConfig(trial, tuple(float(m) for m in markers))
+
+
+def _axes(t: _Table) -> AxesConfig:
+    t.allow({"images", "points_mm", "fields"})
+    pts = t.points("points_mm")
+    if len(pts) < 4:
+        raise t.fail(f"axes.points_mm needs 4 or more markers, got {len(pts)}")
+    centred = pts - pts.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)
+    if s[1] <= 1e-6 * max(s[0], 1e-12):
+        raise t.fail("axes.points_mm are collinear; the axes object needs markers off one line")
+    return AxesConfig(
+        t.string("images", t.required("images")) or "", pts, t.choice("fields", FIELD_ORDERS)
+    )
+
+
+def _markers(t: _Table) -> MarkersConfig:
+    t.allow({"set", "names", "template_mm", "segments", "static"})
+    names = tuple(_string_list(t, "names"))
+    marker_set = t.string("set")
+    if not names and marker_set is None:
+        raise t.fail('[markers] needs names or a set (e.g. set = "plug-in-gait-lower")')
+    template = t.points("template_mm") if "template_mm" in t.data else None
+    if template is not None and len(template) != len(names):
+        raise t.fail(f"markers.template_mm has {len(template)} positions for {len(names)} names")
+    segments = []
+    for pair in t.data.get("segments", []):
+        if not (
+            isinstance(pair, list) and len(pair) == 2 and all(isinstance(p, str) for p in pair)
+        ):
+            raise t.fail(f"markers.segments entry {pair!r} must be two marker names")
+        unknown = [p for p in pair if names and p not in names]
+        if unknown:
+            raise t.fail(
+                f"markers.segments entry {pair!r}: {unknown[0]!r} is not in markers.names"
+                + _suggest(unknown[0], names)
+            )
+        segments.append((pair[0], pair[1]))
+    return MarkersConfig(names, template, tuple(segments), marker_set, t.string("static"))
+
+
+def _string_list(t: _Table, key: str) -> list[str]:
+    value = t.data.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise t.fail(f"{t.where}{key} must be a list of non-empty strings")
+    repeated = sorted({v for v in value if value.count(v) > 1})
+    if repeated:
+        raise t.fail(f"{t.where}{key} repeats {', '.join(repeated)}")
+    return value
+
+
+def _trials(top: _Table) -> tuple[TrialConfig, ...]:
+    trials = []
+    for t in top.list_of_tables("trials"):
+        t.allow({"name", *TRIAL_SOURCES, "fields"})
+        name = t.string("name", t.required("name")) or ""
+        given = [k for k in TRIAL_SOURCES if k in t.data]
+        if len(given) != 1:
+            raise t.fail(
+                f"trial {name!r} needs exactly one of {', '.join(TRIAL_SOURCES)}, "
+                f"got {', '.join(given) or 'none'}"
+            )
+        fields = t.choice("fields", FIELD_ORDERS)
+        if fields is not None and given[0] != "video":
+            raise t.fail(f"trial {name!r}: fields (interlaced field order) applies to video only")
+        trials.append(TrialConfig(name, **{given[0]: t.string(given[0])}, fields=fields))
+    names = [t.name for t in trials]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise top.fail(f"trial names must be unique; repeated: {', '.join(repeated)}")
+    return tuple(trials)
+
+
+def _export(t: _Table) -> ExportConfig:
+    t.allow({"trc_up"})
+    return ExportConfig(trc_up=t.choice("trc_up", ("z", "y")) or "z")
+
+
+_TABLES: dict[str, Callable[[_Table], Any]] = {
+    "grid": _grid,
+    "rods": _rods,
+    "calibration": _calibration,
+    "wand": _wand,
+    "axes": _axes,
+    "markers": _markers,
+    "export": _export,
+}
+_TOP = {"session", "cameras", "trials", *_TABLES, *STAGE_SECTIONS}
+
+
 def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     """Validate parsed ``session.toml`` content (paths relative to ``root``)."""
-    path = Path(root) / "session.toml"
-    _check_keys(path, "", data, _TOP | _TOP_OPTIONAL_STAGES)
-    sess = _require(path, "", data, "session")
-    _check_keys(path, "session.", sess, _SESSION_KEYS)
-    name = _string(path, "session.name", sess.get("name", Path(root).name))
-    rate = _number(path, "session.rate_hz", _require(path, "session.", sess, "rate_hz"))
-
-    cams_raw = _require(path, "", data, "cameras")
-    if not isinstance(cams_raw, list) or not cams_raw:
-        raise KisscalError(f"{path}: [[cameras]] must list at least one camera")
-    cameras = []
-    for i, c in enumerate(cams_raw):
-        _check_keys(path, f"cameras[{i}].", c, _CAMERA_KEYS)
-        cid = _string(path, f"cameras[{i}].id", _require(path, f"cameras[{i}].", c, "id"))
-        size = _require(path, f"cameras[{i}].", c, "size")
-        if not (isinstance(size, list) and len(size) == 2):
-            raise KisscalError(f"{path}: cameras[{i}].size must be [width, height] in pixels")
-        w = _number(path, f"cameras[{i}].size[0]", size[0], int)
-        h = _number(path, f"cameras[{i}].size[1]", size[1], int)
-        cameras.append(CameraConfig(cid, (w, h)))
-    ids = [c.id for c in cameras]
-    if len(set(ids)) != len(ids):
-        raise KisscalError(f"{path}: camera ids must be unique, got {', '.join(ids)}")
-
-    grid = None
-    if "grid" in data:
-        g = data["grid"]
-        grid = GridConfig(
-            rows=_number(path, "grid.rows", g.get("rows", 15), int),
-            cols=_number(path, "grid.cols", g.get("cols", 20), int),
-            images=_string(path, "grid.images", g.get("images", GridConfig.images)),
-        )
-
-    rods = None
-    if "rods" in data:
-        r = data["rods"]
-        _check_keys(path, "rods.", r, _RODS_KEYS)
-        rod_list = []
-        for i, rod in enumerate(_require(path, "rods.", r, "rod")):
-            _check_keys(path, f"rods.rod[{i}].", rod, _ROD_KEYS)
-            rname = _string(
-                path, f"rods.rod[{i}].name", _require(path, f"rods.rod[{i}].", rod, "name")
-            )
-            pts = _points(
-                path,
-                f"rods.rod[{i}].points_mm",
-                _require(path, f"rods.rod[{i}].", rod, "points_mm"),
-            )
-            rod_list.append(RodConfig(rname, pts))
-        _check_control_points(path, "rods.rod", np.concatenate([x.points_mm for x in rod_list]))
-        rods = RodsConfig(
-            _string(path, "rods.images", _require(path, "rods.", r, "images")), tuple(rod_list)
-        )
-
-    calibration = None
-    if "calibration" in data:
-        c = data["calibration"]
-        _check_keys(path, "calibration.", c, _CALIBRATION_KEYS)
-        calibration = CalibrationConfig(
-            _string(path, "calibration.points", _require(path, "calibration.", c, "points"))
-        )
-
-    markers = None
-    if "markers" in data:
-        m = data["markers"]
-        _check_keys(path, "markers.", m, _MARKERS_KEYS)
-        names = tuple(
-            _string(path, "markers.names[]", n) for n in _require(path, "markers.", m, "names")
-        )
-        template = None
-        if "template_mm" in m:
-            template = _points(path, "markers.template_mm", m["template_mm"])
-            if len(template) != len(names):
-                raise KisscalError(
-                    f"{path}: markers.template_mm has {len(template)} positions"
-                    f" for {len(names)} names"
-                )
-        segments = []
-        for pair in m.get("segments", []):
-            if not (isinstance(pair, list) and len(pair) == 2 and all(p in names for p in pair)):
-                raise KisscalError(
-                    f"{path}: markers.segments entry {pair!r} must be two marker names"
-                )
-            segments.append((pair[0], pair[1]))
-        markers = MarkersConfig(names, template, tuple(segments))
-
-    trials = []
-    for i, t in enumerate(data.get("trials", [])):
-        _check_keys(path, f"trials[{i}].", t, _TRIAL_KEYS)
-        tname = _string(path, f"trials[{i}].name", _require(path, f"trials[{i}].", t, "name"))
-        given = [k for k in ("images", "video", "centroids") if k in t]
-        if len(given) != 1:
-            raise KisscalError(
-                f"{path}: trial {tname!r} needs exactly one of images, video or centroids,"
-                f" got {given or 'none'}"
-            )
-        trials.append(
-            TrialConfig(tname, **{given[0]: _string(path, f"trials[{i}].{given[0]}", t[given[0]])})
-        )
-
-    detection = data.get("detection", {})
-    if not isinstance(detection, dict):
-        raise KisscalError(f"{path}: [detection] must be a table")
-    return SessionConfig(
+    top = _Table(Path(root) / "session.toml", "", data).allow(_TOP)
+    name, rate = _session(top, root)
+    parsed = {k: parse(top.sub(k)) for k, parse in _TABLES.items() if k in data}
+    sections = {k: dict(top.sub(k).data) for k in STAGE_SECTIONS if k in data}
+    # [grid] keys beyond rows/cols/images/fields tune the grid stage (GridParams)
+    sections["grid"] = {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS}
+    config = SessionConfig(
         root=Path(root),
         name=name,
         rate_hz=rate,
-        cameras=tuple(cameras),
-        grid=grid,
-        rods=rods,
-        calibration=calibration,
-        detection=dict(detection),
-        markers=markers,
-        trials=tuple(trials),
-        sections={
-            **{k: dict(data[k]) for k in _TOP_OPTIONAL_STAGES if k in data},
-            # [grid] keys beyond rows/cols/images are grid-stage parameters, checked
-            # (with a did-you-mean) against GridParams by the session layer
-            "grid": {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS},
-        },
+        cameras=_cameras(top),
+        grid=parsed.get("grid"),
+        rods=parsed.get("rods"),
+        calibration=parsed.get("calibration"),
+        detection=sections.pop("detection", {}),
+        markers=parsed.get("markers"),
+        trials=_trials(top),
+        sections=sections,
+        wand=parsed.get("wand"),
+        axes=parsed.get("axes"),
+        export=parsed.get("export", ExportConfig()),
     )
+    _check_references(top, config)
+    return config
+
+
+def _check_references(top: _Table, config: SessionConfig) -> None:
+    """Keys that name other parts of the session must name existing ones."""
+    trial_names = [t.name for t in config.trials]
+    for where, name in (
+        ("wand.trial", config.wand.trial if config.wand else None),
+        ("markers.static", config.markers.static if config.markers else None),
+    ):
+        if name is not None and name not in trial_names:
+            raise top.fail(
+                f"{where} = {name!r} is not a [[trials]] name{_suggest(name, trial_names)}"
+            )
+    if config.calibration is not None and config.rods is not None:
+        raise top.fail("give either [rods] or [calibration], not both")
 
 
 def _check_control_points(path: Path, where: str, pts: np.ndarray) -> None:
     """A DLT needs at least 6 control points that do not lie in one plane."""
-    if len(pts) < 6:
-        raise KisscalError(f"{path}: {where} gives {len(pts)} points; the DLT needs at least 6")
-    centred = pts - pts.mean(axis=0)
-    s = np.linalg.svd(centred, compute_uv=False)
-    if s[2] < 1e-6 * max(s[0], 1e-12) * np.sqrt(len(pts)):
+    minimum = DltParams().min_points
+    if len(pts) < minimum:
+        raise KisscalError(
+            f"{path}: {where} gives {len(pts)} points; the DLT needs at least {minimum}"
+        )
+    if spread_ratio(pts) < DltParams().min_spread_ratio:
         raise KisscalError(
             f"{path}: {where} points are coplanar; the DLT needs points off one plane"
         )

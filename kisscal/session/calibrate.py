@@ -69,8 +69,13 @@ def calibrate(
     if config.rods is not None:
         whole_rig = camera is None
         summary = _calibrate_rods(root, config, cameras, lins, params, echo, workers, whole_rig)
-    elif config.calibration is not None:
+    elif config.calibration is not None and config.calibration.route == "points":
         summary = _calibrate_points(root, config, cameras, lins, params, echo)
+    elif config.calibration is not None:
+        raise KisscalError(
+            f"{config.path}: [calibration] {config.calibration.route} is not supported by "
+            "this version of kisscal"
+        )
     else:
         raise KisscalError(
             f"{config.path}: no [rods] and no [calibration]: nothing to calibrate from"

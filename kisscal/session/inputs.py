@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import importlib
 import warnings
@@ -12,6 +13,7 @@ from typing import Any
 from kisscal.errors import KisscalError
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
+from kisscal.io.frames import camera_frames
 
 
 def out_dir(root: Path) -> Path:
@@ -20,8 +22,51 @@ def out_dir(root: Path) -> Path:
 
 
 def load_config(root: Path) -> SessionConfig:
-    """The validated ``session.toml`` of the session at ``root``."""
-    return load_session(Path(root))
+    """The validated ``session.toml`` of the session at ``root``, every camera's size known.
+
+    A camera whose ``size`` is left out of ``[[cameras]]`` takes the size of its first
+    frame (grid, rods, axes, calibration or trial images, in that order).
+    """
+    config = load_session(Path(root))
+    if all(c.size_px is not None for c in config.cameras):
+        return config
+    cameras = tuple(
+        c if c.size_px is not None else CameraConfig(c.id, _first_frame_size(config, c.id))
+        for c in config.cameras
+    )
+    return dataclasses.replace(config, cameras=cameras)
+
+
+def image_sources(config: SessionConfig) -> list[tuple[str, str, bool]]:
+    """Every set of frames of the session: (what, path pattern, is a video)."""
+    sources = []
+    if config.grid is not None:
+        sources.append(("grid", config.grid.images, False))
+    if config.rods is not None:
+        sources.append(("rod", config.rods.images, False))
+    if config.axes is not None:
+        sources.append(("axes", config.axes.images, False))
+    if config.calibration is not None and config.calibration.images:
+        sources.append(("calibration", config.calibration.images, False))
+    for t in config.trials:
+        if t.images or t.video:
+            sources.append((f"trial {t.name!r}", t.images or t.video or "", bool(t.video)))
+    return sources
+
+
+def _first_frame_size(config: SessionConfig, camera: str) -> tuple[int, int]:
+    for what, pattern, video in image_sources(config):
+        try:
+            frames = camera_frames(config.root, pattern, camera, what, video=video)
+        except KisscalError:
+            continue
+        if len(frames):
+            h, w = frames[0].shape[:2]
+            return int(w), int(h)
+    raise KisscalError(
+        f"{config.path}: camera {camera} has no size and no images to take it from; "
+        "give size = [width, height] in its [[cameras]] entry"
+    )
 
 
 def select_cameras(config: SessionConfig, camera: str | None) -> tuple[CameraConfig, ...]:
