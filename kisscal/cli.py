@@ -1,7 +1,7 @@
 """The ``kisscal`` command line: a thin typer layer over :mod:`kisscal.session`.
 
-Every user error is reported on one line (``kisscal <command>: ...``) with exit code 2;
-``kisscal check`` exits 1 when a quality limit is exceeded.
+Every user error is reported on one line, ``kisscal <command>: error: ...``, with exit
+code 2; ``kisscal check`` exits 1 when a quality limit is exceeded.
 """
 
 from __future__ import annotations
@@ -9,27 +9,56 @@ from __future__ import annotations
 import contextlib
 import sys
 from collections.abc import Callable, Iterator
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as package_version
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 
 from kisscal.errors import KisscalError
 
-try:  # recent typer vendors click; older releases use the click package
-    from typer._click.exceptions import ClickException, UsageError
-except ImportError:  # pragma: no cover
-    from click.exceptions import ClickException, UsageError
-
 app = typer.Typer(
     name="kisscal",
-    help="Calibration and reconstruction for marker-based multi-camera gait capture.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
 
-SessionArg = Annotated[Path, typer.Argument(help="Session folder (holds session.toml).")]
+SessionArg = Annotated[
+    Path, typer.Argument(help="Session folder (holds session.toml).", metavar="SESSION")
+]
+TrialArg = Annotated[str, typer.Argument(help="Trial name from session.toml.", metavar="TRIAL")]
+
+
+def _example(*lines: str) -> str:
+    """A help epilog with example command lines (click keeps ``\\b`` paragraphs as written)."""
+    return "\b\nExamples:\n" + "\n".join(f"  {line}" for line in lines)
+
+
+def _version(value: bool) -> None:
+    if value:
+        try:
+            typer.echo(f"kisscal {package_version('kisscal')}")
+        except PackageNotFoundError:  # pragma: no cover - run from a source tree
+            typer.echo("kisscal (not installed)")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """Calibration and reconstruction for marker-based multi-camera gait capture.
+
+    A session folder holds session.toml and the camera images; every output goes to its
+    out/ folder. Start with `kisscal demo`, then `kisscal run SESSION` on your own.
+    """
 
 
 @contextlib.contextmanager
@@ -38,14 +67,11 @@ def progress_bars() -> Iterator[Callable[[str], object]]:
 
     Yields the function that prints the pipeline's messages (above the bars on a terminal).
     """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
     from kisscal import session
 
-    try:
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
-    except ImportError:  # pragma: no cover - rich comes with typer
-        yield typer.echo
-        return
     console = Console(stderr=True)
     if not console.is_terminal:
         yield typer.echo
@@ -68,9 +94,9 @@ def progress_bars() -> Iterator[Callable[[str], object]]:
         yield lambda line: bars.console.print(line, markup=False, highlight=False)
 
 
-@app.command()
+@app.command(epilog=_example("kisscal demo", "kisscal demo /tmp/demo --seed 3"))
 def demo(
-    out: Annotated[Path, typer.Argument(help="Folder for the demo session.")] = Path(
+    out: Annotated[Path, typer.Argument(help="Folder for the demo session.", metavar="DIR")] = Path(
         "kisscal-demo"
     ),
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic rig.")] = 1,
@@ -81,20 +107,28 @@ def demo(
     session.demo(out, seed=seed, echo=typer.echo)
 
 
-@app.command()
+@app.command(
+    epilog=_example(
+        "kisscal synth /tmp/s1 --seed 1 --fields 200", "kisscal synth /tmp/s2 --cameras 3"
+    )
+)
 def synth(
-    out: Annotated[Path, typer.Argument(help="Folder to write the synthetic session to.")],
+    out: Annotated[
+        Path, typer.Argument(help="Folder to write the synthetic session to.", metavar="DIR")
+    ],
     seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same bytes.")] = 1,
     fields: Annotated[int, typer.Option(help="Fields in the gait trial (50 Hz).", min=10)] = 200,
-    cameras: Annotated[int, typer.Option(help="Number of cameras (2 to 6).", min=2, max=6)] = 6,
-    markers: Annotated[int, typer.Option(help="Gait marker set: 13 or 15 markers.")] = 15,
+    cameras: Annotated[int, typer.Option(help="Number of cameras.", min=2, max=6)] = 6,
+    markers: Annotated[
+        Literal[13, 15], typer.Option(help="Gait marker set: 13 or 15 markers.")
+    ] = 15,
     blur_px: Annotated[float, typer.Option(help="Gaussian blur sigma in pixels.", min=0)] = 0.6,
     walking5: Annotated[
-        bool, typer.Option(help="Also replay the real walking5.c3d trial if it is found.")
+        bool, typer.Option(help="Also replay the real walking5.c3d trial (trial walk5).")
     ] = True,
-    force: Annotated[bool, typer.Option(help="Overwrite a non-empty OUT folder.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite a non-empty DIR.")] = False,
 ) -> None:
-    """Write a synthetic KISS-like session (images + truth) for tests and demos."""
+    """Write a synthetic session with ground truth (tests, demos)."""
     from kisscal import session
 
     session.synthesise(
@@ -110,41 +144,67 @@ def synth(
     )
 
 
-@app.command()
+@app.command(
+    epilog=_example(
+        "kisscal detect frames/cam1/*.png",
+        "kisscal detect frames/cam1/*.png --out blobs.csv --overlay overlays/",
+    )
+)
 def detect(
-    images: Annotated[list[Path], typer.Argument(help="Image files to scan.")],
+    images: Annotated[list[Path], typer.Argument(help="Image files to scan.", metavar="IMAGE...")],
     out: Annotated[Path | None, typer.Option(help="CSV file for the blob table.")] = None,
-    overlay: Annotated[Path | None, typer.Option(help="Folder for overlay PNGs.")] = None,
+    overlay: Annotated[
+        Path | None, typer.Option(help="Folder for overlay PNGs.", metavar="DIR")
+    ] = None,
 ) -> None:
-    """Detect marker blobs in images and write their centroids."""
+    """Detect marker blobs in images (a CSV table).
+
+    The table goes to standard output, or to the file given with --out.
+    """
     from kisscal import session
+    from kisscal.io.blobs import format_blobs
 
-    session.detect_images(images, out, overlay, echo=typer.echo)
+    say = typer.echo if out is not None else lambda line: typer.echo(line, err=True)
+    tables = session.detect_images(images, out, overlay, echo=say)
+    if out is None:
+        typer.echo(format_blobs(tables), nl=False)
 
 
-@app.command()
+@app.command(
+    epilog=_example(
+        "kisscal linearise lab/2026-11-21",
+        "kisscal linearise lab/2026-11-21 --camera cam2 --model similarity",
+    )
+)
 def linearise(
     session_dir: SessionArg,
     camera: Annotated[str | None, typer.Option(help="Only this camera.")] = None,
     model: Annotated[
-        str | None,
-        typer.Option(help="Optimal grid: homography (default) or similarity (the thesis')."),
+        Literal["homography", "similarity"] | None,
+        typer.Option(
+            help="Optimal grid: homography (default) or similarity (the thesis').",
+            show_default=False,
+        ),
     ] = None,
 ) -> None:
-    """Fit each camera's lens linearisation from its dot-grid images."""
+    """Lens linearisation of each camera from its grid images."""
     from kisscal import session
 
     with progress_bars() as echo:
         session.linearise(session_dir, camera=camera, model=model, echo=echo)
 
 
-@app.command()
+@app.command(
+    epilog=_example("kisscal calibrate lab/2026-11-21", "kisscal calibrate lab/2026-11-21 --mdlt")
+)
 def calibrate(
     session_dir: SessionArg,
     camera: Annotated[str | None, typer.Option(help="Only this camera.")] = None,
-    mdlt: Annotated[bool, typer.Option(help="Enforce Hatze's constraint (MDLT).")] = False,
-    refine: Annotated[bool, typer.Option(help="Refine by reprojection error.")] = False,
-    lens: Annotated[bool, typer.Option(help="Also fit lens terms L12-L16.")] = False,
+    mdlt: Annotated[
+        bool, typer.Option("--mdlt", help="Enforce Hatze's constraint (MDLT).")
+    ] = False,
+    refine: Annotated[bool, typer.Option("--refine", help="Refine by reprojection error.")] = False,
+    lens: Annotated[bool, typer.Option("--lens", help="Also fit lens terms L12-L16.")] = False,
 ) -> None:
     """Compute each camera's DLT parameters from the rod images."""
     from kisscal import session
@@ -155,11 +215,8 @@ def calibrate(
         )
 
 
-@app.command()
-def reconstruct(
-    session_dir: SessionArg,
-    trial: Annotated[str, typer.Argument(help="Trial name from session.toml.")],
-) -> None:
+@app.command(epilog=_example("kisscal reconstruct lab/2026-11-21 walk01"))
+def reconstruct(session_dir: SessionArg, trial: TrialArg) -> None:
     """Reconstruct 3D marker positions of a trial, field by field."""
     from kisscal import session
 
@@ -167,52 +224,69 @@ def reconstruct(
         session.reconstruct(session_dir, trial, echo=echo)
 
 
-@app.command()
+@app.command(
+    epilog=_example(
+        "kisscal track lab/2026-11-21 walk01",
+        "kisscal track lab/2026-11-21 walk01 --pnc 0.05 --sweep",
+    )
+)
 def track(
     session_dir: SessionArg,
-    trial: Annotated[str, typer.Argument(help="Trial name from session.toml.")],
-    pnc: Annotated[float | None, typer.Option(help="Kalman process noise (thesis PNC).")] = None,
-    mnc: Annotated[
-        float | None, typer.Option(help="Kalman measurement noise (thesis MNC).")
+    trial: TrialArg,
+    pnc: Annotated[
+        float | None, typer.Option(help="Kalman process noise (thesis PNC).", min=0)
     ] = None,
-    smooth: Annotated[bool, typer.Option(help="GCV smoothing spline on the result.")] = False,
+    mnc: Annotated[
+        float | None, typer.Option(help="Kalman measurement noise (thesis MNC).", min=0)
+    ] = None,
+    smooth: Annotated[
+        bool, typer.Option("--smooth", help="GCV smoothing spline on the result.")
+    ] = False,
     sweep: Annotated[
-        bool, typer.Option(help="Also write the thesis' PNC x MNC segment-length table.")
+        bool, typer.Option("--sweep", help="Also write the thesis' PNC x MNC segment-length table.")
     ] = False,
 ) -> None:
     """Turn a trial's 3D points into labelled marker trajectories."""
     from kisscal import session
 
-    tracking = {k: v for k, v in (("pnc", pnc), ("mnc", mnc)) if v is not None}
+    tracking: dict[str, object] = {k: v for k, v in (("pnc", pnc), ("mnc", mnc)) if v is not None}
     if smooth:
         tracking["smoothing"] = True
     overrides = session.Overrides(tracking=tracking)
     session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
 
 
-@app.command()
+@app.command(epilog=_example("kisscal run lab/2026-11-21"))
 def run(session_dir: SessionArg) -> None:
-    """Run the whole session: detect, linearise, calibrate, reconstruct, track."""
+    """Process the whole session, grid images to trajectories."""
     from kisscal import session
 
     with progress_bars() as echo:
         session.run(session_dir, echo=echo)
 
 
-@app.command()
+@app.command(
+    epilog=_example(
+        "kisscal check lab/2026-11-21 --max-grid-px 0.08 --max-reproj-px 0.1 --max-3d-mm 1.0"
+    )
+)
 def check(
     session_dir: SessionArg,
-    max_reproj_px: Annotated[float | None, typer.Option(help="Limit on DLT rms_px.")] = None,
-    max_grid_px: Annotated[float | None, typer.Option(help="Limit on grid residual.")] = None,
-    max_3d_mm: Annotated[float | None, typer.Option(help="Limit on leave-out 3D error.")] = None,
+    max_reproj_px: Annotated[
+        float | None, typer.Option(help="Limit on each camera's DLT rms_px.", metavar="PX")
+    ] = None,
+    max_grid_px: Annotated[
+        float | None, typer.Option(help="Limit on each camera's grid residual.", metavar="PX")
+    ] = None,
+    max_3d_mm: Annotated[
+        float | None, typer.Option(help="Limit on the leave-out 3D error.", metavar="MM")
+    ] = None,
 ) -> None:
-    """CI gate: exit 1 when a camera's residuals exceed the limits."""
+    """CI gate: exit 1 when a calibration figure exceeds its limit."""
     from kisscal import session
 
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
-        raise KisscalError(
-            "kisscal check: give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm"
-        )
+        raise KisscalError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
     if failures:
         typer.echo(f"{'camera':<8} {'figure':<28} {'value':>10} {'limit':>10}")
@@ -222,18 +296,22 @@ def check(
     typer.echo("check passed: every figure is within its limit")
 
 
-@app.command()
+@app.command(epilog=_example("kisscal report lab/2026-11-21"))
 def report(session_dir: SessionArg) -> None:
-    """Rebuild the session report (out/report.html)."""
+    """Rebuild out/report.html of a processed session."""
     from kisscal import session
 
     session.report(session_dir, echo=typer.echo)
 
 
-@app.command()
+@app.command(
+    epilog=_example("kisscal batch lab/*", "kisscal batch lab/* --scheduler tcp://10.0.0.5:8786")
+)
 def batch(
-    sessions: Annotated[list[Path], typer.Argument(help="Session folders.")],
-    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address.")] = None,
+    sessions: Annotated[list[Path], typer.Argument(help="Session folders.", metavar="SESSION...")],
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address.", metavar="ADDRESS")
+    ] = None,
 ) -> None:
     """Run many sessions in parallel on Dask."""
     from kisscal import session
@@ -243,30 +321,49 @@ def batch(
         raise typer.Exit(1)
 
 
+def _click_class(name: str) -> type[Exception]:
+    """A class of the click library typer is built on, found without a private import."""
+    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
+
+
+UsageError = _click_class("UsageError")
+ClickException = _click_class("ClickException")
+
+
+def _command_name(args: list[str]) -> str:
+    """``kisscal <command>`` for messages: the first argument naming a command."""
+    names = {c.name or c.callback.__name__ for c in app.registered_commands if c.callback}
+    first = next((a for a in args if a in names), None)
+    return f"kisscal {first}" if first else "kisscal"
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the typer app, turning every user error into one line.
 
     Usage errors (a missing argument, a bad number) and :class:`KisscalError` from any
-    stage are printed as ``kisscal: error: ...`` with exit code 2, never as a traceback.
+    stage are printed as ``kisscal <command>: error: ...`` with exit code 2, never as a
+    traceback.
     """
     args = sys.argv[1:] if argv is None else argv
+    where = _command_name(args)
     try:
         rv = app(args=args or ["--help"], prog_name="kisscal", standalone_mode=False)
-    except UsageError as exc:
-        where = f"kisscal {exc.ctx.info_name}" if exc.ctx and exc.ctx.parent else "kisscal"
-        typer.echo(f"{where}: error: {exc.format_message()}", err=True)
-        sys.exit(2)
     except KisscalError as exc:
-        typer.echo(f"kisscal: error: {exc}", err=True)
-        sys.exit(exc.exit_code)
+        _fail(where, str(exc), exc.exit_code)
     except OSError as exc:  # a path the user gave cannot be read or written
-        where = f": {exc.filename}" if exc.filename else ""
-        typer.echo(f"kisscal: error: {exc.strerror or exc}{where}", err=True)
-        sys.exit(2)
+        detail = f": {exc.filename}" if exc.filename else ""
+        _fail(where, f"{exc.strerror or exc}{detail}", 2)
     except ClickException as exc:
-        typer.echo(f"kisscal: error: {exc.format_message()}", err=True)
-        sys.exit(exc.exit_code)
+        _fail(where, exc.format_message(), 2 if isinstance(exc, UsageError) else exc.exit_code)
+    except typer.Abort:
+        _fail(where, "interrupted", 130)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _fail(where: str, message: str, code: int) -> None:
+    message = " ".join(message.split())  # one line, whatever the exception held
+    typer.echo(f"{where}: error: {message}", err=True)
+    sys.exit(code)
 
 
 if __name__ == "__main__":

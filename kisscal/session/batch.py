@@ -33,7 +33,7 @@ def batch(sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = q
     """
     paths = [Path(s).resolve() for s in sessions]
     if not paths:
-        raise KisscalError("kisscal batch: give at least one session folder")
+        raise KisscalError("give at least one session folder")
     # Worker processes must be able to start the detection's own process pool.
     with dask.config.set({"distributed.worker.daemon": False, "logging.distributed": "error"}):
         client, cluster = _connect(scheduler, len(paths))

@@ -46,23 +46,24 @@ def detect_images(
     overlay_dir: Path | None = None,
     detection: Mapping[str, Any] | None = None,
     echo: Echo = quiet,
-) -> int:
-    """``kisscal detect``: blobs of image files to one CSV, overlays optionally.
+) -> list[tuple[str, Blobs]]:
+    """``kisscal detect``: blobs of image files, to one CSV and overlays optionally.
 
-    Returns the number of blobs found. Every image is read and checked before anything
-    is written, so a bad file leaves earlier outputs untouched.
+    Returns ``(image path as given, blobs)`` per image. Every image is read and checked
+    before anything is written, so a bad file leaves earlier outputs untouched.
     """
     params = build_params(DetectionParams, "detection", detection or {})
     images = [read_image(p) for p in paths]
     blobs = detect_sequence(images, params)
+    tables = [(str(p), b) for p, b in zip(paths, blobs, strict=True)]
     if out_csv is not None:
-        write_blobs(out_csv, [(str(p), b) for p, b in zip(paths, blobs, strict=True)])
+        write_blobs(out_csv, tables)
     if overlay_dir is not None:
         _write_overlays(Path(overlay_dir), paths, images, blobs)
     total = sum(len(b) for b in blobs)
     valid = sum(int(b.valid.sum()) for b in blobs)
     echo(f"{len(paths)} images: {total} blobs ({valid} valid)")
-    return total
+    return tables
 
 
 def _write_overlays(

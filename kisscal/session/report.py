@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from kisscal.session.inputs import load_config
+from kisscal.errors import KisscalError
+from kisscal.session.inputs import load_config, out_dir
 from kisscal.session.progress import Echo, quiet
 
 
@@ -13,6 +14,10 @@ def report(root: Path, echo: Echo = quiet) -> Path:
     from kisscal.report.html import build_report  # matplotlib: only when a report is made
 
     load_config(root)  # a session folder, not just any path
+    out = out_dir(root)
+    outputs = ("summary.json", "linearisation/*.json", "dlt/*.json")
+    if not any(any(out.glob(pattern)) for pattern in outputs):
+        raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     path = build_report(Path(root))
     echo(f"report: {path}")
     return path
