@@ -201,12 +201,27 @@ def calibrate(
     session_dir: SessionArg,
     camera: Annotated[str | None, typer.Option(help="Only this camera.")] = None,
     mdlt: Annotated[
-        bool, typer.Option("--mdlt", help="Enforce Hatze's constraint (MDLT).")
-    ] = False,
-    refine: Annotated[bool, typer.Option("--refine", help="Refine by reprojection error.")] = False,
-    lens: Annotated[bool, typer.Option("--lens", help="Also fit lens terms L12-L16.")] = False,
+        bool | None,
+        typer.Option(
+            "--mdlt/--no-mdlt", help="Enforce Hatze's constraint (MDLT).", show_default=False
+        ),
+    ] = None,
+    refine: Annotated[
+        bool | None,
+        typer.Option(
+            "--refine/--no-refine", help="Refine by reprojection error.", show_default=False
+        ),
+    ] = None,
+    lens: Annotated[
+        bool | None,
+        typer.Option("--lens/--no-lens", help="Also fit lens terms L12-L16.", show_default=False),
+    ] = None,
 ) -> None:
-    """Compute each camera's DLT parameters from the rod images."""
+    """Compute each camera's DLT parameters from the rod images.
+
+    --mdlt, --refine and --lens are remembered: later calibrations of the session (and
+    `kisscal run`) keep them until turned off with --no-mdlt, --no-refine, --no-lens.
+    """
     from kisscal import session
 
     with progress_bars() as echo:

@@ -22,6 +22,7 @@ from kisscal.grid import Linearisation, apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.dltfiles import (
+    DltFile,
     read_control_points_csv,
     read_dlt_json,
     write_dlt_json,
@@ -47,30 +48,36 @@ from kisscal.session.progress import Echo, quiet, steps
 def calibrate(
     root: Path,
     camera: str | None = None,
-    mdlt: bool = False,
-    refine: bool = False,
-    lens: bool = False,
+    mdlt: bool | None = None,
+    refine: bool | None = None,
+    lens: bool | None = None,
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
 ) -> dict[str, Any]:
     """``kisscal calibrate``: DLT parameters of each camera from rods or control points.
 
-    Writes ``out/dlt/<camera>.json`` and ``out/dlt/dltdv.csv``; returns
-    ``{camera: DltResult}`` plus the leave-one-rod-out check under ``"_check"``.
+    ``mdlt``, ``refine`` and ``lens`` left as ``None`` keep what the last calibration of
+    this session chose (``out/dlt/calibration.json``), so that ``kisscal run`` never
+    silently undoes ``kisscal calibrate --mdlt``; ``False`` turns a switch off.
+
+    Writes ``out/dlt/<camera>.json``, ``out/dlt/dltdv.csv`` and ``out/dlt/calibration.json``;
+    returns ``{camera: DltResult}`` plus the leave-one-rod-out check under ``"_check"``.
     """
     root = Path(root)
     config = load_config(root)
     o = overrides or Overrides()
-    switches = {k: v for k, v in (("mdlt", mdlt), ("refine", refine), ("lens", lens)) if v}
+    switches = _dlt_switches(root, {"mdlt": mdlt, "refine": refine, "lens": lens}, echo)
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
     lins = current_linearisations(root, echo)
     cameras = select_cameras(config, camera)
     if config.rods is not None:
         whole_rig = camera is None
         summary = _calibrate_rods(root, config, cameras, lins, params, echo, workers, whole_rig)
+        route = "rods"
     elif config.calibration is not None and config.calibration.route == "points":
         summary = _calibrate_points(root, config, cameras, lins, params, echo)
+        route = "points"
     elif config.calibration is not None:
         raise KisscalError(
             f"{config.path}: [calibration] {config.calibration.route} is not supported by "
@@ -80,21 +87,35 @@ def calibrate(
         raise KisscalError(
             f"{config.path}: no [rods] and no [calibration]: nothing to calibrate from"
         )
-    all_L = read_dlts(root, config, required=False)
-    write_dltdv_csv(
-        out_dir(root) / "dlt" / "dltdv.csv",
-        {c: all_L[c] for c in config.camera_ids if c in all_L},
-    )
+    dlt_dir = out_dir(root) / "dlt"
+    all_L = {c: f.L for c, f in read_dlt_files(root, config, required=False).items()}
+    write_dltdv_csv(dlt_dir / "dltdv.csv", {c: all_L[c] for c in config.camera_ids if c in all_L})
+    write_json(dlt_dir / "calibration.json", {"route": route, "options": switches})
     return summary
 
 
-def read_dlts(root: Path, config: SessionConfig, required: bool = True) -> dict[str, np.ndarray]:
-    """Every camera's DLT parameters L1..L11 from ``out/dlt/<camera>.json``."""
+_SWITCHES = ("mdlt", "refine", "lens")
+
+
+def _dlt_switches(root: Path, given: dict[str, bool | None], echo: Echo) -> dict[str, bool]:
+    """The DLT switches: those given, else those the session's last calibration used."""
+    record = out_dir(root) / "dlt" / "calibration.json"
+    previous = json.loads(record.read_text()).get("options", {}) if record.is_file() else {}
+    chosen = {k: v for k, v in given.items() if v is not None}
+    kept = {k: True for k in _SWITCHES if previous.get(k) and k not in chosen}
+    if kept:
+        names = ", ".join(f"--{k}" for k in kept)
+        echo(f"  calibrate: keeping {names} from this session's last calibration")
+    return {**kept, **chosen}
+
+
+def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> dict[str, DltFile]:
+    """Every camera's calibration from ``out/dlt/<camera>.json`` (L1..L11, lens terms ...)."""
     result = {}
     for cam in config.camera_ids:
         path = out_dir(root) / "dlt" / f"{cam}.json"
         if path.is_file():
-            result[cam] = read_dlt_json(path).L
+            result[cam] = read_dlt_json(path)
         elif required:
             raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
     return result

@@ -1,0 +1,67 @@
+"""A calibration choice (MDLT, lens terms) is kept by later stages, never silently undone."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+from scipy.spatial import cKDTree
+
+from kisscal import session
+from kisscal.io.config import load_toml
+from kisscal.io.files import read_table
+
+pytestmark = pytest.mark.slow
+
+
+def _copy(small_session: Path, dest: Path, drop_grid: bool = False) -> Path:
+    shutil.copytree(small_session, dest, ignore=shutil.ignore_patterns("out"))
+    if drop_grid:
+        data = load_toml(dest / "session.toml")
+        del data["grid"]
+        # the rod frames as a trial, to reconstruct the surveyed markers the way trials are
+        data["trials"].append({"name": "rodview", "images": data["rods"]["images"]})
+        data["recon"] = {"stationary_filter": False}  # the rods stand still on purpose
+        (dest / "session.toml").write_text(tomli_w.dumps(data))
+    return dest
+
+
+def _rod_error_mm(root: Path) -> float:
+    """Median distance of the reconstructed rod markers to the surveyed ones."""
+    pts = read_table(root / "out" / "trials" / "rodview" / "points3d.csv")
+    rods = load_toml(root / "session.toml")["rods"]["rod"]
+    truth = np.concatenate([r["points_mm"] for r in rods])
+    xyz = np.column_stack([pts["x_mm"], pts["y_mm"], pts["z_mm"]])
+    return float(np.median(cKDTree(xyz).query(truth)[0]))
+
+
+def test_mdlt_survives_run(small_session: Path, tmp_path: Path) -> None:
+    root = _copy(small_session, tmp_path / "s")
+    session.calibrate(root, mdlt=True)
+    log: list[str] = []
+    session.run(root, echo=log.append)
+    text = "\n".join(log)
+    assert "keeping --mdlt" in text and "calibrate: cached" in text
+    docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
+    assert docs and all(d["method"] == "mdlt" for d in docs)
+    session.calibrate(root, mdlt=False)
+    docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
+    assert all(d["method"] == "dlt" for d in docs)
+
+
+def test_lens_terms_reach_reconstruction(small_session: Path, tmp_path: Path) -> None:
+    """Without a grid the lens terms carry the distortion; reconstruction must apply them."""
+    root = _copy(small_session, tmp_path / "nogrid", drop_grid=True)
+    session.calibrate(root, lens=True)
+    session.reconstruct(root, "rodview")
+    with_lens = _rod_error_mm(root)
+    in_sample = json.loads((root / "out" / "dlt" / "check.json").read_text())
+    session.calibrate(root, lens=False)
+    session.reconstruct(root, "rodview")
+    plain = _rod_error_mm(root)
+    assert with_lens < 0.5 * plain, (with_lens, plain)
+    assert with_lens < 2 * in_sample["rods_in_sample_mean_mm"] + 0.05
