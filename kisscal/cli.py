@@ -271,6 +271,19 @@ def track(
     session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
 
 
+@app.command(epilog=_example("kisscal validate lab/2026-11-21"))
+def validate(session_dir: SessionArg) -> None:
+    """Check every input of a session before any work; list each problem."""
+    from kisscal import session
+
+    problems = session.validate(session_dir)
+    for problem in problems:
+        typer.echo(f"problem: {problem}")
+    if problems:
+        raise KisscalError(f"{len(problems)} problem(s) found (listed above)")
+    typer.echo(f"{session_dir}: every input is present and consistent")
+
+
 @app.command(epilog=_example("kisscal run lab/2026-11-21"))
 def run(session_dir: SessionArg) -> None:
     """Process the whole session, grid images to trajectories."""

@@ -15,6 +15,7 @@ COMMANDS = [
     "calibrate",
     "reconstruct",
     "track",
+    "validate",
     "run",
     "check",
     "report",

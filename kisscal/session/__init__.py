@@ -31,6 +31,7 @@ from kisscal.session.report import report
 from kisscal.session.run import run
 from kisscal.session.summary import CheckFailure, check, summarise
 from kisscal.session.track import track
+from kisscal.session.validate import Problem, validate
 
 # Imported on first use: the demo runs the session (a cycle if imported here), the batch
 # imports Dask, and synthesis is not needed to process a real session.
@@ -54,6 +55,7 @@ def __getattr__(name: str) -> Any:
 __all__ = [
     "CheckFailure",
     "Overrides",
+    "Problem",
     "Progress",
     "StageParams",
     "batch",
@@ -73,4 +75,5 @@ __all__ = [
     "summarise",
     "synthesise",
     "track",
+    "validate",
 ]

@@ -39,12 +39,14 @@ from kisscal.session.inputs import (
     load_config,
     out_dir,
     select_cameras,
+    writes_session,
 )
 from kisscal.session.linearise import current_linearisations
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
 
+@writes_session
 def calibrate(
     root: Path,
     camera: str | None = None,

@@ -4,16 +4,33 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import importlib
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from kisscal.errors import KisscalError
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
+from kisscal.io.lock import session_lock
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def writes_session(func: F) -> F:
+    """Run ``func(root, ...)`` holding the session's write lock (see :mod:`kisscal.io.lock`)."""
+
+    @functools.wraps(func)
+    def locked(root: Path, *args: Any, **kwargs: Any) -> Any:
+        if not (Path(root) / "session.toml").is_file():
+            load_config(root)  # says what is missing; never create a folder for a typo
+        with session_lock(out_dir(root)):
+            return func(root, *args, **kwargs)
+
+    return locked  # type: ignore[return-value]
 
 
 def out_dir(root: Path) -> Path:

@@ -12,11 +12,19 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.frames import camera_frames
 from kisscal.io.linearisation import read_linearisation, write_linearisation
-from kisscal.session.inputs import figure, file_keys, load_config, out_dir, select_cameras
+from kisscal.session.inputs import (
+    figure,
+    file_keys,
+    load_config,
+    out_dir,
+    select_cameras,
+    writes_session,
+)
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 
 
+@writes_session
 def linearise(
     root: Path,
     camera: str | None = None,

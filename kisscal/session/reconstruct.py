@@ -21,12 +21,20 @@ from kisscal.io.points3d import read_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import read_dlt_files
 from kisscal.session.detection import detect_frames
-from kisscal.session.inputs import figure, file_keys, linearisation_key, load_config, out_dir
+from kisscal.session.inputs import (
+    figure,
+    file_keys,
+    linearisation_key,
+    load_config,
+    out_dir,
+    writes_session,
+)
 from kisscal.session.linearise import current_linearisations
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
 
+@writes_session
 def reconstruct(
     root: Path,
     trial_name: str,

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from kisscal.errors import KisscalError
-from kisscal.session.inputs import load_config, out_dir
+from kisscal.session.inputs import load_config, out_dir, writes_session
 from kisscal.session.progress import Echo, quiet
 
 
+@writes_session
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report  # matplotlib: only when a report is made

@@ -6,18 +6,21 @@ import time
 from pathlib import Path
 from typing import Any
 
+from kisscal.errors import KisscalError
 from kisscal.io.files import write_json
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, out_dir
+from kisscal.session.inputs import load_config, out_dir, writes_session
 from kisscal.session.linearise import linearise
-from kisscal.session.params import Overrides, stage_params
+from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.summary import summarise
 from kisscal.session.track import track
+from kisscal.session.validate import SESSION, Problem, validate
 
 
+@writes_session
 def run(
     root: Path,
     overrides: Overrides | None = None,
@@ -33,7 +36,9 @@ def run(
     """
     root = Path(root)
     config = load_config(root)
-    stage_params(config, overrides)  # fail fast on bad parameters, before any work
+    problems = validate(root, overrides)
+    _stop_on_session_problems(problems, echo)
+    broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
 
     def timed(name: str, step: Any, *args: Any, **kwargs: Any) -> None:
@@ -45,15 +50,48 @@ def run(
     timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
     echo("[2/4] calibration")
     timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
+    failures: dict[str, str] = {}
     for trial in config.trials:
-        echo(f"[3/4] reconstruction: {trial.name}")
-        timed(
-            f"reconstruct_{trial.name}_s", reconstruct, root, trial.name, overrides, echo, workers
-        )
-        echo(f"[4/4] tracking: {trial.name}")
-        timed(f"track_{trial.name}_s", track, root, trial.name, overrides, echo=echo)
+        if trial.name in broken:
+            failures[trial.name] = broken[trial.name]
+            echo(f"  skipped {broken[trial.name]}")
+            continue
+        try:
+            echo(f"[3/4] reconstruction: {trial.name}")
+            timed(
+                f"reconstruct_{trial.name}_s",
+                reconstruct,
+                root,
+                trial.name,
+                overrides,
+                echo,
+                workers,
+            )
+            echo(f"[4/4] tracking: {trial.name}")
+            timed(f"track_{trial.name}_s", track, root, trial.name, overrides, echo=echo)
+        except KisscalError as exc:  # one bad trial must not stop the others
+            failures[trial.name] = f"trial {trial.name}: {exc}"
+            echo(f"  failed {failures[trial.name]}")
     summary = summarise(root)
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
+    summary["failed_trials"] = failures
     write_json(out_dir(root) / "summary.json", summary)
     report(root, echo=echo)
+    if failures:
+        raise KisscalError(
+            f"{len(failures)} of {len(config.trials)} trials failed "
+            f"({'; '.join(failures.values())}); the other trials' outputs are complete"
+        )
     return summary
+
+
+def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:
+    """Refuse to start when the calibration inputs or parameters are broken."""
+    fatal = [p for p in problems if p.scope == SESSION]
+    for p in fatal:
+        echo(f"  problem: {p}")
+    if fatal:
+        more = (
+            f" (and {len(fatal) - 1} more: `kisscal validate` lists them)" if len(fatal) > 1 else ""
+        )
+        raise KisscalError(f"{fatal[0]}{more}; nothing was processed")

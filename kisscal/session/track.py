@@ -14,12 +14,13 @@ from kisscal.io.export import write_c3d, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import read_points3d
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
-from kisscal.session.inputs import figure, load_config, out_dir
+from kisscal.session.inputs import figure, load_config, out_dir, writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.tracking import Trajectories, build_trajectories, sweep_noise
 
 
+@writes_session
 def track(
     root: Path,
     trial_name: str,
