@@ -95,15 +95,18 @@ def write_table(path: Path, columns: Mapping[str, object]) -> None:
     write_text(path, table_to_csv(columns))
 
 
-def read_table(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+def read_table(
+    path: Path, required: tuple[str, ...] = (), numeric: tuple[str, ...] | None = None
+) -> dict[str, np.ndarray]:
     """Read a CSV table into columns (numeric columns as float arrays, others as str).
 
-    Raises :class:`KisscalError` naming the file when it is missing, empty or lacks a
-    ``required`` column.
+    Raises :class:`KisscalError` naming the file when it is missing, empty, lacks a
+    ``required`` column, or holds text in a ``numeric`` column (by default the required
+    ones). A byte-order mark and Windows line ends are accepted.
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise KisscalError(f"{path}: file not found") from None
     except UnicodeDecodeError:
@@ -123,10 +126,24 @@ def read_table(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarr
             f"{path}: line {bad[0]} has a different number of fields than the header"
         )
     out: dict[str, np.ndarray] = {}
+    must_be_numbers = required if numeric is None else numeric
     for j, name in enumerate(header):
         col = [r[j] for r in body]
         try:
             out[name] = np.array([float(v) if v != "" else np.nan for v in col], dtype=float)
         except ValueError:
+            if name in must_be_numbers:
+                line = next(i + 2 for i, v in enumerate(col) if not _is_number(v))
+                raise KisscalError(
+                    f"{path}: line {line}: {name} must be a number, got {col[line - 2]!r}"
+                ) from None
             out[name] = np.array(col, dtype=str)
     return out
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text or "nan")
+    except ValueError:
+        return False
+    return True

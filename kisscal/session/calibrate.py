@@ -31,7 +31,7 @@ from kisscal.io.dltfiles import (
 )
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
-from kisscal.session.detection import detect_frames
+from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import (
     figure,
     file_keys,
@@ -159,8 +159,9 @@ def _calibrate_rods(
         frames = rod_frames[cam.id]
         key = cache_key("detect", file_keys(frames.paths, config.root), params.detection)
         cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
+        sized = SizedFrames(frames, cam.id, cam.size_px)
         frame_blobs = detect_frames(
-            frames, params.detection, cache, key, echo, f"rods {cam.id}", workers
+            sized, params.detection, cache, key, echo, f"rods {cam.id}", workers
         )
         blobs_px[cam.id] = [
             apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs

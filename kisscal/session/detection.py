@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -11,12 +12,42 @@ import cv2
 import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, detect_sequence
+from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import is_current, load_blob_frames, mark_current, save_blob_frames
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import read_image
 from kisscal.session.params import build_params
 from kisscal.session.progress import Echo, quiet
+
+
+@dataclass(frozen=True)
+class SizedFrames(Sequence):
+    """A camera's frames, each checked for the camera's image size when it is read.
+
+    A frame of another size among a camera's frames (a file from another camera, a
+    resized export) would otherwise be detected in the wrong pixel frame and lost.
+    """
+
+    frames: Sequence[np.ndarray]
+    camera: str
+    size_px: tuple[int, int]
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        image = self.frames[index]
+        h, w = image.shape[:2]
+        if (w, h) != tuple(self.size_px):
+            paths = getattr(self.frames, "paths", None)
+            video = getattr(self.frames, "path", None)  # one video file per camera
+            name = paths[index] if paths is not None else f"{video or ''} frame {index}".strip()
+            raise KisscalError(
+                f"{name}: {w} x {h} pixels, but camera {self.camera}'s frames are "
+                f"{self.size_px[0]} x {self.size_px[1]}"
+            )
+        return image
 
 
 def detect_frames(

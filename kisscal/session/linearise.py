@@ -12,6 +12,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.frames import camera_frames
 from kisscal.io.linearisation import read_linearisation, write_linearisation
+from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
     figure,
     file_keys,
@@ -67,7 +68,9 @@ def _linearise_camera(
         return read_linearisation(out)[1]
     t0 = time.perf_counter()
     try:
-        fit = linearise_frames(list(frames), params.grid, params.detection)
+        fit = linearise_frames(
+            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, params.detection
+        )
     except KisscalError as exc:
         raise KisscalError(f"camera {cam.id} grid: {exc}") from None
     write_linearisation(out, fit.linearisation, cam.id, fit.index.missing_rc, fit.index.missing_uv)

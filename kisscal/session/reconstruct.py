@@ -20,7 +20,7 @@ from kisscal.io.frames import trial_frames
 from kisscal.io.points3d import read_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import read_dlt_files
-from kisscal.session.detection import detect_frames
+from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import (
     figure,
     file_keys,
@@ -162,12 +162,14 @@ def trial_blobs(
         video=trial.source == "video",
     )
     out = {}
+    sizes = {c.id: c.size_px for c in config.cameras}
     for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
         inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
         key = cache_key("detect", file_keys(inputs, config.root), params.detection)
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
+        sized = SizedFrames(seq, cam, sizes[cam])
         blobs = detect_frames(
-            seq, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
+            sized, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
         )
         out[cam] = [b.valid_only().xy_px for b in blobs]
     return out
@@ -177,14 +179,36 @@ def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list
     """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
     assert trial.centroids is not None
     out = {}
-    for cam in config.camera_ids:
-        path = config.root / trial.centroids.replace("{camera}", cam)
+    for cam in config.cameras:
+        path = config.root / trial.centroids.replace("{camera}", cam.id)
         table = read_table(path, required=("field", "x_px", "y_px"))
-        f = table["field"].astype(int)
-        if len(f) and f.min() < 0:
-            raise KisscalError(f"{path}: field numbers must be 0 or more")
+        f = table["field"].astype(float)
+        xy = np.column_stack([table["x_px"], table["y_px"]]).astype(float)
+        _check_centroids(path, f, xy, cam.size_px)
+        f = f.astype(int)
         n = int(f.max()) + 1 if len(f) else 0
-        xy = np.column_stack([table["x_px"], table["y_px"]])
-        out[cam] = [xy[f == i] for i in range(n)]
+        out[cam.id] = [xy[f == i] for i in range(n)]
     n_fields = max(len(v) for v in out.values())
     return {c: v + [np.zeros((0, 2))] * (n_fields - len(v)) for c, v in out.items()}
+
+
+def _check_centroids(
+    path: Path, field: NDArray, xy: NDArray, size_px: tuple[int, int] | None
+) -> None:
+    """Refuse rows a camera cannot have seen: not numbers, negative fields, off the image."""
+    bad = ~np.isfinite(xy).all(axis=1) | ~np.isfinite(field) | (field != np.round(field))
+    if bad.any():
+        raise KisscalError(
+            f"{path}: row {int(np.argmax(bad)) + 2} has a field or centroid that is not a number"
+        )
+    if len(field) and field.min() < 0:
+        raise KisscalError(f"{path}: field numbers must be 0 or more")
+    if size_px is not None:
+        w, h = size_px
+        off = (xy[:, 0] < -0.5) | (xy[:, 0] > w - 0.5) | (xy[:, 1] < -0.5) | (xy[:, 1] > h - 0.5)
+        if off.any():
+            row = int(np.argmax(off))
+            raise KisscalError(
+                f"{path}: row {row + 2} ({xy[row, 0]:g}, {xy[row, 1]:g}) lies outside the "
+                f"{w} x {h} pixel image"
+            )
