@@ -271,6 +271,27 @@ def track(
     session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
 
 
+@app.command(
+    epilog=_example(
+        "kisscal init lab/2026-11-21 --cameras 8", "kisscal init kiss01 --cameras 6 --preset kiss"
+    )
+)
+def init(
+    session_dir: Annotated[Path, typer.Argument(help="New session folder.", metavar="SESSION")],
+    cameras: Annotated[int, typer.Option(help="Number of cameras.", min=1, max=64)] = 4,
+    preset: Annotated[
+        Literal["modern", "kiss", "lowcost"],
+        typer.Option(help="Camera type: frame rate and image size to start from."),
+    ] = "modern",
+) -> None:
+    """Start a session: image folders and a commented session.toml."""
+    from kisscal.session.init import init_session
+
+    path = init_session(session_dir, cameras, preset)
+    typer.echo(f"wrote {path}: fill in the lines marked FILL IN, add the images, then")
+    typer.echo(f"  kisscal validate {session_dir}")
+
+
 @app.command(epilog=_example("kisscal validate lab/2026-11-21"))
 def validate(session_dir: SessionArg) -> None:
     """Check every input of a session before any work; list each problem."""

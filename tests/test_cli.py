@@ -11,6 +11,7 @@ COMMANDS = [
     "demo",
     "synth",
     "detect",
+    "init",
     "linearise",
     "calibrate",
     "reconstruct",

@@ -287,6 +287,8 @@ def _points(path: Path, where: str, value: Any) -> np.ndarray:
         pts = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise KisscalError(f"{path}: {where} must be a list of [x, y, z] in mm") from None
+    if pts.size == 0:
+        raise KisscalError(f"{path}: {where} is empty; fill in [x, y, z] (mm) for each marker")
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
         raise KisscalError(
             f"{path}: {where} must be a list of [x, y, z] in mm, got shape {pts.shape}"

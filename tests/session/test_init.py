@@ -1,0 +1,45 @@
+"""`kisscal init`: folders and a commented session.toml that validates once filled in."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from kisscal import session
+from kisscal.errors import KisscalError
+from kisscal.io.config import load_toml
+from kisscal.session.init import init_session
+
+
+def test_template_is_commented_and_refuses_until_filled(tmp_path: Path) -> None:
+    path = init_session(tmp_path / "lab", n_cameras=3, preset="modern")
+    text = path.read_text()
+    assert text.count("FILL IN") == 5 and text.count("[[cameras]]") >= 3
+    comments = sum(line.lstrip().startswith("#") for line in text.splitlines())
+    assert comments > 40  # every key is explained
+    for folder in ("grid/cam3", "rods/cam1", "trials/walk01/cam2"):
+        assert (tmp_path / "lab" / folder).is_dir()
+    with pytest.raises(KisscalError, match="points_mm is empty"):
+        session.validate(tmp_path / "lab")
+    with pytest.raises(KisscalError, match="never overwrites"):
+        init_session(tmp_path / "lab", n_cameras=3)
+
+
+def test_filled_template_validates(small_session: Path, tmp_path: Path) -> None:
+    new = tmp_path / "lab"
+    path = init_session(new, n_cameras=6, preset="kiss")
+    for folder in ("grid", "rods", "trials/walk01"):
+        for cam in [f"cam{i}" for i in range(1, 7)]:
+            for frame in sorted((small_session / folder / cam).glob("*.png")):
+                shutil.copy(frame, new / folder / cam / frame.name)
+    rods = iter(load_toml(small_session / "session.toml")["rods"]["rod"])
+    filled = re.sub(
+        r"points_mm = \[\]\s*# FILL IN[^\n]*",
+        lambda _m: f"points_mm = {next(rods)['points_mm']}",
+        path.read_text(),
+    )
+    path.write_text(filled)
+    assert session.validate(new) == []
