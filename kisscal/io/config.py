@@ -8,9 +8,7 @@ the key it checks.
 
 from __future__ import annotations
 
-import difflib
-import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -20,35 +18,11 @@ import numpy as np
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from kisscal.io.toml_table import Table, load_toml, number, suggest
 
 #: How interlaced video frames are split into fields (``None``: frames are used whole).
 FieldOrder = Literal["top-first", "bottom-first"]
 FIELD_ORDERS: tuple[str, ...] = ("top-first", "bottom-first")
-
-
-def load_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a missing or malformed file is a :class:`KisscalError`.
-
-    A UTF-8 byte-order mark and Windows line ends are accepted (files saved by Notepad).
-    """
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8-sig")
-    except FileNotFoundError:
-        raise KisscalError(f"{path}: file not found") from None
-    except UnicodeDecodeError as exc:
-        raise KisscalError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise KisscalError(f"{path}: cannot be read ({exc.strerror})") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise KisscalError(f"{path}: not valid TOML ({exc})") from None
 
 
 @dataclass(frozen=True)
@@ -193,7 +167,7 @@ class SessionConfig:
             if t.name == name:
                 return t
         raise KisscalError(
-            f"{self.path}: no trial named {name!r}{_suggest(name, [t.name for t in self.trials])}"
+            f"{self.path}: no trial named {name!r}{suggest(name, [t.name for t in self.trials])}"
             f"; trials: {', '.join(t.name for t in self.trials) or 'none'}"
         )
 
@@ -204,102 +178,10 @@ STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking")
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
 
 
-def _suggest(key: str, allowed: Iterable[str]) -> str:
-    close = difflib.get_close_matches(key, sorted(allowed), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-@dataclass(frozen=True)
-class _Table:
-    """One TOML table being parsed: where it sits (for messages) and its content."""
-
-    path: Path
-    where: str
-    data: dict[str, Any]
-
-    def fail(self, message: str) -> KisscalError:
-        return KisscalError(f"{self.path}: {message}")
-
-    def allow(self, allowed: Iterable[str]) -> _Table:
-        allowed = set(allowed)
-        for key in self.data:
-            if key not in allowed:
-                raise self.fail(
-                    f"unknown key {self.where}{key!r}{_suggest(key, allowed)}; "
-                    f"expected one of {', '.join(sorted(allowed))}"
-                )
-        return self
-
-    def required(self, key: str) -> Any:
-        if key not in self.data:
-            raise self.fail(f"missing key {self.where}{key!r}")
-        return self.data[key]
-
-    def string(self, key: str, default: str | None = None) -> str | None:
-        value = self.data.get(key, default)
-        if value is None:
-            return None
-        if not isinstance(value, str) or not value.strip():
-            raise self.fail(f"{self.where}{key} must be a non-empty string, got {value!r}")
-        return value
-
-    def number(self, key: str, default: Any = None, kind: type = float) -> Any:
-        value = self.data.get(key, default)
-        return _number(self.path, f"{self.where}{key}", value, kind)
-
-    def choice(self, key: str, choices: tuple[str, ...]) -> Any:
-        value = self.data.get(key)
-        if value is not None and value not in choices:
-            raise self.fail(
-                f"{self.where}{key} must be one of {', '.join(map(repr, choices))}, got {value!r}"
-            )
-        return value
-
-    def points(self, key: str) -> np.ndarray:
-        return _points(self.path, f"{self.where}{key}", self.required(key))
-
-    def sub(self, key: str, index: int | None = None) -> _Table:
-        value = self.data[key] if index is None else self.data[key][index]
-        where = f"{self.where}{key}." if index is None else f"{self.where}{key}[{index}]."
-        if not isinstance(value, dict):
-            raise self.fail(f"{where[:-1]} must be a table")
-        return _Table(self.path, where, value)
-
-    def list_of_tables(self, key: str) -> list[_Table]:
-        value = self.data.get(key, [])
-        if not isinstance(value, list):
-            raise self.fail(f"{self.where}{key} must be a list of tables ([[{key}]])")
-        return [self.sub(key, i) for i in range(len(value))]
-
-
-def _number(path: Path, where: str, value: Any, kind: type = float, positive: bool = True) -> Any:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise KisscalError(f"{path}: {where} must be a number, got {value!r}")
-    if kind is int and int(value) != value:
-        raise KisscalError(f"{path}: {where} must be a whole number, got {value!r}")
-    if positive and value <= 0:
-        raise KisscalError(f"{path}: {where} must be positive, got {value!r}")
-    return kind(value)
-
-
-def _points(path: Path, where: str, value: Any) -> np.ndarray:
-    try:
-        pts = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise KisscalError(f"{path}: {where} must be a list of [x, y, z] in mm") from None
-    if pts.size == 0:
-        raise KisscalError(f"{path}: {where} is empty; fill in [x, y, z] (mm) for each marker")
-    if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
-        raise KisscalError(
-            f"{path}: {where} must be a list of [x, y, z] in mm, got shape {pts.shape}"
-        )
-    return pts
-
-
 # --------------------------------------------------------------------------- tables
 
 
-def _session(top: _Table, root: Path) -> tuple[str, float]:
+def _session(top: Table, root: Path) -> tuple[str, float]:
     sess = top.sub("session") if "session" in top.data else None
     if sess is None:
         raise top.fail("missing table [session] (name, rate_hz)")
@@ -309,7 +191,7 @@ def _session(top: _Table, root: Path) -> tuple[str, float]:
     )
 
 
-def _cameras(top: _Table) -> tuple[CameraConfig, ...]:
+def _cameras(top: Table) -> tuple[CameraConfig, ...]:
     tables = top.list_of_tables("cameras")
     if not tables:
         raise top.fail("[[cameras]] must list at least one camera")
@@ -322,8 +204,8 @@ def _cameras(top: _Table) -> tuple[CameraConfig, ...]:
             if not (isinstance(size, list) and len(size) == 2):
                 raise t.fail(f"{t.where}size must be [width, height] in pixels, got {size!r}")
             size = (
-                _number(top.path, f"{t.where}size[0]", size[0], int),
-                _number(top.path, f"{t.where}size[1]", size[1], int),
+                number(top.path, f"{t.where}size[0]", size[0], int),
+                number(top.path, f"{t.where}size[1]", size[1], int),
             )
         cameras.append(CameraConfig(cid, size))
     ids = [c.id for c in cameras]
@@ -333,7 +215,7 @@ def _cameras(top: _Table) -> tuple[CameraConfig, ...]:
     return tuple(cameras)
 
 
-def _grid(t: _Table) -> GridConfig:
+def _grid(t: Table) -> GridConfig:
     return GridConfig(
         rows=t.number("rows", 15, int),
         cols=t.number("cols", 20, int),
@@ -342,7 +224,7 @@ def _grid(t: _Table) -> GridConfig:
     )
 
 
-def _rods(t: _Table) -> RodsConfig:
+def _rods(t: Table) -> RodsConfig:
     t.allow({"images", "rod", "fields"})
     rods = []
     for r in t.list_of_tables("rod"):
@@ -350,7 +232,7 @@ def _rods(t: _Table) -> RodsConfig:
         rods.append(RodConfig(r.string("name", r.required("name")) or "", r.points("points_mm")))
     if not rods:
         raise t.fail("[rods] needs at least one [[rods.rod]] with name and points_mm")
-    _check_control_points(t.path, "rods.rod", np.concatenate([x.points_mm for x in rods]))
+    _check_controlpoints_mm(t.path, "rods.rod", np.concatenate([x.points_mm for x in rods]))
     names = [r.name for r in rods]
     if len(set(names)) != len(names):
         raise t.fail(f"rod names must be unique, got {', '.join(names)}")
@@ -358,7 +240,7 @@ def _rods(t: _Table) -> RodsConfig:
     return RodsConfig(images, tuple(rods), t.choice("fields", FIELD_ORDERS))
 
 
-def _calibration(t: _Table) -> CalibrationConfig:
+def _calibration(t: Table) -> CalibrationConfig:
     t.allow({"points", "cameras", "dlt", "target", "images", "seeds", "fields"})
     routes = [k for k in ("points", "cameras", "dlt", "target") if k in t.data]
     if len(routes) != 1:
@@ -377,7 +259,7 @@ def _calibration(t: _Table) -> CalibrationConfig:
     return CalibrationConfig(**values, fields=t.choice("fields", FIELD_ORDERS))
 
 
-def _wand(t: _Table) -> WandConfig:
+def _wand(t: Table) -> WandConfig:
     t.allow({"trial", "markers_mm"})
     trial = t.string("trial", t.required("trial")) or ""
     raw = t.required("markers_mm")
@@ -392,7 +274,7 @@ def _wand(t: _Table) -> WandConfig:
     return WandConfig(trial, tuple(float(m) for m in markers))
 
 
-def _axes(t: _Table) -> AxesConfig:
+def _axes(t: Table) -> AxesConfig:
     t.allow({"images", "points_mm", "fields"})
     pts = t.points("points_mm")
     if len(pts) < 4:
@@ -406,7 +288,7 @@ def _axes(t: _Table) -> AxesConfig:
     )
 
 
-def _markers(t: _Table) -> MarkersConfig:
+def _markers(t: Table) -> MarkersConfig:
     t.allow({"set", "names", "template_mm", "segments", "static"})
     names = tuple(_string_list(t, "names"))
     marker_set = t.string("set")
@@ -425,13 +307,13 @@ def _markers(t: _Table) -> MarkersConfig:
         if unknown:
             raise t.fail(
                 f"markers.segments entry {pair!r}: {unknown[0]!r} is not in markers.names"
-                + _suggest(unknown[0], names)
+                + suggest(unknown[0], names)
             )
         segments.append((pair[0], pair[1]))
     return MarkersConfig(names, template, tuple(segments), marker_set, t.string("static"))
 
 
-def _string_list(t: _Table, key: str) -> list[str]:
+def _string_list(t: Table, key: str) -> list[str]:
     value = t.data.get(key, [])
     if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
         raise t.fail(f"{t.where}{key} must be a list of non-empty strings")
@@ -441,7 +323,7 @@ def _string_list(t: _Table, key: str) -> list[str]:
     return value
 
 
-def _trials(top: _Table) -> tuple[TrialConfig, ...]:
+def _trials(top: Table) -> tuple[TrialConfig, ...]:
     trials = []
     for t in top.list_of_tables("trials"):
         t.allow({"name", *TRIAL_SOURCES, "fields"})
@@ -463,12 +345,12 @@ def _trials(top: _Table) -> tuple[TrialConfig, ...]:
     return tuple(trials)
 
 
-def _export(t: _Table) -> ExportConfig:
+def _export(t: Table) -> ExportConfig:
     t.allow({"trc_up"})
     return ExportConfig(trc_up=t.choice("trc_up", ("z", "y")) or "z")
 
 
-_TABLES: dict[str, Callable[[_Table], Any]] = {
+_TABLES: dict[str, Callable[[Table], Any]] = {
     "grid": _grid,
     "rods": _rods,
     "calibration": _calibration,
@@ -482,7 +364,7 @@ _TOP = {"session", "cameras", "trials", *_TABLES, *STAGE_SECTIONS}
 
 def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     """Validate parsed ``session.toml`` content (paths relative to ``root``)."""
-    top = _Table(Path(root) / "session.toml", "", data).allow(_TOP)
+    top = Table(Path(root) / "session.toml", "", data).allow(_TOP)
     name, rate = _session(top, root)
     parsed = {k: parse(top.sub(k)) for k, parse in _TABLES.items() if k in data}
     sections = {k: dict(top.sub(k).data) for k in STAGE_SECTIONS if k in data}
@@ -508,7 +390,7 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     return config
 
 
-def _check_references(top: _Table, config: SessionConfig) -> None:
+def _check_references(top: Table, config: SessionConfig) -> None:
     """Keys that name other parts of the session must name existing ones."""
     trial_names = [t.name for t in config.trials]
     for where, name in (
@@ -517,13 +399,13 @@ def _check_references(top: _Table, config: SessionConfig) -> None:
     ):
         if name is not None and name not in trial_names:
             raise top.fail(
-                f"{where} = {name!r} is not a [[trials]] name{_suggest(name, trial_names)}"
+                f"{where} = {name!r} is not a [[trials]] name{suggest(name, trial_names)}"
             )
     if config.calibration is not None and config.rods is not None:
         raise top.fail("give either [rods] or [calibration], not both")
 
 
-def _check_control_points(path: Path, where: str, pts: np.ndarray) -> None:
+def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:
     """A DLT needs at least 6 control points that do not lie in one plane."""
     minimum = DltParams().min_points
     if len(pts) < minimum:

@@ -11,9 +11,9 @@ Modules: :mod:`~kisscal.session.params` (parameters and CLI overrides),
 :mod:`~kisscal.session.inputs` (config, output folder, cache-key parts, figures),
 :mod:`~kisscal.session.progress`, one module per stage (``detection``, ``linearise``,
 ``calibrate``, ``reconstruct``, ``track``), ``summary`` (``summary.json``, ``check``),
-``report``, ``run`` and ``batch`` (Dask). Synthetic sessions and the demo live beside
-the synthetic rigs (:mod:`kisscal.synth.session`, :mod:`kisscal.synth.demo`) and are
-re-exported here.
+``report``, ``run``, ``batch`` (Dask), ``validate`` and ``init``; ``synth`` writes
+and scores synthetic sessions (the rigs themselves, :mod:`kisscal.synth`, never touch
+files) and ``demo`` runs one end to end.
 """
 
 from __future__ import annotations
@@ -37,10 +37,10 @@ from kisscal.session.validate import Problem, validate
 # imports Dask, and synthesis is not needed to process a real session.
 _LAZY = {
     "batch": "kisscal.session.batch",
-    "demo": "kisscal.synth.demo",
-    "synthesise": "kisscal.synth.session",
-    "evaluate": "kisscal.synth.session",
-    "default_walking5_path": "kisscal.synth.session",
+    "demo": "kisscal.session.demo",
+    "synthesise": "kisscal.session.synth",
+    "evaluate": "kisscal.session.synth",
+    "default_walking5_path": "kisscal.session.synth",
 }
 
 

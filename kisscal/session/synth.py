@@ -1,8 +1,9 @@
 """Synthetic sessions on disk: write one (``kisscal synth``) and score its outputs.
 
-Orchestration beside the synthetic rigs: :func:`synthesise` plans a rig with
-:mod:`kisscal.synth.plan` and writes it through :mod:`kisscal.io.synthetic`;
-:func:`evaluate` compares a processed session's ``out/`` with its ``truth/``.
+The file side of :mod:`kisscal.synth` (which stays pure: rigs, rendering, scoring):
+:func:`synthesise` plans a rig with :mod:`kisscal.synth.plan` and writes it through
+:mod:`kisscal.io.synthetic`; :func:`evaluate` compares a processed session's ``out/``
+with its ``truth/``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from typing import Any
 
 from kisscal.io.files import write_json
 from kisscal.session import report, run
-from kisscal.synth.session import evaluate, synthesise
+from kisscal.session.synth import evaluate, synthesise
 
 Echo = Callable[[str], object]
 
