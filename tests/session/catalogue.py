@@ -1,0 +1,524 @@
+"""The catalogue of bad inputs: what a user did, what kisscal says, exit code, what is kept.
+
+Each :class:`Case` breaks a copy of a good, processed session in one way and runs one
+command on it. ``tests/session/test_catalogue.py`` runs every case; ``docs/bad-inputs.md``
+is generated from this list (``python -m tests.session.catalogue > docs/bad-inputs.md``)
+and a test checks the page is current.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import tomli_w
+
+from kisscal.io.config import load_toml
+
+Setup = Callable[[Path], None]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One bad input: ``setup`` breaks the session at the path it is given."""
+
+    id: str
+    stage: str
+    did: str
+    setup: Setup
+    args: tuple[str, ...]  # the command; "S" stands for the session folder
+    says: tuple[str, ...]  # words of the one-line message
+    exit_code: int = 2
+    kept: str = "every earlier output, byte for byte"
+    stdout: tuple[str, ...] = field(default=())  # words expected on stdout instead
+    fault: str | None = None  # an OS error injected in-process: "erofs" or "enospc"
+
+
+# ------------------------------------------------------------------------ setups
+
+
+def toml_edit(change: Callable[[dict], None]) -> Setup:
+    def setup(root: Path) -> None:
+        data = load_toml(root / "session.toml")
+        change(data)
+        (root / "session.toml").write_text(tomli_w.dumps(data))
+
+    return setup
+
+
+def nothing(_root: Path) -> None:
+    return None
+
+
+def frame(root: Path, trial: str = "walk01", cam: str = "cam2", k: int = 5) -> Path:
+    return sorted((root / "trials" / trial / cam).glob("*.png"))[k]
+
+
+def write_text(relative: str, text: str | bytes) -> Setup:
+    def setup(root: Path) -> None:
+        path = root / relative
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(text.encode() if isinstance(text, str) else text)
+
+    return setup
+
+
+def corrupt_png(root: Path) -> None:
+    frame(root).write_bytes(b"\x89PNG\r\n\x1a\nbroken")
+
+
+def truncated_png(root: Path) -> None:
+    path = frame(root)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def float_tiff(root: Path) -> None:
+    """A 32-bit float TIFF among PNG frames (the trial's pattern takes every file)."""
+    path = frame(root)
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    path.unlink()
+    cv2.imwrite(str(path.with_suffix(".tif")), image)
+    toml_edit(_any_frame_file)(root)
+
+
+def _any_frame_file(data: dict) -> None:
+    data["trials"][0]["images"] = "trials/walk01/{camera}/*"
+
+
+def wrong_size_frame(root: Path) -> None:
+    path = frame(root)
+    cv2.imwrite(str(path), np.zeros((480, 640), np.uint8))
+
+
+def drop_frame(root: Path) -> None:
+    frame(root, cam="cam3", k=7).unlink()
+
+
+def empty_trial(root: Path) -> None:
+    for cam in (root / "trials" / "stick").iterdir():
+        for f in cam.glob("*.png"):
+            f.unlink()
+
+
+def missing_camera_folder(root: Path) -> None:
+    shutil.rmtree(root / "trials" / "stick" / "cam4")
+
+
+def centroid_trial(text_by_camera: Callable[[str], str]) -> Setup:
+    def setup(root: Path) -> None:
+        data = load_toml(root / "session.toml")
+        for cam in ("cam1", "cam2", "cam3", "cam4"):
+            (root / "centroids").mkdir(exist_ok=True)
+            (root / "centroids" / f"{cam}.csv").write_text(text_by_camera(cam))
+        data["trials"] = [{"name": "static", "centroids": "centroids/{camera}.csv"}]
+        (root / "session.toml").write_text(tomli_w.dumps(data))
+
+    return setup
+
+
+GOOD_ROWS = "field,x_px,y_px\n0,100.5,80.25\n0,300.0,120.0\n"
+
+
+def control_points(rows: str) -> Setup:
+    def setup(root: Path) -> None:
+        data = load_toml(root / "session.toml")
+        del data["rods"]
+        data["calibration"] = {"points": "cp/{camera}.csv"}
+        for cam in ("cam1", "cam2", "cam3", "cam4"):
+            (root / "cp").mkdir(exist_ok=True)
+            (root / "cp" / f"{cam}.csv").write_text("u_px,v_px,x_mm,y_mm,z_mm\n" + rows)
+        (root / "session.toml").write_text(tomli_w.dumps(data))
+
+    return setup
+
+
+def out_is_a_file(root: Path) -> None:
+    shutil.rmtree(root / "out")
+    (root / "out").write_text("not a folder")
+
+
+def hide_rod_markers(root: Path) -> None:
+    """Black out two markers of rod R1 in every rod frame of cam2."""
+    truth = np.genfromtxt(
+        root / "truth" / "rods" / "cam2.csv",
+        delimiter=",",
+        names=True,
+        dtype=None,
+        encoding="utf-8",
+    )
+    hidden = truth[(truth["rod"] == "R1") & (truth["index"] >= 5)]
+    for path in sorted((root / "rods" / "cam2").glob("*.png")):
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        for u, v in zip(hidden["u_px"], hidden["v_px"], strict=True):
+            cv2.ellipse(image, (round(u), round(v)), (12, 7), 0, 0, 360, 0, -1)
+        cv2.imwrite(str(path), image)
+
+
+def bom_crlf(root: Path) -> None:
+    text = (root / "session.toml").read_text().replace("\n", "\r\n")
+    (root / "session.toml").write_bytes(b"\xef\xbb\xbf" + text.encode())
+
+
+def _rods_flat(data: dict) -> None:
+    for rod in data["rods"]["rod"]:
+        for p in rod["points_mm"]:
+            p[2] = 0.0
+
+
+def _first_camera_size(data: dict) -> None:
+    data["cameras"][0]["size"] = [800, 600]
+
+
+def _duplicate_camera(data: dict) -> None:
+    data["cameras"][1]["id"] = "cam1"
+
+
+def _param(section: str, key: str, value: object) -> Callable[[dict], None]:
+    def change(data: dict) -> None:
+        data.setdefault(section, {})[key] = value
+
+    return change
+
+
+def _wand_one_marker(data: dict) -> None:
+    data["wand"] = {"trial": "walk01", "markers_mm": [500.0]}
+
+
+def _rename_table(data: dict) -> None:
+    data["sesion"] = data.pop("session")
+
+
+# ------------------------------------------------------------------------- cases
+
+CASES: tuple[Case, ...] = (
+    Case(
+        "missing-folder",
+        "session",
+        "named a session folder that does not exist",
+        nothing,
+        ("run", "S/typo"),
+        ("typo", "session folder not found"),
+        kept="nothing is created",
+    ),
+    Case(
+        "no-session-toml",
+        "session",
+        "ran a folder without session.toml",
+        write_text("other/x.txt", "x"),
+        ("run", "S/other"),
+        ("session.toml", "file not found"),
+        kept="nothing is created",
+    ),
+    Case(
+        "not-toml",
+        "session",
+        "saved session.toml with a syntax error",
+        write_text("session.toml", "[session\nname = 1"),
+        ("validate", "S"),
+        ("not valid TOML",),
+    ),
+    Case(
+        "bom-crlf",
+        "session",
+        "saved session.toml in Notepad (byte-order mark, CRLF)",
+        bom_crlf,
+        ("validate", "S"),
+        (),
+        exit_code=0,
+        stdout=("every input is present",),
+    ),
+    Case(
+        "misspelt-table",
+        "session",
+        "wrote [sesion] for [session]",
+        toml_edit(_rename_table),
+        ("validate", "S"),
+        ("unknown key", "did you mean 'session'"),
+    ),
+    Case(
+        "misspelt-parameter",
+        "session",
+        "wrote treshold in [detection]",
+        toml_edit(_param("detection", "treshold", 50)),
+        ("run", "S"),
+        ("treshold", "did you mean 'threshold'"),
+    ),
+    Case(
+        "absurd-parameter",
+        "session",
+        "set a negative Kalman process noise",
+        toml_edit(_param("tracking", "pnc", -1.0)),
+        ("run", "S"),
+        ("[tracking]", "pnc", "> 0"),
+    ),
+    Case(
+        "duplicate-camera",
+        "session",
+        "gave two cameras the same id",
+        toml_edit(_duplicate_camera),
+        ("validate", "S"),
+        ("camera ids must be unique", "cam1"),
+    ),
+    Case(
+        "wand-one-marker",
+        "session",
+        "described a wand with one marker",
+        toml_edit(_wand_one_marker),
+        ("validate", "S"),
+        ("wand.markers_mm", "2 or more"),
+    ),
+    Case(
+        "coplanar-rods",
+        "session",
+        "surveyed every rod marker at the same height",
+        toml_edit(_rods_flat),
+        ("calibrate", "S"),
+        ("coplanar",),
+    ),
+    Case(
+        "size-mismatch",
+        "session",
+        "gave a camera size that its images do not have",
+        toml_edit(_first_camera_size),
+        ("run", "S"),
+        ("cam1", "752 x 291", "800 x 600"),
+        kept="every earlier output; nothing is processed",
+    ),
+    Case(
+        "out-is-a-file",
+        "session",
+        "left a file named out in the session folder",
+        out_is_a_file,
+        ("run", "S"),
+        ("cannot write the output folder",),
+        kept="nothing is written",
+    ),
+    Case(
+        "read-only-disk",
+        "session",
+        "ran a session on a read-only disk (simulated)",
+        nothing,
+        ("run", "S"),
+        ("cannot write the output folder", "Read-only file system"),
+        fault="erofs",
+        kept="nothing is written",
+    ),
+    Case(
+        "disk-full",
+        "session",
+        "filled the disk while outputs were written (simulated)",
+        nothing,
+        ("track", "S", "walk01"),
+        ("No space left on device",),
+        fault="enospc",
+        kept="every earlier output, byte for byte; no partial file",
+    ),
+    Case(
+        "frame-of-other-size",
+        "detection",
+        "put a 640 x 480 frame among 752 x 291 frames",
+        wrong_size_frame,
+        ("reconstruct", "S", "walk01"),
+        ("640 x 480", "752 x 291", "cam2"),
+    ),
+    Case(
+        "corrupt-png",
+        "detection",
+        "left a corrupt PNG among the frames",
+        corrupt_png,
+        ("reconstruct", "S", "walk01"),
+        ("000005.png", "not a readable image"),
+    ),
+    Case(
+        "truncated-png",
+        "detection",
+        "copied a frame that was cut short",
+        truncated_png,
+        ("reconstruct", "S", "walk01"),
+        ("000005.png",),
+    ),
+    Case(
+        "float-tiff",
+        "detection",
+        "exported a frame as 32-bit floating point TIFF",
+        float_tiff,
+        ("reconstruct", "S", "walk01"),
+        ("000005.tif", "unsupported pixel type"),
+    ),
+    Case(
+        "dropped-frame",
+        "reconstruction",
+        "lost one frame of one camera",
+        drop_frame,
+        ("reconstruct", "S", "walk01"),
+        ("different numbers of frames", "cam3: 19"),
+    ),
+    Case(
+        "empty-trial",
+        "session",
+        "left one trial's folders empty (one of three trials)",
+        empty_trial,
+        ("run", "S"),
+        ("1 of 3 trials failed", "stick"),
+        kept="the other trials' outputs, complete",
+    ),
+    Case(
+        "missing-camera-folder",
+        "session",
+        "forgot one camera's folder of a trial",
+        missing_camera_folder,
+        ("run", "S"),
+        ("1 of 3 trials failed", "stick", "cam4"),
+        kept="the other trials' outputs, complete",
+    ),
+    Case(
+        "centroids-missing-column",
+        "reconstruction",
+        "gave a centroid file without y_px",
+        centroid_trial(lambda c: "field,x_px\n0,1\n"),
+        ("reconstruct", "S", "static"),
+        ("missing column", "y_px"),
+    ),
+    Case(
+        "centroids-nan",
+        "reconstruction",
+        "gave a centroid file with an empty centroid",
+        centroid_trial(lambda c: GOOD_ROWS + "1,,5\n"),
+        ("reconstruct", "S", "static"),
+        ("row 4", "not a number"),
+    ),
+    Case(
+        "centroids-off-image",
+        "reconstruction",
+        "gave a centroid outside the image",
+        centroid_trial(lambda c: GOOD_ROWS + "1,900,5\n"),
+        ("reconstruct", "S", "static"),
+        ("outside the 752 x 291 pixel image",),
+    ),
+    Case(
+        "centroids-text",
+        "reconstruction",
+        "gave text in a number column",
+        centroid_trial(lambda c: GOOD_ROWS + "1,abc,5\n"),
+        ("reconstruct", "S", "static"),
+        ("line 4", "x_px must be a number"),
+    ),
+    Case(
+        "centroids-negative-field",
+        "reconstruction",
+        "numbered fields from -1",
+        centroid_trial(lambda c: "field,x_px,y_px\n-1,5,5\n"),
+        ("reconstruct", "S", "static"),
+        ("field numbers must be 0 or more",),
+    ),
+    Case(
+        "control-points-coplanar",
+        "calibration",
+        "gave control points all on the floor",
+        control_points(
+            "".join(f"{10 + i * 7},{20 + i * 3},{i * 100},{(i * 37) % 200},0\n" for i in range(8))
+        ),
+        ("calibrate", "S"),
+        ("coplanar",),
+    ),
+    Case(
+        "control-points-too-few",
+        "calibration",
+        "gave 5 control points",
+        control_points("1,2,0,0,0\n3,4,100,0,5\n5,6,0,100,9\n7,8,100,100,0\n9,9,50,50,300\n"),
+        ("calibrate", "S"),
+        ("at least 6",),
+    ),
+    Case(
+        "rod-half-hidden",
+        "calibration",
+        "hid two of a rod's six markers from one camera",
+        hide_rod_markers,
+        ("calibrate", "S"),
+        (),
+        exit_code=0,
+        stdout=("calibrate cam2", "18 rod markers", "missing R1.1"),
+        kept="that camera is calibrated on the other rods; the output names the missing markers",
+    ),
+    Case(
+        "track-before-reconstruct",
+        "tracking",
+        "tracked a trial that was never reconstructed",
+        lambda root: shutil.rmtree(root / "out" / "trials" / "walk01"),
+        ("track", "S", "walk01"),
+        ("points3d.csv", "run `kisscal reconstruct"),
+    ),
+    Case(
+        "unknown-trial",
+        "session",
+        "misspelt a trial name",
+        nothing,
+        ("track", "S", "walk1"),
+        ("no trial named 'walk1'", "did you mean 'walk01'"),
+    ),
+    Case(
+        "unknown-camera",
+        "session",
+        "asked for a camera that is not in session.toml",
+        nothing,
+        ("linearise", "S", "--camera", "cam9"),
+        ("no camera 'cam9'",),
+    ),
+    Case(
+        "check-without-limits",
+        "check",
+        "ran kisscal check without a limit",
+        nothing,
+        ("check", "S"),
+        ("give at least one of",),
+    ),
+    Case(
+        "report-unrun",
+        "report",
+        "asked for the report of a session never run",
+        lambda root: shutil.rmtree(root / "out"),
+        ("report", "S"),
+        ("nothing to report yet",),
+        kept="nothing is written",
+    ),
+    Case(
+        "detect-missing-image",
+        "detection",
+        "named an image that does not exist",
+        nothing,
+        ("detect", "S/nope.png"),
+        ("nope.png", "not found"),
+    ),
+)
+
+
+def markdown() -> str:
+    """``docs/bad-inputs.md``: the catalogue as a table per stage."""
+    lines = [
+        "# Bad inputs",
+        "",
+        "What kisscal does when an input is wrong. Each row is a test",
+        "(`tests/session/test_catalogue.py`, generated from `tests/session/catalogue.py`).",
+        "Every message is one line, `kisscal <command>: error: ...`, never a traceback;",
+        "nothing already written is lost or half-overwritten.",
+        "",
+        "| what the user did | command | kisscal says (words of the message) | exit | what is kept"
+        " |",
+        "|---|---|---|---|---|",
+    ]
+    for case in CASES:
+        command = "kisscal " + " ".join(
+            "SESSION" if a == "S" else a.replace("S/", "SESSION/") for a in case.args
+        )
+        says = " ... ".join(case.says or case.stdout).replace("|", "\\|")
+        lines.append(f"| {case.did} | `{command}` | {says} | {case.exit_code} | {case.kept} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    print(markdown(), end="")
