@@ -96,13 +96,13 @@ def write_table(path: Path, columns: Mapping[str, object]) -> None:
 
 
 def read_table(
-    path: Path, required: tuple[str, ...] = (), numeric: tuple[str, ...] | None = None
+    path: Path, required: tuple[str, ...] = (), numeric: tuple[str, ...] = ()
 ) -> dict[str, np.ndarray]:
     """Read a CSV table into columns (numeric columns as float arrays, others as str).
 
     Raises :class:`KisscalError` naming the file when it is missing, empty, lacks a
-    ``required`` column, or holds text in a ``numeric`` column (by default the required
-    ones). A byte-order mark and Windows line ends are accepted.
+    ``required`` column, or holds text in a column named in ``numeric``. A byte-order mark
+    and Windows line ends are accepted.
     """
     path = Path(path)
     try:
@@ -126,13 +126,12 @@ def read_table(
             f"{path}: line {bad[0]} has a different number of fields than the header"
         )
     out: dict[str, np.ndarray] = {}
-    must_be_numbers = required if numeric is None else numeric
     for j, name in enumerate(header):
         col = [r[j] for r in body]
         try:
             out[name] = np.array([float(v) if v != "" else np.nan for v in col], dtype=float)
         except ValueError:
-            if name in must_be_numbers:
+            if name in numeric:
                 line = next(i + 2 for i, v in enumerate(col) if not _is_number(v))
                 raise KisscalError(
                     f"{path}: line {line}: {name} must be a number, got {col[line - 2]!r}"

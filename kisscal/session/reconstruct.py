@@ -33,6 +33,9 @@ from kisscal.session.linearise import current_linearisations
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
+#: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
+CENTROID_COLUMNS = ("field", "x_px", "y_px")
+
 
 @writes_session
 def reconstruct(
@@ -181,7 +184,7 @@ def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list
     out = {}
     for cam in config.cameras:
         path = config.root / trial.centroids.replace("{camera}", cam.id)
-        table = read_table(path, required=("field", "x_px", "y_px"))
+        table = read_table(path, required=CENTROID_COLUMNS, numeric=CENTROID_COLUMNS)
         f = table["field"].astype(float)
         xy = np.column_stack([table["x_px"], table["y_px"]]).astype(float)
         _check_centroids(path, f, xy, cam.size_px)

@@ -18,6 +18,7 @@ from kisscal.io.files import read_table
 from kisscal.io.frames import camera_frames
 from kisscal.session.inputs import image_sources, load_config
 from kisscal.session.params import Overrides, stage_params
+from kisscal.session.reconstruct import CENTROID_COLUMNS
 
 #: ``Problem.scope`` of a problem that stops the whole session.
 SESSION = "session"
@@ -144,7 +145,7 @@ def _centroid_inputs(config: SessionConfig, trial: TrialConfig) -> list[str]:
     for cam in config.camera_ids:
         path = config.root / (trial.centroids or "").replace("{camera}", cam)
         try:
-            read_table(path, required=("field", "x_px", "y_px"))
+            read_table(path, required=CENTROID_COLUMNS, numeric=CENTROID_COLUMNS)
         except KisscalError as exc:
             problems.append(str(exc))
     return problems

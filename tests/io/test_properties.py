@@ -61,7 +61,7 @@ def test_table_reader_only_raises_kisscal_errors(text: str) -> None:
         path = Path(folder) / "t.csv"
         path.write_text(text, encoding="utf-8")
         try:
-            read_table(path, required=("field", "x_px"))
+            read_table(path, required=("field", "x_px"), numeric=("field", "x_px"))
         except KisscalError:
             pass
 
