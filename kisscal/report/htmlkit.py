@@ -60,6 +60,35 @@ def fmt(value: Any, digits: int = 3) -> str:
     return f"{x:.{digits}f}"
 
 
+_UNITS = (
+    ("_m_s2", " (m/s²)"),
+    ("_mm", " (mm)"),
+    ("_px", " (px)"),
+    ("_hz", " (Hz)"),
+    ("_s", " (s)"),
+    ("_deg", " (°)"),
+    ("_pct", " (%)"),
+)
+_WORDS = {"rmse": "RMSE", "rms": "RMS", "sd": "SD", "dlt": "DLT", "n": "number of"}
+
+
+def heading(key: str) -> str:
+    """A column heading from an output key: ``rmse_filled_mm`` -> ``RMSE filled (mm)``.
+
+    Examples
+    --------
+    >>> heading("rmse_filled_mm"), heading("gravity g_m_s2"), heading("n_true_markers")
+    ('RMSE filled (mm)', 'gravity g (m/s²)', 'number of true markers')
+    """
+    unit = ""
+    for suffix, text in _UNITS:
+        if key.endswith(suffix):
+            key, unit = key[: -len(suffix)], text
+            break
+    words = key.replace("_", " ").split()
+    return " ".join(_WORDS.get(w, w) for w in words) + unit
+
+
 def badge(state: str) -> Html:
     return tag("span", _BADGE.get(state, state), class_=f"badge {state}")
 

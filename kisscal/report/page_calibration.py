@@ -5,7 +5,19 @@ from __future__ import annotations
 from typing import Any
 
 from kisscal.report.gather import SessionOutputs
-from kisscal.report.htmlkit import Html, badge, details, esc, fmt, join, png, section, table, tag
+from kisscal.report.htmlkit import (
+    Html,
+    badge,
+    details,
+    esc,
+    fmt,
+    heading,
+    join,
+    png,
+    section,
+    table,
+    tag,
+)
 from kisscal.report.status import Verdict, number
 
 RMS_NOTE = (
@@ -162,7 +174,7 @@ def detection_section(o: SessionOutputs) -> Html:
     return section(
         "detection",
         "Detection settings per camera",
-        table(["camera", *keys], rows),
+        table(["camera", *(heading(k) for k in keys)], rows),
         "Values given in [detection] are used as given; the others were derived from the images.",
     )
 
@@ -175,13 +187,15 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
     top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
     parts = []
     if top:
-        parts.append(table(["wand figure", "value"], [[k, _cell(v)] for k, v in top], (1,)))
+        rows = [[heading(k), _cell(v)] for k, v in top]
+        parts.append(table(["wand figure", "value"], rows, (1,)))
     per_cam = w.get("cameras") or w.get("per_camera") or {}
     if isinstance(per_cam, dict) and per_cam:
         docs = {c: d for c, d in per_cam.items() if isinstance(d, dict)}
         keys = _scalar_columns(docs)
         rows = [[tag("b", c), *(_cell(docs[c].get(k, "–")) for k in keys)] for c in docs]
-        parts.append(table(["camera", *keys], rows, tuple(range(1, len(keys) + 1))))
+        headers = ["camera", *(heading(k) for k in keys)]
+        parts.append(table(headers, rows, tuple(range(1, len(keys) + 1))))
     for name in sorted(o.figures):
         if name.startswith("wand"):
             used.add(name)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from kisscal.report.gather import SessionOutputs
-from kisscal.report.htmlkit import Html, details, fmt, join, png, section, table, tag
+from kisscal.report.htmlkit import Html, details, fmt, heading, join, png, section, table, tag
 
 #: Figure name prefixes that belong to one camera or trial (``grid_cam1``, ...): a file
 #: whose camera or trial is no longer in the session is stale and not shown.
@@ -39,7 +39,7 @@ def truth_table(truth: dict[str, Any]) -> Html:
     for flat in rows.values():
         columns += [k for k in flat if k not in columns]
     body = [[tag("b", t), *(fmt(f.get(c)) for c in columns)] for t, f in rows.items()]
-    headers = ["trial", *(c.replace("_", " ") for c in columns)]
+    headers = ["trial", *(heading(c) for c in columns)]
     parts = [table(headers, body, range(1, len(headers)), "compact")]
     if mappings:
         parts.append(details("trajectory → true marker matches", join(mappings)))

@@ -198,6 +198,7 @@ def check(report: Path, out: Path, full: bool = False) -> list[str]:
             screenshot(b, out)
             found = _viewer(b, out.with_name(out.stem + "-viewer.png"))
             if full:
+                evaluate(b, "document.querySelectorAll('details').forEach(d => d.open = true)")
                 height = evaluate(b, "document.documentElement.scrollHeight")
                 evaluate(b, "window.scrollTo(0, 0)")
                 clip = {"x": 0, "y": 0, "width": WIDTH, "height": float(height)}

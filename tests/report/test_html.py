@@ -147,7 +147,7 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
     page = _page(session)
     assert "131" in _section(page, "detection") and "cam2" in _section(page, "detection")
     wand = _section(page, "wand")
-    assert "length_sd_mm" in wand and "1 200" in wand and "0.210" in wand
+    assert "length SD (mm)" in wand and "1 200" in wand and "0.210" in wand
     gait = _section(page, "gait")
     assert "foot_strike" in gait and "cadence_steps_min" in gait and "112.500" in gait
     cams = _section(page, "trials")
