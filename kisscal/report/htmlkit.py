@@ -117,9 +117,7 @@ def png(path: Path | bytes, alt: str, caption: Any = None, width: str | None = N
     """A PNG embedded as a data URI, with an optional caption."""
     data = path if isinstance(path, bytes) else Path(path).read_bytes()
     src = "data:image/png;base64," + base64.b64encode(data).decode()
-    img = tag(
-        "img", "", src=src, alt=alt, loading="lazy", style=f"width:{width}" if width else None
-    )
+    img = tag("img", "", src=src, alt=alt, style=f"width:{width}" if width else None)
     img = Html(img.replace("></img>", ">"))
     return tag("figure", join([img, tag("figcaption", caption) if caption else ""]))
 

@@ -252,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
     found = check(args.report, args.out, args.full)
     size = args.report.stat().st_size
     print(f"report: {args.report} ({size / 1e6:.2f} MB)")
-    print(f"screenshots: {args.out}, {args.out.with_name(args.out.stem + '-viewer.png')}")
+    shots = [args.out.with_name(args.out.stem + s + ".png") for s in ("", "-viewer", "-full")]
+    print("screenshots: " + ", ".join(str(p) for p in shots if p.is_file()))
     for line in found:
         print(f"PROBLEM {line}")
     print("browser check: " + ("failed" if found else "passed, no console error"))
