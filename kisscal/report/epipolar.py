@@ -93,23 +93,37 @@ def _legend(fig: Figure, any_hidden: bool) -> None:
     fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
 
 
+def zoom_window(
+    uv: NDArray[np.float64], width: int, height: int, margin_px: float = 30.0
+) -> tuple[float, float, float, float]:
+    """(u0, u1, v0, v1) around the blobs, shaped like the image and inside it.
+
+    Examples
+    --------
+    >>> [round(x, 1) for x in zoom_window(np.array([[100.0, 100], [140, 120]]), 752, 291)]
+    [16.6, 223.4, 70.0, 150.0]
+    """
+    full = (-0.5, width - 0.5, -0.5, height - 0.5)
+    if len(uv) == 0:
+        return full
+    ratio = width / height
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    margin = max(margin_px, 0.25 * float((hi - lo).max()))
+    half_u = float(max((hi[0] - lo[0]) / 2 + margin, ((hi[1] - lo[1]) / 2 + margin) * ratio))
+    if 2 * half_u >= width:
+        return full
+    half_v = half_u / ratio
+    cu = float(np.clip((lo[0] + hi[0]) / 2, half_u - 0.5, width - 0.5 - half_u))
+    cv = float(np.clip((lo[1] + hi[1]) / 2, half_v - 0.5, height - 0.5 - half_v))
+    return cu - half_u, cu + half_u, cv - half_v, cv + half_v
+
+
 def _frame(ax: Any, uv: NDArray[np.float64], width: int, height: int) -> None:
     """Zoom on the blobs (where the lines must cross), never beyond the image."""
-    ax.plot(
-        [-0.5, width - 0.5, width - 0.5, -0.5, -0.5],
-        [-0.5, -0.5, height - 0.5, height - 0.5, -0.5],
-        color="0.75",
-        lw=0.8,
-    )
-    if len(uv):
-        margin = max(30.0, 0.25 * float(np.ptp(uv, axis=0).max()))
-        lo = np.maximum(uv.min(axis=0) - margin, -0.5)
-        hi = np.minimum(uv.max(axis=0) + margin, [width - 0.5, height - 0.5])
-    else:
-        lo, hi = np.array([-0.5, -0.5]), np.array([width - 0.5, height - 0.5])
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(hi[1], lo[1])  # image y axis points down
-    ax.set_aspect("equal", adjustable="datalim")
+    u0, u1, v0, v1 = zoom_window(uv, width, height)
+    ax.set_xlim(u0, u1)
+    ax.set_ylim(v1, v0)  # image y axis points down
+    ax.set_aspect("equal")
 
 
 def epipolar_figure(
