@@ -113,6 +113,19 @@ def _config(root: Path, notes: list[str]) -> Any:
         return None
 
 
+def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> dict[str, Any]:
+    """Without ``summary.json`` (a stage run on its own), the figures read from ``out/``."""
+    if not have_config:
+        return {}
+    from kisscal.session.summary import summarise  # the one reader of stage outputs
+
+    try:
+        return summarise(root)
+    except (KisscalError, OSError) as exc:
+        notes.append(f"summary.json missing and outputs not read ({exc})")
+        return {}
+
+
 def _trial(out: Path, name: str, notes: list[str]) -> TrialOutputs:
     tdir = out / "trials" / name
     table = _table(
@@ -149,8 +162,10 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     root = Path(root)
     out = root / "out"
     notes: list[str] = []
-    summary = _json(out / "summary.json", notes) or {}
     config = _config(root, notes)
+    summary = _json(out / "summary.json", notes)
+    if summary is None:
+        summary = _summary_from_outputs(root, config is not None, notes)
     if config is not None:
         cameras, trials = config.camera_ids, tuple(t.name for t in config.trials)
         markers = config.markers

@@ -174,3 +174,23 @@ def test_report_without_session_toml_still_names_cameras_and_trials(session: Pat
     rows = _status_rows(page)
     assert set(CAMERAS) <= set(rows) and "walk" in rows
     assert "session.toml not read" in page
+
+
+def test_without_summary_the_figures_are_read_from_the_stage_outputs(session: Path) -> None:
+    out = session / "out"
+    (out / "summary.json").unlink()
+    (out / "dlt").mkdir()
+    doc = {
+        "camera": "cam2",
+        "L": [0.0] * 11,
+        "method": "mdlt",
+        "rms_px": 0.0421,
+        "centre_mm": [10.4, 20.6, 3000.2],
+        "n_points": 24,
+    }
+    (out / "dlt" / "cam2.json").write_text(json.dumps(doc))
+    page = _page(session)
+    rows = _status_rows(page)
+    assert rows["cam2"] == "pass" and rows["cam1"] == "fail"  # cam1 was never calibrated
+    calibration = _section(page, "calibration")
+    assert "mdlt" in calibration and "0.042" in calibration and ">3000</td>" in calibration
