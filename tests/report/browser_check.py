@@ -219,6 +219,15 @@ def _viewer(b: Browser, path: Path) -> list[str]:
         "(() => {const r = document.getElementById('kc-canvas').getBoundingClientRect();"
         "return [r.x, r.y, r.width, r.height];})()",
     )
+    # every trial once, every view button, the last frame: the script must take them all
+    evaluate(
+        b,
+        "(() => {const s = document.getElementById('kc-trial'), f = document.getElementById("
+        "'kc-frame'); for (let k = s.options.length - 1; k >= 0; k--) { s.value = k;"
+        " s.dispatchEvent(new Event('change')); f.value = f.max;"
+        " f.dispatchEvent(new Event('input')); document.querySelectorAll('#kc-viewer "
+        "[data-view]').forEach(v => v.click()); }})()",
+    )
     drag(b, rect[0] + rect[2] / 2, rect[1] + rect[3] / 2, 60, 20)
     evaluate(b, "document.getElementById('kc-play').click()")
     b.pump(1.0)
@@ -252,7 +261,8 @@ def main(argv: list[str] | None = None) -> int:
     found = check(args.report, args.out, args.full)
     size = args.report.stat().st_size
     print(f"report: {args.report} ({size / 1e6:.2f} MB)")
-    shots = [args.out.with_name(args.out.stem + s + ".png") for s in ("", "-viewer", "-full")]
+    kinds = ("", "-viewer", "-full") if args.full else ("", "-viewer")
+    shots = [args.out.with_name(args.out.stem + k + ".png") for k in kinds]
     print("screenshots: " + ", ".join(str(p) for p in shots if p.is_file()))
     for line in found:
         print(f"PROBLEM {line}")
