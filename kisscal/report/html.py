@@ -249,7 +249,7 @@ def render(o: SessionOutputs, draw: Callable[[str, tuple, Callable[[], Figure]],
 
 
 def build_report(root: Path, params: ReportParams | None = None) -> Path:
-    """Write ``root/out/report.html`` from the session's outputs; return its path.
+    r"""Write ``root/out/report.html`` from the session's outputs; return its path.
 
     Parameters
     ----------
@@ -263,6 +263,19 @@ def build_report(root: Path, params: ReportParams | None = None) -> Path:
     ----------
     Shafiq, Tümer, Güler 2001 (stick and thrown-marker validation); Kolahi et al. 2007
     (the 3D error of a real lab's DLT the default limit is set from).
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> root = Path(tempfile.mkdtemp())
+    >>> _ = (root / "session.toml").write_text(
+    ...     '[session]\nname = "lab"\nrate_hz = 50\n[[cameras]]\nid = "cam1"\n')
+    >>> (root / "out").mkdir()
+    >>> summary = {"cameras": {"cam1": {"dlt": {"method": "dlt", "rms_px": 0.12}}}}
+    >>> _ = (root / "out" / "summary.json").write_text(json.dumps(summary))
+    >>> page = build_report(root).read_text()
+    >>> page.index('id="status"') < page.index('id="calibration"'), "DLT rms 0.120 px" in page
+    (True, True)
     """
     outputs = gather(Path(root), params)
     figures = Path(root) / "out" / "figures"
