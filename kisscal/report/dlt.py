@@ -14,6 +14,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
+from kisscal.report.figures import arrow_gain, nice_number
+
 
 @dataclass(frozen=True)
 class CameraResiduals:
@@ -48,7 +50,8 @@ def residual_figure(
         Camera id -> :class:`CameraResiduals`.
     scale : float, optional
         Arrow magnification (arrow length in pixels per pixel of residual); by default
-        the largest residual is drawn 40 px long. The same scale is used for every panel.
+        the 95th-percentile residual of all cameras is drawn 40 px long. The same scale is
+        used for every panel, and each panel has a key arrow giving it in pixels.
     columns : int
         Panels per row.
 
@@ -62,12 +65,10 @@ def residual_figure(
     rows = -(-n // cols)
     fig = Figure(figsize=(5.5 * cols, 2.8 * rows), layout="constrained")
     FigureCanvasAgg(fig)
-    largest = max(
-        (float(np.abs(np.asarray(c.residuals_px)).max(initial=0)) for c in cameras.values()),
-        default=0.0,
-    )
     if scale is None:
-        scale = 40.0 / largest if largest > 0 else 1.0
+        every = [np.asarray(c.residuals_px, dtype=float).reshape(-1, 2) for c in cameras.values()]
+        scale = arrow_gain(np.concatenate(every) if every else np.zeros((0, 2)), 40.0)
+    key = nice_number(40.0 / scale)
     for k, name in enumerate(names):
         c = cameras[name]
         ax = fig.add_subplot(rows, cols, k + 1)
@@ -78,7 +79,7 @@ def residual_figure(
             [-0.5, w - 0.5, w - 0.5, -0.5, -0.5], [-0.5, -0.5, h - 0.5, h - 0.5, -0.5], "k-", lw=0.5
         )
         ax.plot(uv[:, 0], uv[:, 1], "o", ms=2.5, color="tab:blue")
-        ax.quiver(
+        arrows = ax.quiver(
             uv[:, 0],
             uv[:, 1],
             r[:, 0] * scale,
@@ -89,10 +90,16 @@ def residual_figure(
             color="tab:red",
             width=0.004,
         )
+        ax.quiverkey(
+            arrows, 0.80, 1.04, key * scale, f"{key:g} px", labelpos="E", fontproperties={"size": 7}
+        )
         ax.set_xlim(-10, w + 10)
         ax.set_ylim(h + 10, -10)  # image y axis points down
         ax.set_aspect("equal")
-        ax.set_title(f"{name}: rms {c.rms_px:.3f} px (Euclidean), arrows x{scale:.0f}", fontsize=9)
+        ax.set_title(
+            f"{name}: rms {c.rms_px:.3f} px, {len(uv)} points, arrows x{scale:.0f}",
+            fontsize=9,
+        )
         ax.tick_params(labelsize=7)
     return fig
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import matplotlib
-
-matplotlib.use("Agg")
-
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
@@ -44,6 +44,88 @@ def clip_lines(lines: NDArray[np.float64], width: int, height: int) -> NDArray[n
     return np.where(flat[:, None, None], ends_flat, ends_steep)
 
 
+def _drawn_markers(n_matches: int, max_markers: int) -> list[int]:
+    """Matches whose lines are drawn: at most ``max_markers``, spread over the list."""
+    if n_matches <= max_markers:
+        return list(range(n_matches))
+    return sorted({int(k) for k in np.linspace(0, n_matches - 1, max_markers).round()})
+
+
+def _legend(fig: Figure, any_hidden: bool) -> None:
+    from matplotlib.lines import Line2D
+
+    handles = [
+        Line2D(
+            [],
+            [],
+            marker="o",
+            ls="",
+            mfc="none",
+            mec="tab:blue",
+            mew=1.5,
+            ms=8,
+            label="blob matched to a 3D marker (one colour per marker)",
+        ),
+        Line2D(
+            [],
+            [],
+            color="tab:blue",
+            lw=1,
+            label="its epipolar lines from the other cameras (should cross the ring)",
+        ),
+        Line2D([], [], marker="x", ls="", color="0.3", label="unmatched blob"),
+        Line2D([], [], color="0.6", lw=0.6, ls=":", label="epipolar line of an unmatched blob"),
+    ]
+    if any_hidden:
+        handles.insert(
+            1,
+            Line2D(
+                [],
+                [],
+                marker="o",
+                ls="",
+                mfc="none",
+                mec="0.55",
+                ms=6,
+                label="matched blob, lines not drawn (to keep the panel readable)",
+            ),
+        )
+    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+
+
+def zoom_window(
+    uv: NDArray[np.float64], width: int, height: int, margin_px: float = 30.0
+) -> tuple[float, float, float, float]:
+    """(u0, u1, v0, v1) around the blobs, shaped like the image and inside it.
+
+    Examples
+    --------
+    >>> [round(x, 1) for x in zoom_window(np.array([[100.0, 100], [140, 120]]), 752, 291)]
+    [16.6, 223.4, 70.0, 150.0]
+    """
+    full = (-0.5, width - 0.5, -0.5, height - 0.5)
+    if len(uv) == 0:
+        return full
+    ratio = width / height
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    margin = max(margin_px, 0.25 * float((hi - lo).max()))
+    half_u = float(max((hi[0] - lo[0]) / 2 + margin, ((hi[1] - lo[1]) / 2 + margin) * ratio))
+    if 2 * half_u >= width:
+        return full
+    half_v = half_u / ratio
+    cu = float(np.clip((lo[0] + hi[0]) / 2, half_u - 0.5, width - 0.5 - half_u))
+    cv = float(np.clip((lo[1] + hi[1]) / 2, half_v - 0.5, height - 0.5 - half_v))
+    return cu - half_u, cu + half_u, cv - half_v, cv + half_v
+
+
+def _frame(ax: Any, uv: NDArray[np.float64], width: int, height: int) -> None:
+    """Zoom on the blobs (where the lines must cross), never beyond the image."""
+    u0, u1, v0, v1 = zoom_window(uv, width, height)
+    ax.set_xlim(u0, u1)
+    ax.set_ylim(v1, v0)  # image y axis points down
+    ax.set_aspect("equal")
+
+
 def epipolar_figure(
     points_per_camera: list[ArrayLike],
     dlts: ArrayLike,
@@ -51,8 +133,9 @@ def epipolar_figure(
     matches: list[dict[int, int]] | None = None,
     camera_ids: list[str] | None = None,
     title: str = "",
+    max_markers: int = 6,
 ) -> Figure:
-    """Draw one field in every camera with the epipolar lines of all other cameras' blobs.
+    """Draw one field in every camera with the epipolar lines of the other cameras' blobs.
 
     Parameters
     ----------
@@ -61,12 +144,17 @@ def epipolar_figure(
     dlts : array_like, shape (n_cameras, 11)
     size_px : (width, height) or one per camera
     matches : list of dict, optional
-        Output of :func:`kisscal.recon.match_field`; matched blobs and their lines are
-        coloured by marker, unmatched blobs drawn as grey crosses with grey lines.
+        Output of :func:`kisscal.recon.match_field`. Up to ``max_markers`` matched
+        markers get a colour each, with their blobs ringed and their epipolar lines drawn
+        in it; with a good calibration every line of a colour crosses the ring of that
+        colour. Other matched blobs get grey rings; unmatched blobs are crosses with grey
+        dotted lines. A legend says so.
     camera_ids : list of str, optional
         Panel titles.
     title : str
         Figure title.
+    max_markers : int
+        Most markers whose lines are drawn (more only tangle the panels).
 
     Returns
     -------
@@ -81,44 +169,72 @@ def epipolar_figure(
     sizes = [tuple(size_px)] * n_cam if np.ndim(size_px) == 1 else [tuple(s) for s in size_px]
     pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points_per_camera]
     ids = camera_ids or [f"camera {k + 1}" for k in range(n_cam)]
+    matches = matches or []
+    drawn = _drawn_markers(len(matches), max_markers)
+    cmap = matplotlib.colormaps["tab10"]
     colour_of: dict[tuple[int, int], tuple[float, ...]] = {}
-    cmap = matplotlib.colormaps["tab20"]
-    for m, match in enumerate(matches or []):
+    hidden: set[tuple[int, int]] = set()
+    for m, match in enumerate(matches):
         for c, b in match.items():
-            colour_of[c, b] = cmap(m % 20)
-    grey = (0.6, 0.6, 0.6, 1.0)
+            if m in drawn:
+                colour_of[c, b] = cmap(drawn.index(m) % 10)
+            else:
+                hidden.add((c, b))
     F = all_fundamentals(dlts)
     cols = 2 if n_cam > 1 else 1
     rows = int(np.ceil(n_cam / cols))
-    fig = Figure(figsize=(6.5 * cols, 2.9 * rows), layout="constrained")
+    fig = Figure(figsize=(6.5 * cols, 0.8 + 2.9 * rows), layout="constrained")
+    FigureCanvasAgg(fig)
     for j in range(n_cam):
         ax = fig.add_subplot(rows, cols, j + 1)
         w, h = sizes[j]
-        segs, colours = [], []
+        segs, colours, widths, styles = [], [], [], []
         for i in range(n_cam):
             if i == j or len(pts[i]) == 0:
                 continue
-            segs.append(clip_lines(epipolar_lines(F[i, j], pts[i]), w, h))
-            colours += [colour_of.get((i, b), grey) for b in range(len(pts[i]))]
+            keep = np.array([(i, b) not in hidden for b in range(len(pts[i]))], dtype=bool)
+            if not keep.any():
+                continue
+            segs.append(clip_lines(epipolar_lines(F[i, j], pts[i][keep]), w, h))
+            for b in np.flatnonzero(keep):
+                known = (i, b) in colour_of
+                colours.append(colour_of.get((i, b), (0.6, 0.6, 0.6, 1.0)))
+                widths.append(0.9 if known else 0.6)
+                styles.append("solid" if known else "dotted")
         if segs:
-            ax.add_collection(LineCollection(np.concatenate(segs), colors=colours, linewidths=0.5))
-        matched = np.array([(j, b) in colour_of for b in range(len(pts[j]))], dtype=bool)
-        if matched.any():
-            ax.scatter(
-                pts[j][matched, 0],
-                pts[j][matched, 1],
-                s=45,
-                facecolors="none",
-                edgecolors=[colour_of[j, b] for b in np.flatnonzero(matched)],
-                linewidths=1.5,
+            ax.add_collection(
+                LineCollection(
+                    np.concatenate(segs), colors=colours, linewidths=widths, linestyles=styles
+                )
             )
-        if (~matched).any():
-            ax.scatter(pts[j][~matched, 0], pts[j][~matched, 1], s=25, c="0.3", marker="x")
-        ax.set_xlim(-0.5, w - 0.5)
-        ax.set_ylim(h - 0.5, -0.5)
-        ax.set_aspect("equal")
+        own = [(j, b) for b in range(len(pts[j]))]
+        shown = np.array([k in colour_of for k in own], dtype=bool)
+        grey = np.array([k in hidden for k in own], dtype=bool)
+        free = ~shown & ~grey
+        if shown.any():
+            ax.scatter(
+                pts[j][shown, 0],
+                pts[j][shown, 1],
+                s=60,
+                facecolors="none",
+                edgecolors=[colour_of[k] for k, s in zip(own, shown, strict=True) if s],
+                linewidths=1.6,
+            )
+        if grey.any():
+            ax.scatter(
+                pts[j][grey, 0],
+                pts[j][grey, 1],
+                s=30,
+                facecolors="none",
+                edgecolors="0.55",
+                linewidths=1.0,
+            )
+        if free.any():
+            ax.scatter(pts[j][free, 0], pts[j][free, 1], s=25, c="0.3", marker="x")
+        _frame(ax, pts[j], w, h)
         ax.set_title(ids[j], fontsize=9)
         ax.tick_params(labelsize=7)
+    _legend(fig, bool(hidden))
     if title:
         fig.suptitle(title)
     return fig
@@ -165,5 +281,6 @@ def trial_field_figure(
         list(matches.values()),
         camera_ids,
         title=f"field {field_index}: {len(matches)} markers"
-        + (f", {n_still} stationary blobs" if n_still else ""),
+        + (f", {n_still} stationary blobs" if n_still else "")
+        + " (each camera zoomed on its blobs; linearised px)",
     )

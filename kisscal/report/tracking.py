@@ -7,8 +7,11 @@ with the Agg backend in reports and CI.
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from kisscal.errors import KisscalError
+from kisscal.report.figures import padded_range
 from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import FILLED, MEASURED, Tracks
 
@@ -19,6 +22,7 @@ def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -
     """Three orthogonal views of every trajectory (like the thesis' top, right and front
     views); gaps stay gaps, filled samples are drawn as small crosses."""
     fig = Figure(figsize=(15, 5), layout="constrained")
+    FigureCanvasAgg(fig)
     axes = fig.subplots(1, 3)
     dense = tracks.positions() if tracks.field.size else np.zeros((0, 0, 3))
     colours = [f"C{i % 10}" for i in range(tracks.n_tracks)]
@@ -51,18 +55,27 @@ def segment_length_figure(
     segments: list[tuple[str, str]] | tuple,
     rate_hz: float | None = None,
     title: str = "",
+    columns: int = 3,
 ) -> Figure:
     """Length of each segment over time, from measured points (solid) and from the Kalman
     a-posteriori estimates (dashed), as in Küçük 2005 chapter 5. Time in seconds when
-    ``rate_hz`` is given, else in fields."""
+    ``rate_hz`` is given, else in fields.
+
+    One small panel per segment, titled with its mean and SD; each length axis spans at
+    least :data:`~kisscal.report.figures.MIN_HALF_RANGE_MM` either side of the mean, so
+    that sub-millimetre noise looks like what it is.
+
+    Raises
+    ------
+    KisscalError
+        When no segment has both ends among the trajectories (nothing to draw; a session
+        stage then skips the figure).
+    """
     tracks, labels = result.tracks, result.labels
     index = {name: k for k, name in enumerate(labels)}
     pairs = [p for p in segments if p[0] in index and p[1] in index]
-    fig = Figure(figsize=(10, 1.8 + 1.6 * max(len(pairs), 1)), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(max(len(pairs), 1), 1, sharex=True))
     if not pairs or tracks.field.size == 0:
-        axes[0].text(0.5, 0.5, "no labelled segment", ha="center", va="center")
-        return fig
+        raise KisscalError("segment length figure: no labelled segment to draw")
     n_fields = int(tracks.field.max()) + 1
     measured = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     m = tracks.status == MEASURED
@@ -70,13 +83,31 @@ def segment_length_figure(
     corrected = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     corrected[tracks.track, tracks.field] = tracks.corrected_mm
     time_axis = np.arange(n_fields) / (rate_hz or 1.0)
+    cols = min(columns, len(pairs))
+    rows = -(-len(pairs) // cols)
+    fig = Figure(figsize=(4.0 * cols, 0.6 + 1.7 * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False).ravel())
+    for ax in axes[len(pairs) :]:
+        fig.delaxes(ax)
     for ax, (a, b) in zip(axes, pairs, strict=False):
+        lengths = []
         for dense, style, name in ((measured, "-", "measured"), (corrected, "--", "corrected")):
             length = np.linalg.norm(dense[index[a]] - dense[index[b]], axis=1)
             ax.plot(time_axis, length, style, lw=0.8, label=name)
-        ax.set_ylabel(f"{a}-{b}\n(mm)")
-    axes[0].legend(fontsize=7)
-    axes[-1].set_xlabel("time (s)" if rate_hz else "field")
+            lengths.append(length)
+        ok = lengths[0][np.isfinite(lengths[0])]
+        mean = float(ok.mean()) if len(ok) else float(np.nanmean(lengths[1]))
+        sd = float(ok.std()) if len(ok) else float("nan")
+        ax.set_ylim(*padded_range(np.concatenate(lengths), mean))
+        ax.set_title(f"{a}-{b}: {mean:.1f} mm, SD {sd:.2f} mm", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("length (mm)", fontsize=8)
+    axes[0].legend(fontsize=6, loc="lower right")
+    for ax in axes[max(len(pairs) - cols, 0) : len(pairs)]:  # the lowest panel of each column
+        ax.set_xlabel("time (s)" if rate_hz else "field", fontsize=8)
+        ax.xaxis.set_tick_params(labelbottom=True)
     if title:
         fig.suptitle(title)
     return fig

@@ -13,12 +13,14 @@ from kisscal.session.progress import Echo, quiet
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report  # matplotlib: only when a report is made
+    from kisscal.report.params import ReportParams
 
-    load_config(root)  # a session folder, not just any path
+    config = load_config(root)  # a session folder, not just any path
     out = out_dir(root)
     outputs = ("summary.json", "linearisation/*.json", "dlt/*.json")
     if not any(any(out.glob(pattern)) for pattern in outputs):
         raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
-    path = build_report(Path(root))
+    params = ReportParams.from_layers(config.sections.get("report", {}))
+    path = build_report(Path(root), params)
     echo(f"report: {path}")
     return path

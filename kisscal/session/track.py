@@ -57,6 +57,7 @@ def track(
         "kisscal.report.tracking",
         "trajectories_figure",
         result,
+        f"trial {trial.name}: trajectories (mm)",
     )
     figure(
         root,

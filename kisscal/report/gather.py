@@ -1,0 +1,202 @@
+"""Everything the report shows, read once from a processed session's ``out/`` folder.
+
+Every input but ``summary.json`` is optional: a section whose file is absent is simply
+not shown, so outputs of later stages (detection settings, wand, gait events) slot in
+when they appear. A file that cannot be read is skipped with a note, never an error:
+the report must be written even for a half-processed session.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from kisscal.errors import KisscalError
+from kisscal.io.files import read_table
+from kisscal.report.markers import Dense, dense_trajectories
+from kisscal.report.params import ReportParams
+
+#: ``out/limits.json`` keys: the ``kisscal check`` options, named as in :class:`ReportParams`.
+LIMIT_KEYS = ("max_grid_px", "max_reproj_px", "max_3d_mm")
+
+
+@dataclass(frozen=True)
+class TrialOutputs:
+    """One trial's files: trajectories, and gait tables when the gait stage wrote them."""
+
+    name: str
+    dense: Dense | None = None
+    events: dict[str, Any] | None = None
+    spatiotemporal: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class SessionOutputs:
+    """What :func:`gather` read from ``out/``.
+
+    Attributes
+    ----------
+    session : str
+        Session name.
+    rate_hz : float
+        Field rate (1.0 when unknown: times are then in fields).
+    cameras, trials : tuple of str
+        In ``session.toml`` order (else in ``summary.json`` order).
+    marker_names : tuple of str
+        The session's marker set (empty without ``[markers]``).
+    segments : tuple of (str, str)
+        The marker set's rigid segments.
+    summary : dict
+        ``out/summary.json``.
+    dlt : dict
+        Camera -> ``out/dlt/<camera>.json``.
+    detection : dict
+        Camera -> ``out/detection/<camera>.json``.
+    wand : dict or None
+        ``out/dlt/wand.json``.
+    trial_outputs : dict
+        Trial -> :class:`TrialOutputs`.
+    figures : dict
+        Figure name -> PNG path in ``out/figures/``.
+    limits : ReportParams
+        Limits of the status block.
+    notes : list of str
+        Files that could not be read.
+    """
+
+    root: Path
+    session: str
+    rate_hz: float
+    cameras: tuple[str, ...]
+    trials: tuple[str, ...]
+    marker_names: tuple[str, ...]
+    segments: tuple[tuple[str, str], ...]
+    summary: dict[str, Any]
+    dlt: dict[str, dict[str, Any]]
+    detection: dict[str, dict[str, Any]]
+    wand: dict[str, Any] | None
+    trial_outputs: dict[str, TrialOutputs]
+    figures: dict[str, Path]
+    limits: ReportParams
+    notes: list[str] = field(default_factory=list)
+
+
+def _json(path: Path, notes: list[str]) -> Any:
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        notes.append(f"{path.name}: not read ({exc})")
+        return None
+
+
+def _table(path: Path, notes: list[str], required: tuple[str, ...] = ()) -> Any:
+    if not path.is_file():
+        return None
+    try:
+        return read_table(path, required=required, numeric=())
+    except KisscalError as exc:
+        notes.append(str(exc))
+        return None
+
+
+def _config(root: Path, notes: list[str]) -> Any:
+    from kisscal.io.config import load_session
+
+    try:
+        return load_session(root)
+    except (KisscalError, OSError) as exc:
+        notes.append(f"session.toml not read ({exc}); names come from summary.json")
+        return None
+
+
+def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> dict[str, Any]:
+    """Without ``summary.json`` (a stage run on its own), the figures read from ``out/``."""
+    if not have_config:
+        return {}
+    from kisscal.session.summary import summarise  # the one reader of stage outputs
+
+    try:
+        return summarise(root)
+    except (KisscalError, OSError) as exc:
+        notes.append(f"summary.json missing and outputs not read ({exc})")
+        return {}
+
+
+def _trial(out: Path, name: str, notes: list[str]) -> TrialOutputs:
+    tdir = out / "trials" / name
+    table = _table(
+        tdir / "trajectories.csv", notes, ("field", "track", "label", "x_mm", "y_mm", "z_mm")
+    )
+    dense = None
+    if table is not None:
+        status = table.get("status", ["measured"] * len(table["field"]))
+        xyz = [table["x_mm"], table["y_mm"], table["z_mm"]]
+        dense = dense_trajectories(
+            table["field"], table["track"], table["label"], list(zip(*xyz, strict=True)), status
+        )
+    return TrialOutputs(
+        name,
+        dense,
+        _table(tdir / "events.csv", notes),
+        _table(tdir / "spatiotemporal.csv", notes),
+    )
+
+
+def _limits(out: Path, base: ReportParams, notes: list[str]) -> ReportParams:
+    """``kisscal check`` limits stored in ``out/limits.json`` replace the defaults."""
+    stored = _json(out / "limits.json", notes) or {}
+    changes = {k: v for k, v in stored.items() if k in LIMIT_KEYS and v is not None}
+    try:
+        return base.replace(**changes)
+    except KisscalError as exc:
+        notes.append(f"limits.json ignored: {exc}")
+        return base
+
+
+def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
+    """Read a processed session's outputs for :func:`kisscal.report.html.build_report`."""
+    root = Path(root)
+    out = root / "out"
+    notes: list[str] = []
+    config = _config(root, notes)
+    summary = _json(out / "summary.json", notes)
+    if summary is None:
+        summary = _summary_from_outputs(root, config is not None, notes)
+    if config is not None:
+        cameras, trials = config.camera_ids, tuple(t.name for t in config.trials)
+        markers = config.markers
+        names = tuple(markers.names) if markers else ()
+        segments = tuple(markers.segments) if markers else ()
+        rate_hz, session = float(config.rate_hz), config.name
+    else:
+        cameras = tuple(summary.get("cameras", {}))
+        trials = tuple(summary.get("trials", {}))
+        names, segments, rate_hz = (), (), 1.0
+        session = str(summary.get("session", root.name))
+    figures_dir = out / "figures"
+    figures = {p.stem: p for p in sorted(figures_dir.glob("*.png"))} if figures_dir.is_dir() else {}
+    detection_dir = out / "detection"
+    detection = {
+        c: doc for c in cameras if (doc := _json(detection_dir / f"{c}.json", notes)) is not None
+    }
+    return SessionOutputs(
+        root=root,
+        session=session,
+        rate_hz=rate_hz,
+        cameras=cameras,
+        trials=trials,
+        marker_names=names,
+        segments=segments,
+        summary=summary,
+        dlt={c: d for c in cameras if (d := _json(out / "dlt" / f"{c}.json", notes))},
+        detection=detection,
+        wand=_json(out / "dlt" / "wand.json", notes),
+        trial_outputs={t: _trial(out, t, notes) for t in trials},
+        figures=figures,
+        limits=_limits(out, params or ReportParams(), notes),
+        notes=notes,
+    )

@@ -1,0 +1,203 @@
+"""Report sections of the calibration: cameras, rods, detection settings, wand."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from kisscal.report.gather import SessionOutputs
+from kisscal.report.htmlkit import (
+    Html,
+    badge,
+    details,
+    esc,
+    fmt,
+    heading,
+    join,
+    png,
+    section,
+    table,
+    tag,
+)
+from kisscal.report.status import Verdict, number
+
+RMS_NOTE = (
+    "Residuals are RMS Euclidean distances in pixels, sqrt(mean(du² + dv²)); tools that "
+    "report a per-coordinate RMS give about 1/√2 of it."
+)
+
+
+def _centre(dlt: dict[str, Any]) -> list[str]:
+    c = dlt.get("centre_mm")
+    if not isinstance(c, list | tuple) or len(c) != 3:
+        return ["–"] * 3
+    return [fmt(number(v), 0) for v in c]
+
+
+def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
+    """One row per camera: grid before/after, dots, DLT method, rms, points, centre."""
+    cams = o.summary.get("cameras", {})
+    loo = any("leave_one_out_px" in cams.get(c, {}).get("dlt", {}) for c in o.cameras)
+    headers = [
+        "camera",
+        "status",
+        "grid residual before (px)",
+        "after (px)",
+        "dots used",
+        "DLT method",
+        "control points",
+        "DLT rms (px)",
+        "centre X (mm)",
+        "Y (mm)",
+        "Z (mm)",
+    ]
+    if loo:
+        headers.append("leave-one-rod-out rms (px)")
+    headers.append("missing rod markers")
+    rows = []
+    for cam in o.cameras:
+        entry = cams.get(cam, {})
+        grid, dlt = entry.get("grid", {}), entry.get("dlt", {})
+        doc = o.dlt.get(cam, {})
+        missing = (doc.get("rods") or {}).get("missing") or []
+        row = [
+            tag("b", cam),
+            badge(verdicts[cam].state) if cam in verdicts else "",
+            fmt(grid.get("rms_px_before")) if grid else "no grid",
+            fmt(grid.get("rms_px")) if grid else "–",
+            fmt(grid.get("dots_used")),
+            dlt.get("method", "–"),
+            fmt(doc.get("n_points")),
+            fmt(dlt.get("rms_px")),
+            *_centre(dlt),
+        ]
+        if loo:
+            row.append(fmt(dlt.get("leave_one_out_px")))
+        row.append(", ".join(missing) if missing else "none")
+        rows.append(row)
+    return table(headers, rows, numeric=(2, 3, 4, 6, 7, 8, 9, 10, 11))
+
+
+def rod_table(o: SessionOutputs) -> Html:
+    """Held-out 3D error per rod (leave-one-rod-out) and the in-sample error."""
+    rods = o.summary.get("rods") or {}
+    per_rod = (rods.get("leave_one_rod_out") or {}).get("per_rod") or {}
+    parts = []
+    if "rods_in_sample_mean_mm" in rods:
+        parts.append(
+            tag(
+                "p",
+                f"Rod markers reconstructed with every rod in the fit: mean "
+                f"{fmt(rods['rods_in_sample_mean_mm'], 3)} mm, max "
+                f"{fmt(rods.get('rods_in_sample_max_mm'), 3)} mm. Each rod held out of the "
+                "fit and reconstructed by the others (the honest figure):",
+            )
+        )
+    if per_rod:
+        rows = [
+            [tag("b", name), fmt(r.get("n_markers")), fmt(r.get("mean_mm")), fmt(r.get("max_mm"))]
+            for name, r in per_rod.items()
+        ]
+        parts.append(
+            table(["rod held out", "markers", "3D error mean (mm)", "max (mm)"], rows, (1, 2, 3))
+        )
+    return join(parts)
+
+
+def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: set[str]) -> Html:
+    """Cameras table, rods, and the calibration figures (grid figures folded)."""
+    parts: list[Any] = [camera_table(o, verdicts), rod_table(o)]
+    fig = o.figures
+    if "rig" in fig:
+        used.add("rig")
+        parts.append(
+            png(
+                fig["rig"],
+                "cameras and rods",
+                "Cameras (squares, with optical axes) and the "
+                "surveyed calibration rods in the lab frame (mm).",
+                width="620px",
+            )
+        )
+    if "dlt_residuals" in fig:
+        used.add("dlt_residuals")
+        parts.append(
+            png(
+                fig["dlt_residuals"],
+                "DLT residuals",
+                "DLT reprojection residual of each rod "
+                "marker, drawn in the image (arrows magnified; the key arrow gives the scale).",
+            )
+        )
+    grids = []
+    for cam in o.cameras:
+        name = f"grid_{cam}"
+        if name in fig:
+            used.add(name)
+            g = o.summary.get("cameras", {}).get(cam, {}).get("grid", {})
+            line = f"{cam}: grid residual {fmt(g.get('rms_px_before'))} → {fmt(g.get('rms_px'))} px"
+            grids.append(details(line, png(fig[name], f"grid {cam}")))
+    if grids:
+        parts.append(tag("h3", "Grid linearisation per camera (click to open)"))
+        parts.append(join(grids))
+    return section("calibration", "Calibration", join(parts), RMS_NOTE)
+
+
+def _scalar_columns(docs: dict[str, dict[str, Any]]) -> list[str]:
+    keys: list[str] = []
+    for doc in docs.values():
+        for k, v in doc.items():
+            if k not in keys and k != "camera" and isinstance(v, int | float | str | bool):
+                keys.append(k)
+    return keys
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return ", ".join(_cell(v) for v in value[:6]) + (" …" if len(value) > 6 else "")
+    if isinstance(value, float):
+        return fmt(value, 3 if abs(value) < 100 else 1)
+    return fmt(value) if isinstance(value, int | bool) else str(value)
+
+
+def detection_section(o: SessionOutputs) -> Html:
+    """The detection settings derived per camera (``out/detection/<camera>.json``)."""
+    if not o.detection:
+        return Html("")
+    keys = _scalar_columns(o.detection)
+    keys += [
+        k
+        for doc in o.detection.values()
+        for k, v in doc.items()
+        if isinstance(v, list) and k not in keys and len(v) <= 6
+    ]
+    rows = [[tag("b", c), *(_cell(o.detection[c].get(k, "–")) for k in keys)] for c in o.detection]
+    return section(
+        "detection",
+        "Detection settings per camera",
+        table(["camera", *(heading(k) for k in keys)], rows),
+        "Values given in [detection] are used as given; the others were derived from the images.",
+    )
+
+
+def wand_section(o: SessionOutputs, used: set[str]) -> Html:
+    """Wand calibration figures (``out/dlt/wand.json``): length, per-camera residuals."""
+    w = o.wand
+    if not w:
+        return Html("")
+    top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
+    parts = []
+    if top:
+        rows = [[heading(k), _cell(v)] for k, v in top]
+        parts.append(table(["wand figure", "value"], rows, (1,)))
+    per_cam = w.get("cameras") or w.get("per_camera") or {}
+    if isinstance(per_cam, dict) and per_cam:
+        docs = {c: d for c, d in per_cam.items() if isinstance(d, dict)}
+        keys = _scalar_columns(docs)
+        rows = [[tag("b", c), *(_cell(docs[c].get(k, "–")) for k in keys)] for c in docs]
+        headers = ["camera", *(heading(k) for k in keys)]
+        parts.append(table(headers, rows, tuple(range(1, len(keys) + 1))))
+    for name in sorted(o.figures):
+        if name.startswith("wand"):
+            used.add(name)
+            parts.append(png(o.figures[name], name, name.replace("_", " ")))
+    return section("wand", "Wand calibration", join(parts), esc(RMS_NOTE))
