@@ -337,6 +337,8 @@ def check(
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
         raise KisscalError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
+    if (session.out_dir(session_dir) / "report.html").is_file():
+        session.report(session_dir)  # its verdicts now use these limits
     if failures:
         typer.echo(f"{'camera':<8} {'figure':<28} {'value':>10} {'limit':>10}")
         for f in failures:

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
-from kisscal.io.files import read_table
-from kisscal.session.inputs import load_config, out_dir
+from kisscal.io.files import read_table, write_json
+from kisscal.session.inputs import load_config, out_dir, writes_session
 
 
 def summarise(root: Path) -> dict[str, Any]:
@@ -72,6 +72,7 @@ class CheckFailure:
     limit: float
 
 
+@writes_session
 def check(
     root: Path,
     max_reproj_px: float | None = None,
@@ -81,9 +82,12 @@ def check(
     """``kisscal check``: every figure over its limit (an empty list when all pass).
 
     Reads the outputs of ``kisscal linearise`` and ``kisscal calibrate``; no truth needed.
+    The limits are kept in ``out/limits.json``, so the report judges against them.
     """
     config = load_config(root)
     out = out_dir(root)
+    limits = {"max_grid_px": max_grid_px, "max_reproj_px": max_reproj_px, "max_3d_mm": max_3d_mm}
+    write_json(out / "limits.json", limits)  # the report judges against the limits checked
     failures = []
     for cam in config.camera_ids:
         if max_grid_px is not None and config.grid is not None:

@@ -16,6 +16,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import camera_frames
+from kisscal.report.params import ReportParams
 from kisscal.session.inputs import image_sources, load_config
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
@@ -57,6 +58,7 @@ def validate(root: Path, overrides: Overrides | None = None) -> list[Problem]:
 def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Problem]:
     try:
         stage_params(config, overrides)
+        ReportParams.from_layers(config.sections.get("report", {}))
     except KisscalError as exc:
         return [Problem(SESSION, str(exc))]
     return []
