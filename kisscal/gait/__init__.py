@@ -1,0 +1,22 @@
+"""Gait events and spatiotemporal parameters from labelled marker trajectories.
+
+Example
+-------
+>>> from kisscal.gait import GaitParams
+>>> GaitParams().hysteresis
+0.3
+"""
+
+from kisscal.gait.events import detect_events, progression
+from kisscal.gait.markers import GaitMarkers, gait_markers
+from kisscal.gait.params import GaitParams
+from kisscal.gait.table import GaitEvents
+
+__all__ = [
+    "GaitEvents",
+    "GaitMarkers",
+    "GaitParams",
+    "detect_events",
+    "gait_markers",
+    "progression",
+]
