@@ -11,8 +11,8 @@ landmark relation:
   0.108 H, foot length 0.152 H, head (chin to vertex) 0.130 H.
 * Hip joint centre from the anterior iliac spines: Bell et al. 1990 (19 % of the inter-ASIS
   width posterior, 30 % distal, 36 % lateral of the ASIS midpoint); inter-ASIS width
-  0.14 H and pelvis depth (ASIS to PSIS) 0.095 H, typical adult values (Harrington et al.
-  2007 report 230-260 mm and 150-175 mm for adults of 1.65-1.85 m).
+  0.13 H and pelvis depth (ASIS to PSIS) 0.095 H, typical adult values (about 230 mm and
+  165 mm at 1.75 m; Harrington et al. 2007 measured both on adults).
 * Marker placement (which landmark each marker sits on): Davis et al. 1991 (the Helen
   Hayes / Plug-in Gait lower body) and the Vicon Plug-in Gait reference guide (head,
   trunk, arms); marker centres sit 7 mm (half a 14 mm marker) off the skin.
@@ -26,8 +26,10 @@ Della Croce et al. 1999 report 5-20 mm for pelvic and knee landmarks; wand marke
 thigh, shank, upper arm and forearm are placed freely along the segment, 25-30 mm) with
 the spread of body proportions once stature is known (3 % of the marker's distance from
 the origin, the coefficient of variation of segment-to-stature ratios in adult
-anthropometric surveys). Both scale with stature, as the template does (isometric
-scaling: ``xyz_mm * height_mm / reference_height_mm``).
+anthropometric surveys). The placement part is kept too (``placement_sd_mm``): a segment
+length spreads by the two placements and 3 % of its length. Everything scales with
+stature, as the template does (isometric scaling: ``xyz_mm * height_mm /
+reference_height_mm``).
 
 Frame of every template: X forward, Y left, Z up, millimetres; the floor is Z = 0 (feet
 flat on it); the origin is on the floor below the midpoint of the hip joint centres.
@@ -45,6 +47,8 @@ PIG_HEIGHT_MM = 1750.0
 KISS_HEIGHT_MM = 1755.0
 #: Coefficient of variation of segment-to-stature ratios (see the module docstring).
 PROPORTION_CV = 0.03
+#: Inter-ASIS width and ASIS-to-PSIS depth as fractions of stature.
+PELVIS_WIDTH, PELVIS_DEPTH = 0.13, 0.095
 _MARKER_MM = 7.0
 
 _DATA = Path(__file__).with_name("data")
@@ -56,14 +60,14 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 def _left_leg(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
     """Left-leg and pelvis markers: position (mm), placement SD (mm), landmark."""
-    pw, depth = 0.14 * h, 0.095 * h
+    pw, depth = PELVIS_WIDTH * h, PELVIS_DEPTH * h
     hjc = np.array([0.0, 0.36 * pw, 0.530 * h])
     asis = np.array([0.19 * pw, 0.5 * pw, hjc[2] + 0.30 * pw])  # Bell et al. 1990
-    psis = np.array([asis[0] - depth, 45.0, asis[2] + 25.0])  # anterior pelvic tilt ~9 deg
+    psis = np.array([asis[0] - depth, 50.0, asis[2] + 25.0])  # anterior pelvic tilt ~9 deg
     kjc = np.array([0.0, 0.95 * hjc[1], 0.285 * h])
     ajc = np.array([0.0, 0.90 * hjc[1], 0.039 * h])
     foot = 0.152 * h
-    heel_x = -0.27 * foot  # ankle joint above the back quarter of the foot
+    heel_x = -0.30 * foot  # ankle joint above the back third of the foot
     thigh_c = kjc + (hjc - kjc) / 3.0  # lower third of the thigh
     shank_c = ajc + (kjc - ajc) / 3.0  # lower third of the shank
     return {
@@ -79,7 +83,7 @@ def _left_leg(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
             "left calcaneus, same height above the sole as LTOE",
         ),
         "LTOE": (
-            np.array([heel_x + 0.72 * foot, ajc[1], 40.0]),
+            np.array([heel_x + 0.80 * foot, ajc[1], 40.0]),
             10.0,
             "left second metatarsal head, dorsum",
         ),
@@ -112,7 +116,7 @@ def _left_upper(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
 
 
 def _midline(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
-    pw, depth = 0.14 * h, 0.095 * h
+    pw, depth = PELVIS_WIDTH * h, PELVIS_DEPTH * h
     asis_z = 0.530 * h + 0.30 * pw
     return {
         "SACR": (np.array([0.19 * pw - depth, 0.0, asis_z + 25.0]), 10.0, "midpoint of the PSIS"),
@@ -139,6 +143,7 @@ def _markers_table(markers: dict[str, tuple], names: list[str]) -> dict[str, dic
         table[name] = {
             "xyz_mm": [round(float(c), 2) for c in xyz],
             "sd_mm": round(sd, 1),
+            "placement_sd_mm": float(place_sd),
             "landmark": text,
         }
     return table
@@ -232,6 +237,7 @@ def plug_in_gait(full: bool) -> dict:
             else "Vicon Plug-in Gait lower body (16 markers; SACR may replace LPSI and RPSI)"
         ),
         "reference_height_mm": h,
+        "proportion_cv": PROPORTION_CV,
         "frame": _FRAME,
         "source": _PIG_SOURCE,
         "names": names,
@@ -267,6 +273,7 @@ def kiss() -> dict:
             "names = the 13 without RASI and LASI for the thesis' 13-marker set"
         ),
         "reference_height_mm": KISS_HEIGHT_MM,
+        "proportion_cv": PROPORTION_CV,
         "frame": _FRAME,
         "source": (
             "kisscal.synth.motion.standing_template (the walker's geometry: thigh 430 mm, "

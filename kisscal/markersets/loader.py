@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import functools
+import sys
 from collections.abc import Sequence
 from importlib import resources
 from types import MappingProxyType
 
 import numpy as np
-import tomllib
 
 from kisscal.errors import KisscalError
 from kisscal.markersets.model import MarkerSet, _unknown
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 
 def available_marker_sets() -> tuple[str, ...]:
@@ -56,7 +61,7 @@ def marker_set(name: str, names: Sequence[str] | None = None) -> MarkerSet:
     >>> marker_set("plug-in-gait-lower", names=["LASI", "RASI", "SACR"]).names
     ('LASI', 'RASI', 'SACR')
     >>> round(float(pig.scaled(1900.0).position("LASI")[2]))
-    1087
+    1081
     """
     full = _load(name)
     default = _default_names(name)
@@ -93,6 +98,8 @@ def _load(name: str) -> MarkerSet:
         names=all_names,
         template_mm=np.array([markers[n]["xyz_mm"] for n in all_names], dtype=float),
         sd_mm=np.array([markers[n]["sd_mm"] for n in all_names], dtype=float),
+        placement_sd_mm=np.array([markers[n]["placement_sd_mm"] for n in all_names], dtype=float),
+        proportion_cv=float(raw["proportion_cv"]),
         segments=tuple(tuple(p) for p in raw["segments"]),
         hinge_segments=tuple(tuple(p) for p in raw["hinge_segments"]),
         mirror=tuple(tuple(p) for p in raw["mirror"]),

@@ -31,6 +31,10 @@ class MarkerSet:
     sd_mm : ndarray, shape (n,)
         Plausible spread of each marker's position (per coordinate) across adults of that
         height: marker placement plus body proportions. Scales with height.
+    placement_sd_mm : ndarray, shape (n,)
+        The marker-placement part of ``sd_mm``.
+    proportion_cv : float
+        Spread of segment lengths relative to stature (coefficient of variation).
     segments : tuple of (str, str)
         Pairs on one bone: their distance stays fixed (up to skin movement).
     hinge_segments : tuple of (str, str)
@@ -54,6 +58,8 @@ class MarkerSet:
     names: tuple[str, ...]
     template_mm: NDArray[np.float64]
     sd_mm: NDArray[np.float64]
+    placement_sd_mm: NDArray[np.float64]
+    proportion_cv: float = 0.03
     segments: tuple[Pair, ...] = ()
     hinge_segments: tuple[Pair, ...] = ()
     mirror: tuple[Pair, ...] = ()
@@ -68,10 +74,10 @@ class MarkerSet:
 
     def __post_init__(self) -> None:
         n = len(self.names)
-        if self.template_mm.shape != (n, 3) or self.sd_mm.shape != (n,):
-            raise ValueError("template_mm must be (n, 3) and sd_mm (n,) for n names")
-        self.template_mm.setflags(write=False)
-        self.sd_mm.setflags(write=False)
+        if self.template_mm.shape != (n, 3) or self.sd_mm.shape != self.placement_sd_mm.shape:
+            raise ValueError("template_mm must be (n, 3) and the SDs (n,) for n names")
+        for arr in (self.template_mm, self.sd_mm, self.placement_sd_mm):
+            arr.setflags(write=False)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -100,6 +106,7 @@ class MarkerSet:
             self,
             template_mm=self.template_mm * k,
             sd_mm=self.sd_mm * k,
+            placement_sd_mm=self.placement_sd_mm * k,
             height_mm=float(height_mm),
         )
 
@@ -111,10 +118,15 @@ class MarkerSet:
         }
 
     def segment_sd_mm(self, hinge: bool = False) -> dict[Pair, float]:
-        """Plausible spread of each segment length: the two markers' SDs in quadrature."""
-        pairs = self.segments + (self.hinge_segments if hinge else ())
-        sd = dict(zip(self.names, self.sd_mm, strict=True))
-        return {(a, b): float(np.hypot(sd[a], sd[b])) for a, b in pairs}
+        """Plausible spread of each segment length across subjects of this height.
+
+        The two markers' placement SDs and ``proportion_cv`` of the length, in quadrature.
+        """
+        sd = dict(zip(self.names, self.placement_sd_mm, strict=True))
+        return {
+            (a, b): float(np.sqrt(sd[a] ** 2 + sd[b] ** 2 + (self.proportion_cv * d) ** 2))
+            for (a, b), d in self.segment_lengths_mm(hinge).items()
+        }
 
     def mirror_of(self, name: str) -> str | None:
         """The other side's marker of a mirror pair, ``name`` itself on the midline, else None."""
@@ -159,6 +171,7 @@ class MarkerSet:
             names=names,
             template_mm=self.template_mm[rows].copy(),
             sd_mm=self.sd_mm[rows].copy(),
+            placement_sd_mm=self.placement_sd_mm[rows].copy(),
             segments=pairs(self.segments),
             hinge_segments=pairs(self.hinge_segments),
             mirror=pairs(self.mirror),

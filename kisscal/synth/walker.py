@@ -18,7 +18,7 @@ geometry: hip height 930 mm = 0.530 H, Winter 2009).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +52,10 @@ class GaitTruth:
         straight path).
     height_mm, heading_deg : float
         Stature and initial walking direction (degrees from lab +X towards +Y).
+    spheres_mm : dict
+        ``"left_heel"``, ``"left_ball"``, ``"left_tip"``, ``"right_..."`` -> (n_fields, 3)
+        centres of the spheres the foot touches the floor with (heel, metatarsal heads,
+        toe tip), per field; ``sphere_radius_mm`` gives their radii. The floor is z = 0.
     """
 
     events: GaitEvents
@@ -64,6 +68,8 @@ class GaitTruth:
     step_length_mm: float
     height_mm: float
     heading_deg: float
+    spheres_mm: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    sphere_radius_mm: dict[str, float] = field(default_factory=dict)
 
     def nominal(self) -> dict[str, float]:
         """Nominal spatiotemporal parameters (units as in :mod:`kisscal.gait.spatiotemporal`)."""
@@ -217,12 +223,12 @@ def grounded_walk(
         return origin + q[0] * forward + q[1] * left + q[2] * up
 
     hips = _hips(origin, forward, b)
-    legs = {}
+    legs, spheres = {}, {}
     for side, sign in (("R", -1.0), ("L", 1.0)):
         full = "left" if side == "L" else "right"
         heel, ball, tip = _sole(t, prints[full], g, b)
         legs[side] = _leg(hips[full], heel, ball, sign * left, b)
-        legs[side]["toe_tip"] = tip
+        spheres[f"{full}_heel"], spheres[f"{full}_ball"], spheres[f"{full}_tip"] = heel, ball, tip
     markers = {
         n: pelvis_point(_PELVIS_MARKERS[n]) if n in _PELVIS_MARKERS else legs[n[0]][n[1:]]
         for n in names
@@ -247,6 +253,12 @@ def grounded_walk(
             caps.append(np.stack([leg[a], leg[c]], axis=1))
             radii.append(r * b.k)
     truth = _truth(prints, g, b, height_mm, heading, t_end, rate_hz)
+    radius = {"heel": b.radius, "ball": b.radius, "tip": b.tip}
+    truth = replace(
+        truth,
+        spheres_mm=spheres,
+        sphere_radius_mm={k: radius[k.split("_")[1]] for k in spheres},
+    )
     return markers, np.stack(caps, axis=1), np.asarray(radii), truth
 
 
