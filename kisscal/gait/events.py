@@ -171,7 +171,7 @@ def _coarse(
     # the same foot off (the heel can lag the pelvis briefly in early swing), the last
     # one ends the swing.
     previous_off = np.searchsorted(offs, strikes)
-    last = np.append(previous_off[1:] != previous_off[:-1], True)
+    last = np.append(previous_off[1:] != previous_off[:-1], True)[: len(strikes)]
     return strikes[last], offs
 
 

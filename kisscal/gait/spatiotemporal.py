@@ -106,7 +106,7 @@ def _at(track: NDArray[np.float64], rate_hz: float, times_s: NDArray) -> NDArray
     return out
 
 
-def spatiotemporal(
+def spatiotemporal_parameters(
     events: GaitEvents, markers: GaitMarkers, max_stride_factor: float = 1.5
 ) -> Spatiotemporal:
     """Spatiotemporal parameters of one trial.
@@ -141,7 +141,7 @@ def spatiotemporal(
     ...     ("right", "foot_strike"): [1.0, 2.0, 3.0], ("left", "foot_off"): [1.1, 2.1],
     ...     ("right", "foot_off"): [1.6, 2.6]}, 100.0)
     >>> gm = GaitMarkers((heel["left"],), heel, heel, 100.0, {})
-    >>> st = spatiotemporal(ev, gm)
+    >>> st = spatiotemporal_parameters(ev, gm)
     >>> [round(st.mean(p, "left"), 3) for p in ("cadence", "stance", "double_support")]
     [120.0, 60.0, 20.0]
     >>> round(st.mean("step_width", "right"), 3), round(st.mean("step_length", "right"), 3)

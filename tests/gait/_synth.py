@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kisscal.gait import GaitEvents, GaitMarkers, detect_events, gait_markers
-from kisscal.gait.spatiotemporal import Spatiotemporal, spatiotemporal
+from kisscal.gait.spatiotemporal import Spatiotemporal, spatiotemporal_parameters
 from kisscal.gait.table import EVENTS, SIDES
 from kisscal.markersets import marker_set
 from kisscal.synth.motion import Motion, walking_trial
@@ -90,11 +90,11 @@ def score(found: GaitEvents, truth, t_end: float) -> Score:
 
 def true_spatiotemporal(tr: Trial) -> Spatiotemporal:
     """The parameters of the noise-free markers at the true contact instants."""
-    return spatiotemporal(tr.truth.events, tr.clean)
+    return spatiotemporal_parameters(tr.truth.events, tr.clean)
 
 
 def measured_spatiotemporal(tr: Trial) -> Spatiotemporal:
-    return spatiotemporal(tr.events, tr.markers)
+    return spatiotemporal_parameters(tr.events, tr.markers)
 
 
 def grid(n: int, seed: int = 0) -> list[tuple[float, float, float]]:
