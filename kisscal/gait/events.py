@@ -1,25 +1,34 @@
 """Foot strike and foot off from marker trajectories, any walking direction.
 
-Two steps per event, each a published kinematic criterion:
+Two steps per event:
 
 1. **Strides** (coarse): Zeni et al. 2008's velocity method. The heel's velocity relative
    to the pelvis, along the local direction of progression, changes from forward to
    backward once per stride, just before foot strike; the toe's changes from backward to
    forward just after foot off. The direction of progression is the pelvis' horizontal
    velocity smoothed over about a second, so any heading works and turns are followed.
-   A hysteresis (the relative velocity must exceed a fraction of the walking speed on
-   both sides of the crossing) rejects noise, and a stride cut by the start or end of
-   the trial, or by a gap, gives no event.
-2. **Instants** (fine), near each coarse event: foot strike is the instant the heel
-   marker stops descending, the corner of its height curve when the heel meets the
-   floor, found by a broken-line fit with sub-field precision (heel-first walking; the
-   impact makes the corner). Foot off is the peak of the foot centre's (mean of heel
-   and toe markers) upward velocity, O'Connor et al. 2007's foot velocity algorithm:
-   the foot lifts fastest as the push-off ends.
+   A hysteresis (the relative velocity must pass a fraction of the walking speed on both
+   sides of the crossing, and stay there a while) rejects noise; a stride cut by the
+   start or end of the trial, or by a gap, gives no event.
+2. **Instants** (fine), near each coarse event, with sub-field precision:
 
-Zeni's zero crossings alone lie 20-70 ms before foot strike and 15-35 ms after foot off
-(measured here on walking5.c3d against its force plates and on kisscal's grounded
-walker), hence the second step.
+   * foot strike: the heel marker stops descending when the heel meets the floor and
+     then rises as the foot rolls over the heel, so its height turns a corner there
+     (Hreljac & Marshall 2000 time foot strike by the heel's vertical motion); the
+     corner is found by a broken-curve fit (two quadratics meeting at the event) around
+     the heel's lowest sample;
+   * foot off: the push-off turns the foot (heel-to-toe line) down faster and faster
+     until the toes leave the floor, then the foot's rotation stops at once: foot off is
+     the corner of the foot's pitch rate at its fastest plantarflexion, found by the
+     same fit. This is a kinematic cousin of O'Connor et al. 2007's foot velocity
+     algorithm (peak upward velocity of the foot centre), which peaks 10-20 ms before
+     foot off.
+
+Measured (``python -m tests.gait.acceptance``): Zeni's crossings alone fall about 21 ms
+before foot strike and 12-24 ms after foot off, O'Connor's peak 10-22 ms before foot
+off, on walking5.c3d against its force plates and on kisscal's grounded walker alike;
+the refined instants are within 6 ms of the plates and 1.4-2.1 ms (mean absolute) of the
+walker's true contacts at 100 Hz.
 """
 
 from __future__ import annotations
@@ -71,9 +80,9 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
 
     References
     ----------
-    Zeni, Richards & Higginson 2008 (velocity-based stride detection); O'Connor, Thorpe,
-    O'Malley & Vaughan 2007 (foot velocity algorithm, foot off); Hreljac & Marshall 2000
-    (heel kinematics at foot strike).
+    Zeni, Richards & Higginson 2008 (velocity-based stride detection); Hreljac & Marshall
+    2000 (foot strike from the heel's vertical motion); O'Connor, Thorpe, O'Malley &
+    Vaughan 2007 (foot off from the foot's motion at push-off).
 
     Examples
     --------

@@ -32,8 +32,8 @@ class GaitParams(Params):
         Where the heel's lowest point is looked for around the coarse foot strike, as
         fractions of the stride time (the coarse event comes 20-70 ms early).
     off_window : (float, float)
-        Where the peak of the foot's upward velocity is looked for around the coarse
-        foot off (the coarse event comes 15-35 ms late), fractions of the stride time.
+        Where the foot's fastest plantarflexion is looked for around the coarse foot off
+        (the coarse event comes 10-35 ms late), fractions of the stride time.
     strike_fit_ms, strike_search_ms : float
         Half width of the window over which the corner of the heel's height is fitted,
         and how far from the heel's lowest sample the corner may lie.

@@ -7,6 +7,9 @@ thigh, knee, shank, ankle, heel and toe on both legs) with two anterior pelvis m
 for the 15-marker set. Knee and ankle markers sit on the joint axes, so the distances
 knee-ankle, knee-shank, ankle-heel and so on are fixed: ``segments`` lists them.
 Body segments are also returned as capsules, which block lines of sight (occlusion).
+``walking_trial(..., model="grounded")`` is the walker of :mod:`kisscal.synth.walker`
+instead, built from the feet up so that they roll on the floor without slipping; it
+carries its true foot contacts and gait (:class:`kisscal.synth.walker.GaitTruth`).
 """
 
 from __future__ import annotations

@@ -27,10 +27,11 @@ def path():
     return resources.files("kisscal.data") / "walking5.c3d"
 
 
-def load(step: int = 1) -> tuple[GaitMarkers, float]:
-    """The trial's heel, toe and pelvis markers (every ``step``-th frame) and its rate."""
+def load(step: int = 1, offset: int = 0) -> tuple[GaitMarkers, float]:
+    """The trial's heel, toe and pelvis markers (every ``step``-th frame from ``offset``)
+    and its full rate."""
     labels, xyz, rate = read_c3d_points(path())
-    markers = dict(zip(labels, xyz[::step].transpose(1, 0, 2), strict=True))
+    markers = dict(zip(labels, xyz[offset::step].transpose(1, 0, 2), strict=True))
     return gait_markers(markers, rate / step, marker_set("plug-in-gait-full")), rate
 
 
