@@ -7,15 +7,22 @@ thigh, knee, shank, ankle, heel and toe on both legs) with two anterior pelvis m
 for the 15-marker set. Knee and ankle markers sit on the joint axes, so the distances
 knee-ankle, knee-shank, ankle-heel and so on are fixed: ``segments`` lists them.
 Body segments are also returned as capsules, which block lines of sight (occlusion).
+``walking_trial(..., model="grounded")`` is the walker of :mod:`kisscal.synth.walker`
+instead, built from the feet up so that they roll on the floor without slipping; it
+carries its true foot contacts and gait (:class:`kisscal.synth.walker.GaitTruth`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
+
+if TYPE_CHECKING:
+    from kisscal.synth.walker import GaitTruth
 
 #: Gravitational acceleration used for the thrown marker (Ankara, seed 003 section 5.1).
 G_MM_S2 = 9806.0
@@ -41,6 +48,8 @@ class Motion:
     rate_hz : float
     segments : tuple of (str, str)
         Marker pairs whose distance does not change.
+    truth : GaitTruth or None
+        True foot contacts and gait of the grounded walker (None for other motions).
     """
 
     names: tuple[str, ...]
@@ -49,6 +58,7 @@ class Motion:
     capsule_radius_mm: NDArray[np.float64]
     rate_hz: float
     segments: tuple[tuple[str, str], ...] = ()
+    truth: GaitTruth | None = None
 
     @property
     def n_fields(self) -> int:
@@ -66,6 +76,8 @@ _ANKLE_DEG = np.array([0, -6, 2, 8, 10, 2, -15, -6, 2, 2, 0], dtype=float)
 # Body dimensions (mm) of the walker.
 _THIGH_MM, _SHANK_MM = 430.0, 420.0
 _HIP_HALF_WIDTH_MM = 85.0
+#: Stature of this geometry (mm): the standing hip height, 930 mm, is 0.530 H (Winter 2009).
+_REFERENCE_HEIGHT_MM = 1755.0
 _STRIDE_SAMPLES = 400
 
 
@@ -192,6 +204,12 @@ def walking_trial(
     rate_hz: float = 50.0,
     n_markers: int = 15,
     path_mm: float = 3400.0,
+    *,
+    model: Literal["kinematic", "grounded"] = "kinematic",
+    height_m: float | None = None,
+    heading_deg: float | None = None,
+    start_mm: tuple[float, float] | None = None,
+    turn_deg: float = 0.0,
 ) -> Motion:
     """A subject walking along the lab X axis through the control volume.
 
@@ -199,34 +217,58 @@ def walking_trial(
     plus a margin) during the trial, between 0.5 and 1.3 m/s; the cadence follows from
     the stride length. Direction (+X or -X), lateral offset and starting phase vary with
     the seed. Markers outside the cameras' view are the renderer's business.
+
+    ``model="grounded"`` is the walker of :mod:`kisscal.synth.walker`, whose feet roll on
+    the floor without slipping; its :attr:`Motion.truth` holds the true foot contacts
+    and gait. ``height_m`` scales the body (default 1.755 m, the default geometry);
+    ``heading_deg`` sets the walking direction (degrees from +X towards +Y) and
+    ``start_mm`` the pelvis' floor position at field 0 (default: the path is centred on
+    the volume, off by a random lateral offset); ``turn_deg`` (grounded only) bends the
+    path by that many degrees over the trial. Left at their defaults, the kinematic
+    walker is the same as before these options existed.
     """
     rng = np.random.default_rng([seed, 2002])
     names = gait_marker_names(n_markers)
     t = np.arange(n_fields) / rate_hz
     speed = np.clip(path_mm / max(t[-1], 1e-9), 500.0, 1300.0)
-    stride_mm, _ = _stride_geometry()
-    cycle_s = stride_mm / speed
-    phase = t / cycle_s + rng.uniform(0, 1)
+    phase0 = rng.uniform(0, 1)
     heading = rng.choice([0.0, np.pi]) + rng.uniform(-0.05, 0.05)
     lateral = rng.uniform(-150, 150)
-    forward = speed * (t - t[-1] / 2)
+    if heading_deg is not None:
+        heading = np.radians(heading_deg)
+    k = 1.0 if height_m is None else height_m * 1000.0 / _REFERENCE_HEIGHT_MM
+    if model == "grounded":
+        return _grounded(names, t, rate_hz, speed, k, heading, start_mm, lateral, phase0, turn_deg)
+    if model != "kinematic":
+        raise ValueError(f"walker model must be 'kinematic' or 'grounded', not {model!r}")
+    if turn_deg:
+        raise ValueError("turn_deg needs model='grounded'")
+    stride_mm, _ = _stride_geometry()
+    cycle_s = k * stride_mm / speed
+    phase = t / cycle_s + phase0
+    forward = speed * (t - t[-1] / 2) if start_mm is None else speed * t
+    if start_mm is not None:
+        lateral = 0.0
 
     yaw = np.radians(4.0) * np.sin(2 * np.pi * phase)
-    sway = 15.0 * np.sin(2 * np.pi * phase)
-    height = _pelvis_height(phase)
+    sway = k * 15.0 * np.sin(2 * np.pi * phase)
+    height = k * _pelvis_height(phase)
     origin_local = np.stack([forward, lateral + sway, height], axis=1)
+    shift = np.zeros(3) if start_mm is None else np.array([*start_mm, 0.0])
 
     def to_lab(p_pelvis: NDArray) -> NDArray:
         """Pelvis-frame points (n, 3) -> lab, with the pelvis yaw and the walking heading."""
+        p_pelvis = k * p_pelvis
         c, s = np.cos(yaw), np.sin(yaw)
         x = c * p_pelvis[:, 0] - s * p_pelvis[:, 1]
         y = s * p_pelvis[:, 0] + c * p_pelvis[:, 1]
         local = np.stack([x, y, p_pelvis[:, 2]], axis=1) + origin_local
         ch, sh = np.cos(heading), np.sin(heading)
-        return np.stack(
+        lab = np.stack(
             [ch * local[:, 0] - sh * local[:, 1], sh * local[:, 0] + ch * local[:, 1], local[:, 2]],
             axis=1,
         )
+        return lab if start_mm is None else lab + shift
 
     legs = {"R": _leg_points(phase, -1.0), "L": _leg_points(phase + 0.5, 1.0)}
     markers = []
@@ -244,7 +286,7 @@ def walking_trial(
             axis=1,
         )
     ]
-    radii = [_PELVIS_RADIUS_MM]
+    radii = [k * _PELVIS_RADIUS_MM]
     for side in "RL":
         leg = legs[side]
         ends = {
@@ -255,7 +297,7 @@ def walking_trial(
         for cap, radius in _LEG_CAPSULES:
             a, b = ends[cap]
             capsules.append(np.stack([to_lab(leg[a]), to_lab(leg[b])], axis=1))
-            radii.append(radius)
+            radii.append(k * radius)
     return Motion(
         names=names,
         xyz_mm=np.stack(markers, axis=1),
@@ -263,6 +305,49 @@ def walking_trial(
         capsule_radius_mm=np.asarray(radii),
         rate_hz=rate_hz,
         segments=gait_segments(names),
+    )
+
+
+def _grounded(
+    names: tuple[str, ...],
+    t: NDArray,
+    rate_hz: float,
+    speed: float,
+    k: float,
+    heading: float,
+    start_mm: tuple[float, float] | None,
+    lateral: float,
+    phase0: float,
+    turn_deg: float,
+) -> Motion:
+    """The walker of :mod:`kisscal.synth.walker` as a :class:`Motion` with its truth."""
+    from kisscal.synth.walker import grounded_walk
+
+    if start_mm is None:
+        direction = np.array([np.cos(heading), np.sin(heading)])
+        normal = np.array([-direction[1], direction[0]])
+        start = lateral * normal - speed * t[-1] / 2 * direction
+    else:
+        start = np.asarray(start_mm, dtype=float)
+    markers, capsules, radii, truth = grounded_walk(
+        names,
+        len(t),
+        rate_hz,
+        float(speed),
+        k * _REFERENCE_HEIGHT_MM,
+        float(heading),
+        start,
+        float(phase0),
+        np.radians(turn_deg),
+    )
+    return Motion(
+        names=names,
+        xyz_mm=np.stack([markers[n] for n in names], axis=1),
+        capsules_mm=capsules,
+        capsule_radius_mm=radii,
+        rate_hz=rate_hz,
+        segments=gait_segments(names),
+        truth=truth,
     )
 
 

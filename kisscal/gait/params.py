@@ -1,0 +1,66 @@
+"""Every default of the gait stage (events and spatiotemporal parameters), in one place."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kisscal.params import Params, param
+
+
+@dataclass(frozen=True)
+class GaitParams(Params):
+    """Parameters of gait event detection (see :func:`kisscal.gait.detect_events`).
+
+    Attributes
+    ----------
+    derivative_ms : float
+        Span of the local quadratic fits (Savitzky-Golay) that give marker velocities;
+        at least 5 samples are used whatever the rate.
+    direction_s : float
+        SD of the Gaussian that smooths the pelvis velocity into the local direction of
+        progression (turns slower than this are followed).
+    min_speed_mm_s : float
+        Below this pelvis speed the subject is not walking: no events are looked for.
+    hysteresis : float
+        A heel (toe) must move forward faster than the pelvis by this fraction of the
+        walking speed, and then slower by as much, for a stride to count (Zeni et al.
+        2008's zero crossing, made immune to noise).
+    hold_s : float
+        ... and the heel (toe) must then stay behind (ahead) that long: a brief dip of
+        the relative velocity is not a change of phase.
+    strike_window : (float, float)
+        Where the heel's lowest point is looked for around the coarse foot strike, as
+        fractions of the stride time (the coarse event comes 20-70 ms early).
+    off_window : (float, float)
+        Where the foot's fastest plantarflexion is looked for around the coarse foot off
+        (the coarse event comes 10-35 ms late), fractions of the stride time.
+    strike_fit_ms, strike_search_ms : float
+        Half width of the window over which the corner of the heel's height is fitted,
+        and how far from the heel's lowest sample the corner may lie.
+    off_fit_ms, off_search_ms : float
+        The same for the corner of the foot's pitch rate at foot off, around the
+        fastest plantarflexion of the smoothed pitch rate.
+    """
+
+    section = "gait"
+    derivative_ms: float = param(40.0, unit="ms", gt=0)
+    direction_s: float = param(0.4, unit="s", gt=0)
+    min_speed_mm_s: float = param(150.0, unit="mm/s", gt=0)
+    hysteresis: float = param(0.3, gt=0, lt=1)
+    hold_s: float = param(0.1, unit="s", gt=0)
+    strike_window: tuple[float, float] = param((-0.05, 0.2), ge=-0.5, le=0.5)
+    off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
+    strike_fit_ms: float = param(80.0, unit="ms", gt=0)
+    strike_search_ms: float = param(30.0, unit="ms", gt=0)
+    off_fit_ms: float = param(120.0, unit="ms", gt=0)
+    off_search_ms: float = param(40.0, unit="ms", gt=0)
+
+    def check(self) -> None:
+        for name in ("strike_window", "off_window"):
+            lo, hi = getattr(self, name)
+            if not lo < hi:
+                self.fail(f"{name} must be (earlier, later), got {(lo, hi)!r}")
+
+
+#: The defaults, shared (frozen).
+DEFAULT_PARAMS = GaitParams()

@@ -1,0 +1,135 @@
+"""Signal helpers for gait events: gap-aware derivatives, smoothing, crossings, kink fits."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d
+from scipy.signal import savgol_filter
+
+
+def finite_runs(valid: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(start, stop) of every run of True in ``valid``."""
+    edges = np.diff(np.concatenate([[0], valid.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def window_samples(span_ms: float, rate_hz: float, minimum: int = 5) -> int:
+    """An odd number of samples spanning about ``span_ms``, at least ``minimum``."""
+    n = max(minimum, round(span_ms * rate_hz / 1000.0))
+    return n if n % 2 else n + 1
+
+
+def derivative(x: NDArray[np.float64], rate_hz: float, span_ms: float) -> NDArray[np.float64]:
+    """Time derivative along axis 0 by local quadratic fits (Savitzky-Golay), gap by gap.
+
+    Rows with any NaN are gaps; runs shorter than the fit window stay NaN.
+    """
+    x = np.asarray(x, dtype=float)
+    out = np.full_like(x, np.nan)
+    n = window_samples(span_ms, rate_hz)
+    valid = np.all(np.isfinite(x.reshape(len(x), -1)), axis=1)
+    for a, b in finite_runs(valid):
+        if b - a >= n:
+            out[a:b] = savgol_filter(x[a:b], n, 2, deriv=1, delta=1.0 / rate_hz, axis=0)
+    return out
+
+
+def smooth(x: NDArray[np.float64], sigma_samples: float) -> NDArray[np.float64]:
+    """Gaussian smoothing along axis 0 that ignores NaN (normalised convolution)."""
+    x = np.asarray(x, dtype=float)
+    valid = np.isfinite(x)
+    num = gaussian_filter1d(np.where(valid, x, 0.0), sigma_samples, axis=0, mode="constant")
+    den = gaussian_filter1d(valid.astype(float), sigma_samples, axis=0, mode="constant")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(valid, num / den, np.nan)
+
+
+def hysteresis_crossings(
+    signal: NDArray[np.float64],
+    high: NDArray[np.float64],
+    low: NDArray[np.float64],
+    hold: int = 1,
+) -> NDArray[np.float64]:
+    """Fractional sample indices where ``signal`` falls from above ``high`` to below ``low``.
+
+    The crossing reported is the last zero crossing between the two (linear
+    interpolation); a NaN between them voids the crossing, and so does a stay below
+    ``low`` shorter than ``hold`` samples (a brief dip is not a change of phase).
+    """
+    state = np.where(signal > high, 1, np.where(signal < low, -1, 0))
+    state[~np.isfinite(signal)] = 2
+    idx = np.flatnonzero(state != 0)
+    seq = state[idx]
+    starts = idx[:-1][(seq[:-1] == 1) & (seq[1:] == -1)]
+    ends = idx[1:][(seq[:-1] == 1) & (seq[1:] == -1)]
+    out = []
+    below = np.concatenate([signal < low, [False]])
+    run_end = np.flatnonzero(~below)  # first sample at or after each index that is not below
+    for a, b in zip(starts, ends, strict=True):  # one per stride
+        if run_end[np.searchsorted(run_end, b)] - b < hold:
+            continue
+        seg = signal[a : b + 1]
+        j = a + int(np.flatnonzero((seg[:-1] > 0) & (seg[1:] <= 0))[-1])
+        out.append(j + signal[j] / (signal[j] - signal[j + 1]))
+    return np.asarray(out, dtype=float)
+
+
+def kink_time(
+    t: NDArray[np.float64],
+    y: NDArray[np.float64],
+    centre: float,
+    half_s: float,
+    search_s: float,
+    order: int = 1,
+) -> float:
+    """Time where ``y`` turns a corner near ``centre``: sub-sample.
+
+    ``order=0``: two straight lines meet at ``t0`` (a V; for short windows).
+    ``order=1``: the slope jumps; two quadratics meet at ``t0`` (``y = c0 + c1 tau +
+    c2 tau^2 + c3 tau+ + c4 tau+^2``, ``tau = t - t0``, ``tau+ = max(tau, 0)``).
+    ``order=2``: the curvature jumps; two cubics meet at ``t0`` with equal slopes
+    (``c0 + c1 tau + c2 tau^2 + c3 tau^3 + c4 tau+^2 + c5 tau+^3``). The samples within
+    ``half_s`` of ``centre`` are fitted by least squares for candidate ``t0`` every 1/20
+    sample within ``search_s`` of ``centre``, and the best ``t0`` is returned (a
+    broken-curve regression). NaN if the window holds too few samples or the best
+    corner lies at the edge of the searched range.
+    """
+    sel = np.isfinite(y) & (np.abs(t - centre) <= half_s)
+    tt, yy = t[sel], y[sel]
+    if len(tt) < 4 + 2 * order:
+        return float("nan")
+    dt = float(np.median(np.diff(tt)))
+    reach = max(search_s, 2.0 * dt)
+    inner = 0.0 if order == 0 else dt
+    lo, hi = max(centre - reach, tt[1] + inner), min(centre + reach, tt[-2] - inner)
+    cands = np.arange(lo, hi + 1e-12, dt / 20.0)
+    if len(cands) < 3:
+        return float("nan")
+    tau = (tt[None, :] - cands[:, None]) / half_s
+    after = np.clip(tau, 0.0, None)
+    if order == 0:
+        cols = [np.ones_like(tau), tau, after]
+    elif order == 1:
+        cols = [np.ones_like(tau), tau, tau**2, after, after**2]
+    else:
+        cols = [np.ones_like(tau), tau, tau**2, tau**3, after**2, after**3]
+    basis = np.stack(cols, axis=-1)
+    gram = np.einsum("gnp,gnq->gpq", basis, basis)
+    rhs = np.einsum("gnp,n->gp", basis, yy)
+    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
+    rss = np.sum((yy[None, :] - np.einsum("gnp,gp->gn", basis, coef)) ** 2, axis=1)
+    best = int(np.argmin(rss))
+    if best in (0, len(cands) - 1):
+        return float("nan")
+    return float(cands[best])
+
+
+def peak_time(t: NDArray[np.float64], y: NDArray[np.float64], i: int) -> float:
+    """Sub-sample time of the maximum at sample ``i``: vertex of the parabola through i-1..i+1."""
+    if i <= 0 or i >= len(y) - 1 or not np.all(np.isfinite(y[i - 1 : i + 2])):
+        return float("nan")
+    a, b, c = y[i - 1 : i + 2]
+    den = a - 2 * b + c
+    shift = 0.0 if den >= 0 else 0.5 * (a - c) / den
+    return float(t[i] + shift * (t[i + 1] - t[i]))

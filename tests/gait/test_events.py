@@ -1,0 +1,117 @@
+"""Gait events against the grounded walker's true foot contacts, and walking5's force plates."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.errors import KisscalError
+from kisscal.gait import GaitParams, detect_events, gait_markers, progression
+from kisscal.markersets import marker_set
+from tests.gait import _synth, _walking5
+
+
+def _pooled(rate_hz: float, n: int, seed: int):
+    errors = {"foot_strike": [], "foot_off": []}
+    missed = extra = 0
+    for k, (heading, height, speed) in enumerate(_synth.grid(n, seed)):
+        tr = _synth.trial(100 * seed + k, rate_hz, heading, height, speed)
+        sc = _synth.score(tr.events, tr.truth, (tr.motion.n_fields - 1) / rate_hz)
+        for e in errors:
+            errors[e] += sc.errors_s[e]
+        missed += sum(sc.missed.values())
+        extra += sum(sc.extra.values())
+    return {e: np.abs(v) for e, v in errors.items()}, missed, extra
+
+
+@pytest.mark.parametrize(("rate_hz", "mae_ms", "max_ms"), [(100.0, 5.0, 25.0), (50.0, 7.0, 40.0)])
+def test_events_match_true_contacts_any_heading_and_height(
+    rate_hz: float, mae_ms: float, max_ms: float
+) -> None:
+    """Headings over 360 degrees, statures 1.5-1.9 m, 0.7-1.4 m/s, 0.5 mm noise (the bar
+    is 10 ms mean absolute error; at 50 Hz a field is 20 ms, so single events may miss
+    by up to two fields)."""
+    errors, missed, extra = _pooled(rate_hz, 8, seed=1)
+    assert missed == 0 and extra == 0
+    for event, err in errors.items():
+        assert len(err) >= 40, event
+        assert err.mean() * 1000 < mae_ms, (event, err.mean())
+        assert err.max() * 1000 < max_ms, (event, err.max())
+
+
+def test_a_turning_walk_keeps_its_events() -> None:
+    tr = _synth.trial(5, 100.0, 30.0, 1.7, 1.0, duration_s=6.0, turn_deg=120.0)
+    sc = _synth.score(tr.events, tr.truth, (tr.motion.n_fields - 1) / 100.0)
+    assert sum(sc.missed.values()) == 0 and sum(sc.extra.values()) == 0
+    for event, err in sc.errors_s.items():
+        assert np.abs(err).mean() < 0.006, event
+    direction, _ = progression(tr.markers)
+    heading = np.degrees(np.arctan2(direction[:, 1], direction[:, 0]))
+    turned = (heading[-60] - heading[60] + 180.0) % 360.0 - 180.0
+    assert turned == pytest.approx(120.0 * (len(heading) - 121) / len(heading), abs=8.0)
+
+
+def test_partial_strides_at_the_ends_give_no_invented_events() -> None:
+    """Cut a trial anywhere: every event found is a true one, none near the cuts is made up."""
+    tr = _synth.trial(7, 100.0, 250.0, 1.6, 1.2, duration_s=5.0)
+    names = tr.motion.names
+    kiss = marker_set("kiss")
+    for start, stop in ((13, 377), (41, 290), (77, 431)):
+        xyz = tr.motion.xyz_mm[start:stop] + np.random.default_rng(start).normal(0, 0.5, (1,))
+        gm = gait_markers(dict(zip(names, xyz.transpose(1, 0, 2), strict=True)), 100.0, kiss)
+        found = detect_events(gm)
+        true_times = {
+            key: tr.truth.events.times(*key) - start / 100.0
+            for key in {(s, e) for s, e in zip(found.side, found.event, strict=True)}
+        }
+        for side, event, t in zip(found.side, found.event, found.time_s, strict=True):
+            assert np.abs(true_times[(side, event)] - t).min() < 0.02
+        assert len(found) >= 4
+
+
+def test_a_gap_in_the_heel_loses_only_the_events_it_covers() -> None:
+    tr = _synth.trial(9, 100.0, 80.0, 1.8, 1.0)
+    heel = tr.markers.heel["left"].copy()
+    fs = tr.truth.events.times("left", "foot_strike")
+    hole = slice(int(fs[1] * 100) - 10, int(fs[1] * 100) + 10)
+    heel[hole] = np.nan
+    markers = _synth.GaitMarkers(
+        tr.markers.pelvis, {**tr.markers.heel, "left": heel}, tr.markers.toe, 100.0, {}
+    )
+    found = detect_events(markers)
+    sc = _synth.score(found, tr.truth, (tr.motion.n_fields - 1) / 100.0)
+    assert sum(sc.extra.values()) == 0
+    assert sc.missed == {"foot_strike": 1, "foot_off": 0}
+    assert np.abs(found.times("left", "foot_strike") - fs[1]).min() > 0.3
+
+
+def test_standing_still_has_no_events() -> None:
+    kiss = marker_set("kiss")
+    still = np.broadcast_to(kiss.template_mm, (300, len(kiss), 3))
+    noisy = still + np.random.default_rng(0).normal(0, 0.5, still.shape)
+    gm = gait_markers(dict(zip(kiss.names, noisy.transpose(1, 0, 2), strict=True)), 100.0, kiss)
+    assert len(detect_events(gm)) == 0
+
+
+def test_walking5_events_agree_with_its_force_plates() -> None:
+    gm, _ = _walking5.load()
+    found = detect_events(gm)
+    assert found.rate_hz == 250.0
+    for side in ("left", "right"):  # two full strides per side in view
+        assert len(found.times(side, "foot_strike")) >= 2
+        assert len(found.times(side, "foot_off")) >= 2
+    plates = _walking5.plate_events()
+    assert len(plates) == 3  # right strike on plate 2; left and right offs
+    for p in plates:
+        error = np.abs(found.times(p.side, p.event) - p.time_s).min()
+        assert error < 0.010, (p, error)
+
+
+def test_missing_markers_are_one_line_errors() -> None:
+    kiss = marker_set("kiss")
+    with pytest.raises(KisscalError, match="no left heel marker"):
+        gait_markers({"SACR": np.zeros((5, 3))}, 100.0, kiss)
+    with pytest.raises(KisscalError, match="no pelvis marker"):
+        gait_markers({"LHEE": np.zeros((5, 3))}, 100.0, kiss)
+    with pytest.raises(KisscalError, match=r"\[gait\] strike_window"):
+        GaitParams(strike_window=(0.1, -0.1))
