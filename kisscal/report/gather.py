@@ -117,7 +117,7 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
     """Without ``summary.json`` (a stage run on its own), the figures read from ``out/``."""
     if not have_config:
         return {}
-    from kisscal.session.summary import summarise  # the one reader of stage outputs
+    from kisscal.io.summary import summarise  # the one reader of stage outputs
 
     try:
         return summarise(root)

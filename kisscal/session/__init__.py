@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
 from kisscal.session.detection import detect_images
 from kisscal.session.inputs import out_dir
@@ -29,7 +30,7 @@ from kisscal.session.progress import Progress, reporting_progress
 from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.run import run
-from kisscal.session.summary import CheckFailure, check, summarise
+from kisscal.session.summary import CheckFailure, check
 from kisscal.session.track import track
 from kisscal.session.validate import Problem, validate
 

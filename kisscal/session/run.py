@@ -8,6 +8,7 @@ from typing import Any
 
 from kisscal.errors import KisscalError
 from kisscal.io.files import write_json
+from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
 from kisscal.session.inputs import load_config, out_dir, writes_session
 from kisscal.session.linearise import linearise
@@ -15,7 +16,6 @@ from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
-from kisscal.session.summary import summarise
 from kisscal.session.track import track
 from kisscal.session.validate import SESSION, Problem, validate
 

@@ -5,61 +5,12 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from kisscal.errors import KisscalError
-from kisscal.io.files import read_table, write_json
+from kisscal.io.files import write_json
 from kisscal.session.inputs import load_config, out_dir, writes_session
-
-
-def summarise(root: Path) -> dict[str, Any]:
-    """Every quality figure of a processed session, read back from ``out/``."""
-    config = load_config(root)
-    out = out_dir(root)
-    cams = {cam: _camera_summary(out, cam) for cam in config.camera_ids}
-    trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
-    check_path = out / "dlt" / "check.json"
-    check = json.loads(check_path.read_text()) if check_path.is_file() else {}
-    return {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
-
-
-def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
-    entry: dict[str, Any] = {}
-    lin_path = out / "linearisation" / f"{cam}.json"
-    if lin_path.is_file():
-        doc = json.loads(lin_path.read_text())
-        entry["grid"] = {
-            k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
-        }
-    dlt_path = out / "dlt" / f"{cam}.json"
-    if dlt_path.is_file():
-        doc = json.loads(dlt_path.read_text())
-        entry["dlt"] = {
-            "method": doc.get("method"),
-            "rms_px": doc.get("rms_px"),
-            "centre_mm": doc.get("centre_mm"),
-        }
-    return entry
-
-
-def _trial_summary(tdir: Path) -> dict[str, Any]:
-    entry: dict[str, Any] = {}
-    if (tdir / "tracking.json").is_file():
-        entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
-    if (tdir / "recon.json").is_file():
-        entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
-    if (tdir / "trajectories.csv").is_file():
-        tr = read_table(tdir / "trajectories.csv")
-        labels = sorted(set(tr["label"].tolist()))
-        entry["trajectories"] = len(labels)
-        entry["labels"] = labels
-        status = tr["status"]
-        entry["samples"] = {
-            s: int(np.sum(status == s)) for s in ("measured", "predicted", "filled")
-        }
-    return entry
 
 
 @dataclass(frozen=True)
