@@ -33,6 +33,7 @@ from kisscal.grid import apply_linearisation, linearise_frames
 from kisscal.io.config import load_session
 from kisscal.io.frames import camera_frames, trial_frames
 from kisscal.recon import ReconParams, reconstruct_trial
+from kisscal.rig import Camera, Rig
 from kisscal.tracking import TrackingParams, build_trajectories
 
 work = Path(os.environ.get("KISSCAL_WALKTHROUGH_DIR") or tempfile.mkdtemp(prefix="kisscal-"))
@@ -95,20 +96,14 @@ for cam, res in cal.results.items():
 
 # %% [markdown]
 # ## 5. Matching and triangulation (Shafiq et al. 2001, 4.1-4.2)
+# A `Rig` holds every camera's linearisation and DLT; it turns the blobs of a trial into
+# the long table of linearised observations that reconstruction takes.
 
 # %%
-rows = []
-for ci, cam in enumerate(config.camera_ids):
-    for f in range(len(frames[cam])):
-        xy = apply_linearisation(lins[cam], detect_blobs(frames[cam][f]).valid_only().xy_px)
-        rows += [(f, ci, u, v) for u, v in xy]
-table = np.array(rows)
-order = np.lexsort((table[:, 1], table[:, 0]))
-table = table[order]
-dlts = np.stack([cal.results[c].L for c in config.camera_ids])
-points = reconstruct_trial(
-    table[:, 0].astype(int), table[:, 1].astype(int), table[:, 2:], dlts, ReconParams()
-)
+rig = Rig(tuple(Camera(c, cal.results[c].L, lins[c]) for c in config.camera_ids))
+blobs = {c: [detect_blobs(f).valid_only().xy_px for f in frames[c]] for c in rig.ids}
+obs = rig.observations(blobs)  # one row per blob: field, camera, linearised (u, v)
+points = reconstruct_trial(obs.field, obs.camera, obs.uv_px, rig.dlts, ReconParams())
 print(f"{len(points)} 3D points, median reprojection rms {np.median(points.rms_px):.3f} px")
 
 # %% [markdown]

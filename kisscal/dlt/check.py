@@ -2,7 +2,7 @@
 
 The triangulation is the least-squares n-camera DLT reconstruction (Küçük 2005,
 eqs. 2.14 ff.; Shafiq et al. 2001, section 4) of the reconstruction stage,
-:func:`kisscal.recon.triangulate.triangulate`, called here in the rods' array layout.
+:func:`kisscal.dlt.triangulate.triangulate`, called here in the rods' array layout.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.nonlinear import correct_lens
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
+from kisscal.dlt.triangulate import triangulate
 from kisscal.errors import KisscalError
-from kisscal.recon.triangulate import triangulate
 
 
 def triangulate_dlt(
@@ -52,7 +52,7 @@ def triangulate_dlt(
 
     See Also
     --------
-    kisscal.recon.triangulate.triangulate : the solver used, points-first layout.
+    kisscal.dlt.triangulate.triangulate : the solver used, points-first layout.
     """
     # One method, one implementation: the reconstruction stage's batched solver
     # (same equations and reweighting), which takes points first, cameras second.

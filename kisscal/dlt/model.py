@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal.errors import KisscalError
+
 
 def dlt_to_matrix(L: ArrayLike) -> NDArray[np.float64]:
     """Return the 3 x 4 projection matrix of DLT parameters L1..L11 (with ``P[2, 3] = 1``)."""
@@ -64,3 +66,87 @@ def project(L: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:
     xyz = np.asarray(xyz_mm, dtype=float)
     h = xyz @ P[:, :3].T + P[:, 3]
     return h[..., :2] / h[..., 2:3]
+
+
+def project_rows(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+    """Project point ``k`` into camera ``camera[k]``, for many (camera, point) rows at once.
+
+    Parameters
+    ----------
+    dlts : array_like, shape (n_cameras, 11)
+        DLT parameters of every camera.
+    camera : array_like of int, shape (n,)
+        Camera (row of ``dlts``) of each row.
+    xyz_mm : array_like, shape (n, 3)
+        Lab point of each row.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        Image coordinates ``(u, v)`` in pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> L = np.array([[1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0]] * 2)
+    >>> project_rows(L, [0, 1], [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    array([[1., 2.],
+           [4., 5.]])
+    """
+    L = np.asarray(dlts, dtype=float)[np.asarray(camera, dtype=np.int64)]
+    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    den = np.einsum("ij,ij->i", L[:, 8:11], xyz) + 1.0
+    u = (np.einsum("ij,ij->i", L[:, 0:3], xyz) + L[:, 3]) / den
+    v = (np.einsum("ij,ij->i", L[:, 4:7], xyz) + L[:, 7]) / den
+    return np.column_stack([u, v])
+
+
+def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
+    """Projection centre (mm) of a DLT camera: the null vector of ``P = [M | p4]``.
+
+    Parameters
+    ----------
+    L : array_like, shape (11,)
+        DLT parameters L1..L11.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        ``-M^-1 p4`` in lab millimetres.
+    """
+    P = dlt_to_matrix(L)
+    try:
+        return -np.linalg.solve(P[:, :3], P[:, 3])
+    except np.linalg.LinAlgError as exc:
+        raise KisscalError("DLT parameters are degenerate: no projection centre") from exc
+
+
+def _skew(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+
+
+def fundamental_from_dlt(L_i: ArrayLike, L_j: ArrayLike) -> NDArray[np.float64]:
+    """Fundamental matrix of two DLT cameras, ``x_j^T F x_i = 0``.
+
+    ``F = [e_j]_x M_j M_i^-1`` with ``e_j = P_j C_i`` the epipole of camera ``i`` in camera
+    ``j``; the epipolar line of pixel ``(u_i, v_i)`` in camera ``j`` is ``F (u_i, v_i, 1)``,
+    which expands to Shafiq et al. 2001 eq. 8 (coefficients bilinear in the source point).
+    Scaled to unit Frobenius norm (point-line distances do not depend on the scale).
+
+    Parameters
+    ----------
+    L_i, L_j : array_like, shape (11,)
+        DLT parameters of the source and target cameras.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    P_i = dlt_to_matrix(L_i)
+    P_j = dlt_to_matrix(L_j)
+    C_i = np.append(camera_centre_mm(L_i), 1.0)
+    e_j = P_j @ C_i
+    if np.linalg.norm(e_j) <= 1e-9 * np.linalg.norm(P_j) * np.linalg.norm(C_i):
+        raise KisscalError("two cameras share a projection centre: no epipolar geometry")
+    F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
+    return F / np.linalg.norm(F)

@@ -15,61 +15,20 @@ import itertools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.model import dlt_to_matrix
-from kisscal.errors import KisscalError
+from kisscal.dlt.model import camera_centre_mm, fundamental_from_dlt
+
+__all__ = [
+    "all_fundamentals",
+    "camera_centre_mm",
+    "candidate_pairs",
+    "distance_matrix_px",
+    "epipolar_lines",
+    "field_pairs",
+    "fundamental_from_dlt",
+    "pair_distances_px",
+]
 
 _CHUNK = 1_000_000  # candidate pairs evaluated at once (memory bound on long trials)
-
-
-def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
-    """Projection centre (mm) of a DLT camera: the null vector of ``P = [M | p4]``.
-
-    Parameters
-    ----------
-    L : array_like, shape (11,)
-        DLT parameters L1..L11.
-
-    Returns
-    -------
-    ndarray, shape (3,)
-        ``-M^-1 p4`` in lab millimetres.
-    """
-    P = dlt_to_matrix(L)
-    try:
-        return -np.linalg.solve(P[:, :3], P[:, 3])
-    except np.linalg.LinAlgError as exc:
-        raise KisscalError("DLT parameters are degenerate: no projection centre") from exc
-
-
-def _skew(e: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
-
-
-def fundamental_from_dlt(L_i: ArrayLike, L_j: ArrayLike) -> NDArray[np.float64]:
-    """Fundamental matrix of two DLT cameras, ``x_j^T F x_i = 0``.
-
-    ``F = [e_j]_x M_j M_i^-1`` with ``e_j = P_j C_i`` the epipole of camera ``i`` in camera
-    ``j``; the epipolar line of pixel ``(u_i, v_i)`` in camera ``j`` is ``F (u_i, v_i, 1)``,
-    which expands to Shafiq et al. 2001 eq. 8 (coefficients bilinear in the source point).
-    Scaled to unit Frobenius norm (point-line distances do not depend on the scale).
-
-    Parameters
-    ----------
-    L_i, L_j : array_like, shape (11,)
-        DLT parameters of the source and target cameras.
-
-    Returns
-    -------
-    ndarray, shape (3, 3)
-    """
-    P_i = dlt_to_matrix(L_i)
-    P_j = dlt_to_matrix(L_j)
-    C_i = np.append(camera_centre_mm(L_i), 1.0)
-    e_j = P_j @ C_i
-    if np.linalg.norm(e_j) <= 1e-9 * np.linalg.norm(P_j) * np.linalg.norm(C_i):
-        raise KisscalError("two cameras share a projection centre: no epipolar geometry")
-    F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
-    return F / np.linalg.norm(F)
 
 
 def epipolar_lines(F: ArrayLike, uv_i: ArrayLike) -> NDArray[np.float64]:

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.recon.triangulate import Triangulation, triangulate_observations
+from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 
 
 def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:

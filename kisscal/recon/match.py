@@ -13,6 +13,8 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal.dlt.model import project_rows
+from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import KisscalError
 from kisscal.recon.epipolar import (
     all_fundamentals,
@@ -22,7 +24,6 @@ from kisscal.recon.epipolar import (
 )
 from kisscal.recon.group import merge_groups, renumber, split_or_drop, triangulate_markers
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
-from kisscal.recon.triangulate import triangulate_observations
 
 
 def _check_table(
@@ -93,7 +94,7 @@ def _extend(
         if int(k) in members:
             continue
         cand = free_rows[camera[free_rows] == k]
-        d = np.linalg.norm(uv[cand] - _project_rows(dlts, camera[cand], xyz[None, :]), axis=1)
+        d = np.linalg.norm(uv[cand] - project_rows(dlts, camera[cand], xyz[None, :]), axis=1)
         best = int(np.argmin(d))
         if d[best] <= radius_px:
             rows.append(int(cand[best]))
@@ -153,17 +154,6 @@ def _two_camera(
     return marker
 
 
-def _project_rows(
-    dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Project point k into camera ``camera[k]``, for many (camera, point) rows at once."""
-    L = dlts[camera]
-    den = np.einsum("ij,ij->i", L[:, 8:11], xyz) + 1.0
-    u = (np.einsum("ij,ij->i", L[:, 0:3], xyz) + L[:, 3]) / den
-    v = (np.einsum("ij,ij->i", L[:, 4:7], xyz) + L[:, 7]) / den
-    return np.column_stack([u, v])
-
-
 def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
     """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
     order = np.lexsort((score, key))  # stable: equal scores keep index order
@@ -208,7 +198,7 @@ def _extend_all(
     b, m = b[lacking], m[lacking]
     if len(b) == 0:
         return
-    d = np.linalg.norm(uv[b] - _project_rows(dlts, camera[b], new_xyz[m]), axis=1)
+    d = np.linalg.norm(uv[b] - project_rows(dlts, camera[b], new_xyz[m]), axis=1)
     near = d <= radius_px
     b, m, d = b[near], m[near], d[near]
     keep = _first_per_key(b, d)  # a blob joins its closest marker
@@ -366,7 +356,7 @@ def _transfer_ok(
         xyz, _ = _solve_one(L[[i, j]], uv[r[[i, j]]], 0)
         if not np.all(np.isfinite(xyz)):
             return False, xyz
-        d = _project_rows(dlts, camera[r[k : k + 1]], xyz[None, :])[0] - uv[r[k]]
+        d = project_rows(dlts, camera[r[k : k + 1]], xyz[None, :])[0] - uv[r[k]]
         if np.hypot(d[0], d[1]) > radius_px:
             return False, xyz
         points.append(xyz)

@@ -16,6 +16,7 @@ from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
 from kisscal.io.lock import session_lock
+from kisscal.rig import Rig
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -113,6 +114,12 @@ def file_keys(paths: Sequence[Path], root: Path) -> list[tuple[str, int, int]]:
 def linearisation_key(lins: Mapping[str, Linearisation]) -> dict[str, tuple]:
     """What of each camera's linearisation a cache key depends on."""
     return {c: (lin.x, lin.y, lin.center_px, lin.scale_px) for c, lin in lins.items()}
+
+
+def rig_key(rig: Rig) -> dict[str, tuple]:
+    """What of a calibrated rig a cache key depends on: linearisations, DLTs, lens terms."""
+    lins = {c.id: c.linearisation for c in rig if c.linearisation is not None}
+    return {"lin": linearisation_key(lins), "dlt": {c.id: (c.L, c.lens) for c in rig}}
 
 
 def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:

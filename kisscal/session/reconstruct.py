@@ -9,27 +9,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.nonlinear import correct_lens
 from kisscal.errors import KisscalError
-from kisscal.grid import Linearisation, apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
-from kisscal.io.dltfiles import DltFile
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import trial_frames
 from kisscal.io.points3d import read_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
-from kisscal.session.calibrate import read_dlt_files
+from kisscal.session.calibrate import current_rig
 from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import (
     figure,
     file_keys,
-    linearisation_key,
     load_config,
     out_dir,
+    rig_key,
     writes_session,
 )
-from kisscal.session.linearise import current_linearisations
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
@@ -50,14 +46,12 @@ def reconstruct(
     config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
-    lins = current_linearisations(root, echo)
-    dlts = read_dlt_files(root, config)
+    rig = current_rig(root, echo)
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
     stage_key = cache_key(
         "reconstruct",
         trial_input_keys(config, trial),
-        linearisation_key(lins),
-        {c: (f.L, f.lens) for c, f in dlts.items()},
+        rig_key(rig),
         params.detection,
         params.recon,
     )
@@ -65,9 +59,10 @@ def reconstruct(
         echo(f"  reconstruct {trial.name}: cached")
         return read_points3d(path)
     blobs = trial_blobs(root, config, trial, params, echo, workers)
-    field_idx, cam_idx, uv = _observations(config, blobs, lins, dlts)
+    obs = rig.observations(blobs)
+    field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
-    L = np.stack([dlts[c].L for c in config.camera_ids])
+    L = rig.dlts
     points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
     write_json(path.with_name("recon.json"), points.summary())
@@ -95,32 +90,6 @@ def reconstruct(
         f"median rms {median_rms:.3f} px ({time.perf_counter() - t0:.1f} s)"
     )
     return points
-
-
-def _observations(
-    config: SessionConfig,
-    blobs: dict[str, list[NDArray]],
-    lins: dict[str, Linearisation],
-    dlts: dict[str, DltFile],
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-    """The long table of 2D observations: field, camera index, (u, v).
-
-    Coordinates are linearised by the grid's polynomial and, when the calibration fitted
-    Kolahi's lens terms L12-L16 (``kisscal calibrate --lens``), corrected by them too, so
-    that they are the coordinates the camera's L1-L11 map to.
-    """
-    fields, cams, uvs = [], [], []
-    for ci, cam in enumerate(config.camera_ids):
-        for f, xy in enumerate(blobs[cam]):
-            fields.append(np.full(len(xy), f))
-            cams.append(np.full(len(xy), ci))
-            uv = apply_linearisation(lins[cam], xy) if len(xy) else np.zeros((0, 2))
-            uvs.append(correct_lens(dlts[cam].L, dlts[cam].lens, uv) if len(uv) else uv)
-    field_idx = np.concatenate(fields).astype(int)
-    cam_idx = np.concatenate(cams).astype(int)
-    uv = np.concatenate(uvs)
-    order = np.lexsort((cam_idx, field_idx))
-    return field_idx[order], cam_idx[order], uv[order]
 
 
 def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:

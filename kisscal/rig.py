@@ -1,0 +1,257 @@
+"""The calibrated camera rig: one object for every stage that needs the cameras.
+
+A :class:`Rig` holds, per camera, its id, image size, grid linearisation (raw pixels ->
+linearised pixels; Küçük 2005, 2.2), DLT parameters L1..L11 (lab mm -> linearised pixels;
+Abdel-Aziz & Karara 1971) and, when a calibration fitted them, Kolahi's lens terms L12..L16
+(Kolahi et al. 2007). Stages take a rig instead of parallel dictionaries of linearisations
+and stacked ``(n, 11)`` arrays; the camera order of a rig is the order of its cameras and
+every camera index in a long 2D table refers to it.
+
+The rig is frozen: calibration routes build a new one, nothing changes one in place
+(unlike the mutable camera groups of some tools). :func:`kisscal.io.rig.load_rig` reads
+the rig of a processed session.
+
+References
+----------
+Abdel-Aziz, Y. I., & Karara, H. M. (1971). Direct linear transformation from comparator
+coordinates into object space coordinates in close-range photogrammetry.
+Küçük, M. (2005). Calibration and 3D reconstruction for the KISS gait laboratory (thesis).
+Kolahi, A., Hoviattalab, M., Rezaeian, T., Alizadeh, M., Bostan, M., & Mokhtarzadeh, H.
+(2007). Design of a marker-based human motion tracking system.
+
+Examples
+--------
+>>> import numpy as np
+>>> from kisscal.dlt.model import dlt_from_krt
+>>> K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+>>> left = Camera("left", dlt_from_krt(K, np.eye(3), [0, 0, 3000.0]))
+>>> right = Camera("right", dlt_from_krt(K, np.eye(3), [-500.0, 0, 3000]))
+>>> rig = Rig((left, right))
+>>> uv = rig.project([[100.0, 50.0, 0.0]])          # (cameras, points, 2)
+>>> tri = rig.triangulate([0, 1], uv[:, 0])          # one point seen by both cameras
+>>> np.round(tri.xyz_mm, 6) + 0.0
+array([[100.,  50.,   0.]])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.dlt.camera import decompose_dlt
+from kisscal.dlt.model import fundamental_from_dlt, project, project_rows
+from kisscal.dlt.nonlinear import correct_lens
+from kisscal.dlt.triangulate import Triangulation, triangulate_observations
+from kisscal.errors import KisscalError
+from kisscal.grid.poly import Linearisation, apply_linearisation, invert_linearisation
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """One calibrated camera.
+
+    Attributes
+    ----------
+    id : str
+        The camera's id in ``session.toml``.
+    L : ndarray, shape (11,)
+        DLT parameters L1..L11, lab mm -> linearised px.
+    linearisation : Linearisation or None
+        Raw px -> linearised px; None for a camera without a grid (identity).
+    lens : ndarray, shape (5,) or None
+        Kolahi's L12..L16 when the calibration fitted them.
+    size_px : (int, int) or None
+        Image width and height in pixels, when known.
+    """
+
+    id: str
+    L: NDArray[np.float64]
+    linearisation: Linearisation | None = None
+    lens: NDArray[np.float64] | None = None
+    size_px: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        L = np.array(self.L, dtype=float)
+        if L.shape != (11,) or not np.all(np.isfinite(L)):
+            raise KisscalError(f"camera {self.id}: DLT parameters must be 11 finite numbers")
+        L.setflags(write=False)
+        object.__setattr__(self, "L", L)
+        if self.lens is not None:
+            lens = np.array(self.lens, dtype=float)
+            if lens.shape != (5,):
+                raise KisscalError(f"camera {self.id}: lens terms L12..L16 must be 5 numbers")
+            object.__setattr__(self, "lens", lens)
+
+    def linearise(self, uv_raw_px: ArrayLike) -> NDArray[np.float64]:
+        """Raw (distorted) pixel coordinates -> the coordinates L1..L11 map to.
+
+        The grid polynomial first, then Kolahi's lens correction when the calibration
+        fitted L12..L16.
+        """
+        uv = np.asarray(uv_raw_px, dtype=float).reshape(-1, 2)
+        if not len(uv):
+            return uv.copy()
+        if self.linearisation is not None:
+            uv = apply_linearisation(self.linearisation, uv)
+        return correct_lens(self.L, self.lens, uv)
+
+    def distort(self, uv_px: ArrayLike) -> NDArray[np.float64]:
+        """Inverse of :meth:`linearise`: linearised -> raw pixel coordinates."""
+        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        if self.lens is not None and len(uv):
+            target = uv
+            for _ in range(50):  # fixed point of p + offsets(p) = target: lens terms are small
+                step = target - correct_lens(self.L, self.lens, uv)
+                uv = uv + step
+                if np.abs(step).max() < 1e-10:
+                    break
+        if self.linearisation is not None and len(uv):
+            uv = invert_linearisation(self.linearisation, uv)
+        return uv
+
+    def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+        """Lab points -> linearised pixel coordinates, shape (..., 2)."""
+        return project(self.L, xyz_mm)
+
+    def project_raw(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+        """Lab points -> raw pixel coordinates (where the camera's image shows them)."""
+        xyz = np.asarray(xyz_mm, dtype=float)
+        return self.distort(self.project(xyz).reshape(-1, 2)).reshape(*xyz.shape[:-1], 2)
+
+    @property
+    def centre_mm(self) -> NDArray[np.float64]:
+        """Projection centre in lab mm (Woltring & Huiskes 1990, eq. 15)."""
+        return decompose_dlt(self.L)[2]
+
+
+@dataclass(frozen=True)
+class Observations:
+    """A long table of 2D observations, one row per blob, sorted by field then camera.
+
+    Attributes
+    ----------
+    field : ndarray of int, shape (n,)
+    camera : ndarray of int, shape (n,)
+        Index of the camera in its rig.
+    uv_px : ndarray, shape (n, 2)
+        Linearised (and lens-corrected) pixel coordinates.
+    """
+
+    field: NDArray[np.int64]
+    camera: NDArray[np.int64]
+    uv_px: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.field)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The calibrated cameras of a session, in session order.
+
+    Attributes
+    ----------
+    cameras : tuple of Camera
+    """
+
+    cameras: tuple[Camera, ...]
+    _index: dict[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        cams = tuple(self.cameras)
+        ids = [c.id for c in cams]
+        if len(set(ids)) != len(ids):
+            raise KisscalError(f"a rig's camera ids must be distinct, got {ids}")
+        object.__setattr__(self, "cameras", cams)
+        object.__setattr__(self, "_index", {c: i for i, c in enumerate(ids)})
+
+    def __len__(self) -> int:
+        return len(self.cameras)
+
+    def __iter__(self) -> Iterator[Camera]:
+        return iter(self.cameras)
+
+    @property
+    def ids(self) -> tuple[str, ...]:
+        """Camera ids, in rig order."""
+        return tuple(c.id for c in self.cameras)
+
+    @property
+    def dlts(self) -> NDArray[np.float64]:
+        """DLT parameters of every camera, shape (n_cameras, 11)."""
+        return np.stack([c.L for c in self.cameras]) if self.cameras else np.zeros((0, 11))
+
+    def index(self, camera_id: str) -> int:
+        """Position of a camera in the rig."""
+        if camera_id not in self._index:
+            raise KisscalError(f"no camera {camera_id!r} in the rig ({', '.join(self.ids)})")
+        return self._index[camera_id]
+
+    def camera(self, camera_id: str) -> Camera:
+        """The camera with this id."""
+        return self.cameras[self.index(camera_id)]
+
+    def subset(self, camera_ids: Sequence[str]) -> Rig:
+        """A rig of some of the cameras, in the order given."""
+        return Rig(tuple(self.camera(c) for c in camera_ids))
+
+    def observations(self, blobs_px: Mapping[str, Sequence[ArrayLike]]) -> Observations:
+        """The long table of a trial's 2D data, linearised.
+
+        Parameters
+        ----------
+        blobs_px : mapping of camera id -> sequence of (n_f, 2) arrays
+            Raw blob centroids of every field, per camera; cameras of the rig missing
+            from the mapping contribute no rows.
+
+        Returns
+        -------
+        Observations
+            Sorted by field, then camera.
+        """
+        fields, cams, uvs = [], [], []
+        for ci, cam in enumerate(self.cameras):
+            frames = [np.asarray(xy, dtype=float).reshape(-1, 2) for xy in blobs_px.get(cam.id, ())]
+            counts = [len(xy) for xy in frames]
+            fields.append(np.repeat(np.arange(len(frames)), counts))
+            cams.append(np.full(sum(counts), ci))
+            uvs.append(cam.linearise(np.concatenate(frames)) if frames else np.zeros((0, 2)))
+        field_idx = np.concatenate([np.zeros(0), *fields]).astype(np.int64)
+        cam_idx = np.concatenate([np.zeros(0), *cams]).astype(np.int64)
+        uv = np.concatenate([np.zeros((0, 2)), *uvs])
+        order = np.lexsort((cam_idx, field_idx))
+        return Observations(field_idx[order], cam_idx[order], uv[order])
+
+    def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+        """Lab points in every camera, linearised px, shape (n_cameras, n_points, 2)."""
+        xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+        return np.stack([c.project(xyz) for c in self.cameras])
+
+    def project_rows(self, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+        """Point ``k`` in camera ``camera[k]`` (linearised px), shape (n, 2)."""
+        return project_rows(self.dlts, camera, xyz_mm)
+
+    def triangulate(
+        self,
+        camera: ArrayLike,
+        uv_px: ArrayLike,
+        point: ArrayLike | None = None,
+        reweight_iterations: int = 2,
+    ) -> Triangulation:
+        """Least-squares 3D points from linearised observations (long format).
+
+        ``point`` says which point each row belongs to (default: all rows one point).
+        See :func:`kisscal.dlt.triangulate.triangulate_observations`.
+        """
+        camera = np.asarray(camera, dtype=np.int64)
+        point = np.zeros(len(camera), np.int64) if point is None else np.asarray(point)
+        return triangulate_observations(
+            self.dlts, point, camera, uv_px, reweight_iterations=reweight_iterations
+        )
+
+    def fundamental(self, i: int, j: int) -> NDArray[np.float64]:
+        """Fundamental matrix with ``x_j^T F x_i = 0`` for cameras ``i`` and ``j``."""
+        return fundamental_from_dlt(self.cameras[i].L, self.cameras[j].L)

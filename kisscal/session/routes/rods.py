@@ -1,0 +1,116 @@
+"""The seeds' route: rods recognised in every camera's rod frames, one DLT each.
+
+Küçük (2005, 2.3) and Shafiq et al. (2001, 4): four rods of six surveyed markers hang in the
+volume; each camera's DLT is solved from the 24 markers it recognises (optionally MDLT,
+Kolahi et al. 2007, or refined in pixels), and the leave-one-rod-out test measures how well
+the calibration extrapolates.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from kisscal.dlt import calibrate_rods, make_rods
+from kisscal.dlt.params import Rod
+from kisscal.dlt.rig import RodCalibration
+from kisscal.grid import apply_linearisation
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.dltfiles import write_dlt_outputs
+from kisscal.io.files import write_json
+from kisscal.io.frames import camera_frames
+from kisscal.session.detection import SizedFrames, detect_frames
+from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
+from kisscal.session.progress import Echo, steps
+from kisscal.session.routes import RouteInputs
+
+
+def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
+    """Every camera's DLT from its rod frames; the leave-one-rod-out check for the rig.
+
+    Returns ``{camera: DltResult}`` plus the rig check under ``"_check"`` (whole rig only).
+    """
+    config, root, params = inputs.config, inputs.root, inputs.params
+    assert config.rods is not None
+    out = out_dir(root) / "dlt"
+    rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
+    rod_frames = {
+        cam.id: camera_frames(config.root, config.rods.images, cam.id, "rod")
+        for cam in inputs.cameras
+    }
+    lins = inputs.linearisations
+    stage_key = cache_key(
+        "calibrate",
+        {c: file_keys(f.paths, config.root) for c, f in rod_frames.items()},
+        linearisation_key({c: lins[c] for c in rod_frames}),
+        params.detection,
+        params.dlt,
+        [(r.name, r.points_mm) for r in config.rods.rods],
+    )
+    if inputs.whole_rig and is_current(out / "check.json", stage_key):
+        inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
+        return {"_check": json.loads((out / "check.json").read_text())}
+    blobs_px = {}
+    for cam in steps(inputs.cameras, "calibrate: detect rods"):
+        frames = rod_frames[cam.id]
+        key = cache_key("detect", file_keys(frames.paths, config.root), params.detection)
+        cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
+        sized = SizedFrames(frames, cam.id, cam.size_px)
+        frame_blobs = detect_frames(
+            sized, params.detection, cache, key, inputs.echo, f"rods {cam.id}", inputs.workers
+        )
+        blobs_px[cam.id] = [
+            apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
+        ]
+    t0 = time.perf_counter()
+    cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
+    write_dlt_outputs(out, cal)
+    rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
+    summary: dict[str, Any] = dict(cal.results)
+    if inputs.whole_rig:
+        write_json(out / "check.json", rig)
+        mark_current(out / "check.json", stage_key)
+        summary["_check"] = rig
+    _say_rods(inputs.echo, cal, rig, time.perf_counter() - t0)
+    _rod_figures(inputs, cal, rods)
+    return summary
+
+
+def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: float) -> None:
+    for cam_id, res in cal.results.items():
+        missing = cal.matches[cam_id].missing
+        echo(
+            f"  calibrate {cam_id}: {res.method}, {len(res.residuals_px)} rod markers, "
+            f"rms {res.rms_px:.3f} px, centre {np.round(res.centre_mm).tolist()} mm"
+            + (f", missing {', '.join(missing)}" if missing else "")
+        )
+    if "rods_in_sample_mean_mm" in rig:
+        loo = rig.get("leave_one_rod_out", {})
+        echo(
+            f"  rods reconstructed in-sample: mean {rig['rods_in_sample_mean_mm']:.3f} mm"
+            + (f"; leave-one-rod-out mean {loo['mean_mm']:.3f} mm" if loo else "")
+            + f" ({seconds:.1f} s)"
+        )
+
+
+def _rod_figures(inputs: RouteInputs, cal: RodCalibration, rods: tuple[Rod, ...]) -> None:
+    from kisscal.report.dlt import CameraResiduals
+
+    sizes = {c.id: c.size_px for c in inputs.config.cameras}
+    residuals = {
+        c: CameraResiduals(cal.control_uv_px[c], r.residuals_px, sizes[c], r.rms_px)
+        for c, r in cal.results.items()
+    }
+    figure(inputs.root, "dlt_residuals", "kisscal.report.dlt", "residual_figure", residuals)
+    figure(
+        inputs.root,
+        "rig",
+        "kisscal.report.dlt",
+        "rig_figure",
+        {c: r.centre_mm for c, r in cal.results.items()},
+        [(r.name, r.points_mm) for r in rods],
+        {c: r.R for c, r in cal.results.items()},
+    )
