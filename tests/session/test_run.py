@@ -133,3 +133,14 @@ def test_check_gate(processed: Path) -> None:
     bad = kisscal("check", str(processed), "--max-reproj-px", "0.001")
     assert bad.returncode == 1
     assert "dlt rms_px" in bad.stdout and "cam1" in bad.stdout
+
+
+def test_rig_load_gives_the_written_calibration(processed: Path) -> None:
+    from kisscal.io.dltfiles import read_dlt_json
+    from kisscal.rig import Rig
+
+    rig = Rig.load(processed)
+    for cam in rig:
+        written = read_dlt_json(processed / "out" / "dlt" / f"{cam.id}.json")
+        assert np.array_equal(cam.L, written.L)
+        assert cam.linearisation is not None and cam.size_px is not None
