@@ -148,6 +148,8 @@ def synth(
     epilog=_example(
         "kisscal detect frames/cam1/*.png",
         "kisscal detect frames/cam1/*.png --out blobs.csv --overlay overlays/",
+        "kisscal detect lab/s1/trials/walk01/cam2/*.png --session lab/s1 --camera cam2",
+        "kisscal detect frames/*.tif --threshold 60 --pixel-aspect 1.0",
     )
 )
 def detect(
@@ -156,16 +158,58 @@ def detect(
     overlay: Annotated[
         Path | None, typer.Option(help="Folder for overlay PNGs.", metavar="DIR")
     ] = None,
+    session_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--session", help="Use a camera's derived settings from this session.", metavar="DIR"
+        ),
+    ] = None,
+    camera: Annotated[
+        str | None, typer.Option(help="The session's camera (with --session).")
+    ] = None,
+    kind: Annotated[
+        Literal["markers", "grid"],
+        typer.Option(help="What the images show: markers, or the linearisation grid."),
+    ] = "markers",
+    threshold: Annotated[
+        float | None,
+        typer.Option(help="Grey level of a white pixel (8-bit scale).", show_default=False),
+    ] = None,
+    pixel_aspect: Annotated[
+        float | None,
+        typer.Option(
+            help="Width / height of a round marker's image (1 for square pixels).",
+            show_default=False,
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(help="A TOML file whose [detection] table gives settings.", metavar="FILE"),
+    ] = None,
 ) -> None:
     """Detect marker blobs in images (a CSV table).
 
-    The table goes to standard output, or to the file given with --out.
+    Settings not given (with --threshold, --pixel-aspect, --config or a session's
+    [detection]) are derived from the images themselves, or taken from a session camera's
+    derived settings with --session and --camera; what was used is printed. The table
+    goes to standard output, or to the file given with --out.
     """
     from kisscal import session
     from kisscal.io.blobs import format_blobs
+    from kisscal.io.config import read_detection_table
 
+    given = dict(read_detection_table(config)) if config is not None else {}
+    given.update(
+        {
+            k: v
+            for k, v in (("threshold", threshold), ("pixel_aspect", pixel_aspect))
+            if v is not None
+        }
+    )
     say = typer.echo if out is not None else lambda line: typer.echo(line, err=True)
-    tables = session.detect_images(images, out, overlay, echo=say)
+    tables = session.detect_images(
+        images, out, overlay, given, echo=say, session=session_dir, camera=camera, kind=kind
+    )
     if out is None:
         typer.echo(format_blobs(tables), nl=False)
 

@@ -19,6 +19,9 @@ from numpy.typing import NDArray
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.groups import GroupTable
 
+#: The background a spot's weights are measured from: one grey level, or a map per pixel.
+Background = float | NDArray[np.floating]
+
 
 @dataclass(frozen=True)
 class SpotMoments:
@@ -40,19 +43,6 @@ class SpotMoments:
     core_cov_xy: NDArray[np.float64]
 
 
-def estimate_background(image: NDArray) -> float:
-    """Median grey level of a sparse sample of ``image`` (every 4th line and column).
-
-    Marker images are mostly background, so the median of any spread-out sample is the
-    background level even with a few large LED blobs in view.
-    """
-    sample = image[::4, ::4]
-    if sample.dtype == np.uint8:
-        counts = np.bincount(sample.ravel(), minlength=256)
-        return float(np.searchsorted(np.cumsum(counts), (sample.size + 1) / 2))
-    return float(np.median(sample))
-
-
 def owner_image(shape: tuple[int, int], grouping: Grouping) -> NDArray[np.int32]:
     """Image of ``label + 1`` at every white pixel of a remaining group, 0 elsewhere."""
     owner = np.zeros(shape, dtype=np.int32)  # calloc: untouched pages cost nothing
@@ -72,7 +62,7 @@ def window_moments(
     table: GroupTable,
     margin_x_px: int,
     margin_y_px: int,
-    background: float,
+    background: Background,
     pixel_aspect: float,
 ) -> SpotMoments:
     """Background-subtracted weighted moments of each group in ``table`` over its window.
@@ -92,8 +82,9 @@ def window_moments(
         Bounding rectangles of the groups.
     margin_x_px, margin_y_px : int
         Growth of each rectangle to take in the blurred rim.
-    background : float
-        Grey level subtracted from every pixel before weighting.
+    background : float or ndarray
+        Grey level subtracted from every pixel before weighting: one level, or a map of
+        the image's shape (local background).
     pixel_aspect : float
         Width / height of a round marker in pixels (nearest-centre distance).
 
@@ -121,7 +112,8 @@ def window_moments(
     if image.dtype == np.bool_:
         weight = own.astype(np.float64)
     else:
-        weight = image.ravel().take(flat).astype(np.float64) - background
+        weight = image.ravel().take(flat).astype(np.float64)
+        weight -= background.ravel().take(flat) if np.ndim(background) else background
         weight[white.ravel().take(flat) & ~own] = 0.0
     split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
     if split.size:
@@ -176,18 +168,30 @@ def _nearest_part_mask(
     table: GroupTable,
     pixel_aspect: float,
 ) -> NDArray[np.float64]:
-    """1.0 where a window pixel of a split part is nearer its own centre than a sibling's."""
+    """1.0 where a window pixel of a split part is nearer its own centre than a sibling's.
+
+    One pass over the window pixels of all split parts: each pixel is compared with the
+    centres of its part's siblings only (at most a few), so the cost is linear in the
+    number of window pixels whatever the number of split groups.
+    """
     keep = np.ones(g.size)
     parent = grouping.parent[table.label]
-    cx = grouping.centre_x[table.label]
-    cy = grouping.centre_y[table.label]
-    r2 = grouping.radius[table.label] ** 2
-    for p in np.unique(parent[split]):  # one pass per split group: a few per image
-        members = split[parent[split] == p]
-        rows = np.isin(g, members)
-        d = (
-            ((xs[rows, None] - cx[members]) / pixel_aspect) ** 2
-            + (ys[rows, None] - cy[members]) ** 2
-        ) / r2[members]
-        keep[rows] = members[np.argmin(d, axis=1)] == g[rows]
+    order = split[np.argsort(parent[split], kind="stable")]
+    first = np.flatnonzero(np.r_[True, parent[order][1:] != parent[order][:-1]])
+    count = np.diff(np.r_[first, order.size])
+    family = np.repeat(np.arange(first.size), count)  # sibling set of each split row
+    siblings = np.full((first.size, int(count.max())), -1)
+    siblings[family, np.arange(order.size) - first[family]] = order
+    family_of_row = np.full(len(table), -1)
+    family_of_row[order] = family
+    rows = np.flatnonzero(family_of_row[g] >= 0)
+    cand = siblings[family_of_row[g[rows]]]  # (pixels, siblings), -1 padded
+    safe = np.maximum(cand, 0)
+    cx = grouping.centre_x[table.label[safe]]
+    cy = grouping.centre_y[table.label[safe]]
+    r2 = grouping.radius[table.label[safe]] ** 2
+    d = (((xs[rows, None] - cx) / pixel_aspect) ** 2 + (ys[rows, None] - cy) ** 2) / r2
+    d[cand < 0] = np.inf
+    nearest = cand[np.arange(rows.size), np.argmin(d, axis=1)]
+    keep[rows] = nearest == g[rows]
     return keep

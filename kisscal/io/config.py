@@ -424,3 +424,15 @@ def load_session(root: Path) -> SessionConfig:
     if not root.is_dir():
         raise KisscalError(f"{root}: session folder not found")
     return parse_session(load_toml(root / "session.toml"), root)
+
+
+def read_detection_table(path: Path) -> dict[str, Any]:
+    """The ``[detection]`` table of a TOML file (a session.toml or a file of its own).
+
+    Raises a one-line :class:`KisscalError` when the file has no such table.
+    """
+    data = load_toml(Path(path))
+    table = data.get("detection")
+    if not isinstance(table, dict):
+        raise KisscalError(f"{path}: no [detection] table")
+    return dict(table)

@@ -12,12 +12,12 @@ import cv2
 import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, detect_sequence
+from kisscal.detect.configure import configure_detection
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import is_current, load_blob_frames, mark_current, save_blob_frames
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import read_image
-from kisscal.session.params import build_params
 from kisscal.session.progress import Echo, quiet
 
 
@@ -77,14 +77,28 @@ def detect_images(
     overlay_dir: Path | None = None,
     detection: Mapping[str, Any] | None = None,
     echo: Echo = quiet,
+    session: Path | None = None,
+    camera: str | None = None,
+    kind: str = "markers",
 ) -> list[tuple[str, Blobs]]:
     """``kisscal detect``: blobs of image files, to one CSV and overlays optionally.
 
-    Returns ``(image path as given, blobs)`` per image. Every image is read and checked
-    before anything is written, so a bad file leaves earlier outputs untouched.
+    The settings are ``detection`` (given values) on top of, with ``session`` and
+    ``camera``, that camera's derived settings (``out/detection/<camera>.json``), or else
+    settings derived from these images themselves (up to 24 of them, spread evenly).
+    What was used is echoed. Returns ``(image path as given, blobs)`` per image. Every
+    image is read and checked before anything is written, so a bad file leaves earlier
+    outputs untouched.
     """
-    params = build_params(DetectionParams, "detection", detection or {})
+    given = dict(detection or {})
     images = [read_image(p) for p in paths]
+    if session is not None:
+        params = _session_params(Path(session), camera, kind, given, echo)
+    else:
+        picks = np.unique(np.linspace(0, len(images) - 1, min(len(images), 24)).astype(int))
+        setup = configure_detection([images[i] for i in picks], given, kind=kind)  # type: ignore[arg-type]
+        echo(f"detection settings from {len(picks)} of these images: {setup.summary()}")
+        params = setup.params
     blobs = detect_sequence(images, params)
     tables = [(str(p), b) for p, b in zip(paths, blobs, strict=True)]
     if out_csv is not None:
@@ -95,6 +109,31 @@ def detect_images(
     valid = sum(int(b.valid.sum()) for b in blobs)
     echo(f"{len(paths)} images: {total} blobs ({valid} valid)")
     return tables
+
+
+def _session_params(
+    root: Path, camera: str | None, kind: str, given: Mapping[str, Any], echo: Echo
+) -> DetectionParams:
+    """A session camera's derived settings with ``given`` on top."""
+    from kisscal.session.configure import camera_detection, detection_given
+    from kisscal.session.inputs import load_config, select_cameras, writes_session
+
+    if camera is None:
+        raise KisscalError("--session needs --camera: whose derived settings to use")
+    config = load_config(root)
+    cam = select_cameras(config, camera)[0]
+
+    @writes_session
+    def derive(root: Path) -> DetectionParams:
+        return camera_detection(root, config, cam, kind, detection_given(config, given), echo)
+
+    params = derive(root)
+    echo(
+        f"detection settings of camera {camera} ({kind} images of {root}): threshold "
+        f"{params.threshold:g}, pixel aspect {params.pixel_aspect:g}, oversize above "
+        f"{params.max_pixels} px"
+    )
+    return params
 
 
 def _write_overlays(

@@ -12,6 +12,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.frames import camera_frames
 from kisscal.io.linearisation import read_linearisation, write_linearisation
+from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
     figure,
@@ -60,16 +61,15 @@ def _linearise_camera(
     assert config.grid is not None
     out = out_dir(root) / "linearisation" / f"{cam.id}.json"
     frames = camera_frames(config.root, config.grid.images, cam.id, "grid")
-    key = cache_key(
-        "linearise", file_keys(frames.paths, config.root), params.grid, params.detection
-    )
+    detection = camera_detection(root, config, cam, "grid", params.detection_given, echo)
+    key = cache_key("linearise", file_keys(frames.paths, config.root), params.grid, detection)
     if is_current(out, key):
         echo(f"  linearise {cam.id}: cached")
         return read_linearisation(out)[1]
     t0 = time.perf_counter()
     try:
         fit = linearise_frames(
-            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, params.detection
+            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, detection
         )
     except KisscalError as exc:
         raise KisscalError(f"camera {cam.id} grid: {exc}") from None

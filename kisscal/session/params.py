@@ -28,13 +28,19 @@ class Overrides:
 
 @dataclass(frozen=True)
 class StageParams:
-    """Every stage's parameters for one session."""
+    """Every stage's parameters for one session.
+
+    ``detection`` holds the defaults with what the user gave; each camera's own settings
+    are derived from its images (:func:`kisscal.session.configure.camera_detection`),
+    starting from ``detection_given``.
+    """
 
     detection: DetectionParams
     grid: GridParams
     dlt: DltParams
     recon: ReconParams
     tracking: TrackingParams
+    detection_given: Mapping[str, Any] = field(default_factory=dict)
 
 
 def build_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
@@ -80,4 +86,5 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         dlt=build_params(DltParams, "dlt", section("dlt", {}), o.dlt),
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
+        detection_given={**config.detection, **o.detection},
     )

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.detect import DetectionParams
 from kisscal.errors import KisscalError
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
@@ -17,6 +18,7 @@ from kisscal.io.frames import trial_frames
 from kisscal.io.points3d import read_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
+from kisscal.session.configure import markers_detection
 from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import (
     figure,
@@ -26,7 +28,7 @@ from kisscal.session.inputs import (
     rig_key,
     writes_session,
 )
-from kisscal.session.params import Overrides, StageParams, stage_params
+from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
 #: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
@@ -48,17 +50,19 @@ def reconstruct(
     params = stage_params(config, overrides)
     rig = current_rig(root, echo)
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
+    imaged = trial.source in ("images", "video")
+    detection = markers_detection(root, config, params.detection_given, echo) if imaged else {}
     stage_key = cache_key(
         "reconstruct",
         trial_input_keys(config, trial),
         rig_key(rig),
-        params.detection,
+        detection,
         params.recon,
     )
     if is_current(path, stage_key):
         echo(f"  reconstruct {trial.name}: cached")
         return read_points3d(path)
-    blobs = trial_blobs(root, config, trial, params, echo, workers)
+    blobs = trial_blobs(root, config, trial, detection, echo, workers)
     obs = rig.observations(blobs)
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
@@ -119,11 +123,14 @@ def trial_blobs(
     root: Path,
     config: SessionConfig,
     trial: TrialConfig,
-    params: StageParams,
+    detection: dict[str, DetectionParams],
     echo: Echo,
     workers: int | None = None,
 ) -> dict[str, list[NDArray]]:
-    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays."""
+    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
+
+    ``detection`` holds each camera's detection parameters (unused for centroid files).
+    """
     if trial.source == "centroids":
         return _centroid_files(config, trial)
     frames = trial_frames(
@@ -137,11 +144,11 @@ def trial_blobs(
     sizes = {c.id: c.size_px for c in config.cameras}
     for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
         inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
-        key = cache_key("detect", file_keys(inputs, config.root), params.detection)
+        key = cache_key("detect", file_keys(inputs, config.root), detection[cam])
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
         sized = SizedFrames(seq, cam, sizes[cam])
         blobs = detect_frames(
-            sized, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
+            sized, detection[cam], cache, key, echo, f"{trial.name} {cam}", workers
         )
         out[cam] = [b.valid_only().xy_px for b in blobs]
     return out

@@ -7,7 +7,21 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from kisscal.detect import DetectionParams
+
 ASPECT = 1.94  # width / height of a round marker in KISS field pixels
+
+#: The KISS camera's detection settings, as a lab with 752 x 291 fields would give them in
+#: [detection] (kisscal derives them from the images; these tests exercise the Shafiq tests
+#: on KISS-like fields with the settings fixed).
+KISS = DetectionParams(
+    pixel_aspect=ASPECT,
+    max_pixels=80,
+    max_width_px=14,
+    max_height_px=9,
+    detach_kernel_px=(11, 7),
+    centroid_margin_y_px=2,
+)
 
 
 def render(
