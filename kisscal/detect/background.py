@@ -13,6 +13,8 @@ as a local, adaptive threshold).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -60,22 +62,50 @@ def noise_sigma(image: NDArray) -> float:
     return float(1.4826 * np.median(diff) / np.sqrt(2.0))
 
 
-def _as_uint8(image: NDArray) -> tuple[NDArray[np.uint8], float]:
-    """The image on an 8-bit scale for OpenCV's fast median, and the factor to undo it."""
-    if image.dtype == np.uint8:
-        return image, 1.0
-    top = float(image.max()) if image.size else 0.0
-    scale = 255.0 / top if top > 255.0 else 1.0
-    return np.clip(image * scale, 0, 255).astype(np.uint8), scale
+def _small_size(shape: tuple[int, ...], tile_px: int) -> tuple[int, int]:
+    """Size of the block-averaged image: blocks of a quarter tile."""
+    h, w = shape
+    factor = max(int(tile_px) // 4, 1)
+    return max(w // factor, 1), max(h // factor, 1)
 
 
-def background_map(image: NDArray, tile_px: int) -> NDArray[np.float32]:
-    """Local background of every pixel: the median over tiles of about ``tile_px``.
+def _median5(small: NDArray[np.float32]) -> NDArray[np.float32]:
+    """A 5 x 5 median of a small float map (through 8 bits: OpenCV's fast path)."""
+    if min(small.shape) < 5:
+        return small
+    top = float(small.max())
+    scale = 255.0 / top if top > 0 else 1.0
+    as8 = np.clip(small * scale + 0.5, 0, 255).astype(np.uint8)
+    return cv2.medianBlur(as8, 5).astype(np.float32) / np.float32(scale)
 
-    The image is averaged down by a factor of a quarter tile (block means; a marker much
-    smaller than a tile barely moves them), a 5 x 5 median over the small image (so over
-    about one tile) removes what is left of the markers while keeping the edges of large
-    bright regions, and the result is interpolated back to full size.
+
+@dataclass(frozen=True)
+class LocalBackground:
+    """The local background of an image, per pixel (float32 maps of the image's shape).
+
+    Attributes
+    ----------
+    level : ndarray
+        Background grey level: the median over tiles (markers, much smaller than a tile,
+        do not move it; the edges of large bright regions are kept).
+    slack : ndarray
+        How far ``level`` may lag the true background because it is interpolated from
+        tile-sized steps: half the range of the tile medians around each place. Zero on a
+        flat or smoothly glowing background, large beside the edge of a bright region,
+        where an unlagged background would otherwise leave a bright band of false spots.
+    noise : ndarray
+        Local noise deviation: the grey-level spread within quarter-tile blocks, median
+        smoothed over a tile. Bright surfaces are noisier (shot noise, texture) than
+        dark ones.
+    """
+
+    level: NDArray[np.float32]
+    slack: NDArray[np.float32]
+    noise: NDArray[np.float32]
+
+
+def local_background(image: NDArray, tile_px: int) -> LocalBackground:
+    """The :class:`LocalBackground` of a grey image for tiles of about ``tile_px``.
 
     Parameters
     ----------
@@ -84,27 +114,32 @@ def background_map(image: NDArray, tile_px: int) -> NDArray[np.float32]:
     tile_px : int
         Tile size in pixels; should be at least four times the largest marker's diameter.
 
-    Returns
-    -------
-    ndarray of float32, shape (h, w)
-        Background grey level per pixel, on the image's own scale.
-
     Examples
     --------
     >>> import numpy as np
     >>> glow = np.tile(np.linspace(10, 90, 200), (120, 1))     # a left-to-right glow
     >>> image = glow.astype(np.uint8)
     >>> image[50:55, 100:105] = 250                            # one marker
-    >>> bg = background_map(image, 40)
-    >>> bool(abs(bg[52, 102] - glow[52, 102]) < 3)
-    True
+    >>> bg = local_background(image, 40)
+    >>> bool(abs(bg.level[52, 102] - glow[52, 102]) < 3), bool(bg.slack[52, 102] < 5)
+    (True, True)
     """
     h, w = image.shape
-    factor = max(int(tile_px) // 4, 1)
-    small_size = (max(w // factor, 1), max(h // factor, 1))
-    grey, scale = _as_uint8(image)
-    small = cv2.resize(grey, small_size, interpolation=cv2.INTER_AREA)
-    if min(small.shape) >= 5:
-        small = cv2.medianBlur(small, 5)
-    full = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
-    return full / np.float32(scale) if scale != 1.0 else full
+    size = _small_size(image.shape, tile_px)
+    grey = image.astype(np.float32)
+    mean = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)
+    square = cv2.resize(grey * grey, size, interpolation=cv2.INTER_AREA)
+    level = _median5(mean)
+    box = np.ones((3, 3), np.uint8)
+    slack = 0.5 * (cv2.dilate(level, box) - cv2.erode(level, box))
+    noise = _median5(np.sqrt(np.maximum(square - mean * mean, 0.0)))
+
+    def full(m: NDArray[np.float32]) -> NDArray[np.float32]:
+        return cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR)
+
+    return LocalBackground(full(level), full(slack), full(noise))
+
+
+def background_map(image: NDArray, tile_px: int) -> NDArray[np.float32]:
+    """The local background level alone (:attr:`LocalBackground.level`)."""
+    return local_background(image, tile_px).level

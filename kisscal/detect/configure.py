@@ -286,6 +286,9 @@ class _Derivation:
         self._aspect(final.take(markers & (final.isolation > 3.0)))
         self._size_limits(final, markers)
         self._margins()
+        if self.kind == "grid":
+            for name in ("split_touching", "split_overlaps", "split_long_wide"):
+                self.choose(name, False, "grid dots never touch: nothing to split")
         params = DetectionParams.from_layers(self.values, self.given)
         seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
@@ -299,7 +302,9 @@ class _Derivation:
             default = getattr(DetectionParams(), name)
             self.choose(name, default, "nothing bright in the surveyed frames: default")
         params = DetectionParams.from_layers(self.values, self.given)
-        return DetectionSetup(params, self.choices, self.kind, len(self.frames), self.levels)
+        return DetectionSetup(
+            params, self.choices, self.kind, len(self.frames), self.levels, notes=tuple(self.notes)
+        )
 
     def _threshold(self, markers: Groups) -> None:
         """Threshold and background mode from the contrast of the faint markers."""
@@ -459,8 +464,9 @@ def measure_pixel_aspect(spots: Groups) -> tuple[float, str]:
     ``s`` (scan lines) has grey-level spreads ``sigma_x = a s + g`` and
     ``sigma_y = s + g`` (the model of :mod:`kisscal.detect.shape`): over spots of many
     sizes, ``sigma_x`` is a straight line in ``sigma_y`` of slope ``a``, fitted robustly
-    (Sen 1968). Spots all of one size cannot separate ``a`` from ``g``: their spread
-    ratio, which reads rounder than the truth, is used then.
+    (Sen 1968). Spots all of one size cannot separate ``a`` from ``g``; when the slope's
+    95 % interval is wider than a fifth of it, or it disagrees in direction with the
+    spots' median spread ratio, that ratio (which reads rounder than the truth) is used.
     """
     ok = spots.inside & (spots.fill > 0.5) & (spots.pixels >= 6)
     ok &= (spots.var_x > PIXEL_AREA_VAR) & (spots.var_y > PIXEL_AREA_VAR)
@@ -468,13 +474,15 @@ def measure_pixel_aspect(spots: Groups) -> tuple[float, str]:
     sy = np.sqrt(spots.var_y[ok] - PIXEL_AREA_VAR)
     if sx.size < MIN_SPOTS_FOR_ASPECT:
         return 1.0, f"only {sx.size} isolated spots: square pixels assumed"
-    lo, hi = np.percentile(sy, [5, 95])
-    if hi > 1.15 * lo:
-        aspect = float(theilslopes(sx, sy).slope)
+    ratio = float(np.median(sx / sy))
+    fit = theilslopes(sx, sy) if sx.size >= 30 else None
+    spread = (fit.high_slope - fit.low_slope) / abs(fit.slope) if fit is not None else np.inf
+    if fit is not None and spread <= 0.2 and (fit.slope - 1) * (ratio - 1) >= 0:
+        aspect = float(fit.slope)
         how = f"slope of x on y spread over {sx.size} isolated spots"
-    else:
-        aspect = float(np.median(sx / sy))
-        how = f"x / y spread of {sx.size} isolated spots of one size"
+    else:  # sizes too alike (or too scattered) for a slope: the ratio, rounder than true
+        aspect = ratio
+        how = f"median x / y spread of {sx.size} isolated spots"
     if not np.isfinite(aspect) or aspect <= 0:
         return 1.0, "no consistent spot shape: square pixels assumed"
     if abs(aspect - 1.0) <= SQUARE_TOLERANCE:

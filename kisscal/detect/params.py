@@ -39,6 +39,10 @@ class DetectionParams(Params):
         ``background``). Otherwise the background is local, the median over tiles of about
         this many pixels (:func:`kisscal.detect.background.background_map`), for images whose
         surround is not uniformly dark; both the white test and the weighted centroids use it.
+    noise_factor : float
+        With a local background, a pixel must also stand this many local noise deviations
+        above it (:func:`kisscal.detect.background.local_noise_map`): bright surfaces are
+        noisier than dark ones. 0 turns the local noise test off.
     closeness_x_px : float
         Section 2.1 grouping: a run joins a group when its mid-point lies within the sum of
         the two runs' half-lengths plus this many pixels of a run of that group in a
@@ -164,6 +168,7 @@ class DetectionParams(Params):
 
     threshold: float = param(40.0, unit="grey levels", ge=0)
     background_tile_px: int = param(0, unit="px", ge=0)
+    noise_factor: float = param(5.0, ge=0)
     closeness_x_px: float = param(0.0, unit="px", ge=0)
     closeness_rows: int = param(1, unit="lines", ge=1)
     remove_lonely: bool = param(True)

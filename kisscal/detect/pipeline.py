@@ -22,7 +22,7 @@ from kisscal.detect.advanced import (
     size_flags,
     splittable,
 )
-from kisscal.detect.background import background_level, background_map
+from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.centroid import Background, SpotMoments, owner_image, window_moments
 from kisscal.detect.groups import GroupTable, measure_groups
@@ -79,15 +79,19 @@ def threshold_image(image: NDArray, params: DetectionParams) -> tuple[NDArray, B
 
     Global background (``background_tile_px`` 0): white is ``image >= threshold`` and the
     background one level, given or the median of a sparse sample. Local background: white
-    stands ``threshold`` above the tile-median background map, which the weighted
-    centroids subtract too (:mod:`kisscal.detect.background`). A boolean image is white
+    stands ``threshold`` (and ``noise_factor`` local noise deviations) above the
+    tile-median background map and the slack of its interpolation, and the weighted
+    centroids subtract the map (:mod:`kisscal.detect.background`). A boolean image is white
     as it is, with no background.
     """
     if image.dtype == np.bool_:
         return image, 0.0
     if params.background_tile_px > 0:
-        local = background_map(image, params.background_tile_px)
-        return image >= local + np.float32(params.threshold), local
+        local = local_background(image, params.background_tile_px)
+        above = np.float32(params.threshold)
+        if params.noise_factor > 0:
+            above = np.maximum(above, np.float32(params.noise_factor) * local.noise)
+        return image >= local.level + local.slack + above, local.level
     level = background_level(image) if params.background is None else params.background
     return image >= params.threshold, level
 

@@ -19,7 +19,12 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from kisscal.detect.advanced import Grouping
-from kisscal.detect.background import background_level, background_map, noise_sigma
+from kisscal.detect.background import (
+    background_level,
+    background_map,
+    local_background,
+    noise_sigma,
+)
 from kisscal.detect.centroid import owner_image, window_moments
 from kisscal.detect.groups import measure_groups
 from kisscal.detect.noise import noise_groups
@@ -30,6 +35,8 @@ from kisscal.detect.scan import Runs, group_runs
 RIM_MAX_PX = 10
 #: Margin (px) of the window over which a surveyed spot's grey moments are taken.
 MOMENT_MARGIN_PX = 3
+#: Local noise deviations a surveyed spot must stand above its local background.
+NOISE_FACTOR = np.float32(DetectionParams().noise_factor)
 
 
 @dataclass(frozen=True)
@@ -135,13 +142,17 @@ def _run_pixels(runs: Runs) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArr
 
 
 def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) -> Groups:
-    """The bright groups of one checked grey image: ``excess`` above the local background.
+    """The bright groups of one checked grey image: ``excess`` above the local background
+    (and above its local noise and interpolation slack, as detection's local mode).
 
     Noise groups (lonely pixels, one pixel wide or high) are left out.
     """
-    bg = background_map(image, tile_px)
+    local = local_background(image, tile_px)
+    bg = local.level
     contrast = image.astype(np.float32) - bg
-    runs = group_runs(contrast >= excess)
+    above = np.maximum(np.float32(excess), NOISE_FACTOR * local.noise) + local.slack
+    white = contrast >= above
+    runs = group_runs(white)
     table = measure_groups(runs)
     keep = ~noise_groups(table, DetectionParams())
     run_of, x, y = _run_pixels(runs)
@@ -151,7 +162,7 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
     grouping = Grouping.start(runs)
     owner = owner_image(image.shape, grouping)
     m = MOMENT_MARGIN_PX
-    moments = window_moments(image, contrast >= excess, owner, grouping, table, m, m, bg, 1.0)
+    moments = window_moments(image, white, owner, grouping, table, m, m, bg, 1.0)
     var_x, var_y = moments.var_x, moments.var_y
     h, w = image.shape
     inside = (table.x1 > 0) & (table.y1 > 0) & (table.x2 < w - 1) & (table.y2 < h - 1)

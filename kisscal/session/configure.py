@@ -7,7 +7,7 @@ trials). The camera's pixel aspect comes from its grid lattice when there is a g
 (:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
 otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
 is used as given. The result, with the reason for every value, is written to
-``out/detection/<camera>.json`` and cached against the sampled files and the given values.
+``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
 """
 
 from __future__ import annotations
@@ -23,11 +23,11 @@ import numpy as np
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
 from kisscal.errors import KisscalError
-from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
-from kisscal.session.inputs import file_keys, image_sources, out_dir
+from kisscal.session.inputs import image_sources, out_dir
 from kisscal.session.progress import Echo, quiet
 
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
@@ -42,7 +42,6 @@ class _Sample:
     """Frames of one camera and kind picked for the survey (decoded only when needed)."""
 
     sets: tuple[tuple[str, Sequence, tuple[int, ...]], ...]  # (what, frames, picked indices)
-    keys: tuple[Any, ...]
     camera: CameraConfig
 
     @property
@@ -67,30 +66,44 @@ def camera_detection(
 ) -> DetectionParams:
     """Detection parameters of one camera for its ``"grid"`` or ``"markers"`` images.
 
-    Derived on first use and kept in ``out/detection/<camera>.json`` until the sampled
-    frames or the given values change.
+    Derived on first use and kept in ``out/detection/<camera>.json``: they are a property
+    of the camera, so adding, fixing or dropping a trial later changes neither them nor
+    anything detected with them. They are derived again when the values given in
+    ``[detection]`` or the camera's image size change, or when the file is deleted.
     """
     path = out_dir(root) / "detection" / f"{camera.id}.json"
-    samples = {k: _sample(config, camera, k) for k in ("grid", "markers")}
-    key = cache_key(
-        "detection",
-        DERIVATION_VERSION,
-        dict(given),
-        {k: s.keys for k, s in samples.items() if s is not None},
-    )
-    if is_current(path, key):
-        doc = json.loads(path.read_text())
-        if kind in doc.get("kinds", {}):
-            return _params_from_doc(doc["kinds"][kind], given)
-    setups = derive_camera(samples, given, config)
-    doc = _document(camera, setups)
-    write_json(path, doc)
-    mark_current(path, key)
-    for setup in setups.values():
-        echo(f"  detection {camera.id} {setup.summary()}")
-    if kind not in setups:
+    doc = _read_document(path, camera)
+    key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
+    entry = doc["kinds"].get(kind)
+    if entry is not None and entry.get("key") == key:
+        return _params_from_doc(entry, given)
+    sample = _sample(config, camera, kind)
+    if sample is None:
         raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
-    return setups[kind].params
+    if kind == "grid":
+        setup = _grid_setup(sample, given, config)
+    else:
+        aspect = given.get("pixel_aspect")
+        if aspect is None and config.grid is not None:
+            camera_detection(root, config, camera, "grid", given, echo)
+            aspect = _read_document(path, camera)["kinds"]["grid"]["settings"]["pixel_aspect"]
+            aspect = aspect["value"] if "lattice" in aspect["why"] else None
+        why = "the grid's dot lattice"
+        setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
+    doc = _read_document(path, camera)
+    doc["kinds"][kind] = {**setup.as_dict(), "key": key}
+    write_json(path, doc)
+    echo(f"  detection {camera.id} {setup.summary()}")
+    return setup.params
+
+
+def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
+    """The camera's detection document, or an empty one."""
+    if path.is_file():
+        doc = json.loads(path.read_text())
+        if isinstance(doc, dict) and isinstance(doc.get("kinds"), dict):
+            return doc
+    return {"camera": camera.id, "size": list(camera.size_px or ()) or None, "kinds": {}}
 
 
 def markers_detection(
@@ -103,35 +116,22 @@ def markers_detection(
     }
 
 
-def derive_camera(
-    samples: Mapping[str, _Sample | None], given: Mapping[str, Any], config: SessionConfig
-) -> dict[str, DetectionSetup]:
-    """The setups of one camera's grid and marker images (those it has)."""
+def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig) -> DetectionSetup:
+    """Settings of a camera's grid frames, with its pixel aspect from the dot lattice."""
     from kisscal.grid.frames import dots_from_frames
     from kisscal.grid.lattice import lattice_pixel_aspect
 
-    setups: dict[str, DetectionSetup] = {}
-    aspect = given.get("pixel_aspect")
-    grid = samples.get("grid")
-    if grid is not None:
-        setup = configure_detection(
-            grid.frames, given, kind="grid", pixel_aspect=1.0, aspect_why="grid dots: no split"
-        )
-        if aspect is None:
-            dots = dots_from_frames(grid.frames, setup.params)
-            cell = float(config.sections.get("grid", {}).get("cell_aspect", 1.0))
-            try:
-                aspect = round(lattice_pixel_aspect(dots, cell), 4)
-                setup = _with_lattice_aspect(setup, aspect)
-            except KisscalError:
-                aspect = None  # no lattice in these frames: the markers will tell
-        setups["grid"] = setup
-    markers = samples.get("markers")
-    if markers is not None:
-        setups["markers"] = configure_detection(
-            markers.frames, given, pixel_aspect=aspect, aspect_why="the grid's dot lattice"
-        )
-    return setups
+    frames = sample.frames
+    why = "grid dots: never split"
+    setup = configure_detection(frames, given, kind="grid", pixel_aspect=1.0, aspect_why=why)
+    if "pixel_aspect" in given:
+        return setup
+    cell = float(config.sections.get("grid", {}).get("cell_aspect", 1.0))
+    try:
+        aspect = lattice_pixel_aspect(dots_from_frames(frames, setup.params), cell)
+    except KisscalError:
+        return setup  # no lattice in these frames: the markers will tell
+    return _with_lattice_aspect(setup, round(aspect, 4))
 
 
 def _with_lattice_aspect(setup: DetectionSetup, aspect: float) -> DetectionSetup:
@@ -150,7 +150,7 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         for what, pattern, video in image_sources(config)
         if (what == "grid") == (kind == "grid")
     ]
-    sets, keys = [], []
+    sets = []
     per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
     for what, pattern, video in sources:
         try:
@@ -162,10 +162,7 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         if not picks:
             continue
         sets.append((what, seq, picks))
-        paths = getattr(seq, "paths", None)
-        files = [paths[i] for i in picks] if paths is not None else [Path(seq.path)]
-        keys.append(file_keys(files, config.root))
-    return _Sample(tuple(sets), tuple(keys), camera) if sets else None
+    return _Sample(tuple(sets), camera) if sets else None
 
 
 def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
@@ -180,14 +177,6 @@ def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
             f"{camera.size_px[0]} x {camera.size_px[1]}"
         )
     return image
-
-
-def _document(camera: CameraConfig, setups: Mapping[str, DetectionSetup]) -> dict[str, Any]:
-    return {
-        "camera": camera.id,
-        "size": list(camera.size_px) if camera.size_px else None,
-        "kinds": {k: s.as_dict() for k, s in setups.items()},
-    }
 
 
 def _params_from_doc(doc: Mapping[str, Any], given: Mapping[str, Any]) -> DetectionParams:
