@@ -35,6 +35,13 @@ def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
         entry["grid"] = {
             k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
         }
+    det_path = out / "detection" / f"{cam}.json"
+    if det_path.is_file():
+        kinds = json.loads(det_path.read_text()).get("kinds", {})
+        entry["detection"] = {
+            kind: {k: v["value"] for k, v in doc.get("settings", {}).items()}
+            for kind, doc in kinds.items()
+        }
     dlt_path = out / "dlt" / f"{cam}.json"
     if dlt_path.is_file():
         doc = json.loads(dlt_path.read_text())
