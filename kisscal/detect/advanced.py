@@ -1,5 +1,5 @@
-"""Advanced analysis (seeds/003 section 2.3): sub-marker merging, overlap (ul/ur) splitting,
-long/wide splitting and marker size limits.
+"""Advanced analysis (Shafiq et al. 2001, section 2.3): sub-marker merging, overlap
+(ul/ur) splitting, long/wide splitting and marker size limits.
 
 Groups are carried as labelled runs (:class:`Grouping`). Splitting a group creates one new
 label per marker centre estimated by the test, and every white pixel of the group goes to
@@ -381,7 +381,7 @@ def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
 def detach_from_large(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
     """Separate markers touching an oversized blob (an LED ring) before the size limits.
 
-    Not in seeds/003, where such a marker is lost inside the invalid LED group. The
+    Not in Shafiq et al. 2001, where such a marker is lost inside the invalid LED group. The
     group's white pixels are opened with an elliptical kernel of ``detach_kernel_px``
     (larger than any marker, smaller than an LED ring): what the opening removes and does
     not border the opened blob is a marker sticking out of it when it has at least

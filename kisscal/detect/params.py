@@ -74,7 +74,7 @@ class DetectionParams(Params):
     split_touching : bool
         Split groups whose distance transform has several peaks (touching markers, e.g.
         three foot markers in a cluster) into one group per peak, before the overlap
-        test; not in seeds/003. Only groups whose shape or size is not that of one marker
+        test; not in Shafiq et al. 2001. Only groups whose shape or size is not that of one marker
         are examined.
     touching_separation : float
         Two distance-transform peaks are two markers when they are further apart than
@@ -128,7 +128,7 @@ class DetectionParams(Params):
         291-line fields (KISS). Derived per camera from the shape of its isolated markers.
     detach_from_large : bool
         Separate markers touching an oversized blob (LED ring) from it before the size
-        limits; not in seeds/003 (there such a marker is lost with the invalid blob).
+        limits; not in Shafiq et al. 2001 (there such a marker is lost with the invalid blob).
     detach_kernel_px : (int, int) or None
         Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
         and removes markers: larger than a marker image, smaller than an LED ring. Derived

@@ -1,4 +1,4 @@
-"""Markers touching an LED ring are separated from it (beyond seeds/003)."""
+"""Markers touching an LED ring are separated from it (beyond Shafiq et al. 2001)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def test_touching_marker_is_detached_and_led_stays_invalid():
     assert len(valid) == 1
     assert valid.flags[0] & fl.DETACHED
     assert np.hypot(valid.x_px[0] - marker[0], valid.y_px[0] - marker[1]) < 1.0
-    # seeds/003 alone: the marker is lost in the invalid LED group (whatever splits it gets)
+    # Shafiq et al. 2001 alone: the marker is lost in the invalid LED group
     without = detect_blobs(image, KISS.replace(detach_from_large=False))
     assert not without.valid.any()
 

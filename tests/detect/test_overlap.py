@@ -1,4 +1,4 @@
-"""Overlapping markers (seeds/003 sections 2.3.2-2.3.3) on rendered pairs."""
+"""Overlapping markers (Shafiq et al. 2001, sections 2.3.2-2.3.3) on rendered pairs."""
 
 from __future__ import annotations
 

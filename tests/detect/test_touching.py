@@ -45,7 +45,7 @@ def test_three_touching_markers_give_three_blobs(rng):
     assert found.mean() >= 0.85  # 0.89 measured; the rest merge with no neck left
     assert len(blobs) <= len(truth)
     assert (blobs.flags & fl.SPLIT_TOUCHING).any()
-    # seeds/003's tests alone cut a three-marker cluster into two at most
+    # Shafiq et al.'s (2001) tests alone cut a three-marker cluster into two at most
     paper = detect_blobs(render(truth, radius), KISS.replace(split_touching=False))
     d = np.hypot(
         (paper.x_px[:, None] - truth[:, 0]) / radius,
