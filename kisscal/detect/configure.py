@@ -475,7 +475,9 @@ def measure_pixel_aspect(spots: Groups) -> tuple[float, str]:
     if sx.size < MIN_SPOTS_FOR_ASPECT:
         return 1.0, f"only {sx.size} isolated spots: square pixels assumed"
     ratio = float(np.median(sx / sy))
-    fit = theilslopes(sx, sy) if sx.size >= 30 else None
+    # a static scene shows the same spots in every frame: count places, not sightings
+    places = np.unique(np.round(np.column_stack([spots.x[ok], spots.y[ok]]) / 2.0), axis=0)
+    fit = theilslopes(sx, sy) if len(places) >= 30 else None
     spread = (fit.high_slope - fit.low_slope) / abs(fit.slope) if fit is not None else np.inf
     if fit is not None and spread <= 0.2 and (fit.slope - 1) * (ratio - 1) >= 0:
         aspect = float(fit.slope)

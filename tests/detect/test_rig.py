@@ -179,7 +179,8 @@ def test_rod_images_have_24_valid_markers_and_leds_flagged(seed):
             (uv[:, None, 1] - led_uv[:, 1]) / led_r[:, 1],
         ).min(axis=1)
         touching = reach < 1.5
-        blobs = detect_blobs(frames[0], configure_detection(frames).params)
+        params = configure_detection(frames, pixel_aspect=camera_aspect(plan, cam)).params
+        blobs = detect_blobs(frames[0], params)
         valid = blobs.valid_only()
         d = np.hypot(valid.x_px[:, None] - uv[:, 0], valid.y_px[:, None] - uv[:, 1])
         assert np.unique(d.argmin(axis=1)).size == len(valid)  # no marker found twice
