@@ -91,7 +91,8 @@ def window_moments(
     Returns
     -------
     SpotMoments
-        Centroid falls back to the binary centroid where the weights sum to <= 0.
+        The centroid falls back to the binary centroid where the weights sum to <= 0 or
+        put it outside the window.
     """
     height, width = image.shape
     n = len(table)
@@ -141,22 +142,26 @@ def window_moments(
     )
     sums = np.add.reduceat(terms, first, axis=1)
     total, core_total = sums[0], sums[6]
-    ok = total > 0
-    t = np.where(ok, total, 1.0)
-    ct = np.where(core_total > 0, core_total, 1.0)
-    mx, my = sums[1] / t, sums[2] / t
-    cx, cy = sums[7] / ct, sums[8] / ct
-    return SpotMoments(
-        total=total,
-        x=np.where(ok, x0 + mx, table.x_binary),
-        y=np.where(ok, y0 + my, table.y_binary),
-        var_x=sums[3] / t - mx * mx,
-        var_y=sums[4] / t - my * my,
-        cov_xy=sums[5] / t - mx * my,
-        core_var_x=sums[9] / ct - cx * cx,
-        core_var_y=sums[10] / ct - cy * cy,
-        core_cov_xy=sums[11] / ct - cx * cy,
-    )
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = np.where(total > 0, total, 1.0)
+        ct = np.where(core_total > 0, core_total, 1.0)
+        mx, my = sums[1] / t, sums[2] / t
+        cx, cy = sums[7] / ct, sums[8] / ct
+        # weights that (nearly) cancel put a centroid anywhere: keep it only inside its
+        # window, else the binary centroid stands
+        nrow = y1 - y0 + 1
+        ok = (total > 0) & (mx >= 0) & (mx <= ncol - 1) & (my >= 0) & (my <= nrow - 1)
+        return SpotMoments(
+            total=total,
+            x=np.where(ok, x0 + mx, table.x_binary),
+            y=np.where(ok, y0 + my, table.y_binary),
+            var_x=sums[3] / t - mx * mx,
+            var_y=sums[4] / t - my * my,
+            cov_xy=sums[5] / t - mx * my,
+            core_var_x=sums[9] / ct - cx * cx,
+            core_var_y=sums[10] / ct - cy * cy,
+            core_cov_xy=sums[11] / ct - cx * cy,
+        )
 
 
 def _nearest_part_mask(

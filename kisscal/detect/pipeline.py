@@ -40,6 +40,8 @@ from kisscal.detect.touching import split_touching
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
+#: Largest grey level a float image may hold (a 16-bit image's range).
+MAX_FLOAT_GREY = 65535.0
 
 
 def check_image(image: object) -> NDArray:
@@ -67,6 +69,13 @@ def check_image(image: object) -> NDArray:
         raise KisscalError(
             f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
         )
+    if np.issubdtype(image.dtype, np.floating):
+        top = float(np.max(np.abs(image)))
+        if not np.isfinite(top) or top > MAX_FLOAT_GREY:
+            raise KisscalError(
+                f"detect: float grey levels must be finite and within +-{MAX_FLOAT_GREY:g} "
+                f"(8- or 16-bit scale), got {top:g}"
+            )
     if np.issubdtype(image.dtype, np.unsignedinteger) and image.dtype.itemsize > 1:
         # 16-bit cameras: bring grey levels to the 8-bit scale so that ``threshold`` and the
         # other grey-level parameters mean the same for 8- and 16-bit frames of one scene.
