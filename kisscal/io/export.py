@@ -48,10 +48,32 @@ def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     return path
 
 
-def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> Path:
-    """Write trajectories as an OpenSim TRC file (PathFileType 4, X/Y/Z, units mm);
-    frames are numbered from 1, time is (frame - 1) / rate_hz."""
-    dense = _dense(tracks, labels, rate_hz)
+#: Lab axes as TRC axes: ``"z"`` keeps the lab frame (Z up); ``"y"`` turns it Y-up as OpenSim
+#: models expect (TRC X = lab X, TRC Y = lab Z, TRC Z = -lab Y; a rotation, still right-handed).
+TRC_AXES: dict[str, np.ndarray] = {
+    "z": np.eye(3),
+    "y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+}
+
+
+def write_trc(
+    path: str | Path,
+    tracks: Tracks,
+    labels: tuple[str, ...],
+    rate_hz: float,
+    up: str = "z",
+) -> Path:
+    """Write trajectories as an OpenSim TRC file (PathFileType 4, X/Y/Z, units mm).
+
+    Frames are numbered from 1, time is ``(frame - 1) / rate_hz``. Every data row ends with
+    a tab, as OpenSim's own writer does: OpenSim's tokenizer drops a trailing empty field,
+    so a row whose last marker is missing would otherwise come one field short and the
+    whole file would be refused. ``up`` is the vertical axis of the file (see
+    :data:`TRC_AXES`); gaps are empty fields (NaN in OpenSim).
+    """
+    if up not in TRC_AXES:
+        raise KisscalError(f"export: trc up axis must be 'z' or 'y', got {up!r}")
+    dense = _dense(tracks, labels, rate_hz) @ TRC_AXES[up].T
     n_tracks, n_fields, _ = dense.shape
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -60,13 +82,13 @@ def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
         "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
         "OrigDataStartFrame\tOrigNumFrames",
         f"{rate_hz:.2f}\t{rate_hz:.2f}\t{n_fields}\t{n_tracks}\tmm\t{rate_hz:.2f}\t1\t{n_fields}",
-        "Frame#\tTime\t" + "\t".join(f"{lab}\t\t" for lab in labels).rstrip("\t"),
-        "\t\t" + "\t".join(f"X{i + 1}\tY{i + 1}\tZ{i + 1}" for i in range(n_tracks)),
+        "Frame#\tTime\t" + "".join(f"{lab}\t\t\t" for lab in labels),
+        "\t\t" + "".join(f"X{i + 1}\tY{i + 1}\tZ{i + 1}\t" for i in range(n_tracks)),
         "",
     ]
     values = np.transpose(dense, (1, 0, 2)).reshape(n_fields, 3 * n_tracks)
     text = np.where(np.isfinite(values), np.char.mod("%.3f", np.nan_to_num(values)), "")
     for f in range(n_fields):
-        lines.append(f"{f + 1}\t{f / rate_hz:.5f}\t" + "\t".join(text[f]))
+        lines.append(f"{f + 1}\t{f / rate_hz:.5f}\t" + "".join(v + "\t" for v in text[f]))
     write_text(path, "\n".join(lines) + "\n")
     return path
