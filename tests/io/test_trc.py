@@ -26,8 +26,10 @@ def gappy_tracks(n_fields: int = 30, n_tracks: int = 4, seed: int = 0) -> Tracks
     keep[last & ((field % 4 == 1) | (field == 0) | (field == n_fields - 1))] = False
     keep[(track == 0) & (field == 7)] = False
     status = np.where(field % 5 == 0, FILLED, MEASURED)
-    point = np.where(status == MEASURED, np.arange(len(field)), -1)
     rows = np.flatnonzero(keep)
+    # measured samples come from input points numbered in row order
+    point = np.full(len(field), -1)
+    point[rows] = np.where(status[rows] == MEASURED, np.arange(len(rows)), -1)
     return make_tracks(field[rows], track[rows], xyz[rows], xyz[rows], status[rows], point[rows])
 
 
