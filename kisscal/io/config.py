@@ -403,6 +403,10 @@ def _check_references(top: Table, config: SessionConfig) -> None:
             )
     if config.calibration is not None and config.rods is not None:
         raise top.fail("give either [rods] or [calibration], not both")
+    if config.calibration is not None and config.calibration.cameras and config.grid is not None:
+        raise top.fail(
+            "[calibration] cameras brings its own lens model; give either it or [grid], not both"
+        )
 
 
 def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:

@@ -23,6 +23,7 @@ from kisscal.session.inputs import (
 )
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
+from kisscal.session.routes.imported import imported_linearisation
 
 
 @writes_session
@@ -36,7 +37,8 @@ def linearise(
     """``kisscal linearise``: each camera's linearisation from its grid frames.
 
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
-    A session without ``[grid]`` gets the identity linearisation.
+    A session without ``[grid]`` gets the identity linearisation; one calibrated by
+    ``[calibration] cameras`` the polynomial fitted to that file's OpenCV distortion.
     """
     config = load_config(root)
     o = overrides or Overrides()
@@ -45,7 +47,9 @@ def linearise(
     params = stage_params(config, o)
     result = {}
     for cam in steps(select_cameras(config, camera), "linearise"):
-        if config.grid is None:
+        if config.calibration is not None and config.calibration.route == "cameras":
+            result[cam.id] = imported_linearisation(config, cam, echo)
+        elif config.grid is None:
             w, h = cam.size_px
             result[cam.id] = identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
         else:
