@@ -149,3 +149,20 @@ def test_dltdv_import_reconstructs_the_same_points_with_the_grid(original: Path,
     d = distances_mm(points3d(original), points3d(root))
     assert d.max() < 1e-3
     assert '"method": "dltdv"' in (root / "out" / "dlt" / "cam1.json").read_text()
+
+
+def test_export_command_writes_each_format(original: Path, tmp_path: Path):
+    from kisscal.cli import main
+
+    for to, dest in (("anipose", "c.toml"), ("dltdv8", "c.csv"), ("opencv", "ocv")):
+        with pytest.raises(SystemExit) as done:
+            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest)])
+        assert done.value.code in (0, None)
+    assert load_toml(tmp_path / "c.toml")["cam1"]["name"] == "cam1"
+    np.testing.assert_allclose(
+        np.loadtxt(tmp_path / "c.csv", delimiter=","),
+        np.loadtxt(original / "out" / "dlt" / "dltdv.csv", delimiter=","),
+    )
+    fs = cv2.FileStorage(str(tmp_path / "ocv" / "cam2.yml"), cv2.FILE_STORAGE_READ)
+    matrix = fs.getNode("camera_matrix").mat()
+    np.testing.assert_allclose(matrix, load_toml(tmp_path / "c.toml")["cam2"]["matrix"])
