@@ -46,13 +46,20 @@ def load_config(root: Path) -> SessionConfig:
     frame (grid, rods, axes, calibration or trial images, in that order).
     """
     config = load_session(Path(root))
-    if all(c.size_px is not None for c in config.cameras):
-        return config
+    if all(c.size_px is not None for c in config.cameras) or not image_sources(config):
+        return config  # without any images a size is neither knowable nor needed
     cameras = tuple(
         c if c.size_px is not None else CameraConfig(c.id, _first_frame_size(config, c.id))
         for c in config.cameras
     )
     return dataclasses.replace(config, cameras=cameras)
+
+
+def needs_calibration(config: SessionConfig) -> bool:
+    """False for a session of C3D trials only and no calibration inputs: nothing to
+    linearise or calibrate (its 3D points come calibrated)."""
+    given = config.rods or config.calibration or config.wand or config.grid
+    return bool(given) or any(t.source != "c3d" for t in config.trials)
 
 
 def image_sources(config: SessionConfig) -> list[tuple[str, str, bool]]:

@@ -17,7 +17,7 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import camera_frames
 from kisscal.report.params import ReportParams
-from kisscal.session.inputs import image_sources, load_config
+from kisscal.session.inputs import image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
 
@@ -66,7 +66,12 @@ def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Prob
 
 def _calibration_inputs(config: SessionConfig) -> list[Problem]:
     problems = []
-    if config.rods is None and config.calibration is None and config.wand is None:
+    if (
+        config.rods is None
+        and config.calibration is None
+        and config.wand is None
+        and needs_calibration(config)
+    ):
         problems.append(
             Problem(SESSION, "no [rods], [calibration] or [wand]: nothing to calibrate from")
         )
