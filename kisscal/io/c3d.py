@@ -27,7 +27,9 @@ def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], f
         raise KisscalError(f"{path}: not a readable C3D file ({exc})") from None
     params = c3d["parameters"]["POINT"]
     labels = tuple(str(s).strip() for s in params["LABELS"]["value"])
-    units = str(params.get("UNITS", {}).get("value", ["mm"])[0]).strip().lower()
+    # POINT:UNITS may be missing or empty: millimetres, the C3D default
+    units = str((list(params.get("UNITS", {}).get("value", [])) or ["mm"])[0]).strip().lower()
+    units = units or "mm"
     scale = {"mm": 1.0, "m": 1000.0, "cm": 10.0}.get(units)
     if scale is None:
         raise KisscalError(f"{path}: unsupported point units {units!r}")

@@ -10,7 +10,7 @@ from kisscal.errors import KisscalError
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
-from kisscal.io.frames import camera_frames
+from kisscal.io.frames import camera_frames, source_files
 from kisscal.io.linearisation import read_linearisation, write_linearisation
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
@@ -63,9 +63,15 @@ def _linearise_camera(
     """One camera's linearisation: from the cache, or fitted and written with its figure."""
     assert config.grid is not None
     out = out_dir(root) / "linearisation" / f"{cam.id}.json"
-    frames = camera_frames(config.root, config.grid.images, cam.id, "grid")
+    frames = camera_frames(
+        config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
+    )
     key = cache_key(
-        "linearise", file_keys(frames.paths, config.root), params.grid, params.detection
+        "linearise",
+        file_keys(source_files(frames), config.root),
+        config.grid.fields,
+        params.grid,
+        params.detection,
     )
     if is_current(out, key):
         echo(f"  linearise {cam.id}: cached")

@@ -14,7 +14,7 @@ from kisscal.io.c3d import read_c3d_points
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table, write_json
-from kisscal.io.frames import trial_frames
+from kisscal.io.frames import source_files, trial_frames
 from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
@@ -147,8 +147,9 @@ def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any
             config.camera_ids,
             trial.name,
             video=trial.source == "video",
+            fields=trial.fields,
         )
-        paths = {c: list(f.paths) if hasattr(f, "paths") else [f.path] for c, f in frames.items()}
+        paths = {c: source_files(f) for c, f in frames.items()}
     for c, ps in paths.items():
         for p in ps:
             if not p.is_file():
@@ -173,12 +174,14 @@ def trial_blobs(
         config.camera_ids,
         trial.name,
         video=trial.source == "video",
+        fields=trial.fields,
     )
     out = {}
     sizes = {c.id: c.size_px for c in config.cameras}
     for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
-        inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
-        key = cache_key("detect", file_keys(inputs, config.root), params.detection)
+        key = cache_key(
+            "detect", file_keys(source_files(seq), config.root), trial.fields, params.detection
+        )
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
         sized = SizedFrames(seq, cam, sizes[cam])
         blobs = detect_frames(

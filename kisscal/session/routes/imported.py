@@ -61,7 +61,8 @@ def imported_linearisation(
     key = cache_key("imported-linearisation", file_keys([path], config.root), cam.id)
     if is_current(out, key):
         return read_linearisation(out)[1]
-    cv = read_cameras_toml(path, [cam.id])[cam.id]
+    # every camera of the session is checked before any file is written
+    cv = read_cameras_toml(path, config.camera_ids)[cam.id]
     if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
         raise KisscalError(
             f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
