@@ -80,6 +80,7 @@ class _Reader:
         self.cap = cv2.VideoCapture(str(path))
         if not self.cap.isOpened():
             raise KisscalError(f"{path}: not a readable video")
+        self.count = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.next = 0  # index of the frame the next read() returns
         self.last: tuple[int, np.ndarray] | None = None
 
@@ -147,20 +148,15 @@ class VideoFrames(Sequence):
     sequential = True
 
     def __len__(self) -> int:
-        cap = cv2.VideoCapture(str(self.path))
-        try:
-            if not cap.isOpened():
-                raise KisscalError(f"{self.path}: not a readable video")
-            return int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
-        finally:
-            cap.release()
+        return _reader(self.path).count
 
     def __getitem__(self, index):  # type: ignore[override]
         if isinstance(index, slice):
             raise TypeError("video frames are indexed one at a time")
-        if not 0 <= index < len(self):
+        reader = _reader(self.path)
+        if not 0 <= index < reader.count:
             raise IndexError(f"{self.path}: no frame {index}")
-        return _reader(self.path).frame(int(index))
+        return reader.frame(int(index))
 
 
 @dataclass(frozen=True)
