@@ -91,3 +91,16 @@ def test_interlaced_video_session_gives_the_png_sessions_points(small_session, t
     assert len(png["field"]) > 100
     for key in ("field", "x_mm", "y_mm", "z_mm", "rms_px"):
         np.testing.assert_array_equal(vid[key], png[key])
+
+
+def test_any_image_set_may_be_a_video(tmp_path):
+    """A grid or rod pattern ending in a video suffix reads the camera's video."""
+    rng = np.random.default_rng(2)
+    frames = [rng.integers(0, 256, (20, 30), dtype=np.uint8) for _ in range(4)]
+    (tmp_path / "grid").mkdir()
+    write_video(tmp_path / "grid" / "cam1.avi", frames)
+    grid = camera_frames(tmp_path, "grid/{camera}.avi", "cam1", "grid")
+    assert isinstance(grid, VideoFrames) and len(grid) == 4
+    np.testing.assert_array_equal(grid[3], frames[3])
+    fields = camera_frames(tmp_path, "grid/{camera}.avi", "cam1", "grid", fields="bottom-first")
+    np.testing.assert_array_equal(fields[0], frames[0][1::2])
