@@ -317,6 +317,33 @@ def track(
 
 @app.command(
     epilog=_example(
+        "kisscal export lab/2026-11-21 --to anipose",
+        "kisscal export lab/2026-11-21 --to dltdv8 --out coefs.csv",
+        "kisscal export lab/2026-11-21 --to opencv --out calib/",
+    )
+)
+def export(
+    session_dir: SessionArg,
+    to: Annotated[
+        Literal["anipose", "dltdv8", "opencv"],
+        typer.Option(
+            help="anipose: cameras.toml (also Pose2Sim's layout); dltdv8: 11 x n coefficient "
+            "CSV in DLTdv8's pixels; opencv: one FileStorage YAML per camera."
+        ),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="File (a folder for opencv) to write; default: under SESSION/out."),
+    ] = None,
+) -> None:
+    """Write the session's calibration for another tool (after kisscal calibrate)."""
+    from kisscal.session.exports import export as export_calibration
+
+    export_calibration(session_dir, to, out, echo=typer.echo)
+
+
+@app.command(
+    epilog=_example(
         "kisscal init lab/2026-11-21 --cameras 8", "kisscal init kiss01 --cameras 6 --preset kiss"
     )
 )

@@ -335,8 +335,10 @@ def _trials(top: Table) -> tuple[TrialConfig, ...]:
                 f"got {', '.join(given) or 'none'}"
             )
         fields = t.choice("fields", FIELD_ORDERS)
-        if fields is not None and given[0] != "video":
-            raise t.fail(f"trial {name!r}: fields (interlaced field order) applies to video only")
+        if fields is not None and given[0] not in ("video", "images"):
+            raise t.fail(
+                f"trial {name!r}: fields (interlaced field order) applies to images or video only"
+            )
         trials.append(TrialConfig(name, **{given[0]: t.string(given[0])}, fields=fields))
     names = [t.name for t in trials]
     repeated = sorted({n for n in names if names.count(n) > 1})
@@ -403,6 +405,10 @@ def _check_references(top: Table, config: SessionConfig) -> None:
             )
     if config.calibration is not None and config.rods is not None:
         raise top.fail("give either [rods] or [calibration], not both")
+    if config.calibration is not None and config.calibration.cameras and config.grid is not None:
+        raise top.fail(
+            "[calibration] cameras brings its own lens model; give either it or [grid], not both"
+        )
 
 
 def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:

@@ -20,15 +20,25 @@ def summarise(root: Path) -> dict[str, Any]:
     """Every quality figure of a processed session, read back from ``out/``."""
     config = load_session(Path(root))
     out = Path(root) / "out"
-    cams = {cam: _camera_summary(out, cam) for cam in config.camera_ids}
+    exports_path = out / "exports.json"
+    exports = json.loads(exports_path.read_text()) if exports_path.is_file() else {}
+    cams = {cam: _camera_summary(out, cam, exports) for cam in config.camera_ids}
     trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
     check_path = out / "dlt" / "check.json"
     check = json.loads(check_path.read_text()) if check_path.is_file() else {}
     return {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
 
 
-def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
+def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, Any]:
     entry: dict[str, Any] = {}
+    fit = exports.get("cameras_toml", {}).get(cam)
+    lens = exports.get("dltdv", {}).get("lens_error", {}).get(cam)
+    if fit or lens:  # how closely cameras.toml / dltdv.csv follow this camera (px)
+        entry["export"] = {
+            "opencv_fit_rms_px": (fit or {}).get("rms_px"),
+            "opencv_fit_max_px": (fit or {}).get("max_px"),
+            "dltdv_corner_error_px": max((lens or {}).get("corners_px", [0.0]) or [0.0]),
+        }
     lin_path = out / "linearisation" / f"{cam}.json"
     if lin_path.is_file():
         doc = json.loads(lin_path.read_text())

@@ -52,6 +52,9 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
     ]
     if loo:
         headers.append("leave-one-rod-out rms (px)")
+    exported = any("export" in cams.get(c, {}) for c in o.cameras)
+    if exported:
+        headers.append("cameras.toml fit rms (px)")
     headers.append("missing rod markers")
     rows = []
     for cam in o.cameras:
@@ -72,6 +75,8 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
         ]
         if loo:
             row.append(fmt(dlt.get("leave_one_out_px")))
+        if exported:
+            row.append(fmt((entry.get("export") or {}).get("opencv_fit_rms_px"), 4))
         row.append(", ".join(missing) if missing else "none")
         rows.append(row)
     return table(headers, rows, numeric=(2, 3, 4, 6, 7, 8, 9, 10, 11))

@@ -145,16 +145,12 @@ def _with_lattice_aspect(setup: DetectionSetup, aspect: float) -> DetectionSetup
 
 def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample | None:
     """Up to :data:`MAX_FRAMES` frames of the camera's ``kind`` images, spread evenly."""
-    sources = [
-        (what, pattern, video)
-        for what, pattern, video in image_sources(config)
-        if (what == "grid") == (kind == "grid")
-    ]
+    sources = [src for src in image_sources(config) if (src[0] == "grid") == (kind == "grid")]
     sets = []
     per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
-    for what, pattern, video in sources:
+    for what, pattern, video, fields in sources:
         try:
-            seq = camera_frames(config.root, pattern, camera.id, what, video=video)
+            seq = camera_frames(config.root, pattern, camera.id, what, video, fields)
         except KisscalError:
             continue  # missing frames are reported by the stage that needs them
         n = len(seq)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import is_current, load_blob_frames, mark_current, save_blob_frames
 from kisscal.io.files import write_bytes
-from kisscal.io.frames import read_image
+from kisscal.io.frames import frame_name, read_image
 from kisscal.session.progress import Echo, quiet
 
 
@@ -40,14 +41,26 @@ class SizedFrames(Sequence):
         image = self.frames[index]
         h, w = image.shape[:2]
         if (w, h) != tuple(self.size_px):
-            paths = getattr(self.frames, "paths", None)
-            video = getattr(self.frames, "path", None)  # one video file per camera
-            name = paths[index] if paths is not None else f"{video or ''} frame {index}".strip()
             raise KisscalError(
-                f"{name}: {w} x {h} pixels, but camera {self.camera}'s frames are "
+                f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
+                f"{self.camera}'s frames are "
                 f"{self.size_px[0]} x {self.size_px[1]}"
             )
         return image
+
+    @property
+    def sequential(self) -> bool:
+        return bool(getattr(self.frames, "sequential", False))
+
+
+def chunk_size(frames: Sequence, workers: int | None) -> int:
+    """Consecutive frames a detection worker takes at a time: 32, or for a video (decoded
+    in order) an even share of the whole, so that each worker seeks once."""
+    n_workers = max(workers or os.cpu_count() or 1, 1)
+    if not getattr(frames, "sequential", False):
+        return 32
+    share = -(-len(frames) // n_workers)
+    return max(share + share % 2, 2)  # even: both fields of a frame go to one worker
 
 
 def detect_frames(
@@ -64,7 +77,13 @@ def detect_frames(
         echo(f"  detect {what}: {len(frames)} frames (cached)")
         return load_blob_frames(cache_file)
     t0 = time.perf_counter()
-    blobs = detect_sequence(frames.__getitem__, params, count=len(frames), workers=workers)
+    blobs = detect_sequence(
+        frames.__getitem__,
+        params,
+        count=len(frames),
+        workers=workers,
+        chunksize=chunk_size(frames, workers),
+    )
     save_blob_frames(cache_file, blobs)
     mark_current(cache_file, key)
     echo(f"  detect {what}: {len(frames)} frames in {time.perf_counter() - t0:.1f} s")

@@ -10,7 +10,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.files import write_json
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, out_dir, writes_session
+from kisscal.session.inputs import load_config, needs_calibration, out_dir, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
@@ -46,10 +46,11 @@ def run(
         step(*args, **kwargs)
         timings[name] = time.perf_counter() - t
 
-    echo("[1/4] linearisation")
-    timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
-    echo("[2/4] calibration")
-    timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
+    if needs_calibration(config):
+        echo("[1/4] linearisation")
+        timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
+        echo("[2/4] calibration")
+        timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
     failures: dict[str, str] = {}
     for trial in config.trials:
         if trial.name in broken:

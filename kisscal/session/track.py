@@ -48,8 +48,14 @@ def track(
     t0 = time.perf_counter()
     result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template, segments)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
-    write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
-    write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz, points=pts)
+    write_trc(
+        tdir / "trajectories.trc",
+        result.tracks,
+        result.labels,
+        config.rate_hz,
+        up=config.export.trc_up,
+    )
     write_json(tdir / "tracking.json", _tracking_summary(result))
     figure(
         root,

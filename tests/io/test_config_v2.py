@@ -72,10 +72,14 @@ def test_version_2_mistakes_are_one_line_errors(tables: dict, message: str) -> N
     assert "\n" not in str(err.value)
 
 
-def test_fields_only_for_video() -> None:
-    trials = [{"name": "t", "images": "x/{camera}/*.png", "fields": "top-first"}]
-    with pytest.raises(KisscalError, match="applies to video only"):
+def test_fields_only_for_images_or_video() -> None:
+    trials = [{"name": "t", "centroids": "x/{camera}.csv", "fields": "top-first"}]
+    with pytest.raises(KisscalError, match="applies to images or video only"):
         parse_session({**BASE, "trials": trials}, Path("/lab"))
+    trials = [{"name": "t", "images": "x/{camera}/*.png", "fields": "bottom-first"}]
+    assert parse_session({**BASE, "trials": trials}, Path("/lab")).trials[0].fields == (
+        "bottom-first"
+    )
 
 
 def test_duplicate_camera_and_trial_names() -> None:
