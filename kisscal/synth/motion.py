@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from kisscal.synth.cameras import VOLUME_MM
+
 if TYPE_CHECKING:
     from kisscal.synth.walker import GaitTruth
 
@@ -366,20 +368,30 @@ def standing_template(names: tuple[str, ...]) -> NDArray[np.float64]:
     return np.asarray(out) + [0.0, 0.0, floor_offset]
 
 
-def stick_trial(seed: int, n_fields: int = 200, rate_hz: float = 50.0) -> Motion:
+def _volume_half_mid(volume_mm: tuple) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    lo, hi = np.asarray(volume_mm[0], dtype=float), np.asarray(volume_mm[1], dtype=float)
+    return (hi - lo) / 2, (hi + lo) / 2
+
+
+def stick_trial(
+    seed: int, n_fields: int = 200, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM
+) -> Motion:
     """Seed 003 section 5.1: a stick with two markers 502.5 mm apart moved through the volume.
 
     The stick's centre follows a Lissajous path that visits the whole control volume
-    while the stick turns through varying orientations; nothing occludes it.
+    (``volume_mm``, (min, max) corners) while the stick turns through varying
+    orientations, its ends staying inside; nothing occludes it.
     """
     rng = np.random.default_rng([seed, 3003])
     t = np.arange(n_fields) / rate_hz
     ph = rng.uniform(0, 2 * np.pi, 6)
+    half, mid = _volume_half_mid(volume_mm)
+    amplitude = (half[0] - 320.0, half[1] - 300.0, 0.3 * 2 * half[2])
     centre = np.stack(
         [
-            880.0 * np.sin(2 * np.pi * 0.25 * t + ph[0]),
-            400.0 * np.sin(2 * np.pi * 0.35 * t + ph[1]),
-            1000.0 + 600.0 * np.sin(2 * np.pi * 0.3 * t + ph[2]),
+            mid[0] + amplitude[0] * np.sin(2 * np.pi * 0.25 * t + ph[0]),
+            mid[1] + amplitude[1] * np.sin(2 * np.pi * 0.35 * t + ph[1]),
+            mid[2] + amplitude[2] * np.sin(2 * np.pi * 0.3 * t + ph[2]),
         ],
         axis=1,
     )
@@ -405,17 +417,19 @@ def stick_trial(seed: int, n_fields: int = 200, rate_hz: float = 50.0) -> Motion
     )
 
 
-def throw_trial(seed: int, rate_hz: float = 50.0) -> Motion:
+def throw_trial(seed: int, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM) -> Motion:
     """Seed 003 section 5.1: a marker thrown across the volume (ballistic, g = 9.806 m/s^2).
 
-    The marker flies from one end of the volume to the other in 0.9 s, rising about
-    0.8 m, and stays inside the volume.
+    The marker flies from one end of the volume (``volume_mm``) to the other in 0.9 s,
+    rising about 0.8 m, and stays inside the volume.
     """
     rng = np.random.default_rng([seed, 4004])
     duration_s = 0.9
     t = np.arange(round(duration_s * rate_hz) + 1) / rate_hz
-    start = np.array([-1100.0, rng.uniform(-300, 300), rng.uniform(500, 700)])
-    velocity = np.array([2200.0 / duration_s, rng.uniform(-200, 200), rng.uniform(3800, 4100)])
+    half, mid = _volume_half_mid(volume_mm)
+    reach = half[0] - 100.0
+    start = np.array([mid[0] - reach, rng.uniform(-300, 300), rng.uniform(500, 700)])
+    velocity = np.array([2 * reach / duration_s, rng.uniform(-200, 200), rng.uniform(3800, 4100)])
     xyz = start + t[:, None] * velocity
     xyz[:, 2] -= 0.5 * G_MM_S2 * t**2
     n = len(t)
@@ -438,12 +452,12 @@ def replay_trial(
 ) -> Motion:
     """A recorded trial (e.g. the Vicon walking5.c3d) moved into the control volume.
 
-    The trial is resampled from ``rate_hz`` to ``out_rate_hz`` (every k-th sample), shifted
-    so that the middle of its path lies at the centre of the volume's floor. Joint centres
-    named ``{L,R}{HJC,KJC,AJC}`` give thigh and shank capsules for occlusion.
+    The trial is resampled from ``rate_hz`` to ``out_rate_hz`` (every k-th sample when the
+    rates divide, linear interpolation otherwise; a sample next to a gap stays a gap),
+    shifted so that the middle of its path lies at the centre of the volume's floor.
+    Joint centres named ``{L,R}{HJC,KJC,AJC}`` give thigh and shank capsules for occlusion.
     """
-    step = max(1, round(rate_hz / out_rate_hz))
-    xyz = np.asarray(xyz_mm, dtype=float)[::step]
+    xyz = _resample(np.asarray(xyz_mm, dtype=float), rate_hz, out_rate_hz)
     mean_xy = np.nanmean(xyz[..., :2].reshape(-1, 2), axis=0)
     valid_x = np.where(np.isfinite(xyz[..., 0]), xyz[..., 0], np.nan)
     mid_x = 0.5 * (np.nanmin(valid_x) + np.nanmax(valid_x))
@@ -454,7 +468,8 @@ def replay_trial(
     for s in "LR":
         for a, b, r in ((f"{s}HJC", f"{s}KJC", 65.0), (f"{s}KJC", f"{s}AJC", 45.0)):
             if a in jc and b in jc:
-                capsules.append(np.stack([jc[a][::step] + shift, jc[b][::step] + shift], axis=1))
+                ends = [_resample(jc[j], rate_hz, out_rate_hz) + shift for j in (a, b)]
+                capsules.append(np.stack(ends, axis=1))
                 radii.append(r)
     n = xyz.shape[0]
     caps = np.stack(capsules, axis=1) if capsules else np.zeros((n, 0, 2, 3))
@@ -465,4 +480,73 @@ def replay_trial(
         capsule_radius_mm=np.asarray(radii),
         rate_hz=out_rate_hz,
         segments=(),
+    )
+
+
+def _resample(samples: NDArray[np.float64], rate_hz: float, out_rate_hz: float) -> NDArray:
+    """Samples (first axis: time) at ``out_rate_hz``; NaN stays NaN (gaps are not filled)."""
+    samples = np.asarray(samples, dtype=float)
+    ratio = rate_hz / out_rate_hz
+    if abs(ratio - round(ratio)) < 1e-9:
+        return samples[:: max(1, round(ratio))]
+    t_in = np.arange(len(samples)) / rate_hz
+    t_out = np.arange(int(np.floor(t_in[-1] * out_rate_hz)) + 1) / out_rate_hz
+    k = np.clip(np.searchsorted(t_in, t_out, side="right") - 1, 0, len(samples) - 2)
+    w = ((t_out - t_in[k]) * rate_hz).reshape(-1, *([1] * (samples.ndim - 1)))
+    return (1 - w) * samples[k] + w * samples[k + 1]
+
+
+def slim_capsules(motion: Motion, clearance_mm: float = 10.0, least_mm: float = 20.0) -> Motion:
+    """``motion`` with capsule radii shrunk so that no marker lies inside its own capsule.
+
+    A recorded trial's joint-centre capsules (:func:`replay_trial`) have nominal radii; a
+    marker on the skin over a joint (a femoral condyle, a malleolus) can lie closer to the
+    bone axis than that and would then hide behind its own capsule in every camera. Each
+    radius becomes at most the median distance (over fields) of the nearest marker to the
+    capsule's axis, less ``clearance_mm`` (never below ``least_mm``).
+    """
+    from kisscal.synth.scene import segment_distance
+
+    caps = motion.capsules_mm  # (F, K, 2, 3)
+    if caps.shape[1] == 0:
+        return motion
+    xyz = motion.xyz_mm[:, :, None, :]  # (F, M, 1, 3)
+    d = segment_distance(xyz, xyz, caps[:, None, :, 0, :], caps[:, None, :, 1, :])
+    nearest = np.nanmin(np.nanmedian(d, axis=0), axis=0)  # (K,)
+    radius = np.maximum(np.minimum(motion.capsule_radius_mm, nearest - clearance_mm), least_mm)
+    return Motion(
+        names=motion.names,
+        xyz_mm=motion.xyz_mm,
+        capsules_mm=caps,
+        capsule_radius_mm=radius,
+        rate_hz=motion.rate_hz,
+        segments=motion.segments,
+        truth=motion.truth,
+    )
+
+
+def inside_volume(motion: Motion, volume_mm: tuple, max_fields: int) -> Motion:
+    """The longest run of fields whose markers all lie inside ``volume_mm`` (at most
+    ``max_fields`` of them, from its middle): a recorded walk cut to what the lab sees."""
+    lo, hi = np.asarray(volume_mm[0], dtype=float), np.asarray(volume_mm[1], dtype=float)
+    xyz = motion.xyz_mm
+    exists = np.all(np.isfinite(xyz), axis=-1)
+    safe = np.where(exists[..., None], xyz, (lo + hi) / 2)
+    inside = np.all((safe >= lo) & (safe <= hi), axis=(1, 2)) & exists.any(axis=1)
+    edges = np.flatnonzero(np.diff(np.r_[0, inside.astype(int), 0]))
+    if len(edges) == 0:
+        raise ValueError("no field of the recorded trial lies inside the volume")
+    starts, stops = edges[::2], edges[1::2]
+    longest = int(np.argmax(stops - starts))
+    start, stop = int(starts[longest]), int(stops[longest])
+    excess = max(0, (stop - start) - max_fields)
+    start, stop = start + excess // 2, stop - (excess - excess // 2)
+    return Motion(
+        names=motion.names,
+        xyz_mm=xyz[start:stop],
+        capsules_mm=motion.capsules_mm[start:stop],
+        capsule_radius_mm=motion.capsule_radius_mm,
+        rate_hz=motion.rate_hz,
+        segments=motion.segments,
+        truth=motion.truth,
     )

@@ -151,7 +151,8 @@ def kisscal(*args: str) -> subprocess.CompletedProcess[str]:
     [
         (["--fields", "abc"], "--fields"),
         (["--fields", "3"], "--fields"),
-        (["--cameras", "9"], "--cameras"),
+        (["--cameras", "17"], "--cameras"),
+        (["--preset", "vicon"], "--preset"),
         (["--markers", "14"], "--markers"),
         (["--seed", "1.5"], "--seed"),
     ],
