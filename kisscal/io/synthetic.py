@@ -18,7 +18,7 @@ import tomli_w
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import read_c3d_points
 from kisscal.io.files import table_to_csv, write_json, write_table
-from kisscal.synth.motion import Motion, replay_trial
+from kisscal.synth.motion import Motion
 from kisscal.synth.plan import (
     SynthPlan,
     render_grid,
@@ -28,6 +28,7 @@ from kisscal.synth.plan import (
     trial_visibility,
 )
 from kisscal.synth.render import SpotSizes
+from kisscal.synth.replay import replay_trial
 from kisscal.synth.scene import SIZE_LEVELS
 from kisscal.synth.truth import camera_detection_truth, session_detection_truth, size_ranges
 

@@ -334,8 +334,8 @@ def ring_rig(
     ``start_deg`` is the range of the first camera's azimuth (degrees from lab +X, the
     walkway); by default anywhere within one spacing.
 
-    Example
-    -------
+    Examples
+    --------
     >>> rig = ring_rig(1, 8, (1280, 1024), ((-2000, -1000, 0), (2000, 1000, 2000)),
     ...                (3000, 4000), (2200, 3000), (2, 6))
     >>> [c.id for c in rig][-1], all(c.in_image(c.project(volume_corners_mm(

@@ -17,8 +17,6 @@ from numpy.typing import NDArray
 from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, SynthCamera, kiss_rig, ring_rig
 from kisscal.synth.motion import (
     Motion,
-    inside_volume,
-    slim_capsules,
     standing_template,
     stick_trial,
     throw_trial,
@@ -34,6 +32,7 @@ from kisscal.synth.render import (
     render_scene,
     sphere_spots,
 )
+from kisscal.synth.replay import inside_volume, slim_capsules
 from kisscal.synth.scene import (
     FieldTruth,
     GridView,

@@ -18,8 +18,8 @@ that keeps every marker image of the volume inside the preset's band.
   distortion at the corners), heavy noise, a bright uneven glow of room light through
   the infrared filter, small markers.
 
-Example
--------
+Examples
+--------
 >>> options = synth_options("lowcost", seed=2)
 >>> options.rig.size_px, options.n_cameras, options.rate_hz in (30.0, 50.0, 60.0)
 ((640, 480), 4, True)
