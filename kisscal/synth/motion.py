@@ -417,19 +417,23 @@ def stick_trial(
     )
 
 
-def throw_trial(seed: int, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM) -> Motion:
+def throw_trial(
+    seed: int, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM, duration_s: float = 0.9
+) -> Motion:
     """Seed 003 section 5.1: a marker thrown across the volume (ballistic, g = 9.806 m/s^2).
 
-    The marker flies from one end of the volume (``volume_mm``) to the other in 0.9 s,
-    rising about 0.8 m, and stays inside the volume.
+    The marker flies from one end of the volume (``volume_mm``) to the other in
+    ``duration_s``, rising about 0.8 m in 0.9 s (a shorter flight is a harder, flatter
+    throw: the same arc scaled in time), and stays inside the volume.
     """
     rng = np.random.default_rng([seed, 4004])
-    duration_s = 0.9
     t = np.arange(round(duration_s * rate_hz) + 1) / rate_hz
     half, mid = _volume_half_mid(volume_mm)
     reach = half[0] - 100.0
     start = np.array([mid[0] - reach, rng.uniform(-300, 300), rng.uniform(500, 700)])
-    velocity = np.array([2 * reach / duration_s, rng.uniform(-200, 200), rng.uniform(3800, 4100)])
+    sideways = rng.uniform(-200, 200)
+    upwards = rng.uniform(3800, 4100) * (duration_s / 0.9)  # the same arc in duration_s
+    velocity = np.array([2 * reach / duration_s, sideways, upwards])
     xyz = start + t[:, None] * velocity
     xyz[:, 2] -= 0.5 * G_MM_S2 * t**2
     n = len(t)

@@ -83,6 +83,8 @@ class RigSpec:
         Bits per pixel of the images (also in the render parameters).
     grid_fill : float
         Fraction of the image width the dot grid spans.
+    throw_s : float
+        Flight time of the thrown marker.
     """
 
     preset: str = "kiss"
@@ -98,6 +100,7 @@ class RigSpec:
     marker_size_quantile: float = 0.5
     bit_depth: int = 8
     grid_fill: float = 0.88
+    throw_s: float = 0.9
 
     @property
     def inside_volume(self) -> bool:
@@ -253,7 +256,7 @@ def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
     trials = {
         "walk01": walking_trial(seed, options.fields, rate, options.n_markers, path_mm),
         "stick": stick_trial(seed, options.stick_fields, rate, spec.volume_mm),
-        "throw": throw_trial(seed, rate, spec.volume_mm),
+        "throw": throw_trial(seed, rate, spec.volume_mm, spec.throw_s),
     }
     if replay is not None:
         trials["walk5"] = slim_capsules(inside_volume(replay, spec.volume_mm, options.fields))

@@ -112,7 +112,11 @@ class RigPreset:
     rates_hz : tuple of float
         Field rates a seed picks from.
     fields : int
-        Default fields of the gait trial.
+        Default fields of the gait trial (and of the stick trial; the replayed walk5 has
+        at most as many).
+    throw_s : float
+        Flight time of the thrown marker (fast rigs: a shorter, harder throw keeps the
+        trial's size in fields near the others').
     sensor : Sensor
     glow : Glow or None
         Background light; ``None``: a flat background of 6 grey levels.
@@ -137,6 +141,7 @@ class RigPreset:
     led_flare_px: Range
     rates_hz: tuple[float, ...]
     fields: int
+    throw_s: float
     sensor: Sensor = field(default_factory=Sensor)
     glow: Glow | None = None
     ring_start_deg: Range | None = None
@@ -163,10 +168,13 @@ PRESETS: dict[str, RigPreset] = {
         led_flare_px=(1.5, 1.5),
         rates_hz=(50.0,),
         fields=200,
+        throw_s=0.9,
     ),
     "modern": RigPreset(
         name="modern",
         camera_models=(
+            (1280, 1024, 8),
+            (1280, 1024, 8),
             (1280, 1024, 8),
             (1280, 1024, 8),
             (1280, 1024, 10),
@@ -189,7 +197,8 @@ PRESETS: dict[str, RigPreset] = {
         led_radius_mm=70.0,
         led_flare_px=(6.0, 10.0),
         rates_hz=(100.0, 120.0, 150.0),
-        fields=60,
+        fields=50,
+        throw_s=0.6,
         sensor=Sensor(
             read_noise_dn=(0.15, 0.35),
             electrons_per_dn=40.0,
@@ -225,6 +234,7 @@ PRESETS: dict[str, RigPreset] = {
         led_flare_px=(7.0, 11.0),
         rates_hz=(30.0, 50.0, 60.0),
         fields=90,
+        throw_s=0.9,
         sensor=Sensor(
             read_noise_dn=(2.5, 5.0),
             electrons_per_dn=8.0,
@@ -290,6 +300,7 @@ def synth_options(
         marker_size_quantile=float(rng.uniform(0.15, 0.85)),
         bit_depth=bits,
         grid_fill=p.grid_fill,
+        throw_s=p.throw_s,
     )
     drawn_blur = float(rng.uniform(*p.blur_px))
     render = RenderParams(

@@ -38,7 +38,8 @@ def test_rig_is_sound_with_truth_derived_detection(preset: str, cameras: int | N
 @pytest.mark.parametrize(
     ("preset", "seed", "cameras"),
     [
-        ("modern", 2, 8),  # 12-bit images
+        ("modern", 4, 8),  # 12-bit images
+        ("modern", 2, 8),  # 10-bit images
         ("modern", 7, 8),  # 2048 x 2048
         ("modern", 3, 12),
         ("lowcost", 4, None),

@@ -182,10 +182,10 @@ def test_kiss_detection_truth(small_session: Path) -> None:
 @pytest.mark.slow
 def test_written_12_bit_modern_session(tmp_path: Path) -> None:
     """A 12-bit camera model: 16-bit PNG files holding 0..4095, described as such."""
-    options = synth_options("modern", 2, fields=10, n_cameras=2)
+    options = synth_options("modern", 4, fields=10, n_cameras=2)
     assert options.rig.bit_depth == 12
     out = session.synthesise(
-        tmp_path / "m", preset="modern", seed=2, fields=10, n_cameras=2, walking5=False
+        tmp_path / "m", preset="modern", seed=4, fields=10, n_cameras=2, walking5=False
     )
     doc = json.loads((out / "truth" / "detection.json").read_text())
     assert {c["bit_depth"] for c in doc["cameras"]} == {12}
