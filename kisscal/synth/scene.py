@@ -173,9 +173,10 @@ def rod_conflicts(
 
     A technician hangs the rods so that every marker is seen on its own; a marker hidden
     behind a facing camera's LED ring could not be measured. With ``line_gap_px`` > 0 the
-    rods must also be seen apart from each other: marker images touching another rod's,
-    and markers within ``line_gap_px`` of another rod's image line count too (a ring of
-    cameras looks along the volume's diagonals, where two rods line up).
+    rods must also be seen apart from each other and whole: marker images touching another
+    rod's, markers within ``line_gap_px`` of another rod's image line (a ring of cameras
+    looks along the volume's diagonals, where two rods line up), and marker images not
+    ``margin_px`` inside the image count too.
     """
     points = np.concatenate([r.points_mm for r in rods])
     rod_of = np.repeat(np.arange(len(rods)), [len(r.points_mm) for r in rods])
@@ -190,6 +191,9 @@ def rod_conflicts(
             conflicts += int(_touching(markers, leds, margin_px).any(axis=1).sum())
         if line_gap_px > 0:
             conflicts += int((_touching(markers, markers, margin_px) & other).any(axis=1).sum())
+            inside = cam.in_image(markers.centre_px - markers.radii_px, margin_px)
+            inside &= cam.in_image(markers.centre_px + markers.radii_px, margin_px)
+            conflicts += int((~inside).sum())
             gaps = _line_gaps_px(cam.project_ideal(points), rod_of)
             conflicts += int((gaps < line_gap_px).sum())
     return conflicts

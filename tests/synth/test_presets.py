@@ -146,3 +146,28 @@ def test_crowded_small_rigs_say_how_many_rod_markers_are_hidden() -> None:
     """Sixteen webcams around a 3 m walkway cannot all see every rod marker clear."""
     p = plan("lowcost", 1, 16)
     assert p.rod_conflicts == rod_conflicts(p.rig, p.rods, p.render, line_gap_px=4.0) > 0
+
+
+def test_the_kiss_preset_describes_the_rig_kisscal_always_drew() -> None:
+    """``kiss`` keeps the earlier defaults (same seed, same bytes); its description in
+    PRESETS must say what they are."""
+    from kisscal.synth.cameras import FIELD_SIZE_PX, PIXEL_ASPECT, VOLUME_MM
+    from kisscal.synth.plan import RigSpec, SynthOptions
+    from kisscal.synth.render import RenderParams
+
+    kiss, r, o = PRESETS["kiss"], RenderParams(), SynthOptions()
+    assert kiss.camera_models == ((*FIELD_SIZE_PX, r.bit_depth),)
+    assert kiss.pixel_aspect == pytest.approx(1 / PIXEL_ASPECT) == RigSpec().pixel_aspect
+    assert (
+        kiss.volume_mm == VOLUME_MM and kiss.corner_distortion_px == RigSpec().corner_distortion_px
+    )
+    assert kiss.blur_px == (r.blur_px, r.blur_px) and kiss.bloom_px == r.bloom_px
+    assert kiss.marker_peak_dn == (r.marker_peak, r.marker_peak)
+    assert kiss.led_radius_mm == r.led_radius_mm and kiss.led_flare_px == (r.led_flare_px,) * 2
+    assert kiss.grid_dot_diameter_px == (2 * r.grid_dot_radius_px,) * 2
+    assert kiss.grid_fill == RigSpec().grid_fill and kiss.throw_s == RigSpec().throw_s
+    assert kiss.rates_hz == (o.rate_hz,) and kiss.fields == o.fields == o.stick_fields
+    assert kiss.glow is None and kiss.sensor.read_noise_dn == (r.noise_sigma, r.noise_sigma)
+    assert kiss.sensor.noise_pixels == r.noise_pixels
+    assert kiss.sensor.streak_probability == r.streak_probability
+    assert synth_options("kiss", 3) == SynthOptions(seed=3)
