@@ -111,7 +111,7 @@ def demo(
     epilog=_example(
         "kisscal synth /tmp/s1 --seed 1 --fields 200",
         "kisscal synth /tmp/s2 --cameras 3",
-        "kisscal synth /tmp/s3 --preset modern --seed 4 --cameras 12",
+        "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
     )
 )
 def synth(
