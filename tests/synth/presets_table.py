@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m tests.synth.presets_table                  # seeds 1 2 3 of every preset
     python -m tests.synth.presets_table modern --seeds 4 5 --cameras 8
-    python -m tests.synth.presets_table --disk           # + MB and seconds of a default session
+    python -m tests.synth.presets_table modern --seeds 1 2 4 7 --disk-only  # MB, seconds
 
 Per preset and seed: what the seed drew (image size, bit depth, field rate, cameras, pixel
 aspect), lens distortion at the image corners, marker and grid-dot diameters (px, outline,
@@ -123,21 +123,24 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
     parser.add_argument("--cameras", type=int, default=None)
     parser.add_argument("--fields", type=int, default=12, help="walk and stick fields")
-    parser.add_argument("--disk", action="store_true", help="also time a default session")
+    parser.add_argument("--disk", action="store_true", help="also time default sessions")
+    parser.add_argument("--disk-only", action="store_true", help="only time default sessions")
     args = parser.parse_args(argv)
     rows = []
-    for preset in args.presets:
+    for preset in [] if args.disk_only else args.presets:
         for seed in args.seeds:
             fig = check_rig(preset, seed, args.fields, args.fields, n_cameras=args.cameras)
             rows.append(describe(fig))
             if fig.notes:
                 print(f"{preset} seed {seed}: " + "; ".join(sorted(set(fig.notes))))
-    print_table(rows)
-    if args.disk:
-        print("\npreset  seed  MB  wall s  cpu s  (kisscal synth, default fields and cameras)")
+    if rows:
+        print_table(rows)
+    if args.disk or args.disk_only:
+        print("\npreset  seed      MB  wall s  cpu s  (kisscal synth, default fields and cameras)")
         for preset in args.presets:
-            size, wall, cpu = disk_figures(preset, args.seeds[0])
-            print(f"{preset:7s} {args.seeds[0]:4d} {size:6.0f} {wall:7.1f} {cpu:6.1f}")
+            for seed in args.seeds:
+                size, wall, cpu = disk_figures(preset, seed)
+                print(f"{preset:7s} {seed:4d} {size:7.0f} {wall:7.1f} {cpu:6.1f}")
 
 
 if __name__ == "__main__":
