@@ -109,20 +109,41 @@ def demo(
 
 @app.command(
     epilog=_example(
-        "kisscal synth /tmp/s1 --seed 1 --fields 200", "kisscal synth /tmp/s2 --cameras 3"
+        "kisscal synth /tmp/s1 --seed 1 --fields 200",
+        "kisscal synth /tmp/s2 --cameras 3",
+        "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
     )
 )
 def synth(
     out: Annotated[
         Path, typer.Argument(help="Folder to write the synthetic session to.", metavar="DIR")
     ],
+    preset: Annotated[
+        Literal["kiss", "modern", "lowcost"],
+        typer.Option(help="Kind of lab: KISS video fields, a modern ring, webcams."),
+    ] = "kiss",
     seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same bytes.")] = 1,
-    fields: Annotated[int, typer.Option(help="Fields in the gait trial (50 Hz).", min=10)] = 200,
-    cameras: Annotated[int, typer.Option(help="Number of cameras.", min=2, max=6)] = 6,
+    fields: Annotated[
+        int | None,
+        typer.Option(
+            help="Fields in the gait trial [default: kiss 200, modern 100, lowcost 90].", min=10
+        ),
+    ] = None,
+    cameras: Annotated[
+        int | None,
+        typer.Option(
+            help="Number of cameras, 2 to 16 [default: kiss 6, modern 8, lowcost 4].", min=2, max=16
+        ),
+    ] = None,
     markers: Annotated[
         Literal[13, 15], typer.Option(help="Gait marker set: 13 or 15 markers.")
     ] = 15,
-    blur_px: Annotated[float, typer.Option(help="Gaussian blur sigma in pixels.", min=0)] = 0.6,
+    blur_px: Annotated[
+        float | None,
+        typer.Option(
+            help="Gaussian blur sigma in pixels [default: kiss 0.6, others per seed].", min=0
+        ),
+    ] = None,
     walking5: Annotated[
         bool, typer.Option(help="Also replay the real walking5.c3d trial (trial walk5).")
     ] = True,
@@ -133,6 +154,7 @@ def synth(
 
     session.synthesise(
         out,
+        preset=preset,
         seed=seed,
         fields=fields,
         n_cameras=cameras,

@@ -88,6 +88,21 @@ def _median_vector(vecs: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.median(folded, axis=0)
 
 
+def _common_direction(steps: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The steps along the lattice direction most of them follow.
+
+    With square pixels a square grid's rows and columns are equally far apart, so the
+    nearest neighbour of one dot is beside it and of the next below it (spacing changes
+    across the image with perspective and distortion). The two lattice directions are
+    found together, modulo 90 degrees (median of quadrupled angles); the larger group of
+    steps is kept. Without such a mix (non-square pixels) every step is kept.
+    """
+    ang = np.arctan2(steps[:, 1], steps[:, 0])
+    axis = np.arctan2(np.median(np.sin(4 * ang)), np.median(np.cos(4 * ang))) / 4
+    along = np.abs(np.cos(ang - axis)) >= np.abs(np.sin(ang - axis))
+    return steps[along] if 2 * np.count_nonzero(along) >= len(steps) else steps[~along]
+
+
 def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Typical column step and row step of a dot lattice, in px.
 
@@ -107,7 +122,7 @@ def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
     tree = cKDTree(pts)
     _, nb = tree.query(pts, k=k)
     diff = pts[nb[:, 1:]] - pts[:, None, :]  # (N, k-1, 2), sorted by distance
-    first = _median_vector(diff[:, 0, :])
+    first = _median_vector(_common_direction(diff[:, 0, :]))
     unit = first / np.linalg.norm(first)
     # Second vector: the shortest neighbour step of each dot more than 30 deg off the first.
     dist = np.linalg.norm(diff, axis=2)
