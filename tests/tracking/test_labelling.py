@@ -3,33 +3,24 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.tracking import TrackingParams, build_trajectories, label_tracks
-from tests.tracking._data import NAMES, gait_truth, observe, template
+from tests.tracking._data import NAMES, gait_truth, observe, rotation, template
 from tests.tracking._eval import score
-
-
-def _rotation(axis, deg):
-    a = np.deg2rad(deg)
-    c, s = np.cos(a), np.sin(a)
-    i, j = [k for k in range(3) if k != axis]
-    r = np.eye(3)
-    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
-    return r
 
 
 @pytest.mark.parametrize(
     ("seed", "heading_deg", "template_rotation"),
     [
         (0, 0.0, np.eye(3)),
-        (1, 180.0, _rotation(2, 123.0)),  # walks the other way; template turned
-        (2, 63.0, _rotation(0, 90.0)),  # template in a Y-up frame
-        (3, -110.0, _rotation(1, 35.0) @ _rotation(2, -70.0)),
+        (1, 180.0, rotation(2, 123.0)),  # walks the other way; template turned
+        (2, 63.0, rotation(0, 90.0)),  # template in a Y-up frame
+        (3, -110.0, rotation(1, 35.0) @ rotation(2, -70.0)),
     ],
 )
 def test_labels_do_not_depend_on_where_subject_stands_or_faces(
     seed, heading_deg, template_rotation
 ):
     truth = gait_truth(300, seed)
-    turn = _rotation(2, heading_deg)
+    turn = rotation(2, heading_deg)
     truth = truth @ turn.T + [400.0, -900.0, 0.0]
     field, xyz, _, visible = observe(truth, seed, volume_x=None, ghosts_per_field=1.0)
     tmpl = template() @ template_rotation.T + [2000.0, 50.0, -300.0]

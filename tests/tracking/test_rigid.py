@@ -12,22 +12,13 @@ from kisscal.tracking.rigid import (
     refine_by_swaps,
     rigid_matches,
 )
-from tests.tracking._data import NAMES, template
+from tests.tracking._data import NAMES, rotation, template
 
 
-def _rotation(axis, deg):
-    a = np.deg2rad(deg)
-    c, s = np.cos(a), np.sin(a)
-    i, j = [k for k in range(3) if k != axis]
-    r = np.eye(3)
-    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
-    return r
-
-
-def test_kabsch_recovers_a_proper_rotation():
+def test_kabsch_recovers_a_properrotation():
     rng = np.random.default_rng(0)
     pts = rng.normal(0, 100, (10, 3))
-    r = _rotation(2, 40) @ _rotation(0, 75)
+    r = rotation(2, 40) @ rotation(0, 75)
     moved = pts @ r.T + [5, -7, 300]
     r_est, t_est = kabsch(pts, moved)
     np.testing.assert_allclose(r_est, r, atol=1e-9)
@@ -73,7 +64,7 @@ def test_swap_search_recovers_names_needing_exchanges_and_cycles():
 def test_rigid_match_finds_the_correspondence_under_any_rotation_with_outliers():
     rng = np.random.default_rng(4)
     tmpl = template()
-    r = _rotation(2, 200.0) @ _rotation(0, 30.0)
+    r = rotation(2, 200.0) @ rotation(0, 30.0)
     pick = rng.permutation(15)[:11]
     pts = tmpl[pick] @ r.T + [900.0, -40.0, 15.0] + rng.normal(0, 2.0, (11, 3))
     pts = np.vstack([pts, pts.mean(axis=0) + [0.0, 0.0, 700.0]])  # 700 mm off the body: no name
