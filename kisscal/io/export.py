@@ -13,8 +13,15 @@ import ezc3d
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.gait.table import GaitEvents
 from kisscal.io.files import atomic_path, write_text
 from kisscal.tracking.tracks import Tracks
+
+#: Vicon's descriptions and icons of the two gait events (EVENT:DESCRIPTIONS, ICON_IDS).
+_EVENT_STYLE = {
+    "Foot Strike": ("The instant the heel strikes the ground", 1),
+    "Foot Off": ("The instant the toe leaves the ground", 2),
+}
 
 
 def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarray:
@@ -29,9 +36,16 @@ def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarra
     return tracks.positions()  # (n_tracks, n_fields, 3)
 
 
-def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> Path:
+def write_c3d(
+    path: str | Path,
+    tracks: Tracks,
+    labels: tuple[str, ...],
+    rate_hz: float,
+    events: GaitEvents | None = None,
+) -> Path:
     """Write trajectories as a C3D file: POINT:LABELS = labels, POINT:RATE = rate_hz,
-    POINT:UNITS = mm; missing samples are NaN (ezc3d stores residual -1)."""
+    POINT:UNITS = mm; missing samples are NaN (ezc3d stores residual -1). ``events``
+    (foot strikes and foot offs) go into the EVENT group (:func:`add_gait_events`)."""
     dense = _dense(tracks, labels, rate_hz)
     n_tracks, n_fields, _ = dense.shape
     points = np.ones((4, n_tracks, n_fields))
@@ -41,11 +55,36 @@ def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     c3d["parameters"]["POINT"]["LABELS"]["value"] = tuple(labels)
     c3d.add_parameter("POINT", "UNITS", "mm")
     c3d["data"]["points"] = points
+    if events is not None and len(events):
+        add_gait_events(c3d, events)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         c3d.write(str(tmp))
     return path
+
+
+def add_gait_events(c3d: ezc3d.c3d, events: GaitEvents) -> None:
+    """Gait events into the C3D EVENT group, in Vicon's layout.
+
+    One entry per event, in time order: LABELS ``"Foot Strike"`` / ``"Foot Off"``,
+    CONTEXTS ``"Left"`` / ``"Right"``, TIMES as (minutes, seconds) pairs from the first
+    frame (frame 1 at 0 s, as trajectories.c3d starts at field 0), DESCRIPTIONS and
+    ICON_IDS (1 foot strike, 2 foot off) as Vicon Nexus writes them, SUBJECTS empty (one
+    subject), GENERIC_FLAGS 0, USED the count; written through ezc3d's ``add_event``.
+    """
+    table = events.c3d()
+    for label, context, minutes, seconds in zip(
+        table["LABELS"], table["CONTEXTS"], *table["TIMES"], strict=True
+    ):
+        description, icon = _EVENT_STYLE[label]
+        c3d.add_event(
+            [float(minutes), float(seconds)],
+            context=context,
+            label=label,
+            description=description,
+            icon_id=icon,
+        )
 
 
 def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> Path:

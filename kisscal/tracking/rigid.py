@@ -190,50 +190,74 @@ def classical_mds(distance: NDArray, dims: int = 3) -> NDArray[np.float64]:
     return vecs[:, top] * np.sqrt(np.maximum(vals[top], 0.0))
 
 
+def _pairs3(x: NDArray) -> dict[str, NDArray]:
+    """``x[i, j]`` for the index pairs of a 3-cycle (a, b, c) on axes (0, 1, 2), as
+    broadcastable views (``"ab"`` is x[a, b], ``"aa"`` the diagonal at a, ...)."""
+    diag = np.diagonal(x)
+    return {
+        "ab": x[:, :, None],
+        "ac": x[:, None, :],
+        "ba": x.T[:, :, None],
+        "bc": x[None, :, :],
+        "ca": x.T[:, None, :],
+        "cb": x.T[None, :, :],
+        "aa": diag[:, None, None],
+        "bb": diag[None, :, None],
+        "cc": diag[None, None, :],
+    }
+
+
 def _cycle_changes(w: NDArray, d: NDArray, gpp: NDArray, tpp: NDArray) -> NDArray:
     """Cost change of every 3-cycle of names (a takes b's, b takes c's, c takes a's) for
     the cost of :func:`refine_by_swaps`; ``gpp[i, j]`` is track i's share were it named as
     track j, ``tpp`` the template distances between the current names. (k, k, k), +inf
     where indices repeat."""
     k = w.shape[0]
-    a, b, c = np.meshgrid(np.arange(k), np.arange(k), np.arange(k), indexing="ij")
+    w3, d3, g3, t3 = _pairs3(w), _pairs3(d), _pairs3(gpp), _pairs3(tpp)
 
-    def term(i: NDArray, j: NDArray, t: NDArray) -> NDArray:
-        return w[i, j] * (d[i, j] - t) ** 2
+    def term(ij: str, t: NDArray) -> NDArray:
+        return w3[ij] * (d3[ij] - t) ** 2
 
     # Each track's share with its new name, minus the part that pairs it with the other
     # two (counted with their old names in gpp), ...
-    share = gpp[a, b] - gpp[a, a] + gpp[b, c] - gpp[b, b] + gpp[c, a] - gpp[c, c]
+    share = g3["ab"] - g3["aa"] + g3["bc"] - g3["bb"] + g3["ca"] - g3["cc"]
     inner = (
-        term(a, b, tpp[b, b])
-        - term(a, b, tpp[a, b])
-        + term(a, c, tpp[b, c])
-        - term(a, c, tpp[a, c])
-        + term(b, a, tpp[c, a])
-        - term(b, a, tpp[b, a])
-        + term(b, c, tpp[c, c])
-        - term(b, c, tpp[b, c])
-        + term(c, a, tpp[a, a])
-        - term(c, a, tpp[c, a])
-        + term(c, b, tpp[a, b])
-        - term(c, b, tpp[c, b])
+        term("ab", t3["bb"])
+        - term("ab", t3["ab"])
+        + term("ac", t3["bc"])
+        - term("ac", t3["ac"])
+        + term("ba", t3["ca"])
+        - term("ba", t3["ba"])
+        + term("bc", t3["cc"])
+        - term("bc", t3["bc"])
+        + term("ca", t3["aa"])
+        - term("ca", t3["ca"])
+        + term("cb", t3["ab"])
+        - term("cb", t3["cb"])
     )
     # ... plus the exact change of the three pairs inside the cycle.
     within = 2.0 * (
-        term(a, b, tpp[b, c])
-        - term(a, b, tpp[a, b])
-        + term(a, c, tpp[b, a])
-        - term(a, c, tpp[a, c])
-        + term(b, c, tpp[c, a])
-        - term(b, c, tpp[b, c])
+        term("ab", t3["bc"])
+        - term("ab", t3["ab"])
+        + term("ac", t3["ba"])
+        - term("ac", t3["ac"])
+        + term("bc", t3["ca"])
+        - term("bc", t3["bc"])
     )
     out = 2.0 * (share - inner) + within
+    a, b, c = np.arange(k)[:, None, None], np.arange(k)[None, :, None], np.arange(k)
     out[(a == b) | (b == c) | (a == c)] = np.inf
     return out
 
 
 def _best_moves(
-    d: NDArray, w: NDArray, wd: NDArray, wdd: NDArray, template_distance: NDArray, p: NDArray
+    d: NDArray,
+    w: NDArray,
+    wd: NDArray,
+    wdd: NDArray,
+    template_distance: NDArray,
+    p: NDArray,
+    unary: NDArray | None = None,
 ) -> tuple[tuple[float, float, float], tuple[tuple, tuple, tuple]]:
     """Cost change of the best exchange, move to a free name and 3-cycle, and where."""
     # g[a, x] is track a's share of the cost were it named x.
@@ -247,6 +271,21 @@ def _best_moves(
     move = 2.0 * (g - own[:, None])
     move[:, p] = 0.0  # names already held are exchanged, not taken
     cycle = _cycle_changes(w, d, g[:, p], t_ab)
+    if unary is not None:
+        # unary[a, x]: track a's own cost of name x, added once per track.
+        held = unary[:, p]  # held[a, b]: track a with track b's name
+        own_u = np.diagonal(held)
+        swap += held + held.T - own_u[:, None] - own_u[None, :]
+        free = ~np.isin(np.arange(unary.shape[1]), p)
+        move += np.where(free[None, :], unary - own_u[:, None], 0.0)
+        cycle += (
+            held[:, :, None]
+            + held[None, :, :]
+            + held.T[:, None, :]
+            - own_u[:, None, None]
+            - own_u[None, :, None]
+            - own_u[None, None, :]
+        )
     at = tuple(np.unravel_index(np.argmin(m), m.shape) for m in (swap, move, cycle))
     return (swap[at[0]], move[at[1]], cycle[at[2]]), at
 
@@ -257,6 +296,7 @@ def refine_by_swaps(
     template_distance: NDArray,
     assign: NDArray,
     max_passes: int = 20,
+    unary: NDArray | None = None,
 ) -> NDArray[np.int64]:
     """Improve a track -> template assignment by exchanging labels (2-opt local search).
 
@@ -265,7 +305,8 @@ def refine_by_swaps(
     and shank markers, whose arrangement an average pose blurs, are put right. Tracks with
     ``assign < 0`` are left out; a track may also move to a name no track holds. Each step
     takes the steepest of all single exchanges, moves to a free name and 3-cycles of
-    names, their cost changes computed at once.
+    names, their cost changes computed at once. ``unary`` (tracks x names), when given,
+    adds each track's own cost of its name (e.g. how far its height is from the name's).
 
     References
     ----------
@@ -278,10 +319,11 @@ def refine_by_swaps(
     d = np.nan_to_num(distance[np.ix_(rows, rows)])
     w = np.nan_to_num(weight[np.ix_(rows, rows)])
     p = assign[rows].copy()
+    u = None if unary is None else unary[rows]
     wd = w * d
     wdd = (wd * d).sum(axis=1)
     for _ in range(max_passes * p.size):
-        gains, at = _best_moves(d, w, wd, wdd, template_distance, p)
+        gains, at = _best_moves(d, w, wd, wdd, template_distance, p, u)
         if min(gains) > -1e-9:
             break
         kind = int(np.argmin(gains))
@@ -316,6 +358,37 @@ def field_fits(
         r, t = kabsch(src, dst)
         out.append(np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1))))
     return np.asarray(out)
+
+
+def upright_fraction(
+    dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
+) -> float:
+    """Fraction of ``fields`` in which the proper rigid fit of tracks ``rows`` to template
+    ``cols`` keeps the vertical within 45 degrees (both frames Z up)."""
+    upright = []
+    for f in fields:
+        ok = np.isfinite(dense[rows, f, 0])
+        if ok.sum() < 3:
+            continue
+        r, _ = kabsch(dense[rows[ok], f], template[cols[ok]])
+        upright.append(r[2, 2] > np.cos(np.pi / 4))
+    return float(np.mean(upright)) if upright else 0.0
+
+
+def upright_pose(pose: NDArray, heights: NDArray) -> NDArray[np.float64]:
+    """``pose`` (k, 3), e.g. from :func:`classical_mds`, turned so that its third axis is
+    the direction along which it best explains ``heights`` (k,) by least squares."""
+    centred = pose - pose.mean(axis=0)
+    up, *_ = np.linalg.lstsq(centred, heights - heights.mean(), rcond=None)
+    norm = np.linalg.norm(up)
+    if not norm > 0:
+        return centred
+    up = up / norm
+    helper = np.eye(3)[int(np.argmin(np.abs(up)))]
+    e1 = np.cross(helper, up)
+    e1 /= np.linalg.norm(e1)
+    basis = np.column_stack([e1, np.cross(up, e1), up])
+    return centred @ basis
 
 
 def mirror_permutation(template: NDArray, tolerance_mm: float) -> NDArray[np.int64] | None:

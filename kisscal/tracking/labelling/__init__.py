@@ -24,11 +24,18 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
    named ``M<k>`` and reported. When too few names are matched (a stick, a thrown ball),
    all tracks are named M1, M2, ... .
 
+With a shipped marker set and no template, :mod:`~.subject` first finds the subject's
+stature and own template from the trial; every labelling made with a set, or with names
+following the ``L``/``R`` convention, is then judged by the anatomy (:mod:`~.anatomy`,
+:mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
+confidence per name, uncertain names flagged.
+
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.
 """
 
 from kisscal.tracking.labelling.label import label_tracks
 from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.labelling.subject import label_with_set
 
-__all__ = ["Labelling", "label_tracks"]
+__all__ = ["Labelling", "label_tracks", "label_with_set"]

@@ -69,9 +69,16 @@ def label_tracks(
     state = LabelState.begin(tracks, names, template, segments, params)
     if state is None:
         return generic(tracks, params, names, float("nan"))
-    if not match_first_window(state):
+    if not name_pieces(state):
         return generic(tracks, params, names, state.fit_rms)
+    return join(state)
+
+
+def name_pieces(state: LabelState) -> bool:
+    """Phases 1 to 4 on ``state``; False when the first window matches no body."""
+    if not match_first_window(state):
+        return False
     spread(state)
     rematch(state)
     name_groups(state)
-    return join(state)
+    return True

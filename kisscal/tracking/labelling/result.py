@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -29,6 +31,25 @@ class Labelling:
         Names of the marker set that no track took.
     fit_rms_mm : float
         Median over the sampled fields of the rigid fit RMS distance to the template.
+    confidence : dict of str to float
+        Per name, the fraction of fields in which its trajectory agrees with the anatomy
+        (left of its right partner across the walking direction, above the markers far
+        below it); names without a check are left out. Empty when not judged.
+    flagged : tuple of str
+        Names whose label is uncertain (confidence below ``min_side_confidence``, or left
+        and right that nothing tells apart): not to be taken as certain.
+    exchanged : tuple of (str, str)
+        Left/right pairs whose labels were exchanged because the anatomy said so.
+    mirror_fit_ratio : float
+        Rigid-fit RMS of the labelling's mirror image (left and right names exchanged)
+        over that of the labelling itself, both against the template: above 1, the
+        labelling fits better than its mirror. NaN when not measured.
+    height_mm : float
+        The subject's stature estimated from the trial (labelling from a shipped set's
+        generic template), else NaN.
+    sides_from : str
+        What settled left and right: ``"anatomy"`` (the walking direction or the pelvis
+        and feet), ``"fit"`` (the template fit alone), or ``""`` when not judged.
     """
 
     tracks: Tracks
@@ -37,6 +58,17 @@ class Labelling:
     unlabelled: tuple[int, ...]
     missing: tuple[str, ...]
     fit_rms_mm: float
+    confidence: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    flagged: tuple[str, ...] = ()
+    exchanged: tuple[tuple[str, str], ...] = ()
+    mirror_fit_ratio: float = float("nan")
+    height_mm: float = float("nan")
+    sides_from: str = ""
+
+    @property
+    def certain(self) -> bool:
+        """True when no label is flagged."""
+        return not self.flagged
 
 
 def generic(tracks: Tracks, params: TrackingParams, names: tuple, fit_rms: float) -> Labelling:

@@ -92,6 +92,9 @@ class LabelState:
         Fields of the first matched window (rigid pairs are judged on them).
     fit_rms : float
         Median rigid-fit RMS (mm) of the first window's names to the template.
+    upright : bool
+        Template and lab share the vertical (Z up), as a shipped set's template does:
+        matches that turn the body over are refused.
     """
 
     tracks: Tracks
@@ -113,6 +116,7 @@ class LabelState:
     name_pos: NDArray[np.float64]
     rich: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     fit_rms: float = float("nan")
+    upright: bool = False
 
     @classmethod
     def begin(

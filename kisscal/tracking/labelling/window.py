@@ -10,6 +10,7 @@ averages out the swing of the legs, which a single field's rigid fit cannot.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,13 +24,24 @@ from kisscal.tracking.labelling.state import (
     median_distances,
     rich_fields,
 )
-from kisscal.tracking.rigid import classical_mds, field_fits, refine_by_swaps, rigid_matches
+from kisscal.tracking.rigid import (
+    classical_mds,
+    field_fits,
+    kabsch,
+    refine_by_swaps,
+    rigid_matches,
+    upright_fraction,
+    upright_pose,
+)
 
 # Floor (mm) of the spread of a pair's distance in the swap search weights: about the
 # noise of a distance between two measured markers.
 SPREAD_FLOOR_MM = 3.0
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 SWAP_STARTS = 24
+# With an upright template: how far (SD, mm) a marker's median height while walking may
+# lie from its template height (a heel rises in swing, knees flex).
+HEIGHT_SD_MM = 60.0
 
 
 @dataclass(frozen=True)
@@ -89,34 +101,82 @@ def swap_refined(
     template: NDArray,
     template_distance: NDArray,
     tolerance_mm: float,
+    heights: NDArray | None = None,
+    unary: NDArray | None = None,
 ) -> list[tuple[float, NDArray[np.int64]]]:
     """(cost, names) from every rigid match of the average pose and of its mirror image,
-    each improved by the swap search."""
+    each improved by the swap search.
+
+    With ``heights`` (the core pieces' median heights, template Z up), the average pose
+    is stood up first (:func:`~kisscal.tracking.rigid.upright_pose`) and matches that
+    turn it over are not used as starts; ``unary`` (core pieces x names) adds each
+    piece's own cost of a name to the swap search.
+    """
     embedded = classical_mds(median)
+    if heights is not None:
+        embedded = upright_pose(embedded, heights)
     n_names = template.shape[0]
     refined = []
     for mirror in (1.0, -1.0):
         # Several rigid matches of the average pose serve as starts: the swap search
         # only descends, and one start can sit in a wrong valley.
-        starts = rigid_matches(embedded * [1.0, 1.0, mirror], template, tolerance_mm)
+        pose = (
+            embedded * [1.0, mirror, 1.0] if heights is not None else embedded * [1.0, 1.0, mirror]
+        )
+        starts = rigid_matches(pose, template, tolerance_mm)
         for assign, _ in starts[:SWAP_STARTS]:
             if (assign >= 0).sum() < 3:
+                continue
+            if heights is not None and not _kept_upright(pose, template, assign):
                 continue
             # Tracks too far from any name in the average pose still get a free name to
             # start from; the swap search then places them by their rigid partners.
             free = np.setdiff1d(np.arange(n_names), assign[assign >= 0])
             loose = np.flatnonzero(assign < 0)[: free.size]
             assign[loose] = free[: loose.size]
-            assign = refine_by_swaps(median, weight, template_distance, assign)
-            refined.append((_swap_cost(assign, median, weight, template_distance), assign))
+            assign = refine_by_swaps(median, weight, template_distance, assign, unary=unary)
+            cost = _swap_cost(assign, median, weight, template_distance, unary)
+            refined.append((cost, assign))
     return refined
 
 
-def _swap_cost(q: NDArray, median: NDArray, weight: NDArray, template_distance: NDArray) -> float:
+def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
+    ok = assign >= 0
+    r, _ = kabsch(pose[ok], template[assign[ok]])
+    return bool(r[2, 2] > np.cos(np.pi / 4))
+
+
+def _swap_cost(
+    q: NDArray,
+    median: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    unary: NDArray | None = None,
+) -> float:
     ok = q >= 0
     qq = q[ok]
     diff = median[np.ix_(ok, ok)] - template_distance[np.ix_(qq, qq)]
-    return float((weight[np.ix_(ok, ok)] * diff**2).sum())
+    cost = float((weight[np.ix_(ok, ok)] * diff**2).sum())
+    if unary is not None:
+        cost += float(unary[np.flatnonzero(ok), qq].sum())
+    return cost
+
+
+def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray) -> tuple:
+    """Median heights of the core pieces over ``rich``, and each piece's cost of each
+    name: its height above the floor against the name's template height, in units of
+    :data:`HEIGHT_SD_MM`, squared.
+
+    The floor is where the lowest piece spends its lowest tenth of the time, put at the
+    template's lowest marker (the feet's markers sit a few centimetres above the floor).
+    """
+    z = dense[np.ix_(core, rich)][..., 2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        heights = np.nanmedian(z, axis=1)
+        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - template[:, 2].min()
+    unary = ((heights - floor)[:, None] - template[None, :, 2]) ** 2 / HEIGHT_SD_MM**2
+    return heights, unary
 
 
 def left_right_fits(
@@ -138,6 +198,11 @@ def left_right_fits(
             tries.append(np.where(assign >= 0, state.mirror_of[np.maximum(assign, 0)], -1))
         for cand in tries:
             ok = cand >= 0
+            if (
+                state.upright
+                and upright_fraction(state.dense, rich, core[ok], cand[ok], state.template) < 0.5
+            ):
+                continue
             rms = field_fits(state.dense, rich, core[ok], cand[ok], state.template)
             candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
     return candidates
@@ -205,8 +270,17 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     spread = distance_spread(state.dense, core, rich)
     weight = 1.0 / (spread**2 + SPREAD_FLOOR_MM**2)
     np.fill_diagonal(weight, 0.0)
+    heights = unary = None
+    if state.upright:
+        heights, unary = height_costs(state.dense, core, rich, state.template)
     refined = swap_refined(
-        median, weight, state.template, state.template_distance, params.label_tolerance_mm
+        median,
+        weight,
+        state.template,
+        state.template_distance,
+        params.label_tolerance_mm,
+        heights,
+        unary,
     )
     if not refined:
         return none

@@ -1,0 +1,296 @@
+"""Left and right settled by anatomy, and how sure each name is.
+
+Distances cannot tell a body from its mirror image, and a rigid fit to a template only
+weakly when the template is another pose or another person. The body can: a subject
+walks forward, up is up (lab Z), so the subject's left is ``up x forward``; a marker
+named left (``LKNE``) must lie on that side of its right partner (``RKNE``) in nearly every
+field, anterior pelvis markers lie ahead of posterior ones, and feet lie well below
+knees, knees well below hips.
+
+:class:`Anatomy` holds what a marker set (or, failing one, the ``L``/``R`` naming
+convention) says about the names; :func:`check_anatomy` measures, per name, the fraction
+of fields where the labelled trajectories agree with it. A left/right pair found the
+wrong way round in nearly every field is exchanged (:func:`settle_sides`); a name whose
+agreement is below ``min_side_confidence`` is flagged, never written as certain.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d
+
+from kisscal.markersets.model import MarkerSet
+
+#: Marker pairs at least this far apart in the template's height, as a fraction of
+#: stature, are checked for their vertical order (knee above ankle, hip above knee).
+ABOVE_FRACTION = 0.2
+#: ... and pairs on one side (or one segment, front to back) at least this far apart.
+NEAR_FRACTION = 0.04
+#: A marker's height above the floor may stray this far (fraction of stature) from its
+#: template height: a heel rises in swing, a hand swings.
+HEIGHT_FRACTION = 0.15
+#: A subject whose pelvis moves slower than this (mm/s) is standing, not walking.
+WALKING_MM_S = 150.0
+#: The walking direction is the pelvis velocity smoothed over this (s, Gaussian SD).
+DIRECTION_S = 0.4
+
+
+@dataclass(frozen=True)
+class Anatomy:
+    """What is known about a set of names, as rows of ``names``.
+
+    Attributes
+    ----------
+    names : tuple of str
+    pairs : tuple of (int, int)
+        (left, right) mirror pairs.
+    front, back : tuple of int
+        Pelvis markers ahead of and behind the hip joints (ASIS; PSIS, sacrum).
+    heel, toe : tuple of int
+        Heel and toe markers (both sides).
+    above : tuple of (int, int)
+        (upper, lower) pairs far apart in height (see :data:`ABOVE_FRACTION`), or apart
+        on one side of the body (:data:`NEAR_FRACTION`): thigh above knee, knee above
+        shank, shank above ankle.
+    ahead : tuple of (int, int)
+        (front, back) pairs of one segment (or across a hinge) apart along the body's
+        forward axis (:data:`NEAR_FRACTION`): toe ahead of heel, ankle ahead of heel.
+    heights_mm : (n,) array or None
+        Template height of each name above the floor (an upright template), and
+    height_tolerance_mm : float
+        how far from it a marker may be (:data:`HEIGHT_FRACTION` of stature).
+    """
+
+    names: tuple[str, ...]
+    pairs: tuple[tuple[int, int], ...] = ()
+    front: tuple[int, ...] = ()
+    back: tuple[int, ...] = ()
+    heel: tuple[int, ...] = ()
+    toe: tuple[int, ...] = ()
+    above: tuple[tuple[int, int], ...] = ()
+    ahead: tuple[tuple[int, int], ...] = ()
+    heights_mm: NDArray[np.float64] | None = None
+    height_tolerance_mm: float = float("nan")
+
+    @classmethod
+    def of_names(cls, names: tuple[str, ...]) -> Anatomy:
+        """Mirror pairs by the naming convention alone: ``L<x>`` and ``R<x>``."""
+        index = {n: i for i, n in enumerate(names)}
+        pairs = tuple(
+            (i, index["R" + n[1:]])
+            for i, n in enumerate(names)
+            if n.startswith("L") and len(n) > 1 and "R" + n[1:] in index
+        )
+        return cls(tuple(names), pairs)
+
+    @classmethod
+    def of_set(cls, marker_set: MarkerSet, template_mm: NDArray | None = None) -> Anatomy:
+        """Everything the set knows: its mirror pairs, pelvis and foot roles, heights.
+
+        ``template_mm`` (the subject's own, Z up, e.g. from a static trial) replaces the
+        set's heights; the set (scaled to the subject) gives them otherwise.
+        """
+        names = marker_set.names
+        index = {n: i for i, n in enumerate(names)}
+        pairs = tuple((index[a], index[b]) for a, b in marker_set.mirror)
+        pelvis = [index[n] for n in marker_set.pelvis if n in index]
+        x = marker_set.template_mm[:, 0]
+        centre = float(np.mean(x[pelvis])) if pelvis else 0.0
+        feet = [marker_set.foot(side) for side in ("left", "right")]
+        return cls(
+            tuple(names),
+            pairs,
+            front=tuple(i for i in pelvis if x[i] > centre),
+            back=tuple(i for i in pelvis if x[i] <= centre),
+            heel=tuple(index[f["heel"]] for f in feet if "heel" in f),
+            toe=tuple(index[f["toe"]] for f in feet if "toe" in f),
+            above=_above(marker_set),
+            ahead=_ahead(marker_set),
+            heights_mm=_heights(marker_set, template_mm),
+            height_tolerance_mm=HEIGHT_FRACTION * marker_set.height_mm,
+        )
+
+
+def _heights(marker_set: MarkerSet, template_mm: NDArray | None) -> NDArray[np.float64]:
+    z = marker_set.template_mm[:, 2]
+    if template_mm is None:
+        return z.copy()
+    own = np.asarray(template_mm, dtype=float)[:, 2]
+    return own - own.min() + z.min()
+
+
+def _above(marker_set: MarkerSet) -> tuple[tuple[int, int], ...]:
+    z = marker_set.template_mm[:, 2]
+    side = np.zeros(len(marker_set.names))
+    index = {n: i for i, n in enumerate(marker_set.names)}
+    for a, b in marker_set.mirror:
+        side[index[a]], side[index[b]] = 1.0, -1.0
+    gap = z[:, None] - z[None, :]
+    one_side = (side[:, None] == side[None, :]) & (side[:, None] != 0)
+    height = marker_set.height_mm
+    pick = (gap > ABOVE_FRACTION * height) | (one_side & (gap > NEAR_FRACTION * height))
+    return tuple((int(i), int(j)) for i, j in zip(*np.nonzero(pick), strict=True))
+
+
+def _ahead(marker_set: MarkerSet) -> tuple[tuple[int, int], ...]:
+    x = marker_set.template_mm[:, 0]
+    index = {n: i for i, n in enumerate(marker_set.names)}
+    out = []
+    for a, b in marker_set.segments + marker_set.hinge_segments:
+        i, j = index[a], index[b]
+        if abs(x[i] - x[j]) > NEAR_FRACTION * marker_set.height_mm:
+            out.append((i, j) if x[i] > x[j] else (j, i))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class AnatomyCheck:
+    """Agreement of labelled trajectories with the anatomy.
+
+    Attributes
+    ----------
+    confidence : (n,) array
+        Per name, the smallest fraction of fields in which a check involving it holds
+        (NaN where no check could be made: the name is not seen, or has no partner).
+    forward : str
+        Where the subject's forward direction came from: ``"walking"``, ``"pelvis"``,
+        ``"feet"`` or ``"none"``.
+    """
+
+    confidence: NDArray[np.float64]
+    forward: str
+
+
+def _smooth(values: NDArray, sigma: float) -> NDArray:
+    """Gaussian smoothing along axis 0 that ignores NaN (normalised convolution)."""
+    ok = np.isfinite(values)
+    num = gaussian_filter1d(np.where(ok, values, 0.0), sigma, axis=0, mode="nearest")
+    den = gaussian_filter1d(ok.astype(float), sigma, axis=0, mode="nearest")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0.2, num / den, np.nan)
+
+
+def _mean_of(pos: NDArray, rows: tuple[int, ...]) -> NDArray:
+    if not rows:
+        return np.full(pos.shape[1:], np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # fields where none is seen
+        return np.nanmean(pos[list(rows)], axis=0)
+
+
+def forward_directions(
+    pos: NDArray, anatomy: Anatomy, rate_hz: float
+) -> tuple[NDArray[np.float64], str]:
+    """The subject's horizontal forward direction per field (F, 2), unit, NaN where
+    unknown, and what it came from.
+
+    While walking (pelvis, or all names' centroid, faster than :data:`WALKING_MM_S`), the
+    smoothed walking direction; else the pelvis' back-to-front direction; else the feet's
+    heel-to-toe direction.
+    """
+    sigma = max(DIRECTION_S * rate_hz, 1.0)
+    centre = _mean_of(pos, anatomy.front + anatomy.back) if anatomy.front else None
+    if centre is None or np.isnan(centre[:, 0]).all():
+        centre = _mean_of(pos, tuple(range(pos.shape[0])))
+    velocity = np.gradient(_smooth(centre[:, :2], sigma), axis=0) * rate_hz
+    speed = np.linalg.norm(velocity, axis=1)
+    walking = speed > WALKING_MM_S
+    if walking.mean() > 0.5:
+        with np.errstate(invalid="ignore"):
+            return np.where(walking[:, None], velocity / speed[:, None], np.nan), "walking"
+    # Standing: the pelvis' back-to-front and the feet's heel-to-toe directions, which
+    # must agree when both are known (else a front/back mix-up could turn every side).
+    found = {}
+    for source, (a, b) in (
+        ("pelvis", (anatomy.back, anatomy.front)),
+        ("feet", (anatomy.heel, anatomy.toe)),
+    ):
+        if a and b:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                d = np.nanmedian((_mean_of(pos, b) - _mean_of(pos, a))[:, :2], axis=0)
+            if np.isfinite(d).all() and np.linalg.norm(d) > 0:
+                found[source] = d / np.linalg.norm(d)
+    if len(found) == 2 and found["pelvis"] @ found["feet"] < 0:
+        found = {}
+    if found:
+        source, d = next(iter(found.items()))
+        return np.tile(d, (pos.shape[1], 1)), source
+    return np.full((pos.shape[1], 2), np.nan), "none"
+
+
+def _fraction(holds: NDArray, valid: NDArray) -> float:
+    n = int(valid.sum())
+    return float(np.sum(holds & valid) / n) if n else float("nan")
+
+
+def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyCheck:
+    """Per name, how often the labelled trajectories ``pos`` (n, F, 3; NaN where a name
+    is not seen) agree with ``anatomy``: left names left of their right partners (across
+    the subject's forward direction), anterior pelvis markers ahead of posterior ones
+    while walking, upper markers above lower ones, front markers of a segment ahead of
+    its back ones."""
+    forward, source = forward_directions(pos, anatomy, rate_hz)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
+    conf = np.full(pos.shape[0], np.nan)
+
+    def record(rows: tuple[int, ...], value: float) -> None:
+        for i in rows:
+            conf[i] = value if np.isnan(conf[i]) else min(conf[i], value)
+
+    for a, b in anatomy.pairs:
+        across = np.sum((pos[a, :, :2] - pos[b, :, :2]) * left, axis=1)
+        record((a, b), _fraction(across > 0, np.isfinite(across)))
+    if source == "walking" and anatomy.front and anatomy.back:
+        ahead = np.sum(
+            (_mean_of(pos, anatomy.front) - _mean_of(pos, anatomy.back))[:, :2] * forward, axis=1
+        )
+        record(anatomy.front + anatomy.back, _fraction(ahead > 0, np.isfinite(ahead)))
+    for a, b in anatomy.above:
+        dz = pos[a, :, 2] - pos[b, :, 2]
+        record((a, b), _fraction(dz > 0, np.isfinite(dz)))
+    for a, b in anatomy.ahead:
+        dx = np.sum((pos[a, :, :2] - pos[b, :, :2]) * forward, axis=1)
+        record((a, b), _fraction(dx > 0, np.isfinite(dx)))
+    if anatomy.heights_mm is not None:
+        for i, near in enumerate(_near_height(pos, anatomy)):
+            record((i,), _fraction(near, np.isfinite(pos[i, :, 2])))
+    return AnatomyCheck(conf, source)
+
+
+def _near_height(pos: NDArray, anatomy: Anatomy) -> NDArray[np.bool_]:
+    """Per name and field, whether the marker is within the height tolerance of its
+    template height above the floor; the floor is where the lowest marker spends its
+    lowest tenth of the time, put at the lowest template height."""
+    z = pos[..., 2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
+        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - np.min(anatomy.heights_mm)
+    with np.errstate(invalid="ignore"):
+        return np.abs(z - floor - anatomy.heights_mm[:, None]) < anatomy.height_tolerance_mm
+
+
+def settle_sides(
+    pos: NDArray, anatomy: Anatomy, rate_hz: float, min_confidence: float
+) -> tuple[NDArray[np.int64], list[tuple[int, int]]]:
+    """Name rows after exchanging every left/right pair found the wrong way round in
+    more than ``min_confidence`` of the fields (the permutation, and the pairs exchanged).
+
+    ``pos[i]`` is the trajectory named ``anatomy.names[i]``; the result ``perm`` says that
+    trajectory ``i`` is name ``perm[i]``.
+    """
+    forward, _ = forward_directions(pos, anatomy, rate_hz)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
+    perm = np.arange(pos.shape[0])
+    done = []
+    for a, b in anatomy.pairs:
+        across = np.sum((pos[a, :, :2] - pos[b, :, :2]) * left, axis=1)
+        right_way = _fraction(across > 0, np.isfinite(across))
+        if right_way < 1.0 - min_confidence:
+            perm[[a, b]] = perm[[b, a]]
+            done.append((a, b))
+    return perm, done
