@@ -97,6 +97,8 @@ def subject_template(result: Trajectories, spec: MarkerSpec, trial: str) -> dict
         The trial does not fit the set, its labels are uncertain, or the subject moves.
     """
     lab = result.labelling
+    dense = result.tracks.positions()
+    _check_still(dense, result.labels, trial)
     if not lab.fits_marker_set:
         raise KisscalError(f"static trial {trial!r}: its markers do not fit the marker set")
     if lab.flagged:
@@ -104,14 +106,12 @@ def subject_template(result: Trajectories, spec: MarkerSpec, trial: str) -> dict
             f"static trial {trial!r}: labels {', '.join(lab.flagged)} are uncertain "
             "(left and right not told apart); check the static trial"
         )
-    dense = result.tracks.positions()
     names = spec.names or ()
     row = {label: t for t, label in enumerate(result.labels)}
     pos = np.full((len(names), 3), np.nan)
     for i, name in enumerate(names):
         if name in row:
             track = dense[row[name]]
-            _check_still(track, name, trial)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
                 pos[i] = np.nanmedian(track, axis=0)
@@ -132,15 +132,22 @@ def subject_template(result: Trajectories, spec: MarkerSpec, trial: str) -> dict
     }
 
 
-def _check_still(track: NDArray, name: str, trial: str) -> None:
-    seen = track[np.isfinite(track[:, 0])]
-    if len(seen) == 0:
+def _check_still(dense: NDArray, labels: tuple[str, ...], trial: str) -> None:
+    """The subject stands still: the median trajectory stays within
+    :data:`STATIC_MAX_MOVE_MM` (5th to 95th percentile of its positions)."""
+    spreads = []
+    for track, label in zip(dense, labels, strict=True):
+        seen = track[np.isfinite(track[:, 0])]
+        if len(seen) >= 2:
+            span = np.percentile(seen, 95, axis=0) - np.percentile(seen, 5, axis=0)
+            spreads.append((float(np.linalg.norm(span)), label))
+    if not spreads:
         return
-    spread = np.linalg.norm(np.percentile(seen, 95, axis=0) - np.percentile(seen, 5, axis=0))
+    spread, label = sorted(spreads)[len(spreads) // 2]
     if spread > STATIC_MAX_MOVE_MM:
         raise KisscalError(
-            f"static trial {trial!r}: the subject moves ({name} travels {spread:.0f} mm, "
-            f"at most {STATIC_MAX_MOVE_MM:.0f} mm for standing still)"
+            f"static trial {trial!r}: the subject moves (its median marker, {label}, "
+            f"travels {spread:.0f} mm; at most {STATIC_MAX_MOVE_MM:.0f} mm standing still)"
         )
 
 

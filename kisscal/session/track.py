@@ -17,7 +17,7 @@ from kisscal.io.export import write_c3d, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import read_points3d
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
-from kisscal.session.gait import gait_outputs
+from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, out_dir, writes_session
 from kisscal.session.markers import (
     MarkerSpec,
@@ -56,8 +56,6 @@ def track(
     if static is not None and trial.name != static:
         spec = _with_static(root, config, spec, params, echo)
     result = _track_trial(root, config, trial.name, spec, params, echo)
-    if static is not None and trial.name == static:
-        _save_static(root, config, spec, params, result)
     if sweep:
         pts = read_points3d(out_dir(root) / "trials" / trial.name / "points3d.csv")
         rows = sweep_noise(
@@ -83,9 +81,11 @@ def _track_trial(
     params: StageParams,
     echo: Echo,
 ) -> Trajectories:
-    """Track and label one trial and write its outputs (gait ones unless it is static)."""
+    """Track and label one trial and write its outputs: gait ones, or, for the static
+    trial, the subject's template (checked before anything is written)."""
     tdir = out_dir(root) / "trials" / trial
-    pts = read_points3d(_points_path(root, trial))
+    points_path = _points_path(root, trial)
+    pts = read_points3d(points_path)
     t0 = time.perf_counter()
     result = build_trajectories(
         pts.field,
@@ -98,11 +98,17 @@ def _track_trial(
         rate_hz=config.rate_hz,
         template_upright=spec.template_upright,
     )
+    static = config.markers.static if config.markers else None
+    template = subject_template(result, spec, trial) if trial == static else None
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
-    static = config.markers.static if config.markers else None
     events = None
-    if trial != static:
+    if template is not None:
+        clear_gait_outputs(root, tdir, trial)
+        path = template_path(out_dir(root), trial)
+        write_json(path, template)
+        mark_current(path, static_key(points_path, spec, params.tracking))
+    else:
         events = gait_outputs(
             root, tdir, trial, result, spec.marker_set, config.rate_hz, params.gait, echo
         )
@@ -154,8 +160,7 @@ def _with_static(
         echo(f"  static trial {static}: template from its outputs (cached)")
     else:
         echo(f"  static trial {static}: labelled first; its positions are the template")
-        result = _track_trial(root, config, static, spec, params, echo)
-        _save_static(root, config, spec, params, result)
+        _track_trial(root, config, static, spec, params, echo)
     doc = json.loads(path.read_text())
     return dataclasses.replace(
         spec,
@@ -163,15 +168,6 @@ def _with_static(
         template_mm=np.asarray(doc["template_mm"], dtype=float),
         template_upright=True,
     )
-
-
-def _save_static(
-    root: Path, config: SessionConfig, spec: MarkerSpec, params: StageParams, result: Any
-) -> None:
-    static = config.markers.static if config.markers else ""
-    path = template_path(out_dir(root), static)
-    write_json(path, subject_template(result, spec, static))
-    mark_current(path, static_key(_points_path(root, static), spec, params.tracking))
 
 
 def _tracking_summary(result: Trajectories) -> dict[str, Any]:

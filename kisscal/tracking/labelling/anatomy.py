@@ -88,11 +88,14 @@ class Anatomy:
         return cls(tuple(names), pairs)
 
     @classmethod
-    def of_set(cls, marker_set: MarkerSet, template_mm: NDArray | None = None) -> Anatomy:
+    def of_set(
+        cls, marker_set: MarkerSet, template_mm: NDArray | None = None, heights: bool = True
+    ) -> Anatomy:
         """Everything the set knows: its mirror pairs, pelvis and foot roles, heights.
 
         ``template_mm`` (the subject's own, Z up, e.g. from a static trial) replaces the
-        set's heights; the set (scaled to the subject) gives them otherwise.
+        set's heights; the set (scaled to the subject) gives them otherwise; without
+        ``heights`` (the stature is unknown) they are not checked.
         """
         names = marker_set.names
         index = {n: i for i, n in enumerate(names)}
@@ -110,7 +113,7 @@ class Anatomy:
             toe=tuple(index[f["toe"]] for f in feet if "toe" in f),
             above=_above(marker_set),
             ahead=_ahead(marker_set),
-            heights_mm=_heights(marker_set, template_mm),
+            heights_mm=_heights(marker_set, template_mm) if heights else None,
             height_tolerance_mm=HEIGHT_FRACTION * marker_set.height_mm,
         )
 
@@ -277,11 +280,14 @@ def _near_height(pos: NDArray, anatomy: Anatomy) -> NDArray[np.bool_]:
 def settle_sides(
     pos: NDArray, anatomy: Anatomy, rate_hz: float, min_confidence: float
 ) -> tuple[NDArray[np.int64], list[tuple[int, int]]]:
-    """Name rows after exchanging every left/right pair found the wrong way round in
-    more than ``min_confidence`` of the fields (the permutation, and the pairs exchanged).
+    """Name rows after exchanging the names of pairs the anatomy finds the wrong way round
+    in more than ``min_confidence`` of the fields (the permutation, and the pairs).
 
-    ``pos[i]`` is the trajectory named ``anatomy.names[i]``; the result ``perm`` says that
-    trajectory ``i`` is name ``perm[i]``.
+    Left/right pairs first (a name left of its right partner); then pairs of one side or
+    one segment (above, ahead: an ankle and a heel swapped), each exchanged only if that
+    makes both names agree with the anatomy. ``pos[i]`` is the trajectory named
+    ``anatomy.names[i]``; the result ``perm`` says that trajectory ``i`` is name
+    ``perm[i]``.
     """
     forward, _ = forward_directions(pos, anatomy, rate_hz)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
@@ -292,5 +298,19 @@ def settle_sides(
         right_way = _fraction(across > 0, np.isfinite(across))
         if right_way < 1.0 - min_confidence:
             perm[[a, b]] = perm[[b, a]]
+            done.append((a, b))
+    moved = np.empty_like(pos)
+    moved[perm] = pos
+    conf = check_anatomy(moved, anatomy, rate_hz).confidence
+    for a, b in anatomy.above + anatomy.ahead:
+        if not (conf[a] < 1.0 - min_confidence and conf[b] < 1.0 - min_confidence):
+            continue
+        trial = moved.copy()
+        trial[[a, b]] = moved[[b, a]]
+        trial_conf = check_anatomy(trial, anatomy, rate_hz).confidence
+        if min(trial_conf[a], trial_conf[b]) >= min_confidence:
+            moved, conf = trial, trial_conf
+            at_a, at_b = np.flatnonzero(perm == a)[0], np.flatnonzero(perm == b)[0]
+            perm[at_a], perm[at_b] = b, a
             done.append((a, b))
     return perm, done

@@ -100,16 +100,17 @@ def fit_template(
     return least_squares(residuals, template.ravel()).x.reshape(-1, 3)
 
 
-def _settled(state: LabelState, anatomy: Anatomy, rate_hz: float) -> None:
-    """Exchange the names of left/right pairs the anatomy finds the wrong way round."""
+def _settled(state: LabelState, anatomy: Anatomy, rate_hz: float) -> list[tuple[str, str]]:
+    """Exchange the names of pairs the anatomy finds the wrong way round (and say which)."""
     perm, done = settle_sides(state.name_pos, anatomy, rate_hz, state.params.min_side_confidence)
     if not done:
-        return
+        return []
     named = state.label_of >= 0
     state.label_of[named] = perm[state.label_of[named]]
     moved = np.empty_like(state.name_pos)
     moved[perm] = state.name_pos
     state.name_pos = moved
+    return [(state.names[a], state.names[b]) for a, b in done]
 
 
 def _second_pass(
@@ -170,8 +171,8 @@ def label_with_set(
     if template_mm is not None:
         template = np.asarray(template_mm, dtype=float)
         found = label_tracks(tracks, names, params, template, segments)
-        own = template if template_upright else None
-        return judge_sides(found, Anatomy.of_set(marker_set, own), template, rate_hz, params)
+        anatomy = Anatomy.of_set(marker_set, template, heights=template_upright)
+        return judge_sides(found, anatomy, template, rate_hz, params)
     window = max(round(params.set_window_s * rate_hz), 10)
     first_params = params.with_(label_window_fields=min(params.label_window_fields, window))
     height = estimate_height(tracks, marker_set, first_params)
@@ -184,8 +185,15 @@ def label_with_set(
     if first is None or not name_pieces(first):
         return replace(generic(tracks, params, names, float("nan")), height_mm=height)
     anatomy = Anatomy.of_set(marker_set.scaled(height))
-    _settled(first, anatomy, rate_hz)
+    exchanged = _settled(first, anatomy, rate_hz)
     template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
     second = _second_pass(first, template, segments, params)
     found = replace(join(second), height_mm=height)
-    return judge_sides(found, anatomy, template, rate_hz, params)
+    judged = judge_sides(found, anatomy, template, rate_hz, params)
+    judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
+    if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
+        # The best stature is a bound of the plausible range: the template fits this
+        # trial at no plausible stature, and nothing it named is certain.
+        taken = set(judged.labels)
+        return replace(judged, flagged=tuple(n for n in names if n in taken))
+    return judged
