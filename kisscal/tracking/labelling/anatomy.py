@@ -226,9 +226,50 @@ def forward_directions(
     return np.full((pos.shape[1], 2), np.nan), "none"
 
 
-def _fraction(holds: NDArray, valid: NDArray) -> float:
-    n = int(valid.sum())
-    return float(np.sum(holds & valid) / n) if n else float("nan")
+def _fraction(holds: NDArray, valid: NDArray) -> NDArray[np.float64]:
+    """Fraction of the valid fields in which ``holds``, per row (NaN without one)."""
+    n = valid.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.sum(holds & valid, axis=-1) / n, np.nan)
+
+
+def _relations(pos: NDArray, anatomy: Anatomy, forward: NDArray, source: str, floor: float):
+    """(names, fraction) of every check: the names each involves and how often it holds."""
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
+    out = []
+    if anatomy.pairs:
+        a, b = np.array(anatomy.pairs).T
+        across = np.sum((pos[a, :, :2] - pos[b, :, :2]) * left, axis=2)
+        out.append((np.stack([a, b], axis=1), _fraction(across > 0, np.isfinite(across))))
+    if source == "walking" and anatomy.front and anatomy.back:
+        gap = _mean_of(pos, anatomy.front) - _mean_of(pos, anatomy.back)
+        ahead = np.sum(gap[:, :2] * forward, axis=1)
+        rows = np.array([anatomy.front + anatomy.back])
+        out.append((rows, _fraction(ahead > 0, np.isfinite(ahead))[None]))
+    if anatomy.above:
+        a, b = np.array(anatomy.above).T
+        dz = pos[a, :, 2] - pos[b, :, 2]
+        out.append((np.stack([a, b], axis=1), _fraction(dz > 0, np.isfinite(dz))))
+    if anatomy.ahead:
+        a, b = np.array(anatomy.ahead).T
+        dx = np.sum((pos[a, :, :2] - pos[b, :, :2]) * forward, axis=2)
+        out.append((np.stack([a, b], axis=1), _fraction(dx > 0, np.isfinite(dx))))
+    if anatomy.heights_mm is not None:
+        rows = np.arange(pos.shape[0])[:, None]
+        near = _near_height(pos, anatomy, floor)
+        out.append((rows, _fraction(near, np.isfinite(pos[..., 2]))))
+    return out
+
+
+def _confidence(
+    pos: NDArray, anatomy: Anatomy, forward: NDArray, source: str, floor: float
+) -> NDArray:
+    conf = np.full(pos.shape[0], np.inf)
+    for rows, fraction in _relations(pos, anatomy, forward, source, floor):
+        value = np.repeat(np.where(np.isnan(fraction), np.inf, fraction), rows.shape[1])
+        np.minimum.at(conf, rows.ravel(), value)
+    conf[np.isinf(conf)] = np.nan
+    return conf
 
 
 def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyCheck:
@@ -236,45 +277,29 @@ def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyChec
     is not seen) agree with ``anatomy``: left names left of their right partners (across
     the subject's forward direction), anterior pelvis markers ahead of posterior ones
     while walking, upper markers above lower ones, front markers of a segment ahead of
-    its back ones."""
+    its back ones, every marker near its template height above the floor."""
     forward, source = forward_directions(pos, anatomy, rate_hz)
-    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
-    conf = np.full(pos.shape[0], np.nan)
-
-    def record(rows: tuple[int, ...], value: float) -> None:
-        for i in rows:
-            conf[i] = value if np.isnan(conf[i]) else min(conf[i], value)
-
-    for a, b in anatomy.pairs:
-        across = np.sum((pos[a, :, :2] - pos[b, :, :2]) * left, axis=1)
-        record((a, b), _fraction(across > 0, np.isfinite(across)))
-    if source == "walking" and anatomy.front and anatomy.back:
-        ahead = np.sum(
-            (_mean_of(pos, anatomy.front) - _mean_of(pos, anatomy.back))[:, :2] * forward, axis=1
-        )
-        record(anatomy.front + anatomy.back, _fraction(ahead > 0, np.isfinite(ahead)))
-    for a, b in anatomy.above:
-        dz = pos[a, :, 2] - pos[b, :, 2]
-        record((a, b), _fraction(dz > 0, np.isfinite(dz)))
-    for a, b in anatomy.ahead:
-        dx = np.sum((pos[a, :, :2] - pos[b, :, :2]) * forward, axis=1)
-        record((a, b), _fraction(dx > 0, np.isfinite(dx)))
-    if anatomy.heights_mm is not None:
-        for i, near in enumerate(_near_height(pos, anatomy)):
-            record((i,), _fraction(near, np.isfinite(pos[i, :, 2])))
-    return AnatomyCheck(conf, source)
+    return AnatomyCheck(_confidence(pos, anatomy, forward, source, _floor(pos, anatomy)), source)
 
 
-def _near_height(pos: NDArray, anatomy: Anatomy) -> NDArray[np.bool_]:
-    """Per name and field, whether the marker is within the height tolerance of its
-    template height above the floor; the floor is where the lowest marker spends its
-    lowest tenth of the time, put at the lowest template height."""
-    z = pos[..., 2]
+def _floor(pos: NDArray, anatomy: Anatomy) -> float:
+    """Height of the floor: where the lowest marker spends its lowest tenth of the time,
+    put at the lowest template height (feet markers sit a few centimetres above it); the
+    same whatever the names."""
+    if anatomy.heights_mm is None:
+        return float("nan")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
-        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - np.min(anatomy.heights_mm)
+        lowest = np.nanmin(np.nanpercentile(pos[..., 2], 10, axis=1))
+    return float(lowest - np.min(anatomy.heights_mm))
+
+
+def _near_height(pos: NDArray, anatomy: Anatomy, floor: float) -> NDArray[np.bool_]:
+    """Per name and field, whether the marker is within the height tolerance of its
+    template height above the floor."""
     with np.errstate(invalid="ignore"):
-        return np.abs(z - floor - anatomy.heights_mm[:, None]) < anatomy.height_tolerance_mm
+        gap = pos[..., 2] - floor - anatomy.heights_mm[:, None]
+        return np.abs(gap) < anatomy.height_tolerance_mm
 
 
 def settle_sides(
@@ -289,7 +314,7 @@ def settle_sides(
     ``anatomy.names[i]``; the result ``perm`` says that trajectory ``i`` is name
     ``perm[i]``.
     """
-    forward, _ = forward_directions(pos, anatomy, rate_hz)
+    forward, source = forward_directions(pos, anatomy, rate_hz)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
     perm = np.arange(pos.shape[0])
     done = []
@@ -301,13 +326,14 @@ def settle_sides(
             done.append((a, b))
     moved = np.empty_like(pos)
     moved[perm] = pos
-    conf = check_anatomy(moved, anatomy, rate_hz).confidence
+    floor = _floor(pos, anatomy)
+    conf = _confidence(moved, anatomy, forward, source, floor)
     for a, b in anatomy.above + anatomy.ahead:
         if not (conf[a] < 1.0 - min_confidence and conf[b] < 1.0 - min_confidence):
             continue
         trial = moved.copy()
         trial[[a, b]] = moved[[b, a]]
-        trial_conf = check_anatomy(trial, anatomy, rate_hz).confidence
+        trial_conf = _confidence(trial, anatomy, forward, source, floor)
         if min(trial_conf[a], trial_conf[b]) >= min_confidence:
             moved, conf = trial, trial_conf
             at_a, at_b = np.flatnonzero(perm == a)[0], np.flatnonzero(perm == b)[0]

@@ -24,6 +24,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix, identity, vstack
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
@@ -91,13 +92,25 @@ def fit_template(
     if a.size == 0:
         return template.copy()
     length = median[a, b]
+    n = template.shape[0]
+    rows = np.repeat(np.arange(a.size), 6)
+    cols = np.concatenate([3 * a[:, None] + np.arange(3), 3 * b[:, None] + np.arange(3)], axis=1)
+    prior = PRIOR_WEIGHT * identity(3 * n, format="csr")
 
     def residuals(x: NDArray) -> NDArray:
         p = x.reshape(-1, 3)
         misfit = np.linalg.norm(p[a] - p[b], axis=1) - length
         return np.r_[misfit, PRIOR_WEIGHT * (x - template.ravel())]
 
-    return least_squares(residuals, template.ravel()).x.reshape(-1, 3)
+    def jacobian(x: NDArray) -> csr_matrix:
+        p = x.reshape(-1, 3)
+        d = p[a] - p[b]
+        u = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+        pairs = csr_matrix((np.c_[u, -u].ravel(), (rows, cols.ravel())), shape=(a.size, 3 * n))
+        return vstack([pairs, prior], format="csr")
+
+    fit = least_squares(residuals, template.ravel(), jac=jacobian, tr_solver="lsmr")
+    return fit.x.reshape(-1, 3)
 
 
 def _settled(state: LabelState, anatomy: Anatomy, rate_hz: float) -> list[tuple[str, str]]:
