@@ -282,6 +282,27 @@ def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyChec
     return AnatomyCheck(_confidence(pos, anatomy, forward, source, _floor(pos, anatomy)), source)
 
 
+check_anatomy.__doc__ = (
+    (check_anatomy.__doc__ or "")
+    + """
+
+    Examples
+    --------
+    >>> from kisscal.markersets import marker_set
+    >>> from kisscal.synth.motion import walking_trial
+    >>> m = walking_trial(1, 150, 50.0, path_mm=3500, model="grounded", heading_deg=300)
+    >>> kiss = marker_set("kiss")
+    >>> pos = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in kiss.names]]
+    >>> check = check_anatomy(pos, Anatomy.of_set(kiss), 50.0)
+    >>> check.forward, bool(check.confidence.min() > 0.85)
+    ('walking', True)
+    >>> swapped = pos[[kiss.names.index(n) for n in ("SACR", "LASI", "RASI")] + list(range(3, 15))]
+    >>> bool(check_anatomy(swapped, Anatomy.of_set(kiss), 50.0).confidence[1] < 0.2)
+    True
+"""
+)
+
+
 def _floor(pos: NDArray, anatomy: Anatomy) -> float:
     """Height of the floor: where the lowest marker spends its lowest tenth of the time,
     put at the lowest template height (feet markers sit a few centimetres above it); the
