@@ -5,7 +5,7 @@
     python -m tests.tracking.markerset_acceptance mirror [every]   # (c) walking frames as templates
 
 (a) The grounded walker (kisscal.synth.walker), 4 s, statures 1.5-1.9 m, headings spread
-over 360 degrees, 0.8-1.4 m/s, at 100 and 50 Hz; its 15 markers (Plug-in Gait lower body
+over 360 degrees, 0.7-1.4 m/s, at 100 and 50 Hz; its 15 markers (Plug-in Gait lower body
 with SACR for LPSI/RPSI) as reconstruction would deliver them: 0.5 mm noise per
 coordinate, 1 % of the fields start a dropout of 1-4 fields, about one ghost point per
 field living 1-4 fields. Labelled with ``marker_set=plug-in-gait-lower`` only (no
@@ -28,8 +28,8 @@ import numpy as np
 
 from kisscal.io.c3d import read_c3d_points
 from kisscal.markersets import marker_set
-from kisscal.synth.motion import walking_trial
 from kisscal.tracking import TrackingParams, build_trajectories
+from tests.gait._synth import grid, walker
 from tests.gait._walking5 import path as walking5_path
 from tests.tracking._data import observe
 from tests.tracking._eval import score
@@ -41,29 +41,11 @@ LOWER = (
 
 
 def walker_trial(seed: int, height_m: float, heading_deg: float, speed_m_s: float, rate_hz: float):
-    """True positions (15, F, 3) of the grounded walker and its anonymous observed points."""
-    n = round(4.0 * rate_hz)
-    m = walking_trial(
-        seed,
-        n,
-        rate_hz,
-        path_mm=speed_m_s * 1000.0 * (n - 1) / rate_hz,
-        model="grounded",
-        height_m=height_m,
-        heading_deg=heading_deg,
-    )
+    """True positions (15, F, 3) of a 4 s grounded walk and its anonymous observed points."""
+    m = walker(seed, rate_hz, heading_deg, height_m, speed_m_s, duration_s=4.0)
     truth = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(x) for x in LOWER]]
     field, xyz, _, visible = observe(truth, seed, noise_mm=0.5, volume_x=None)
     return truth, visible, field, xyz
-
-
-def grid(n: int, seed: int = 0) -> list[tuple[float, float, float]]:
-    """``n`` (heading deg, stature m, speed m/s): headings spread over 360 degrees."""
-    rng = np.random.default_rng(seed)
-    headings = (np.arange(n) + rng.uniform(0, 1)) * 360.0 / n
-    heights = 1.5 + 0.4 * (np.arange(n) * 0.618034 % 1.0)
-    speeds = rng.uniform(0.8, 1.4, n)
-    return list(zip(headings.tolist(), heights.tolist(), speeds.tolist(), strict=True))
 
 
 def owners(result, truth_pos: np.ndarray, true_names) -> list[str]:
