@@ -96,7 +96,9 @@ def judge_sides(
     moved[perm] = pos
     check = check_anatomy(moved, anatomy, rate_hz)
     ratio = mirror_fit_ratio(moved, template, anatomy.pairs)
-    confidence = {n: float(c) for n, c in zip(names, check.confidence, strict=True) if c == c}
+    confidence = {
+        n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
+    }
     flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
