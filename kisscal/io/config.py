@@ -19,6 +19,8 @@ from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 from kisscal.io.toml_table import Table, load_toml, number, suggest
+from kisscal.markersets import available_marker_sets
+from kisscal.markersets import marker_set as pick_markers
 
 #: How interlaced video frames are split into fields (``None``: frames are used whole).
 FieldOrder = Literal["top-first", "bottom-first"]
@@ -174,7 +176,7 @@ class SessionConfig:
 
 # Stage sections whose keys are checked against the stage's parameter dataclass by the
 # session layer (with a did-you-mean there).
-STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "report")
+STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "gait", "report")
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
 
 
@@ -294,6 +296,17 @@ def _markers(t: Table) -> MarkersConfig:
     marker_set = t.string("set")
     if not names and marker_set is None:
         raise t.fail('[markers] needs names or a set (e.g. set = "plug-in-gait-lower")')
+    shipped = available_marker_sets()
+    if marker_set is not None and marker_set not in shipped:
+        raise t.fail(
+            f"markers.set = {marker_set!r} is not a marker set kisscal ships"
+            f"{suggest(marker_set, shipped)}; it ships {', '.join(shipped)}"
+        )
+    if marker_set is not None and names:
+        try:
+            pick_markers(marker_set, names)
+        except KisscalError as exc:
+            raise t.fail(f"markers.names: {exc}") from None
     template = t.points("template_mm") if "template_mm" in t.data else None
     if template is not None and len(template) != len(names):
         raise t.fail(f"markers.template_mm has {len(template)} positions for {len(names)} names")

@@ -14,10 +14,17 @@ import ezc3d
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.gait.table import GaitEvents
 from kisscal.io.c3d import patch_sample_words, point_scale, sample_words
 from kisscal.io.files import atomic_path, write_text
 from kisscal.io.points3d import Points3DFile
 from kisscal.tracking.tracks import STATUS_NAMES, Tracks
+
+#: Vicon's descriptions and icons of the two gait events (EVENT:DESCRIPTIONS, ICON_IDS).
+_EVENT_STYLE = {
+    "Foot Strike": ("The instant the heel strikes the ground", 1),
+    "Foot Off": ("The instant the toe leaves the ground", 2),
+}
 
 
 def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarray:
@@ -38,9 +45,11 @@ def write_c3d(
     labels: tuple[str, ...],
     rate_hz: float,
     points: Points3DFile | None = None,
+    events: GaitEvents | None = None,
 ) -> Path:
     """Write trajectories as a C3D file: POINT:LABELS = labels, POINT:RATE = rate_hz,
-    POINT:UNITS = mm, POINT:DESCRIPTIONS, TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD.
+    POINT:UNITS = mm, POINT:DESCRIPTIONS, TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD, and
+    ``events`` (foot strikes and foot offs) in the EVENT group (:func:`add_gait_events`).
 
     Per sample, as the C3D standard reads it: measured samples carry their reconstruction
     residual (``rms_px`` of ``points``, the trial's points3d.csv, in pixels, > 0) and the
@@ -59,6 +68,8 @@ def write_c3d(
     c3d.add_parameter("POINT", "UNITS", "mm")
     _add_c3d_parameters(c3d, tracks, n_fields, rate_hz)
     c3d["data"]["points"] = data
+    if events is not None and len(events):
+        add_gait_events(c3d, events)
     words = _sample_words(tracks, points, n_fields, scale)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -99,6 +110,29 @@ def _add_c3d_parameters(c3d: ezc3d.c3d, tracks: Tracks, n_fields: int, rate_hz: 
         for t in range(tracks.n_tracks)
     )
     c3d["parameters"]["POINT"]["DESCRIPTIONS"]["value"] = descriptions
+
+
+def add_gait_events(c3d: ezc3d.c3d, events: GaitEvents) -> None:
+    """Gait events into the C3D EVENT group, in Vicon's layout.
+
+    One entry per event, in time order: LABELS ``"Foot Strike"`` / ``"Foot Off"``,
+    CONTEXTS ``"Left"`` / ``"Right"``, TIMES as (minutes, seconds) pairs from the first
+    frame (frame 1 at 0 s, as trajectories.c3d starts at field 0), DESCRIPTIONS and
+    ICON_IDS (1 foot strike, 2 foot off) as Vicon Nexus writes them, SUBJECTS empty (one
+    subject), GENERIC_FLAGS 0, USED the count; written through ezc3d's ``add_event``.
+    """
+    table = events.c3d()
+    for label, context, minutes, seconds in zip(
+        table["LABELS"], table["CONTEXTS"], *table["TIMES"], strict=True
+    ):
+        description, icon = _EVENT_STYLE[label]
+        c3d.add_event(
+            [float(minutes), float(seconds)],
+            context=context,
+            label=label,
+            description=description,
+            icon_id=icon,
+        )
 
 
 #: Lab axes as TRC axes: ``"z"`` keeps the lab frame (Z up); ``"y"`` turns it Y-up as OpenSim

@@ -69,6 +69,8 @@ def _trial_summary(tdir: Path) -> dict[str, Any]:
         entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
     if (tdir / "recon.json").is_file():
         entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
+    if (tdir / "gait.json").is_file():
+        entry["gait"] = json.loads((tdir / "gait.json").read_text())
     if (tdir / "trajectories.csv").is_file():
         tr = read_table(tdir / "trajectories.csv")
         labels = sorted(set(tr["label"].tolist()))

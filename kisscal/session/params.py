@@ -8,6 +8,7 @@ from typing import Any
 
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
+from kisscal.gait import GaitParams
 from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
 from kisscal.params import Params
@@ -24,6 +25,7 @@ class Overrides:
     dlt: Mapping[str, Any] = field(default_factory=dict)
     recon: Mapping[str, Any] = field(default_factory=dict)
     tracking: Mapping[str, Any] = field(default_factory=dict)
+    gait: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,7 @@ class StageParams:
     dlt: DltParams
     recon: ReconParams
     tracking: TrackingParams
+    gait: GaitParams
     detection_given: Mapping[str, Any] = field(default_factory=dict)
 
 
@@ -86,5 +89,6 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         dlt=build_params(DltParams, "dlt", section("dlt", {}), o.dlt),
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
+        gait=build_params(GaitParams, "gait", section("gait", {}), o.gait),
         detection_given={**config.detection, **o.detection},
     )

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from kisscal.errors import KisscalError
+from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
@@ -52,7 +53,7 @@ def run(
         echo("[2/4] calibration")
         timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
     failures: dict[str, str] = {}
-    for trial in config.trials:
+    for trial in _in_order(config, echo):
         if trial.name in broken:
             failures[trial.name] = broken[trial.name]
             echo(f"  skipped {broken[trial.name]}")
@@ -84,6 +85,16 @@ def run(
             f"({'; '.join(failures.values())}); the other trials' outputs are complete"
         )
     return summary
+
+
+def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:
+    """The trials, the static one (``[markers] static``) first: its labelled positions
+    are the template of the others."""
+    static = config.markers.static if config.markers else None
+    if static is None:
+        return list(config.trials)
+    echo(f"  static trial {static} first: its labelled positions are the others' template")
+    return sorted(config.trials, key=lambda t: t.name != static)
 
 
 def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:

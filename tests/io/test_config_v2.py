@@ -52,7 +52,7 @@ def test_version_2_tables_parse() -> None:
         ({"wand": {"trial": "wand1", "markers_mm": [0, 500]}}, "did you mean 'wand01'"),
         ({"wand": {"trial": "wand01", "markers_mm": [500]}}, "2 or more"),
         ({"wand": {"trial": "wand01", "markers_mm": [0, 500], "lenght": 1}}, "unknown key wand."),
-        ({"markers": {"set": "pig", "static": "static1"}}, "markers.static"),
+        ({"markers": {"set": "plug-in-gait-lower", "static": "static1"}}, "markers.static"),
         ({"markers": {}}, "needs names or a set"),
         ({"calibration": {"cameras": "a.toml", "dlt": "b.csv"}}, "exactly one of"),
         (

@@ -540,6 +540,42 @@ CASES: tuple[Case, ...] = (
         ("different numbers of frames", "cam2: 8"),
     ),
     Case(
+        "unknown-marker-set",
+        "tracking",
+        "misspelt the marker set's name",
+        toml_edit(lambda d: d.__setitem__("markers", {"set": "plug-in-gait-lowr"})),
+        ("track", "S", "walk01"),
+        ("markers.set", "'plug-in-gait-lowr'", "did you mean 'plug-in-gait-lower'"),
+    ),
+    Case(
+        "marker-not-in-set",
+        "tracking",
+        "named a marker the chosen set does not have",
+        toml_edit(
+            lambda d: d.__setitem__(
+                "markers", {"set": "plug-in-gait-lower", "names": ["LASI", "RASII"]}
+            )
+        ),
+        ("track", "S", "walk01"),
+        ("markers.names", "unknown marker 'RASII'", "did you mean 'RASI'"),
+    ),
+    Case(
+        "static-not-a-trial",
+        "tracking",
+        "named a static trial that is not a [[trials]] entry",
+        toml_edit(lambda d: d["markers"].__setitem__("static", "statc")),
+        ("track", "S", "walk01"),
+        ("markers.static = 'statc'", "not a [[trials]] name"),
+    ),
+    Case(
+        "static-subject-moves",
+        "tracking",
+        "gave a walking trial as the static trial",
+        toml_edit(lambda d: d["markers"].__setitem__("static", "walk01")),
+        ("track", "S", "stick"),
+        ("static trial 'walk01'", "the subject moves"),
+    ),
+    Case(
         "track-before-reconstruct",
         "tracking",
         "tracked a trial that was never reconstructed",
