@@ -74,6 +74,7 @@ from kisscal.detect.survey import (
     GreyLevels,
     Groups,
     grey_levels,
+    marker_mask,
     rim_reach_px,
     stationary,
     survey_frames,
@@ -92,6 +93,7 @@ DERIVED = (
     "max_width_px",
     "max_height_px",
     "detach_kernel_px",
+    "min_pixels",
     "centroid_margin_x_px",
     "centroid_margin_y_px",
 )
@@ -364,38 +366,50 @@ class _Derivation:
         self.choose("pixel_aspect", value, why)
 
     def _size_limits(self, groups: Groups, markers: NDArray[np.bool_]) -> None:
-        """Upper size limits between the markers and the oversized blobs, and the kernel."""
+        """Upper size limits between the markers and the oversized blobs, the detach
+        kernel and the lower limit."""
         m = groups.take(markers)
         if not len(m):
             for name in ("max_pixels", "max_width_px", "max_height_px", "detach_kernel_px"):
                 self.choose(name, None, "no marker-like blob seen: no upper limit")
+            self.choose("min_pixels", DetectionParams().min_pixels, "no marker-like blob seen")
             return
         big = groups.take(~markers & (groups.pixels > m.pixels.max()))
-        headroom = SIZE_HEADROOM if self.kind == "markers" else 1.5
-        # single markers (isolated, filled): touching pairs are split before the limits
+        # single markers (isolated, filled): touching pairs are split before the limits;
+        # markers are round, so their extent follows from their area and the pixel aspect
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
-        single = single if len(single) >= 5 else m
-        largest = {k: _largest(getattr(single, k)) for k in ("pixels", "width", "height")}
-        why = (
-            f"largest markers {largest['pixels']:.0f} px ({largest['width']:.0f} x "
-            f"{largest['height']:.0f}); "
-            + (
-                f"smallest oversized blob {int(big.pixels.min())} px"
-                if len(big)
-                else "none oversized"
-            )
+        pixels = _largest((single if len(single) >= 5 else m).pixels)
+        aspect = float(self._partial_params().pixel_aspect)
+        lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
+        size = {"pixels": pixels, "width": lines * aspect + 1.0, "height": lines + 1.0}
+        self._upper_limits(size, big)
+        self._detach_kernel(size, big)
+        smallest = float(np.percentile(m.pixels, 1)) if len(m) >= 50 else float(m.pixels.min())
+        self.choose(
+            "min_pixels",
+            max(3, int(0.3 * smallest)),
+            f"under a third of the smallest markers ({smallest:.0f} px): pieces, not markers",
+        )
+
+    def _upper_limits(self, size: dict[str, float], big: Groups) -> None:
+        headroom = SIZE_HEADROOM if self.kind == "markers" else 1.5
+        why = f"largest markers {size['pixels']:.0f} px ({size['width']:.0f} x " + (
+            f"{size['height']:.0f}); "
+            + (f"smallest oversized blob {big.pixels.min()} px" if len(big) else "none oversized")
         )
         for name, key, scale, pad in (
             ("max_pixels", "pixels", headroom, 0),
             ("max_width_px", "width", math.sqrt(headroom), 1),
             ("max_height_px", "height", math.sqrt(headroom), 1),
         ):
-            limit = math.ceil(largest[key] * scale) + pad
+            limit = math.ceil(size[key] * scale) + pad
             if len(big):  # between the markers and the smallest oversized blob
-                limit = min(limit, math.floor(math.sqrt(largest[key] * getattr(big, key).min())))
-            self.choose(name, int(max(limit, math.ceil(largest[key]) + 1)), why)
-        kw = _odd(1.2 * largest["width"] + 1)
-        kh = _odd(1.2 * largest["height"] + 1)
+                limit = min(limit, math.floor(math.sqrt(size[key] * getattr(big, key).min())))
+            self.choose(name, int(max(limit, math.ceil(size[key]) + 1)), why)
+
+    def _detach_kernel(self, size: dict[str, float], big: Groups) -> None:
+        kw = _odd(1.2 * size["width"] + 1)
+        kh = _odd(1.2 * size["height"] + 1)
         fits = not len(big) or (kw < big.width.min() and kh < big.height.min())
         self.choose(
             "detach_kernel_px",
@@ -406,17 +420,22 @@ class _Derivation:
         )
 
     def _margins(self) -> None:
+        """Centroid margins from the rims of the markers (not of LED rings and their flare)."""
         p = self._partial_params()
-        reach = np.array(
-            [rim_reach_px(im, *threshold_image(im, p), self._rim_floor()) for im in self.frames]
-        )
+        reach = []
+        for image in self.frames:
+            white, background = threshold_image(image, p)
+            markers = marker_mask(white, p.max_pixels)
+            reach.append(rim_reach_px(image, markers, background, self._rim_floor()))
+        reach = np.array(reach)
         mx, my = (int(np.clip(np.median(reach[:, k]), 1, 8)) for k in (0, 1))
         why = "how far the blurred rim reaches beyond the white pixels"
         self.choose("centroid_margin_x_px", mx, why)
         self.choose("centroid_margin_y_px", my, why)
 
     def _rim_floor(self) -> float:
-        return max(1.0 * self.levels.noise, 0.5)
+        # a ring fainter than twice the noise adds more noise to a centroid than light
+        return max(2.0 * self.levels.noise, 0.5)
 
 
 def _largest(values: NDArray) -> float:

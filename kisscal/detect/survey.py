@@ -213,26 +213,45 @@ def stationary(groups: Groups, radius_px: float = 1.5, fraction: float = 0.6) ->
     return np.asarray(count) >= fraction * n_frames
 
 
+def marker_mask(white: NDArray[np.bool_], max_pixels: int | None) -> NDArray[np.bool_]:
+    """``white`` without its groups of more than ``max_pixels`` (LED rings and their flare)."""
+    if max_pixels is None:
+        return white
+    runs = group_runs(white)
+    table = measure_groups(runs)
+    big = np.zeros(int(runs.group.max()) + 1 if len(runs) else 0, dtype=bool)
+    big[table.label[table.pixels > max_pixels]] = True
+    keep = runs.take(~big[runs.group])
+    _, x, y = _run_pixels(keep)
+    mask = np.zeros_like(white)
+    mask[y, x] = True
+    return mask
+
+
 def rim_reach_px(
     image: NDArray, white: NDArray[np.bool_], background: float | NDArray, floor: float
 ) -> tuple[int, int]:
     """How far (px) the blurred rim of the spots reaches beyond their white pixels, in x
-    and in y: the first distance at which the mean grey level above the background of the
-    pixels at that horizontal (vertical) distance from a white pixel drops below ``floor``.
+    and in y.
+
+    The pixels at each horizontal (vertical) distance from the nearest white pixel form a
+    ring; the rim ends at the first distance whose mean grey level is within ``floor`` of
+    the far rings' (distances :data:`RIM_MAX_PX` + 1 and + 2), so that a glow around the
+    spots, not part of their image, does not count.
     """
     contrast = image.astype(np.float32) - np.asarray(background, dtype=np.float32)
     mask = white.astype(np.uint8)
     reach = []
     for axis in (0, 1):
+        means = []
         inner = mask
-        found = RIM_MAX_PX
-        for d in range(1, RIM_MAX_PX + 1):
+        for d in range(1, RIM_MAX_PX + 3):
             size = (2 * d + 1, 1) if axis == 0 else (1, 2 * d + 1)
             outer = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_RECT, size))
             ring = (outer > 0) & (inner == 0)
-            if not ring.any() or float(contrast[ring].mean()) < floor:
-                found = d
-                break
+            means.append(float(contrast[ring].mean()) if ring.any() else 0.0)
             inner = outer
-        reach.append(found)
+        far = float(np.mean(means[-2:]))
+        near = np.flatnonzero(np.asarray(means[:RIM_MAX_PX]) - far < floor)
+        reach.append(int(near[0]) + 1 if near.size else RIM_MAX_PX)
     return reach[0], reach[1]
