@@ -9,14 +9,14 @@ bound is 0.08 px. ``python -m tests.detect.presets_acceptance`` prints the same 
 seeds.
 """
 
-#: Centroid RMS bound per preset (px).
-CENTROID_RMS_PX = {"kiss": 0.05, "modern": 0.05, "lowcost": 0.08}
-
 from __future__ import annotations
 
 import pytest
 
 from tests.detect.presets_acceptance import measure
+
+#: Centroid RMS bound per preset (px).
+CENTROID_RMS_PX = {"kiss": 0.05, "modern": 0.05, "lowcost": 0.08}
 
 
 @pytest.mark.slow
