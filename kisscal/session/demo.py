@@ -7,6 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from kisscal.io.files import write_json
 from kisscal.session import report, run
 from kisscal.session.synth import evaluate, synthesise
@@ -56,15 +58,20 @@ def _print_summary(summary: dict[str, Any], echo: Echo) -> None:
         in_sample = rods.get("rods_in_sample_mean_mm", float("nan"))
         echo(f"rod markers, 3D error in-sample {in_sample:.3f} mm, leave-one-rod-out {loo:.3f} mm")
     for trial, t in summary["truth"].items():
-        echo(_trial_line(trial, t))
+        tracking = summary.get("trials", {}).get(trial, {}).get("tracking", {})
+        echo(_trial_line(trial, t, bool(tracking.get("fits_marker_set"))))
 
 
-def _trial_line(trial: str, t: dict[str, Any]) -> str:
-    line = (
-        f"{trial}: {t['n_trajectories']} trajectories for {t['n_true_markers']} markers, "
-        f"{t['correctly_labelled']} labelled right, 3D RMSE {t['rmse_measured_mm']:.2f} mm "
-        f"(filled {t['rmse_filled_mm']:.2f} mm), coverage {100 * t['coverage']:.1f} %"
-    )
+def _trial_line(trial: str, t: dict[str, Any], labelled: bool) -> str:
+    """One trial's figures against its truth; labels only where a marker set named them."""
+    parts = [f"{trial}: {t['n_trajectories']} trajectories for {t['n_true_markers']} markers"]
+    if labelled:
+        parts.append(f"{t['correctly_labelled']} labelled right")
+    rmse = f"3D RMSE {t['rmse_measured_mm']:.2f} mm"
+    if np.isfinite(t["rmse_filled_mm"]):
+        rmse += f" (filled {t['rmse_filled_mm']:.2f} mm)"
+    parts += [rmse, f"coverage {100 * t['coverage']:.1f} %"]
+    line = ", ".join(parts)
     if "stick_length" in t:
         sl = t["stick_length"]
         line += f"; stick length error {sl['mean_abs_error_mm']:.2f} +/- {sl['sd_mm']:.2f} mm"

@@ -46,6 +46,11 @@ def test_demo_prints_the_summary(tmp_path: Path) -> None:
     assert f"{walk['n_trajectories']} trajectories" in line
     assert f"3D RMSE {walk['rmse_measured_mm']:.2f} mm" in line
     assert walk["rmse_measured_mm"] < 1.0
+    assert f"{walk['correctly_labelled']} labelled right" in line
+    # trials without a marker set say nothing of labels; nothing is printed as nan
+    stick = next(line for line in text.splitlines() if line.startswith("stick:"))
+    assert "labelled" not in stick and "stick length error" in stick
+    assert "nan" not in text and "warning" not in text.lower() + result.stderr.lower()
     assert (tmp_path / "demo" / "out" / "report.html").is_file()
 
 
