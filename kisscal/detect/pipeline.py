@@ -7,6 +7,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -148,7 +149,7 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     runs = group_runs(white, params.closeness_x_px, params.closeness_rows)
     if len(runs) == 0:
         return Blobs.empty()
-    grouping, table = _first_groups(Grouping.start(runs), params)
+    grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
     spots = _Spots(image, white, background, params)
@@ -156,7 +157,9 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
 
 
-def _first_groups(grouping: Grouping, params: DetectionParams) -> tuple[Grouping, GroupTable]:
+def _first_groups(
+    grouping: Grouping, params: DetectionParams, shape: tuple[int, ...]
+) -> tuple[Grouping, GroupTable]:
     """Noise removal (2.2), sub-marker merge (2.3.1) and the LED-ring detach.
 
     Each test returns the grouping itself when it changed nothing: no re-measuring then.
@@ -170,7 +173,7 @@ def _first_groups(grouping: Grouping, params: DetectionParams) -> tuple[Grouping
     if params.merge_submarkers:
         steps.append(merge_submarkers)
     if params.detach_from_large and params.apply_size_limits:
-        steps.append(detach_from_large)
+        steps.append(partial(detach_from_large, shape=shape))
     for step in steps:
         if len(table) == 0:
             break
