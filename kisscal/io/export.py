@@ -44,6 +44,7 @@ def write_c3d(
     tracks: Tracks,
     labels: tuple[str, ...],
     rate_hz: float,
+    *,
     points: Points3DFile | None = None,
     events: GaitEvents | None = None,
 ) -> Path:

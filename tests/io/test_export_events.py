@@ -32,7 +32,7 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, GaitEvents]
     tracks = make_tracks(field, np.zeros(n), xyz, np.full_like(xyz, np.nan), np.zeros(n), field)
     events = GaitEvents.from_times(TIMES, RATE)
     path = tmp_path_factory.mktemp("events") / "trajectories.c3d"
-    write_c3d(path, tracks, ("SACR",), RATE, events)
+    write_c3d(path, tracks, ("SACR",), RATE, events=events)
     return path, events
 
 
@@ -101,5 +101,5 @@ def test_no_events_no_event_group(tmp_path: Path) -> None:
     field = np.arange(10)
     xyz = np.zeros((10, 3))
     tracks = make_tracks(field, np.zeros(10), xyz, xyz, np.zeros(10), field)
-    path = write_c3d(tmp_path / "t.c3d", tracks, ("A",), RATE, GaitEvents.from_times({}, RATE))
+    path = write_c3d(tmp_path / "t.c3d", tracks, ("A",), RATE, events=GaitEvents.from_times({}, RATE))
     assert "EVENT" not in ezc3d.c3d(str(path))["parameters"]
