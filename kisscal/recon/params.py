@@ -31,9 +31,26 @@ class ReconParams:
         Most candidates per camera kept along an epipolar line, closest first (Shafiq: 5);
         central strategy only (the triple strategy ranks all triples by residual instead).
     allow_two_camera : bool
-        Accept markers seen by only two cameras (closest epipolar pairs first, each blob
-        once). Off by default: two-camera matches are the main source of ghost markers
-        (2.8% ghost points on the synthetic gait trial against 0% without).
+        Also make markers of blobs seen by only two cameras, from the blobs that matching
+        over three or more cameras left over, when the pair reprojects within the trial's
+        residual limit and its 3D point continues a trajectory (see
+        ``two_camera_continuity_mm`` and :mod:`kisscal.recon.pairs`). Needed by 2- and
+        3-camera rigs; in larger rigs it adds the markers that only two cameras see.
+    two_camera_alone_max_cameras : int
+        Rigs of up to this many cameras accept a trajectory that only two cameras see
+        throughout; larger rigs accept two-camera points only where they extend the
+        trajectory of a marker that three or more cameras see in neighbouring fields. In a
+        rig built for three views a pair that no third camera ever confirms is more often
+        a ghost (two markers merged into one blob in both views, or two markers that each
+        only one camera sees, lying on one epipolar line) than a marker.
+    two_camera_step_mm : float
+        Largest distance (mm) a marker moves from one field to the next, where a
+        two-camera point looks for the trajectory it continues (300 mm: 15 m/s at 50 Hz,
+        more than a foot in swing or a thrown ball).
+    two_camera_continuity_mm : float
+        Largest second difference ``|p(f-1) - 2 p(f) + p(f+1)|`` (mm) of three consecutive
+        positions through a two-camera point: acceleration times the field interval
+        squared (20 mm: 50 m/s^2 at 50 Hz, the peak of a foot marker in swing).
     max_rms_px : float
         Largest reprojection ``rms_px`` (px) of a triple and of an accepted 3D marker;
         worse markers lose their worst observation (split) or are dropped. Generous on
@@ -65,7 +82,10 @@ class ReconParams:
     epipolar_band_px: float = 3.0
     search_radius_px: float = 3.0
     max_candidates: int = 5
-    allow_two_camera: bool = False
+    allow_two_camera: bool = True
+    two_camera_alone_max_cameras: int = 3
+    two_camera_step_mm: float = 300.0
+    two_camera_continuity_mm: float = 20.0
     max_rms_px: float = 2.0
     outlier_rms_factor: float = 5.0
     outlier_floor_px: float = 0.2
@@ -87,6 +107,8 @@ class ReconParams:
             "outlier_floor_px",
             "group_radius_mm",
             "stationary_radius_px",
+            "two_camera_step_mm",
+            "two_camera_continuity_mm",
         ):
             if not getattr(self, name) > 0:
                 raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")

@@ -1,0 +1,334 @@
+"""Two-camera markers: epipolar pairs of the blobs that multi-camera matching left over.
+
+A marker seen by only two cameras has no third view to verify it: any blob of the other
+camera within the epipolar band is as good a partner as the true one (Shafiq et al. 2001,
+4.1, accept the closest, which makes ghost markers). Two checks replace the third view:
+
+* the pair must reproject within the trial's residual limit (the band of the
+  multi-camera markers, not the matching band);
+* the 3D point must continue a trajectory: with points of neighbouring fields it makes
+  four consecutive positions whose second differences ``p(f-1) - 2 p(f) + p(f+1)`` are
+  at most ``two_camera_continuity_mm`` (:func:`continuity_mm`). A ghost pair is the
+  crossing of two rays of different markers; it jumps when either marker moves, while a
+  true marker moves smoothly (Küçük 2005, 3.4: the tracker's prediction gate, here with
+  a constant-velocity predictor over one field).
+
+The check applies to every two-camera pair, ambiguous or not: a blob with a single
+candidate partner is not proof, because the true partner may be hidden (gait: one leg's
+markers seen from one side, the other leg's from the other). Candidates that pass compete
+for their blobs, smallest second difference first; each blob ends in one marker.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
+from kisscal.recon.group import first_per_key, residual_limit_px, triangulate_markers
+from kisscal.recon.params import ReconParams
+
+#: Lab x offset (mm) per field, so that one k-d tree holds every field of a trial apart.
+_FIELD_SEPARATION_MM = 1e7
+#: Points of a neighbouring field tried as a point's previous (or next) position, nearest
+#: first: a marker moves less in one field than to beyond its third-nearest neighbour.
+_NEIGHBOURS = 4
+
+
+def _embed(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
+    out = xyz.copy()
+    out[:, 0] += field * _FIELD_SEPARATION_MM
+    return out
+
+
+def continuity_mm(
+    xyz_mm: NDArray[np.float64],
+    field: NDArray[np.int64],
+    pool_xyz_mm: NDArray[np.float64],
+    pool_field: NDArray[np.int64],
+    step_mm: float,
+    tolerance_mm: float,
+    pool_anchor: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """How well each point continues a trajectory through the pool's points.
+
+    A point of field f continues a trajectory when, with pool points of three of the fields
+    f-3..f+3, it makes four consecutive positions moving at nearly constant velocity: both
+    second differences ``|a - 2 b + c|`` of the four are small. Each position is found from
+    the two before it (the pool point nearest to their linear extrapolation), starting
+    from one of the four pool points of field f-1 or f+1 nearest to the point, within
+    ``step_mm`` of it. Three positions are not enough: the midpoint of two markers that
+    move together is collinear with one marker in the field before and the other in the
+    field after.
+
+    Parameters
+    ----------
+    xyz_mm : ndarray, shape (n, 3)
+        Points to judge and their ``field`` (n,).
+    pool_xyz_mm : ndarray, shape (m, 3)
+        Points they may continue and their ``pool_field`` (m,).
+    step_mm : float
+        Largest distance (mm) a marker moves between consecutive fields.
+    tolerance_mm : float
+        Largest second difference (mm) searched for.
+    pool_anchor : ndarray of bool, shape (m,), optional
+        Only windows holding at least one of these pool points count (default: all do).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Per point, the smallest over the four-field windows of the larger of their two
+        second differences (mm); inf when no window is within tolerance.
+
+    Examples
+    --------
+    >>> line = np.arange(5.0)[:, None] * [10.0, 0.0, 0.0]
+    >>> continuity_mm(line[2:3], np.array([2]), line, np.arange(5), 50.0, 1.0)
+    array([0.])
+    """
+    best = np.full(len(xyz_mm), np.inf)
+    ok = np.all(np.isfinite(xyz_mm), axis=1)
+    if not ok.any() or len(pool_field) == 0:
+        return best
+    idx = np.flatnonzero(ok)
+    # only pool points within three fields of a point to judge: later rounds judge few
+    lo = min(int(field[idx].min()), int(pool_field.min())) - 3
+    near_field = np.zeros(max(int(field[idx].max()), int(pool_field.max())) - lo + 4, dtype=bool)
+    for shift in range(-3, 4):
+        near_field[field[idx] - lo + shift] = True
+    keep = near_field[pool_field - lo] & np.all(np.isfinite(pool_xyz_mm), axis=1)
+    if not keep.any():
+        return best
+    anchor = np.ones(len(pool_field), dtype=bool) if pool_anchor is None else pool_anchor
+    pool = _Pool(pool_xyz_mm[keep], pool_field[keep], anchor[keep], tolerance_mm)
+    for side in (-1, 1):  # a neighbour in the previous, then in the next field
+        # the few nearest: a marker's own previous position is among them
+        d, j = pool.tree.query(
+            _embed(xyz_mm[idx], field[idx] + side), k=_NEIGHBOURS, distance_upper_bound=step_mm
+        )
+        i, k = np.nonzero(np.isfinite(d))
+        rows, j = idx[i], j[i, k]
+        x, q, f, aq = xyz_mm[rows], pool.xyz[j], field[rows], pool.anchor[j]
+        if side > 0:  # window f..f+3: x, q, then two extrapolations
+            d1, s, a_s = pool.next(x, q, f + 2)
+            d2, _, a_t = pool.next(q, s, f + 3)
+            windows = [(d1, d2, aq | a_s | a_t)]
+        else:  # q before x
+            d_back, p, a_p = pool.next(x, q, f - 2)
+            d_older, _, a_o = pool.next(q, p, f - 3)
+            d_after, r, a_r = pool.next(q, x, f + 1)
+            d_later, _, a_s = pool.next(x, r, f + 2)
+            windows = [
+                (d_back, d_older, aq | a_p | a_o),
+                (d_back, d_after, aq | a_p | a_r),
+                (d_after, d_later, aq | a_r | a_s),
+            ]
+        for d1, d2, anchored in windows:
+            np.minimum.at(best, rows, np.where(anchored, np.maximum(d1, d2), np.inf))
+    return best
+
+
+class _Pool:
+    """Pool points of a trial in one k-d tree (fields kept apart by :func:`_embed`)."""
+
+    def __init__(
+        self,
+        xyz: NDArray[np.float64],
+        field: NDArray[np.int64],
+        anchor: NDArray[np.bool_],
+        tol: float,
+    ) -> None:
+        self.xyz = np.vstack([xyz, np.full((1, 3), np.nan)])  # row -1: "none found"
+        self.anchor = np.r_[anchor, False]
+        self.tree = cKDTree(_embed(xyz, field))
+        self.tol = tol
+
+    def next(
+        self, a: NDArray[np.float64], b: NDArray[np.float64], at: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """The pool point of field ``at`` nearest to ``2 b - a`` (the position after a, b):
+        its distance (inf beyond the tolerance or where a, b are NaN), itself (NaN) and
+        whether it is an anchor."""
+        target = 2.0 * b - a
+        d = np.full(len(a), np.inf)
+        j = np.full(len(a), -1)
+        ok = np.flatnonzero(np.all(np.isfinite(target), axis=1))
+        d[ok], j[ok] = self.tree.query(_embed(target[ok], at[ok]), distance_upper_bound=self.tol)
+        j[~np.isfinite(d)] = -1
+        return d, self.xyz[j], self.anchor[j]
+
+
+def match_two_camera(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+    limit_px: float | None = None,
+    F: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.int64], float]:
+    """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
+
+    Parameters
+    ----------
+    marker : ndarray of int, shape (n,)
+        Markers of the multi-camera matching (-1: unmatched); they also serve as the
+        trajectories a pair may continue.
+    field, camera, uv : ndarray
+        The trial's 2D table (linearised px).
+    dlts : ndarray, shape (n_cameras, 11)
+    params : ReconParams
+        ``epipolar_band_px``, ``two_camera_step_mm``, ``two_camera_continuity_mm``,
+        ``reweight_iterations``.
+    limit_px : float, optional
+        Largest ``rms_px`` of a pair: the trial's residual limit. Default: the limit the
+        candidate pairs themselves set (:func:`residual_limit_px` of their residuals), for
+        a trial without multi-camera markers.
+    F : ndarray, optional
+        Precomputed :func:`~kisscal.recon.epipolar.all_fundamentals`.
+
+    Returns
+    -------
+    marker : ndarray of int, shape (n,)
+        ``marker`` with the new markers numbered after the existing ones.
+    limit_px : float
+        The residual limit used.
+    """
+    free = np.flatnonzero(marker < 0)
+    out = marker.copy()
+    F = all_fundamentals(dlts) if F is None else F
+    a, b, _ = candidate_pairs(field[free], camera[free], uv[free], F, params.epipolar_band_px)
+    a, b = free[a], free[b]
+    t = triangulate_observations(
+        dlts,
+        np.repeat(np.arange(len(a)), 2),
+        np.column_stack([camera[a], camera[b]]).ravel(),
+        np.stack([uv[a], uv[b]], axis=1).reshape(-1, 2),
+        len(a),
+        params.reweight_iterations,
+    )
+    if limit_px is None:
+        limit_px = residual_limit_px(t.rms_px, params)
+    good = t.rms_px <= limit_px
+    a, b, xyz = a[good], b[good], t.xyz_mm[good]
+    if len(a) == 0:
+        return out, limit_px
+    known = np.flatnonzero(marker >= 0)
+    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).xyz_mm
+    m_field = np.zeros(len(m_xyz), dtype=np.int64)
+    m_field[marker[known]] = field[known]
+    # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
+    judge_motion = len(np.unique(field)) >= 3
+    alone = len(dlts) <= params.two_camera_alone_max_cameras
+    won = _choose(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
+    order = np.argsort(field[a[won]], kind="stable")
+    ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
+    out[a[won][order]] = ids
+    out[b[won][order]] = ids
+    return out, limit_px
+
+
+def _choose(
+    a: NDArray[np.int64],
+    b: NDArray[np.int64],
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    known_xyz: NDArray[np.float64],
+    known_field: NDArray[np.int64],
+    params: ReconParams,
+    judge_motion: bool = True,
+    alone: bool = True,
+) -> NDArray[np.bool_]:
+    """Which candidate pairs (blobs ``a``, ``b``, point ``xyz`` in ``field``) become markers.
+
+    A pair must first continue a trajectory through the known markers and the other
+    candidates. Then, in rounds, each blob used once:
+
+    * a pair that shares neither blob with another remaining pair is taken;
+    * when no such pair is left, the pairs whose trajectory (four positions) holds a known
+      or a taken marker are taken, best first, up to three fields further each round (a
+      wrong pairing that persists over fields supports itself, but it does not continue
+      the true markers' trajectories).
+
+    Pairs still contested when neither applies (two markers whose roles the two views
+    cannot tell apart over a whole stretch) are left out rather than guessed. (Preferring
+    a pair that is the only candidate of one of its blobs, as a matching that explains the
+    most blobs would, was tried: the lone blob is often a marker that a single camera
+    sees, and the rule then picked the wrong pair as often as the right one.)
+
+    Without ``alone`` (a rig of more than ``two_camera_alone_max_cameras`` cameras) only
+    the second rule applies: pairs extend the trajectories of markers that three or more
+    cameras see. Without ``judge_motion`` (a trial too short to have a trajectory) only
+    the first rule applies, if ``alone``.
+    """
+    step, tol = params.two_camera_step_mm, params.two_camera_continuity_mm
+    alive = np.full(len(a), judge_motion or alone)
+    if judge_motion:
+        pool_xyz = np.concatenate([known_xyz, xyz])
+        score = continuity_mm(xyz, field, pool_xyz, np.concatenate([known_field, field]), step, tol)
+        alive = score <= tol
+    chosen = np.zeros(len(a), dtype=bool)
+    n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
+    # support changes only near newly taken pairs: later rounds judge the pairs there
+    fresh = np.ones(int(field.max(initial=0)) + 4, dtype=bool)
+    while alive.any():
+        won = _unshared(a, b, alive, n) & alone
+        if not won.any():
+            k = np.flatnonzero(alive & fresh[field]) if judge_motion else []
+            if len(k) == 0:
+                break
+            pool = chosen | alive
+            score = continuity_mm(
+                xyz[k],
+                field[k],
+                np.concatenate([known_xyz, xyz[pool]]),
+                np.concatenate([known_field, field[pool]]),
+                step,
+                tol,
+                np.r_[np.ones(len(known_xyz), dtype=bool), chosen[pool]],
+            )
+            ok = score <= tol
+            if not ok.any():
+                break
+            won = np.zeros(len(a), dtype=bool)
+            won[k[ok][_disjoint(a[k[ok]], b[k[ok]], score[ok])]] = True
+            fresh[:] = False
+        for shift in range(-3, 4):
+            fresh[np.clip(field[won] + shift, 0, len(fresh) - 1)] = True
+        chosen |= won
+        used = np.zeros(n, dtype=bool)
+        used[a[won]] = used[b[won]] = True
+        alive &= ~used[a] & ~used[b]
+    return chosen
+
+
+def _unshared(
+    a: NDArray[np.int64], b: NDArray[np.int64], alive: NDArray[np.bool_], n: int
+) -> NDArray[np.bool_]:
+    """Alive pairs that share neither blob with another alive pair."""
+    degree = np.bincount(np.concatenate([a[alive], b[alive]]), minlength=n)
+    return alive & (degree[a] == 1) & (degree[b] == 1)
+
+
+def _disjoint(
+    a: NDArray[np.int64], b: NDArray[np.int64], score: NDArray[np.float64]
+) -> NDArray[np.bool_]:
+    """Pairs chosen best score first so that every blob is used once (vectorised rounds:
+    each round takes every pair that is the best remaining pair of both its blobs)."""
+    chosen = np.zeros(len(a), dtype=bool)
+    alive = np.ones(len(a), dtype=bool)
+    n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
+    while alive.any():
+        k = np.flatnonzero(alive)
+        best = np.full(n, -1, dtype=np.int64)
+        first = first_per_key(np.concatenate([a[k], b[k]]), np.concatenate([score[k]] * 2))
+        best[np.concatenate([a[k], b[k]])[first]] = np.concatenate([k, k])[first]
+        won = k[(best[a[k]] == k) & (best[b[k]] == k)]
+        chosen[won] = True
+        used = np.zeros(n, dtype=bool)
+        used[a[won]] = used[b[won]] = True
+        alive &= ~used[a] & ~used[b]
+    return chosen
