@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from kisscal.dlt.model import camera_centre_mm
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 from kisscal.recon.params import ReconParams
 
@@ -188,3 +189,21 @@ def residual_limit_px(rms_px: NDArray[np.float64], params: ReconParams) -> float
         return params.max_rms_px
     adaptive = max(params.outlier_floor_px, params.outlier_rms_factor * float(np.median(rms_px)))
     return min(params.max_rms_px, adaptive)
+
+
+def near_cameras(
+    xyz_mm: NDArray[np.float64], dlts: NDArray[np.float64], clearance_mm: float
+) -> NDArray[np.bool_]:
+    """Points closer than ``clearance_mm`` to a camera's projection centre.
+
+    Another camera's LED ring, seen by two cameras, reconstructs at that camera; so does
+    its image paired with any blob of that camera (both rays pass through its centre). No
+    marker is ever there. NaN points are not near.
+    """
+    out = np.zeros(len(xyz_mm), dtype=bool)
+    ok = np.all(np.isfinite(xyz_mm), axis=1)
+    if clearance_mm <= 0 or not ok.any():
+        return out
+    centres = np.array([camera_centre_mm(L) for L in dlts])
+    out[ok] = cKDTree(centres).query(xyz_mm[ok])[0] < clearance_mm
+    return out

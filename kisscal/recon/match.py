@@ -25,6 +25,7 @@ from kisscal.recon.epipolar import (
 from kisscal.recon.group import (
     first_per_key,
     merge_groups,
+    near_cameras,
     renumber,
     residual_limit_px,
     split_or_drop,
@@ -32,6 +33,7 @@ from kisscal.recon.group import (
 )
 from kisscal.recon.pairs import match_two_camera
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
+from kisscal.recon.stationary import at_epipoles
 
 
 def _check_table(
@@ -428,7 +430,9 @@ def match_trial(
 
     Markers seen by three or more cameras first (twice: blobs freed by the residual limit
     get a second chance), then, if ``params.allow_two_camera``, two-camera markers of the
-    blobs left over (:func:`kisscal.recon.pairs.match_two_camera`).
+    blobs left over (:func:`kisscal.recon.pairs.match_two_camera`). Markers that are LED
+    rings are dropped: those at a camera (``params.camera_clearance_mm``) and those whose
+    every blob lies at an epipole (``params.led_radius_px``).
 
     Returns
     -------
@@ -439,23 +443,24 @@ def match_trial(
     field, camera, uv = _check_table(field, camera, uv, len(dlts))
     fn = match_triple if params.strategy == "triple" else match_central
     F = all_fundamentals(dlts)
+    led = at_epipoles(camera, uv, dlts, params.led_radius_px)
     marker = fn(field, camera, uv, dlts, params, F)
-    limit = None
-    if (marker >= 0).any():
-        # the leftovers are the trial's worst blobs: keep the limit the whole trial set
-        rms = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).rms_px
-        limit = residual_limit_px(rms, params)
+    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led)
+    # the leftovers are the trial's worst blobs: keep the limit the whole trial set
+    limit = residual_limit_px(rms, params) if len(rms) else None
     free = np.flatnonzero(marker < 0)
     if len(free) >= 3 and limit is not None:
         # second chance for blobs freed by the residual limit (a blob wrongly attached to
         # a neighbour is split off there, and may complete its own marker now)
         fixed = replace(params, max_rms_px=limit, outlier_rms_factor=0.0)
         again = fn(field[free], camera[free], uv[free], dlts, fixed, F)
+        sub = field[free], camera[free], uv[free]
+        again, _ = _drop_leds(again, *sub, dlts, params, led[free])
         found = again >= 0
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
-        paired, limit = match_two_camera(marker, field, camera, uv, dlts, params, limit, F)
+        paired, limit = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
         if np.count_nonzero(paired >= 0) > np.count_nonzero(marker >= 0):
             # a pair may be a piece of a marker already made: unite them (pairs are within
             # the limit, and so is every union merge_groups makes)
@@ -470,6 +475,28 @@ def match_trial(
                 params.reweight_iterations,
             )
     return marker
+
+
+def _drop_leds(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+    led: NDArray[np.bool_],
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Markers that are LED rings dropped (at a camera, or every blob at an epipole:
+    ``led``); the ``rms_px`` of the others."""
+    if not (marker >= 0).any():
+        return marker, np.zeros(0)
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
+    rows = np.flatnonzero(marker >= 0)
+    seen_elsewhere = np.bincount(marker[rows], ~led[rows], minlength=len(tri.rms_px)) > 0
+    bad = ~seen_elsewhere | near_cameras(tri.xyz_mm, dlts, params.camera_clearance_mm)
+    if bad.any():
+        marker = renumber(np.where((marker >= 0) & bad[np.maximum(marker, 0)], -1, marker), field)
+    return marker, tri.rms_px[~bad]
 
 
 def match_field(

@@ -27,7 +27,12 @@ from scipy.spatial import cKDTree
 
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
-from kisscal.recon.group import first_per_key, residual_limit_px, triangulate_markers
+from kisscal.recon.group import (
+    first_per_key,
+    near_cameras,
+    residual_limit_px,
+    triangulate_markers,
+)
 from kisscal.recon.params import ReconParams
 
 #: Lab x offset (mm) per field, so that one k-d tree holds every field of a trial apart.
@@ -169,6 +174,7 @@ def match_two_camera(
     params: ReconParams,
     limit_px: float | None = None,
     F: NDArray[np.float64] | None = None,
+    led: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.int64], float]:
     """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
 
@@ -189,6 +195,9 @@ def match_two_camera(
         a trial without multi-camera markers.
     F : ndarray, optional
         Precomputed :func:`~kisscal.recon.epipolar.all_fundamentals`.
+    led : ndarray of bool, shape (n,), optional
+        Blobs at an epipole (:func:`~kisscal.recon.stationary.at_epipoles`): a pair of two
+        such blobs is two cameras' LED rings.
 
     Returns
     -------
@@ -212,7 +221,9 @@ def match_two_camera(
     )
     if limit_px is None:
         limit_px = residual_limit_px(t.rms_px, params)
-    good = t.rms_px <= limit_px
+    good = (t.rms_px <= limit_px) & ~near_cameras(t.xyz_mm, dlts, params.camera_clearance_mm)
+    if led is not None:
+        good &= ~(led[a] & led[b])
     a, b, xyz = a[good], b[good], t.xyz_mm[good]
     if len(a) == 0:
         return out, limit_px

@@ -76,6 +76,23 @@ class ReconParams:
     stationary_fraction : float
         A detection is stationary if blobs sit within ``stationary_radius_px`` of it in more
         than this fraction of the trial's fields (0..1).
+    stationary_min_s : float
+        Shortest trial (s) whose stationary detections are all removed: a subject holds a
+        marker still for up to about 1 s within a movement trial, which must then last
+        1 s / ``stationary_fraction`` for a still marker not to pass for an LED. Shorter
+        trials (and trials in which nothing moves) keep their detections.
+    camera_clearance_mm : float
+        3D points closer than this (mm) to a camera's projection centre are dropped: they
+        are LED rings (another camera's LEDs, seen by two cameras, reconstruct at that
+        camera, and so does a pair of its LED with any blob of that camera), never
+        markers. 0 keeps them.
+    led_radius_px : float
+        A blob within this distance (px) of an epipole (where another camera's centre
+        projects) may be that camera's LED ring; a point made of such blobs alone is
+        dropped (the lines between two pairs of cameras facing each other cross, at
+        camera height, and their four LEDs agree on a point there). The ring sits around
+        the lens, a few cm from the projection centre, and the calibration places the
+        centre about as well. 0 keeps them.
     """
 
     strategy: str = "triple"
@@ -94,6 +111,9 @@ class ReconParams:
     stationary_filter: bool = True
     stationary_radius_px: float = 1.5
     stationary_fraction: float = 0.5
+    stationary_min_s: float = 2.0
+    camera_clearance_mm: float = 200.0
+    led_radius_px: float = 10.0
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -112,6 +132,9 @@ class ReconParams:
         ):
             if not getattr(self, name) > 0:
                 raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")
+        for name in ("stationary_min_s", "camera_clearance_mm", "led_radius_px"):
+            if getattr(self, name) < 0:
+                raise KisscalError(f"recon {name} must be >= 0, got {getattr(self, name)}")
         if self.max_candidates < 1:
             raise KisscalError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
         if self.outlier_rms_factor < 0:

@@ -11,7 +11,7 @@ from kisscal.errors import KisscalError
 from kisscal.recon.group import triangulate_markers
 from kisscal.recon.match import _check_table, match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
-from kisscal.recon.stationary import stationary_mask
+from kisscal.recon.stationary import false_detections
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,10 @@ class Points3D:
         For each input row, the point (row of this table) it ended in, -1 if unmatched.
     stationary : ndarray of bool, shape (n_blobs,)
         Input rows removed as stationary false detections.
+    stationary_test : str
+        How they were judged (:func:`kisscal.recon.stationary.false_detections`):
+        ``"motion"``, ``"short"`` (a trial too short or too still to judge by motion: none
+        removed) or ``"off"``.
     """
 
     field: NDArray[np.int64]
@@ -43,6 +47,7 @@ class Points3D:
     blob_row: NDArray[np.int64]
     marker: NDArray[np.int64]
     stationary: NDArray[np.bool_]
+    stationary_test: str = "motion"
 
     def __len__(self) -> int:
         return len(self.field)
@@ -82,6 +87,7 @@ def points_from_markers(
     dlts: NDArray[np.float64],
     reweight_iterations: int,
     stationary: NDArray[np.bool_] | None = None,
+    stationary_test: str = "off",
 ) -> Points3D:
     """Triangulate every marker (ids 0..m-1 in field order) from all its blobs."""
     n_cam = len(dlts)
@@ -102,6 +108,7 @@ def points_from_markers(
         blob_row,
         marker,
         stationary,
+        stationary_test,
     )
 
 
@@ -111,15 +118,18 @@ def reconstruct_trial(
     uv: ArrayLike,
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
+    rate_hz: float = 50.0,
 ) -> Points3D:
     """Reconstruct the 3D points of a trial from its linearised 2D blobs.
 
     Steps: stationary false detections removed per camera over the whole trial (Küçük 2005,
-    3.3.1; if ``params.stationary_filter``), blobs matched across cameras with
-    ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001, 4.1), 3D point groups united
-    (3.3.7), each marker triangulated from all its blobs by least squares (Shafiq eq. 10)
-    plus reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
-    split or dropped, and the blobs this frees matched once more.
+    3.3.1; if ``params.stationary_filter`` and the trial is long enough and moves), blobs
+    matched across cameras with ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001,
+    4.1) and then in pairs (:mod:`kisscal.recon.pairs`), 3D point groups united (3.3.7),
+    each marker triangulated from all its blobs by least squares (Shafiq eq. 10) plus
+    reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
+    split or dropped, and the blobs this frees matched once more; points at a camera (its
+    LED ring seen by the others) dropped.
 
     Parameters
     ----------
@@ -130,6 +140,9 @@ def reconstruct_trial(
     dlts : array_like, shape (n_cameras, 11)
         DLT parameters mapping lab mm to linearised px.
     params : ReconParams
+    rate_hz : float
+        Field rate (Hz), to judge whether the trial is long enough for the stationary
+        filter (the KISS cameras' 50 Hz by default).
 
     Returns
     -------
@@ -142,13 +155,10 @@ def reconstruct_trial(
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(dlts))[0]})
         raise KisscalError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
     field, camera, uv = _check_table(field, camera, uv, len(dlts))
-    if params.stationary_filter:
-        still = stationary_mask(
-            field, camera, uv, params.stationary_radius_px, params.stationary_fraction
-        )
-    else:
-        still = np.zeros(len(field), dtype=bool)
+    still, test = false_detections(field, camera, uv, params, rate_hz)
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)
     marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params)
-    return points_from_markers(marker, field, camera, uv, dlts, params.reweight_iterations, still)
+    return points_from_markers(
+        marker, field, camera, uv, dlts, params.reweight_iterations, still, test
+    )
