@@ -17,7 +17,9 @@ from kisscal.io.files import atomic_path, write_text
 from kisscal.tracking.tracks import Tracks
 
 
-def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarray:
+def _dense(
+    tracks: Tracks, labels: tuple[str, ...], rate_hz: float, n_fields: int | None
+) -> np.ndarray:
     if len(labels) != tracks.n_tracks:
         raise KisscalError(f"export: {len(labels)} labels for {tracks.n_tracks} tracks")
     if len(set(labels)) != len(labels):
@@ -25,14 +27,25 @@ def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarra
     if not rate_hz > 0:
         raise KisscalError(f"export: rate_hz must be > 0, got {rate_hz}")
     if tracks.field.size == 0:
-        raise KisscalError("export: no trajectories to write")
+        if not n_fields:
+            raise KisscalError("export: no trajectories to write")
+        return np.zeros((0, n_fields, 3))  # an empty trial: frames without points
     return tracks.positions()  # (n_tracks, n_fields, 3)
 
 
-def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> Path:
+def write_c3d(
+    path: str | Path,
+    tracks: Tracks,
+    labels: tuple[str, ...],
+    rate_hz: float,
+    n_fields: int | None = None,
+) -> Path:
     """Write trajectories as a C3D file: POINT:LABELS = labels, POINT:RATE = rate_hz,
-    POINT:UNITS = mm; missing samples are NaN (ezc3d stores residual -1)."""
-    dense = _dense(tracks, labels, rate_hz)
+    POINT:UNITS = mm; missing samples are NaN (ezc3d stores residual -1).
+
+    Without trajectories, ``n_fields`` frames without points are written (a trial with
+    no markers); without either, it is an error."""
+    dense = _dense(tracks, labels, rate_hz, n_fields)
     n_tracks, n_fields, _ = dense.shape
     points = np.ones((4, n_tracks, n_fields))
     points[:3] = np.transpose(dense, (2, 0, 1))
@@ -48,10 +61,17 @@ def write_c3d(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     return path
 
 
-def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> Path:
+def write_trc(
+    path: str | Path,
+    tracks: Tracks,
+    labels: tuple[str, ...],
+    rate_hz: float,
+    n_fields: int | None = None,
+) -> Path:
     """Write trajectories as an OpenSim TRC file (PathFileType 4, X/Y/Z, units mm);
-    frames are numbered from 1, time is (frame - 1) / rate_hz."""
-    dense = _dense(tracks, labels, rate_hz)
+    frames are numbered from 1, time is (frame - 1) / rate_hz. Without trajectories,
+    ``n_fields`` frames without markers, as :func:`write_c3d`."""
+    dense = _dense(tracks, labels, rate_hz, n_fields)
     n_tracks, n_fields, _ = dense.shape
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -67,6 +87,8 @@ def write_trc(path: str | Path, tracks: Tracks, labels: tuple[str, ...], rate_hz
     values = np.transpose(dense, (1, 0, 2)).reshape(n_fields, 3 * n_tracks)
     text = np.where(np.isfinite(values), np.char.mod("%.3f", np.nan_to_num(values)), "")
     for f in range(n_fields):
-        lines.append(f"{f + 1}\t{f / rate_hz:.5f}\t" + "\t".join(text[f]))
+        lines.append("\t".join([f"{f + 1}", f"{f / rate_hz:.5f}", *text[f]]))
+    if n_tracks == 0:  # frame and time columns alone, no dangling separators
+        lines = [line.rstrip("\t") for line in lines]
     write_text(path, "\n".join(lines) + "\n")
     return path

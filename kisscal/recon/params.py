@@ -93,6 +93,13 @@ class ReconParams:
         camera height, and their four LEDs agree on a point there). The ring sits around
         the lens, a few cm from the projection centre, and the calibration places the
         centre about as well. 0 keeps them.
+    min_coverage : float
+        A trial whose points fill less than this fraction of its fields x its marker count
+        (the 90th percentile of points per field) gets a coverage warning (0..1).
+    max_unmatched_fraction : float
+        A trial that leaves more than this fraction of its blobs (after the stationary
+        filter) unmatched gets a warning (0..1): markers seen by one camera only, blobs
+        of no marker, or a calibration that does not fit.
     """
 
     strategy: str = "triple"
@@ -114,6 +121,8 @@ class ReconParams:
     stationary_min_s: float = 2.0
     camera_clearance_mm: float = 200.0
     led_radius_px: float = 10.0
+    min_coverage: float = 0.9
+    max_unmatched_fraction: float = 0.25
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -145,6 +154,9 @@ class ReconParams:
             raise KisscalError(
                 f"recon reweight_iterations must be >= 0, got {self.reweight_iterations}"
             )
+        for name in ("min_coverage", "max_unmatched_fraction"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise KisscalError(f"recon {name} must be in [0, 1], got {getattr(self, name)}")
         if not 0 < self.stationary_fraction <= 1:
             raise KisscalError(
                 f"recon stationary_fraction must be in (0, 1], got {self.stationary_fraction}"

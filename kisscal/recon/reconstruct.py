@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,31 +53,90 @@ class Points3D:
     def __len__(self) -> int:
         return len(self.field)
 
-    def summary(self) -> dict[str, float | int | list[int]]:
-        """Counts and residuals for ``summary.json``.
+    def summary(
+        self, n_fields: int | None = None, params: ReconParams = DEFAULT_PARAMS
+    ) -> dict[str, Any]:
+        """Counts, residuals, coverage and warnings for ``recon.json`` / ``summary.json``.
+
+        Parameters
+        ----------
+        n_fields : int, optional
+            Fields of the trial (blank fields included); default: up to the last point.
+        params : ReconParams
+            ``min_coverage`` and ``max_unmatched_fraction`` say when coverage is poor.
 
         Returns
         -------
         dict
-            ``points``, ``fields_with_points``, ``blobs``, ``blobs_used``,
-            ``blobs_stationary``, ``blobs_unmatched``, ``rms_px_median``, ``rms_px_max``
-            and ``points_by_n_cameras`` (index = number of cameras).
+            ``points``, ``fields``, ``fields_with_points``, ``blobs``, ``blobs_used``,
+            ``blobs_stationary``, ``blobs_unmatched``, ``rms_px_median``, ``rms_px_max``,
+            ``points_by_n_cameras`` (index = number of cameras), ``stationary_test``;
+            ``markers_per_field`` (the trial's full count: the 90th percentile of points
+            per field), ``fields_with_all_markers``, ``coverage`` (points / (markers per
+            field x fields)), ``blobs_unmatched_fraction`` (of the blobs left after the
+            stationary filter) and ``warnings`` (one line each, with the numbers).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> e = np.zeros(0, dtype=int)
+        >>> empty = Points3D(e, np.zeros((0, 3)), e, np.zeros(0), e.reshape(0, 2), e, e > 0)
+        >>> empty.summary(n_fields=3)["warnings"]
+        ['no 3D points in 3 fields (0 blobs)']
         """
         used = int((self.marker >= 0).sum())
+        still = int(self.stationary.sum())
         rms = self.rms_px[np.isfinite(self.rms_px)]
-        return {
+        n_fields = int(self.field.max(initial=-1)) + 1 if n_fields is None else n_fields
+        per_field = np.bincount(self.field, minlength=n_fields)
+        full = int(np.quantile(per_field[per_field > 0], 0.9, method="lower")) if used else 0
+        candidates = len(self.marker) - still
+        out: dict[str, Any] = {
             "points": len(self),
+            "fields": n_fields,
             "fields_with_points": len(np.unique(self.field)),
             "blobs": len(self.marker),
             "blobs_used": used,
-            "blobs_stationary": int(self.stationary.sum()),
-            "blobs_unmatched": len(self.marker) - used - int(self.stationary.sum()),
-            "rms_px_median": float(np.median(rms)) if len(rms) else float("nan"),
-            "rms_px_max": float(rms.max()) if len(rms) else float("nan"),
+            "blobs_stationary": still,
+            "blobs_unmatched": candidates - used,
+            "rms_px_median": float(np.median(rms)) if len(rms) else None,  # JSON null
+            "rms_px_max": float(rms.max()) if len(rms) else None,
             "points_by_n_cameras": np.bincount(
                 self.n_cameras, minlength=self.blob_row.shape[1] + 1
             ).tolist(),
+            "stationary_test": self.stationary_test,
+            "markers_per_field": full,
+            "fields_with_all_markers": int((per_field >= full).sum()) if full else 0,
+            "coverage": len(self) / (full * n_fields) if full and n_fields else 0.0,
+            "blobs_unmatched_fraction": (candidates - used) / candidates if candidates else 0.0,
         }
+        out["warnings"] = coverage_warnings(out, params)
+        return out
+
+
+def coverage_warnings(summary: dict[str, Any], params: ReconParams) -> list[str]:
+    """One line per sign of poor coverage in a trial's :meth:`Points3D.summary`, with the
+    numbers: no points; fewer points than ``params.min_coverage`` of the trial's marker
+    count in every field; more than ``params.max_unmatched_fraction`` of blobs unmatched."""
+    s = summary
+    if s["points"] == 0:
+        return [f"no 3D points in {s['fields']} fields ({s['blobs']} blobs)"]
+    out = []
+    if s["coverage"] < params.min_coverage:
+        out.append(
+            f"coverage {100 * s['coverage']:.0f} %: {s['points']} points in {s['fields']}"
+            f" fields of up to {s['markers_per_field']} markers; {s['fields_with_all_markers']}"
+            f" fields have them all"
+        )
+    if s["blobs_unmatched_fraction"] > params.max_unmatched_fraction:
+        by_n = ", ".join(f"{n}: {k}" for n, k in enumerate(s["points_by_n_cameras"]) if k)
+        out.append(
+            f"{100 * s['blobs_unmatched_fraction']:.0f} % of blobs unmatched"
+            f" ({s['blobs_unmatched']} of {s['blobs'] - s['blobs_stationary']}; points by"
+            f" number of cameras {by_n}): markers seen by too few cameras, or a calibration"
+            f" that does not fit the trial"
+        )
+    return out
 
 
 def points_from_markers(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -47,9 +48,11 @@ def track(
     names, template, segments = _marker_set(config)
     t0 = time.perf_counter()
     result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template, segments)
+    # a trial without markers still gets its files: header only, frames without points
+    frames = None if len(result.tracks.field) else _trial_fields(tdir, pts.field)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
-    write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
-    write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz, frames)
+    write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz, frames)
     write_json(tdir / "tracking.json", _tracking_summary(result))
     figure(
         root,
@@ -73,11 +76,21 @@ def track(
         f"  track {trial.name}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
         f"({shown}) ({time.perf_counter() - t0:.1f} s)"
     )
+    if frames is not None:
+        echo(f"  warning: {trial.name}: no trajectories; empty files written ({frames} fields)")
     if sweep:
         rows = sweep_noise(pts.field, pts.xyz_mm, segments, params.tracking, names, template)
         write_sweep_csv(tdir / "sweep.csv", rows)
         echo(f"  sweep: {tdir / 'sweep.csv'}")
     return result
+
+
+def _trial_fields(tdir: Path, field: np.ndarray) -> int:
+    """Fields of a trial: from ``recon.json`` (blank fields count), else up to its last
+    point, and at least one."""
+    recon = tdir / "recon.json"
+    known = json.loads(recon.read_text()).get("fields", 0) if recon.is_file() else 0
+    return max(int(known), int(field.max(initial=-1)) + 1, 1)
 
 
 def _marker_set(config: SessionConfig) -> tuple[Any, Any, tuple]:
