@@ -332,10 +332,15 @@ def _disjoint(
     chosen = np.zeros(len(a), dtype=bool)
     alive = np.ones(len(a), dtype=bool)
     n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
+    # one strict order of the pairs (score, then index), the same at both blobs: the first
+    # remaining pair then wins at both and every round takes one at least (equal scores
+    # ranked by position in the blob list could deadlock)
+    rank = np.empty(len(a), dtype=np.int64)
+    rank[np.lexsort((np.arange(len(a)), score))] = np.arange(len(a))
     while alive.any():
         k = np.flatnonzero(alive)
         best = np.full(n, -1, dtype=np.int64)
-        first = first_per_key(np.concatenate([a[k], b[k]]), np.concatenate([score[k]] * 2))
+        first = first_per_key(np.concatenate([a[k], b[k]]), np.concatenate([rank[k]] * 2))
         best[np.concatenate([a[k], b[k]])[first]] = np.concatenate([k, k])[first]
         won = k[(best[a[k]] == k) & (best[b[k]] == k)]
         chosen[won] = True

@@ -112,3 +112,12 @@ def test_two_and_three_camera_subsets_of_the_kiss_rig(cameras: tuple[int, ...]) 
         (s,) = kiss_subsets(seed, [cameras], 120)
         assert s.recall_blobs >= 0.98, s
         assert s.ghost_fraction <= 0.02, s
+
+
+def test_pairs_with_equal_scores_are_chosen_without_deadlock() -> None:
+    # three blobs pairwise in contention (a triple the multi-camera matching left over),
+    # all equally good: ranking ties by position in the blob list once looped for ever
+    from kisscal.recon.pairs import _disjoint
+
+    chosen = _disjoint(np.array([0, 0, 1, 4]), np.array([1, 2, 2, 6]), np.zeros(4))
+    assert chosen.tolist() == [True, False, False, True]
