@@ -8,20 +8,26 @@ those whose blobs survived merging in >= 2 cameras), ghost points, points by num
 cameras, and the labelled trajectories (``kisscal.tracking`` with the trial's marker set;
 "of": the markers that >= 2 cameras see in at least ``min_track_length`` fields).
 
-Run ``python -m tests.recon.subsets [seed ...]`` from the repository root.
+Run ``python -m tests.recon.subsets [seed ...]`` from the repository root. With
+``--sessions``, the same from images instead: ``kisscal synth --cameras 2`` and ``3``
+sessions (the synthetic rig's own first cameras) run through ``kisscal run``, their
+``points3d.csv`` scored against ``truth/`` and their trajectories by
+:func:`kisscal.session.evaluate`.
 """
 
 from __future__ import annotations
 
 import itertools
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.recon import Points3D, ReconParams, reconstruct_trial
+from kisscal.recon import ReconParams, reconstruct_trial
 from kisscal.synth.evaluate import score_trajectories
 from kisscal.tracking import TrackingParams, build_trajectories
 
@@ -62,13 +68,17 @@ class SubsetScore:
 
 
 def found_and_ghosts(
-    points: Points3D, xyz: NDArray[np.float64], radius_mm: float = 10.0
+    field: NDArray[np.int64],
+    xyz_mm: NDArray[np.float64],
+    xyz: NDArray[np.float64],
+    radius_mm: float = 10.0,
 ) -> tuple[NDArray[np.bool_], int]:
-    """Per (field, marker), whether a point lies within ``radius_mm``; and the ghost count."""
+    """Per (field, true marker), whether a point (``field``, ``xyz_mm``) lies within
+    ``radius_mm`` of it; and the number of points near no true marker (ghosts)."""
     found = np.zeros(xyz.shape[:2], dtype=bool)
     ghosts = 0
-    for f in np.unique(points.field):
-        P = points.xyz_mm[points.field == f]
+    for f in np.unique(field):
+        P = xyz_mm[field == f]
         d = np.linalg.norm(P[:, None] - xyz[f][None], axis=2)
         d[:, ~np.all(np.isfinite(xyz[f]), axis=1)] = np.inf
         ghosts += int((d.min(axis=1) > radius_mm).sum())
@@ -88,7 +98,7 @@ def score_subset(
     t0 = time.perf_counter()
     pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, params)
     seconds = time.perf_counter() - t0
-    found, ghosts = found_and_ghosts(pts, xyz)
+    found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, xyz)
     seen2 = visible.sum(axis=2) >= 2
     own = np.zeros_like(visible)
     real = tab.truth >= 0
@@ -171,6 +181,54 @@ def row(seed: int, s: SubsetScore) -> str:
     )
 
 
+def score_session(root: Path, trial: str = "walk01") -> tuple[float, float, int, list[int]]:
+    """Recall of markers seen by >= 2 cameras, ghost fraction, points, points by cameras
+    of a processed synthetic session's trial (its ``points3d.csv`` against ``truth/``)."""
+    from kisscal.io.files import read_table
+    from kisscal.io.points3d import read_points3d
+
+    truth = read_table(root / "truth" / "trials" / trial / "markers.csv")
+    names = list(dict.fromkeys(truth["marker"].tolist()))
+    f = truth["field"].astype(int)
+    j = np.array([names.index(m) for m in truth["marker"]])
+    xyz = np.full((f.max() + 1, len(names), 3), np.nan)
+    xyz[f, j] = np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]).astype(float)
+    seen = np.zeros((f.max() + 1, len(names)), dtype=int)
+    seen[f, j] = sum(truth[k].astype(int) for k in truth if k.startswith("visible_"))
+    pts = read_points3d(root / "out" / "trials" / trial / "points3d.csv")
+    found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, xyz)
+    seen2 = seen >= 2
+    by_n = np.bincount(pts.n_cameras, minlength=pts.blob.shape[1] + 1)[2:].tolist()
+    return (
+        (found & seen2).sum() / max(seen2.sum(), 1),
+        ghosts / max(len(pts.field), 1),
+        len(pts.field),
+        by_n,
+    )
+
+
+def sessions(seeds: tuple[int, ...], work: Path) -> list[str]:
+    """``kisscal synth --cameras 2|3`` sessions of each seed, run and scored (see module)."""
+    from kisscal import session
+
+    lines = ["seed cameras  recall2%  ghost%  points  by 2/3 cams   labelled  switches  run_s"]
+    for seed in seeds:
+        for n in (2, 3):
+            root = work / f"s{seed}c{n}"
+            session.synthesise(root, seed=seed, n_cameras=n, walking5=False, force=True)
+            t0 = time.perf_counter()
+            session.run(root)
+            seconds = time.perf_counter() - t0
+            recall, ghost, n_points, by_n = score_session(root)
+            walk = session.evaluate(root)["walk01"]
+            lines.append(
+                f"{seed:4d} {n:7d}  {100 * recall:8.2f}  {100 * ghost:6.2f}  {n_points:6d}"
+                f"  {'/'.join(map(str, by_n)):12s}  {walk['correctly_labelled']:3d}/"
+                f"{walk['n_true_markers']}  {walk['identity_switches']:8d}  {seconds:5.0f}"
+            )
+    return lines
+
+
 def main(seeds: tuple[int, ...] = (1, 2, 3)) -> list[str]:
     lines = [HEADER]
     summary: dict[int, list[SubsetScore]] = {2: [], 3: []}
@@ -191,4 +249,10 @@ def main(seeds: tuple[int, ...] = (1, 2, 3)) -> list[str]:
 
 
 if __name__ == "__main__":
-    print("\n".join(main(tuple(int(a) for a in sys.argv[1:]) or (1, 2, 3))))
+    args = [a for a in sys.argv[1:] if a != "--sessions"]
+    seeds = tuple(int(a) for a in args) or (1, 2, 3)
+    if "--sessions" in sys.argv:
+        with tempfile.TemporaryDirectory() as tmp:
+            print("\n".join(sessions(seeds, Path(tmp))))
+    else:
+        print("\n".join(main(seeds)))
