@@ -460,20 +460,7 @@ def match_trial(
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
-        paired, limit = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
-        if np.count_nonzero(paired >= 0) > np.count_nonzero(marker >= 0):
-            # a pair may be a piece of a marker already made: unite them (pairs are within
-            # the limit, and so is every union merge_groups makes)
-            marker = merge_groups(
-                paired,
-                field,
-                camera,
-                uv,
-                dlts,
-                params.group_radius_mm,
-                limit,
-                params.reweight_iterations,
-            )
+        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
     return marker
 
 

@@ -23,13 +23,17 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
     first_per_key,
+    merge_groups,
     near_cameras,
+    renumber,
     residual_limit_px,
     triangulate_markers,
 )
@@ -93,76 +97,115 @@ def continuity_mm(
     >>> continuity_mm(line[2:3], np.array([2]), line, np.arange(5), 50.0, 1.0)
     array([0.])
     """
-    best = np.full(len(xyz_mm), np.inf)
-    ok = np.all(np.isfinite(xyz_mm), axis=1)
-    if not ok.any() or len(pool_field) == 0:
-        return best
-    idx = np.flatnonzero(ok)
-    # only pool points within three fields of a point to judge: later rounds judge few
-    lo = min(int(field[idx].min()), int(pool_field.min())) - 3
-    near_field = np.zeros(max(int(field[idx].max()), int(pool_field.max())) - lo + 4, dtype=bool)
-    for shift in range(-3, 4):
-        near_field[field[idx] - lo + shift] = True
-    keep = near_field[pool_field - lo] & np.all(np.isfinite(pool_xyz_mm), axis=1)
-    if not keep.any():
-        return best
     anchor = np.ones(len(pool_field), dtype=bool) if pool_anchor is None else pool_anchor
-    pool = _Pool(pool_xyz_mm[keep], pool_field[keep], anchor[keep], tolerance_mm)
+    pool = _Pool([_Part(pool_xyz_mm, pool_field, np.arange(len(pool_field)))], tolerance_mm)
+    return _continuity(xyz_mm, field, pool, step_mm, np.r_[anchor, False])[0]
+
+
+def _continuity(
+    xyz_mm: NDArray[np.float64],
+    field: NDArray[np.int64],
+    pool: _Pool,
+    step_mm: float,
+    anchor: NDArray[np.bool_] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`continuity_mm` through a prepared pool, whose points carry ids.
+
+    ``anchor`` (by id, the last entry for "none") selects the windows that count.
+    Returns the score per point and the windows within tolerance, one row each:
+    (point row, id, id, id of the other three positions).
+    """
+    best = np.full(len(xyz_mm), np.inf)
+    found = [np.zeros((0, 4), dtype=np.int64)]
+    idx = np.flatnonzero(np.all(np.isfinite(xyz_mm), axis=1))
     for side in (-1, 1):  # a neighbour in the previous, then in the next field
-        # the few nearest: a marker's own previous position is among them
-        d, j = pool.tree.query(
-            _embed(xyz_mm[idx], field[idx] + side), k=_NEIGHBOURS, distance_upper_bound=step_mm
-        )
-        i, k = np.nonzero(np.isfinite(d))
-        rows, j = idx[i], j[i, k]
-        x, q, f, aq = xyz_mm[rows], pool.xyz[j], field[rows], pool.anchor[j]
+        rows, q, iq = pool.neighbours(xyz_mm[idx], field[idx] + side, step_mm)
+        rows = idx[rows]
+        x, f = xyz_mm[rows], field[rows]
         if side > 0:  # window f..f+3: x, q, then two extrapolations
-            d1, s, a_s = pool.next(x, q, f + 2)
-            d2, _, a_t = pool.next(q, s, f + 3)
-            windows = [(d1, d2, aq | a_s | a_t)]
+            d1, s, i_s = pool.next(x, q, f + 2)
+            d2, _, i_t = pool.next(q, s, f + 3)
+            windows = [(d1, d2, (iq, i_s, i_t))]
         else:  # q before x
-            d_back, p, a_p = pool.next(x, q, f - 2)
-            d_older, _, a_o = pool.next(q, p, f - 3)
-            d_after, r, a_r = pool.next(q, x, f + 1)
-            d_later, _, a_s = pool.next(x, r, f + 2)
+            d_back, p, i_p = pool.next(x, q, f - 2)
+            d_older, _, i_o = pool.next(q, p, f - 3)
+            d_after, r, i_r = pool.next(q, x, f + 1)
+            d_later, _, i_s = pool.next(x, r, f + 2)
             windows = [
-                (d_back, d_older, aq | a_p | a_o),
-                (d_back, d_after, aq | a_p | a_r),
-                (d_after, d_later, aq | a_r | a_s),
+                (d_back, d_older, (iq, i_p, i_o)),
+                (d_back, d_after, (iq, i_p, i_r)),
+                (d_after, d_later, (iq, i_r, i_s)),
             ]
-        for d1, d2, anchored in windows:
-            np.minimum.at(best, rows, np.where(anchored, np.maximum(d1, d2), np.inf))
-    return best
+        for d1, d2, ids in windows:
+            score = np.maximum(d1, d2)
+            if anchor is not None:
+                score[~(anchor[ids[0]] | anchor[ids[1]] | anchor[ids[2]])] = np.inf
+            np.minimum.at(best, rows, score)
+            ok = score <= pool.tol
+            found.append(np.column_stack([rows[ok], *(i[ok] for i in ids)]))
+    return best, np.concatenate(found)
+
+
+class _Part:
+    """Points of a pool, with their ids, in one k-d tree (fields kept apart by
+    :func:`_embed`)."""
+
+    def __init__(
+        self, xyz: NDArray[np.float64], field: NDArray[np.int64], ids: NDArray[np.int64]
+    ) -> None:
+        ok = np.all(np.isfinite(xyz), axis=1)
+        self.xyz = np.vstack([xyz[ok], np.full((1, 3), np.nan)])  # row -1: "none found"
+        self.ids = np.r_[ids[ok], -1]
+        self.tree = cKDTree(_embed(xyz[ok], field[ok]))
 
 
 class _Pool:
-    """Pool points of a trial in one k-d tree (fields kept apart by :func:`_embed`)."""
+    """Points that may continue a trajectory, in parts built once (the known markers) or
+    per round (the pairs)."""
 
-    def __init__(
-        self,
-        xyz: NDArray[np.float64],
-        field: NDArray[np.int64],
-        anchor: NDArray[np.bool_],
-        tol: float,
-    ) -> None:
-        self.xyz = np.vstack([xyz, np.full((1, 3), np.nan)])  # row -1: "none found"
-        self.anchor = np.r_[anchor, False]
-        self.tree = cKDTree(_embed(xyz, field))
+    def __init__(self, parts: list[_Part], tol: float) -> None:
+        self.parts = [p for p in parts if p.tree.n]
         self.tol = tol
+
+    def neighbours(
+        self, xyz: NDArray[np.float64], at: NDArray[np.int64], step_mm: float
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
+        """Per point, its few nearest pool points of field ``at`` within ``step_mm`` (a
+        marker's own position there is among them): (point row, pool point, its id)."""
+        dist, near, ids = [], [], []
+        for part in self.parts:
+            k = min(_NEIGHBOURS, part.tree.n)
+            d, j = part.tree.query(_embed(xyz, at), k=k, distance_upper_bound=step_mm)
+            dist.append(d.reshape(len(xyz), k))
+            near.append(part.xyz[j.reshape(len(xyz), k)])
+            ids.append(part.ids[j.reshape(len(xyz), k)])
+        if not dist:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+        d, q, i = (np.concatenate(x, axis=1) for x in (dist, near, ids))
+        if d.shape[1] > _NEIGHBOURS:  # the nearest of every part together
+            keep = np.argsort(d, axis=1)[:, :_NEIGHBOURS]
+            d, i = np.take_along_axis(d, keep, 1), np.take_along_axis(i, keep, 1)
+            q = np.take_along_axis(q, keep[..., None], 1)
+        r, c = np.nonzero(np.isfinite(d))
+        return r, q[r, c], i[r, c]
 
     def next(
         self, a: NDArray[np.float64], b: NDArray[np.float64], at: NDArray[np.int64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
         """The pool point of field ``at`` nearest to ``2 b - a`` (the position after a, b):
         its distance (inf beyond the tolerance or where a, b are NaN), itself (NaN) and
-        whether it is an anchor."""
+        its id (-1)."""
         target = 2.0 * b - a
         d = np.full(len(a), np.inf)
-        j = np.full(len(a), -1)
+        out = np.full((len(a), 3), np.nan)
+        ids = np.full(len(a), -1, dtype=np.int64)
         ok = np.flatnonzero(np.all(np.isfinite(target), axis=1))
-        d[ok], j[ok] = self.tree.query(_embed(target[ok], at[ok]), distance_upper_bound=self.tol)
-        j[~np.isfinite(d)] = -1
-        return d, self.xyz[j], self.anchor[j]
+        for part in self.parts:
+            dp, j = part.tree.query(_embed(target[ok], at[ok]), distance_upper_bound=self.tol)
+            better = dp < d[ok]
+            rows = ok[better]
+            d[rows], out[rows], ids[rows] = dp[better], part.xyz[j[better]], part.ids[j[better]]
+        return d, out, ids
 
 
 def match_two_camera(
@@ -202,7 +245,8 @@ def match_two_camera(
     Returns
     -------
     marker : ndarray of int, shape (n,)
-        ``marker`` with the new markers numbered after the existing ones.
+        ``marker`` with the new markers, pieces of one marker united (3D grouping),
+        renumbered in field order.
     limit_px : float
         The residual limit used.
     """
@@ -239,7 +283,34 @@ def match_two_camera(
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids
     out[b[won][order]] = ids
-    return out, limit_px
+    near = np.concatenate([m_xyz, xyz[won]]), np.concatenate([m_field, field[a[won]]])
+    if _crowded(*near, len(m_xyz), params.group_radius_mm):
+        # a pair may be a piece of a marker already made: unite them (pairs are within
+        # the limit, and so is every union merge_groups makes)
+        out = merge_groups(
+            out,
+            field,
+            camera,
+            uv,
+            dlts,
+            params.group_radius_mm,
+            limit_px,
+            params.reweight_iterations,
+        )
+    return renumber(out, field), limit_px
+
+
+def _crowded(
+    xyz: NDArray[np.float64], field: NDArray[np.int64], first_new: int, radius_mm: float
+) -> bool:
+    """Whether a point from index ``first_new`` on lies within ``radius_mm`` of another
+    point of its field."""
+    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
+    new = ok[ok >= first_new]
+    if len(new) == 0:
+        return False
+    tree = cKDTree(_embed(xyz[ok], field[ok]))
+    return bool((tree.query(_embed(xyz[new], field[new]), k=2)[0][:, 1] < radius_mm).any())
 
 
 def _choose(
@@ -276,44 +347,90 @@ def _choose(
     the first rule applies, if ``alone``.
     """
     step, tol = params.two_camera_step_mm, params.two_camera_continuity_mm
+    n_known, n = len(known_xyz), int(max(a.max(initial=-1), b.max(initial=-1))) + 1
+    ids = n_known + np.arange(len(a))  # known markers are ids 0 .. n_known - 1
+    known = _Part(known_xyz, known_field, np.arange(n_known))
+    anchor = np.r_[np.ones(n_known, dtype=bool), np.zeros(len(a) + 1, dtype=bool)]
     alive = np.full(len(a), judge_motion or alone)
+    windows = np.zeros((0, 4), dtype=np.int64)
     if judge_motion:
-        pool_xyz = np.concatenate([known_xyz, xyz])
-        score = continuity_mm(xyz, field, pool_xyz, np.concatenate([known_field, field]), step, tol)
+        pool = _Pool([known, _Part(xyz, field, ids)], tol)
+        score, windows = _continuity(xyz, field, pool, step)
         alive = score <= tol
-    chosen = np.zeros(len(a), dtype=bool)
-    n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
-    # support changes only near newly taken pairs: later rounds judge the pairs there
-    fresh = np.ones(int(field.max(initial=0)) + 4, dtype=bool)
-    while alive.any():
-        won = _unshared(a, b, alive, n) & alone
-        if not won.any():
-            k = np.flatnonzero(alive & fresh[field]) if judge_motion else []
-            if len(k) == 0:
-                break
-            pool = chosen | alive
-            score = continuity_mm(
-                xyz[k],
-                field[k],
-                np.concatenate([known_xyz, xyz[pool]]),
-                np.concatenate([known_field, field[pool]]),
-                step,
-                tol,
-                np.r_[np.ones(len(known_xyz), dtype=bool), chosen[pool]],
-            )
-            ok = score <= tol
-            if not ok.any():
-                break
-            won = np.zeros(len(a), dtype=bool)
-            won[k[ok][_disjoint(a[k[ok]], b[k[ok]], score[ok])]] = True
-            fresh[:] = False
-        for shift in range(-3, 4):
-            fresh[np.clip(field[won] + shift, 0, len(fresh) - 1)] = True
-        chosen |= won
-        used = np.zeros(n, dtype=bool)
+    chosen = _unshared(a, b, alive, n)
+    if not alone:  # unshared pairs joined to known markers through unshared pairs only
+        chosen &= _anchored(windows, chosen, chosen & False, n_known)
+    used = np.zeros(n, dtype=bool)
+    used[a[chosen]] = used[b[chosen]] = True
+    alive &= ~used[a] & ~used[b]
+    fresh = np.ones(len(a), dtype=bool)  # the first round judges every pair
+    while judge_motion and alive.any():
+        k = np.flatnonzero(alive & fresh)
+        if len(k) == 0:
+            break
+        anchor[ids[chosen]] = True
+        pool = _Pool(
+            [known, _Part(xyz[chosen | alive], field[chosen | alive], ids[chosen | alive])], tol
+        )
+        score = _continuity(xyz[k], field[k], pool, step, anchor)[0]
+        ok = score <= tol
+        if not ok.any():
+            break
+        won = np.zeros(len(a), dtype=bool)
+        won[k[ok][_disjoint(a[k[ok]], b[k[ok]], score[ok])]] = True
         used[a[won]] = used[b[won]] = True
         alive &= ~used[a] & ~used[b]
+        chosen |= won
+        # pairs freed of a rival, or joined now to a taken one through unshared pairs
+        fresh = _within_reach(xyz, field, alive, won, step)
+        new = _unshared(a, b, alive, n)
+        if not alone:
+            new &= _anchored(windows, chosen | new, chosen, n_known)
+        chosen |= new
+        used[a[new]] = used[b[new]] = True
+        alive &= ~used[a] & ~used[b]
+        fresh |= _within_reach(xyz, field, alive, new, step)
     return chosen
+
+
+def _anchored(
+    windows: NDArray[np.int64],
+    members: NDArray[np.bool_],
+    taken: NDArray[np.bool_],
+    n_known: int,
+) -> NDArray[np.bool_]:
+    """Pairs among ``members`` joined to a known marker or a ``taken`` pair through
+    windows (rows: point, three ids) made of known markers and ``members`` alone."""
+    n = n_known + len(members)
+    node = np.r_[np.ones(n_known, dtype=bool), members, False]  # id -1: none
+    w = windows[node[n_known + windows[:, 0]] & np.all(node[windows[:, 1:]], axis=1)]
+    src = np.repeat(n_known + w[:, 0], 3)
+    graph = coo_matrix((np.ones(len(src)), (src, w[:, 1:].ravel())), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    anchored = np.zeros(label.max(initial=0) + 1, dtype=bool)
+    anchored[label[:n_known]] = True
+    anchored[label[n_known:][taken]] = True
+    return members & anchored[label[n_known:]]
+
+
+def _within_reach(
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    among: NDArray[np.bool_],
+    new: NDArray[np.bool_],
+    step_mm: float,
+) -> NDArray[np.bool_]:
+    """Points of ``among`` that a ``new`` point could join in a four-field window: within
+    three fields of it and ``step_mm`` per field apart."""
+    out = np.zeros(len(xyz), dtype=bool)
+    rows = np.flatnonzero(among & np.all(np.isfinite(xyz), axis=1))
+    if len(rows) == 0 or not new.any():
+        return out
+    tree = cKDTree(_embed(xyz[rows], field[rows]))
+    for shift in (-3, -2, -1, 1, 2, 3):
+        hits = tree.query_ball_point(_embed(xyz[new], field[new] + shift), abs(shift) * step_mm)
+        out[rows[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])]] = True
+    return out
 
 
 def _unshared(
