@@ -21,7 +21,8 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
-from kisscal.io.frames import camera_frames
+from kisscal.io.frames import camera_frames, source_files
+from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
 from kisscal.session.progress import Echo, steps
@@ -38,15 +39,22 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     out = out_dir(root) / "dlt"
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     rod_frames = {
-        cam.id: camera_frames(config.root, config.rods.images, cam.id, "rod")
+        cam.id: camera_frames(
+            config.root, config.rods.images, cam.id, "rod", fields=config.rods.fields
+        )
         for cam in inputs.cameras
     }
     lins = inputs.linearisations
+    detection = {
+        cam.id: camera_detection(root, config, cam, "markers", params.detection_given, inputs.echo)
+        for cam in inputs.cameras
+    }
     stage_key = cache_key(
         "calibrate",
-        {c: file_keys(f.paths, config.root) for c, f in rod_frames.items()},
+        {c: file_keys(source_files(f), config.root) for c, f in rod_frames.items()},
+        config.rods.fields,
         linearisation_key({c: lins[c] for c in rod_frames}),
-        params.detection,
+        detection,
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
     )
@@ -56,11 +64,16 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     blobs_px = {}
     for cam in steps(inputs.cameras, "calibrate: detect rods"):
         frames = rod_frames[cam.id]
-        key = cache_key("detect", file_keys(frames.paths, config.root), params.detection)
+        key = cache_key(
+            "detect",
+            file_keys(source_files(frames), config.root),
+            config.rods.fields,
+            detection[cam.id],
+        )
         cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
         sized = SizedFrames(frames, cam.id, cam.size_px)
         frame_blobs = detect_frames(
-            sized, params.detection, cache, key, inputs.echo, f"rods {cam.id}", inputs.workers
+            sized, detection[cam.id], cache, key, inputs.echo, f"rods {cam.id}", inputs.workers
         )
         blobs_px[cam.id] = [
             apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
