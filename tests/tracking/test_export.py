@@ -140,7 +140,7 @@ def test_a_trial_without_trajectories_gets_files_without_points(tmp_path):
     trc = write_trc(tmp_path / "t.trc", empty.tracks, empty.labels, 50.0, n_fields=5)
     rows = trc.read_text().splitlines()
     assert rows[2].split("\t")[2:4] == ["5", "0"]  # NumFrames, NumMarkers
-    assert rows[-5:] == [f"{f + 1}\t{f / 50:.5f}" for f in range(5)]
+    assert rows[-5:] == [f"{f + 1}\t{f / 50:.5f}\t" for f in range(5)]  # tab-ended, as OpenSim
     csv_path = write_trajectories_csv(tmp_path / "t.csv", empty.tracks, empty.labels)
     assert csv_path.read_text() == ",".join(HEADER) + "\n"
     with pytest.raises(KisscalError, match="no trajectories"):
