@@ -8,11 +8,11 @@ those whose blobs survived merging in >= 2 cameras), ghost points, points by num
 cameras, and the labelled trajectories (``kisscal.tracking`` with the trial's marker set;
 "of": the markers that >= 2 cameras see in at least ``min_track_length`` fields).
 
-Run ``python -m tests.recon.subsets [seed ...]`` from the repository root. With
-``--sessions``, the same from images instead: ``kisscal synth --cameras 2`` and ``3``
-sessions (the synthetic rig's own first cameras) run through ``kisscal run``, their
-``points3d.csv`` scored against ``truth/`` and their trajectories by
-:func:`kisscal.session.evaluate`.
+Run ``python -m tests.recon.subsets [seed ...] [--preset=kiss|modern|lowcost]`` from the
+repository root. With ``--sessions``, the same from images instead: ``kisscal synth
+--cameras 2`` and ``3`` sessions (the synthetic rig's own first cameras) run through
+``kisscal run``, their ``points3d.csv`` scored against ``truth/`` and their trajectories
+by :func:`kisscal.session.evaluate`.
 """
 
 from __future__ import annotations
@@ -94,9 +94,10 @@ def score_subset(
     visible: NDArray[np.bool_],
     marker_set: tuple[tuple[str, ...], NDArray[np.float64], tuple],
     params: ReconParams,
+    rate_hz: float = 50.0,
 ) -> SubsetScore:
     t0 = time.perf_counter()
-    pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, params)
+    pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, params, rate_hz)
     seconds = time.perf_counter() - t0
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, xyz)
     seen2 = visible.sum(axis=2) >= 2
@@ -135,34 +136,53 @@ def score_subset(
     )
 
 
-def kiss_subsets(
+def rig_subsets(
+    preset: str,
     seed: int,
     subsets: list[tuple[int, ...]] | None = None,
-    n_fields: int = 200,
+    n_fields: int | None = None,
     params: ReconParams | None = None,
 ) -> list[SubsetScore]:
-    """Camera subsets (default: every 2- and 3-camera one) of the six-camera KISS-like
-    rig of ``seed``."""
-    from kisscal.synth.cameras import kiss_rig
-    from kisscal.synth.motion import standing_template, walking_trial
+    """Camera subsets (default: every 2- and 3-camera one) of the rig that
+    ``kisscal synth --preset <preset> --seed <seed>`` draws (its default cameras)."""
+    from kisscal.synth.plan import plan_session
+    from kisscal.synth.presets import synth_options
     from kisscal.synth.scene import visibility
 
     params = params or ReconParams()
-    rig = kiss_rig(seed)
-    motion = walking_trial(seed, n_fields, n_markers=15)
+    plan = plan_session(synth_options(preset, seed, fields=n_fields))
+    rig, motion = plan.rig, plan.trials["walk01"]
     visible = np.stack([visibility(cam, motion) for cam in rig], axis=-1)
     dlts = np.array([cam.dlt for cam in rig])
-    marker_set = (motion.names, standing_template(motion.names), motion.segments)
+    marker_set = (plan.marker_names, plan.template_mm, plan.segments)
     if subsets is None:
         subsets = [c for n in (2, 3) for c in itertools.combinations(range(len(rig)), n)]
     out = []
     for cams in subsets:
         sub = list(cams)
         tab = observe(dlts[sub], rig[0].size_px, motion.xyz_mm, visible[..., sub], seed)
-        out.append(
-            score_subset(cams, tab, dlts[sub], motion.xyz_mm, visible[..., sub], marker_set, params)
+        score = score_subset(
+            cams,
+            tab,
+            dlts[sub],
+            motion.xyz_mm,
+            visible[..., sub],
+            marker_set,
+            params,
+            motion.rate_hz,
         )
+        out.append(score)
     return out
+
+
+def kiss_subsets(
+    seed: int,
+    subsets: list[tuple[int, ...]] | None = None,
+    n_fields: int = 200,
+    params: ReconParams | None = None,
+) -> list[SubsetScore]:
+    """Camera subsets of the six-camera KISS-like rig of ``seed`` (:func:`rig_subsets`)."""
+    return rig_subsets("kiss", seed, subsets, n_fields, params)
 
 
 HEADER = (
@@ -207,15 +227,21 @@ def score_session(root: Path, trial: str = "walk01") -> tuple[float, float, int,
     )
 
 
-def sessions(seeds: tuple[int, ...], work: Path) -> list[str]:
-    """``kisscal synth --cameras 2|3`` sessions of each seed, run and scored (see module)."""
+def sessions(seeds: tuple[int, ...], work: Path, preset: str = "kiss") -> list[str]:
+    """``kisscal synth --preset <preset> --cameras 2|3`` sessions of each seed, run and
+    scored (see module)."""
     from kisscal import session
 
-    lines = ["seed cameras  recall2%  ghost%  points  by 2/3 cams   labelled  switches  run_s"]
+    lines = [
+        f"preset {preset}",
+        "seed cameras  recall2%  ghost%  points  by 2/3 cams   labelled  switches  run_s",
+    ]
     for seed in seeds:
         for n in (2, 3):
             root = work / f"s{seed}c{n}"
-            session.synthesise(root, seed=seed, n_cameras=n, walking5=False, force=True)
+            session.synthesise(
+                root, preset=preset, seed=seed, n_cameras=n, walking5=False, force=True
+            )
             t0 = time.perf_counter()
             session.run(root)
             seconds = time.perf_counter() - t0
@@ -229,11 +255,11 @@ def sessions(seeds: tuple[int, ...], work: Path) -> list[str]:
     return lines
 
 
-def main(seeds: tuple[int, ...] = (1, 2, 3)) -> list[str]:
-    lines = [HEADER]
+def main(seeds: tuple[int, ...] = (1, 2, 3), preset: str = "kiss") -> list[str]:
+    lines = [f"preset {preset}", HEADER]
     summary: dict[int, list[SubsetScore]] = {2: [], 3: []}
     for seed in seeds:
-        for s in kiss_subsets(seed):
+        for s in rig_subsets(preset, seed):
             lines.append(row(seed, s))
             summary[len(s.cameras)].append(s)
     for n, scores in summary.items():
@@ -249,10 +275,11 @@ def main(seeds: tuple[int, ...] = (1, 2, 3)) -> list[str]:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--sessions"]
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
     seeds = tuple(int(a) for a in args) or (1, 2, 3)
+    preset = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--preset=")), "kiss")
     if "--sessions" in sys.argv:
         with tempfile.TemporaryDirectory() as tmp:
-            print("\n".join(sessions(seeds, Path(tmp))))
+            print("\n".join(sessions(seeds, Path(tmp), preset)))
     else:
-        print("\n".join(main(seeds)))
+        print("\n".join(main(seeds, preset)))
