@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import norm
 
 #: Pixels of the sparse sample taken for the global statistics (every n-th line and column).
 SAMPLE_STEP = 4
@@ -62,21 +63,26 @@ def noise_sigma(image: NDArray) -> float:
     return float(1.4826 * np.median(diff) / np.sqrt(2.0))
 
 
-def _small_size(shape: tuple[int, ...], tile_px: int) -> tuple[int, int]:
-    """Size of the block-averaged image: blocks of a quarter tile."""
-    h, w = shape
-    factor = max(int(tile_px) // 4, 1)
-    return max(w // factor, 1), max(h // factor, 1)
+def _sample_grid(shape: tuple[int, ...], tile_px: int) -> tuple[slice, slice, int]:
+    """Rows and columns of a sparse pixel sample, one every quarter tile, and the step."""
+    step = max(int(tile_px) // 4, 1)
+    return slice(step // 2, None, step), slice(step // 2, shape[1] - 1, step), step
 
 
-def _median5(small: NDArray[np.float32]) -> NDArray[np.float32]:
-    """A 5 x 5 median of a small float map (through 8 bits: OpenCV's fast path)."""
+def _rank5(small: NDArray[np.float32], fraction: float) -> NDArray[np.float32]:
+    """The value ``fraction`` of the way up each 5 x 5 neighbourhood of a small map."""
     if min(small.shape) < 5:
-        return small
-    top = float(small.max())
-    scale = 255.0 / top if top > 0 else 1.0
-    as8 = np.clip(small * scale + 0.5, 0, 255).astype(np.uint8)
-    return cv2.medianBlur(as8, 5).astype(np.float32) / np.float32(scale)
+        return np.full_like(small, np.quantile(small, fraction))
+    padded = np.pad(small, 2, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, (5, 5)).reshape(*small.shape, 25)
+    k = round(fraction * 24)
+    return np.partition(windows, k, axis=-1)[..., k]
+
+
+def _abs_diff_to_sigma(fraction: float) -> float:
+    """Noise deviation per grey level of the ``fraction`` quantile of ``|a - b|``, ``a`` and
+    ``b`` two pixels with independent Gaussian noise."""
+    return 1.0 / (2**0.5 * float(norm.ppf((1.0 + fraction) / 2.0)))
 
 
 @dataclass(frozen=True)
@@ -86,17 +92,18 @@ class LocalBackground:
     Attributes
     ----------
     level : ndarray
-        Background grey level: the median over tiles (markers, much smaller than a tile,
-        do not move it; the edges of large bright regions are kept).
+        Background grey level: the median (or the given rank) of a sparse sample (two
+        pixels every quarter tile) over 5 x 5 samples, about a tile. Spots covering less
+        than half a tile do not move it; the edges of large bright regions are kept.
     slack : ndarray
         How far ``level`` may lag the true background because it is interpolated from
         tile-sized steps: half the range of the tile medians around each place. Zero on a
         flat or smoothly glowing background, large beside the edge of a bright region,
         where an unlagged background would otherwise leave a bright band of false spots.
     noise : ndarray
-        Local noise deviation: the grey-level spread within quarter-tile blocks, median
-        smoothed over a tile. Bright surfaces are noisier (shot noise, texture) than
-        dark ones.
+        Local noise deviation, from the differences of horizontally neighbouring pixels
+        at the sample points (the same rank over a tile, scaled to a deviation).
+        Bright surfaces are noisier (shot noise, texture) than dark ones.
     """
 
     level: NDArray[np.float32]
@@ -104,7 +111,7 @@ class LocalBackground:
     noise: NDArray[np.float32]
 
 
-def local_background(image: NDArray, tile_px: int) -> LocalBackground:
+def local_background(image: NDArray, tile_px: int, rank: float = 0.5) -> LocalBackground:
     """The :class:`LocalBackground` of a grey image for tiles of about ``tile_px``.
 
     Parameters
@@ -113,6 +120,11 @@ def local_background(image: NDArray, tile_px: int) -> LocalBackground:
         Grey image.
     tile_px : int
         Tile size in pixels; should be at least four times the largest marker's diameter.
+    rank : float
+        Which value of each neighbourhood of samples is the background: the median (0.5)
+        follows gradients of glow exactly and ignores spots covering up to half a tile;
+        a lower rank (0.25) also ignores dense grids of large dots, but reads low on
+        steep gradients (used to judge how uneven a background is, not to subtract it).
 
     Examples
     --------
@@ -125,14 +137,16 @@ def local_background(image: NDArray, tile_px: int) -> LocalBackground:
     (True, True)
     """
     h, w = image.shape
-    size = _small_size(image.shape, tile_px)
-    grey = image.astype(np.float32)
-    mean = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)
-    square = cv2.resize(grey * grey, size, interpolation=cv2.INTER_AREA)
-    level = _median5(mean)
+    rows, cols, _ = _sample_grid(image.shape, tile_px)
+    sample = image[rows, cols].astype(np.float32)
+    below = np.minimum(rows.start + 1, h - 1)
+    lower = image[below :: rows.step, cols].astype(np.float32)[: sample.shape[0]]
+    level = _rank5(0.5 * (sample + lower), rank)  # two pixels per sample: half the noise
     box = np.ones((3, 3), np.uint8)
     slack = 0.5 * (cv2.dilate(level, box) - cv2.erode(level, box))
-    noise = _median5(np.sqrt(np.maximum(square - mean * mean, 0.0)))
+    right = image[rows, cols.start + 1 : cols.stop + 1 : cols.step].astype(np.float32)
+    diff = np.abs(right[:, : sample.shape[1]] - sample)
+    noise = _rank5(diff, rank) * np.float32(_abs_diff_to_sigma(rank))
 
     def full(m: NDArray[np.float32]) -> NDArray[np.float32]:
         return cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -140,6 +154,6 @@ def local_background(image: NDArray, tile_px: int) -> LocalBackground:
     return LocalBackground(full(level), full(slack), full(noise))
 
 
-def background_map(image: NDArray, tile_px: int) -> NDArray[np.float32]:
+def background_map(image: NDArray, tile_px: int, rank: float = 0.5) -> NDArray[np.float32]:
     """The local background level alone (:attr:`LocalBackground.level`)."""
-    return local_background(image, tile_px).level
+    return local_background(image, tile_px, rank).level

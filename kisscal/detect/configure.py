@@ -11,7 +11,7 @@ camera-dependent setting the user did not give:
   at least two lines tall and keep their shape, and at least five noise deviations above
   the background. When
   the background is uneven by more than half that margin, it is taken locally (tiles of
-  eight of the largest marker diameters) and the threshold counts from it.
+  four of the largest marker diameters) and the threshold counts from it.
 - **pixel aspect**: isolated markers are round, so their width over their height is the
   pixel aspect. Thresholding widens every spot by about the same number of pixels in x and
   y, which pulls small spots towards round; the slope of the spots' x spread against their
@@ -326,13 +326,13 @@ class _Derivation:
             else 8.0
         )
         local = lv.unevenness > 0.5 * excess
-        tile = int(min(max(32, 8 * math.ceil(size)), min(self.frames[0].shape) // 2))
+        tile = int(min(max(32, 4 * math.ceil(size)), min(self.frames[0].shape) // 2))
         if local and "threshold" in self.given and "background_tile_px" not in self.given:
             local = False  # a grey level the user gave is a global threshold
         self.choose(
             "background_tile_px",
             tile if local else 0,
-            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of 8 marker "
+            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of 4 marker "
             "diameters"
             if local
             else f"background even (spread {lv.unevenness:.0f} grey levels): one level per image",

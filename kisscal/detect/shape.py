@@ -16,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 PIXEL_AREA_VAR = 1.0 / 12.0  # variance of a uniform pixel: part of every measured spread
+#: Least ``|1 - pixel_aspect|`` at which the growth is estimated per image.
+MIN_ASPECT_CONTRAST = 0.2
 
 
 def spreads(
@@ -51,7 +53,9 @@ def estimate_growth(
     min_groups : int
         Least number of usable groups for a per-image estimate.
     """
-    if np.count_nonzero(usable) < min_groups or pixel_aspect == 1.0:
+    # (sigma_x - a sigma_y) / (1 - a) amplifies the spreads' noise by 1 / |1 - a|: near
+    # square pixels the growth cannot be told from the marker, and the default stands
+    if np.count_nonzero(usable) < min_groups or abs(1.0 - pixel_aspect) < MIN_ASPECT_CONTRAST:
         return fallback
     per_group = (sigma_x[usable] - pixel_aspect * sigma_y[usable]) / (1.0 - pixel_aspect)
     return float(np.median(per_group))

@@ -33,6 +33,8 @@ from kisscal.session.progress import Echo, quiet
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
 FRAMES_PER_SET = 8
 MAX_FRAMES = 24
+#: A lattice aspect this close to 1 is square pixels (a grid 14 degrees off face-on).
+LATTICE_SQUARE_TOLERANCE = 0.03
 #: Bumped whenever the derivation changes, so cached settings are derived again.
 DERIVATION_VERSION = 1
 
@@ -131,7 +133,9 @@ def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig
         aspect = lattice_pixel_aspect(dots_from_frames(frames, setup.params), cell)
     except KisscalError:
         return setup  # no lattice in these frames: the markers will tell
-    return _with_lattice_aspect(setup, round(aspect, 4))
+    # a grid tilted by t reads the aspect off by up to 1 - cos t: within 3 % it is square
+    aspect = 1.0 if abs(aspect - 1.0) <= LATTICE_SQUARE_TOLERANCE else round(aspect, 4)
+    return _with_lattice_aspect(setup, aspect)
 
 
 def _with_lattice_aspect(setup: DetectionSetup, aspect: float) -> DetectionSetup:
