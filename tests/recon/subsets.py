@@ -243,7 +243,11 @@ def sessions(seeds: tuple[int, ...], work: Path, preset: str = "kiss") -> list[s
                 root, preset=preset, seed=seed, n_cameras=n, walking5=False, force=True
             )
             t0 = time.perf_counter()
-            session.run(root)
+            try:
+                session.run(root)
+            except Exception as exc:  # report the session and go on with the others
+                lines.append(f"{seed:4d} {n:7d}  run failed: {type(exc).__name__}: {exc}")
+                continue
             seconds = time.perf_counter() - t0
             recall, ghost, n_points, by_n = score_session(root)
             walk = session.evaluate(root)["walk01"]
