@@ -18,6 +18,7 @@ from kisscal.dlt import (
     recognise_rods,
     triangulate_dlt,
 )
+from kisscal.errors import KisscalError
 
 ROD_Z_MM = (
     [1900, 1660, 1440, 680, 530, 100],
@@ -48,6 +49,14 @@ def _pinv_dlt(xyz: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(A, uv.ravel(), rcond=None)[0]
 
 
+def _refused(blobs: np.ndarray, rods: tuple) -> bool:
+    try:
+        recognise_rods(blobs, rods)
+    except KisscalError:
+        return True
+    return False
+
+
 def main() -> list[str]:
     rng = np.random.default_rng(0)
     rods = make_rods(
@@ -69,6 +78,13 @@ def main() -> list[str]:
         t = best_of(name, lambda p=p: calibrate_camera(xyz, uv, p), 1, "cam", 10)
         lines.append(report(t, ref))
     t = best_of("recognise rods (32 blobs)", lambda: recognise_rods(blobs, rods), 1, "image", 5)
+    lines.append(report(t, ref))
+    # a busy image the search still takes on, and a hopeless one it refuses up front
+    busy = np.concatenate([blobs, rng.uniform([0, 0], [751, 290], (60, 2))])
+    t = best_of("recognise rods (92 blobs)", lambda: _refused(busy, rods), 1, "image", 3)
+    lines.append(report(t, ref))
+    clutter = np.concatenate([blobs, rng.uniform([0, 0], [751, 290], (1300, 2))])
+    t = best_of("refuse a rod image (1332 blobs)", lambda: _refused(clutter, rods), 1, "image", 3)
     lines.append(report(t, ref))
     Ls = np.stack([_camera(x, y) for x in (-900, 1200, 3300) for y in (-3500, 4900)])
     pts = rng.uniform([0, 0, 0], [2400, 1400, 2000], (10000, 3))

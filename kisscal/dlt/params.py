@@ -65,6 +65,17 @@ class DltParams(Params):
         Largest angle (degrees) between such a line and the nearest recognised rod's
         image line for it to count as a rod (image lines of plumb rods converge only
         slowly towards the vertical vanishing point).
+    rod_max_chance_blobs : float
+        A rod image whose blobs are so dense that a line through two of them passes within
+        ``rod_line_tol_px`` of more than this many others by chance (evenly spread over
+        their extent: :func:`kisscal.dlt.rods.chance_alignments`) is refused up front:
+        chance lines of ``rod_min_markers`` blobs would outnumber the rods, and the search
+        grows with the cube of the blob count. 1.5 is about 140 blobs in a 752 x 291
+        field, 400 in a 1280 x 1024 image.
+    rod_max_lines : int
+        A rod image with more distinct candidate lines than this (``rod_min_markers`` or
+        more blobs on a line) is refused as too busy; each line costs a projective search
+        per rod (about 100 lines in a clean image).
     rod_unlisted_length_ratio : float
         Such a line counts as a rod when its length (px, first to last blob) lies within
         this factor of the recognised rods' image lengths (shortest / ratio to longest
@@ -89,6 +100,8 @@ class DltParams(Params):
     rod_refuse_unlisted: bool = param(True)
     rod_unlisted_angle_deg: float = param(15.0, unit="deg", gt=0, le=90)
     rod_unlisted_length_ratio: float = param(2.5, ge=1)
+    rod_max_chance_blobs: float = param(1.5, gt=0)
+    rod_max_lines: int = param(1000, ge=1)
 
     @property
     def method(self) -> str:

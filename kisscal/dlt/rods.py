@@ -183,20 +183,67 @@ def validate_rods(rods: Sequence[Rod], params: DltParams = DEFAULT_PARAMS) -> No
         )
 
 
-def _candidate_lines(uv: NDArray[np.float64], params: DltParams) -> list[NDArray[np.int64]]:
-    """Sets of blobs lying on a common line, each sorted top-down along the line."""
+#: Blob pairs whose line distances are computed at once (memory: this x blobs floats).
+_PAIRS_PER_CHUNK = 4096
+
+
+def chance_alignments(uv: NDArray[np.float64], tol_px: float) -> float:
+    """Stray blobs expected within ``tol_px`` of a line across the blobs' extent.
+
+    ``(n - 2) * 2 tol * diagonal / area`` of the blobs' bounding box: with blobs spread
+    evenly, the number a line through two of them collects by chance. Near 1 and above,
+    chance lines of ``rod_min_markers`` blobs outnumber the rods.
+    """
+    if len(uv) < 3:
+        return 0.0
+    w, h = np.ptp(uv, axis=0) + 2 * tol_px
+    return (len(uv) - 2) * 2 * tol_px * float(np.hypot(w, h)) / float(w * h)
+
+
+def _check_busy(uv: NDArray[np.float64], params: DltParams, camera: str) -> None:
+    """Refuse a rod image too busy to find rods by their alignment, before any work."""
+    chance = chance_alignments(uv, params.rod_line_tol_px)
+    if chance > params.rod_max_chance_blobs:
+        raise KisscalError(
+            f"camera {camera}: {len(uv)} blobs in the rod image, too many to find the rods:"
+            f" a line through two blobs passes within {params.rod_line_tol_px:g} px of"
+            f" {chance:.1f} others by chance (at most {params.rod_max_chance_blobs:g});"
+            " raise the detection threshold or mask the clutter"
+        )
+
+
+def _candidate_lines(
+    uv: NDArray[np.float64], params: DltParams, camera: str = ""
+) -> list[NDArray[np.int64]]:
+    """Sets of blobs lying on a common line, each sorted top-down along the line.
+
+    Every pair of blobs proposes a line, in chunks (memory ~ chunk x blobs); more than
+    ``params.rod_max_lines`` distinct lines refuse the image as too busy.
+    """
     n = len(uv)
-    i, j = np.triu_indices(n, k=1)
-    d = uv[j] - uv[i]
-    length = np.linalg.norm(d, axis=1)
-    ok = length > 2 * params.rod_line_tol_px
-    i, j, d, length = i[ok], j[ok], d[ok], length[ok]
-    normal = np.stack([-d[:, 1], d[:, 0]], axis=1) / length[:, None]
-    dist = np.abs((uv[None, :, :] - uv[i][:, None, :]) @ normal[:, :, None])[..., 0]
-    members = dist < params.rod_line_tol_px
-    members = members[members.sum(axis=1) >= params.rod_min_markers]
+    i_all, j_all = np.triu_indices(n, k=1)
+    rows: set[bytes] = set()
+    for lo in range(0, len(i_all), _PAIRS_PER_CHUNK):
+        i, j = i_all[lo : lo + _PAIRS_PER_CHUNK], j_all[lo : lo + _PAIRS_PER_CHUNK]
+        d = uv[j] - uv[i]
+        length = np.linalg.norm(d, axis=1)
+        ok = length > 2 * params.rod_line_tol_px
+        i, d, length = i[ok], d[ok], length[ok]
+        normal = np.stack([-d[:, 1], d[:, 0]], axis=1) / length[:, None]
+        dist = np.abs((uv[None, :, :] - uv[i][:, None, :]) @ normal[:, :, None])[..., 0]
+        members = dist < params.rod_line_tol_px
+        members = members[members.sum(axis=1) >= params.rod_min_markers]
+        rows.update(bytes(r) for r in np.packbits(members, axis=1))
+        if len(rows) > params.rod_max_lines:
+            raise KisscalError(
+                f"camera {camera}: more than {params.rod_max_lines} lines of"
+                f" {params.rod_min_markers} or more blobs among {n} blobs in the rod image:"
+                " too busy to tell rods from chance alignments; raise the detection"
+                " threshold or mask the clutter"
+            )
     lines = []
-    for row in np.unique(members, axis=0):
+    for packed in sorted(rows):
+        row = np.unpackbits(np.frombuffer(packed, dtype=np.uint8), count=n).astype(bool)
         idx = np.flatnonzero(row)
         # Refit the line to its members (total least squares) and take the members again.
         centre = uv[idx].mean(axis=0)
@@ -355,10 +402,11 @@ def recognise_rods(
     Raises
     ------
     KisscalError
-        Non-unique rod spacings (:func:`validate_rods`), an ambiguous identification
-        (message names the camera and rods), or, with ``params.rod_refuse_unlisted``, a
-        rod-like line of left-over blobs that matches no configured rod (a rod missing
-        from ``[[rods.rod]]``).
+        Non-unique rod spacings (:func:`validate_rods`), an image too busy to search
+        (``rod_max_chance_blobs``, ``rod_max_lines``: see :func:`chance_alignments`), an
+        ambiguous identification (message names the camera and rods), or, with
+        ``params.rod_refuse_unlisted``, a rod-like line of left-over blobs that matches no
+        configured rod (a rod missing from ``[[rods.rod]]``).
     """
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
     validate_rods(rods, params)
@@ -367,8 +415,9 @@ def recognise_rods(
     rod_s = [_rod_positions(r.points_mm)[0] for r in rods]
     rod_s = [s / s[-1] for s in rod_s]
     cands: list[_Candidate] = []
+    _check_busy(uvf, params, camera)
     if len(uvf) >= params.rod_min_markers:
-        for line in _candidate_lines(uvf, params):
+        for line in _candidate_lines(uvf, params, camera):
             cands += _line_candidates(line, uvf, rod_s, params)
     cands = [c for c in cands if c.n >= params.rod_min_markers]
     cands.sort(key=lambda c: (-c.n, c.rms_px))
@@ -476,7 +525,7 @@ def _check_unlisted(
     rod_dir = rod_dir / rod_len[:, None]
     ratio = params.rod_unlisted_length_ratio
     cos_tol = np.cos(np.deg2rad(params.rod_unlisted_angle_deg))
-    lines = _candidate_lines(uv[spare], params)
+    lines = _candidate_lines(uv[spare], params, camera)
     for line in sorted(lines, key=len, reverse=True):
         p = uv[spare[line]]
         d = p[-1] - p[0]

@@ -27,7 +27,9 @@ _EVENT_STYLE = {
 }
 
 
-def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarray:
+def _dense(
+    tracks: Tracks, labels: tuple[str, ...], rate_hz: float, n_fields: int | None = None
+) -> np.ndarray:
     if len(labels) != tracks.n_tracks:
         raise KisscalError(f"export: {len(labels)} labels for {tracks.n_tracks} tracks")
     if len(set(labels)) != len(labels):
@@ -35,7 +37,9 @@ def _dense(tracks: Tracks, labels: tuple[str, ...], rate_hz: float) -> np.ndarra
     if not rate_hz > 0:
         raise KisscalError(f"export: rate_hz must be > 0, got {rate_hz}")
     if tracks.field.size == 0:
-        raise KisscalError("export: no trajectories to write")
+        if not n_fields:
+            raise KisscalError("export: no trajectories to write")
+        return np.zeros((0, n_fields, 3))  # an empty trial: frames without points
     return tracks.positions()  # (n_tracks, n_fields, 3)
 
 
@@ -47,17 +51,20 @@ def write_c3d(
     *,
     points: Points3DFile | None = None,
     events: GaitEvents | None = None,
+    n_fields: int | None = None,
 ) -> Path:
     """Write trajectories as a C3D file: POINT:LABELS = labels, POINT:RATE = rate_hz,
     POINT:UNITS = mm, POINT:DESCRIPTIONS, TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD, and
     ``events`` (foot strikes and foot offs) in the EVENT group (:func:`add_gait_events`).
+    Without trajectories, ``n_fields`` frames without points are written (a trial with no
+    markers); without either, it is an error.
 
     Per sample, as the C3D standard reads it: measured samples carry their reconstruction
     residual (``rms_px`` of ``points``, the trial's points3d.csv, in pixels, > 0) and the
     mask of the cameras that saw them; filled and predicted samples residual 0 and no
     cameras; fields without a sample residual -1 (see :func:`kisscal.io.c3d.sample_words`).
     """
-    dense = _dense(tracks, labels, rate_hz)
+    dense = _dense(tracks, labels, rate_hz, n_fields)
     n_tracks, n_fields, _ = dense.shape
     data = np.ones((4, n_tracks, n_fields))
     data[:3] = np.transpose(dense, (2, 0, 1))
@@ -150,6 +157,7 @@ def write_trc(
     labels: tuple[str, ...],
     rate_hz: float,
     up: str = "z",
+    n_fields: int | None = None,
 ) -> Path:
     """Write trajectories as an OpenSim TRC file (PathFileType 4, X/Y/Z, units mm).
 
@@ -157,11 +165,12 @@ def write_trc(
     a tab, as OpenSim's own writer does: OpenSim's tokenizer drops a trailing empty field,
     so a row whose last marker is missing would otherwise come one field short and the
     whole file would be refused. ``up`` is the vertical axis of the file (see
-    :data:`TRC_AXES`); gaps are empty fields (NaN in OpenSim).
+    :data:`TRC_AXES`); gaps are empty fields (NaN in OpenSim). Without trajectories,
+    ``n_fields`` frames without markers, as :func:`write_c3d`.
     """
     if up not in TRC_AXES:
         raise KisscalError(f"export: trc up axis must be 'z' or 'y', got {up!r}")
-    dense = _dense(tracks, labels, rate_hz) @ TRC_AXES[up].T
+    dense = _dense(tracks, labels, rate_hz, n_fields) @ TRC_AXES[up].T
     n_tracks, n_fields, _ = dense.shape
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -78,7 +78,9 @@ def write_points3d(
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
     n_cam = np.asarray(n_cameras, dtype=np.int64)
     rms = np.asarray(rms_px, dtype=float)
-    blob = np.asarray(blob, dtype=np.int64).reshape(len(field), -1)
+    blob = np.asarray(blob, dtype=np.int64)
+    # a trial without points is an empty table (header only): -1 cannot size its columns
+    blob = blob.reshape(len(field), len(camera_ids) if blob.size == 0 else -1)
     if blob.shape[1] != len(camera_ids):
         raise KisscalError(
             f"points3d: {blob.shape[1]} blob columns for {len(camera_ids)} camera ids"

@@ -26,7 +26,18 @@ def summarise(root: Path) -> dict[str, Any]:
     trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
     check_path = out / "dlt" / "check.json"
     check = json.loads(check_path.read_text()) if check_path.is_file() else {}
-    return {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+    warnings = [
+        f"{name}: {line}"
+        for name, entry in trials.items()
+        for line in entry.get("reconstruction", {}).get("warnings", [])
+    ]
+    return {
+        "session": config.name,
+        "cameras": cams,
+        "rods": check,
+        "trials": trials,
+        "warnings": warnings,
+    }
 
 
 def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, Any]:

@@ -15,9 +15,15 @@ from kisscal.recon.epipolar import (
     pair_distances_px,
 )
 from kisscal.recon.match import match_central, match_field, match_trial, match_triple
+from kisscal.recon.pairs import continuity_mm, match_two_camera
 from kisscal.recon.params import ReconParams
-from kisscal.recon.reconstruct import Points3D, points_from_markers, reconstruct_trial
-from kisscal.recon.stationary import stationary_mask
+from kisscal.recon.reconstruct import (
+    Points3D,
+    coverage_warnings,
+    points_from_markers,
+    reconstruct_trial,
+)
+from kisscal.recon.stationary import at_epipoles, false_detections, stationary_mask
 from kisscal.recon.triangulate import Triangulation, triangulate, triangulate_observations
 
 __all__ = [
@@ -25,14 +31,19 @@ __all__ = [
     "ReconParams",
     "Triangulation",
     "all_fundamentals",
+    "at_epipoles",
     "candidate_pairs",
+    "continuity_mm",
+    "coverage_warnings",
     "distance_matrix_px",
     "epipolar_lines",
+    "false_detections",
     "fundamental_from_dlt",
     "match_central",
     "match_field",
     "match_trial",
     "match_triple",
+    "match_two_camera",
     "pair_distances_px",
     "points_from_markers",
     "reconstruct_trial",

@@ -10,7 +10,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from kisscal.dlt.model import camera_centre_mm
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
+from kisscal.recon.params import ReconParams
 
 
 def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -167,3 +169,41 @@ def merge_groups(
         blob[rp] = merged
         marker[merged[merged >= 0]] = rp
     return renumber(marker, field)
+
+
+def first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
+    order = np.lexsort((score, key))  # stable: equal scores keep index order
+    if len(order) == 0:
+        return order
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    return order[first]
+
+
+def residual_limit_px(rms_px: NDArray[np.float64], params: ReconParams) -> float:
+    """The reprojection limit of a trial: ``max_rms_px``, tightened to
+    ``outlier_rms_factor`` times the median ``rms_px`` of the trial's markers (never below
+    ``outlier_floor_px``), so that a marker far noisier than its trial is treated as wrong."""
+    rms_px = rms_px[np.isfinite(rms_px)]
+    if params.outlier_rms_factor <= 0 or len(rms_px) == 0:
+        return params.max_rms_px
+    adaptive = max(params.outlier_floor_px, params.outlier_rms_factor * float(np.median(rms_px)))
+    return min(params.max_rms_px, adaptive)
+
+
+def near_cameras(
+    xyz_mm: NDArray[np.float64], dlts: NDArray[np.float64], clearance_mm: float
+) -> NDArray[np.bool_]:
+    """Points closer than ``clearance_mm`` to a camera's projection centre.
+
+    Another camera's LED ring, seen by two cameras, reconstructs at that camera; so does
+    its image paired with any blob of that camera (both rays pass through its centre). No
+    marker is ever there. NaN points are not near.
+    """
+    out = np.zeros(len(xyz_mm), dtype=bool)
+    ok = np.all(np.isfinite(xyz_mm), axis=1)
+    if clearance_mm <= 0 or not ok.any():
+        return out
+    centres = np.array([camera_centre_mm(L) for L in dlts])
+    out[ok] = cKDTree(centres).query(xyz_mm[ok])[0] < clearance_mm
+    return out

@@ -22,8 +22,18 @@ from kisscal.recon.epipolar import (
     distance_matrix_px,
     field_pairs,
 )
-from kisscal.recon.group import merge_groups, renumber, split_or_drop, triangulate_markers
+from kisscal.recon.group import (
+    first_per_key,
+    merge_groups,
+    near_cameras,
+    renumber,
+    residual_limit_px,
+    split_or_drop,
+    triangulate_markers,
+)
+from kisscal.recon.pairs import match_two_camera
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
+from kisscal.recon.stationary import at_epipoles
 
 
 def _check_table(
@@ -121,48 +131,6 @@ def _triangles(
     return x[closed], y[closed], z[closed]
 
 
-def _two_camera(
-    marker: NDArray[np.int64],
-    pa: NDArray[np.int64],
-    pb: NDArray[np.int64],
-    pd: NDArray[np.float64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    params: ReconParams,
-) -> NDArray[np.int64]:
-    """Pair remaining blobs two by two, closest epipolar pairs first, when allowed."""
-    free = (marker[pa] < 0) & (marker[pb] < 0)
-    pa, pb, pd = pa[free], pb[free], pd[free]
-    if len(pa) == 0:
-        return marker
-    t = triangulate_observations(
-        dlts,
-        np.repeat(np.arange(len(pa)), 2),
-        np.column_stack([camera[pa], camera[pb]]).ravel(),
-        np.stack([uv[pa], uv[pb]], axis=1).reshape(-1, 2),
-        len(pa),
-        params.reweight_iterations,
-    )
-    good = t.rms_px <= params.max_rms_px
-    next_id = int(marker.max()) + 1
-    marker = marker.copy()
-    for k in np.flatnonzero(good)[np.argsort(pd[good], kind="stable")]:
-        if marker[pa[k]] < 0 and marker[pb[k]] < 0:
-            marker[pa[k]] = marker[pb[k]] = next_id
-            next_id += 1
-    return marker
-
-
-def _first_per_key(key: NDArray[np.int64], score: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Indices of the lowest-score entry of each distinct key (ties: lowest index)."""
-    order = np.lexsort((score, key))  # stable: equal scores keep index order
-    if len(order) == 0:
-        return order
-    first = np.r_[True, key[order][1:] != key[order][:-1]]
-    return order[first]
-
-
 def _extend_all(
     marker: NDArray[np.int64],
     new_ids: NDArray[np.int64],
@@ -201,9 +169,9 @@ def _extend_all(
     d = np.linalg.norm(uv[b] - project_rows(dlts, camera[b], new_xyz[m]), axis=1)
     near = d <= radius_px
     b, m, d = b[near], m[near], d[near]
-    keep = _first_per_key(b, d)  # a blob joins its closest marker
+    keep = first_per_key(b, d)  # a blob joins its closest marker
     b, m, d = b[keep], m[keep], d[keep]
-    keep = _first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
+    keep = first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
     marker[b[keep]] = new_ids[m[keep]]
 
 
@@ -253,7 +221,7 @@ def match_triple(
     if n == 0:
         return marker
     F = all_fundamentals(dlts) if F is None else F
-    pa, pb, pd = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
+    pa, pb, _ = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
     # rank blobs by (field, camera) so that every pair and triple is increasing in rank
     order = np.lexsort((camera, field))
     rank = np.empty(n, dtype=np.int64)
@@ -275,7 +243,7 @@ def match_triple(
     while len(tri):
         tid = np.repeat(np.arange(len(tri)), 3)
         best_of_blob = np.full(n, -1, dtype=np.int64)
-        first = _first_per_key(tri.ravel(), tri_rms[tid])
+        first = first_per_key(tri.ravel(), tri_rms[tid])
         best_of_blob[tri.ravel()[first]] = tid[first]
         won = np.all(best_of_blob[tri] == np.arange(len(tri))[:, None], axis=1)
         ids = next_id + np.arange(int(won.sum()))
@@ -284,20 +252,7 @@ def match_triple(
         _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
         alive = np.all(marker[tri] < 0, axis=1)
         tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
-    if params.allow_two_camera:
-        marker = _two_camera(marker, pa, pb, pd, camera, uv, dlts, params)
     return _finish(marker, field, camera, uv, dlts, params)
-
-
-def residual_limit_px(rms_px: NDArray[np.float64], params: ReconParams) -> float:
-    """The reprojection limit of a trial: ``max_rms_px``, tightened to
-    ``outlier_rms_factor`` times the median ``rms_px`` of the trial's markers (never below
-    ``outlier_floor_px``), so that a marker far noisier than its trial is treated as wrong."""
-    rms_px = rms_px[np.isfinite(rms_px)]
-    if params.outlier_rms_factor <= 0 or len(rms_px) == 0:
-        return params.max_rms_px
-    adaptive = max(params.outlier_floor_px, params.outlier_rms_factor * float(np.median(rms_px)))
-    return min(params.max_rms_px, adaptive)
 
 
 def _finish(
@@ -307,9 +262,10 @@ def _finish(
     uv: NDArray[np.float64],
     dlts: NDArray[np.float64],
     params: ReconParams,
+    min_cameras: int = 3,
 ) -> NDArray[np.int64]:
-    """3D grouping, then the residual limit: split or drop markers over it."""
-    min_cameras = 2 if params.allow_two_camera else 3
+    """3D grouping, then the residual limit: split or drop markers with fewer than
+    ``min_cameras`` observations or over the limit."""
     marker = merge_groups(
         marker,
         field,
@@ -379,8 +335,9 @@ def match_central(
     camera r, priority camera s) are tried best candidates first; a triplet is verified when
     each point lies within ``search_radius_px`` of the intersection of the other two's
     epipolar lines. A verified triplet is extended to the remaining cameras and its blobs are
-    excluded from further search. When only one candidate camera exists and
-    ``allow_two_camera`` is set, the base blob is paired with its closest candidate.
+    excluded from further search. (Shafiq pairs a base blob with its closest candidate when
+    only one candidate camera exists; here :func:`match_trial` makes two-camera markers for
+    both strategies, see :mod:`kisscal.recon.pairs`.)
 
     Parameters and return value as :func:`match_triple`.
     """
@@ -459,11 +416,6 @@ def match_central(
                             break
                     if found:
                         break
-                if not found and len(priority) == 1 and params.allow_two_camera:
-                    got = _accept([int(p), int(cands[priority[0]][0])], camera, uv, dlts, params, 2)
-                    if got:
-                        marker[got] = next_id
-                        next_id += 1
     return _finish(marker, field, camera, uv, dlts, params)
 
 
@@ -476,29 +428,62 @@ def match_trial(
 ) -> NDArray[np.int64]:
     """Match a whole trial with the strategy named by ``params.strategy``.
 
+    Markers seen by three or more cameras first (twice: blobs freed by the residual limit
+    get a second chance), then, if ``params.allow_two_camera``, two-camera markers of the
+    blobs left over (:func:`kisscal.recon.pairs.match_two_camera`). Markers that are LED
+    rings are dropped: those at a camera (``params.camera_clearance_mm``) and those whose
+    every blob lies at an epipole (``params.led_radius_px``).
+
     Returns
     -------
     ndarray of int, shape (n,)
         Marker of each blob, -1 for unmatched blobs.
     """
+    dlts = np.asarray(dlts, dtype=float)
+    field, camera, uv = _check_table(field, camera, uv, len(dlts))
     fn = match_triple if params.strategy == "triple" else match_central
-    marker = fn(field, camera, uv, dlts, params)
+    F = all_fundamentals(dlts)
+    led = at_epipoles(camera, uv, dlts, params.led_radius_px)
+    marker = fn(field, camera, uv, dlts, params, F)
+    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led)
+    # the leftovers are the trial's worst blobs: keep the limit the whole trial set
+    limit = residual_limit_px(rms, params) if len(rms) else None
     free = np.flatnonzero(marker < 0)
-    if len(free) >= 3 and (marker >= 0).any():
+    if len(free) >= 3 and limit is not None:
         # second chance for blobs freed by the residual limit (a blob wrongly attached to
         # a neighbour is split off there, and may complete its own marker now)
-        field = np.asarray(field, dtype=np.int64)
-        camera = np.asarray(camera, dtype=np.int64)
-        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-        dlts = np.asarray(dlts, dtype=float)
-        # the leftovers are the trial's worst blobs: keep the limit the whole trial set
-        rms = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).rms_px
-        fixed = replace(params, max_rms_px=residual_limit_px(rms, params), outlier_rms_factor=0.0)
-        again = fn(field[free], camera[free], uv[free], dlts, fixed)
+        fixed = replace(params, max_rms_px=limit, outlier_rms_factor=0.0)
+        again = fn(field[free], camera[free], uv[free], dlts, fixed, F)
+        sub = field[free], camera[free], uv[free]
+        again, _ = _drop_leds(again, *sub, dlts, params, led[free])
         found = again >= 0
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
+    if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
+        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
     return marker
+
+
+def _drop_leds(
+    marker: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+    led: NDArray[np.bool_],
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Markers that are LED rings dropped (at a camera, or every blob at an epipole:
+    ``led``); the ``rms_px`` of the others."""
+    if not (marker >= 0).any():
+        return marker, np.zeros(0)
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
+    rows = np.flatnonzero(marker >= 0)
+    seen_elsewhere = np.bincount(marker[rows], ~led[rows], minlength=len(tri.rms_px)) > 0
+    bad = ~seen_elsewhere | near_cameras(tri.xyz_mm, dlts, params.camera_clearance_mm)
+    if bad.any():
+        marker = renumber(np.where((marker >= 0) & bad[np.maximum(marker, 0)], -1, marker), field)
+    return marker, tri.rms_px[~bad]
 
 
 def match_field(

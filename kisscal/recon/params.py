@@ -31,9 +31,26 @@ class ReconParams:
         Most candidates per camera kept along an epipolar line, closest first (Shafiq: 5);
         central strategy only (the triple strategy ranks all triples by residual instead).
     allow_two_camera : bool
-        Accept markers seen by only two cameras (closest epipolar pairs first, each blob
-        once). Off by default: two-camera matches are the main source of ghost markers
-        (2.8% ghost points on the synthetic gait trial against 0% without).
+        Also make markers of blobs seen by only two cameras, from the blobs that matching
+        over three or more cameras left over, when the pair reprojects within the trial's
+        residual limit and its 3D point continues a trajectory (see
+        ``two_camera_continuity_mm`` and :mod:`kisscal.recon.pairs`). Needed by 2- and
+        3-camera rigs; in larger rigs it adds the markers that only two cameras see.
+    two_camera_alone_max_cameras : int
+        Rigs of up to this many cameras accept a trajectory that only two cameras see
+        throughout; larger rigs accept two-camera points only where they extend the
+        trajectory of a marker that three or more cameras see in neighbouring fields. In a
+        rig built for three views a pair that no third camera ever confirms is more often
+        a ghost (two markers merged into one blob in both views, or two markers that each
+        only one camera sees, lying on one epipolar line) than a marker.
+    two_camera_step_mm : float
+        Largest distance (mm) a marker moves from one field to the next, where a
+        two-camera point looks for the trajectory it continues (300 mm: 15 m/s at 50 Hz,
+        more than a foot in swing or a thrown ball).
+    two_camera_continuity_mm : float
+        Largest second difference ``|p(f-1) - 2 p(f) + p(f+1)|`` (mm) of three consecutive
+        positions through a two-camera point: acceleration times the field interval
+        squared (20 mm: 50 m/s^2 at 50 Hz, the peak of a foot marker in swing).
     max_rms_px : float
         Largest reprojection ``rms_px`` (px) of a triple and of an accepted 3D marker;
         worse markers lose their worst observation (split) or are dropped. Generous on
@@ -59,13 +76,40 @@ class ReconParams:
     stationary_fraction : float
         A detection is stationary if blobs sit within ``stationary_radius_px`` of it in more
         than this fraction of the trial's fields (0..1).
+    stationary_min_s : float
+        Shortest trial (s) whose stationary detections are all removed: a subject holds a
+        marker still for up to about 1 s within a movement trial, which must then last
+        1 s / ``stationary_fraction`` for a still marker not to pass for an LED. Shorter
+        trials (and trials in which nothing moves) keep their detections.
+    camera_clearance_mm : float
+        3D points closer than this (mm) to a camera's projection centre are dropped: they
+        are LED rings (another camera's LEDs, seen by two cameras, reconstruct at that
+        camera, and so does a pair of its LED with any blob of that camera), never
+        markers. 0 keeps them.
+    led_radius_px : float
+        A blob within this distance (px) of an epipole (where another camera's centre
+        projects) may be that camera's LED ring; a point made of such blobs alone is
+        dropped (the lines between two pairs of cameras facing each other cross, at
+        camera height, and their four LEDs agree on a point there). The ring sits around
+        the lens, a few cm from the projection centre, and the calibration places the
+        centre about as well. 0 keeps them.
+    min_coverage : float
+        A trial whose points fill less than this fraction of its fields x its marker count
+        (the 90th percentile of points per field) gets a coverage warning (0..1).
+    max_unmatched_fraction : float
+        A trial that leaves more than this fraction of its blobs (after the stationary
+        filter) unmatched gets a warning (0..1): markers seen by one camera only, blobs
+        of no marker, or a calibration that does not fit.
     """
 
     strategy: str = "triple"
     epipolar_band_px: float = 3.0
     search_radius_px: float = 3.0
     max_candidates: int = 5
-    allow_two_camera: bool = False
+    allow_two_camera: bool = True
+    two_camera_alone_max_cameras: int = 3
+    two_camera_step_mm: float = 300.0
+    two_camera_continuity_mm: float = 20.0
     max_rms_px: float = 2.0
     outlier_rms_factor: float = 5.0
     outlier_floor_px: float = 0.2
@@ -74,6 +118,11 @@ class ReconParams:
     stationary_filter: bool = True
     stationary_radius_px: float = 1.5
     stationary_fraction: float = 0.5
+    stationary_min_s: float = 2.0
+    camera_clearance_mm: float = 200.0
+    led_radius_px: float = 10.0
+    min_coverage: float = 0.9
+    max_unmatched_fraction: float = 0.25
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -87,9 +136,14 @@ class ReconParams:
             "outlier_floor_px",
             "group_radius_mm",
             "stationary_radius_px",
+            "two_camera_step_mm",
+            "two_camera_continuity_mm",
         ):
             if not getattr(self, name) > 0:
                 raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")
+        for name in ("stationary_min_s", "camera_clearance_mm", "led_radius_px"):
+            if getattr(self, name) < 0:
+                raise KisscalError(f"recon {name} must be >= 0, got {getattr(self, name)}")
         if self.max_candidates < 1:
             raise KisscalError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
         if self.outlier_rms_factor < 0:
@@ -100,6 +154,9 @@ class ReconParams:
             raise KisscalError(
                 f"recon reweight_iterations must be >= 0, got {self.reweight_iterations}"
             )
+        for name in ("min_coverage", "max_unmatched_fraction"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise KisscalError(f"recon {name} must be in [0, 1], got {getattr(self, name)}")
         if not 0 < self.stationary_fraction <= 1:
             raise KisscalError(
                 f"recon stationary_fraction must be in (0, 1], got {self.stationary_fraction}"

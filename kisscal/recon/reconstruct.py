@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -11,7 +12,7 @@ from kisscal.errors import KisscalError
 from kisscal.recon.group import triangulate_markers
 from kisscal.recon.match import _check_table, match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
-from kisscal.recon.stationary import stationary_mask
+from kisscal.recon.stationary import false_detections
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,10 @@ class Points3D:
         For each input row, the point (row of this table) it ended in, -1 if unmatched.
     stationary : ndarray of bool, shape (n_blobs,)
         Input rows removed as stationary false detections.
+    stationary_test : str
+        How they were judged (:func:`kisscal.recon.stationary.false_detections`):
+        ``"motion"``, ``"short"`` (a trial too short or too still to judge by motion: none
+        removed) or ``"off"``.
     """
 
     field: NDArray[np.int64]
@@ -43,35 +48,95 @@ class Points3D:
     blob_row: NDArray[np.int64]
     marker: NDArray[np.int64]
     stationary: NDArray[np.bool_]
+    stationary_test: str = "motion"
 
     def __len__(self) -> int:
         return len(self.field)
 
-    def summary(self) -> dict[str, float | int | list[int]]:
-        """Counts and residuals for ``summary.json``.
+    def summary(
+        self, n_fields: int | None = None, params: ReconParams = DEFAULT_PARAMS
+    ) -> dict[str, Any]:
+        """Counts, residuals, coverage and warnings for ``recon.json`` / ``summary.json``.
+
+        Parameters
+        ----------
+        n_fields : int, optional
+            Fields of the trial (blank fields included); default: up to the last point.
+        params : ReconParams
+            ``min_coverage`` and ``max_unmatched_fraction`` say when coverage is poor.
 
         Returns
         -------
         dict
-            ``points``, ``fields_with_points``, ``blobs``, ``blobs_used``,
-            ``blobs_stationary``, ``blobs_unmatched``, ``rms_px_median``, ``rms_px_max``
-            and ``points_by_n_cameras`` (index = number of cameras).
+            ``points``, ``fields``, ``fields_with_points``, ``blobs``, ``blobs_used``,
+            ``blobs_stationary``, ``blobs_unmatched``, ``rms_px_median``, ``rms_px_max``,
+            ``points_by_n_cameras`` (index = number of cameras), ``stationary_test``;
+            ``markers_per_field`` (the trial's full count: the 90th percentile of points
+            per field), ``fields_with_all_markers``, ``coverage`` (points / (markers per
+            field x fields)), ``blobs_unmatched_fraction`` (of the blobs left after the
+            stationary filter) and ``warnings`` (one line each, with the numbers).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> e = np.zeros(0, dtype=int)
+        >>> empty = Points3D(e, np.zeros((0, 3)), e, np.zeros(0), e.reshape(0, 2), e, e > 0)
+        >>> empty.summary(n_fields=3)["warnings"]
+        ['no 3D points in 3 fields (0 blobs)']
         """
         used = int((self.marker >= 0).sum())
+        still = int(self.stationary.sum())
         rms = self.rms_px[np.isfinite(self.rms_px)]
-        return {
+        n_fields = int(self.field.max(initial=-1)) + 1 if n_fields is None else n_fields
+        per_field = np.bincount(self.field, minlength=n_fields)
+        full = int(np.quantile(per_field[per_field > 0], 0.9, method="lower")) if used else 0
+        candidates = len(self.marker) - still
+        out: dict[str, Any] = {
             "points": len(self),
+            "fields": n_fields,
             "fields_with_points": len(np.unique(self.field)),
             "blobs": len(self.marker),
             "blobs_used": used,
-            "blobs_stationary": int(self.stationary.sum()),
-            "blobs_unmatched": len(self.marker) - used - int(self.stationary.sum()),
-            "rms_px_median": float(np.median(rms)) if len(rms) else float("nan"),
-            "rms_px_max": float(rms.max()) if len(rms) else float("nan"),
+            "blobs_stationary": still,
+            "blobs_unmatched": candidates - used,
+            "rms_px_median": float(np.median(rms)) if len(rms) else None,  # JSON null
+            "rms_px_max": float(rms.max()) if len(rms) else None,
             "points_by_n_cameras": np.bincount(
                 self.n_cameras, minlength=self.blob_row.shape[1] + 1
             ).tolist(),
+            "stationary_test": self.stationary_test,
+            "markers_per_field": full,
+            "fields_with_all_markers": int((per_field >= full).sum()) if full else 0,
+            "coverage": len(self) / (full * n_fields) if full and n_fields else 0.0,
+            "blobs_unmatched_fraction": (candidates - used) / candidates if candidates else 0.0,
         }
+        out["warnings"] = coverage_warnings(out, params)
+        return out
+
+
+def coverage_warnings(summary: dict[str, Any], params: ReconParams) -> list[str]:
+    """One line per sign of poor coverage in a trial's :meth:`Points3D.summary`, with the
+    numbers: no points; fewer points than ``params.min_coverage`` of the trial's marker
+    count in every field; more than ``params.max_unmatched_fraction`` of blobs unmatched."""
+    s = summary
+    if s["points"] == 0:
+        return [f"no 3D points in {s['fields']} fields ({s['blobs']} blobs)"]
+    out = []
+    if s["coverage"] < params.min_coverage:
+        out.append(
+            f"coverage {100 * s['coverage']:.0f} %: {s['points']} points in {s['fields']}"
+            f" fields of up to {s['markers_per_field']} markers; {s['fields_with_all_markers']}"
+            f" fields have them all"
+        )
+    if s["blobs_unmatched_fraction"] > params.max_unmatched_fraction:
+        by_n = ", ".join(f"{n}: {k}" for n, k in enumerate(s["points_by_n_cameras"]) if k)
+        out.append(
+            f"{100 * s['blobs_unmatched_fraction']:.0f} % of blobs unmatched"
+            f" ({s['blobs_unmatched']} of {s['blobs'] - s['blobs_stationary']}; points by"
+            f" number of cameras {by_n}): markers seen by too few cameras, or a calibration"
+            f" that does not fit the trial"
+        )
+    return out
 
 
 def points_from_markers(
@@ -82,6 +147,7 @@ def points_from_markers(
     dlts: NDArray[np.float64],
     reweight_iterations: int,
     stationary: NDArray[np.bool_] | None = None,
+    stationary_test: str = "off",
 ) -> Points3D:
     """Triangulate every marker (ids 0..m-1 in field order) from all its blobs."""
     n_cam = len(dlts)
@@ -102,6 +168,7 @@ def points_from_markers(
         blob_row,
         marker,
         stationary,
+        stationary_test,
     )
 
 
@@ -111,15 +178,18 @@ def reconstruct_trial(
     uv: ArrayLike,
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
+    rate_hz: float = 50.0,
 ) -> Points3D:
     """Reconstruct the 3D points of a trial from its linearised 2D blobs.
 
     Steps: stationary false detections removed per camera over the whole trial (Küçük 2005,
-    3.3.1; if ``params.stationary_filter``), blobs matched across cameras with
-    ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001, 4.1), 3D point groups united
-    (3.3.7), each marker triangulated from all its blobs by least squares (Shafiq eq. 10)
-    plus reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
-    split or dropped, and the blobs this frees matched once more.
+    3.3.1; if ``params.stationary_filter`` and the trial is long enough and moves), blobs
+    matched across cameras with ``params.strategy`` (3.3.4-3.3.5 or Shafiq et al. 2001,
+    4.1) and then in pairs (:mod:`kisscal.recon.pairs`), 3D point groups united (3.3.7),
+    each marker triangulated from all its blobs by least squares (Shafiq eq. 10) plus
+    reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
+    split or dropped, and the blobs this frees matched once more; points at a camera (its
+    LED ring seen by the others) dropped.
 
     Parameters
     ----------
@@ -130,6 +200,9 @@ def reconstruct_trial(
     dlts : array_like, shape (n_cameras, 11)
         DLT parameters mapping lab mm to linearised px.
     params : ReconParams
+    rate_hz : float
+        Field rate (Hz), to judge whether the trial is long enough for the stationary
+        filter (the KISS cameras' 50 Hz by default).
 
     Returns
     -------
@@ -142,13 +215,10 @@ def reconstruct_trial(
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(dlts))[0]})
         raise KisscalError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
     field, camera, uv = _check_table(field, camera, uv, len(dlts))
-    if params.stationary_filter:
-        still = stationary_mask(
-            field, camera, uv, params.stationary_radius_px, params.stationary_fraction
-        )
-    else:
-        still = np.zeros(len(field), dtype=bool)
+    still, test = false_detections(field, camera, uv, params, rate_hz)
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)
     marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params)
-    return points_from_markers(marker, field, camera, uv, dlts, params.reweight_iterations, still)
+    return points_from_markers(
+        marker, field, camera, uv, dlts, params.reweight_iterations, still, test
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -64,15 +65,18 @@ def reconstruct(
     )
     if is_current(path, stage_key):
         echo(f"  reconstruct {trial.name}: cached")
+        _echo_warnings(trial.name, path.with_name("recon.json"), echo)
         return read_points3d(path)
     blobs = trial_blobs(root, config, trial, detection, echo, workers)
     obs = rig.observations(blobs)
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
     L = rig.dlts
-    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon)
+    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon, config.rate_hz)
+    n_fields = max((len(v) for v in blobs.values()), default=0)
+    summary = points.summary(n_fields, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
-    write_json(path.with_name("recon.json"), points.summary())
+    write_json(path.with_name("recon.json"), summary)
     mark_current(path, stage_key)
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
@@ -90,13 +94,27 @@ def reconstruct(
             [c.size_px for c in config.cameras],
             list(config.camera_ids),
         )
-    n_fields = max(len(v) for v in blobs.values())
     median_rms = np.median(points.rms_px) if len(points) else float("nan")
+    by_n = ", ".join(f"{k} by {n}" for n, k in enumerate(summary["points_by_n_cameras"]) if k)
     echo(
-        f"  reconstruct {trial.name}: {len(points)} points in {n_fields} fields, "
-        f"median rms {median_rms:.3f} px ({time.perf_counter() - t0:.1f} s)"
+        f"  reconstruct {trial.name}: {len(points)} points in {n_fields} fields"
+        f"{f' ({by_n} cameras)' if by_n else ''}, median rms {median_rms:.3f} px"
+        f" ({time.perf_counter() - t0:.1f} s)"
     )
+    if points.stationary_test == "short":
+        echo(
+            f"  reconstruct {trial.name}: stationary filter not applied (under "
+            f"{params.recon.stationary_min_s:g} s, or nothing moves); LED rings dropped as points"
+        )
+    _echo_warnings(trial.name, path.with_name("recon.json"), echo)
     return points
+
+
+def _echo_warnings(trial: str, recon_json: Path, echo: Echo) -> None:
+    """The coverage warnings of a trial reconstructed earlier (a cached run says them too)."""
+    if recon_json.is_file():
+        for line in json.loads(recon_json.read_text()).get("warnings", []):
+            echo(f"  warning: {trial}: {line}")
 
 
 def c3d_trial_points(

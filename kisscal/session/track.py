@@ -100,6 +100,8 @@ def _track_trial(
     )
     static = config.markers.static if config.markers else None
     template = subject_template(result, spec, trial) if trial == static else None
+    # a trial without markers still gets its files: header only, frames without points
+    frames = None if len(result.tracks.field) else _trial_fields(tdir, pts.field)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_trc(
         tdir / "trajectories.trc",
@@ -107,6 +109,7 @@ def _track_trial(
         result.labels,
         config.rate_hz,
         up=config.export.trc_up,
+        n_fields=frames,
     )
     events = None
     if template is not None:
@@ -125,6 +128,7 @@ def _track_trial(
         config.rate_hz,
         points=pts,
         events=events,
+        n_fields=frames,
     )
     write_json(tdir / "tracking.json", _tracking_summary(result))
     _figures(root, trial, result, spec.segments, config.rate_hz)
@@ -138,7 +142,17 @@ def _track_trial(
         echo(f"  track {trial}: uncertain labels, check them: {', '.join(lab.flagged)}")
     if events is not None:
         echo(f"  gait {trial}: {len(events)} events (events.csv, spatiotemporal.csv)")
+    if frames is not None:
+        echo(f"  warning: {trial}: no trajectories; empty files written ({frames} fields)")
     return result
+
+
+def _trial_fields(tdir: Path, field: np.ndarray) -> int:
+    """Fields of a trial: from ``recon.json`` (blank fields count), else up to its last
+    point, and at least one."""
+    recon = tdir / "recon.json"
+    known = json.loads(recon.read_text()).get("fields", 0) if recon.is_file() else 0
+    return max(int(known), int(field.max(initial=-1)) + 1, 1)
 
 
 def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:

@@ -122,3 +122,50 @@ def test_rods_in_line_are_never_misidentified():
             complete += int(np.array_equal(got, truth))
     assert wrong == 0
     assert complete >= 44  # of 48
+
+
+def test_chance_alignments_grow_with_the_density_of_blobs():
+    from kisscal.dlt.rods import chance_alignments
+
+    rng = np.random.default_rng(0)
+    few, many = (rng.uniform([0, 0], [751, 290], (n, 2)) for n in (30, 1300))
+    assert chance_alignments(few, 1.5) < 0.5 < 10 < chance_alignments(many, 1.5)
+    # lines through two of 1300 random blobs collect about that many others (the bound
+    # takes the longest line across; lines through the box are shorter on average)
+    counts = []
+    for _ in range(200):
+        i, j = rng.choice(len(many), 2, replace=False)
+        d = many[j] - many[i]
+        normal = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        counts.append((np.abs((many - many[i]) @ normal) < 1.5).sum() - 2)
+    assert 0.5 < np.mean(counts) / chance_alignments(many, 1.5) <= 1.0
+
+
+def test_a_hopeless_rod_image_is_refused_at_once_with_bounded_memory(rig):
+    # ~1300 clutter blobs (a once 17.7 GiB search): one clear line, no search at all
+    import tracemalloc
+
+    blobs, _ = rod_image(rig, 0, np.random.default_rng(3), n_extra=1300)
+    tracemalloc.start()
+    with pytest.raises(KisscalError, match=r"cam1: 1324 blobs in the rod image, too many"):
+        recognise_rods(blobs, rig.rods, camera="cam1")
+    assert tracemalloc.get_traced_memory()[1] < 20e6
+    tracemalloc.stop()
+
+
+def test_a_busy_rod_image_is_still_recognised_within_bounded_memory(rig):
+    import tracemalloc
+
+    rng = np.random.default_rng(4)
+    blobs, truth = rod_image(rig, 0, rng, n_extra=60)
+    tracemalloc.start()
+    match = recognise_rods(blobs, rig.rods, camera="cam1")
+    assert tracemalloc.get_traced_memory()[1] < 50e6
+    tracemalloc.stop()
+    np.testing.assert_array_equal(match.blob_index.ravel(), truth)
+
+
+def test_the_number_of_candidate_lines_is_capped(rig):
+    blobs, _ = rod_image(rig, 0, np.random.default_rng(4), n_extra=60)
+    with pytest.raises(KisscalError, match=r"cam1: more than 10 lines of 5 or more blobs"):
+        recognise_rods(blobs, rig.rods, DltParams(rod_max_lines=10), camera="cam1")

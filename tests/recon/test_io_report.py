@@ -94,7 +94,9 @@ def test_summary_counts_every_blob_once() -> None:
     dlts = make_rig(4)
     xyz = random_markers(rng, 20, 8)
     field, camera, uv, _, _ = make_table(rng, dlts, xyz, n_leds=1, n_noise=1)
-    pts = reconstruct_trial(field, camera, uv, dlts)
+    # the "LEDs" are fixed spots anywhere (reflections): judge them by motion, short as
+    # the trial is
+    pts = reconstruct_trial(field, camera, uv, dlts, ReconParams(stationary_min_s=0.0))
     s = pts.summary()
     assert s["blobs"] == len(field)
     assert s["blobs_used"] + s["blobs_stationary"] + s["blobs_unmatched"] == len(field)
@@ -104,3 +106,21 @@ def test_summary_counts_every_blob_once() -> None:
     assert s["rms_px_max"] <= ReconParams().max_rms_px
     with pytest.raises(KisscalError):
         reconstruct_trial(field, camera, uv, np.where(np.arange(11) == 3, np.nan, dlts))
+
+
+def test_poor_coverage_is_a_warning_with_its_numbers() -> None:
+    rng = np.random.default_rng(6)
+    dlts = make_rig(6)
+    xyz = random_markers(rng, 30, 10)
+    field, camera, uv, _, _ = make_table(rng, dlts, xyz)
+    full = reconstruct_trial(field, camera, uv, dlts).summary(30)
+    assert full["warnings"] == [] and full["coverage"] > 0.95
+    assert full["markers_per_field"] == 10 and full["fields"] == 30
+    # cameras 2-5 lose every blob of the second half of the trial: half of it has no points
+    late = (field >= 15) & (camera >= 2)
+    half = reconstruct_trial(field[~late], camera[~late], uv[~late], dlts).summary(30)
+    (line,) = [w for w in half["warnings"] if w.startswith("coverage")]
+    assert f"{half['points']} points in 30 fields of up to 10 markers" in line
+    assert half["coverage"] < 0.6
+    (line,) = [w for w in half["warnings"] if "unmatched" in w]
+    assert f"({half['blobs_unmatched']} of {half['blobs'] - half['blobs_stationary']};" in line

@@ -81,18 +81,26 @@ def test_an_overlap_blob_serves_one_marker_and_both_markers_survive(strategy: st
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 def test_two_camera_markers_only_when_allowed(strategy: str) -> None:
+    # marker 0 moves along a line; after field 3 only cameras 0 and 3 see it
     rng = np.random.default_rng(8)
     dlts = make_rig(8)
-    xyz = random_markers(rng, 1, 4)[0]
-    points = []
-    for c in range(6):
-        # marker 0 only in cameras 0 and 3
-        keep = np.arange(4) if c in (0, 3) else np.arange(1, 4)
-        points.append(project(dlts[c], xyz[keep]))
-    off = match_field(points, dlts, ReconParams(strategy=strategy))
-    on = match_field(points, dlts, ReconParams(strategy=strategy, allow_two_camera=True))
-    assert len(off) == 3 and all(len(m) == 6 for m in off)
-    assert len(on) == 4 and sorted(len(m) for m in on) == [2, 6, 6, 6]
+    xyz = np.repeat(random_markers(rng, 1, 4), 8, axis=0)
+    xyz[:, 0] += np.arange(8)[:, None] * [12.0, -5.0, 3.0]
+    field, camera, uv = [], [], []
+    for f in range(8):
+        for c in range(6):
+            keep = np.arange(4) if c in (0, 3) or f < 4 else np.arange(1, 4)
+            field += [f] * len(keep)
+            camera += [c] * len(keep)
+            uv.append(project(dlts[c], xyz[f, keep]))
+    uv = np.concatenate(uv)
+    for allow, late in ((False, [6, 6, 6]), (True, [2, 6, 6, 6])):
+        params = ReconParams(strategy=strategy, allow_two_camera=allow)
+        marker = match_trial(field, camera, uv, dlts, params)
+        for f in range(8):
+            m = marker[np.asarray(field) == f]
+            sizes = sorted(np.unique(m[m >= 0], return_counts=True)[1].tolist())
+            assert sizes == ([6, 6, 6, 6] if f < 4 else late)
 
 
 def test_bad_tables_raise() -> None:

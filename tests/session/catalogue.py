@@ -124,6 +124,47 @@ def centroid_trial(text_by_camera: Callable[[str], str]) -> Setup:
 GOOD_ROWS = "field,x_px,y_px\n0,100.5,80.25\n0,300.0,120.0\n"
 
 
+def static_target(root: Path) -> None:
+    """A one-field trial: 200 points of a static target, as each camera's raw centroids."""
+    import json
+
+    from kisscal.synth.cameras import SynthCamera
+
+    rng = np.random.default_rng(7)
+    grid = np.stack(np.meshgrid(*(np.linspace(-0.8, 0.8, k) for k in (8, 5, 5))), -1)
+    xyz = grid.reshape(-1, 3) * [1000.0, 500.0, 800.0] + [0.0, 0.0, 1000.0]
+    xyz += rng.normal(0.0, 25.0, xyz.shape)  # a hand-built target, not a perfect lattice
+    cams = json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
+    text = {}
+    for cam in map(SynthCamera.from_dict, cams):
+        uv = cam.project(xyz)
+        text[cam.id] = "field,x_px,y_px\n" + "".join(f"0,{u:.3f},{v:.3f}\n" for u, v in uv)
+    centroid_trial(text.__getitem__)(root)
+
+
+def two_cameras(root: Path) -> None:
+    toml_edit(lambda data: data.update(cameras=data["cameras"][:2]))(root)
+
+
+def blank_trial(root: Path) -> None:
+    """Every frame of walk01 black: a trial in which no marker (and no LED) is seen."""
+    for path in (root / "trials" / "walk01").rglob("*.png"):
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        cv2.imwrite(str(path), np.zeros_like(image))
+
+
+def cluttered_rod_frame(root: Path) -> None:
+    """1300 marker-like dots over one rod frame of cam2 (a reflective backdrop, a sensor
+    gone wrong): far too many blobs to find the rods among them."""
+    path = sorted((root / "rods" / "cam2").glob("*.png"))[0]
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    rng = np.random.default_rng(13)
+    h, w = image.shape
+    for u, v in zip(rng.integers(3, w - 3, 1300), rng.integers(3, h - 3, 1300), strict=True):
+        cv2.circle(image, (int(u), int(v)), 2, 255, -1)
+    cv2.imwrite(str(path), image)
+
+
 def control_points(rows: str) -> Setup:
     def setup(root: Path) -> None:
         data = load_toml(root / "session.toml")
@@ -469,6 +510,47 @@ CASES: tuple[Case, ...] = (
         centroid_trial(lambda c: "field,x_px,y_px\n-1,5,5\n"),
         ("reconstruct", "S", "static"),
         ("field numbers must be 0 or more",),
+    ),
+    Case(
+        "one-field-trial",
+        "reconstruction",
+        "gave a static target of 200 points as one field of centroids",
+        static_target,
+        ("reconstruct", "S", "static"),
+        (),
+        exit_code=0,
+        stdout=("reconstruct static: 200 points in 1 fields", "stationary filter not applied"),
+        kept="every output; all 200 points are reconstructed",
+    ),
+    Case(
+        "blank-trial",
+        "reconstruction",
+        "recorded a trial of blank frames (no marker in view)",
+        blank_trial,
+        ("run", "S"),
+        (),
+        exit_code=0,
+        stdout=("warning: walk01: no 3D points in 20 fields", "empty files written (20 fields)"),
+        kept="every output; walk01 gets a header-only CSV and C3D/TRC files without points",
+    ),
+    Case(
+        "two-cameras",
+        "reconstruction",
+        "ran a session with two cameras only",
+        two_cameras,
+        ("run", "S"),
+        (),
+        exit_code=0,
+        stdout=("by 2 cameras",),
+        kept="every output; markers seen by both cameras are reconstructed",
+    ),
+    Case(
+        "cluttered-rod-frame",
+        "calibration",
+        "left 1300 bright dots in a rod frame",
+        cluttered_rod_frame,
+        ("calibrate", "S"),
+        ("camera cam2", "blobs in the rod image, too many to find the rods"),
     ),
     Case(
         "control-points-coplanar",

@@ -126,3 +126,22 @@ def test_sweep_csv(tmp_path):
     pred = (tmp_path / "sweep_predictions.csv").read_text().splitlines()
     assert pred[0] == "pnc,mnc,label,n_predicted"
     assert len(pred) == 1 + 2 * len(NAMES)
+
+
+def test_a_trial_without_trajectories_gets_files_without_points(tmp_path):
+    import ezc3d
+
+    empty = build_trajectories(np.zeros(0, int), np.zeros((0, 3)), TrackingParams())
+    assert empty.tracks.n_tracks == 0
+    c3d_path = write_c3d(tmp_path / "t.c3d", empty.tracks, empty.labels, 50.0, n_fields=5)
+    data = ezc3d.c3d(str(c3d_path))
+    assert data["data"]["points"].shape == (4, 0, 5)
+    assert data["parameters"]["POINT"]["RATE"]["value"][0] == 50.0
+    trc = write_trc(tmp_path / "t.trc", empty.tracks, empty.labels, 50.0, n_fields=5)
+    rows = trc.read_text().splitlines()
+    assert rows[2].split("\t")[2:4] == ["5", "0"]  # NumFrames, NumMarkers
+    assert rows[-5:] == [f"{f + 1}\t{f / 50:.5f}\t" for f in range(5)]  # tab-ended, as OpenSim
+    csv_path = write_trajectories_csv(tmp_path / "t.csv", empty.tracks, empty.labels)
+    assert csv_path.read_text() == ",".join(HEADER) + "\n"
+    with pytest.raises(KisscalError, match="no trajectories"):
+        write_c3d(tmp_path / "u.c3d", empty.tracks, empty.labels, 50.0)
