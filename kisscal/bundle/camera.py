@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -115,6 +114,42 @@ def distort(lens: NDArray[np.float64], xn: NDArray[np.float64]) -> NDArray[np.fl
     return np.column_stack([xd, yd])
 
 
+def distortion_jacobian(lens: NDArray[np.float64], xn: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``d(xd, yd) / d(x, y)`` of :func:`distort`, shape (n, 2, 2)."""
+    x, y = xn[:, 0], xn[:, 1]
+    k1, k2, p1, p2, k3 = (lens[:, i] for i in range(5))
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    d_radial = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3)
+    D = np.empty((len(xn), 2, 2))
+    D[:, 0, 0] = radial + 2 * x * x * d_radial + 2 * p1 * y + 6 * p2 * x
+    D[:, 0, 1] = 2 * x * y * d_radial + 2 * p1 * x + 2 * p2 * y
+    D[:, 1, 0] = D[:, 0, 1]
+    D[:, 1, 1] = radial + 2 * y * y * d_radial + 6 * p1 * y + 2 * p2 * x
+    return D
+
+
+def undistort(
+    lens: NDArray[np.float64], xd: NDArray[np.float64], tol: float = 1e-13
+) -> NDArray[np.float64]:
+    """Inverse of :func:`distort` for one lens (shape (1, 5)), by Newton's method."""
+    x = xd.copy()
+    for _ in range(50):
+        err = distort(lens, x) - xd
+        D = distortion_jacobian(lens, x)
+        det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
+        step = np.column_stack(
+            [
+                (D[:, 1, 1] * err[:, 0] - D[:, 0, 1] * err[:, 1]) / det,
+                (D[:, 0, 0] * err[:, 1] - D[:, 1, 0] * err[:, 0]) / det,
+            ]
+        )
+        x -= step
+        if not len(x) or np.max(np.abs(step)) < tol:
+            break
+    return x
+
+
 def normalised_to_px(K: NDArray[np.float64], xn: NDArray[np.float64]) -> NDArray[np.float64]:
     """Pixels of normalised coordinates, one ``K`` per row (or one for all), shape (n, 2)."""
     u = K[:, 0, 0] * xn[:, 0] + K[:, 0, 1] * xn[:, 1] + K[:, 0, 2]
@@ -130,21 +165,12 @@ def px_to_normalised(K: NDArray[np.float64], uv: NDArray[np.float64]) -> NDArray
 
 
 def undistort_px(camera: PinholeCamera, uv_px: ArrayLike) -> NDArray[np.float64]:
-    """Distortion-free pixels ``K (xn, yn, 1)`` of raw pixels (inverse of the lens).
-
-    OpenCV's iterative inversion (``cv2.undistortPointsIter``) run to 1e-12 in
-    normalised units; the skew is taken out and put back by hand, since OpenCV's
-    matrix has none.
-    """
+    """Distortion-free pixels ``K (xn, yn, 1)`` of raw pixels (inverse of the lens)."""
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
     xd = px_to_normalised(camera.K, uv)
-    if not np.any(camera.lens):
-        return normalised_to_px(camera.K[None], xd)
-    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    xn = cv2.undistortPointsIter(
-        xd.reshape(-1, 1, 2), np.eye(3), camera.lens.astype(float), None, None, criteria
-    ).reshape(-1, 2)
-    return normalised_to_px(camera.K[None], xn)
+    if np.any(camera.lens):
+        xd = undistort(camera.lens[None], xd)
+    return normalised_to_px(camera.K[None], xd)
 
 
 def camera_linearisation(

@@ -167,7 +167,7 @@ def find_wand_points(
     s = np.asarray(markers_mm, dtype=float)
     frac = wand_fractions(s)
     length = float(s.max() - s.min())
-    first, second = _pairs_within_fields(field)
+    first, second = pairs_within_fields(field)
     gap = np.linalg.norm(xyz[second] - xyz[first], axis=1)
     ok = np.abs(gap - length) <= tol_mm
     first, second = first[ok], second[ok]
@@ -194,7 +194,7 @@ def _symmetric(frac: NDArray[np.float64], tol: float = 1e-9) -> bool:
     return bool(np.all(np.abs(frac - (1.0 - frac[::-1])) <= tol))
 
 
-def _pairs_within_fields(field: NDArray[np.int64]) -> tuple[NDArray, NDArray]:
+def pairs_within_fields(field: NDArray[np.int64]) -> tuple[NDArray, NDArray]:
     """Every ordered pair (i, j), i != j, of rows in the same field."""
     starts = np.r_[0, np.flatnonzero(np.diff(field)) + 1]
     counts = np.diff(np.r_[starts, len(field)])

@@ -26,7 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.bundle.camera import PinholeCamera, distort, rotation_matrices
+from kisscal.bundle.camera import (
+    PinholeCamera,
+    distort,
+    distortion_jacobian,
+    rotation_matrices,
+)
 
 #: Unknowns of one camera, in Jacobian column order.
 CAMERA_UNKNOWNS: tuple[str, ...] = (
@@ -157,15 +162,8 @@ def project(
         return uv, None, None
     n = len(camera)
     x, y = xn[:, 0], xn[:, 1]
-    k1, k2, p1, p2, k3 = lens.T
     r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    d_radial = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3)
-    D = np.empty((n, 2, 2))  # d(xd, yd) / d(x, y)
-    D[:, 0, 0] = radial + 2 * x * x * d_radial + 2 * p1 * y + 6 * p2 * x
-    D[:, 0, 1] = 2 * x * y * d_radial + 2 * p1 * x + 2 * p2 * y
-    D[:, 1, 0] = D[:, 0, 1]
-    D[:, 1, 1] = radial + 2 * y * y * d_radial + 6 * p1 * y + 2 * p2 * x
+    D = distortion_jacobian(lens, xn)  # d(xd, yd) / d(x, y)
     A = np.zeros((n, 2, 2))  # d(u, v) / d(xd, yd)
     A[:, 0, 0], A[:, 0, 1], A[:, 1, 1] = fu, s, fv
     P = np.zeros((n, 2, 3))  # d(x, y) / d(camera-frame point)

@@ -72,7 +72,7 @@ class BundleParams(Params):
     loss_scale_px: float = param(0.5, unit="px", gt=0)
     outlier_px: float = param(2.0, unit="px", gt=0)
     outlier_sigmas: float = param(6.0, gt=0)
-    tolerance: float = param(1e-9, gt=0, lt=1)
+    tolerance: float = param(1e-7, gt=0, lt=1)
     max_iterations: int = param(100, ge=1)
     solver: Literal["schur", "least_squares"] = param("schur")
     max_fields: int = param(1200, ge=10)

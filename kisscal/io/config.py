@@ -176,6 +176,7 @@ class SessionConfig:
 # session layer (with a did-you-mean there).
 STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "report")
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
+_WAND_KEYS = {"trial", "markers_mm"}  # other [wand] keys are BundleParams
 
 
 # --------------------------------------------------------------------------- tables
@@ -260,7 +261,8 @@ def _calibration(t: Table) -> CalibrationConfig:
 
 
 def _wand(t: Table) -> WandConfig:
-    t.allow({"trial", "markers_mm"})
+    # keys besides trial and markers_mm tune the wand calibration (BundleParams, which
+    # refuses unknown ones with a did-you-mean)
     trial = t.string("trial", t.required("trial")) or ""
     raw = t.required("markers_mm")
     try:
@@ -370,6 +372,7 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     sections = {k: dict(top.sub(k).data) for k in STAGE_SECTIONS if k in data}
     # [grid] keys beyond rows/cols/images/fields tune the grid stage (GridParams)
     sections["grid"] = {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS}
+    sections["wand"] = {k: v for k, v in data.get("wand", {}).items() if k not in _WAND_KEYS}
     config = SessionConfig(
         root=Path(root),
         name=name,

@@ -27,6 +27,7 @@ from kisscal.synth.plan import (
     session_config,
     trial_visibility,
 )
+from kisscal.synth.wand import render_axes
 
 #: PNG compression level: fixed so that the same seed gives the same bytes.
 _PNG_LEVEL = 3
@@ -152,6 +153,8 @@ def write_synthetic_session(
             tdir = root / "truth" / "trials" / trial
             write_table(tdir / "centroids.csv", cols)
             (tdir / "markers.csv").write_text(table_to_csv(_markers_truth(plan, trial)))
+        if plan.axes_mm is not None:
+            write_axes_frames(root, plan)
         if out.exists():
             shutil.rmtree(out)
         root.rename(out)
@@ -159,3 +162,22 @@ def write_synthetic_session(
         if root.exists():
             shutil.rmtree(root, ignore_errors=True)
     return out
+
+
+def write_axes_frames(root: Path, plan: SynthPlan) -> None:
+    """The L-frame's images (``axes/<camera>/``) and truth (``truth/axes/<camera>.csv``)."""
+    assert plan.axes_mm is not None
+    for ci, cam in enumerate(plan.rig):
+        frames, truth = render_axes(
+            plan.rig,
+            ci,
+            plan.axes_mm,
+            plan.options.render,
+            plan.options.seed,
+            plan.options.rod_frames,
+        )
+        folder = root / "axes" / cam.id
+        folder.mkdir(parents=True, exist_ok=True)
+        for k, image in enumerate(frames):
+            _write_png(folder / f"{k:06d}.png", image)
+        write_table(root / "truth" / "axes" / f"{cam.id}.csv", truth)

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
 from kisscal.grid import GridParams
@@ -24,6 +25,7 @@ class Overrides:
     dlt: Mapping[str, Any] = field(default_factory=dict)
     recon: Mapping[str, Any] = field(default_factory=dict)
     tracking: Mapping[str, Any] = field(default_factory=dict)
+    wand: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,7 @@ class StageParams:
     dlt: DltParams
     recon: ReconParams
     tracking: TrackingParams
+    wand: BundleParams = field(default_factory=BundleParams)
 
 
 def build_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
@@ -80,4 +83,5 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         dlt=build_params(DltParams, "dlt", section("dlt", {}), o.dlt),
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
+        wand=build_params(BundleParams, "wand", section("wand", {}), o.wand),
     )

@@ -58,11 +58,15 @@ def synthesise(
     force: bool = False,
     n_jobs: int | None = None,
     echo: Callable[[str], object] | None = None,
+    wand_fields: int = 0,
+    wand_only: bool = False,
 ) -> Path:
     """Write a synthetic KISS-like session (images, ``session.toml``, ``truth/``) to ``out``.
 
     The same arguments give byte-identical files. With ``walking5`` the real Vicon trial
     is replayed through the synthetic cameras as trial ``walk5`` when it can be found.
+    ``wand_fields`` adds a wand trial ``wand01`` of that many fields and an L-frame
+    (``[wand]``, ``[axes]``); ``wand_only`` leaves ``[grid]`` and ``[rods]`` out.
     """
     echo = echo or _silent
     if n_markers not in (13, 15):
@@ -71,9 +75,17 @@ def synthesise(
         raise KisscalError(f"--cameras must be between 2 and 6, got {n_cameras}")
     if fields < 10:
         raise KisscalError(f"--fields must be at least 10, got {fields}")
+    if wand_only and not wand_fields:
+        raise KisscalError("--wand-only needs --wand FIELDS (the wand trial to calibrate from)")
     render = RenderParams() if blur_px is None else RenderParams(blur_px=blur_px)
     options = SynthOptions(
-        seed=seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, render=render
+        seed=seed,
+        fields=fields,
+        n_cameras=n_cameras,
+        n_markers=n_markers,
+        render=render,
+        wand_fields=wand_fields,
+        wand_only=wand_only,
     )
     replay = None
     if walking5:

@@ -34,6 +34,7 @@ from kisscal.synth.scene import (
     rods_clear_of_leds,
     visibility,
 )
+from kisscal.synth.wand import WAND_TRIAL, axes_points, wand_tables, wand_trial
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,12 @@ class SynthOptions:
         Fields of the stick trial (seed 003: 4 s).
     render : RenderParams
         Image appearance (blur, noise, LED rings ...).
+    wand_fields : int
+        Fields of a wand trial ``wand01`` with an L-frame for the lab axes
+        (:mod:`kisscal.synth.wand`); 0: none.
+    wand_only : bool
+        Leave ``[grid]`` and ``[rods]`` out of ``session.toml``: calibrate from the wand
+        and the L-frame alone.
     """
 
     seed: int = 1
@@ -69,6 +76,8 @@ class SynthOptions:
     rod_frames: int = 3
     stick_fields: int = 200
     render: RenderParams = field(default_factory=RenderParams)
+    wand_fields: int = 0
+    wand_only: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,6 +91,7 @@ class SynthPlan:
     marker_names: tuple[str, ...]
     template_mm: NDArray[np.float64]
     segments: tuple[tuple[str, str], ...]
+    axes_mm: NDArray[np.float64] | None = None
 
 
 def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPlan:
@@ -99,6 +109,8 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
     }
     if replay is not None:
         trials["walk5"] = replay
+    if options.wand_fields:
+        trials[WAND_TRIAL] = wand_trial(options.seed, options.wand_fields, options.rate_hz)
     rods = rod_set(options.seed)
     for attempt in range(1, 50):  # re-hang the rods until no LED ring hides a marker
         if rods_clear_of_leds(rig, rods, options.render):
@@ -112,12 +124,13 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         marker_names=gait.names,
         template_mm=standing_template(gait.names),
         segments=gait.segments,
+        axes_mm=axes_points() if options.wand_fields else None,
     )
 
 
 def session_config(plan: SynthPlan, name: str) -> dict:
     """The ``session.toml`` content (DESIGN.md schema) of a synthetic session."""
-    return {
+    config = {
         "session": {"name": name, "rate_hz": plan.options.rate_hz},
         "cameras": [{"id": c.id, "size": list(c.size_px)} for c in plan.rig],
         "grid": {"rows": 15, "cols": 20, "images": "grid/{camera}/*.png"},
@@ -132,6 +145,9 @@ def session_config(plan: SynthPlan, name: str) -> dict:
         },
         "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
     }
+    if plan.axes_mm is not None:
+        return wand_tables(config, plan.axes_mm, plan.options.wand_only)
+    return config
 
 
 # ------------------------------------------------------------------------- rendering

@@ -29,8 +29,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import VOLUME_MM
-from kisscal.synth.motion import Motion
+from kisscal.synth.cameras import VOLUME_MM, SynthCamera
+from kisscal.synth.motion import MARKER_RADIUS_MM, Motion
+from kisscal.synth.render import RenderParams, concat_spots, render_field, sphere_spots
+from kisscal.synth.scene import led_spots
+
+#: The name of the wand trial in synthetic sessions.
+WAND_TRIAL = "wand01"
 
 #: The wand of the synthetic sessions: three markers, unequal gaps (the ends are told
 #: apart), 500 mm from end to end.
@@ -130,3 +135,43 @@ def wand_trial(
 def axes_points(points_mm: Sequence[Sequence[float]] = AXES_POINTS_MM) -> NDArray[np.float64]:
     """The L-frame's marker centres in lab mm, shape (n, 3) (the lab frame is the frame's)."""
     return np.asarray(points_mm, dtype=float).reshape(-1, 3)
+
+
+def wand_tables(config: dict, axes_mm: NDArray[np.float64], wand_only: bool) -> dict:
+    """``session.toml`` content with ``[wand]`` and ``[axes]`` added (and, for a session
+    calibrated from the wand alone, ``[grid]`` and ``[rods]`` left out)."""
+    out = {k: v for k, v in config.items() if not (wand_only and k in ("grid", "rods"))}
+    out["wand"] = {"trial": WAND_TRIAL, "markers_mm": list(WAND_MARKERS_MM)}
+    out["axes"] = {"images": "axes/{camera}/*.png", "points_mm": np.round(axes_mm, 3).tolist()}
+    return out
+
+
+def render_axes(
+    rig: Sequence[SynthCamera],
+    cam_index: int,
+    axes_mm: NDArray[np.float64],
+    params: RenderParams,
+    seed: int,
+    n_frames: int,
+) -> tuple[list[NDArray[np.uint8]], dict[str, NDArray]]:
+    """Frames of the L-frame as one camera sees it (with the other cameras' LED rings),
+    and the truth of its markers (distorted and ideal pixel positions)."""
+    cam = rig[cam_index]
+    spots = sphere_spots(cam, axes_mm, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
+    scene = concat_spots(spots, led_spots(cam, rig, params))
+    frames = [
+        render_field(cam.size_px, scene, np.random.default_rng([seed, 9009, cam_index, k]), params)
+        for k in range(n_frames)
+    ]
+    ideal = cam.project_ideal(axes_mm)
+    truth = {
+        "index": np.arange(1, len(axes_mm) + 1),
+        "x_mm": axes_mm[:, 0],
+        "y_mm": axes_mm[:, 1],
+        "z_mm": axes_mm[:, 2],
+        "u_px": spots.centre_px[:, 0],
+        "v_px": spots.centre_px[:, 1],
+        "u_ideal_px": ideal[:, 0],
+        "v_ideal_px": ideal[:, 1],
+    }
+    return frames, truth

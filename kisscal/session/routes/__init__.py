@@ -5,8 +5,10 @@ it calibrates (plus its own extra files); :func:`kisscal.session.calibrate.calib
 the route from the session, writes what every route shares (``dltdv.csv``,
 ``calibration.json``) and hands the result on. Everything downstream reads only those files.
 
-Routes: :mod:`~kisscal.session.routes.rods` (surveyed rods, the seeds' method) and
-:mod:`~kisscal.session.routes.points` (control points given per camera).
+Routes: :mod:`~kisscal.session.routes.rods` (surveyed rods, the seeds' method),
+:mod:`~kisscal.session.routes.points` (control points given per camera),
+:mod:`~kisscal.session.routes.wand` (a wand, on rods or with an axes object) and
+:mod:`~kisscal.session.routes.target` (a known target matched from clicked seeds).
 """
 
 from __future__ import annotations
@@ -14,10 +16,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
 from kisscal.grid import Linearisation
+from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.frames import camera_frames
+from kisscal.session.detection import SizedFrames, detect_frames
+from kisscal.session.inputs import file_keys, out_dir
 from kisscal.session.params import StageParams
-from kisscal.session.progress import Echo
+from kisscal.session.progress import Echo, steps
 
 
 @dataclass(frozen=True)
@@ -52,3 +61,35 @@ class RouteInputs:
     def whole_rig(self) -> bool:
         """True when every camera of the session is calibrated (rig-wide checks apply)."""
         return len(self.cameras) == len(self.config.cameras)
+
+
+def frame_files(inputs: RouteInputs, pattern: str, what: str) -> dict[str, object]:
+    """Each camera's frames of a static calibration object (rods, axes, a target)."""
+    return {c.id: camera_frames(inputs.config.root, pattern, c.id, what) for c in inputs.cameras}
+
+
+def static_blobs(
+    inputs: RouteInputs, pattern: str, what: str
+) -> dict[str, list[NDArray[np.float64]]]:
+    """Raw valid blob centroids of every frame of a static object, per camera (cached).
+
+    ``what`` names the object in messages and in the cache (``rod``, ``axes`` ...).
+    """
+    frames = frame_files(inputs, pattern, what)
+    out = {}
+    for cam in steps(inputs.cameras, f"calibrate: detect {what}"):
+        seq = frames[cam.id]
+        key = cache_key("detect", file_keys(seq.paths, inputs.config.root), inputs.params.detection)
+        cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}s-{cam.id}.npz"
+        sized = SizedFrames(seq, cam.id, cam.size_px)
+        found = detect_frames(
+            sized,
+            inputs.params.detection,
+            cache,
+            key,
+            inputs.echo,
+            f"{what} {cam.id}",
+            inputs.workers,
+        )
+        out[cam.id] = [b.valid_only().xy_px for b in found]
+    return out

@@ -21,11 +21,9 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
-from kisscal.io.frames import camera_frames
-from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
-from kisscal.session.progress import Echo, steps
-from kisscal.session.routes import RouteInputs
+from kisscal.session.progress import Echo
+from kisscal.session.routes import RouteInputs, frame_files, static_blobs
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -37,10 +35,7 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     assert config.rods is not None
     out = out_dir(root) / "dlt"
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
-    rod_frames = {
-        cam.id: camera_frames(config.root, config.rods.images, cam.id, "rod")
-        for cam in inputs.cameras
-    }
+    rod_frames = frame_files(inputs, config.rods.images, "rod")
     lins = inputs.linearisations
     stage_key = cache_key(
         "calibrate",
@@ -53,18 +48,10 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     if inputs.whole_rig and is_current(out / "check.json", stage_key):
         inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
-    blobs_px = {}
-    for cam in steps(inputs.cameras, "calibrate: detect rods"):
-        frames = rod_frames[cam.id]
-        key = cache_key("detect", file_keys(frames.paths, config.root), params.detection)
-        cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
-        sized = SizedFrames(frames, cam.id, cam.size_px)
-        frame_blobs = detect_frames(
-            sized, params.detection, cache, key, inputs.echo, f"rods {cam.id}", inputs.workers
-        )
-        blobs_px[cam.id] = [
-            apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
-        ]
+    blobs_px = {
+        cam: [apply_linearisation(lins[cam], uv) for uv in frames]
+        for cam, frames in static_blobs(inputs, config.rods.images, "rod").items()
+    }
     t0 = time.perf_counter()
     cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
     write_dlt_outputs(out, cal)
