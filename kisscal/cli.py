@@ -112,6 +112,7 @@ def demo(
         "kisscal synth /tmp/s1 --seed 1 --fields 200",
         "kisscal synth /tmp/s2 --cameras 3",
         "kisscal synth /tmp/s3 --wand 600 --wand-only",
+        "kisscal synth /tmp/s4 --target stepped",
     )
 )
 def synth(
@@ -136,10 +137,21 @@ def synth(
     wand_only: Annotated[
         bool, typer.Option("--wand-only", help="Calibrate from the wand and L-frame alone.")
     ] = False,
+    target: Annotated[
+        Literal["planar", "stepped"] | None,
+        typer.Option(
+            help="Instead: photographs of a planar or stepped dot plate, with seeds.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Write a synthetic session with ground truth (tests, demos)."""
     from kisscal import session
 
+    if target is not None:
+        n = 3 if cameras == 6 else cameras
+        session.synthesise_target(out, target, seed=seed, n_cameras=n, force=force, echo=typer.echo)
+        return
     session.synthesise(
         out,
         seed=seed,

@@ -54,7 +54,8 @@ class Start:
     Attributes
     ----------
     cameras : tuple of PinholeCamera
-        In the frame of camera ``anchor`` (its centre at the origin, its axes the lab's).
+        In the frame of camera ``anchor`` (its axes the frame's), with the origin in the
+        middle of the wand's path.
     observations : WandObservations
         Wand images in consistent marker order (fields re-numbered ``0 .. n - 1``).
     wand : WandPoses
@@ -357,4 +358,10 @@ def _start(
     fields = np.flatnonzero(np.isfinite(wand[:, 0, 0]))
     cam, fi, m = np.nonzero(np.isfinite(images[:, fields][..., 0]))
     obs = WandObservations(fi, cam, m, images[cam, fields[fi], m])
-    return Start(cameras, obs, wand_poses(wand[fields], offsets), fields, anchor)
+    poses = wand_poses(wand[fields], offsets)
+    # the origin moves from the anchor camera's centre (where no DLT is defined) to the
+    # middle of the wand's path
+    middle = poses.centre_mm.mean(axis=0)
+    moved = tuple(c.transformed(np.eye(3), -middle) for c in cameras)
+    poses = WandPoses(poses.centre_mm - middle, poses.direction)
+    return Start(moved, obs, poses, fields, anchor)

@@ -174,7 +174,7 @@ class SessionConfig:
 
 # Stage sections whose keys are checked against the stage's parameter dataclass by the
 # session layer (with a did-you-mean there).
-STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "report")
+STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "report", "target")
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
 _WAND_KEYS = {"trial", "markers_mm"}  # other [wand] keys are BundleParams
 

@@ -30,6 +30,7 @@ from kisscal.session.progress import Echo, quiet
 from kisscal.session.routes import RouteInputs
 from kisscal.session.routes.points import calibrate_from_points
 from kisscal.session.routes.rods import calibrate_from_rods
+from kisscal.session.routes.target import calibrate_from_target
 from kisscal.session.routes.wand import calibrate_from_wand
 
 #: Every route by name: what ``calibration.json`` records and ``--route`` chooses.
@@ -37,6 +38,7 @@ ROUTES: dict[str, Callable[[RouteInputs], dict[str, Any]]] = {
     "rods": calibrate_from_rods,
     "points": calibrate_from_points,
     "wand": calibrate_from_wand,
+    "target": calibrate_from_target,
 }
 
 

@@ -13,6 +13,7 @@ from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
 from kisscal.params import Params
 from kisscal.recon import ReconParams
+from kisscal.target.params import TargetParams
 from kisscal.tracking import TrackingParams
 
 
@@ -26,6 +27,7 @@ class Overrides:
     recon: Mapping[str, Any] = field(default_factory=dict)
     tracking: Mapping[str, Any] = field(default_factory=dict)
     wand: Mapping[str, Any] = field(default_factory=dict)
+    target: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,7 @@ class StageParams:
     recon: ReconParams
     tracking: TrackingParams
     wand: BundleParams = field(default_factory=BundleParams)
+    target: TargetParams = field(default_factory=TargetParams)
 
 
 def build_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
@@ -84,4 +87,5 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
         wand=build_params(BundleParams, "wand", section("wand", {}), o.wand),
+        target=build_params(TargetParams, "target", section("target", {}), o.target),
     )

@@ -107,6 +107,32 @@ def synthesise(
     return Path(out)
 
 
+def synthesise_target(
+    out: Path,
+    kind: str,
+    *,
+    seed: int = 1,
+    n_cameras: int = 3,
+    force: bool = False,
+    echo: Callable[[str], object] | None = None,
+) -> Path:
+    """Write a synthetic known-target session (``kisscal synth --target planar|stepped``):
+    photographs of a dot plate, ``target.csv``, six clicked seeds per camera, ``truth/``."""
+    from kisscal.io.synthetic_target import write_target_session
+
+    if kind not in ("planar", "stepped"):
+        raise KisscalError(f"--target must be planar or stepped, got {kind!r}")
+    if not 2 <= n_cameras <= 4:
+        raise KisscalError(f"a target session has 2 to 4 cameras, got {n_cameras}")
+    t0 = time.perf_counter()
+    write_target_session(Path(out), kind, seed, n_cameras, force=force)  # type: ignore[arg-type]
+    (echo or _silent)(
+        f"wrote {out}: {n_cameras} cameras photographing a {kind} dot plate, "
+        f"target.csv, seeds, truth/ ({time.perf_counter() - t0:.1f} s)"
+    )
+    return Path(out)
+
+
 def evaluate(root: Path) -> dict[str, Any]:
     """Score a processed synthetic session against its ``truth/`` (no truth: empty dict).
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.bundle.adjust import WandPoses, centred_offsets
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_linearisation
+from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
 from kisscal.bundle.quality import (
     camera_figures,
     end_to_end_mm,
@@ -25,20 +25,11 @@ from kisscal.bundle.quality import (
     wand_markers,
 )
 from kisscal.bundle.wand import AxesFrame, WandCalibration
-from kisscal.dlt import DltResult
-from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.rig import RodCalibration
-from kisscal.grid import Linearisation
-from kisscal.io.dltfiles import write_dlt_json
 from kisscal.io.files import write_json
-from kisscal.io.linearisation import (
-    linearisation_from_dict,
-    read_linearisation_doc,
-    refined_by,
-    write_linearisation,
-)
 from kisscal.session.inputs import figure, out_dir
 from kisscal.session.routes import RouteInputs
+from kisscal.session.routes.lens_files import write_lens_camera
 
 ROUTE = "wand"
 
@@ -77,7 +68,7 @@ def write_wand_outputs(
     check = _checks(inputs, cal, rod_cal, wand_doc)
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
-    _write_cameras(inputs, cal, cameras, frame, rod_cal)
+    _write_cameras(inputs, cal, cameras, frame)
     out = out_dir(inputs.root) / "dlt"
     write_json(out / "check.json", check)
     write_json(out / "wand.json", wand_doc)
@@ -163,74 +154,33 @@ def _write_cameras(
     cal: WandCalibration,
     cameras: Sequence[PinholeCamera],
     frame: AxesFrame | None,
-    rod_cal: RodCalibration | None,
 ) -> None:
     """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
     config = inputs.config
-    out = out_dir(inputs.root)
+    assert config.wand is not None
     r, obs = cal.result, cal.observations
     wand = r.wand
     if frame is not None:
         Q, shift = frame.match.rotation, frame.match.shift_mm
         wand = WandPoses(wand.centre_mm @ Q.T + shift, wand.direction @ Q.T)
-    offsets = centred_offsets(config.wand.markers_mm if config.wand else (0.0, 1.0))
+    offsets = centred_offsets(config.wand.markers_mm)
     xyz_obs = wand.centre_mm[obs.field] + offsets[obs.marker, None] * wand.direction[obs.field]
+    names = [rod.name for rod in config.rods.rods] if config.rods else []
     for c, cfg in enumerate(config.cameras):
-        cam = cameras[c]
-        lin_path = out / "linearisation" / f"{cfg.id}.json"
-        grid_doc = _grid_document(lin_path, inputs.linearisations[cfg.id], config.grid is not None)
-        before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
-        lin, fit_max = camera_linearisation(cam, cfg.size_px, before)
-        quality = before.quality if before is not None else None
-        lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
-        refined = {
-            "by": ROUTE,
-            "lens_model": "Brown (OpenCV k1 k2 p1 p2 k3) on "
-            + ("the grid's linearised pixels" if before is not None else "raw pixels"),
-            "lens": {t: float(v) for t, v in zip(LENS_TERMS, cam.lens, strict=True)},
-            "fit_max_px": fit_max,
-            "grid_fit": grid_doc,
-        }
-        write_linearisation(lin_path, lin, cfg.id, refined=refined)
         rows = (obs.camera == c) & r.inlier
+        fields, marks = cal.fields[obs.field[rows]], obs.marker[rows]
+        labels = [f"W{m + 1}@{f}" for f, m in zip(fields, marks, strict=True)]
         xyz, uv, res = xyz_obs[rows], obs.uv_px[rows], r.residuals_px[rows]
-        labels = [
-            f"W{m + 1}@{cal.fields[f]}"
-            for f, m in zip(obs.field[rows], obs.marker[rows], strict=True)
-        ]
         if cal.control is not None:
             ctl = cal.control.camera == c
             xyz = np.concatenate([cal.control.xyz_mm[ctl], xyz])
             uv = np.concatenate([cal.control.uv_px[ctl], uv])
             res = np.concatenate([r.control_residuals_px[ctl], res])
-            names = [rr.name for rr in config.rods.rods] if config.rods else []
             labels = [f"{names[g]}@{i}" for i, g in enumerate(cal.control.group[ctl])] + labels
-        L = cam.dlt
-        result = DltResult(
-            L=L,
-            method=ROUTE,
-            lens=None,
-            residuals_px=res,
-            rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
-            constraint_linear=hatze_violation(L),
-            constraint=hatze_violation(L),
-            K=cam.K,
-            R=cam.R,
-            centre_mm=cam.centre_mm,
-            iterations=r.iterations,
+        extra = {"wand": {"trial": config.wand.trial}}
+        write_lens_camera(
+            inputs, cfg, cameras[c], ROUTE, (xyz, uv, res, labels), r.iterations, extra
         )
-        extra = {"wand": {"trial": config.wand.trial if config.wand else None}}
-        write_dlt_json(out / "dlt" / f"{cfg.id}.json", cfg.id, result, xyz, uv, labels, extra)
-
-
-def _grid_document(path: Any, lin: Linearisation, has_grid: bool) -> dict[str, Any] | None:
-    """The grid's own linearisation document (kept inside the refined one), None without."""
-    if not has_grid:
-        return None
-    doc = read_linearisation_doc(path)
-    if doc is not None and refined_by(doc) is not None:
-        return doc["refined"].get("grid_fit")
-    return doc
 
 
 def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -> None:
