@@ -46,6 +46,8 @@ from kisscal.dlt.camera import decompose_matrix
 from kisscal.dlt.linear import solve_dlt_matrix
 from kisscal.errors import KisscalError
 
+_SEARCH_FIELDS = 150
+
 
 @dataclass(frozen=True)
 class Start:
@@ -224,6 +226,9 @@ def _pair_cameras(
     size_j: tuple[int, int],
 ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Intrinsics of the pair and the pose of ``j``, scaled by the wand (see module doc)."""
+    if len(ui) > _SEARCH_FIELDS:  # the search needs the wand's spread, not every field
+        pick = np.linspace(0, len(ui) - 1, _SEARCH_FIELDS).round().astype(int)
+        ui, uj = ui[pick], uj[pick]
     k = ui.shape[1]
     gaps = np.abs(np.diff(offsets))
 
@@ -239,18 +244,26 @@ def _pair_cameras(
         logs = np.log(np.maximum(segments(p)[0], 1e-12))
         return (logs - np.median(logs)).ravel()
 
-    best = None
     side = max(*size_i, *size_j)
-    for scale in (0.7, 1.2, 2.0, 3.5):  # from wide-angle to narrow lenses
-        for aspect in (1.0, 0.5):  # square pixels, or interlaced video fields
-            f0 = np.log(scale * side)
-            p0 = np.array([f0, f0 + np.log(aspect), f0, f0 + np.log(aspect)])
-            try:
-                sol = scipy.optimize.least_squares(residual, p0, loss="soft_l1", f_scale=0.01)
-            except (cv2.error, ValueError, np.linalg.LinAlgError):
-                continue
-            if best is None or sol.cost < best.cost:
-                best = sol
+    starts = [
+        np.log([f * side, f * side * a, f * side, f * side * a])
+        for f in (0.7, 1.2, 2.0, 3.5)  # from wide-angle to narrow lenses
+        for a in (1.0, 0.5)  # square pixels, or interlaced video fields
+    ]
+    scores = []
+    for p0 in starts:  # one look at each, then Levenberg-Marquardt from the best two
+        try:
+            scores.append(float(np.sum(residual(p0) ** 2)))
+        except (cv2.error, ValueError, np.linalg.LinAlgError):
+            scores.append(np.inf)
+    best = None
+    for pick in np.argsort(scores)[:2]:
+        try:
+            sol = scipy.optimize.least_squares(residual, starts[pick], loss="soft_l1", f_scale=0.01)
+        except (cv2.error, ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or sol.cost < best.cost:
+            best = sol
     if best is None:
         raise KisscalError("wand calibration: the first camera pair could not be placed")
     seg, R, t = segments(best.x)

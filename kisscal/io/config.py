@@ -8,6 +8,7 @@ the key it checks.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from kisscal.bundle.params import BundleParams
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
@@ -261,8 +263,8 @@ def _calibration(t: Table) -> CalibrationConfig:
 
 
 def _wand(t: Table) -> WandConfig:
-    # keys besides trial and markers_mm tune the wand calibration (BundleParams, which
-    # refuses unknown ones with a did-you-mean)
+    # keys besides trial and markers_mm tune the wand calibration (BundleParams)
+    t.allow(_WAND_KEYS | {f.name for f in dataclasses.fields(BundleParams)})
     trial = t.string("trial", t.required("trial")) or ""
     raw = t.required("markers_mm")
     try:

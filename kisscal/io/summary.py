@@ -24,7 +24,22 @@ def summarise(root: Path) -> dict[str, Any]:
     trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
     check_path = out / "dlt" / "check.json"
     check = json.loads(check_path.read_text()) if check_path.is_file() else {}
-    return {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+    summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+    summary.update(_calibration_summary(out / "dlt"))
+    return summary
+
+
+def _calibration_summary(dlt: Path) -> dict[str, Any]:
+    """The calibration route, and the wand's or target's own figures when there are any."""
+    entry: dict[str, Any] = {}
+    record = dlt / "calibration.json"
+    if record.is_file():
+        entry["calibration"] = {"route": json.loads(record.read_text()).get("route")}
+    for name in ("wand", "target"):
+        path = dlt / f"{name}.json"
+        if path.is_file():
+            entry[name] = json.loads(path.read_text())
+    return entry
 
 
 def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
