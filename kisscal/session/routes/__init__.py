@@ -93,3 +93,29 @@ def static_blobs(
         )
         out[cam.id] = [b.valid_only().xy_px for b in found]
     return out
+
+
+def outputs_of(inputs: RouteInputs, route: str) -> bool:
+    """True when every camera's ``dlt/<camera>.json`` was written by ``route``.
+
+    A route's cache is valid only then: another route may have run since.
+    """
+    import json
+
+    for cam in inputs.cameras:
+        path = out_dir(inputs.root) / "dlt" / f"{cam.id}.json"
+        if not path.is_file() or json.loads(path.read_text()).get("method") != route:
+            return False
+    return True
+
+
+def write_check(inputs: RouteInputs, check: dict) -> None:
+    """Write ``dlt/check.json`` for a route that keeps its own cache key elsewhere.
+
+    The rods route's key beside the file is removed: the file is no longer its output.
+    """
+    from kisscal.io.files import write_json
+
+    path = out_dir(inputs.root) / "dlt" / "check.json"
+    write_json(path, check)
+    path.with_name(path.name + ".key").unlink(missing_ok=True)

@@ -25,7 +25,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
-from kisscal.session.routes import RouteInputs, frame_files
+from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
@@ -52,7 +52,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         linearisation_key(inputs.linearisations),
         inputs.params.target,
     )
-    if inputs.whole_rig and is_current(out / "target.json", key):
+    if inputs.whole_rig and is_current(out / "target.json", key) and outputs_of(inputs, ROUTE):
         inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
     t0 = time.perf_counter()
@@ -77,7 +77,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
     write_json(out / "target.json", doc)
     if inputs.whole_rig:
-        write_json(out / "check.json", check)
+        write_check(inputs, check)
         mark_current(out / "target.json", key)
     _say(inputs, doc, check)
     return {"_check": check}

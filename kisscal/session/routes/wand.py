@@ -35,7 +35,7 @@ from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.session.inputs import file_keys, linearisation_key, out_dir
-from kisscal.session.routes import RouteInputs, frame_files, static_blobs
+from kisscal.session.routes import RouteInputs, frame_files, outputs_of, static_blobs
 from kisscal.session.routes.wand_outputs import write_wand_outputs
 
 
@@ -57,7 +57,8 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
         )
     out = out_dir(inputs.root) / "dlt"
     key = _stage_key(inputs)
-    if is_current(out / "wand.json", key) and (out / "check.json").is_file():
+    current = is_current(out / "wand.json", key) and outputs_of(inputs, "wand")
+    if current and (out / "check.json").is_file():
         inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
     t0 = time.perf_counter()

@@ -28,7 +28,7 @@ from kisscal.bundle.wand import AxesFrame, WandCalibration
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.files import write_json
 from kisscal.session.inputs import figure, out_dir
-from kisscal.session.routes import RouteInputs
+from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 
 ROUTE = "wand"
@@ -70,7 +70,7 @@ def write_wand_outputs(
         wand_doc["axes"] = _axes_entry(frame, ids)
     _write_cameras(inputs, cal, cameras, frame)
     out = out_dir(inputs.root) / "dlt"
-    write_json(out / "check.json", check)
+    write_check(inputs, check)
     write_json(out / "wand.json", wand_doc)
     _say(inputs, wand_doc, check)
     _figures(inputs, cal, cameras, frame, per_cam, lengths)
