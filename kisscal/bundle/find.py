@@ -167,6 +167,8 @@ def find_wand_points(
     s = np.asarray(markers_mm, dtype=float)
     frac = wand_fractions(s)
     length = float(s.max() - s.min())
+    if len(field) < len(s):
+        return WandPoints(np.zeros(0, np.int64), np.zeros((0, len(s)), np.int64))
     first, second = pairs_within_fields(field)
     gap = np.linalg.norm(xyz[second] - xyz[first], axis=1)
     ok = np.abs(gap - length) <= tol_mm
