@@ -8,7 +8,8 @@ both, as :class:`~kisscal.synth.motion.Motion` and marker arrays, so that
 :mod:`kisscal.synth.plan` renders them like any trial.
 
 The wand's centre sweeps the walkway along lab X while it is waved up and down and side
-to side (incommensurate frequencies, so the path fills the volume), and its direction
+to side (incommensurate frequencies, so the path fills the volume and goes beyond it,
+into the edges of every camera's view), and its direction
 turns about the vertical while rocking in elevation; the person holding it is a capsule
 beside the wand that hides it from some cameras now and then (partial views).
 
@@ -60,7 +61,7 @@ def wand_trial(
     rate_hz: float,
     markers_mm: Sequence[float] = WAND_MARKERS_MM,
     volume_mm: Volume = VOLUME_MM,
-    margin: float = 0.06,
+    reach: float = 0.3,
 ) -> Motion:
     """A wand waved through the whole control volume for ``n_fields`` fields.
 
@@ -76,8 +77,10 @@ def wand_trial(
         Marker positions along the wand's axis (mm), as in ``[wand] markers_mm``.
     volume_mm : ((x, y, z), (x, y, z))
         The control volume (min and max corners, lab mm).
-    margin : float
-        Fraction of each side of the volume that the wand's centre keeps away from.
+    reach : float
+        How far beyond the volume (fraction of its length and width) the wand is waved,
+        so that it reaches the edges and corners of every camera's image, as a technician
+        does; vertically it goes from a tenth of the volume's height to 15 % above it.
 
     Returns
     -------
@@ -88,8 +91,9 @@ def wand_trial(
     rng = np.random.default_rng([seed, 7007])
     lo, hi = np.asarray(volume_mm[0], float), np.asarray(volume_mm[1], float)
     size = hi - lo
-    inner_lo = lo + margin * size
-    inner_hi = hi - margin * size
+    grow = np.array([reach, reach, 0.0]) * size
+    inner_lo = lo - grow + [0.0, 0.0, 0.10 * size[2]]
+    inner_hi = hi + grow + [0.0, 0.0, 0.15 * size[2]]
     t = np.arange(n_fields) / rate_hz
     duration = max(t[-1], 1e-9)
     ph = rng.uniform(0.0, 2.0 * np.pi, 6)
