@@ -44,9 +44,13 @@ def rmse_mm(
     dlts: NDArray[np.float64],
     xyz_mm: NDArray[np.float64],
     raw: bool,
+    shape_only: bool = False,
 ) -> float:
     """RMS 3D error of points seen by every camera: true images (raw or ideal pixels),
-    each calibrated camera's correction ``ideal[c]``, triangulation with ``dlts``."""
+    each calibrated camera's correction ``ideal[c]``, triangulation with ``dlts``.
+
+    ``shape_only``: after the best similarity between the reconstructed and true points,
+    i.e. without the error of the lab frame's definition (origin, axes, scale)."""
     cams, pts, uvs = [], [], []
     for c, cam in enumerate(truth):
         uv = cam.project(xyz_mm) if raw else cam.project_ideal(xyz_mm)
@@ -57,7 +61,13 @@ def rmse_mm(
     tri = triangulate_observations(
         dlts, np.concatenate(pts), np.concatenate(cams), np.concatenate(uvs), len(xyz_mm)
     )
-    err = np.linalg.norm(tri.xyz_mm - xyz_mm, axis=1)
+    est = tri.xyz_mm
+    if shape_only:
+        ok = np.isfinite(est).all(axis=1)
+        R, _, scale = similarity(est[ok], xyz_mm[ok])
+        moved = est @ R.T
+        est = scale * (moved - moved[ok].mean(axis=0)) + xyz_mm[ok].mean(axis=0)
+    err = np.linalg.norm(est - xyz_mm, axis=1)
     return float(np.sqrt(np.nanmean(err**2)))
 
 
