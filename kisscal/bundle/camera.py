@@ -19,8 +19,6 @@ Brown, D. C. (1971). Close-range camera calibration. Photogrammetric Engineering
 Woltring, H. J., & Huiskes, R. (1990). Stereophotogrammetry. In Biomechanics of Human
 Movement (Berme & Cappozzo, eds.).
 Küçük, M. (2005). Calibration and 3D reconstruction for the KISS gait laboratory (thesis).
-Lawson, C. L. (1961). Contributions to the theory of linear least maximum approximation
-(thesis, UCLA).
 """
 
 from __future__ import annotations
@@ -35,7 +33,6 @@ from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_from_krt
 from kisscal.grid.poly import Linearisation, apply_linearisation, fit_polynomial
 
-_MINIMAX_ROUNDS = 8
 #: Brown lens terms, in the order of OpenCV's distortion vector.
 LENS_TERMS: tuple[str, ...] = ("k1", "k2", "p1", "p2", "k3")
 
@@ -180,25 +177,32 @@ def camera_linearisation(
     camera: PinholeCamera,
     size_px: tuple[int, int],
     before: Linearisation | None = None,
+    data_px: ArrayLike | None = None,
     samples: int = 25,
+    lattice_weight: float = 0.1,
 ) -> tuple[Linearisation, float]:
     """The 30-coefficient polynomial taking raw pixels to the camera's distortion-free pixels.
 
-    A fourth-order polynomial cannot follow a Brown lens exactly; Lawson's iteratively
-    reweighted least squares (Lawson 1961) brings its largest error over the image, at
-    the corners, to about a third of the plain least-squares one.
+    A fourth-order polynomial cannot follow a lens model exactly; the least-squares fit
+    is weighted where it matters, on the raw image positions the camera was calibrated
+    from (``data_px``), with a ``samples`` x ``samples`` lattice over the whole image
+    (corners included) carrying ``lattice_weight`` of their total weight so the
+    polynomial stays faithful where there were none.
 
     Parameters
     ----------
     camera : PinholeCamera
         Its lens acts on the coordinates ``before`` produces (raw pixels if None).
     size_px : (int, int)
-        Image width and height; the polynomial is fitted on a ``samples`` x ``samples``
-        lattice over the whole image, corners included.
+        Image width and height.
     before : Linearisation, optional
         A linearisation applied first (a grid's), composed with the lens inverse.
+    data_px : array_like, shape (n, 2), optional
+        Raw positions of the observations (default: the lattice alone).
     samples : int
         Lattice points per side.
+    lattice_weight : float
+        The lattice's share of the data's weight.
 
     Returns
     -------
@@ -209,16 +213,16 @@ def camera_linearisation(
     """
     w, h = size_px
     u, v = np.meshgrid(np.linspace(-0.5, w - 0.5, samples), np.linspace(-0.5, h - 0.5, samples))
-    raw = np.column_stack([u.ravel(), v.ravel()])
+    lattice = np.column_stack([u.ravel(), v.ravel()])
+    data = np.zeros((0, 2)) if data_px is None else np.asarray(data_px, dtype=float).reshape(-1, 2)
+    raw = np.concatenate([lattice, data])
+    share = lattice_weight * len(data) / len(lattice) if len(data) else 1.0
+    weights = np.r_[np.full(len(lattice), share), np.ones(len(data))]
     mid = raw if before is None else apply_linearisation(before, raw)
     target = undistort_px(camera, mid)
     centre, scale = ((w - 1) / 2.0, (h - 1) / 2.0), max(w, h) / 2.0
-    weights = np.ones(len(raw))
-    for _ in range(_MINIMAX_ROUNDS):
-        lin = fit_polynomial(raw, target, centre, scale, weights)
-        err = np.linalg.norm(apply_linearisation(lin, raw) - target, axis=1)
-        weights = weights * (err + 1e-12)
-        weights /= weights.mean()
+    lin = fit_polynomial(raw, target, centre, scale, weights)
+    err = np.linalg.norm(apply_linearisation(lin, lattice) - target[: len(lattice)], axis=1)
     return lin, float(err.max())
 
 

@@ -39,14 +39,15 @@ def test_dlt_round_trip() -> None:
     assert np.allclose(again.centre_mm, cam.centre_mm)
 
 
-def test_linearisation_polynomial_follows_the_lens_to_hundredths() -> None:
-    """The 30 coefficients carry a 6-9 px barrel lens to within 0.06 px over the image
-    (a 4th-order polynomial cannot follow it exactly; the plain least-squares fit is
-    three times worse at the corners)."""
+def test_linearisation_polynomial_follows_the_lens_where_the_data_are() -> None:
+    """Weighted on the calibration's image positions (the central 80 % here), the 30
+    coefficients follow a 6-9 px barrel lens to 0.03 px there; the image corners, with a
+    tenth of the weight, stay within 0.35 px."""
     for cam in kiss_rig(5):
         lens = np.array([cam.lens.k1, cam.lens.k2, cam.lens.p1, cam.lens.p2, 0.0])
-        lin, fit_max = camera_linearisation(PinholeCamera(cam.K, cam.R, cam.t, lens), cam.size_px)
         w, h = cam.size_px
-        raw = np.random.default_rng(2).uniform([0, 0], [w - 1, h - 1], (400, 2))
-        err = np.linalg.norm(apply_linearisation(lin, raw) - cam.undistort_px(raw), axis=1)
-        assert fit_max < 0.06 and err.max() < 0.06
+        data = np.random.default_rng(2).uniform([0.1 * w, 0.1 * h], [0.9 * w, 0.9 * h], (1500, 2))
+        pinhole = PinholeCamera(cam.K, cam.R, cam.t, lens)
+        lin, fit_max = camera_linearisation(pinhole, cam.size_px, data_px=data)
+        err = np.linalg.norm(apply_linearisation(lin, data) - cam.undistort_px(data), axis=1)
+        assert err.max() < 0.03 and fit_max < 0.35

@@ -74,7 +74,7 @@ def test_wand_on_rods_beats_the_rods_alone(wand_scene: WandScene) -> None:
 def test_a_wand_ten_percent_off_is_refused(wand_scene: WandScene) -> None:
     table = wand_scene.blobs(ideal=True, noise_px=0.05)
     control, starts = _rods(wand_scene, 0.05)
-    with pytest.raises(KisscalError, match=r"measures 500\.\d mm .* -9\.1%"):
+    with pytest.raises(KisscalError, match=r"measures (499|500)\.\d mm .* -9\.\d%"):
         calibrate_on_control(
             table, starts, control, (0.0, 209.0, 550.0), wand_scene.sizes, wand_scene.ids, "w"
         )

@@ -493,7 +493,7 @@ CASES: tuple[Case, ...] = (
         "gave a wand length 10 % longer than the wand",
         wand_trial(stated_mm=(0.0, 209.0, 550.0)),
         ("calibrate", "S"),
-        ("[wand] markers_mm", "550 mm apart", "measures 500", "-9.1%"),
+        ("[wand] markers_mm", "550 mm apart", "the rods' calibration measures", "fields, -9."),
     ),
     Case(
         "axes-marker-hidden",

@@ -207,8 +207,9 @@ def wand_alone(rig, volume, seed: int, fields: int, noise_px: float = NOISE_PX) 
     dlts = np.stack([c.dlt for c in cams])
     brown = [corner_error_px(t, _ideal_of(c)) for t, c in zip(rig, cams, strict=True)]
     polys = []
-    for t, c in zip(rig, cams, strict=True):
-        lin = camera_linearisation(c, t.size_px)[0]
+    inl = cal.observations.subset(cal.result.inlier)
+    for k, (t, c) in enumerate(zip(rig, cams, strict=True)):
+        lin = camera_linearisation(c, t.size_px, data_px=inl.uv_px[inl.camera == k])[0]
         polys.append(corner_error_px(t, lambda uv, lin=lin: apply_linearisation(lin, uv)))
     return {
         "seed": seed,

@@ -1,10 +1,14 @@
 """The version-1 files of a camera calibrated with Brown lens terms (wand, target routes).
 
-The lens is folded into the 30-coefficient linearisation polynomial, fitted over the
-whole image to the grid's linearisation followed by the lens inverse (or to the lens
-inverse alone without a grid), and the DLT is the distortion-free camera ``K [R | t]``.
-The grid's own linearisation document is kept inside the new one (``refined.grid_fit``)
-so that a later route can put it back.
+The lens is folded into the 30-coefficient linearisation polynomial, fitted to the
+grid's linearisation followed by the lens inverse (or to the lens inverse alone without a
+grid), weighted on the image positions the camera was calibrated from. A polynomial
+follows a lens model only to a few hundredths of a pixel, which at a few metres is a
+tenth of a millimetre; so the DLT is then fitted again, linearly, to the calibration's
+own 3D points and their images through the written polynomial (it starts out as the
+distortion-free camera ``K [R | t]``), which takes up what the polynomial missed, as
+the rods' DLT does for the grid's polynomial. The grid's own linearisation document is
+kept inside the new one (``refined.grid_fit``) so that a later route can put it back.
 """
 
 from __future__ import annotations
@@ -17,9 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_linearisation
-from kisscal.dlt import DltResult
+from kisscal.dlt import DltResult, decompose_dlt, project, solve_dlt
 from kisscal.dlt.camera import hatze_violation
-from kisscal.grid import Linearisation
+from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
 from kisscal.io.config import CameraConfig
 from kisscal.io.dltfiles import write_dlt_json
 from kisscal.io.linearisation import (
@@ -55,13 +59,16 @@ def write_lens_camera(
     largest polynomial error (px).
 
     ``points`` are the observations the camera was fitted to: lab mm, image px (the lens
-    model's coordinates), residuals px and labels.
+    model's coordinates), residuals px and labels; the file lists them through the
+    written polynomial, with their residuals under the written DLT.
     """
     out = out_dir(inputs.root)
     lin_path = out / "linearisation" / f"{cfg.id}.json"
     grid_doc = grid_document(lin_path, inputs.config.grid is not None)
     before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
-    lin, fit_max = camera_linearisation(camera, cfg.size_px, before)
+    xyz, uv, _, labels = points
+    raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
+    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw)
     quality = before.quality if before is not None else None
     lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
     refined = {
@@ -73,20 +80,22 @@ def write_lens_camera(
         "grid_fit": grid_doc,
     }
     write_linearisation(lin_path, lin, cfg.id, refined=refined)
-    xyz, uv, res, labels = points
-    L = camera.dlt
+    written = apply_linearisation(lin, raw)
+    L = solve_dlt(xyz, written, camera=cfg.id) if len(xyz) >= 6 else camera.dlt
+    res = written - project(L, xyz)
+    K, R, centre = decompose_dlt(L)
     result = DltResult(
         L=L,
         method=route,
         lens=None,
         residuals_px=res,
         rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
-        constraint_linear=hatze_violation(L),
+        constraint_linear=hatze_violation(camera.dlt),
         constraint=hatze_violation(L),
-        K=camera.K,
-        R=camera.R,
-        centre_mm=camera.centre_mm,
+        K=K,
+        R=R,
+        centre_mm=centre,
         iterations=iterations,
     )
-    write_dlt_json(out / "dlt" / f"{cfg.id}.json", cfg.id, result, xyz, uv, labels, extra)
+    write_dlt_json(out / "dlt" / f"{cfg.id}.json", cfg.id, result, xyz, written, labels, extra)
     return fit_max
