@@ -25,10 +25,10 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def wand_session(small_session: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The small session (grid, rods) with a 150-field wand trial given as centroids."""
+    """The small session (grid, rods) with a 300-field wand trial given as centroids."""
     root = tmp_path_factory.mktemp("wand") / "s"
     shutil.copytree(small_session, root, ignore=shutil.ignore_patterns("out"))
-    add_wand_trial(root, fields=150)
+    add_wand_trial(root, fields=300)
     return root
 
 
@@ -90,7 +90,7 @@ def test_wand_and_axes_alone(wand_session: Path, tmp_path: Path) -> None:
     wand = json.loads((root / "out" / "dlt" / "wand.json").read_text())
     assert wand["start"] == "axes" and wand["axes"]["rms_mm"] < 2.0
     lin = json.loads((root / "out" / "linearisation" / "cam2.json").read_text())
-    assert lin["refined"]["grid_fit"] is None and lin["refined"]["fit_max_px"] < 0.1
+    assert lin["refined"]["grid_fit"] is None and lin["refined"]["fit_max_px"] < 0.35
     session.report(root)
     page = (root / "out" / "report.html").read_text()
     assert 'id="wand"' in page and "wand_coverage" in page

@@ -30,7 +30,7 @@ def truth_rig(root: Path) -> tuple[SynthCamera, ...]:
 
 def add_wand_trial(
     root: Path,
-    fields: int = 150,
+    fields: int = 300,
     markers_mm: tuple[float, ...] = WAND_MARKERS_MM,
     stated_mm: tuple[float, ...] | None = None,
     noise_px: float = 0.05,

@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_linearisation
-from kisscal.dlt import DltResult, decompose_dlt, project, solve_dlt
+from kisscal.dlt import DltParams, DltResult, decompose_dlt, project, solve_dlt
 from kisscal.dlt.camera import hatze_violation
+from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
 from kisscal.io.config import CameraConfig
 from kisscal.io.dltfiles import write_dlt_json
@@ -81,7 +82,9 @@ def write_lens_camera(
     }
     write_linearisation(lin_path, lin, cfg.id, refined=refined)
     written = apply_linearisation(lin, raw)
-    L = solve_dlt(xyz, written, camera=cfg.id) if len(xyz) >= 6 else camera.dlt
+    L = camera.dlt
+    if len(xyz) >= 6 and spread_ratio(xyz) >= DltParams().min_spread_ratio:  # not a flat target
+        L = solve_dlt(xyz, written, camera=cfg.id)
     res = written - project(L, xyz)
     K, R, centre = decompose_dlt(L)
     result = DltResult(
