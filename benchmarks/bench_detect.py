@@ -21,18 +21,29 @@ import numpy as np
 
 from benchmarks._harness import Timing, best_of, report
 from kisscal.detect import Blobs, DetectionParams, detect_blobs, detect_sequence
+from kisscal.detect.configure import configure_detection
 from kisscal.synth.plan import SynthOptions, plan_session, render_trial
 from kisscal.synth.scene import FieldTruth
 
 
-def _fields(n_fields: int, seed: int = 1) -> tuple[list[np.ndarray], list[FieldTruth]]:
+def _fields(
+    n_fields: int, seed: int = 1
+) -> tuple[list[np.ndarray], list[FieldTruth], list[DetectionParams]]:
+    """The rendered fields of every camera, their truth, and each field's camera settings.
+
+    Detection settings are derived per camera from a sample of its fields, as a session
+    derives them (``out/detection/<camera>.json``).
+    """
     plan = plan_session(SynthOptions(seed=seed, fields=n_fields))
-    rendered = [
-        (image, truth)
-        for cam in range(len(plan.rig))
-        for _, image, truth in render_trial(plan, "walk01", cam)
-    ]
-    return [r[0] for r in rendered], [r[1] for r in rendered]
+    images, truths, params = [], [], []
+    for cam in range(len(plan.rig)):
+        rendered = list(render_trial(plan, "walk01", cam))
+        sample = [r[1] for r in rendered[:: max(1, len(rendered) // 24)]]
+        setting = configure_detection(sample).params
+        images += [r[1] for r in rendered]
+        truths += [r[2] for r in rendered]
+        params += [setting] * len(rendered)
+    return images, truths, params
 
 
 def _accuracy(blobs: list[Blobs], truths: list[FieldTruth]) -> str:
@@ -86,9 +97,9 @@ def _opencv(image: np.ndarray, threshold: int) -> np.ndarray:
 
 def main() -> list[str]:
     n_fields = int(os.environ.get("KISSCAL_BENCH_FIELDS", "500"))
-    images, truths = _fields(n_fields)
+    images, truths, settings = _fields(n_fields)
     n = len(images)
-    params = DetectionParams()
+    params = settings[0]  # every camera of the rig gets about the same settings
     threshold = int(params.threshold)
     cores = os.cpu_count() or 1
     lines = [f"{n} fields (6 cameras x {n_fields}), 752 x 291 px, {cores} cores"]
@@ -104,7 +115,7 @@ def main() -> list[str]:
         )
         ours = best_of(
             "kisscal detect_blobs, 1 thread",
-            lambda: [detect_blobs(im, params) for im in images],
+            lambda: [detect_blobs(im, p) for im, p in zip(images, settings, strict=True)],
             n,
             "fields",
         )
@@ -137,7 +148,8 @@ def main() -> list[str]:
             f"{1e6 * ref.seconds / n:.0f} us, PNG decode {1e6 * decode.seconds / n:.0f} us"
         )
         lines.append(_summary(ours, ref))
-        lines.append(_accuracy([detect_blobs(im, params) for im in images], truths))
+        found = [detect_blobs(im, p) for im, p in zip(images, settings, strict=True)]
+        lines.append(_accuracy(found, truths))
     finally:
         cv2.setNumThreads(previous)
     return lines

@@ -111,21 +111,41 @@ def demo(
     epilog=_example(
         "kisscal synth /tmp/s1 --seed 1 --fields 200",
         "kisscal synth /tmp/s2 --cameras 3",
-        "kisscal synth /tmp/s3 --wand 600 --wand-only",
-        "kisscal synth /tmp/s4 --target stepped",
+        "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
+        "kisscal synth /tmp/s4 --wand 600 --wand-only",
+        "kisscal synth /tmp/s5 --target stepped",
     )
 )
 def synth(
     out: Annotated[
         Path, typer.Argument(help="Folder to write the synthetic session to.", metavar="DIR")
     ],
+    preset: Annotated[
+        Literal["kiss", "modern", "lowcost"],
+        typer.Option(help="Kind of lab: KISS video fields, a modern ring, webcams."),
+    ] = "kiss",
     seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same bytes.")] = 1,
-    fields: Annotated[int, typer.Option(help="Fields in the gait trial (50 Hz).", min=10)] = 200,
-    cameras: Annotated[int, typer.Option(help="Number of cameras.", min=2, max=6)] = 6,
+    fields: Annotated[
+        int | None,
+        typer.Option(
+            help="Fields in the gait trial [default: kiss 200, modern 100, lowcost 90].", min=10
+        ),
+    ] = None,
+    cameras: Annotated[
+        int | None,
+        typer.Option(
+            help="Number of cameras, 2 to 16 [default: kiss 6, modern 8, lowcost 4].", min=2, max=16
+        ),
+    ] = None,
     markers: Annotated[
         Literal[13, 15], typer.Option(help="Gait marker set: 13 or 15 markers.")
     ] = 15,
-    blur_px: Annotated[float, typer.Option(help="Gaussian blur sigma in pixels.", min=0)] = 0.6,
+    blur_px: Annotated[
+        float | None,
+        typer.Option(
+            help="Gaussian blur sigma in pixels [default: kiss 0.6, others per seed].", min=0
+        ),
+    ] = None,
     walking5: Annotated[
         bool, typer.Option(help="Also replay the real walking5.c3d trial (trial walk5).")
     ] = True,
@@ -149,11 +169,13 @@ def synth(
     from kisscal import session
 
     if target is not None:
-        n = 3 if cameras == 6 else cameras
-        session.synthesise_target(out, target, seed=seed, n_cameras=n, force=force, echo=typer.echo)
+        session.synthesise_target(
+            out, target, seed=seed, n_cameras=cameras or 3, force=force, echo=typer.echo
+        )
         return
     session.synthesise(
         out,
+        preset=preset,
         seed=seed,
         fields=fields,
         n_cameras=cameras,
@@ -171,6 +193,8 @@ def synth(
     epilog=_example(
         "kisscal detect frames/cam1/*.png",
         "kisscal detect frames/cam1/*.png --out blobs.csv --overlay overlays/",
+        "kisscal detect lab/s1/trials/walk01/cam2/*.png --session lab/s1 --camera cam2",
+        "kisscal detect frames/*.tif --threshold 60 --pixel-aspect 1.0",
     )
 )
 def detect(
@@ -179,16 +203,58 @@ def detect(
     overlay: Annotated[
         Path | None, typer.Option(help="Folder for overlay PNGs.", metavar="DIR")
     ] = None,
+    session_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--session", help="Use a camera's derived settings from this session.", metavar="DIR"
+        ),
+    ] = None,
+    camera: Annotated[
+        str | None, typer.Option(help="The session's camera (with --session).")
+    ] = None,
+    kind: Annotated[
+        Literal["markers", "grid"],
+        typer.Option(help="What the images show: markers, or the linearisation grid."),
+    ] = "markers",
+    threshold: Annotated[
+        float | None,
+        typer.Option(help="Grey level of a white pixel (8-bit scale).", show_default=False),
+    ] = None,
+    pixel_aspect: Annotated[
+        float | None,
+        typer.Option(
+            help="Width / height of a round marker's image (1 for square pixels).",
+            show_default=False,
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(help="A TOML file whose [detection] table gives settings.", metavar="FILE"),
+    ] = None,
 ) -> None:
     """Detect marker blobs in images (a CSV table).
 
-    The table goes to standard output, or to the file given with --out.
+    Settings not given (with --threshold, --pixel-aspect, --config or a session's
+    [detection]) are derived from the images themselves, or taken from a session camera's
+    derived settings with --session and --camera; what was used is printed. The table
+    goes to standard output, or to the file given with --out.
     """
     from kisscal import session
     from kisscal.io.blobs import format_blobs
+    from kisscal.io.config import read_detection_table
 
+    given = dict(read_detection_table(config)) if config is not None else {}
+    given.update(
+        {
+            k: v
+            for k, v in (("threshold", threshold), ("pixel_aspect", pixel_aspect))
+            if v is not None
+        }
+    )
     say = typer.echo if out is not None else lambda line: typer.echo(line, err=True)
-    tables = session.detect_images(images, out, overlay, echo=say)
+    tables = session.detect_images(
+        images, out, overlay, given, echo=say, session=session_dir, camera=camera, kind=kind
+    )
     if out is None:
         typer.echo(format_blobs(tables), nl=False)
 
@@ -311,6 +377,33 @@ def track(
         tracking["smoothing"] = True
     overrides = session.Overrides(tracking=tracking)
     session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
+
+
+@app.command(
+    epilog=_example(
+        "kisscal export lab/2026-11-21 --to anipose",
+        "kisscal export lab/2026-11-21 --to dltdv8 --out coefs.csv",
+        "kisscal export lab/2026-11-21 --to opencv --out calib/",
+    )
+)
+def export(
+    session_dir: SessionArg,
+    to: Annotated[
+        Literal["anipose", "dltdv8", "opencv"],
+        typer.Option(
+            help="anipose: cameras.toml (also Pose2Sim's layout); dltdv8: 11 x n coefficient "
+            "CSV in DLTdv8's pixels; opencv: one FileStorage YAML per camera."
+        ),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="File (a folder for opencv) to write; default: under SESSION/out."),
+    ] = None,
+) -> None:
+    """Write the session's calibration for another tool (after kisscal calibrate)."""
+    from kisscal.session.exports import export as export_calibration
+
+    export_calibration(session_dir, to, out, echo=typer.echo)
 
 
 @app.command(

@@ -15,9 +15,11 @@ References
 ----------
 Abdel-Aziz, Y. I., & Karara, H. M. (1971). Direct linear transformation from comparator
 coordinates into object space coordinates in close-range photogrammetry.
-Küçük, M. (2005). Calibration and 3D reconstruction for the KISS gait laboratory (thesis).
+Küçük, C. (2005). 3D marker tracking for human gait analysis. MSc thesis, Middle East
+Technical University, Ankara.
 Kolahi, A., Hoviattalab, M., Rezaeian, T., Alizadeh, M., Bostan, M., & Mokhtarzadeh, H.
-(2007). Design of a marker-based human motion tracking system.
+(2007). Design of a marker-based human motion tracking system. Biomedical Signal
+Processing and Control, 2, 59-67.
 
 Examples
 --------

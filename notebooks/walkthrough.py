@@ -27,7 +27,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from kisscal import session
-from kisscal.detect import DetectionParams, detect_blobs
+from kisscal.detect import detect_blobs
+from kisscal.detect.configure import configure_detection
 from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.grid import apply_linearisation, linearise_frames
 from kisscal.io.config import load_session
@@ -57,8 +58,12 @@ print(config.name, config.camera_ids, [t.name for t in config.trials])
 
 # %%
 frames = trial_frames(root, config.trial("walk01").images, config.camera_ids, "walk01")
+# The camera-dependent settings (threshold, pixel aspect, size limits) come from a few of
+# the camera's own frames; `kisscal run` does this per camera (out/detection/<camera>.json).
+setup = configure_detection([frames["cam1"][i] for i in range(0, 40, 5)])
+print(setup.summary())
 image = frames["cam1"][20]
-blobs = detect_blobs(image, DetectionParams())
+blobs = detect_blobs(image, setup.params)
 print(f"{len(blobs)} blobs, {int(blobs.valid.sum())} valid")
 fig, ax = plt.subplots(figsize=(9, 4))
 ax.imshow(image, cmap="gray", aspect=2.0)
@@ -83,13 +88,14 @@ for cam in config.camera_ids:
 
 # %%
 rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
-rod_blobs = {
-    cam: [
-        apply_linearisation(lins[cam], detect_blobs(f).valid_only().xy_px)
-        for f in camera_frames(root, config.rods.images, cam, "rod")
+rod_blobs = {}
+for cam in config.camera_ids:
+    rod_frames = list(camera_frames(root, config.rods.images, cam, "rod"))
+    params = configure_detection(rod_frames).params
+    rod_blobs[cam] = [
+        apply_linearisation(lins[cam], detect_blobs(f, params).valid_only().xy_px)
+        for f in rod_frames
     ]
-    for cam in config.camera_ids
-}
 cal = calibrate_rods(rod_blobs, rods)
 for cam, res in cal.results.items():
     print(f"{cam}: rms {res.rms_px:.3f} px, centre {np.round(res.centre_mm)} mm")
@@ -101,7 +107,10 @@ for cam, res in cal.results.items():
 
 # %%
 rig = Rig(tuple(Camera(c, cal.results[c].L, lins[c]) for c in config.camera_ids))
-blobs = {c: [detect_blobs(f).valid_only().xy_px for f in frames[c]] for c in rig.ids}
+blobs = {}
+for c in rig.ids:
+    params = configure_detection([frames[c][i] for i in range(0, 40, 5)]).params
+    blobs[c] = [detect_blobs(f, params).valid_only().xy_px for f in frames[c]]
 obs = rig.observations(blobs)  # one row per blob: field, camera, linearised (u, v)
 points = reconstruct_trial(obs.field, obs.camera, obs.uv_px, rig.dlts, ReconParams())
 print(f"{len(points)} 3D points, median reprojection rms {np.median(points.rms_px):.3f} px")

@@ -120,8 +120,10 @@ def test_detect_prints_the_table_without_out(tmp_path) -> None:
     for centre in ((20, 30), (55, 20)):  # markers as a 1.94:1 field camera images them
         cv2.ellipse(image, centre, (6, 3), 0, 0, 360, 230, -1)
     cv2.imwrite(str(tmp_path / "f.png"), image)
-    result = kisscal("detect", str(tmp_path / "f.png"))
+    # two markers are too few to measure the pixel aspect from: the user gives it
+    result = kisscal("detect", str(tmp_path / "f.png"), "--pixel-aspect", "1.94")
     assert result.returncode == 0
+    assert "pixel aspect 1.94" in result.stderr and "given: pixel_aspect" in result.stderr
     lines = result.stdout.strip().splitlines()
     assert lines[0] == "image,x_px,y_px,pixels,w_px,h_px,valid,flags"
     xy = sorted((float(r.split(",")[1]), float(r.split(",")[2])) for r in lines[1:])

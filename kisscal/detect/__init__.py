@@ -1,6 +1,6 @@
 """Blob detection: run-length pixel grouping, noise removal, merge/split tests, centroids.
 
-The method is Shafiq, Tümer & Güler 2001 (seeds/003, section 2). Call
+The method is Shafiq, Tümer & Güler (2001, section 2). Call
 :func:`detect_blobs` on one image or :func:`detect_sequence` on many; tune with
 :class:`DetectionParams`.
 

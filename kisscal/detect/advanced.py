@@ -1,5 +1,5 @@
-"""Advanced analysis (seeds/003 section 2.3): sub-marker merging, overlap (ul/ur) splitting,
-long/wide splitting and marker size limits.
+"""Advanced analysis (Shafiq et al. 2001, section 2.3): sub-marker merging, overlap
+(ul/ur) splitting, long/wide splitting and marker size limits.
 
 Groups are carried as labelled runs (:class:`Grouping`). Splitting a group creates one new
 label per marker centre estimated by the test, and every white pixel of the group goes to
@@ -234,7 +234,10 @@ def overlap_split(
         by_moments = (
             big_enough & ~eq6 & diagonal & (np.sqrt(major / minor) >= params.overlap_min_elongation)
         )
-    idx = np.flatnonzero(eq6 | by_moments)
+    pair = eq6 | by_moments
+    if params.max_pixels is not None:  # two halves larger than a marker are no pair
+        pair &= table.pixels <= 2 * params.max_pixels
+    idx = np.flatnonzero(pair)
     if idx.size == 0:
         return grouping
     left = table.x1[idx] - 0.5
@@ -320,6 +323,14 @@ def long_wide_split(
         return grouping
     idx, is_wide, diameter, extent = idx[agree], is_wide[agree], diameter[agree], extent[agree]
     k = np.maximum(np.floor(extent / diameter + 0.5), 2).astype(np.int64)
+    # More parts than a marker cluster holds, or parts larger than a marker: a bright
+    # streak, surface or LED ring, left whole for the size limits.
+    few = k <= params.split_max_markers
+    if params.max_pixels is not None:
+        few &= table.pixels[idx] <= k * params.max_pixels
+    if not few.any():
+        return grouping
+    idx, is_wide, diameter, extent, k = idx[few], is_wide[few], diameter[few], extent[few], k[few]
     kmax = int(k.max())
     j = np.arange(kmax)[None, :]
     valid_part = j < k[:, None]
@@ -336,22 +347,41 @@ def long_wide_split(
     return split_groups(grouping, table.label[idx], cx, cy, flag, params.pixel_aspect)
 
 
+def oversized(table: GroupTable, params: DetectionParams) -> NDArray[np.bool_]:
+    """Groups over the upper size limits (section 2.3.4): more pixels, wider or higher.
+
+    A limit left unset (None) holds nothing back.
+    """
+    large = np.zeros(len(table), dtype=bool)
+    for limit, size in (
+        (params.max_pixels, table.pixels),
+        (params.max_width_px, table.width),
+        (params.max_height_px, table.height),
+    ):
+        if limit is not None:
+            large |= size > limit
+    return large
+
+
+def splittable(table: GroupTable, params: DetectionParams) -> NDArray[np.bool_]:
+    """Groups small enough to be a cluster of markers: at most ``split_max_markers`` of
+    the largest marker (``max_pixels``); every group when no size limit is set."""
+    if params.max_pixels is None:
+        return np.ones(len(table), dtype=bool)
+    return table.pixels <= params.split_max_markers * params.max_pixels
+
+
 def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
     """Flag bits of the marker size limits (section 2.3.4): oversized groups (LED rings of
-    facing cameras) get ``too_large``, undersized ones ``too_small``; neither is split."""
-    large = (
-        (table.pixels > params.max_pixels)
-        | (table.width > params.max_width_px)
-        | (table.height > params.max_height_px)
-    )
+    facing cameras) get ``too_large``, undersized ones ``too_small``."""
     small = table.pixels < params.min_pixels
-    return np.where(large, fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)
+    return np.where(oversized(table, params), fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)
 
 
 def detach_from_large(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
     """Separate markers touching an oversized blob (an LED ring) before the size limits.
 
-    Not in seeds/003, where such a marker is lost inside the invalid LED group. The
+    Not in Shafiq et al. 2001, where such a marker is lost inside the invalid LED group. The
     group's white pixels are opened with an elliptical kernel of ``detach_kernel_px``
     (larger than any marker, smaller than an LED ring): what the opening removes and does
     not border the opened blob is a marker sticking out of it when it has at least
@@ -359,12 +389,9 @@ def detach_from_large(grouping: Grouping, table: GroupTable, params: DetectionPa
     ``max_pixels`` pixels. The group is then split between the blob and those
     markers by distance relative to each one's size (:func:`split_groups`).
     """
-    large = (
-        (table.pixels > params.max_pixels)
-        | (table.width > params.max_width_px)
-        | (table.height > params.max_height_px)
-    )
-    idx = np.flatnonzero(large)
+    if params.detach_kernel_px is None or params.max_pixels is None:
+        return grouping
+    idx = np.flatnonzero(oversized(table, params))
     if idx.size == 0:
         return grouping
     kw, kh = params.detach_kernel_px

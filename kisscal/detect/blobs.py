@@ -7,7 +7,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import NDArray
 
-# Flags name the advanced-analysis tests (seeds/003 section 2.3) that touched a blob; they
+# Flags name the advanced-analysis tests (Shafiq et al. 2001, section 2.3) that touched a blob; they
 # are bits so a blob can carry several (e.g. split_wide and too_small).
 MERGED = 1
 SPLIT_UL = 2
@@ -50,7 +50,7 @@ def parse_flags(text: str) -> int:
 
 @dataclass(frozen=True)
 class Blobs:
-    """Detected groups of one image (seeds/003 section 2), one entry per group.
+    """Detected groups of one image (Shafiq et al. 2001, section 2), one entry per group.
 
     Attributes
     ----------

@@ -19,6 +19,9 @@ from numpy.typing import NDArray
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.groups import GroupTable
 
+#: The background a spot's weights are measured from: one grey level, or a map per pixel.
+Background = float | NDArray[np.floating]
+
 
 @dataclass(frozen=True)
 class SpotMoments:
@@ -40,19 +43,6 @@ class SpotMoments:
     core_cov_xy: NDArray[np.float64]
 
 
-def estimate_background(image: NDArray) -> float:
-    """Median grey level of a sparse sample of ``image`` (every 4th line and column).
-
-    Marker images are mostly background, so the median of any spread-out sample is the
-    background level even with a few large LED blobs in view.
-    """
-    sample = image[::4, ::4]
-    if sample.dtype == np.uint8:
-        counts = np.bincount(sample.ravel(), minlength=256)
-        return float(np.searchsorted(np.cumsum(counts), (sample.size + 1) / 2))
-    return float(np.median(sample))
-
-
 def owner_image(shape: tuple[int, int], grouping: Grouping) -> NDArray[np.int32]:
     """Image of ``label + 1`` at every white pixel of a remaining group, 0 elsewhere."""
     owner = np.zeros(shape, dtype=np.int32)  # calloc: untouched pages cost nothing
@@ -72,7 +62,7 @@ def window_moments(
     table: GroupTable,
     margin_x_px: int,
     margin_y_px: int,
-    background: float,
+    background: Background,
     pixel_aspect: float,
 ) -> SpotMoments:
     """Background-subtracted weighted moments of each group in ``table`` over its window.
@@ -92,15 +82,17 @@ def window_moments(
         Bounding rectangles of the groups.
     margin_x_px, margin_y_px : int
         Growth of each rectangle to take in the blurred rim.
-    background : float
-        Grey level subtracted from every pixel before weighting.
+    background : float or ndarray
+        Grey level subtracted from every pixel before weighting: one level, or a map of
+        the image's shape (local background).
     pixel_aspect : float
         Width / height of a round marker in pixels (nearest-centre distance).
 
     Returns
     -------
     SpotMoments
-        Centroid falls back to the binary centroid where the weights sum to <= 0.
+        The centroid falls back to the binary centroid where the weights sum to <= 0 or
+        put it outside the window.
     """
     height, width = image.shape
     n = len(table)
@@ -121,7 +113,8 @@ def window_moments(
     if image.dtype == np.bool_:
         weight = own.astype(np.float64)
     else:
-        weight = image.ravel().take(flat).astype(np.float64) - background
+        weight = image.ravel().take(flat).astype(np.float64)
+        weight -= background.ravel().take(flat) if np.ndim(background) else background
         weight[white.ravel().take(flat) & ~own] = 0.0
     split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
     if split.size:
@@ -149,22 +142,26 @@ def window_moments(
     )
     sums = np.add.reduceat(terms, first, axis=1)
     total, core_total = sums[0], sums[6]
-    ok = total > 0
-    t = np.where(ok, total, 1.0)
-    ct = np.where(core_total > 0, core_total, 1.0)
-    mx, my = sums[1] / t, sums[2] / t
-    cx, cy = sums[7] / ct, sums[8] / ct
-    return SpotMoments(
-        total=total,
-        x=np.where(ok, x0 + mx, table.x_binary),
-        y=np.where(ok, y0 + my, table.y_binary),
-        var_x=sums[3] / t - mx * mx,
-        var_y=sums[4] / t - my * my,
-        cov_xy=sums[5] / t - mx * my,
-        core_var_x=sums[9] / ct - cx * cx,
-        core_var_y=sums[10] / ct - cy * cy,
-        core_cov_xy=sums[11] / ct - cx * cy,
-    )
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = np.where(total > 0, total, 1.0)
+        ct = np.where(core_total > 0, core_total, 1.0)
+        mx, my = sums[1] / t, sums[2] / t
+        cx, cy = sums[7] / ct, sums[8] / ct
+        # weights that (nearly) cancel put a centroid anywhere: keep it only inside its
+        # window, else the binary centroid stands
+        nrow = y1 - y0 + 1
+        ok = (total > 0) & (mx >= 0) & (mx <= ncol - 1) & (my >= 0) & (my <= nrow - 1)
+        return SpotMoments(
+            total=total,
+            x=np.where(ok, x0 + mx, table.x_binary),
+            y=np.where(ok, y0 + my, table.y_binary),
+            var_x=sums[3] / t - mx * mx,
+            var_y=sums[4] / t - my * my,
+            cov_xy=sums[5] / t - mx * my,
+            core_var_x=sums[9] / ct - cx * cx,
+            core_var_y=sums[10] / ct - cy * cy,
+            core_cov_xy=sums[11] / ct - cx * cy,
+        )
 
 
 def _nearest_part_mask(
@@ -176,18 +173,30 @@ def _nearest_part_mask(
     table: GroupTable,
     pixel_aspect: float,
 ) -> NDArray[np.float64]:
-    """1.0 where a window pixel of a split part is nearer its own centre than a sibling's."""
+    """1.0 where a window pixel of a split part is nearer its own centre than a sibling's.
+
+    One pass over the window pixels of all split parts: each pixel is compared with the
+    centres of its part's siblings only (at most a few), so the cost is linear in the
+    number of window pixels whatever the number of split groups.
+    """
     keep = np.ones(g.size)
     parent = grouping.parent[table.label]
-    cx = grouping.centre_x[table.label]
-    cy = grouping.centre_y[table.label]
-    r2 = grouping.radius[table.label] ** 2
-    for p in np.unique(parent[split]):  # one pass per split group: a few per image
-        members = split[parent[split] == p]
-        rows = np.isin(g, members)
-        d = (
-            ((xs[rows, None] - cx[members]) / pixel_aspect) ** 2
-            + (ys[rows, None] - cy[members]) ** 2
-        ) / r2[members]
-        keep[rows] = members[np.argmin(d, axis=1)] == g[rows]
+    order = split[np.argsort(parent[split], kind="stable")]
+    first = np.flatnonzero(np.r_[True, parent[order][1:] != parent[order][:-1]])
+    count = np.diff(np.r_[first, order.size])
+    family = np.repeat(np.arange(first.size), count)  # sibling set of each split row
+    siblings = np.full((first.size, int(count.max())), -1)
+    siblings[family, np.arange(order.size) - first[family]] = order
+    family_of_row = np.full(len(table), -1)
+    family_of_row[order] = family
+    rows = np.flatnonzero(family_of_row[g] >= 0)
+    cand = siblings[family_of_row[g[rows]]]  # (pixels, siblings), -1 padded
+    safe = np.maximum(cand, 0)
+    cx = grouping.centre_x[table.label[safe]]
+    cy = grouping.centre_y[table.label[safe]]
+    r2 = grouping.radius[table.label[safe]] ** 2
+    d = (((xs[rows, None] - cx) / pixel_aspect) ** 2 + (ys[rows, None] - cy) ** 2) / r2
+    d[cand < 0] = np.inf
+    nearest = cand[np.arange(rows.size), np.argmin(d, axis=1)]
+    keep[rows] = nearest == g[rows]
     return keep

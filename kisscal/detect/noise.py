@@ -1,4 +1,4 @@
-"""Noise removal (seeds/003 section 2.2)."""
+"""Noise removal (Shafiq et al. 2001, section 2.2)."""
 
 from __future__ import annotations
 

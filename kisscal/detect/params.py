@@ -1,32 +1,48 @@
-"""Every default of the blob detection front end, in one frozen dataclass.
+"""Every parameter of the blob detection front end, in one frozen dataclass.
 
-The defaults are chosen for KISS-like 752 x 291 interlaced fields, 8-bit, where a round
-marker images about 1.9 times wider than tall (non-square pixels; see ``pixel_aspect``).
-Shafiq, Tümer & Güler 2001 (seeds/003, section 3) stress that the thresholds must be tuned
-to the equipment; every one can be overridden from ``session.toml`` ``[detection]``.
+Shafiq, Tümer & Güler (2001, section 3) stress that the thresholds must be tuned to the
+equipment. The defaults here assume nothing of a camera (square pixels, no size limits);
+:mod:`kisscal.detect.configure` derives the camera-dependent ones (threshold, background,
+pixel aspect, size limits, kernels) from a sample of a camera's own images, and every one
+can be given in ``session.toml`` ``[detection]``.
+
+References
+----------
+Shafiq, M. S., Tümer, S. T., & Güler, H. C. (2001). Marker detection and trajectory
+generation algorithms for a multicamera based gait analysis system. Mechatronics, 11(4),
+409-437.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
+from typing import ClassVar
 
-import numpy as np
-
-from kisscal.errors import KisscalError
+from kisscal.params import Params, param
 
 
 @dataclass(frozen=True)
-class DetectionParams:
-    """Parameters of blob detection (seeds/003 section 2), each with its unit.
+class DetectionParams(Params):
+    """Parameters of blob detection (Shafiq et al. 2001, section 2), each with its unit.
 
     Attributes
     ----------
     threshold : float
-        Grey level (image units) at or above which a pixel is white. Low on purpose: markers
-        peak near saturation over a background of a few grey levels, and a low threshold
-        keeps small far markers at least two rows tall so the one-pixel-high noise rule
-        (section 2.2) cannot remove them. Ignored for boolean (already thresholded) images.
+        Grey level (8-bit scale: 16-bit images are read on it) at or above which a pixel is
+        white; with ``background_tile_px`` > 0, the grey levels a pixel must stand above its
+        local background. Derived per camera from the images (:mod:`kisscal.detect.configure`):
+        about a quarter of the faintest markers' contrast, so that small far markers stay at
+        least two rows tall for the one-pixel-high noise rule (section 2.2), and well above
+        the sensor noise. Ignored for boolean (already thresholded) images.
+    background_tile_px : int
+        0: the background is one grey level per image (the median of a sparse sample, or
+        ``background``). Otherwise the background is local, the median over tiles of about
+        this many pixels (:func:`kisscal.detect.background.background_map`), for images whose
+        surround is not uniformly dark; both the white test and the weighted centroids use it.
+    noise_factor : float
+        With a local background, a pixel must also stand this many local noise deviations
+        above it (:func:`kisscal.detect.background.local_noise_map`): bright surfaces are
+        noisier than dark ones. 0 turns the local noise test off.
     closeness_x_px : float
         Section 2.1 grouping: a run joins a group when its mid-point lies within the sum of
         the two runs' half-lengths plus this many pixels of a run of that group in a
@@ -58,7 +74,7 @@ class DetectionParams:
     split_touching : bool
         Split groups whose distance transform has several peaks (touching markers, e.g.
         three foot markers in a cluster) into one group per peak, before the overlap
-        test; not in seeds/003. Only groups whose shape or size is not that of one marker
+        test; not in Shafiq et al. 2001. Only groups whose shape or size is not that of one marker
         are examined.
     touching_separation : float
         Two distance-transform peaks are two markers when they are further apart than
@@ -107,25 +123,34 @@ class DetectionParams:
         outline: blur and blooming add about the same in both directions, independent of
         the pixel aspect. Used to estimate a marker's diameter when splitting.
     pixel_aspect : float
-        Width / height in pixels of the image of a round marker (pixel height / pixel width);
-        1.94 for 4:3 frames of 752 x 582 pixels scanned as 291-line fields.
+        Width / height in pixels of the image of a round marker (pixel height / pixel width):
+        1 for square pixels, about 1.94 for 4:3 frames of 752 x 582 pixels scanned as
+        291-line fields (KISS). Derived per camera from the shape of its isolated markers.
     detach_from_large : bool
         Separate markers touching an oversized blob (LED ring) from it before the size
-        limits; not in seeds/003 (there such a marker is lost with the invalid blob).
-    detach_kernel_px : (int, int)
+        limits; not in Shafiq et al. 2001 (there such a marker is lost with the invalid blob).
+    detach_kernel_px : (int, int) or None
         Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
-        and removes markers: larger than a marker image, smaller than an LED ring.
+        and removes markers: larger than a marker image, smaller than an LED ring. Derived
+        with the size limits; None: no detaching.
     detach_min_pixels : int
         Least white pixels of a piece sticking out of an oversized blob to be a marker.
     apply_size_limits : bool
         Section 2.3.4 switch: oversized and undersized groups are marked invalid (kept in
-        the table with ``too_large`` / ``too_small``), never split.
-    max_pixels : int
-        A group with more white pixels is too large (LED rings of facing cameras). On the
-        KISS-like rig, 25 mm markers at 2.5-7 m give 13-40 white pixels (at most 9 x 6)
-        and the LED rings 128-176 (at least 15 x 10): the limits sit between.
-    max_width_px, max_height_px : int
-        A group wider or higher than this is too large.
+        the table with ``too_large`` / ``too_small``).
+    max_pixels : int or None
+        A group with more white pixels is too large (LED rings of facing cameras,
+        reflections); None: no upper limit. Derived per camera and image kind from the
+        size distribution of its blobs (on the KISS-like rig, 25 mm markers at 2.5-7 m give
+        13-40 white pixels and the LED rings 128-176: the limit sits between).
+    max_width_px, max_height_px : int or None
+        A group wider or higher than this is too large; None: no limit.
+    split_max_markers : int
+        A group is split into markers (overlap, long/wide, touching tests) only when it
+        could hold at most this many markers, ``pixels <= split_max_markers * max_pixels``:
+        larger groups are bright regions (a lit surface, a reflection), not marker
+        clusters, and are left whole for the size limits. Long and wide groups are cut into
+        at most this many parts.
     min_pixels : int
         A group with fewer white pixels is too small.
     weighted_centroid : bool
@@ -134,118 +159,57 @@ class DetectionParams:
     centroid_margin_x_px, centroid_margin_y_px : int
         The weighted centroid sums over the group's bounding rectangle grown by these many
         pixels, so the blurred rim below the threshold is included.
-    background : float | None
-        Background grey level subtracted before weighting; ``None`` estimates it per image
-        as the median of a sparse pixel sample.
+    background : float or None
+        Background grey level subtracted before weighting (global background only);
+        ``None`` estimates it per image as the median of a sparse pixel sample.
     """
 
-    threshold: float = 40.0
-    closeness_x_px: float = 0.0
-    closeness_rows: int = 1
-    remove_lonely: bool = True
-    remove_one_pixel_wide: bool = True
-    remove_one_pixel_high: bool = True
-    noise_min_width_px: int = 2
-    noise_min_height_px: int = 2
-    merge_submarkers: bool = True
-    submarker_max_pixels: int = 8
-    submarker_max_rows: int = 2
-    submarker_overlap: float = 0.5
-    submarker_margin_px: int = 1
-    split_touching: bool = True
-    touching_separation: float = 1.2
-    split_overlaps: bool = True
-    overlap_ratio_max: float = 0.6
-    overlap_shift_px: float = 3.0
-    overlap_min_elongation: float = 1.3
-    overlap_angle_deg: float = 20.0
-    split_long_wide: bool = True
-    min_ratio: float = 0.78
-    max_ratio: float = 1.3
-    long_wide_min_pixels: int = 16
-    growth_px: float = 0.35
-    growth_min_groups: int = 5
-    split_min_extent: float = 1.25
-    edge_growth_px: float = 1.0
-    pixel_aspect: float = 1.94
-    detach_from_large: bool = True
-    detach_kernel_px: tuple[int, int] = (11, 7)
-    detach_min_pixels: int = 8
-    apply_size_limits: bool = True
-    max_pixels: int = 80
-    max_width_px: int = 14
-    max_height_px: int = 9
-    min_pixels: int = 3
-    weighted_centroid: bool = True
-    centroid_margin_x_px: int = 3
-    centroid_margin_y_px: int = 2
-    background: float | None = None
+    section: ClassVar[str] = "detection"
 
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            kind = str(f.type)
-            if kind == "bool":
-                ok = isinstance(value, bool | np.bool_)
-            elif kind == "int":
-                ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
-            elif kind.startswith("float"):
-                ok = (value is None and "None" in kind) or (
-                    isinstance(value, int | float | np.integer | np.floating)
-                    and not isinstance(value, bool)
-                )
-            else:  # the opening kernel: two odd positive integers
-                ok = (
-                    isinstance(value, tuple)
-                    and len(value) == 2
-                    and all(isinstance(v, int) and v > 0 and v % 2 == 1 for v in value)
-                )
-            if not ok:
-                raise KisscalError(
-                    f"detection: {f.name} must be {kind.replace('tuple[int, int]', 'two odd ints')}"
-                    f", got {value!r}"
-                )
-        positive = ("closeness_rows", "pixel_aspect", "max_pixels", "max_width_px")
-        for name in (*positive, "max_height_px", "submarker_max_rows"):
-            if not getattr(self, name) > 0:
-                raise KisscalError(f"detection: {name} must be > 0, got {getattr(self, name)}")
-        for name in (
-            "closeness_x_px",
-            "submarker_max_pixels",
-            "overlap_shift_px",
-            "overlap_angle_deg",
-            "edge_growth_px",
-            "growth_px",
-            "growth_min_groups",
-            "touching_separation",
-            "split_min_extent",
-            "min_pixels",
-            "long_wide_min_pixels",
-            "centroid_margin_x_px",
-            "centroid_margin_y_px",
-            "submarker_margin_px",
-        ):
-            if getattr(self, name) < 0:
-                raise KisscalError(f"detection: {name} must be >= 0, got {getattr(self, name)}")
-        if not 0 < self.min_ratio < 1 < self.max_ratio:
-            raise KisscalError(
-                f"detection: need 0 < min_ratio < 1 < max_ratio, got {self.min_ratio}, "
-                f"{self.max_ratio}"
-            )
-        for name in ("submarker_overlap", "overlap_ratio_max"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise KisscalError(f"detection: {name} must be in [0, 1]")
-
-    def replace(self, **changes: object) -> DetectionParams:
-        """Return a copy with ``changes``; unknown names raise :class:`KisscalError`."""
-        known = {f.name for f in dataclasses.fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise KisscalError(
-                f"detection: unknown parameter(s) {', '.join(unknown)}; known: "
-                + ", ".join(sorted(known))
-            )
-        return dataclasses.replace(self, **changes)
+    threshold: float = param(40.0, unit="grey levels", ge=0)
+    background_tile_px: int = param(0, unit="px", ge=0)
+    noise_factor: float = param(5.0, ge=0)
+    closeness_x_px: float = param(0.0, unit="px", ge=0)
+    closeness_rows: int = param(1, unit="lines", ge=1)
+    remove_lonely: bool = param(True)
+    remove_one_pixel_wide: bool = param(True)
+    remove_one_pixel_high: bool = param(True)
+    noise_min_width_px: int = param(2, unit="px", ge=0)
+    noise_min_height_px: int = param(2, unit="px", ge=0)
+    merge_submarkers: bool = param(True)
+    submarker_max_pixels: int = param(8, unit="px", ge=0)
+    submarker_max_rows: int = param(2, unit="lines", ge=1)
+    submarker_overlap: float = param(0.5, ge=0, le=1)
+    submarker_margin_px: int = param(1, unit="px", ge=0)
+    split_touching: bool = param(True)
+    touching_separation: float = param(1.2, ge=0)
+    split_overlaps: bool = param(True)
+    overlap_ratio_max: float = param(0.6, ge=0, le=1)
+    overlap_shift_px: float = param(3.0, unit="px", ge=0)
+    overlap_min_elongation: float = param(1.3, ge=1)
+    overlap_angle_deg: float = param(20.0, unit="deg", ge=0, le=45)
+    split_long_wide: bool = param(True)
+    min_ratio: float = param(0.78, gt=0, lt=1)
+    max_ratio: float = param(1.3, gt=1)
+    long_wide_min_pixels: int = param(16, unit="px", ge=0)
+    split_max_markers: int = param(4, ge=2)
+    growth_px: float = param(0.35, unit="px", ge=0)
+    growth_min_groups: int = param(5, ge=0)
+    split_min_extent: float = param(1.25, ge=0)
+    edge_growth_px: float = param(1.0, unit="px", ge=0)
+    pixel_aspect: float = param(1.0, gt=0)
+    detach_from_large: bool = param(True)
+    detach_kernel_px: tuple[int, int] | None = param(None, unit="px", gt=0, odd=True)
+    detach_min_pixels: int = param(8, unit="px", ge=0)
+    apply_size_limits: bool = param(True)
+    max_pixels: int | None = param(None, unit="px", gt=0)
+    max_width_px: int | None = param(None, unit="px", gt=0)
+    max_height_px: int | None = param(None, unit="px", gt=0)
+    min_pixels: int = param(3, unit="px", ge=0)
+    weighted_centroid: bool = param(True)
+    centroid_margin_x_px: int = param(3, unit="px", ge=0)
+    centroid_margin_y_px: int = param(3, unit="px", ge=0)
+    background: float | None = param(None, unit="grey levels")
 
     def without_advanced_analysis(self) -> DetectionParams:
         """These parameters with every section 2.3 test (and kisscal's additions) off."""
@@ -257,3 +221,8 @@ class DetectionParams:
             split_long_wide=False,
             apply_size_limits=False,
         )
+
+    @property
+    def has_size_limits(self) -> bool:
+        """True when some upper size limit is set (LED rings can be told from markers)."""
+        return any(v is not None for v in (self.max_pixels, self.max_width_px, self.max_height_px))

@@ -1,4 +1,4 @@
-"""Blob detection of one image and of image sequences (seeds/003 section 2)."""
+"""Blob detection of one image and of image sequences (Shafiq et al. 2001, section 2)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,15 +18,13 @@ from kisscal.detect.advanced import (
     long_wide_split,
     merge_submarkers,
     overlap_split,
+    oversized,
     size_flags,
+    splittable,
 )
+from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
-from kisscal.detect.centroid import (
-    SpotMoments,
-    estimate_background,
-    owner_image,
-    window_moments,
-)
+from kisscal.detect.centroid import Background, SpotMoments, owner_image, window_moments
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
@@ -41,6 +40,8 @@ from kisscal.detect.touching import split_touching
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
+#: Largest grey level a float image may hold (a 16-bit image's range).
+MAX_FLOAT_GREY = 65535.0
 
 
 def check_image(image: object) -> NDArray:
@@ -68,11 +69,40 @@ def check_image(image: object) -> NDArray:
         raise KisscalError(
             f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
         )
+    if np.issubdtype(image.dtype, np.floating):
+        top = float(np.max(np.abs(image)))
+        if not np.isfinite(top) or top > MAX_FLOAT_GREY:
+            raise KisscalError(
+                f"detect: float grey levels must be finite and within +-{MAX_FLOAT_GREY:g} "
+                f"(8- or 16-bit scale), got {top:g}"
+            )
     if np.issubdtype(image.dtype, np.unsignedinteger) and image.dtype.itemsize > 1:
         # 16-bit cameras: bring grey levels to the 8-bit scale so that ``threshold`` and the
         # other grey-level parameters mean the same for 8- and 16-bit frames of one scene.
         return image.astype(np.float32) * np.float32(255.0 / np.iinfo(image.dtype).max)
     return image
+
+
+def threshold_image(image: NDArray, params: DetectionParams) -> tuple[NDArray, Background]:
+    """The white pixels of a checked image and the background its centroids subtract.
+
+    Global background (``background_tile_px`` 0): white is ``image >= threshold`` and the
+    background one level, given or the median of a sparse sample. Local background: white
+    stands ``threshold`` (and ``noise_factor`` local noise deviations) above the
+    tile-median background map and the slack of its interpolation, and the weighted
+    centroids subtract the map (:mod:`kisscal.detect.background`). A boolean image is white
+    as it is, with no background.
+    """
+    if image.dtype == np.bool_:
+        return image, 0.0
+    if params.background_tile_px > 0:
+        local = local_background(image, params.background_tile_px)
+        above = np.float32(params.threshold)
+        if params.noise_factor > 0:
+            above = np.maximum(above, np.float32(params.noise_factor) * local.noise)
+        return image >= local.level + local.slack + above, local.level
+    level = background_level(image) if params.background is None else params.background
+    return image >= params.threshold, level
 
 
 def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Blobs:
@@ -83,7 +113,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     image : ndarray, shape (h, w)
         Grey IR image (uint8, uint16 or float) or an already thresholded boolean image.
     params : DetectionParams
-        Thresholds and switches.
+        Thresholds and switches; :func:`kisscal.detect.configure.configure_detection`
+        derives the camera-dependent ones from a camera's images.
 
     Returns
     -------
@@ -95,96 +126,181 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
 
     Notes
     -----
-    Steps: run-length scan and grouping by run mid-points (section 2.1, eq. 3); noise
-    removal (2.2); sub-marker merge (2.3.1); markers touching an LED ring separated from
-    it and touching markers split at distance-transform peaks (kisscal's additions, each
-    switchable); ul/ur overlap split (2.3.2, eqs. 4-6, plus a moment test for small
-    diagonal pairs); long/wide split (2.3.3, ratio from growth-corrected moments); size
-    limits (2.3.4). Coordinates keep the non-square pixels.
+    Steps: threshold against a global or local background; run-length scan and grouping
+    by run mid-points (Shafiq et al. 2001, section 2.1, eq. 3); noise removal (2.2);
+    sub-marker merge (2.3.1); markers touching an LED ring separated from it and touching
+    markers split at distance-transform peaks (kisscal's additions, each switchable);
+    ul/ur overlap split (2.3.2, eqs. 4-6, plus a moment test for small diagonal pairs);
+    long/wide split (2.3.3, ratio from growth-corrected moments); size limits (2.3.4).
+    Coordinates keep the non-square pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> image = np.full((60, 80), 5, np.uint8)
+    >>> image[20:25, 30:35] = 240                      # one bright 5 x 5 spot
+    >>> blobs = detect_blobs(image)
+    >>> len(blobs), float(blobs.x_px[0]), float(blobs.y_px[0])
+    (1, 32.0, 22.0)
     """
     image = check_image(image)
-    grey = image.dtype != np.bool_
-    white = image >= params.threshold if grey else image
+    white, background = threshold_image(image, params)
     runs = group_runs(white, params.closeness_x_px, params.closeness_rows)
     if len(runs) == 0:
         return Blobs.empty()
-    background = 0.0
-    if grey:
-        background = estimate_background(image) if params.background is None else params.background
-    grouping = Grouping.start(runs)
+    grouping, table = _first_groups(Grouping.start(runs), params)
+    if len(table) == 0:
+        return Blobs.empty()
+    spots = _Spots(image, white, background, params)
+    grouping, table, moments = _split_markers(grouping, table, spots, params)
+    return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
+
+
+def _first_groups(grouping: Grouping, params: DetectionParams) -> tuple[Grouping, GroupTable]:
+    """Noise removal (2.2), sub-marker merge (2.3.1) and the LED-ring detach.
+
+    Each test returns the grouping itself when it changed nothing: no re-measuring then.
+    """
     table = measure_groups(grouping.runs)
     noise = noise_groups(table, params)
     if noise.any():
         grouping = grouping.keep_groups(table.label[noise])
         table = measure_groups(grouping.runs)
-    # Each test returns the grouping itself when it changed nothing: no re-measuring then.
-    if params.merge_submarkers and len(table):
-        merged = merge_submarkers(grouping, table, params)
-        if merged is not grouping:
-            grouping = merged
+    steps = []
+    if params.merge_submarkers:
+        steps.append(merge_submarkers)
+    if params.detach_from_large and params.apply_size_limits:
+        steps.append(detach_from_large)
+    for step in steps:
+        if len(table) == 0:
+            break
+        changed = step(grouping, table, params)
+        if changed is not grouping:
+            grouping = changed
             table = measure_groups(grouping.runs)
-    if params.detach_from_large and params.apply_size_limits and len(table):
-        detached = detach_from_large(grouping, table, params)
-        if detached is not grouping:
-            grouping = detached
-            table = measure_groups(grouping.runs)
-    if len(table) == 0:
-        return Blobs.empty()
+    return grouping, table
 
-    def moments() -> SpotMoments:
+
+@dataclass(frozen=True)
+class _Spots:
+    """What the weighted moments of a grouping need besides the grouping itself."""
+
+    image: NDArray
+    white: NDArray[np.bool_]
+    background: Background
+    params: DetectionParams
+
+    def moments(self, grouping: Grouping, table: GroupTable) -> SpotMoments:
+        p = self.params
         return window_moments(
-            image,
-            white,
-            owner_image(white.shape, grouping),
+            self.image,
+            self.white,
+            owner_image(self.white.shape, grouping),
             grouping,
             table,
-            params.centroid_margin_x_px,
-            params.centroid_margin_y_px,
-            background,
-            params.pixel_aspect,
+            p.centroid_margin_x_px,
+            p.centroid_margin_y_px,
+            self.background,
+            p.pixel_aspect,
         )
 
-    # Moments are recomputed only after a test actually split a group.
-    spot = moments()
-    growth = params.growth_px
-    if params.split_overlaps or params.split_long_wide or params.split_touching:
-        # One growth estimate per image, from the groups before any split.
-        sx, sy = spreads(spot.core_var_x, spot.core_var_y)
-        inside = _inside(table, white.shape)
-        usable = inside & (table.pixels >= params.long_wide_min_pixels)
-        usable &= table.pixels <= params.max_pixels
-        growth = estimate_growth(
-            sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
+
+def _split_markers(
+    grouping: Grouping, table: GroupTable, spots: _Spots, params: DetectionParams
+) -> tuple[Grouping, GroupTable, SpotMoments]:
+    """Touching, overlap (2.3.2) and long/wide (2.3.3) splits; moments after the last one.
+
+    Moments are recomputed only after a test actually split a group.
+    """
+    moments = spots.moments(grouping, table)
+    if not (params.split_overlaps or params.split_long_wide or params.split_touching):
+        return grouping, table, moments
+    growth = _image_growth(table, moments, spots.white.shape, params)
+    tests = [
+        (params.split_touching, _touching_step),
+        (params.split_overlaps, _overlap_step),
+        (params.split_long_wide, _long_wide_step),
+    ]
+    for enabled, test in tests:
+        if not enabled:
+            continue
+        corrected = corrected_moments(
+            moments.core_var_x, moments.core_var_y, moments.core_cov_xy, growth
         )
-    if params.split_touching:
-        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
-        candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
-        split = split_touching(grouping, table, params, candidates)
+        split = test(grouping, table, moments, corrected, spots.white, params)
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
-            spot = moments()
-    if params.split_overlaps:
-        vx, vy, cxy = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
-        core = (spot.x, spot.y, vx, vy, cxy)
-        split = overlap_split(grouping, table, params, core, _testable(grouping, table, white))
-        if split is not grouping:
-            grouping = split
-            table = measure_groups(grouping.runs)
-            spot = moments()
-    if params.split_long_wide:
-        vx, vy, _ = corrected_moments(spot.core_var_x, spot.core_var_y, spot.core_cov_xy, growth)
-        ratio = height_ratio(vx, vy, params.pixel_aspect)
-        split = long_wide_split(grouping, table, params, ratio, _testable(grouping, table, white))
-        if split is not grouping:
-            grouping = split
-            table = measure_groups(grouping.runs)
-            spot = moments()
+            moments = spots.moments(grouping, table)
+    return grouping, table, moments
+
+
+def _image_growth(
+    table: GroupTable, moments: SpotMoments, shape: tuple[int, ...], params: DetectionParams
+) -> float:
+    """One growth estimate per image, from the groups before any split."""
+    sx, sy = spreads(moments.core_var_x, moments.core_var_y)
+    usable = _inside(table, shape) & (table.pixels >= params.long_wide_min_pixels)
+    usable &= ~oversized(table, params)
+    return estimate_growth(
+        sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
+    )
+
+
+Corrected = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
+
+def _touching_step(
+    grouping: Grouping,
+    table: GroupTable,
+    moments: SpotMoments,
+    corrected: Corrected,
+    white: NDArray[np.bool_],
+    params: DetectionParams,
+) -> Grouping:
+    vx, vy, cxy = corrected
+    candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
+    return split_touching(grouping, table, params, candidates & splittable(table, params))
+
+
+def _overlap_step(
+    grouping: Grouping,
+    table: GroupTable,
+    moments: SpotMoments,
+    corrected: Corrected,
+    white: NDArray[np.bool_],
+    params: DetectionParams,
+) -> Grouping:
+    core = (moments.x, moments.y, *corrected)
+    return overlap_split(grouping, table, params, core, _testable(grouping, table, white, params))
+
+
+def _long_wide_step(
+    grouping: Grouping,
+    table: GroupTable,
+    moments: SpotMoments,
+    corrected: Corrected,
+    white: NDArray[np.bool_],
+    params: DetectionParams,
+) -> Grouping:
+    ratio = height_ratio(corrected[0], corrected[1], params.pixel_aspect)
+    testable = _testable(grouping, table, white, params)
+    return long_wide_split(grouping, table, params, ratio, testable)
+
+
+def _blob_table(
+    grouping: Grouping,
+    table: GroupTable,
+    moments: SpotMoments,
+    params: DetectionParams,
+    weighted: bool,
+) -> Blobs:
+    """The result table: flags (size limits last), centroids, sorted by rectangle corner."""
     flags = grouping.flags[table.label]
     if params.apply_size_limits:
         flags = flags | size_flags(table, params)
     xb, yb = table.x_binary, table.y_binary
-    x, y = (spot.x, spot.y) if grey and params.weighted_centroid else (xb, yb)
+    x, y = (moments.x, moments.y) if weighted and params.weighted_centroid else (xb, yb)
     order = np.lexsort((table.x1, table.y1))
     return Blobs(
         x_px=x[order],
@@ -205,15 +321,18 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
 
 
-def _testable(grouping: Grouping, table: GroupTable, white: NDArray[np.bool_]) -> NDArray[np.bool_]:
+def _testable(
+    grouping: Grouping, table: GroupTable, white: NDArray[np.bool_], params: DetectionParams
+) -> NDArray[np.bool_]:
     """Groups the overlap and long/wide tests may split.
 
-    Not those cut by the image border, and not the parts of a touching-marker split or
+    Not those cut by the image border, not those too large to be a marker cluster
+    (:func:`~kisscal.detect.advanced.splittable`), and not the parts of a touching-marker split or
     markers detached from an LED ring unless they are large enough to hold two markers
     (1.6 times the image's typical marker): a part cut at a neck has a flattened side
     that the shape tests would misread.
     """
-    inside = _inside(table, white.shape)
+    inside = _inside(table, white.shape) & splittable(table, params)
     part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
     if not part.any():
         return inside
@@ -239,7 +358,7 @@ def _not_single(
     ratio = height_ratio(var_x, var_y, params.pixel_aspect)
     major, minor, _, _ = principal_axes(var_x, var_y, cov_xy, params.pixel_aspect)
     sized = (table.pixels >= params.long_wide_min_pixels) & inside
-    marker = sized & (table.pixels <= params.max_pixels)
+    marker = sized & ~oversized(table, params)
     typical = float(np.median(table.pixels[marker])) if marker.any() else np.inf
     odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
     # Up to about three typical markers; beyond that a round group is an LED ring.

@@ -1,4 +1,4 @@
-"""Run-length scan and preliminary grouping by closeness of run mid-points (seeds/003, 2.1).
+"""Run-length scan and grouping by closeness of run mid-points (Shafiq et al. 2001, 2.1).
 
 A *run* is a maximal horizontal stretch of white pixels in one scan line: its boundary pixels
 P_i, P_i+1 are ``x1`` and ``x2`` and its mid-point is equation (3). Marker images are mostly
@@ -128,7 +128,7 @@ def _components(n: int, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[n
 def group_runs(
     white: NDArray[np.bool_], closeness_x_px: float = 0.0, closeness_rows: int = 1
 ) -> Runs:
-    """Scan ``white`` and group its runs by closeness of mid-points (seeds/003 section 2.1).
+    """Scan ``white`` and group its runs by closeness of mid-points (Shafiq et al. 2001, 2.1).
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 Blur, blooming and the threshold widen a spot's white pixels by about the same amount in x
 and y *in pixels*, whatever the marker's size. With non-square pixels that makes small
-round markers look tall: the ratio tests of seeds/003 section 2.3.3 would split them. The
+round markers look tall: the ratio tests of Shafiq et al. 2001, section 2.3.3 would split them. The
 correction models each axis' spread as ``sigma_x = a + g`` and ``sigma_y = a / aspect + g``
 (``a`` the marker's own spread along x, ``g`` the growth), so for a single round marker
 ``g = (sigma_x - aspect * sigma_y) / (1 - aspect)``. ``g`` is taken per image as the
@@ -76,7 +76,7 @@ def height_ratio(
 ) -> NDArray[np.float64]:
     """Height-to-width ratio of spots from corrected moments, 1 for a round marker.
 
-    The ratio of seeds/003 section 2.3.3 (h / w) taken from second moments rather than the
+    The ratio of Shafiq et al. 2001, section 2.3.3 (h / w) taken from second moments rather than the
     bounding rectangle: a marker two or three lines high has a rectangle ratio that jumps
     with its sub-pixel position, while its moments change smoothly.
     """

@@ -1,6 +1,6 @@
 """Touching markers: one group per marker by the peaks of the distance transform.
 
-Not in seeds/003. Its overlap (ul/ur) and long/wide tests cut a group into two, or into
+Not in Shafiq et al. 2001. Its overlap (ul/ur) and long/wide tests cut a group into two, or into
 equal parts along one axis; a cluster of three markers that touch (foot markers seen
 along the foot) defeats both. Markers that touch, or overlap by less than about half a
 radius, leave a neck between them: inside the group's white pixels, the distance to the

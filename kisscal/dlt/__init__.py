@@ -10,10 +10,11 @@ Typical use for one camera (arrays only; reading and writing files is :mod:`kiss
 or for the whole rig at once: ``calibrate_rods({camera: blobs_px, ...}, rods, params)``.
 """
 
+from kisscal._shared import rms_px
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.camera import compose_dlt, decompose_dlt, hatze_violation, principal_point_px
 from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
-from kisscal.dlt.linear import reprojection_residuals, rms_px, solve_dlt
+from kisscal.dlt.linear import reprojection_residuals, solve_dlt
 from kisscal.dlt.model import dlt_from_krt, dlt_to_matrix, matrix_to_dlt, project
 from kisscal.dlt.nonlinear import correct_lens, refine_dlt, solve_mdlt
 from kisscal.dlt.params import (

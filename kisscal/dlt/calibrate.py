@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from numpy.typing import ArrayLike
 
+from kisscal._shared import rms_px
 from kisscal.dlt.camera import decompose_dlt, hatze_violation
-from kisscal.dlt.linear import check_control_points, reprojection_residuals, rms_px, solve_dlt
+from kisscal.dlt.linear import check_control_points, reprojection_residuals, solve_dlt
 from kisscal.dlt.nonlinear import correct_lens, refine_dlt, solve_mdlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, DltResult
 

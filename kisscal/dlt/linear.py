@@ -12,25 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import apply_transform, similarity_normaliser
 from kisscal.dlt.model import matrix_to_dlt, project
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
 from kisscal.errors import KisscalError
-
-
-def similarity_normaliser(points: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Homogeneous transform centring ``points (N, d)`` and scaling mean distance to sqrt(d)."""
-    d = points.shape[1]
-    centre = points.mean(axis=0)
-    mean_dist = np.linalg.norm(points - centre, axis=1).mean()
-    s = np.sqrt(d) / mean_dist
-    T = np.eye(d + 1)
-    T[:d, :d] *= s
-    T[:d, d] = -s * centre
-    return T
-
-
-def _apply(T: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.float64]:
-    return points @ T[:-1, :-1].T + T[:-1, -1]
 
 
 def check_control_points(
@@ -88,8 +73,8 @@ def solve_dlt_matrix(
     """
     T3 = similarity_normaliser(xyz)
     T2 = similarity_normaliser(uv)
-    X = np.hstack([_apply(T3, xyz), np.ones((len(xyz), 1))])
-    u = _apply(T2, uv)
+    X = np.hstack([apply_transform(T3, xyz), np.ones((len(xyz), 1))])
+    u = apply_transform(T2, uv)
     n = len(xyz)
     A = np.zeros((2 * n, 12))
     A[0::2, 0:4] = X
@@ -144,9 +129,3 @@ def reprojection_residuals(
 ) -> NDArray[np.float64]:
     """Observed minus projected pixel coordinates ``(du, dv)``, shape (N, 2)."""
     return np.asarray(uv_px, dtype=float) - project(L, xyz_mm)
-
-
-def rms_px(residuals_px: ArrayLike) -> float:
-    """sqrt(mean(du^2 + dv^2)): the RMS Euclidean reprojection distance (DESIGN.md)."""
-    r = np.asarray(residuals_px, dtype=float)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=-1))))

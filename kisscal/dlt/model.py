@@ -150,3 +150,22 @@ def fundamental_from_dlt(L_i: ArrayLike, L_j: ArrayLike) -> NDArray[np.float64]:
         raise KisscalError("two cameras share a projection centre: no epipolar geometry")
     F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
     return F / np.linalg.norm(F)
+
+
+def shift_dlt_pixels(L: ArrayLike, offset_px: ArrayLike) -> NDArray[np.float64]:
+    """DLT parameters for pixel coordinates shifted by ``offset_px``: ``u' = u + du``,
+    ``v' = v + dv`` (e.g. ``(1, 1)`` for tools whose first pixel's centre is (1, 1)).
+
+    Exact: the shift moves ``du`` times the denominator row into the ``u`` row.
+
+    Examples
+    --------
+    >>> L = dlt_from_krt(np.diag([800.0, 800, 1]), np.eye(3), [0, 0, 3000.0])
+    >>> project(shift_dlt_pixels(L, (1, 1)), [10.0, 20, 0]) - project(L, [10.0, 20, 0])
+    array([1., 1.])
+    """
+    P = dlt_to_matrix(L)
+    du, dv = np.asarray(offset_px, dtype=float)
+    P[0] += du * P[2]
+    P[1] += dv * P[2]
+    return matrix_to_dlt(P)

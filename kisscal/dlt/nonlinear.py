@@ -29,8 +29,9 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from kisscal._shared import similarity_normaliser
 from kisscal.dlt.camera import decompose_matrix
-from kisscal.dlt.linear import check_control_points, similarity_normaliser, solve_dlt
+from kisscal.dlt.linear import check_control_points, solve_dlt
 from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
 from kisscal.errors import KisscalError

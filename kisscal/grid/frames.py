@@ -51,7 +51,8 @@ def dots_from_frames(
     frames : sequence of ndarray, shape (h, w)
         Grey frames of the grid from one camera (uint8 or float).
     detection : DetectionParams, optional
-        Detection thresholds (session ``[detection]`` overrides).
+        Detection settings; derived from the frames themselves when not given
+        (:func:`kisscal.detect.configure.configure_detection`, grid kind).
 
     Returns
     -------
@@ -62,12 +63,18 @@ def dots_from_frames(
     -----
     Grid dots never touch, so the overlap and long/wide splits of Shafiq et al. 2001,
     sections 2.3.2-2.3.3 (meant for markers in motion) are switched off here: a large,
-    slightly blurred dot would otherwise be cut in two halves 2-3 px apart.
+    slightly blurred dot would otherwise be cut in two halves 2-3 px apart. Frames are
+    averaged on the grey scale detection uses for a single frame, so that a threshold
+    means the same for 16-bit grid frames as for 16-bit trial frames.
     """
-    from kisscal.detect import DetectionParams, detect_blobs
+    from kisscal.detect import detect_blobs
+    from kisscal.detect.configure import configure_detection
+    from kisscal.detect.pipeline import check_image
 
-    image = average_frames(frames)
-    params = replace(detection or DetectionParams(), split_overlaps=False, split_long_wide=False)
+    image = average_frames([check_image(np.asarray(f)) for f in frames])
+    if detection is None:
+        detection = configure_detection(list(frames), kind="grid").params
+    params = replace(detection, split_overlaps=False, split_long_wide=False)
     blobs = detect_blobs(image, params)
     ok = np.asarray(blobs.valid, dtype=bool)
     return np.column_stack([blobs.x_px[ok], blobs.y_px[ok]]).astype(float)
@@ -88,7 +95,7 @@ def linearise_frames(
     params : GridParams, optional
         Grid size, optimal-grid model, tolerances.
     detection : DetectionParams, optional
-        Detection thresholds.
+        Detection settings (derived from the frames when not given).
 
     Returns
     -------

@@ -88,6 +88,21 @@ def _median_vector(vecs: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.median(folded, axis=0)
 
 
+def _common_direction(steps: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The steps along the lattice direction most of them follow.
+
+    With square pixels a square grid's rows and columns are equally far apart, so the
+    nearest neighbour of one dot is beside it and of the next below it (spacing changes
+    across the image with perspective and distortion). The two lattice directions are
+    found together, modulo 90 degrees (median of quadrupled angles); the larger group of
+    steps is kept. Without such a mix (non-square pixels) every step is kept.
+    """
+    ang = np.arctan2(steps[:, 1], steps[:, 0])
+    axis = np.arctan2(np.median(np.sin(4 * ang)), np.median(np.cos(4 * ang))) / 4
+    along = np.abs(np.cos(ang - axis)) >= np.abs(np.sin(ang - axis))
+    return steps[along] if 2 * np.count_nonzero(along) >= len(steps) else steps[~along]
+
+
 def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Typical column step and row step of a dot lattice, in px.
 
@@ -107,7 +122,7 @@ def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
     tree = cKDTree(pts)
     _, nb = tree.query(pts, k=k)
     diff = pts[nb[:, 1:]] - pts[:, None, :]  # (N, k-1, 2), sorted by distance
-    first = _median_vector(diff[:, 0, :])
+    first = _median_vector(_common_direction(diff[:, 0, :]))
     unit = first / np.linalg.norm(first)
     # Second vector: the shortest neighbour step of each dot more than 30 deg off the first.
     dist = np.linalg.norm(diff, axis=2)
@@ -125,6 +140,47 @@ def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
     e_col = a if a[0] > 0 else -a
     e_row = b if b[1] > 0 else -b
     return e_col, e_row
+
+
+def lattice_pixel_aspect(dots_uv: ArrayLike, cell_aspect: float = 1.0) -> float:
+    """The pixel aspect (``fy / fx`` inverted: width / height of a round dot's image) of
+    the camera that imaged a dot lattice, from the lattice's two steps.
+
+    A lattice of square cells (``cell_aspect`` = row pitch / column pitch, 1 for square)
+    seen face-on by a camera whose pixels are ``a`` times taller than wide has column and
+    row steps ``(a s cos f, s sin f)`` and ``rho (-a s sin f, s cos f)`` for some scale
+    ``s`` and in-plane rotation ``f``. Their cross product is ``a s^2 rho`` and their
+    squared lengths add up (the row step divided by ``rho``) to ``s^2 (a^2 + 1)``, so
+    ``a`` solves ``a^2 - K a + 1 = 0`` with ``K`` the ratio of the two; of its two roots
+    ``a`` and ``1 / a``, the one that makes the unstretched steps orthogonal and of the
+    right length ratio is kept. A grid tilted by ``t`` from face-on reads ``a`` off by
+    at most ``1 - cos t`` (0.1 % at 3 degrees).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r, c = np.mgrid[0:15, 0:20]
+    >>> angle = np.radians(4.0)
+    >>> X = 30 * (c * np.cos(angle) - r * np.sin(angle))
+    >>> Y = 30 * (c * np.sin(angle) + r * np.cos(angle))
+    >>> dots = np.column_stack([1.94 * X.ravel() + 100, Y.ravel() + 40])
+    >>> round(lattice_pixel_aspect(dots), 4)
+    1.94
+    """
+    e_col, e_row = lattice_vectors(dots_uv)
+    rho = float(cell_aspect)
+    det = abs(e_col[0] * e_row[1] - e_col[1] * e_row[0]) / rho
+    k = (e_col @ e_col + (e_row @ e_row) / rho**2) / det
+    root = np.sqrt(max(k * k - 4.0, 0.0))
+    best, score = 1.0, np.inf
+    for a in ((k + root) / 2, (k - root) / 2):
+        u1 = e_col / np.array([a, 1.0])
+        u2 = e_row / np.array([a, 1.0]) / rho
+        n1, n2 = np.linalg.norm(u1), np.linalg.norm(u2)
+        mismatch = abs(u1 @ u2) / (n1 * n2) + abs(n1 / n2 - 1.0)
+        if mismatch < score:
+            best, score = float(a), mismatch
+    return best
 
 
 _STEPS = ((0, 1), (0, -1), (1, 0), (-1, 0))

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares, minimize_scalar
 
+from kisscal._shared import apply_transform, rms_px, similarity_normaliser
 from kisscal.errors import KisscalError
 from kisscal.grid.lattice import LatticeIndex
 from kisscal.grid.params import GridParams
@@ -179,14 +180,8 @@ def _apply_h(h: NDArray[np.float64], g: NDArray[np.float64]) -> NDArray[np.float
 def _fit_homography(g: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
     """Homography g -> d: normalised linear DLT, then geometric least squares."""
 
-    def norm(x):
-        c = x.mean(axis=0)
-        s = np.sqrt(2) / np.mean(np.linalg.norm(x - c, axis=1))
-        return np.array([[s, 0, -s * c[0]], [0, s, -s * c[1]], [0, 0, 1]])
-
-    tg, td = norm(g), norm(d)
-    gn = g @ tg[:2, :2].T + tg[:2, 2]
-    dn = d @ td[:2, :2].T + td[:2, 2]
+    tg, td = similarity_normaliser(g), similarity_normaliser(d)
+    gn, dn = apply_transform(tg, g), apply_transform(td, d)
     n = len(g)
     a = np.zeros((2 * n, 9))
     one = np.ones(n)
@@ -258,5 +253,5 @@ def optimal_grid(
         rot = float(np.arctan2(lin[1, 0] - lin[0, 1], lin[0, 0] + lin[1, 1]))
         pixel_aspect = None
     uv = _apply_h(matrix, g)
-    rms = float(np.sqrt(np.mean(np.sum((d - uv) ** 2, axis=1))))
+    rms = rms_px(d - uv)
     return OptimalGrid(p.model, matrix, pixel_aspect, scale, rot, uv, rms)

@@ -5,13 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import rms_px
 from kisscal.grid.poly import apply_linearisation, fit_polynomial
-
-
-def rms_px(d_uv: ArrayLike) -> float:
-    """``sqrt(mean(du² + dv²))`` of difference vectors (DESIGN.md), px; NaN when empty."""
-    d = np.asarray(d_uv, dtype=float).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else float("nan")
 
 
 def line_distances(uv: ArrayLike, line: ArrayLike) -> NDArray[np.float64]:

@@ -21,6 +21,8 @@ from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 from kisscal.io.toml_table import Table, load_toml, number, suggest
+from kisscal.markersets import available_marker_sets
+from kisscal.markersets import marker_set as pick_markers
 
 #: How interlaced video frames are split into fields (``None``: frames are used whole).
 FieldOrder = Literal["top-first", "bottom-first"]
@@ -176,7 +178,15 @@ class SessionConfig:
 
 # Stage sections whose keys are checked against the stage's parameter dataclass by the
 # session layer (with a did-you-mean there).
-STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "report", "target")
+STAGE_SECTIONS: tuple[str, ...] = (
+    "detection",
+    "dlt",
+    "recon",
+    "tracking",
+    "gait",
+    "report",
+    "target",
+)
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
 _WAND_KEYS = {"trial", "markers_mm"}  # other [wand] keys are BundleParams
 
@@ -298,6 +308,17 @@ def _markers(t: Table) -> MarkersConfig:
     marker_set = t.string("set")
     if not names and marker_set is None:
         raise t.fail('[markers] needs names or a set (e.g. set = "plug-in-gait-lower")')
+    shipped = available_marker_sets()
+    if marker_set is not None and marker_set not in shipped:
+        raise t.fail(
+            f"markers.set = {marker_set!r} is not a marker set kisscal ships"
+            f"{suggest(marker_set, shipped)}; it ships {', '.join(shipped)}"
+        )
+    if marker_set is not None and names:
+        try:
+            pick_markers(marker_set, names)
+        except KisscalError as exc:
+            raise t.fail(f"markers.names: {exc}") from None
     template = t.points("template_mm") if "template_mm" in t.data else None
     if template is not None and len(template) != len(names):
         raise t.fail(f"markers.template_mm has {len(template)} positions for {len(names)} names")
@@ -339,8 +360,10 @@ def _trials(top: Table) -> tuple[TrialConfig, ...]:
                 f"got {', '.join(given) or 'none'}"
             )
         fields = t.choice("fields", FIELD_ORDERS)
-        if fields is not None and given[0] != "video":
-            raise t.fail(f"trial {name!r}: fields (interlaced field order) applies to video only")
+        if fields is not None and given[0] not in ("video", "images"):
+            raise t.fail(
+                f"trial {name!r}: fields (interlaced field order) applies to images or video only"
+            )
         trials.append(TrialConfig(name, **{given[0]: t.string(given[0])}, fields=fields))
     names = [t.name for t in trials]
     repeated = sorted({n for n in names if names.count(n) > 1})
@@ -408,6 +431,10 @@ def _check_references(top: Table, config: SessionConfig) -> None:
             )
     if config.calibration is not None and config.rods is not None:
         raise top.fail("give either [rods] or [calibration], not both")
+    if config.calibration is not None and config.calibration.cameras and config.grid is not None:
+        raise top.fail(
+            "[calibration] cameras brings its own lens model; give either it or [grid], not both"
+        )
 
 
 def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:
@@ -429,3 +456,15 @@ def load_session(root: Path) -> SessionConfig:
     if not root.is_dir():
         raise KisscalError(f"{root}: session folder not found")
     return parse_session(load_toml(root / "session.toml"), root)
+
+
+def read_detection_table(path: Path) -> dict[str, Any]:
+    """The ``[detection]`` table of a TOML file (a session.toml or a file of its own).
+
+    Raises a one-line :class:`KisscalError` when the file has no such table.
+    """
+    data = load_toml(Path(path))
+    table = data.get("detection")
+    if not isinstance(table, dict):
+        raise KisscalError(f"{path}: no [detection] table")
+    return dict(table)

@@ -5,9 +5,14 @@ Both can be read back, so a lab can bring DLT coefficients from another tool:
 * ``<camera>.json``: at least ``{"camera": ..., "L": [11 numbers]}``; kisscal writes the
   method, ``rms_px`` (= sqrt(mean(du^2 + dv^2)), stated in the file), per-point
   residuals, the camera centre, K, R, Hatze's constraint violation and lens terms.
-* ``dltdv.csv``: 11 rows (L1..L11), one column per camera, no header: the layout DLT
-  digitising tools (e.g. DLTdv) read. An optional first row of camera names is accepted
-  when reading.
+* ``dltdv.csv``: 11 rows (L1..L11), one column per camera, no header, in DLTdv8's pixel
+  convention (:data:`DLTDV8_CONVENTION`; DLTdv8 reads it with ``dlmread``). An optional
+  first row of camera names is accepted when reading.
+
+kisscal's own pixel convention (:data:`PIXEL_CONVENTION`) puts the top-left pixel's centre
+at (0, 0); DLTdv8 shows images with MATLAB's ``image``, which puts it at (1, 1), and
+records clicks in those axes (v down; DLTdv7 and older used a lower-left origin, v up).
+The 1 px shift is exact in the coefficients (:func:`kisscal.dlt.model.shift_dlt_pixels`).
 """
 
 from __future__ import annotations
@@ -23,12 +28,25 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal.dlt.model import shift_dlt_pixels
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import KisscalError
 from kisscal.io.files import atomic_path, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
+#: kisscal's pixel coordinates (L of ``<camera>.json`` maps to these, linearised).
+PIXEL_CONVENTION = (
+    "origin at the centre of the top-left pixel (0, 0), u to the right, v down, in "
+    "linearised pixels (apply linearisation/<camera>.json to raw pixels first)"
+)
+#: The pixel coordinates of ``dltdv.csv`` (DLTdv8: MATLAB image axes).
+DLTDV8_CONVENTION = (
+    "DLTdv8: the centre of the top-left pixel is (1, 1), u to the right, v down "
+    "(kisscal's coordinates + 1); DLTdv7 and older use a lower-left origin, v up"
+)
+#: kisscal pixel + this = DLTdv8 pixel.
+DLTDV8_OFFSET_PX = (1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -86,6 +104,8 @@ def dlt_document(
         "lens": None if result.lens is None else _floats(result.lens),
         "lens_model": "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels",
         "iterations": int(result.iterations),
+        "pixel_convention": PIXEL_CONVENTION,
+        "dltdv_csv_convention": DLTDV8_CONVENTION,
     }
     n = len(result.residuals_px)
     labels = list(labels) if labels is not None else [f"P{i + 1}" for i in range(n)]
@@ -189,10 +209,14 @@ def _eleven(values: Any, where: str) -> NDArray[np.float64]:
 
 
 def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> Path:
-    """Write ``dltdv.csv``: 11 rows (L1..L11), one column per camera, in mapping order."""
+    """Write ``dltdv.csv``: 11 rows (L1..L11), one column per camera, in mapping order,
+    converted from kisscal's pixel convention to DLTdv8's (:data:`DLTDV8_CONVENTION`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    cols = [_eleven(L, f"camera {cam}: L") for cam, L in L_by_camera.items()]
+    cols = [
+        shift_dlt_pixels(_eleven(L, f"camera {cam}: L"), DLTDV8_OFFSET_PX)
+        for cam, L in L_by_camera.items()
+    ]
     with atomic_path(path) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         for row in np.array(cols).T:
@@ -214,7 +238,8 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
     Returns
     -------
     dict
-        Camera id -> :class:`DltFile` (method ``"external"``).
+        Camera id -> :class:`DltFile` (method ``"external"``), L in kisscal's pixel
+        convention (the file's, DLTdv8's, shifted back by 1 px).
     """
     path = Path(path)
     try:
@@ -240,8 +265,11 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
         raise KisscalError(f"{path}: no header row; give the camera ids in column order")
     if len(names) != n_cam:
         raise KisscalError(f"{path}: {n_cam} columns of coefficients for {len(names)} cameras")
+    back = -np.asarray(DLTDV8_OFFSET_PX)
     return {
-        cam: DltFile(camera=cam, L=_eleven(table[:, i], f"{path}: column {i + 1}"))
+        cam: DltFile(
+            camera=cam, L=shift_dlt_pixels(_eleven(table[:, i], f"{path}: column {i + 1}"), back)
+        )
         for i, cam in enumerate(names)
     }
 

@@ -1,11 +1,14 @@
 """Camera frames on disk: frame folders (PNG/TIFF/BMP) and videos, read lazily.
 
 A trial is never held in memory whole: :class:`FrameFiles` and :class:`VideoFrames`
-read one frame when it is indexed.
+read one frame when it is indexed; a video is decoded in order by one reader per process
+(detection workers take runs of consecutive frames). :class:`Fields` splits interlaced
+frames into their two fields.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,52 +72,179 @@ class FrameFiles(Sequence):
         return read_image(self.paths[index])
 
 
+class _Reader:
+    """One open ``cv2.VideoCapture`` and where it stands, for sequential decoding."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.cap = cv2.VideoCapture(str(path))
+        if not self.cap.isOpened():
+            raise KisscalError(f"{path}: not a readable video")
+        self.count = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        self.next = 0  # index of the frame the next read() returns
+        self.last: tuple[int, np.ndarray] | None = None
+
+    def frame(self, index: int) -> np.ndarray:
+        if self.last is not None and self.last[0] == index:
+            return self.last[1]  # the second field of an interlaced frame
+        if not self.next <= index < self.next + SKIP_FORWARD_FRAMES:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, int(index))
+            self.next = int(self.cap.get(cv2.CAP_PROP_POS_FRAMES))
+            if self.next != index:  # a backend that cannot seek exactly: from the start
+                self.cap.release()
+                self.__init__(self.path)  # type: ignore[misc]
+        while self.next < index:
+            self.cap.grab()
+            self.next += 1
+        ok, frame = self.cap.read()
+        if not ok:
+            raise KisscalError(f"{self.path}: frame {index} cannot be decoded (truncated video?)")
+        self.next = index + 1
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
+        self.last = (index, gray)
+        return gray
+
+
+#: Frames a reader decodes and drops to move forward instead of seeking.
+SKIP_FORWARD_FRAMES = 64
+# One reader per process and video: forked detection workers each open their own.
+_READERS: dict[tuple[int, Path], _Reader] = {}
+
+
+def close_readers() -> None:
+    """Release this process's open video readers: call before forking workers (a decoder's
+    threads do not survive a fork; each worker opens its own reader)."""
+    for reader in _READERS.values():
+        reader.cap.release()
+    _READERS.clear()
+
+
+# A decoder's threads do not survive a fork (a child could wait forever on a lock one of
+# them held): every fork of this process first releases its readers.
+os.register_at_fork(before=close_readers)
+
+
+def _reader(path: Path) -> _Reader:
+    key = (os.getpid(), Path(path))
+    if key not in _READERS:
+        if any(pid == os.getpid() for pid, _ in _READERS):
+            close_readers()  # one video at a time per process
+        _READERS.clear()  # readers inherited from a parent process are not ours to use
+        _READERS[key] = _Reader(Path(path))
+    return _READERS[key]
+
+
 @dataclass(frozen=True)
 class VideoFrames(Sequence):
-    """Frames of a video file, decoded when indexed (sequential access is fastest)."""
+    """Frames of a video file, decoded in order by one reader per process.
+
+    Indexing frames in increasing order decodes each frame once (a jump back, or far
+    forward, seeks); the reader stays open between calls, so a trial is never decoded
+    frame by frame from a fresh file, and never held in memory.
+    """
 
     path: Path
+    #: Decoding is cheapest in order: readers should take runs of consecutive frames.
+    sequential = True
 
     def __len__(self) -> int:
-        cap = cv2.VideoCapture(str(self.path))
-        try:
-            if not cap.isOpened():
-                raise KisscalError(f"{self.path}: not a readable video")
-            return int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
-        finally:
-            cap.release()
+        return _reader(self.path).count
 
     def __getitem__(self, index):  # type: ignore[override]
         if isinstance(index, slice):
             raise TypeError("video frames are indexed one at a time")
-        cap = cv2.VideoCapture(str(self.path))
-        try:
-            cap.set(cv2.CAP_PROP_POS_FRAMES, int(index))
-            ok, frame = cap.read()
-        finally:
-            cap.release()
-        if not ok:
-            raise KisscalError(f"{self.path}: frame {index} cannot be decoded (truncated video?)")
-        return cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
+        reader = _reader(self.path)
+        if not 0 <= index < reader.count:
+            raise IndexError(f"{self.path}: no frame {index}")
+        return reader.frame(int(index))
+
+
+@dataclass(frozen=True)
+class Fields(Sequence):
+    """The fields of interlaced frames: frame ``k`` gives fields ``2k`` and ``2k + 1``.
+
+    ``order`` says which field was exposed first: ``"top-first"`` (the even rows 0, 2, 4,
+    ... are field ``2k``) or ``"bottom-first"``. A field has half the frame's rows (the
+    pixels become twice as tall as wide; the DLT absorbs that).
+    """
+
+    frames: Sequence[np.ndarray]
+    order: str
+
+    def __len__(self) -> int:
+        return 2 * len(self.frames)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        frame = self.frames[index // 2]
+        first = 0 if self.order == "top-first" else 1
+        return np.ascontiguousarray(frame[(first + index % 2) % 2 :: 2])
+
+    @property
+    def sequential(self) -> bool:
+        return bool(getattr(self.frames, "sequential", False))
+
+    def name(self, index: int) -> str:
+        """Where field ``index`` comes from, for messages."""
+        return f"{frame_name(self.frames, index // 2)} field {index % 2 + 1}"
+
+
+VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".mpg", ".mpeg", ".m4v", ".wmv"}
+
+
+def is_video(pattern: str) -> bool:
+    """A path pattern naming one video file per camera (by its suffix)."""
+    return Path(pattern).suffix.lower() in VIDEO_SUFFIXES
 
 
 def camera_frames(
-    root: Path, pattern: str, camera: str, what: str, video: bool = False
+    root: Path,
+    pattern: str,
+    camera: str,
+    what: str,
+    video: bool = False,
+    fields: str | None = None,
 ) -> Sequence:
-    """The frames of one camera, as a lazy sequence."""
-    if video:
+    """The frames of one camera, as a lazy sequence: image files, or one video (``video``,
+    or a pattern ending in a video suffix); with ``fields``, split into fields."""
+    if video or is_video(pattern):
         path = Path(root) / pattern.replace("{camera}", camera)
         if not path.is_file():
             raise KisscalError(f"{path}: {what} video for camera {camera} not found")
-        return VideoFrames(path)
-    return FrameFiles(tuple(frame_paths(root, pattern, camera, what)))
+        frames: Sequence = VideoFrames(path)
+    else:
+        frames = FrameFiles(tuple(frame_paths(root, pattern, camera, what)))
+    return Fields(frames, fields) if fields else frames
+
+
+def source_files(frames: Sequence) -> list[Path]:
+    """The files a camera's frames come from (image files, or the one video)."""
+    if isinstance(frames, Fields):
+        return source_files(frames.frames)
+    paths = getattr(frames, "paths", None)
+    return list(paths) if paths is not None else [Path(frames.path)]  # type: ignore[attr-defined]
+
+
+def frame_name(frames: Sequence, index: int) -> str:
+    """Where frame ``index`` of a camera's frames comes from, for messages."""
+    if isinstance(frames, Fields):
+        return frames.name(index)
+    if isinstance(frames, FrameFiles):
+        return str(frames.paths[index])
+    return f"{getattr(frames, 'path', '')} frame {index}".strip()
 
 
 def trial_frames(
-    root: Path, pattern: str, cameras: Sequence[str], trial: str, video: bool = False
+    root: Path,
+    pattern: str,
+    cameras: Sequence[str],
+    trial: str,
+    video: bool = False,
+    fields: str | None = None,
 ) -> dict[str, Sequence]:
     """Frames of every camera of a trial; unequal frame counts are an error."""
-    frames = {c: camera_frames(root, pattern, c, f"trial {trial!r}", video) for c in cameras}
+    frames = {
+        c: camera_frames(root, pattern, c, f"trial {trial!r}", video, fields) for c in cameras
+    }
     counts = {c: len(f) for c, f in frames.items()}
     if len(set(counts.values())) > 1:
         detail = ", ".join(f"{c}: {n}" for c, n in counts.items())

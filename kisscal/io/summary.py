@@ -20,7 +20,9 @@ def summarise(root: Path) -> dict[str, Any]:
     """Every quality figure of a processed session, read back from ``out/``."""
     config = load_session(Path(root))
     out = Path(root) / "out"
-    cams = {cam: _camera_summary(out, cam) for cam in config.camera_ids}
+    exports_path = out / "exports.json"
+    exports = json.loads(exports_path.read_text()) if exports_path.is_file() else {}
+    cams = {cam: _camera_summary(out, cam, exports) for cam in config.camera_ids}
     trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
     check_path = out / "dlt" / "check.json"
     check = json.loads(check_path.read_text()) if check_path.is_file() else {}
@@ -42,13 +44,28 @@ def _calibration_summary(dlt: Path) -> dict[str, Any]:
     return entry
 
 
-def _camera_summary(out: Path, cam: str) -> dict[str, Any]:
+def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, Any]:
     entry: dict[str, Any] = {}
+    fit = exports.get("cameras_toml", {}).get(cam)
+    lens = exports.get("dltdv", {}).get("lens_error", {}).get(cam)
+    if fit or lens:  # how closely cameras.toml / dltdv.csv follow this camera (px)
+        entry["export"] = {
+            "opencv_fit_rms_px": (fit or {}).get("rms_px"),
+            "opencv_fit_max_px": (fit or {}).get("max_px"),
+            "dltdv_corner_error_px": max((lens or {}).get("corners_px", [0.0]) or [0.0]),
+        }
     lin_path = out / "linearisation" / f"{cam}.json"
     if lin_path.is_file():
         doc = json.loads(lin_path.read_text())
         entry["grid"] = {
             k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
+        }
+    det_path = out / "detection" / f"{cam}.json"
+    if det_path.is_file():
+        kinds = json.loads(det_path.read_text()).get("kinds", {})
+        entry["detection"] = {
+            kind: {k: v["value"] for k, v in doc.get("settings", {}).items()}
+            for kind, doc in kinds.items()
         }
     dlt_path = out / "dlt" / f"{cam}.json"
     if dlt_path.is_file():
@@ -67,6 +84,8 @@ def _trial_summary(tdir: Path) -> dict[str, Any]:
         entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
     if (tdir / "recon.json").is_file():
         entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
+    if (tdir / "gait.json").is_file():
+        entry["gait"] = json.loads((tdir / "gait.json").read_text())
     if (tdir / "trajectories.csv").is_file():
         tr = read_table(tdir / "trajectories.csv")
         labels = sorted(set(tr["label"].tolist()))

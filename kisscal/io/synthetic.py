@@ -18,74 +18,104 @@ import tomli_w
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import read_c3d_points
 from kisscal.io.files import table_to_csv, write_json, write_table
-from kisscal.synth.motion import Motion, replay_trial
+from kisscal.synth.motion import Motion
 from kisscal.synth.plan import (
     SynthPlan,
+    camera_glow,
     render_grid,
     render_rods,
     render_trial,
     session_config,
     trial_visibility,
 )
+from kisscal.synth.render import SpotSizes
+from kisscal.synth.replay import replay_trial
+from kisscal.synth.scene import SIZE_LEVELS
+from kisscal.synth.truth import camera_detection_truth, session_detection_truth, size_ranges
 from kisscal.synth.wand import render_axes
 
 #: PNG compression level: fixed so that the same seed gives the same bytes.
 _PNG_LEVEL = 3
+#: PNG settings of images with sensor noise: Huffman coding alone packs noise as tightly
+#: as deflate's matching does and in half the time.
+_PNG_NOISY = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY)
+_PNG_NOISY_STRATEGY = cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
 
 
-def _write_png(path: Path, image: np.ndarray) -> None:
-    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, _PNG_LEVEL])
+def _write_png(path: Path, image: np.ndarray, noisy: bool = False) -> None:
+    options = (
+        [*_PNG_NOISY, _PNG_NOISY_STRATEGY] if noisy else [cv2.IMWRITE_PNG_COMPRESSION, _PNG_LEVEL]
+    )
+    ok, buf = cv2.imencode(".png", image, options)
     if not ok:  # pragma: no cover - OpenCV failure
         raise OSError(f"could not encode {path}")
     path.write_bytes(buf.tobytes())
 
 
-def load_walking5(path: Path) -> Motion:
+def load_walking5(path: Path, rate_hz: float = 50.0) -> Motion:
     """The real Vicon walking trial (walking5.c3d) as a :class:`Motion` inside the volume.
 
     Virtual points (joint centres, names ending in ``JC``) are dropped from the markers
-    and used instead as the ends of thigh and shank capsules that occlude them.
+    and used instead as the ends of thigh and shank capsules that occlude them. The
+    trial is resampled to ``rate_hz``.
     """
     labels, xyz, rate = read_c3d_points(path)
     physical = [i for i, n in enumerate(labels) if not n.upper().endswith("JC")]
     joints = {n: xyz[:, i] for i, n in enumerate(labels) if n.upper().endswith("JC")}
-    return replay_trial(tuple(labels[i] for i in physical), xyz[:, physical], rate, joints)
+    names = tuple(labels[i] for i in physical)
+    return replay_trial(names, xyz[:, physical], rate, joints, out_rate_hz=rate_hz)
 
 
 def _job(args: tuple[SynthPlan, str, str, int, Path]) -> dict:
-    """Render and write one camera's images of one kind; return its truth columns."""
+    """Render and write one camera's images of one kind; trials return their truth columns
+    (``centroids``) and their markers' true sizes (``sizes``)."""
     plan, kind, trial, ci, root = args
     cam = plan.rig[ci]
+    if kind == "trial":
+        return _trial_job(plan, trial, ci, root / "trials" / trial / cam.id)
     if kind == "grid":
         frames, truth = render_grid(plan, ci)
-        folder = root / "grid" / cam.id
-    elif kind == "rods":
-        frames, truth, leds = render_rods(plan, ci)
-        folder = root / "rods" / cam.id
-        write_table(root / "truth" / "leds" / f"{cam.id}.csv", leds)
     else:
-        folder = root / "trials" / trial / cam.id
-        folder.mkdir(parents=True, exist_ok=True)
-        motion = plan.trials[trial]
-        rows: dict[str, list] = {
-            k: [] for k in ("field", "marker", "u", "v", "ui", "vi", "rx", "ry", "iso")
-        }
-        for f, image, t in render_trial(plan, trial, ci):
-            _write_png(folder / f"{f:06d}.png", image)
-            idx = np.flatnonzero(t.visible)
-            rows["field"].append(np.full(len(idx), f))
-            rows["marker"].append(np.asarray(motion.names)[idx])
-            rows["u"].append(t.uv_px[idx, 0])
-            rows["v"].append(t.uv_px[idx, 1])
-            rows["ui"].append(t.uv_ideal_px[idx, 0])
-            rows["vi"].append(t.uv_ideal_px[idx, 1])
-            rows["rx"].append(t.radii_px[idx, 0])
-            rows["ry"].append(t.radii_px[idx, 1])
-            rows["iso"].append(t.isolated[idx])
-        cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in rows.items()}
-        return {
+        frames, truth, leds = render_rods(plan, ci)
+        write_table(root / "truth" / "leds" / f"{cam.id}.csv", leds)
+    folder = root / kind / cam.id
+    folder.mkdir(parents=True, exist_ok=True)
+    for k, image in enumerate(frames):
+        _write_png(folder / f"{k:06d}.png", image, plan.render.noise_sigma > 0)
+    write_table(root / "truth" / kind / f"{cam.id}.csv", truth)
+    return {}
+
+
+_SIZE_KEYS = ("width_px", "height_px", "pixels")
+
+
+def _trial_job(plan: SynthPlan, trial: str, ci: int, folder: Path) -> dict:
+    folder.mkdir(parents=True, exist_ok=True)
+    motion = plan.trials[trial]
+    rows: dict[str, list] = {
+        k: [] for k in ("field", "marker", "u", "v", "ui", "vi", "rx", "ry", "iso")
+    }
+    sizes: dict[str, list] = {f"{lv}_{k}": [] for lv in SIZE_LEVELS for k in _SIZE_KEYS}
+    for f, image, t in render_trial(plan, trial, ci):
+        _write_png(folder / f"{f:06d}.png", image, plan.render.noise_sigma > 0)
+        idx = np.flatnonzero(t.visible)
+        rows["field"].append(np.full(len(idx), f))
+        rows["marker"].append(np.asarray(motion.names)[idx])
+        rows["u"].append(t.uv_px[idx, 0])
+        rows["v"].append(t.uv_px[idx, 1])
+        rows["ui"].append(t.uv_ideal_px[idx, 0])
+        rows["vi"].append(t.uv_ideal_px[idx, 1])
+        rows["rx"].append(t.radii_px[idx, 0])
+        rows["ry"].append(t.radii_px[idx, 1])
+        rows["iso"].append(t.isolated[idx])
+        for lv, s in t.sizes.items():
+            for k in _SIZE_KEYS:
+                sizes[f"{lv}_{k}"].append(getattr(s, k)[idx])
+    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in rows.items()}
+    return {
+        "centroids": {
             "field": cat["field"].astype(int),
-            "camera": np.full(len(cat["field"]), cam.id),
+            "camera": np.full(len(cat["field"]), plan.rig[ci].id),
             "marker": cat["marker"],
             "u_px": cat["u"],
             "v_px": cat["v"],
@@ -94,12 +124,24 @@ def _job(args: tuple[SynthPlan, str, str, int, Path]) -> dict:
             "rx_px": cat["rx"],
             "ry_px": cat["ry"],
             "isolated": cat["iso"].astype(bool),
-        }
-    folder.mkdir(parents=True, exist_ok=True)
-    for k, image in enumerate(frames):
-        _write_png(folder / f"{k:06d}.png", image)
-    write_table(root / "truth" / kind / f"{cam.id}.csv", truth)
-    return {}
+        },
+        "sizes": {k: np.concatenate(v) if v else np.zeros(0) for k, v in sizes.items()},
+    }
+
+
+def _trial_sizes(parts: list[dict]) -> dict:
+    """One camera's true marker sizes over all its trials (whole, isolated markers)."""
+    cent = {k: np.concatenate([p["centroids"][k] for p in parts]) for k in ("rx_px", "ry_px")}
+    iso = np.concatenate([p["centroids"]["isolated"] for p in parts])
+    raw = {k: np.concatenate([p["sizes"][k] for p in parts]) for k in parts[0]["sizes"]}
+    sizes = {lv: SpotSizes(*(raw[f"{lv}_{k}"] for k in _SIZE_KEYS)) for lv in SIZE_LEVELS}
+    diameters = 2 * np.column_stack([cent["rx_px"], cent["ry_px"]])
+    return size_ranges(diameters, sizes, iso & np.isfinite(sizes["low"].pixels))
+
+
+def _truth_job(args: tuple[SynthPlan, int, dict]) -> dict:
+    plan, ci, trials = args
+    return camera_detection_truth(plan, ci, trials)
 
 
 def _markers_truth(plan: SynthPlan, trial: str) -> dict:
@@ -120,6 +162,14 @@ def _markers_truth(plan: SynthPlan, trial: str) -> dict:
     return cols
 
 
+def _map(function, jobs: list, n_jobs: int) -> list:
+    """``function`` over ``jobs``, in ``n_jobs`` processes when more than one."""
+    if n_jobs > 1:
+        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+            return list(pool.map(function, jobs))
+    return [function(j) for j in jobs]
+
+
 def write_synthetic_session(
     out: Path, plan: SynthPlan, name: str, *, force: bool = False, n_jobs: int = 2
 ) -> Path:
@@ -138,14 +188,12 @@ def write_synthetic_session(
             (plan, kind, "", ci, root) for kind in ("grid", "rods") for ci in range(len(plan.rig))
         ]
         jobs += [(plan, "trial", t, ci, root) for t in plan.trials for ci in range(len(plan.rig))]
-        if n_jobs > 1:
-            with ProcessPoolExecutor(max_workers=n_jobs) as pool:
-                results = list(pool.map(_job, jobs))
-        else:
-            results = [_job(j) for j in jobs]
+        results = _map(_job, jobs, n_jobs)
         for trial in plan.trials:
             parts = [
-                r for j, r in zip(jobs, results, strict=True) if j[1] == "trial" and j[2] == trial
+                r["centroids"]
+                for j, r in zip(jobs, results, strict=True)
+                if j[1] == "trial" and j[2] == trial
             ]
             cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
             order = np.lexsort((cols["marker"], cols["camera"], cols["field"]))
@@ -153,6 +201,22 @@ def write_synthetic_session(
             tdir = root / "truth" / "trials" / trial
             write_table(tdir / "centroids.csv", cols)
             (tdir / "markers.csv").write_text(table_to_csv(_markers_truth(plan, trial)))
+        per_camera = [
+            (
+                plan,
+                ci,
+                _trial_sizes(
+                    [
+                        r
+                        for j, r in zip(jobs, results, strict=True)
+                        if j[1] == "trial" and j[3] == ci
+                    ]
+                ),
+            )
+            for ci in range(len(plan.rig))
+        ]
+        cameras = _map(_truth_job, per_camera, n_jobs)
+        write_json(root / "truth" / "detection.json", session_detection_truth(plan, cameras))
         if plan.axes_mm is not None:
             write_axes_frames(root, plan)
         if out.exists():
@@ -172,12 +236,13 @@ def write_axes_frames(root: Path, plan: SynthPlan) -> None:
             plan.rig,
             ci,
             plan.axes_mm,
-            plan.options.render,
+            plan.render,
             plan.options.seed,
             plan.options.rod_frames,
+            camera_glow(plan, ci),
         )
         folder = root / "axes" / cam.id
         folder.mkdir(parents=True, exist_ok=True)
         for k, image in enumerate(frames):
-            _write_png(folder / f"{k:06d}.png", image)
+            _write_png(folder / f"{k:06d}.png", image, plan.render.noise_sigma > 0)
         write_table(root / "truth" / "axes" / f"{cam.id}.csv", truth)

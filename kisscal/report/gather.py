@@ -157,6 +157,23 @@ def _limits(out: Path, base: ReportParams, notes: list[str]) -> ReportParams:
         return base
 
 
+def _marker_names(config: Any, notes: list[str]) -> tuple[tuple, tuple]:
+    """The session's marker names and segments: ``[markers]`` names, or its set's."""
+    markers = config.markers
+    if markers is None:
+        return (), ()
+    if markers.set is None:
+        return tuple(markers.names), tuple(markers.segments)
+    from kisscal.markersets import marker_set
+
+    try:
+        chosen = marker_set(markers.set, markers.names or None)
+    except KisscalError as exc:
+        notes.append(str(exc))
+        return tuple(markers.names), tuple(markers.segments)
+    return chosen.names, tuple(markers.segments) or chosen.segments
+
+
 def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     """Read a processed session's outputs for :func:`kisscal.report.html.build_report`."""
     root = Path(root)
@@ -168,9 +185,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         summary = _summary_from_outputs(root, config is not None, notes)
     if config is not None:
         cameras, trials = config.camera_ids, tuple(t.name for t in config.trials)
-        markers = config.markers
-        names = tuple(markers.names) if markers else ()
-        segments = tuple(markers.segments) if markers else ()
+        names, segments = _marker_names(config, notes)
         rate_hz, session = float(config.rate_hz), config.name
     else:
         cameras = tuple(summary.get("cameras", {}))

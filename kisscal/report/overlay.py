@@ -1,7 +1,7 @@
 """Overlay of detected blobs on their image, for a technician to see what was found.
 
 Each blob's envelope (the ellipse inscribed in its bounding rectangle, as in the marker
-envelopes of seeds/003 Figs. 7 and 9) and its centroid are drawn, valid blobs in green,
+envelopes of Shafiq et al. 2001, Figs. 7 and 9) and its centroid are drawn, valid blobs in green,
 invalid ones (size limits) in red. The caller writes the returned array as a PNG.
 """
 

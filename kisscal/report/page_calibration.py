@@ -52,6 +52,9 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
     ]
     if loo:
         headers.append("leave-one-rod-out rms (px)")
+    exported = any("export" in cams.get(c, {}) for c in o.cameras)
+    if exported:
+        headers.append("cameras.toml fit rms (px)")
     headers.append("missing rod markers")
     rows = []
     for cam in o.cameras:
@@ -72,6 +75,8 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
         ]
         if loo:
             row.append(fmt(dlt.get("leave_one_out_px")))
+        if exported:
+            row.append(fmt((entry.get("export") or {}).get("opencv_fit_rms_px"), 4))
         row.append(", ".join(missing) if missing else "none")
         rows.append(row)
     return table(headers, rows, numeric=(2, 3, 4, 6, 7, 8, 9, 10, 11))
@@ -203,23 +208,43 @@ def _cell(value: Any) -> str:
     return fmt(value) if isinstance(value, int | bool) else str(value)
 
 
+#: Detection settings shown in the report, in order, with their column headings.
+DETECTION_COLUMNS = (
+    ("threshold", "threshold"),
+    ("background_tile_px", "local background tile (px)"),
+    ("pixel_aspect", "pixel aspect"),
+    ("max_pixels", "oversize above (px)"),
+    ("detach_kernel_px", "detach kernel (px)"),
+)
+
+
 def detection_section(o: SessionOutputs) -> Html:
     """The detection settings derived per camera (``out/detection/<camera>.json``)."""
-    if not o.detection:
+    rows = []
+    for cam, doc in o.detection.items():
+        for kind, entry in (doc.get("kinds") or {}).items():
+            settings = entry.get("settings", {})
+            given = [k for k, v in settings.items() if v.get("source") == "given"]
+            band = entry.get("marker_pixels") or ["–", "–"]
+            rows.append(
+                [
+                    tag("b", cam),
+                    esc(kind),
+                    *(_cell(settings.get(k, {}).get("value", "–")) for k, _ in DETECTION_COLUMNS),
+                    f"{band[0]}–{band[1]}",
+                    _cell(entry.get("noise_sigma", "–")),
+                    esc(", ".join(given) or "–"),
+                ]
+            )
+    if not rows:
         return Html("")
-    keys = _scalar_columns(o.detection)
-    keys += [
-        k
-        for doc in o.detection.values()
-        for k, v in doc.items()
-        if isinstance(v, list) and k not in keys and len(v) <= 6
-    ]
-    rows = [[tag("b", c), *(_cell(o.detection[c].get(k, "–")) for k in keys)] for c in o.detection]
+    headers = ["camera", "images", *(h for _, h in DETECTION_COLUMNS), "markers (px)"]
     return section(
         "detection",
         "Detection settings per camera",
-        table(["camera", *(heading(k) for k in keys)], rows),
-        "Values given in [detection] are used as given; the others were derived from the images.",
+        table([*headers, "noise (grey levels)", "given"], rows),
+        "Values given in [detection] are used as given; the others were derived from each "
+        "camera's own images (reasons in out/detection/<camera>.json).",
     )
 
 

@@ -53,6 +53,8 @@ def trial_table(
             classes.append("failed" if name in failed else None)
             continue
         labelled = "yes" if tracking.get("fits_marker_set") else "no"
+        if tracking.get("flagged"):
+            labelled = "uncertain: " + ", ".join(tracking["flagged"])
         if a.stick or a.throw:
             labelled = "validation trial"
         rows.append(

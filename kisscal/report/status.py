@@ -184,5 +184,8 @@ def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
     text = f"{there}/{n_set} markers labelled, {cover}, {filled} samples filled"
     if missing:
         text += f"; missing {', '.join(missing)}"
-    ok = not missing and coverage >= lim.min_coverage
+    flagged = tracking.get("flagged", [])
+    if flagged:
+        text += f"; uncertain labels (check them): {', '.join(flagged)}"
+    ok = not missing and not flagged and coverage >= lim.min_coverage
     return Verdict(name, text, limit, PASS if ok else WARN)

@@ -2,8 +2,9 @@
 
 The routes live in :mod:`kisscal.session.routes`, one module each; this module picks one,
 keeps the calibration switches a user chose (``--mdlt``, ``--refine``, ``--lens``) across
-later runs, writes what every route shares (``out/dlt/dltdv.csv``,
-``out/dlt/calibration.json``) and gives later stages the calibrated :class:`~kisscal.rig.Rig`.
+later runs, writes what every route shares (``out/dlt/calibration.json`` and the exports:
+``out/dlt/dltdv.csv``, ``out/cameras.toml``) and gives later stages the calibrated
+:class:`~kisscal.rig.Rig`.
 """
 
 from __future__ import annotations
@@ -16,9 +17,10 @@ from typing import Any
 
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
-from kisscal.io.dltfiles import DltFile, read_dlt_json, write_dltdv_csv
+from kisscal.io.dltfiles import DltFile, read_dlt_json
 from kisscal.io.files import write_json
 from kisscal.rig import Camera, Rig
+from kisscal.session.exports import write_exports
 from kisscal.session.inputs import load_config, out_dir, select_cameras, writes_session
 from kisscal.session.linearise import (
     current_linearisations,
@@ -28,6 +30,7 @@ from kisscal.session.linearise import (
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.routes import RouteInputs
+from kisscal.session.routes.imported import calibrate_from_cameras, calibrate_from_dltdv
 from kisscal.session.routes.points import calibrate_from_points
 from kisscal.session.routes.rods import calibrate_from_rods
 from kisscal.session.routes.target import calibrate_from_target
@@ -37,6 +40,8 @@ from kisscal.session.routes.wand import calibrate_from_wand
 ROUTES: dict[str, Callable[[RouteInputs], dict[str, Any]]] = {
     "rods": calibrate_from_rods,
     "points": calibrate_from_points,
+    "cameras": calibrate_from_cameras,
+    "dlt": calibrate_from_dltdv,
     "wand": calibrate_from_wand,
     "target": calibrate_from_target,
 }
@@ -63,8 +68,9 @@ def calibrate(
     this session chose (``out/dlt/calibration.json``), so that ``kisscal run`` never
     silently undoes ``kisscal calibrate --mdlt``; ``False`` turns a switch off.
 
-    Writes ``out/dlt/<camera>.json``, ``out/dlt/dltdv.csv`` and ``out/dlt/calibration.json``;
-    returns ``{camera: DltResult}`` plus the leave-one-rod-out check under ``"_check"``.
+    Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
+    (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
+    returns ``{camera: DltResult}`` plus the route's held-out check under ``"_check"``.
     """
     root = Path(root)
     config = load_config(root)
@@ -85,8 +91,8 @@ def calibrate(
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     dlt_dir = out_dir(root) / "dlt"
-    all_L = {c: f.L for c, f in read_dlt_files(root, config, required=False).items()}
-    write_dltdv_csv(dlt_dir / "dltdv.csv", {c: all_L[c] for c in config.camera_ids if c in all_L})
+    lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
+    write_exports(root, config, lins, read_dlt_files(root, config, False), echo)
     write_json(dlt_dir / "calibration.json", {"route": route, "options": switches})
     return summary
 
@@ -129,6 +135,8 @@ def session_route(config: SessionConfig, forced: str | None = None) -> tuple[str
 
 _NEEDS = {
     "rods": "[rods]",
+    "cameras": "[calibration] cameras",
+    "dlt": "[calibration] dlt",
     "wand": "[wand] with [rods] or [axes]",
     "points": "[calibration] points",
     "target": "[calibration] target, images and seeds",

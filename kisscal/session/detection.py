@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -12,12 +13,12 @@ import cv2
 import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, detect_sequence
+from kisscal.detect.configure import configure_detection
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import is_current, load_blob_frames, mark_current, save_blob_frames
 from kisscal.io.files import write_bytes
-from kisscal.io.frames import read_image
-from kisscal.session.params import build_params
+from kisscal.io.frames import frame_name, read_image
 from kisscal.session.progress import Echo, quiet
 
 
@@ -40,14 +41,26 @@ class SizedFrames(Sequence):
         image = self.frames[index]
         h, w = image.shape[:2]
         if (w, h) != tuple(self.size_px):
-            paths = getattr(self.frames, "paths", None)
-            video = getattr(self.frames, "path", None)  # one video file per camera
-            name = paths[index] if paths is not None else f"{video or ''} frame {index}".strip()
             raise KisscalError(
-                f"{name}: {w} x {h} pixels, but camera {self.camera}'s frames are "
+                f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
+                f"{self.camera}'s frames are "
                 f"{self.size_px[0]} x {self.size_px[1]}"
             )
         return image
+
+    @property
+    def sequential(self) -> bool:
+        return bool(getattr(self.frames, "sequential", False))
+
+
+def chunk_size(frames: Sequence, workers: int | None) -> int:
+    """Consecutive frames a detection worker takes at a time: 32, or for a video (decoded
+    in order) an even share of the whole, so that each worker seeks once."""
+    n_workers = max(workers or os.cpu_count() or 1, 1)
+    if not getattr(frames, "sequential", False):
+        return 32
+    share = -(-len(frames) // n_workers)
+    return max(share + share % 2, 2)  # even: both fields of a frame go to one worker
 
 
 def detect_frames(
@@ -64,7 +77,13 @@ def detect_frames(
         echo(f"  detect {what}: {len(frames)} frames (cached)")
         return load_blob_frames(cache_file)
     t0 = time.perf_counter()
-    blobs = detect_sequence(frames.__getitem__, params, count=len(frames), workers=workers)
+    blobs = detect_sequence(
+        frames.__getitem__,
+        params,
+        count=len(frames),
+        workers=workers,
+        chunksize=chunk_size(frames, workers),
+    )
     save_blob_frames(cache_file, blobs)
     mark_current(cache_file, key)
     echo(f"  detect {what}: {len(frames)} frames in {time.perf_counter() - t0:.1f} s")
@@ -77,14 +96,28 @@ def detect_images(
     overlay_dir: Path | None = None,
     detection: Mapping[str, Any] | None = None,
     echo: Echo = quiet,
+    session: Path | None = None,
+    camera: str | None = None,
+    kind: str = "markers",
 ) -> list[tuple[str, Blobs]]:
     """``kisscal detect``: blobs of image files, to one CSV and overlays optionally.
 
-    Returns ``(image path as given, blobs)`` per image. Every image is read and checked
-    before anything is written, so a bad file leaves earlier outputs untouched.
+    The settings are ``detection`` (given values) on top of, with ``session`` and
+    ``camera``, that camera's derived settings (``out/detection/<camera>.json``), or else
+    settings derived from these images themselves (up to 24 of them, spread evenly).
+    What was used is echoed. Returns ``(image path as given, blobs)`` per image. Every
+    image is read and checked before anything is written, so a bad file leaves earlier
+    outputs untouched.
     """
-    params = build_params(DetectionParams, "detection", detection or {})
+    given = dict(detection or {})
     images = [read_image(p) for p in paths]
+    if session is not None:
+        params = _session_params(Path(session), camera, kind, given, echo)
+    else:
+        picks = np.unique(np.linspace(0, len(images) - 1, min(len(images), 24)).astype(int))
+        setup = configure_detection([images[i] for i in picks], given, kind=kind)  # type: ignore[arg-type]
+        echo(f"detection settings from {len(picks)} of these images: {setup.summary()}")
+        params = setup.params
     blobs = detect_sequence(images, params)
     tables = [(str(p), b) for p, b in zip(paths, blobs, strict=True)]
     if out_csv is not None:
@@ -95,6 +128,31 @@ def detect_images(
     valid = sum(int(b.valid.sum()) for b in blobs)
     echo(f"{len(paths)} images: {total} blobs ({valid} valid)")
     return tables
+
+
+def _session_params(
+    root: Path, camera: str | None, kind: str, given: Mapping[str, Any], echo: Echo
+) -> DetectionParams:
+    """A session camera's derived settings with ``given`` on top."""
+    from kisscal.session.configure import camera_detection, detection_given
+    from kisscal.session.inputs import load_config, select_cameras, writes_session
+
+    if camera is None:
+        raise KisscalError("--session needs --camera: whose derived settings to use")
+    config = load_config(root)
+    cam = select_cameras(config, camera)[0]
+
+    @writes_session
+    def derive(root: Path) -> DetectionParams:
+        return camera_detection(root, config, cam, kind, detection_given(config, given), echo)
+
+    params = derive(root)
+    echo(
+        f"detection settings of camera {camera} ({kind} images of {root}): threshold "
+        f"{params.threshold:g}, pixel aspect {params.pixel_aspect:g}, oversize above "
+        f"{params.max_pixels} px"
+    )
+    return params
 
 
 def _write_overlays(

@@ -46,8 +46,8 @@ def load_config(root: Path) -> SessionConfig:
     frame (grid, rods, axes, calibration or trial images, in that order).
     """
     config = load_session(Path(root))
-    if all(c.size_px is not None for c in config.cameras):
-        return config
+    if all(c.size_px is not None for c in config.cameras) or not image_sources(config):
+        return config  # without any images a size is neither knowable nor needed
     cameras = tuple(
         c if c.size_px is not None else CameraConfig(c.id, _first_frame_size(config, c.id))
         for c in config.cameras
@@ -55,27 +55,39 @@ def load_config(root: Path) -> SessionConfig:
     return dataclasses.replace(config, cameras=cameras)
 
 
-def image_sources(config: SessionConfig) -> list[tuple[str, str, bool]]:
-    """Every set of frames of the session: (what, path pattern, is a video)."""
+def needs_calibration(config: SessionConfig) -> bool:
+    """False for a session of C3D trials only and no calibration inputs: nothing to
+    linearise or calibrate (its 3D points come calibrated)."""
+    given = config.rods or config.calibration or config.wand or config.grid
+    return bool(given) or any(t.source != "c3d" for t in config.trials)
+
+
+def image_sources(config: SessionConfig) -> list[tuple[str, str, bool, str | None]]:
+    """Every set of frames of the session: (what, path pattern, is a video, field order).
+
+    Any set may be a video (a pattern with a video suffix), and any may be interlaced.
+    """
     sources = []
     if config.grid is not None:
-        sources.append(("grid", config.grid.images, False))
+        sources.append(("grid", config.grid.images, False, config.grid.fields))
     if config.rods is not None:
-        sources.append(("rod", config.rods.images, False))
+        sources.append(("rod", config.rods.images, False, config.rods.fields))
     if config.axes is not None:
-        sources.append(("axes", config.axes.images, False))
-    if config.calibration is not None and config.calibration.images:
-        sources.append(("calibration", config.calibration.images, False))
+        sources.append(("axes", config.axes.images, False, config.axes.fields))
+    cal = config.calibration
+    if cal is not None and cal.images:
+        sources.append(("calibration", cal.images, False, cal.fields))
     for t in config.trials:
         if t.images or t.video:
-            sources.append((f"trial {t.name!r}", t.images or t.video or "", bool(t.video)))
+            pattern = t.images or t.video or ""
+            sources.append((f"trial {t.name!r}", pattern, bool(t.video), t.fields))
     return sources
 
 
 def _first_frame_size(config: SessionConfig, camera: str) -> tuple[int, int]:
-    for what, pattern, video in image_sources(config):
+    for what, pattern, video, fields in image_sources(config):
         try:
-            frames = camera_frames(config.root, pattern, camera, what, video=video)
+            frames = camera_frames(config.root, pattern, camera, what, video, fields)
         except KisscalError:
             continue
         if len(frames):

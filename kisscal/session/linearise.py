@@ -13,7 +13,7 @@ from kisscal.grid import GridFit, Linearisation, identity_linearisation, lineari
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_text
-from kisscal.io.frames import camera_frames
+from kisscal.io.frames import camera_frames, source_files
 from kisscal.io.linearisation import (
     grid_fit_of,
     read_linearisation,
@@ -21,6 +21,7 @@ from kisscal.io.linearisation import (
     refined_by,
     write_linearisation,
 )
+from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
     figure,
@@ -32,6 +33,7 @@ from kisscal.session.inputs import (
 )
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
+from kisscal.session.routes.imported import imported_linearisation
 
 
 @writes_session
@@ -45,7 +47,8 @@ def linearise(
     """``kisscal linearise``: each camera's linearisation from its grid frames.
 
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
-    A session without ``[grid]`` gets the identity linearisation.
+    A session without ``[grid]`` gets the identity linearisation; one calibrated by
+    ``[calibration] cameras`` the polynomial fitted to that file's OpenCV distortion.
     """
     config = load_config(root)
     o = overrides or Overrides()
@@ -54,7 +57,9 @@ def linearise(
     params = stage_params(config, o)
     result = {}
     for cam in steps(select_cameras(config, camera), "linearise"):
-        if config.grid is None:
+        if config.calibration is not None and config.calibration.route == "cameras":
+            result[cam.id] = imported_linearisation(config, cam, echo)
+        elif config.grid is None:
             w, h = cam.size_px
             result[cam.id] = identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
         else:
@@ -68,9 +73,16 @@ def _linearise_camera(
     """One camera's linearisation: from the cache, or fitted and written with its figure."""
     assert config.grid is not None
     out = out_dir(root) / "linearisation" / f"{cam.id}.json"
-    frames = camera_frames(config.root, config.grid.images, cam.id, "grid")
+    frames = camera_frames(
+        config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
+    )
+    detection = camera_detection(root, config, cam, "grid", params.detection_given, echo)
     key = cache_key(
-        "linearise", file_keys(frames.paths, config.root), params.grid, params.detection
+        "linearise",
+        file_keys(source_files(frames), config.root),
+        config.grid.fields,
+        params.grid,
+        detection,
     )
     if is_current(out, key):
         echo(f"  linearise {cam.id}: cached")
@@ -80,7 +92,7 @@ def _linearise_camera(
     t0 = time.perf_counter()
     try:
         fit = linearise_frames(
-            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, params.detection
+            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, detection
         )
     except KisscalError as exc:
         raise KisscalError(f"camera {cam.id} grid: {exc}") from None
@@ -111,9 +123,10 @@ def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:
 
 
 def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
-    """Each camera's grid linearisation (identity without a grid), fitted if missing or stale.
+    """Each camera's grid linearisation (identity without a grid; an imported camera's
+    lens), fitted if missing or stale: what a calibration route starts from.
 
-    What a calibration route starts from; it stays quiet about fits already current.
+    It stays quiet about linearisations that are already current.
     """
 
     def news(line: str) -> None:

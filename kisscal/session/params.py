@@ -9,6 +9,7 @@ from typing import Any
 from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
+from kisscal.gait import GaitParams
 from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
 from kisscal.params import Params
@@ -26,21 +27,29 @@ class Overrides:
     dlt: Mapping[str, Any] = field(default_factory=dict)
     recon: Mapping[str, Any] = field(default_factory=dict)
     tracking: Mapping[str, Any] = field(default_factory=dict)
+    gait: Mapping[str, Any] = field(default_factory=dict)
     wand: Mapping[str, Any] = field(default_factory=dict)
     target: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class StageParams:
-    """Every stage's parameters for one session."""
+    """Every stage's parameters for one session.
+
+    ``detection`` holds the defaults with what the user gave; each camera's own settings
+    are derived from its images (:func:`kisscal.session.configure.camera_detection`),
+    starting from ``detection_given``.
+    """
 
     detection: DetectionParams
     grid: GridParams
     dlt: DltParams
     recon: ReconParams
     tracking: TrackingParams
+    gait: GaitParams
     wand: BundleParams = field(default_factory=BundleParams)
     target: TargetParams = field(default_factory=TargetParams)
+    detection_given: Mapping[str, Any] = field(default_factory=dict)
 
 
 def build_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
@@ -86,6 +95,8 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         dlt=build_params(DltParams, "dlt", section("dlt", {}), o.dlt),
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
+        gait=build_params(GaitParams, "gait", section("gait", {}), o.gait),
         wand=build_params(BundleParams, "wand", section("wand", {}), o.wand),
         target=build_params(TargetParams, "target", section("target", {}), o.target),
+        detection_given={**config.detection, **o.detection},
     )

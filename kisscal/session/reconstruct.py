@@ -9,14 +9,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.detect import DetectionParams
 from kisscal.errors import KisscalError
+from kisscal.io.c3d import read_c3d_points
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table, write_json
-from kisscal.io.frames import trial_frames
-from kisscal.io.points3d import read_points3d, write_trial_points
+from kisscal.io.frames import source_files, trial_frames
+from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
+from kisscal.session.configure import markers_detection
 from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import (
     figure,
@@ -26,7 +29,7 @@ from kisscal.session.inputs import (
     rig_key,
     writes_session,
 )
-from kisscal.session.params import Overrides, StageParams, stage_params
+from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet, steps
 
 #: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
@@ -46,19 +49,23 @@ def reconstruct(
     config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
-    rig = current_rig(root, echo)
     path = out_dir(root) / "trials" / trial.name / "points3d.csv"
+    if trial.source == "c3d":
+        return c3d_trial_points(config, trial, path, echo)
+    rig = current_rig(root, echo)
+    imaged = trial.source in ("images", "video")
+    detection = markers_detection(root, config, params.detection_given, echo) if imaged else {}
     stage_key = cache_key(
         "reconstruct",
         trial_input_keys(config, trial),
         rig_key(rig),
-        params.detection,
+        detection,
         params.recon,
     )
     if is_current(path, stage_key):
         echo(f"  reconstruct {trial.name}: cached")
         return read_points3d(path)
-    blobs = trial_blobs(root, config, trial, params, echo, workers)
+    blobs = trial_blobs(root, config, trial, detection, echo, workers)
     obs = rig.observations(blobs)
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
@@ -92,6 +99,44 @@ def reconstruct(
     return points
 
 
+def c3d_trial_points(
+    config: SessionConfig, trial: TrialConfig, path: Path, echo: Echo = quiet
+) -> Points3DFile:
+    """A ``[[trials]] c3d`` trial: every valid sample of the file as an anonymous 3D point
+    per field (labels and channel order are dropped: tracking and labelling start from
+    scratch), written to ``points3d.csv`` (``n_cameras`` 0 and ``rms_px`` NaN: not known).
+
+    The file's frame rate must be the session's ``rate_hz``; its first frame is field 0.
+    """
+    source = config.root / (trial.c3d or "")
+    key = cache_key("c3d-trial", file_keys([source], config.root) if source.is_file() else [])
+    if is_current(path, key):
+        echo(f"  reconstruct {trial.name}: cached")
+        return read_points3d(path)
+    _labels, xyz, rate = read_c3d_points(source)
+    if abs(rate - config.rate_hz) > 1e-6 * rate:
+        raise KisscalError(
+            f"{source}: {rate:g} frames per second, but session.toml says rate_hz = "
+            f"{config.rate_hz:g}"
+        )
+    field, channel = np.nonzero(np.isfinite(xyz).all(axis=2))
+    if not len(field):
+        raise KisscalError(f"{source}: no valid 3D point in the file")
+    n = len(field)
+    write_points3d(
+        path,
+        field,
+        xyz[field, channel],
+        np.zeros(n, np.int64),
+        np.full(n, np.nan),
+        np.full((n, len(config.camera_ids)), -1),
+        config.camera_ids,
+    )
+    mark_current(path, key)
+    echo(f"  reconstruct {trial.name}: {n} points in {xyz.shape[0]} fields from {source.name}")
+    return read_points3d(path)
+
+
 def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
     """Per camera, the files a trial's 2D data come from (for cache keys)."""
     if trial.source == "centroids":
@@ -106,8 +151,9 @@ def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any
             config.camera_ids,
             trial.name,
             video=trial.source == "video",
+            fields=trial.fields,
         )
-        paths = {c: list(f.paths) if hasattr(f, "paths") else [f.path] for c, f in frames.items()}
+        paths = {c: source_files(f) for c, f in frames.items()}
     for c, ps in paths.items():
         for p in ps:
             if not p.is_file():
@@ -119,11 +165,14 @@ def trial_blobs(
     root: Path,
     config: SessionConfig,
     trial: TrialConfig,
-    params: StageParams,
+    detection: dict[str, DetectionParams],
     echo: Echo,
     workers: int | None = None,
 ) -> dict[str, list[NDArray]]:
-    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays."""
+    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
+
+    ``detection`` holds each camera's detection parameters (unused for centroid files).
+    """
     if trial.source == "centroids":
         return _centroid_files(config, trial)
     frames = trial_frames(
@@ -132,16 +181,18 @@ def trial_blobs(
         config.camera_ids,
         trial.name,
         video=trial.source == "video",
+        fields=trial.fields,
     )
     out = {}
     sizes = {c.id: c.size_px for c in config.cameras}
     for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
-        inputs = list(seq.paths) if hasattr(seq, "paths") else [seq.path]
-        key = cache_key("detect", file_keys(inputs, config.root), params.detection)
+        key = cache_key(
+            "detect", file_keys(source_files(seq), config.root), trial.fields, detection[cam]
+        )
         cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
         sized = SizedFrames(seq, cam, sizes[cam])
         blobs = detect_frames(
-            sized, params.detection, cache, key, echo, f"{trial.name} {cam}", workers
+            sized, detection[cam], cache, key, echo, f"{trial.name} {cam}", workers
         )
         out[cam] = [b.valid_only().xy_px for b in blobs]
     return out

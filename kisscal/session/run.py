@@ -7,10 +7,11 @@ from pathlib import Path
 from typing import Any
 
 from kisscal.errors import KisscalError
+from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, out_dir, writes_session
+from kisscal.session.inputs import load_config, needs_calibration, out_dir, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
@@ -46,12 +47,13 @@ def run(
         step(*args, **kwargs)
         timings[name] = time.perf_counter() - t
 
-    echo("[1/4] linearisation")
-    timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
-    echo("[2/4] calibration")
-    timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
+    if needs_calibration(config):
+        echo("[1/4] linearisation")
+        timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
+        echo("[2/4] calibration")
+        timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
     failures: dict[str, str] = {}
-    for trial in config.trials:
+    for trial in _in_order(config, echo):
         if trial.name in broken:
             failures[trial.name] = broken[trial.name]
             echo(f"  skipped {broken[trial.name]}")
@@ -83,6 +85,16 @@ def run(
             f"({'; '.join(failures.values())}); the other trials' outputs are complete"
         )
     return summary
+
+
+def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:
+    """The trials, the static one (``[markers] static``) first: its labelled positions
+    are the template of the others."""
+    static = config.markers.static if config.markers else None
+    if static is None:
+        return list(config.trials)
+    echo(f"  static trial {static} first: its labelled positions are the others' template")
+    return sorted(config.trials, key=lambda t: t.name != static)
 
 
 def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:

@@ -21,14 +21,15 @@ from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.synthetic import load_walking5, write_synthetic_session
+from kisscal.synth.cameras import MAX_CAMERAS
 from kisscal.synth.evaluate import (
     gravity_error,
     score_trajectories,
     stick_length_error,
     thrown_gravity,
 )
-from kisscal.synth.plan import SynthOptions, plan_session
-from kisscal.synth.render import RenderParams
+from kisscal.synth.plan import plan_session
+from kisscal.synth.presets import PRESETS, synth_options
 
 
 def default_walking5_path() -> Path | None:
@@ -49,9 +50,10 @@ def _silent(_: str) -> None:
 def synthesise(
     out: Path,
     *,
+    preset: str = "kiss",
     seed: int = 1,
-    fields: int = 200,
-    n_cameras: int = 6,
+    fields: int | None = None,
+    n_cameras: int | None = None,
     n_markers: int = 15,
     blur_px: float | None = None,
     walking5: bool = True,
@@ -61,46 +63,52 @@ def synthesise(
     wand_fields: int = 0,
     wand_only: bool = False,
 ) -> Path:
-    """Write a synthetic KISS-like session (images, ``session.toml``, ``truth/``) to ``out``.
+    """Write a synthetic session (images, ``session.toml``, ``truth/``) to ``out``.
 
-    The same arguments give byte-identical files. With ``walking5`` the real Vicon trial
-    is replayed through the synthetic cameras as trial ``walk5`` when it can be found.
+    ``preset`` is the kind of lab (:data:`kisscal.synth.presets.PRESETS`: ``kiss``,
+    ``modern``, ``lowcost``); ``fields`` and ``n_cameras`` default to the preset's. The
+    same arguments give byte-identical files. With ``walking5`` the real Vicon trial is
+    replayed through the synthetic cameras as trial ``walk5`` when it can be found.
     ``wand_fields`` adds a wand trial ``wand01`` of that many fields and an L-frame
     (``[wand]``, ``[axes]``); ``wand_only`` leaves ``[grid]`` and ``[rods]`` out.
     """
     echo = echo or _silent
+    if preset not in PRESETS:
+        raise KisscalError(f"--preset must be one of {', '.join(PRESETS)}, got {preset!r}")
     if n_markers not in (13, 15):
         raise KisscalError(f"--markers must be 13 or 15, got {n_markers}")
-    if not 2 <= n_cameras <= 6:
-        raise KisscalError(f"--cameras must be between 2 and 6, got {n_cameras}")
-    if fields < 10:
+    if n_cameras is not None and not 2 <= n_cameras <= MAX_CAMERAS:
+        raise KisscalError(f"--cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
+    if fields is not None and fields < 10:
         raise KisscalError(f"--fields must be at least 10, got {fields}")
     if wand_only and not wand_fields:
         raise KisscalError("--wand-only needs --wand FIELDS (the wand trial to calibrate from)")
-    render = RenderParams() if blur_px is None else RenderParams(blur_px=blur_px)
-    options = SynthOptions(
-        seed=seed,
-        fields=fields,
-        n_cameras=n_cameras,
-        n_markers=n_markers,
-        render=render,
-        wand_fields=wand_fields,
-        wand_only=wand_only,
+    options = synth_options(
+        preset, seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, blur_px=blur_px
     )
+    options = dataclasses.replace(options, wand_fields=wand_fields, wand_only=wand_only)
     replay = None
     if walking5:
         path = default_walking5_path()
         if path is None:
             echo("walking5.c3d not found: the real-trial replay (walk5) is skipped")
         else:
-            replay = load_walking5(path)
+            replay = load_walking5(path, options.rate_hz)
     plan = plan_session(options, replay)
+    if plan.rod_conflicts:
+        echo(
+            f"warning: {plan.rod_conflicts} rod-marker images touch an LED ring or another "
+            f"rod in some camera (no placement of the rods is clear for {len(plan.rig)} "
+            "cameras around this volume): expect fewer than 24 rod markers there"
+        )
     t0 = time.perf_counter()
     write_synthetic_session(
         Path(out), plan, f"synth-seed{seed}", force=force, n_jobs=n_jobs or os.cpu_count() or 1
     )
+    w, h = plan.options.rig.size_px
     echo(
-        f"wrote {out}: {len(plan.rig)} cameras, grid and rod frames, trials "
+        f"wrote {out}: {preset} rig, {len(plan.rig)} cameras of {w} x {h} px at "
+        f"{options.rate_hz:g} Hz, grid and rod frames, trials "
         f"{', '.join(f'{t} ({m.n_fields} fields)' for t, m in plan.trials.items())}, "
         f"truth/ ({time.perf_counter() - t0:.1f} s)"
     )

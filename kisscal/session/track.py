@@ -1,7 +1,9 @@
-"""``kisscal track``: a trial's 3D points to labelled trajectories and their exports."""
+"""``kisscal track``: a trial's 3D points to labelled trajectories, their exports and gait."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -9,13 +11,22 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.io.cache import is_current, mark_current
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import read_points3d
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
+from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, out_dir, writes_session
-from kisscal.session.params import Overrides, stage_params
+from kisscal.session.markers import (
+    MarkerSpec,
+    marker_spec,
+    static_key,
+    subject_template,
+    template_path,
+)
+from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.tracking import Trajectories, build_trajectories, sweep_noise
 
@@ -30,61 +41,146 @@ def track(
 ) -> Trajectories:
     """``kisscal track``: labelled trajectories of a trial from its ``points3d.csv``.
 
-    Writes ``trajectories.csv``, ``.c3d`` and ``.trc``; with ``sweep``, also the thesis'
-    PNC x MNC segment-length table as ``sweep.csv``.
+    Writes ``trajectories.csv``, ``.c3d`` and ``.trc`` and ``tracking.json``; when the
+    labels carry the marker set's feet, also ``events.csv``, ``spatiotemporal.csv`` and
+    ``gait.json`` (and the events into the C3D); with ``sweep``, the thesis' PNC x MNC
+    segment-length table as ``sweep.csv``. With ``[markers] static``, the static trial is
+    labelled first (or read from its cache) and its positions are the template.
     """
     root = Path(root)
     config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
-    tdir = out_dir(root) / "trials" / trial.name
-    points_path = tdir / "points3d.csv"
-    if not points_path.is_file():
-        raise KisscalError(
-            f"{points_path}: missing; run `kisscal reconstruct {root} {trial.name}` first"
+    spec = marker_spec(config)
+    static = config.markers.static if config.markers else None
+    if static is not None and trial.name != static:
+        spec = _with_static(root, config, spec, params, echo)
+    result = _track_trial(root, config, trial.name, spec, params, echo)
+    if sweep:
+        pts = read_points3d(out_dir(root) / "trials" / trial.name / "points3d.csv")
+        rows = sweep_noise(
+            pts.field, pts.xyz_mm, spec.segments, params.tracking, spec.names, spec.template_mm
         )
+        write_sweep_csv(out_dir(root) / "trials" / trial.name / "sweep.csv", rows)
+        echo(f"  sweep: {out_dir(root) / 'trials' / trial.name / 'sweep.csv'}")
+    return result
+
+
+def _points_path(root: Path, trial: str) -> Path:
+    path = out_dir(root) / "trials" / trial / "points3d.csv"
+    if not path.is_file():
+        raise KisscalError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
+    return path
+
+
+def _track_trial(
+    root: Path,
+    config: SessionConfig,
+    trial: str,
+    spec: MarkerSpec,
+    params: StageParams,
+    echo: Echo,
+) -> Trajectories:
+    """Track and label one trial and write its outputs: gait ones, or, for the static
+    trial, the subject's template (checked before anything is written)."""
+    tdir = out_dir(root) / "trials" / trial
+    points_path = _points_path(root, trial)
     pts = read_points3d(points_path)
-    names, template, segments = _marker_set(config)
     t0 = time.perf_counter()
-    result = build_trajectories(pts.field, pts.xyz_mm, params.tracking, names, template, segments)
+    result = build_trajectories(
+        pts.field,
+        pts.xyz_mm,
+        params.tracking,
+        spec.names,
+        spec.template_mm,
+        spec.segments,
+        marker_set=spec.marker_set if spec.label_with_set else None,
+        rate_hz=config.rate_hz,
+        template_upright=spec.template_upright,
+    )
+    static = config.markers.static if config.markers else None
+    template = subject_template(result, spec, trial) if trial == static else None
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
-    write_c3d(tdir / "trajectories.c3d", result.tracks, result.labels, config.rate_hz)
-    write_trc(tdir / "trajectories.trc", result.tracks, result.labels, config.rate_hz)
+    write_trc(
+        tdir / "trajectories.trc",
+        result.tracks,
+        result.labels,
+        config.rate_hz,
+        up=config.export.trc_up,
+    )
+    events = None
+    if template is not None:
+        clear_gait_outputs(root, tdir, trial)
+        path = template_path(out_dir(root), trial)
+        write_json(path, template)
+        mark_current(path, static_key(points_path, spec, params.tracking))
+    else:
+        events = gait_outputs(
+            root, tdir, trial, result, spec.marker_set, config.rate_hz, params.gait, echo
+        )
+    write_c3d(
+        tdir / "trajectories.c3d",
+        result.tracks,
+        result.labels,
+        config.rate_hz,
+        points=pts,
+        events=events,
+    )
     write_json(tdir / "tracking.json", _tracking_summary(result))
+    _figures(root, trial, result, spec.segments, config.rate_hz)
+    shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
+    echo(
+        f"  track {trial}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
+        f"({shown}) ({time.perf_counter() - t0:.1f} s)"
+    )
+    lab = result.labelling
+    if lab.flagged:
+        echo(f"  track {trial}: uncertain labels, check them: {', '.join(lab.flagged)}")
+    if events is not None:
+        echo(f"  gait {trial}: {len(events)} events (events.csv, spatiotemporal.csv)")
+    return result
+
+
+def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:
     figure(
         root,
-        f"trajectories_{trial.name}",
+        f"trajectories_{trial}",
         "kisscal.report.tracking",
         "trajectories_figure",
         result,
-        f"trial {trial.name}: trajectories (mm)",
+        f"trial {trial}: trajectories (mm)",
     )
     figure(
         root,
-        f"segments_{trial.name}",
+        f"segments_{trial}",
         "kisscal.report.tracking",
         "segment_length_figure",
         result,
         segments,
-        config.rate_hz,
+        rate_hz,
     )
-    shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
-    echo(
-        f"  track {trial.name}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
-        f"({shown}) ({time.perf_counter() - t0:.1f} s)"
-    )
-    if sweep:
-        rows = sweep_noise(pts.field, pts.xyz_mm, segments, params.tracking, names, template)
-        write_sweep_csv(tdir / "sweep.csv", rows)
-        echo(f"  sweep: {tdir / 'sweep.csv'}")
-    return result
 
 
-def _marker_set(config: SessionConfig) -> tuple[Any, Any, tuple]:
-    """Names, standing template and rigid segments of the session's marker set."""
-    if config.markers is None:
-        return None, None, ()
-    return config.markers.names, config.markers.template_mm, config.markers.segments
+def _with_static(
+    root: Path, config: SessionConfig, spec: MarkerSpec, params: StageParams, echo: Echo
+) -> MarkerSpec:
+    """``spec`` with the static trial's template (labelling the static trial first unless
+    its template is current)."""
+    static = config.markers.static if config.markers else ""
+    path = template_path(out_dir(root), static)
+    key = static_key(_points_path(root, static), spec, params.tracking)
+    if is_current(path, key):
+        echo(f"  static trial {static}: template from its outputs (cached)")
+    else:
+        echo(f"  static trial {static}: labelled first; its positions are the template")
+        _track_trial(root, config, static, spec, params, echo)
+    doc = json.loads(path.read_text())
+    return dataclasses.replace(
+        spec,
+        names=tuple(doc["names"]),
+        template_mm=np.asarray(doc["template_mm"], dtype=float),
+        template_upright=True,
+    )
 
 
 def _tracking_summary(result: Trajectories) -> dict[str, Any]:
@@ -96,7 +192,19 @@ def _tracking_summary(result: Trajectories) -> dict[str, Any]:
         "fits_marker_set": bool(lab.fits_marker_set),
         "unlabelled": list(lab.unlabelled),
         "missing": list(lab.missing),
+        "labels_certain": bool(lab.fits_marker_set and lab.certain),
+        "flagged": list(lab.flagged),
+        "confidence": {k: round(v, 3) for k, v in lab.confidence.items()},
+        "exchanged": [list(p) for p in lab.exchanged],
+        "sides_from": lab.sides_from,
+        "mirror_fit_ratio": _finite(lab.mirror_fit_ratio),
+        "height_mm": _finite(lab.height_mm),
+        "fit_rms_mm": _finite(lab.fit_rms_mm),
         "predictions_per_track": dict(
             zip(result.labels, np.asarray(result.n_predicted).tolist(), strict=True)
         ),
     }
+
+
+def _finite(x: float) -> float | None:
+    return round(float(x), 3) if np.isfinite(x) else None

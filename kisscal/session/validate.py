@@ -17,7 +17,7 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import camera_frames
 from kisscal.report.params import ReportParams
-from kisscal.session.inputs import image_sources, load_config
+from kisscal.session.inputs import image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
 
@@ -66,14 +66,19 @@ def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Prob
 
 def _calibration_inputs(config: SessionConfig) -> list[Problem]:
     problems = []
-    if config.rods is None and config.calibration is None and config.wand is None:
+    if (
+        config.rods is None
+        and config.calibration is None
+        and config.wand is None
+        and needs_calibration(config)
+    ):
         problems.append(
             Problem(SESSION, "no [rods], [calibration] or [wand]: nothing to calibrate from")
         )
-    for what, pattern, video in image_sources(config):
+    for what, pattern, video, fields in image_sources(config):
         if what.startswith("trial"):
             continue
-        problems += [Problem(SESSION, m) for m in _frame_set(config, what, pattern, video)]
+        problems += [Problem(SESSION, m) for m in _frame_set(config, what, pattern, video, fields)]
     return problems + [Problem(SESSION, m) for m in _calibration_files(config)]
 
 
@@ -96,18 +101,20 @@ def _calibration_files(config: SessionConfig) -> list[str]:
     return missing
 
 
-def _frame_set(config: SessionConfig, what: str, pattern: str, video: bool) -> list[str]:
+def _frame_set(
+    config: SessionConfig, what: str, pattern: str, video: bool, fields: str | None = None
+) -> list[str]:
     """Problems of one set of frames: missing per camera, or of another size."""
-    return _frames_and_counts(config, what, pattern, video)[0]
+    return _frames_and_counts(config, what, pattern, video, fields)[0]
 
 
 def _frames_and_counts(
-    config: SessionConfig, what: str, pattern: str, video: bool
+    config: SessionConfig, what: str, pattern: str, video: bool, fields: str | None = None
 ) -> tuple[list[str], dict[str, int]]:
     problems, counts = [], {}
     for cam in config.cameras:
         try:
-            frames = camera_frames(config.root, pattern, cam.id, what, video=video)
+            frames = camera_frames(config.root, pattern, cam.id, what, video, fields)
             counts[cam.id] = len(frames)
             size = _frame_size(frames[0]) if len(frames) else None
         except KisscalError as exc:
@@ -135,7 +142,9 @@ def _trial_inputs(config: SessionConfig, trial: TrialConfig) -> list[str]:
         path = config.root / (trial.c3d or "")
         return [] if path.is_file() else [f"{path}: C3D file not found"]
     pattern = trial.images or trial.video or ""
-    problems, counts = _frames_and_counts(config, "trial", pattern, trial.source == "video")
+    problems, counts = _frames_and_counts(
+        config, "trial", pattern, trial.source == "video", trial.fields
+    )
     if not problems and len(set(counts.values())) > 1:
         detail = ", ".join(f"{c}: {n}" for c, n in counts.items())
         problems.append(f"cameras have different numbers of frames ({detail})")

@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from kisscal.synth.cameras import VOLUME_MM
+
 if TYPE_CHECKING:
     from kisscal.synth.walker import GaitTruth
 
@@ -366,20 +368,30 @@ def standing_template(names: tuple[str, ...]) -> NDArray[np.float64]:
     return np.asarray(out) + [0.0, 0.0, floor_offset]
 
 
-def stick_trial(seed: int, n_fields: int = 200, rate_hz: float = 50.0) -> Motion:
+def _volume_half_mid(volume_mm: tuple) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    lo, hi = np.asarray(volume_mm[0], dtype=float), np.asarray(volume_mm[1], dtype=float)
+    return (hi - lo) / 2, (hi + lo) / 2
+
+
+def stick_trial(
+    seed: int, n_fields: int = 200, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM
+) -> Motion:
     """Seed 003 section 5.1: a stick with two markers 502.5 mm apart moved through the volume.
 
     The stick's centre follows a Lissajous path that visits the whole control volume
-    while the stick turns through varying orientations; nothing occludes it.
+    (``volume_mm``, (min, max) corners) while the stick turns through varying
+    orientations, its ends staying inside; nothing occludes it.
     """
     rng = np.random.default_rng([seed, 3003])
     t = np.arange(n_fields) / rate_hz
     ph = rng.uniform(0, 2 * np.pi, 6)
+    half, mid = _volume_half_mid(volume_mm)
+    amplitude = (half[0] - 320.0, half[1] - 300.0, 0.3 * 2 * half[2])
     centre = np.stack(
         [
-            880.0 * np.sin(2 * np.pi * 0.25 * t + ph[0]),
-            400.0 * np.sin(2 * np.pi * 0.35 * t + ph[1]),
-            1000.0 + 600.0 * np.sin(2 * np.pi * 0.3 * t + ph[2]),
+            mid[0] + amplitude[0] * np.sin(2 * np.pi * 0.25 * t + ph[0]),
+            mid[1] + amplitude[1] * np.sin(2 * np.pi * 0.35 * t + ph[1]),
+            mid[2] + amplitude[2] * np.sin(2 * np.pi * 0.3 * t + ph[2]),
         ],
         axis=1,
     )
@@ -405,17 +417,23 @@ def stick_trial(seed: int, n_fields: int = 200, rate_hz: float = 50.0) -> Motion
     )
 
 
-def throw_trial(seed: int, rate_hz: float = 50.0) -> Motion:
+def throw_trial(
+    seed: int, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM, duration_s: float = 0.9
+) -> Motion:
     """Seed 003 section 5.1: a marker thrown across the volume (ballistic, g = 9.806 m/s^2).
 
-    The marker flies from one end of the volume to the other in 0.9 s, rising about
-    0.8 m, and stays inside the volume.
+    The marker flies from one end of the volume (``volume_mm``) to the other in
+    ``duration_s``, rising about 0.8 m in 0.9 s (a shorter flight is a harder, flatter
+    throw: the same arc scaled in time), and stays inside the volume.
     """
     rng = np.random.default_rng([seed, 4004])
-    duration_s = 0.9
     t = np.arange(round(duration_s * rate_hz) + 1) / rate_hz
-    start = np.array([-1100.0, rng.uniform(-300, 300), rng.uniform(500, 700)])
-    velocity = np.array([2200.0 / duration_s, rng.uniform(-200, 200), rng.uniform(3800, 4100)])
+    half, mid = _volume_half_mid(volume_mm)
+    reach = half[0] - 100.0
+    start = np.array([mid[0] - reach, rng.uniform(-300, 300), rng.uniform(500, 700)])
+    sideways = rng.uniform(-200, 200)
+    upwards = rng.uniform(3800, 4100) * (duration_s / 0.9)  # the same arc in duration_s
+    velocity = np.array([2 * reach / duration_s, sideways, upwards])
     xyz = start + t[:, None] * velocity
     xyz[:, 2] -= 0.5 * G_MM_S2 * t**2
     n = len(t)
@@ -425,44 +443,5 @@ def throw_trial(seed: int, rate_hz: float = 50.0) -> Motion:
         capsules_mm=np.zeros((n, 0, 2, 3)),
         capsule_radius_mm=np.zeros(0),
         rate_hz=rate_hz,
-        segments=(),
-    )
-
-
-def replay_trial(
-    names: tuple[str, ...],
-    xyz_mm: NDArray[np.float64],
-    rate_hz: float,
-    joint_centres_mm: dict[str, NDArray[np.float64]] | None = None,
-    out_rate_hz: float = 50.0,
-) -> Motion:
-    """A recorded trial (e.g. the Vicon walking5.c3d) moved into the control volume.
-
-    The trial is resampled from ``rate_hz`` to ``out_rate_hz`` (every k-th sample), shifted
-    so that the middle of its path lies at the centre of the volume's floor. Joint centres
-    named ``{L,R}{HJC,KJC,AJC}`` give thigh and shank capsules for occlusion.
-    """
-    step = max(1, round(rate_hz / out_rate_hz))
-    xyz = np.asarray(xyz_mm, dtype=float)[::step]
-    mean_xy = np.nanmean(xyz[..., :2].reshape(-1, 2), axis=0)
-    valid_x = np.where(np.isfinite(xyz[..., 0]), xyz[..., 0], np.nan)
-    mid_x = 0.5 * (np.nanmin(valid_x) + np.nanmax(valid_x))
-    shift = np.array([-mid_x, -mean_xy[1], 0.0])
-    xyz = xyz + shift
-    capsules, radii = [], []
-    jc = joint_centres_mm or {}
-    for s in "LR":
-        for a, b, r in ((f"{s}HJC", f"{s}KJC", 65.0), (f"{s}KJC", f"{s}AJC", 45.0)):
-            if a in jc and b in jc:
-                capsules.append(np.stack([jc[a][::step] + shift, jc[b][::step] + shift], axis=1))
-                radii.append(r)
-    n = xyz.shape[0]
-    caps = np.stack(capsules, axis=1) if capsules else np.zeros((n, 0, 2, 3))
-    return Motion(
-        names=tuple(names),
-        xyz_mm=xyz,
-        capsules_mm=np.nan_to_num(caps, nan=1e9),
-        capsule_radius_mm=np.asarray(radii),
-        rate_hz=out_rate_hz,
         segments=(),
     )

@@ -8,33 +8,105 @@ produce the images of one camera (grid, rods, or one trial) with their truth, so
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import SynthCamera, kiss_rig
+from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, SynthCamera, kiss_rig, ring_rig
 from kisscal.synth.motion import (
-    MARKER_RADIUS_MM,
     Motion,
     standing_template,
     stick_trial,
     throw_trial,
     walking_trial,
 )
-from kisscal.synth.render import RenderParams, Spots, concat_spots, render_field, sphere_spots
+from kisscal.synth.render import (
+    Glow,
+    RenderParams,
+    Spots,
+    concat_spots,
+    glow_map,
+    record,
+    render_scene,
+    sphere_spots,
+)
+from kisscal.synth.replay import inside_volume, slim_capsules
 from kisscal.synth.scene import (
     FieldTruth,
+    GridView,
     Rod,
     grid_view,
     image_rng,
     led_spots,
     render_markers,
+    rod_conflicts,
     rod_set,
-    rods_clear_of_leds,
     visibility,
 )
 from kisscal.synth.wand import WAND_TRIAL, axes_points, wand_tables, wand_trial
+
+Range = tuple[float, float]
+Volume = tuple[tuple[float, float, float], tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class RigSpec:
+    """The geometry of one rig, as :mod:`kisscal.synth.presets` draws it for a seed.
+
+    Attributes
+    ----------
+    preset : str
+        The preset it was drawn from.
+    layout : {"kiss", "ring"}
+        Camera placement (:func:`~kisscal.synth.cameras.kiss_rig` or
+        :func:`~kisscal.synth.cameras.ring_rig`).
+    size_px : (int, int)
+        Image width and height.
+    pixel_aspect : float
+        Height / width of a pixel, ``fx / fy`` (1.94 for KISS fields, 1 for square pixels).
+    volume_mm : ((x, y, z), (x, y, z))
+        Control volume (min, max corners); every camera sees it whole.
+    clearance_mm, height_mm : (float, float)
+        Ring layout: distance of the cameras outside the volume's footprint, height.
+    ring_start_deg : (float, float) or None
+        Ring layout: range of the first camera's azimuth from the walkway (lab +X);
+        ``None``: anywhere within one camera spacing.
+    corner_distortion_px : (float, float)
+        Range of the lens distortion at the image corners.
+    marker_diameter_px : (float, float) or None
+        Band every marker image falls in: the marker radius is chosen for it; ``None``:
+        the KISS lab's 25 mm markers.
+    marker_size_quantile : float
+        Where in the feasible range of marker radii this rig's radius lies (0 to 1).
+    bit_depth : int
+        Bits per pixel of the images (also in the render parameters).
+    grid_fill : float
+        Fraction of the image width the dot grid spans.
+    throw_s : float
+        Flight time of the thrown marker.
+    """
+
+    preset: str = "kiss"
+    layout: Literal["kiss", "ring"] = "kiss"
+    size_px: tuple[int, int] = (752, 291)
+    pixel_aspect: float = 1.0 / PIXEL_ASPECT
+    volume_mm: Volume = VOLUME_MM
+    clearance_mm: Range = (0.0, 0.0)
+    height_mm: Range = (0.0, 0.0)
+    ring_start_deg: Range | None = None
+    corner_distortion_px: Range = (6.0, 9.0)
+    marker_diameter_px: Range | None = None
+    marker_size_quantile: float = 0.5
+    bit_depth: int = 8
+    grid_fill: float = 0.88
+    throw_s: float = 0.9
+
+    @property
+    def inside_volume(self) -> bool:
+        """Trials kept inside the volume (all but the KISS rig, which stays as it was)."""
+        return self.layout != "kiss"
 
 
 @dataclass(frozen=True)
@@ -46,9 +118,9 @@ class SynthOptions:
     seed : int
         The same seed gives byte-identical sessions.
     fields : int
-        Fields of the model gait trial ``walk01`` (50 Hz).
+        Fields of the model gait trial ``walk01``.
     n_cameras : int
-        2 to 6 cameras.
+        2 to 16 cameras.
     n_markers : int
         13 or 15 gait markers.
     rate_hz : float
@@ -58,7 +130,10 @@ class SynthOptions:
     stick_fields : int
         Fields of the stick trial (seed 003: 4 s).
     render : RenderParams
-        Image appearance (blur, noise, LED rings ...).
+        Image appearance (blur, noise, LED rings ...); the marker radius of rigs with a
+        marker size band is chosen by :func:`plan_session`.
+    rig : RigSpec
+        Cameras and volume (:func:`kisscal.synth.presets.synth_options` draws one).
     wand_fields : int
         Fields of a wand trial ``wand01`` with an L-frame for the lab axes
         (:mod:`kisscal.synth.wand`); 0: none.
@@ -76,13 +151,18 @@ class SynthOptions:
     rod_frames: int = 3
     stick_fields: int = 200
     render: RenderParams = field(default_factory=RenderParams)
+    rig: RigSpec = field(default_factory=RigSpec)
     wand_fields: int = 0
     wand_only: bool = False
 
 
 @dataclass(frozen=True)
 class SynthPlan:
-    """Everything a seed determines, before any image is rendered."""
+    """Everything a seed determines, before any image is rendered.
+
+    ``render`` is ``options.render`` with the rig's marker radius; ``rod_conflicts`` counts
+    rod-marker images that touch an LED ring or another rod (0 but on crowded rigs).
+    """
 
     options: SynthOptions
     rig: tuple[SynthCamera, ...]
@@ -91,31 +171,29 @@ class SynthPlan:
     marker_names: tuple[str, ...]
     template_mm: NDArray[np.float64]
     segments: tuple[tuple[str, str], ...]
+    render: RenderParams = field(default_factory=RenderParams)
+    rod_conflicts: int = 0
     axes_mm: NDArray[np.float64] | None = None
 
 
 def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPlan:
     """Decide the rig, rods and trials of a synthetic session.
 
-    ``replay`` is an extra recorded trial (the real walking5.c3d moved into the volume)
-    rendered as trial ``walk5``.
+    ``replay`` is an extra recorded trial (the real walking5.c3d moved into the volume,
+    at ``options.rate_hz``) rendered as trial ``walk5``; a rig that keeps its trials
+    inside the volume cuts it to the fields inside (at most ``options.fields``) and slims
+    its capsules so that no marker hides behind its own (:func:`slim_capsules`; the KISS
+    rig keeps the replay as it always was).
     """
-    rig = kiss_rig(options.seed, options.n_cameras)
-    gait = walking_trial(options.seed, options.fields, options.rate_hz, options.n_markers)
-    trials = {
-        "walk01": gait,
-        "stick": stick_trial(options.seed, options.stick_fields, options.rate_hz),
-        "throw": throw_trial(options.seed, options.rate_hz),
-    }
-    if replay is not None:
-        trials["walk5"] = replay
-    if options.wand_fields:
-        trials[WAND_TRIAL] = wand_trial(options.seed, options.wand_fields, options.rate_hz)
-    rods = rod_set(options.seed)
-    for attempt in range(1, 50):  # re-hang the rods until no LED ring hides a marker
-        if rods_clear_of_leds(rig, rods, options.render):
-            break
-        rods = rod_set(options.seed, attempt=attempt)
+    spec = options.rig
+    rig = build_rig(options)
+    render = options.render
+    if spec.marker_diameter_px is not None:
+        radius = marker_radius_mm(rig, spec, render.bloom_px)
+        render = replace(render, marker_radius_mm=radius)
+    trials = _trials(options, replay)
+    gait = trials["walk01"]
+    rods, conflicts = _hang_rods(options, rig, render)
     return SynthPlan(
         options=options,
         rig=rig,
@@ -124,8 +202,116 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         marker_names=gait.names,
         template_mm=standing_template(gait.names),
         segments=gait.segments,
+        render=render,
+        rod_conflicts=conflicts,
         axes_mm=axes_points() if options.wand_fields else None,
     )
+
+
+def build_rig(options: SynthOptions) -> tuple[SynthCamera, ...]:
+    """The cameras of ``options.rig`` for ``options.seed``."""
+    spec = options.rig
+    if spec.layout == "kiss":
+        return kiss_rig(options.seed, options.n_cameras, spec.corner_distortion_px)
+    return ring_rig(
+        options.seed,
+        options.n_cameras,
+        spec.size_px,
+        spec.volume_mm,
+        spec.clearance_mm,
+        spec.height_mm,
+        spec.corner_distortion_px,
+        pixel_aspect=spec.pixel_aspect,
+        start_deg=spec.ring_start_deg,
+    )
+
+
+def marker_radius_mm(
+    rig: tuple[SynthCamera, ...], spec: RigSpec, bloom_px: float, samples: int = 9
+) -> float:
+    """The marker radius that puts every marker image in the volume in ``spec``'s band.
+
+    A sphere of radius ``r`` at distance ``d`` images ``2 (f r / d + bloom)`` pixels across
+    (through the lens); over a ``samples``^3 lattice of the volume in every camera, the
+    radii that keep all images in the band form a range, and ``marker_size_quantile``
+    picks one. An empty range (a band the geometry cannot meet) gives its middle.
+    """
+    assert spec.marker_diameter_px is not None
+    lo, hi = (np.asarray(c, dtype=float) for c in spec.volume_mm)
+    axes = [np.linspace(lo[k], hi[k], samples) for k in range(3)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    per_mm = np.concatenate([sphere_spots(c, points, 1.0, 1.0, 0.0).radii_px for c in rig])
+    small, large = spec.marker_diameter_px
+    r_min = (small / 2 - bloom_px) / per_mm.min()
+    r_max = (large / 2 - bloom_px) / per_mm.max()
+    if r_min > r_max:
+        return float(0.5 * (r_min + r_max))
+    return float(r_min + spec.marker_size_quantile * (r_max - r_min))
+
+
+def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
+    """walk01, stick, throw (and walk5) for the rig's volume and field rate."""
+    spec, seed, rate = options.rig, options.seed, options.rate_hz
+    if not spec.inside_volume:
+        trials = {
+            "walk01": walking_trial(seed, options.fields, rate, options.n_markers),
+            "stick": stick_trial(seed, options.stick_fields, rate),
+            "throw": throw_trial(seed, rate),
+        }
+        if replay is not None:
+            trials["walk5"] = replay
+        return _with_wand(trials, options)
+    lo, hi = spec.volume_mm
+    # the feet reach about 650 mm ahead of and behind the pelvis
+    path_mm = (hi[0] - lo[0]) - 2 * 650.0
+    trials = {
+        "walk01": walking_trial(seed, options.fields, rate, options.n_markers, path_mm),
+        "stick": stick_trial(seed, options.stick_fields, rate, spec.volume_mm),
+        "throw": throw_trial(seed, rate, spec.volume_mm, spec.throw_s),
+    }
+    if replay is not None:
+        trials["walk5"] = slim_capsules(inside_volume(replay, spec.volume_mm, options.fields))
+    return _with_wand(trials, options)
+
+
+def _with_wand(trials: dict[str, Motion], options: SynthOptions) -> dict[str, Motion]:
+    """The trials, with the wand trial when ``options.wand_fields`` asks for one."""
+    if options.wand_fields:
+        trials[WAND_TRIAL] = wand_trial(
+            options.seed, options.wand_fields, options.rate_hz, volume_mm=options.rig.volume_mm
+        )
+    return trials
+
+
+def _hang_rods(
+    options: SynthOptions, rig: tuple[SynthCamera, ...], render: RenderParams
+) -> tuple[tuple[Rod, ...], int]:
+    """Rods near the volume's vertical edges, re-hung until every camera sees them clear.
+
+    The KISS rig of up to six cameras checks only the LED rings (as it always did); other
+    rigs also keep the rods apart from each other in every image. When no placement is
+    clear (crowded rigs), the one with the fewest conflicts is kept; returns the rods and
+    their conflicts (:func:`~kisscal.synth.scene.rod_conflicts`).
+    """
+    spec = options.rig
+    if spec.layout == "kiss":
+        place: dict = {}
+        gap = 0.0 if options.n_cameras <= 6 else 4.0
+    else:
+        lo, hi = spec.volume_mm
+        top = min(1900.0, hi[2] - 100.0)
+        corners = ((hi[0] - lo[0]) / 2 - 50.0, (hi[1] - lo[1]) / 2 - 50.0)
+        place, gap = {"top_mm": top, "corners_xy_mm": corners}, 4.0
+    best, fewest = None, None
+    for attempt in range(50):
+        rods = rod_set(options.seed, attempt=attempt, **place)
+        conflicts = rod_conflicts(rig, rods, render, line_gap_px=gap)
+        if fewest is None or conflicts < fewest:
+            best, fewest = rods, conflicts
+        if conflicts == 0:
+            break
+    assert best is not None and fewest is not None
+    return best, fewest
 
 
 def session_config(plan: SynthPlan, name: str) -> dict:
@@ -153,16 +339,57 @@ def session_config(plan: SynthPlan, name: str) -> dict:
 # ------------------------------------------------------------------------- rendering
 
 
-def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray[np.uint8]], dict]:
-    """Grid frames of one camera and the truth of its 300 dots."""
+def camera_glow(
+    plan: SynthPlan, cam_index: int, plate_px: tuple[float, float, float, float] | None = None
+) -> NDArray[np.float64] | None:
+    """One camera's background light (``None`` for a flat background); ``plate_px`` adds the
+    lit grid plate of its grid images."""
+    glow = plan.render.glow
+    if glow is None:
+        return None
+    rng = np.random.default_rng([plan.options.seed, 7007, cam_index])
+    light = glow_map(plan.rig[cam_index].size_px, glow, rng)
+    if plate_px is None:
+        return light
+    plate_rng = np.random.default_rng([plan.options.seed, 7008, cam_index])
+    return light + glow_map(plan.rig[cam_index].size_px, _plate_only(glow), plate_rng, plate_px)
+
+
+def _plate_only(glow: Glow) -> Glow:
+    return Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
+
+
+def grid_scene(
+    plan: SynthPlan, cam_index: int
+) -> tuple[GridView, NDArray[np.float64], NDArray[np.float64] | None]:
+    """One camera's view of the grid: dots, their noise-free light, the background."""
     cam = plan.rig[cam_index]
-    view = grid_view(cam, plan.options.seed)
+    view = grid_view(
+        cam,
+        plan.options.seed,
+        fill=plan.options.rig.grid_fill,
+        dot_radius_px=plan.render.grid_dot_radius_px,
+    )
+    scene = render_scene(cam.size_px, view.spots, plan.render)
+    plate = None
+    if plan.render.glow is not None:
+        # the plate reaches a dot spacing beyond the outer dots
+        spacing = np.median(np.linalg.norm(np.diff(view.uv_px, axis=0), axis=1))
+        lo, hi = view.uv_px.min(axis=0) - spacing, view.uv_px.max(axis=0) + spacing
+        plate = (lo[0], lo[1], hi[0], hi[1])
+    return view, scene, camera_glow(plan, cam_index, plate)
+
+
+def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict]:
+    """Grid frames of one camera and the truth of its 300 dots."""
+    view, scene, background = grid_scene(plan, cam_index)
     frames = [
-        render_field(
-            cam.size_px,
-            view.spots,
+        record(
+            scene,
             image_rng(plan.options.seed, "grid", cam_index, k),
-            plan.options.render,
+            plan.render,
+            view.spots.centre_px,
+            background,
         )
         for k in range(plan.options.grid_frames)
     ]
@@ -178,20 +405,33 @@ def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray[np.uint8]
     return frames, truth
 
 
-def render_rods(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray[np.uint8]], dict, dict]:
+def rod_scene(plan: SynthPlan, cam_index: int) -> tuple[Spots, Spots, NDArray[np.float64]]:
+    """One camera's view of the rods: marker spots, LED-ring spots, their noise-free light."""
+    cam = plan.rig[cam_index]
+    params = plan.render
+    points = np.concatenate([r.points_mm for r in plan.rods])
+    spots = sphere_spots(cam, points, params.marker_radius_mm, params.marker_peak, params.bloom_px)
+    leds = led_spots(cam, plan.rig, params)
+    return spots, leds, render_scene(cam.size_px, concat_spots(spots, leds), params)
+
+
+def render_rods(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict, dict]:
     """Rod frames of one camera, the truth of its 24 markers and of the LED rings it sees."""
     cam = plan.rig[cam_index]
-    params = plan.options.render
-    points = np.concatenate([r.points_mm for r in plan.rods])
-    spots = sphere_spots(cam, points, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
-    leds = led_spots(cam, plan.rig, params)
-    everything = concat_spots(spots, leds)
+    spots, leds, scene = rod_scene(plan, cam_index)
+    background = camera_glow(plan, cam_index)
+    keep_clear = concat_spots(spots, leds).centre_px
     frames = [
-        render_field(
-            cam.size_px, everything, image_rng(plan.options.seed, "rods", cam_index, k), params
+        record(
+            scene,
+            image_rng(plan.options.seed, "rods", cam_index, k),
+            plan.render,
+            keep_clear,
+            background,
         )
         for k in range(plan.options.rod_frames)
     ]
+    points = np.concatenate([r.points_mm for r in plan.rods])
     uv_ideal = cam.project_ideal(points)
     truth = {
         "rod": np.repeat([r.name for r in plan.rods], 6),
@@ -225,15 +465,16 @@ def trial_visibility(plan: SynthPlan, trial: str) -> NDArray[np.bool_]:
 
 def render_trial(
     plan: SynthPlan, trial: str, cam_index: int
-) -> Iterator[tuple[int, NDArray[np.uint8], FieldTruth]]:
+) -> Iterator[tuple[int, NDArray, FieldTruth]]:
     """Yield ``(field, image, truth)`` for every field of ``trial`` in one camera."""
     cam = plan.rig[cam_index]
     motion = plan.trials[trial]
-    params = plan.options.render
+    params = plan.render
     vis = visibility(cam, motion)
     leds = led_spots(cam, plan.rig, params)
+    background = camera_glow(plan, cam_index)
     trial_code = list(plan.trials).index(trial)
     for f in range(motion.n_fields):
         rng = image_rng(plan.options.seed, "trial", cam_index, f, trial_code)
-        image, truth = render_markers(cam, motion.xyz_mm[f], vis[f], leds, rng, params)
+        image, truth = render_markers(cam, motion.xyz_mm[f], vis[f], leds, rng, params, background)
         yield f, image, truth

@@ -1,4 +1,4 @@
-"""Rendering of 8-bit infrared fields: marker spots, LED rings, noise pixels and streaks.
+"""Rendering of infrared fields: marker spots, LED rings, background glow, sensor noise.
 
 A retro-reflective sphere images as a bright, nearly uniform elliptical spot (the pixels
 are not square). Each spot is drawn with an anti-aliased edge: the grey value is the
@@ -6,6 +6,11 @@ fraction of the pixel the ellipse covers, estimated from the signed distance of 
 pixel centre to the ellipse boundary. The ellipse is the sphere's outline mapped through
 the local Jacobian of the lens distortion, so its centre is exactly the distorted
 projection of the sphere's centre: that is the truth centroid.
+
+A field is rendered in two steps: :func:`render_scene` draws and blurs the light of the
+spots (grey levels above the background, on the 8-bit scale), :func:`record` adds what
+the camera adds (noise pixels and streaks, background light, read and shot noise) and
+quantises to the camera's bit depth. The noise-free scene gives the spots' true sizes.
 """
 
 from __future__ import annotations
@@ -17,6 +22,38 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.synth.cameras import SynthCamera
+
+
+@dataclass(frozen=True)
+class Glow:
+    """Background light: the room seen through the infrared filter (8-bit grey levels).
+
+    Each camera has its own, the same in all its images: a floor, a linear ramp in a random
+    direction, and soft patches (lamps, windows, a lit floor); in grid images the grid's
+    plate is lit as well.
+
+    Attributes
+    ----------
+    level_dn : (float, float)
+        Range of the floor.
+    gradient_dn : (float, float)
+        Range of the ramp's rise across the image.
+    patches : (int, int)
+        Least and most number of patches.
+    patch_dn : (float, float)
+        Range of a patch's peak.
+    patch_size : (float, float)
+        Range of a patch's sigma, as a fraction of the image diagonal.
+    plate_dn : (float, float)
+        Range of the grid plate's brightness above the room.
+    """
+
+    level_dn: tuple[float, float] = (2.0, 5.0)
+    gradient_dn: tuple[float, float] = (0.0, 3.0)
+    patches: tuple[int, int] = (0, 2)
+    patch_dn: tuple[float, float] = (2.0, 8.0)
+    patch_size: tuple[float, float] = (0.1, 0.3)
+    plate_dn: tuple[float, float] = (2.0, 6.0)
 
 
 @dataclass(frozen=True)
@@ -43,6 +80,20 @@ class RenderParams:
         Chance that a field holds a one-pixel-wide streak.
     led_radius_mm : float
         Radius of the infrared LED ring around each camera lens.
+    led_flare_px : float
+        Added to an LED ring's radius on top of ``bloom_px`` (direct light blooms more).
+    marker_radius_mm : float
+        Radius of the marker spheres.
+    grid_dot_radius_px : float
+        Radius of a grid dot's image (the grid is seen square on).
+    electrons_per_dn : float
+        Photo-electrons per grey level: shot noise of variance ``signal / electrons_per_dn``
+        (0: none).
+    bit_depth : int
+        8 (uint8 images) or 10 to 16 (uint16 images holding values 0 .. 2^bit_depth - 1);
+        every grey level here is on the 8-bit scale and scaled by ``(2^bit_depth - 1) / 255``.
+    glow : Glow or None
+        Background light; ``None``: the flat ``background``.
     """
 
     background: float = 6.0
@@ -53,6 +104,17 @@ class RenderParams:
     noise_pixels: float = 3.0
     streak_probability: float = 0.3
     led_radius_mm: float = 60.0
+    led_flare_px: float = 1.5
+    marker_radius_mm: float = 12.5
+    grid_dot_radius_px: float = 2.6
+    electrons_per_dn: float = 0.0
+    bit_depth: int = 8
+    glow: Glow | None = None
+
+    @property
+    def dn_scale(self) -> float:
+        """Grey levels of the recorded image per grey level of the 8-bit scale."""
+        return (2**self.bit_depth - 1) / 255.0
 
 
 @dataclass(frozen=True)
@@ -148,27 +210,128 @@ def add_noise_pixels(
     image[v, u] = np.maximum(image[v, u], rng.uniform(120, 255, len(u)))
 
 
-def render_field(
-    size_px: tuple[int, int],
-    spots: Spots,
-    rng: np.random.Generator,
-    params: RenderParams,
-) -> NDArray[np.uint8]:
-    """Render one 8-bit field: spots, optical blur, noise pixels/streaks, background, noise.
-
-    Noise pixels and streaks are added after the blur: they come from the sensor and the
-    video link, not through the lens.
-    """
+def render_scene(size_px: tuple[int, int], spots: Spots, params: RenderParams) -> NDArray:
+    """The light of ``spots`` on the sensor: drawn, then blurred by the optics (float64)."""
     w, h = size_px
     image = np.zeros((h, w))
     draw_spots(image, spots)
     if params.blur_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), params.blur_px)
-    add_noise_pixels(image, rng, params, spots.centre_px)
-    image += params.background
-    if params.noise_sigma > 0:
+    return image
+
+
+def record(
+    scene: NDArray[np.float64],
+    rng: np.random.Generator,
+    params: RenderParams,
+    keep_clear_px: NDArray[np.float64],
+    background: NDArray[np.float64] | None = None,
+) -> NDArray[np.uint8] | NDArray[np.uint16]:
+    """What the camera records of ``scene``: noise pixels, background light, noise, quantised.
+
+    Noise pixels and streaks are added after the blur: they come from the sensor and the
+    video link, not through the lens. ``background`` (a glow map) replaces the flat
+    ``params.background``. Shot noise follows the light, background included.
+    """
+    image = scene.copy()
+    add_noise_pixels(image, rng, params, keep_clear_px)
+    image += params.background if background is None else background
+    if params.electrons_per_dn > 0:
+        variance = params.noise_sigma**2 + np.maximum(image, 0.0) / params.electrons_per_dn
+        image += np.sqrt(variance) * rng.standard_normal(image.shape)
+    elif params.noise_sigma > 0:
         image += rng.normal(0.0, params.noise_sigma, image.shape)
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    if params.bit_depth == 8:
+        return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    top = 2**params.bit_depth - 1
+    return np.clip(np.rint(image * params.dn_scale), 0, top).astype(np.uint16)
+
+
+def render_field(
+    size_px: tuple[int, int],
+    spots: Spots,
+    rng: np.random.Generator,
+    params: RenderParams,
+    background: NDArray[np.float64] | None = None,
+) -> NDArray[np.uint8] | NDArray[np.uint16]:
+    """Render one field: spots, optical blur, noise pixels/streaks, background, noise."""
+    return record(render_scene(size_px, spots, params), rng, params, spots.centre_px, background)
+
+
+def glow_map(
+    size_px: tuple[int, int],
+    glow: Glow,
+    rng: np.random.Generator,
+    plate_px: tuple[float, float, float, float] | None = None,
+) -> NDArray[np.float64]:
+    """One camera's background light (8-bit scale): floor, ramp, patches, lit grid plate.
+
+    ``plate_px`` is the grid plate's (left, top, right, bottom) in pixels, for grid images.
+    """
+    w, h = size_px
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    diagonal = np.hypot(w, h)
+    angle = rng.uniform(0, 2 * np.pi)
+    along = ((x - w / 2) * np.cos(angle) + (y - h / 2) * np.sin(angle)) / diagonal + 0.5
+    light = rng.uniform(*glow.level_dn) + rng.uniform(*glow.gradient_dn) * along
+    for _ in range(int(rng.integers(glow.patches[0], glow.patches[1] + 1))):
+        u, v = rng.uniform(0, w), rng.uniform(0, h)
+        sigma = rng.uniform(*glow.patch_size) * diagonal
+        peak = rng.uniform(*glow.patch_dn)
+        light += peak * np.exp(-((x - u) ** 2 + (y - v) ** 2) / (2 * sigma**2))
+    if plate_px is not None:
+        plate = np.zeros((h, w))
+        left, top, right, bottom = (round(c) for c in plate_px)
+        plate[max(top, 0) : max(bottom, 0), max(left, 0) : max(right, 0)] = 1.0
+        light += rng.uniform(*glow.plate_dn) * cv2.GaussianBlur(plate, (0, 0), 3.0)
+    return light
+
+
+@dataclass(frozen=True)
+class SpotSizes:
+    """Width, height (bounding box, px) and pixel count of spot images above a grey level.
+
+    Measured on the noise-free scene; NaN for a spot not lit above the level at its centre
+    or sharing its lit pixels with another spot.
+    """
+
+    width_px: NDArray[np.float64]
+    height_px: NDArray[np.float64]
+    pixels: NDArray[np.float64]
+
+
+def spot_sizes(
+    scene: NDArray[np.float64], spots: Spots, level: float, rim_px: float = 2.5
+) -> SpotSizes:
+    """:class:`SpotSizes` of ``spots`` in ``scene`` at grey level ``level``.
+
+    Each spot is measured in a window reaching ``rim_px`` plus two pixels beyond its
+    outline: a lit region that reaches the window's edge, or holds another spot's centre,
+    is not the spot's alone (NaN).
+    """
+    n = len(spots.centre_px)
+    out = np.full((3, n), np.nan)
+    h, w = scene.shape
+    reach = np.ceil(spots.radii_px + rim_px).astype(int) + 2
+    centre = np.rint(spots.centre_px).astype(int)
+    for i in range(n):  # a few dozen spots per image, each a small window
+        (u, v), (rx, ry) = centre[i], reach[i]
+        if u - rx < 0 or v - ry < 0 or u + rx >= w or v + ry >= h:
+            continue  # cut by the image border
+        window = scene[v - ry : v + ry + 1, u - rx : u + rx + 1] >= level
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(window.astype(np.uint8), 8)
+        own = labels[ry, rx]
+        if own == 0:
+            continue
+        x0, y0, bw, bh, area = stats[own]
+        if x0 == 0 or y0 == 0 or x0 + bw == window.shape[1] or y0 + bh == window.shape[0]:
+            continue
+        others = np.delete(centre, i, axis=0) - [u - rx, v - ry]
+        inside = np.all((others >= 0) & (others < window.shape[::-1]), axis=1)
+        if np.any(labels[others[inside, 1], others[inside, 0]] == own):
+            continue
+        out[:, i] = (bw, bh, area)
+    return SpotSizes(out[0], out[1], out[2])
 
 
 def sphere_spots(

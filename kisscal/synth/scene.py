@@ -8,23 +8,32 @@ process renders it in.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.synth.cameras import SynthCamera
-from kisscal.synth.motion import MARKER_RADIUS_MM, Motion
+from kisscal.synth.motion import Motion
 from kisscal.synth.render import (
     RenderParams,
     Spots,
+    SpotSizes,
     concat_spots,
     isolated,
-    render_field,
+    record,
+    render_scene,
     sphere_spots,
+    spot_sizes,
 )
 
 _KIND_CODES = {"grid": 1, "rods": 2, "trial": 3}
+
+#: Grey levels, as fractions of the marker plateau above the background, at which the
+#: true sizes of spot images are measured (truth/detection.json): at half the plateau
+#: (the spot's outline) and at a tenth (nearly all the light of the spot, blurred rim
+#: included).
+SIZE_LEVELS: dict[str, float] = {"half": 0.5, "low": 0.1}
 
 
 def image_rng(
@@ -84,6 +93,11 @@ def visibility(camera: SynthCamera, motion: Motion, margin_px: float = 3.0) -> N
     return seen
 
 
+def rim_px(params: RenderParams) -> float:
+    """How far beyond its outline a spot's light reaches (blur and anti-aliased edge)."""
+    return max(2.5, 3.0 * params.blur_px)
+
+
 # ------------------------------------------------------------------------------- rods
 
 
@@ -104,24 +118,29 @@ _ROD_GAPS = (
     (1.3, 2.4, 1.0, 1.8, 1.6),
     (1.7, 1.2, 2.6, 1.0, 1.4),
 )
-_ROD_XY_MM = ((-1150.0, -650.0), (1150.0, -650.0), (1150.0, 650.0), (-1150.0, 650.0))
+_ROD_CORNERS = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
 
 
 def rod_set(
-    seed: int, top_mm: float = 1900.0, bottom_mm: float = 100.0, attempt: int = 0
+    seed: int,
+    top_mm: float = 1900.0,
+    bottom_mm: float = 100.0,
+    attempt: int = 0,
+    corners_xy_mm: tuple[float, float] = (1150.0, 650.0),
 ) -> tuple[Rod, ...]:
     """The four rods R1..R4 hanging plumb near the vertical edges of the volume.
 
-    ``attempt`` draws another small placement for the same seed (see
-    :func:`rods_clear_of_leds`).
+    The rods hang near ``(+-x, +-y)`` of ``corners_xy_mm``; ``attempt`` draws another
+    small placement for the same seed (see :func:`rods_clear_of_leds`).
     """
     rng = np.random.default_rng([seed, 5005, attempt] if attempt else [seed, 5005])
+    sign = np.asarray(_ROD_CORNERS)
     rods = []
     for i, gaps in enumerate(_ROD_GAPS):
         g = np.asarray(gaps) / np.sum(gaps) * (top_mm - bottom_mm)
         z = top_mm - np.concatenate([[0.0], np.cumsum(g)])
         spread = 30.0 + 15.0 * attempt  # later attempts move the rods further
-        xy = np.asarray(_ROD_XY_MM[i]) + rng.uniform(-spread, spread, 2)
+        xy = sign[i] * np.asarray(corners_xy_mm) + rng.uniform(-spread, spread, 2)
         pts = np.column_stack([np.full(6, xy[0]), np.full(6, xy[1]), z])
         rods.append(Rod(f"R{i + 1}", np.round(pts, 1)))
     return tuple(rods)
@@ -137,30 +156,72 @@ def led_spots(camera: SynthCamera, rig: Sequence[SynthCamera], params: RenderPar
         return Spots(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0))
     in_front = camera.depth_mm(others) > 0
     others = others[in_front]
-    spots = sphere_spots(camera, others, params.led_radius_mm, 255.0, params.bloom_px + 1.5)
+    flare = params.bloom_px + params.led_flare_px
+    spots = sphere_spots(camera, others, params.led_radius_mm, 255.0, flare)
     keep = camera.in_image(spots.centre_px, margin_px=-4.0)
     return Spots(spots.centre_px[keep], spots.shape[keep], spots.peak[keep])
+
+
+def rod_conflicts(
+    rig: Sequence[SynthCamera],
+    rods: Sequence[Rod],
+    params: RenderParams,
+    margin_px: float = 4.0,
+    line_gap_px: float = 0.0,
+) -> int:
+    """How many rod-marker images touch an LED ring's, over all cameras (0: all clear).
+
+    A technician hangs the rods so that every marker is seen on its own; a marker hidden
+    behind a facing camera's LED ring could not be measured. With ``line_gap_px`` > 0 the
+    rods must also be seen apart from each other and whole: marker images touching another
+    rod's, markers within ``line_gap_px`` of another rod's image line (a ring of cameras
+    looks along the volume's diagonals, where two rods line up), and marker images not
+    ``margin_px`` inside the image count too.
+    """
+    points = np.concatenate([r.points_mm for r in rods])
+    rod_of = np.repeat(np.arange(len(rods)), [len(r.points_mm) for r in rods])
+    other = rod_of[:, None] != rod_of[None, :]
+    conflicts = 0
+    for cam in rig:
+        leds = led_spots(cam, rig, params)
+        markers = sphere_spots(
+            cam, points, params.marker_radius_mm, params.marker_peak, params.bloom_px
+        )
+        if len(leds.centre_px):
+            conflicts += int(_touching(markers, leds, margin_px).any(axis=1).sum())
+        if line_gap_px > 0:
+            conflicts += int((_touching(markers, markers, margin_px) & other).any(axis=1).sum())
+            inside = cam.in_image(markers.centre_px - markers.radii_px, margin_px)
+            inside &= cam.in_image(markers.centre_px + markers.radii_px, margin_px)
+            conflicts += int((~inside).sum())
+            gaps = _line_gaps_px(cam.project_ideal(points), rod_of)
+            conflicts += int((gaps < line_gap_px).sum())
+    return conflicts
 
 
 def rods_clear_of_leds(
     rig: Sequence[SynthCamera], rods: Sequence[Rod], params: RenderParams, margin_px: float = 4.0
 ) -> bool:
-    """True when no rod marker's image touches an LED ring's in any camera.
+    """True when no rod marker's image touches an LED ring's in any camera."""
+    return rod_conflicts(rig, rods, params, margin_px) == 0
 
-    A technician hangs the rods so that every marker is seen on its own; a marker hidden
-    behind a facing camera's LED ring could not be measured.
-    """
-    points = np.concatenate([r.points_mm for r in rods])
-    for cam in rig:
-        leds = led_spots(cam, rig, params)
-        if len(leds.centre_px) == 0:
-            continue
-        markers = sphere_spots(cam, points, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
-        gap = np.abs(markers.centre_px[:, None, :] - leds.centre_px[None, :, :])
-        reach = markers.radii_px[:, None, :] + leds.radii_px[None, :, :] + margin_px
-        if np.any(np.all(gap < reach, axis=2)):
-            return False
-    return True
+
+def _touching(a: Spots, b: Spots, margin_px: float) -> NDArray[np.bool_]:
+    """Which spots of ``a`` (rows) come within ``margin_px`` of which of ``b`` (columns)."""
+    gap = np.abs(a.centre_px[:, None, :] - b.centre_px[None, :, :])
+    reach = a.radii_px[:, None, :] + b.radii_px[None, :, :] + margin_px
+    return np.all(gap < reach, axis=2)
+
+
+def _line_gaps_px(uv: NDArray[np.float64], rod_of: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Distance (px) of every point to the image line of every other rod, flattened."""
+    gaps = []
+    for k in np.unique(rod_of):
+        mine = uv[rod_of == k]
+        direction = mine[-1] - mine[0]
+        normal = np.array([-direction[1], direction[0]]) / np.linalg.norm(direction)
+        gaps.append(np.abs((uv[rod_of != k] - mine[0]) @ normal))
+    return np.concatenate(gaps)
 
 
 # ------------------------------------------------------------------------------- grid
@@ -238,13 +299,28 @@ def grid_view(
 
 @dataclass(frozen=True)
 class FieldTruth:
-    """Truth of one rendered trial field in one camera (markers in motion order)."""
+    """Truth of one rendered trial field in one camera (markers in motion order).
+
+    ``sizes`` holds, per level of :data:`SIZE_LEVELS`, the markers' image sizes measured on
+    the noise-free field (NaN for markers not seen or not alone).
+    """
 
     visible: NDArray[np.bool_]
     uv_px: NDArray[np.float64]
     uv_ideal_px: NDArray[np.float64]
     radii_px: NDArray[np.float64]
     isolated: NDArray[np.bool_]
+    sizes: dict[str, SpotSizes] = field(default_factory=dict)
+
+
+def measure_sizes(
+    scene: NDArray[np.float64], spots: Spots, params: RenderParams
+) -> dict[str, SpotSizes]:
+    """Sizes of ``spots`` in ``scene`` at every level of :data:`SIZE_LEVELS`."""
+    return {
+        name: spot_sizes(scene, spots, fraction * params.marker_peak, rim_px(params))
+        for name, fraction in SIZE_LEVELS.items()
+    }
 
 
 def render_markers(
@@ -254,28 +330,43 @@ def render_markers(
     leds: Spots,
     rng: np.random.Generator,
     params: RenderParams,
-) -> tuple[NDArray[np.uint8], FieldTruth]:
-    """Render the visible markers ``xyz_mm`` (n, 3) plus LED rings into one 8-bit field."""
+    background: NDArray[np.float64] | None = None,
+) -> tuple[NDArray, FieldTruth]:
+    """Render the visible markers ``xyz_mm`` (n, 3) plus LED rings into one field.
+
+    ``background`` is the camera's glow map (:func:`kisscal.synth.render.glow_map`).
+    """
     safe = np.where(np.isfinite(xyz_mm), xyz_mm, 0.0)
-    spots = sphere_spots(camera, safe, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
+    spots = sphere_spots(camera, safe, params.marker_radius_mm, params.marker_peak, params.bloom_px)
     vis = Spots(spots.centre_px[visible], spots.shape[visible], spots.peak[visible])
     everything = concat_spots(vis, leds)
-    image = render_field(camera.size_px, everything, rng, params)
+    scene = render_scene(camera.size_px, everything, params)
+    image = record(scene, rng, params, everything.centre_px, background)
+    rim = rim_px(params)
     iso = np.zeros(len(safe), dtype=bool)
-    iso[visible] = isolated(everything)[: int(visible.sum())]
+    iso[visible] = isolated(everything, rim)[: int(visible.sum())]
     # a spot cut by the image border is not a clean, whole marker image either
     w, h = camera.size_px
-    reach = spots.radii_px + 2.5
+    reach = spots.radii_px + rim
     inside = np.all(spots.centre_px - reach >= -0.5, axis=1)
     inside &= (spots.centre_px[:, 0] + reach[:, 0] <= w - 0.5) & (
         spots.centre_px[:, 1] + reach[:, 1] <= h - 0.5
     )
     iso &= inside
+    sizes = measure_sizes(scene, vis, params)
     truth = FieldTruth(
         visible=visible,
         uv_px=spots.centre_px,
         uv_ideal_px=camera.project_ideal(safe),
         radii_px=spots.radii_px,
         isolated=iso,
+        sizes={k: _scatter(v, visible) for k, v in sizes.items()},
     )
     return image, truth
+
+
+def _scatter(sizes: SpotSizes, visible: NDArray[np.bool_]) -> SpotSizes:
+    """Sizes of the visible spots spread back to all markers (NaN for the unseen)."""
+    out = np.full((3, len(visible)), np.nan)
+    out[:, visible] = [sizes.width_px, sizes.height_px, sizes.pixels]
+    return SpotSizes(*out)

@@ -31,8 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.synth.cameras import VOLUME_MM, SynthCamera
-from kisscal.synth.motion import MARKER_RADIUS_MM, Motion
-from kisscal.synth.render import RenderParams, concat_spots, render_field, sphere_spots
+from kisscal.synth.motion import Motion
+from kisscal.synth.render import RenderParams, concat_spots, record, render_scene, sphere_spots
 from kisscal.synth.scene import led_spots
 
 #: The name of the wand trial in synthetic sessions.
@@ -157,14 +157,23 @@ def render_axes(
     params: RenderParams,
     seed: int,
     n_frames: int,
-) -> tuple[list[NDArray[np.uint8]], dict[str, NDArray]]:
-    """Frames of the L-frame as one camera sees it (with the other cameras' LED rings),
-    and the truth of its markers (distorted and ideal pixel positions)."""
+    background: NDArray[np.float64] | None = None,
+) -> tuple[list[NDArray], dict[str, NDArray]]:
+    """Frames of the L-frame as one camera sees it (with the other cameras' LED rings and
+    the camera's ``background`` light), and the truth of its markers."""
     cam = rig[cam_index]
-    spots = sphere_spots(cam, axes_mm, MARKER_RADIUS_MM, params.marker_peak, params.bloom_px)
-    scene = concat_spots(spots, led_spots(cam, rig, params))
+    spots = sphere_spots(cam, axes_mm, params.marker_radius_mm, params.marker_peak, params.bloom_px)
+    leds = led_spots(cam, rig, params)
+    scene = render_scene(cam.size_px, concat_spots(spots, leds), params)
+    keep_clear = concat_spots(spots, leds).centre_px
     frames = [
-        render_field(cam.size_px, scene, np.random.default_rng([seed, 9009, cam_index, k]), params)
+        record(
+            scene,
+            np.random.default_rng([seed, 9009, cam_index, k]),
+            params,
+            keep_clear,
+            background,
+        )
         for k in range(n_frames)
     ]
     ideal = cam.project_ideal(axes_mm)

@@ -105,6 +105,15 @@ class TrackingParams:
         seen together, whose average pose is matched to the template.
     label_fields : int
         Number of fields of the window sampled for template matching.
+    set_window_s : float
+        Labelling from a shipped marker set's generic template (no ``template_mm``): the
+        first average pose is taken over a window of this many seconds, about one stride,
+        so that most markers are seen whole in it.
+    min_side_confidence : float
+        A name whose trajectory agrees with the anatomy (left of its right partner, above
+        the markers below it) in fewer than this fraction of the fields is flagged as
+        uncertain; a left/right pair the wrong way round in more than this fraction is
+        exchanged.
     min_label_fraction : float
         Fraction of the marker names that must be matched for a trial to fit the marker set;
         below it the tracks are named M1, M2, ...
@@ -143,6 +152,8 @@ class TrackingParams:
     label_window_fields: int = 500
     label_fields: int = 40
     min_label_fraction: float = 0.5
+    set_window_s: float = 1.0
+    min_side_confidence: float = 0.8
     smoothing: bool = False
 
     def __post_init__(self) -> None:
@@ -155,6 +166,7 @@ class TrackingParams:
             "blend_tolerance_mm",
             "blend_reach_mm",
             "label_tolerance_mm",
+            "set_window_s",
         ):
             value = getattr(self, name)
             if not value > 0:
@@ -181,6 +193,8 @@ class TrackingParams:
             raise KisscalError("tracking: min_initial_length must be >= 2")
         if not 0 <= self.min_label_fraction <= 1:
             raise KisscalError("tracking: min_label_fraction must be in [0, 1]")
+        if not 0.5 < self.min_side_confidence <= 1:
+            raise KisscalError("tracking: min_side_confidence must be in (0.5, 1]")
 
     def with_(self, **changes: object) -> TrackingParams:
         """Return a copy with some fields changed (unknown names raise KisscalError)."""

@@ -7,9 +7,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.blending import blend_tracks, clean_up
 from kisscal.tracking.gaps import fill_gaps, smooth_tracks
-from kisscal.tracking.labelling import Labelling, label_tracks
+from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
+from kisscal.tracking.labelling.anatomy import Anatomy
+from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import track_points
@@ -55,6 +58,9 @@ def build_trajectories(
     names: list[str] | tuple[str, ...] | None = None,
     template_mm: ArrayLike | None = None,
     segments: list[tuple[str, str]] | tuple | None = None,
+    marker_set: MarkerSet | None = None,
+    rate_hz: float | None = None,
+    template_upright: bool = False,
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
@@ -72,11 +78,24 @@ def build_trajectories(
     params : TrackingParams, optional
     names, template_mm, segments : optional
         The ``[markers]`` set of the session (names, standing-pose template, rigid pairs).
+    marker_set : MarkerSet, optional
+        A shipped set (restricted to the session's names, with the session's segments):
+        names and segments come from it, ``template_mm`` may be left out
+        (:func:`~kisscal.tracking.label_with_set`), and its anatomy judges the labels.
+    rate_hz : float, optional
+        Field rate; with it, labels are judged by the anatomy (left/right settled by the
+        walking direction, a confidence per name): of ``marker_set``, or of the names'
+        ``L``/``R`` convention.
+    template_upright : bool
+        ``template_mm`` is in the lab frame, Z up (a static trial's positions): with
+        ``marker_set``, heights above the floor are checked too.
     """
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
     blended = blend_tracks(raw, params)
-    labelling = label_tracks(blended, names, params, template_mm, segments)
+    labelling = _label(
+        blended, params, names, template_mm, segments, marker_set, rate_hz, template_upright
+    )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
     tracks = fill_gaps(tracks, params)
@@ -90,6 +109,29 @@ def build_trajectories(
         n_pieces=raw.n_tracks,
         n_pieces_blended=clean_up(blended, params).n_tracks,
     )
+
+
+def _label(
+    blended: Tracks,
+    params: TrackingParams,
+    names: list[str] | tuple[str, ...] | None,
+    template_mm: ArrayLike | None,
+    segments: list[tuple[str, str]] | tuple | None,
+    marker_set: MarkerSet | None,
+    rate_hz: float | None,
+    template_upright: bool = False,
+) -> Labelling:
+    """Label with the set, or with names and template; judged by the anatomy when the
+    rate is known."""
+    template = None if template_mm is None else np.asarray(template_mm, dtype=float)
+    if marker_set is not None and rate_hz:
+        return label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
+    labelling = label_tracks(blended, names, params, template, segments)
+    if rate_hz and names and template is not None:
+        anatomy = Anatomy.of_names(tuple(names))
+        if anatomy.pairs:
+            labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
+    return labelling
 
 
 @dataclass(frozen=True)

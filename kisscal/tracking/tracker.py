@@ -23,6 +23,8 @@ or where its first or last point strays from the rest.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
@@ -181,6 +183,182 @@ def _check_points(field: ArrayLike, xyz_mm: ArrayLike) -> tuple[NDArray, NDArray
     return field.astype(np.int64), xyz
 
 
+class _Recorder:
+    """The samples tracking emits, gathered field by field; :meth:`tracks` makes the table."""
+
+    def __init__(self) -> None:
+        self._parts: list[tuple[NDArray, ...]] = []
+
+    def add(
+        self,
+        field: int,
+        track: NDArray,
+        point: NDArray,
+        xyz: NDArray,
+        corrected: NDArray,
+        status: NDArray,
+    ) -> None:
+        """Record one sample per entry of ``track`` at ``field``."""
+        field_col = np.full(track.size, field, dtype=np.int64)
+        self._parts.append((field_col, track, xyz, corrected, status.astype(np.int8), point))
+
+    def tracks(self) -> Tracks:
+        return make_tracks(*(np.concatenate(col) for col in zip(*self._parts, strict=True)))
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """What every field's step needs from the parameters, computed once."""
+
+    params: TrackingParams
+    m_axes: NDArray
+    k_axes: NDArray
+    w_pos: NDArray
+    w_vel: NDArray
+    p0: NDArray
+    shafiq: NDArray
+
+    @classmethod
+    def of(cls, params: TrackingParams) -> _Setup:
+        n_init = params.min_initial_length
+        w_pos = extrapolation_weights(n_init, 1, 0)
+        return cls(
+            params,
+            np.asarray(params.gate_m),
+            np.asarray(params.gate_k_mm_per_field),
+            w_pos,
+            extrapolation_weights(n_init, 1, 1) - w_pos,
+            params.initial_error * np.eye(2),
+            _shafiq_weights(),
+        )
+
+
+def _predict(live: _Live, setup: _Setup) -> tuple[NDArray, NDArray, NDArray]:
+    """Predicted position and gate half-widths (T, 3) of every row, and which rows are
+    one-point tracks (no velocity yet)."""
+    params = setup.params
+    # Predictions of every row: Kalman (thesis eq. 3.14) and Shafiq's extrapolator.
+    live.state, live.cov = kalman_predict(live.state, live.cov, params.pnc)
+    kal = live.kalman
+    parabola = np.einsum("tk,tkc->tc", setup.shafiq[np.minimum(live.n, _HISTORY)], live.history)
+    pred = np.where(kal[:, None], live.state[:, :, 0], parabola)
+    drift = 0.5 * params.coast_accel_mm_per_field2 * ((live.misses + 1) ** 2 - 1)
+    half_kalman = gate_half_width(live.state[:, :, 1], setup.m_axes, setup.k_axes) + drift[:, None]
+    if params.lag_widening:
+        # A filter with little process noise lags an accelerating marker; the distance
+        # from its prediction to Shafiq's five-point parabola through the track's last
+        # positions measures that lag, and widens the gate.
+        half_kalman = half_kalman + np.abs(parabola - live.state[:, :, 0])
+    half_initial = np.maximum(
+        params.initial_gate_factor * np.abs(parabola - live.history[:, -1]),
+        0.5 * params.initial_gate_mm,
+    )
+    single = ~kal & (live.n == 1)
+    half = np.where(kal[:, None], half_kalman, half_initial)
+    half[single] = params.initial_gate_mm
+    return pred, half, single
+
+
+def _gate(
+    live: _Live,
+    pred: NDArray,
+    half: NDArray,
+    single: NDArray,
+    points: NDArray,
+    later: NDArray,
+    params: TrackingParams,
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Which rows found a point in their gate, which point (-1: none) and which points
+    were taken."""
+    kal = live.kalman
+    rows_alive = np.flatnonzero(live.alive)
+    taken = np.zeros(points.shape[0], dtype=bool)
+    hit = np.zeros(kal.size, dtype=bool)
+    hit_point = np.full(kal.size, -1, dtype=np.int64)
+    if not points.shape[0]:
+        return hit, hit_point, taken
+    scaled = (points[None, :, :] - pred[rows_alive, None, :]) / half[rows_alive, None, :]
+    inside = (np.abs(scaled) <= 1.0).all(axis=2)
+    if inside.sum(axis=0).max() <= 1 and inside.sum(axis=1).max() <= 1:
+        # No point is wanted by two gates and no gate holds two points: the assignment
+        # is the gating itself.
+        r, c = np.nonzero(inside)
+        hit[rows_alive[r]] = True
+        hit_point[rows_alive[r]] = c
+        taken[c] = True
+        return hit, hit_point, taken
+    # Kalman tracks choose first; initial tracks take from what is left, those with a
+    # velocity before those of one point.
+    for tier in (kal, ~kal & ~single, single):
+        rows = rows_alive[tier[rows_alive]]
+        free = np.flatnonzero(~taken)
+        if rows.size == 0 or free.size == 0:
+            continue
+        extra = None
+        if tier is single:
+            extra = lookahead_cost(pred[rows], points[free], later, 0.5 * params.initial_gate_mm)
+        # A one-point track has no velocity: how far the candidate lies says little (a
+        # fast foot moves more than a slow marker's neighbour is away); whether the pair
+        # continues says much.
+        weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
+        r, c = associate(pred[rows], half[rows], points[free], extra, weight)
+        hit[rows[r]] = True
+        hit_point[rows[r]] = free[c]
+        taken[free[c]] = True
+    return hit, hit_point, taken
+
+
+def _update(
+    live: _Live, setup: _Setup, pred: NDArray, hit: NDArray, hit_point: NDArray, points: NDArray
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Correct the filters with the points found (or the predictions, §3.3.9), start
+    filters on initial tracks long enough; returns the positions used and the rows that
+    end and that coast."""
+    params = setup.params
+    kal, alive = live.kalman, live.alive
+    ends = alive & ~hit & (~kal | (live.misses >= params.max_coasted_fields))
+    coast = alive & ~hit & kal & ~ends
+    z = pred.copy()
+    z[hit] = points[hit_point[hit]]
+    # A missing point is replaced by the prediction, as if measured (§3.3.9).
+    live.state, live.cov = kalman_correct(live.state, live.cov, z, params.mnc)
+    live.misses = np.where(hit, 0, live.misses + 1)
+    live.history[:, :-1] = live.history[:, 1:]
+    live.history[:, -1] = z
+    live.n += 1
+    n_init = params.min_initial_length
+    born = hit & ~kal & (live.n >= n_init)
+    if born.any():
+        recent = live.history[born, -n_init:]
+        live.state[born, :, 0] = np.einsum("k,tkc->tc", setup.w_pos, recent)
+        live.state[born, :, 1] = np.einsum("k,tkc->tc", setup.w_vel, recent)
+        live.cov[born] = setup.p0
+        live.kalman[born] = True
+    return z, ends, coast
+
+
+def _step(
+    live: _Live, setup: _Setup, rec: _Recorder, f: int, idx: NDArray, points: NDArray, later
+) -> NDArray[np.bool_]:
+    """Extend the live tracks by field ``f``'s points; returns which points were taken."""
+    pred, half, single = _predict(live, setup)
+    hit, hit_point, taken = _gate(live, pred, half, single, points, later, setup.params)
+    z, ends, coast = _update(live, setup, pred, hit, hit_point, points)
+    out = np.flatnonzero(hit | coast)
+    if out.size:
+        hp = hit_point[out]
+        rec.add(
+            f,
+            live.ids[out],
+            np.where(hp >= 0, idx[np.maximum(hp, 0)] if idx.size else -1, -1),
+            z[out],
+            np.where(live.kalman[out, None], live.state[out, :, 0], np.nan),
+            np.where(hit[out], MEASURED, PREDICTED),
+        )
+    live.alive &= ~ends
+    return taken
+
+
 def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) -> Tracks:
     """Form track pieces from 3D points per field (Küçük 2005 §3.3.8-3.3.9).
 
@@ -198,151 +376,42 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
     Tracks
         Every piece, including short ghost pieces (see :func:`clean_up`), with samples
         ``measured`` or ``predicted`` (coasted fields followed by a measurement).
+
+    References
+    ----------
+    Küçük 2005 (Kalman tracking, gate eq. 3.16, coasting); Shafiq et al. 2001 (the
+    extrapolators of initial tracks).
     """
     field, xyz = _check_points(field, xyz_mm)
-    order = np.argsort(field, kind="stable")
-    sorted_field = field[order]
     if field.size == 0:
         e = np.empty(0)
         return make_tracks(e, e, np.empty((0, 3)), np.empty((0, 3)), e, e)
+    order = np.argsort(field, kind="stable")
+    sorted_field = field[order]
     first, last = int(sorted_field[0]), int(sorted_field[-1])
     starts = np.searchsorted(sorted_field, np.arange(first, last + 2))
     n_span = last - first + 1
-
-    m_axes = np.asarray(params.gate_m)
-    k_axes = np.asarray(params.gate_k_mm_per_field)
-    n_init = params.min_initial_length
-    w_pos = extrapolation_weights(n_init, 1, 0)
-    w_vel = extrapolation_weights(n_init, 1, 1) - w_pos
-    p0 = params.initial_error * np.eye(2)
-
+    setup = _Setup.of(params)
     live = _Live()
+    rec = _Recorder()
     next_id = 0
-    shafiq = _shafiq_weights()
-    accel = params.coast_accel_mm_per_field2
-    rec_track: list[NDArray] = []
-    rec_point: list[NDArray] = []
-    rec_xyz: list[NDArray] = []
-    rec_corr: list[NDArray] = []
-    rec_status: list[NDArray] = []
-    rec_field: list[NDArray] = []
-
     for f in range(first, last + 1):
         idx = order[starts[f - first] : starts[f - first + 1]]
         points = xyz[idx]
         taken = np.zeros(idx.size, dtype=bool)
-        rows_alive = np.flatnonzero(live.alive)
-        if rows_alive.size:
-            # Predictions of every row: Kalman (thesis eq. 3.14) and Shafiq's extrapolator.
-            live.state, live.cov = kalman_predict(live.state, live.cov, params.pnc)
-            kal = live.kalman
-            parabola = np.einsum("tk,tkc->tc", shafiq[np.minimum(live.n, _HISTORY)], live.history)
-            pred = np.where(kal[:, None], live.state[:, :, 0], parabola)
-            drift = 0.5 * accel * ((live.misses + 1) ** 2 - 1)
-            half_kalman = gate_half_width(live.state[:, :, 1], m_axes, k_axes) + drift[:, None]
-            if params.lag_widening:
-                # A filter with little process noise lags an accelerating marker; the
-                # distance from its prediction to Shafiq's five-point parabola through
-                # the track's last positions measures that lag, and widens the gate.
-                half_kalman = half_kalman + np.abs(parabola - live.state[:, :, 0])
-            half_initial = np.maximum(
-                params.initial_gate_factor * np.abs(parabola - live.history[:, -1]),
-                0.5 * params.initial_gate_mm,
-            )
-            single = ~kal & (live.n == 1)
-            half = np.where(kal[:, None], half_kalman, half_initial)
-            half[single] = params.initial_gate_mm
-
-            hit = np.zeros(kal.size, dtype=bool)
-            hit_point = np.full(kal.size, -1, dtype=np.int64)
-            if idx.size:
-                scaled = (points[None, :, :] - pred[rows_alive, None, :]) / half[
-                    rows_alive, None, :
-                ]
-                inside = (np.abs(scaled) <= 1.0).all(axis=2)
-                if inside.sum(axis=0).max() <= 1 and inside.sum(axis=1).max() <= 1:
-                    # No point is wanted by two gates and no gate holds two points: the
-                    # assignment is the gating itself.
-                    r, c = np.nonzero(inside)
-                    hit[rows_alive[r]] = True
-                    hit_point[rows_alive[r]] = c
-                    taken[c] = True
-                else:
-                    # Kalman tracks choose first; initial tracks take from what is left,
-                    # those with a velocity before those of one point.
-                    for tier in (kal, ~kal & ~single, single):
-                        rows = rows_alive[tier[rows_alive]]
-                        free = np.flatnonzero(~taken)
-                        if rows.size == 0 or free.size == 0:
-                            continue
-                        extra = None
-                        if tier is single:
-                            later = xyz[
-                                order[starts[f - first + 1] : starts[min(f - first + 2, n_span)]]
-                            ]
-                            extra = lookahead_cost(
-                                pred[rows], points[free], later, 0.5 * params.initial_gate_mm
-                            )
-                        # A one-point track has no velocity: how far the candidate lies
-                        # says little (a fast foot moves more than a slow marker's
-                        # neighbour is away); whether the pair continues says much.
-                        weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
-                        r, c = associate(pred[rows], half[rows], points[free], extra, weight)
-                        hit[rows[r]] = True
-                        hit_point[rows[r]] = free[c]
-                        taken[free[c]] = True
-
-            alive = live.alive
-            ends = alive & ~hit & (~kal | (live.misses >= params.max_coasted_fields))
-            coast = alive & ~hit & kal & ~ends
-            z = pred.copy()
-            z[hit] = points[hit_point[hit]]
-            # A missing point is replaced by the prediction, as if measured (§3.3.9).
-            live.state, live.cov = kalman_correct(live.state, live.cov, z, params.mnc)
-            live.misses = np.where(hit, 0, live.misses + 1)
-            live.history[:, :-1] = live.history[:, 1:]
-            live.history[:, -1] = z
-            live.n += 1
-
-            born = hit & ~kal & (live.n >= n_init)
-            if born.any():
-                recent = live.history[born, -n_init:]
-                live.state[born, :, 0] = np.einsum("k,tkc->tc", w_pos, recent)
-                live.state[born, :, 1] = np.einsum("k,tkc->tc", w_vel, recent)
-                live.cov[born] = p0
-                live.kalman[born] = True
-
-            out = np.flatnonzero(hit | coast)
-            if out.size:
-                rec_track.append(live.ids[out])
-                hp = hit_point[out]
-                rec_point.append(np.where(hp >= 0, idx[np.maximum(hp, 0)] if idx.size else -1, -1))
-                rec_xyz.append(z[out])
-                rec_corr.append(np.where(live.kalman[out, None], live.state[out, :, 0], np.nan))
-                rec_status.append(np.where(hit[out], MEASURED, PREDICTED).astype(np.int8))
-                rec_field.append(np.full(out.size, f, dtype=np.int64))
-            live.alive &= ~ends
+        if live.alive.any():
+            later = xyz[order[starts[f - first + 1] : starts[min(f - first + 2, n_span)]]]
+            taken = _step(live, setup, rec, f, idx, points, later)
         new = np.flatnonzero(~taken)
         if new.size:
             ids = np.arange(next_id, next_id + new.size)
             next_id += new.size
             live.add(ids, points[new])
-            rec_track.append(ids)
-            rec_point.append(idx[new])
-            rec_xyz.append(points[new])
-            rec_corr.append(np.full((new.size, 3), np.nan))
-            rec_status.append(np.zeros(new.size, dtype=np.int8))
-            rec_field.append(np.full(new.size, f, dtype=np.int64))
-
-    tracks = make_tracks(
-        np.concatenate(rec_field),
-        np.concatenate(rec_track),
-        np.concatenate(rec_xyz),
-        np.concatenate(rec_corr),
-        np.concatenate(rec_status),
-        np.concatenate(rec_point),
+            no_filter = np.full((new.size, 3), np.nan)
+            rec.add(f, ids, idx[new], points[new], no_filter, np.zeros(new.size))
+    tracks = split_short_reacquisitions(
+        trim_predicted_ends(rec.tracks()), params.min_reacquired_fields
     )
-    tracks = split_short_reacquisitions(trim_predicted_ends(tracks), params.min_reacquired_fields)
     tolerance = max(params.split_tolerance_mm, params.split_noise_factor * smoothness_mm(tracks))
     # One-sided extrapolation is twice as uncertain as the two-sided fit.
     tracks = split_stray_ends(split_discontinuities(tracks, tolerance), 2.0 * tolerance)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kisscal.detect import DetectionParams, detect_blobs
-from kisscal.detect.centroid import estimate_background
-from tests.detect.conftest import render
+from kisscal.detect import detect_blobs
+from kisscal.detect.background import background_level as estimate_background
+from tests.detect.conftest import KISS, render
 
 
 def _scattered(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -31,7 +31,7 @@ def test_weighted_centroid_rms_below_five_hundredths(rng, blur, noise):
     truth = _scattered(rng, 80)
     radius = rng.uniform(2.0, 5.0, len(truth))
     image = render(truth, radius, blur_px=blur, noise_sigma=noise, rng=rng)
-    blobs = detect_blobs(image)
+    blobs = detect_blobs(image, KISS)
     assert len(blobs) == len(truth)
     weighted, binary = _errors(blobs, truth)
     rms = np.sqrt(np.mean(weighted**2))
@@ -42,7 +42,7 @@ def test_weighted_centroid_rms_below_five_hundredths(rng, blur, noise):
 
 def test_binary_centroid_when_switched_off(rng):
     truth = _scattered(rng, 20)
-    blobs = detect_blobs(render(truth, 3.0), DetectionParams(weighted_centroid=False))
+    blobs = detect_blobs(render(truth, 3.0), KISS.replace(weighted_centroid=False))
     assert np.array_equal(blobs.x_px, blobs.x_binary_px)
 
 
@@ -54,8 +54,8 @@ def test_background_estimate_ignores_spots(rng):
 
 def test_nearby_noise_pixel_does_not_pull_the_centroid():
     image = render(np.array([[200.3, 100.6]]), 3.0)
-    clean = detect_blobs(image)
+    clean = detect_blobs(image, KISS)
     image[100, 206] = 250  # bright pixel just outside the spot, inside its window
-    noisy = detect_blobs(image)
+    noisy = detect_blobs(image, KISS)
     assert len(noisy) == 1
     assert abs(noisy.x_px[0] - clean.x_px[0]) < 0.01

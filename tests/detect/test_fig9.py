@@ -1,4 +1,4 @@
-"""The artificial test image of seeds/003 section 3.1 (Fig. 9): staged results."""
+"""The artificial test image of Shafiq et al. 2001, section 3.1 (Fig. 9): staged results."""
 
 from __future__ import annotations
 

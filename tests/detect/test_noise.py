@@ -1,11 +1,11 @@
-"""Noise removal (seeds/003 section 2.2)."""
+"""Noise removal (Shafiq et al. 2001, section 2.2)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from kisscal.detect import DetectionParams, detect_blobs
-from tests.detect.conftest import render
+from kisscal.detect import detect_blobs
+from tests.detect.conftest import KISS, render
 
 
 def test_lonely_pixels_and_streaks_are_removed():
@@ -13,7 +13,7 @@ def test_lonely_pixels_and_streaks_are_removed():
     image[20, 300] = 200  # lonely pixel
     image[50, 400:425] = 180  # one-pixel-high streak
     image[200:209, 600] = 220  # one-pixel-wide streak
-    blobs = detect_blobs(image)
+    blobs = detect_blobs(image, KISS)
     assert len(blobs) == 1
     assert abs(blobs.x_px[0] - 100) < 0.1
 
@@ -23,7 +23,7 @@ def test_switching_the_rules_off_keeps_them():
     image[5, 5] = 255
     image[10, 10:30] = 255
     image[20:30, 50] = 255
-    off = DetectionParams(
+    off = KISS.replace(
         remove_lonely=False,
         remove_one_pixel_wide=False,
         remove_one_pixel_high=False,
@@ -31,7 +31,7 @@ def test_switching_the_rules_off_keeps_them():
         noise_min_height_px=0,
     ).without_advanced_analysis()
     assert len(detect_blobs(image, off)) == 3
-    assert len(detect_blobs(image)) == 0
+    assert len(detect_blobs(image, KISS)) == 0
 
 
 def test_smallest_far_marker_survives():
@@ -42,6 +42,6 @@ def test_smallest_far_marker_survives():
     centres = centres[np.argsort(centres[:, 0])]
     centres[:, 0] = np.linspace(20, 730, 40)
     image = render(centres, 1.8)
-    blobs = detect_blobs(image)
+    blobs = detect_blobs(image, KISS)
     assert len(blobs) == 40
     assert blobs.valid.all()

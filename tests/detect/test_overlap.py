@@ -1,4 +1,4 @@
-"""Overlapping markers (seeds/003 sections 2.3.2-2.3.3) on rendered pairs."""
+"""Overlapping markers (Shafiq et al. 2001, sections 2.3.2-2.3.3) on rendered pairs."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from kisscal.detect import detect_blobs
-from tests.detect.conftest import ASPECT, render
+from tests.detect.conftest import ASPECT, KISS, render
 
 
 def _pairs(rng: np.random.Generator, angle_deg: tuple[float, float], n: int = 30):
@@ -49,7 +49,7 @@ def _recall(blobs, truth, radius):
 )
 def test_pairs_one_radius_apart_are_split(rng, angle_deg, recall_min):
     truth, radius = _pairs(rng, angle_deg)
-    blobs = detect_blobs(render(truth, radius))
+    blobs = detect_blobs(render(truth, radius), KISS)
     recall, unique, n_valid = _recall(blobs, truth, radius)
     assert recall >= recall_min
     assert unique or recall_min < 0.98
@@ -59,9 +59,8 @@ def test_pairs_one_radius_apart_are_split(rng, angle_deg, recall_min):
 
 def test_splitting_off_keeps_pairs_merged(rng):
     truth, radius = _pairs(rng, (0.0, 0.0))
-    from kisscal.detect import DetectionParams
 
-    params = DetectionParams(split_long_wide=False, split_touching=False)
+    params = KISS.replace(split_long_wide=False, split_touching=False)
     blobs = detect_blobs(render(truth, radius), params)
     assert len(blobs) == len(truth) - 30
 
@@ -70,6 +69,6 @@ def test_splitting_off_keeps_pairs_merged(rng):
 def test_single_markers_are_never_split_whatever_the_blur(rng, blur_px):
     gx, gy = np.meshgrid(np.linspace(40, 700, 12), np.linspace(30, 260, 7))
     truth = np.column_stack([gx.ravel(), gy.ravel()]) + rng.uniform(-3, 3, (84, 2))
-    blobs = detect_blobs(render(truth, rng.uniform(1.8, 5.0, 84), blur_px=blur_px))
+    blobs = detect_blobs(render(truth, rng.uniform(1.8, 5.0, 84), blur_px=blur_px), KISS)
     assert len(blobs) == 84
     assert not blobs.flags.any()

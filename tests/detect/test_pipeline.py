@@ -7,15 +7,15 @@ from functools import partial
 import numpy as np
 import pytest
 
-from kisscal.detect import Blobs, DetectionParams, detect_blobs, detect_sequence
+from kisscal.detect import Blobs, detect_blobs, detect_sequence
 from kisscal.errors import KisscalError
-from tests.detect.conftest import render
+from tests.detect.conftest import KISS, render
 
 TRUTH = np.array([[100.2, 50.7], [300.6, 120.1], [500.5, 200.4], [650.1, 30.3]])
 
 
 def test_black_image_gives_empty_table():
-    blobs = detect_blobs(np.zeros((291, 752), dtype=np.uint8))
+    blobs = detect_blobs(np.zeros((291, 752), dtype=np.uint8), KISS)
     assert len(blobs) == 0
     assert isinstance(blobs, Blobs)
     assert len(blobs.valid_only()) == 0
@@ -33,25 +33,27 @@ def test_black_image_gives_empty_table():
 )
 def test_bad_input_raises_one_clear_error(bad, message):
     with pytest.raises(KisscalError, match=message):
-        detect_blobs(bad)
+        detect_blobs(bad, KISS)
 
 
 def test_bad_parameters_raise():
     with pytest.raises(KisscalError, match="min_ratio"):
-        DetectionParams(min_ratio=1.2)
+        KISS.replace(min_ratio=1.2)
     with pytest.raises(KisscalError, match="unknown parameter"):
-        DetectionParams().replace(treshold=3)
-    with pytest.raises(KisscalError, match="threshold must be float"):
-        DetectionParams(threshold="bright")
-    with pytest.raises(KisscalError, match="merge_submarkers must be bool"):
-        DetectionParams(merge_submarkers=1)
-    with pytest.raises(KisscalError, match="two odd ints"):
-        DetectionParams(detach_kernel_px=(10, 7))
+        KISS.replace().replace(treshold=3)
+    with pytest.raises(KisscalError, match="threshold must be a finite number"):
+        KISS.replace(threshold="bright")
+    with pytest.raises(KisscalError, match="merge_submarkers must be true or false"):
+        KISS.replace(merge_submarkers=1)
+    with pytest.raises(KisscalError, match="detach_kernel_px must be odd"):
+        KISS.replace(detach_kernel_px=(10, 7))
+    with pytest.raises(KisscalError, match="max_pixels must be > 0 px"):
+        KISS.replace(max_pixels=0)
 
 
 def test_boolean_and_grey_images_agree_on_groups():
     grey = render(TRUTH, 3.5)
-    params = DetectionParams()
+    params = KISS.replace()
     from_grey = detect_blobs(grey, params)
     from_bool = detect_blobs(grey >= params.threshold, params)
     assert np.array_equal(from_grey.pixels, from_bool.pixels)
@@ -62,16 +64,16 @@ def test_boolean_and_grey_images_agree_on_groups():
 
 def test_uint16_and_float_images():
     grey = render(TRUTH, 3.5)
-    ref = detect_blobs(grey)
-    as16 = detect_blobs(grey.astype(np.uint16) * 257)  # grey levels on the 8-bit scale
-    asf = detect_blobs(grey.astype(np.float32))
+    ref = detect_blobs(grey, KISS)
+    as16 = detect_blobs(grey.astype(np.uint16) * 257, KISS)  # grey levels on the 8-bit scale
+    asf = detect_blobs(grey.astype(np.float32), KISS)
     assert np.allclose(as16.x_px, ref.x_px)
     assert np.allclose(asf.x_px, ref.x_px)
 
 
 def test_markers_at_the_image_border_are_found():
     truth = np.array([[1.5, 100.3], [750.2, 150.0], [400.0, 0.8], [200.0, 289.9]])
-    blobs = detect_blobs(render(truth, 3.0))
+    blobs = detect_blobs(render(truth, 3.0), KISS)
     assert len(blobs.valid_only()) == 4
 
 
@@ -81,11 +83,11 @@ def _frame(i: int) -> np.ndarray:
 
 def test_sequence_matches_single_images_in_order():
     frames = [_frame(i) for i in range(5)]
-    serial = [detect_blobs(f) for f in frames]
+    serial = [detect_blobs(f, KISS) for f in frames]
     for result in (
-        detect_sequence(frames, workers=2, chunksize=2),
-        detect_sequence(_frame, count=5, workers=2, chunksize=2),
-        detect_sequence(partial(_frame), count=5, workers=1),
+        detect_sequence(frames, KISS, workers=2, chunksize=2),
+        detect_sequence(_frame, KISS, count=5, workers=2, chunksize=2),
+        detect_sequence(partial(_frame), KISS, count=5, workers=1),
     ):
         assert len(result) == 5
         for a, b in zip(result, serial, strict=True):
@@ -117,8 +119,8 @@ def test_16_bit_frames_give_the_same_blobs_as_8_bit() -> None:
         image_rng(2, "trial", 0, 30),
         params,
     )
-    b8 = detect_blobs(image)
-    b16 = detect_blobs(image.astype(np.uint16) * 257)
+    b8 = detect_blobs(image, KISS)
+    b16 = detect_blobs(image.astype(np.uint16) * 257, KISS)
     assert len(b8) == len(b16) > 5
     np.testing.assert_allclose(b16.x_px, b8.x_px, atol=1e-3)
     np.testing.assert_array_equal(b16.valid, b8.valid)

@@ -9,6 +9,7 @@ from hypothesis.extra.numpy import arrays
 
 from kisscal.detect import detect_blobs
 from kisscal.errors import KisscalError
+from tests.detect.conftest import KISS
 
 DTYPES = st.sampled_from(
     [np.uint8, np.uint16, np.float32, np.float64, np.bool_, np.int16, np.int64]
@@ -23,7 +24,7 @@ SHAPES = st.one_of(
 @given(arrays(DTYPES, SHAPES))
 def test_detection_returns_a_table_or_a_clear_error(image: np.ndarray) -> None:
     try:
-        blobs = detect_blobs(image)
+        blobs = detect_blobs(image, KISS)
     except KisscalError as exc:
         assert "\n" not in str(exc)
         return
@@ -43,5 +44,5 @@ def test_detection_of_random_noise_and_spots(h: int, w: int, seed: int) -> None:
         y, x, r = rng.integers(0, h), rng.integers(0, w), rng.uniform(1, 6)
         yy, xx = np.ogrid[:h, :w]
         image[(yy - y) ** 2 + (xx - x) ** 2 <= r * r] = 230
-    blobs = detect_blobs(image)
+    blobs = detect_blobs(image, KISS)
     assert np.all(np.isfinite(blobs.x_px)) and np.all(np.isfinite(blobs.y_px))

@@ -1,4 +1,5 @@
-"""Acceptance on the synthetic KISS rig (kisscal.synth): gait, grid and rod images.
+"""Acceptance on the synthetic KISS rig (kisscal.synth): gait, grid and rod images, each
+camera's detection settings derived from its own frames (kisscal.detect.configure).
 
 Done-when of issue 7: recall and precision >= 99.5 % on gait trials of several seeds,
 weighted-centroid RMS <= 0.05 px on isolated markers, exactly 300 valid grid dots, exactly
@@ -14,6 +15,9 @@ import pytest
 
 from kisscal.detect import Blobs, detect_blobs
 from kisscal.detect import blobs as fl
+from kisscal.detect.configure import configure_detection
+from kisscal.grid.frames import dots_from_frames
+from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.synth.plan import (
     SynthOptions,
     plan_session,
@@ -80,15 +84,25 @@ class Score:
         ).tolist()
 
 
+def camera_aspect(plan, cam: int) -> float:
+    """The camera's pixel aspect from its grid lattice, as a session measures it."""
+    frames, _ = render_grid(plan, cam)
+    return lattice_pixel_aspect(dots_from_frames(frames))
+
+
 def score_gait(seed: int, fields: int, trial: str = "walk01", replay=None) -> Score:
+    """Detection scored against truth, with settings each camera derives from its fields
+    (and its pixel aspect from its grid, as in a session)."""
     plan = plan_session(SynthOptions(seed=seed, fields=fields), replay=replay)
     score = Score()
     for cam in range(len(plan.rig)):
-        for field_index, image, truth in render_trial(plan, trial, cam):
-            if field_index >= fields:
-                break
+        rendered = [r for r in render_trial(plan, trial, cam) if r[0] < fields]
+        sample = [r[1] for r in rendered[:: max(1, fields // 12)]]
+        params = configure_detection(sample, pixel_aspect=camera_aspect(plan, cam)).params
+        for _, image, truth in rendered:
             v = truth.visible
-            score.add(detect_blobs(image), truth.uv_px[v], truth.radii_px[v], truth.isolated[v])
+            blobs = detect_blobs(image, params)
+            score.add(blobs, truth.uv_px[v], truth.radii_px[v], truth.isolated[v])
     return score
 
 
@@ -139,8 +153,9 @@ def test_grid_images_have_exactly_300_valid_dots(plan):
     for cam in range(len(plan.rig)):
         frames, truth = render_grid(plan, cam)
         uv = np.column_stack([truth["u_px"], truth["v_px"]])
+        params = configure_detection(frames, kind="grid").params
         for frame in frames[:2]:
-            blobs = detect_blobs(frame).valid_only()
+            blobs = detect_blobs(frame, params).valid_only()
             assert len(blobs) == 300
             d = np.hypot(blobs.x_px[:, None] - uv[:, 0], blobs.y_px[:, None] - uv[:, 1])
             # every dot found once, to a small fraction of a pixel
@@ -164,7 +179,8 @@ def test_rod_images_have_24_valid_markers_and_leds_flagged(seed):
             (uv[:, None, 1] - led_uv[:, 1]) / led_r[:, 1],
         ).min(axis=1)
         touching = reach < 1.5
-        blobs = detect_blobs(frames[0])
+        params = configure_detection(frames, pixel_aspect=camera_aspect(plan, cam)).params
+        blobs = detect_blobs(frames[0], params)
         valid = blobs.valid_only()
         d = np.hypot(valid.x_px[:, None] - uv[:, 0], valid.y_px[:, None] - uv[:, 1])
         assert np.unique(d.argmin(axis=1)).size == len(valid)  # no marker found twice

@@ -1,4 +1,4 @@
-"""Run-length scan and mid-point grouping (seeds/003 section 2.1)."""
+"""Run-length scan and mid-point grouping (Shafiq et al. 2001, section 2.1)."""
 
 from __future__ import annotations
 

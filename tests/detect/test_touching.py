@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kisscal.detect import DetectionParams, detect_blobs
 from kisscal.detect import blobs as fl
+from kisscal.detect import detect_blobs
 from kisscal.detect.touching import marker_peaks
-from tests.detect.conftest import ASPECT, render
+from tests.detect.conftest import ASPECT, KISS, render
 
 
 def _cluster(rng: np.random.Generator, n: int = 20) -> tuple[np.ndarray, np.ndarray]:
@@ -36,7 +36,7 @@ def _cluster(rng: np.random.Generator, n: int = 20) -> tuple[np.ndarray, np.ndar
 
 def test_three_touching_markers_give_three_blobs(rng):
     truth, radius = _cluster(rng)
-    blobs = detect_blobs(render(truth, radius)).valid_only()
+    blobs = detect_blobs(render(truth, radius), KISS).valid_only()
     d = np.hypot(
         (blobs.x_px[:, None] - truth[:, 0]) / radius,
         (blobs.y_px[:, None] - truth[:, 1]) / (radius / ASPECT),
@@ -45,8 +45,8 @@ def test_three_touching_markers_give_three_blobs(rng):
     assert found.mean() >= 0.85  # 0.89 measured; the rest merge with no neck left
     assert len(blobs) <= len(truth)
     assert (blobs.flags & fl.SPLIT_TOUCHING).any()
-    # seeds/003's tests alone cut a three-marker cluster into two at most
-    paper = detect_blobs(render(truth, radius), DetectionParams(split_touching=False))
+    # Shafiq et al.'s (2001) tests alone cut a three-marker cluster into two at most
+    paper = detect_blobs(render(truth, radius), KISS.replace(split_touching=False))
     d = np.hypot(
         (paper.x_px[:, None] - truth[:, 0]) / radius,
         (paper.y_px[:, None] - truth[:, 1]) / (radius / ASPECT),

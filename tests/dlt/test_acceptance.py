@@ -58,6 +58,7 @@ def test_accuracy_of_every_method_on_20_seeds():
 def test_rendered_rod_images_through_detection():
     # Rendered rod frames (LED rings, blur, image noise) -> kisscal.detect -> true lens
     # undistortion standing in for the grid linearisation -> rods -> DLT.
+    from kisscal.detect.configure import configure_detection
     from kisscal.detect.pipeline import detect_blobs
     from kisscal.dlt import DltParams, calibrate_rods, make_rods
     from kisscal.synth.plan import SynthOptions, plan_session, render_rods
@@ -67,7 +68,8 @@ def test_rendered_rod_images_through_detection():
     blobs = {}
     for ic, cam in enumerate(plan.rig):
         frames, _, leds = render_rods(plan, ic)
-        detected = [detect_blobs(f) for f in frames]
+        params = configure_detection(frames).params  # from the rod frames themselves
+        detected = [detect_blobs(f, params) for f in frames]
         # LED rings of facing cameras are found and flagged invalid, so they never reach
         # rod recognition
         assert all(int((~b.valid).sum()) >= len(leds["u_px"]) for b in detected)

@@ -29,6 +29,29 @@ class Trial:
         return self.motion.truth
 
 
+def walker(
+    seed: int,
+    rate_hz: float,
+    heading_deg: float,
+    height_m: float,
+    speed_m_s: float = 1.1,
+    duration_s: float = 5.0,
+    turn_deg: float = 0.0,
+) -> Motion:
+    """The grounded walker (true contacts in ``.truth``) at a speed for a duration."""
+    n = round(duration_s * rate_hz)
+    return walking_trial(
+        seed,
+        n,
+        rate_hz,
+        path_mm=speed_m_s * 1000.0 * (n - 1) / rate_hz,
+        model="grounded",
+        height_m=height_m,
+        heading_deg=heading_deg,
+        turn_deg=turn_deg,
+    )
+
+
 def trial(
     seed: int,
     rate_hz: float,
@@ -40,17 +63,7 @@ def trial(
     turn_deg: float = 0.0,
 ) -> Trial:
     """A grounded walker trial, 0.5 mm noise per coordinate, events detected."""
-    n = round(duration_s * rate_hz)
-    m = walking_trial(
-        seed,
-        n,
-        rate_hz,
-        path_mm=speed_m_s * 1000.0 * (n - 1) / rate_hz,
-        model="grounded",
-        height_m=height_m,
-        heading_deg=heading_deg,
-        turn_deg=turn_deg,
-    )
+    m = walker(seed, rate_hz, heading_deg, height_m, speed_m_s, duration_s, turn_deg)
     rng = np.random.default_rng([seed, 77])
     noisy = m.xyz_mm + rng.normal(0.0, noise_mm, m.xyz_mm.shape)
     kiss = marker_set("kiss")

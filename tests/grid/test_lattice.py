@@ -123,3 +123,22 @@ def test_random_views_are_never_mis_indexed():
         for k in np.flatnonzero(index.indexed[n:]) + n:  # a blob taken for a missing dot
             near = np.linalg.norm(view.distorted_uv - dots[k], axis=1).min()
             assert near < 1.0
+
+
+def test_square_spacing_whose_nearest_neighbour_flips_between_row_and_column():
+    """Square pixels: rows and columns about equally far apart (a square grid seen square
+    on); perspective makes the nearest neighbour of some dots the one beside them and of
+    the others the one below. With an even split the median of doubled angles averaged
+    the two directions into a diagonal and indexing failed (the lowcost synthetic rig)."""
+    rng = np.random.default_rng(4)
+    r, c = np.divmod(np.arange(300), 20)
+    # columns 28 px apart on the left half, 31 px on the right; rows 29.5 px apart: the
+    # nearest neighbour is beside 150 dots and below the other 150
+    steps = np.where(np.arange(19) <= 8, 28.0, 31.0)
+    u = 40.0 + np.r_[0.0, np.cumsum(steps)][c]
+    v = 40.0 + 29.5 * r
+    dots = np.column_stack([u, v]) + rng.normal(0, 0.05, (300, 2))
+    index = index_lattice(dots)
+    assert index.n_indexed == 300
+    np.testing.assert_array_equal(index.row, r)
+    np.testing.assert_array_equal(index.col, c)

@@ -52,7 +52,7 @@ def test_version_2_tables_parse() -> None:
         ({"wand": {"trial": "wand1", "markers_mm": [0, 500]}}, "did you mean 'wand01'"),
         ({"wand": {"trial": "wand01", "markers_mm": [500]}}, "2 or more"),
         ({"wand": {"trial": "wand01", "markers_mm": [0, 500], "lenght": 1}}, "unknown key wand."),
-        ({"markers": {"set": "pig", "static": "static1"}}, "markers.static"),
+        ({"markers": {"set": "plug-in-gait-lower", "static": "static1"}}, "markers.static"),
         ({"markers": {}}, "needs names or a set"),
         ({"calibration": {"cameras": "a.toml", "dlt": "b.csv"}}, "exactly one of"),
         (
@@ -72,10 +72,14 @@ def test_version_2_mistakes_are_one_line_errors(tables: dict, message: str) -> N
     assert "\n" not in str(err.value)
 
 
-def test_fields_only_for_video() -> None:
-    trials = [{"name": "t", "images": "x/{camera}/*.png", "fields": "top-first"}]
-    with pytest.raises(KisscalError, match="applies to video only"):
+def test_fields_only_for_images_or_video() -> None:
+    trials = [{"name": "t", "centroids": "x/{camera}.csv", "fields": "top-first"}]
+    with pytest.raises(KisscalError, match="applies to images or video only"):
         parse_session({**BASE, "trials": trials}, Path("/lab"))
+    trials = [{"name": "t", "images": "x/{camera}/*.png", "fields": "bottom-first"}]
+    assert parse_session({**BASE, "trials": trials}, Path("/lab")).trials[0].fields == (
+        "bottom-first"
+    )
 
 
 def test_duplicate_camera_and_trial_names() -> None:

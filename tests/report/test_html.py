@@ -125,9 +125,12 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
         assert f'<section id="{id_}"' not in page
     out = session / "out"
     (out / "detection").mkdir()
-    (out / "detection" / "cam2.json").write_text(
-        json.dumps({"camera": "cam2", "threshold": 131, "min_area_px": 4, "derived": ["threshold"]})
-    )
+    settings = {
+        "threshold": {"value": 131.0, "source": "given", "why": "from [detection]"},
+        "pixel_aspect": {"value": 1.94, "source": "derived", "why": "the grid's dot lattice"},
+    }
+    doc = {"markers": {"marker_pixels": [12, 47], "noise_sigma": 1.5, "settings": settings}}
+    (out / "detection" / "cam2.json").write_text(json.dumps({"camera": "cam2", "kinds": doc}))
     (out / "dlt" / "wand.json").parent.mkdir(exist_ok=True)
     (out / "dlt" / "wand.json").write_text(
         json.dumps(
@@ -145,7 +148,9 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
         "parameter,value,sd\ncadence_steps_min,112.5,2.1\n"
     )
     page = _page(session)
-    assert "131" in _section(page, "detection") and "cam2" in _section(page, "detection")
+    detection = _section(page, "detection")
+    assert "131" in detection and "cam2" in detection and "12–47" in detection
+    assert "1.940" in detection and "threshold" in detection
     wand = _section(page, "wand")
     assert "length SD (mm)" in wand and "1 200" in wand and "0.210" in wand
     gait = _section(page, "gait")

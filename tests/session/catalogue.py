@@ -204,6 +204,21 @@ def wand_trial(**options: object) -> Setup:
     return setup
 
 
+def imported_cameras(change: Callable[[dict], None]) -> Setup:
+    """The session calibrated from its own exported cameras.toml, broken by ``change``."""
+
+    def setup(root: Path) -> None:
+        doc = load_toml(root / "out" / "cameras.toml")
+        change(doc)
+        (root / "cameras.toml").write_text(tomli_w.dumps(doc))
+        data = load_toml(root / "session.toml")
+        del data["rods"], data["grid"]
+        data["calibration"] = {"cameras": "cameras.toml"}
+        (root / "session.toml").write_text(tomli_w.dumps(data))
+
+    return setup
+
+
 def wand_and_axes_hidden(root: Path) -> None:
     """Wand and axes alone; one axes marker blacked out in cam2's axes images."""
     from tests.session.wand_session import add_axes, add_wand_trial
@@ -225,6 +240,45 @@ def contradicting_seeds(root: Path) -> None:
     for key in ("x_mm", "y_mm", "z_mm"):
         seeds[key][[1, 4]] = seeds[key][[4, 1]]
     write_table(path, seeds)
+
+
+def dltdv_rows(n_rows: int) -> Setup:
+    def setup(root: Path) -> None:
+        rows = (root / "out" / "dlt" / "dltdv.csv").read_text().splitlines()[:n_rows]
+        (root / "coefs.csv").write_text("\n".join(rows) + "\n")
+        data = load_toml(root / "session.toml")
+        del data["rods"]
+        data["calibration"] = {"dlt": "coefs.csv"}
+        (root / "session.toml").write_text(tomli_w.dumps(data))
+
+    return setup
+
+
+def empty_c3d(root: Path) -> None:
+    import ezc3d
+
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [50.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = ("A", "B")
+    c["data"]["points"] = np.full((4, 2, 10), np.nan)
+    c.write(str(root / "empty.c3d"))
+    data = load_toml(root / "session.toml")
+    data["trials"].append({"name": "old", "c3d": "empty.c3d"})
+    (root / "session.toml").write_text(tomli_w.dumps(data))
+
+
+def short_video(root: Path) -> None:
+    """One lossless video per camera, cam2's two frames shorter than the others'."""
+    (root / "video").mkdir()
+    for cam in ("cam1", "cam2", "cam3", "cam4"):
+        fourcc = cv2.VideoWriter_fourcc(*"FFV1")
+        writer = cv2.VideoWriter(str(root / "video" / f"{cam}.avi"), fourcc, 25, (752, 291), False)
+        for _ in range(8 if cam == "cam2" else 10):
+            writer.write(np.zeros((291, 752), np.uint8))
+        writer.release()
+    data = load_toml(root / "session.toml")
+    data["trials"].append({"name": "vid", "video": "video/{camera}.avi"})
+    (root / "session.toml").write_text(tomli_w.dumps(data))
 
 
 # ------------------------------------------------------------------------- cases
@@ -521,6 +575,82 @@ CASES: tuple[Case, ...] = (
         nothing,
         ("calibrate", "S", "--route", "target"),
         ("--route target", "no inputs for it", "[calibration] target"),
+    ),
+    Case(
+        "cameras-toml-missing-camera",
+        "calibration",
+        "gave a cameras.toml without one of the session's cameras",
+        imported_cameras(lambda doc: doc.pop("cam3")),
+        ("calibrate", "S"),
+        ("cameras.toml", "no camera named 'cam3'"),
+    ),
+    Case(
+        "cameras-toml-missing-key",
+        "calibration",
+        "gave a cameras.toml camera without its rotation",
+        imported_cameras(lambda doc: doc["cam2"].pop("rotation")),
+        ("calibrate", "S"),
+        ("[cam2] is missing rotation",),
+    ),
+    Case(
+        "dltdv-ten-rows",
+        "calibration",
+        "gave DLT coefficients with 10 rows instead of 11",
+        dltdv_rows(10),
+        ("calibrate", "S"),
+        ("coefs.csv", "expected 11 rows", "got 10"),
+    ),
+    Case(
+        "c3d-no-points",
+        "reconstruction",
+        "gave a C3D trial whose every sample is invalid",
+        empty_c3d,
+        ("reconstruct", "S", "old"),
+        ("empty.c3d", "no valid 3D point"),
+    ),
+    Case(
+        "video-shorter",
+        "reconstruction",
+        "gave one camera a video shorter than the others'",
+        short_video,
+        ("reconstruct", "S", "vid"),
+        ("different numbers of frames", "cam2: 8"),
+    ),
+    Case(
+        "unknown-marker-set",
+        "tracking",
+        "misspelt the marker set's name",
+        toml_edit(lambda d: d.__setitem__("markers", {"set": "plug-in-gait-lowr"})),
+        ("track", "S", "walk01"),
+        ("markers.set", "'plug-in-gait-lowr'", "did you mean 'plug-in-gait-lower'"),
+    ),
+    Case(
+        "marker-not-in-set",
+        "tracking",
+        "named a marker the chosen set does not have",
+        toml_edit(
+            lambda d: d.__setitem__(
+                "markers", {"set": "plug-in-gait-lower", "names": ["LASI", "RASII"]}
+            )
+        ),
+        ("track", "S", "walk01"),
+        ("markers.names", "unknown marker 'RASII'", "did you mean 'RASI'"),
+    ),
+    Case(
+        "static-not-a-trial",
+        "tracking",
+        "named a static trial that is not a [[trials]] entry",
+        toml_edit(lambda d: d["markers"].__setitem__("static", "statc")),
+        ("track", "S", "walk01"),
+        ("markers.static = 'statc'", "not a [[trials]] name"),
+    ),
+    Case(
+        "static-subject-moves",
+        "tracking",
+        "gave a walking trial as the static trial",
+        toml_edit(lambda d: d["markers"].__setitem__("static", "walk01")),
+        ("track", "S", "stick"),
+        ("static trial 'walk01'", "the subject moves"),
     ),
     Case(
         "track-before-reconstruct",

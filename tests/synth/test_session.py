@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -126,8 +127,25 @@ def test_rod_images_hold_24_markers_plus_led_rings(small_session: Path) -> None:
         assert len(components(img)) == 24 + len(leds["u_px"])
 
 
+def pixels_and_tables_digest(root: Path) -> str:
+    """SHA-1 over the decoded pixels of every image and the bytes of every other file but
+    ``truth/detection.json`` (independent of the PNG encoder's version)."""
+    h = hashlib.sha1()
+    for p in sorted(root.rglob("*")):
+        if p.is_file() and p.name != "detection.json":
+            h.update(str(p.relative_to(root).as_posix()).encode())
+            h.update(image(p).tobytes() if p.suffix == ".png" else p.read_bytes())
+    return h.hexdigest()
+
+
+#: The KISS rig of seed 9 (2 cameras, 12 fields, no replay) as kisscal wrote it before the
+#: presets existed: the kiss preset must keep giving it.
+KISS_SEED9_DIGEST = "4c1c9eed20ff600cf299b7a2609ce646739e961b"
+
+
 def test_same_seed_same_bytes(tmp_path: Path) -> None:
     a = session.synthesise(tmp_path / "a", seed=9, fields=12, n_cameras=2, walking5=False, n_jobs=1)
+    assert pixels_and_tables_digest(a) == KISS_SEED9_DIGEST
     b = session.synthesise(tmp_path / "b", seed=9, fields=12, n_cameras=2, walking5=False, n_jobs=2)
     files_a = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
     files_b = sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
@@ -151,7 +169,8 @@ def kisscal(*args: str) -> subprocess.CompletedProcess[str]:
     [
         (["--fields", "abc"], "--fields"),
         (["--fields", "3"], "--fields"),
-        (["--cameras", "9"], "--cameras"),
+        (["--cameras", "17"], "--cameras"),
+        (["--preset", "vicon"], "--preset"),
         (["--markers", "14"], "--markers"),
         (["--seed", "1.5"], "--seed"),
     ],

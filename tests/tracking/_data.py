@@ -175,3 +175,13 @@ def observe(
     field = np.concatenate(fields)
     order = np.argsort(field, kind="stable")
     return field[order], np.concatenate(points)[order], np.concatenate(markers)[order], visible
+
+
+def rotation(axis: int, deg: float) -> np.ndarray:
+    """Rotation matrix of ``deg`` degrees about coordinate axis ``axis`` (0, 1, 2)."""
+    a = np.deg2rad(deg)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [k for k in range(3) if k != axis]
+    r = np.eye(3)
+    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+    return r

@@ -3,51 +3,24 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.tracking import TrackingParams, build_trajectories, label_tracks
-from kisscal.tracking.labelling import classical_mds, kabsch
-from tests.tracking._data import NAMES, gait_truth, observe, template
+from tests.tracking._data import NAMES, gait_truth, observe, rotation, template
 from tests.tracking._eval import score
-
-
-def _rotation(axis, deg):
-    a = np.deg2rad(deg)
-    c, s = np.cos(a), np.sin(a)
-    i, j = [k for k in range(3) if k != axis]
-    r = np.eye(3)
-    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
-    return r
-
-
-def test_kabsch_recovers_a_proper_rotation():
-    rng = np.random.default_rng(0)
-    pts = rng.normal(0, 100, (10, 3))
-    r = _rotation(2, 40) @ _rotation(0, 75)
-    moved = pts @ r.T + [5, -7, 300]
-    r_est, t_est = kabsch(pts, moved)
-    np.testing.assert_allclose(r_est, r, atol=1e-9)
-    np.testing.assert_allclose(t_est, [5, -7, 300], atol=1e-7)
-
-
-def test_classical_mds_reproduces_distances():
-    pts = np.random.default_rng(1).normal(0, 50, (8, 3))
-    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
-    e = classical_mds(d)
-    np.testing.assert_allclose(np.linalg.norm(e[:, None] - e[None], axis=2), d, atol=1e-8)
 
 
 @pytest.mark.parametrize(
     ("seed", "heading_deg", "template_rotation"),
     [
         (0, 0.0, np.eye(3)),
-        (1, 180.0, _rotation(2, 123.0)),  # walks the other way; template turned
-        (2, 63.0, _rotation(0, 90.0)),  # template in a Y-up frame
-        (3, -110.0, _rotation(1, 35.0) @ _rotation(2, -70.0)),
+        (1, 180.0, rotation(2, 123.0)),  # walks the other way; template turned
+        (2, 63.0, rotation(0, 90.0)),  # template in a Y-up frame
+        (3, -110.0, rotation(1, 35.0) @ rotation(2, -70.0)),
     ],
 )
 def test_labels_do_not_depend_on_where_subject_stands_or_faces(
     seed, heading_deg, template_rotation
 ):
     truth = gait_truth(300, seed)
-    turn = _rotation(2, heading_deg)
+    turn = rotation(2, heading_deg)
     truth = truth @ turn.T + [400.0, -900.0, 0.0]
     field, xyz, _, visible = observe(truth, seed, volume_x=None, ghosts_per_field=1.0)
     tmpl = template() @ template_rotation.T + [2000.0, 50.0, -300.0]
@@ -88,34 +61,3 @@ def test_template_shape_is_checked():
     tracks = build_trajectories(field, xyz).tracks
     with pytest.raises(KisscalError):
         label_tracks(tracks, NAMES, TrackingParams(), template()[:5])
-
-
-def test_swap_search_recovers_names_needing_exchanges_and_cycles():
-    from kisscal.tracking.labelling import _cycle_changes, refine_by_swaps
-
-    rng = np.random.default_rng(1)
-    template = rng.normal(0, 300, (15, 3))
-    tdist = np.linalg.norm(template[:, None] - template[None], axis=2)
-    truth = rng.permutation(15)[:12]
-    d = tdist[np.ix_(truth, truth)] + rng.normal(0, 1, (12, 12))
-    d = (d + d.T) / 2
-    np.fill_diagonal(d, 0)
-    w = rng.random((12, 12))
-    w = (w + w.T) / 2
-    np.fill_diagonal(w, 0)
-
-    def cost(q):
-        return float((w * (d - tdist[np.ix_(q, q)]) ** 2).sum())
-
-    start = truth.copy()
-    rng.shuffle(start)
-    # The closed-form change of a 3-cycle equals the recomputed cost change.
-    wd = w * d
-    tp = tdist[:, start]
-    g = (wd * d).sum(1)[:, None] - 2 * wd @ tp.T + w @ (tp.T**2)
-    cyc = _cycle_changes(w, d, g[:, start], tdist[np.ix_(start, start)])
-    q = start.copy()
-    q[3], q[7], q[5] = start[7], start[5], start[3]
-    assert cyc[3, 7, 5] == pytest.approx(cost(q) - cost(start), abs=1e-6)
-    out = refine_by_swaps(d, w, tdist, start)
-    np.testing.assert_array_equal(out, truth)

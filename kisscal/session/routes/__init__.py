@@ -13,16 +13,19 @@ Routes: :mod:`~kisscal.session.routes.rods` (surveyed rods, the seeds' method),
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
 from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
-from kisscal.io.frames import camera_frames
+from kisscal.io.frames import camera_frames, source_files
+from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames, detect_frames
 from kisscal.session.inputs import file_keys, out_dir
 from kisscal.session.params import StageParams
@@ -63,32 +66,48 @@ class RouteInputs:
         return len(self.cameras) == len(self.config.cameras)
 
 
-def frame_files(inputs: RouteInputs, pattern: str, what: str) -> dict[str, object]:
+def frame_files(
+    inputs: RouteInputs, pattern: str, what: str, fields: str | None = None
+) -> dict[str, Sequence]:
     """Each camera's frames of a static calibration object (rods, axes, a target)."""
-    return {c.id: camera_frames(inputs.config.root, pattern, c.id, what) for c in inputs.cameras}
+    root = inputs.config.root
+    return {c.id: camera_frames(root, pattern, c.id, what, fields=fields) for c in inputs.cameras}
+
+
+def marker_detection(inputs: RouteInputs) -> dict[str, DetectionParams]:
+    """Each camera's detection settings for marker images (derived once, then kept)."""
+    config, given = inputs.config, inputs.params.detection_given
+    return {
+        cam.id: camera_detection(inputs.root, config, cam, "markers", given, inputs.echo)
+        for cam in inputs.cameras
+    }
 
 
 def static_blobs(
-    inputs: RouteInputs, pattern: str, what: str
+    inputs: RouteInputs,
+    frames: dict[str, Sequence],
+    what: str,
+    fields: str | None,
+    detection: dict[str, DetectionParams],
 ) -> dict[str, list[NDArray[np.float64]]]:
     """Raw valid blob centroids of every frame of a static object, per camera (cached).
 
     ``what`` names the object in messages and in the cache (``rod``, ``axes`` ...).
     """
-    frames = frame_files(inputs, pattern, what)
     out = {}
-    for cam in steps(inputs.cameras, f"calibrate: detect {what}"):
+    root = inputs.config.root
+    for cam in steps(inputs.cameras, f"calibrate: detect {what}s"):
         seq = frames[cam.id]
-        key = cache_key("detect", file_keys(seq.paths, inputs.config.root), inputs.params.detection)
+        key = cache_key("detect", file_keys(source_files(seq), root), fields, detection[cam.id])
         cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}s-{cam.id}.npz"
         sized = SizedFrames(seq, cam.id, cam.size_px)
         found = detect_frames(
             sized,
-            inputs.params.detection,
+            detection[cam.id],
             cache,
             key,
             inputs.echo,
-            f"{what} {cam.id}",
+            f"{what}s {cam.id}",
             inputs.workers,
         )
         out[cam.id] = [b.valid_only().xy_px for b in found]

@@ -21,9 +21,10 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
+from kisscal.io.frames import source_files
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
 from kisscal.session.progress import Echo
-from kisscal.session.routes import RouteInputs, frame_files, static_blobs
+from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -35,13 +36,15 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     assert config.rods is not None
     out = out_dir(root) / "dlt"
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
-    rod_frames = frame_files(inputs, config.rods.images, "rod")
+    rod_frames = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
     lins = inputs.linearisations
+    detection = marker_detection(inputs)
     stage_key = cache_key(
         "calibrate",
-        {c: file_keys(f.paths, config.root) for c, f in rod_frames.items()},
+        {c: file_keys(source_files(f), config.root) for c, f in rod_frames.items()},
+        config.rods.fields,
         linearisation_key({c: lins[c] for c in rod_frames}),
-        params.detection,
+        detection,
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
     )
@@ -50,7 +53,9 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
         return {"_check": json.loads((out / "check.json").read_text())}
     blobs_px = {
         cam: [apply_linearisation(lins[cam], uv) for uv in frames]
-        for cam, frames in static_blobs(inputs, config.rods.images, "rod").items()
+        for cam, frames in static_blobs(
+            inputs, rod_frames, "rod", config.rods.fields, detection
+        ).items()
     }
     t0 = time.perf_counter()
     cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)

@@ -24,6 +24,7 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
+from kisscal.io.frames import source_files
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
@@ -42,13 +43,13 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     target_path = config.root / cal.target
     table = read_table(target_path, required=TARGET_COLUMNS, numeric=TARGET_COLUMNS)
     target = np.column_stack([table[c] for c in TARGET_COLUMNS]).astype(float)
-    frames = frame_files(inputs, cal.images, "calibration")
+    frames = frame_files(inputs, cal.images, "calibration", cal.fields)
     seed_paths = {c.id: config.root / cal.seeds.replace("{camera}", c.id) for c in inputs.cameras}
     out = out_dir(inputs.root) / "dlt"
     key = cache_key(
         "calibrate-target",
         file_keys([target_path, *seed_paths.values()], config.root),
-        {c: file_keys(f.paths, config.root) for c, f in frames.items()},
+        {c: file_keys(source_files(f), config.root) for c, f in frames.items()},
         linearisation_key(inputs.linearisations),
         inputs.params.target,
     )

@@ -34,8 +34,15 @@ from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.frames import source_files
 from kisscal.session.inputs import file_keys, linearisation_key, out_dir
-from kisscal.session.routes import RouteInputs, frame_files, outputs_of, static_blobs
+from kisscal.session.routes import (
+    RouteInputs,
+    frame_files,
+    marker_detection,
+    outputs_of,
+    static_blobs,
+)
 from kisscal.session.routes.wand_outputs import write_wand_outputs
 
 
@@ -82,12 +89,12 @@ def _stage_key(inputs: RouteInputs) -> str:
     trial = config.trial(config.wand.trial)
     objects = []
     if config.rods is not None:
-        rods = frame_files(inputs, config.rods.images, "rod")
-        objects.append({c: file_keys(f.paths, config.root) for c, f in rods.items()})
+        rods = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
+        objects.append({c: file_keys(source_files(f), config.root) for c, f in rods.items()})
         objects.append([(r.name, r.points_mm) for r in config.rods.rods])
     if config.axes is not None:
-        axes = frame_files(inputs, config.axes.images, "axes")
-        objects.append({c: file_keys(f.paths, config.root) for c, f in axes.items()})
+        axes = frame_files(inputs, config.axes.images, "axes", config.axes.fields)
+        objects.append({c: file_keys(source_files(f), config.root) for c, f in axes.items()})
         objects.append(config.axes.points_mm)
     return cache_key(
         "calibrate-wand",
@@ -95,7 +102,7 @@ def _stage_key(inputs: RouteInputs) -> str:
         objects,
         linearisation_key(inputs.linearisations),
         config.wand.markers_mm,
-        params.detection,
+        marker_detection(inputs),
         params.dlt,
         params.recon,
         params.wand,
@@ -109,7 +116,8 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
     config = inputs.config
     assert config.wand is not None
     trial = config.trial(config.wand.trial)
-    blobs = trial_blobs(inputs.root, config, trial, inputs.params, inputs.echo, inputs.workers)
+    detection = marker_detection(inputs)
+    blobs = trial_blobs(inputs.root, config, trial, detection, inputs.echo, inputs.workers)
     per_camera = []
     for cam in config.cameras:
         lin = inputs.linearisations[cam.id]
@@ -122,10 +130,10 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     assert config.rods is not None and config.wand is not None
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     lins = inputs.linearisations
-    blobs = {
-        cam: [apply_linearisation(lins[cam], uv) for uv in frames]
-        for cam, frames in static_blobs(inputs, config.rods.images, "rod").items()
-    }
+    fields = config.rods.fields
+    frames = frame_files(inputs, config.rods.images, "rod", fields)
+    found = static_blobs(inputs, frames, "rod", fields, marker_detection(inputs))
+    blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
     rod_cal = calibrate_rods(blobs, rods, params.dlt, leave_one_out=True)
     ids = config.camera_ids
     cams, xyz, uv, group = [], [], [], []
@@ -167,7 +175,9 @@ def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, 
     cal = calibrate_wand_alone(
         table, config.wand.markers_mm, sizes, ids, config.wand.trial, params.wand
     )
-    frames = static_blobs(inputs, config.axes.images, "axes")
+    fields = config.axes.fields
+    files = frame_files(inputs, config.axes.images, "axes", fields)
+    frames = static_blobs(inputs, files, "axes", fields, marker_detection(inputs))
     blobs = []
     for cam in config.cameras:
         static = average_static(frames[cam.id])

@@ -1,0 +1,83 @@
+"""Small helpers several stages share, with one definition each.
+
+- :func:`rms_px`: the residual figure of DESIGN.md, ``sqrt(mean(du^2 + dv^2))``;
+- :func:`similarity_normaliser` and :func:`apply_transform`: the conditioning of
+  coordinates before a linear solve (Hartley 1997);
+- :func:`connected_labels`: connected components of a graph given by its edges.
+
+References
+----------
+Hartley, R. I. (1997). In defense of the eight-point algorithm. IEEE Transactions on
+Pattern Analysis and Machine Intelligence, 19(6), 580-593.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+
+def rms_px(residuals_px: ArrayLike) -> float:
+    """``sqrt(mean(du^2 + dv^2))`` of 2D residual vectors (px); NaN when there are none.
+
+    Examples
+    --------
+    >>> rms_px([[3.0, 4.0], [0.0, 0.0]])
+    3.5355339059327378
+    >>> rms_px(np.zeros((0, 2)))
+    nan
+    """
+    d = np.asarray(residuals_px, dtype=float).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else float("nan")
+
+
+def similarity_normaliser(points: ArrayLike) -> NDArray[np.float64]:
+    """Homogeneous transform that centres ``points`` (N, d) and scales their mean distance
+    from the centre to ``sqrt(d)`` (Hartley 1997).
+
+    Examples
+    --------
+    >>> T = similarity_normaliser([[0.0, 0.0], [2.0, 0.0]])
+    >>> apply_transform(T, [[0.0, 0.0], [2.0, 0.0]]).round(4)
+    array([[-1.4142,  0.    ],
+           [ 1.4142,  0.    ]])
+    """
+    points = np.asarray(points, dtype=float)
+    d = points.shape[1]
+    centre = points.mean(axis=0)
+    s = np.sqrt(d) / np.linalg.norm(points - centre, axis=1).mean()
+    T = np.eye(d + 1)
+    T[:d, :d] *= s
+    T[:d, d] = -s * centre
+    return T
+
+
+def apply_transform(T: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
+    """Points (N, d) through an affine homogeneous transform (d + 1, d + 1)."""
+    T = np.asarray(T, dtype=float)
+    return np.asarray(points, dtype=float) @ T[:-1, :-1].T + T[:-1, -1]
+
+
+def connected_labels(n: int, a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
+    """Label of each of ``n`` nodes: its connected component in the graph with edges (a, b).
+
+    Components are numbered 0, 1, ... in order of their smallest node.
+
+    Examples
+    --------
+    >>> connected_labels(5, [0, 3], [2, 4])
+    array([0, 1, 0, 2, 2])
+    """
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
+    graph = coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    # scipy numbers components by first visit, which is the smallest node: keep it explicit
+    first = np.full(labels.max() + 1 if n else 0, n, dtype=np.int64)
+    np.minimum.at(first, labels, np.arange(n))
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return rank[labels].astype(np.int64)

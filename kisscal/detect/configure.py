@@ -1,0 +1,492 @@
+"""Detection settings derived from a camera's own images.
+
+Shafiq et al. (2001, section 3) tuned their thresholds and size limits to the KISS
+cameras by hand. A lab with other cameras would have to do the same for every camera;
+kisscal measures instead (:mod:`kisscal.detect.survey`) and decides here, for each
+camera-dependent setting the user did not give:
+
+- **threshold** and **background**: markers are a small bright population over a dark
+  background. The threshold sits at 15 % of the contrast of the faint end of that
+  population (5th percentile of the groups' peaks), low so that small far markers stay
+  at least two lines tall and keep their shape, and at least five noise deviations above
+  the background. When
+  the background is uneven by more than half that margin, it is taken locally (tiles of
+  eight of the largest marker diameters) and the threshold counts from it.
+- **pixel aspect**: isolated markers are round, so their width over their height is the
+  pixel aspect. Thresholding widens every spot by about the same number of pixels in x and
+  y, which pulls small spots towards round; the slope of the spots' x spread against their
+  y spread over spots of many sizes (a robust Theil-Sen line) removes that. 1.0 when the
+  measure is within 5 % of it or there are too few spots to tell.
+- **size limits** (LED rings, reflections): in log area, markers form one population and
+  the LED rings of facing cameras another, far larger. The upper limits sit between (at
+  most twice the largest marker seen, for markers that come nearer than in any surveyed
+  frame); the opening kernel that detaches markers from LED rings is a fifth larger than
+  the largest marker.
+- **centroid margins**: how far the blurred rim of the spots reaches beyond their white
+  pixels, measured in x and y.
+
+Grid images are surveyed on their own (300 near-identical dots give their own size), with
+the pixel aspect taken from the camera's marker images when there are any.
+
+References
+----------
+Shafiq, M. S., Tümer, S. T., & Güler, H. C. (2001). Marker detection and trajectory
+generation algorithms for a multicamera based gait analysis system. Mechatronics, 11(4).
+Sen, P. K. (1968). Estimates of the regression coefficient based on Kendall's tau.
+Journal of the American Statistical Association, 63(324), 1379-1389.
+
+Examples
+--------
+>>> import numpy as np
+>>> from kisscal.detect import detect_blobs
+>>> rng = np.random.default_rng(0)
+>>> frames = []
+>>> for _ in range(3):
+...     image = rng.normal(10, 1, (200, 300)).clip(0, 255)
+...     for x, y in rng.uniform(20, [280, 180], (40, 2)):
+...         yy, xx = np.ogrid[:200, :300]
+...         image += 200 * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * 2.0**2))
+...     frames.append(image.clip(0, 255).astype(np.uint8))
+>>> setup = configure_detection(frames)
+>>> setup.params.pixel_aspect
+1.0
+>>> setup.choices["threshold"].source
+'derived'
+>>> len(detect_blobs(frames[0], setup.params).valid_only()) >= 35
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import theilslopes
+
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.pipeline import check_image, threshold_image
+from kisscal.detect.shape import PIXEL_AREA_VAR
+from kisscal.detect.survey import (
+    GreyLevels,
+    Groups,
+    grey_levels,
+    rim_reach_px,
+    stationary,
+    survey_frames,
+)
+from kisscal.errors import KisscalError
+
+#: What the images are of: markers (trials, rods, axes, wand) or the linearisation grid.
+Kind = Literal["markers", "grid"]
+
+#: The settings this module derives; everything else keeps its default unless given.
+DERIVED = (
+    "threshold",
+    "background_tile_px",
+    "pixel_aspect",
+    "max_pixels",
+    "max_width_px",
+    "max_height_px",
+    "detach_kernel_px",
+    "centroid_margin_x_px",
+    "centroid_margin_y_px",
+)
+
+#: Fraction of the faint markers' contrast at which the threshold sits.
+THRESHOLD_FRACTION = 0.15
+#: Fewest isolated spots for a pixel-aspect estimate.
+MIN_SPOTS_FOR_ASPECT = 12
+#: A measured pixel aspect this close to 1 is taken as square pixels.
+SQUARE_TOLERANCE = 0.05
+#: Two sizes of blob this many times apart in area belong to different populations.
+SIZE_GAP = 2.5
+#: Headroom of the upper size limit over the largest marker seen (area).
+SIZE_HEADROOM = 2.0
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One setting: its value, whether it was given or derived, and why."""
+
+    value: Any
+    source: Literal["given", "derived", "default"]
+    why: str = ""
+
+
+@dataclass(frozen=True)
+class DetectionSetup:
+    """Detection parameters for one camera and kind of image, with the reasons.
+
+    Attributes
+    ----------
+    params : DetectionParams
+        Ready for :func:`kisscal.detect.detect_blobs`.
+    choices : dict of str -> Choice
+        Every camera-dependent setting (:data:`DERIVED`): value, source and reason.
+    kind : {"markers", "grid"}
+    frames : int
+        Frames surveyed.
+    levels : GreyLevels
+        Background, noise and unevenness measured.
+    marker_pixels : (int, int)
+        Smallest and largest white-pixel count of the markers seen.
+    """
+
+    params: DetectionParams
+    choices: dict[str, Choice]
+    kind: str
+    frames: int
+    levels: GreyLevels
+    marker_pixels: tuple[int, int] = (0, 0)
+    notes: tuple[str, ...] = field(default=())
+
+    def summary(self) -> str:
+        """One line for the run log."""
+        p = self.params
+        given = [k for k, c in self.choices.items() if c.source == "given"]
+        bg = (
+            f"local background (tiles {p.background_tile_px} px)"
+            if p.background_tile_px
+            else f"background {self.levels.background:.0f}"
+        )
+        limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
+        text = (
+            f"{self.kind}: threshold {p.threshold:.0f} ({bg}, noise {self.levels.noise:.1f}), "
+            f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
+            f"{self.marker_pixels[1]} px, oversize above {limit} px"
+        )
+        return text + (f"; given: {', '.join(given)}" if given else "")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON document of ``out/detection/<camera>.json`` for this kind."""
+        lv = self.levels
+        return {
+            "frames_surveyed": self.frames,
+            "bits": lv.bits,
+            "background": round(lv.background, 2),
+            "noise_sigma": round(lv.noise, 3),
+            "background_unevenness": round(lv.unevenness, 2),
+            "marker_pixels": list(self.marker_pixels),
+            "settings": {
+                k: {"value": _plain(c.value), "source": c.source, "why": c.why}
+                for k, c in self.choices.items()
+            },
+            "notes": list(self.notes),
+        }
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, tuple):
+        return list(value)
+    if isinstance(value, float):
+        return round(value, 4)
+    return value
+
+
+def configure_detection(
+    images: Sequence[NDArray],
+    given: Mapping[str, Any] | None = None,
+    *,
+    kind: Kind = "markers",
+    pixel_aspect: float | None = None,
+    aspect_why: str = "known for this camera",
+) -> DetectionSetup:
+    """Detection parameters for a camera from a sample of its frames.
+
+    Parameters
+    ----------
+    images : sequence of ndarray
+        A few frames of one camera and one kind (5-30 spread over the recording are
+        plenty); grey (8- to 16-bit) or already thresholded (boolean).
+    given : mapping, optional
+        Settings the user gave (``[detection]``); they are used as given.
+    kind : {"markers", "grid"}
+        Marker images (trials, rods, axes, wand) or images of the linearisation grid.
+    pixel_aspect : float, optional
+        The camera's pixel aspect when already known (e.g. from its grid lattice);
+        measured from these images otherwise.
+    aspect_why : str
+        Where a known ``pixel_aspect`` comes from (for the record).
+
+    Returns
+    -------
+    DetectionSetup
+    """
+    given = dict(given or {})
+    DetectionParams.from_layers(given)  # unknown names and bad values: one-line errors
+    frames = [check_image(im) for im in images]
+    if not frames:
+        raise KisscalError("detect: no images to derive the detection settings from")
+    if any(f.dtype == np.bool_ for f in frames):
+        params = DetectionParams.from_layers(given)
+        return _thresholded(params, given, kind, len(frames))
+    raw_max = [float(np.max(im)) for im in images]
+    shape = frames[0].shape
+    survey_tile = max(32, min(shape) // 8)
+    levels = grey_levels(frames, raw_max, survey_tile)
+    known = None if pixel_aspect is None else (float(pixel_aspect), aspect_why)
+    return _Derivation(frames, given, kind, levels, known).run()
+
+
+def _thresholded(
+    params: DetectionParams, given: Mapping[str, Any], kind: str, n: int
+) -> DetectionSetup:
+    levels = GreyLevels(0.0, 0.0, 0.0, 1.0, 1)
+    choices = {
+        k: Choice(getattr(params, k), "given" if k in given else "default", "thresholded images")
+        for k in DERIVED
+    }
+    return DetectionSetup(params, choices, kind, n, levels, notes=("images are binary",))
+
+
+class _Derivation:
+    """The decisions, in order; each records its :class:`Choice`."""
+
+    def __init__(
+        self,
+        frames: list[NDArray],
+        given: dict[str, Any],
+        kind: str,
+        levels: GreyLevels,
+        known_aspect: tuple[float, str] | None,
+    ) -> None:
+        self.frames = frames
+        self.given = given
+        self.kind = kind
+        self.levels = levels
+        self.known_aspect = known_aspect
+        self.choices: dict[str, Choice] = {}
+        self.notes: list[str] = []
+        self.values: dict[str, Any] = {}
+
+    def choose(self, name: str, value: Any, why: str) -> Any:
+        """Record a derived value unless the user gave one; return what holds."""
+        if name in self.given:
+            self.choices[name] = Choice(self.given[name], "given", "from [detection]")
+            return self.given[name]
+        self.choices[name] = Choice(value, "derived", why)
+        self.values[name] = value
+        return value
+
+    def run(self) -> DetectionSetup:
+        lv = self.levels
+        probe = max(6.0 * lv.noise, 4.0, 0.02 * (lv.top - lv.background))
+        tile0 = max(32, min(self.frames[0].shape) // 8)
+        first = survey_frames(self.frames, probe, tile0)
+        if len(first) == 0:
+            return self._nothing_bright(probe)
+        markers0 = _marker_population(first)
+        self._threshold(first.take(markers0))
+        final = self._final_groups()
+        markers = _marker_population(final)
+        self._aspect(final.take(markers & (final.isolation > 3.0)))
+        self._size_limits(final, markers)
+        self._margins()
+        if self.kind == "grid":
+            for name in ("split_touching", "split_overlaps", "split_long_wide"):
+                self.choose(name, False, "grid dots never touch: nothing to split")
+        params = DetectionParams.from_layers(self.values, self.given)
+        seen = final.pixels[markers]
+        band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
+        return DetectionSetup(
+            params, self.choices, self.kind, len(self.frames), lv, band, tuple(self.notes)
+        )
+
+    def _nothing_bright(self, probe: float) -> DetectionSetup:
+        self.notes.append(f"no bright spot {probe:.0f} grey levels above the background")
+        for name in DERIVED:
+            default = getattr(DetectionParams(), name)
+            self.choose(name, default, "nothing bright in the surveyed frames: default")
+        params = DetectionParams.from_layers(self.values, self.given)
+        return DetectionSetup(
+            params, self.choices, self.kind, len(self.frames), self.levels, notes=tuple(self.notes)
+        )
+
+    def _threshold(self, markers: Groups) -> None:
+        """Threshold and background mode from the contrast of the faint markers."""
+        lv = self.levels
+        faint = float(np.percentile(markers.peak, 5)) if len(markers) else 40.0
+        floor = max(5.0 * lv.noise, 3.0)
+        excess = float(np.clip(THRESHOLD_FRACTION * faint, floor, max(floor, 0.6 * faint)))
+        why = (
+            f"{THRESHOLD_FRACTION:.0%} of the faint markers' contrast ({faint:.0f} above "
+            f"background), at least 5 noise deviations ({lv.noise:.1f})"
+        )
+        if floor > 0.5 * faint:
+            self.notes.append(
+                f"faint markers ({faint:.0f} grey levels) are near the noise ({lv.noise:.1f})"
+            )
+        size = (
+            float(np.percentile(np.maximum(markers.width, markers.height), 95))
+            if len(markers)
+            else 8.0
+        )
+        local = lv.unevenness > 0.5 * excess
+        tile = int(min(max(32, 8 * math.ceil(size)), min(self.frames[0].shape) // 2))
+        if local and "threshold" in self.given and "background_tile_px" not in self.given:
+            local = False  # a grey level the user gave is a global threshold
+        self.choose(
+            "background_tile_px",
+            tile if local else 0,
+            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of 8 marker "
+            "diameters"
+            if local
+            else f"background even (spread {lv.unevenness:.0f} grey levels): one level per image",
+        )
+        self.choose(
+            "threshold",
+            round(excess, 1) if local else round(lv.background + excess, 1),
+            why + (" over the local background" if local else ""),
+        )
+
+    def _partial_params(self) -> DetectionParams:
+        return DetectionParams.from_layers(self.values, self.given)
+
+    def _final_groups(self) -> Groups:
+        """Groups at the chosen threshold (sizes depend on it)."""
+        p = self._partial_params()
+        tile = p.background_tile_px or max(32, min(self.frames[0].shape) // 8)
+        if p.background_tile_px:
+            excess = p.threshold
+        else:
+            excess = max(p.threshold - self.levels.background, 1.0)
+        return survey_frames(self.frames, excess, tile)
+
+    def _aspect(self, spots: Groups) -> None:
+        if self.known_aspect is not None:
+            self.choose("pixel_aspect", *self.known_aspect)
+            return
+        value, why = measure_pixel_aspect(spots)
+        self.choose("pixel_aspect", value, why)
+
+    def _size_limits(self, groups: Groups, markers: NDArray[np.bool_]) -> None:
+        """Upper size limits between the markers and the oversized blobs, and the kernel."""
+        m = groups.take(markers)
+        if not len(m):
+            for name in ("max_pixels", "max_width_px", "max_height_px", "detach_kernel_px"):
+                self.choose(name, None, "no marker-like blob seen: no upper limit")
+            return
+        big = groups.take(~markers & (groups.pixels > m.pixels.max()))
+        headroom = SIZE_HEADROOM if self.kind == "markers" else 1.5
+        # single markers (isolated, filled): touching pairs are split before the limits
+        single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
+        single = single if len(single) >= 5 else m
+        largest = {k: _largest(getattr(single, k)) for k in ("pixels", "width", "height")}
+        why = (
+            f"largest markers {largest['pixels']:.0f} px ({largest['width']:.0f} x "
+            f"{largest['height']:.0f}); "
+            + (
+                f"smallest oversized blob {int(big.pixels.min())} px"
+                if len(big)
+                else "none oversized"
+            )
+        )
+        for name, key, scale, pad in (
+            ("max_pixels", "pixels", headroom, 0),
+            ("max_width_px", "width", math.sqrt(headroom), 1),
+            ("max_height_px", "height", math.sqrt(headroom), 1),
+        ):
+            limit = math.ceil(largest[key] * scale) + pad
+            if len(big):  # between the markers and the smallest oversized blob
+                limit = min(limit, math.floor(math.sqrt(largest[key] * getattr(big, key).min())))
+            self.choose(name, int(max(limit, math.ceil(largest[key]) + 1)), why)
+        kw = _odd(1.2 * largest["width"] + 1)
+        kh = _odd(1.2 * largest["height"] + 1)
+        fits = not len(big) or (kw < big.width.min() and kh < big.height.min())
+        self.choose(
+            "detach_kernel_px",
+            (kw, kh) if fits else None,
+            "a fifth larger than the largest markers"
+            if fits
+            else "oversized blobs are not larger than the kernel: no detaching",
+        )
+
+    def _margins(self) -> None:
+        p = self._partial_params()
+        reach = np.array(
+            [rim_reach_px(im, *threshold_image(im, p), self._rim_floor()) for im in self.frames]
+        )
+        mx, my = (int(np.clip(np.median(reach[:, k]), 1, 8)) for k in (0, 1))
+        why = "how far the blurred rim reaches beyond the white pixels"
+        self.choose("centroid_margin_x_px", mx, why)
+        self.choose("centroid_margin_y_px", my, why)
+
+    def _rim_floor(self) -> float:
+        return max(1.0 * self.levels.noise, 0.5)
+
+
+def _largest(values: NDArray) -> float:
+    """The size of the largest markers: the 99th percentile (a few merged pairs aside)."""
+    return float(np.percentile(values, 99)) if len(values) >= 50 else float(np.max(values))
+
+
+def _odd(value: float) -> int:
+    n = max(math.ceil(value), 3)
+    return n if n % 2 else n + 1
+
+
+def _marker_population(groups: Groups) -> NDArray[np.bool_]:
+    """Groups that belong to the marker population (not LED rings, reflections, streaks).
+
+    Streaks (fill below a third) are not markers. When enough groups move between the
+    surveyed frames, the markers are the moving ones and every group up to the largest of
+    them: LED rings and fixed reflections stay put. Otherwise (rods, grid: a static
+    scene), in log area the markers are the most numerous population: walking up the
+    sorted areas from the median, the first jump by :data:`SIZE_GAP` or more ends it.
+    """
+    if len(groups) == 0:
+        return np.zeros(0, dtype=bool)
+    area = groups.pixels.astype(float)
+    compact = groups.fill >= 0.33
+    fixed = stationary(groups)
+    moving = compact & ~fixed
+    if fixed.any() and moving.sum() >= MIN_SPOTS_FOR_ASPECT:
+        return compact & (area <= area[moving].max())
+    order = np.sort(area[compact]) if compact.any() else np.sort(area)
+    upper = order[-1]
+    mid = len(order) // 2
+    steps = order[mid + 1 :] / order[mid:-1] if len(order) > mid + 1 else np.zeros(0)
+    jumps = np.flatnonzero(steps >= SIZE_GAP)
+    if jumps.size:
+        upper = order[mid + jumps[0]]
+    return compact & (area <= upper)
+
+
+def measure_pixel_aspect(spots: Groups) -> tuple[float, str]:
+    """Pixel aspect (width / height of a round marker's image) from isolated spots.
+
+    Returns the value and the reason. Blur, blooming and the sensor widen every spot by
+    about the same spread ``g`` (pixels) along both axes, so a round marker of spread
+    ``s`` (scan lines) has grey-level spreads ``sigma_x = a s + g`` and
+    ``sigma_y = s + g`` (the model of :mod:`kisscal.detect.shape`): over spots of many
+    sizes, ``sigma_x`` is a straight line in ``sigma_y`` of slope ``a``, fitted robustly
+    (Sen 1968). Spots all of one size cannot separate ``a`` from ``g``; when the slope's
+    95 % interval is wider than a fifth of it, or it disagrees in direction with the
+    spots' median spread ratio, that ratio (which reads rounder than the truth) is used.
+    """
+    ok = spots.inside & (spots.fill > 0.5) & (spots.pixels >= 6)
+    ok &= (spots.var_x > PIXEL_AREA_VAR) & (spots.var_y > PIXEL_AREA_VAR)
+    sx = np.sqrt(spots.var_x[ok] - PIXEL_AREA_VAR)
+    sy = np.sqrt(spots.var_y[ok] - PIXEL_AREA_VAR)
+    if sx.size < MIN_SPOTS_FOR_ASPECT:
+        return 1.0, f"only {sx.size} isolated spots: square pixels assumed"
+    ratio = float(np.median(sx / sy))
+    # a static scene shows the same spots in every frame: count places, not sightings
+    places = np.unique(np.round(np.column_stack([spots.x[ok], spots.y[ok]]) / 2.0), axis=0)
+    fit = theilslopes(sx, sy) if len(places) >= 30 else None
+    spread = (fit.high_slope - fit.low_slope) / abs(fit.slope) if fit is not None else np.inf
+    if fit is not None and spread <= 0.2 and (fit.slope - 1) * (ratio - 1) >= 0:
+        aspect = float(fit.slope)
+        how = f"slope of x on y spread over {sx.size} isolated spots"
+    else:  # sizes too alike (or too scattered) for a slope: the ratio, rounder than true
+        aspect = ratio
+        how = f"median x / y spread of {sx.size} isolated spots"
+    if not np.isfinite(aspect) or aspect <= 0:
+        return 1.0, "no consistent spot shape: square pixels assumed"
+    if abs(aspect - 1.0) <= SQUARE_TOLERANCE:
+        return 1.0, f"{how}: {aspect:.3f}, within 5 % of square"
+    return round(aspect, 3), how

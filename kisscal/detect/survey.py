@@ -1,0 +1,238 @@
+"""Measurements of a camera's images that its detection settings are derived from.
+
+Everything here measures; :mod:`kisscal.detect.configure` decides. A *survey* of a few
+frames finds the bright groups of each frame against the local background (a permissive
+first threshold) and measures each group: white pixels, extent, peak contrast, second
+moments and how far it is from its neighbours; and it measures the grey levels
+(background, noise, how uneven the background is) and how far the blurred rim of a spot
+reaches beyond its white pixels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from kisscal.detect.advanced import Grouping
+from kisscal.detect.background import (
+    background_level,
+    background_map,
+    local_background,
+    noise_sigma,
+)
+from kisscal.detect.centroid import owner_image, window_moments
+from kisscal.detect.groups import measure_groups
+from kisscal.detect.noise import noise_groups
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.scan import Runs, group_runs
+
+#: Largest rim distance (px) measured beyond a spot's white pixels.
+RIM_MAX_PX = 10
+#: Margin (px) of the window over which a surveyed spot's grey moments are taken.
+MOMENT_MARGIN_PX = 3
+#: Local noise deviations a surveyed spot must stand above its local background.
+NOISE_FACTOR = np.float32(DetectionParams().noise_factor)
+
+
+@dataclass(frozen=True)
+class GreyLevels:
+    """Grey-level statistics of a set of frames (8-bit scale, as detection reads them).
+
+    Attributes
+    ----------
+    background : float
+        Median background level.
+    noise : float
+        Sensor noise standard deviation (:func:`kisscal.detect.background.noise_sigma`).
+    unevenness : float
+        Spread of the local background over the image (98th - 2nd percentile of the
+        tile-median map): 0 for a uniformly dark surround.
+    top : float
+        Largest grey level seen.
+    bits : int
+        Bits of the stored data (8, 10, 12, 14 or 16), from the largest raw value.
+    """
+
+    background: float
+    noise: float
+    unevenness: float
+    top: float
+    bits: int
+
+
+def grey_levels(images: Sequence[NDArray], raw_max: Sequence[float], tile_px: int) -> GreyLevels:
+    """Background, noise and unevenness of checked images; ``raw_max`` of their raw data."""
+    backgrounds, noises, spreads = [], [], []
+    for image in images:
+        backgrounds.append(background_level(image))
+        noises.append(noise_sigma(image))
+        bg = background_map(image, tile_px)
+        lo, hi = np.percentile(bg[::4, ::4], [2, 98])
+        spreads.append(hi - lo)
+    top = max(float(np.max(im)) for im in images)
+    raw = max(raw_max) if len(raw_max) else 255.0
+    bits = next((b for b in (8, 10, 12, 14, 16) if raw < 2**b), 16)
+    return GreyLevels(
+        float(np.median(backgrounds)),
+        float(np.median(noises)),
+        float(np.median(spreads)),
+        top,
+        bits,
+    )
+
+
+@dataclass(frozen=True)
+class Groups:
+    """Bright groups of the surveyed frames, one row per group (all frames together).
+
+    Attributes
+    ----------
+    frame : ndarray of int
+    x, y : ndarray of float
+        Binary centroid (px).
+    pixels, width, height : ndarray of int
+        White pixels and bounding rectangle.
+    peak : ndarray of float
+        Largest grey level above the background within the group.
+    var_x, var_y : ndarray of float
+        Second moments (px^2) of the spot's grey levels above the background over its
+        rectangle grown by :data:`MOMENT_MARGIN_PX`: the blurred spot's own spread, not
+        its thresholded outline.
+    fill : ndarray of float
+        White pixels / bounding-rectangle pixels.
+    inside : ndarray of bool
+        Clear of the image border.
+    isolation : ndarray of float
+        Distance to the nearest other group's centroid, in units of this group's larger
+        half-extent (large: well separated).
+    """
+
+    frame: NDArray[np.int64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    pixels: NDArray[np.int64]
+    width: NDArray[np.int64]
+    height: NDArray[np.int64]
+    peak: NDArray[np.float64]
+    var_x: NDArray[np.float64]
+    var_y: NDArray[np.float64]
+    fill: NDArray[np.float64]
+    inside: NDArray[np.bool_]
+    isolation: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.pixels)
+
+    def take(self, rows: NDArray) -> Groups:
+        """The groups at ``rows`` (indices or a mask)."""
+        return Groups(*(getattr(self, f)[rows] for f in self.__dataclass_fields__))
+
+
+def _run_pixels(runs: Runs) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Every white pixel of ``runs``: (run index, x, y)."""
+    count = runs.length
+    run_of = np.repeat(np.arange(len(runs)), count)
+    x = runs.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
+    return run_of, x, runs.y[run_of]
+
+
+def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) -> Groups:
+    """The bright groups of one checked grey image: ``excess`` above the local background
+    (and above its local noise and interpolation slack, as detection's local mode).
+
+    Noise groups (lonely pixels, one pixel wide or high) are left out.
+    """
+    local = local_background(image, tile_px)
+    bg = local.level
+    contrast = image.astype(np.float32) - bg
+    above = np.maximum(np.float32(excess), NOISE_FACTOR * local.noise) + local.slack
+    white = contrast >= above
+    runs = group_runs(white)
+    table = measure_groups(runs)
+    keep = ~noise_groups(table, DetectionParams())
+    run_of, x, y = _run_pixels(runs)
+    slot = np.searchsorted(table.label, runs.group[run_of])
+    peak = np.full(len(table), -np.inf)
+    np.maximum.at(peak, slot, contrast[y, x])
+    grouping = Grouping.start(runs)
+    owner = owner_image(image.shape, grouping)
+    m = MOMENT_MARGIN_PX
+    moments = window_moments(image, white, owner, grouping, table, m, m, bg, 1.0)
+    var_x, var_y = moments.var_x, moments.var_y
+    h, w = image.shape
+    inside = (table.x1 > 0) & (table.y1 > 0) & (table.x2 < w - 1) & (table.y2 < h - 1)
+    centres = np.column_stack([table.x_binary, table.y_binary])
+    size = np.maximum(table.width, table.height) / 2.0
+    if len(table) > 1:
+        dist, _ = cKDTree(centres).query(centres, k=2)
+        isolation = dist[:, 1] / size
+    else:
+        isolation = np.full(len(table), np.inf)
+    groups = Groups(
+        np.full(len(table), frame),
+        table.x_binary,
+        table.y_binary,
+        table.pixels,
+        table.width,
+        table.height,
+        peak.astype(float),
+        var_x,
+        var_y,
+        table.fill,
+        inside,
+        isolation,
+    )
+    return groups.take(keep)
+
+
+def survey_frames(images: Sequence[NDArray], excess: float, tile_px: int) -> Groups:
+    """:func:`survey_frame` of every image, stacked."""
+    parts = [survey_frame(im, excess, tile_px, k) for k, im in enumerate(images)]
+    return Groups(
+        *(np.concatenate([getattr(p, f) for p in parts]) for f in Groups.__dataclass_fields__)
+    )
+
+
+def stationary(groups: Groups, radius_px: float = 1.5, fraction: float = 0.6) -> NDArray[np.bool_]:
+    """Groups at a place where most surveyed frames have a group (LED rings, reflections).
+
+    Moving markers pass any place in a few frames at most; the LED rings of facing cameras
+    and fixed reflections sit in every frame (Küçük 2005, 3.3.1). Needs five frames or
+    more; with fewer, nothing is called stationary.
+    """
+    n_frames = len(np.unique(groups.frame))
+    if n_frames < 5 or len(groups) == 0:
+        return np.zeros(len(groups), dtype=bool)
+    xy = np.column_stack([groups.x, groups.y])
+    count = cKDTree(xy).query_ball_point(xy, radius_px, return_length=True)
+    return np.asarray(count) >= fraction * n_frames
+
+
+def rim_reach_px(
+    image: NDArray, white: NDArray[np.bool_], background: float | NDArray, floor: float
+) -> tuple[int, int]:
+    """How far (px) the blurred rim of the spots reaches beyond their white pixels, in x
+    and in y: the first distance at which the mean grey level above the background of the
+    pixels at that horizontal (vertical) distance from a white pixel drops below ``floor``.
+    """
+    contrast = image.astype(np.float32) - np.asarray(background, dtype=np.float32)
+    mask = white.astype(np.uint8)
+    reach = []
+    for axis in (0, 1):
+        inner = mask
+        found = RIM_MAX_PX
+        for d in range(1, RIM_MAX_PX + 1):
+            size = (2 * d + 1, 1) if axis == 0 else (1, 2 * d + 1)
+            outer = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_RECT, size))
+            ring = (outer > 0) & (inner == 0)
+            if not ring.any() or float(contrast[ring].mean()) < floor:
+                found = d
+                break
+            inner = outer
+        reach.append(found)
+    return reach[0], reach[1]

@@ -1,0 +1,153 @@
+"""``cameras.toml`` (the anipose / Pose2Sim calibration layout) and OpenCV's YAML camera
+files: written from, and read into, :class:`kisscal.opencv.OpenCvCamera`.
+
+One table per camera, named by the camera id::
+
+    [cam1]
+    name = "cam1"
+    size = [752, 291]                 # width, height, px
+    matrix = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    distortions = [k1, k2, p1, p2, k3]
+    rotation = [rx, ry, rz]           # Rodrigues vector, lab -> camera
+    translation = [tx, ty, tz]        # x_cam = R X + t, mm
+    fisheye = false
+
+and a ``[metadata]`` table (both tools skip it when they look for cameras) with the units
+and how closely each camera's OpenCV model matches kisscal's (``fit_rms_px``).
+aniposelib reads every other table as a camera; Pose2Sim works in metres, anipose in the
+unit of its calibration board: kisscal writes mm and reads either (``metadata.units``, or
+metres when every camera lies within 100 units of the origin, as no lab camera does in mm).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import tomli_w
+
+from kisscal.errors import KisscalError
+from kisscal.io.files import atomic_path, write_text
+from kisscal.io.toml_table import load_toml
+from kisscal.opencv import OpenCvCamera
+
+#: Tables of a cameras.toml that are not cameras (anipose, Pose2Sim).
+NOT_CAMERAS = ("metadata", "capture_volume", "charuco", "checkerboard")
+CAMERA_KEYS = ("name", "size", "matrix", "distortions", "rotation", "translation")
+_UNITS_MM = {"mm": 1.0, "m": 1000.0, "cm": 10.0}
+
+
+def write_cameras_toml(
+    path: str | Path, cameras: Sequence[OpenCvCamera], metadata: Mapping[str, Any]
+) -> Path:
+    """Write a ``cameras.toml``: one table per camera (see the module docstring)."""
+    doc: dict[str, Any] = {}
+    for cam in cameras:
+        doc[cam.name] = {
+            "name": cam.name,
+            "size": [int(cam.size_px[0]), int(cam.size_px[1])],
+            "matrix": np.asarray(cam.matrix, dtype=float).tolist(),
+            "distortions": np.asarray(cam.distortions, dtype=float).tolist(),
+            "rotation": np.asarray(cam.rotation, dtype=float).tolist(),
+            "translation": np.asarray(cam.translation_mm, dtype=float).tolist(),
+            "fisheye": False,
+        }
+    doc["metadata"] = {"units": "mm", **metadata}
+    write_text(Path(path), tomli_w.dumps(doc))
+    return Path(path)
+
+
+def _numbers(path: Path, table: str, key: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape != shape or not np.isfinite(arr).all():
+        want = " x ".join(str(s) for s in shape)
+        raise KisscalError(f"{path}: [{table}] {key} must be {want} finite numbers")
+    return arr
+
+
+def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenCvCamera:
+    missing = [k for k in CAMERA_KEYS if k not in d]
+    if missing:
+        raise KisscalError(f"{path}: [{table}] is missing {', '.join(missing)}")
+    if d.get("fisheye", False):
+        raise KisscalError(f"{path}: [{table}] is a fisheye camera; kisscal reads pinhole ones")
+    dist = np.asarray(d["distortions"], dtype=float).ravel()
+    if dist.size not in (4, 5):
+        raise KisscalError(
+            f"{path}: [{table}] distortions must be 4 or 5 numbers (k1 k2 p1 p2 [k3]), "
+            f"got {dist.size}"
+        )
+    matrix = _numbers(path, table, "matrix", d["matrix"], (3, 3))
+    size = _numbers(path, table, "size", d["size"], (2,))
+    return OpenCvCamera(
+        name=str(d["name"]),
+        size_px=(int(size[0]), int(size[1])),
+        matrix=matrix,
+        distortions=np.r_[dist, np.zeros(5 - dist.size)],
+        rotation=_numbers(path, table, "rotation", d["rotation"], (3,)).ravel(),
+        translation_mm=_numbers(path, table, "translation", d["translation"], (3,)) * scale_mm,
+    )
+
+
+def _units_mm(path: Path, doc: dict[str, Any], tables: dict[str, dict]) -> float:
+    units = doc.get("metadata", {}).get("units") if isinstance(doc.get("metadata"), dict) else None
+    if units is not None:
+        if units not in _UNITS_MM:
+            raise KisscalError(f"{path}: metadata.units must be mm, cm or m, got {units!r}")
+        return _UNITS_MM[units]
+    reach = max(
+        np.linalg.norm(np.asarray(t.get("translation", [0]), float)) for t in tables.values()
+    )
+    return 1000.0 if reach < 100.0 else 1.0
+
+
+def read_cameras_toml(path: str | Path, camera_ids: Sequence[str]) -> dict[str, OpenCvCamera]:
+    """The cameras of ``camera_ids`` from a cameras.toml, matched by ``name`` (or table name).
+
+    Raises
+    ------
+    KisscalError
+        A camera of the session missing from the file, a missing key, a malformed value.
+    """
+    path = Path(path)
+    doc = load_toml(path)
+    tables = {k: v for k, v in doc.items() if isinstance(v, dict) and k not in NOT_CAMERAS}
+    if not tables:
+        raise KisscalError(f"{path}: no camera tables")
+    by_name = {str(t.get("name", k)): k for k, t in tables.items()}
+    scale = _units_mm(path, doc, tables)
+    out = {}
+    for cam in camera_ids:
+        key = by_name.get(cam, cam if cam in tables else None)
+        if key is None:
+            raise KisscalError(
+                f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))})"
+            )
+        out[cam] = _camera(path, key, tables[key], scale)
+    return out
+
+
+def write_opencv_yaml(path: str | Path, cam: OpenCvCamera) -> Path:
+    """One camera as an OpenCV FileStorage YAML file (``cv::FileStorage`` reads it):
+    ``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
+    ``rvec``, ``tvec`` (mm)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        fs = cv2.FileStorage(str(tmp.with_suffix(".yml")), cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", int(cam.size_px[0]))
+        fs.write("image_height", int(cam.size_px[1]))
+        fs.write("camera_matrix", np.asarray(cam.matrix, dtype=float))
+        fs.write("distortion_coefficients", np.asarray(cam.distortions, float).reshape(1, 5))
+        fs.write("rvec", np.asarray(cam.rotation, dtype=float).reshape(3, 1))
+        fs.write("tvec", np.asarray(cam.translation_mm, dtype=float).reshape(3, 1))
+        fs.release()
+        if tmp.with_suffix(".yml") != tmp:
+            tmp.with_suffix(".yml").replace(tmp)
+    return path

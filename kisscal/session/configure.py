@@ -1,0 +1,194 @@
+"""Detection settings of every camera, derived from the session's own images.
+
+For each camera, a few frames of each of its image sets are surveyed
+(:func:`kisscal.detect.configure.configure_detection`): its grid frames on their own
+(``grid``) and everything else together (``markers``: rods, axes, calibration target,
+trials). The camera's pixel aspect comes from its grid lattice when there is a grid
+(:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
+otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
+is used as given. The result, with the reason for every value, is written to
+``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.detect import DetectionParams
+from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
+from kisscal.errors import KisscalError
+from kisscal.io.cache import cache_key
+from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.files import write_json
+from kisscal.io.frames import camera_frames
+from kisscal.session.inputs import image_sources, out_dir
+from kisscal.session.progress import Echo, quiet
+
+#: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
+FRAMES_PER_SET = 8
+MAX_FRAMES = 24
+#: Bumped whenever the derivation changes, so cached settings are derived again.
+DERIVATION_VERSION = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class _Sample:
+    """Frames of one camera and kind picked for the survey (decoded only when needed)."""
+
+    sets: tuple[tuple[str, Sequence, tuple[int, ...]], ...]  # (what, frames, picked indices)
+    camera: CameraConfig
+
+    @property
+    def frames(self) -> list[np.ndarray]:
+        return [_sized(seq, i, self.camera) for _what, seq, picks in self.sets for i in picks]
+
+
+def detection_given(config: SessionConfig, overrides: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The detection values the user gave: ``[detection]``, then the command line."""
+    given = {**config.detection, **(overrides or {})}
+    DetectionParams.from_layers(given)  # unknown names, bad values: one-line errors
+    return given
+
+
+def camera_detection(
+    root: Path,
+    config: SessionConfig,
+    camera: CameraConfig,
+    kind: str,
+    given: Mapping[str, Any],
+    echo: Echo = quiet,
+) -> DetectionParams:
+    """Detection parameters of one camera for its ``"grid"`` or ``"markers"`` images.
+
+    Derived on first use and kept in ``out/detection/<camera>.json``: they are a property
+    of the camera, so adding, fixing or dropping a trial later changes neither them nor
+    anything detected with them. They are derived again when the values given in
+    ``[detection]`` or the camera's image size change, or when the file is deleted.
+    """
+    path = out_dir(root) / "detection" / f"{camera.id}.json"
+    doc = _read_document(path, camera)
+    key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
+    entry = doc["kinds"].get(kind)
+    if entry is not None and entry.get("key") == key:
+        return _params_from_doc(entry, given)
+    sample = _sample(config, camera, kind)
+    if sample is None:
+        raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
+    if kind == "grid":
+        setup = _grid_setup(sample, given, config)
+    else:
+        aspect = given.get("pixel_aspect")
+        if aspect is None and config.grid is not None:
+            camera_detection(root, config, camera, "grid", given, echo)
+            aspect = _read_document(path, camera)["kinds"]["grid"]["settings"]["pixel_aspect"]
+            aspect = aspect["value"] if "lattice" in aspect["why"] else None
+        why = "the grid's dot lattice"
+        setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
+    doc = _read_document(path, camera)
+    doc["kinds"][kind] = {**setup.as_dict(), "key": key}
+    write_json(path, doc)
+    echo(f"  detection {camera.id} {setup.summary()}")
+    return setup.params
+
+
+def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
+    """The camera's detection document, or an empty one."""
+    if path.is_file():
+        doc = json.loads(path.read_text())
+        if isinstance(doc, dict) and isinstance(doc.get("kinds"), dict):
+            return doc
+    return {"camera": camera.id, "size": list(camera.size_px or ()) or None, "kinds": {}}
+
+
+def markers_detection(
+    root: Path, config: SessionConfig, given: Mapping[str, Any], echo: Echo = quiet
+) -> dict[str, DetectionParams]:
+    """Every camera's detection parameters for its marker images (rods, trials, ...)."""
+    return {
+        cam.id: camera_detection(root, config, cam, "markers", given, echo)
+        for cam in config.cameras
+    }
+
+
+def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig) -> DetectionSetup:
+    """Settings of a camera's grid frames, with its pixel aspect from the dot lattice."""
+    from kisscal.grid.frames import dots_from_frames
+    from kisscal.grid.lattice import lattice_pixel_aspect
+
+    frames = sample.frames
+    why = "grid dots: never split"
+    setup = configure_detection(frames, given, kind="grid", pixel_aspect=1.0, aspect_why=why)
+    if "pixel_aspect" in given:
+        return setup
+    cell = float(config.sections.get("grid", {}).get("cell_aspect", 1.0))
+    try:
+        aspect = lattice_pixel_aspect(dots_from_frames(frames, setup.params), cell)
+    except KisscalError:
+        return setup  # no lattice in these frames: the markers will tell
+    return _with_lattice_aspect(setup, round(aspect, 4))
+
+
+def _with_lattice_aspect(setup: DetectionSetup, aspect: float) -> DetectionSetup:
+    """``setup`` with the camera's pixel aspect measured on its grid lattice."""
+    choices = dict(setup.choices)
+    why = "x over y step of the grid's dot lattice"
+    choices["pixel_aspect"] = Choice(aspect, "derived", why)
+    params = setup.params.replace(pixel_aspect=aspect)
+    return dataclasses.replace(setup, params=params, choices=choices)
+
+
+def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample | None:
+    """Up to :data:`MAX_FRAMES` frames of the camera's ``kind`` images, spread evenly."""
+    sources = [src for src in image_sources(config) if (src[0] == "grid") == (kind == "grid")]
+    sets = []
+    per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
+    for what, pattern, video, fields in sources:
+        try:
+            seq = camera_frames(config.root, pattern, camera.id, what, video, fields)
+        except KisscalError:
+            continue  # missing frames are reported by the stage that needs them
+        n = len(seq)
+        picks = tuple(int(i) for i in np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int)))
+        if not picks:
+            continue
+        sets.append((what, seq, picks))
+    return _Sample(tuple(sets), camera) if sets else None
+
+
+def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
+    """Frame ``index``, refused (naming its file) when it is not the camera's size."""
+    image = frames[index]
+    h, w = image.shape[:2]
+    if camera.size_px is not None and (w, h) != tuple(camera.size_px):
+        paths = getattr(frames, "paths", None)
+        name = paths[index] if paths is not None else f"{getattr(frames, 'path', '')} frame {index}"
+        raise KisscalError(
+            f"{name}: {w} x {h} pixels, but camera {camera.id}'s frames are "
+            f"{camera.size_px[0]} x {camera.size_px[1]}"
+        )
+    return image
+
+
+def _params_from_doc(doc: Mapping[str, Any], given: Mapping[str, Any]) -> DetectionParams:
+    values = {
+        k: tuple(v["value"]) if isinstance(v["value"], list) else v["value"]
+        for k, v in doc["settings"].items()
+        if v["source"] != "given"
+    }
+    return DetectionParams.from_layers(values, given)
+
+
+def describe_cameras(root: Path, cameras: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """The derived settings of each camera as written (for summaries and the report)."""
+    docs = {}
+    for cam in cameras:
+        path = out_dir(root) / "detection" / f"{cam}.json"
+        if path.is_file():
+            docs[cam] = json.loads(path.read_text())
+    return docs

@@ -1,0 +1,137 @@
+"""The calibration for other tools: ``out/cameras.toml`` (anipose, Pose2Sim),
+``out/dlt/dltdv.csv`` (DLTdv8), OpenCV YAML files, and ``out/exports.json`` with how
+closely each matches kisscal's own cameras; ``kisscal export`` writes one of them alone.
+
+* ``cameras.toml``: OpenCV's model fitted to each camera
+  (:func:`kisscal.opencv.opencv_from_camera`); ``exports.json`` gives the fit's RMS and
+  largest distance over the image (px) and the DLT's skew, which OpenCV's matrix cannot
+  hold.
+* ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
+  applies the coefficients to pixels as digitised, while kisscal's map to linearised
+  pixels; ``exports.json`` gives the size of that difference at the image corners and
+  over the image (px), the error DLTdv8 makes where the lens is not corrected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.errors import KisscalError
+from kisscal.grid import Linearisation
+from kisscal.io.cameras_toml import write_cameras_toml, write_opencv_yaml
+from kisscal.io.config import SessionConfig
+from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
+from kisscal.io.files import write_json
+from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
+from kisscal.rig import Camera, Rig
+from kisscal.session.inputs import load_config, out_dir
+from kisscal.session.progress import Echo, quiet
+
+#: ``kisscal export --to`` choices.
+EXPORT_FORMATS = ("anipose", "dltdv8", "opencv")
+
+
+def calibrated_rig(
+    config: SessionConfig, lins: Mapping[str, Linearisation], dlts: Mapping[str, DltFile]
+) -> Rig:
+    """The cameras of the session that have a DLT, in session order."""
+    return Rig(
+        tuple(
+            Camera(c.id, dlts[c.id].L, lins.get(c.id), dlts[c.id].lens, c.size_px)
+            for c in config.cameras
+            if c.id in dlts
+        )
+    )
+
+
+def lens_error_px(camera: Camera) -> dict[str, Any]:
+    """How far a tool without a lens model (DLTdv8) puts points: the distance between raw
+    and linearised pixels at the four image corners, its largest and RMS value over the
+    image (px)."""
+    w, h = camera.size_px or (0, 0)
+    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [-0.5, h - 0.5], [w - 0.5, h - 0.5]])
+    grid = image_grid((w, h))
+    at_corners = np.hypot(*(camera.linearise(corners) - corners).T)
+    over = np.hypot(*(camera.linearise(grid) - grid).T)
+    return {
+        "corners_px": [round(float(d), 4) for d in at_corners],
+        "max_px": float(over.max()),
+        "rms_px": float(np.sqrt(np.mean(over**2))),
+    }
+
+
+def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
+    return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
+
+
+def write_exports(
+    root: Path,
+    config: SessionConfig,
+    lins: Mapping[str, Linearisation],
+    dlts: Mapping[str, DltFile],
+    echo: Echo = quiet,
+) -> dict[str, Any]:
+    """Write ``out/dlt/dltdv.csv``, ``out/cameras.toml`` and ``out/exports.json`` for
+    every calibrated camera; returns the content of ``exports.json``."""
+    rig = calibrated_rig(config, lins, dlts)
+    out = out_dir(root)
+    write_dltdv_csv(out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
+    fits = {c.id: opencv_from_camera(c) for c in rig if c.size_px is not None}
+    report = {
+        "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
+        "dltdv": {
+            "pixel_convention": DLTDV8_CONVENTION,
+            "lens_error": {c.id: lens_error_px(c) for c in rig if c.size_px is not None},
+        },
+    }
+    write_cameras_toml(
+        out / "cameras.toml",
+        [f.camera for f in fits.values()],
+        {"source": "kisscal", "fit_rms_px": {c: f.rms_px for c, f in fits.items()}},
+    )
+    write_json(out / "exports.json", report)
+    for cam, f in fits.items():
+        lens = report["dltdv"]["lens_error"][cam]
+        echo(
+            f"  export {cam}: cameras.toml fit rms {f.rms_px:.4f} px (max {f.max_px:.3f}); "
+            f"dltdv.csv without lens correction off by {max(lens['corners_px']):.2f} px "
+            "at the corners"
+        )
+    return report
+
+
+def export(root: Path, to: str, dest: Path | None = None, echo: Echo = quiet) -> list[Path]:
+    """``kisscal export``: the session's calibration for another tool.
+
+    ``to`` is ``anipose`` (``cameras.toml``, also Pose2Sim's layout), ``dltdv8``
+    (``dltdv.csv``) or ``opencv`` (one FileStorage YAML per camera); ``dest`` is the file
+    (or, for opencv, the folder) to write, by default under ``out/``.
+    """
+    from kisscal.session.calibrate import current_rig  # calibrate writes the exports too
+
+    if to not in EXPORT_FORMATS:
+        raise KisscalError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
+    root = Path(root)
+    load_config(root)
+    rig = current_rig(root, echo)
+    out = out_dir(root)
+    if to == "dltdv8":
+        path = write_dltdv_csv(dest or out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
+        echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
+        return [path]
+    fits = [opencv_from_camera(c) for c in rig]
+    for f in fits:
+        echo(f"  {f.camera.name}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
+    if to == "anipose":
+        meta = {"source": "kisscal", "fit_rms_px": {f.camera.name: f.rms_px for f in fits}}
+        path = write_cameras_toml(dest or out / "cameras.toml", [f.camera for f in fits], meta)
+        echo(f"{path}: {len(fits)} cameras (anipose / Pose2Sim layout, mm)")
+        return [path]
+    folder = dest or out / "opencv"
+    paths = [write_opencv_yaml(Path(folder) / f"{f.camera.name}.yml", f.camera) for f in fits]
+    echo(f"{folder}: {len(paths)} OpenCV camera files")
+    return paths

@@ -1,0 +1,100 @@
+"""Gait outputs of a trial: ``events.csv``, ``spatiotemporal.csv``, ``gait.json``, a figure.
+
+Written when the trial's labelled trajectories carry the marker set's feet (a heel and a
+toe marker on each side) and pelvis, labelled with certainty; trials without them (a
+stick, a thrown marker, a static trial) get none, and no error. Events found on
+uncertain labels (a heel that may be the other foot's) would be wrong without saying
+so: such a trial gets no gait outputs either, and the log says why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.errors import KisscalError
+from kisscal.gait import GaitEvents, GaitParams, gait_markers
+from kisscal.io.files import write_json, write_table
+from kisscal.markersets import MarkerSet
+from kisscal.session.inputs import figure
+from kisscal.tracking import Trajectories
+
+#: Columns of ``spatiotemporal.csv``.
+SPATIOTEMPORAL_COLUMNS = ("parameter", "side", "mean", "sd", "unit", "n_strides")
+#: Columns of ``events.csv``.
+EVENT_COLUMNS = ("side", "event", "field", "time_s")
+
+
+def _columns(rows: list[dict[str, Any]], names: tuple[str, ...]) -> dict[str, list]:
+    return {c: [r[c] for r in rows] for c in names}
+
+
+def clear_gait_outputs(root: Path, tdir: Path, trial: str) -> None:
+    """Remove a trial's gait outputs of an earlier run."""
+    for path in (
+        tdir / "events.csv",
+        tdir / "spatiotemporal.csv",
+        tdir / "gait.json",
+        root / "out" / "figures" / f"gait_{trial}.png",
+    ):
+        path.unlink(missing_ok=True)
+
+
+def gait_outputs(
+    root: Path,
+    tdir: Path,
+    trial: str,
+    result: Trajectories,
+    marker_set: MarkerSet | None,
+    rate_hz: float,
+    params: GaitParams,
+    echo: Callable[[str], object],
+) -> GaitEvents | None:
+    """Detect events, compute spatiotemporal parameters and write them; None (nothing
+    written) when the trajectories lack the set's feet or pelvis, or their labels are
+    uncertain."""
+    from kisscal.gait import detect_events, spatiotemporal_parameters
+
+    clear_gait_outputs(root, tdir, trial)  # an earlier run's would be stale
+    if marker_set is None or not result.labelling.fits_marker_set:
+        return None
+    dense = result.tracks.positions()
+    by_label = {label: dense[t] for t, label in enumerate(result.labels)}
+    try:
+        markers = gait_markers(by_label, rate_hz, marker_set)
+    except KisscalError:
+        return None
+    uncertain = sorted(
+        set(result.labelling.flagged) & set(",".join(markers.names.values()).split(","))
+    )
+    if uncertain:
+        echo(f"  gait {trial}: no events, the labels of {', '.join(uncertain)} are uncertain")
+        return None
+    events = detect_events(markers, params)
+    parameters = spatiotemporal_parameters(events, markers)
+    write_table(tdir / "events.csv", _columns(events.rows(), EVENT_COLUMNS))
+    write_table(tdir / "spatiotemporal.csv", _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
+    counts = {
+        f"{side}_{event}": int(np.sum((events.side == side) & (events.event == event)))
+        for side in ("left", "right")
+        for event in ("foot_strike", "foot_off")
+    }
+    write_json(
+        tdir / "gait.json",
+        {"events": counts, "markers": markers.names, "spatiotemporal": parameters.summary()},
+    )
+    figure(
+        root,
+        f"gait_{trial}",
+        "kisscal.gait.figures",
+        "gait_cycle_figure",
+        markers,
+        events,
+        None,
+        f"trial {trial}: gait cycle (heel and toe height, events)",
+        params,
+    )
+    return events

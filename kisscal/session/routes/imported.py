@@ -1,0 +1,135 @@
+"""Calibrations made elsewhere: ``[calibration] cameras`` (an anipose / Pose2Sim
+``cameras.toml``) and ``[calibration] dlt`` (DLTdv coefficients, 11 rows x cameras).
+
+Both write the version-1 files, so everything downstream is unchanged:
+
+* ``cameras``: ``linearisation/<camera>.json`` (model ``poly4``, fitted to the file's
+  OpenCV distortion over the image; :func:`imported_linearisation`, called by
+  ``kisscal linearise``) and ``dlt/<camera>.json`` (the DLT of ``K [R | t]``, method
+  ``"cameras"``).
+* ``dlt``: ``dlt/<camera>.json`` (the file's coefficients in kisscal's pixel convention,
+  method ``"dltdv"``); the linearisation is the grid's, or none (DLTdv has no lens model).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kisscal.dlt.camera import decompose_dlt, hatze_violation
+from kisscal.dlt.params import DltResult
+from kisscal.errors import KisscalError
+from kisscal.grid import Linearisation
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.cameras_toml import read_cameras_toml
+from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.dltfiles import DltFile, read_dltdv_csv, write_dlt_json
+from kisscal.io.files import write_text
+from kisscal.io.linearisation import linearisation_to_dict, read_linearisation
+from kisscal.opencv import camera_from_opencv
+from kisscal.session.inputs import file_keys, out_dir
+from kisscal.session.progress import Echo, quiet
+from kisscal.session.routes import RouteInputs
+
+
+def _source(config: SessionConfig, key: str) -> Path:
+    assert config.calibration is not None
+    path = config.root / str(getattr(config.calibration, key))
+    if not path.is_file():
+        raise KisscalError(f"{path}: calibration.{key} file not found")
+    return path
+
+
+#: Above this RMS (px) the polynomial does not follow the imported lens well (a warning).
+POLY_FIT_WARN_PX = 0.05
+
+
+def imported_linearisation(
+    config: SessionConfig, cam: CameraConfig, echo: Echo = quiet
+) -> Linearisation:
+    """The linearisation of ``cam`` fitted to the OpenCV distortion of ``[calibration]
+    cameras``; written to ``out/linearisation/<camera>.json`` with the fit's RMS over the
+    image (``fit_rms_px``), cached on the file. A 4th-order polynomial follows moderate
+    lenses to a few hundredths of a pixel, strong ones less well: above
+    :data:`POLY_FIT_WARN_PX` a warning says so."""
+    path = _source(config, "cameras")
+    out = out_dir(config.root) / "linearisation" / f"{cam.id}.json"
+    key = cache_key("imported-linearisation", file_keys([path], config.root), cam.id)
+    if is_current(out, key):
+        return read_linearisation(out)[1]
+    # every camera of the session is checked before any file is written
+    cv = read_cameras_toml(path, config.camera_ids)[cam.id]
+    if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
+        raise KisscalError(
+            f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
+            f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
+        )
+    _L, lin, rms = camera_from_opencv(cv)
+    doc = linearisation_to_dict(lin, cam.id)
+    doc["source"] = f"{path.name}: OpenCV k1 k2 p1 p2 k3 = {cv.distortions.tolist()}"
+    doc["fit_rms_px"] = rms  # polynomial vs OpenCV's undistortion over the image
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_text(out, json.dumps(doc, indent=2) + "\n")
+    mark_current(out, key)
+    echo(f"  linearise {cam.id}: polynomial fitted to {path.name}'s lens, rms {rms:.4f} px")
+    if rms > POLY_FIT_WARN_PX:
+        echo(
+            f"  warning: {cam.id}: the 4th-order polynomial follows {path.name}'s lens only "
+            f"to {rms:.3f} px rms over the image (a strong lens)"
+        )
+    return lin
+
+
+def _imported_result(L: np.ndarray, method: str) -> DltResult:
+    """A DltResult for coefficients taken as they are (no control points: rms NaN)."""
+    K, R, centre = decompose_dlt(L)
+    violation = hatze_violation(L)
+    return DltResult(
+        L, method, None, np.zeros((0, 2)), math.nan, violation, violation, K, R, centre
+    )
+
+
+def _write(inputs: RouteInputs, files: dict[str, DltFile], method: str, source: Path) -> dict:
+    summary: dict[str, Any] = {}
+    for cam in inputs.cameras:
+        result = _imported_result(files[cam.id].L, method)
+        write_dlt_json(
+            out_dir(inputs.root) / "dlt" / f"{cam.id}.json",
+            cam.id,
+            result,
+            extra={"source": str(source.relative_to(inputs.root))},
+        )
+        summary[cam.id] = result
+        inputs.echo(
+            f"  calibrate {cam.id}: {method} from {source.name}, "
+            f"centre {np.round(result.centre_mm).tolist()} mm"
+        )
+    return summary
+
+
+def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
+    """Each camera's DLT from the ``K [R | t]`` of ``[calibration] cameras``."""
+    path = _source(inputs.config, "cameras")
+    cvs = read_cameras_toml(path, [c.id for c in inputs.cameras])
+    files = {c: DltFile(c, camera_from_opencv(cv)[0]) for c, cv in cvs.items()}
+    return _write(inputs, files, "cameras", path)
+
+
+def calibrate_from_dltdv(inputs: RouteInputs) -> dict[str, DltResult]:
+    """Each camera's DLT from ``[calibration] dlt`` (DLTdv8's pixel convention): columns
+    named by a header row, or in session order."""
+    path = _source(inputs.config, "dlt")
+    try:
+        files = read_dltdv_csv(path)
+    except KisscalError as exc:
+        if "no header row" not in str(exc):
+            raise
+        files = read_dltdv_csv(path, inputs.config.camera_ids)
+    missing = [c.id for c in inputs.cameras if c.id not in files]
+    if missing:
+        raise KisscalError(f"{path}: no coefficients for camera {', '.join(missing)}")
+    return _write(inputs, files, "dltdv", path)

@@ -1,0 +1,41 @@
+"""Automatic labelling of tracks with a marker set (beyond the seeds, which left it to the
+operator).
+
+Input: blended pieces and the ``[markers]`` set (names, a template of positions in a
+standing pose in any coordinate frame, optional rigid segments). Nothing depends on where
+the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
+
+1. :mod:`~.window`, average pose: in a window where most long pieces are seen together,
+   the median distance between every pair of pieces is taken (it averages out the swing
+   of the legs) and turned into points by classical MDS; these are matched to the
+   template by rigid fits (24 starts, Hungarian + Kabsch), refined by exchanging names
+   to fit the distances that stay constant (markers on one segment), and of a
+   correspondence and its left/right mirror image (equal in distances) the one that
+   fits the real fields with a proper rotation is kept.
+2. :mod:`~.spread`, spreading: other pieces take the free name (not held in their
+   fields) whose rigid partners keep the template distance from them; repeated as names
+   spread through time.
+3. :mod:`~.spread`, rematching: windows where unnamed long pieces remain are matched
+   again.
+4. :mod:`~.groups`: groups of unnamed pieces that entered the view together (a whole
+   foot) are named jointly.
+5. :mod:`~.result`, joining: pieces sharing a name are joined. Short pieces that fit no
+   name are ghosts and are dropped (Shafiq et al. 2001's clean-up); long ones are kept,
+   named ``M<k>`` and reported. When too few names are matched (a stick, a thrown ball),
+   all tracks are named M1, M2, ... .
+
+With a shipped marker set and no template, :mod:`~.subject` first finds the subject's
+stature and own template from the trial; every labelling made with a set, or with names
+following the ``L``/``R`` convention, is then judged by the anatomy (:mod:`~.anatomy`,
+:mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
+confidence per name, uncertain names flagged.
+
+The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
+is in :mod:`kisscal.tracking.rigid`.
+"""
+
+from kisscal.tracking.labelling.label import label_tracks
+from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.labelling.subject import label_with_set
+
+__all__ = ["Labelling", "label_tracks", "label_with_set"]

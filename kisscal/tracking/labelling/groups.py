@@ -1,0 +1,202 @@
+"""Phase 4: groups of unnamed pieces that entered the view together are named jointly.
+
+Pieces of one segment that appear together (a whole foot at the edge of the volume)
+have no named partner to go by one at a time; their distances to each other and to the
+named markers, taken together, pick their names.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from kisscal.tracking.labelling.spread import spread
+from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.rigid import kabsch
+
+# Largest number of joint name choices tried for a group of unnamed pieces.
+MAX_GROUP_CHOICES = 20000
+
+Piece = tuple[NDArray[np.int64], NDArray[np.float64]]
+
+
+def unnamed_groups(state: LabelState) -> list[NDArray[np.int64]]:
+    """Groups of 2 to 4 unnamed pieces of at least ``min_body_fit_points`` points, each
+    sharing at least three fields with another of its group, in order of their first
+    piece."""
+    cand = np.flatnonzero(
+        (state.label_of < 0) & (state.n_measured >= state.params.min_body_fit_points)
+    )
+    if cand.size < 2:
+        return []
+    counts = state.stop[cand] - state.start[cand]
+    rows = np.repeat(np.arange(cand.size), counts)
+    cols = np.concatenate([state.piece(int(t))[0] for t in cand])
+    seen = csr_matrix((np.ones(rows.size), (rows, cols)), shape=(cand.size, state.n_fields))
+    shared = (seen @ seen.T).toarray()
+    _, component = connected_components(csr_matrix(shared >= 3), directed=False)
+    groups = [cand[component == c] for c in np.unique(component)]
+    groups.sort(key=lambda g: int(g[0]))
+    return [g for g in groups if 2 <= g.size <= 4]
+
+
+def _between(pieces: list[Piece]) -> NDArray[np.float64]:
+    """Median distance between every two pieces over their shared fields (NaN with
+    fewer than three)."""
+    k = len(pieces)
+    between = np.full((k, k), np.nan)
+    for a, b in itertools.combinations(range(k), 2):
+        (fa, xa), (fb, xb) = pieces[a], pieces[b]
+        shared, ia, ib = np.intersect1d(fa, fb, return_indices=True)
+        if shared.size >= 3:
+            between[a, b] = between[b, a] = np.median(np.linalg.norm(xa[ia] - xb[ib], axis=1))
+    return between
+
+
+def _to_named(pieces: list[Piece], name_pos: NDArray) -> list[NDArray[np.float64]]:
+    """Median distance of each piece from every name over its fields (NaN if unseen)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # names never seen with a piece
+        return [
+            np.nanmedian(np.linalg.norm(name_pos[:, f] - x[None], axis=2), axis=1)
+            for f, x in pieces
+        ]
+
+
+def _name_options(
+    state: LabelState, pieces: list[Piece], to_named: list[NDArray], rigid: NDArray
+) -> list[list[int]]:
+    """Per piece, the free names whose named rigid partners in view agree with it."""
+    tolerance = state.params.label_segment_tolerance_mm
+    options = []
+    for (f, _), dist in zip(pieces, to_named, strict=True):
+        free = np.flatnonzero(~np.isfinite(state.name_pos[:, f, 0]).any(axis=1))
+        keep = []
+        for j in free.tolist():
+            partners = np.flatnonzero(rigid[j] & np.isfinite(dist))
+            miss = dist[partners] - state.template_distance[j, partners]
+            if partners.size == 0 or np.sqrt(np.mean(miss**2)) <= tolerance:
+                keep.append(j)
+        options.append(keep)
+    return options
+
+
+def _choice_rms(
+    choice: tuple[int, ...],
+    between: NDArray,
+    to_named: list[NDArray],
+    rigid: NDArray,
+    template_distance: NDArray,
+) -> float | None:
+    """RMS template-length misfit of the rigid pairs a choice of names makes (among the
+    pieces and to named partners); None when a piece takes part in no rigid pair."""
+    k = len(choice)
+    residuals = []
+    involved = np.zeros(k, dtype=bool)
+    for a in range(k):
+        for b in range(a + 1, k):
+            if rigid[choice[a], choice[b]] and np.isfinite(between[a, b]):
+                residuals.append(between[a, b] - template_distance[choice[a], choice[b]])
+                involved[[a, b]] = True
+        partners = np.flatnonzero(rigid[choice[a]] & np.isfinite(to_named[a]))
+        for q in partners:
+            residuals.append(to_named[a][q] - template_distance[choice[a], q])
+            involved[a] = True
+    if not involved.all():
+        return None
+    return float(np.sqrt(np.mean(np.square(residuals))))
+
+
+def _direction_misfit(
+    choice: tuple[int, ...], pieces: list[Piece], name_pos: NDArray, template: NDArray
+) -> float:
+    """Median distance between the vectors joining the pieces, turned into the template's
+    frame by the body's orientation, and the template's vectors between the chosen names.
+
+    A heel and a toe swapped point the wrong way whatever the joints do.
+    """
+    d = []
+    for a, b in itertools.combinations(range(len(pieces)), 2):
+        (fa, xa), (fb, xb) = pieces[a], pieces[b]
+        shared, ia, ib = np.intersect1d(fa, fb, return_indices=True)
+        for n_row in range(0, shared.size, max(1, shared.size // 5)):
+            f = shared[n_row]
+            held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
+            if held.size < 3:
+                continue
+            r, _ = kabsch(name_pos[held, f], template[held])
+            seen = (xa[ia[n_row]] - xb[ib[n_row]]) @ r.T
+            d.append(np.linalg.norm(seen - (template[choice[a]] - template[choice[b]])))
+    return float(np.median(d)) if d else np.inf
+
+
+def _settle_rivals(
+    state: LabelState, pieces: list[Piece], best: tuple[int, ...], rivals: list[tuple]
+) -> tuple[int, ...] | None:
+    """Among the best choice and its rivals (only its mirror image, or the same names in
+    another order, may rival it), the one the body's rigid fit clearly prefers."""
+    same = {frozenset(best)}
+    if state.mirror_of is not None:
+        same.add(frozenset(state.mirror_of[list(best)].tolist()))
+    if any(frozenset(c) not in same for c in rivals):
+        return None
+    options = [best, *rivals]
+    fits = [_direction_misfit(c, pieces, state.name_pos, state.template) for c in options]
+    order = np.argsort(fits)
+    if not fits[order[1]] > 1.5 * fits[order[0]]:
+        return None
+    return options[order[0]]
+
+
+def name_group(state: LabelState, pieces: list[Piece], rigid: NDArray) -> NDArray[np.int64] | None:
+    """Names for a group of unnamed pieces, chosen jointly by their rigid distances.
+
+    Every one-to-one choice of free names is scored by the RMS difference between the
+    template lengths and the distances of the pairs it makes rigid: among the pieces, and
+    from each piece to named partners. Every piece must take part in at least one rigid
+    pair, the best choice must fit within ``label_segment_tolerance_mm`` and be at least
+    twice better than any choice that differs in more than a left/right mirror; between a
+    choice and its mirror image the rigid fit of the body decides. Returns None when the
+    group cannot be named safely.
+    """
+    between = _between(pieces)
+    to_named = _to_named(pieces, state.name_pos)
+    options = _name_options(state, pieces, to_named, rigid)
+    if np.prod([len(o) for o in options], dtype=float) > MAX_GROUP_CHOICES:
+        return None
+    scored = []
+    for choice in itertools.product(*options):
+        if len(set(choice)) < len(pieces):
+            continue
+        rms = _choice_rms(choice, between, to_named, rigid, state.template_distance)
+        if rms is not None:
+            scored.append((rms, choice))
+    if not scored:
+        return None
+    scored.sort()
+    best_rms, best = scored[0]
+    if best_rms > state.params.label_segment_tolerance_mm:
+        return None
+    rivals = [c for r, c in scored[1:] if r < 2.0 * max(best_rms, 1.0)]
+    if rivals:
+        best = _settle_rivals(state, pieces, best, rivals)
+        if best is None:
+            return None
+    return np.asarray(best, dtype=np.int64)
+
+
+def name_groups(state: LabelState) -> None:
+    """Phase 4: name every group of unnamed pieces that can be named safely, spreading
+    names after each."""
+    rigid = state.rigid_pairs()
+    for group in unnamed_groups(state):
+        names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
+        if names_for is not None:
+            for t, j in zip(group, names_for, strict=True):
+                state.name_piece(int(t), int(j))
+            spread(state)

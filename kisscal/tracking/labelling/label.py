@@ -1,0 +1,84 @@
+"""The labelling's entry point: :func:`label_tracks` runs the phases in order."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kisscal.errors import KisscalError
+from kisscal.tracking.labelling.groups import name_groups
+from kisscal.tracking.labelling.result import Labelling, generic, join
+from kisscal.tracking.labelling.spread import rematch, spread
+from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.window import match_first_window
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import Tracks
+
+
+def label_tracks(
+    tracks: Tracks,
+    names: tuple[str, ...] | list[str] | None,
+    params: TrackingParams,
+    template_mm: ArrayLike | None = None,
+    segments: list[tuple[str, str]] | tuple | None = None,
+) -> Labelling:
+    """Name tracks from the marker set (DESIGN.md ``[markers]``).
+
+    The phases, each a function on a :class:`~kisscal.tracking.labelling.state.LabelState`:
+    match the window where most long pieces are seen to the template; spread names
+    through rigid partners; match again the windows where unnamed long pieces remain;
+    name groups of pieces that entered the view together; join pieces sharing a name.
+
+    Parameters
+    ----------
+    tracks : Tracks
+        Blended track pieces, short ones included: a short piece that fits a name joins
+        that name's trajectory, one that fits none is dropped (Shafiq et al. 2001's
+        clean-up of ghost tracks, ``min_track_length``); long pieces that fit none are
+        reported.
+    names : sequence of str or None
+        Marker names. Without names or without a template, tracks are named M1, M2, ...
+    params : TrackingParams
+        ``label_tolerance_mm``, ``label_segment_tolerance_mm``, ``label_fields``,
+        ``min_label_fraction``, ``min_label_points``, ``min_body_fit_points``.
+    template_mm : (n, 3) array, optional
+        Marker positions in a standing pose, same order as ``names``, any frame.
+    segments : sequence of (str, str), optional
+        Pairs of names on one rigid segment; added to the pairs found rigid in the data.
+
+    Returns
+    -------
+    Labelling
+
+    References
+    ----------
+    Shafiq et al. 2001 (clean-up of short ghost tracks); Torgerson 1952 and Kabsch 1976
+    (the average pose and its rigid fits, :mod:`kisscal.tracking.rigid`).
+    """
+    if not names or template_mm is None or tracks.n_tracks == 0:
+        return generic(tracks, params, tuple(names or ()), float("nan"))
+    names = tuple(names)
+    template = np.asarray(template_mm, dtype=float)
+    if template.shape != (len(names), 3):
+        raise KisscalError(
+            f"markers: template_mm needs one [x, y, z] per name ({len(names)}), "
+            f"got shape {template.shape}"
+        )
+    if len(set(names)) != len(names):
+        raise KisscalError("markers: names must be unique")
+    state = LabelState.begin(tracks, names, template, segments, params)
+    if state is None:
+        return generic(tracks, params, names, float("nan"))
+    if not name_pieces(state):
+        return generic(tracks, params, names, state.fit_rms)
+    return join(state)
+
+
+def name_pieces(state: LabelState) -> bool:
+    """Phases 1 to 4 on ``state``; False when the first window matches no body."""
+    if not match_first_window(state):
+        return False
+    spread(state)
+    rematch(state)
+    name_groups(state)
+    return True

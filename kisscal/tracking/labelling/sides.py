@@ -1,0 +1,115 @@
+"""The last word on left and right: a finished labelling judged by the anatomy.
+
+Pairs the anatomy finds the wrong way round are exchanged, every name gets a confidence,
+and names that nothing tells apart from their mirror partner are flagged
+(:func:`judge_sides`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import MappingProxyType
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, settle_sides
+from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rigid import field_fits
+
+#: Below this mirror-fit ratio the template fit alone cannot tell left from right.
+MIRROR_MARGIN = 1.05
+_FIT_FIELDS = 40
+
+
+def name_positions(labelling: Labelling, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """Trajectory of each name (n, F, 3), NaN where a name is not seen or not taken."""
+    dense = labelling.tracks.positions()
+    out = np.full((len(names), dense.shape[1], 3), np.nan)
+    row = {n: i for i, n in enumerate(names)}
+    for t, label in enumerate(labelling.labels):
+        if label in row:
+            out[row[label]] = dense[t]
+    return out
+
+
+def mirror_fit_ratio(pos: NDArray, template: NDArray, pairs: tuple) -> float:
+    """Median rigid-fit RMS of the mirrored labelling over that of the labelling itself,
+    over up to 40 of the fields where most names are seen."""
+    if not pairs:
+        return float("nan")
+    seen = np.isfinite(pos[..., 0])
+    count = seen.sum(axis=0)
+    fields = np.flatnonzero(count >= max(3, 0.8 * count.max()))
+    fields = fields[np.linspace(0, fields.size - 1, min(_FIT_FIELDS, fields.size)).astype(int)]
+    rows = np.flatnonzero(seen[:, fields].any(axis=1))
+    mirror = np.arange(pos.shape[0])
+    for a, b in pairs:
+        mirror[a], mirror[b] = b, a
+    own = field_fits(pos, fields, rows, rows, template)
+    other = field_fits(pos, fields, rows, mirror[rows], template)
+    if not own.size:
+        return float("nan")
+    return float(np.median(other) / max(float(np.median(own)), 1e-9))
+
+
+def _relabelled(labelling: Labelling, names: tuple[str, ...], perm: NDArray) -> tuple[str, ...]:
+    row = {n: i for i, n in enumerate(names)}
+    return tuple(names[perm[row[lab]]] if lab in row else lab for lab in labelling.labels)
+
+
+def judge_sides(
+    labelling: Labelling,
+    anatomy: Anatomy,
+    template: NDArray,
+    rate_hz: float,
+    params: TrackingParams,
+) -> Labelling:
+    """``labelling`` with left and right settled by ``anatomy`` and its confidence.
+
+    Parameters
+    ----------
+    labelling : Labelling
+        A finished labelling (names of ``anatomy.names``).
+    anatomy : Anatomy
+        What the names are (mirror pairs, pelvis, feet, vertical order).
+    template : (n, 3) array
+        The template the labelling used, rows as ``anatomy.names`` (for the mirror fit).
+    rate_hz : float
+        Field rate: the walking direction is smoothed over a fixed time.
+    params : TrackingParams
+        ``min_side_confidence``.
+
+    Returns
+    -------
+    Labelling
+        With ``confidence``, ``flagged``, ``exchanged``, ``mirror_fit_ratio`` and
+        ``sides_from`` set; labels of exchanged pairs swapped.
+    """
+    if not labelling.fits_marker_set:
+        return labelling
+    names = anatomy.names
+    pos = name_positions(labelling, names)
+    perm, done = settle_sides(pos, anatomy, rate_hz, params.min_side_confidence)
+    moved = np.empty_like(pos)
+    moved[perm] = pos
+    check = check_anatomy(moved, anatomy, rate_hz)
+    ratio = mirror_fit_ratio(moved, template, anatomy.pairs)
+    confidence = {
+        n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
+    }
+    flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
+    paired = {names[i] for pair in anatomy.pairs for i in pair}
+    judged = check.forward != "none" and any(n in confidence for n in paired)
+    if not judged and not ratio >= MIRROR_MARGIN:
+        flagged |= paired & set(_relabelled(labelling, names, perm))
+    return replace(
+        labelling,
+        labels=_relabelled(labelling, names, perm),
+        confidence=MappingProxyType(confidence),
+        flagged=tuple(n for n in names if n in flagged),
+        exchanged=tuple((names[a], names[b]) for a, b in done),
+        mirror_fit_ratio=ratio,
+        sides_from="anatomy" if judged else "fit",
+    )

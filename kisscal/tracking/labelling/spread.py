@@ -1,0 +1,237 @@
+"""Phases 2 and 3: names spread from the named pieces to the others, and windows where
+unnamed long pieces remain are matched again.
+
+A name is free for a piece if no trajectory holds it in the piece's fields; among the
+free names the piece takes the one whose rigid partners (markers on the same body
+segment) stay at the template's distance from it, or, failing a clear answer, the one
+whose expected position seen from the named markers around it the piece keeps to.
+Naming one piece gives its neighbours a partner, so this repeats.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.blending import bridge_residual_mm
+from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.window import match_window
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rigid import kabsch
+
+# Passes over the unnamed pieces; each pass only retries pieces near newly named ones.
+MAX_SWEEPS = 200
+# Windows matched to the template after the first, where unnamed long pieces remain.
+MAX_WINDOWS = 12
+
+
+def by_segments(
+    piece_fields: NDArray,
+    piece_xyz: NDArray,
+    free: NDArray,
+    name_pos: NDArray,
+    rigid: NDArray,
+    template_distance: NDArray,
+    params: TrackingParams,
+) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+    """Free name whose rigid partners keep their template distance from a piece.
+
+    Partners are the name pairs known to be rigid: given segments, or found rigid among
+    the trajectories named from the average pose.
+
+    Returns the name pinned by two or more partners (-1 if none), the free names that one
+    partner allows, and those without any partner in view.
+    """
+    d = np.linalg.norm(name_pos[:, piece_fields] - piece_xyz[None], axis=2)  # (n, F)
+    seen = np.isfinite(d)
+    used = rigid[free] & seen.any(axis=1)[None, :]  # (J, n)
+    # Short pieces are mostly ghosts: ask them for a closer fit.
+    short = piece_fields.size < params.min_track_length
+    tolerance = params.label_segment_tolerance_mm * (0.5 if short else 1.0)
+    residual2 = (np.nan_to_num(d)[None, :, :] - template_distance[free][:, :, None]) ** 2
+    weight = used[:, :, None] & seen[None, :, :]
+    count = weight.sum(axis=(1, 2))
+    rms = np.sqrt(np.where(weight, residual2, 0.0).sum(axis=(1, 2)) / np.maximum(count, 1))
+    n_used = used.sum(axis=1)
+    fits = (n_used > 0) & (rms <= tolerance)
+    # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
+    # body may touch by chance; two pin it to a circle, enough for a piece that moves
+    # along it for a few fields; a point or two needs three when the name has three.
+    n_partners = rigid[free].sum(axis=1)
+    pinned = fits & (n_used >= np.minimum(3 if piece_fields.size < 3 else 2, n_partners))
+    pinned &= n_used >= 2
+    best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
+    return best, free[fits & (n_used == 1)], free[n_used == 0]
+
+
+def body_fit_distances(
+    piece_fields: NDArray, piece_xyz: NDArray, free: NDArray, name_pos: NDArray, template: NDArray
+) -> NDArray[np.float64]:
+    """Distance of the piece from where each free name is expected, at up to 9 fields
+    (rows; NaN where fewer than three names are held).
+
+    The body's orientation R comes from a rigid fit of every named marker to the
+    template; name j is expected at P_k + R^T (T_j - T_k) from each of its four
+    template-nearest named neighbours k (local, so that bent joints far away do not
+    matter).
+    """
+    pick = np.linspace(0, piece_fields.size - 1, min(9, piece_fields.size)).round().astype(int)
+    dist = np.full((pick.size, free.size), np.nan)
+    for i, row in enumerate(pick):
+        f = piece_fields[row]
+        held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
+        if held.size < 3:
+            continue
+        r, _ = kabsch(name_pos[held, f], template[held])
+        gap = np.linalg.norm(template[free][:, None] - template[held][None], axis=2)
+        near = held[np.argsort(gap, axis=1)[:, :4]]  # (J, 4) nearest named neighbours
+        expect = name_pos[near, f] + (template[free][:, None, :] - template[near]) @ r
+        dist[i] = np.linalg.norm(piece_xyz[row] - expect.mean(axis=1), axis=1)
+    return dist
+
+
+def by_body_fit(
+    piece_fields: NDArray,
+    piece_xyz: NDArray,
+    free: NDArray,
+    name_pos: NDArray,
+    template: NDArray,
+    params: TrackingParams,
+    prefer: NDArray | None = None,
+) -> int:
+    """Free name whose expected position, seen from its nearest named neighbours, the
+    piece keeps closest to, if clearly closer than any other free name (-1 if none).
+
+    The median distance over the fields (:func:`body_fit_distances`) decides; the best
+    must be within ``label_tolerance_mm`` and the runner-up at least 1.5 times farther.
+    A single name in ``prefer`` (confirmed by one rigid partner) is taken when within
+    ``label_tolerance_mm`` and no other is 1.5 times closer.
+    """
+    dist = body_fit_distances(piece_fields, piece_xyz, free, name_pos, template)
+    if np.isnan(dist).all():
+        return -1
+    score = np.nanmedian(dist, axis=0)
+    order = np.argsort(score)
+    best = score[order[0]]
+    second = score[order[1]] if order.size > 1 else np.inf
+    tolerance = params.label_tolerance_mm
+    if best <= tolerance and second >= 1.5 * best:
+        return int(free[order[0]])
+    if free.size == 1 and best <= 2.0 * tolerance:
+        # The only name the rigid partners leave: the body fit need only roughly agree
+        # (the other side's marker of the pair would lie farther still).
+        return int(free[0])
+    if prefer is not None and prefer.size == 1:
+        # The one name a rigid partner confirms wins unless the body clearly disagrees.
+        k = int(np.flatnonzero(free == prefer[0])[0])
+        others = np.delete(score, k)
+        if score[k] <= tolerance and not (others < score[k] / 1.5).any():
+            return int(prefer[0])
+    return -1
+
+
+def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: TrackingParams) -> bool:
+    """Whether a piece continues a named trajectory smoothly where they are close in time.
+
+    The trajectory's samples up to ``max_fill_gap_fields + 1`` fields before and after
+    the piece and the piece itself must fit one polynomial (cubic, or lower with few
+    points) within ``split_tolerance_mm`` RMS; with no such samples the piece passes.
+    """
+    reach = params.max_fill_gap_fields + 1
+    near = np.r_[
+        np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1)
+    ]
+    near = near[(near >= 0) & (near < track_pos.shape[0])]
+    near = near[np.isfinite(track_pos[near, 0])]
+    if near.size < 2:
+        return True
+    residual = bridge_residual_mm(near, track_pos[near], fields, xyz)
+    return not residual > params.split_tolerance_mm
+
+
+def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
+    """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
+    the body fit; a short piece must also continue its name's trajectory."""
+    params = state.params
+    f_t, xyz_t = state.piece(t)
+    free = np.flatnonzero(~np.isfinite(state.name_pos[:, f_t, 0]).any(axis=1))
+    if free.size == 0:
+        return -1
+    j, one_partner, unknown = by_segments(
+        f_t, xyz_t, free, state.name_pos, rigid, state.template_distance, params
+    )
+    undecided = np.r_[one_partner, unknown]
+    long = state.n_measured[t] >= params.min_track_length
+    if j < 0 and undecided.size == 1 and one_partner.size == 1 and long:
+        # Every other free name is ruled out by its rigid partners and one partner
+        # confirms this one: a long piece (not a ghost) takes it.
+        j = int(undecided[0])
+    if j < 0 and undecided.size and state.n_measured[t] >= params.min_body_fit_points:
+        j = by_body_fit(
+            f_t, xyz_t, undecided, state.name_pos, state.template, params, prefer=one_partner
+        )
+    # A short piece next to its name's trajectory must continue it: a ghost by a marker
+    # that just went out of sight need not.
+    if j >= 0 and not long and not continues(state.name_pos[j], f_t, xyz_t, params):
+        j = -1
+    return j
+
+
+def spread(state: LabelState) -> None:
+    """Phase 2: other pieces, longest first, take names by their rigid partners, in
+    sweeps until a sweep names nothing; a sweep retries only pieces near fields where
+    the previous one named something."""
+    rigid = state.rigid_pairs()
+    stamp = np.zeros(state.n_fields, dtype=np.int64)  # last pass that named something there
+    for sweep in range(1, MAX_SWEEPS + 1):
+        changed = False
+        min_points = state.params.min_label_points
+        waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= min_points))
+        for t in waiting[np.argsort(-state.n_measured[waiting], kind="stable")]:
+            f_t = state.tracks.field[state.start[t] : state.stop[t]]
+            if sweep > 1 and stamp[f_t].max() < sweep - 1:
+                continue  # nothing new around this piece since it was last tried
+            j = name_for_piece(state, int(t), rigid)
+            if j >= 0:
+                state.name_piece(int(t), j)
+                stamp[f_t] = sweep
+                changed = True
+        if not changed:
+            break
+        # Newly named pieces may show more rigid pairs (a name absent from the average
+        # pose had none yet).
+        rigid = state.rigid_pairs()
+
+
+def _busiest_unnamed(state: LabelState, tried: NDArray) -> int | None:
+    """Centre of the untried window where most unnamed long pieces are seen (None when
+    no long piece is unnamed or too few are seen together)."""
+    unnamed = state.label_of[state.long_ids] < 0
+    busy = np.convolve(state.present[unnamed].sum(axis=0), np.ones(state.window), mode="same")
+    busy[tried] = 0
+    if not unnamed.any() or busy.max() < 3 * state.window * 0.5:
+        return None
+    return int(np.argmax(busy))
+
+
+def rematch(state: LabelState) -> None:
+    """Phase 3: windows where unnamed long pieces remain are matched to the template
+    again (:func:`~kisscal.tracking.labelling.window.match_window`); a core piece takes
+    its name there if the name is free in its fields; names spread after each window."""
+    tried = np.zeros(state.n_fields, dtype=bool)
+    for i in range(MAX_WINDOWS):
+        if i:
+            spread(state)
+        centre = _busiest_unnamed(state, tried)
+        if centre is None:
+            return
+        tried[max(centre - state.window // 2, 0) : centre + state.window // 2] = True
+        found = match_window(state, centre)
+        if found.core is None:
+            continue
+        for k, j in zip(found.core, found.assign, strict=True):
+            t = state.long_ids[k]
+            if j < 0 or state.label_of[t] >= 0:
+                continue
+            if not np.isfinite(state.name_pos[j, state.present[k], 0]).any():
+                state.name_piece(int(t), int(j))

@@ -1,0 +1,229 @@
+"""Labelling with a shipped marker set alone: the subject's own template, from the trial.
+
+A shipped set's template is a typical adult of 1.75 m standing; the subject is taller or
+shorter, places markers a little differently, and walks. So:
+
+1. **stature**: the set's template is scaled (isometrically) to the statures 1.40-2.00 m
+   and matched to the average pose of a window of about one stride
+   (:func:`estimate_height`); the best fit gives the subject's stature;
+2. **first pass**: the phases run with the scaled template and without rigid
+   segments (their lengths are the subject's, not the template's);
+3. **the subject's template** (:func:`fit_template`): the scaled template, moved as
+   little as possible so that every pair the first pass found rigid (and the set's
+   segments) has its measured length; left/right are settled by the anatomy first;
+4. **second pass**: from the first pass' names of the long pieces, the phases spread
+   names again with the subject's template and the set's segments; the result is
+   judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix, identity, vstack
+
+from kisscal.markersets.model import MarkerSet
+from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
+from kisscal.tracking.labelling.groups import name_groups
+from kisscal.tracking.labelling.label import label_tracks, name_pieces
+from kisscal.tracking.labelling.result import Labelling, generic, join
+from kisscal.tracking.labelling.sides import judge_sides
+from kisscal.tracking.labelling.spread import rematch, spread
+from kisscal.tracking.labelling.state import (
+    RIGID_SPREAD_MM,
+    LabelState,
+    segment_mask,
+)
+from kisscal.tracking.labelling.window import match_first_window
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import Tracks
+
+#: Statures (mm) tried when the subject's is unknown.
+HEIGHTS_MM = np.arange(1400.0, 2001.0, 50.0)
+#: How much a template position may move (mm) per mm of segment length it puts right.
+PRIOR_WEIGHT = 0.05
+#: Fields two named trajectories must share for their distance to count.
+MIN_SHARED_FIELDS = 10
+
+
+def estimate_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
+    """Stature (mm) whose scaled template fits the first window's average pose best
+    (NaN when no stature gives a match).
+
+    Phase 1 (:func:`~kisscal.tracking.labelling.window.match_first_window`) runs with the
+    template scaled to each of :data:`HEIGHTS_MM`; the lowest fit RMS wins.
+    """
+    best_rms, best_height = np.inf, float("nan")
+    for height in HEIGHTS_MM:
+        scaled = marker_set.scaled(float(height))
+        state = LabelState.begin(tracks, scaled.names, scaled.template_mm, None, params)
+        if state is None:
+            return float("nan")
+        state.upright = True
+        if match_first_window(state) and state.fit_rms < best_rms:
+            best_rms, best_height = state.fit_rms, float(height)
+    return best_height
+
+
+def fit_template(
+    name_pos: NDArray, template: NDArray, rigid: NDArray, min_shared: int = MIN_SHARED_FIELDS
+) -> NDArray[np.float64]:
+    """The template moved as little as possible for the subject's rigid pairs to have
+    their measured length.
+
+    Pairs: the ``rigid`` mask (the set's segments) and every two named trajectories whose
+    distance varies by less than the rigid spread (5 mm SD) over at least ``min_shared``
+    common fields. Least squares over the positions: the length misfits (mm) plus
+    :data:`PRIOR_WEIGHT` times the displacement from ``template``.
+    """
+    pts = name_pos
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        d = np.linalg.norm(pts[:, None] - pts[None, :], axis=3)
+        count = np.isfinite(d).sum(axis=2)
+        median = np.nanmedian(d, axis=2)
+        sd = np.nanstd(d, axis=2)
+    use = (rigid | (sd < RIGID_SPREAD_MM)) & (count >= min_shared)
+    a, b = np.nonzero(np.triu(use, 1))
+    if a.size == 0:
+        return template.copy()
+    length = median[a, b]
+    n = template.shape[0]
+    rows = np.repeat(np.arange(a.size), 6)
+    cols = np.concatenate([3 * a[:, None] + np.arange(3), 3 * b[:, None] + np.arange(3)], axis=1)
+    prior = PRIOR_WEIGHT * identity(3 * n, format="csr")
+
+    def residuals(x: NDArray) -> NDArray:
+        p = x.reshape(-1, 3)
+        misfit = np.linalg.norm(p[a] - p[b], axis=1) - length
+        return np.r_[misfit, PRIOR_WEIGHT * (x - template.ravel())]
+
+    def jacobian(x: NDArray) -> csr_matrix:
+        p = x.reshape(-1, 3)
+        d = p[a] - p[b]
+        u = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+        pairs = csr_matrix((np.c_[u, -u].ravel(), (rows, cols.ravel())), shape=(a.size, 3 * n))
+        return vstack([pairs, prior], format="csr")
+
+    fit = least_squares(residuals, template.ravel(), jac=jacobian, tr_solver="lsmr")
+    return fit.x.reshape(-1, 3)
+
+
+def _settled(state: LabelState, anatomy: Anatomy, rate_hz: float) -> list[tuple[str, str]]:
+    """Exchange the names of pairs the anatomy finds the wrong way round (and say which)."""
+    perm, done = settle_sides(state.name_pos, anatomy, rate_hz, state.params.min_side_confidence)
+    if not done:
+        return []
+    named = state.label_of >= 0
+    state.label_of[named] = perm[state.label_of[named]]
+    moved = np.empty_like(state.name_pos)
+    moved[perm] = state.name_pos
+    state.name_pos = moved
+    return [(state.names[a], state.names[b]) for a, b in done]
+
+
+def _second_pass(
+    first: LabelState, template: NDArray, segments: tuple, params: TrackingParams
+) -> LabelState:
+    """A state on ``template`` and ``segments`` holding the first pass' names of long
+    pieces, with names spread again."""
+    state = LabelState.begin(first.tracks, first.names, template, segments, params)
+    state.upright = True
+    long = first.n_measured >= first.params.min_track_length
+    for t in np.flatnonzero((first.label_of >= 0) & long):
+        state.name_piece(int(t), int(first.label_of[t]))
+    state.rich, state.fit_rms = first.rich, first.fit_rms
+    spread(state)
+    rematch(state)
+    name_groups(state)
+    return state
+
+
+def label_with_set(
+    tracks: Tracks,
+    marker_set: MarkerSet,
+    params: TrackingParams,
+    rate_hz: float,
+    template_mm: NDArray | None = None,
+    template_upright: bool = False,
+) -> Labelling:
+    """Name tracks from a shipped marker set, with or without the subject's template.
+
+    Parameters
+    ----------
+    tracks : Tracks
+        Blended pieces (see :func:`~kisscal.tracking.label_tracks`).
+    marker_set : MarkerSet
+        The set, restricted to the session's names (:meth:`MarkerSet.select`).
+    params : TrackingParams
+    rate_hz : float
+        Field rate (the first window spans ``set_window_s``; the walking direction).
+    template_mm : (n, 3) array, optional
+        The subject's own template (a static trial, or the session's ``template_mm``);
+        without it the set's template is fitted to the subject from the trial.
+    template_upright : bool
+        ``template_mm`` is in the lab frame, Z up (a static trial's positions): its
+        heights above the floor are checked too.
+
+    Returns
+    -------
+    Labelling
+        Judged by the set's anatomy (confidence, flagged names); ``height_mm`` is the
+        estimated stature when no template was given.
+
+    References
+    ----------
+    Winter 2009 (segment lengths proportional to stature, which the scaled templates
+    assume); Kabsch 1976 and Torgerson 1952 (the matching).
+
+    Examples
+    --------
+    >>> from kisscal.markersets import marker_set
+    >>> from kisscal.synth.motion import walking_trial
+    >>> from kisscal.tracking import TrackingParams, track_points, blend_tracks
+    >>> m = walking_trial(2, 150, 50.0, path_mm=3500, model="grounded", height_m=1.6,
+    ...                   heading_deg=230)
+    >>> f, k = np.nonzero(np.isfinite(m.xyz_mm[..., 0]))
+    >>> pieces = blend_tracks(track_points(f, m.xyz_mm[f, k], TrackingParams()), TrackingParams())
+    >>> found = label_with_set(pieces, marker_set("kiss"), TrackingParams(), 50.0)
+    >>> t = found.tracks  # each trajectory's first sample is its true marker's
+    >>> right = [np.allclose(t.xyz_mm[t.track == i][0],
+    ...                      m.xyz_mm[t.field[t.track == i][0], m.names.index(name)])
+    ...          for i, name in enumerate(found.labels)]
+    >>> len(right), all(right), found.certain, bool(abs(found.height_mm - 1600) <= 100)
+    (15, True, True, True)
+    """
+    names, segments = marker_set.names, marker_set.segments
+    if template_mm is not None:
+        template = np.asarray(template_mm, dtype=float)
+        found = label_tracks(tracks, names, params, template, segments)
+        anatomy = Anatomy.of_set(marker_set, template, heights=template_upright)
+        return judge_sides(found, anatomy, template, rate_hz, params)
+    window = max(round(params.set_window_s * rate_hz), 10)
+    first_params = params.with_(label_window_fields=min(params.label_window_fields, window))
+    height = estimate_height(tracks, marker_set, first_params)
+    if not np.isfinite(height):
+        return generic(tracks, params, names, float("nan"))
+    scaled = marker_set.scaled(height).template_mm
+    first = LabelState.begin(tracks, names, scaled, None, first_params)
+    if first is not None:
+        first.upright = True
+    if first is None or not name_pieces(first):
+        return replace(generic(tracks, params, names, float("nan")), height_mm=height)
+    anatomy = Anatomy.of_set(marker_set.scaled(height))
+    exchanged = _settled(first, anatomy, rate_hz)
+    template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
+    second = _second_pass(first, template, segments, params)
+    found = replace(join(second), height_mm=height)
+    judged = judge_sides(found, anatomy, template, rate_hz, params)
+    judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
+    if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
+        # The best stature is a bound of the plausible range: the template fits this
+        # trial at no plausible stature, and nothing it named is certain.
+        taken = set(judged.labels)
+        return replace(judged, flagged=tuple(n for n in names if n in taken))
+    return judged

@@ -1,0 +1,313 @@
+"""Phase 1 (and 3): names for the long pieces seen through most of a window of fields.
+
+Core: long pieces seen in most rich fields of the window. Their median pairwise
+distances describe an average pose; classical MDS turns it into points (up to a rigid
+motion and a mirror image) that are matched to the standing template, the correspondence
+is improved by :func:`~kisscal.tracking.rigid.refine_by_swaps`, and of it and its mirror
+image the one that fits the real fields with a proper rotation is kept. The median
+averages out the swing of the legs, which a single field's rigid fit cannot.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.labelling.state import (
+    RIGID_MATCH_MM,
+    RIGID_SPREAD_MM,
+    LabelState,
+    distance_spread,
+    median_distances,
+    rich_fields,
+)
+from kisscal.tracking.rigid import (
+    classical_mds,
+    field_fits,
+    kabsch,
+    refine_by_swaps,
+    rigid_matches,
+    upright_fraction,
+    upright_pose,
+)
+
+# Floor (mm) of the spread of a pair's distance in the swap search weights: about the
+# noise of a distance between two measured markers.
+SPREAD_FLOOR_MM = 3.0
+# Rigid matches of the average pose (per mirror image) from which the swap search starts.
+SWAP_STARTS = 24
+# With an upright template: how far (SD, mm) a marker's median height while walking may
+# lie from its template height (a heel rises in swing, knees flex).
+HEIGHT_SD_MM = 60.0
+
+
+@dataclass(frozen=True)
+class WindowMatch:
+    """Names of a window's core pieces.
+
+    Attributes
+    ----------
+    core : int array or None
+        Rows of ``LabelState.dense`` matched (None when the window holds no body).
+    assign : int array
+        Name index per core row, -1 where left unnamed.
+    fit_rms : float
+        Median over the window's fields of the rigid fit RMS to the template (mm).
+    rich : int array
+        The window's fields used.
+    """
+
+    core: NDArray[np.int64] | None
+    assign: NDArray[np.int64]
+    fit_rms: float
+    rich: NDArray[np.int64]
+
+
+def window_fields(present: NDArray, centre: int, window: int, label_fields: int) -> NDArray:
+    """Rich fields (see :func:`rich_fields`) of the window around ``centre``, at most
+    ``label_fields`` of them, evenly spread."""
+    n_fields = present.shape[1]
+    in_window = np.zeros(n_fields, dtype=bool)
+    lo = min(max(centre - window // 2, 0), max(n_fields - window, 0))
+    in_window[lo : lo + window] = True
+    rich = rich_fields(present & in_window[None, :])
+    if rich.size > label_fields:
+        rich = rich[np.linspace(0, rich.size - 1, label_fields).round().astype(int)]
+    return rich
+
+
+def core_pieces(present: NDArray, rich: NDArray) -> NDArray[np.int64]:
+    """Long pieces seen in at least 60 % of ``rich``, every pair of them seen together.
+
+    Every pair of core pieces must share rich fields for a median distance; the piece
+    missing most pairs is dropped until they all do (two pieces of one marker never meet).
+    """
+    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.6)
+    while core.size >= 3:
+        seen = present[np.ix_(core, rich)].astype(int)
+        never = ((seen @ seen.T) == 0).sum(axis=1)
+        if never.max() == 0:
+            break
+        core = np.delete(core, int(np.argmax(never)))
+    return core
+
+
+def swap_refined(
+    median: NDArray,
+    weight: NDArray,
+    template: NDArray,
+    template_distance: NDArray,
+    tolerance_mm: float,
+    heights: NDArray | None = None,
+    unary: NDArray | None = None,
+) -> list[tuple[float, NDArray[np.int64]]]:
+    """(cost, names) from every rigid match of the average pose and of its mirror image,
+    each improved by the swap search.
+
+    With ``heights`` (the core pieces' median heights, template Z up), the average pose
+    is stood up first (:func:`~kisscal.tracking.rigid.upright_pose`) and matches that
+    turn it over are not used as starts; ``unary`` (core pieces x names) adds each
+    piece's own cost of a name to the swap search.
+    """
+    embedded = classical_mds(median)
+    if heights is not None:
+        embedded = upright_pose(embedded, heights)
+    n_names = template.shape[0]
+    refined = []
+    for mirror in (1.0, -1.0):
+        # Several rigid matches of the average pose serve as starts: the swap search
+        # only descends, and one start can sit in a wrong valley.
+        pose = (
+            embedded * [1.0, mirror, 1.0] if heights is not None else embedded * [1.0, 1.0, mirror]
+        )
+        starts = rigid_matches(pose, template, tolerance_mm)
+        for assign, _ in starts[:SWAP_STARTS]:
+            if (assign >= 0).sum() < 3:
+                continue
+            if heights is not None and not _kept_upright(pose, template, assign):
+                continue
+            # Tracks too far from any name in the average pose still get a free name to
+            # start from; the swap search then places them by their rigid partners.
+            free = np.setdiff1d(np.arange(n_names), assign[assign >= 0])
+            loose = np.flatnonzero(assign < 0)[: free.size]
+            assign[loose] = free[: loose.size]
+            assign = refine_by_swaps(median, weight, template_distance, assign, unary=unary)
+            cost = _swap_cost(assign, median, weight, template_distance, unary)
+            refined.append((cost, assign))
+    return refined
+
+
+def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
+    ok = assign >= 0
+    r, _ = kabsch(pose[ok], template[assign[ok]])
+    return bool(r[2, 2] > np.cos(np.pi / 4))
+
+
+def _swap_cost(
+    q: NDArray,
+    median: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    unary: NDArray | None = None,
+) -> float:
+    ok = q >= 0
+    qq = q[ok]
+    diff = median[np.ix_(ok, ok)] - template_distance[np.ix_(qq, qq)]
+    cost = float((weight[np.ix_(ok, ok)] * diff**2).sum())
+    if unary is not None:
+        cost += float(unary[np.flatnonzero(ok), qq].sum())
+    return cost
+
+
+def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray) -> tuple:
+    """Median heights of the core pieces over ``rich``, and each piece's cost of each
+    name: its height above the floor against the name's template height, in units of
+    :data:`HEIGHT_SD_MM`, squared.
+
+    The floor is where the lowest piece spends its lowest tenth of the time, put at the
+    template's lowest marker (the feet's markers sit a few centimetres above the floor).
+    """
+    z = dense[np.ix_(core, rich)][..., 2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        heights = np.nanmedian(z, axis=1)
+        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - template[:, 2].min()
+    unary = ((heights - floor)[:, None] - template[None, :, 2]) ** 2 / HEIGHT_SD_MM**2
+    return heights, unary
+
+
+def left_right_fits(
+    state: LabelState, refined: list, core: NDArray, rich: NDArray
+) -> list[tuple[float, NDArray[np.int64]]]:
+    """(median fit RMS over ``rich``, names) of the distance-wise best correspondences
+    and of their mirror images: distances cannot tell left from right, a proper rigid
+    fit to the real fields can."""
+    lowest = min(c for c, _ in refined)
+    candidates = []
+    seen_keys = set()
+    for cost, assign in refined:
+        # Only the distance-wise best (and equally good) correspondences go on.
+        if cost > lowest * 1.05 + 1e-9 or tuple(assign) in seen_keys:
+            continue
+        seen_keys.add(tuple(assign))
+        tries = [assign]
+        if state.mirror_of is not None:
+            tries.append(np.where(assign >= 0, state.mirror_of[np.maximum(assign, 0)], -1))
+        for cand in tries:
+            ok = cand >= 0
+            if (
+                state.upright
+                and upright_fraction(state.dense, rich, core[ok], cand[ok], state.template) < 0.5
+            ):
+                continue
+            rms = field_fits(state.dense, rich, core[ok], cand[ok], state.template)
+            candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
+    return candidates
+
+
+def settle_rigid_swaps(
+    state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, fit_rms: float
+) -> tuple[float, NDArray[np.int64]]:
+    """Exchange the names of two core pieces named as a given rigid pair when the real
+    fields' rigid fit is clearly better so.
+
+    Two markers of one segment seen without their neighbours (a heel and a toe of a foot
+    whose ankle is hidden) can swap names at no cost in distances.
+    """
+    rigid = state.given_rigid[np.ix_(assign, assign)]
+    for a, b in zip(*np.nonzero(np.triu(rigid, 1)), strict=True):
+        if assign[a] < 0 or assign[b] < 0:
+            continue
+        variant = assign.copy()
+        variant[[a, b]] = assign[[b, a]]
+        ok = variant >= 0
+        rms = field_fits(state.dense, rich, core[ok], variant[ok], state.template)
+        if rms.size and np.median(rms) < 0.95 * fit_rms:
+            fit_rms, assign = float(np.median(rms)), variant
+    return fit_rms, assign
+
+
+def drop_broken_pairs(
+    state: LabelState, assign: NDArray, median: NDArray, spread: NDArray
+) -> NDArray[np.int64]:
+    """Unname core pieces named as a given rigid pair that do not keep its distance.
+
+    The averaged pose of a leg half out of view can shift names along it; spreading
+    names the pieces later by their rigid partners.
+    """
+    named = np.flatnonzero(assign >= 0)
+    pa, pb = np.meshgrid(named, named, indexing="ij")
+    pair = state.given_rigid[assign[pa], assign[pb]]
+    off = np.abs(median[pa, pb] - state.template_distance[assign[pa], assign[pb]])
+    broken = pair & ((off > RIGID_MATCH_MM) | (spread[pa, pb] > RIGID_SPREAD_MM))
+    assign = assign.copy()
+    assign[named[broken.any(axis=1)]] = -1
+    return assign
+
+
+def match_window(state: LabelState, centre: int) -> WindowMatch:
+    """Names for the long pieces seen through most of the window around ``centre``.
+
+    With the session's segments (``state.given_rigid``), two core pieces named as a rigid
+    pair must keep the template's distance; pieces that break it are left unnamed here.
+
+    References
+    ----------
+    Torgerson 1952 (classical MDS); Kabsch 1976 (rigid fits).
+    """
+    params = state.params
+    rich = window_fields(state.present, centre, state.window, params.label_fields)
+    none = WindowMatch(None, np.empty(0, dtype=np.int64), float("nan"), rich)
+    if rich.size == 0:  # never three tracks at once: no body to match
+        return none
+    core = core_pieces(state.present, rich)
+    if core.size < 3:
+        return none
+    median = median_distances(state.dense, core, rich)
+    spread = distance_spread(state.dense, core, rich)
+    weight = 1.0 / (spread**2 + SPREAD_FLOOR_MM**2)
+    np.fill_diagonal(weight, 0.0)
+    heights = unary = None
+    if state.upright:
+        heights, unary = height_costs(state.dense, core, rich, state.template)
+    refined = swap_refined(
+        median,
+        weight,
+        state.template,
+        state.template_distance,
+        params.label_tolerance_mm,
+        heights,
+        unary,
+    )
+    if not refined:
+        return none
+    candidates = left_right_fits(state, refined, core, rich)
+    if not candidates:
+        return none
+    fit_rms, assign = min(candidates, key=lambda c: c[0])
+    if state.given_rigid is not None:
+        fit_rms, assign = settle_rigid_swaps(state, core, rich, assign, fit_rms)
+        assign = drop_broken_pairs(state, assign, median, spread)
+    return WindowMatch(core, assign, fit_rms, rich)
+
+
+def match_first_window(state: LabelState) -> bool:
+    """Phase 1: name the core pieces of the window where most long pieces are seen.
+
+    Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the
+    trial does not fit the marker set).
+    """
+    box = np.ones(state.window)
+    centre = int(np.argmax(np.convolve(state.present.sum(axis=0), box, mode="same")))
+    found = match_window(state, centre)
+    state.fit_rms, state.rich = found.fit_rms, found.rich
+    if found.core is None or not np.any(found.assign >= 0):
+        return False
+    named = found.assign >= 0
+    state.label_of[state.long_ids[found.core[named]]] = found.assign[named]
+    for t in np.flatnonzero(state.label_of >= 0):
+        state.name_piece(int(t), int(state.label_of[t]))
+    return True

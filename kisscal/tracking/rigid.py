@@ -1,0 +1,401 @@
+"""Rigid geometry of point sets: the fits and correspondences labelling is built on.
+
+* :func:`kabsch`: the proper rotation and translation that best map one point set onto
+  another (Kabsch 1976), never a reflection;
+* :func:`rigid_matches` / :func:`match_to_template`: which template point each point is,
+  when the points are the template moved rigidly (iterated Hungarian assignment, Kuhn
+  1955, and Kabsch fit, from 24 starts);
+* :func:`classical_mds`: points with given pairwise distances (Torgerson 1952);
+* :func:`refine_by_swaps`: a correspondence improved by exchanging names so that the
+  distances that stay constant match the template's (2-opt and 3-cycle local search);
+* :func:`mirror_permutation`: a marker set's left/right mirror image as a permutation;
+* :func:`field_fits`: the RMS of a proper rigid fit of tracks to the template, per field.
+
+Everything here works on numpy arrays; nothing knows about tracks or sessions.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+
+def _cube_rotations() -> NDArray[np.float64]:
+    """The 24 proper rotations that map coordinate axes onto coordinate axes."""
+    mats = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            m = np.zeros((3, 3))
+            m[np.arange(3), perm] = signs
+            if np.linalg.det(m) > 0:
+                mats.append(m)
+    return np.array(mats)
+
+
+_CUBE = _cube_rotations()
+
+
+def _principal_frame(points: NDArray) -> NDArray[np.float64]:
+    _, vecs = np.linalg.eigh(np.cov(points.T))
+    if np.linalg.det(vecs) < 0:
+        vecs[:, 0] = -vecs[:, 0]
+    return vecs
+
+
+def kabsch(source: NDArray, target: NDArray) -> tuple[NDArray, NDArray]:
+    """Proper rotation R and translation t minimising sum |R s + t - g|² (no reflection).
+
+    Parameters
+    ----------
+    source, target : (k, 3) arrays
+        Corresponding points, k >= 3.
+
+    Returns
+    -------
+    r : (3, 3) array
+        Rotation, det +1.
+    t : (3,) array
+
+    References
+    ----------
+    Kabsch 1976 (the SVD solution; the sign of the last singular vector rules out a
+    reflection).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pts = np.array([[0.0, 0, 0], [100, 0, 0], [0, 50, 0], [0, 0, 20]])
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])  # 90 degrees about z
+    >>> r, t = kabsch(pts, pts @ turn.T + [1, 2, 3])
+    >>> bool(np.allclose(r, turn)), np.round(t, 6).tolist()
+    (True, [1.0, 2.0, 3.0])
+    """
+    cs, ct = source.mean(axis=0), target.mean(axis=0)
+    h = (source - cs).T @ (target - ct)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, ct - r @ cs
+
+
+def match_to_template(
+    points: NDArray, template: NDArray, outlier_mm: float, iterations: int = 10
+) -> tuple[NDArray[np.int64], float]:
+    """Correspondence of ``points`` (k, 3) to ``template`` (n, 3) under a rigid motion.
+
+    Returns the template index per point (-1 when unmatched or farther than
+    ``outlier_mm`` after the fit) and the RMS distance of the matched points (mm).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> template = np.array([[0.0, 0, 0], [300, 0, 0], [0, 120, 0], [0, 0, 60]])
+    >>> assign, rms = match_to_template(template[[2, 0, 3, 1]] + 500.0, template, 20.0)
+    >>> assign.tolist(), round(rms, 6)
+    ([2, 0, 3, 1], 0.0)
+    """
+    found = rigid_matches(points, template, outlier_mm, iterations)
+    if not found:
+        return np.full(points.shape[0], -1, dtype=np.int64), float("inf")
+    return found[0]
+
+
+def _squared_distances(points: NDArray, r: NDArray, t: NDArray, template: NDArray) -> NDArray:
+    moved = points @ r.T + t
+    return ((moved[:, None, :] - template[None, :, :]) ** 2).sum(axis=2)
+
+
+def _descend(
+    points: NDArray, template: NDArray, r: NDArray, t: NDArray, cap: float, iterations: int
+) -> tuple[NDArray, NDArray]:
+    """Alternate assignment and Kabsch fit from the pose (r, t) until the pairs repeat."""
+    prev = None
+    for _ in range(iterations):
+        d2 = _squared_distances(points, r, t, template)
+        rows, cols = linear_sum_assignment(np.minimum(d2, cap))
+        good = d2[rows, cols] < cap
+        if good.sum() < 3:
+            break
+        key = tuple(cols[good]) + tuple(rows[good])
+        if key == prev:
+            break
+        prev = key
+        r, t = kabsch(points[rows[good]], template[cols[good]])
+    return r, t
+
+
+def rigid_matches(
+    points: NDArray, template: NDArray, outlier_mm: float, iterations: int = 10
+) -> list[tuple[NDArray[np.int64], float]]:
+    """Distinct rigid correspondences of ``points`` to ``template``, best first.
+
+    Iterated Hungarian assignment and Kabsch fit, started from the 24 axis-aligned
+    orientations of the two principal-axis frames; each start gives one local optimum.
+    Returns (template index per point or -1, RMS distance of the matched points in mm).
+
+    References
+    ----------
+    Kuhn 1955 (the Hungarian assignment); Kabsch 1976.
+    """
+    k = points.shape[0]
+    if k < 3:
+        return []
+    cp, ctm = points.mean(axis=0), template.mean(axis=0)
+    fp, ft = _principal_frame(points), _principal_frame(template)
+    cap = outlier_mm**2
+    results: dict[tuple, tuple[float, NDArray, float]] = {}
+    for g in _CUBE:
+        r = ft @ g @ fp.T
+        r, t = _descend(points, template, r, ctm - r @ cp, cap, iterations)
+        d2 = _squared_distances(points, r, t, template)
+        rows, cols = linear_sum_assignment(np.minimum(d2, cap))
+        # Unmatched points cost as much as an outlier, so larger matches are preferred.
+        score = float(np.minimum(d2[rows, cols], cap).sum() + cap * (k - rows.size))
+        assign = np.full(k, -1, dtype=np.int64)
+        ok = d2[rows, cols] < cap
+        assign[rows[ok]] = cols[ok]
+        rms = float(np.sqrt(d2[rows[ok], cols[ok]].mean())) if ok.any() else np.inf
+        key = tuple(assign)
+        if key not in results or score < results[key][0]:
+            results[key] = (score, assign, rms)
+    ranked = sorted(results.values(), key=lambda v: v[0])
+    return [(assign, rms) for _, assign, rms in ranked]
+
+
+def classical_mds(distance: NDArray, dims: int = 3) -> NDArray[np.float64]:
+    """Points whose pairwise distances best match ``distance`` (classical MDS), up to a
+    rigid motion and a reflection.
+
+    References
+    ----------
+    Torgerson 1952 (double centring of the squared distances, top eigenvectors).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> square = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    >>> d = np.linalg.norm(square[:, None] - square[None], axis=2)
+    >>> e = classical_mds(d)
+    >>> bool(np.allclose(np.linalg.norm(e[:, None] - e[None], axis=2), d))
+    True
+    """
+    k = distance.shape[0]
+    j = np.eye(k) - 1.0 / k
+    b = -0.5 * j @ (distance**2) @ j
+    vals, vecs = np.linalg.eigh(b)
+    top = np.argsort(vals)[::-1][:dims]
+    return vecs[:, top] * np.sqrt(np.maximum(vals[top], 0.0))
+
+
+def _pairs3(x: NDArray) -> dict[str, NDArray]:
+    """``x[i, j]`` for the index pairs of a 3-cycle (a, b, c) on axes (0, 1, 2), as
+    broadcastable views (``"ab"`` is x[a, b], ``"aa"`` the diagonal at a, ...)."""
+    diag = np.diagonal(x)
+    return {
+        "ab": x[:, :, None],
+        "ac": x[:, None, :],
+        "ba": x.T[:, :, None],
+        "bc": x[None, :, :],
+        "ca": x.T[:, None, :],
+        "cb": x.T[None, :, :],
+        "aa": diag[:, None, None],
+        "bb": diag[None, :, None],
+        "cc": diag[None, None, :],
+    }
+
+
+def _cycle_changes(w: NDArray, d: NDArray, gpp: NDArray, tpp: NDArray) -> NDArray:
+    """Cost change of every 3-cycle of names (a takes b's, b takes c's, c takes a's) for
+    the cost of :func:`refine_by_swaps`; ``gpp[i, j]`` is track i's share were it named as
+    track j, ``tpp`` the template distances between the current names. (k, k, k), +inf
+    where indices repeat."""
+    k = w.shape[0]
+    w3, d3, g3, t3 = _pairs3(w), _pairs3(d), _pairs3(gpp), _pairs3(tpp)
+
+    def term(ij: str, t: NDArray) -> NDArray:
+        return w3[ij] * (d3[ij] - t) ** 2
+
+    # Each track's share with its new name, minus the part that pairs it with the other
+    # two (counted with their old names in gpp), ...
+    share = g3["ab"] - g3["aa"] + g3["bc"] - g3["bb"] + g3["ca"] - g3["cc"]
+    inner = (
+        term("ab", t3["bb"])
+        - term("ab", t3["ab"])
+        + term("ac", t3["bc"])
+        - term("ac", t3["ac"])
+        + term("ba", t3["ca"])
+        - term("ba", t3["ba"])
+        + term("bc", t3["cc"])
+        - term("bc", t3["bc"])
+        + term("ca", t3["aa"])
+        - term("ca", t3["ca"])
+        + term("cb", t3["ab"])
+        - term("cb", t3["cb"])
+    )
+    # ... plus the exact change of the three pairs inside the cycle.
+    within = 2.0 * (
+        term("ab", t3["bc"])
+        - term("ab", t3["ab"])
+        + term("ac", t3["ba"])
+        - term("ac", t3["ac"])
+        + term("bc", t3["ca"])
+        - term("bc", t3["bc"])
+    )
+    out = 2.0 * (share - inner) + within
+    a, b, c = np.arange(k)[:, None, None], np.arange(k)[None, :, None], np.arange(k)
+    out[(a == b) | (b == c) | (a == c)] = np.inf
+    return out
+
+
+def _best_moves(
+    d: NDArray,
+    w: NDArray,
+    wd: NDArray,
+    wdd: NDArray,
+    template_distance: NDArray,
+    p: NDArray,
+    unary: NDArray | None = None,
+) -> tuple[tuple[float, float, float], tuple[tuple, tuple, tuple]]:
+    """Cost change of the best exchange, move to a free name and 3-cycle, and where."""
+    # g[a, x] is track a's share of the cost were it named x.
+    tp = template_distance[:, p]  # (n_names, k)
+    g = wdd[:, None] - 2.0 * wd @ tp.T + w @ (tp.T**2)
+    own = g[np.arange(p.size), p]
+    t_ab = template_distance[np.ix_(p, p)]
+    keep_ab = w * ((d - t_ab) ** 2 - d**2)  # the a-b term, unchanged by the exchange
+    swap = 2.0 * (g[:, p] - own[:, None] + g[:, p].T - own[None, :] + 2.0 * keep_ab)
+    np.fill_diagonal(swap, 0.0)
+    move = 2.0 * (g - own[:, None])
+    move[:, p] = 0.0  # names already held are exchanged, not taken
+    cycle = _cycle_changes(w, d, g[:, p], t_ab)
+    if unary is not None:
+        # unary[a, x]: track a's own cost of name x, added once per track.
+        held = unary[:, p]  # held[a, b]: track a with track b's name
+        own_u = np.diagonal(held)
+        swap += held + held.T - own_u[:, None] - own_u[None, :]
+        free = ~np.isin(np.arange(unary.shape[1]), p)
+        move += np.where(free[None, :], unary - own_u[:, None], 0.0)
+        cycle += (
+            held[:, :, None]
+            + held[None, :, :]
+            + held.T[:, None, :]
+            - own_u[:, None, None]
+            - own_u[None, :, None]
+            - own_u[None, None, :]
+        )
+    at = tuple(np.unravel_index(np.argmin(m), m.shape) for m in (swap, move, cycle))
+    return (swap[at[0]], move[at[1]], cycle[at[2]]), at
+
+
+def refine_by_swaps(
+    distance: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    assign: NDArray,
+    max_passes: int = 20,
+    unary: NDArray | None = None,
+) -> NDArray[np.int64]:
+    """Improve a track -> template assignment by exchanging labels (2-opt local search).
+
+    Minimises ``sum_ij weight_ij (distance_ij - template_distance[a_i, a_j])²``: pairs of
+    tracks whose distance barely varies (markers on one segment) weigh most, so the foot
+    and shank markers, whose arrangement an average pose blurs, are put right. Tracks with
+    ``assign < 0`` are left out; a track may also move to a name no track holds. Each step
+    takes the steepest of all single exchanges, moves to a free name and 3-cycles of
+    names, their cost changes computed at once. ``unary`` (tracks x names), when given,
+    adds each track's own cost of its name (e.g. how far its height is from the name's).
+
+    References
+    ----------
+    Croes 1958 (the 2-opt exchange search).
+    """
+    assign = assign.copy()
+    rows = np.flatnonzero(assign >= 0)
+    if rows.size < 3:
+        return assign
+    d = np.nan_to_num(distance[np.ix_(rows, rows)])
+    w = np.nan_to_num(weight[np.ix_(rows, rows)])
+    p = assign[rows].copy()
+    u = None if unary is None else unary[rows]
+    wd = w * d
+    wdd = (wd * d).sum(axis=1)
+    for _ in range(max_passes * p.size):
+        gains, at = _best_moves(d, w, wd, wdd, template_distance, p, u)
+        if min(gains) > -1e-9:
+            break
+        kind = int(np.argmin(gains))
+        if kind == 0:
+            a, b = at[0]
+            p[a], p[b] = p[b], p[a]
+        elif kind == 1:
+            am, x = at[1]
+            p[am] = x
+        else:
+            ca, cb, cc = at[2]
+            p[ca], p[cb], p[cc] = p[cb], p[cc], p[ca]
+    assign[rows] = p
+    return assign
+
+
+def field_fits(
+    dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
+) -> NDArray[np.float64]:
+    """RMS distance per field of a proper rigid fit of tracks ``rows`` to template ``cols``.
+
+    ``dense`` is (tracks, fields, 3) with NaN where a track is not seen; fields where
+    fewer than three of the tracks are seen are left out.
+    """
+    out = []
+    for f in fields:
+        ok = np.isfinite(dense[rows, f, 0])
+        if ok.sum() < 3:
+            continue
+        src = dense[rows[ok], f]
+        dst = template[cols[ok]]
+        r, t = kabsch(src, dst)
+        out.append(np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1))))
+    return np.asarray(out)
+
+
+def upright_fraction(
+    dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
+) -> float:
+    """Fraction of ``fields`` in which the proper rigid fit of tracks ``rows`` to template
+    ``cols`` keeps the vertical within 45 degrees (both frames Z up)."""
+    upright = []
+    for f in fields:
+        ok = np.isfinite(dense[rows, f, 0])
+        if ok.sum() < 3:
+            continue
+        r, _ = kabsch(dense[rows[ok], f], template[cols[ok]])
+        upright.append(r[2, 2] > np.cos(np.pi / 4))
+    return float(np.mean(upright)) if upright else 0.0
+
+
+def upright_pose(pose: NDArray, heights: NDArray) -> NDArray[np.float64]:
+    """``pose`` (k, 3), e.g. from :func:`classical_mds`, turned so that its third axis is
+    the direction along which it best explains ``heights`` (k,) by least squares."""
+    centred = pose - pose.mean(axis=0)
+    up, *_ = np.linalg.lstsq(centred, heights - heights.mean(), rcond=None)
+    norm = np.linalg.norm(up)
+    if not norm > 0:
+        return centred
+    up = up / norm
+    helper = np.eye(3)[int(np.argmin(np.abs(up)))]
+    e1 = np.cross(helper, up)
+    e1 /= np.linalg.norm(e1)
+    basis = np.column_stack([e1, np.cross(up, e1), up])
+    return centred @ basis
+
+
+def mirror_permutation(template: NDArray, tolerance_mm: float) -> NDArray[np.int64] | None:
+    """The name each name becomes in the marker set's mirror image (RASI <-> LASI, SACR
+    stays), or None when the set has no mirror symmetry within ``tolerance_mm`` / 4."""
+    centred = template - template.mean(axis=0)
+    assign, rms = match_to_template(-centred, centred, tolerance_mm)
+    if (assign < 0).any() or not rms <= tolerance_mm / 4:
+        return None
+    return assign

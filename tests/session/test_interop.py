@@ -1,0 +1,168 @@
+"""Calibration exports (cameras.toml, dltdv.csv) against their readers' conventions, and the
+import routes ([calibration] cameras / dlt) against the session they came from.
+
+The original session is the small synthetic one, calibrated from its grid and rods; its
+trial is the true 2D centroids of the walk (no detection, so only the calibration
+differs between the sessions compared).
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import tomli_w
+from scipy.spatial import cKDTree
+
+from kisscal import session
+from kisscal.io.config import load_toml
+from kisscal.io.files import read_table, write_table
+from kisscal.rig import Rig
+
+pytestmark = pytest.mark.slow
+
+
+def centroid_trial(root: Path, trial: str = "walk01") -> None:
+    """Replace the session's trials by one read from the true centroids of ``trial``."""
+    truth = read_table(root / "truth" / "trials" / trial / "centroids.csv")
+    config = load_toml(root / "session.toml")
+    for cam in [c["id"] for c in config["cameras"]]:
+        rows = truth["camera"] == cam
+        write_table(
+            root / "centroids" / f"{cam}.csv",
+            {
+                "field": truth["field"][rows].astype(int),
+                "x_px": truth["u_px"][rows],
+                "y_px": truth["v_px"][rows],
+            },
+        )
+    config["trials"] = [{"name": "c2d", "centroids": "centroids/{camera}.csv"}]
+    (root / "session.toml").write_text(tomli_w.dumps(config))
+
+
+def points3d(root: Path) -> tuple[np.ndarray, np.ndarray]:
+    t = read_table(root / "out" / "trials" / "c2d" / "points3d.csv")
+    return t["field"].astype(int), np.column_stack([t["x_mm"], t["y_mm"], t["z_mm"]])
+
+
+def distances_mm(a: tuple, b: tuple) -> np.ndarray:
+    """Per point of ``a``: distance to the nearest point of ``b`` in the same field."""
+    (fa, xa), (fb, xb) = a, b
+    return np.concatenate(
+        [cKDTree(xb[fb == f]).query(xa[fa == f])[0] for f in np.unique(fa) if (fb == f).any()]
+    )
+
+
+@pytest.fixture(scope="module")
+def original(small_session: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("interop") / "orig"
+    shutil.copytree(small_session, root, ignore=shutil.ignore_patterns("out"))
+    centroid_trial(root)
+    session.calibrate(root, workers=1)
+    session.reconstruct(root, "c2d")
+    return root
+
+
+def imported(
+    original: Path, dest: Path, calibration: dict, files: dict[str, Path], grid: bool = False
+) -> Path:
+    """A copy of the original session calibrated by ``calibration`` (its ``files`` copied
+    in) instead of rods, with or without the grid; its trial reconstructed."""
+    shutil.copytree(
+        original, dest, ignore=shutil.ignore_patterns("out", "rods", "trials", "truth", "grid")
+    )
+    for name, src in files.items():
+        shutil.copy(src, dest / name)
+    config = load_toml(dest / "session.toml")
+    del config["rods"]
+    if grid:
+        shutil.copytree(original / "grid", dest / "grid")
+    else:
+        del config["grid"]
+    config["calibration"] = calibration
+    (dest / "session.toml").write_text(tomli_w.dumps(config))
+    session.calibrate(dest)
+    session.reconstruct(dest, "c2d")
+    return dest
+
+
+def lab_points_in_view(rig: Rig, n: int = 4000) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return rng.uniform([-1200, -700, 0], [1200, 700, 2000], (n, 3))
+
+
+def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(original: Path):
+    rig = Rig.load(original)
+    doc = load_toml(original / "out" / "cameras.toml")
+    xyz = lab_points_in_view(rig)
+    for cam in rig:
+        c = doc[cam.id]
+        assert c["name"] == cam.id and c["size"] == list(cam.size_px)
+        uv, _ = cv2.projectPoints(
+            xyz.reshape(-1, 1, 3),
+            np.array(c["rotation"]),
+            np.array(c["translation"]),
+            np.array(c["matrix"]),
+            np.array(c["distortions"]),
+        )
+        mine = cam.project_raw(xyz)
+        w, h = cam.size_px
+        inside = (mine[:, 0] > -0.5) & (mine[:, 0] < w - 0.5)
+        inside &= (mine[:, 1] > -0.5) & (mine[:, 1] < h - 0.5)
+        d = np.hypot(*(uv.reshape(-1, 2) - mine)[inside].T)
+        assert inside.sum() > 500
+        assert np.sqrt(np.mean(d**2)) < 0.05, cam.id
+        assert doc["metadata"]["fit_rms_px"][cam.id] < 0.05
+
+
+def test_dltdv_csv_in_dltdv8_pixels_matches_linearised_projection(original: Path):
+    rig = Rig.load(original)
+    coefs = np.loadtxt(original / "out" / "dlt" / "dltdv.csv", delimiter=",")
+    assert coefs.shape == (11, len(rig))
+    xyz = lab_points_in_view(rig, 500)
+    for i, cam in enumerate(rig):
+        c = coefs[:, i]
+        den = xyz @ c[8:11] + 1  # DLTdv8's dlt_inverse, first pixel's centre at (1, 1)
+        uv8 = np.column_stack([xyz @ c[0:3] + c[3], xyz @ c[4:7] + c[7]]) / den[:, None]
+        np.testing.assert_allclose(uv8 - 1, cam.project(xyz), atol=1e-6)
+    exports = (original / "out" / "exports.json").read_text()
+    assert "DLTdv8" in exports and "corners_px" in exports
+
+
+def test_cameras_toml_import_reconstructs_the_same_points(original: Path, tmp_path: Path):
+    toml = original / "out" / "cameras.toml"
+    root = imported(original, tmp_path / "c", {"cameras": "cameras.toml"}, {"cameras.toml": toml})
+    d = distances_mm(points3d(original), points3d(root))
+    # OpenCV's 5 coefficients follow the grid polynomial to ~0.005 px rms: ~0.015 mm here
+    assert np.median(d) < 0.03 and d.max() < 0.1
+    lin = (root / "out" / "linearisation" / "cam1.json").read_text()
+    assert '"model": "poly4"' in lin and '"fit_rms_px"' in lin
+    assert '"method": "cameras"' in (root / "out" / "dlt" / "cam1.json").read_text()
+
+
+def test_dltdv_import_reconstructs_the_same_points_with_the_grid(original: Path, tmp_path: Path):
+    coefs = {"coefs.csv": original / "out" / "dlt" / "dltdv.csv"}
+    root = imported(original, tmp_path / "d", {"dlt": "coefs.csv"}, coefs, grid=True)
+    d = distances_mm(points3d(original), points3d(root))
+    assert d.max() < 1e-3
+    assert '"method": "dltdv"' in (root / "out" / "dlt" / "cam1.json").read_text()
+
+
+def test_export_command_writes_each_format(original: Path, tmp_path: Path):
+    from kisscal.cli import main
+
+    for to, dest in (("anipose", "c.toml"), ("dltdv8", "c.csv"), ("opencv", "ocv")):
+        with pytest.raises(SystemExit) as done:
+            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest)])
+        assert done.value.code in (0, None)
+    assert load_toml(tmp_path / "c.toml")["cam1"]["name"] == "cam1"
+    np.testing.assert_allclose(
+        np.loadtxt(tmp_path / "c.csv", delimiter=","),
+        np.loadtxt(original / "out" / "dlt" / "dltdv.csv", delimiter=","),
+    )
+    fs = cv2.FileStorage(str(tmp_path / "ocv" / "cam2.yml"), cv2.FILE_STORAGE_READ)
+    matrix = fs.getNode("camera_matrix").mat()
+    np.testing.assert_allclose(matrix, load_toml(tmp_path / "c.toml")["cam2"]["matrix"])

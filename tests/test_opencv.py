@@ -1,0 +1,116 @@
+"""OpenCV's camera model <-> kisscal's (DLT + 30-coefficient linearisation), and the
+cameras.toml reader and writer."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+import tomli_w
+
+from kisscal.errors import KisscalError
+from kisscal.io.cameras_toml import read_cameras_toml, write_cameras_toml
+from kisscal.opencv import OpenCvCamera, camera_from_opencv, opencv_from_camera
+from kisscal.rig import Camera
+
+
+def brown_camera(name: str = "c1", k1: float = -0.05, k2: float = 0.0) -> OpenCvCamera:
+    return OpenCvCamera(
+        name,
+        (1280, 1024),
+        np.array([[1400.0, 0.0, 650.0], [0, 1390.0, 500.0], [0, 0, 1]]),
+        np.array([k1, k2, 0.0005, -0.0003, 0.0]),
+        np.array([2.0, 0.3, -0.2]),
+        np.array([150.0, -300.0, 4200.0]),
+    )
+
+
+@pytest.mark.parametrize(("k1", "k2"), [(-0.05, 0.0), (0.05, 0.0), (-0.1, 0.02)])
+def test_round_trip_through_kisscal_keeps_the_projection(k1, k2):
+    cv = brown_camera(k1=k1, k2=k2)
+    L, lin, rms = camera_from_opencv(cv)
+    assert rms < 0.05  # a 4th-order polynomial follows a moderate lens over the image
+    cam = Camera("c1", L, lin, size_px=cv.size_px)
+    fit = opencv_from_camera(cam)
+    assert fit.rms_px < 0.05 and abs(fit.skew_px) < 1e-6
+    rng = np.random.default_rng(1)
+    xyz = rng.uniform(-800, 800, (3000, 3))
+    uv = cv.project(xyz)
+    inside = (uv >= 0).all(axis=1) & (uv[:, 0] < 1279) & (uv[:, 1] < 1023)
+    d = np.hypot(*(fit.camera.project(xyz) - cam.project_raw(xyz))[inside].T)
+    assert np.sqrt(np.mean(d**2)) < 0.05
+
+    def centre(c: OpenCvCamera) -> np.ndarray:
+        return -cv2.Rodrigues(c.rotation)[0].T @ c.translation_mm
+
+    np.testing.assert_allclose(centre(fit.camera), centre(cv), atol=1e-6)
+
+
+def test_a_strong_lens_beyond_the_polynomial_is_measured():
+    """A 4th-order polynomial cannot follow a strong lens over the whole image: the fit's
+    RMS says so (kisscal linearise warns above 0.05 px)."""
+    _, _, rms = camera_from_opencv(brown_camera(k1=-0.25))
+    assert rms > 0.5
+
+
+def test_skew_is_reported_and_fitted_around():
+    cv = brown_camera(k1=-0.1)
+    L, lin, _ = camera_from_opencv(cv)
+    K = np.array([[1400.0, 2.0, 650.0], [0, 1390.0, 500.0], [0, 0, 1]])
+    from kisscal.dlt.camera import decompose_dlt
+    from kisscal.dlt.model import dlt_from_krt
+
+    _, R, centre = decompose_dlt(L)
+    skewed = Camera("s", dlt_from_krt(K, R, -R @ centre), lin, size_px=cv.size_px)
+    fit = opencv_from_camera(skewed)
+    assert fit.skew_px == pytest.approx(2.0)
+    assert 0 < fit.rms_px < 1.0  # what OpenCV's matrix cannot hold, measured
+
+
+def test_cameras_toml_round_trip_and_units(tmp_path):
+    cams = [brown_camera("left"), brown_camera("right", k1=-0.1)]
+    path = write_cameras_toml(tmp_path / "cameras.toml", cams, {"fit_rms_px": {"left": 0.0}})
+    back = read_cameras_toml(path, ["right", "left"])
+    assert list(back) == ["right", "left"]
+    np.testing.assert_allclose(back["left"].matrix, cams[0].matrix)
+    np.testing.assert_allclose(back["right"].distortions, cams[1].distortions)
+    # Pose2Sim: metres, four distortion coefficients, no metadata
+    doc = {
+        "cam_a": {
+            "name": "left",
+            "size": [1280, 1024],
+            "matrix": cams[0].matrix.tolist(),
+            "distortions": [-0.2, 0.08, 0.0005, -0.0003],
+            "rotation": [2.0, 0.3, -0.2],
+            "translation": [0.15, -0.3, 4.2],
+            "fisheye": False,
+        },
+        "metadata": {"adjusted": False, "error": 0.0},
+    }
+    (tmp_path / "p2s.toml").write_text(tomli_w.dumps(doc))
+    left = read_cameras_toml(tmp_path / "p2s.toml", ["left"])["left"]
+    np.testing.assert_allclose(left.translation_mm, cams[0].translation_mm)
+    assert left.distortions[4] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d["left"].pop("rotation"), "missing rotation"),
+        (lambda d: d.pop("left"), "no camera named 'left'"),
+        (lambda d: d["left"].update(distortions=[0.1] * 8), "4 or 5 numbers"),
+        (lambda d: d["left"].update(matrix=[[1, 0], [0, 1]]), "matrix must be 3 x 3"),
+        (lambda d: d["left"].update(fisheye=True), "fisheye"),
+    ],
+)
+def test_cameras_toml_refusals(tmp_path, change, message):
+    path = write_cameras_toml(
+        tmp_path / "c.toml", [brown_camera("left"), brown_camera("right")], {}
+    )
+    from kisscal.io.config import load_toml
+
+    doc = load_toml(path)
+    change(doc)
+    path.write_text(tomli_w.dumps(doc))
+    with pytest.raises(KisscalError, match=message):
+        read_cameras_toml(path, ["left", "right"])

@@ -1,0 +1,159 @@
+"""Left and right settled by anatomy: checks, exchanges and flags on known trajectories."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from kisscal.markersets import marker_set
+from kisscal.synth.motion import walking_trial
+from kisscal.tracking import TrackingParams
+from kisscal.tracking.labelling.anatomy import (
+    Anatomy,
+    check_anatomy,
+    forward_directions,
+    settle_sides,
+)
+from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
+from kisscal.tracking.tracks import make_tracks
+
+LOWER = (
+    "LASI", "RASI", "SACR", "LTHI", "LKNE", "LTIB", "LANK", "LHEE", "LTOE",
+    "RTHI", "RKNE", "RTIB", "RANK", "RHEE", "RTOE",
+)  # fmt: skip
+PIG = marker_set("plug-in-gait-lower", names=LOWER)
+
+
+def walker(seed: int, heading: float, height: float = 1.75, rate: float = 50.0) -> np.ndarray:
+    """True positions (15, F, 3) of the grounded walker, names as LOWER."""
+    m = walking_trial(
+        seed, int(3 * rate), rate, path_mm=3600, model="grounded", height_m=height,
+        heading_deg=heading,
+    )  # fmt: skip
+    return m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in LOWER]]
+
+
+def standing(height: float = 1750.0, turn_deg: float = 30.0) -> np.ndarray:
+    """The set's template, turned and placed, 2 s at 50 Hz with 1 mm sway."""
+    a = np.radians(turn_deg)
+    rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    pts = PIG.scaled(height).template_mm @ rz.T + [500.0, -300.0, 0.0]
+    rng = np.random.default_rng(0)
+    return pts[:, None, :] + rng.normal(0, 1.0, (len(LOWER), 100, 3))
+
+
+def test_the_sets_anatomy_names_sides_pelvis_feet_and_order() -> None:
+    a = Anatomy.of_set(PIG)
+    names = [(LOWER[i], LOWER[j]) for i, j in a.pairs]
+    assert ("LASI", "RASI") in names and ("LTOE", "RTOE") in names and len(names) == 7
+    assert {LOWER[i] for i in a.front} == {"LASI", "RASI"}
+    assert {LOWER[i] for i in a.back} == {"SACR"}
+    above = {(LOWER[i], LOWER[j]) for i, j in a.above}
+    assert {("LKNE", "LANK"), ("LTHI", "LKNE"), ("LTIB", "LANK"), ("SACR", "RKNE")} <= above
+    assert ("LKNE", "RTHI") not in above  # other side, close in height: not checked
+    ahead = {(LOWER[i], LOWER[j]) for i, j in a.ahead}
+    assert {("LTOE", "LHEE"), ("LANK", "LHEE")} <= ahead
+
+
+@pytest.mark.parametrize(("seed", "heading"), [(0, 20.0), (1, 200.0), (2, 290.0)])
+def test_true_labels_agree_with_the_anatomy_in_any_direction(seed: int, heading: float) -> None:
+    pos = walker(seed, heading)
+    check = check_anatomy(pos, Anatomy.of_set(PIG), 50.0)
+    assert check.forward == "walking"
+    assert check.confidence.min() >= 0.85
+
+
+def test_a_mirrored_labelling_is_put_right() -> None:
+    pos = walker(3, 135.0)
+    anatomy = Anatomy.of_set(PIG)
+    mirror = np.arange(len(LOWER))
+    for a, b in anatomy.pairs:
+        mirror[a], mirror[b] = b, a
+    wrong = pos[mirror]  # every left trajectory named right and the other way round
+    paired = [i for pair in anatomy.pairs for i in pair]
+    assert check_anatomy(wrong, anatomy, 50.0).confidence[paired].max() < 0.2  # all reversed
+    perm, done = settle_sides(wrong, anatomy, 50.0, 0.8)
+    assert len(done) == 7
+    moved = np.empty_like(wrong)
+    moved[perm] = wrong
+    np.testing.assert_array_equal(moved, pos)
+
+
+def test_an_ankle_and_heel_swap_is_put_right() -> None:
+    pos = walker(4, 60.0)
+    anatomy = Anatomy.of_set(PIG)
+    i, j = LOWER.index("LANK"), LOWER.index("LHEE")
+    wrong = pos.copy()
+    wrong[[i, j]] = pos[[j, i]]
+    perm, done = settle_sides(wrong, anatomy, 50.0, 0.8)
+    assert done == [(i, j)] or done == [(j, i)]
+    moved = np.empty_like(wrong)
+    moved[perm] = wrong
+    np.testing.assert_array_equal(moved, pos)
+
+
+def test_a_standing_subject_faces_the_way_pelvis_and_feet_say() -> None:
+    pos = standing(turn_deg=30.0)
+    forward, source = forward_directions(pos, Anatomy.of_set(PIG), 50.0)
+    assert source == "pelvis"
+    np.testing.assert_allclose(
+        forward[0], [np.cos(np.radians(30)), np.sin(np.radians(30))], atol=0.02
+    )
+    # Pelvis markers named back to front: pelvis and feet disagree, nothing is trusted.
+    anatomy = replace(
+        Anatomy.of_set(PIG), front=Anatomy.of_set(PIG).back, back=Anatomy.of_set(PIG).front
+    )
+    assert forward_directions(pos, anatomy, 50.0)[1] == "none"
+
+
+def _labelling(pos: np.ndarray, labels: tuple[str, ...]) -> Labelling:
+    n, f, _ = pos.shape
+    field = np.tile(np.arange(f), n)
+    track = np.repeat(np.arange(n), f)
+    xyz = pos.reshape(-1, 3)
+    tracks = make_tracks(field, track, xyz, np.full_like(xyz, np.nan), np.zeros(n * f), track)
+    return Labelling(tracks, labels, True, (), (), 100.0)
+
+
+def test_judging_exchanges_a_swapped_pair_and_reports_it() -> None:
+    pos = walker(5, 330.0)
+    labels = list(LOWER)
+    i, j = LOWER.index("LKNE"), LOWER.index("RKNE")
+    labels[i], labels[j] = labels[j], labels[i]
+    judged = judge_sides(
+        _labelling(pos, tuple(labels)), Anatomy.of_set(PIG), PIG.template_mm, 50.0, TrackingParams()
+    )
+    assert judged.labels == LOWER
+    assert judged.exchanged == (("LKNE", "RKNE"),)
+    assert judged.flagged == () and judged.sides_from == "anatomy"
+    assert min(judged.confidence.values()) >= 0.85
+
+
+def test_nothing_to_tell_sides_apart_means_flagged() -> None:
+    """A standing subject named only by the L/R convention (no pelvis, no feet roles, so
+    no forward direction) and a flat template (the frontal plane: a half turn maps it
+    onto its mirror image, so the fit cannot tell either): not certain."""
+    pos = standing(turn_deg=-50.0)
+    names_only = Anatomy.of_names(LOWER)
+    template = PIG.template_mm * [0.0, 1.0, 1.0]
+    judged = judge_sides(_labelling(pos, LOWER), names_only, template, 50.0, TrackingParams())
+    assert judged.sides_from == "fit"
+    assert abs(judged.mirror_fit_ratio - 1.0) < 0.05
+    assert set(judged.flagged) == {n for n in LOWER if n != "SACR"}
+    assert not judged.certain
+
+
+def test_a_walking_frame_template_may_fit_the_mirror_better_the_anatomy_decides() -> None:
+    """The issue's walking2 case in small: a template taken from a walking frame fits the
+    mirrored names better than the true ones (legs apart, the pose dominates); the
+    walking direction keeps the true names, certain."""
+    pos = walker(6, 10.0)
+    frame_template = pos[:, 40]
+    pairs = Anatomy.of_set(PIG).pairs
+    assert mirror_fit_ratio(pos, frame_template, pairs) < 1.0
+    judged = judge_sides(
+        _labelling(pos, LOWER), Anatomy.of_names(LOWER), frame_template, 50.0, TrackingParams()
+    )
+    assert judged.labels == LOWER and judged.exchanged == () and judged.certain
+    assert judged.sides_from == "anatomy"

@@ -1,0 +1,206 @@
+"""Each labelling phase on its own, on pieces cut from the walking model's true paths."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from kisscal.tracking import TrackingParams
+from kisscal.tracking.labelling.groups import name_group, unnamed_groups
+from kisscal.tracking.labelling.result import join
+from kisscal.tracking.labelling.spread import rematch, spread
+from kisscal.tracking.labelling.state import LabelState, segment_mask
+from kisscal.tracking.labelling.window import core_pieces, match_first_window
+from kisscal.tracking.tracks import make_tracks
+from tests.tracking._data import NAMES, SEGMENTS, gait_truth, template
+
+PARAMS = TrackingParams()
+
+
+def _pieces(truth, cuts=(), extra=()):
+    """Tracks from true paths: marker m cut into pieces at the fields ``cuts[m]``; ``extra``
+    adds (fields, xyz) pieces (ghosts). Returns the tracks and the marker of each piece
+    (-1 for extras)."""
+    rng = np.random.default_rng(0)
+    n_fields = truth.shape[1]
+    field, track, xyz, owner = [], [], [], []
+    for m in range(truth.shape[0]):
+        edges = [0, *sorted(dict(cuts).get(m, ())), n_fields]
+        for lo, hi in itertools.pairwise(edges):
+            owner.append(m)
+            field.append(np.arange(lo, hi))
+            track.append(np.full(hi - lo, len(owner) - 1))
+            xyz.append(truth[m, lo:hi] + rng.normal(0, 0.5, (hi - lo, 3)))
+    for f, p in extra:
+        owner.append(-1)
+        field.append(np.asarray(f))
+        track.append(np.full(len(f), len(owner) - 1))
+        xyz.append(np.asarray(p, dtype=float))
+    f = np.concatenate(field)
+    tracks = make_tracks(
+        f, np.concatenate(track), np.concatenate(xyz), np.full((f.size, 3), np.nan),
+        np.zeros(f.size), np.full(f.size, -1),
+    )  # fmt: skip
+    # make_tracks renumbers pieces by first field; map each back to its marker
+    first = {int(t): int(f_[0]) for t, f_ in enumerate(field)}
+    order = sorted(range(len(field)), key=lambda t: (first[t], t))
+    return tracks, np.asarray(owner)[order]
+
+
+def _state(tracks, segments=SEGMENTS):
+    return LabelState.begin(tracks, NAMES, template(), segments, PARAMS)
+
+
+def test_state_needs_three_long_pieces_and_tables_them():
+    truth = gait_truth(60, 0)
+    assert LabelState.begin(_pieces(truth[:2])[0], NAMES, template(), (), PARAMS) is None
+    tracks, owner = _pieces(truth, cuts={4: (30,)})
+    state = _state(tracks)
+    assert state.long_ids.size == 16 and state.dense.shape == (16, 60, 3)
+    assert state.present.sum() == 15 * 60
+    np.testing.assert_array_equal(state.mirror_of[[1, 2, 3, 9]], [2, 1, 9, 3])  # RASI <-> LASI
+    assert segment_mask(NAMES, SEGMENTS).sum() == 2 * len(SEGMENTS)
+    knee = int(np.flatnonzero(owner == 4)[0])
+    state.name_piece(knee, 4)
+    fields, xyz = state.piece(knee)
+    np.testing.assert_array_equal(state.name_pos[4, fields], xyz)
+    assert np.isnan(state.name_pos[4, 30:]).all()
+
+
+def test_rigid_pairs_are_the_segments_plus_named_pairs_that_keep_their_length():
+    tracks, owner = _pieces(gait_truth(100, 1))
+    state = _state(tracks, segments=())
+    state.rich = np.arange(0, 100, 5)
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    rigid = state.rigid_pairs()
+    i = {n: k for k, n in enumerate(NAMES)}
+    assert rigid[i["RKNE"], i["RANK"]] and rigid[i["LASI"], i["SACR"]]
+    assert not rigid[i["RKNE"], i["RHEE"]]  # across the ankle: the distance changes
+    assert not rigid[i["RTOE"], i["LTOE"]]
+
+
+def test_core_pieces_are_seen_together():
+    present = np.zeros((5, 10), dtype=bool)
+    present[:3] = True
+    present[3, :5] = True  # two pieces of one marker: never seen together
+    present[4, 5:] = True
+    core = core_pieces(present, np.arange(10))
+    assert set(core.tolist()) <= {0, 1, 2, 3, 4} and 0 in core and 1 in core and 2 in core
+    seen = present[np.ix_(core, np.arange(10))].astype(int)
+    assert ((seen @ seen.T) > 0).all()
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_first_window_names_the_core_right_whatever_the_heading(seed):
+    truth = gait_truth(200, seed)
+    a = np.radians(40.0 + 100 * seed)
+    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    tracks, owner = _pieces(truth @ turn.T)
+    state = _state(tracks)
+    assert match_first_window(state)
+    named = state.label_of >= 0
+    assert named.sum() >= 12
+    np.testing.assert_array_equal(state.label_of[named], owner[named])
+    assert state.fit_rms < 150.0 and state.rich.size > 0
+
+
+def test_spread_names_later_pieces_and_not_a_ghost():
+    truth = gait_truth(200, 2)
+    ghost_fields = np.arange(120, 124)
+    ghost = truth[6, 120:124] + [0.0, 0.0, 300.0]  # near the body, on no segment
+    tracks, owner = _pieces(truth, cuts={6: (100,), 13: (150,)}, extra=[(ghost_fields, ghost)])
+    state = _state(tracks)
+    # Name only the first piece of every marker, as the first window would.
+    first = {}
+    for t, m in enumerate(owner):
+        if m >= 0 and m not in first:
+            first[m] = t
+            state.name_piece(t, int(m))
+    state.rich = np.arange(0, 100, 3)
+    spread(state)
+    assert (state.label_of[owner >= 0] == owner[owner >= 0]).all()
+    assert state.label_of[owner < 0].tolist() == [-1]
+
+
+def test_rematch_names_a_window_of_unnamed_pieces():
+    tracks, owner = _pieces(gait_truth(200, 4))
+    state = _state(tracks)
+    rematch(state)  # no name given before: the busiest window is matched
+    named = state.label_of >= 0
+    assert named.sum() >= 12
+    np.testing.assert_array_equal(state.label_of[named], owner[named])
+
+
+def test_a_stick_does_not_fit_the_marker_set():
+    f = np.arange(60)
+    line = np.stack([10.0 * f, 0 * f, 1000 + 0 * f], axis=1)
+    paths = np.stack([line, line + [0, 500, 0], line + [0, 0, 300]])
+    state = _state(_pieces(paths)[0])
+    match_first_window(state)
+    assert (state.label_of >= 0).sum() <= 3
+    result = join(state)  # three of fifteen names at most: not the marker set
+    assert not result.fits_marker_set
+    assert result.labels == ("M1", "M2", "M3")
+
+
+def _foot_unnamed(seed):
+    """Every marker named from its own path except the right heel, toe and ankle, whose
+    pieces start together at field 80."""
+    truth = gait_truth(200, seed)
+    tracks, owner = _pieces(truth, cuts={6: (80,), 7: (80,), 8: (80,)})
+    state = _state(tracks)
+    state.rich = np.arange(0, 200, 5)
+    late = []
+    for t, m in enumerate(owner):
+        if m in (6, 7, 8) and state.piece(t)[0][0] == 80:
+            late.append(t)
+        else:
+            state.name_piece(t, int(m))
+    return state, owner, late
+
+
+def test_unnamed_groups_gather_pieces_seen_together():
+    state, _, late = _foot_unnamed(5)
+    groups = unnamed_groups(state)
+    assert [sorted(g.tolist()) for g in groups] == [sorted(late)]
+
+
+def test_name_group_names_a_foot_jointly():
+    state, owner, late = _foot_unnamed(5)
+    rigid = state.rigid_pairs()
+    names = name_group(state, [state.piece(t) for t in late], rigid)
+    assert names is not None
+    np.testing.assert_array_equal(names, owner[late])
+
+
+def test_join_merges_pieces_of_a_name_and_reports_long_strays():
+    truth = gait_truth(120, 6)
+    stray_f = np.arange(20, 60)
+    stray = truth[0, 20:60] + [0.0, 0.0, 450.0]  # a long piece of no name
+    ghost_f = np.arange(70, 73)
+    tracks, owner = _pieces(
+        truth, cuts={5: (60,)}, extra=[(stray_f, stray), (ghost_f, truth[7, 70:73] + 200)]
+    )
+    state = _state(tracks)
+    for t, m in enumerate(owner):
+        if m >= 0:
+            state.name_piece(t, int(m))
+    result = join(state)
+    assert result.fits_marker_set
+    assert sorted(result.labels) == sorted([*NAMES, "M1"])
+    assert result.unlabelled == (result.labels.index("M1"),)
+    assert result.missing == ()
+    assert result.tracks.n_tracks == 16  # the two RTIB pieces joined, the ghost dropped
+    rtib = result.labels.index("RTIB")
+    assert (result.tracks.track == rtib).sum() == 120
+
+
+def test_join_with_too_few_names_gives_generic_names():
+    tracks, owner = _pieces(gait_truth(60, 7))
+    state = _state(tracks)
+    for t in range(3):
+        state.name_piece(t, int(owner[t]))
+    result = join(state)
+    assert not result.fits_marker_set
+    assert result.labels == tuple(f"M{i + 1}" for i in range(15))
