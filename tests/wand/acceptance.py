@@ -1,8 +1,8 @@
 """Issue 16 "Done when" measurements: wand on rods, wand and axes alone, known targets.
 
-Synthetic rigs with truth (:mod:`kisscal.synth`): the KISS-like rig and a modern-like ring
-of eight square-pixel 1280 x 1024 cameras around a 4 x 2 x 2 m walkway (built here until
-the synthetic presets land). Unless ``--images``, the cameras' blobs are the true images of
+Synthetic rigs with truth (:mod:`kisscal.synth`): the ``kiss`` preset (six 752 x 291
+video-field cameras) and the ``modern`` one (eight square-pixel cameras in a ring around a
+4 x 2 x 2 m walkway). Unless ``--images``, the cameras' blobs are the true images of
 the markers plus Gaussian noise (``NOISE_PX`` per coordinate), with the facing cameras' LED
 rings as stationary ghosts; for the wand on rods, grid-linearised pixels are stood in for
 by the ideal (distortion-free) images. ``--images`` also runs whole sessions rendered as
@@ -40,47 +40,15 @@ from kisscal.bundle.wand import (
 )
 from kisscal.dlt import calibrate_camera, leave_one_rod_out, make_rods
 from kisscal.grid import GridParams, apply_linearisation, linearise_dots
-from kisscal.synth.cameras import VOLUME_MM, LensDistortion, SynthCamera, kiss_rig, look_at
+from kisscal.synth.cameras import VOLUME_MM, SynthCamera, kiss_rig
+from kisscal.synth.plan import build_rig
+from kisscal.synth.presets import synth_options
 from kisscal.synth.scene import grid_view, rod_set, visibility
 from kisscal.synth.wand import AXES_POINTS_MM, WAND_MARKERS_MM, wand_trial
 from tests.bundle.conftest import WandScene
 from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 
 NOISE_PX = 0.05
-MODERN_VOLUME_MM = ((-2000.0, -1000.0, 0.0), (2000.0, 1000.0, 2000.0))
-
-
-def ring_rig(seed: int, n: int = 8, size_px: tuple[int, int] = (1280, 1024)) -> tuple:
-    """A modern-like rig: square-pixel cameras on a ring 3-4 m outside the volume, 2.2-3 m
-    high, aimed at it, each seeing it whole; barrel lenses of 2-6 px at the corners."""
-    rng = np.random.default_rng([seed, 4242])
-    lo, hi = np.array(MODERN_VOLUME_MM)
-    centre = (lo + hi) / 2
-    corners = np.array(np.meshgrid(*zip(lo, hi, strict=True), indexing="ij")).reshape(3, -1).T
-    w, h = size_px
-    cams = []
-    for i, a in enumerate(np.linspace(0, 2 * np.pi, n, endpoint=False) + rng.uniform(0, 0.5)):
-        reach = np.array([(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2]) + rng.uniform(3000, 4000)
-        c = np.array([reach[0] * np.cos(a), reach[1] * np.sin(a), rng.uniform(2200, 3000)])
-        R = look_at(c, centre + rng.uniform(-100, 100, 3), roll_deg=rng.uniform(-2, 2))
-        t = -R @ c
-        pc = corners @ R.T + t
-        xn, yn = np.abs(pc[:, 0] / pc[:, 2]), np.abs(pc[:, 1] / pc[:, 2])
-        f = 0.95 * min((w / 2) / xn.max(), (h / 2) / yn.max())
-        K = np.array(
-            [
-                [f, 0, (w - 1) / 2 + rng.normal(0, 5)],
-                [0, f, (h - 1) / 2 + rng.normal(0, 5)],
-                [0, 0, 1],
-            ]
-        )
-        r2 = (np.hypot(w / 2, h / 2) / f) ** 2
-        k1 = -rng.uniform(2.0, 6.0) / (np.hypot(w / 2, h / 2) * r2)
-        lens = LensDistortion(
-            k1=k1, k2=rng.uniform(-0.2, 0.2) * abs(k1), p1=rng.uniform(-1e-4, 1e-4)
-        )
-        cams.append(SynthCamera(f"cam{i + 1}", size_px, K, R, t, lens))
-    return tuple(cams)
 
 
 def _grid(cam: SynthCamera, seed: int, noise_px: float):
@@ -298,15 +266,13 @@ def wand_on_rods_tables(seeds, fields: int) -> None:
 
 def wand_alone_tables(seeds, fields: int) -> None:
     rows = []
-    for name, make, volume in (
-        ("kiss", lambda s: kiss_rig(s), VOLUME_MM),
-        ("ring8", lambda s: ring_rig(s), MODERN_VOLUME_MM),
-    ):
+    for preset in ("kiss", "modern"):
         for seed in seeds:
-            r = wand_alone(make(seed), volume, seed, fields)
+            options = synth_options(preset, seed)
+            r = wand_alone(build_rig(options), options.rig.volume_mm, seed, fields)
             rows.append(
                 [
-                    name,
+                    preset,
                     str(seed),
                     f"{r['centres'].max():.2f}",
                     f"{r['inside']:.3f}",

@@ -21,6 +21,7 @@ import numpy as np
 from kisscal import session
 from kisscal.rig import Rig
 from kisscal.synth.cameras import VOLUME_MM
+from kisscal.synth.presets import synth_options
 from tests.session.wand_session import truth_rig
 from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 
@@ -40,9 +41,9 @@ def _calibrate(root: Path, *extra: str) -> tuple[float, float, str]:
     return time.perf_counter() - t0, cpu, out.stdout
 
 
-def _scores(root: Path) -> dict:
+def _scores(root: Path, volume=VOLUME_MM) -> dict:
     rig, truth = Rig.load(root), truth_rig(root)
-    inside, shell = volume_points(VOLUME_MM)
+    inside, shell = volume_points(volume)
     lin = [c.linearise for c in rig]
     return {
         "inside": rmse_mm(truth, lin, rig.dlts, inside, raw=True),
@@ -70,23 +71,39 @@ def image_tables(seeds, fields: int) -> None:
             )
             _calibrate(alone)
             only = _scores(alone)
-            rows.append((seed, rods, wand, doc, check, only, wall, cpu))
+            modern = Path(tmp) / "m"
+            session.synthesise(
+                modern,
+                preset="modern",
+                seed=seed,
+                fields=20,
+                wand_fields=fields,
+                wand_only=True,
+                walking5=False,
+            )
+            _calibrate(modern)
+            volume = synth_options("modern", seed).rig.volume_mm
+            only_modern = _scores(modern, volume)
+            rows.append((seed, rods, wand, doc, check, only, only_modern, wall, cpu))
     print("\n### Rendered sessions (kisscal synth --wand N; kisscal calibrate), written files\n")
     print(
         "| seed | inside 3D RMSE: rods / wand on rods / wand alone (mm) | corners/edges: rods / "
         "wand on rods | LOO rods / wand (mm) | wand length mean, SD (mm) | centre error "
-        "max, wand alone (mm) | corner lens error, wand alone (px) | calibrate wall / CPU (s) "
+        "max, wand alone (mm) | corner lens error, wand alone (px) | modern, wand alone: "
+        "centres max (mm), inside RMSE (mm), corner lens (px) | calibrate wall / CPU (s) "
         "| adjustment (s) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
-    for seed, rods, wand, doc, check, only, wall, cpu in rows:
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for seed, rods, wand, doc, check, only, m, wall, cpu in rows:
         loo = check["leave_one_rod_out"]
         print(
             f"| {seed} | {rods['inside']:.3f} / {wand['inside']:.3f} / {only['inside']:.3f} | "
             f"{rods['shell']:.3f} / {wand['shell']:.3f} | "
             f"{loo['rods_alone_mean_mm']:.3f} / {loo['mean_mm']:.3f} | "
             f"{doc['length_mean_mm']:.3f}, {doc['length_sd_mm']:.3f} | "
-            f"{only['centres'].max():.2f} | {only['corners']:.3f} | {wall:.1f} / {cpu:.1f} | "
+            f"{only['centres'].max():.2f} | {only['corners']:.3f} | "
+            f"{m['centres'].max():.2f}, {m['inside']:.3f}, {m['corners']:.3f} | "
+            f"{wall:.1f} / {cpu:.1f} | "
             f"{doc['seconds']:.1f} |"
         )
     _targets(seeds)
