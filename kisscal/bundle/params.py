@@ -31,7 +31,9 @@ class BundleParams(Params):
     outlier_px : float
         Observations whose residual after a first adjustment exceeds this (px), or
         ``outlier_sigmas`` times the robust spread, whichever is larger, are dropped and
-        the adjustment repeated.
+        the adjustment repeated: markers merged with another spot (an LED ring, a second
+        marker behind) have centroids off by a few tenths of a pixel, which would bend
+        the calibration if kept.
     outlier_sigmas : float
         See ``outlier_px``.
     tolerance : float
@@ -69,9 +71,9 @@ class BundleParams(Params):
     lens_terms: tuple[LensTerm, ...] = param(("k1", "k2", "p1", "p2"))
     skew: bool = param(False)
     loss: Literal["soft_l1", "huber", "cauchy", "linear"] = param("soft_l1")
-    loss_scale_px: float = param(0.5, unit="px", gt=0)
-    outlier_px: float = param(2.0, unit="px", gt=0)
-    outlier_sigmas: float = param(6.0, gt=0)
+    loss_scale_px: float = param(0.2, unit="px", gt=0)
+    outlier_px: float = param(0.25, unit="px", gt=0)
+    outlier_sigmas: float = param(5.0, gt=0)
     tolerance: float = param(1e-7, gt=0, lt=1)
     max_iterations: int = param(100, ge=1)
     solver: Literal["schur", "least_squares"] = param("schur")

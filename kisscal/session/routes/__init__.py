@@ -92,14 +92,14 @@ def static_blobs(
 ) -> dict[str, list[NDArray[np.float64]]]:
     """Raw valid blob centroids of every frame of a static object, per camera (cached).
 
-    ``what`` names the object in messages and in the cache (``rod``, ``axes`` ...).
+    ``what`` names the object in messages and in the cache (``rods``, ``axes`` ...).
     """
     out = {}
     root = inputs.config.root
-    for cam in steps(inputs.cameras, f"calibrate: detect {what}s"):
+    for cam in steps(inputs.cameras, f"calibrate: detect {what}"):
         seq = frames[cam.id]
         key = cache_key("detect", file_keys(source_files(seq), root), fields, detection[cam.id])
-        cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}s-{cam.id}.npz"
+        cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}-{cam.id}.npz"
         sized = SizedFrames(seq, cam.id, cam.size_px)
         found = detect_frames(
             sized,

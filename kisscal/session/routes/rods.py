@@ -54,7 +54,7 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     blobs_px = {
         cam: [apply_linearisation(lins[cam], uv) for uv in frames]
         for cam, frames in static_blobs(
-            inputs, rod_frames, "rod", config.rods.fields, detection
+            inputs, rod_frames, "rods", config.rods.fields, detection
         ).items()
     }
     t0 = time.perf_counter()

@@ -132,7 +132,7 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     lins = inputs.linearisations
     fields = config.rods.fields
     frames = frame_files(inputs, config.rods.images, "rod", fields)
-    found = static_blobs(inputs, frames, "rod", fields, marker_detection(inputs))
+    found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
     blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
     rod_cal = calibrate_rods(blobs, rods, params.dlt, leave_one_out=True)
     ids = config.camera_ids
