@@ -177,7 +177,8 @@ def wand_alone(rig, volume, seed: int, fields: int, noise_px: float = NOISE_PX) 
     polys = []
     inl = cal.observations.subset(cal.result.inlier)
     for k, (t, c) in enumerate(zip(rig, cams, strict=True)):
-        lin = camera_linearisation(c, t.size_px, data_px=inl.uv_px[inl.camera == k])[0]
+        data = inl.uv_px[inl.camera == k]
+        lin = camera_linearisation(c, t.size_px, data_px=data, minimax=True)[0]
         polys.append(corner_error_px(t, lambda uv, lin=lin: apply_linearisation(lin, uv)))
     return {
         "seed": seed,

@@ -1,8 +1,9 @@
 """The version-1 files of a camera calibrated with Brown lens terms (wand, target routes).
 
 The lens is folded into the 30-coefficient linearisation polynomial, fitted to the
-grid's linearisation followed by the lens inverse (or to the lens inverse alone without a
-grid), weighted on the image positions the camera was calibrated from. A polynomial
+grid's linearisation followed by the lens inverse, weighted on the image positions the
+camera was calibrated from (without a grid, to the lens inverse alone, with the largest
+errors spread evenly so that the image corners hold too). A polynomial
 follows a lens model only to a few hundredths of a pixel, which at a few metres is a
 tenth of a millimetre; so the DLT is then fitted again, linearly, to the calibration's
 own 3D points and their images through the written polynomial (it starts out as the
@@ -69,7 +70,8 @@ def write_lens_camera(
     before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
     xyz, uv, _, labels = points
     raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
-    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw)
+    # without a grid the polynomial is the whole lens: it must hold to the image corners
+    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw, minimax=before is None)
     quality = before.quality if before is not None else None
     lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
     refined = {
