@@ -112,6 +112,8 @@ def demo(
         "kisscal synth /tmp/s1 --seed 1 --fields 200",
         "kisscal synth /tmp/s2 --cameras 3",
         "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
+        "kisscal synth /tmp/s4 --wand 600 --wand-only",
+        "kisscal synth /tmp/s5 --target stepped",
     )
 )
 def synth(
@@ -148,10 +150,29 @@ def synth(
         bool, typer.Option(help="Also replay the real walking5.c3d trial (trial walk5).")
     ] = True,
     force: Annotated[bool, typer.Option("--force", help="Overwrite a non-empty DIR.")] = False,
+    wand: Annotated[
+        int,
+        typer.Option(help="Fields of a wand trial wand01, with an L-frame (0: none).", min=0),
+    ] = 0,
+    wand_only: Annotated[
+        bool, typer.Option("--wand-only", help="Calibrate from the wand and L-frame alone.")
+    ] = False,
+    target: Annotated[
+        Literal["planar", "stepped"] | None,
+        typer.Option(
+            help="Instead: photographs of a planar or stepped dot plate, with seeds.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Write a synthetic session with ground truth (tests, demos)."""
     from kisscal import session
 
+    if target is not None:
+        session.synthesise_target(
+            out, target, seed=seed, n_cameras=cameras or 3, force=force, echo=typer.echo
+        )
+        return
     session.synthesise(
         out,
         preset=preset,
@@ -163,6 +184,8 @@ def synth(
         walking5=walking5,
         force=force,
         echo=typer.echo,
+        wand_fields=wand,
+        wand_only=wand_only,
     )
 
 
@@ -261,7 +284,11 @@ def linearise(
 
 
 @app.command(
-    epilog=_example("kisscal calibrate lab/2026-11-21", "kisscal calibrate lab/2026-11-21 --mdlt")
+    epilog=_example(
+        "kisscal calibrate lab/2026-11-21",
+        "kisscal calibrate lab/2026-11-21 --mdlt",
+        "kisscal calibrate lab/2026-11-21 --route rods",
+    )
 )
 def calibrate(
     session_dir: SessionArg,
@@ -282,17 +309,32 @@ def calibrate(
         bool | None,
         typer.Option("--lens/--no-lens", help="Also fit lens terms L12-L16.", show_default=False),
     ] = None,
+    route: Annotated[
+        str | None,
+        typer.Option(
+            help="Force a route: rods, wand, target or points (default: the session's).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
-    """Compute each camera's DLT parameters from the rod images.
+    """Calibrate every camera by the route the session describes (it says which).
 
-    --mdlt, --refine and --lens are remembered: later calibrations of the session (and
+    [wand] with [rods] or [axes]: wand bundle adjustment; [rods]: the rods' DLT;
+    [calibration]: control points or a known target. --mdlt, --refine and --lens
+    (rods and points routes) are remembered: later calibrations of the session (and
     `kisscal run`) keep them until turned off with --no-mdlt, --no-refine, --no-lens.
     """
     from kisscal import session
 
     with progress_bars() as echo:
         session.calibrate(
-            session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=echo
+            session_dir,
+            camera=camera,
+            mdlt=mdlt,
+            refine=refine,
+            lens=lens,
+            echo=echo,
+            route=route,
         )
 
 

@@ -354,6 +354,7 @@ def fit_polynomial(
     target_uv: ArrayLike,
     center_px: tuple[float, float],
     scale_px: float,
+    weights: ArrayLike | None = None,
 ) -> Linearisation:
     """Least-squares 15 + 15 coefficients mapping distorted points onto target points.
 
@@ -369,6 +370,8 @@ def fit_polynomial(
         Their optimal-grid positions, px.
     center_px, scale_px
         Normalisation (see :class:`Linearisation`).
+    weights : array_like, shape (N,), optional
+        Relative weight of each point's squared residual (default: all equal).
 
     Returns
     -------
@@ -382,6 +385,9 @@ def fit_polynomial(
     if len(d) < N_TERMS:
         raise KisscalError(f"a 4th-order linearisation needs at least 15 dots, got {len(d)}")
     z = poly_terms((d[:, 0] - center_px[0]) / scale_px, (d[:, 1] - center_px[1]) / scale_px)
+    if weights is not None:
+        root = np.sqrt(np.asarray(weights, dtype=float).reshape(-1, 1))
+        z, t = z * root, t * root
     norms = np.linalg.norm(z, axis=0)
     norms[norms == 0] = 1.0
     coef, _, rank, _ = np.linalg.lstsq(z / norms, t, rcond=None)

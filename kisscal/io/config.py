@@ -8,6 +8,7 @@ the key it checks.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from kisscal.bundle.params import BundleParams
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
@@ -176,8 +178,17 @@ class SessionConfig:
 
 # Stage sections whose keys are checked against the stage's parameter dataclass by the
 # session layer (with a did-you-mean there).
-STAGE_SECTIONS: tuple[str, ...] = ("detection", "dlt", "recon", "tracking", "gait", "report")
+STAGE_SECTIONS: tuple[str, ...] = (
+    "detection",
+    "dlt",
+    "recon",
+    "tracking",
+    "gait",
+    "report",
+    "target",
+)
 _GRID_KEYS = {"rows", "cols", "images", "fields"}  # other [grid] keys are GridParams
+_WAND_KEYS = {"trial", "markers_mm"}  # other [wand] keys are BundleParams
 
 
 # --------------------------------------------------------------------------- tables
@@ -262,7 +273,8 @@ def _calibration(t: Table) -> CalibrationConfig:
 
 
 def _wand(t: Table) -> WandConfig:
-    t.allow({"trial", "markers_mm"})
+    # keys besides trial and markers_mm tune the wand calibration (BundleParams)
+    t.allow(_WAND_KEYS | {f.name for f in dataclasses.fields(BundleParams)})
     trial = t.string("trial", t.required("trial")) or ""
     raw = t.required("markers_mm")
     try:
@@ -385,6 +397,7 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     sections = {k: dict(top.sub(k).data) for k in STAGE_SECTIONS if k in data}
     # [grid] keys beyond rows/cols/images/fields tune the grid stage (GridParams)
     sections["grid"] = {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS}
+    sections["wand"] = {k: v for k, v in data.get("wand", {}).items() if k not in _WAND_KEYS}
     config = SessionConfig(
         root=Path(root),
         name=name,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,7 @@ def linearisation_to_dict(
     camera: str,
     missing_rc: ArrayLike | None = None,
     missing_uv: ArrayLike | None = None,
+    refined: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The JSON document of one camera's linearisation (DESIGN.md format).
 
@@ -49,6 +51,10 @@ def linearisation_to_dict(
         Camera id.
     missing_rc, missing_uv : array_like, optional
         Grid positions without a dot and where they would be (px), for the record.
+    refined : mapping, optional
+        For a linearisation a calibration route estimated (a wand's lens terms): at least
+        ``{"by": route}``, plus ``"grid_fit"`` (the grid's own linearisation document, or
+        None without a grid) and what the route adds. Written under ``"refined"``.
     """
     doc: dict[str, Any] = {
         "format_version": FORMAT_VERSION,
@@ -70,6 +76,8 @@ def linearisation_to_dict(
         doc["quality"] = {
             k: (_number(v) if isinstance(v, float) else v) for k, v in asdict(q).items()
         }
+    if refined is not None:
+        doc["refined"] = dict(refined)
     if missing_rc is not None:
         rc = np.asarray(missing_rc, dtype=int).reshape(-1, 2)
         doc["missing"] = [{"row": int(r), "col": int(c)} for r, c in rc]
@@ -125,11 +133,16 @@ def write_linearisation(
     camera: str,
     missing_rc: ArrayLike | None = None,
     missing_uv: ArrayLike | None = None,
+    refined: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write ``out/linearisation/<camera>.json``; creates the folder. Returns the path."""
+    """Write ``out/linearisation/<camera>.json``; creates the folder. Returns the path.
+
+    ``refined`` marks a linearisation a calibration route estimated (see
+    :func:`linearisation_to_dict`).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    doc = linearisation_to_dict(lin, camera, missing_rc, missing_uv)
+    doc = linearisation_to_dict(lin, camera, missing_rc, missing_uv, refined)
     write_text(path, json.dumps(doc, indent=2) + "\n")
     return path
 
@@ -151,3 +164,32 @@ def read_linearisation(path: str | Path) -> tuple[str, Linearisation]:
         raise KisscalError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     lin = linearisation_from_dict(doc, str(path))
     return str(doc.get("camera", path.stem)), lin
+
+
+def read_linearisation_doc(path: str | Path) -> dict[str, Any] | None:
+    """The JSON document of a linearisation file, or None when there is no file."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise KisscalError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(doc, dict):
+        raise KisscalError(f"{path}: expected a JSON object")
+    return doc
+
+
+def refined_by(doc: Mapping[str, Any] | None) -> str | None:
+    """The calibration route that estimated this linearisation (None: a grid's own)."""
+    refined = (doc or {}).get("refined")
+    return str(refined.get("by")) if isinstance(refined, dict) else None
+
+
+def grid_fit_of(doc: Mapping[str, Any], source: str) -> Linearisation | None:
+    """The grid's own linearisation kept in a refined document (None: there was no grid)."""
+    refined = doc.get("refined")
+    if not isinstance(refined, dict):
+        return linearisation_from_dict(dict(doc), source)
+    grid = refined.get("grid_fit")
+    return None if grid is None else linearisation_from_dict(grid, f"{source} (grid_fit)")

@@ -31,13 +31,23 @@ def summarise(root: Path) -> dict[str, Any]:
         for name, entry in trials.items()
         for line in entry.get("reconstruction", {}).get("warnings", [])
     ]
-    return {
-        "session": config.name,
-        "cameras": cams,
-        "rods": check,
-        "trials": trials,
-        "warnings": warnings,
-    }
+    summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+    summary["warnings"] = warnings
+    summary.update(_calibration_summary(out / "dlt"))
+    return summary
+
+
+def _calibration_summary(dlt: Path) -> dict[str, Any]:
+    """The calibration route, and the wand's or target's own figures when there are any."""
+    entry: dict[str, Any] = {}
+    record = dlt / "calibration.json"
+    if record.is_file():
+        entry["calibration"] = {"route": json.loads(record.read_text()).get("route")}
+    for name in ("wand", "target"):
+        path = dlt / f"{name}.json"
+        if path.is_file():
+            entry[name] = json.loads(path.read_text())
+    return entry
 
 
 def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, Any]:

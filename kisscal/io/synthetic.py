@@ -21,6 +21,7 @@ from kisscal.io.files import table_to_csv, write_json, write_table
 from kisscal.synth.motion import Motion
 from kisscal.synth.plan import (
     SynthPlan,
+    camera_glow,
     render_grid,
     render_rods,
     render_trial,
@@ -31,6 +32,7 @@ from kisscal.synth.render import SpotSizes
 from kisscal.synth.replay import replay_trial
 from kisscal.synth.scene import SIZE_LEVELS
 from kisscal.synth.truth import camera_detection_truth, session_detection_truth, size_ranges
+from kisscal.synth.wand import render_axes
 
 #: PNG compression level: fixed so that the same seed gives the same bytes.
 _PNG_LEVEL = 3
@@ -215,6 +217,8 @@ def write_synthetic_session(
         ]
         cameras = _map(_truth_job, per_camera, n_jobs)
         write_json(root / "truth" / "detection.json", session_detection_truth(plan, cameras))
+        if plan.axes_mm is not None:
+            write_axes_frames(root, plan)
         if out.exists():
             shutil.rmtree(out)
         root.rename(out)
@@ -222,3 +226,23 @@ def write_synthetic_session(
         if root.exists():
             shutil.rmtree(root, ignore_errors=True)
     return out
+
+
+def write_axes_frames(root: Path, plan: SynthPlan) -> None:
+    """The L-frame's images (``axes/<camera>/``) and truth (``truth/axes/<camera>.csv``)."""
+    assert plan.axes_mm is not None
+    for ci, cam in enumerate(plan.rig):
+        frames, truth = render_axes(
+            plan.rig,
+            ci,
+            plan.axes_mm,
+            plan.render,
+            plan.options.seed,
+            plan.options.rod_frames,
+            camera_glow(plan, ci),
+        )
+        folder = root / "axes" / cam.id
+        folder.mkdir(parents=True, exist_ok=True)
+        for k, image in enumerate(frames):
+            _write_png(folder / f"{k:06d}.png", image, plan.render.noise_sigma > 0)
+        write_table(root / "truth" / "axes" / f"{cam.id}.csv", truth)

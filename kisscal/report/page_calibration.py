@@ -98,19 +98,54 @@ def rod_table(o: SessionOutputs) -> Html:
             )
         )
     if per_rod:
+        alone = any(r.get("rods_alone_mean_mm") is not None for r in per_rod.values())
         rows = [
             [tag("b", name), fmt(r.get("n_markers")), fmt(r.get("mean_mm")), fmt(r.get("max_mm"))]
+            + ([fmt(r.get("rods_alone_mean_mm"))] if alone else [])
             for name, r in per_rod.items()
         ]
+        headers = ["rod held out", "markers", "3D error mean (mm)", "max (mm)"]
+        if alone:  # the wand route: the same rod held out of the rods-only calibration
+            headers.append("rods alone, mean (mm)")
+        parts.append(table(headers, rows, tuple(range(1, len(headers)))))
+    return join(parts)
+
+
+def target_table(o: SessionOutputs) -> Html:
+    """Target points matched per camera (``[calibration] target``) and the held-out error."""
+    target = o.summary.get("target") or {}
+    cams = target.get("cameras") or {}
+    if not cams:
+        return Html("")
+    rows = [
+        [
+            tag("b", c),
+            fmt(e.get("visible")),
+            fmt(e.get("matched")),
+            fmt(len(e.get("unmatched") or [])),
+            fmt(e.get("rms_px")),
+            fmt(e.get("seed_rms_px")),
+        ]
+        for c, e in cams.items()
+    ]
+    headers = ["camera", "visible points", "matched", "unmatched", "rms (px)", "seeds rms (px)"]
+    parts = [table(headers, rows, (1, 2, 3, 4, 5))]
+    rods = o.summary.get("rods") or {}
+    if "leave_out_mean_mm" in rods:
         parts.append(
-            table(["rod held out", "markers", "3D error mean (mm)", "max (mm)"], rows, (1, 2, 3))
+            tag(
+                "p",
+                f"{rods.get('held_out_points', '')} target points held out of every camera's fit "
+                f"and reconstructed from all cameras: mean {fmt(rods['leave_out_mean_mm'], 3)}"
+                f" mm, max {fmt(rods.get('leave_out_max_mm'), 3)} mm.",
+            )
         )
     return join(parts)
 
 
 def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: set[str]) -> Html:
     """Cameras table, rods, and the calibration figures (grid figures folded)."""
-    parts: list[Any] = [camera_table(o, verdicts), rod_table(o)]
+    parts: list[Any] = [camera_table(o, verdicts), rod_table(o), target_table(o)]
     fig = o.figures
     if "rig" in fig:
         used.add("rig")
@@ -133,6 +168,15 @@ def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: s
                 "marker, drawn in the image (arrows magnified; the key arrow gives the scale).",
             )
         )
+    targets = []
+    for cam in o.cameras:
+        name = f"target_{cam}"
+        if name in fig:
+            used.add(name)
+            targets.append(details(f"{cam}: matched target points", png(fig[name], name)))
+    if targets:
+        parts.append(tag("h3", "Target residuals per camera (click to open)"))
+        parts.append(join(targets))
     grids = []
     for cam in o.cameras:
         name = f"grid_{cam}"
@@ -204,12 +248,27 @@ def detection_section(o: SessionOutputs) -> Html:
     )
 
 
+WAND_NOTE = (
+    "Wand length: every field's end markers triangulated afresh from the calibrated "
+    "cameras; held out: fields left out of the adjustment. Coverage: the share of an 8 x 8 "
+    "division of the image the wand reached (lens terms are extrapolated elsewhere). "
+)
+
+
 def wand_section(o: SessionOutputs, used: set[str]) -> Html:
     """Wand calibration figures (``out/dlt/wand.json``): length, per-camera residuals."""
     w = o.wand
     if not w:
         return Html("")
     top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
+    for group in ("held_out", "axes"):
+        sub = w.get(group)
+        if isinstance(sub, dict):
+            top += [
+                (f"{group}_{k}", v)
+                for k, v in sub.items()
+                if isinstance(v, int | float) and not isinstance(v, bool)
+            ]
     parts = []
     if top:
         rows = [[heading(k), _cell(v)] for k, v in top]
@@ -225,4 +284,4 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
         if name.startswith("wand"):
             used.add(name)
             parts.append(png(o.figures[name], name, name.replace("_", " ")))
-    return section("wand", "Wand calibration", join(parts), esc(RMS_NOTE))
+    return section("wand", "Wand calibration", join(parts), esc(WAND_NOTE + RMS_NOTE))

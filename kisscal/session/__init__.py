@@ -41,6 +41,7 @@ _LAZY = {
     "batch": "kisscal.session.batch",
     "demo": "kisscal.session.demo",
     "synthesise": "kisscal.session.synth",
+    "synthesise_target": "kisscal.session.synth",
     "evaluate": "kisscal.session.synth",
     "default_walking5_path": "kisscal.session.synth",
 }
@@ -76,6 +77,7 @@ __all__ = [
     "stage_params",
     "summarise",
     "synthesise",
+    "synthesise_target",
     "track",
     "validate",
 ]

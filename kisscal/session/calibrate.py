@@ -22,13 +22,19 @@ from kisscal.io.files import write_json
 from kisscal.rig import Camera, Rig
 from kisscal.session.exports import write_exports
 from kisscal.session.inputs import load_config, out_dir, select_cameras, writes_session
-from kisscal.session.linearise import current_linearisations
+from kisscal.session.linearise import (
+    current_linearisations,
+    grid_linearisations,
+    restore_grid_linearisations,
+)
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.routes import RouteInputs
 from kisscal.session.routes.imported import calibrate_from_cameras, calibrate_from_dltdv
 from kisscal.session.routes.points import calibrate_from_points
 from kisscal.session.routes.rods import calibrate_from_rods
+from kisscal.session.routes.target import calibrate_from_target
+from kisscal.session.routes.wand import calibrate_from_wand
 
 #: Every route by name: what ``calibration.json`` records and ``--route`` chooses.
 ROUTES: dict[str, Callable[[RouteInputs], dict[str, Any]]] = {
@@ -36,6 +42,8 @@ ROUTES: dict[str, Callable[[RouteInputs], dict[str, Any]]] = {
     "points": calibrate_from_points,
     "cameras": calibrate_from_cameras,
     "dlt": calibrate_from_dltdv,
+    "wand": calibrate_from_wand,
+    "target": calibrate_from_target,
 }
 
 
@@ -49,8 +57,12 @@ def calibrate(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
+    route: str | None = None,
 ) -> dict[str, Any]:
-    """``kisscal calibrate``: DLT parameters of each camera from rods or control points.
+    """``kisscal calibrate``: DLT parameters of each camera, by the session's route.
+
+    ``route`` forces one of :data:`ROUTES` (``--route``); by default the session's
+    tables choose it (:func:`session_route`), and the choice is said.
 
     ``mdlt``, ``refine`` and ``lens`` left as ``None`` keep what the last calibration of
     this session chose (``out/dlt/calibration.json``), so that ``kisscal run`` never
@@ -58,42 +70,90 @@ def calibrate(
 
     Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
     (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
-    returns ``{camera: DltResult}`` plus the leave-one-rod-out check under ``"_check"``.
+    returns ``{camera: DltResult}`` plus the route's held-out check under ``"_check"``.
     """
     root = Path(root)
     config = load_config(root)
     o = overrides or Overrides()
     switches = _dlt_switches(root, {"mdlt": mdlt, "refine": refine, "lens": lens}, echo)
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
-    route = session_route(config)
+    route, why = session_route(config, route)
+    echo(f"  calibrate: route {route} ({why})")
     inputs = RouteInputs(
         root,
         config,
         select_cameras(config, camera),
-        current_linearisations(root, echo),
+        grid_linearisations(root, echo),
         params,
         echo,
         workers,
     )
     summary = ROUTES[route](inputs)
+    restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     dlt_dir = out_dir(root) / "dlt"
-    write_exports(root, config, inputs.linearisations, read_dlt_files(root, config, False), echo)
+    lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
+    write_exports(root, config, lins, read_dlt_files(root, config, False), echo)
     write_json(dlt_dir / "calibration.json", {"route": route, "options": switches})
     return summary
 
 
-def session_route(config: SessionConfig) -> str:
-    """The calibration route a session describes (a key of :data:`ROUTES`)."""
-    if config.rods is not None:
-        return "rods"
-    if config.calibration is not None and config.calibration.route in ROUTES:
-        return config.calibration.route
-    if config.calibration is not None:
+def session_route(config: SessionConfig, forced: str | None = None) -> tuple[str, str]:
+    """The calibration route a session describes (a key of :data:`ROUTES`) and why.
+
+    ``[wand]`` calibrates on the rods when there are rods, else with the axes object;
+    without a wand, ``[rods]``, else ``[calibration]``. ``forced`` (``--route``) must be
+    a route the session has the inputs for.
+    """
+    available = _available_routes(config)
+    if config.wand is not None and config.rods is None and config.axes is None:
+        raise KisscalError(
+            f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
+        )
+    if forced is not None:
+        if forced not in ROUTES:
+            raise KisscalError(
+                f"--route {forced}: unknown route; choose one of {', '.join(ROUTES)}"
+            )
+        if forced not in available:
+            raise KisscalError(
+                f"--route {forced}: {config.path} has no inputs for it "
+                f"({_NEEDS.get(forced, 'see docs/session-format.md')})"
+            )
+        return forced, "--route"
+    if config.calibration is not None and config.calibration.route not in ROUTES:
         raise KisscalError(
             f"{config.path}: [calibration] {config.calibration.route} is not supported by "
             "this version of kisscal"
         )
-    raise KisscalError(f"{config.path}: no [rods] and no [calibration]: nothing to calibrate from")
+    if not available:
+        raise KisscalError(
+            f"{config.path}: no [rods], [wand] or [calibration]: nothing to calibrate from"
+        )
+    route, why = next(iter(available.items()))
+    return route, why
+
+
+_NEEDS = {
+    "rods": "[rods]",
+    "cameras": "[calibration] cameras",
+    "dlt": "[calibration] dlt",
+    "wand": "[wand] with [rods] or [axes]",
+    "points": "[calibration] points",
+    "target": "[calibration] target, images and seeds",
+}
+
+
+def _available_routes(config: SessionConfig) -> dict[str, str]:
+    """Routes the session has inputs for, the default first, each with its reason."""
+    out = {}
+    if config.wand is not None and (config.rods is not None or config.axes is not None):
+        on = "on the rods" if config.rods is not None else "with the axes object"
+        out["wand"] = f"[wand] {on}"
+    if config.rods is not None:
+        out["rods"] = "[rods]"
+    if config.calibration is not None and config.calibration.route in ROUTES:
+        out[config.calibration.route] = f"[calibration] {config.calibration.route}"
+    return out
 
 
 _SWITCHES = ("mdlt", "refine", "lens")

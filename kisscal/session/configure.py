@@ -149,7 +149,12 @@ def _with_lattice_aspect(setup: DetectionSetup, aspect: float) -> DetectionSetup
 
 def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample | None:
     """Up to :data:`MAX_FRAMES` frames of the camera's ``kind`` images, spread evenly."""
-    sources = [src for src in image_sources(config) if (src[0] == "grid") == (kind == "grid")]
+    # a known target's photographs (dots on a lit plate) are not marker images
+    sources = [
+        src
+        for src in image_sources(config)
+        if (src[0] == "grid") == (kind == "grid") and src[0] != "calibration"
+    ]
     sets = []
     per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
     for what, pattern, video, fields in sources:

@@ -3,15 +3,24 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 from kisscal.errors import KisscalError
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.files import write_text
 from kisscal.io.frames import camera_frames, source_files
-from kisscal.io.linearisation import read_linearisation, write_linearisation
+from kisscal.io.linearisation import (
+    grid_fit_of,
+    read_linearisation,
+    read_linearisation_doc,
+    refined_by,
+    write_linearisation,
+)
 from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
@@ -77,7 +86,9 @@ def _linearise_camera(
     )
     if is_current(out, key):
         echo(f"  linearise {cam.id}: cached")
-        return read_linearisation(out)[1]
+        doc = read_linearisation_doc(out)
+        grid = grid_fit_of(doc, str(out)) if doc is not None else None
+        return grid if grid is not None else read_linearisation(out)[1]
     t0 = time.perf_counter()
     try:
         fit = linearise_frames(
@@ -111,10 +122,11 @@ def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:
         echo(f"  warning: {camera}: {warning}")
 
 
-def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
-    """The current linearisation of every camera (computing what is missing or stale).
+def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+    """Each camera's grid linearisation (identity without a grid; an imported camera's
+    lens), fitted if missing or stale: what a calibration route starts from.
 
-    Later stages call this; it stays quiet about linearisations that are already current.
+    It stays quiet about linearisations that are already current.
     """
 
     def news(line: str) -> None:
@@ -123,3 +135,33 @@ def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
 
     with reporting_progress(Progress()):
         return linearise(root, echo=news)
+
+
+def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+    """The linearisation every camera's DLT goes with: the grid's, or the one a
+    calibration route estimated (a wand's lens terms) and wrote in its place."""
+    lins = grid_linearisations(root, echo)
+    for cam in lins:
+        path = out_dir(root) / "linearisation" / f"{cam}.json"
+        if refined_by(read_linearisation_doc(path)) is not None:
+            lins[cam] = read_linearisation(path)[1]
+    return lins
+
+
+def restore_grid_linearisations(root: Path, cameras: Sequence[str], route: str) -> None:
+    """Put back the grid's linearisation where another route than ``route`` refined it.
+
+    Called after a calibration route succeeded: its DLTs go with the grid's linearisation
+    (or with none, without a grid), not with an earlier route's lens estimate.
+    """
+    for cam in cameras:
+        path = out_dir(root) / "linearisation" / f"{cam}.json"
+        doc = read_linearisation_doc(path)
+        by = refined_by(doc)
+        if doc is None or by is None or by == route:
+            continue
+        grid = doc["refined"].get("grid_fit")
+        if grid is None:
+            path.unlink()
+        else:
+            write_text(path, json.dumps(grid, indent=2) + "\n")

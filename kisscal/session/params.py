@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
 from kisscal.gait import GaitParams
@@ -13,6 +14,7 @@ from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
 from kisscal.params import Params
 from kisscal.recon import ReconParams
+from kisscal.target.params import TargetParams
 from kisscal.tracking import TrackingParams
 
 
@@ -26,6 +28,8 @@ class Overrides:
     recon: Mapping[str, Any] = field(default_factory=dict)
     tracking: Mapping[str, Any] = field(default_factory=dict)
     gait: Mapping[str, Any] = field(default_factory=dict)
+    wand: Mapping[str, Any] = field(default_factory=dict)
+    target: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -43,6 +47,8 @@ class StageParams:
     recon: ReconParams
     tracking: TrackingParams
     gait: GaitParams
+    wand: BundleParams = field(default_factory=BundleParams)
+    target: TargetParams = field(default_factory=TargetParams)
     detection_given: Mapping[str, Any] = field(default_factory=dict)
 
 
@@ -90,5 +96,7 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
         recon=build_params(ReconParams, "recon", section("recon", {}), o.recon),
         tracking=build_params(TrackingParams, "tracking", section("tracking", {}), o.tracking),
         gait=build_params(GaitParams, "gait", section("gait", {}), o.gait),
+        wand=build_params(BundleParams, "wand", section("wand", {}), o.wand),
+        target=build_params(TargetParams, "target", section("target", {}), o.target),
         detection_given={**config.detection, **o.detection},
     )

@@ -60,6 +60,8 @@ def synthesise(
     force: bool = False,
     n_jobs: int | None = None,
     echo: Callable[[str], object] | None = None,
+    wand_fields: int = 0,
+    wand_only: bool = False,
 ) -> Path:
     """Write a synthetic session (images, ``session.toml``, ``truth/``) to ``out``.
 
@@ -67,6 +69,8 @@ def synthesise(
     ``modern``, ``lowcost``); ``fields`` and ``n_cameras`` default to the preset's. The
     same arguments give byte-identical files. With ``walking5`` the real Vicon trial is
     replayed through the synthetic cameras as trial ``walk5`` when it can be found.
+    ``wand_fields`` adds a wand trial ``wand01`` of that many fields and an L-frame
+    (``[wand]``, ``[axes]``); ``wand_only`` leaves ``[grid]`` and ``[rods]`` out.
     """
     echo = echo or _silent
     if preset not in PRESETS:
@@ -77,9 +81,12 @@ def synthesise(
         raise KisscalError(f"--cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
     if fields is not None and fields < 10:
         raise KisscalError(f"--fields must be at least 10, got {fields}")
+    if wand_only and not wand_fields:
+        raise KisscalError("--wand-only needs --wand FIELDS (the wand trial to calibrate from)")
     options = synth_options(
         preset, seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, blur_px=blur_px
     )
+    options = dataclasses.replace(options, wand_fields=wand_fields, wand_only=wand_only)
     replay = None
     if walking5:
         path = default_walking5_path()
@@ -104,6 +111,32 @@ def synthesise(
         f"{options.rate_hz:g} Hz, grid and rod frames, trials "
         f"{', '.join(f'{t} ({m.n_fields} fields)' for t, m in plan.trials.items())}, "
         f"truth/ ({time.perf_counter() - t0:.1f} s)"
+    )
+    return Path(out)
+
+
+def synthesise_target(
+    out: Path,
+    kind: str,
+    *,
+    seed: int = 1,
+    n_cameras: int = 3,
+    force: bool = False,
+    echo: Callable[[str], object] | None = None,
+) -> Path:
+    """Write a synthetic known-target session (``kisscal synth --target planar|stepped``):
+    photographs of a dot plate, ``target.csv``, six clicked seeds per camera, ``truth/``."""
+    from kisscal.io.synthetic_target import write_target_session
+
+    if kind not in ("planar", "stepped"):
+        raise KisscalError(f"--target must be planar or stepped, got {kind!r}")
+    if not 2 <= n_cameras <= 4:
+        raise KisscalError(f"a target session has 2 to 4 cameras, got {n_cameras}")
+    t0 = time.perf_counter()
+    write_target_session(Path(out), kind, seed, n_cameras, force=force)  # type: ignore[arg-type]
+    (echo or _silent)(
+        f"wrote {out}: {n_cameras} cameras photographing a {kind} dot plate, "
+        f"target.csv, seeds, truth/ ({time.perf_counter() - t0:.1f} s)"
     )
     return Path(out)
 

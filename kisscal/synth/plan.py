@@ -45,6 +45,7 @@ from kisscal.synth.scene import (
     rod_set,
     visibility,
 )
+from kisscal.synth.wand import WAND_TRIAL, axes_points, wand_tables, wand_trial
 
 Range = tuple[float, float]
 Volume = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -133,6 +134,12 @@ class SynthOptions:
         marker size band is chosen by :func:`plan_session`.
     rig : RigSpec
         Cameras and volume (:func:`kisscal.synth.presets.synth_options` draws one).
+    wand_fields : int
+        Fields of a wand trial ``wand01`` with an L-frame for the lab axes
+        (:mod:`kisscal.synth.wand`); 0: none.
+    wand_only : bool
+        Leave ``[grid]`` and ``[rods]`` out of ``session.toml``: calibrate from the wand
+        and the L-frame alone.
     """
 
     seed: int = 1
@@ -145,6 +152,8 @@ class SynthOptions:
     stick_fields: int = 200
     render: RenderParams = field(default_factory=RenderParams)
     rig: RigSpec = field(default_factory=RigSpec)
+    wand_fields: int = 0
+    wand_only: bool = False
 
 
 @dataclass(frozen=True)
@@ -164,6 +173,7 @@ class SynthPlan:
     segments: tuple[tuple[str, str], ...]
     render: RenderParams = field(default_factory=RenderParams)
     rod_conflicts: int = 0
+    axes_mm: NDArray[np.float64] | None = None
 
 
 def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPlan:
@@ -194,6 +204,7 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         segments=gait.segments,
         render=render,
         rod_conflicts=conflicts,
+        axes_mm=axes_points() if options.wand_fields else None,
     )
 
 
@@ -249,7 +260,7 @@ def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
         }
         if replay is not None:
             trials["walk5"] = replay
-        return trials
+        return _with_wand(trials, options)
     lo, hi = spec.volume_mm
     # the feet reach about 650 mm ahead of and behind the pelvis
     path_mm = (hi[0] - lo[0]) - 2 * 650.0
@@ -260,6 +271,15 @@ def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
     }
     if replay is not None:
         trials["walk5"] = slim_capsules(inside_volume(replay, spec.volume_mm, options.fields))
+    return _with_wand(trials, options)
+
+
+def _with_wand(trials: dict[str, Motion], options: SynthOptions) -> dict[str, Motion]:
+    """The trials, with the wand trial when ``options.wand_fields`` asks for one."""
+    if options.wand_fields:
+        trials[WAND_TRIAL] = wand_trial(
+            options.seed, options.wand_fields, options.rate_hz, volume_mm=options.rig.volume_mm
+        )
     return trials
 
 
@@ -296,7 +316,7 @@ def _hang_rods(
 
 def session_config(plan: SynthPlan, name: str) -> dict:
     """The ``session.toml`` content (DESIGN.md schema) of a synthetic session."""
-    return {
+    config = {
         "session": {"name": name, "rate_hz": plan.options.rate_hz},
         "cameras": [{"id": c.id, "size": list(c.size_px)} for c in plan.rig],
         "grid": {"rows": 15, "cols": 20, "images": "grid/{camera}/*.png"},
@@ -311,6 +331,9 @@ def session_config(plan: SynthPlan, name: str) -> dict:
         },
         "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
     }
+    if plan.axes_mm is not None:
+        return wand_tables(config, plan.axes_mm, plan.options.wand_only)
+    return config
 
 
 # ------------------------------------------------------------------------- rendering

@@ -234,6 +234,17 @@ def _rename_table(data: dict) -> None:
     data["sesion"] = data.pop("session")
 
 
+def wand_trial(**options: object) -> Setup:
+    """A wand trial (centroid files from the true cameras) and ``[wand]``."""
+
+    def setup(root: Path) -> None:
+        from tests.session.wand_session import add_wand_trial
+
+        add_wand_trial(root, **options)  # type: ignore[arg-type]
+
+    return setup
+
+
 def imported_cameras(change: Callable[[dict], None]) -> Setup:
     """The session calibrated from its own exported cameras.toml, broken by ``change``."""
 
@@ -247,6 +258,29 @@ def imported_cameras(change: Callable[[dict], None]) -> Setup:
         (root / "session.toml").write_text(tomli_w.dumps(data))
 
     return setup
+
+
+def wand_and_axes_hidden(root: Path) -> None:
+    """Wand and axes alone; one axes marker blacked out in cam2's axes images."""
+    from tests.session.wand_session import add_axes, add_wand_trial
+
+    add_wand_trial(root)
+    add_axes(root, hide_in="cam2")
+
+
+def contradicting_seeds(root: Path) -> None:
+    """A target session calibrated once, then two of cam2's seeds given each other's names."""
+    from kisscal import session
+    from kisscal.io.files import read_table, write_table
+
+    shutil.rmtree(root)
+    session.synthesise_target(root, "stepped", seed=3)
+    session.calibrate(root)
+    path = root / "calibration" / "cam2_seeds.csv"
+    seeds = read_table(path, numeric=("u_px", "v_px", "x_mm", "y_mm", "z_mm"))
+    for key in ("x_mm", "y_mm", "z_mm"):
+        seeds[key][[1, 4]] = seeds[key][[4, 1]]
+    write_table(path, seeds)
 
 
 def dltdv_rows(n_rows: int) -> Setup:
@@ -580,6 +614,49 @@ CASES: tuple[Case, ...] = (
         exit_code=0,
         stdout=("calibrate cam2", "18 rod markers", "missing R1.1"),
         kept="that camera is calibrated on the other rods; the output names the missing markers",
+    ),
+    Case(
+        "wand-in-one-camera-at-a-time",
+        "calibration",
+        "waved the wand where only one camera at a time saw it",
+        wand_trial(cameras_at_once=1),
+        ("calibrate", "S"),
+        ("wand calibration", "two or more cameras at once in 0 fields", "at least 20"),
+    ),
+    Case(
+        "wand-length-off",
+        "calibration",
+        "gave a wand length 10 % longer than the wand",
+        wand_trial(stated_mm=(0.0, 209.0, 550.0)),
+        ("calibrate", "S"),
+        ("[wand] markers_mm", "550 mm apart", "the rods' calibration measures", "fields, -9."),
+    ),
+    Case(
+        "axes-marker-hidden",
+        "calibration",
+        "hid one axes marker from one camera (wand and axes, no rods)",
+        wand_and_axes_hidden,
+        ("calibrate", "S"),
+        (),
+        exit_code=0,
+        stdout=("route wand", "warning: axes: cam2 sees 3 of the 4 axes markers"),
+        kept="the other cameras fix the lab frame; the output says which camera missed which",
+    ),
+    Case(
+        "contradicting-seeds",
+        "calibration",
+        "clicked two target seeds and gave each the other's coordinates",
+        contradicting_seeds,
+        ("calibrate", "S"),
+        ("camera cam2", "seeds contradict each other", "rms", "seed row"),
+    ),
+    Case(
+        "route-without-inputs",
+        "calibration",
+        "forced the target route on a session calibrated with rods",
+        nothing,
+        ("calibrate", "S", "--route", "target"),
+        ("--route target", "no inputs for it", "[calibration] target"),
     ),
     Case(
         "cameras-toml-missing-camera",

@@ -5,19 +5,31 @@ it calibrates (plus its own extra files); :func:`kisscal.session.calibrate.calib
 the route from the session, writes what every route shares (``dltdv.csv``,
 ``calibration.json``) and hands the result on. Everything downstream reads only those files.
 
-Routes: :mod:`~kisscal.session.routes.rods` (surveyed rods, the seeds' method) and
-:mod:`~kisscal.session.routes.points` (control points given per camera).
+Routes: :mod:`~kisscal.session.routes.rods` (surveyed rods, the seeds' method),
+:mod:`~kisscal.session.routes.points` (control points given per camera),
+:mod:`~kisscal.session.routes.wand` (a wand, on rods or with an axes object) and
+:mod:`~kisscal.session.routes.target` (a known target matched from clicked seeds).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
+from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.frames import camera_frames, source_files
+from kisscal.session.configure import camera_detection
+from kisscal.session.detection import SizedFrames, detect_frames
+from kisscal.session.inputs import file_keys, out_dir
 from kisscal.session.params import StageParams
-from kisscal.session.progress import Echo
+from kisscal.session.progress import Echo, steps
 
 
 @dataclass(frozen=True)
@@ -52,3 +64,77 @@ class RouteInputs:
     def whole_rig(self) -> bool:
         """True when every camera of the session is calibrated (rig-wide checks apply)."""
         return len(self.cameras) == len(self.config.cameras)
+
+
+def frame_files(
+    inputs: RouteInputs, pattern: str, what: str, fields: str | None = None
+) -> dict[str, Sequence]:
+    """Each camera's frames of a static calibration object (rods, axes, a target)."""
+    root = inputs.config.root
+    return {c.id: camera_frames(root, pattern, c.id, what, fields=fields) for c in inputs.cameras}
+
+
+def marker_detection(inputs: RouteInputs) -> dict[str, DetectionParams]:
+    """Each camera's detection settings for marker images (derived once, then kept)."""
+    config, given = inputs.config, inputs.params.detection_given
+    return {
+        cam.id: camera_detection(inputs.root, config, cam, "markers", given, inputs.echo)
+        for cam in inputs.cameras
+    }
+
+
+def static_blobs(
+    inputs: RouteInputs,
+    frames: dict[str, Sequence],
+    what: str,
+    fields: str | None,
+    detection: dict[str, DetectionParams],
+) -> dict[str, list[NDArray[np.float64]]]:
+    """Raw valid blob centroids of every frame of a static object, per camera (cached).
+
+    ``what`` names the object in messages and in the cache (``rods``, ``axes`` ...).
+    """
+    out = {}
+    root = inputs.config.root
+    for cam in steps(inputs.cameras, f"calibrate: detect {what}"):
+        seq = frames[cam.id]
+        key = cache_key("detect", file_keys(source_files(seq), root), fields, detection[cam.id])
+        cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}-{cam.id}.npz"
+        sized = SizedFrames(seq, cam.id, cam.size_px)
+        found = detect_frames(
+            sized,
+            detection[cam.id],
+            cache,
+            key,
+            inputs.echo,
+            f"{what}s {cam.id}",
+            inputs.workers,
+        )
+        out[cam.id] = [b.valid_only().xy_px for b in found]
+    return out
+
+
+def outputs_of(inputs: RouteInputs, route: str) -> bool:
+    """True when every camera's ``dlt/<camera>.json`` was written by ``route``.
+
+    A route's cache is valid only then: another route may have run since.
+    """
+    import json
+
+    for cam in inputs.cameras:
+        path = out_dir(inputs.root) / "dlt" / f"{cam.id}.json"
+        if not path.is_file() or json.loads(path.read_text()).get("method") != route:
+            return False
+    return True
+
+
+def write_check(inputs: RouteInputs, check: dict) -> None:
+    """Write ``dlt/check.json`` for a route that keeps its own cache key elsewhere.
+
+    The rods route's key beside the file is removed: the file is no longer its output.
+    """
+    from kisscal.io.files import write_json
+
+    path = out_dir(inputs.root) / "dlt" / "check.json"
+    write_json(path, check)
+    path.with_name(path.name + ".key").unlink(missing_ok=True)

@@ -21,12 +21,10 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
-from kisscal.io.frames import camera_frames, source_files
-from kisscal.session.configure import camera_detection
-from kisscal.session.detection import SizedFrames, detect_frames
+from kisscal.io.frames import source_files
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
-from kisscal.session.progress import Echo, steps
-from kisscal.session.routes import RouteInputs
+from kisscal.session.progress import Echo
+from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -38,17 +36,9 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     assert config.rods is not None
     out = out_dir(root) / "dlt"
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
-    rod_frames = {
-        cam.id: camera_frames(
-            config.root, config.rods.images, cam.id, "rod", fields=config.rods.fields
-        )
-        for cam in inputs.cameras
-    }
+    rod_frames = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
     lins = inputs.linearisations
-    detection = {
-        cam.id: camera_detection(root, config, cam, "markers", params.detection_given, inputs.echo)
-        for cam in inputs.cameras
-    }
+    detection = marker_detection(inputs)
     stage_key = cache_key(
         "calibrate",
         {c: file_keys(source_files(f), config.root) for c, f in rod_frames.items()},
@@ -61,23 +51,12 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     if inputs.whole_rig and is_current(out / "check.json", stage_key):
         inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
-    blobs_px = {}
-    for cam in steps(inputs.cameras, "calibrate: detect rods"):
-        frames = rod_frames[cam.id]
-        key = cache_key(
-            "detect",
-            file_keys(source_files(frames), config.root),
-            config.rods.fields,
-            detection[cam.id],
-        )
-        cache = out_dir(root) / "cache" / "blobs" / f"rods-{cam.id}.npz"
-        sized = SizedFrames(frames, cam.id, cam.size_px)
-        frame_blobs = detect_frames(
-            sized, detection[cam.id], cache, key, inputs.echo, f"rods {cam.id}", inputs.workers
-        )
-        blobs_px[cam.id] = [
-            apply_linearisation(lins[cam.id], b.valid_only().xy_px) for b in frame_blobs
-        ]
+    blobs_px = {
+        cam: [apply_linearisation(lins[cam], uv) for uv in frames]
+        for cam, frames in static_blobs(
+            inputs, rod_frames, "rods", config.rods.fields, detection
+        ).items()
+    }
     t0 = time.perf_counter()
     cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
     write_dlt_outputs(out, cal)

@@ -1,0 +1,349 @@
+"""Bundle adjustment of cameras, lenses and wand poses (Triggs et al. 2000).
+
+Unknowns: per camera the principal distances (pixel aspect included), principal point,
+optionally skew, rotation, translation and Brown lens terms; per wand field the wand's
+centre and direction. The wand is rigid: its markers lie at the known offsets
+``markers_mm`` along its axis, so the marker spacing is a hard constraint of the model
+rather than a penalty (the wand-length term of easyWand, Theriault et al. 2014, made
+exact). Control points of known lab position (the rods' surveyed markers) add their
+reprojection errors with the points held fixed; they fix the lab frame and scale.
+Without them one camera's pose is held and the scale comes from the wand alone.
+
+The robust reprojection cost (pixels) is minimised by the sparse Levenberg-Marquardt of
+:mod:`kisscal.bundle.solve`, or, with ``solver="least_squares"``, by
+:func:`scipy.optimize.least_squares` given the sparse Jacobian pattern (``jac_sparsity``),
+the same loss and ``x_scale="jac"``. A second pass drops observations far outside the
+residual distribution (a wand marker mistaken for a ghost, a merged blob).
+
+References
+----------
+Triggs, B., McLauchlan, P. F., Hartley, R. I., & Fitzgibbon, A. W. (2000). Bundle
+adjustment - a modern synthesis. Vision Algorithms: Theory and Practice, LNCS 1883.
+Theriault, D. H., Fuller, N. W., Jackson, B. E., et al. (2014). A protocol and calibration
+method for accurate multi-camera field videography. J. Exp. Biol. 217.
+
+Examples
+--------
+>>> import numpy as np
+>>> from kisscal.bundle.camera import PinholeCamera
+>>> K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+>>> R = [np.eye(3), np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])]
+>>> cams = tuple(PinholeCamera(K, r, np.array([0.0, 0, 3000]), np.zeros(5)) for r in R)
+>>> rng = np.random.default_rng(0)
+>>> poses = WandPoses(rng.uniform(-300, 300, (30, 3)), rng.normal(size=(30, 3)))
+>>> poses = WandPoses(poses.centre_mm, poses.direction / np.linalg.norm(poses.direction,
+...                   axis=1, keepdims=True))
+>>> xyz = poses.markers_mm([-250.0, 250.0]).reshape(-1, 3)
+>>> f, m = np.divmod(np.arange(60), 2)
+>>> obs = WandObservations(np.r_[f, f], np.repeat([0, 1], 60), np.r_[m, m],
+...     np.concatenate([c.project(xyz) for c in cams]))
+>>> start = WandPoses(poses.centre_mm + 5.0, poses.direction)
+>>> fit = adjust_bundle(cams, obs, [0.0, 500.0], start, fixed_pose=0,
+...     params=BundleParams(lens_terms=()))
+>>> bool(np.abs(fit.residuals_px).max() < 1e-6)
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+import scipy.sparse
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
+from kisscal.bundle.model import N_CAMERA, N_WAND, State, project, wand_points
+from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.bundle.solve import Loss, Problem, levenberg_marquardt
+from kisscal.errors import KisscalError
+
+
+@dataclass(frozen=True)
+class WandObservations:
+    """Wand marker images, one row per (field, camera, marker), long format.
+
+    Attributes
+    ----------
+    field : ndarray of int, shape (n,)
+        Field index (into the rows of :class:`WandPoses`).
+    camera : ndarray of int, shape (n,)
+        Camera index.
+    marker : ndarray of int, shape (n,)
+        Index into the wand's ``markers_mm``.
+    uv_px : ndarray, shape (n, 2)
+        Image coordinates (linearised by the grid when there is one, else raw).
+    """
+
+    field: NDArray[np.int64]
+    camera: NDArray[np.int64]
+    marker: NDArray[np.int64]
+    uv_px: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.field)
+
+    def subset(self, keep: ArrayLike) -> WandObservations:
+        """The rows selected by a boolean mask or index array."""
+        k = np.asarray(keep)
+        return WandObservations(self.field[k], self.camera[k], self.marker[k], self.uv_px[k])
+
+
+@dataclass(frozen=True)
+class ControlPoints:
+    """Observations of points of known lab position (rod markers), long format.
+
+    Attributes
+    ----------
+    camera : ndarray of int, shape (m,)
+    xyz_mm : ndarray, shape (m, 3)
+    uv_px : ndarray, shape (m, 2)
+    group : ndarray of int, shape (m,)
+        Which object each point belongs to (its rod), for leave-one-out checks.
+    """
+
+    camera: NDArray[np.int64]
+    xyz_mm: NDArray[np.float64]
+    uv_px: NDArray[np.float64]
+    group: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.camera)
+
+    def subset(self, keep: ArrayLike) -> ControlPoints:
+        """The rows selected by a boolean mask or index array."""
+        k = np.asarray(keep)
+        return ControlPoints(self.camera[k], self.xyz_mm[k], self.uv_px[k], self.group[k])
+
+
+@dataclass(frozen=True)
+class WandPoses:
+    """The wand's centre (mm) and unit direction (first towards last marker) per field."""
+
+    centre_mm: NDArray[np.float64]
+    direction: NDArray[np.float64]
+
+    def markers_mm(self, offsets_mm: ArrayLike) -> NDArray[np.float64]:
+        """Marker positions for offsets from the centre, shape (n_fields, n_markers, 3)."""
+        s = np.asarray(offsets_mm, dtype=float)
+        return self.centre_mm[:, None, :] + s[None, :, None] * self.direction[:, None, :]
+
+
+@dataclass(frozen=True)
+class BundleResult:
+    """The adjusted cameras and wand, with the residuals of every observation.
+
+    Attributes
+    ----------
+    cameras : tuple of PinholeCamera
+    wand : WandPoses
+    residuals_px : ndarray, shape (n, 2)
+        Observed minus projected, per wand observation (outliers included).
+    inlier : ndarray of bool, shape (n,)
+        Wand observations kept in the final adjustment.
+    control_residuals_px : ndarray, shape (m, 2)
+        Observed minus projected, per control point.
+    iterations : int
+        Iterations of the final pass.
+    message : str
+        Why the final pass stopped.
+    """
+
+    cameras: tuple[PinholeCamera, ...]
+    wand: WandPoses
+    residuals_px: NDArray[np.float64]
+    inlier: NDArray[np.bool_]
+    control_residuals_px: NDArray[np.float64]
+    iterations: int
+    message: str
+
+
+def centred_offsets(markers_mm: ArrayLike) -> NDArray[np.float64]:
+    """Marker offsets along the wand from its centre (mid-way between the end markers)."""
+    s = np.asarray(markers_mm, dtype=float)
+    return s - 0.5 * (s.min() + s.max())
+
+
+def free_unknowns(
+    n_cameras: int, params: BundleParams, fixed_pose: int | None
+) -> NDArray[np.bool_]:
+    """Which of each camera's 16 unknowns the adjustment moves, shape (n_cameras, 16)."""
+    free = np.ones((n_cameras, N_CAMERA), dtype=bool)
+    free[:, 4] = params.skew
+    free[:, 11:16] = [term in params.lens_terms for term in LENS_TERMS]
+    if fixed_pose is not None:
+        free[fixed_pose, 5:11] = False
+    return free
+
+
+def adjust_bundle(
+    cameras: tuple[PinholeCamera, ...],
+    observations: WandObservations,
+    markers_mm: ArrayLike,
+    wand: WandPoses,
+    control: ControlPoints | None = None,
+    params: BundleParams = DEFAULT_PARAMS,
+    fixed_pose: int | None = None,
+) -> BundleResult:
+    """Adjust cameras, lenses and wand poses to the observed wand (and control) images.
+
+    Parameters
+    ----------
+    cameras : tuple of PinholeCamera
+        Starting cameras (from the rods' DLT or the wand's initialisation).
+    observations : WandObservations
+        Wand marker images; every field ``0 .. len(wand) - 1`` must be seen by at least
+        two cameras.
+    markers_mm : array_like
+        The wand's marker positions along its axis (mm), ``[wand] markers_mm``.
+    wand : WandPoses
+        Starting wand pose per field.
+    control : ControlPoints, optional
+        Points of known lab position; they fix the lab frame and scale.
+    params : BundleParams
+        Lens terms, skew, robust loss, outlier limits, tolerances, solver.
+    fixed_pose : int, optional
+        Camera whose rotation and translation are held (the gauge, when there are no
+        control points).
+
+    Returns
+    -------
+    BundleResult
+
+    Raises
+    ------
+    KisscalError
+        When the adjustment produces non-finite parameters.
+    """
+    offsets = centred_offsets(markers_mm)
+    state = State.of(cameras, wand.centre_mm, wand.direction)
+    free = free_unknowns(len(cameras), params, fixed_pose)
+    keep = np.ones(len(observations), dtype=bool)
+    for _ in range(3):  # later passes without the outliers of the one before
+        problem = _problem(
+            observations.subset(keep), offsets, control, len(cameras), len(wand.centre_mm)
+        )
+        state, iterations, message = _run(problem, state, free, params)
+        res = -_residuals(state, observations, offsets)
+        norm = np.linalg.norm(res, axis=1)
+        sigma = 1.4826 * float(np.median(norm[keep]))
+        new_keep = norm <= max(params.outlier_px, params.outlier_sigmas * sigma)
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    if not all(np.all(np.isfinite(a)) for a in (state.intrinsics, state.t, state.centre_mm)):
+        raise KisscalError("wand calibration: the bundle adjustment diverged (non-finite values)")
+    ctrl = np.zeros((0, 2))
+    if control is not None and len(control):
+        ctrl = control.uv_px - project(state, control.camera, control.xyz_mm, False)[0]
+    poses = WandPoses(state.centre_mm, state.direction)
+    return BundleResult(state.cameras(), poses, res, keep, ctrl, iterations, message)
+
+
+def _residuals(
+    state: State, obs: WandObservations, offsets: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Projected minus observed (px) of every wand observation, shape (n, 2)."""
+    xyz = wand_points(state, obs.field, offsets[obs.marker])
+    return project(state, obs.camera, xyz, False)[0] - obs.uv_px
+
+
+def _problem(
+    obs: WandObservations,
+    offsets: NDArray[np.float64],
+    control: ControlPoints | None,
+    n_cameras: int,
+    n_fields: int,
+) -> Problem:
+    seen = np.bincount(obs.field, minlength=n_fields)
+    if np.any(seen == 0):
+        raise KisscalError(
+            f"wand calibration: {int(np.sum(seen == 0))} wand fields have no observation left"
+        )
+    order = np.lexsort((obs.camera, obs.field))
+    o = obs.subset(order)
+    c = (
+        control
+        if control is not None
+        else ControlPoints(
+            np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, np.int64)
+        )
+    )
+    return Problem(
+        o.field,
+        o.camera,
+        offsets[o.marker],
+        o.uv_px,
+        c.camera,
+        c.xyz_mm,
+        c.uv_px,
+        n_cameras,
+        n_fields,
+    )
+
+
+def _run(
+    problem: Problem, state: State, free: NDArray[np.bool_], params: BundleParams
+) -> tuple[State, int, str]:
+    loss = Loss(params.loss, params.loss_scale_px)
+    if params.solver == "schur":
+        return levenberg_marquardt(
+            problem, state, free, loss, params.tolerance, params.max_iterations
+        )
+    return _least_squares(problem, state, free, params)
+
+
+def _least_squares(
+    problem: Problem, state: State, free: NDArray[np.bool_], params: BundleParams
+) -> tuple[State, int, str]:
+    """The same adjustment by :func:`scipy.optimize.least_squares` (sparse pattern, FD)."""
+    n_cam = int(free.sum())
+    F = problem.n_fields
+
+    def unpack(x: NDArray[np.float64]) -> State:
+        d_cam = np.zeros(free.shape)
+        d_cam[free] = x[:n_cam]
+        return state.moved(d_cam, x[n_cam:].reshape(F, N_WAND))
+
+    def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = unpack(x)
+        xyz = wand_points(s, problem.field, problem.offsets)
+        r = project(s, problem.camera, xyz, False)[0] - problem.uv_px
+        cr = project(s, problem.control_camera, problem.control_xyz_mm, False)[0]
+        return np.concatenate([r.ravel(), (cr - problem.control_uv_px).ravel()])
+
+    pattern = _sparsity(problem, free)
+    sol = scipy.optimize.least_squares(
+        fun,
+        np.zeros(n_cam + N_WAND * F),
+        jac_sparsity=pattern,
+        method="trf",
+        loss=params.loss,
+        f_scale=params.loss_scale_px,
+        x_scale="jac",
+        ftol=params.tolerance,
+        xtol=params.tolerance,
+        gtol=params.tolerance,
+        max_nfev=params.max_iterations,
+    )
+    return unpack(sol.x), int(sol.nfev), str(sol.message)
+
+
+def _sparsity(problem: Problem, free: NDArray[np.bool_]) -> scipy.sparse.csr_matrix:
+    """Which unknowns each residual depends on: its camera's free ones and its field's five."""
+    n_cam = int(free.sum())
+    column = np.full(free.shape, -1)
+    column[free] = np.arange(n_cam)
+    cams = np.concatenate([problem.camera, problem.control_camera])
+    per_camera = free.sum(axis=1)
+    rows, cols = [], []
+    for xy in (0, 1):
+        rows.append(np.repeat(2 * np.arange(len(cams)) + xy, per_camera[cams]))
+        cols.append(column[cams][free[cams]])
+        wand_rows = 2 * np.arange(len(problem.camera)) + xy
+        rows.append(np.repeat(wand_rows, N_WAND))
+        cols.append((n_cam + N_WAND * problem.field[:, None] + np.arange(N_WAND)).ravel())
+    r, c = np.concatenate(rows), np.concatenate(cols).astype(np.int64)
+    shape = (2 * len(cams), n_cam + N_WAND * problem.n_fields)
+    return scipy.sparse.csr_matrix((np.ones(len(r), np.int8), (r, c)), shape=shape)

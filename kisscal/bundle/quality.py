@@ -1,0 +1,143 @@
+"""What a technician reads after a wand calibration, as motion-capture software prints it.
+
+* Wand length over the trial: every field's markers triangulated afresh from the
+  calibrated cameras (not taken from the adjusted, rigid wand), their end-to-end
+  distance's mean, standard deviation and RMS error against the stated length.
+* Per camera: the RMS reprojection residual (px, ``sqrt(mean(du² + dv²))``), the number
+  of wand points it contributed and how much of its image the wand covered (the lens
+  terms are only as good as that coverage).
+* Held out: the wand length error on fields left out of the adjustment, and with rods
+  each rod reconstructed by the cameras adjusted without it (leave-one-rod-out, the
+  rods route's figure).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.bundle.adjust import WandObservations, adjust_bundle
+from kisscal.bundle.camera import PinholeCamera, undistort_px
+from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.bundle.wand import WandCalibration, select_fields
+from kisscal.dlt.triangulate import triangulate_observations
+
+
+@dataclass(frozen=True)
+class CameraFigures:
+    """Per camera: RMS residual (px), wand points used, image cells the wand reached."""
+
+    rms_px: NDArray[np.float64]
+    points: NDArray[np.int64]
+    coverage: NDArray[np.float64]
+
+
+def triangulate_points(
+    cameras: Sequence[PinholeCamera],
+    camera: NDArray[np.int64],
+    point: NDArray[np.int64],
+    uv_px: NDArray[np.float64],
+    n_points: int,
+) -> NDArray[np.float64]:
+    """Least-squares 3D points from observations through the cameras' lenses, (n, 3)."""
+    ideal = np.empty_like(uv_px, dtype=float)
+    for c, cam in enumerate(cameras):
+        rows = camera == c
+        if rows.any():
+            ideal[rows] = undistort_px(cam, uv_px[rows])
+    dlts = np.stack([c.dlt for c in cameras])
+    return triangulate_observations(dlts, point, camera, ideal, n_points).xyz_mm
+
+
+def wand_markers(
+    cameras: Sequence[PinholeCamera], obs: WandObservations, n_fields: int, n_markers: int
+) -> NDArray[np.float64]:
+    """Every field's wand markers triangulated from ``obs``, shape (fields, k, 3)."""
+    point = obs.field * n_markers + obs.marker
+    xyz = triangulate_points(cameras, obs.camera, point, obs.uv_px, n_fields * n_markers)
+    return xyz.reshape(n_fields, n_markers, 3)
+
+
+def end_to_end_mm(markers_xyz: NDArray[np.float64], markers_mm: Sequence[float]) -> NDArray:
+    """Distance between the wand's end markers in each field (NaN where one is missing)."""
+    s = np.asarray(markers_mm, dtype=float)
+    a, b = int(np.argmin(s)), int(np.argmax(s))
+    return np.linalg.norm(markers_xyz[:, b] - markers_xyz[:, a], axis=1)
+
+
+def length_figures(lengths_mm: NDArray[np.float64], nominal_mm: float) -> dict[str, float]:
+    """Mean, SD and RMS error (mm) of measured wand lengths, and how many fields."""
+    ok = np.isfinite(lengths_mm)
+    if not ok.any():
+        return {"length_fields": 0}
+    d = lengths_mm[ok]
+    return {
+        "length_mean_mm": float(np.mean(d)),
+        "length_sd_mm": float(np.std(d, ddof=1)) if len(d) > 1 else 0.0,
+        "length_rms_error_mm": float(np.sqrt(np.mean((d - nominal_mm) ** 2))),
+        "length_fields": len(d),
+    }
+
+
+def coverage(uv_px: NDArray[np.float64], size_px: tuple[int, int], cells: int = 8) -> float:
+    """Fraction of an image's ``cells`` x ``cells`` tiles holding at least one point."""
+    w, h = size_px
+    if not len(uv_px):
+        return 0.0
+    i = np.clip((uv_px[:, 0] + 0.5) / w * cells, 0, cells - 1).astype(int)
+    j = np.clip((uv_px[:, 1] + 0.5) / h * cells, 0, cells - 1).astype(int)
+    return len(np.unique(i * cells + j)) / cells**2
+
+
+def camera_figures(cal: WandCalibration, sizes_px: Sequence[tuple[int, int]]) -> CameraFigures:
+    """Per-camera residual, points and image coverage of the final adjustment's inliers."""
+    r, obs = cal.result, cal.observations
+    n = len(cal.cameras)
+    rms, points, cover = np.zeros(n), np.zeros(n, np.int64), np.zeros(n)
+    for c in range(n):
+        rows = (obs.camera == c) & r.inlier
+        points[c] = int(rows.sum())
+        rms[c] = float(np.sqrt(np.mean(np.sum(r.residuals_px[rows] ** 2, axis=1))))
+        cover[c] = coverage(obs.uv_px[rows], sizes_px[c])
+    return CameraFigures(rms, points, cover)
+
+
+def held_out_lengths(
+    cal: WandCalibration, markers_mm: Sequence[float], params: BundleParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Wand lengths (mm) of every ``1 / holdout_fraction``-th field, measured by cameras
+    adjusted without those fields (started from the final adjustment)."""
+    n_fields = len(cal.fields)
+    if params.holdout_fraction <= 0 or n_fields < 10:
+        return np.zeros(0)
+    step = max(2, round(1.0 / params.holdout_fraction))
+    held = np.arange(n_fields) % step == step // 2
+    obs = cal.observations.subset(cal.result.inlier)
+    train, wand, _ = select_fields(obs, cal.result.wand, cal.fields, ~held)
+    refit = adjust_bundle(cal.cameras, train, markers_mm, wand, cal.control, params, cal.anchor)
+    test, _, _ = select_fields(obs, cal.result.wand, cal.fields, held)
+    xyz = wand_markers(refit.cameras, test, int(held.sum()), len(markers_mm))
+    return end_to_end_mm(xyz, markers_mm)
+
+
+def leave_one_group_out(
+    cal: WandCalibration, markers_mm: Sequence[float], params: BundleParams = DEFAULT_PARAMS
+) -> dict[int, NDArray[np.float64]]:
+    """3D error (mm) of each control group's points (a rod's markers) when the cameras are
+    adjusted without that group, per group."""
+    control = cal.control
+    if control is None or not len(control):
+        return {}
+    obs = cal.observations.subset(cal.result.inlier)
+    out = {}
+    for g in np.unique(control.group):
+        rest = control.subset(control.group != g)
+        refit = adjust_bundle(cal.cameras, obs, markers_mm, cal.result.wand, rest, params)
+        mine = control.subset(control.group == g)
+        ids, point = np.unique(mine.xyz_mm, axis=0, return_inverse=True)
+        xyz = triangulate_points(refit.cameras, mine.camera, point.ravel(), mine.uv_px, len(ids))
+        out[int(g)] = np.linalg.norm(xyz - ids, axis=1)
+    return out

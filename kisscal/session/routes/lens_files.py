@@ -1,0 +1,106 @@
+"""The version-1 files of a camera calibrated with Brown lens terms (wand, target routes).
+
+The lens is folded into the 30-coefficient linearisation polynomial, fitted to the
+grid's linearisation followed by the lens inverse, weighted on the image positions the
+camera was calibrated from (without a grid, to the lens inverse alone, with the largest
+errors spread evenly so that the image corners hold too). A polynomial
+follows a lens model only to a few hundredths of a pixel, which at a few metres is a
+tenth of a millimetre; so the DLT is then fitted again, linearly, to the calibration's
+own 3D points and their images through the written polynomial (it starts out as the
+distortion-free camera ``K [R | t]``), which takes up what the polynomial missed, as
+the rods' DLT does for the grid's polynomial. The grid's own linearisation document is
+kept inside the new one (``refined.grid_fit``) so that a later route can put it back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_linearisation
+from kisscal.dlt import DltParams, DltResult, decompose_dlt, project, solve_dlt
+from kisscal.dlt.camera import hatze_violation
+from kisscal.dlt.linear import spread_ratio
+from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
+from kisscal.io.config import CameraConfig
+from kisscal.io.dltfiles import write_dlt_json
+from kisscal.io.linearisation import (
+    linearisation_from_dict,
+    read_linearisation_doc,
+    refined_by,
+    write_linearisation,
+)
+from kisscal.session.inputs import out_dir
+from kisscal.session.routes import RouteInputs
+
+
+def grid_document(path: Path, has_grid: bool) -> dict[str, Any] | None:
+    """The grid's own linearisation document of a camera (None without a grid)."""
+    if not has_grid:
+        return None
+    doc = read_linearisation_doc(path)
+    if doc is not None and refined_by(doc) is not None:
+        return doc["refined"].get("grid_fit")
+    return doc
+
+
+def write_lens_camera(
+    inputs: RouteInputs,
+    cfg: CameraConfig,
+    camera: PinholeCamera,
+    route: str,
+    points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
+    iterations: int,
+    extra: Mapping[str, Any] | None = None,
+) -> float:
+    """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``; returns the fit's
+    largest polynomial error (px).
+
+    ``points`` are the observations the camera was fitted to: lab mm, image px (the lens
+    model's coordinates), residuals px and labels; the file lists them through the
+    written polynomial, with their residuals under the written DLT.
+    """
+    out = out_dir(inputs.root)
+    lin_path = out / "linearisation" / f"{cfg.id}.json"
+    grid_doc = grid_document(lin_path, inputs.config.grid is not None)
+    before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
+    xyz, uv, _, labels = points
+    raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
+    # without a grid the polynomial is the whole lens: it must hold to the image corners
+    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw, minimax=before is None)
+    quality = before.quality if before is not None else None
+    lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
+    refined = {
+        "by": route,
+        "lens_model": "Brown (OpenCV k1 k2 p1 p2 k3) on "
+        + ("the grid's linearised pixels" if before is not None else "raw pixels"),
+        "lens": {t: float(v) for t, v in zip(LENS_TERMS, camera.lens, strict=True)},
+        "fit_max_px": fit_max,
+        "grid_fit": grid_doc,
+    }
+    write_linearisation(lin_path, lin, cfg.id, refined=refined)
+    written = apply_linearisation(lin, raw)
+    L = camera.dlt
+    if len(xyz) >= 6 and spread_ratio(xyz) >= DltParams().min_spread_ratio:  # not a flat target
+        L = solve_dlt(xyz, written, camera=cfg.id)
+    res = written - project(L, xyz)
+    K, R, centre = decompose_dlt(L)
+    result = DltResult(
+        L=L,
+        method=route,
+        lens=None,
+        residuals_px=res,
+        rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
+        constraint_linear=hatze_violation(camera.dlt),
+        constraint=hatze_violation(L),
+        K=K,
+        R=R,
+        centre_mm=centre,
+        iterations=iterations,
+    )
+    write_dlt_json(out / "dlt" / f"{cfg.id}.json", cfg.id, result, xyz, written, labels, extra)
+    return fit_max

@@ -1,0 +1,181 @@
+"""Any known target (``[calibration] target``): matched automatically from clicked seeds.
+
+For each camera the target's dots are found in its photographs
+(:mod:`kisscal.target.dots`), every target point is matched to a dot starting from the
+six or more points the user clicked (:mod:`kisscal.target.match`), and the camera is
+fitted to every match with Brown lens terms. Writes the version-1 files (method
+``target``), ``dlt/target.json`` (matched and unmatched points per camera) and
+``dlt/check.json`` (every ``holdout_step``-th matched point left out of the fits and
+reconstructed from all cameras).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from kisscal.bundle.frame import average_static
+from kisscal.bundle.quality import triangulate_points
+from kisscal.errors import KisscalError
+from kisscal.grid import apply_linearisation
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.dltfiles import read_control_points_csv
+from kisscal.io.files import read_table, write_json
+from kisscal.io.frames import source_files
+from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
+from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
+from kisscal.session.routes.lens_files import write_lens_camera
+from kisscal.target.dots import find_target_dots
+from kisscal.target.match import TargetMatch, fit_camera, match_target
+
+ROUTE = "target"
+TARGET_COLUMNS = ("x_mm", "y_mm", "z_mm")
+
+
+def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
+    """Every camera from its photographs of the target and its clicked seeds."""
+    config = inputs.config
+    cal = config.calibration
+    assert cal is not None and cal.target and cal.images and cal.seeds
+    target_path = config.root / cal.target
+    table = read_table(target_path, required=TARGET_COLUMNS, numeric=TARGET_COLUMNS)
+    target = np.column_stack([table[c] for c in TARGET_COLUMNS]).astype(float)
+    frames = frame_files(inputs, cal.images, "calibration", cal.fields)
+    seed_paths = {c.id: config.root / cal.seeds.replace("{camera}", c.id) for c in inputs.cameras}
+    out = out_dir(inputs.root) / "dlt"
+    key = cache_key(
+        "calibrate-target",
+        file_keys([target_path, *seed_paths.values()], config.root),
+        {c: file_keys(source_files(f), config.root) for c, f in frames.items()},
+        linearisation_key(inputs.linearisations),
+        inputs.params.target,
+    )
+    if inputs.whole_rig and is_current(out / "target.json", key) and outputs_of(inputs, ROUTE):
+        inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
+        return {"_check": json.loads((out / "check.json").read_text())}
+    t0 = time.perf_counter()
+    matches, dots = {}, {}
+    for cam in inputs.cameras:
+        lin = inputs.linearisations[cam.id]
+        seeds_uv, seeds_xyz, _ = read_control_points_csv(seed_paths[cam.id])
+        found = [find_target_dots(img, seeds_uv, inputs.params.target) for img in frames[cam.id]]
+        dots[cam.id] = apply_linearisation(lin, average_static(found))
+        matches[cam.id] = match_target(
+            target,
+            apply_linearisation(lin, seeds_uv),
+            seeds_xyz,
+            dots[cam.id],
+            cam.size_px,
+            cam.id,
+            inputs.params.target,
+        )
+    doc = _report(matches, time.perf_counter() - t0)
+    for cam in inputs.cameras:
+        _write_camera(inputs, cam, matches[cam.id], dots[cam.id], target)
+    check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
+    write_json(out / "target.json", doc)
+    if inputs.whole_rig:
+        write_check(inputs, check)
+        mark_current(out / "target.json", key)
+    _say(inputs, doc, check)
+    return {"_check": check}
+
+
+def _report(matches: dict[str, TargetMatch], seconds: float) -> dict[str, Any]:
+    cams = {}
+    for cam, m in matches.items():
+        unmatched = np.flatnonzero(m.visible & ~m.matched)
+        cams[cam] = {
+            "visible": int(m.visible.sum()),
+            "matched": int((m.matched & m.visible).sum()),
+            "unmatched": unmatched.tolist(),
+            "rms_px": m.rms_px,
+            "seed_rms_px": m.seed_rms_px,
+            "iterations": m.iterations,
+        }
+    return {"seconds": round(seconds, 2), "cameras": cams}
+
+
+def _write_camera(
+    inputs: RouteInputs, cfg: Any, m: TargetMatch, dots: np.ndarray, target: np.ndarray
+) -> None:
+    k = np.flatnonzero(m.matched)
+    uv = dots[m.dot[k]]
+    res = uv - m.camera.project(target[k])
+    labels = [f"T{i + 1}" for i in k]
+    extra = {"target": {"matched": len(k), "visible": int(m.visible.sum())}}
+    write_lens_camera(
+        inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
+    )
+    sizes = {cfg.id: cfg.size_px}
+    from kisscal.report.dlt import CameraResiduals  # figures only when drawn
+
+    figure(
+        inputs.root,
+        f"target_{cfg.id}",
+        "kisscal.report.dlt",
+        "residual_figure",
+        {cfg.id: CameraResiduals(uv, res, sizes[cfg.id], m.rms_px)},
+    )
+
+
+def _held_out(
+    inputs: RouteInputs,
+    matches: dict[str, TargetMatch],
+    dots: dict[str, np.ndarray],
+    target: np.ndarray,
+) -> dict[str, Any]:
+    """Every ``holdout_step``-th matched point: fitted without, reconstructed from all."""
+    step = inputs.params.target.holdout_step
+    held = np.arange(len(target)) % step == step // 2
+    cameras, rows_cam, rows_pt, rows_uv = [], [], [], []
+    for c, cfg in enumerate(inputs.cameras):
+        m = matches[cfg.id]
+        train = m.matched & ~held
+        cameras.append(
+            fit_camera(
+                target[train],
+                dots[cfg.id][m.dot[train]],
+                cfg.size_px,
+                m.camera,
+                inputs.params.target,
+            )
+        )
+        test = np.flatnonzero(m.matched & held)
+        rows_cam.append(np.full(len(test), c))
+        rows_pt.append(test)
+        rows_uv.append(dots[cfg.id][m.dot[test]])
+    pts = np.concatenate(rows_pt)
+    if len(cameras) < 2 or not len(pts):
+        return {"route": ROUTE}
+    ids, point = np.unique(pts, return_inverse=True)
+    xyz = triangulate_points(
+        cameras, np.concatenate(rows_cam), point.ravel(), np.concatenate(rows_uv), len(ids)
+    )
+    err = np.linalg.norm(xyz - target[ids], axis=1)
+    err = err[np.isfinite(err)]
+    if not len(err):
+        raise KisscalError("target: no held-out target point is seen by two cameras")
+    return {
+        "route": ROUTE,
+        "held_out_points": len(err),
+        "leave_out_mean_mm": float(np.mean(err)),
+        "leave_out_max_mm": float(np.max(err)),
+        "leave_out_rms_mm": float(np.sqrt(np.mean(err**2))),
+    }
+
+
+def _say(inputs: RouteInputs, doc: dict[str, Any], check: dict[str, Any]) -> None:
+    for cam, e in doc["cameras"].items():
+        inputs.echo(
+            f"  calibrate {cam}: target, {e['matched']} of {e['visible']} visible points "
+            f"matched, rms {e['rms_px']:.3f} px (seeds {e['seed_rms_px']:.2f} px)"
+        )
+    if "leave_out_mean_mm" in check:
+        inputs.echo(
+            f"  held-out target points ({check['held_out_points']}): mean 3D error "
+            f"{check['leave_out_mean_mm']:.3f} mm, max {check['leave_out_max_mm']:.3f} mm"
+        )

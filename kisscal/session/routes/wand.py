@@ -1,0 +1,188 @@
+"""A wand waved through the volume (``[wand]``): every camera adjusted together.
+
+On rods (``[wand]`` with ``[rods]``): the rods' calibration on the grid's linearisation
+is the start and the rods' surveyed markers stay fixed in the adjustment, which also
+estimates each camera's intrinsics, pose and lens terms and every wand pose. Alone
+(``[wand]`` with ``[axes]``, no grid or rods needed): the cameras start from the wand
+images, and the axes object then fixes the lab frame. See :mod:`kisscal.bundle`.
+
+Writes the version-1 files every route writes (``linearisation/<camera>.json``, the
+lens terms folded into the 30-coefficient polynomial; ``dlt/<camera>.json`` with method
+``wand``), ``dlt/wand.json`` (the figures a technician reads) and ``dlt/check.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from kisscal.bundle.adjust import ControlPoints
+from kisscal.bundle.camera import camera_from_dlt
+from kisscal.bundle.frame import average_static
+from kisscal.bundle.wand import (
+    AxesFrame,
+    BlobTable,
+    WandCalibration,
+    axes_frame,
+    calibrate_on_control,
+    calibrate_wand_alone,
+)
+from kisscal.dlt import calibrate_rods, make_rods
+from kisscal.errors import KisscalError
+from kisscal.grid import apply_linearisation
+from kisscal.io.cache import cache_key, is_current, mark_current
+from kisscal.io.frames import source_files
+from kisscal.session.inputs import file_keys, linearisation_key, out_dir
+from kisscal.session.routes import (
+    RouteInputs,
+    frame_files,
+    marker_detection,
+    outputs_of,
+    static_blobs,
+)
+from kisscal.session.routes.wand_outputs import write_wand_outputs
+
+
+def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
+    """Every camera from the wand trial, on the rods or with the axes object.
+
+    Returns ``{"_check": ...}`` (the leave-out figures) like the rods route.
+    """
+    config = inputs.config
+    assert config.wand is not None
+    if not inputs.whole_rig:
+        raise KisscalError(
+            "a wand calibration adjusts every camera together; run kisscal calibrate "
+            "without --camera"
+        )
+    if config.rods is None and config.axes is None:
+        raise KisscalError(
+            f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
+        )
+    out = out_dir(inputs.root) / "dlt"
+    key = _stage_key(inputs)
+    current = is_current(out / "wand.json", key) and outputs_of(inputs, "wand")
+    if current and (out / "check.json").is_file():
+        inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
+        return {"_check": json.loads((out / "check.json").read_text())}
+    t0 = time.perf_counter()
+    table = _wand_table(inputs)
+    if config.rods is not None:
+        cal, rod_check = _on_rods(inputs, table)
+        frame = None
+    else:
+        cal, frame = _with_axes(inputs, table)
+        rod_check = None
+    check = write_wand_outputs(inputs, cal, frame, rod_check, time.perf_counter() - t0)
+    mark_current(out / "wand.json", key)
+    return {"_check": check}
+
+
+def _stage_key(inputs: RouteInputs) -> str:
+    from kisscal.session.reconstruct import trial_input_keys  # it imports calibrate: a cycle
+
+    config, params = inputs.config, inputs.params
+    assert config.wand is not None
+    trial = config.trial(config.wand.trial)
+    objects = []
+    if config.rods is not None:
+        rods = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
+        objects.append({c: file_keys(source_files(f), config.root) for c, f in rods.items()})
+        objects.append([(r.name, r.points_mm) for r in config.rods.rods])
+    if config.axes is not None:
+        axes = frame_files(inputs, config.axes.images, "axes", config.axes.fields)
+        objects.append({c: file_keys(source_files(f), config.root) for c, f in axes.items()})
+        objects.append(config.axes.points_mm)
+    return cache_key(
+        "calibrate-wand",
+        trial_input_keys(config, trial),
+        objects,
+        linearisation_key(inputs.linearisations),
+        config.wand.markers_mm,
+        marker_detection(inputs),
+        params.dlt,
+        params.recon,
+        params.wand,
+    )
+
+
+def _wand_table(inputs: RouteInputs) -> BlobTable:
+    """The wand trial's blobs, grid-linearised (raw pixels without a grid)."""
+    from kisscal.session.reconstruct import trial_blobs  # it imports calibrate: a cycle
+
+    config = inputs.config
+    assert config.wand is not None
+    trial = config.trial(config.wand.trial)
+    detection = marker_detection(inputs)
+    blobs = trial_blobs(inputs.root, config, trial, detection, inputs.echo, inputs.workers)
+    per_camera = []
+    for cam in config.cameras:
+        lin = inputs.linearisations[cam.id]
+        per_camera.append([apply_linearisation(lin, uv) for uv in blobs[cam.id]])
+    return BlobTable.of(per_camera)
+
+
+def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, Any]:
+    config, params = inputs.config, inputs.params
+    assert config.rods is not None and config.wand is not None
+    rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
+    lins = inputs.linearisations
+    fields = config.rods.fields
+    frames = frame_files(inputs, config.rods.images, "rod", fields)
+    found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
+    blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
+    rod_cal = calibrate_rods(blobs, rods, params.dlt, leave_one_out=True)
+    ids = config.camera_ids
+    cams, xyz, uv, group = [], [], [], []
+    for c, cam in enumerate(ids):
+        muv = rod_cal.marker_uv_px[cam]  # (rods, markers, 2)
+        for g, rod in enumerate(rods):
+            seen = np.isfinite(muv[g, : len(rod.points_mm)]).all(axis=1)
+            cams.append(np.full(int(seen.sum()), c))
+            xyz.append(rod.points_mm[seen])
+            uv.append(muv[g, : len(rod.points_mm)][seen])
+            group.append(np.full(int(seen.sum()), g))
+    control = ControlPoints(
+        np.concatenate(cams).astype(np.int64),
+        np.concatenate(xyz),
+        np.concatenate(uv),
+        np.concatenate(group).astype(np.int64),
+    )
+    start = [camera_from_dlt(rod_cal.results[c].L) for c in ids]
+    inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
+    cal = calibrate_on_control(
+        table,
+        start,
+        control,
+        config.wand.markers_mm,
+        [c.size_px for c in config.cameras],
+        ids,
+        config.wand.trial,
+        params.wand,
+    )
+    return cal, rod_cal
+
+
+def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, AxesFrame]:
+    config, params = inputs.config, inputs.params
+    assert config.axes is not None and config.wand is not None
+    ids = config.camera_ids
+    sizes = [c.size_px for c in config.cameras]
+    inputs.echo("  calibrate: wand alone, the lab frame from the axes object")
+    cal = calibrate_wand_alone(
+        table, config.wand.markers_mm, sizes, ids, config.wand.trial, params.wand
+    )
+    fields = config.axes.fields
+    files = frame_files(inputs, config.axes.images, "axes", fields)
+    frames = static_blobs(inputs, files, "axes", fields, marker_detection(inputs))
+    blobs = []
+    for cam in config.cameras:
+        static = average_static(frames[cam.id])
+        blobs.append(apply_linearisation(inputs.linearisations[cam.id], static))
+    frame = axes_frame(
+        cal.cameras, sizes, ids, blobs, config.axes.points_mm, params.wand.length_tol
+    )
+    return cal, frame

@@ -1,0 +1,256 @@
+"""What the wand route writes: the version-1 files, ``dlt/wand.json``, checks and figures.
+
+Each camera's lens terms are folded into the 30-coefficient linearisation polynomial
+(fitted over the whole image to the grid's linearisation followed by the lens inverse,
+or to the lens inverse alone without a grid) and its DLT is the distortion-free camera
+``K [R | t]``, so every later stage reads the same files as after the rods route.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from kisscal.bundle.adjust import WandPoses, centred_offsets
+from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
+from kisscal.bundle.quality import (
+    camera_figures,
+    end_to_end_mm,
+    held_out_lengths,
+    leave_one_group_out,
+    length_figures,
+    triangulate_points,
+    wand_markers,
+)
+from kisscal.bundle.wand import AxesFrame, WandCalibration
+from kisscal.dlt.rig import RodCalibration
+from kisscal.io.files import write_json
+from kisscal.session.inputs import figure, out_dir
+from kisscal.session.routes import RouteInputs, write_check
+from kisscal.session.routes.lens_files import write_lens_camera
+
+ROUTE = "wand"
+
+
+def write_wand_outputs(
+    inputs: RouteInputs,
+    cal: WandCalibration,
+    frame: AxesFrame | None,
+    rod_cal: RodCalibration | None,
+    seconds: float,
+) -> dict[str, Any]:
+    """Write every output of the wand route; returns the ``check.json`` content."""
+    config = inputs.config
+    assert config.wand is not None
+    markers = config.wand.markers_mm
+    ids = config.camera_ids
+    sizes = [c.size_px for c in config.cameras]
+    cameras = frame.cameras(cal.cameras) if frame is not None else cal.cameras
+    inlier = cal.observations.subset(cal.result.inlier)
+    lengths = end_to_end_mm(
+        wand_markers(cal.cameras, inlier, len(cal.fields), len(markers)), markers
+    )
+    held = held_out_lengths(cal, markers, inputs.params.wand)
+    per_cam = camera_figures(cal, sizes)
+    wand_doc: dict[str, Any] = {
+        "trial": config.wand.trial,
+        "markers_mm": list(markers),
+        "start": "rods" if rod_cal is not None else "axes",
+        **length_figures(lengths, float(np.ptp(markers))),
+        "held_out": length_figures(held, float(np.ptp(markers))),
+        "fields_used": len(cal.fields),
+        "iterations": cal.result.iterations,
+        "seconds": round(seconds, 2),
+        "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
+    }
+    check = _checks(inputs, cal, rod_cal, wand_doc)
+    if frame is not None:
+        wand_doc["axes"] = _axes_entry(frame, ids)
+    _write_cameras(inputs, cal, cameras, frame)
+    out = out_dir(inputs.root) / "dlt"
+    write_check(inputs, check)
+    write_json(out / "wand.json", wand_doc)
+    _say(inputs, wand_doc, check)
+    _figures(inputs, cal, cameras, frame, per_cam, lengths)
+    return check
+
+
+def _camera_entry(cam: PinholeCamera, per_cam: Any, c: int) -> dict[str, Any]:
+    entry = {
+        "rms_px": float(per_cam.rms_px[c]),
+        "points": int(per_cam.points[c]),
+        "coverage": float(per_cam.coverage[c]),
+        "fu_px": float(cam.K[0, 0]),
+        "fv_px": float(cam.K[1, 1]),
+        "u0_px": float(cam.K[0, 2]),
+        "v0_px": float(cam.K[1, 2]),
+        "skew_px": float(cam.K[0, 1]),
+    }
+    entry.update({term: float(v) for term, v in zip(LENS_TERMS, cam.lens, strict=True)})
+    return entry
+
+
+def _axes_entry(frame: AxesFrame, ids: Sequence[str]) -> dict[str, Any]:
+    m = frame.match
+    seen = frame.seen.sum(axis=1)
+    n = frame.seen.shape[1]
+    return {
+        "rms_mm": m.rms_mm,
+        "scale": m.scale,
+        "markers_seen": {cam: int(seen[c]) for c, cam in enumerate(ids)},
+        "markers": n,
+    }
+
+
+def _checks(
+    inputs: RouteInputs,
+    cal: WandCalibration,
+    rod_cal: RodCalibration | None,
+    wand_doc: dict[str, Any],
+) -> dict[str, Any]:
+    """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads."""
+    check: dict[str, Any] = {"route": ROUTE, "wand_held_out": wand_doc["held_out"]}
+    held = wand_doc["held_out"]
+    if "length_rms_error_mm" in held:
+        check["leave_out_mean_mm"] = held["length_rms_error_mm"]
+    if rod_cal is None or cal.control is None:
+        return check
+    markers = inputs.config.wand.markers_mm if inputs.config.wand else ()
+    control = cal.control
+    ids_xyz, point = np.unique(control.xyz_mm, axis=0, return_inverse=True)
+    xyz = triangulate_points(
+        cal.cameras, control.camera, point.ravel(), control.uv_px, len(ids_xyz)
+    )
+    err = np.linalg.norm(xyz - ids_xyz, axis=1)
+    check["rods_in_sample_mean_mm"] = float(np.nanmean(err))
+    check["rods_in_sample_max_mm"] = float(np.nanmax(err))
+    loo = leave_one_group_out(cal, markers, inputs.params.wand)
+    names = [r.name for r in inputs.config.rods.rods] if inputs.config.rods else []
+    rods_alone = rod_cal.summary().get("leave_one_rod_out", {}).get("per_rod", {})
+    per_rod = {}
+    for g, e in loo.items():
+        name = names[g]
+        per_rod[name] = {
+            "mean_mm": float(np.mean(e)),
+            "max_mm": float(np.max(e)),
+            "n_markers": len(e),
+            "rods_alone_mean_mm": rods_alone.get(name, {}).get("mean_mm"),
+        }
+    every = np.concatenate(list(loo.values())) if loo else np.zeros(0)
+    check["leave_one_rod_out"] = {
+        "mean_mm": float(np.mean(every)),
+        "max_mm": float(np.max(every)),
+        "per_rod": per_rod,
+        "rods_alone_mean_mm": rod_cal.summary().get("leave_one_rod_out", {}).get("mean_mm"),
+    }
+    check["leave_out_mean_mm"] = check["leave_one_rod_out"]["mean_mm"]
+    return check
+
+
+def _write_cameras(
+    inputs: RouteInputs,
+    cal: WandCalibration,
+    cameras: Sequence[PinholeCamera],
+    frame: AxesFrame | None,
+) -> None:
+    """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
+    config = inputs.config
+    assert config.wand is not None
+    r, obs = cal.result, cal.observations
+    wand = r.wand
+    if frame is not None:
+        Q, shift = frame.match.rotation, frame.match.shift_mm
+        wand = WandPoses(wand.centre_mm @ Q.T + shift, wand.direction @ Q.T)
+    offsets = centred_offsets(config.wand.markers_mm)
+    xyz_obs = wand.centre_mm[obs.field] + offsets[obs.marker, None] * wand.direction[obs.field]
+    names = [rod.name for rod in config.rods.rods] if config.rods else []
+    for c, cfg in enumerate(config.cameras):
+        rows = (obs.camera == c) & r.inlier
+        fields, marks = cal.fields[obs.field[rows]], obs.marker[rows]
+        labels = [f"W{m + 1}@{f}" for f, m in zip(fields, marks, strict=True)]
+        xyz, uv, res = xyz_obs[rows], obs.uv_px[rows], r.residuals_px[rows]
+        if cal.control is not None:
+            ctl = cal.control.camera == c
+            xyz = np.concatenate([cal.control.xyz_mm[ctl], xyz])
+            uv = np.concatenate([cal.control.uv_px[ctl], uv])
+            res = np.concatenate([r.control_residuals_px[ctl], res])
+            labels = [f"{names[g]}@{i}" for i, g in enumerate(cal.control.group[ctl])] + labels
+        extra = {"wand": {"trial": config.wand.trial}}
+        write_lens_camera(
+            inputs, cfg, cameras[c], ROUTE, (xyz, uv, res, labels), r.iterations, extra
+        )
+
+
+def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -> None:
+    echo = inputs.echo
+    for cam, e in wand_doc["cameras"].items():
+        echo(
+            f"  calibrate {cam}: wand, {e['points']} wand points, rms {e['rms_px']:.3f} px, "
+            f"image covered {e['coverage']:.0%}"
+        )
+    if "length_mean_mm" in wand_doc:
+        w = wand_doc
+        echo(
+            f"  wand length {w['length_mean_mm']:.3f} mm, SD {w['length_sd_mm']:.3f} mm, "
+            f"RMS error {w['length_rms_error_mm']:.3f} mm over {w['length_fields']} fields"
+            f" ({w['seconds']:.1f} s)"
+        )
+    held = wand_doc["held_out"]
+    if "length_rms_error_mm" in held:
+        echo(f"  held-out wand fields: length RMS error {held['length_rms_error_mm']:.3f} mm")
+    loo = check.get("leave_one_rod_out")
+    if loo:
+        alone = loo.get("rods_alone_mean_mm")
+        echo(
+            f"  leave-one-rod-out mean {loo['mean_mm']:.3f} mm"
+            + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
+        )
+    axes = wand_doc.get("axes")
+    if axes:
+        n = axes["markers"]
+        for cam, k in axes["markers_seen"].items():
+            if k < n:
+                echo(f"  warning: axes: {cam} sees {k} of the {n} axes markers")
+
+
+def _figures(
+    inputs: RouteInputs,
+    cal: WandCalibration,
+    cameras: Sequence[PinholeCamera],
+    frame: AxesFrame | None,
+    per_cam: Any,
+    lengths: np.ndarray,
+) -> None:
+    from kisscal.report.wand import WandView
+
+    config = inputs.config
+    obs = cal.observations.subset(cal.result.inlier)
+    views = {
+        cfg.id: WandView(
+            obs.uv_px[obs.camera == c],
+            cfg.size_px,
+            float(per_cam.coverage[c]),
+            float(per_cam.rms_px[c]),
+        )
+        for c, cfg in enumerate(config.cameras)
+    }
+    root = inputs.root
+    figure(root, "wand_coverage", "kisscal.report.wand", "coverage_figure", views)
+    nominal = float(np.ptp(config.wand.markers_mm)) if config.wand else 0.0
+    figure(
+        root, "wand_length", "kisscal.report.wand", "length_figure", cal.fields, lengths, nominal
+    )
+    objects = [(r.name, r.points_mm) for r in config.rods.rods] if config.rods else []
+    if config.axes is not None:
+        objects.append(("axes", config.axes.points_mm))
+    figure(
+        root,
+        "rig",
+        "kisscal.report.dlt",
+        "rig_figure",
+        {cfg.id: cameras[c].centre_mm for c, cfg in enumerate(config.cameras)},
+        objects,
+        {cfg.id: cameras[c].R for c, cfg in enumerate(config.cameras)},
+    )

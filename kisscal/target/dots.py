@@ -1,0 +1,87 @@
+"""Dots of a calibration target in a photograph, under uneven light.
+
+The infrared blob detector of :mod:`kisscal.detect` expects bright markers on a dark
+field; a photographed dot plate is dark dots on a light plate (or the reverse) lit
+unevenly. Each pixel is compared with the mean of its neighbourhood (OpenCV's box
+filter, the idea of adaptive thresholding), which follows the light across the plate;
+the pixels beyond ``contrast`` form connected components (OpenCV), kept when their size
+and fill are a dot's; each dot's centre is the contrast-weighted centroid over its
+component grown by two pixels, which takes in the blurred rim.
+
+Example
+-------
+>>> import numpy as np
+>>> image = np.full((60, 80), 200, np.uint8)
+>>> yy, xx = np.mgrid[0:60, 0:80]
+>>> image[(xx - 30.0) ** 2 + (yy - 20.0) ** 2 <= 16] = 40
+>>> np.round(find_dots(image, "dark"), 2).tolist()
+[[30.0, 20.0]]
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.target.params import DEFAULT_PARAMS, TargetParams
+
+
+def find_dots(
+    image: NDArray, polarity: str = "dark", params: TargetParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Centres (px) of the target's dots in one grey image, shape (n, 2).
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w)
+        8- or 16-bit grey image (16-bit is scaled to the 8-bit range).
+    polarity : {"dark", "bright"}
+        Dots darker or lighter than the plate.
+    params : TargetParams
+        ``window_px``, ``contrast``, size and fill limits.
+    """
+    img = image.astype(np.float32)
+    if image.dtype == np.uint16:
+        img *= 255.0 / 65535.0
+    mean = cv2.blur(img, (params.window_px, params.window_px))
+    contrast = (mean - img) if polarity == "dark" else (img - mean)
+    mask = (contrast > params.contrast).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    area = stats[:, cv2.CC_STAT_AREA]
+    box = stats[:, cv2.CC_STAT_WIDTH] * stats[:, cv2.CC_STAT_HEIGHT]
+    ok = (area >= params.min_area_px) & (area <= params.max_area_px)
+    ok &= area >= params.min_fill * box
+    ok[0] = False
+    grown = cv2.dilate(labels.astype(np.float32), np.ones((5, 5), np.uint8)).astype(np.int64)
+    grown = np.where(labels > 0, labels, grown)  # the rim belongs to the dot it surrounds
+    keep = ok[grown] & (grown > 0)
+    w = np.clip(contrast, 0.0, None)[keep].astype(float)
+    lab = grown[keep]
+    yy, xx = np.nonzero(keep)
+    total = np.bincount(lab, w, n)
+    cx = np.bincount(lab, w * xx, n)
+    cy = np.bincount(lab, w * yy, n)
+    good = ok & (total > 0)
+    return np.column_stack([cx[good] / total[good], cy[good] / total[good]])
+
+
+def dots_near(dots_px: ArrayLike, points_px: ArrayLike, radius_px: float) -> int:
+    """How many of ``points_px`` have a dot within ``radius_px``."""
+    dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    if not len(dots) or not len(pts):
+        return 0
+    d = np.linalg.norm(pts[:, None] - dots[None], axis=2).min(axis=1)
+    return int(np.sum(d <= radius_px))
+
+
+def find_target_dots(
+    image: NDArray, seeds_px: ArrayLike, params: TargetParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Dots of the polarity ``params.dots``; ``auto``: the one the clicked seeds lie on."""
+    if params.dots != "auto":
+        return find_dots(image, params.dots, params)
+    found = {p: find_dots(image, p, params) for p in ("dark", "bright")}
+    near = {p: dots_near(d, seeds_px, 3.0) for p, d in found.items()}
+    return found["dark"] if near["dark"] >= near["bright"] else found["bright"]

@@ -1,0 +1,119 @@
+"""The calibration routes of a session: wand on rods, wand with an axes object, a target.
+
+Each runs ``kisscal calibrate`` on a synthetic session and checks the outputs every later
+stage reads against the true cameras.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kisscal import session
+from kisscal.errors import KisscalError
+from kisscal.io.config import load_session
+from kisscal.rig import Rig
+from kisscal.session.calibrate import session_route
+from tests.session.wand_session import add_axes, add_wand_trial, truth_rig
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def wand_session(small_session: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The small session (grid, rods) with a 300-field wand trial given as centroids."""
+    root = tmp_path_factory.mktemp("wand") / "s"
+    shutil.copytree(small_session, root, ignore=shutil.ignore_patterns("out"))
+    add_wand_trial(root, fields=300)
+    return root
+
+
+def _copy(src: Path, dest: Path) -> Path:
+    shutil.copytree(src, dest, ignore=shutil.ignore_patterns("out"))
+    return dest
+
+
+def _lines(out: list[str]) -> str:
+    return "\n".join(out)
+
+
+def _centre_errors_mm(root: Path) -> np.ndarray:
+    rig = Rig.load(root)
+    return np.array(
+        [
+            np.linalg.norm(c.centre_mm - t.centre_mm)
+            for c, t in zip(rig, truth_rig(root), strict=True)
+        ]
+    )
+
+
+def test_wand_on_rods_refines_every_camera_and_restores_the_grid_when_rods_alone_run(
+    wand_session: Path, tmp_path: Path
+) -> None:
+    root = _copy(wand_session, tmp_path / "s")
+    said: list[str] = []
+    session.calibrate(root, echo=said.append)
+    assert "route wand ([wand] on the rods)" in _lines(said)
+    out = root / "out"
+    wand = json.loads((out / "dlt" / "wand.json").read_text())
+    assert wand["start"] == "rods" and abs(wand["length_mean_mm"] - 500) < 0.2
+    assert wand["length_sd_mm"] < 0.5 and wand["held_out"]["length_rms_error_mm"] < 0.6
+    check = json.loads((out / "dlt" / "check.json").read_text())
+    loo = check["leave_one_rod_out"]
+    assert loo["mean_mm"] < loo["rods_alone_mean_mm"]
+    lin = json.loads((out / "linearisation" / "cam1.json").read_text())
+    assert lin["refined"]["by"] == "wand" and lin["refined"]["grid_fit"]["model"] == "poly4"
+    assert json.loads((out / "dlt" / "cam1.json").read_text())["method"] == "wand"
+    assert _centre_errors_mm(root).max() < 5.0
+    again: list[str] = []
+    session.calibrate(root, echo=again.append)
+    assert "cached" in _lines(again)
+    session.calibrate(root, route="rods")
+    lin = json.loads((out / "linearisation" / "cam1.json").read_text())
+    assert "refined" not in lin
+    assert json.loads((out / "dlt" / "cam1.json").read_text())["method"] == "dlt"
+    summary = session.summarise(root)
+    assert summary["calibration"]["route"] == "rods" and "leave_one_rod_out" in summary["rods"]
+
+
+def test_wand_and_axes_alone(wand_session: Path, tmp_path: Path) -> None:
+    root = _copy(wand_session, tmp_path / "s")
+    add_axes(root)
+    said: list[str] = []
+    session.calibrate(root, echo=said.append)
+    assert "route wand ([wand] with the axes object)" in _lines(said)
+    assert _centre_errors_mm(root).max() < 10.0
+    wand = json.loads((root / "out" / "dlt" / "wand.json").read_text())
+    assert wand["start"] == "axes" and wand["axes"]["rms_mm"] < 2.0
+    lin = json.loads((root / "out" / "linearisation" / "cam2.json").read_text())
+    assert lin["refined"]["grid_fit"] is None and lin["refined"]["fit_max_px"] < 0.35
+    session.report(root)
+    page = (root / "out" / "report.html").read_text()
+    assert 'id="wand"' in page and "wand_coverage" in page
+
+
+def test_target_route_matches_every_point(tmp_path: Path) -> None:
+    root = session.synthesise_target(tmp_path / "t", "stepped", seed=2)
+    said: list[str] = []
+    session.calibrate(root, echo=said.append)
+    doc = json.loads((root / "out" / "dlt" / "target.json").read_text())
+    for entry in doc["cameras"].values():
+        assert entry["matched"] == entry["visible"] and not entry["unmatched"]
+    check = json.loads((root / "out" / "dlt" / "check.json").read_text())
+    assert check["leave_out_mean_mm"] < 0.2
+    failures = session.check(root, max_3d_mm=0.2)
+    assert not failures
+
+
+def test_the_session_picks_the_route_and_says_why(wand_session: Path, tmp_path: Path) -> None:
+    config = load_session(wand_session)
+    assert session_route(config) == ("wand", "[wand] on the rods")
+    assert session_route(config, "rods") == ("rods", "--route")
+    with pytest.raises(KisscalError, match=r"--route target: .* no inputs for it"):
+        session_route(config, "target")
+    with pytest.raises(KisscalError, match="unknown route"):
+        session_route(config, "magic")

@@ -1,0 +1,46 @@
+"""Target matching from six clicked seeds: all visible points, no wrong match."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.errors import KisscalError
+from kisscal.synth.target import render_target, seed_points, target_points, target_rig
+from kisscal.target.dots import find_target_dots
+from kisscal.target.match import match_target
+
+
+def _camera_view(kind: str, seed: int, cam_index: int):
+    xyz, surfaces = target_points(kind)
+    cam = target_rig(seed)[cam_index]
+    rng = np.random.default_rng([seed, cam_index])
+    image = render_target(cam, xyz, surfaces, rng)
+    uv, picked = seed_points(cam, xyz, rng)
+    return xyz, cam, uv, picked, find_target_dots(image, uv)
+
+
+@pytest.mark.parametrize(("kind", "seed"), [("planar", 1), ("stepped", 1), ("stepped", 4)])
+def test_all_visible_points_matched_none_wrong(kind: str, seed: int) -> None:
+    xyz, cam, uv, picked, dots = _camera_view(kind, seed, 2)
+    m = match_target(xyz, uv, picked, dots, cam.size_px, cam.id)
+    truth = cam.project(xyz)
+    ok = m.matched
+    assert ok.sum() >= 0.98 * m.visible.sum()
+    assert np.linalg.norm(dots[m.dot[ok]] - truth[ok], axis=1).max() < 0.5  # none wrong
+    assert m.rms_px < 0.1
+
+
+def test_contradicting_seeds_are_refused() -> None:
+    xyz, cam, uv, picked, dots = _camera_view("stepped", 2, 0)
+    swapped = picked.copy()
+    swapped[[1, 4]] = swapped[[4, 1]]  # two clicks given each other's names
+    with pytest.raises(KisscalError, match="contradict each other"):
+        match_target(xyz, uv, swapped, dots, cam.size_px, cam.id)
+
+
+def test_seeds_on_one_level_of_a_stepped_target_are_refused() -> None:
+    xyz, cam, _, _, dots = _camera_view("stepped", 2, 0)
+    flat = xyz[xyz[:, 1] == 0][:6]
+    with pytest.raises(KisscalError, match="one plane"):
+        match_target(xyz, cam.project(flat), flat, dots, cam.size_px, cam.id)
