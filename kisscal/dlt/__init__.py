@@ -27,7 +27,8 @@ from kisscal.dlt.params import (
     marker_label,
 )
 from kisscal.dlt.rig import RodCalibration, calibrate_rods
-from kisscal.dlt.rods import make_rods, recognise_rods, rod_distinctness, validate_rods
+from kisscal.dlt.rod_geometry import rod_distinctness, validate_rods
+from kisscal.dlt.rods import make_rods, recognise_rods
 
 __all__ = [
     "DEFAULT_PARAMS",

@@ -28,7 +28,8 @@ from kisscal.dlt.params import (
     RodMatch,
     marker_label,
 )
-from kisscal.dlt.rods import recognise_rods, validate_rods
+from kisscal.dlt.rod_geometry import validate_rods
+from kisscal.dlt.rods import recognise_rods
 from kisscal.errors import KisscalError
 
 

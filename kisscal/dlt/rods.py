@@ -32,12 +32,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import combinations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch, marker_label
+from kisscal.dlt.rod_geometry import (
+    apply_projectivity,
+    fit_projectivity,
+    monotone_subsets,
+    rod_positions,
+    validate_rods,
+)
 from kisscal.errors import KisscalError
 
 
@@ -63,7 +69,7 @@ def make_rods(config: Sequence[tuple[str, ArrayLike]]) -> tuple[Rod, ...]:
             )
         if not np.isfinite(p).all():
             raise KisscalError(f"rods: rod {name} has non-finite marker coordinates")
-        s, off = _rod_positions(p)
+        s, off = rod_positions(p)
         length = s[-1]
         if length <= 0 or np.any(np.diff(s) <= 1e-3 * length):
             raise KisscalError(
@@ -81,109 +87,6 @@ def make_rods(config: Sequence[tuple[str, ArrayLike]]) -> tuple[Rod, ...]:
     return tuple(rods)
 
 
-def _rod_positions(p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """1D positions (mm from the top marker along the rod) and off-line distances (mm)."""
-    d = p[-1] - p[0]
-    d = d / np.linalg.norm(d)
-    s = (p - p[0]) @ d
-    off = np.linalg.norm((p - p[0]) - s[:, None] * d, axis=1)
-    return s, off
-
-
-def _fit_projectivity(
-    s: NDArray[np.float64], t: NDArray[np.float64], w: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Least-squares 1D projectivities ``t = (a s + b) / (c s + 1)``, batched.
-
-    ``s``, ``t``, ``w`` have shape (H, m); ``w`` (0/1) selects the points of each fit.
-    Returns ``(a, b, c)`` per row, shape (H, 3). Inputs should be normalised to ~[0, 1].
-    """
-    A = np.stack([s, np.ones_like(s), -s * t], axis=-1) * w[..., None]
-    b = t * w
-    AtA = np.einsum("hmi,hmj->hij", A, A) + 1e-12 * np.eye(3)
-    Atb = np.einsum("hmi,hm->hi", A, b)
-    return np.linalg.solve(AtA, Atb[..., None])[..., 0]
-
-
-def _apply_projectivity(h: NDArray[np.float64], s: NDArray[np.float64]) -> NDArray[np.float64]:
-    den = h[:, 2:3] * s + 1.0
-    return (h[:, 0:1] * s + h[:, 1:2]) / den
-
-
-def _monotone_subsets(n: int, k: int) -> NDArray[np.int64]:
-    return np.array(list(combinations(range(n), k)), dtype=np.int64).reshape(-1, k)
-
-
-def rod_distinctness(rods: Sequence[Rod], n_markers: int, upright: bool = True) -> NDArray:
-    """Projective distinctness of every pair of rods (Shafiq 2001 §3.3 "unique configuration").
-
-    For rods ``a`` and ``b`` (``a == b`` included, then only different subsets), the
-    smallest RMS residual, as a fraction of rod ``a``'s length, of a 1D projectivity that
-    maps ``n_markers`` markers of ``b`` onto ``n_markers`` markers of ``a`` in the same
-    order (and reversed when not ``upright``). Small values mean an image of some
-    markers of ``b`` could be taken for ``a``.
-
-    Returns
-    -------
-    ndarray, shape (n_rods, n_rods)
-    """
-    n = len(rods)
-    out = np.full((n, n), np.inf)
-    pos = [_rod_positions(r.points_mm)[0] for r in rods]
-    for ia in range(n):
-        sa = pos[ia] / pos[ia][-1]
-        sub_a = _monotone_subsets(len(sa), n_markers)
-        for ib in range(n):
-            sb = pos[ib] / pos[ib][-1]
-            sub_b = _monotone_subsets(len(sb), n_markers)
-            ii, jj = np.meshgrid(np.arange(len(sub_a)), np.arange(len(sub_b)), indexing="ij")
-            ia_sub, ib_sub = sub_a[ii.ravel()], sub_b[jj.ravel()]
-            targets = [sa[ia_sub]]
-            sources = [sb[ib_sub]]
-            if not upright:
-                targets.append(sa[ia_sub][:, ::-1])
-                sources.append(sb[ib_sub])
-            if ia == ib:
-                # A rod against itself: only different marker subsets are confusable.
-                keep = ~np.all(ia_sub == ib_sub, axis=1)
-                targets[0], sources[0] = targets[0][keep], sources[0][keep]
-            if not len(targets[0]):
-                continue
-            t = np.concatenate(targets)
-            s = np.concatenate(sources)
-            h = _fit_projectivity(s, t, np.ones_like(s))
-            resid = _apply_projectivity(h, s) - t
-            out[ia, ib] = np.sqrt(np.mean(resid**2, axis=1)).min()
-    return out
-
-
-def validate_rods(rods: Sequence[Rod], params: DltParams = DEFAULT_PARAMS) -> None:
-    """Refuse a rod configuration whose marker spacings are not projectively unique.
-
-    Every rod seen whole must be told apart from every other under any perspective: the
-    distinctness (:func:`rod_distinctness` with all markers) of each pair must reach
-    ``params.rod_min_distinct``. Coincidences among partial views (a hidden marker) are
-    caught per image by :func:`recognise_rods`, which refuses ambiguous fits.
-
-    Raises
-    ------
-    KisscalError
-        Naming the two rods whose spacings cannot be told apart.
-    """
-    n_full = min(len(r.points_mm) for r in rods)
-    if len(rods) < 2:
-        return
-    d = rod_distinctness(rods, n_full, params.rods_upright)
-    ia, ib = sorted(np.unravel_index(np.argmin(d), d.shape))
-    if d[ia, ib] < params.rod_min_distinct:
-        raise KisscalError(
-            f"rods: marker spacings are not unique: rods {rods[ia].name} and {rods[ib].name} "
-            f"differ by only {d[ia, ib]:.2%} of the rod length under perspective "
-            f"(need {params.rod_min_distinct:.1%}); give every rod its own spacing pattern"
-        )
-
-
-#: Blob pairs whose line distances are computed at once (memory: this x blobs floats).
 _PAIRS_PER_CHUNK = 4096
 
 
@@ -272,19 +175,19 @@ def _rod_hypotheses(
     m, k = len(t), len(s)
     tn = (t - t[0]) / scale
     tol = params.rod_fit_tol_px / scale
-    sub_s = _monotone_subsets(k, 3)
-    sub_t = _monotone_subsets(m, 3)
+    sub_s = monotone_subsets(k, 3)
+    sub_t = monotone_subsets(m, 3)
     pairs_t = sub_t if params.rods_upright else np.concatenate([sub_t, sub_t[:, ::-1]])
     ii, jj = np.meshgrid(np.arange(len(sub_s)), np.arange(len(pairs_t)), indexing="ij")
     S3 = s[sub_s[ii.ravel()]]
     T3 = tn[pairs_t[jj.ravel()]]
-    h = _fit_projectivity(S3, T3, np.ones_like(S3))
+    h = fit_projectivity(S3, T3, np.ones_like(S3))
     # A pole of the projectivity between the rod's ends would fold the rod: impossible.
     den = h[:, 2:3] * np.array([s[0], s[-1]]) + 1.0
     h = h[np.all(den > 0, axis=1) | np.all(den < 0, axis=1)]
     assign = np.full((len(h), k), -1, dtype=np.int64)
     for _ in range(2):  # match, refit on all matches, match again
-        pred = _apply_projectivity(h, np.broadcast_to(s, (len(h), k)))
+        pred = apply_projectivity(h, np.broadcast_to(s, (len(h), k)))
         gap = np.abs(pred[:, :, None] - tn[None, None, :])
         nearest = gap.argmin(axis=2)
         hit = np.take_along_axis(gap, nearest[..., None], axis=2)[..., 0] < tol
@@ -293,11 +196,11 @@ def _rod_hypotheses(
         h, assign, w = h[enough], assign[enough], hit[enough].astype(float)
         if not len(h):
             break
-        h = _fit_projectivity(np.broadcast_to(s, w.shape), tn[np.maximum(assign, 0)], w)
+        h = fit_projectivity(np.broadcast_to(s, w.shape), tn[np.maximum(assign, 0)], w)
     empty = np.empty((0, k))
     if not len(h):
         return empty.astype(np.int64), np.empty(0), empty
-    pred = _apply_projectivity(h, np.broadcast_to(s, (len(h), k)))
+    pred = apply_projectivity(h, np.broadcast_to(s, (len(h), k)))
     w = assign >= 0
     gap = np.where(w, np.abs(pred - tn[np.maximum(assign, 0)]) * scale, np.nan)
     n = w.sum(axis=1)
@@ -412,7 +315,7 @@ def recognise_rods(
     validate_rods(rods, params)
     finite = np.flatnonzero(np.isfinite(uv).all(axis=1))
     uvf = uv[finite]
-    rod_s = [_rod_positions(r.points_mm)[0] for r in rods]
+    rod_s = [rod_positions(r.points_mm)[0] for r in rods]
     rod_s = [s / s[-1] for s in rod_s]
     cands: list[_Candidate] = []
     _check_busy(uvf, params, camera)

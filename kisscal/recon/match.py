@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import KisscalError
+from kisscal.recon.assign import accept, check_table, extend, finish, solve_one
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -24,91 +25,14 @@ from kisscal.recon.epipolar import (
 )
 from kisscal.recon.group import (
     first_per_key,
-    merge_groups,
     near_cameras,
     renumber,
     residual_limit_px,
-    split_or_drop,
     triangulate_markers,
 )
 from kisscal.recon.pairs import match_two_camera
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import at_epipoles
-
-
-def _check_table(
-    field: ArrayLike, camera: ArrayLike, uv: ArrayLike, n_cameras: int
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-    field = np.asarray(field, dtype=np.int64).ravel()
-    camera = np.asarray(camera, dtype=np.int64).ravel()
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-    if not (len(field) == len(camera) == len(uv)):
-        raise KisscalError("2D table: field, camera and uv must have one row per blob")
-    if len(camera) and (camera.min() < 0 or camera.max() >= n_cameras):
-        raise KisscalError(f"2D table: camera index outside 0..{n_cameras - 1}")
-    if not np.all(np.isfinite(uv)):
-        raise KisscalError("2D table: pixel coordinates contain NaN or inf")
-    return field, camera, uv
-
-
-def _solve_one(
-    L: NDArray[np.float64], uv: NDArray[np.float64], reweight_iterations: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """One point from its rows of DLT parameters ``L`` (n, 11) and pixels ``uv`` (n, 2):
-    the eq. 10 least-squares solution (+ reweighted steps) and each observation's residual.
-    The per-field strategy calls this thousands of times, so it avoids batch overheads."""
-    lower = L[:, 8:11]
-    A = np.concatenate([L[:, 0:3] - uv[:, :1] * lower, L[:, 4:7] - uv[:, 1:] * lower])
-    b = np.concatenate([uv[:, 0] - L[:, 3], uv[:, 1] - L[:, 7]])
-    w = np.ones(len(b))
-    for _ in range(reweight_iterations + 1):
-        xyz = np.linalg.lstsq(A * w[:, None], b * w, rcond=None)[0]
-        den = lower @ xyz + 1.0
-        w = np.concatenate([1.0 / den, 1.0 / den])
-    res = (L[:, [0, 1, 2, 4, 5, 6]].reshape(-1, 2, 3) @ xyz + L[:, [3, 7]]) / den[:, None] - uv
-    return xyz, np.hypot(res[:, 0], res[:, 1])
-
-
-def _accept(
-    rows: list[int],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    params: ReconParams,
-    min_cameras: int,
-) -> list[int]:
-    """Observations of one marker after dropping worst ones until ``rms_px`` is in bounds."""
-    rows = list(rows)
-    while len(rows) >= min_cameras:
-        r = np.asarray(rows)
-        _, res = _solve_one(dlts[camera[r]], uv[r], params.reweight_iterations)
-        if np.sqrt(np.mean(res**2)) <= params.max_rms_px:
-            return rows
-        rows.pop(int(np.argmax(res)))
-    return []
-
-
-def _extend(
-    members: dict[int, int],
-    xyz: NDArray[np.float64],
-    free_rows: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    radius_px: float,
-) -> list[int]:
-    """Add, in each camera not yet in ``members``, the free blob nearest to the marker's
-    projection if it lies within ``radius_px`` (Shafiq et al. 2001, 4.1, extension)."""
-    rows = list(members.values())
-    for k in np.unique(camera[free_rows]):
-        if int(k) in members:
-            continue
-        cand = free_rows[camera[free_rows] == k]
-        d = np.linalg.norm(uv[cand] - project_rows(dlts, camera[cand], xyz[None, :]), axis=1)
-        best = int(np.argmin(d))
-        if d[best] <= radius_px:
-            rows.append(int(cand[best]))
-    return rows
 
 
 def _triangles(
@@ -215,7 +139,7 @@ def match_triple(
         Marker of each blob (-1: unmatched), markers numbered in field order.
     """
     dlts = np.asarray(dlts, dtype=float)
-    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    field, camera, uv = check_table(field, camera, uv, len(dlts))
     n = len(field)
     marker = np.full(n, -1, dtype=np.int64)
     if n == 0:
@@ -252,43 +176,7 @@ def match_triple(
         _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
         alive = np.all(marker[tri] < 0, axis=1)
         tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
-    return _finish(marker, field, camera, uv, dlts, params)
-
-
-def _finish(
-    marker: NDArray[np.int64],
-    field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    params: ReconParams,
-    min_cameras: int = 3,
-) -> NDArray[np.int64]:
-    """3D grouping, then the residual limit: split or drop markers with fewer than
-    ``min_cameras`` observations or over the limit."""
-    marker = merge_groups(
-        marker,
-        field,
-        camera,
-        uv,
-        dlts,
-        params.group_radius_mm,
-        params.max_rms_px,
-        params.reweight_iterations,
-    )
-    if not (marker >= 0).any():
-        return marker
-    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
-    return split_or_drop(
-        marker,
-        field,
-        camera,
-        uv,
-        dlts,
-        residual_limit_px(tri.rms_px, params),
-        min_cameras,
-        params.reweight_iterations,
-    )
+    return finish(marker, field, camera, uv, dlts, params)
 
 
 def _transfer_ok(
@@ -309,7 +197,7 @@ def _transfer_ok(
     L = dlts[camera[r]]
     points = []
     for k, (i, j) in enumerate(((1, 2), (0, 2), (0, 1))):
-        xyz, _ = _solve_one(L[[i, j]], uv[r[[i, j]]], 0)
+        xyz, _ = solve_one(L[[i, j]], uv[r[[i, j]]], 0)
         if not np.all(np.isfinite(xyz)):
             return False, xyz
         d = project_rows(dlts, camera[r[k : k + 1]], xyz[None, :])[0] - uv[r[k]]
@@ -342,7 +230,7 @@ def match_central(
     Parameters and return value as :func:`match_triple`.
     """
     dlts = np.asarray(dlts, dtype=float)
-    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    field, camera, uv = check_table(field, camera, uv, len(dlts))
     n = len(field)
     marker = np.full(n, -1, dtype=np.int64)
     if n == 0:
@@ -395,7 +283,7 @@ def match_central(
                                     continue
                                 members = {c1: int(p), r: int(qr), s: int(qs)}
                                 free = rows_f[marker[rows_f] < 0]
-                                got = _extend(
+                                got = extend(
                                     members,
                                     xyz,
                                     free,
@@ -404,7 +292,7 @@ def match_central(
                                     dlts,
                                     params.search_radius_px,
                                 )
-                                got = _accept(got, camera, uv, dlts, params, 3)
+                                got = accept(got, camera, uv, dlts, params, 3)
                                 if got:
                                     marker[got] = next_id
                                     next_id += 1
@@ -416,7 +304,7 @@ def match_central(
                             break
                     if found:
                         break
-    return _finish(marker, field, camera, uv, dlts, params)
+    return finish(marker, field, camera, uv, dlts, params)
 
 
 def match_trial(
@@ -440,7 +328,7 @@ def match_trial(
         Marker of each blob, -1 for unmatched blobs.
     """
     dlts = np.asarray(dlts, dtype=float)
-    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    field, camera, uv = check_table(field, camera, uv, len(dlts))
     fn = match_triple if params.strategy == "triple" else match_central
     F = all_fundamentals(dlts)
     led = at_epipoles(camera, uv, dlts, params.led_radius_px)

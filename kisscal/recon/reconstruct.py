@@ -9,8 +9,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import KisscalError
+from kisscal.recon.assign import check_table
 from kisscal.recon.group import triangulate_markers
-from kisscal.recon.match import _check_table, match_trial
+from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import false_detections
 
@@ -214,7 +215,7 @@ def reconstruct_trial(
     if not np.all(np.isfinite(dlts)):
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(dlts))[0]})
         raise KisscalError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
-    field, camera, uv = _check_table(field, camera, uv, len(dlts))
+    field, camera, uv = check_table(field, camera, uv, len(dlts))
     still, test = false_detections(field, camera, uv, params, rate_hz)
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)

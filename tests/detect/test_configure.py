@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from kisscal.detect import detect_blobs
-from kisscal.detect.configure import configure_detection, measure_pixel_aspect
+from kisscal.detect.aspect import measure_pixel_aspect
+from kisscal.detect.configure import configure_detection
 from kisscal.detect.survey import survey_frames
 from kisscal.errors import KisscalError
 from tests.detect.conftest import render

@@ -1,100 +1,17 @@
-"""The ``kisscal`` command line: a thin typer layer over :mod:`kisscal.session`.
-
-Every user error is reported on one line, ``kisscal <command>: error: ...``, with exit
-code 2; ``kisscal check`` exits 1 when a quality limit is exceeded.
-"""
+"""The ``kisscal`` commands, each a thin layer over one function of :mod:`kisscal.session`."""
 
 from __future__ import annotations
 
-import contextlib
-import sys
-from collections.abc import Callable, Iterator
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as package_version
 from pathlib import Path
 from typing import Annotated, Literal
 
 import typer
 
+from kisscal.cli.app import SessionArg, TrialArg, app, example_epilog, progress_bars
 from kisscal.errors import KisscalError
 
-app = typer.Typer(
-    name="kisscal",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,
-    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
-)
 
-SessionArg = Annotated[
-    Path, typer.Argument(help="Session folder (holds session.toml).", metavar="SESSION")
-]
-TrialArg = Annotated[str, typer.Argument(help="Trial name from session.toml.", metavar="TRIAL")]
-
-
-def _example(*lines: str) -> str:
-    """A help epilog with example command lines (click keeps ``\\b`` paragraphs as written)."""
-    return "\b\nExamples:\n" + "\n".join(f"  {line}" for line in lines)
-
-
-def _version(value: bool) -> None:
-    if value:
-        try:
-            typer.echo(f"kisscal {package_version('kisscal')}")
-        except PackageNotFoundError:  # pragma: no cover - run from a source tree
-            typer.echo("kisscal (not installed)")
-        raise typer.Exit()
-
-
-@app.callback()
-def _main(
-    version: Annotated[
-        bool,
-        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
-    ] = False,
-) -> None:
-    """Calibration and reconstruction for marker-based multi-camera gait capture.
-
-    A session folder holds session.toml and the camera images; every output goes to its
-    out/ folder. Start with `kisscal demo`, then `kisscal run SESSION` on your own.
-    """
-
-
-@contextlib.contextmanager
-def progress_bars() -> Iterator[Callable[[str], object]]:
-    """A progress bar per pipeline stage on a terminal; plain lines when output is redirected.
-
-    Yields the function that prints the pipeline's messages (above the bars on a terminal).
-    """
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
-
-    from kisscal import session
-
-    console = Console(stderr=True)
-    if not console.is_terminal:
-        yield typer.echo
-        return
-
-    class Bars(session.Progress):
-        def __init__(self, bars: Progress) -> None:
-            self.bars = bars
-            self.task: int | None = None
-
-        def start(self, stage: str, total: int) -> None:
-            self.task = self.bars.add_task(stage, total=max(total, 1))
-
-        def advance(self, steps: int = 1) -> None:
-            if self.task is not None:
-                self.bars.advance(self.task, steps)
-
-    columns = (TextColumn("{task.description:<34}"), BarColumn(), MofNCompleteColumn())
-    with Progress(*columns, console=console) as bars, session.reporting_progress(Bars(bars)):
-        yield lambda line: bars.console.print(line, markup=False, highlight=False)
-
-
-@app.command(epilog=_example("kisscal demo", "kisscal demo /tmp/demo --seed 3"))
+@app.command(epilog=example_epilog("kisscal demo", "kisscal demo /tmp/demo --seed 3"))
 def demo(
     out: Annotated[Path, typer.Argument(help="Folder for the demo session.", metavar="DIR")] = Path(
         "kisscal-demo"
@@ -108,7 +25,7 @@ def demo(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal synth /tmp/s1 --seed 1 --fields 200",
         "kisscal synth /tmp/s2 --cameras 3",
         "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
@@ -190,7 +107,7 @@ def synth(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal detect frames/cam1/*.png",
         "kisscal detect frames/cam1/*.png --out blobs.csv --overlay overlays/",
         "kisscal detect lab/s1/trials/walk01/cam2/*.png --session lab/s1 --camera cam2",
@@ -260,7 +177,7 @@ def detect(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal linearise lab/2026-11-21",
         "kisscal linearise lab/2026-11-21 --camera cam2 --model similarity",
     )
@@ -284,7 +201,7 @@ def linearise(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal calibrate lab/2026-11-21",
         "kisscal calibrate lab/2026-11-21 --mdlt",
         "kisscal calibrate lab/2026-11-21 --route rods",
@@ -338,7 +255,7 @@ def calibrate(
         )
 
 
-@app.command(epilog=_example("kisscal reconstruct lab/2026-11-21 walk01"))
+@app.command(epilog=example_epilog("kisscal reconstruct lab/2026-11-21 walk01"))
 def reconstruct(session_dir: SessionArg, trial: TrialArg) -> None:
     """Reconstruct 3D marker positions of a trial, field by field."""
     from kisscal import session
@@ -348,7 +265,7 @@ def reconstruct(session_dir: SessionArg, trial: TrialArg) -> None:
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal track lab/2026-11-21 walk01",
         "kisscal track lab/2026-11-21 walk01 --pnc 0.05 --sweep",
     )
@@ -380,7 +297,7 @@ def track(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal export lab/2026-11-21 --to anipose",
         "kisscal export lab/2026-11-21 --to dltdv8 --out coefs.csv",
         "kisscal export lab/2026-11-21 --to opencv --out calib/",
@@ -407,7 +324,7 @@ def export(
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal init lab/2026-11-21 --cameras 8", "kisscal init kiss01 --cameras 6 --preset kiss"
     )
 )
@@ -427,7 +344,7 @@ def init(
     typer.echo(f"  kisscal validate {session_dir}")
 
 
-@app.command(epilog=_example("kisscal validate lab/2026-11-21"))
+@app.command(epilog=example_epilog("kisscal validate lab/2026-11-21"))
 def validate(session_dir: SessionArg) -> None:
     """Check every input of a session before any work; list each problem."""
     from kisscal import session
@@ -440,7 +357,7 @@ def validate(session_dir: SessionArg) -> None:
     typer.echo(f"{session_dir}: every input is present and consistent")
 
 
-@app.command(epilog=_example("kisscal run lab/2026-11-21"))
+@app.command(epilog=example_epilog("kisscal run lab/2026-11-21"))
 def run(session_dir: SessionArg) -> None:
     """Process the whole session, grid images to trajectories."""
     from kisscal import session
@@ -450,7 +367,7 @@ def run(session_dir: SessionArg) -> None:
 
 
 @app.command(
-    epilog=_example(
+    epilog=example_epilog(
         "kisscal check lab/2026-11-21 --max-grid-px 0.08 --max-reproj-px 0.1 --max-3d-mm 1.0"
     )
 )
@@ -482,7 +399,7 @@ def check(
     typer.echo("check passed: every figure is within its limit")
 
 
-@app.command(epilog=_example("kisscal report lab/2026-11-21"))
+@app.command(epilog=example_epilog("kisscal report lab/2026-11-21"))
 def report(session_dir: SessionArg) -> None:
     """Rebuild out/report.html of a processed session."""
     from kisscal import session
@@ -491,7 +408,9 @@ def report(session_dir: SessionArg) -> None:
 
 
 @app.command(
-    epilog=_example("kisscal batch lab/*", "kisscal batch lab/* --scheduler tcp://10.0.0.5:8786")
+    epilog=example_epilog(
+        "kisscal batch lab/*", "kisscal batch lab/* --scheduler tcp://10.0.0.5:8786"
+    )
 )
 def batch(
     sessions: Annotated[list[Path], typer.Argument(help="Session folders.", metavar="SESSION...")],
@@ -505,52 +424,3 @@ def batch(
     failed = session.batch(sessions, scheduler=scheduler, echo=typer.echo)
     if failed:
         raise typer.Exit(1)
-
-
-def _click_class(name: str) -> type[Exception]:
-    """A class of the click library typer is built on, found without a private import."""
-    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
-
-
-UsageError = _click_class("UsageError")
-ClickException = _click_class("ClickException")
-
-
-def _command_name(args: list[str]) -> str:
-    """``kisscal <command>`` for messages: the first argument naming a command."""
-    names = {c.name or c.callback.__name__ for c in app.registered_commands if c.callback}
-    first = next((a for a in args if a in names), None)
-    return f"kisscal {first}" if first else "kisscal"
-
-
-def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the typer app, turning every user error into one line.
-
-    Usage errors (a missing argument, a bad number) and :class:`KisscalError` from any
-    stage are printed as ``kisscal <command>: error: ...`` with exit code 2, never as a
-    traceback.
-    """
-    args = sys.argv[1:] if argv is None else argv
-    where = _command_name(args)
-    try:
-        rv = app(args=args or ["--help"], prog_name="kisscal", standalone_mode=False)
-    except KisscalError as exc:
-        _fail(where, str(exc), exc.exit_code)
-    except OSError as exc:  # a path the user gave cannot be read or written
-        detail = f": {exc.filename}" if exc.filename else ""
-        _fail(where, f"{exc.strerror or exc}{detail}", 2)
-    except ClickException as exc:
-        _fail(where, exc.format_message(), 2 if isinstance(exc, UsageError) else exc.exit_code)
-    except typer.Abort:
-        _fail(where, "interrupted", 130)
-    sys.exit(rv if isinstance(rv, int) else 0)
-
-
-def _fail(where: str, message: str, code: int) -> None:
-    message = " ".join(message.split())  # one line, whatever the exception held
-    typer.echo(f"{where}: error: {message}", err=True)
-    sys.exit(code)
-
-
-if __name__ == "__main__":
-    main()

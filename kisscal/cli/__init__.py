@@ -1,0 +1,63 @@
+"""The ``kisscal`` command line: a thin typer layer over :mod:`kisscal.session`.
+
+Every user error is reported on one line, ``kisscal <command>: error: ...``, with exit
+code 2; ``kisscal check`` exits 1 when a quality limit is exceeded.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from kisscal.cli import commands as _commands  # noqa: F401  (registers the commands)
+from kisscal.cli.app import app
+from kisscal.errors import KisscalError
+
+__all__ = ["app", "main"]
+
+
+def _click_class(name: str) -> type[Exception]:
+    """A class of the click library typer is built on, found without a private import."""
+    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
+
+
+UsageError = _click_class("UsageError")
+ClickException = _click_class("ClickException")
+
+
+def _command_name(args: list[str]) -> str:
+    """``kisscal <command>`` for messages: the first argument naming a command."""
+    names = {c.name or c.callback.__name__ for c in app.registered_commands if c.callback}
+    first = next((a for a in args if a in names), None)
+    return f"kisscal {first}" if first else "kisscal"
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the typer app, turning every user error into one line.
+
+    Usage errors (a missing argument, a bad number) and :class:`KisscalError` from any
+    stage are printed as ``kisscal <command>: error: ...`` with exit code 2, never as a
+    traceback.
+    """
+    args = sys.argv[1:] if argv is None else argv
+    where = _command_name(args)
+    try:
+        rv = app(args=args or ["--help"], prog_name="kisscal", standalone_mode=False)
+    except KisscalError as exc:
+        _fail(where, str(exc), exc.exit_code)
+    except OSError as exc:  # a path the user gave cannot be read or written
+        detail = f": {exc.filename}" if exc.filename else ""
+        _fail(where, f"{exc.strerror or exc}{detail}", 2)
+    except ClickException as exc:
+        _fail(where, exc.format_message(), 2 if isinstance(exc, UsageError) else exc.exit_code)
+    except typer.Abort:
+        _fail(where, "interrupted", 130)
+    sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _fail(where: str, message: str, code: int) -> None:
+    message = " ".join(message.split())  # one line, whatever the exception held
+    typer.echo(f"{where}: error: {message}", err=True)
+    sys.exit(code)
+
