@@ -60,4 +60,3 @@ def _fail(where: str, message: str, code: int) -> None:
     message = " ".join(message.split())  # one line, whatever the exception held
     typer.echo(f"{where}: error: {message}", err=True)
     sys.exit(code)
-

@@ -241,70 +241,87 @@ def match_central(
     f_sorted = field[order]
     cuts = np.flatnonzero(np.r_[True, f_sorted[1:] != f_sorted[:-1], True])
     next_id = 0
-    band = params.epipolar_band_px
     for s0, e0 in itertools.pairwise(cuts):
         rows_f = order[s0:e0]
         cam_rows = [rows_f[camera[rows_f] == c] for c in range(n_cam)]
-        dist: dict[tuple[int, int], NDArray[np.float64]] = {}
-        for i in range(n_cam):
-            for j in range(i + 1, n_cam):
-                if len(cam_rows[i]) and len(cam_rows[j]):
-                    dist[i, j] = distance_matrix_px(F[i, j], uv[cam_rows[i]], uv[cam_rows[j]])
-                    dist[j, i] = dist[i, j].T
+        dist = _field_distances(cam_rows, uv, F)
         for c1 in range(n_cam):
             for p_local, p in enumerate(cam_rows[c1]):
                 if marker[p] >= 0:
                     continue
-                cands: dict[int, NDArray[np.int64]] = {}
-                best: dict[int, float] = {}
-                for k in range(n_cam):
-                    if (c1, k) not in dist:
-                        continue
-                    d = dist[c1, k][p_local]
-                    ok = np.flatnonzero((d < band) & (marker[cam_rows[k]] < 0))
-                    if len(ok):
-                        ok = ok[np.argsort(d[ok], kind="stable")][: params.max_candidates]
-                        cands[k] = cam_rows[k][ok]
-                        best[k] = float(d[ok[0]])
-                priority = sorted(cands, key=best.__getitem__)
-                found = False
-                for ir, r in enumerate(priority):
-                    for s in priority[ir + 1 :]:
-                        for qr in cands[r]:
-                            for qs in cands[s]:
-                                ok, xyz = _transfer_ok(
-                                    (int(p), int(qr), int(qs)),
-                                    camera,
-                                    uv,
-                                    dlts,
-                                    params.search_radius_px,
-                                )
-                                if not ok:
-                                    continue
-                                members = {c1: int(p), r: int(qr), s: int(qs)}
-                                free = rows_f[marker[rows_f] < 0]
-                                got = extend(
-                                    members,
-                                    xyz,
-                                    free,
-                                    camera,
-                                    uv,
-                                    dlts,
-                                    params.search_radius_px,
-                                )
-                                got = accept(got, camera, uv, dlts, params, 3)
-                                if got:
-                                    marker[got] = next_id
-                                    next_id += 1
-                                    found = True
-                                    break
-                            if found:
-                                break
-                        if found:
-                            break
-                    if found:
-                        break
+                cands = _central_candidates(dist, c1, p_local, cam_rows, marker, params)
+                got = _first_verified(int(p), c1, cands, rows_f, marker, camera, uv, dlts, params)
+                if got:
+                    marker[got] = next_id
+                    next_id += 1
     return finish(marker, field, camera, uv, dlts, params)
+
+
+def _field_distances(
+    cam_rows: list[NDArray[np.int64]], uv: NDArray[np.float64], F: NDArray[np.float64]
+) -> dict[tuple[int, int], NDArray[np.float64]]:
+    """Epipolar distances (px) between every two cameras' blobs of one field."""
+    dist: dict[tuple[int, int], NDArray[np.float64]] = {}
+    for i, j in itertools.combinations(range(len(cam_rows)), 2):
+        if len(cam_rows[i]) and len(cam_rows[j]):
+            dist[i, j] = distance_matrix_px(F[i, j], uv[cam_rows[i]], uv[cam_rows[j]])
+            dist[j, i] = dist[i, j].T
+    return dist
+
+
+def _central_candidates(
+    dist: dict[tuple[int, int], NDArray[np.float64]],
+    c1: int,
+    p_local: int,
+    cam_rows: list[NDArray[np.int64]],
+    marker: NDArray[np.int64],
+    params: ReconParams,
+) -> dict[int, NDArray[np.int64]]:
+    """Unmatched blobs within the epipolar band of a base blob, per camera (closest
+    ``max_candidates`` each), cameras in order of their closest candidate."""
+    cands: dict[int, NDArray[np.int64]] = {}
+    best: dict[int, float] = {}
+    for k in range(len(cam_rows)):
+        if (c1, k) not in dist:
+            continue
+        d = dist[c1, k][p_local]
+        ok = np.flatnonzero((d < params.epipolar_band_px) & (marker[cam_rows[k]] < 0))
+        if len(ok):
+            ok = ok[np.argsort(d[ok], kind="stable")][: params.max_candidates]
+            cands[k] = cam_rows[k][ok]
+            best[k] = float(d[ok[0]])
+    return {k: cands[k] for k in sorted(cands, key=best.__getitem__)}
+
+
+def _first_verified(
+    p: int,
+    c1: int,
+    cands: dict[int, NDArray[np.int64]],
+    rows_f: NDArray[np.int64],
+    marker: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+) -> list[int]:
+    """The blobs of the first triplet (priority cameras first, best candidates first) that
+    passes the transfer test and is accepted once extended; empty when none does."""
+    priority = list(cands)
+    for ir, r in enumerate(priority):
+        for s in priority[ir + 1 :]:
+            for qr, qs in itertools.product(cands[r], cands[s]):
+                ok, xyz = _transfer_ok(
+                    (p, int(qr), int(qs)), camera, uv, dlts, params.search_radius_px
+                )
+                if not ok:
+                    continue
+                members = {c1: p, r: int(qr), s: int(qs)}
+                free = rows_f[marker[rows_f] < 0]
+                got = extend(members, xyz, free, camera, uv, dlts, params.search_radius_px)
+                got = accept(got, camera, uv, dlts, params, 3)
+                if got:
+                    return got
+    return []
 
 
 def match_trial(

@@ -36,7 +36,9 @@ def written(tmp_path_factory):
         blob=np.where(seen, 0, -1),
         camera_ids=tuple(f"cam{i}" for i in range(9)),
     )
-    path = write_c3d(tmp_path_factory.mktemp("c3d") / "t.c3d", tracks, LABELS, RATE_HZ, points=points)
+    path = write_c3d(
+        tmp_path_factory.mktemp("c3d") / "t.c3d", tracks, LABELS, RATE_HZ, points=points
+    )
     return path, tracks, points
 
 

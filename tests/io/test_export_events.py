@@ -101,5 +101,7 @@ def test_no_events_no_event_group(tmp_path: Path) -> None:
     field = np.arange(10)
     xyz = np.zeros((10, 3))
     tracks = make_tracks(field, np.zeros(10), xyz, xyz, np.zeros(10), field)
-    path = write_c3d(tmp_path / "t.c3d", tracks, ("A",), RATE, events=GaitEvents.from_times({}, RATE))
+    path = write_c3d(
+        tmp_path / "t.c3d", tracks, ("A",), RATE, events=GaitEvents.from_times({}, RATE)
+    )
     assert "EVENT" not in ezc3d.c3d(str(path))["parameters"]
