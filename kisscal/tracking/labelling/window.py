@@ -29,7 +29,9 @@ from kisscal.tracking.rigid import (
     field_fits,
     kabsch,
     refine_by_swaps,
+    refine_with_kicks,
     rigid_matches,
+    swap_cost,
     upright_fraction,
     upright_pose,
 )
@@ -135,8 +137,13 @@ def swap_refined(
             loose = np.flatnonzero(assign < 0)[: free.size]
             assign[loose] = free[: loose.size]
             assign = refine_by_swaps(median, weight, template_distance, assign, unary=unary)
-            cost = _swap_cost(assign, median, weight, template_distance, unary)
+            cost = swap_cost(assign, median, weight, template_distance, unary)
             refined.append((cost, assign))
+    if refined:  # the best start, kicked out of its valley (cheaper than kicking every start)
+        best = refine_with_kicks(
+            median, weight, template_distance, min(refined, key=lambda c: c[0])[1], unary
+        )
+        refined.append((swap_cost(best, median, weight, template_distance, unary), best))
     return refined
 
 
@@ -144,22 +151,6 @@ def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
     ok = assign >= 0
     r, _ = kabsch(pose[ok], template[assign[ok]])
     return bool(r[2, 2] > np.cos(np.pi / 4))
-
-
-def _swap_cost(
-    q: NDArray,
-    median: NDArray,
-    weight: NDArray,
-    template_distance: NDArray,
-    unary: NDArray | None = None,
-) -> float:
-    ok = q >= 0
-    qq = q[ok]
-    diff = median[np.ix_(ok, ok)] - template_distance[np.ix_(qq, qq)]
-    cost = float((weight[np.ix_(ok, ok)] * diff**2).sum())
-    if unary is not None:
-        cost += float(unary[np.flatnonzero(ok), qq].sum())
-    return cost
 
 
 def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray) -> tuple:
