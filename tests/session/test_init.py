@@ -11,6 +11,7 @@ import pytest
 from kisscal import session
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_toml
+from kisscal.io.summary import summarise
 from kisscal.session.init import init_session
 
 
@@ -43,3 +44,42 @@ def test_filled_template_validates(small_session: Path, tmp_path: Path) -> None:
     )
     path.write_text(filled)
     assert session.validate(new) == []
+
+
+@pytest.mark.slow
+def test_a_four_camera_lab_by_the_docs_alone(tmp_path: Path) -> None:
+    """docs/your-lab.md, steps 1-7, as a newcomer types them: `kisscal init --cameras 4
+    --preset modern`, the images copied in, the rods' survey filled in, `kisscal validate`,
+    `kisscal run`; trajectories come out for every marker."""
+    from kisscal.cli import main
+
+    lab = session.synthesise(
+        tmp_path / "lab-images", preset="modern", n_cameras=4, fields=40, walking5=False
+    )
+    new = tmp_path / "lab" / "2026-11-21"
+
+    def kisscal(*args: str) -> int:
+        with pytest.raises(SystemExit) as done:
+            main(list(args))
+        return int(done.value.code or 0)
+
+    assert kisscal("init", str(new), "--cameras", "4", "--preset", "modern") == 0
+    for folder in ("grid", "rods", "trials/walk01"):
+        for cam in [f"cam{i}" for i in range(1, 5)]:
+            for frame in sorted((lab / folder / cam).glob("*.png")):
+                shutil.copy(frame, new / folder / cam / frame.name)
+    rods = iter(load_toml(lab / "session.toml")["rods"]["rod"])
+    toml = new / "session.toml"
+    toml.write_text(
+        re.sub(
+            r"points_mm = \[\]\s*# FILL IN[^\n]*",
+            lambda _m: f"points_mm = {next(rods)['points_mm']}",
+            toml.read_text(),
+        )
+    )
+    assert kisscal("validate", str(new)) == 0
+    assert kisscal("run", str(new)) == 0
+    tracking = summarise(new)["trials"]["walk01"]
+    assert tracking["trajectories"] >= 15
+    assert (new / "out" / "trials" / "walk01" / "trajectories.c3d").is_file()
+    assert (new / "out" / "report.html").is_file()
