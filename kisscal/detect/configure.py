@@ -224,7 +224,10 @@ def configure_detection(
     raw_max = [float(np.max(im)) for im in images]
     shape = frames[0].shape
     survey_tile = max(32, min(shape) // 8)
-    levels = grey_levels(frames, raw_max, survey_tile)
+    wide = [
+        np.iinfo(im.dtype).max + 1 for im in images if np.issubdtype(im.dtype, np.unsignedinteger)
+    ]
+    levels = grey_levels(frames, raw_max, survey_tile, max(wide, default=256))
     known = None if pixel_aspect is None else (float(pixel_aspect), aspect_why)
     return _Derivation(frames, given, kind, levels, known).run()
 
@@ -271,7 +274,7 @@ class _Derivation:
 
     def run(self) -> DetectionSetup:
         lv = self.levels
-        probe = max(6.0 * lv.noise, 4.0, 0.02 * (lv.top - lv.background))
+        probe = max(6.0 * lv.noise, 4.0 * lv.unit, 0.02 * (lv.top - lv.background))
         tile0 = max(32, min(self.frames[0].shape) // 8)
         first = survey_frames(self.frames, probe, tile0)
         if len(first) == 0:
@@ -294,7 +297,7 @@ class _Derivation:
         )
 
     def _nothing_bright(self, probe: float) -> DetectionSetup:
-        self.notes.append(f"no bright spot {probe:.0f} grey levels above the background")
+        self.notes.append(f"no bright spot {probe:.3g} grey levels above the background")
         for name in DERIVED:
             default = getattr(DetectionParams(), name)
             self.choose(name, default, "nothing bright in the surveyed frames: default")
@@ -307,7 +310,7 @@ class _Derivation:
         """Threshold and background mode from the contrast of the faint markers."""
         lv = self.levels
         faint = float(np.percentile(markers.peak, 5)) if len(markers) else 40.0
-        floor = max(5.0 * lv.noise, 3.0)
+        floor = max(5.0 * lv.noise, 3.0 * lv.unit)
         excess = float(np.clip(THRESHOLD_FRACTION * faint, floor, max(floor, 0.6 * faint)))
         why = (
             f"{THRESHOLD_FRACTION:.0%} of the faint markers' contrast ({faint:.0f} above "
@@ -350,7 +353,7 @@ class _Derivation:
         if p.background_tile_px:
             excess = p.threshold
         else:
-            excess = max(p.threshold - self.levels.background, 1.0)
+            excess = max(p.threshold - self.levels.background, self.levels.unit)
         return survey_frames(self.frames, excess, tile)
 
     def _aspect(self, spots: Groups) -> None:
@@ -430,7 +433,7 @@ class _Derivation:
 
     def _rim_floor(self) -> float:
         # a ring fainter than twice the noise adds more noise to a centroid than light
-        return max(2.0 * self.levels.noise, 0.5)
+        return max(2.0 * self.levels.noise, 0.5 * self.levels.unit)
 
 
 def _largest(values: NDArray) -> float:

@@ -56,6 +56,11 @@ class GreyLevels:
         Largest grey level seen.
     bits : int
         Bits of the stored data (8, 10, 12, 14 or 16), from the largest raw value.
+    unit : float
+        One grey level of an 8-bit camera in these frames' data, on the 8-bit scale: 1 for
+        8-bit images and for 16-bit ones that use the whole range; 1/64 for a 10-bit
+        camera's data stored unshifted in 16-bit images (its top is 1023, not 65535). The
+        fixed floors of the derivation (a few grey levels) are in this unit.
     """
 
     background: float
@@ -63,10 +68,14 @@ class GreyLevels:
     unevenness: float
     top: float
     bits: int
+    unit: float = 1.0
 
 
-def grey_levels(images: Sequence[NDArray], raw_max: Sequence[float], tile_px: int) -> GreyLevels:
-    """Background, noise and unevenness of checked images; ``raw_max`` of their raw data."""
+def grey_levels(
+    images: Sequence[NDArray], raw_max: Sequence[float], tile_px: int, container_levels: int = 256
+) -> GreyLevels:
+    """Background, noise and unevenness of checked images; ``raw_max`` of their raw data,
+    ``container_levels`` the grey levels their type holds (256 for 8-bit, 65536 for 16)."""
     backgrounds, noises, spreads = [], [], []
     for image in images:
         backgrounds.append(background_level(image))
@@ -83,6 +92,7 @@ def grey_levels(images: Sequence[NDArray], raw_max: Sequence[float], tile_px: in
         float(np.median(spreads)),
         top,
         bits,
+        min(1.0, 2.0 ** max(bits, 8) / container_levels) if container_levels > 256 else 1.0,
     )
 
 

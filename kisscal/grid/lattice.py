@@ -168,7 +168,9 @@ def lattice_pixel_aspect(dots_uv: ArrayLike, cell_aspect: float = 1.0) -> float:
     >>> round(lattice_pixel_aspect(dots), 4)
     1.94
     """
-    dots = np.asarray(dots_uv, dtype=float)
+    dots = np.asarray(dots_uv, dtype=float).reshape(-1, 2)
+    if len(dots) < 9:
+        raise KisscalError(f"grid: {len(dots)} dots are too few for the lattice's pixel aspect")
     # lens distortion bends the outer rows and columns most: the steps near the middle of
     # the grid, where it changes least, carry the camera's aspect
     centre = np.median(dots, axis=0)
