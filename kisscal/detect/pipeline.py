@@ -9,6 +9,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import partial
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -373,6 +374,10 @@ _WORKER: dict[str, object] = {}
 
 
 def _init_worker(source: Callable[[int], NDArray], params: DetectionParams) -> None:
+    # A forked child inherits OpenCV's thread pool without its threads: once the parent has
+    # run a parallel OpenCV call (the settings survey does), the child's first parallel
+    # call can wait forever. A worker process needs no threads of its own.
+    cv2.setNumThreads(0)
     _WORKER["source"] = source
     _WORKER["params"] = params
 
