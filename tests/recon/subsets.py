@@ -201,11 +201,10 @@ def row(seed: int, s: SubsetScore) -> str:
     )
 
 
-def score_session(root: Path, trial: str = "walk01") -> tuple[float, float, int, list[int]]:
-    """Recall of markers seen by >= 2 cameras, ghost fraction, points, points by cameras
-    of a processed synthetic session's trial (its ``points3d.csv`` against ``truth/``)."""
+def true_markers(root: Path, trial: str) -> tuple[np.ndarray, np.ndarray]:
+    """A synthetic session's true marker positions (fields, markers, 3; NaN where absent)
+    and by how many cameras each is seen (fields, markers)."""
     from kisscal.io.files import read_table
-    from kisscal.io.points3d import read_points3d
 
     truth = read_table(root / "truth" / "trials" / trial / "markers.csv")
     names = list(dict.fromkeys(truth["marker"].tolist()))
@@ -215,6 +214,15 @@ def score_session(root: Path, trial: str = "walk01") -> tuple[float, float, int,
     xyz[f, j] = np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]).astype(float)
     seen = np.zeros((f.max() + 1, len(names)), dtype=int)
     seen[f, j] = sum(truth[k].astype(int) for k in truth if k.startswith("visible_"))
+    return xyz, seen
+
+
+def score_session(root: Path, trial: str = "walk01") -> tuple[float, float, int, list[int]]:
+    """Recall of markers seen by >= 2 cameras, ghost fraction, points, points by cameras
+    of a processed synthetic session's trial (its ``points3d.csv`` against ``truth/``)."""
+    from kisscal.io.points3d import read_points3d
+
+    xyz, seen = true_markers(root, trial)
     pts = read_points3d(root / "out" / "trials" / trial / "points3d.csv")
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, xyz)
     seen2 = seen >= 2

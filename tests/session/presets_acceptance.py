@@ -31,14 +31,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from kisscal import session
 from kisscal.grid import GridParams, linearise_frames
 from kisscal.synth.plan import plan_session, render_grid, render_trial
 from kisscal.synth.presets import synth_options
 from kisscal.synth.truth import camera_detection_truth
-from tests.recon.subsets import found_and_ghosts
+from tests.recon.subsets import found_and_ghosts, true_markers
 from tests.synth.rig_check import trial_ranges
 from tests.synth.truth_params import detection_params
 
@@ -58,17 +56,9 @@ def grid_floor_px(preset: str, seed: int) -> list[float]:
 
 def recall_and_ghosts(root: Path, trial: str = "walk01") -> tuple[float, float]:
     """Recall of the true markers seen by >= 3 cameras and the ghost share of ``trial``."""
-    from kisscal.io.files import read_table
     from kisscal.io.points3d import read_points3d
 
-    truth = read_table(root / "truth" / "trials" / trial / "markers.csv")
-    names = list(dict.fromkeys(truth["marker"].tolist()))
-    f = truth["field"].astype(int)
-    j = np.array([names.index(m) for m in truth["marker"]])
-    xyz = np.full((f.max() + 1, len(names), 3), np.nan)
-    xyz[f, j] = np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]]).astype(float)
-    seen = np.zeros((f.max() + 1, len(names)), dtype=int)
-    seen[f, j] = sum(truth[k].astype(int) for k in truth if k.startswith("visible_"))
+    xyz, seen = true_markers(root, trial)
     pts = read_points3d(root / "out" / "trials" / trial / "points3d.csv")
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, xyz)
     seen3 = seen >= 3
