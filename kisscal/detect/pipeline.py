@@ -1,15 +1,10 @@
-"""Blob detection of one image and of image sequences (Shafiq et al. 2001, section 2)."""
+"""Blob detection of one image (Shafiq et al. 2001, section 2)."""
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import partial
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -368,87 +363,3 @@ def _not_single(
     # Up to about three typical markers; beyond that a round group is an LED ring.
     clustered = (table.pixels > 1.6 * typical) & (table.pixels < 3.5 * typical)
     return sized & (odd_shape | clustered) & (table.pixels < 3.5 * typical)
-
-
-_WORKER: dict[str, object] = {}
-
-
-def _init_worker(source: Callable[[int], NDArray], params: DetectionParams) -> None:
-    # A forked child inherits OpenCV's thread pool without its threads: once the parent has
-    # run a parallel OpenCV call (the settings survey does), the child's first parallel
-    # call can wait forever. A worker process needs no threads of its own.
-    cv2.setNumThreads(0)
-    _WORKER["source"] = source
-    _WORKER["params"] = params
-
-
-def _detect_range(start: int, stop: int) -> list[Blobs]:
-    source = _WORKER["source"]
-    params = _WORKER["params"]
-    return [detect_blobs(source(i), params) for i in range(start, stop)]  # type: ignore[operator,arg-type]
-
-
-def detect_sequence(
-    images: Sequence[NDArray] | Callable[[int], NDArray],
-    params: DetectionParams = DEFAULT_PARAMS,
-    *,
-    count: int | None = None,
-    workers: int | None = None,
-    chunksize: int = 32,
-) -> list[Blobs]:
-    """Detect blobs in many images, in parallel across processes.
-
-    Parameters
-    ----------
-    images : sequence of ndarray, or callable ``index -> ndarray``
-        The images, or a function that loads image ``index`` (e.g. the io layer's reader
-        bound with :func:`functools.partial`): with a loader, decoding happens in the
-        worker processes as well.
-    params : DetectionParams
-        Shared by all images.
-    count : int, optional
-        Number of images when ``images`` is a callable (required then).
-    workers : int, optional
-        Processes to use; ``None`` uses all cores, 1 runs in this process.
-    chunksize : int
-        Consecutive images handed to a worker at a time.
-
-    Returns
-    -------
-    list of Blobs
-        One table per image, in input order.
-
-    Notes
-    -----
-    Workers receive the images (or the loader) once, when they start: on POSIX they are
-    forked and share the parent's memory, so nothing is copied per image; elsewhere the
-    images or loader must be picklable.
-    """
-    if callable(images):
-        if count is None:
-            raise KisscalError("detect: count is required when images is a loader function")
-        source = images
-        n = count
-    else:
-        n = len(images)
-        source = images.__getitem__
-    if workers is None:
-        workers = os.cpu_count() or 1
-    if workers < 1:
-        raise KisscalError(f"detect: workers must be >= 1, got {workers}")
-    if chunksize < 1:
-        raise KisscalError(f"detect: chunksize must be >= 1, got {chunksize}")
-    workers = min(workers, -(-n // chunksize)) if n else 1
-    if workers <= 1:
-        return [detect_blobs(source(i), params) for i in range(n)]
-    methods = multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("fork" if "fork" in methods else None)
-    starts = list(range(0, n, chunksize))
-    stops = [min(s + chunksize, n) for s in starts]
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=context,
-        initializer=_init_worker,
-        initargs=(source, params),
-    ) as pool:
-        return [b for chunk in pool.map(_detect_range, starts, stops) for b in chunk]

@@ -12,14 +12,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-from kisscal.detect import Blobs, DetectionParams, detect_sequence
+from kisscal.detect import Blobs, DetectionParams, ImageJob, detect_jobs, detect_sequence
 from kisscal.detect.configure import configure_detection
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
-from kisscal.io.cache import is_current, load_blob_frames, mark_current, save_blob_frames
+from kisscal.io.cache import cache_key, is_current, load_blob_frames, mark_current, save_blob_frames
+from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_bytes
-from kisscal.io.frames import frame_name, read_image
-from kisscal.session.progress import Echo, quiet
+from kisscal.io.frames import frame_name, read_image, source_files
+from kisscal.session.inputs import file_keys, out_dir
+from kisscal.session.progress import Echo, counted, quiet
 
 
 @dataclass(frozen=True)
@@ -63,31 +65,62 @@ def chunk_size(frames: Sequence, workers: int | None) -> int:
     return max(share + share % 2, 2)  # even: both fields of a frame go to one worker
 
 
-def detect_frames(
-    frames: Sequence[np.ndarray],
-    params: DetectionParams,
-    cache_file: Path,
-    key: str,
-    echo: Echo,
-    what: str,
+def camera_blobs(
+    root: Path,
+    config: SessionConfig,
+    frames: Mapping[str, Sequence[np.ndarray]],
+    detection: Mapping[str, DetectionParams],
+    fields: str | None,
+    name: tuple[str, str],
+    echo: Echo = quiet,
     workers: int | None = None,
-) -> list[Blobs]:
-    """Blobs of every frame, from the cache when its key matches."""
-    if is_current(cache_file, key):
-        echo(f"  detect {what}: {len(frames)} frames (cached)")
-        return load_blob_frames(cache_file)
+) -> dict[str, list[Blobs]]:
+    """Blobs of every frame of each camera's ``frames``, from the cache when it is current.
+
+    The cameras whose cache is stale are detected together, in one pool of processes
+    (:func:`kisscal.detect.detect_jobs`): the workers decode and detect, and no core
+    waits for the last frames of one camera before the next camera starts. ``name`` is
+    ``(cache stem, label)``: caches are ``out/cache/blobs/<stem>-<camera>.npz`` and
+    messages say ``detect <label>``. A frame that cannot be read fails after the other
+    cameras' blobs are cached.
+    """
+    stem, label = name
+    sizes = {c.id: c.size_px for c in config.cameras}
+    out: dict[str, list[Blobs]] = {}
+    stale = []
+    for cam, seq in frames.items():
+        key = cache_key("detect", file_keys(source_files(seq), config.root), fields, detection[cam])
+        cache = out_dir(root) / "cache" / "blobs" / f"{stem}-{cam}.npz"
+        if is_current(cache, key):
+            out[cam] = load_blob_frames(cache)
+        else:
+            stale.append((cam, SizedFrames(seq, cam, sizes[cam]), cache, key))
+    if out:
+        echo(f"  detect {label}: {len(out)} of {len(frames)} cameras cached")
+    jobs = [
+        ImageJob(s.__getitem__, len(s), detection[cam], chunk_size(s, workers))
+        for cam, s, _cache, _key in stale
+    ]
     t0 = time.perf_counter()
-    blobs = detect_sequence(
-        frames.__getitem__,
-        params,
-        count=len(frames),
-        workers=workers,
-        chunksize=chunk_size(frames, workers),
-    )
-    save_blob_frames(cache_file, blobs)
-    mark_current(cache_file, key)
-    echo(f"  detect {what}: {len(frames)} frames in {time.perf_counter() - t0:.1f} s")
-    return blobs
+    failed: KisscalError | None = None
+    for j, found in counted(detect_jobs(jobs, workers), f"detect {label}", len(jobs)):
+        cam, _s, cache, key = stale[j]
+        if isinstance(found, KisscalError):
+            failed = failed or found
+            continue
+        save_blob_frames(cache, found)
+        mark_current(cache, key)
+        out[cam] = found
+    if failed is not None:
+        raise failed
+    if stale:
+        n = sum(len(s) for _cam, s, _cache, _key in stale)
+        seconds = time.perf_counter() - t0
+        echo(
+            f"  detect {label}: {len(stale)} cameras, {n} frames in {seconds:.1f} s "
+            f"({n / max(seconds, 1e-9):.0f} frames/s)"
+        )
+    return {cam: out[cam] for cam in frames}
 
 
 def detect_images(

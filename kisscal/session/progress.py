@@ -48,6 +48,15 @@ def steps(items: Iterable[T], stage: str) -> Iterator[T]:
         progress.advance()
 
 
+def counted(items: Iterable[T], stage: str, total: int) -> Iterator[T]:
+    """Like :func:`steps` for ``total`` items that arrive one at a time (a generator)."""
+    progress = _PROGRESS.get() or Progress()
+    progress.start(stage, total)
+    for item in items:
+        yield item
+        progress.advance()
+
+
 @contextlib.contextmanager
 def reporting_progress(progress: Progress) -> Iterator[None]:
     """Report the progress of pipeline stages run inside the block to ``progress``."""

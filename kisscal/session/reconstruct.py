@@ -21,7 +21,7 @@ from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, wri
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
 from kisscal.session.configure import markers_detection
-from kisscal.session.detection import SizedFrames, detect_frames
+from kisscal.session.detection import camera_blobs
 from kisscal.session.inputs import (
     figure,
     file_keys,
@@ -31,7 +31,7 @@ from kisscal.session.inputs import (
     writes_session,
 )
 from kisscal.session.params import Overrides, stage_params
-from kisscal.session.progress import Echo, quiet, steps
+from kisscal.session.progress import Echo, quiet
 
 #: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
 CENTROID_COLUMNS = ("field", "x_px", "y_px")
@@ -55,7 +55,11 @@ def reconstruct(
         return c3d_trial_points(config, trial, path, echo)
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
-    detection = markers_detection(root, config, params.detection_given, echo) if imaged else {}
+    detection = (
+        markers_detection(root, config, params.detection_given, echo, workers=workers)
+        if imaged
+        else {}
+    )
     stage_key = cache_key(
         "reconstruct",
         trial_input_keys(config, trial),
@@ -201,19 +205,9 @@ def trial_blobs(
         video=trial.source == "video",
         fields=trial.fields,
     )
-    out = {}
-    sizes = {c.id: c.size_px for c in config.cameras}
-    for cam, seq in steps(list(frames.items()), f"reconstruct {trial.name}: detect"):
-        key = cache_key(
-            "detect", file_keys(source_files(seq), config.root), trial.fields, detection[cam]
-        )
-        cache = out_dir(root) / "cache" / "blobs" / f"trial-{trial.name}-{cam}.npz"
-        sized = SizedFrames(seq, cam, sizes[cam])
-        blobs = detect_frames(
-            sized, detection[cam], cache, key, echo, f"{trial.name} {cam}", workers
-        )
-        out[cam] = [b.valid_only().xy_px for b in blobs]
-    return out
+    name = (f"trial-{trial.name}", trial.name)
+    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
+    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
 def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:

@@ -22,14 +22,13 @@ from numpy.typing import NDArray
 
 from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
-from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
-from kisscal.io.frames import camera_frames, source_files
-from kisscal.session.configure import camera_detection
-from kisscal.session.detection import SizedFrames, detect_frames
-from kisscal.session.inputs import file_keys, out_dir
+from kisscal.io.frames import camera_frames
+from kisscal.session.configure import markers_detection
+from kisscal.session.detection import camera_blobs
+from kisscal.session.inputs import out_dir
 from kisscal.session.params import StageParams
-from kisscal.session.progress import Echo, steps
+from kisscal.session.progress import Echo
 
 
 @dataclass(frozen=True)
@@ -77,10 +76,9 @@ def frame_files(
 def marker_detection(inputs: RouteInputs) -> dict[str, DetectionParams]:
     """Each camera's detection settings for marker images (derived once, then kept)."""
     config, given = inputs.config, inputs.params.detection_given
-    return {
-        cam.id: camera_detection(inputs.root, config, cam, "markers", given, inputs.echo)
-        for cam in inputs.cameras
-    }
+    return markers_detection(
+        inputs.root, config, given, inputs.echo, inputs.cameras, inputs.workers
+    )
 
 
 def static_blobs(
@@ -94,24 +92,17 @@ def static_blobs(
 
     ``what`` names the object in messages and in the cache (``rods``, ``axes`` ...).
     """
-    out = {}
-    root = inputs.config.root
-    for cam in steps(inputs.cameras, f"calibrate: detect {what}"):
-        seq = frames[cam.id]
-        key = cache_key("detect", file_keys(source_files(seq), root), fields, detection[cam.id])
-        cache = out_dir(inputs.root) / "cache" / "blobs" / f"{what}-{cam.id}.npz"
-        sized = SizedFrames(seq, cam.id, cam.size_px)
-        found = detect_frames(
-            sized,
-            detection[cam.id],
-            cache,
-            key,
-            inputs.echo,
-            f"{what}s {cam.id}",
-            inputs.workers,
-        )
-        out[cam.id] = [b.valid_only().xy_px for b in found]
-    return out
+    blobs = camera_blobs(
+        inputs.root,
+        inputs.config,
+        {cam.id: frames[cam.id] for cam in inputs.cameras},
+        detection,
+        fields,
+        (what, what),
+        inputs.echo,
+        inputs.workers,
+    )
+    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
 def outputs_of(inputs: RouteInputs, route: str) -> bool:

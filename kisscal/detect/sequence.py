@@ -1,0 +1,181 @@
+"""Blob detection of many images in parallel processes, decoding included.
+
+The images of one or several sequences (a session's cameras) go to one pool of worker
+processes in chunks of consecutive frames: every core stays busy until the last chunk
+of the last sequence, and with a loader function each worker decodes its own frames, so
+no image crosses a process boundary and memory does not grow with the number of frames.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import cv2
+from numpy.typing import NDArray
+
+from kisscal.detect.blobs import Blobs
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.pipeline import DEFAULT_PARAMS, detect_blobs
+from kisscal.errors import KisscalError
+
+#: Consecutive images a worker takes at a time (a video reader's sequential runs aside).
+CHUNK_IMAGES = 32
+
+
+@dataclass(frozen=True)
+class ImageJob:
+    """One sequence of images to detect: ``load(i)`` for ``i < count``, one setting."""
+
+    load: Callable[[int], NDArray]
+    count: int
+    params: DetectionParams = DEFAULT_PARAMS
+    chunksize: int = CHUNK_IMAGES
+
+
+_WORKER: dict[str, Sequence[ImageJob]] = {}
+
+
+def _init_worker(jobs: Sequence[ImageJob]) -> None:
+    # A forked child inherits OpenCV's thread pool without its threads: once the parent has
+    # run a parallel OpenCV call (the settings survey does), the child's first parallel
+    # call can wait forever. A worker process needs no threads of its own.
+    cv2.setNumThreads(0)
+    _WORKER["jobs"] = jobs
+
+
+def _detect_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], str | None]:
+    """Blobs of images ``start:stop`` of job ``job``, or the error that stopped them."""
+    spec = _WORKER["jobs"][job]
+    try:
+        return [detect_blobs(spec.load(i), spec.params) for i in range(start, stop)], None
+    except KisscalError as exc:  # a bad frame fails its own sequence, not the others
+        return [], str(exc)
+
+
+def _chunks(jobs: Sequence[ImageJob]) -> list[tuple[int, int, int]]:
+    """``(job, start, stop)`` of every chunk, the jobs one after the other."""
+    return [
+        (j, start, min(start + job.chunksize, job.count))
+        for j, job in enumerate(jobs)
+        for start in range(0, job.count, job.chunksize)
+    ]
+
+
+def detect_jobs(
+    jobs: Sequence[ImageJob], workers: int | None = None
+) -> Iterator[tuple[int, list[Blobs] | KisscalError]]:
+    """Detect every job's images in one pool of processes; yield each job when it is done.
+
+    Parameters
+    ----------
+    jobs : sequence of ImageJob
+        The sequences, each with its loader, length and detection settings.
+    workers : int, optional
+        Processes to use; ``None`` uses all cores, 1 runs in this process.
+
+    Yields
+    ------
+    (int, list of Blobs or KisscalError)
+        The job's index and its blobs (one table per image, in order), or the error a
+        frame of it raised (the other jobs go on), in the order of ``jobs``.
+
+    Notes
+    -----
+    Workers are forked and inherit the jobs (loaders and all): nothing is pickled but the
+    results. Chunks of every job share the pool, so a job's tail overlaps the next job.
+    """
+    if workers is None:
+        workers = os.cpu_count() or 1
+    if workers < 1:
+        raise KisscalError(f"detect: workers must be >= 1, got {workers}")
+    chunks = _chunks(jobs)
+    workers = min(workers, len(chunks))
+    methods = multiprocessing.get_all_start_methods()
+    if workers <= 1 or "fork" not in methods:
+        _init_worker(jobs)
+        results: Iterator = (_detect_chunk(*c) for c in chunks)
+        yield from _by_job(jobs, chunks, results)
+        return
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=_init_worker,
+        initargs=(jobs,),
+    ) as pool:
+        job, start, stop = zip(*chunks, strict=True)
+        yield from _by_job(jobs, chunks, pool.map(_detect_chunk, job, start, stop))
+
+
+def _by_job(
+    jobs: Sequence[ImageJob],
+    chunks: list[tuple[int, int, int]],
+    results: Iterator[tuple[list[Blobs], str | None]],
+) -> Iterator[tuple[int, list[Blobs] | KisscalError]]:
+    """Gather the chunk results of each job, in order; a job ends at its last chunk."""
+    done: list[Blobs] = []
+    error: str | None = None
+    for (job, _start, stop), (blobs, failed) in zip(chunks, results, strict=True):
+        done += blobs
+        error = error or failed
+        if stop == jobs[job].count:
+            yield job, (KisscalError(error) if error else done)
+            done, error = [], None
+    for j, job in enumerate(jobs):
+        if job.count == 0:
+            yield j, []
+
+
+def detect_sequence(
+    images: Sequence[NDArray] | Callable[[int], NDArray],
+    params: DetectionParams = DEFAULT_PARAMS,
+    *,
+    count: int | None = None,
+    workers: int | None = None,
+    chunksize: int = CHUNK_IMAGES,
+) -> list[Blobs]:
+    """Detect blobs in many images, in parallel across processes.
+
+    Parameters
+    ----------
+    images : sequence of ndarray, or callable ``index -> ndarray``
+        The images, or a function that loads image ``index`` (e.g. the io layer's reader
+        bound with :func:`functools.partial`): with a loader, decoding happens in the
+        worker processes as well.
+    params : DetectionParams
+        Shared by all images.
+    count : int, optional
+        Number of images when ``images`` is a callable (required then).
+    workers : int, optional
+        Processes to use; ``None`` uses all cores, 1 runs in this process.
+    chunksize : int
+        Consecutive images handed to a worker at a time.
+
+    Returns
+    -------
+    list of Blobs
+        One table per image, in input order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> frames = [np.zeros((40, 60), np.uint8) for _ in range(3)]
+    >>> frames[1][10:15, 20:25] = 200
+    >>> [len(b) for b in detect_sequence(frames, workers=1)]
+    [0, 1, 0]
+    """
+    if callable(images):
+        if count is None:
+            raise KisscalError("detect: count is required when images is a loader function")
+        load, n = images, count
+    else:
+        load, n = images.__getitem__, len(images)
+    if chunksize < 1:
+        raise KisscalError(f"detect: chunksize must be >= 1, got {chunksize}")
+    ((_, blobs),) = detect_jobs([ImageJob(load, n, params, chunksize)], workers)
+    if isinstance(blobs, KisscalError):
+        raise blobs
+    return blobs
