@@ -28,6 +28,7 @@ from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.session.inputs import image_sources, out_dir
+from kisscal.session.parallel import each_camera
 from kisscal.session.progress import Echo, quiet
 
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
@@ -74,11 +75,10 @@ def camera_detection(
     ``[detection]`` or the camera's image size change, or when the file is deleted.
     """
     path = out_dir(root) / "detection" / f"{camera.id}.json"
-    doc = _read_document(path, camera)
+    current = _current(root, camera, kind, given)
+    if current is not None:
+        return current
     key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
-    entry = doc["kinds"].get(kind)
-    if entry is not None and entry.get("key") == key:
-        return _params_from_doc(entry, given)
     sample = _sample(config, camera, kind)
     if sample is None:
         raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
@@ -99,6 +99,18 @@ def camera_detection(
     return setup.params
 
 
+def _current(
+    root: Path, camera: CameraConfig, kind: str, given: Mapping[str, Any]
+) -> DetectionParams | None:
+    """The camera's settings for ``kind`` as kept, if derived with the same given values."""
+    doc = _read_document(out_dir(root) / "detection" / f"{camera.id}.json", camera)
+    key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
+    entry = doc["kinds"].get(kind)
+    if entry is not None and entry.get("key") == key:
+        return _params_from_doc(entry, given)
+    return None
+
+
 def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
     """The camera's detection document, or an empty one."""
     if path.is_file():
@@ -109,13 +121,28 @@ def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
 
 
 def markers_detection(
-    root: Path, config: SessionConfig, given: Mapping[str, Any], echo: Echo = quiet
+    root: Path,
+    config: SessionConfig,
+    given: Mapping[str, Any],
+    echo: Echo = quiet,
+    cameras: Sequence[CameraConfig] | None = None,
+    workers: int | None = None,
 ) -> dict[str, DetectionParams]:
-    """Every camera's detection parameters for its marker images (rods, trials, ...)."""
-    return {
-        cam.id: camera_detection(root, config, cam, "markers", given, echo)
-        for cam in config.cameras
-    }
+    """Each camera's detection parameters for its marker images (rods, trials, ...).
+
+    Every camera of the session unless ``cameras`` says which; the cameras still to be
+    surveyed are surveyed side by side in ``workers`` processes (default: one per core).
+    """
+    cameras = list(config.cameras if cameras is None else cameras)
+    known = {c.id: _current(root, c, "markers", given) for c in cameras}
+    todo = [c for c in cameras if known[c.id] is None]
+
+    def survey(cam: CameraConfig, say: Echo) -> DetectionParams:
+        return camera_detection(root, config, cam, "markers", given, say)
+
+    surveyed = each_camera(survey, todo, "detection settings", echo, workers) if todo else []
+    known.update({c.id: p for c, p in zip(todo, surveyed, strict=True)})
+    return {c.id: known[c.id] for c in cameras}  # type: ignore[misc]
 
 
 def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig) -> DetectionSetup:

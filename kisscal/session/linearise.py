@@ -31,6 +31,7 @@ from kisscal.session.inputs import (
     select_cameras,
     writes_session,
 )
+from kisscal.session.parallel import each_camera
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
@@ -43,8 +44,11 @@ def linearise(
     model: str | None = None,
     overrides: Overrides | None = None,
     echo: Echo = quiet,
+    workers: int | None = None,
 ) -> dict[str, Linearisation]:
     """``kisscal linearise``: each camera's linearisation from its grid frames.
+
+    Cameras are fitted side by side in ``workers`` processes (default: one per core).
 
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
     A session without ``[grid]`` gets the identity linearisation; one calibrated by
@@ -55,16 +59,23 @@ def linearise(
     if model is not None:
         o = dataclasses.replace(o, grid={**o.grid, "model": model})
     params = stage_params(config, o)
-    result = {}
-    for cam in steps(select_cameras(config, camera), "linearise"):
-        if config.calibration is not None and config.calibration.route == "cameras":
-            result[cam.id] = imported_linearisation(config, cam, echo)
-        elif config.grid is None:
-            w, h = cam.size_px
-            result[cam.id] = identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
-        else:
-            result[cam.id] = _linearise_camera(Path(root), config, cam, params, echo)
-    return result
+    cameras = select_cameras(config, camera)
+    if config.calibration is not None and config.calibration.route == "cameras":
+        return {c.id: imported_linearisation(config, c, echo) for c in steps(cameras, "linearise")}
+    if config.grid is None:
+        return {c.id: _identity(c) for c in cameras}
+
+    def fit(cam: CameraConfig, say: Echo) -> Linearisation:
+        return _linearise_camera(Path(root), config, cam, params, say)
+
+    fits = each_camera(fit, cameras, "linearise", echo, workers)
+    return {c.id: lin for c, lin in zip(cameras, fits, strict=True)}
+
+
+def _identity(cam: CameraConfig) -> Linearisation:
+    """No grid: the identity linearisation, normalised about the image centre."""
+    w, h = cam.size_px
+    return identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
 
 
 def _linearise_camera(

@@ -49,7 +49,7 @@ def run(
 
     if needs_calibration(config):
         echo("[1/4] linearisation")
-        timed("linearise_s", linearise, root, overrides=overrides, echo=echo)
+        timed("linearise_s", linearise, root, overrides=overrides, echo=echo, workers=workers)
         echo("[2/4] calibration")
         timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
     failures: dict[str, str] = {}
