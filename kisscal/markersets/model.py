@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copyreg
 import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -13,6 +14,15 @@ from numpy.typing import NDArray
 from kisscal.errors import KisscalError
 
 Pair = tuple[str, str]
+
+
+def _pickle_mapping_proxy(proxy: MappingProxyType) -> tuple:
+    return MappingProxyType, (dict(proxy),)
+
+
+# A marker set travels to the process that draws the gait figures (read-only views of its
+# roles included; Python cannot pickle those by itself).
+copyreg.pickle(MappingProxyType, _pickle_mapping_proxy)
 
 
 @dataclass(frozen=True, eq=False)

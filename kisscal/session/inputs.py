@@ -5,8 +5,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
-import importlib
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -17,6 +15,7 @@ from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
 from kisscal.io.lock import session_lock
 from kisscal.rig import Rig
+from kisscal.session.figures import drawing_beside, submit_figure
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -28,7 +27,7 @@ def writes_session(func: F) -> F:
     def locked(root: Path, *args: Any, **kwargs: Any) -> Any:
         if not (Path(root) / "session.toml").is_file():
             load_config(root)  # says what is missing; never create a folder for a typo
-        with session_lock(out_dir(root)):
+        with session_lock(out_dir(root)), drawing_beside():
             return func(root, *args, **kwargs)
 
     return locked  # type: ignore[return-value]
@@ -135,18 +134,10 @@ def rig_key(rig: Rig) -> dict[str, tuple]:
 
 
 def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:
-    """Draw a stage figure into ``out/figures/<name>.png``.
+    """Draw a stage figure into ``out/figures/<name>.png`` (beside the stage when a
+    session command runs, see :mod:`kisscal.session.figures`).
 
-    The drawing module is imported only here, so that a session run without figures
-    never imports matplotlib. A figure that cannot be drawn (e.g. a degenerate trial) is
-    skipped: figures illustrate the numbers, which are already written.
+    The drawing module is imported only then, so that a session run without figures
+    never imports matplotlib.
     """
-    from kisscal.report.html import save_figure
-
-    draw = getattr(importlib.import_module(module), function)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            save_figure(draw(*args), out_dir(root) / "figures" / f"{name}.png")
-    except (ValueError, IndexError):
-        return
+    submit_figure(out_dir(root) / "figures" / f"{name}.png", module, function, args)

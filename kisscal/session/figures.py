@@ -1,0 +1,97 @@
+"""Stage figures drawn beside the pipeline, in a background process.
+
+A stage figure (a camera's grid correction, a trial's epipolar lines, its tracks) takes
+matplotlib a second or more, and the numbers it illustrates are written already. Inside
+:func:`drawing_beside` (the outermost session command holds it), figures go to one
+background process that draws them while the stage goes on: reconstruction and tracking
+use one core, so the other one draws. The block ends only when every figure is written,
+so a command's outputs are complete when it returns. Anywhere else (a worker process, a
+plain library call) a figure is drawn at once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import multiprocessing
+import os
+import pickle
+import warnings
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+_STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": []}
+
+
+def draw_figure(path: Path, module: str, function: str, args: tuple) -> None:
+    """Draw ``module.function(*args)`` into ``path``; a figure that cannot be drawn (a
+    degenerate trial) is skipped: figures illustrate numbers that are already written."""
+    from kisscal.report.html import save_figure
+
+    draw = getattr(importlib.import_module(module), function)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            save_figure(draw(*args), path)
+    except (ValueError, IndexError):
+        return
+
+
+def submit_figure(path: Path, module: str, function: str, args: tuple) -> None:
+    """Draw a figure in the background process when there is one here, else now."""
+    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    if pool is None or not _picklable(args):
+        draw_figure(path, module, function, args)
+        return
+    _STATE["pending"].append(pool.submit(draw_figure, path, module, function, args))
+
+
+def _picklable(args: tuple) -> bool:
+    """Whether the figure's data can travel to the background process."""
+    try:
+        pickle.dumps(args, protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return False
+    return True
+
+
+def _start() -> ProcessPoolExecutor | None:
+    if "fork" not in multiprocessing.get_all_start_methods() or (os.cpu_count() or 1) < 2:
+        return None
+    return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"))
+
+
+@contextlib.contextmanager
+def drawing_beside() -> Iterator[None]:
+    """Draw the block's figures in a background process; wait for them at its end.
+
+    Nested blocks share the outer block's process. A figure that failed (a bug, not a
+    degenerate trial) raises its error when the block ends.
+    """
+    if _STATE["pid"] == os.getpid():
+        yield
+        return
+    _STATE.update(pool=_start(), pid=os.getpid(), pending=[])
+    try:
+        yield
+    except BaseException:
+        _stop(cancel=True)  # the block's own error is the one to report
+        raise
+    _stop(cancel=False)
+
+
+def _stop(cancel: bool) -> None:
+    """End the background process: after its figures are drawn, or at once."""
+    pool, pending = _STATE["pool"], _STATE["pending"]
+    _STATE.update(pool=None, pid=None, pending=[])
+    if pool is None:
+        return
+    try:
+        errors = [] if cancel else [f.exception() for f in pending]
+    finally:
+        pool.shutdown(wait=True, cancel_futures=cancel)
+    for error in errors:
+        if error is not None:
+            raise error
