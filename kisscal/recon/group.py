@@ -16,17 +16,32 @@ from kisscal.recon.params import ReconParams
 
 
 def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1."""
+    """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1.
+
+    The field of a marker is that of its first blob. Called after every change of the
+    markers, so it works with tables indexed by id (no sort of the blobs) when the ids are
+    not far more than the blobs.
+    """
     out = np.full(len(marker), -1, dtype=np.int64)
-    used = marker >= 0
-    if not used.any():
+    used = np.flatnonzero(marker >= 0)
+    if len(used) == 0:
         return out
-    ids, first = np.unique(marker[used], return_index=True)
-    fields = field[used][first]
-    order = np.lexsort((ids, fields))
+    mu = marker[used]
+    top = int(mu.max()) + 1
+    if top > 4 * len(marker) + 64:  # sparse ids: tables by id would be mostly empty
+        ids, first = np.unique(mu, return_index=True)
+        slot = np.searchsorted(ids, mu)
+    else:
+        first_of = np.full(top, len(mu), dtype=np.int64)
+        np.minimum.at(first_of, mu, np.arange(len(mu)))
+        present = first_of < len(mu)
+        ids = np.flatnonzero(present)
+        first = first_of[ids]
+        slot = (np.cumsum(present) - 1)[mu]
+    order = np.lexsort((ids, field[used][first]))
     new_id = np.empty(len(ids), dtype=np.int64)
     new_id[order] = np.arange(len(ids))
-    out[used] = new_id[np.searchsorted(ids, marker[used])]
+    out[used] = new_id[slot]
     return out
 
 
