@@ -90,7 +90,9 @@ def _extend_all(
     b, m = b[lacking], m[lacking]
     if len(b) == 0:
         return
-    d = np.linalg.norm(uv[b] - project_rows(dlts, camera[b], new_xyz[m]), axis=1)
+    # each marker projected once into every camera, not once per candidate blob
+    proj = project_rows(dlts, np.tile(np.arange(n_cam), len(new_xyz)), np.repeat(new_xyz, n_cam, 0))
+    d = np.linalg.norm(uv[b] - proj[m * n_cam + camera[b]], axis=1)
     near = d <= radius_px
     b, m, d = b[near], m[near], d[near]
     keep = first_per_key(b, d)  # a blob joins its closest marker
@@ -165,11 +167,13 @@ def match_triple(
         tri, tri_rms, tri_xyz = tri[good], t.rms_px[good], t.xyz_mm[good]
     next_id = 0
     while len(tri):
-        tid = np.repeat(np.arange(len(tri)), 3)
-        best_of_blob = np.full(n, -1, dtype=np.int64)
-        first = first_per_key(tri.ravel(), tri_rms[tid])
-        best_of_blob[tri.ravel()[first]] = tid[first]
-        won = np.all(best_of_blob[tri] == np.arange(len(tri))[:, None], axis=1)
+        # the best triple of each blob: the lowest rms_px, ties to the first triple (as
+        # ranks in one stable sort of the triples, cheaper than sorting their blobs)
+        rank = np.empty(len(tri), dtype=np.int64)
+        rank[np.argsort(tri_rms, kind="stable")] = np.arange(len(tri))
+        best_of_blob = np.full(n, len(tri), dtype=np.int64)
+        np.minimum.at(best_of_blob, tri.ravel(), np.repeat(rank, 3))
+        won = np.all(best_of_blob[tri] == rank[:, None], axis=1)
         ids = next_id + np.arange(int(won.sum()))
         next_id += len(ids)
         marker[tri[won]] = ids[:, None]
