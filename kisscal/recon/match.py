@@ -24,6 +24,7 @@ from kisscal.recon.epipolar import (
     field_pairs,
 )
 from kisscal.recon.group import (
+    Solved,
     first_per_key,
     near_cameras,
     renumber,
@@ -108,6 +109,7 @@ def match_triple(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     F: NDArray[np.float64] | None = None,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Triple matching over a whole trial (Küçük 2005, 3.3.5-3.3.7), vectorised.
 
@@ -134,6 +136,9 @@ def match_triple(
     params : ReconParams
     F : ndarray, optional
         Precomputed :func:`~kisscal.recon.epipolar.all_fundamentals`.
+    solved : Solved, optional
+        Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`);
+        takes the last triangulation of the markers returned.
 
     Returns
     -------
@@ -180,7 +185,7 @@ def match_triple(
         _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
         alive = np.all(marker[tri] < 0, axis=1)
         tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
-    return finish(marker, field, camera, uv, dlts, params)
+    return finish(marker, field, camera, uv, dlts, params, solved=solved)
 
 
 def _transfer_ok(
@@ -218,6 +223,7 @@ def match_central(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     F: NDArray[np.float64] | None = None,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Shafiq et al. (2001, 4.1) central strategy, field by field.
 
@@ -258,7 +264,7 @@ def match_central(
                 if got:
                     marker[got] = next_id
                     next_id += 1
-    return finish(marker, field, camera, uv, dlts, params)
+    return finish(marker, field, camera, uv, dlts, params, solved=solved)
 
 
 def _field_distances(
@@ -334,6 +340,7 @@ def match_trial(
     uv: ArrayLike,
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Match a whole trial with the strategy named by ``params.strategy``.
 
@@ -342,6 +349,10 @@ def match_trial(
     blobs left over (:func:`kisscal.recon.pairs.match_two_camera`). Markers that are LED
     rings are dropped: those at a camera (``params.camera_clearance_mm``) and those whose
     every blob lies at an epipole (``params.led_radius_px``).
+
+    ``solved`` (:class:`~kisscal.recon.group.Solved`, optional) carries the markers'
+    triangulations from step to step (each step solves only the markers it changed) and
+    ends with a triangulation of markers of this table, for the caller to reuse.
 
     Returns
     -------
@@ -353,8 +364,9 @@ def match_trial(
     fn = match_triple if params.strategy == "triple" else match_central
     F = all_fundamentals(dlts)
     led = at_epipoles(camera, uv, dlts, params.led_radius_px)
-    marker = fn(field, camera, uv, dlts, params, F)
-    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led)
+    solved = Solved() if solved is None else solved
+    marker = fn(field, camera, uv, dlts, params, F, solved)
+    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led, solved)
     # the leftovers are the trial's worst blobs: keep the limit the whole trial set
     limit = residual_limit_px(rms, params) if len(rms) else None
     free = np.flatnonzero(marker < 0)
@@ -362,14 +374,15 @@ def match_trial(
         # second chance for blobs freed by the residual limit (a blob wrongly attached to
         # a neighbour is split off there, and may complete its own marker now)
         fixed = replace(params, max_rms_px=limit, outlier_rms_factor=0.0)
-        again = fn(field[free], camera[free], uv[free], dlts, fixed, F)
         sub = field[free], camera[free], uv[free]
-        again, _ = _drop_leds(again, *sub, dlts, params, led[free])
+        solved_sub = Solved()  # of the table of free blobs
+        again = fn(*sub, dlts, fixed, F, solved_sub)
+        again, _ = _drop_leds(again, *sub, dlts, params, led[free], solved_sub)
         found = again >= 0
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
-        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
+        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led, solved)
     return marker
 
 
@@ -381,12 +394,13 @@ def _drop_leds(
     dlts: NDArray[np.float64],
     params: ReconParams,
     led: NDArray[np.bool_],
+    solved: Solved | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Markers that are LED rings dropped (at a camera, or every blob at an epipole:
     ``led``); the ``rms_px`` of the others."""
     if not (marker >= 0).any():
         return marker, np.zeros(0)
-    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved)
     rows = np.flatnonzero(marker >= 0)
     seen_elsewhere = np.bincount(marker[rows], ~led[rows], minlength=len(tri.rms_px)) > 0
     bad = ~seen_elsewhere | near_cameras(tri.xyz_mm, dlts, params.camera_clearance_mm)

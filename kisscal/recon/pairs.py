@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
+    Solved,
     first_per_key,
     merge_groups,
     near_cameras,
@@ -218,6 +219,7 @@ def match_two_camera(
     limit_px: float | None = None,
     F: NDArray[np.float64] | None = None,
     led: NDArray[np.bool_] | None = None,
+    solved: Solved | None = None,
 ) -> tuple[NDArray[np.int64], float]:
     """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
 
@@ -241,6 +243,8 @@ def match_two_camera(
     led : ndarray of bool, shape (n,), optional
         Blobs at an epipole (:func:`~kisscal.recon.stationary.at_epipoles`): a pair of two
         such blobs is two cameras' LED rings.
+    solved : Solved, optional
+        Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`).
 
     Returns
     -------
@@ -272,7 +276,7 @@ def match_two_camera(
     if len(a) == 0:
         return out, limit_px
     known = np.flatnonzero(marker >= 0)
-    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).xyz_mm
+    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved).xyz_mm
     m_field = np.zeros(len(m_xyz), dtype=np.int64)
     m_field[marker[known]] = field[known]
     # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
@@ -296,6 +300,7 @@ def match_two_camera(
             params.group_radius_mm,
             limit_px,
             params.reweight_iterations,
+            solved,
         )
     return renumber(out, field), limit_px
 
