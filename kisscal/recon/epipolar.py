@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import lexsort_ints
 from kisscal.dlt.model import camera_centre_mm, fundamental_from_dlt
 
 __all__ = [
@@ -196,15 +197,15 @@ def candidate_pairs(
                 continue
             # every (field, blob of i, blob of j) cell of the window at once; the padding
             # is NaN, which no band holds
-            line = np.full((len(wi.uv), wi.n_slots, 3), np.nan)
-            line[wi.cell] = lines_j[wi.first : wi.first + len(wi.cell[0])]
-            pt = wj.uv
-            # one direction first: it rejects most pairs, the other is computed for the rest
-            d = np.abs(
-                line[:, :, None, 0] * pt[:, None, :, 0]
-                + line[:, :, None, 1] * pt[:, None, :, 1]
-                + line[:, :, None, 2]
-            )
+            line = np.full((3, len(wi.u), wi.n_slots), np.nan)
+            line[:, wi.cell[0], wi.cell[1]] = lines_j[wi.first : wi.first + len(wi.cell[0])].T
+            # one direction first: it rejects most pairs, the other is computed for the rest.
+            # In place and on contiguous tables (the cells are 2x the pairs: every
+            # temporary counts), in the order of a u + b v + c
+            d = line[0][:, :, None] * wj.u[:, None, :]
+            d += line[1][:, :, None] * wj.v[:, None, :]
+            d += line[2][:, :, None]
+            np.abs(d, out=d)
             f, p, q = np.nonzero(d < band_px)
             ia, jb, d = wi.pos[f, p], wj.pos[f, q], d[f, p, q]
             a, b = rows_i[ia], rows_j[jb]
@@ -232,8 +233,8 @@ class _Window:
         Position of the window's first blob among the camera's rows.
     n_slots : int
         Slots of the window's fullest cell (0: no blob).
-    uv : ndarray, shape (n_fields, n_slots, 2)
-        Pixels of each cell's blobs, NaN where a cell has fewer.
+    u, v : ndarray, shape (n_fields, n_slots)
+        Pixel coordinates of each cell's blobs, NaN where a cell has fewer.
     pos : ndarray of int, shape (n_fields, n_slots)
         Position of each blob among the camera's rows (0 in the padding).
     """
@@ -241,7 +242,8 @@ class _Window:
     cell: tuple[NDArray[np.int64], NDArray[np.int64]]
     first: int
     n_slots: int
-    uv: NDArray[np.float64]
+    u: NDArray[np.float64]
+    v: NDArray[np.float64]
     pos: NDArray[np.int64]
 
 
@@ -261,7 +263,7 @@ class _Cells:
         uv: NDArray[np.float64],
         n_cam: int,
     ) -> None:
-        order = np.lexsort((field, camera))  # rows grouped by camera, fields ascending
+        order = lexsort_ints((field, camera))  # rows grouped by camera, fields ascending
         lo = int(field.min()) if len(field) else 0
         f_idx = field - lo
         if len(field) and int(f_idx.max()) >= len(field):  # sparse field numbers
@@ -294,8 +296,8 @@ def _window(
     """The :class:`_Window` of blobs in fields ``f`` (of ``n_f``) and slots ``s``, the
     first of which is at position ``first`` among their camera's rows."""
     n_slots = int(s.max()) + 1 if len(s) else 0
-    table = np.full((n_f, n_slots, 2), np.nan)
-    table[f, s] = uv
+    table = np.full((2, n_f, n_slots), np.nan)
+    table[:, f, s] = uv.T
     pos = np.zeros((n_f, n_slots), dtype=np.int64)
     pos[f, s] = np.arange(first, first + len(f))
-    return _Window((f, s), first, n_slots, table, pos)
+    return _Window((f, s), first, n_slots, table[0], table[1], pos)

@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import lexsort_ints
 from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import KisscalError
@@ -39,20 +40,30 @@ from kisscal.recon.stationary import at_epipoles
 def _triangles(
     a: NDArray[np.int64], b: NDArray[np.int64], n: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """All triangles x < y < z of the graph with edges (a, b), a < b, without Python loops."""
-    order = np.lexsort((b, a))
+    """All triangles x < y < z of the graph with edges (a, b), a < b, without Python loops.
+
+    Every wedge x - y - z (edges (x, y) and (y, z)) is a candidate; it is closed when
+    (x, z) is an edge too. Edges are looked up in a table per node x over x+1 .. its
+    largest neighbour, not searched: nodes are ranked so that the blobs of a field are
+    consecutive, and the tables then hold no more cells than the field's blob pairs.
+    """
+    order = lexsort_ints((b, a))
     a, b = a[order], b[order]
-    key = a * n + b
-    start = np.searchsorted(a, b, side="left")
-    stop = np.searchsorted(a, b, side="right")
+    # the edges from each node: a CSR layout of the sorted edges
+    offsets = np.r_[0, np.cumsum(np.bincount(a, minlength=n))]
+    start, stop = offsets[b], offsets[b + 1]
     cnt = stop - start
     e = np.repeat(np.arange(len(a)), cnt)
     first = np.repeat(np.cumsum(cnt) - cnt, cnt)
     f = np.repeat(start, cnt) + (np.arange(len(e)) - first)
     x, y, z = a[e], b[e], b[f]
-    want = x * n + z
-    pos = np.minimum(np.searchsorted(key, want), max(len(key) - 1, 0))
-    closed = key[pos] == want if len(key) else np.zeros(0, dtype=bool)
+    has = offsets[1:] > offsets[:-1]
+    last = np.where(has, b[np.maximum(offsets[1:] - 1, 0)] if len(b) else 0, -1)
+    row = np.r_[0, np.cumsum(np.where(has, last - np.arange(n), 0))]
+    table = np.zeros(int(row[-1]), dtype=bool)
+    table[row[a] + (b - a - 1)] = True
+    closed = z <= last[x]
+    closed[closed] = table[row[x[closed]] + (z[closed] - x[closed] - 1)]
     return x[closed], y[closed], z[closed]
 
 
@@ -154,7 +165,7 @@ def match_triple(
     F = all_fundamentals(dlts) if F is None else F
     pa, pb, _ = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
     # rank blobs by (field, camera) so that every pair and triple is increasing in rank
-    order = np.lexsort((camera, field))
+    order = lexsort_ints((camera, field))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)
     x, y, z = _triangles(rank[pa], rank[pb], n)
@@ -247,7 +258,7 @@ def match_central(
         return marker
     F = all_fundamentals(dlts) if F is None else F
     n_cam = len(dlts)
-    order = np.lexsort((camera, field))
+    order = lexsort_ints((camera, field))
     f_sorted = field[order]
     cuts = np.flatnonzero(np.r_[True, f_sorted[1:] != f_sorted[:-1], True])
     next_id = 0
