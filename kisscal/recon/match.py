@@ -69,7 +69,7 @@ def _triangles(
 
 def _extend_all(
     marker: NDArray[np.int64],
-    new_ids: NDArray[np.int64],
+    first_id: int,
     new_xyz: NDArray[np.float64],
     field: NDArray[np.int64],
     camera: NDArray[np.int64],
@@ -79,23 +79,23 @@ def _extend_all(
 ) -> None:
     """Extend new markers to their other cameras (Shafiq et al. 2001, 4.1), all at once.
 
+    The new markers are ``first_id``, ``first_id + 1``, ... (one per row of ``new_xyz``).
     Each free blob within ``radius_px`` of a new marker's projection in the blob's camera,
     where the marker has no blob yet, is a candidate; closest first, a blob joins one
     marker and a marker takes one blob per camera. ``marker`` is updated in place.
     """
-    n_cam = len(dlts)
+    n_cam, n_new = len(dlts), len(new_xyz)
     free = np.flatnonzero(marker < 0)
-    if len(free) == 0 or len(new_ids) == 0:
+    if len(free) == 0 or n_new == 0:
         return
-    rows = np.flatnonzero(np.isin(marker, new_ids))
-    has = np.zeros((len(new_ids), n_cam), dtype=bool)
-    slot = np.searchsorted(new_ids, marker[rows])
+    rows = np.flatnonzero((marker >= first_id) & (marker < first_id + n_new))
+    slot = marker[rows] - first_id
+    has = np.zeros((n_new, n_cam), dtype=bool)
     has[slot, camera[rows]] = True
-    m_field = np.zeros(len(new_ids), dtype=np.int64)
+    m_field = np.zeros(n_new, dtype=np.int64)
     m_field[slot] = field[rows]
-    fo = np.argsort(field[free], kind="stable")
-    free = free[fo]
-    mo = np.argsort(m_field, kind="stable")
+    free = free[lexsort_ints([field[free]])]
+    mo = lexsort_ints([m_field])
     fi, mi = field_pairs(field[free], m_field[mo])
     b, m = free[fi], mo[mi]
     lacking = ~has[m, camera[b]]
@@ -103,14 +103,16 @@ def _extend_all(
     if len(b) == 0:
         return
     # each marker projected once into every camera, not once per candidate blob
-    proj = project_rows(dlts, np.tile(np.arange(n_cam), len(new_xyz)), np.repeat(new_xyz, n_cam, 0))
-    d = np.linalg.norm(uv[b] - proj[m * n_cam + camera[b]], axis=1)
+    proj = project_rows(dlts, np.tile(np.arange(n_cam), n_new), np.repeat(new_xyz, n_cam, 0))
+    at = m * n_cam + camera[b]
+    du, dv = uv[b, 0] - proj[at, 0], uv[b, 1] - proj[at, 1]
+    d = np.sqrt(du * du + dv * dv)  # np.linalg.norm's sum, on 1-D arrays
     near = d <= radius_px
     b, m, d = b[near], m[near], d[near]
     keep = first_per_key(b, d)  # a blob joins its closest marker
     b, m, d = b[keep], m[keep], d[keep]
     keep = first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
-    marker[b[keep]] = new_ids[m[keep]]
+    marker[b[keep]] = first_id + m[keep]
 
 
 def match_triple(
@@ -190,10 +192,10 @@ def match_triple(
         best_of_blob = np.full(n, len(tri), dtype=np.int64)
         np.minimum.at(best_of_blob, tri.ravel(), np.repeat(rank, 3))
         won = np.all(best_of_blob[tri] == rank[:, None], axis=1)
-        ids = next_id + np.arange(int(won.sum()))
-        next_id += len(ids)
-        marker[tri[won]] = ids[:, None]
-        _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
+        first_id, next_id = next_id, next_id + int(won.sum())
+        marker[tri[won]] = np.arange(first_id, next_id)[:, None]
+        extend = field, camera, uv, dlts, params.search_radius_px
+        _extend_all(marker, first_id, tri_xyz[won], *extend)
         alive = np.all(marker[tri] < 0, axis=1)
         tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
     return finish(marker, field, camera, uv, dlts, params, solved=solved)

@@ -27,6 +27,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from kisscal._shared import n_distinct
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
@@ -280,7 +281,7 @@ def match_two_camera(
     m_field = np.zeros(len(m_xyz), dtype=np.int64)
     m_field[marker[known]] = field[known]
     # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
-    judge_motion = len(np.unique(field)) >= 3
+    judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
     won = _choose(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     order = np.argsort(field[a[won]], kind="stable")

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import n_distinct
 from kisscal.dlt.model import camera_centre_mm, project
 from kisscal.errors import KisscalError
 from kisscal.recon.params import ReconParams
@@ -63,7 +64,7 @@ def stationary_mask(
     mask = np.zeros(len(field), dtype=bool)
     if len(field) == 0:
         return mask
-    n_fields = len(np.unique(field))
+    n_fields = n_distinct(field)
     half = int(np.ceil(radius_px))
     for cam in np.unique(camera):
         rows = np.flatnonzero(camera == cam)
@@ -73,8 +74,9 @@ def stationary_mask(
         ij -= ij.min(axis=0) - half
         w, h = ij.max(axis=0) + half + 1
         counts = np.bincount(ij[:, 1] * w + ij[:, 0], minlength=w * h).reshape(h, w)
-        integral = np.zeros((h + 1, w + 1), dtype=np.int64)
-        integral[1:, 1:] = counts.cumsum(axis=0).cumsum(axis=1)
+        # 32-bit sums (exact below 2^31 detections) halve the memory the cumsums sweep
+        integral = np.zeros((h + 1, w + 1), dtype=np.int32)
+        np.cumsum(counts.astype(np.int32).cumsum(axis=0), axis=1, out=integral[1:, 1:])
         u0, u1 = ij[:, 0] - half, ij[:, 0] + half + 1
         v0, v1 = ij[:, 1] - half, ij[:, 1] + half + 1
         near = integral[v1, u1] - integral[v0, u1] - integral[v1, u0] + integral[v0, u0]
@@ -125,7 +127,7 @@ def moving_fields_fraction(field: ArrayLike, still: ArrayLike) -> float:
     still = np.asarray(still, dtype=bool)
     if len(field) == 0:
         return 0.0
-    return len(np.unique(field[~still])) / len(np.unique(field))
+    return n_distinct(field[~still]) / n_distinct(field)
 
 
 def _check(
@@ -176,7 +178,7 @@ def false_detections(
     still = stationary_mask(
         field, camera, uv, params.stationary_radius_px, params.stationary_fraction
     )
-    long_enough = len(np.unique(field)) >= params.stationary_min_s * rate_hz
+    long_enough = n_distinct(field) >= params.stationary_min_s * rate_hz
     if long_enough and moving_fields_fraction(field, still) >= 0.5:
         return still, "motion"
     return np.zeros(len(field), dtype=bool), "short"
