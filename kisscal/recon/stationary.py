@@ -74,9 +74,8 @@ def stationary_mask(
         ij -= ij.min(axis=0) - half
         w, h = ij.max(axis=0) + half + 1
         counts = np.bincount(ij[:, 1] * w + ij[:, 0], minlength=w * h).reshape(h, w)
-        # 32-bit sums (exact below 2^31 detections) halve the memory the cumsums sweep
-        integral = np.zeros((h + 1, w + 1), dtype=np.int32)
-        np.cumsum(counts.astype(np.int32).cumsum(axis=0), axis=1, out=integral[1:, 1:])
+        integral = np.zeros((h + 1, w + 1), dtype=np.int64)
+        integral[1:, 1:] = counts.cumsum(axis=0).cumsum(axis=1)
         u0, u1 = ij[:, 0] - half, ij[:, 0] + half + 1
         v0, v1 = ij[:, 1] - half, ij[:, 1] + half + 1
         near = integral[v1, u1] - integral[v0, u1] - integral[v1, u0] + integral[v0, u0]
@@ -117,7 +116,10 @@ def at_epipoles(
         if len(others) == 0 or len(rows) == 0:
             continue
         e = project(L, others)
-        out[rows] = np.linalg.norm(uv[rows, None, :] - e[None], axis=2).min(axis=1) <= radius_px
+        u, v = uv[rows, 0], uv[rows, 1]
+        # the distance to the nearest epipole, as np.linalg.norm sums it, on 1-D arrays
+        d = np.min([np.sqrt((u - eu) * (u - eu) + (v - ev) * (v - ev)) for eu, ev in e], axis=0)
+        out[rows] = d <= radius_px
     return out
 
 
