@@ -3,7 +3,9 @@
 - :func:`rms_px`: the residual figure of DESIGN.md, ``sqrt(mean(du^2 + dv^2))``;
 - :func:`similarity_normaliser` and :func:`apply_transform`: the conditioning of
   coordinates before a linear solve (Hartley 1997);
-- :func:`connected_labels`: connected components of a graph given by its edges.
+- :func:`connected_labels`: connected components of a graph given by its edges;
+- :func:`lexsort_ints`: :func:`numpy.lexsort` of integer keys, by radix passes;
+- :func:`n_distinct`: the number of distinct integers, without sorting them.
 
 References
 ----------
@@ -12,6 +14,8 @@ Pattern Analysis and Machine Intelligence, 19(6), 580-593.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -81,3 +85,54 @@ def connected_labels(n: int, a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
     return rank[labels].astype(np.int64)
+
+
+def lexsort_ints(keys: Sequence[ArrayLike]) -> NDArray[np.intp]:
+    """:func:`numpy.lexsort` of integer keys (the last key primary), by 16-bit radix passes.
+
+    numpy sorts integers of 16 bits or less by a stable radix sort, linear in the rows and
+    ~20x faster than the merge sorts of ``lexsort`` on 10^4-10^5 rows; sorting every key
+    16 bits at a time, least significant first, gives the same (unique, stable) order.
+
+    Examples
+    --------
+    >>> lexsort_ints([[1, 0, 1, 0], [5, 5, 2, 70000]])
+    array([2, 1, 0, 3])
+    """
+    keys = [np.asarray(k, dtype=np.int64).ravel() for k in keys]
+    n = len(keys[0]) if keys else 0
+    order = np.arange(n)
+    if n == 0:
+        return order
+    for key in keys:
+        key = key - key.min()
+        top, shift = int(key.max()), 0
+        while True:
+            digit = ((key[order] >> shift) & 0xFFFF).astype(np.uint16)
+            order = order[np.argsort(digit, kind="stable")]
+            shift += 16
+            if top >> shift == 0:
+                break
+    return order
+
+
+def n_distinct(values: ArrayLike) -> int:
+    """Number of distinct integers in ``values`` (``len(np.unique(values))``).
+
+    Counts them in a table over their range when it is not much larger than their
+    number (field numbers of a trial): no sort.
+
+    Examples
+    --------
+    >>> n_distinct([3, 1, 3, 7])
+    3
+    """
+    values = np.asarray(values, dtype=np.int64).ravel()
+    if len(values) == 0:
+        return 0
+    lo, hi = int(values.min()), int(values.max())
+    if hi - lo > 4 * len(values) + 64:
+        return len(np.unique(values))
+    seen = np.zeros(hi - lo + 1, dtype=bool)
+    seen[values - lo] = True
+    return int(np.count_nonzero(seen))

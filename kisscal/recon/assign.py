@@ -10,6 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.model import project_rows
 from kisscal.errors import KisscalError
 from kisscal.recon.group import (
+    Solved,
     merge_groups,
     residual_limit_px,
     split_or_drop,
@@ -101,9 +102,11 @@ def finish(
     dlts: NDArray[np.float64],
     params: ReconParams,
     min_cameras: int = 3,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """3D grouping, then the residual limit: split or drop markers with fewer than
-    ``min_cameras`` observations or over the limit."""
+    ``min_cameras`` observations or over the limit. ``solved``: markers of this table
+    solved before (:class:`~kisscal.recon.group.Solved`)."""
     marker = merge_groups(
         marker,
         field,
@@ -113,10 +116,11 @@ def finish(
         params.group_radius_mm,
         params.max_rms_px,
         params.reweight_iterations,
+        solved,
     )
     if not (marker >= 0).any():
         return marker
-    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved)
     return split_or_drop(
         marker,
         field,
@@ -126,4 +130,5 @@ def finish(
         residual_limit_px(tri.rms_px, params),
         min_cameras,
         params.reweight_iterations,
+        solved,
     )

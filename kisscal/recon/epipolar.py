@@ -11,10 +11,12 @@ thesis' band test approximates and which stays defined for vertical lines.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import lexsort_ints
 from kisscal.dlt.model import camera_centre_mm, fundamental_from_dlt
 
 __all__ = [
@@ -28,7 +30,7 @@ __all__ = [
     "pair_distances_px",
 ]
 
-_CHUNK = 1_000_000  # candidate pairs evaluated at once (memory bound on long trials)
+_CHUNK = 1 << 15  # (field, blob, blob) cells of one camera pair tested at once: in the CPU cache
 
 
 def epipolar_lines(F: ArrayLike, uv_i: ArrayLike) -> NDArray[np.float64]:
@@ -171,7 +173,8 @@ def candidate_pairs(
     Returns
     -------
     a, b : ndarray of int
-        Row indices of the pair's blobs, with ``camera[a] < camera[b]``.
+        Row indices of the pair's blobs, with ``camera[a] < camera[b]``; ordered by camera
+        pair, then by ``a`` and ``b`` in (field, row) order.
     distance_px : ndarray
         Larger of the two perpendicular distances of the pair.
     """
@@ -179,40 +182,122 @@ def candidate_pairs(
     camera = np.asarray(camera, dtype=np.int64)
     uv = np.asarray(uv, dtype=float)
     n_cam = F.shape[0]
-    order = np.lexsort((field, camera))  # rows grouped by camera, fields ascending
-    cam_sorted = camera[order]
-    bounds = np.searchsorted(cam_sorted, np.arange(n_cam + 1))
+    cells = _Cells(field, camera, uv, n_cam)
     out_a, out_b, out_d = [], [], []
-    for i in range(n_cam):
-        rows_i = order[bounds[i] : bounds[i + 1]]
-        for j in range(i + 1, n_cam):
-            rows_j = order[bounds[j] : bounds[j + 1]]
-            if len(rows_i) == 0 or len(rows_j) == 0:
+    for i, j in itertools.combinations(range(n_cam), 2):
+        rows_i, rows_j = cells.rows[i], cells.rows[j]
+        if len(rows_i) == 0 or len(rows_j) == 0:
+            continue
+        # one line per blob, not per pair (and of all the camera's blobs at once: the
+        # matrix product rounds differently for other numbers of rows)
+        lines_j = epipolar_lines(F[i, j], uv[rows_i])
+        lines_i = epipolar_lines(F[j, i], uv[rows_j])
+        for wi, wj in zip(cells.windows[i], cells.windows[j], strict=True):
+            if wi.n_slots == 0 or wj.n_slots == 0:
                 continue
-            uv_i, uv_j = uv[rows_i], uv[rows_j]
-            lines_j = epipolar_lines(F[i, j], uv_i)  # one line per blob, not per pair
-            lines_i = epipolar_lines(F[j, i], uv_j)
-            # bound the temporary pair arrays on long trials: whole blobs of camera i per chunk
-            n_pairs = np.searchsorted(field[rows_j], field[rows_i], side="right")
-            n_pairs -= np.searchsorted(field[rows_j], field[rows_i], side="left")
-            ends = np.searchsorted(np.cumsum(n_pairs), np.arange(1, 1 + n_pairs.sum() // _CHUNK))
-            for lo, hi in itertools.pairwise([0, *np.unique(ends).tolist(), len(rows_i)]):
-                if hi <= lo:
-                    continue
-                ia, jb = field_pairs(field[rows_i[lo:hi]], field[rows_j])
-                ia += lo
-                # one direction first: it rejects most pairs, the other is computed for the rest
-                lj, uvb = lines_j[ia], uv_j[jb]
-                d = np.abs(lj[:, 0] * uvb[:, 0] + lj[:, 1] * uvb[:, 1] + lj[:, 2])
-                near = np.flatnonzero(d < band_px)
-                ia, jb, d = ia[near], jb[near], d[near]
-                li, uva = lines_i[jb], uv_i[ia]
-                d = np.maximum(d, np.abs(li[:, 0] * uva[:, 0] + li[:, 1] * uva[:, 1] + li[:, 2]))
-                keep = d < band_px
-                out_a.append(rows_i[ia[keep]])
-                out_b.append(rows_j[jb[keep]])
-                out_d.append(d[keep])
+            # every (field, blob of i, blob of j) cell of the window at once; the padding
+            # is NaN, which no band holds
+            line = np.full((3, len(wi.u), wi.n_slots), np.nan)
+            line[:, wi.cell[0], wi.cell[1]] = lines_j[wi.first : wi.first + len(wi.cell[0])].T
+            # one direction first: it rejects most pairs, the other is computed for the rest.
+            # In place and on contiguous tables (the cells are 2x the pairs: every
+            # temporary counts), in the order of a u + b v + c
+            d = line[0][:, :, None] * wj.u[:, None, :]
+            d += line[1][:, :, None] * wj.v[:, None, :]
+            d += line[2][:, :, None]
+            np.abs(d, out=d)
+            f, p, q = np.nonzero(d < band_px)
+            ia, jb, d = wi.pos[f, p], wj.pos[f, q], d[f, p, q]
+            a, b = rows_i[ia], rows_j[jb]
+            li, uva = lines_i[jb], uv[a]
+            d = np.maximum(d, np.abs(li[:, 0] * uva[:, 0] + li[:, 1] * uva[:, 1] + li[:, 2]))
+            keep = d < band_px
+            out_a.append(a[keep])
+            out_b.append(b[keep])
+            out_d.append(d[keep])
     if not out_a:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, np.zeros(0)
     return np.concatenate(out_a), np.concatenate(out_b), np.concatenate(out_d)
+
+
+@dataclass(frozen=True)
+class _Window:
+    """One camera's blobs in a window of fields, as dense (field, slot) tables.
+
+    Attributes
+    ----------
+    cell : tuple of ndarray
+        (field within the window, slot) of each blob, in the camera's row order.
+    first : int
+        Position of the window's first blob among the camera's rows.
+    n_slots : int
+        Slots of the window's fullest cell (0: no blob).
+    u, v : ndarray, shape (n_fields, n_slots)
+        Pixel coordinates of each cell's blobs, NaN where a cell has fewer.
+    pos : ndarray of int, shape (n_fields, n_slots)
+        Position of each blob among the camera's rows (0 in the padding).
+    """
+
+    cell: tuple[NDArray[np.int64], NDArray[np.int64]]
+    first: int
+    n_slots: int
+    u: NDArray[np.float64]
+    v: NDArray[np.float64]
+    pos: NDArray[np.int64]
+
+
+class _Cells:
+    """A trial's blobs as (camera, field) cells, for dense pair tests over windows of fields.
+
+    Blob k of a cell gets slot k (row order); a window holds as many consecutive fields as
+    keep ``fields x slots x slots`` within ``_CHUNK`` for the fullest cell of the trial:
+    the temporary arrays of a camera pair stay in the CPU cache (twice as fast as one
+    window) and bounded on long or crowded trials.
+    """
+
+    def __init__(
+        self,
+        field: NDArray[np.int64],
+        camera: NDArray[np.int64],
+        uv: NDArray[np.float64],
+        n_cam: int,
+    ) -> None:
+        order = lexsort_ints((field, camera))  # rows grouped by camera, fields ascending
+        lo = int(field.min()) if len(field) else 0
+        f_idx = field - lo
+        if len(field) and int(f_idx.max()) >= len(field):  # sparse field numbers
+            f_idx = np.unique(field, return_inverse=True)[1].reshape(-1)
+        n_fields = int(f_idx.max()) + 1 if len(f_idx) else 0
+        cell = camera[order] * (n_fields + 1) + f_idx[order]
+        k = np.arange(len(cell))
+        slot = k - np.maximum.accumulate(np.where(np.r_[True, cell[1:] != cell[:-1]], k, 0))
+        per_window = max(1, _CHUNK // (int(slot.max(initial=0)) + 1) ** 2)
+        edges = np.r_[np.arange(0, n_fields, per_window), n_fields]
+        bounds = np.searchsorted(camera[order], np.arange(n_cam + 1))
+        self.rows: list[NDArray[np.int64]] = []
+        self.windows: list[list[_Window]] = []
+        for c in range(n_cam):
+            rows = order[bounds[c] : bounds[c + 1]]
+            fc, sc = f_idx[rows], slot[bounds[c] : bounds[c + 1]]
+            cuts = np.searchsorted(fc, edges)
+            self.rows.append(rows)
+            self.windows.append(
+                [
+                    _window(fc[a:b] - f0, sc[a:b], uv[rows[a:b]], int(a), int(f1 - f0))
+                    for a, b, f0, f1 in zip(cuts[:-1], cuts[1:], edges[:-1], edges[1:], strict=True)
+                ]
+            )
+
+
+def _window(
+    f: NDArray[np.int64], s: NDArray[np.int64], uv: NDArray[np.float64], first: int, n_f: int
+) -> _Window:
+    """The :class:`_Window` of blobs in fields ``f`` (of ``n_f``) and slots ``s``, the
+    first of which is at position ``first`` among their camera's rows."""
+    n_slots = int(s.max()) + 1 if len(s) else 0
+    table = np.full((2, n_f, n_slots), np.nan)
+    table[:, f, s] = uv.T
+    pos = np.zeros((n_f, n_slots), dtype=np.int64)
+    pos[f, s] = np.arange(first, first + len(f))
+    return _Window((f, s), first, n_slots, table[0], table[1], pos)

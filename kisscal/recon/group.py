@@ -16,18 +16,64 @@ from kisscal.recon.params import ReconParams
 
 
 def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1."""
+    """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1.
+
+    The field of a marker is that of its first blob. Called after every change of the
+    markers, so it works with tables indexed by id (no sort of the blobs) when the ids are
+    not far more than the blobs.
+    """
     out = np.full(len(marker), -1, dtype=np.int64)
-    used = marker >= 0
-    if not used.any():
+    used = np.flatnonzero(marker >= 0)
+    if len(used) == 0:
         return out
-    ids, first = np.unique(marker[used], return_index=True)
-    fields = field[used][first]
-    order = np.lexsort((ids, fields))
+    mu = marker[used]
+    top = int(mu.max()) + 1
+    if top > 4 * len(marker) + 64:  # sparse ids: tables by id would be mostly empty
+        ids, first = np.unique(mu, return_index=True)
+        slot = np.searchsorted(ids, mu)
+    else:
+        first_of = np.full(top, len(mu), dtype=np.int64)
+        np.minimum.at(first_of, mu, np.arange(len(mu)))
+        present = first_of < len(mu)
+        ids = np.flatnonzero(present)
+        first = first_of[ids]
+        slot = (np.cumsum(present) - 1)[mu]
+    order = np.lexsort((ids, field[used][first]))
     new_id = np.empty(len(ids), dtype=np.int64)
     new_id[order] = np.arange(len(ids))
-    out[used] = new_id[np.searchsorted(ids, marker[used])]
+    out[used] = new_id[slot]
     return out
+
+
+class Solved:
+    """The last triangulation of a trial's markers, for the next one to reuse.
+
+    A point's solution depends on its own observations alone, summed in row order (see
+    :func:`~kisscal.dlt.triangulate.triangulate_observations`), so a marker made of exactly
+    the blobs of a marker solved before has bitwise the same position, rms and residuals.
+    The steps of a trial's matching (grouping, the residual limit, LED rings, second
+    chance, pairs) change a few markers at a time and triangulate all of them after each
+    step: with one ``Solved`` shared by the steps of one 2D table, each solves only the
+    markers that changed.
+    """
+
+    def __init__(self) -> None:
+        self.marker: NDArray[np.int64] | None = None
+        self.tri: Triangulation | None = None
+
+    def remember(self, marker: NDArray[np.int64], tri: Triangulation) -> None:
+        """Keep ``tri`` as the triangulation of (a copy of) ``marker``."""
+        self.marker, self.tri = marker.copy(), tri
+
+    def expanded(self, rows: NDArray[np.int64], n: int) -> Solved:
+        """The same markers in a larger table whose rows ``rows`` (ascending) are this
+        table's rows, the other rows unmatched."""
+        out = Solved()
+        if self.marker is not None and self.tri is not None:
+            marker = np.full(n, -1, dtype=np.int64)
+            marker[rows] = self.marker
+            out.remember(marker, self.tri)
+        return out
 
 
 def triangulate_markers(
@@ -36,13 +82,71 @@ def triangulate_markers(
     uv: NDArray[np.float64],
     dlts: NDArray[np.float64],
     reweight_iterations: int,
+    solved: Solved | None = None,
 ) -> Triangulation:
-    """Triangulate every marker from all its observations (markers must be 0..m-1)."""
+    """Triangulate every marker from all its observations (markers must be 0..m-1).
+
+    ``solved`` (of this table, DLTs and ``reweight_iterations``) supplies the markers
+    solved before and takes this result.
+    """
     rows = np.flatnonzero(marker >= 0)
     n = int(marker.max()) + 1 if len(rows) else 0
-    return triangulate_observations(
-        dlts, marker[rows], camera[rows], uv[rows], n, reweight_iterations
-    )
+    if solved is None or solved.marker is None or solved.tri is None:
+        tri = triangulate_observations(
+            dlts, marker[rows], camera[rows], uv[rows], n, reweight_iterations
+        )
+    else:
+        tri = _reuse(
+            marker, rows, n, solved.marker, solved.tri, camera, uv, dlts, reweight_iterations
+        )
+    if solved is not None:
+        solved.remember(marker, tri)
+    return tri
+
+
+def _reuse(
+    marker: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    n: int,
+    before: NDArray[np.int64],
+    tri_before: Triangulation,
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    reweight_iterations: int,
+) -> Triangulation:
+    """:func:`triangulate_markers` of the markers of ``rows``, taking the results of
+    markers made of exactly the blobs of one of ``before`` from ``tri_before``."""
+    m, old = marker[rows], before[rows]
+    count = np.bincount(m, minlength=n)
+    count_before = np.bincount(before[before >= 0], minlength=len(tri_before.rms_px))
+    # same blobs: all of them in one earlier marker, which had no other blob
+    lo = np.full(n, len(count_before), dtype=np.int64)
+    hi = np.full(n, -1, dtype=np.int64)
+    np.minimum.at(lo, m, old)
+    np.maximum.at(hi, m, old)
+    same = (lo == hi) & (lo >= 0)
+    same[same] = count[same] == count_before[lo[same]]
+    xyz = np.empty((n, 3))
+    rms = np.empty(n)
+    residual = np.empty(len(rows))
+    xyz[same], rms[same] = tri_before.xyz_mm[lo[same]], tri_before.rms_px[lo[same]]
+    kept = same[m]
+    position_before = np.cumsum(before >= 0) - 1  # row -> index of tri_before.residual_px
+    residual[kept] = tri_before.residual_px[position_before[rows[kept]]]
+    redo = np.flatnonzero(~same)
+    if len(redo):
+        slot = np.cumsum(~same) - 1
+        part = triangulate_observations(
+            dlts,
+            slot[m[~kept]],
+            camera[rows[~kept]],
+            uv[rows[~kept]],
+            len(redo),
+            reweight_iterations,
+        )
+        xyz[redo], rms[redo], residual[~kept] = part.xyz_mm, part.rms_px, part.residual_px
+    return Triangulation(xyz, rms, count, residual)
 
 
 def split_or_drop(
@@ -54,13 +158,15 @@ def split_or_drop(
     max_rms_px: float,
     min_cameras: int,
     reweight_iterations: int,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Enforce the residual limit: drop worst observations of bad markers, then bad markers.
 
     A marker whose reprojection ``rms_px`` exceeds ``max_rms_px`` loses its single worst
     observation (that blob is split off and becomes unmatched) and is re-triangulated, until
     it is good or has fewer than ``min_cameras`` observations, when it is dropped. All bad
-    markers are handled together, one observation per round.
+    markers are handled together, one observation per round. ``solved``: see
+    :func:`triangulate_markers`.
 
     Returns
     -------
@@ -77,7 +183,7 @@ def split_or_drop(
             continue
         if not (marker >= 0).any():
             return marker
-        tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+        tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations, solved)
         bad = ~(tri.rms_px <= max_rms_px)
         if not bad.any():
             return marker
@@ -102,12 +208,14 @@ def merge_groups(
     radius_mm: float,
     max_rms_px: float,
     reweight_iterations: int,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Unite 3D points of one field that belong to one marker (Küçük 2005, 3.3.7).
 
     Points of the same field closer than ``radius_mm`` form a group ("cloud"); two points are
     united when they do not claim different blobs of the same camera and the union,
     re-triangulated from all its 2D observations, keeps ``rms_px <= max_rms_px``.
+    ``solved``: see :func:`triangulate_markers`.
 
     Returns
     -------
@@ -118,7 +226,7 @@ def merge_groups(
     if not (marker >= 0).any():
         return marker
     n_cam = len(dlts)
-    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations, solved)
     rows = np.flatnonzero(marker >= 0)
     m_field = np.zeros(len(tri.xyz_mm), dtype=np.int64)
     m_field[marker[rows]] = field[rows]

@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import lexsort_ints
 from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import KisscalError
@@ -24,6 +25,7 @@ from kisscal.recon.epipolar import (
     field_pairs,
 )
 from kisscal.recon.group import (
+    Solved,
     first_per_key,
     near_cameras,
     renumber,
@@ -38,26 +40,36 @@ from kisscal.recon.stationary import at_epipoles
 def _triangles(
     a: NDArray[np.int64], b: NDArray[np.int64], n: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """All triangles x < y < z of the graph with edges (a, b), a < b, without Python loops."""
-    order = np.lexsort((b, a))
+    """All triangles x < y < z of the graph with edges (a, b), a < b, without Python loops.
+
+    Every wedge x - y - z (edges (x, y) and (y, z)) is a candidate; it is closed when
+    (x, z) is an edge too. Edges are looked up in a table per node x over x+1 .. its
+    largest neighbour, not searched: nodes are ranked so that the blobs of a field are
+    consecutive, and the tables then hold no more cells than the field's blob pairs.
+    """
+    order = lexsort_ints((b, a))
     a, b = a[order], b[order]
-    key = a * n + b
-    start = np.searchsorted(a, b, side="left")
-    stop = np.searchsorted(a, b, side="right")
+    # the edges from each node: a CSR layout of the sorted edges
+    offsets = np.r_[0, np.cumsum(np.bincount(a, minlength=n))]
+    start, stop = offsets[b], offsets[b + 1]
     cnt = stop - start
     e = np.repeat(np.arange(len(a)), cnt)
     first = np.repeat(np.cumsum(cnt) - cnt, cnt)
     f = np.repeat(start, cnt) + (np.arange(len(e)) - first)
     x, y, z = a[e], b[e], b[f]
-    want = x * n + z
-    pos = np.minimum(np.searchsorted(key, want), max(len(key) - 1, 0))
-    closed = key[pos] == want if len(key) else np.zeros(0, dtype=bool)
+    has = offsets[1:] > offsets[:-1]
+    last = np.where(has, b[np.maximum(offsets[1:] - 1, 0)] if len(b) else 0, -1)
+    row = np.r_[0, np.cumsum(np.where(has, last - np.arange(n), 0))]
+    table = np.zeros(int(row[-1]), dtype=bool)
+    table[row[a] + (b - a - 1)] = True
+    closed = z <= last[x]
+    closed[closed] = table[row[x[closed]] + (z[closed] - x[closed] - 1)]
     return x[closed], y[closed], z[closed]
 
 
 def _extend_all(
     marker: NDArray[np.int64],
-    new_ids: NDArray[np.int64],
+    first_id: int,
     new_xyz: NDArray[np.float64],
     field: NDArray[np.int64],
     camera: NDArray[np.int64],
@@ -67,36 +79,40 @@ def _extend_all(
 ) -> None:
     """Extend new markers to their other cameras (Shafiq et al. 2001, 4.1), all at once.
 
+    The new markers are ``first_id``, ``first_id + 1``, ... (one per row of ``new_xyz``).
     Each free blob within ``radius_px`` of a new marker's projection in the blob's camera,
     where the marker has no blob yet, is a candidate; closest first, a blob joins one
     marker and a marker takes one blob per camera. ``marker`` is updated in place.
     """
-    n_cam = len(dlts)
+    n_cam, n_new = len(dlts), len(new_xyz)
     free = np.flatnonzero(marker < 0)
-    if len(free) == 0 or len(new_ids) == 0:
+    if len(free) == 0 or n_new == 0:
         return
-    rows = np.flatnonzero(np.isin(marker, new_ids))
-    has = np.zeros((len(new_ids), n_cam), dtype=bool)
-    slot = np.searchsorted(new_ids, marker[rows])
+    rows = np.flatnonzero((marker >= first_id) & (marker < first_id + n_new))
+    slot = marker[rows] - first_id
+    has = np.zeros((n_new, n_cam), dtype=bool)
     has[slot, camera[rows]] = True
-    m_field = np.zeros(len(new_ids), dtype=np.int64)
+    m_field = np.zeros(n_new, dtype=np.int64)
     m_field[slot] = field[rows]
-    fo = np.argsort(field[free], kind="stable")
-    free = free[fo]
-    mo = np.argsort(m_field, kind="stable")
+    free = free[lexsort_ints([field[free]])]
+    mo = lexsort_ints([m_field])
     fi, mi = field_pairs(field[free], m_field[mo])
     b, m = free[fi], mo[mi]
     lacking = ~has[m, camera[b]]
     b, m = b[lacking], m[lacking]
     if len(b) == 0:
         return
-    d = np.linalg.norm(uv[b] - project_rows(dlts, camera[b], new_xyz[m]), axis=1)
+    # each marker projected once into every camera, not once per candidate blob
+    proj = project_rows(dlts, np.tile(np.arange(n_cam), n_new), np.repeat(new_xyz, n_cam, 0))
+    at = m * n_cam + camera[b]
+    du, dv = uv[b, 0] - proj[at, 0], uv[b, 1] - proj[at, 1]
+    d = np.sqrt(du * du + dv * dv)  # np.linalg.norm's sum, on 1-D arrays
     near = d <= radius_px
     b, m, d = b[near], m[near], d[near]
     keep = first_per_key(b, d)  # a blob joins its closest marker
     b, m, d = b[keep], m[keep], d[keep]
     keep = first_per_key(m * n_cam + camera[b], d)  # one blob per marker and camera
-    marker[b[keep]] = new_ids[m[keep]]
+    marker[b[keep]] = first_id + m[keep]
 
 
 def match_triple(
@@ -106,6 +122,7 @@ def match_triple(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     F: NDArray[np.float64] | None = None,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Triple matching over a whole trial (Küçük 2005, 3.3.5-3.3.7), vectorised.
 
@@ -132,6 +149,9 @@ def match_triple(
     params : ReconParams
     F : ndarray, optional
         Precomputed :func:`~kisscal.recon.epipolar.all_fundamentals`.
+    solved : Solved, optional
+        Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`);
+        takes the last triangulation of the markers returned.
 
     Returns
     -------
@@ -147,7 +167,7 @@ def match_triple(
     F = all_fundamentals(dlts) if F is None else F
     pa, pb, _ = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
     # rank blobs by (field, camera) so that every pair and triple is increasing in rank
-    order = np.lexsort((camera, field))
+    order = lexsort_ints((camera, field))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)
     x, y, z = _triangles(rank[pa], rank[pb], n)
@@ -165,18 +185,20 @@ def match_triple(
         tri, tri_rms, tri_xyz = tri[good], t.rms_px[good], t.xyz_mm[good]
     next_id = 0
     while len(tri):
-        tid = np.repeat(np.arange(len(tri)), 3)
-        best_of_blob = np.full(n, -1, dtype=np.int64)
-        first = first_per_key(tri.ravel(), tri_rms[tid])
-        best_of_blob[tri.ravel()[first]] = tid[first]
-        won = np.all(best_of_blob[tri] == np.arange(len(tri))[:, None], axis=1)
-        ids = next_id + np.arange(int(won.sum()))
-        next_id += len(ids)
-        marker[tri[won]] = ids[:, None]
-        _extend_all(marker, ids, tri_xyz[won], field, camera, uv, dlts, params.search_radius_px)
+        # the best triple of each blob: the lowest rms_px, ties to the first triple (as
+        # ranks in one stable sort of the triples, cheaper than sorting their blobs)
+        rank = np.empty(len(tri), dtype=np.int64)
+        rank[np.argsort(tri_rms, kind="stable")] = np.arange(len(tri))
+        best_of_blob = np.full(n, len(tri), dtype=np.int64)
+        np.minimum.at(best_of_blob, tri.ravel(), np.repeat(rank, 3))
+        won = np.all(best_of_blob[tri] == rank[:, None], axis=1)
+        first_id, next_id = next_id, next_id + int(won.sum())
+        marker[tri[won]] = np.arange(first_id, next_id)[:, None]
+        extend = field, camera, uv, dlts, params.search_radius_px
+        _extend_all(marker, first_id, tri_xyz[won], *extend)
         alive = np.all(marker[tri] < 0, axis=1)
         tri, tri_rms, tri_xyz = tri[alive], tri_rms[alive], tri_xyz[alive]
-    return finish(marker, field, camera, uv, dlts, params)
+    return finish(marker, field, camera, uv, dlts, params, solved=solved)
 
 
 def _transfer_ok(
@@ -214,6 +236,7 @@ def match_central(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     F: NDArray[np.float64] | None = None,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Shafiq et al. (2001, 4.1) central strategy, field by field.
 
@@ -237,7 +260,7 @@ def match_central(
         return marker
     F = all_fundamentals(dlts) if F is None else F
     n_cam = len(dlts)
-    order = np.lexsort((camera, field))
+    order = lexsort_ints((camera, field))
     f_sorted = field[order]
     cuts = np.flatnonzero(np.r_[True, f_sorted[1:] != f_sorted[:-1], True])
     next_id = 0
@@ -254,7 +277,7 @@ def match_central(
                 if got:
                     marker[got] = next_id
                     next_id += 1
-    return finish(marker, field, camera, uv, dlts, params)
+    return finish(marker, field, camera, uv, dlts, params, solved=solved)
 
 
 def _field_distances(
@@ -330,6 +353,7 @@ def match_trial(
     uv: ArrayLike,
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
+    solved: Solved | None = None,
 ) -> NDArray[np.int64]:
     """Match a whole trial with the strategy named by ``params.strategy``.
 
@@ -338,6 +362,10 @@ def match_trial(
     blobs left over (:func:`kisscal.recon.pairs.match_two_camera`). Markers that are LED
     rings are dropped: those at a camera (``params.camera_clearance_mm``) and those whose
     every blob lies at an epipole (``params.led_radius_px``).
+
+    ``solved`` (:class:`~kisscal.recon.group.Solved`, optional) carries the markers'
+    triangulations from step to step (each step solves only the markers it changed) and
+    ends with a triangulation of markers of this table, for the caller to reuse.
 
     Returns
     -------
@@ -349,8 +377,9 @@ def match_trial(
     fn = match_triple if params.strategy == "triple" else match_central
     F = all_fundamentals(dlts)
     led = at_epipoles(camera, uv, dlts, params.led_radius_px)
-    marker = fn(field, camera, uv, dlts, params, F)
-    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led)
+    solved = Solved() if solved is None else solved
+    marker = fn(field, camera, uv, dlts, params, F, solved)
+    marker, rms = _drop_leds(marker, field, camera, uv, dlts, params, led, solved)
     # the leftovers are the trial's worst blobs: keep the limit the whole trial set
     limit = residual_limit_px(rms, params) if len(rms) else None
     free = np.flatnonzero(marker < 0)
@@ -358,14 +387,15 @@ def match_trial(
         # second chance for blobs freed by the residual limit (a blob wrongly attached to
         # a neighbour is split off there, and may complete its own marker now)
         fixed = replace(params, max_rms_px=limit, outlier_rms_factor=0.0)
-        again = fn(field[free], camera[free], uv[free], dlts, fixed, F)
         sub = field[free], camera[free], uv[free]
-        again, _ = _drop_leds(again, *sub, dlts, params, led[free])
+        solved_sub = Solved()  # of the table of free blobs
+        again = fn(*sub, dlts, fixed, F, solved_sub)
+        again, _ = _drop_leds(again, *sub, dlts, params, led[free], solved_sub)
         found = again >= 0
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
-        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led)
+        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led, solved)
     return marker
 
 
@@ -377,12 +407,13 @@ def _drop_leds(
     dlts: NDArray[np.float64],
     params: ReconParams,
     led: NDArray[np.bool_],
+    solved: Solved | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Markers that are LED rings dropped (at a camera, or every blob at an epipole:
     ``led``); the ``rms_px`` of the others."""
     if not (marker >= 0).any():
         return marker, np.zeros(0)
-    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations)
+    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved)
     rows = np.flatnonzero(marker >= 0)
     seen_elsewhere = np.bincount(marker[rows], ~led[rows], minlength=len(tri.rms_px)) > 0
     bad = ~seen_elsewhere | near_cameras(tri.xyz_mm, dlts, params.camera_clearance_mm)

@@ -27,9 +27,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from kisscal._shared import n_distinct
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
+    Solved,
     first_per_key,
     merge_groups,
     near_cameras,
@@ -218,6 +220,7 @@ def match_two_camera(
     limit_px: float | None = None,
     F: NDArray[np.float64] | None = None,
     led: NDArray[np.bool_] | None = None,
+    solved: Solved | None = None,
 ) -> tuple[NDArray[np.int64], float]:
     """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
 
@@ -241,6 +244,8 @@ def match_two_camera(
     led : ndarray of bool, shape (n,), optional
         Blobs at an epipole (:func:`~kisscal.recon.stationary.at_epipoles`): a pair of two
         such blobs is two cameras' LED rings.
+    solved : Solved, optional
+        Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`).
 
     Returns
     -------
@@ -272,11 +277,11 @@ def match_two_camera(
     if len(a) == 0:
         return out, limit_px
     known = np.flatnonzero(marker >= 0)
-    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations).xyz_mm
+    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved).xyz_mm
     m_field = np.zeros(len(m_xyz), dtype=np.int64)
     m_field[marker[known]] = field[known]
     # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
-    judge_motion = len(np.unique(field)) >= 3
+    judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
     won = _choose(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     order = np.argsort(field[a[won]], kind="stable")
@@ -296,6 +301,7 @@ def match_two_camera(
             params.group_radius_mm,
             limit_px,
             params.reweight_iterations,
+            solved,
         )
     return renumber(out, field), limit_px
 

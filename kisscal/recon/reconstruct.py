@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import KisscalError
 from kisscal.recon.assign import check_table
-from kisscal.recon.group import triangulate_markers
+from kisscal.recon.group import Solved, triangulate_markers
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import false_detections
@@ -149,12 +149,14 @@ def points_from_markers(
     reweight_iterations: int,
     stationary: NDArray[np.bool_] | None = None,
     stationary_test: str = "off",
+    solved: Solved | None = None,
 ) -> Points3D:
-    """Triangulate every marker (ids 0..m-1 in field order) from all its blobs."""
+    """Triangulate every marker (ids 0..m-1 in field order) from all its blobs (``solved``:
+    markers of this table triangulated before, :class:`~kisscal.recon.group.Solved`)."""
     n_cam = len(dlts)
     rows = np.flatnonzero(marker >= 0)
     m = int(marker.max()) + 1 if len(rows) else 0
-    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations)
+    tri = triangulate_markers(marker, camera, uv, dlts, reweight_iterations, solved)
     blob_row = np.full((m, n_cam), -1, dtype=np.int64)
     blob_row[marker[rows], camera[rows]] = rows
     pfield = np.zeros(m, dtype=np.int64)
@@ -219,7 +221,16 @@ def reconstruct_trial(
     still, test = false_detections(field, camera, uv, params, rate_hz)
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)
-    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params)
+    solved = Solved()
+    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved)
     return points_from_markers(
-        marker, field, camera, uv, dlts, params.reweight_iterations, still, test
+        marker,
+        field,
+        camera,
+        uv,
+        dlts,
+        params.reweight_iterations,
+        still,
+        test,
+        solved.expanded(keep, len(field)),
     )

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import n_distinct
 from kisscal.dlt.model import camera_centre_mm, project
 from kisscal.errors import KisscalError
 from kisscal.recon.params import ReconParams
@@ -63,7 +64,7 @@ def stationary_mask(
     mask = np.zeros(len(field), dtype=bool)
     if len(field) == 0:
         return mask
-    n_fields = len(np.unique(field))
+    n_fields = n_distinct(field)
     half = int(np.ceil(radius_px))
     for cam in np.unique(camera):
         rows = np.flatnonzero(camera == cam)
@@ -115,7 +116,10 @@ def at_epipoles(
         if len(others) == 0 or len(rows) == 0:
             continue
         e = project(L, others)
-        out[rows] = np.linalg.norm(uv[rows, None, :] - e[None], axis=2).min(axis=1) <= radius_px
+        u, v = uv[rows, 0], uv[rows, 1]
+        # the distance to the nearest epipole, as np.linalg.norm sums it, on 1-D arrays
+        d = np.min([np.sqrt((u - eu) * (u - eu) + (v - ev) * (v - ev)) for eu, ev in e], axis=0)
+        out[rows] = d <= radius_px
     return out
 
 
@@ -125,7 +129,7 @@ def moving_fields_fraction(field: ArrayLike, still: ArrayLike) -> float:
     still = np.asarray(still, dtype=bool)
     if len(field) == 0:
         return 0.0
-    return len(np.unique(field[~still])) / len(np.unique(field))
+    return n_distinct(field[~still]) / n_distinct(field)
 
 
 def _check(
@@ -176,7 +180,7 @@ def false_detections(
     still = stationary_mask(
         field, camera, uv, params.stationary_radius_px, params.stationary_fraction
     )
-    long_enough = len(np.unique(field)) >= params.stationary_min_s * rate_hz
+    long_enough = n_distinct(field) >= params.stationary_min_s * rate_hz
     if long_enough and moving_fields_fraction(field, still) >= 0.5:
         return still, "motion"
     return np.zeros(len(field), dtype=bool), "short"
