@@ -1,0 +1,65 @@
+"""Stage figures drawn beside the stage: all written when the block ends, errors said."""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import pytest
+from matplotlib.figure import Figure
+
+from kisscal.session.figures import drawing_beside, submit_figure
+
+MODULE = "tests.session.test_figures"
+
+
+def square(n: int) -> Figure:
+    fig = Figure(figsize=(2, 2))
+    fig.add_subplot().plot(range(n), [k * k for k in range(n)])
+    fig.text(0.1, 0.9, f"drawn by {os.getpid()}")
+    return fig
+
+
+def guarded(n: int, _lock: object) -> Figure:
+    return square(n)
+
+
+def broken(_n: int) -> Figure:
+    raise RuntimeError("a bug in a figure")
+
+
+def degenerate(_n: int) -> Figure:
+    raise ValueError("nothing to draw")
+
+
+def test_figures_of_a_block_are_all_written_when_it_ends(tmp_path: Path) -> None:
+    paths = [tmp_path / f"f{k}.png" for k in range(4)]
+    with drawing_beside():
+        for k, path in enumerate(paths):
+            submit_figure(path, MODULE, "square", (k + 2,))
+        with drawing_beside():  # a stage inside ``kisscal run`` shares the process
+            submit_figure(tmp_path / "inner.png", MODULE, "square", (3,))
+    for path in [*paths, tmp_path / "inner.png"]:
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_figure_that_cannot_be_pickled_is_drawn_at_once(tmp_path: Path) -> None:
+    with drawing_beside():
+        submit_figure(tmp_path / "now.png", MODULE, "guarded", (3, threading.Lock()))
+        assert (tmp_path / "now.png").is_file()  # drawn before the block ends
+
+
+def test_a_broken_figure_fails_the_block_and_a_degenerate_one_is_skipped(tmp_path: Path) -> None:
+    with pytest.raises(RuntimeError, match="a bug in a figure"), drawing_beside():
+        submit_figure(tmp_path / "skip.png", MODULE, "degenerate", (1,))
+        submit_figure(tmp_path / "bug.png", MODULE, "broken", (1,))
+    assert not (tmp_path / "skip.png").exists()
+    submit_figure(tmp_path / "plain.png", MODULE, "square", (2,))  # no block: drawn now
+    assert (tmp_path / "plain.png").is_file()
+
+
+def test_the_block_own_error_wins(tmp_path: Path) -> None:
+    with pytest.raises(KeyError), drawing_beside():
+        submit_figure(tmp_path / "bug.png", MODULE, "broken", (1,))
+        raise KeyError("the stage failed")
