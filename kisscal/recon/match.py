@@ -67,6 +67,51 @@ def _triangles(
     return x[closed], y[closed], z[closed]
 
 
+#: Fields whose candidate triples are formed at a time: their pairs and triangles are
+#: the largest arrays of a trial's matching, so memory stays bounded for long trials.
+TRIPLE_BLOCK_FIELDS = 200
+
+
+def _field_blocks(sorted_field: NDArray[np.int64], fields: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` of runs of rows covering up to ``fields`` consecutive fields each
+    (rows sorted by field; a block never splits a field)."""
+    edges = np.flatnonzero(np.diff(sorted_field // fields)) + 1
+    cuts = np.r_[0, edges, len(sorted_field)]
+    return list(zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True))
+
+
+def _good_triples(
+    rows: NDArray[np.int64],
+    field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    F: NDArray[np.float64],
+    params: ReconParams,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """The triples of blobs among ``rows`` (sorted by field, camera) that are pairwise in
+    each other's epipolar bands and reproject within ``max_rms_px``: rows, rms, 3D.
+
+    Triples are field-local, so blocks of fields give the triples of the whole trial in
+    the same order (by rank of their blobs).
+    """
+    pa, pb, _ = candidate_pairs(field[rows], camera[rows], uv[rows], F, params.epipolar_band_px)
+    x, y, z = _triangles(pa, pb, len(rows))  # rows are in rank order: local index = rank
+    tri = np.column_stack([rows[x], rows[y], rows[z]])
+    if not len(tri):
+        return tri, np.zeros(0), np.zeros((0, 3))
+    t = triangulate_observations(
+        dlts,
+        np.repeat(np.arange(len(tri)), 3),
+        camera[tri].ravel(),
+        uv[tri].reshape(-1, 2),
+        len(tri),
+        0,  # the linear solution is close enough to rank triples and seed markers
+    )
+    good = t.rms_px <= params.max_rms_px
+    return tri[good], t.rms_px[good], t.xyz_mm[good]
+
+
 def _extend_all(
     marker: NDArray[np.int64],
     first_id: int,
@@ -165,24 +210,16 @@ def match_triple(
     if n == 0:
         return marker
     F = all_fundamentals(dlts) if F is None else F
-    pa, pb, _ = candidate_pairs(field, camera, uv, F, params.epipolar_band_px)
     # rank blobs by (field, camera) so that every pair and triple is increasing in rank
     order = lexsort_ints((camera, field))
-    rank = np.empty(n, dtype=np.int64)
-    rank[order] = np.arange(n)
-    x, y, z = _triangles(rank[pa], rank[pb], n)
-    tri = np.column_stack([order[x], order[y], order[z]])
-    if len(tri):
-        t = triangulate_observations(
-            dlts,
-            np.repeat(np.arange(len(tri)), 3),
-            camera[tri].ravel(),
-            uv[tri].reshape(-1, 2),
-            len(tri),
-            0,  # the linear solution is close enough to rank triples and seed markers
+    blocks = _field_blocks(field[order], TRIPLE_BLOCK_FIELDS)
+    tri, tri_rms, tri_xyz = (
+        np.concatenate(parts)
+        for parts in zip(
+            *(_good_triples(order[a:b], field, camera, uv, dlts, F, params) for a, b in blocks),
+            strict=True,
         )
-        good = t.rms_px <= params.max_rms_px
-        tri, tri_rms, tri_xyz = tri[good], t.rms_px[good], t.xyz_mm[good]
+    )
     next_id = 0
     while len(tri):
         # the best triple of each blob: the lowest rms_px, ties to the first triple (as
