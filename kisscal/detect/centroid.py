@@ -43,21 +43,9 @@ class SpotMoments:
     core_cov_xy: NDArray[np.float64]
 
 
-def owner_image(shape: tuple[int, int], grouping: Grouping) -> NDArray[np.int32]:
-    """Image of ``label + 1`` at every white pixel of a remaining group, 0 elsewhere."""
-    owner = np.zeros(shape, dtype=np.int32)  # calloc: untouched pages cost nothing
-    runs = grouping.runs
-    count = runs.length
-    run_of = np.repeat(np.arange(len(runs)), count)
-    x = runs.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
-    owner[runs.y[run_of], x] = runs.group[run_of] + 1
-    return owner
-
-
 def window_moments(
     image: NDArray,
     white: NDArray[np.bool_],
-    owner: NDArray[np.int32],
     grouping: Grouping,
     table: GroupTable,
     margin_x_px: int,
@@ -73,11 +61,10 @@ def window_moments(
         Grey image (or the boolean image itself, then each own white pixel weighs 1).
     white : ndarray of bool
         The thresholded image: white pixels not owned by the group get no weight.
-    owner : ndarray of int32
-        :func:`owner_image` of ``grouping``.
     grouping : Grouping
-        For parts of a split group, their parent and estimated centres: a window pixel
-        counts for a part only when it is nearer its centre than any sibling's.
+        The groups' runs (which white pixels a group owns) and, for parts of a split
+        group, their parent and estimated centres: a window pixel counts for a part only
+        when it is nearer its centre than any sibling's. Every run's label is in ``table``.
     table : GroupTable
         Bounding rectangles of the groups.
     margin_x_px, margin_y_px : int
@@ -97,19 +84,18 @@ def window_moments(
     height, width = image.shape
     n = len(table)
     x0 = np.maximum(table.x1 - margin_x_px, 0)
-    x1 = np.minimum(table.x2 + margin_x_px, width - 1)
+    ncol = np.minimum(table.x2 + margin_x_px, width - 1) - x0 + 1
     y0 = np.maximum(table.y1 - margin_y_px, 0)
-    y1 = np.minimum(table.y2 + margin_y_px, height - 1)
-    ncol = x1 - x0 + 1
-    area = ncol * (y1 - y0 + 1)
+    nrow = np.minimum(table.y2 + margin_y_px, height - 1) - y0 + 1
+    area = ncol * nrow
     first = np.cumsum(area) - area
+    # Every window's pixels, window after window, each in scan order.
     g = np.repeat(np.arange(n), area)
-    k = np.arange(g.size) - first[g]
-    row, col = np.divmod(k, ncol[g])
-    ys = y0[g] + row
+    row, col = np.divmod(np.arange(g.size) - first[g], ncol[g])
     xs = x0[g] + col
+    ys = y0[g] + row
     flat = ys * width + xs
-    own = owner.ravel().take(flat) == table.label[g] + 1
+    own = _own_pixels(grouping, table, first, x0, y0, ncol, g.size)
     if image.dtype == np.bool_:
         weight = own.astype(np.float64)
     else:
@@ -119,49 +105,85 @@ def window_moments(
     split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
     if split.size:
         weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
-    # Raw moments about each window's corner (small numbers: no cancellation), all in one
-    # segment reduction since each window's pixels are contiguous.
-    lx = col.astype(np.float64)
-    ly = row.astype(np.float64)
-    core = weight * own
-    terms = np.stack(
-        [
-            weight,
-            weight * lx,
-            weight * ly,
-            weight * lx * lx,
-            weight * ly * ly,
-            weight * lx * ly,
-            core,
-            core * lx,
-            core * ly,
-            core * lx * lx,
-            core * ly * ly,
-            core * lx * ly,
-        ]
+    # Raw moments about each window's corner (small numbers: no cancellation) of the
+    # window's weights and of its own pixels' weights (core), all in one segment
+    # reduction since each window's pixels are contiguous: powers[j] * powers[k] gives
+    # 1, x, y, x^2, y^2, xy.
+    powers = np.stack([np.ones(g.size), col.astype(np.float64), row.astype(np.float64)])
+    terms = np.stack([weight, weight * own])[:, None, :] * powers[_FIRST]
+    terms *= powers[_SECOND]
+    sums = np.add.reduceat(terms.reshape(12, g.size), first, axis=1).reshape(2, 6, n)
+    return _moments_from_sums(sums, table, x0, y0, ncol, nrow)
+
+
+#: Index pairs of the window coordinates' powers (1, x, y) whose products are the moments'
+#: terms 1, x, y, x^2, y^2, xy.
+_FIRST = np.array([0, 1, 2, 1, 2, 1])
+_SECOND = np.array([0, 0, 0, 1, 2, 2])
+#: The centroid coordinates (x, y) whose products make the central terms x^2, y^2, xy.
+_LEFT = _FIRST[3:] - 1
+_RIGHT = _SECOND[3:] - 1
+
+
+def _own_pixels(
+    grouping: Grouping,
+    table: GroupTable,
+    first: NDArray[np.int64],
+    x0: NDArray[np.int64],
+    y0: NDArray[np.int64],
+    ncol: NDArray[np.int64],
+    size: int,
+) -> NDArray[np.bool_]:
+    """Which window pixels are white pixels of the window's own group.
+
+    Each run lies inside its group's window, so its pixels are scattered straight to
+    their window positions: no image-sized owner map to clear and look up.
+    """
+    runs = grouping.runs
+    row = np.searchsorted(table.label, runs.group)
+    # position of image pixel (x, y) in window t: first + (y - y0) ncol + (x - x0)
+    offset = (first - y0 * ncol - x0)[row] + runs.y * ncol[row] + runs.x1
+    count = runs.x2 - runs.x1 + 1
+    end = np.cumsum(count)
+    own = np.zeros(size, dtype=bool)
+    pixels = int(end[-1]) if end.size else 0
+    own[np.arange(pixels) + np.repeat(offset - end + count, count)] = True
+    return own
+
+
+def _moments_from_sums(
+    sums: NDArray[np.float64],
+    table: GroupTable,
+    x0: NDArray[np.int64],
+    y0: NDArray[np.int64],
+    ncol: NDArray[np.int64],
+    nrow: NDArray[np.int64],
+) -> SpotMoments:
+    """Centroids and central moments from the raw window sums ``(window | core, term, group)``.
+
+    Totals <= 0 divide by 1 instead (never by zero), and the centroid then falls back to
+    the binary one.
+    """
+    total = sums[:, 0]
+    safe = np.where(total > 0, total, 1.0)[:, None]
+    mean = sums[:, 1:3] / safe  # (window | core, x | y, group)
+    # var_x, var_y, cov_xy: E[x^2] - x x, E[y^2] - y y, E[xy] - x y
+    central = sums[:, 3:6] / safe - mean[:, _LEFT] * mean[:, _RIGHT]
+    mx, my = mean[0]
+    # weights that (nearly) cancel put a centroid anywhere: keep it only inside its
+    # window, else the binary centroid stands
+    ok = (total[0] > 0) & (mx >= 0) & (mx <= ncol - 1) & (my >= 0) & (my <= nrow - 1)
+    return SpotMoments(
+        total=total[0],
+        x=np.where(ok, x0 + mx, table.x_binary),
+        y=np.where(ok, y0 + my, table.y_binary),
+        var_x=central[0, 0],
+        var_y=central[0, 1],
+        cov_xy=central[0, 2],
+        core_var_x=central[1, 0],
+        core_var_y=central[1, 1],
+        core_cov_xy=central[1, 2],
     )
-    sums = np.add.reduceat(terms, first, axis=1)
-    total, core_total = sums[0], sums[6]
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        t = np.where(total > 0, total, 1.0)
-        ct = np.where(core_total > 0, core_total, 1.0)
-        mx, my = sums[1] / t, sums[2] / t
-        cx, cy = sums[7] / ct, sums[8] / ct
-        # weights that (nearly) cancel put a centroid anywhere: keep it only inside its
-        # window, else the binary centroid stands
-        nrow = y1 - y0 + 1
-        ok = (total > 0) & (mx >= 0) & (mx <= ncol - 1) & (my >= 0) & (my <= nrow - 1)
-        return SpotMoments(
-            total=total,
-            x=np.where(ok, x0 + mx, table.x_binary),
-            y=np.where(ok, y0 + my, table.y_binary),
-            var_x=sums[3] / t - mx * mx,
-            var_y=sums[4] / t - my * my,
-            cov_xy=sums[5] / t - mx * my,
-            core_var_x=sums[9] / ct - cx * cx,
-            core_var_y=sums[10] / ct - cy * cy,
-            core_cov_xy=sums[11] / ct - cx * cy,
-        )
 
 
 def _nearest_part_mask(

@@ -27,7 +27,7 @@ from kisscal.detect.advanced import (
 )
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
-from kisscal.detect.centroid import Background, SpotMoments, owner_image, window_moments
+from kisscal.detect.centroid import Background, SpotMoments, window_moments
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
@@ -216,7 +216,6 @@ class _Spots:
         return window_moments(
             self.image,
             self.white,
-            owner_image(self.white.shape, grouping),
             grouping,
             table,
             p.centroid_margin_x_px,
