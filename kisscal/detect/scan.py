@@ -119,7 +119,7 @@ def _components(n: int, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[n
         label[np.maximum(la, lb)] = np.minimum(la, lb)
         while True:
             jumped = label[label]
-            if np.array_equal(jumped, label):
+            if (jumped == label).all():  # array_equal's checks cost more than the compare
                 break
             label = jumped
     return label
