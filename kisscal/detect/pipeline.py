@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
-    detach_from_large,
     long_wide_split,
     merge_submarkers,
     overlap_split,
@@ -28,6 +27,7 @@ from kisscal.detect.advanced import (
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.centroid import Background, SpotMoments, window_moments
+from kisscal.detect.detach import detach_from_large
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
@@ -180,13 +180,14 @@ def _first_groups(
 ) -> tuple[Grouping, GroupTable]:
     """Noise removal (2.2), sub-marker merge (2.3.1) and the LED-ring detach.
 
-    Each test returns the grouping itself when it changed nothing: no re-measuring then.
+    Each test returns the grouping itself when it changed nothing: no re-measuring then,
+    nor after the noise removal, which leaves the other groups as they were.
     """
     table = measure_groups(grouping.runs)
     noise = noise_groups(table, params)
     if noise.any():
         grouping = grouping.keep_groups(table.label[noise])
-        table = measure_groups(grouping.runs)
+        table = table.take(~noise)
     steps = []
     if params.merge_submarkers:
         steps.append(merge_submarkers)
@@ -230,37 +231,44 @@ def _split_markers(
 ) -> tuple[Grouping, GroupTable, SpotMoments]:
     """Touching, overlap (2.3.2) and long/wide (2.3.3) splits; moments after the last one.
 
-    Moments are recomputed only after a test actually split a group.
+    Moments, and the shape and border facts derived from them, are recomputed only after
+    a test actually split a group.
     """
     moments = spots.moments(grouping, table)
     if not (params.split_overlaps or params.split_long_wide or params.split_touching):
         return grouping, table, moments
-    growth = _image_growth(table, moments, spots.white.shape, params)
+    shape = spots.white.shape
+    inside = _inside(table, shape)
+    growth = _image_growth(table, moments, inside, params)
     tests = [
         (params.split_touching, _touching_step),
         (params.split_overlaps, _overlap_step),
         (params.split_long_wide, _long_wide_step),
     ]
+    corrected = None
     for enabled, test in tests:
         if not enabled:
             continue
-        corrected = corrected_moments(
-            moments.core_var_x, moments.core_var_y, moments.core_cov_xy, growth
-        )
-        split = test(grouping, table, moments, corrected, spots.white, params)
+        if corrected is None:
+            corrected = corrected_moments(
+                moments.core_var_x, moments.core_var_y, moments.core_cov_xy, growth
+            )
+        split = test(grouping, table, moments, corrected, inside, params)
         if split is not grouping:
             grouping = split
             table = measure_groups(grouping.runs)
             moments = spots.moments(grouping, table)
+            inside = _inside(table, shape)
+            corrected = None
     return grouping, table, moments
 
 
 def _image_growth(
-    table: GroupTable, moments: SpotMoments, shape: tuple[int, ...], params: DetectionParams
+    table: GroupTable, moments: SpotMoments, inside: NDArray[np.bool_], params: DetectionParams
 ) -> float:
     """One growth estimate per image, from the groups before any split."""
     sx, sy = spreads(moments.core_var_x, moments.core_var_y)
-    usable = _inside(table, shape) & (table.pixels >= params.long_wide_min_pixels)
+    usable = inside & (table.pixels >= params.long_wide_min_pixels)
     usable &= ~oversized(table, params)
     return estimate_growth(
         sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
@@ -275,11 +283,11 @@ def _touching_step(
     table: GroupTable,
     moments: SpotMoments,
     corrected: Corrected,
-    white: NDArray[np.bool_],
+    inside: NDArray[np.bool_],
     params: DetectionParams,
 ) -> Grouping:
     vx, vy, cxy = corrected
-    candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
+    candidates = _not_single(table, params, vx, vy, cxy, inside)
     return split_touching(grouping, table, params, candidates & splittable(table, params))
 
 
@@ -288,11 +296,11 @@ def _overlap_step(
     table: GroupTable,
     moments: SpotMoments,
     corrected: Corrected,
-    white: NDArray[np.bool_],
+    inside: NDArray[np.bool_],
     params: DetectionParams,
 ) -> Grouping:
     core = (moments.x, moments.y, *corrected)
-    return overlap_split(grouping, table, params, core, _testable(grouping, table, white, params))
+    return overlap_split(grouping, table, params, core, _testable(grouping, table, inside, params))
 
 
 def _long_wide_step(
@@ -300,11 +308,11 @@ def _long_wide_step(
     table: GroupTable,
     moments: SpotMoments,
     corrected: Corrected,
-    white: NDArray[np.bool_],
+    inside: NDArray[np.bool_],
     params: DetectionParams,
 ) -> Grouping:
     ratio = height_ratio(corrected[0], corrected[1], params.pixel_aspect)
-    testable = _testable(grouping, table, white, params)
+    testable = _testable(grouping, table, inside, params)
     return long_wide_split(grouping, table, params, ratio, testable)
 
 
@@ -342,7 +350,7 @@ def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
 
 
 def _testable(
-    grouping: Grouping, table: GroupTable, white: NDArray[np.bool_], params: DetectionParams
+    grouping: Grouping, table: GroupTable, inside: NDArray[np.bool_], params: DetectionParams
 ) -> NDArray[np.bool_]:
     """Groups the overlap and long/wide tests may split.
 
@@ -352,7 +360,7 @@ def _testable(
     (1.6 times the image's typical marker): a part cut at a neck has a flattened side
     that the shape tests would misread.
     """
-    inside = _inside(table, white.shape) & splittable(table, params)
+    inside = inside & splittable(table, params)
     part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
     if not part.any():
         return inside
