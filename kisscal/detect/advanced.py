@@ -187,6 +187,7 @@ def overlap_split(
     params: DetectionParams,
     core: tuple[NDArray[np.float64], ...] | None = None,
     inside: NDArray[np.bool_] | None = None,
+    axes: tuple[NDArray[np.float64], ...] | None = None,
 ) -> Grouping:
     """Split ul / ur overlapped pairs (section 2.3.2, equations 4-6).
 
@@ -208,7 +209,8 @@ def overlap_split(
     ``+- sqrt(major - minor)`` along the major axis.
 
     Groups where ``inside`` is False (cut by the image border) are left alone: their shape
-    is truncated, not overlapped.
+    is truncated, not overlapped. ``axes`` are the :func:`~kisscal.detect.shape.principal_axes`
+    of the ``core`` moments when the caller has them already.
     """
     x_mu = (table.top_x1 + table.top_x2) * 0.5
     x_ml = (table.bottom_x1 + table.bottom_x2) * 0.5
@@ -227,7 +229,9 @@ def overlap_split(
     by_moments = np.zeros(len(table), dtype=bool)
     if core is not None:
         mx, my, vx, vy, cxy = core
-        major, minor, ux, uy = principal_axes(vx, vy, cxy, params.pixel_aspect)
+        if axes is None:
+            axes = principal_axes(vx, vy, cxy, params.pixel_aspect)
+        major, minor, ux, uy = axes
         angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
         diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
         by_moments = (

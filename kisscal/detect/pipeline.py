@@ -7,7 +7,6 @@ import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from functools import partial
 
 import cv2
@@ -17,29 +16,18 @@ from numpy.typing import NDArray
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
-    long_wide_split,
     merge_submarkers,
-    overlap_split,
-    oversized,
     size_flags,
-    splittable,
 )
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
-from kisscal.detect.centroid import Background, SpotMoments, window_moments
+from kisscal.detect.centroid import Background, SpotMoments
 from kisscal.detect.detach import detach_from_large
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
-from kisscal.detect.shape import (
-    corrected_moments,
-    estimate_growth,
-    height_ratio,
-    principal_axes,
-    spreads,
-)
-from kisscal.detect.touching import split_touching
+from kisscal.detect.splits import Spots, split_markers
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -170,8 +158,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
-    spots = _Spots(image, white, background, params)
-    grouping, table, moments = _split_markers(grouping, table, spots, params)
+    spots = Spots(image, white, background, params)
+    grouping, table, moments = split_markers(grouping, table, spots, params)
     return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
 
 
@@ -203,119 +191,6 @@ def _first_groups(
     return grouping, table
 
 
-@dataclass(frozen=True)
-class _Spots:
-    """What the weighted moments of a grouping need besides the grouping itself."""
-
-    image: NDArray
-    white: NDArray[np.bool_]
-    background: Background
-    params: DetectionParams
-
-    def moments(self, grouping: Grouping, table: GroupTable) -> SpotMoments:
-        p = self.params
-        return window_moments(
-            self.image,
-            self.white,
-            grouping,
-            table,
-            p.centroid_margin_x_px,
-            p.centroid_margin_y_px,
-            self.background,
-            p.pixel_aspect,
-        )
-
-
-def _split_markers(
-    grouping: Grouping, table: GroupTable, spots: _Spots, params: DetectionParams
-) -> tuple[Grouping, GroupTable, SpotMoments]:
-    """Touching, overlap (2.3.2) and long/wide (2.3.3) splits; moments after the last one.
-
-    Moments, and the shape and border facts derived from them, are recomputed only after
-    a test actually split a group.
-    """
-    moments = spots.moments(grouping, table)
-    if not (params.split_overlaps or params.split_long_wide or params.split_touching):
-        return grouping, table, moments
-    shape = spots.white.shape
-    inside = _inside(table, shape)
-    growth = _image_growth(table, moments, inside, params)
-    tests = [
-        (params.split_touching, _touching_step),
-        (params.split_overlaps, _overlap_step),
-        (params.split_long_wide, _long_wide_step),
-    ]
-    corrected = None
-    for enabled, test in tests:
-        if not enabled:
-            continue
-        if corrected is None:
-            corrected = corrected_moments(
-                moments.core_var_x, moments.core_var_y, moments.core_cov_xy, growth
-            )
-        split = test(grouping, table, moments, corrected, inside, params)
-        if split is not grouping:
-            grouping = split
-            table = measure_groups(grouping.runs)
-            moments = spots.moments(grouping, table)
-            inside = _inside(table, shape)
-            corrected = None
-    return grouping, table, moments
-
-
-def _image_growth(
-    table: GroupTable, moments: SpotMoments, inside: NDArray[np.bool_], params: DetectionParams
-) -> float:
-    """One growth estimate per image, from the groups before any split."""
-    sx, sy = spreads(moments.core_var_x, moments.core_var_y)
-    usable = inside & (table.pixels >= params.long_wide_min_pixels)
-    usable &= ~oversized(table, params)
-    return estimate_growth(
-        sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
-    )
-
-
-Corrected = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
-
-
-def _touching_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    inside: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    vx, vy, cxy = corrected
-    candidates = _not_single(table, params, vx, vy, cxy, inside)
-    return split_touching(grouping, table, params, candidates & splittable(table, params))
-
-
-def _overlap_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    inside: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    core = (moments.x, moments.y, *corrected)
-    return overlap_split(grouping, table, params, core, _testable(grouping, table, inside, params))
-
-
-def _long_wide_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    inside: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    ratio = height_ratio(corrected[0], corrected[1], params.pixel_aspect)
-    testable = _testable(grouping, table, inside, params)
-    return long_wide_split(grouping, table, params, ratio, testable)
-
-
 def _blob_table(
     grouping: Grouping,
     table: GroupTable,
@@ -341,57 +216,6 @@ def _blob_table(
         valid=(flags[order] & fl.INVALID_FLAGS) == 0,
         flags=flags[order],
     )
-
-
-def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
-    """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
-    height, width = shape
-    return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
-
-
-def _testable(
-    grouping: Grouping, table: GroupTable, inside: NDArray[np.bool_], params: DetectionParams
-) -> NDArray[np.bool_]:
-    """Groups the overlap and long/wide tests may split.
-
-    Not those cut by the image border, not those too large to be a marker cluster
-    (:func:`~kisscal.detect.advanced.splittable`), and not the parts of a touching-marker split or
-    markers detached from an LED ring unless they are large enough to hold two markers
-    (1.6 times the image's typical marker): a part cut at a neck has a flattened side
-    that the shape tests would misread.
-    """
-    inside = inside & splittable(table, params)
-    part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
-    if not part.any():
-        return inside
-    whole = inside & ~part
-    typical = float(np.median(table.pixels[whole])) if whole.any() else 0.0
-    return inside & (~part | (table.pixels > 1.6 * typical))
-
-
-def _not_single(
-    table: GroupTable,
-    params: DetectionParams,
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    cov_xy: NDArray[np.float64],
-    inside: NDArray[np.bool_],
-) -> NDArray[np.bool_]:
-    """Groups worth the distance-transform test: not shaped or sized like one marker.
-
-    Cheap moment and size checks keep the (per-group) distance transform off the many
-    groups that are plainly single markers, and off LED rings (several times a typical
-    marker's size).
-    """
-    ratio = height_ratio(var_x, var_y, params.pixel_aspect)
-    major, minor, _, _ = principal_axes(var_x, var_y, cov_xy, params.pixel_aspect)
-    sized = (table.pixels >= params.long_wide_min_pixels) & inside
-    marker = sized & ~oversized(table, params)
-    typical = float(np.median(table.pixels[marker])) if marker.any() else np.inf
-    odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
-    # Up to about three typical markers; beyond that a round group is an LED ring.
-    clustered = (table.pixels > 1.6 * typical) & (table.pixels < 3.5 * typical)
-    return sized & (odd_shape | clustered) & (table.pixels < 3.5 * typical)
 
 
 _WORKER: dict[str, object] = {}
