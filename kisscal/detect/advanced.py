@@ -240,7 +240,7 @@ def overlap_split(
     pair = eq6 | by_moments
     if params.max_pixels is not None:  # two halves larger than a marker are no pair
         pair &= table.pixels <= 2 * params.max_pixels
-    idx = np.flatnonzero(pair)
+    idx = pair.nonzero()[0]
     if idx.size == 0:
         return grouping
     left = table.x1[idx] - 0.5
@@ -306,7 +306,7 @@ def long_wide_split(
         testable &= inside
     wide = testable & (ratio < params.min_ratio)
     long = testable & (ratio > params.max_ratio)
-    idx = np.flatnonzero(wide | long)
+    idx = (wide | long).nonzero()[0]
     if idx.size == 0:
         return grouping
     is_wide = wide[idx]

@@ -88,9 +88,9 @@ def window_moments(
     y0 = np.maximum(table.y1 - margin_y_px, 0)
     nrow = np.minimum(table.y2 + margin_y_px, height - 1) - y0 + 1
     area = ncol * nrow
-    first = np.cumsum(area) - area
+    first = area.cumsum() - area
     # Every window's pixels, window after window, each in scan order.
-    g = np.repeat(np.arange(n), area)
+    g = np.arange(n).repeat(area)
     row, col = np.divmod(np.arange(g.size) - first[g], ncol[g])
     xs = x0[g] + col
     ys = y0[g] + row
@@ -102,7 +102,7 @@ def window_moments(
         weight = image.ravel().take(flat).astype(np.float64)
         weight -= background.ravel().take(flat) if np.ndim(background) else background
         weight[white.ravel().take(flat) & ~own] = 0.0
-    split = np.flatnonzero(~np.isnan(grouping.centre_x[table.label]))
+    split = (~np.isnan(grouping.centre_x[table.label])).nonzero()[0]
     if split.size:
         weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
     # Raw moments about each window's corner (small numbers: no cancellation) of the
@@ -140,14 +140,14 @@ def _own_pixels(
     their window positions: no image-sized owner map to clear and look up.
     """
     runs = grouping.runs
-    row = np.searchsorted(table.label, runs.group)
+    row = table.label.searchsorted(runs.group)
     # position of image pixel (x, y) in window t: first + (y - y0) ncol + (x - x0)
     offset = (first - y0 * ncol - x0)[row] + runs.y * ncol[row] + runs.x1
     count = runs.x2 - runs.x1 + 1
-    end = np.cumsum(count)
+    end = count.cumsum()
     own = np.zeros(size, dtype=bool)
     pixels = int(end[-1]) if end.size else 0
-    own[np.arange(pixels) + np.repeat(offset - end + count, count)] = True
+    own[np.arange(pixels) + (offset - end + count).repeat(count)] = True
     return own
 
 

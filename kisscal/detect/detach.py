@@ -41,7 +41,7 @@ def detach_from_large(
     """
     if params.detach_kernel_px is None or params.max_pixels is None:
         return grouping
-    idx = np.flatnonzero(oversized(table, params))
+    idx = oversized(table, params).nonzero()[0]
     if idx.size == 0:
         return grouping
     kw, kh = map(int, params.detach_kernel_px)

@@ -78,7 +78,7 @@ def measure_groups(runs: Runs) -> GroupTable:
     Runs arrive in scan order; a stable sort by group keeps each group's runs in line
     order, so its first and last runs lie in its top and bottom scan lines.
     """
-    order = np.argsort(runs.group, kind="stable")
+    order = runs.group.argsort(kind="stable")
     g = runs.group[order]
     y = runs.y[order]
     x1 = runs.x1[order]
@@ -88,7 +88,7 @@ def measure_groups(runs: Runs) -> GroupTable:
         f = np.zeros(0, dtype=float)
         return GroupTable(e, e, e, e, e, e, e, f, f, e, e, e, e)
     new_group = _changes(g)
-    starts = np.flatnonzero(new_group)
+    starts = new_group.nonzero()[0]
     ends = _segment_ends(starts, g.size)
     length = x2 - x1 + 1
     pixels = np.add.reduceat(length, starts)
@@ -97,8 +97,8 @@ def measure_groups(runs: Runs) -> GroupTable:
     sum_x = np.add.reduceat(length * (x1 + x2) * 0.5, starts)
     sum_y = np.add.reduceat((length * y).astype(float), starts)
     new_line = new_group | _changes(y)
-    line_id = np.cumsum(new_line) - 1
-    line_starts = np.flatnonzero(new_line)
+    line_id = new_line.cumsum() - 1
+    line_starts = new_line.nonzero()[0]
     rows = np.add.reduceat(new_line.astype(np.int64), starts)
     # Runs of one line are sorted by column: its first run holds the left boundary, its
     # last run the right one.
@@ -167,7 +167,7 @@ def group_canvas(
     height = table.height[idx] + 2
     step = height + gap
     step += step % 2
-    top = np.cumsum(step) - step
+    top = step.cumsum() - step
     width = int(table.width[idx].max()) + 2
     canvas = np.zeros((int(top[-1] + height[-1]), width), np.uint8)
     slot = np.full(max(int(runs.group.max()), int(table.label[idx].max())) + 1, -1)
@@ -181,8 +181,8 @@ def group_canvas(
     corner = (top - table.y1[idx] + 1) * width - table.x1[idx] + 1
     start = corner[crop] + runs.y[mine] * width + x1
     count = x2 - x1 + 1
-    end = np.cumsum(count)
-    canvas.ravel()[np.arange(end[-1]) + np.repeat(start - end + count, count)] = 1
+    end = count.cumsum()
+    canvas.ravel()[np.arange(end[-1]) + (start - end + count).repeat(count)] = 1
     return canvas, top
 
 
