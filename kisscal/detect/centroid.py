@@ -96,33 +96,36 @@ def window_moments(
     ys = y0[g] + row
     flat = ys * width + xs
     own = _own_pixels(grouping, table, first, x0, y0, ncol, g.size)
+    # Raw moments about each window's corner (small numbers: no cancellation) of the
+    # window's weights and of its own pixels' weights (core), all in one segment
+    # reduction since each window's pixels are contiguous. Terms 1, x, y, x^2, y^2, xy,
+    # each product taken as (w x) x etc. so that the sums stay those of w * x * x, and
+    # written in place: the terms are most of the pixel-level work.
+    terms = np.empty((6, 2, g.size))
+    weight = terms[0, 0]
     if image.dtype == np.bool_:
-        weight = own.astype(np.float64)
+        weight[:] = own
     else:
-        weight = image.ravel().take(flat).astype(np.float64)
-        weight -= background.ravel().take(flat) if np.ndim(background) else background
+        bg = background.ravel().take(flat) if np.ndim(background) else background
+        np.subtract(image.ravel().take(flat), bg, out=weight, dtype=np.float64)
         weight[white.ravel().take(flat) & ~own] = 0.0
     split = (~np.isnan(grouping.centre_x[table.label])).nonzero()[0]
     if split.size:
         weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
-    # Raw moments about each window's corner (small numbers: no cancellation) of the
-    # window's weights and of its own pixels' weights (core), all in one segment
-    # reduction since each window's pixels are contiguous: powers[j] * powers[k] gives
-    # 1, x, y, x^2, y^2, xy.
-    powers = np.stack([np.ones(g.size), col.astype(np.float64), row.astype(np.float64)])
-    terms = np.stack([weight, weight * own])[:, None, :] * powers[_FIRST]
-    terms *= powers[_SECOND]
-    sums = np.add.reduceat(terms.reshape(12, g.size), first, axis=1).reshape(2, 6, n)
+    np.multiply(weight, own, out=terms[0, 1])
+    w = terms[0]
+    np.multiply(w, col, out=terms[1])
+    np.multiply(w, row, out=terms[2])
+    np.multiply(terms[1], col, out=terms[3])
+    np.multiply(terms[2], row, out=terms[4])
+    np.multiply(terms[1], row, out=terms[5])
+    sums = np.add.reduceat(terms, first, axis=2).transpose(1, 0, 2)
     return _moments_from_sums(sums, table, x0, y0, ncol, nrow)
 
 
-#: Index pairs of the window coordinates' powers (1, x, y) whose products are the moments'
-#: terms 1, x, y, x^2, y^2, xy.
-_FIRST = np.array([0, 1, 2, 1, 2, 1])
-_SECOND = np.array([0, 0, 0, 1, 2, 2])
 #: The centroid coordinates (x, y) whose products make the central terms x^2, y^2, xy.
-_LEFT = _FIRST[3:] - 1
-_RIGHT = _SECOND[3:] - 1
+_LEFT = np.array([0, 1, 0])
+_RIGHT = np.array([0, 1, 1])
 
 
 def _own_pixels(
@@ -204,8 +207,11 @@ def _nearest_part_mask(
     keep = np.ones(g.size)
     parent = grouping.parent[table.label]
     order = split[np.argsort(parent[split], kind="stable")]
-    first = np.flatnonzero(np.r_[True, parent[order][1:] != parent[order][:-1]])
-    count = np.diff(np.r_[first, order.size])
+    family_parent = parent[order]
+    new_family = np.ones(order.size, dtype=bool)
+    np.not_equal(family_parent[1:], family_parent[:-1], out=new_family[1:])
+    first = new_family.nonzero()[0]
+    count = np.diff(first, append=order.size)
     family = np.repeat(np.arange(first.size), count)  # sibling set of each split row
     siblings = np.full((first.size, int(count.max())), -1)
     siblings[family, np.arange(order.size) - first[family]] = order
