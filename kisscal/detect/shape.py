@@ -68,10 +68,10 @@ def corrected_moments(
     growth: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Second moments with pixel area and growth removed (correlation kept)."""
-    sx, sy = spreads(var_x, var_y)
-    rho = np.clip(cov_xy / np.sqrt(np.maximum(var_x * var_y, 1e-12)), -1.0, 1.0)
-    cx = np.maximum(sx - growth, 0.05)
-    cy = np.maximum(sy - growth, 0.05)
+    # x and y stacked: the same element-wise steps as spreads(), in half the numpy calls
+    spread = np.sqrt(np.maximum(np.stack([var_x, var_y]) - PIXEL_AREA_VAR, 1e-6))
+    rho = np.minimum(np.maximum(cov_xy / np.sqrt(np.maximum(var_x * var_y, 1e-12)), -1.0), 1.0)
+    cx, cy = np.maximum(spread - growth, 0.05)
     return cx * cx, cy * cy, rho * cx * cy
 
 
