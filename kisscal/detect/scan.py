@@ -60,7 +60,9 @@ def scan_runs(white: NDArray[np.bool_]) -> tuple[NDArray[np.int64], ...]:
     last = np.empty_like(first)
     last[:-1] = first[1:] - 1
     last[-1] = key.size - 1
-    return rows[line[first]].astype(np.int64), x[first].astype(np.int64), x[last].astype(np.int64)
+    # (already int64 where intp is; no copies then)
+    y = rows[line[first]].astype(np.int64, copy=False)
+    return y, x[first].astype(np.int64, copy=False), x[last].astype(np.int64, copy=False)
 
 
 def _neighbour_pairs(
@@ -87,13 +89,20 @@ def _neighbour_pairs(
         lo = key_end.searchsorted(base + x1 - gap, side="left")
         hi = key_start.searchsorted(base + x2 + gap, side="right")
         count = np.maximum(hi - lo, 0)
-        total = int(count.sum())
-        if total == 0:
+        most = int(count.max(initial=0))
+        if most == 0:
+            continue
+        if most == 1:  # the usual case: no run touches two runs of that line
+            a = count.nonzero()[0]
+            firsts.append(a)
+            seconds.append(lo[a])
             continue
         a = np.arange(y.size).repeat(count)
-        offset = np.arange(total) - (count.cumsum() - count).repeat(count)
+        offset = np.arange(a.size) - (count.cumsum() - count).repeat(count)
         firsts.append(a)
         seconds.append(lo.repeat(count) + offset)
+    if len(firsts) == 1:
+        return firsts[0], seconds[0]
     if not firsts:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
