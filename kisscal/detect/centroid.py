@@ -92,9 +92,7 @@ def window_moments(
     # Every window's pixels, window after window, each in scan order.
     g = np.arange(n).repeat(area)
     row, col = np.divmod(np.arange(g.size) - first[g], ncol[g])
-    xs = x0[g] + col
-    ys = y0[g] + row
-    flat = ys * width + xs
+    flat = (y0 * width + x0)[g] + row * width + col
     own = _own_pixels(grouping, table, first, x0, y0, ncol, g.size)
     # Raw moments about each window's corner (small numbers: no cancellation) of the
     # window's weights and of its own pixels' weights (core), all in one segment
@@ -111,6 +109,7 @@ def window_moments(
         weight[white.ravel().take(flat) & ~own] = 0.0
     split = (~np.isnan(grouping.centre_x[table.label])).nonzero()[0]
     if split.size:
+        xs, ys = x0[g] + col, y0[g] + row
         weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
     np.multiply(weight, own, out=terms[0, 1])
     w = terms[0]

@@ -95,11 +95,11 @@ def measure_groups(runs: Runs) -> GroupTable:
     # The mean column of a run is its mid-point (equation 3), so a run contributes
     # length * mid-point to the column sum.
     sum_x = np.add.reduceat(length * (x1 + x2) * 0.5, starts)
-    sum_y = np.add.reduceat((length * y).astype(float), starts)
+    sum_y = np.add.reduceat(length * y, starts, dtype=np.float64)  # exact: integer sums
     new_line = new_group | _changes(y)
     line_id = new_line.cumsum() - 1
     line_starts = new_line.nonzero()[0]
-    rows = np.add.reduceat(new_line.astype(np.int64), starts)
+    rows = np.add.reduceat(new_line, starts, dtype=np.int64)
     # Runs of one line are sorted by column: its first run holds the left boundary, its
     # last run the right one.
     line_ends = _segment_ends(line_starts, g.size)
