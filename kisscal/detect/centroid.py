@@ -167,14 +167,15 @@ def _moments_from_sums(
     the binary one.
     """
     total = sums[:, 0]
-    safe = np.where(total > 0, total, 1.0)[:, None]
-    mean = sums[:, 1:3] / safe  # (window | core, x | y, group)
+    positive = total > 0
+    # E[x], E[y], E[x^2], E[y^2], E[xy] of the window and of the core, one division
+    expect = sums[:, 1:] / np.where(positive, total, 1.0)[:, None]
     # var_x, var_y, cov_xy: E[x^2] - x x, E[y^2] - y y, E[xy] - x y
-    central = sums[:, 3:6] / safe - mean[:, _LEFT] * mean[:, _RIGHT]
-    mx, my = mean[0]
+    central = expect[:, 2:] - expect[:, _LEFT] * expect[:, _RIGHT]
+    mx, my = expect[0, :2]
     # weights that (nearly) cancel put a centroid anywhere: keep it only inside its
     # window, else the binary centroid stands
-    ok = (total[0] > 0) & (mx >= 0) & (mx <= ncol - 1) & (my >= 0) & (my <= nrow - 1)
+    ok = positive[0] & (np.minimum(mx, my) >= 0) & (mx <= ncol - 1) & (my <= nrow - 1)
     return SpotMoments(
         total=total[0],
         x=np.where(ok, x0 + mx, table.x_binary),
