@@ -211,13 +211,15 @@ def _nearest_part_mask(
     new_family = np.ones(order.size, dtype=bool)
     np.not_equal(family_parent[1:], family_parent[:-1], out=new_family[1:])
     first = new_family.nonzero()[0]
-    count = np.diff(first, append=order.size)
-    family = np.repeat(np.arange(first.size), count)  # sibling set of each split row
+    count = np.empty_like(first)  # family sizes (np.diff's append= costs more)
+    count[:-1] = first[1:] - first[:-1]
+    count[-1] = order.size - first[-1]
+    family = np.arange(first.size).repeat(count)  # sibling set of each split row
     siblings = np.full((first.size, int(count.max())), -1)
     siblings[family, np.arange(order.size) - first[family]] = order
     family_of_row = np.full(len(table), -1)
     family_of_row[order] = family
-    rows = np.flatnonzero(family_of_row[g] >= 0)
+    rows = (family_of_row[g] >= 0).nonzero()[0]
     cand = siblings[family_of_row[g[rows]]]  # (pixels, siblings), -1 padded
     safe = np.maximum(cand, 0)
     cx = grouping.centre_x[table.label[safe]]
