@@ -11,12 +11,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
-from kisscal.detect.groups import GroupTable, group_crops
+from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs
 from kisscal.detect.shape import principal_axes
@@ -188,6 +187,7 @@ def overlap_split(
     params: DetectionParams,
     core: tuple[NDArray[np.float64], ...] | None = None,
     inside: NDArray[np.bool_] | None = None,
+    axes: tuple[NDArray[np.float64], ...] | None = None,
 ) -> Grouping:
     """Split ul / ur overlapped pairs (section 2.3.2, equations 4-6).
 
@@ -209,7 +209,8 @@ def overlap_split(
     ``+- sqrt(major - minor)`` along the major axis.
 
     Groups where ``inside`` is False (cut by the image border) are left alone: their shape
-    is truncated, not overlapped.
+    is truncated, not overlapped. ``axes`` are the :func:`~kisscal.detect.shape.principal_axes`
+    of the ``core`` moments when the caller has them already.
     """
     x_mu = (table.top_x1 + table.top_x2) * 0.5
     x_ml = (table.bottom_x1 + table.bottom_x2) * 0.5
@@ -228,7 +229,9 @@ def overlap_split(
     by_moments = np.zeros(len(table), dtype=bool)
     if core is not None:
         mx, my, vx, vy, cxy = core
-        major, minor, ux, uy = principal_axes(vx, vy, cxy, params.pixel_aspect)
+        if axes is None:
+            axes = principal_axes(vx, vy, cxy, params.pixel_aspect)
+        major, minor, ux, uy = axes
         angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
         diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
         by_moments = (
@@ -237,7 +240,7 @@ def overlap_split(
     pair = eq6 | by_moments
     if params.max_pixels is not None:  # two halves larger than a marker are no pair
         pair &= table.pixels <= 2 * params.max_pixels
-    idx = np.flatnonzero(pair)
+    idx = pair.nonzero()[0]
     if idx.size == 0:
         return grouping
     left = table.x1[idx] - 0.5
@@ -303,7 +306,7 @@ def long_wide_split(
         testable &= inside
     wide = testable & (ratio < params.min_ratio)
     long = testable & (ratio > params.max_ratio)
-    idx = np.flatnonzero(wide | long)
+    idx = (wide | long).nonzero()[0]
     if idx.size == 0:
         return grouping
     is_wide = wide[idx]
@@ -347,32 +350,6 @@ def long_wide_split(
     return split_groups(grouping, table.label[idx], cx, cy, flag, params.pixel_aspect)
 
 
-def _detached_pieces(
-    crop: NDArray[np.uint8],
-    core: NDArray[np.uint8],
-    origin: tuple[int, int],
-    params: DetectionParams,
-    shape: tuple[int, ...] | None,
-) -> list[tuple[float, float, float]]:
-    """Centre and radius of every marker-sized piece the opening removed from a blob."""
-    residual = crop & (1 - cv2.dilate(core, np.ones((3, 3), np.uint8)))
-    n, _, stats, cents = cv2.connectedComponentsWithStats(residual, connectivity=8)
-    x0, y0 = origin
-    least = max(params.detach_min_pixels, params.min_pixels)
-    pieces = []
-    for j in range(1, n):  # a handful of pieces per LED ring
-        left, top, w, h, area = stats[j]
-        if area < least or w < 2 or h < 2:
-            continue
-        if shape is not None and (
-            x0 + left <= 0 or y0 + top <= 0 or x0 + left + w >= shape[1] or y0 + top + h >= shape[0]
-        ):
-            continue
-        r = np.sqrt(area / (np.pi * params.pixel_aspect))
-        pieces.append((x0 + cents[j][0], y0 + cents[j][1], r))
-    return pieces
-
-
 def oversized(table: GroupTable, params: DetectionParams) -> NDArray[np.bool_]:
     """Groups over the upper size limits (section 2.3.4): more pixels, wider or higher.
 
@@ -402,58 +379,3 @@ def size_flags(table: GroupTable, params: DetectionParams) -> NDArray[np.int64]:
     facing cameras) get ``too_large``, undersized ones ``too_small``."""
     small = table.pixels < params.min_pixels
     return np.where(oversized(table, params), fl.TOO_LARGE, 0) | np.where(small, fl.TOO_SMALL, 0)
-
-
-def detach_from_large(
-    grouping: Grouping,
-    table: GroupTable,
-    params: DetectionParams,
-    shape: tuple[int, ...] | None = None,
-) -> Grouping:
-    """Separate markers touching an oversized blob (an LED ring) before the size limits.
-
-    Not in Shafiq et al. 2001, where such a marker is lost inside the invalid LED group. The
-    group's white pixels are opened with an elliptical kernel of ``detach_kernel_px``
-    (larger than any marker, smaller than an LED ring): what the opening removes and does
-    not border the opened blob is a marker sticking out of it when it has at least
-    ``detach_min_pixels`` (and ``min_pixels``) pixels and does not touch the border of an
-    image of ``shape`` (the opening leaves slivers in the corners of a ring the border
-    cuts), provided the opened blob alone still has more than ``max_pixels`` pixels. The
-    group is then split between the blob and those markers by distance relative to each
-    one's size (:func:`split_groups`).
-    """
-    if params.detach_kernel_px is None or params.max_pixels is None:
-        return grouping
-    idx = np.flatnonzero(oversized(table, params))
-    if idx.size == 0:
-        return grouping
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, tuple(map(int, params.detach_kernel_px)))
-    labels, centres = [], []
-    for i, x0, y0, crop in group_crops(grouping.runs, table, idx):  # LED rings: a few per image
-        core = cv2.morphologyEx(crop, cv2.MORPH_OPEN, kernel)
-        # Only a blob that stays oversized without the pieces is an LED ring; overlapping
-        # markers have no such core and are left to the overlap and long/wide tests.
-        if np.count_nonzero(core) <= params.max_pixels:
-            continue
-        pieces = _detached_pieces(crop, core, (x0, y0), params, shape)
-        if pieces:
-            cy, cx = np.nonzero(core)
-            r = np.sqrt(cx.size / (np.pi * params.pixel_aspect))
-            labels.append(table.label[i])
-            centres.append([(x0 + cx.mean(), y0 + cy.mean(), r), *pieces])
-    if not labels:
-        return grouping
-    k = max(len(p) for p in centres)
-    table_xyr = np.full((len(labels), k, 3), np.nan)
-    for row, parts in enumerate(centres):
-        table_xyr[row, : len(parts)] = parts
-    radii = np.where(np.isnan(table_xyr[:, :, 2]), 1.0, table_xyr[:, :, 2])
-    return split_groups(
-        grouping,
-        np.asarray(labels, dtype=np.int64),
-        table_xyr[:, :, 0],
-        table_xyr[:, :, 1],
-        np.full(len(labels), fl.DETACHED),
-        params.pixel_aspect,
-        radii,
-    )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 from functools import partial
 
 import numpy as np
@@ -11,29 +11,18 @@ from numpy.typing import NDArray
 from kisscal.detect import blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
-    detach_from_large,
-    long_wide_split,
     merge_submarkers,
-    overlap_split,
-    oversized,
     size_flags,
-    splittable,
 )
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
-from kisscal.detect.centroid import Background, SpotMoments, owner_image, window_moments
+from kisscal.detect.centroid import Background, SpotMoments
+from kisscal.detect.detach import detach_from_large
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
-from kisscal.detect.shape import (
-    corrected_moments,
-    estimate_growth,
-    height_ratio,
-    principal_axes,
-    spreads,
-)
-from kisscal.detect.touching import split_touching
+from kisscal.detect.splits import Spots, split_markers
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -58,22 +47,20 @@ def check_image(image: object) -> NDArray:
         raise KisscalError(f"detect: expected a 2-D image, got shape {image.shape}")
     if image.size == 0:
         raise KisscalError(f"detect: empty image (shape {image.shape})")
-    if not (
-        image.dtype == np.bool_
-        or np.issubdtype(image.dtype, np.unsignedinteger)
-        or np.issubdtype(image.dtype, np.floating)
-    ):
+    # dtype kinds: bool, unsigned integer, float (np.issubdtype costs more, per call)
+    kind = image.dtype.kind
+    if kind not in "buf":
         raise KisscalError(
             f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
         )
-    if np.issubdtype(image.dtype, np.floating):
+    if kind == "f":
         top = float(np.max(np.abs(image)))
         if not np.isfinite(top) or top > MAX_FLOAT_GREY:
             raise KisscalError(
                 f"detect: float grey levels must be finite and within +-{MAX_FLOAT_GREY:g} "
                 f"(8- or 16-bit scale), got {top:g}"
             )
-    if np.issubdtype(image.dtype, np.unsignedinteger) and image.dtype.itemsize > 1:
+    if kind == "u" and image.dtype.itemsize > 1:
         # 16-bit cameras: bring grey levels to the 8-bit scale so that ``threshold`` and the
         # other grey-level parameters mean the same for 8- and 16-bit frames of one scene.
         return image.astype(np.float32) * np.float32(255.0 / np.iinfo(image.dtype).max)
@@ -99,7 +86,23 @@ def threshold_image(image: NDArray, params: DetectionParams) -> tuple[NDArray, B
             above = np.maximum(above, np.float32(params.noise_factor) * local.noise)
         return image >= local.level + local.slack + above, local.level
     level = background_level(image) if params.background is None else params.background
-    return image >= params.threshold, level
+    return white_above(image, params.threshold), level
+
+
+def white_above(image: NDArray, threshold: float) -> NDArray[np.bool_]:
+    """``image >= threshold``, compared on the image's own integer scale when it has one.
+
+    An integer grey level is at least a fractional threshold exactly when it is at least
+    the threshold rounded up, so an 8-bit image compares with an 8-bit level: numpy would
+    otherwise convert every pixel to float64 first (eight times the cheap comparison).
+    """
+    if image.dtype.kind not in "iu" or not math.isfinite(threshold):
+        return image >= threshold
+    level = math.ceil(threshold)
+    info = np.iinfo(image.dtype)
+    if level > info.max:
+        return np.zeros(image.shape, dtype=bool)
+    return image >= image.dtype.type(max(level, info.min))
 
 
 def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Blobs:
@@ -148,8 +151,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
-    spots = _Spots(image, white, background, params)
-    grouping, table, moments = _split_markers(grouping, table, spots, params)
+    spots = Spots(image, white, background, params)
+    grouping, table, moments = split_markers(grouping, table, spots, params)
     return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
 
 
@@ -158,13 +161,14 @@ def _first_groups(
 ) -> tuple[Grouping, GroupTable]:
     """Noise removal (2.2), sub-marker merge (2.3.1) and the LED-ring detach.
 
-    Each test returns the grouping itself when it changed nothing: no re-measuring then.
+    Each test returns the grouping itself when it changed nothing: no re-measuring then,
+    nor after the noise removal, which leaves the other groups as they were.
     """
     table = measure_groups(grouping.runs)
     noise = noise_groups(table, params)
     if noise.any():
         grouping = grouping.keep_groups(table.label[noise])
-        table = measure_groups(grouping.runs)
+        table = table.take(~noise)
     steps = []
     if params.merge_submarkers:
         steps.append(merge_submarkers)
@@ -178,113 +182,6 @@ def _first_groups(
             grouping = changed
             table = measure_groups(grouping.runs)
     return grouping, table
-
-
-@dataclass(frozen=True)
-class _Spots:
-    """What the weighted moments of a grouping need besides the grouping itself."""
-
-    image: NDArray
-    white: NDArray[np.bool_]
-    background: Background
-    params: DetectionParams
-
-    def moments(self, grouping: Grouping, table: GroupTable) -> SpotMoments:
-        p = self.params
-        return window_moments(
-            self.image,
-            self.white,
-            owner_image(self.white.shape, grouping),
-            grouping,
-            table,
-            p.centroid_margin_x_px,
-            p.centroid_margin_y_px,
-            self.background,
-            p.pixel_aspect,
-        )
-
-
-def _split_markers(
-    grouping: Grouping, table: GroupTable, spots: _Spots, params: DetectionParams
-) -> tuple[Grouping, GroupTable, SpotMoments]:
-    """Touching, overlap (2.3.2) and long/wide (2.3.3) splits; moments after the last one.
-
-    Moments are recomputed only after a test actually split a group.
-    """
-    moments = spots.moments(grouping, table)
-    if not (params.split_overlaps or params.split_long_wide or params.split_touching):
-        return grouping, table, moments
-    growth = _image_growth(table, moments, spots.white.shape, params)
-    tests = [
-        (params.split_touching, _touching_step),
-        (params.split_overlaps, _overlap_step),
-        (params.split_long_wide, _long_wide_step),
-    ]
-    for enabled, test in tests:
-        if not enabled:
-            continue
-        corrected = corrected_moments(
-            moments.core_var_x, moments.core_var_y, moments.core_cov_xy, growth
-        )
-        split = test(grouping, table, moments, corrected, spots.white, params)
-        if split is not grouping:
-            grouping = split
-            table = measure_groups(grouping.runs)
-            moments = spots.moments(grouping, table)
-    return grouping, table, moments
-
-
-def _image_growth(
-    table: GroupTable, moments: SpotMoments, shape: tuple[int, ...], params: DetectionParams
-) -> float:
-    """One growth estimate per image, from the groups before any split."""
-    sx, sy = spreads(moments.core_var_x, moments.core_var_y)
-    usable = _inside(table, shape) & (table.pixels >= params.long_wide_min_pixels)
-    usable &= ~oversized(table, params)
-    return estimate_growth(
-        sx, sy, usable, params.pixel_aspect, params.growth_px, params.growth_min_groups
-    )
-
-
-Corrected = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
-
-
-def _touching_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    white: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    vx, vy, cxy = corrected
-    candidates = _not_single(table, params, vx, vy, cxy, _inside(table, white.shape))
-    return split_touching(grouping, table, params, candidates & splittable(table, params))
-
-
-def _overlap_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    white: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    core = (moments.x, moments.y, *corrected)
-    return overlap_split(grouping, table, params, core, _testable(grouping, table, white, params))
-
-
-def _long_wide_step(
-    grouping: Grouping,
-    table: GroupTable,
-    moments: SpotMoments,
-    corrected: Corrected,
-    white: NDArray[np.bool_],
-    params: DetectionParams,
-) -> Grouping:
-    ratio = height_ratio(corrected[0], corrected[1], params.pixel_aspect)
-    testable = _testable(grouping, table, white, params)
-    return long_wide_split(grouping, table, params, ratio, testable)
 
 
 def _blob_table(
@@ -312,54 +209,3 @@ def _blob_table(
         valid=(flags[order] & fl.INVALID_FLAGS) == 0,
         flags=flags[order],
     )
-
-
-def _inside(table: GroupTable, shape: tuple[int, ...]) -> NDArray[np.bool_]:
-    """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
-    height, width = shape
-    return (table.x1 > 0) & (table.y1 > 0) & (table.x2 < width - 1) & (table.y2 < height - 1)
-
-
-def _testable(
-    grouping: Grouping, table: GroupTable, white: NDArray[np.bool_], params: DetectionParams
-) -> NDArray[np.bool_]:
-    """Groups the overlap and long/wide tests may split.
-
-    Not those cut by the image border, not those too large to be a marker cluster
-    (:func:`~kisscal.detect.advanced.splittable`), and not the parts of a touching-marker split or
-    markers detached from an LED ring unless they are large enough to hold two markers
-    (1.6 times the image's typical marker): a part cut at a neck has a flattened side
-    that the shape tests would misread.
-    """
-    inside = _inside(table, white.shape) & splittable(table, params)
-    part = (grouping.flags[table.label] & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
-    if not part.any():
-        return inside
-    whole = inside & ~part
-    typical = float(np.median(table.pixels[whole])) if whole.any() else 0.0
-    return inside & (~part | (table.pixels > 1.6 * typical))
-
-
-def _not_single(
-    table: GroupTable,
-    params: DetectionParams,
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    cov_xy: NDArray[np.float64],
-    inside: NDArray[np.bool_],
-) -> NDArray[np.bool_]:
-    """Groups worth the distance-transform test: not shaped or sized like one marker.
-
-    Cheap moment and size checks keep the (per-group) distance transform off the many
-    groups that are plainly single markers, and off LED rings (several times a typical
-    marker's size).
-    """
-    ratio = height_ratio(var_x, var_y, params.pixel_aspect)
-    major, minor, _, _ = principal_axes(var_x, var_y, cov_xy, params.pixel_aspect)
-    sized = (table.pixels >= params.long_wide_min_pixels) & inside
-    marker = sized & ~oversized(table, params)
-    typical = float(np.median(table.pixels[marker])) if marker.any() else np.inf
-    odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
-    # Up to about three typical markers; beyond that a round group is an LED ring.
-    clustered = (table.pixels > 1.6 * typical) & (table.pixels < 3.5 * typical)
-    return sized & (odd_shape | clustered) & (table.pixels < 3.5 * typical)

@@ -44,7 +44,7 @@ def scan_runs(white: NDArray[np.bool_]) -> tuple[NDArray[np.int64], ...]:
     Scan lines without a white pixel are skipped before any per-column work, which is what
     makes the scan cheap on marker images (equation 3's boundary pixels come out directly).
     """
-    rows = np.flatnonzero(white.any(axis=1))
+    rows = white.any(axis=1).nonzero()[0]
     if rows.size == 0:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, empty
@@ -56,11 +56,13 @@ def scan_runs(white: NDArray[np.bool_]) -> tuple[NDArray[np.int64], ...]:
     key = index + line
     start = np.ones(key.size, dtype=bool)
     np.not_equal(key[1:], key[:-1] + 1, out=start[1:])
-    first = np.flatnonzero(start)
+    first = start.nonzero()[0]
     last = np.empty_like(first)
     last[:-1] = first[1:] - 1
     last[-1] = key.size - 1
-    return rows[line[first]].astype(np.int64), x[first].astype(np.int64), x[last].astype(np.int64)
+    # (already int64 where intp is; no copies then)
+    y = rows[line[first]].astype(np.int64, copy=False)
+    return y, x[first].astype(np.int64, copy=False), x[last].astype(np.int64, copy=False)
 
 
 def _neighbour_pairs(
@@ -84,16 +86,23 @@ def _neighbour_pairs(
     firsts, seconds = [], []
     for d in range(1, closeness_rows + 1):
         base = (y - d) * stride
-        lo = np.searchsorted(key_end, base + x1 - gap, side="left")
-        hi = np.searchsorted(key_start, base + x2 + gap, side="right")
+        lo = key_end.searchsorted(base + x1 - gap, side="left")
+        hi = key_start.searchsorted(base + x2 + gap, side="right")
         count = np.maximum(hi - lo, 0)
-        total = int(count.sum())
-        if total == 0:
+        most = int(count.max(initial=0))
+        if most == 0:
             continue
-        a = np.repeat(np.arange(y.size), count)
-        offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+        if most == 1:  # the usual case: no run touches two runs of that line
+            a = count.nonzero()[0]
+            firsts.append(a)
+            seconds.append(lo[a])
+            continue
+        a = np.arange(y.size).repeat(count)
+        offset = np.arange(a.size) - (count.cumsum() - count).repeat(count)
         firsts.append(a)
-        seconds.append(np.repeat(lo, count) + offset)
+        seconds.append(lo.repeat(count) + offset)
+    if len(firsts) == 1:
+        return firsts[0], seconds[0]
     if not firsts:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
@@ -119,7 +128,7 @@ def _components(n: int, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[n
         label[np.maximum(la, lb)] = np.minimum(la, lb)
         while True:
             jumped = label[label]
-            if np.array_equal(jumped, label):
+            if (jumped == label).all():  # array_equal's checks cost more than the compare
                 break
             label = jumped
     return label
@@ -153,5 +162,5 @@ def group_runs(
     # Roots are the first run of their group, so numbering roots in index order numbers
     # groups in scan order (no sort needed).
     is_root = label == np.arange(label.size)
-    group = np.cumsum(is_root)[label] - 1
+    group = is_root.cumsum()[label] - 1
     return Runs(y, x1, x2, group)

@@ -58,7 +58,7 @@ def estimate_growth(
     if np.count_nonzero(usable) < min_groups or abs(1.0 - pixel_aspect) < MIN_ASPECT_CONTRAST:
         return fallback
     per_group = (sigma_x[usable] - pixel_aspect * sigma_y[usable]) / (1.0 - pixel_aspect)
-    return float(np.median(per_group))
+    return small_median(per_group)
 
 
 def corrected_moments(
@@ -68,10 +68,10 @@ def corrected_moments(
     growth: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Second moments with pixel area and growth removed (correlation kept)."""
-    sx, sy = spreads(var_x, var_y)
-    rho = np.clip(cov_xy / np.sqrt(np.maximum(var_x * var_y, 1e-12)), -1.0, 1.0)
-    cx = np.maximum(sx - growth, 0.05)
-    cy = np.maximum(sy - growth, 0.05)
+    # x and y stacked: the same element-wise steps as spreads(), in half the numpy calls
+    spread = np.sqrt(np.maximum(np.stack([var_x, var_y]) - PIXEL_AREA_VAR, 1e-6))
+    rho = np.minimum(np.maximum(cov_xy / np.sqrt(np.maximum(var_x * var_y, 1e-12)), -1.0), 1.0)
+    cx, cy = np.maximum(spread - growth, 0.05)
     return cx * cx, cy * cy, rho * cx * cy
 
 
@@ -105,3 +105,17 @@ def principal_axes(
     half = np.sqrt(((a - c) / 2) ** 2 + b * b)
     theta = 0.5 * np.arctan2(2 * b, a - c)
     return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
+
+
+def small_median(values: NDArray) -> float:
+    """``float(np.median(values))`` of a short 1-D array without NaN, for a tenth of the cost.
+
+    np.median's generic machinery costs about ten microseconds per call whatever the size;
+    for the dozen groups of an image a sort does it: the middle value, or the mean of the
+    two middle ones computed as np.mean does, ``(a + b) / 2``, so the result is the same.
+    """
+    ordered = np.sort(values)
+    k = ordered.size // 2
+    if ordered.size % 2:
+        return float(ordered[k])
+    return float((ordered[k - 1] + ordered[k]) / 2)

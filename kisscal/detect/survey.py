@@ -25,7 +25,7 @@ from kisscal.detect.background import (
     local_background,
     noise_sigma,
 )
-from kisscal.detect.centroid import owner_image, window_moments
+from kisscal.detect.centroid import window_moments
 from kisscal.detect.groups import measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
@@ -170,9 +170,8 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
     peak = np.full(len(table), -np.inf)
     np.maximum.at(peak, slot, contrast[y, x])
     grouping = Grouping.start(runs)
-    owner = owner_image(image.shape, grouping)
     m = MOMENT_MARGIN_PX
-    moments = window_moments(image, white, owner, grouping, table, m, m, bg, 1.0)
+    moments = window_moments(image, white, grouping, table, m, m, bg, 1.0)
     var_x, var_y = moments.var_x, moments.var_y
     h, w = image.shape
     inside = (table.x1 > 0) & (table.y1 > 0) & (table.x2 < w - 1) & (table.y2 < h - 1)

@@ -98,7 +98,7 @@ def split_touching(
     peak's height (its radius), so that markers of different sizes share the neck
     fairly; parts are flagged ``split_touching``.
     """
-    idx = np.flatnonzero(candidates)
+    idx = candidates.nonzero()[0]
     if idx.size == 0:
         return grouping
     labels, found = [], []

@@ -1,0 +1,134 @@
+"""Markers touching an LED ring, separated from it before the size limits.
+
+Not in Shafiq et al. 2001, where such a marker is lost inside the invalid LED group. The
+oversized groups of an image (LED rings of facing cameras: a few per image, in most
+images) are opened, dilated and labelled together on one canvas
+(:func:`~kisscal.detect.groups.group_canvas`), so that the common case, rings with
+nothing attached, costs a handful of OpenCV calls per image rather than per ring.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import blobs as fl
+from kisscal.detect.advanced import Grouping, oversized, split_groups
+from kisscal.detect.groups import GroupTable, group_canvas
+from kisscal.detect.params import DetectionParams
+
+#: One LED ring's parts: ``(x, y, radius)`` of its opened core first, then of each piece.
+Parts = list[tuple[float, float, float]]
+
+
+def detach_from_large(
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    shape: tuple[int, ...] | None = None,
+) -> Grouping:
+    """Separate markers touching an oversized blob (an LED ring) before the size limits.
+
+    The group's white pixels are opened with an elliptical kernel of ``detach_kernel_px``
+    (larger than any marker, smaller than an LED ring): what the opening removes and does
+    not border the opened blob is a marker sticking out of it when it has at least
+    ``detach_min_pixels`` (and ``min_pixels``) pixels and does not touch the border of an
+    image of ``shape`` (the opening leaves slivers in the corners of a ring the border
+    cuts), provided the opened blob alone still has more than ``max_pixels`` pixels. The
+    group is then split between the blob and those markers by distance relative to each
+    one's size (:func:`~kisscal.detect.advanced.split_groups`).
+    """
+    if params.detach_kernel_px is None or params.max_pixels is None:
+        return grouping
+    idx = oversized(table, params).nonzero()[0]
+    if idx.size == 0:
+        return grouping
+    kw, kh = map(int, params.detach_kernel_px)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
+    # The opening reaches kh // 2 rows: kh black rows keep each crop's opening its own
+    # (and, the ellipse's middle row and column being full, a crop's own black border
+    # stops an erosion exactly where the crop's edge would).
+    canvas, top = group_canvas(grouping.runs, table, idx, gap=kh)
+    core = cv2.morphologyEx(canvas, cv2.MORPH_OPEN, kernel)
+    # Only a blob that stays oversized without the pieces is an LED ring; overlapping
+    # markers have no such core and are left to the overlap and long/wide tests.
+    ring = np.add.reduceat(np.count_nonzero(core, axis=1), top) > params.max_pixels
+    if not ring.any():
+        return grouping
+    found = _ring_parts(canvas, core, top, ring, table, idx, params, shape)
+    if not found:
+        return grouping
+    k = max(len(p) for p in found.values())
+    table_xyr = np.full((len(found), k, 3), np.nan)
+    for row, parts in enumerate(found.values()):
+        table_xyr[row, : len(parts)] = parts
+    radii = np.where(np.isnan(table_xyr[:, :, 2]), 1.0, table_xyr[:, :, 2])
+    return split_groups(
+        grouping,
+        table.label[np.fromiter(found, dtype=np.int64)],
+        table_xyr[:, :, 0],
+        table_xyr[:, :, 1],
+        np.full(len(found), fl.DETACHED),
+        params.pixel_aspect,
+        radii,
+    )
+
+
+def _ring_parts(
+    canvas: NDArray[np.uint8],
+    core: NDArray[np.uint8],
+    top: NDArray[np.int64],
+    ring: NDArray[np.bool_],
+    table: GroupTable,
+    idx: NDArray[np.int64],
+    params: DetectionParams,
+    shape: tuple[int, ...] | None,
+) -> dict[int, Parts]:
+    """The core and the marker-sized pieces of every LED ring that lost pieces to the
+    opening, by table row (rings in table order).
+
+    A piece is a component of what the opening removed, away from the opened blob.
+    Positions are image pixels, each piece's centroid summed over its own pixels so that
+    it does not depend on where its crop lies on the canvas.
+    """
+    residual = canvas & (1 - cv2.dilate(core, np.ones((3, 3), np.uint8)))
+    _, labels, stats, cents = cv2.connectedComponentsWithStats(residual, connectivity=8)
+    left, above, w, h, area = stats[1:].T
+    # size first: most images' rings leave only slivers (nine in ten in the gait trial)
+    keep = (area >= max(params.detach_min_pixels, params.min_pixels)) & (w >= 2) & (h >= 2)
+    if not keep.any():
+        return {}
+    crop = top.searchsorted(above, side="right") - 1
+    above = above - top[crop]  # rows within the crop
+    x0 = table.x1[idx] - 1
+    y0 = table.y1[idx] - 1
+    keep &= ring[crop]
+    if shape is not None:  # slivers of a ring cut by the image border
+        px, py = x0[crop] + left, y0[crop] + above
+        keep &= (px > 0) & (py > 0) & (px + w < shape[1]) & (py + h < shape[0])
+    found: dict[int, Parts] = {}
+    for j in keep.nonzero()[0].tolist():  # the rare pieces, in ring then label order
+        c = int(crop[j])
+        rows = np.nonzero(labels[top[c] : top[c] + table.height[idx[c]] + 2] == j + 1)[0]
+        r = np.sqrt(area[j] / (np.pi * params.pixel_aspect))
+        piece = (float(x0[c] + cents[j + 1][0]), float(y0[c] + rows.mean()), float(r))
+        if c not in found:
+            found[c] = _core_centre(core, top, c, x0[c], y0[c], params)
+        found[c].append(piece)
+    return {int(idx[c]): parts for c, parts in found.items()}
+
+
+def _core_centre(
+    core: NDArray[np.uint8],
+    top: NDArray[np.int64],
+    c: int,
+    x0: int,
+    y0: int,
+    params: DetectionParams,
+) -> Parts:
+    """The opened blob of crop ``c``: its centroid (image pixels) and round radius."""
+    bottom = top[c + 1] if c + 1 < top.size else core.shape[0]
+    cy, cx = np.nonzero(core[top[c] : bottom])
+    r = np.sqrt(cx.size / (np.pi * params.pixel_aspect))
+    return [(float(x0 + cx.mean()), float(y0 + cy.mean()), float(r))]

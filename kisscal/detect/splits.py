@@ -1,0 +1,195 @@
+"""The split tests of one image's groups: touching markers, overlapped pairs (Shafiq et
+al. 2001, section 2.3.2) and long/wide groups (2.3.3), with the weighted moments they read.
+
+What the tests read of the groups (the image border, the size limits, growth-corrected
+moments and the shapes derived from them) is worked out once per set of groups
+(:class:`_Facts`) and again only after a test split a group: most images split nothing,
+and each fact costs a handful of numpy calls on a dozen groups, where the calls' own
+overhead is what counts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import blobs as fl
+from kisscal.detect.advanced import (
+    Grouping,
+    long_wide_split,
+    overlap_split,
+    oversized,
+    splittable,
+)
+from kisscal.detect.centroid import Background, SpotMoments, window_moments
+from kisscal.detect.groups import GroupTable, measure_groups
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.shape import (
+    corrected_moments,
+    estimate_growth,
+    height_ratio,
+    principal_axes,
+    small_median,
+    spreads,
+)
+from kisscal.detect.touching import split_touching
+
+
+@dataclass(frozen=True)
+class Spots:
+    """What the weighted moments of a grouping need besides the grouping itself."""
+
+    image: NDArray
+    white: NDArray[np.bool_]
+    background: Background
+    params: DetectionParams
+
+    def moments(self, grouping: Grouping, table: GroupTable) -> SpotMoments:
+        p = self.params
+        return window_moments(
+            self.image,
+            self.white,
+            grouping,
+            table,
+            p.centroid_margin_x_px,
+            p.centroid_margin_y_px,
+            self.background,
+            p.pixel_aspect,
+        )
+
+
+def split_markers(
+    grouping: Grouping, table: GroupTable, spots: Spots, params: DetectionParams
+) -> tuple[Grouping, GroupTable, SpotMoments]:
+    """Touching, overlap (2.3.2) and long/wide (2.3.3) splits; moments after the last one.
+
+    Moments, and the facts the tests derive from them, are recomputed only after a test
+    actually split a group. The growth of the image's spots is estimated once, from the
+    groups before any split.
+    """
+    moments = spots.moments(grouping, table)
+    if not (params.split_overlaps or params.split_long_wide or params.split_touching):
+        return grouping, table, moments
+    facts = _Facts(grouping, table, moments, spots.white.shape, params)
+    tests = [
+        (params.split_touching, _touching_step),
+        (params.split_overlaps, _overlap_step),
+        (params.split_long_wide, _long_wide_step),
+    ]
+    for enabled, test in tests:
+        if not enabled:
+            continue
+        split = test(facts)
+        if split is not facts.grouping:
+            table = measure_groups(split.runs)
+            moments = spots.moments(split, table)
+            facts = _Facts(split, table, moments, facts.shape, params, facts.growth)
+    return facts.grouping, facts.table, facts.moments
+
+
+class _Facts:
+    """One set of groups and what the split tests read of it, each computed on first use."""
+
+    def __init__(
+        self,
+        grouping: Grouping,
+        table: GroupTable,
+        moments: SpotMoments,
+        shape: tuple[int, ...],
+        params: DetectionParams,
+        growth: float | None = None,
+    ) -> None:
+        self.grouping = grouping
+        self.table = table
+        self.moments = moments
+        self.shape = shape
+        self.params = params
+        self.growth = self._image_growth() if growth is None else growth
+
+    def _image_growth(self) -> float:
+        p = self.params
+        sx, sy = spreads(self.moments.core_var_x, self.moments.core_var_y)
+        usable = self.inside & (self.table.pixels >= p.long_wide_min_pixels) & ~self.oversized
+        return estimate_growth(sx, sy, usable, p.pixel_aspect, p.growth_px, p.growth_min_groups)
+
+    @cached_property
+    def inside(self) -> NDArray[np.bool_]:
+        """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
+        height, width = self.shape
+        t = self.table
+        return (t.x1 > 0) & (t.y1 > 0) & (t.x2 < width - 1) & (t.y2 < height - 1)
+
+    @cached_property
+    def oversized(self) -> NDArray[np.bool_]:
+        return oversized(self.table, self.params)
+
+    @cached_property
+    def corrected(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Core moments with pixel area and the image's growth removed."""
+        m = self.moments
+        return corrected_moments(m.core_var_x, m.core_var_y, m.core_cov_xy, self.growth)
+
+    @cached_property
+    def ratio(self) -> NDArray[np.float64]:
+        return height_ratio(self.corrected[0], self.corrected[1], self.params.pixel_aspect)
+
+    @cached_property
+    def axes(self) -> tuple[NDArray[np.float64], ...]:
+        return principal_axes(*self.corrected, self.params.pixel_aspect)
+
+    @cached_property
+    def testable(self) -> NDArray[np.bool_]:
+        """Groups the overlap and long/wide tests may split.
+
+        Not those cut by the image border, not those too large to be a marker cluster
+        (:func:`~kisscal.detect.advanced.splittable`), and not the parts of a
+        touching-marker split or markers detached from an LED ring unless they are large
+        enough to hold two markers (1.6 times the image's typical marker): a part cut at
+        a neck has a flattened side that the shape tests would misread.
+        """
+        table = self.table
+        inside = self.inside & splittable(table, self.params)
+        flags = self.grouping.flags[table.label]
+        part = (flags & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
+        if not part.any():
+            return inside
+        whole = inside & ~part
+        typical = small_median(table.pixels[whole]) if whole.any() else 0.0
+        return inside & (~part | (table.pixels > 1.6 * typical))
+
+    def not_single(self) -> NDArray[np.bool_]:
+        """Groups worth the distance-transform test: not shaped or sized like one marker.
+
+        Cheap moment and size checks keep the (per-group) distance transform off the many
+        groups that are plainly single markers, and off LED rings (several times a typical
+        marker's size).
+        """
+        pixels = self.table.pixels
+        major, minor, _, _ = self.axes
+        sized = (pixels >= self.params.long_wide_min_pixels) & self.inside
+        marker = sized & ~self.oversized
+        typical = small_median(pixels[marker]) if marker.any() else np.inf
+        ratio = self.ratio
+        odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
+        # Up to about three typical markers; beyond that a round group is an LED ring.
+        clustered = (pixels > 1.6 * typical) & (pixels < 3.5 * typical)
+        return sized & (odd_shape | clustered) & (pixels < 3.5 * typical)
+
+
+def _touching_step(facts: _Facts) -> Grouping:
+    candidates = facts.not_single() & splittable(facts.table, facts.params)
+    return split_touching(facts.grouping, facts.table, facts.params, candidates)
+
+
+def _overlap_step(facts: _Facts) -> Grouping:
+    core = (facts.moments.x, facts.moments.y, *facts.corrected)
+    return overlap_split(
+        facts.grouping, facts.table, facts.params, core, facts.testable, facts.axes
+    )
+
+
+def _long_wide_step(facts: _Facts) -> Grouping:
+    return long_wide_split(facts.grouping, facts.table, facts.params, facts.ratio, facts.testable)
