@@ -62,7 +62,7 @@ def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
                 continue
             gap_fields = np.arange(lo, hi) + f0
             i = np.searchsorted(mf, gap_fields[0])
-            sel = np.r_[max(i - ctx, 0) : min(i + ctx, mf.size)]
+            sel = np.arange(max(i - ctx, 0), min(i + ctx, mf.size))
             k = min(3, sel.size - 1)
             spline = make_interp_spline(mf[sel], mxyz[sel], k=k)
             new_f.append(gap_fields)

@@ -136,6 +136,7 @@ class Live:
         self.kalman = np.zeros(capacity, dtype=bool)
         self.misses = np.zeros(capacity, dtype=np.int64)
         self.alive = np.zeros(capacity, dtype=bool)
+        self._sample_point = np.empty(capacity, dtype=np.int64)  # scratch of _update
 
     def add(self, field: int, ids: NDArray, point: NDArray, xyz: NDArray) -> None:
         """Start a track on each point (lowest free rows first) and record its sample."""
@@ -165,6 +166,7 @@ class Live:
         self.kalman = np.r_[self.kalman, np.zeros(more, dtype=bool)]
         self.misses = np.r_[self.misses, np.zeros(more, dtype=np.int64)]
         self.alive = np.r_[self.alive, np.zeros(more, dtype=bool)]
+        self._sample_point = np.empty(self.alive.size, dtype=np.int64)
 
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
         """Extend the live tracks by this field's ``points`` (input rows ``point``), with
@@ -287,8 +289,9 @@ class Live:
             state[born, :, 1] = np.einsum("k,tkc->tc", setup.w_vel, recent)
             self.age[born] = 0
             self.kalman[born] = True
-        out = np.flatnonzero(self.alive & stay)
-        sample_point = np.full(self.alive.size, -1, dtype=np.int64)
+        out = (self.alive & stay).nonzero()[0]
+        sample_point = self._sample_point
+        sample_point.fill(-1)
         sample_point[rows] = point[cols]
         self.samples.add(field, self.ids[out], sample_point[out], z[out], state[out])
         self.alive &= stay

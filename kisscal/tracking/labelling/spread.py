@@ -42,13 +42,18 @@ def by_segments(
     Returns the name pinned by two or more partners (-1 if none), the free names that one
     partner allows, and those without any partner in view.
     """
-    d = np.linalg.norm(name_pos[:, piece_fields] - piece_xyz[None], axis=2)  # (n, F)
+    # Called thousands of times on pieces of a few fields (ghosts), so written for few
+    # numpy calls: the norm as np.linalg.norm computes it, and NaN (a name not held in a
+    # field) left in the residual where the weight drops it anyway.
+    diff = name_pos[:, piece_fields] - piece_xyz[None]
+    d = np.sqrt(np.add.reduce(diff * diff, axis=2))  # (n, F)
     seen = np.isfinite(d)
-    used = rigid[free] & seen.any(axis=1)[None, :]  # (J, n)
+    partners = rigid[free]  # (J, n)
+    used = partners & seen.any(axis=1)
     # Short pieces are mostly ghosts: ask them for a closer fit.
     short = piece_fields.size < params.min_track_length
     tolerance = params.label_segment_tolerance_mm * (0.5 if short else 1.0)
-    residual2 = (np.nan_to_num(d)[None, :, :] - template_distance[free][:, :, None]) ** 2
+    residual2 = (d[None, :, :] - template_distance[free][:, :, None]) ** 2
     weight = used[:, :, None] & seen[None, :, :]
     count = weight.sum(axis=(1, 2))
     rms = np.sqrt(np.where(weight, residual2, 0.0).sum(axis=(1, 2)) / np.maximum(count, 1))
@@ -57,7 +62,7 @@ def by_segments(
     # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
     # body may touch by chance; two pin it to a circle, enough for a piece that moves
     # along it for a few fields; a point or two needs three when the name has three.
-    n_partners = rigid[free].sum(axis=1)
+    n_partners = partners.sum(axis=1)
     pinned = fits & (n_used >= np.minimum(3 if piece_fields.size < 3 else 2, n_partners))
     pinned &= n_used >= 2
     best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
@@ -138,9 +143,9 @@ def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: Trackin
     points) within ``split_tolerance_mm`` RMS; with no such samples the piece passes.
     """
     reach = params.max_fill_gap_fields + 1
-    near = np.r_[
-        np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1)
-    ]
+    near = np.concatenate(
+        (np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1))
+    )
     near = near[(near >= 0) & (near < track_pos.shape[0])]
     near = near[np.isfinite(track_pos[near, 0])]
     if near.size < 2:
@@ -160,7 +165,7 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     j, one_partner, unknown = by_segments(
         f_t, xyz_t, free, state.name_pos, rigid, state.template_distance, params
     )
-    undecided = np.r_[one_partner, unknown]
+    undecided = np.concatenate((one_partner, unknown))
     long = state.n_measured[t] >= params.min_track_length
     if j < 0 and undecided.size == 1 and one_partner.size == 1 and long:
         # Every other free name is ruled out by its rigid partners and one partner
@@ -177,6 +182,19 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     return j
 
 
+def _has_free_name(state: LabelState, pieces: NDArray) -> NDArray[np.bool_]:
+    """Whether some name is held in none of each piece's fields (all pieces at once)."""
+    if pieces.size == 0:
+        return np.zeros(0, dtype=bool)
+    held = np.isfinite(state.name_pos[:, :, 0])  # (n, n_fields)
+    lengths = state.stop[pieces] - state.start[pieces]
+    offsets = np.r_[0, np.cumsum(lengths)[:-1]]
+    # The rows of every piece, one after another.
+    rows = np.repeat(state.start[pieces] - offsets, lengths) + np.arange(lengths.sum())
+    held_any = np.logical_or.reduceat(held[:, state.tracks.field[rows]], offsets, axis=1)
+    return ~held_any.all(axis=0)
+
+
 def spread(state: LabelState) -> None:
     """Phase 2: other pieces, longest first, take names by their rigid partners, in
     sweeps until a sweep names nothing; a sweep retries only pieces near fields where
@@ -187,6 +205,10 @@ def spread(state: LabelState) -> None:
         changed = False
         min_points = state.params.min_label_points
         waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= min_points))
+        # Names are only given during a sweep, never taken: a piece without a free name
+        # now has none at its turn either, and would take none (most are ghosts seen
+        # with every marker).
+        waiting = waiting[_has_free_name(state, waiting)]
         for t in waiting[np.argsort(-state.n_measured[waiting], kind="stable")]:
             f_t = state.tracks.field[state.start[t] : state.stop[t]]
             if sweep > 1 and stamp[f_t].max() < sweep - 1:
