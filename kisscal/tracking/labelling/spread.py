@@ -182,17 +182,91 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     return j
 
 
+def _piece_rows(state: LabelState, pieces: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """The rows of every piece one after another, where each piece starts among them,
+    and how many rows each has."""
+    lengths = state.stop[pieces] - state.start[pieces]
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    rows = np.repeat(state.start[pieces] - offsets, lengths) + np.arange(lengths.sum())
+    return rows, offsets, lengths
+
+
 def _has_free_name(state: LabelState, pieces: NDArray) -> NDArray[np.bool_]:
     """Whether some name is held in none of each piece's fields (all pieces at once)."""
     if pieces.size == 0:
         return np.zeros(0, dtype=bool)
-    held = np.isfinite(state.name_pos[:, :, 0])  # (n, n_fields)
-    lengths = state.stop[pieces] - state.start[pieces]
-    offsets = np.r_[0, np.cumsum(lengths)[:-1]]
-    # The rows of every piece, one after another.
-    rows = np.repeat(state.start[pieces] - offsets, lengths) + np.arange(lengths.sum())
-    held_any = np.logical_or.reduceat(held[:, state.tracks.field[rows]], offsets, axis=1)
-    return ~held_any.all(axis=0)
+    rows, offsets, _ = _piece_rows(state, pieces)
+    held = np.isfinite(state.name_pos[:, state.tracks.field[rows], 0])
+    return ~np.logical_or.reduceat(held, offsets, axis=1).all(axis=0)
+
+
+def _hopeless(state: LabelState, pieces: NDArray, rigid: NDArray) -> NDArray[np.bool_]:
+    """Which of ``pieces`` (too short for the body fit or the one-partner rule) no free
+    name fits by two seen rigid partners: :func:`by_segments` would return -1, as long
+    as no name is given in their fields. All pieces at once; the RMS, summed in another
+    order here, is given a margin of 1e-6, far above the rounding."""
+    params = state.params
+    rows, offsets, lengths = _piece_rows(state, pieces)
+    diff = state.name_pos[:, state.tracks.field[rows]] - state.tracks.xyz_mm[rows]
+    d = np.sqrt(np.add.reduce(diff * diff, axis=2))  # (n, S): NaN where a name is not held
+    seen = np.isfinite(d)
+    seen_in_piece = np.logical_or.reduceat(seen, offsets, axis=1)  # (n, P)
+    j, k = np.nonzero(rigid)  # the rigid pairs, by name j
+    if j.size == 0:
+        return np.ones(pieces.size, dtype=bool)
+    residual2 = np.where(seen[k], (d[k] - state.template_distance[j, k][:, None]) ** 2, 0.0)
+    # Sums per piece and then per name, as reductions (not BLAS, which may spread over
+    # threads for nothing).
+    first = np.flatnonzero(np.concatenate(([True], j[1:] != j[:-1])))
+    per_piece = np.stack(
+        [
+            np.add.reduceat(residual2, offsets, axis=1),
+            np.add.reduceat(seen[k], offsets, axis=1, dtype=float),
+            seen_in_piece[k],
+        ]
+    )  # (3, pairs, P)
+    total, count, n_used = np.add.reduceat(per_piece, first, axis=1)  # (names, P) each
+    rms = np.sqrt(total / np.maximum(count, 1.0))
+    tolerance = params.label_segment_tolerance_mm * np.where(
+        lengths < params.min_track_length, 0.5, 1.0
+    )
+    could_pin = ~seen_in_piece[j[first]] & (n_used >= 2) & (rms <= tolerance * (1 + 1e-6))
+    return ~could_pin.any(axis=0)
+
+
+def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int) -> bool:
+    """One pass of :func:`spread` over the unnamed pieces, longest first; whether it
+    named any."""
+    params = state.params
+    waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= params.min_label_points))
+    # Names are only given during a sweep, never taken: a piece without a free name now
+    # has none at its turn either, and would take none.
+    waiting = waiting[_has_free_name(state, waiting)]
+    waiting = waiting[np.argsort(-state.n_measured[waiting], kind="stable")]
+    # The short pieces come last, most of them ghosts: once the longer pieces have had
+    # their turn, they are screened all at once and only those that could be named by
+    # their rigid partners, or around which a name is given after the screening, tried.
+    few = min(params.min_body_fit_points, params.min_track_length)
+    n_long = int((state.n_measured[waiting] >= few).sum())
+    hopeless = np.zeros(waiting.size, dtype=bool)
+    touched = np.zeros(state.n_fields, dtype=bool)  # names given after the screening
+    changed = False
+    for i, t in enumerate(waiting.tolist()):
+        if i == n_long:
+            hopeless[i:] = _hopeless(state, waiting[i:], rigid)
+            touched[:] = False
+        f_t = state.tracks.field[state.start[t] : state.stop[t]]
+        if sweep > 1 and stamp[f_t].max() < sweep - 1:
+            continue  # nothing new around this piece since it was last tried
+        if hopeless[i] and not touched[f_t].any():
+            continue
+        j = name_for_piece(state, t, rigid)
+        if j >= 0:
+            state.name_piece(t, j)
+            stamp[f_t] = sweep
+            touched[f_t] = True
+            changed = True
+    return changed
 
 
 def spread(state: LabelState) -> None:
@@ -202,23 +276,7 @@ def spread(state: LabelState) -> None:
     rigid = state.rigid_pairs()
     stamp = np.zeros(state.n_fields, dtype=np.int64)  # last pass that named something there
     for sweep in range(1, MAX_SWEEPS + 1):
-        changed = False
-        min_points = state.params.min_label_points
-        waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= min_points))
-        # Names are only given during a sweep, never taken: a piece without a free name
-        # now has none at its turn either, and would take none (most are ghosts seen
-        # with every marker).
-        waiting = waiting[_has_free_name(state, waiting)]
-        for t in waiting[np.argsort(-state.n_measured[waiting], kind="stable")]:
-            f_t = state.tracks.field[state.start[t] : state.stop[t]]
-            if sweep > 1 and stamp[f_t].max() < sweep - 1:
-                continue  # nothing new around this piece since it was last tried
-            j = name_for_piece(state, int(t), rigid)
-            if j >= 0:
-                state.name_piece(int(t), j)
-                stamp[f_t] = sweep
-                changed = True
-        if not changed:
+        if not _sweep(state, rigid, stamp, sweep):
             break
         # Newly named pieces may show more rigid pairs (a name absent from the average
         # pose had none yet).
