@@ -35,9 +35,9 @@ _SINGLE_STEP_WEIGHT = 0.1
 class Setup:
     """What every field's step needs from the parameters, computed once.
 
-    Tables indexed by a row's counters: ``shafiq`` and ``floor`` by its number of points
-    (clamped at ``n_cap``), ``gain`` by its filter's age and ``drift`` by its consecutive
-    misses (both at most the number of steps).
+    Tables indexed by a row's counters, each at most the number of steps plus one:
+    ``shafiq`` and ``floor`` by its number of points, ``gain`` by its filter's age and
+    ``drift`` by its consecutive misses.
     """
 
     params: TrackingParams
@@ -49,35 +49,30 @@ class Setup:
     floor: NDArray
     gain: NDArray
     drift: NDArray
-    n_cap: int
 
     @classmethod
     def of(cls, params: TrackingParams, n_steps: int) -> Setup:
         n_init = params.min_initial_length
-        # Above n_init so that a row reaching n_init (a filter starts) is told from a
-        # filtered row.
-        n_cap = max(n_init, _HISTORY) + 1
         w_pos = extrapolation_weights(n_init, 1, 0)
-        shafiq = np.zeros((n_cap + 1, _HISTORY))
-        for n in range(1, n_cap + 1):
+        shafiq = np.zeros((_HISTORY + 1, _HISTORY))
+        for n in range(1, _HISTORY + 1):
             used, degree = shafiq_rule(n)
             shafiq[n, _HISTORY - used :] = extrapolation_weights(used, degree, 1)
+        counts = np.arange(n_steps + 2)
         # An initial track's gate is at least half the initial gate, a one-point track's
         # the whole (its extrapolation is the point itself, so the other term is 0).
-        floor = np.full((n_cap + 1, 1), 0.5 * params.initial_gate_mm)
+        floor = np.full((n_steps + 2, 1), 0.5 * params.initial_gate_mm)
         floor[1] = params.initial_gate_mm
-        misses = np.arange(n_steps + 2)
         return cls(
             params=params,
             m_axes=np.asarray(params.gate_m),
             k_axes=np.asarray(params.gate_k_mm_per_field),
             w_pos=w_pos,
             w_vel=extrapolation_weights(n_init, 1, 1) - w_pos,
-            shafiq=shafiq,
+            shafiq=shafiq[np.minimum(counts, _HISTORY)],
             floor=floor,
             gain=kalman_gains(params.initial_error, params.pnc, params.mnc, n_steps + 1),
-            drift=(0.5 * params.coast_accel_mm_per_field2 * ((misses + 1) ** 2 - 1))[:, None],
-            n_cap=n_cap,
+            drift=(0.5 * params.coast_accel_mm_per_field2 * ((counts + 1) ** 2 - 1))[:, None],
         )
 
 
@@ -129,14 +124,17 @@ class Live:
         self.setup = setup
         self.samples = Samples()
         self.ids = np.full(capacity, -1, dtype=np.int64)
-        self.n = np.ones(capacity, dtype=np.int64)
+        # Points, filter age and consecutive misses, counted up together each field.
+        self.counts = np.zeros((capacity, 3), dtype=np.int64)
         self.history = np.zeros((capacity, _HISTORY, 3))
         self.state = np.zeros((capacity, 3, 2))
-        self.age = np.zeros(capacity, dtype=np.int64)
         self.kalman = np.zeros(capacity, dtype=bool)
-        self.misses = np.zeros(capacity, dtype=np.int64)
         self.alive = np.zeros(capacity, dtype=bool)
-        self._sample_point = np.empty(capacity, dtype=np.int64)  # scratch of _update
+        self._bind()
+
+    def _bind(self) -> None:
+        self.n, self.age, self.misses = self.counts.T
+        self._sample_point = np.empty(self.alive.size, dtype=np.int64)  # scratch of _update
 
     def add(self, field: int, ids: NDArray, point: NDArray, xyz: NDArray) -> None:
         """Start a track on each point (lowest free rows first) and record its sample."""
@@ -146,27 +144,23 @@ class Live:
             slots = np.flatnonzero(~self.alive)
         slots = slots[: ids.size]
         self.ids[slots] = ids
-        self.n[slots] = 1
+        self.counts[slots] = (1, 0, 0)
         self.history[slots] = 0.0
         self.history[slots, -1] = xyz
         self.state[slots] = np.nan  # no filter yet
-        self.age[slots] = 0
         self.kalman[slots] = False
-        self.misses[slots] = 0
         self.alive[slots] = True
         self.samples.add(field, ids, point, xyz, self.state[slots])
 
     def _grow(self, extra: int) -> None:
         more = max(extra, self.ids.size)
-        self.ids = np.r_[self.ids, np.full(more, -1, dtype=np.int64)]
-        self.n = np.r_[self.n, np.ones(more, dtype=np.int64)]
+        self.ids = np.concatenate([self.ids, np.full(more, -1, dtype=np.int64)])
+        self.counts = np.concatenate([self.counts, np.zeros((more, 3), dtype=np.int64)])
         self.history = np.concatenate([self.history, np.zeros((more, _HISTORY, 3))])
         self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
-        self.age = np.r_[self.age, np.zeros(more, dtype=np.int64)]
-        self.kalman = np.r_[self.kalman, np.zeros(more, dtype=bool)]
-        self.misses = np.r_[self.misses, np.zeros(more, dtype=np.int64)]
-        self.alive = np.r_[self.alive, np.zeros(more, dtype=bool)]
-        self._sample_point = np.empty(self.alive.size, dtype=np.int64)
+        self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
+        self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
+        self._bind()
 
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
         """Extend the live tracks by this field's ``points`` (input rows ``point``), with
@@ -214,7 +208,7 @@ class Live:
         inside = near[0] & near[1]
         inside &= near[2]
         inside &= self.alive[:, None]
-        rows, cols = np.nonzero(inside)
+        rows, cols = inside.nonzero()
         if _one_to_one(rows, cols):
             # No point is wanted by two gates and no gate holds two points: the
             # assignment is the gating itself.
@@ -229,15 +223,15 @@ class Live:
         params = self.setup.params
         kal = self.kalman
         single = ~kal & (self.n == 1)
-        rows_alive = np.flatnonzero(self.alive)
+        rows_alive = self.alive.nonzero()[0]
         taken = np.zeros(points.shape[0], dtype=bool)
         out_rows, out_cols = [np.empty(0, dtype=np.int64)], [np.empty(0, dtype=np.int64)]
         for tier in (kal, ~kal & ~single, single):
             rows = rows_alive[tier[rows_alive]]
-            free = np.flatnonzero(~taken)
+            free = (~taken).nonzero()[0]
             if rows.size == 0 or free.size == 0:
                 continue
-            r, c = np.nonzero(inside[rows][:, free])
+            r, c = inside[rows][:, free].nonzero()
             if not _one_to_one(r, c):
                 extra = None
                 if tier is single:
@@ -274,14 +268,13 @@ class Live:
         state = self.state
         innovation = z - state[..., 0]
         state += setup.gain[self.age][:, None, :] * innovation[:, :, None]
-        self.age += 1
         # An initial track ends at its first miss, a filtered one after max_coasted_fields.
         stay = hit | (self.kalman & (self.misses < params.max_coasted_fields))
-        self.misses += 1
+        self.counts += 1
         self.misses[rows] = 0
         self.history[:, :-1] = self.history[:, 1:]
         self.history[:, -1] = z
-        np.minimum(self.n + 1, setup.n_cap, out=self.n)
+        # Only an initial track reaches n_init now (a filtered one had it before).
         born = hit & (self.n == params.min_initial_length)
         if born.any():
             recent = self.history[born, -params.min_initial_length :]
