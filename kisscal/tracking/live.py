@@ -95,8 +95,8 @@ class Samples:
         self, field: int, track: NDArray, point: NDArray, xyz: NDArray, filtered: NDArray
     ) -> None:
         """One sample per entry of ``track``: ``point`` is the input row (-1: coasted,
-        the prediction stands in), ``filtered`` (k, 3, 2) the filter state (pos, vel)
-        where ``filtered[:, 0, 1]`` is NaN for a track without a filter."""
+        the prediction stands in), ``filtered`` (k, 3, 2) the filter state (position,
+        velocity per axis), NaN for a track without a filter."""
         self._fields.append(field)
         self._parts.append((track, point, xyz, filtered))
 
@@ -116,8 +116,9 @@ class Samples:
 class Live:
     """Struct of arrays for the tracks alive at the current field, with spare rows.
 
-    ``state`` holds each filter's (position, velocity) per axis; a row without a filter
-    (an initial track, or a dead row) has NaN there, which also marks it in the samples.
+    ``state`` holds each filter's (position, velocity) per axis; an initial track (no
+    filter yet) has NaN there, which marks its samples as unfiltered. Dead rows are
+    computed too, and never recorded.
     """
 
     def __init__(self, setup: Setup, capacity: int = 16) -> None:
@@ -133,6 +134,7 @@ class Live:
         self._bind()
 
     def _bind(self) -> None:
+        """Views of the counters, and scratch space, for the current capacity."""
         self.n, self.age, self.misses = self.counts.T
         self._sample_point = np.empty(self.alive.size, dtype=np.int64)  # scratch of _update
 
