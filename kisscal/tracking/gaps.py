@@ -8,8 +8,6 @@ measured samples on both sides. Smoothing uses the generalised cross-validation 
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline, make_smoothing_spline
@@ -25,21 +23,6 @@ def _runs(mask: NDArray) -> tuple[NDArray, NDArray]:
     padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
     d = np.diff(padded)
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-
-
-@lru_cache(maxsize=512)
-def _spline_weights(x: tuple[int, ...], at: tuple[int, ...]) -> NDArray[np.float64]:
-    """(len(at), len(x)) weights ``W`` such that ``W @ y`` is the interpolating spline
-    through ``(x, y)`` (cubic, or lower with few points) at ``at``.
-
-    The spline is linear in ``y``, so its value anywhere is a fixed combination of the
-    data; gaps share a few patterns of context fields (relative to their first), and one
-    spline of the identity per pattern replaces a spline per gap (equal to ~1e-13 mm).
-    """
-    k = min(3, len(x) - 1)
-    return make_interp_spline(np.asarray(x, dtype=float), np.eye(len(x)), k=k)(
-        np.asarray(at, dtype=float)
-    )
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[NDArray, ...]]:
@@ -67,9 +50,8 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
         gap_fields = np.arange(lo, hi) + f0
         i = int(np.searchsorted(mf, gap_fields[0]))
         sel = slice(max(i - ctx, 0), min(i + ctx, mf.size))
-        x0 = int(mf[sel.start])
-        weights = _spline_weights(tuple((mf[sel] - x0).tolist()), tuple((gap_fields - x0).tolist()))
-        out.append((gap_fields, weights @ mxyz[sel]))
+        k = min(3, sel.stop - sel.start - 1)
+        out.append((gap_fields, make_interp_spline(mf[sel], mxyz[sel], k=k)(gap_fields)))
     return out
 
 
