@@ -100,23 +100,13 @@ def make_tracks(field, track, xyz_mm, corrected_mm, status, point) -> Tracks:
     of their first field (ties by old number)."""
     field = np.asarray(field, dtype=np.int64)
     track = np.asarray(track, dtype=np.int64)
-    order = np.lexsort((field, track))
     if track.size:
-        # Sorted by old number then field, each track is a block starting at its first
-        # field: renumbering only reorders the blocks (the same order as sorting by new
-        # number then field, without a second sort of every sample).
-        old = track[order]
-        start = np.flatnonzero(np.concatenate(([True], old[1:] != old[:-1])))
-        length = np.diff(np.append(start, old.size))
-        by_rank = np.lexsort((old[start], field[order[start]]))
-        new_start = np.cumsum(length[by_rank]) - length[by_rank]
-        order = order[np.repeat(start[by_rank] - new_start, length[by_rank]) + np.arange(old.size)]
-        track = np.repeat(np.arange(start.size), length[by_rank])
-    else:
-        track = track[order]
+        _ids, rank, inverse = numbering(field, track)
+        track = rank[inverse]
+    order = np.lexsort((field, track))
     return Tracks(
         field=field[order],
-        track=track,
+        track=track[order],
         xyz_mm=np.asarray(xyz_mm, dtype=float).reshape(-1, 3)[order],
         corrected_mm=np.asarray(corrected_mm, dtype=float).reshape(-1, 3)[order],
         status=np.asarray(status, dtype=np.int8)[order],
