@@ -52,8 +52,8 @@ def bridge_residual_mm(
     The degree is 3, or lower when few points are given (at least two points are left
     over for the residual).
     """
-    f = np.r_[fields_a, fields_b].astype(float)
-    x = np.r_[xyz_a, xyz_b]
+    f = np.concatenate((fields_a, fields_b)).astype(float)
+    x = np.concatenate((xyz_a, xyz_b))
     degree = min(3, f.size - 3)
     if degree < 1:
         return float("inf")

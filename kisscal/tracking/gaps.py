@@ -15,12 +15,44 @@ from scipy.interpolate import make_interp_spline, make_smoothing_spline
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED, MEASURED, PREDICTED, Tracks, make_tracks
 
+_COLUMNS = ("field", "track", "xyz_mm", "corrected_mm", "status", "point")
+
 
 def _runs(mask: NDArray) -> tuple[NDArray, NDArray]:
     """Start and stop (exclusive) of each run of True in a 1-D mask."""
     padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
     d = np.diff(padded)
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[NDArray, ...]]:
+    """(gap fields, filled positions) of each gap of one track's ``rows`` to fill."""
+    f = tracks.field[rows]
+    status = tracks.status[rows]
+    meas = status == MEASURED
+    mf = f[meas]
+    f0, f1 = mf[0], mf[-1]
+    kept = meas | (status == FILLED)
+    if not params.refill_predicted:
+        kept |= status == PREDICTED
+    covered = np.zeros(f1 - f0 + 1, dtype=bool)
+    inside = (f >= f0) & (f <= f1)
+    covered[f[kept & inside] - f0] = True
+    gap_lo, gap_hi = _runs(~covered)
+    if gap_lo.size == 0:
+        return []
+    ctx = max(params.fill_context_fields, 2)
+    mxyz = tracks.xyz_mm[rows][meas]
+    out = []
+    for lo, hi in zip(gap_lo.tolist(), gap_hi.tolist(), strict=True):
+        if hi - lo > params.max_fill_gap_fields:
+            continue
+        gap_fields = np.arange(lo, hi) + f0
+        i = int(np.searchsorted(mf, gap_fields[0]))
+        sel = slice(max(i - ctx, 0), min(i + ctx, mf.size))
+        k = min(3, sel.stop - sel.start - 1)
+        out.append((gap_fields, make_interp_spline(mf[sel], mxyz[sel], k=k)(gap_fields)))
+    return out
 
 
 def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
@@ -35,64 +67,29 @@ def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
     if tracks.field.size == 0:
         return tracks
     start, stop = tracks.bounds()
-    fields_out, track_out, xyz_out, corr_out, status_out, point_out = [], [], [], [], [], []
-    ctx = max(params.fill_context_fields, 2)
+    filled_fields, filled_track, filled_xyz = [], [], []
     for t in range(tracks.n_tracks):
-        rows = slice(start[t], stop[t])
-        f = tracks.field[rows]
-        status = tracks.status[rows]
-        meas = status == MEASURED
-        f0, f1 = f[meas][0], f[meas][-1]
-        span = f1 - f0 + 1
-        present = np.zeros(span, dtype=bool)
-        present[f[meas] - f0] = True
-        kept = meas | (status == FILLED)
-        if not params.refill_predicted:
-            kept |= status == PREDICTED
-        covered = np.zeros(span, dtype=bool)
-        inside = (f >= f0) & (f <= f1)
-        covered[f[kept & inside] - f0] = True
-        gap_lo, gap_hi = _runs(~covered)
-        new_f: list[NDArray] = []
-        new_xyz: list[NDArray] = []
-        mf = f[meas]
-        mxyz = tracks.xyz_mm[rows][meas]
-        for lo, hi in zip(gap_lo, gap_hi, strict=True):
-            if hi - lo > params.max_fill_gap_fields:
-                continue
-            gap_fields = np.arange(lo, hi) + f0
-            i = np.searchsorted(mf, gap_fields[0])
-            sel = np.r_[max(i - ctx, 0) : min(i + ctx, mf.size)]
-            k = min(3, sel.size - 1)
-            spline = make_interp_spline(mf[sel], mxyz[sel], k=k)
-            new_f.append(gap_fields)
-            new_xyz.append(spline(gap_fields))
-        drop = np.zeros(f.size, dtype=bool)
-        if new_f:
-            filled_fields = np.concatenate(new_f)
-            drop = np.isin(f, filled_fields)
-        keep_rows = np.flatnonzero(~drop) + start[t]
-        fields_out.append(tracks.field[keep_rows])
-        track_out.append(tracks.track[keep_rows])
-        xyz_out.append(tracks.xyz_mm[keep_rows])
-        corr_out.append(tracks.corrected_mm[keep_rows])
-        status_out.append(tracks.status[keep_rows])
-        point_out.append(tracks.point[keep_rows])
-        if new_f:
-            n = filled_fields.size
-            fields_out.append(filled_fields)
-            track_out.append(np.full(n, t))
-            xyz_out.append(np.concatenate(new_xyz))
-            corr_out.append(np.full((n, 3), np.nan))
-            status_out.append(np.full(n, FILLED, dtype=np.int8))
-            point_out.append(np.full(n, -1))
+        for gap_fields, xyz in _track_gaps(tracks, slice(start[t], stop[t]), params):
+            filled_fields.append(gap_fields)
+            filled_track.append(np.full(gap_fields.size, t))
+            filled_xyz.append(xyz)
+    if not filled_fields:
+        return make_tracks(*(getattr(tracks, c) for c in _COLUMNS))
+    new_field = np.concatenate(filled_fields)
+    new_track = np.concatenate(filled_track)
+    # A filled sample replaces the track's sample there (a Kalman prediction).
+    n_fields = int(max(tracks.field.max(), new_field.max())) + 1
+    replaced = np.zeros(tracks.n_tracks * n_fields, dtype=bool)
+    replaced[new_track * n_fields + new_field] = True
+    keep = ~replaced[tracks.track * n_fields + tracks.field]
+    n = new_field.size
     return make_tracks(
-        np.concatenate(fields_out),
-        np.concatenate(track_out),
-        np.concatenate(xyz_out),
-        np.concatenate(corr_out),
-        np.concatenate(status_out),
-        np.concatenate(point_out),
+        np.concatenate([tracks.field[keep], new_field]),
+        np.concatenate([tracks.track[keep], new_track]),
+        np.concatenate([tracks.xyz_mm[keep], *filled_xyz]),
+        np.concatenate([tracks.corrected_mm[keep], np.full((n, 3), np.nan)]),
+        np.concatenate([tracks.status[keep], np.full(n, FILLED, dtype=np.int8)]),
+        np.concatenate([tracks.point[keep], np.full(n, -1)]),
     )
 
 

@@ -113,3 +113,31 @@ def kalman_correct(
     new_state = state + gain[:, None, :] * innovation[:, :, None]
     new_cov = cov - gain[:, :, None] * cov[:, None, 0, :]
     return new_state, new_cov
+
+
+def kalman_gains(initial_error: float, pnc: float, mnc: float, n_ages: int) -> NDArray[np.float64]:
+    """Gain (position, velocity) of a filter's correction at each age 0..n_ages-1.
+
+    Q, R and H are the same for every filter and a filter corrects on every field (with
+    its prediction when the point is missing, §3.3.9), so its covariance, and hence its
+    gain, depends only on how many fields it has run since it started with
+    ``initial_error * I``. A tracker may then look the gain up instead of carrying a 2 x 2
+    covariance per track. The arithmetic is that of :func:`kalman_predict` followed by
+    :func:`kalman_correct`, term by term in the same order, so the gains are the same
+    numbers to the last bit. Returns (n_ages, 2).
+    """
+    gains = np.empty((max(n_ages, 0), 2))
+    p00, p01, p11 = float(initial_error), 0.0, float(initial_error)
+    for age in range(n_ages):
+        a00 = p00 + 2 * p01 + p11 + pnc
+        a01 = p01 + p11
+        a11 = p11 + pnc
+        g0, g1 = a00 / (a00 + mnc), a01 / (a00 + mnc)
+        gains[age] = g0, g1
+        after = (a00 - g0 * a00, a01 - g0 * a01, a11 - g1 * a01)
+        if after == (p00, p01, p11):
+            # A fixed point (typically within a few dozen fields): every later age alike.
+            gains[age + 1 :] = g0, g1
+            break
+        p00, p01, p11 = after
+    return gains

@@ -6,6 +6,7 @@ from kisscal.tracking.predictors import (
     extrapolation_weights,
     gate_half_width,
     kalman_correct,
+    kalman_gains,
     kalman_predict,
 )
 
@@ -64,3 +65,16 @@ def test_kalman_matches_a_plain_matrix_implementation():
         state, cov = kalman_correct(state, cov, z[None], 0.1)
         np.testing.assert_allclose(state[0], x, atol=1e-10)
         np.testing.assert_allclose(cov[0], p, atol=1e-12)
+
+
+@pytest.mark.parametrize(("pnc", "mnc"), [(0.5, 0.025), (0.05, 0.05), (0.005, 0.1)])
+def test_gain_table_is_bit_for_bit_the_covariance_updates(pnc, mnc):
+    # The tracker looks gains up by filter age: they must be the very numbers the 2 x 2
+    # covariance updates give, not merely close.
+    state, cov = np.zeros((1, 3, 2)), 1.5 * np.eye(2)[None]
+    gains = kalman_gains(1.5, pnc, mnc, 200)
+    for age in range(200):
+        state, cov = kalman_predict(state, cov, pnc)
+        expected = cov[0, :, 0] / (cov[0, 0, 0] + mnc)
+        assert np.array_equal(gains[age], expected)
+        state, cov = kalman_correct(state, cov, np.zeros((1, 3)), mnc)

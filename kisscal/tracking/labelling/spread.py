@@ -42,13 +42,18 @@ def by_segments(
     Returns the name pinned by two or more partners (-1 if none), the free names that one
     partner allows, and those without any partner in view.
     """
-    d = np.linalg.norm(name_pos[:, piece_fields] - piece_xyz[None], axis=2)  # (n, F)
+    # Called thousands of times on pieces of a few fields (ghosts), so written for few
+    # numpy calls: the norm as np.linalg.norm computes it, and NaN (a name not held in a
+    # field) left in the residual where the weight drops it anyway.
+    diff = name_pos[:, piece_fields] - piece_xyz[None]
+    d = np.sqrt(np.add.reduce(diff * diff, axis=2))  # (n, F)
     seen = np.isfinite(d)
-    used = rigid[free] & seen.any(axis=1)[None, :]  # (J, n)
+    partners = rigid[free]  # (J, n)
+    used = partners & seen.any(axis=1)
     # Short pieces are mostly ghosts: ask them for a closer fit.
     short = piece_fields.size < params.min_track_length
     tolerance = params.label_segment_tolerance_mm * (0.5 if short else 1.0)
-    residual2 = (np.nan_to_num(d)[None, :, :] - template_distance[free][:, :, None]) ** 2
+    residual2 = (d[None, :, :] - template_distance[free][:, :, None]) ** 2
     weight = used[:, :, None] & seen[None, :, :]
     count = weight.sum(axis=(1, 2))
     rms = np.sqrt(np.where(weight, residual2, 0.0).sum(axis=(1, 2)) / np.maximum(count, 1))
@@ -57,7 +62,7 @@ def by_segments(
     # One partner leaves the piece anywhere on a sphere around it, which a ghost near the
     # body may touch by chance; two pin it to a circle, enough for a piece that moves
     # along it for a few fields; a point or two needs three when the name has three.
-    n_partners = rigid[free].sum(axis=1)
+    n_partners = partners.sum(axis=1)
     pinned = fits & (n_used >= np.minimum(3 if piece_fields.size < 3 else 2, n_partners))
     pinned &= n_used >= 2
     best = int(free[np.argmin(np.where(pinned, rms, np.inf))]) if pinned.any() else -1
@@ -108,9 +113,12 @@ def by_body_fit(
     ``label_tolerance_mm`` and no other is 1.5 times closer.
     """
     dist = body_fit_distances(piece_fields, piece_xyz, free, name_pos, template)
-    if np.isnan(dist).all():
+    # A row is NaN throughout or nowhere: the median of the rows with distances is the
+    # NaN-aware median, without np.nanmedian's masked arrays (slow on small ones).
+    fitted = ~np.isnan(dist[:, 0])
+    if not fitted.any():
         return -1
-    score = np.nanmedian(dist, axis=0)
+    score = np.median(dist[fitted], axis=0)
     order = np.argsort(score)
     best = score[order[0]]
     second = score[order[1]] if order.size > 1 else np.inf
@@ -138,9 +146,9 @@ def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: Trackin
     points) within ``split_tolerance_mm`` RMS; with no such samples the piece passes.
     """
     reach = params.max_fill_gap_fields + 1
-    near = np.r_[
-        np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1)
-    ]
+    near = np.concatenate(
+        (np.arange(fields[0] - reach, fields[0]), np.arange(fields[-1] + 1, fields[-1] + reach + 1))
+    )
     near = near[(near >= 0) & (near < track_pos.shape[0])]
     near = near[np.isfinite(track_pos[near, 0])]
     if near.size < 2:
@@ -160,7 +168,7 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     j, one_partner, unknown = by_segments(
         f_t, xyz_t, free, state.name_pos, rigid, state.template_distance, params
     )
-    undecided = np.r_[one_partner, unknown]
+    undecided = np.concatenate((one_partner, unknown))
     long = state.n_measured[t] >= params.min_track_length
     if j < 0 and undecided.size == 1 and one_partner.size == 1 and long:
         # Every other free name is ruled out by its rigid partners and one partner
@@ -177,6 +185,93 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     return j
 
 
+def _piece_rows(state: LabelState, pieces: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """The rows of every piece one after another, where each piece starts among them,
+    and how many rows each has."""
+    lengths = state.stop[pieces] - state.start[pieces]
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    rows = np.repeat(state.start[pieces] - offsets, lengths) + np.arange(lengths.sum())
+    return rows, offsets, lengths
+
+
+def _has_free_name(state: LabelState, pieces: NDArray) -> NDArray[np.bool_]:
+    """Whether some name is held in none of each piece's fields (all pieces at once)."""
+    if pieces.size == 0:
+        return np.zeros(0, dtype=bool)
+    rows, offsets, _ = _piece_rows(state, pieces)
+    held = np.isfinite(state.name_pos[:, state.tracks.field[rows], 0])
+    return ~np.logical_or.reduceat(held, offsets, axis=1).all(axis=0)
+
+
+def _hopeless(state: LabelState, pieces: NDArray, rigid: NDArray) -> NDArray[np.bool_]:
+    """Which of ``pieces`` (too short for the body fit or the one-partner rule) no free
+    name fits by two seen rigid partners: :func:`by_segments` would return -1, as long
+    as no name is given in their fields. All pieces at once; the RMS, summed in another
+    order here, is given a margin of 1e-6, far above the rounding."""
+    params = state.params
+    rows, offsets, lengths = _piece_rows(state, pieces)
+    diff = state.name_pos[:, state.tracks.field[rows]] - state.tracks.xyz_mm[rows]
+    d = np.sqrt(np.add.reduce(diff * diff, axis=2))  # (n, S): NaN where a name is not held
+    seen = np.isfinite(d)
+    seen_in_piece = np.logical_or.reduceat(seen, offsets, axis=1)  # (n, P)
+    j, k = np.nonzero(rigid)  # the rigid pairs, by name j
+    if j.size == 0:
+        return np.ones(pieces.size, dtype=bool)
+    residual2 = np.where(seen[k], (d[k] - state.template_distance[j, k][:, None]) ** 2, 0.0)
+    # Sums per piece and then per name, as reductions (not BLAS, which may spread over
+    # threads for nothing).
+    first = np.flatnonzero(np.concatenate(([True], j[1:] != j[:-1])))
+    per_piece = np.stack(
+        [
+            np.add.reduceat(residual2, offsets, axis=1),
+            np.add.reduceat(seen[k], offsets, axis=1, dtype=float),
+            seen_in_piece[k],
+        ]
+    )  # (3, pairs, P)
+    total, count, n_used = np.add.reduceat(per_piece, first, axis=1)  # (names, P) each
+    rms = np.sqrt(total / np.maximum(count, 1.0))
+    tolerance = params.label_segment_tolerance_mm * np.where(
+        lengths < params.min_track_length, 0.5, 1.0
+    )
+    could_pin = ~seen_in_piece[j[first]] & (n_used >= 2) & (rms <= tolerance * (1 + 1e-6))
+    return ~could_pin.any(axis=0)
+
+
+def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int) -> bool:
+    """One pass of :func:`spread` over the unnamed pieces, longest first; whether it
+    named any."""
+    params = state.params
+    waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= params.min_label_points))
+    # Names are only given during a sweep, never taken: a piece without a free name now
+    # has none at its turn either, and would take none.
+    waiting = waiting[_has_free_name(state, waiting)]
+    waiting = waiting[np.argsort(-state.n_measured[waiting], kind="stable")]
+    # The short pieces come last, most of them ghosts: once the longer pieces have had
+    # their turn, they are screened all at once and only those that could be named by
+    # their rigid partners, or around which a name is given after the screening, tried.
+    few = min(params.min_body_fit_points, params.min_track_length)
+    n_long = int((state.n_measured[waiting] >= few).sum())
+    hopeless = np.zeros(waiting.size, dtype=bool)
+    touched = np.zeros(state.n_fields, dtype=bool)  # names given after the screening
+    changed = False
+    for i, t in enumerate(waiting.tolist()):
+        if i == n_long:
+            hopeless[i:] = _hopeless(state, waiting[i:], rigid)
+            touched[:] = False
+        f_t = state.tracks.field[state.start[t] : state.stop[t]]
+        if sweep > 1 and stamp[f_t].max() < sweep - 1:
+            continue  # nothing new around this piece since it was last tried
+        if hopeless[i] and not touched[f_t].any():
+            continue
+        j = name_for_piece(state, t, rigid)
+        if j >= 0:
+            state.name_piece(t, j)
+            stamp[f_t] = sweep
+            touched[f_t] = True
+            changed = True
+    return changed
+
+
 def spread(state: LabelState) -> None:
     """Phase 2: other pieces, longest first, take names by their rigid partners, in
     sweeps until a sweep names nothing; a sweep retries only pieces near fields where
@@ -184,19 +279,7 @@ def spread(state: LabelState) -> None:
     rigid = state.rigid_pairs()
     stamp = np.zeros(state.n_fields, dtype=np.int64)  # last pass that named something there
     for sweep in range(1, MAX_SWEEPS + 1):
-        changed = False
-        min_points = state.params.min_label_points
-        waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= min_points))
-        for t in waiting[np.argsort(-state.n_measured[waiting], kind="stable")]:
-            f_t = state.tracks.field[state.start[t] : state.stop[t]]
-            if sweep > 1 and stamp[f_t].max() < sweep - 1:
-                continue  # nothing new around this piece since it was last tried
-            j = name_for_piece(state, int(t), rigid)
-            if j >= 0:
-                state.name_piece(int(t), j)
-                stamp[f_t] = sweep
-                changed = True
-        if not changed:
+        if not _sweep(state, rigid, stamp, sweep):
             break
         # Newly named pieces may show more rigid pairs (a name absent from the average
         # pose had none yet).

@@ -1,0 +1,78 @@
+"""Association of a field's points to the track gates (Küçük 2005 §3.3.8-3.3.9).
+
+One-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment`` on
+gate-normalised squared distances) rather than first-come nearest neighbour; a one-point
+track, which has no velocity, is judged by the field after (:func:`lookahead_cost`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+_FAR = 1e12
+
+
+def associate(
+    predicted: NDArray,
+    half_width: NDArray,
+    points: NDArray,
+    extra_cost: NDArray | None = None,
+    distance_weight: float = 1.0,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """One-to-one assignment of points to track gates.
+
+    Parameters
+    ----------
+    predicted : (T, 3) predicted positions (mm).
+    half_width : (T, 3) gate half-widths per axis (mm).
+    points : (M, 3) candidate points (mm).
+    extra_cost : (T, M) array, optional
+        Added to the cost of each pair (e.g. a look-ahead term).
+    distance_weight : float
+        Weight of the gate-normalised squared distance in the cost.
+
+    Returns
+    -------
+    rows, cols : matched track and point indices; every pair lies inside its box gate and
+    the sum of gate-normalised squared distances is minimal over all one-to-one matchings.
+    """
+    if predicted.shape[0] == 0 or points.shape[0] == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty
+    scaled = (points[None, :, :] - predicted[:, None, :]) / half_width[:, None, :]
+    inside = (np.abs(scaled) <= 1.0).all(axis=2)
+    rows_any = np.flatnonzero(inside.any(axis=1))
+    cols_any = np.flatnonzero(inside.any(axis=0))
+    if rows_any.size == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty
+    cost = distance_weight * np.einsum("tmc,tmc->tm", scaled, scaled)
+    if extra_cost is not None:
+        cost = cost + extra_cost
+    sub_inside = inside[np.ix_(rows_any, cols_any)]
+    sub = np.where(sub_inside, cost[np.ix_(rows_any, cols_any)], _FAR)
+    r, c = linear_sum_assignment(sub)
+    keep = sub_inside[r, c]
+    return rows_any[r[keep]], cols_any[c[keep]]
+
+
+def lookahead_cost(
+    start: NDArray, candidates: NDArray, later: NDArray, half_width: float
+) -> NDArray[np.float64]:
+    """Cost of continuing one-point tracks through each candidate, judged one field on.
+
+    A track with one point has no velocity, so its nearest next point may be another
+    marker (a heel marker moving into the place an ankle marker just left). Offline, the
+    field after next is known: the pair (start, candidate) is extrapolated linearly
+    (thesis eq. 3.11) and the squared distance of the nearest point there, in units of
+    ``half_width``, is the cost (capped at 4 when nothing is near).
+
+    Returns (T, M) for ``start`` (T, 3), ``candidates`` (M, 3), ``later`` (K, 3).
+    """
+    if later.shape[0] == 0:
+        return np.zeros((start.shape[0], candidates.shape[0]))
+    ahead = 2.0 * candidates[None, :, :] - start[:, None, :]  # (T, M, 3)
+    d2 = ((ahead[:, :, None, :] - later[None, None, :, :]) ** 2).sum(axis=3).min(axis=2)
+    return np.minimum(d2 / half_width**2, 4.0)

@@ -1,0 +1,292 @@
+"""The tracks alive while :func:`~kisscal.tracking.tracker.track_points` walks the fields.
+
+Tracking a trial costs one step per field, 10 000 for 200 s at 50 Hz, and on a few dozen
+tracks a numpy call costs its overhead (about a microsecond) whatever its size: the step
+is written for few calls (issue 18's profile), and gives the same numbers as the thesis'
+per-track filters:
+
+- every row is computed whether alive or not: one call on all rows costs the same as on
+  the live ones, and it spares gathers and scatters;
+- a filter's covariance depends only on its age (every field predicts and corrects), so
+  its gain is looked up (:func:`~kisscal.tracking.predictors.kalman_gains`); likewise the
+  coasting drift by misses and Shafiq's weights by points;
+- when no point is wanted by two gates and no gate holds two points, the gating is the
+  assignment: the linear sum assignment runs only on conflicts;
+- samples are kept per field as gathered rows and made one table at the end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.association import associate, lookahead_cost
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
+from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
+
+_HISTORY = 5
+_SINGLE_STEP_WEIGHT = 0.1
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What every field's step needs from the parameters, computed once.
+
+    Tables indexed by a row's counters, each at most the number of steps plus one:
+    ``shafiq`` and ``floor`` by its number of points, ``gain`` by its filter's age and
+    ``drift`` by its consecutive misses.
+    """
+
+    params: TrackingParams
+    m_axes: NDArray
+    k_axes: NDArray
+    w_pos: NDArray
+    w_vel: NDArray
+    shafiq: NDArray
+    floor: NDArray
+    gain: NDArray
+    drift: NDArray
+
+    @classmethod
+    def of(cls, params: TrackingParams, n_steps: int) -> Setup:
+        n_init = params.min_initial_length
+        w_pos = extrapolation_weights(n_init, 1, 0)
+        shafiq = np.zeros((_HISTORY + 1, _HISTORY))
+        for n in range(1, _HISTORY + 1):
+            used, degree = shafiq_rule(n)
+            shafiq[n, _HISTORY - used :] = extrapolation_weights(used, degree, 1)
+        counts = np.arange(n_steps + 2)
+        # An initial track's gate is at least half the initial gate, a one-point track's
+        # the whole (its extrapolation is the point itself, so the other term is 0).
+        floor = np.full((n_steps + 2, 1), 0.5 * params.initial_gate_mm)
+        floor[1] = params.initial_gate_mm
+        return cls(
+            params=params,
+            m_axes=np.asarray(params.gate_m),
+            k_axes=np.asarray(params.gate_k_mm_per_field),
+            w_pos=w_pos,
+            w_vel=extrapolation_weights(n_init, 1, 1) - w_pos,
+            shafiq=shafiq[np.minimum(counts, _HISTORY)],
+            floor=floor,
+            gain=kalman_gains(params.initial_error, params.pnc, params.mnc, n_steps + 1),
+            drift=(0.5 * params.coast_accel_mm_per_field2 * ((counts + 1) ** 2 - 1))[:, None],
+        )
+
+
+def _one_to_one(rows: NDArray, cols: NDArray) -> bool:
+    """Whether the (row, point) pairs of a gating use no row and no point twice; then the
+    linear sum assignment would return exactly these pairs (any other matching pays the
+    cost of a pair outside its gate)."""
+    listed_rows, listed_cols = rows.tolist(), cols.tolist()
+    return len(set(listed_rows)) == len(listed_rows) and len(set(listed_cols)) == len(listed_cols)
+
+
+class Samples:
+    """The samples tracking emits, gathered field by field; :meth:`tracks` makes the table."""
+
+    def __init__(self) -> None:
+        self._fields: list[int] = []
+        self._parts: list[tuple[NDArray, ...]] = []
+
+    def add(
+        self, field: int, track: NDArray, point: NDArray, xyz: NDArray, filtered: NDArray
+    ) -> None:
+        """One sample per entry of ``track``: ``point`` is the input row (-1: coasted,
+        the prediction stands in), ``filtered`` (k, 3, 2) the filter state (position,
+        velocity per axis), NaN for a track without a filter."""
+        self._fields.append(field)
+        self._parts.append((track, point, xyz, filtered))
+
+    def tracks(self) -> Tracks:
+        track, point, xyz, filtered = (np.concatenate(c) for c in zip(*self._parts, strict=True))
+        sizes = [p[0].size for p in self._parts]
+        return make_tracks(
+            np.repeat(np.asarray(self._fields, dtype=np.int64), sizes),
+            track,
+            xyz,
+            filtered[:, :, 0],
+            np.where(point >= 0, MEASURED, PREDICTED),
+            point,
+        )
+
+
+class Live:
+    """Struct of arrays for the tracks alive at the current field, with spare rows.
+
+    ``state`` holds each filter's (position, velocity) per axis; an initial track (no
+    filter yet) has NaN there, which marks its samples as unfiltered. Dead rows are
+    computed too, and never recorded.
+    """
+
+    def __init__(self, setup: Setup, capacity: int = 16) -> None:
+        self.setup = setup
+        self.samples = Samples()
+        self.ids = np.full(capacity, -1, dtype=np.int64)
+        # Points, filter age and consecutive misses, counted up together each field.
+        self.counts = np.zeros((capacity, 3), dtype=np.int64)
+        self.history = np.zeros((capacity, _HISTORY, 3))
+        self.state = np.zeros((capacity, 3, 2))
+        self.kalman = np.zeros(capacity, dtype=bool)
+        self.alive = np.zeros(capacity, dtype=bool)
+        self._bind()
+
+    def _bind(self) -> None:
+        """Views of the counters, and scratch space, for the current capacity."""
+        self.n, self.age, self.misses = self.counts.T
+        self._sample_point = np.empty(self.alive.size, dtype=np.int64)  # scratch of _update
+
+    def add(self, field: int, ids: NDArray, point: NDArray, xyz: NDArray) -> None:
+        """Start a track on each point (lowest free rows first) and record its sample."""
+        slots = np.flatnonzero(~self.alive)
+        if slots.size < ids.size:
+            self._grow(ids.size - slots.size)
+            slots = np.flatnonzero(~self.alive)
+        slots = slots[: ids.size]
+        self.ids[slots] = ids
+        self.counts[slots] = (1, 0, 0)
+        self.history[slots] = 0.0
+        self.history[slots, -1] = xyz
+        self.state[slots] = np.nan  # no filter yet
+        self.kalman[slots] = False
+        self.alive[slots] = True
+        self.samples.add(field, ids, point, xyz, self.state[slots])
+
+    def _grow(self, extra: int) -> None:
+        more = max(extra, self.ids.size)
+        self.ids = np.concatenate([self.ids, np.full(more, -1, dtype=np.int64)])
+        self.counts = np.concatenate([self.counts, np.zeros((more, 3), dtype=np.int64)])
+        self.history = np.concatenate([self.history, np.zeros((more, _HISTORY, 3))])
+        self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
+        self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
+        self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
+        self._bind()
+
+    def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
+        """Extend the live tracks by this field's ``points`` (input rows ``point``), with
+        ``later`` the next field's points; returns which points were taken."""
+        pred, half = self._predict()
+        rows, cols = self._gate(pred, half, points, later)
+        self._update(field, pred, rows, cols, points, point)
+        return cols.tolist()
+
+    def _predict(self) -> tuple[NDArray, NDArray]:
+        """Predicted position and gate half-widths (T, 3) of every row."""
+        setup, params = self.setup, self.setup.params
+        state, kal = self.state, self.kalman[:, None]
+        # Kalman prediction (thesis eq. 3.14): x' = x + v; v' = v.
+        state[..., 0] += state[..., 1]
+        position = state[..., 0]
+        parabola = np.einsum("tk,tkc->tc", setup.shafiq[self.n], self.history)
+        pred = np.where(kal, position, parabola)
+        # Gate of a filtered track: eq. 3.16, widened while coasting.
+        half_kalman = setup.m_axes * np.maximum(np.abs(state[..., 1]), setup.k_axes)
+        half_kalman += setup.drift[self.misses]
+        if params.lag_widening:
+            # A filter with little process noise lags an accelerating marker; the distance
+            # from its prediction to Shafiq's five-point parabola through the track's last
+            # positions measures that lag, and widens the gate.
+            half_kalman += np.abs(parabola - position)
+        step = np.abs(parabola - self.history[:, -1])
+        half_initial = np.maximum(params.initial_gate_factor * step, setup.floor[self.n])
+        return pred, np.where(kal, half_kalman, half_initial)
+
+    def _gate(
+        self, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
+    ) -> tuple[NDArray, NDArray]:
+        """Matched rows and points: each point in at most one gate, one per gate."""
+        if not points.shape[0]:
+            empty = np.empty(0, dtype=np.int64)
+            return empty, empty
+        # Axis by axis on contiguous (T, M) planes: several times faster than reducing a
+        # (T, M, 3) array over its short last axis. |d| <= h is exactly |d / h| <= 1 in
+        # IEEE arithmetic (the division rounds above 1 whenever |d| > h), the gate test
+        # of :func:`~kisscal.tracking.association.associate`.
+        pred_t, half_t = np.ascontiguousarray(pred.T), np.ascontiguousarray(half.T)
+        near = np.abs(np.ascontiguousarray(points.T)[:, None, :] - pred_t[:, :, None])
+        near = near <= half_t[:, :, None]
+        inside = near[0] & near[1]
+        inside &= near[2]
+        inside &= self.alive[:, None]
+        rows, cols = inside.nonzero()
+        if _one_to_one(rows, cols):
+            # No point is wanted by two gates and no gate holds two points: the
+            # assignment is the gating itself.
+            return rows, cols
+        return self._assign(inside, pred, half, points, later)
+
+    def _assign(
+        self, inside: NDArray, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
+    ) -> tuple[NDArray, NDArray]:
+        """One-to-one assignment where gates conflict: Kalman tracks choose first; initial
+        tracks take from what is left, those with a velocity before those of one point."""
+        params = self.setup.params
+        kal = self.kalman
+        single = ~kal & (self.n == 1)
+        rows_alive = self.alive.nonzero()[0]
+        taken = np.zeros(points.shape[0], dtype=bool)
+        out_rows, out_cols = [np.empty(0, dtype=np.int64)], [np.empty(0, dtype=np.int64)]
+        for tier in (kal, ~kal & ~single, single):
+            rows = rows_alive[tier[rows_alive]]
+            free = (~taken).nonzero()[0]
+            if rows.size == 0 or free.size == 0:
+                continue
+            r, c = inside[rows][:, free].nonzero()
+            if not _one_to_one(r, c):
+                extra = None
+                if tier is single:
+                    extra = lookahead_cost(
+                        pred[rows], points[free], later, 0.5 * params.initial_gate_mm
+                    )
+                # A one-point track has no velocity: how far the candidate lies says little
+                # (a fast foot moves more than a slow marker's neighbour is away); whether
+                # the pair continues says much.
+                weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
+                r, c = associate(pred[rows], half[rows], points[free], extra, weight)
+            out_rows.append(rows[r])
+            out_cols.append(free[c])
+            taken[free[c]] = True
+        return np.concatenate(out_rows), np.concatenate(out_cols)
+
+    def _update(
+        self,
+        field: int,
+        pred: NDArray,
+        rows: NDArray,
+        cols: NDArray,
+        points: NDArray,
+        point: NDArray,
+    ) -> None:
+        """Correct the filters with the points found (or the predictions, §3.3.9), start
+        filters on initial tracks long enough, record the samples, end the tracks lost."""
+        setup, params = self.setup, self.setup.params
+        hit = np.zeros(self.alive.size, dtype=bool)
+        hit[rows] = True
+        # A missing point is replaced by the prediction, as if measured (§3.3.9).
+        z = pred
+        z[rows] = points[cols]
+        state = self.state
+        innovation = z - state[..., 0]
+        state += setup.gain[self.age][:, None, :] * innovation[:, :, None]
+        # An initial track ends at its first miss, a filtered one after max_coasted_fields.
+        stay = hit | (self.kalman & (self.misses < params.max_coasted_fields))
+        self.counts += 1
+        self.misses[rows] = 0
+        self.history[:, :-1] = self.history[:, 1:]
+        self.history[:, -1] = z
+        # Only an initial track reaches n_init now (a filtered one had it before).
+        born = hit & (self.n == params.min_initial_length)
+        if born.any():
+            recent = self.history[born, -params.min_initial_length :]
+            state[born, :, 0] = np.einsum("k,tkc->tc", setup.w_pos, recent)
+            state[born, :, 1] = np.einsum("k,tkc->tc", setup.w_vel, recent)
+            self.age[born] = 0
+            self.kalman[born] = True
+        out = (self.alive & stay).nonzero()[0]
+        sample_point = self._sample_point
+        sample_point.fill(-1)
+        sample_point[rows] = point[cols]
+        self.samples.add(field, self.ids[out], sample_point[out], z[out], state[out])
+        self.alive &= stay
