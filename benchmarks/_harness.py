@@ -31,6 +31,24 @@ def best_of(name: str, fn: Callable[[], object], items: int, unit: str, repeat: 
     return Timing(name, best, items, unit)
 
 
+def best_of_pair(
+    first: tuple[str, Callable[[], object]],
+    second: tuple[str, Callable[[], object]],
+    items: int,
+    unit: str,
+    repeat: int = 5,
+) -> tuple[Timing, Timing]:
+    """Best of ``repeat`` runs of two callables, taken in turns: a change of load on a
+    shared machine then falls on both, not on whichever ran during it."""
+    best = [float("inf"), float("inf")]
+    for _ in range(repeat):
+        for k, (_name, fn) in enumerate((first, second)):
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return Timing(first[0], best[0], items, unit), Timing(second[0], best[1], items, unit)
+
+
 def report(subject: Timing, reference: Timing | None = None) -> str:
     """One line: throughput of ``subject`` and, if given, its time ratio to ``reference``."""
     line = (

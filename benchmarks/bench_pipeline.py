@@ -28,12 +28,12 @@ import shutil
 import subprocess
 import sys
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import cv2
 import tomli_w
+import tomllib
 
 from benchmarks._harness import Timing, report
 
