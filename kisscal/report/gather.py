@@ -193,7 +193,9 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         names, segments, rate_hz = (), (), 1.0
         session = str(summary.get("session", root.name))
     figures_dir = out / "figures"
-    figures = {p.stem: p for p in sorted(figures_dir.glob("*.png"))} if figures_dir.is_dir() else {}
+    # a hidden name is a figure still being written (kisscal.io.files writes beside, then renames)
+    pngs = sorted(figures_dir.glob("[!.]*.png")) if figures_dir.is_dir() else []
+    figures = {p.stem: p for p in pngs}
     detection_dir = out / "detection"
     detection = {
         c: doc for c in cameras if (doc := _json(detection_dir / f"{c}.json", notes)) is not None

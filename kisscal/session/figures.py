@@ -57,6 +57,18 @@ def _picklable(args: tuple) -> bool:
     return True
 
 
+def wait_for_figures() -> None:
+    """Wait until every figure submitted so far is written (before a report reads them)."""
+    if _STATE["pid"] != os.getpid():
+        return
+    pending = _STATE["pending"]
+    _STATE["pending"] = []
+    for future in pending:
+        error = future.exception()
+        if error is not None:
+            raise error
+
+
 def _start() -> ProcessPoolExecutor | None:
     if "fork" not in multiprocessing.get_all_start_methods() or (os.cpu_count() or 1) < 2:
         return None

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from matplotlib.figure import Figure
 
-from kisscal.session.figures import drawing_beside, submit_figure
+from kisscal.session.figures import drawing_beside, submit_figure, wait_for_figures
 
 MODULE = "tests.session.test_figures"
 
@@ -42,6 +42,14 @@ def test_figures_of_a_block_are_all_written_when_it_ends(tmp_path: Path) -> None
             submit_figure(tmp_path / "inner.png", MODULE, "square", (3,))
     for path in [*paths, tmp_path / "inner.png"]:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_report_waits_for_the_figures_of_the_stages_before_it(tmp_path: Path) -> None:
+    with drawing_beside():
+        for k in range(3):
+            submit_figure(tmp_path / f"stage{k}.png", MODULE, "square", (40,))
+        wait_for_figures()
+        assert sorted(p.name for p in tmp_path.iterdir()) == [f"stage{k}.png" for k in range(3)]
 
 
 def test_a_figure_that_cannot_be_pickled_is_drawn_at_once(tmp_path: Path) -> None:
