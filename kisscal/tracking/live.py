@@ -49,6 +49,7 @@ class Setup:
     floor: NDArray
     gain: NDArray
     drift: NDArray
+    depth: int = _HISTORY
 
     @classmethod
     def of(cls, params: TrackingParams, n_steps: int) -> Setup:
@@ -73,6 +74,8 @@ class Setup:
             floor=floor,
             gain=kalman_gains(params.initial_error, params.pnc, params.mnc, n_steps + 1),
             drift=(0.5 * params.coast_accel_mm_per_field2 * ((counts + 1) ** 2 - 1))[:, None],
+            # an initial track's first filter state is fitted to its last n_init points
+            depth=max(_HISTORY, n_init),
         )
 
 
@@ -127,7 +130,7 @@ class Live:
         self.ids = np.full(capacity, -1, dtype=np.int64)
         # Points, filter age and consecutive misses, counted up together each field.
         self.counts = np.zeros((capacity, 3), dtype=np.int64)
-        self.history = np.zeros((capacity, _HISTORY, 3))
+        self.history = np.zeros((capacity, setup.depth, 3))
         self.state = np.zeros((capacity, 3, 2))
         self.kalman = np.zeros(capacity, dtype=bool)
         self.alive = np.zeros(capacity, dtype=bool)
@@ -158,7 +161,7 @@ class Live:
         more = max(extra, self.ids.size)
         self.ids = np.concatenate([self.ids, np.full(more, -1, dtype=np.int64)])
         self.counts = np.concatenate([self.counts, np.zeros((more, 3), dtype=np.int64)])
-        self.history = np.concatenate([self.history, np.zeros((more, _HISTORY, 3))])
+        self.history = np.concatenate([self.history, np.zeros((more, self.setup.depth, 3))])
         self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
         self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
         self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
@@ -179,7 +182,8 @@ class Live:
         # Kalman prediction (thesis eq. 3.14): x' = x + v; v' = v.
         state[..., 0] += state[..., 1]
         position = state[..., 0]
-        parabola = np.einsum("tk,tkc->tc", setup.shafiq[self.n], self.history)
+        last = self.history[:, -_HISTORY:]  # Shafiq's rule uses up to five points
+        parabola = np.einsum("tk,tkc->tc", setup.shafiq[self.n], last)
         pred = np.where(kal, position, parabola)
         # Gate of a filtered track: eq. 3.16, widened while coasting.
         half_kalman = setup.m_axes * np.maximum(np.abs(state[..., 1]), setup.k_axes)

@@ -125,3 +125,20 @@ def test_short_reacquisition_after_coasting_is_split_off():
 def test_bad_points_raise(field, xyz):
     with pytest.raises(KisscalError):
         track_points(field, xyz, TrackingParams())
+
+
+@pytest.mark.parametrize("n_init", [2, 5, 8, 12])
+def test_any_initial_length_tracks_a_path_whole(n_init):
+    """A longer initial track (more points before the filter starts) was a crash above 5:
+    the tracker kept only the last five positions to fit the filter's first state to."""
+    f = np.arange(120.0)[:, None]
+    path = np.hstack([12.0 * f, 200 + 40 * np.sin(f / 9), 900 + 20 * np.cos(f / 7)])
+    field, xyz, _ = _cloud([path])
+    tracks = track_points(field, xyz, TrackingParams(min_initial_length=n_init))
+    assert tracks.n_tracks == 1
+    measured = tracks.status == MEASURED
+    assert measured.sum() == 120
+    filtered = np.isfinite(tracks.corrected_mm[:, 0])  # NaN until the filter starts
+    assert np.flatnonzero(filtered)[0] == n_init - 1
+    error = tracks.corrected_mm[filtered] - path[tracks.field[filtered].astype(int)]
+    assert np.abs(error).max() < 6.0  # 1 mm noise per axis
