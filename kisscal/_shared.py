@@ -5,7 +5,8 @@
   coordinates before a linear solve (Hartley 1997);
 - :func:`connected_labels`: connected components of a graph given by its edges;
 - :func:`lexsort_ints`: :func:`numpy.lexsort` of integer keys, by radix passes;
-- :func:`n_distinct`: the number of distinct integers, without sorting them.
+- :func:`n_distinct`: the number of distinct integers, without sorting them;
+- :func:`forked_pool` and :func:`inherited`: worker processes that inherit their work.
 
 References
 ----------
@@ -15,8 +16,12 @@ Pattern Analysis and Machine Intelligence, 19(6), 580-593.
 
 from __future__ import annotations
 
+import multiprocessing
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import coo_matrix
@@ -136,3 +141,36 @@ def n_distinct(values: ArrayLike) -> int:
     seen = np.zeros(hi - lo + 1, dtype=bool)
     seen[values - lo] = True
     return int(np.count_nonzero(seen))
+
+
+_INHERITED: dict[str, Any] = {}
+
+
+def _adopt(payload: Any) -> None:
+    # A forked child inherits OpenCV's thread pool without its threads: once the parent has
+    # run a parallel OpenCV call (a detection survey does), the child's first parallel call
+    # can wait forever. A worker process needs no threads of its own.
+    cv2.setNumThreads(0)
+    _INHERITED["payload"] = payload
+
+
+def forked_pool(workers: int, payload: Any = None) -> ProcessPoolExecutor | None:
+    """A pool of ``workers`` forked processes that inherit ``payload`` (:func:`inherited`).
+
+    Forked children share the parent's memory, so the payload (image loaders, the work
+    function and its inputs) is never pickled; only the tasks' arguments and results
+    are. ``None`` where processes cannot be forked: the caller works in its own process.
+    """
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return None
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=_adopt,
+        initargs=(payload,),
+    )
+
+
+def inherited() -> Any:
+    """The payload this worker process of :func:`forked_pool` inherited."""
+    return _INHERITED["payload"]

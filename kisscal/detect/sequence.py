@@ -8,15 +8,13 @@ no image crosses a process boundary and memory does not grow with the number of 
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
-import cv2
 from numpy.typing import NDArray
 
+from kisscal._shared import forked_pool, inherited
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import DEFAULT_PARAMS, detect_blobs
@@ -36,24 +34,20 @@ class ImageJob:
     chunksize: int = CHUNK_IMAGES
 
 
-_WORKER: dict[str, Sequence[ImageJob]] = {}
-
-
-def _init_worker(jobs: Sequence[ImageJob]) -> None:
-    # A forked child inherits OpenCV's thread pool without its threads: once the parent has
-    # run a parallel OpenCV call (the settings survey does), the child's first parallel
-    # call can wait forever. A worker process needs no threads of its own.
-    cv2.setNumThreads(0)
-    _WORKER["jobs"] = jobs
-
-
-def _detect_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], str | None]:
+def _chunk(
+    jobs: Sequence[ImageJob], job: int, start: int, stop: int
+) -> tuple[list[Blobs], str | None]:
     """Blobs of images ``start:stop`` of job ``job``, or the error that stopped them."""
-    spec = _WORKER["jobs"][job]
+    spec = jobs[job]
     try:
         return [detect_blobs(spec.load(i), spec.params) for i in range(start, stop)], None
     except KisscalError as exc:  # a bad frame fails its own sequence, not the others
         return [], str(exc)
+
+
+def _inherited_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], str | None]:
+    """:func:`_chunk` in a worker process, of the jobs it inherited."""
+    return _chunk(inherited(), job, start, stop)
 
 
 def _chunks(jobs: Sequence[ImageJob]) -> list[tuple[int, int, int]]:
@@ -94,20 +88,13 @@ def detect_jobs(
         raise KisscalError(f"detect: workers must be >= 1, got {workers}")
     chunks = _chunks(jobs)
     workers = min(workers, len(chunks))
-    methods = multiprocessing.get_all_start_methods()
-    if workers <= 1 or "fork" not in methods:
-        _init_worker(jobs)
-        results: Iterator = (_detect_chunk(*c) for c in chunks)
-        yield from _by_job(jobs, chunks, results)
+    pool = forked_pool(workers, jobs) if workers > 1 else None
+    if pool is None:
+        yield from _by_job(jobs, chunks, (_chunk(jobs, *c) for c in chunks))
         return
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=multiprocessing.get_context("fork"),
-        initializer=_init_worker,
-        initargs=(jobs,),
-    ) as pool:
+    with pool:
         job, start, stop = zip(*chunks, strict=True)
-        yield from _by_job(jobs, chunks, pool.map(_detect_chunk, job, start, stop))
+        yield from _by_job(jobs, chunks, pool.map(_inherited_chunk, job, start, stop))
 
 
 def _by_job(

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import multiprocessing
 import os
 import pickle
 import warnings
@@ -21,6 +20,8 @@ from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
+
+from kisscal._shared import forked_pool
 
 _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": []}
 
@@ -42,19 +43,20 @@ def draw_figure(path: Path, module: str, function: str, args: tuple) -> None:
 def submit_figure(path: Path, module: str, function: str, args: tuple) -> None:
     """Draw a figure in the background process when there is one here, else now."""
     pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
-    if pool is None or not _picklable(args):
-        draw_figure(path, module, function, args)
-        return
-    _STATE["pending"].append(pool.submit(draw_figure, path, module, function, args))
-
-
-def _picklable(args: tuple) -> bool:
-    """Whether the figure's data can travel to the background process."""
+    figure = (path, module, function, args)
     try:
-        pickle.dumps(args, protocol=pickle.HIGHEST_PROTOCOL)
+        # pickled here, once: data that cannot travel is drawn at once instead
+        packed = pickle.dumps(figure, protocol=pickle.HIGHEST_PROTOCOL) if pool else None
     except (pickle.PicklingError, TypeError, AttributeError):
-        return False
-    return True
+        packed = None
+    if pool is None or packed is None:
+        draw_figure(*figure)
+        return
+    _STATE["pending"].append(pool.submit(_draw_packed, packed))
+
+
+def _draw_packed(packed: bytes) -> None:
+    draw_figure(*pickle.loads(packed))
 
 
 def wait_for_figures() -> None:
@@ -70,9 +72,8 @@ def wait_for_figures() -> None:
 
 
 def _start() -> ProcessPoolExecutor | None:
-    if "fork" not in multiprocessing.get_all_start_methods() or (os.cpu_count() or 1) < 2:
-        return None
-    return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"))
+    """The background process, where there is a core to spare for it."""
+    return forked_pool(1) if (os.cpu_count() or 1) >= 2 else None
 
 
 @contextlib.contextmanager

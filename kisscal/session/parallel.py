@@ -9,26 +9,16 @@ worker says is repeated by the parent, camera by camera, in the cameras' order.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
-import cv2
-
+from kisscal._shared import forked_pool, inherited
 from kisscal.errors import KisscalError
 from kisscal.session.progress import Echo, counted
 
 T = TypeVar("T")
 R = TypeVar("R")
-
-_WORK: dict[str, Any] = {}
-
-
-def _init(work: Callable[[Any, Echo], Any], items: Sequence[Any]) -> None:
-    cv2.setNumThreads(0)  # see kisscal.detect.sequence: forked children and OpenCV's pool
-    _WORK["work"], _WORK["items"] = work, items
 
 
 def _call(work: Callable[[Any, Echo], Any], item: Any) -> tuple[Any, list[str]]:
@@ -40,23 +30,21 @@ def _call(work: Callable[[Any, Echo], Any], item: Any) -> tuple[Any, list[str]]:
         return exc, said
 
 
-def _one(index: int) -> tuple[Any, list[str]]:
-    return _call(_WORK["work"], _WORK["items"][index])
+def _inherited_call(index: int) -> tuple[Any, list[str]]:
+    """:func:`_call` in a worker process, on item ``index`` of what it inherited."""
+    work, items = inherited()
+    return _call(work, items[index])
 
 
 def _results(
     work: Callable[[Any, Echo], Any], items: Sequence[Any], workers: int
 ) -> Iterator[tuple[Any, list[str]]]:
-    if workers <= 1:
+    pool = forked_pool(workers, (work, items)) if workers > 1 else None
+    if pool is None:
         yield from (_call(work, item) for item in items)
         return
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=multiprocessing.get_context("fork"),
-        initializer=_init,
-        initargs=(work, items),
-    ) as pool:
-        yield from pool.map(_one, range(len(items)))
+    with pool:
+        yield from pool.map(_inherited_call, range(len(items)))
 
 
 def each_camera(
@@ -73,8 +61,6 @@ def each_camera(
     others' files are written).
     """
     n = min(workers or os.cpu_count() or 1, len(items))
-    if "fork" not in multiprocessing.get_all_start_methods():
-        n = 1
     results: list[R] = []
     failed: KisscalError | None = None
     for result, said in counted(_results(work, items, n), stage, len(items)):
