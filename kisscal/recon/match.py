@@ -212,14 +212,13 @@ def match_triple(
     F = all_fundamentals(dlts) if F is None else F
     # rank blobs by (field, camera) so that every pair and triple is increasing in rank
     order = lexsort_ints((camera, field))
-    blocks = _field_blocks(field[order], TRIPLE_BLOCK_FIELDS)
-    tri, tri_rms, tri_xyz = (
-        np.concatenate(parts)
-        for parts in zip(
-            *(_good_triples(order[a:b], field, camera, uv, dlts, F, params) for a, b in blocks),
-            strict=True,
-        )
-    )
+    parts = [
+        _good_triples(order[a:b], field, camera, uv, dlts, F, params)
+        for a, b in _field_blocks(field[order], TRIPLE_BLOCK_FIELDS)
+    ]
+    tri = np.concatenate([p[0] for p in parts])
+    tri_rms = np.concatenate([p[1] for p in parts])
+    tri_xyz = np.concatenate([p[2] for p in parts])
     next_id = 0
     while len(tri):
         # the best triple of each blob: the lowest rms_px, ties to the first triple (as

@@ -78,7 +78,6 @@ def camera_detection(
     current = _current(root, camera, kind, given)
     if current is not None:
         return current
-    key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
     sample = _sample(config, camera, kind)
     if sample is None:
         raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
@@ -93,7 +92,7 @@ def camera_detection(
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
     doc = _read_document(path, camera)
-    doc["kinds"][kind] = {**setup.as_dict(), "key": key}
+    doc["kinds"][kind] = {**setup.as_dict(), "key": _key(camera, kind, given)}
     write_json(path, doc)
     echo(f"  detection {camera.id} {setup.summary()}")
     return setup.params
@@ -104,11 +103,15 @@ def _current(
 ) -> DetectionParams | None:
     """The camera's settings for ``kind`` as kept, if derived with the same given values."""
     doc = _read_document(out_dir(root) / "detection" / f"{camera.id}.json", camera)
-    key = cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
     entry = doc["kinds"].get(kind)
-    if entry is not None and entry.get("key") == key:
+    if entry is not None and entry.get("key") == _key(camera, kind, given):
         return _params_from_doc(entry, given)
     return None
+
+
+def _key(camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
+    """What a camera's settings for ``kind`` were derived from: they stand while it does."""
+    return cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
 
 
 def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
