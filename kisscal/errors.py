@@ -16,9 +16,3 @@ class KisscalError(ValueError):
 
     exit_code: int = 2
 
-
-class NotBuiltError(KisscalError):
-    """A pipeline stage that this version of kisscal does not provide yet."""
-
-    def __init__(self, command: str, stage: str) -> None:
-        super().__init__(f"kisscal {command}: the {stage} stage is not built yet")

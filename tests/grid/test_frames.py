@@ -40,7 +40,6 @@ def test_average_frames_is_the_mean_and_checks_shapes():
 
 def test_rendered_grid_frames_give_every_dot():
     """Dots about 7 x 3 px: detection's long/wide split would halve some (off for grids)."""
-    pytest.importorskip("kisscal.detect.pipeline", reason="detection stage not merged yet")
     view = make_grid_view(seed=41, noise_px=0.0, pitch_over_z=0.043)  # all inside
     clean = render_dots(view.distorted_uv) + 12.0
     rng = np.random.default_rng(41)

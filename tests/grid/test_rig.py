@@ -104,7 +104,6 @@ def test_missing_dots_and_extra_blobs_change_the_correction_little(plan):
 @pytest.mark.slow
 def test_rendered_grid_frames_through_detection(plan):
     """The whole stage on the rig's rendered grid frames: average, detect, index, fit."""
-    pytest.importorskip("kisscal.detect.pipeline", reason="detection stage not merged yet")
     from kisscal.grid import linearise_frames
 
     for k, cam in enumerate(plan.rig):

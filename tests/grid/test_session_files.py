@@ -13,9 +13,6 @@ from kisscal.grid import apply_linearisation
 from kisscal.io.linearisation import read_linearisation, write_linearisation
 from tests.grid.grid_synth import fit_similarity, rms
 
-# Module level, so that the session fixture is not synthesised just to be skipped.
-pytest.importorskip("kisscal.detect.pipeline", reason="detection stage not merged yet")
-
 
 def _table(path):
     return np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
