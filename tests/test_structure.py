@@ -101,3 +101,14 @@ def test_modules_and_functions_fit_on_a_screen(path: Path) -> None:
     lines = len(path.read_text().splitlines())
     assert lines <= MAX_MODULE_LINES, f"{path.name}: {lines} lines"
     assert not _long_functions(path)
+
+
+STAGES = ("detect", "grid", "dlt", "bundle", "target", "recon", "tracking", "gait")
+RUNNERS = ("io", "session", "report", "cli")
+
+
+@pytest.mark.parametrize("stage", STAGES)
+def test_stages_import_no_file_or_session_layer(stage: str) -> None:
+    """A stage works on arrays: it never imports the layers that read files or run sessions."""
+    imported = import_graph()[f"kisscal.{stage}"]
+    assert not imported & {f"kisscal.{r}" for r in RUNNERS}, sorted(imported)
