@@ -15,8 +15,8 @@ fewer than two cameras) is filled from markers that were seen through it:
 
 Each method's **expected error** is measured on the trial itself: the same fill, run on
 stretches of the same length cut out of the marker's measured samples beside the gap, is
-compared with what was measured there. Per gap, the method with the smaller expected
-error fills it.
+compared with what was measured there. Per gap, the method with the smallest expected
+error fills it (the spline too competes, where the marker moves smoothly enough).
 
 Everything works on dense ``(n_tracks, n_fields, 3)`` arrays of measured positions (NaN
 elsewhere); nothing knows about files.
@@ -35,9 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.interpolate import make_interp_spline
 
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
+from kisscal.tracking.tracks import FILLED, FILLED_PATTERN, FILLED_RIGID
 
 #: (target's measured series (n_fields, 3), every track's (n_tracks, n_fields, 3), target
 #: index, first gap field, stop field, params) -> filled positions or None.
@@ -110,48 +111,79 @@ def _ramp(lo: int, hi: int) -> NDArray[np.float64]:
     return (np.arange(lo, hi) - lo + 1.0) / (hi - lo + 1.0)
 
 
+def _distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
+    """SD (mm) over the trial of the distance between each series of ``a`` (k, n, 3) and
+    each of ``b`` (m, n, 3), over the fields where both are measured: (k, m); inf with
+    fewer than 4 such fields."""
+    dist = np.linalg.norm(a[:, None] - b[None], axis=3)
+    seen = np.isfinite(dist)
+    sd = (
+        np.nanstd(np.where(seen, dist, np.nan), axis=2)
+        if seen.any()
+        else np.full(seen.shape[:2], np.inf)
+    )
+    return np.where(seen.sum(axis=2) >= 4, sd, np.inf)
+
+
 def rigid_donors(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Tracks that ride (nearly) rigidly with ``target`` around the gap [lo, hi), and the
-    SD (mm) of their distance to it over the trial: measured through the gap and beside it
-    on both sides, SD at most ``rigid_fill_neighbour_sd_mm``; the ``rigid_fill_markers``
-    most rigid ones."""
+    """Markers that carry ``target`` through the gap [lo, hi), and their weights.
+
+    Candidates are measured through the gap and beside it on both sides. The segment: the
+    candidates that keep their distances to the target and to each other (SD over the
+    trial at most ``rigid_fill_sd_mm``; over the whole trial, since a joint may stay still
+    beside a gap), most rigid first, weight 1. With only two of them, neighbours across a
+    joint (SD at most ``rigid_fill_neighbour_sd_mm`` to the segment and the target) settle
+    the turn about the segment's axis, weighing 1 / (1 + SD²). At most
+    ``rigid_fill_markers`` in all; none when fewer than three carry it.
+    """
+    none = np.zeros(0, dtype=np.int64), np.zeros(0)
     before, after = _windows(target, lo, hi, params.body_context_fields)
-    ctx = np.concatenate([before, after])
     if before.size < 2 or after.size < 2:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
+        return none
     through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
     through[exclude] = False
     cand = np.flatnonzero(through)
-    near = np.isfinite(np.linalg.norm(dense[cand][:, ctx] - target[ctx][None], axis=2))
-    enough = (near[:, : before.size].sum(axis=1) >= 2) & (near[:, before.size :].sum(axis=1) >= 2)
-    # rigidity over the whole trial: a joint may stay still for the fields beside a gap
-    dist = np.linalg.norm(dense[cand] - target[None], axis=2)
-    seen = np.isfinite(dist)
-    sd = np.where(seen.sum(axis=1) >= 4, np.nanstd(np.where(seen, dist, np.nan), axis=1), np.inf)
-    good = enough & (sd <= params.rigid_fill_neighbour_sd_mm)
-    order = np.argsort(sd[good])[: params.rigid_fill_markers]
-    return cand[good][order], sd[good][order]
+    near = np.all(np.isfinite(dense[cand]), axis=2)
+    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
+    if cand.size < 3:
+        return none
+    to_target = _distance_sd(dense[cand], target[None])[:, 0]
+    mutual = _distance_sd(dense[cand], dense[cand])
+    core: list[int] = []
+    for i in np.argsort(to_target).tolist():
+        if to_target[i] <= params.rigid_fill_sd_mm and np.all(
+            mutual[i, core] <= params.rigid_fill_sd_mm
+        ):
+            core.append(i)
+    if len(core) < 2:
+        return none
+    core = core[: params.rigid_fill_markers]
+    if len(core) >= 3:
+        return cand[core], np.ones(len(core))
+    soft = np.maximum(to_target, mutual[:, core].max(axis=1))
+    soft[core] = np.inf
+    extra = [i for i in np.argsort(soft).tolist() if soft[i] <= params.rigid_fill_neighbour_sd_mm]
+    extra = extra[: params.rigid_fill_markers - 2]
+    if not extra:
+        return none
+    return cand[core + extra], np.concatenate([[1.0, 1.0], 1.0 / (1.0 + soft[extra] ** 2)])
 
 
 def rigid_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
-    """Fill fields [lo, hi) of ``target`` from three or more rigid partners (see module).
+    """Fill fields [lo, hi) of ``target`` from three or more rigid partners (see module
+    and :func:`rigid_donors`).
 
-    The partners' shape is their mean over the context fields where all are measured;
-    each weighs in the fit by 1 / (1 mm² + SD²) of its distance to the target (markers
-    of the segment itself lead; a neighbour across a joint only settles the turn about
-    the segment's long axis when the segment has two markers besides the hidden one; two
-    of the segment, SD at most ``rigid_fill_sd_mm``, are needed). The
-    target's position in their frame is averaged over each side and drifts linearly from
-    one side's to the other's across the gap.
+    The partners' shape is their positions at the last field before the gap where all are
+    measured. The target's position in their frame is averaged over each side and drifts
+    linearly from one side's to the other's across the gap.
     """
-    donors, sd = rigid_donors(target, dense, exclude, lo, hi, params)
-    if donors.size < 3 or np.sum(sd <= params.rigid_fill_sd_mm) < 2:
+    donors, weight = rigid_donors(target, dense, exclude, lo, hi, params)
+    if donors.size < 3:
         return None
-    weight = 1.0 / (1.0 + sd**2)
     before, after = _windows(target, lo, hi, params.body_context_fields)
     local = []
     shape = None
@@ -161,7 +193,7 @@ def rigid_fill(
         if ok.sum() < 2:
             return None
         if shape is None:
-            shape = pts[ok].mean(axis=0)
+            shape = pts[np.flatnonzero(ok)[-1]]
         r, t = batch_kabsch(shape, pts[ok], weight)
         local.append(np.einsum("nji,nj->ni", r, target[side[ok]] - t).mean(axis=0))
     r, t = batch_kabsch(shape, dense[donors][:, lo:hi].transpose(1, 0, 2), weight)
@@ -203,6 +235,23 @@ def pattern_fill(
     w = _ramp(lo, hi)[:, None]
     offset = off_b[best] * (1 - w) + off_a[best] * w
     return dense[d, lo:hi] + offset, (int(d),)
+
+
+def spline_fill(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
+    """Fill fields [lo, hi) of ``target`` (n_fields, 3; NaN where not measured) by a cubic
+    interpolating spline through up to ``fill_context_fields`` measured samples on each
+    side (the signature of the other methods; ``dense`` and ``exclude`` are not used)."""
+    ok = np.all(np.isfinite(target), axis=1)
+    mf = np.flatnonzero(ok)
+    i = int(np.searchsorted(mf, lo))
+    ctx = max(params.fill_context_fields, 2)
+    sel = slice(max(i - ctx, 0), min(i + ctx, mf.size))
+    if i == 0 or i == mf.size:
+        return None
+    k = min(3, sel.stop - sel.start - 1)
+    return make_interp_spline(mf[sel], target[mf[sel]], k=k)(np.arange(lo, hi)), ()
 
 
 def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[int, int]]:
@@ -254,9 +303,12 @@ def expected_error(
     return float(np.sqrt(np.mean(np.square(err))))
 
 
+#: What a gap longer than ``max_fill_gap_fields`` may be filled with: the body, or the
+#: spline when its expected error is the smallest (a marker moving smoothly).
 BODY_METHODS: tuple[tuple[int, FillMethod], ...] = (
     (FILLED_RIGID, rigid_fill),
     (FILLED_PATTERN, pattern_fill),
+    (FILLED, spline_fill),
 )
 
 
@@ -264,7 +316,8 @@ def body_fill(
     dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], GapFill] | None:
     """Fill the gap [lo, hi) of track ``t`` from the body: the method (rigid-body or
-    pattern) whose :func:`expected_error` is smaller and at most ``max_body_fill_error_mm``.
+    pattern fill, or the spline where it does better) whose :func:`expected_error` is
+    smallest and at most ``max_body_fill_error_mm``.
 
     Parameters
     ----------

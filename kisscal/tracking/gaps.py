@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import make_interp_spline, make_smoothing_spline
+from scipy.interpolate import make_smoothing_spline
 
-from kisscal.tracking.bodyfill import GapFill, body_fill, expected_error
+from kisscal.tracking.bodyfill import GapFill, body_fill, expected_error, spline_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED, MEASURED, PREDICTED, Tracks, is_filled, make_tracks
 
@@ -48,24 +48,6 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
         for lo, hi in zip(gap_lo.tolist(), gap_hi.tolist(), strict=True)
         if hi - lo <= longest
     ]
-
-
-def spline_fill(
-    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
-) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
-    """Fill fields [lo, hi) of ``target`` (n_fields, 3; NaN where not measured) by a cubic
-    interpolating spline through up to ``fill_context_fields`` measured samples on each
-    side (the signature of :mod:`kisscal.tracking.bodyfill`'s methods; ``dense`` and
-    ``exclude`` are not used)."""
-    ok = np.all(np.isfinite(target), axis=1)
-    mf = np.flatnonzero(ok)
-    i = int(np.searchsorted(mf, lo))
-    ctx = max(params.fill_context_fields, 2)
-    sel = slice(max(i - ctx, 0), min(i + ctx, mf.size))
-    if i == 0 or i == mf.size:
-        return None
-    k = min(3, sel.stop - sel.start - 1)
-    return make_interp_spline(mf[sel], target[mf[sel]], k=k)(np.arange(lo, hi)), ()
 
 
 def _fill_one(

@@ -168,7 +168,7 @@ class TrackingParams:
     rigid_fill_sd_mm: float = 3.0
     rigid_fill_neighbour_sd_mm: float = 20.0
     rigid_fill_markers: int = 4
-    max_body_fill_error_mm: float = 8.0
+    max_body_fill_error_mm: float = 5.0
     refill_predicted: bool = True
     label_tolerance_mm: float = 120.0
     label_segment_tolerance_mm: float = 6.0
