@@ -24,7 +24,7 @@ elsewhere); nothing knows about files.
 References
 ----------
 Kabsch 1976 (rotation between point sets); Challis 1995 (rigid-body estimation of
-segment motion from markers); Gløersen and Federolf 2016 (gap filling from the other
+segment motion from markers); Gløersen & Federolf 2016 (gap filling from the other
 markers of the body).
 """
 

@@ -116,7 +116,7 @@ def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
 
     References
     ----------
-    Gløersen and Federolf 2016 (filling from the other markers of the body).
+    Gløersen & Federolf 2016 (filling from the other markers of the body).
     """
     return fill_gaps_logged(tracks, params)[0]
 
