@@ -326,6 +326,7 @@ def match_first_window(state: LabelState) -> bool:
             tried.append((_core_size(other), window, other))
         # the most core pieces named; the longest window of those
         _, state.window, found = max(tried, key=lambda x: (x[0], x[1]))
+        state.shortened = state.window != tried[0][1]
     state.fit_rms, state.rich = found.fit_rms, found.rich
     if found.core is None or not np.any(found.assign >= 0):
         return False
