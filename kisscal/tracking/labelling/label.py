@@ -9,7 +9,7 @@ from kisscal.errors import KisscalError
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
-from kisscal.tracking.labelling.state import RIGID_SPREAD_MM, LabelState
+from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.labelling.window import match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
@@ -71,28 +71,7 @@ def label_tracks(
         return generic(tracks, params, names, float("nan"))
     if not name_pieces(state):
         return generic(tracks, params, names, state.fit_rms)
-    if state.shortened and not keeps_segments(state):
-        return generic(tracks, params, names, state.fit_rms)
     return join(state)
-
-
-def keeps_segments(state: LabelState) -> bool:
-    """Whether every given segment whose two names were taken keeps its length: SD of
-    the distance over the fields where both are seen at most 3 x ``RIGID_SPREAD_MM``.
-
-    Names from a shortened first window (three cameras) are checked so before they are
-    used: a wrong window match joins pieces of different markers under one name, and a
-    segment's length then swings by decimetres; M1, M2, ... are better than wrong names.
-    """
-    if state.given_rigid is None:
-        return True
-    pos = state.name_pos
-    for a, b in zip(*np.nonzero(np.triu(state.given_rigid, 1)), strict=True):
-        d = np.linalg.norm(pos[a] - pos[b], axis=1)
-        d = d[np.isfinite(d)]
-        if d.size >= state.params.min_track_length and np.std(d) > 3 * RIGID_SPREAD_MM:
-            return False
-    return True
 
 
 def name_pieces(state: LabelState) -> bool:

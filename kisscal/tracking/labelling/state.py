@@ -95,8 +95,6 @@ class LabelState:
     upright : bool
         Template and lab share the vertical (Z up), as a shipped set's template does:
         matches that turn the body over are refused.
-    shortened : bool
-        Phase 1 fell back to a shorter window than ``label_window_fields``.
     """
 
     tracks: Tracks
@@ -119,7 +117,6 @@ class LabelState:
     rich: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     fit_rms: float = float("nan")
     upright: bool = False
-    shortened: bool = False
 
     @classmethod
     def begin(

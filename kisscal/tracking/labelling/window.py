@@ -285,48 +285,15 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     return WindowMatch(core, assign, fit_rms, rich)
 
 
-#: Shortest window (fields) phase 1 falls back to when longer ones name too few pieces.
-SHORTEST_WINDOW = 50
-#: Phase 1 tries shorter windows when the first names at most this fraction of the names.
-WINDOW_CORE_FRACTION = 1 / 3
-
-
-def _first_match(state: LabelState, window: int) -> WindowMatch:
-    """:func:`match_window` on the window of ``window`` fields where most long pieces are
-    seen."""
-    box = np.ones(window)
-    centre = int(np.argmax(np.convolve(state.present.sum(axis=0), box, mode="same")))
-    state.window = window
-    return match_window(state, centre)
-
-
-def _core_size(found: WindowMatch) -> int:
-    """Core pieces a window match named."""
-    return int(np.sum(found.assign >= 0)) if found.core is not None else 0
-
-
 def match_first_window(state: LabelState) -> bool:
     """Phase 1: name the core pieces of the window where most long pieces are seen.
 
-    When that window names at most a third of the names (:data:`WINDOW_CORE_FRACTION`),
-    windows half, a quarter, ... as long (down to :data:`SHORTEST_WINDOW` fields) are
-    tried and the one that names most is kept, its length for the later phases too: with
-    three or four cameras pieces are shorter, few of them span a long window, and the
-    feet dominate its core, whose average over many strides is no standing pose.
-    Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the trial
-    does not fit the marker set).
+    Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the
+    trial does not fit the marker set).
     """
-    window = state.window
-    found = _first_match(state, window)
-    if _core_size(found) <= len(state.names) * WINDOW_CORE_FRACTION:
-        tried = [(_core_size(found), window, found)]
-        while window // 2 >= SHORTEST_WINDOW:
-            window //= 2
-            other = _first_match(state, window)
-            tried.append((_core_size(other), window, other))
-        # the most core pieces named; the longest window of those
-        _, state.window, found = max(tried, key=lambda x: (x[0], x[1]))
-        state.shortened = state.window != tried[0][1]
+    box = np.ones(state.window)
+    centre = int(np.argmax(np.convolve(state.present.sum(axis=0), box, mode="same")))
+    found = match_window(state, centre)
     state.fit_rms, state.rich = found.fit_rms, found.rich
     if found.core is None or not np.any(found.assign >= 0):
         return False
