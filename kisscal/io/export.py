@@ -113,7 +113,8 @@ def _add_c3d_parameters(c3d: ezc3d.c3d, tracks: Tracks, n_fields: int, rate_hz: 
     c3d.add_parameter("TRIAL", "CAMERA_RATE", [float(rate_hz)])
     counts = {name: tracks.n_status(code) for code, name in enumerate(STATUS_NAMES)}
     descriptions = tuple(
-        f"kisscal: {counts['measured'][t]} measured, {counts['filled'][t]} filled, "
+        f"kisscal: {counts['measured'][t]} measured, "
+        f"{sum(counts[n][t] for n in STATUS_NAMES if n.startswith('filled'))} filled, "
         f"{counts['predicted'][t]} predicted of {n_fields} fields"
         for t in range(tracks.n_tracks)
     )

@@ -14,6 +14,7 @@ import numpy as np
 
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
+from kisscal.tracking.tracks import STATUS_NAMES
 
 
 def summarise(root: Path) -> dict[str, Any]:
@@ -98,7 +99,8 @@ def _trial_summary(tdir: Path) -> dict[str, Any]:
         entry["trajectories"] = len(labels)
         entry["labels"] = labels
         status = tr["status"]
-        entry["samples"] = {
-            s: int(np.sum(status == s)) for s in ("measured", "predicted", "filled")
-        }
+        status = np.where(status == "filled", "filled_spline", status.astype(str))
+        entry["samples"] = {s: int(np.sum(status == s)) for s in STATUS_NAMES}
+        # "filled" stays the count of every filled sample, how each was filled beside it
+        entry["samples"]["filled"] = int(np.sum(np.char.startswith(status, "filled")))
     return entry

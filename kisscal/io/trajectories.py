@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from kisscal.errors import KisscalError
 from kisscal.io.files import atomic_path
 from kisscal.tracking.pipeline import SweepRow
-from kisscal.tracking.tracks import STATUS_NAMES, Tracks
+from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES, Tracks
 
 HEADER = ("field", "track", "label", "x_mm", "y_mm", "z_mm", "status")
 SWEEP_HEADER = (
@@ -69,7 +69,8 @@ def write_trajectories_csv(path: str | Path, tracks: Tracks, labels: tuple[str, 
 
 def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
     """Read a trajectories.csv written by :func:`write_trajectories_csv` (or any tool
-    following DESIGN.md)."""
+    following DESIGN.md); ``status`` ``filled`` of files before contract version 3 reads
+    as ``filled_spline``."""
     path = Path(path)
     if not path.is_file():
         raise KisscalError(f"trajectories: no such file {path}")
@@ -78,7 +79,7 @@ def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
     if not rows or tuple(rows[0]) != HEADER:
         raise KisscalError(f"trajectories: {path} must start with the header {','.join(HEADER)}")
     body = rows[1:]
-    code = {name: i for i, name in enumerate(STATUS_NAMES)}
+    code = {**LEGACY_STATUS, **{name: i for i, name in enumerate(STATUS_NAMES)}}
     try:
         field = np.array([int(r[0]) for r in body], dtype=np.int64)
         track = np.array([int(r[1]) for r in body], dtype=np.int64)

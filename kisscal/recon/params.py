@@ -42,7 +42,11 @@ class ReconParams:
         trajectory of a marker that three or more cameras see in neighbouring fields. In a
         rig built for three views a pair that no third camera ever confirms is more often
         a ghost (two markers merged into one blob in both views, or two markers that each
-        only one camera sees, lying on one epipolar line) than a marker.
+        only one camera sees, lying on one epipolar line) than a marker. Four cameras
+        around a walkway see a marker with two of them for long stretches (the other
+        leg hides it from the rest): there the continuity check decides (issue 27: recall
+        of markers seen by exactly two cameras 75-91 % with 3, 97-99 % with 4, ghosts at
+        most 0.04 %, on the lowcost preset's truth-level scenario).
     two_camera_step_mm : float
         Largest distance (mm) a marker moves from one field to the next, where a
         two-camera point looks for the trajectory it continues (300 mm: 15 m/s at 50 Hz,
@@ -107,7 +111,7 @@ class ReconParams:
     search_radius_px: float = 3.0
     max_candidates: int = 5
     allow_two_camera: bool = True
-    two_camera_alone_max_cameras: int = 3
+    two_camera_alone_max_cameras: int = 4
     two_camera_step_mm: float = 300.0
     two_camera_continuity_mm: float = 20.0
     max_rms_px: float = 2.0

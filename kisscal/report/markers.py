@@ -13,8 +13,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 #: Codes of :attr:`Dense.status`, in the order of ``trajectories.csv``'s ``status`` names.
-STATUS_CODES = {"measured": 1, "predicted": 2, "filled": 3}
-GAP, MEASURED, PREDICTED, FILLED = 0, 1, 2, 3
+#: ``filled`` is the spline fill's name before contract version 3.
+STATUS_CODES = {
+    "measured": 1,
+    "predicted": 2,
+    "filled_spline": 3,
+    "filled_rigid": 4,
+    "filled_pattern": 5,
+    "filled": 3,
+}
+GAP, MEASURED, PREDICTED, FILLED, FILLED_RIGID, FILLED_PATTERN = 0, 1, 2, 3, 4, 5
+#: How a gap was filled, by the Dense code of its samples.
+FILL_METHODS = {FILLED: "spline", FILLED_RIGID: "rigid", FILLED_PATTERN: "pattern"}
 
 
 @dataclass(frozen=True)
@@ -28,7 +38,8 @@ class Dense:
     xyz_mm : ndarray, shape (n_markers, n_fields, 3)
         Positions (mm); NaN where the trajectory has no sample.
     status : ndarray of int8, shape (n_markers, n_fields)
-        :data:`GAP`, :data:`MEASURED`, :data:`PREDICTED` or :data:`FILLED`.
+        :data:`GAP`, :data:`MEASURED`, :data:`PREDICTED`, :data:`FILLED` (spline),
+        :data:`FILLED_RIGID` or :data:`FILLED_PATTERN`.
     """
 
     labels: tuple[str, ...]
@@ -76,6 +87,9 @@ class MarkerStats:
 
     ``coverage`` is the fraction of the trial's fields with a sample (measured, predicted
     or filled); ``gaps`` counts runs of missing fields between its first and last sample.
+    ``coverage_measured`` is the same before filling (measured samples only), and
+    ``fills`` says how each filled run was filled: (first field, fields, method) with
+    method ``spline``, ``rigid`` or ``pattern``.
     """
 
     label: str
@@ -85,6 +99,31 @@ class MarkerStats:
     measured: int
     predicted: int
     filled: int
+    coverage_measured: float = 0.0
+    filled_rigid: int = 0
+    filled_pattern: int = 0
+    fills: tuple[tuple[int, int, str], ...] = ()
+
+
+def filled_runs(status: NDArray[np.int8]) -> tuple[tuple[int, int, str], ...]:
+    """(first field, fields, method) of each run of samples filled the same way.
+
+    Examples
+    --------
+    >>> filled_runs(np.array([1, 3, 3, 1, 4, 4, 4, 5, 1], dtype=np.int8))
+    ((1, 2, 'spline'), (4, 3, 'rigid'), (7, 1, 'pattern'))
+    """
+    code = np.where(status >= FILLED, status, 0).astype(np.int16)
+    padded = np.concatenate([[0], code, [0]])
+    edge = np.flatnonzero(np.diff(padded) != 0)
+    starts = edge[:-1][code[edge[:-1]] > 0] if edge.size else edge
+    out = []
+    for a in starts.tolist():
+        b = a
+        while b < code.size and code[b] == code[a]:
+            b += 1
+        out.append((a, b - a, FILL_METHODS[int(code[a])]))
+    return tuple(out)
 
 
 def marker_stats(dense: Dense) -> list[MarkerStats]:
@@ -106,7 +145,11 @@ def marker_stats(dense: Dense) -> list[MarkerStats]:
                 gap_fields=int((~inside).sum()),
                 measured=int((s == MEASURED).sum()),
                 predicted=int((s == PREDICTED).sum()),
-                filled=int((s == FILLED).sum()),
+                filled=int((s >= FILLED).sum()),
+                coverage_measured=float((s == MEASURED).sum() / n),
+                filled_rigid=int((s == FILLED_RIGID).sum()),
+                filled_pattern=int((s == FILLED_PATTERN).sum()),
+                fills=filled_runs(s),
             )
         )
     return out

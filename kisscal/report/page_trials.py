@@ -112,26 +112,48 @@ def cameras_table(o: SessionOutputs) -> Html:
     )
 
 
+def fill_list(fills: tuple[tuple[int, int, str], ...], most: int = 8) -> str:
+    """The filled runs of a trajectory as text: ``120+14 rigid, 300+3 spline, ...``."""
+    text = ", ".join(f"{first}+{n} {how}" for first, n, how in fills[:most])
+    return text + (f", ... ({len(fills)} in all)" if len(fills) > most else "") or "-"
+
+
 def marker_details(o: SessionOutputs, a: TrialAnalysis, used: set[str]) -> Html:
     """Per trajectory presence, the segment lengths and the trial's figures, folded."""
     parts: list[Any] = []
     rows = [
         [
             tag("b", m.label),
+            fmt(100 * m.coverage_measured, 1),
             fmt(100 * m.coverage, 1),
             fmt(m.gaps),
             fmt(m.gap_fields),
             fmt(m.measured),
-            fmt(m.filled),
+            fmt(m.filled - m.filled_rigid - m.filled_pattern),
+            fmt(m.filled_rigid),
+            fmt(m.filled_pattern),
             fmt(m.predicted),
+            fill_list(m.fills),
         ]
         for m in a.markers
     ]
     parts.append(
         table(
-            ["trajectory", "coverage (%)", "gaps", "gap fields", "measured", "filled", "predicted"],
+            [
+                "trajectory",
+                "coverage before filling (%)",
+                "after (%)",
+                "gaps",
+                "gap fields",
+                "measured",
+                "filled: spline",
+                "rigid body",
+                "pattern",
+                "predicted",
+                "each gap filled (first field, fields, how)",
+            ],
             rows,
-            range(1, 7),
+            range(1, 10),
             "compact",
         )
     )

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from kisscal.errors import KisscalError
 from kisscal.report.figures import padded_range
 from kisscal.tracking.pipeline import Trajectories
-from kisscal.tracking.tracks import FILLED, MEASURED, Tracks
+from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
 
 _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
 
@@ -29,7 +29,7 @@ def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -
     for ax, (name, i, j) in zip(axes, _VIEWS, strict=True):
         for t in range(tracks.n_tracks):
             ax.plot(dense[t, :, i], dense[t, :, j], color=colours[t], lw=0.8, label=labels[t])
-            filled = (tracks.track == t) & (tracks.status == FILLED)
+            filled = (tracks.track == t) & is_filled(tracks.status)
             if filled.any():
                 ax.plot(
                     tracks.xyz_mm[filled, i], tracks.xyz_mm[filled, j], "x", color=colours[t], ms=3

@@ -28,7 +28,7 @@ from kisscal.session.markers import (
 )
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet
-from kisscal.tracking import Trajectories, build_trajectories, sweep_noise
+from kisscal.tracking import STATUS_NAMES, Trajectories, build_trajectories, sweep_noise
 
 
 @writes_session
@@ -217,6 +217,17 @@ def _tracking_summary(result: Trajectories) -> dict[str, Any]:
         "predictions_per_track": dict(
             zip(result.labels, np.asarray(result.n_predicted).tolist(), strict=True)
         ),
+        "fills": [
+            {
+                "label": result.labels[g.track],
+                "first_field": g.first_field,
+                "fields": g.n_fields,
+                "method": STATUS_NAMES[g.status].removeprefix("filled_"),
+                "expected_error_mm": _finite(g.expected_error_mm),
+                "from": [result.labels[d] for d in g.donors],
+            }
+            for g in result.fills
+        ],
     }
 
 

@@ -95,7 +95,7 @@ def score_trajectories(
         e = np.linalg.norm(xyz_mm[rows] - own_truth, axis=1)
         st = status[rows]
         err_m.append(e[(st == "measured") & np.isfinite(e)])
-        err_f.append(e[(st == "filled") & np.isfinite(e)])
+        err_f.append(e[np.char.startswith(st.astype(str), "filled") & np.isfinite(e)])
         good = (st != "predicted") & (e < 20.0)
         covered[field[rows][good], own] = True
     em = np.concatenate(err_m) if err_m else np.zeros(0)

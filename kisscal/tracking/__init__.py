@@ -20,10 +20,21 @@ from kisscal.tracking.pipeline import (
 )
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import associate, track_points
-from kisscal.tracking.tracks import FILLED, MEASURED, PREDICTED, STATUS_NAMES, Tracks
+from kisscal.tracking.tracks import (
+    FILLED,
+    FILLED_PATTERN,
+    FILLED_RIGID,
+    MEASURED,
+    PREDICTED,
+    STATUS_NAMES,
+    Tracks,
+    is_filled,
+)
 
 __all__ = [
     "FILLED",
+    "FILLED_PATTERN",
+    "FILLED_RIGID",
     "MEASURED",
     "PREDICTED",
     "STATUS_NAMES",
@@ -40,6 +51,7 @@ __all__ = [
     "build_trajectories",
     "clean_up",
     "fill_gaps",
+    "is_filled",
     "label_tracks",
     "segment_statistics",
     "smooth_tracks",

@@ -85,6 +85,25 @@ class TrackingParams:
         Largest gap (fields) inside one labelled trajectory that gap filling bridges.
     fill_context_fields : int
         Measured samples on each side of a gap that the filling spline is fitted to.
+    max_body_fill_fields : int
+        Largest gap (fields) filled from the body (rigid-body or pattern fill) when it is
+        longer than ``max_fill_gap_fields`` (2 s at 150 Hz).
+    body_context_fields : int
+        Measured fields on each side of a gap that rigid-body and pattern fill learn the
+        marker's place from (and, halved, the margin around the stretches their expected
+        error is measured on).
+    rigid_fill_sd_mm : float
+        Largest SD (mm) of a marker's distance to the hidden one, over the fields beside
+        the gap, for it to count as a marker of the hidden one's segment; rigid-body fill
+        needs two of them.
+    rigid_fill_neighbour_sd_mm : float
+        Largest such SD (mm) for a marker to help carry the hidden one at all (a neighbour
+        across a joint, weighing less the more its distance varies).
+    rigid_fill_markers : int
+        Markers (at most; three at least) that carry a hidden one in rigid-body fill.
+    max_body_fill_error_mm : float
+        Largest expected error (mm) of a rigid-body or pattern fill, measured on the
+        marker's own samples beside the gap, for the gap to be filled that way.
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
@@ -144,6 +163,12 @@ class TrackingParams:
     min_track_length: int = 10
     max_fill_gap_fields: int = 5
     fill_context_fields: int = 6
+    max_body_fill_fields: int = 300
+    body_context_fields: int = 20
+    rigid_fill_sd_mm: float = 3.0
+    rigid_fill_neighbour_sd_mm: float = 20.0
+    rigid_fill_markers: int = 4
+    max_body_fill_error_mm: float = 5.0
     refill_predicted: bool = True
     label_tolerance_mm: float = 120.0
     label_segment_tolerance_mm: float = 6.0
@@ -167,6 +192,9 @@ class TrackingParams:
             "blend_reach_mm",
             "label_tolerance_mm",
             "set_window_s",
+            "rigid_fill_sd_mm",
+            "rigid_fill_neighbour_sd_mm",
+            "max_body_fill_error_mm",
         ):
             value = getattr(self, name)
             if not value > 0:
@@ -184,11 +212,15 @@ class TrackingParams:
             "max_fill_gap_fields",
             "blend_points",
             "fill_context_fields",
+            "max_body_fill_fields",
+            "body_context_fields",
             "label_fields",
         ):
             value = getattr(self, name)
             if int(value) != value or value < 0:
                 raise KisscalError(f"tracking: {name} must be a whole number >= 0, got {value}")
+        if self.rigid_fill_markers < 3:
+            raise KisscalError("tracking: rigid_fill_markers must be >= 3")
         if self.min_initial_length < 2:
             raise KisscalError("tracking: min_initial_length must be >= 2")
         if not 0 <= self.min_label_fraction <= 1:

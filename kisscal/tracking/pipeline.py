@@ -9,7 +9,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.blending import blend_tracks, clean_up
-from kisscal.tracking.gaps import fill_gaps, smooth_tracks
+from kisscal.tracking.bodyfill import GapFill
+from kisscal.tracking.gaps import fill_gaps_logged, smooth_tracks
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.sides import judge_sides
@@ -41,6 +42,8 @@ class Trajectories:
         Track pieces formed by the tracker, before blending and clean-up.
     n_pieces_blended : int
         Tracks after blending and clean-up, before labelling joined pieces.
+    fills : tuple of GapFill
+        How each gap was filled (track, fields, method, expected error).
     """
 
     tracks: Tracks
@@ -49,6 +52,7 @@ class Trajectories:
     n_predicted: NDArray[np.int64]
     n_pieces: int
     n_pieces_blended: int
+    fills: tuple[GapFill, ...] = ()
 
 
 def build_trajectories(
@@ -66,7 +70,8 @@ def build_trajectories(
 
     Steps: :func:`track_points` (Küçük 2005 §3.3.8-3.3.9); :func:`blend_tracks` and
     :func:`clean_up` (Shafiq et al. 2001 §4.3);
-    :func:`label_tracks` (joins pieces that take the same name); :func:`fill_gaps`; and
+    :func:`label_tracks` (joins pieces that take the same name); :func:`fill_gaps` (spline
+    for short gaps, rigid-body or pattern fill from the body for longer ones); and
     :func:`smooth_tracks` when ``params.smoothing``.
 
     Parameters
@@ -98,7 +103,7 @@ def build_trajectories(
     )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
-    tracks = fill_gaps(tracks, params)
+    tracks, fills = fill_gaps_logged(tracks, params)
     if params.smoothing:
         tracks = smooth_tracks(tracks)
     return Trajectories(
@@ -108,6 +113,7 @@ def build_trajectories(
         n_predicted=n_predicted,
         n_pieces=raw.n_tracks,
         n_pieces_blended=clean_up(blended, params).n_tracks,
+        fills=fills,
     )
 
 

@@ -9,8 +9,21 @@ from numpy.typing import NDArray
 
 MEASURED = 0
 PREDICTED = 1
+#: Filled by a cubic spline through the measured samples on both sides (short gaps).
 FILLED = 2
-STATUS_NAMES = ("measured", "predicted", "filled")
+#: Filled from three or more markers that move rigidly with it (rigid-body fill).
+FILLED_RIGID = 3
+#: Filled by following a neighbouring marker's motion (pattern fill).
+FILLED_PATTERN = 4
+#: ``status`` of trajectories.csv for each code (DESIGN.md contract version 3).
+STATUS_NAMES = ("measured", "predicted", "filled_spline", "filled_rigid", "filled_pattern")
+#: Status names of earlier versions, read as today's code.
+LEGACY_STATUS = {"filled": FILLED}
+
+
+def is_filled(status: NDArray) -> NDArray[np.bool_]:
+    """True where a status code (array) says the sample was filled, by any method."""
+    return np.asarray(status) >= FILLED
 
 
 @dataclass(frozen=True)
@@ -28,7 +41,7 @@ class Tracks:
     corrected_mm : (S, 3) float array
         Kalman a-posteriori estimate at that field (NaN where the track had no filter).
     status : (S,) int8 array
-        MEASURED, PREDICTED or FILLED.
+        MEASURED, PREDICTED, FILLED (spline), FILLED_RIGID or FILLED_PATTERN.
     point : (S,) int array
         Row of the input point a measured sample came from (-1 otherwise).
     """

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from kisscal.recon import ReconParams, reconstruct_trial
 from kisscal.synth.evaluate import score_trajectories
-from kisscal.tracking import TrackingParams, build_trajectories
+from kisscal.tracking import STATUS_NAMES, TrackingParams, build_trajectories
 
 from .scenario import Table2D, observe
 
@@ -113,7 +113,7 @@ def score_subset(
         tracks.field,
         np.asarray(traj.labels, dtype=object)[tracks.track].astype(str),
         tracks.xyz_mm,
-        np.asarray(["measured", "predicted", "filled"])[tracks.status],
+        np.asarray(STATUS_NAMES)[tracks.status],
         f_true,
         np.asarray(names)[m_true],
         xyz[f_true, m_true],

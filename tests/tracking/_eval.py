@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kisscal.tracking import FILLED, MEASURED, PREDICTED, Trajectories
+from kisscal.tracking import FILLED, MEASURED, PREDICTED, Trajectories, is_filled
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
         1 for t, m in enumerate(track_marker) if m >= 0 and result.labels[t] == names[m]
     )
     covered = np.zeros_like(visible)
-    ok = np.isin(tr.status, (MEASURED, FILLED))
+    ok = (tr.status == MEASURED) | is_filled(tr.status)
     covered[track_marker[tr.track[ok]], tr.field[ok]] = True
     span = np.zeros_like(visible)
     for m in range(n_markers):
@@ -66,7 +66,7 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
     err = np.linalg.norm(tr.xyz_mm - own, axis=1)
 
     def rmse(status):
-        e = err[tr.status == status]
+        e = err[is_filled(tr.status)] if status == FILLED else err[tr.status == status]
         return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
     return Score(
@@ -80,6 +80,6 @@ def score(result: Trajectories, truth: np.ndarray, visible: np.ndarray, names) -
         rmse(MEASURED),
         rmse(FILLED),
         rmse(PREDICTED),
-        int((tr.status == FILLED).sum()),
+        int(is_filled(tr.status).sum()),
         tuple(int(v) for v in track_marker),
     )

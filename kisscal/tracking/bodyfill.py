@@ -1,0 +1,345 @@
+"""Gap filling that uses the body: rigid-body fill and pattern fill, with expected errors.
+
+A gap too long for a spline (the marker hidden for a second by the other leg, or seen by
+fewer than two cameras) is filled from markers that were seen through it:
+
+* **rigid-body fill**: three or more markers whose distances to the hidden one stay
+  constant in the trial (they ride on its segment) carry it: the hidden marker's position
+  in their frame is learnt from the fields on both sides of the gap (or from the static
+  trial's template when the trial has none) and moved with them, field by field
+  (Kabsch 1976 fits; the position in the frame drifts linearly from the one side's to
+  the other's, as skin does);
+* **pattern fill**: one neighbour whose motion it shares: the hidden marker follows the
+  neighbour's path, its offset from the neighbour drifting linearly from its value
+  before the gap to its value after (the pattern fill of commercial systems).
+
+Each method's **expected error** is measured on the trial itself: the same fill, run on
+stretches of the same length cut out of the marker's measured samples beside the gap, is
+compared with what was measured there. Per gap, the method with the smaller expected
+error fills it.
+
+Everything works on dense ``(n_tracks, n_fields, 3)`` arrays of measured positions (NaN
+elsewhere); nothing knows about files.
+
+References
+----------
+Kabsch 1976 (rotation between point sets); Challis 1995 (rigid-body estimation of
+segment motion from markers); Gløersen & Federolf 2016 (gap filling from the other
+markers of the body).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import make_interp_spline
+
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
+
+#: (target's measured series (n_fields, 3), every track's (n_tracks, n_fields, 3), target
+#: index, first gap field, stop field, params) -> filled positions or None.
+FillMethod = Callable[..., NDArray[np.float64] | None]
+
+
+@dataclass(frozen=True)
+class GapFill:
+    """How one gap of one track was filled.
+
+    Attributes
+    ----------
+    track : int
+        Track number.
+    first_field, n_fields : int
+        The gap.
+    status : int
+        Status code of its samples (FILLED, FILLED_RIGID or FILLED_PATTERN).
+    expected_error_mm : float
+        RMS error of the same fill on stretches of the marker's own measured samples of
+        the gap's length (NaN when there was no such stretch to try it on).
+    donors : tuple of int
+        Tracks the fill followed (none for the spline).
+    """
+
+    track: int
+    first_field: int
+    n_fields: int
+    status: int
+    expected_error_mm: float
+    donors: tuple[int, ...] = ()
+
+
+def batch_kabsch(
+    source: NDArray, target: NDArray, weight: NDArray | None = None
+) -> tuple[NDArray, NDArray]:
+    """Proper rotations and translations mapping ``source`` (k, 3) onto each of
+    ``target`` (n, k, 3) in the weighted least-squares sense: r (n, 3, 3), t (n, 3), with
+    ``target ~ source @ r.T + t``; ``weight`` (k,) per point (default equal).
+
+    References
+    ----------
+    Kabsch 1976.
+    """
+    w = np.ones(len(source)) if weight is None else np.asarray(weight, dtype=float)
+    w = w / w.sum()
+    cs = w @ source
+    ct = np.einsum("k,nkj->nj", w, target)
+    h = np.einsum("k,ki,nkj->nij", w, source - cs, target - ct[:, None, :])
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(np.transpose(vt, (0, 2, 1)) @ np.transpose(u, (0, 2, 1))))
+    d[d == 0] = 1.0
+    fix = np.ones((len(d), 3))
+    fix[:, 2] = d
+    r = np.transpose(vt, (0, 2, 1)) @ (fix[:, :, None] * np.transpose(u, (0, 2, 1)))
+    return r, ct - np.einsum("nij,j->ni", r, cs)
+
+
+def _windows(series: NDArray, lo: int, hi: int, n: int) -> tuple[NDArray, NDArray]:
+    """Fields of up to ``n`` measured samples of ``series`` just before ``lo`` and just
+    after ``hi`` (exclusive)."""
+    ok = np.all(np.isfinite(series), axis=1)
+    before = np.flatnonzero(ok[:lo])[-n:]
+    after = hi + np.flatnonzero(ok[hi:])[:n]
+    return before, after
+
+
+def _ramp(lo: int, hi: int) -> NDArray[np.float64]:
+    """Weight of the after-side across the gap fields lo..hi-1 (0 near lo, 1 near hi)."""
+    return (np.arange(lo, hi) - lo + 1.0) / (hi - lo + 1.0)
+
+
+def _distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
+    """SD (mm) over the trial of the distance between each series of ``a`` (k, n, 3) and
+    each of ``b`` (m, n, 3), over the fields where both are measured: (k, m); inf with
+    fewer than 4 such fields."""
+    dist = np.linalg.norm(a[:, None] - b[None], axis=3)
+    seen = np.isfinite(dist)
+    sd = (
+        np.nanstd(np.where(seen, dist, np.nan), axis=2)
+        if seen.any()
+        else np.full(seen.shape[:2], np.inf)
+    )
+    return np.where(seen.sum(axis=2) >= 4, sd, np.inf)
+
+
+def rigid_donors(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Markers that carry ``target`` through the gap [lo, hi), and their weights.
+
+    Candidates are measured through the gap and beside it on both sides. The segment: the
+    candidates that keep their distances to the target and to each other (SD over the
+    trial at most ``rigid_fill_sd_mm``; over the whole trial, since a joint may stay still
+    beside a gap), most rigid first, weight 1. With only two of them, neighbours across a
+    joint (SD at most ``rigid_fill_neighbour_sd_mm`` to the segment and the target) settle
+    the turn about the segment's axis, weighing 1 / (1 + SD²). At most
+    ``rigid_fill_markers`` in all; none when fewer than three carry it.
+    """
+    none = np.zeros(0, dtype=np.int64), np.zeros(0)
+    before, after = _windows(target, lo, hi, params.body_context_fields)
+    if before.size < 2 or after.size < 2:
+        return none
+    through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
+    through[exclude] = False
+    cand = np.flatnonzero(through)
+    near = np.all(np.isfinite(dense[cand]), axis=2)
+    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
+    if cand.size < 3:
+        return none
+    to_target = _distance_sd(dense[cand], target[None])[:, 0]
+    mutual = _distance_sd(dense[cand], dense[cand])
+    core: list[int] = []
+    for i in np.argsort(to_target).tolist():
+        if to_target[i] <= params.rigid_fill_sd_mm and np.all(
+            mutual[i, core] <= params.rigid_fill_sd_mm
+        ):
+            core.append(i)
+    if len(core) < 2:
+        return none
+    core = core[: params.rigid_fill_markers]
+    if len(core) >= 3:
+        return cand[core], np.ones(len(core))
+    soft = np.maximum(to_target, mutual[:, core].max(axis=1))
+    soft[core] = np.inf
+    extra = [i for i in np.argsort(soft).tolist() if soft[i] <= params.rigid_fill_neighbour_sd_mm]
+    extra = extra[: params.rigid_fill_markers - 2]
+    if not extra:
+        return none
+    return cand[core + extra], np.concatenate([[1.0, 1.0], 1.0 / (1.0 + soft[extra] ** 2)])
+
+
+def rigid_fill(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
+    """Fill fields [lo, hi) of ``target`` from three or more rigid partners (see module
+    and :func:`rigid_donors`).
+
+    The partners' shape is their positions at the last field before the gap where all are
+    measured. The target's position in their frame is averaged over each side and drifts
+    linearly from one side's to the other's across the gap.
+    """
+    donors, weight = rigid_donors(target, dense, exclude, lo, hi, params)
+    if donors.size < 3:
+        return None
+    before, after = _windows(target, lo, hi, params.body_context_fields)
+    local = []
+    shape = None
+    for side in (before, after):
+        pts = dense[donors][:, side].transpose(1, 0, 2)  # (n, k, 3)
+        ok = np.all(np.isfinite(pts), axis=(1, 2))
+        if ok.sum() < 2:
+            return None
+        if shape is None:
+            shape = pts[np.flatnonzero(ok)[-1]]
+        r, t = batch_kabsch(shape, pts[ok], weight)
+        local.append(np.einsum("nji,nj->ni", r, target[side[ok]] - t).mean(axis=0))
+    r, t = batch_kabsch(shape, dense[donors][:, lo:hi].transpose(1, 0, 2), weight)
+    w = _ramp(lo, hi)[:, None]
+    here = local[0] * (1 - w) + local[1] * w
+    return np.einsum("nij,nj->ni", r, here) + t, tuple(int(d) for d in donors)
+
+
+def pattern_fill(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
+    """Fill fields [lo, hi) of ``target`` by following the neighbour whose offset from it
+    changes least across the context (see module); the offset drifts linearly from its
+    value at the last field before the gap to its value at the first after."""
+    if lo < 1 or hi >= len(target):
+        return None
+    through = np.all(np.isfinite(dense[:, lo - 1 : hi + 1]), axis=(1, 2))
+    through[exclude] = False
+    cand = np.flatnonzero(through)
+    if cand.size == 0:
+        return None
+    before, after = _windows(target, lo, hi, params.body_context_fields)
+    if before.size < 2 or after.size < 2 or before[-1] != lo - 1 or after[0] != hi:
+        return None
+    off_b = target[lo - 1] - dense[cand, lo - 1]
+    off_a = target[hi] - dense[cand, hi]
+    # the neighbour whose offset moves least over the gap, per field crossed, and within
+    # each side (its pattern is the target's)
+    wobble = np.linalg.norm(off_a - off_b, axis=1)
+    for side in (before, after):
+        step = np.linalg.norm(np.diff(target[side][None] - dense[cand][:, side], axis=1), axis=2)
+        n = np.isfinite(step).sum(axis=1)
+        mean = np.where(n > 0, np.nansum(step, axis=1) / np.maximum(n, 1), np.inf)
+        wobble = wobble + mean * (hi - lo)
+    best = int(np.argmin(wobble))
+    if not np.isfinite(wobble[best]):
+        return None
+    d = cand[best]
+    w = _ramp(lo, hi)[:, None]
+    offset = off_b[best] * (1 - w) + off_a[best] * w
+    return dense[d, lo:hi] + offset, (int(d),)
+
+
+def spline_fill(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
+    """Fill fields [lo, hi) of ``target`` (n_fields, 3; NaN where not measured) by a cubic
+    interpolating spline through up to ``fill_context_fields`` measured samples on each
+    side (the signature of the other methods; ``dense`` and ``exclude`` are not used)."""
+    ok = np.all(np.isfinite(target), axis=1)
+    mf = np.flatnonzero(ok)
+    i = int(np.searchsorted(mf, lo))
+    ctx = max(params.fill_context_fields, 2)
+    sel = slice(max(i - ctx, 0), min(i + ctx, mf.size))
+    if i == 0 or i == mf.size:
+        return None
+    k = min(3, sel.stop - sel.start - 1)
+    return make_interp_spline(mf[sel], target[mf[sel]], k=k)(np.arange(lo, hi)), ()
+
+
+def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[int, int]]:
+    """Stretches of ``target``'s measured samples of the gap's length (shorter when the
+    measured runs beside the gap are short, at least 3 fields), with ``margin`` measured
+    fields on each side, nearest the gap: where a fill is tried against measurement."""
+    ok = np.all(np.isfinite(target), axis=1)
+    padded = np.concatenate([[False], ok, [False]]).astype(np.int8)
+    d = np.diff(padded)
+    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    n = hi - lo
+    out = []
+    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
+        room = b - a - 2 * margin
+        if room < 3:
+            continue
+        length = min(n, room)
+        if b <= lo:  # the run before the gap: the stretch just before its last margin
+            out.append((b - margin - length, b - margin))
+        elif a >= hi:
+            out.append((a + margin, a + margin + length))
+    near = sorted(out, key=lambda s: min(abs(s[0] - lo), abs(s[1] - hi)))
+    return near[:2]
+
+
+def expected_error(
+    method: FillMethod,
+    target: NDArray,
+    dense: NDArray,
+    exclude: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+) -> float:
+    """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi)."""
+    err = []
+    for plo, phi in pseudo_gaps(target, lo, hi, params.body_context_fields // 2):
+        cut = target.copy()
+        cut[plo:phi] = np.nan
+        got = method(cut, dense, exclude, plo, phi, params)
+        if got is None:
+            continue
+        rms = np.sqrt(np.mean(np.sum((got[0] - target[plo:phi]) ** 2, axis=1)))
+        # a stretch shorter than the gap tells less: a fill's error grows about with the
+        # square of the time it bridges (a drift that accelerates), so scale it up so
+        err.append(rms * ((hi - lo) / (phi - plo)) ** 2)
+    if not err:
+        return float("nan")
+    return float(np.sqrt(np.mean(np.square(err))))
+
+
+#: What a gap longer than ``max_fill_gap_fields`` may be filled with. Not the spline:
+#: beyond a few fields it misses a heel strike's stop, and its error measured beside the
+#: gap does not tell (a 7-field heel gap: 3 mm expected, 16 mm true).
+BODY_METHODS: tuple[tuple[int, FillMethod], ...] = (
+    (FILLED_RIGID, rigid_fill),
+    (FILLED_PATTERN, pattern_fill),
+)
+
+
+def body_fill(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], GapFill] | None:
+    """Fill the gap [lo, hi) of track ``t`` from the body: the method (rigid-body or
+    pattern fill) whose :func:`expected_error` is smaller and at most
+    ``max_body_fill_error_mm``.
+
+    Parameters
+    ----------
+    dense : (n_tracks, n_fields, 3) array
+        Measured positions of every track (NaN elsewhere).
+    t, lo, hi : int
+        Track and gap (fields lo..hi-1).
+    params : TrackingParams
+
+    Returns
+    -------
+    (positions (hi - lo, 3), GapFill), or None when neither method is supported.
+    """
+    target = dense[t]
+    best = None
+    for status, method in BODY_METHODS:
+        got = method(target, dense, t, lo, hi, params)
+        if got is None:
+            continue
+        err = expected_error(method, target, dense, t, lo, hi, params)
+        if not err <= params.max_body_fill_error_mm:
+            continue
+        if best is None or err < best[1].expected_error_mm:
+            best = (got[0], GapFill(t, lo, hi - lo, status, err, got[1]))
+    return best

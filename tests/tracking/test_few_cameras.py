@@ -1,0 +1,63 @@
+"""Small labs (issue 27): a 4-camera webcam-class rig, truth-level scenario with blobs lost
+beside the body's occlusions, reconstructed and tracked with default settings, against
+truth. The full table over held-out seeds: ``python -m tests.tracking.few_cameras_acceptance``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.tracking import TrackingParams
+from tests.tracking.few_cameras_acceptance import rig_trial, score_trial
+
+
+@pytest.fixture(scope="module")
+def lowcost():
+    return rig_trial("lowcost", 1)
+
+
+@pytest.fixture(scope="module")
+def scored(lowcost):
+    return score_trial(lowcost)
+
+
+def test_four_cameras_keep_markers_that_two_cameras_see(lowcost, scored):
+    s = scored
+    n2 = lowcost.visible.sum(axis=2) == 2
+    assert n2.sum() > 500  # the scenario has long two-camera stretches
+    assert s.recall2 >= 0.97
+    assert s.ghost_fraction <= 0.005
+
+
+def test_four_cameras_name_every_marker_and_fill_from_the_body(lowcost, scored):
+    s = scored
+    assert s.labelled == 15 and s.switches == 0
+    assert s.filled_by["filled_rigid"] > 0 and s.filled_by["filled_pattern"] > 0
+    assert s.rmse_filled_mm <= 3.5
+    assert s.coverage_mean >= 0.985
+    # the spline alone leaves the longer gaps open
+    spline_only = score_trial(lowcost, TrackingParams(max_body_fill_fields=5))
+    assert spline_only.coverage_mean < s.coverage_mean - 0.01
+    assert spline_only.filled_by["filled_rigid"] == spline_only.filled_by["filled_pattern"] == 0
+
+
+def test_without_two_camera_points_alone_four_cameras_lose_markers(lowcost, monkeypatch):
+    import tests.tracking.few_cameras_acceptance as acceptance
+    from kisscal.recon import ReconParams
+
+    monkeypatch.setattr(
+        acceptance, "ReconParams", lambda: ReconParams(two_camera_alone_max_cameras=3)
+    )
+    strict = acceptance.rig_trial("lowcost", 1)
+    n2 = strict.visible.sum(axis=2) == 2
+    assert strict.found[n2].mean() < lowcost.found[n2].mean() - 0.03
+    assert np.isfinite(strict.found[n2].mean())
+
+
+@pytest.mark.parametrize("seed", [2, 9])
+def test_three_cameras_never_name_wrongly(seed):
+    """kiss preset, 3 cameras: pieces are short and the first window's average pose may
+    match no body; then tracks stay M1, M2, ..., never a name on the wrong marker."""
+    s = score_trial(rig_trial("kiss", seed, 3))
+    assert s.switches == 0
