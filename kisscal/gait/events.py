@@ -38,7 +38,14 @@ from numpy.typing import NDArray
 
 from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctest)
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
-from kisscal.gait.signals import derivative, hysteresis_crossings, kink_time, smooth
+from kisscal.gait.signals import (
+    derivative,
+    finite_runs,
+    hysteresis_crossings,
+    kink_time,
+    peak_time,
+    smooth,
+)
 from kisscal.gait.table import SIDES, GaitEvents
 
 
@@ -48,8 +55,10 @@ def progression(
     """Local direction of progression (n, 2), unit, and pelvis velocity (n, 3) in mm/s.
 
     The pelvis velocity is the mean velocity of the pelvis markers present at each
-    field; the direction is its horizontal part smoothed over ``params.direction_s``
-    (NaN where the pelvis moves slower than ``params.min_speed_mm_s``).
+    field; the direction is its horizontal part smoothed over ``params.direction_s``.
+    Where the pelvis moves slower than ``params.min_speed_mm_s`` but the feet still walk
+    under it (a treadmill: :func:`belt_speed`), the direction is the feet's
+    (:func:`foot_direction`); where neither moves, NaN (no walking, no events).
     """
     rate = markers.rate_hz
     velocities = np.stack([derivative(p, rate, params.derivative_ms) for p in markers.pelvis])
@@ -59,8 +68,52 @@ def progression(
     speed = np.linalg.norm(flat, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         direction = flat / speed[:, None]
-    direction[~(speed >= params.min_speed_mm_s)] = np.nan
+    still = ~(speed >= params.min_speed_mm_s)
+    direction[still] = np.nan
+    if still.any():
+        feet = foot_direction(markers, params)
+        if belt_speed(markers, feet, pelvis_v, params) >= params.min_speed_mm_s:
+            direction[still] = feet[still]
     return direction, pelvis_v
+
+
+def belt_speed(
+    markers: GaitMarkers,
+    direction: NDArray,
+    pelvis_v: NDArray,
+    params: GaitParams = DEFAULT_PARAMS,
+) -> float:
+    """Speed (mm/s) of the ground under the feet relative to the pelvis, along
+    ``direction``: minus the median velocity of the heels relative to the pelvis.
+
+    A foot on the ground moves back relative to the pelvis at the walking speed, on a
+    treadmill as overground, and a foot is on the ground for about 60 % of a stride, so
+    the median of that relative velocity over a trial is minus the walking speed; 0 for
+    a subject standing still.
+    """
+    rel = [
+        np.sum(
+            (derivative(markers.heel[s], markers.rate_hz, params.derivative_ms) - pelvis_v)[:, :2]
+            * direction,
+            axis=1,
+        )
+        for s in SIDES
+    ]
+    rel = np.concatenate(rel)
+    rel = rel[np.isfinite(rel)]
+    return float(-np.median(rel)) if len(rel) else 0.0
+
+
+def walking_speed(
+    markers: GaitMarkers, direction: NDArray, pelvis_v: NDArray, params: GaitParams
+) -> NDArray[np.float64]:
+    """Walking speed (n,), mm/s: the pelvis' where it moves, else the treadmill's."""
+    speed = np.linalg.norm(pelvis_v[:, :2], axis=1)
+    flat = np.linalg.norm(smooth(pelvis_v[:, :2], params.direction_s * markers.rate_hz), axis=1)
+    still = ~(flat >= params.min_speed_mm_s) & np.isfinite(direction[:, 0])
+    if still.any():
+        speed[still] = belt_speed(markers, direction, pelvis_v, params)
+    return speed
 
 
 def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> GaitEvents:
@@ -101,36 +154,76 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     direction, pelvis_v = progression(markers, params)
     rate = markers.rate_hz
     t = markers.time_s
-    speed = np.linalg.norm(pelvis_v[:, :2], axis=1)
+    speed = walking_speed(markers, direction, pelvis_v, params)
     times: dict[tuple[str, str], list[float]] = {}
     coarse = {side: _coarse(markers, side, direction, pelvis_v, speed, params) for side in SIDES}
     strides = np.concatenate([np.diff(c[0]) for c in coarse.values()]) / rate
     stride_s = float(np.median(strides)) if len(strides) else 1.1
     for side in SIDES:
         strikes, offs = coarse[side]
-        heel, toe = markers.heel[side], markers.toe[side]
-        dt = 1.0 / rate
-        half = max(params.strike_fit_ms / 1000.0, 5 * dt)
-        search = max(params.strike_search_ms / 1000.0, 2 * dt)
-        found = []
-        for c in strikes / rate:
-            lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
-            i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
-            if i is not None:  # the corner; failing a clear one, the lowest sample
-                corner = kink_time(t, heel[:, 2], t[i], half, search)
-                found.append(corner if np.isfinite(corner) else t[i])
-        times[(side, "foot_strike")] = found
-        rate_of_pitch = pitch_rate(heel, toe, rate)
-        guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
-        found = []
-        for c in offs / rate:
-            lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
-            i = _extremum(t, guide, lo, hi, np.argmin)
-            if i is not None:
-                corner = _fastest(t, rate_of_pitch, i, params)
-                found.append(corner if np.isfinite(corner) else t[i])
-        times[(side, "foot_off")] = found
+        times[(side, "foot_strike")] = _strikes(
+            t, markers.heel[side], strikes / rate, stride_s, params
+        )
+        times[(side, "foot_off")] = _offs(
+            t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params
+        )
     return GaitEvents.from_times(times, rate)
+
+
+def _strikes(t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams):
+    """Foot strikes: the corner of the heel's height near each coarse one."""
+    dt = float(t[1] - t[0])
+    half = max(params.strike_fit_ms / 1000.0, 5 * dt)
+    search = max(params.strike_search_ms / 1000.0, 2 * dt)
+    found = []
+    for c in coarse:
+        lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
+        i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
+        if i is not None:  # the corner; failing a clear one, the lowest sample
+            corner = kink_time(t, heel[:, 2], t[i], half, search)
+            found.append(corner if np.isfinite(corner) else t[i])
+    return found
+
+
+def _offs(
+    t: NDArray, heel: NDArray, toe: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+):
+    """Foot offs: the end of the push-off near each coarse one.
+
+    Where the markers were recorded raw, the foot's pitch rate turns a sharp corner at
+    foot off (:func:`_fastest`). Labs often low-pass filter their trajectories before
+    saving them, which rounds that corner into a valley whose bottom comes 30-70 ms
+    before foot off; a symmetric filter moves a level crossing on a steep slope far less
+    than a corner, so when the pitch rate takes longer than ``params.off_sharp_ms`` (or
+    one field) to recover ``params.off_recovery`` of its fastest plantarflexion, foot
+    off is that recovery instead.
+    """
+    rate = 1.0 / float(t[1] - t[0])
+    rate_of_pitch = pitch_rate(heel, toe, rate)
+    guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
+    sharp = max(params.off_sharp_ms / 1000.0, 1.0 / rate)
+    found = []
+    for c in coarse:
+        lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
+        i = _extremum(t, guide, lo, hi, np.argmin)
+        if i is None:
+            continue
+        corner = _fastest(t, rate_of_pitch, i, params)
+        corner = corner if np.isfinite(corner) else t[i]
+        recovered = _recovery(t, guide, i, params.off_recovery, hi + params.off_fit_ms / 1000.0)
+        found.append(recovered if recovered - corner > sharp else corner)
+    return found
+
+
+def _recovery(t: NDArray, y: NDArray, i: int, fraction: float, until: float) -> float:
+    """First time after sample ``i`` (a minimum) where ``y`` has come back ``fraction``
+    of the way from ``y[i]`` to 0 (linear interpolation); NaN if not before ``until``."""
+    level = y[i] * (1.0 - fraction)
+    after = np.flatnonzero((np.arange(len(y)) > i) & (t <= until) & (y >= level))
+    if not len(after) or not np.all(np.isfinite(y[i : after[0] + 1])):
+        return float("nan")
+    k = int(after[0])
+    return float(t[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]))
 
 
 def foot_pitch(heel: NDArray, toe: NDArray) -> NDArray[np.float64]:
@@ -191,6 +284,83 @@ def _extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:
         return None
     k = int(pick(y[sel]))
     return None if k in (0, len(sel) - 1) else int(sel[k])
+
+
+def foot_direction(
+    markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Direction the feet point in (n, 2), unit: the horizontal heel-to-toe vectors of
+    both feet, summed and smoothed over ``params.direction_s``.
+
+    Toe-out of the two feet cancels in the sum, and a foot points where its owner walks
+    whether the ground moves or not, so this is the direction of progression on a
+    treadmill too (where the pelvis hardly moves in the lab).
+    """
+    rate = markers.rate_hz
+    parts = []
+    for side in SIDES:
+        d = (markers.toe[side] - markers.heel[side])[:, :2]
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            parts.append(d / norm)
+    with np.errstate(invalid="ignore"), _quiet():
+        mean = np.nanmean(np.stack(parts), axis=0)
+    flat = smooth(mean, params.direction_s * rate)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return flat / np.linalg.norm(flat, axis=1, keepdims=True)
+
+
+def pelvis_centre(markers: GaitMarkers) -> NDArray[np.float64]:
+    """Mean position (n, 3) of the pelvis markers present at each field."""
+    with np.errstate(invalid="ignore"), _quiet():
+        return np.nanmean(np.stack(markers.pelvis), axis=0)
+
+
+def coordinate_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> GaitEvents:
+    """Zeni et al. (2008)'s coordinate rule alone: foot strike when the heel is furthest
+    ahead of the pelvis, foot off when the toe is furthest behind it.
+
+    Positions are taken relative to the centre of the pelvis markers along the feet's
+    direction (:func:`foot_direction`); an extremum counts if it stands out by
+    ``params.coordinate_prominence`` of the signal's range and is not cut by an end of
+    the trial or a gap. Times are sub-field (parabola through the extreme sample and its
+    neighbours).
+
+    References
+    ----------
+    Zeni, Richards & Higginson 2008.
+    """
+    direction = foot_direction(markers, params)
+    centre = pelvis_centre(markers)
+    times: dict[tuple[str, str], list[float]] = {}
+    for side in SIDES:
+        for event, track, sign in (
+            ("foot_strike", markers.heel[side], 1.0),
+            ("foot_off", markers.toe[side], -1.0),
+        ):
+            along = np.sum((track - centre)[:, :2] * direction, axis=1)
+            times[(side, event)] = list(_peaks(sign * along, markers.rate_hz, params))
+    return GaitEvents.from_times(times, markers.rate_hz)
+
+
+def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
+    """Sub-sample times of the clear maxima of ``y``, run of valid samples by run."""
+    from scipy.signal import find_peaks
+
+    valid = np.isfinite(y)
+    if valid.sum() < 3:
+        return np.array([])
+    lo, hi = np.percentile(y[valid], [5, 95])
+    prominence = params.coordinate_prominence * (hi - lo)
+    distance = max(1, round(params.min_step_s * rate))
+    t = np.arange(len(y)) / rate
+    out = []
+    for a, b in finite_runs(valid):
+        if b - a < 3:
+            continue
+        for i in find_peaks(y[a:b], prominence=prominence, distance=distance)[0]:
+            out.append(peak_time(t, y, a + int(i)))
+    return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
 
 
 class _quiet:

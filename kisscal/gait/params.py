@@ -40,6 +40,17 @@ class GaitParams(Params):
     off_fit_ms, off_search_ms : float
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
+    off_recovery, off_sharp_ms : float
+        Trajectories filtered before they were saved round the corner of the pitch rate
+        at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
+        fields) after the corner to recover this fraction of its fastest plantarflexion,
+        foot off is taken at that recovery.
+    coordinate_prominence : float
+        Zeni et al. 2008's coordinate rule: an extremum of a foot's position relative to
+        the pelvis counts if it stands out by this fraction of the position's range.
+    min_step_s : float
+        Two extrema of one foot's relative position are at least this far apart (a
+        stride is longer than 0.7 s even when running).
     """
 
     section = "gait"
@@ -54,6 +65,10 @@ class GaitParams(Params):
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
     off_search_ms: float = param(40.0, unit="ms", gt=0)
+    off_recovery: float = param(0.2, gt=0, lt=1)
+    off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    coordinate_prominence: float = param(0.3, gt=0, lt=1)
+    min_step_s: float = param(0.5, unit="s", gt=0)
 
     def check(self) -> None:
         for name in ("strike_window", "off_window"):

@@ -1,0 +1,107 @@
+"""Gait events on real trials against the events their labs marked (run it):
+
+    python -m tests.gait.real_events
+
+For every trial of fixtures/real/gait/ (see its README: source, licence, system), the
+mean and worst absolute error of kisscal's foot strikes and foot offs against the marked
+ones, next to Zeni et al. (2008)'s coordinate rule on the same markers (heel furthest
+ahead of the pelvis at foot strike, toe furthest behind at foot off). A marked event
+with no detection within a third of a stride counts as missed; a detection with no
+marked event near it is not scored (labs mark only some events of a trial).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kisscal.gait import detect_events
+from kisscal.gait.events import coordinate_events
+from kisscal.gait.table import EVENTS, SIDES, GaitEvents
+from tests.gait import _real
+
+#: A detection further than this fraction of the median stride from a marked event
+#: does not match it.
+MATCH_STRIDES = 1.0 / 3.0
+
+
+@dataclass
+class Errors:
+    """Signed errors (s) per event kind and the number of marked events missed."""
+
+    errors: dict[str, list[float]] = field(default_factory=lambda: {e: [] for e in EVENTS})
+    missed: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EVENTS, 0))
+
+    def add(self, other: Errors) -> None:
+        for e in EVENTS:
+            self.errors[e] += other.errors[e]
+            self.missed[e] += other.missed[e]
+
+    def mean_ms(self, event: str) -> float:
+        e = np.abs(self.errors[event])
+        return 1000 * float(e.mean()) if len(e) else float("nan")
+
+    def worst_ms(self, event: str) -> float:
+        e = np.abs(self.errors[event])
+        return 1000 * float(e.max()) if len(e) else float("nan")
+
+
+def score(found: GaitEvents, marked: dict[tuple[str, str], np.ndarray]) -> Errors:
+    """Nearest detection of the same side and kind for every marked event."""
+    strikes = [np.diff(v) for (s, e), v in marked.items() if e == "foot_strike"]
+    strides = np.concatenate(strikes) if strikes else np.array([])
+    stride = float(np.median(strides[strides < 2.0])) if np.any(strides < 2.0) else 1.1
+    out = Errors()
+    for side in SIDES:
+        for event in EVENTS:
+            d = found.times(side, event)
+            for t in marked.get((side, event), []):
+                k = int(np.argmin(np.abs(d - t))) if len(d) else -1
+                if k >= 0 and abs(d[k] - t) <= MATCH_STRIDES * stride:
+                    out.errors[event].append(float(d[k] - t))
+                else:
+                    out.missed[event] += 1
+    return out
+
+
+def _cells(err: Errors) -> str:
+    return "  ".join(
+        f"{err.mean_ms(e):5.1f} {err.worst_ms(e):5.1f} {err.missed[e]:2d}" for e in EVENTS
+    )
+
+
+def table() -> tuple[list[str], Errors, Errors]:
+    head = "mean worst miss"
+    lines = [
+        f"{'trial':<24} {'Hz':>4} {'n':>3}  {'kisscal FS':^17}  {'kisscal FO':^17}"
+        f"  {'Zeni FS':^17}  {'Zeni FO':^17}",
+        f"{'':<24} {'':>4} {'':>3}  {head:^17}  {head:^17}  {head:^17}  {head:^17}",
+    ]
+    ours_all, zeni_all = Errors(), Errors()
+    for trial in _real.TRIALS:
+        gm, marked = _real.load(trial)
+        ours = score(detect_events(gm), marked)
+        zeni = score(coordinate_events(gm), marked)
+        ours_all.add(ours)
+        zeni_all.add(zeni)
+        n = sum(len(v) for v in marked.values())
+        lines.append(f"{trial.name:<24} {gm.rate_hz:4.0f} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+    n = sum(len(v) for v in ours_all.errors.values()) + sum(ours_all.missed.values())
+    lines.append(f"{'all':<24} {'':>4} {n:3d}  {_cells(ours_all)}  {_cells(zeni_all)}")
+    lines.append("errors in ms (mean and worst absolute); miss = marked events not found")
+    return lines, ours_all, zeni_all
+
+
+def main(argv: list[str]) -> None:
+    lines, _, _ = table()
+    print("\n".join(lines))
+    print()
+    for trial in _real.TRIALS:
+        note = f"; {trial.note}" if trial.note else ""
+        print(f"{trial.name}: {trial.system}; events: {trial.events_from}{note}")
+
+
+if __name__ == "__main__":
+    main(sys.argv)
