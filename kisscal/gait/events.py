@@ -159,30 +159,85 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     coarse = {side: _coarse(markers, side, direction, pelvis_v, speed, params) for side in SIDES}
     strides = np.concatenate([np.diff(c[0]) for c in coarse.values()]) / rate
     stride_s = float(np.median(strides)) if len(strides) else 1.1
+    zeni_only = {}
     for side in SIDES:
         strikes, offs = coarse[side]
-        times[(side, "foot_strike")] = _strikes(
+        times[(side, "foot_strike")], zeni_only[side] = _strikes(
             t, markers.heel[side], strikes / rate, stride_s, params
         )
         times[(side, "foot_off")] = _offs(
             t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params
         )
-    return GaitEvents.from_times(times, rate)
+    notes = explain(markers, times, direction, zeni_only, params)
+    return GaitEvents.from_times(times, rate, notes)
 
 
-def _strikes(t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams):
-    """Foot strikes: the corner of the heel's height near each coarse one."""
+def explain(
+    markers: GaitMarkers,
+    times: dict[tuple[str, str], list[float]],
+    direction: NDArray,
+    zeni_only: dict[str, int],
+    params: GaitParams = DEFAULT_PARAMS,
+) -> list[str]:
+    """One line for each reason a trial lacks events or full strides: too short, a
+    marker missing, no walking, no heel-strike pattern (foot strikes then come from
+    Zeni's rule alone), fewer than two foot strikes on a side."""
+    notes = []
+    duration = markers.n_fields / markers.rate_hz
+    if duration < params.min_trial_s:
+        notes.append(
+            f"the trial lasts {duration:.2f} s: too short for a full stride "
+            f"(two foot strikes of one foot, at least {params.min_trial_s:g} s of walking)"
+        )
+    roles = [("pelvis", np.stack(markers.pelvis).mean(axis=0))]
+    roles += [(f"{s}_{r}", getattr(markers, r)[s]) for s in SIDES for r in ("heel", "toe")]
+    for role, track in roles:
+        missing = 1.0 - float(np.mean(np.all(np.isfinite(track), axis=1)))
+        if missing > params.max_missing:
+            name = markers.names.get(role, "")
+            notes.append(
+                f"the {role.replace('_', ' ')} marker{f' ({name})' if name else ''} "
+                f"is missing in {100 * missing:.0f} % of the fields"
+            )
+    if not np.any(np.isfinite(direction[:, 0])):
+        notes.append(
+            f"no walking: the pelvis moves slower than {params.min_speed_mm_s:g} mm/s and "
+            "the feet do not step under it"
+        )
+    for side in SIDES:
+        if zeni_only[side]:
+            notes.append(
+                f"{side}: no heel-strike pattern (the heel's height has no low point after "
+                f"the swing) at {zeni_only[side]} foot strike(s), taken from Zeni's rule alone"
+            )
+        n = len(times[(side, "foot_strike")])
+        if n < 2 and not notes:
+            notes.append(f"no full stride on the {side}: {n} foot strike(s) found")
+    return notes
+
+
+def _strikes(
+    t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+) -> tuple[list[float], int]:
+    """Foot strikes: the corner of the heel's height near each coarse one; where the
+    heel has no low point there (its height still falls at the end of the window, as
+    for a walker whose heel does not land first), the coarse event itself (Zeni's
+    rule). Also returns how many came from Zeni's rule alone."""
     dt = float(t[1] - t[0])
     half = max(params.strike_fit_ms / 1000.0, 5 * dt)
     search = max(params.strike_search_ms / 1000.0, 2 * dt)
     found = []
+    fallback = 0
     for c in coarse:
         lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
         i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
-        if i is not None:  # the corner; failing a clear one, the lowest sample
+        if i is not None and i >= 0:  # the corner; failing a clear one, the lowest sample
             corner = kink_time(t, heel[:, 2], t[i], half, search)
             found.append(corner if np.isfinite(corner) else t[i])
-    return found
+        elif i is not None:
+            found.append(float(c))
+            fallback += 1
+    return found, fallback
 
 
 def _offs(
@@ -206,7 +261,7 @@ def _offs(
     for c in coarse:
         lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
         i = _extremum(t, guide, lo, hi, np.argmin)
-        if i is None:
+        if i is None or i < 0:
             continue
         corner = _fastest(t, rate_of_pitch, i, params)
         corner = corner if np.isfinite(corner) else t[i]
@@ -278,12 +333,14 @@ def _coarse(
 
 
 def _extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:
-    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi], None at an edge or gap."""
+    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi]; None where the window
+    meets an end of the trial or a gap, -1 where the extremum is at the window's edge
+    (no turning point inside)."""
     sel = np.flatnonzero((t >= lo) & (t <= hi))
     if len(sel) < 3 or sel[0] == 0 or sel[-1] == len(t) - 1 or not np.all(np.isfinite(y[sel])):
         return None
     k = int(pick(y[sel]))
-    return None if k in (0, len(sel) - 1) else int(sel[k])
+    return -1 if k in (0, len(sel) - 1) else int(sel[k])
 
 
 def foot_direction(

@@ -45,6 +45,11 @@ class GaitParams(Params):
         at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
         fields) after the corner to recover this fraction of its fastest plantarflexion,
         foot off is taken at that recovery.
+    min_trial_s : float
+        A shorter trial is reported as too short for a full stride.
+    max_missing : float
+        A pelvis, heel or toe marker missing in more than this fraction of the fields
+        is reported (its gaps hide events).
     coordinate_prominence : float
         Zeni et al. 2008's coordinate rule: an extremum of a foot's position relative to
         the pelvis counts if it stands out by this fraction of the position's range.
@@ -67,6 +72,8 @@ class GaitParams(Params):
     off_search_ms: float = param(40.0, unit="ms", gt=0)
     off_recovery: float = param(0.2, gt=0, lt=1)
     off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    min_trial_s: float = param(1.5, unit="s", gt=0)
+    max_missing: float = param(0.5, ge=0, le=1)
     coordinate_prominence: float = param(0.3, gt=0, lt=1)
     min_step_s: float = param(0.5, unit="s", gt=0)
 

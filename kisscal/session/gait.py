@@ -75,6 +75,8 @@ def gait_outputs(
         return None
     events = detect_events(markers, params)
     parameters = spatiotemporal_parameters(events, markers)
+    for note in events.warnings:  # why events or full strides are missing
+        echo(f"  gait {trial}: {note}")
     write_table(tdir / "events.csv", _columns(events.rows(), EVENT_COLUMNS))
     write_table(tdir / "spatiotemporal.csv", _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
     counts = {
@@ -84,7 +86,12 @@ def gait_outputs(
     }
     write_json(
         tdir / "gait.json",
-        {"events": counts, "markers": markers.names, "spatiotemporal": parameters.summary()},
+        {
+            "events": counts,
+            "markers": markers.names,
+            "spatiotemporal": parameters.summary(),
+            "warnings": list(events.warnings),
+        },
     )
     figure(
         root,

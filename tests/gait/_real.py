@@ -16,6 +16,8 @@ import numpy as np
 
 from kisscal.gait import GaitMarkers
 
+#: The group holding the force plates' contacts (20 N) in each fixture.
+PLATE_GROUP = "PLATE_EVENT"
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "gait"
 _C3DORG = "biomechanics-foundation/c3dio:tests/c3d_org_samples/"
 
@@ -32,6 +34,9 @@ class RealTrial:
     toe: tuple[str, str]
     events_from: str = "EVENT group as the lab saved it"
     note: str = ""
+    #: Score against the plates' contacts too (not on a treadmill: a foot crossing onto
+    #: the other belt loads it, so a belt's contacts are not one foot's stance).
+    plates: bool = True
 
     @property
     def path(self) -> Path:
@@ -53,6 +58,7 @@ TRIALS = (
         ("LHEE", "RHEE"),
         ("LMT2", "RMT2"),
         note="treadmill: the pelvis hardly moves in the lab",
+        plates=False,
     ),
     RealTrial(
         "gaitalytics_overground",
@@ -157,9 +163,10 @@ _SHORT = {"LHS": ("left", "foot_strike"), "RHS": ("right", "foot_strike")}
 _SHORT |= {"LTO": ("left", "foot_off"), "RTO": ("right", "foot_off")}
 
 
-def read(path: Path | str) -> tuple[dict[str, np.ndarray], float, int, dict]:
+def read(path: Path | str, group: str = "EVENT") -> tuple[dict[str, np.ndarray], float, int, dict]:
     """Markers (name -> (n, 3) mm, NaN where invalid), rate, first frame (0-based) and
-    the EVENT group as ``(side, event) -> times (s, 0 at the first frame stored)``."""
+    the events of ``group`` as ``(side, event) -> times (s, 0 at the first frame
+    stored)``."""
     import ezc3d
 
     c3d = ezc3d.c3d(str(path))
@@ -169,7 +176,7 @@ def read(path: Path | str) -> tuple[dict[str, np.ndarray], float, int, dict]:
     xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # older writers store a missing sample as 0 0 0
     markers = dict(zip(params["POINT"]["LABELS"]["value"], xyz.transpose(1, 0, 2), strict=True))
-    return markers, rate, first, _events(params.get("EVENT", {}), first / rate)
+    return markers, rate, first, _events(params.get(group, {}), first / rate)
 
 
 def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
@@ -189,9 +196,12 @@ def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
     return {k: np.sort(v) for k, v in out.items()}
 
 
-def load(trial: RealTrial) -> tuple[GaitMarkers, dict[tuple[str, str], np.ndarray]]:
-    """The trial's gait markers and marked events (s from its first stored frame)."""
-    markers, rate, _, events = read(trial.path)
+def load(
+    trial: RealTrial, group: str = "EVENT"
+) -> tuple[GaitMarkers, dict[tuple[str, str], np.ndarray]]:
+    """The trial's gait markers and marked events (s from its first stored frame);
+    ``group=PLATE_GROUP``: the force plates' contacts instead."""
+    markers, rate, _, events = read(trial.path, group)
     heel = dict(zip(("left", "right"), (markers[n] for n in trial.heel), strict=True))
     toe = dict(zip(("left", "right"), (markers[n] for n in trial.toe), strict=True))
     pelvis = tuple(markers[n] for n in trial.pelvis if n in markers)

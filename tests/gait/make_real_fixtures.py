@@ -17,9 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.gait._real import FIXTURES, TRIALS, RealTrial
+from tests.gait._real import FIXTURES, PLATE_GROUP, TRIALS, RealTrial
 
 THRESHOLD_N = 20.0
+#: A plate loaded for less than this is not a foot's stance.
+MIN_CONTACT_S = 0.25
 
 
 def source_path(root: Path, trial: RealTrial) -> Path:
@@ -28,25 +30,72 @@ def source_path(root: Path, trial: RealTrial) -> Path:
 
 
 def plate_events(c3d, heel: dict, toe: dict, rate: float) -> list[tuple[str, str, float]]:
-    """(side, label, time s from the first frame) of every plate contact that is a foot's."""
+    """(context, label, time s from the first frame) of every contact a plate sees in
+    full, as a foot's: the foot whose heel is over the plate at the start (the lower
+    one if both are, as on a treadmill's belt) gets the start, the foot whose toe is
+    over it at the end gets the end; a contact whose ends go to different feet is
+    dropped. The unloaded level is the most common value of the plate's vertical force
+    (a treadmill's belt is loaded more than half the time, so its median is not)."""
     plates = c3d["parameters"]["FORCE_PLATFORM"]
     corners = plates["CORNERS"]["value"]
-    fz_channel = plates["CHANNEL"]["value"][2] - 1
+    fz_channel = np.atleast_2d(plates["CHANNEL"]["value"])[2] - 1
     analog = c3d["data"]["analogs"][0]
     analog_rate = float(c3d["header"]["analogs"]["frame_rate"])
     out = []
     for k, channel in enumerate(fz_channel):
-        fz = np.abs(analog[channel] - np.median(analog[channel][:200]))
-        loaded = np.flatnonzero(fz > THRESHOLD_N)
-        if not len(loaded):
+        fz = analog[channel]
+        counts, bins = np.histogram(fz, bins=np.arange(fz.min(), fz.max() + 5.0, 5.0))
+        loaded = np.abs(fz - bins[np.argmax(counts)] - 2.5) > THRESHOLD_N
+        box = corners[:2, :, k].min(axis=1), corners[:2, :, k].max(axis=1)
+        for start, end in _contacts(loaded, analog_rate):
+            feet = {
+                label: _foot_over(role, box, t, rate)
+                for label, role, t in (("Foot Strike", heel, start), ("Foot Off", toe, end))
+                if t is not None
+            }
+            if len(set(feet.values()) - {None}) != 1:
+                continue  # no foot, or two feet: not one foot's stance
+            for label, side in feet.items():
+                if side is not None:
+                    out.append((side, label, start if label == "Foot Strike" else end))
+    return out
+
+
+def _foot_over(role: dict, box, t: float, rate: float) -> str | None:
+    """The side whose marker is over the plate at ``t`` (the lower one if both are)."""
+    n = next(iter(role.values())).shape[0]
+    frame = round(t * rate)
+    if not 0 <= frame < n:
+        return None
+    over = {}
+    for side in ("Left", "Right"):
+        p = role[side.lower()][frame]
+        if np.all(np.isfinite(p)) and np.all((p[:2] >= box[0]) & (p[:2] <= box[1])):
+            over[side] = p[2]
+    return min(over, key=over.get) if over else None
+
+
+def _contacts(loaded: np.ndarray, rate: float) -> list[tuple[float | None, float | None]]:
+    """(start, end) s of the plate's contacts: loaded runs of MIN_CONTACT_S to 1.5 s
+    (bridging dropouts under 20 ms); an end cut by the recording, or without 50 ms
+    unloaded next to it, is None."""
+    from kisscal.gait.signals import finite_runs
+
+    merged: list[list[int]] = []
+    for a, b in finite_runs(loaded):
+        if merged and a - merged[-1][1] < 0.02 * rate:
+            merged[-1][1] = b
+        else:
+            merged.append([a, b])
+    out = []
+    for j, (a, b) in enumerate(merged):
+        if not MIN_CONTACT_S * rate <= b - a <= 1.5 * rate:
             continue
-        lo, hi = corners[:2, :, k].min(axis=1), corners[:2, :, k].max(axis=1)
-        for label, i, role in (("Foot Strike", loaded[0], heel), ("Foot Off", loaded[-1], toe)):
-            t = i / analog_rate
-            for side in ("Left", "Right"):
-                xy = role[side.lower()][round(t * rate), :2]
-                if np.all(np.isfinite(xy)) and np.all((xy >= lo) & (xy <= hi)):
-                    out.append((side, label, t))
+        before = a - (merged[j - 1][1] if j else 0)
+        after = (merged[j + 1][0] if j + 1 < len(merged) else len(loaded)) - b
+        start = a / rate if a > 0 and before >= 0.05 * rate else None
+        end = (b - 1) / rate if b < len(loaded) and after >= 0.05 * rate else None
+        out.append((start, end))
     return out
 
 
@@ -66,15 +115,16 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
     out["data"]["points"] = c3d["data"]["points"][:, idx, :]
     meta = c3d["data"]["meta_points"]
     out["data"]["meta_points"] = {k: meta[k][:, idx, :] for k in ("residuals", "camera_masks")}
+    xyz = c3d["data"]["points"][:3].transpose(2, 1, 0)
+    mk = dict(zip(labels, xyz.transpose(1, 0, 2), strict=False))
+    heel = {"left": mk[trial.heel[0]], "right": mk[trial.heel[1]]}
+    toe = {"left": mk[trial.toe[0]], "right": mk[trial.toe[1]]}
+    plates = plate_events(c3d, heel, toe, rate) if "FORCE_PLATFORM" in params else []
+    plate_times = np.array([[0.0] * len(plates), [t + first / rate for _, _, t in plates]])
     if "force plates" in trial.events_from:
-        xyz = c3d["data"]["points"][:3].transpose(2, 1, 0)
-        mk = dict(zip(labels, xyz.transpose(1, 0, 2), strict=False))
-        heel = {"left": mk[trial.heel[0]], "right": mk[trial.heel[1]]}
-        toe = {"left": mk[trial.toe[0]], "right": mk[trial.toe[1]]}
-        found = plate_events(c3d, heel, toe, rate)
-        contexts = [s for s, _, _ in found]
-        names = [e for _, e, _ in found]
-        times = np.array([[0.0] * len(found), [t + first / rate for _, _, t in found]])
+        contexts = [s for s, _, _ in plates]
+        names = [e for _, e, _ in plates]
+        times = plate_times
     else:
         event = params["EVENT"]
         contexts = list(event["CONTEXTS"]["value"])
@@ -85,6 +135,11 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
     out.add_parameter("EVENT", "LABELS", names)
     out.add_parameter("EVENT", "TIMES", times)
     out.add_parameter("EVENT", "DESCRIPTIONS", [trial.events_from[:60]] * len(names))
+    # The plates' contacts, for scoring against force plates alone (a group of its own:
+    # lab software reads only EVENT).
+    out.add_parameter(PLATE_GROUP, "CONTEXTS", [s for s, _, _ in plates] or [""])
+    out.add_parameter(PLATE_GROUP, "LABELS", [e for _, e, _ in plates] or [""])
+    out.add_parameter(PLATE_GROUP, "TIMES", plate_times if plates else np.zeros((2, 1)))
     out["header"]["points"]["first_frame"] = first
     out.write(str(dst))
 
