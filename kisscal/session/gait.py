@@ -65,7 +65,10 @@ def gait_outputs(
     by_label = {label: dense[t] for t, label in enumerate(result.labels)}
     try:
         markers = gait_markers(by_label, rate_hz, marker_set)
-    except KisscalError:
+    except KisscalError as err:
+        feet = {n for side in ("left", "right") for n in marker_set.foot(side).values()}
+        if set(by_label) & (feet | set(marker_set.pelvis)):  # a gait trial short of markers
+            echo(f"  gait {trial}: no events, {str(err).removeprefix('gait: ')}")
         return None
     uncertain = sorted(
         set(result.labelling.flagged) & set(",".join(markers.names.values()).split(","))
