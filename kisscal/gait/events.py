@@ -86,36 +86,48 @@ def progression(
     direction[still] = np.nan
     if still.any():
         feet = foot_direction(markers, params)
-        if belt_speed(markers, feet, pelvis_v, params) >= params.min_speed_mm_s:
+        if belt_speed(markers, feet, params) >= params.min_speed_mm_s:
             direction[still] = feet[still]
     return direction, pelvis_v
 
 
 def belt_speed(
-    markers: GaitMarkers,
-    direction: NDArray,
-    pelvis_v: NDArray,
-    params: GaitParams = DEFAULT_PARAMS,
+    markers: GaitMarkers, direction: NDArray, params: GaitParams = DEFAULT_PARAMS
 ) -> float:
-    """Speed (mm/s) of the ground under the feet relative to the pelvis, along
-    ``direction``: minus the median velocity of the heels relative to the pelvis.
+    """Speed (mm/s) at which the ground carries the feet back through the lab, along
+    ``direction``: minus the median velocity of the heels while they are down (within
+    ``params.heel_down_mm`` of their lowest).
 
-    A foot on the ground moves back relative to the pelvis at the walking speed, on a
-    treadmill as overground, and a foot is on the ground for about 60 % of a stride, so
-    the median of that relative velocity over a trial is minus the walking speed; 0 for
-    a subject standing still.
+    A heel down on a treadmill's belt moves with it; overground, or standing, it stands
+    still (0).
     """
-    rel = [
-        np.sum(
-            (derivative(markers.heel[s], markers.rate_hz, params.derivative_ms) - pelvis_v)[:, :2]
-            * direction,
-            axis=1,
-        )
-        for s in SIDES
-    ]
-    rel = np.concatenate(rel)
-    rel = rel[np.isfinite(rel)]
-    return float(-np.median(rel)) if len(rel) else 0.0
+    forward = []
+    for side in SIDES:
+        heel = markers.heel[side]
+        v = derivative(heel, markers.rate_hz, params.derivative_ms)
+        along = np.sum(v[:, :2] * direction, axis=1)
+        z = heel[:, 2]
+        if np.any(np.isfinite(z)):
+            with np.errstate(invalid="ignore"):
+                down = z <= np.nanpercentile(z, 5) + params.heel_down_mm
+            forward.append(along[down & np.isfinite(along)])
+    forward = np.concatenate(forward) if forward else np.array([])
+    return float(-np.median(forward)) if len(forward) else 0.0
+
+
+def ground_velocity(
+    markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Horizontal velocity (n, 2), mm/s, of the ground the subject walks on: 0
+    overground, the belt's (backwards at the walking speed) where the pelvis stands
+    still in the lab and the feet walk (a treadmill)."""
+    direction, pelvis_v = progression(markers, params)
+    flat = np.linalg.norm(smooth(pelvis_v[:, :2], params.direction_s * markers.rate_hz), axis=1)
+    belt = ~(flat >= params.min_speed_mm_s) & np.isfinite(direction[:, 0])
+    out = np.zeros((markers.n_fields, 2))
+    if belt.any():
+        out[belt] = -belt_speed(markers, direction, params) * direction[belt]
+    return out
 
 
 def walking_speed(
@@ -126,7 +138,7 @@ def walking_speed(
     flat = np.linalg.norm(smooth(pelvis_v[:, :2], params.direction_s * markers.rate_hz), axis=1)
     still = ~(flat >= params.min_speed_mm_s) & np.isfinite(direction[:, 0])
     if still.any():
-        speed[still] = belt_speed(markers, direction, pelvis_v, params)
+        speed[still] = belt_speed(markers, direction, params)
     return speed
 
 

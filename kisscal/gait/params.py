@@ -45,6 +45,9 @@ class GaitParams(Params):
         at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
         fields) after the corner to recover this fraction of its fastest plantarflexion,
         foot off is taken at that recovery.
+    heel_down_mm : float
+        A heel within this of its lowest is down on the ground (mid-stance): on a
+        treadmill its velocity relative to the pelvis gives the belt's speed.
     min_trial_s : float
         A shorter trial is reported as too short for a full stride.
     max_missing : float
@@ -72,6 +75,7 @@ class GaitParams(Params):
     off_search_ms: float = param(40.0, unit="ms", gt=0)
     off_recovery: float = param(0.2, gt=0, lt=1)
     off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    heel_down_mm: float = param(10.0, unit="mm", gt=0)
     min_trial_s: float = param(1.5, unit="s", gt=0)
     max_missing: float = param(0.5, ge=0, le=1)
     coordinate_prominence: float = param(0.3, gt=0, lt=1)

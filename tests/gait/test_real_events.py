@@ -71,6 +71,19 @@ def test_a_treadmill_walk_is_walking() -> None:
         assert len(found.times(side, "foot_off")) >= 10
     st = spatiotemporal_parameters(found, gm)
     assert 100.0 < st.mean("cadence", "left") < 112.0  # its 1.13 s strides
+    # Lengths on the belt: the walking speed is the belt's, which carries a heel in
+    # mid-stance back through the lab (measured here from the heel alone).
+    heel = gm.heel["left"]
+    strikes, offs = found.times("left", "foot_strike"), found.times("left", "foot_off")
+    belt = []
+    for t0 in strikes:
+        t1 = offs[offs > t0][:1]
+        if len(t1):
+            i, j = round((t0 + 0.3 * (t1[0] - t0)) * 100), round((t0 + 0.7 * (t1[0] - t0)) * 100)
+            belt.append(np.linalg.norm(heel[j, :2] - heel[i, :2]) / ((j - i) / 100.0) / 1000.0)
+    for side in ("left", "right"):
+        assert st.mean("walking_speed", side) == pytest.approx(np.median(belt), rel=0.05)
+        assert 0.03 < st.mean("step_width", side) < 0.15
 
 
 def _kiss(motion):
