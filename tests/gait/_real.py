@@ -34,6 +34,8 @@ class RealTrial:
     toe: tuple[str, str]
     events_from: str = "EVENT group as the lab saved it"
     note: str = ""
+    #: The lab's vertical axis ("z", or "y" for a Y-up lab: turned to z up on loading).
+    up: str = "z"
     #: Score against the plates' contacts too (not on a treadmill: a foot crossing onto
     #: the other belt loads it, so a belt's contacts are not one foot's stance).
     plates: bool = True
@@ -48,6 +50,7 @@ class RealTrial:
 
 
 _PIG = ("LASI", "RASI", "LPSI", "RPSI")
+_PLATES = "force plates (20 N), the foot over the plate"
 _ANKLE = "the ankle (ANK) stands in for the heel"
 TRIALS = (
     RealTrial(
@@ -138,13 +141,68 @@ TRIALS = (
         note="no heel marker: " + _ANKLE,
     ),
     RealTrial(
+        "qualisys_walking_1_3",
+        _C3DORG + "sample_26/Walking_Hybrid_1_3.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_walking_1_4",
+        _C3DORG + "sample_26/Walking_Hybrid_1_4.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_walking_1_5",
+        _C3DORG + "sample_26/Walking_Hybrid_1_5.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_ezc3d",
+        "kineticstoolkit/kineticstoolkit:data/c3d_test_suite/ezc3d/Qualisys.c3d",
+        "Qualisys (QTM)",
+        ("L_IAS", "R_IAS", "L_IPS", "R_IPS"),
+        ("L_FCC", "R_FCC"),
+        ("L_FM1", "R_FM1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "codamotion_gaitwands",
+        _C3DORG + "sample_00/Codamotion/codamotion_gaitwands_20150204.c3d",
+        "Codamotion (Charnwood Dynamics)",
+        ("L.ASIS", "R.ASIS", "L.PSIS", "R.PSIS"),
+        ("L.Heel", "R.Heel"),
+        ("L.Toe", "R.Toe"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "bts_gait",
+        "kineticstoolkit/kineticstoolkit:data/c3d_test_suite/ezc3d/BTS.c3d",
+        "BTS Bioengineering (Y up)",
+        ("l asis", "r asis", "sacrum"),
+        ("l heel", "r heel"),
+        ("l met", "r met"),
+        events_from=_PLATES,
+        up="y",
+    ),
+    RealTrial(
         "opensim_walking2",
         "opensim-org/opensim-core:OpenSim/Tests/shared/walking2.c3d",
         "Vicon",
         ("LASI", "RASI", "LPSI", "RPSI"),
         ("LCAL", "RCAL"),
         ("LMT2", "RMT2"),
-        events_from="force plates (20 N), the foot over the plate",
+        events_from=_PLATES,
     ),
     RealTrial(
         "opensim_walking5",
@@ -153,11 +211,24 @@ TRIALS = (
         ("LASI", "RASI", "LPSI", "RPSI"),
         ("LCAL", "RCAL"),
         ("LMT2", "RMT2"),
-        events_from="force plates (20 N), the foot over the plate",
+        events_from=_PLATES,
     ),
 )
 
 _SIDE = {"left": "left", "right": "right"}
+_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
+
+
+def z_up(xyz: np.ndarray, up: str) -> np.ndarray:
+    """Points (..., 3) of a lab whose vertical is ``up`` turned so that z is up (a
+    proper rotation about x for a Y-up lab)."""
+    if up == "z":
+        return xyz
+    if up == "y":
+        return np.stack([xyz[..., 0], -xyz[..., 2], xyz[..., 1]], axis=-1)
+    raise ValueError(f"unknown vertical axis {up!r}")
+
+
 _LABEL = {"foot strike": "foot_strike", "foot off": "foot_off"}
 _SHORT = {"LHS": ("left", "foot_strike"), "RHS": ("right", "foot_strike")}
 _SHORT |= {"LTO": ("left", "foot_off"), "RTO": ("right", "foot_off")}
@@ -175,6 +246,7 @@ def read(path: Path | str, group: str = "EVENT") -> tuple[dict[str, np.ndarray],
     first = int(c3d["header"]["points"]["first_frame"])
     xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # older writers store a missing sample as 0 0 0
+    xyz *= _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
     markers = dict(zip(params["POINT"]["LABELS"]["value"], xyz.transpose(1, 0, 2), strict=True))
     return markers, rate, first, _events(params.get(group, {}), first / rate)
 
@@ -186,6 +258,8 @@ def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
     contexts = group.get("CONTEXTS", {}).get("value", [""] * len(labels))
     times = np.asarray(group.get("TIMES", {}).get("value", np.zeros((2, 0))), dtype=float)
     out: dict[tuple[str, str], list[float]] = {}
+    if not labels:  # ezc3d reads a blank event list back as no labels
+        return {}
     for label, context, (minutes, seconds) in zip(labels, contexts, times.T, strict=True):
         key = _SHORT.get(context.strip()) or _SHORT.get(label.strip())
         side, event = context.strip().lower(), _LABEL.get(label.strip().lower())
@@ -202,6 +276,7 @@ def load(
     """The trial's gait markers and marked events (s from its first stored frame);
     ``group=PLATE_GROUP``: the force plates' contacts instead."""
     markers, rate, _, events = read(trial.path, group)
+    markers = {k: z_up(v, trial.up) for k, v in markers.items()}
     heel = dict(zip(("left", "right"), (markers[n] for n in trial.heel), strict=True))
     toe = dict(zip(("left", "right"), (markers[n] for n in trial.toe), strict=True))
     pelvis = tuple(markers[n] for n in trial.pelvis if n in markers)

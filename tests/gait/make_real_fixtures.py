@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.gait._real import FIXTURES, PLATE_GROUP, TRIALS, RealTrial
+from tests.gait._real import _MM, FIXTURES, PLATE_GROUP, TRIALS, RealTrial, z_up
 
 THRESHOLD_N = 20.0
 #: A plate loaded for less than this is not a foot's stance.
-MIN_CONTACT_S = 0.25
+MIN_CONTACT_S = 0.4
 
 
 def source_path(root: Path, trial: RealTrial) -> Path:
@@ -29,21 +29,26 @@ def source_path(root: Path, trial: RealTrial) -> Path:
     return root / repo.replace("/", "+") / path
 
 
-def plate_events(c3d, heel: dict, toe: dict, rate: float) -> list[tuple[str, str, float]]:
+def plate_events(
+    c3d, heel: dict, toe: dict, rate: float, up: str = "z", mm: float = 1.0
+) -> list[tuple[str, str, float]]:
     """(context, label, time s from the first frame) of every contact a plate sees in
-    full, as a foot's: the foot whose heel is over the plate at the start (the lower
-    one if both are, as on a treadmill's belt) gets the start, the foot whose toe is
+    full, as a foot's: the foot whose heel is over the plate at the start (the slower
+    one if both are) gets the start, the foot whose toe is
     over it at the end gets the end; a contact whose ends go to different feet is
     dropped. The unloaded level is the most common value of the plate's vertical force
     (a treadmill's belt is loaded more than half the time, so its median is not)."""
     plates = c3d["parameters"]["FORCE_PLATFORM"]
-    corners = plates["CORNERS"]["value"]
+    corners = np.asarray(plates["CORNERS"]["value"]).transpose(1, 2, 0) * mm  # POINT units
+    corners = z_up(corners, up).transpose(2, 0, 1)
     fz_channel = np.atleast_2d(plates["CHANNEL"]["value"])[2] - 1
     analog = c3d["data"]["analogs"][0]
     analog_rate = float(c3d["header"]["analogs"]["frame_rate"])
     out = []
     for k, channel in enumerate(fz_channel):
         fz = analog[channel]
+        if not np.ptp(fz) > THRESHOLD_N:
+            continue  # an unused plate
         counts, bins = np.histogram(fz, bins=np.arange(fz.min(), fz.max() + 5.0, 5.0))
         loaded = np.abs(fz - bins[np.argmax(counts)] - 2.5) > THRESHOLD_N
         box = corners[:2, :, k].min(axis=1), corners[:2, :, k].max(axis=1)
@@ -58,27 +63,43 @@ def plate_events(c3d, heel: dict, toe: dict, rate: float) -> list[tuple[str, str
             for label, side in feet.items():
                 if side is not None:
                     out.append((side, label, start if label == "Foot Strike" else end))
+    return _first_strikes(sorted(out, key=lambda e: e[2]))
+
+
+def _first_strikes(events: list[tuple[str, str, float]]) -> list[tuple[str, str, float]]:
+    """Drop a foot strike that follows the same foot's strike by less than 0.5 s: the
+    foot rolling onto the next plate in the same stance."""
+    out, last = [], {}
+    for side, label, t in events:
+        if label == "Foot Strike":
+            if t - last.get(side, -np.inf) < 0.5:
+                continue
+            last[side] = t
+        out.append((side, label, t))
     return out
 
 
 def _foot_over(role: dict, box, t: float, rate: float) -> str | None:
-    """The side whose marker is over the plate at ``t`` (the lower one if both are)."""
+    """The side whose marker is over the plate at ``t``; if both are, the slower one
+    (a foot landing or pushing off, not the other swinging over the plate)."""
     n = next(iter(role.values())).shape[0]
     frame = round(t * rate)
-    if not 0 <= frame < n:
+    if not 1 <= frame < n - 1:
         return None
     over = {}
     for side in ("Left", "Right"):
-        p = role[side.lower()][frame]
+        track = role[side.lower()]
+        p = track[frame]
         if np.all(np.isfinite(p)) and np.all((p[:2] >= box[0]) & (p[:2] <= box[1])):
-            over[side] = p[2]
+            over[side] = np.linalg.norm(track[frame + 1] - track[frame - 1])
     return min(over, key=over.get) if over else None
 
 
 def _contacts(loaded: np.ndarray, rate: float) -> list[tuple[float | None, float | None]]:
-    """(start, end) s of the plate's contacts: loaded runs of MIN_CONTACT_S to 1.5 s
-    (bridging dropouts under 20 ms); an end cut by the recording, or without 50 ms
-    unloaded next to it, is None."""
+    """(start, end) s of the plate's contacts: loaded runs of 0.15 to 1.5 s (bridging
+    dropouts under 20 ms). An end cut by the recording, or without 50 ms unloaded next
+    to it, is None; so is the end of a contact shorter than MIN_CONTACT_S (a foot that
+    rolled off the plate onto the floor, not a foot off)."""
     from kisscal.gait.signals import finite_runs
 
     merged: list[list[int]] = []
@@ -89,13 +110,13 @@ def _contacts(loaded: np.ndarray, rate: float) -> list[tuple[float | None, float
             merged.append([a, b])
     out = []
     for j, (a, b) in enumerate(merged):
-        if not MIN_CONTACT_S * rate <= b - a <= 1.5 * rate:
+        if not 0.15 * rate <= b - a <= 1.5 * rate:
             continue
         before = a - (merged[j - 1][1] if j else 0)
         after = (merged[j + 1][0] if j + 1 < len(merged) else len(loaded)) - b
         start = a / rate if a > 0 and before >= 0.05 * rate else None
-        end = (b - 1) / rate if b < len(loaded) and after >= 0.05 * rate else None
-        out.append((start, end))
+        whole = b < len(loaded) and after >= 0.05 * rate and b - a >= MIN_CONTACT_S * rate
+        out.append((start, (b - 1) / rate if whole else None))
     return out
 
 
@@ -115,11 +136,17 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
     out["data"]["points"] = c3d["data"]["points"][:, idx, :]
     meta = c3d["data"]["meta_points"]
     out["data"]["meta_points"] = {k: meta[k][:, idx, :] for k in ("residuals", "camera_masks")}
-    xyz = c3d["data"]["points"][:3].transpose(2, 1, 0)
-    mk = dict(zip(labels, xyz.transpose(1, 0, 2), strict=False))
+    xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
+    xyz[np.all(xyz == 0.0, axis=2)] = np.nan
+    mm = _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    xyz = z_up(xyz * mm, trial.up)
+    mk: dict[str, np.ndarray] = {}
+    for label, track in zip(labels, xyz.transpose(1, 0, 2), strict=True):
+        mk.setdefault(label, track)  # a label given twice: the first, as labels.index
     heel = {"left": mk[trial.heel[0]], "right": mk[trial.heel[1]]}
     toe = {"left": mk[trial.toe[0]], "right": mk[trial.toe[1]]}
-    plates = plate_events(c3d, heel, toe, rate) if "FORCE_PLATFORM" in params else []
+    has_plates = "FORCE_PLATFORM" in params
+    plates = plate_events(c3d, heel, toe, rate, trial.up, mm) if has_plates else []
     plate_times = np.array([[0.0] * len(plates), [t + first / rate for _, _, t in plates]])
     if "force plates" in trial.events_from:
         contexts = [s for s, _, _ in plates]
@@ -130,6 +157,8 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
         contexts = list(event["CONTEXTS"]["value"])
         names = list(event["LABELS"]["value"])
         times = np.asarray(event["TIMES"]["value"], dtype=float)
+    if not names:  # ezc3d writes no empty list: one blank event, read as none
+        contexts, names, times = [""], [""], np.zeros((2, 1))
     out.add_parameter("EVENT", "USED", len(names))
     out.add_parameter("EVENT", "CONTEXTS", contexts)
     out.add_parameter("EVENT", "LABELS", names)
