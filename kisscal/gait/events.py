@@ -206,9 +206,10 @@ def explain(
     zeni_only: dict[str, int],
     params: GaitParams = DEFAULT_PARAMS,
 ) -> list[str]:
-    """One line for each reason a trial lacks events or full strides: too short, a
-    marker missing, no walking, no heel-strike pattern (foot strikes then come from
-    Zeni's rule alone), fewer than two foot strikes on a side."""
+    """One line for each reason a trial lacks events or full strides: too short, the
+    lab's z axis not up, no walking, no heel-strike pattern (foot strikes then come from
+    Zeni's rule alone), a side with fewer than two foot strikes (and which of its
+    markers, or the pelvis, is missing in more than ``params.max_missing`` of it)."""
     notes = []
     duration = markers.n_fields / markers.rate_hz
     if duration < params.min_trial_s:
@@ -216,21 +217,13 @@ def explain(
             f"the trial lasts {duration:.2f} s: too short for a full stride "
             f"(two foot strikes of one foot, at least {params.min_trial_s:g} s of walking)"
         )
-    roles = [("pelvis", np.stack(markers.pelvis).mean(axis=0))]
-    roles += [(f"{s}_{r}", getattr(markers, r)[s]) for s in SIDES for r in ("heel", "toe")]
-    for role, track in roles:
-        missing = 1.0 - float(np.mean(np.all(np.isfinite(track), axis=1)))
-        if missing > params.max_missing:
-            name = markers.names.get(role, "")
-            notes.append(
-                f"the {role.replace('_', ' ')} marker{f' ({name})' if name else ''} "
-                f"is missing in {100 * missing:.0f} % of the fields"
-            )
+    notes += _vertical(markers)
     if not np.any(np.isfinite(direction[:, 0])):
         notes.append(
             f"no walking: the pelvis moves slower than {params.min_speed_mm_s:g} mm/s and "
             "the feet do not step under it"
         )
+    explained = bool(notes)
     for side in SIDES:
         if zeni_only[side]:
             notes.append(
@@ -238,9 +231,44 @@ def explain(
                 f"the swing) at {zeni_only[side]} foot strike(s), taken from Zeni's rule alone"
             )
         n = len(times[(side, "foot_strike")])
-        if n < 2 and not notes:
-            notes.append(f"no full stride on the {side}: {n} foot strike(s) found")
+        if n < 2 and not explained:
+            notes.append(
+                f"no full stride on the {side}: {n} foot strike(s) found"
+                + "".join(f"; {m}" for m in _missing(markers, side, params))
+            )
     return notes
+
+
+def _missing(markers: GaitMarkers, side: str, params: GaitParams) -> list[str]:
+    """'the left heel marker (LHEE) is missing in 73 % of the fields', and the like."""
+    out = []
+    roles = [("pelvis", pelvis_centre(markers))]
+    roles += [(f"{side}_{r}", getattr(markers, r)[side]) for r in ("heel", "toe")]
+    for role, track in roles:
+        missing = 1.0 - float(np.mean(np.all(np.isfinite(track), axis=1)))
+        if missing > params.max_missing:
+            name = markers.names.get(role, "")
+            out.append(
+                f"the {role.replace('_', ' ')} marker{f' ({name})' if name else ''} "
+                f"is missing in {100 * missing:.0f} % of the fields"
+            )
+    return out
+
+
+def _vertical(markers: GaitMarkers) -> list[str]:
+    """A line if the pelvis is not above the heels along +z (a lab with y up, say)."""
+    with np.errstate(invalid="ignore"), _quiet():
+        above = np.nanmedian(
+            pelvis_centre(markers) - (markers.heel["left"] + markers.heel["right"]) / 2, axis=0
+        )
+    if not np.all(np.isfinite(above)) or above[2] > 0.5 * np.max(np.abs(above)):
+        return []
+    axis = "xyz"[int(np.argmax(np.abs(above)))]
+    sign = "+" if above["xyz".index(axis)] > 0 else "-"
+    return [
+        f"the pelvis is {abs(above['xyz'.index(axis)]):.0f} mm above the heels along "
+        f"{sign}{axis}, not +z: gait events need the lab's z axis up"
+    ]
 
 
 def _strikes(

@@ -51,8 +51,8 @@ class GaitParams(Params):
     min_trial_s : float
         A shorter trial is reported as too short for a full stride.
     max_missing : float
-        A pelvis, heel or toe marker missing in more than this fraction of the fields
-        is reported (its gaps hide events).
+        A side without a full stride names its heel or toe marker, or the pelvis,
+        missing in more than this fraction of the fields (gaps hide events).
     coordinate_prominence : float
         Zeni et al. 2008's coordinate rule: an extremum of a foot's position relative to
         the pelvis counts if it stands out by this fraction of the position's range.

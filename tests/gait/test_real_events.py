@@ -112,10 +112,20 @@ def test_warnings_name_the_reason() -> None:
     gm = _kiss(m)
     holed = dict(gm.heel, left=np.where(np.arange(400)[:, None] < 300, np.nan, gm.heel["left"]))
     gaps = detect_events(_real.GaitMarkers(gm.pelvis, holed, gm.toe, 100.0, gm.names))
-    assert any("left heel marker (LHEE) is missing in 75 %" in w for w in gaps.warnings)
+    left = [w for w in gaps.warnings if w.startswith("no full stride on the left")]
+    assert left and "the left heel marker (LHEE) is missing in 75 %" in left[0]
     kiss = marker_set("kiss")
     still = np.broadcast_to(kiss.template_mm, (300, len(kiss), 3))
     noisy = still + np.random.default_rng(0).normal(0, 0.5, still.shape)
     stand = gait_markers(dict(zip(kiss.names, noisy.transpose(1, 0, 2), strict=True)), 100.0, kiss)
     assert [w for w in detect_events(stand).warnings if w.startswith("no walking")]
     assert detect_events(gm).warnings == ()
+    # The same walk as a lab with y up would store it: the warning names the axis.
+    y_up = _real.GaitMarkers(
+        tuple(p[:, [0, 2, 1]] for p in gm.pelvis),
+        {k: v[:, [0, 2, 1]] for k, v in gm.heel.items()},
+        {k: v[:, [0, 2, 1]] for k, v in gm.toe.items()},
+        100.0,
+        gm.names,
+    )
+    assert any("along +y, not +z" in w for w in detect_events(y_up).warnings)
