@@ -17,9 +17,11 @@ Two steps per event:
    * foot strike: the heel marker stops descending when the heel meets the floor and
      then rises as the foot rolls over the heel, so its height turns a corner there
      (Hreljac & Marshall 2000 time foot strike by the heel's vertical motion); the
-     corner is found by a broken-curve fit (two quadratics meeting at the event) around
-     the heel's lowest sample; where the heel has no low point after the swing (no
-     heel-strike pattern), Zeni's crossing itself, with a warning;
+     corner is found by a broken-curve fit (two quadratics meeting at the event) from
+     where the heel first comes within ``strike_floor_mm`` of its lowest (Ghoussayni et
+     al. 2004 time heel contact where the heel comes to rest), not around that lowest,
+     which a marker sinking in stance reaches 30-150 ms late; where the heel has no low
+     point after the swing (no heel-strike pattern), Zeni's crossing, with a warning;
    * foot off: the push-off turns the foot (heel-to-toe line) down faster and faster
      until the toes leave the floor, then the foot's rotation stops at once: foot off is
      the corner of the foot's pitch rate at its fastest plantarflexion, found by the
@@ -34,12 +36,14 @@ Two steps per event:
 Measured (``python -m tests.gait.acceptance``): Zeni's crossings alone fall about 21 ms
 before foot strike and 12-24 ms after foot off, O'Connor's peak 10-22 ms before foot
 off, on walking5.c3d against its force plates and on kisscal's grounded walker alike;
-the refined instants are within 6 ms of the plates and 1.4-2.1 ms (mean absolute) of the
+the refined instants are within 6 ms of the plates and 1.4-2.2 ms (mean absolute) of the
 walker's true contacts at 100 Hz. On 18 public C3D walks from five systems (``python -m
 tests.gait.real_events``) against the events their labs marked or their force plates
-give: foot off 10.8 ms mean (Zeni's coordinate rule 13.6 ms); foot strike 2-9 ms on
-treadmill, Qualisys, BTS and opensim trials, 20-34 ms on older filtered overground files,
-whose marked strikes scatter as much about the heel's landing.
+give: foot off 10.8 ms mean (Zeni's coordinate rule 13.6 ms); foot strike 12.0 ms mean
+where the feet carry a heel marker (2-9 ms on treadmill, Qualisys, BTS, Motion Analysis
+and opensim trials, 16 ms Codamotion, 19-33 ms on older filtered overground Vicon files,
+whose marked strikes scatter as much about the heel's landing), 42 ms where the ankle
+stands in for the heel.
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.
@@ -55,6 +59,7 @@ from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
 from kisscal.gait.signals import (
     derivative,
     finite_runs,
+    first_within,
     hysteresis_crossings,
     kink_time,
     peak_time,
@@ -161,8 +166,9 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     References
     ----------
     Zeni, Richards & Higginson 2008 (velocity-based stride detection); Hreljac & Marshall
-    2000 (foot strike from the heel's vertical motion); O'Connor, Thorpe, O'Malley &
-    Vaughan 2007 (foot off from the foot's motion at push-off).
+    2000 (foot strike from the heel's vertical motion); Ghoussayni, Stevens, Durham &
+    Ewins 2004 (heel contact where the heel marker comes to rest); O'Connor, Thorpe,
+    O'Malley & Vaughan 2007 (foot off from the foot's motion at push-off).
 
     Examples
     --------
@@ -274,7 +280,8 @@ def _vertical(markers: GaitMarkers) -> list[str]:
 def _strikes(
     t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
 ) -> tuple[list[float], int]:
-    """Foot strikes: the corner of the heel's height near each coarse one; where the
+    """Foot strikes: the corner of the heel's height near each coarse one, from where
+    the heel first reaches its floor (a marker may sink lower in stance). Where the
     heel has no low point there (its height still falls at the end of the window, as
     for a walker whose heel does not land first), the coarse event itself (Zeni's
     rule). Also returns how many came from Zeni's rule alone."""
@@ -286,8 +293,11 @@ def _strikes(
     for c in coarse:
         lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
         i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
-        if i is not None and i >= 0:  # the corner; failing a clear one, the lowest sample
-            corner = kink_time(t, heel[:, 2], t[i], half, search)
+        if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
+            i = first_within(t, heel[:, 2], lo, i, params.strike_floor_mm)
+            # The heel stops descending once on the floor, not while still above it:
+            # the corner lies from the field before the landing one on.
+            corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
             found.append(corner if np.isfinite(corner) else t[i])
         elif i is not None:
             found.append(float(c))

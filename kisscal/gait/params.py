@@ -34,9 +34,14 @@ class GaitParams(Params):
     off_window : (float, float)
         Where the foot's fastest plantarflexion is looked for around the coarse foot off
         (the coarse event comes 10-35 ms late), fractions of the stride time.
+    strike_floor_mm : float
+        The heel has reached the floor at the first sample of the window within this of
+        its lowest there: the corner of its height is looked for around that sample, not
+        around the lowest one (a heel marker can sink a few mm more as the foot rolls
+        down to foot flat, 30-100 ms after the strike).
     strike_fit_ms, strike_search_ms : float
         Half width of the window over which the corner of the heel's height is fitted,
-        and how far from the heel's lowest sample the corner may lie.
+        and how far from the sample where the heel reached the floor the corner may lie.
     off_fit_ms, off_search_ms : float
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
@@ -69,6 +74,7 @@ class GaitParams(Params):
     hold_s: float = param(0.1, unit="s", gt=0)
     strike_window: tuple[float, float] = param((-0.05, 0.2), ge=-0.5, le=0.5)
     off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
+    strike_floor_mm: float = param(1.0, unit="mm", gt=0)
     strike_fit_ms: float = param(80.0, unit="ms", gt=0)
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)

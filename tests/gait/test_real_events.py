@@ -56,8 +56,19 @@ def test_foot_strike_where_the_heel_is_marked() -> None:
             assert err.worst_ms("foot_strike") < 20.0, trial.name
             assert err.mean_ms("foot_off") < 10.0, trial.name
         assert not err.errors["foot_strike"] or err.mean_ms("foot_strike") < 35.0, trial.name
-    assert pooled.mean_ms("foot_strike") < 15.0
+    assert pooled.mean_ms("foot_strike") < 13.5  # 12.0 ms measured
     assert len(pooled.errors["foot_strike"]) >= 40
+
+
+def test_foot_strike_where_the_ankle_stands_in_for_the_heel(marked) -> None:
+    """An ankle marker sinks through stance, its lowest far from the strike: the strike
+    is looked for where it first reaches its floor (19.2 ms mean, 83 ms worst over
+    every trial, the four without a heel marker included; 29.1 and 150 ms around the
+    lowest sample)."""
+    _, ours, _ = marked
+    assert len(ours.errors["foot_strike"]) >= 75
+    assert ours.mean_ms("foot_strike") < 22.0
+    assert ours.worst_ms("foot_strike") < 95.0
 
 
 def test_a_treadmill_walk_is_walking() -> None:
