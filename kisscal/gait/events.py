@@ -6,29 +6,47 @@ Two steps per event:
    to the pelvis, along the local direction of progression, changes from forward to
    backward once per stride, just before foot strike; the toe's changes from backward to
    forward just after foot off. The direction of progression is the pelvis' horizontal
-   velocity smoothed over about a second, so any heading works and turns are followed.
-   A hysteresis (the relative velocity must pass a fraction of the walking speed on both
-   sides of the crossing, and stay there a while) rejects noise; a stride cut by the
-   start or end of the trial, or by a gap, gives no event.
+   velocity smoothed over about a second, so any heading works and turns are followed;
+   on a treadmill (the pelvis still in the lab) it is the direction the feet point in,
+   and the walking speed the belt's (:func:`belt_speed`). A hysteresis (the relative
+   velocity must pass a fraction of the walking speed on both sides of the crossing,
+   and stay there a while) rejects noise; a stride cut by the start or end of the
+   trial, or by a gap, gives no event.
 2. **Instants** (fine), near each coarse event, with sub-field precision:
 
    * foot strike: the heel marker stops descending when the heel meets the floor and
      then rises as the foot rolls over the heel, so its height turns a corner there
      (Hreljac & Marshall 2000 time foot strike by the heel's vertical motion); the
-     corner is found by a broken-curve fit (two quadratics meeting at the event) around
-     the heel's lowest sample;
+     corner is found by a broken-curve fit (two quadratics meeting at the event) from
+     where the heel first comes within ``strike_floor_mm`` of its lowest (Ghoussayni et
+     al. 2004 time heel contact where the heel comes to rest), not around that lowest,
+     which a marker sinking in stance reaches 30-150 ms late; where the heel has no low
+     point after the swing (no heel-strike pattern), Zeni's crossing, with a warning;
    * foot off: the push-off turns the foot (heel-to-toe line) down faster and faster
      until the toes leave the floor, then the foot's rotation stops at once: foot off is
      the corner of the foot's pitch rate at its fastest plantarflexion, found by the
      same fit. This is a kinematic cousin of O'Connor et al. 2007's foot velocity
      algorithm (peak upward velocity of the foot centre), which peaks 10-20 ms before
-     foot off.
+     foot off. Trajectories low-pass filtered before they were saved (as labs often
+     save them) round that corner into a valley whose bottom comes 30-70 ms early;
+     there foot off is where the pitch rate has recovered a fifth of its fastest
+     plantarflexion (a level crossing on a steep slope, which a symmetric filter hardly
+     moves).
 
 Measured (``python -m tests.gait.acceptance``): Zeni's crossings alone fall about 21 ms
 before foot strike and 12-24 ms after foot off, O'Connor's peak 10-22 ms before foot
 off, on walking5.c3d against its force plates and on kisscal's grounded walker alike;
-the refined instants are within 6 ms of the plates and 1.4-2.1 ms (mean absolute) of the
-walker's true contacts at 100 Hz.
+the refined instants are within 6 ms of the plates and 1.4-2.2 ms (mean absolute) of the
+walker's true contacts at 100 Hz. On 18 public C3D walks from five systems (``python -m
+tests.gait.real_events``) against the events their labs marked or their force plates
+give: foot off 10.8 ms mean (Zeni's coordinate rule 13.6 ms); foot strike 12.0 ms mean
+where the feet carry a heel marker (2-9 ms on treadmill, Qualisys, BTS, Motion Analysis
+and opensim trials, 16 ms Codamotion, 19-33 ms on older filtered overground Vicon files,
+whose marked strikes scatter as much about the heel's landing), 42 ms where the ankle
+stands in for the heel.
+
+Each detection says why it lacks events or full strides (:func:`explain`): too short,
+a marker missing, no walking, no heel-strike pattern, a side without two strikes.
 """
 
 from __future__ import annotations
@@ -38,7 +56,15 @@ from numpy.typing import NDArray
 
 from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctest)
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
-from kisscal.gait.signals import derivative, hysteresis_crossings, kink_time, smooth
+from kisscal.gait.signals import (
+    derivative,
+    finite_runs,
+    first_within,
+    hysteresis_crossings,
+    kink_time,
+    peak_time,
+    smooth,
+)
 from kisscal.gait.table import SIDES, GaitEvents
 
 
@@ -48,8 +74,10 @@ def progression(
     """Local direction of progression (n, 2), unit, and pelvis velocity (n, 3) in mm/s.
 
     The pelvis velocity is the mean velocity of the pelvis markers present at each
-    field; the direction is its horizontal part smoothed over ``params.direction_s``
-    (NaN where the pelvis moves slower than ``params.min_speed_mm_s``).
+    field; the direction is its horizontal part smoothed over ``params.direction_s``.
+    Where the pelvis moves slower than ``params.min_speed_mm_s`` but the feet still walk
+    under it (a treadmill: :func:`belt_speed`), the direction is the feet's
+    (:func:`foot_direction`); where neither moves, NaN (no walking, no events).
     """
     rate = markers.rate_hz
     velocities = np.stack([derivative(p, rate, params.derivative_ms) for p in markers.pelvis])
@@ -59,8 +87,64 @@ def progression(
     speed = np.linalg.norm(flat, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         direction = flat / speed[:, None]
-    direction[~(speed >= params.min_speed_mm_s)] = np.nan
+    still = ~(speed >= params.min_speed_mm_s)
+    direction[still] = np.nan
+    if still.any():
+        feet = foot_direction(markers, params)
+        if belt_speed(markers, feet, params) >= params.min_speed_mm_s:
+            direction[still] = feet[still]
     return direction, pelvis_v
+
+
+def belt_speed(
+    markers: GaitMarkers, direction: NDArray, params: GaitParams = DEFAULT_PARAMS
+) -> float:
+    """Speed (mm/s) at which the ground carries the feet back through the lab, along
+    ``direction``: minus the median velocity of the heels while they are down (within
+    ``params.heel_down_mm`` of their lowest).
+
+    A heel down on a treadmill's belt moves with it; overground, or standing, it stands
+    still (0).
+    """
+    forward = []
+    for side in SIDES:
+        heel = markers.heel[side]
+        v = derivative(heel, markers.rate_hz, params.derivative_ms)
+        along = np.sum(v[:, :2] * direction, axis=1)
+        z = heel[:, 2]
+        if np.any(np.isfinite(z)):
+            with np.errstate(invalid="ignore"):
+                down = z <= np.nanpercentile(z, 5) + params.heel_down_mm
+            forward.append(along[down & np.isfinite(along)])
+    forward = np.concatenate(forward) if forward else np.array([])
+    return float(-np.median(forward)) if len(forward) else 0.0
+
+
+def ground_velocity(
+    markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Horizontal velocity (n, 2), mm/s, of the ground the subject walks on: 0
+    overground, the belt's (backwards at the walking speed) where the pelvis stands
+    still in the lab and the feet walk (a treadmill)."""
+    direction, pelvis_v = progression(markers, params)
+    flat = np.linalg.norm(smooth(pelvis_v[:, :2], params.direction_s * markers.rate_hz), axis=1)
+    belt = ~(flat >= params.min_speed_mm_s) & np.isfinite(direction[:, 0])
+    out = np.zeros((markers.n_fields, 2))
+    if belt.any():
+        out[belt] = -belt_speed(markers, direction, params) * direction[belt]
+    return out
+
+
+def walking_speed(
+    markers: GaitMarkers, direction: NDArray, pelvis_v: NDArray, params: GaitParams
+) -> NDArray[np.float64]:
+    """Walking speed (n,), mm/s: the pelvis' where it moves, else the treadmill's."""
+    speed = np.linalg.norm(pelvis_v[:, :2], axis=1)
+    flat = np.linalg.norm(smooth(pelvis_v[:, :2], params.direction_s * markers.rate_hz), axis=1)
+    still = ~(flat >= params.min_speed_mm_s) & np.isfinite(direction[:, 0])
+    if still.any():
+        speed[still] = belt_speed(markers, direction, params)
+    return speed
 
 
 def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> GaitEvents:
@@ -76,13 +160,15 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     -------
     GaitEvents
         Table ``side, event, field, time_s``; ``time_s`` is sub-field (0 s at field 0),
-        ``field`` the nearest field.
+        ``field`` the nearest field; ``warnings`` says why events or full strides are
+        missing (:func:`explain`).
 
     References
     ----------
     Zeni, Richards & Higginson 2008 (velocity-based stride detection); Hreljac & Marshall
-    2000 (foot strike from the heel's vertical motion); O'Connor, Thorpe, O'Malley &
-    Vaughan 2007 (foot off from the foot's motion at push-off).
+    2000 (foot strike from the heel's vertical motion); Ghoussayni, Stevens, Durham &
+    Ewins 2004 (heel contact where the heel marker comes to rest); O'Connor, Thorpe,
+    O'Malley & Vaughan 2007 (foot off from the foot's motion at push-off).
 
     Examples
     --------
@@ -101,36 +187,163 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     direction, pelvis_v = progression(markers, params)
     rate = markers.rate_hz
     t = markers.time_s
-    speed = np.linalg.norm(pelvis_v[:, :2], axis=1)
+    speed = walking_speed(markers, direction, pelvis_v, params)
     times: dict[tuple[str, str], list[float]] = {}
     coarse = {side: _coarse(markers, side, direction, pelvis_v, speed, params) for side in SIDES}
     strides = np.concatenate([np.diff(c[0]) for c in coarse.values()]) / rate
     stride_s = float(np.median(strides)) if len(strides) else 1.1
+    zeni_only = {}
     for side in SIDES:
         strikes, offs = coarse[side]
-        heel, toe = markers.heel[side], markers.toe[side]
-        dt = 1.0 / rate
-        half = max(params.strike_fit_ms / 1000.0, 5 * dt)
-        search = max(params.strike_search_ms / 1000.0, 2 * dt)
-        found = []
-        for c in strikes / rate:
-            lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
-            i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
-            if i is not None:  # the corner; failing a clear one, the lowest sample
-                corner = kink_time(t, heel[:, 2], t[i], half, search)
-                found.append(corner if np.isfinite(corner) else t[i])
-        times[(side, "foot_strike")] = found
-        rate_of_pitch = pitch_rate(heel, toe, rate)
-        guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
-        found = []
-        for c in offs / rate:
-            lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
-            i = _extremum(t, guide, lo, hi, np.argmin)
-            if i is not None:
-                corner = _fastest(t, rate_of_pitch, i, params)
-                found.append(corner if np.isfinite(corner) else t[i])
-        times[(side, "foot_off")] = found
-    return GaitEvents.from_times(times, rate)
+        times[(side, "foot_strike")], zeni_only[side] = _strikes(
+            t, markers.heel[side], strikes / rate, stride_s, params
+        )
+        times[(side, "foot_off")] = _offs(
+            t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params
+        )
+    notes = explain(markers, times, direction, zeni_only, params)
+    return GaitEvents.from_times(times, rate, notes)
+
+
+def explain(
+    markers: GaitMarkers,
+    times: dict[tuple[str, str], list[float]],
+    direction: NDArray,
+    zeni_only: dict[str, int],
+    params: GaitParams = DEFAULT_PARAMS,
+) -> list[str]:
+    """One line for each reason a trial lacks events or full strides: too short, the
+    lab's z axis not up, no walking, no heel-strike pattern (foot strikes then come from
+    Zeni's rule alone), a side with fewer than two foot strikes (and which of its
+    markers, or the pelvis, is missing in more than ``params.max_missing`` of it)."""
+    notes = []
+    duration = markers.n_fields / markers.rate_hz
+    if duration < params.min_trial_s:
+        notes.append(
+            f"the trial lasts {duration:.2f} s: too short for a full stride "
+            f"(two foot strikes of one foot, at least {params.min_trial_s:g} s of walking)"
+        )
+    notes += _vertical(markers)
+    if not np.any(np.isfinite(direction[:, 0])):
+        notes.append(
+            f"no walking: the pelvis moves slower than {params.min_speed_mm_s:g} mm/s and "
+            "the feet do not step under it"
+        )
+    explained = bool(notes)
+    for side in SIDES:
+        if zeni_only[side]:
+            notes.append(
+                f"{side}: no heel-strike pattern (the heel's height has no low point after "
+                f"the swing) at {zeni_only[side]} foot strike(s), taken from Zeni's rule alone"
+            )
+        n = len(times[(side, "foot_strike")])
+        if n < 2 and not explained:
+            notes.append(
+                f"no full stride on the {side}: {n} foot strike(s) found"
+                + "".join(f"; {m}" for m in _missing(markers, side, params))
+            )
+    return notes
+
+
+def _missing(markers: GaitMarkers, side: str, params: GaitParams) -> list[str]:
+    """'the left heel marker (LHEE) is missing in 73 % of the fields', and the like."""
+    out = []
+    roles = [("pelvis", pelvis_centre(markers))]
+    roles += [(f"{side}_{r}", getattr(markers, r)[side]) for r in ("heel", "toe")]
+    for role, track in roles:
+        missing = 1.0 - float(np.mean(np.all(np.isfinite(track), axis=1)))
+        if missing > params.max_missing:
+            name = markers.names.get(role, "")
+            out.append(
+                f"the {role.replace('_', ' ')} marker{f' ({name})' if name else ''} "
+                f"is missing in {100 * missing:.0f} % of the fields"
+            )
+    return out
+
+
+def _vertical(markers: GaitMarkers) -> list[str]:
+    """A line if the pelvis is not above the heels along +z (a lab with y up, say)."""
+    with np.errstate(invalid="ignore"), _quiet():
+        above = np.nanmedian(
+            pelvis_centre(markers) - (markers.heel["left"] + markers.heel["right"]) / 2, axis=0
+        )
+    if not np.all(np.isfinite(above)) or above[2] > 0.5 * np.max(np.abs(above)):
+        return []
+    axis = "xyz"[int(np.argmax(np.abs(above)))]
+    sign = "+" if above["xyz".index(axis)] > 0 else "-"
+    return [
+        f"the pelvis is {abs(above['xyz'.index(axis)]):.0f} mm above the heels along "
+        f"{sign}{axis}, not +z: gait events need the lab's z axis up"
+    ]
+
+
+def _strikes(
+    t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+) -> tuple[list[float], int]:
+    """Foot strikes: the corner of the heel's height near each coarse one, from where
+    the heel first reaches its floor (a marker may sink lower in stance). Where the
+    heel has no low point there (its height still falls at the end of the window, as
+    for a walker whose heel does not land first), the coarse event itself (Zeni's
+    rule). Also returns how many came from Zeni's rule alone."""
+    dt = float(t[1] - t[0])
+    half = max(params.strike_fit_ms / 1000.0, 5 * dt)
+    search = max(params.strike_search_ms / 1000.0, 2 * dt)
+    found = []
+    fallback = 0
+    for c in coarse:
+        lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
+        i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
+        if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
+            i = first_within(t, heel[:, 2], lo, i, params.strike_floor_mm)
+            # The heel stops descending once on the floor, not while still above it:
+            # the corner lies from the field before the landing one on.
+            corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
+            found.append(corner if np.isfinite(corner) else t[i])
+        elif i is not None:
+            found.append(float(c))
+            fallback += 1
+    return found, fallback
+
+
+def _offs(
+    t: NDArray, heel: NDArray, toe: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+):
+    """Foot offs: the end of the push-off near each coarse one.
+
+    Where the markers were recorded raw, the foot's pitch rate turns a sharp corner at
+    foot off (:func:`_fastest`). Labs often low-pass filter their trajectories before
+    saving them, which rounds that corner into a valley whose bottom comes 30-70 ms
+    before foot off; a symmetric filter moves a level crossing on a steep slope far less
+    than a corner, so when the pitch rate takes longer than ``params.off_sharp_ms`` (or
+    one field) to recover ``params.off_recovery`` of its fastest plantarflexion, foot
+    off is that recovery instead.
+    """
+    rate = 1.0 / float(t[1] - t[0])
+    rate_of_pitch = pitch_rate(heel, toe, rate)
+    guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
+    sharp = max(params.off_sharp_ms / 1000.0, 1.0 / rate)
+    found = []
+    for c in coarse:
+        lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
+        i = _extremum(t, guide, lo, hi, np.argmin)
+        if i is None or i < 0:
+            continue
+        corner = _fastest(t, rate_of_pitch, i, params)
+        corner = corner if np.isfinite(corner) else t[i]
+        recovered = _recovery(t, guide, i, params.off_recovery, hi + params.off_fit_ms / 1000.0)
+        found.append(recovered if recovered - corner > sharp else corner)
+    return found
+
+
+def _recovery(t: NDArray, y: NDArray, i: int, fraction: float, until: float) -> float:
+    """First time after sample ``i`` (a minimum) where ``y`` has come back ``fraction``
+    of the way from ``y[i]`` to 0 (linear interpolation); NaN if not before ``until``."""
+    level = y[i] * (1.0 - fraction)
+    after = np.flatnonzero((np.arange(len(y)) > i) & (t <= until) & (y >= level))
+    if not len(after) or not np.all(np.isfinite(y[i : after[0] + 1])):
+        return float("nan")
+    k = int(after[0])
+    return float(t[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]))
 
 
 def foot_pitch(heel: NDArray, toe: NDArray) -> NDArray[np.float64]:
@@ -185,12 +398,91 @@ def _coarse(
 
 
 def _extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:
-    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi], None at an edge or gap."""
+    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi]; None where the window
+    meets an end of the trial or a gap, -1 where the extremum is at the window's edge
+    (no turning point inside)."""
     sel = np.flatnonzero((t >= lo) & (t <= hi))
     if len(sel) < 3 or sel[0] == 0 or sel[-1] == len(t) - 1 or not np.all(np.isfinite(y[sel])):
         return None
     k = int(pick(y[sel]))
-    return None if k in (0, len(sel) - 1) else int(sel[k])
+    return -1 if k in (0, len(sel) - 1) else int(sel[k])
+
+
+def foot_direction(
+    markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS
+) -> NDArray[np.float64]:
+    """Direction the feet point in (n, 2), unit: the horizontal heel-to-toe vectors of
+    both feet, summed and smoothed over ``params.direction_s``.
+
+    Toe-out of the two feet cancels in the sum, and a foot points where its owner walks
+    whether the ground moves or not, so this is the direction of progression on a
+    treadmill too (where the pelvis hardly moves in the lab).
+    """
+    rate = markers.rate_hz
+    parts = []
+    for side in SIDES:
+        d = (markers.toe[side] - markers.heel[side])[:, :2]
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            parts.append(d / norm)
+    with np.errstate(invalid="ignore"), _quiet():
+        mean = np.nanmean(np.stack(parts), axis=0)
+    flat = smooth(mean, params.direction_s * rate)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return flat / np.linalg.norm(flat, axis=1, keepdims=True)
+
+
+def pelvis_centre(markers: GaitMarkers) -> NDArray[np.float64]:
+    """Mean position (n, 3) of the pelvis markers present at each field."""
+    with np.errstate(invalid="ignore"), _quiet():
+        return np.nanmean(np.stack(markers.pelvis), axis=0)
+
+
+def coordinate_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> GaitEvents:
+    """Zeni et al. (2008)'s coordinate rule alone: foot strike when the heel is furthest
+    ahead of the pelvis, foot off when the toe is furthest behind it.
+
+    Positions are taken relative to the centre of the pelvis markers along the feet's
+    direction (:func:`foot_direction`); an extremum counts if it stands out by
+    ``params.coordinate_prominence`` of the signal's range and is not cut by an end of
+    the trial or a gap. Times are sub-field (parabola through the extreme sample and its
+    neighbours).
+
+    References
+    ----------
+    Zeni, Richards & Higginson 2008.
+    """
+    direction = foot_direction(markers, params)
+    centre = pelvis_centre(markers)
+    times: dict[tuple[str, str], list[float]] = {}
+    for side in SIDES:
+        for event, track, sign in (
+            ("foot_strike", markers.heel[side], 1.0),
+            ("foot_off", markers.toe[side], -1.0),
+        ):
+            along = np.sum((track - centre)[:, :2] * direction, axis=1)
+            times[(side, event)] = list(_peaks(sign * along, markers.rate_hz, params))
+    return GaitEvents.from_times(times, markers.rate_hz)
+
+
+def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
+    """Sub-sample times of the clear maxima of ``y``, run of valid samples by run."""
+    from scipy.signal import find_peaks
+
+    valid = np.isfinite(y)
+    if valid.sum() < 3:
+        return np.array([])
+    lo, hi = np.percentile(y[valid], [5, 95])
+    prominence = params.coordinate_prominence * (hi - lo)
+    distance = max(1, round(params.min_step_s * rate))
+    t = np.arange(len(y)) / rate
+    out = []
+    for a, b in finite_runs(valid):
+        if b - a < 3:
+            continue
+        for i in find_peaks(y[a:b], prominence=prominence, distance=distance)[0]:
+            out.append(peak_time(t, y, a + int(i)))
+    return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
 
 
 class _quiet:

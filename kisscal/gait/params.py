@@ -34,12 +34,36 @@ class GaitParams(Params):
     off_window : (float, float)
         Where the foot's fastest plantarflexion is looked for around the coarse foot off
         (the coarse event comes 10-35 ms late), fractions of the stride time.
+    strike_floor_mm : float
+        The heel has reached the floor at the first sample of the window within this of
+        its lowest there: the corner of its height is looked for around that sample, not
+        around the lowest one (a heel marker can sink a few mm more as the foot rolls
+        down to foot flat, 30-100 ms after the strike).
     strike_fit_ms, strike_search_ms : float
         Half width of the window over which the corner of the heel's height is fitted,
-        and how far from the heel's lowest sample the corner may lie.
+        and how far from the sample where the heel reached the floor the corner may lie.
     off_fit_ms, off_search_ms : float
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
+    off_recovery, off_sharp_ms : float
+        Trajectories filtered before they were saved round the corner of the pitch rate
+        at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
+        fields) after the corner to recover this fraction of its fastest plantarflexion,
+        foot off is taken at that recovery.
+    heel_down_mm : float
+        A heel within this of its lowest is down on the ground (mid-stance): on a
+        treadmill its velocity relative to the pelvis gives the belt's speed.
+    min_trial_s : float
+        A shorter trial is reported as too short for a full stride.
+    max_missing : float
+        A side without a full stride names its heel or toe marker, or the pelvis,
+        missing in more than this fraction of the fields (gaps hide events).
+    coordinate_prominence : float
+        Zeni et al. 2008's coordinate rule: an extremum of a foot's position relative to
+        the pelvis counts if it stands out by this fraction of the position's range.
+    min_step_s : float
+        Two extrema of one foot's relative position are at least this far apart (a
+        stride is longer than 0.7 s even when running).
     """
 
     section = "gait"
@@ -50,10 +74,18 @@ class GaitParams(Params):
     hold_s: float = param(0.1, unit="s", gt=0)
     strike_window: tuple[float, float] = param((-0.05, 0.2), ge=-0.5, le=0.5)
     off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
+    strike_floor_mm: float = param(1.0, unit="mm", gt=0)
     strike_fit_ms: float = param(80.0, unit="ms", gt=0)
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
     off_search_ms: float = param(40.0, unit="ms", gt=0)
+    off_recovery: float = param(0.2, gt=0, lt=1)
+    off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    heel_down_mm: float = param(10.0, unit="mm", gt=0)
+    min_trial_s: float = param(1.5, unit="s", gt=0)
+    max_missing: float = param(0.5, ge=0, le=1)
+    coordinate_prominence: float = param(0.3, gt=0, lt=1)
+    min_step_s: float = param(0.5, unit="s", gt=0)
 
     def check(self) -> None:
         for name in ("strike_window", "off_window"):

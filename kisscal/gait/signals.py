@@ -75,6 +75,13 @@ def hysteresis_crossings(
     return np.asarray(out, dtype=float)
 
 
+def first_within(t: NDArray, y: NDArray, start: float, i: int, margin: float) -> int:
+    """First sample from time ``start`` up to sample ``i`` where ``y`` is within
+    ``margin`` of ``y[i]`` (a minimum): where a falling signal first reached its floor."""
+    near = np.flatnonzero((t >= start) & (np.arange(len(y)) <= i) & (y <= y[i] + margin))
+    return int(near[0])
+
+
 def kink_time(
     t: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -82,8 +89,10 @@ def kink_time(
     half_s: float,
     search_s: float,
     order: int = 1,
+    earliest: float = -np.inf,
 ) -> float:
-    """Time where ``y`` turns a corner near ``centre``: sub-sample.
+    """Time where ``y`` turns a corner near ``centre``, and not before ``earliest``:
+    sub-sample.
 
     ``order=0``: two straight lines meet at ``t0`` (a V; for short windows).
     ``order=1``: the slope jumps; two quadratics meet at ``t0`` (``y = c0 + c1 tau +
@@ -102,7 +111,8 @@ def kink_time(
     dt = float(np.median(np.diff(tt)))
     reach = max(search_s, 2.0 * dt)
     inner = 0.0 if order == 0 else dt
-    lo, hi = max(centre - reach, tt[1] + inner), min(centre + reach, tt[-2] - inner)
+    lo = max(centre - reach, tt[1] + inner, earliest)
+    hi = min(centre + reach, tt[-2] - inner)
     cands = np.arange(lo, hi + 1e-12, dt / 20.0)
     if len(cands) < 3:
         return float("nan")

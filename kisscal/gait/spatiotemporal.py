@@ -4,8 +4,8 @@ Definitions (per side X, the conventions of clinical gait reports, e.g. Vicon Ne
 
 * stride: from a foot strike of X to the next one (no foot strike of X missed between);
   stride time (s), cadence = 120 / stride time (steps/min), stride length = horizontal
-  distance between the heel marker's positions at the two strikes (m), walking speed =
-  stride length / stride time (m/s);
+  distance between the heel marker's positions at the two strikes (m; on a treadmill,
+  positions on the belt), walking speed = stride length / stride time (m/s);
 * stance = (foot off of X - foot strike of X) / stride time (% of the cycle), swing =
   100 - stance, double support = both feet on the floor: from the strike of X to the
   other foot's off, plus from the other foot's strike to the off of X (% of the cycle);
@@ -147,7 +147,14 @@ def spatiotemporal_parameters(
     >>> round(st.mean("step_width", "right"), 3), round(st.mean("step_length", "right"), 3)
     (0.1, 0.5)
     """
+    from kisscal.gait.events import ground_velocity
+
     rate = markers.rate_hz
+    # Heel positions on the ground the subject walks on: on a treadmill the belt carries
+    # the stance foot back, so a stride's length is the heel's displacement plus the
+    # belt's (overground the ground is still and this changes nothing).
+    belt = np.cumsum(ground_velocity(markers), axis=0) / rate
+    heels = {s: markers.heel[s] - np.pad(belt, ((0, 0), (0, 1))) for s in SIDES}
     strikes = {s: events.times(s, "foot_strike") for s in SIDES}
     offs = {s: events.times(s, "foot_off") for s in SIDES}
     durations = np.concatenate([np.diff(strikes[s]) for s in SIDES])
@@ -155,13 +162,13 @@ def spatiotemporal_parameters(
     values: dict[tuple[str, str], list[float]] = {(p, s): [] for p in UNITS for s in SIDES}
     for side in SIDES:
         other = _OTHER[side]
-        heel = _at(markers.heel[side], rate, strikes[side])
+        heel = _at(heels[side], rate, strikes[side])
         for k in range(len(strikes[side]) - 1):
             t0, t1 = strikes[side][k], strikes[side][k + 1]
             if t1 - t0 > limit:
                 continue
             _stride(values, side, t0, t1, heel[k], heel[k + 1], offs, strikes[other])
-        other_heel = _at(markers.heel[other], rate, strikes[other])
+        other_heel = _at(heels[other], rate, strikes[other])
         for k, t in enumerate(strikes[side]):
             _step(values, side, t, heel[k], strikes[other], other_heel, limit)
     return Spatiotemporal({key: np.asarray(v, dtype=float) for key, v in values.items()})

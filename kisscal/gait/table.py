@@ -30,12 +30,15 @@ class GaitEvents:
         events carry sub-field precision.
     rate_hz : float
         Field rate; ``field`` is ``time_s * rate_hz`` rounded to the nearest field.
+    warnings : tuple of str
+        Why events or full strides are missing (one line each; empty when none are).
     """
 
     side: NDArray[np.str_]
     event: NDArray[np.str_]
     time_s: NDArray[np.float64]
     rate_hz: float
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         order = np.argsort(self.time_s, kind="stable")
@@ -46,7 +49,10 @@ class GaitEvents:
 
     @classmethod
     def from_times(
-        cls, times: Mapping[tuple[str, str], Iterable[float]], rate_hz: float
+        cls,
+        times: Mapping[tuple[str, str], Iterable[float]],
+        rate_hz: float,
+        warnings: Iterable[str] = (),
     ) -> GaitEvents:
         """Build from ``{(side, event): times_s}``."""
         sides, events, t = [], [], []
@@ -62,6 +68,7 @@ class GaitEvents:
             np.array(events, dtype="<U11"),
             np.array(t, dtype=float),
             float(rate_hz),
+            tuple(warnings),
         )
 
     def __len__(self) -> int:

@@ -65,7 +65,10 @@ def gait_outputs(
     by_label = {label: dense[t] for t, label in enumerate(result.labels)}
     try:
         markers = gait_markers(by_label, rate_hz, marker_set)
-    except KisscalError:
+    except KisscalError as err:
+        feet = {n for side in ("left", "right") for n in marker_set.foot(side).values()}
+        if set(by_label) & (feet | set(marker_set.pelvis)):  # a gait trial short of markers
+            echo(f"  gait {trial}: no events, {str(err).removeprefix('gait: ')}")
         return None
     uncertain = sorted(
         set(result.labelling.flagged) & set(",".join(markers.names.values()).split(","))
@@ -75,6 +78,8 @@ def gait_outputs(
         return None
     events = detect_events(markers, params)
     parameters = spatiotemporal_parameters(events, markers)
+    for note in events.warnings:  # why events or full strides are missing
+        echo(f"  gait {trial}: {note}")
     write_table(tdir / "events.csv", _columns(events.rows(), EVENT_COLUMNS))
     write_table(tdir / "spatiotemporal.csv", _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
     counts = {
@@ -84,7 +89,12 @@ def gait_outputs(
     }
     write_json(
         tdir / "gait.json",
-        {"events": counts, "markers": markers.names, "spatiotemporal": parameters.summary()},
+        {
+            "events": counts,
+            "markers": markers.names,
+            "spatiotemporal": parameters.summary(),
+            "warnings": list(events.warnings),
+        },
     )
     figure(
         root,

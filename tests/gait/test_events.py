@@ -115,3 +115,29 @@ def test_missing_markers_are_one_line_errors() -> None:
         gait_markers({"LHEE": np.zeros((5, 3))}, 100.0, kiss)
     with pytest.raises(KisscalError, match=r"\[gait\] strike_window"):
         GaitParams(strike_window=(0.1, -0.1))
+
+
+def test_foot_strike_is_where_the_heel_lands_not_where_it_sinks_lowest() -> None:
+    """A heel marker that lands at 1.0 s and then sinks 0.8 mm more over 150 ms (the
+    foot rolling down to foot flat, a soft heel pad, an ankle standing in for the heel)
+    has its lowest sample 150 ms late: the strike is still its landing."""
+    from kisscal.gait.events import _strikes
+
+    rate, t0, sink_s = 100.0, 1.0, 0.15
+    t = np.arange(200) / rate
+    tau = t - t0
+    z = np.where(
+        tau < 0,
+        0.8 - 200.0 * tau + 2000.0 * tau**2,  # terminal swing, down at 0.2 m/s on landing
+        np.where(tau < sink_s, 0.8 * (1 - tau / sink_s), 500.0 * (tau - sink_s) ** 2),
+    )
+    z = z + np.random.default_rng(0).normal(0.0, 0.1, len(t))
+    heel = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+    assert abs(t[np.argmin(z)] - t0) > 0.1  # the lowest sample is far from the landing
+    coarse = np.array([t0 - 0.02])  # Zeni's crossing comes a little early
+    (found,), zeni_only = _strikes(t, heel, coarse, 1.1, GaitParams())
+    assert zeni_only == 0
+    assert abs(found - t0) < 0.005
+    # Looked for around the lowest sample instead (no floor margin), it is missed.
+    (late,), _ = _strikes(t, heel, coarse, 1.1, GaitParams(strike_floor_mm=1e-9))
+    assert abs(late - t0) > 0.05

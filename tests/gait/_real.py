@@ -1,0 +1,283 @@
+"""Real gait trials with marked events: the regression set in fixtures/real/gait/.
+
+Each fixture is a C3D file trimmed to the markers gait events need (pelvis, heel, toe;
+the ankle where a trial has no heel marker), with the source's frame numbering and its
+EVENT group (``Foot Strike`` / ``Foot Off`` per context) kept. ``TRIALS`` says where each
+came from, which system wrote it and which marker plays which role; the README beside
+the files gives the licences.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kisscal.gait import GaitMarkers
+
+#: The group holding the force plates' contacts (20 N) in each fixture.
+PLATE_GROUP = "PLATE_EVENT"
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "gait"
+_C3DORG = "biomechanics-foundation/c3dio:tests/c3d_org_samples/"
+
+
+@dataclass(frozen=True)
+class RealTrial:
+    """One trial: fixture name, source, system, the marker of each role, and notes."""
+
+    name: str
+    source: str
+    system: str
+    pelvis: tuple[str, ...]
+    heel: tuple[str, str]  # left, right
+    toe: tuple[str, str]
+    events_from: str = "EVENT group as the lab saved it"
+    note: str = ""
+    #: The lab's vertical axis ("z", or "y" for a Y-up lab: turned to z up on loading).
+    up: str = "z"
+    #: Score against the plates' contacts too (not on a treadmill: a foot crossing onto
+    #: the other belt loads it, so a belt's contacts are not one foot's stance).
+    plates: bool = True
+
+    @property
+    def path(self) -> Path:
+        return FIXTURES / f"{self.name}.c3d"
+
+    @property
+    def markers(self) -> tuple[str, ...]:
+        return (*self.pelvis, *self.heel, *self.toe)
+
+
+_PIG = ("LASI", "RASI", "LPSI", "RPSI")
+_PLATES = "force plates (20 N), the foot over the plate"
+_ANKLE = "the ankle (ANK) stands in for the heel"
+TRIALS = (
+    RealTrial(
+        "gaitalytics_treadmill",
+        "DART-Lab-LLUI/python-gaitalytics:tests/treadmill_events.c3d",
+        "Vicon Nexus, instrumented treadmill",
+        ("LASIS", "RASIS", "LPSIS", "RPSIS"),
+        ("LHEE", "RHEE"),
+        ("LMT2", "RMT2"),
+        note="treadmill: the pelvis hardly moves in the lab",
+        plates=False,
+    ),
+    RealTrial(
+        "gaitalytics_overground",
+        "DART-Lab-LLUI/python-gaitalytics:tests/full/data/test_small.c3d",
+        "Vicon Nexus",
+        ("LASI", "RASI", "SACR"),
+        ("LHEE", "RHEE"),
+        ("LTOE", "RTOE"),
+    ),
+    RealTrial(
+        "pycgm2_walking01",
+        _C3DORG + "sample_00/Vicon Motion Systems/pyCGM2 lower limb CGM24 Walking01.c3d",
+        "Vicon Nexus (pyCGM2 CGM2.4)",
+        _PIG,
+        ("LHEE", "RHEE"),
+        ("LTOE", "RTOE"),
+    ),
+    RealTrial(
+        "vicon_zerowire",
+        _C3DORG + "sample_32/vicon_zerowire.c3d",
+        "Vicon Nexus",
+        _PIG,
+        ("LHEE", "RHEE"),
+        ("LTOE", "RTOE"),
+    ),
+    RealTrial(
+        "vicon_ws44_plugingait",
+        _C3DORG + "sample_09/PlugInC3D.c3d",
+        "Vicon Workstation 4.4 (Plug-in Gait)",
+        ("LASI", "RASI", "SACR"),
+        ("LHEE", "RHEE"),
+        ("LTOE", "RTOE"),
+    ),
+    RealTrial(
+        "vicon_sub_labels",
+        _C3DORG + "sample_04/sub_labels.c3d",
+        "Vicon 370 / Workstation",
+        ("Matt:LASI", "Matt:RASI", "Matt:SACR"),
+        ("Matt:LANK", "Matt:RANK"),
+        ("Matt:LTOE", "Matt:RTOE"),
+        note="its heel markers hold no data: " + _ANKLE,
+    ),
+    RealTrial(
+        "motion_analysis_walk1",
+        _C3DORG + "sample_00/Motion Analysis Corporation/Walk1.c3d",
+        "Motion Analysis Corporation (Cortex)",
+        ("LASI", "RASI", "VSAC"),
+        ("LHEE", "RHEE"),
+        ("L.TO", "R.TO"),
+        events_from="EVENT group (LHS/RHS/LTO/RTO labels)",
+    ),
+    RealTrial(
+        "vicon_analysis",
+        _C3DORG + "sample_23/Vicon_analysis.c3d",
+        "Vicon (processed by Motion Lab Systems software)",
+        ("LASI", "RASI", "SACR"),
+        ("LANK", "RANK"),
+        ("LTOE", "RTOE"),
+        note="no heel marker: " + _ANKLE,
+    ),
+    RealTrial(
+        "vicon_2198928",
+        _C3DORG + "sample_11/2198928.c3d",
+        "Vicon (a Vicon user's lab)",
+        ("LASI", "RASI", "SACR"),
+        ("LANK", "RANK"),
+        ("LTOE", "RTOE"),
+        note="no heel marker: " + _ANKLE,
+    ),
+    RealTrial(
+        "vicon370_gait_pig_nz",
+        _C3DORG + "sample_03/gait-pig-nz.c3d",
+        "Vicon 370 (Plug-in Gait)",
+        ("LASI", "RASI", "SACR"),
+        ("LANK", "RANK"),
+        ("LTOE", "RTOE"),
+        note="no heel marker: " + _ANKLE,
+    ),
+    RealTrial(
+        "qualisys_walking_1_3",
+        _C3DORG + "sample_26/Walking_Hybrid_1_3.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_walking_1_4",
+        _C3DORG + "sample_26/Walking_Hybrid_1_4.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_walking_1_5",
+        _C3DORG + "sample_26/Walking_Hybrid_1_5.c3d",
+        "Qualisys",
+        ("L_ASIS", "R_ASIS", "SACRUM"),
+        ("L_HEEL", "R_HEEL"),
+        ("L_MT_1", "R_MT_1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "qualisys_ezc3d",
+        "kineticstoolkit/kineticstoolkit:data/c3d_test_suite/ezc3d/Qualisys.c3d",
+        "Qualisys (QTM)",
+        ("L_IAS", "R_IAS", "L_IPS", "R_IPS"),
+        ("L_FCC", "R_FCC"),
+        ("L_FM1", "R_FM1"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "codamotion_gaitwands",
+        _C3DORG + "sample_00/Codamotion/codamotion_gaitwands_20150204.c3d",
+        "Codamotion (Charnwood Dynamics)",
+        ("L.ASIS", "R.ASIS", "L.PSIS", "R.PSIS"),
+        ("L.Heel", "R.Heel"),
+        ("L.Toe", "R.Toe"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "bts_gait",
+        "kineticstoolkit/kineticstoolkit:data/c3d_test_suite/ezc3d/BTS.c3d",
+        "BTS Bioengineering (Y up)",
+        ("l asis", "r asis", "sacrum"),
+        ("l heel", "r heel"),
+        ("l met", "r met"),
+        events_from=_PLATES,
+        up="y",
+    ),
+    RealTrial(
+        "opensim_walking2",
+        "opensim-org/opensim-core:OpenSim/Tests/shared/walking2.c3d",
+        "Vicon",
+        ("LASI", "RASI", "LPSI", "RPSI"),
+        ("LCAL", "RCAL"),
+        ("LMT2", "RMT2"),
+        events_from=_PLATES,
+    ),
+    RealTrial(
+        "opensim_walking5",
+        "opensim-org/opensim-core:OpenSim/Tests/shared/walking5.c3d",
+        "Vicon",
+        ("LASI", "RASI", "LPSI", "RPSI"),
+        ("LCAL", "RCAL"),
+        ("LMT2", "RMT2"),
+        events_from=_PLATES,
+    ),
+)
+
+_SIDE = {"left": "left", "right": "right"}
+_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
+
+
+def z_up(xyz: np.ndarray, up: str) -> np.ndarray:
+    """Points (..., 3) of a lab whose vertical is ``up`` turned so that z is up (a
+    proper rotation about x for a Y-up lab)."""
+    if up == "z":
+        return xyz
+    if up == "y":
+        return np.stack([xyz[..., 0], -xyz[..., 2], xyz[..., 1]], axis=-1)
+    raise ValueError(f"unknown vertical axis {up!r}")
+
+
+_LABEL = {"foot strike": "foot_strike", "foot off": "foot_off"}
+_SHORT = {"LHS": ("left", "foot_strike"), "RHS": ("right", "foot_strike")}
+_SHORT |= {"LTO": ("left", "foot_off"), "RTO": ("right", "foot_off")}
+
+
+def read(path: Path | str, group: str = "EVENT") -> tuple[dict[str, np.ndarray], float, int, dict]:
+    """Markers (name -> (n, 3) mm, NaN where invalid), rate, first frame (0-based) and
+    the events of ``group`` as ``(side, event) -> times (s, 0 at the first frame
+    stored)``."""
+    import ezc3d
+
+    c3d = ezc3d.c3d(str(path))
+    params = c3d["parameters"]
+    rate = float(params["POINT"]["RATE"]["value"][0])
+    first = int(c3d["header"]["points"]["first_frame"])
+    xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
+    xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # older writers store a missing sample as 0 0 0
+    xyz *= _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    markers = dict(zip(params["POINT"]["LABELS"]["value"], xyz.transpose(1, 0, 2), strict=True))
+    return markers, rate, first, _events(params.get(group, {}), first / rate)
+
+
+def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
+    """The EVENT group's foot strikes and foot offs; Vicon's time is frame (1-based) - 1
+    over the rate, so the first stored frame is at ``start_s``."""
+    labels = group.get("LABELS", {}).get("value", [])
+    contexts = group.get("CONTEXTS", {}).get("value", [""] * len(labels))
+    times = np.asarray(group.get("TIMES", {}).get("value", np.zeros((2, 0))), dtype=float)
+    out: dict[tuple[str, str], list[float]] = {}
+    if not labels:  # ezc3d reads a blank event list back as no labels
+        return {}
+    for label, context, (minutes, seconds) in zip(labels, contexts, times.T, strict=True):
+        key = _SHORT.get(context.strip()) or _SHORT.get(label.strip())
+        side, event = context.strip().lower(), _LABEL.get(label.strip().lower())
+        if key is None and side in _SIDE and event:
+            key = (side, event)
+        if key:
+            out.setdefault(key, []).append(60.0 * minutes + seconds - start_s)
+    return {k: np.sort(v) for k, v in out.items()}
+
+
+def load(
+    trial: RealTrial, group: str = "EVENT"
+) -> tuple[GaitMarkers, dict[tuple[str, str], np.ndarray]]:
+    """The trial's gait markers and marked events (s from its first stored frame);
+    ``group=PLATE_GROUP``: the force plates' contacts instead."""
+    markers, rate, _, events = read(trial.path, group)
+    markers = {k: z_up(v, trial.up) for k, v in markers.items()}
+    heel = dict(zip(("left", "right"), (markers[n] for n in trial.heel), strict=True))
+    toe = dict(zip(("left", "right"), (markers[n] for n in trial.toe), strict=True))
+    pelvis = tuple(markers[n] for n in trial.pelvis if n in markers)
+    return GaitMarkers(pelvis, heel, toe, rate, {"pelvis": ",".join(trial.pelvis)}), events

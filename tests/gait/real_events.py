@@ -1,0 +1,129 @@
+"""Gait events on real trials against the events their labs marked (run it):
+
+    python -m tests.gait.real_events
+
+For every trial of fixtures/real/gait/ (see its README: source, licence, system), the
+mean and worst absolute error of kisscal's foot strikes and foot offs against the marked
+ones, next to Zeni et al. (2008)'s coordinate rule on the same markers (heel furthest
+ahead of the pelvis at foot strike, toe furthest behind at foot off). A marked event
+with no detection within 150 ms counts as missed (unless it lies within 0.4 s of the
+trial's start or 0.3 s of its end, where the stride is cut); a detection with no
+marked event near it is not scored (labs mark only some events of a trial).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kisscal.gait import detect_events
+from kisscal.gait.events import coordinate_events
+from kisscal.gait.table import EVENTS, SIDES, GaitEvents
+from tests.gait import _real
+
+#: A detection further than this from a marked event does not match it (the marked
+#: event is missed).
+MATCH_S = 0.15
+#: Marked events this close to the start or the end of a trial (s) belong to strides
+#: cut by it: not finding them is not a miss.
+EDGE_S = (0.4, 0.3)
+
+
+@dataclass
+class Errors:
+    """Signed errors (s) per event kind and the number of marked events missed."""
+
+    errors: dict[str, list[float]] = field(default_factory=lambda: {e: [] for e in EVENTS})
+    missed: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EVENTS, 0))
+
+    def add(self, other: Errors) -> None:
+        for e in EVENTS:
+            self.errors[e] += other.errors[e]
+            self.missed[e] += other.missed[e]
+
+    def mean_ms(self, event: str) -> float:
+        e = np.abs(self.errors[event])
+        return 1000 * float(e.mean()) if len(e) else float("nan")
+
+    def worst_ms(self, event: str) -> float:
+        e = np.abs(self.errors[event])
+        return 1000 * float(e.max()) if len(e) else float("nan")
+
+
+def score(
+    found: GaitEvents, marked: dict[tuple[str, str], np.ndarray], duration_s: float = np.inf
+) -> Errors:
+    """Nearest detection of the same side and kind for every marked event; one not
+    found counts as missed unless its stride is cut by an end of the trial (within
+    ``EDGE_S`` of it: kisscal only reports events of strides seen whole)."""
+    out = Errors()
+    for side in SIDES:
+        for event in EVENTS:
+            d = found.times(side, event)
+            for t in marked.get((side, event), []):
+                k = int(np.argmin(np.abs(d - t))) if len(d) else -1
+                if k >= 0 and abs(d[k] - t) <= MATCH_S:
+                    out.errors[event].append(float(d[k] - t))
+                elif EDGE_S[0] <= t <= duration_s - EDGE_S[1]:
+                    out.missed[event] += 1
+    return out
+
+
+def _cells(err: Errors) -> str:
+    return "  ".join(
+        f"{err.mean_ms(e):5.1f} {err.worst_ms(e):5.1f} {err.missed[e]:2d}" for e in EVENTS
+    )
+
+
+def table(group: str = "EVENT") -> tuple[list[str], Errors, Errors]:
+    """Per-trial and pooled errors against the events of ``group`` (the lab's EVENT
+    group, or ``_real.PLATE_GROUP``: the force plates' contacts)."""
+    head = "mean worst miss"
+    lines = [
+        f"{'trial':<24} {'Hz':>4} {'n':>3}  {'kisscal FS':^17}  {'kisscal FO':^17}"
+        f"  {'Zeni FS':^17}  {'Zeni FO':^17}",
+        f"{'':<24} {'':>4} {'':>3}  {head:^17}  {head:^17}  {head:^17}  {head:^17}",
+    ]
+    ours_all, zeni_all = Errors(), Errors()
+    ours_heel, zeni_heel = Errors(), Errors()  # trials whose feet carry a heel marker
+    for trial in _real.TRIALS:
+        if group == _real.PLATE_GROUP and not trial.plates:
+            continue
+        gm, marked = _real.load(trial, group)
+        if not marked:
+            continue
+        duration = gm.n_fields / gm.rate_hz
+        ours = score(detect_events(gm), marked, duration)
+        zeni = score(coordinate_events(gm), marked, duration)
+        ours_all.add(ours)
+        zeni_all.add(zeni)
+        if "ankle" not in trial.note:
+            ours_heel.add(ours)
+            zeni_heel.add(zeni)
+        n = sum(len(v) for v in marked.values())
+        lines.append(f"{trial.name:<24} {gm.rate_hz:4.0f} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+    for name, ours, zeni in (
+        ("all", ours_all, zeni_all),
+        ("with a heel marker", ours_heel, zeni_heel),
+    ):
+        n = sum(len(v) for v in ours.errors.values()) + sum(ours.missed.values())
+        lines.append(f"{name:<24} {'':>4} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+    lines.append("errors in ms (mean and worst absolute); miss = marked events not found")
+    return lines, ours_all, zeni_all
+
+
+def main(argv: list[str]) -> None:
+    print("Against the events marked in the files:")
+    print("\n".join(table()[0]))
+    print("\nAgainst the force plates' contacts (20 N; the foot over the plate):")
+    print("\n".join(table(_real.PLATE_GROUP)[0]))
+    print()
+    for trial in _real.TRIALS:
+        note = f"; {trial.note}" if trial.note else ""
+        print(f"{trial.name}: {trial.system}; events: {trial.events_from}{note}")
+
+
+if __name__ == "__main__":
+    main(sys.argv)

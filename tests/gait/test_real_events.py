@@ -1,0 +1,142 @@
+"""Gait events on the real regression set (fixtures/real/gait/) against the marked events,
+and the warnings a trial gets when it lacks events or full strides."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.gait import detect_events, gait_markers, spatiotemporal_parameters
+from kisscal.markersets import marker_set
+from kisscal.synth.motion import walking_trial
+from tests.gait import _real
+from tests.gait.real_events import Errors, score, table
+
+#: Trials whose feet carry a heel marker (the others stand the ankle in for it).
+HEEL = tuple(t.name for t in _real.TRIALS if "ankle" not in t.note)
+
+
+@pytest.fixture(scope="module")
+def marked():
+    return table()
+
+
+def test_the_set_is_real_and_varied() -> None:
+    """At least ten trials with marked events, from more than one system and lab."""
+    assert len(_real.TRIALS) >= 10
+    counts = [sum(len(v) for v in _real.load(t)[1].values()) for t in _real.TRIALS]
+    assert min(counts) >= 2 and sum(counts) >= 140
+    systems = {t.system.split()[0] for t in _real.TRIALS}
+    assert {"Vicon", "Motion", "Qualisys", "Codamotion", "BTS"} <= systems
+    rates = {_real.load(t)[0].rate_hz for t in _real.TRIALS}
+    assert {60.0, 100.0, 120.0, 250.0} <= rates
+
+
+def test_foot_off_beats_zenis_rule_on_every_kind_of_file(marked) -> None:
+    _, ours, zeni = marked
+    assert len(ours.errors["foot_off"]) >= 65
+    assert ours.mean_ms("foot_off") < 12.0 and ours.worst_ms("foot_off") < 40.0
+    assert ours.mean_ms("foot_off") < zeni.mean_ms("foot_off")
+    assert sum(ours.missed.values()) <= 10
+
+
+def test_foot_strike_where_the_heel_is_marked() -> None:
+    """Treadmill (file events) and force-plate trials within the issue's bounds; the
+    older overground files within 35 ms mean (their marked strikes away from the plates
+    scatter about the heel's landing by about as much)."""
+    pooled = Errors()
+    for trial in _real.TRIALS:
+        if trial.name not in HEEL:
+            continue
+        gm, events = _real.load(trial)
+        err = score(detect_events(gm), events, gm.n_fields / gm.rate_hz)
+        pooled.add(err)
+        if trial.name in ("gaitalytics_treadmill", "opensim_walking5"):
+            assert err.mean_ms("foot_strike") < 10.0, trial.name
+            assert err.worst_ms("foot_strike") < 20.0, trial.name
+            assert err.mean_ms("foot_off") < 10.0, trial.name
+        assert not err.errors["foot_strike"] or err.mean_ms("foot_strike") < 35.0, trial.name
+    assert pooled.mean_ms("foot_strike") < 13.5  # 12.0 ms measured
+    assert len(pooled.errors["foot_strike"]) >= 40
+
+
+def test_foot_strike_where_the_ankle_stands_in_for_the_heel(marked) -> None:
+    """An ankle marker sinks through stance, its lowest far from the strike: the strike
+    is looked for where it first reaches its floor (19.2 ms mean, 83 ms worst over
+    every trial, the four without a heel marker included; 29.1 and 150 ms around the
+    lowest sample)."""
+    _, ours, _ = marked
+    assert len(ours.errors["foot_strike"]) >= 75
+    assert ours.mean_ms("foot_strike") < 22.0
+    assert ours.worst_ms("foot_strike") < 95.0
+
+
+def test_a_treadmill_walk_is_walking() -> None:
+    """The pelvis hardly moves in the lab: every stride still gives its events."""
+    trial = next(t for t in _real.TRIALS if t.name == "gaitalytics_treadmill")
+    gm, _ = _real.load(trial)
+    found = detect_events(gm)
+    assert not found.warnings
+    for side in ("left", "right"):
+        assert len(found.times(side, "foot_strike")) >= 10
+        assert len(found.times(side, "foot_off")) >= 10
+    st = spatiotemporal_parameters(found, gm)
+    assert 100.0 < st.mean("cadence", "left") < 112.0  # its 1.13 s strides
+    # Lengths on the belt: the walking speed is the belt's, which carries a heel in
+    # mid-stance back through the lab (measured here from the heel alone).
+    heel = gm.heel["left"]
+    strikes, offs = found.times("left", "foot_strike"), found.times("left", "foot_off")
+    belt = []
+    for t0 in strikes:
+        t1 = offs[offs > t0][:1]
+        if len(t1):
+            i, j = round((t0 + 0.3 * (t1[0] - t0)) * 100), round((t0 + 0.7 * (t1[0] - t0)) * 100)
+            belt.append(np.linalg.norm(heel[j, :2] - heel[i, :2]) / ((j - i) / 100.0) / 1000.0)
+    for side in ("left", "right"):
+        assert st.mean("walking_speed", side) == pytest.approx(np.median(belt), rel=0.05)
+        assert 0.03 < st.mean("step_width", side) < 0.15
+
+
+def _kiss(motion):
+    kiss = marker_set("kiss")
+    return gait_markers(
+        dict(zip(motion.names, motion.xyz_mm.transpose(1, 0, 2), strict=True)), 100.0, kiss
+    )
+
+
+def test_a_4s_synthetic_kiss_walk_has_strikes_or_says_why() -> None:
+    """The kinematic walker's heel never lands first: its strikes come from Zeni's
+    crossing, with a warning, and its strides are whole."""
+    gm = _kiss(walking_trial(0, 400, 100.0))
+    found = detect_events(gm)
+    for side in ("left", "right"):
+        assert len(found.times(side, "foot_strike")) >= 2
+    assert any("no heel-strike pattern" in w for w in found.warnings)
+    st = spatiotemporal_parameters(found, gm)
+    assert sum(len(st.values[("stride_time", s)]) for s in ("left", "right")) >= 2
+
+
+def test_warnings_name_the_reason() -> None:
+    short = detect_events(_kiss(walking_trial(0, 100, 100.0, model="grounded")))
+    assert any("too short" in w for w in short.warnings)
+    m = walking_trial(1, 400, 100.0, model="grounded")
+    gm = _kiss(m)
+    holed = dict(gm.heel, left=np.where(np.arange(400)[:, None] < 300, np.nan, gm.heel["left"]))
+    gaps = detect_events(_real.GaitMarkers(gm.pelvis, holed, gm.toe, 100.0, gm.names))
+    left = [w for w in gaps.warnings if w.startswith("no full stride on the left")]
+    assert left and "the left heel marker (LHEE) is missing in 75 %" in left[0]
+    kiss = marker_set("kiss")
+    still = np.broadcast_to(kiss.template_mm, (300, len(kiss), 3))
+    noisy = still + np.random.default_rng(0).normal(0, 0.5, still.shape)
+    stand = gait_markers(dict(zip(kiss.names, noisy.transpose(1, 0, 2), strict=True)), 100.0, kiss)
+    assert [w for w in detect_events(stand).warnings if w.startswith("no walking")]
+    assert detect_events(gm).warnings == ()
+    # The same walk as a lab with y up would store it: the warning names the axis.
+    y_up = _real.GaitMarkers(
+        tuple(p[:, [0, 2, 1]] for p in gm.pelvis),
+        {k: v[:, [0, 2, 1]] for k, v in gm.heel.items()},
+        {k: v[:, [0, 2, 1]] for k, v in gm.toe.items()},
+        100.0,
+        gm.names,
+    )
+    assert any("along +y, not +z" in w for w in detect_events(y_up).warnings)
