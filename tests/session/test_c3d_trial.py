@@ -46,7 +46,7 @@ def write_shuffled_c3d(path: Path, xyz: np.ndarray, rate_hz: float, seed: int = 
 def c3d_session(root: Path, rate_hz: float, c3d: str = "walk.c3d") -> Path:
     root.mkdir(parents=True, exist_ok=True)
     (root / "session.toml").write_text(
-        f'[session]\nname = "c3d"\nrate_hz = {rate_hz}\n\n[[cameras]]\nid = "cam1"\n\n'
+        f'[session]\nname = "c3d"\nrate_hz = {rate_hz}\n\n'
         f'[[trials]]\nname = "walk"\nc3d = "{c3d}"\n'
     )
     return root
@@ -82,7 +82,8 @@ def test_shuffled_anonymous_c3d_comes_back_without_identity_switches(
     ident = true_identity(tracks, xyz)
     measured = tracks.status == 0
     assert not np.any(ident[measured] == -2)  # every measured sample is a true one
-    assert measured.sum() >= 0.999 * np.isfinite(xyz[..., 0]).sum()
+    # every valid sample of the file comes out (short pieces kept: no ghosts in a C3D)
+    assert measured.sum() == np.isfinite(xyz[..., 0]).sum()
     switches, pieces = 0, {}
     for t in np.unique(tracks.track):
         rows = np.flatnonzero((tracks.track == t) & measured)
@@ -90,13 +91,15 @@ def test_shuffled_anonymous_c3d_comes_back_without_identity_switches(
         switches += int(np.sum(ids[1:] != ids[:-1]))
         pieces.setdefault(int(ids[0]), []).append(int(t))
     assert switches == 0
-    # a marker comes back in one track, or splits where the source itself jumps (walking5
-    # has single-frame jumps of 25-55 mm, several times a marker's step)
+    # a marker comes back in one long track, or splits where the source itself jumps
+    # (walking5 has single-frame jumps of 25-55 mm, several times a marker's step) or
+    # after a gap; pieces shorter than the tracker's minimum length (isolated samples
+    # around gaps) are kept apart, unnamed
     speed = np.linalg.norm(np.diff(xyz, axis=0), axis=2)
     for marker, tracks_of_marker in pieces.items():
-        if len(tracks_of_marker) > 1:
-            starts = [int(tracks.field[tracks.track == t].min()) for t in tracks_of_marker[1:]]
-            assert all(speed[s - 1, marker] > 20.0 for s in starts), marker
+        long = [t for t in tracks_of_marker if (measured & (tracks.track == t)).sum() >= 10]
+        starts = [int(tracks.field[tracks.track == t].min()) for t in long[1:]]
+        assert all(not speed[s - 1, marker] <= 20.0 for s in starts), marker
 
 
 def test_c3d_trial_rate_must_match_the_session(walking5_markers, tmp_path: Path) -> None:
