@@ -103,7 +103,10 @@ def shuffled(xyz: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np
 
 def true_channel(tracks, field: np.ndarray, points: np.ndarray, channel: np.ndarray) -> np.ndarray:
     """The file channel of each measured output sample (-1: not a sample of the file)."""
-    key = {(int(f), *np.round(p, 4).tolist()): int(c) for f, p, c in zip(field, points, channel)}
+    key = {
+        (int(f), *np.round(p, 4).tolist()): int(c)
+        for f, p, c in zip(field, points, channel, strict=True)
+    }
     out = np.full(len(tracks.field), -1)
     for i in np.flatnonzero(tracks.status == MEASURED):
         out[i] = key.get((int(tracks.field[i]), *np.round(tracks.xyz_mm[i], 4).tolist()), -1)
@@ -141,6 +144,87 @@ def retrack(xyz: np.ndarray, rate_hz: float, seed: int = 0) -> Retrack:
     )
 
 
+#: Plug-in Gait's arm markers: a full-body file without them is the partial-set case.
+ARMS = tuple(f"{s}{m}" for s in "LR" for m in ("SHO", "UPA", "ELB", "FRM", "WRA", "WRB", "FIN"))
+
+
+@dataclass(frozen=True)
+class Labels:
+    in_set: int
+    right: int
+    named_wrong: int
+    flagged_wrong: int
+    extra_named: int
+    seconds: float
+
+
+def set_name(label: str, aliases: dict[str, str]) -> str:
+    """A file's label as a marker set names it: without a subject prefix ("Derrick:"),
+    through the set's aliases."""
+    bare = label.rsplit(":", 1)[-1].strip().upper()
+    return aliases.get(bare, bare)
+
+
+def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
+    """Label a file's markers from a shipped set alone (labels dropped, every channel);
+    count names right, names on the wrong marker (silent or flagged) and names given to
+    markers that are not in the set."""
+    mset = marker_set(set_name_)
+    names = [set_name(lab, mset.aliases) for lab in c3d.labels]
+    keep = [i for i, n in enumerate(names) if n not in drop]
+    xyz = distinct(c3d.xyz_mm[:, keep])
+    names = [names[i] for i in keep]
+    field, points, channel = shuffled(xyz)
+    t0 = time.perf_counter()
+    res = build_trajectories(
+        field, points, reconstructed_points(TrackingParams()), marker_set=mset,
+        rate_hz=c3d.rate_hz,
+    )  # fmt: skip
+    dt = time.perf_counter() - t0
+    tr, lab = res.tracks, res.labelling
+    ident = true_channel(tr, field, points, channel)
+    unnamed = set(lab.unlabelled)
+    got: dict[str, str] = {}
+    wrong = flagged = extra = 0
+    for t, label in enumerate(res.labels):
+        ids = ident[(tr.track == t) & (ident >= 0)]
+        if t in unnamed or not ids.size:
+            continue
+        owner = names[int(np.bincount(ids).argmax())]
+        if owner == label:
+            got[owner] = label
+        elif owner not in mset.names:
+            extra += 1
+        elif label in lab.flagged:
+            flagged += 1
+        else:
+            wrong += 1
+    in_set = len({n for n in names if n in mset.names})
+    return Labels(in_set, len(got), wrong, flagged, extra, dt)
+
+
+def labels_report(cache: Path) -> list[str]:
+    lines = [
+        f"{'file':34} {'set':18} {'in set':>6} {'right':>5} {'wrong':>5} {'flagged':>7} "
+        f"{'extra':>5} {'s':>5}"
+    ]
+    for item in FILES:
+        path = find(item.name, cache) if item.marker_set else None
+        if path is None:
+            continue
+        c3d = read_c3d(path)
+        variants = [(item.name, ())]
+        if any(set_name(lab, {}) in ARMS for lab in c3d.labels):
+            variants.append((f"{item.name} (no arms)", ARMS))
+        for name, drop in variants:
+            r = label_raw(c3d, item.marker_set, drop)
+            lines.append(
+                f"{name:34} {item.marker_set:18} {r.in_set:6d} {r.right:5d} "
+                f"{r.named_wrong:5d} {r.flagged_wrong:7d} {r.extra_named:5d} {r.seconds:5.1f}"
+            )
+    return lines
+
+
 def report(cache: Path) -> list[str]:
     lines = [
         f"{'file':34} {'system':44} {'mk':>3} {'frames':>6} {'valid':>6} {'traj':>4} "
@@ -161,4 +245,7 @@ def report(cache: Path) -> list[str]:
 
 
 if __name__ == "__main__":
-    print("\n".join(report(cache_folder(sys.argv[1] if len(sys.argv) > 1 else None))))
+    folder = cache_folder(sys.argv[1] if len(sys.argv) > 1 else None)
+    print("\n".join(report(folder)))
+    print()
+    print("\n".join(labels_report(folder)))

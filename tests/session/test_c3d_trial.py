@@ -108,3 +108,22 @@ def test_c3d_trial_rate_must_match_the_session(walking5_markers, tmp_path: Path)
     write_shuffled_c3d(root / "walk.c3d", xyz[:50], rate)
     with pytest.raises(KisscalError, match="rate_hz"):
         session.reconstruct(root, "walk")
+
+
+def test_a_real_two_frame_qualisys_file_comes_out_whole_with_its_frame_numbers(tmp_path):
+    """FP_Type3.c3d (QTM, 2 frames of 34 markers, frames 1166-1167): a session of C3D trials
+    without [[cameras]]; every sample comes out (unlabelled: two frames cannot be
+    tracked) and trajectories.c3d keeps the file's frame numbers."""
+    real = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "c3d" / "FP_Type3.c3d"
+    root = c3d_session(tmp_path / "s", 250.0, c3d="fp.c3d")
+    (root / "fp.c3d").write_bytes(real.read_bytes())
+    session.run(root)
+    out = root / "out" / "trials" / "walk"
+    tracks = read_trajectories_csv(out / "trajectories.csv")
+    source = read_c3d_points(real)[1]
+    assert (tracks.status == 0).sum() == np.isfinite(source[..., 0]).sum() == 68
+    assert len(np.unique(tracks.track)) == 34
+    c = ezc3d.c3d(str(out / "trajectories.c3d"))
+    assert c["header"]["points"]["first_frame"] == 1165  # ezc3d counts from 0: frame 1166
+    assert c["data"]["points"].shape[1:] == (34, 2)
+    assert list(c["parameters"]["TRIAL"]["ACTUAL_START_FIELD"]["value"]) == [1166, 0]
