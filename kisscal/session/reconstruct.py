@@ -144,6 +144,8 @@ def c3d_trial_points(
             f"{config.rate_hz:g}"
         )
     field, channel = np.nonzero(np.isfinite(c3d.xyz_mm).all(axis=2))
+    if not len(field):
+        raise KisscalError(f"{source}: no valid 3D point in the file")
     n = len(field)
     write_points3d(
         path,
@@ -164,7 +166,7 @@ def c3d_trial_points(
             "processor": c3d.processor,
             "markers": list(c3d.labels),
             "excluded_model_outputs": list(c3d.excluded),
-            "warnings": [] if n else [f"{source.name}: no valid marker sample"],
+            "warnings": [],
         },
     )
     mark_current(path, key)
