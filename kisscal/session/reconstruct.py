@@ -160,6 +160,7 @@ def c3d_trial_points(
         path.with_name("recon.json"),
         {
             "fields": c3d.n_frames,
+            "points": n,
             "first_frame": c3d.first_frame,
             "source": source.name,
             "system": c3d.manufacturer,

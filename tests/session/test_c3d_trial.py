@@ -127,3 +127,30 @@ def test_a_real_two_frame_qualisys_file_comes_out_whole_with_its_frame_numbers(t
     assert c["header"]["points"]["first_frame"] == 1165  # ezc3d counts from 0: frame 1166
     assert c["data"]["points"].shape[1:] == (34, 2)
     assert list(c["parameters"]["TRIAL"]["ACTUAL_START_FIELD"]["value"]) == [1166, 0]
+
+
+def test_model_outputs_are_left_out_and_said(walking5_markers, tmp_path: Path) -> None:
+    """A file as Nexus saves it: markers plus model outputs stored as points
+    (POINT:ANGLES). Only the markers become 3D points; the log and recon.json name the
+    outputs left out."""
+    import json
+
+    xyz, rate = walking5_markers
+    xyz = xyz[400:440, :5]
+    root = c3d_session(tmp_path / "s", rate)
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [rate]
+    c["parameters"]["POINT"]["LABELS"]["value"] = ["A", "B", "C", "D", "E", "LHipAngles"]
+    c.add_parameter("POINT", "UNITS", "mm")
+    c.add_parameter("POINT", "ANGLES", ["LHipAngles"])
+    points = np.ones((4, 6, 40))
+    points[:3, :5] = xyz.transpose(2, 1, 0)
+    points[:3, 5] = 10.0  # angles in degrees, far from any marker
+    c["data"]["points"] = points
+    c.write(str(root / "walk.c3d"))
+    said: list[str] = []
+    pts = session.reconstruct(root, "walk", echo=said.append)
+    assert len(pts.field) == np.isfinite(xyz[..., 0]).sum()
+    assert any("left out 1 model outputs" in line and "LHipAngles" in line for line in said)
+    recon = json.loads((root / "out" / "trials" / "walk" / "recon.json").read_text())
+    assert recon["excluded_model_outputs"] == ["LHipAngles"] and recon["fields"] == 40
