@@ -101,6 +101,40 @@ def project_rows(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArr
     return np.column_stack([u, v])
 
 
+def pixel_size_mm(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:
+    """The size (mm) one pixel of camera ``camera[k]`` spans at lab point ``k``.
+
+    The projection's Jacobian (2 x 3, from central differences of 1 mm) has two non-zero
+    singular values, pixels per mm across the ray; the pixel size is the inverse of their
+    geometric mean (about depth / focal length). It turns an image residual (px) into
+    the C3D standard's residual in point units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kisscal.dlt.model import dlt_from_krt
+    >>> K = np.array([[1000.0, 0, 320], [0, 1000.0, 240], [0, 0, 1]])
+    >>> L = dlt_from_krt(K, np.eye(3), [0.0, 0.0, 1000.0])[None]  # origin 1 m ahead
+    >>> pixel_size_mm(L, [0], [[0.0, 0.0, 1000.0]]).round(3)  # a point 2 m ahead
+    array([2.])
+    """
+    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    camera = np.asarray(camera, dtype=np.int64)
+    steps = np.eye(3)
+    jac = (
+        np.stack(
+            [
+                project_rows(dlts, camera, xyz + d) - project_rows(dlts, camera, xyz - d)
+                for d in steps
+            ],
+            axis=2,
+        )
+        / 2.0
+    )  # (n, 2, 3): px per mm
+    sv = np.linalg.svd(jac, compute_uv=False)
+    return 1.0 / np.sqrt(np.maximum(sv[:, 0] * sv[:, 1], 1e-300))
+
+
 def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
     """Projection centre (mm) of a DLT camera: the null vector of ``P = [M | p4]``.
 

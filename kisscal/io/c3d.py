@@ -1,8 +1,20 @@
-"""C3D files: reading marker trajectories (with ezc3d), and the parts of writing that ezc3d
-does not do as the C3D standard asks (the per-sample residual and camera mask word)."""
+"""C3D files: reading marker trajectories as the C3D standard defines them, and the parts
+of writing that ezc3d does not do as the standard asks (the per-sample residual and camera
+mask word, the header's scale).
+
+Reading keeps markers only: the POINT channels a file declares as model outputs
+(``POINT:ANGLES``, ``FORCES``, ``MOMENTS``, ``POWERS``, ``SCALARS``, ``REACTIONS``,
+``MODELED_MARKERS``, their ``*2``, ``*3`` ... extensions and any group ``POINT:TYPE_GROUPS``
+names) are left out and listed. Labels continue in ``POINT:LABELS2``, ``LABELS3`` ... when a
+file has more than 255 points. Every frame of the file is kept, empty ones included, with
+the file's own number of the first frame. Intel and DEC files are read with ezc3d; SGI/MIPS
+files, which ezc3d does not read, with the ``c3d`` package.
+"""
 
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -10,34 +22,250 @@ from numpy.typing import NDArray
 
 from kisscal.errors import KisscalError
 
+#: POINT parameters whose values name channels that hold model outputs, not markers.
+MODEL_OUTPUT_GROUPS = (
+    "ANGLES",
+    "FORCES",
+    "MOMENTS",
+    "POWERS",
+    "SCALARS",
+    "REACTIONS",
+    "MODELED_MARKERS",
+)
 
-def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], float]:
-    """Point labels, positions (n_frames, n_points, 3) in mm with NaN where invalid, and rate.
+#: Processor type byte of the parameter section (C3D.org 2023): 84 + n.
+PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
 
-    Samples flagged invalid by the recording system (negative residual) become NaN.
+#: POINT:UNITS to millimetres.
+_UNITS_MM = {"mm": 1.0, "m": 1000.0, "cm": 10.0}
+
+
+@dataclass(frozen=True)
+class C3DPoints:
+    """The markers of a C3D file.
+
+    Attributes
+    ----------
+    labels : tuple of str
+        Marker labels (``POINT:LABELS`` continued by ``LABELS2`` ..., stripped).
+    xyz_mm : (n_frames, n_markers, 3) float
+        Positions in mm, NaN where a sample is invalid (negative residual). Every frame of
+        the file, empty ones included.
+    rate_hz : float
+        ``POINT:RATE``.
+    first_frame : int
+        The file's number of its first frame (``TRIAL:ACTUAL_START_FIELD`` when present,
+        else the header's first frame; counted from 1).
+    excluded : tuple of str
+        Labels of the channels left out: declared model outputs.
+    processor : str
+        ``Intel``, ``DEC`` or ``MIPS``.
+    manufacturer : str
+        ``MANUFACTURER:COMPANY`` and ``SOFTWARE`` (empty when the file does not say).
     """
-    import ezc3d
 
+    labels: tuple[str, ...]
+    xyz_mm: NDArray[np.float64]
+    rate_hz: float
+    first_frame: int
+    excluded: tuple[str, ...]
+    processor: str
+    manufacturer: str
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.xyz_mm.shape[0])
+
+
+def processor_type(path: Path) -> str:
+    """``Intel``, ``DEC`` or ``MIPS``: the fourth byte of the parameter section, whose
+    first block the header's first byte gives (C3D.org 2023, the parameter header)."""
+    with Path(path).open("rb") as fh:
+        head = fh.read(2)
+        if len(head) < 2 or head[1] != 0x50:  # the C3D key byte
+            raise KisscalError(f"{path}: not a C3D file (no C3D key in its header)")
+        fh.seek((max(head[0], 1) - 1) * 512)
+        block = fh.read(4)
+    kind = PROCESSORS.get(block[3] if len(block) == 4 else -1)
+    if kind is None:
+        raise KisscalError(f"{path}: unknown C3D processor type (parameter byte 4)")
+    return kind
+
+
+def read_c3d(path: Path) -> C3DPoints:
+    """The markers of a C3D file (see :class:`C3DPoints`).
+
+    Parameters
+    ----------
+    path : Path
+        A C3D file of any processor type (Intel, DEC, SGI/MIPS), integer or float data.
+
+    Returns
+    -------
+    C3DPoints
+
+    References
+    ----------
+    C3D.org (2023). The C3D file format user guide: the POINT group (LABELS2, UNITS,
+    SCALE), the TRIAL group (ACTUAL_START_FIELD) and the processor types.
+    Motion Lab Systems (2008). The C3D file format, a technical user guide (model outputs
+    stored as points: ANGLES, FORCES, MOMENTS, POWERS).
+    """
     path = Path(path)
     if not path.is_file():
         raise KisscalError(f"{path}: C3D file not found")
+    processor = processor_type(path)
     try:
-        c3d = ezc3d.c3d(str(path))
-    except Exception as exc:  # ezc3d raises plain exceptions on corrupt files
+        raw = _read_c3d_package(path) if processor == "MIPS" else _read_ezc3d(path)
+    except KisscalError:
+        raise
+    except Exception as exc:  # both readers raise plain exceptions on corrupt files
         raise KisscalError(f"{path}: not a readable C3D file ({exc})") from None
-    params = c3d["parameters"]["POINT"]
-    labels = tuple(str(s).strip() for s in params["LABELS"]["value"])
-    # POINT:UNITS may be missing or empty: millimetres, the C3D default
-    units = str((list(params.get("UNITS", {}).get("value", [])) or ["mm"])[0]).strip().lower()
-    units = units or "mm"
-    scale = {"mm": 1.0, "m": 1000.0, "cm": 10.0}.get(units)
+    params, xyz, residual, header_first, rate = raw
+    return _markers(path, params, xyz, residual, header_first, rate, processor)
+
+
+def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], float]:
+    """Marker labels, positions (n_frames, n_markers, 3) in mm (NaN where invalid) and
+    rate of a C3D file: :func:`read_c3d` without its frame numbering and log."""
+    c3d = read_c3d(path)
+    return c3d.labels, c3d.xyz_mm, c3d.rate_hz
+
+
+# ------------------------------------------------------------------ reading: the two backends
+
+#: A file as both backends give it: parameters {(GROUP, NAME): values}, positions
+#: (n_frames, n_points, 3) in file units, residuals (n_frames, n_points), the header's
+#: first frame (from 1) and the point rate.
+_Raw = tuple[dict[tuple[str, str], list], NDArray, NDArray, int, float]
+
+
+def _read_ezc3d(path: Path) -> _Raw:
+    import ezc3d
+
+    c3d = ezc3d.c3d(str(path))
+    params = {
+        (group.upper(), name.upper()): list(np.atleast_1d(entry["value"]))
+        for group, entries in c3d["parameters"].items()
+        for name, entry in entries.items()
+        if isinstance(entry, dict) and "value" in entry
+    }
+    xyz = c3d["data"]["points"][:3].transpose(2, 1, 0)
+    if xyz.shape[1]:
+        residual = c3d["data"]["meta_points"]["residuals"][0].T
+    else:  # a file without points (ezc3d gives no residual array then)
+        residual = np.zeros(xyz.shape[:2])
+    header = c3d["header"]["points"]
+    # ezc3d counts the header's first frame from 0; the standard from 1
+    return params, xyz, residual, int(header["first_frame"]) + 1, float(header["frame_rate"])
+
+
+def _read_c3d_package(path: Path) -> _Raw:
+    import c3d
+
+    with path.open("rb") as fh:
+        reader = c3d.Reader(fh)
+        params: dict[tuple[str, str], list] = {}
+        for group_name, group in reader.group_items():
+            for name, param in group.param_items():
+                params[(group_name.upper(), name.upper())] = _package_values(param)
+        frames = [points for _, points, _ in reader.read_frames(copy=True)]
+        first, rate = int(reader.first_frame), float(reader.point_rate)
+    data = np.stack(frames) if frames else np.zeros((0, 0, 5))
+    return params, data[..., :3], data[..., 3], first, rate
+
+
+def _package_values(param: object) -> list:
+    """A ``c3d`` package parameter's values as ezc3d gives them: strings, or numbers (a
+    scalar as one value; values the package cannot read as none)."""
+    size = getattr(param, "bytes_per_element", 0)
+    if size == -1:
+        return [str(s) for s in np.atleast_1d(param.string_array)]  # type: ignore[attr-defined]
+    kind = {1: "int8", 2: "int16", 4: "float"}.get(size)
+    for attr in (f"{kind}_array", f"{kind}_value"):
+        try:
+            return list(np.ravel(getattr(param, attr)))
+        except Exception:  # the package raises plain errors on shapes it does not take
+            continue
+    return []
+
+
+# ------------------------------------------------------------------ reading: markers only
+
+
+def _strings(params: dict[tuple[str, str], list], group: str, name: str) -> list[str]:
+    return [str(v).strip() for v in params.get((group, name), [])]
+
+
+def _continued(params: dict[tuple[str, str], list], group: str, name: str) -> list[str]:
+    """A string parameter and its continuations ``NAME2``, ``NAME3`` ... (C3D.org 2023:
+    more than 255 entries)."""
+    out = _strings(params, group, name)
+    k = 2
+    while (group, f"{name}{k}") in params:
+        out += _strings(params, group, f"{name}{k}")
+        k += 1
+    return out
+
+
+def _model_outputs(params: dict[tuple[str, str], list]) -> set[str]:
+    """Labels the POINT group declares as model outputs."""
+    groups = set(MODEL_OUTPUT_GROUPS) | {
+        s.upper() for s in _strings(params, "POINT", "TYPE_GROUPS")
+    }
+    names: set[str] = set()
+    for (group, name), values in params.items():
+        base = re.sub(r"\d+$", "", name)
+        if group == "POINT" and base in groups and name not in ("LABELS", "DESCRIPTIONS"):
+            names |= {str(v).strip() for v in values if str(v).strip()}
+    return names
+
+
+def _first_frame(params: dict[tuple[str, str], list], header_first: int) -> int:
+    """TRIAL:ACTUAL_START_FIELD (two 16-bit words, low first: frames past 65535) when the
+    file has it, else the header's first frame."""
+    words = [int(v) & 0xFFFF for v in params.get(("TRIAL", "ACTUAL_START_FIELD"), [])]
+    if len(words) >= 2 and (words[0] or words[1]):
+        return words[0] + (words[1] << 16)
+    return header_first
+
+
+def _markers(
+    path: Path,
+    params: dict[tuple[str, str], list],
+    xyz: NDArray,
+    residual: NDArray,
+    header_first: int,
+    rate: float,
+    processor: str,
+) -> C3DPoints:
+    n_points = xyz.shape[1]
+    labels = _continued(params, "POINT", "LABELS")[:n_points]
+    labels += [f"point{i + 1}" for i in range(len(labels), n_points)]  # unnamed channels
+    units = (_strings(params, "POINT", "UNITS") or ["mm"])[0].lower() or "mm"
+    scale = _UNITS_MM.get(units)
     if scale is None:
-        raise KisscalError(f"{path}: unsupported point units {units!r}")
-    points = c3d["data"]["points"][:3].transpose(2, 1, 0) * scale  # (frames, points, 3)
-    residuals = c3d["data"]["meta_points"]["residuals"][0].T
-    points = np.where((residuals < 0)[..., None], np.nan, points)
-    rate = float(c3d["header"]["points"]["frame_rate"])
-    return labels[: points.shape[1]], points.astype(float), rate
+        raise KisscalError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
+    outputs = _model_outputs(params)
+    keep = np.array([lab not in outputs for lab in labels], dtype=bool)
+    xyz = np.where((residual < 0)[..., None], np.nan, xyz.astype(float) * scale)
+    company = " ".join(
+        s
+        for s in (
+            *_strings(params, "MANUFACTURER", "COMPANY"),
+            *_strings(params, "MANUFACTURER", "SOFTWARE"),
+        )
+        if s
+    )
+    return C3DPoints(
+        labels=tuple(lab for lab, k in zip(labels, keep, strict=True) if k),
+        xyz_mm=xyz[:, keep],
+        rate_hz=rate,
+        first_frame=_first_frame(params, header_first),
+        excluded=tuple(lab for lab, k in zip(labels, keep, strict=True) if not k),
+        processor=processor,
+        manufacturer=company,
+    )
 
 
 # ------------------------------------------------------------------ writing: per-sample words
@@ -48,7 +276,7 @@ C3D_MASK_CAMERAS = 7
 
 def sample_words(
     status: NDArray[np.int8],
-    rms_px: NDArray[np.float64],
+    residual: NDArray[np.float64],
     cameras: NDArray[np.bool_],
     scale: float,
 ) -> NDArray[np.float32]:
@@ -64,9 +292,9 @@ def sample_words(
     ----------
     status : (S,) int8
         :data:`~kisscal.tracking.tracks.MEASURED`, ``PREDICTED`` or ``FILLED``.
-    rms_px : (S,) float
-        Reconstruction residual of the sample (NaN when unknown: stored as the smallest
-        positive residual).
+    residual : (S,) float
+        Reconstruction residual of the sample in the point units (mm; NaN when unknown:
+        stored as the smallest positive residual).
     cameras : (S, n_cameras) bool
         Cameras the sample was seen by.
     scale : float
@@ -80,16 +308,20 @@ def sample_words(
     from kisscal.tracking.tracks import MEASURED
 
     measured = np.asarray(status) == MEASURED
-    steps = np.nan_to_num(np.asarray(rms_px, dtype=float) / scale, nan=1.0, posinf=255.0)
+    steps = np.nan_to_num(np.asarray(residual, dtype=float) / scale, nan=1.0, posinf=255.0)
     residual = np.clip(np.round(steps), 1, 255).astype(np.int64)
     bits = np.asarray(cameras, dtype=bool)[:, :C3D_MASK_CAMERAS]
     mask = (bits * (1 << np.arange(bits.shape[1]))).sum(axis=1).astype(np.int64)
     return np.where(measured, (mask << 8) | residual, 0).astype(np.float32)
 
 
-def patch_sample_words(path: Path, words: NDArray[np.float32], scale: float) -> None:
-    """Set the fourth word of every point sample of a float C3D file, in place, and the
-    header's scale factor to ``-scale`` (POINT:SCALE's value).
+def patch_sample_words(
+    path: Path, words: NDArray[np.float32], scale: float, first_frame: int = 1
+) -> None:
+    """Set the fourth word of every point sample of a float C3D file, in place, the
+    header's scale factor to ``-scale`` (POINT:SCALE's value) and its first and last frame
+    numbers from ``first_frame`` (16-bit words: frames past 65535 are kept in
+    TRIAL:ACTUAL_START_FIELD only).
 
     ``words`` has shape (n_frames, n_points); a negative word marks a gap, stored as the
     standard asks (-1, coordinates 0). ezc3d (1.7) writes the camera mask into the low
@@ -104,6 +336,9 @@ def patch_sample_words(path: Path, words: NDArray[np.float32], scale: float) -> 
         if float(head[6:8].view("<f4")[0]) >= 0 or words.shape != (n_frames, n_points):
             raise KisscalError(f"{path}: not the float C3D layout kisscal writes")
         head[6:8] = np.array([-scale], dtype="<f4").view("<i2")
+        if first_frame + n_frames - 1 <= 0xFFFF:
+            frames = head.view("<u2")  # frame numbers are unsigned words
+            frames[3], frames[4] = first_frame, first_frame + n_frames - 1
         fh.seek(0)
         fh.write(head.tobytes())
         frame_size = 4 * n_points + n_analog

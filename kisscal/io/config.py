@@ -204,9 +204,13 @@ def _session(top: Table, root: Path) -> tuple[str, float]:
     )
 
 
-def _cameras(top: Table) -> tuple[CameraConfig, ...]:
+def _cameras(top: Table, optional: bool = False) -> tuple[CameraConfig, ...]:
+    """``[[cameras]]``; ``optional`` for a session of C3D trials only (its points come
+    reconstructed: no camera to name)."""
     tables = top.list_of_tables("cameras")
     if not tables:
+        if optional:
+            return ()
         raise top.fail("[[cameras]] must list at least one camera")
     cameras = []
     for t in tables:
@@ -398,17 +402,20 @@ def parse_session(data: dict[str, Any], root: Path) -> SessionConfig:
     # [grid] keys beyond rows/cols/images/fields tune the grid stage (GridParams)
     sections["grid"] = {k: v for k, v in data.get("grid", {}).items() if k not in _GRID_KEYS}
     sections["wand"] = {k: v for k, v in data.get("wand", {}).items() if k not in _WAND_KEYS}
+    trials = _trials(top)
+    c3d_only = bool(trials) and all(t.source == "c3d" for t in trials)
+    calibrates = any(k in data for k in ("grid", "rods", "calibration", "wand"))
     config = SessionConfig(
         root=Path(root),
         name=name,
         rate_hz=rate,
-        cameras=_cameras(top),
+        cameras=_cameras(top, optional=c3d_only and not calibrates),
         grid=parsed.get("grid"),
         rods=parsed.get("rods"),
         calibration=parsed.get("calibration"),
         detection=sections.pop("detection", {}),
         markers=parsed.get("markers"),
-        trials=_trials(top),
+        trials=trials,
         sections=sections,
         wand=parsed.get("wand"),
         axes=parsed.get("axes"),

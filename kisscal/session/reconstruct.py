@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from kisscal.detect import DetectionParams
 from kisscal.errors import KisscalError
-from kisscal.io.c3d import read_c3d_points
+from kisscal.io.c3d import read_c3d
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table, write_json
@@ -124,9 +124,11 @@ def _echo_warnings(trial: str, recon_json: Path, echo: Echo) -> None:
 def c3d_trial_points(
     config: SessionConfig, trial: TrialConfig, path: Path, echo: Echo = quiet
 ) -> Points3DFile:
-    """A ``[[trials]] c3d`` trial: every valid sample of the file as an anonymous 3D point
-    per field (labels and channel order are dropped: tracking and labelling start from
-    scratch), written to ``points3d.csv`` (``n_cameras`` 0 and ``rms_px`` NaN: not known).
+    """A ``[[trials]] c3d`` trial: every valid marker sample of the file as an anonymous 3D
+    point per field (labels and channel order are dropped: tracking and labelling start
+    from scratch), written to ``points3d.csv`` (``n_cameras`` 0 and ``rms_px`` NaN: not
+    known), and ``recon.json`` with the file's frames (empty ones count), its first frame
+    number and the model outputs left out (see :func:`kisscal.io.c3d.read_c3d`).
 
     The file's frame rate must be the session's ``rate_hz``; its first frame is field 0.
     """
@@ -135,27 +137,52 @@ def c3d_trial_points(
     if is_current(path, key):
         echo(f"  reconstruct {trial.name}: cached")
         return read_points3d(path)
-    _labels, xyz, rate = read_c3d_points(source)
-    if abs(rate - config.rate_hz) > 1e-6 * rate:
+    c3d = read_c3d(source)
+    if abs(c3d.rate_hz - config.rate_hz) > 1e-6 * c3d.rate_hz:
         raise KisscalError(
-            f"{source}: {rate:g} frames per second, but session.toml says rate_hz = "
+            f"{source}: {c3d.rate_hz:g} frames per second, but session.toml says rate_hz = "
             f"{config.rate_hz:g}"
         )
-    field, channel = np.nonzero(np.isfinite(xyz).all(axis=2))
+    field, channel = np.nonzero(np.isfinite(c3d.xyz_mm).all(axis=2))
     if not len(field):
         raise KisscalError(f"{source}: no valid 3D point in the file")
     n = len(field)
     write_points3d(
         path,
         field,
-        xyz[field, channel],
+        c3d.xyz_mm[field, channel],
         np.zeros(n, np.int64),
         np.full(n, np.nan),
         np.full((n, len(config.camera_ids)), -1),
         config.camera_ids,
     )
+    write_json(
+        path.with_name("recon.json"),
+        {
+            "fields": c3d.n_frames,
+            "points": n,
+            "first_frame": c3d.first_frame,
+            "source": source.name,
+            "system": c3d.manufacturer,
+            "processor": c3d.processor,
+            "markers": list(c3d.labels),
+            "excluded_model_outputs": list(c3d.excluded),
+            "warnings": [],
+        },
+    )
     mark_current(path, key)
-    echo(f"  reconstruct {trial.name}: {n} points in {xyz.shape[0]} fields from {source.name}")
+    system = f", {c3d.manufacturer}" if c3d.manufacturer else ""
+    echo(
+        f"  reconstruct {trial.name}: {n} points of {len(c3d.labels)} markers in "
+        f"{c3d.n_frames} frames from {source.name} (frames {c3d.first_frame}-"
+        f"{c3d.first_frame + c3d.n_frames - 1}{system})"
+    )
+    if c3d.excluded:
+        shown = ", ".join(c3d.excluded[:12]) + (" ..." if len(c3d.excluded) > 12 else "")
+        echo(
+            f"  reconstruct {trial.name}: left out {len(c3d.excluded)} model outputs "
+            f"(POINT:ANGLES, FORCES, MOMENTS, POWERS ...): {shown}"
+        )
     return read_points3d(path)
 
 

@@ -10,13 +10,15 @@ from typing import Any
 
 import numpy as np
 
+from kisscal.dlt.model import pixel_size_mm
 from kisscal.errors import KisscalError
 from kisscal.io.cache import is_current, mark_current
 from kisscal.io.config import SessionConfig
-from kisscal.io.export import write_c3d, write_trc
+from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import write_json
-from kisscal.io.points3d import read_points3d
+from kisscal.io.points3d import Points3DFile, read_points3d
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
+from kisscal.session.calibrate import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, out_dir, writes_session
 from kisscal.session.markers import (
@@ -29,6 +31,7 @@ from kisscal.session.markers import (
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.tracking import STATUS_NAMES, Trajectories, build_trajectories, sweep_noise
+from kisscal.tracking.params import reconstructed_points
 
 
 @writes_session
@@ -86,11 +89,13 @@ def _track_trial(
     tdir = out_dir(root) / "trials" / trial
     points_path = _points_path(root, trial)
     pts = read_points3d(points_path)
+    from_c3d = config.trial(trial).source == "c3d"
+    tracking = reconstructed_points(params.tracking) if from_c3d else params.tracking
     t0 = time.perf_counter()
     result = build_trajectories(
         pts.field,
         pts.xyz_mm,
-        params.tracking,
+        tracking,
         spec.names,
         spec.template_mm,
         spec.segments,
@@ -100,8 +105,9 @@ def _track_trial(
     )
     static = config.markers.static if config.markers else None
     template = subject_template(result, spec, trial) if trial == static else None
-    # a trial without markers still gets its files: header only, frames without points
-    frames = None if len(result.tracks.field) else _trial_fields(tdir, pts.field)
+    # every field of the trial, trailing ones without points too (a trial without markers
+    # still gets its files: header only, frames without points)
+    frames = _trial_fields(tdir, pts.field)
     write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
     write_trc(
         tdir / "trajectories.trc",
@@ -127,9 +133,13 @@ def _track_trial(
         result.labels,
         config.rate_hz,
         points=pts,
+        residual_mm=None if from_c3d else _residual_mm(root, pts),
         events=events,
         n_fields=frames,
+        first_frame=_first_frame(tdir),
     )
+    if len(pts.camera_ids):
+        write_sample_cameras(tdir / "trajectories_cameras.csv", result.tracks, result.labels, pts)
     write_json(tdir / "tracking.json", _tracking_summary(result))
     _figures(root, trial, result, spec.segments, config.rate_hz)
     shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
@@ -142,9 +152,33 @@ def _track_trial(
         echo(f"  track {trial}: uncertain labels, check them: {', '.join(lab.flagged)}")
     if events is not None:
         echo(f"  gait {trial}: {len(events)} events (events.csv, spatiotemporal.csv)")
-    if frames is not None:
+    if not len(result.tracks.field):
         echo(f"  warning: {trial}: no trajectories; empty files written ({frames} fields)")
     return result
+
+
+def _first_frame(tdir: Path) -> int:
+    """The source's number of field 0: a C3D trial's first frame (``recon.json``), else 1."""
+    recon = tdir / "recon.json"
+    return int(json.loads(recon.read_text()).get("first_frame", 1)) if recon.is_file() else 1
+
+
+def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
+    """Each point's reconstruction residual in mm: ``rms_px`` times the mean size of a pixel
+    at the point over the cameras that saw it (None without a calibrated rig)."""
+    if not len(pts.field):
+        return None
+    try:
+        rig = current_rig(root)
+    except KisscalError:
+        return None
+    index = [rig.index(c) for c in pts.camera_ids]
+    row, col = np.nonzero(pts.blob >= 0)
+    size = pixel_size_mm(rig.dlts, np.asarray(index)[col], pts.xyz_mm[row])
+    mean = np.bincount(row, size, len(pts.field)) / np.maximum(
+        np.bincount(row, minlength=len(pts.field)), 1
+    )
+    return np.where(mean > 0, pts.rms_px * mean, np.nan)
 
 
 def _trial_fields(tdir: Path, field: np.ndarray) -> int:

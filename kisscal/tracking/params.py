@@ -81,6 +81,10 @@ class TrackingParams:
         Pieces with fewer measured points that take no name (or all pieces, when no marker
         set fits) are removed in the clean-up (short ghost tracks, Shafiq et al. §4.3);
         longer ones that take no name are kept and reported.
+    keep_short_pieces : bool
+        Keep the short pieces that take no name too (as unnamed trajectories) instead of
+        removing them as ghosts: for points another system reconstructed (a C3D trial),
+        where every sample is a marker's and a file may hold only a few frames.
     max_fill_gap_fields : int
         Largest gap (fields) inside one labelled trajectory that gap filling bridges.
     fill_context_fields : int
@@ -161,6 +165,7 @@ class TrackingParams:
     blend_tolerance_mm: float = 3.0
     blend_noise_factor: float = 5.0
     min_track_length: int = 10
+    keep_short_pieces: bool = False
     max_fill_gap_fields: int = 5
     fill_context_fields: int = 6
     max_body_fill_fields: int = 300
@@ -235,3 +240,9 @@ class TrackingParams:
         if unknown:
             raise KisscalError(f"tracking: unknown parameter(s) {', '.join(unknown)}")
         return replace(self, **changes)
+
+
+def reconstructed_points(params: TrackingParams) -> TrackingParams:
+    """``params`` for points another system reconstructed (a ``[[trials]] c3d``): no
+    ghosts among them, so short pieces are kept (``keep_short_pieces``)."""
+    return params.with_(keep_short_pieces=True)

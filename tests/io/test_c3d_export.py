@@ -36,8 +36,14 @@ def written(tmp_path_factory):
         blob=np.where(seen, 0, -1),
         camera_ids=tuple(f"cam{i}" for i in range(9)),
     )
+    residual_mm = points.rms_px * 0.8  # e.g. a pixel 0.8 mm wide at the points
     path = write_c3d(
-        tmp_path_factory.mktemp("c3d") / "t.c3d", tracks, LABELS, RATE_HZ, points=points
+        tmp_path_factory.mktemp("c3d") / "t.c3d",
+        tracks,
+        LABELS,
+        RATE_HZ,
+        points=points,
+        residual_mm=residual_mm,
     )
     return path, tracks, points
 
@@ -52,7 +58,7 @@ def expected(tracks, points):
     measured = tracks.status == MEASURED
     kind[tracks.track, tracks.field] = measured.astype(int)
     row = tracks.point[measured]
-    rms[tracks.track[measured], tracks.field[measured]] = points.rms_px[row]
+    rms[tracks.track[measured], tracks.field[measured]] = points.rms_px[row] * 0.8
     bits = (points.blob[row, :C3D_MASK_CAMERAS] >= 0) * (1 << np.arange(C3D_MASK_CAMERAS))
     mask[tracks.track[measured], tracks.field[measured]] = bits.sum(axis=1)
     return kind, rms, mask
@@ -117,3 +123,55 @@ def test_ezc3d_reads_the_same_samples_as_measured_filled_and_gaps(written):
     xyz = c["data"]["points"][:3].transpose(1, 2, 0)
     np.testing.assert_allclose(xyz[kind >= 0], tracks.positions()[kind >= 0], atol=1e-3)
     assert np.isnan(xyz[kind == -1]).all()
+
+
+def test_source_first_frame_trailing_frames_and_lab_parameters_read_back(tmp_path):
+    """A C3D trial's output keeps its source's numbering (frame 153 on) and every frame
+    (trailing frames without samples), and says who wrote it and which axis is up, as the
+    c3d package, ezc3d and Kinetics Toolkit read it."""
+    ktk = pytest.importorskip("kineticstoolkit")
+    tracks = gappy_tracks(n_fields=40)
+    path = write_c3d(tmp_path / "t.c3d", tracks, LABELS, RATE_HZ, n_fields=50, first_frame=153)
+    meta, frames = read_with_c3d_package(path)
+    assert meta["first"] == 153 and [no for no, _ in frames] == list(range(153, 203))
+    assert meta["start"] == [153, 0] and meta["end"] == [202, 0]
+    c = ezc3d.c3d(str(path))
+    assert c["header"]["points"]["first_frame"] == 152  # ezc3d counts from 0
+    assert c["data"]["points"].shape[2] == 50
+    params = c["parameters"]
+    assert params["MANUFACTURER"]["COMPANY"]["value"] == ["kisscal"]
+    assert params["POINT"]["X_SCREEN"]["value"] == ["+X"]
+    assert params["POINT"]["Y_SCREEN"]["value"] == ["+Z"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        markers = ktk.read_c3d(str(path))["Points"]
+    assert len(markers.time) == 50
+    assert markers.time[0] == pytest.approx(152 / RATE_HZ)  # Kinetics Toolkit: frame 1 at 0 s
+    dense = tracks.positions()
+    np.testing.assert_allclose(
+        markers.data[LABELS[0]][:40, :3] * 1000.0, dense[0], atol=1e-3, equal_nan=True
+    )
+
+
+def test_every_camera_of_a_sample_is_listed_beyond_the_mask(written, tmp_path):
+    from kisscal.io.export import write_sample_cameras
+
+    _, tracks, points = written
+    path = write_sample_cameras(tmp_path / "cams.csv", tracks, LABELS, points)
+    rows = path.read_text().splitlines()[1:]
+    measured = np.flatnonzero(tracks.status == MEASURED)
+    assert len(rows) == len(measured)
+    wide = [
+        (r, i)
+        for r, i in zip(rows, measured, strict=True)
+        if (points.blob[tracks.point[i], 7:] >= 0).any()
+    ]
+    assert wide  # some samples were seen by cameras 8 and 9, outside the C3D mask
+    for row, i in wide:
+        listed = row.split(",")[2].split()
+        seen = [
+            c
+            for c, b in zip(points.camera_ids, points.blob[tracks.point[i]], strict=True)
+            if b >= 0
+        ]
+        assert listed == seen

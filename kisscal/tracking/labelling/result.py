@@ -72,8 +72,10 @@ class Labelling:
 
 
 def generic(tracks: Tracks, params: TrackingParams, names: tuple, fit_rms: float) -> Labelling:
-    """No marker set fits: clean up short tracks and name the rest M1, M2, ..."""
-    tracks = tracks.select(tracks.n_status(MEASURED)[tracks.track] >= params.min_track_length)
+    """No marker set fits: clean up short tracks (unless ``keep_short_pieces``) and name
+    the rest M1, M2, ..."""
+    if not params.keep_short_pieces:
+        tracks = tracks.select(tracks.n_status(MEASURED)[tracks.track] >= params.min_track_length)
     labels = tuple(f"M{i + 1}" for i in range(tracks.n_tracks))
     return Labelling(tracks, labels, False, (), names, fit_rms)
 
@@ -89,6 +91,7 @@ def join(state: LabelState) -> Labelling:
     tracks, params, names = state.tracks, state.params, state.names
     label_of, n_names = state.label_of, len(state.names)
     keep = (label_of >= 0) | (state.n_measured >= params.min_track_length)
+    keep |= params.keep_short_pieces
     matched = np.unique(label_of[label_of >= 0])
     if matched.size < params.min_label_fraction * n_names:
         return generic(tracks, params, names, state.fit_rms)

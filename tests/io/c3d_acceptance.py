@@ -1,0 +1,251 @@
+"""Issue 26's regression set of real C3D files (run it):
+
+    python -m tests.io.c3d_acceptance [cache folder]
+
+Each file of :data:`FILES` found in ``fixtures/real/c3d/`` (committed, small) or in the
+cache folder (default ``$KISSCAL_C3D_CACHE`` or ``../shared/data/real/c3d``; larger
+files) is read with :func:`kisscal.io.c3d.read_c3d` (markers only) and:
+
+- re-tracked from shuffled anonymous points: every frame's valid samples in random order,
+  no labels, tracked with default parameters; a sample's true marker is the channel it
+  came from (exact coordinates). Reported: identity switches (a change of true marker
+  along one trajectory), coverage (the file's valid samples that come out as measured
+  samples of a trajectory), trajectories;
+- when the file's markers belong to a shipped marker set (``SET`` below), labelled from
+  the set alone as the system wrote them (every channel, in the file's order, labels
+  dropped): names right / named / markers of the set in the file, and names forced on
+  the wrong marker (``wrong``; flagged ones counted apart).
+
+Files, their systems, sources and licences: ``fixtures/real/c3d/README.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kisscal.io.c3d import read_c3d
+from kisscal.markersets import marker_set
+from kisscal.tracking import MEASURED, TrackingParams, build_trajectories
+from kisscal.tracking.params import reconstructed_points
+
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "c3d"
+WALKING5 = Path(__file__).resolve().parents[2] / "kisscal" / "data" / "walking5.c3d"
+
+
+@dataclass(frozen=True)
+class RealFile:
+    name: str
+    system: str
+    marker_set: str | None = None  # a shipped set the file's markers belong to
+
+
+#: The regression set: file name (in the fixtures or the cache folder) and system.
+FILES = (
+    RealFile("walking5.c3d", "Vicon (Nexus), 250 Hz", "plug-in-gait-full"),
+    RealFile("walk.c3d", "Vicon (Nexus), 100 Hz, with model outputs", "plug-in-gait-full"),
+    RealFile("pc_real.c3d", "Vicon 370 (AMASS), 50 Hz, Intel"),
+    RealFile("sgi_int.c3d", "Vicon 370 (AMASS), 50 Hz, SGI/MIPS integer"),
+    RealFile("dec_real.c3d", "Vicon 370 (AMASS), 50 Hz, DEC"),
+    RealFile("Eb015pr.c3d", "ADTech (AMASS), 50 Hz"),
+    RealFile("Qualisys.c3d", "Qualisys (QTM), 200 Hz"),
+    RealFile("FP_Type3.c3d", "Qualisys (QTM), 250 Hz, 2 frames"),
+    RealFile("duplicate_labels.c3d", "Qualisys (QTM), 100 Hz"),
+    RealFile("BTS.c3d", "BTS, 100 Hz"),
+    RealFile("kinematics_tennis_serve.c3d", "OptiTrack (Motive), 50 Hz", "plug-in-gait-full"),
+    RealFile("kinematics_basket_sprint.c3d", "OptiTrack (Motive), 120 Hz"),
+    RealFile("kinematics_racing_propulsion.c3d", "Kinetics Toolkit racing, 70 Hz"),
+)
+
+
+def cache_folder(given: str | None = None) -> Path:
+    default = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "c3d"
+    return Path(given or os.environ.get("KISSCAL_C3D_CACHE") or default)
+
+
+def find(name: str, cache: Path) -> Path | None:
+    if name == "walking5.c3d" and WALKING5.is_file():
+        return WALKING5
+    for folder in (FIXTURES, cache):
+        hits = sorted(folder.rglob(name)) if folder.is_dir() else []
+        if hits:
+            return hits[0]
+    return None
+
+
+def distinct(xyz: np.ndarray) -> np.ndarray:
+    """``xyz`` with a sample that repeats an earlier channel's in its frame (within 0.01 mm) made
+    invalid (Vicon's Plug-in Gait writes segment points that coincide, e.g. RFOO and
+    RTOP): one point in space is one sample."""
+    out = xyz.copy()
+    n = xyz.shape[1]
+    for j in range(1, n):
+        same = (np.abs(xyz[:, :j] - xyz[:, j : j + 1]).max(axis=2) < 0.01).any(axis=1)
+        out[same, j] = np.nan
+    return out
+
+
+def shuffled(xyz: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every frame's distinct valid samples in random order: (field, points, channel)."""
+    rng = np.random.default_rng(seed)
+    xyz = distinct(xyz)
+    f_idx, m_idx = np.nonzero(np.isfinite(xyz).all(axis=2))
+    order = rng.permutation(f_idx.size)
+    f_idx, m_idx = f_idx[order], m_idx[order]
+    order = np.argsort(f_idx, kind="stable")
+    return f_idx[order], xyz[f_idx[order], m_idx[order]], m_idx[order]
+
+
+def true_channel(tracks, field: np.ndarray, points: np.ndarray, channel: np.ndarray) -> np.ndarray:
+    """The file channel of each measured output sample (-1: not a sample of the file)."""
+    key = {
+        (int(f), *np.round(p, 4).tolist()): int(c)
+        for f, p, c in zip(field, points, channel, strict=True)
+    }
+    out = np.full(len(tracks.field), -1)
+    for i in np.flatnonzero(tracks.status == MEASURED):
+        out[i] = key.get((int(tracks.field[i]), *np.round(tracks.xyz_mm[i], 4).tolist()), -1)
+    return out
+
+
+@dataclass(frozen=True)
+class Retrack:
+    markers: int
+    frames: int
+    valid: int
+    trajectories: int
+    switches: int
+    coverage: float
+    seconds: float
+
+
+def retrack(xyz: np.ndarray, rate_hz: float, seed: int = 0) -> Retrack:
+    """Track a file's markers from shuffled anonymous points; count identity switches
+    (changes of true channel along each trajectory's measured samples) and coverage."""
+    field, points, channel = shuffled(xyz, seed)
+    t0 = time.perf_counter()
+    res = build_trajectories(field, points, reconstructed_points(TrackingParams()), rate_hz=rate_hz)
+    dt = time.perf_counter() - t0
+    tr = res.tracks
+    ident = true_channel(tr, field, points, channel)
+    switches = 0
+    for t in range(tr.n_tracks):
+        rows = np.flatnonzero((tr.track == t) & (tr.status == MEASURED))
+        ids = ident[rows[np.argsort(tr.field[rows])]]
+        switches += int(np.sum(ids[1:] != ids[:-1]))
+    held = len(np.unique(np.stack([tr.field, ident])[:, ident >= 0], axis=1).T)
+    return Retrack(
+        xyz.shape[1], xyz.shape[0], len(field), tr.n_tracks, switches, held / max(len(field), 1), dt
+    )
+
+
+#: Plug-in Gait's arm markers: a full-body file without them is the partial-set case.
+ARMS = tuple(f"{s}{m}" for s in "LR" for m in ("SHO", "UPA", "ELB", "FRM", "WRA", "WRB", "FIN"))
+
+
+@dataclass(frozen=True)
+class Labels:
+    in_set: int
+    right: int
+    named_wrong: int
+    flagged_wrong: int
+    extra_named: int
+    seconds: float
+
+
+def set_name(label: str, aliases: dict[str, str]) -> str:
+    """A file's label as a marker set names it: without a subject prefix ("Derrick:"),
+    through the set's aliases."""
+    bare = label.rsplit(":", 1)[-1].strip().upper()
+    return aliases.get(bare, bare)
+
+
+def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
+    """Label a file's markers from a shipped set alone (labels dropped, every channel);
+    count names right, names on the wrong marker (silent or flagged) and names given to
+    markers that are not in the set."""
+    mset = marker_set(set_name_)
+    names = [set_name(lab, mset.aliases) for lab in c3d.labels]
+    keep = [i for i, n in enumerate(names) if n not in drop]
+    xyz = distinct(c3d.xyz_mm[:, keep])
+    names = [names[i] for i in keep]
+    field, points, channel = shuffled(xyz)
+    t0 = time.perf_counter()
+    res = build_trajectories(
+        field, points, reconstructed_points(TrackingParams()), marker_set=mset,
+        rate_hz=c3d.rate_hz,
+    )  # fmt: skip
+    dt = time.perf_counter() - t0
+    tr, lab = res.tracks, res.labelling
+    ident = true_channel(tr, field, points, channel)
+    unnamed = set(lab.unlabelled)
+    got: dict[str, str] = {}
+    wrong = flagged = extra = 0
+    for t, label in enumerate(res.labels):
+        ids = ident[(tr.track == t) & (ident >= 0)]
+        if t in unnamed or not ids.size:
+            continue
+        owner = names[int(np.bincount(ids).argmax())]
+        if owner == label:
+            got[owner] = label
+        elif owner not in mset.names:
+            extra += 1
+        elif label in lab.flagged:
+            flagged += 1
+        else:
+            wrong += 1
+    in_set = len({n for n in names if n in mset.names})
+    return Labels(in_set, len(got), wrong, flagged, extra, dt)
+
+
+def labels_report(cache: Path) -> list[str]:
+    lines = [
+        f"{'file':34} {'set':18} {'in set':>6} {'right':>5} {'wrong':>5} {'flagged':>7} "
+        f"{'extra':>5} {'s':>5}"
+    ]
+    for item in FILES:
+        path = find(item.name, cache) if item.marker_set else None
+        if path is None:
+            continue
+        c3d = read_c3d(path)
+        variants = [(item.name, ())]
+        if any(set_name(lab, {}) in ARMS for lab in c3d.labels):
+            variants.append((f"{item.name} (no arms)", ARMS))
+        for name, drop in variants:
+            r = label_raw(c3d, item.marker_set, drop)
+            lines.append(
+                f"{name:34} {item.marker_set:18} {r.in_set:6d} {r.right:5d} "
+                f"{r.named_wrong:5d} {r.flagged_wrong:7d} {r.extra_named:5d} {r.seconds:5.1f}"
+            )
+    return lines
+
+
+def report(cache: Path) -> list[str]:
+    lines = [
+        f"{'file':34} {'system':44} {'mk':>3} {'frames':>6} {'valid':>6} {'traj':>4} "
+        f"{'switch':>6} {'cover %':>7} {'s':>5}"
+    ]
+    for item in FILES:
+        path = find(item.name, cache)
+        if path is None:
+            lines.append(f"{item.name:34} (not found)")
+            continue
+        c3d = read_c3d(path)
+        r = retrack(c3d.xyz_mm, c3d.rate_hz)
+        lines.append(
+            f"{item.name:34} {item.system:44} {r.markers:3d} {r.frames:6d} {r.valid:6d} "
+            f"{r.trajectories:4d} {r.switches:6d} {100 * r.coverage:7.2f} {r.seconds:5.1f}"
+        )
+    return lines
+
+
+if __name__ == "__main__":
+    folder = cache_folder(sys.argv[1] if len(sys.argv) > 1 else None)
+    print("\n".join(report(folder)))
+    print()
+    print("\n".join(labels_report(folder)))

@@ -1,0 +1,93 @@
+"""Reading C3D files as the standard defines them, on real files of three processor types
+and two systems (fixtures/real/c3d/README.md) and on files written here for what the
+real fixtures do not hold (model outputs, LABELS2, metres)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import ezc3d
+import numpy as np
+import pytest
+
+from kisscal.errors import KisscalError
+from kisscal.io.c3d import processor_type, read_c3d
+
+REAL = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "c3d"
+
+
+def test_intel_dec_and_sgi_files_of_one_recording_read_the_same():
+    """C3D.org's Sample02: one Vicon 370 recording in three processor formats; ezc3d
+    reads Intel and DEC, the c3d package the SGI/MIPS one."""
+    files = {k: read_c3d(REAL / f"{k}.c3d") for k in ("pc_real", "dec_int", "sgi_int")}
+    assert {k: c.processor for k, c in files.items()} == {
+        "pc_real": "Intel",
+        "dec_int": "DEC",
+        "sgi_int": "MIPS",
+    }
+    ref = files["pc_real"]
+    assert ref.labels[:3] == ("RFT1", "RFT2", "RFT3") and len(ref.labels) == 36
+    assert ref.n_frames == 89 and ref.first_frame == 1 and ref.rate_hz == 50.0
+    for c in files.values():
+        assert c.labels == ref.labels
+        np.testing.assert_array_equal(np.isnan(c.xyz_mm), np.isnan(ref.xyz_mm))
+        # integer files hold coordinates in steps of POINT:SCALE (0.28 mm here)
+        assert np.nanmax(np.abs(c.xyz_mm - ref.xyz_mm)) <= 0.2812
+
+
+def test_a_short_qualisys_file_keeps_its_frame_numbers_and_system():
+    c = read_c3d(REAL / "FP_Type3.c3d")
+    assert c.manufacturer.startswith("Qualisys")
+    assert c.first_frame == 1166 and c.n_frames == 2 and len(c.labels) == 34
+    assert np.isfinite(c.xyz_mm).all()
+
+
+def write(path: Path, labels, xyz_m_or_mm: np.ndarray, units="mm", **point_params) -> Path:
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = list(labels)
+    c.add_parameter("POINT", "UNITS", units)
+    for name, value in point_params.items():
+        c.add_parameter("POINT", name, value)
+    n_frames, n_points, _ = xyz_m_or_mm.shape
+    data = np.ones((4, n_points, n_frames))
+    data[:3] = xyz_m_or_mm.transpose(2, 1, 0)
+    c["data"]["points"] = data
+    c.write(str(path))
+    return path
+
+
+def test_declared_model_outputs_are_left_out_and_named(tmp_path):
+    rng = np.random.default_rng(0)
+    labels = ("LASI", "LHipAngles", "RASI", "LHipPower", "LKJC", "LGRF")
+    xyz = rng.uniform(-500, 500, (5, 6, 3))
+    path = write(
+        tmp_path / "m.c3d",
+        labels,
+        xyz,
+        ANGLES=["LHipAngles"],
+        POWERS2=["LHipPower"],  # an extension parameter of POWERS
+        MODELED_MARKERS=["LKJC"],
+        REACTIONS=["LGRF"],
+    )
+    c = read_c3d(path)
+    assert c.labels == ("LASI", "RASI")
+    assert set(c.excluded) == {"LHipAngles", "LHipPower", "LKJC", "LGRF"}
+    np.testing.assert_allclose(c.xyz_mm, xyz[:, [0, 2]], atol=1e-3)
+
+
+def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
+    xyz = np.random.default_rng(1).uniform(-1, 1, (3, 4, 3))
+    path = write(tmp_path / "l.c3d", ("A", "B"), xyz, units="m", LABELS2=["C", "D"])
+    c = read_c3d(path)
+    assert c.labels == ("A", "B", "C", "D")
+    np.testing.assert_allclose(c.xyz_mm, 1000.0 * xyz, atol=1e-2)
+
+
+def test_not_a_c3d_is_one_clear_error(tmp_path):
+    bad = tmp_path / "x.c3d"
+    bad.write_bytes(b"\x02\x11" + bytes(600))
+    with pytest.raises(KisscalError, match="not a C3D file"):
+        processor_type(bad)
+    with pytest.raises(KisscalError, match="not found"):
+        read_c3d(tmp_path / "missing.c3d")
