@@ -104,7 +104,7 @@ def centre_px(size_px: tuple[int, int]) -> NDArray[np.float64]:
 #: Columns of :func:`kisscal.bundle.model.project`'s Jacobian behind each term.
 _TERM_COLUMNS = {"principal_point": [2, 3], "k1": [11], "k2": [12], "p1p2": [13, 14], "k3": [15]}
 _LM_ITERATIONS = 100
-_LM_TOLERANCE = 1e-8
+_LM_TOLERANCE = 1e-6
 
 
 def _pinhole_reset(cam: PinholeCamera, terms: tuple[str, ...], centre: NDArray) -> PinholeCamera:
@@ -180,8 +180,8 @@ def refine(
     """The camera with ``terms`` free that fits the points best, from ``start``.
 
     Levenberg-Marquardt on the reprojection error (px) with the analytic Jacobian of
-    :func:`kisscal.bundle.model.project` (Marquardt's scaling; a step that puts a point
-    behind the camera is refused); terms not given are held at the pinhole's values
+    :func:`kisscal.bundle.model.project` (unknowns scaled to unit columns; a step that
+    puts a point behind the camera is refused); terms not given are held at the pinhole's values
     (principal point at the image centre, square pixels, no lens).
     """
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
@@ -190,11 +190,17 @@ def refine(
     r, J = _linearised(cam, xyz, uv, terms)
     cost, damping = float(r @ r), 1e-3
     for _ in range(_LM_ITERATIONS):
-        A, g = J.T @ J, J.T @ r
-        scale = np.diag(A) + 1e-12 * max(float(np.trace(A)), 1e-300)
+        # columns scaled to unit length and the damped system solved as least squares,
+        # not through the normal equations: a long lens makes the principal point and the
+        # rotation nearly interchangeable, and squaring that condition loses the step
+        norm = np.linalg.norm(J, axis=0)
+        norm[norm == 0] = 1.0
+        Js = J / norm
         while damping < 1e12:
+            augmented = np.vstack([Js, np.sqrt(damping) * np.eye(len(norm))])
+            rhs = np.concatenate([-r, np.zeros(len(norm))])
             with np.errstate(all="ignore"):
-                step = np.linalg.lstsq(A + damping * np.diag(scale), -g, rcond=None)[0]
+                step = np.linalg.lstsq(augmented, rhs, rcond=None)[0] / norm
             trial = _moved(cam, step, terms)
             new = float(np.sum((trial.project(xyz) - uv) ** 2))
             if np.isfinite(new) and new < cost and in_front(trial, xyz):

@@ -59,5 +59,5 @@ def test_four_seeds_on_one_level_of_a_stepped_target_match_it_all() -> None:
 
 def test_three_seeds_are_refused_with_the_reason() -> None:
     xyz, cam, uv, picked, dots = _camera_view("stepped", 2, 0)
-    with pytest.raises(KisscalError, match="at least 4 target points .* 7 numbers"):
+    with pytest.raises(KisscalError, match=r"at least 4 target points .* 7 numbers"):
         match_target(xyz, uv[:3], picked[:3], dots, cam.size_px, cam.id)

@@ -94,6 +94,7 @@ def _report(matches: dict[str, TargetMatch], seconds: float) -> dict[str, Any]:
         cams[cam] = {
             "visible": int(m.visible.sum()),
             "matched": int((m.matched & m.visible).sum()),
+            "matched_points": np.flatnonzero(m.matched).tolist(),
             "unmatched": unmatched.tolist(),
             "rms_px": m.rms_px,
             "seed_rms_px": m.seed_rms_px,
