@@ -292,9 +292,10 @@ def match_target(
     Raises
     ------
     KisscalError
-        Bad seeds (see :func:`seed_models`), or fewer than ``min_matched`` of the visible
-        points matched (the message says when near-flat seeds under a narrow view are
-        the likely cause).
+        Bad seeds (see :func:`seed_models`), or fewer than ``min_matched`` of the target
+        points inside the image with a dot near their image matched, or matches that no
+        camera fits within ``max_rms_px`` (the message says when near-flat seeds under a
+        narrow view are the likely cause).
     """
     target = np.asarray(target_xyz, dtype=float).reshape(-1, 3)
     dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
@@ -311,15 +312,22 @@ def match_target(
             f"seeds; {_why_few(seeds_xyz, starts, size_px)}"
         )
     fit, final = _lens_rounds(target, dots, dot, size_px, cam, params)
-    visible = _inside(fit.camera.project(target), size_px)
+    projected = fit.camera.project(target)
+    visible = _inside(projected, size_px)
+    seen = visible & _dot_near(projected, dots, params)
     m = final >= 0
-    if m.sum() < params.min_matched * max(visible.sum(), 1):
+    if m.sum() < params.min_matched * max(seen.sum(), 1):
         raise KisscalError(
-            f"camera {camera}: only {int(m.sum())} of {int(visible.sum())} visible target "
-            f"points matched a dot; {_why_few(seeds_xyz, starts, size_px)}"
+            f"camera {camera}: only {int(m.sum())} of the {int(seen.sum())} target points "
+            f"with a dot near their image matched one; {_why_few(seeds_xyz, starts, size_px)}"
         )
     fit = choose_camera(target[m], dots[final[m]], size_px, fit.camera, is_planar(target), params)
     res = fit.camera.project(target[m]) - dots[final[m]]
+    if rms_px(res) > params.max_rms_px:
+        raise KisscalError(
+            f"camera {camera}: the {int(m.sum())} matches fit no camera (rms "
+            f"{rms_px(res):.1f} px); {_why_few(seeds_xyz, starts, size_px)}"
+        )
     return TargetMatch(
         final,
         visible,
@@ -363,19 +371,24 @@ def _rounds(
 
 
 def _why_few(seeds_xyz: NDArray, starts: list[_Start], size_px: tuple[int, int]) -> str:
-    """Why the seeds may have matched few points: near-flat seeds under a narrow view
-    leave the camera's direction open; otherwise the seeds or the dots."""
-    cam = starts[0].camera
+    """Why the seeds may have matched few points: near-flat seeds that several cameras
+    fit alike (under a narrow view they fix neither direction nor distance); otherwise
+    the seeds or the dots."""
     flat = spread_ratio(seeds_xyz)
-    if cam is not None and flat < NEAR_FLAT:
-        f = float(cam.K[0, 0])
-        fov = float(np.degrees(2 * np.arctan(size_px[0] / (2 * f))))
-        if fov < 30.0:
+    focal = [float(s.camera.K[0, 0]) for s in starts if s.camera is not None]
+    if flat < NEAR_FLAT and focal:
+        fov = np.degrees(2 * np.arctan(size_px[0] / (2 * np.array(focal))))
+        fits = (
+            f"fit cameras of focal length {min(focal):.0f} to {max(focal):.0f} px alike"
+            if len(focal) > 1
+            else f"fit a narrow view ({fov[0]:.0f} degrees across)"
+        )
+        if len(focal) > 1 or fov[0] < 30.0:
             return (
-                f"the seeds lie nearly in one plane of the target (thickness / extent "
-                f"{flat:.2f}) and the view is narrow (focal length about {f:.0f} px, "
-                f"{fov:.0f} degrees across), so they do not fix which way the target faces; "
-                "click seeds on the target's nearest and farthest levels, spread over the image"
+                f"the {len(seeds_xyz)} seeds lie nearly in one plane of the target "
+                f"(thickness / extent {flat:.2f}) and {fits}: under a narrow view such "
+                "seeds fix neither the camera's direction nor its distance; click seeds on "
+                "three or more rows or levels of the target, spread over the image"
             )
     return (
         "the seeds may name the wrong points, or the dots are not found "
@@ -436,6 +449,17 @@ def _resected(xyz: NDArray, uv: NDArray, size_px: tuple[int, int]) -> PinholeCam
     if not found:
         raise KisscalError(f"no camera fits the {len(xyz)} matched target points")
     return found[0]
+
+
+def _dot_near(
+    projected_px: NDArray[np.float64], dots_px: NDArray[np.float64], params: TargetParams
+) -> NDArray[np.bool_]:
+    """Target points with a dot within the matching gate of their image: those a match
+    was possible for (a point hidden behind something in front of the target has none)."""
+    if len(dots_px) == 0 or len(projected_px) < 2:
+        return np.zeros(len(projected_px), dtype=bool)
+    spacing = cKDTree(projected_px).query(projected_px, k=2)[0][:, 1]
+    return cKDTree(dots_px).query(projected_px)[0] <= params.gate * spacing
 
 
 def _inside(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:

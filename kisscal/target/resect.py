@@ -15,7 +15,8 @@ camera is therefore built up from the model the points can carry:
    ch. 7). Every distinct camera that fits is returned, best first.
 2. **Terms the held-out points ask for** (:func:`choose_camera`): principal point, pixel
    aspect, Brown's k1, k2, p1 p2, k3 (Brown 1971), each tried in that order and kept only
-   when the k-fold held-out reprojection error drops by at least ``min_gain``. The
+   when the leave-one-point-out reprojection error (Allen 1974) drops by at least
+   ``min_gain``. The
    principal point of a flat target stays at the image centre (one view of a plane
    cannot tell it, Zhang 2000).
 
@@ -29,6 +30,8 @@ the perspective-n-point problem. ECCV.
 Collins, T., & Bartoli, A. (2014). Infinitesimal plane-based pose estimation. IJCV 109(3).
 Hartley, R., & Zisserman, A. (2004). Multiple View Geometry in Computer Vision (2nd ed.).
 Brown, D. C. (1971). Close-range camera calibration. Photogramm. Eng. 37(8).
+Allen, D. M. (1974). The relationship between variable selection and data augmentation
+and a method for prediction. Technometrics 16(1).
 Zhang, Z. (2000). A flexible new technique for camera calibration. IEEE PAMI 22(11).
 
 Example
@@ -324,22 +327,33 @@ def model_name(terms: tuple[str, ...]) -> str:
 
 
 def held_out_rms(
-    xyz: NDArray[np.float64],
-    uv: NDArray[np.float64],
-    start: PinholeCamera,
-    size_px: tuple[int, int],
-    terms: tuple[str, ...],
-    folds: int,
+    xyz: NDArray[np.float64], uv: NDArray[np.float64], cam: PinholeCamera, terms: tuple[str, ...]
 ) -> float:
-    """RMS reprojection error (px) of each point predicted by the camera fitted without
-    its fold (``folds`` interleaved folds, so that each spreads over the target)."""
-    fold = np.arange(len(xyz)) % folds
-    res = np.empty_like(uv)
-    for k in range(folds):
-        test = fold == k
-        cam = refine(xyz[~test], uv[~test], start, size_px, terms)
-        res[test] = cam.project(xyz[test]) - uv[test]
-    return rms_px(res)
+    """Leave-one-point-out RMS reprojection error (px) of a fitted camera.
+
+    Each point's residual as the camera fitted without it would leave it, to first order
+    (the PRESS statistic, Allen 1974): ``e_i = (I - H_ii)^-1 r_i`` with ``H_ii`` the
+    point's 2 x 2 block of the hat matrix ``J (J^T J)^+ J^T`` at the fit. One fit per
+    model instead of one per left-out point; a point that alone fixes an unknown (its
+    block's eigenvalue 1) makes the model's held-out error infinite.
+    """
+    r, J = _linearised(cam, xyz, uv, terms)
+    norm = np.linalg.norm(J, axis=0)
+    norm[norm == 0] = 1.0
+    U, sv, _ = np.linalg.svd(J / norm, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-10].reshape(len(xyz), 2, -1)
+    keep = np.eye(2) - U @ U.transpose(0, 2, 1)
+    det = keep[:, 0, 0] * keep[:, 1, 1] - keep[:, 0, 1] * keep[:, 1, 0]
+    if not np.all(det > 1e-9):
+        return float("inf")
+    res = r.reshape(-1, 2)
+    e = np.column_stack(
+        [
+            (keep[:, 1, 1] * res[:, 0] - keep[:, 0, 1] * res[:, 1]) / det,
+            (keep[:, 0, 0] * res[:, 1] - keep[:, 1, 0] * res[:, 0]) / det,
+        ]
+    )
+    return rms_px(e)
 
 
 def choose_camera(
@@ -353,26 +367,24 @@ def choose_camera(
     """The pinhole camera plus the terms that lower the held-out reprojection error.
 
     Terms (:func:`candidate_terms`) are tried one at a time, in order, each on top of
-    those already kept; a term is kept when the ``params.folds``-fold held-out RMS drops
-    by at least the fraction ``params.min_gain``, and only when every fold leaves at
-    least twice as many numbers as the model has.
+    those already kept; a term is kept when the leave-one-point-out RMS
+    (:func:`held_out_rms`) drops by at least the fraction ``params.min_gain``, and only
+    while there are at least twice as many points as the model has unknowns.
     """
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
-    folds = params.folds
-    n_train = len(xyz) - -(-len(xyz) // folds)
     kept: tuple[str, ...] = ()
     best = refine(xyz, uv, start, size_px, kept)
     table: dict[str, float] = {}
-    if 2 * n_train < 2 * n_unknowns(kept):
+    if len(xyz) < 2 * n_unknowns(kept):
         return CameraFit(best, kept, table)
-    score = table[model_name(kept)] = held_out_rms(xyz, uv, best, size_px, kept, folds)
+    score = table[model_name(kept)] = held_out_rms(xyz, uv, best, kept)
     for term in candidate_terms(params, planar):
         trial = (*kept, term)
-        if 2 * n_train < 2 * n_unknowns(trial):
+        if len(xyz) < 2 * n_unknowns(trial):
             break
         cam = refine(xyz, uv, best, size_px, trial)
-        held = table[model_name(trial)] = held_out_rms(xyz, uv, cam, size_px, trial, folds)
+        held = table[model_name(trial)] = held_out_rms(xyz, uv, cam, trial)
         if held < (1.0 - params.min_gain) * score:
             kept, best, score = trial, cam, held
     return CameraFit(best, kept, table)

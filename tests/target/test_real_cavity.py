@@ -80,6 +80,19 @@ def test_real_photograph_dots_match_openptvs_detections() -> None:
     assert m.rms_px < 0.6
 
 
+def test_near_flat_seeds_that_fix_no_camera_are_refused_with_the_cause() -> None:
+    """Three seeds on one row and one on another (one plane) under a narrow view fit
+    cameras from a wide to a long lens alike: refused, naming that, never a traceback or
+    a wrong calibration."""
+    v = view(FIXTURES, "cam1")
+    picked = [(0, 25, 8), (-40, 0, -8), (-35, 0, -8), (10, 0, -8)]
+    seeds = [int(np.flatnonzero(np.all(v.xyz_mm == p, axis=1))[0]) for p in picked]
+    with pytest.raises(KisscalError, match=r"nearly in one plane .* three or more rows"):
+        match_target(
+            target_xyz(FIXTURES), v.uv_px[seeds], v.xyz_mm[seeds], _cam1_dots(), SIZE_PX, "cam1"
+        )
+
+
 def _cam1_session(root: Path, n_seeds: int) -> Path:
     """A one-camera target session: the real crop put back into a full-size frame."""
     root.mkdir(parents=True)
