@@ -14,7 +14,7 @@ camera is therefore built up from the model the points can carry:
    tell from the true one) and is refined by least squares (Hartley & Zisserman 2004,
    ch. 7). Every distinct camera that fits is returned, best first.
 2. **Terms the held-out points ask for** (:func:`choose_camera`): principal point, pixel
-   aspect, Brown's k1, k2, p1 p2, k3 (Brown 1971), each tried in that order and kept only
+   aspect, Brown's k1, k2, p1 p2, k3 (Brown 1971), added by forward selection, each only
    when the leave-one-point-out reprojection error (Allen 1974) drops by at least
    ``min_gain``. The
    principal point of a flat target stays at the image centre (one view of a plane
@@ -366,10 +366,12 @@ def choose_camera(
 ) -> CameraFit:
     """The pinhole camera plus the terms that lower the held-out reprojection error.
 
-    Terms (:func:`candidate_terms`) are tried one at a time, in order, each on top of
-    those already kept; a term is kept when the leave-one-point-out RMS
-    (:func:`held_out_rms`) drops by at least the fraction ``params.min_gain``, and only
-    while there are at least twice as many points as the model has unknowns.
+    Forward selection over :func:`candidate_terms`: each step fits the camera with every
+    term not yet kept added in turn and keeps the one whose leave-one-point-out RMS
+    (:func:`held_out_rms`) is lowest, when it is lower by at least the fraction
+    ``params.min_gain``; a term's worth can show only once another is in (a principal
+    point hides behind an unmodelled lens), so every step tries them all again. Models
+    need at least twice as many points as unknowns.
     """
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
@@ -379,12 +381,21 @@ def choose_camera(
     if len(xyz) < 2 * n_unknowns(kept):
         return CameraFit(best, kept, table)
     score = table[model_name(kept)] = held_out_rms(xyz, uv, best, kept)
-    for term in candidate_terms(params, planar):
-        trial = (*kept, term)
-        if len(xyz) < 2 * n_unknowns(trial):
+    left = list(candidate_terms(params, planar))
+    while left:
+        tried = []
+        for term in left:
+            trial = (*kept, term)
+            if len(xyz) < 2 * n_unknowns(trial):
+                continue
+            cam = refine(xyz, uv, best, size_px, trial)
+            held = table[model_name(trial)] = held_out_rms(xyz, uv, cam, trial)
+            tried.append((held, term, cam))
+        if not tried:
             break
-        cam = refine(xyz, uv, best, size_px, trial)
-        held = table[model_name(trial)] = held_out_rms(xyz, uv, cam, trial)
-        if held < (1.0 - params.min_gain) * score:
-            kept, best, score = trial, cam, held
+        held, term, cam = min(tried, key=lambda t: t[0])
+        if not held < (1.0 - params.min_gain) * score:
+            break
+        kept, best, score = (*kept, term), cam, held
+        left.remove(term)
     return CameraFit(best, kept, table)
