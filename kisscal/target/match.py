@@ -321,7 +321,6 @@ def match_target(
             f"camera {camera}: only {int(m.sum())} of the {int(seen.sum())} target points "
             f"with a dot near their image matched one; {_why_few(seeds_xyz, starts, size_px)}"
         )
-    fit = choose_camera(target[m], dots[final[m]], size_px, fit.camera, is_planar(target), params)
     res = fit.camera.project(target[m]) - dots[final[m]]
     if rms_px(res) > params.max_rms_px:
         raise KisscalError(
@@ -405,7 +404,8 @@ def _lens_rounds(
     params: TargetParams,
 ) -> tuple[CameraFit, NDArray[np.int64]]:
     """The camera model the matches ask for, matched again with it until the matches
-    settle (at most ``max_iterations`` rounds), outliers dropped each round."""
+    settle (at most ``max_iterations`` rounds), outliers dropped each round; the model is
+    chosen again on the settled matches when they changed."""
     m = dot >= 0
     planar = is_planar(target)
     start = refine(target[m], dots[dot[m]], cam, size_px) if cam is not None else None
@@ -413,6 +413,7 @@ def _lens_rounds(
     dot = drop_outliers(start.project(target), dots, dot, params)
     m = dot >= 0
     fit = choose_camera(target[m], dots[dot[m]], size_px, start, planar, params)
+    chosen_on = dot
     camera = fit.camera
     for _ in range(params.max_iterations):
         again = drop_outliers(
@@ -423,6 +424,9 @@ def _lens_rounds(
         dot = again
         m = dot >= 0
         camera = refine(target[m], dots[dot[m]], camera, size_px, fit.terms)
+    if not np.array_equal(dot, chosen_on):  # the model is chosen again on the final matches
+        m = dot >= 0
+        return choose_camera(target[m], dots[dot[m]], size_px, camera, planar, params), dot
     return CameraFit(camera, fit.terms, fit.held_out_px), dot
 
 
