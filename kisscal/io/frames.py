@@ -19,6 +19,7 @@ import numpy as np
 from kisscal.errors import KisscalError
 
 IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".bmp"}
+VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".mpg", ".mpeg", ".m4v", ".wmv"}
 
 # OpenCV prints its own warnings for corrupt files; kisscal reports them in one line.
 try:
@@ -48,13 +49,64 @@ def read_image(path: Path) -> np.ndarray:
     return image
 
 
+#: First bytes of the image formats kisscal reads (PNG, TIFF either byte order, BMP): a
+#: file without one of the suffixes above is a frame when it starts with one of these.
+IMAGE_SIGNATURES = (b"\x89PNG\r\n\x1a\n", b"II*\x00", b"MM\x00*", b"BM")
+
+
+def is_image_file(path: Path) -> bool:
+    """True for a frame file: an image suffix, or any other name whose content starts
+    like a PNG, TIFF or BMP image (numbered frames such as ``cam1.10000``)."""
+    path = Path(path)
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        return True
+    if path.suffix.lower() in VIDEO_SUFFIXES or not path.is_file():
+        return False
+    with open(path, "rb") as f:
+        head = f.read(8)
+    return head.startswith(IMAGE_SIGNATURES)
+
+
 def frame_paths(root: Path, pattern: str, camera: str, what: str) -> list[Path]:
-    """Sorted frame files of ``camera`` matching ``pattern`` (``{camera}`` substituted)."""
+    """Sorted frame files of ``camera`` matching ``pattern`` (``{camera}`` substituted).
+
+    A file is a frame by its suffix (PNG, TIFF, BMP) or, without one, by its content; when
+    none is found the message names the files the pattern matched, or those beside it.
+    """
     glob = pattern.replace("{camera}", camera)
-    paths = sorted(p for p in Path(root).glob(glob) if p.suffix.lower() in IMAGE_SUFFIXES)
+    matched = sorted(p for p in Path(root).glob(glob) if p.is_file())
+    paths = [p for p in matched if is_image_file(p)]
     if not paths:
-        raise KisscalError(f"{Path(root) / glob}: no {what} images for camera {camera}")
+        raise KisscalError(
+            f"{Path(root) / glob}: no {what} images for camera {camera}; "
+            + _what_is_there(Path(root), glob, matched)
+        )
     return paths
+
+
+def _what_is_there(root: Path, glob: str, matched: list[Path]) -> str:
+    """The files a pattern matched (none an image), or those in the folder it looks in."""
+    if matched:
+        return f"it matches {_names(matched, root)}, none a PNG, TIFF or BMP image"
+    parts = Path(glob).parts
+    fixed = next((i for i, p in enumerate(parts) if any(c in p for c in "*?[")), len(parts) - 1)
+    folder = root.joinpath(*parts[:fixed])
+    if not folder.is_dir():
+        return f"there is no folder {folder}"
+    beside = sorted(p for p in folder.iterdir() if p.is_file())
+    if not beside:
+        return f"{folder} holds no files"
+    return (
+        f"the pattern misses every file of {folder}: {_names(beside, folder)} "
+        '(frames without a suffix are read by content: write e.g. "{camera}.*")'
+    )
+
+
+def _names(paths: list[Path], root: Path, shown: int = 5) -> str:
+    """The first few file names (relative to ``root``) and how many there are."""
+    names = [p.relative_to(root).as_posix() if p.is_relative_to(root) else str(p) for p in paths]
+    more = f" ... ({len(names)} files)" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
 
 
 @dataclass(frozen=True)
@@ -186,9 +238,6 @@ class Fields(Sequence):
     def name(self, index: int) -> str:
         """Where field ``index`` comes from, for messages."""
         return f"{frame_name(self.frames, index // 2)} field {index % 2 + 1}"
-
-
-VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".mpg", ".mpeg", ".m4v", ".wmv"}
 
 
 def is_video(pattern: str) -> bool:

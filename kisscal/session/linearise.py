@@ -73,7 +73,14 @@ def linearise(
 
 
 def _identity(cam: CameraConfig) -> Linearisation:
-    """No grid: the identity linearisation, normalised about the image centre."""
+    """No grid: the identity linearisation, normalised about the image centre.
+
+    A camera of a session without images (``[calibration] points``, no ``size``) has no
+    known centre; the identity does not need one (it leaves every coordinate unchanged
+    whatever the normalisation), so it is normalised about the pixel origin.
+    """
+    if cam.size_px is None:
+        return identity_linearisation((0.0, 0.0), 1.0)
     w, h = cam.size_px
     return identity_linearisation(((w - 1) / 2, (h - 1) / 2), (w - 1) / 2)
 

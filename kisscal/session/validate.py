@@ -14,12 +14,14 @@ from pathlib import Path
 
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig, TrialConfig
+from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table
 from kisscal.io.frames import camera_frames
 from kisscal.report.params import ReportParams
 from kisscal.session.inputs import image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
+from kisscal.target.match import too_few_seeds
 
 #: ``Problem.scope`` of a problem that stops the whole session.
 SESSION = "session"
@@ -98,7 +100,19 @@ def _calibration_files(config: SessionConfig) -> list[str]:
             path = config.root / pattern.replace("{camera}", cam)
             if not path.is_file():
                 missing.append(f"{path}: calibration {key} of camera {cam} not found")
+            elif key == "seeds":
+                missing += _seed_problems(path, cam)
     return missing
+
+
+def _seed_problems(path: Path, camera: str) -> list[str]:
+    """A camera's seeds file: readable, and as many seeds as ``calibrate`` needs."""
+    try:
+        uv, _, _ = read_control_points_csv(path)
+    except KisscalError as exc:
+        return [str(exc)]
+    few = too_few_seeds(len(uv))
+    return [f"{path}: camera {camera}: {few}"] if few else []
 
 
 def _frame_set(

@@ -7,19 +7,25 @@ for a session)::
     match = match_target(target_xyz, seeds_uv, seeds_xyz, dots, size_px, "cam1")
     match.camera, match.dot, match.visible
 
-Modules: :mod:`~kisscal.target.dots` (dots under uneven light) and
-:mod:`~kisscal.target.match` (seed model, matching rounds, camera with lens terms).
+Modules: :mod:`~kisscal.target.dots` (dots under uneven light),
+:mod:`~kisscal.target.match` (first cameras from the seeds, matching rounds) and
+:mod:`~kisscal.target.resect` (a pinhole resection from four or more points, and the terms
+beyond it that the held-out points ask for).
 """
 
 from kisscal.target.dots import find_dots, find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
 from kisscal.target.params import TargetParams
+from kisscal.target.resect import CameraFit, choose_camera, resect
 
 __all__ = [
+    "CameraFit",
     "TargetMatch",
     "TargetParams",
+    "choose_camera",
     "find_dots",
     "find_target_dots",
     "fit_camera",
     "match_target",
+    "resect",
 ]

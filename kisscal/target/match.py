@@ -1,42 +1,58 @@
 """A known target matched automatically from a few clicked points (seeds).
 
-For each camera: a first projection of the target from the seeds (a linear DLT for a
-three-dimensional target, Abdel-Aziz & Karara 1971; a plane homography for a flat one),
-then rounds of projecting every target point, matching each to the nearest dot found in
-the image and fitting again from every match, until the matches stop changing. A match
-must be close (within ``gate`` of the distance to the neighbouring target point's
-image), unambiguous (the next dot much farther) and mutual (no other target point's
-image nearer to that dot), so that a wrong match needs a wrong projection by nearly half
-a dot spacing. The last rounds fit a camera with Brown lens terms (OpenCV's
-``calibrateCamera``, Zhang 2000 for a flat target) and match once more with it, which
-brings in the image corners where a linear model is a few pixels off.
+For each camera: a first projection of the target from the seeds (for a
+three-dimensional target every pinhole camera the seeds fit, from a resection with the
+principal point at the image centre, :mod:`kisscal.target.resect`; a plane homography
+for a flat one), then rounds of projecting every target point, matching each to the
+nearest dot found in the image and fitting again from every match, until the matches
+stop changing. A match must be close (within ``gate`` of the distance to the
+neighbouring target point's image), unambiguous (the next dot much farther) and mutual
+(no other target point's image nearer to that dot), so that a wrong match needs a wrong
+projection by nearly half a dot spacing. When the seeds leave the camera open (a
+near-flat part of the target under a narrow view fits a mirrored pose as well) every
+camera they fit is matched and the one that matches most is kept. The last rounds add
+the terms the held-out points ask for (principal point, pixel aspect, Brown lens terms)
+and match once more, which brings in the image corners where a pinhole is a few pixels
+off.
+
+Four seeds are the least: the pinhole camera of a resection is 7 numbers (focal length,
+rotation, position) and each seed gives two.
 
 References
 ----------
 Abdel-Aziz, Y. I., & Karara, H. M. (1971). Direct linear transformation from comparator
 coordinates into object space coordinates in close-range photogrammetry.
-Zhang, Z. (2000). A flexible new technique for camera calibration. IEEE PAMI 22(11).
+Hartley, R., & Zisserman, A. (2004). Multiple View Geometry in Computer Vision (2nd ed.).
 Brown, D. C. (1971). Close-range camera calibration. Photogramm. Eng. 37(8).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_from_dlt
-from kisscal.dlt.linear import solve_dlt, spread_ratio
-from kisscal.dlt.model import project
+from kisscal._shared import rms_px
+from kisscal.bundle.camera import PinholeCamera
+from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
+from kisscal.target.resect import NEAR_FLAT, CameraFit, choose_camera, refine, resect
 
 Projector = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+#: The least number of seeds per camera: a resection's pinhole camera is 7 numbers
+#: (focal length, rotation, position) and each seed gives two.
+MIN_SEEDS = 4
+#: Matches needed before the camera model beyond the pinhole is chosen.
+MIN_MATCHES = 12
+#: Cameras the seeds fit that are each matched (the best few).
+_MAX_CANDIDATES = 4
 
 
 @dataclass(frozen=True)
@@ -56,6 +72,12 @@ class TargetMatch:
     seed_rms_px : float
         RMS residual of the seeds under the first model.
     iterations : int
+    terms : tuple of str
+        Terms beyond the pinhole the held-out matches asked for
+        (:data:`kisscal.target.resect.TERM_SIZES`).
+    held_out_px : dict
+        Held-out RMS error (px) of each camera model compared (see
+        :func:`kisscal.target.resect.choose_camera`).
     """
 
     dot: NDArray[np.int64]
@@ -64,15 +86,35 @@ class TargetMatch:
     rms_px: float
     seed_rms_px: float
     iterations: int
+    terms: tuple[str, ...] = ()
+    held_out_px: dict[str, float] = field(default_factory=dict)
 
     @property
     def matched(self) -> NDArray[np.bool_]:
         return self.dot >= 0
 
 
+def too_few_seeds(n: int) -> str | None:
+    """Why ``n`` seeds are too few for a camera (None when they are enough); the one
+    rule ``kisscal validate`` and ``kisscal calibrate`` both apply."""
+    if n >= MIN_SEEDS:
+        return None
+    return (
+        f"{n} seeds; click at least {MIN_SEEDS} target points (a camera's focal length, "
+        "direction and position take 7 numbers, each seed gives 2)"
+    )
+
+
 def is_planar(xyz_mm: ArrayLike) -> bool:
     """True when points lie in one plane (a DLT cannot be fitted to them)."""
     return spread_ratio(xyz_mm) < DltParams().min_spread_ratio
+
+
+def is_collinear(xyz_mm: ArrayLike) -> bool:
+    """True when points lie on one line (no camera can be fitted to them)."""
+    xyz = np.asarray(xyz_mm, dtype=float)
+    spread = np.linalg.svd(xyz - xyz.mean(axis=0), compute_uv=False)
+    return len(spread) < 2 or not spread[1] >= DltParams().min_spread_ratio * spread[0]
 
 
 def _plane(xyz: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
@@ -84,52 +126,79 @@ def _plane(xyz: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     return origin, basis
 
 
-def seed_model(
+@dataclass(frozen=True)
+class _Start:
+    """One first model of the target's image: its projection and, for a 3D target, its
+    camera (refitted during the matching rounds)."""
+
+    project: Projector
+    camera: PinholeCamera | None
+    seed_rms_px: float
+
+
+def seed_models(
     seeds_uv: NDArray[np.float64],
     seeds_xyz: NDArray[np.float64],
     target_xyz: NDArray[np.float64],
+    size_px: tuple[int, int],
     camera: str,
     params: TargetParams = DEFAULT_PARAMS,
-) -> tuple[Projector, float]:
-    """The first projection of the target, from the seeds, and the seeds' RMS residual.
+) -> list[_Start]:
+    """The first projections of the target the seeds allow, best first.
 
     Raises
     ------
     KisscalError
-        Fewer than six seeds, seeds in one plane of a three-dimensional target, or seeds
-        that no single camera fits (rms beyond ``seed_tol_px``, the worst seed named).
+        Fewer than :data:`MIN_SEEDS` seeds, seeds on one line, or seeds that no single
+        camera fits (rms beyond ``seed_tol_px``, the worst seed named).
     """
     where = f"camera {camera}: "
-    if len(seeds_uv) < 6:
-        raise KisscalError(f"{where}{len(seeds_uv)} seeds; click at least 6 target points")
-    if is_planar(seeds_xyz) and not is_planar(target_xyz):
+    few = too_few_seeds(len(seeds_uv))
+    if few:
+        raise KisscalError(where + few)
+    if is_collinear(seeds_xyz):
         raise KisscalError(
-            f"{where}the seeds lie in one plane; click points on more than one level of the target"
+            f"{where}the seeds lie on one line of the target; click points spread over it"
         )
-    proj = _fit_projector(seeds_xyz, seeds_uv, is_planar(target_xyz), camera)
-    err = np.linalg.norm(proj(seeds_xyz) - seeds_uv, axis=1)
-    rms = float(np.sqrt(np.mean(err**2)))
-    if rms > params.seed_tol_px:
+    if is_planar(target_xyz):
+        starts = [_homography_start(seeds_xyz, seeds_uv, camera)]
+    else:
+        cams = resect(seeds_xyz, seeds_uv, size_px)
+        if not cams:
+            raise KisscalError(
+                f"{where}no camera puts the {len(seeds_uv)} seeds where they were clicked; "
+                "check each click is on the point its x_mm,y_mm,z_mm name"
+            )
+        starts = [_Start(c.project, c, rms_px(c.project(seeds_xyz) - seeds_uv)) for c in cams]
+    err = np.linalg.norm(starts[0].project(seeds_xyz) - seeds_uv, axis=1)
+    if starts[0].seed_rms_px > params.seed_tol_px:
         worst = int(np.argmax(err))
         raise KisscalError(
             f"{where}the {len(seeds_uv)} seeds contradict each other: no camera puts them "
-            f"where they were clicked (rms {rms:.1f} px; seed row {worst + 2} is off by "
-            f"{err[worst]:.1f} px); check each click is on the point its x_mm,y_mm,z_mm name"
+            f"where they were clicked (rms {starts[0].seed_rms_px:.1f} px; seed row "
+            f"{worst + 2} is off by {err[worst]:.1f} px); check each click is on the point "
+            "its x_mm,y_mm,z_mm name"
         )
-    return proj, rms
+    return [s for s in starts if s.seed_rms_px <= params.seed_tol_px][:_MAX_CANDIDATES]
 
 
-def _fit_projector(
-    xyz: NDArray[np.float64], uv: NDArray[np.float64], planar: bool, camera: str
-) -> Projector:
-    """A linear DLT, or a homography of the plane for a flat target."""
-    if not planar:
-        L = solve_dlt(xyz, uv, camera=camera)
-        return lambda pts: project(L, pts)
+def _homography_start(xyz: NDArray, uv: NDArray, camera: str) -> _Start:
+    proj = _homography(xyz, uv, camera)
+    return _Start(proj, None, rms_px(proj(xyz) - uv))
+
+
+def _homography(xyz: NDArray[np.float64], uv: NDArray[np.float64], camera: str) -> Projector:
+    """The plane homography of a flat target's points (Hartley & Zisserman 2004, 4.1)."""
     origin, basis = _plane(xyz)
-    H, _ = cv2.findHomography((xyz - origin) @ basis[:2].T, uv, 0)
-    if H is None:
-        raise KisscalError(f"camera {camera}: the target points do not fit a plane's image")
+    try:
+        H, _ = cv2.findHomography((xyz - origin) @ basis[:2].T, uv, 0)
+    except cv2.error:
+        H = None
+    if H is None or not np.all(np.isfinite(H)):
+        raise KisscalError(
+            f"camera {camera}: the flat target's points do not fit one view of a plane "
+            "(are three of them on one line?)"
+        )
 
     def homography(pts: NDArray[np.float64]) -> NDArray[np.float64]:
         q = (pts - origin) @ basis[:2].T
@@ -144,16 +213,19 @@ def match_points(
 ) -> NDArray[np.int64]:
     """Each projected target point's dot (-1: none close, unambiguous and mutual)."""
     out = np.full(len(projected_px), -1, dtype=np.int64)
-    if len(dots_px) < 2 or len(projected_px) < 2:
+    ok_proj = np.all(np.isfinite(projected_px), axis=1)
+    if len(dots_px) < 2 or ok_proj.sum() < 2:
         return out
-    spacing = cKDTree(projected_px).query(projected_px, k=2)[0][:, 1]
-    d, j = cKDTree(dots_px).query(projected_px, k=2)
+    idx = np.flatnonzero(ok_proj)
+    proj = projected_px[idx]
+    spacing = cKDTree(proj).query(proj, k=2)[0][:, 1]
+    d, j = cKDTree(dots_px).query(proj, k=2)
     close = d[:, 0] <= params.gate * spacing
     clear = d[:, 1] >= params.ambiguity * d[:, 0]
-    back = cKDTree(projected_px).query(dots_px[j[:, 0]])[1]
-    mutual = back == np.arange(len(projected_px))
+    back = cKDTree(proj).query(dots_px[j[:, 0]])[1]
+    mutual = back == np.arange(len(proj))
     ok = close & clear & mutual
-    out[ok] = j[ok, 0]
+    out[idx[ok]] = j[ok, 0]
     return out
 
 
@@ -161,47 +233,35 @@ def fit_camera(
     xyz: NDArray[np.float64],
     uv: NDArray[np.float64],
     size_px: tuple[int, int],
-    start: PinholeCamera | None,
+    start: PinholeCamera | None = None,
     params: TargetParams = DEFAULT_PARAMS,
+    terms: tuple[str, ...] | None = None,
 ) -> PinholeCamera:
-    """A camera with Brown lens terms fitted to matched points (OpenCV ``calibrateCamera``).
+    """A camera fitted to matched points: the pinhole plus ``terms``, or, with ``terms``
+    left out, plus the terms the held-out points ask for
+    (:func:`kisscal.target.resect.choose_camera`).
 
-    A flat target is expressed in its own plane (OpenCV's planar calibration, principal
-    point held at the image centre since one view of a plane cannot tell it); a
-    three-dimensional one starts from ``start`` (the DLT's camera).
+    ``start`` is the camera to start from (a resection of the points when left out).
+
+    Raises
+    ------
+    KisscalError
+        Fewer than :data:`MIN_SEEDS` points, or points no camera fits.
     """
-    flags = cv2.CALIB_FIX_K3 if "k3" not in params.lens_terms else 0
-    for term, flag in (("k1", cv2.CALIB_FIX_K1), ("k2", cv2.CALIB_FIX_K2)):
-        if term not in params.lens_terms:
-            flags |= flag
-    if "p1" not in params.lens_terms and "p2" not in params.lens_terms:
-        flags |= cv2.CALIB_ZERO_TANGENT_DIST
-    planar = is_planar(xyz)
-    origin, basis = _plane(xyz) if planar else (np.zeros(3), np.eye(3))
-    obj = (xyz - origin) @ basis.T
-    if planar:
-        obj[:, 2] = 0.0
-        flags |= cv2.CALIB_FIX_PRINCIPAL_POINT
-        K0 = np.array([[1.0, 0, (size_px[0] - 1) / 2], [0, 1.0, (size_px[1] - 1) / 2], [0, 0, 1]])
-    else:
-        flags |= cv2.CALIB_USE_INTRINSIC_GUESS
-        assert start is not None
-        K0 = start.K.copy()
-        K0[0, 1] = 0.0
-    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    _, K, dist, rvecs, tvecs = cv2.calibrateCamera(
-        [obj.astype(np.float32)],
-        [uv.astype(np.float32)],
-        size_px,
-        K0,
-        np.zeros(5),
-        flags=flags,
-        criteria=criteria,
-    )
-    R_obj = cv2.Rodrigues(rvecs[0])[0]
-    R = R_obj @ basis
-    t = tvecs[0].ravel() - R @ origin
-    return PinholeCamera(K, R, t, np.asarray(dist, dtype=float).ravel()[: len(LENS_TERMS)])
+    xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    if start is None:
+        if len(xyz) < MIN_SEEDS or is_collinear(xyz):
+            raise KisscalError(
+                f"{len(xyz)} points on a line or fewer than {MIN_SEEDS}: no camera to fit"
+            )
+        found = resect(xyz, uv, size_px)
+        if not found:
+            raise KisscalError(f"no camera fits the {len(xyz)} points")
+        start = found[0]
+    if terms is not None:
+        return refine(xyz, uv, start, size_px, terms)
+    return choose_camera(xyz, uv, size_px, start, is_planar(xyz), params).camera
 
 
 def match_target(
@@ -220,7 +280,7 @@ def match_target(
     target_xyz : array_like, shape (n, 3)
         Every point of the target (``target.csv``), lab mm.
     seeds_uv, seeds_xyz : array_like, shapes (s, 2), (s, 3)
-        The clicked points, s >= 6.
+        The clicked points, s >= :data:`MIN_SEEDS`.
     dots_px : array_like, shape (m, 2)
         The dots found in the camera's images (:mod:`kisscal.target.dots`).
     size_px : (int, int)
@@ -232,16 +292,65 @@ def match_target(
     Raises
     ------
     KisscalError
-        Bad seeds (see :func:`seed_model`), or fewer than ``min_matched`` of the visible
-        points matched.
+        Bad seeds (see :func:`seed_models`), or fewer than ``min_matched`` of the target
+        points inside the image with a dot near their image matched, or matches that no
+        camera fits within ``max_rms_px`` (the message says when near-flat seeds under a
+        narrow view are the likely cause).
     """
     target = np.asarray(target_xyz, dtype=float).reshape(-1, 3)
     dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
-    proj, seed_rms = seed_model(
-        np.asarray(seeds_uv, float), np.asarray(seeds_xyz, float), target, camera, params
+    seeds_uv = np.asarray(seeds_uv, dtype=float).reshape(-1, 2)
+    seeds_xyz = np.asarray(seeds_xyz, dtype=float).reshape(-1, 3)
+    starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params)
+    rounds = [_rounds(target, dots, s, size_px, camera, params) for s in starts]
+    best = max(range(len(rounds)), key=lambda i: (int((rounds[i][0] >= 0).sum()), -i))
+    dot, iterations, cam = rounds[best]
+    m = dot >= 0
+    if m.sum() < MIN_MATCHES:
+        raise KisscalError(
+            f"camera {camera}: only {int(m.sum())} target points matched a dot from the "
+            f"seeds; {_why_few(seeds_xyz, starts, size_px)}"
+        )
+    fit, final = _lens_rounds(target, dots, dot, size_px, cam, params)
+    projected = fit.camera.project(target)
+    visible = _inside(projected, size_px)
+    seen = visible & _dot_near(projected, dots, params)
+    m = final >= 0
+    if m.sum() < params.min_matched * max(seen.sum(), 1):
+        raise KisscalError(
+            f"camera {camera}: only {int(m.sum())} of the {int(seen.sum())} target points "
+            f"with a dot near their image matched one; {_why_few(seeds_xyz, starts, size_px)}"
+        )
+    res = fit.camera.project(target[m]) - dots[final[m]]
+    if rms_px(res) > params.max_rms_px:
+        raise KisscalError(
+            f"camera {camera}: the {int(m.sum())} matches fit no camera (rms "
+            f"{rms_px(res):.1f} px); {_why_few(seeds_xyz, starts, size_px)}"
+        )
+    return TargetMatch(
+        final,
+        visible,
+        fit.camera,
+        rms_px(res),
+        starts[best].seed_rms_px,
+        iterations,
+        fit.terms,
+        fit.held_out_px,
     )
-    planar = is_planar(target)
-    dot = np.full(len(target), -1)
+
+
+def _rounds(
+    target: NDArray,
+    dots: NDArray,
+    start: _Start,
+    size_px: tuple[int, int],
+    camera: str,
+    params: TargetParams,
+) -> tuple[NDArray[np.int64], int, PinholeCamera | None]:
+    """Project, match and refit until the matches stop changing: the matches, the rounds
+    run and the last camera (None for a flat target's homography)."""
+    proj, cam = start.project, start.camera
+    dot = np.full(len(target), -1, dtype=np.int64)
     iterations = 0
     while iterations < params.max_iterations:
         iterations += 1
@@ -249,22 +358,41 @@ def match_target(
         if np.array_equal(new, dot):
             break
         dot = new
-        if (dot >= 0).sum() >= 6:
-            proj = _fit_projector(target[dot >= 0], dots[dot[dot >= 0]], planar, camera)
-    cam = _lens_rounds(target, dots, dot, size_px, camera, planar, params)
-    final = match_points(cam.project(target), dots, params)
-    visible = _inside(cam.project(target), size_px)
-    m = final >= 0
-    if m.sum() < params.min_matched * max(visible.sum(), 1):
-        raise KisscalError(
-            f"camera {camera}: only {int(m.sum())} of {int(visible.sum())} visible target "
-            "points matched a dot; the seeds may name the wrong points, or the dots are not "
-            "found (see [target] dots, contrast)"
+        m = dot >= 0
+        if m.sum() < 2 * MIN_SEEDS or is_collinear(target[m]):
+            continue
+        if cam is None:
+            proj = _homography(target[m], dots[dot[m]], camera)
+        else:
+            cam = refine(target[m], dots[dot[m]], cam, size_px)
+            proj = cam.project
+    return dot, iterations, cam
+
+
+def _why_few(seeds_xyz: NDArray, starts: list[_Start], size_px: tuple[int, int]) -> str:
+    """Why the seeds may have matched few points: near-flat seeds that several cameras
+    fit alike (under a narrow view they fix neither direction nor distance); otherwise
+    the seeds or the dots."""
+    flat = spread_ratio(seeds_xyz)
+    focal = [float(s.camera.K[0, 0]) for s in starts if s.camera is not None]
+    if flat < NEAR_FLAT and focal:
+        fov = np.degrees(2 * np.arctan(size_px[0] / (2 * np.array(focal))))
+        fits = (
+            f"fit cameras of focal length {min(focal):.0f} to {max(focal):.0f} px alike"
+            if len(focal) > 1
+            else f"fit a narrow view ({fov[0]:.0f} degrees across)"
         )
-    cam = fit_camera(target[m], dots[final[m]], size_px, cam, params)
-    res = cam.project(target[m]) - dots[final[m]]
-    rms = float(np.sqrt(np.mean(np.sum(res**2, axis=1))))
-    return TargetMatch(final, visible, cam, rms, seed_rms, iterations)
+        if len(focal) > 1 or fov[0] < 30.0:
+            return (
+                f"the {len(seeds_xyz)} seeds lie nearly in one plane of the target "
+                f"(thickness / extent {flat:.2f}) and {fits}: under a narrow view such "
+                "seeds fix neither the camera's direction nor its distance; click seeds on "
+                "three or more rows or levels of the target, spread over the image"
+            )
+    return (
+        "the seeds may name the wrong points, or the dots are not found "
+        "(see [target] dots, contrast)"
+    )
 
 
 def _lens_rounds(
@@ -272,23 +400,70 @@ def _lens_rounds(
     dots: NDArray,
     dot: NDArray,
     size_px: tuple[int, int],
-    camera: str,
-    planar: bool,
+    cam: PinholeCamera | None,
     params: TargetParams,
-) -> PinholeCamera:
+) -> tuple[CameraFit, NDArray[np.int64]]:
+    """The camera model the matches ask for, matched again with it until the matches
+    settle (at most ``max_iterations`` rounds), outliers dropped each round; the model is
+    chosen again on the settled matches when they changed."""
     m = dot >= 0
-    if m.sum() < 12:
-        raise KisscalError(
-            f"camera {camera}: only {int(m.sum())} target points matched a dot from the seeds; "
-            "check the seeds and that the dots are found (see [target] dots, contrast)"
+    planar = is_planar(target)
+    start = refine(target[m], dots[dot[m]], cam, size_px) if cam is not None else None
+    start = start or _resected(target[m], dots[dot[m]], size_px)
+    dot = drop_outliers(start.project(target), dots, dot, params)
+    m = dot >= 0
+    fit = choose_camera(target[m], dots[dot[m]], size_px, start, planar, params)
+    chosen_on = dot
+    camera = fit.camera
+    for _ in range(params.max_iterations):
+        again = drop_outliers(
+            camera.project(target), dots, match_points(camera.project(target), dots, params), params
         )
-    start = None if planar else camera_from_dlt(solve_dlt(target[m], dots[dot[m]], camera=camera))
-    cam = fit_camera(target[m], dots[dot[m]], size_px, start, params)
-    for _ in range(2):
-        again = match_points(cam.project(target), dots, params)
-        k = again >= 0
-        cam = fit_camera(target[k], dots[again[k]], size_px, cam, params)
-    return cam
+        if np.array_equal(again, dot) or (again >= 0).sum() < MIN_MATCHES:
+            break
+        dot = again
+        m = dot >= 0
+        camera = refine(target[m], dots[dot[m]], camera, size_px, fit.terms)
+    if not np.array_equal(dot, chosen_on):  # the model is chosen again on the final matches
+        m = dot >= 0
+        return choose_camera(target[m], dots[dot[m]], size_px, camera, planar, params), dot
+    return CameraFit(camera, fit.terms, fit.held_out_px), dot
+
+
+def drop_outliers(
+    projected_px: NDArray[np.float64],
+    dots_px: NDArray[np.float64],
+    dot: NDArray[np.int64],
+    params: TargetParams = DEFAULT_PARAMS,
+) -> NDArray[np.int64]:
+    """``dot`` without the matches whose dot lies farther from the point's projection
+    than ``outlier_px`` or ``outlier_sigmas`` robust spreads, whichever is larger."""
+    k = np.flatnonzero(dot >= 0)
+    if not len(k):
+        return dot
+    r = np.linalg.norm(projected_px[k] - dots_px[dot[k]], axis=1)
+    limit = max(params.outlier_px, params.outlier_sigmas * 1.4826 * float(np.median(r)))
+    out = dot.copy()
+    out[k[r > limit]] = -1
+    return out
+
+
+def _resected(xyz: NDArray, uv: NDArray, size_px: tuple[int, int]) -> PinholeCamera:
+    found = resect(xyz, uv, size_px)
+    if not found:
+        raise KisscalError(f"no camera fits the {len(xyz)} matched target points")
+    return found[0]
+
+
+def _dot_near(
+    projected_px: NDArray[np.float64], dots_px: NDArray[np.float64], params: TargetParams
+) -> NDArray[np.bool_]:
+    """Target points with a dot within the matching gate of their image: those a match
+    was possible for (a point hidden behind something in front of the target has none)."""
+    if len(dots_px) == 0 or len(projected_px) < 2:
+        return np.zeros(len(projected_px), dtype=bool)
+    spacing = cKDTree(projected_px).query(projected_px, k=2)[0][:, 1]
+    return cKDTree(dots_px).query(projected_px)[0] <= params.gate * spacing
 
 
 def _inside(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:

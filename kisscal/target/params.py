@@ -36,11 +36,22 @@ class TargetParams(Params):
     seed_tol_px : float
         Largest RMS residual (px) of the clicked seeds under one camera model; beyond it
         the seeds contradict each other and the calibration is refused.
+    outlier_px, outlier_sigmas : float
+        A match whose dot lies farther from the point's projection than ``outlier_px``
+        or ``outlier_sigmas`` times the matches' robust spread (1.4826 x median),
+        whichever is larger, is dropped (a speck or a fragment of a dot beside it).
+    max_rms_px : float
+        Largest RMS residual (px) of the matched dots under the final camera; beyond it
+        the matches belong to no camera (seeds that fix the camera badly) and are refused.
     min_matched : float
-        Least fraction of the visible target points that must match.
+        Least fraction of the target points inside the image with a dot near their image
+        that must match (points hidden behind something have none).
     lens_terms : tuple of str
-        Brown lens terms fitted once the points are matched (OpenCV's
-        ``calibrateCamera``).
+        Brown lens terms that may be fitted once the points are matched; each is kept
+        only when it lowers the held-out reprojection error (see ``min_gain``).
+    min_gain : float
+        Least fraction by which a term (principal point, pixel aspect, a lens term) must
+        lower the leave-one-point-out reprojection error to be kept.
     holdout_step : int
         Every ``holdout_step``-th matched point is left out for the held-out 3D check.
     """
@@ -57,8 +68,12 @@ class TargetParams(Params):
     ambiguity: float = param(2.0, ge=1)
     max_iterations: int = param(10, ge=1)
     seed_tol_px: float = param(3.0, unit="px", gt=0)
+    outlier_px: float = param(1.0, unit="px", gt=0)
+    outlier_sigmas: float = param(5.0, gt=0)
+    max_rms_px: float = param(2.0, unit="px", gt=0)
     min_matched: float = param(0.5, gt=0, le=1)
     lens_terms: tuple[Literal["k1", "k2", "p1", "p2", "k3"], ...] = param(("k1", "k2", "p1", "p2"))
+    min_gain: float = param(0.02, ge=0, lt=1)
     holdout_step: int = param(5, ge=2)
 
 

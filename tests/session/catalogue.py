@@ -283,6 +283,29 @@ def contradicting_seeds(root: Path) -> None:
     write_table(path, seeds)
 
 
+def three_seeds(root: Path) -> None:
+    """A target session whose cam2 seeds file keeps only its first three clicks."""
+    from kisscal import session
+
+    shutil.rmtree(root)
+    session.synthesise_target(root, "stepped", seed=3)
+    path = root / "calibration" / "cam2_seeds.csv"
+    path.write_text("\n".join(path.read_text().splitlines()[:4]) + "\n")
+
+
+def numbered_frames(root: Path) -> None:
+    """A trial's frames named as particle-tracking tools name them (``cam1.10000``, no
+    suffix), with a pattern that asks for ``.png`` files."""
+    (root / "numbered").mkdir()
+    frame = cv2.imencode(".png", np.zeros((291, 752), np.uint8))[1].tobytes()
+    for cam in ("cam1", "cam2", "cam3", "cam4"):
+        for i in range(3):
+            (root / "numbered" / f"{cam}.{10000 + i}").write_bytes(frame)
+    data = load_toml(root / "session.toml")
+    data["trials"].append({"name": "ptv", "images": "numbered/{camera}.png"})
+    (root / "session.toml").write_text(tomli_w.dumps(data))
+
+
 def dltdv_rows(n_rows: int) -> Setup:
     def setup(root: Path) -> None:
         rows = (root / "out" / "dlt" / "dltdv.csv").read_text().splitlines()[:n_rows]
@@ -651,6 +674,15 @@ CASES: tuple[Case, ...] = (
         ("camera cam2", "seeds contradict each other", "rms", "seed row"),
     ),
     Case(
+        "three-seeds",
+        "calibration",
+        "clicked only three target seeds in one camera",
+        three_seeds,
+        ("calibrate", "S"),
+        ("camera cam2", "3 seeds", "at least 4", "7 numbers"),
+        kept="nothing is calibrated; `kisscal validate` says the same",
+    ),
+    Case(
         "route-without-inputs",
         "calibration",
         "forced the target route on a session calibrated with rods",
@@ -689,6 +721,14 @@ CASES: tuple[Case, ...] = (
         empty_c3d,
         ("reconstruct", "S", "old"),
         ("empty.c3d", "no valid 3D point"),
+    ),
+    Case(
+        "numbered-frames-missed",
+        "reconstruction",
+        "named a trial's frames cam1.10000, ... and gave the pattern numbered/{camera}.png",
+        numbered_frames,
+        ("reconstruct", "S", "ptv"),
+        ("numbered/cam1.png", "no trial 'ptv' images", "misses every file", "cam1.10000"),
     ),
     Case(
         "video-shorter",

@@ -1,4 +1,4 @@
-"""Target matching from six clicked seeds: all visible points, no wrong match."""
+"""Target matching from four to six clicked seeds: all visible points, no wrong match."""
 
 from __future__ import annotations
 
@@ -39,8 +39,25 @@ def test_contradicting_seeds_are_refused() -> None:
         match_target(xyz, uv, swapped, dots, cam.size_px, cam.id)
 
 
-def test_seeds_on_one_level_of_a_stepped_target_are_refused() -> None:
+def test_seeds_on_one_line_are_refused() -> None:
     xyz, cam, _, _, dots = _camera_view("stepped", 2, 0)
-    flat = xyz[xyz[:, 1] == 0][:6]
-    with pytest.raises(KisscalError, match="one plane"):
-        match_target(xyz, cam.project(flat), flat, dots, cam.size_px, cam.id)
+    row = xyz[(xyz[:, 1] == 0) & (xyz[:, 2] == 200.0)][::3][:6]
+    with pytest.raises(KisscalError, match="one line"):
+        match_target(xyz, cam.project(row), row, dots, cam.size_px, cam.id)
+
+
+def test_four_seeds_on_one_level_of_a_stepped_target_match_it_all() -> None:
+    """Coplanar seeds fix a wide view's camera (the resection needs no 3D spread)."""
+    xyz, cam, _, _, dots = _camera_view("stepped", 2, 0)
+    level = xyz[xyz[:, 1] == 80.0]
+    corners = level[[0, 16, len(level) - 17, len(level) - 1]]
+    m = match_target(xyz, cam.project(corners), corners, dots, cam.size_px, cam.id)
+    truth = cam.project(xyz)
+    assert m.matched.sum() >= 0.98 * m.visible.sum()
+    assert np.linalg.norm(dots[m.dot[m.matched]] - truth[m.matched], axis=1).max() < 0.5
+
+
+def test_three_seeds_are_refused_with_the_reason() -> None:
+    xyz, cam, uv, picked, dots = _camera_view("stepped", 2, 0)
+    with pytest.raises(KisscalError, match=r"at least 4 target points .* 7 numbers"):
+        match_target(xyz, uv[:3], picked[:3], dots, cam.size_px, cam.id)

@@ -2,11 +2,13 @@
 
 For each camera the target's dots are found in its photographs
 (:mod:`kisscal.target.dots`), every target point is matched to a dot starting from the
-six or more points the user clicked (:mod:`kisscal.target.match`), and the camera is
-fitted to every match with Brown lens terms. Writes the version-1 files (method
-``target``), ``dlt/target.json`` (matched and unmatched points per camera) and
-``dlt/check.json`` (every ``holdout_step``-th matched point left out of the fits and
-reconstructed from all cameras).
+four or more points the user clicked (:mod:`kisscal.target.match`), and the camera is
+fitted to every match with the terms (principal point, pixel aspect, Brown lens terms)
+that lower the held-out reprojection error (:mod:`kisscal.target.resect`). Writes the
+version-1 files (method ``target``), ``dlt/target.json`` (matched and unmatched points
+and the camera models compared, per camera) and ``dlt/check.json`` (every
+``holdout_step``-th matched point left out of the fits and reconstructed from all
+cameras).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_c
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
+from kisscal.target.resect import model_name
 
 ROUTE = "target"
 TARGET_COLUMNS = ("x_mm", "y_mm", "z_mm")
@@ -91,10 +94,13 @@ def _report(matches: dict[str, TargetMatch], seconds: float) -> dict[str, Any]:
         cams[cam] = {
             "visible": int(m.visible.sum()),
             "matched": int((m.matched & m.visible).sum()),
+            "matched_points": np.flatnonzero(m.matched).tolist(),
             "unmatched": unmatched.tolist(),
             "rms_px": m.rms_px,
             "seed_rms_px": m.seed_rms_px,
             "iterations": m.iterations,
+            "model": model_name(m.terms),
+            "held_out_px": m.held_out_px,
         }
     return {"seconds": round(seconds, 2), "cameras": cams}
 
@@ -106,7 +112,14 @@ def _write_camera(
     uv = dots[m.dot[k]]
     res = uv - m.camera.project(target[k])
     labels = [f"T{i + 1}" for i in k]
-    extra = {"target": {"matched": len(k), "visible": int(m.visible.sum())}}
+    extra = {
+        "target": {
+            "matched": len(k),
+            "visible": int(m.visible.sum()),
+            "model": model_name(m.terms),
+            "held_out_px": m.held_out_px,
+        }
+    }
     write_lens_camera(
         inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
     )
@@ -142,6 +155,7 @@ def _held_out(
                 cfg.size_px,
                 m.camera,
                 inputs.params.target,
+                m.terms,
             )
         )
         test = np.flatnonzero(m.matched & held)
@@ -172,7 +186,8 @@ def _say(inputs: RouteInputs, doc: dict[str, Any], check: dict[str, Any]) -> Non
     for cam, e in doc["cameras"].items():
         inputs.echo(
             f"  calibrate {cam}: target, {e['matched']} of {e['visible']} visible points "
-            f"matched, rms {e['rms_px']:.3f} px (seeds {e['seed_rms_px']:.2f} px)"
+            f"matched, rms {e['rms_px']:.3f} px (seeds {e['seed_rms_px']:.2f} px), "
+            f"model {e['model']}"
         )
     if "leave_out_mean_mm" in check:
         inputs.echo(
