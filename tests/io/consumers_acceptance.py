@@ -159,14 +159,14 @@ def table(result: dict[str, dict[str, np.ndarray]]) -> list[str]:
 
 
 def figure(result: dict[str, dict[str, np.ndarray]], path: Path) -> None:
-    """Distance to kisscal's points against kisscal's reprojection RMS, per tool."""
+    """Distance to kisscal's points against kisscal's reprojection RMS, per triangulation."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharey=True, constrained_layout=True)
-    for ax, tool in zip(axes, ("pose2sim", "aniposelib"), strict=True):
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharey=True, constrained_layout=True)
+    for ax, tool in zip(axes, TOOLS, strict=True):
         for trial, by_tool in result.items():
             if "projection" in trial:
                 continue
@@ -174,10 +174,12 @@ def figure(result: dict[str, dict[str, np.ndarray]], path: Path) -> None:
         ax.axhline(BAR_MM, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
         ax.set_xlabel("kisscal reprojection rms of the point (px)")
-        ax.set_title(f"{tool} {importlib.metadata.version(tool)}")
+        name, _, weights = tool.partition(", ")
+        package = "Pose2Sim" if name == "pose2sim" else name
+        ax.set_title(f"{package} {importlib.metadata.version(name)}\n{weights or 'as it is'}")
     axes[0].set_ylabel("3D distance to kisscal's point (mm)")
     axes[0].legend(markerscale=3, fontsize=8)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
