@@ -155,10 +155,24 @@ def test_dltdv_import_reconstructs_the_same_points_with_the_grid(original: Path,
 def test_export_command_writes_each_format(original: Path, tmp_path: Path):
     from kisscal.cli import main
 
-    for to, dest in (("anipose", "c.toml"), ("dltdv8", "c.csv"), ("opencv", "ocv")):
+    for to, dest, *units in (
+        ("anipose", "c.toml"),
+        ("dltdv8", "c.csv"),
+        ("opencv", "ocv"),
+        ("pose2sim", "p2s.toml"),
+        ("opencv", "ocv_m", "--units", "m"),
+    ):
         with pytest.raises(SystemExit) as done:
-            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest)])
+            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest), *units])
         assert done.value.code in (0, None)
+    assert load_toml(tmp_path / "p2s.toml")["metadata"]["cameras"]["cam_02"] == "cam2"
+    tvec = {}
+    for folder in ("ocv", "ocv_m"):
+        fs = cv2.FileStorage(str(tmp_path / folder / "cam2.yml"), cv2.FILE_STORAGE_READ)
+        tvec[folder] = (fs.getNode("tvec").mat(), fs.getNode("units").string())
+        fs.release()
+    assert (tvec["ocv"][1], tvec["ocv_m"][1]) == ("mm", "m")
+    np.testing.assert_allclose(tvec["ocv_m"][0] * 1000, tvec["ocv"][0])
     assert load_toml(tmp_path / "c.toml")["cam1"]["name"] == "cam1"
     np.testing.assert_allclose(
         np.loadtxt(tmp_path / "c.csv", delimiter=","),
