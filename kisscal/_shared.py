@@ -6,7 +6,8 @@
 - :func:`connected_labels`: connected components of a graph given by its edges;
 - :func:`lexsort_ints`: :func:`numpy.lexsort` of integer keys, by radix passes;
 - :func:`n_distinct`: the number of distinct integers, without sorting them;
-- :func:`forked_pool` and :func:`inherited`: worker processes that inherit their work.
+- :func:`worker_pool` and :func:`inherited`: worker processes that inherit their work
+  (forked where the system can fork, spawned elsewhere, none inside a daemonic process).
 
 References
 ----------
@@ -17,6 +18,8 @@ Pattern Analysis and Machine Intelligence, 19(6), 580-593.
 from __future__ import annotations
 
 import multiprocessing
+import os
+import pickle
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -26,6 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+
+from kisscal.errors import KisscalError
 
 
 def rms_px(residuals_px: ArrayLike) -> float:
@@ -145,32 +150,66 @@ def n_distinct(values: ArrayLike) -> int:
 
 _INHERITED: dict[str, Any] = {}
 
+#: Environment variable naming the start method of worker processes, ``fork`` or
+#: ``spawn``: ``spawn`` on Linux runs kisscal as it runs on Windows (and in tests does).
+START_METHOD_ENV = "KISSCAL_START_METHOD"
 
-def _adopt(payload: Any) -> None:
+
+def _adopt(payload: Any, packed: bool) -> None:
     # A forked child inherits OpenCV's thread pool without its threads: once the parent has
     # run a parallel OpenCV call (a detection survey does), the child's first parallel call
     # can wait forever. A worker process needs no threads of its own.
     cv2.setNumThreads(0)
-    _INHERITED["payload"] = payload
+    _INHERITED["payload"] = pickle.loads(payload) if packed else payload
 
 
-def forked_pool(workers: int, payload: Any = None) -> ProcessPoolExecutor | None:
-    """A pool of ``workers`` forked processes that inherit ``payload`` (:func:`inherited`).
+def start_method() -> str | None:
+    """How :func:`worker_pool` starts processes here: ``fork`` where the system has it
+    (the children inherit the parent's memory), else ``spawn`` (Windows: the children
+    import kisscal afresh and receive their work pickled); :data:`START_METHOD_ENV`
+    chooses one. ``None`` inside a daemonic process, which may not start children: a
+    worker of a Dask cluster (``dask worker``), or of another process pool.
+    """
+    if multiprocessing.current_process().daemon:
+        return None
+    methods = multiprocessing.get_all_start_methods()
+    forced = os.environ.get(START_METHOD_ENV, "").strip()
+    if forced:
+        if forced not in methods or forced == "forkserver":
+            raise KisscalError(
+                f"{START_METHOD_ENV}={forced}: use one of "
+                f"{', '.join(m for m in methods if m != 'forkserver')}"
+            )
+        return forced
+    return "fork" if "fork" in methods else "spawn"
+
+
+def worker_pool(workers: int, payload: Any = None) -> ProcessPoolExecutor | None:
+    """A pool of ``workers`` processes that hold ``payload`` (:func:`inherited`).
 
     Forked children share the parent's memory, so the payload (image loaders, the work
-    function and its inputs) is never pickled; only the tasks' arguments and results
-    are. ``None`` where processes cannot be forked: the caller works in its own process.
+    function and its inputs) is never pickled; spawned ones get it pickled once each.
+    Only the tasks' arguments and results travel per task. ``None`` where no process
+    can be started (:func:`start_method`) or the payload cannot be pickled for a spawned
+    child (a local function): the caller then works in its own process.
     """
-    if "fork" not in multiprocessing.get_all_start_methods():
+    method = start_method()
+    if method is None:
         return None
+    packed = method != "fork"
+    if packed:
+        try:
+            payload = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
+        except (pickle.PicklingError, TypeError, AttributeError):
+            return None
     return ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=multiprocessing.get_context("fork"),
+        mp_context=multiprocessing.get_context(method),
         initializer=_adopt,
-        initargs=(payload,),
+        initargs=(payload, packed),
     )
 
 
 def inherited() -> Any:
-    """The payload this worker process of :func:`forked_pool` inherited."""
+    """The payload this worker process of :func:`worker_pool` holds."""
     return _INHERITED["payload"]

@@ -135,10 +135,15 @@ def _project(theta: NDArray[np.float64], rays: NDArray[np.float64]) -> NDArray[n
     return xy * theta[0:2] + theta[2:4]
 
 
-def opencv_from_camera(camera: Camera, step_px: float = GRID_STEP_PX) -> OpenCvFit:
+def opencv_from_camera(
+    camera: Camera, step_px: float = GRID_STEP_PX, *, k3: bool = True
+) -> OpenCvFit:
     """OpenCV's model fitted to a kisscal camera: matrix, distortions and rotation by
     least squares (Levenberg-Marquardt) on the rays through a grid of raw pixels covering
     the image; the centre is the DLT's (Woltring & Huiskes 1990, eq. 15).
+
+    ``k3`` False holds the third radial term at 0: the four coefficients ``k1 k2 p1 p2``
+    that Pose2Sim writes and reads.
 
     Raises
     ------
@@ -152,10 +157,16 @@ def opencv_from_camera(camera: Camera, step_px: float = GRID_STEP_PX) -> OpenCvF
     uv = camera.linearise(raw)
     rays = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(K).T @ R  # lab directions, forward
     theta0 = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(5), cv2.Rodrigues(R)[0].ravel()]
-    fit = least_squares(
-        lambda th: (_project(th, rays) - raw).ravel(), theta0, method="lm", x_scale="jac"
-    )
-    th = fit.x
+    free = np.ones(theta0.size, dtype=bool)
+    free[8] = k3  # theta[8] is k3
+
+    def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        th = theta0.copy()
+        th[free] = x
+        return (_project(th, rays) - raw).ravel()
+
+    th = theta0.copy()
+    th[free] = least_squares(residuals, theta0[free], method="lm", x_scale="jac").x
     R_fit = cv2.Rodrigues(th[9:12])[0]
     matrix = np.array([[th[0], 0.0, th[2]], [0.0, th[1], th[3]], [0.0, 0.0, 1.0]])
     cv = OpenCvCamera(

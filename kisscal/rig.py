@@ -141,11 +141,14 @@ class Observations:
         Index of the camera in its rig.
     uv_px : ndarray, shape (n, 2)
         Linearised (and lens-corrected) pixel coordinates.
+    raw_px : ndarray, shape (n, 2), optional
+        The same observations as measured (raw pixels), when known.
     """
 
     field: NDArray[np.int64]
     camera: NDArray[np.int64]
     uv_px: NDArray[np.float64]
+    raw_px: NDArray[np.float64] | None = None
 
     def __len__(self) -> int:
         return len(self.field)
@@ -224,20 +227,23 @@ class Rig:
         Returns
         -------
         Observations
-            Sorted by field, then camera.
+            Sorted by field, then camera (a camera's blobs of a field in their order),
+            with the raw coordinates beside the linearised ones.
         """
-        fields, cams, uvs = [], [], []
+        fields, cams, raws = [], [], []
         for ci, cam in enumerate(self.cameras):
             frames = [np.asarray(xy, dtype=float).reshape(-1, 2) for xy in blobs_px.get(cam.id, ())]
             counts = [len(xy) for xy in frames]
             fields.append(np.repeat(np.arange(len(frames)), counts))
             cams.append(np.full(sum(counts), ci))
-            uvs.append(cam.linearise(np.concatenate(frames)) if frames else np.zeros((0, 2)))
+            raws.append(np.concatenate(frames) if frames else np.zeros((0, 2)))
+        uvs = [cam.linearise(raw) for cam, raw in zip(self.cameras, raws, strict=True)]
         field_idx = np.concatenate([np.zeros(0), *fields]).astype(np.int64)
         cam_idx = np.concatenate([np.zeros(0), *cams]).astype(np.int64)
         uv = np.concatenate([np.zeros((0, 2)), *uvs])
+        raw = np.concatenate([np.zeros((0, 2)), *raws])
         order = np.lexsort((cam_idx, field_idx))
-        return Observations(field_idx[order], cam_idx[order], uv[order])
+        return Observations(field_idx[order], cam_idx[order], uv[order], raw[order])
 
     def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
         """Lab points in every camera, linearised px, shape (n_cameras, n_points, 2)."""

@@ -298,7 +298,8 @@ def track(
 
 @app.command(
     epilog=example_epilog(
-        "kisscal export lab/2026-11-21 --to anipose",
+        "kisscal export lab/2026-11-21 --to pose2sim",
+        "kisscal export lab/2026-11-21 --to anipose --units m",
         "kisscal export lab/2026-11-21 --to dltdv8 --out coefs.csv",
         "kisscal export lab/2026-11-21 --to opencv --out calib/",
     )
@@ -306,21 +307,26 @@ def track(
 def export(
     session_dir: SessionArg,
     to: Annotated[
-        Literal["anipose", "dltdv8", "opencv"],
+        Literal["anipose", "pose2sim", "dltdv8", "opencv"],
         typer.Option(
-            help="anipose: cameras.toml (also Pose2Sim's layout); dltdv8: 11 x n coefficient "
-            "CSV in DLTdv8's pixels; opencv: one FileStorage YAML per camera."
+            help="anipose: cameras.toml; pose2sim: Pose2Sim's calibration (cam_01, ..., "
+            "metres); dltdv8: 11 x n coefficient CSV in DLTdv8's pixels; opencv: one "
+            "FileStorage YAML per camera."
         ),
     ],
     out: Annotated[
         Path | None,
         typer.Option(help="File (a folder for opencv) to write; default: under SESSION/out."),
     ] = None,
+    units: Annotated[
+        Literal["mm", "cm", "m"] | None,
+        typer.Option(help="Unit of the translations (anipose, opencv; default mm)."),
+    ] = None,
 ) -> None:
     """Write the session's calibration for another tool (after kisscal calibrate)."""
     from kisscal.session.exports import export as export_calibration
 
-    export_calibration(session_dir, to, out, echo=typer.echo)
+    export_calibration(session_dir, to, out, echo=typer.echo, units=units)
 
 
 @app.command(

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from numpy.typing import NDArray
 
-from kisscal._shared import forked_pool, inherited
+from kisscal._shared import inherited, worker_pool
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import DEFAULT_PARAMS, detect_blobs
@@ -80,7 +80,10 @@ def detect_jobs(
     Notes
     -----
     Workers are forked and inherit the jobs (loaders and all): nothing is pickled but the
-    results. Chunks of every job share the pool, so a job's tail overlaps the next job.
+    results. Where processes are spawned (Windows) each worker gets the jobs pickled once;
+    jobs that cannot be pickled, and a daemonic caller (a Dask worker), are detected in
+    this process (:func:`kisscal._shared.worker_pool`). Chunks of every job share the
+    pool, so a job's tail overlaps the next job.
     """
     if workers is None:
         workers = os.cpu_count() or 1
@@ -88,7 +91,7 @@ def detect_jobs(
         raise KisscalError(f"detect: workers must be >= 1, got {workers}")
     chunks = _chunks(jobs)
     workers = min(workers, len(chunks))
-    pool = forked_pool(workers, jobs) if workers > 1 else None
+    pool = worker_pool(workers, jobs) if workers > 1 else None
     if pool is None:
         yield from _by_job(jobs, chunks, (_chunk(jobs, *c) for c in chunks))
         return

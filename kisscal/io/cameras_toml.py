@@ -15,12 +15,15 @@ One table per camera, named by the camera id::
 and a ``[metadata]`` table (both tools skip it when they look for cameras) with the units
 and how closely each camera's OpenCV model matches kisscal's (``fit_rms_px``).
 aniposelib reads every other table as a camera; Pose2Sim works in metres, anipose in the
-unit of its calibration board: kisscal writes mm and reads either (``metadata.units``, or
-metres when every camera lies within 100 units of the origin, as no lab camera does in mm).
+unit of its calibration board: kisscal writes mm unless told otherwise (``units``) and
+reads any (``metadata.units``, or metres when every camera lies within 100 units of the
+origin, as no lab camera does in mm). Tables may carry other names than the session's
+camera ids (Pose2Sim's ``cam_01``, ...): ``names`` maps them on reading.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -37,25 +40,46 @@ from kisscal.opencv import OpenCvCamera
 #: Tables of a cameras.toml that are not cameras (anipose, Pose2Sim).
 NOT_CAMERAS = ("metadata", "capture_volume", "charuco", "checkerboard")
 CAMERA_KEYS = ("name", "size", "matrix", "distortions", "rotation", "translation")
-_UNITS_MM = {"mm": 1.0, "m": 1000.0, "cm": 10.0}
+#: Length units a cameras.toml may be written in, as millimetres per unit.
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
 
 
 def write_cameras_toml(
-    path: str | Path, cameras: Sequence[OpenCvCamera], metadata: Mapping[str, Any]
+    path: str | Path,
+    cameras: Sequence[OpenCvCamera],
+    metadata: Mapping[str, Any],
+    *,
+    units: str = "mm",
+    names: Sequence[str] | None = None,
+    k3: bool = True,
 ) -> Path:
-    """Write a ``cameras.toml``: one table per camera (see the module docstring)."""
+    """Write a ``cameras.toml``: one table per camera (see the module docstring).
+
+    ``units`` is the unit of ``translation`` (``mm``, ``cm`` or ``m``, also written as
+    ``metadata.units``); ``names`` the table and ``name`` of each camera (default the
+    camera's own); ``k3`` False writes four distortion coefficients (``k1 k2 p1 p2``,
+    Pose2Sim's layout; the cameras' ``k3`` must then be 0).
+    """
+    if units not in UNITS_MM:
+        raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+    names = [c.name for c in cameras] if names is None else list(names)
+    if len(names) != len(cameras) or len(set(names)) != len(names):
+        raise KisscalError(f"{path}: need one distinct name per camera, got {names}")
     doc: dict[str, Any] = {}
-    for cam in cameras:
-        doc[cam.name] = {
-            "name": cam.name,
+    for name, cam in zip(names, cameras, strict=True):
+        dist = np.asarray(cam.distortions, dtype=float)
+        if not k3 and dist[4] != 0.0:
+            raise KisscalError(f"{path}: camera {cam.name} has k3 = {dist[4]}; cannot drop it")
+        doc[name] = {
+            "name": name,
             "size": [int(cam.size_px[0]), int(cam.size_px[1])],
             "matrix": np.asarray(cam.matrix, dtype=float).tolist(),
-            "distortions": np.asarray(cam.distortions, dtype=float).tolist(),
+            "distortions": dist[: 5 if k3 else 4].tolist(),
             "rotation": np.asarray(cam.rotation, dtype=float).tolist(),
-            "translation": np.asarray(cam.translation_mm, dtype=float).tolist(),
+            "translation": (np.asarray(cam.translation_mm, float) / UNITS_MM[units]).tolist(),
             "fisheye": False,
         }
-    doc["metadata"] = {"units": "mm", **metadata}
+    doc["metadata"] = {**metadata, "units": units}
     write_text(Path(path), tomli_w.dumps(doc))
     return Path(path)
 
@@ -98,22 +122,29 @@ def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenC
 def _units_mm(path: Path, doc: dict[str, Any], tables: dict[str, dict]) -> float:
     units = doc.get("metadata", {}).get("units") if isinstance(doc.get("metadata"), dict) else None
     if units is not None:
-        if units not in _UNITS_MM:
+        if units not in UNITS_MM:
             raise KisscalError(f"{path}: metadata.units must be mm, cm or m, got {units!r}")
-        return _UNITS_MM[units]
+        return UNITS_MM[units]
     reach = max(
         np.linalg.norm(np.asarray(t.get("translation", [0]), float)) for t in tables.values()
     )
     return 1000.0 if reach < 100.0 else 1.0
 
 
-def read_cameras_toml(path: str | Path, camera_ids: Sequence[str]) -> dict[str, OpenCvCamera]:
+def read_cameras_toml(
+    path: str | Path, camera_ids: Sequence[str], names: Mapping[str, str] | None = None
+) -> dict[str, OpenCvCamera]:
     """The cameras of ``camera_ids`` from a cameras.toml, matched by ``name`` (or table name).
+
+    ``names`` maps the file's camera names to session ids (``{"cam_01": "cam1"}``); a
+    session camera it does not name is looked up under its own id. The cameras returned
+    carry the session ids.
 
     Raises
     ------
     KisscalError
-        A camera of the session missing from the file, a missing key, a malformed value.
+        A camera of the session missing from the file, a name of ``names`` not in it, a
+        missing key, a malformed value.
     """
     path = Path(path)
     doc = load_toml(path)
@@ -121,22 +152,39 @@ def read_cameras_toml(path: str | Path, camera_ids: Sequence[str]) -> dict[str, 
     if not tables:
         raise KisscalError(f"{path}: no camera tables")
     by_name = {str(t.get("name", k)): k for k, t in tables.items()}
+    names = dict(names or {})
+    unknown = [n for n in names if n not in by_name and n not in tables]
+    if unknown:
+        raise KisscalError(
+            f"{path}: calibration.names maps {unknown[0]!r}, which is not a camera of this "
+            f"file (it has {', '.join(sorted(by_name))})"
+        )
+    foreign = {sid: name for name, sid in names.items()}
     scale = _units_mm(path, doc, tables)
     out = {}
     for cam in camera_ids:
-        key = by_name.get(cam, cam if cam in tables else None)
+        name = foreign.get(cam, cam)
+        key = by_name.get(name, name if name in tables else None)
         if key is None:
             raise KisscalError(
-                f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))})"
+                f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
+                f"map them with [calibration] names = {{ {_hint(by_name)} }})"
             )
-        out[cam] = _camera(path, key, tables[key], scale)
+        out[cam] = dataclasses.replace(_camera(path, key, tables[key], scale), name=cam)
     return out
 
 
-def write_opencv_yaml(path: str | Path, cam: OpenCvCamera) -> Path:
+def _hint(by_name: Mapping[str, str]) -> str:
+    """``cam_01 = "<camera id>", ...``: how a name map starts, for a message."""
+    return f'{sorted(by_name)[0]} = "<camera id>", ...'
+
+
+def write_opencv_yaml(path: str | Path, cam: OpenCvCamera, units: str = "mm") -> Path:
     """One camera as an OpenCV FileStorage YAML file (``cv::FileStorage`` reads it):
     ``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
-    ``rvec``, ``tvec`` (mm)."""
+    ``rvec``, ``tvec`` (in ``units``: mm, cm or m) and ``units``."""
+    if units not in UNITS_MM:
+        raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
@@ -146,7 +194,8 @@ def write_opencv_yaml(path: str | Path, cam: OpenCvCamera) -> Path:
         fs.write("camera_matrix", np.asarray(cam.matrix, dtype=float))
         fs.write("distortion_coefficients", np.asarray(cam.distortions, float).reshape(1, 5))
         fs.write("rvec", np.asarray(cam.rotation, dtype=float).reshape(3, 1))
-        fs.write("tvec", np.asarray(cam.translation_mm, dtype=float).reshape(3, 1))
+        fs.write("tvec", np.asarray(cam.translation_mm, float).reshape(3, 1) / UNITS_MM[units])
+        fs.write("units", units)
         fs.release()
         if tmp.with_suffix(".yml") != tmp:
             tmp.with_suffix(".yml").replace(tmp)

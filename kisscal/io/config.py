@@ -68,6 +68,8 @@ class CalibrationConfig:
     ``cameras``: an anipose / Pose2Sim ``cameras.toml``; ``dlt``: DLTdv coefficients
     (11 rows x one column per camera); ``target`` with ``images`` and ``seeds``: a known
     calibration object matched automatically from a few clicked points per camera.
+    ``names`` maps the cameras' names in a ``cameras`` or ``dlt`` file to session camera
+    ids (``{"cam_01": "cam1"}``, Pose2Sim's names); unnamed cameras keep their own.
     """
 
     points: str | None = None
@@ -77,6 +79,7 @@ class CalibrationConfig:
     images: str | None = None
     seeds: str | None = None
     fields: FieldOrder | None = None
+    names: dict[str, str] = dataclasses.field(default_factory=dict)
 
     @property
     def route(self) -> str:
@@ -258,7 +261,7 @@ def _rods(t: Table) -> RodsConfig:
 
 
 def _calibration(t: Table) -> CalibrationConfig:
-    t.allow({"points", "cameras", "dlt", "target", "images", "seeds", "fields"})
+    t.allow({"points", "cameras", "dlt", "target", "images", "seeds", "fields", "names"})
     routes = [k for k in ("points", "cameras", "dlt", "target") if k in t.data]
     if len(routes) != 1:
         raise t.fail(
@@ -273,7 +276,26 @@ def _calibration(t: Table) -> CalibrationConfig:
         if extra:
             raise t.fail(f"calibration.{extra[0]} belongs to a target calibration (target = ...)")
     values = {k: t.string(k) for k in ("points", "cameras", "dlt", "target", "images", "seeds")}
-    return CalibrationConfig(**values, fields=t.choice("fields", FIELD_ORDERS))
+    return CalibrationConfig(
+        **values, fields=t.choice("fields", FIELD_ORDERS), names=_camera_names(t, routes[0])
+    )
+
+
+def _camera_names(t: Table, route: str) -> dict[str, str]:
+    """``[calibration] names``: foreign camera name -> session camera id, both strings."""
+    if "names" not in t.data:
+        return {}
+    if route not in ("cameras", "dlt"):
+        raise t.fail(f"calibration.names renames the cameras of a cameras or dlt file, not {route}")
+    names = t.data["names"]
+    if not isinstance(names, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) and v.strip() for k, v in names.items()
+    ):
+        raise t.fail('calibration.names must be a table of names, e.g. { cam_01 = "cam1" }')
+    ids = list(names.values())
+    if len(set(ids)) != len(ids):
+        raise t.fail(f"calibration.names maps two names onto one camera: {ids}")
+    return dict(names)
 
 
 def _wand(t: Table) -> WandConfig:
@@ -438,6 +460,13 @@ def _check_references(top: Table, config: SessionConfig) -> None:
             )
     if config.calibration is not None and config.rods is not None:
         raise top.fail("give either [rods] or [calibration], not both")
+    ids = config.camera_ids
+    for name, cam in (config.calibration.names if config.calibration else {}).items():
+        if cam not in ids:
+            raise top.fail(
+                f"calibration.names maps {name!r} to {cam!r}, which is not a camera id"
+                f"{suggest(cam, ids)}"
+            )
     if config.calibration is not None and config.calibration.cameras and config.grid is not None:
         raise top.fail(
             "[calibration] cameras brings its own lens model; give either it or [grid], not both"

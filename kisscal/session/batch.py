@@ -1,4 +1,11 @@
-"""``kisscal batch``: many sessions in parallel on Dask (the only module that imports Dask)."""
+"""``kisscal batch``: many sessions in parallel on Dask (the only module that imports Dask).
+
+Dask is the optional ``batch`` extra (``pip install "kisscal[batch]"``). One session is one
+Dask task, run in a worker with one process (``workers=1``): the sessions are the
+parallelism. A worker of a cluster started by ``dask worker`` is a daemonic process, which
+may not start processes of its own; kisscal's stages then work in the worker's process
+(:func:`kisscal._shared.start_method`), figures included.
+"""
 
 from __future__ import annotations
 
@@ -7,12 +14,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import dask
-from dask.distributed import Client, LocalCluster
-
 from kisscal.errors import KisscalError
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.run import run
+
+#: What to install when Dask is missing.
+INSTALL_BATCH = 'kisscal batch needs Dask: pip install "kisscal[batch]"'
+
+
+def _dask() -> Any:
+    """``dask`` and ``dask.distributed``, or one line saying how to install them."""
+    try:
+        import dask
+        import dask.distributed
+    except ImportError:
+        raise KisscalError(INSTALL_BATCH) from None
+    return dask
 
 
 def _run_quietly(root: str) -> dict[str, Any]:
@@ -31,11 +48,11 @@ def batch(sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = q
     is started; with it, the sessions go to that Dask scheduler (a lab cluster), which
     must see the same paths. A session that fails is reported and does not stop the others.
     """
+    dask = _dask()
     paths = [Path(s).resolve() for s in sessions]
     if not paths:
         raise KisscalError("give at least one session folder")
-    # Worker processes must be able to start the detection's own process pool.
-    with dask.config.set({"distributed.worker.daemon": False, "logging.distributed": "error"}):
+    with dask.config.set({"logging.distributed": "error"}):
         client, cluster = _connect(scheduler, len(paths))
         try:
             futures = client.map(_run_quietly, [str(p) for p in paths], pure=False)
@@ -48,7 +65,11 @@ def batch(sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = q
     return failed
 
 
-def _connect(scheduler: str | None, n_sessions: int) -> tuple[Client, LocalCluster | None]:
+def _connect(scheduler: str | None, n_sessions: int) -> tuple[Any, Any]:
+    """A client of ``scheduler``, or of a local cluster of one single-threaded worker
+    process per core (at most one per session), with that cluster."""
+    from dask.distributed import Client, LocalCluster
+
     if scheduler:
         try:
             return Client(scheduler, timeout="10s"), None

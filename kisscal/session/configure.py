@@ -13,6 +13,7 @@ is used as given. The result, with the reason for every value, is written to
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -123,6 +124,13 @@ def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
     return {"camera": camera.id, "size": list(camera.size_px or ()) or None, "kinds": {}}
 
 
+def _survey_camera(
+    root: Path, config: SessionConfig, given: Mapping[str, Any], cam: CameraConfig, say: Echo
+) -> DetectionParams:
+    """The marker detection survey of one camera, as :func:`each_camera` calls it."""
+    return camera_detection(root, config, cam, "markers", given, say)
+
+
 def markers_detection(
     root: Path,
     config: SessionConfig,
@@ -140,9 +148,8 @@ def markers_detection(
     known = {c.id: _current(root, c, "markers", given) for c in cameras}
     todo = [c for c in cameras if known[c.id] is None]
 
-    def survey(cam: CameraConfig, say: Echo) -> DetectionParams:
-        return camera_detection(root, config, cam, "markers", given, say)
-
+    # a partial of a module-level function: spawned workers (Windows) receive it pickled
+    survey = functools.partial(_survey_camera, root, config, dict(given))
     surveyed = each_camera(survey, todo, "detection settings", echo, workers) if todo else []
     known.update({c.id: p for c, p in zip(todo, surveyed, strict=True)})
     return {c.id: known[c.id] for c in cameras}  # type: ignore[misc]

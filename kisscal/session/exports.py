@@ -22,7 +22,7 @@ import numpy as np
 
 from kisscal.errors import KisscalError
 from kisscal.grid import Linearisation
-from kisscal.io.cameras_toml import write_cameras_toml, write_opencv_yaml
+from kisscal.io.cameras_toml import UNITS_MM, write_cameras_toml, write_opencv_yaml
 from kisscal.io.config import SessionConfig
 from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
 from kisscal.io.files import write_json
@@ -32,7 +32,7 @@ from kisscal.session.inputs import load_config, out_dir
 from kisscal.session.progress import Echo, quiet
 
 #: ``kisscal export --to`` choices.
-EXPORT_FORMATS = ("anipose", "dltdv8", "opencv")
+EXPORT_FORMATS = ("anipose", "pose2sim", "dltdv8", "opencv")
 
 
 def calibrated_rig(
@@ -104,17 +104,23 @@ def write_exports(
     return report
 
 
-def export(root: Path, to: str, dest: Path | None = None, echo: Echo = quiet) -> list[Path]:
+def export(
+    root: Path, to: str, dest: Path | None = None, echo: Echo = quiet, units: str | None = None
+) -> list[Path]:
     """``kisscal export``: the session's calibration for another tool.
 
-    ``to`` is ``anipose`` (``cameras.toml``, also Pose2Sim's layout), ``dltdv8``
-    (``dltdv.csv``) or ``opencv`` (one FileStorage YAML per camera); ``dest`` is the file
-    (or, for opencv, the folder) to write, by default under ``out/``.
+    ``to`` is ``anipose`` (``cameras.toml``), ``pose2sim`` (Pose2Sim's calibration file:
+    tables ``cam_01``, ``cam_02``, ... in session order, four distortion coefficients,
+    metres), ``dltdv8`` (``dltdv.csv``) or ``opencv`` (one FileStorage YAML per camera);
+    ``dest`` is the file (or, for opencv, the folder) to write, by default under ``out/``.
+    ``units`` (``mm``, ``cm`` or ``m``) is the length unit of the translations for anipose
+    and opencv (default mm, the lab's); Pose2Sim reads metres only.
     """
     from kisscal.session.calibrate import current_rig  # calibrate writes the exports too
 
     if to not in EXPORT_FORMATS:
         raise KisscalError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
+    units = _export_units(to, units)
     root = Path(root)
     load_config(root)
     rig = current_rig(root, echo)
@@ -123,15 +129,57 @@ def export(root: Path, to: str, dest: Path | None = None, echo: Echo = quiet) ->
         path = write_dltdv_csv(dest or out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    fits = [opencv_from_camera(c) for c in rig]
+    fits = [opencv_from_camera(c, k3=to != "pose2sim") for c in rig]
     for f in fits:
         echo(f"  {f.camera.name}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
+    meta = {"source": "kisscal", "fit_rms_px": {f.camera.name: f.rms_px for f in fits}}
+    cams = [f.camera for f in fits]
+    if to == "pose2sim":
+        names = pose2sim_names(len(cams))
+        # Pose2Sim's own [metadata] keys, then which session camera each table is
+        meta = {
+            "adjusted": False,
+            "error": 0.0,
+            "source": "kisscal",
+            "cameras": dict(zip(names, rig.ids, strict=True)),
+            "fit_rms_px": dict(zip(names, meta["fit_rms_px"].values(), strict=True)),
+        }
+        path = write_cameras_toml(
+            dest or out / "pose2sim" / "Calib_kisscal.toml",
+            cams,
+            meta,
+            units="m",
+            names=names,
+            k3=False,
+        )
+        echo(f"{path}: {len(cams)} cameras as {', '.join(names)} (Pose2Sim layout, m)")
+        return [path]
     if to == "anipose":
-        meta = {"source": "kisscal", "fit_rms_px": {f.camera.name: f.rms_px for f in fits}}
-        path = write_cameras_toml(dest or out / "cameras.toml", [f.camera for f in fits], meta)
-        echo(f"{path}: {len(fits)} cameras (anipose / Pose2Sim layout, mm)")
+        path = write_cameras_toml(dest or out / "cameras.toml", cams, meta, units=units)
+        echo(f"{path}: {len(cams)} cameras (anipose layout, {units})")
         return [path]
     folder = dest or out / "opencv"
-    paths = [write_opencv_yaml(Path(folder) / f"{f.camera.name}.yml", f.camera) for f in fits]
-    echo(f"{folder}: {len(paths)} OpenCV camera files")
+    paths = [write_opencv_yaml(Path(folder) / f"{c.name}.yml", c, units) for c in cams]
+    echo(f"{folder}: {len(paths)} OpenCV camera files ({units})")
     return paths
+
+
+def pose2sim_names(n: int) -> list[str]:
+    """Pose2Sim's camera names, ``cam_01``, ``cam_02``, ...: it pairs the calibration's
+    cameras with its pose folders in order, sorted by their last number."""
+    return [f"cam_{i + 1:02d}" for i in range(n)]
+
+
+def _export_units(to: str, units: str | None) -> str:
+    """The length unit of an export: ``units`` where the tool takes one, checked."""
+    if to == "pose2sim":
+        if units not in (None, "m"):
+            raise KisscalError(f"export: Pose2Sim reads metres only; --units {units} is not")
+        return "m"
+    if units is None:
+        return "mm"
+    if to == "dltdv8":
+        raise KisscalError("export: --units applies to anipose and opencv; dltdv8 keeps mm")
+    if units not in UNITS_MM:
+        raise KisscalError(f"export: --units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+    return units

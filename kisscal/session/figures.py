@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from kisscal._shared import forked_pool
+from kisscal._shared import worker_pool
 
 _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": []}
 
@@ -73,7 +73,7 @@ def wait_for_figures() -> None:
 
 def _start() -> ProcessPoolExecutor | None:
     """The background process, where there is a core to spare for it."""
-    return forked_pool(1) if (os.cpu_count() or 1) >= 2 else None
+    return worker_pool(1) if (os.cpu_count() or 1) >= 2 else None
 
 
 @contextlib.contextmanager

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import time
 from collections.abc import Sequence
@@ -65,11 +66,17 @@ def linearise(
     if config.grid is None:
         return {c.id: _identity(c) for c in cameras}
 
-    def fit(cam: CameraConfig, say: Echo) -> Linearisation:
-        return _linearise_camera(Path(root), config, cam, params, say)
-
+    # a partial of a module-level function: spawned workers (Windows) receive it pickled
+    fit = functools.partial(_fit_camera, Path(root), config, params)
     fits = each_camera(fit, cameras, "linearise", echo, workers)
     return {c.id: lin for c, lin in zip(cameras, fits, strict=True)}
+
+
+def _fit_camera(
+    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, say: Echo
+) -> Linearisation:
+    """:func:`_linearise_camera` with the camera last, as :func:`each_camera` calls it."""
+    return _linearise_camera(root, config, cam, params, say)
 
 
 def _identity(cam: CameraConfig) -> Linearisation:

@@ -3,8 +3,10 @@
 A camera's detection survey and grid fit read only that camera's images and write only
 that camera's files (``out/detection/<camera>.json``, ``out/linearisation/<camera>.json``,
 its figure), so cameras can be done side by side. Workers are forked: the work function
-and its inputs are inherited, not pickled; results come back pickled, and every message a
-worker says is repeated by the parent, camera by camera, in the cameras' order.
+and its inputs are inherited, not pickled (spawned workers, on Windows, get them pickled
+once: the work function must then be a module-level function or a ``functools.partial``
+of one, else the cameras are done in this process); results come back pickled, and every
+message a worker says is repeated by the parent, camera by camera, in the cameras' order.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
-from kisscal._shared import forked_pool, inherited
+from kisscal._shared import inherited, worker_pool
 from kisscal.errors import KisscalError
 from kisscal.session.progress import Echo, counted
 
@@ -39,7 +41,7 @@ def _inherited_call(index: int) -> tuple[Any, list[str]]:
 def _results(
     work: Callable[[Any, Echo], Any], items: Sequence[Any], workers: int
 ) -> Iterator[tuple[Any, list[str]]]:
-    pool = forked_pool(workers, (work, items)) if workers > 1 else None
+    pool = worker_pool(workers, (work, items)) if workers > 1 else None
     if pool is None:
         yield from (_call(work, item) for item in items)
         return

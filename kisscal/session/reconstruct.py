@@ -17,6 +17,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import source_files, trial_frames
+from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
@@ -67,7 +68,7 @@ def reconstruct(
         detection,
         params.recon,
     )
-    if is_current(path, stage_key):
+    if is_current(path, stage_key) and path.with_name("points2d.csv").is_file():
         echo(f"  reconstruct {trial.name}: cached")
         _echo_warnings(trial.name, path.with_name("recon.json"), echo)
         return read_points3d(path)
@@ -80,6 +81,14 @@ def reconstruct(
     n_fields = max((len(v) for v in blobs.values()), default=0)
     summary = points.summary(n_fields, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    write_points2d(
+        path.with_name("points2d.csv"),
+        rig.ids,
+        cam_idx,
+        field_idx,
+        obs.raw_px,
+        observation_points(points.blob_row, len(obs)),
+    )
     write_json(path.with_name("recon.json"), summary)
     mark_current(path, stage_key)
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see

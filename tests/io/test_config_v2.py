@@ -46,6 +46,12 @@ def test_version_2_tables_parse() -> None:
     assert config.trial("walk03").fields == "top-first"
 
 
+def test_calibration_names_map_foreign_cameras() -> None:
+    config = parse(calibration={"cameras": "c.toml", "names": {"cam_01": "c1", "cam_02": "c2"}})
+    assert config.calibration.names == {"cam_01": "c1", "cam_02": "c2"}
+    assert parse(calibration={"cameras": "c.toml"}).calibration.names == {}
+
+
 @pytest.mark.parametrize(
     ("tables", "message"),
     [
@@ -64,6 +70,18 @@ def test_version_2_tables_parse() -> None:
             "collinear",
         ),
         ({"export": {"trc_up": "x"}}, "one of 'z', 'y'"),
+        (
+            {"calibration": {"cameras": "c.toml", "names": {"cam_01": "cam1"}}},
+            "maps 'cam_01' to 'cam1', which is not a camera id",
+        ),
+        ({"calibration": {"cameras": "c.toml", "names": {"cam_01": "c11"}}}, "did you mean 'c1'"),
+        ({"calibration": {"cameras": "c.toml", "names": ["c1"]}}, "must be a table of names"),
+        (
+            {"calibration": {"cameras": "c.toml", "names": {"a": "c1", "b": "c1"}}},
+            "two names onto one camera",
+        ),
+        ({"calibration": {"points": "p/{camera}.csv", "names": {"a": "c1"}}}, "not points"),
+        ({"calibration": {"cameras": "c.toml", "name": {"a": "c1"}}}, "did you mean 'names'"),
     ],
 )
 def test_version_2_mistakes_are_one_line_errors(tables: dict, message: str) -> None:

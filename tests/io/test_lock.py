@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -43,3 +44,73 @@ def test_unwritable_output_folder_is_one_line(tmp_path: Path) -> None:
     with pytest.raises(KisscalError, match="cannot write the output folder"):
         with session_lock(blocker / "out"):
             pass
+
+
+# Windows has no fcntl: the lock is msvcrt.locking of one byte. Linux has no msvcrt, so the
+# test stands in for it with POSIX record locks of the same byte range (non-blocking lock
+# fails with OSError, released by unlocking or by the process's end, as Windows does);
+# what it checks is kisscal's use of the msvcrt calls: offset, mode, release, message.
+FAKE_MSVCRT = """
+import fcntl, os, types
+def locking(fd, mode, nbytes):
+    start = os.lseek(fd, 0, os.SEEK_CUR)
+    calls.append((mode, start, nbytes))
+    op = fcntl.LOCK_UN if mode == LK_UNLCK else fcntl.LOCK_EX | fcntl.LOCK_NB
+    fcntl.lockf(fd, op, nbytes, start)
+calls = []
+LK_UNLCK, LK_NBLCK = 0, 2
+fake = types.SimpleNamespace(locking=locking, LK_UNLCK=LK_UNLCK, LK_NBLCK=LK_NBLCK, calls=calls)
+"""
+
+HOLD_WINDOWS = (
+    FAKE_MSVCRT
+    + """
+import sys, time
+import kisscal.io.lock as lock
+lock.fcntl, lock.msvcrt = None, fake
+with lock.session_lock(sys.argv[1]):
+    print("held", flush=True)
+    time.sleep(30)
+"""
+)
+
+
+def fake_msvcrt():
+    scope: dict = {}
+    exec(FAKE_MSVCRT, scope)
+    return scope["fake"]
+
+
+def test_without_fcntl_the_lock_is_msvcrt_s(tmp_path: Path, monkeypatch) -> None:
+    import kisscal.io.lock as lock
+
+    fake = fake_msvcrt()
+    monkeypatch.setattr(lock, "fcntl", None)
+    monkeypatch.setattr(lock, "msvcrt", fake)
+    out = tmp_path / "out"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_WINDOWS, str(out)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        with pytest.raises(KisscalError, match=rf"another kisscal process \(pid {holder.pid}\)"):
+            with session_lock(out):
+                pass
+    finally:
+        holder.kill()
+        holder.wait()
+    with session_lock(out), session_lock(out):  # released by the holder's death; re-entrant
+        assert (out / ".lock").read_text() == f"pid {os.getpid()}"
+    # one byte past the holder's text locked, then unlocked before the file is closed
+    lock_byte = (lock.MSVCRT_BYTE, 1)
+    assert [c[1:] for c in fake.calls] == [lock_byte] * 3
+    assert [c[0] for c in fake.calls] == [fake.LK_NBLCK, fake.LK_NBLCK, fake.LK_UNLCK]
+
+
+def test_without_any_lock_runs_are_not_guarded(tmp_path: Path, monkeypatch) -> None:
+    import kisscal.io.lock as lock
+
+    monkeypatch.setattr(lock, "fcntl", None)
+    monkeypatch.setattr(lock, "msvcrt", None)
+    with session_lock(tmp_path / "out"):
+        assert (tmp_path / "out" / ".lock").is_file()

@@ -18,6 +18,7 @@ import tomli_w
 from scipy.spatial import cKDTree
 
 from kisscal import session
+from kisscal.errors import KisscalError
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table, write_table
 from kisscal.rig import Rig
@@ -154,10 +155,24 @@ def test_dltdv_import_reconstructs_the_same_points_with_the_grid(original: Path,
 def test_export_command_writes_each_format(original: Path, tmp_path: Path):
     from kisscal.cli import main
 
-    for to, dest in (("anipose", "c.toml"), ("dltdv8", "c.csv"), ("opencv", "ocv")):
+    for to, dest, *units in (
+        ("anipose", "c.toml"),
+        ("dltdv8", "c.csv"),
+        ("opencv", "ocv"),
+        ("pose2sim", "p2s.toml"),
+        ("opencv", "ocv_m", "--units", "m"),
+    ):
         with pytest.raises(SystemExit) as done:
-            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest)])
+            main(["export", str(original), "--to", to, "--out", str(tmp_path / dest), *units])
         assert done.value.code in (0, None)
+    assert load_toml(tmp_path / "p2s.toml")["metadata"]["cameras"]["cam_02"] == "cam2"
+    tvec = {}
+    for folder in ("ocv", "ocv_m"):
+        fs = cv2.FileStorage(str(tmp_path / folder / "cam2.yml"), cv2.FILE_STORAGE_READ)
+        tvec[folder] = (fs.getNode("tvec").mat(), fs.getNode("units").string())
+        fs.release()
+    assert (tvec["ocv"][1], tvec["ocv_m"][1]) == ("mm", "m")
+    np.testing.assert_allclose(tvec["ocv_m"][0] * 1000, tvec["ocv"][0])
     assert load_toml(tmp_path / "c.toml")["cam1"]["name"] == "cam1"
     np.testing.assert_allclose(
         np.loadtxt(tmp_path / "c.csv", delimiter=","),
@@ -166,3 +181,106 @@ def test_export_command_writes_each_format(original: Path, tmp_path: Path):
     fs = cv2.FileStorage(str(tmp_path / "ocv" / "cam2.yml"), cv2.FILE_STORAGE_READ)
     matrix = fs.getNode("camera_matrix").mat()
     np.testing.assert_allclose(matrix, load_toml(tmp_path / "c.toml")["cam2"]["matrix"])
+
+
+def test_points2d_holds_the_observations_each_point_was_triangulated_from(original: Path):
+    """points2d.csv: raw pixels of every observation and the points3d.csv row it went into;
+    kisscal's own triangulation of each point's rows gives that row back."""
+    from kisscal.io.points2d import read_points2d
+    from kisscal.io.points3d import read_points3d
+
+    trial = original / "out" / "trials" / "c2d"
+    p2, p3 = read_points2d(trial / "points2d.csv"), read_points3d(trial / "points3d.csv")
+    rig = Rig.load(original)
+    used = p2.point >= 0
+    assert used.mean() > 0.9 and np.all(p2.field[used] == p3.field[p2.point[used]])
+    np.testing.assert_array_equal(
+        np.bincount(p2.point[used], minlength=len(p3.field)), p3.n_cameras
+    )
+    cam = np.array([rig.index(c) for c in p2.camera[used]])
+    uv = np.zeros((used.sum(), 2))
+    for c, camera in enumerate(rig):
+        uv[cam == c] = camera.linearise(p2.xy_px[used][cam == c])
+    tri = rig.triangulate(cam, uv, p2.point[used])
+    np.testing.assert_allclose(tri.xyz_mm, p3.xyz_mm, atol=1e-3)  # points3d.csv: 4 decimals
+
+
+def pose2sim_triangulate(calib: dict, names: list[str], dense_px: np.ndarray) -> np.ndarray:
+    """Pose2Sim's conventions (Pose2Sim.common.computeP, retrieve_calib_params,
+    weighted_triangulation; Pose2Sim.triangulation with undistort_points): the camera
+    tables in file order; raw pixels undistorted by cv2.undistortPoints onto the
+    optimal new camera matrix (alpha 1) of each camera, P = optim_K [R | T] with T in
+    metres, the point the last right singular vector of the stacked DLT rows. Returns
+    metres. ``dense_px`` is (camera, point, 2) in ``names``' order, NaN where unused."""
+    rows = np.zeros((dense_px.shape[1], 2 * len(names), 4))
+    for c, name in enumerate(names):
+        cam = calib[name]
+        K, dist, size = (np.array(cam[k], float) for k in ("matrix", "distortions", "size"))
+        optim_K = cv2.getOptimalNewCameraMatrix(K, dist, size.astype(int), 1, size.astype(int))[0]
+        R = cv2.Rodrigues(np.array(cam["rotation"], float))[0]
+        P = optim_K @ np.c_[R, np.array(cam["translation"], float)]
+        seen = np.isfinite(dense_px[c, :, 0])
+        xy = cv2.undistortPoints(dense_px[c, seen].reshape(-1, 1, 2), K, dist, None, optim_K)
+        x, y = xy.reshape(-1, 2).T
+        rows[seen, 2 * c] = P[0] - x[:, None] * P[2]
+        rows[seen, 2 * c + 1] = P[1] - y[:, None] * P[2]
+    q = np.linalg.svd(rows)[2][:, -1]
+    return q[:, :3] / q[:, 3:]
+
+
+def test_pose2sim_export_triangulates_points2d_onto_points3d(original: Path, tmp_path: Path):
+    from kisscal.io.points2d import read_points2d
+    from kisscal.io.points3d import read_points3d
+    from kisscal.session.exports import export
+
+    (path,) = export(original, "pose2sim", tmp_path / "calibration" / "Calib_kisscal.toml")
+    calib = load_toml(path)
+    names = [k for k, v in calib.items() if isinstance(v, dict) and k != "metadata"]
+    assert names == ["cam_01", "cam_02", "cam_03", "cam_04", "cam_05", "cam_06"]
+    assert all(len(calib[n]["distortions"]) == 4 and not calib[n]["fisheye"] for n in names)
+    assert calib["metadata"]["units"] == "m" and calib["metadata"]["adjusted"] is False
+    ids = [calib["metadata"]["cameras"][n] for n in names]
+    anipose = load_toml(original / "out" / "cameras.toml")  # mm: the same cameras, / 1000
+    for n, cid in zip(names, ids, strict=True):
+        np.testing.assert_allclose(
+            np.array(calib[n]["translation"]) * 1000, anipose[cid]["translation"], atol=0.05
+        )
+    trial = original / "out" / "trials" / "c2d"
+    p2, p3 = read_points2d(trial / "points2d.csv"), read_points3d(trial / "points3d.csv")
+    dense = np.full((len(ids), len(p3.field), 2), np.nan)
+    used = p2.point >= 0
+    dense[[ids.index(c) for c in p2.camera[used]], p2.point[used]] = p2.xy_px[used]
+    d = np.linalg.norm(pose2sim_triangulate(calib, names, dense) * 1000 - p3.xyz_mm, axis=1)
+    assert len(d) > 300 and np.median(d) < 0.03 and d.max() < 0.1, (np.median(d), d.max())
+
+
+def test_pose2sim_names_map_onto_session_cameras_on_import(original: Path, tmp_path: Path):
+    from kisscal.session.exports import export
+
+    (p2s,) = export(original, "pose2sim", tmp_path / "Calib.toml")
+    names = {f"cam_{i:02d}": f"cam{i}" for i in range(1, 7)}
+    root = imported(
+        original, tmp_path / "p", {"cameras": "Calib.toml", "names": names}, {"Calib.toml": p2s}
+    )
+    d = distances_mm(points3d(original), points3d(root))
+    assert np.median(d) < 0.03 and d.max() < 0.1
+    # without the map: one line naming the file's cameras and the way through
+    config = load_toml(root / "session.toml")
+    del config["calibration"]["names"]
+    (root / "session.toml").write_text(tomli_w.dumps(config))
+    with pytest.raises(KisscalError, match=r"no camera named 'cam1' .*cam_01.*names = "):
+        session.calibrate(root)
+
+
+def test_export_units(original: Path, tmp_path: Path):
+    from kisscal.session.exports import export
+
+    (mm,) = export(original, "anipose", tmp_path / "mm.toml")
+    (m,) = export(original, "anipose", tmp_path / "m.toml", units="m")
+    a, b = load_toml(mm), load_toml(m)
+    assert b["metadata"]["units"] == "m"
+    np.testing.assert_allclose(np.array(b["cam3"]["translation"]) * 1000, a["cam3"]["translation"])
+    with pytest.raises(KisscalError, match="Pose2Sim reads metres only"):
+        export(original, "pose2sim", tmp_path / "x.toml", units="mm")
+    with pytest.raises(KisscalError, match="--units applies to anipose and opencv"):
+        export(original, "dltdv8", tmp_path / "x.csv", units="m")

@@ -44,6 +44,11 @@ def _source(config: SessionConfig, key: str) -> Path:
     return path
 
 
+def _names(config: SessionConfig) -> dict[str, str]:
+    """``[calibration] names``: the file's camera names -> session camera ids."""
+    return dict(config.calibration.names) if config.calibration is not None else {}
+
+
 #: Above this RMS (px) the polynomial does not follow the imported lens well (a warning).
 POLY_FIT_WARN_PX = 0.05
 
@@ -58,11 +63,13 @@ def imported_linearisation(
     :data:`POLY_FIT_WARN_PX` a warning says so."""
     path = _source(config, "cameras")
     out = out_dir(config.root) / "linearisation" / f"{cam.id}.json"
-    key = cache_key("imported-linearisation", file_keys([path], config.root), cam.id)
+    key = cache_key(
+        "imported-linearisation", file_keys([path], config.root), cam.id, _names(config)
+    )
     if is_current(out, key):
         return read_linearisation(out)[1]
     # every camera of the session is checked before any file is written
-    cv = read_cameras_toml(path, config.camera_ids)[cam.id]
+    cv = read_cameras_toml(path, config.camera_ids, _names(config))[cam.id]
     if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
         raise KisscalError(
             f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
@@ -114,7 +121,7 @@ def _write(inputs: RouteInputs, files: dict[str, DltFile], method: str, source: 
 def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
     """Each camera's DLT from the ``K [R | t]`` of ``[calibration] cameras``."""
     path = _source(inputs.config, "cameras")
-    cvs = read_cameras_toml(path, [c.id for c in inputs.cameras])
+    cvs = read_cameras_toml(path, [c.id for c in inputs.cameras], _names(inputs.config))
     files = {c: DltFile(c, camera_from_opencv(cv)[0]) for c, cv in cvs.items()}
     return _write(inputs, files, "cameras", path)
 
@@ -129,6 +136,14 @@ def calibrate_from_dltdv(inputs: RouteInputs) -> dict[str, DltResult]:
         if "no header row" not in str(exc):
             raise
         files = read_dltdv_csv(path, inputs.config.camera_ids)
+    names = _names(inputs.config)
+    unknown = [n for n in names if n not in files]
+    if unknown:
+        raise KisscalError(
+            f"{path}: calibration.names maps {unknown[0]!r}, which is not a camera of this "
+            f"file (it has {', '.join(files)})"
+        )
+    files = {names.get(c, c): dlt for c, dlt in files.items()}
     missing = [c.id for c in inputs.cameras if c.id not in files]
     if missing:
         raise KisscalError(f"{path}: no coefficients for camera {', '.join(missing)}")

@@ -1,0 +1,118 @@
+"""Reading and writing ``out/trials/<trial>/points2d.csv``: a trial's 2D input, for other
+triangulators (DESIGN.md, contract version 3).
+
+Columns: ``camera,field,x_px,y_px,point``. One row per 2D observation kisscal
+reconstructed the trial from (the valid blobs of every camera and field, or the rows of
+a centroid file), sorted by field, then camera in session order, a camera's blobs of a
+field in their detection order. ``x_px, y_px`` are raw pixels as measured (not
+linearised; origin at the centre of the top-left pixel, y down), to 1e-6 px. ``point``
+is the 3D point the observation went into: the 0-based data row of the trial's
+``points3d.csv``; empty when the observation was not used (unmatched, or dropped as a
+stationary false detection).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kisscal.errors import KisscalError
+from kisscal.io.files import write_text
+
+COLUMNS = ("camera", "field", "x_px", "y_px", "point")
+
+
+@dataclass(frozen=True)
+class Points2DFile:
+    """Contents of a points2d.csv.
+
+    Attributes
+    ----------
+    camera : ndarray of str, shape (n,)
+    field : ndarray of int, shape (n,)
+    xy_px : ndarray, shape (n, 2)
+        Raw pixel coordinates.
+    point : ndarray of int, shape (n,)
+        Row of points3d.csv the observation went into, -1 when unused.
+    """
+
+    camera: NDArray[np.str_]
+    field: NDArray[np.int64]
+    xy_px: NDArray[np.float64]
+    point: NDArray[np.int64]
+
+
+def observation_points(blob_row: ArrayLike, n_obs: int) -> NDArray[np.int64]:
+    """The 3D point each of ``n_obs`` 2D observations went into (-1: none), from the
+    (n_points, n_cameras) table of observation rows per point
+    (:attr:`kisscal.recon.Points3D.blob_row`).
+
+    Examples
+    --------
+    >>> observation_points([[0, -1, 2], [3, 4, -1]], 6)
+    array([ 0, -1,  0,  1,  1, -1])
+    """
+    blob_row = np.asarray(blob_row, dtype=np.int64)
+    point = np.full(n_obs, -1, dtype=np.int64)
+    used = blob_row >= 0
+    point[blob_row[used]] = np.nonzero(used)[0]
+    return point
+
+
+def write_points2d(
+    path: str | Path,
+    camera_ids: tuple[str, ...] | list[str],
+    camera: ArrayLike,
+    field: ArrayLike,
+    xy_px: ArrayLike,
+    point: ArrayLike,
+) -> Path:
+    """Write a points2d.csv (see module docstring); ``camera`` holds indices into
+    ``camera_ids``. Returns the path written."""
+    camera = np.asarray(camera, dtype=np.int64)
+    field = np.asarray(field, dtype=np.int64)
+    xy = np.asarray(xy_px, dtype=float).reshape(-1, 2)
+    point = np.asarray(point, dtype=np.int64)
+    if not (len(camera) == len(field) == len(xy) == len(point)):
+        raise KisscalError("points2d: columns of different lengths")
+    names = np.asarray(list(camera_ids) or [""], dtype=str)
+    # formatted column by column (numpy's string ops), not row by row
+    cells = [
+        names[camera],
+        np.char.mod("%d", field),
+        np.char.mod("%.6f", xy[:, 0]),
+        np.char.mod("%.6f", xy[:, 1]),
+        np.where(point >= 0, np.char.mod("%d", point), ""),
+    ]
+    lines = cells[0]
+    for column in cells[1:]:
+        lines = np.char.add(np.char.add(lines, ","), column)
+    text = ",".join(COLUMNS) + "\n" + "".join(line + "\n" for line in lines.tolist())
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, text)
+    return path
+
+
+def read_points2d(path: str | Path) -> Points2DFile:
+    """Read a points2d.csv written by :func:`write_points2d` (camera ids kept as text,
+    ``01`` stays ``01``)."""
+    path = Path(path)
+    try:
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
+    except FileNotFoundError:
+        raise KisscalError(f"{path}: file not found") from None
+    if not rows or tuple(rows[0]) != COLUMNS:
+        raise KisscalError(f"{path}: header must be {','.join(COLUMNS)}")
+    try:
+        body = np.array(rows[1:], dtype=str).reshape(-1, len(COLUMNS))
+        field = body[:, 1].astype(np.int64)
+        xy = body[:, 2:4].astype(float)
+        point = np.where(body[:, 4] == "", "-1", body[:, 4]).astype(np.int64)
+    except ValueError:
+        raise KisscalError(f"{path}: ragged rows, or text in field, x_px, y_px, point") from None
+    return Points2DFile(body[:, 0], field, xy, point)
