@@ -38,6 +38,10 @@ def run(
     root = Path(root)
     config = load_config(root)
     problems = validate(root, overrides)
+    for p in problems:
+        if p.warning:
+            echo(f"  warning: {p}")
+    problems = [p for p in problems if not p.warning]
     _stop_on_session_problems(problems, echo)
     broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
@@ -100,7 +104,7 @@ def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:
 def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:
     """Refuse to start when the calibration inputs or parameters are broken."""
     fatal = [p for p in problems if p.scope == SESSION]
-    for p in fatal:
+    for p in fatal if len(fatal) > 1 else ():  # one problem: the error line says it
         echo(f"  problem: {p}")
     if fatal:
         more = (

@@ -34,7 +34,7 @@ class Case:
     says: tuple[str, ...]  # words of the one-line message
     exit_code: int = 2
     kept: str = "every earlier output, byte for byte"
-    stdout: tuple[str, ...] = field(default=())  # words expected on stdout instead
+    log: tuple[str, ...] = field(default=())  # words expected in the log (stderr) instead
     fault: str | None = None  # an OS error injected in-process: "erofs" or "enospc"
 
 
@@ -359,7 +359,7 @@ CASES: tuple[Case, ...] = (
         ("validate", "S"),
         (),
         exit_code=0,
-        stdout=("every input is present",),
+        log=("every input is present",),
     ),
     Case(
         "misspelt-table",
@@ -553,7 +553,7 @@ CASES: tuple[Case, ...] = (
         ("reconstruct", "S", "static"),
         (),
         exit_code=0,
-        stdout=("reconstruct static: 200 points in 1 fields", "stationary filter not applied"),
+        log=("reconstruct static: 200 points in 1 fields", "stationary filter not applied"),
         kept="every output; all 200 points are reconstructed",
     ),
     Case(
@@ -564,7 +564,7 @@ CASES: tuple[Case, ...] = (
         ("run", "S"),
         (),
         exit_code=0,
-        stdout=("warning: walk01: no 3D points in 20 fields", "empty files written (20 fields)"),
+        log=("warning: walk01: no 3D points in 20 fields", "empty files written (20 fields)"),
         kept="every output; walk01 gets a header-only CSV and C3D/TRC files without points",
     ),
     Case(
@@ -575,7 +575,7 @@ CASES: tuple[Case, ...] = (
         ("run", "S"),
         (),
         exit_code=0,
-        stdout=("by 2 cameras",),
+        log=("by 2 cameras",),
         kept="every output; markers seen by both cameras are reconstructed",
     ),
     Case(
@@ -612,7 +612,7 @@ CASES: tuple[Case, ...] = (
         ("calibrate", "S"),
         (),
         exit_code=0,
-        stdout=("calibrate cam2", "18 rod markers", "missing R1.1"),
+        log=("calibrate cam2", "18 rod markers", "missing R1.1"),
         kept="that camera is calibrated on the other rods; the output names the missing markers",
     ),
     Case(
@@ -639,7 +639,7 @@ CASES: tuple[Case, ...] = (
         ("calibrate", "S"),
         (),
         exit_code=0,
-        stdout=("route wand", "warning: axes: cam2 sees 3 of the 4 axes markers"),
+        log=("route wand", "warning: axes: cam2 sees 3 of the 4 axes markers"),
         kept="the other cameras fix the lab frame; the output says which camera missed which",
     ),
     Case(
@@ -804,7 +804,7 @@ def markdown() -> str:
         command = "kisscal " + " ".join(
             "SESSION" if a == "S" else a.replace("S/", "SESSION/") for a in case.args
         )
-        says = " ... ".join(case.says or case.stdout).replace("|", "\\|")
+        says = " ... ".join(case.says or case.log).replace("|", "\\|")
         lines.append(f"| {case.did} | `{command}` | {says} | {case.exit_code} | {case.kept} |")
     return "\n".join(lines) + "\n"
 
