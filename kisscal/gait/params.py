@@ -40,6 +40,11 @@ class GaitParams(Params):
     off_fit_ms, off_search_ms : float
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
+    human_cadence : (float, float)
+        Cadence (steps/min) outside which no one walks: a trial's mean cadence outside it
+        points to a wrong ``[session] rate_hz`` (times scale with it), and the log says so.
+    human_speed : (float, float)
+        The same for the walking speed (m/s).
     """
 
     section = "gait"
@@ -54,9 +59,11 @@ class GaitParams(Params):
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
     off_search_ms: float = param(40.0, unit="ms", gt=0)
+    human_cadence: tuple[float, float] = param((30.0, 200.0), unit="steps/min", gt=0)
+    human_speed: tuple[float, float] = param((0.1, 3.0), unit="m/s", gt=0)
 
     def check(self) -> None:
-        for name in ("strike_window", "off_window"):
+        for name in ("strike_window", "off_window", "human_cadence", "human_speed"):
             lo, hi = getattr(self, name)
             if not lo < hi:
                 self.fail(f"{name} must be (earlier, later), got {(lo, hi)!r}")

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, SynthCamera, kiss_rig, ring_rig
 from kisscal.synth.motion import (
+    STICK_LENGTH_MM,
     Motion,
     standing_template,
     stick_trial,
@@ -331,6 +332,8 @@ def session_config(plan: SynthPlan, name: str) -> dict:
         },
         "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
     }
+    if "stick" in plan.trials:  # the report checks the stick trial against its true length
+        config["report"] = {"stick_length_mm": STICK_LENGTH_MM}
     if plan.axes_mm is not None:
         return wand_tables(config, plan.axes_mm, plan.options.wand_only)
     return config

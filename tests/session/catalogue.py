@@ -95,6 +95,57 @@ def wrong_size_frame(root: Path) -> None:
     cv2.imwrite(str(path), np.zeros((480, 640), np.uint8))
 
 
+def late_small_frame(root: Path) -> None:
+    """A 320 x 240 frame late in a camera's frames (validate once read the first only)."""
+    cv2.imwrite(str(frame(root, k=15)), np.zeros((240, 320), np.uint8))
+
+
+def jpeg_in_png(root: Path) -> None:
+    """JPEG data saved under the .png names of one camera's frames."""
+    for path in sorted((root / "trials" / "walk01" / "cam2").glob("*.png")):
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        path.write_bytes(cv2.imencode(".jpg", image)[1].tobytes())
+
+
+def renamed_camera_folders(root: Path) -> None:
+    """Every camera folder named after the camera's position, not its id."""
+    for cam_folder in sorted(root.glob("*/cam?")) + sorted(root.glob("trials/*/cam?")):
+        cam_folder.rename(
+            cam_folder.with_name(
+                "left" if cam_folder.name == "cam1" else f"view{cam_folder.name[-1]}"
+            )
+        )
+
+
+def unfilled_rods(data: dict) -> None:
+    for rod in data["rods"]["rod"]:
+        rod["points_mm"] = []
+
+
+def absolute_pattern(root: Path) -> None:
+    toml_edit(lambda d: d["trials"][0].update(images=f"{root}/trials/walk01/{{camera}}/*.png"))(
+        root
+    )
+
+
+def c3d_at_rate(rate_hz: float) -> Setup:
+    """A C3D trial ``old`` recorded at ``rate_hz`` with two markers in every frame."""
+
+    def setup(root: Path) -> None:
+        import ezc3d
+
+        c = ezc3d.c3d()
+        c["parameters"]["POINT"]["RATE"]["value"] = [rate_hz]
+        c["parameters"]["POINT"]["LABELS"]["value"] = ("A", "B")
+        points = np.ones((4, 2, 10))
+        points[:3] = np.random.default_rng(1).uniform(-500, 500, (3, 2, 10))
+        c["data"]["points"] = points
+        c.write(str(root / "old.c3d"))
+        toml_edit(lambda d: d["trials"].append({"name": "old", "c3d": "old.c3d"}))(root)
+
+    return setup
+
+
 def drop_frame(root: Path) -> None:
     frame(root, cam="cam3", k=7).unlink()
 
@@ -776,6 +827,90 @@ CASES: tuple[Case, ...] = (
         kept="nothing is written",
     ),
     Case(
+        "session-toml-given",
+        "session",
+        "named session.toml instead of its folder",
+        nothing,
+        ("validate", "S/session.toml"),
+        (),
+        exit_code=0,
+        log=("every input is present",),
+        kept="every output",
+    ),
+    Case(
+        "unfilled-template",
+        "session",
+        "left every rod of the init template unfilled",
+        toml_edit(unfilled_rods),
+        ("validate", "S"),
+        ("still to fill in", "rods.rod[0].points_mm (R1)", "rods.rod[3].points_mm (R4)"),
+    ),
+    Case(
+        "camera-folders-renamed",
+        "session",
+        "named the camera folders left, view2, ... instead of the camera ids",
+        renamed_camera_folders,
+        ("run", "S"),
+        ("grid holds folders left, view2, view3, view4", "none named after a camera id"),
+    ),
+    Case(
+        "late-small-frame",
+        "session",
+        "put a 320 x 240 frame at position 15 of 20",
+        late_small_frame,
+        ("validate", "S"),
+        ("1 problem found",),
+        log=("cam2", "000015.png is 320 x 240", "752 x 291"),
+    ),
+    Case(
+        "jpeg-in-png",
+        "session",
+        "saved JPEG data under the .png names of a camera's frames",
+        jpeg_in_png,
+        ("validate", "S"),
+        (),
+        exit_code=0,
+        log=(
+            "warning",
+            "cam2",
+            "20 of 20",
+            "JPEG data",
+            "lossy compression moves marker centroids",
+        ),
+        kept="every output",
+    ),
+    Case(
+        "absolute-images-pattern",
+        "reconstruction",
+        "gave an absolute images pattern",
+        absolute_pattern,
+        ("reconstruct", "S", "walk01"),
+        (),
+        exit_code=0,
+        log=("reconstruct walk01",),
+        kept="every output",
+    ),
+    Case(
+        "c3d-other-rate",
+        "session",
+        "gave a C3D trial recorded at 100 Hz in a 50 Hz session",
+        c3d_at_rate(100.0),
+        ("validate", "S"),
+        ("1 problem found",),
+        log=("old.c3d", "recorded at 100 frames per second", "rate_hz = 50"),
+    ),
+    Case(
+        "throw-wrong-rate",
+        "tracking",
+        "gave rate_hz = 30 for cameras at 50 Hz",
+        toml_edit(lambda d: d["session"].update(rate_hz=30.0)),
+        ("track", "S", "throw"),
+        (),
+        exit_code=0,
+        log=("warning: throw", "3.53 m/s²", "rate_hz = 30 right?", "at 50 Hz"),
+        kept="every output",
+    ),
+    Case(
         "detect-missing-image",
         "detection",
         "named an image that does not exist",
@@ -793,8 +928,9 @@ def markdown() -> str:
         "",
         "What kisscal does when an input is wrong. Each row is a test",
         "(`tests/session/test_catalogue.py`, generated from `tests/session/catalogue.py`).",
-        "Every message is one line, `kisscal <command>: error: ...`, never a traceback;",
-        "nothing already written is lost or half-overwritten.",
+        "Every error is one line, `kisscal <command>: error: ...`, the last line of the log",
+        "(stderr; the lines before it say what was done), never a traceback; nothing already",
+        "written is lost or half-overwritten. Rows with exit 0 list words of the log instead.",
         "",
         "| what the user did | command | kisscal says (words of the message) | exit | what is kept"
         " |",
