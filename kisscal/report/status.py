@@ -169,6 +169,21 @@ def trial_coverage(o: SessionOutputs, name: str, a: TrialAnalysis) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
+def _empty_verdict(o: SessionOutputs, name: str) -> Verdict:
+    """A trial without trajectories: processed and empty (a warning), or not yet run."""
+    entry = o.summary.get("trials", {}).get(name)
+    if entry is None:
+        return Verdict(name, "no trajectories (not processed yet)", "", NONE)
+    recon = entry.get("reconstruction", {})
+    points, fields = recon.get("points", 0), recon.get("fields")
+    where = f" in its {fields} fields" if fields else ""
+    text = (
+        f"processed, no trajectories: {points} 3D points{where} "
+        "(no marker seen by two cameras at once)"
+    )
+    return Verdict(name, text, "", WARN)
+
+
 def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
     """Are all markers there (or, for a validation trial, does it pass)?"""
     lim = o.limits
@@ -177,7 +192,7 @@ def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
         message = str(failed).removeprefix(f"trial {name}: ")
         return Verdict(name, f"failed: {message}", "", FAIL)
     if not a.markers:
-        return Verdict(name, "no trajectories (not processed yet)", "", NONE)
+        return _empty_verdict(o, name)
     checked = _validation_verdict(name, a, lim, o.rate_hz)
     if checked is not None:
         return checked
