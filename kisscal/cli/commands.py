@@ -414,7 +414,7 @@ def check(
     if failures:
         for f in failures:
             say(f"FAILED {f.camera}: {f.figure} {f.value:.4f} over the limit {f.limit:.4f}")
-        say(f"check FAILED: {plural(len(failures), 'figure')} over the limit")
+        say(f"FAILED check: {plural(len(failures), 'figure')} over the limit")
         raise typer.Exit(1)
     say("check passed: every figure is within its limit")
 

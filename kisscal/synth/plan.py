@@ -141,6 +141,11 @@ class SynthOptions:
     wand_only : bool
         Leave ``[grid]`` and ``[rods]`` out of ``session.toml``: calibrate from the wand
         and the L-frame alone.
+    replay_in_view : bool
+        Cut the replayed recording (``walk5``) to its longest run of fields inside the
+        control volume, as the rigs other than KISS always do: the KISS rig sees the middle
+        2.4 m of the recorded 6.7 m walk, so the whole replay is covered in only part of
+        its fields (the demo cuts it; the KISS preset keeps the whole walk by default).
     """
 
     seed: int = 1
@@ -155,6 +160,7 @@ class SynthOptions:
     rig: RigSpec = field(default_factory=RigSpec)
     wand_fields: int = 0
     wand_only: bool = False
+    replay_in_view: bool = False
 
 
 @dataclass(frozen=True)
@@ -259,6 +265,8 @@ def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
             "stick": stick_trial(seed, options.stick_fields, rate),
             "throw": throw_trial(seed, rate),
         }
+        if replay is not None and options.replay_in_view:
+            replay = slim_capsules(inside_volume(replay, spec.volume_mm, options.fields))
         if replay is not None:
             trials["walk5"] = replay
         return _with_wand(trials, options)

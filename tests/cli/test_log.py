@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -82,3 +83,20 @@ def test_run_ends_with_a_verdict_line(small_session: Path, tmp_path: Path) -> No
     assert str(root / "out" / "report.html") in last
     assert "1 trajectories" not in result.stderr and "1 pieces" not in result.stderr
     assert result.stdout == ""
+
+
+@pytest.mark.slow
+def test_progress_bars_show_elapsed_time_and_eta(small_session: Path, tmp_path: Path) -> None:
+    root = tmp_path / "s"
+    shutil.copytree(small_session, root, ignore=shutil.ignore_patterns("out"))
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "FORCE_COLOR": "1", "COLUMNS": "160"}
+    result = subprocess.run(  # FORCE_COLOR: rich draws its bars as on a terminal
+        [sys.executable, "-m", "kisscal", "linearise", str(root), "--camera", "cam1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "ETA" in result.stderr and re.search(r"\d:\d\d:\d\d", result.stderr)
+    assert "linearise cam1" in result.stderr and result.stdout == ""

@@ -134,7 +134,7 @@ def test_check_gate(processed: Path) -> None:
     assert bad.returncode == 1
     failed = [line for line in bad.stderr.splitlines() if line.startswith("FAILED")]
     assert any("dlt rms_px" in line and "cam1" in line for line in failed), bad.stderr
-    assert "check FAILED" in bad.stderr and "limits.json" in bad.stderr and bad.stdout == ""
+    assert "FAILED check: " in bad.stderr and "limits.json" in bad.stderr and bad.stdout == ""
 
 
 def test_rig_load_gives_the_written_calibration(processed: Path) -> None:
