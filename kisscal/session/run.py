@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,9 @@ from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.track import track
 from kisscal.session.validate import SESSION, Problem, validate
+
+#: Debug lines (``kisscal --verbose``): each stage's time.
+_LOG = logging.getLogger(__name__)
 
 
 @writes_session
@@ -50,6 +54,7 @@ def run(
         t = time.perf_counter()
         step(*args, **kwargs)
         timings[name] = time.perf_counter() - t
+        _LOG.debug("%s: %.2f s", name.removesuffix("_s"), timings[name])
 
     if needs_calibration(config):
         echo("[1/4] linearisation")

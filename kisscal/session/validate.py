@@ -21,7 +21,6 @@ from kisscal.io.files import read_table
 from kisscal.io.frames import (
     LOSSY_FORMATS,
     camera_frames,
-    frame_name,
     image_header,
     source_files,
 )
@@ -158,10 +157,10 @@ def _frame_sizes(
 ) -> list[str]:
     """Problems of a camera's frame sizes: each frame's size from its file header
     (a video: its first frame) against ``[[cameras]] size``, or against the first frame."""
-    paths = source_files(frames) if not getattr(frames, "sequential", False) else []
     if not len(frames):
         return [f"no {what} frames for camera {camera}"]
-    if not paths:  # a video: every frame has the size of the first
+    paths = source_files(frames)
+    if getattr(frames, "sequential", False):  # a video: every frame has the first's size
         sizes, problems = [_frame_size(frames[0])], []
     else:
         headers = [image_header(p) for p in paths]
@@ -172,8 +171,7 @@ def _frame_sizes(
     given = "[[cameras]] size says" if size is not None else "its first frame is"
     odd = [i for i, s in enumerate(sizes) if s != expected]
     if odd:
-        name = frame_name(frames, odd[0]) if paths else what
-        w, h = sizes[odd[0]]
+        name, (w, h) = paths[odd[0]], sizes[odd[0]]
         more = f" (and {len(odd) - 1} more)" if len(odd) > 1 else ""
         problems.append(
             f"camera {camera}: {what} frame {name} is {w} x {h} pixels{more}, "

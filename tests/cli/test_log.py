@@ -76,10 +76,11 @@ def test_a_session_is_given_as_its_folder_its_toml_or_the_current_folder(
 def test_run_ends_with_a_verdict_line(small_session: Path, tmp_path: Path) -> None:
     root = tmp_path / "s"
     shutil.copytree(small_session, root)
-    result = kisscal("run", str(root))
+    result = kisscal("run", str(root), "--verbose")
     assert result.returncode == 0, result.stderr[-2000:]
     last = result.stderr.strip().splitlines()[-1]
-    assert last.startswith("kisscal run: done in ") and "3 trials processed" in last
+    assert re.match(r"\[ *\d+ ms\] kisscal run: done in \d+ s: 3 trials processed", last), last
+    assert re.search(r"ms\] linearise: [\d.]+ s$", result.stderr, re.M)  # a debug line
     assert str(root / "out" / "report.html") in last
     assert "1 trajectories" not in result.stderr and "1 pieces" not in result.stderr
     assert result.stdout == ""
