@@ -20,6 +20,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import pickle
+import signal
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -160,7 +161,24 @@ def _adopt(payload: Any, packed: bool) -> None:
     # run a parallel OpenCV call (a detection survey does), the child's first parallel call
     # can wait forever. A worker process needs no threads of its own.
     cv2.setNumThreads(0)
+    # Ctrl-C at a terminal reaches every process of the group: the parent alone reports
+    # it (one line), and ends the workers; a worker's own KeyboardInterrupt would print
+    # a traceback per process.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _INHERITED["payload"] = pickle.loads(payload) if packed else payload
+
+
+class _Pool(ProcessPoolExecutor):
+    """A process pool that, left by an exception (Ctrl-C above all), ends its workers at
+    once: the standard pool would first finish every task already queued."""
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
+        if exc_type is None:
+            return bool(super().__exit__(exc_type, exc, tb))
+        for process in list((self._processes or {}).values()):
+            process.terminate()
+        self.shutdown(wait=True, cancel_futures=True)
+        return False
 
 
 def start_method() -> str | None:
@@ -202,7 +220,7 @@ def worker_pool(workers: int, payload: Any = None) -> ProcessPoolExecutor | None
             payload = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError):
             return None
-    return ProcessPoolExecutor(
+    return _Pool(
         max_workers=workers,
         mp_context=multiprocessing.get_context(method),
         initializer=_adopt,

@@ -15,4 +15,3 @@ class KisscalError(ValueError):
     """
 
     exit_code: int = 2
-

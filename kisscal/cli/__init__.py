@@ -1,17 +1,22 @@
 """The ``kisscal`` command line: a thin typer layer over :mod:`kisscal.session`.
 
 Every user error is reported on one line, ``kisscal <command>: error: ...``, with exit
-code 2; ``kisscal check`` exits 1 when a quality limit is exceeded.
+code 2; ``kisscal check`` exits 1 when a quality limit is exceeded; Ctrl-C prints one
+``interrupted`` line and exits 130. The log goes to stderr, data to stdout
+(:mod:`kisscal.cli.log`).
 """
 
 from __future__ import annotations
 
+import _thread
 import sys
+from typing import Any
 
 import typer
 
 from kisscal.cli import commands as _commands  # noqa: F401  (registers the commands)
 from kisscal.cli.app import app
+from kisscal.cli.log import configure, level_from_flags
 from kisscal.errors import KisscalError
 
 __all__ = ["app", "main"]
@@ -24,6 +29,10 @@ def _click_class(name: str) -> type[Exception]:
 
 UsageError = _click_class("UsageError")
 ClickException = _click_class("ClickException")
+
+
+#: Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it).
+INTERRUPTED = 130
 
 
 def _command_name(args: list[str]) -> str:
@@ -40,7 +49,9 @@ def main(argv: list[str] | None = None) -> None:
     stage are printed as ``kisscal <command>: error: ...`` with exit code 2, never as a
     traceback.
     """
-    args = sys.argv[1:] if argv is None else argv
+    level, args = level_from_flags(sys.argv[1:] if argv is None else list(argv))
+    configure(level)
+    sys.unraisablehook = _keep_interrupts
     where = _command_name(args)
     try:
         rv = app(args=args or ["--help"], prog_name="kisscal", standalone_mode=False)
@@ -51,9 +62,25 @@ def main(argv: list[str] | None = None) -> None:
         _fail(where, f"{exc.strerror or exc}{detail}", 2)
     except ClickException as exc:
         _fail(where, exc.format_message(), 2 if isinstance(exc, UsageError) else exc.exit_code)
-    except typer.Abort:
-        _fail(where, "interrupted", 130)
+    except (typer.Abort, KeyboardInterrupt):  # Ctrl-C: worker processes ignore it
+        rv = INTERRUPTED
+    if rv == INTERRUPTED:  # typer turns a KeyboardInterrupt into this exit code
+        _fail(where, "interrupted", INTERRUPTED)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _keep_interrupts(unraisable: Any) -> None:
+    """Do not lose a Ctrl-C that Python could not raise where it arrived.
+
+    A SIGINT that arrives while the process forks a worker is raised in a callback run
+    just after the fork (logging's lock release), where it is only printed and dropped.
+    It is raised again in the main thread instead, so the command stops with its one
+    ``interrupted`` line.
+    """
+    if issubclass(unraisable.exc_type, KeyboardInterrupt):
+        _thread.interrupt_main()
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 def _fail(where: str, message: str, code: int) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Callable, Iterator
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as package_version
@@ -10,6 +11,9 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from kisscal._text import plural
+from kisscal.cli import log
 
 app = typer.Typer(
     name="kisscal",
@@ -20,8 +24,31 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
 
+
+def _session_folder(path: Path) -> Path:
+    """The session folder a command is given: the folder, or its ``session.toml``; the
+    current folder by name when none is given (messages then say which it was)."""
+    if path.name == "session.toml" and not path.is_dir():
+        path = path.parent
+    return Path.cwd() if path == Path() else path
+
+
 SessionArg = Annotated[
-    Path, typer.Argument(help="Session folder (holds session.toml).", metavar="SESSION")
+    Path,
+    typer.Argument(
+        help="Session folder (holds session.toml), or its session.toml.",
+        metavar="SESSION",
+        callback=_session_folder,
+    ),
+]
+SessionHereArg = Annotated[
+    Path,
+    typer.Argument(
+        help="Session folder (holds session.toml), or its session.toml [default: this folder].",
+        metavar="[SESSION]",
+        callback=_session_folder,
+        show_default=False,
+    ),
 ]
 TrialArg = Annotated[str, typer.Argument(help="Trial name from session.toml.", metavar="TRIAL")]
 
@@ -46,28 +73,56 @@ def _main(
         bool,
         typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
     ] = False,
+    quiet: Annotated[  # read by kisscal.cli.main wherever it stands; declared for --help
+        bool, typer.Option("--quiet", "-q", help="Log warnings and errors only.")
+    ] = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="Also log debug lines, timed.")
+    ] = False,
 ) -> None:
     """Calibration and reconstruction for marker-based multi-camera gait capture.
 
     A session folder holds session.toml and the camera images; every output goes to its
     out/ folder. Start with `kisscal demo`, then `kisscal run SESSION` on your own.
+    The log goes to stderr (--quiet and --verbose may stand anywhere on the line), data
+    to stdout.
     """
+
+
+def run_verdict(summary: dict, seconds: float, out: Path) -> str:
+    """The last line of ``kisscal run``: what was made, how long it took, what to read."""
+    trials = summary.get("trials", {})
+    tracks = sum(int(t.get("trajectories", 0) or 0) for t in trials.values())
+    warned = log.warnings_logged()
+    notes = f"; {plural(warned, 'warning')} above" if warned else ", no warnings"
+    return (
+        f"kisscal run: done in {seconds:.0f} s: {plural(len(trials), 'trial')} processed, "
+        f"{plural(tracks, 'trajectory')}{notes}; report: {out / 'report.html'}"
+    )
 
 
 @contextlib.contextmanager
 def progress_bars() -> Iterator[Callable[[str], object]]:
-    """A progress bar per pipeline stage on a terminal; plain lines when output is redirected.
+    """A progress bar per pipeline stage on a terminal (stderr); none when it is redirected.
 
-    Yields the function that prints the pipeline's messages (above the bars on a terminal).
+    Yields the function that logs the pipeline's messages (:func:`kisscal.cli.log.say`),
+    written above the bars while they are drawn.
     """
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     from kisscal import session
 
     console = Console(stderr=True)
-    if not console.is_terminal:
-        yield typer.echo
+    if not console.is_terminal or log.LOG.getEffectiveLevel() > logging.INFO:
+        yield log.say
         return
 
     class Bars(session.Progress):
@@ -82,6 +137,17 @@ def progress_bars() -> Iterator[Callable[[str], object]]:
             if self.task is not None:
                 self.bars.advance(self.task, steps)
 
-    columns = (TextColumn("{task.description:<34}"), BarColumn(), MofNCompleteColumn())
+    columns = (
+        TextColumn("{task.description:<34}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+    )
     with Progress(*columns, console=console) as bars, session.reporting_progress(Bars(bars)):
-        yield lambda line: bars.console.print(line, markup=False, highlight=False)
+        log.set_sink(lambda line: bars.console.print(line, markup=False, highlight=False))
+        try:
+            yield log.say
+        finally:
+            log.set_sink(None)

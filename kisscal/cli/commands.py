@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Annotated, Literal
 
 import typer
 
-from kisscal.cli.app import SessionArg, TrialArg, app, example_epilog, progress_bars
+from kisscal.cli.app import (
+    SessionArg,
+    SessionHereArg,
+    TrialArg,
+    app,
+    example_epilog,
+    plural,
+    progress_bars,
+    run_verdict,
+)
+from kisscal.cli.log import say
 from kisscal.errors import KisscalError
 
 
@@ -21,7 +32,7 @@ def demo(
     """Synthesise a KISS-like session and process it end to end."""
     from kisscal import session
 
-    session.demo(out, seed=seed, echo=typer.echo)
+    session.demo(out, seed=seed, echo=say)
 
 
 @app.command(
@@ -87,7 +98,7 @@ def synth(
 
     if target is not None:
         session.synthesise_target(
-            out, target, seed=seed, n_cameras=cameras or 3, force=force, echo=typer.echo
+            out, target, seed=seed, n_cameras=cameras or 3, force=force, echo=say
         )
         return
     session.synthesise(
@@ -100,7 +111,7 @@ def synth(
         blur_px=blur_px,
         walking5=walking5,
         force=force,
-        echo=typer.echo,
+        echo=say,
         wand_fields=wand,
         wand_only=wand_only,
     )
@@ -168,7 +179,6 @@ def detect(
             if v is not None
         }
     )
-    say = typer.echo if out is not None else lambda line: typer.echo(line, err=True)
     tables = session.detect_images(
         images, out, overlay, given, echo=say, session=session_dir, camera=camera, kind=kind
     )
@@ -293,7 +303,7 @@ def track(
     if smooth:
         tracking["smoothing"] = True
     overrides = session.Overrides(tracking=tracking)
-    session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=typer.echo)
+    session.track(session_dir, trial, overrides=overrides, sweep=sweep, echo=say)
 
 
 @app.command(
@@ -326,7 +336,7 @@ def export(
     """Write the session's calibration for another tool (after kisscal calibrate)."""
     from kisscal.session.exports import export as export_calibration
 
-    export_calibration(session_dir, to, out, echo=typer.echo, units=units)
+    export_calibration(session_dir, to, out, echo=say, units=units)
 
 
 @app.command(
@@ -346,30 +356,37 @@ def init(
     from kisscal.session.init import init_session
 
     path = init_session(session_dir, cameras, preset)
-    typer.echo(f"wrote {path}: fill in the lines marked FILL IN, add the images, then")
-    typer.echo(f"  kisscal validate {session_dir}")
+    say(f"wrote {path}: fill in the lines marked FILL IN, add the images, then")
+    say(f"  kisscal validate {session_dir}")
 
 
-@app.command(epilog=example_epilog("kisscal validate lab/2026-11-21"))
-def validate(session_dir: SessionArg) -> None:
+@app.command(epilog=example_epilog("kisscal validate", "kisscal validate lab/2026-11-21"))
+def validate(session_dir: SessionHereArg = Path()) -> None:
     """Check every input of a session before any work; list each problem."""
     from kisscal import session
 
     problems = session.validate(session_dir)
     for problem in problems:
-        typer.echo(f"problem: {problem}")
-    if problems:
-        raise KisscalError(f"{len(problems)} problem(s) found (listed above)")
-    typer.echo(f"{session_dir}: every input is present and consistent")
+        say(f"{'warning' if problem.warning else 'problem'}: {problem}")
+    errors = [p for p in problems if not p.warning]
+    if errors:
+        raise KisscalError(f"{plural(len(errors), 'problem')} found (listed above)")
+    say(f"{session_dir}: every input is present and consistent")
 
 
-@app.command(epilog=example_epilog("kisscal run lab/2026-11-21"))
-def run(session_dir: SessionArg) -> None:
+@app.command(
+    epilog=example_epilog(
+        "kisscal run", "kisscal run lab/2026-11-21", "kisscal run lab/2026-11-21/session.toml"
+    )
+)
+def run(session_dir: SessionHereArg = Path()) -> None:
     """Process the whole session, grid images to trajectories."""
     from kisscal import session
 
+    started = time.perf_counter()
     with progress_bars() as echo:
-        session.run(session_dir, echo=echo)
+        summary = session.run(session_dir, echo=echo)
+    say(run_verdict(summary, time.perf_counter() - started, session.out_dir(session_dir)))
 
 
 @app.command(
@@ -395,14 +412,17 @@ def check(
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
         raise KisscalError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
+    limits = session.out_dir(session_dir) / "limits.json"
+    say(f"limits written to {limits}: the report judges the session by them from now on")
     if (session.out_dir(session_dir) / "report.html").is_file():
         session.report(session_dir)  # its verdicts now use these limits
+        say(f"report updated: {session.out_dir(session_dir) / 'report.html'}")
     if failures:
-        typer.echo(f"{'camera':<8} {'figure':<28} {'value':>10} {'limit':>10}")
         for f in failures:
-            typer.echo(f"{f.camera:<8} {f.figure:<28} {f.value:>10.4f} {f.limit:>10.4f}")
+            say(f"FAILED {f.camera}: {f.figure} {f.value:.4f} over the limit {f.limit:.4f}")
+        say(f"FAILED check: {plural(len(failures), 'figure')} over the limit")
         raise typer.Exit(1)
-    typer.echo("check passed: every figure is within its limit")
+    say("check passed: every figure is within its limit")
 
 
 @app.command(epilog=example_epilog("kisscal report lab/2026-11-21"))
@@ -410,7 +430,7 @@ def report(session_dir: SessionArg) -> None:
     """Rebuild out/report.html of a processed session."""
     from kisscal import session
 
-    session.report(session_dir, echo=typer.echo)
+    session.report(session_dir, echo=say)
 
 
 @app.command(
@@ -427,6 +447,6 @@ def batch(
     """Run many sessions in parallel on Dask."""
     from kisscal import session
 
-    failed = session.batch(sessions, scheduler=scheduler, echo=typer.echo)
+    failed = session.batch(sessions, scheduler=scheduler, echo=say)
     if failed:
         raise typer.Exit(1)

@@ -64,6 +64,11 @@ class GaitParams(Params):
     min_step_s : float
         Two extrema of one foot's relative position are at least this far apart (a
         stride is longer than 0.7 s even when running).
+    human_cadence : (float, float)
+        Cadence (steps/min) outside which no one walks: a trial's mean cadence outside it
+        points to a wrong ``[session] rate_hz`` (times scale with it), and the log says so.
+    human_speed : (float, float)
+        The same for the walking speed (m/s).
     """
 
     section = "gait"
@@ -86,9 +91,11 @@ class GaitParams(Params):
     max_missing: float = param(0.5, ge=0, le=1)
     coordinate_prominence: float = param(0.3, gt=0, lt=1)
     min_step_s: float = param(0.5, unit="s", gt=0)
+    human_cadence: tuple[float, float] = param((30.0, 200.0), unit="steps/min", gt=0)
+    human_speed: tuple[float, float] = param((0.1, 3.0), unit="m/s", gt=0)
 
     def check(self) -> None:
-        for name in ("strike_window", "off_window"):
+        for name in ("strike_window", "off_window", "human_cadence", "human_speed"):
             lo, hi = getattr(self, name)
             if not lo < hi:
                 self.fail(f"{name} must be (earlier, later), got {(lo, hi)!r}")

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.gait.markers import GaitMarkers
+from kisscal.gait.params import GaitParams
 from kisscal.gait.table import SIDES, GaitEvents
 
 #: Parameter -> unit, in the order of the table.
@@ -90,6 +91,31 @@ class Spatiotemporal:
                 "n": row["n_strides"],
             }
         return out
+
+
+def outside_walking(st: Spatiotemporal, params: GaitParams) -> list[str]:
+    """The mean cadence and walking speed of a trial that no one walks at (both sides'
+    strides together), as ``"cadence 250 steps/min"``; empty when both are plausible.
+
+    Examples
+    --------
+    >>> st = Spatiotemporal({("cadence", "left"): np.array([250.0]),
+    ...     ("cadence", "right"): np.array([260.0]), ("walking_speed", "left"): np.array([1.2]),
+    ...     ("walking_speed", "right"): np.array([])})
+    >>> outside_walking(st, GaitParams())
+    ['cadence 255 steps/min (human: 30-200)']
+    """
+    found = []
+    for parameter, (lo, hi) in (
+        ("cadence", params.human_cadence),
+        ("walking_speed", params.human_speed),
+    ):
+        values = np.concatenate([st.values.get((parameter, side), np.empty(0)) for side in SIDES])
+        mean = float(np.mean(values)) if len(values) else float("nan")
+        if np.isfinite(mean) and not lo <= mean <= hi:
+            name = parameter.replace("_", " ")
+            found.append(f"{name} {mean:.3g} {UNITS[parameter]} (human: {lo:g}-{hi:g})")
+    return found
 
 
 def _none_if_nan(x: object) -> object:

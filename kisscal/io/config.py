@@ -491,7 +491,31 @@ def load_session(root: Path) -> SessionConfig:
     root = Path(root)
     if not root.is_dir():
         raise KisscalError(f"{root}: session folder not found")
-    return parse_session(load_toml(root / "session.toml"), root)
+    data = load_toml(root / "session.toml")
+    unfilled = _unfilled(data)
+    if unfilled:  # a fresh `kisscal init` template: every blank at once, not one per run
+        raise KisscalError(
+            f"{root / 'session.toml'}: still to fill in (empty): {', '.join(unfilled)}"
+        )
+    return parse_session(data, root)
+
+
+def _unfilled(value: Any, where: str = "") -> list[str]:
+    """Where ``session.toml`` holds an empty list of coordinates (``points_mm = []``, as
+    ``kisscal init`` writes them), named as the messages name keys (``rods.rod[0]...``)."""
+    if isinstance(value, dict):
+        named = f" ({value['name']})" if isinstance(value.get("name"), str) else ""
+        found = []
+        for key, item in value.items():
+            path = f"{where}.{key}" if where else str(key)
+            if key.endswith("_mm") and isinstance(item, list) and not item:
+                found.append(f"{path}{named}")
+            else:
+                found += _unfilled(item, path)
+        return found
+    if isinstance(value, list):
+        return [w for i, item in enumerate(value) for w in _unfilled(item, f"{where}[{i}]")]
+    return []
 
 
 def read_detection_table(path: Path) -> dict[str, Any]:

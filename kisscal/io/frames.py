@@ -9,6 +9,7 @@ frames into their two fields.
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,14 +68,59 @@ def is_image_file(path: Path) -> bool:
     return head.startswith(IMAGE_SIGNATURES)
 
 
+@dataclass(frozen=True)
+class ImageHeader:
+    """What an image file's header says, read without decoding its pixels."""
+
+    size: tuple[int, int]  # width, height in pixels
+    format: str  # the format of the data ("PNG", "JPEG", ...), whatever the file's name
+
+
+#: Formats whose compression changes pixel values (and so moves centroids).
+LOSSY_FORMATS = frozenset({"JPEG", "MPO"})
+
+
+_PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def image_header(path: Path) -> ImageHeader:
+    """Size and data format of an image file, from its header only (cheap: no decoding).
+
+    PNG (the usual frame format) is read from its first 24 bytes; other formats by Pillow,
+    which also reads only the header.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with open(path, "rb") as file:
+            head = file.read(24)
+        if head[:8] == _PNG and head[12:16] == b"IHDR":
+            w, h = struct.unpack(">II", head[16:24])
+            return ImageHeader((int(w), int(h)), "PNG")
+        with Image.open(path) as image:
+            return ImageHeader((int(image.width), int(image.height)), str(image.format))
+    except (UnidentifiedImageError, OSError, ValueError) as exc:
+        detail = "file not found" if isinstance(exc, FileNotFoundError) else "not a readable image"
+        raise KisscalError(f"{path}: {detail}") from None
+
+
+def _glob(root: Path, pattern: str) -> list[Path]:
+    """Files matching ``pattern``, relative to ``root`` or absolute."""
+    if Path(pattern).is_absolute():  # Path.glob takes relative patterns only
+        anchor = Path(Path(pattern).anchor)
+        return list(anchor.glob(str(Path(pattern).relative_to(anchor))))
+    return list(Path(root).glob(pattern))
+
+
 def frame_paths(root: Path, pattern: str, camera: str, what: str) -> list[Path]:
-    """Sorted frame files of ``camera`` matching ``pattern`` (``{camera}`` substituted).
+    """Sorted frame files of ``camera`` matching ``pattern`` (``{camera}`` substituted;
+    relative to ``root``, or absolute).
 
     A file is a frame by its suffix (PNG, TIFF, BMP) or, without one, by its content; when
     none is found the message names the files the pattern matched, or those beside it.
     """
     glob = pattern.replace("{camera}", camera)
-    matched = sorted(p for p in Path(root).glob(glob) if p.is_file())
+    matched = sorted(p for p in _glob(root, glob) if p.is_file())
     paths = [p for p in matched if is_image_file(p)]
     if not paths:
         raise KisscalError(

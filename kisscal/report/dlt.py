@@ -14,7 +14,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
-from kisscal.report.figures import arrow_gain, nice_number
+from kisscal.report.figures import arrow_gain, nice_number, scale_key
 
 
 @dataclass(frozen=True)
@@ -90,12 +90,10 @@ def residual_figure(
             color="tab:red",
             width=0.004,
         )
-        ax.quiverkey(
-            arrows, 0.80, 1.04, key * scale, f"{key:g} px", labelpos="E", fontproperties={"size": 7}
-        )
         ax.set_xlim(-10, w + 10)
         ax.set_ylim(h + 10, -10)  # image y axis points down
         ax.set_aspect("equal")
+        scale_key(ax, arrows, key * scale, f"{key:g} px")
         ax.set_title(
             f"{name}: rms {c.rms_px:.3f} px, {len(uv)} points, arrows x{scale:.0f}",
             fontsize=9,

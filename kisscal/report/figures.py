@@ -51,6 +51,28 @@ def arrow_gain(vectors: np.ndarray, length_px: float) -> float:
     return length_px / typical if typical > 0 else 1.0
 
 
+def scale_key(ax, arrows, length: float, label: str, fontsize: float = 7) -> None:
+    """The key arrow of a quiver, in a band added at the bottom of the panel.
+
+    Above the panel it would sit on the title's line and cover it; inside the band it
+    covers neither the title nor the data. Call after the panel's limits are final (and
+    the y axis inverted, for images).
+    """
+    bottom, top = ax.get_ylim()
+    band = 0.14 * abs(top - bottom)
+    ax.set_ylim(bottom + band if bottom > top else bottom - band, top)
+    ax.quiverkey(
+        arrows,
+        0.80,
+        0.05,
+        length,
+        label,
+        labelpos="E",
+        coordinates="axes",
+        fontproperties={"size": fontsize},
+    )
+
+
 def padded_range(values: np.ndarray, centre: float, half: float = MIN_HALF_RANGE_MM) -> tuple:
     """Axis limits around ``centre`` spanning the data and at least ``half`` each side."""
     v = values[np.isfinite(values)]

@@ -174,6 +174,17 @@ def _marker_names(config: Any, notes: list[str]) -> tuple[tuple, tuple]:
     return chosen.names, tuple(markers.segments) or chosen.segments
 
 
+def _session_params(config: Any, notes: list[str]) -> ReportParams:
+    """The session's ``[report]`` table (the defaults where it has none, or is invalid)."""
+    if config is None:
+        return ReportParams()
+    try:
+        return ReportParams.from_layers(config.sections.get("report", {}))
+    except KisscalError as exc:
+        notes.append(f"[report] not used: {exc}")
+        return ReportParams()
+
+
 def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     """Read a processed session's outputs for :func:`kisscal.report.html.build_report`."""
     root = Path(root)
@@ -214,6 +225,6 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         wand=_json(out / "dlt" / "wand.json", notes),
         trial_outputs={t: _trial(out, t, notes) for t in trials},
         figures=figures,
-        limits=_limits(out, params or ReportParams(), notes),
+        limits=_limits(out, params or _session_params(config, notes), notes),
         notes=notes,
     )

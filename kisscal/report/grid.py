@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 from kisscal.grid.fit import GridFit
 from kisscal.grid.quality import line_distances
-from kisscal.report.figures import arrow_gain, nice_number
+from kisscal.report.figures import arrow_gain, nice_number, scale_key
 
 
 def _figure(width_in: float, height_in: float) -> Figure:
@@ -102,9 +102,6 @@ def grid_correction_figure(
         color="tab:blue",
     )
     key = nice_number(0.6 * spacing / gain)
-    bx.quiverkey(
-        arrows, 0.86, 1.03, key * gain, f"{key:g} px", labelpos="E", fontproperties={"size": 8}
-    )
     bx.set_title(
         f"residual vectors (corrected - optimal grid), magnified x {gain:.0f}",
         fontsize=9,
@@ -123,6 +120,7 @@ def grid_correction_figure(
         a.invert_yaxis()
         a.set_xlabel("u (px)")
         a.set_ylabel("v (px)")
+    scale_key(bx, arrows, key * gain, f"{key:g} px", fontsize=8)
     ax.legend(fontsize=7, loc="upper right", framealpha=0.8)
     return fig
 

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from kisscal.report.figures import stick_figure, throw_figure
 from kisscal.report.gather import SessionOutputs
 from kisscal.report.htmlkit import Html, badge, details, fmt, join, png, section, table, tag
-from kisscal.report.status import TrialAnalysis, Verdict, trial_coverage
+from kisscal.report.status import FAIL, WARN, TrialAnalysis, Verdict, trial_coverage
 from kisscal.report.viewer import trial_data, viewer_data, viewer_html
 
 
@@ -118,8 +118,11 @@ def fill_list(fills: tuple[tuple[int, int, str], ...], most: int = 8) -> str:
     return text + (f", ... ({len(fills)} in all)" if len(fills) > most else "") or "-"
 
 
-def marker_details(o: SessionOutputs, a: TrialAnalysis, used: set[str]) -> Html:
-    """Per trajectory presence, the segment lengths and the trial's figures, folded."""
+def marker_details(
+    o: SessionOutputs, a: TrialAnalysis, used: set[str], open_: bool = False
+) -> Html:
+    """Per trajectory presence, the segment lengths and the trial's figures, folded
+    (unfolded with ``open_``: a trial to check shows which trajectory is short at once)."""
     parts: list[Any] = []
     rows = [
         [
@@ -189,7 +192,9 @@ def marker_details(o: SessionOutputs, a: TrialAnalysis, used: set[str]) -> Html:
     if fig in o.figures:
         used.add(fig)
         parts.append(png(o.figures[fig], fig, f"{a.name}: trajectories in three views (mm)."))
-    return details(f"{a.name}: every trajectory, segment lengths and views", join(parts))
+    return details(
+        f"{a.name}: every trajectory, segment lengths and views", join(parts), open_=open_
+    )
 
 
 def trials_section(
@@ -201,7 +206,11 @@ def trials_section(
     if not o.trials:
         return Html("")
     parts: list[Any] = [trial_table(o, analyses, verdicts)]
-    parts += [marker_details(o, analyses[n], used) for n in o.trials if analyses[n].markers]
+    parts += [
+        marker_details(o, analyses[n], used, open_=verdicts[n].state in (WARN, FAIL))
+        for n in o.trials
+        if analyses[n].markers
+    ]
     parts.append(cameras_table(o))
     for name in o.trials:
         fig = f"epipolar_{name}"

@@ -27,9 +27,11 @@ class ReportParams(Params):
         al. 2007 report 2.39 mm for a real lab's DLT.
     min_coverage : float
         Least fraction of a trial's fields in which every trajectory has a sample.
-    stick_length_mm : float
-        True distance between the two markers of the validation stick (Shafiq et al. 2001:
-        502.5 mm).
+    stick_length_mm : float, optional
+        True distance between the two markers of a validation stick (Shafiq et al. 2001
+        used one of 502.5 mm). Only when it is given is a trial checked as a stick: one
+        with ``stick`` in its name, or another whose two longest trajectories (of at most
+        four) keep their distance. Not given (the default), no trial is.
     max_stick_error_mm : float
         Largest mean absolute stick-length error, and largest SD (Shafiq et al. 2001
         measured 1.1 mm and 1.5 mm).
@@ -47,7 +49,7 @@ class ReportParams(Params):
     max_reproj_px: float = param(0.5, unit="px", gt=0)
     max_3d_mm: float = param(2.0, unit="mm", gt=0)
     min_coverage: float = param(0.95, ge=0, le=1)
-    stick_length_mm: float = param(502.5, unit="mm", gt=0)
+    stick_length_mm: float | None = param(None, unit="mm", gt=0)
     max_stick_error_mm: float = param(2.0, unit="mm", gt=0)
     g_m_s2: float = param(9.81, unit="m/s^2", gt=0)
     max_g_error: float = param(0.02, gt=0, lt=1)

@@ -16,7 +16,13 @@ import numpy as np
 from kisscal.report.gather import SessionOutputs, TrialOutputs
 from kisscal.report.markers import MarkerStats, SegmentStats, marker_stats, segment_stats
 from kisscal.report.params import ReportParams
-from kisscal.report.validation import StickLength, ThrowFit, stick_length, throw_fit
+from kisscal.report.validation import (
+    StickLength,
+    ThrowFit,
+    rate_doubt,
+    stick_length,
+    throw_fit,
+)
 
 PASS, WARN, FAIL, NONE = "pass", "warn", "fail", "none"
 _ORDER = {NONE: 0, PASS: 1, WARN: 2, FAIL: 3}
@@ -112,7 +118,11 @@ def analyse_trial(o: SessionOutputs, t: TrialOutputs) -> TrialAnalysis:
     lim = o.limits
     tracking = o.summary.get("trials", {}).get(t.name, {}).get("tracking", {})
     labelled = bool(tracking.get("fits_marker_set"))  # a gait trial: validation by name only
-    stick = stick_length(t.dense, t.name, o.rate_hz, lim.stick_length_mm, labelled)
+    stick = (
+        stick_length(t.dense, t.name, o.rate_hz, lim.stick_length_mm, labelled)
+        if lim.stick_length_mm is not None  # only a session that describes its stick
+        else None
+    )
     throw = None if stick else throw_fit(t.dense, t.name, o.rate_hz, lim.g_m_s2, labelled)
     return TrialAnalysis(
         t.name,
@@ -123,7 +133,9 @@ def analyse_trial(o: SessionOutputs, t: TrialOutputs) -> TrialAnalysis:
     )
 
 
-def _validation_verdict(name: str, a: TrialAnalysis, lim: ReportParams) -> Verdict | None:
+def _validation_verdict(
+    name: str, a: TrialAnalysis, lim: ReportParams, rate_hz: float
+) -> Verdict | None:
     if a.stick is not None:
         s = a.stick
         err = s.mean_abs_error_mm
@@ -138,10 +150,12 @@ def _validation_verdict(name: str, a: TrialAnalysis, lim: ReportParams) -> Verdi
     if a.throw is not None:
         g = a.throw.g_m_s2
         rel = (g - lim.g_m_s2) / lim.g_m_s2
+        doubt = rate_doubt(a.throw, rate_hz, lim.g_m_s2, lim.max_g_error)
+        rate = f"; if {rate_hz:g} Hz is wrong, {doubt.split('? ')[1]}" if doubt else ""
         return Verdict(
             name,
             f"thrown marker's parabola: g = {g:.3f} m/s² ({100 * rel:+.2f} %), "
-            f"fit rms {a.throw.rms_mm:.2f} mm",
+            f"fit rms {a.throw.rms_mm:.2f} mm{rate}",
             f"within {100 * lim.max_g_error:g} % of {lim.g_m_s2:g} m/s²",
             PASS if abs(rel) <= lim.max_g_error else FAIL,
         )
@@ -155,6 +169,21 @@ def trial_coverage(o: SessionOutputs, name: str, a: TrialAnalysis) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
+def _empty_verdict(o: SessionOutputs, name: str) -> Verdict:
+    """A trial without trajectories: processed and empty (a warning), or not yet run."""
+    entry = o.summary.get("trials", {}).get(name)
+    if entry is None:
+        return Verdict(name, "no trajectories (not processed yet)", "", NONE)
+    recon = entry.get("reconstruction", {})
+    points, fields = recon.get("points", 0), recon.get("fields")
+    where = f" in its {fields} fields" if fields else ""
+    text = (
+        f"processed, no trajectories: {points} 3D points{where} "
+        "(no marker seen by two cameras at once)"
+    )
+    return Verdict(name, text, "", WARN)
+
+
 def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
     """Are all markers there (or, for a validation trial, does it pass)?"""
     lim = o.limits
@@ -163,8 +192,8 @@ def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
         message = str(failed).removeprefix(f"trial {name}: ")
         return Verdict(name, f"failed: {message}", "", FAIL)
     if not a.markers:
-        return Verdict(name, "no trajectories (not processed yet)", "", NONE)
-    checked = _validation_verdict(name, a, lim)
+        return _empty_verdict(o, name)
+    checked = _validation_verdict(name, a, lim, o.rate_hz)
     if checked is not None:
         return checked
     tracking = o.summary.get("trials", {}).get(name, {}).get("tracking", {})

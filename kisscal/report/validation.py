@@ -183,3 +183,32 @@ def throw_fit(
     if not named and not (abs(fit.g_m_s2 - g_m_s2) < 0.3 * g_m_s2 and fit.rms_mm < 5.0):
         return None
     return fit
+
+
+def rate_doubt(fit: ThrowFit, rate_hz: float, g_m_s2: float = 9.81, max_error: float = 0.02) -> str:
+    """Why ``rate_hz`` may be wrong, from a thrown marker that does not fall at ``g_m_s2``
+    (``""`` when it does, within ``max_error``, or rises).
+
+    Positions per field are what the cameras measured; time is fields / rate, so the
+    fitted acceleration scales with the square of the rate: ``rate_hz * sqrt(g / fitted)``
+    is the rate at which the marker would fall at ``g_m_s2``.
+
+    Examples
+    --------
+    >>> t = np.arange(40) / 50.0  # thrown at 50 Hz, processed as if at 30 Hz
+    >>> xyz = np.column_stack([1000 * t, 0 * t, 1500 + 3000 * t - 4905 * t**2])
+    >>> fit = ThrowFit("M1", np.arange(40) / 30.0, xyz, np.stack(
+    ...     [np.polyfit(np.arange(40) / 30.0, xyz[:, d], 2) for d in range(3)]))
+    >>> doubt = rate_doubt(fit, 30.0)
+    >>> doubt.split(":")[0], doubt.split("? ")[1]
+    ('a thrown marker falls at 3.53 m/s² (-64 % of 9.81)', 'it would fall at 9.81 m/s² at 50 Hz')
+    """
+    g = fit.g_m_s2
+    if g <= 0 or abs(g - g_m_s2) <= max_error * g_m_s2:
+        return ""
+    rate = rate_hz * float(np.sqrt(g_m_s2 / g))
+    return (
+        f"a thrown marker falls at {g:.2f} m/s² ({100 * (g - g_m_s2) / g_m_s2:+.0f} % of "
+        f"{g_m_s2:g}): is [session] rate_hz = {rate_hz:g} right? it would fall at "
+        f"{g_m_s2:g} m/s² at {rate:.3g} Hz"
+    )

@@ -56,13 +56,41 @@ def trial_data(
 def viewer_data(
     trials: Mapping[str, dict[str, Any]], cameras: Mapping[str, Sequence[float]]
 ) -> dict[str, Any]:
-    """Everything the viewer script reads: trials and camera centres (mm)."""
+    """Everything the viewer script reads: trials (each with its :func:`default_view`) and
+    camera centres (mm)."""
     cams = [
         {"id": c, "xyz": [round(float(v)) for v in xyz]}
         for c, xyz in cameras.items()
         if xyz is not None and len(xyz) == 3 and all(math.isfinite(float(v)) for v in xyz)
     ]
-    return {"trials": list(trials.values()), "cameras": cams}
+    centres = np.array([c["xyz"] for c in cams], dtype=float).reshape(-1, 3)
+    views = [{**t, "view": default_view(t["xyz"], centres)} for t in trials.values()]
+    return {"trials": views, "cameras": cams}
+
+
+#: Least radius of the default view (mm): a trial of one still marker is not a dot.
+MIN_VIEW_RADIUS_MM = 400.0
+
+
+def default_view(xyz: Sequence[Sequence[float | None]], cameras_mm: np.ndarray) -> dict:
+    """The sphere the viewer first shows: centred on the trial's samples, wide enough for
+    every sample and every camera (the script draws any point inside it on screen).
+
+    Examples
+    --------
+    >>> v = default_view([[0, 0, 1000, 100, 0, 1000]], np.array([[3000.0, 4000.0, 1000.0]]))
+    >>> v["centre"], v["radius"] >= 0.5 * 5000
+    ([50.0, 0.0, 1000.0], True)
+    """
+    flat = np.array([np.nan if v is None else v for m in xyz for v in m], dtype=float)
+    points = flat.reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]
+    if not len(points):
+        points = np.array([[-1000.0, -1000.0, 0.0], [1000.0, 1000.0, 1000.0]])
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    reach = np.vstack([points, cameras_mm]) - centre
+    radius = max(MIN_VIEW_RADIUS_MM, float(np.linalg.norm(reach, axis=1).max()) * 1.05)
+    return {"centre": [round(float(c), 1) for c in centre], "radius": round(radius, 1)}
 
 
 def viewer_html(data: Mapping[str, Any]) -> Html:
@@ -120,6 +148,7 @@ VIEWER_JS = r"""
     return [a[i], a[i + 1], a[i + 2]];
   }
   function bounds() {
+    if (trial.view) { centre = trial.view.centre; radius = trial.view.radius; return; }
     var lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
     trial.xyz.forEach(function (a) {
       for (var i = 0; i < a.length; i += 3) {
@@ -141,7 +170,9 @@ VIEWER_JS = r"""
     var w = -sy * x + cy * y;                // away from the viewer (before pitch)
     var v = cp * z + sp * w;                 // up on screen (pitch: looking down)
     var depth = cp * w - sp * z;             // away from the viewer
-    var dist = 4 * radius, scale = Math.min(canvas.width, canvas.height) / (2.4 * radius);
+    // A point within radius of the centre comes at most 6/5 times nearer in perspective:
+    // 1.2 / 2.6 of the canvas from its middle, on screen at zoom 1.
+    var dist = 6 * radius, scale = Math.min(canvas.width, canvas.height) / (2.6 * radius);
     var s = state.ortho ? scale : scale * dist / Math.max(dist + depth, 0.1 * dist);
     s *= state.zoom;
     return [canvas.width / 2 + state.panX + u * s, canvas.height / 2 + state.panY - v * s, depth];

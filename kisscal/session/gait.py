@@ -57,6 +57,7 @@ def gait_outputs(
     written) when the trajectories lack the set's feet or pelvis, or their labels are
     uncertain."""
     from kisscal.gait import detect_events, spatiotemporal_parameters
+    from kisscal.gait.spatiotemporal import outside_walking
 
     clear_gait_outputs(root, tdir, trial)  # an earlier run's would be stale
     if marker_set is None or not result.labelling.fits_marker_set:
@@ -80,6 +81,12 @@ def gait_outputs(
     parameters = spatiotemporal_parameters(events, markers)
     for note in events.warnings:  # why events or full strides are missing
         echo(f"  gait {trial}: {note}")
+    implausible = outside_walking(parameters, params)
+    if implausible:  # the cameras measured distances; times are fields / rate_hz
+        echo(
+            f"  warning: {trial}: {' and '.join(implausible)}: is [session] rate_hz = "
+            f"{rate_hz:g} right? cadence and speed scale with it"
+        )
     write_table(tdir / "events.csv", _columns(events.rows(), EVENT_COLUMNS))
     write_table(tdir / "spatiotemporal.csv", _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
     counts = {

@@ -92,9 +92,34 @@ def _first_frame_size(config: SessionConfig, camera: str) -> tuple[int, int]:
         if len(frames):
             h, w = frames[0].shape[:2]
             return int(w), int(h)
+    hint = "; ".join(
+        h for _w, pattern, _v, _f in image_sources(config) if (h := folders_hint(config, pattern))
+    )
     raise KisscalError(
         f"{config.path}: camera {camera} has no size and no images to take it from; "
-        "give size = [width, height] in its [[cameras]] entry"
+        f"give size = [width, height] in its [[cameras]] entry{'; ' + hint if hint else ''}"
+    )
+
+
+def folders_hint(config: SessionConfig, pattern: str) -> str:
+    """What is in the folder that should hold a folder per camera, when none of its
+    folders is named after a camera id (``""`` otherwise, or when there is no such folder).
+
+    ``trials/walk01/{camera}/*.png`` with folders ``A``, ``B`` instead of ``cam1``,
+    ``cam2`` gives one line naming ``A``, ``B`` and the ids, where each camera alone would
+    only say its images are missing.
+    """
+    head, sep, _tail = pattern.partition("{camera}")
+    if not sep or not head.endswith("/"):
+        return ""
+    folder = config.root / head
+    there = sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
+    if not there or set(there) & set(config.camera_ids):
+        return ""
+    shown = ", ".join(there[:8]) + (f" and {len(there) - 8} more" if len(there) > 8 else "")
+    return (
+        f"{folder} holds folders {shown}, none named after a camera id "
+        f"({', '.join(config.camera_ids)}): rename them, or change the ids in [[cameras]]"
     )
 
 

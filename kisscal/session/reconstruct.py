@@ -116,8 +116,10 @@ def reconstruct(
     )
     if points.stationary_test == "short":
         echo(
-            f"  reconstruct {trial.name}: stationary filter not applied (under "
-            f"{params.recon.stationary_min_s:g} s, or nothing moves); LED rings dropped as points"
+            f"  reconstruct {trial.name}: stationary filter not applied (trial under "
+            f"{params.recon.stationary_min_s:g} s, or nothing moves), so reflections that stay "
+            "put are kept; the cameras' LED rings are still dropped: a point that lies at a "
+            "camera's centre is that camera's ring, seen by the others"
         )
     _echo_warnings(trial.name, path.with_name("recon.json"), echo)
     return points

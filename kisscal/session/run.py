@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,9 @@ from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.track import track
 from kisscal.session.validate import SESSION, Problem, validate
+
+#: Debug lines (``kisscal --verbose``): each stage's time.
+_LOG = logging.getLogger(__name__)
 
 
 @writes_session
@@ -38,6 +42,10 @@ def run(
     root = Path(root)
     config = load_config(root)
     problems = validate(root, overrides)
+    for p in problems:
+        if p.warning:
+            echo(f"  warning: {p}")
+    problems = [p for p in problems if not p.warning]
     _stop_on_session_problems(problems, echo)
     broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
@@ -46,6 +54,7 @@ def run(
         t = time.perf_counter()
         step(*args, **kwargs)
         timings[name] = time.perf_counter() - t
+        _LOG.debug("%s: %.2f s", name.removesuffix("_s"), timings[name])
 
     if needs_calibration(config):
         echo("[1/4] linearisation")
@@ -100,7 +109,7 @@ def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:
 def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:
     """Refuse to start when the calibration inputs or parameters are broken."""
     fatal = [p for p in problems if p.scope == SESSION]
-    for p in fatal:
+    for p in fatal if len(fatal) > 1 else ():  # one problem: the error line says it
         echo(f"  problem: {p}")
     if fatal:
         more = (

@@ -62,6 +62,7 @@ def synthesise(
     echo: Callable[[str], object] | None = None,
     wand_fields: int = 0,
     wand_only: bool = False,
+    replay_in_view: bool = False,
 ) -> Path:
     """Write a synthetic session (images, ``session.toml``, ``truth/``) to ``out``.
 
@@ -71,6 +72,8 @@ def synthesise(
     replayed through the synthetic cameras as trial ``walk5`` when it can be found.
     ``wand_fields`` adds a wand trial ``wand01`` of that many fields and an L-frame
     (``[wand]``, ``[axes]``); ``wand_only`` leaves ``[grid]`` and ``[rods]`` out.
+    ``replay_in_view`` cuts ``walk5`` to the fields the rig sees whole
+    (:class:`~kisscal.synth.plan.SynthOptions`).
     """
     echo = echo or _silent
     if preset not in PRESETS:
@@ -86,7 +89,9 @@ def synthesise(
     options = synth_options(
         preset, seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, blur_px=blur_px
     )
-    options = dataclasses.replace(options, wand_fields=wand_fields, wand_only=wand_only)
+    options = dataclasses.replace(
+        options, wand_fields=wand_fields, wand_only=wand_only, replay_in_view=replay_in_view
+    )
     replay = None
     if walking5:
         path = default_walking5_path()

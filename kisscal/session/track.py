@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from kisscal._text import plural
 from kisscal.dlt.model import pixel_size_mm
 from kisscal.errors import KisscalError
 from kisscal.io.cache import is_current, mark_current
@@ -144,9 +145,12 @@ def _track_trial(
     _figures(root, trial, result, spec.segments, config.rate_hz)
     shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
     echo(
-        f"  track {trial}: {len(result.labels)} trajectories from {result.n_pieces} pieces "
-        f"({shown}) ({time.perf_counter() - t0:.1f} s)"
+        f"  track {trial}: {plural(len(result.labels), 'trajectory')} from "
+        f"{plural(result.n_pieces, 'piece')} ({shown}) ({time.perf_counter() - t0:.1f} s)"
     )
+    doubt = _rate_doubt(config, trial, result)
+    if doubt:
+        echo(f"  warning: {trial}: {doubt}")
     lab = result.labelling
     if lab.flagged:
         echo(f"  track {trial}: uncertain labels, check them: {', '.join(lab.flagged)}")
@@ -179,6 +183,23 @@ def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
         np.bincount(row, minlength=len(pts.field)), 1
     )
     return np.where(mean > 0, pts.rms_px * mean, np.nan)
+
+
+def _rate_doubt(config: SessionConfig, trial: str, result: Trajectories) -> str:
+    """Why ``rate_hz`` may be wrong, when the trial is a throw that does not fall at g."""
+    from kisscal.report.markers import dense_trajectories
+    from kisscal.report.params import ReportParams
+    from kisscal.report.validation import rate_doubt, throw_fit
+
+    tracks = result.tracks
+    if not len(tracks.field) or result.labelling.fits_marker_set:
+        return ""
+    status = np.asarray(STATUS_NAMES, dtype=object)[tracks.status]
+    labels = np.asarray(result.labels, dtype=object)[tracks.track]
+    dense = dense_trajectories(tracks.field, tracks.track, labels, tracks.xyz_mm, status)
+    limits = ReportParams.from_layers(config.sections.get("report", {}))
+    fit = throw_fit(dense, trial, config.rate_hz, limits.g_m_s2)
+    return "" if fit is None else rate_doubt(fit, config.rate_hz, limits.g_m_s2, limits.max_g_error)
 
 
 def _trial_fields(tdir: Path, field: np.ndarray) -> int:

@@ -2,23 +2,31 @@
 
 A session is hours of a patient's time; a frame missing in one camera of the last trial
 must not be found after linearisation and calibration ran. :func:`validate` opens every
-input the session names (one frame per image set, every centroid file header, every
-video's frame count) and lists each problem at once, tagged with what it stops: the
-calibration (nothing can run) or one trial (the others still can).
+input the session names (every image file's header, not its pixels; every centroid file
+header; every video's frame count and first frame; every C3D trial's rate) and lists each
+problem at once, tagged with what it stops: the calibration (nothing can run) or one
+trial (the others still can). Warnings (JPEG data in a lossless file name) stop nothing.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from kisscal.errors import KisscalError
+from kisscal.io.c3d import read_c3d_points
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table
-from kisscal.io.frames import camera_frames
+from kisscal.io.frames import (
+    LOSSY_FORMATS,
+    camera_frames,
+    image_header,
+    source_files,
+)
 from kisscal.report.params import ReportParams
-from kisscal.session.inputs import image_sources, load_config, needs_calibration
+from kisscal.session.inputs import folders_hint, image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
 from kisscal.target.match import too_few_seeds
@@ -37,6 +45,8 @@ class Problem:
 
     scope: str
     message: str
+    #: A doubt about the input, not an error: it stops nothing.
+    warning: bool = False
 
     def __str__(self) -> str:
         where = "" if self.scope == SESSION else f"trial {self.scope}: "
@@ -53,8 +63,23 @@ def validate(root: Path, overrides: Overrides | None = None) -> list[Problem]:
     problems = _parameters(config, overrides)
     problems += _calibration_inputs(config)
     for trial in config.trials:
-        problems += [Problem(trial.name, m) for m in _trial_inputs(config, trial)]
-    return problems
+        problems += [_problem(trial.name, m) for m in _trial_inputs(config, trial)]
+    return _once(problems)
+
+
+def _problem(scope: str, message: str) -> Problem:
+    """A problem, or a warning when the message says it is one (``warning: ...``)."""
+    if message.startswith(_WARNING):
+        return Problem(scope, message.removeprefix(_WARNING), warning=True)
+    return Problem(scope, message)
+
+
+_WARNING = "warning: "
+
+
+def _once(problems: list[Problem]) -> list[Problem]:
+    """Each problem once: misnamed camera folders show in every set of frames alike."""
+    return list(dict.fromkeys(problems))
 
 
 def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Problem]:
@@ -80,7 +105,7 @@ def _calibration_inputs(config: SessionConfig) -> list[Problem]:
     for what, pattern, video, fields in image_sources(config):
         if what.startswith("trial"):
             continue
-        problems += [Problem(SESSION, m) for m in _frame_set(config, what, pattern, video, fields)]
+        problems += [_problem(SESSION, m) for m in _frame_set(config, what, pattern, video, fields)]
     return problems + [Problem(SESSION, m) for m in _calibration_files(config)]
 
 
@@ -125,36 +150,83 @@ def _frame_set(
 def _frames_and_counts(
     config: SessionConfig, what: str, pattern: str, video: bool, fields: str | None = None
 ) -> tuple[list[str], dict[str, int]]:
-    problems, counts = [], {}
+    problems, counts, missing = [], {}, []
     for cam in config.cameras:
         try:
             frames = camera_frames(config.root, pattern, cam.id, what, video, fields)
-            counts[cam.id] = len(frames)
-            size = _frame_size(frames[0]) if len(frames) else None
+        except KisscalError as exc:
+            missing.append(str(exc))
+            continue
+        counts[cam.id] = len(frames)
+        try:
+            problems += _frame_sizes(cam.id, cam.size_px, what, frames)
         except KisscalError as exc:
             problems.append(str(exc))
-            continue
-        if size is None:
-            problems.append(f"{pattern}: no {what} frames for camera {cam.id}")
-        elif cam.size_px is not None and size != cam.size_px:
-            problems.append(
-                f"camera {cam.id}: {what} frames are {size[0]} x {size[1]} pixels, "
-                f"[[cameras]] size says {cam.size_px[0]} x {cam.size_px[1]}"
-            )
-    return problems, counts
+    hint = folders_hint(config, pattern) if missing else ""
+    return ([hint] if hint else missing) + problems, counts
+
+
+def _frame_sizes(
+    camera: str, size: tuple[int, int] | None, what: str, frames: Sequence
+) -> list[str]:
+    """Problems of a camera's frame sizes: each frame's size from its file header
+    (a video: its first frame) against ``[[cameras]] size``, or against the first frame."""
+    if not len(frames):
+        return [f"no {what} frames for camera {camera}"]
+    paths = source_files(frames)
+    if getattr(frames, "sequential", False):  # a video: every frame has the first's size
+        sizes, problems = [_frame_size(frames[0])], []
+    else:
+        headers = [image_header(p) for p in paths]
+        order = getattr(frames, "order", None)
+        sizes = [_field_size(h.size, order) for h in headers]
+        problems = _lossy(camera, what, paths, [h.format for h in headers])
+    expected = size if size is not None else sizes[0]
+    given = "[[cameras]] size says" if size is not None else "its first frame is"
+    odd = [i for i, s in enumerate(sizes) if s != expected]
+    if odd:
+        name, (w, h) = paths[odd[0]], sizes[odd[0]]
+        more = f" (and {len(odd) - 1} more)" if len(odd) > 1 else ""
+        problems.append(
+            f"camera {camera}: {what} frame {name} is {w} x {h} pixels{more}, "
+            f"{given} {expected[0]} x {expected[1]}"
+        )
+    return problems
 
 
 def _frame_size(frame: object) -> tuple[int, int]:
+    """The size of a decoded frame (a video's first)."""
     h, w = frame.shape[:2]  # type: ignore[attr-defined]
     return int(w), int(h)
+
+
+def _field_size(size: tuple[int, int], order: str | None) -> tuple[int, int]:
+    """The size of a frame's first field (``order`` None: the frame is not split)."""
+    w, h = size
+    if order is None:
+        return w, h
+    first = 0 if order == "top-first" else 1
+    return w, len(range(first, h, 2))
+
+
+def _lossy(camera: str, what: str, paths: list[Path], formats: list[str]) -> list[str]:
+    """A warning when files named as lossless images hold JPEG data."""
+    jpeg = [p for p, f in zip(paths, formats, strict=True) if f in LOSSY_FORMATS]
+    jpeg = [p for p in jpeg if p.suffix.lower() not in (".jpg", ".jpeg")]
+    if not jpeg:
+        return []
+    return [
+        f"{_WARNING}camera {camera}: {len(jpeg)} of {len(paths)} {what} frames "
+        f"({jpeg[0].name}, ...) hold JPEG data under a {jpeg[0].suffix or 'suffix-less'} "
+        "name: lossy compression moves marker centroids; export the frames losslessly"
+    ]
 
 
 def _trial_inputs(config: SessionConfig, trial: TrialConfig) -> list[str]:
     if trial.source == "centroids":
         return _centroid_inputs(config, trial)
     if trial.source == "c3d":
-        path = config.root / (trial.c3d or "")
-        return [] if path.is_file() else [f"{path}: C3D file not found"]
+        return _c3d_input(config, trial)
     pattern = trial.images or trial.video or ""
     problems, counts = _frames_and_counts(
         config, "trial", pattern, trial.source == "video", trial.fields
@@ -163,6 +235,23 @@ def _trial_inputs(config: SessionConfig, trial: TrialConfig) -> list[str]:
         detail = ", ".join(f"{c}: {n}" for c, n in counts.items())
         problems.append(f"cameras have different numbers of frames ({detail})")
     return problems
+
+
+def _c3d_input(config: SessionConfig, trial: TrialConfig) -> list[str]:
+    """A C3D trial's file is there and recorded at the session's ``rate_hz``."""
+    path = config.root / (trial.c3d or "")
+    if not path.is_file():
+        return [f"{path}: C3D file not found"]
+    try:
+        rate = read_c3d_points(path)[2]
+    except KisscalError as exc:
+        return [str(exc)]
+    if abs(rate - config.rate_hz) > 1e-6 * rate:
+        return [
+            f"{path}: recorded at {rate:g} frames per second, but [session] rate_hz = "
+            f"{config.rate_hz:g}: is rate_hz right?"
+        ]
+    return []
 
 
 def _centroid_inputs(config: SessionConfig, trial: TrialConfig) -> list[str]:

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, SynthCamera, kiss_rig, ring_rig
 from kisscal.synth.motion import (
+    STICK_LENGTH_MM,
     Motion,
     standing_template,
     stick_trial,
@@ -140,6 +141,11 @@ class SynthOptions:
     wand_only : bool
         Leave ``[grid]`` and ``[rods]`` out of ``session.toml``: calibrate from the wand
         and the L-frame alone.
+    replay_in_view : bool
+        Cut the replayed recording (``walk5``) to its longest run of fields inside the
+        control volume, as the rigs other than KISS always do: the KISS rig sees the middle
+        2.4 m of the recorded 6.7 m walk, so the whole replay is covered in only part of
+        its fields (the demo cuts it; the KISS preset keeps the whole walk by default).
     """
 
     seed: int = 1
@@ -154,6 +160,7 @@ class SynthOptions:
     rig: RigSpec = field(default_factory=RigSpec)
     wand_fields: int = 0
     wand_only: bool = False
+    replay_in_view: bool = False
 
 
 @dataclass(frozen=True)
@@ -258,6 +265,8 @@ def _trials(options: SynthOptions, replay: Motion | None) -> dict[str, Motion]:
             "stick": stick_trial(seed, options.stick_fields, rate),
             "throw": throw_trial(seed, rate),
         }
+        if replay is not None and options.replay_in_view:
+            replay = slim_capsules(inside_volume(replay, spec.volume_mm, options.fields))
         if replay is not None:
             trials["walk5"] = replay
         return _with_wand(trials, options)
@@ -331,6 +340,8 @@ def session_config(plan: SynthPlan, name: str) -> dict:
         },
         "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
     }
+    if "stick" in plan.trials:  # the report checks the stick trial against its true length
+        config["report"] = {"stick_length_mm": STICK_LENGTH_MM}
     if plan.axes_mm is not None:
         return wand_tables(config, plan.axes_mm, plan.options.wand_only)
     return config

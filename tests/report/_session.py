@@ -53,6 +53,9 @@ size = [752, 291]
 names = ["A", "B", "C"]
 segments = [["A", "B"], ["B", "C"]]
 
+[report]
+stick_length_mm = 502.5
+
 [[trials]]
 name = "walk"
 centroids = "c/{camera}.csv"

@@ -160,7 +160,7 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
 
 
 def test_viewer_data_is_valid_json_with_every_trajectory(session: Path) -> None:
-    page = _page(session, ReportParams(viewer_samples=150))
+    page = _page(session, ReportParams(viewer_samples=150, stick_length_mm=502.5))
     raw = re.search(r'<script type="application/json" id="kc-data">(.*?)</script>', page, re.S)
     data = json.loads(raw.group(1).replace("<\\/", "</"))
     names = [t["name"] for t in data["trials"]]
@@ -199,3 +199,48 @@ def test_without_summary_the_figures_are_read_from_the_stage_outputs(session: Pa
     assert rows["cam2"] == "pass" and rows["cam1"] == "fail"  # cam1 was never calibrated
     calibration = _section(page, "calibration")
     assert "mdlt" in calibration and "0.042" in calibration and ">3000</td>" in calibration
+
+
+def _status_text(page: str, name: str) -> str:
+    """The text of a trial's status row."""
+    status = _section(page, "status")
+    start = status.index(f"<td>{name}</td>")
+    return re.sub(r"<[^>]+>", " ", status[start : status.index("</tr>", start)])
+
+
+def test_the_stick_is_checked_only_when_its_length_is_given(session: Path) -> None:
+    given = _status_text(_page(session), "stick")
+    assert "true 502.5 mm" in given
+    toml = session / "session.toml"
+    toml.write_text(toml.read_text().replace("stick_length_mm = 502.5", ""))
+    unset = _page(session, ReportParams())
+    assert "mean |error|" not in _status_text(unset, "stick")
+    assert "true 502.5 mm" not in unset
+
+
+def test_an_empty_trial_is_processed_not_pending(session: Path) -> None:
+    path = session / "out" / "trials" / "walk" / "trajectories.csv"
+    path.write_text(path.read_text().splitlines()[0] + "\n")  # the header only
+    summary_path = session / "out" / "summary.json"
+    summary = json.loads(summary_path.read_text())
+    summary["trials"]["walk"]["reconstruction"].update(points=0, fields=100)
+    summary_path.write_text(json.dumps(summary))
+    page = _page(session)
+    text = _status_text(page, "walk")
+    assert "not processed yet" not in text and "processed, no trajectories" in text
+    assert "0 3D points in its 100 fields" in text and _status_rows(page)["walk"] == "warn"
+    del summary["trials"]["walk"]
+    summary_path.write_text(json.dumps(summary))
+    assert "not processed yet" in _status_text(_page(session), "walk")
+
+
+def test_the_trajectories_of_a_trial_to_check_are_unfolded(session: Path) -> None:
+    path = session / "out" / "summary.json"
+    summary = json.loads(path.read_text())
+    summary["trials"]["walk"]["tracking"]["missing"] = ["C"]
+    path.write_text(json.dumps(summary))
+    page = _page(session)
+    assert _status_rows(page)["walk"] == "warn" and _status_rows(page)["stick"] == "pass"
+    opened = re.findall(r"<details open=\"\w+\"><summary>(\w+): every trajectory", page)
+    folded = re.findall(r"<details><summary>(\w+): every trajectory", page)
+    assert opened == ["walk"] and "stick" in folded

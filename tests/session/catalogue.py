@@ -34,7 +34,7 @@ class Case:
     says: tuple[str, ...]  # words of the one-line message
     exit_code: int = 2
     kept: str = "every earlier output, byte for byte"
-    stdout: tuple[str, ...] = field(default=())  # words expected on stdout instead
+    log: tuple[str, ...] = field(default=())  # words expected in the log (stderr) instead
     fault: str | None = None  # an OS error injected in-process: "erofs" or "enospc"
 
 
@@ -93,6 +93,57 @@ def _any_frame_file(data: dict) -> None:
 def wrong_size_frame(root: Path) -> None:
     path = frame(root)
     cv2.imwrite(str(path), np.zeros((480, 640), np.uint8))
+
+
+def late_small_frame(root: Path) -> None:
+    """A 320 x 240 frame late in a camera's frames (validate once read the first only)."""
+    cv2.imwrite(str(frame(root, k=15)), np.zeros((240, 320), np.uint8))
+
+
+def jpeg_in_png(root: Path) -> None:
+    """JPEG data saved under the .png names of one camera's frames."""
+    for path in sorted((root / "trials" / "walk01" / "cam2").glob("*.png")):
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        path.write_bytes(cv2.imencode(".jpg", image)[1].tobytes())
+
+
+def renamed_camera_folders(root: Path) -> None:
+    """Every camera folder named after the camera's position, not its id."""
+    for cam_folder in sorted(root.glob("*/cam?")) + sorted(root.glob("trials/*/cam?")):
+        cam_folder.rename(
+            cam_folder.with_name(
+                "left" if cam_folder.name == "cam1" else f"view{cam_folder.name[-1]}"
+            )
+        )
+
+
+def unfilled_rods(data: dict) -> None:
+    for rod in data["rods"]["rod"]:
+        rod["points_mm"] = []
+
+
+def absolute_pattern(root: Path) -> None:
+    toml_edit(lambda d: d["trials"][0].update(images=f"{root}/trials/walk01/{{camera}}/*.png"))(
+        root
+    )
+
+
+def c3d_at_rate(rate_hz: float) -> Setup:
+    """A C3D trial ``old`` recorded at ``rate_hz`` with two markers in every frame."""
+
+    def setup(root: Path) -> None:
+        import ezc3d
+
+        c = ezc3d.c3d()
+        c["parameters"]["POINT"]["RATE"]["value"] = [rate_hz]
+        c["parameters"]["POINT"]["LABELS"]["value"] = ("A", "B")
+        points = np.ones((4, 2, 10))
+        points[:3] = np.random.default_rng(1).uniform(-500, 500, (3, 2, 10))
+        c["data"]["points"] = points
+        c.write(str(root / "old.c3d"))
+        toml_edit(lambda d: d["trials"].append({"name": "old", "c3d": "old.c3d"}))(root)
+
+    return setup
 
 
 def drop_frame(root: Path) -> None:
@@ -382,7 +433,7 @@ CASES: tuple[Case, ...] = (
         ("validate", "S"),
         (),
         exit_code=0,
-        stdout=("every input is present",),
+        log=("every input is present",),
     ),
     Case(
         "misspelt-table",
@@ -576,7 +627,7 @@ CASES: tuple[Case, ...] = (
         ("reconstruct", "S", "static"),
         (),
         exit_code=0,
-        stdout=("reconstruct static: 200 points in 1 fields", "stationary filter not applied"),
+        log=("reconstruct static: 200 points in 1 fields", "stationary filter not applied"),
         kept="every output; all 200 points are reconstructed",
     ),
     Case(
@@ -587,7 +638,7 @@ CASES: tuple[Case, ...] = (
         ("run", "S"),
         (),
         exit_code=0,
-        stdout=("warning: walk01: no 3D points in 20 fields", "empty files written (20 fields)"),
+        log=("warning: walk01: no 3D points in 20 fields", "empty files written (20 fields)"),
         kept="every output; walk01 gets a header-only CSV and C3D/TRC files without points",
     ),
     Case(
@@ -598,7 +649,7 @@ CASES: tuple[Case, ...] = (
         ("run", "S"),
         (),
         exit_code=0,
-        stdout=("by 2 cameras",),
+        log=("by 2 cameras",),
         kept="every output; markers seen by both cameras are reconstructed",
     ),
     Case(
@@ -635,7 +686,7 @@ CASES: tuple[Case, ...] = (
         ("calibrate", "S"),
         (),
         exit_code=0,
-        stdout=("calibrate cam2", "18 rod markers", "missing R1.1"),
+        log=("calibrate cam2", "18 rod markers", "missing R1.1"),
         kept="that camera is calibrated on the other rods; the output names the missing markers",
     ),
     Case(
@@ -662,7 +713,7 @@ CASES: tuple[Case, ...] = (
         ("calibrate", "S"),
         (),
         exit_code=0,
-        stdout=("route wand", "warning: axes: cam2 sees 3 of the 4 axes markers"),
+        log=("route wand", "warning: axes: cam2 sees 3 of the 4 axes markers"),
         kept="the other cameras fix the lab frame; the output says which camera missed which",
     ),
     Case(
@@ -816,6 +867,90 @@ CASES: tuple[Case, ...] = (
         kept="nothing is written",
     ),
     Case(
+        "session-toml-given",
+        "session",
+        "named session.toml instead of its folder",
+        nothing,
+        ("validate", "S/session.toml"),
+        (),
+        exit_code=0,
+        log=("every input is present",),
+        kept="every output",
+    ),
+    Case(
+        "unfilled-template",
+        "session",
+        "left every rod of the init template unfilled",
+        toml_edit(unfilled_rods),
+        ("validate", "S"),
+        ("still to fill in", "rods.rod[0].points_mm (R1)", "rods.rod[3].points_mm (R4)"),
+    ),
+    Case(
+        "camera-folders-renamed",
+        "session",
+        "named the camera folders left, view2, ... instead of the camera ids",
+        renamed_camera_folders,
+        ("run", "S"),
+        ("grid holds folders left, view2, view3, view4", "none named after a camera id"),
+    ),
+    Case(
+        "late-small-frame",
+        "session",
+        "put a 320 x 240 frame at position 15 of 20",
+        late_small_frame,
+        ("validate", "S"),
+        ("1 problem found",),
+        log=("cam2", "000015.png is 320 x 240", "752 x 291"),
+    ),
+    Case(
+        "jpeg-in-png",
+        "session",
+        "saved JPEG data under the .png names of a camera's frames",
+        jpeg_in_png,
+        ("validate", "S"),
+        (),
+        exit_code=0,
+        log=(
+            "warning",
+            "cam2",
+            "20 of 20",
+            "JPEG data",
+            "lossy compression moves marker centroids",
+        ),
+        kept="every output",
+    ),
+    Case(
+        "absolute-images-pattern",
+        "reconstruction",
+        "gave an absolute images pattern",
+        absolute_pattern,
+        ("reconstruct", "S", "walk01"),
+        (),
+        exit_code=0,
+        log=("reconstruct walk01",),
+        kept="every output",
+    ),
+    Case(
+        "c3d-other-rate",
+        "session",
+        "gave a C3D trial recorded at 100 Hz in a 50 Hz session",
+        c3d_at_rate(100.0),
+        ("validate", "S"),
+        ("1 problem found",),
+        log=("old.c3d", "recorded at 100 frames per second", "rate_hz = 50"),
+    ),
+    Case(
+        "throw-wrong-rate",
+        "tracking",
+        "gave rate_hz = 30 for cameras at 50 Hz",
+        toml_edit(lambda d: d["session"].update(rate_hz=30.0)),
+        ("track", "S", "throw"),
+        (),
+        exit_code=0,
+        log=("warning: throw", "3.53 m/s²", "rate_hz = 30 right?", "at 50 Hz"),
+        kept="every output",
+    ),
+    Case(
         "detect-missing-image",
         "detection",
         "named an image that does not exist",
@@ -833,8 +968,9 @@ def markdown() -> str:
         "",
         "What kisscal does when an input is wrong. Each row is a test",
         "(`tests/session/test_catalogue.py`, generated from `tests/session/catalogue.py`).",
-        "Every message is one line, `kisscal <command>: error: ...`, never a traceback;",
-        "nothing already written is lost or half-overwritten.",
+        "Every error is one line, `kisscal <command>: error: ...`, the last line of the log",
+        "(stderr; the lines before it say what was done), never a traceback; nothing already",
+        "written is lost or half-overwritten. Rows with exit 0 list words of the log instead.",
         "",
         "| what the user did | command | kisscal says (words of the message) | exit | what is kept"
         " |",
@@ -844,7 +980,7 @@ def markdown() -> str:
         command = "kisscal " + " ".join(
             "SESSION" if a == "S" else a.replace("S/", "SESSION/") for a in case.args
         )
-        says = " ... ".join(case.says or case.stdout).replace("|", "\\|")
+        says = " ... ".join(case.says or case.log).replace("|", "\\|")
         lines.append(f"| {case.did} | `{command}` | {says} | {case.exit_code} | {case.kept} |")
     return "\n".join(lines) + "\n"
 

@@ -35,7 +35,8 @@ def test_demo_prints_the_summary(tmp_path: Path) -> None:
     result = kisscal("demo", str(tmp_path / "demo"))
     assert result.returncode == 0, result.stderr[-2000:]
     summary = json.loads((tmp_path / "demo" / "out" / "summary.json").read_text())
-    text = result.stdout
+    text = result.stderr  # the log; nothing is data
+    assert result.stdout == ""
     for cam, entry in summary["cameras"].items():
         row = re.search(rf"^{cam}\s+([\d.]+)\s+([\d.]+)$", text, re.M)
         assert row, cam
@@ -51,10 +52,11 @@ def test_demo_prints_the_summary(tmp_path: Path) -> None:
     stick = next(line for line in text.splitlines() if line.startswith("stick:"))
     assert "labelled" not in stick and "stick length error" in stick
     assert "nan" not in text
-    # the one warning is true: the six KISS cameras see the replayed full-body trial's 24
-    # markers in under two thirds of its fields (truth: 63 % seen by two cameras or more)
-    warnings = [w for w in (text + result.stderr).lower().splitlines() if "warning" in w]
-    assert all("walk5: coverage" in w for w in warnings), warnings
+    # a first run is clean: walk5 is cut to the fields the six KISS cameras see whole
+    warnings = [w for w in text.lower().splitlines() if "warning" in w]
+    assert not warnings, warnings
+    walk5 = summary["truth"]["walk5"]
+    assert walk5["coverage"] >= 0.9 and "1 trajectories" not in text
     assert (tmp_path / "demo" / "out" / "report.html").is_file()
 
 
@@ -72,9 +74,9 @@ def test_batch_runs_four_sessions_on_a_local_dask_cluster(tmp_path: Path) -> Non
     result = kisscal("batch", *map(str, roots), str(broken))
     assert result.returncode == 1, result.stderr[-2000:]
     assert (
-        result.stdout.count("ok ") == 4 and "FAILED" in result.stdout and "broken" in result.stdout
+        result.stderr.count("ok ") == 4 and "FAILED" in result.stderr and "broken" in result.stderr
     )
-    assert "4 of 5 sessions processed" in result.stdout
+    assert "4 of 5 sessions processed" in result.stderr
     for root in roots:
         summary = json.loads((root / "out" / "summary.json").read_text())
         assert summary["trials"]["stick"]["trajectories"] == 2

@@ -133,7 +133,9 @@ def test_check_gate(processed: Path) -> None:
     assert ok.returncode == 0, ok.stdout + ok.stderr
     bad = kisscal("check", str(processed), "--max-reproj-px", "0.001")
     assert bad.returncode == 1
-    assert "dlt rms_px" in bad.stdout and "cam1" in bad.stdout
+    failed = [line for line in bad.stderr.splitlines() if line.startswith("FAILED")]
+    assert any("dlt rms_px" in line and "cam1" in line for line in failed), bad.stderr
+    assert "FAILED check: " in bad.stderr and "limits.json" in bad.stderr and bad.stdout == ""
 
 
 def test_rig_load_gives_the_written_calibration(processed: Path) -> None:

@@ -1,0 +1,48 @@
+"""Ctrl-C during ``kisscal run``: one ``interrupted`` line, exit 130, no worker traceback."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after_s", [0.5, 3.0])
+def test_ctrl_c_stops_run_with_one_line(
+    small_session: Path, tmp_path: Path, after_s: float
+) -> None:
+    root = tmp_path / "s"
+    shutil.copytree(small_session, root, ignore=shutil.ignore_patterns("out"))
+    # its own process group, as a terminal's foreground job: Ctrl-C reaches every process
+    run = subprocess.Popen(
+        [sys.executable, "-m", "kisscal", "run", str(root)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        cwd=ROOT,
+    )
+    assert run.stderr is not None
+    first = run.stderr.readline()  # the pipeline has started (worker pools come next)
+    assert first.startswith("[1/4]"), first
+    time.sleep(after_s)
+    sent = time.perf_counter()
+    os.killpg(run.pid, signal.SIGINT)
+    out, err = run.communicate(timeout=120)
+    stopped_s = time.perf_counter() - sent
+    assert run.returncode == 130, err[-3000:]
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err[-3000:]
+    lines = err.strip().splitlines()
+    assert lines[-1] == "kisscal run: error: interrupted", lines[-3:]
+    assert sum("error" in line for line in lines) == 1
+    assert out == ""
+    assert stopped_s < 10, stopped_s  # the workers are ended, not waited for
