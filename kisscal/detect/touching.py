@@ -104,7 +104,8 @@ def split_touching(
     labels, found = [], []
     for i, x0, y0, crop in group_crops(grouping.runs, table, idx):  # a few groups per image
         peaks = marker_peaks(crop, params.pixel_aspect, params.touching_separation)
-        if len(peaks) >= 2:
+        # more peaks than a cluster of markers holds: a bright region, left whole
+        if 2 <= len(peaks) <= params.split_max_markers:
             peaks[:, 0] += x0
             peaks[:, 1] += y0
             labels.append(table.label[i])
