@@ -153,14 +153,15 @@ class DetectionSetup:
         """One line for the run log."""
         p = self.params
         given = [k for k, c in self.choices.items() if c.source == "given"]
-        bg = (
-            f"local background (tiles {p.background_tile_px} px)"
+        level = (
+            f"{p.threshold:.0f} grey levels above the local background (tiles "
+            f"{p.background_tile_px} px"
             if p.background_tile_px
-            else f"background {self.levels.background:.0f}"
+            else f"{p.threshold:.0f} (grey level; background {self.levels.background:.0f}"
         )
         limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
         text = (
-            f"{self.kind}: threshold {p.threshold:.0f} ({bg}, noise {self.levels.noise:.1f}), "
+            f"{self.kind}: threshold {level}, noise {self.levels.noise:.1f}), "
             f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
             f"{self.marker_pixels[1]} px, oversize above {limit} px"
         )
@@ -337,8 +338,8 @@ class _Derivation:
         )
         local = lv.unevenness > 0.5 * excess
         tile = int(min(max(32, 4 * math.ceil(size)), min(self.frames[0].shape) // 2))
-        if local and "threshold" in self.given and "background_tile_px" not in self.given:
-            local = False  # a grey level the user gave is a global threshold
+        # a threshold given keeps the terms the derived one would be in (above the local
+        # background here), so that copying the printed value back gives the same blobs
         self.choose(
             "background_tile_px",
             tile if local else 0,
@@ -416,7 +417,9 @@ class _Derivation:
         # single markers (isolated, filled): touching pairs are split before the limits;
         # markers are round, so their extent follows from their area and the pixel aspect
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
-        pixels = top if top is not None else _largest((single if len(single) >= 5 else m).pixels)
+        pixels = _largest((single if len(single) >= 5 else m).pixels)
+        if top is not None:  # the objects' crowd reaches further than most singles
+            pixels = max(pixels, min(top, float(m.pixels.max())))
         aspect = float(self._partial_params().pixel_aspect)
         lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
         size = {"pixels": pixels, "width": lines * aspect + 1.0, "height": lines + 1.0}
@@ -495,8 +498,8 @@ def _marker_population(groups: Groups) -> tuple[NDArray[np.bool_], float | None]
     them: LED rings and fixed reflections stay put. Otherwise (rods, grid, a calibration
     target: a static scene) the markers are every group up to the top of the largest
     population that is seen at many places (:func:`_objects_top`): a target's dots, not
-    the noise specks below them, and not the few LED rings above. Returns the mask and,
-    for a static scene, the size of the largest objects (pixels).
+    the noise specks below them, and not the few LED rings above. Returns the mask and
+    the size of the largest objects (pixels), moving ones when they move.
     """
     if len(groups) == 0:
         return np.zeros(0, dtype=bool), None
@@ -505,7 +508,7 @@ def _marker_population(groups: Groups) -> tuple[NDArray[np.bool_], float | None]
     fixed = stationary(groups)
     moving = compact & ~fixed
     if fixed.any() and moving.sum() >= MIN_SPOTS_FOR_ASPECT:
-        return compact & (area <= area[moving].max()), None
+        return compact & (area <= area[moving].max()), _objects_top(groups, moving)
     top = _objects_top(groups, compact if compact.any() else ~compact)
     return compact & (area <= top), top
 
