@@ -379,9 +379,9 @@ class _Derivation:
 
         Those tests take a group that is not round for two markers. They hold where single
         markers image as round spots; where isolated spots (single objects for sure) are
-        often not round (irregular particles, specks, comet tails) shape says nothing about
-        how many objects a group holds, and only a neck between them (the touching test)
-        may split it.
+        often not round (irregular particles, specks, comet tails), or too few are seen to
+        tell, shape says nothing about how many objects a group holds, and only a neck
+        between them (the touching test) may split it.
         """
         p = self._partial_params()
         ok = spots.inside & (spots.pixels >= p.long_wide_min_pixels)
@@ -389,6 +389,12 @@ class _Derivation:
         if p.max_pixels is not None:
             ok &= spots.pixels <= p.max_pixels
         if ok.sum() < MIN_SPOTS_FOR_ASPECT:
+            why = (
+                f"only {int(ok.sum())} isolated spots: too few to show that single markers "
+                "image as round spots"
+            )
+            self.choose("split_overlaps", False, why)
+            self.choose("split_long_wide", False, why)
             return
         # as the tests read it: spreads less pixel area and growth (kisscal.detect.shape)
         sx, sy = spreads(spots.var_x[ok], spots.var_y[ok])
