@@ -41,7 +41,10 @@ def detach_from_large(
     """
     if params.detach_kernel_px is None or params.max_pixels is None:
         return grouping
-    idx = oversized(table, params).nonzero()[0]
+    # an LED ring spans a few markers; glare and lit surfaces spanning much of the
+    # image are no ring with markers on it, and their opening would cost the most
+    ring_sized = table.width * table.height <= RING_MAX_MARKERS * params.max_pixels
+    idx = (oversized(table, params) & ring_sized).nonzero()[0]
     if idx.size == 0:
         return grouping
     kw, kh = map(int, params.detach_kernel_px)
@@ -68,6 +71,9 @@ def detach_from_large(
     )
 
 
+#: An oversized blob whose rectangle holds more than this many of the largest markers
+#: is not opened to detach markers from it (glare, a lit surface: no LED ring).
+RING_MAX_MARKERS = 64
 #: Most pixels of one canvas of oversized groups: more groups are opened in turns.
 CANVAS_CHUNK_PX = 1 << 22
 
