@@ -6,8 +6,9 @@ cameras, github OpenPTV/test_cavity, MIT) and prints one JSON line per image:
 
 - calibration images ``cal/camN.tif``: the target dots the camera sees (``camN_dots.csv``,
   41 / 39 / 66 / 67), how many of them kisscal detects as valid blobs within 1 px, how
-  many are split (two or more blobs within the dot's radius, or a blob flagged as a split
-  part), and the valid blobs more than 1 px from every one of OpenPTV's own detections
+  many are split (two or more blobs within the dot's radius) and how many were found as
+  a split part (cut off a touching speck), and the valid blobs more than 1 px from every
+  one of OpenPTV's own detections
   (``camN.tif_targets``): extra detections;
 - particle frames ``img_1/camN.1000K``: when OpenPTV's Python bindings are installed
   (``pip install optv``), OpenPTV's targets of that frame, found by its own
@@ -39,6 +40,7 @@ import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, detect_blobs
 from kisscal.detect import blobs as fl
+from kisscal.detect.background import background_level
 from kisscal.detect.configure import configure_detection
 from kisscal.io.frames import read_image
 
@@ -84,13 +86,16 @@ def score_dots(blobs: Blobs, dots: np.ndarray, reference: np.ndarray) -> dict:
         pieces = np.asarray(
             cKDTree(blobs.xy_px).query_ball_point(dots, DOT_RADIUS_PX, return_length=True)
         )
-    split = (found & split_part) | (pieces >= 2)
+    # a dot is split when it is cut into two blobs or more (a blob flagged as a split part
+    # may be the whole dot, cut off a touching speck: split_part counts those apart)
+    split = pieces >= 2
     extra, _ = nearest(valid.xy_px, reference)
     return {
         "dots": len(dots),
         "found_1px": int(found.sum()),
         "recall_pct": round(100 * float(found.mean()), 1) if len(dots) else None,
         "split": int(split.sum()),
+        "found_as_split_part": int((found & split_part).sum()),
         "valid_blobs": len(valid),
         "extra": int((extra > MATCH_PX).sum()),
         "reference": len(reference),
@@ -162,17 +167,21 @@ def cost(path: Path, sample: list[Path]) -> dict:
     return json.loads(run.stdout.strip().splitlines()[-1])
 
 
-def _measure_cost(path: Path, sample: list[Path]) -> dict:
+def _measure_cost(path: Path, sample: list[Path], given: dict | None = None) -> dict:
     import cv2
 
     cv2.setNumThreads(1)
     image = read_image(path)
-    params = _settings(sample)
+    params = configure_detection([read_image(p) for p in sample], given).params
     blobs = detect_blobs(image, params)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
+    level = params.threshold
+    if params.background_tile_px:  # the same level over the image's median background
+        level += background_level(image)
+
     def opencv() -> None:
-        _, white = cv2.threshold(image, params.threshold, 255, cv2.THRESH_BINARY)
+        _, white = cv2.threshold(image, level, 255, cv2.THRESH_BINARY)
         cv2.connectedComponentsWithStats(white, connectivity=8)
 
     best = [np.inf, np.inf]
@@ -195,9 +204,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--data", type=Path, default=DATA)
     parser.add_argument("--no-cost", action="store_true", help="skip memory and time")
     parser.add_argument("--cost-of", nargs="+", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--threshold", type=float, help="with --cost-of: this threshold instead of the derived"
+    )
     args = parser.parse_args(argv)
     if args.cost_of:
-        print(json.dumps(_measure_cost(args.cost_of[0], args.cost_of[1:] or args.cost_of[:1])))
+        given = {} if args.threshold is None else {"threshold": args.threshold}
+        sample = args.cost_of[1:] or args.cost_of[:1]
+        print(json.dumps(_measure_cost(args.cost_of[0], sample, given)))
         return
     data = args.data
     if not (data / "cal").is_dir():
