@@ -109,6 +109,9 @@ ODD_SHAPES_MAX = 0.3
 MIN_PLACES = 8
 #: Cell (px) within which blobs of a static scene seen in several frames are one place.
 PLACE_PX = 4.0
+#: The smallest oversized blob at least this many times the largest markers (area,
+#: width, height) is another population: the upper limits sit between the two.
+OVERSIZE_GAP = 1.5
 #: Headroom of the upper size limit over the largest marker seen (area).
 SIZE_HEADROOM = 2.0
 
@@ -451,7 +454,9 @@ class _Derivation:
         ):
             limit = math.ceil(size[key] * scale) + pad
             above = getattr(big, key).min() if len(big) else math.inf
-            if len(big) and above >= scale * size[key]:  # a gap: markers, then oversized
+            # a gap between the markers and the oversized: the limit between them; blobs
+            # of every size up from the markers (glare, a continuum): the headroom
+            if len(big) and above >= OVERSIZE_GAP * size[key]:
                 limit = min(limit, math.floor(math.sqrt(size[key] * above)))
             self.choose(name, int(max(limit, math.ceil(size[key]) + 1)), why)
 
