@@ -75,7 +75,7 @@ def detach_from_large(
 #: is not opened to detach markers from it (glare, a lit surface: no LED ring).
 RING_MAX_MARKERS = 64
 #: Most pixels of one canvas of oversized groups: more groups are opened in turns.
-CANVAS_CHUNK_PX = 1 << 22
+CANVAS_CHUNK_PX = 1 << 18
 
 
 def _canvas_chunks(table: GroupTable, idx: NDArray[np.int64], gap: int) -> list[NDArray[np.int64]]:
