@@ -146,7 +146,12 @@ def detect(
     ] = "markers",
     threshold: Annotated[
         float | None,
-        typer.Option(help="Grey level of a white pixel (8-bit scale).", show_default=False),
+        typer.Option(
+            help="Threshold of a white pixel, 8-bit scale, in the terms the printed settings "
+            "use: grey levels above the local background when they say so (uneven "
+            "backgrounds), else the grey level itself.",
+            show_default=False,
+        ),
     ] = None,
     pixel_aspect: Annotated[
         float | None,

@@ -9,10 +9,12 @@ is round for a round marker); runs crossing the boundary are cut there.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from kisscal.detect import blobs as fl
 from kisscal.detect.groups import GroupTable
@@ -77,29 +79,53 @@ def merge_submarkers(grouping: Grouping, table: GroupTable, params: DetectionPar
     big = ~small
     if not small.any() or not big.any():
         return grouping
-    m = params.submarker_margin_px
-    s = np.flatnonzero(small)
-    b = np.flatnonzero(big)
-    # Rectangles as pixel areas: columns x1..x2 cover [x1 - 0.5, x2 + 0.5].
-    ox = np.minimum(table.x2[s, None], table.x2[None, b] + m) - np.maximum(
-        table.x1[s, None], table.x1[None, b] - m
-    )
-    oy = np.minimum(table.y2[s, None], table.y2[None, b] + m) - np.maximum(
-        table.y1[s, None], table.y1[None, b] - m
-    )
-    covered = np.clip(ox + 1, 0, None) * np.clip(oy + 1, 0, None)
-    fraction = covered / (table.width[s] * table.height[s])[:, None]
-    best = np.argmax(fraction, axis=1)
-    ok = fraction[np.arange(s.size), best] >= params.submarker_overlap
+    s, best, ok = _submarker_hosts(table, np.flatnonzero(small), np.flatnonzero(big), params)
     if not ok.any():
         return grouping
     target_of = np.arange(grouping.flags.size)
-    target_of[table.label[s[ok]]] = table.label[b[best[ok]]]
+    target_of[table.label[s[ok]]] = table.label[best[ok]]
     flags = grouping.flags.copy()
-    flags[table.label[b[best[ok]]]] |= fl.MERGED
+    flags[table.label[best[ok]]] |= fl.MERGED
     runs = grouping.runs
     merged = Runs(runs.y, runs.x1, runs.x2, target_of[runs.group])
     return grouping.relabel(merged, flags)
+
+
+def _submarker_hosts(
+    table: GroupTable, s: NDArray[np.int64], b: NDArray[np.int64], params: DetectionParams
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
+    """For each small group ``s``, the large group of ``b`` whose grown rectangle covers
+    the largest fraction of its rectangle (the first such in table order), and whether
+    that fraction reaches ``submarker_overlap``.
+
+    Only pairs whose rectangles can meet are compared: the small groups within reach of
+    each large one are found in a k-d tree of their centres (reach: the large rectangle's
+    half diagonal plus the largest small one's), never a table of every small group
+    against every large one.
+    """
+    m = params.submarker_margin_px
+    centre = np.column_stack([table.x1 + table.x2, table.y1 + table.y2]) * 0.5
+    half_small = float(np.hypot(table.width[s], table.height[s]).max()) / 2
+    reach = np.hypot(table.width[b] + 2 * m, table.height[b] + 2 * m) / 2 + half_small + 1
+    near = cKDTree(centre[s]).query_ball_point(centre[b], reach)
+    count = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
+    si = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
+    bi = np.arange(b.size).repeat(count)
+    ps, pb = s[si], b[bi]
+    ox = np.minimum(table.x2[ps], table.x2[pb] + m) - np.maximum(table.x1[ps], table.x1[pb] - m)
+    oy = np.minimum(table.y2[ps], table.y2[pb] + m) - np.maximum(table.y1[ps], table.y1[pb] - m)
+    covered = np.clip(ox + 1, 0, None) * np.clip(oy + 1, 0, None)
+    fraction = covered / (table.width[ps] * table.height[ps])
+    # per small group: the largest fraction, ties to the first large group in table order
+    order = np.lexsort((bi, -fraction, si))
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = si[order][1:] != si[order][:-1]
+    pick = order[first]
+    best = np.zeros(s.size, dtype=np.int64)
+    frac = np.zeros(s.size)
+    best[si[pick]] = pb[pick]
+    frac[si[pick]] = fraction[pick]
+    return s, best, frac >= params.submarker_overlap
 
 
 def split_groups(

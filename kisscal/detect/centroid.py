@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.groups import GroupTable
+from kisscal.detect.scan import Runs
 
 #: The background a spot's weights are measured from: one grey level, or a map per pixel.
 Background = float | NDArray[np.floating]
@@ -52,6 +53,7 @@ def window_moments(
     margin_y_px: int,
     background: Background,
     pixel_aspect: float,
+    windowed: NDArray[np.bool_] | None = None,
 ) -> SpotMoments:
     """Background-subtracted weighted moments of each group in ``table`` over its window.
 
@@ -74,6 +76,11 @@ def window_moments(
         the image's shape (local background).
     pixel_aspect : float
         Width / height of a round marker in pixels (nearest-centre distance).
+    windowed : ndarray of bool, optional
+        The groups whose window is weighed (default: all). The others (glare, lit
+        surfaces: groups far larger than a marker, whose rectangles may span the image)
+        get the plain moments of their own white pixels (:func:`binary_moments`), so
+        that the cost follows the white pixels, not the rectangles' areas.
 
     Returns
     -------
@@ -81,22 +88,162 @@ def window_moments(
         The centroid falls back to the binary centroid where the weights sum to <= 0 or
         put it outside the window.
     """
+    if windowed is not None and not windowed.all():
+        return _partly_windowed(
+            image,
+            white,
+            grouping,
+            table,
+            (margin_x_px, margin_y_px),
+            background,
+            pixel_aspect,
+            windowed,
+        )
     height, width = image.shape
-    n = len(table)
     x0 = np.maximum(table.x1 - margin_x_px, 0)
     ncol = np.minimum(table.x2 + margin_x_px, width - 1) - x0 + 1
     y0 = np.maximum(table.y1 - margin_y_px, 0)
     nrow = np.minimum(table.y2 + margin_y_px, height - 1) - y0 + 1
+    windows = _Windows(x0, y0, ncol, nrow)
+    spot = _Spot(image, white, grouping, table, background, pixel_aspect)
     area = ncol * nrow
+    if int(area.sum()) <= WINDOW_CHUNK_PX:  # the usual image: every window at once
+        sums = _window_sums(spot, windows, np.arange(len(table)), 0, nrow)
+    else:
+        sums = _chunked_sums(spot, windows)
+    return _moments_from_sums(sums, table, x0, y0, ncol, nrow)
+
+
+def _partly_windowed(
+    image: NDArray,
+    white: NDArray[np.bool_],
+    grouping: Grouping,
+    table: GroupTable,
+    margins: tuple[int, int],
+    background: Background,
+    pixel_aspect: float,
+    windowed: NDArray[np.bool_],
+) -> SpotMoments:
+    """Window moments of the ``windowed`` groups, binary moments of the others."""
+    plain = binary_moments(grouping.runs, table)
+    if not windowed.any():
+        return plain
+    mine = np.zeros(int(table.label.max()) + 1, dtype=bool)
+    mine[table.label[windowed]] = True
+    part = grouping.relabel(grouping.runs.take(mine[grouping.runs.group]))
+    sub = table.take(windowed)
+    some = window_moments(image, white, part, sub, *margins, background, pixel_aspect)
+    out = {}
+    for name in SpotMoments.__dataclass_fields__:
+        column = getattr(plain, name).copy()
+        column[windowed] = getattr(some, name)
+        out[name] = column
+    return SpotMoments(**out)
+
+
+def binary_moments(runs: Runs, table: GroupTable) -> SpotMoments:
+    """Moments of each group's own white pixels, each weighing 1 (window and core alike).
+
+    Summed run by run in closed form (a run's sum of x and x^2 over its columns), so the
+    cost is one pass over the runs whatever the groups' rectangles.
+    """
+    row = table.label.searchsorted(runs.group)
+    n = (runs.x2 - runs.x1 + 1).astype(float)
+    x1, x2, y = runs.x1.astype(float), runs.x2.astype(float), runs.y.astype(float)
+    # about each group's rectangle corner: small numbers, no cancellation
+    x1 -= table.x1[row]
+    x2 -= table.x1[row]
+    y -= table.y1[row]
+    sx = n * (x1 + x2) / 2
+    sxx = (x2 * (x2 + 1) * (2 * x2 + 1) - (x1 - 1) * x1 * (2 * x1 - 1)) / 6
+    size = len(table)
+    total = np.bincount(row, n, size)
+    mx = np.bincount(row, sx, size) / total
+    my = np.bincount(row, n * y, size) / total
+    var_x = np.bincount(row, sxx, size) / total - mx * mx
+    var_y = np.bincount(row, n * y * y, size) / total - my * my
+    cov = np.bincount(row, sx * y, size) / total - mx * my
+    x, y0 = table.x1 + mx, table.y1 + my
+    return SpotMoments(total, x, y0, var_x, var_y, cov, var_x, var_y, cov)
+
+
+#: Most window pixels whose moment terms are held at once (about 100 bytes each): larger
+#: sets of windows, and windows larger than this, are summed in pieces of rows, so that
+#: memory stays bounded whatever the image holds (a frame-sized glare, thousands of blobs).
+WINDOW_CHUNK_PX = 1 << 19
+
+
+@dataclass(frozen=True)
+class _Windows:
+    """Each group's window: left column, top row, columns and rows."""
+
+    x0: NDArray[np.int64]
+    y0: NDArray[np.int64]
+    ncol: NDArray[np.int64]
+    nrow: NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class _Spot:
+    """What the window sums read besides the windows."""
+
+    image: NDArray
+    white: NDArray[np.bool_]
+    grouping: Grouping
+    table: GroupTable
+    background: Background
+    pixel_aspect: float
+
+
+def _chunked_sums(spot: _Spot, win: _Windows) -> NDArray[np.float64]:
+    """:func:`_window_sums` of every window, in pieces of at most :data:`WINDOW_CHUNK_PX`
+    pixels (a window larger than that is cut into bands of rows), added up per window."""
+    band = np.maximum(WINDOW_CHUNK_PX // win.ncol, 1)  # rows per piece
+    pieces = -(-win.nrow // band)
+    group = np.arange(len(win.nrow)).repeat(pieces)
+    k = np.arange(group.size) - (pieces.cumsum() - pieces).repeat(pieces)
+    start = k * band[group]  # first window row of each piece
+    rows = np.minimum(band[group], win.nrow[group] - start)
+    area = rows * win.ncol[group]
+    # consecutive pieces, at most WINDOW_CHUNK_PX pixels together (or one larger piece)
+    chunk = np.floor_divide(area.cumsum() - area, WINDOW_CHUNK_PX)
+    cuts = np.flatnonzero(np.diff(chunk)) + 1
+    parts = [
+        _window_sums(spot, win, group[a:b], start[a:b], rows[a:b])
+        for a, b in zip(np.r_[0, cuts], np.r_[cuts, group.size], strict=True)
+    ]
+    sums = np.concatenate(parts, axis=2)
+    return np.add.reduceat(sums, pieces.cumsum() - pieces, axis=2)
+
+
+def _window_sums(
+    spot: _Spot,
+    win: _Windows,
+    group: NDArray[np.int64],
+    start: NDArray[np.int64] | int,
+    rows: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    """Raw window and core sums ``(window | core, term, piece)`` of pieces of windows.
+
+    Piece ``i`` is rows ``start[i]`` to ``start[i] + rows[i] - 1`` of the window of table
+    row ``group[i]``; its terms are taken about the whole window's corner, so that the
+    pieces of one window add up to the window's sums.
+    """
+    image, table, grouping = spot.image, spot.table, spot.grouping
+    width = image.shape[1]
+    ncol = win.ncol[group]
+    area = ncol * rows
     first = area.cumsum() - area
-    # Every window's pixels, window after window, each in scan order.
-    g = np.arange(n).repeat(area)
+    # Every piece's pixels, piece after piece, each in scan order.
+    g = np.arange(group.size).repeat(area)
     row, col = np.divmod(np.arange(g.size) - first[g], ncol[g])
-    flat = (y0 * width + x0)[g] + row * width + col
-    own = _own_pixels(grouping, table, first, x0, y0, ncol, g.size)
+    row += np.asarray(start).repeat(area) if np.ndim(start) else start
+    t = group[g]  # table row of each pixel
+    flat = (win.y0 * width + win.x0)[t] + row * width + col
+    own = _own_pixels(spot, win, group, start, rows, first, g.size)
     # Raw moments about each window's corner (small numbers: no cancellation) of the
     # window's weights and of its own pixels' weights (core), all in one segment
-    # reduction since each window's pixels are contiguous. Terms 1, x, y, x^2, y^2, xy,
+    # reduction since each piece's pixels are contiguous. Terms 1, x, y, x^2, y^2, xy,
     # each product taken as (w x) x etc. so that the sums stay those of w * x * x, and
     # written in place: the terms are most of the pixel-level work.
     terms = np.empty((6, 2, g.size))
@@ -104,13 +251,14 @@ def window_moments(
     if image.dtype == np.bool_:
         weight[:] = own
     else:
+        background = spot.background
         bg = background.ravel().take(flat) if np.ndim(background) else background
         np.subtract(image.ravel().take(flat), bg, out=weight, dtype=np.float64)
-        weight[white.ravel().take(flat) & ~own] = 0.0
+        weight[spot.white.ravel().take(flat) & ~own] = 0.0
     split = (~np.isnan(grouping.centre_x[table.label])).nonzero()[0]
     if split.size:
-        xs, ys = x0[g] + col, y0[g] + row
-        weight *= _nearest_part_mask(g, xs, ys, split, grouping, table, pixel_aspect)
+        xs, ys = win.x0[t] + col, win.y0[t] + row
+        weight *= _nearest_part_mask(t, xs, ys, split, grouping, table, spot.pixel_aspect)
     np.multiply(weight, own, out=terms[0, 1])
     w = terms[0]
     np.multiply(w, col, out=terms[1])
@@ -118,8 +266,9 @@ def window_moments(
     np.multiply(terms[1], col, out=terms[3])
     np.multiply(terms[2], row, out=terms[4])
     np.multiply(terms[1], row, out=terms[5])
-    sums = np.add.reduceat(terms, first, axis=2).transpose(1, 0, 2)
-    return _moments_from_sums(sums, table, x0, y0, ncol, nrow)
+    if g.size == 0:
+        return np.zeros((2, 6, group.size))
+    return np.add.reduceat(terms, first, axis=2).transpose(1, 0, 2)
 
 
 #: The centroid coordinates (x, y) whose products make the central terms x^2, y^2, xy.
@@ -128,29 +277,57 @@ _RIGHT = np.array([0, 1, 1])
 
 
 def _own_pixels(
-    grouping: Grouping,
-    table: GroupTable,
+    spot: _Spot,
+    win: _Windows,
+    group: NDArray[np.int64],
+    start: NDArray[np.int64] | int,
+    rows: NDArray[np.int64],
     first: NDArray[np.int64],
-    x0: NDArray[np.int64],
-    y0: NDArray[np.int64],
-    ncol: NDArray[np.int64],
     size: int,
 ) -> NDArray[np.bool_]:
-    """Which window pixels are white pixels of the window's own group.
+    """Which pixels of the pieces are white pixels of the window's own group.
 
     Each run lies inside its group's window, so its pixels are scattered straight to
-    their window positions: no image-sized owner map to clear and look up.
+    their piece positions: no image-sized owner map to clear and look up. With pieces
+    (not every window whole) the runs are those of the pieces' rows.
     """
-    runs = grouping.runs
+    runs, table = spot.grouping.runs, spot.table
     row = table.label.searchsorted(runs.group)
-    # position of image pixel (x, y) in window t: first + (y - y0) ncol + (x - x0)
-    offset = (first - y0 * ncol - x0)[row] + runs.y * ncol[row] + runs.x1
+    if np.ndim(start) or group.size != len(table):
+        runs, row, piece = _piece_runs(runs, row, win, group, np.asarray(start), rows)
+    else:
+        piece = row
+    ncol = win.ncol[row]
+    # position of image pixel (x, y) in piece i: first + (y - y0 - start) ncol + (x - x0)
+    top = win.y0[row] + (np.asarray(start)[piece] if np.ndim(start) else start)
+    offset = first[piece] - top * ncol - win.x0[row] + runs.y * ncol + runs.x1
     count = runs.x2 - runs.x1 + 1
     end = count.cumsum()
     own = np.zeros(size, dtype=bool)
     pixels = int(end[-1]) if end.size else 0
     own[np.arange(pixels) + (offset - end + count).repeat(count)] = True
     return own
+
+
+def _piece_runs(
+    runs: Runs,
+    row: NDArray[np.int64],
+    win: _Windows,
+    group: NDArray[np.int64],
+    start: NDArray[np.int64],
+    rows: NDArray[np.int64],
+) -> tuple[Runs, NDArray[np.int64], NDArray[np.int64]]:
+    """The runs lying in the given pieces of windows: the runs, their table rows and the
+    piece each lies in. Pieces are in (table row, first row) order and do not overlap."""
+    height = int(win.y0.max() + win.nrow.max()) + 1
+    key = row * height + (runs.y - win.y0[row])
+    order = np.argsort(key, kind="stable")
+    lo = key[order].searchsorted(group * height + start)
+    hi = key[order].searchsorted(group * height + start + rows)
+    count = hi - lo
+    pick = order[np.arange(count.sum()) + (lo - count.cumsum() + count).repeat(count)]
+    piece = np.arange(group.size).repeat(count)
+    return runs.take(pick), row[pick], piece
 
 
 def _moments_from_sums(
@@ -200,9 +377,10 @@ def _nearest_part_mask(
 ) -> NDArray[np.float64]:
     """1.0 where a window pixel of a split part is nearer its own centre than a sibling's.
 
-    One pass over the window pixels of all split parts: each pixel is compared with the
-    centres of its part's siblings only (at most a few), so the cost is linear in the
-    number of window pixels whatever the number of split groups.
+    ``g`` is the table row of each pixel. Each pixel is compared with the centres of its
+    part's siblings only, one sibling rank at a time (the first nearest wins ties), so
+    memory is linear in the window pixels and time in window pixels times the largest
+    family (a few parts: splits never cut a group into more than a handful).
     """
     keep = np.ones(g.size)
     parent = grouping.parent[table.label]
@@ -214,19 +392,24 @@ def _nearest_part_mask(
     count = np.empty_like(first)  # family sizes (np.diff's append= costs more)
     count[:-1] = first[1:] - first[:-1]
     count[-1] = order.size - first[-1]
-    family = np.arange(first.size).repeat(count)  # sibling set of each split row
-    siblings = np.full((first.size, int(count.max())), -1)
-    siblings[family, np.arange(order.size) - first[family]] = order
     family_of_row = np.full(len(table), -1)
-    family_of_row[order] = family
+    family_of_row[order] = np.arange(first.size).repeat(count)
     rows = (family_of_row[g] >= 0).nonzero()[0]
-    cand = siblings[family_of_row[g[rows]]]  # (pixels, siblings), -1 padded
-    safe = np.maximum(cand, 0)
-    cx = grouping.centre_x[table.label[safe]]
-    cy = grouping.centre_y[table.label[safe]]
-    r2 = grouping.radius[table.label[safe]] ** 2
-    d = (((xs[rows, None] - cx) / pixel_aspect) ** 2 + (ys[rows, None] - cy) ** 2) / r2
-    d[cand < 0] = np.inf
-    nearest = cand[np.arange(rows.size), np.argmin(d, axis=1)]
+    fam = family_of_row[g[rows]]
+    px, py = xs[rows], ys[rows]
+    best = np.full(rows.size, np.inf)
+    nearest = np.full(rows.size, -1)
+    label = table.label
+    for rank in range(int(count.max())):
+        has = (count[fam] > rank).nonzero()[0]
+        sibling = order[first[fam[has]] + rank]
+        lab = label[sibling]
+        d = ((px[has] - grouping.centre_x[lab]) / pixel_aspect) ** 2
+        d += (py[has] - grouping.centre_y[lab]) ** 2
+        d /= grouping.radius[lab] ** 2
+        closer = d < best[has]
+        at = has[closer]
+        best[at] = d[closer]
+        nearest[at] = sibling[closer]
     keep[rows] = nearest == g[rows]
     return keep

@@ -69,6 +69,7 @@ from numpy.typing import NDArray
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
+from kisscal.detect.shape import spreads
 from kisscal.detect.survey import (
     GreyLevels,
     Groups,
@@ -101,6 +102,16 @@ DERIVED = (
 THRESHOLD_FRACTION = 0.15
 #: Two sizes of blob this many times apart in area belong to different populations.
 SIZE_GAP = 2.5
+#: Largest fraction of isolated spots that the shape tests would call two markers, for
+#: those tests to stay on (single markers image as round spots).
+ODD_SHAPES_MAX = 0.3
+#: Fewest places a population of blobs is seen at to be the objects (more than LED rings).
+MIN_PLACES = 8
+#: Cell (px) within which blobs of a static scene seen in several frames are one place.
+PLACE_PX = 4.0
+#: The smallest oversized blob at least this many times the largest markers (area,
+#: width, height) is another population: the upper limits sit between the two.
+OVERSIZE_GAP = 1.5
 #: Headroom of the upper size limit over the largest marker seen (area).
 SIZE_HEADROOM = 2.0
 
@@ -145,14 +156,15 @@ class DetectionSetup:
         """One line for the run log."""
         p = self.params
         given = [k for k, c in self.choices.items() if c.source == "given"]
-        bg = (
-            f"local background (tiles {p.background_tile_px} px)"
+        level = (
+            f"{p.threshold:.0f} grey levels above the local background (tiles "
+            f"{p.background_tile_px} px"
             if p.background_tile_px
-            else f"background {self.levels.background:.0f}"
+            else f"{p.threshold:.0f} (grey level; background {self.levels.background:.0f}"
         )
         limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
         text = (
-            f"{self.kind}: threshold {p.threshold:.0f} ({bg}, noise {self.levels.noise:.1f}), "
+            f"{self.kind}: threshold {level}, noise {self.levels.noise:.1f}), "
             f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
             f"{self.marker_pixels[1]} px, oversize above {limit} px"
         )
@@ -279,16 +291,18 @@ class _Derivation:
         first = survey_frames(self.frames, probe, tile0)
         if len(first) == 0:
             return self._nothing_bright(probe)
-        markers0 = _marker_population(first)
+        markers0, _ = _marker_population(first)
         self._threshold(first.take(markers0))
         final = self._final_groups()
-        markers = _marker_population(final)
+        markers, top = _marker_population(final)
         self._aspect(final.take(markers & (final.isolation > 3.0)))
-        self._size_limits(final, markers)
+        self._size_limits(final, markers, top)
         self._margins()
         if self.kind == "grid":
             for name in ("split_touching", "split_overlaps", "split_long_wide"):
                 self.choose(name, False, "grid dots never touch: nothing to split")
+        else:
+            self._shape_tests(final.take(markers & (final.isolation > 2.0)))
         params = DetectionParams.from_layers(self.values, self.given)
         seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
@@ -327,8 +341,8 @@ class _Derivation:
         )
         local = lv.unevenness > 0.5 * excess
         tile = int(min(max(32, 4 * math.ceil(size)), min(self.frames[0].shape) // 2))
-        if local and "threshold" in self.given and "background_tile_px" not in self.given:
-            local = False  # a grey level the user gave is a global threshold
+        # a threshold given keeps the terms the derived one would be in (above the local
+        # background here), so that copying the printed value back gives the same blobs
         self.choose(
             "background_tile_px",
             tile if local else 0,
@@ -363,7 +377,43 @@ class _Derivation:
         value, why = measure_pixel_aspect(spots)
         self.choose("pixel_aspect", value, why)
 
-    def _size_limits(self, groups: Groups, markers: NDArray[np.bool_]) -> None:
+    def _shape_tests(self, spots: Groups) -> None:
+        """Whether a group's shape alone may split it (overlap and long/wide tests).
+
+        Those tests take a group that is not round for two markers. They hold where single
+        markers image as round spots; where isolated spots (single objects for sure) are
+        often not round (irregular particles, specks, comet tails), or too few are seen to
+        tell, shape says nothing about how many objects a group holds, and only a neck
+        between them (the touching test) may split it.
+        """
+        p = self._partial_params()
+        ok = spots.inside & (spots.pixels >= p.long_wide_min_pixels)
+        ok &= (spots.var_x > 0) & (spots.var_y > 0)
+        if p.max_pixels is not None:
+            ok &= spots.pixels <= p.max_pixels
+        if ok.sum() < MIN_SPOTS_FOR_ASPECT:
+            why = (
+                f"only {int(ok.sum())} isolated spots: too few to show that single markers "
+                "image as round spots"
+            )
+            self.choose("split_overlaps", False, why)
+            self.choose("split_long_wide", False, why)
+            return
+        # as the tests read it: spreads less pixel area and growth (kisscal.detect.shape)
+        sx, sy = spreads(spots.var_x[ok], spots.var_y[ok])
+        g = p.growth_px
+        ratio = p.pixel_aspect * np.maximum(sy - g, 0.05) / np.maximum(sx - g, 0.05)
+        odd = float(np.mean((ratio < p.min_ratio) | (ratio > p.max_ratio)))
+        if odd <= ODD_SHAPES_MAX:
+            return
+        why = (
+            f"{odd:.0%} of {int(ok.sum())} isolated spots are not round: shape alone does not "
+            "tell two markers from one"
+        )
+        self.choose("split_overlaps", False, why)
+        self.choose("split_long_wide", False, why)
+
+    def _size_limits(self, groups: Groups, markers: NDArray[np.bool_], top: float | None) -> None:
         """Upper size limits between the markers and the oversized blobs, the detach
         kernel and the lower limit."""
         m = groups.take(markers)
@@ -377,6 +427,8 @@ class _Derivation:
         # markers are round, so their extent follows from their area and the pixel aspect
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
         pixels = _largest((single if len(single) >= 5 else m).pixels)
+        if top is not None:  # the objects' crowd reaches further than most singles
+            pixels = max(pixels, min(top, float(m.pixels.max())))
         aspect = float(self._partial_params().pixel_aspect)
         lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
         size = {"pixels": pixels, "width": lines * aspect + 1.0, "height": lines + 1.0}
@@ -401,8 +453,11 @@ class _Derivation:
             ("max_height_px", "height", math.sqrt(headroom), 1),
         ):
             limit = math.ceil(size[key] * scale) + pad
-            if len(big):  # between the markers and the smallest oversized blob
-                limit = min(limit, math.floor(math.sqrt(size[key] * getattr(big, key).min())))
+            above = getattr(big, key).min() if len(big) else math.inf
+            # a gap between the markers and the oversized: the limit between them; blobs
+            # of every size up from the markers (glare, a continuum): the headroom
+            if len(big) and above >= OVERSIZE_GAP * size[key]:
+                limit = min(limit, math.floor(math.sqrt(size[key] * above)))
             self.choose(name, int(max(limit, math.ceil(size[key]) + 1)), why)
 
     def _detach_kernel(self, size: dict[str, float], big: Groups) -> None:
@@ -446,28 +501,52 @@ def _odd(value: float) -> int:
     return n if n % 2 else n + 1
 
 
-def _marker_population(groups: Groups) -> NDArray[np.bool_]:
+def _marker_population(groups: Groups) -> tuple[NDArray[np.bool_], float | None]:
     """Groups that belong to the marker population (not LED rings, reflections, streaks).
 
     Streaks (fill below a third) are not markers. When enough groups move between the
     surveyed frames, the markers are the moving ones and every group up to the largest of
-    them: LED rings and fixed reflections stay put. Otherwise (rods, grid: a static
-    scene), in log area the markers are the most numerous population: walking up the
-    sorted areas from the median, the first jump by :data:`SIZE_GAP` or more ends it.
+    them: LED rings and fixed reflections stay put. Otherwise (rods, grid, a calibration
+    target: a static scene) the markers are every group up to the top of the largest
+    population that is seen at many places (:func:`_objects_top`): a target's dots, not
+    the noise specks below them, and not the few LED rings above. Returns the mask and
+    the size of the largest objects (pixels), moving ones when they move.
     """
     if len(groups) == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=bool), None
     area = groups.pixels.astype(float)
     compact = groups.fill >= 0.33
     fixed = stationary(groups)
     moving = compact & ~fixed
     if fixed.any() and moving.sum() >= MIN_SPOTS_FOR_ASPECT:
-        return compact & (area <= area[moving].max())
-    order = np.sort(area[compact]) if compact.any() else np.sort(area)
-    upper = order[-1]
+        return compact & (area <= area[moving].max()), _objects_top(groups, moving)
+    top = _objects_top(groups, compact if compact.any() else ~compact)
+    return compact & (area <= top), top
+
+
+def _objects_top(groups: Groups, compact: NDArray[np.bool_]) -> float:
+    """The largest area of the object population of a static scene.
+
+    Objects (a target's dots, markers, particles) are round blobs seen at many places;
+    noise specks are many but small, LED rings of facing cameras and fixed reflections
+    large but at few places. Walking down the areas of the round blobs (one per place),
+    the top of the objects is the first area with :data:`MIN_PLACES` round blobs or more
+    within :data:`SIZE_GAP` below it: the few larger blobs above are not objects. With
+    no such crowd, the most numerous population (the one holding the median) is taken.
+    """
+    ratio = np.maximum(groups.width, groups.height) / np.minimum(groups.width, groups.height)
+    round_ = compact & (groups.fill >= 0.6) & (ratio <= 2.5)
+    one = groups.take(round_)
+    if len(one):
+        cells = np.floor(np.column_stack([one.x, one.y]) / PLACE_PX)
+        _, first = np.unique(cells, axis=0, return_index=True)
+        area = np.sort(one.pixels[first].astype(float))
+        crowd = np.arange(area.size) + 1 - np.searchsorted(area, area / SIZE_GAP)
+        top = np.flatnonzero(crowd >= MIN_PLACES)
+        if top.size:
+            return float(area[top[-1]])
+    order = np.sort(groups.pixels[compact].astype(float))
     mid = len(order) // 2
-    steps = order[mid + 1 :] / order[mid:-1] if len(order) > mid + 1 else np.zeros(0)
+    steps = order[mid + 1 :] / order[mid:-1]
     jumps = np.flatnonzero(steps >= SIZE_GAP)
-    if jumps.size:
-        upper = order[mid + jumps[0]]
-    return compact & (area <= upper)
+    return float(order[mid + jumps[0]] if jumps.size else order[-1])

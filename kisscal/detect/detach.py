@@ -41,24 +41,20 @@ def detach_from_large(
     """
     if params.detach_kernel_px is None or params.max_pixels is None:
         return grouping
-    idx = oversized(table, params).nonzero()[0]
+    # an LED ring spans a few markers; glare and lit surfaces spanning much of the
+    # image are no ring with markers on it, and their opening would cost the most
+    ring_sized = table.width * table.height <= RING_MAX_MARKERS * params.max_pixels
+    idx = (oversized(table, params) & ring_sized).nonzero()[0]
     if idx.size == 0:
         return grouping
     kw, kh = map(int, params.detach_kernel_px)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
-    # The opening reaches kh // 2 rows: kh black rows keep each crop's opening its own
-    # (and, the ellipse's middle row and column being full, a crop's own black border
-    # stops an erosion exactly where the crop's edge would).
-    canvas, top = group_canvas(grouping.runs, table, idx, gap=kh)
-    core = cv2.morphologyEx(canvas, cv2.MORPH_OPEN, kernel)
-    # Only a blob that stays oversized without the pieces is an LED ring; overlapping
-    # markers have no such core and are left to the overlap and long/wide tests.
-    ring = np.add.reduceat(np.count_nonzero(core, axis=1), top) > params.max_pixels
-    if not ring.any():
-        return grouping
-    found = _ring_parts(canvas, core, top, ring, table, idx, params, shape)
+    found: dict[int, Parts] = {}
+    for part in _canvas_chunks(table, idx, kh):
+        found.update(_detach_parts(grouping, table, part, params, shape, kernel, kh))
     if not found:
         return grouping
+    found = dict(sorted(found.items()))  # rings in table order
     k = max(len(p) for p in found.values())
     table_xyr = np.full((len(found), k, 3), np.nan)
     for row, parts in enumerate(found.values()):
@@ -75,6 +71,56 @@ def detach_from_large(
     )
 
 
+#: An oversized blob whose rectangle holds more than this many of the largest markers
+#: is not opened to detach markers from it (glare, a lit surface: no LED ring).
+RING_MAX_MARKERS = 64
+#: Most pixels of one canvas of oversized groups: more groups are opened in turns.
+CANVAS_CHUNK_PX = 1 << 18
+
+
+def _canvas_chunks(table: GroupTable, idx: NDArray[np.int64], gap: int) -> list[NDArray[np.int64]]:
+    """``idx`` in sets whose stacked canvas (rows times the widest crop) stays within
+    :data:`CANVAS_CHUNK_PX` (a set of one group may exceed it: its own crop), narrow
+    groups together so that one wide glare does not widen every crop."""
+    rows = (table.height[idx] + 2 + gap + 1).cumsum()
+    if rows[-1] * (int(table.width[idx].max()) + 2) <= CANVAS_CHUNK_PX:
+        return [idx]  # the usual image: its few LED rings on one canvas
+    idx = idx[np.argsort(table.width[idx], kind="stable")]
+    rows = (table.height[idx] + 2 + gap + 1).cumsum()
+    width = table.width[idx] + 2
+    chunks, begin = [], 0
+    for end in range(1, idx.size + 1):  # a few oversized groups per image
+        base = rows[begin - 1] if begin else 0
+        if end < idx.size and (rows[end] - base) * width[end] > CANVAS_CHUNK_PX:
+            chunks.append(idx[begin:end])
+            begin = end
+    chunks.append(idx[begin:])
+    return [np.sort(c) for c in chunks if c.size]
+
+
+def _detach_parts(
+    grouping: Grouping,
+    table: GroupTable,
+    idx: NDArray[np.int64],
+    params: DetectionParams,
+    shape: tuple[int, ...] | None,
+    kernel: NDArray[np.uint8],
+    kh: int,
+) -> dict[int, Parts]:
+    """The parts of the LED rings among the oversized groups ``idx`` (one canvas)."""
+    # The opening reaches kh // 2 rows: kh black rows keep each crop's opening its own
+    # (and, the ellipse's middle row and column being full, a crop's own black border
+    # stops an erosion exactly where the crop's edge would).
+    canvas, top = group_canvas(grouping.runs, table, idx, gap=kh)
+    core = cv2.morphologyEx(canvas, cv2.MORPH_OPEN, kernel)
+    # Only a blob that stays oversized without the pieces is an LED ring; overlapping
+    # markers have no such core and are left to the overlap and long/wide tests.
+    ring = np.add.reduceat(np.count_nonzero(core, axis=1), top) > params.max_pixels
+    if not ring.any():
+        return {}
+    return _ring_parts(canvas, core, top, ring, table, idx, params, shape)
+
+
 def _ring_parts(
     canvas: NDArray[np.uint8],
     core: NDArray[np.uint8],
@@ -86,7 +132,8 @@ def _ring_parts(
     shape: tuple[int, ...] | None,
 ) -> dict[int, Parts]:
     """The core and the marker-sized pieces of every LED ring that lost pieces to the
-    opening, by table row (rings in table order).
+    opening, by table row (rings in table order). A ring with more pieces than
+    ``split_max_markers`` is left whole.
 
     A piece is a component of what the opening removed, away from the opened blob.
     Positions are image pixels, each piece's centroid summed over its own pixels so that
@@ -107,6 +154,10 @@ def _ring_parts(
     if shape is not None:  # slivers of a ring cut by the image border
         px, py = x0[crop] + left, y0[crop] + above
         keep &= (px > 0) & (py > 0) & (px + w < shape[1]) & (py + h < shape[0])
+    # more pieces than a cluster of markers holds: a glare with specks along its edge,
+    # not an LED ring with markers on it; left whole (and the cost stays bounded)
+    pieces = np.bincount(crop[keep], minlength=idx.size)
+    keep &= pieces[crop] <= params.split_max_markers
     found: dict[int, Parts] = {}
     for j in keep.nonzero()[0].tolist():  # the rare pieces, in ring then label order
         c = int(crop[j])

@@ -26,6 +26,9 @@ from kisscal.detect.splits import Spots, split_markers
 from kisscal.errors import KisscalError
 
 DEFAULT_PARAMS = DetectionParams()
+#: A frame with more of its pixels white than this holds no spots to find: markers are a
+#: small bright population on a darker surround (overexposed, or the threshold too low).
+MAX_WHITE_FRACTION = 0.9
 #: Largest grey level a float image may hold (a 16-bit image's range).
 MAX_FLOAT_GREY = 65535.0
 
@@ -89,6 +92,23 @@ def threshold_image(image: NDArray, params: DetectionParams) -> tuple[NDArray, B
     return white_above(image, params.threshold), level
 
 
+def hopeless(image: NDArray, params: DetectionParams) -> str | None:
+    """Why no blob can be found in ``image`` with ``params``, in one line, or None.
+
+    A frame more than :data:`MAX_WHITE_FRACTION` white at the threshold is not a marker
+    image (overexposed, or a threshold below its background): :func:`detect_blobs`
+    returns no blob for it at the cost of the threshold alone.
+    """
+    white, _ = threshold_image(check_image(image), params)
+    share = np.count_nonzero(white) / white.size
+    if share <= MAX_WHITE_FRACTION:
+        return None
+    return (
+        f"{share:.0%} of the frame is above the threshold: no spots to find (overexposed, "
+        "or the threshold is below the background)"
+    )
+
+
 def white_above(image: NDArray, threshold: float) -> NDArray[np.bool_]:
     """``image >= threshold``, compared on the image's own integer scale when it has one.
 
@@ -122,7 +142,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
         One row per group, sorted by the top-left corner of its bounding rectangle.
         Centroids are intensity-weighted (rim included, background subtracted) for grey
         images when ``params.weighted_centroid``; otherwise the binary centroid of
-        equation (2). An image without white pixels gives an empty table.
+        equation (2). An image without white pixels gives an empty table, and so does
+        one almost all white (:func:`hopeless` says why).
 
     Notes
     -----
@@ -145,6 +166,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     """
     image = check_image(image)
     white, background = threshold_image(image, params)
+    if np.count_nonzero(white) > MAX_WHITE_FRACTION * white.size:
+        return Blobs.empty()  # no spots on a dark surround: nothing to find (see hopeless)
     runs = group_runs(white, params.closeness_x_px, params.closeness_rows)
     if len(runs) == 0:
         return Blobs.empty()

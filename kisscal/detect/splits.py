@@ -24,7 +24,7 @@ from kisscal.detect.advanced import (
     oversized,
     splittable,
 )
-from kisscal.detect.centroid import Background, SpotMoments, window_moments
+from kisscal.detect.centroid import Background, SpotMoments, binary_moments, window_moments
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.shape import (
@@ -36,6 +36,11 @@ from kisscal.detect.shape import (
     spreads,
 )
 from kisscal.detect.touching import split_touching
+
+#: Largest major / minor axis ratio (round units) of one round spot.
+ROUND_ELONGATION = 1.25
+#: Least fraction of its moments' ellipse a round spot's white pixels fill.
+ROUND_FILL = 0.85
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,7 @@ class Spots:
             p.centroid_margin_y_px,
             self.background,
             p.pixel_aspect,
+            splittable(table, p),
         )
 
 
@@ -141,6 +147,27 @@ class _Facts:
         return principal_axes(*self.corrected, self.params.pixel_aspect)
 
     @cached_property
+    def single_round(self) -> NDArray[np.bool_]:
+        """Groups that are one round spot: never split, whatever their size.
+
+        Their spot moments (growth removed, round units) are nearly equal, elongation at
+        most :data:`ROUND_ELONGATION`, and their white pixels fill the ellipse of their
+        own second moments (a solid disc does; two or three markers side by side, or a
+        neck between them, do not). A target's dots, markers seen face on.
+        """
+        major, minor, _, _ = self.axes
+        m = binary_moments(self.grouping.runs, self.table)
+        a = self.params.pixel_aspect
+        outline = principal_axes(m.var_x, m.var_y, m.cov_xy, a)
+        ellipse = 4.0 * np.pi * np.sqrt(outline[0] * outline[1]) * a  # its pixels
+        pixels = self.table.pixels
+        return (
+            (pixels >= self.params.long_wide_min_pixels)
+            & (major <= ROUND_ELONGATION**2 * minor)
+            & (pixels >= ROUND_FILL * ellipse)
+        )
+
+    @cached_property
     def testable(self) -> NDArray[np.bool_]:
         """Groups the overlap and long/wide tests may split.
 
@@ -151,7 +178,7 @@ class _Facts:
         a neck has a flattened side that the shape tests would misread.
         """
         table = self.table
-        inside = self.inside & splittable(table, self.params)
+        inside = self.inside & splittable(table, self.params) & ~self.single_round
         flags = self.grouping.flags[table.label]
         part = (flags & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
         if not part.any():
@@ -181,6 +208,7 @@ class _Facts:
 
 def _touching_step(facts: _Facts) -> Grouping:
     candidates = facts.not_single() & splittable(facts.table, facts.params)
+    candidates &= ~facts.single_round
     return split_touching(facts.grouping, facts.table, facts.params, candidates)
 
 

@@ -35,6 +35,8 @@ from kisscal.detect.scan import Runs, group_runs
 RIM_MAX_PX = 10
 #: Margin (px) of the window over which a surveyed spot's grey moments are taken.
 MOMENT_MARGIN_PX = 3
+#: Groups of more than 1 / this of the image's pixels are too large for window moments.
+SURVEY_WINDOW_FRACTION = 256
 #: Local noise deviations a surveyed spot must stand above its local background.
 NOISE_FACTOR = np.float32(DetectionParams().noise_factor)
 
@@ -171,7 +173,9 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
     np.maximum.at(peak, slot, contrast[y, x])
     grouping = Grouping.start(runs)
     m = MOMENT_MARGIN_PX
-    moments = window_moments(image, white, grouping, table, m, m, bg, 1.0)
+    # glare and lit surfaces: their own pixels' moments (their rectangles may span the image)
+    windowed = table.pixels <= max(image.size // SURVEY_WINDOW_FRACTION, 64)
+    moments = window_moments(image, white, grouping, table, m, m, bg, 1.0, windowed)
     var_x, var_y = moments.var_x, moments.var_y
     h, w = image.shape
     inside = (table.x1 > 0) & (table.y1 > 0) & (table.x2 < w - 1) & (table.y2 < h - 1)

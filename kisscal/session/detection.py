@@ -14,6 +14,7 @@ import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, ImageJob, detect_jobs, detect_sequence
 from kisscal.detect.configure import configure_detection
+from kisscal.detect.pipeline import hopeless
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import cache_key, is_current, load_blob_frames, mark_current, save_blob_frames
@@ -153,6 +154,10 @@ def detect_images(
         params = setup.params
     blobs = detect_sequence(images, params)
     tables = [(str(p), b) for p, b in zip(paths, blobs, strict=True)]
+    for p, image, b in zip(paths, images, blobs, strict=True):
+        why = hopeless(image, params) if len(b) == 0 else None
+        if why is not None:
+            echo(f"{p}: {why}")
     if out_csv is not None:
         write_blobs(out_csv, tables)
     if overlay_dir is not None:
@@ -182,7 +187,9 @@ def _session_params(
     params = derive(root)
     echo(
         f"detection settings of camera {camera} ({kind} images of {root}): threshold "
-        f"{params.threshold:g}, pixel aspect {params.pixel_aspect:g}, oversize above "
+        f"{params.threshold:g}"
+        + (" above the local background" if params.background_tile_px else " (grey level)")
+        + f", pixel aspect {params.pixel_aspect:g}, oversize above "
         f"{params.max_pixels} px"
     )
     return params

@@ -1,0 +1,253 @@
+"""Detection with default settings on real frames, scored against OpenPTV's own results.
+
+``python -m tests.detect.real_acceptance [--data DIR] [--no-cost]`` runs when the real
+data of ``../shared/data/real/openptv-cavity`` is there (a lid-driven cavity seen by four
+cameras, github OpenPTV/test_cavity, MIT) and prints one JSON line per image:
+
+- calibration images ``cal/camN.tif``: the target dots the camera sees (``camN_dots.csv``,
+  41 / 39 / 66 / 67), how many of them kisscal detects as valid blobs within 1 px, how
+  many are split (two or more blobs within the dot's radius) and how many were found as
+  a split part (cut off a touching speck), and the valid blobs more than 1 px from every
+  one of OpenPTV's own detections
+  (``camN.tif_targets``): extra detections;
+- particle frames ``img_1/camN.1000K``: when OpenPTV's Python bindings are installed
+  (``pip install optv``), OpenPTV's targets of that frame, found by its own
+  ``target_recognition`` with the experiment's settings (``parameters/targ_rec.par``,
+  high-pass as ``ptv.par`` asks), and the fraction of them kisscal finds within 1 px;
+  otherwise blob counts only;
+- cost (unless ``--no-cost``): peak memory of a fresh process that reads the image,
+  derives the settings and detects its blobs, and the time of the detection alone
+  against OpenCV's threshold + connected components with statistics and centroids on
+  the same frame, both on one thread (best of 5, taken in turns).
+
+Settings are derived as ``kisscal detect`` derives them (:func:`configure_detection`,
+default kind): from the image itself for a calibration image, from the camera's five
+frames for a particle frame. A closing line sums every camera up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from kisscal.detect import Blobs, DetectionParams, detect_blobs
+from kisscal.detect import blobs as fl
+from kisscal.detect.background import background_level
+from kisscal.detect.configure import configure_detection
+from kisscal.io.frames import read_image
+
+
+def _find_data() -> Path:
+    """``shared/data/real/openptv-cavity`` beside the repository (or its parents')."""
+    root = Path(__file__).resolve().parents[2]
+    for up in (root, *root.parents[:2]):
+        here = up.parent / "shared" / "data" / "real" / "openptv-cavity"
+        if here.is_dir():
+            return here
+    return root.parent / "shared" / "data" / "real" / "openptv-cavity"
+
+
+DATA = _find_data()
+#: Match radius (px) of a detection to a reference point.
+MATCH_PX = 1.0
+#: Blobs within this distance (px) of a dot's centre are pieces of it (dots are ~10 px wide).
+DOT_RADIUS_PX = 5.0
+SPLIT_FLAGS = fl.SPLIT_UL | fl.SPLIT_UR | fl.SPLIT_WIDE | fl.SPLIT_LONG | fl.SPLIT_TOUCHING
+
+
+def nearest(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from each point of ``a`` to the nearest of ``b`` and its index."""
+    if len(a) == 0 or len(b) == 0:
+        return np.full(len(a), np.inf), np.zeros(len(a), dtype=int)
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(b).query(a)
+    return d, i
+
+
+def score_dots(blobs: Blobs, dots: np.ndarray, reference: np.ndarray) -> dict:
+    """Dots found valid within 1 px, dots split, and extra valid blobs (see the module)."""
+    valid = blobs.valid_only()
+    d, i = nearest(dots, valid.xy_px)
+    found = d <= MATCH_PX
+    split_part = (valid.flags[i] & SPLIT_FLAGS) != 0 if len(valid) else np.zeros(len(dots), bool)
+    pieces = np.zeros(len(dots), dtype=int)
+    if len(blobs):
+        from scipy.spatial import cKDTree
+
+        pieces = np.asarray(
+            cKDTree(blobs.xy_px).query_ball_point(dots, DOT_RADIUS_PX, return_length=True)
+        )
+    # a dot is split when it is cut into two blobs or more (a blob flagged as a split part
+    # may be the whole dot, cut off a touching speck: split_part counts those apart)
+    split = pieces >= 2
+    extra, _ = nearest(valid.xy_px, reference)
+    return {
+        "dots": len(dots),
+        "found_1px": int(found.sum()),
+        "recall_pct": round(100 * float(found.mean()), 1) if len(dots) else None,
+        "split": int(split.sum()),
+        "found_as_split_part": int((found & split_part).sum()),
+        "valid_blobs": len(valid),
+        "extra": int((extra > MATCH_PX).sum()),
+        "reference": len(reference),
+    }
+
+
+def score_targets(blobs: Blobs, targets: np.ndarray) -> dict:
+    """OpenPTV's targets found by valid blobs within 1 px, and the valid blobs beyond."""
+    valid = blobs.valid_only()
+    d, _ = nearest(targets, valid.xy_px)
+    extra, _ = nearest(valid.xy_px, targets)
+    return {
+        "targets": len(targets),
+        "found_1px": int((d <= MATCH_PX).sum()),
+        "recall_pct": round(100 * float((d <= MATCH_PX).mean()), 1) if len(targets) else None,
+        "valid_blobs": len(valid),
+        "extra": int((extra > MATCH_PX).sum()),
+    }
+
+
+def openptv_targets(image: np.ndarray, cam: int, data: Path) -> np.ndarray | None:
+    """OpenPTV's targets of a frame in kisscal's pixel convention, or None without optv.
+
+    OpenPTV's pixel origin is the corner of the top-left pixel: 0.5 px is subtracted.
+    """
+    try:
+        from optv.image_processing import preprocess_image
+        from optv.parameters import ControlParams, TargetParams
+        from optv.segmentation import target_recognition
+    except ImportError:
+        return None
+    cpar = ControlParams(4)
+    cpar.read_control_par(str(data / "parameters" / "ptv.par"))
+    tpar = TargetParams()
+    tpar.read(str(data / "parameters" / "targ_rec.par"))
+    if cpar.get_hp_flag():
+        image = preprocess_image(image, 0, cpar, 25)  # pyptv's high-pass: a 25 px box
+    found = target_recognition(image, tpar, cam, cpar)
+    return np.array([t.pos() for t in found], dtype=float).reshape(-1, 2) - 0.5
+
+
+def _dots(data: Path, cam: int) -> np.ndarray:
+    rows = np.loadtxt(data / "cal" / f"cam{cam + 1}_dots.csv", delimiter=",", skiprows=1, ndmin=2)
+    return rows[:, 4:6]
+
+
+def _targets_file(data: Path, cam: int) -> np.ndarray:
+    rows = np.loadtxt(data / "cal" / f"cam{cam + 1}.tif_targets", skiprows=1, ndmin=2)
+    return rows[:, 1:3] - 0.5
+
+
+def _settings(paths: list[Path]) -> DetectionParams:
+    return configure_detection([read_image(p) for p in paths]).params
+
+
+def cost(path: Path, sample: list[Path]) -> dict:
+    """Peak memory of a fresh process deriving the settings from ``sample`` and detecting
+    ``path``, and the detection time against OpenCV's (one thread each)."""
+    run = subprocess.run(
+        [sys.executable, "-m", "tests.detect.real_acceptance", "--cost-of", str(path)]
+        + [str(p) for p in sample],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).resolve().parents[2],
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    if run.returncode != 0:
+        return {"cost_error": (run.stderr.strip().splitlines() or ["?"])[-1]}
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def _measure_cost(path: Path, sample: list[Path], given: dict | None = None) -> dict:
+    import cv2
+
+    cv2.setNumThreads(1)
+    image = read_image(path)
+    params = configure_detection([read_image(p) for p in sample], given).params
+    blobs = detect_blobs(image, params)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    level = params.threshold
+    if params.background_tile_px:  # the same level over the image's median background
+        level += background_level(image)
+
+    def opencv() -> None:
+        _, white = cv2.threshold(image, level, 255, cv2.THRESH_BINARY)
+        cv2.connectedComponentsWithStats(white, connectivity=8)
+
+    best = [np.inf, np.inf]
+    for _ in range(5):
+        for k, fn in enumerate((lambda: detect_blobs(image, params), opencv)):
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return {
+        "peak_mb": round(peak_mb),
+        "detect_ms": round(1000 * best[0], 1),
+        "opencv_ms": round(1000 * best[1], 1),
+        "ratio": round(best[0] / best[1], 2),
+        "blobs": len(blobs),
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DATA)
+    parser.add_argument("--no-cost", action="store_true", help="skip memory and time")
+    parser.add_argument("--cost-of", nargs="+", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--threshold", type=float, help="with --cost-of: this threshold instead of the derived"
+    )
+    args = parser.parse_args(argv)
+    if args.cost_of:
+        given = {} if args.threshold is None else {"threshold": args.threshold}
+        sample = args.cost_of[1:] or args.cost_of[:1]
+        print(json.dumps(_measure_cost(args.cost_of[0], sample, given)))
+        return
+    data = args.data
+    if not (data / "cal").is_dir():
+        print(f"no real data at {data}: nothing to check")
+        return
+    total = {"dots": 0, "found": 0, "split": 0, "targets": 0, "targets_found": 0}
+    for cam in range(4):
+        path = data / "cal" / f"cam{cam + 1}.tif"
+        blobs = detect_blobs(read_image(path), _settings([path]))
+        line = {"image": str(path.relative_to(data))}
+        line.update(score_dots(blobs, _dots(data, cam), _targets_file(data, cam)))
+        if not args.no_cost:
+            line.update(cost(path, [path]))
+        total["dots"] += line["dots"]
+        total["found"] += line["found_1px"]
+        total["split"] += line["split"]
+        print(json.dumps(line), flush=True)
+    for cam in range(4):
+        frames = sorted((data / "img_1").glob(f"cam{cam + 1}.*"))
+        params = _settings(frames)
+        for path in frames:
+            image = read_image(path)
+            line = {"image": str(path.relative_to(data))}
+            targets = openptv_targets(image, cam, data)
+            blobs = detect_blobs(image, params)
+            if targets is None:
+                line.update({"valid_blobs": int(blobs.valid.sum()), "targets": None})
+            else:
+                line.update(score_targets(blobs, targets))
+                total["targets"] += line["targets"]
+                total["targets_found"] += line["found_1px"]
+            if not args.no_cost:
+                line.update(cost(path, frames))
+            print(json.dumps(line), flush=True)
+    print(json.dumps({"summary": total}))
+
+
+if __name__ == "__main__":
+    main()
