@@ -43,7 +43,7 @@ from kisscal.session.routes import (
     outputs_of,
     static_blobs,
 )
-from kisscal.session.routes.wand_outputs import write_wand_outputs
+from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
 
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
@@ -64,7 +64,10 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
         )
     out = out_dir(inputs.root) / "dlt"
     key = _stage_key(inputs)
-    current = is_current(out / "wand.json", key) and outputs_of(inputs, "wand")
+    current = is_current(out / "wand.json", key) and (
+        outputs_of(inputs, "wand")
+        or json.loads((out / "wand.json").read_text()).get("kept") == "rods"
+    )
     if current and (out / "check.json").is_file():
         inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
@@ -161,7 +164,7 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
         [c.size_px for c in config.cameras],
         ids,
         config.wand.trial,
-        params.wand,
+        wand_params(inputs),
     )
     return cal, rod_cal
 
