@@ -80,8 +80,10 @@ class ModelChoice:
     chosen : str
         The key of :data:`MODELS` chosen for every camera.
     held_out_3d_mm : dict
-        Model -> RMS 3D error (mm) of the held-out points the rig reconstructed (NaN
-        with a single camera).
+        Model -> RMS 3D error (mm) of the held-out points the rig reconstructed (inf
+        with a single camera, or when some camera cannot carry the model).
+    held_out_3d_mean_mm, held_out_3d_max_mm : dict
+        Model -> mean and largest of those errors (mm).
     held_out_px : dict
         Camera -> model -> RMS reprojection error (px) of that camera's held-out points.
     in_sample_px : dict
@@ -89,13 +91,15 @@ class ModelChoice:
     folds : int
         How many subsets were left out in turn.
     points : int
-        Held-out points reconstructed (per model the largest count).
+        Held-out points the chosen model's rig reconstructed.
     by : str
         What decided: ``"held-out 3D error"`` or ``"held-out reprojection error"``.
     """
 
     chosen: str
     held_out_3d_mm: dict[str, float]
+    held_out_3d_mean_mm: dict[str, float]
+    held_out_3d_max_mm: dict[str, float]
     held_out_px: dict[str, dict[str, float]]
     in_sample_px: dict[str, dict[str, float]]
     folds: int
@@ -157,15 +161,19 @@ def choose_model(
     """
     fold_of_point = np.asarray(fold_of_point)
     folds = np.unique(fold_of_point)
-    held_3d, held_px, inside, counts = {}, {}, {}, {}
+    held_3d, mean_3d, max_3d, held_px, inside, counts = {}, {}, {}, {}, {}, {}
     for name, switches in MODELS.items():
         p = replace(params, **switches)
-        err3, px, n = _cross_validate(cameras, fold_of_point, folds, p)
+        err3, px = _cross_validate(cameras, fold_of_point, folds, p)
         for cam, r in px.items():
             held_px.setdefault(cam, {})[name] = r
             inside.setdefault(cam, {})[name] = _in_sample(cameras[cam], p, cam)
-        carried = all(np.isfinite(inside[c][name]) for c in cameras)
-        held_3d[name], counts[name] = (err3 if carried else np.inf), n  # every camera or none
+        carried = all(np.isfinite(inside[c][name]) for c in cameras)  # every camera or none
+        ok = carried and len(err3) > 0
+        held_3d[name] = float(np.sqrt(np.mean(err3**2))) if ok else np.inf
+        mean_3d[name] = float(np.mean(err3)) if ok else np.inf
+        max_3d[name] = float(np.max(err3)) if ok else np.inf
+        counts[name] = len(err3)
     three_d = len(cameras) >= 2 and any(np.isfinite(v) for v in held_3d.values())
     if three_d:
         score = held_3d
@@ -176,7 +184,9 @@ def choose_model(
     if np.isfinite(best):
         chosen = next(m for m in MODELS if score[m] <= best * (1.0 + params.model_margin))
     by = "held-out 3D error" if three_d else "held-out reprojection error"
-    return ModelChoice(chosen, held_3d, held_px, inside, len(folds), max(counts.values()), by)
+    return ModelChoice(
+        chosen, held_3d, mean_3d, max_3d, held_px, inside, len(folds), counts[chosen], by
+    )
 
 
 def _in_sample(points: CameraPoints, params: DltParams, camera: str) -> float:
@@ -191,9 +201,9 @@ def _cross_validate(
     fold_of_point: NDArray[np.int64],
     folds: NDArray[np.int64],
     params: DltParams,
-) -> tuple[float, dict[str, float], int]:
-    """RMS 3D error (mm) of every fold's points reconstructed by cameras fitted without
-    them, each camera's held-out reprojection RMS (px), and the points reconstructed."""
+) -> tuple[NDArray[np.float64], dict[str, float]]:
+    """3D errors (mm) of every fold's points reconstructed by cameras fitted without
+    them, and each camera's held-out reprojection RMS (px)."""
     ids = list(cameras)
     residuals: dict[str, list[NDArray]] = {c: [] for c in ids}
     errors = []
@@ -216,8 +226,7 @@ def _cross_validate(
             Ls.append(fit.L)
         errors.append(_fold_errors(Ls, rows_cam, rows_pt, rows_uv, truth))
     px = {c: _rms(residuals[c]) for c in ids}
-    e = np.concatenate(errors) if errors else np.zeros(0)
-    return (float(np.sqrt(np.mean(e**2))) if len(e) else np.inf), px, len(e)
+    return (np.concatenate(errors) if errors else np.zeros(0)), px
 
 
 def _fold_errors(
