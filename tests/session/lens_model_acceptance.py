@@ -106,7 +106,11 @@ def measure_real(work: Path, folder: Path = REAL) -> None:
     root, truth, odd = real_session(work, folder)
     for name in MODELS:
         session.calibrate(root, **forced(name))
-        print(json.dumps({"real": "openptv-cavity", "model": name, "rmse_mm": real_error(root, truth, odd)}))
+        print(
+            json.dumps(
+                {"real": "openptv-cavity", "model": name, "rmse_mm": real_error(root, truth, odd)}
+            )
+        )
     session.calibrate(root, **forced(None))
     chosen = json.loads((root / "out" / "dlt" / "cam1.json").read_text())["lens_models"]
     print(
@@ -115,14 +119,103 @@ def measure_real(work: Path, folder: Path = REAL) -> None:
                 "real": "openptv-cavity",
                 "model": f"default ({chosen['chosen']})",
                 "rmse_mm": real_error(root, truth, odd),
-                "held_out_3d_rms_mm": {m: v["held_out_3d_rms_mm"] for m, v in chosen["models"].items()},
+                "held_out_3d_rms_mm": {
+                    m: v["held_out_3d_rms_mm"] for m, v in chosen["models"].items()
+                },
             }
         )
     )
 
 
+def volume_errors(root: Path, preset: str, seed: int, rig: Rig | None = None) -> dict[str, float]:
+    """RMS 3D error (mm) of held-out lab points inside the volume and at its edges."""
+    truth = [
+        SynthCamera.from_dict(c)
+        for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
+    ]
+    rig = rig or Rig.load(root)
+    inside, edges = volume_points(synth_options(preset, seed).rig.volume_mm, seed=7)
+    out = {}
+    for name, xyz in (("inside", inside), ("edges", edges)):
+        err = np.linalg.norm(_vectors(truth, rig, xyz), axis=1)
+        out[name] = float(np.sqrt(np.nanmean(err**2)))
+    return out
+
+
+def round_trip_mm(root: Path, preset: str, seed: int) -> float:
+    """Median 3D difference (mm) between the session's rig and ``out/cameras.toml`` read
+    back (kisscal's import of the OpenCV cameras), over the held-out lab points."""
+    from kisscal.io.cameras_toml import read_cameras_toml
+    from kisscal.opencv import camera_from_opencv
+
+    rig = Rig.load(root)
+    cvs = read_cameras_toml(root / "out" / "cameras.toml", rig.ids)
+    back = []
+    for cam in rig.cameras:
+        L, lin, _ = camera_from_opencv(cvs[cam.id])
+        back.append(type(cam)(cam.id, L, lin, None, cam.size_px))
+    truth = [
+        SynthCamera.from_dict(c)
+        for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
+    ]
+    xyz = np.concatenate(volume_points(synth_options(preset, seed).rig.volume_mm, seed=7))
+    diff = _vectors(truth, rig, xyz) - _vectors(truth, Rig(tuple(back)), xyz)
+    return float(np.nanmedian(np.linalg.norm(diff, axis=1)))
+
+
+def _vectors(truth: list[SynthCamera], rig: Rig, xyz: np.ndarray) -> np.ndarray:
+    cams, pts, uvs = [], [], []
+    for c, (t, cam) in enumerate(zip(truth, rig.cameras, strict=True)):
+        uv = t.project(xyz)
+        seen = t.in_image(uv, 2.0) & (t.depth_mm(xyz) > 0)
+        cams.append(np.full(int(seen.sum()), c))
+        pts.append(np.flatnonzero(seen))
+        uvs.append(cam.linearise(uv[seen]))
+    tri = triangulate_observations(
+        rig.dlts, np.concatenate(pts), np.concatenate(cams), np.concatenate(uvs), len(xyz)
+    )
+    return tri.xyz_mm - xyz
+
+
+def _loo(root: Path) -> float | None:
+    check = json.loads((root / "out" / "dlt" / "check.json").read_text())
+    loo = check.get("leave_one_rod_out", {})
+    return loo.get("mean_mm")
+
+
 def measure_rig(preset: str, seed: int, work: Path) -> dict[str, Any]:
-    raise NotImplementedError
+    """One synthetic rig: the rods with each model and by default, then with the wand."""
+    base = work / f"{preset}{seed}"
+    if not (base / "session.toml").is_file():
+        session.synthesise(base, preset=preset, seed=seed, fields=10, walking5=False, force=True)
+    rods = work / f"{preset}{seed}-rods"
+    if not rods.is_dir():
+        shutil.copytree(base, rods, ignore=shutil.ignore_patterns("out"))
+    line: dict[str, Any] = {"rig": f"{preset}:{seed}"}
+    for model in MODELS:
+        session.calibrate(rods, **forced(model))
+        line[f"rods {model}"] = volume_errors(rods, preset, seed)
+    session.calibrate(rods, **forced(None))
+    doc = json.loads((rods / "out" / "dlt" / f"{Rig.load(rods).ids[0]}.json").read_text())
+    line["rods default"] = {
+        "model": doc["lens_models"]["chosen"],
+        **volume_errors(rods, preset, seed),
+    }
+    line["rods loo_mm"] = _loo(rods)
+    line["round_trip_mm"] = round_trip_mm(rods, preset, seed)
+    wand = work / f"{preset}{seed}-wand"
+    if not wand.is_dir():
+        from tests.session.wand_session import add_wand_trial
+
+        shutil.copytree(base, wand, ignore=shutil.ignore_patterns("out"))
+        add_wand_trial(wand, fields=600, seed=seed)
+    session.calibrate(wand, **forced(None))
+    kept = json.loads((wand / "out" / "dlt" / "wand.json").read_text())["kept"]
+    check = json.loads((wand / "out" / "dlt" / "check.json").read_text())
+    line["wand"] = {"kept": kept, **volume_errors(wand, preset, seed)}
+    line["wand loo_mm"] = check["leave_one_rod_out"]["mean_mm"]
+    line["wand rods_alone_loo_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
+    return line
 
 
 def main(argv: list[str] | None = None) -> None:
