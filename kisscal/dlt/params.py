@@ -35,8 +35,9 @@ class DltParams(Params):
         Subsets the control points are split into for that choice when they are not
         rods (leave-one-rod-out otherwise).
     model_margin : float
-        A simpler model is chosen when its held-out error is within this fraction of the
-        best one's.
+        Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
+        the fewest before the comparison (the lens model's 5 extra terms must lower the
+        held-out error by 10 % to be chosen).
     min_points : int
         Fewest control points accepted per camera (the 11-parameter DLT needs 6).
     min_spread_ratio : float
@@ -99,7 +100,7 @@ class DltParams(Params):
     lens: bool = param(False)
     select_model: bool = param(True)
     model_folds: int = param(5, ge=2)
-    model_margin: float = param(0.0, ge=0)
+    model_margin: float = param(0.02, ge=0)
     min_points: int = param(6, ge=6)
     min_spread_ratio: float = param(1e-3, gt=0, lt=1)
     max_iterations: int = param(2000, ge=1)

@@ -30,7 +30,7 @@ from kisscal.dlt.params import (
 )
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
-from kisscal.dlt.select import CameraPoints, ModelChoice, choose_model
+from kisscal.dlt.select import MODELS, CameraPoints, ModelChoice, choose_model
 from kisscal.errors import KisscalError
 
 
@@ -129,6 +129,7 @@ def calibrate_rods(
     rods: Sequence[Rod],
     params: DltParams = DEFAULT_PARAMS,
     leave_one_out: bool = True,
+    candidates: Sequence[str] = tuple(MODELS),
 ) -> RodCalibration:
     """Recognise the rods in every camera, calibrate each camera, measure 3D errors.
 
@@ -144,6 +145,9 @@ def calibrate_rods(
         Calibration method and tolerances.
     leave_one_out : bool
         Also run the leave-one-rod-out check (needs 3 rods or more).
+    candidates : sequence of str
+        The camera models compared when ``params`` leaves the choice to the data
+        (:func:`kisscal.dlt.select.choose_model`).
 
     Returns
     -------
@@ -191,7 +195,7 @@ def calibrate_rods(
         cxyz[cam], cuv[cam] = truth[found], muv[found]
     choice = None
     if params.selects:
-        choice = _choose(muvs, truth, params)
+        choice = _choose(muvs, truth, params, candidates)
         params = choice.params(params)
     for cam in muvs:
         results[cam] = _calibrate_or_explain(cxyz[cam], cuv[cam], params, cam, matches[cam])
@@ -211,7 +215,10 @@ def calibrate_rods(
 
 
 def _choose(
-    muvs: Mapping[str, NDArray[np.float64]], truth: NDArray[np.float64], params: DltParams
+    muvs: Mapping[str, NDArray[np.float64]],
+    truth: NDArray[np.float64],
+    params: DltParams,
+    candidates: Sequence[str],
 ) -> ModelChoice:
     """The camera model by leaving one rod out at a time (:mod:`kisscal.dlt.select`)."""
     n_rods, n_markers = truth.shape[:2]
@@ -222,7 +229,7 @@ def _choose(
         points[cam] = CameraPoints(
             truth.reshape(-1, 3)[found], muv.reshape(-1, 2)[found], ids[found]
         )
-    return choose_model(points, ids // n_markers, params)
+    return choose_model(points, ids // n_markers, params, candidates)
 
 
 def _calibrate_or_explain(

@@ -137,7 +137,8 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     frames = frame_files(inputs, config.rods.images, "rod", fields)
     found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
     blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
-    rod_cal = calibrate_rods(blobs, rods, params.dlt, leave_one_out=True)
+    # the adjustment starts from pinholes: L12..L16 could not carry over into it
+    rod_cal = calibrate_rods(blobs, rods, params.dlt, True, ("dlt", "refined"))
     ids = config.camera_ids
     cams, xyz, uv, group = [], [], [], []
     for c, cam in enumerate(ids):
