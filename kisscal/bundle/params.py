@@ -77,6 +77,11 @@ class BundleParams(Params):
         averaged over still frames are several times more precise than a moving wand's,
         and with equal weights thousands of wand images would outvote the surveyed
         markers that fix the lab frame).
+    control_weight_factors : tuple of float
+        With ``control_weight`` 0 and rods, the estimated weight times each factor is
+        tried in turn and the one whose leave-one-rod-out error is lowest kept: the
+        residuals' ratio leaves out what the grid's polynomial misses over the wand's
+        wider reach, which the left-out rods see.
     """
 
     section: ClassVar[str] = "wand"
@@ -99,6 +104,7 @@ class BundleParams(Params):
     match_tol_mm: float = param(15.0, unit="mm", gt=0)
     holdout_fraction: float = param(0.2, ge=0, lt=1)
     control_weight: float = param(0.0, ge=0)
+    control_weight_factors: tuple[float, ...] = param((1.0, 10.0, 100.0))
 
     def on_grid(self) -> BundleParams:
         """The parameters for cameras on a grid's linearisation (see ``grid_lens``)."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,8 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.camera import camera_from_dlt
 from kisscal.bundle.frame import average_static
+from kisscal.bundle.params import BundleParams
+from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
     BlobTable,
@@ -157,17 +160,34 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     )
     start = [camera_from_dlt(rod_cal.results[c].L) for c in ids]
     inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
-    cal = calibrate_on_control(
-        table,
-        start,
-        control,
-        config.wand.markers_mm,
-        [c.size_px for c in config.cameras],
-        ids,
-        config.wand.trial,
-        wand_params(inputs),
-    )
+    wand = wand_params(inputs)
+    sizes = [c.size_px for c in config.cameras]
+    args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
+    cal = calibrate_on_control(*args, wand)
+    if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
+        cal = _best_weight(inputs, cal, args, wand)
     return cal, rod_cal
+
+
+def _best_weight(
+    inputs: RouteInputs, cal: WandCalibration, args: tuple, params: BundleParams
+) -> WandCalibration:
+    """The rods' weight (estimated, times each factor) with the lowest leave-one-rod-out
+    error."""
+    estimated = cal.control.weight if cal.control is not None else 1.0
+    markers = args[3]
+    best, best_loo = cal, np.inf
+    for factor in params.control_weight_factors:
+        trial = calibrate_on_control(*args, replace(params, control_weight=estimated * factor))
+        errors = leave_one_group_out(trial, markers, params)
+        loo = float(np.mean(np.concatenate(list(errors.values())))) if errors else np.inf
+        inputs.echo(
+            f"  rods weighed {estimated * factor:.0f} x a wand image: leave-one-rod-out "
+            f"mean {loo:.3f} mm"
+        )
+        if loo < best_loo:
+            best, best_loo = trial, loo
+    return best
 
 
 def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, AxesFrame]:
