@@ -63,8 +63,9 @@ class OpenCvCamera:
     matrix : ndarray, shape (3, 3)
         ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``, px; the principal point in OpenCV's
         (and kisscal's) pixel convention: the top-left pixel's centre is (0, 0).
-    distortions : ndarray, shape (5,)
-        ``k1 k2 p1 p2 k3``.
+    distortions : ndarray, shape (5,), (8,) or (12,)
+        ``k1 k2 p1 p2 k3``, then the rational model's ``k4 k5 k6`` and the thin prism's
+        ``s1 s2 s3 s4`` when fitted (OpenCV's order).
     rotation : ndarray, shape (3,)
         Rodrigues vector of ``R`` (lab -> camera).
     translation_mm : ndarray, shape (3,)
@@ -115,62 +116,99 @@ def image_grid(size_px: tuple[int, int], step_px: float = GRID_STEP_PX) -> NDArr
     return np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
 
 
+def _padded(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Any of OpenCV's distortion vectors (4, 5, 8 or 12 numbers) as all 12."""
+    return np.r_[np.asarray(d, dtype=float).ravel(), np.zeros(12)][:12]
+
+
 def _distort(xy: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """OpenCV's distortion of normalised coordinates (k1 k2 p1 p2 k3), vectorised."""
-    k1, k2, p1, p2, k3 = d
+    """OpenCV's distortion of normalised coordinates, vectorised: ``k1 k2 p1 p2 k3``, then
+    the rational model's ``k4 k5 k6`` and the thin prism's ``s1 s2 s3 s4`` when given."""
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = _padded(d)
     x, y = xy[:, 0], xy[:, 1]
     r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
     return np.stack([xd, yd], axis=-1)
 
 
 def _project(theta: NDArray[np.float64], rays: NDArray[np.float64]) -> NDArray[np.float64]:
     """Pixels of camera-centred lab directions under parameters ``theta``:
-    fx, fy, cx, cy, k1, k2, p1, p2, k3, Rodrigues (3)."""
-    R = cv2.Rodrigues(theta[9:12])[0]
+    Rodrigues (3), fx, fy, cx, cy, then the distortion vector (5, 8 or 12)."""
+    R = cv2.Rodrigues(theta[0:3])[0]
     pc = rays @ R.T
-    xy = _distort(pc[:, :2] / pc[:, 2:3], theta[4:9])
-    return xy * theta[0:2] + theta[2:4]
+    xy = _distort(pc[:, :2] / pc[:, 2:3], theta[7:])
+    return xy * theta[3:5] + theta[5:7]
+
+
+def rim_weights(
+    raw: NDArray[np.float64], size_px: tuple[int, int], fraction: float, weight: float
+) -> NDArray[np.float64]:
+    """Weight of each fit position: ``weight`` within ``fraction`` of the image's smaller
+    side from its border, 1 inside."""
+    w, h = size_px
+    m = fraction * min(w, h)
+    u, v = raw[:, 0] + 0.5, raw[:, 1] + 0.5
+    inner = (u > m) & (u < w - m) & (v > m) & (v < h - m)
+    return np.where(inner, 1.0, weight)
 
 
 def opencv_from_camera(
-    camera: Camera, step_px: float = GRID_STEP_PX, *, k3: bool = True
+    camera: Camera,
+    step_px: float = GRID_STEP_PX,
+    coefficients: int = 12,
+    rim_fraction: float = 0.08,
+    rim_weight: float = 0.1,
+    *,
+    k3: bool = True,
 ) -> OpenCvFit:
     """OpenCV's model fitted to a kisscal camera: matrix, distortions and rotation by
     least squares (Levenberg-Marquardt) on the rays through a grid of raw pixels covering
     the image; the centre is the DLT's (Woltring & Huiskes 1990, eq. 15).
 
-    ``k3`` False holds the third radial term at 0: the four coefficients ``k1 k2 p1 p2``
-    that Pose2Sim writes and reads.
+    ``coefficients`` is the length of the distortion vector: 5 (``k1 k2 p1 p2 k3``),
+    8 (with the rational model's ``k4 k5 k6``) or 12 (and the thin prism's ``s1..s4``).
+    OpenCV's functions, and so anipose and Pose2Sim, accept all three; 12 follows a
+    grid's 4th-order polynomial best (a third to a half of the 5-term model's 3D error
+    on the synthetic rigs). The image's rim (``rim_fraction`` of its smaller side)
+    counts ``rim_weight`` as much as its inside: there the polynomial extrapolates
+    beyond the grid's dots, and no model follows it there without giving up the inside,
+    where the measurements are.
+
+    ``k3`` False holds the third radial term at 0 (with ``coefficients=5``): the four
+    coefficients ``k1 k2 p1 p2`` that Pose2Sim writes and reads.
 
     Raises
     ------
     KisscalError
-        When the camera's image size is unknown.
+        When the camera's image size is unknown, or ``coefficients`` is not 5, 8 or 12.
     """
     if camera.size_px is None:
         raise KisscalError(f"camera {camera.id}: image size unknown; cannot fit OpenCV's model")
+    if coefficients not in (5, 8, 12):
+        raise KisscalError(f"OpenCV distortion coefficients must be 5, 8 or 12, got {coefficients}")
     K, R, centre = decompose_dlt(camera.L)
     raw = image_grid(camera.size_px, step_px)
+    weight = np.sqrt(rim_weights(raw, camera.size_px, rim_fraction, rim_weight))[:, None]
     uv = camera.linearise(raw)
     rays = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(K).T @ R  # lab directions, forward
-    theta0 = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(5), cv2.Rodrigues(R)[0].ravel()]
+    rvec = cv2.Rodrigues(R)[0].ravel()
+    theta0 = np.r_[rvec, K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(coefficients)]
     free = np.ones(theta0.size, dtype=bool)
-    free[8] = k3  # theta[8] is k3
+    free[11] = k3  # theta[11] is k3 (distortions start at theta[7]: k1 k2 p1 p2 k3 ...)
 
     def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
         th = theta0.copy()
         th[free] = x
-        return (_project(th, rays) - raw).ravel()
+        return ((_project(th, rays) - raw) * weight).ravel()
 
     th = theta0.copy()
     th[free] = least_squares(residuals, theta0[free], method="lm", x_scale="jac").x
-    R_fit = cv2.Rodrigues(th[9:12])[0]
-    matrix = np.array([[th[0], 0.0, th[2]], [0.0, th[1], th[3]], [0.0, 0.0, 1.0]])
+    R_fit = cv2.Rodrigues(th[0:3])[0]
+    matrix = np.array([[th[3], 0.0, th[5]], [0.0, th[4], th[6]], [0.0, 0.0, 1.0]])
     cv = OpenCvCamera(
-        camera.id, tuple(camera.size_px), matrix, th[4:9].copy(), th[9:12].copy(), -R_fit @ centre
+        camera.id, tuple(camera.size_px), matrix, th[7:].copy(), th[0:3].copy(), -R_fit @ centre
     )
     d = np.hypot(*(_project(th, rays) - raw).T)
     return OpenCvFit(cv, float(np.sqrt(np.mean(d**2))), float(d.max()), float(K[0, 1]))
@@ -178,17 +216,22 @@ def opencv_from_camera(
 
 def _distort_jacobian(xy: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
     """d(xd, yd) / d(x, y) of :func:`_distort`, shape (n, 2, 2)."""
-    k1, k2, p1, p2, k3 = d
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = _padded(d)
     x, y = xy[:, 0], xy[:, 1]
     r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
-    cross = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    radial = num / den
+    d_num = k1 + r2 * (2 * k2 + 3 * k3 * r2)
+    d_den = k4 + r2 * (2 * k5 + 3 * k6 * r2)
+    dradial = (d_num * den - num * d_den) / den**2  # d radial / d r2
+    prism_x = s1 + 2 * s2 * r2  # d (s1 r2 + s2 r2²) / d r2
+    prism_y = s3 + 2 * s4 * r2
     jac = np.empty((len(xy), 2, 2))
-    jac[:, 0, 0] = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
-    jac[:, 0, 1] = cross
-    jac[:, 1, 0] = cross
-    jac[:, 1, 1] = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
+    jac[:, 0, 0] = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x + 2 * x * prism_x
+    jac[:, 0, 1] = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y + 2 * y * prism_x
+    jac[:, 1, 0] = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y + 2 * x * prism_y
+    jac[:, 1, 1] = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x + 2 * y * prism_y
     return jac
 
 

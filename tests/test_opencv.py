@@ -98,7 +98,7 @@ def test_cameras_toml_round_trip_and_units(tmp_path):
     [
         (lambda d: d["left"].pop("rotation"), "missing rotation"),
         (lambda d: d.pop("left"), "no camera named 'left'"),
-        (lambda d: d["left"].update(distortions=[0.1] * 8), "4 or 5 numbers"),
+        (lambda d: d["left"].update(distortions=[0.1] * 7), "4, 5, 8 or 12 numbers"),
         (lambda d: d["left"].update(matrix=[[1, 0], [0, 1]]), "matrix must be 3 x 3"),
         (lambda d: d["left"].update(fisheye=True), "fisheye"),
     ],
@@ -114,3 +114,31 @@ def test_cameras_toml_refusals(tmp_path, change, message):
     path.write_text(tomli_w.dumps(doc))
     with pytest.raises(KisscalError, match=message):
         read_cameras_toml(path, ["left", "right"])
+
+
+def test_twelve_coefficients_follow_a_grid_polynomial_closer_and_read_back(tmp_path):
+    """A camera whose linearisation is a 4th-order polynomial (not a Brown lens): the thin
+    prism and rational terms follow it closer than k1 k2 p1 p2 k3, inside the image, and
+    a cameras.toml of 12 coefficients reads back to the same projection."""
+    cv = brown_camera(k1=-0.1, k2=0.02)
+    L, lin, _ = camera_from_opencv(cv)
+    rng = np.random.default_rng(3)
+    bent = lin.__class__(  # the polynomial bent a few tenths of a pixel in every term
+        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
+    )
+    cam = Camera("c1", L, bent, size_px=cv.size_px)
+    five = opencv_from_camera(cam, coefficients=5)
+    twelve = opencv_from_camera(cam, coefficients=12)
+    assert twelve.camera.distortions.shape == (12,)
+    assert twelve.rms_px < 0.8 * five.rms_px, (twelve.rms_px, five.rms_px)
+    path = write_cameras_toml(tmp_path / "c.toml", [twelve.camera], {})
+    back = read_cameras_toml(path, ["c1"])["c1"]
+    xyz = rng.uniform(-500, 500, (200, 3))
+    np.testing.assert_allclose(back.project(xyz), twelve.camera.project(xyz), atol=1e-9)
+    uv = twelve.camera.project(xyz)
+    from kisscal.opencv import undistort_px
+
+    ideal = undistort_px(back, uv)
+    K, R, t = back.matrix, cv2.Rodrigues(back.rotation)[0], back.translation_mm
+    x = (xyz @ R.T + t) @ K.T
+    np.testing.assert_allclose(ideal, x[:, :2] / x[:, 2:], atol=1e-6)

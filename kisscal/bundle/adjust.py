@@ -101,12 +101,17 @@ class ControlPoints:
     uv_px : ndarray, shape (m, 2)
     group : ndarray of int, shape (m,)
         Which object each point belongs to (its rod), for leave-one-out checks.
+    weight : float
+        Weight of each control observation's squared residual against a wand
+        observation's: their noise variances' inverse ratio (rod centroids averaged over
+        frames are more precise than a moving wand's).
     """
 
     camera: NDArray[np.int64]
     xyz_mm: NDArray[np.float64]
     uv_px: NDArray[np.float64]
     group: NDArray[np.int64]
+    weight: float = 1.0
 
     def __len__(self) -> int:
         return len(self.camera)
@@ -114,7 +119,13 @@ class ControlPoints:
     def subset(self, keep: ArrayLike) -> ControlPoints:
         """The rows selected by a boolean mask or index array."""
         k = np.asarray(keep)
-        return ControlPoints(self.camera[k], self.xyz_mm[k], self.uv_px[k], self.group[k])
+        return ControlPoints(
+            self.camera[k], self.xyz_mm[k], self.uv_px[k], self.group[k], self.weight
+        )
+
+    def weighted(self, weight: float) -> ControlPoints:
+        """The same points with another ``weight``."""
+        return ControlPoints(self.camera, self.xyz_mm, self.uv_px, self.group, weight)
 
 
 @dataclass(frozen=True)
@@ -280,6 +291,7 @@ def _problem(
         c.uv_px,
         n_cameras,
         n_fields,
+        c.weight,
     )
 
 
@@ -311,7 +323,8 @@ def _least_squares(
         xyz = wand_points(s, problem.field, problem.offsets)
         r = project(s, problem.camera, xyz, False)[0] - problem.uv_px
         cr = project(s, problem.control_camera, problem.control_xyz_mm, False)[0]
-        return np.concatenate([r.ravel(), (cr - problem.control_uv_px).ravel()])
+        cr = np.sqrt(problem.control_weight) * (cr - problem.control_uv_px)
+        return np.concatenate([r.ravel(), cr.ravel()])
 
     pattern = _sparsity(problem, free)
     sol = scipy.optimize.least_squares(

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar, Literal
 
 from kisscal.params import Params, param
@@ -18,8 +18,14 @@ class BundleParams(Params):
     ----------
     lens_terms : tuple of str
         Brown lens terms estimated for every camera (any of ``k1 k2 p1 p2 k3``; empty:
-        none). On a camera with a grid they refine the grid's linearisation; without a
-        grid they are the whole lens model.
+        none). Without a grid they are the whole lens model; with one see ``grid_lens``.
+    grid_lens : {"keep", "brown"}
+        Started from the rods' DLTs on a grid's linearisation: ``keep`` holds the
+        grid's 30-coefficient polynomial as it is and refines each camera's 11 DLT
+        parameters (a pinhole with skew, no Brown terms, since a grid's linearised
+        pixels are a projective image of the distortion-free ones); ``brown`` adds
+        ``lens_terms`` (and ``skew`` as set) on top of the polynomial, folded into a
+        refitted polynomial afterwards.
     skew : bool
         Estimate each camera's skew (non-perpendicular pixel axes). Sensors have none;
         a DLT calibration has it as its eleventh parameter.
@@ -64,11 +70,24 @@ class BundleParams(Params):
     holdout_fraction : float
         Fraction of wand fields left out of the adjustment for the held-out wand length
         error (0: none).
+    control_weight : float
+        Weight of a control point's (rod marker's) squared residual against a wand
+        observation's. 0: their noise variances' inverse ratio, estimated from the rods'
+        DLT residuals and the wand's residuals after a first adjustment (rod centroids
+        averaged over still frames are several times more precise than a moving wand's,
+        and with equal weights thousands of wand images would outvote the surveyed
+        markers that fix the lab frame).
+    control_weight_factors : tuple of float
+        With ``control_weight`` 0 and rods, the estimated weight times each factor is
+        tried in turn and the one whose leave-one-rod-out error is lowest kept: the
+        residuals' ratio leaves out what the grid's polynomial misses over the wand's
+        wider reach, which the left-out rods see.
     """
 
     section: ClassVar[str] = "wand"
 
     lens_terms: tuple[LensTerm, ...] = param(("k1", "k2", "p1", "p2"))
+    grid_lens: Literal["keep", "brown"] = param("keep")
     skew: bool = param(False)
     loss: Literal["soft_l1", "huber", "cauchy", "linear"] = param("soft_l1")
     loss_scale_px: float = param(0.2, unit="px", gt=0)
@@ -84,6 +103,14 @@ class BundleParams(Params):
     length_tol: float = param(0.03, gt=0, lt=1)
     match_tol_mm: float = param(15.0, unit="mm", gt=0)
     holdout_fraction: float = param(0.2, ge=0, lt=1)
+    control_weight: float = param(0.0, ge=0)
+    control_weight_factors: tuple[float, ...] = param((1.0, 10.0, 100.0))
+
+    def on_grid(self) -> BundleParams:
+        """The parameters for cameras on a grid's linearisation (see ``grid_lens``)."""
+        if self.grid_lens == "brown":
+            return self
+        return replace(self, lens_terms=(), skew=True)
 
     def check(self) -> None:
         if len(set(self.lens_terms)) != len(self.lens_terms):

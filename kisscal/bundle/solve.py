@@ -52,6 +52,9 @@ class Problem:
     control_camera : ndarray of int, shape (m,)
     control_xyz_mm, control_uv_px : ndarray, shapes (m, 3), (m, 2)
     n_cameras, n_fields : int
+    control_weight : float
+        Weight of a control observation's squared residual against a wand observation's
+        (the inverse ratio of their noise variances).
     """
 
     field: NDArray[np.int64]
@@ -63,6 +66,7 @@ class Problem:
     control_uv_px: NDArray[np.float64]
     n_cameras: int
     n_fields: int
+    control_weight: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -134,7 +138,9 @@ def evaluate(
     uv, jc, jp = project(state, problem.camera, xyz, jacobian)
     jw = wand_jacobian(state, problem.field, problem.offsets, jp) if jacobian else None
     cuv, cjc, _ = project(state, problem.control_camera, problem.control_xyz_mm, jacobian)
-    return uv - problem.uv_px, jc, jw, cuv - problem.control_uv_px, cjc
+    root = np.sqrt(problem.control_weight)  # weighted rows: the loss sees sqrt(w) r
+    cjc = cjc * root if cjc is not None else None
+    return uv - problem.uv_px, jc, jw, root * (cuv - problem.control_uv_px), cjc
 
 
 def _normal_equations(problem: Problem, blocks: _Blocks, state: State, loss: Loss):

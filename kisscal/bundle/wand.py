@@ -276,7 +276,36 @@ def calibrate_on_control(
     result = adjust_bundle(
         _zero_skew(start, params), obs, markers_mm, wand, control, params, fixed_pose=None
     )
+    if params.control_weight == 0.0:  # again, each kind of observation by its own noise
+        control = control.weighted(noise_ratio(start, control, result))
+        result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
+    elif params.control_weight != control.weight:
+        control = control.weighted(params.control_weight)
+        result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
     return WandCalibration(result, obs, fields, control, None)
+
+
+def noise_ratio(
+    start: Sequence[PinholeCamera], control: ControlPoints, result: BundleResult
+) -> float:
+    """Wand residual variance over control residual variance (at least 1).
+
+    The control points' variance is that of the starting cameras' DLT fits (11
+    parameters each, so ``2 n - 11`` degrees of freedom per camera); the wand's that of
+    the adjustment's inliers (the wand poses' share of the unknowns is small).
+    """
+    dof, total = 0.0, 0.0
+    for c, cam in enumerate(start):
+        rows = control.camera == c
+        if rows.sum() < 6:
+            continue
+        r = control.uv_px[rows] - cam.project(control.xyz_mm[rows])
+        total += float(np.sum(r**2))
+        dof += 2 * int(rows.sum()) - 11
+    wand = result.residuals_px[result.inlier]
+    if dof <= 0 or total <= 0 or not len(wand):
+        return 1.0
+    return max(1.0, float(np.mean(wand**2)) / (total / dof))
 
 
 def calibrate_wand_alone(

@@ -27,6 +27,17 @@ class DltParams(Params):
     lens : bool
         Also estimate Kolahi's lens terms L12..L16 (eq. 2) during refinement (``--lens``);
         implies ``refine``. Off by default: kisscal linearises pixels from the grid first.
+    select_model : bool
+        With none of ``mdlt``, ``refine``, ``lens`` given, choose each camera's model
+        (linear DLT, refined, refined with L12..L16) by its held-out control points
+        (:mod:`kisscal.dlt.select`); False: the linear DLT.
+    model_folds : int
+        Subsets the control points are split into for that choice when they are not
+        rods (leave-one-rod-out otherwise).
+    model_margin : float
+        Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
+        the fewest before the comparison (the lens model's 5 extra terms must lower the
+        held-out error by 10 % to be chosen).
     min_points : int
         Fewest control points accepted per camera (the 11-parameter DLT needs 6).
     min_spread_ratio : float
@@ -87,6 +98,9 @@ class DltParams(Params):
     mdlt: bool = param(False)
     refine: bool = param(False)
     lens: bool = param(False)
+    select_model: bool = param(True)
+    model_folds: int = param(5, ge=2)
+    model_margin: float = param(0.02, ge=0)
     min_points: int = param(6, ge=6)
     min_spread_ratio: float = param(1e-3, gt=0, lt=1)
     max_iterations: int = param(2000, ge=1)
@@ -102,6 +116,11 @@ class DltParams(Params):
     rod_unlisted_length_ratio: float = param(2.5, ge=1)
     rod_max_chance_blobs: float = param(1.5, gt=0)
     rod_max_lines: int = param(1000, ge=1)
+
+    @property
+    def selects(self) -> bool:
+        """True when each camera's model is chosen from the data (no switch given)."""
+        return self.select_model and not (self.mdlt or self.refine or self.lens)
 
     @property
     def method(self) -> str:

@@ -30,6 +30,7 @@ from kisscal.dlt.params import (
 )
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
+from kisscal.dlt.select import MODELS, CameraPoints, ModelChoice, choose_model
 from kisscal.errors import KisscalError
 
 
@@ -56,6 +57,9 @@ class RodCalibration:
         NaN where fewer than two cameras saw it (all NaN with a single camera).
     check : RodCheck or None
         Leave-one-rod-out result (None with fewer than 3 rods or 2 cameras).
+    models : ModelChoice or None
+        The camera models compared by leaving one rod out, when the model was chosen
+        from the data (no ``--mdlt`` / ``--refine`` / ``--lens``).
     """
 
     results: dict[str, DltResult]
@@ -66,6 +70,7 @@ class RodCalibration:
     control_uv_px: dict[str, NDArray[np.float64]]
     in_sample_mm: NDArray[np.float64]
     check: RodCheck | None
+    models: ModelChoice | None = None
 
     def summary(self) -> dict:
         """JSON-ready figures for ``summary.json`` (rms_px is the Euclidean RMS)."""
@@ -86,6 +91,15 @@ class RodCalibration:
         if np.isfinite(self.in_sample_mm).any():
             out["rods_in_sample_mean_mm"] = float(np.nanmean(self.in_sample_mm))
             out["rods_in_sample_max_mm"] = float(np.nanmax(self.in_sample_mm))
+        if self.models is not None:
+            out["lens_models"] = {
+                "chosen": self.models.chosen,
+                "by": self.models.by,
+                "held_out_3d_rms_mm": {
+                    m: (v if np.isfinite(v) else None)
+                    for m, v in self.models.held_out_3d_mm.items()
+                },
+            }
         if self.check is not None and np.isfinite(self.check.errors_mm).any():
             out["leave_one_rod_out"] = {
                 "mean_mm": self.check.overall_mean_mm,
@@ -115,6 +129,7 @@ def calibrate_rods(
     rods: Sequence[Rod],
     params: DltParams = DEFAULT_PARAMS,
     leave_one_out: bool = True,
+    candidates: Sequence[str] = tuple(MODELS),
 ) -> RodCalibration:
     """Recognise the rods in every camera, calibrate each camera, measure 3D errors.
 
@@ -130,6 +145,9 @@ def calibrate_rods(
         Calibration method and tolerances.
     leave_one_out : bool
         Also run the leave-one-rod-out check (needs 3 rods or more).
+    candidates : sequence of str
+        The camera models compared when ``params`` leaves the choice to the data
+        (:func:`kisscal.dlt.select.choose_model`).
 
     Returns
     -------
@@ -172,11 +190,15 @@ def calibrate_rods(
             if not found[ir, i]
         ]
         matches[cam] = replace(matches[cam], missing=tuple(never))
-        result = _calibrate_or_explain(truth[found], muv[found], params, cam, matches[cam])
-        results[cam] = result
         muvs[cam] = muv
         labels[cam] = tuple(n for n, f in zip(names, found.ravel(), strict=True) if f)
         cxyz[cam], cuv[cam] = truth[found], muv[found]
+    choice = None
+    if params.selects:
+        choice = _choose(muvs, truth, params, candidates)
+        params = choice.params(params)
+    for cam in muvs:
+        results[cam] = _calibrate_or_explain(cxyz[cam], cuv[cam], params, cam, matches[cam])
     cams = list(results)
     in_sample = np.full((len(rods), n_markers), np.nan)
     check = None
@@ -189,7 +211,25 @@ def calibrate_rods(
         in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(in_sample.shape)
         if leave_one_out and len(rods) >= 3:
             check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
-    return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check)
+    return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check, choice)
+
+
+def _choose(
+    muvs: Mapping[str, NDArray[np.float64]],
+    truth: NDArray[np.float64],
+    params: DltParams,
+    candidates: Sequence[str],
+) -> ModelChoice:
+    """The camera model by leaving one rod out at a time (:mod:`kisscal.dlt.select`)."""
+    n_rods, n_markers = truth.shape[:2]
+    ids = np.arange(n_rods * n_markers)
+    points = {}
+    for cam, muv in muvs.items():
+        found = (np.isfinite(muv).all(axis=-1) & np.isfinite(truth).all(axis=-1)).ravel()
+        points[cam] = CameraPoints(
+            truth.reshape(-1, 3)[found], muv.reshape(-1, 2)[found], ids[found]
+        )
+    return choose_model(points, ids // n_markers, params, candidates)
 
 
 def _calibrate_or_explain(

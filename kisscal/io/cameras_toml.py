@@ -7,7 +7,7 @@ One table per camera, named by the camera id::
     name = "cam1"
     size = [752, 291]                 # width, height, px
     matrix = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
-    distortions = [k1, k2, p1, p2, k3]
+    distortions = [k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4]  # OpenCV's order
     rotation = [rx, ry, rz]           # Rodrigues vector, lab -> camera
     translation = [tx, ty, tz]        # x_cam = R X + t, mm
     fisheye = false
@@ -102,10 +102,10 @@ def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenC
     if d.get("fisheye", False):
         raise KisscalError(f"{path}: [{table}] is a fisheye camera; kisscal reads pinhole ones")
     dist = np.asarray(d["distortions"], dtype=float).ravel()
-    if dist.size not in (4, 5):
+    if dist.size not in (4, 5, 8, 12):
         raise KisscalError(
-            f"{path}: [{table}] distortions must be 4 or 5 numbers (k1 k2 p1 p2 [k3]), "
-            f"got {dist.size}"
+            f"{path}: [{table}] distortions must be 4, 5, 8 or 12 numbers (OpenCV's "
+            f"k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4]]]), got {dist.size}"
         )
     matrix = _numbers(path, table, "matrix", d["matrix"], (3, 3))
     size = _numbers(path, table, "size", d["size"], (2,))
@@ -113,7 +113,7 @@ def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenC
         name=str(d["name"]),
         size_px=(int(size[0]), int(size[1])),
         matrix=matrix,
-        distortions=np.r_[dist, np.zeros(5 - dist.size)],
+        distortions=np.r_[dist, np.zeros(max(0, 5 - dist.size))],
         rotation=_numbers(path, table, "rotation", d["rotation"], (3,)).ravel(),
         translation_mm=_numbers(path, table, "translation", d["translation"], (3,)) * scale_mm,
     )
@@ -192,7 +192,7 @@ def write_opencv_yaml(path: str | Path, cam: OpenCvCamera, units: str = "mm") ->
         fs.write("image_width", int(cam.size_px[0]))
         fs.write("image_height", int(cam.size_px[1]))
         fs.write("camera_matrix", np.asarray(cam.matrix, dtype=float))
-        fs.write("distortion_coefficients", np.asarray(cam.distortions, float).reshape(1, 5))
+        fs.write("distortion_coefficients", np.asarray(cam.distortions, float).reshape(1, -1))
         fs.write("rvec", np.asarray(cam.rotation, dtype=float).reshape(3, 1))
         fs.write("tvec", np.asarray(cam.translation_mm, float).reshape(3, 1) / UNITS_MM[units])
         fs.write("units", units)

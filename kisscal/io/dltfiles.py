@@ -336,6 +336,8 @@ def write_dlt_outputs(out_dir: str | Path, calibration: RodCalibration) -> list[
             },
             "rig": {k: v for k, v in summary.items() if k != "cameras"},
         }
+        if calibration.models is not None:
+            extra["lens_models"] = calibration.models.camera_dict(cam)
         paths.append(
             write_dlt_json(
                 out_dir / f"{cam}.json",

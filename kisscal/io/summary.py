@@ -33,9 +33,34 @@ def summarise(root: Path) -> dict[str, Any]:
         for line in entry.get("reconstruction", {}).get("warnings", [])
     ]
     summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
+    summary["held_out"] = held_out_figures(check)
     summary["warnings"] = warnings
     summary.update(_calibration_summary(out / "dlt"))
     return summary
+
+
+def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
+    """The calibration's held-out figures, from ``dlt/check.json`` (contract v3): points no
+    fit saw, reconstructed by the rig; not the in-sample residuals."""
+    out: dict[str, Any] = {"route": check.get("route", "rods")} if check else {}
+    loo = check.get("leave_one_rod_out") or {}
+    if "mean_mm" in loo:
+        out["leave_one_rod_out_mean_mm"] = loo["mean_mm"]
+        out["leave_one_rod_out_max_mm"] = loo.get("max_mm")
+    if loo.get("rods_alone_mean_mm") is not None:
+        out["rods_alone_leave_one_rod_out_mean_mm"] = loo["rods_alone_mean_mm"]
+    if "kept" in check:
+        out["kept"] = check["kept"]
+    if "held_out_points" in check and "leave_out_mean_mm" in check:
+        out["held_out_points"] = check["held_out_points"]
+        out["held_out_points_mean_mm"] = check["leave_out_mean_mm"]
+        out["held_out_points_max_mm"] = check.get("leave_out_max_mm")
+    wand = (check.get("wand_held_out") or {}).get("length_rms_error_mm")
+    if wand is not None:
+        out["wand_length_rms_error_mm"] = wand
+    if "lens_models" in check:
+        out["camera_model"] = check["lens_models"]
+    return out
 
 
 def _calibration_summary(dlt: Path) -> dict[str, Any]:
@@ -82,6 +107,12 @@ def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, A
             "rms_px": doc.get("rms_px"),
             "centre_mm": doc.get("centre_mm"),
         }
+        models = doc.get("lens_models")
+        if models:  # the held-out reprojection error of each model compared
+            entry["dlt"]["model"] = models["chosen"]
+            entry["dlt"]["held_out_rms_px"] = {
+                m: v.get("held_out_rms_px") for m, v in models["models"].items()
+            }
     return entry
 
 

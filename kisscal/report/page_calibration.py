@@ -111,6 +111,40 @@ def rod_table(o: SessionOutputs) -> Html:
     return join(parts)
 
 
+def model_table(o: SessionOutputs) -> Html:
+    """The camera models compared on held-out points (``lens_models`` of each camera's
+    ``dlt/<camera>.json``): one row per camera, the chosen model marked."""
+    docs = {c: d["lens_models"] for c in o.cameras if (d := o.dlt.get(c)) and "lens_models" in d}
+    if not docs:
+        return Html("")
+    models = list(next(iter(docs.values()))["models"])
+    rows = []
+    for cam, doc in docs.items():
+        cells = []
+        for m in models:
+            text = fmt(doc["models"].get(m, {}).get("held_out_rms_px"), 4)
+            cells.append(tag("b", text) if m == doc["chosen"] else text)
+        rows.append([tag("b", cam), doc["chosen"], *cells])
+    first = next(iter(docs.values()))
+    rows.append(
+        [
+            "rig, 3D (mm)",
+            first["chosen"],
+            *(fmt(first["models"][m].get("held_out_3d_rms_mm"), 4) for m in models),
+        ]
+    )
+    names = [f"{m}: {first['models'][m]['model']}, held-out (px)" for m in models]
+    note = tag(
+        "p",
+        f"Camera model chosen by {esc(first['by'])}: each model fitted with one of "
+        f"{first['folds']} subsets of the control points left out in turn (a rod, or "
+        "interleaved points), and judged on the points it did not see. The rows give each "
+        "camera's held-out reprojection error, the last row the RMS 3D error of the "
+        "held-out points reconstructed by the rig. --mdlt, --refine or --lens overrides.",
+    )
+    return join([note, table(["camera", "chosen", *names], rows, tuple(range(2, 2 + len(models))))])
+
+
 def target_table(o: SessionOutputs) -> Html:
     """Target points matched per camera (``[calibration] target``) and the held-out error."""
     target = o.summary.get("target") or {}
@@ -145,7 +179,7 @@ def target_table(o: SessionOutputs) -> Html:
 
 def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: set[str]) -> Html:
     """Cameras table, rods, and the calibration figures (grid figures folded)."""
-    parts: list[Any] = [camera_table(o, verdicts), rod_table(o), target_table(o)]
+    parts: list[Any] = [camera_table(o, verdicts), model_table(o), rod_table(o), target_table(o)]
     fig = o.figures
     if "rig" in fig:
         used.add("rig")
@@ -270,6 +304,18 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
                 if isinstance(v, int | float) and not isinstance(v, bool)
             ]
     parts = []
+    if w.get("kept") == "rods":
+        parts.append(
+            tag(
+                "p",
+                join(
+                    [
+                        tag("b", "The wand did not lower the leave-one-rod-out error"),
+                        ": the rods' calibration is kept; the wand's figures are below.",
+                    ]
+                ),
+            )
+        )
     if top:
         rows = [[heading(k), _cell(v)] for k, v in top]
         parts.append(table(["wand figure", "value"], rows, (1,)))

@@ -130,7 +130,8 @@ def export(
         path = write_dltdv_csv(dest or out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    fits = [opencv_from_camera(c, k3=to != "pose2sim") for c in rig]
+    pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
+    fits = [opencv_from_camera(c, coefficients=5 if pose2sim else 12, k3=not pose2sim) for c in rig]
     for f in fits:
         echo(f"  {f.camera.name}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
     meta = {"source": "kisscal", "fit_rms_px": {f.camera.name: f.rms_px for f in fits}}

@@ -244,3 +244,29 @@ def test_the_trajectories_of_a_trial_to_check_are_unfolded(session: Path) -> Non
     opened = re.findall(r"<details open=\"\w+\"><summary>(\w+): every trajectory", page)
     folded = re.findall(r"<details><summary>(\w+): every trajectory", page)
     assert opened == ["walk"] and "stick" in folded
+
+
+def test_the_camera_models_compared_are_one_table(session: Path) -> None:
+    """Each camera's ``lens_models`` (issue 25) becomes a row; the chosen model is named,
+    the rig's held-out 3D error is the last row."""
+    out = session / "out"
+    (out / "dlt").mkdir(exist_ok=True)
+    for i, cam in enumerate(CAMERAS):
+        models = {
+            m: {
+                "model": m,
+                "held_out_3d_rms_mm": 0.2 + 0.1 * k,
+                "held_out_rms_px": 0.01 * (k + 1) + 0.001 * i,
+                "in_sample_rms_px": 0.005,
+            }
+            for k, m in enumerate(("dlt", "refined", "lens"))
+        }
+        doc = {"camera": cam, "L": [0.0] * 11, "method": "dlt", "rms_px": 0.01}
+        doc["lens_models"] = {"chosen": "dlt", "by": "held-out 3D error", "folds": 4}
+        doc["lens_models"]["models"] = models
+        (out / "dlt" / f"{cam}.json").write_text(json.dumps(doc))
+    calibration = _section(_page(session), "calibration")
+    assert "Camera model chosen by held-out 3D error" in calibration
+    for i in range(len(CAMERAS)):
+        assert f"{0.01 + 0.001 * i:.4f}" in calibration
+    assert "rig, 3D (mm)" in calibration and "0.4000" in calibration

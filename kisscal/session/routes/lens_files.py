@@ -28,6 +28,7 @@ from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
 from kisscal.io.config import CameraConfig
 from kisscal.io.dltfiles import write_dlt_json
+from kisscal.io.files import write_json
 from kisscal.io.linearisation import (
     linearisation_from_dict,
     read_linearisation_doc,
@@ -46,6 +47,39 @@ def grid_document(path: Path, has_grid: bool) -> dict[str, Any] | None:
     if doc is not None and refined_by(doc) is not None:
         return doc["refined"].get("grid_fit")
     return doc
+
+
+def _fold_lens(
+    lin_path: Path,
+    cfg: CameraConfig,
+    camera: PinholeCamera,
+    route: str,
+    before: Linearisation | None,
+    grid_doc: dict[str, Any] | None,
+    points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
+) -> tuple[NDArray, NDArray, float]:
+    """The lens folded into a written polynomial; the points through it, the DLT refitted
+    to them, and the polynomial's largest error (px)."""
+    xyz, uv, _, _ = points
+    raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
+    # without a grid the polynomial is the whole lens: it must hold to the image corners
+    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw, minimax=before is None)
+    quality = before.quality if before is not None else None
+    lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
+    refined = {
+        "by": route,
+        "lens_model": "Brown (OpenCV k1 k2 p1 p2 k3) on "
+        + ("the grid's linearised pixels" if before is not None else "raw pixels"),
+        "lens": {t: float(v) for t, v in zip(LENS_TERMS, camera.lens, strict=True)},
+        "fit_max_px": fit_max,
+        "grid_fit": grid_doc,
+    }
+    write_linearisation(lin_path, lin, cfg.id, refined=refined)
+    written = apply_linearisation(lin, raw)
+    L = camera.dlt
+    if len(xyz) >= 6 and spread_ratio(xyz) >= DltParams().min_spread_ratio:  # not a flat target
+        L = solve_dlt(xyz, written, camera=cfg.id)
+    return written, L, fit_max
 
 
 def write_lens_camera(
@@ -69,24 +103,12 @@ def write_lens_camera(
     grid_doc = grid_document(lin_path, inputs.config.grid is not None)
     before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
     xyz, uv, _, labels = points
-    raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
-    # without a grid the polynomial is the whole lens: it must hold to the image corners
-    lin, fit_max = camera_linearisation(camera, cfg.size_px, before, raw, minimax=before is None)
-    quality = before.quality if before is not None else None
-    lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
-    refined = {
-        "by": route,
-        "lens_model": "Brown (OpenCV k1 k2 p1 p2 k3) on "
-        + ("the grid's linearised pixels" if before is not None else "raw pixels"),
-        "lens": {t: float(v) for t, v in zip(LENS_TERMS, camera.lens, strict=True)},
-        "fit_max_px": fit_max,
-        "grid_fit": grid_doc,
-    }
-    write_linearisation(lin_path, lin, cfg.id, refined=refined)
-    written = apply_linearisation(lin, raw)
-    L = camera.dlt
-    if len(xyz) >= 6 and spread_ratio(xyz) >= DltParams().min_spread_ratio:  # not a flat target
-        L = solve_dlt(xyz, written, camera=cfg.id)
+    if before is not None and not np.any(camera.lens):
+        # the grid's polynomial kept as it is: the camera is exactly its DLT on it
+        write_json(lin_path, grid_doc)
+        written, L, fit_max = uv, camera.dlt, 0.0
+    else:
+        written, L, fit_max = _fold_lens(lin_path, cfg, camera, route, before, grid_doc, points)
     res = written - project(L, xyz)
     K, R, centre = decompose_dlt(L)
     result = DltResult(

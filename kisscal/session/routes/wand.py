@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,8 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.camera import camera_from_dlt
 from kisscal.bundle.frame import average_static
+from kisscal.bundle.params import BundleParams
+from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
     BlobTable,
@@ -43,7 +46,7 @@ from kisscal.session.routes import (
     outputs_of,
     static_blobs,
 )
-from kisscal.session.routes.wand_outputs import write_wand_outputs
+from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
 
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
@@ -64,7 +67,10 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
         )
     out = out_dir(inputs.root) / "dlt"
     key = _stage_key(inputs)
-    current = is_current(out / "wand.json", key) and outputs_of(inputs, "wand")
+    current = is_current(out / "wand.json", key) and (
+        outputs_of(inputs, "wand")
+        or json.loads((out / "wand.json").read_text()).get("kept") == "rods"
+    )
     if current and (out / "check.json").is_file():
         inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
         return {"_check": json.loads((out / "check.json").read_text())}
@@ -134,7 +140,8 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     frames = frame_files(inputs, config.rods.images, "rod", fields)
     found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
     blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
-    rod_cal = calibrate_rods(blobs, rods, params.dlt, leave_one_out=True)
+    # the adjustment starts from pinholes: L12..L16 could not carry over into it
+    rod_cal = calibrate_rods(blobs, rods, params.dlt, True, ("dlt", "refined"))
     ids = config.camera_ids
     cams, xyz, uv, group = [], [], [], []
     for c, cam in enumerate(ids):
@@ -153,17 +160,34 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     )
     start = [camera_from_dlt(rod_cal.results[c].L) for c in ids]
     inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
-    cal = calibrate_on_control(
-        table,
-        start,
-        control,
-        config.wand.markers_mm,
-        [c.size_px for c in config.cameras],
-        ids,
-        config.wand.trial,
-        params.wand,
-    )
+    wand = wand_params(inputs)
+    sizes = [c.size_px for c in config.cameras]
+    args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
+    cal = calibrate_on_control(*args, wand)
+    if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
+        cal = _best_weight(inputs, cal, args, wand)
     return cal, rod_cal
+
+
+def _best_weight(
+    inputs: RouteInputs, cal: WandCalibration, args: tuple, params: BundleParams
+) -> WandCalibration:
+    """The rods' weight (estimated, times each factor) with the lowest leave-one-rod-out
+    error."""
+    estimated = cal.control.weight if cal.control is not None else 1.0
+    markers = args[3]
+    best, best_loo = cal, np.inf
+    for factor in params.control_weight_factors:
+        trial = calibrate_on_control(*args, replace(params, control_weight=estimated * factor))
+        errors = leave_one_group_out(trial, markers, params)
+        loo = float(np.mean(np.concatenate(list(errors.values())))) if errors else np.inf
+        inputs.echo(
+            f"  rods weighed {estimated * factor:.0f} x a wand image: leave-one-rod-out "
+            f"mean {loo:.3f} mm"
+        )
+        if loo < best_loo:
+            best, best_loo = trial, loo
+    return best
 
 
 def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, AxesFrame]:

@@ -15,6 +15,7 @@ import numpy as np
 
 from kisscal.bundle.adjust import WandPoses, centred_offsets
 from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
+from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import (
     camera_figures,
     end_to_end_mm,
@@ -26,12 +27,19 @@ from kisscal.bundle.quality import (
 )
 from kisscal.bundle.wand import AxesFrame, WandCalibration
 from kisscal.dlt.rig import RodCalibration
+from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
 from kisscal.session.inputs import figure, out_dir
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 
 ROUTE = "wand"
+
+
+def wand_params(inputs: RouteInputs) -> BundleParams:
+    """The adjustment's parameters: on the rods with a grid, see ``grid_lens``."""
+    config, params = inputs.config, inputs.params.wand
+    return params.on_grid() if config.grid is not None and config.rods is not None else params
 
 
 def write_wand_outputs(
@@ -52,7 +60,7 @@ def write_wand_outputs(
     lengths = end_to_end_mm(
         wand_markers(cal.cameras, inlier, len(cal.fields), len(markers)), markers
     )
-    held = held_out_lengths(cal, markers, inputs.params.wand)
+    held = held_out_lengths(cal, markers, wand_params(inputs))
     per_cam = camera_figures(cal, sizes)
     wand_doc: dict[str, Any] = {
         "trial": config.wand.trial,
@@ -68,13 +76,46 @@ def write_wand_outputs(
     check = _checks(inputs, cal, rod_cal, wand_doc)
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
-    _write_cameras(inputs, cal, cameras, frame)
+    wand_doc["kept"] = check["kept"] = _kept(check)
+    if check["kept"] == "rods":
+        assert rod_cal is not None
+        check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
+        _keep_rods(inputs, rod_cal)
+    else:
+        _write_cameras(inputs, cal, cameras, frame)
     out = out_dir(inputs.root) / "dlt"
     write_check(inputs, check)
     write_json(out / "wand.json", wand_doc)
     _say(inputs, wand_doc, check)
     _figures(inputs, cal, cameras, frame, per_cam, lengths)
     return check
+
+
+def _kept(check: dict[str, Any]) -> str:
+    """``wand``, or ``rods`` when the wand did not lower the leave-one-rod-out error.
+
+    Both calibrations reconstruct each rod from cameras calibrated without it; the rods
+    are the only points of known position, so this is the held-out evidence that decides
+    (a wand that fits its own images better can still bend the lab frame).
+    """
+    loo = check.get("leave_one_rod_out", {})
+    alone = loo.get("rods_alone_mean_mm")
+    if alone is None or loo.get("mean_mm", np.inf) < alone:
+        return "wand"
+    return "rods"
+
+
+def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
+    """Write the rods' calibration, on the grid's own linearisation, as the result."""
+    from kisscal.io.linearisation import read_linearisation_doc, refined_by
+
+    out = out_dir(inputs.root)
+    write_dlt_outputs(out / "dlt", rod_cal)
+    for cam in inputs.cameras:
+        path = out / "linearisation" / f"{cam.id}.json"
+        doc = read_linearisation_doc(path)
+        if doc is not None and refined_by(doc) is not None and doc["refined"].get("grid_fit"):
+            write_json(path, doc["refined"]["grid_fit"])
 
 
 def _camera_entry(cam: PinholeCamera, per_cam: Any, c: int) -> dict[str, Any]:
@@ -126,7 +167,7 @@ def _checks(
     err = np.linalg.norm(xyz - ids_xyz, axis=1)
     check["rods_in_sample_mean_mm"] = float(np.nanmean(err))
     check["rods_in_sample_max_mm"] = float(np.nanmax(err))
-    loo = leave_one_group_out(cal, markers, inputs.params.wand)
+    loo = leave_one_group_out(cal, markers, wand_params(inputs))
     names = [r.name for r in inputs.config.rods.rods] if inputs.config.rods else []
     rods_alone = rod_cal.summary().get("leave_one_rod_out", {}).get("per_rod", {})
     per_rod = {}
@@ -206,6 +247,11 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
         echo(
             f"  leave-one-rod-out mean {loo['mean_mm']:.3f} mm"
             + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
+        )
+    if check.get("kept") == "rods":
+        echo(
+            "  the wand did not lower the leave-one-rod-out error: kept the rods' "
+            "calibration (the wand's figures stay in dlt/wand.json)"
         )
     axes = wand_doc.get("axes")
     if axes:

@@ -1,0 +1,266 @@
+"""Which camera model the control points support: chosen by held-out points.
+
+A technician cannot judge whether a lens needs Kolahi's L12..L16 (Kolahi et al. 2007,
+eqs. 2-3) on top of the grid's linearisation, or whether the pixel refinement of Woltring
+& Huiskes (1990) helps: a model with more terms always fits its own points better. So
+each candidate model is fitted with some control points left out and judged by how well
+the rig then reconstructs them (cross-validation, Stone 1974): one rod at a time for the
+rods, or one of ``model_folds`` interleaved subsets of other control points. The model
+whose held-out 3D error is smallest is chosen for every camera, after weighing each
+model's error by ``1 + model_margin`` per unknown beyond the fewest (more terms must earn
+their keep: with four rods, leaving one out leaves 18 points for the 16 unknowns of the
+lens model, and a lens model a few per cent better on the left-out rods can bend the
+volume between the rods several times more than the plain DLT does). Each camera's
+held-out reprojection error under every model is kept beside it, for the report.
+
+With a single camera (``--camera``) no point can be reconstructed; the held-out
+reprojection error of that camera decides instead.
+
+References
+----------
+Stone, M. (1974). Cross-validatory choice and assessment of statistical predictions.
+Journal of the Royal Statistical Society B 36(2), 111-147.
+Kolahi, A., et al. (2007). Design of a marker-based human motion tracking system.
+Biomedical Signal Processing and Control 2, 59-67.
+Woltring, H. J., & Huiskes, R. (1990). Stereophotogrammetry. In Biomechanics of Human
+Movement (Berme & Cappozzo, eds.).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.dlt.calibrate import calibrate_camera
+from kisscal.dlt.linear import reprojection_residuals
+from kisscal.dlt.nonlinear import correct_lens
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
+from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.errors import KisscalError
+
+#: The candidate models, simplest first: name -> the DLT switches that fit it.
+MODELS: dict[str, dict[str, bool]] = {
+    "dlt": {"mdlt": False, "refine": False, "lens": False},
+    "refined": {"mdlt": False, "refine": True, "lens": False},
+    "lens": {"mdlt": False, "refine": True, "lens": True},
+}
+
+#: Unknowns of each model per camera: a model's held-out error is weighed by
+#: ``1 + model_margin * (its unknowns - the fewest)`` before the comparison.
+MODEL_UNKNOWNS: dict[str, int] = {"dlt": 11, "refined": 11, "lens": 16}
+
+#: What each model is, in words (report tables).
+MODEL_NAMES: dict[str, str] = {
+    "dlt": "linear DLT (11 parameters)",
+    "refined": "DLT refined in pixels",
+    "lens": "DLT + L12-L16 lens terms",
+}
+
+
+@dataclass(frozen=True)
+class CameraPoints:
+    """One camera's control points for the comparison.
+
+    Attributes
+    ----------
+    xyz_mm : ndarray, shape (M, 3)
+    uv_px : ndarray, shape (M, 2)
+        In the coordinates the DLT maps to (grid-linearised when there is a grid).
+    point : ndarray of int, shape (M,)
+        Each row's point id, shared by the cameras (the same rod marker, target dot).
+    """
+
+    xyz_mm: NDArray[np.float64]
+    uv_px: NDArray[np.float64]
+    point: NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The camera models compared on held-out control points.
+
+    Attributes
+    ----------
+    chosen : str
+        The key of :data:`MODELS` chosen for every camera.
+    held_out_3d_mm : dict
+        Model -> RMS 3D error (mm) of the held-out points the rig reconstructed (inf
+        with a single camera, or when some camera cannot carry the model).
+    held_out_3d_mean_mm, held_out_3d_max_mm : dict
+        Model -> mean and largest of those errors (mm).
+    held_out_px : dict
+        Camera -> model -> RMS reprojection error (px) of that camera's held-out points.
+    in_sample_px : dict
+        Camera -> model -> RMS residual (px) of the fit to all its points.
+    folds : int
+        How many subsets were left out in turn.
+    points : int
+        Held-out points the chosen model's rig reconstructed.
+    by : str
+        What decided: ``"held-out 3D error"`` or ``"held-out reprojection error"``.
+    """
+
+    chosen: str
+    held_out_3d_mm: dict[str, float]
+    held_out_3d_mean_mm: dict[str, float]
+    held_out_3d_max_mm: dict[str, float]
+    held_out_px: dict[str, dict[str, float]]
+    in_sample_px: dict[str, dict[str, float]]
+    folds: int
+    points: int
+    by: str
+
+    def params(self, base: DltParams) -> DltParams:
+        """``base`` with the switches of the chosen model."""
+        return replace(base, **MODELS[self.chosen])
+
+    def camera_dict(self, camera: str) -> dict:
+        """JSON-ready comparison for ``dlt/<camera>.json`` (``lens_models``)."""
+        return {
+            "chosen": self.chosen,
+            "by": self.by,
+            "folds": self.folds,
+            "held_out_points": self.points,
+            "models": {
+                m: {
+                    "model": MODEL_NAMES[m],
+                    "held_out_3d_rms_mm": _finite(self.held_out_3d_mm[m]),
+                    "held_out_rms_px": _finite(self.held_out_px[camera][m]),
+                    "in_sample_rms_px": _finite(self.in_sample_px[camera][m]),
+                }
+                for m in self.held_out_3d_mm
+            },
+        }
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def interleaved_folds(ids: NDArray[np.int64], folds: int) -> NDArray[np.int64]:
+    """Fold of each point id: the sorted ids dealt out in turn (spread evenly)."""
+    _, rank = np.unique(ids, return_inverse=True)
+    return rank.ravel() % max(1, folds)
+
+
+def choose_model(
+    cameras: Mapping[str, CameraPoints],
+    fold_of_point: NDArray[np.int64],
+    params: DltParams = DEFAULT_PARAMS,
+    candidates: Sequence[str] = tuple(MODELS),
+) -> ModelChoice:
+    """Compare :data:`MODELS` by leaving each fold of points out in turn.
+
+    Parameters
+    ----------
+    cameras : mapping
+        Camera id -> its control points.
+    fold_of_point : ndarray of int
+        Fold of each point id (its rod, or :func:`interleaved_folds`).
+    params : DltParams
+        Tolerances (the switches are set per model) and ``model_margin``.
+    candidates : sequence of str
+        The models compared (keys of :data:`MODELS`, simplest first).
+
+    Returns
+    -------
+    ModelChoice
+    """
+    fold_of_point = np.asarray(fold_of_point)
+    folds = np.unique(fold_of_point)
+    held_3d, mean_3d, max_3d, held_px, inside, counts = {}, {}, {}, {}, {}, {}
+    for name in candidates:
+        p = replace(params, **MODELS[name])
+        err3, px = _cross_validate(cameras, fold_of_point, folds, p)
+        for cam, r in px.items():
+            held_px.setdefault(cam, {})[name] = r
+            inside.setdefault(cam, {})[name] = _in_sample(cameras[cam], p, cam)
+        carried = all(np.isfinite(inside[c][name]) for c in cameras)  # every camera or none
+        ok = carried and len(err3) > 0
+        held_3d[name] = float(np.sqrt(np.mean(err3**2))) if ok else np.inf
+        mean_3d[name] = float(np.mean(err3)) if ok else np.inf
+        max_3d[name] = float(np.max(err3)) if ok else np.inf
+        counts[name] = len(err3)
+    three_d = len(cameras) >= 2 and any(np.isfinite(v) for v in held_3d.values())
+    if three_d:
+        score = held_3d
+    else:  # one camera: its own held-out reprojection error
+        score = {m: float(np.mean([held_px[c][m] for c in cameras])) for m in candidates}
+    fewest = min(MODEL_UNKNOWNS[m] for m in candidates)
+    weighed = {
+        m: score[m] * (1.0 + params.model_margin * (MODEL_UNKNOWNS[m] - fewest)) for m in candidates
+    }
+    best = min(weighed.values())
+    chosen = candidates[0]
+    if np.isfinite(best):
+        chosen = next(m for m in candidates if weighed[m] <= best)
+    by = "held-out 3D error" if three_d else "held-out reprojection error"
+    return ModelChoice(
+        chosen, held_3d, mean_3d, max_3d, held_px, inside, len(folds), counts[chosen], by
+    )
+
+
+def _in_sample(points: CameraPoints, params: DltParams, camera: str) -> float:
+    try:
+        return calibrate_camera(points.xyz_mm, points.uv_px, params, camera).rms_px
+    except KisscalError:
+        return np.inf
+
+
+def _cross_validate(
+    cameras: Mapping[str, CameraPoints],
+    fold_of_point: NDArray[np.int64],
+    folds: NDArray[np.int64],
+    params: DltParams,
+) -> tuple[NDArray[np.float64], dict[str, float]]:
+    """3D errors (mm) of every fold's points reconstructed by cameras fitted without
+    them, and each camera's held-out reprojection RMS (px)."""
+    ids = list(cameras)
+    residuals: dict[str, list[NDArray]] = {c: [] for c in ids}
+    errors = []
+    for g in folds:
+        Ls, rows_cam, rows_pt, rows_uv = [], [], [], []
+        truth = {}
+        for cam in ids:
+            pts = cameras[cam]
+            test = fold_of_point[pts.point] == g
+            try:
+                fit = calibrate_camera(pts.xyz_mm[~test], pts.uv_px[~test], params, cam)
+            except KisscalError:  # the rest too few or too flat: this fold goes without
+                continue
+            seen = correct_lens(fit.L, fit.lens, pts.uv_px[test])
+            residuals[cam].append(reprojection_residuals(fit.L, pts.xyz_mm[test], seen))
+            rows_cam.append(np.full(int(test.sum()), len(Ls)))
+            rows_pt.append(pts.point[test])
+            rows_uv.append(seen)
+            truth.update(zip(pts.point[test].tolist(), pts.xyz_mm[test], strict=True))
+            Ls.append(fit.L)
+        errors.append(_fold_errors(Ls, rows_cam, rows_pt, rows_uv, truth))
+    px = {c: _rms(residuals[c]) for c in ids}
+    return (np.concatenate(errors) if errors else np.zeros(0)), px
+
+
+def _fold_errors(
+    Ls: list, rows_cam: list, rows_pt: list, rows_uv: list, truth: dict
+) -> NDArray[np.float64]:
+    """3D errors (mm) of one fold's points seen by two or more of its cameras."""
+    if len(Ls) < 2:
+        return np.zeros(0)
+    cam = np.concatenate(rows_cam)
+    ids, point = np.unique(np.concatenate(rows_pt), return_inverse=True)
+    point = point.ravel()
+    enough = np.bincount(point, minlength=len(ids)) >= 2
+    if not enough.any():
+        return np.zeros(0)
+    tri = triangulate_observations(np.array(Ls), point, cam, np.concatenate(rows_uv), len(ids))
+    true = np.array([truth[i] for i in ids.tolist()])
+    err = np.linalg.norm(tri.xyz_mm - true, axis=1)[enough]
+    return err[np.isfinite(err)]
+
+
+def _rms(rows: list[NDArray]) -> float:
+    r = np.concatenate(rows) if rows else np.zeros((0, 2))
+    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else np.inf

@@ -1,0 +1,59 @@
+"""The camera model chosen by held-out control points (:mod:`kisscal.dlt.select`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.dlt import calibrate_camera
+from kisscal.dlt.params import DltParams
+from kisscal.dlt.select import MODELS, CameraPoints, choose_model, interleaved_folds
+from kisscal.synth.cameras import VOLUME_MM, kiss_rig
+
+
+def _points(distorted: bool, seed: int = 4, n: int = 80, noise_px: float = 0.05):
+    """``n`` lab points seen by every KISS camera: raw (distorted) or ideal pixels."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(VOLUME_MM[0]), np.asarray(VOLUME_MM[1])
+    xyz = lo + (hi - lo) * rng.uniform(0.05, 0.95, (n, 3))
+    cams = {}
+    for cam in kiss_rig(seed)[:4]:
+        uv = cam.project(xyz) if distorted else cam.project_ideal(xyz)
+        cams[cam.id] = CameraPoints(xyz, uv + rng.normal(0, noise_px, uv.shape), np.arange(n))
+    return cams, xyz
+
+
+def test_folds_deal_the_ids_out_evenly():
+    folds = interleaved_folds(np.array([7, 3, 9, 1, 5]), 2)
+    assert folds.tolist() == [1, 1, 0, 0, 0]  # ranks 3 1 4 0 2
+    assert np.bincount(interleaved_folds(np.arange(100), 5)).tolist() == [20] * 5
+
+
+@pytest.mark.parametrize("distorted", [True, False])
+def test_the_lens_terms_are_chosen_only_where_the_lens_bends_the_image(distorted):
+    cams, _ = _points(distorted)
+    folds = interleaved_folds(np.arange(80), 5)
+    choice = choose_model(cams, folds, DltParams())
+    assert choice.by == "held-out 3D error" and choice.folds == 5
+    assert set(choice.held_out_3d_mm) == set(MODELS)
+    best = min(choice.held_out_3d_mm.values())
+    assert choice.held_out_3d_mm[choice.chosen] == best
+    if distorted:  # 6-9 px of distortion at the corners: only L12..L16 follow it
+        assert choice.chosen == "lens"
+        assert choice.held_out_3d_mm["lens"] < 0.7 * choice.held_out_3d_mm["dlt"]
+    else:  # a pinhole: the lens terms only fit noise, and held-out points say so
+        assert choice.chosen != "lens"
+    # more terms always fit their own points better; the choice is by held-out points
+    for cam in cams:
+        assert choice.in_sample_px[cam]["lens"] <= choice.in_sample_px[cam]["dlt"]
+    doc = choice.camera_dict("cam1")
+    assert doc["chosen"] == choice.chosen and set(doc["models"]) == set(MODELS)
+
+
+def test_one_camera_chooses_by_its_held_out_reprojection():
+    cams, xyz = _points(True)
+    one = {"cam1": cams["cam1"]}
+    choice = choose_model(one, interleaved_folds(np.arange(80), 5), DltParams())
+    assert choice.by == "held-out reprojection error" and choice.chosen == "lens"
+    fit = calibrate_camera(xyz, one["cam1"].uv_px, choice.params(DltParams()))
+    assert fit.lens is not None
