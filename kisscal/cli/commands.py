@@ -174,7 +174,7 @@ def detect(
     """
     from kisscal import session
     from kisscal.io.blobs import format_blobs
-    from kisscal.io.config import read_detection_table
+    from kisscal.io.toml_table import read_detection_table
 
     given = dict(read_detection_table(config)) if config is not None else {}
     given.update(

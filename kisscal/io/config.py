@@ -20,7 +20,7 @@ from kisscal.bundle.params import BundleParams
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
-from kisscal.io.toml_table import Table, load_toml, number, suggest
+from kisscal.io.toml_table import Table, load_toml, number, suggest, unfilled_keys
 from kisscal.markersets import available_marker_sets
 from kisscal.markersets import marker_set as pick_markers
 
@@ -492,39 +492,9 @@ def load_session(root: Path) -> SessionConfig:
     if not root.is_dir():
         raise KisscalError(f"{root}: session folder not found")
     data = load_toml(root / "session.toml")
-    unfilled = _unfilled(data)
+    unfilled = unfilled_keys(data)
     if unfilled:  # a fresh `kisscal init` template: every blank at once, not one per run
         raise KisscalError(
             f"{root / 'session.toml'}: still to fill in (empty): {', '.join(unfilled)}"
         )
     return parse_session(data, root)
-
-
-def _unfilled(value: Any, where: str = "") -> list[str]:
-    """Where ``session.toml`` holds an empty list of coordinates (``points_mm = []``, as
-    ``kisscal init`` writes them), named as the messages name keys (``rods.rod[0]...``)."""
-    if isinstance(value, dict):
-        named = f" ({value['name']})" if isinstance(value.get("name"), str) else ""
-        found = []
-        for key, item in value.items():
-            path = f"{where}.{key}" if where else str(key)
-            if key.endswith("_mm") and isinstance(item, list) and not item:
-                found.append(f"{path}{named}")
-            else:
-                found += _unfilled(item, path)
-        return found
-    if isinstance(value, list):
-        return [w for i, item in enumerate(value) for w in _unfilled(item, f"{where}[{i}]")]
-    return []
-
-
-def read_detection_table(path: Path) -> dict[str, Any]:
-    """The ``[detection]`` table of a TOML file (a session.toml or a file of its own).
-
-    Raises a one-line :class:`KisscalError` when the file has no such table.
-    """
-    data = load_toml(Path(path))
-    table = data.get("detection")
-    if not isinstance(table, dict):
-        raise KisscalError(f"{path}: no [detection] table")
-    return dict(table)

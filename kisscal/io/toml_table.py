@@ -133,3 +133,33 @@ def points_mm(path: Path, where: str, value: Any) -> np.ndarray:
             f"{path}: {where} must be a list of [x, y, z] in mm, got shape {pts.shape}"
         )
     return pts
+
+
+def unfilled_keys(value: Any, where: str = "") -> list[str]:
+    """Where ``session.toml`` holds an empty list of coordinates (``points_mm = []``, as
+    ``kisscal init`` writes them), named as the messages name keys (``rods.rod[0]...``)."""
+    if isinstance(value, dict):
+        named = f" ({value['name']})" if isinstance(value.get("name"), str) else ""
+        found = []
+        for key, item in value.items():
+            path = f"{where}.{key}" if where else str(key)
+            if key.endswith("_mm") and isinstance(item, list) and not item:
+                found.append(f"{path}{named}")
+            else:
+                found += unfilled_keys(item, path)
+        return found
+    if isinstance(value, list):
+        return [w for i, item in enumerate(value) for w in unfilled_keys(item, f"{where}[{i}]")]
+    return []
+
+
+def read_detection_table(path: Path) -> dict[str, Any]:
+    """The ``[detection]`` table of a TOML file (a session.toml or a file of its own).
+
+    Raises a one-line :class:`KisscalError` when the file has no such table.
+    """
+    data = load_toml(Path(path))
+    table = data.get("detection")
+    if not isinstance(table, dict):
+        raise KisscalError(f"{path}: no [detection] table")
+    return dict(table)
