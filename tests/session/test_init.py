@@ -23,7 +23,8 @@ def test_template_is_commented_and_refuses_until_filled(tmp_path: Path) -> None:
     assert comments > 40  # every key is explained
     for folder in ("grid/cam3", "rods/cam1", "trials/walk01/cam2"):
         assert (tmp_path / "lab" / folder).is_dir()
-    with pytest.raises(KisscalError, match=r"still to fill in \(empty\): rods\.rod\[0\]\.points_mm"):
+    blanks = r"still to fill in \(empty\): rods\.rod\[0\]\.points_mm"
+    with pytest.raises(KisscalError, match=blanks):
         session.validate(tmp_path / "lab")
     with pytest.raises(KisscalError, match="never overwrites"):
         init_session(tmp_path / "lab", n_cameras=3)
