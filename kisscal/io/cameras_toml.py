@@ -57,8 +57,9 @@ def write_cameras_toml(
 
     ``units`` is the unit of ``translation`` (``mm``, ``cm`` or ``m``, also written as
     ``metadata.units``); ``names`` the table and ``name`` of each camera (default the
-    camera's own); ``k3`` False writes four distortion coefficients (``k1 k2 p1 p2``,
-    Pose2Sim's layout; the cameras' ``k3`` must then be 0).
+    camera's own); the distortion vector as the camera holds it (5, 8 or 12 coefficients),
+    or with ``k3`` False four (``k1 k2 p1 p2``, Pose2Sim's layout; the cameras' ``k3`` and
+    any higher terms must then be 0).
     """
     if units not in UNITS_MM:
         raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
@@ -68,13 +69,13 @@ def write_cameras_toml(
     doc: dict[str, Any] = {}
     for name, cam in zip(names, cameras, strict=True):
         dist = np.asarray(cam.distortions, dtype=float)
-        if not k3 and dist[4] != 0.0:
+        if not k3 and np.any(dist[4:] != 0.0):
             raise KisscalError(f"{path}: camera {cam.name} has k3 = {dist[4]}; cannot drop it")
         doc[name] = {
             "name": name,
             "size": [int(cam.size_px[0]), int(cam.size_px[1])],
             "matrix": np.asarray(cam.matrix, dtype=float).tolist(),
-            "distortions": dist[: 5 if k3 else 4].tolist(),
+            "distortions": (dist if k3 else dist[:4]).tolist(),
             "rotation": np.asarray(cam.rotation, dtype=float).tolist(),
             "translation": (np.asarray(cam.translation_mm, float) / UNITS_MM[units]).tolist(),
             "fisheye": False,
