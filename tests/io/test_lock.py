@@ -21,19 +21,25 @@ with session_lock(sys.argv[1]):
 """
 
 
-def test_second_process_is_refused_and_nesting_is_allowed(tmp_path: Path) -> None:
-    out = tmp_path / "out"
+def _refused_while_held(script: str, out: Path) -> None:
+    """A process running ``script`` holds ``out``'s lock: this one is refused, naming the
+    holder's pid, until the holder dies."""
     holder = subprocess.Popen(
-        [sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True
+        [sys.executable, "-c", script, str(out)], stdout=subprocess.PIPE, text=True
     )
     try:
         assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
-        with pytest.raises(KisscalError, match=r"another kisscal process \(pid \d+\)"):
+        with pytest.raises(KisscalError, match=rf"another kisscal process \(pid {holder.pid}\)"):
             with session_lock(out):
                 pass
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_second_process_is_refused_and_nesting_is_allowed(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    _refused_while_held(HOLD, out)
     with session_lock(out), session_lock(out):  # released by the holder's death; re-entrant
         pass
 
@@ -88,17 +94,7 @@ def test_without_fcntl_the_lock_is_msvcrt_s(tmp_path: Path, monkeypatch) -> None
     monkeypatch.setattr(lock, "fcntl", None)
     monkeypatch.setattr(lock, "msvcrt", fake)
     out = tmp_path / "out"
-    holder = subprocess.Popen(
-        [sys.executable, "-c", HOLD_WINDOWS, str(out)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
-        with pytest.raises(KisscalError, match=rf"another kisscal process \(pid {holder.pid}\)"):
-            with session_lock(out):
-                pass
-    finally:
-        holder.kill()
-        holder.wait()
+    _refused_while_held(HOLD_WINDOWS, out)
     with session_lock(out), session_lock(out):  # released by the holder's death; re-entrant
         assert (out / ".lock").read_text() == f"pid {os.getpid()}"
     # one byte past the holder's text locked, then unlocked before the file is closed
