@@ -89,7 +89,7 @@ def _main(
     """
 
 
-def run_verdict(summary: dict, seconds: float, out: Path) -> str:
+def run_verdict(summary: dict, seconds: float, report: Path) -> str:
     """The last line of ``kisscal run``: what was made, how long it took, what to read."""
     trials = summary.get("trials", {})
     tracks = sum(int(t.get("trajectories", 0) or 0) for t in trials.values())
@@ -97,7 +97,7 @@ def run_verdict(summary: dict, seconds: float, out: Path) -> str:
     notes = f"; {plural(warned, 'warning')} above" if warned else ", no warnings"
     return (
         f"kisscal run: done in {seconds:.0f} s: {plural(len(trials), 'trial')} processed, "
-        f"{plural(tracks, 'trajectory')}{notes}; report: {out / 'report.html'}"
+        f"{plural(tracks, 'trajectory')}{notes}; report: {report}"
     )
 
 

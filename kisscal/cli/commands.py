@@ -391,7 +391,8 @@ def run(session_dir: SessionHereArg = Path()) -> None:
     started = time.perf_counter()
     with progress_bars() as echo:
         summary = session.run(session_dir, echo=echo)
-    say(run_verdict(summary, time.perf_counter() - started, session.out_dir(session_dir)))
+    report = session.SessionStore(session_dir).report_path
+    say(run_verdict(summary, time.perf_counter() - started, report))
 
 
 @app.command(
@@ -417,11 +418,11 @@ def check(
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
         raise KisscalError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
-    limits = session.out_dir(session_dir) / "limits.json"
-    say(f"limits written to {limits}: the report judges the session by them from now on")
-    if (session.out_dir(session_dir) / "report.html").is_file():
+    store = session.SessionStore(session_dir)
+    say(f"limits written to {store.limits_path}: the report judges the session by them from now on")
+    if store.report_path.is_file():
         session.report(session_dir)  # its verdicts now use these limits
-        say(f"report updated: {session.out_dir(session_dir) / 'report.html'}")
+        say(f"report updated: {store.report_path}")
     if failures:
         for f in failures:
             say(f"FAILED {f.camera}: {f.figure} {f.value:.4f} over the limit {f.limit:.4f}")

@@ -20,7 +20,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -316,14 +316,17 @@ def read_control_points_csv(
     return table[:, :2], table[:, 2:], labels
 
 
-def write_dlt_outputs(out_dir: str | Path, calibration: RodCalibration) -> list[Path]:
-    """Write ``<out_dir>/<camera>.json`` for every camera and ``<out_dir>/dltdv.csv``.
+def write_dlt_outputs(
+    calibration: RodCalibration, dlt_path: Callable[[str], Path], dltdv_path: Path
+) -> list[Path]:
+    """Write every camera's DLT JSON file (at ``dlt_path(camera)``) and the DLTdv table.
 
     ``calibration`` is the result of :func:`kisscal.dlt.calibrate_rods`; the JSON files also
     carry the rod recognition report (markers missing, unused blobs) and the rig's
-    in-sample and leave-one-rod-out 3D errors. Returns the paths written.
+    in-sample and leave-one-rod-out 3D errors. The session's paths are
+    :meth:`kisscal.io.store.SessionStore.dlt_path` and ``dltdv_path``. Returns the paths
+    written.
     """
-    out_dir = Path(out_dir)
     paths = []
     summary = calibration.summary()
     for cam, result in calibration.results.items():
@@ -340,7 +343,7 @@ def write_dlt_outputs(out_dir: str | Path, calibration: RodCalibration) -> list[
             extra["lens_models"] = calibration.models.camera_dict(cam)
         paths.append(
             write_dlt_json(
-                out_dir / f"{cam}.json",
+                dlt_path(cam),
                 cam,
                 result,
                 calibration.control_xyz_mm[cam],
@@ -349,7 +352,5 @@ def write_dlt_outputs(out_dir: str | Path, calibration: RodCalibration) -> list[
                 extra,
             )
         )
-    paths.append(
-        write_dltdv_csv(out_dir / "dltdv.csv", {c: r.L for c, r in calibration.results.items()})
-    )
+    paths.append(write_dltdv_csv(dltdv_path, {c: r.L for c, r in calibration.results.items()}))
     return paths

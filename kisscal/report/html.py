@@ -22,8 +22,8 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.files import write_bytes, write_text
+from kisscal.io.store import SessionStore
 from kisscal.report.gather import SessionOutputs, gather
 from kisscal.report.htmlkit import Html, badge, join, table, tag
 from kisscal.report.page_calibration import calibration_section, detection_section, wand_section
@@ -183,7 +183,7 @@ def status_section(
 
 
 def _header(o: SessionOutputs) -> Html:
-    summary_path = o.root / "out" / "summary.json"
+    summary_path = SessionStore(o.root).summary_path
     when = (
         datetime.fromtimestamp(summary_path.stat().st_mtime).strftime("%Y-%m-%d %H:%M")
         if summary_path.is_file()
@@ -278,16 +278,16 @@ def build_report(root: Path, params: ReportParams | None = None) -> Path:
     (True, True)
     """
     outputs = gather(Path(root), params)
-    figures = Path(root) / "out" / "figures"
+    store = SessionStore(root)
 
     def draw(name: str, key_parts: tuple, make: Callable[[], Figure]) -> bytes:
-        path = figures / f"{name}.png"
-        key = cache_key("report figure", *key_parts)
-        if not is_current(path, key):
+        path = store.figure_path(name)
+        key = store.key("report figure", *key_parts)
+        if not store.is_current(path, key):
             write_bytes(path, figure_png(make()))
-            mark_current(path, key)
+            store.mark_current(path, key)
         return path.read_bytes()
 
-    path = Path(root) / "out" / "report.html"
+    path = store.report_path
     write_text(path, render(outputs, draw))
     return path

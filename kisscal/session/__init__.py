@@ -21,10 +21,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
 from kisscal.session.detection import detect_images
-from kisscal.session.inputs import out_dir
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Progress, reporting_progress
@@ -60,6 +60,7 @@ __all__ = [
     "Overrides",
     "Problem",
     "Progress",
+    "SessionStore",
     "StageParams",
     "batch",
     "calibrate",
@@ -69,7 +70,6 @@ __all__ = [
     "detect_images",
     "evaluate",
     "linearise",
-    "out_dir",
     "reconstruct",
     "report",
     "reporting_progress",

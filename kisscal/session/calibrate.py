@@ -10,18 +10,18 @@ later runs, writes what every route shares (``out/dlt/calibration.json`` and the
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
-from kisscal.io.dltfiles import DltFile, read_dlt_json
+from kisscal.io.dltfiles import DltFile
 from kisscal.io.files import write_json
+from kisscal.io.store import SessionStore
 from kisscal.rig import Camera, Rig
 from kisscal.session.exports import write_exports
-from kisscal.session.inputs import load_config, out_dir, select_cameras, writes_session
+from kisscal.session.inputs import load_config, select_cameras, writes_session
 from kisscal.session.linearise import (
     current_linearisations,
     grid_linearisations,
@@ -90,10 +90,10 @@ def calibrate(
     )
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
-    dlt_dir = out_dir(root) / "dlt"
     lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
     write_exports(root, config, lins, read_dlt_files(root, config, False), echo)
-    write_json(dlt_dir / "calibration.json", {"route": route, "options": switches})
+    record = SessionStore(root).calibration_file("calibration")
+    write_json(record, {"route": route, "options": switches})
     return summary
 
 
@@ -161,8 +161,7 @@ _SWITCHES = ("mdlt", "refine", "lens")
 
 def _dlt_switches(root: Path, given: dict[str, bool | None], echo: Echo) -> dict[str, bool]:
     """The DLT switches: those given, else those the session's last calibration used."""
-    record = out_dir(root) / "dlt" / "calibration.json"
-    previous = json.loads(record.read_text()).get("options", {}) if record.is_file() else {}
+    previous = (SessionStore(root).calibration_doc("calibration") or {}).get("options", {})
     chosen = {k: v for k, v in given.items() if v is not None}
     kept = {k: True for k in _SWITCHES if previous.get(k) and k not in chosen}
     if kept:
@@ -174,10 +173,11 @@ def _dlt_switches(root: Path, given: dict[str, bool | None], echo: Echo) -> dict
 def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> dict[str, DltFile]:
     """Every camera's calibration from ``out/dlt/<camera>.json`` (L1..L11, lens terms ...)."""
     result = {}
+    store = SessionStore(root)
     for cam in config.camera_ids:
-        path = out_dir(root) / "dlt" / f"{cam}.json"
+        path = store.dlt_path(cam)
         if path.is_file():
-            result[cam] = read_dlt_json(path)
+            result[cam] = store.dlt(cam)
         elif required:
             raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
     return result

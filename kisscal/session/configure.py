@@ -24,11 +24,11 @@ import numpy as np
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
 from kisscal.errors import KisscalError
-from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
-from kisscal.session.inputs import image_sources, out_dir
+from kisscal.io.store import SessionStore
+from kisscal.session.inputs import image_sources
 from kisscal.session.parallel import each_camera
 from kisscal.session.progress import Echo, quiet
 
@@ -75,7 +75,8 @@ def camera_detection(
     anything detected with them. They are derived again when the values given in
     ``[detection]`` or the camera's image size change, or when the file is deleted.
     """
-    path = out_dir(root) / "detection" / f"{camera.id}.json"
+    store = SessionStore(root)
+    path = store.detection_path(camera.id)
     current = _current(root, camera, kind, given)
     if current is not None:
         return current
@@ -93,7 +94,7 @@ def camera_detection(
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
     doc = _read_document(path, camera)
-    doc["kinds"][kind] = {**setup.as_dict(), "key": _key(camera, kind, given)}
+    doc["kinds"][kind] = {**setup.as_dict(), "key": _key(store, camera, kind, given)}
     write_json(path, doc)
     echo(f"  detection {camera.id} {setup.summary()}")
     return setup.params
@@ -103,16 +104,17 @@ def _current(
     root: Path, camera: CameraConfig, kind: str, given: Mapping[str, Any]
 ) -> DetectionParams | None:
     """The camera's settings for ``kind`` as kept, if derived with the same given values."""
-    doc = _read_document(out_dir(root) / "detection" / f"{camera.id}.json", camera)
+    store = SessionStore(root)
+    doc = _read_document(store.detection_path(camera.id), camera)
     entry = doc["kinds"].get(kind)
-    if entry is not None and entry.get("key") == _key(camera, kind, given):
+    if entry is not None and entry.get("key") == _key(store, camera, kind, given):
         return _params_from_doc(entry, given)
     return None
 
 
-def _key(camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
+def _key(store: SessionStore, camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
     """What a camera's settings for ``kind`` were derived from: they stand while it does."""
-    return cache_key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
+    return store.key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
 
 
 def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
@@ -228,13 +230,3 @@ def _params_from_doc(doc: Mapping[str, Any], given: Mapping[str, Any]) -> Detect
         if v["source"] != "given"
     }
     return DetectionParams.from_layers(values, given)
-
-
-def describe_cameras(root: Path, cameras: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """The derived settings of each camera as written (for summaries and the report)."""
-    docs = {}
-    for cam in cameras:
-        path = out_dir(root) / "detection" / f"{cam}.json"
-        if path.is_file():
-            docs[cam] = json.loads(path.read_text())
-    return docs

@@ -11,6 +11,7 @@ import numpy as np
 
 from kisscal._text import plural
 from kisscal.io.files import write_json
+from kisscal.io.store import SessionStore
 from kisscal.session import report, run
 from kisscal.session.synth import evaluate, synthesise
 
@@ -33,14 +34,15 @@ def demo(out: Path, *, seed: int = 1, echo: Echo = lambda _: None) -> dict[str, 
     summary = run(out, echo=echo)
     summary["truth"] = evaluate(out)
     summary["timings"]["total_s"] = round(time.perf_counter() - t0, 1)
-    write_json(out / "out" / "summary.json", summary)
+    summary_path = SessionStore(out).summary_path
+    write_json(summary_path, summary)
     try:
         report_path: Path | None = report(out)
     except Exception as exc:  # the figures are a convenience; the numbers are already written
         echo(f"report not written: {exc}")
         report_path = None
     _print_summary(summary, echo)
-    echo(f"summary: {out / 'out' / 'summary.json'}")
+    echo(f"summary: {summary_path}")
     if report_path is not None:
         echo(f"report:  {report_path}")
     return summary

@@ -17,11 +17,11 @@ from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import hopeless
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
-from kisscal.io.cache import cache_key, is_current, load_blob_frames, mark_current, save_blob_frames
+from kisscal.io.cache import load_blob_frames, save_blob_frames
 from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import frame_name, read_image, source_files
-from kisscal.session.inputs import file_keys, out_dir
+from kisscal.io.store import SessionStore
 from kisscal.session.progress import Echo, counted, quiet
 
 
@@ -89,10 +89,11 @@ def camera_blobs(
     sizes = {c.id: c.size_px for c in config.cameras}
     out: dict[str, list[Blobs]] = {}
     stale = []
+    store = SessionStore(config.root)
     for cam, seq in frames.items():
-        key = cache_key("detect", file_keys(source_files(seq), config.root), fields, detection[cam])
-        cache = out_dir(root) / "cache" / "blobs" / f"{stem}-{cam}.npz"
-        if is_current(cache, key):
+        key = store.key("detect", source_files(seq), fields, detection[cam])
+        cache = store.blobs_cache(stem, cam)
+        if store.is_current(cache, key):
             out[cam] = load_blob_frames(cache)
         else:
             stale.append((cam, SizedFrames(seq, cam, sizes[cam]), cache, key))
@@ -110,7 +111,7 @@ def camera_blobs(
             failed = failed or found
             continue
         save_blob_frames(cache, found)
-        mark_current(cache, key)
+        store.mark_current(cache, key)
         out[cam] = found
     if failed is not None:
         raise failed

@@ -26,9 +26,10 @@ from kisscal.io.cameras_toml import UNITS_MM, write_cameras_toml, write_opencv_y
 from kisscal.io.config import SessionConfig
 from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
 from kisscal.io.files import write_json
+from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.rig import Camera, Rig
-from kisscal.session.inputs import load_config, out_dir
+from kisscal.session.inputs import load_config
 from kisscal.session.progress import Echo, quiet
 
 #: ``kisscal export --to`` choices.
@@ -78,8 +79,8 @@ def write_exports(
     """Write ``out/dlt/dltdv.csv``, ``out/cameras.toml`` and ``out/exports.json`` for
     every calibrated camera; returns the content of ``exports.json``."""
     rig = calibrated_rig(config, lins, dlts)
-    out = out_dir(root)
-    write_dltdv_csv(out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
+    store = SessionStore(root)
+    write_dltdv_csv(store.dltdv_path, {c.id: c.L for c in rig})
     fits = {c.id: opencv_from_camera(c) for c in rig if c.size_px is not None}
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
@@ -89,11 +90,11 @@ def write_exports(
         },
     }
     write_cameras_toml(
-        out / "cameras.toml",
+        store.cameras_toml_path,
         [f.camera for f in fits.values()],
         {"source": "kisscal", "fit_rms_px": {c: f.rms_px for c, f in fits.items()}},
     )
-    write_json(out / "exports.json", report)
+    write_json(store.exports_path, report)
     for cam, f in fits.items():
         lens = report["dltdv"]["lens_error"][cam]
         echo(
@@ -125,9 +126,9 @@ def export(
     root = Path(root)
     load_config(root)
     rig = current_rig(root, echo)
-    out = out_dir(root)
+    store = SessionStore(root)
     if to == "dltdv8":
-        path = write_dltdv_csv(dest or out / "dlt" / "dltdv.csv", {c.id: c.L for c in rig})
+        path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.L for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
     pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
@@ -147,7 +148,7 @@ def export(
             "fit_rms_px": dict(zip(names, meta["fit_rms_px"].values(), strict=True)),
         }
         path = write_cameras_toml(
-            dest or out / "pose2sim" / "Calib_kisscal.toml",
+            dest or store.pose2sim_path,
             cams,
             meta,
             units="m",
@@ -157,10 +158,10 @@ def export(
         echo(f"{path}: {len(cams)} cameras as {', '.join(names)} (Pose2Sim layout, m)")
         return [path]
     if to == "anipose":
-        path = write_cameras_toml(dest or out / "cameras.toml", cams, meta, units=units)
+        path = write_cameras_toml(dest or store.cameras_toml_path, cams, meta, units=units)
         echo(f"{path}: {len(cams)} cameras (anipose layout, {units})")
         return [path]
-    folder = dest or out / "opencv"
+    folder = dest or store.opencv_dir
     paths = [write_opencv_yaml(Path(folder) / f"{c.name}.yml", c, units) for c in cams]
     echo(f"{folder}: {len(paths)} OpenCV camera files ({units})")
     return paths

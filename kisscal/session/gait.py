@@ -18,6 +18,7 @@ import numpy as np
 from kisscal.errors import KisscalError
 from kisscal.gait import GaitEvents, GaitParams, gait_markers
 from kisscal.io.files import write_json, write_table
+from kisscal.io.store import SessionStore
 from kisscal.markersets import MarkerSet
 from kisscal.session.inputs import figure
 from kisscal.tracking import Trajectories
@@ -32,20 +33,21 @@ def _columns(rows: list[dict[str, Any]], names: tuple[str, ...]) -> dict[str, li
     return {c: [r[c] for r in rows] for c in names}
 
 
-def clear_gait_outputs(root: Path, tdir: Path, trial: str) -> None:
+def clear_gait_outputs(root: Path, trial: str) -> None:
     """Remove a trial's gait outputs of an earlier run."""
+    store = SessionStore(root)
+    files = store.trial(trial)
     for path in (
-        tdir / "events.csv",
-        tdir / "spatiotemporal.csv",
-        tdir / "gait.json",
-        root / "out" / "figures" / f"gait_{trial}.png",
+        files.events,
+        files.spatiotemporal,
+        files.gait,
+        store.figure_path(f"gait_{trial}"),
     ):
         path.unlink(missing_ok=True)
 
 
 def gait_outputs(
     root: Path,
-    tdir: Path,
     trial: str,
     result: Trajectories,
     marker_set: MarkerSet | None,
@@ -59,7 +61,7 @@ def gait_outputs(
     from kisscal.gait import detect_events, spatiotemporal_parameters
     from kisscal.gait.spatiotemporal import outside_walking
 
-    clear_gait_outputs(root, tdir, trial)  # an earlier run's would be stale
+    clear_gait_outputs(root, trial)  # an earlier run's would be stale
     if marker_set is None or not result.labelling.fits_marker_set:
         return None
     dense = result.tracks.positions()
@@ -87,15 +89,16 @@ def gait_outputs(
             f"  warning: {trial}: {' and '.join(implausible)}: is [session] rate_hz = "
             f"{rate_hz:g} right? cadence and speed scale with it"
         )
-    write_table(tdir / "events.csv", _columns(events.rows(), EVENT_COLUMNS))
-    write_table(tdir / "spatiotemporal.csv", _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
+    files = SessionStore(root).trial(trial)
+    write_table(files.events, _columns(events.rows(), EVENT_COLUMNS))
+    write_table(files.spatiotemporal, _columns(parameters.rows(), SPATIOTEMPORAL_COLUMNS))
     counts = {
         f"{side}_{event}": int(np.sum((events.side == side) & (events.event == event)))
         for side in ("left", "right")
         for event in ("foot_strike", "foot_off")
     }
     write_json(
-        tdir / "gait.json",
+        files.gait,
         {
             "events": counts,
             "markers": markers.names,

@@ -1,20 +1,19 @@
-"""What every session stage shares: the config, the output folder, cache-key parts, figures."""
+"""What every session stage shares: the config, the write lock, figures."""
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
 import functools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
 from kisscal.errors import KisscalError
-from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
 from kisscal.io.lock import session_lock
-from kisscal.rig import Rig
+from kisscal.io.store import SessionStore
 from kisscal.session.figures import drawing_beside, submit_figure
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -27,15 +26,10 @@ def writes_session(func: F) -> F:
     def locked(root: Path, *args: Any, **kwargs: Any) -> Any:
         if not (Path(root) / "session.toml").is_file():
             load_config(root)  # says what is missing; never create a folder for a typo
-        with session_lock(out_dir(root)), drawing_beside():
+        with session_lock(SessionStore(root).out), drawing_beside():
             return func(root, *args, **kwargs)
 
     return locked  # type: ignore[return-value]
-
-
-def out_dir(root: Path) -> Path:
-    """The folder every output of the session at ``root`` goes to."""
-    return Path(root) / "out"
 
 
 def load_config(root: Path) -> SessionConfig:
@@ -135,29 +129,6 @@ def select_cameras(config: SessionConfig, camera: str | None) -> tuple[CameraCon
     raise KisscalError(f"no camera {camera!r} in {config.path}{hint}")
 
 
-def file_keys(paths: Sequence[Path], root: Path) -> list[tuple[str, int, int]]:
-    """Input files for a cache key: path inside the session, size and modification time.
-
-    Paths are relative so that a copied or moved session keeps its cache.
-    """
-    keys = []
-    for p in paths:
-        st = Path(p).stat()
-        keys.append((Path(p).relative_to(root).as_posix(), st.st_size, st.st_mtime_ns))
-    return keys
-
-
-def linearisation_key(lins: Mapping[str, Linearisation]) -> dict[str, tuple]:
-    """What of each camera's linearisation a cache key depends on."""
-    return {c: (lin.x, lin.y, lin.center_px, lin.scale_px) for c, lin in lins.items()}
-
-
-def rig_key(rig: Rig) -> dict[str, tuple]:
-    """What of a calibrated rig a cache key depends on: linearisations, DLTs, lens terms."""
-    lins = {c.id: c.linearisation for c in rig if c.linearisation is not None}
-    return {"lin": linearisation_key(lins), "dlt": {c.id: (c.L, c.lens) for c in rig}}
-
-
 def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:
     """Draw a stage figure into ``out/figures/<name>.png`` (beside the stage when a
     session command runs, see :mod:`kisscal.session.figures`).
@@ -165,4 +136,4 @@ def figure(root: Path, name: str, module: str, function: str, *args: Any) -> Non
     The drawing module is imported only then, so that a session run without figures
     never imports matplotlib.
     """
-    submit_figure(out_dir(root) / "figures" / f"{name}.png", module, function, args)
+    submit_figure(SessionStore(root).figure_path(name), module, function, args)

@@ -11,27 +11,19 @@ from pathlib import Path
 
 from kisscal.errors import KisscalError
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_text
 from kisscal.io.frames import camera_frames, source_files
 from kisscal.io.linearisation import (
     grid_fit_of,
     read_linearisation,
-    read_linearisation_doc,
     refined_by,
     write_linearisation,
 )
+from kisscal.io.store import SessionStore
 from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
-from kisscal.session.inputs import (
-    figure,
-    file_keys,
-    load_config,
-    out_dir,
-    select_cameras,
-    writes_session,
-)
+from kisscal.session.inputs import figure, load_config, select_cameras, writes_session
 from kisscal.session.parallel import each_camera
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
@@ -97,21 +89,16 @@ def _linearise_camera(
 ) -> Linearisation:
     """One camera's linearisation: from the cache, or fitted and written with its figure."""
     assert config.grid is not None
-    out = out_dir(root) / "linearisation" / f"{cam.id}.json"
+    store = SessionStore(root)
+    out = store.linearisation_path(cam.id)
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
     )
     detection = camera_detection(root, config, cam, "grid", params.detection_given, echo)
-    key = cache_key(
-        "linearise",
-        file_keys(source_files(frames), config.root),
-        config.grid.fields,
-        params.grid,
-        detection,
-    )
-    if is_current(out, key):
+    key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
+    if store.is_current(out, key):
         echo(f"  linearise {cam.id}: cached")
-        doc = read_linearisation_doc(out)
+        doc = store.linearisation_doc(cam.id)
         grid = grid_fit_of(doc, str(out)) if doc is not None else None
         return grid if grid is not None else read_linearisation(out)[1]
     t0 = time.perf_counter()
@@ -131,7 +118,7 @@ def _linearise_camera(
         cam.id,
         cam.size_px,
     )
-    mark_current(out, key)
+    store.mark_current(out, key)
     _say_fitted(echo, cam.id, fit, time.perf_counter() - t0)
     return fit.linearisation
 
@@ -166,10 +153,10 @@ def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
     """The linearisation every camera's DLT goes with: the grid's, or the one a
     calibration route estimated (a wand's lens terms) and wrote in its place."""
     lins = grid_linearisations(root, echo)
+    store = SessionStore(root)
     for cam in lins:
-        path = out_dir(root) / "linearisation" / f"{cam}.json"
-        if refined_by(read_linearisation_doc(path)) is not None:
-            lins[cam] = read_linearisation(path)[1]
+        if refined_by(store.linearisation_doc(cam)) is not None:
+            lins[cam] = store.linearisation(cam)
     return lins
 
 
@@ -179,9 +166,10 @@ def restore_grid_linearisations(root: Path, cameras: Sequence[str], route: str) 
     Called after a calibration route succeeded: its DLTs go with the grid's linearisation
     (or with none, without a grid), not with an earlier route's lens estimate.
     """
+    store = SessionStore(root)
     for cam in cameras:
-        path = out_dir(root) / "linearisation" / f"{cam}.json"
-        doc = read_linearisation_doc(path)
+        path = store.linearisation_path(cam)
+        doc = store.linearisation_doc(cam)
         by = refined_by(doc)
         if doc is None or by is None or by == route:
             continue

@@ -18,7 +18,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import KisscalError
-from kisscal.io.cache import cache_key
 from kisscal.io.config import SessionConfig
 from kisscal.markersets import MarkerSet, available_marker_sets, marker_set
 from kisscal.tracking import Trajectories
@@ -151,15 +150,11 @@ def _check_still(dense: NDArray, labels: tuple[str, ...], trial: str) -> None:
         )
 
 
-def template_path(out: Path, static: str) -> Path:
-    """Where the static trial's template is kept."""
-    return out / "trials" / static / "subject_template.json"
-
-
-def static_key(points_path: Path, spec: MarkerSpec, tracking: object) -> str:
-    """Cache key of the static template: the static trial's points, the set, parameters."""
+def static_inputs(points_path: Path, spec: MarkerSpec, tracking: object) -> tuple:
+    """What the static template is made from: the static trial's points, the set, the
+    parameters (the parts of its cache key)."""
     ms = spec.marker_set
-    return cache_key(
+    return (
         "static",
         points_path,
         spec.names,

@@ -13,24 +13,17 @@ from numpy.typing import NDArray
 from kisscal.detect import DetectionParams
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import read_c3d
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import source_files, trial_frames
 from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
+from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.recon import reconstruct_trial
 from kisscal.session.calibrate import current_rig
 from kisscal.session.configure import markers_detection
 from kisscal.session.detection import camera_blobs
-from kisscal.session.inputs import (
-    figure,
-    file_keys,
-    load_config,
-    out_dir,
-    rig_key,
-    writes_session,
-)
+from kisscal.session.inputs import figure, load_config, writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 
@@ -51,9 +44,11 @@ def reconstruct(
     config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
-    path = out_dir(root) / "trials" / trial.name / "points3d.csv"
+    store = SessionStore(root)
+    files = store.trial(trial.name)
+    path = files.points3d
     if trial.source == "c3d":
-        return c3d_trial_points(config, trial, path, echo)
+        return c3d_trial_points(config, trial, files, echo)
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
     detection = (
@@ -61,16 +56,12 @@ def reconstruct(
         if imaged
         else {}
     )
-    stage_key = cache_key(
-        "reconstruct",
-        trial_input_keys(config, trial),
-        rig_key(rig),
-        detection,
-        params.recon,
+    stage_key = store.key(
+        "reconstruct", trial_input_files(config, trial), rig, detection, params.recon
     )
-    if is_current(path, stage_key) and path.with_name("points2d.csv").is_file():
+    if store.is_current(path, stage_key) and files.points2d.is_file():
         echo(f"  reconstruct {trial.name}: cached")
-        _echo_warnings(trial.name, path.with_name("recon.json"), echo)
+        _echo_warnings(trial.name, files.recon, echo)
         return read_points3d(path)
     blobs = trial_blobs(root, config, trial, detection, echo, workers)
     obs = rig.observations(blobs)
@@ -82,15 +73,15 @@ def reconstruct(
     summary = points.summary(n_fields, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
     write_points2d(
-        path.with_name("points2d.csv"),
+        files.points2d,
         rig.ids,
         cam_idx,
         field_idx,
         obs.raw_px,
         observation_points(points.blob_row, len(obs)),
     )
-    write_json(path.with_name("recon.json"), summary)
-    mark_current(path, stage_key)
+    write_json(files.recon, summary)
+    store.mark_current(path, stage_key)
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
         figure(
@@ -121,7 +112,7 @@ def reconstruct(
             "put are kept; the cameras' LED rings are still dropped: a point that lies at a "
             "camera's centre is that camera's ring, seen by the others"
         )
-    _echo_warnings(trial.name, path.with_name("recon.json"), echo)
+    _echo_warnings(trial.name, files.recon, echo)
     return points
 
 
@@ -133,7 +124,7 @@ def _echo_warnings(trial: str, recon_json: Path, echo: Echo) -> None:
 
 
 def c3d_trial_points(
-    config: SessionConfig, trial: TrialConfig, path: Path, echo: Echo = quiet
+    config: SessionConfig, trial: TrialConfig, files: TrialFiles, echo: Echo = quiet
 ) -> Points3DFile:
     """A ``[[trials]] c3d`` trial: every valid marker sample of the file as an anonymous 3D
     point per field (labels and channel order are dropped: tracking and labelling start
@@ -144,8 +135,9 @@ def c3d_trial_points(
     The file's frame rate must be the session's ``rate_hz``; its first frame is field 0.
     """
     source = config.root / (trial.c3d or "")
-    key = cache_key("c3d-trial", file_keys([source], config.root) if source.is_file() else [])
-    if is_current(path, key):
+    store, path = SessionStore(config.root), files.points3d
+    key = store.key("c3d-trial", [source] if source.is_file() else [])
+    if store.is_current(path, key):
         echo(f"  reconstruct {trial.name}: cached")
         return read_points3d(path)
     c3d = read_c3d(source)
@@ -168,7 +160,7 @@ def c3d_trial_points(
         config.camera_ids,
     )
     write_json(
-        path.with_name("recon.json"),
+        files.recon,
         {
             "fields": c3d.n_frames,
             "points": n,
@@ -181,7 +173,7 @@ def c3d_trial_points(
             "warnings": [],
         },
     )
-    mark_current(path, key)
+    store.mark_current(path, key)
     system = f", {c3d.manufacturer}" if c3d.manufacturer else ""
     echo(
         f"  reconstruct {trial.name}: {n} points of {len(c3d.labels)} markers in "
@@ -197,7 +189,7 @@ def c3d_trial_points(
     return read_points3d(path)
 
 
-def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
+def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
     """Per camera, the files a trial's 2D data come from (for cache keys)."""
     if trial.source == "centroids":
         assert trial.centroids is not None
@@ -218,7 +210,7 @@ def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any
         for p in ps:
             if not p.is_file():
                 raise KisscalError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
-    return {c: file_keys(ps, config.root) for c, ps in paths.items()}
+    return paths
 
 
 def trial_blobs(

@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from kisscal.errors import KisscalError
+from kisscal.io.store import SessionStore
 from kisscal.session.figures import wait_for_figures
-from kisscal.session.inputs import load_config, out_dir, writes_session
+from kisscal.session.inputs import load_config, writes_session
 from kisscal.session.progress import Echo, quiet
 
 
@@ -17,9 +18,7 @@ def report(root: Path, echo: Echo = quiet) -> Path:
     from kisscal.report.params import ReportParams
 
     config = load_config(root)  # a session folder, not just any path
-    out = out_dir(root)
-    outputs = ("summary.json", "linearisation/*.json", "dlt/*.json")
-    if not any(any(out.glob(pattern)) for pattern in outputs):
+    if not SessionStore(root).has_results():
         raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = ReportParams.from_layers(config.sections.get("report", {}))
     wait_for_figures()  # a stage's figures, drawn in the background, go into the page

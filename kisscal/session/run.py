@@ -10,9 +10,10 @@ from typing import Any
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
+from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, needs_calibration, out_dir, writes_session
+from kisscal.session.inputs import load_config, needs_calibration, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
@@ -86,7 +87,7 @@ def run(
     summary = summarise(root)
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
     summary["failed_trials"] = failures
-    write_json(out_dir(root) / "summary.json", summary)
+    write_json(SessionStore(root).summary_path, summary)
     report(root, echo=echo)
     if failures:
         raise KisscalError(

@@ -10,7 +10,8 @@ import numpy as np
 
 from kisscal.errors import KisscalError
 from kisscal.io.files import write_json
-from kisscal.session.inputs import load_config, out_dir, writes_session
+from kisscal.io.store import SessionStore
+from kisscal.session.inputs import load_config, writes_session
 
 
 @dataclass(frozen=True)
@@ -36,26 +37,26 @@ def check(
     The limits are kept in ``out/limits.json``, so the report judges against them.
     """
     config = load_config(root)
-    out = out_dir(root)
+    store = SessionStore(root)
     limits = {"max_grid_px": max_grid_px, "max_reproj_px": max_reproj_px, "max_3d_mm": max_3d_mm}
-    write_json(out / "limits.json", limits)  # the report judges against the limits checked
+    write_json(store.limits_path, limits)  # the report judges against the limits checked
     failures = []
     for cam in config.camera_ids:
         if max_grid_px is not None and config.grid is not None:
-            path = out / "linearisation" / f"{cam}.json"
+            path = store.linearisation_path(cam)
             value = _figure_from(path, "rms_px", f"kisscal linearise {root}")
             if not value <= max_grid_px:
                 failures.append(CheckFailure(cam, "grid rms_px", value, max_grid_px))
         if max_reproj_px is not None:
-            path = out / "dlt" / f"{cam}.json"
+            path = store.dlt_path(cam)
             value = _figure_from(path, "rms_px", f"kisscal calibrate {root}")
             if not value <= max_reproj_px:
                 failures.append(CheckFailure(cam, "dlt rms_px", value, max_reproj_px))
     if max_3d_mm is not None:
-        path = out / "dlt" / "check.json"
-        if not path.is_file():
+        doc = store.calibration_doc("check")
+        if doc is None:
+            path = store.calibration_file("check")
             raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
-        doc = json.loads(path.read_text())
         loo = doc.get("leave_one_rod_out", {})
         fallback = doc.get("leave_out_mean_mm", doc.get("rods_in_sample_mean_mm", np.nan))
         value = float(loo.get("mean_mm", fallback))

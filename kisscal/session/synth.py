@@ -20,6 +20,7 @@ import numpy as np
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
+from kisscal.io.store import SessionStore
 from kisscal.io.synthetic import load_walking5, write_synthetic_session
 from kisscal.synth.cameras import MAX_CAMERAS
 from kisscal.synth.evaluate import (
@@ -157,7 +158,7 @@ def evaluate(root: Path) -> dict[str, Any]:
     config = load_session(root)
     result: dict[str, Any] = {}
     for trial in config.trials:
-        traj_path = root / "out" / "trials" / trial.name / "trajectories.csv"
+        traj_path = SessionStore(root).trial(trial.name).trajectories()
         truth_path = root / "truth" / "trials" / trial.name / "markers.csv"
         if traj_path.is_file() and truth_path.is_file():
             result[trial.name] = _score_trial(

@@ -13,21 +13,20 @@ import numpy as np
 from kisscal._text import plural
 from kisscal.dlt.model import pixel_size_mm
 from kisscal.errors import KisscalError
-from kisscal.io.cache import is_current, mark_current
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import Points3DFile, read_points3d
+from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
 from kisscal.session.calibrate import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
-from kisscal.session.inputs import figure, load_config, out_dir, writes_session
+from kisscal.session.inputs import figure, load_config, writes_session
 from kisscal.session.markers import (
     MarkerSpec,
     marker_spec,
-    static_key,
+    static_inputs,
     subject_template,
-    template_path,
 )
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet
@@ -61,17 +60,18 @@ def track(
         spec = _with_static(root, config, spec, params, echo)
     result = _track_trial(root, config, trial.name, spec, params, echo)
     if sweep:
-        pts = read_points3d(out_dir(root) / "trials" / trial.name / "points3d.csv")
+        files = SessionStore(root).trial(trial.name)
+        pts = read_points3d(files.points3d)
         rows = sweep_noise(
             pts.field, pts.xyz_mm, spec.segments, params.tracking, spec.names, spec.template_mm
         )
-        write_sweep_csv(out_dir(root) / "trials" / trial.name / "sweep.csv", rows)
-        echo(f"  sweep: {out_dir(root) / 'trials' / trial.name / 'sweep.csv'}")
+        write_sweep_csv(files.sweep, rows)
+        echo(f"  sweep: {files.sweep}")
     return result
 
 
 def _points_path(root: Path, trial: str) -> Path:
-    path = out_dir(root) / "trials" / trial / "points3d.csv"
+    path = SessionStore(root).trial(trial).points3d
     if not path.is_file():
         raise KisscalError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
     return path
@@ -87,7 +87,8 @@ def _track_trial(
 ) -> Trajectories:
     """Track and label one trial and write its outputs: gait ones, or, for the static
     trial, the subject's template (checked before anything is written)."""
-    tdir = out_dir(root) / "trials" / trial
+    store = SessionStore(root)
+    files = store.trial(trial)
     points_path = _points_path(root, trial)
     pts = read_points3d(points_path)
     from_c3d = config.trial(trial).source == "c3d"
@@ -108,10 +109,10 @@ def _track_trial(
     template = subject_template(result, spec, trial) if trial == static else None
     # every field of the trial, trailing ones without points too (a trial without markers
     # still gets its files: header only, frames without points)
-    frames = _trial_fields(tdir, pts.field)
-    write_trajectories_csv(tdir / "trajectories.csv", result.tracks, result.labels)
+    frames = _trial_fields(files, pts.field)
+    write_trajectories_csv(files.trajectories(), result.tracks, result.labels)
     write_trc(
-        tdir / "trajectories.trc",
+        files.trajectories(".trc"),
         result.tracks,
         result.labels,
         config.rate_hz,
@@ -120,16 +121,16 @@ def _track_trial(
     )
     events = None
     if template is not None:
-        clear_gait_outputs(root, tdir, trial)
-        path = template_path(out_dir(root), trial)
-        write_json(path, template)
-        mark_current(path, static_key(points_path, spec, params.tracking))
+        clear_gait_outputs(root, trial)
+        write_json(files.template, template)
+        key = store.key(*static_inputs(points_path, spec, params.tracking))
+        store.mark_current(files.template, key)
     else:
         events = gait_outputs(
-            root, tdir, trial, result, spec.marker_set, config.rate_hz, params.gait, echo
+            root, trial, result, spec.marker_set, config.rate_hz, params.gait, echo
         )
     write_c3d(
-        tdir / "trajectories.c3d",
+        files.trajectories(".c3d"),
         result.tracks,
         result.labels,
         config.rate_hz,
@@ -137,11 +138,11 @@ def _track_trial(
         residual_mm=None if from_c3d else _residual_mm(root, pts),
         events=events,
         n_fields=frames,
-        first_frame=_first_frame(tdir),
+        first_frame=_first_frame(files),
     )
     if len(pts.camera_ids):
-        write_sample_cameras(tdir / "trajectories_cameras.csv", result.tracks, result.labels, pts)
-    write_json(tdir / "tracking.json", _tracking_summary(result))
+        write_sample_cameras(files.trajectory_cameras, result.tracks, result.labels, pts)
+    write_json(files.tracking, _tracking_summary(result))
     _figures(root, trial, result, spec.segments, config.rate_hz)
     shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
     echo(
@@ -161,9 +162,9 @@ def _track_trial(
     return result
 
 
-def _first_frame(tdir: Path) -> int:
+def _first_frame(files: TrialFiles) -> int:
     """The source's number of field 0: a C3D trial's first frame (``recon.json``), else 1."""
-    recon = tdir / "recon.json"
+    recon = files.recon
     return int(json.loads(recon.read_text()).get("first_frame", 1)) if recon.is_file() else 1
 
 
@@ -202,10 +203,10 @@ def _rate_doubt(config: SessionConfig, trial: str, result: Trajectories) -> str:
     return "" if fit is None else rate_doubt(fit, config.rate_hz, limits.g_m_s2, limits.max_g_error)
 
 
-def _trial_fields(tdir: Path, field: np.ndarray) -> int:
+def _trial_fields(files: TrialFiles, field: np.ndarray) -> int:
     """Fields of a trial: from ``recon.json`` (blank fields count), else up to its last
     point, and at least one."""
-    recon = tdir / "recon.json"
+    recon = files.recon
     known = json.loads(recon.read_text()).get("fields", 0) if recon.is_file() else 0
     return max(int(known), int(field.max(initial=-1)) + 1, 1)
 
@@ -236,9 +237,10 @@ def _with_static(
     """``spec`` with the static trial's template (labelling the static trial first unless
     its template is current)."""
     static = config.markers.static if config.markers else ""
-    path = template_path(out_dir(root), static)
-    key = static_key(_points_path(root, static), spec, params.tracking)
-    if is_current(path, key):
+    store = SessionStore(root)
+    path = store.trial(static).template
+    key = store.key(*static_inputs(_points_path(root, static), spec, params.tracking))
+    if store.is_current(path, key):
         echo(f"  static trial {static}: template from its outputs (cached)")
     else:
         echo(f"  static trial {static}: labelled first; its positions are the template")

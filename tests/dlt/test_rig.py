@@ -41,9 +41,11 @@ def test_write_dlt_outputs(tmp_path):
     import json
 
     from kisscal.io.dltfiles import read_dlt_json, read_dltdv_csv, write_dlt_outputs
+    from kisscal.io.store import SessionStore
 
     cal = _calibration()[2]
-    paths = write_dlt_outputs(tmp_path / "out/dlt", cal)
+    store = SessionStore(tmp_path)
+    paths = write_dlt_outputs(cal, store.dlt_path, store.dltdv_path)
     assert sorted(p.name for p in paths) == [*(f"cam{i}.json" for i in range(1, 7)), "dltdv.csv"]
     doc = json.loads((tmp_path / "out/dlt/cam3.json").read_text())
     assert doc["rods"]["missing"] == ["R1.4"] and len(doc["points"]) == 23

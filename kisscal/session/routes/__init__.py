@@ -24,9 +24,9 @@ from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.frames import camera_frames
+from kisscal.io.store import SessionStore
 from kisscal.session.configure import markers_detection
 from kisscal.session.detection import camera_blobs
-from kisscal.session.inputs import out_dir
 from kisscal.session.params import StageParams
 from kisscal.session.progress import Echo
 
@@ -58,6 +58,11 @@ class RouteInputs:
     params: StageParams
     echo: Echo
     workers: int | None = None
+
+    @property
+    def store(self) -> SessionStore:
+        """Where the route writes (``out/dlt/`` above all) and keys its inputs."""
+        return SessionStore(self.root)
 
     @property
     def whole_rig(self) -> bool:
@@ -110,11 +115,10 @@ def outputs_of(inputs: RouteInputs, route: str) -> bool:
 
     A route's cache is valid only then: another route may have run since.
     """
-    import json
-
+    store = inputs.store
     for cam in inputs.cameras:
-        path = out_dir(inputs.root) / "dlt" / f"{cam.id}.json"
-        if not path.is_file() or json.loads(path.read_text()).get("method") != route:
+        doc = store.read_json(store.dlt_path(cam.id))
+        if not isinstance(doc, dict) or doc.get("method") != route:
             return False
     return True
 
@@ -126,6 +130,6 @@ def write_check(inputs: RouteInputs, check: dict) -> None:
     """
     from kisscal.io.files import write_json
 
-    path = out_dir(inputs.root) / "dlt" / "check.json"
+    path = inputs.store.calibration_file("check")
     write_json(path, check)
-    path.with_name(path.name + ".key").unlink(missing_ok=True)
+    inputs.store.forget(path)

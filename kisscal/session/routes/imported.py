@@ -24,14 +24,13 @@ from kisscal.dlt.camera import decompose_dlt, hatze_violation
 from kisscal.dlt.params import DltResult
 from kisscal.errors import KisscalError
 from kisscal.grid import Linearisation
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.cameras_toml import read_cameras_toml
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.dltfiles import DltFile, read_dltdv_csv, write_dlt_json
 from kisscal.io.files import write_text
-from kisscal.io.linearisation import linearisation_to_dict, read_linearisation
+from kisscal.io.linearisation import linearisation_to_dict
+from kisscal.io.store import SessionStore
 from kisscal.opencv import camera_from_opencv
-from kisscal.session.inputs import file_keys, out_dir
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.routes import RouteInputs
 
@@ -62,12 +61,11 @@ def imported_linearisation(
     lenses to a few hundredths of a pixel, strong ones less well: above
     :data:`POLY_FIT_WARN_PX` a warning says so."""
     path = _source(config, "cameras")
-    out = out_dir(config.root) / "linearisation" / f"{cam.id}.json"
-    key = cache_key(
-        "imported-linearisation", file_keys([path], config.root), cam.id, _names(config)
-    )
-    if is_current(out, key):
-        return read_linearisation(out)[1]
+    store = SessionStore(config.root)
+    out = store.linearisation_path(cam.id)
+    key = store.key("imported-linearisation", [path], cam.id, _names(config))
+    if store.is_current(out, key):
+        return store.linearisation(cam.id)
     # every camera of the session is checked before any file is written
     cv = read_cameras_toml(path, config.camera_ids, _names(config))[cam.id]
     if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
@@ -81,7 +79,7 @@ def imported_linearisation(
     doc["fit_rms_px"] = rms  # polynomial vs OpenCV's undistortion over the image
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, json.dumps(doc, indent=2) + "\n")
-    mark_current(out, key)
+    store.mark_current(out, key)
     echo(f"  linearise {cam.id}: polynomial fitted to {path.name}'s lens, rms {rms:.4f} px")
     if rms > POLY_FIT_WARN_PX:
         echo(
@@ -105,7 +103,7 @@ def _write(inputs: RouteInputs, files: dict[str, DltFile], method: str, source: 
     for cam in inputs.cameras:
         result = _imported_result(files[cam.id].L, method)
         write_dlt_json(
-            out_dir(inputs.root) / "dlt" / f"{cam.id}.json",
+            inputs.store.dlt_path(cam.id),
             cam.id,
             result,
             extra={"source": str(source.relative_to(inputs.root))},

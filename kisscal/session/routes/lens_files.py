@@ -35,7 +35,6 @@ from kisscal.io.linearisation import (
     refined_by,
     write_linearisation,
 )
-from kisscal.session.inputs import out_dir
 from kisscal.session.routes import RouteInputs
 
 
@@ -98,8 +97,7 @@ def write_lens_camera(
     model's coordinates), residuals px and labels; the file lists them through the
     written polynomial, with their residuals under the written DLT.
     """
-    out = out_dir(inputs.root)
-    lin_path = out / "linearisation" / f"{cfg.id}.json"
+    lin_path = inputs.store.linearisation_path(cfg.id)
     grid_doc = grid_document(lin_path, inputs.config.grid is not None)
     before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
     xyz, uv, _, labels = points
@@ -124,5 +122,5 @@ def write_lens_camera(
         centre_mm=centre,
         iterations=iterations,
     )
-    write_dlt_json(out / "dlt" / f"{cfg.id}.json", cfg.id, result, xyz, written, labels, extra)
+    write_dlt_json(inputs.store.dlt_path(cfg.id), cfg.id, result, xyz, written, labels, extra)
     return fit_max

@@ -17,7 +17,6 @@ from kisscal.dlt import calibrate_camera
 from kisscal.dlt.select import CameraPoints, ModelChoice, choose_model, interleaved_folds
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv, write_dlt_json
-from kisscal.session.inputs import out_dir
 from kisscal.session.routes import RouteInputs, write_check
 
 
@@ -40,9 +39,7 @@ def calibrate_from_points(inputs: RouteInputs) -> dict[str, Any]:
     for cam_id, (xyz, uv, labels) in read.items():
         res = calibrate_camera(xyz, uv, params, cam_id)
         extra = {"lens_models": choice.camera_dict(cam_id)} if choice is not None else None
-        write_dlt_json(
-            out_dir(inputs.root) / "dlt" / f"{cam_id}.json", cam_id, res, xyz, uv, labels, extra
-        )
+        write_dlt_json(inputs.store.dlt_path(cam_id), cam_id, res, xyz, uv, labels, extra)
         summary[cam_id] = res
         inputs.echo(
             f"  calibrate {cam_id}: {res.method}, {len(xyz)} control points, "

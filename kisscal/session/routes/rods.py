@@ -8,7 +8,6 @@ the calibration extrapolates.
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Any
 
@@ -18,11 +17,10 @@ from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.dlt.params import Rod
 from kisscal.dlt.rig import RodCalibration
 from kisscal.grid import apply_linearisation
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
 from kisscal.io.frames import source_files
-from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
+from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
 
@@ -32,25 +30,26 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
 
     Returns ``{camera: DltResult}`` plus the rig check under ``"_check"`` (whole rig only).
     """
-    config, root, params = inputs.config, inputs.root, inputs.params
+    config, params = inputs.config, inputs.params
     assert config.rods is not None
-    out = out_dir(root) / "dlt"
+    store = inputs.store
+    check_json = store.calibration_file("check")
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     rod_frames = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
     lins = inputs.linearisations
     detection = marker_detection(inputs)
-    stage_key = cache_key(
+    stage_key = store.key(
         "calibrate",
-        {c: file_keys(source_files(f), config.root) for c, f in rod_frames.items()},
+        {c: source_files(f) for c, f in rod_frames.items()},
         config.rods.fields,
-        linearisation_key({c: lins[c] for c in rod_frames}),
+        {c: lins[c] for c in rod_frames},
         detection,
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
     )
-    if inputs.whole_rig and is_current(out / "check.json", stage_key):
+    if inputs.whole_rig and store.is_current(check_json, stage_key):
         inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
-        return {"_check": json.loads((out / "check.json").read_text())}
+        return {"_check": store.calibration_doc("check")}
     blobs_px = {
         cam: [apply_linearisation(lins[cam], uv) for uv in frames]
         for cam, frames in static_blobs(
@@ -59,12 +58,12 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     }
     t0 = time.perf_counter()
     cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
-    write_dlt_outputs(out, cal)
+    write_dlt_outputs(cal, store.dlt_path, store.dltdv_path)
     rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
     summary: dict[str, Any] = dict(cal.results)
     if inputs.whole_rig:
-        write_json(out / "check.json", rig)
-        mark_current(out / "check.json", stage_key)
+        write_json(check_json, rig)
+        store.mark_current(check_json, stage_key)
         summary["_check"] = rig
     _say_rods(inputs.echo, cal, rig, time.perf_counter() - t0)
     _rod_figures(inputs, cal, rods)

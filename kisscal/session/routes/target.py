@@ -13,7 +13,6 @@ cameras).
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Any
 
@@ -23,11 +22,10 @@ from kisscal.bundle.frame import average_static
 from kisscal.bundle.quality import triangulate_points
 from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import source_files
-from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
+from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.target.dots import find_target_dots
@@ -48,17 +46,18 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     target = np.column_stack([table[c] for c in TARGET_COLUMNS]).astype(float)
     frames = frame_files(inputs, cal.images, "calibration", cal.fields)
     seed_paths = {c.id: config.root / cal.seeds.replace("{camera}", c.id) for c in inputs.cameras}
-    out = out_dir(inputs.root) / "dlt"
-    key = cache_key(
+    store = inputs.store
+    target_json = store.calibration_file("target")
+    key = store.key(
         "calibrate-target",
-        file_keys([target_path, *seed_paths.values()], config.root),
-        {c: file_keys(source_files(f), config.root) for c, f in frames.items()},
-        linearisation_key(inputs.linearisations),
+        [target_path, *seed_paths.values()],
+        {c: source_files(f) for c, f in frames.items()},
+        inputs.linearisations,
         inputs.params.target,
     )
-    if inputs.whole_rig and is_current(out / "target.json", key) and outputs_of(inputs, ROUTE):
+    if inputs.whole_rig and store.is_current(target_json, key) and outputs_of(inputs, ROUTE):
         inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
-        return {"_check": json.loads((out / "check.json").read_text())}
+        return {"_check": store.calibration_doc("check")}
     t0 = time.perf_counter()
     matches, dots = {}, {}
     for cam in inputs.cameras:
@@ -79,10 +78,10 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     for cam in inputs.cameras:
         _write_camera(inputs, cam, matches[cam.id], dots[cam.id], target)
     check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
-    write_json(out / "target.json", doc)
+    write_json(target_json, doc)
     if inputs.whole_rig:
         write_check(inputs, check)
-        mark_current(out / "target.json", key)
+        store.mark_current(target_json, key)
     _say(inputs, doc, check)
     return {"_check": check}
 

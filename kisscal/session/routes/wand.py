@@ -13,7 +13,6 @@ lens terms folded into the 30-coefficient polynomial; ``dlt/<camera>.json`` with
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from typing import Any
@@ -36,9 +35,7 @@ from kisscal.bundle.wand import (
 from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation
-from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.frames import source_files
-from kisscal.session.inputs import file_keys, linearisation_key, out_dir
 from kisscal.session.routes import (
     RouteInputs,
     frame_files,
@@ -65,15 +62,15 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
         raise KisscalError(
             f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
         )
-    out = out_dir(inputs.root) / "dlt"
+    store = inputs.store
+    wand_json, check_json = store.calibration_file("wand"), store.calibration_file("check")
     key = _stage_key(inputs)
-    current = is_current(out / "wand.json", key) and (
-        outputs_of(inputs, "wand")
-        or json.loads((out / "wand.json").read_text()).get("kept") == "rods"
+    current = store.is_current(wand_json, key) and (
+        outputs_of(inputs, "wand") or store.calibration_doc("wand").get("kept") == "rods"
     )
-    if current and (out / "check.json").is_file():
+    if current and check_json.is_file():
         inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
-        return {"_check": json.loads((out / "check.json").read_text())}
+        return {"_check": store.calibration_doc("check")}
     t0 = time.perf_counter()
     table = _wand_table(inputs)
     if config.rods is not None:
@@ -83,12 +80,12 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
         cal, frame = _with_axes(inputs, table)
         rod_check = None
     check = write_wand_outputs(inputs, cal, frame, rod_check, time.perf_counter() - t0)
-    mark_current(out / "wand.json", key)
+    store.mark_current(wand_json, key)
     return {"_check": check}
 
 
 def _stage_key(inputs: RouteInputs) -> str:
-    from kisscal.session.reconstruct import trial_input_keys  # it imports calibrate: a cycle
+    from kisscal.session.reconstruct import trial_input_files  # it imports calibrate: a cycle
 
     config, params = inputs.config, inputs.params
     assert config.wand is not None
@@ -96,17 +93,17 @@ def _stage_key(inputs: RouteInputs) -> str:
     objects = []
     if config.rods is not None:
         rods = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
-        objects.append({c: file_keys(source_files(f), config.root) for c, f in rods.items()})
+        objects.append({c: source_files(f) for c, f in rods.items()})
         objects.append([(r.name, r.points_mm) for r in config.rods.rods])
     if config.axes is not None:
         axes = frame_files(inputs, config.axes.images, "axes", config.axes.fields)
-        objects.append({c: file_keys(source_files(f), config.root) for c, f in axes.items()})
+        objects.append({c: source_files(f) for c, f in axes.items()})
         objects.append(config.axes.points_mm)
-    return cache_key(
+    return inputs.store.key(
         "calibrate-wand",
-        trial_input_keys(config, trial),
+        trial_input_files(config, trial),
         objects,
-        linearisation_key(inputs.linearisations),
+        inputs.linearisations,
         config.wand.markers_mm,
         marker_detection(inputs),
         params.dlt,

@@ -29,7 +29,7 @@ from kisscal.bundle.wand import AxesFrame, WandCalibration
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
-from kisscal.session.inputs import figure, out_dir
+from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 
@@ -83,9 +83,8 @@ def write_wand_outputs(
         _keep_rods(inputs, rod_cal)
     else:
         _write_cameras(inputs, cal, cameras, frame)
-    out = out_dir(inputs.root) / "dlt"
     write_check(inputs, check)
-    write_json(out / "wand.json", wand_doc)
+    write_json(inputs.store.calibration_file("wand"), wand_doc)
     _say(inputs, wand_doc, check)
     _figures(inputs, cal, cameras, frame, per_cam, lengths)
     return check
@@ -107,15 +106,14 @@ def _kept(check: dict[str, Any]) -> str:
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
     """Write the rods' calibration, on the grid's own linearisation, as the result."""
-    from kisscal.io.linearisation import read_linearisation_doc, refined_by
+    from kisscal.io.linearisation import refined_by
 
-    out = out_dir(inputs.root)
-    write_dlt_outputs(out / "dlt", rod_cal)
+    store = inputs.store
+    write_dlt_outputs(rod_cal, store.dlt_path, store.dltdv_path)
     for cam in inputs.cameras:
-        path = out / "linearisation" / f"{cam.id}.json"
-        doc = read_linearisation_doc(path)
+        doc = store.linearisation_doc(cam.id)
         if doc is not None and refined_by(doc) is not None and doc["refined"].get("grid_fit"):
-            write_json(path, doc["refined"]["grid_fit"])
+            write_json(store.linearisation_path(cam.id), doc["refined"]["grid_fit"])
 
 
 def _camera_entry(cam: PinholeCamera, per_cam: Any, c: int) -> dict[str, Any]:
