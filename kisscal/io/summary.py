@@ -7,6 +7,9 @@ the report falls back on it when ``summary.json`` is missing (a stage run alone)
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -14,19 +17,18 @@ import numpy as np
 
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
+from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.tracking.tracks import STATUS_NAMES
 
 
 def summarise(root: Path) -> dict[str, Any]:
     """Every quality figure of a processed session, read back from ``out/``."""
     config = load_session(Path(root))
-    out = Path(root) / "out"
-    exports_path = out / "exports.json"
-    exports = json.loads(exports_path.read_text()) if exports_path.is_file() else {}
-    cams = {cam: _camera_summary(out, cam, exports) for cam in config.camera_ids}
-    trials = {t.name: _trial_summary(out / "trials" / t.name) for t in config.trials}
-    check_path = out / "dlt" / "check.json"
-    check = json.loads(check_path.read_text()) if check_path.is_file() else {}
+    store = SessionStore(root)
+    exports = store.read_json(store.exports_path) or {}
+    cams = {cam: _camera_summary(store, cam, exports) for cam in config.camera_ids}
+    trials = {t.name: _trial_summary(store.trial(t.name)) for t in config.trials}
+    check = store.calibration_doc("check") or {}
     warnings = [
         f"{name}: {line}"
         for name, entry in trials.items()
@@ -35,7 +37,7 @@ def summarise(root: Path) -> dict[str, Any]:
     summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
     summary["held_out"] = held_out_figures(check)
     summary["warnings"] = warnings
-    summary.update(_calibration_summary(out / "dlt"))
+    summary.update(_calibration_summary(store))
     return summary
 
 
@@ -63,20 +65,20 @@ def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _calibration_summary(dlt: Path) -> dict[str, Any]:
+def _calibration_summary(store: SessionStore) -> dict[str, Any]:
     """The calibration route, and the wand's or target's own figures when there are any."""
     entry: dict[str, Any] = {}
-    record = dlt / "calibration.json"
-    if record.is_file():
-        entry["calibration"] = {"route": json.loads(record.read_text()).get("route")}
+    record = store.calibration_doc("calibration")
+    if record is not None:
+        entry["calibration"] = {"route": record.get("route")}
     for name in ("wand", "target"):
-        path = dlt / f"{name}.json"
-        if path.is_file():
-            entry[name] = json.loads(path.read_text())
+        doc = store.calibration_doc(name)
+        if doc is not None:
+            entry[name] = doc
     return entry
 
 
-def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, Any]:
+def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> dict[str, Any]:
     entry: dict[str, Any] = {}
     fit = exports.get("cameras_toml", {}).get(cam)
     lens = exports.get("dltdv", {}).get("lens_error", {}).get(cam)
@@ -86,22 +88,20 @@ def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, A
             "opencv_fit_max_px": (fit or {}).get("max_px"),
             "dltdv_corner_error_px": max((lens or {}).get("corners_px", [0.0]) or [0.0]),
         }
-    lin_path = out / "linearisation" / f"{cam}.json"
-    if lin_path.is_file():
-        doc = json.loads(lin_path.read_text())
+    doc = store.linearisation_doc(cam)
+    if doc is not None:
         entry["grid"] = {
             k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
         }
-    det_path = out / "detection" / f"{cam}.json"
-    if det_path.is_file():
-        kinds = json.loads(det_path.read_text()).get("kinds", {})
+    det = store.detection_doc(cam)
+    if det is not None:
+        kinds = det.get("kinds", {})
         entry["detection"] = {
             kind: {k: v["value"] for k, v in doc.get("settings", {}).items()}
             for kind, doc in kinds.items()
         }
-    dlt_path = out / "dlt" / f"{cam}.json"
-    if dlt_path.is_file():
-        doc = json.loads(dlt_path.read_text())
+    doc = store.read_json(store.dlt_path(cam))
+    if doc is not None:
         entry["dlt"] = {
             "method": doc.get("method"),
             "rms_px": doc.get("rms_px"),
@@ -116,16 +116,17 @@ def _camera_summary(out: Path, cam: str, exports: dict[str, Any]) -> dict[str, A
     return entry
 
 
-def _trial_summary(tdir: Path) -> dict[str, Any]:
+def _trial_summary(files: TrialFiles) -> dict[str, Any]:
     entry: dict[str, Any] = {}
-    if (tdir / "tracking.json").is_file():
-        entry["tracking"] = json.loads((tdir / "tracking.json").read_text())
-    if (tdir / "recon.json").is_file():
-        entry["reconstruction"] = json.loads((tdir / "recon.json").read_text())
-    if (tdir / "gait.json").is_file():
-        entry["gait"] = json.loads((tdir / "gait.json").read_text())
-    if (tdir / "trajectories.csv").is_file():
-        tr = read_table(tdir / "trajectories.csv")
+    for name, path in (
+        ("tracking", files.tracking),
+        ("reconstruction", files.recon),
+        ("gait", files.gait),
+    ):
+        if path.is_file():
+            entry[name] = json.loads(path.read_text())
+    if files.trajectories().is_file():
+        tr = read_table(files.trajectories())
         labels = sorted(set(tr["label"].tolist()))
         entry["trajectories"] = len(labels)
         entry["labels"] = labels
@@ -135,3 +136,146 @@ def _trial_summary(tdir: Path) -> dict[str, Any]:
         # "filled" stays the count of every filled sample, how each was filled beside it
         entry["samples"]["filled"] = int(np.sum(np.char.startswith(status, "filled")))
     return entry
+
+
+def _float(value: Any) -> float:
+    """A figure of the summary as a float (NaN where it was not measured)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _entry(doc: Any, *keys: str) -> dict[str, Any]:
+    """``doc[k1][k2]...``, an empty dict where a level is missing or not a table."""
+    for key in keys:
+        doc = doc.get(key) if isinstance(doc, Mapping) else None
+    return dict(doc) if isinstance(doc, Mapping) else {}
+
+
+@dataclass(frozen=True)
+class CameraFigures:
+    """One camera's entry of ``summary.json`` (as :func:`summarise` writes it), typed.
+
+    Figures not measured (no grid, not calibrated, not exported) are NaN or None.
+    """
+
+    grid: bool
+    grid_rms_px_before: float
+    grid_rms_px: float
+    dots_used: int | None
+    dlt_method: str | None
+    dlt_rms_px: float
+    centre_mm: tuple[float, float, float] | None
+    exported: bool
+    export_fit_rms_px: float
+
+    @classmethod
+    def read(cls, summary: Mapping[str, Any], camera: str) -> CameraFigures:
+        """The figures of ``camera`` in a summary (all missing when it has none)."""
+        entry = _entry(summary, "cameras", camera)
+        grid, dlt, export = _entry(entry, "grid"), _entry(entry, "dlt"), _entry(entry, "export")
+        centre = dlt.get("centre_mm")
+        ok = isinstance(centre, list | tuple) and len(centre) == 3
+        dots = grid.get("dots_used")
+        return cls(
+            grid=bool(grid),
+            grid_rms_px_before=_float(grid.get("rms_px_before")),
+            grid_rms_px=_float(grid.get("rms_px")),
+            dots_used=int(dots) if isinstance(dots, int | float) else None,
+            dlt_method=dlt.get("method"),
+            dlt_rms_px=_float(dlt.get("rms_px")),
+            centre_mm=tuple(map(_float, centre)) if ok else None,  # type: ignore[arg-type]
+            exported="export" in entry,
+            export_fit_rms_px=_float(export.get("opencv_fit_rms_px")),
+        )
+
+
+@dataclass(frozen=True)
+class TrialFigures:
+    """One trial's entry of ``summary.json``, typed: reconstruction and tracking figures,
+    and why the trial failed (``failed_trials``) if it did."""
+
+    processed: bool
+    points: int | None
+    fields: int | None
+    rms_px_median: float
+    points_by_n_cameras: tuple[int, ...] | None
+    fits_marker_set: bool
+    missing: tuple[str, ...]
+    flagged: tuple[str, ...]
+    failed: str | None
+
+    @classmethod
+    def read(cls, summary: Mapping[str, Any], trial: str) -> TrialFigures:
+        """The figures of ``trial`` in a summary (not processed when it has none)."""
+        processed = trial in _entry(summary, "trials")
+        recon = _entry(summary, "trials", trial, "reconstruction")
+        tracking = _entry(summary, "trials", trial, "tracking")
+        by_n = recon.get("points_by_n_cameras")
+        failed = _entry(summary, "failed_trials").get(trial)
+        return cls(
+            processed=processed,
+            points=int(recon["points"]) if recon.get("points") is not None else None,
+            fields=int(recon["fields"]) if recon.get("fields") else None,
+            rms_px_median=_float(recon.get("rms_px_median")),
+            points_by_n_cameras=tuple(int(n) for n in by_n) if by_n is not None else None,
+            fits_marker_set=bool(tracking.get("fits_marker_set", False)),
+            missing=tuple(tracking.get("missing", ())),
+            flagged=tuple(tracking.get("flagged", ())),
+            failed=str(failed) if failed else None,
+        )
+
+
+@dataclass(frozen=True)
+class RodHeldOut:
+    """One rod held out of the calibration and reconstructed by the others (mm)."""
+
+    name: str
+    n_markers: int | None
+    mean_mm: float
+    max_mm: float
+    rods_alone_mean_mm: float
+
+
+@dataclass(frozen=True)
+class RigCheck:
+    """The calibration's 3D check (``dlt/check.json``, ``rods`` in ``summary.json``),
+    typed: rod markers in the fit, each rod held out, target points held out (mm)."""
+
+    in_sample_mean_mm: float
+    in_sample_max_mm: float
+    leave_one_rod_out_mean_mm: float
+    leave_one_rod_out_max_mm: float
+    per_rod: tuple[RodHeldOut, ...]
+    held_out_points: int | None
+    leave_out_mean_mm: float
+    leave_out_max_mm: float
+
+    @classmethod
+    def read(cls, summary: Mapping[str, Any]) -> RigCheck:
+        """The check of a summary (every figure NaN when the calibration has none)."""
+        rods = _entry(summary, "rods")
+        loo = _entry(rods, "leave_one_rod_out")
+        per_rod = tuple(
+            RodHeldOut(
+                str(name),
+                int(r["n_markers"]) if r.get("n_markers") is not None else None,
+                _float(r.get("mean_mm")),
+                _float(r.get("max_mm")),
+                _float(r.get("rods_alone_mean_mm")),
+            )
+            for name, r in _entry(loo, "per_rod").items()
+            if isinstance(r, Mapping)
+        )
+        held = rods.get("held_out_points")
+        return cls(
+            in_sample_mean_mm=_float(rods.get("rods_in_sample_mean_mm")),
+            in_sample_max_mm=_float(rods.get("rods_in_sample_max_mm")),
+            leave_one_rod_out_mean_mm=_float(loo.get("mean_mm")),
+            leave_one_rod_out_max_mm=_float(loo.get("max_mm")),
+            per_rod=per_rod,
+            held_out_points=int(held) if held is not None else None,
+            leave_out_mean_mm=_float(rods.get("leave_out_mean_mm")),
+            leave_out_max_mm=_float(rods.get("leave_out_max_mm")),
+        )

@@ -15,6 +15,8 @@ from typing import Any
 
 from kisscal.errors import KisscalError
 from kisscal.io.files import read_table
+from kisscal.io.store import SessionStore
+from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures
 from kisscal.report.markers import Dense, dense_trajectories
 from kisscal.report.params import ReportParams
 
@@ -82,6 +84,18 @@ class SessionOutputs:
     limits: ReportParams
     notes: list[str] = field(default_factory=list)
 
+    def camera_figures(self, camera: str) -> CameraFigures:
+        """The figures of ``camera`` in :attr:`summary`, typed."""
+        return CameraFigures.read(self.summary, camera)
+
+    def rig_check(self) -> RigCheck:
+        """The calibration's 3D check in :attr:`summary`, typed."""
+        return RigCheck.read(self.summary)
+
+    def trial_figures(self, trial: str) -> TrialFigures:
+        """The figures of ``trial`` in :attr:`summary`, typed."""
+        return TrialFigures.read(self.summary, trial)
+
 
 def _json(path: Path, notes: list[str]) -> Any:
     if not path.is_file():
@@ -126,11 +140,9 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
         return {}
 
 
-def _trial(out: Path, name: str, notes: list[str]) -> TrialOutputs:
-    tdir = out / "trials" / name
-    table = _table(
-        tdir / "trajectories.csv", notes, ("field", "track", "label", "x_mm", "y_mm", "z_mm")
-    )
+def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
+    files = store.trial(name)
+    table = _table(files.trajectories(), notes, ("field", "track", "label", "x_mm", "y_mm", "z_mm"))
     dense = None
     if table is not None:
         status = table.get("status", ["measured"] * len(table["field"]))
@@ -141,14 +153,14 @@ def _trial(out: Path, name: str, notes: list[str]) -> TrialOutputs:
     return TrialOutputs(
         name,
         dense,
-        _table(tdir / "events.csv", notes),
-        _table(tdir / "spatiotemporal.csv", notes),
+        _table(files.events, notes),
+        _table(files.spatiotemporal, notes),
     )
 
 
-def _limits(out: Path, base: ReportParams, notes: list[str]) -> ReportParams:
+def _limits(store: SessionStore, base: ReportParams, notes: list[str]) -> ReportParams:
     """``kisscal check`` limits stored in ``out/limits.json`` replace the defaults."""
-    stored = _json(out / "limits.json", notes) or {}
+    stored = _json(store.limits_path, notes) or {}
     changes = {k: v for k, v in stored.items() if k in LIMIT_KEYS and v is not None}
     try:
         return base.replace(**changes)
@@ -188,10 +200,10 @@ def _session_params(config: Any, notes: list[str]) -> ReportParams:
 def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     """Read a processed session's outputs for :func:`kisscal.report.html.build_report`."""
     root = Path(root)
-    out = root / "out"
+    store = SessionStore(root)
     notes: list[str] = []
     config = _config(root, notes)
-    summary = _json(out / "summary.json", notes)
+    summary = _json(store.summary_path, notes)
     if summary is None:
         summary = _summary_from_outputs(root, config is not None, notes)
     if config is not None:
@@ -203,13 +215,12 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         trials = tuple(summary.get("trials", {}))
         names, segments, rate_hz = (), (), 1.0
         session = str(summary.get("session", root.name))
-    figures_dir = out / "figures"
+    figures_dir = store.figures_dir
     # a hidden name is a figure still being written (kisscal.io.files writes beside, then renames)
     pngs = sorted(figures_dir.glob("[!.]*.png")) if figures_dir.is_dir() else []
     figures = {p.stem: p for p in pngs}
-    detection_dir = out / "detection"
     detection = {
-        c: doc for c in cameras if (doc := _json(detection_dir / f"{c}.json", notes)) is not None
+        c: doc for c in cameras if (doc := _json(store.detection_path(c), notes)) is not None
     }
     return SessionOutputs(
         root=root,
@@ -220,11 +231,11 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         marker_names=names,
         segments=segments,
         summary=summary,
-        dlt={c: d for c in cameras if (d := _json(out / "dlt" / f"{c}.json", notes))},
+        dlt={c: d for c in cameras if (d := _json(store.dlt_path(c), notes))},
         detection=detection,
-        wand=_json(out / "dlt" / "wand.json", notes),
-        trial_outputs={t: _trial(out, t, notes) for t in trials},
+        wand=_json(store.calibration_file("wand"), notes),
+        trial_outputs={t: _trial(store, t, notes) for t in trials},
         figures=figures,
-        limits=_limits(out, params or _session_params(config, notes), notes),
+        limits=_limits(store, params or _session_params(config, notes), notes),
         notes=notes,
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from kisscal.report.gather import SessionOutputs
@@ -18,7 +19,7 @@ from kisscal.report.htmlkit import (
     table,
     tag,
 )
-from kisscal.report.status import Verdict, number
+from kisscal.report.status import Verdict
 
 RMS_NOTE = (
     "Residuals are RMS Euclidean distances in pixels, sqrt(mean(du² + dv²)); tools that "
@@ -26,17 +27,13 @@ RMS_NOTE = (
 )
 
 
-def _centre(dlt: dict[str, Any]) -> list[str]:
-    c = dlt.get("centre_mm")
-    if not isinstance(c, list | tuple) or len(c) != 3:
-        return ["–"] * 3
-    return [fmt(number(v), 0) for v in c]
+def _centre(c: tuple[float, float, float] | None) -> list[str]:
+    return ["–"] * 3 if c is None else [fmt(v, 0) for v in c]
 
 
 def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
     """One row per camera: grid before/after, dots, DLT method, rms, points, centre."""
-    cams = o.summary.get("cameras", {})
-    loo = any("leave_one_out_px" in cams.get(c, {}).get("dlt", {}) for c in o.cameras)
+    figures = {c: o.camera_figures(c) for c in o.cameras}
     headers = [
         "camera",
         "status",
@@ -50,33 +47,28 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
         "Y (mm)",
         "Z (mm)",
     ]
-    if loo:
-        headers.append("leave-one-rod-out rms (px)")
-    exported = any("export" in cams.get(c, {}) for c in o.cameras)
+    exported = any(f.exported for f in figures.values())
     if exported:
         headers.append("cameras.toml fit rms (px)")
     headers.append("missing rod markers")
     rows = []
     for cam in o.cameras:
-        entry = cams.get(cam, {})
-        grid, dlt = entry.get("grid", {}), entry.get("dlt", {})
+        f = figures[cam]
         doc = o.dlt.get(cam, {})
         missing = (doc.get("rods") or {}).get("missing") or []
         row = [
             tag("b", cam),
             badge(verdicts[cam].state) if cam in verdicts else "",
-            fmt(grid.get("rms_px_before")) if grid else "no grid",
-            fmt(grid.get("rms_px")) if grid else "–",
-            fmt(grid.get("dots_used")),
-            dlt.get("method", "–"),
+            fmt(f.grid_rms_px_before) if f.grid else "no grid",
+            fmt(f.grid_rms_px) if f.grid else "–",
+            fmt(f.dots_used),
+            f.dlt_method or "–",
             fmt(doc.get("n_points")),
-            fmt(dlt.get("rms_px")),
-            *_centre(dlt),
+            fmt(f.dlt_rms_px),
+            *_centre(f.centre_mm),
         ]
-        if loo:
-            row.append(fmt(dlt.get("leave_one_out_px")))
         if exported:
-            row.append(fmt((entry.get("export") or {}).get("opencv_fit_rms_px"), 4))
+            row.append(fmt(f.export_fit_rms_px, 4))
         row.append(", ".join(missing) if missing else "none")
         rows.append(row)
     return table(headers, rows, numeric=(2, 3, 4, 6, 7, 8, 9, 10, 11))
@@ -84,25 +76,24 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
 
 def rod_table(o: SessionOutputs) -> Html:
     """Held-out 3D error per rod (leave-one-rod-out) and the in-sample error."""
-    rods = o.summary.get("rods") or {}
-    per_rod = (rods.get("leave_one_rod_out") or {}).get("per_rod") or {}
+    check = o.rig_check()
     parts = []
-    if "rods_in_sample_mean_mm" in rods:
+    if math.isfinite(check.in_sample_mean_mm):
         parts.append(
             tag(
                 "p",
                 f"Rod markers reconstructed with every rod in the fit: mean "
-                f"{fmt(rods['rods_in_sample_mean_mm'], 3)} mm, max "
-                f"{fmt(rods.get('rods_in_sample_max_mm'), 3)} mm. Each rod held out of the "
+                f"{fmt(check.in_sample_mean_mm, 3)} mm, max "
+                f"{fmt(check.in_sample_max_mm, 3)} mm. Each rod held out of the "
                 "fit and reconstructed by the others (the honest figure):",
             )
         )
-    if per_rod:
-        alone = any(r.get("rods_alone_mean_mm") is not None for r in per_rod.values())
+    if check.per_rod:
+        alone = any(math.isfinite(r.rods_alone_mean_mm) for r in check.per_rod)
         rows = [
-            [tag("b", name), fmt(r.get("n_markers")), fmt(r.get("mean_mm")), fmt(r.get("max_mm"))]
-            + ([fmt(r.get("rods_alone_mean_mm"))] if alone else [])
-            for name, r in per_rod.items()
+            [tag("b", r.name), fmt(r.n_markers), fmt(r.mean_mm), fmt(r.max_mm)]
+            + ([fmt(r.rods_alone_mean_mm)] if alone else [])
+            for r in check.per_rod
         ]
         headers = ["rod held out", "markers", "3D error mean (mm)", "max (mm)"]
         if alone:  # the wand route: the same rod held out of the rods-only calibration
@@ -164,14 +155,15 @@ def target_table(o: SessionOutputs) -> Html:
     ]
     headers = ["camera", "visible points", "matched", "unmatched", "rms (px)", "seeds rms (px)"]
     parts = [table(headers, rows, (1, 2, 3, 4, 5))]
-    rods = o.summary.get("rods") or {}
-    if "leave_out_mean_mm" in rods:
+    check = o.rig_check()
+    if math.isfinite(check.leave_out_mean_mm):
+        held = check.held_out_points if check.held_out_points is not None else ""
         parts.append(
             tag(
                 "p",
-                f"{rods.get('held_out_points', '')} target points held out of every camera's fit "
-                f"and reconstructed from all cameras: mean {fmt(rods['leave_out_mean_mm'], 3)}"
-                f" mm, max {fmt(rods.get('leave_out_max_mm'), 3)} mm.",
+                f"{held} target points held out of every camera's fit "
+                f"and reconstructed from all cameras: mean {fmt(check.leave_out_mean_mm, 3)}"
+                f" mm, max {fmt(check.leave_out_max_mm, 3)} mm.",
             )
         )
     return join(parts)
@@ -216,8 +208,8 @@ def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: s
         name = f"grid_{cam}"
         if name in fig:
             used.add(name)
-            g = o.summary.get("cameras", {}).get(cam, {}).get("grid", {})
-            line = f"{cam}: grid residual {fmt(g.get('rms_px_before'))} → {fmt(g.get('rms_px'))} px"
+            g = o.camera_figures(cam)
+            line = f"{cam}: grid residual {fmt(g.grid_rms_px_before)} → {fmt(g.grid_rms_px)} px"
             grids.append(details(line, png(fig[name], f"grid {cam}")))
     if grids:
         parts.append(tag("h3", "Grid linearisation per camera (click to open)"))

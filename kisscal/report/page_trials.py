@@ -41,20 +41,17 @@ def trial_table(
         "median rms (px)",
     ]
     rows, classes = [], []
-    failed = o.summary.get("failed_trials") or {}
     for name in o.trials:
         a = analyses[name]
-        summ = o.summary.get("trials", {}).get(name, {})
-        recon = summ.get("reconstruction", {})
-        tracking = summ.get("tracking", {})
+        figures = o.trial_figures(name)
         ms = a.markers
-        if name in failed or not ms:
+        if figures.failed or not ms:
             rows.append([tag("b", name), badge(verdicts[name].state), verdicts[name].result])
-            classes.append("failed" if name in failed else None)
+            classes.append("failed" if figures.failed else None)
             continue
-        labelled = "yes" if tracking.get("fits_marker_set") else "no"
-        if tracking.get("flagged"):
-            labelled = "uncertain: " + ", ".join(tracking["flagged"])
+        labelled = "yes" if figures.fits_marker_set else "no"
+        if figures.flagged:
+            labelled = "uncertain: " + ", ".join(figures.flagged)
         if a.stick or a.throw:
             labelled = "validation trial"
         rows.append(
@@ -69,8 +66,8 @@ def trial_table(
                 fmt(sum(m.gap_fields for m in ms)),
                 fmt(sum(m.filled for m in ms)),
                 fmt(sum(m.predicted for m in ms)),
-                fmt(recon.get("points")),
-                fmt(recon.get("rms_px_median")),
+                fmt(figures.points),
+                fmt(figures.rms_px_median),
             ]
         )
         classes.append(None)
@@ -87,11 +84,8 @@ def _pad(row: list[Any], n: int) -> list[Any]:
 
 def cameras_table(o: SessionOutputs) -> Html:
     """3D points by the number of cameras that saw them, per trial."""
-    counts = {
-        name: o.summary.get("trials", {}).get(name, {}).get("reconstruction", {})
-        for name in o.trials
-    }
-    counts = {k: v["points_by_n_cameras"] for k, v in counts.items() if "points_by_n_cameras" in v}
+    by_n = {name: o.trial_figures(name).points_by_n_cameras for name in o.trials}
+    counts = {name: v for name, v in by_n.items() if v is not None}
     if not counts:
         return Html("")
     width = max(len(v) for v in counts.values())
@@ -283,10 +277,7 @@ def viewer_section(o: SessionOutputs, analyses: dict[str, TrialAnalysis]) -> Htm
         trials[name] = trial_data(name, t.dense, o.rate_hz, pairs, o.limits.viewer_samples)
     if not trials:
         return Html("")
-    cams = {
-        c: o.summary.get("cameras", {}).get(c, {}).get("dlt", {}).get("centre_mm")
-        for c in o.cameras
-    }
+    cams = {c: o.camera_figures(c).centre_mm for c in o.cameras}
     return section("viewer", "3D viewer", viewer_html(viewer_data(trials, cams)))
 
 

@@ -62,9 +62,8 @@ def camera_verdicts(o: SessionOutputs) -> list[Verdict]:
     lim = o.limits
     out = []
     for cam in o.cameras:
-        entry = o.summary.get("cameras", {}).get(cam, {})
-        grid = number(entry.get("grid", {}).get("rms_px"))
-        dlt = number(entry.get("dlt", {}).get("rms_px"))
+        figures = o.camera_figures(cam)
+        grid, dlt = figures.grid_rms_px, figures.dlt_rms_px
         parts, states = [], []
         if np.isfinite(grid):
             parts.append(f"grid residual {grid:.3f} px")
@@ -84,16 +83,16 @@ def camera_verdicts(o: SessionOutputs) -> list[Verdict]:
 
 def rig_verdict(o: SessionOutputs) -> Verdict | None:
     """The calibration's 3D error on held-out rods (as ``kisscal check --max-3d-mm``)."""
-    rods = o.summary.get("rods") or {}
-    loo = rods.get("leave_one_rod_out") or {}
+    check = o.rig_check()
     limit = f"≤ {o.limits.max_3d_mm:g} mm"
-    if "mean_mm" in loo:
-        value = number(loo["mean_mm"])
+    if math.isfinite(check.leave_one_rod_out_mean_mm):
+        value = check.leave_one_rod_out_mean_mm
         text = (
-            f"rods held out of the fit: mean {value:.2f} mm, max {number(loo.get('max_mm')):.2f} mm"
+            f"rods held out of the fit: mean {value:.2f} mm, "
+            f"max {check.leave_one_rod_out_max_mm:.2f} mm"
         )
-    elif "rods_in_sample_mean_mm" in rods:
-        value = number(rods["rods_in_sample_mean_mm"])
+    elif math.isfinite(check.in_sample_mean_mm):
+        value = check.in_sample_mean_mm
         text = f"rod markers in the fit: mean {value:.2f} mm (no rod held out)"
     else:
         return None
@@ -116,8 +115,7 @@ def analyse_trial(o: SessionOutputs, t: TrialOutputs) -> TrialAnalysis:
     if t.dense is None:
         return TrialAnalysis(t.name, [], [], None, None)
     lim = o.limits
-    tracking = o.summary.get("trials", {}).get(t.name, {}).get("tracking", {})
-    labelled = bool(tracking.get("fits_marker_set"))  # a gait trial: validation by name only
+    labelled = o.trial_figures(t.name).fits_marker_set  # a gait trial: validation by name only
     stick = (
         stick_length(t.dense, t.name, o.rate_hz, lim.stick_length_mm, labelled)
         if lim.stick_length_mm is not None  # only a session that describes its stick
@@ -171,11 +169,10 @@ def trial_coverage(o: SessionOutputs, name: str, a: TrialAnalysis) -> float:
 
 def _empty_verdict(o: SessionOutputs, name: str) -> Verdict:
     """A trial without trajectories: processed and empty (a warning), or not yet run."""
-    entry = o.summary.get("trials", {}).get(name)
-    if entry is None:
+    figures = o.trial_figures(name)
+    if not figures.processed:
         return Verdict(name, "no trajectories (not processed yet)", "", NONE)
-    recon = entry.get("reconstruction", {})
-    points, fields = recon.get("points", 0), recon.get("fields")
+    points, fields = figures.points or 0, figures.fields
     where = f" in its {fields} fields" if fields else ""
     text = (
         f"processed, no trajectories: {points} 3D points{where} "
@@ -187,16 +184,15 @@ def _empty_verdict(o: SessionOutputs, name: str) -> Verdict:
 def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
     """Are all markers there (or, for a validation trial, does it pass)?"""
     lim = o.limits
-    failed = (o.summary.get("failed_trials") or {}).get(name)
-    if failed:
-        message = str(failed).removeprefix(f"trial {name}: ")
+    figures = o.trial_figures(name)
+    if figures.failed:
+        message = figures.failed.removeprefix(f"trial {name}: ")
         return Verdict(name, f"failed: {message}", "", FAIL)
     if not a.markers:
         return _empty_verdict(o, name)
     checked = _validation_verdict(name, a, lim, o.rate_hz)
     if checked is not None:
         return checked
-    tracking = o.summary.get("trials", {}).get(name, {}).get("tracking", {})
     coverage = trial_coverage(o, name, a)
     cover = f"coverage {100 * coverage:.1f} %"
     filled = sum(m.filled for m in a.markers)
@@ -205,15 +201,15 @@ def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
         text = f"{len(a.markers)} trajectories (no marker set to label them), {cover}"
         return Verdict(name, text, limit, PASS if coverage >= lim.min_coverage else WARN)
     n_set = len(o.marker_names)
-    if not tracking.get("fits_marker_set", False):
+    if not figures.fits_marker_set:
         text = f"not labelled: its {len(a.markers)} trajectories do not fit the {n_set}-marker set"
         return Verdict(name, text, limit, WARN)
-    missing = [m for m in tracking.get("missing", []) if m in o.marker_names]
+    missing = [m for m in figures.missing if m in o.marker_names]
     there = n_set - len(missing)
     text = f"{there}/{n_set} markers labelled, {cover}, {filled} samples filled"
     if missing:
         text += f"; missing {', '.join(missing)}"
-    flagged = tracking.get("flagged", [])
+    flagged = figures.flagged
     if flagged:
         text += f"; uncertain labels (check them): {', '.join(flagged)}"
     ok = not missing and not flagged and coverage >= lim.min_coverage

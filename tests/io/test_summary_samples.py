@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from kisscal.io.store import TrialFiles
 from kisscal.io.summary import _trial_summary
 
 
@@ -9,8 +10,9 @@ def test_samples_by_status_and_legacy_filled(tmp_path):
     rows = ["field,track,label,x_mm,y_mm,z_mm,status"]
     status = ["measured"] * 4 + ["filled_rigid"] * 2 + ["filled_pattern", "filled", "predicted"]
     rows += [f"{f},0,A,0,0,0,{s}" for f, s in enumerate(status)]
-    (tmp_path / "trajectories.csv").write_text("\n".join(rows) + "\n")
-    samples = _trial_summary(tmp_path)["samples"]
+    files = TrialFiles(tmp_path)
+    files.trajectories().write_text("\n".join(rows) + "\n")
+    samples = _trial_summary(files)["samples"]
     assert samples == {
         "measured": 4,
         "predicted": 1,
