@@ -112,3 +112,105 @@ def test_stages_import_no_file_or_session_layer(stage: str) -> None:
     """A stage works on arrays: it never imports the layers that read files or run sessions."""
     imported = import_graph()[f"kisscal.{stage}"]
     assert not imported & {f"kisscal.{r}" for r in RUNNERS}, sorted(imported)
+
+
+# The names of ``out/``'s folders and files (DESIGN.md): only kisscal.io.store joins them.
+OUT_NAMES = {
+    "out",
+    "detection",
+    "cache",
+    "blobs",
+    "linearisation",
+    "dlt",
+    "figures",
+    "opencv",
+    "pose2sim",
+    "Calib_kisscal.toml",
+    "summary.json",
+    "report.html",
+    "limits.json",
+    "exports.json",
+    "cameras.toml",
+    "dltdv.csv",
+    "wand.json",
+    "check.json",
+    "calibration.json",
+    "target.json",
+    "points3d.csv",
+    "points2d.csv",
+    "recon.json",
+    "trajectories.csv",
+    "trajectories.c3d",
+    "trajectories.trc",
+    "trajectories_cameras.csv",
+    "tracking.json",
+    "sweep.csv",
+    "subject_template.json",
+    "events.csv",
+    "spatiotemporal.csv",
+    "gait.json",
+}
+STORE = PACKAGE / "io" / "store.py"
+
+
+def hand_built_out_paths(path: Path) -> list[int]:
+    """Lines of ``path`` that join a path under ``out/`` by hand: a ``/`` chain naming a
+    folder or file of the layout (or starting from an ``out_dir(...)`` call), or a
+    ``.with_name(...)`` to one of its files."""
+    tree = ast.parse(path.read_text())
+    nested = {
+        id(n.left) for n in ast.walk(tree) if isinstance(n, ast.BinOp) and isinstance(n.op, ast.Div)
+    }
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div) and id(node) not in nested:
+            parts, left = [], node
+            while isinstance(left, ast.BinOp) and isinstance(left.op, ast.Div):
+                parts.append(left.right)
+                left = left.left
+            names = {p.value for p in parts if isinstance(p, ast.Constant)}
+            func = getattr(left, "func", None)
+            by_out_dir = "out_dir" in (getattr(func, "id", None), getattr(func, "attr", None))
+            if names & OUT_NAMES or by_out_dir:
+                found.append(node.lineno)
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "with_name":
+            arg = node.args[0] if node.args else None
+            if isinstance(arg, ast.Constant) and arg.value in OUT_NAMES:
+                found.append(node.lineno)
+    return sorted(found)
+
+
+def test_hand_built_out_paths_are_found(tmp_path: Path) -> None:
+    module = tmp_path / "m.py"
+    module.write_text(
+        "from pathlib import Path\n"
+        "a = Path('s') / 'out' / 'x'\n"
+        "b = Path('s') / 'trials' / 'walk'\n"  # an input folder, not out/
+        "c = a.with_name('recon.json')\n"
+        "d = out_dir(root) / 'trials'\n"
+        "e = tdir / f'{cam}.json' / 'dlt'\n"
+    )
+    assert hand_built_out_paths(module) == [2, 4, 5, 6]
+
+
+def test_only_the_store_builds_out_paths() -> None:
+    """Every path under ``out/`` comes from :class:`kisscal.io.store.SessionStore`."""
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}"
+        for path in _modules()
+        if path != STORE
+        for line in hand_built_out_paths(path)
+    ]
+    assert not found, found
+
+
+def test_only_the_store_computes_cache_keys() -> None:
+    """One function keys a stage's inputs (``SessionStore.key``): nothing else hashes."""
+    hashing = [p.name for p in _modules() if p != STORE and "hashlib" in _all_imports(p)]
+    assert not hashing, hashing
+
+
+def _all_imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text())
+    names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    return names | {n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
