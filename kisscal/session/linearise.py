@@ -101,7 +101,7 @@ def _linearise_camera(
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
     )
-    detection = camera_detection(root, config, cam, "grid", params.detection_given, echo)
+    detection = camera_detection(root, config, cam, "grid", params, echo)
     key = cache_key(
         "linearise",
         file_keys(source_files(frames), config.root),

@@ -56,11 +56,7 @@ def reconstruct(
         return c3d_trial_points(config, trial, path, echo)
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
-    detection = (
-        markers_detection(root, config, params.detection_given, echo, workers=workers)
-        if imaged
-        else {}
-    )
+    detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
     stage_key = cache_key(
         "reconstruct",
         trial_input_keys(config, trial),

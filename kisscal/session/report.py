@@ -7,6 +7,7 @@ from pathlib import Path
 from kisscal.errors import KisscalError
 from kisscal.session.figures import wait_for_figures
 from kisscal.session.inputs import load_config, out_dir, writes_session
+from kisscal.session.params import stage_params
 from kisscal.session.progress import Echo, quiet
 
 
@@ -14,14 +15,13 @@ from kisscal.session.progress import Echo, quiet
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report  # matplotlib: only when a report is made
-    from kisscal.report.params import ReportParams
 
     config = load_config(root)  # a session folder, not just any path
     out = out_dir(root)
     outputs = ("summary.json", "linearisation/*.json", "dlt/*.json")
     if not any(any(out.glob(pattern)) for pattern in outputs):
         raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
-    params = ReportParams.from_layers(config.sections.get("report", {}))
+    params = stage_params(config).report
     wait_for_figures()  # a stage's figures, drawn in the background, go into the page
     path = build_report(Path(root), params)
     echo(f"report: {path}")

@@ -55,6 +55,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         {c: file_keys(source_files(f), config.root) for c, f in frames.items()},
         linearisation_key(inputs.linearisations),
         inputs.params.target,
+        inputs.params.dlt,
     )
     if inputs.whole_rig and is_current(out / "target.json", key) and outputs_of(inputs, ROUTE):
         inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
@@ -74,6 +75,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
             cam.size_px,
             cam.id,
             inputs.params.target,
+            inputs.params.dlt,
         )
     doc = _report(matches, time.perf_counter() - t0)
     for cam in inputs.cameras:
@@ -156,6 +158,7 @@ def _held_out(
                 m.camera,
                 inputs.params.target,
                 m.terms,
+                inputs.params.dlt,
             )
         )
         test = np.flatnonzero(m.matched & held)
