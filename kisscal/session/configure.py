@@ -6,8 +6,11 @@ For each camera, a few frames of each of its image sets are surveyed
 trials). The camera's pixel aspect comes from its grid lattice when there is a grid
 (:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
 otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
-is used as given. The result, with the reason for every value, is written to
-``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
+is used as given: it comes typed from the session's resolved parameters
+(:func:`kisscal.session.params.stage_params`), never from the raw table. The result, with
+the reason for every value, is written to ``out/detection/<camera>.json`` and kept: the
+settings are a property of the camera. The running session uses the settings it derived
+in memory; the file is read only to find settings an earlier run derived.
 """
 
 from __future__ import annotations
@@ -71,7 +74,14 @@ def camera_detection(
     them. They are derived again when the values given in ``[detection]`` or the camera's
     image size change, or when the file is deleted.
     """
-    return _settings(root, config, camera, kind, params, echo).params
+    path = _document_path(root, camera)
+    doc = _read_document(path, camera)  # the settings earlier runs kept
+    kept = dict(doc["kinds"])
+    try:
+        return _settings(doc, config, camera, kind, params, echo).params
+    finally:  # what was derived is kept, the grid's even when the markers' failed
+        if doc["kinds"] != kept:
+            write_json(path, doc)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,18 +94,19 @@ class _Settings:
 
 
 def _settings(
-    root: Path,
+    doc: dict[str, Any],
     config: SessionConfig,
     camera: CameraConfig,
     kind: str,
     params: StageParams,
     echo: Echo,
 ) -> _Settings:
-    """The camera's settings for ``kind``: as kept when current, else derived and kept."""
+    """The camera's settings for ``kind``: as kept in ``doc`` when current, else derived
+    and put in ``doc`` (which the caller writes)."""
     given = params.detection_given
-    current = _current(root, camera, kind, params)
-    if current is not None:
-        return current
+    kept = _kept(doc, camera, kind, params)
+    if kept is not None:
+        return kept
     sample = _sample(config, camera, kind)
     if sample is None:
         raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
@@ -104,14 +115,11 @@ def _settings(
     else:
         aspect = None
         if "pixel_aspect" not in given and config.grid is not None:
-            grid = _settings(root, config, camera, "grid", params, echo)
+            grid = _settings(doc, config, camera, "grid", params, echo)
             aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
-    path = out_dir(root) / "detection" / f"{camera.id}.json"
-    doc = _read_document(path, camera)
     doc["kinds"][kind] = {**setup.as_dict(), "key": _key(camera, kind, given)}
-    write_json(path, doc)
     echo(f"  detection {camera.id} {setup.summary()}")
     lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
     return _Settings(setup.params, lattice)
@@ -123,12 +131,12 @@ def _on_lattice(kind: str, aspect_source: str) -> bool:
     return kind == "grid" and aspect_source == "derived"
 
 
-def _current(root: Path, camera: CameraConfig, kind: str, params: StageParams) -> _Settings | None:
+def _kept(
+    doc: dict[str, Any], camera: CameraConfig, kind: str, params: StageParams
+) -> _Settings | None:
     """The camera's settings for ``kind`` as kept, if derived with the same given values."""
-    given = params.detection_given
-    doc = _read_document(out_dir(root) / "detection" / f"{camera.id}.json", camera)
     entry = doc["kinds"].get(kind)
-    if entry is None or entry.get("key") != _key(camera, kind, given):
+    if entry is None or entry.get("key") != _key(camera, kind, params.detection_given):
         return None
     settings = entry["settings"]
     derived = {
@@ -138,6 +146,10 @@ def _current(root: Path, camera: CameraConfig, kind: str, params: StageParams) -
     }
     lattice = _on_lattice(kind, settings.get("pixel_aspect", {}).get("source", ""))
     return _Settings(params.detection.replace(**derived), lattice)
+
+
+def _document_path(root: Path, camera: CameraConfig) -> Path:
+    return out_dir(root) / "detection" / f"{camera.id}.json"
 
 
 def _key(camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
@@ -175,7 +187,10 @@ def markers_detection(
     surveyed are surveyed side by side in ``workers`` processes (default: one per core).
     """
     cameras = list(config.cameras if cameras is None else cameras)
-    kept = {c.id: _current(root, c, "markers", params) for c in cameras}
+    kept = {
+        c.id: _kept(_read_document(_document_path(root, c), c), c, "markers", params)
+        for c in cameras
+    }
     known = {cam: s.params for cam, s in kept.items() if s is not None}
     todo = [c for c in cameras if c.id not in known]
 
