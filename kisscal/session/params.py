@@ -8,8 +8,6 @@ its members) and never reads a raw table again.
 
 from __future__ import annotations
 
-import dataclasses
-import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -68,42 +66,18 @@ class StageParams:
     detection_given: Mapping[str, Any] = field(default_factory=dict)
 
 
-#: Each member of :class:`StageParams`: its class and the ``session.toml`` table it is read from.
-MEMBERS: dict[str, tuple[type, str]] = {
-    "detection": (DetectionParams, "detection"),
-    "grid": (GridParams, "grid"),
-    "dlt": (DltParams, "dlt"),
-    "recon": (ReconParams, "recon"),
-    "tracking": (TrackingParams, "tracking"),
-    "gait": (GaitParams, "gait"),
-    "wand": (BundleParams, "wand"),
-    "target": (TargetParams, "target"),
-    "report": (ReportParams, "report"),
+#: Each member of :class:`StageParams` and its class (whose ``section`` names its table).
+MEMBERS: dict[str, type[Params]] = {
+    "detection": DetectionParams,
+    "grid": GridParams,
+    "dlt": DltParams,
+    "recon": ReconParams,
+    "tracking": TrackingParams,
+    "gait": GaitParams,
+    "wand": BundleParams,
+    "target": TargetParams,
+    "report": ReportParams,
 }
-
-
-def build_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
-    """A stage's parameter dataclass from config/CLI layers; unknown keys are errors."""
-    if issubclass(cls, Params):
-        return cls.from_layers(*layers)
-    return _legacy_params(cls, section, *layers)
-
-
-def _legacy_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
-    """Parameter classes not yet on the :class:`~kisscal.params.Params` base."""
-    names = [f.name for f in dataclasses.fields(cls)]
-    values: dict[str, Any] = {}
-    for layer in layers:
-        for key, value in layer.items():
-            if key not in names:
-                close = difflib.get_close_matches(key, names, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise KisscalError(f"[{section}] unknown parameter {key!r}{hint}")
-            values[key] = tuple(value) if isinstance(value, list) else value
-    try:
-        return cls(**values)
-    except (TypeError, ValueError) as exc:
-        raise KisscalError(f"[{section}] {exc}") from None
 
 
 def _layers(config: SessionConfig, name: str) -> dict[str, Any]:
@@ -113,7 +87,7 @@ def _layers(config: SessionConfig, name: str) -> dict[str, Any]:
     values: dict[str, Any] = {}
     if name == "grid" and config.grid is not None:
         values = {"rows": config.grid.rows, "cols": config.grid.cols}
-    return {**values, **config.sections.get(MEMBERS[name][1], {})}
+    return {**values, **config.sections.get(MEMBERS[name].section, {})}
 
 
 def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> StageParams:
@@ -125,8 +99,8 @@ def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> S
     """
     o = overrides or Overrides()
     built = {
-        name: build_params(cls, section, _layers(config, name), getattr(o, name))
-        for name, (cls, section) in MEMBERS.items()
+        name: cls.from_layers(_layers(config, name), getattr(o, name))
+        for name, cls in MEMBERS.items()
     }
     named = {**config.detection, **o.detection}
     given = {k: getattr(built["detection"], k) for k in named}

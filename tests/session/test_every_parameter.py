@@ -23,13 +23,9 @@ import tomli_w
 from kisscal.detect.configure import DERIVED
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
-from kisscal.recon.params import STRATEGIES
 from kisscal.session.configure import markers_detection
 from kisscal.session.params import MEMBERS, stage_params
 from kisscal.session.reconstruct import trial_blobs
-
-#: Text options of the parameter classes not yet on the Params base (no ``choices``).
-LEGACY_CHOICES = {("recon", "strategy"): STRATEGIES}
 
 
 def _base(tmp: Path) -> dict[str, Any]:
@@ -56,8 +52,6 @@ def _candidates(member: str, f: dataclasses.Field, hint: Any) -> list[Any]:
     args = [a for a in typing.get_args(hint) if a is not type(None)]
     meta = f.metadata.get("kisscal", {})
     kind = args[0] if default is None and args else hint
-    if (member, f.name) in LEGACY_CHOICES:
-        return list(LEGACY_CHOICES[(member, f.name)])
     if meta.get("choices"):
         return list(meta["choices"])
     if typing.get_origin(kind) is Literal:
@@ -96,11 +90,7 @@ def _set_value(cls: type, member: str, f: dataclasses.Field) -> Any:
 
 
 def _fields() -> list[tuple[str, type, dataclasses.Field]]:
-    return [
-        (member, cls, f)
-        for member, (cls, _section) in MEMBERS.items()
-        for f in dataclasses.fields(cls)
-    ]
+    return [(member, cls, f) for member, cls in MEMBERS.items() for f in dataclasses.fields(cls)]
 
 
 FIELDS = _fields()
@@ -111,13 +101,13 @@ def _toml(value: Any) -> Any:
 
 
 def test_the_walk_covers_every_stage() -> None:
-    """Nine parameter classes, every one of their fields (168 today)."""
+    """Nine parameter classes, every one of their fields (205 today)."""
     counts = {m: sum(1 for mm, _c, _f in FIELDS if mm == m) for m in MEMBERS}
     assert set(counts) == {
         "detection", "grid", "dlt", "recon", "tracking", "gait", "wand", "target", "report",
     }  # fmt: skip
     assert all(n >= 7 for n in counts.values()), counts
-    assert len(FIELDS) == sum(len(dataclasses.fields(c)) for c, _s in MEMBERS.values())
+    assert len(FIELDS) == sum(len(dataclasses.fields(c)) for c in MEMBERS.values())
 
 
 @pytest.mark.parametrize(
@@ -128,8 +118,7 @@ def test_a_setting_in_session_toml_reaches_the_stage(
 ) -> None:
     value = _set_value(cls, member, f)
     data = _base(tmp_path)
-    section = MEMBERS[member][1]
-    data.setdefault(section, {})[f.name] = _toml(value)
+    data.setdefault(cls.section, {})[f.name] = _toml(value)
     (tmp_path / "session.toml").write_text(tomli_w.dumps(data))
     resolved = getattr(stage_params(load_session(tmp_path)), member)
     assert getattr(resolved, f.name) == value != f.default
