@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import tomli_w
 
+from kisscal.detect import DetectionParams
 from kisscal.detect.configure import DERIVED
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
@@ -177,15 +178,24 @@ def _other_than(name: str, derived: Any) -> Any:
     return (derived or 20) + 2
 
 
-@pytest.mark.parametrize("name", DERIVED)
-def test_a_derived_setting_given_is_what_detection_receives(
-    name: str, derived: dict[str, Any], tmp_path: Path
+DETECTION = [f for m, _c, f in FIELDS if m == "detection"]
+
+
+@pytest.mark.parametrize("f", DETECTION, ids=[f.name for f in DETECTION])
+def test_a_detection_setting_given_is_what_each_camera_detects_with(
+    f: dataclasses.Field, derived: dict[str, Any], tmp_path: Path
 ) -> None:
-    value = _other_than(name, derived[name])
+    """Through the survey, which derives some settings per camera (:data:`DERIVED`):
+    a value given in ``[detection]`` is the one the camera's detection receives."""
+    name = f.name
+    if name in DERIVED:
+        value, before = _other_than(name, derived[name]), derived[name]
+    else:
+        value, before = _set_value(DetectionParams, "detection", f), f.default
     root = _marker_session(tmp_path, {name: _toml(value)})
     config = load_session(root)
     got = markers_detection(root, config, stage_params(config), workers=1)
-    assert all(getattr(p, name) == value != derived[name] for p in got.values())
+    assert all(getattr(p, name) == value != before for p in got.values())
     kept = markers_detection(root, config, stage_params(config), workers=1)  # read back
     assert kept == got
 
