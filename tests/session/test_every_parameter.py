@@ -130,6 +130,28 @@ def test_a_setting_in_session_toml_reaches_the_stage(
         assert not changed, f"setting {f.name} changed {changed}"
 
 
+@pytest.mark.parametrize(
+    ("section", "key", "value", "says"),
+    [
+        ("recon", "allow_two_camera", "no", "true or false"),
+        ("recon", "max_candidates", 2.5, "a whole number"),
+        ("recon", "max_rms_px", True, "a finite number"),
+        ("tracking", "smoothing", "yes", "true or false"),
+        ("tracking", "gate_m", [0.6, 0.6], "3 floats"),
+    ],
+)
+def test_a_value_of_the_wrong_kind_is_refused(
+    section: str, key: str, value: Any, says: str, tmp_path: Path
+) -> None:
+    """Every table is checked by the one validator: before, [recon] and [tracking] took
+    ``"no"`` for true and 2.5 for a count."""
+    data = _base(tmp_path)
+    data[section] = {key: value}
+    (tmp_path / "session.toml").write_text(tomli_w.dumps(data))
+    with pytest.raises(KisscalError, match=rf"^\[{section}\] {key} must be {says}, got"):
+        stage_params(load_session(tmp_path))
+
+
 # ---------------------------------------------------------------- through the survey
 
 
