@@ -11,6 +11,8 @@ receives. A few end-to-end checks then show that a setting changes what a stage 
 from __future__ import annotations
 
 import dataclasses
+import json
+import shutil
 import typing
 from pathlib import Path
 from typing import Any, Literal
@@ -235,3 +237,24 @@ def test_the_threshold_given_changes_what_is_detected(tmp_path: Path) -> None:
         blobs = trial_blobs(root, config, trial, detection, lambda _s: None, workers=1)
         counts[len(given)] = {len(b) for b in blobs["cam1"]}
     assert counts == {0: {6}, 1: {3}}
+
+
+def test_the_grid_lattice_aspect_reaches_the_marker_detection(
+    small_session: Path, tmp_path: Path
+) -> None:
+    """A camera with a grid: its marker settings take the pixel aspect its grid's dot
+    lattice gives (handed over in memory, not read back from the file being written),
+    and the file records both kinds."""
+    root = tmp_path / "s"
+    root.mkdir()
+    for part in ("grid", "trials", "rods", "session.toml"):
+        copy = shutil.copytree if (small_session / part).is_dir() else shutil.copy
+        copy(small_session / part, root / part)
+    config = load_session(root)
+    cam = config.cameras[0]
+    params = markers_detection(root, config, stage_params(config), cameras=[cam], workers=1)
+    doc = json.loads((root / "out" / "detection" / f"{cam.id}.json").read_text())
+    grid = doc["kinds"]["grid"]["settings"]["pixel_aspect"]
+    assert grid["source"] == "derived" and abs(grid["value"] - 1.0) > 0.5  # 752 x 291 fields
+    assert params[cam.id].pixel_aspect == grid["value"]
+    assert doc["kinds"]["markers"]["settings"]["pixel_aspect"]["value"] == grid["value"]
