@@ -220,13 +220,12 @@ def configure_detection(
     DetectionSetup
     """
     given = dict(given or {})
-    DetectionParams.from_layers(given)  # unknown names and bad values: one-line errors
+    base = DetectionParams.from_layers(given)  # unknown names and bad values: one-line errors
     frames = [check_image(im) for im in images]
     if not frames:
         raise KisscalError("detect: no images to derive the detection settings from")
     if any(f.dtype == np.bool_ for f in frames):
-        params = DetectionParams.from_layers(given)
-        return _thresholded(params, given, kind, len(frames))
+        return _thresholded(base, given, kind, len(frames))
     raw_max = [float(np.max(im)) for im in images]
     shape = frames[0].shape
     survey_tile = max(32, min(shape) // 8)

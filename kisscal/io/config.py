@@ -17,8 +17,6 @@ from typing import Any, Literal
 import numpy as np
 
 from kisscal.bundle.params import BundleParams
-from kisscal.dlt.linear import spread_ratio
-from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 from kisscal.io.toml_table import Table, load_toml, number, suggest, unfilled_keys
 from kisscal.markersets import available_marker_sets
@@ -252,7 +250,6 @@ def _rods(t: Table) -> RodsConfig:
         rods.append(RodConfig(r.string("name", r.required("name")) or "", r.points("points_mm")))
     if not rods:
         raise t.fail("[rods] needs at least one [[rods.rod]] with name and points_mm")
-    _check_controlpoints_mm(t.path, "rods.rod", np.concatenate([x.points_mm for x in rods]))
     names = [r.name for r in rods]
     if len(set(names)) != len(names):
         raise t.fail(f"rod names must be unique, got {', '.join(names)}")
@@ -470,19 +467,6 @@ def _check_references(top: Table, config: SessionConfig) -> None:
     if config.calibration is not None and config.calibration.cameras and config.grid is not None:
         raise top.fail(
             "[calibration] cameras brings its own lens model; give either it or [grid], not both"
-        )
-
-
-def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:
-    """A DLT needs at least 6 control points that do not lie in one plane."""
-    minimum = DltParams().min_points
-    if len(pts) < minimum:
-        raise KisscalError(
-            f"{path}: {where} gives {len(pts)} points; the DLT needs at least {minimum}"
-        )
-    if spread_ratio(pts) < DltParams().min_spread_ratio:
-        raise KisscalError(
-            f"{path}: {where} points are coplanar; the DLT needs points off one plane"
         )
 
 

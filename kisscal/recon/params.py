@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from kisscal.errors import KisscalError
+from kisscal.params import Params, param
 
 STRATEGIES = ("triple", "central")
 
 
 @dataclass(frozen=True)
-class ReconParams:
+class ReconParams(Params):
     """Parameters of 3D reconstruction (stationary filter, matching, triangulation, grouping).
 
     Attributes
@@ -106,65 +107,29 @@ class ReconParams:
         of no marker, or a calibration that does not fit.
     """
 
-    strategy: str = "triple"
-    epipolar_band_px: float = 3.0
-    search_radius_px: float = 3.0
-    max_candidates: int = 5
-    allow_two_camera: bool = True
-    two_camera_alone_max_cameras: int = 4
-    two_camera_step_mm: float = 300.0
-    two_camera_continuity_mm: float = 20.0
-    max_rms_px: float = 2.0
-    outlier_rms_factor: float = 5.0
-    outlier_floor_px: float = 0.2
-    reweight_iterations: int = 2
-    group_radius_mm: float = 10.0
-    stationary_filter: bool = True
-    stationary_radius_px: float = 1.5
-    stationary_fraction: float = 0.5
-    stationary_min_s: float = 2.0
-    camera_clearance_mm: float = 200.0
-    led_radius_px: float = 10.0
-    min_coverage: float = 0.9
-    max_unmatched_fraction: float = 0.25
+    section: ClassVar[str] = "recon"
 
-    def __post_init__(self) -> None:
-        if self.strategy not in STRATEGIES:
-            raise KisscalError(
-                f"recon strategy must be one of {', '.join(STRATEGIES)}, got {self.strategy!r}"
-            )
-        for name in (
-            "epipolar_band_px",
-            "search_radius_px",
-            "max_rms_px",
-            "outlier_floor_px",
-            "group_radius_mm",
-            "stationary_radius_px",
-            "two_camera_step_mm",
-            "two_camera_continuity_mm",
-        ):
-            if not getattr(self, name) > 0:
-                raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")
-        for name in ("stationary_min_s", "camera_clearance_mm", "led_radius_px"):
-            if getattr(self, name) < 0:
-                raise KisscalError(f"recon {name} must be >= 0, got {getattr(self, name)}")
-        if self.max_candidates < 1:
-            raise KisscalError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
-        if self.outlier_rms_factor < 0:
-            raise KisscalError(
-                f"recon outlier_rms_factor must be >= 0, got {self.outlier_rms_factor}"
-            )
-        if self.reweight_iterations < 0:
-            raise KisscalError(
-                f"recon reweight_iterations must be >= 0, got {self.reweight_iterations}"
-            )
-        for name in ("min_coverage", "max_unmatched_fraction"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise KisscalError(f"recon {name} must be in [0, 1], got {getattr(self, name)}")
-        if not 0 < self.stationary_fraction <= 1:
-            raise KisscalError(
-                f"recon stationary_fraction must be in (0, 1], got {self.stationary_fraction}"
-            )
+    strategy: str = param("triple", choices=STRATEGIES)
+    epipolar_band_px: float = param(3.0, unit="px", gt=0)
+    search_radius_px: float = param(3.0, unit="px", gt=0)
+    max_candidates: int = param(5, ge=1)
+    allow_two_camera: bool = param(True)
+    two_camera_alone_max_cameras: int = param(4, ge=0)
+    two_camera_step_mm: float = param(300.0, unit="mm", gt=0)
+    two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
+    max_rms_px: float = param(2.0, unit="px", gt=0)
+    outlier_rms_factor: float = param(5.0, ge=0)
+    outlier_floor_px: float = param(0.2, unit="px", gt=0)
+    reweight_iterations: int = param(2, ge=0)
+    group_radius_mm: float = param(10.0, unit="mm", gt=0)
+    stationary_filter: bool = param(True)
+    stationary_radius_px: float = param(1.5, unit="px", gt=0)
+    stationary_fraction: float = param(0.5, gt=0, le=1)
+    stationary_min_s: float = param(2.0, unit="s", ge=0)
+    camera_clearance_mm: float = param(200.0, unit="mm", ge=0)
+    led_radius_px: float = param(10.0, unit="px", ge=0)
+    min_coverage: float = param(0.9, ge=0, le=1)
+    max_unmatched_fraction: float = param(0.25, ge=0, le=1)
 
 
 DEFAULT_PARAMS = ReconParams()

@@ -6,8 +6,11 @@ For each camera, a few frames of each of its image sets are surveyed
 trials). The camera's pixel aspect comes from its grid lattice when there is a grid
 (:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
 otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
-is used as given. The result, with the reason for every value, is written to
-``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
+is used as given: it comes typed from the session's resolved parameters
+(:func:`kisscal.session.params.stage_params`), never from the raw table. The result, with
+the reason for every value, is written to ``out/detection/<camera>.json`` and kept: the
+settings are a property of the camera. The running session uses the settings it derived
+in memory; the file is read only to find settings an earlier run derived.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
 from kisscal.session.inputs import image_sources
 from kisscal.session.parallel import each_camera
+from kisscal.session.params import StageParams
 from kisscal.session.progress import Echo, quiet
 
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
@@ -38,7 +42,7 @@ MAX_FRAMES = 24
 #: A lattice aspect this close to 1 is square pixels (a grid 14 degrees off face-on).
 LATTICE_SQUARE_TOLERANCE = 0.03
 #: Bumped whenever the derivation changes, so cached settings are derived again.
-DERIVATION_VERSION = 2
+DERIVATION_VERSION = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,63 +57,104 @@ class _Sample:
         return [_sized(seq, i, self.camera) for _what, seq, picks in self.sets for i in picks]
 
 
-def detection_given(config: SessionConfig, overrides: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The detection values the user gave: ``[detection]``, then the command line."""
-    given = {**config.detection, **(overrides or {})}
-    DetectionParams.from_layers(given)  # unknown names, bad values: one-line errors
-    return given
-
-
 def camera_detection(
     root: Path,
     config: SessionConfig,
     camera: CameraConfig,
     kind: str,
-    given: Mapping[str, Any],
+    params: StageParams,
     echo: Echo = quiet,
 ) -> DetectionParams:
     """Detection parameters of one camera for its ``"grid"`` or ``"markers"`` images.
 
-    Derived on first use and kept in ``out/detection/<camera>.json``: they are a property
-    of the camera, so adding, fixing or dropping a trial later changes neither them nor
-    anything detected with them. They are derived again when the values given in
-    ``[detection]`` or the camera's image size change, or when the file is deleted.
+    Derived on first use from the session's resolved parameters (``params``: what
+    ``[detection]`` gives is kept as given) and written to ``out/detection/<camera>.json``,
+    which later runs read back: the settings are a property of the camera, so adding,
+    fixing or dropping a trial later changes neither them nor anything detected with
+    them. They are derived again when the values given in ``[detection]`` or the camera's
+    image size change, or when the file is deleted.
     """
-    store = SessionStore(root)
-    path = store.detection_path(camera.id)
-    current = _current(root, camera, kind, given)
-    if current is not None:
-        return current
+    path = _document_path(root, camera)
+    doc = _read_document(path, camera)  # the settings earlier runs kept
+    kept = dict(doc["kinds"])
+    try:
+        return _settings(doc, config, camera, kind, params, echo).params
+    finally:  # what was derived is kept, the grid's even when the markers' failed
+        if doc["kinds"] != kept:
+            write_json(path, doc)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Settings:
+    """A camera's settings for one kind of image, and whether its pixel aspect was
+    measured on its grid's dot lattice (grid images only)."""
+
+    params: DetectionParams
+    lattice_aspect: bool
+
+
+def _settings(
+    doc: dict[str, Any],
+    config: SessionConfig,
+    camera: CameraConfig,
+    kind: str,
+    params: StageParams,
+    echo: Echo,
+) -> _Settings:
+    """The camera's settings for ``kind``: as kept in ``doc`` when current, else derived
+    and put in ``doc`` (which the caller writes)."""
+    given = params.detection_given
+    store = SessionStore(config.root)
+    kept = _kept(store, doc, camera, kind, params)
+    if kept is not None:
+        return kept
     sample = _sample(config, camera, kind)
     if sample is None:
         raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
     if kind == "grid":
-        setup = _grid_setup(sample, given, config)
+        setup = _grid_setup(sample, params)
     else:
-        aspect = given.get("pixel_aspect")
-        if aspect is None and config.grid is not None:
-            camera_detection(root, config, camera, "grid", given, echo)
-            aspect = _read_document(path, camera)["kinds"]["grid"]["settings"]["pixel_aspect"]
-            aspect = aspect["value"] if "lattice" in aspect["why"] else None
+        aspect = None
+        if "pixel_aspect" not in given and config.grid is not None:
+            grid = _settings(doc, config, camera, "grid", params, echo)
+            aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
-    doc = _read_document(path, camera)
     doc["kinds"][kind] = {**setup.as_dict(), "key": _key(store, camera, kind, given)}
-    write_json(path, doc)
     echo(f"  detection {camera.id} {setup.summary()}")
-    return setup.params
+    lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
+    return _Settings(setup.params, lattice)
 
 
-def _current(
-    root: Path, camera: CameraConfig, kind: str, given: Mapping[str, Any]
-) -> DetectionParams | None:
+def _on_lattice(kind: str, aspect_source: str) -> bool:
+    """True when a grid's settings hold a pixel aspect measured on its dot lattice (the
+    only pixel aspect of grid frames recorded as ``derived``: see :func:`_grid_setup`)."""
+    return kind == "grid" and aspect_source == "derived"
+
+
+def _kept(
+    store: SessionStore,
+    doc: dict[str, Any],
+    camera: CameraConfig,
+    kind: str,
+    params: StageParams,
+) -> _Settings | None:
     """The camera's settings for ``kind`` as kept, if derived with the same given values."""
-    store = SessionStore(root)
-    doc = _read_document(store.detection_path(camera.id), camera)
     entry = doc["kinds"].get(kind)
-    if entry is not None and entry.get("key") == _key(store, camera, kind, given):
-        return _params_from_doc(entry, given)
-    return None
+    if entry is None or entry.get("key") != _key(store, camera, kind, params.detection_given):
+        return None
+    settings = entry["settings"]
+    derived = {
+        k: tuple(v["value"]) if isinstance(v["value"], list) else v["value"]
+        for k, v in settings.items()
+        if v["source"] != "given"
+    }
+    lattice = _on_lattice(kind, settings.get("pixel_aspect", {}).get("source", ""))
+    return _Settings(params.detection.replace(**derived), lattice)
+
+
+def _document_path(root: Path, camera: CameraConfig) -> Path:
+    return SessionStore(root).detection_path(camera.id)
 
 
 def _key(store: SessionStore, camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
@@ -127,16 +172,16 @@ def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
 
 
 def _survey_camera(
-    root: Path, config: SessionConfig, given: Mapping[str, Any], cam: CameraConfig, say: Echo
+    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, say: Echo
 ) -> DetectionParams:
     """The marker detection survey of one camera, as :func:`each_camera` calls it."""
-    return camera_detection(root, config, cam, "markers", given, say)
+    return camera_detection(root, config, cam, "markers", params, say)
 
 
 def markers_detection(
     root: Path,
     config: SessionConfig,
-    given: Mapping[str, Any],
+    params: StageParams,
     echo: Echo = quiet,
     cameras: Sequence[CameraConfig] | None = None,
     workers: int | None = None,
@@ -147,31 +192,44 @@ def markers_detection(
     surveyed are surveyed side by side in ``workers`` processes (default: one per core).
     """
     cameras = list(config.cameras if cameras is None else cameras)
-    known = {c.id: _current(root, c, "markers", given) for c in cameras}
-    todo = [c for c in cameras if known[c.id] is None]
+    store = SessionStore(root)
+    kept = {
+        c.id: _kept(store, _read_document(store.detection_path(c.id), c), c, "markers", params)
+        for c in cameras
+    }
+    known = {cam: s.params for cam, s in kept.items() if s is not None}
+    todo = [c for c in cameras if c.id not in known]
 
     # a partial of a module-level function: spawned workers (Windows) receive it pickled
-    survey = functools.partial(_survey_camera, root, config, dict(given))
+    survey = functools.partial(_survey_camera, root, config, params)
     surveyed = each_camera(survey, todo, "detection settings", echo, workers) if todo else []
     known.update({c.id: p for c, p in zip(todo, surveyed, strict=True)})
-    return {c.id: known[c.id] for c in cameras}  # type: ignore[misc]
+    return {c.id: known[c.id] for c in cameras}
 
 
-def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig) -> DetectionSetup:
-    """Settings of a camera's grid frames, with its pixel aspect from the dot lattice."""
+def _grid_setup(sample: _Sample, params: StageParams) -> DetectionSetup:
+    """Settings of a camera's grid frames, with its pixel aspect from the dot lattice.
+
+    Only a pixel aspect measured on the lattice is recorded as ``derived``; without a
+    lattice the grid frames are detected with square pixels, recorded as ``default``, and
+    the camera's marker images measure its aspect themselves.
+    """
     from kisscal.grid.frames import dots_from_frames
     from kisscal.grid.lattice import lattice_pixel_aspect
 
-    frames = sample.frames
+    frames, given = sample.frames, params.detection_given
     why = "grid dots: never split"
     setup = configure_detection(frames, given, kind="grid", pixel_aspect=1.0, aspect_why=why)
     if "pixel_aspect" in given:
         return setup
-    cell = float(config.sections.get("grid", {}).get("cell_aspect", 1.0))
     try:
-        aspect = lattice_pixel_aspect(dots_from_frames(frames, setup.params), cell)
-    except KisscalError:
-        return setup  # no lattice in these frames: the markers will tell
+        aspect = lattice_pixel_aspect(
+            dots_from_frames(frames, setup.params), params.grid.cell_aspect
+        )
+    except KisscalError:  # no lattice in these frames: the markers will tell
+        why = "no dot lattice in the grid frames: square pixels assumed for them"
+        choices = {**setup.choices, "pixel_aspect": Choice(1.0, "default", why)}
+        return dataclasses.replace(setup, choices=choices)
     # a grid tilted by t reads the aspect off by up to 1 - cos t: within 3 % it is square
     aspect = 1.0 if abs(aspect - 1.0) <= LATTICE_SQUARE_TOLERANCE else round(aspect, 4)
     return _with_lattice_aspect(setup, aspect)
@@ -221,12 +279,3 @@ def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
             f"{camera.size_px[0]} x {camera.size_px[1]}"
         )
     return image
-
-
-def _params_from_doc(doc: Mapping[str, Any], given: Mapping[str, Any]) -> DetectionParams:
-    values = {
-        k: tuple(v["value"]) if isinstance(v["value"], list) else v["value"]
-        for k, v in doc["settings"].items()
-        if v["source"] != "given"
-    }
-    return DetectionParams.from_layers(values, given)

@@ -173,27 +173,29 @@ def _session_params(
     root: Path, camera: str | None, kind: str, given: Mapping[str, Any], echo: Echo
 ) -> DetectionParams:
     """A session camera's derived settings with ``given`` on top."""
-    from kisscal.session.configure import camera_detection, detection_given
+    from kisscal.session.configure import camera_detection
     from kisscal.session.inputs import load_config, select_cameras, writes_session
+    from kisscal.session.params import Overrides, stage_params
 
     if camera is None:
         raise KisscalError("--session needs --camera: whose derived settings to use")
     config = load_config(root)
     cam = select_cameras(config, camera)[0]
+    params = stage_params(config, Overrides(detection=given))
 
     @writes_session
     def derive(root: Path) -> DetectionParams:
-        return camera_detection(root, config, cam, kind, detection_given(config, given), echo)
+        return camera_detection(root, config, cam, kind, params, echo)
 
-    params = derive(root)
+    detection = derive(root)
     echo(
         f"detection settings of camera {camera} ({kind} images of {root}): threshold "
-        f"{params.threshold:g}"
-        + (" above the local background" if params.background_tile_px else " (grey level)")
-        + f", pixel aspect {params.pixel_aspect:g}, oversize above "
-        f"{params.max_pixels} px"
+        f"{detection.threshold:g}"
+        + (" above the local background" if detection.background_tile_px else " (grey level)")
+        + f", pixel aspect {detection.pixel_aspect:g}, oversize above "
+        f"{detection.max_pixels} px"
     )
-    return params
+    return detection
 
 
 def _write_overlays(

@@ -51,11 +51,7 @@ def reconstruct(
         return c3d_trial_points(config, trial, files, echo)
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
-    detection = (
-        markers_detection(root, config, params.detection_given, echo, workers=workers)
-        if imaged
-        else {}
-    )
+    detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
     stage_key = store.key(
         "reconstruct", trial_input_files(config, trial), rig, detection, params.recon
     )

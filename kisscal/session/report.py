@@ -8,6 +8,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.store import SessionStore
 from kisscal.session.figures import wait_for_figures
 from kisscal.session.inputs import load_config, writes_session
+from kisscal.session.params import stage_params
 from kisscal.session.progress import Echo, quiet
 
 
@@ -15,12 +16,11 @@ from kisscal.session.progress import Echo, quiet
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report  # matplotlib: only when a report is made
-    from kisscal.report.params import ReportParams
 
     config = load_config(root)  # a session folder, not just any path
     if not SessionStore(root).has_results():
         raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
-    params = ReportParams.from_layers(config.sections.get("report", {}))
+    params = stage_params(config).report
     wait_for_figures()  # a stage's figures, drawn in the background, go into the page
     path = build_report(Path(root), params)
     echo(f"report: {path}")

@@ -19,6 +19,7 @@ from kisscal.io.files import write_json
 from kisscal.io.points3d import Points3DFile, read_points3d
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
+from kisscal.report.params import ReportParams
 from kisscal.session.calibrate import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, writes_session
@@ -149,7 +150,7 @@ def _track_trial(
         f"  track {trial}: {plural(len(result.labels), 'trajectory')} from "
         f"{plural(result.n_pieces, 'piece')} ({shown}) ({time.perf_counter() - t0:.1f} s)"
     )
-    doubt = _rate_doubt(config, trial, result)
+    doubt = _rate_doubt(config, trial, result, params.report)
     if doubt:
         echo(f"  warning: {trial}: {doubt}")
     lab = result.labelling
@@ -186,10 +187,11 @@ def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
     return np.where(mean > 0, pts.rms_px * mean, np.nan)
 
 
-def _rate_doubt(config: SessionConfig, trial: str, result: Trajectories) -> str:
+def _rate_doubt(
+    config: SessionConfig, trial: str, result: Trajectories, limits: ReportParams
+) -> str:
     """Why ``rate_hz`` may be wrong, when the trial is a throw that does not fall at g."""
     from kisscal.report.markers import dense_trajectories
-    from kisscal.report.params import ReportParams
     from kisscal.report.validation import rate_doubt, throw_fit
 
     tracks = result.tracks
@@ -198,7 +200,6 @@ def _rate_doubt(config: SessionConfig, trial: str, result: Trajectories) -> str:
     status = np.asarray(STATUS_NAMES, dtype=object)[tracks.status]
     labels = np.asarray(result.labels, dtype=object)[tracks.track]
     dense = dense_trajectories(tracks.field, tracks.track, labels, tracks.xyz_mm, status)
-    limits = ReportParams.from_layers(config.sections.get("report", {}))
     fit = throw_fit(dense, trial, config.rate_hz, limits.g_m_s2)
     return "" if fit is None else rate_doubt(fit, config.rate_hz, limits.g_m_s2, limits.max_g_error)
 

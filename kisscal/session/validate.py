@@ -25,7 +25,6 @@ from kisscal.io.frames import (
     image_header,
     source_files,
 )
-from kisscal.report.params import ReportParams
 from kisscal.session.inputs import folders_hint, image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.reconstruct import CENTROID_COLUMNS
@@ -85,7 +84,6 @@ def _once(problems: list[Problem]) -> list[Problem]:
 def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Problem]:
     try:
         stage_params(config, overrides)
-        ReportParams.from_layers(config.sections.get("report", {}))
     except KisscalError as exc:
         return [Problem(SESSION, str(exc))]
     return []

@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from kisscal._shared import rms_px
 from kisscal.bundle.camera import PinholeCamera
 from kisscal.dlt.linear import spread_ratio
+from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
 from kisscal.dlt.params import DltParams
 from kisscal.errors import KisscalError
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
@@ -105,16 +106,18 @@ def too_few_seeds(n: int) -> str | None:
     )
 
 
-def is_planar(xyz_mm: ArrayLike) -> bool:
-    """True when points lie in one plane (a DLT cannot be fitted to them)."""
-    return spread_ratio(xyz_mm) < DltParams().min_spread_ratio
+def is_planar(xyz_mm: ArrayLike, dlt: DltParams = DLT_DEFAULTS) -> bool:
+    """True when points lie in one plane (a DLT cannot be fitted to them): their spread
+    ratio is below ``dlt.min_spread_ratio``."""
+    return spread_ratio(xyz_mm) < dlt.min_spread_ratio
 
 
-def is_collinear(xyz_mm: ArrayLike) -> bool:
-    """True when points lie on one line (no camera can be fitted to them)."""
+def is_collinear(xyz_mm: ArrayLike, dlt: DltParams = DLT_DEFAULTS) -> bool:
+    """True when points lie on one line (no camera can be fitted to them): their second
+    spread is below ``dlt.min_spread_ratio`` times the first."""
     xyz = np.asarray(xyz_mm, dtype=float)
     spread = np.linalg.svd(xyz - xyz.mean(axis=0), compute_uv=False)
-    return len(spread) < 2 or not spread[1] >= DltParams().min_spread_ratio * spread[0]
+    return len(spread) < 2 or not spread[1] >= dlt.min_spread_ratio * spread[0]
 
 
 def _plane(xyz: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
@@ -143,6 +146,7 @@ def seed_models(
     size_px: tuple[int, int],
     camera: str,
     params: TargetParams = DEFAULT_PARAMS,
+    dlt: DltParams = DLT_DEFAULTS,
 ) -> list[_Start]:
     """The first projections of the target the seeds allow, best first.
 
@@ -156,11 +160,11 @@ def seed_models(
     few = too_few_seeds(len(seeds_uv))
     if few:
         raise KisscalError(where + few)
-    if is_collinear(seeds_xyz):
+    if is_collinear(seeds_xyz, dlt):
         raise KisscalError(
             f"{where}the seeds lie on one line of the target; click points spread over it"
         )
-    if is_planar(target_xyz):
+    if is_planar(target_xyz, dlt):
         starts = [_homography_start(seeds_xyz, seeds_uv, camera)]
     else:
         cams = resect(seeds_xyz, seeds_uv, size_px)
@@ -236,6 +240,7 @@ def fit_camera(
     start: PinholeCamera | None = None,
     params: TargetParams = DEFAULT_PARAMS,
     terms: tuple[str, ...] | None = None,
+    dlt: DltParams = DLT_DEFAULTS,
 ) -> PinholeCamera:
     """A camera fitted to matched points: the pinhole plus ``terms``, or, with ``terms``
     left out, plus the terms the held-out points ask for
@@ -251,7 +256,7 @@ def fit_camera(
     xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     if start is None:
-        if len(xyz) < MIN_SEEDS or is_collinear(xyz):
+        if len(xyz) < MIN_SEEDS or is_collinear(xyz, dlt):
             raise KisscalError(
                 f"{len(xyz)} points on a line or fewer than {MIN_SEEDS}: no camera to fit"
             )
@@ -261,7 +266,7 @@ def fit_camera(
         start = found[0]
     if terms is not None:
         return refine(xyz, uv, start, size_px, terms)
-    return choose_camera(xyz, uv, size_px, start, is_planar(xyz), params).camera
+    return choose_camera(xyz, uv, size_px, start, is_planar(xyz, dlt), params).camera
 
 
 def match_target(
@@ -272,6 +277,7 @@ def match_target(
     size_px: tuple[int, int],
     camera: str = "",
     params: TargetParams = DEFAULT_PARAMS,
+    dlt: DltParams = DLT_DEFAULTS,
 ) -> TargetMatch:
     """Match every target point of one camera to its dots, starting from the seeds.
 
@@ -288,6 +294,9 @@ def match_target(
     camera : str
         Camera id, for messages.
     params : TargetParams
+    dlt : DltParams
+        ``min_spread_ratio`` tells a flat target (matched through a homography) and seeds
+        on one line (refused) from points a camera can be fitted to.
 
     Raises
     ------
@@ -301,8 +310,8 @@ def match_target(
     dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
     seeds_uv = np.asarray(seeds_uv, dtype=float).reshape(-1, 2)
     seeds_xyz = np.asarray(seeds_xyz, dtype=float).reshape(-1, 3)
-    starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params)
-    rounds = [_rounds(target, dots, s, size_px, camera, params) for s in starts]
+    starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params, dlt)
+    rounds = [_rounds(target, dots, s, size_px, camera, params, dlt) for s in starts]
     best = max(range(len(rounds)), key=lambda i: (int((rounds[i][0] >= 0).sum()), -i))
     dot, iterations, cam = rounds[best]
     m = dot >= 0
@@ -311,7 +320,7 @@ def match_target(
             f"camera {camera}: only {int(m.sum())} target points matched a dot from the "
             f"seeds; {_why_few(seeds_xyz, starts, size_px)}"
         )
-    fit, final = _lens_rounds(target, dots, dot, size_px, cam, params)
+    fit, final = _lens_rounds(target, dots, dot, size_px, cam, params, dlt)
     projected = fit.camera.project(target)
     visible = _inside(projected, size_px)
     seen = visible & _dot_near(projected, dots, params)
@@ -346,6 +355,7 @@ def _rounds(
     size_px: tuple[int, int],
     camera: str,
     params: TargetParams,
+    dlt: DltParams,
 ) -> tuple[NDArray[np.int64], int, PinholeCamera | None]:
     """Project, match and refit until the matches stop changing: the matches, the rounds
     run and the last camera (None for a flat target's homography)."""
@@ -359,7 +369,7 @@ def _rounds(
             break
         dot = new
         m = dot >= 0
-        if m.sum() < 2 * MIN_SEEDS or is_collinear(target[m]):
+        if m.sum() < 2 * MIN_SEEDS or is_collinear(target[m], dlt):
             continue
         if cam is None:
             proj = _homography(target[m], dots[dot[m]], camera)
@@ -402,12 +412,13 @@ def _lens_rounds(
     size_px: tuple[int, int],
     cam: PinholeCamera | None,
     params: TargetParams,
+    dlt: DltParams,
 ) -> tuple[CameraFit, NDArray[np.int64]]:
     """The camera model the matches ask for, matched again with it until the matches
     settle (at most ``max_iterations`` rounds), outliers dropped each round; the model is
     chosen again on the settled matches when they changed."""
     m = dot >= 0
-    planar = is_planar(target)
+    planar = is_planar(target, dlt)
     start = refine(target[m], dots[dot[m]], cam, size_px) if cam is not None else None
     start = start or _resected(target[m], dots[dot[m]], size_px)
     dot = drop_outliers(start.project(target), dots, dot, params)

@@ -8,13 +8,14 @@ seconds), so velocities are in mm/field. The Kalman noise covariances follow the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
+from typing import ClassVar
 
-from kisscal.errors import KisscalError
+from kisscal.params import Params, param
 
 
 @dataclass(frozen=True)
-class TrackingParams:
+class TrackingParams(Params):
     """Parameters of tracking, blending, gap filling, labelling and smoothing.
 
     Attributes
@@ -145,104 +146,53 @@ class TrackingParams:
         ``scipy.interpolate.make_smoothing_spline``). Off by default.
     """
 
-    pnc: float = 0.5
-    mnc: float = 0.025
-    initial_error: float = 1.0
-    gate_m: tuple[float, float, float] = (0.6, 0.6, 0.6)
-    gate_k_mm_per_field: tuple[float, float, float] = (25.0, 25.0, 25.0)
-    coast_accel_mm_per_field2: float = 5.0
-    lag_widening: bool = True
-    initial_gate_mm: float = 120.0
-    initial_gate_factor: float = 0.6
-    min_initial_length: int = 5
-    max_coasted_fields: int = 3
-    min_reacquired_fields: int = 5
-    split_tolerance_mm: float = 5.0
-    split_noise_factor: float = 8.0
-    blend_gap_fields: int = 4
-    blend_reach_mm: float = 40.0
-    blend_points: int = 3
-    blend_tolerance_mm: float = 3.0
-    blend_noise_factor: float = 5.0
-    min_track_length: int = 10
-    keep_short_pieces: bool = False
-    max_fill_gap_fields: int = 5
-    fill_context_fields: int = 6
-    max_body_fill_fields: int = 300
-    body_context_fields: int = 20
-    rigid_fill_sd_mm: float = 3.0
-    rigid_fill_neighbour_sd_mm: float = 20.0
-    rigid_fill_markers: int = 4
-    max_body_fill_error_mm: float = 5.0
-    refill_predicted: bool = True
-    label_tolerance_mm: float = 120.0
-    label_segment_tolerance_mm: float = 6.0
-    min_label_points: int = 1
-    min_body_fit_points: int = 5
-    label_window_fields: int = 500
-    label_fields: int = 40
-    min_label_fraction: float = 0.5
-    set_window_s: float = 1.0
-    min_side_confidence: float = 0.8
-    smoothing: bool = False
+    section: ClassVar[str] = "tracking"
 
-    def __post_init__(self) -> None:
-        for name in (
-            "pnc",
-            "mnc",
-            "initial_error",
-            "initial_gate_mm",
-            "initial_gate_factor",
-            "blend_tolerance_mm",
-            "blend_reach_mm",
-            "label_tolerance_mm",
-            "set_window_s",
-            "rigid_fill_sd_mm",
-            "rigid_fill_neighbour_sd_mm",
-            "max_body_fill_error_mm",
-        ):
-            value = getattr(self, name)
-            if not value > 0:
-                raise KisscalError(f"tracking: {name} must be > 0, got {value}")
-        for name in ("gate_m", "gate_k_mm_per_field"):
-            value = tuple(getattr(self, name))
-            if len(value) != 3 or min(value) <= 0:
-                raise KisscalError(f"tracking: {name} needs 3 positive numbers, got {value}")
-            object.__setattr__(self, name, tuple(float(v) for v in value))
-        for name in (
-            "min_initial_length",
-            "max_coasted_fields",
-            "blend_gap_fields",
-            "min_track_length",
-            "max_fill_gap_fields",
-            "blend_points",
-            "fill_context_fields",
-            "max_body_fill_fields",
-            "body_context_fields",
-            "label_fields",
-        ):
-            value = getattr(self, name)
-            if int(value) != value or value < 0:
-                raise KisscalError(f"tracking: {name} must be a whole number >= 0, got {value}")
-        if self.rigid_fill_markers < 3:
-            raise KisscalError("tracking: rigid_fill_markers must be >= 3")
-        if self.min_initial_length < 2:
-            raise KisscalError("tracking: min_initial_length must be >= 2")
-        if not 0 <= self.min_label_fraction <= 1:
-            raise KisscalError("tracking: min_label_fraction must be in [0, 1]")
-        if not 0.5 < self.min_side_confidence <= 1:
-            raise KisscalError("tracking: min_side_confidence must be in (0.5, 1]")
-
-    def with_(self, **changes: object) -> TrackingParams:
-        """Return a copy with some fields changed (unknown names raise KisscalError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise KisscalError(f"tracking: unknown parameter(s) {', '.join(unknown)}")
-        return replace(self, **changes)
+    pnc: float = param(0.5, gt=0)
+    mnc: float = param(0.025, unit="mm²", gt=0)
+    initial_error: float = param(1.0, gt=0)
+    gate_m: tuple[float, float, float] = param((0.6, 0.6, 0.6), gt=0)
+    gate_k_mm_per_field: tuple[float, float, float] = param(
+        (25.0, 25.0, 25.0), unit="mm/field", gt=0
+    )
+    coast_accel_mm_per_field2: float = param(5.0, unit="mm/field²", ge=0)
+    lag_widening: bool = param(True)
+    initial_gate_mm: float = param(120.0, unit="mm", gt=0)
+    initial_gate_factor: float = param(0.6, gt=0)
+    min_initial_length: int = param(5, ge=2)
+    max_coasted_fields: int = param(3, unit="fields", ge=0)
+    min_reacquired_fields: int = param(5, unit="fields", ge=0)
+    split_tolerance_mm: float = param(5.0, unit="mm", ge=0)
+    split_noise_factor: float = param(8.0, ge=0)
+    blend_gap_fields: int = param(4, unit="fields", ge=0)
+    blend_reach_mm: float = param(40.0, unit="mm", gt=0)
+    blend_points: int = param(3, ge=0)
+    blend_tolerance_mm: float = param(3.0, unit="mm", gt=0)
+    blend_noise_factor: float = param(5.0, ge=0)
+    min_track_length: int = param(10, ge=0)
+    keep_short_pieces: bool = param(False)
+    max_fill_gap_fields: int = param(5, unit="fields", ge=0)
+    fill_context_fields: int = param(6, unit="fields", ge=0)
+    max_body_fill_fields: int = param(300, unit="fields", ge=0)
+    body_context_fields: int = param(20, unit="fields", ge=0)
+    rigid_fill_sd_mm: float = param(3.0, unit="mm", gt=0)
+    rigid_fill_neighbour_sd_mm: float = param(20.0, unit="mm", gt=0)
+    rigid_fill_markers: int = param(4, ge=3)
+    max_body_fill_error_mm: float = param(5.0, unit="mm", gt=0)
+    refill_predicted: bool = param(True)
+    label_tolerance_mm: float = param(120.0, unit="mm", gt=0)
+    label_segment_tolerance_mm: float = param(6.0, unit="mm", ge=0)
+    min_label_points: int = param(1, ge=0)
+    min_body_fit_points: int = param(5, ge=0)
+    label_window_fields: int = param(500, unit="fields", ge=1)
+    label_fields: int = param(40, ge=0)
+    min_label_fraction: float = param(0.5, ge=0, le=1)
+    set_window_s: float = param(1.0, unit="s", gt=0)
+    min_side_confidence: float = param(0.8, gt=0.5, le=1)
+    smoothing: bool = param(False)
 
 
 def reconstructed_points(params: TrackingParams) -> TrackingParams:
     """``params`` for points another system reconstructed (a ``[[trials]] c3d``): no
     ghosts among them, so short pieces are kept (``keep_short_pieces``)."""
-    return params.with_(keep_short_pieces=True)
+    return params.replace(keep_short_pieces=True)

@@ -174,7 +174,7 @@ def sweep_noise(
             # ``segments`` here are the pairs to tabulate (the thesis' include joints that
             # bend), so they are not handed to labelling as rigid pairs.
             result = build_trajectories(
-                field, xyz_mm, params.with_(pnc=pnc, mnc=mnc), names, template_mm
+                field, xyz_mm, params.replace(pnc=pnc, mnc=mnc), names, template_mm
             )
             stats = segment_statistics(result.tracks, result.labels, segments)
             preds = {lab: int(n) for lab, n in zip(result.labels, result.n_predicted, strict=True)}

@@ -44,14 +44,43 @@ def test_missing_key_is_named(small_session: Path, tmp_path: Path) -> None:
         load_session(root)
 
 
-def test_coplanar_rods_are_refused(small_session: Path, tmp_path: Path) -> None:
-    def flatten(d: dict) -> None:
-        for rod in d["rods"]["rod"]:
-            for p in rod["points_mm"]:
-                p[1] = 0.0  # every rod in the plane y = 0
+def _resolved(root: Path):
+    """The session's resolved parameters (where [rods] are checked against [dlt])."""
+    from kisscal import session
 
+    return session.stage_params(load_session(root))
+
+
+def _flatten(d: dict) -> None:
+    for rod in d["rods"]["rod"]:
+        for p in rod["points_mm"]:
+            p[1] = 0.0  # every rod in the plane y = 0
+
+
+def test_coplanar_rods_are_refused(small_session: Path, tmp_path: Path) -> None:
     with pytest.raises(KisscalError, match="coplanar"):
-        load_session(edited(small_session, tmp_path, flatten))
+        _resolved(edited(small_session, tmp_path, _flatten))
+
+
+def test_rods_are_checked_against_the_sessions_dlt_limits(
+    small_session: Path, tmp_path: Path
+) -> None:
+    """[dlt] min_spread_ratio and min_points decide, not their defaults."""
+
+    def nearly_flat(d: dict) -> None:
+        _flatten(d)
+        d["rods"]["rod"][0]["points_mm"][0][1] = 5.0  # one marker 5 mm off the plane
+
+    root = edited(small_session, tmp_path, nearly_flat)
+    with pytest.raises(KisscalError, match="coplanar"):  # a spread ratio under 1e-3
+        _resolved(root)
+    (root / "session.toml").write_text(
+        (root / "session.toml").read_text() + "\n[dlt]\nmin_spread_ratio = 1e-6\n"
+    )
+    assert _resolved(root).dlt.min_spread_ratio == 1e-6  # accepted under the looser limit
+    (root / "session.toml").write_text((root / "session.toml").read_text() + "min_points = 25\n")
+    with pytest.raises(KisscalError, match=r"gives 24 points; .*at least 25 \(\[dlt\] min_points"):
+        _resolved(root)
 
 
 def test_too_few_rod_points(small_session: Path, tmp_path: Path) -> None:
@@ -60,7 +89,7 @@ def test_too_few_rod_points(small_session: Path, tmp_path: Path) -> None:
         d["rods"]["rod"][0]["points_mm"] = d["rods"]["rod"][0]["points_mm"][:5]
 
     with pytest.raises(KisscalError, match="at least 6"):
-        load_session(edited(small_session, tmp_path, shrink))
+        _resolved(edited(small_session, tmp_path, shrink))
 
 
 def test_unknown_trial_is_named(small_session: Path) -> None:

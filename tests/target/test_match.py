@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kisscal.dlt import DltParams
 from kisscal.errors import KisscalError
 from kisscal.synth.target import render_target, seed_points, target_points, target_rig
 from kisscal.target.dots import find_target_dots
@@ -61,3 +62,14 @@ def test_three_seeds_are_refused_with_the_reason() -> None:
     xyz, cam, uv, picked, dots = _camera_view("stepped", 2, 0)
     with pytest.raises(KisscalError, match=r"at least 4 target points .* 7 numbers"):
         match_target(xyz, uv[:3], picked[:3], dots, cam.size_px, cam.id)
+
+
+def test_the_sessions_dlt_limit_tells_a_flat_target() -> None:
+    """``[dlt] min_spread_ratio`` decides whether a target is flat (matched through a
+    homography): the stepped target (spread ratio 0.06) is a 3D one under the default
+    limit, and a flat one under a limit of 0.1, where the seeds then fit no homography."""
+    xyz, cam, uv, picked, dots = _camera_view("stepped", 1, 2)
+    assert match_target(xyz, uv, picked, dots, cam.size_px, cam.id).matched.sum() > 150
+    flat = DltParams(min_spread_ratio=0.1)
+    with pytest.raises(KisscalError, match="seeds contradict each other"):
+        match_target(xyz, uv, picked, dots, cam.size_px, cam.id, dlt=flat)

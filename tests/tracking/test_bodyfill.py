@@ -133,5 +133,5 @@ def test_status_names_round_trip_and_legacy_filled_reads_as_spline(tmp_path):
 def test_bad_body_fill_params_are_refused(bad):
     from kisscal.errors import KisscalError
 
-    with pytest.raises(KisscalError, match="tracking:"):
+    with pytest.raises(KisscalError, match=r"\[tracking\]"):
         TrackingParams(**bad)

@@ -80,9 +80,8 @@ def frame_files(
 
 def marker_detection(inputs: RouteInputs) -> dict[str, DetectionParams]:
     """Each camera's detection settings for marker images (derived once, then kept)."""
-    config, given = inputs.config, inputs.params.detection_given
     return markers_detection(
-        inputs.root, config, given, inputs.echo, inputs.cameras, inputs.workers
+        inputs.root, inputs.config, inputs.params, inputs.echo, inputs.cameras, inputs.workers
     )
 
 

@@ -56,6 +56,7 @@ def _fold_lens(
     before: Linearisation | None,
     grid_doc: dict[str, Any] | None,
     points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
+    dlt: DltParams,
 ) -> tuple[NDArray, NDArray, float]:
     """The lens folded into a written polynomial; the points through it, the DLT refitted
     to them, and the polynomial's largest error (px)."""
@@ -76,8 +77,8 @@ def _fold_lens(
     write_linearisation(lin_path, lin, cfg.id, refined=refined)
     written = apply_linearisation(lin, raw)
     L = camera.dlt
-    if len(xyz) >= 6 and spread_ratio(xyz) >= DltParams().min_spread_ratio:  # not a flat target
-        L = solve_dlt(xyz, written, camera=cfg.id)
+    if len(xyz) >= dlt.min_points and spread_ratio(xyz) >= dlt.min_spread_ratio:  # not flat
+        L = solve_dlt(xyz, written, dlt, camera=cfg.id)
     return written, L, fit_max
 
 
@@ -106,7 +107,9 @@ def write_lens_camera(
         write_json(lin_path, grid_doc)
         written, L, fit_max = uv, camera.dlt, 0.0
     else:
-        written, L, fit_max = _fold_lens(lin_path, cfg, camera, route, before, grid_doc, points)
+        written, L, fit_max = _fold_lens(
+            lin_path, cfg, camera, route, before, grid_doc, points, inputs.params.dlt
+        )
     res = written - project(L, xyz)
     K, R, centre = decompose_dlt(L)
     result = DltResult(

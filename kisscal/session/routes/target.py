@@ -54,6 +54,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         {c: source_files(f) for c, f in frames.items()},
         inputs.linearisations,
         inputs.params.target,
+        inputs.params.dlt,
     )
     if inputs.whole_rig and store.is_current(target_json, key) and outputs_of(inputs, ROUTE):
         inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
@@ -73,6 +74,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
             cam.size_px,
             cam.id,
             inputs.params.target,
+            inputs.params.dlt,
         )
     doc = _report(matches, time.perf_counter() - t0)
     for cam in inputs.cameras:
@@ -155,6 +157,7 @@ def _held_out(
                 m.camera,
                 inputs.params.target,
                 m.terms,
+                inputs.params.dlt,
             )
         )
         test = np.flatnonzero(m.matched & held)

@@ -194,7 +194,7 @@ def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, 
     sizes = [c.size_px for c in config.cameras]
     inputs.echo("  calibrate: wand alone, the lab frame from the axes object")
     cal = calibrate_wand_alone(
-        table, config.wand.markers_mm, sizes, ids, config.wand.trial, params.wand
+        table, config.wand.markers_mm, sizes, ids, config.wand.trial, params.wand, params.recon
     )
     fields = config.axes.fields
     files = frame_files(inputs, config.axes.images, "axes", fields)

@@ -204,7 +204,7 @@ def label_with_set(
         anatomy = Anatomy.of_set(marker_set, template, heights=template_upright)
         return judge_sides(found, anatomy, template, rate_hz, params)
     window = max(round(params.set_window_s * rate_hz), 10)
-    first_params = params.with_(label_window_fields=min(params.label_window_fields, window))
+    first_params = params.replace(label_window_fields=min(params.label_window_fields, window))
     height = estimate_height(tracks, marker_set, first_params)
     if not np.isfinite(height):
         return generic(tracks, params, names, float("nan"))
