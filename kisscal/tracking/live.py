@@ -29,6 +29,8 @@ from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
 
 _HISTORY = 5
 _SINGLE_STEP_WEIGHT = 0.1
+# Weight of the newest squared error in each predictor's running error (per track).
+_ERROR_MEMORY = 0.5
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,9 @@ class Live:
         self.state = np.zeros((capacity, 3, 2))
         self.kalman = np.zeros(capacity, dtype=bool)
         self.alive = np.zeros(capacity, dtype=bool)
+        # Running squared errors of the filter's and the constant-acceleration prediction.
+        self.errors = np.zeros((capacity, 2))
+        self._candidates = (np.zeros((capacity, 3)), np.zeros((capacity, 3)))
         self._bind()
 
     def _bind(self) -> None:
@@ -155,6 +160,7 @@ class Live:
         self.state[slots] = np.nan  # no filter yet
         self.kalman[slots] = False
         self.alive[slots] = True
+        self.errors[slots] = 0.0
         self.samples.add(field, ids, point, xyz, self.state[slots])
 
     def _grow(self, extra: int) -> None:
@@ -165,6 +171,7 @@ class Live:
         self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
         self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
         self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
+        self.errors = np.concatenate([self.errors, np.zeros((more, 2))])
         self._bind()
 
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
@@ -184,7 +191,15 @@ class Live:
         position = state[..., 0]
         last = self.history[:, -_HISTORY:]  # Shafiq's rule uses up to five points
         parabola = np.einsum("tk,tkc->tc", setup.shafiq[self.n], last)
-        pred = np.where(kal, position, parabola)
+        # A fast limb accelerates and decelerates within a few fields, and the filter's
+        # constant velocity lags it by more than markers on it are apart: a track whose
+        # constant-acceleration prediction (the quadratic through its last three points)
+        # has lately done better is predicted by it (a choice between two motion models
+        # by their recent errors, after Blom & Bar-Shalom 1988's interacting models).
+        quadratic = 3.0 * (last[:, -1] - last[:, -2]) + last[:, -3]
+        self._candidates = (position.copy(), quadratic)
+        accelerating = (self.n >= 3) & (self.errors[:, 1] < self.errors[:, 0])
+        pred = np.where(kal, np.where(accelerating[:, None], quadratic, position), parabola)
         # Gate of a filtered track: eq. 3.16, widened while coasting.
         half_kalman = setup.m_axes * np.maximum(np.abs(state[..., 1]), setup.k_axes)
         half_kalman += setup.drift[self.misses]
@@ -254,6 +269,14 @@ class Live:
             taken[free[c]] = True
         return np.concatenate(out_rows), np.concatenate(out_cols)
 
+    def _score_predictors(self, rows: NDArray, found: NDArray) -> None:
+        """Update the running squared error of both predictions of the rows that found a
+        point (a track without a filter yet scores the filter as the other)."""
+        own, other = (np.sum((c[rows] - found) ** 2, axis=1) for c in self._candidates)
+        own = np.where(np.isnan(own), other, own)
+        new = np.stack([own, other], axis=1)
+        self.errors[rows] += _ERROR_MEMORY * (new - self.errors[rows])
+
     def _update(
         self,
         field: int,
@@ -268,6 +291,7 @@ class Live:
         setup, params = self.setup, self.setup.params
         hit = np.zeros(self.alive.size, dtype=bool)
         hit[rows] = True
+        self._score_predictors(rows, points[cols])
         # A missing point is replaced by the prediction, as if measured (§3.3.9).
         z = pred
         z[rows] = points[cols]

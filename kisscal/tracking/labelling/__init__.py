@@ -11,7 +11,11 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
    template by rigid fits (24 starts, Hungarian + Kabsch), refined by exchanging names
    to fit the distances that stay constant (markers on one segment), and of a
    correspondence and its left/right mirror image (equal in distances) the one that
-   fits the real fields with a proper rotation is kept.
+   fits the real fields with a proper rotation is kept. With a shipped (upright) set,
+   when the window's average pose stood on the template (:mod:`~.upright`) finds
+   pieces for less than two thirds of the names (a full-body set on a lower-body file,
+   markers of another set), only those pieces and names enter the search, so absent
+   names are never forced on foreign pieces.
 2. :mod:`~.spread`, spreading: other pieces take the free name (not held in their
    fields) whose rigid partners keep the template distance from them; repeated as names
    spread through time.

@@ -12,6 +12,10 @@ from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks, numbering
 
+#: Names that make a body whatever the size of the set: a trial holding this many of a
+#: large set's names (a full-body set on a lower-body file) fits it.
+MIN_BODY_NAMES = 8
+
 
 @dataclass(frozen=True)
 class Labelling:
@@ -85,15 +89,15 @@ def join(state: LabelState) -> Labelling:
 
     Short pieces that fit no name are ghosts and are dropped (Shafiq et al. 2001's
     clean-up); long ones are kept, named ``M<k>`` and reported. When fewer than
-    ``min_label_fraction`` of the names were taken, the trial does not fit the set and
-    every track is named M1, M2, ... (:func:`generic`).
+    ``min_label_fraction`` of the names (nor :data:`MIN_BODY_NAMES`) were taken, the
+    trial does not fit the set and every track is named M1, M2, ... (:func:`generic`).
     """
     tracks, params, names = state.tracks, state.params, state.names
     label_of, n_names = state.label_of, len(state.names)
     keep = (label_of >= 0) | (state.n_measured >= params.min_track_length)
     keep |= params.keep_short_pieces
     matched = np.unique(label_of[label_of >= 0])
-    if matched.size < params.min_label_fraction * n_names:
+    if matched.size < min(params.min_label_fraction * n_names, MIN_BODY_NAMES):
         return generic(tracks, params, names, state.fit_rms)
     # Unlabelled tracks keep their own group.
     group = np.where(label_of >= 0, label_of, n_names + np.arange(tracks.n_tracks))

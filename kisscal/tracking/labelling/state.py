@@ -95,6 +95,10 @@ class LabelState:
     upright : bool
         Template and lab share the vertical (Z up), as a shipped set's template does:
         matches that turn the body over are refused.
+    partial : bool
+        The trial may hold only part of the set, and markers of other sets: a window's
+        pieces and names are first narrowed to those the upright match finds near each
+        other (:func:`~kisscal.tracking.labelling.window.set_members`; needs ``upright``).
     """
 
     tracks: Tracks
@@ -117,6 +121,7 @@ class LabelState:
     rich: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     fit_rms: float = float("nan")
     upright: bool = False
+    partial: bool = False
 
     @classmethod
     def begin(

@@ -38,7 +38,8 @@ from kisscal.tracking.labelling.state import (
     LabelState,
     segment_mask,
 )
-from kisscal.tracking.labelling.window import match_first_window
+from kisscal.tracking.labelling.upright import capped_assignment, fit_pose, floor_lift
+from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
 
@@ -50,6 +51,34 @@ PRIOR_WEIGHT = 0.05
 MIN_SHARED_FIELDS = 10
 
 
+def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
+    """Stature (mm) whose scaled template the first window's average pose, stood on it,
+    fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_pose`), when
+    the trial holds only part of the set (NaN otherwise, or without a pose).
+
+    Distances of a part of the set and of foreign markers do not match a scaled template
+    however tall; the pose stood on the floor does.
+    """
+    state = LabelState.begin(tracks, marker_set.names, marker_set.template_mm, None, params)
+    if state is None:
+        return float("nan")
+    pos, pose = first_pose(state)
+    seen = np.isfinite(pose[:, 0])
+    if seen.sum() < 3:
+        return float("nan")
+    cap = params.label_tolerance_mm
+    fits = []
+    for height in HEIGHTS_MM:
+        template = marker_set.scaled(float(height)).template_mm
+        cost, r, t = fit_pose(pose[seen], template, cap, floor_lift(pos, template))
+        held = capped_assignment(pose[seen] @ r.T + t, template, cap)[0].size
+        fits.append((cost, float(height), held))
+    cost, height, held = min(fits)
+    if held >= (1 - PARTIAL_FRACTION) * len(marker_set.names):
+        return float("nan")
+    return height
+
+
 def estimate_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
     """Stature (mm) whose scaled template fits the first window's average pose best
     (NaN when no stature gives a match).
@@ -57,6 +86,9 @@ def estimate_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParam
     Phase 1 (:func:`~kisscal.tracking.labelling.window.match_first_window`) runs with the
     template scaled to each of :data:`HEIGHTS_MM`; the lowest fit RMS wins.
     """
+    partial = partial_height(tracks, marker_set, params)
+    if np.isfinite(partial):
+        return partial
     best_rms, best_height = np.inf, float("nan")
     for height in HEIGHTS_MM:
         scaled = marker_set.scaled(float(height))
@@ -132,7 +164,7 @@ def _second_pass(
     """A state on ``template`` and ``segments`` holding the first pass' names of long
     pieces, with names spread again."""
     state = LabelState.begin(first.tracks, first.names, template, segments, params)
-    state.upright = True
+    state.upright = state.partial = True
     long = first.n_measured >= first.params.min_track_length
     for t in np.flatnonzero((first.label_of >= 0) & long):
         state.name_piece(int(t), int(first.label_of[t]))
@@ -211,7 +243,7 @@ def label_with_set(
     scaled = marker_set.scaled(height).template_mm
     first = LabelState.begin(tracks, names, scaled, None, first_params)
     if first is not None:
-        first.upright = True
+        first.upright = first.partial = True
     if first is None or not name_pieces(first):
         return replace(generic(tracks, params, names, float("nan")), height_mm=height)
     anatomy = Anatomy.of_set(marker_set.scaled(height))

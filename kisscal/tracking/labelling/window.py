@@ -24,6 +24,11 @@ from kisscal.tracking.labelling.state import (
     median_distances,
     rich_fields,
 )
+from kisscal.tracking.labelling.upright import (
+    average_pose,
+    capped_assignment,
+    pose_on_template,
+)
 from kisscal.tracking.rigid import (
     classical_mds,
     field_fits,
@@ -39,6 +44,11 @@ from kisscal.tracking.rigid import (
 # Floor (mm) of the spread of a pair's distance in the swap search weights: about the
 # noise of a distance between two measured markers.
 SPREAD_FLOOR_MM = 3.0
+# Fields of a window the upright match turns onto the template (evenly spread).
+UPRIGHT_FIELDS = 20
+# The trial holds only part of the set when at least this fraction of its names finds no
+# piece within a label tolerance, one to one, in the average pose stood on the template.
+PARTIAL_FRACTION = 1 / 3
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 SWAP_STARTS = 24
 # With an upright template: how far (SD, mm) a marker's median height while walking may
@@ -239,6 +249,32 @@ def drop_broken_pairs(
     return assign
 
 
+def set_members(
+    state: LabelState, core: NDArray, rich: NDArray
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64] | None]:
+    """The core pieces that belong to the set, and the names they hold: in the average
+    pose stood on the template (:func:`~kisscal.tracking.labelling.upright.pose_on_template`),
+    the one-to-one assignment of pieces to names within ``label_tolerance_mm`` (all core
+    pieces and names when it holds fewer than three names, or nearly all of them).
+
+    A trial may hold only part of the set (a full-body set on a lower-body file) and
+    markers of another set: the swap search then names only these pieces, among only
+    these names, instead of forcing absent names on foreign pieces. Returned with the
+    pieces' places in the stood pose (None with all pieces and names): with fewer names,
+    distances alone tell less (a sternum from a back marker), the place tells more.
+    """
+    everything = (core, np.arange(len(state.names)), None)
+    cap = state.params.label_tolerance_mm
+    few = rich[np.linspace(0, rich.size - 1, min(UPRIGHT_FIELDS, rich.size)).astype(int)]
+    pose = pose_on_template(state.dense[np.ix_(core, few)], state.template, cap)
+    placed = np.flatnonzero(np.isfinite(pose[:, 0]))
+    rows, cols, _ = capped_assignment(pose[placed], state.template, cap)
+    if rows.size < 3 or rows.size >= (1 - PARTIAL_FRACTION) * len(state.names):
+        return everything  # (nearly) the whole set: the swap search sorts it out
+    members = placed[rows]
+    return core[members], np.sort(cols), pose[members]
+
+
 def match_window(state: LabelState, centre: int) -> WindowMatch:
     """Names for the long pieces seen through most of the window around ``centre``.
 
@@ -257,24 +293,34 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     core = core_pieces(state.present, rich)
     if core.size < 3:
         return none
+    names, pose = np.arange(len(state.names)), None
+    if state.upright and state.partial:
+        core, names, pose = set_members(state, core, rich)
     median = median_distances(state.dense, core, rich)
     spread = distance_spread(state.dense, core, rich)
     weight = 1.0 / (spread**2 + SPREAD_FLOOR_MM**2)
     np.fill_diagonal(weight, 0.0)
     heights = unary = None
     if state.upright:
-        heights, unary = height_costs(state.dense, core, rich, state.template)
+        heights, unary = height_costs(state.dense, core, rich, state.template[names])
+    if pose is not None:
+        # Each piece's cost of a name: its distance from the name in the stood pose, in
+        # label tolerances, squared.
+        gap = np.linalg.norm(pose[:, None] - state.template[names][None], axis=2)
+        unary = unary + (gap / params.label_tolerance_mm) ** 2
     refined = swap_refined(
         median,
         weight,
-        state.template,
-        state.template_distance,
+        state.template[names],
+        state.template_distance[np.ix_(names, names)],
         params.label_tolerance_mm,
         heights,
         unary,
     )
     if not refined:
         return none
+    # Back to the set's name numbers.
+    refined = [(cost, np.where(a >= 0, names[np.maximum(a, 0)], -1)) for cost, a in refined]
     candidates = left_right_fits(state, refined, core, rich)
     if not candidates:
         return none
@@ -285,15 +331,27 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     return WindowMatch(core, assign, fit_rms, rich)
 
 
+def first_centre(state: LabelState) -> int:
+    """Centre of the window where most long pieces are seen."""
+    box = np.ones(state.window)
+    return int(np.argmax(np.convolve(state.present.sum(axis=0), box, mode="same")))
+
+
+def first_pose(state: LabelState) -> tuple[NDArray, NDArray]:
+    """The first window's core pieces (k, F, 3) over at most ``UPRIGHT_FIELDS`` fields,
+    and their average pose (:func:`~kisscal.tracking.labelling.upright.average_pose`)."""
+    rich = window_fields(state.present, first_centre(state), state.window, UPRIGHT_FIELDS)
+    pos = state.dense[np.ix_(core_pieces(state.present, rich), rich)]
+    return pos, average_pose(pos)
+
+
 def match_first_window(state: LabelState) -> bool:
     """Phase 1: name the core pieces of the window where most long pieces are seen.
 
     Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the
     trial does not fit the marker set).
     """
-    box = np.ones(state.window)
-    centre = int(np.argmax(np.convolve(state.present.sum(axis=0), box, mode="same")))
-    found = match_window(state, centre)
+    found = match_window(state, first_centre(state))
     state.fit_rms, state.rich = found.fit_rms, found.rich
     if found.core is None or not np.any(found.assign >= 0):
         return False
