@@ -155,7 +155,7 @@ def linearisation_key(lins: Mapping[str, Linearisation]) -> dict[str, tuple]:
 def rig_key(rig: Rig) -> dict[str, tuple]:
     """What of a calibrated rig a cache key depends on: linearisations, DLTs, lens terms."""
     lins = {c.id: c.linearisation for c in rig if c.linearisation is not None}
-    return {"lin": linearisation_key(lins), "dlt": {c.id: (c.L, c.lens) for c in rig}}
+    return {"lin": linearisation_key(lins), "dlt": {c.id: (c.dlt, c.kolahi) for c in rig}}
 
 
 def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:

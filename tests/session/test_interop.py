@@ -109,7 +109,7 @@ def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(origin
             np.array(c["matrix"]),
             np.array(c["distortions"]),
         )
-        mine = cam.project_raw(xyz)
+        mine = cam.project(xyz)
         w, h = cam.size_px
         inside = (mine[:, 0] > -0.5) & (mine[:, 0] < w - 0.5)
         inside &= (mine[:, 1] > -0.5) & (mine[:, 1] < h - 0.5)
@@ -200,7 +200,7 @@ def test_points2d_holds_the_observations_each_point_was_triangulated_from(origin
     cam = np.array([rig.index(c) for c in p2.camera[used]])
     uv = np.zeros((used.sum(), 2))
     for c, camera in enumerate(rig):
-        uv[cam == c] = camera.linearise(p2.xy_px[used][cam == c])
+        uv[cam == c] = camera.undistort_px(p2.xy_px[used][cam == c])
     tri = rig.triangulate(cam, uv, p2.point[used])
     np.testing.assert_allclose(tri.xyz_mm, p3.xyz_mm, atol=1e-3)  # points3d.csv: 4 decimals
 
