@@ -154,7 +154,7 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     back = []
     for cam in rig.cameras:
         L, lin, _ = camera_from_opencv(cvs[cam.id])
-        back.append(type(cam)(cam.id, L, lin, None, cam.size_px))
+        back.append(Camera.from_dlt(L, cam.id, lin, None, cam.size_px))
     truth = [
         camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]

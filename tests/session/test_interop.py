@@ -128,7 +128,7 @@ def test_dltdv_csv_in_dltdv8_pixels_matches_linearised_projection(original: Path
         c = coefs[:, i]
         den = xyz @ c[8:11] + 1  # DLTdv8's dlt_inverse, first pixel's centre at (1, 1)
         uv8 = np.column_stack([xyz @ c[0:3] + c[3], xyz @ c[4:7] + c[7]]) / den[:, None]
-        np.testing.assert_allclose(uv8 - 1, cam.project(xyz), atol=1e-6)
+        np.testing.assert_allclose(uv8 - 1, cam.project_ideal(xyz), atol=1e-6)
     exports = (original / "out" / "exports.json").read_text()
     assert "DLTdv8" in exports and "corners_px" in exports
 
