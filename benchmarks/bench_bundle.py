@@ -13,9 +13,9 @@ import numpy as np
 
 from benchmarks._harness import best_of, report
 from kisscal.bundle.adjust import WandPoses, adjust_bundle
-from kisscal.bundle.camera import PinholeCamera
 from kisscal.bundle.params import BundleParams
 from kisscal.bundle.wand import calibrate_on_control, select_fields
+from kisscal.camera import Camera
 from kisscal.synth.cameras import kiss_rig
 from kisscal.synth.wand import WAND_MARKERS_MM, wand_trial
 from tests.bundle.conftest import WandScene
@@ -37,7 +37,7 @@ def main() -> list[str]:
     keep = np.arange(len(cal.fields)) < 100
     obs, wand, _ = select_fields(cal.observations, cal.result.wand, cal.fields, keep)
     start = tuple(
-        PinholeCamera(c.K * [[1.002, 1, 1], [1, 0.998, 1], [1, 1, 1]], c.R, c.t, c.lens)
+        Camera(c.K * [[1.002, 1, 1], [1, 0.998, 1], [1, 1, 1]], c.R, c.t, c.lens)
         for c in cal.cameras
     )
     moved = WandPoses(wand.centre_mm + 2.0, wand.direction)

@@ -1,11 +1,11 @@
 """The calibrated camera rig: one object for every stage that needs the cameras.
 
-A :class:`Rig` holds, per camera, its id, image size, grid linearisation (raw pixels ->
-linearised pixels; Küçük 2005, 2.2), DLT parameters L1..L11 (lab mm -> linearised pixels;
-Abdel-Aziz & Karara 1971) and, when a calibration fitted them, Kolahi's lens terms L12..L16
-(Kolahi et al. 2007). Stages take a rig instead of parallel dictionaries of linearisations
-and stacked ``(n, 11)`` arrays; the camera order of a rig is the order of its cameras and
-every camera index in a long 2D table refers to it.
+A :class:`Rig` holds one :class:`kisscal.camera.Camera` per camera: its id, image size,
+grid linearisation (raw pixels -> linearised pixels; Küçük 2005, 2.2), DLT parameters
+L1..L11 (lab mm -> linearised pixels; Abdel-Aziz & Karara 1971) and, when a calibration
+fitted them, Kolahi's lens terms L12..L16 (Kolahi et al. 2007). Stages take a rig instead
+of parallel dictionaries of linearisations and stacked ``(n, 11)`` arrays; the camera order
+of a rig is the order of its cameras and every camera index in a long 2D table refers to it.
 
 The rig is frozen: calibration routes build a new one, nothing changes one in place
 (unlike the mutable camera groups of some tools). :meth:`Rig.load` reads the rig of a
@@ -26,8 +26,9 @@ Examples
 >>> import numpy as np
 >>> from kisscal.dlt.model import dlt_from_krt
 >>> K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
->>> left = Camera("left", dlt_from_krt(K, np.eye(3), [0, 0, 3000.0]))
->>> right = Camera("right", dlt_from_krt(K, np.eye(3), [-500.0, 0, 3000]))
+>>> from kisscal.camera import Camera
+>>> left = Camera.from_dlt(dlt_from_krt(K, np.eye(3), [0, 0, 3000.0]), "left")
+>>> right = Camera.from_dlt(dlt_from_krt(K, np.eye(3), [-500.0, 0, 3000]), "right")
 >>> rig = Rig((left, right))
 >>> uv = rig.project([[100.0, 50.0, 0.0]])          # (cameras, points, 2)
 >>> tri = rig.triangulate([0, 1], uv[:, 0])          # one point seen by both cameras
@@ -44,90 +45,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.camera import decompose_dlt
-from kisscal.dlt.model import fundamental_from_dlt, project, project_rows
-from kisscal.dlt.nonlinear import correct_lens
+from kisscal.camera import Camera
+from kisscal.dlt.model import fundamental_from_dlt, project_rows
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 from kisscal.errors import KisscalError
-from kisscal.grid.poly import Linearisation, apply_linearisation, invert_linearisation
-
-
-@dataclass(frozen=True, eq=False)
-class Camera:
-    """One calibrated camera.
-
-    Attributes
-    ----------
-    id : str
-        The camera's id in ``session.toml``.
-    L : ndarray, shape (11,)
-        DLT parameters L1..L11, lab mm -> linearised px.
-    linearisation : Linearisation or None
-        Raw px -> linearised px; None for a camera without a grid (identity).
-    lens : ndarray, shape (5,) or None
-        Kolahi's L12..L16 when the calibration fitted them.
-    size_px : (int, int) or None
-        Image width and height in pixels, when known.
-    """
-
-    id: str
-    L: NDArray[np.float64]
-    linearisation: Linearisation | None = None
-    lens: NDArray[np.float64] | None = None
-    size_px: tuple[int, int] | None = None
-
-    def __post_init__(self) -> None:
-        L = np.array(self.L, dtype=float)
-        if L.shape != (11,) or not np.all(np.isfinite(L)):
-            raise KisscalError(f"camera {self.id}: DLT parameters must be 11 finite numbers")
-        L.setflags(write=False)
-        object.__setattr__(self, "L", L)
-        if self.lens is not None:
-            lens = np.array(self.lens, dtype=float)
-            if lens.shape != (5,):
-                raise KisscalError(f"camera {self.id}: lens terms L12..L16 must be 5 numbers")
-            object.__setattr__(self, "lens", lens)
-
-    def linearise(self, uv_raw_px: ArrayLike) -> NDArray[np.float64]:
-        """Raw (distorted) pixel coordinates -> the coordinates L1..L11 map to.
-
-        The grid polynomial first, then Kolahi's lens correction when the calibration
-        fitted L12..L16.
-        """
-        uv = np.asarray(uv_raw_px, dtype=float).reshape(-1, 2)
-        if not len(uv):
-            return uv.copy()
-        if self.linearisation is not None:
-            uv = apply_linearisation(self.linearisation, uv)
-        return correct_lens(self.L, self.lens, uv)
-
-    def distort(self, uv_px: ArrayLike) -> NDArray[np.float64]:
-        """Inverse of :meth:`linearise`: linearised -> raw pixel coordinates."""
-        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
-        if self.lens is not None and len(uv):
-            target = uv
-            for _ in range(50):  # fixed point of p + offsets(p) = target: lens terms are small
-                step = target - correct_lens(self.L, self.lens, uv)
-                uv = uv + step
-                if np.abs(step).max() < 1e-10:
-                    break
-        if self.linearisation is not None and len(uv):
-            uv = invert_linearisation(self.linearisation, uv)
-        return uv
-
-    def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Lab points -> linearised pixel coordinates, shape (..., 2)."""
-        return project(self.L, xyz_mm)
-
-    def project_raw(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Lab points -> raw pixel coordinates (where the camera's image shows them)."""
-        xyz = np.asarray(xyz_mm, dtype=float)
-        return self.distort(self.project(xyz).reshape(-1, 2)).reshape(*xyz.shape[:-1], 2)
-
-    @property
-    def centre_mm(self) -> NDArray[np.float64]:
-        """Projection centre in lab mm (Woltring & Huiskes 1990, eq. 15)."""
-        return decompose_dlt(self.L)[2]
 
 
 @dataclass(frozen=True)
@@ -160,7 +81,7 @@ class Rig:
 
     Attributes
     ----------
-    cameras : tuple of Camera
+    cameras : tuple of kisscal.camera.Camera
     """
 
     cameras: tuple[Camera, ...]
@@ -199,7 +120,7 @@ class Rig:
     @property
     def dlts(self) -> NDArray[np.float64]:
         """DLT parameters of every camera, shape (n_cameras, 11)."""
-        return np.stack([c.L for c in self.cameras]) if self.cameras else np.zeros((0, 11))
+        return np.stack([c.dlt for c in self.cameras]) if self.cameras else np.zeros((0, 11))
 
     def index(self, camera_id: str) -> int:
         """Position of a camera in the rig."""
@@ -237,7 +158,7 @@ class Rig:
             fields.append(np.repeat(np.arange(len(frames)), counts))
             cams.append(np.full(sum(counts), ci))
             raws.append(np.concatenate(frames) if frames else np.zeros((0, 2)))
-        uvs = [cam.linearise(raw) for cam, raw in zip(self.cameras, raws, strict=True)]
+        uvs = [cam.undistort_px(raw) for cam, raw in zip(self.cameras, raws, strict=True)]
         field_idx = np.concatenate([np.zeros(0), *fields]).astype(np.int64)
         cam_idx = np.concatenate([np.zeros(0), *cams]).astype(np.int64)
         uv = np.concatenate([np.zeros((0, 2)), *uvs])
@@ -248,7 +169,7 @@ class Rig:
     def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
         """Lab points in every camera, linearised px, shape (n_cameras, n_points, 2)."""
         xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-        return np.stack([c.project(xyz) for c in self.cameras])
+        return np.stack([c.project_ideal(xyz) for c in self.cameras])
 
     def project_rows(self, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:
         """Point ``k`` in camera ``camera[k]`` (linearised px), shape (n, 2)."""
@@ -274,4 +195,4 @@ class Rig:
 
     def fundamental(self, i: int, j: int) -> NDArray[np.float64]:
         """Fundamental matrix with ``x_j^T F x_i = 0`` for cameras ``i`` and ``j``."""
-        return fundamental_from_dlt(self.cameras[i].L, self.cameras[j].L)
+        return fundamental_from_dlt(self.cameras[i].dlt, self.cameras[j].dlt)

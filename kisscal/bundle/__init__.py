@@ -7,9 +7,9 @@ Typical use (arrays only; :mod:`kisscal.session.routes.wand` runs it for a sessi
     cal = calibrate_wand_alone(table, markers_mm, sizes, ids, "wand01")
     frame = axes_frame(cal.cameras, sizes, ids, axes_blobs, axes_mm, 0.03)
 
-Modules: :mod:`~kisscal.bundle.camera` (pinhole + Brown lens, the linearisation
-polynomial of a lens), :mod:`~kisscal.bundle.model` (projection and its analytic
-Jacobian), :mod:`~kisscal.bundle.solve` (sparse Levenberg-Marquardt, Schur complement),
+The cameras are :class:`kisscal.camera.Camera` (pinhole + Brown lens). Modules:
+:mod:`~kisscal.bundle.model` (projection and its analytic Jacobian),
+:mod:`~kisscal.bundle.solve` (sparse Levenberg-Marquardt, Schur complement),
 :mod:`~kisscal.bundle.adjust` (the adjustment with outlier passes),
 :mod:`~kisscal.bundle.find` (the wand in images and in 3D),
 :mod:`~kisscal.bundle.initialise` (cameras from the wand alone),
@@ -25,7 +25,6 @@ from kisscal.bundle.adjust import (
     WandPoses,
     adjust_bundle,
 )
-from kisscal.bundle.camera import PinholeCamera, camera_from_dlt, camera_linearisation
 from kisscal.bundle.find import find_wand_images, find_wand_points
 from kisscal.bundle.frame import recognise_object, similarity
 from kisscal.bundle.initialise import start_from_wand
@@ -44,7 +43,6 @@ __all__ = [
     "BundleParams",
     "BundleResult",
     "ControlPoints",
-    "PinholeCamera",
     "WandCalibration",
     "WandObservations",
     "WandPoses",
@@ -52,8 +50,6 @@ __all__ = [
     "axes_frame",
     "calibrate_on_control",
     "calibrate_wand_alone",
-    "camera_from_dlt",
-    "camera_linearisation",
     "find_wand_images",
     "find_wand_points",
     "held_out_lengths",

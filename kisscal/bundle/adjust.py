@@ -25,10 +25,10 @@ method for accurate multi-camera field videography. J. Exp. Biol. 217.
 Examples
 --------
 >>> import numpy as np
->>> from kisscal.bundle.camera import PinholeCamera
+>>> from kisscal.camera import Camera
 >>> K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
 >>> R = [np.eye(3), np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])]
->>> cams = tuple(PinholeCamera(K, r, np.array([0.0, 0, 3000]), np.zeros(5)) for r in R)
+>>> cams = tuple(Camera(K, r, np.array([0.0, 0, 3000]), np.zeros(5)) for r in R)
 >>> rng = np.random.default_rng(0)
 >>> poses = WandPoses(rng.uniform(-300, 300, (30, 3)), rng.normal(size=(30, 3)))
 >>> poses = WandPoses(poses.centre_mm, poses.direction / np.linalg.norm(poses.direction,
@@ -53,10 +53,10 @@ import scipy.optimize
 import scipy.sparse
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
 from kisscal.bundle.model import N_CAMERA, N_WAND, State, project, wand_points
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.solve import Loss, Problem, levenberg_marquardt
+from kisscal.camera import LENS_TERMS, Camera
 from kisscal.errors import KisscalError
 
 
@@ -147,7 +147,7 @@ class BundleResult:
 
     Attributes
     ----------
-    cameras : tuple of PinholeCamera
+    cameras : tuple of Camera
     wand : WandPoses
     residuals_px : ndarray, shape (n, 2)
         Observed minus projected, per wand observation (outliers included).
@@ -161,7 +161,7 @@ class BundleResult:
         Why the final pass stopped.
     """
 
-    cameras: tuple[PinholeCamera, ...]
+    cameras: tuple[Camera, ...]
     wand: WandPoses
     residuals_px: NDArray[np.float64]
     inlier: NDArray[np.bool_]
@@ -189,7 +189,7 @@ def free_unknowns(
 
 
 def adjust_bundle(
-    cameras: tuple[PinholeCamera, ...],
+    cameras: tuple[Camera, ...],
     observations: WandObservations,
     markers_mm: ArrayLike,
     wand: WandPoses,
@@ -201,7 +201,7 @@ def adjust_bundle(
 
     Parameters
     ----------
-    cameras : tuple of PinholeCamera
+    cameras : tuple of Camera
         Starting cameras (from the rods' DLT or the wand's initialisation).
     observations : WandObservations
         Wand marker images; every field ``0 .. len(wand) - 1`` must be seen by at least

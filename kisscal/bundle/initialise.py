@@ -40,8 +40,8 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from kisscal.bundle.adjust import WandObservations, WandPoses, centred_offsets
-from kisscal.bundle.camera import PinholeCamera
 from kisscal.bundle.find import WandImages
+from kisscal.camera import Camera
 from kisscal.dlt.camera import decompose_matrix
 from kisscal.dlt.linear import solve_dlt_matrix
 from kisscal.errors import KisscalError
@@ -55,7 +55,7 @@ class Start:
 
     Attributes
     ----------
-    cameras : tuple of PinholeCamera
+    cameras : tuple of Camera
         In the frame of camera ``anchor`` (its axes the frame's), with the origin in the
         middle of the wand's path.
     observations : WandObservations
@@ -68,7 +68,7 @@ class Start:
         The camera whose pose defines the frame.
     """
 
-    cameras: tuple[PinholeCamera, ...]
+    cameras: tuple[Camera, ...]
     observations: WandObservations
     wand: WandPoses
     fields: NDArray[np.int64]
@@ -129,8 +129,8 @@ def start_from_wand(
     F, flip = _pair_fundamental(ui, uj, ordered[i, both] & ordered[j, both])
     images[j, np.flatnonzero(both)[flip]] = images[j, np.flatnonzero(both)[flip], ::-1]
     Ki, Kj, R, t = _pair_cameras(F, ui, images[j, both], offsets, sizes_px[i], sizes_px[j])
-    placed = {i: PinholeCamera(Ki, np.eye(3), np.zeros(3), np.zeros(5))}
-    placed[j] = PinholeCamera(Kj, R, t, np.zeros(5))
+    placed = {i: Camera(Ki, np.eye(3), np.zeros(3), np.zeros(5))}
+    placed[j] = Camera(Kj, R, t, np.zeros(5))
     others = [c for c in range(len(found)) if c not in placed]
     while others:
         wand = triangulate_wand(placed, images)
@@ -270,9 +270,7 @@ def _pair_cameras(
     return _intrinsics(best.x[:2], size_i), _intrinsics(best.x[2:], size_j), R, t / np.median(seg)
 
 
-def triangulate_wand(
-    placed: dict[int, PinholeCamera], images: NDArray[np.float64]
-) -> NDArray[np.float64]:
+def triangulate_wand(placed: dict[int, Camera], images: NDArray[np.float64]) -> NDArray[np.float64]:
     """Linear triangulation of every wand marker seen by two or more placed cameras.
 
     Returns
@@ -303,7 +301,7 @@ def triangulate_wand(
 
 def _resect(
     uv: NDArray[np.float64], ordered: NDArray[np.bool_], wand: NDArray[np.float64], camera: str
-) -> tuple[PinholeCamera, NDArray[np.int64]]:
+) -> tuple[Camera, NDArray[np.int64]]:
     """A camera from its wand images of known wand points (linear DLT, outliers dropped).
 
     Returns the camera and the fields where its marker order must be reversed.
@@ -321,7 +319,7 @@ def _resect(
     P = _robust_dlt(pts.reshape(-1, 3), img.reshape(-1, 2), camera)
     K, R, centre = decompose_matrix(P)
     K[0, 1] = 0.0
-    return PinholeCamera(K, R, -R @ centre, np.zeros(5)), both[flip]
+    return Camera(K, R, -R @ centre, np.zeros(5)), both[flip]
 
 
 def _reprojection(P: NDArray, pts: NDArray, img: NDArray) -> NDArray[np.float64]:
@@ -362,7 +360,7 @@ def wand_poses(markers: NDArray[np.float64], offsets: NDArray[np.float64]) -> Wa
 
 
 def _start(
-    cameras: tuple[PinholeCamera, ...],
+    cameras: tuple[Camera, ...],
     images: NDArray[np.float64],
     wand: NDArray[np.float64],
     offsets: NDArray[np.float64],

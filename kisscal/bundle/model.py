@@ -26,12 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.bundle.camera import (
-    PinholeCamera,
-    distort,
-    distortion_jacobian,
-    rotation_matrices,
-)
+from kisscal.camera import Camera, distort, distortion_jacobian, rotation_matrices
 
 #: Unknowns of one camera, in Jacobian column order.
 CAMERA_UNKNOWNS: tuple[str, ...] = (
@@ -83,7 +78,7 @@ class State:
     @classmethod
     def of(
         cls,
-        cameras: tuple[PinholeCamera, ...],
+        cameras: tuple[Camera, ...],
         centre_mm: NDArray[np.float64],
         direction: NDArray[np.float64],
     ) -> State:
@@ -98,12 +93,12 @@ class State:
             d / np.linalg.norm(d, axis=1, keepdims=True),
         )
 
-    def cameras(self) -> tuple[PinholeCamera, ...]:
+    def cameras(self) -> tuple[Camera, ...]:
         out = []
         for i in range(len(self.R)):
             fu, fv, u0, v0, s = self.intrinsics[i]
             K = np.array([[fu, s, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
-            out.append(PinholeCamera(K, self.R[i].copy(), self.t[i].copy(), self.lens[i].copy()))
+            out.append(Camera(K, self.R[i].copy(), self.t[i].copy(), self.lens[i].copy()))
         return tuple(out)
 
     def moved(self, d_camera: NDArray[np.float64], d_wand: NDArray[np.float64]) -> State:

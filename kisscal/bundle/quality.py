@@ -20,9 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.adjust import WandObservations, adjust_bundle
-from kisscal.bundle.camera import PinholeCamera, undistort_px
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.wand import WandCalibration, select_fields
+from kisscal.camera import Camera
 from kisscal.dlt.triangulate import triangulate_observations
 
 
@@ -36,7 +36,7 @@ class CameraFigures:
 
 
 def triangulate_points(
-    cameras: Sequence[PinholeCamera],
+    cameras: Sequence[Camera],
     camera: NDArray[np.int64],
     point: NDArray[np.int64],
     uv_px: NDArray[np.float64],
@@ -47,13 +47,13 @@ def triangulate_points(
     for c, cam in enumerate(cameras):
         rows = camera == c
         if rows.any():
-            ideal[rows] = undistort_px(cam, uv_px[rows])
+            ideal[rows] = cam.undistort_px(uv_px[rows])
     dlts = np.stack([c.dlt for c in cameras])
     return triangulate_observations(dlts, point, camera, ideal, n_points).xyz_mm
 
 
 def wand_markers(
-    cameras: Sequence[PinholeCamera], obs: WandObservations, n_fields: int, n_markers: int
+    cameras: Sequence[Camera], obs: WandObservations, n_fields: int, n_markers: int
 ) -> NDArray[np.float64]:
     """Every field's wand markers triangulated from ``obs``, shape (fields, k, 3)."""
     point = obs.field * n_markers + obs.marker

@@ -32,14 +32,14 @@ from kisscal.bundle.adjust import (
     adjust_bundle,
     centred_offsets,
 )
-from kisscal.bundle.camera import PinholeCamera, camera_linearisation
 from kisscal.bundle.find import find_wand_images, find_wand_points, pairs_within_fields
 from kisscal.bundle.frame import ObjectMatch, recognise_object
 from kisscal.bundle.initialise import start_from_wand, wand_poses
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.camera import Camera, camera_linearisation
 from kisscal.errors import KisscalError
 from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 
 
 @dataclass(frozen=True)
@@ -102,18 +102,18 @@ class WandCalibration:
     anchor: int | None
 
     @property
-    def cameras(self) -> tuple[PinholeCamera, ...]:
+    def cameras(self) -> tuple[Camera, ...]:
         return self.result.cameras
 
 
 def lens_rig(
-    cameras: Sequence[PinholeCamera], sizes_px: Sequence[tuple[int, int]], ids: Sequence[str]
+    cameras: Sequence[Camera], sizes_px: Sequence[tuple[int, int]], ids: Sequence[str]
 ) -> Rig:
     """A :class:`~kisscal.rig.Rig` of the cameras acting on the lens model's coordinates."""
     out = []
     for cam, size, cid in zip(cameras, sizes_px, ids, strict=True):
         lin = camera_linearisation(cam, size)[0] if np.any(cam.lens) else None
-        out.append(Camera(cid, cam.dlt, lin, None, size))
+        out.append(Camera.from_dlt(cam.dlt, cid, lin, None, size))
     return Rig(tuple(out))
 
 
@@ -164,7 +164,7 @@ def _linearised(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
     uv = np.empty_like(table.uv_px)
     for c, cam in enumerate(rig):
         rows = table.camera == c
-        uv[rows] = cam.linearise(table.uv_px[rows])
+        uv[rows] = cam.undistort_px(table.uv_px[rows])
     return uv
 
 
@@ -230,20 +230,20 @@ def select_fields(
     return o, WandPoses(wand.centre_mm[keep], wand.direction[keep]), fields[keep]
 
 
-def _zero_skew(cameras: Sequence[PinholeCamera], params: BundleParams) -> tuple:
+def _zero_skew(cameras: Sequence[Camera], params: BundleParams) -> tuple:
     if params.skew:
         return tuple(cameras)
     out = []
     for c in cameras:
         K = c.K.copy()
         K[0, 1] = 0.0
-        out.append(PinholeCamera(K, c.R, c.t, c.lens))
+        out.append(Camera(K, c.R, c.t, c.lens))
     return tuple(out)
 
 
 def calibrate_on_control(
     table: BlobTable,
-    start: Sequence[PinholeCamera],
+    start: Sequence[Camera],
     control: ControlPoints,
     markers_mm: Sequence[float],
     sizes_px: Sequence[tuple[int, int]],
@@ -257,8 +257,8 @@ def calibrate_on_control(
     ----------
     table : BlobTable
         The wand trial's blobs (grid-linearised pixels).
-    start : sequence of PinholeCamera
-        Starting cameras (the rods' DLT, :func:`kisscal.bundle.camera.camera_from_dlt`).
+    start : sequence of Camera
+        Starting cameras (the rods' DLT, :meth:`kisscal.camera.Camera.from_dlt`).
     control : ControlPoints
         The rods' markers in the same coordinates.
     markers_mm, sizes_px, ids, trial
@@ -285,9 +285,7 @@ def calibrate_on_control(
     return WandCalibration(result, obs, fields, control, None)
 
 
-def noise_ratio(
-    start: Sequence[PinholeCamera], control: ControlPoints, result: BundleResult
-) -> float:
+def noise_ratio(start: Sequence[Camera], control: ControlPoints, result: BundleResult) -> float:
     """Wand residual variance over control residual variance (at least 1).
 
     The control points' variance is that of the starting cameras' DLT fits (11
@@ -377,13 +375,13 @@ class AxesFrame:
     match: ObjectMatch
     seen: NDArray[np.int64]
 
-    def cameras(self, cameras: Sequence[PinholeCamera]) -> tuple[PinholeCamera, ...]:
+    def cameras(self, cameras: Sequence[Camera]) -> tuple[Camera, ...]:
         """The cameras in the lab frame."""
         return tuple(c.transformed(self.match.rotation, self.match.shift_mm) for c in cameras)
 
 
 def axes_frame(
-    cameras: Sequence[PinholeCamera],
+    cameras: Sequence[Camera],
     sizes_px: Sequence[tuple[int, int]],
     ids: Sequence[str],
     blobs_px: Sequence[NDArray[np.float64]],
@@ -394,7 +392,7 @@ def axes_frame(
 
     Parameters
     ----------
-    cameras : sequence of PinholeCamera
+    cameras : sequence of Camera
         The wand-calibrated cameras (any frame, wand scale).
     sizes_px, ids
         Image sizes and camera ids.

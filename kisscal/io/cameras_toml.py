@@ -1,5 +1,6 @@
 """``cameras.toml`` (the anipose / Pose2Sim calibration layout) and OpenCV's YAML camera
-files: written from, and read into, :class:`kisscal.opencv.OpenCvCamera`.
+files: written from, and read into, :class:`kisscal.camera.Camera` (OpenCV's model: zero
+skew, Brown's lens, no polynomial).
 
 One table per camera, named by the camera id::
 
@@ -32,10 +33,10 @@ import cv2
 import numpy as np
 import tomli_w
 
+from kisscal.camera import Camera
 from kisscal.errors import KisscalError
 from kisscal.io.files import atomic_path, write_text
 from kisscal.io.toml_table import load_toml
-from kisscal.opencv import OpenCvCamera
 
 #: Tables of a cameras.toml that are not cameras (anipose, Pose2Sim).
 NOT_CAMERAS = ("metadata", "capture_volume", "charuco", "checkerboard")
@@ -46,7 +47,7 @@ UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
 
 def write_cameras_toml(
     path: str | Path,
-    cameras: Sequence[OpenCvCamera],
+    cameras: Sequence[Camera],
     metadata: Mapping[str, Any],
     *,
     units: str = "mm",
@@ -63,21 +64,21 @@ def write_cameras_toml(
     """
     if units not in UNITS_MM:
         raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
-    names = [c.name for c in cameras] if names is None else list(names)
+    names = [c.id for c in cameras] if names is None else list(names)
     if len(names) != len(cameras) or len(set(names)) != len(names):
         raise KisscalError(f"{path}: need one distinct name per camera, got {names}")
     doc: dict[str, Any] = {}
     for name, cam in zip(names, cameras, strict=True):
-        dist = np.asarray(cam.distortions, dtype=float)
+        dist = np.asarray(cam.lens, dtype=float)
         if not k3 and np.any(dist[4:] != 0.0):
-            raise KisscalError(f"{path}: camera {cam.name} has k3 = {dist[4]}; cannot drop it")
+            raise KisscalError(f"{path}: camera {cam.id} has k3 = {dist[4]}; cannot drop it")
         doc[name] = {
             "name": name,
             "size": [int(cam.size_px[0]), int(cam.size_px[1])],
-            "matrix": np.asarray(cam.matrix, dtype=float).tolist(),
+            "matrix": cam.K.tolist(),
             "distortions": (dist if k3 else dist[:4]).tolist(),
-            "rotation": np.asarray(cam.rotation, dtype=float).tolist(),
-            "translation": (np.asarray(cam.translation_mm, float) / UNITS_MM[units]).tolist(),
+            "rotation": cv2.Rodrigues(cam.R)[0].ravel().tolist(),
+            "translation": (cam.t / UNITS_MM[units]).tolist(),
             "fisheye": False,
         }
     doc["metadata"] = {**metadata, "units": units}
@@ -96,7 +97,7 @@ def _numbers(path: Path, table: str, key: str, value: Any, shape: tuple[int, ...
     return arr
 
 
-def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenCvCamera:
+def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> Camera:
     missing = [k for k in CAMERA_KEYS if k not in d]
     if missing:
         raise KisscalError(f"{path}: [{table}] is missing {', '.join(missing)}")
@@ -110,13 +111,14 @@ def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> OpenC
         )
     matrix = _numbers(path, table, "matrix", d["matrix"], (3, 3))
     size = _numbers(path, table, "size", d["size"], (2,))
-    return OpenCvCamera(
-        name=str(d["name"]),
+    rotation = _numbers(path, table, "rotation", d["rotation"], (3,)).ravel()
+    return Camera(
+        K=matrix,
+        R=cv2.Rodrigues(rotation)[0],
+        t=_numbers(path, table, "translation", d["translation"], (3,)) * scale_mm,
+        lens=np.r_[dist, np.zeros(max(0, 5 - dist.size))],
+        id=str(d["name"]),
         size_px=(int(size[0]), int(size[1])),
-        matrix=matrix,
-        distortions=np.r_[dist, np.zeros(max(0, 5 - dist.size))],
-        rotation=_numbers(path, table, "rotation", d["rotation"], (3,)).ravel(),
-        translation_mm=_numbers(path, table, "translation", d["translation"], (3,)) * scale_mm,
     )
 
 
@@ -134,7 +136,7 @@ def _units_mm(path: Path, doc: dict[str, Any], tables: dict[str, dict]) -> float
 
 def read_cameras_toml(
     path: str | Path, camera_ids: Sequence[str], names: Mapping[str, str] | None = None
-) -> dict[str, OpenCvCamera]:
+) -> dict[str, Camera]:
     """The cameras of ``camera_ids`` from a cameras.toml, matched by ``name`` (or table name).
 
     ``names`` maps the file's camera names to session ids (``{"cam_01": "cam1"}``); a
@@ -171,7 +173,7 @@ def read_cameras_toml(
                 f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
                 f"map them with [calibration] names = {{ {_hint(by_name)} }})"
             )
-        out[cam] = dataclasses.replace(_camera(path, key, tables[key], scale), name=cam)
+        out[cam] = dataclasses.replace(_camera(path, key, tables[key], scale), id=cam)
     return out
 
 
@@ -180,7 +182,7 @@ def _hint(by_name: Mapping[str, str]) -> str:
     return f'{sorted(by_name)[0]} = "<camera id>", ...'
 
 
-def write_opencv_yaml(path: str | Path, cam: OpenCvCamera, units: str = "mm") -> Path:
+def write_opencv_yaml(path: str | Path, cam: Camera, units: str = "mm") -> Path:
     """One camera as an OpenCV FileStorage YAML file (``cv::FileStorage`` reads it):
     ``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
     ``rvec``, ``tvec`` (in ``units``: mm, cm or m) and ``units``."""
@@ -192,10 +194,10 @@ def write_opencv_yaml(path: str | Path, cam: OpenCvCamera, units: str = "mm") ->
         fs = cv2.FileStorage(str(tmp.with_suffix(".yml")), cv2.FILE_STORAGE_WRITE)
         fs.write("image_width", int(cam.size_px[0]))
         fs.write("image_height", int(cam.size_px[1]))
-        fs.write("camera_matrix", np.asarray(cam.matrix, dtype=float))
-        fs.write("distortion_coefficients", np.asarray(cam.distortions, float).reshape(1, -1))
-        fs.write("rvec", np.asarray(cam.rotation, dtype=float).reshape(3, 1))
-        fs.write("tvec", np.asarray(cam.translation_mm, float).reshape(3, 1) / UNITS_MM[units])
+        fs.write("camera_matrix", np.asarray(cam.K, dtype=float))
+        fs.write("distortion_coefficients", np.asarray(cam.lens, float).reshape(1, -1))
+        fs.write("rvec", cv2.Rodrigues(cam.R)[0].reshape(3, 1))
+        fs.write("tvec", cam.t.reshape(3, 1) / UNITS_MM[units])
         fs.write("units", units)
         fs.release()
         if tmp.with_suffix(".yml") != tmp:

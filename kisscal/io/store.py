@@ -214,7 +214,7 @@ class SessionStore:
         if isinstance(obj, Linearisation):
             return [self._canonical(a) for a in (obj.x, obj.y, obj.center_px, obj.scale_px)]
         if isinstance(obj, Rig):
-            return [[c.id, self._canonical([c.L, c.lens, c.linearisation])] for c in obj]
+            return [[c.id, self._canonical([c.dlt, c.kolahi, c.linearisation])] for c in obj]
         if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
             return {type(obj).__name__: self._canonical(dataclasses.asdict(obj))}
         if isinstance(obj, dict):

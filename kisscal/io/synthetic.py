@@ -18,6 +18,7 @@ import tomli_w
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import read_c3d_points
 from kisscal.io.files import table_to_csv, write_json, write_table
+from kisscal.synth.cameras import truth_dict
 from kisscal.synth.motion import Motion
 from kisscal.synth.plan import (
     SynthPlan,
@@ -183,7 +184,7 @@ def write_synthetic_session(
     root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         (root / "session.toml").write_text(tomli_w.dumps(session_config(plan, name)))
-        write_json(root / "truth" / "cameras.json", {"cameras": [c.as_dict() for c in plan.rig]})
+        write_json(root / "truth" / "cameras.json", {"cameras": [truth_dict(c) for c in plan.rig]})
         jobs = [
             (plan, kind, "", ci, root) for kind in ("grid", "rods") for ci in range(len(plan.rig))
         ]

@@ -17,6 +17,7 @@ import tomli_w
 
 from kisscal.errors import KisscalError
 from kisscal.io.files import write_json, write_table
+from kisscal.synth.cameras import truth_dict
 from kisscal.synth.target import (
     TargetKind,
     render_target,
@@ -60,7 +61,7 @@ def write_target_session(
         }
         (root / "session.toml").write_text(tomli_w.dumps(config))
         write_table(root / "target.csv", {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]})
-        write_json(root / "truth" / "cameras.json", {"cameras": [c.as_dict() for c in rig]})
+        write_json(root / "truth" / "cameras.json", {"cameras": [truth_dict(c) for c in rig]})
         for ci, cam in enumerate(rig):
             folder = root / "calibration" / cam.id
             folder.mkdir(parents=True)

@@ -14,12 +14,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from kisscal.camera import Camera
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
 from kisscal.io.dltfiles import DltFile
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 from kisscal.session.exports import write_exports
 from kisscal.session.inputs import load_config, select_cameras, writes_session
 from kisscal.session.linearise import (
@@ -190,7 +191,7 @@ def current_rig(root: Path, echo: Echo = quiet) -> Rig:
     dlts = read_dlt_files(root, config)
     return Rig(
         tuple(
-            Camera(c.id, dlts[c.id].L, lins[c.id], dlts[c.id].lens, c.size_px)
+            Camera.from_dlt(dlts[c.id].L, c.id, lins[c.id], dlts[c.id].lens, c.size_px)
             for c in config.cameras
         )
     )

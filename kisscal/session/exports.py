@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from kisscal.camera import Camera
 from kisscal.errors import KisscalError
 from kisscal.grid import Linearisation
 from kisscal.io.cameras_toml import UNITS_MM, write_cameras_toml, write_opencv_yaml
@@ -28,7 +29,7 @@ from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 from kisscal.session.inputs import load_config
 from kisscal.session.progress import Echo, quiet
 
@@ -42,7 +43,7 @@ def calibrated_rig(
     """The cameras of the session that have a DLT, in session order."""
     return Rig(
         tuple(
-            Camera(c.id, dlts[c.id].L, lins.get(c.id), dlts[c.id].lens, c.size_px)
+            Camera.from_dlt(dlts[c.id].L, c.id, lins.get(c.id), dlts[c.id].lens, c.size_px)
             for c in config.cameras
             if c.id in dlts
         )
@@ -56,8 +57,8 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     w, h = camera.size_px or (0, 0)
     corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [-0.5, h - 0.5], [w - 0.5, h - 0.5]])
     grid = image_grid((w, h))
-    at_corners = np.hypot(*(camera.linearise(corners) - corners).T)
-    over = np.hypot(*(camera.linearise(grid) - grid).T)
+    at_corners = np.hypot(*(camera.undistort_px(corners) - corners).T)
+    over = np.hypot(*(camera.undistort_px(grid) - grid).T)
     return {
         "corners_px": [round(float(d), 4) for d in at_corners],
         "max_px": float(over.max()),
@@ -80,7 +81,7 @@ def write_exports(
     every calibrated camera; returns the content of ``exports.json``."""
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
-    write_dltdv_csv(store.dltdv_path, {c.id: c.L for c in rig})
+    write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
     fits = {c.id: opencv_from_camera(c) for c in rig if c.size_px is not None}
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
@@ -128,14 +129,14 @@ def export(
     rig = current_rig(root, echo)
     store = SessionStore(root)
     if to == "dltdv8":
-        path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.L for c in rig})
+        path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
     pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
     fits = [opencv_from_camera(c, coefficients=5 if pose2sim else 12, k3=not pose2sim) for c in rig]
     for f in fits:
-        echo(f"  {f.camera.name}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
-    meta = {"source": "kisscal", "fit_rms_px": {f.camera.name: f.rms_px for f in fits}}
+        echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
+    meta = {"source": "kisscal", "fit_rms_px": {f.camera.id: f.rms_px for f in fits}}
     cams = [f.camera for f in fits]
     if to == "pose2sim":
         names = pose2sim_names(len(cams))
@@ -162,7 +163,7 @@ def export(
         echo(f"{path}: {len(cams)} cameras (anipose layout, {units})")
         return [path]
     folder = dest or store.opencv_dir
-    paths = [write_opencv_yaml(Path(folder) / f"{c.name}.yml", c, units) for c in cams]
+    paths = [write_opencv_yaml(Path(folder) / f"{c.id}.yml", c, units) for c in cams]
     echo(f"{folder}: {len(paths)} OpenCV camera files ({units})")
     return paths
 

@@ -1,4 +1,4 @@
-"""Synthetic cameras: pinhole + Brown lens distortion, and the KISS-like six-camera rig.
+"""Synthetic cameras (:class:`kisscal.camera.Camera`, Brown's lens) and the KISS-like rig.
 
 The KISS lab (Shafiq et al. 2001, section 1) records 752 x 291 pixel video fields at
 50 Hz with six cameras around a 1.4 m x 2.4 m x 2 m control volume. A field holds every
@@ -8,12 +8,10 @@ principal distances differ (``fy / fx = (4/752) / (3/291) ~ 0.516``). The DLT ab
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.model import dlt_from_krt
+from kisscal.camera import Camera, undistort
 
 #: Width and height of a KISS video field in pixels.
 FIELD_SIZE_PX: tuple[int, int] = (752, 291)
@@ -27,167 +25,39 @@ VOLUME_MM: tuple[tuple[float, float, float], tuple[float, float, float]] = (
 )
 
 
-@dataclass(frozen=True)
-class LensDistortion:
-    """Brown-Conrady distortion on normalised image coordinates (OpenCV's convention).
-
-    ``x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)`` and
-    ``y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y``.
-    """
-
-    k1: float = 0.0
-    k2: float = 0.0
-    k3: float = 0.0
-    p1: float = 0.0
-    p2: float = 0.0
-
-    def distort(self, xy: ArrayLike) -> NDArray[np.float64]:
-        """Distort normalised coordinates, shape (..., 2)."""
-        xy = np.asarray(xy, dtype=float)
-        x, y = xy[..., 0], xy[..., 1]
-        r2 = x * x + y * y
-        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
-        xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x)
-        yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y
-        return np.stack([xd, yd], axis=-1)
-
-    def jacobian(self, xy: ArrayLike) -> NDArray[np.float64]:
-        """Jacobian d(x_d, y_d)/d(x, y) of :meth:`distort`, shape (..., 2, 2)."""
-        xy = np.asarray(xy, dtype=float)
-        x, y = xy[..., 0], xy[..., 1]
-        r2 = x * x + y * y
-        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
-        dradial_dr2 = self.k1 + r2 * (2.0 * self.k2 + 3.0 * r2 * self.k3)
-        jac = np.empty((*x.shape, 2, 2))
-        jac[..., 0, 0] = radial + 2 * x * x * dradial_dr2 + 2 * self.p1 * y + 6 * self.p2 * x
-        jac[..., 0, 1] = 2 * x * y * dradial_dr2 + 2 * self.p1 * x + 2 * self.p2 * y
-        jac[..., 1, 0] = 2 * x * y * dradial_dr2 + 2 * self.p1 * x + 2 * self.p2 * y
-        jac[..., 1, 1] = radial + 2 * y * y * dradial_dr2 + 6 * self.p1 * y + 2 * self.p2 * x
-        return jac
-
-    def undistort(self, xy_d: ArrayLike, iterations: int = 20) -> NDArray[np.float64]:
-        """Invert :meth:`distort` by Newton iteration (converges to ~1e-14 for lab lenses)."""
-        xy_d = np.asarray(xy_d, dtype=float)
-        xy = xy_d.copy()
-        for _ in range(iterations):
-            err = self.distort(xy) - xy_d
-            step = np.linalg.solve(self.jacobian(xy), err[..., None])[..., 0]
-            xy = xy - step
-            if np.max(np.abs(step), initial=0.0) < 1e-15:
-                break
-        return xy
-
-    def as_dict(self) -> dict[str, float]:
-        return {"k1": self.k1, "k2": self.k2, "k3": self.k3, "p1": self.p1, "p2": self.p2}
+def truth_dict(camera: Camera) -> dict[str, object]:
+    """A synthetic camera as ``truth/cameras.json`` holds it (JSON-ready)."""
+    k1, k2, p1, p2, k3 = (float(v) for v in camera.lens[:5])
+    return {
+        "id": camera.id,
+        "size": list(camera.size_px or ()),
+        "K": camera.K.tolist(),
+        "R": camera.R.tolist(),
+        "t": camera.t.tolist(),
+        "centre_mm": camera.centre_mm.tolist(),
+        "dlt": camera.dlt.tolist(),
+        "distortion": {"k1": k1, "k2": k2, "k3": k3, "p1": p1, "p2": p2},
+    }
 
 
-@dataclass(frozen=True)
-class SynthCamera:
-    """A pinhole camera with lens distortion: ``x_cam = R X + t``, pixels ``K distort(x/z)``.
+def camera_from_truth(d: dict) -> Camera:
+    """The camera of one entry of ``truth/cameras.json`` (inverse of :func:`truth_dict`)."""
+    lens = {k: float(v) for k, v in d["distortion"].items()}
+    return Camera(
+        np.asarray(d["K"], dtype=float),
+        np.asarray(d["R"], dtype=float),
+        np.asarray(d["t"], dtype=float),
+        brown_lens(**lens),
+        str(d["id"]),
+        (int(d["size"][0]), int(d["size"][1])),
+    )
 
-    Attributes
-    ----------
-    id : str
-        Camera name as used in the session (``cam1`` ...).
-    size_px : tuple of int
-        Image width and height in pixels.
-    K : ndarray, shape (3, 3)
-        Intrinsics (zero skew), pixels; the principal point uses the DESIGN.md origin
-        (centre of the top-left pixel).
-    R, t : ndarray
-        Lab-to-camera rotation (rows: image right, image down, optical axis) and translation (mm).
-    lens : LensDistortion
-        Lens distortion on normalised coordinates.
-    """
 
-    id: str
-    size_px: tuple[int, int]
-    K: NDArray[np.float64]
-    R: NDArray[np.float64]
-    t: NDArray[np.float64]
-    lens: LensDistortion = field(default_factory=LensDistortion)
-
-    @property
-    def centre_mm(self) -> NDArray[np.float64]:
-        """Projection centre in lab millimetres."""
-        return -self.R.T @ self.t
-
-    @property
-    def dlt(self) -> NDArray[np.float64]:
-        """DLT parameters L1..L11 of the undistorted pinhole (maps lab mm to ideal pixels)."""
-        return dlt_from_krt(self.K, self.R, self.t)
-
-    def to_camera(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Lab millimetres to camera-frame millimetres, shape (..., 3)."""
-        return np.asarray(xyz_mm, dtype=float) @ self.R.T + self.t
-
-    def normalised_to_px(self, xy: ArrayLike) -> NDArray[np.float64]:
-        xy = np.asarray(xy, dtype=float)
-        u = self.K[0, 0] * xy[..., 0] + self.K[0, 1] * xy[..., 1] + self.K[0, 2]
-        v = self.K[1, 1] * xy[..., 1] + self.K[1, 2]
-        return np.stack([u, v], axis=-1)
-
-    def px_to_normalised(self, uv: ArrayLike) -> NDArray[np.float64]:
-        uv = np.asarray(uv, dtype=float)
-        y = (uv[..., 1] - self.K[1, 2]) / self.K[1, 1]
-        x = (uv[..., 0] - self.K[0, 2] - self.K[0, 1] * y) / self.K[0, 0]
-        return np.stack([x, y], axis=-1)
-
-    def project_ideal(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Undistorted (ideal pinhole) pixel coordinates of lab points."""
-        pc = self.to_camera(xyz_mm)
-        return self.normalised_to_px(pc[..., :2] / pc[..., 2:3])
-
-    def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Distorted pixel coordinates of lab points, as the camera records them."""
-        pc = self.to_camera(xyz_mm)
-        return self.normalised_to_px(self.lens.distort(pc[..., :2] / pc[..., 2:3]))
-
-    def distort_px(self, uv_ideal: ArrayLike) -> NDArray[np.float64]:
-        """Ideal pixel coordinates to the distorted ones the camera records."""
-        return self.normalised_to_px(self.lens.distort(self.px_to_normalised(uv_ideal)))
-
-    def undistort_px(self, uv: ArrayLike) -> NDArray[np.float64]:
-        """Recorded (distorted) pixel coordinates to ideal pinhole ones."""
-        return self.normalised_to_px(self.lens.undistort(self.px_to_normalised(uv)))
-
-    def depth_mm(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
-        """Distance along the optical axis (negative behind the camera)."""
-        return self.to_camera(xyz_mm)[..., 2]
-
-    def in_image(self, uv: ArrayLike, margin_px: float = 0.0) -> NDArray[np.bool_]:
-        uv = np.asarray(uv, dtype=float)
-        w, h = self.size_px
-        return (
-            (uv[..., 0] >= margin_px - 0.5)
-            & (uv[..., 0] <= w - 0.5 - margin_px)
-            & (uv[..., 1] >= margin_px - 0.5)
-            & (uv[..., 1] <= h - 0.5 - margin_px)
-        )
-
-    def as_dict(self) -> dict[str, object]:
-        """JSON-ready description, as written to ``truth/cameras.json``."""
-        return {
-            "id": self.id,
-            "size": list(self.size_px),
-            "K": self.K.tolist(),
-            "R": self.R.tolist(),
-            "t": self.t.tolist(),
-            "centre_mm": self.centre_mm.tolist(),
-            "dlt": self.dlt.tolist(),
-            "distortion": self.lens.as_dict(),
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict) -> SynthCamera:
-        return cls(
-            id=str(d["id"]),
-            size_px=(int(d["size"][0]), int(d["size"][1])),
-            K=np.asarray(d["K"], dtype=float),
-            R=np.asarray(d["R"], dtype=float),
-            t=np.asarray(d["t"], dtype=float),
-            lens=LensDistortion(**{k: float(v) for k, v in d["distortion"].items()}),
-        )
+def brown_lens(
+    k1: float = 0.0, k2: float = 0.0, k3: float = 0.0, p1: float = 0.0, p2: float = 0.0
+) -> NDArray[np.float64]:
+    """Brown's terms by name, as the vector a :class:`~kisscal.camera.Camera` holds."""
+    return np.array([k1, k2, p1, p2, k3])
 
 
 def look_at(centre_mm: ArrayLike, target_mm: ArrayLike, roll_deg: float = 0.0) -> NDArray:
@@ -248,7 +118,7 @@ def kiss_rig(
     n_cameras: int = 6,
     corner_distortion_px: tuple[float, float] = (6.0, 9.0),
     fill: float = 0.95,
-) -> tuple[SynthCamera, ...]:
+) -> tuple[Camera, ...]:
     """The KISS-like rig: six cameras (up to 16) around the 1.4 x 2.4 x 2 m volume.
 
     Parameters
@@ -266,7 +136,7 @@ def kiss_rig(
 
     Returns
     -------
-    tuple of SynthCamera
+    tuple of Camera
         Cameras ``cam1`` ... ``camN``; every one sees the whole control volume.
     """
     if not 2 <= n_cameras <= MAX_CAMERAS:
@@ -284,7 +154,7 @@ def kiss_rig(
         t = -R @ centre
         K = fitted_intrinsics(R, t, (w, h), (cx, cy), PIXEL_ASPECT, corners, fill)
         lens = _barrel_lens(rng, K, (w, h), corner_distortion_px)
-        cams.append(SynthCamera(f"cam{i + 1}", (w, h), K, R, t, lens))
+        cams.append(Camera(K, R, t, lens, f"cam{i + 1}", (w, h)))
     return tuple(cams)
 
 
@@ -323,7 +193,7 @@ def ring_rig(
     fill: float = 0.95,
     pixel_aspect: float = 1.0,
     start_deg: tuple[float, float] | None = None,
-) -> tuple[SynthCamera, ...]:
+) -> tuple[Camera, ...]:
     """Cameras evenly spaced on a ring around the volume, all aimed at it.
 
     The ring is an ellipse ``clearance_mm`` outside the volume's footprint; azimuths are
@@ -370,7 +240,7 @@ def ring_rig(
         t = -R @ centre
         K = fitted_intrinsics(R, t, size_px, principal, 1.0 / pixel_aspect, corners, fill)
         lens = _barrel_lens(rng, K, size_px, corner_distortion_px, exact=True)
-        cams.append(SynthCamera(f"cam{i + 1}", size_px, K, R, t, lens))
+        cams.append(Camera(K, R, t, lens, f"cam{i + 1}", size_px))
     return tuple(cams)
 
 
@@ -380,8 +250,8 @@ def _barrel_lens(
     size_px: tuple[int, int],
     corner_px: tuple[float, float],
     exact: bool = False,
-) -> LensDistortion:
-    """A barrel lens (as in the seed's Fig. 10) whose corner displacement is in ``corner_px``.
+) -> NDArray[np.float64]:
+    """Brown's terms of a barrel lens (the seed's Fig. 10), its corner shift in ``corner_px``.
 
     The draw targets the largest corner displacement to first order; ``exact`` keeps the
     ``k2`` term within a fifth of the ``k1`` term at the corners (wide-angle lenses reach
@@ -400,10 +270,10 @@ def _barrel_lens(
     if exact:  # the r^4 term at most a fifth of the r^2 term at the corners, as in KISS
         k2 /= np.max(r2)
     p1, p2 = rng.uniform(-2e-4, 2e-4, 2)
-    lens = LensDistortion(k1=k1, k2=k2, p1=p1, p2=p2)
+    lens = brown_lens(k1=k1, k2=k2, p1=p1, p2=p2)
     for _ in range(3 if exact else 0):
         ideal = np.column_stack([xn, yn])
-        shift = np.linalg.norm((lens.undistort(ideal) - ideal) * [K[0, 0], K[1, 1]], axis=1)
+        shift = np.linalg.norm((undistort(lens, ideal) - ideal) * [K[0, 0], K[1, 1]], axis=1)
         scale = target / shift.min()
-        lens = LensDistortion(k1=lens.k1 * scale, k2=lens.k2 * scale, p1=p1, p2=p2)
+        lens = brown_lens(k1=lens[0] * scale, k2=lens[1] * scale, p1=p1, p2=p2)
     return lens

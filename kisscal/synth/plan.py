@@ -14,7 +14,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, SynthCamera, kiss_rig, ring_rig
+from kisscal.camera import Camera
+from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, kiss_rig, ring_rig
 from kisscal.synth.motion import (
     STICK_LENGTH_MM,
     Motion,
@@ -172,7 +173,7 @@ class SynthPlan:
     """
 
     options: SynthOptions
-    rig: tuple[SynthCamera, ...]
+    rig: tuple[Camera, ...]
     rods: tuple[Rod, ...]
     trials: dict[str, Motion]
     marker_names: tuple[str, ...]
@@ -215,7 +216,7 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
     )
 
 
-def build_rig(options: SynthOptions) -> tuple[SynthCamera, ...]:
+def build_rig(options: SynthOptions) -> tuple[Camera, ...]:
     """The cameras of ``options.rig`` for ``options.seed``."""
     spec = options.rig
     if spec.layout == "kiss":
@@ -234,7 +235,7 @@ def build_rig(options: SynthOptions) -> tuple[SynthCamera, ...]:
 
 
 def marker_radius_mm(
-    rig: tuple[SynthCamera, ...], spec: RigSpec, bloom_px: float, samples: int = 9
+    rig: tuple[Camera, ...], spec: RigSpec, bloom_px: float, samples: int = 9
 ) -> float:
     """The marker radius that puts every marker image in the volume in ``spec``'s band.
 
@@ -293,7 +294,7 @@ def _with_wand(trials: dict[str, Motion], options: SynthOptions) -> dict[str, Mo
 
 
 def _hang_rods(
-    options: SynthOptions, rig: tuple[SynthCamera, ...], render: RenderParams
+    options: SynthOptions, rig: tuple[Camera, ...], render: RenderParams
 ) -> tuple[tuple[Rod, ...], int]:
     """Rods near the volume's vertical edges, re-hung until every camera sees them clear.
 

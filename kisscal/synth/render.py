@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import SynthCamera
+from kisscal.camera import Camera, distort, distortion_jacobian, normalised_to_px
 
 
 @dataclass(frozen=True)
@@ -335,7 +335,7 @@ def spot_sizes(
 
 
 def sphere_spots(
-    camera: SynthCamera,
+    camera: Camera,
     xyz_mm: NDArray[np.float64],
     radius_mm: float,
     peak: float | NDArray[np.float64],
@@ -351,10 +351,10 @@ def sphere_spots(
     xn = pc[:, :2] / pc[:, 2:3]
     dist = np.linalg.norm(pc, axis=1)
     rho = np.tan(np.arcsin(np.clip(radius_mm / dist, 0, 1)))
-    jac = camera.lens.jacobian(xn)  # (n, 2, 2)
+    jac = distortion_jacobian(camera.lens, xn)  # (n, 2, 2)
     focal = np.diag([camera.K[0, 0], camera.K[1, 1]])
     shape = (focal @ jac) * rho[:, None, None] + bloom_px * np.eye(2)
-    centre = camera.normalised_to_px(camera.lens.distort(xn))
+    centre = normalised_to_px(camera.K, distort(camera.lens, xn))
     return Spots(centre, shape, np.broadcast_to(np.asarray(peak, float), len(xyz_mm)).copy())
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import SynthCamera
+from kisscal.camera import Camera, distort, distortion_jacobian, normalised_to_px
 from kisscal.synth.motion import Motion
 from kisscal.synth.render import (
     RenderParams,
@@ -69,7 +69,7 @@ def segment_distance(p0: NDArray, p1: NDArray, q0: NDArray, q1: NDArray) -> NDAr
     return np.linalg.norm(closest_p - closest_q, axis=-1)
 
 
-def visibility(camera: SynthCamera, motion: Motion, margin_px: float = 3.0) -> NDArray[np.bool_]:
+def visibility(camera: Camera, motion: Motion, margin_px: float = 3.0) -> NDArray[np.bool_]:
     """Which markers ``camera`` sees in each field, shape (n_fields, n_markers).
 
     A marker is seen when it exists, lies in front of the camera and inside the image
@@ -149,7 +149,7 @@ def rod_set(
 # ------------------------------------------------------------------------- LED rings
 
 
-def led_spots(camera: SynthCamera, rig: Sequence[SynthCamera], params: RenderParams) -> Spots:
+def led_spots(camera: Camera, rig: Sequence[Camera], params: RenderParams) -> Spots:
     """The infrared LED rings of the other cameras that ``camera`` faces: large bright spots."""
     others = np.array([c.centre_mm for c in rig if c.id != camera.id])
     if len(others) == 0:
@@ -163,7 +163,7 @@ def led_spots(camera: SynthCamera, rig: Sequence[SynthCamera], params: RenderPar
 
 
 def rod_conflicts(
-    rig: Sequence[SynthCamera],
+    rig: Sequence[Camera],
     rods: Sequence[Rod],
     params: RenderParams,
     margin_px: float = 4.0,
@@ -200,7 +200,7 @@ def rod_conflicts(
 
 
 def rods_clear_of_leds(
-    rig: Sequence[SynthCamera], rods: Sequence[Rod], params: RenderParams, margin_px: float = 4.0
+    rig: Sequence[Camera], rods: Sequence[Rod], params: RenderParams, margin_px: float = 4.0
 ) -> bool:
     """True when no rod marker's image touches an LED ring's in any camera."""
     return rod_conflicts(rig, rods, params, margin_px) == 0
@@ -239,7 +239,7 @@ class GridView:
 
 
 def grid_view(
-    camera: SynthCamera,
+    camera: Camera,
     seed: int,
     rows: int = 15,
     cols: int = 20,
@@ -278,12 +278,12 @@ def grid_view(
     )
     pc = plane @ rot.T + offset  # camera frame
     xn = pc[:, :2] / pc[:, 2:3]
-    uv_ideal = camera.normalised_to_px(xn)
-    uv = camera.normalised_to_px(camera.lens.distort(xn))
+    uv_ideal = normalised_to_px(camera.K, xn)
+    uv = normalised_to_px(camera.K, distort(camera.lens, xn))
     # A flat dot of radius r on the (almost fronto-parallel) plane: angular radius r/z.
     radius_mm = dot_radius_px * depth_mm / camera.K[0, 0]
     rho = radius_mm / pc[:, 2]
-    jac = camera.lens.jacobian(xn)
+    jac = distortion_jacobian(camera.lens, xn)
     focal = np.diag([camera.K[0, 0], camera.K[1, 1]])
     normal = rot[:, 2]
     # foreshortening of the disc by the tilt, along the plane's tilt direction
@@ -324,7 +324,7 @@ def measure_sizes(
 
 
 def render_markers(
-    camera: SynthCamera,
+    camera: Camera,
     xyz_mm: NDArray[np.float64],
     visible: NDArray[np.bool_],
     leds: Spots,

@@ -29,7 +29,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import LensDistortion, SynthCamera, look_at
+from kisscal.camera import Camera
+from kisscal.synth.cameras import brown_lens, look_at
 from kisscal.synth.render import Spots, draw_spots
 
 TargetKind = Literal["planar", "stepped"]
@@ -60,7 +61,7 @@ def target_points(kind: TargetKind) -> tuple[NDArray[np.float64], NDArray[np.flo
     return np.concatenate(pts), np.asarray(surfaces, dtype=float)
 
 
-def target_rig(seed: int, n_cameras: int = 3) -> tuple[SynthCamera, ...]:
+def target_rig(seed: int, n_cameras: int = 3) -> tuple[Camera, ...]:
     """Cameras 1.6 to 2 m in front of the target, spread over +-40 degrees."""
     rng = np.random.default_rng([seed, 8080])
     w, h = _SIZE_PX
@@ -83,14 +84,12 @@ def target_rig(seed: int, n_cameras: int = 3) -> tuple[SynthCamera, ...]:
         )
         corner = np.hypot(w / 2, h / 2) / f
         k1 = -rng.uniform(4.0, 12.0) / (np.hypot(w / 2, h / 2) * corner**2)
-        lens = LensDistortion(
-            k1=k1, k2=rng.uniform(-0.2, 0.2) * abs(k1), p1=rng.uniform(-2e-4, 2e-4)
-        )
-        cams.append(SynthCamera(f"cam{i + 1}", (w, h), K, R, -R @ centre, lens))
+        lens = brown_lens(k1=k1, k2=rng.uniform(-0.2, 0.2) * abs(k1), p1=rng.uniform(-2e-4, 2e-4))
+        cams.append(Camera(K, R, -R @ centre, lens, f"cam{i + 1}", (w, h)))
     return tuple(cams)
 
 
-def dot_spots(camera: SynthCamera, xyz_mm: NDArray[np.float64], step_mm: float = 0.5) -> Spots:
+def dot_spots(camera: Camera, xyz_mm: NDArray[np.float64], step_mm: float = 0.5) -> Spots:
     """Image ellipses of flat round dots facing -Y: centre and local Jacobian of the view."""
     centre = camera.project(xyz_mm)
     ex = (camera.project(xyz_mm + [step_mm, 0, 0]) - centre) / step_mm
@@ -99,7 +98,7 @@ def dot_spots(camera: SynthCamera, xyz_mm: NDArray[np.float64], step_mm: float =
     return Spots(centre, shape, np.ones(len(xyz_mm)))
 
 
-def visible_dots(camera: SynthCamera, xyz_mm: NDArray[np.float64], margin_px: float = 8.0):
+def visible_dots(camera: Camera, xyz_mm: NDArray[np.float64], margin_px: float = 8.0):
     """Dots inside the image (with a margin) and facing the camera."""
     inside = camera.in_image(camera.project(xyz_mm), margin_px)
     facing = (camera.centre_mm[1] - xyz_mm[:, 1]) < 0  # the camera is on the -Y side
@@ -107,7 +106,7 @@ def visible_dots(camera: SynthCamera, xyz_mm: NDArray[np.float64], margin_px: fl
 
 
 def render_target(
-    camera: SynthCamera,
+    camera: Camera,
     xyz_mm: NDArray[np.float64],
     surfaces_mm: NDArray[np.float64],
     rng: np.random.Generator,
@@ -135,7 +134,7 @@ def render_target(
 
 
 def seed_points(
-    camera: SynthCamera,
+    camera: Camera,
     xyz_mm: NDArray[np.float64],
     rng: np.random.Generator,
     n: int = 6,
@@ -155,7 +154,7 @@ def seed_points(
     return uv, picked
 
 
-def truth_table(camera: SynthCamera, xyz_mm: NDArray[np.float64]) -> dict[str, Sequence]:
+def truth_table(camera: Camera, xyz_mm: NDArray[np.float64]) -> dict[str, Sequence]:
     """Every dot's true image position (distorted and ideal) and whether it is visible."""
     uv = camera.project(xyz_mm)
     ideal = camera.project_ideal(xyz_mm)

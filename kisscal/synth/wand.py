@@ -30,7 +30,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.synth.cameras import VOLUME_MM, SynthCamera
+from kisscal.camera import Camera
+from kisscal.synth.cameras import VOLUME_MM
 from kisscal.synth.motion import Motion
 from kisscal.synth.render import RenderParams, concat_spots, record, render_scene, sphere_spots
 from kisscal.synth.scene import led_spots
@@ -151,7 +152,7 @@ def wand_tables(config: dict, axes_mm: NDArray[np.float64], wand_only: bool) -> 
 
 
 def render_axes(
-    rig: Sequence[SynthCamera],
+    rig: Sequence[Camera],
     cam_index: int,
     axes_mm: NDArray[np.float64],
     params: RenderParams,

@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from kisscal._shared import rms_px
-from kisscal.bundle.camera import PinholeCamera
+from kisscal.camera import Camera
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
 from kisscal.dlt.params import DltParams
@@ -66,7 +66,7 @@ class TargetMatch:
         Index of each target point's dot, -1 where unmatched.
     visible : ndarray of bool, shape (n_target,)
         Target points the final camera projects inside the image.
-    camera : PinholeCamera
+    camera : Camera
         The camera fitted to every match (lens included).
     rms_px : float
         RMS reprojection residual of the matches (``sqrt(mean(du² + dv²))``).
@@ -83,7 +83,7 @@ class TargetMatch:
 
     dot: NDArray[np.int64]
     visible: NDArray[np.bool_]
-    camera: PinholeCamera
+    camera: Camera
     rms_px: float
     seed_rms_px: float
     iterations: int
@@ -135,7 +135,7 @@ class _Start:
     camera (refitted during the matching rounds)."""
 
     project: Projector
-    camera: PinholeCamera | None
+    camera: Camera | None
     seed_rms_px: float
 
 
@@ -237,11 +237,11 @@ def fit_camera(
     xyz: NDArray[np.float64],
     uv: NDArray[np.float64],
     size_px: tuple[int, int],
-    start: PinholeCamera | None = None,
+    start: Camera | None = None,
     params: TargetParams = DEFAULT_PARAMS,
     terms: tuple[str, ...] | None = None,
     dlt: DltParams = DLT_DEFAULTS,
-) -> PinholeCamera:
+) -> Camera:
     """A camera fitted to matched points: the pinhole plus ``terms``, or, with ``terms``
     left out, plus the terms the held-out points ask for
     (:func:`kisscal.target.resect.choose_camera`).
@@ -356,7 +356,7 @@ def _rounds(
     camera: str,
     params: TargetParams,
     dlt: DltParams,
-) -> tuple[NDArray[np.int64], int, PinholeCamera | None]:
+) -> tuple[NDArray[np.int64], int, Camera | None]:
     """Project, match and refit until the matches stop changing: the matches, the rounds
     run and the last camera (None for a flat target's homography)."""
     proj, cam = start.project, start.camera
@@ -410,7 +410,7 @@ def _lens_rounds(
     dots: NDArray,
     dot: NDArray,
     size_px: tuple[int, int],
-    cam: PinholeCamera | None,
+    cam: Camera | None,
     params: TargetParams,
     dlt: DltParams,
 ) -> tuple[CameraFit, NDArray[np.int64]]:
@@ -459,7 +459,7 @@ def drop_outliers(
     return out
 
 
-def _resected(xyz: NDArray, uv: NDArray, size_px: tuple[int, int]) -> PinholeCamera:
+def _resected(xyz: NDArray, uv: NDArray, size_px: tuple[int, int]) -> Camera:
     found = resect(xyz, uv, size_px)
     if not found:
         raise KisscalError(f"no camera fits the {len(xyz)} matched target points")

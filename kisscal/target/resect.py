@@ -37,9 +37,9 @@ Zhang, Z. (2000). A flexible new technique for camera calibration. IEEE PAMI 22(
 Example
 -------
 >>> import numpy as np
->>> from kisscal.bundle.camera import PinholeCamera
+>>> from kisscal.camera import Camera
 >>> K = np.array([[900.0, 0, 319.5], [0, 900.0, 239.5], [0, 0, 1]])
->>> true = PinholeCamera(K, np.eye(3), np.array([0.0, 0.0, 1000.0]), np.zeros(5))
+>>> true = Camera(K, np.eye(3), np.array([0.0, 0.0, 1000.0]), np.zeros(5))
 >>> xyz = np.array([[-100.0, -80, 0], [120, -60, 40], [90, 110, -30], [-70, 90, 60]])
 >>> best = resect(xyz, true.project(xyz), (640, 480))[0]
 >>> round(float(best.K[0, 0]), 3), bool(np.allclose(best.project(xyz), true.project(xyz)))
@@ -55,8 +55,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import rms_px
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, rotation_matrices
 from kisscal.bundle.model import State, project
+from kisscal.camera import LENS_TERMS, Camera, rotation_matrices
 from kisscal.dlt.linear import spread_ratio
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
 
@@ -85,7 +85,7 @@ class CameraFit:
 
     Attributes
     ----------
-    camera : PinholeCamera
+    camera : Camera
     terms : tuple of str
         The terms beyond the pinhole that the held-out points asked for (keys of
         :data:`TERM_SIZES`).
@@ -94,7 +94,7 @@ class CameraFit:
         (``pinhole``, ``+principal_point`` ...); empty when the terms were given.
     """
 
-    camera: PinholeCamera
+    camera: Camera
     terms: tuple[str, ...]
     held_out_px: dict[str, float]
 
@@ -110,7 +110,7 @@ _LM_ITERATIONS = 100
 _LM_TOLERANCE = 1e-6
 
 
-def _pinhole_reset(cam: PinholeCamera, terms: tuple[str, ...], centre: NDArray) -> PinholeCamera:
+def _pinhole_reset(cam: Camera, terms: tuple[str, ...], centre: NDArray) -> Camera:
     """``cam`` with every term it does not free at the pinhole's value (principal point at
     the image centre, square pixels, no skew, no lens)."""
     K = cam.K.copy()
@@ -125,11 +125,11 @@ def _pinhole_reset(cam: PinholeCamera, terms: tuple[str, ...], centre: NDArray) 
             keep[LENS_TERMS.index(term)] = True
         elif term == "p1p2":
             keep[2:4] = True
-    return PinholeCamera(K, cam.R, cam.t, np.where(keep, cam.lens, 0.0))
+    return Camera(K, cam.R, cam.t, np.where(keep, cam.lens, 0.0))
 
 
 def _linearised(
-    cam: PinholeCamera, xyz: NDArray, uv: NDArray, terms: tuple[str, ...]
+    cam: Camera, xyz: NDArray, uv: NDArray, terms: tuple[str, ...]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Residuals (projected - observed, flattened) and their Jacobian by the increments
     of log focal length, rotation (left increment), translation and the free terms."""
@@ -143,7 +143,7 @@ def _linearised(
     return (proj - uv).ravel(), np.concatenate(cols, axis=2).reshape(2 * len(xyz), -1)
 
 
-def _moved(cam: PinholeCamera, step: NDArray[np.float64], terms: tuple[str, ...]) -> PinholeCamera:
+def _moved(cam: Camera, step: NDArray[np.float64], terms: tuple[str, ...]) -> Camera:
     """The camera after an increment (see :func:`_linearised`)."""
     K = cam.K.copy()
     K[0, 0] *= np.exp(step[0])
@@ -160,7 +160,7 @@ def _moved(cam: PinholeCamera, step: NDArray[np.float64], terms: tuple[str, ...]
         else:
             lens[[c - 11 for c in _TERM_COLUMNS[term]]] += d
         i += len(d)
-    return PinholeCamera(K, R, cam.t + step[4:7], lens)
+    return Camera(K, R, cam.t + step[4:7], lens)
 
 
 def n_unknowns(terms: tuple[str, ...]) -> int:
@@ -168,7 +168,7 @@ def n_unknowns(terms: tuple[str, ...]) -> int:
     return 7 + sum(TERM_SIZES[t] for t in terms)
 
 
-def in_front(cam: PinholeCamera, xyz: NDArray[np.float64]) -> bool:
+def in_front(cam: Camera, xyz: NDArray[np.float64]) -> bool:
     """True when every point lies in front of the camera."""
     return bool(np.all(xyz @ cam.R[2] + cam.t[2] > 0))
 
@@ -176,10 +176,10 @@ def in_front(cam: PinholeCamera, xyz: NDArray[np.float64]) -> bool:
 def refine(
     xyz_mm: ArrayLike,
     uv_px: ArrayLike,
-    start: PinholeCamera,
+    start: Camera,
     size_px: tuple[int, int],
     terms: tuple[str, ...] = (),
-) -> PinholeCamera:
+) -> Camera:
     """The camera with ``terms`` free that fits the points best, from ``start``.
 
     Levenberg-Marquardt on the reprojection error (px) with the analytic Jacobian of
@@ -261,7 +261,7 @@ def _opencv_pnp(
     return [(r, t) for r, t in poses if np.all(np.isfinite(r)) and np.all(np.isfinite(t))]
 
 
-def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> list[PinholeCamera]:
+def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> list[Camera]:
     """Every distinct pinhole camera (principal point at the image centre, square pixels,
     no lens) that fits the points, best first.
 
@@ -276,7 +276,7 @@ def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> lis
 
     Returns
     -------
-    list of PinholeCamera
+    list of Camera
         Cameras with every point in front, sorted by RMS reprojection error; two cameras
         are distinct when they differ by more than a degree in direction or 2 % in focal
         length. Empty when no start converges.
@@ -289,11 +289,11 @@ def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> lis
     for f in _FOCAL_LADDER * float(np.hypot(*size_px)):
         K = np.array([[f, 0.0, centre[0]], [0.0, f, centre[1]], [0.0, 0.0, 1.0]])
         for rvec, tvec in _pnp(xyz, uv, K, near_flat):
-            cam = PinholeCamera(K, cv2.Rodrigues(rvec)[0], tvec, np.zeros(len(LENS_TERMS)))
+            cam = Camera(K, cv2.Rodrigues(rvec)[0], tvec, np.zeros(len(LENS_TERMS)))
             if in_front(cam, xyz):
                 starts.append((rms_px(cam.project(xyz) - uv), cam))
     starts.sort(key=lambda s: s[0])
-    found: list[tuple[float, PinholeCamera]] = []
+    found: list[tuple[float, Camera]] = []
     for _, start in starts[:_REFINED_STARTS]:
         cam = refine(xyz, uv, start, size_px)
         if in_front(cam, xyz) and not any(_same(cam, other) for _, other in found):
@@ -301,7 +301,7 @@ def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> lis
     return [cam for _, cam in sorted(found, key=lambda s: s[0])]
 
 
-def _same(a: PinholeCamera, b: PinholeCamera) -> bool:
+def _same(a: Camera, b: Camera) -> bool:
     """Two cameras within a degree of direction and 2 % of focal length."""
     cos = np.clip((np.trace(a.R.T @ b.R) - 1.0) / 2.0, -1.0, 1.0)
     return bool(np.degrees(np.arccos(cos)) < 1.0 and abs(np.log(a.K[0, 0] / b.K[0, 0])) < 0.02)
@@ -327,7 +327,7 @@ def model_name(terms: tuple[str, ...]) -> str:
 
 
 def held_out_rms(
-    xyz: NDArray[np.float64], uv: NDArray[np.float64], cam: PinholeCamera, terms: tuple[str, ...]
+    xyz: NDArray[np.float64], uv: NDArray[np.float64], cam: Camera, terms: tuple[str, ...]
 ) -> float:
     """Leave-one-point-out RMS reprojection error (px) of a fitted camera.
 
@@ -360,7 +360,7 @@ def choose_camera(
     xyz_mm: ArrayLike,
     uv_px: ArrayLike,
     size_px: tuple[int, int],
-    start: PinholeCamera,
+    start: Camera,
     planar: bool,
     params: TargetParams = DEFAULT_PARAMS,
 ) -> CameraFit:

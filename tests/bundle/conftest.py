@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from kisscal.bundle.wand import BlobTable
-from kisscal.synth.cameras import SynthCamera, kiss_rig
+from kisscal.camera import Camera
+from kisscal.synth.cameras import kiss_rig
 from kisscal.synth.motion import Motion
 from kisscal.synth.scene import visibility
 from kisscal.synth.wand import WAND_MARKERS_MM, wand_trial
@@ -16,7 +17,7 @@ from kisscal.synth.wand import WAND_MARKERS_MM, wand_trial
 
 @dataclass(frozen=True)
 class WandScene:
-    rig: tuple[SynthCamera, ...]
+    rig: tuple[Camera, ...]
     motion: Motion
     markers_mm: tuple[float, ...]
 

@@ -11,8 +11,8 @@ from kisscal.bundle.adjust import (
     adjust_bundle,
     centred_offsets,
 )
-from kisscal.bundle.camera import PinholeCamera
 from kisscal.bundle.params import BundleParams
+from kisscal.camera import Camera
 from kisscal.synth.scene import rod_set, visibility
 from tests.bundle.conftest import scene
 
@@ -40,7 +40,7 @@ def _problem(n_fields: int, noise_px: float, n_cameras: int = 4, seed: int = 1):
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     truth = WandPoses(0.5 * (xyz[:, 0] + xyz[:, 2]), d)
     pts = np.concatenate([r.points_mm for r in rod_set(seed)])
-    cams = [PinholeCamera(c.K, c.R, c.t, np.zeros(5)) for c in s.rig]
+    cams = [Camera(c.K, c.R, c.t, np.zeros(5)) for c in s.rig]
     ctrl = ControlPoints(
         np.repeat(np.arange(n_cameras), len(pts)),
         np.tile(pts, (n_cameras, 1)),
@@ -54,7 +54,7 @@ def _perturbed(cams, rng, focal=0.01, shift_mm=20.0):
     out = []
     for c in cams:
         K = c.K * np.array([[1 + focal, 1, 1], [1, 1 - focal, 1], [1, 1, 1]])
-        out.append(PinholeCamera(K, c.R, c.t + rng.normal(0, shift_mm, 3), c.lens))
+        out.append(Camera(K, c.R, c.t + rng.normal(0, shift_mm, 3), c.lens))
     return tuple(out)
 
 

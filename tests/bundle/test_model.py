@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kisscal.bundle.camera import PinholeCamera
 from kisscal.bundle.model import State, project, wand_jacobian, wand_points
+from kisscal.camera import Camera
 from kisscal.synth.cameras import kiss_rig
 
 
@@ -15,7 +15,7 @@ def _state() -> State:
     for c in kiss_rig(1)[:3]:
         K = c.K.copy()
         K[0, 1] = 1.5
-        cams.append(PinholeCamera(K, c.R, c.t, np.array([-0.2, 0.05, 1e-3, -2e-3, 0.02])))
+        cams.append(Camera(K, c.R, c.t, np.array([-0.2, 0.05, 1e-3, -2e-3, 0.02])))
     d = rng.normal(size=(4, 3))
     return State.of(tuple(cams), rng.uniform(-500, 500, (4, 3)) + [0, 0, 1000], d)
 

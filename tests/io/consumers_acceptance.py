@@ -69,7 +69,7 @@ def observations_by_point(
         rig = Rig.load(root)
         for i, c in enumerate(cameras):
             seen = np.isfinite(dense[i, :, 0])
-            dense[i, seen] = rig.camera(c).project_raw(p3.xyz_mm[seen])
+            dense[i, seen] = rig.camera(c).project(p3.xyz_mm[seen])
     return p3, dense
 
 

@@ -179,7 +179,7 @@ def static_target(root: Path) -> None:
     """A one-field trial: 200 points of a static target, as each camera's raw centroids."""
     import json
 
-    from kisscal.synth.cameras import SynthCamera
+    from kisscal.synth.cameras import camera_from_truth
 
     rng = np.random.default_rng(7)
     grid = np.stack(np.meshgrid(*(np.linspace(-0.8, 0.8, k) for k in (8, 5, 5))), -1)
@@ -187,7 +187,7 @@ def static_target(root: Path) -> None:
     xyz += rng.normal(0.0, 25.0, xyz.shape)  # a hand-built target, not a perfect lattice
     cams = json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
     text = {}
-    for cam in map(SynthCamera.from_dict, cams):
+    for cam in map(camera_from_truth, cams):
         uv = cam.project(xyz)
         text[cam.id] = "field,x_px,y_px\n" + "".join(f"0,{u:.3f},{v:.3f}\n" for u, v in uv)
     centroid_trial(text.__getitem__)(root)

@@ -39,7 +39,7 @@ def projection_table(root: Path) -> list[str]:
             xyz.reshape(-1, 1, 3),
             *(np.array(c[k]) for k in ("rotation", "translation", "matrix", "distortions")),
         )
-        mine = cam.project_raw(xyz)
+        mine = cam.project(xyz)
         w, h = cam.size_px
         ok = (
             (mine[:, 0] > -0.5)

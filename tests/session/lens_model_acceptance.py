@@ -34,10 +34,11 @@ from typing import Any
 import numpy as np
 
 from kisscal import session
+from kisscal.camera import Camera
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.rig import Rig
 from kisscal.session.params import Overrides
-from kisscal.synth.cameras import SynthCamera
+from kisscal.synth.cameras import camera_from_truth
 from kisscal.synth.presets import synth_options
 from tests.wand.scoring import volume_points
 
@@ -95,7 +96,7 @@ def real_error(root: Path, truth: dict[int, np.ndarray], odd: dict[str, dict]) -
         for i, uv in odd[cam.id].items():
             cams.append(c)
             pts.append(pos[i])
-            uvs.append(cam.linearise(uv[None])[0])
+            uvs.append(cam.undistort_px(uv[None])[0])
     tri = triangulate_observations(rig.dlts, np.array(pts), np.array(cams), np.array(uvs), len(ids))
     seen = np.bincount(pts, minlength=len(ids)) >= 2
     err = np.linalg.norm(tri.xyz_mm - np.array([truth[i] for i in ids]), axis=1)[seen]
@@ -130,7 +131,7 @@ def measure_real(work: Path, folder: Path = REAL) -> None:
 def volume_errors(root: Path, preset: str, seed: int, rig: Rig | None = None) -> dict[str, float]:
     """RMS 3D error (mm) of held-out lab points inside the volume and at its edges."""
     truth = [
-        SynthCamera.from_dict(c)
+        camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
     ]
     rig = rig or Rig.load(root)
@@ -153,9 +154,9 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     back = []
     for cam in rig.cameras:
         L, lin, _ = camera_from_opencv(cvs[cam.id])
-        back.append(type(cam)(cam.id, L, lin, None, cam.size_px))
+        back.append(Camera.from_dlt(L, cam.id, lin, None, cam.size_px))
     truth = [
-        SynthCamera.from_dict(c)
+        camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
     ]
     xyz = np.concatenate(volume_points(synth_options(preset, seed).rig.volume_mm, seed=7))
@@ -163,14 +164,14 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     return float(np.nanmedian(np.linalg.norm(diff, axis=1)))
 
 
-def _vectors(truth: list[SynthCamera], rig: Rig, xyz: np.ndarray) -> np.ndarray:
+def _vectors(truth: list[Camera], rig: Rig, xyz: np.ndarray) -> np.ndarray:
     cams, pts, uvs = [], [], []
     for c, (t, cam) in enumerate(zip(truth, rig.cameras, strict=True)):
         uv = t.project(xyz)
         seen = t.in_image(uv, 2.0) & (t.depth_mm(xyz) > 0)
         cams.append(np.full(int(seen.sum()), c))
         pts.append(np.flatnonzero(seen))
-        uvs.append(cam.linearise(uv[seen]))
+        uvs.append(cam.undistort_px(uv[seen]))
     tri = triangulate_observations(
         rig.dlts, np.concatenate(pts), np.concatenate(cams), np.concatenate(uvs), len(xyz)
     )

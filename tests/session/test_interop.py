@@ -109,7 +109,7 @@ def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(origin
             np.array(c["matrix"]),
             np.array(c["distortions"]),
         )
-        mine = cam.project_raw(xyz)
+        mine = cam.project(xyz)
         w, h = cam.size_px
         inside = (mine[:, 0] > -0.5) & (mine[:, 0] < w - 0.5)
         inside &= (mine[:, 1] > -0.5) & (mine[:, 1] < h - 0.5)
@@ -128,7 +128,7 @@ def test_dltdv_csv_in_dltdv8_pixels_matches_linearised_projection(original: Path
         c = coefs[:, i]
         den = xyz @ c[8:11] + 1  # DLTdv8's dlt_inverse, first pixel's centre at (1, 1)
         uv8 = np.column_stack([xyz @ c[0:3] + c[3], xyz @ c[4:7] + c[7]]) / den[:, None]
-        np.testing.assert_allclose(uv8 - 1, cam.project(xyz), atol=1e-6)
+        np.testing.assert_allclose(uv8 - 1, cam.project_ideal(xyz), atol=1e-6)
     exports = (original / "out" / "exports.json").read_text()
     assert "DLTdv8" in exports and "corners_px" in exports
 
@@ -200,7 +200,7 @@ def test_points2d_holds_the_observations_each_point_was_triangulated_from(origin
     cam = np.array([rig.index(c) for c in p2.camera[used]])
     uv = np.zeros((used.sum(), 2))
     for c, camera in enumerate(rig):
-        uv[cam == c] = camera.linearise(p2.xy_px[used][cam == c])
+        uv[cam == c] = camera.undistort_px(p2.xy_px[used][cam == c])
     tri = rig.triangulate(cam, uv, p2.point[used])
     np.testing.assert_allclose(tri.xyz_mm, p3.xyz_mm, atol=1e-3)  # points3d.csv: 4 decimals
 

@@ -146,5 +146,5 @@ def test_rig_load_gives_the_written_calibration(processed: Path) -> None:
     rig = Rig.load(processed)
     for cam in rig:
         written = read_dlt_json(processed / "out" / "dlt" / f"{cam.id}.json")
-        assert np.array_equal(cam.L, written.L)
+        assert np.array_equal(cam.dlt, written.L)
         assert cam.linearisation is not None and cam.size_px is not None

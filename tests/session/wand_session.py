@@ -15,17 +15,18 @@ import cv2
 import numpy as np
 import tomli_w
 
+from kisscal.camera import Camera
 from kisscal.io.config import load_toml
 from kisscal.io.files import write_table
-from kisscal.synth.cameras import SynthCamera
+from kisscal.synth.cameras import camera_from_truth
 from kisscal.synth.render import RenderParams
 from kisscal.synth.scene import visibility
 from kisscal.synth.wand import AXES_POINTS_MM, WAND_MARKERS_MM, render_axes, wand_trial
 
 
-def truth_rig(root: Path) -> tuple[SynthCamera, ...]:
+def truth_rig(root: Path) -> tuple[Camera, ...]:
     doc = json.loads((root / "truth" / "cameras.json").read_text())
-    return tuple(SynthCamera.from_dict(c) for c in doc["cameras"])
+    return tuple(camera_from_truth(c) for c in doc["cameras"])
 
 
 def add_wand_trial(

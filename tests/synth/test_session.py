@@ -13,14 +13,15 @@ import numpy as np
 import pytest
 
 from kisscal import session
+from kisscal.camera import Camera
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table
-from kisscal.synth.cameras import SynthCamera
+from kisscal.synth.cameras import camera_from_truth
 
 
-def cameras(root: Path) -> dict[str, SynthCamera]:
+def cameras(root: Path) -> dict[str, Camera]:
     data = json.loads((root / "truth" / "cameras.json").read_text())
-    return {c["id"]: SynthCamera.from_dict(c) for c in data["cameras"]}
+    return {c["id"]: camera_from_truth(c) for c in data["cameras"]}
 
 
 def image(path: Path) -> np.ndarray:

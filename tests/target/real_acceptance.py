@@ -82,7 +82,7 @@ def camera_rows(root: Path, data: Path, n_seeds: int, seconds: float) -> list[di
     for cam in CAMERAS:
         v = view(data, cam)
         written = json.loads((root / "out" / "dlt" / f"{cam}.json").read_text())
-        on_ptv = rig[cam].project_raw(v.xyz_mm) - v.uv_px
+        on_ptv = rig[cam].project(v.xyz_mm) - v.uv_px
         dlt = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(), cam)
         try:
             dlt_lens = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(lens=True), cam).rms_px

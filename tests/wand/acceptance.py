@@ -19,12 +19,6 @@ import time
 import numpy as np
 
 from kisscal.bundle.adjust import ControlPoints, WandObservations
-from kisscal.bundle.camera import (
-    PinholeCamera,
-    camera_from_dlt,
-    camera_linearisation,
-    undistort_px,
-)
 from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import (
     end_to_end_mm,
@@ -38,9 +32,10 @@ from kisscal.bundle.wand import (
     calibrate_on_control,
     calibrate_wand_alone,
 )
+from kisscal.camera import Camera, camera_linearisation
 from kisscal.dlt import calibrate_camera, leave_one_rod_out, make_rods
 from kisscal.grid import GridParams, apply_linearisation, linearise_dots
-from kisscal.synth.cameras import VOLUME_MM, SynthCamera, kiss_rig
+from kisscal.synth.cameras import VOLUME_MM, kiss_rig
 from kisscal.synth.plan import build_rig
 from kisscal.synth.presets import synth_options
 from kisscal.synth.scene import grid_view, rod_set, visibility
@@ -51,7 +46,7 @@ from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volum
 NOISE_PX = 0.05
 
 
-def _grid(cam: SynthCamera, seed: int, noise_px: float):
+def _grid(cam: Camera, seed: int, noise_px: float):
     """The camera's grid linearisation, fitted by the grid stage to its 300 dots."""
     view = grid_view(cam, seed)
     rng = np.random.default_rng([seed, 17])
@@ -76,16 +71,16 @@ def _rods(rig, lins, seed: int, noise_px: float):
         np.concatenate(uv),
         np.tile(np.repeat(np.arange(len(rods)), 6), len(rig)),
     )
-    starts = [camera_from_dlt(calibrate_camera(pts, u).L) for u in uv]
+    starts = [Camera.from_dlt(calibrate_camera(pts, u).L) for u in uv]
     muv = np.stack([u.reshape(len(rods), 6, 2) for u in uv])
     kits = make_rods([(r.name, r.points_mm) for r in rods])
     return control, starts, leave_one_rod_out(muv, kits).overall_mean_mm
 
 
-def _ideal_of(cam: PinholeCamera, lin=None):
+def _ideal_of(cam: Camera, lin=None):
     if lin is None:
-        return lambda uv: undistort_px(cam, uv)
-    return lambda uv: undistort_px(cam, apply_linearisation(lin, uv))
+        return cam.undistort_px
+    return lambda uv: cam.undistort_px(apply_linearisation(lin, uv))
 
 
 def wand_on_rods(seed: int, fields: int, noise_px: float = NOISE_PX) -> dict:
@@ -139,7 +134,7 @@ def _length_floor(rig, s: WandScene, seed: int, noise_px: float) -> dict:
         uv = cam.project_ideal(s.motion.xyz_mm[f, m]) + rng.normal(0, noise_px, (len(f), 2))
         rows.append((f, np.full(len(f), c), m, uv))
     obs = WandObservations(*(np.concatenate([r[i] for r in rows]) for i in range(4)))
-    true_cams = tuple(PinholeCamera(c.K, c.R, c.t, np.zeros(5)) for c in rig)
+    true_cams = tuple(Camera(c.K, c.R, c.t, np.zeros(5)) for c in rig)
     xyz = wand_markers(true_cams, obs, s.motion.n_fields, 3)
     return length_figures(end_to_end_mm(xyz, WAND_MARKERS_MM), 500.0)
 

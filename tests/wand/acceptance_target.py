@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kisscal.bundle.camera import PinholeCamera, camera_from_dlt
 from kisscal.bundle.quality import triangulate_points
+from kisscal.camera import Camera
 from kisscal.dlt import calibrate_camera
 from kisscal.synth.target import render_target, seed_points, target_points, target_rig
 from kisscal.target.dots import find_target_dots
@@ -64,13 +64,13 @@ def target_case(kind: str, seed: int) -> dict:
         start = (
             None
             if is_planar(xyz)
-            else camera_from_dlt(calibrate_camera(xyz[~held], clicks[~held]).L)
+            else Camera.from_dlt(calibrate_camera(xyz[~held], clicks[~held]).L)
         )
         hand.append(fit_camera(xyz[~held], clicks[~held], cam.size_px, start))
         if not is_planar(xyz):
             L = calibrate_camera(xyz[~held], clicks[~held]).L
-            dlt.append(camera_from_dlt(L))
-    plain = [PinholeCamera(c.K, c.R, c.t, np.zeros(5)) for c in dlt]
+            dlt.append(Camera.from_dlt(L))
+    plain = [Camera(c.K, c.R, c.t, np.zeros(5)) for c in dlt]
     return {
         "kind": kind,
         "seed": seed,

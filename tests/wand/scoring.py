@@ -18,8 +18,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.frame import similarity
+from kisscal.camera import Camera
 from kisscal.dlt.triangulate import triangulate_observations
-from kisscal.synth.cameras import SynthCamera
 
 Undistort = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -39,7 +39,7 @@ def volume_points(
 
 
 def rmse_mm(
-    truth: Sequence[SynthCamera],
+    truth: Sequence[Camera],
     ideal: Sequence[Undistort],
     dlts: NDArray[np.float64],
     xyz_mm: NDArray[np.float64],
@@ -72,7 +72,7 @@ def rmse_mm(
 
 
 def centre_errors_mm(
-    estimated: NDArray[np.float64], truth: Sequence[SynthCamera], rigid: bool = False
+    estimated: NDArray[np.float64], truth: Sequence[Camera], rigid: bool = False
 ) -> NDArray[np.float64]:
     """Distance of each estimated projection centre from the true one (optionally after the
     best rigid motion, for calibrations in an arbitrary frame)."""
@@ -84,7 +84,7 @@ def centre_errors_mm(
     return np.linalg.norm(est - true, axis=1)
 
 
-def corner_error_px(truth: SynthCamera, correction: Undistort, samples: int = 31) -> float:
+def corner_error_px(truth: Camera, correction: Undistort, samples: int = 31) -> float:
     """Largest error (px) of a lens correction at the four image corners, after the best
     homography between it and the true correction over the image."""
     w, h = truth.size_px

@@ -75,7 +75,7 @@ def imported_linearisation(
         )
     _L, lin, rms = camera_from_opencv(cv)
     doc = linearisation_to_dict(lin, cam.id)
-    doc["source"] = f"{path.name}: OpenCV distortions = {cv.distortions.tolist()}"
+    doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
     doc["fit_rms_px"] = rms  # polynomial vs OpenCV's undistortion over the image
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, json.dumps(doc, indent=2) + "\n")

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera, camera_linearisation
+from kisscal.camera import LENS_TERMS, Camera, camera_linearisation
 from kisscal.dlt import DltParams, DltResult, decompose_dlt, project, solve_dlt
 from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.linear import spread_ratio
@@ -51,7 +51,7 @@ def grid_document(path: Path, has_grid: bool) -> dict[str, Any] | None:
 def _fold_lens(
     lin_path: Path,
     cfg: CameraConfig,
-    camera: PinholeCamera,
+    camera: Camera,
     route: str,
     before: Linearisation | None,
     grid_doc: dict[str, Any] | None,
@@ -85,7 +85,7 @@ def _fold_lens(
 def write_lens_camera(
     inputs: RouteInputs,
     cfg: CameraConfig,
-    camera: PinholeCamera,
+    camera: Camera,
     route: str,
     points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
     iterations: int,

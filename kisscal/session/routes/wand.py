@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 
 from kisscal.bundle.adjust import ControlPoints
-from kisscal.bundle.camera import camera_from_dlt
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import leave_one_group_out
@@ -32,6 +31,7 @@ from kisscal.bundle.wand import (
     calibrate_on_control,
     calibrate_wand_alone,
 )
+from kisscal.camera import Camera
 from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.errors import KisscalError
 from kisscal.grid import apply_linearisation
@@ -155,7 +155,7 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
         np.concatenate(uv),
         np.concatenate(group).astype(np.int64),
     )
-    start = [camera_from_dlt(rod_cal.results[c].L) for c in ids]
+    start = [Camera.from_dlt(rod_cal.results[c].L) for c in ids]
     inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
     wand = wand_params(inputs)
     sizes = [c.size_px for c in config.cameras]

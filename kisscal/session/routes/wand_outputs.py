@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from kisscal.bundle.adjust import WandPoses, centred_offsets
-from kisscal.bundle.camera import LENS_TERMS, PinholeCamera
 from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import (
     camera_figures,
@@ -26,6 +25,7 @@ from kisscal.bundle.quality import (
     wand_markers,
 )
 from kisscal.bundle.wand import AxesFrame, WandCalibration
+from kisscal.camera import LENS_TERMS, Camera
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
@@ -116,7 +116,7 @@ def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
             write_json(store.linearisation_path(cam.id), doc["refined"]["grid_fit"])
 
 
-def _camera_entry(cam: PinholeCamera, per_cam: Any, c: int) -> dict[str, Any]:
+def _camera_entry(cam: Camera, per_cam: Any, c: int) -> dict[str, Any]:
     entry = {
         "rms_px": float(per_cam.rms_px[c]),
         "points": int(per_cam.points[c]),
@@ -191,7 +191,7 @@ def _checks(
 def _write_cameras(
     inputs: RouteInputs,
     cal: WandCalibration,
-    cameras: Sequence[PinholeCamera],
+    cameras: Sequence[Camera],
     frame: AxesFrame | None,
 ) -> None:
     """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
@@ -262,7 +262,7 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
 def _figures(
     inputs: RouteInputs,
     cal: WandCalibration,
-    cameras: Sequence[PinholeCamera],
+    cameras: Sequence[Camera],
     frame: AxesFrame | None,
     per_cam: Any,
     lengths: np.ndarray,
