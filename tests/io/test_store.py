@@ -9,10 +9,11 @@ import shutil
 import numpy as np
 import pytest
 
+from kisscal.camera import Camera
 from kisscal.errors import KisscalError
 from kisscal.grid.poly import LinearisationQuality, identity_linearisation
 from kisscal.io.store import SessionStore
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 
 
 def test_layout_is_the_public_contract(tmp_path):
@@ -82,10 +83,11 @@ def test_a_rig_is_keyed_by_its_dlts_lenses_and_linearisations(tmp_path):
     store = SessionStore(tmp_path)
     L = np.arange(1.0, 12.0)
     lin = identity_linearisation((320.0, 240.0), 320.0)
-    rig = Rig((Camera("cam1", L, lin),))
-    assert store.key(rig) == store.key(Rig((Camera("cam1", L.copy(), lin, size_px=(640, 480)),)))
-    assert store.key(rig) != store.key(Rig((Camera("cam1", L + 1e-9, lin),)))
-    assert store.key(rig) != store.key(Rig((Camera("cam1", L, lin, np.ones(5)),)))
+    rig = Rig((Camera.from_dlt(L, "cam1", lin),))
+    same = Camera.from_dlt(L.copy(), "cam1", lin, size_px=(640, 480))
+    assert store.key(rig) == store.key(Rig((same,)))
+    assert store.key(rig) != store.key(Rig((Camera.from_dlt(L + 1e-9, "cam1", lin),)))
+    assert store.key(rig) != store.key(Rig((Camera.from_dlt(L, "cam1", lin, np.ones(5)),)))
 
 
 def test_an_output_is_current_only_for_the_key_it_was_written_for(tmp_path):
