@@ -202,6 +202,72 @@ def rigid_fill(
     return np.einsum("nij,nj->ni", r, here) + t, tuple(int(d) for d in donors)
 
 
+#: Two-marker fill: largest cosine between the markers' axis and the lab direction that
+#: settles the frame's turn about it (a foot pitching at toe-off swings its axis up).
+AXIS_MAX_COS = 0.7
+
+
+def _axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
+    """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
+    and whose third is square to it and to the lab direction ``ref`` (a frame of two
+    markers; its turn about their axis follows the lab)."""
+    u = toward - origin
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(u, ref)
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    return np.stack([u, np.cross(w, u), w], axis=2)
+
+
+def axis_fill(
+    target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
+    """Fill fields [lo, hi) of ``target`` from the two markers that keep their distances
+    to it and to each other best (SD over the trial at most ``rigid_fill_sd_mm``: its
+    segment's), measured through the gap: the target's position in their frame
+    (:func:`_axis_frames`) is averaged over each side and drifts linearly across the gap.
+    A segment with two markers in view (the pelvis when one of its three is hidden too, a
+    shank) turns little about their axis, which rigid-body fill needs three markers for."""
+    before, after = _windows(target, lo, hi, params.body_context_fields)
+    if before.size < 2 or after.size < 2:
+        return None
+    through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
+    through[exclude] = False
+    cand = np.flatnonzero(through)
+    near = np.all(np.isfinite(dense[cand]), axis=2)
+    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
+    if cand.size < 2:
+        return None
+    to_target = _distance_sd(dense[cand], target[None])[:, 0]
+    order = np.argsort(to_target)[:2]
+    pair = cand[order]
+    limit = params.rigid_fill_sd_mm
+    if (
+        to_target[order].max() > limit
+        or _distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
+    ):
+        return None
+    axis = dense[pair[1], lo:hi] - dense[pair[0], lo:hi]
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    ref = np.eye(3)[int(np.argmin(np.abs(axis.mean(axis=0))))]  # the lab axis least along it
+    if np.abs(axis @ ref).max() > AXIS_MAX_COS:
+        return None  # the axis turns towards the lab direction: the frame's turn is lost
+    local = []
+    for side in (before, after):
+        ok = np.all(np.isfinite(dense[pair][:, side]), axis=(0, 2))
+        if ok.sum() < 2:
+            return None
+        f = side[ok]
+        r = _axis_frames(dense[pair[0], f], dense[pair[1], f], ref)
+        here = np.einsum("nji,nj->ni", r, target[f] - dense[pair[0], f])
+        if np.sqrt(np.sum(here.var(axis=0))) > params.rigid_fill_sd_mm:
+            return None  # the frame does not hold the target still beside the gap
+        local.append(here.mean(axis=0))
+    r = _axis_frames(dense[pair[0], lo:hi], dense[pair[1], lo:hi], ref)
+    w = _ramp(lo, hi)[:, None]
+    here = local[0] * (1 - w) + local[1] * w
+    return np.einsum("nij,nj->ni", r, here) + dense[pair[0], lo:hi], tuple(int(d) for d in pair)
+
+
 def pattern_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
@@ -255,26 +321,28 @@ def spline_fill(
 
 
 def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[int, int]]:
-    """Stretches of ``target``'s measured samples of the gap's length (shorter when the
-    measured runs beside the gap are short, at least 3 fields), with ``margin`` measured
-    fields on each side, nearest the gap: where a fill is tried against measurement."""
+    """Stretches of ``target``'s measured samples, with ``margin`` measured fields on each
+    side, where a fill is tried against measurement: two of the gap's length, in the
+    measured runs nearest the gap (beside it, or farther in the trial when the runs beside
+    it are too short: a shorter stretch, its error scaled up, tells less); failing those,
+    the nearest shorter ones (at least 3 fields)."""
     ok = np.all(np.isfinite(target), axis=1)
     padded = np.concatenate([[False], ok, [False]]).astype(np.int8)
     d = np.diff(padded)
     starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
     n = hi - lo
-    out = []
+    whole, short = [], []
     for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
         room = b - a - 2 * margin
-        if room < 3:
+        if room < 3 or (lo < b and a < hi):
             continue
         length = min(n, room)
-        if b <= lo:  # the run before the gap: the stretch just before its last margin
-            out.append((b - margin - length, b - margin))
-        elif a >= hi:
-            out.append((a + margin, a + margin + length))
-    near = sorted(out, key=lambda s: min(abs(s[0] - lo), abs(s[1] - hi)))
-    return near[:2]
+        # the stretch nearest the gap within the run
+        s = (b - margin - length, b - margin) if b <= lo else (a + margin, a + margin + length)
+        distance = lo - s[1] if b <= lo else s[0] - hi
+        (whole if length == n else short).append((distance, s))
+    ranked = sorted(whole) + sorted(short)
+    return [s for _, s in ranked[:2]]
 
 
 def expected_error(
@@ -308,6 +376,7 @@ def expected_error(
 #: gap does not tell (a 7-field heel gap: 3 mm expected, 16 mm true).
 BODY_METHODS: tuple[tuple[int, FillMethod], ...] = (
     (FILLED_RIGID, rigid_fill),
+    (FILLED_RIGID, axis_fill),
     (FILLED_PATTERN, pattern_fill),
 )
 

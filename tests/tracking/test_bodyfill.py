@@ -17,7 +17,7 @@ from kisscal.tracking import (
     fill_gaps,
     is_filled,
 )
-from kisscal.tracking.bodyfill import body_fill, pattern_fill, rigid_fill
+from kisscal.tracking.bodyfill import axis_fill, body_fill, pattern_fill, rigid_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.tracks import make_tracks
 
@@ -54,6 +54,46 @@ def test_rigid_fill_needs_two_markers_of_the_segment():
     cut = xyz.copy()
     cut[3, 100:200] = np.nan
     assert rigid_fill(cut[3], cut, 3, 100, 200, TrackingParams()) is None
+
+
+def pelvis(yaw_deg: float = 40.0, tilt_deg: float = 2.0) -> np.ndarray:
+    """Three markers of a pelvis-like segment walking and turning (yaw up to ``yaw_deg``)
+    while tilting little about the axis of markers 0 and 1: (3, N, 3)."""
+    t = np.arange(N) / 100.0
+    yaw = np.radians(yaw_deg) * np.sin(1.5 * t)
+    tilt = np.radians(tilt_deg) * np.sin(6 * t)
+    rot = Rotation.from_euler("zy", np.stack([yaw, tilt], 1))
+    shape = np.array([[100.0, -120, 990], [100, 120, 990], [-110, 0, 1010]])
+    move = np.stack([1200 * t, 20 * np.sin(6 * t), 0 * t], 1)
+    return np.stack([rot.apply(p) + move for p in shape])
+
+
+def test_two_marker_fill_carries_a_pelvis_marker_that_turns():
+    """Two of three pelvis markers in view: rigid-body fill needs three, pattern fill
+    misses the turn, the two markers' frame follows it (its turn about their axis, the
+    tilt, is what it cannot see)."""
+    xyz = pelvis()
+    cut = xyz.copy()
+    cut[2, 100:200] = np.nan
+    params = TrackingParams()
+    assert rigid_fill(cut[2], cut, 2, 100, 200, params) is None
+    got = axis_fill(cut[2], cut, 2, 100, 200, params)
+    assert got is not None and sorted(got[1]) == [0, 1]
+    err = np.linalg.norm(got[0] - xyz[2, 100:200], axis=1)
+    follow = pattern_fill(cut[2], cut, 2, 100, 200, params)
+    assert follow is not None
+    # at most about the tilt's swing at the marker's 210 mm from the axis
+    assert err.max() < 1.5 * 210 * np.sin(np.radians(2.0))
+    assert err.max() < 0.5 * np.linalg.norm(follow[0] - xyz[2, 100:200], axis=1).max()
+
+
+def test_two_marker_fill_refuses_markers_of_other_segments():
+    xyz = pelvis()
+    t = np.arange(N)
+    xyz[1] += np.stack([30 * np.sin(t / 9), 0 * t, 0 * t], 1)  # not rigid with the others
+    cut = xyz.copy()
+    cut[2, 100:200] = np.nan
+    assert axis_fill(cut[2], cut, 2, 100, 200, TrackingParams()) is None
 
 
 def test_pattern_fill_follows_the_neighbour():

@@ -61,3 +61,14 @@ def test_three_cameras_never_name_wrongly(seed):
     match no body; then tracks stay M1, M2, ..., never a name on the wrong marker."""
     s = score_trial(rig_trial("kiss", seed, 3))
     assert s.switches == 0
+
+
+def test_three_cameras_name_markers_from_a_window_where_pieces_are_whole():
+    """kiss preset, 3 cameras, seed 2: no window as long as the trial holds three pieces
+    seen whole, so the first average pose used to match nothing and every track stayed
+    M1, M2, ...; a shorter window holds most markers whole, and every marker two cameras
+    see long enough is named, none wrongly."""
+    s = score_trial(rig_trial("kiss", 2, 3))
+    assert s.labellable >= 12
+    assert s.labelled >= s.labellable and s.switches == 0
+    assert s.coverage_mean >= 0.95

@@ -345,14 +345,59 @@ def first_pose(state: LabelState) -> tuple[NDArray, NDArray]:
     return pos, average_pose(pos)
 
 
+def shorter_windows(state: LabelState) -> list[tuple[int, int]]:
+    """(centre, length) per window length, halving from ``label_window_fields`` down to
+    twice ``label_fields``: the window of that length holding most core pieces (long
+    pieces seen whole, :func:`core_pieces`), when it holds more than the longest window."""
+    params = state.params
+
+    def n_core(centre: int, length: int) -> int:
+        rich = window_fields(state.present, centre, length, params.label_fields)
+        return core_pieces(state.present, rich).size if rich.size else 0
+
+    busiest = np.convolve(state.present.sum(axis=0), np.ones(state.window), mode="same")
+    most = n_core(int(np.argmax(busiest)), state.window)
+    out = []
+    length = state.window // 2
+    while length >= max(2 * params.label_fields, 3):
+        centres = range(length // 2, state.n_fields - length // 2 + 1, max(length // 4, 1))
+        counts = [(n_core(c, length), c) for c in centres]
+        if counts and max(counts)[0] > most:
+            out.append((max(counts)[1], length))
+        length //= 2
+    return out
+
+
+def _n_named(found: WindowMatch) -> int:
+    return 0 if found.core is None else int(np.sum(found.assign >= 0))
+
+
 def match_first_window(state: LabelState) -> bool:
     """Phase 1: name the core pieces of the window where most long pieces are seen.
+
+    When that window names fewer than ``min_label_fraction`` of the names (with few
+    cameras, gaps cut pieces, and a long window holds few of them whole), shorter windows
+    holding more whole pieces (:func:`shorter_windows`) are matched too and the one that
+    names most is kept; later windows (phase 3) take its length.
 
     Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the
     trial does not fit the marker set).
     """
-    found = match_window(state, first_centre(state))
+    longest = state.window
+    centre = first_centre(state)
+    found, chosen = match_window(state, centre), longest
+    if _n_named(found) < state.params.min_label_fraction * len(state.names):
+        for c, length in shorter_windows(state):
+            state.window = length
+            other = match_window(state, c)
+            if _n_named(other) > _n_named(found):
+                found, centre, chosen = other, c, length
+    state.window = chosen
     state.fit_rms, state.rich = found.fit_rms, found.rich
+    if state.window < longest:
+        # Rigid pairs are judged over the long window: over a short one, markers of two
+        # segments can keep their distance by chance (a foot in stance, the pelvis).
+        state.rich = window_fields(state.present, centre, longest, state.params.label_fields)
     if found.core is None or not np.any(found.assign >= 0):
         return False
     named = found.assign >= 0
