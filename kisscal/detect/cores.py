@@ -22,14 +22,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import blobs as fl
-from kisscal.detect.advanced import Grouping, group_pixels, oversized, regroup
-from kisscal.detect.groups import GroupTable, group_crops
+from kisscal.detect.advanced import Grouping, GroupPixels, group_pixels, oversized, regroup
+from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 
 #: The cut between a group's median and its peak (0.5: half maximum).
 CORE_LEVEL = 0.5
-#: Most cores of one oversized group: more are the texture of a lit surface, left whole.
-MOST_CORES = 16
 
 
 def detach_cores(
@@ -63,79 +61,91 @@ def detach_cores(
     contrast = params.threshold
     if not params.background_tile_px:
         contrast -= float(np.mean(background))
-    found: dict[int, tuple[NDArray[np.int32], int, int]] = {}
-    for i, x0, y0, crop in group_crops(grouping.runs, table, big):  # a few per image
-        cores = _cores(crop, image, background, x0, y0, max(contrast, 1.0), params)
-        if cores is not None:
-            found[i] = (cores, x0, y0)
-    if not found:
-        return grouping
-    rows = np.fromiter(found, dtype=np.int64)
-    labels = table.label[rows]
+    labels = table.label[big]
     pixels = group_pixels(grouping, labels)
-    part = np.zeros(pixels.x.size, dtype=np.int64)
-    k = 1 + max(int(c.max()) for c, _, _ in found.values())
-    centres = np.full((3, rows.size, k), np.nan)
-    for j, (cores, x0, y0) in enumerate(found.values()):
-        mine = (pixels.slot == j).nonzero()[0]
-        part[mine] = cores[pixels.y[mine] - y0, pixels.x[mine] - x0]
-        n = int(cores.max())
-        count = np.bincount(part[mine], minlength=n + 1)[1:]
-        centres[0, j, 1 : n + 1] = np.bincount(part[mine], pixels.x[mine], n + 1)[1:] / count
-        centres[1, j, 1 : n + 1] = np.bincount(part[mine], pixels.y[mine], n + 1)[1:] / count
-        centres[2, j, 1 : n + 1] = np.sqrt(count / (np.pi * params.pixel_aspect))
-    centres[2] = np.where(np.isnan(centres[2]), 1.0, centres[2])
-    out = regroup(grouping, labels, pixels, part, np.full(rows.size, fl.DETACHED), centres)
-    rest = grouping.flags.size + np.arange(rows.size) * k  # part 0 of each: the region
-    out.flags[rest] |= fl.TOO_LARGE
+    core, count = _cores(pixels, image, background, max(contrast, 1.0), params)
+    # a region with cores on it stays larger than a marker without them; a pair or
+    # cluster of markers does not (its rims are all that is left): the split tests
+    # take those
+    rest = table.pixels[big] - np.bincount(pixels.slot, core > 0, minlength=big.size)
+    keep = count > 0
+    if params.max_pixels is not None:
+        keep &= rest > params.max_pixels
+    if not keep.any():
+        return grouping
+    # the kept groups' pixels come out in the same order again, a subsequence
+    part = core[keep[pixels.slot]]
+    pixels = group_pixels(grouping, labels[keep])
+    n, k = int(keep.sum()), int(count[keep].max()) + 1
+    where = pixels.slot * k + part
+    size = np.bincount(where, minlength=n * k).astype(float)
+    safe = np.maximum(size, 1.0)
+    centres = np.stack(
+        [
+            np.bincount(where, pixels.x, n * k) / safe,
+            np.bincount(where, pixels.y, n * k) / safe,
+            np.sqrt(safe / (np.pi * params.pixel_aspect)),
+        ]
+    ).reshape(3, n, k)
+    centres[:2, :, 0] = np.nan  # the region shares no rim with its cores
+    centres[:2, size.reshape(n, k) == 0] = np.nan
+    flag = np.full(n, fl.DETACHED)
+    out = regroup(grouping, labels[keep], pixels, part, flag, (centres[0], centres[1], centres[2]))
+    out.flags[grouping.flags.size + np.arange(n) * k] |= fl.TOO_LARGE  # part 0: the region
     return out
 
 
 def _cores(
-    crop: NDArray[np.uint8],
+    pixels: GroupPixels,
     image: NDArray,
     background: float | NDArray[np.floating],
-    x0: int,
-    y0: int,
     contrast: float,
     params: DetectionParams,
-) -> NDArray[np.int32] | None:
-    """Label map of the crop: 0 the region, 1.. its marker-sized bright cores; None: none."""
-    h, w = crop.shape
-    ys0, xs0 = max(y0, 0), max(x0, 0)
-    window = np.zeros((h, w), np.float32)
-    sub = image[ys0 : y0 + h, xs0 : x0 + w].astype(np.float32)
-    if np.ndim(background):
-        sub -= background[ys0 : y0 + h, xs0 : x0 + w]
-    else:
-        sub -= np.float32(background)
-    window[ys0 - y0 : ys0 - y0 + sub.shape[0], xs0 - x0 : xs0 - x0 + sub.shape[1]] = sub
-    inside = crop.astype(bool)
-    values = window[inside]
-    median = float(np.median(values))
-    peak = float(values.max())
-    cut = max(median + contrast, median + CORE_LEVEL * (peak - median))
-    if peak < cut:
-        return None
-    bright = (inside & (window >= cut)).astype(np.uint8)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(bright, connectivity=8)
-    area = stats[1:, cv2.CC_STAT_AREA]
-    ok = (area >= max(params.min_pixels, 2)) & (stats[1:, cv2.CC_STAT_WIDTH] >= 2)
-    ok &= stats[1:, cv2.CC_STAT_HEIGHT] >= 2
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Each pixel's core within its group (0: none, else 1, 2, ...) and each group's
+    number of cores: components of the pixels above the group's cut, of marker size."""
+    x, y, slot = pixels.x, pixels.y, pixels.slot
+    excess = image[y, x].astype(np.float32)
+    excess -= background[y, x] if np.ndim(background) else np.float32(background)
+    groups = int(slot.max()) + 1
+    # one sort of (group, grey level) keys: the grey levels are bounded (8- or 16-bit
+    # scale), so each group's levels fill its own band of the key
+    span = float(np.abs(excess).max()) * 2 + 2
+    ranked = np.sort(slot * span + (excess + span / 2))
+    size = np.bincount(slot, minlength=groups)
+    first = size.cumsum() - size
+    offset = np.arange(groups) * span + span / 2
+    median = ranked[first + size // 2] - offset
+    peak = ranked[first + size - 1] - offset
+    cut = median + np.maximum(contrast, CORE_LEVEL * (peak - median))
+    bright = excess >= cut[slot]
+    bx, by = x[bright], y[bright]
+    if bx.size == 0:
+        return np.zeros(x.size, dtype=np.int64), np.zeros(groups, dtype=np.int64)
+    x0, y0 = int(bx.min()), int(by.min())  # label the bright pixels' box only
+    mask = np.zeros((int(by.max()) - y0 + 1, int(bx.max()) - x0 + 1), np.uint8)
+    mask[by - y0, bx - x0] = 1
+    _, comp, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    label = np.zeros(x.size, dtype=np.int64)
+    label[bright] = comp[by - y0, bx - x0]
+    area, wide, tall = (
+        stats[:, c] for c in (cv2.CC_STAT_AREA, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT)
+    )
+    ok = (area >= max(params.min_pixels, 2)) & (wide >= 2) & (tall >= 2)
     for limit, column in (
         (params.max_pixels, area),
-        (params.max_width_px, stats[1:, cv2.CC_STAT_WIDTH]),
-        (params.max_height_px, stats[1:, cv2.CC_STAT_HEIGHT]),
+        (params.max_width_px, wide),
+        (params.max_height_px, tall),
     ):
         if limit is not None:
             ok &= column <= limit
-    if not ok.any() or ok.sum() > MOST_CORES:
-        return None
-    # a region with cores on it stays larger than a marker without them; a pair or
-    # cluster of markers does not (its rims are all that is left): the split tests
-    # take those
-    if params.max_pixels is not None and values.size - area[ok].sum() <= params.max_pixels:
-        return None
-    number = np.zeros(n, dtype=np.int32)
-    number[1:][ok] = np.arange(1, int(ok.sum()) + 1, dtype=np.int32)
-    return number[labels]
+    ok[0] = False
+    # number the good components 1, 2, ... within each group (components never span two)
+    owner = np.full(ok.size, -1)
+    owner[label[bright]] = slot[bright]
+    good = ok.nonzero()[0]
+    good = good[np.argsort(owner[good], kind="stable")]
+    per = np.bincount(owner[good], minlength=groups)
+    rank = np.zeros(ok.size, dtype=np.int64)
+    rank[good] = np.arange(good.size) - (per.cumsum() - per).repeat(per) + 1
+    return rank[label], per
