@@ -162,20 +162,8 @@ def split_groups(
     """
     if labels.size == 0:
         return grouping
-    runs = grouping.runs
-    slot = np.full(grouping.flags.size, -1)
-    slot[labels] = np.arange(labels.size)
-    which = slot[runs.group]
-    inside = which >= 0
-    keep = runs.take(~inside)
-    cut = runs.take(inside)
-    cut_slot = which[inside]
-    # Expand the split groups' runs to pixels (few pixels: only split groups).
-    count = cut.length
-    run_of = np.repeat(np.arange(len(cut)), count)
-    px = cut.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
-    py = cut.y[run_of]
-    ps = cut_slot[run_of]
+    pixels = group_pixels(grouping, labels)
+    px, py, ps = pixels.x, pixels.y, pixels.slot
     dx = (px[:, None] - centres_x[ps]) / pixel_aspect
     dy = py[:, None] - centres_y[ps]
     k = centres_x.shape[1]
@@ -183,6 +171,49 @@ def split_groups(
         radii = np.ones((labels.size, k))
     dist = np.where(np.isnan(dx), np.inf, (dx * dx + dy * dy) / radii[ps] ** 2)
     part = np.argmin(dist, axis=1)
+    return regroup(grouping, labels, pixels, part, flag, (centres_x, centres_y, radii))
+
+
+@dataclass(frozen=True)
+class GroupPixels:
+    """The white pixels of some groups, run after run: column, line, which group (index
+    into the labels asked for), and the runs of every other group, left as they are."""
+
+    x: NDArray[np.int64]
+    y: NDArray[np.int64]
+    slot: NDArray[np.int64]
+    others: Runs
+
+
+def group_pixels(grouping: Grouping, labels: NDArray[np.int64]) -> GroupPixels:
+    """The pixels of the groups ``labels`` (few: only groups to be split are expanded)."""
+    runs = grouping.runs
+    slot = np.full(grouping.flags.size, -1)
+    slot[labels] = np.arange(labels.size)
+    which = slot[runs.group]
+    inside = which >= 0
+    cut = runs.take(inside)
+    count = cut.length
+    run_of = np.repeat(np.arange(len(cut)), count)
+    px = cut.x1[run_of] + (np.arange(run_of.size) - np.repeat(np.cumsum(count) - count, count))
+    return GroupPixels(px, cut.y[run_of], which[inside][run_of], runs.take(~inside))
+
+
+def regroup(
+    grouping: Grouping,
+    labels: NDArray[np.int64],
+    pixels: GroupPixels,
+    part: NDArray[np.int64],
+    flag: NDArray[np.int64],
+    centres: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+) -> Grouping:
+    """Replace each group of ``labels`` by its parts: pixel ``i`` of ``pixels`` goes to
+    part ``part[i]`` (0 to k - 1) of its group; ``centres`` are the parts' ``(x, y,
+    radius)``, each of shape (n, k) (NaN centre: a part that shares no rim)."""
+    centres_x, centres_y, radii = centres
+    k = centres_x.shape[1]
+    px, py, ps = pixels.x, pixels.y, pixels.slot
+    keep = pixels.others
     base = grouping.flags.size
     new_label = base + ps * k + part
     # Back to runs: a new run starts where the label, the line or column contiguity changes.

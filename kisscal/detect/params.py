@@ -133,6 +133,11 @@ class DetectionParams(Params):
         Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
         and removes markers: larger than a marker image, smaller than an LED ring. Derived
         with the size limits; None: no detaching.
+    detach_cores : bool
+        Separate the bright cores of marker size from an oversized group (a marker in a
+        glare halo, on a lit wall, with a comet tail or a dim ghost): within the group,
+        pixels above half-way from its median level to its peak
+        (:mod:`kisscal.detect.cores`); not in Shafiq et al. 2001.
     detach_min_pixels : int
         Least white pixels of a piece sticking out of an oversized blob to be a marker.
     apply_size_limits : bool
@@ -200,6 +205,7 @@ class DetectionParams(Params):
     pixel_aspect: float = param(1.0, gt=0)
     detach_from_large: bool = param(True)
     detach_kernel_px: tuple[int, int] | None = param(None, unit="px", gt=0, odd=True)
+    detach_cores: bool = param(True)
     detach_min_pixels: int = param(8, unit="px", ge=0)
     apply_size_limits: bool = param(True)
     max_pixels: int | None = param(None, unit="px", gt=0)
@@ -216,6 +222,7 @@ class DetectionParams(Params):
         return self.replace(
             merge_submarkers=False,
             detach_from_large=False,
+            detach_cores=False,
             split_touching=False,
             split_overlaps=False,
             split_long_wide=False,

@@ -17,6 +17,7 @@ from kisscal.detect.advanced import (
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.centroid import Background, SpotMoments
+from kisscal.detect.cores import detach_cores
 from kisscal.detect.detach import detach_from_large
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
@@ -174,6 +175,10 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
+    if params.detach_cores and params.apply_size_limits and image.dtype != np.bool_:
+        cored = detach_cores(grouping, table, image, background, params)
+        if cored is not grouping:
+            grouping, table = cored, measure_groups(cored.runs)
     spots = Spots(image, white, background, params)
     grouping, table, moments = split_markers(grouping, table, spots, params)
     return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
