@@ -1,4 +1,5 @@
-"""Shared fixtures: small synthetic sessions written once per test process."""
+"""Shared fixtures: small synthetic sessions written once per test run (once in all, even
+when pytest-xdist spreads the tests over several processes)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from kisscal import session
+from tests.once import built_once, shared_dir
 
 # Property tests: a modest budget in every CI run, 10x with HYPOTHESIS_PROFILE=thorough.
 settings.register_profile(
@@ -22,6 +24,29 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 @pytest.fixture(scope="session")
 def small_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A six-camera KISS-like session, seed 3, 40-field gait trial, no walking5 replay."""
-    out = tmp_path_factory.mktemp("synth") / "s3"
-    return session.synthesise(out, seed=3, fields=40, walking5=False, n_jobs=1)
+    """A six-camera KISS-like session, seed 3, 40-field gait trial, no walking5 replay.
+
+    Shared by every test process of the run: tests copy it before changing anything."""
+    return built_once(
+        shared_dir(tmp_path_factory) / "small-s3",
+        lambda out: session.synthesise(out, seed=3, fields=40, walking5=False, n_jobs=1),
+    )
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Order and group the tests for the two CI workers (``-n 2 --dist loadgroup``).
+
+    A module with a module-scoped fixture (a session synthesised and run for its tests)
+    goes to one worker whole: split over two, both would build the fixture. Modules with
+    slow tests come first, so that the long tests start early and the workers end together.
+    """
+    slow_modules = set()
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        defs = info.name2fixturedefs.values() if info is not None else ()
+        if any(d.scope == "module" for chain in defs for d in chain):
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+        if item.get_closest_marker("slow") is not None:
+            slow_modules.add(item.nodeid.split("::")[0])
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in slow_modules)  # stable

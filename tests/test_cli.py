@@ -101,10 +101,10 @@ def test_errors_name_the_command(tmp_path) -> None:
     )
 
 
-def test_report_of_an_unrun_session_is_an_error(small_session) -> None:
+def test_report_of_an_unrun_session_is_an_error(small_session, tmp_path) -> None:
     import shutil
 
-    session = small_session.parent / "unrun"
+    session = tmp_path / "unrun"
     shutil.copytree(small_session, session, ignore=shutil.ignore_patterns("out"))
     result = kisscal("report", str(session))
     assert result.returncode == 2

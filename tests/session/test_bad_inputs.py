@@ -10,18 +10,15 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from kisscal import session
 from kisscal.io.config import load_toml
 
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module")
-def good(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("bad") / "s"
-    session.synthesise(root, seed=7, fields=20, n_cameras=4, walking5=False)
-    session.run(root)
-    return root
+@pytest.fixture
+def good(processed: Path) -> Path:
+    """The processed seed-7 session (four cameras, 20 fields) of conftest.py."""
+    return processed
 
 
 def kisscal(*args: str) -> subprocess.CompletedProcess[str]:

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from kisscal import session
 from kisscal.errors import KisscalError
+from tests.session.conftest import copy_of
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -61,13 +61,10 @@ def scheduler_address(scheduler_file: Path, deadline: float) -> str:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not hasattr(os, "killpg"), reason="process groups: POSIX")
-def test_batch_on_a_scheduler_and_two_worker_processes(tmp_path: Path) -> None:
-    roots = [
-        session.synthesise(
-            tmp_path / f"s{seed}", seed=seed, fields=12, n_cameras=4, walking5=False, n_jobs=1
-        )
-        for seed in (1, 2)
-    ]
+def test_batch_on_a_scheduler_and_two_worker_processes(synthesised: Path, tmp_path: Path) -> None:
+    # two copies of the shared session, each with its throw trial alone: every stage from
+    # the grid to the report runs in a daemonic worker process, on the fewest images
+    roots = [copy_of(synthesised, tmp_path / f"s{i}", trials=("throw",)) for i in (1, 2)]
     deadline = time.monotonic() + 600
     started = []
     try:
@@ -103,7 +100,9 @@ def test_batch_on_a_scheduler_and_two_worker_processes(tmp_path: Path) -> None:
     assert "daemonic" not in result.stdout + result.stderr
     for root in roots:
         summary = json.loads((root / "out" / "summary.json").read_text())
-        assert summary["trials"]["stick"]["trajectories"] == 2
+        assert list(summary["trials"]) == ["throw"]
+        assert summary["trials"]["throw"]["trajectories"] == 1
+        assert (root / "out" / "report.html").is_file()
 
 
 def test_missing_dask_is_one_line_naming_the_extra(monkeypatch, tmp_path: Path) -> None:

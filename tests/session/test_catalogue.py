@@ -11,19 +11,15 @@ from pathlib import Path
 
 import pytest
 
-from kisscal import session
 from tests.session.catalogue import CASES, Case, markdown
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="module")
-def good(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A processed four-camera session (walk01, stick, throw), 20 fields."""
-    root = tmp_path_factory.mktemp("catalogue") / "good"
-    session.synthesise(root, seed=7, fields=20, n_cameras=4, walking5=False, n_jobs=1)
-    session.run(root, workers=1)
-    return root
+@pytest.fixture
+def good(processed: Path) -> Path:
+    """A processed four-camera session (walk01, stick, throw), 20 fields (conftest.py)."""
+    return processed
 
 
 def outputs(root: Path) -> dict[str, str]:

@@ -17,6 +17,7 @@ import tomli_w
 from kisscal import session
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table, write_table
+from tests.session.conftest import copy_of
 
 pytestmark = pytest.mark.slow
 
@@ -60,26 +61,22 @@ def test_demo_prints_the_summary(tmp_path: Path) -> None:
     assert (tmp_path / "demo" / "out" / "report.html").is_file()
 
 
-def test_batch_runs_four_sessions_on_a_local_dask_cluster(tmp_path: Path) -> None:
-    roots = []
-    for seed in range(4):
-        roots.append(
-            session.synthesise(
-                tmp_path / f"s{seed}", seed=seed, fields=20, n_cameras=4, walking5=False, n_jobs=1
-            )
-        )
-    broken = tmp_path / "broken"
-    shutil.copytree(roots[0], broken)
+def test_batch_runs_sessions_on_a_local_dask_cluster(synthesised: Path, tmp_path: Path) -> None:
+    """Two good sessions (copies of the shared one, throw trial alone: the fewest images)
+    on the local cluster's two worker processes, and a broken one that fails alone."""
+    roots = [copy_of(synthesised, tmp_path / f"s{i}", trials=("throw",)) for i in range(2)]
+    broken = copy_of(synthesised, tmp_path / "broken", trials=("throw",))
     (broken / "session.toml").write_text("[session]\nname = 'x'\n")  # no rate_hz, no cameras
     result = kisscal("batch", *map(str, roots), str(broken))
     assert result.returncode == 1, result.stderr[-2000:]
     assert (
-        result.stderr.count("ok ") == 4 and "FAILED" in result.stderr and "broken" in result.stderr
+        result.stderr.count("ok ") == 2 and "FAILED" in result.stderr and "broken" in result.stderr
     )
-    assert "4 of 5 sessions processed" in result.stderr
+    assert "2 of 3 sessions processed" in result.stderr
     for root in roots:
         summary = json.loads((root / "out" / "summary.json").read_text())
-        assert summary["trials"]["stick"]["trajectories"] == 2
+        assert list(summary["trials"]) == ["throw"]
+        assert summary["trials"]["throw"]["trajectories"] == 1
 
 
 def test_trial_from_centroid_files(small_session: Path, tmp_path: Path) -> None:

@@ -4,15 +4,14 @@ only start method, macOS's default) gives the outputs of the forked run, to the 
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from kisscal import session
 from kisscal._shared import START_METHOD_ENV
+from tests.session.conftest import copy_of
 
 pytestmark = pytest.mark.slow
 
@@ -28,13 +27,12 @@ def outputs(root: Path) -> dict[str, bytes]:
     }
 
 
-def test_spawned_workers_give_the_forked_run_s_outputs(tmp_path: Path) -> None:
-    forked = session.synthesise(
-        tmp_path / "forked", seed=1, fields=12, n_cameras=4, walking5=False, n_jobs=1
-    )
-    spawned = tmp_path / "spawned"
-    shutil.copytree(forked, spawned)
-    session.run(forked, workers=2)
+def test_spawned_workers_give_the_forked_run_s_outputs(
+    synthesised: Path, processed: Path, tmp_path: Path
+) -> None:
+    """``processed`` is the same session run in the test process with two workers started
+    the default way (forked on Linux); here ``kisscal run`` spawns its workers."""
+    spawned = copy_of(synthesised, tmp_path / "spawned")
     env = {**os.environ, START_METHOD_ENV: "spawn"}
     result = subprocess.run(
         [sys.executable, "-m", "kisscal", "run", str(spawned)],
@@ -44,6 +42,6 @@ def test_spawned_workers_give_the_forked_run_s_outputs(tmp_path: Path) -> None:
         env=env,
     )
     assert result.returncode == 0, result.stderr[-2000:]
-    a, b = outputs(forked), outputs(spawned)
+    a, b = outputs(processed), outputs(spawned)
     assert len(a) > 20 and sorted(a) == sorted(b)
     assert [name for name in a if a[name] != b[name]] == []
