@@ -8,8 +8,8 @@ and stacked ``(n, 11)`` arrays; the camera order of a rig is the order of its ca
 every camera index in a long 2D table refers to it.
 
 The rig is frozen: calibration routes build a new one, nothing changes one in place
-(unlike the mutable camera groups of some tools). :meth:`Rig.load` reads the rig of a
-processed session.
+(unlike the mutable camera groups of some tools). The rig of a processed session is
+:func:`kisscal.session.current_rig` (the session layer reads files; the rig does not).
 
 References
 ----------
@@ -39,7 +39,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -173,17 +172,6 @@ class Rig:
             raise KisscalError(f"a rig's camera ids must be distinct, got {ids}")
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "_index", {c: i for i, c in enumerate(ids)})
-
-    @classmethod
-    def load(cls, session: str | Path) -> Rig:
-        """The calibrated rig of a processed session folder (``kisscal calibrate`` first).
-
-        Reads the session's linearisations and DLT files (linearising what is missing or
-        out of date), through :func:`kisscal.session.calibrate.current_rig`.
-        """
-        from kisscal.session.calibrate import current_rig  # the session runner reads files
-
-        return current_rig(Path(session))
 
     def __len__(self) -> int:
         return len(self.cameras)

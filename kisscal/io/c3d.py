@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import KisscalError
+from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
 MODEL_OUTPUT_GROUPS = (
@@ -305,8 +306,6 @@ def sample_words(
     C3D.org (2023). The C3D file format user guide: 3D point data, integer and
     floating-point formats (camera mask in the high byte, residual in the low byte).
     """
-    from kisscal.tracking.tracks import MEASURED
-
     measured = np.asarray(status) == MEASURED
     steps = np.nan_to_num(np.asarray(residual, dtype=float) / scale, nan=1.0, posinf=255.0)
     residual = np.clip(np.round(steps), 1, 255).astype(np.int64)

@@ -23,6 +23,7 @@ from typing import Any
 
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
+from kisscal.session.calibrated import current_rig
 from kisscal.session.detection import detect_images
 from kisscal.session.inputs import out_dir
 from kisscal.session.linearise import linearise
@@ -35,8 +36,8 @@ from kisscal.session.summary import CheckFailure, check
 from kisscal.session.track import track
 from kisscal.session.validate import Problem, validate
 
-# Imported on first use: the demo runs the session (a cycle if imported here), the batch
-# imports Dask, and synthesis is not needed to process a real session.
+# Imported on first use: the demo and synthesis are not needed to process a real session,
+# and the batch imports Dask.
 _LAZY = {
     "batch": "kisscal.session.batch",
     "demo": "kisscal.session.demo",
@@ -64,6 +65,7 @@ __all__ = [
     "batch",
     "calibrate",
     "check",
+    "current_rig",
     "default_walking5_path",
     "demo",
     "detect_images",

@@ -3,8 +3,8 @@
 The routes live in :mod:`kisscal.session.routes`, one module each; this module picks one,
 keeps the calibration switches a user chose (``--mdlt``, ``--refine``, ``--lens``) across
 later runs, writes what every route shares (``out/dlt/calibration.json`` and the exports:
-``out/dlt/dltdv.csv``, ``out/cameras.toml``) and gives later stages the calibrated
-:class:`~kisscal.rig.Rig`.
+``out/dlt/dltdv.csv``, ``out/cameras.toml``) and leaves the calibrated
+:class:`~kisscal.rig.Rig` for :func:`kisscal.session.calibrated.current_rig` to read.
 """
 
 from __future__ import annotations
@@ -17,9 +17,8 @@ from typing import Any
 
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
-from kisscal.io.dltfiles import DltFile, read_dlt_json
 from kisscal.io.files import write_json
-from kisscal.rig import Camera, Rig
+from kisscal.session.calibrated import read_dlt_files
 from kisscal.session.exports import write_exports
 from kisscal.session.inputs import load_config, out_dir, select_cameras, writes_session
 from kisscal.session.linearise import (
@@ -169,28 +168,3 @@ def _dlt_switches(root: Path, given: dict[str, bool | None], echo: Echo) -> dict
         names = ", ".join(f"--{k}" for k in kept)
         echo(f"  calibrate: keeping {names} from this session's last calibration")
     return {**kept, **chosen}
-
-
-def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> dict[str, DltFile]:
-    """Every camera's calibration from ``out/dlt/<camera>.json`` (L1..L11, lens terms ...)."""
-    result = {}
-    for cam in config.camera_ids:
-        path = out_dir(root) / "dlt" / f"{cam}.json"
-        if path.is_file():
-            result[cam] = read_dlt_json(path)
-        elif required:
-            raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
-    return result
-
-
-def current_rig(root: Path, echo: Echo = quiet) -> Rig:
-    """The session's calibrated rig: current linearisations and the written DLT files."""
-    config = load_config(root)
-    lins = current_linearisations(root, echo)
-    dlts = read_dlt_files(root, config)
-    return Rig(
-        tuple(
-            Camera(c.id, dlts[c.id].L, lins[c.id], dlts[c.id].lens, c.size_px)
-            for c in config.cameras
-        )
-    )

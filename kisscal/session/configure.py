@@ -24,6 +24,8 @@ import numpy as np
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
 from kisscal.errors import KisscalError
+from kisscal.grid.frames import dots_from_frames
+from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.cache import cache_key
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
@@ -157,9 +159,6 @@ def markers_detection(
 
 def _grid_setup(sample: _Sample, given: Mapping[str, Any], config: SessionConfig) -> DetectionSetup:
     """Settings of a camera's grid frames, with its pixel aspect from the dot lattice."""
-    from kisscal.grid.frames import dots_from_frames
-    from kisscal.grid.lattice import lattice_pixel_aspect
-
     frames = sample.frames
     why = "grid dots: never split"
     setup = configure_detection(frames, given, kind="grid", pixel_aspect=1.0, aspect_why=why)

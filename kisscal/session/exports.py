@@ -28,6 +28,7 @@ from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
 from kisscal.io.files import write_json
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.rig import Camera, Rig
+from kisscal.session.calibrated import current_rig
 from kisscal.session.inputs import load_config, out_dir
 from kisscal.session.progress import Echo, quiet
 
@@ -117,8 +118,6 @@ def export(
     ``units`` (``mm``, ``cm`` or ``m``) is the length unit of the translations for anipose
     and opencv (default mm, the lab's); Pose2Sim reads metres only.
     """
-    from kisscal.session.calibrate import current_rig  # calibrate writes the exports too
-
     if to not in EXPORT_FORMATS:
         raise KisscalError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
     units = _export_units(to, units)

@@ -158,11 +158,11 @@ def rig_key(rig: Rig) -> dict[str, tuple]:
     return {"lin": linearisation_key(lins), "dlt": {c.id: (c.L, c.lens) for c in rig}}
 
 
-def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:
-    """Draw a stage figure into ``out/figures/<name>.png`` (beside the stage when a
-    session command runs, see :mod:`kisscal.session.figures`).
+def figure(root: Path, name: str, draw: Callable[..., Any], *args: Any) -> None:
+    """Draw a stage figure, ``draw(*args)``, into ``out/figures/<name>.png`` (beside the
+    stage when a session command runs, see :mod:`kisscal.session.figures`).
 
-    The drawing module is imported only then, so that a session run without figures
-    never imports matplotlib.
+    The drawing functions import matplotlib only when they draw, so that a session run
+    without figures never imports it.
     """
-    submit_figure(out_dir(root) / "figures" / f"{name}.png", module, function, args)
+    submit_figure(out_dir(root) / "figures" / f"{name}.png", draw, args)

@@ -22,6 +22,7 @@ from kisscal.io.linearisation import (
     refined_by,
     write_linearisation,
 )
+from kisscal.report.grid import grid_correction_figure
 from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import (
@@ -125,8 +126,7 @@ def _linearise_camera(
     figure(
         root,
         f"grid_{cam.id}",
-        "kisscal.report.grid",
-        "grid_correction_figure",
+        grid_correction_figure,
         fit,
         cam.id,
         cam.size_px,

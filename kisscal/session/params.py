@@ -9,6 +9,7 @@ from typing import Any
 from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
+from kisscal.errors import KisscalError
 from kisscal.gait import GaitParams
 from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
@@ -63,8 +64,6 @@ def _legacy_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
     """Parameter classes not yet on the :class:`~kisscal.params.Params` base."""
     import dataclasses
     import difflib
-
-    from kisscal.errors import KisscalError
 
     names = [f.name for f in dataclasses.fields(cls)]
     values: dict[str, Any] = {}

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kisscal.errors import KisscalError
+from kisscal.report.params import ReportParams
 from kisscal.session.figures import wait_for_figures
 from kisscal.session.inputs import load_config, out_dir, writes_session
 from kisscal.session.progress import Echo, quiet
@@ -14,7 +15,6 @@ from kisscal.session.progress import Echo, quiet
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
     from kisscal.report.html import build_report  # matplotlib: only when a report is made
-    from kisscal.report.params import ReportParams
 
     config = load_config(root)  # a session folder, not just any path
     out = out_dir(root)

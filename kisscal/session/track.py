@@ -19,7 +19,11 @@ from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import Points3DFile, read_points3d
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
-from kisscal.session.calibrate import current_rig
+from kisscal.report.markers import dense_trajectories
+from kisscal.report.params import ReportParams
+from kisscal.report.tracking import segment_length_figure, trajectories_figure
+from kisscal.report.validation import rate_doubt, throw_fit
+from kisscal.session.calibrated import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, out_dir, writes_session
 from kisscal.session.markers import (
@@ -187,10 +191,6 @@ def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
 
 def _rate_doubt(config: SessionConfig, trial: str, result: Trajectories) -> str:
     """Why ``rate_hz`` may be wrong, when the trial is a throw that does not fall at g."""
-    from kisscal.report.markers import dense_trajectories
-    from kisscal.report.params import ReportParams
-    from kisscal.report.validation import rate_doubt, throw_fit
-
     tracks = result.tracks
     if not len(tracks.field) or result.labelling.fits_marker_set:
         return ""
@@ -214,16 +214,14 @@ def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate
     figure(
         root,
         f"trajectories_{trial}",
-        "kisscal.report.tracking",
-        "trajectories_figure",
+        trajectories_figure,
         result,
         f"trial {trial}: trajectories (mm)",
     )
     figure(
         root,
         f"segments_{trial}",
-        "kisscal.report.tracking",
-        "segment_length_figure",
+        segment_length_figure,
         result,
         segments,
         rate_hz,

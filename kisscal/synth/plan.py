@@ -2,7 +2,7 @@
 
 :func:`plan_session` decides everything a seed determines; the ``render_*`` functions
 produce the images of one camera (grid, rods, or one trial) with their truth, so that
-:mod:`kisscal.io.synthetic` can write cameras in parallel.
+:mod:`kisscal.session.synth_session` can write cameras in parallel.
 """
 
 from __future__ import annotations

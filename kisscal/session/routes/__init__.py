@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.session.configure import markers_detection
 from kisscal.session.detection import camera_blobs
@@ -124,8 +125,6 @@ def write_check(inputs: RouteInputs, check: dict) -> None:
 
     The rods route's key beside the file is removed: the file is no longer its output.
     """
-    from kisscal.io.files import write_json
-
     path = out_dir(inputs.root) / "dlt" / "check.json"
     write_json(path, check)
     path.with_name(path.name + ".key").unlink(missing_ok=True)

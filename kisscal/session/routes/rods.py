@@ -22,6 +22,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
 from kisscal.io.frames import source_files
+from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
@@ -89,19 +90,16 @@ def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: flo
 
 
 def _rod_figures(inputs: RouteInputs, cal: RodCalibration, rods: tuple[Rod, ...]) -> None:
-    from kisscal.report.dlt import CameraResiduals
-
     sizes = {c.id: c.size_px for c in inputs.config.cameras}
     residuals = {
         c: CameraResiduals(cal.control_uv_px[c], r.residuals_px, sizes[c], r.rms_px)
         for c, r in cal.results.items()
     }
-    figure(inputs.root, "dlt_residuals", "kisscal.report.dlt", "residual_figure", residuals)
+    figure(inputs.root, "dlt_residuals", residual_figure, residuals)
     figure(
         inputs.root,
         "rig",
-        "kisscal.report.dlt",
-        "rig_figure",
+        rig_figure,
         {c: r.centre_mm for c, r in cal.results.items()},
         [(r.name, r.points_mm) for r in rods],
         {c: r.R for c, r in cal.results.items()},

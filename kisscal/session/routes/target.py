@@ -27,6 +27,7 @@ from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import source_files
+from kisscal.report.dlt import CameraResiduals, residual_figure
 from kisscal.session.inputs import figure, file_keys, linearisation_key, out_dir
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
@@ -124,13 +125,11 @@ def _write_camera(
         inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
     )
     sizes = {cfg.id: cfg.size_px}
-    from kisscal.report.dlt import CameraResiduals  # figures only when drawn
 
     figure(
         inputs.root,
         f"target_{cfg.id}",
-        "kisscal.report.dlt",
-        "residual_figure",
+        residual_figure,
         {cfg.id: CameraResiduals(uv, res, sizes[cfg.id], m.rms_px)},
     )
 

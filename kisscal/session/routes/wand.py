@@ -47,6 +47,7 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
+from kisscal.session.trials import trial_blobs, trial_input_keys
 
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
@@ -88,8 +89,6 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
 
 
 def _stage_key(inputs: RouteInputs) -> str:
-    from kisscal.session.reconstruct import trial_input_keys  # it imports calibrate: a cycle
-
     config, params = inputs.config, inputs.params
     assert config.wand is not None
     trial = config.trial(config.wand.trial)
@@ -117,8 +116,6 @@ def _stage_key(inputs: RouteInputs) -> str:
 
 def _wand_table(inputs: RouteInputs) -> BlobTable:
     """The wand trial's blobs, grid-linearised (raw pixels without a grid)."""
-    from kisscal.session.reconstruct import trial_blobs  # it imports calibrate: a cycle
-
     config = inputs.config
     assert config.wand is not None
     trial = config.trial(config.wand.trial)

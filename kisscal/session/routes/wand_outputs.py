@@ -29,6 +29,9 @@ from kisscal.bundle.wand import AxesFrame, WandCalibration
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
+from kisscal.io.linearisation import read_linearisation_doc, refined_by
+from kisscal.report.dlt import rig_figure
+from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure, out_dir
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
@@ -107,8 +110,6 @@ def _kept(check: dict[str, Any]) -> str:
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
     """Write the rods' calibration, on the grid's own linearisation, as the result."""
-    from kisscal.io.linearisation import read_linearisation_doc, refined_by
-
     out = out_dir(inputs.root)
     write_dlt_outputs(out / "dlt", rod_cal)
     for cam in inputs.cameras:
@@ -269,8 +270,6 @@ def _figures(
     per_cam: Any,
     lengths: np.ndarray,
 ) -> None:
-    from kisscal.report.wand import WandView
-
     config = inputs.config
     obs = cal.observations.subset(cal.result.inlier)
     views = {
@@ -283,19 +282,16 @@ def _figures(
         for c, cfg in enumerate(config.cameras)
     }
     root = inputs.root
-    figure(root, "wand_coverage", "kisscal.report.wand", "coverage_figure", views)
+    figure(root, "wand_coverage", coverage_figure, views)
     nominal = float(np.ptp(config.wand.markers_mm)) if config.wand else 0.0
-    figure(
-        root, "wand_length", "kisscal.report.wand", "length_figure", cal.fields, lengths, nominal
-    )
+    figure(root, "wand_length", length_figure, cal.fields, lengths, nominal)
     objects = [(r.name, r.points_mm) for r in config.rods.rods] if config.rods else []
     if config.axes is not None:
         objects.append(("axes", config.axes.points_mm))
     figure(
         root,
         "rig",
-        "kisscal.report.dlt",
-        "rig_figure",
+        rig_figure,
         {cfg.id: cameras[c].centre_mm for c, cfg in enumerate(config.cameras)},
         objects,
         {cfg.id: cameras[c].R for c, cfg in enumerate(config.cameras)},
