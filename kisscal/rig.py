@@ -43,11 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import fundamental_from_dlt, project, project_rows
 from kisscal.dlt.nonlinear import correct_lens
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.poly import Linearisation, apply_linearisation, invert_linearisation
 
 
@@ -78,13 +79,13 @@ class Camera:
     def __post_init__(self) -> None:
         L = np.array(self.L, dtype=float)
         if L.shape != (11,) or not np.all(np.isfinite(L)):
-            raise KisscalError(f"camera {self.id}: DLT parameters must be 11 finite numbers")
+            raise InputError(f"camera {self.id}: DLT parameters must be 11 finite numbers")
         L.setflags(write=False)
         object.__setattr__(self, "L", L)
         if self.lens is not None:
             lens = np.array(self.lens, dtype=float)
             if lens.shape != (5,):
-                raise KisscalError(f"camera {self.id}: lens terms L12..L16 must be 5 numbers")
+                raise InputError(f"camera {self.id}: lens terms L12..L16 must be 5 numbers")
             object.__setattr__(self, "lens", lens)
 
     def linearise(self, uv_raw_px: ArrayLike) -> NDArray[np.float64]:
@@ -169,7 +170,7 @@ class Rig:
         cams = tuple(self.cameras)
         ids = [c.id for c in cams]
         if len(set(ids)) != len(ids):
-            raise KisscalError(f"a rig's camera ids must be distinct, got {ids}")
+            raise InputError(f"a rig's camera ids must be distinct, got {ids}")
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "_index", {c: i for i, c in enumerate(ids)})
 
@@ -192,7 +193,7 @@ class Rig:
     def index(self, camera_id: str) -> int:
         """Position of a camera in the rig."""
         if camera_id not in self._index:
-            raise KisscalError(f"no camera {camera_id!r} in the rig ({', '.join(self.ids)})")
+            raise InputError(f"no camera {camera_id!r} in the rig ({', '.join(self.ids)})")
         return self._index[camera_id]
 
     def camera(self, camera_id: str) -> Camera:
@@ -235,7 +236,7 @@ class Rig:
 
     def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
         """Lab points in every camera, linearised px, shape (n_cameras, n_points, 2)."""
-        xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+        xyz = as_points(xyz_mm, 3, "xyz_mm")
         return np.stack([c.project(xyz) for c in self.cameras])
 
     def project_rows(self, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -114,7 +114,7 @@ def read_c3d(path: Path) -> C3DPoints:
     """
     path = Path(path)
     if not path.is_file():
-        raise KisscalError(f"{path}: C3D file not found")
+        raise MissingDataError(f"{path}: C3D file not found")
     processor = processor_type(path)
     try:
         raw = _read_c3d_package(path) if processor == "MIPS" else _read_ezc3d(path)

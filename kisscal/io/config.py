@@ -19,7 +19,7 @@ import numpy as np
 from kisscal.bundle.params import BundleParams
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.io.toml_table import Table, load_toml, number, suggest, unfilled_keys
 from kisscal.markersets import available_marker_sets
 from kisscal.markersets import marker_set as pick_markers
@@ -173,7 +173,7 @@ class SessionConfig:
         for t in self.trials:
             if t.name == name:
                 return t
-        raise KisscalError(
+        raise InputError(
             f"{self.path}: no trial named {name!r}{suggest(name, [t.name for t in self.trials])}"
             f"; trials: {', '.join(t.name for t in self.trials) or 'none'}"
         )
@@ -477,24 +477,22 @@ def _check_controlpoints_mm(path: Path, where: str, pts: np.ndarray) -> None:
     """A DLT needs at least 6 control points that do not lie in one plane."""
     minimum = DltParams().min_points
     if len(pts) < minimum:
-        raise KisscalError(
+        raise InputError(
             f"{path}: {where} gives {len(pts)} points; the DLT needs at least {minimum}"
         )
     if spread_ratio(pts) < DltParams().min_spread_ratio:
-        raise KisscalError(
-            f"{path}: {where} points are coplanar; the DLT needs points off one plane"
-        )
+        raise InputError(f"{path}: {where} points are coplanar; the DLT needs points off one plane")
 
 
 def load_session(root: Path) -> SessionConfig:
     """Load and validate ``root/session.toml``."""
     root = Path(root)
     if not root.is_dir():
-        raise KisscalError(f"{root}: session folder not found")
+        raise MissingDataError(f"{root}: session folder not found")
     data = load_toml(root / "session.toml")
     unfilled = unfilled_keys(data)
     if unfilled:  # a fresh `kisscal init` template: every blank at once, not one per run
-        raise KisscalError(
+        raise InputError(
             f"{root / 'session.toml'}: still to fill in (empty): {', '.join(unfilled)}"
         )
     return parse_session(data, root)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 STRATEGIES = ("triple", "central")
 
@@ -130,7 +130,7 @@ class ReconParams:
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
-            raise KisscalError(
+            raise InputError(
                 f"recon strategy must be one of {', '.join(STRATEGIES)}, got {self.strategy!r}"
             )
         for name in (
@@ -144,25 +144,25 @@ class ReconParams:
             "two_camera_continuity_mm",
         ):
             if not getattr(self, name) > 0:
-                raise KisscalError(f"recon {name} must be > 0, got {getattr(self, name)}")
+                raise InputError(f"recon {name} must be > 0, got {getattr(self, name)}")
         for name in ("stationary_min_s", "camera_clearance_mm", "led_radius_px"):
             if getattr(self, name) < 0:
-                raise KisscalError(f"recon {name} must be >= 0, got {getattr(self, name)}")
+                raise InputError(f"recon {name} must be >= 0, got {getattr(self, name)}")
         if self.max_candidates < 1:
-            raise KisscalError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
+            raise InputError(f"recon max_candidates must be >= 1, got {self.max_candidates}")
         if self.outlier_rms_factor < 0:
-            raise KisscalError(
+            raise InputError(
                 f"recon outlier_rms_factor must be >= 0, got {self.outlier_rms_factor}"
             )
         if self.reweight_iterations < 0:
-            raise KisscalError(
+            raise InputError(
                 f"recon reweight_iterations must be >= 0, got {self.reweight_iterations}"
             )
         for name in ("min_coverage", "max_unmatched_fraction"):
             if not 0 <= getattr(self, name) <= 1:
-                raise KisscalError(f"recon {name} must be in [0, 1], got {getattr(self, name)}")
+                raise InputError(f"recon {name} must be in [0, 1], got {getattr(self, name)}")
         if not 0 < self.stationary_fraction <= 1:
-            raise KisscalError(
+            raise InputError(
                 f"recon stationary_fraction must be in (0, 1], got {self.stationary_fraction}"
             )
 

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_json
 from kisscal.session.calibrated import read_dlt_files
@@ -105,27 +105,25 @@ def session_route(config: SessionConfig, forced: str | None = None) -> tuple[str
     """
     available = _available_routes(config)
     if config.wand is not None and config.rods is None and config.axes is None:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
         )
     if forced is not None:
         if forced not in ROUTES:
-            raise KisscalError(
-                f"--route {forced}: unknown route; choose one of {', '.join(ROUTES)}"
-            )
+            raise InputError(f"--route {forced}: unknown route; choose one of {', '.join(ROUTES)}")
         if forced not in available:
-            raise KisscalError(
+            raise InputError(
                 f"--route {forced}: {config.path} has no inputs for it "
                 f"({_NEEDS.get(forced, 'see docs/session-format.md')})"
             )
         return forced, "--route"
     if config.calibration is not None and config.calibration.route not in ROUTES:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: [calibration] {config.calibration.route} is not supported by "
             "this version of kisscal"
         )
     if not available:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: no [rods], [wand] or [calibration]: nothing to calibrate from"
         )
     route, why = next(iter(available.items()))

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid import Linearisation
 from kisscal.io.cameras_toml import UNITS_MM, write_cameras_toml, write_opencv_yaml
 from kisscal.io.config import SessionConfig
@@ -119,7 +119,7 @@ def export(
     and opencv (default mm, the lab's); Pose2Sim reads metres only.
     """
     if to not in EXPORT_FORMATS:
-        raise KisscalError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
+        raise InputError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
     units = _export_units(to, units)
     root = Path(root)
     load_config(root)
@@ -175,12 +175,12 @@ def _export_units(to: str, units: str | None) -> str:
     """The length unit of an export: ``units`` where the tool takes one, checked."""
     if to == "pose2sim":
         if units not in (None, "m"):
-            raise KisscalError(f"export: Pose2Sim reads metres only; --units {units} is not")
+            raise InputError(f"export: Pose2Sim reads metres only; --units {units} is not")
         return "m"
     if units is None:
         return "mm"
     if to == "dltdv8":
-        raise KisscalError("export: --units applies to anipose and opencv; dltdv8 keeps mm")
+        raise InputError("export: --units applies to anipose and opencv; dltdv8 keeps mm")
     if units not in UNITS_MM:
-        raise KisscalError(f"export: --units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+        raise InputError(f"export: --units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     return units

@@ -9,7 +9,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
@@ -132,7 +132,7 @@ def select_cameras(config: SessionConfig, camera: str | None) -> tuple[CameraCon
             return (cam,)
     close = difflib.get_close_matches(camera, list(config.camera_ids), n=1)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
-    raise KisscalError(f"no camera {camera!r} in {config.path}{hint}")
+    raise InputError(f"no camera {camera!r} in {config.path}{hint}")
 
 
 def file_keys(paths: Sequence[Path], root: Path) -> list[tuple[str, int, int]]:

@@ -97,7 +97,6 @@ def _linearise_camera(
     root: Path, config: SessionConfig, cam: CameraConfig, params: StageParams, echo: Echo
 ) -> Linearisation:
     """One camera's linearisation: from the cache, or fitted and written with its figure."""
-    assert config.grid is not None
     out = out_dir(root) / "linearisation" / f"{cam.id}.json"
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields

@@ -9,7 +9,7 @@ from typing import Any
 from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.gait import GaitParams
 from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
@@ -72,12 +72,12 @@ def _legacy_params(cls: type, section: str, *layers: Mapping[str, Any]) -> Any:
             if key not in names:
                 close = difflib.get_close_matches(key, names, n=1)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise KisscalError(f"[{section}] unknown parameter {key!r}{hint}")
+                raise InputError(f"[{section}] unknown parameter {key!r}{hint}")
             values[key] = tuple(value) if isinstance(value, list) else value
     try:
         return cls(**values)
     except (TypeError, ValueError) as exc:
-        raise KisscalError(f"[{section}] {exc}") from None
+        raise InputError(f"[{section}] {exc}") from None
 
 
 def stage_params(config: SessionConfig, overrides: Overrides | None = None) -> StageParams:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from kisscal.errors import KisscalError
+from kisscal.errors import MissingDataError
 from kisscal.report.params import ReportParams
 from kisscal.session.figures import wait_for_figures
 from kisscal.session.inputs import load_config, out_dir, writes_session
@@ -20,7 +20,7 @@ def report(root: Path, echo: Echo = quiet) -> Path:
     out = out_dir(root)
     outputs = ("summary.json", "linearisation/*.json", "dlt/*.json")
     if not any(any(out.glob(pattern)) for pattern in outputs):
-        raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
+        raise MissingDataError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = ReportParams.from_layers(config.sections.get("report", {}))
     wait_for_figures()  # a stage's figures, drawn in the background, go into the page
     path = build_report(Path(root), params)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import MissingDataError
 from kisscal.io.files import write_json
 from kisscal.session.inputs import load_config, out_dir, writes_session
 
@@ -54,7 +54,7 @@ def check(
     if max_3d_mm is not None:
         path = out / "dlt" / "check.json"
         if not path.is_file():
-            raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
+            raise MissingDataError(f"{path}: missing; run `kisscal calibrate {root}` first")
         doc = json.loads(path.read_text())
         loo = doc.get("leave_one_rod_out", {})
         fallback = doc.get("leave_out_mean_mm", doc.get("rods_in_sample_mean_mm", np.nan))
@@ -67,5 +67,5 @@ def check(
 
 def _figure_from(path: Path, key: str, command: str) -> float:
     if not path.is_file():
-        raise KisscalError(f"{path}: missing; run `{command}` first")
+        raise MissingDataError(f"{path}: missing; run `{command}` first")
     return float(json.loads(path.read_text())[key])

@@ -12,7 +12,7 @@ import numpy as np
 
 from kisscal._text import plural
 from kisscal.dlt.model import pixel_size_mm
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.cache import is_current, mark_current
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
@@ -77,7 +77,7 @@ def track(
 def _points_path(root: Path, trial: str) -> Path:
     path = out_dir(root) / "trials" / trial / "points3d.csv"
     if not path.is_file():
-        raise KisscalError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
+        raise MissingDataError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
     return path
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import DetectionParams
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import source_files, trial_frames
@@ -26,7 +26,6 @@ CENTROID_COLUMNS = ("field", "x_px", "y_px")
 def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
     """Per camera, the files a trial's 2D data come from (for cache keys)."""
     if trial.source == "centroids":
-        assert trial.centroids is not None
         paths = {
             c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
         }
@@ -43,7 +42,7 @@ def trial_input_keys(config: SessionConfig, trial: TrialConfig) -> dict[str, Any
     for c, ps in paths.items():
         for p in ps:
             if not p.is_file():
-                raise KisscalError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
+                raise MissingDataError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
     return {c: file_keys(ps, config.root) for c, ps in paths.items()}
 
 
@@ -76,7 +75,6 @@ def trial_blobs(
 
 def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
     """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
-    assert trial.centroids is not None
     out = {}
     for cam in config.cameras:
         path = config.root / trial.centroids.replace("{camera}", cam.id)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -203,11 +203,11 @@ class TrackingParams:
         ):
             value = getattr(self, name)
             if not value > 0:
-                raise KisscalError(f"tracking: {name} must be > 0, got {value}")
+                raise InputError(f"tracking: {name} must be > 0, got {value}")
         for name in ("gate_m", "gate_k_mm_per_field"):
             value = tuple(getattr(self, name))
             if len(value) != 3 or min(value) <= 0:
-                raise KisscalError(f"tracking: {name} needs 3 positive numbers, got {value}")
+                raise InputError(f"tracking: {name} needs 3 positive numbers, got {value}")
             object.__setattr__(self, name, tuple(float(v) for v in value))
         for name in (
             "min_initial_length",
@@ -223,22 +223,22 @@ class TrackingParams:
         ):
             value = getattr(self, name)
             if int(value) != value or value < 0:
-                raise KisscalError(f"tracking: {name} must be a whole number >= 0, got {value}")
+                raise InputError(f"tracking: {name} must be a whole number >= 0, got {value}")
         if self.rigid_fill_markers < 3:
-            raise KisscalError("tracking: rigid_fill_markers must be >= 3")
+            raise InputError("tracking: rigid_fill_markers must be >= 3")
         if self.min_initial_length < 2:
-            raise KisscalError("tracking: min_initial_length must be >= 2")
+            raise InputError("tracking: min_initial_length must be >= 2")
         if not 0 <= self.min_label_fraction <= 1:
-            raise KisscalError("tracking: min_label_fraction must be in [0, 1]")
+            raise InputError("tracking: min_label_fraction must be in [0, 1]")
         if not 0.5 < self.min_side_confidence <= 1:
-            raise KisscalError("tracking: min_side_confidence must be in (0.5, 1]")
+            raise InputError("tracking: min_side_confidence must be in (0.5, 1]")
 
     def with_(self, **changes: object) -> TrackingParams:
         """Return a copy with some fields changed (unknown names raise KisscalError)."""
         known = {f.name for f in fields(self)}
         unknown = sorted(set(changes) - known)
         if unknown:
-            raise KisscalError(f"tracking: unknown parameter(s) {', '.join(unknown)}")
+            raise InputError(f"tracking: unknown parameter(s) {', '.join(unknown)}")
         return replace(self, **changes)
 
 

@@ -40,7 +40,7 @@ from kisscal.session.calibrated import current_rig
 from kisscal.session.params import Overrides
 from kisscal.synth.cameras import SynthCamera
 from kisscal.synth.presets import synth_options
-from tests.wand.scoring import volume_points
+from tests.bundle.wand_scoring import volume_points
 
 REAL = Path("/work/shared/data/real/openptv-cavity")  # --real to point elsewhere
 MODELS = ("dlt", "refined", "lens")

@@ -17,6 +17,7 @@ import numpy as np
 from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.dlt.params import Rod
 from kisscal.dlt.rig import RodCalibration
+from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import write_dlt_outputs
@@ -34,7 +35,8 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     Returns ``{camera: DltResult}`` plus the rig check under ``"_check"`` (whole rig only).
     """
     config, root, params = inputs.config, inputs.root, inputs.params
-    assert config.rods is not None
+    if config.rods is None:
+        raise InputError(f"{config.path}: the rods route needs a [rods] table")
     out = out_dir(root) / "dlt"
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     rod_frames = frame_files(inputs, config.rods.images, "rod", config.rods.fields)

@@ -21,7 +21,7 @@ import numpy as np
 
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.quality import triangulate_points
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.cache import cache_key, is_current, mark_current
 from kisscal.io.dltfiles import read_control_points_csv
@@ -43,7 +43,10 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     """Every camera from its photographs of the target and its clicked seeds."""
     config = inputs.config
     cal = config.calibration
-    assert cal is not None and cal.target and cal.images and cal.seeds
+    if cal is None or not (cal.target and cal.images and cal.seeds):
+        raise InputError(
+            f"{config.path}: the target route needs [calibration] target, images and seeds"
+        )
     target_path = config.root / cal.target
     table = read_table(target_path, required=TARGET_COLUMNS, numeric=TARGET_COLUMNS)
     target = np.column_stack([table[c] for c in TARGET_COLUMNS]).astype(float)

@@ -54,7 +54,6 @@ def write_wand_outputs(
 ) -> dict[str, Any]:
     """Write every output of the wand route; returns the ``check.json`` content."""
     config = inputs.config
-    assert config.wand is not None
     markers = config.wand.markers_mm
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
@@ -81,7 +80,6 @@ def write_wand_outputs(
         wand_doc["axes"] = _axes_entry(frame, ids)
     wand_doc["kept"] = check["kept"] = _kept(check)
     if check["kept"] == "rods":
-        assert rod_cal is not None
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
         _keep_rods(inputs, rod_cal)
     else:
@@ -199,7 +197,6 @@ def _write_cameras(
 ) -> None:
     """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
     config = inputs.config
-    assert config.wand is not None
     r, obs = cal.result, cal.observations
     wand = r.wand
     if frame is not None:

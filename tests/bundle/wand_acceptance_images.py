@@ -22,8 +22,8 @@ from kisscal import session
 from kisscal.session.calibrated import current_rig
 from kisscal.synth.cameras import VOLUME_MM
 from kisscal.synth.presets import synth_options
+from tests.bundle.wand_scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 from tests.session.wand_session import truth_rig
-from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 
 
 def _calibrate(root: Path, *extra: str) -> tuple[float, float, str]:
