@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterator
 from functools import cache
 from pathlib import Path
 
@@ -55,16 +56,16 @@ def _is_type_checking(node: ast.If) -> bool:
     return "TYPE_CHECKING" in ast.unparse(node.test)
 
 
-def _import_nodes(tree: ast.AST):
-    """Every import statement of a module, wherever it stands, except under
-    ``if TYPE_CHECKING:`` (never run)."""
+def _import_nodes(tree: ast.AST) -> Iterator[ast.Import | ast.ImportFrom]:
+    """Every import statement of a module, wherever it stands (in a function too), except
+    under ``if TYPE_CHECKING:`` (never run)."""
     for node in ast.iter_child_nodes(tree):
-        if isinstance(node, ast.If) and _is_type_checking(node):
-            yield from (n for n in node.orelse for n in [n, *_import_nodes(n)])
-            continue
         if isinstance(node, ast.Import | ast.ImportFrom):
             yield node
-        yield from _import_nodes(node)
+        elif isinstance(node, ast.If) and _is_type_checking(node):
+            yield from _import_nodes(ast.Module(body=node.orelse, type_ignores=[]))
+        else:
+            yield from _import_nodes(node)
 
 
 def _lazy_table(tree: ast.Module) -> set[str]:
@@ -155,11 +156,14 @@ def test_no_import_cycle_between_modules() -> None:
 def test_the_import_finder_sees_imports_in_functions_and_skips_type_checking() -> None:
     source = (
         "from typing import TYPE_CHECKING\n"
-        "if TYPE_CHECKING:\n    from kisscal.c import y\n"
-        "def load():\n    from kisscal.b import x\n"
+        "if TYPE_CHECKING:\n    from kisscal.c import y\nelse:\n    import kisscal.d\n"
+        "def load():\n    if True:\n        from kisscal.b import x\n"
     )
-    found = [n.module for n in _import_nodes(ast.parse(source)) if n.module != "typing"]
-    assert found == ["kisscal.b"]
+    found = [
+        n.module if isinstance(n, ast.ImportFrom) else n.names[0].name
+        for n in _import_nodes(ast.parse(source))
+    ]
+    assert found == ["typing", "kisscal.d", "kisscal.b"]
     assert _cycle({"kisscal.a": {"kisscal.b"}, "kisscal.b": {"kisscal.a"}}) is not None
     assert _cycle({"kisscal.a": {"kisscal.b"}, "kisscal.b": set()}) is None
 
@@ -189,6 +193,20 @@ def _layer(unit: str) -> int:
 def test_every_package_has_a_layer() -> None:
     for unit in import_graph():
         assert any(unit in layer for layer in LAYERS), unit
+
+
+@pytest.mark.parametrize(
+    ("low", "high"),
+    [
+        ("rig", "session"),
+        ("io", "synth"),
+        ("markersets", "synth"),
+        ("io", "report"),
+        ("detect", "io"),
+    ],
+)
+def test_the_layers_forbid_the_arrows_issue_24_names(low: str, high: str) -> None:
+    assert _layer(f"kisscal.{low}") < _layer(f"kisscal.{high}")
 
 
 def test_no_upward_import() -> None:
