@@ -7,7 +7,9 @@
 - :func:`lexsort_ints`: :func:`numpy.lexsort` of integer keys, by radix passes;
 - :func:`n_distinct`: the number of distinct integers, without sorting them;
 - :func:`worker_pool` and :func:`inherited`: worker processes that inherit their work
-  (forked where the system can fork, spawned elsewhere, none inside a daemonic process).
+  (forked where the system can fork, spawned elsewhere, none inside a daemonic process);
+- :func:`as_points`: the one check of a caller's point array (``(n, 2)`` or ``(n, 3)``);
+- :func:`new_figure`: a matplotlib figure on an Agg canvas, matplotlib imported only then.
 
 References
 ----------
@@ -23,7 +25,7 @@ import pickle
 import signal
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -31,7 +33,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def rms_px(residuals_px: ArrayLike) -> float:
@@ -147,6 +152,49 @@ def n_distinct(values: ArrayLike) -> int:
     seen = np.zeros(hi - lo + 1, dtype=bool)
     seen[values - lo] = True
     return int(np.count_nonzero(seen))
+
+
+def as_points(points: ArrayLike, dim: int, name: str = "points") -> NDArray[np.float64]:
+    """A caller's points as a float ``(n, dim)`` array, or an :class:`InputError`.
+
+    One point of ``dim`` coordinates may be given as a flat ``(dim,)`` array. Anything
+    else (a ``(2, 6)`` array for ``dim`` 3, a transposed table) is refused with its shape
+    in the message rather than reshaped into points it never held.
+
+    Examples
+    --------
+    >>> as_points([1.0, 2.0, 3.0], 3).shape
+    (1, 3)
+    >>> as_points(np.zeros((2, 6)), 3)
+    Traceback (most recent call last):
+    ...
+    kisscal.errors.InputError: points must have shape (n, 3), got (2, 6)
+    """
+    try:
+        array = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise InputError(f"{name} must be an array of numbers, shape (n, {dim}): {error}") from None
+    if array.ndim == 1 and array.shape[0] == dim:
+        array = array[None, :]
+    elif array.ndim == 1 and array.size == 0:
+        array = array.reshape(0, dim)
+    if array.ndim != 2 or array.shape[1] != dim:
+        raise InputError(f"{name} must have shape (n, {dim}), got {array.shape}")
+    return array
+
+
+def new_figure(width_in: float, height_in: float) -> Figure:
+    """A matplotlib figure (constrained layout) on an Agg canvas: no pyplot state.
+
+    matplotlib is imported here, when a figure is drawn, so that the modules drawing
+    figures import without it.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
 
 
 _INHERITED: dict[str, Any] = {}

@@ -34,7 +34,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 P = TypeVar("P", bound="Params")
 
@@ -95,7 +95,7 @@ class Params:
 
     def fail(self, message: str) -> typing.NoReturn:
         """Raise the one-line error of this section."""
-        raise KisscalError(f"[{self.section}] {message}")
+        raise InputError(f"[{self.section}] {message}")
 
     def replace(self: P, **changes: Any) -> P:
         """A copy with ``changes``; an unknown name is an error with a did-you-mean."""
@@ -137,7 +137,7 @@ def _check_names(cls: type, values: Mapping[str, Any]) -> None:
         if key not in names:
             close = difflib.get_close_matches(key, names, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise KisscalError(f"[{cls.section}] unknown parameter {key!r}{hint}")
+            raise InputError(f"[{cls.section}] unknown parameter {key!r}{hint}")
 
 
 def _coerce(section: str, f: dataclasses.Field, hint: Any, value: Any) -> Any:
@@ -146,7 +146,7 @@ def _coerce(section: str, f: dataclasses.Field, hint: Any, value: Any) -> Any:
     unit = f" {meta['unit']}" if meta.get("unit") else ""
 
     def bad(what: str) -> typing.NoReturn:
-        raise KisscalError(f"[{section}] {f.name} must be {what}, got {value!r}")
+        raise InputError(f"[{section}] {f.name} must be {what}, got {value!r}")
 
     kinds = _alternatives(hint)
     if value is None:

@@ -8,8 +8,8 @@ of parallel dictionaries of linearisations and stacked ``(n, 11)`` arrays; the c
 of a rig is the order of its cameras and every camera index in a long 2D table refers to it.
 
 The rig is frozen: calibration routes build a new one, nothing changes one in place
-(unlike the mutable camera groups of some tools). :meth:`Rig.load` reads the rig of a
-processed session.
+(unlike the mutable camera groups of some tools). The rig of a processed session is
+:func:`kisscal.session.current_rig` (the session layer reads files; the rig does not).
 
 References
 ----------
@@ -40,15 +40,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.camera import Camera
 from kisscal.dlt.model import fundamental_from_dlt, project_rows
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -91,20 +91,9 @@ class Rig:
         cams = tuple(self.cameras)
         ids = [c.id for c in cams]
         if len(set(ids)) != len(ids):
-            raise KisscalError(f"a rig's camera ids must be distinct, got {ids}")
+            raise InputError(f"a rig's camera ids must be distinct, got {ids}")
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "_index", {c: i for i, c in enumerate(ids)})
-
-    @classmethod
-    def load(cls, session: str | Path) -> Rig:
-        """The calibrated rig of a processed session folder (``kisscal calibrate`` first).
-
-        Reads the session's linearisations and DLT files (linearising what is missing or
-        out of date), through :func:`kisscal.session.calibrate.current_rig`.
-        """
-        from kisscal.session.calibrate import current_rig  # the session runner reads files
-
-        return current_rig(Path(session))
 
     def __len__(self) -> int:
         return len(self.cameras)
@@ -125,7 +114,7 @@ class Rig:
     def index(self, camera_id: str) -> int:
         """Position of a camera in the rig."""
         if camera_id not in self._index:
-            raise KisscalError(f"no camera {camera_id!r} in the rig ({', '.join(self.ids)})")
+            raise InputError(f"no camera {camera_id!r} in the rig ({', '.join(self.ids)})")
         return self._index[camera_id]
 
     def camera(self, camera_id: str) -> Camera:
@@ -168,7 +157,7 @@ class Rig:
 
     def project(self, xyz_mm: ArrayLike) -> NDArray[np.float64]:
         """Lab points in every camera, linearised px, shape (n_cameras, n_points, 2)."""
-        xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+        xyz = as_points(xyz_mm, 3, "xyz_mm")
         return np.stack([c.project_ideal(xyz) for c in self.cameras])
 
     def project_rows(self, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArray[np.float64]:

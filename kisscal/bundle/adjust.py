@@ -57,7 +57,7 @@ from kisscal.bundle.model import N_CAMERA, N_WAND, State, project, wand_points
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.solve import Loss, Problem, levenberg_marquardt
 from kisscal.camera import LENS_TERMS, Camera
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 
 
 @dataclass(frozen=True)
@@ -244,7 +244,9 @@ def adjust_bundle(
             break
         keep = new_keep
     if not all(np.all(np.isfinite(a)) for a in (state.intrinsics, state.t, state.centre_mm)):
-        raise KisscalError("wand calibration: the bundle adjustment diverged (non-finite values)")
+        raise EstimationFailed(
+            "wand calibration: the bundle adjustment diverged (non-finite values)"
+        )
     ctrl = np.zeros((0, 2))
     if control is not None and len(control):
         ctrl = control.uv_px - project(state, control.camera, control.xyz_mm, False)[0]
@@ -269,7 +271,7 @@ def _problem(
 ) -> Problem:
     seen = np.bincount(obs.field, minlength=n_fields)
     if np.any(seen == 0):
-        raise KisscalError(
+        raise EstimationFailed(
             f"wand calibration: {int(np.sum(seen == 0))} wand fields have no observation left"
         )
     order = np.lexsort((obs.camera, obs.field))

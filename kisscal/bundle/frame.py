@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def recognise_object(
     obj = np.asarray(object_mm, dtype=float).reshape(-1, 3)
     n = len(obj)
     if len(pts) < n:
-        raise KisscalError(
+        raise EstimationFailed(
             f"axes: {len(pts)} markers reconstructed, the axes object has {n}; "
             "every axes marker must be seen by two cameras"
         )
@@ -117,7 +117,7 @@ def recognise_object(
     d_pts = np.linalg.norm(pts[:, None] - pts[None], axis=2)
     tuples = _candidates(d_pts, d_obj)
     if len(tuples) == 0:
-        raise KisscalError(
+        raise EstimationFailed(
             f"axes: no {n} reconstructed markers have the axes object's shape; "
             "check [axes] points_mm"
         )
@@ -130,12 +130,12 @@ def recognise_object(
     best = order[0]
     runner = float(err[order[1]]) if len(order) > 1 else np.inf
     if err[best] > max_error:
-        raise KisscalError(
+        raise EstimationFailed(
             f"axes: no {n} reconstructed markers have the axes object's shape (best relative "
             f"distance error {err[best]:.1%}); check [axes] points_mm"
         )
     if runner <= 2.0 * err[best] + 1e-3:
-        raise KisscalError(
+        raise EstimationFailed(
             "axes: the axes object's markers can be matched two ways (it is symmetric); "
             "use an object whose marker distances are all different"
         )

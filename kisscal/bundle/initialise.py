@@ -44,7 +44,7 @@ from kisscal.bundle.find import WandImages
 from kisscal.camera import Camera
 from kisscal.dlt.camera import decompose_matrix
 from kisscal.dlt.linear import solve_dlt_matrix
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 
 _SEARCH_FIELDS = 150
 
@@ -117,7 +117,7 @@ def start_from_wand(
     np.fill_diagonal(common, 0)
     i, j = (int(v) for v in np.unravel_index(int(np.argmax(common)), common.shape))
     if common[i, j] < min_fields:
-        raise KisscalError(
+        raise EstimationFailed(
             f"wand calibration: the wand is in two cameras at once in at most {common[i, j]} "
             f"fields (cameras {cameras[i]} and {cameras[j]}); at least {min_fields} are needed"
         )
@@ -138,7 +138,7 @@ def start_from_wand(
         scores = [int(np.sum(known & np.isfinite(images[c, :, 0, 0]))) for c in others]
         c = others.pop(int(np.argmax(scores)))
         if max(scores) < min_fields:
-            raise KisscalError(
+            raise EstimationFailed(
                 f"wand calibration: camera {cameras[c]} sees the wand together with the other "
                 f"cameras in only {max(scores)} fields; at least {min_fields} are needed"
             )
@@ -174,12 +174,14 @@ def _pair_fundamental(
     if not ordered.all():
         F0, _ = cv2.findFundamentalMat(ui.mean(axis=1), uj.mean(axis=1), cv2.FM_RANSAC, 3.0, 0.999)
         if F0 is None or F0.shape != (3, 3):
-            raise KisscalError("wand calibration: no epipolar geometry fits the first camera pair")
+            raise EstimationFailed(
+                "wand calibration: no epipolar geometry fits the first camera pair"
+            )
         flip = ~ordered & (_sampson(F0, ui, uj[:, ::-1]) < _sampson(F0, ui, uj))
         uj = np.where(flip[:, None, None], uj[:, ::-1], uj)
     F, _ = cv2.findFundamentalMat(ui.reshape(-1, 2), uj.reshape(-1, 2), cv2.FM_RANSAC, 1.5, 0.9999)
     if F is None or F.shape != (3, 3):
-        raise KisscalError("wand calibration: no epipolar geometry fits the first camera pair")
+        raise EstimationFailed("wand calibration: no epipolar geometry fits the first camera pair")
     return F, flip
 
 
@@ -265,7 +267,7 @@ def _pair_cameras(
         if best is None or sol.cost < best.cost:
             best = sol
     if best is None:
-        raise KisscalError("wand calibration: the first camera pair could not be placed")
+        raise EstimationFailed("wand calibration: the first camera pair could not be placed")
     seg, R, t = segments(best.x)
     return _intrinsics(best.x[:2], size_i), _intrinsics(best.x[2:], size_j), R, t / np.median(seg)
 
@@ -337,7 +339,7 @@ def _robust_dlt(xyz: NDArray, uv: NDArray, camera: str) -> NDArray[np.float64]:
             err = np.linalg.norm(_project(P, xyz) - uv, axis=1)
             keep = err <= factor * np.median(err[keep])
         if keep.sum() < 6:
-            raise KisscalError(
+            raise EstimationFailed(
                 f"wand calibration: camera {camera}'s wand images fit no camera position"
             )
         Pn, T3, T2, _ = solve_dlt_matrix(xyz[keep], uv[keep])

@@ -37,7 +37,7 @@ from kisscal.bundle.frame import ObjectMatch, recognise_object
 from kisscal.bundle.initialise import start_from_wand, wand_poses
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.camera import Camera, camera_linearisation
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, KisscalError
 from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
 from kisscal.rig import Rig
 
@@ -197,14 +197,14 @@ def check_length(
 def _enough(obs: WandObservations, min_fields: int, ids: Sequence[str], trial: str) -> None:
     n = len(np.unique(obs.field))
     if n < min_fields:
-        raise KisscalError(
+        raise EstimationFailed(
             f"wand calibration: the wand was found in two or more cameras at once in {n} "
             f"fields of trial {trial!r}; at least {min_fields} are needed"
         )
     per_cam = np.array([len(np.unique(obs.field[obs.camera == c])) for c in range(len(ids))])
     weak = [f"{ids[c]} ({per_cam[c]})" for c in range(len(ids)) if per_cam[c] < min_fields]
     if weak:
-        raise KisscalError(
+        raise EstimationFailed(
             f"wand calibration: too few wand fields in camera {', '.join(weak)}; at least "
             f"{min_fields} are needed per camera (wave the wand through its whole view)"
         )

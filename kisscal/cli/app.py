@@ -12,8 +12,8 @@ from typing import Annotated
 
 import typer
 
+import kisscal.cli.log as log
 from kisscal._text import plural
-from kisscal.cli import log
 
 app = typer.Typer(
     name="kisscal",

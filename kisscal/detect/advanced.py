@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import Runs

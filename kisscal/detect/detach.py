@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import Grouping, oversized, split_groups
 from kisscal.detect.groups import GroupTable, group_canvas
 from kisscal.detect.params import DetectionParams

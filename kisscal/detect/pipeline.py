@@ -8,7 +8,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
     merge_submarkers,
@@ -24,7 +24,7 @@ from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.scan import group_runs
 from kisscal.detect.splits import Spots, split_markers
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 DEFAULT_PARAMS = DetectionParams()
 #: A frame with more of its pixels white than this holds no spots to find: markers are a
@@ -41,26 +41,26 @@ def check_image(image: object) -> NDArray:
     Integer images wider than 8 bits are returned as float32 on the 8-bit grey scale.
     """
     if not isinstance(image, np.ndarray):
-        raise KisscalError(f"detect: expected a 2-D numpy image, got {type(image).__name__}")
+        raise InputError(f"detect: expected a 2-D numpy image, got {type(image).__name__}")
     if image.ndim == 3:
-        raise KisscalError(
+        raise InputError(
             f"detect: expected a single-channel image, got {image.shape[2]} channels "
             f"(shape {image.shape}); convert to grey first"
         )
     if image.ndim != 2:
-        raise KisscalError(f"detect: expected a 2-D image, got shape {image.shape}")
+        raise InputError(f"detect: expected a 2-D image, got shape {image.shape}")
     if image.size == 0:
-        raise KisscalError(f"detect: empty image (shape {image.shape})")
+        raise InputError(f"detect: empty image (shape {image.shape})")
     # dtype kinds: bool, unsigned integer, float (np.issubdtype costs more, per call)
     kind = image.dtype.kind
     if kind not in "buf":
-        raise KisscalError(
+        raise InputError(
             f"detect: unsupported image dtype {image.dtype}; use bool, uint8, uint16 or float"
         )
     if kind == "f":
         top = float(np.max(np.abs(image)))
         if not np.isfinite(top) or top > MAX_FLOAT_GREY:
-            raise KisscalError(
+            raise InputError(
                 f"detect: float grey levels must be finite and within +-{MAX_FLOAT_GREY:g} "
                 f"(8- or 16-bit scale), got {top:g}"
             )

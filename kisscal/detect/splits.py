@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import (
     Grouping,
     long_wide_split,

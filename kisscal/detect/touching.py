@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import Grouping, split_groups
 from kisscal.detect.groups import GroupTable, group_canvas, group_crops
 from kisscal.detect.params import DetectionParams

@@ -16,7 +16,7 @@ from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.nonlinear import correct_lens
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
 from kisscal.dlt.triangulate import triangulate
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 
 
 def triangulate_dlt(
@@ -58,7 +58,7 @@ def triangulate_dlt(
     # (same equations and reweighting), which takes points first, cameras second.
     uv = np.asarray(uv_px, dtype=float)
     if uv.ndim != 3:
-        raise KisscalError(f"uv_px must have shape (n_cameras, n_points, 2), got {uv.shape}")
+        raise InputError(f"uv_px must have shape (n_cameras, n_points, 2), got {uv.shape}")
     tri = triangulate(L, np.swapaxes(uv, 0, 1), reweight_iterations=iterations)
     return tri.xyz_mm, tri.n_cameras
 

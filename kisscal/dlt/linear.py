@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal._shared import apply_transform, similarity_normaliser
 from kisscal.dlt.model import matrix_to_dlt, project
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, InputError, KisscalError
 
 
 def check_control_points(
@@ -33,19 +33,19 @@ def check_control_points(
     xyz = np.asarray(xyz_mm, dtype=float)
     uv = np.asarray(uv_px, dtype=float)
     if xyz.ndim != 2 or xyz.shape[1] != 3 or uv.shape != (len(xyz), 2):
-        raise KisscalError(
+        raise InputError(
             f"{where}control points need xyz (N, 3) and uv (N, 2), got {xyz.shape} and {uv.shape}"
         )
     if not (np.isfinite(xyz).all() and np.isfinite(uv).all()):
-        raise KisscalError(f"{where}control points contain NaN or infinite coordinates")
+        raise InputError(f"{where}control points contain NaN or infinite coordinates")
     if len(xyz) < params.min_points:
-        raise KisscalError(
+        raise InputError(
             f"{where}the 11-parameter DLT needs at least {params.min_points} control points, "
             f"got {len(xyz)}"
         )
     ratio = spread_ratio(xyz)
     if not ratio >= params.min_spread_ratio:
-        raise KisscalError(
+        raise EstimationFailed(
             f"{where}the {len(xyz)} control points are coplanar (thickness/extent "
             f"{ratio:.1e} < {params.min_spread_ratio:g}); the DLT needs a 3D distribution"
         )
@@ -114,7 +114,7 @@ def solve_dlt(
     xyz, uv = check_control_points(xyz_mm, uv_px, params, camera)
     Pn, T3, T2, s = solve_dlt_matrix(xyz, uv)
     if s[-2] < 1e-10 * s[0]:
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: the control points do not determine the DLT (rank-deficient)"
         )
     P = np.linalg.solve(T2, Pn @ T3)

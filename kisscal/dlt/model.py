@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal._shared import as_points
+from kisscal.errors import EstimationFailed, KisscalError
 
 
 def dlt_to_matrix(L: ArrayLike) -> NDArray[np.float64]:
@@ -94,7 +95,7 @@ def project_rows(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDArr
            [4., 5.]])
     """
     L = np.asarray(dlts, dtype=float)[np.asarray(camera, dtype=np.int64)]
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
     den = np.einsum("ij,ij->i", L[:, 8:11], xyz) + 1.0
     u = (np.einsum("ij,ij->i", L[:, 0:3], xyz) + L[:, 3]) / den
     v = (np.einsum("ij,ij->i", L[:, 4:7], xyz) + L[:, 7]) / den
@@ -118,7 +119,7 @@ def pixel_size_mm(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDAr
     >>> pixel_size_mm(L, [0], [[0.0, 0.0, 1000.0]]).round(3)  # a point 2 m ahead
     array([2.])
     """
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
     camera = np.asarray(camera, dtype=np.int64)
     steps = np.eye(3)
     jac = (
@@ -152,7 +153,7 @@ def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
     try:
         return -np.linalg.solve(P[:, :3], P[:, 3])
     except np.linalg.LinAlgError as exc:
-        raise KisscalError("DLT parameters are degenerate: no projection centre") from exc
+        raise EstimationFailed("DLT parameters are degenerate: no projection centre") from exc
 
 
 def _skew(e: NDArray[np.float64]) -> NDArray[np.float64]:

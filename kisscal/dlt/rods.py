@@ -44,7 +44,7 @@ from kisscal.dlt.rod_geometry import (
     rod_positions,
     validate_rods,
 )
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, KisscalError
 
 
 def make_rods(config: Sequence[tuple[str, ArrayLike]]) -> tuple[Rod, ...]:
@@ -107,7 +107,7 @@ def _check_busy(uv: NDArray[np.float64], params: DltParams, camera: str) -> None
     """Refuse a rod image too busy to find rods by their alignment, before any work."""
     chance = chance_alignments(uv, params.rod_line_tol_px)
     if chance > params.rod_max_chance_blobs:
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: {len(uv)} blobs in the rod image, too many to find the rods:"
             f" a line through two blobs passes within {params.rod_line_tol_px:g} px of"
             f" {chance:.1f} others by chance (at most {params.rod_max_chance_blobs:g});"
@@ -138,7 +138,7 @@ def _candidate_lines(
         members = members[members.sum(axis=1) >= params.rod_min_markers]
         rows.update(bytes(r) for r in np.packbits(members, axis=1))
         if len(rows) > params.rod_max_lines:
-            raise KisscalError(
+            raise EstimationFailed(
                 f"camera {camera}: more than {params.rod_max_lines} lines of"
                 f" {params.rod_min_markers} or more blobs among {n} blobs in the rod image:"
                 " too busy to tell rods from chance alignments; raise the detection"
@@ -371,7 +371,7 @@ def _check_ambiguity(
         others = set().union(*(c.blob_set for i, c in chosen.items() if i != ia))
         # A rival ordering that borrows blobs another rod explains is no rival.
         if any(not (r - a.blob_set) & others for r in a.rivals):
-            raise KisscalError(
+            raise EstimationFailed(
                 f"camera {camera}: the markers of rod {name} fit two different orderings "
                 "equally well; refusing to guess"
             )
@@ -379,13 +379,13 @@ def _check_ambiguity(
             if c is a or c.n != a.n or c.rms_px >= _near(a.rms_px, params):
                 continue
             if c.rod == ia and not c.blob_set & a.blob_set and not c.blob_set & others:
-                raise KisscalError(
+                raise EstimationFailed(
                     f"camera {camera}: rod {name} matches two different sets of {a.n} blobs "
                     f"equally well ({a.rms_px:.2f} px and {c.rms_px:.2f} px); refusing to guess"
                 )
             b = chosen.get(c.rod)
             if c.rod != ia and len(c.blob_set & a.blob_set) >= 3 and (b is None or b.n < c.n):
-                raise KisscalError(
+                raise EstimationFailed(
                     f"camera {camera}: the same {a.n} blobs fit rods {name} and "
                     f"{rods[c.rod].name} equally well ({a.rms_px:.2f} px and {c.rms_px:.2f} px); "
                     "refusing to guess"
@@ -442,7 +442,7 @@ def _check_unlisted(
             if unseen:
                 names = ", ".join(unseen)
                 hint = f"is a rod missing from session.toml, or are points_mm of {names} wrong?"
-            raise KisscalError(
+            raise EstimationFailed(
                 f"camera {camera}: {len(line)} blobs on a line near u={p[:, 0].mean():.0f} px "
                 f"match no rod in [[rods.rod]] ({hint})"
             )

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal._shared import as_points
+from kisscal.errors import InputError
 
 #: Observations triangulated in one block (the work arrays of a block fit the CPU cache).
 _CHUNK = 1 << 15
@@ -46,9 +47,9 @@ class Triangulation:
 def _check_dlts(dlts: ArrayLike) -> NDArray[np.float64]:
     dlts = np.asarray(dlts, dtype=float)
     if dlts.ndim != 2 or dlts.shape[1] != 11:
-        raise KisscalError(f"DLT parameters must have shape (n_cameras, 11), got {dlts.shape}")
+        raise InputError(f"DLT parameters must have shape (n_cameras, 11), got {dlts.shape}")
     if not np.all(np.isfinite(dlts)):
-        raise KisscalError("DLT parameters contain NaN or infinite values")
+        raise InputError("DLT parameters contain NaN or infinite values")
     return dlts
 
 
@@ -89,9 +90,9 @@ def triangulate_observations(
     dlts = _check_dlts(dlts)
     point = np.asarray(point, dtype=np.int64)
     camera = np.asarray(camera, dtype=np.int64)
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    uv = as_points(uv, 2, "uv")
     if not (len(point) == len(camera) == len(uv)):
-        raise KisscalError("point, camera and uv must have one row per observation")
+        raise InputError("point, camera and uv must have one row per observation")
     if n_points is None:
         n_points = int(point.max()) + 1 if len(point) else 0
     if len(point) <= _CHUNK:
@@ -200,7 +201,7 @@ def triangulate(dlts: ArrayLike, uv: ArrayLike, reweight_iterations: int = 2) ->
     dlts = _check_dlts(dlts)
     uv = np.asarray(uv, dtype=float)
     if uv.ndim != 3 or uv.shape[1:] != (len(dlts), 2):
-        raise KisscalError(
+        raise InputError(
             f"uv must have shape (n_points, {len(dlts)}, 2) for {len(dlts)} cameras, got {uv.shape}"
         )
     seen = np.all(np.isfinite(uv), axis=2)

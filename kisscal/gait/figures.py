@@ -5,14 +5,19 @@ Built with matplotlib's object API (no pyplot state), for reports and CI (Agg ba
 
 from __future__ import annotations
 
-import numpy as np
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from kisscal._shared import new_figure
 from kisscal.gait.events import progression
 from kisscal.gait.markers import GaitMarkers
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
 from kisscal.gait.signals import derivative
 from kisscal.gait.table import SIDES, GaitEvents
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _STYLE = {"foot_strike": ("-", "FS"), "foot_off": ("--", "FO")}
 
@@ -57,7 +62,7 @@ def gait_cycle_figure(
     """
     t = markers.time_s
     direction, pelvis_v = progression(markers, params)
-    fig = Figure(figsize=(12, 6.5), layout="constrained")
+    fig = new_figure(12, 6.5)
     axes = fig.subplots(2, 2, sharex=True)
     pelvis_fwd = np.sum(pelvis_v[:, :2] * direction, axis=1) / 1000.0
     for col, side in enumerate(SIDES):

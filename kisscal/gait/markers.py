@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.gait.table import SIDES
 from kisscal.markersets.model import MarkerSet
 
@@ -64,16 +64,16 @@ def gait_markers(
         A heel or toe marker, or every pelvis marker, is missing (one line).
     """
     if not rate_hz > 0:
-        raise KisscalError(f"gait: rate_hz must be > 0, got {rate_hz!r}")
+        raise InputError(f"gait: rate_hz must be > 0, got {rate_hz!r}")
     table = {}
     for name, xyz in markers.items():
         arr = np.asarray(xyz, dtype=float)
         if arr.ndim != 2 or arr.shape[1] != 3:
-            raise KisscalError(f"gait: marker {name!r} must be (n_fields, 3), got {arr.shape}")
+            raise InputError(f"gait: marker {name!r} must be (n_fields, 3), got {arr.shape}")
         table[marker_set.aliases.get(name, name)] = arr
     lengths = {a.shape[0] for a in table.values()}
     if len(lengths) > 1:
-        raise KisscalError(f"gait: markers have different numbers of fields {sorted(lengths)}")
+        raise InputError(f"gait: markers have different numbers of fields {sorted(lengths)}")
     pelvis = tuple(table[n] for n in marker_set.pelvis if n in table)
     if not pelvis:
         raise KisscalError(

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.gait.events import ground_velocity
 from kisscal.gait.markers import GaitMarkers
 from kisscal.gait.params import GaitParams
 from kisscal.gait.table import SIDES, GaitEvents
@@ -173,8 +174,6 @@ def spatiotemporal_parameters(
     >>> round(st.mean("step_width", "right"), 3), round(st.mean("step_length", "right"), 3)
     (0.1, 0.5)
     """
-    from kisscal.gait.events import ground_velocity
-
     rate = markers.rate_hz
     # Heel positions on the ground the subject walks on: on a treadmill the belt carries
     # the stance foot back, so a stride's length is the heel's displacement plus the

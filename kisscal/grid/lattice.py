@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid.params import GridParams
 from kisscal.grid.poly import poly_terms
 
@@ -130,7 +130,7 @@ def lattice_vectors(dots_uv: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
     off = sin_off > 0.5
     has = off.any(axis=1)
     if np.count_nonzero(has) < 3:
-        raise KisscalError("grid dots do not form a two-dimensional lattice")
+        raise EstimationFailed("grid dots do not form a two-dimensional lattice")
     j = np.argmax(off, axis=1)
     second = _median_vector(diff[np.flatnonzero(has), j[has], :])
     a, b = first, second
@@ -170,7 +170,7 @@ def lattice_pixel_aspect(dots_uv: ArrayLike, cell_aspect: float = 1.0) -> float:
     """
     dots = np.asarray(dots_uv, dtype=float).reshape(-1, 2)
     if len(dots) < 9:
-        raise KisscalError(f"grid: {len(dots)} dots are too few for the lattice's pixel aspect")
+        raise EstimationFailed(f"grid: {len(dots)} dots are too few for the lattice's pixel aspect")
     # lens distortion bends the outer rows and columns most: the steps near the middle of
     # the grid, where it changes least, carry the camera's aspect
     centre = np.median(dots, axis=0)
@@ -310,13 +310,13 @@ def index_lattice(dots_uv: ArrayLike, params: GridParams | None = None) -> Latti
     p = params or GridParams()
     pts = np.asarray(dots_uv, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2:
-        raise KisscalError(f"grid dots must be an (N, 2) array of u, v pixels, got {pts.shape}")
+        raise InputError(f"grid dots must be an (N, 2) array of u, v pixels, got {pts.shape}")
     if not np.all(np.isfinite(pts)):
-        raise KisscalError("grid dots contain NaN or infinite coordinates")
+        raise InputError("grid dots contain NaN or infinite coordinates")
     n_grid = p.rows * p.cols
     need = int(np.ceil(p.min_indexed_fraction * n_grid))
     if len(pts) < need:
-        raise KisscalError(
+        raise EstimationFailed(
             f"found {len(pts)} blobs but a {p.rows} x {p.cols} grid needs at least {need} "
             f"dots ({p.min_indexed_fraction:.0%}): check that the grid fills the view"
         )
@@ -370,7 +370,7 @@ def index_lattice(dots_uv: ArrayLike, params: GridParams | None = None) -> Latti
     row[idx] = keys[:, 0]
     col[idx] = keys[:, 1]
     if len(idx) < need:
-        raise KisscalError(
+        raise EstimationFailed(
             f"only {len(idx)} of {n_grid} grid dots ({len(idx) / n_grid:.0%}) could be indexed "
             f"as a {p.rows} x {p.cols} lattice; need {p.min_indexed_fraction:.0%}: check the "
             "grid size, that the grid fills the view, and the dot detection"

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares, minimize_scalar
 
 from kisscal._shared import apply_transform, rms_px, similarity_normaliser
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 from kisscal.grid.lattice import LatticeIndex
 from kisscal.grid.params import GridParams
 
@@ -130,7 +130,7 @@ def primary_grid(dots_uv: ArrayLike, index: LatticeIndex) -> PrimaryGrid:
             if np.all(nb >= 0):
                 break
     else:
-        raise KisscalError("no grid dot has all four neighbours: cannot form the primary grid")
+        raise EstimationFailed("no grid dot has all four neighbours: cannot form the primary grid")
     left, right, up, down = pts[nb]
     dx = 0.5 * (np.linalg.norm(pts[i] - left) + np.linalg.norm(right - pts[i]))
     dy = 0.5 * (np.linalg.norm(pts[i] - up) + np.linalg.norm(down - pts[i]))
@@ -246,7 +246,7 @@ def optimal_grid(
         pixel_aspect: float | None = aspect
     else:
         if len(d) < 8:
-            raise KisscalError("a homography optimal grid needs at least 8 dots")
+            raise EstimationFailed("a homography optimal grid needs at least 8 dots")
         matrix = _fit_homography(g, d)
         lin = matrix[:2, :2] - np.outer(matrix[:2, 2], matrix[2, :2])
         scale = float(np.sqrt(abs(np.linalg.det(lin))))

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, InputError, KisscalError
 
 N_TERMS = 15
 TERM_NAMES = (
@@ -141,7 +141,7 @@ def identity_linearisation(center_px: tuple[float, float], scale_px: float) -> L
 def _as_points(uv: ArrayLike, name: str = "uv") -> NDArray[np.float64]:
     pts = np.asarray(uv, dtype=float)
     if pts.ndim < 1 or pts.shape[-1] != 2:
-        raise KisscalError(f"{name} must have shape (..., 2), got {pts.shape}")
+        raise InputError(f"{name} must have shape (..., 2), got {pts.shape}")
     return pts
 
 
@@ -323,7 +323,7 @@ def invert_linearisation(
             break
         if step.size == 0 or step.max() < tol_px:
             return p
-    raise KisscalError(
+    raise EstimationFailed(
         "inverse linearisation did not converge: a point lies far outside the linearised area"
     )
 
@@ -381,9 +381,9 @@ def fit_polynomial(
     d = _as_points(distorted_uv, "distorted_uv").reshape(-1, 2)
     t = _as_points(target_uv, "target_uv").reshape(-1, 2)
     if d.shape != t.shape:
-        raise KisscalError(f"distorted and target points differ in shape: {d.shape} vs {t.shape}")
+        raise InputError(f"distorted and target points differ in shape: {d.shape} vs {t.shape}")
     if len(d) < N_TERMS:
-        raise KisscalError(f"a 4th-order linearisation needs at least 15 dots, got {len(d)}")
+        raise EstimationFailed(f"a 4th-order linearisation needs at least 15 dots, got {len(d)}")
     z = poly_terms((d[:, 0] - center_px[0]) / scale_px, (d[:, 1] - center_px[1]) / scale_px)
     if weights is not None:
         root = np.sqrt(np.asarray(weights, dtype=float).reshape(-1, 1))
@@ -392,7 +392,7 @@ def fit_polynomial(
     norms[norms == 0] = 1.0
     coef, _, rank, _ = np.linalg.lstsq(z / norms, t, rcond=None)
     if rank < N_TERMS:
-        raise KisscalError(
+        raise EstimationFailed(
             "grid dots do not span the image in two directions: cannot fit 15 terms per axis"
         )
     coef = coef / norms[:, None]

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
+from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
 MODEL_OUTPUT_GROUPS = (
@@ -113,7 +114,7 @@ def read_c3d(path: Path) -> C3DPoints:
     """
     path = Path(path)
     if not path.is_file():
-        raise KisscalError(f"{path}: C3D file not found")
+        raise MissingDataError(f"{path}: C3D file not found")
     processor = processor_type(path)
     try:
         raw = _read_c3d_package(path) if processor == "MIPS" else _read_ezc3d(path)
@@ -305,8 +306,6 @@ def sample_words(
     C3D.org (2023). The C3D file format user guide: 3D point data, integer and
     floating-point formats (camera mask in the high byte, residual in the low byte).
     """
-    from kisscal.tracking.tracks import MEASURED
-
     measured = np.asarray(status) == MEASURED
     steps = np.nan_to_num(np.asarray(residual, dtype=float) / scale, nan=1.0, posinf=255.0)
     residual = np.clip(np.round(steps), 1, 255).astype(np.int64)

@@ -17,7 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from kisscal.bundle.params import BundleParams
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.io.toml_table import Table, load_toml, number, suggest, unfilled_keys
 from kisscal.markersets import available_marker_sets
 from kisscal.markersets import marker_set as pick_markers
@@ -171,7 +171,7 @@ class SessionConfig:
         for t in self.trials:
             if t.name == name:
                 return t
-        raise KisscalError(
+        raise InputError(
             f"{self.path}: no trial named {name!r}{suggest(name, [t.name for t in self.trials])}"
             f"; trials: {', '.join(t.name for t in self.trials) or 'none'}"
         )
@@ -474,11 +474,11 @@ def load_session(root: Path) -> SessionConfig:
     """Load and validate ``root/session.toml``."""
     root = Path(root)
     if not root.is_dir():
-        raise KisscalError(f"{root}: session folder not found")
+        raise MissingDataError(f"{root}: session folder not found")
     data = load_toml(root / "session.toml")
     unfilled = unfilled_keys(data)
     if unfilled:  # a fresh `kisscal init` template: every blank at once, not one per run
-        raise KisscalError(
+        raise InputError(
             f"{root / 'session.toml'}: still to fill in (empty): {', '.join(unfilled)}"
         )
     return parse_session(data, root)

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.model import shift_dlt_pixels
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.files import atomic_path, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
@@ -177,7 +177,7 @@ def read_dlt_json(path: str | Path) -> DltFile:
     try:
         doc = json.loads(path.read_text())
     except FileNotFoundError:
-        raise KisscalError(f"{path}: DLT file not found") from None
+        raise MissingDataError(f"{path}: DLT file not found") from None
     except json.JSONDecodeError as exc:
         raise KisscalError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
     if not isinstance(doc, dict) or "L" not in doc:
@@ -245,7 +245,7 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
     try:
         rows = [r for r in csv.reader(path.read_text().splitlines()) if any(c.strip() for c in r)]
     except FileNotFoundError:
-        raise KisscalError(f"{path}: DLT coefficient file not found") from None
+        raise MissingDataError(f"{path}: DLT coefficient file not found") from None
     header = None
     if rows:
         try:
@@ -296,7 +296,7 @@ def read_control_points_csv(
     try:
         text = path.read_text()
     except FileNotFoundError:
-        raise KisscalError(f"{path}: control point file not found") from None
+        raise MissingDataError(f"{path}: control point file not found") from None
     reader = csv.DictReader(text.splitlines())
     fields = [f.strip() for f in reader.fieldnames or []]
     missing = [c for c in CONTROL_COLUMNS if c not in fields]

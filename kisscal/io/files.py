@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 
 
 @contextlib.contextmanager
@@ -108,7 +108,7 @@ def read_table(
     try:
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise KisscalError(f"{path}: file not found") from None
+        raise MissingDataError(f"{path}: file not found") from None
     except UnicodeDecodeError:
         raise KisscalError(f"{path}: not a text CSV file") from None
     rows = list(csv.reader(io.StringIO(text)))

@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 
 IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".bmp"}
 VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".mpg", ".mpeg", ".m4v", ".wmv"}
@@ -37,7 +37,7 @@ def read_image(path: Path) -> np.ndarray:
     """
     path = Path(path)
     if not path.is_file():
-        raise KisscalError(f"{path}: image file not found")
+        raise MissingDataError(f"{path}: image file not found")
     data = np.fromfile(path, dtype=np.uint8)
     image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if image is None:
@@ -304,7 +304,7 @@ def camera_frames(
     if video or is_video(pattern):
         path = Path(root) / pattern.replace("{camera}", camera)
         if not path.is_file():
-            raise KisscalError(f"{path}: {what} video for camera {camera} not found")
+            raise MissingDataError(f"{path}: {what} video for camera {camera} not found")
         frames: Sequence = VideoFrames(path)
     else:
         frames = FrameFiles(tuple(frame_paths(root, pattern, camera, what)))

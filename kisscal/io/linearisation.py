@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.grid.poly import TERM_NAMES, Linearisation, LinearisationQuality
 from kisscal.io.files import write_text
 
@@ -159,7 +159,7 @@ def read_linearisation(path: str | Path) -> tuple[str, Linearisation]:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise KisscalError(f"linearisation file not found: {path}") from None
+        raise MissingDataError(f"linearisation file not found: {path}") from None
     except json.JSONDecodeError as exc:
         raise KisscalError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     lin = linearisation_from_dict(doc, str(path))

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.files import write_text
 
 COLUMNS = ("camera", "field", "x_px", "y_px", "point")
@@ -105,7 +105,7 @@ def read_points2d(path: str | Path) -> Points2DFile:
     try:
         rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
     except FileNotFoundError:
-        raise KisscalError(f"{path}: file not found") from None
+        raise MissingDataError(f"{path}: file not found") from None
     if not rows or tuple(rows[0]) != COLUMNS:
         raise KisscalError(f"{path}: header must be {','.join(COLUMNS)}")
     try:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.files import atomic_path
 from kisscal.recon.reconstruct import Points3D
 
@@ -110,7 +110,7 @@ def read_points3d(path: str | Path) -> Points3DFile:
     """Read a points3d.csv written by :func:`write_points3d` (blob columns optional)."""
     path = Path(path)
     if not path.is_file():
-        raise KisscalError(f"points3d file not found: {path}")
+        raise MissingDataError(f"points3d file not found: {path}")
     with path.open(newline="") as fh:
         rows = list(csv.reader(fh))
     if not rows or tuple(rows[0][: len(BASE_COLUMNS)]) != BASE_COLUMNS:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -32,15 +32,15 @@ def load_toml(path: Path) -> dict[str, Any]:
     try:
         text = path.read_bytes().decode("utf-8-sig")
     except FileNotFoundError:
-        raise KisscalError(f"{path}: file not found") from None
+        raise MissingDataError(f"{path}: file not found") from None
     except UnicodeDecodeError as exc:
-        raise KisscalError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
         raise KisscalError(f"{path}: cannot be read ({exc.strerror})") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise KisscalError(f"{path}: not valid TOML ({exc})") from None
+        raise InputError(f"{path}: not valid TOML ({exc})") from None
 
 
 def suggest(key: str, allowed: Iterable[str]) -> str:
@@ -56,8 +56,8 @@ class Table:
     where: str
     data: dict[str, Any]
 
-    def fail(self, message: str) -> KisscalError:
-        return KisscalError(f"{self.path}: {message}")
+    def fail(self, message: str) -> InputError:
+        return InputError(f"{self.path}: {message}")
 
     def allow(self, allowed: Iterable[str]) -> Table:
         allowed = set(allowed)
@@ -113,7 +113,7 @@ class Table:
 
 def number(path: Path, where: str, value: Any, kind: type = float, positive: bool = True) -> Any:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise KisscalError(f"{path}: {where} must be a number, got {value!r}")
+        raise InputError(f"{path}: {where} must be a number, got {value!r}")
     if kind is int and int(value) != value:
         raise KisscalError(f"{path}: {where} must be a whole number, got {value!r}")
     if positive and value <= 0:

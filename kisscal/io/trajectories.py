@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.files import atomic_path
 from kisscal.tracking.pipeline import SweepRow
 from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES, Tracks
@@ -73,7 +73,7 @@ def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
     as ``filled_spline``."""
     path = Path(path)
     if not path.is_file():
-        raise KisscalError(f"trajectories: no such file {path}")
+        raise MissingDataError(f"trajectories: no such file {path}")
     with path.open(newline="") as fh:
         rows = list(csv.reader(fh))
     if not rows or tuple(rows[0]) != HEADER:

@@ -11,7 +11,7 @@ from types import MappingProxyType
 import numpy as np
 
 from kisscal.errors import KisscalError
-from kisscal.markersets.model import MarkerSet, _unknown
+from kisscal.markersets.model import MarkerSet, unknown_message
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -51,7 +51,7 @@ def marker_set(name: str, names: Sequence[str] | None = None) -> MarkerSet:
     References
     ----------
     Davis et al. 1991 (Plug-in Gait lower body); Küçük 2005 (the KISS set); Winter 2009
-    and Bell et al. 1990 (the templates' geometry, see :mod:`kisscal.markersets.derive`).
+    and Bell et al. 1990 (the templates' geometry, see :mod:`kisscal.synth.derive_markersets`).
 
     Examples
     --------
@@ -73,7 +73,7 @@ def _raw(name: str) -> dict:
     known = available_marker_sets()
     if name not in known:
         raise KisscalError(
-            f"{_unknown(name, known, 'marker set')}; kisscal ships: {', '.join(known)}"
+            f"{unknown_message(name, known, 'marker set')}; kisscal ships: {', '.join(known)}"
         )
     text = resources.files("kisscal.markersets").joinpath("data", f"{name}.toml").read_text("utf-8")
     return tomllib.loads(text)

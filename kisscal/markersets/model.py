@@ -96,7 +96,7 @@ class MarkerSet:
         """Row of marker ``name`` (an alias is accepted); one-line error if unknown."""
         name = self.aliases.get(name, name)
         if name not in self.names:
-            raise KisscalError(f"marker set {self.name!r}: {_unknown(name, self.names)}")
+            raise KisscalError(f"marker set {self.name!r}: {unknown_message(name, self.names)}")
         return self.names.index(name)
 
     def position(self, name: str) -> NDArray[np.float64]:
@@ -190,7 +190,7 @@ class MarkerSet:
         )
 
 
-def _unknown(name: str, known: tuple[str, ...] | list[str], what: str = "marker") -> str:
+def unknown_message(name: str, known: tuple[str, ...] | list[str], what: str = "marker") -> str:
     close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.5)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
     return f"unknown {what} {name!r}{hint}"

@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.dlt.model import project_rows
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.recon.group import (
     Solved,
     merge_groups,
@@ -24,13 +25,13 @@ def check_table(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     field = np.asarray(field, dtype=np.int64).ravel()
     camera = np.asarray(camera, dtype=np.int64).ravel()
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    uv = as_points(uv, 2, "2D table: uv")
     if not (len(field) == len(camera) == len(uv)):
-        raise KisscalError("2D table: field, camera and uv must have one row per blob")
+        raise InputError("2D table: field, camera and uv must have one row per blob")
     if len(camera) and (camera.min() < 0 or camera.max() >= n_cameras):
-        raise KisscalError(f"2D table: camera index outside 0..{n_cameras - 1}")
+        raise InputError(f"2D table: camera index outside 0..{n_cameras - 1}")
     if not np.all(np.isfinite(uv)):
-        raise KisscalError("2D table: pixel coordinates contain NaN or inf")
+        raise InputError("2D table: pixel coordinates contain NaN or inf")
     return field, camera, uv
 
 

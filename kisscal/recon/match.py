@@ -13,10 +13,10 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal._shared import lexsort_ints
+from kisscal._shared import as_points, lexsort_ints
 from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.recon.assign import accept, check_table, extend, finish, solve_one
 from kisscal.recon.epipolar import (
     all_fundamentals,
@@ -479,10 +479,10 @@ def match_field(
     """
     dlts = np.asarray(dlts, dtype=float)
     if len(points_per_camera) != len(dlts):
-        raise KisscalError(
+        raise InputError(
             f"match_field: {len(points_per_camera)} point lists for {len(dlts)} cameras"
         )
-    pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points_per_camera]
+    pts = [as_points(p, 2, f"points of camera {c}") for c, p in enumerate(points_per_camera)]
     camera = np.concatenate([np.full(len(p), c) for c, p in enumerate(pts)]).astype(np.int64)
     local = np.concatenate([np.arange(len(p)) for p in pts]).astype(np.int64)
     uv = np.concatenate(pts) if pts else np.zeros((0, 2))

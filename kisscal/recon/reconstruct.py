@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
 from kisscal.recon.group import Solved, triangulate_markers
 from kisscal.recon.match import match_trial
@@ -213,10 +213,10 @@ def reconstruct_trial(
     """
     dlts = np.asarray(dlts, dtype=float)
     if dlts.ndim != 2 or dlts.shape[1] != 11 or len(dlts) < 2:
-        raise KisscalError(f"reconstruction needs >= 2 cameras' DLT (n, 11), got {dlts.shape}")
+        raise InputError(f"reconstruction needs >= 2 cameras' DLT (n, 11), got {dlts.shape}")
     if not np.all(np.isfinite(dlts)):
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(dlts))[0]})
-        raise KisscalError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
+        raise InputError(f"reconstruction: DLT parameters of camera index {bad} are not finite")
     field, camera, uv = check_table(field, camera, uv, len(dlts))
     still, test = false_detections(field, camera, uv, params, rate_hz)
     keep = np.flatnonzero(~still)

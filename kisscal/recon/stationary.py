@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal._shared import n_distinct
+from kisscal._shared import as_points, n_distinct
 from kisscal.dlt.model import camera_centre_mm, project
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.recon.params import ReconParams
 
 
@@ -105,7 +105,7 @@ def at_epipoles(
     ndarray of bool, shape (n,)
     """
     camera = np.asarray(camera, dtype=np.int64)
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    uv = as_points(uv, 2, "uv")
     dlts = np.asarray(dlts, dtype=float)
     centres = np.array([camera_centre_mm(L) for L in dlts])
     out = np.zeros(len(camera), dtype=bool)
@@ -137,11 +137,11 @@ def _check(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     field = np.asarray(field, dtype=np.int64)
     camera = np.asarray(camera, dtype=np.int64)
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    uv = as_points(uv, 2, "uv")
     if not (len(field) == len(camera) == len(uv)):
-        raise KisscalError("stationary filter: field, camera and uv must have the same length")
+        raise InputError("stationary filter: field, camera and uv must have the same length")
     if not np.all(np.isfinite(uv)):
-        raise KisscalError("stationary filter: pixel coordinates contain NaN or inf")
+        raise InputError("stationary filter: pixel coordinates contain NaN or inf")
     return field, camera, uv
 
 

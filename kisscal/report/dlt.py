@@ -8,13 +8,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
+from kisscal._shared import new_figure
 from kisscal.report.figures import arrow_gain, nice_number, scale_key
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @dataclass(frozen=True)
@@ -63,8 +66,7 @@ def residual_figure(
     n = max(len(names), 1)
     cols = min(columns, n)
     rows = -(-n // cols)
-    fig = Figure(figsize=(5.5 * cols, 2.8 * rows), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(5.5 * cols, 2.8 * rows)
     if scale is None:
         every = [np.asarray(c.residuals_px, dtype=float).reshape(-1, 2) for c in cameras.values()]
         scale = arrow_gain(np.concatenate(every) if every else np.zeros((0, 2)), 40.0)
@@ -128,8 +130,7 @@ def rig_figure(
     -------
     matplotlib.figure.Figure
     """
-    fig = Figure(figsize=(7, 6), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(7, 6)
     ax = fig.add_subplot(projection="3d")
     for name, pts in rods_mm:
         p = np.asarray(pts, dtype=float)

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection
-from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import new_figure
 from kisscal.errors import KisscalError
 from kisscal.recon.epipolar import all_fundamentals, epipolar_lines
 from kisscal.recon.reconstruct import Points3D
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def clip_lines(lines: NDArray[np.float64], width: int, height: int) -> NDArray[np.float64]:
@@ -160,6 +160,9 @@ def epipolar_figure(
     -------
     matplotlib.figure.Figure
     """
+    import matplotlib  # imported when a figure is drawn
+    from matplotlib.collections import LineCollection
+
     dlts = np.asarray(dlts, dtype=float)
     n_cam = len(dlts)
     if len(points_per_camera) != n_cam:
@@ -183,8 +186,7 @@ def epipolar_figure(
     F = all_fundamentals(dlts)
     cols = 2 if n_cam > 1 else 1
     rows = int(np.ceil(n_cam / cols))
-    fig = Figure(figsize=(6.5 * cols, 0.8 + 2.9 * rows), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(6.5 * cols, 0.8 + 2.9 * rows)
     for j in range(n_cam):
         ax = fig.add_subplot(rows, cols, j + 1)
         w, h = sizes[j]

@@ -6,20 +6,18 @@ looks like noise: a length axis spans at least a few millimetres around the true
 
 from __future__ import annotations
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from kisscal._shared import new_figure
 from kisscal.report.validation import StickLength, ThrowFit
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Least half-range of a length axis (mm): sub-millimetre noise must not fill the panel.
 MIN_HALF_RANGE_MM = 3.0
-
-
-def _figure(width_in: float, height_in: float) -> Figure:
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def nice_number(value: float) -> float:
@@ -89,7 +87,7 @@ def stick_figure(stick: StickLength, title: str = "") -> Figure:
     ----------
     Shafiq, Tümer, Güler 2001, section 5.1 (the 502.5 mm stick).
     """
-    fig = _figure(9.0, 3.0)
+    fig = new_figure(9.0, 3.0)
     ax, hx = fig.subplots(1, 2, width_ratios=[3, 1])
     t, length = stick.time_s, stick.length_mm
     m, sd = stick.mean_mm, stick.sd_mm
@@ -122,7 +120,7 @@ def throw_figure(fit: ThrowFit, g_m_s2: float = 9.81, title: str = "") -> Figure
     ----------
     Shafiq, Tümer, Güler 2001, section 5.1 (the thrown marker).
     """
-    fig = _figure(9.0, 3.0)
+    fig = new_figure(9.0, 3.0)
     ax, rx = fig.subplots(1, 2)
     t = fit.time_s
     dense_t = np.linspace(t.min(), t.max(), 200)

@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import Any
 
 from kisscal.errors import KisscalError
+from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
-from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures
+from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures, summarise
+from kisscal.markersets import marker_set
 from kisscal.report.markers import Dense, dense_trajectories
 from kisscal.report.params import ReportParams
 
@@ -118,8 +120,6 @@ def _table(path: Path, notes: list[str], required: tuple[str, ...] = ()) -> Any:
 
 
 def _config(root: Path, notes: list[str]) -> Any:
-    from kisscal.io.config import load_session
-
     try:
         return load_session(root)
     except (KisscalError, OSError) as exc:
@@ -131,7 +131,6 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
     """Without ``summary.json`` (a stage run on its own), the figures read from ``out/``."""
     if not have_config:
         return {}
-    from kisscal.io.summary import summarise  # the one reader of stage outputs
 
     try:
         return summarise(root)
@@ -176,7 +175,6 @@ def _marker_names(config: Any, notes: list[str]) -> tuple[tuple, tuple]:
         return (), ()
     if markers.set is None:
         return tuple(markers.names), tuple(markers.segments)
-    from kisscal.markersets import marker_set
 
     try:
         chosen = marker_set(markers.set, markers.names or None)

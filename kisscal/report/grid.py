@@ -6,19 +6,17 @@ session layer's job.
 
 from __future__ import annotations
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from kisscal._shared import new_figure
 from kisscal.grid.fit import GridFit
 from kisscal.grid.quality import line_distances
 from kisscal.report.figures import arrow_gain, nice_number, scale_key
 
-
-def _figure(width_in: float, height_in: float) -> Figure:
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def grid_correction_figure(
@@ -57,7 +55,7 @@ def grid_correction_figure(
     dist = fit.grid_uv
     corr = fit.corrected_uv
     opt = fit.optimal.uv
-    fig = _figure(9.0, 7.5)
+    fig = new_figure(9.0, 7.5)
     ax, bx = fig.subplots(2, 1)
     ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
     ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
@@ -137,7 +135,7 @@ def straightness_figure(fit: GridFit, camera: str = "") -> Figure:
     corr = fit.corrected_uv
     idx = fit.index
     row, col = idx.row[idx.indexed], idx.col[idx.indexed]
-    fig = _figure(9.0, 4.5)
+    fig = new_figure(9.0, 4.5)
     axes = fig.subplots(1, 2)
     for a, lines, n, name in ((axes[0], row, idx.rows, "row"), (axes[1], col, idx.cols, "column")):
         per = []

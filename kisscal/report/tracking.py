@@ -6,14 +6,18 @@ with the Agg backend in reports and CI.
 
 from __future__ import annotations
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from kisscal._shared import new_figure
 from kisscal.errors import KisscalError
 from kisscal.report.figures import padded_range
 from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
 
@@ -21,8 +25,7 @@ _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
 def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -> Figure:
     """Three orthogonal views of every trajectory (like the thesis' top, right and front
     views); gaps stay gaps, filled samples are drawn as small crosses."""
-    fig = Figure(figsize=(15, 5), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(15, 5)
     axes = fig.subplots(1, 3)
     dense = tracks.positions() if tracks.field.size else np.zeros((0, 0, 3))
     colours = [f"C{i % 10}" for i in range(tracks.n_tracks)]
@@ -85,8 +88,7 @@ def segment_length_figure(
     time_axis = np.arange(n_fields) / (rate_hz or 1.0)
     cols = min(columns, len(pairs))
     rows = -(-len(pairs) // cols)
-    fig = Figure(figsize=(4.0 * cols, 0.6 + 1.7 * rows), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(4.0 * cols, 0.6 + 1.7 * rows)
     axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False).ravel())
     for ax in axes[len(pairs) :]:
         fig.delaxes(ax)

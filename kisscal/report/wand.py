@@ -10,11 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
+
+from kisscal._shared import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @dataclass(frozen=True)
@@ -42,8 +46,7 @@ def coverage_figure(cameras: Mapping[str, WandView], columns: int = 3) -> Figure
     n = max(len(names), 1)
     cols = min(columns, n)
     rows = -(-n // cols)
-    fig = Figure(figsize=(4.2 * cols, 2.6 * rows), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(4.2 * cols, 2.6 * rows)
     for k, name in enumerate(names):
         view = cameras[name]
         uv = np.asarray(view.uv_px, dtype=float).reshape(-1, 2)
@@ -75,8 +78,7 @@ def length_figure(fields: ArrayLike, lengths_mm: ArrayLike, nominal_mm: float) -
     f = np.asarray(fields, dtype=float)
     d = np.asarray(lengths_mm, dtype=float)
     ok = np.isfinite(d)
-    fig = Figure(figsize=(9, 2.8), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(9, 2.8)
     ax, hist = fig.subplots(1, 2, width_ratios=(3, 1))
     ax.plot(f[ok], d[ok], ".", ms=2)
     ax.axhline(nominal_mm, color="k", lw=0.8)

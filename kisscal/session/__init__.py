@@ -10,11 +10,12 @@ tests call them directly.
 Modules: :mod:`~kisscal.session.params` (parameters and CLI overrides),
 :mod:`~kisscal.session.inputs` (config, output folder, cache-key parts, figures),
 :mod:`~kisscal.session.progress`, one module per stage (``detection``, ``linearise``,
-``calibrate`` with its ``routes``, ``reconstruct``, ``track``), ``exports`` (the
+``calibrate`` with its ``routes``, ``reconstruct``, ``track``), ``calibrated`` (the
+session's calibrated rig, :func:`current_rig`), ``trials`` (a trial's 2D data), ``exports`` (the
 calibration for anipose, Pose2Sim, DLTdv8 and OpenCV), ``summary`` (``summary.json``, ``check``),
 ``report``, ``run``, ``batch`` (Dask), ``validate`` and ``init``; ``synth`` writes
-and scores synthetic sessions (the rigs themselves, :mod:`kisscal.synth`, never touch
-files) and ``demo`` runs one end to end.
+(``synth_session``, ``synth_target``) and scores synthetic sessions (the rigs themselves,
+:mod:`kisscal.synth`, never touch files) and ``demo`` runs one end to end.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
+from kisscal.session.calibrated import current_rig
 from kisscal.session.detection import detect_images
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides, StageParams, stage_params
@@ -35,8 +37,8 @@ from kisscal.session.summary import CheckFailure, check
 from kisscal.session.track import track
 from kisscal.session.validate import Problem, validate
 
-# Imported on first use: the demo runs the session (a cycle if imported here), the batch
-# imports Dask, and synthesis is not needed to process a real session.
+# Imported on first use: the demo and synthesis are not needed to process a real session,
+# and the batch imports Dask.
 _LAZY = {
     "batch": "kisscal.session.batch",
     "demo": "kisscal.session.demo",
@@ -65,6 +67,7 @@ __all__ = [
     "batch",
     "calibrate",
     "check",
+    "current_rig",
     "default_walking5_path",
     "demo",
     "detect_images",

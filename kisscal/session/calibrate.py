@@ -3,8 +3,8 @@
 The routes live in :mod:`kisscal.session.routes`, one module each; this module picks one,
 keeps the calibration switches a user chose (``--mdlt``, ``--refine``, ``--lens``) across
 later runs, writes what every route shares (``out/dlt/calibration.json`` and the exports:
-``out/dlt/dltdv.csv``, ``out/cameras.toml``) and gives later stages the calibrated
-:class:`~kisscal.rig.Rig`.
+``out/dlt/dltdv.csv``, ``out/cameras.toml``) and leaves the calibrated
+:class:`~kisscal.rig.Rig` for :func:`kisscal.session.calibrated.current_rig` to read.
 """
 
 from __future__ import annotations
@@ -14,13 +14,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from kisscal.camera import Camera
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.config import SessionConfig
-from kisscal.io.dltfiles import DltFile
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
-from kisscal.rig import Rig
+from kisscal.session.calibrated import read_dlt_files
 from kisscal.session.exports import write_exports
 from kisscal.session.inputs import load_config, select_cameras, writes_session
 from kisscal.session.linearise import (
@@ -107,27 +105,25 @@ def session_route(config: SessionConfig, forced: str | None = None) -> tuple[str
     """
     available = _available_routes(config)
     if config.wand is not None and config.rods is None and config.axes is None:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
         )
     if forced is not None:
         if forced not in ROUTES:
-            raise KisscalError(
-                f"--route {forced}: unknown route; choose one of {', '.join(ROUTES)}"
-            )
+            raise InputError(f"--route {forced}: unknown route; choose one of {', '.join(ROUTES)}")
         if forced not in available:
-            raise KisscalError(
+            raise InputError(
                 f"--route {forced}: {config.path} has no inputs for it "
                 f"({_NEEDS.get(forced, 'see docs/session-format.md')})"
             )
         return forced, "--route"
     if config.calibration is not None and config.calibration.route not in ROUTES:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: [calibration] {config.calibration.route} is not supported by "
             "this version of kisscal"
         )
     if not available:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: no [rods], [wand] or [calibration]: nothing to calibrate from"
         )
     route, why = next(iter(available.items()))
@@ -169,29 +165,3 @@ def _dlt_switches(root: Path, given: dict[str, bool | None], echo: Echo) -> dict
         names = ", ".join(f"--{k}" for k in kept)
         echo(f"  calibrate: keeping {names} from this session's last calibration")
     return {**kept, **chosen}
-
-
-def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> dict[str, DltFile]:
-    """Every camera's calibration from ``out/dlt/<camera>.json`` (L1..L11, lens terms ...)."""
-    result = {}
-    store = SessionStore(root)
-    for cam in config.camera_ids:
-        path = store.dlt_path(cam)
-        if path.is_file():
-            result[cam] = store.dlt(cam)
-        elif required:
-            raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
-    return result
-
-
-def current_rig(root: Path, echo: Echo = quiet) -> Rig:
-    """The session's calibrated rig: current linearisations and the written DLT files."""
-    config = load_config(root)
-    lins = current_linearisations(root, echo)
-    dlts = read_dlt_files(root, config)
-    return Rig(
-        tuple(
-            Camera.from_dlt(dlts[c.id].L, c.id, lins[c.id], dlts[c.id].lens, c.size_px)
-            for c in config.cameras
-        )
-    )

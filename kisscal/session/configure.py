@@ -27,6 +27,8 @@ import numpy as np
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
 from kisscal.errors import KisscalError
+from kisscal.grid.frames import dots_from_frames
+from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
@@ -214,8 +216,6 @@ def _grid_setup(sample: _Sample, params: StageParams) -> DetectionSetup:
     lattice the grid frames are detected with square pixels, recorded as ``default``, and
     the camera's marker images measure its aspect themselves.
     """
-    from kisscal.grid.frames import dots_from_frames
-    from kisscal.grid.lattice import lattice_pixel_aspect
 
     frames, given = sample.frames, params.detection_given
     why = "grid dots: never split"

@@ -12,7 +12,8 @@ import numpy as np
 from kisscal._text import plural
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
-from kisscal.session import report, run
+from kisscal.session.report import report
+from kisscal.session.run import run
 from kisscal.session.synth import evaluate, synthesise
 
 Echo = Callable[[str], object]

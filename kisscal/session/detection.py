@@ -22,6 +22,10 @@ from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import frame_name, read_image, source_files
 from kisscal.io.store import SessionStore
+from kisscal.report.overlay import draw_overlay
+from kisscal.session.configure import camera_detection
+from kisscal.session.inputs import load_config, select_cameras, writes_session
+from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, counted, quiet
 
 
@@ -173,10 +177,6 @@ def _session_params(
     root: Path, camera: str | None, kind: str, given: Mapping[str, Any], echo: Echo
 ) -> DetectionParams:
     """A session camera's derived settings with ``given`` on top."""
-    from kisscal.session.configure import camera_detection
-    from kisscal.session.inputs import load_config, select_cameras, writes_session
-    from kisscal.session.params import Overrides, stage_params
-
     if camera is None:
         raise KisscalError("--session needs --camera: whose derived settings to use")
     config = load_config(root)
@@ -201,8 +201,6 @@ def _session_params(
 def _write_overlays(
     folder: Path, paths: Sequence[Path], images: Sequence[np.ndarray], blobs: Sequence[Blobs]
 ) -> None:
-    from kisscal.report.overlay import draw_overlay
-
     for k, (p, image, b) in enumerate(zip(paths, images, blobs, strict=True)):
         rgb = draw_overlay(image, b)
         _ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))

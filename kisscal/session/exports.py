@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.camera import Camera
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid import Linearisation
 from kisscal.io.cameras_toml import UNITS_MM, write_cameras_toml, write_opencv_yaml
 from kisscal.io.config import SessionConfig
@@ -30,6 +30,7 @@ from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 from kisscal.session.inputs import load_config
 from kisscal.session.progress import Echo, quiet
 
@@ -119,10 +120,8 @@ def export(
     ``units`` (``mm``, ``cm`` or ``m``) is the length unit of the translations for anipose
     and opencv (default mm, the lab's); Pose2Sim reads metres only.
     """
-    from kisscal.session.calibrate import current_rig  # calibrate writes the exports too
-
     if to not in EXPORT_FORMATS:
-        raise KisscalError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
+        raise InputError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
     units = _export_units(to, units)
     root = Path(root)
     load_config(root)
@@ -178,12 +177,12 @@ def _export_units(to: str, units: str | None) -> str:
     """The length unit of an export: ``units`` where the tool takes one, checked."""
     if to == "pose2sim":
         if units not in (None, "m"):
-            raise KisscalError(f"export: Pose2Sim reads metres only; --units {units} is not")
+            raise InputError(f"export: Pose2Sim reads metres only; --units {units} is not")
         return "m"
     if units is None:
         return "mm"
     if to == "dltdv8":
-        raise KisscalError("export: --units applies to anipose and opencv; dltdv8 keeps mm")
+        raise InputError("export: --units applies to anipose and opencv; dltdv8 keeps mm")
     if units not in UNITS_MM:
-        raise KisscalError(f"export: --units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+        raise InputError(f"export: --units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     return units

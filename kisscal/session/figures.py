@@ -12,11 +12,10 @@ plain library call) a figure is drawn at once.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import os
 import pickle
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -26,12 +25,11 @@ from kisscal._shared import worker_pool
 _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": []}
 
 
-def draw_figure(path: Path, module: str, function: str, args: tuple) -> None:
-    """Draw ``module.function(*args)`` into ``path``; a figure that cannot be drawn (a
-    degenerate trial) is skipped: figures illustrate numbers that are already written."""
-    from kisscal.report.html import save_figure
+def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
+    """Draw ``draw(*args)`` into ``path``; a figure that cannot be drawn (a degenerate
+    trial) is skipped: figures illustrate numbers that are already written."""
+    from kisscal.report.html import save_figure  # matplotlib: only when a figure is drawn
 
-    draw = getattr(importlib.import_module(module), function)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -40,10 +38,12 @@ def draw_figure(path: Path, module: str, function: str, args: tuple) -> None:
         return
 
 
-def submit_figure(path: Path, module: str, function: str, args: tuple) -> None:
-    """Draw a figure in the background process when there is one here, else now."""
+def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
+    """Draw a figure in the background process when there is one here, else now.
+
+    ``draw`` is a module-level function (pickled by name for the background process)."""
     pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
-    figure = (path, module, function, args)
+    figure = (path, draw, args)
     try:
         # pickled here, once: data that cannot travel is drawn at once instead
         packed = pickle.dumps(figure, protocol=pickle.HIGHEST_PROTOCOL) if pool else None

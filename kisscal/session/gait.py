@@ -16,7 +16,15 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
-from kisscal.gait import GaitEvents, GaitParams, gait_markers
+from kisscal.gait import (
+    GaitEvents,
+    GaitParams,
+    detect_events,
+    gait_markers,
+    spatiotemporal_parameters,
+)
+from kisscal.gait.figures import gait_cycle_figure
+from kisscal.gait.spatiotemporal import outside_walking
 from kisscal.io.files import write_json, write_table
 from kisscal.io.store import SessionStore
 from kisscal.markersets import MarkerSet
@@ -58,8 +66,6 @@ def gait_outputs(
     """Detect events, compute spatiotemporal parameters and write them; None (nothing
     written) when the trajectories lack the set's feet or pelvis, or their labels are
     uncertain."""
-    from kisscal.gait import detect_events, spatiotemporal_parameters
-    from kisscal.gait.spatiotemporal import outside_walking
 
     clear_gait_outputs(root, trial)  # an earlier run's would be stale
     if marker_set is None or not result.labelling.fits_marker_set:
@@ -109,8 +115,7 @@ def gait_outputs(
     figure(
         root,
         f"gait_{trial}",
-        "kisscal.gait.figures",
-        "gait_cycle_figure",
+        gait_cycle_figure,
         markers,
         events,
         None,

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
 from kisscal.io.lock import session_lock
@@ -126,14 +126,14 @@ def select_cameras(config: SessionConfig, camera: str | None) -> tuple[CameraCon
             return (cam,)
     close = difflib.get_close_matches(camera, list(config.camera_ids), n=1)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
-    raise KisscalError(f"no camera {camera!r} in {config.path}{hint}")
+    raise InputError(f"no camera {camera!r} in {config.path}{hint}")
 
 
-def figure(root: Path, name: str, module: str, function: str, *args: Any) -> None:
-    """Draw a stage figure into ``out/figures/<name>.png`` (beside the stage when a
-    session command runs, see :mod:`kisscal.session.figures`).
+def figure(root: Path, name: str, draw: Callable[..., Any], *args: Any) -> None:
+    """Draw a stage figure, ``draw(*args)``, into ``out/figures/<name>.png`` (beside the
+    stage when a session command runs, see :mod:`kisscal.session.figures`).
 
-    The drawing module is imported only then, so that a session run without figures
-    never imports matplotlib.
+    The drawing functions import matplotlib only when they draw, so that a session run
+    without figures never imports it.
     """
-    submit_figure(SessionStore(root).figure_path(name), module, function, args)
+    submit_figure(SessionStore(root).figure_path(name), draw, args)

@@ -9,7 +9,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_text
@@ -21,6 +21,7 @@ from kisscal.io.linearisation import (
     write_linearisation,
 )
 from kisscal.io.store import SessionStore
+from kisscal.report.grid import grid_correction_figure
 from kisscal.session.configure import camera_detection
 from kisscal.session.detection import SizedFrames
 from kisscal.session.inputs import figure, load_config, select_cameras, writes_session
@@ -88,7 +89,8 @@ def _linearise_camera(
     root: Path, config: SessionConfig, cam: CameraConfig, params: StageParams, echo: Echo
 ) -> Linearisation:
     """One camera's linearisation: from the cache, or fitted and written with its figure."""
-    assert config.grid is not None
+    if config.grid is None:
+        raise InputError(f"{config.path}: camera {cam.id} has no [grid] to linearise from")
     store = SessionStore(root)
     out = store.linearisation_path(cam.id)
     frames = camera_frames(
@@ -112,8 +114,7 @@ def _linearise_camera(
     figure(
         root,
         f"grid_{cam.id}",
-        "kisscal.report.grid",
-        "grid_correction_figure",
+        grid_correction_figure,
         fit,
         cam.id,
         cam.size_px,

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed, KisscalError
 from kisscal.io.config import SessionConfig
 from kisscal.markersets import MarkerSet, available_marker_sets, marker_set
 from kisscal.tracking import Trajectories
@@ -116,7 +116,7 @@ def subject_template(result: Trajectories, spec: MarkerSpec, trial: str) -> dict
                 pos[i] = np.nanmedian(track, axis=0)
     seen = np.isfinite(pos[:, 0])
     if seen.sum() < 3:
-        raise KisscalError(f"static trial {trial!r}: fewer than three markers labelled")
+        raise EstimationFailed(f"static trial {trial!r}: fewer than three markers labelled")
     height = lab.height_mm
     if spec.marker_set is not None and not seen.all():
         generic = spec.marker_set.scaled(height if np.isfinite(height) else 1750.0).template_mm

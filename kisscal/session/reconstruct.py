@@ -8,27 +8,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from kisscal.detect import DetectionParams
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
-from kisscal.io.files import read_table, write_json
-from kisscal.io.frames import source_files, trial_frames
+from kisscal.io.files import write_json
 from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.recon import reconstruct_trial
-from kisscal.session.calibrate import current_rig
+from kisscal.report.epipolar import trial_field_figure
+from kisscal.session.calibrated import current_rig
 from kisscal.session.configure import markers_detection
-from kisscal.session.detection import camera_blobs
 from kisscal.session.inputs import figure, load_config, writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
-
-#: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
-CENTROID_COLUMNS = ("field", "x_px", "y_px")
+from kisscal.session.trials import trial_blobs, trial_input_files
 
 
 @writes_session
@@ -83,8 +78,7 @@ def reconstruct(
         figure(
             root,
             f"epipolar_{trial.name}",
-            "kisscal.report.epipolar",
-            "trial_field_figure",
+            trial_field_figure,
             points,
             busiest,
             field_idx,
@@ -183,93 +177,3 @@ def c3d_trial_points(
             f"(POINT:ANGLES, FORCES, MOMENTS, POWERS ...): {shown}"
         )
     return read_points3d(path)
-
-
-def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
-    """Per camera, the files a trial's 2D data come from (for cache keys)."""
-    if trial.source == "centroids":
-        assert trial.centroids is not None
-        paths = {
-            c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
-        }
-    else:
-        frames = trial_frames(
-            config.root,
-            trial.images or trial.video or "",
-            config.camera_ids,
-            trial.name,
-            video=trial.source == "video",
-            fields=trial.fields,
-        )
-        paths = {c: source_files(f) for c, f in frames.items()}
-    for c, ps in paths.items():
-        for p in ps:
-            if not p.is_file():
-                raise KisscalError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
-    return paths
-
-
-def trial_blobs(
-    root: Path,
-    config: SessionConfig,
-    trial: TrialConfig,
-    detection: dict[str, DetectionParams],
-    echo: Echo,
-    workers: int | None = None,
-) -> dict[str, list[NDArray]]:
-    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
-
-    ``detection`` holds each camera's detection parameters (unused for centroid files).
-    """
-    if trial.source == "centroids":
-        return _centroid_files(config, trial)
-    frames = trial_frames(
-        config.root,
-        trial.images or trial.video or "",
-        config.camera_ids,
-        trial.name,
-        video=trial.source == "video",
-        fields=trial.fields,
-    )
-    name = (f"trial-{trial.name}", trial.name)
-    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
-    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
-
-
-def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
-    """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
-    assert trial.centroids is not None
-    out = {}
-    for cam in config.cameras:
-        path = config.root / trial.centroids.replace("{camera}", cam.id)
-        table = read_table(path, required=CENTROID_COLUMNS, numeric=CENTROID_COLUMNS)
-        f = table["field"].astype(float)
-        xy = np.column_stack([table["x_px"], table["y_px"]]).astype(float)
-        _check_centroids(path, f, xy, cam.size_px)
-        f = f.astype(int)
-        n = int(f.max()) + 1 if len(f) else 0
-        out[cam.id] = [xy[f == i] for i in range(n)]
-    n_fields = max(len(v) for v in out.values())
-    return {c: v + [np.zeros((0, 2))] * (n_fields - len(v)) for c, v in out.items()}
-
-
-def _check_centroids(
-    path: Path, field: NDArray, xy: NDArray, size_px: tuple[int, int] | None
-) -> None:
-    """Refuse rows a camera cannot have seen: not numbers, negative fields, off the image."""
-    bad = ~np.isfinite(xy).all(axis=1) | ~np.isfinite(field) | (field != np.round(field))
-    if bad.any():
-        raise KisscalError(
-            f"{path}: row {int(np.argmax(bad)) + 2} has a field or centroid that is not a number"
-        )
-    if len(field) and field.min() < 0:
-        raise KisscalError(f"{path}: field numbers must be 0 or more")
-    if size_px is not None:
-        w, h = size_px
-        off = (xy[:, 0] < -0.5) | (xy[:, 0] > w - 0.5) | (xy[:, 1] < -0.5) | (xy[:, 1] > h - 0.5)
-        if off.any():
-            row = int(np.argmax(off))
-            raise KisscalError(
-                f"{path}: row {row + 2} ({xy[row, 0]:g}, {xy[row, 1]:g}) lies outside the "
-                f"{w} x {h} pixel image"
-            )

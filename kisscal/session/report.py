@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from kisscal.errors import KisscalError
+from kisscal.errors import MissingDataError
 from kisscal.io.store import SessionStore
 from kisscal.session.figures import wait_for_figures
 from kisscal.session.inputs import load_config, writes_session
@@ -19,7 +19,7 @@ def report(root: Path, echo: Echo = quiet) -> Path:
 
     config = load_config(root)  # a session folder, not just any path
     if not SessionStore(root).has_results():
-        raise KisscalError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
+        raise MissingDataError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = stage_params(config).report
     wait_for_figures()  # a stage's figures, drawn in the background, go into the page
     path = build_report(Path(root), params)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import MissingDataError
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.session.inputs import load_config, writes_session
@@ -56,7 +56,7 @@ def check(
         doc = store.calibration_doc("check")
         if doc is None:
             path = store.calibration_file("check")
-            raise KisscalError(f"{path}: missing; run `kisscal calibrate {root}` first")
+            raise MissingDataError(f"{path}: missing; run `kisscal calibrate {root}` first")
         loo = doc.get("leave_one_rod_out", {})
         fallback = doc.get("leave_out_mean_mm", doc.get("rods_in_sample_mean_mm", np.nan))
         value = float(loo.get("mean_mm", fallback))
@@ -68,5 +68,5 @@ def check(
 
 def _figure_from(path: Path, key: str, command: str) -> float:
     if not path.is_file():
-        raise KisscalError(f"{path}: missing; run `{command}` first")
+        raise MissingDataError(f"{path}: missing; run `{command}` first")
     return float(json.loads(path.read_text())[key])

@@ -2,7 +2,7 @@
 
 The file side of :mod:`kisscal.synth` (which stays pure: rigs, rendering, scoring):
 :func:`synthesise` plans a rig with :mod:`kisscal.synth.plan` and writes it through
-:mod:`kisscal.io.synthetic`; :func:`evaluate` compares a processed session's ``out/``
+:mod:`kisscal.session.synth_session`; :func:`evaluate` compares a processed session's ``out/``
 with its ``truth/``.
 """
 
@@ -21,7 +21,8 @@ from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
-from kisscal.io.synthetic import load_walking5, write_synthetic_session
+from kisscal.session.synth_session import load_walking5, write_synthetic_session
+from kisscal.session.synth_target import write_target_session
 from kisscal.synth.cameras import MAX_CAMERAS
 from kisscal.synth.evaluate import (
     gravity_error,
@@ -132,8 +133,6 @@ def synthesise_target(
 ) -> Path:
     """Write a synthetic known-target session (``kisscal synth --target planar|stepped``):
     photographs of a dot plate, ``target.csv``, six clicked seeds per camera, ``truth/``."""
-    from kisscal.io.synthetic_target import write_target_session
-
     if kind not in ("planar", "stepped"):
         raise KisscalError(f"--target must be planar or stepped, got {kind!r}")
     if not 2 <= n_cameras <= 4:

@@ -12,15 +12,18 @@ import numpy as np
 
 from kisscal._text import plural
 from kisscal.dlt.model import pixel_size_mm
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import write_json
 from kisscal.io.points3d import Points3DFile, read_points3d
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
+from kisscal.report.markers import dense_trajectories
 from kisscal.report.params import ReportParams
-from kisscal.session.calibrate import current_rig
+from kisscal.report.tracking import segment_length_figure, trajectories_figure
+from kisscal.report.validation import rate_doubt, throw_fit
+from kisscal.session.calibrated import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
 from kisscal.session.inputs import figure, load_config, writes_session
 from kisscal.session.markers import (
@@ -74,7 +77,7 @@ def track(
 def _points_path(root: Path, trial: str) -> Path:
     path = SessionStore(root).trial(trial).points3d
     if not path.is_file():
-        raise KisscalError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
+        raise MissingDataError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
     return path
 
 
@@ -191,9 +194,6 @@ def _rate_doubt(
     config: SessionConfig, trial: str, result: Trajectories, limits: ReportParams
 ) -> str:
     """Why ``rate_hz`` may be wrong, when the trial is a throw that does not fall at g."""
-    from kisscal.report.markers import dense_trajectories
-    from kisscal.report.validation import rate_doubt, throw_fit
-
     tracks = result.tracks
     if not len(tracks.field) or result.labelling.fits_marker_set:
         return ""
@@ -216,16 +216,14 @@ def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate
     figure(
         root,
         f"trajectories_{trial}",
-        "kisscal.report.tracking",
-        "trajectories_figure",
+        trajectories_figure,
         result,
         f"trial {trial}: trajectories (mm)",
     )
     figure(
         root,
         f"segments_{trial}",
-        "kisscal.report.tracking",
-        "segment_length_figure",
+        segment_length_figure,
         result,
         segments,
         rate_hz,

@@ -27,7 +27,7 @@ from kisscal.io.frames import (
 )
 from kisscal.session.inputs import folders_hint, image_sources, load_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
-from kisscal.session.reconstruct import CENTROID_COLUMNS
+from kisscal.session.trials import CENTROID_COLUMNS
 from kisscal.target.match import too_few_seeds
 
 #: ``Problem.scope`` of a problem that stops the whole session.

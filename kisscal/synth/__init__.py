@@ -4,5 +4,5 @@
 :mod:`~kisscal.synth.plan` decides a whole session and renders it camera by camera,
 :mod:`~kisscal.synth.truth` says what detection should find in it, and
 :mod:`~kisscal.synth.busy` draws a busy benchmark frame. Everything here is pure;
-:mod:`kisscal.io.synthetic` writes the files (``kisscal synth``).
+:mod:`kisscal.session.synth_session` writes the files (``kisscal synth``).
 """

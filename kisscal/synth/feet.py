@@ -41,7 +41,7 @@ _SWING_PITCH_ACC = 250.0  # rad/s^2 at the start of swing: the push-off has ende
 
 
 @dataclass(frozen=True)
-class _Body:
+class Body:
     """Lengths (mm) scaled to the walker's stature."""
 
     k: float  # stature / reference
@@ -66,11 +66,11 @@ class _Body:
         return float(np.hypot(170.0, 10.0)) * self.k
 
 
-_SOLE_TILT = float(np.arctan2(10.0, 170.0))  # sole line below the foot's forward axis
+SOLE_TILT = float(np.arctan2(10.0, 170.0))  # sole line below the foot's forward axis
 
 
 @dataclass(frozen=True)
-class _Gait:
+class GaitTiming:
     period_s: float
     stance: float
     speed: float  # mm/s
@@ -91,7 +91,7 @@ class _Gait:
         return self.stance * self.period_s
 
 
-class _Path:
+class WalkPath:
     """The pelvis' path on the floor: start, heading and a constant curvature."""
 
     def __init__(self, start_xy: NDArray, heading: float, curvature: float) -> None:
@@ -114,7 +114,7 @@ class _Path:
         return self.start + d
 
 
-def _pitch_stance(tau: NDArray, g: _Gait) -> tuple[NDArray, NDArray]:
+def _pitch_stance(tau: NDArray, g: GaitTiming) -> tuple[NDArray, NDArray]:
     """Sole pitch (rad, toe up positive) and its rate over stance time ``tau`` (s)."""
     alpha, rate = np.zeros_like(tau), np.zeros_like(tau)
     heel = tau < g.flat_s
@@ -129,14 +129,14 @@ def _pitch_stance(tau: NDArray, g: _Gait) -> tuple[NDArray, NDArray]:
     return alpha, rate
 
 
-def _toe_rise(tau: NDArray, g: _Gait) -> tuple[NDArray, NDArray, NDArray]:
+def _toe_rise(tau: NDArray, g: GaitTiming) -> tuple[NDArray, NDArray, NDArray]:
     """Toes' rise about their tip (rad) over stance time ``tau``, with its two derivatives."""
     span = _TOE_ROLL_S * g.period_s
     q = np.clip((tau - (g.stance_s - span)) / span, 0.0, None)
     return _TOE_LIFT * q**2, 2 * _TOE_LIFT * q / span, np.where(q > 0, 2 * _TOE_LIFT / span**2, 0.0)
 
 
-def _toe_tilt(b: _Body) -> float:
+def _toe_tilt(b: Body) -> float:
     """Tilt of the flat toes: from the ball's centre (radius 30 mm) down to the tip's."""
     return float(np.arcsin((b.radius - b.tip) / b.toe))
 
@@ -149,7 +149,7 @@ def _direction(angle: NDArray, theta: NDArray | float) -> NDArray:
 
 
 def _stance_sole(
-    tau: NDArray, foot: NDArray, theta: float, g: _Gait, b: _Body
+    tau: NDArray, foot: NDArray, theta: float, g: GaitTiming, b: Body
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Heel, ball and toe-tip sphere centres (n, 3) of a foot that struck at ``foot``.
 
@@ -193,7 +193,7 @@ def _quintic(p0, v0, a0, p1, v1, a1, duration: float, tau: NDArray) -> NDArray:
 
 
 def _swing_sole(
-    tau: NDArray, start: tuple, end: tuple, g: _Gait, b: _Body
+    tau: NDArray, start: tuple, end: tuple, g: GaitTiming, b: Body
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Heel, ball and toe-tip centres in swing, ``tau`` s after foot off.
 
@@ -234,7 +234,7 @@ def _swing_sole(
     return ball - b.sole * _direction(alpha, theta), ball, tip
 
 
-def _footprints(path: _Path, g: _Gait, b: _Body, t_end: float) -> dict[str, tuple]:
+def footprints(path: WalkPath, g: GaitTiming, b: Body, t_end: float) -> dict[str, tuple]:
     """Per side: strike times, heel contact points and headings, a stride beyond each end."""
     out = {}
     lead = 0.40 * g.step  # heel ahead of the pelvis at foot strike
@@ -253,7 +253,9 @@ def _footprints(path: _Path, g: _Gait, b: _Body, t_end: float) -> dict[str, tupl
     return out
 
 
-def _sole(t: NDArray, prints: tuple, g: _Gait, b: _Body) -> tuple[NDArray, NDArray, NDArray]:
+def sole_pose(
+    t: NDArray, prints: tuple, g: GaitTiming, b: Body
+) -> tuple[NDArray, NDArray, NDArray]:
     """Heel, ball and toe-tip sphere centres (n, 3) of one foot at times ``t``."""
     times, feet, theta = prints
     k = np.searchsorted(times, t, side="right") - 1

@@ -15,16 +15,15 @@ carries its true foot contacts and gait (:class:`kisscal.synth.walker.GaitTruth`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from kisscal.synth.body import PELVIS_HALF_LENGTH_MM, PELVIS_MARKERS, PELVIS_RADIUS_MM
 from kisscal.synth.cameras import VOLUME_MM
-
-if TYPE_CHECKING:
-    from kisscal.synth.walker import GaitTruth
+from kisscal.synth.walker import GaitTruth, grounded_walk
 
 #: Gravitational acceleration used for the thrown marker (Ankara, seed 003 section 5.1).
 G_MM_S2 = 9806.0
@@ -135,16 +134,9 @@ def _leg_from_angles(
     }
 
 
-_PELVIS_MARKERS = {
-    "SACR": np.array([-110.0, 0.0, 80.0]),
-    "RASI": np.array([100.0, -120.0, 60.0]),
-    "LASI": np.array([100.0, 120.0, 60.0]),
-}
 _LEG_MARKERS = ("THI", "KNE", "TIB", "ANK", "HEE", "TOE")
 #: Capsules: (name, radius mm); leg capsules per side.
 _LEG_CAPSULES = (("thigh", 65.0), ("shank", 45.0), ("foot", 30.0))
-_PELVIS_RADIUS_MM = 90.0
-_PELVIS_HALF_LENGTH_MM = 80.0
 
 
 def gait_marker_names(n_markers: int = 15) -> tuple[str, ...]:
@@ -275,20 +267,20 @@ def walking_trial(
     legs = {"R": _leg_points(phase, -1.0), "L": _leg_points(phase + 0.5, 1.0)}
     markers = []
     for name in names:
-        if name in _PELVIS_MARKERS:
-            markers.append(to_lab(np.tile(_PELVIS_MARKERS[name], (n_fields, 1))))
+        if name in PELVIS_MARKERS:
+            markers.append(to_lab(np.tile(PELVIS_MARKERS[name], (n_fields, 1))))
         else:
             markers.append(to_lab(legs[name[0]][name[1:]]))
     capsules = [
         np.stack(
             [
-                to_lab(np.tile([0.0, -_PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
-                to_lab(np.tile([0.0, _PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
+                to_lab(np.tile([0.0, -PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
+                to_lab(np.tile([0.0, PELVIS_HALF_LENGTH_MM, 40.0], (n_fields, 1))),
             ],
             axis=1,
         )
     ]
-    radii = [k * _PELVIS_RADIUS_MM]
+    radii = [k * PELVIS_RADIUS_MM]
     for side in "RL":
         leg = legs[side]
         ends = {
@@ -323,8 +315,6 @@ def _grounded(
     turn_deg: float,
 ) -> Motion:
     """The walker of :mod:`kisscal.synth.walker` as a :class:`Motion` with its truth."""
-    from kisscal.synth.walker import grounded_walk
-
     if start_mm is None:
         direction = np.array([np.cos(heading), np.sin(heading)])
         normal = np.array([-direction[1], direction[0]])
@@ -362,7 +352,7 @@ def standing_template(names: tuple[str, ...]) -> NDArray[np.float64]:
     }
     floor_offset = -min(legs["R"][k][0, 2] for k in ("heel_end", "toe_end")) + 30.0
     out = [
-        _PELVIS_MARKERS[name] if name in _PELVIS_MARKERS else legs[name[0]][name[1:]][0]
+        PELVIS_MARKERS[name] if name in PELVIS_MARKERS else legs[name[0]][name[1:]][0]
         for name in names
     ]
     return np.asarray(out) + [0.0, 0.0, floor_offset]

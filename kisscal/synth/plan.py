@@ -2,7 +2,7 @@
 
 :func:`plan_session` decides everything a seed determines; the ``render_*`` functions
 produce the images of one camera (grid, rods, or one trial) with their truth, so that
-:mod:`kisscal.io.synthetic` can write cameras in parallel.
+:mod:`kisscal.session.synth_session` can write cameras in parallel.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.camera import Camera
+from kisscal.errors import InputError
 from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, kiss_rig, ring_rig
 from kisscal.synth.motion import (
     STICK_LENGTH_MM,
@@ -244,7 +245,8 @@ def marker_radius_mm(
     radii that keep all images in the band form a range, and ``marker_size_quantile``
     picks one. An empty range (a band the geometry cannot meet) gives its middle.
     """
-    assert spec.marker_diameter_px is not None
+    if spec.marker_diameter_px is None:
+        raise InputError("marker_radius_mm: the rig spec gives no marker_diameter_px band")
     lo, hi = (np.asarray(c, dtype=float) for c in spec.volume_mm)
     axes = [np.linspace(lo[k], hi[k], samples) for k in range(3)]
     points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -320,7 +322,6 @@ def _hang_rods(
             best, fewest = rods, conflicts
         if conflicts == 0:
             break
-    assert best is not None and fewest is not None
     return best, fewest
 
 

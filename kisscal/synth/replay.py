@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.synth.motion import Motion
+from kisscal.synth.scene import segment_distance
 
 
 def replay_trial(
@@ -76,8 +77,6 @@ def slim_capsules(motion: Motion, clearance_mm: float = 10.0, least_mm: float = 
     radius becomes at most the median distance (over fields) of the nearest marker to the
     capsule's axis, less ``clearance_mm`` (never below ``least_mm``).
     """
-    from kisscal.synth.scene import segment_distance
-
     caps = motion.capsules_mm  # (F, K, 2, 3)
     if caps.shape[1] == 0:
         return motion

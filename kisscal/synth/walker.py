@@ -26,7 +26,8 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
 
 from kisscal.gait.table import GaitEvents
-from kisscal.synth.feet import _SOLE_TILT, _Body, _footprints, _Gait, _Path, _sole
+from kisscal.synth.body import PELVIS_HALF_LENGTH_MM, PELVIS_MARKERS, PELVIS_RADIUS_MM
+from kisscal.synth.feet import SOLE_TILT, Body, GaitTiming, WalkPath, footprints, sole_pose
 
 #: Stature (mm) of the default walker geometry.
 REFERENCE_HEIGHT_MM = 1755.0
@@ -95,15 +96,15 @@ def _plane_frame(heel: NDArray, fore: NDArray, hip: NDArray, outward: NDArray) -
     n *= np.sign(np.sum(n * outward, axis=1))[:, None]
     e = np.cross(n, d)
     e *= np.sign(e[:, 2])[:, None]
-    c, s = np.cos(_SOLE_TILT), np.sin(_SOLE_TILT)
+    c, s = np.cos(SOLE_TILT), np.sin(SOLE_TILT)
     return c * d + s * e, -s * d + c * e, n
 
 
-def _ankle(heel: NDArray, fwd: NDArray, up: NDArray, b: _Body) -> NDArray:
+def _ankle(heel: NDArray, fwd: NDArray, up: NDArray, b: Body) -> NDArray:
     return heel + b.k * (40.0 * fwd + 40.0 * up)
 
 
-def _leg(hip: NDArray, heel: NDArray, fore: NDArray, outward: NDArray, b: _Body) -> dict:
+def _leg(hip: NDArray, heel: NDArray, fore: NDArray, outward: NDArray, b: Body) -> dict:
     """Joint centres and KISS markers of one leg (the kinematic walker's marker offsets)."""
     fwd, up, n = _plane_frame(heel, fore, hip, outward)
     ankle = _ankle(heel, fwd, up, b)
@@ -132,7 +133,7 @@ def _leg(hip: NDArray, heel: NDArray, fore: NDArray, outward: NDArray, b: _Body)
     }
 
 
-def _pelvis_pose(t: NDArray, path: _Path, g: _Gait, b: _Body) -> tuple[NDArray, NDArray]:
+def _pelvis_pose(t: NDArray, path: WalkPath, g: GaitTiming, b: Body) -> tuple[NDArray, NDArray]:
     """Pelvis origin on the floor (n, 3, height 0) and its forward axis (n, 3)."""
     u = g.speed * t
     phase = 2 * np.pi * (t - g.first_strike["right"]) / g.period_s
@@ -145,12 +146,14 @@ def _pelvis_pose(t: NDArray, path: _Path, g: _Gait, b: _Body) -> tuple[NDArray, 
     return origin, forward
 
 
-def _hips(origin: NDArray, forward: NDArray, b: _Body) -> dict[str, NDArray]:
+def _hips(origin: NDArray, forward: NDArray, b: Body) -> dict[str, NDArray]:
     left = np.column_stack([-forward[:, 1], forward[:, 0], np.zeros(len(forward))])
     return {"right": origin - b.hip_half * left, "left": origin + b.hip_half * left}
 
 
-def _pelvis_height(t_end: float, path: _Path, prints: dict, g: _Gait, b: _Body) -> CubicSpline:
+def _pelvis_height(
+    t_end: float, path: WalkPath, prints: dict, g: GaitTiming, b: Body
+) -> CubicSpline:
     """Pelvis height over time: as high as both legs reach with 7 degrees of knee flexion."""
     t = np.arange(-g.period_s, t_end + g.period_s, _DENSE_S)
     origin, forward = _pelvis_pose(t, path, g, b)
@@ -158,7 +161,7 @@ def _pelvis_height(t_end: float, path: _Path, prints: dict, g: _Gait, b: _Body) 
     reach = (b.thigh + b.shank) * np.cos(np.radians(3.5))
     highest = np.full(len(t), np.inf)
     for side in ("left", "right"):
-        heel, fore, _ = _sole(t, prints[side], g, b)
+        heel, fore, _ = sole_pose(t, prints[side], g, b)
         raised = hips[side] + [0.0, 0.0, 0.9 * reach]  # frame only needs the side of the hip
         fwd, up, _ = _plane_frame(heel, fore, raised, hips[side] - origin)
         ankle = _ankle(heel, fwd, up, b)
@@ -169,7 +172,7 @@ def _pelvis_height(t_end: float, path: _Path, prints: dict, g: _Gait, b: _Body) 
     return CubicSpline(t, smooth)
 
 
-def _timing(speed: float, height_mm: float, phase: float) -> _Gait:
+def _timing(speed: float, height_mm: float, phase: float) -> GaitTiming:
     """Normal walking at ``speed`` (mm/s) for a subject of ``height_mm``."""
     k = height_mm / REFERENCE_HEIGHT_MM
     step = float(np.sqrt(_WALK_RATIO * k * speed * 60.0))
@@ -177,7 +180,7 @@ def _timing(speed: float, height_mm: float, phase: float) -> _Gait:
     period = 120.0 / cadence
     stance = float(np.clip(0.665 - 0.045 * speed / 1000.0, 0.58, 0.66))
     right = -phase * period
-    return _Gait(
+    return GaitTiming(
         period_s=period,
         stance=stance,
         speed=speed,
@@ -204,14 +207,12 @@ def grounded_walk(
     direction (rad from +X towards +Y), ``phase`` the right leg's gait-cycle phase at
     field 0 (0 = right foot strike), ``turn_rad`` the change of heading over the trial.
     """
-    from kisscal.synth.motion import _PELVIS_HALF_LENGTH_MM, _PELVIS_MARKERS, _PELVIS_RADIUS_MM
-
-    b = _Body(height_mm / REFERENCE_HEIGHT_MM)
+    b = Body(height_mm / REFERENCE_HEIGHT_MM)
     t = np.arange(n_fields) / rate_hz
     t_end = float(t[-1])
     g = _timing(speed_mm_s, height_mm, phase)
-    path = _Path(start_xy, heading, turn_rad / max(speed_mm_s * t_end, 1e-9))
-    prints = _footprints(path, g, b, t_end)
+    path = WalkPath(start_xy, heading, turn_rad / max(speed_mm_s * t_end, 1e-9))
+    prints = footprints(path, g, b, t_end)
     height = _pelvis_height(t_end, path, prints, g, b)
     origin, forward = _pelvis_pose(t, path, g, b)
     origin[:, 2] = height(t)
@@ -226,23 +227,23 @@ def grounded_walk(
     legs, spheres = {}, {}
     for side, sign in (("R", -1.0), ("L", 1.0)):
         full = "left" if side == "L" else "right"
-        heel, ball, tip = _sole(t, prints[full], g, b)
+        heel, ball, tip = sole_pose(t, prints[full], g, b)
         legs[side] = _leg(hips[full], heel, ball, sign * left, b)
         spheres[f"{full}_heel"], spheres[f"{full}_ball"], spheres[f"{full}_tip"] = heel, ball, tip
     markers = {
-        n: pelvis_point(_PELVIS_MARKERS[n]) if n in _PELVIS_MARKERS else legs[n[0]][n[1:]]
+        n: pelvis_point(PELVIS_MARKERS[n]) if n in PELVIS_MARKERS else legs[n[0]][n[1:]]
         for n in names
     }
     caps = [
         np.stack(
             [
-                pelvis_point([0.0, -_PELVIS_HALF_LENGTH_MM, 40.0]),
-                pelvis_point([0.0, _PELVIS_HALF_LENGTH_MM, 40.0]),
+                pelvis_point([0.0, -PELVIS_HALF_LENGTH_MM, 40.0]),
+                pelvis_point([0.0, PELVIS_HALF_LENGTH_MM, 40.0]),
             ],
             axis=1,
         )
     ]
-    radii = [_PELVIS_RADIUS_MM * b.k]
+    radii = [PELVIS_RADIUS_MM * b.k]
     for side in "RL":
         leg = legs[side]
         for a, c, r in (
@@ -263,7 +264,13 @@ def grounded_walk(
 
 
 def _truth(
-    prints: dict, g: _Gait, b: _Body, height_mm: float, heading: float, t_end: float, rate: float
+    prints: dict,
+    g: GaitTiming,
+    b: Body,
+    height_mm: float,
+    heading: float,
+    t_end: float,
+    rate: float,
 ) -> GaitTruth:
     times = {}
     for side in ("left", "right"):

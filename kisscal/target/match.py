@@ -41,7 +41,7 @@ from kisscal.camera import Camera
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
 from kisscal.dlt.params import DltParams
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
 from kisscal.target.resect import NEAR_FLAT, CameraFit, choose_camera, refine, resect
 
@@ -159,9 +159,9 @@ def seed_models(
     where = f"camera {camera}: "
     few = too_few_seeds(len(seeds_uv))
     if few:
-        raise KisscalError(where + few)
+        raise EstimationFailed(where + few)
     if is_collinear(seeds_xyz, dlt):
-        raise KisscalError(
+        raise EstimationFailed(
             f"{where}the seeds lie on one line of the target; click points spread over it"
         )
     if is_planar(target_xyz, dlt):
@@ -169,7 +169,7 @@ def seed_models(
     else:
         cams = resect(seeds_xyz, seeds_uv, size_px)
         if not cams:
-            raise KisscalError(
+            raise EstimationFailed(
                 f"{where}no camera puts the {len(seeds_uv)} seeds where they were clicked; "
                 "check each click is on the point its x_mm,y_mm,z_mm name"
             )
@@ -177,7 +177,7 @@ def seed_models(
     err = np.linalg.norm(starts[0].project(seeds_xyz) - seeds_uv, axis=1)
     if starts[0].seed_rms_px > params.seed_tol_px:
         worst = int(np.argmax(err))
-        raise KisscalError(
+        raise EstimationFailed(
             f"{where}the {len(seeds_uv)} seeds contradict each other: no camera puts them "
             f"where they were clicked (rms {starts[0].seed_rms_px:.1f} px; seed row "
             f"{worst + 2} is off by {err[worst]:.1f} px); check each click is on the point "
@@ -199,7 +199,7 @@ def _homography(xyz: NDArray[np.float64], uv: NDArray[np.float64], camera: str) 
     except cv2.error:
         H = None
     if H is None or not np.all(np.isfinite(H)):
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: the flat target's points do not fit one view of a plane "
             "(are three of them on one line?)"
         )
@@ -257,12 +257,12 @@ def fit_camera(
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     if start is None:
         if len(xyz) < MIN_SEEDS or is_collinear(xyz, dlt):
-            raise KisscalError(
+            raise EstimationFailed(
                 f"{len(xyz)} points on a line or fewer than {MIN_SEEDS}: no camera to fit"
             )
         found = resect(xyz, uv, size_px)
         if not found:
-            raise KisscalError(f"no camera fits the {len(xyz)} points")
+            raise EstimationFailed(f"no camera fits the {len(xyz)} points")
         start = found[0]
     if terms is not None:
         return refine(xyz, uv, start, size_px, terms)
@@ -316,7 +316,7 @@ def match_target(
     dot, iterations, cam = rounds[best]
     m = dot >= 0
     if m.sum() < MIN_MATCHES:
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: only {int(m.sum())} target points matched a dot from the "
             f"seeds; {_why_few(seeds_xyz, starts, size_px)}"
         )
@@ -326,13 +326,13 @@ def match_target(
     seen = visible & _dot_near(projected, dots, params)
     m = final >= 0
     if m.sum() < params.min_matched * max(seen.sum(), 1):
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: only {int(m.sum())} of the {int(seen.sum())} target points "
             f"with a dot near their image matched one; {_why_few(seeds_xyz, starts, size_px)}"
         )
     res = fit.camera.project(target[m]) - dots[final[m]]
     if rms_px(res) > params.max_rms_px:
-        raise KisscalError(
+        raise EstimationFailed(
             f"camera {camera}: the {int(m.sum())} matches fit no camera (rms "
             f"{rms_px(res):.1f} px); {_why_few(seeds_xyz, starts, size_px)}"
         )
@@ -462,7 +462,7 @@ def drop_outliers(
 def _resected(xyz: NDArray, uv: NDArray, size_px: tuple[int, int]) -> Camera:
     found = resect(xyz, uv, size_px)
     if not found:
-        raise KisscalError(f"no camera fits the {len(xyz)} matched target points")
+        raise EstimationFailed(f"no camera fits the {len(xyz)} matched target points")
     return found[0]
 
 

@@ -135,7 +135,6 @@ def _linearised(
     of log focal length, rotation (left increment), translation and the free terms."""
     state = State.of((cam,), np.zeros((0, 3)), np.zeros((0, 3)))
     proj, J, _ = project(state, np.zeros(len(xyz), dtype=np.int64), xyz)
-    assert J is not None
     fu, fv = cam.K[0, 0], cam.K[1, 1]
     cols = [J[:, :, 0:1] * fu + J[:, :, 1:2] * fv, J[:, :, 5:11]]
     for term in terms:

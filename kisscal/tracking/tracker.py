@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.tracking.association import associate, lookahead_cost
 from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
 from kisscal.tracking.live import Live, Setup
@@ -46,17 +46,17 @@ def _check_points(field: ArrayLike, xyz_mm: ArrayLike) -> tuple[NDArray, NDArray
     field = np.asarray(field)
     xyz = np.asarray(xyz_mm, dtype=float)
     if field.ndim != 1 or xyz.shape != (field.size, 3):
-        raise KisscalError(
+        raise InputError(
             f"tracking: need field (N,) and xyz_mm (N, 3), got {field.shape} and {xyz.shape}"
         )
     if field.size and (
         not np.issubdtype(field.dtype, np.integer) and not np.all(field == np.round(field))
     ):
-        raise KisscalError("tracking: field indices must be whole numbers")
+        raise InputError("tracking: field indices must be whole numbers")
     if field.size and field.min() < 0:
-        raise KisscalError("tracking: field indices must be >= 0")
+        raise InputError("tracking: field indices must be >= 0")
     if not np.isfinite(xyz).all():
-        raise KisscalError("tracking: xyz_mm contains NaN or infinite values")
+        raise InputError("tracking: xyz_mm contains NaN or infinite values")
     return field.astype(np.int64), xyz
 
 

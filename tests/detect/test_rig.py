@@ -131,8 +131,8 @@ def test_gait_more_seeds_longer(seed):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_replayed_walking5_trial(seed):
     """The real Vicon walking trial replayed in the rig: denser foot markers than walk01."""
-    from kisscal.io.synthetic import load_walking5
     from kisscal.session import default_walking5_path
+    from kisscal.session.synth_session import load_walking5
 
     path = default_walking5_path()
     if path is None:

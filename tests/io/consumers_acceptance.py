@@ -39,7 +39,7 @@ from kisscal import session
 from kisscal.io.config import load_toml
 from kisscal.io.points2d import read_points2d
 from kisscal.io.points3d import read_points3d
-from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 from kisscal.session.exports import export
 
 #: Issue 28's bar: each tool's 3D points within this distance of kisscal's (mm).
@@ -66,7 +66,7 @@ def observations_by_point(
     cam = np.array([column[c] for c in p2.camera[used]], dtype=np.int64)
     dense[cam, p2.point[used]] = p2.xy_px[used]
     if projected:
-        rig = Rig.load(root)
+        rig = current_rig(root)
         for i, c in enumerate(cameras):
             seen = np.isfinite(dense[i, :, 0])
             dense[i, seen] = rig.camera(c).project(p3.xyz_mm[seen])

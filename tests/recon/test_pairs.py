@@ -105,7 +105,6 @@ def test_two_camera_markers_off() -> None:
 @pytest.mark.parametrize("cameras", [(0, 1), (0, 1, 2)])
 def test_two_and_three_camera_subsets_of_the_kiss_rig(cameras: tuple[int, ...]) -> None:
     """The synthetic session's own 2- and 3-camera rigs (``kisscal synth --cameras``)."""
-    pytest.importorskip("kisscal.synth.cameras")
     from .subsets import kiss_subsets
 
     for seed in (2, 4):

@@ -1,4 +1,4 @@
-"""The issue's acceptance numbers on the synthetic KISS-like rig (needs ``kisscal.synth``)."""
+"""The issue's acceptance numbers on the synthetic KISS-like rig."""
 
 from __future__ import annotations
 
@@ -6,8 +6,6 @@ import numpy as np
 import pytest
 
 from kisscal.recon import ReconParams, reconstruct_trial
-
-pytest.importorskip("kisscal.synth.cameras")
 
 from .scenario import score
 from .synth_trials import (

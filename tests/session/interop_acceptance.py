@@ -19,12 +19,12 @@ import numpy as np
 
 from kisscal import session
 from kisscal.io.config import load_toml
-from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 from tests.session.test_interop import centroid_trial, distances_mm, imported, points3d
 
 
 def projection_table(root: Path) -> list[str]:
-    rig = Rig.load(root)
+    rig = current_rig(root)
     doc = load_toml(root / "out" / "cameras.toml")
     exports = __import__("json").loads((root / "out" / "exports.json").read_text())
     xyz = np.random.default_rng(0).uniform([-1200, -700, 0], [1200, 700, 2000], (20000, 3))

@@ -37,10 +37,11 @@ from kisscal import session
 from kisscal.camera import Camera
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 from kisscal.session.params import Overrides
 from kisscal.synth.cameras import camera_from_truth
 from kisscal.synth.presets import synth_options
-from tests.wand.scoring import volume_points
+from tests.bundle.wand_scoring import volume_points
 
 REAL = Path("/work/shared/data/real/openptv-cavity")  # --real to point elsewhere
 MODELS = ("dlt", "refined", "lens")
@@ -88,7 +89,7 @@ def real_session(
 
 def real_error(root: Path, truth: dict[int, np.ndarray], odd: dict[str, dict]) -> float:
     """RMS 3D error (mm) of the odd dots seen by two cameras or more."""
-    rig = Rig.load(root)
+    rig = current_rig(root)
     ids = sorted(truth)
     pos = {i: k for k, i in enumerate(ids)}
     cams, pts, uvs = [], [], []
@@ -134,7 +135,7 @@ def volume_errors(root: Path, preset: str, seed: int, rig: Rig | None = None) ->
         camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]
     ]
-    rig = rig or Rig.load(root)
+    rig = rig or current_rig(root)
     inside, edges = volume_points(synth_options(preset, seed).rig.volume_mm, seed=7)
     out = {}
     for name, xyz in (("inside", inside), ("edges", edges)):
@@ -149,7 +150,7 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     from kisscal.io.cameras_toml import read_cameras_toml
     from kisscal.opencv import camera_from_opencv
 
-    rig = Rig.load(root)
+    rig = current_rig(root)
     cvs = read_cameras_toml(root / "out" / "cameras.toml", rig.ids)
     back = []
     for cam in rig.cameras:
@@ -197,7 +198,7 @@ def measure_rig(preset: str, seed: int, work: Path) -> dict[str, Any]:
         session.calibrate(rods, **forced(model))
         line[f"rods {model}"] = volume_errors(rods, preset, seed)
     session.calibrate(rods, **forced(None))
-    doc = json.loads((rods / "out" / "dlt" / f"{Rig.load(rods).ids[0]}.json").read_text())
+    doc = json.loads((rods / "out" / "dlt" / f"{current_rig(rods).ids[0]}.json").read_text())
     line["rods default"] = {
         "model": doc["lens_models"]["chosen"],
         **volume_errors(rods, preset, seed),

@@ -16,8 +16,8 @@ import pytest
 from kisscal import session
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
-from kisscal.rig import Rig
 from kisscal.session.calibrate import session_route
+from kisscal.session.calibrated import current_rig
 from tests.session.wand_session import add_axes, add_wand_trial, truth_rig
 
 pytestmark = pytest.mark.slow
@@ -42,7 +42,7 @@ def _lines(out: list[str]) -> str:
 
 
 def _centre_errors_mm(root: Path) -> np.ndarray:
-    rig = Rig.load(root)
+    rig = current_rig(root)
     return np.array(
         [
             np.linalg.norm(c.centre_mm - t.centre_mm)

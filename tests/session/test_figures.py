@@ -11,8 +11,6 @@ from matplotlib.figure import Figure
 
 from kisscal.session.figures import drawing_beside, submit_figure, wait_for_figures
 
-MODULE = "tests.session.test_figures"
-
 
 def square(n: int) -> Figure:
     fig = Figure(figsize=(2, 2))
@@ -37,9 +35,9 @@ def test_figures_of_a_block_are_all_written_when_it_ends(tmp_path: Path) -> None
     paths = [tmp_path / f"f{k}.png" for k in range(4)]
     with drawing_beside():
         for k, path in enumerate(paths):
-            submit_figure(path, MODULE, "square", (k + 2,))
+            submit_figure(path, square, (k + 2,))
         with drawing_beside():  # a stage inside ``kisscal run`` shares the process
-            submit_figure(tmp_path / "inner.png", MODULE, "square", (3,))
+            submit_figure(tmp_path / "inner.png", square, (3,))
     for path in [*paths, tmp_path / "inner.png"]:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -47,27 +45,27 @@ def test_figures_of_a_block_are_all_written_when_it_ends(tmp_path: Path) -> None
 def test_the_report_waits_for_the_figures_of_the_stages_before_it(tmp_path: Path) -> None:
     with drawing_beside():
         for k in range(3):
-            submit_figure(tmp_path / f"stage{k}.png", MODULE, "square", (40,))
+            submit_figure(tmp_path / f"stage{k}.png", square, (40,))
         wait_for_figures()
         assert sorted(p.name for p in tmp_path.iterdir()) == [f"stage{k}.png" for k in range(3)]
 
 
 def test_a_figure_that_cannot_be_pickled_is_drawn_at_once(tmp_path: Path) -> None:
     with drawing_beside():
-        submit_figure(tmp_path / "now.png", MODULE, "guarded", (3, threading.Lock()))
+        submit_figure(tmp_path / "now.png", guarded, (3, threading.Lock()))
         assert (tmp_path / "now.png").is_file()  # drawn before the block ends
 
 
 def test_a_broken_figure_fails_the_block_and_a_degenerate_one_is_skipped(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError, match="a bug in a figure"), drawing_beside():
-        submit_figure(tmp_path / "skip.png", MODULE, "degenerate", (1,))
-        submit_figure(tmp_path / "bug.png", MODULE, "broken", (1,))
+        submit_figure(tmp_path / "skip.png", degenerate, (1,))
+        submit_figure(tmp_path / "bug.png", broken, (1,))
     assert not (tmp_path / "skip.png").exists()
-    submit_figure(tmp_path / "plain.png", MODULE, "square", (2,))  # no block: drawn now
+    submit_figure(tmp_path / "plain.png", square, (2,))  # no block: drawn now
     assert (tmp_path / "plain.png").is_file()
 
 
 def test_the_block_own_error_wins(tmp_path: Path) -> None:
     with pytest.raises(KeyError), drawing_beside():
-        submit_figure(tmp_path / "bug.png", MODULE, "broken", (1,))
+        submit_figure(tmp_path / "bug.png", broken, (1,))
         raise KeyError("the stage failed")

@@ -22,6 +22,7 @@ from kisscal.errors import KisscalError
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table, write_table
 from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 
 pytestmark = pytest.mark.slow
 
@@ -96,7 +97,7 @@ def lab_points_in_view(rig: Rig, n: int = 4000) -> np.ndarray:
 
 
 def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(original: Path):
-    rig = Rig.load(original)
+    rig = current_rig(original)
     doc = load_toml(original / "out" / "cameras.toml")
     xyz = lab_points_in_view(rig)
     for cam in rig:
@@ -120,7 +121,7 @@ def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(origin
 
 
 def test_dltdv_csv_in_dltdv8_pixels_matches_linearised_projection(original: Path):
-    rig = Rig.load(original)
+    rig = current_rig(original)
     coefs = np.loadtxt(original / "out" / "dlt" / "dltdv.csv", delimiter=",")
     assert coefs.shape == (11, len(rig))
     xyz = lab_points_in_view(rig, 500)
@@ -191,7 +192,7 @@ def test_points2d_holds_the_observations_each_point_was_triangulated_from(origin
 
     trial = original / "out" / "trials" / "c2d"
     p2, p3 = read_points2d(trial / "points2d.csv"), read_points3d(trial / "points3d.csv")
-    rig = Rig.load(original)
+    rig = current_rig(original)
     used = p2.point >= 0
     assert used.mean() > 0.9 and np.all(p2.field[used] == p3.field[p2.point[used]])
     np.testing.assert_array_equal(

@@ -139,11 +139,11 @@ def test_check_gate(processed: Path) -> None:
     assert "FAILED check: " in bad.stderr and "limits.json" in bad.stderr and bad.stdout == ""
 
 
-def test_rig_load_gives_the_written_calibration(processed: Path) -> None:
+def test_current_rig_gives_the_written_calibration(processed: Path) -> None:
     from kisscal.io.dltfiles import read_dlt_json
-    from kisscal.rig import Rig
+    from kisscal.session import current_rig
 
-    rig = Rig.load(processed)
+    rig = current_rig(processed)
     for cam in rig:
         written = read_dlt_json(processed / "out" / "dlt" / f"{cam.id}.json")
         assert np.array_equal(cam.dlt, written.L)

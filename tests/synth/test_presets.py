@@ -95,8 +95,8 @@ def test_the_seed_varies_sizes_noise_and_camera_models() -> None:
 
 @pytest.mark.parametrize("preset", ["modern", "lowcost"])
 def test_trials_stay_inside_the_volume_seen_by_three_cameras(preset: str) -> None:
-    from kisscal.io.synthetic import load_walking5
     from kisscal.session.synth import default_walking5_path
+    from kisscal.session.synth_session import load_walking5
 
     path = default_walking5_path()
     for seed in SEEDS:

@@ -44,7 +44,7 @@ from kisscal import session
 from kisscal._shared import rms_px
 from kisscal.dlt import DltParams, calibrate_camera
 from kisscal.errors import KisscalError
-from kisscal.session.calibrate import current_rig
+from kisscal.session.calibrated import current_rig
 from tests.target.cavity import CAMERAS, SIZE_PX, shared_data, spread_seeds, target_xyz, view
 from tests.target.openptv import project as openptv_project
 

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from kisscal.detect import DetectionParams
 from kisscal.grid import Linearisation
 from kisscal.io.config import CameraConfig, SessionConfig
+from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
 from kisscal.session.configure import markers_detection
@@ -127,8 +128,6 @@ def write_check(inputs: RouteInputs, check: dict) -> None:
 
     The rods route's key beside the file is removed: the file is no longer its output.
     """
-    from kisscal.io.files import write_json
-
     path = inputs.store.calibration_file("check")
     write_json(path, check)
     inputs.store.forget(path)

@@ -22,7 +22,7 @@ import numpy as np
 
 from kisscal.dlt.camera import decompose_dlt, hatze_violation
 from kisscal.dlt.params import DltResult
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid import Linearisation
 from kisscal.io.cameras_toml import read_cameras_toml
 from kisscal.io.config import CameraConfig, SessionConfig
@@ -36,10 +36,11 @@ from kisscal.session.routes import RouteInputs
 
 
 def _source(config: SessionConfig, key: str) -> Path:
-    assert config.calibration is not None
+    if config.calibration is None:
+        raise InputError(f"{config.path}: no [calibration] table to import from")
     path = config.root / str(getattr(config.calibration, key))
     if not path.is_file():
-        raise KisscalError(f"{path}: calibration.{key} file not found")
+        raise MissingDataError(f"{path}: calibration.{key} file not found")
     return path
 
 

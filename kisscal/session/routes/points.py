@@ -15,6 +15,7 @@ import numpy as np
 
 from kisscal.dlt import calibrate_camera
 from kisscal.dlt.select import CameraPoints, ModelChoice, choose_model, interleaved_folds
+from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv, write_dlt_json
 from kisscal.session.routes import RouteInputs, write_check
@@ -23,7 +24,8 @@ from kisscal.session.routes import RouteInputs, write_check
 def calibrate_from_points(inputs: RouteInputs) -> dict[str, Any]:
     """Every camera's DLT from its control-point file (the model chosen by held-out points)."""
     config = inputs.config
-    assert config.calibration is not None
+    if config.calibration is None:
+        raise InputError(f"{config.path}: the points route needs [calibration] points")
     read = {}
     for cam in inputs.cameras:
         path = config.root / config.calibration.points.replace("{camera}", cam.id)

@@ -16,10 +16,12 @@ import numpy as np
 from kisscal.dlt import calibrate_rods, make_rods
 from kisscal.dlt.params import Rod
 from kisscal.dlt.rig import RodCalibration
+from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
 from kisscal.io.frames import source_files
+from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
 from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
@@ -31,7 +33,8 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     Returns ``{camera: DltResult}`` plus the rig check under ``"_check"`` (whole rig only).
     """
     config, params = inputs.config, inputs.params
-    assert config.rods is not None
+    if config.rods is None:
+        raise InputError(f"{config.path}: the rods route needs a [rods] table")
     store = inputs.store
     check_json = store.calibration_file("check")
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
@@ -88,19 +91,16 @@ def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: flo
 
 
 def _rod_figures(inputs: RouteInputs, cal: RodCalibration, rods: tuple[Rod, ...]) -> None:
-    from kisscal.report.dlt import CameraResiduals
-
     sizes = {c.id: c.size_px for c in inputs.config.cameras}
     residuals = {
         c: CameraResiduals(cal.control_uv_px[c], r.residuals_px, sizes[c], r.rms_px)
         for c, r in cal.results.items()
     }
-    figure(inputs.root, "dlt_residuals", "kisscal.report.dlt", "residual_figure", residuals)
+    figure(inputs.root, "dlt_residuals", residual_figure, residuals)
     figure(
         inputs.root,
         "rig",
-        "kisscal.report.dlt",
-        "rig_figure",
+        rig_figure,
         {c: r.centre_mm for c, r in cal.results.items()},
         [(r.name, r.points_mm) for r in rods],
         {c: r.R for c, r in cal.results.items()},

@@ -20,11 +20,12 @@ import numpy as np
 
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.quality import triangulate_points
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
 from kisscal.io.frames import source_files
+from kisscal.report.dlt import CameraResiduals, residual_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
@@ -40,7 +41,10 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     """Every camera from its photographs of the target and its clicked seeds."""
     config = inputs.config
     cal = config.calibration
-    assert cal is not None and cal.target and cal.images and cal.seeds
+    if cal is None or not (cal.target and cal.images and cal.seeds):
+        raise InputError(
+            f"{config.path}: the target route needs [calibration] target, images and seeds"
+        )
     target_path = config.root / cal.target
     table = read_table(target_path, required=TARGET_COLUMNS, numeric=TARGET_COLUMNS)
     target = np.column_stack([table[c] for c in TARGET_COLUMNS]).astype(float)
@@ -125,13 +129,11 @@ def _write_camera(
         inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
     )
     sizes = {cfg.id: cfg.size_px}
-    from kisscal.report.dlt import CameraResiduals  # figures only when drawn
 
     figure(
         inputs.root,
         f"target_{cfg.id}",
-        "kisscal.report.dlt",
-        "residual_figure",
+        residual_figure,
         {cfg.id: CameraResiduals(uv, res, sizes[cfg.id], m.rms_px)},
     )
 

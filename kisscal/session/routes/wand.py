@@ -33,7 +33,7 @@ from kisscal.bundle.wand import (
 )
 from kisscal.camera import Camera
 from kisscal.dlt import calibrate_rods, make_rods
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.frames import source_files
 from kisscal.session.routes import (
@@ -44,6 +44,7 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
+from kisscal.session.trials import trial_blobs, trial_input_files
 
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
@@ -52,7 +53,8 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
     Returns ``{"_check": ...}`` (the leave-out figures) like the rods route.
     """
     config = inputs.config
-    assert config.wand is not None
+    if config.wand is None or (config.rods is None and config.axes is None):
+        raise InputError(f"{config.path}: the wand route needs [wand] with [rods] or [axes]")
     if not inputs.whole_rig:
         raise KisscalError(
             "a wand calibration adjusts every camera together; run kisscal calibrate "
@@ -85,10 +87,7 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
 
 
 def _stage_key(inputs: RouteInputs) -> str:
-    from kisscal.session.reconstruct import trial_input_files  # it imports calibrate: a cycle
-
     config, params = inputs.config, inputs.params
-    assert config.wand is not None
     trial = config.trial(config.wand.trial)
     objects = []
     if config.rods is not None:
@@ -114,10 +113,7 @@ def _stage_key(inputs: RouteInputs) -> str:
 
 def _wand_table(inputs: RouteInputs) -> BlobTable:
     """The wand trial's blobs, grid-linearised (raw pixels without a grid)."""
-    from kisscal.session.reconstruct import trial_blobs  # it imports calibrate: a cycle
-
     config = inputs.config
-    assert config.wand is not None
     trial = config.trial(config.wand.trial)
     detection = marker_detection(inputs)
     blobs = trial_blobs(inputs.root, config, trial, detection, inputs.echo, inputs.workers)
@@ -130,7 +126,6 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
 
 def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, Any]:
     config, params = inputs.config, inputs.params
-    assert config.rods is not None and config.wand is not None
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     lins = inputs.linearisations
     fields = config.rods.fields
@@ -189,7 +184,6 @@ def _best_weight(
 
 def _with_axes(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, AxesFrame]:
     config, params = inputs.config, inputs.params
-    assert config.axes is not None and config.wand is not None
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
     inputs.echo("  calibrate: wand alone, the lab frame from the axes object")

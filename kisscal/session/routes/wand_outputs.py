@@ -29,6 +29,9 @@ from kisscal.camera import LENS_TERMS, Camera
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
+from kisscal.io.linearisation import refined_by
+from kisscal.report.dlt import rig_figure
+from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
@@ -51,7 +54,6 @@ def write_wand_outputs(
 ) -> dict[str, Any]:
     """Write every output of the wand route; returns the ``check.json`` content."""
     config = inputs.config
-    assert config.wand is not None
     markers = config.wand.markers_mm
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
@@ -78,7 +80,6 @@ def write_wand_outputs(
         wand_doc["axes"] = _axes_entry(frame, ids)
     wand_doc["kept"] = check["kept"] = _kept(check)
     if check["kept"] == "rods":
-        assert rod_cal is not None
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
         _keep_rods(inputs, rod_cal)
     else:
@@ -106,8 +107,6 @@ def _kept(check: dict[str, Any]) -> str:
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
     """Write the rods' calibration, on the grid's own linearisation, as the result."""
-    from kisscal.io.linearisation import refined_by
-
     store = inputs.store
     write_dlt_outputs(rod_cal, store.dlt_path, store.dltdv_path)
     for cam in inputs.cameras:
@@ -196,7 +195,6 @@ def _write_cameras(
 ) -> None:
     """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
     config = inputs.config
-    assert config.wand is not None
     r, obs = cal.result, cal.observations
     wand = r.wand
     if frame is not None:
@@ -267,8 +265,6 @@ def _figures(
     per_cam: Any,
     lengths: np.ndarray,
 ) -> None:
-    from kisscal.report.wand import WandView
-
     config = inputs.config
     obs = cal.observations.subset(cal.result.inlier)
     views = {
@@ -281,19 +277,16 @@ def _figures(
         for c, cfg in enumerate(config.cameras)
     }
     root = inputs.root
-    figure(root, "wand_coverage", "kisscal.report.wand", "coverage_figure", views)
+    figure(root, "wand_coverage", coverage_figure, views)
     nominal = float(np.ptp(config.wand.markers_mm)) if config.wand else 0.0
-    figure(
-        root, "wand_length", "kisscal.report.wand", "length_figure", cal.fields, lengths, nominal
-    )
+    figure(root, "wand_length", length_figure, cal.fields, lengths, nominal)
     objects = [(r.name, r.points_mm) for r in config.rods.rods] if config.rods else []
     if config.axes is not None:
         objects.append(("axes", config.axes.points_mm))
     figure(
         root,
         "rig",
-        "kisscal.report.dlt",
-        "rig_figure",
+        rig_figure,
         {cfg.id: cameras[c].centre_mm for c, cfg in enumerate(config.cameras)},
         objects,
         {cfg.id: cameras[c].R for c, cfg in enumerate(config.cameras)},

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import tomli_w
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.io.c3d import read_c3d_points
 from kisscal.io.files import table_to_csv, write_json, write_table
 from kisscal.synth.cameras import truth_dict
@@ -231,7 +231,8 @@ def write_synthetic_session(
 
 def write_axes_frames(root: Path, plan: SynthPlan) -> None:
     """The L-frame's images (``axes/<camera>/``) and truth (``truth/axes/<camera>.csv``)."""
-    assert plan.axes_mm is not None
+    if plan.axes_mm is None:
+        raise InputError("write_axes_frames: the plan has no axes object (axes_mm)")
     for ci, cam in enumerate(plan.rig):
         frames, truth = render_axes(
             plan.rig,

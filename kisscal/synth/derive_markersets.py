@@ -1,9 +1,10 @@
 """Where the shipped standing templates come from: anthropometric proportions -> marker mm.
 
-The data files in ``kisscal/markersets/data`` are written by this module
-(``python -m kisscal.markersets.derive`` rewrites them; a test checks they match), so the
-geometry of every marker can be traced to a proportion of stature or to a published
-landmark relation:
+The data files in ``kisscal/markersets/data`` are written by this module, a developer's
+tool (``python -m kisscal.synth.derive_markersets`` rewrites them; a test checks they
+match). It lives beside the synthetic walker because the KISS set is the walker's own
+geometry; :mod:`kisscal.markersets` only reads the files. The geometry of every marker
+can be traced to a proportion of stature or to a published landmark relation:
 
 * Heights and lengths as fractions of stature ``H``: Winter 2009 (table after Drillis &
   Contini 1966): hip (greater trochanter) 0.530 H, knee 0.285 H, ankle 0.039 H, shoulder
@@ -41,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kisscal.synth.motion import gait_marker_names, gait_segments, standing_template
+
 #: Stature (mm) of the Plug-in Gait templates.
 PIG_HEIGHT_MM = 1750.0
 #: Stature (mm) of kisscal's synthetic walker: its hip height, 930 mm, is 0.530 H (Winter 2009).
@@ -51,7 +54,7 @@ PROPORTION_CV = 0.03
 PELVIS_WIDTH, PELVIS_DEPTH = 0.13, 0.095
 _MARKER_MM = 7.0
 
-_DATA = Path(__file__).with_name("data")
+_DATA = Path(__file__).parents[1] / "markersets" / "data"
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -194,7 +197,7 @@ _PIG_SOURCE = (
     "Proportions of stature: Winter 2009 (after Drillis & Contini 1966); hip joint centre: "
     "Bell et al. 1990; placement: Davis et al. 1991 and the Vicon Plug-in Gait reference "
     "guide; SD: Della Croce et al. 1999 plus 3 % proportion spread. Derivation: "
-    "kisscal/markersets/derive.py"
+    "kisscal/synth/derive_markersets.py"
 )
 #: Names the OpenSim / Vicon FULLBODY_2009 set (walking5.c3d) gives the same landmarks.
 WALKING5_ALIASES = {
@@ -254,8 +257,6 @@ def plug_in_gait(full: bool) -> dict:
 
 def kiss() -> dict:
     """The KISS set of kisscal's synthetic walker (Küçük 2005): 15 markers, or 13 without ASIS."""
-    from kisscal.synth.motion import gait_marker_names, gait_segments, standing_template
-
     names = list(gait_marker_names(15))
     xyz = standing_template(tuple(names))
     place = {"SACR": 10, "ASI": 10, "THI": 25, "KNE": 12, "TIB": 25, "ANK": 8, "HEE": 10, "TOE": 10}
@@ -278,7 +279,7 @@ def kiss() -> dict:
         "source": (
             "kisscal.synth.motion.standing_template (the walker's geometry: thigh 430 mm, "
             "shank 420 mm, hip half-width 85 mm); stature from its hip height, 0.530 H "
-            "(Winter 2009); SD as for Plug-in Gait (kisscal/markersets/derive.py)"
+            "(Winter 2009); SD as for Plug-in Gait (kisscal/synth/derive_markersets.py)"
         ),
         "names": names,
         "alternatives": {},
@@ -321,7 +322,7 @@ def _toml_list(key: str, values: list) -> str:
 
 def to_toml(table: dict) -> str:
     """The data-file text of one set (a compact TOML layout, read back by ``tomllib``)."""
-    out = ["# Written by kisscal/markersets/derive.py; see its docstring for the sources.\n"]
+    out = ["# Written by kisscal/synth/derive_markersets.py; see its docstring for the sources.\n"]
     for key, value in table.items():
         if isinstance(value, list) and len(value) > 4:
             out.append(_toml_list(key, value))

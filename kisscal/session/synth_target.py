@@ -1,7 +1,7 @@
 """Writing a synthetic known-target session: photographs, target.csv, seeds and truth.
 
 The session calibrates with ``[calibration] target`` (:mod:`kisscal.synth.target` makes
-the scene). Like :func:`kisscal.io.synthetic.write_synthetic_session` it is assembled in
+the scene). Like :func:`kisscal.session.synth_session.write_synthetic_session` it is assembled in
 a temporary sibling folder and moved into place at the end.
 """
 

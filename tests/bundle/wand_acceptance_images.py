@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from kisscal import session
-from kisscal.rig import Rig
+from kisscal.session.calibrated import current_rig
 from kisscal.synth.cameras import VOLUME_MM
 from kisscal.synth.presets import synth_options
+from tests.bundle.wand_scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 from tests.session.wand_session import truth_rig
-from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 
 
 def _calibrate(root: Path, *extra: str) -> tuple[float, float, str]:
@@ -42,7 +42,7 @@ def _calibrate(root: Path, *extra: str) -> tuple[float, float, str]:
 
 
 def _scores(root: Path, volume=VOLUME_MM) -> dict:
-    rig, truth = Rig.load(root), truth_rig(root)
+    rig, truth = current_rig(root), truth_rig(root)
     inside, shell = volume_points(volume)
     lin = [c.linearise for c in rig]
     return {

@@ -8,7 +8,7 @@ rings as stationary ghosts; for the wand on rods, grid-linearised pixels are sto
 by the ideal (distortion-free) images. ``--images`` also runs whole sessions rendered as
 images through ``kisscal synth`` and ``kisscal calibrate``.
 
-Run ``python -m tests.wand.acceptance [--quick] [--images]`` from the worktree root.
+Run ``python -m tests.bundle.wand_acceptance [--quick] [--images]`` from the worktree root.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from kisscal.synth.presets import synth_options
 from kisscal.synth.scene import grid_view, rod_set, visibility
 from kisscal.synth.wand import AXES_POINTS_MM, WAND_MARKERS_MM, wand_trial
 from tests.bundle.conftest import WandScene
-from tests.wand.scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
+from tests.bundle.wand_scoring import centre_errors_mm, corner_error_px, rmse_mm, volume_points
 
 NOISE_PX = 0.05
 
@@ -306,11 +306,11 @@ def main() -> None:
     fields = 300 if args.quick else 600
     wand_on_rods_tables(seeds, fields)
     wand_alone_tables(seeds, fields)
-    from tests.wand.acceptance_target import target_tables
+    from tests.bundle.wand_acceptance_target import target_tables
 
     target_tables(seeds)
     if args.images:
-        from tests.wand.acceptance_images import image_tables
+        from tests.bundle.wand_acceptance_images import image_tables
 
         image_tables(seeds[:1], fields)
 

@@ -1,0 +1,109 @@
+"""A trial's 2D data for the stages that take it: the raw blob centroids of every field
+per camera, detected in the trial's images or video or read from centroid files, and the
+files they come from (for cache keys)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect import DetectionParams
+from kisscal.errors import KisscalError, MissingDataError
+from kisscal.io.config import SessionConfig, TrialConfig
+from kisscal.io.files import read_table
+from kisscal.io.frames import source_files, trial_frames
+from kisscal.session.detection import camera_blobs
+from kisscal.session.progress import Echo
+
+#: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
+CENTROID_COLUMNS = ("field", "x_px", "y_px")
+
+
+def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
+    """Per camera, the files a trial's 2D data come from (for cache keys)."""
+    if trial.source == "centroids":
+        paths = {
+            c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
+        }
+    else:
+        frames = trial_frames(
+            config.root,
+            trial.images or trial.video or "",
+            config.camera_ids,
+            trial.name,
+            video=trial.source == "video",
+            fields=trial.fields,
+        )
+        paths = {c: source_files(f) for c, f in frames.items()}
+    for c, ps in paths.items():
+        for p in ps:
+            if not p.is_file():
+                raise MissingDataError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
+    return paths
+
+
+def trial_blobs(
+    root: Path,
+    config: SessionConfig,
+    trial: TrialConfig,
+    detection: dict[str, DetectionParams],
+    echo: Echo,
+    workers: int | None = None,
+) -> dict[str, list[NDArray]]:
+    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
+
+    ``detection`` holds each camera's detection parameters (unused for centroid files).
+    """
+    if trial.source == "centroids":
+        return _centroid_files(config, trial)
+    frames = trial_frames(
+        config.root,
+        trial.images or trial.video or "",
+        config.camera_ids,
+        trial.name,
+        video=trial.source == "video",
+        fields=trial.fields,
+    )
+    name = (f"trial-{trial.name}", trial.name)
+    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
+    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
+
+
+def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
+    """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
+    out = {}
+    for cam in config.cameras:
+        path = config.root / trial.centroids.replace("{camera}", cam.id)
+        table = read_table(path, required=CENTROID_COLUMNS, numeric=CENTROID_COLUMNS)
+        f = table["field"].astype(float)
+        xy = np.column_stack([table["x_px"], table["y_px"]]).astype(float)
+        _check_centroids(path, f, xy, cam.size_px)
+        f = f.astype(int)
+        n = int(f.max()) + 1 if len(f) else 0
+        out[cam.id] = [xy[f == i] for i in range(n)]
+    n_fields = max(len(v) for v in out.values())
+    return {c: v + [np.zeros((0, 2))] * (n_fields - len(v)) for c, v in out.items()}
+
+
+def _check_centroids(
+    path: Path, field: NDArray, xy: NDArray, size_px: tuple[int, int] | None
+) -> None:
+    """Refuse rows a camera cannot have seen: not numbers, negative fields, off the image."""
+    bad = ~np.isfinite(xy).all(axis=1) | ~np.isfinite(field) | (field != np.round(field))
+    if bad.any():
+        raise KisscalError(
+            f"{path}: row {int(np.argmax(bad)) + 2} has a field or centroid that is not a number"
+        )
+    if len(field) and field.min() < 0:
+        raise KisscalError(f"{path}: field numbers must be 0 or more")
+    if size_px is not None:
+        w, h = size_px
+        off = (xy[:, 0] < -0.5) | (xy[:, 0] > w - 0.5) | (xy[:, 1] < -0.5) | (xy[:, 1] > h - 0.5)
+        if off.any():
+            row = int(np.argmax(off))
+            raise KisscalError(
+                f"{path}: row {row + 2} ({xy[row, 0]:g}, {xy[row, 1]:g}) lies outside the "
+                f"{w} x {h} pixel image"
+            )
