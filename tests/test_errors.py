@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from kisscal._shared import as_points
+from kisscal.camera import Camera
 from kisscal.dlt.linear import check_control_points
 from kisscal.dlt.model import dlt_from_krt, project_rows
 from kisscal.dlt.params import DltParams
@@ -17,13 +18,13 @@ from kisscal.errors import EstimationFailed, InputError, KisscalError, MissingDa
 from kisscal.io.files import read_table
 from kisscal.recon.assign import check_table
 from kisscal.recon.params import ReconParams
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 
 
 def _rig() -> Rig:
     K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
-    left = Camera("left", dlt_from_krt(K, np.eye(3), [0, 0, 3000.0]))
-    right = Camera("right", dlt_from_krt(K, np.eye(3), [-500.0, 0, 3000]))
+    left = Camera.from_dlt(dlt_from_krt(K, np.eye(3), [0, 0, 3000.0]), "left")
+    right = Camera.from_dlt(dlt_from_krt(K, np.eye(3), [-500.0, 0, 3000]), "right")
     return Rig((left, right))
 
 

@@ -174,7 +174,7 @@ def test_the_import_finder_sees_imports_in_functions_and_skips_type_checking() -
 # stages, writes through io and draws through the report; the CLI parses.
 BASE = ("kisscal", "kisscal.errors", "kisscal.params", "kisscal._shared", "kisscal._text")
 STAGES = ("detect", "grid", "dlt", "bundle", "target", "recon", "tracking", "gait")
-ARRAYS = (*STAGES, "rig", "opencv", "markersets")
+ARRAYS = (*STAGES, "camera", "rig", "opencv", "markersets")
 LAYERS = (
     BASE,
     tuple(f"kisscal.{p}" for p in ARRAYS),

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import blobs as fl
+import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import Grouping, GroupPixels, group_pixels, oversized, regroup
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
