@@ -20,7 +20,7 @@ Example
 >>> ToyParams(radius_px=-1)
 Traceback (most recent call last):
 ...
-kisscal.errors.KisscalError: [toy] radius_px must be > 0 px, got -1
+kisscal.errors.InputError: [toy] radius_px must be > 0 px, got -1
 """
 
 from __future__ import annotations

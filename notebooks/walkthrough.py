@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from kisscal import session
+from kisscal.camera import Camera
 from kisscal.detect import detect_blobs
 from kisscal.detect.configure import configure_detection
 from kisscal.dlt import calibrate_rods, make_rods
@@ -34,7 +35,7 @@ from kisscal.grid import apply_linearisation, linearise_frames
 from kisscal.io.config import load_session
 from kisscal.io.frames import camera_frames, trial_frames
 from kisscal.recon import ReconParams, reconstruct_trial
-from kisscal.rig import Camera, Rig
+from kisscal.rig import Rig
 from kisscal.tracking import TrackingParams, build_trajectories
 
 work = Path(os.environ.get("KISSCAL_WALKTHROUGH_DIR") or tempfile.mkdtemp(prefix="kisscal-"))
@@ -106,7 +107,7 @@ for cam, res in cal.results.items():
 # the long table of linearised observations that reconstruction takes.
 
 # %%
-rig = Rig(tuple(Camera(c, cal.results[c].L, lins[c]) for c in config.camera_ids))
+rig = Rig(tuple(Camera.from_dlt(cal.results[c].L, c, lins[c]) for c in config.camera_ids))
 blobs = {}
 for c in rig.ids:
     params = configure_detection([frames[c][i] for i in range(0, 40, 5)]).params

@@ -110,7 +110,7 @@ def measure_rig(corner_px: float, noise_px: float, rig_seed: int = 1, n_noise: i
     for cam in kiss_rig(rig_seed):
         v1 = grid_view(cam, rig_seed)
         c1 = np.linalg.norm(v1.uv_px - v1.uv_ideal_px, axis=1)[[0, 19, 280, 299]].max()
-        lens = replace(cam.lens, **{k: getattr(cam.lens, k) * corner_px / c1 for k in LENS})
+        lens = cam.lens * (corner_px / c1)  # every Brown term scaled alike
         v = grid_view(replace(cam, lens=lens), rig_seed)
         for k in range(n_noise):
             rng = np.random.default_rng([rig_seed, k, int(cam.id.removeprefix("cam"))])
