@@ -5,6 +5,7 @@ files they come from (for cache keys)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,14 +29,7 @@ def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, li
             c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
         }
     else:
-        frames = trial_frames(
-            config.root,
-            trial.images or trial.video or "",
-            config.camera_ids,
-            trial.name,
-            video=trial.source == "video",
-            fields=trial.fields,
-        )
+        frames = _frames(config, trial)
         paths = {c: source_files(f) for c, f in frames.items()}
     for c, ps in paths.items():
         for p in ps:
@@ -58,7 +52,15 @@ def trial_blobs(
     """
     if trial.source == "centroids":
         return _centroid_files(config, trial)
-    frames = trial_frames(
+    frames = _frames(config, trial)
+    name = (f"trial-{trial.name}", trial.name)
+    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
+    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
+
+
+def _frames(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
+    """Per camera, the frame sequence of an image or video trial."""
+    return trial_frames(
         config.root,
         trial.images or trial.video or "",
         config.camera_ids,
@@ -66,9 +68,6 @@ def trial_blobs(
         video=trial.source == "video",
         fields=trial.fields,
     )
-    name = (f"trial-{trial.name}", trial.name)
-    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
-    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
 def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
