@@ -12,6 +12,7 @@ import csv
 import io
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -38,6 +39,31 @@ def atomic_path(path: Path) -> Iterator[Path]:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def staged_folder(out: Path, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder beside ``out``; it replaces ``out`` if the block succeeds.
+
+    The folder analogue of :func:`atomic_path`: a session written in the block appears
+    whole or not at all. ``out`` may be missing or an empty folder; a non-empty one only
+    with ``force``.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise KisscalError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise KisscalError(f"{out}: folder is not empty (use --force to overwrite it)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        yield root
+        if out.exists():
+            shutil.rmtree(out)
+        root.rename(out)
+    finally:
+        if root.exists():
+            shutil.rmtree(root, ignore_errors=True)
 
 
 def write_bytes(path: Path, data: bytes) -> None:

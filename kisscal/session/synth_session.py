@@ -6,8 +6,6 @@ so an interrupted run leaves nothing that looks like a finished session.
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -15,9 +13,9 @@ import cv2
 import numpy as np
 import tomli_w
 
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError
 from kisscal.io.c3d import read_c3d_points
-from kisscal.io.files import table_to_csv, write_json, write_table
+from kisscal.io.files import staged_folder, table_to_csv, write_json, write_table
 from kisscal.synth.cameras import truth_dict
 from kisscal.synth.motion import Motion
 from kisscal.synth.plan import (
@@ -176,13 +174,7 @@ def write_synthetic_session(
 ) -> Path:
     """Render ``plan`` and write the session folder ``out`` (images, session.toml, truth/)."""
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise KisscalError(f"{out}: exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise KisscalError(f"{out}: folder is not empty (use --force to overwrite it)")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_folder(out, force) as root:
         (root / "session.toml").write_text(tomli_w.dumps(session_config(plan, name)))
         write_json(root / "truth" / "cameras.json", {"cameras": [truth_dict(c) for c in plan.rig]})
         jobs = [
@@ -220,12 +212,6 @@ def write_synthetic_session(
         write_json(root / "truth" / "detection.json", session_detection_truth(plan, cameras))
         if plan.axes_mm is not None:
             write_axes_frames(root, plan)
-        if out.exists():
-            shutil.rmtree(out)
-        root.rename(out)
-    finally:
-        if root.exists():
-            shutil.rmtree(root, ignore_errors=True)
     return out
 
 

@@ -7,16 +7,13 @@ a temporary sibling folder and moved into place at the end.
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
 import tomli_w
 
-from kisscal.errors import KisscalError
-from kisscal.io.files import write_json, write_table
+from kisscal.io.files import staged_folder, write_json, write_table
 from kisscal.synth.cameras import truth_dict
 from kisscal.synth.target import (
     TargetKind,
@@ -43,11 +40,7 @@ def write_target_session(
     (``cameras.json``, ``target/<camera>.csv``).
     """
     out = Path(out)
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise KisscalError(f"{out}: folder is not empty (use --force to overwrite it)")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_folder(out, force) as root:
         xyz, surfaces = target_points(kind)
         rig = target_rig(seed, n_cameras)
         config = {
@@ -80,10 +73,4 @@ def write_target_session(
                 },
             )
             write_table(root / "truth" / "target" / f"{cam.id}.csv", truth_table(cam, xyz))
-        if out.exists():
-            shutil.rmtree(out)
-        root.rename(out)
-    finally:
-        if root.exists():
-            shutil.rmtree(root, ignore_errors=True)
     return out
