@@ -76,11 +76,12 @@ def camera_detection(
     them. They are derived again when the values given in ``[detection]`` or the camera's
     image size change, or when the file is deleted.
     """
-    path = _document_path(root, camera)
+    store = SessionStore(root)
+    path = store.detection_path(camera.id)
     doc = _read_document(path, camera)  # the settings earlier runs kept
     kept = dict(doc["kinds"])
     try:
-        return _settings(doc, config, camera, kind, params, echo).params
+        return _settings(store, doc, config, camera, kind, params, echo).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
         if doc["kinds"] != kept:
             write_json(path, doc)
@@ -96,6 +97,7 @@ class _Settings:
 
 
 def _settings(
+    store: SessionStore,
     doc: dict[str, Any],
     config: SessionConfig,
     camera: CameraConfig,
@@ -106,7 +108,6 @@ def _settings(
     """The camera's settings for ``kind``: as kept in ``doc`` when current, else derived
     and put in ``doc`` (which the caller writes)."""
     given = params.detection_given
-    store = SessionStore(config.root)
     kept = _kept(store, doc, camera, kind, params)
     if kept is not None:
         return kept
@@ -118,7 +119,7 @@ def _settings(
     else:
         aspect = None
         if "pixel_aspect" not in given and config.grid is not None:
-            grid = _settings(doc, config, camera, "grid", params, echo)
+            grid = _settings(store, doc, config, camera, "grid", params, echo)
             aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
@@ -153,10 +154,6 @@ def _kept(
     }
     lattice = _on_lattice(kind, settings.get("pixel_aspect", {}).get("source", ""))
     return _Settings(params.detection.replace(**derived), lattice)
-
-
-def _document_path(root: Path, camera: CameraConfig) -> Path:
-    return SessionStore(root).detection_path(camera.id)
 
 
 def _key(store: SessionStore, camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
