@@ -164,31 +164,6 @@ class DetectionSetup:
         )
         return text + (f"; given: {', '.join(given)}" if given else "")
 
-    def as_dict(self) -> dict[str, Any]:
-        """The JSON document of ``out/detection/<camera>.json`` for this kind."""
-        lv = self.levels
-        return {
-            "frames_surveyed": self.frames,
-            "bits": lv.bits,
-            "background": round(lv.background, 2),
-            "noise_sigma": round(lv.noise, 3),
-            "background_unevenness": round(lv.unevenness, 2),
-            "marker_pixels": list(self.marker_pixels),
-            "settings": {
-                k: {"value": _plain(c.value), "source": c.source, "why": c.why}
-                for k, c in self.choices.items()
-            },
-            "notes": list(self.notes),
-        }
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, tuple):
-        return list(value)
-    if isinstance(value, float):
-        return round(value, 4)
-    return value
-
 
 def configure_detection(
     images: Sequence[NDArray],

@@ -25,11 +25,17 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.detect import Blobs
+from kisscal.errors import KisscalError, MissingDataError
 from kisscal.grid.poly import Linearisation
+from kisscal.io.cache import load_blob_frames
+from kisscal.io.detection_record import DetectionRecord, read_detection_record
 from kisscal.io.dltfiles import DltFile, read_dlt_json
 from kisscal.io.files import write_text
 from kisscal.io.linearisation import read_linearisation, read_linearisation_doc
+from kisscal.io.points2d import Points2DFile, read_points2d
+from kisscal.io.points3d import Points3DFile, read_points3d
+from kisscal.io.trajectories import TrajectoryTable, read_trajectories_csv
 from kisscal.rig import Rig
 
 
@@ -281,6 +287,33 @@ class SessionStore:
         """``dlt/<name>.json`` (see :meth:`calibration_file`), or None when there is none."""
         return self.read_json(self.calibration_file(name))
 
-    def detection_doc(self, camera: str) -> dict[str, Any] | None:
-        """The detection settings document of ``camera``, or None when there is none."""
-        return self.read_json(self.detection_path(camera))
+    def detection_record(self, camera: str) -> DetectionRecord | None:
+        """The detection settings derived for ``camera``, or None when there are none
+        (an :class:`~kisscal.errors.InputError` when the file is not such a record)."""
+        return read_detection_record(self.detection_path(camera))
+
+    def reconstructed(self, trial: str) -> Path:
+        """``points3d.csv`` of ``trial``, which must exist (a
+        :class:`~kisscal.errors.MissingDataError` naming the command that writes it)."""
+        path = self.trial(trial).points3d
+        if not path.is_file():
+            raise MissingDataError(
+                f"{path}: missing; run `kisscal reconstruct {self.root} {trial}` first"
+            )
+        return path
+
+    def points3d(self, trial: str) -> Points3DFile:
+        """The 3D points of ``trial`` (see :meth:`reconstructed`)."""
+        return read_points3d(self.reconstructed(trial))
+
+    def points2d(self, trial: str) -> Points2DFile:
+        """The 2D observations of ``trial`` and the 3D point each went into."""
+        return read_points2d(self.trial(trial).points2d)
+
+    def trajectories(self, trial: str) -> TrajectoryTable:
+        """The labelled trajectories of ``trial`` (``trajectories.csv``)."""
+        return read_trajectories_csv(self.trial(trial).trajectories())
+
+    def blobs(self, stem: str, camera: str) -> list[Blobs]:
+        """The cached blobs of a set of frames of ``camera``, one table per frame."""
+        return load_blob_frames(self.blobs_cache(stem, camera))

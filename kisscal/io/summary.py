@@ -93,13 +93,9 @@ def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> d
         entry["grid"] = {
             k: v for k, v in doc.items() if isinstance(v, (int, float)) and k != "scale_px"
         }
-    det = store.detection_doc(cam)
-    if det is not None:
-        kinds = det.get("kinds", {})
-        entry["detection"] = {
-            kind: {k: v["value"] for k, v in doc.get("settings", {}).items()}
-            for kind, doc in kinds.items()
-        }
+    record = store.detection_record(cam)
+    if record is not None:
+        entry["detection"] = {kind: r.values() for kind, r in record.kinds.items()}
     doc = store.read_json(store.dlt_path(cam))
     if doc is not None:
         entry["dlt"] = {

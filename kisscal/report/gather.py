@@ -13,14 +13,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
+from kisscal.io.detection_record import DetectionRecord
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures, summarise
 from kisscal.markersets import marker_set
 from kisscal.report.markers import Dense, dense_trajectories
 from kisscal.report.params import ReportParams
+from kisscal.tracking.tracks import STATUS_NAMES
 
 #: ``out/limits.json`` keys: the ``kisscal check`` options, named as in :class:`ReportParams`.
 LIMIT_KEYS = ("max_grid_px", "max_reproj_px", "max_3d_mm")
@@ -57,7 +61,7 @@ class SessionOutputs:
     dlt : dict
         Camera -> ``out/dlt/<camera>.json``.
     detection : dict
-        Camera -> ``out/detection/<camera>.json``.
+        Camera -> its detection settings (``out/detection/<camera>.json``).
     wand : dict or None
         ``out/dlt/wand.json``.
     trial_outputs : dict
@@ -79,7 +83,7 @@ class SessionOutputs:
     segments: tuple[tuple[str, str], ...]
     summary: dict[str, Any]
     dlt: dict[str, dict[str, Any]]
-    detection: dict[str, dict[str, Any]]
+    detection: dict[str, DetectionRecord]
     wand: dict[str, Any] | None
     trial_outputs: dict[str, TrialOutputs]
     figures: dict[str, Path]
@@ -106,6 +110,14 @@ def _json(path: Path, notes: list[str]) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         notes.append(f"{path.name}: not read ({exc})")
+        return None
+
+
+def _detection(store: SessionStore, camera: str, notes: list[str]) -> DetectionRecord | None:
+    try:
+        return store.detection_record(camera)
+    except KisscalError as exc:
+        notes.append(str(exc))
         return None
 
 
@@ -141,14 +153,15 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
 
 def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
     files = store.trial(name)
-    table = _table(files.trajectories(), notes, ("field", "track", "label", "x_mm", "y_mm", "z_mm"))
     dense = None
-    if table is not None:
-        status = table.get("status", ["measured"] * len(table["field"]))
-        xyz = [table["x_mm"], table["y_mm"], table["z_mm"]]
-        dense = dense_trajectories(
-            table["field"], table["track"], table["label"], list(zip(*xyz, strict=True)), status
-        )
+    if files.trajectories().is_file():
+        try:
+            t = store.trajectories(name)
+        except KisscalError as exc:
+            notes.append(str(exc))
+        else:
+            status = np.asarray(STATUS_NAMES)[t.status]
+            dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
     return TrialOutputs(
         name,
         dense,
@@ -217,9 +230,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     # a hidden name is a figure still being written (kisscal.io.files writes beside, then renames)
     pngs = sorted(figures_dir.glob("[!.]*.png")) if figures_dir.is_dir() else []
     figures = {p.stem: p for p in pngs}
-    detection = {
-        c: doc for c in cameras if (doc := _json(store.detection_path(c), notes)) is not None
-    }
+    detection = {c: r for c in cameras if (r := _detection(store, c, notes)) is not None}
     return SessionOutputs(
         root=root,
         session=session,

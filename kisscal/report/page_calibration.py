@@ -247,18 +247,18 @@ DETECTION_COLUMNS = (
 def detection_section(o: SessionOutputs) -> Html:
     """The detection settings derived per camera (``out/detection/<camera>.json``)."""
     rows = []
-    for cam, doc in o.detection.items():
-        for kind, entry in (doc.get("kinds") or {}).items():
-            settings = entry.get("settings", {})
-            given = [k for k, v in settings.items() if v.get("source") == "given"]
-            band = entry.get("marker_pixels") or ["–", "–"]
+    for cam, record in o.detection.items():
+        for kind, entry in record.kinds.items():
+            given = [k for k, s in entry.settings.items() if s.source == "given"]
+            values = entry.values()
+            low, high = entry.marker_pixels
             rows.append(
                 [
                     tag("b", cam),
                     esc(kind),
-                    *(_cell(settings.get(k, {}).get("value", "–")) for k, _ in DETECTION_COLUMNS),
-                    f"{band[0]}–{band[1]}",
-                    _cell(entry.get("noise_sigma", "–")),
+                    *(_cell(values.get(k, "–")) for k, _ in DETECTION_COLUMNS),
+                    f"{low}–{high}" if high else "–",
+                    _cell(entry.noise_sigma),
                     esc(", ".join(given) or "–"),
                 ]
             )

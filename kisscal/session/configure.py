@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -26,11 +25,15 @@ import numpy as np
 
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.grid.frames import dots_from_frames
 from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.config import CameraConfig, SessionConfig
-from kisscal.io.files import write_json
+from kisscal.io.detection_record import (
+    DetectionRecord,
+    KindRecord,
+    write_detection_record,
+)
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
 from kisscal.session.inputs import image_sources
@@ -77,14 +80,13 @@ def camera_detection(
     image size change, or when the file is deleted.
     """
     store = SessionStore(root)
-    path = store.detection_path(camera.id)
-    doc = _read_document(path, camera)  # the settings earlier runs kept
-    kept = dict(doc["kinds"])
+    kept = _record(store, camera)  # the settings earlier runs kept
+    record = [kept]
     try:
-        return _settings(store, doc, config, camera, kind, params, echo).params
+        return _settings(store, record, config, camera, kind, params, echo).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
-        if doc["kinds"] != kept:
-            write_json(path, doc)
+        if record[0] != kept:
+            write_detection_record(store.detection_path(camera.id), record[0])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,17 +100,17 @@ class _Settings:
 
 def _settings(
     store: SessionStore,
-    doc: dict[str, Any],
+    record: list[DetectionRecord],
     config: SessionConfig,
     camera: CameraConfig,
     kind: str,
     params: StageParams,
     echo: Echo,
 ) -> _Settings:
-    """The camera's settings for ``kind``: as kept in ``doc`` when current, else derived
-    and put in ``doc`` (which the caller writes)."""
+    """The camera's settings for ``kind``: as kept in ``record[0]`` when current, else
+    derived and put in ``record[0]`` (which the caller writes)."""
     given = params.detection_given
-    kept = _kept(store, doc, camera, kind, params)
+    kept = _kept(store, record[0], camera, kind, params)
     if kept is not None:
         return kept
     sample = _sample(config, camera, kind)
@@ -119,11 +121,12 @@ def _settings(
     else:
         aspect = None
         if "pixel_aspect" not in given and config.grid is not None:
-            grid = _settings(store, doc, config, camera, "grid", params, echo)
+            grid = _settings(store, record, config, camera, "grid", params, echo)
             aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
         why = "the grid's dot lattice"
         setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
-    doc["kinds"][kind] = {**setup.as_dict(), "key": _key(store, camera, kind, given)}
+    entry = KindRecord.from_setup(setup, _key(store, camera, kind, given))
+    record[0] = record[0].with_kind(kind, entry)
     echo(f"  detection {camera.id} {setup.summary()}")
     lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
     return _Settings(setup.params, lattice)
@@ -137,22 +140,17 @@ def _on_lattice(kind: str, aspect_source: str) -> bool:
 
 def _kept(
     store: SessionStore,
-    doc: dict[str, Any],
+    record: DetectionRecord,
     camera: CameraConfig,
     kind: str,
     params: StageParams,
 ) -> _Settings | None:
     """The camera's settings for ``kind`` as kept, if derived with the same given values."""
-    entry = doc["kinds"].get(kind)
-    if entry is None or entry.get("key") != _key(store, camera, kind, params.detection_given):
+    entry = record.kinds.get(kind)
+    if entry is None or entry.key != _key(store, camera, kind, params.detection_given):
         return None
-    settings = entry["settings"]
-    derived = {
-        k: tuple(v["value"]) if isinstance(v["value"], list) else v["value"]
-        for k, v in settings.items()
-        if v["source"] != "given"
-    }
-    lattice = _on_lattice(kind, settings.get("pixel_aspect", {}).get("source", ""))
+    derived = entry.values(sources=("derived", "default"))
+    lattice = _on_lattice(kind, entry.source("pixel_aspect"))
     return _Settings(params.detection.replace(**derived), lattice)
 
 
@@ -161,13 +159,14 @@ def _key(store: SessionStore, camera: CameraConfig, kind: str, given: Mapping[st
     return store.key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
 
 
-def _read_document(path: Path, camera: CameraConfig) -> dict[str, Any]:
-    """The camera's detection document, or an empty one."""
-    if path.is_file():
-        doc = json.loads(path.read_text())
-        if isinstance(doc, dict) and isinstance(doc.get("kinds"), dict):
-            return doc
-    return {"camera": camera.id, "size": list(camera.size_px or ()) or None, "kinds": {}}
+def _record(store: SessionStore, camera: CameraConfig) -> DetectionRecord:
+    """The camera's detection record, or an empty one (also when the file is unreadable:
+    its settings are then derived again and the file rewritten)."""
+    try:
+        record = store.detection_record(camera.id)
+    except InputError:
+        record = None
+    return record or DetectionRecord(camera.id, camera.size_px)
 
 
 def _survey_camera(
@@ -192,10 +191,7 @@ def markers_detection(
     """
     cameras = list(config.cameras if cameras is None else cameras)
     store = SessionStore(root)
-    kept = {
-        c.id: _kept(store, _read_document(store.detection_path(c.id), c), c, "markers", params)
-        for c in cameras
-    }
+    kept = {c.id: _kept(store, _record(store, c), c, "markers", params) for c in cameras}
     known = {cam: s.params for cam, s in kept.items() if s is not None}
     todo = [c for c in cameras if c.id not in known]
 

@@ -17,7 +17,7 @@ from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import hopeless
 from kisscal.errors import KisscalError
 from kisscal.io.blobs import write_blobs
-from kisscal.io.cache import load_blob_frames, save_blob_frames
+from kisscal.io.cache import save_blob_frames
 from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import frame_name, read_image, source_files
@@ -98,7 +98,7 @@ def camera_blobs(
         key = store.key("detect", source_files(seq), fields, detection[cam])
         cache = store.blobs_cache(stem, cam)
         if store.is_current(cache, key):
-            out[cam] = load_blob_frames(cache)
+            out[cam] = store.blobs(stem, cam)
         else:
             stale.append((cam, SizedFrames(seq, cam, sizes[cam]), cache, key))
     if out:

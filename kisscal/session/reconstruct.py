@@ -14,7 +14,7 @@ from kisscal.io.c3d import read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.points2d import observation_points, write_points2d
-from kisscal.io.points3d import Points3DFile, read_points3d, write_points3d, write_trial_points
+from kisscal.io.points3d import Points3DFile, write_points3d, write_trial_points
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.recon import reconstruct_trial
 from kisscal.report.epipolar import trial_field_figure
@@ -53,7 +53,7 @@ def reconstruct(
     if store.is_current(path, stage_key) and files.points2d.is_file():
         echo(f"  reconstruct {trial.name}: cached")
         _echo_warnings(trial.name, files.recon, echo)
-        return read_points3d(path)
+        return store.points3d(trial.name)
     blobs = trial_blobs(root, config, trial, detection, echo, workers)
     obs = rig.observations(blobs)
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
@@ -129,7 +129,7 @@ def c3d_trial_points(
     key = store.key("c3d-trial", [source] if source.is_file() else [])
     if store.is_current(path, key):
         echo(f"  reconstruct {trial.name}: cached")
-        return read_points3d(path)
+        return store.points3d(trial.name)
     c3d = read_c3d(source)
     if abs(c3d.rate_hz - config.rate_hz) > 1e-6 * c3d.rate_hz:
         raise KisscalError(
@@ -176,4 +176,4 @@ def c3d_trial_points(
             f"  reconstruct {trial.name}: left out {len(c3d.excluded)} model outputs "
             f"(POINT:ANGLES, FORCES, MOMENTS, POWERS ...): {shown}"
         )
-    return read_points3d(path)
+    return store.points3d(trial.name)

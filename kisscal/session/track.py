@@ -12,11 +12,11 @@ import numpy as np
 
 from kisscal._text import plural
 from kisscal.dlt.model import pixel_size_mm
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import write_json
-from kisscal.io.points3d import Points3DFile, read_points3d
+from kisscal.io.points3d import Points3DFile
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
 from kisscal.report.markers import dense_trajectories
@@ -64,21 +64,15 @@ def track(
         spec = _with_static(root, config, spec, params, echo)
     result = _track_trial(root, config, trial.name, spec, params, echo)
     if sweep:
-        files = SessionStore(root).trial(trial.name)
-        pts = read_points3d(files.points3d)
+        store = SessionStore(root)
+        files = store.trial(trial.name)
+        pts = store.points3d(trial.name)
         rows = sweep_noise(
             pts.field, pts.xyz_mm, spec.segments, params.tracking, spec.names, spec.template_mm
         )
         write_sweep_csv(files.sweep, rows)
         echo(f"  sweep: {files.sweep}")
     return result
-
-
-def _points_path(root: Path, trial: str) -> Path:
-    path = SessionStore(root).trial(trial).points3d
-    if not path.is_file():
-        raise MissingDataError(f"{path}: missing; run `kisscal reconstruct {root} {trial}` first")
-    return path
 
 
 def _track_trial(
@@ -93,8 +87,8 @@ def _track_trial(
     trial, the subject's template (checked before anything is written)."""
     store = SessionStore(root)
     files = store.trial(trial)
-    points_path = _points_path(root, trial)
-    pts = read_points3d(points_path)
+    points_path = store.reconstructed(trial)
+    pts = store.points3d(trial)
     from_c3d = config.trial(trial).source == "c3d"
     tracking = reconstructed_points(params.tracking) if from_c3d else params.tracking
     t0 = time.perf_counter()
@@ -238,7 +232,7 @@ def _with_static(
     static = config.markers.static if config.markers else ""
     store = SessionStore(root)
     path = store.trial(static).template
-    key = store.key(*static_inputs(_points_path(root, static), spec, params.tracking))
+    key = store.key(*static_inputs(store.reconstructed(static), spec, params.tracking))
     if store.is_current(path, key):
         echo(f"  static trial {static}: template from its outputs (cached)")
     else:

@@ -105,7 +105,7 @@ def test_an_output_is_current_only_for_the_key_it_was_written_for(tmp_path):
 
 def test_readers_say_none_when_absent_and_name_a_broken_file(tmp_path):
     store = SessionStore(tmp_path)
-    assert store.calibration_doc("wand") is None and store.detection_doc("cam1") is None
+    assert store.calibration_doc("wand") is None and store.detection_record("cam1") is None
     assert not store.has_results()
     with pytest.raises(KisscalError, match="DLT file not found"):
         store.dlt("cam1")
