@@ -64,6 +64,10 @@ class DltFile:
         Kolahi's L12..L16 when present.
     rms_px : float
         NaN when the file does not give it.
+    n_points : int or None
+        Control points the DLT was fitted to, when the file says.
+    missing_rod_markers : tuple of str
+        Rod markers the camera did not see (rods route).
     data : dict
         The whole JSON document (empty for dltdv.csv).
     """
@@ -73,6 +77,8 @@ class DltFile:
     method: str = "external"
     lens: NDArray[np.float64] | None = None
     rms_px: float = math.nan
+    n_points: int | None = None
+    missing_rod_markers: tuple[str, ...] = ()
     data: dict[str, Any] | None = None
 
 
@@ -194,6 +200,8 @@ def read_dlt_json(path: str | Path) -> DltFile:
         method=str(doc.get("method", "external")),
         lens=lens,
         rms_px=float(doc.get("rms_px", math.nan)),
+        n_points=int(doc["n_points"]) if doc.get("n_points") is not None else None,
+        missing_rod_markers=tuple(str(m) for m in (doc.get("rods") or {}).get("missing", ())),
         data=doc,
     )
 

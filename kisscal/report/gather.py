@@ -18,6 +18,7 @@ import numpy as np
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
 from kisscal.io.detection_record import DetectionRecord
+from kisscal.io.dltfiles import DltFile
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures, summarise
@@ -59,7 +60,7 @@ class SessionOutputs:
     summary : dict
         ``out/summary.json``.
     dlt : dict
-        Camera -> ``out/dlt/<camera>.json``.
+        Camera -> its calibration (``out/dlt/<camera>.json``).
     detection : dict
         Camera -> its detection settings (``out/detection/<camera>.json``).
     wand : dict or None
@@ -82,7 +83,7 @@ class SessionOutputs:
     marker_names: tuple[str, ...]
     segments: tuple[tuple[str, str], ...]
     summary: dict[str, Any]
-    dlt: dict[str, dict[str, Any]]
+    dlt: dict[str, DltFile]
     detection: dict[str, DetectionRecord]
     wand: dict[str, Any] | None
     trial_outputs: dict[str, TrialOutputs]
@@ -110,6 +111,16 @@ def _json(path: Path, notes: list[str]) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         notes.append(f"{path.name}: not read ({exc})")
+        return None
+
+
+def _dlt(store: SessionStore, camera: str, notes: list[str]) -> DltFile | None:
+    if not store.dlt_path(camera).is_file():
+        return None
+    try:
+        return store.dlt(camera)
+    except KisscalError as exc:
+        notes.append(str(exc))
         return None
 
 
@@ -240,7 +251,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         marker_names=names,
         segments=segments,
         summary=summary,
-        dlt={c: d for c in cameras if (d := _json(store.dlt_path(c), notes))},
+        dlt={c: d for c in cameras if (d := _dlt(store, c, notes)) is not None},
         detection=detection,
         wand=_json(store.calibration_file("wand"), notes),
         trial_outputs={t: _trial(store, t, notes) for t in trials},

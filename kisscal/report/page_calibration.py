@@ -54,8 +54,8 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
     rows = []
     for cam in o.cameras:
         f = figures[cam]
-        doc = o.dlt.get(cam, {})
-        missing = (doc.get("rods") or {}).get("missing") or []
+        dlt = o.dlt.get(cam)
+        missing = dlt.missing_rod_markers if dlt is not None else ()
         row = [
             tag("b", cam),
             badge(verdicts[cam].state) if cam in verdicts else "",
@@ -63,7 +63,7 @@ def camera_table(o: SessionOutputs, verdicts: dict[str, Verdict]) -> Html:
             fmt(f.grid_rms_px) if f.grid else "–",
             fmt(f.dots_used),
             f.dlt_method or "–",
-            fmt(doc.get("n_points")),
+            fmt(dlt.n_points if dlt is not None else None),
             fmt(f.dlt_rms_px),
             *_centre(f.centre_mm),
         ]
@@ -105,7 +105,11 @@ def rod_table(o: SessionOutputs) -> Html:
 def model_table(o: SessionOutputs) -> Html:
     """The camera models compared on held-out points (``lens_models`` of each camera's
     ``dlt/<camera>.json``): one row per camera, the chosen model marked."""
-    docs = {c: d["lens_models"] for c in o.cameras if (d := o.dlt.get(c)) and "lens_models" in d}
+    docs = {
+        c: d.data["lens_models"]
+        for c in o.cameras
+        if (d := o.dlt.get(c)) is not None and d.data and "lens_models" in d.data
+    }
     if not docs:
         return Html("")
     models = list(next(iter(docs.values()))["models"])
