@@ -12,14 +12,11 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
-from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, needs_calibration, writes_session
-from kisscal.session.linearise import linearise
+from kisscal.session.inputs import load_config, writes_session
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
-from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
-from kisscal.session.track import track
+from kisscal.session.stages import Stage, StageCall, session_stages
 from kisscal.session.validate import SESSION, Problem, validate
 
 #: Debug lines (``kisscal --verbose``): each stage's time.
@@ -33,7 +30,8 @@ def run(
     echo: Echo = quiet,
     workers: int | None = None,
 ) -> dict[str, Any]:
-    """``kisscal run``: linearise, calibrate, then reconstruct and track every trial.
+    """``kisscal run``: the session's stages (:data:`~kisscal.session.stages.PIPELINE`):
+    linearise, calibrate, then reconstruct and track every trial.
 
     ``workers`` is the number of detection processes (default: one per core).
 
@@ -51,36 +49,30 @@ def run(
     broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
 
-    def timed(name: str, step: Any, *args: Any, **kwargs: Any) -> None:
+    def timed(name: str, stage: Stage, call: StageCall) -> None:
         t = time.perf_counter()
-        step(*args, **kwargs)
+        stage.run(call)
         timings[name] = time.perf_counter() - t
         _LOG.debug("%s: %.2f s", name.removesuffix("_s"), timings[name])
 
-    if needs_calibration(config):
-        echo("[1/4] linearisation")
-        timed("linearise_s", linearise, root, overrides=overrides, echo=echo, workers=workers)
-        echo("[2/4] calibration")
-        timed("calibrate_s", calibrate, root, overrides=overrides, echo=echo, workers=workers)
+    stages = session_stages(config)
+    steps = len(stages)
+    for step, stage in enumerate(stages):
+        if not stage.per_trial:
+            echo(f"[{step + 1}/{steps}] {stage.title}")
+            timed(f"{stage.name}_s", stage, StageCall(root, overrides, echo, workers))
     failures: dict[str, str] = {}
     for trial in _in_order(config, echo):
         if trial.name in broken:
             failures[trial.name] = broken[trial.name]
             echo(f"  skipped {broken[trial.name]}")
             continue
+        call = StageCall(root, overrides, echo, workers, trial.name)
         try:
-            echo(f"[3/4] reconstruction: {trial.name}")
-            timed(
-                f"reconstruct_{trial.name}_s",
-                reconstruct,
-                root,
-                trial.name,
-                overrides,
-                echo,
-                workers,
-            )
-            echo(f"[4/4] tracking: {trial.name}")
-            timed(f"track_{trial.name}_s", track, root, trial.name, overrides, echo=echo)
+            for step, stage in enumerate(stages):
+                if stage.per_trial:
+                    echo(f"[{step + 1}/{steps}] {stage.title}: {trial.name}")
+                    timed(f"{stage.name}_{trial.name}_s", stage, call)
         except KisscalError as exc:  # one bad trial must not stop the others
             failures[trial.name] = f"trial {trial.name}: {exc}"
             echo(f"  failed {failures[trial.name]}")
