@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.poly import Linearisation
 from kisscal.io.dltfiles import DltFile, read_dlt_json
 from kisscal.io.files import write_text
@@ -132,7 +132,7 @@ class SessionStore:
         """``dlt/<name>.json`` beside the cameras': ``check``, ``wand``, ``target`` or
         ``calibration`` (the route and options that wrote the rest)."""
         if name not in ("check", "wand", "target", "calibration"):
-            raise KisscalError(f"no calibration file {name!r} in the out/ layout")
+            raise InputError(f"no calibration file {name!r} in the out/ layout")
         return self.dlt_dir / f"{name}.json"
 
     @property
@@ -263,7 +263,7 @@ class SessionStore:
         try:
             return json.loads(path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as exc:
-            raise KisscalError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+            raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
 
     def linearisation(self, camera: str) -> Linearisation:
         """The linearisation written for ``camera`` (a :class:`KisscalError` when none)."""
