@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -242,7 +242,7 @@ def start_method() -> str | None:
     forced = os.environ.get(START_METHOD_ENV, "").strip()
     if forced:
         if forced not in methods or forced == "forkserver":
-            raise KisscalError(
+            raise InputError(
                 f"{START_METHOD_ENV}={forced}: use one of "
                 f"{', '.join(m for m in methods if m != 'forkserver')}"
             )

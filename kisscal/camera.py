@@ -63,7 +63,7 @@ from scipy.spatial.transform import Rotation
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_from_krt, project
 from kisscal.dlt.nonlinear import correct_lens
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.poly import (
     Linearisation,
     apply_linearisation,
@@ -193,7 +193,7 @@ def _checked(name: str, value: ArrayLike, shape: tuple[int, ...], cam: str) -> N
     a = np.array(value, dtype=float)
     if a.shape != shape or not np.all(np.isfinite(a)):
         size = " x ".join(map(str, shape))
-        raise KisscalError(f"camera {cam or '?'}: {name} must be {size} finite numbers")
+        raise InputError(f"camera {cam or '?'}: {name} must be {size} finite numbers")
     a.setflags(write=False)
     return a
 
@@ -238,7 +238,7 @@ class Camera:
             object.__setattr__(self, name, _checked(name, getattr(self, name), shape, self.id))
         lens = np.array(self.lens, dtype=float).ravel()
         if lens.size not in LENS_LENGTHS:
-            raise KisscalError(f"camera {self.id}: Brown lens terms must be 4, 5, 8 or 12")
+            raise InputError(f"camera {self.id}: Brown lens terms must be 4, 5, 8 or 12")
         object.__setattr__(self, "lens", lens)
         if self.kolahi is not None:
             kolahi = _checked("lens terms L12..L16", self.kolahi, (5,), self.id)
@@ -262,7 +262,7 @@ class Camera:
         try:
             K, R, centre = decompose_dlt(L)
         except np.linalg.LinAlgError:
-            raise KisscalError(f"camera {id}: the DLT parameters are degenerate") from None
+            raise InputError(f"camera {id}: the DLT parameters are degenerate") from None
         lens = np.zeros(len(LENS_TERMS)) if lens is None else lens
         return cls(K, R, -R @ centre, lens, id, size_px, linearisation, kolahi, L)
 
@@ -339,7 +339,7 @@ class Camera:
     def in_image(self, uv_px: ArrayLike, margin_px: float = 0.0) -> NDArray[np.bool_]:
         """Whether pixels lie on the image, ``margin_px`` inside its border."""
         if self.size_px is None:
-            raise KisscalError(f"camera {self.id}: image size unknown")
+            raise InputError(f"camera {self.id}: image size unknown")
         uv = np.asarray(uv_px, dtype=float)
         w, h = self.size_px
         lo = margin_px - 0.5

@@ -13,7 +13,9 @@ wrong, so that a script can act on it without reading the message:
   Like scikit-image's ``FailedEstimation`` (van der Walt et al. 2014), it is an outcome
   of the data, not a bug.
 
-Programming errors keep their tracebacks.
+The base class itself is raised only where several kinds meet (a summary of failures) or
+none of them fits (a locked session); :func:`with_context` adds context to an error and
+keeps its kind. Programming errors keep their tracebacks.
 
 References
 ----------
@@ -47,3 +49,10 @@ class MissingDataError(KisscalError, FileNotFoundError):
 
 class EstimationFailed(KisscalError):
     """A fit on well-formed input did not succeed: too few or degenerate data."""
+
+
+def with_context(error: KisscalError, prefix: str = "", suffix: str = "") -> KisscalError:
+    """``error`` told again with ``prefix`` before and ``suffix`` after its message, of
+    the same kind, so that adding context (the camera, the file) does not hide what a
+    caller can do about it: ``raise with_context(exc, f"camera {cam}: ") from None``."""
+    return type(error)(f"{prefix}{error}{suffix}")

@@ -43,7 +43,7 @@ from scipy.optimize import least_squares
 
 from kisscal.camera import Camera, distort
 from kisscal.dlt.camera import decompose_dlt
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.poly import Linearisation, apply_linearisation, fit_polynomial
 
 #: Raw pixels per side of the grid over which the models are fitted and compared.
@@ -131,9 +131,9 @@ def opencv_from_camera(
         When the camera's image size is unknown, or ``coefficients`` is not 5, 8 or 12.
     """
     if camera.size_px is None:
-        raise KisscalError(f"camera {camera.id}: image size unknown; cannot fit OpenCV's model")
+        raise InputError(f"camera {camera.id}: image size unknown; cannot fit OpenCV's model")
     if coefficients not in (5, 8, 12):
-        raise KisscalError(f"OpenCV distortion coefficients must be 5, 8 or 12, got {coefficients}")
+        raise InputError(f"OpenCV distortion coefficients must be 5, 8 or 12, got {coefficients}")
     K, R, centre = decompose_dlt(camera.dlt)
     raw = image_grid(camera.size_px, step_px)
     weight = np.sqrt(rim_weights(raw, camera.size_px, rim_fraction, rim_weight))[:, None]

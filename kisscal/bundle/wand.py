@@ -37,7 +37,7 @@ from kisscal.bundle.frame import ObjectMatch, recognise_object
 from kisscal.bundle.initialise import start_from_wand, wand_poses
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.camera import Camera, camera_linearisation
-from kisscal.errors import EstimationFailed, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
 from kisscal.rig import Rig
 
@@ -187,7 +187,7 @@ def check_length(
     nominal = float(np.ptp(np.asarray(markers_mm, dtype=float)))
     measured = float(np.median(lengths_mm))
     if abs(measured / nominal - 1.0) > tolerance:
-        raise KisscalError(
+        raise InputError(
             f"[wand] markers_mm puts the end markers {nominal:g} mm apart, but {by} "
             f"measures {measured:.1f} mm (median of {len(lengths_mm)} fields, "
             f"{measured / nominal - 1:+.1%}); correct markers_mm"
@@ -416,7 +416,7 @@ def axes_frame(
     points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
     match = recognise_object(points.xyz_mm, object_mm)
     if abs(match.scale - 1.0) > length_tol:
-        raise KisscalError(
+        raise InputError(
             f"the axes object measures {1 / match.scale:.3f} times its [axes] points_mm with "
             f"cameras scaled by the wand ({(1 / match.scale - 1):+.1%}); the wand's "
             "markers_mm or the axes' points_mm are wrong"

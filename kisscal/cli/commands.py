@@ -19,7 +19,7 @@ from kisscal.cli.app import (
     run_verdict,
 )
 from kisscal.cli.log import say
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 
 
 @app.command(epilog=example_epilog("kisscal demo", "kisscal demo /tmp/demo --seed 3"))
@@ -374,7 +374,7 @@ def validate(session_dir: SessionHereArg = Path()) -> None:
     for problem in problems:
         say(f"{'warning' if problem.warning else 'problem'}: {problem}")
     errors = [p for p in problems if not p.warning]
-    if errors:
+    if errors:  # the base class: the problems listed are of several kinds
         raise KisscalError(f"{plural(len(errors), 'problem')} found (listed above)")
     say(f"{session_dir}: every input is present and consistent")
 
@@ -416,7 +416,7 @@ def check(
     from kisscal import session
 
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
-        raise KisscalError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
+        raise InputError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
     store = session.SessionStore(session_dir)
     say(f"limits written to {store.limits_path}: the report judges the session by them from now on")

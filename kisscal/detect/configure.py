@@ -79,7 +79,7 @@ from kisscal.detect.survey import (
     rim_reach_px,
     survey_frames,
 )
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 #: What the images are of: markers (trials, rods, axes, wand) or the linearisation grid.
 Kind = Literal["markers", "grid"]
@@ -198,7 +198,7 @@ def configure_detection(
     base = DetectionParams.from_layers(given)  # unknown names and bad values: one-line errors
     frames = [check_image(im) for im in images]
     if not frames:
-        raise KisscalError("detect: no images to derive the detection settings from")
+        raise InputError("detect: no images to derive the detection settings from")
     if any(f.dtype == np.bool_ for f in frames):
         return _thresholded(base, given, kind, len(frames))
     raw_max = [float(np.max(im)) for im in images]

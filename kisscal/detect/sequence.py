@@ -18,7 +18,7 @@ from kisscal._shared import inherited, worker_pool
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import DEFAULT_PARAMS, detect_blobs
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 
 #: Consecutive images a worker takes at a time (a video reader's sequential runs aside).
 CHUNK_IMAGES = 32
@@ -36,16 +36,16 @@ class ImageJob:
 
 def _chunk(
     jobs: Sequence[ImageJob], job: int, start: int, stop: int
-) -> tuple[list[Blobs], str | None]:
+) -> tuple[list[Blobs], KisscalError | None]:
     """Blobs of images ``start:stop`` of job ``job``, or the error that stopped them."""
     spec = jobs[job]
     try:
         return [detect_blobs(spec.load(i), spec.params) for i in range(start, stop)], None
     except KisscalError as exc:  # a bad frame fails its own sequence, not the others
-        return [], str(exc)
+        return [], exc  # its kind kept: it is raised again in the caller's process
 
 
-def _inherited_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], str | None]:
+def _inherited_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], KisscalError | None]:
     """:func:`_chunk` in a worker process, of the jobs it inherited."""
     return _chunk(inherited(), job, start, stop)
 
@@ -88,7 +88,7 @@ def detect_jobs(
     if workers is None:
         workers = os.cpu_count() or 1
     if workers < 1:
-        raise KisscalError(f"detect: workers must be >= 1, got {workers}")
+        raise InputError(f"detect: workers must be >= 1, got {workers}")
     chunks = _chunks(jobs)
     workers = min(workers, len(chunks))
     pool = worker_pool(workers, jobs) if workers > 1 else None
@@ -103,16 +103,16 @@ def detect_jobs(
 def _by_job(
     jobs: Sequence[ImageJob],
     chunks: list[tuple[int, int, int]],
-    results: Iterator[tuple[list[Blobs], str | None]],
+    results: Iterator[tuple[list[Blobs], KisscalError | None]],
 ) -> Iterator[tuple[int, list[Blobs] | KisscalError]]:
     """Gather the chunk results of each job, in order; a job ends at its last chunk."""
     done: list[Blobs] = []
-    error: str | None = None
+    error: KisscalError | None = None
     for (job, _start, stop), (blobs, failed) in zip(chunks, results, strict=True):
         done += blobs
         error = error or failed
         if stop == jobs[job].count:
-            yield job, (KisscalError(error) if error else done)
+            yield job, (error if error is not None else done)
             done, error = [], None
     for j, job in enumerate(jobs):
         if job.count == 0:
@@ -159,12 +159,12 @@ def detect_sequence(
     """
     if callable(images):
         if count is None:
-            raise KisscalError("detect: count is required when images is a loader function")
+            raise InputError("detect: count is required when images is a loader function")
         load, n = images, count
     else:
         load, n = images.__getitem__, len(images)
     if chunksize < 1:
-        raise KisscalError(f"detect: chunksize must be >= 1, got {chunksize}")
+        raise InputError(f"detect: chunksize must be >= 1, got {chunksize}")
     ((_, blobs),) = detect_jobs([ImageJob(load, n, params, chunksize)], workers)
     if isinstance(blobs, KisscalError):
         raise blobs

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal._shared import apply_transform, similarity_normaliser
 from kisscal.dlt.model import matrix_to_dlt, project
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
-from kisscal.errors import EstimationFailed, InputError, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 
 
 def check_control_points(
@@ -39,7 +39,7 @@ def check_control_points(
     if not (np.isfinite(xyz).all() and np.isfinite(uv).all()):
         raise InputError(f"{where}control points contain NaN or infinite coordinates")
     if len(xyz) < params.min_points:
-        raise InputError(
+        raise EstimationFailed(
             f"{where}the 11-parameter DLT needs at least {params.min_points} control points, "
             f"got {len(xyz)}"
         )
@@ -121,7 +121,7 @@ def solve_dlt(
     try:
         return matrix_to_dlt(P)
     except ValueError as exc:
-        raise KisscalError(f"camera {camera}: {exc}") from exc
+        raise EstimationFailed(f"camera {camera}: {exc}") from exc
 
 
 def reprojection_residuals(

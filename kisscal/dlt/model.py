@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import as_points
-from kisscal.errors import EstimationFailed, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 
 
 def dlt_to_matrix(L: ArrayLike) -> NDArray[np.float64]:
@@ -182,7 +182,7 @@ def fundamental_from_dlt(L_i: ArrayLike, L_j: ArrayLike) -> NDArray[np.float64]:
     C_i = np.append(camera_centre_mm(L_i), 1.0)
     e_j = P_j @ C_i
     if np.linalg.norm(e_j) <= 1e-9 * np.linalg.norm(P_j) * np.linalg.norm(C_i):
-        raise KisscalError("two cameras share a projection centre: no epipolar geometry")
+        raise InputError("two cameras share a projection centre: no epipolar geometry")
     F = _skew(e_j) @ P_j[:, :3] @ np.linalg.inv(P_i[:, :3])
     return F / np.linalg.norm(F)
 

@@ -34,7 +34,7 @@ from kisscal.dlt.camera import decompose_matrix
 from kisscal.dlt.linear import check_control_points, solve_dlt
 from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
-from kisscal.errors import EstimationFailed, InputError
+from kisscal.errors import EstimationFailed
 
 N_LENS = 5
 
@@ -210,7 +210,7 @@ def refine_dlt(
     """
     xyz, uv = check_control_points(xyz_mm, uv_px, params, camera)
     if params.lens and len(xyz) < 11:
-        raise InputError(
+        raise EstimationFailed(
             f"camera {camera}: the 16-parameter DLT needs at least 11 control points, "
             f"got {len(xyz)}"
         )

@@ -31,7 +31,7 @@ from kisscal.dlt.params import (
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
 from kisscal.dlt.select import MODELS, CameraPoints, ModelChoice, choose_model
-from kisscal.errors import KisscalError
+from kisscal.errors import KisscalError, with_context
 
 
 @dataclass(frozen=True)
@@ -246,6 +246,7 @@ def _calibrate_or_explain(
             raise
         rows = zip(match.rod_names, match.blob_index, strict=True)
         absent = [name for name, b in rows if (b < 0).any()]
-        raise KisscalError(
-            f"{exc}; rod markers not identified: {len(match.missing)} (rods {', '.join(absent)})"
+        raise with_context(
+            exc,
+            suffix=f"; rod markers not identified: {len(match.missing)} (rods {', '.join(absent)})",
         ) from None

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 
 def rod_positions(p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -118,7 +118,7 @@ def validate_rods(rods: Sequence[Rod], params: DltParams = DEFAULT_PARAMS) -> No
     d = rod_distinctness(rods, n_full, params.rods_upright)
     ia, ib = sorted(np.unravel_index(np.argmin(d), d.shape))
     if d[ia, ib] < params.rod_min_distinct:
-        raise KisscalError(
+        raise InputError(
             f"rods: marker spacings are not unique: rods {rods[ia].name} and {rods[ib].name} "
             f"differ by only {d[ia, ib]:.2%} of the rod length under perspective "
             f"(need {params.rod_min_distinct:.1%}); give every rod its own spacing pattern"

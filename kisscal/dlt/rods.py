@@ -44,7 +44,7 @@ from kisscal.dlt.rod_geometry import (
     rod_positions,
     validate_rods,
 )
-from kisscal.errors import EstimationFailed, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 
 
 def make_rods(config: Sequence[tuple[str, ArrayLike]]) -> tuple[Rod, ...]:
@@ -61,29 +61,29 @@ def make_rods(config: Sequence[tuple[str, ArrayLike]]) -> tuple[Rod, ...]:
     for name, pts in config:
         p = np.asarray(pts, dtype=float)
         if name in names:
-            raise KisscalError(f"rods: rod name {name!r} is used twice")
+            raise InputError(f"rods: rod name {name!r} is used twice")
         names.add(name)
         if p.ndim != 2 or p.shape[1] != 3 or len(p) < 4:
-            raise KisscalError(
+            raise InputError(
                 f"rods: rod {name} needs at least 4 markers as [x, y, z], got {p.shape}"
             )
         if not np.isfinite(p).all():
-            raise KisscalError(f"rods: rod {name} has non-finite marker coordinates")
+            raise InputError(f"rods: rod {name} has non-finite marker coordinates")
         s, off = rod_positions(p)
         length = s[-1]
         if length <= 0 or np.any(np.diff(s) <= 1e-3 * length):
-            raise KisscalError(
+            raise InputError(
                 f"rods: markers of rod {name} must be distinct and listed top to bottom"
             )
         if off.max() > 0.02 * length:
-            raise KisscalError(
+            raise InputError(
                 f"rods: rod {name} is not straight (a marker lies {off.max():.1f} mm off its line)"
             )
         if p[0, 2] < p[-1, 2]:
-            raise KisscalError(f"rods: markers of rod {name} must be listed top to bottom")
+            raise InputError(f"rods: markers of rod {name} must be listed top to bottom")
         rods.append(Rod(name=str(name), points_mm=p))
     if not rods:
-        raise KisscalError("rods: no [[rods.rod]] given")
+        raise InputError("rods: no [[rods.rod]] given")
     return tuple(rods)
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError
 from kisscal.gait.table import SIDES
 from kisscal.markersets.model import MarkerSet
 
@@ -76,7 +76,7 @@ def gait_markers(
         raise InputError(f"gait: markers have different numbers of fields {sorted(lengths)}")
     pelvis = tuple(table[n] for n in marker_set.pelvis if n in table)
     if not pelvis:
-        raise KisscalError(
+        raise InputError(
             f"gait: no pelvis marker among {', '.join(marker_set.pelvis)} (set {marker_set.name!r})"
         )
     used = {"pelvis": ",".join(n for n in marker_set.pelvis if n in table)}
@@ -86,7 +86,7 @@ def gait_markers(
         for role in ("heel", "toe"):
             name = foot.get(role)
             if name is None or name not in table:
-                raise KisscalError(
+                raise InputError(
                     f"gait: no {side} {role} marker ({name or 'none in set'} "
                     f"of {marker_set.name!r}) among the trial's markers"
                 )

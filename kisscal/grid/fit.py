@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.lattice import LatticeIndex, index_lattice
 from kisscal.grid.optimal import OptimalGrid, PrimaryGrid, optimal_grid, primary_grid
 from kisscal.grid.params import GridParams
@@ -99,7 +99,7 @@ def normalisation(
     if size_px is not None:
         w, h = size_px
         if not (w > 0 and h > 0):
-            raise KisscalError(f"image size must be positive, got {size_px}")
+            raise InputError(f"image size must be positive, got {size_px}")
         return ((w - 1) / 2.0, (h - 1) / 2.0), max(w, h) / 2.0
     pts = np.asarray(dots_uv, dtype=float)
     lo, hi = pts.min(axis=0), pts.max(axis=0)

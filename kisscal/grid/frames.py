@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.grid.fit import GridFit, linearise_dots
 from kisscal.grid.params import GridParams
 
@@ -28,15 +28,15 @@ def average_frames(frames: Sequence[NDArray]) -> NDArray[np.float64]:
         No frames, or frames that are not 2-D images of one common shape.
     """
     if len(frames) == 0:
-        raise KisscalError("no grid frames to average")
+        raise InputError("no grid frames to average")
     first = np.asarray(frames[0])
     if first.ndim != 2:
-        raise KisscalError(f"grid frames must be 2-D grey images, got shape {first.shape}")
+        raise InputError(f"grid frames must be 2-D grey images, got shape {first.shape}")
     acc = np.zeros(first.shape, dtype=float)
     for k, frame in enumerate(frames):
         f = np.asarray(frame)
         if f.shape != first.shape:
-            raise KisscalError(f"grid frame {k} has shape {f.shape}, the first one {first.shape}")
+            raise InputError(f"grid frame {k} has shape {f.shape}, the first one {first.shape}")
         acc += f
     return acc / len(frames)
 

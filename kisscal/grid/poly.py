@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import EstimationFailed, InputError, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 
 N_TERMS = 15
 TERM_NAMES = (
@@ -114,13 +114,13 @@ class Linearisation:
         x = np.array(self.x, dtype=float)
         y = np.array(self.y, dtype=float)
         if x.shape != (N_TERMS,) or y.shape != (N_TERMS,):
-            raise KisscalError(
+            raise InputError(
                 f"linearisation needs 15 x and 15 y coefficients, got {x.shape} and {y.shape}"
             )
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-            raise KisscalError("linearisation coefficients must be finite numbers")
+            raise InputError("linearisation coefficients must be finite numbers")
         if not (np.isfinite(self.scale_px) and self.scale_px > 0):
-            raise KisscalError(f"linearisation scale_px must be positive, got {self.scale_px}")
+            raise InputError(f"linearisation scale_px must be positive, got {self.scale_px}")
         x.setflags(write=False)
         y.setflags(write=False)
         object.__setattr__(self, "x", x)

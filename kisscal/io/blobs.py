@@ -15,7 +15,7 @@ from typing import TextIO
 import numpy as np
 
 from kisscal.detect.blobs import Blobs, flag_string, parse_flags
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import atomic_path
 
 COLUMNS = ("image", "x_px", "y_px", "pixels", "w_px", "h_px", "valid", "flags")
@@ -73,14 +73,16 @@ def read_blobs(path: str | Path) -> dict[str, Blobs]:
     try:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
+    except FileNotFoundError as exc:
+        raise MissingDataError(f"blobs: cannot read {path}: {exc.strerror}") from exc
     except OSError as exc:
-        raise KisscalError(f"blobs: cannot read {path}: {exc.strerror}") from exc
+        raise InputError(f"blobs: cannot read {path}: {exc.strerror}") from exc
     if not rows or tuple(rows[0]) != COLUMNS:
-        raise KisscalError(f"blobs: {path} does not start with the header {','.join(COLUMNS)}")
+        raise InputError(f"blobs: {path} does not start with the header {','.join(COLUMNS)}")
     by_image: dict[str, list[list[str]]] = {}
     for line, row in enumerate(rows[1:], start=2):
         if len(row) != len(COLUMNS):
-            raise KisscalError(f"blobs: {path} line {line} has {len(row)} fields, expected 8")
+            raise InputError(f"blobs: {path} line {line} has {len(row)} fields, expected 8")
         by_image.setdefault(row[0], []).append(row)
     tables: dict[str, Blobs] = {}
     for image, group in by_image.items():
@@ -90,7 +92,7 @@ def read_blobs(path: str | Path) -> dict[str, Blobs]:
             ints = np.array([[int(r[3]), int(r[4]), int(r[5]), int(r[6])] for r in group])
             flags = np.array([parse_flags(r[7]) for r in group], dtype=np.int64)
         except ValueError as exc:
-            raise KisscalError(f"blobs: {path}, image {image}: {exc}") from exc
+            raise InputError(f"blobs: {path}, image {image}: {exc}") from exc
         nan = np.full(x.size, np.nan)
         tables[image] = Blobs(
             x_px=x,

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -84,12 +84,12 @@ def processor_type(path: Path) -> str:
     with Path(path).open("rb") as fh:
         head = fh.read(2)
         if len(head) < 2 or head[1] != 0x50:  # the C3D key byte
-            raise KisscalError(f"{path}: not a C3D file (no C3D key in its header)")
+            raise InputError(f"{path}: not a C3D file (no C3D key in its header)")
         fh.seek((max(head[0], 1) - 1) * 512)
         block = fh.read(4)
     kind = PROCESSORS.get(block[3] if len(block) == 4 else -1)
     if kind is None:
-        raise KisscalError(f"{path}: unknown C3D processor type (parameter byte 4)")
+        raise InputError(f"{path}: unknown C3D processor type (parameter byte 4)")
     return kind
 
 
@@ -121,7 +121,7 @@ def read_c3d(path: Path) -> C3DPoints:
     except KisscalError:
         raise
     except Exception as exc:  # both readers raise plain exceptions on corrupt files
-        raise KisscalError(f"{path}: not a readable C3D file ({exc})") from None
+        raise InputError(f"{path}: not a readable C3D file ({exc})") from None
     params, xyz, residual, header_first, rate = raw
     return _markers(path, params, xyz, residual, header_first, rate, processor)
 
@@ -246,7 +246,7 @@ def _markers(
     units = (_strings(params, "POINT", "UNITS") or ["mm"])[0].lower() or "mm"
     scale = _UNITS_MM.get(units)
     if scale is None:
-        raise KisscalError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
+        raise InputError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
     outputs = _model_outputs(params)
     keep = np.array([lab not in outputs for lab in labels], dtype=bool)
     xyz = np.where((residual < 0)[..., None], np.nan, xyz.astype(float) * scale)
@@ -333,7 +333,7 @@ def patch_sample_words(
         n_points, n_analog, start_block = int(head[1]), int(head[2]), int(head[8])
         n_frames = int(head[4]) - int(head[3]) + 1
         if float(head[6:8].view("<f4")[0]) >= 0 or words.shape != (n_frames, n_points):
-            raise KisscalError(f"{path}: not the float C3D layout kisscal writes")
+            raise InputError(f"{path}: not the float C3D layout kisscal writes")
         head[6:8] = np.array([-scale], dtype="<f4").view("<i2")
         if first_frame + n_frames - 1 <= 0xFFFF:
             frames = head.view("<u2")  # frame numbers are unsigned words

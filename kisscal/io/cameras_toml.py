@@ -34,7 +34,7 @@ import numpy as np
 import tomli_w
 
 from kisscal.camera import Camera
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.files import atomic_path, write_text
 from kisscal.io.toml_table import load_toml
 
@@ -63,15 +63,15 @@ def write_cameras_toml(
     any higher terms must then be 0).
     """
     if units not in UNITS_MM:
-        raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+        raise InputError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     names = [c.id for c in cameras] if names is None else list(names)
     if len(names) != len(cameras) or len(set(names)) != len(names):
-        raise KisscalError(f"{path}: need one distinct name per camera, got {names}")
+        raise InputError(f"{path}: need one distinct name per camera, got {names}")
     doc: dict[str, Any] = {}
     for name, cam in zip(names, cameras, strict=True):
         dist = np.asarray(cam.lens, dtype=float)
         if not k3 and np.any(dist[4:] != 0.0):
-            raise KisscalError(f"{path}: camera {cam.id} has k3 = {dist[4]}; cannot drop it")
+            raise InputError(f"{path}: camera {cam.id} has k3 = {dist[4]}; cannot drop it")
         doc[name] = {
             "name": name,
             "size": [int(cam.size_px[0]), int(cam.size_px[1])],
@@ -93,19 +93,19 @@ def _numbers(path: Path, table: str, key: str, value: Any, shape: tuple[int, ...
         arr = np.zeros(0)
     if arr.shape != shape or not np.isfinite(arr).all():
         want = " x ".join(str(s) for s in shape)
-        raise KisscalError(f"{path}: [{table}] {key} must be {want} finite numbers")
+        raise InputError(f"{path}: [{table}] {key} must be {want} finite numbers")
     return arr
 
 
 def _camera(path: Path, table: str, d: dict[str, Any], scale_mm: float) -> Camera:
     missing = [k for k in CAMERA_KEYS if k not in d]
     if missing:
-        raise KisscalError(f"{path}: [{table}] is missing {', '.join(missing)}")
+        raise InputError(f"{path}: [{table}] is missing {', '.join(missing)}")
     if d.get("fisheye", False):
-        raise KisscalError(f"{path}: [{table}] is a fisheye camera; kisscal reads pinhole ones")
+        raise InputError(f"{path}: [{table}] is a fisheye camera; kisscal reads pinhole ones")
     dist = np.asarray(d["distortions"], dtype=float).ravel()
     if dist.size not in (4, 5, 8, 12):
-        raise KisscalError(
+        raise InputError(
             f"{path}: [{table}] distortions must be 4, 5, 8 or 12 numbers (OpenCV's "
             f"k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4]]]), got {dist.size}"
         )
@@ -126,7 +126,7 @@ def _units_mm(path: Path, doc: dict[str, Any], tables: dict[str, dict]) -> float
     units = doc.get("metadata", {}).get("units") if isinstance(doc.get("metadata"), dict) else None
     if units is not None:
         if units not in UNITS_MM:
-            raise KisscalError(f"{path}: metadata.units must be mm, cm or m, got {units!r}")
+            raise InputError(f"{path}: metadata.units must be mm, cm or m, got {units!r}")
         return UNITS_MM[units]
     reach = max(
         np.linalg.norm(np.asarray(t.get("translation", [0]), float)) for t in tables.values()
@@ -153,12 +153,12 @@ def read_cameras_toml(
     doc = load_toml(path)
     tables = {k: v for k, v in doc.items() if isinstance(v, dict) and k not in NOT_CAMERAS}
     if not tables:
-        raise KisscalError(f"{path}: no camera tables")
+        raise InputError(f"{path}: no camera tables")
     by_name = {str(t.get("name", k)): k for k, t in tables.items()}
     names = dict(names or {})
     unknown = [n for n in names if n not in by_name and n not in tables]
     if unknown:
-        raise KisscalError(
+        raise InputError(
             f"{path}: calibration.names maps {unknown[0]!r}, which is not a camera of this "
             f"file (it has {', '.join(sorted(by_name))})"
         )
@@ -169,7 +169,7 @@ def read_cameras_toml(
         name = foreign.get(cam, cam)
         key = by_name.get(name, name if name in tables else None)
         if key is None:
-            raise KisscalError(
+            raise InputError(
                 f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
                 f"map them with [calibration] names = {{ {_hint(by_name)} }})"
             )
@@ -187,7 +187,7 @@ def write_opencv_yaml(path: str | Path, cam: Camera, units: str = "mm") -> Path:
     ``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
     ``rvec``, ``tvec`` (in ``units``: mm, cm or m) and ``units``."""
     if units not in UNITS_MM:
-        raise KisscalError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
+        raise InputError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:

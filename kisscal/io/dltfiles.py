@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.dlt.model import shift_dlt_pixels
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import atomic_path, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
@@ -185,15 +185,15 @@ def read_dlt_json(path: str | Path) -> DltFile:
     except FileNotFoundError:
         raise MissingDataError(f"{path}: DLT file not found") from None
     except json.JSONDecodeError as exc:
-        raise KisscalError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+        raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
     if not isinstance(doc, dict) or "L" not in doc:
-        raise KisscalError(f'{path}: a DLT file needs an "L" list of 11 numbers')
+        raise InputError(f'{path}: a DLT file needs an "L" list of 11 numbers')
     L = _eleven(doc["L"], f'{path}: "L"')
     lens = doc.get("lens")
     if lens is not None:
         lens = np.asarray(lens, dtype=float)
         if lens.shape != (5,):
-            raise KisscalError(f'{path}: "lens" must hold 5 numbers (L12..L16)')
+            raise InputError(f'{path}: "lens" must hold 5 numbers (L12..L16)')
     return DltFile(
         camera=str(doc.get("camera", path.stem)),
         L=L,
@@ -210,9 +210,9 @@ def _eleven(values: Any, where: str) -> NDArray[np.float64]:
     try:
         L = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        raise KisscalError(f"{where} must be 11 numbers") from None
+        raise InputError(f"{where} must be 11 numbers") from None
     if L.shape != (11,) or not np.isfinite(L).all():
-        raise KisscalError(f"{where} must be 11 finite numbers, got shape {L.shape}")
+        raise InputError(f"{where} must be 11 finite numbers, got shape {L.shape}")
     return L
 
 
@@ -262,17 +262,17 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
             header = [c.strip() for c in rows[0]]
             rows = rows[1:]
     if len(rows) != 11:
-        raise KisscalError(f"{path}: expected 11 rows of DLT coefficients, got {len(rows)}")
+        raise InputError(f"{path}: expected 11 rows of DLT coefficients, got {len(rows)}")
     try:
         table = np.array([[float(c) for c in r] for r in rows])
     except ValueError:
-        raise KisscalError(f"{path}: DLT coefficients must be numbers") from None
+        raise InputError(f"{path}: DLT coefficients must be numbers") from None
     n_cam = table.shape[1]
     names = list(cameras) if cameras is not None else header
     if names is None:
-        raise KisscalError(f"{path}: no header row; give the camera ids in column order")
+        raise InputError(f"{path}: no header row; give the camera ids in column order")
     if len(names) != n_cam:
-        raise KisscalError(f"{path}: {n_cam} columns of coefficients for {len(names)} cameras")
+        raise InputError(f"{path}: {n_cam} columns of coefficients for {len(names)} cameras")
     back = -np.asarray(DLTDV8_OFFSET_PX)
     return {
         cam: DltFile(
@@ -310,7 +310,7 @@ def read_control_points_csv(
     missing = [c for c in CONTROL_COLUMNS if c not in fields]
     unknown = [f for f in fields if f not in (*CONTROL_COLUMNS, "label")]
     if missing or unknown:
-        raise KisscalError(
+        raise InputError(
             f"{path}: control points need columns {','.join(CONTROL_COLUMNS)}[,label]"
             + (f"; missing {', '.join(missing)}" if missing else "")
             + (f"; unknown {', '.join(unknown)}" if unknown else "")
@@ -319,7 +319,7 @@ def read_control_points_csv(
     try:
         table = np.array([[float(r[c]) for c in CONTROL_COLUMNS] for r in rows]).reshape(-1, 5)
     except (TypeError, ValueError):
-        raise KisscalError(f"{path}: control point coordinates must be numbers") from None
+        raise InputError(f"{path}: control point coordinates must be numbers") from None
     labels = tuple((r.get("label") or f"P{i + 1}").strip() for i, r in enumerate(rows))
     return table[:, :2], table[:, 2:], labels
 

@@ -20,7 +20,7 @@ import ezc3d
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.gait.table import GaitEvents
 from kisscal.io.c3d import patch_sample_words, point_scale, sample_words
 from kisscal.io.files import atomic_path, write_text
@@ -38,14 +38,14 @@ def _dense(
     tracks: Tracks, labels: tuple[str, ...], rate_hz: float, n_fields: int | None = None
 ) -> np.ndarray:
     if len(labels) != tracks.n_tracks:
-        raise KisscalError(f"export: {len(labels)} labels for {tracks.n_tracks} tracks")
+        raise InputError(f"export: {len(labels)} labels for {tracks.n_tracks} tracks")
     if len(set(labels)) != len(labels):
-        raise KisscalError("export: point labels must be unique")
+        raise InputError("export: point labels must be unique")
     if not rate_hz > 0:
-        raise KisscalError(f"export: rate_hz must be > 0, got {rate_hz}")
+        raise InputError(f"export: rate_hz must be > 0, got {rate_hz}")
     if tracks.field.size == 0:
         if not n_fields:
-            raise KisscalError("export: no trajectories to write")
+            raise InputError("export: no trajectories to write")
         return np.zeros((0, n_fields, 3))  # an empty trial: frames without points
     # (n_tracks, n_fields, 3): trailing fields without samples are fields too
     return tracks.positions(max(n_fields or 0, int(tracks.field.max()) + 1))
@@ -232,7 +232,7 @@ def write_trc(
     ``n_fields`` frames without markers, as :func:`write_c3d`.
     """
     if up not in TRC_AXES:
-        raise KisscalError(f"export: trc up axis must be 'z' or 'y', got {up!r}")
+        raise InputError(f"export: trc up axis must be 'z' or 'y', got {up!r}")
     dense = _dense(tracks, labels, rate_hz, n_fields) @ TRC_AXES[up].T
     n_tracks, n_fields, _ = dense.shape
     path = Path(path)

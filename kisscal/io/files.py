@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 
 
 @contextlib.contextmanager
@@ -51,9 +51,9 @@ def staged_folder(out: Path, force: bool = False) -> Iterator[Path]:
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise KisscalError(f"{out}: exists and is not a folder")
+        raise InputError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not force:
-        raise KisscalError(f"{out}: folder is not empty (use --force to overwrite it)")
+        raise InputError(f"{out}: folder is not empty (use --force to overwrite it)")
     out.parent.mkdir(parents=True, exist_ok=True)
     root = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
@@ -136,21 +136,19 @@ def read_table(
     except FileNotFoundError:
         raise MissingDataError(f"{path}: file not found") from None
     except UnicodeDecodeError:
-        raise KisscalError(f"{path}: not a text CSV file") from None
+        raise InputError(f"{path}: not a text CSV file") from None
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
-        raise KisscalError(f"{path}: empty file, expected a header line")
+        raise InputError(f"{path}: empty file, expected a header line")
     header, body = rows[0], rows[1:]
     missing = [c for c in required if c not in header]
     if missing:
-        raise KisscalError(
+        raise InputError(
             f"{path}: missing column(s) {', '.join(missing)}; found {', '.join(header)}"
         )
     bad = [i + 2 for i, r in enumerate(body) if len(r) != len(header)]
     if bad:
-        raise KisscalError(
-            f"{path}: line {bad[0]} has a different number of fields than the header"
-        )
+        raise InputError(f"{path}: line {bad[0]} has a different number of fields than the header")
     out: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
         col = [r[j] for r in body]
@@ -159,7 +157,7 @@ def read_table(
         except ValueError:
             if name in numeric:
                 line = next(i + 2 for i, v in enumerate(col) if not _is_number(v))
-                raise KisscalError(
+                raise InputError(
                     f"{path}: line {line}: {name} must be a number, got {col[line - 2]!r}"
                 ) from None
             out[name] = np.array(col, dtype=str)

@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 
 IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".bmp"}
 VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".mpg", ".mpeg", ".m4v", ".wmv"}
@@ -41,12 +41,12 @@ def read_image(path: Path) -> np.ndarray:
     data = np.fromfile(path, dtype=np.uint8)
     image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if image is None:
-        raise KisscalError(f"{path}: not a readable image (corrupt or unsupported format)")
+        raise InputError(f"{path}: not a readable image (corrupt or unsupported format)")
     if image.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
         image = cv2.cvtColor(image, code)
     if image.dtype not in (np.uint8, np.uint16):
-        raise KisscalError(f"{path}: unsupported pixel type {image.dtype}; expected 8 or 16 bit")
+        raise InputError(f"{path}: unsupported pixel type {image.dtype}; expected 8 or 16 bit")
     return image
 
 
@@ -99,9 +99,10 @@ def image_header(path: Path) -> ImageHeader:
             return ImageHeader((int(w), int(h)), "PNG")
         with Image.open(path) as image:
             return ImageHeader((int(image.width), int(image.height)), str(image.format))
-    except (UnidentifiedImageError, OSError, ValueError) as exc:
-        detail = "file not found" if isinstance(exc, FileNotFoundError) else "not a readable image"
-        raise KisscalError(f"{path}: {detail}") from None
+    except FileNotFoundError:
+        raise MissingDataError(f"{path}: file not found") from None
+    except (UnidentifiedImageError, OSError, ValueError):
+        raise InputError(f"{path}: not a readable image") from None
 
 
 def _glob(root: Path, pattern: str) -> list[Path]:
@@ -123,7 +124,7 @@ def frame_paths(root: Path, pattern: str, camera: str, what: str) -> list[Path]:
     matched = sorted(p for p in _glob(root, glob) if p.is_file())
     paths = [p for p in matched if is_image_file(p)]
     if not paths:
-        raise KisscalError(
+        raise MissingDataError(
             f"{Path(root) / glob}: no {what} images for camera {camera}; "
             + _what_is_there(Path(root), glob, matched)
         )
@@ -177,7 +178,7 @@ class _Reader:
         self.path = path
         self.cap = cv2.VideoCapture(str(path))
         if not self.cap.isOpened():
-            raise KisscalError(f"{path}: not a readable video")
+            raise InputError(f"{path}: not a readable video")
         self.count = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.next = 0  # index of the frame the next read() returns
         self.last: tuple[int, np.ndarray] | None = None
@@ -196,7 +197,7 @@ class _Reader:
             self.next += 1
         ok, frame = self.cap.read()
         if not ok:
-            raise KisscalError(f"{self.path}: frame {index} cannot be decoded (truncated video?)")
+            raise InputError(f"{self.path}: frame {index} cannot be decoded (truncated video?)")
         self.next = index + 1
         gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
         self.last = (index, gray)
@@ -343,5 +344,5 @@ def trial_frames(
     counts = {c: len(f) for c, f in frames.items()}
     if len(set(counts.values())) > 1:
         detail = ", ".join(f"{c}: {n}" for c, n in counts.items())
-        raise KisscalError(f"trial {trial!r}: cameras have different numbers of frames ({detail})")
+        raise InputError(f"trial {trial!r}: cameras have different numbers of frames ({detail})")
     return frames

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, KisscalError, MissingDataError, with_context
 from kisscal.grid.poly import TERM_NAMES, Linearisation, LinearisationQuality
 from kisscal.io.files import write_text
 
@@ -97,22 +97,22 @@ def linearisation_from_dict(doc: dict[str, Any], source: str = "linearisation") 
         Missing keys, wrong model, wrong lengths or non-numbers, naming ``source``.
     """
     if not isinstance(doc, dict):
-        raise KisscalError(f"{source}: expected a JSON object")
+        raise InputError(f"{source}: expected a JSON object")
     model = doc.get("model", "poly4")
     if model != "poly4":
-        raise KisscalError(f"{source}: unknown linearisation model {model!r} (expected 'poly4')")
+        raise InputError(f"{source}: unknown linearisation model {model!r} (expected 'poly4')")
     for key in ("center_px", "scale_px", "x", "y"):
         if key not in doc:
-            raise KisscalError(f"{source}: missing key {key!r}")
+            raise InputError(f"{source}: missing key {key!r}")
     try:
         center = [float(c) for c in doc["center_px"]]
         scale = float(doc["scale_px"])
         x = np.array(doc["x"], dtype=float)
         y = np.array(doc["y"], dtype=float)
     except (TypeError, ValueError) as exc:
-        raise KisscalError(f"{source}: coefficients must be numbers ({exc})") from None
+        raise InputError(f"{source}: coefficients must be numbers ({exc})") from None
     if len(center) != 2:
-        raise KisscalError(f"{source}: center_px must hold 2 numbers, got {len(center)}")
+        raise InputError(f"{source}: center_px must hold 2 numbers, got {len(center)}")
     quality = None
     q = doc.get("quality")
     if isinstance(q, dict) and _QUALITY_KEYS <= set(q):
@@ -124,7 +124,7 @@ def linearisation_from_dict(doc: dict[str, Any], source: str = "linearisation") 
     try:
         return Linearisation((center[0], center[1]), scale, x, y, quality)
     except KisscalError as exc:
-        raise KisscalError(f"{source}: {exc}") from None
+        raise with_context(exc, f"{source}: ") from None
 
 
 def write_linearisation(
@@ -161,7 +161,7 @@ def read_linearisation(path: str | Path) -> tuple[str, Linearisation]:
     except FileNotFoundError:
         raise MissingDataError(f"linearisation file not found: {path}") from None
     except json.JSONDecodeError as exc:
-        raise KisscalError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     lin = linearisation_from_dict(doc, str(path))
     return str(doc.get("camera", path.stem)), lin
 
@@ -174,9 +174,9 @@ def read_linearisation_doc(path: str | Path) -> dict[str, Any] | None:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
-        raise KisscalError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     if not isinstance(doc, dict):
-        raise KisscalError(f"{path}: expected a JSON object")
+        raise InputError(f"{path}: expected a JSON object")
     return doc
 
 

@@ -18,7 +18,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 
 try:
     import fcntl
@@ -76,10 +76,11 @@ def _acquire(out: Path) -> int:
         out.mkdir(exist_ok=True)
         fd = os.open(out / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
-        raise KisscalError(f"{out}: cannot write the output folder ({exc.strerror})") from None
+        raise InputError(f"{out}: cannot write the output folder ({exc.strerror})") from None
     if not _lock(fd):
         holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
         os.close(fd)
+        # the base class: none of the three kinds; the session is busy, not wrong
         raise KisscalError(
             f"{out}: another kisscal process ({holder}) is writing this session; "
             "wait for it to finish"

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import write_text
 
 COLUMNS = ("camera", "field", "x_px", "y_px", "point")
@@ -78,7 +78,7 @@ def write_points2d(
     xy = np.asarray(xy_px, dtype=float).reshape(-1, 2)
     point = np.asarray(point, dtype=np.int64)
     if not (len(camera) == len(field) == len(xy) == len(point)):
-        raise KisscalError("points2d: columns of different lengths")
+        raise InputError("points2d: columns of different lengths")
     names = np.asarray(list(camera_ids) or [""], dtype=str)
     # formatted column by column (numpy's string ops), not row by row
     cells = [
@@ -107,12 +107,12 @@ def read_points2d(path: str | Path) -> Points2DFile:
     except FileNotFoundError:
         raise MissingDataError(f"{path}: file not found") from None
     if not rows or tuple(rows[0]) != COLUMNS:
-        raise KisscalError(f"{path}: header must be {','.join(COLUMNS)}")
+        raise InputError(f"{path}: header must be {','.join(COLUMNS)}")
     try:
         body = np.array(rows[1:], dtype=str).reshape(-1, len(COLUMNS))
         field = body[:, 1].astype(np.int64)
         xy = body[:, 2:4].astype(float)
         point = np.where(body[:, 4] == "", "-1", body[:, 4]).astype(np.int64)
     except ValueError:
-        raise KisscalError(f"{path}: ragged rows, or text in field, x_px, y_px, point") from None
+        raise InputError(f"{path}: ragged rows, or text in field, x_px, y_px, point") from None
     return Points2DFile(body[:, 0], field, xy, point)

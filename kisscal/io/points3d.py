@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import atomic_path
 from kisscal.recon.reconstruct import Points3D
 
@@ -82,11 +82,9 @@ def write_points3d(
     # a trial without points is an empty table (header only): -1 cannot size its columns
     blob = blob.reshape(len(field), len(camera_ids) if blob.size == 0 else -1)
     if blob.shape[1] != len(camera_ids):
-        raise KisscalError(
-            f"points3d: {blob.shape[1]} blob columns for {len(camera_ids)} camera ids"
-        )
+        raise InputError(f"points3d: {blob.shape[1]} blob columns for {len(camera_ids)} camera ids")
     if not (len(xyz) == len(n_cam) == len(rms) == len(field)):
-        raise KisscalError("points3d: columns of different lengths")
+        raise InputError("points3d: columns of different lengths")
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
@@ -114,17 +112,17 @@ def read_points3d(path: str | Path) -> Points3DFile:
     with path.open(newline="") as fh:
         rows = list(csv.reader(fh))
     if not rows or tuple(rows[0][: len(BASE_COLUMNS)]) != BASE_COLUMNS:
-        raise KisscalError(f"{path}: header must start with {','.join(BASE_COLUMNS)}")
+        raise InputError(f"{path}: header must start with {','.join(BASE_COLUMNS)}")
     header = rows[0]
     extra = header[len(BASE_COLUMNS) :]
     if any(not h.startswith("blob_") for h in extra):
-        raise KisscalError(
+        raise InputError(
             f"{path}: unexpected column(s) {[h for h in extra if not h.startswith('blob_')]}"
         )
     try:
         data = np.array(rows[1:], dtype=float).reshape(-1, len(header))
     except ValueError as exc:
-        raise KisscalError(f"{path}: non-numeric or ragged rows") from exc
+        raise InputError(f"{path}: non-numeric or ragged rows") from exc
     return Points3DFile(
         field=data[:, 0].astype(np.int64),
         xyz_mm=data[:, 1:4],

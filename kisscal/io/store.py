@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.detect import Blobs
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.grid.poly import Linearisation
 from kisscal.io.cache import load_blob_frames
 from kisscal.io.detection_record import DetectionRecord, read_detection_record
@@ -138,7 +138,7 @@ class SessionStore:
         """``dlt/<name>.json`` beside the cameras': ``check``, ``wand``, ``target`` or
         ``calibration`` (the route and options that wrote the rest)."""
         if name not in ("check", "wand", "target", "calibration"):
-            raise KisscalError(f"no calibration file {name!r} in the out/ layout")
+            raise InputError(f"no calibration file {name!r} in the out/ layout")
         return self.dlt_dir / f"{name}.json"
 
     @property
@@ -269,7 +269,7 @@ class SessionStore:
         try:
             return json.loads(path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as exc:
-            raise KisscalError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+            raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
 
     def linearisation(self, camera: str) -> Linearisation:
         """The linearisation written for ``camera`` (a :class:`KisscalError` when none)."""

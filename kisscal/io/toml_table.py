@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import InputError, KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -36,7 +36,7 @@ def load_toml(path: Path) -> dict[str, Any]:
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
-        raise KisscalError(f"{path}: cannot be read ({exc.strerror})") from None
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -115,9 +115,9 @@ def number(path: Path, where: str, value: Any, kind: type = float, positive: boo
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise InputError(f"{path}: {where} must be a number, got {value!r}")
     if kind is int and int(value) != value:
-        raise KisscalError(f"{path}: {where} must be a whole number, got {value!r}")
+        raise InputError(f"{path}: {where} must be a whole number, got {value!r}")
     if positive and value <= 0:
-        raise KisscalError(f"{path}: {where} must be positive, got {value!r}")
+        raise InputError(f"{path}: {where} must be positive, got {value!r}")
     return kind(value)
 
 
@@ -125,11 +125,11 @@ def points_mm(path: Path, where: str, value: Any) -> np.ndarray:
     try:
         pts = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise KisscalError(f"{path}: {where} must be a list of [x, y, z] in mm") from None
+        raise InputError(f"{path}: {where} must be a list of [x, y, z] in mm") from None
     if pts.size == 0:
-        raise KisscalError(f"{path}: {where} is empty; fill in [x, y, z] (mm) for each marker")
+        raise InputError(f"{path}: {where} is empty; fill in [x, y, z] (mm) for each marker")
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
-        raise KisscalError(
+        raise InputError(
             f"{path}: {where} must be a list of [x, y, z] in mm, got shape {pts.shape}"
         )
     return pts
@@ -161,5 +161,5 @@ def read_detection_table(path: Path) -> dict[str, Any]:
     data = load_toml(Path(path))
     table = data.get("detection")
     if not isinstance(table, dict):
-        raise KisscalError(f"{path}: no [detection] table")
+        raise InputError(f"{path}: no [detection] table")
     return dict(table)

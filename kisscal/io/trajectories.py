@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import atomic_path
 from kisscal.tracking.pipeline import SweepRow
 from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES, Tracks
@@ -52,7 +52,7 @@ def write_trajectories_csv(path: str | Path, tracks: Tracks, labels: tuple[str, 
     """Write one row per sample: ``field,track,label,x_mm,y_mm,z_mm,status``, sorted by
     track then field, coordinates to 0.001 mm."""
     if len(labels) != tracks.n_tracks:
-        raise KisscalError(f"trajectories: {len(labels)} labels for {tracks.n_tracks} tracks")
+        raise InputError(f"trajectories: {len(labels)} labels for {tracks.n_tracks} tracks")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     names = np.asarray(labels, dtype=object)[tracks.track]
@@ -77,7 +77,7 @@ def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
     with path.open(newline="") as fh:
         rows = list(csv.reader(fh))
     if not rows or tuple(rows[0]) != HEADER:
-        raise KisscalError(f"trajectories: {path} must start with the header {','.join(HEADER)}")
+        raise InputError(f"trajectories: {path} must start with the header {','.join(HEADER)}")
     body = rows[1:]
     code = {**LEGACY_STATUS, **{name: i for i, name in enumerate(STATUS_NAMES)}}
     try:
@@ -87,7 +87,7 @@ def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
         xyz = np.array([[float(v) for v in r[3:6]] for r in body]).reshape(-1, 3)
         status = np.array([code[r[6]] for r in body], dtype=np.int8)
     except (ValueError, IndexError, KeyError) as exc:
-        raise KisscalError(f"trajectories: bad row in {path}: {exc}") from None
+        raise InputError(f"trajectories: bad row in {path}: {exc}") from None
     return TrajectoryTable(field, track, label, xyz, status)
 
 

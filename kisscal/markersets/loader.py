@@ -10,7 +10,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.markersets.model import MarkerSet, unknown_message
 
 if sys.version_info >= (3, 11):
@@ -72,7 +72,7 @@ def marker_set(name: str, names: Sequence[str] | None = None) -> MarkerSet:
 def _raw(name: str) -> dict:
     known = available_marker_sets()
     if name not in known:
-        raise KisscalError(
+        raise InputError(
             f"{unknown_message(name, known, 'marker set')}; kisscal ships: {', '.join(known)}"
         )
     text = resources.files("kisscal.markersets").joinpath("data", f"{name}.toml").read_text("utf-8")

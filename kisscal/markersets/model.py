@@ -11,7 +11,7 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 Pair = tuple[str, str]
 
@@ -96,7 +96,7 @@ class MarkerSet:
         """Row of marker ``name`` (an alias is accepted); one-line error if unknown."""
         name = self.aliases.get(name, name)
         if name not in self.names:
-            raise KisscalError(f"marker set {self.name!r}: {unknown_message(name, self.names)}")
+            raise InputError(f"marker set {self.name!r}: {unknown_message(name, self.names)}")
         return self.names.index(name)
 
     def position(self, name: str) -> NDArray[np.float64]:
@@ -110,7 +110,7 @@ class MarkerSet:
         relative to the floor origin scale with it; so does the between-subject spread.
         """
         if not np.isfinite(height_mm) or not 500.0 <= height_mm <= 2500.0:
-            raise KisscalError(f"subject height must be 500-2500 mm, got {height_mm!r}")
+            raise InputError(f"subject height must be 500-2500 mm, got {height_mm!r}")
         k = height_mm / self.height_mm
         return replace(
             self,
@@ -151,7 +151,7 @@ class MarkerSet:
     def foot(self, side: str) -> dict[str, str]:
         """Heel, toe and ankle marker names of ``side`` (``"left"`` / ``"right"``)."""
         if side not in ("left", "right"):
-            raise KisscalError(f"side must be 'left' or 'right', got {side!r}")
+            raise InputError(f"side must be 'left' or 'right', got {side!r}")
         return dict(self.roles.get(side, {}))
 
     @property
@@ -166,7 +166,7 @@ class MarkerSet:
         seen = set()
         for n in names:
             if n in seen:
-                raise KisscalError(f"marker set {self.name!r}: marker {n!r} given twice")
+                raise InputError(f"marker set {self.name!r}: marker {n!r} given twice")
             seen.add(n)
         keep = set(names)
 

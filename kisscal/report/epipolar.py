@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import new_figure
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.recon.epipolar import all_fundamentals, epipolar_lines
 from kisscal.recon.reconstruct import Points3D
 
@@ -166,9 +166,7 @@ def epipolar_figure(
     dlts = np.asarray(dlts, dtype=float)
     n_cam = len(dlts)
     if len(points_per_camera) != n_cam:
-        raise KisscalError(
-            f"epipolar figure: {len(points_per_camera)} point lists, {n_cam} cameras"
-        )
+        raise InputError(f"epipolar figure: {len(points_per_camera)} point lists, {n_cam} cameras")
     sizes = [tuple(size_px)] * n_cam if np.ndim(size_px) == 1 else [tuple(s) for s in size_px]
     pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points_per_camera]
     ids = camera_ids or [f"camera {k + 1}" for k in range(n_cam)]

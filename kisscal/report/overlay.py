@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect.blobs import Blobs
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 
 VALID_RGB = (40, 220, 40)
 INVALID_RGB = (235, 40, 40)
@@ -39,10 +39,10 @@ def draw_overlay(
     ndarray of uint8, shape (h * scale[1], w * scale[0], 3)
     """
     if not isinstance(image, np.ndarray) or image.ndim != 2 or image.size == 0:
-        raise KisscalError("overlay: expected a non-empty 2-D image")
+        raise InputError("overlay: expected a non-empty 2-D image")
     sx, sy = (int(s) for s in scale)
     if sx < 1 or sy < 1:
-        raise KisscalError(f"overlay: scale must be positive integers, got {scale}")
+        raise InputError(f"overlay: scale must be positive integers, got {scale}")
     grey = image.astype(np.float64)
     if image.dtype == np.bool_:
         grey *= 255.0

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kisscal._shared import new_figure
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.report.figures import padded_range
 from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
@@ -78,7 +78,7 @@ def segment_length_figure(
     index = {name: k for k, name in enumerate(labels)}
     pairs = [p for p in segments if p[0] in index and p[1] in index]
     if not pairs or tracks.field.size == 0:
-        raise KisscalError("segment length figure: no labelled segment to draw")
+        raise InputError("segment length figure: no labelled segment to draw")
     n_fields = int(tracks.field.max()) + 1
     measured = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     m = tracks.status == MEASURED

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.run import run
 
@@ -27,7 +27,7 @@ def _dask() -> Any:
     try:
         import dask
         import dask.distributed
-    except ImportError:
+    except ImportError:  # the base class: none of the three kinds, an optional install
         raise KisscalError(INSTALL_BATCH) from None
     return dask
 
@@ -51,7 +51,7 @@ def batch(sessions: Sequence[Path], scheduler: str | None = None, echo: Echo = q
     dask = _dask()
     paths = [Path(s).resolve() for s in sessions]
     if not paths:
-        raise KisscalError("give at least one session folder")
+        raise InputError("give at least one session folder")
     with dask.config.set({"logging.distributed": "error"}):
         client, cluster = _connect(scheduler, len(paths))
         try:
@@ -74,7 +74,7 @@ def _connect(scheduler: str | None, n_sessions: int) -> tuple[Any, Any]:
         try:
             return Client(scheduler, timeout="10s"), None
         except OSError as exc:
-            raise KisscalError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+            raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
     n = max(1, min(n_sessions, os.cpu_count() or 1))
     cluster = LocalCluster(
         n_workers=n, threads_per_worker=1, dashboard_address=None, silence_logs=40
@@ -86,10 +86,10 @@ def _report(path: Path, future: Any, echo: Echo) -> bool:
     """Print one session's outcome; True when it succeeded."""
     try:
         summary = future.result()
-        if "error" in summary:
-            raise KisscalError(summary["error"])
     except Exception as exc:  # one failed session must not stop the others
-        echo(f"FAILED  {path}: {exc}")
+        summary = {"error": str(exc)}
+    if "error" in summary:
+        echo(f"FAILED  {path}: {summary['error']}")
         return False
     n_traj = sum(t.get("trajectories", 0) for t in summary["trials"].values())
     echo(f"ok      {path}: {len(summary['trials'])} trials, {n_traj} trajectories")

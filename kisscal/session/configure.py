@@ -25,7 +25,7 @@ import numpy as np
 
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid.frames import dots_from_frames
 from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.config import CameraConfig, SessionConfig
@@ -115,7 +115,7 @@ def _settings(
         return kept
     sample = _sample(config, camera, kind)
     if sample is None:
-        raise KisscalError(f"camera {camera.id} has no {kind} images to detect")
+        raise MissingDataError(f"camera {camera.id} has no {kind} images to detect")
     if kind == "grid":
         setup = _grid_setup(sample, params)
     else:
@@ -267,7 +267,7 @@ def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
     if camera.size_px is not None and (w, h) != tuple(camera.size_px):
         paths = getattr(frames, "paths", None)
         name = paths[index] if paths is not None else f"{getattr(frames, 'path', '')} frame {index}"
-        raise KisscalError(
+        raise InputError(
             f"{name}: {w} x {h} pixels, but camera {camera.id}'s frames are "
             f"{camera.size_px[0]} x {camera.size_px[1]}"
         )

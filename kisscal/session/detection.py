@@ -15,7 +15,7 @@ import numpy as np
 from kisscal.detect import Blobs, DetectionParams, ImageJob, detect_jobs, detect_sequence
 from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import hopeless
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError, KisscalError
 from kisscal.io.blobs import write_blobs
 from kisscal.io.cache import save_blob_frames
 from kisscal.io.config import SessionConfig
@@ -48,7 +48,7 @@ class SizedFrames(Sequence):
         image = self.frames[index]
         h, w = image.shape[:2]
         if (w, h) != tuple(self.size_px):
-            raise KisscalError(
+            raise InputError(
                 f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
                 f"{self.camera}'s frames are "
                 f"{self.size_px[0]} x {self.size_px[1]}"
@@ -178,7 +178,7 @@ def _session_params(
 ) -> DetectionParams:
     """A session camera's derived settings with ``given`` on top."""
     if camera is None:
-        raise KisscalError("--session needs --camera: whose derived settings to use")
+        raise InputError("--session needs --camera: whose derived settings to use")
     config = load_config(root)
     cam = select_cameras(config, camera)[0]
     params = stage_params(config, Overrides(detection=given))

@@ -7,7 +7,7 @@ from importlib import resources
 from pathlib import Path
 from string import Template
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.files import write_text
 
 
@@ -37,11 +37,11 @@ def init_session(root: Path, n_cameras: int, preset: str = "modern") -> Path:
     """
     root = Path(root)
     if preset not in PRESETS:
-        raise KisscalError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
+        raise InputError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
     if not 1 <= n_cameras <= 64:
-        raise KisscalError(f"--cameras must be between 1 and 64, got {n_cameras}")
+        raise InputError(f"--cameras must be between 1 and 64, got {n_cameras}")
     if (root / "session.toml").exists():
-        raise KisscalError(f"{root / 'session.toml'} exists; init never overwrites a session")
+        raise InputError(f"{root / 'session.toml'} exists; init never overwrites a session")
     cameras = [f"cam{i}" for i in range(1, n_cameras + 1)]
     for folder in ("grid", "rods", "trials/walk01"):
         for cam in cameras:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.io.config import CameraConfig, SessionConfig, load_session
 from kisscal.io.frames import camera_frames
 from kisscal.io.lock import session_lock
@@ -89,7 +89,7 @@ def _first_frame_size(config: SessionConfig, camera: str) -> tuple[int, int]:
     hint = "; ".join(
         h for _w, pattern, _v, _f in image_sources(config) if (h := folders_hint(config, pattern))
     )
-    raise KisscalError(
+    raise MissingDataError(
         f"{config.path}: camera {camera} has no size and no images to take it from; "
         f"give size = [width, height] in its [[cameras]] entry{'; ' + hint if hint else ''}"
     )

@@ -9,7 +9,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError, KisscalError, with_context
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_text
@@ -109,7 +109,7 @@ def _linearise_camera(
             list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, detection
         )
     except KisscalError as exc:
-        raise KisscalError(f"camera {cam.id} grid: {exc}") from None
+        raise with_context(exc, f"camera {cam.id} grid: ") from None
     write_linearisation(out, fit.linearisation, cam.id, fit.index.missing_rc, fit.index.missing_uv)
     figure(
         root,

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import EstimationFailed, KisscalError
+from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.io.config import SessionConfig
 from kisscal.markersets import MarkerSet, available_marker_sets, marker_set
 from kisscal.tracking import Trajectories
@@ -77,7 +77,7 @@ def marker_spec(config: SessionConfig) -> MarkerSpec:
     if m.segments:
         chosen = dataclasses.replace(chosen, segments=tuple(m.segments))
     if template is not None and len(template) != len(chosen):
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: markers.template_mm has {len(template)} positions for the "
             f"{len(chosen)} markers of set {m.set!r}; give names in the template's order"
         )
@@ -99,9 +99,9 @@ def subject_template(result: Trajectories, spec: MarkerSpec, trial: str) -> dict
     dense = result.tracks.positions()
     _check_still(dense, result.labels, trial)
     if not lab.fits_marker_set:
-        raise KisscalError(f"static trial {trial!r}: its markers do not fit the marker set")
+        raise EstimationFailed(f"static trial {trial!r}: its markers do not fit the marker set")
     if lab.flagged:
-        raise KisscalError(
+        raise EstimationFailed(
             f"static trial {trial!r}: labels {', '.join(lab.flagged)} are uncertain "
             "(left and right not told apart); check the static trial"
         )
@@ -144,7 +144,7 @@ def _check_still(dense: NDArray, labels: tuple[str, ...], trial: str) -> None:
         return
     spread, label = sorted(spreads)[len(spreads) // 2]
     if spread > STATIC_MAX_MOVE_MM:
-        raise KisscalError(
+        raise EstimationFailed(
             f"static trial {trial!r}: the subject moves (its median marker, {label}, "
             f"travels {spread:.0f} mm; at most {STATIC_MAX_MOVE_MM:.0f} mm standing still)"
         )

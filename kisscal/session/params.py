@@ -18,7 +18,7 @@ from kisscal.bundle.params import BundleParams
 from kisscal.detect import DetectionParams
 from kisscal.dlt import DltParams
 from kisscal.dlt.linear import spread_ratio
-from kisscal.errors import KisscalError
+from kisscal.errors import EstimationFailed
 from kisscal.gait import GaitParams
 from kisscal.grid import GridParams
 from kisscal.io.config import SessionConfig
@@ -117,12 +117,12 @@ def check_control_points_mm(
     """Control points given in ``session.toml`` must determine a DLT under ``[dlt]``:
     ``min_points`` or more, not (nearly) coplanar (``min_spread_ratio``)."""
     if len(pts) < dlt.min_points:
-        raise KisscalError(
+        raise EstimationFailed(
             f"{config.path}: {where} gives {len(pts)} points; the DLT needs at least "
             f"{dlt.min_points} ([dlt] min_points)"
         )
     if not spread_ratio(pts) >= dlt.min_spread_ratio:
-        raise KisscalError(
+        raise EstimationFailed(
             f"{config.path}: {where} points are coplanar; the DLT needs points off one plane "
             f"(spread ratio {spread_ratio(pts):.1e} < [dlt] min_spread_ratio "
             f"{dlt.min_spread_ratio:g})"

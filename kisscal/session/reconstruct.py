@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.c3d import read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
@@ -132,13 +132,13 @@ def c3d_trial_points(
         return store.points3d(trial.name)
     c3d = read_c3d(source)
     if abs(c3d.rate_hz - config.rate_hz) > 1e-6 * c3d.rate_hz:
-        raise KisscalError(
+        raise InputError(
             f"{source}: {c3d.rate_hz:g} frames per second, but session.toml says rate_hz = "
             f"{config.rate_hz:g}"
         )
     field, channel = np.nonzero(np.isfinite(c3d.xyz_mm).all(axis=2))
     if not len(field):
-        raise KisscalError(f"{source}: no valid 3D point in the file")
+        raise InputError(f"{source}: no valid 3D point in the file")
     n = len(field)
     write_points3d(
         path,

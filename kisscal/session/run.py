@@ -81,7 +81,7 @@ def run(
     summary["failed_trials"] = failures
     write_json(SessionStore(root).summary_path, summary)
     report(root, echo=echo)
-    if failures:
+    if failures:  # the base class: trials fail for different reasons, each line says its own
         raise KisscalError(
             f"{len(failures)} of {len(config.trials)} trials failed "
             f"({'; '.join(failures.values())}); the other trials' outputs are complete"
@@ -108,4 +108,5 @@ def _stop_on_session_problems(problems: list[Problem], echo: Echo) -> None:
         more = (
             f" (and {len(fatal) - 1} more: `kisscal validate` lists them)" if len(fatal) > 1 else ""
         )
+        # the base class: validate's problems are of several kinds (missing, wrong)
         raise KisscalError(f"{fatal[0]}{more}; nothing was processed")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
@@ -79,15 +79,15 @@ def synthesise(
     """
     echo = echo or _silent
     if preset not in PRESETS:
-        raise KisscalError(f"--preset must be one of {', '.join(PRESETS)}, got {preset!r}")
+        raise InputError(f"--preset must be one of {', '.join(PRESETS)}, got {preset!r}")
     if n_markers not in (13, 15):
-        raise KisscalError(f"--markers must be 13 or 15, got {n_markers}")
+        raise InputError(f"--markers must be 13 or 15, got {n_markers}")
     if n_cameras is not None and not 2 <= n_cameras <= MAX_CAMERAS:
-        raise KisscalError(f"--cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
+        raise InputError(f"--cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
     if fields is not None and fields < 10:
-        raise KisscalError(f"--fields must be at least 10, got {fields}")
+        raise InputError(f"--fields must be at least 10, got {fields}")
     if wand_only and not wand_fields:
-        raise KisscalError("--wand-only needs --wand FIELDS (the wand trial to calibrate from)")
+        raise InputError("--wand-only needs --wand FIELDS (the wand trial to calibrate from)")
     options = synth_options(
         preset, seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, blur_px=blur_px
     )
@@ -134,9 +134,9 @@ def synthesise_target(
     """Write a synthetic known-target session (``kisscal synth --target planar|stepped``):
     photographs of a dot plate, ``target.csv``, six clicked seeds per camera, ``truth/``."""
     if kind not in ("planar", "stepped"):
-        raise KisscalError(f"--target must be planar or stepped, got {kind!r}")
+        raise InputError(f"--target must be planar or stepped, got {kind!r}")
     if not 2 <= n_cameras <= 4:
-        raise KisscalError(f"a target session has 2 to 4 cameras, got {n_cameras}")
+        raise InputError(f"a target session has 2 to 4 cameras, got {n_cameras}")
     t0 = time.perf_counter()
     write_target_session(Path(out), kind, seed, n_cameras, force=force)  # type: ignore[arg-type]
     (echo or _silent)(

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect import DetectionParams
-from kisscal.errors import KisscalError, MissingDataError
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import source_files, trial_frames
@@ -92,17 +92,17 @@ def _check_centroids(
     """Refuse rows a camera cannot have seen: not numbers, negative fields, off the image."""
     bad = ~np.isfinite(xy).all(axis=1) | ~np.isfinite(field) | (field != np.round(field))
     if bad.any():
-        raise KisscalError(
+        raise InputError(
             f"{path}: row {int(np.argmax(bad)) + 2} has a field or centroid that is not a number"
         )
     if len(field) and field.min() < 0:
-        raise KisscalError(f"{path}: field numbers must be 0 or more")
+        raise InputError(f"{path}: field numbers must be 0 or more")
     if size_px is not None:
         w, h = size_px
         off = (xy[:, 0] < -0.5) | (xy[:, 0] > w - 0.5) | (xy[:, 1] < -0.5) | (xy[:, 1] > h - 0.5)
         if off.any():
             row = int(np.argmax(off))
-            raise KisscalError(
+            raise InputError(
                 f"{path}: row {row + 2} ({xy[row, 0]:g}, {xy[row, 1]:g}) lies outside the "
                 f"{w} x {h} pixel image"
             )

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.tracking.tracks import MEASURED, Tracks
 
 
@@ -57,7 +57,7 @@ def segment_statistics(
     out = []
     for pair in segments:
         if len(pair) != 2:
-            raise KisscalError(f"markers: a segment needs two marker names, got {pair!r}")
+            raise InputError(f"markers: a segment needs two marker names, got {pair!r}")
         a, b = pair
         if a not in index or b not in index:
             continue

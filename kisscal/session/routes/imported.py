@@ -70,7 +70,7 @@ def imported_linearisation(
     # every camera of the session is checked before any file is written
     cv = read_cameras_toml(path, config.camera_ids, _names(config))[cam.id]
     if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
-        raise KisscalError(
+        raise InputError(
             f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
             f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
         )
@@ -138,12 +138,12 @@ def calibrate_from_dltdv(inputs: RouteInputs) -> dict[str, DltResult]:
     names = _names(inputs.config)
     unknown = [n for n in names if n not in files]
     if unknown:
-        raise KisscalError(
+        raise InputError(
             f"{path}: calibration.names maps {unknown[0]!r}, which is not a camera of this "
             f"file (it has {', '.join(files)})"
         )
     files = {names.get(c, c): dlt for c, dlt in files.items()}
     missing = [c.id for c in inputs.cameras if c.id not in files]
     if missing:
-        raise KisscalError(f"{path}: no coefficients for camera {', '.join(missing)}")
+        raise InputError(f"{path}: no coefficients for camera {', '.join(missing)}")
     return _write(inputs, files, "dltdv", path)

@@ -20,7 +20,7 @@ import numpy as np
 
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.quality import triangulate_points
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table, write_json
@@ -176,7 +176,7 @@ def _held_out(
     err = np.linalg.norm(xyz - target[ids], axis=1)
     err = err[np.isfinite(err)]
     if not len(err):
-        raise KisscalError("target: no held-out target point is seen by two cameras")
+        raise EstimationFailed("target: no held-out target point is seen by two cameras")
     return {
         "route": ROUTE,
         "held_out_points": len(err),

@@ -33,7 +33,7 @@ from kisscal.bundle.wand import (
 )
 from kisscal.camera import Camera
 from kisscal.dlt import calibrate_rods, make_rods
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.frames import source_files
 from kisscal.session.routes import (
@@ -56,12 +56,12 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
     if config.wand is None or (config.rods is None and config.axes is None):
         raise InputError(f"{config.path}: the wand route needs [wand] with [rods] or [axes]")
     if not inputs.whole_rig:
-        raise KisscalError(
+        raise InputError(
             "a wand calibration adjusts every camera together; run kisscal calibrate "
             "without --camera"
         )
     if config.rods is None and config.axes is None:
-        raise KisscalError(
+        raise InputError(
             f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
         )
     store = inputs.store

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from kisscal.errors import KisscalError
+from kisscal.errors import InputError
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
@@ -60,12 +60,12 @@ def label_tracks(
     names = tuple(names)
     template = np.asarray(template_mm, dtype=float)
     if template.shape != (len(names), 3):
-        raise KisscalError(
+        raise InputError(
             f"markers: template_mm needs one [x, y, z] per name ({len(names)}), "
             f"got shape {template.shape}"
         )
     if len(set(names)) != len(names):
-        raise KisscalError("markers: names must be unique")
+        raise InputError("markers: names must be unique")
     state = LabelState.begin(tracks, names, template, segments, params)
     if state is None:
         return generic(tracks, params, names, float("nan"))
