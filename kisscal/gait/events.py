@@ -33,17 +33,12 @@ Two steps per event:
      plantarflexion (a level crossing on a steep slope, which a symmetric filter hardly
      moves).
 
-Measured (``python -m tests.gait.acceptance``): Zeni's crossings alone fall about 21 ms
-before foot strike and 12-24 ms after foot off, O'Connor's peak 10-22 ms before foot
-off, on walking5.c3d against its force plates and on kisscal's grounded walker alike;
-the refined instants are within 6 ms of the plates and 1.4-2.2 ms (mean absolute) of the
-walker's true contacts at 100 Hz. On 18 public C3D walks from five systems (``python -m
-tests.gait.real_events``) against the events their labs marked or their force plates
-give: foot off 10.8 ms mean (Zeni's coordinate rule 13.6 ms); foot strike 12.0 ms mean
-where the feet carry a heel marker (2-9 ms on treadmill, Qualisys, BTS, Motion Analysis
-and opensim trials, 16 ms Codamotion, 19-33 ms on older filtered overground Vicon files,
-whose marked strikes scatter as much about the heel's landing), 42 ms where the ankle
-stands in for the heel.
+Measured: within 6 ms of walking5.c3d's force plates and 1.4-2.2 ms of the grounded
+walker's true contacts at 100 Hz (``python -m tests.gait.acceptance``); on 18 public C3D
+walks from five systems (``python -m tests.gait.real_events``), foot off 10.8 ms mean
+(Zeni's coordinate rule 13.6 ms), foot strike 12.0 ms with a heel marker (2-9 ms but on
+older filtered overground Vicon files, whose marked strikes scatter as much), 23 ms with
+a stand-in behind the ankle (:func:`kisscal.gait.heel_from_ankle`; the ankle: 42 ms).
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.
@@ -230,6 +225,11 @@ def explain(
             "the feet do not step under it"
         )
     explained = bool(notes)
+    for side in markers.heel_from_ankle:
+        notes.append(
+            f"{side}: no heel marker: foot strikes from a heel {params.ankle_heel_mm:g} mm "
+            f"behind the ankle marker ({markers.names.get(f'{side}_heel', 'ankle')})"
+        )
     for side in SIDES:
         if zeni_only[side]:
             notes.append(

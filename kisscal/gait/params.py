@@ -50,6 +50,11 @@ class GaitParams(Params):
         at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
         fields) after the corner to recover this fraction of its fastest plantarflexion,
         foot off is taken at that recovery.
+    ankle_heel_mm : float
+        A foot without a heel marker gets a heel stand-in this far behind its ankle
+        marker, on the line from the toe marker through the ankle (lateral malleolus to
+        the heel's contact, about 40-60 mm in adults): see
+        :func:`kisscal.gait.markers.heel_from_ankle`.
     heel_down_mm : float
         A heel within this of its lowest is down on the ground (mid-stance): on a
         treadmill its velocity relative to the pelvis gives the belt's speed.
@@ -86,6 +91,7 @@ class GaitParams(Params):
     off_search_ms: float = param(40.0, unit="ms", gt=0)
     off_recovery: float = param(0.2, gt=0, lt=1)
     off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    ankle_heel_mm: float = param(40.0, unit="mm", ge=0)
     heel_down_mm: float = param(10.0, unit="mm", gt=0)
     min_trial_s: float = param(1.5, unit="s", gt=0)
     max_missing: float = param(0.5, ge=0, le=1)
