@@ -33,12 +33,11 @@ Two steps per event:
      plantarflexion (a level crossing on a steep slope, which a symmetric filter hardly
      moves).
 
-Measured: within 6 ms of walking5.c3d's force plates and 1.4-2.2 ms of the grounded
-walker's true contacts at 100 Hz (``python -m tests.gait.acceptance``); on 18 public C3D
-walks from five systems (``python -m tests.gait.real_events``), foot off 10.8 ms mean
-(Zeni's coordinate rule 13.6 ms), foot strike 12.0 ms with a heel marker (2-9 ms but on
-older filtered overground Vicon files, whose marked strikes scatter as much), 23 ms with
-a stand-in behind the ankle (:func:`kisscal.gait.heel_from_ankle`; the ankle: 42 ms).
+Measured (``python -m tests.gait.acceptance``, ``tests.gait.real_events``): within 6 ms of
+walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 Hz; on 18
+public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 12.0
+ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
+scatter as much), 23 ms with a stand-in behind the ankle (the ankle itself: 42 ms).
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.
@@ -225,11 +224,11 @@ def explain(
             "the feet do not step under it"
         )
     explained = bool(notes)
-    for side in markers.heel_from_ankle:
-        notes.append(
-            f"{side}: no heel marker: foot strikes from a heel {params.ankle_heel_mm:g} mm "
-            f"behind the ankle marker ({markers.names.get(f'{side}_heel', 'ankle')})"
-        )
+    notes += [
+        f"{side}: no heel marker: foot strikes from a heel {params.ankle_heel_mm:g} mm behind "
+        f"the ankle marker ({markers.names.get(f'{side}_heel', 'ankle')})"
+        for side in markers.heel_from_ankle
+    ]
     for side in SIDES:
         if zeni_only[side]:
             notes.append(
@@ -315,8 +314,8 @@ def _offs(
     saving them, which rounds that corner into a valley whose bottom comes 30-70 ms
     before foot off; a symmetric filter moves a level crossing on a steep slope far less
     than a corner, so when the pitch rate takes longer than ``params.off_sharp_ms`` (or
-    one field) to recover ``params.off_recovery`` of its fastest plantarflexion, foot
-    off is that recovery instead.
+    one field) to recover ``params.off_recovery[0]`` of its fastest plantarflexion, foot
+    off is where it has recovered ``params.off_recovery[1]`` instead.
     """
     rate = 1.0 / float(t[1] - t[0])
     rate_of_pitch = pitch_rate(heel, toe, rate)
@@ -330,8 +329,10 @@ def _offs(
             continue
         corner = _fastest(t, rate_of_pitch, i, params)
         corner = corner if np.isfinite(corner) else t[i]
-        recovered = _recovery(t, guide, i, params.off_recovery, hi + params.off_fit_ms / 1000.0)
-        found.append(recovered if recovered - corner > sharp else corner)
+        until = hi + params.off_fit_ms / 1000.0
+        rounded = _recovery(t, guide, i, params.off_recovery[0], until) - corner > sharp
+        later = _recovery(t, guide, i, params.off_recovery[1], until) if rounded else np.nan
+        found.append(later if np.isfinite(later) else corner)
     return found
 
 
