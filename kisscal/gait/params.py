@@ -34,6 +34,10 @@ class GaitParams(Params):
     off_window : (float, float)
         Where the foot's fastest plantarflexion is looked for around the coarse foot off
         (the coarse event comes 10-35 ms late), fractions of the stride time.
+    strike_sink : float
+        A heel marker may sink on through stance, its height lowest at the end of the
+        strike window: its lowest is then looked for up to this fraction of the stride
+        after the coarse foot strike (before the heel rises).
     strike_floor_mm : float
         The heel has reached the floor at the first sample of the window within this of
         its lowest there: the corner of its height is looked for around that sample, not
@@ -86,6 +90,7 @@ class GaitParams(Params):
     hold_s: float = param(0.1, unit="s", gt=0)
     strike_window: tuple[float, float] = param((-0.05, 0.2), ge=-0.5, le=0.5)
     off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
+    strike_sink: float = param(0.4, gt=0, le=0.6)
     strike_floor_mm: float = param(1.0, unit="mm", gt=0)
     strike_fit_ms: float = param(80.0, unit="ms", gt=0)
     strike_search_ms: float = param(30.0, unit="ms", gt=0)

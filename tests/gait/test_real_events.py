@@ -74,13 +74,13 @@ def test_foot_strike_where_the_heel_is_marked() -> None:
             assert err.worst_ms("foot_strike") < 20.0, trial.name
             assert err.mean_ms("foot_off") < 10.0, trial.name
         assert not err.errors["foot_strike"] or err.mean_ms("foot_strike") < 35.0, trial.name
-    assert pooled.mean_ms("foot_strike") < 13.5  # 12.0 ms measured
+    assert pooled.mean_ms("foot_strike") < 12.5  # 11.2 ms measured (12.0 before the sink)
     assert len(pooled.errors["foot_strike"]) >= 40
 
 
 def test_foot_strike_where_the_ankle_stands_in_for_the_heel(marked) -> None:
     """Every trial, the four without a heel marker included (their heel a stand-in
-    behind the ankle): 14.5 ms mean, 75 ms worst (19.2 and 83 ms with the ankle marker
+    behind the ankle): 14.2 ms mean, 75 ms worst (19.2 and 83 ms with the ankle marker
     itself as the heel)."""
     _, ours, _ = marked
     assert len(ours.errors["foot_strike"]) >= 75
@@ -92,7 +92,7 @@ def test_the_heel_stand_in_holds_on_trials_it_was_not_chosen_on() -> None:
     """Its 40 mm were chosen on the ankle markers of four trials that also carry heel
     markers (their source files, not kept here); on the four trials without a heel
     marker its foot strikes are far closer to the marked ones than the ankle marker's
-    own (22.8 against 42 ms mean), and its foot offs no worse (same pitch line)."""
+    own (24.4 against 47 ms mean), and its foot offs no worse (same pitch line)."""
     stand_in, ankle = Errors(), Errors()
     for trial in (t for t in _real.TRIALS if t.ankle):
         for pooled, use in ((stand_in, True), (ankle, False)):
@@ -101,7 +101,7 @@ def test_the_heel_stand_in_holds_on_trials_it_was_not_chosen_on() -> None:
             assert bool(gm.heel_from_ankle) == use
     assert len(stand_in.errors["foot_strike"]) >= 16
     assert stand_in.mean_ms("foot_strike") < 0.7 * ankle.mean_ms("foot_strike")
-    assert stand_in.mean_ms("foot_strike") < 25.0
+    assert stand_in.mean_ms("foot_strike") < 26.5
     assert stand_in.mean_ms("foot_off") <= ankle.mean_ms("foot_off") + 0.5
 
 
