@@ -66,8 +66,8 @@ def heel_from_ankle(
 
     References
     ----------
-    Perry & Burnfield 2010 (the heel rocker: the foot turns about the heel from initial
-    contact to foot flat); Ghoussayni, Stevens, Durham & Ewins 2004 (heel contact where
+    Perry 1992 (the heel rocker: the foot turns about the heel from initial contact to
+    foot flat); Ghoussayni, Stevens, Durham & Ewins 2004 (heel contact where
     the heel comes to rest).
 
     Examples
