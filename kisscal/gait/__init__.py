@@ -16,7 +16,7 @@ Example
 from importlib import import_module
 from typing import Any
 
-from kisscal.gait.markers import GaitMarkers, gait_markers
+from kisscal.gait.markers import GaitMarkers, gait_markers, heel_from_ankle
 from kisscal.gait.params import GaitParams
 from kisscal.gait.table import GaitEvents
 
@@ -29,7 +29,7 @@ _LAZY = {
     "gait_cycle_figure": "kisscal.gait.figures",
 }
 
-__all__ = ["GaitEvents", "GaitMarkers", "GaitParams", "gait_markers", *_LAZY]
+__all__ = ["GaitEvents", "GaitMarkers", "GaitParams", "gait_markers", "heel_from_ankle", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:

@@ -33,17 +33,11 @@ Two steps per event:
      plantarflexion (a level crossing on a steep slope, which a symmetric filter hardly
      moves).
 
-Measured (``python -m tests.gait.acceptance``): Zeni's crossings alone fall about 21 ms
-before foot strike and 12-24 ms after foot off, O'Connor's peak 10-22 ms before foot
-off, on walking5.c3d against its force plates and on kisscal's grounded walker alike;
-the refined instants are within 6 ms of the plates and 1.4-2.2 ms (mean absolute) of the
-walker's true contacts at 100 Hz. On 18 public C3D walks from five systems (``python -m
-tests.gait.real_events``) against the events their labs marked or their force plates
-give: foot off 10.8 ms mean (Zeni's coordinate rule 13.6 ms); foot strike 12.0 ms mean
-where the feet carry a heel marker (2-9 ms on treadmill, Qualisys, BTS, Motion Analysis
-and opensim trials, 16 ms Codamotion, 19-33 ms on older filtered overground Vicon files,
-whose marked strikes scatter as much about the heel's landing), 42 ms where the ankle
-stands in for the heel.
+Measured (``python -m tests.gait.acceptance``, ``tests.gait.real_events``): within 6 ms of
+walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 Hz; on 18
+public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 11.2
+ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
+scatter as much), 24 ms with a stand-in behind the ankle (the ankle itself: 47 ms).
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.
@@ -54,12 +48,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.gait.landing import extremum, foot_strikes
 from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctest)
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
 from kisscal.gait.signals import (
     derivative,
     finite_runs,
-    first_within,
     hysteresis_crossings,
     kink_time,
     peak_time,
@@ -195,7 +189,7 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     zeni_only = {}
     for side in SIDES:
         strikes, offs = coarse[side]
-        times[(side, "foot_strike")], zeni_only[side] = _strikes(
+        times[(side, "foot_strike")], zeni_only[side] = foot_strikes(
             t, markers.heel[side], strikes / rate, stride_s, params
         )
         times[(side, "foot_off")] = _offs(
@@ -230,6 +224,11 @@ def explain(
             "the feet do not step under it"
         )
     explained = bool(notes)
+    notes += [
+        f"{side}: no heel marker: foot strikes from a heel {params.ankle_heel_mm:g} mm behind "
+        f"the ankle marker ({markers.names.get(f'{side}_heel', 'ankle')})"
+        for side in markers.heel_from_ankle
+    ]
     for side in SIDES:
         if zeni_only[side]:
             notes.append(
@@ -277,34 +276,6 @@ def _vertical(markers: GaitMarkers) -> list[str]:
     ]
 
 
-def _strikes(
-    t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
-) -> tuple[list[float], int]:
-    """Foot strikes: the corner of the heel's height near each coarse one, from where
-    the heel first reaches its floor (a marker may sink lower in stance). Where the
-    heel has no low point there (its height still falls at the end of the window, as
-    for a walker whose heel does not land first), the coarse event itself (Zeni's
-    rule). Also returns how many came from Zeni's rule alone."""
-    dt = float(t[1] - t[0])
-    half = max(params.strike_fit_ms / 1000.0, 5 * dt)
-    search = max(params.strike_search_ms / 1000.0, 2 * dt)
-    found = []
-    fallback = 0
-    for c in coarse:
-        lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
-        i = _extremum(t, heel[:, 2], lo, hi, np.argmin)
-        if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
-            i = first_within(t, heel[:, 2], lo, i, params.strike_floor_mm)
-            # The heel stops descending once on the floor, not while still above it:
-            # the corner lies from the field before the landing one on.
-            corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
-            found.append(corner if np.isfinite(corner) else t[i])
-        elif i is not None:
-            found.append(float(c))
-            fallback += 1
-    return found, fallback
-
-
 def _offs(
     t: NDArray, heel: NDArray, toe: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
 ):
@@ -315,8 +286,8 @@ def _offs(
     saving them, which rounds that corner into a valley whose bottom comes 30-70 ms
     before foot off; a symmetric filter moves a level crossing on a steep slope far less
     than a corner, so when the pitch rate takes longer than ``params.off_sharp_ms`` (or
-    one field) to recover ``params.off_recovery`` of its fastest plantarflexion, foot
-    off is that recovery instead.
+    one field) to recover ``params.off_recovery[0]`` of its fastest plantarflexion, foot
+    off is where it has recovered ``params.off_recovery[1]`` instead.
     """
     rate = 1.0 / float(t[1] - t[0])
     rate_of_pitch = pitch_rate(heel, toe, rate)
@@ -325,13 +296,15 @@ def _offs(
     found = []
     for c in coarse:
         lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
-        i = _extremum(t, guide, lo, hi, np.argmin)
+        i = extremum(t, guide, lo, hi, np.argmin)
         if i is None or i < 0:
             continue
         corner = _fastest(t, rate_of_pitch, i, params)
         corner = corner if np.isfinite(corner) else t[i]
-        recovered = _recovery(t, guide, i, params.off_recovery, hi + params.off_fit_ms / 1000.0)
-        found.append(recovered if recovered - corner > sharp else corner)
+        until = hi + params.off_fit_ms / 1000.0
+        rounded = _recovery(t, guide, i, params.off_recovery[0], until) - corner > sharp
+        later = _recovery(t, guide, i, params.off_recovery[1], until) if rounded else np.nan
+        found.append(later if np.isfinite(later) else corner)
     return found
 
 
@@ -395,17 +368,6 @@ def _coarse(
     previous_off = np.searchsorted(offs, strikes)
     last = np.append(previous_off[1:] != previous_off[:-1], True)[: len(strikes)]
     return strikes[last], offs
-
-
-def _extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:
-    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi]; None where the window
-    meets an end of the trial or a gap, -1 where the extremum is at the window's edge
-    (no turning point inside)."""
-    sel = np.flatnonzero((t >= lo) & (t <= hi))
-    if len(sel) < 3 or sel[0] == 0 or sel[-1] == len(t) - 1 or not np.all(np.isfinite(y[sel])):
-        return None
-    k = int(pick(y[sel]))
-    return -1 if k in (0, len(sel) - 1) else int(sel[k])
 
 
 def foot_direction(

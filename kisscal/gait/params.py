@@ -34,6 +34,10 @@ class GaitParams(Params):
     off_window : (float, float)
         Where the foot's fastest plantarflexion is looked for around the coarse foot off
         (the coarse event comes 10-35 ms late), fractions of the stride time.
+    strike_sink : float
+        A heel marker may sink on through stance, its height lowest at the end of the
+        strike window: its lowest is then looked for up to this fraction of the stride
+        after the coarse foot strike (before the heel rises).
     strike_floor_mm : float
         The heel has reached the floor at the first sample of the window within this of
         its lowest there: the corner of its height is looked for around that sample, not
@@ -45,11 +49,18 @@ class GaitParams(Params):
     off_fit_ms, off_search_ms : float
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
-    off_recovery, off_sharp_ms : float
+    off_recovery : (float, float)
+    off_sharp_ms : float
         Trajectories filtered before they were saved round the corner of the pitch rate
-        at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or 1.5
-        fields) after the corner to recover this fraction of its fastest plantarflexion,
-        foot off is taken at that recovery.
+        at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or one
+        field) after the corner to recover the first fraction of its fastest
+        plantarflexion, foot off is taken where it has recovered the second (chosen on
+        half of the real trials, checked on the other half: ``tests/gait``).
+    ankle_heel_mm : float
+        A foot without a heel marker gets a heel stand-in this far behind its ankle
+        marker, on the line from the toe marker through the ankle (lateral malleolus to
+        the heel's contact, about 40-60 mm in adults): see
+        :func:`kisscal.gait.markers.heel_from_ankle`.
     heel_down_mm : float
         A heel within this of its lowest is down on the ground (mid-stance): on a
         treadmill its velocity relative to the pelvis gives the belt's speed.
@@ -79,13 +90,15 @@ class GaitParams(Params):
     hold_s: float = param(0.1, unit="s", gt=0)
     strike_window: tuple[float, float] = param((-0.05, 0.2), ge=-0.5, le=0.5)
     off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
+    strike_sink: float = param(0.4, gt=0, le=0.6)
     strike_floor_mm: float = param(1.0, unit="mm", gt=0)
     strike_fit_ms: float = param(80.0, unit="ms", gt=0)
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
     off_search_ms: float = param(40.0, unit="ms", gt=0)
-    off_recovery: float = param(0.2, gt=0, lt=1)
+    off_recovery: tuple[float, float] = param((0.2, 0.25), gt=0, lt=1)
     off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    ankle_heel_mm: float = param(40.0, unit="mm", ge=0)
     heel_down_mm: float = param(10.0, unit="mm", gt=0)
     min_trial_s: float = param(1.5, unit="s", gt=0)
     max_missing: float = param(0.5, ge=0, le=1)

@@ -73,7 +73,7 @@ def gait_outputs(
     dense = result.tracks.positions()
     by_label = {label: dense[t] for t, label in enumerate(result.labels)}
     try:
-        markers = gait_markers(by_label, rate_hz, marker_set)
+        markers = gait_markers(by_label, rate_hz, marker_set, params)
     except KisscalError as err:
         feet = {n for side in ("left", "right") for n in marker_set.foot(side).values()}
         if set(by_label) & (feet | set(marker_set.pelvis)):  # a gait trial short of markers

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kisscal.gait import GaitMarkers
+from kisscal.gait import GaitMarkers, heel_from_ankle
 
 #: The group holding the force plates' contacts (20 N) in each fixture.
 PLATE_GROUP = "PLATE_EVENT"
@@ -47,6 +47,11 @@ class RealTrial:
     @property
     def markers(self) -> tuple[str, ...]:
         return (*self.pelvis, *self.heel, *self.toe)
+
+    @property
+    def ankle(self) -> bool:
+        """Whether the 'heel' markers are ankle markers (the feet carry no heel one)."""
+        return "ankle" in self.note.lower() or all("ANK" in n.upper() for n in self.heel)
 
 
 _PIG = ("LASI", "RASI", "LPSI", "RPSI")
@@ -271,13 +276,20 @@ def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
 
 
 def load(
-    trial: RealTrial, group: str = "EVENT"
+    trial: RealTrial, group: str = "EVENT", stand_in: bool = True
 ) -> tuple[GaitMarkers, dict[tuple[str, str], np.ndarray]]:
     """The trial's gait markers and marked events (s from its first stored frame);
-    ``group=PLATE_GROUP``: the force plates' contacts instead."""
+    ``group=PLATE_GROUP``: the force plates' contacts instead. A foot without a heel
+    marker gets kisscal's heel stand-in behind its ankle marker (``stand_in=False``: the
+    ankle marker itself)."""
     markers, rate, _, events = read(trial.path, group)
     markers = {k: z_up(v, trial.up) for k, v in markers.items()}
     heel = dict(zip(("left", "right"), (markers[n] for n in trial.heel), strict=True))
     toe = dict(zip(("left", "right"), (markers[n] for n in trial.toe), strict=True))
     pelvis = tuple(markers[n] for n in trial.pelvis if n in markers)
-    return GaitMarkers(pelvis, heel, toe, rate, {"pelvis": ",".join(trial.pelvis)}), events
+    names = {"pelvis": ",".join(trial.pelvis)}
+    names |= {f"{s}_heel": n for s, n in zip(("left", "right"), trial.heel, strict=True)}
+    if not (trial.ankle and stand_in):
+        return GaitMarkers(pelvis, heel, toe, rate, names), events
+    heel = {side: heel_from_ankle(heel[side], toe[side]) for side in heel}
+    return GaitMarkers(pelvis, heel, toe, rate, names, ("left", "right")), events

@@ -121,7 +121,7 @@ def test_foot_strike_is_where_the_heel_lands_not_where_it_sinks_lowest() -> None
     """A heel marker that lands at 1.0 s and then sinks 0.8 mm more over 150 ms (the
     foot rolling down to foot flat, a soft heel pad, an ankle standing in for the heel)
     has its lowest sample 150 ms late: the strike is still its landing."""
-    from kisscal.gait.events import _strikes
+    from kisscal.gait.landing import foot_strikes
 
     rate, t0, sink_s = 100.0, 1.0, 0.15
     t = np.arange(200) / rate
@@ -135,9 +135,33 @@ def test_foot_strike_is_where_the_heel_lands_not_where_it_sinks_lowest() -> None
     heel = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
     assert abs(t[np.argmin(z)] - t0) > 0.1  # the lowest sample is far from the landing
     coarse = np.array([t0 - 0.02])  # Zeni's crossing comes a little early
-    (found,), zeni_only = _strikes(t, heel, coarse, 1.1, GaitParams())
+    (found,), zeni_only = foot_strikes(t, heel, coarse, 1.1, GaitParams())
     assert zeni_only == 0
     assert abs(found - t0) < 0.005
     # Looked for around the lowest sample instead (no floor margin), it is missed.
-    (late,), _ = _strikes(t, heel, coarse, 1.1, GaitParams(strike_floor_mm=1e-9))
+    (late,), _ = foot_strikes(t, heel, coarse, 1.1, GaitParams(strike_floor_mm=1e-9))
     assert abs(late - t0) > 0.05
+
+
+def test_a_heel_sinking_on_through_stance_still_lands_where_it_lands() -> None:
+    """A heel marker that lands at 1.0 s and then sinks 2 mm more over 0.35 s (skin and
+    a soft heel pad under it) is still falling at the end of the strike window: its
+    landing is found all the same, not taken from Zeni's crossing."""
+    from kisscal.gait.landing import foot_strikes
+
+    rate, t0 = 200.0, 1.0
+    t = np.arange(400) / rate
+    tau = t - t0
+    z = np.where(
+        tau < 0,
+        -300.0 * tau + 2000.0 * tau**2,  # terminal swing, down at 0.3 m/s on landing
+        np.where(tau < 0.35, -2.0 * tau / 0.35, -2.0 + 800.0 * (tau - 0.35) ** 2),
+    )
+    heel = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+    coarse = np.array([t0 - 0.02])
+    (found,), zeni_only = foot_strikes(t, heel, coarse, 1.1, GaitParams())
+    assert zeni_only == 0
+    assert abs(found - t0) < 0.006
+    # Without looking on past the window it is taken from Zeni's crossing alone.
+    (zeni,), fallback = foot_strikes(t, heel, coarse, 1.1, GaitParams(strike_sink=0.2))
+    assert fallback == 1 and zeni == coarse[0]

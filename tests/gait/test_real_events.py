@@ -6,14 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kisscal.gait import detect_events, gait_markers, spatiotemporal_parameters
+from kisscal.errors import KisscalError
+from kisscal.gait import GaitParams, detect_events, gait_markers, spatiotemporal_parameters
 from kisscal.markersets import marker_set
 from kisscal.synth.motion import walking_trial
 from tests.gait import _real
 from tests.gait.real_events import Errors, score, table
 
 #: Trials whose feet carry a heel marker (the others stand the ankle in for it).
-HEEL = tuple(t.name for t in _real.TRIALS if "ankle" not in t.note)
+HEEL = tuple(t.name for t in _real.TRIALS if not t.ankle)
 
 
 @pytest.fixture(scope="module")
@@ -35,9 +36,26 @@ def test_the_set_is_real_and_varied() -> None:
 def test_foot_off_beats_zenis_rule_on_every_kind_of_file(marked) -> None:
     _, ours, zeni = marked
     assert len(ours.errors["foot_off"]) >= 65
-    assert ours.mean_ms("foot_off") < 12.0 and ours.worst_ms("foot_off") < 40.0
+    assert ours.mean_ms("foot_off") < 10.5 and ours.worst_ms("foot_off") < 40.0  # 9.5, 34
     assert ours.mean_ms("foot_off") < zeni.mean_ms("foot_off")
     assert sum(ours.missed.values()) <= 10
+
+
+def test_the_later_foot_off_level_holds_on_the_half_it_was_not_chosen_on() -> None:
+    """On filtered trajectories foot off is where the pitch rate has recovered a quarter
+    of its fastest plantarflexion, not a fifth: chosen on the odd trials of the set
+    (10.3 -> 9.5 ms mean, worst 34 ms both), it holds on the even ones (11.6 -> 9.5 ms,
+    worst 24.5 ms both)."""
+    fifth = GaitParams(off_recovery=(0.2, 0.2))
+    ours, before = Errors(), Errors()
+    for trial in _real.TRIALS[1::2]:
+        gm, events = _real.load(trial)
+        duration = gm.n_fields / gm.rate_hz
+        ours.add(score(detect_events(gm), events, duration))
+        before.add(score(detect_events(gm, fifth), events, duration))
+    assert len(ours.errors["foot_off"]) >= 30
+    assert ours.mean_ms("foot_off") < before.mean_ms("foot_off") - 1.0
+    assert ours.worst_ms("foot_off") <= before.worst_ms("foot_off") + 1.0
 
 
 def test_foot_strike_where_the_heel_is_marked() -> None:
@@ -56,19 +74,35 @@ def test_foot_strike_where_the_heel_is_marked() -> None:
             assert err.worst_ms("foot_strike") < 20.0, trial.name
             assert err.mean_ms("foot_off") < 10.0, trial.name
         assert not err.errors["foot_strike"] or err.mean_ms("foot_strike") < 35.0, trial.name
-    assert pooled.mean_ms("foot_strike") < 13.5  # 12.0 ms measured
+    assert pooled.mean_ms("foot_strike") < 12.5  # 11.2 ms measured (12.0 before the sink)
     assert len(pooled.errors["foot_strike"]) >= 40
 
 
 def test_foot_strike_where_the_ankle_stands_in_for_the_heel(marked) -> None:
-    """An ankle marker sinks through stance, its lowest far from the strike: the strike
-    is looked for where it first reaches its floor (19.2 ms mean, 83 ms worst over
-    every trial, the four without a heel marker included; 29.1 and 150 ms around the
-    lowest sample)."""
+    """Every trial, the four without a heel marker included (their heel a stand-in
+    behind the ankle): 14.2 ms mean, 75 ms worst (19.2 and 83 ms with the ankle marker
+    itself as the heel)."""
     _, ours, _ = marked
     assert len(ours.errors["foot_strike"]) >= 75
-    assert ours.mean_ms("foot_strike") < 22.0
-    assert ours.worst_ms("foot_strike") < 95.0
+    assert ours.mean_ms("foot_strike") < 16.5
+    assert ours.worst_ms("foot_strike") < 80.0
+
+
+def test_the_heel_stand_in_holds_on_trials_it_was_not_chosen_on() -> None:
+    """Its 40 mm were chosen on the ankle markers of four trials that also carry heel
+    markers (their source files, not kept here); on the four trials without a heel
+    marker its foot strikes are far closer to the marked ones than the ankle marker's
+    own (24.4 against 47 ms mean), and its foot offs no worse (same pitch line)."""
+    stand_in, ankle = Errors(), Errors()
+    for trial in (t for t in _real.TRIALS if t.ankle):
+        for pooled, use in ((stand_in, True), (ankle, False)):
+            gm, events = _real.load(trial, stand_in=use)
+            pooled.add(score(detect_events(gm), events, gm.n_fields / gm.rate_hz))
+            assert bool(gm.heel_from_ankle) == use
+    assert len(stand_in.errors["foot_strike"]) >= 16
+    assert stand_in.mean_ms("foot_strike") < 0.7 * ankle.mean_ms("foot_strike")
+    assert stand_in.mean_ms("foot_strike") < 26.5
+    assert stand_in.mean_ms("foot_off") <= ankle.mean_ms("foot_off") + 0.5
 
 
 def test_a_treadmill_walk_is_walking() -> None:
@@ -114,6 +148,26 @@ def test_a_4s_synthetic_kiss_walk_has_strikes_or_says_why() -> None:
     assert any("no heel-strike pattern" in w for w in found.warnings)
     st = spatiotemporal_parameters(found, gm)
     assert sum(len(st.values[("stride_time", s)]) for s in ("left", "right")) >= 2
+
+
+def test_a_foot_without_a_heel_marker_gets_a_stand_in_behind_the_ankle() -> None:
+    """The grounded walker without its heel markers: the set's ankle markers stand in,
+    the log says so, and the events stay within a few ms of its true contacts."""
+    m = walking_trial(1, 600, 100.0, path_mm=5000, model="grounded")
+    kiss = marker_set("kiss")
+    trial = dict(zip(m.names, m.xyz_mm.transpose(1, 0, 2), strict=True))
+    gm = gait_markers({k: v for k, v in trial.items() if k != "LHEE"}, 100.0, kiss)
+    assert gm.heel_from_ankle == ("left",) and gm.names["left_heel"] == "LANK"
+    found = detect_events(gm)
+    assert any(w.startswith("left: no heel marker") and "LANK" in w for w in found.warnings)
+    for event, bound in (("foot_strike", 0.005), ("foot_off", 0.010)):
+        true = m.truth.events.times("left", event)
+        err = np.abs(found.times("left", event)[:, None] - true).min(axis=1)
+        assert len(err) >= 4 and err.max() < bound, event
+    empty = dict(trial, LHEE=np.full_like(trial["LHEE"], np.nan))  # a heel with no data
+    assert gait_markers(empty, 100.0, kiss).heel_from_ankle == ("left",)
+    with pytest.raises(KisscalError, match="no left heel marker"):
+        gait_markers({k: v for k, v in trial.items() if k not in ("LHEE", "LANK")}, 100.0, kiss)
 
 
 def test_warnings_name_the_reason() -> None:

@@ -1,0 +1,72 @@
+"""Foot strike instants: where the heel marker lands, near each coarse (Zeni) strike.
+
+The heel stops descending when it meets the floor; its height turns a corner there
+(Hreljac & Marshall 2000), found by a broken-curve fit from where the heel first comes
+to rest (Ghoussayni, Stevens, Durham & Ewins 2004): see :func:`kisscal.gait.detect_events`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.gait.params import GaitParams
+from kisscal.gait.signals import first_within, kink_time
+
+
+def foot_strikes(
+    t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+) -> tuple[list[float], int]:
+    """Foot strikes: the corner of the heel's height near each coarse one, from where
+    the heel first reaches its floor (a marker may sink lower in stance; still sinking
+    at the end of the window, its lowest is looked for later, :func:`_sunk`). Where the
+    heel has no low point there (its height still falls at the end of the window and
+    it never came to rest in it, as for a walker whose heel does not land first), the
+    coarse event itself (Zeni's rule). Also returns how many came from Zeni's rule
+    alone."""
+    dt = float(t[1] - t[0])
+    half = max(params.strike_fit_ms / 1000.0, 5 * dt)
+    search = max(params.strike_search_ms / 1000.0, 2 * dt)
+    found = []
+    fallback = 0
+    for c in coarse:
+        lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
+        i = extremum(t, heel[:, 2], lo, hi, np.argmin)
+        if i == -1:  # a marker sinking on in stance: its lowest later, its landing here
+            i = _sunk(t, heel[:, 2], lo, hi, c + params.strike_sink * stride_s, params)
+        if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
+            i = first_within(t, heel[:, 2], lo, i, params.strike_floor_mm)
+            # The heel stops descending once on the floor, not while still above it:
+            # the corner lies from the field before the landing one on.
+            corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
+            found.append(corner if np.isfinite(corner) else t[i])
+        elif i is not None:
+            found.append(float(c))
+            fallback += 1
+    return found, fallback
+
+
+def _sunk(t: NDArray, z: NDArray, lo: float, hi: float, until: float, params: GaitParams) -> int:
+    """Where a heel marker that sinks on through stance (its lowest up to ``until``)
+    landed: the first sample by ``hi`` within ``strike_floor_mm`` of its lowest over
+    the next ``strike_search_ms`` and within ``heel_down_mm`` of its lowest; -1 if none."""
+    i = extremum(t, z, lo, until, np.argmin)
+    if i is None or i < 0:
+        return -1
+    w = max(2, round(params.strike_search_ms / 1000.0 / float(t[1] - t[0])))
+    for j in np.flatnonzero((t >= lo) & (t <= hi)):
+        ahead = np.nanmin(z[j : j + w])
+        if z[j] <= ahead + params.strike_floor_mm and z[j] <= z[i] + params.heel_down_mm:
+            return int(j)
+    return -1
+
+
+def extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:
+    """Sample of ``pick`` (argmin / argmax) of ``y`` in [lo, hi]; None where the window
+    meets an end of the trial or a gap, -1 where the extremum is at the window's edge
+    (no turning point inside)."""
+    sel = np.flatnonzero((t >= lo) & (t <= hi))
+    if len(sel) < 3 or sel[0] == 0 or sel[-1] == len(t) - 1 or not np.all(np.isfinite(y[sel])):
+        return None
+    k = int(pick(y[sel]))
+    return -1 if k in (0, len(sel) - 1) else int(sel[k])
