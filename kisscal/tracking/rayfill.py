@@ -16,7 +16,7 @@ projection, and the next one in that camera is at least twice as far.
 
 References
 ----------
-Hartley & Zisserman 2003 (rays of a projective camera; least-squares point from rays);
+Hartley & Zisserman 2004 (rays of a projective camera; least-squares point from rays);
 Gløersen & Federolf 2016 (filling from the other markers of the body).
 """
 
