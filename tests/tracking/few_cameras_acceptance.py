@@ -13,7 +13,8 @@ centroids + 0.05 px noise, other cameras' LEDs, two noise blobs per camera and f
 markers closer than 3 px merged) plus blobs a camera loses beside the body's own
 occlusions (:func:`dropouts`: 0.2 runs a second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
-Reconstructed and tracked with default settings and the trial's marker set, scored
+Reconstructed and tracked with default settings and the trial's marker set (the 2D
+blobs no 3D point used go to single-camera fill; ``score_trial(..., rays=False)`` without), scored
 against truth: recall of markers seen by exactly two cameras, ghosts, coverage of each
 marker's span (first to last field seen by >= 3 cameras) by samples of the trajectory
 bearing its name within 20 mm (min and mean over markers), RMS error of filled samples,
