@@ -34,7 +34,14 @@ from kisscal.session.markers import (
 )
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, quiet
-from kisscal.tracking import STATUS_NAMES, Trajectories, build_trajectories, sweep_noise
+from kisscal.tracking import (
+    STATUS_NAMES,
+    SpareBlobs,
+    Trajectories,
+    build_trajectories,
+    spare_blobs,
+    sweep_noise,
+)
 from kisscal.tracking.params import reconstructed_points
 
 
@@ -102,6 +109,7 @@ def _track_trial(
         marker_set=spec.marker_set if spec.label_with_set else None,
         rate_hz=config.rate_hz,
         template_upright=spec.template_upright,
+        spare=None if from_c3d else _spare_blobs(root, trial),
     )
     static = config.markers.static if config.markers else None
     template = subject_template(result, spec, trial) if trial == static else None
@@ -158,6 +166,25 @@ def _track_trial(
     if not len(result.tracks.field):
         echo(f"  warning: {trial}: no trajectories; empty files written ({frames} fields)")
     return result
+
+
+def _spare_blobs(root: Path, trial: str) -> SpareBlobs | None:
+    """The trial's 2D blobs no 3D point used (``points2d.csv``), linearised, with the
+    rig's cameras: for single-camera fill. None without the file or a calibrated rig."""
+    store = SessionStore(root)
+    if not store.trial(trial).points2d.is_file():
+        return None
+    try:
+        rig = current_rig(root)
+        obs = store.points2d(trial)
+    except KisscalError:
+        return None
+    unused = (obs.point < 0) & np.isin(obs.camera, rig.ids)
+    cam = np.array([rig.index(c) for c in obs.camera[unused]], dtype=np.int64)
+    uv = np.zeros((cam.size, 2))
+    for i, camera in enumerate(rig):
+        uv[cam == i] = camera.undistort_px(obs.xy_px[unused][cam == i])
+    return spare_blobs(obs.field[unused], cam, uv, rig.dlts)
 
 
 def _first_frame(files: TrialFiles) -> int:
@@ -275,6 +302,7 @@ def _tracking_summary(result: Trajectories) -> dict[str, Any]:
                 "method": STATUS_NAMES[g.status].removeprefix("filled_"),
                 "expected_error_mm": _finite(g.expected_error_mm),
                 "from": [result.labels[d] for d in g.donors],
+                "single_camera_fields": g.ray_fields,
             }
             for g in result.fills
         ],

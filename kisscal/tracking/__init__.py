@@ -18,6 +18,7 @@ from kisscal.tracking.pipeline import (
     build_trajectories,
     sweep_noise,
 )
+from kisscal.tracking.rayfill import SpareBlobs, spare_blobs
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import associate, track_points
 from kisscal.tracking.tracks import (
@@ -42,6 +43,7 @@ __all__ = [
     "THESIS_PNC",
     "Labelling",
     "SegmentStats",
+    "SpareBlobs",
     "SweepRow",
     "TrackingParams",
     "Tracks",
@@ -55,6 +57,7 @@ __all__ = [
     "label_tracks",
     "segment_statistics",
     "smooth_tracks",
+    "spare_blobs",
     "sweep_noise",
     "track_points",
 ]

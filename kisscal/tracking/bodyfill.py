@@ -62,6 +62,10 @@ class GapFill:
         the gap's length (NaN when there was no such stretch to try it on).
     donors : tuple of int
         Tracks the fill followed (none for the spline).
+    ray_fields : int
+        Fields of the gap moved onto the ray of a camera that still saw the marker
+        (:mod:`kisscal.tracking.rayfill`); ``expected_error_mm`` is then the fill's error
+        along that camera's line of sight.
     """
 
     track: int
@@ -70,6 +74,7 @@ class GapFill:
     status: int
     expected_error_mm: float
     donors: tuple[int, ...] = ()
+    ray_fields: int = 0
 
 
 def batch_kabsch(
@@ -345,6 +350,40 @@ def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[in
     return [s for _, s in ranked[:2]]
 
 
+def expected_errors(
+    method: FillMethod,
+    target: NDArray,
+    dense: NDArray,
+    exclude: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    centres: NDArray | None = None,
+) -> tuple[float, float]:
+    """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi), and
+    the RMS of its error along the line of sight of each camera of ``centres`` (n, 3):
+    what is left once a single camera's ray fixes the other two coordinates
+    (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``)."""
+    err, along = [], []
+    for plo, phi in pseudo_gaps(target, lo, hi, params.body_context_fields // 2):
+        cut = target.copy()
+        cut[plo:phi] = np.nan
+        got = method(cut, dense, exclude, plo, phi, params)
+        if got is None:
+            continue
+        # a stretch shorter than the gap tells less: a fill's error grows about with the
+        # square of the time it bridges (a drift that accelerates), so scale it up so
+        scale = ((hi - lo) / (phi - plo)) ** 2
+        miss = got[0] - target[plo:phi]
+        err.append(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * scale)
+        if centres is not None:
+            sight = target[plo:phi][None] - centres[:, None]
+            sight /= np.linalg.norm(sight, axis=2, keepdims=True)
+            along.append(np.sqrt(np.mean(np.einsum("cnj,nj->cn", sight, miss) ** 2)) * scale)
+    rms = [float(np.sqrt(np.mean(np.square(e)))) if e else float("nan") for e in (err, along)]
+    return rms[0], rms[1]
+
+
 def expected_error(
     method: FillMethod,
     target: NDArray,
@@ -355,20 +394,7 @@ def expected_error(
     params: TrackingParams,
 ) -> float:
     """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi)."""
-    err = []
-    for plo, phi in pseudo_gaps(target, lo, hi, params.body_context_fields // 2):
-        cut = target.copy()
-        cut[plo:phi] = np.nan
-        got = method(cut, dense, exclude, plo, phi, params)
-        if got is None:
-            continue
-        rms = np.sqrt(np.mean(np.sum((got[0] - target[plo:phi]) ** 2, axis=1)))
-        # a stretch shorter than the gap tells less: a fill's error grows about with the
-        # square of the time it bridges (a drift that accelerates), so scale it up so
-        err.append(rms * ((hi - lo) / (phi - plo)) ** 2)
-    if not err:
-        return float("nan")
-    return float(np.sqrt(np.mean(np.square(err))))
+    return expected_errors(method, target, dense, exclude, lo, hi, params)[0]
 
 
 #: What a gap longer than ``max_fill_gap_fields`` may be filled with. Not the spline:
@@ -379,6 +405,38 @@ BODY_METHODS: tuple[tuple[int, FillMethod], ...] = (
     (FILLED_RIGID, axis_fill),
     (FILLED_PATTERN, pattern_fill),
 )
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One method's fill of a gap: positions, how (with its expected error), and its
+    expected error along a camera's line of sight (NaN when not asked for)."""
+
+    xyz_mm: NDArray[np.float64]
+    fill: GapFill
+    along_sight_mm: float
+
+
+def fill_candidates(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    methods: tuple[tuple[int, FillMethod], ...] = BODY_METHODS,
+    centres: NDArray | None = None,
+) -> list[Candidate]:
+    """Every fill of the gap [lo, hi) of track ``t`` that one of ``methods`` makes, with
+    its :func:`expected_errors` (along the sight of the cameras at ``centres`` too)."""
+    target = dense[t]
+    out = []
+    for status, method in methods:
+        got = method(target, dense, t, lo, hi, params)
+        if got is None:
+            continue
+        err, along = expected_errors(method, target, dense, t, lo, hi, params, centres)
+        out.append(Candidate(got[0], GapFill(t, lo, hi - lo, status, err, got[1]), along))
+    return out
 
 
 def body_fill(
@@ -400,15 +458,11 @@ def body_fill(
     -------
     (positions (hi - lo, 3), GapFill), or None when neither method is supported.
     """
-    target = dense[t]
-    best = None
-    for status, method in BODY_METHODS:
-        got = method(target, dense, t, lo, hi, params)
-        if got is None:
-            continue
-        err = expected_error(method, target, dense, t, lo, hi, params)
-        if not err <= params.max_body_fill_error_mm:
-            continue
-        if best is None or err < best[1].expected_error_mm:
-            best = (got[0], GapFill(t, lo, hi - lo, status, err, got[1]))
-    return best
+    best = best_candidate(fill_candidates(dense, t, lo, hi, params), params)
+    return None if best is None else (best.xyz_mm, best.fill)
+
+
+def best_candidate(cands: list[Candidate], params: TrackingParams) -> Candidate | None:
+    """The candidate of smallest expected error, if at most ``max_body_fill_error_mm``."""
+    ok = [c for c in cands if c.fill.expected_error_mm <= params.max_body_fill_error_mm]
+    return min(ok, key=lambda c: c.fill.expected_error_mm) if ok else None

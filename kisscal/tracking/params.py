@@ -109,6 +109,13 @@ class TrackingParams(Params):
     max_body_fill_error_mm : float
         Largest expected error (mm) of a rigid-body or pattern fill, measured on the
         marker's own samples beside the gap, for the gap to be filled that way.
+    ray_fill_gate : float
+        Single-camera fill: how many expected errors of the body's fill (converted to
+        pixels at the marker) an unused blob may lie from the fill's projection for the
+        filled sample to be moved onto the blob's ray.
+    ray_fill_px : float
+        Single-camera fill: the SD (px) of a blob's position that weighs its ray against
+        the body's fill.
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
@@ -179,6 +186,8 @@ class TrackingParams(Params):
     rigid_fill_neighbour_sd_mm: float = param(20.0, unit="mm", gt=0)
     rigid_fill_markers: int = param(4, ge=3)
     max_body_fill_error_mm: float = param(5.0, unit="mm", gt=0)
+    ray_fill_gate: float = param(3.0, gt=0)
+    ray_fill_px: float = param(0.1, unit="px", gt=0)
     refill_predicted: bool = param(True)
     label_tolerance_mm: float = param(120.0, unit="mm", gt=0)
     label_segment_tolerance_mm: float = param(6.0, unit="mm", ge=0)

@@ -15,6 +15,7 @@ from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import track_points
 from kisscal.tracking.tracks import PREDICTED, Tracks
@@ -65,6 +66,7 @@ def build_trajectories(
     marker_set: MarkerSet | None = None,
     rate_hz: float | None = None,
     template_upright: bool = False,
+    spare: SpareBlobs | None = None,
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
@@ -94,6 +96,10 @@ def build_trajectories(
     template_upright : bool
         ``template_mm`` is in the lab frame, Z up (a static trial's positions): with
         ``marker_set``, heights above the floor are checked too.
+    spare : SpareBlobs, optional
+        The trial's 2D blobs that no 3D point used, with the cameras
+        (:func:`~kisscal.tracking.spare_blobs`): a filled sample that one camera still
+        sees is moved onto that camera's ray (single-camera fill).
     """
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
@@ -103,7 +109,7 @@ def build_trajectories(
     )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
-    tracks, fills = fill_gaps_logged(tracks, params)
+    tracks, fills = fill_gaps_logged(tracks, params, spare)
     if params.smoothing:
         tracks = smooth_tracks(tracks)
     return Trajectories(

@@ -148,3 +148,31 @@ def test_current_rig_gives_the_written_calibration(processed: Path) -> None:
         written = read_dlt_json(processed / "out" / "dlt" / f"{cam.id}.json")
         assert np.array_equal(cam.dlt, written.L)
         assert cam.linearisation is not None and cam.size_px is not None
+
+
+def test_single_camera_fill_reads_the_unused_blobs_in_the_rigs_pixels(processed: Path) -> None:
+    """The track stage's unused blobs (points2d.csv, raw pixels) are linearised the way
+    reconstruction linearised them: the used ones, taken the same way, land on the
+    projections of their 3D points."""
+    from kisscal.io.points2d import read_points2d
+    from kisscal.io.points3d import read_points3d
+    from kisscal.io.store import SessionStore
+    from kisscal.session.calibrated import current_rig
+    from kisscal.session.track import _spare_blobs
+
+    files = SessionStore(processed).trial("walk01")
+    rig = current_rig(processed)
+    obs = read_points2d(files.points2d)
+    pts = read_points3d(files.points3d)
+    used = obs.point >= 0
+    cam = np.array([rig.index(c) for c in obs.camera[used]])
+    uv = np.zeros((cam.size, 2))
+    for i, camera in enumerate(rig):
+        uv[cam == i] = camera.undistort_px(obs.xy_px[used][cam == i])
+    miss = np.linalg.norm(rig.project_rows(cam, pts.xyz_mm[obs.point[used]]) - uv, axis=1)
+    assert np.median(miss) < 0.5
+    spare = _spare_blobs(processed, files)
+    assert spare is not None and spare.field.size == int((~used).sum())
+    assert np.array_equal(np.sort(spare.field), np.sort(obs.field[~used]))
+    summary = json.loads(files.tracking.read_text())
+    assert all("single_camera_fields" in g for g in summary["fills"])

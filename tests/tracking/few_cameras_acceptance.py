@@ -13,7 +13,8 @@ centroids + 0.05 px noise, other cameras' LEDs, two noise blobs per camera and f
 markers closer than 3 px merged) plus blobs a camera loses beside the body's own
 occlusions (:func:`dropouts`: 0.2 runs a second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
-Reconstructed and tracked with default settings and the trial's marker set, scored
+Reconstructed and tracked with default settings and the trial's marker set (the 2D
+blobs no 3D point used go to single-camera fill; ``score_trial(..., rays=False)`` without), scored
 against truth: recall of markers seen by exactly two cameras, ghosts, coverage of each
 marker's span (first to last field seen by >= 3 cameras) by samples of the trajectory
 bearing its name within 20 mm (min and mean over markers), RMS error of filled samples,
@@ -34,7 +35,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.recon import ReconParams, reconstruct_trial
-from kisscal.tracking import MEASURED, PREDICTED, TrackingParams, build_trajectories
+from kisscal.tracking import (
+    MEASURED,
+    PREDICTED,
+    SpareBlobs,
+    TrackingParams,
+    build_trajectories,
+    spare_blobs,
+)
 from tests.recon.scenario import observe
 from tests.recon.subsets import found_and_ghosts
 
@@ -57,6 +65,7 @@ class RigTrial:
     n_points: int
     ghosts: int
     found: NDArray[np.bool_]
+    spare: SpareBlobs
 
 
 #: Fields of the walk per preset: long enough to cross the volume (cut to the fields inside).
@@ -95,6 +104,8 @@ def rig_trial(preset: str, seed: int, n_cameras: int | None = None) -> RigTrial:
     tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed)
     pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(), motion.rate_hz)
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, motion.xyz_mm)
+    unused = (pts.marker < 0) & ~pts.stationary
+    spare = spare_blobs(tab.field[unused], tab.camera[unused], tab.uv[unused], dlts)
     return RigTrial(
         preset,
         seed,
@@ -110,6 +121,7 @@ def rig_trial(preset: str, seed: int, n_cameras: int | None = None) -> RigTrial:
         len(pts.field),
         ghosts,
         found,
+        spare,
     )
 
 
@@ -128,8 +140,11 @@ class TrialScore:
     filled_by: dict[str, int]
 
 
-def score_trial(trial: RigTrial, params: TrackingParams | None = None) -> TrialScore:
-    """Track ``trial`` with its marker set and score it against truth (see module)."""
+def score_trial(
+    trial: RigTrial, params: TrackingParams | None = None, rays: bool = True
+) -> TrialScore:
+    """Track ``trial`` with its marker set and score it against truth (see module); with
+    ``rays``, the unused blobs go to single-camera fill."""
     from kisscal.tracking import STATUS_NAMES
 
     t0 = time.perf_counter()
@@ -141,6 +156,7 @@ def score_trial(trial: RigTrial, params: TrackingParams | None = None) -> TrialS
         trial.template_mm,
         trial.segments,
         rate_hz=trial.rate_hz,
+        spare=trial.spare if rays else None,
     )
     seconds = time.perf_counter() - t0
     n_seen = trial.visible.sum(axis=2)

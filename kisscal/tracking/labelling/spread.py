@@ -23,6 +23,10 @@ from kisscal.tracking.rigid import kabsch
 MAX_SWEEPS = 200
 # Windows matched to the template after the first, where unnamed long pieces remain.
 MAX_WINDOWS = 12
+#: A shorter window of phase 3 names pieces only when its fit RMS to the template is at
+#: most this many times the first window's (held-out trials: 1.1 where it named a leg
+#: right, 3 to 4 where pieces mixing two markers of a foot took names).
+SHORT_WINDOW_FIT = 1.5
 
 
 def by_segments(
@@ -300,7 +304,33 @@ def _busiest_unnamed(state: LabelState, tried: NDArray) -> int | None:
 def rematch(state: LabelState) -> None:
     """Phase 3: windows where unnamed long pieces remain are matched to the template
     again (:func:`~kisscal.tracking.labelling.window.match_window`); a core piece takes
-    its name there if the name is free in its fields; names spread after each window."""
+    its name there if the name is free in its fields; names spread after each window.
+
+    Windows of the first match's length first; then, while long pieces stay unnamed,
+    windows of half that length and less (down to twice ``label_fields``): with few
+    cameras a leg's pieces may each cover half the trial, none of them seen through a
+    long window, while the names the first window gave hold the rest. A shorter window
+    gives names only when it agrees with every name its core pieces already hold (a
+    window that names the pelvis otherwise names the rest wrongly too) and its average
+    pose fits the template at most ``SHORT_WINDOW_FIT`` times worse than the first
+    window's (a piece that holds two markers in turn bends the pose).
+    """
+    longest = state.window
+    length = longest
+    try:
+        while length >= max(2 * state.params.label_fields, 3):
+            state.window = length
+            _rematch_windows(state, agree=length < longest)
+            if np.all(state.label_of[state.long_ids] >= 0):
+                return
+            length //= 2
+    finally:
+        state.window = longest
+
+
+def _rematch_windows(state: LabelState, agree: bool) -> None:
+    """:func:`rematch` at the window length of ``state.window``; with ``agree``, only
+    windows whose match keeps the names of the core pieces already named."""
     tried = np.zeros(state.n_fields, dtype=bool)
     for i in range(MAX_WINDOWS):
         if i:
@@ -311,6 +341,12 @@ def rematch(state: LabelState) -> None:
         tried[max(centre - state.window // 2, 0) : centre + state.window // 2] = True
         found = match_window(state, centre)
         if found.core is None:
+            continue
+        held = state.label_of[state.long_ids[found.core]]
+        if agree and (
+            np.any((held >= 0) & (held != found.assign))
+            or not found.fit_rms <= SHORT_WINDOW_FIT * state.fit_rms
+        ):
             continue
         for k, j in zip(found.core, found.assign, strict=True):
             t = state.long_ids[k]
