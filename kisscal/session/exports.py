@@ -32,7 +32,6 @@ from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.rig import Rig
 from kisscal.session.calibrated import current_rig
 from kisscal.session.inputs import load_config
-from kisscal.session.parallel import each_camera
 from kisscal.session.progress import Echo, quiet
 
 #: ``kisscal export --to`` choices.
@@ -68,11 +67,6 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
-def _opencv_fit(camera: Camera, _echo: Echo) -> OpenCvFit:
-    """:func:`~kisscal.opencv.opencv_from_camera` as a per-camera task."""
-    return opencv_from_camera(camera)
-
-
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
     return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
 
@@ -89,11 +83,7 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    sized = [c for c in rig if c.size_px is not None]
-    # one least-squares fit per camera, side by side (the same fits, on every core)
-    fits = dict(
-        zip([c.id for c in sized], each_camera(_opencv_fit, sized, "export", echo), strict=True)
-    )
+    fits = {c.id: opencv_from_camera(c) for c in rig if c.size_px is not None}
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
         "dltdv": {
