@@ -9,7 +9,6 @@ Journal of the American Statistical Association, 63, 1379-1389.
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import theilslopes
 
 from kisscal.detect.shape import PIXEL_AREA_VAR
 from kisscal.detect.survey import Groups
@@ -59,6 +58,8 @@ def measure_pixel_aspect(spots: Groups) -> tuple[float, str]:
     places = np.unique(np.round(np.column_stack([spots.x[ok], spots.y[ok]]) / 2.0), axis=0)
     if len(places) < MIN_PLACES_FOR_ASPECT:
         return 1.0, f"{how}, at only {len(places)} places: square pixels assumed"
+    from scipy.stats import theilslopes  # here: scipy.stats takes ~1 s to import
+
     fit = theilslopes(sx, sy)
     spread = (fit.high_slope - fit.low_slope) / abs(fit.slope)
     aspect = ratio

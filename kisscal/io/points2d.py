@@ -1,14 +1,24 @@
 """Reading and writing ``out/trials/<trial>/points2d.csv``: a trial's 2D input, for other
 triangulators (DESIGN.md, contract version 3).
 
-Columns: ``camera,field,x_px,y_px,point``. One row per 2D observation kisscal
+Columns: ``camera,field,x_px,y_px,point,weight``. One row per 2D observation kisscal
 reconstructed the trial from (the valid blobs of every camera and field, or the rows of
 a centroid file), sorted by field, then camera in session order, a camera's blobs of a
 field in their detection order. ``x_px, y_px`` are raw pixels as measured (not
 linearised; origin at the centre of the top-left pixel, y down), to 1e-6 px. ``point``
 is the 3D point the observation went into: the 0-based data row of the trial's
 ``points3d.csv``; empty when the observation was not used (unmatched, or dropped as a
-stationary false detection).
+stationary false detection). ``weight`` is 1 / the depth (m) of that 3D point in the
+camera, empty when unused: the per-camera weight (Pose2Sim's likelihood) that turns an
+algebraic DLT triangulator's rows ``P[0] - x P[2]``, ``P[1] - y P[2]`` of ``P = K [R | t]``
+into image distances in pixels, the error kisscal's triangulation minimises (Woltring &
+Huiskes 1990, sec. 3); the depth is that of kisscal's own point, so these are the weights
+of its last step. Files written before the column existed read with NaN weights.
+
+References
+----------
+Woltring, H. J., & Huiskes, R. (1990). Stereophotogrammetry. In Biomechanics of Human
+Movement: Applications in Rehabilitation, Sports and Ergonomics.
 """
 
 from __future__ import annotations
@@ -23,7 +33,9 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.errors import InputError, MissingDataError
 from kisscal.io.files import write_text
 
-COLUMNS = ("camera", "field", "x_px", "y_px", "point")
+COLUMNS = ("camera", "field", "x_px", "y_px", "point", "weight")
+#: The header of files written before ``weight`` (read with NaN weights).
+_COLUMNS_V1 = COLUMNS[:5]
 
 
 @dataclass(frozen=True)
@@ -38,12 +50,15 @@ class Points2DFile:
         Raw pixel coordinates.
     point : ndarray of int, shape (n,)
         Row of points3d.csv the observation went into, -1 when unused.
+    weight : ndarray, shape (n,)
+        1 / depth (m) of that point in the camera; NaN when unused.
     """
 
     camera: NDArray[np.str_]
     field: NDArray[np.int64]
     xy_px: NDArray[np.float64]
     point: NDArray[np.int64]
+    weight: NDArray[np.float64]
 
 
 def observation_points(blob_row: ArrayLike, n_obs: int) -> NDArray[np.int64]:
@@ -70,14 +85,17 @@ def write_points2d(
     field: ArrayLike,
     xy_px: ArrayLike,
     point: ArrayLike,
+    weight: ArrayLike | None = None,
 ) -> Path:
     """Write a points2d.csv (see module docstring); ``camera`` holds indices into
-    ``camera_ids``. Returns the path written."""
+    ``camera_ids``, ``weight`` the inverse depths in 1/m (NaN or omitted: empty).
+    Returns the path written."""
     camera = np.asarray(camera, dtype=np.int64)
     field = np.asarray(field, dtype=np.int64)
     xy = np.asarray(xy_px, dtype=float).reshape(-1, 2)
     point = np.asarray(point, dtype=np.int64)
-    if not (len(camera) == len(field) == len(xy) == len(point)):
+    weight = np.full(len(point), np.nan) if weight is None else np.asarray(weight, dtype=float)
+    if not (len(camera) == len(field) == len(xy) == len(point) == len(weight)):
         raise InputError("points2d: columns of different lengths")
     names = np.asarray(list(camera_ids) or [""], dtype=str)
     # formatted column by column (numpy's string ops), not row by row
@@ -87,6 +105,7 @@ def write_points2d(
         np.char.mod("%.6f", xy[:, 0]),
         np.char.mod("%.6f", xy[:, 1]),
         np.where(point >= 0, np.char.mod("%d", point), ""),
+        np.where(np.isfinite(weight), np.char.mod("%.9g", weight), ""),
     ]
     lines = cells[0]
     for column in cells[1:]:
@@ -106,13 +125,17 @@ def read_points2d(path: str | Path) -> Points2DFile:
         rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
     except FileNotFoundError:
         raise MissingDataError(f"{path}: file not found") from None
-    if not rows or tuple(rows[0]) != COLUMNS:
+    if not rows or tuple(rows[0]) not in (COLUMNS, _COLUMNS_V1):
         raise InputError(f"{path}: header must be {','.join(COLUMNS)}")
     try:
-        body = np.array(rows[1:], dtype=str).reshape(-1, len(COLUMNS))
+        body = np.array(rows[1:], dtype=str).reshape(-1, len(rows[0]))
         field = body[:, 1].astype(np.int64)
         xy = body[:, 2:4].astype(float)
         point = np.where(body[:, 4] == "", "-1", body[:, 4]).astype(np.int64)
+        weight = np.where(body[:, 5] == "", "nan", body[:, 5]) if body.shape[1] > 5 else "nan"
+        weight = np.broadcast_to(np.asarray(weight, dtype=float), field.shape).copy()
     except ValueError:
-        raise InputError(f"{path}: ragged rows, or text in field, x_px, y_px, point") from None
-    return Points2DFile(body[:, 0], field, xy, point)
+        raise InputError(
+            f"{path}: ragged rows, or text in field, x_px, y_px, point, weight"
+        ) from None
+    return Points2DFile(body[:, 0], field, xy, point, weight)

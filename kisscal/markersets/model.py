@@ -16,12 +16,18 @@ from kisscal.errors import InputError
 Pair = tuple[str, str]
 
 
+def _mapping_proxy(items: dict) -> MappingProxyType:
+    return MappingProxyType(items)
+
+
 def _pickle_mapping_proxy(proxy: MappingProxyType) -> tuple:
-    return MappingProxyType, (dict(proxy),)
+    # rebuilt by a module-level function: the type itself pickles by a name that
+    # builtins does not have ("mappingproxy"), so it cannot be the callable here
+    return _mapping_proxy, (dict(proxy),)
 
 
-# A marker set travels to the process that draws the gait figures (read-only views of its
-# roles included; Python cannot pickle those by itself).
+# A marker set travels to the process that draws the stage and gait figures (read-only
+# views of its roles included; Python cannot pickle those by itself).
 copyreg.pickle(MappingProxyType, _pickle_mapping_proxy)
 
 

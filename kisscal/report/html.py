@@ -66,7 +66,7 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     buf.seek(0)
     image = Image.open(buf).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
     small = io.BytesIO()
-    image.save(small, format="png", optimize=True)
+    image.save(small, format="png")  # optimize=True: 10 % smaller, 3x the time
     return small.getvalue()
 
 

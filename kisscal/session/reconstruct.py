@@ -8,16 +8,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from kisscal.errors import InputError
 from kisscal.io.c3d import read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
+from kisscal.io.points2d import COLUMNS as POINTS2D_COLUMNS
 from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, write_points3d, write_trial_points
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.recon import reconstruct_trial
 from kisscal.report.epipolar import trial_field_figure
+from kisscal.rig import Rig
 from kisscal.session.calibrated import current_rig
 from kisscal.session.configure import markers_detection
 from kisscal.session.inputs import figure, load_config, writes_session
@@ -47,8 +50,13 @@ def reconstruct(
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
     detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
-    stage_key = store.key(
-        "reconstruct", trial_input_files(config, trial), rig, detection, params.recon
+    stage_key = store.key(  # the columns: a points2d.csv of an older layout is redone
+        "reconstruct",
+        trial_input_files(config, trial),
+        rig,
+        detection,
+        params.recon,
+        POINTS2D_COLUMNS,
     )
     if store.is_current(path, stage_key) and files.points2d.is_file():
         echo(f"  reconstruct {trial.name}: cached")
@@ -63,13 +71,15 @@ def reconstruct(
     n_fields = max((len(v) for v in blobs.values()), default=0)
     summary = points.summary(n_fields, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    point = observation_points(points.blob_row, len(obs))
     write_points2d(
         files.points2d,
         rig.ids,
         cam_idx,
         field_idx,
         obs.raw_px,
-        observation_points(points.blob_row, len(obs)),
+        point,
+        inverse_depth_m(rig, cam_idx, point, points.xyz_mm),
     )
     write_json(files.recon, summary)
     store.mark_current(path, stage_key)
@@ -104,6 +114,18 @@ def reconstruct(
         )
     _echo_warnings(trial.name, files.recon, echo)
     return points
+
+
+def inverse_depth_m(
+    rig: Rig, camera: NDArray[np.int64], point: NDArray[np.int64], xyz_mm: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """points2d.csv's ``weight``: 1 / the depth (m) in the observation's camera (index into
+    ``rig``) of the 3D point (row of ``xyz_mm``) it went into; NaN where ``point`` is -1."""
+    weight = np.full(len(point), np.nan)
+    for c, cam in enumerate(rig.cameras):
+        rows = np.flatnonzero((camera == c) & (point >= 0))
+        weight[rows] = 1000.0 / cam.depth_mm(xyz_mm[point[rows]])
+    return weight
 
 
 def _echo_warnings(trial: str, recon_json: Path, echo: Echo) -> None:

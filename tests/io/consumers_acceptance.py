@@ -1,17 +1,25 @@
 """Issue 28: Pose2Sim and aniposelib triangulate kisscal's 2D output with kisscal's exports.
 
-``python -m tests.io.consumers_acceptance [SEED] [--figure PATH]`` from the repository
-root, with a Python that has both tools (see below). A synthetic session is made and run;
-its calibration is exported with ``kisscal export --to pose2sim`` (Pose2Sim's
+``python -m tests.io.consumers_acceptance [SEED] [--figure PATH] [--session PATH]`` from
+the repository root, with a Python that has both tools (see below). A synthetic session
+is made and run (or ``--session``'s, kept, made there on the first call); its
+calibration is exported with ``kisscal export --to pose2sim`` (Pose2Sim's
 ``Calib_kisscal.toml``, metres) and ``--to anipose --units m``; then, for every trial,
 each tool triangulates the observations of ``points2d.csv`` that kisscal used for each
 3D point (grouped by the ``point`` column), with the calibration loaded by its own
-reader, and the result is compared with kisscal's ``points3d.csv``:
+reader and its own triangulation, and the result is compared with kisscal's
+``points3d.csv``:
 
 * Pose2Sim (``Pose2Sim.common``): ``computeP(calib, undistort=True)`` and the points
   undistorted to ``optim_K`` with ``cv2.undistortPoints`` as ``Pose2Sim.triangulation``
-  does with ``undistort_points = true``, then ``weighted_triangulation`` with likelihood 1;
-* aniposelib: ``CameraGroup.load`` and ``CameraGroup.triangulate(undistort=True)``.
+  does with ``undistort_points = true``, then ``weighted_triangulation``, once with
+  likelihood 1 (as it comes) and once with the ``weight`` column of ``points2d.csv`` as
+  the likelihoods (1 / depth: its algebraic rows become image distances in pixels);
+* aniposelib: ``CameraGroup.load``, then ``CameraGroup.triangulate(undistort=True)`` (its
+  algebraic DLT in normalised coordinates) and ``CameraGroup.triangulate_optim`` (the same,
+  refined by least squares on the reprojection error in pixels), without its temporal
+  smoothing (``scale_smooth=0``: the points of a field are not a time series) and with a
+  plain squared loss (``reproj_loss="linear"``).
 
 Both tools declare ``opencv-python`` / ``opencv-contrib-python``, which would replace
 kisscal's ``opencv-python-headless`` ``cv2`` in the same environment; they are therefore
@@ -30,6 +38,7 @@ import contextlib
 import importlib.metadata
 import io
 import tempfile
+import warnings
 from pathlib import Path
 
 import cv2
@@ -39,20 +48,28 @@ from kisscal import session
 from kisscal.io.config import load_toml
 from kisscal.io.points2d import read_points2d
 from kisscal.io.points3d import read_points3d
+from kisscal.report.html import figure_png
 from kisscal.session.calibrated import current_rig
 from kisscal.session.exports import export
 
 #: Issue 28's bar: each tool's 3D points within this distance of kisscal's (mm).
 BAR_MM = 0.1
-#: The triangulations compared (the third: Pose2Sim's own function, weighted as kisscal).
-TOOLS = ("pose2sim", "aniposelib", "pose2sim, 1/depth likelihoods")
+#: The triangulations compared: each tool as it comes, and as points2d.csv's documentation
+#: says to use it (Pose2Sim with its ``weight`` column, aniposelib's refinement).
+TOOLS = (
+    "pose2sim",
+    "pose2sim, points2d weights",
+    "aniposelib",
+    "aniposelib, triangulate_optim",
+)
 
 
 def observations_by_point(
     root: Path, trial: str, cameras: list[str], projected: bool = False
 ) -> tuple:
-    """kisscal's 3D points of a trial and their observations as a dense (camera, point, 2)
-    array of raw pixels (NaN: camera not used), cameras in the order given.
+    """kisscal's 3D points of a trial, their observations as a dense (camera, point, 2)
+    array of raw pixels (NaN: camera not used), cameras in the order given, and the
+    observations' ``weight`` column as a (camera, point) array.
 
     ``projected``: instead of the measured pixels, kisscal's own projection of its 3D
     point into each camera that observed it (2D data without noise: the tools must then
@@ -63,23 +80,26 @@ def observations_by_point(
     used = p2.point >= 0
     column = {c: i for i, c in enumerate(cameras)}
     dense = np.full((len(cameras), len(p3.field), 2), np.nan)
+    weight = np.full((len(cameras), len(p3.field)), np.nan)
     cam = np.array([column[c] for c in p2.camera[used]], dtype=np.int64)
     dense[cam, p2.point[used]] = p2.xy_px[used]
+    weight[cam, p2.point[used]] = p2.weight[used]
     if projected:
         rig = current_rig(root)
         for i, c in enumerate(cameras):
             seen = np.isfinite(dense[i, :, 0])
             dense[i, seen] = rig.camera(c).project(p3.xyz_mm[seen])
-    return p3, dense
+    return p3, dense, weight
 
 
-def pose2sim_triangulate(calib: Path, dense_px: np.ndarray, reweight: int = 0) -> np.ndarray:
+def pose2sim_triangulate(
+    calib: Path, dense_px: np.ndarray, likelihood: np.ndarray | None = None
+) -> np.ndarray:
     """Pose2Sim's triangulation of (camera, point, 2) raw pixels, cameras in the calibration
     file's order: its projection matrices, its undistortion, its weighted DLT (metres).
 
-    ``reweight`` > 0 solves again that many times with each camera's likelihood (the weight
-    Pose2Sim gives a camera's rows) 1 / depth of the point in that camera: the algebraic
-    error then becomes the image distance in pixels, the error kisscal minimises.
+    ``likelihood`` (camera, point): the weight Pose2Sim gives each camera's rows (its pose
+    estimator's likelihood); None: 1 for every camera.
     """
     from Pose2Sim.common import computeP, retrieve_calib_params, weighted_triangulation
 
@@ -93,26 +113,31 @@ def pose2sim_triangulate(calib: Path, dense_px: np.ndarray, reweight: int = 0) -
             ideal[c, seen] = cv2.undistortPoints(
                 pts, params["K"][c], params["dist"][c], None, params["optim_K"][c]
             ).reshape(-1, 2)
+    if likelihood is None:
+        likelihood = np.ones(dense_px.shape[:2])
     out = np.full((dense_px.shape[1], 3), np.nan)
     for k in range(dense_px.shape[1]):  # Pose2Sim's own function works one point at a time
         cams = np.flatnonzero(np.isfinite(ideal[:, k, 0]))
         Ps = [P[c] for c in cams]
-        weights = np.ones(len(cams))
-        for _ in range(reweight + 1):
-            q = weighted_triangulation(Ps, ideal[cams, k, 0], ideal[cams, k, 1], weights)
-            weights = 1.0 / np.array([Pc[2] @ q for Pc in Ps])
+        q = weighted_triangulation(Ps, ideal[cams, k, 0], ideal[cams, k, 1], likelihood[cams, k])
         out[k] = q[:3]
     return out
 
 
-def anipose_triangulate(calib: Path, dense_px: np.ndarray) -> np.ndarray:
+def anipose_triangulate(calib: Path, dense_px: np.ndarray, optim: bool = False) -> np.ndarray:
     """aniposelib's triangulation (file units) of (camera, point, 2) raw pixels, cameras in
-    the order of ``CameraGroup.load`` (its tables sorted by name)."""
+    the order of ``CameraGroup.load`` (its tables sorted by name): ``triangulate``, or with
+    ``optim`` ``triangulate_optim`` without temporal smoothing and with a squared loss."""
     from aniposelib.cameras import CameraGroup
 
     group = CameraGroup.load(str(calib))
-    with contextlib.redirect_stdout(io.StringIO()):
-        return np.asarray(group.triangulate(dense_px, undistort=True), dtype=float)
+    with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # numba's object-mode notes on aniposelib's code
+        if not optim:
+            return np.asarray(group.triangulate(dense_px, undistort=True), dtype=float)
+        # (camera, frame, joint, 2): each point a frame of one joint
+        xyz = group.triangulate_optim(dense_px[:, :, None], scale_smooth=0, reproj_loss="linear")
+    return np.asarray(xyz, dtype=float).reshape(-1, 3)
 
 
 def compare(root: Path) -> dict[str, dict[str, np.ndarray]]:
@@ -128,18 +153,20 @@ def compare(root: Path) -> dict[str, dict[str, np.ndarray]]:
     result: dict[str, dict[str, np.ndarray]] = {}
     trials = [t.name for t in sorted((out / "trials").iterdir()) if (t / "points2d.csv").is_file()]
     for trial, projected in [(t, False) for t in trials] + [(t, True) for t in trials]:
-        p3, dense = observations_by_point(root, trial, p2s_cams, projected)
-        d_p2s = np.linalg.norm(pose2sim_triangulate(p2s, dense) * 1000 - p3.xyz_mm, axis=1)
-        d_w = np.linalg.norm(pose2sim_triangulate(p2s, dense, 2) * 1000 - p3.xyz_mm, axis=1)
-        _, dense = observations_by_point(root, trial, ani_cams, projected)
-        d_ani = np.linalg.norm(anipose_triangulate(ani, dense) * 1000 - p3.xyz_mm, axis=1)
-        name = f"{trial} (kisscal's projection)" if projected else trial
-        result[name] = {
-            "pose2sim": d_p2s,
-            "aniposelib": d_ani,
-            "pose2sim, 1/depth likelihoods": d_w,
-            "rms_px": p3.rms_px,
+        p3, dense, weight = observations_by_point(root, trial, p2s_cams, projected)
+
+        def mm(xyz_m: np.ndarray, p3=p3) -> np.ndarray:
+            return np.linalg.norm(xyz_m * 1000 - p3.xyz_mm, axis=1)
+
+        by_tool = {
+            "pose2sim": mm(pose2sim_triangulate(p2s, dense)),
+            "pose2sim, points2d weights": mm(pose2sim_triangulate(p2s, dense, weight)),
         }
+        _, dense, _ = observations_by_point(root, trial, ani_cams, projected)
+        by_tool["aniposelib"] = mm(anipose_triangulate(ani, dense))
+        by_tool["aniposelib, triangulate_optim"] = mm(anipose_triangulate(ani, dense, True))
+        name = f"{trial} (kisscal's projection)" if projected else trial
+        result[name] = {**by_tool, "rms_px": p3.rms_px}
     return result
 
 
@@ -165,21 +192,23 @@ def figure(result: dict[str, dict[str, np.ndarray]], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharey=True, constrained_layout=True)
-    for ax, tool in zip(axes, TOOLS, strict=True):
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharey=True, constrained_layout=True)
+    for ax, tool in zip(axes.ravel(), TOOLS, strict=True):
         for trial, by_tool in result.items():
             if "projection" in trial:
                 continue
             ax.scatter(by_tool["rms_px"], by_tool[tool], s=4, alpha=0.6, label=trial)
         ax.axhline(BAR_MM, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
-        ax.set_xlabel("kisscal reprojection rms of the point (px)")
+        if ax in axes[1]:
+            ax.set_xlabel("kisscal reprojection rms of the point (px)")
         name, _, weights = tool.partition(", ")
         package = "Pose2Sim" if name == "pose2sim" else name
         ax.set_title(f"{package} {importlib.metadata.version(name)}\n{weights or 'as it is'}")
-    axes[0].set_ylabel("3D distance to kisscal's point (mm)")
-    axes[0].legend(markerscale=3, fontsize=8)
-    fig.savefig(path, dpi=100)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("3D distance to kisscal's point (mm)")
+    axes[0, 0].legend(markerscale=3, fontsize=8)
+    path.write_bytes(figure_png(fig))  # kisscal's figures' palette PNG: a quarter the size
     plt.close(fig)
 
 
@@ -188,12 +217,15 @@ def main() -> None:
     parser.add_argument("seed", nargs="?", type=int, default=3)
     parser.add_argument("--fields", type=int, default=100)
     parser.add_argument("--figure", type=Path, default=Path("consumers.png"))
+    parser.add_argument(
+        "--session", type=Path, help="a session made and run here before (kept; default: temp)"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        root = session.synthesise(
-            Path(tmp) / "s", seed=args.seed, fields=args.fields, walking5=False, n_jobs=1
-        )
-        session.run(root)
+        root = args.session or Path(tmp) / "s"
+        if not (root / "out" / "summary.json").is_file():
+            session.synthesise(root, seed=args.seed, fields=args.fields, walking5=False, n_jobs=1)
+            session.run(root)
         result = compare(root)
         figure(result, args.figure)
     print("\n".join(table(result)))

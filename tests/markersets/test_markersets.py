@@ -131,3 +131,15 @@ def test_errors_are_one_line_kisscal_errors(call, words: str) -> None:
     with pytest.raises(KisscalError) as err:
         call()
     assert words in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("name", SETS)
+def test_a_marker_set_pickles_with_its_read_only_roles(name: str) -> None:
+    """A marker set travels to the figure process (tracking results carry one)."""
+    import pickle
+    from types import MappingProxyType
+
+    full = marker_set(name)
+    back = pickle.loads(pickle.dumps(full, protocol=pickle.HIGHEST_PROTOCOL))
+    assert isinstance(back.roles, MappingProxyType) and dict(back.roles) == dict(full.roles)
+    assert back.names == full.names and back.foot("left") == full.foot("left")

@@ -206,14 +206,19 @@ def test_points2d_holds_the_observations_each_point_was_triangulated_from(origin
     np.testing.assert_allclose(tri.xyz_mm, p3.xyz_mm, atol=1e-3)  # points3d.csv: 4 decimals
 
 
-def pose2sim_triangulate(calib: dict, names: list[str], dense_px: np.ndarray) -> np.ndarray:
+def pose2sim_triangulate(
+    calib: dict, names: list[str], dense_px: np.ndarray, likelihood: np.ndarray | None = None
+) -> np.ndarray:
     """Pose2Sim's conventions (Pose2Sim.common.computeP, retrieve_calib_params,
     weighted_triangulation; Pose2Sim.triangulation with undistort_points): the camera
     tables in file order; raw pixels undistorted by cv2.undistortPoints onto the
     optimal new camera matrix (alpha 1) of each camera, P = optim_K [R | T] with T in
     metres, the point the last right singular vector of the stacked DLT rows. Returns
-    metres. ``dense_px`` is (camera, point, 2) in ``names``' order, NaN where unused."""
+    metres. ``dense_px`` is (camera, point, 2) in ``names``' order, NaN where unused;
+    ``likelihood`` (camera, point) multiplies each camera's rows (default 1)."""
     rows = np.zeros((dense_px.shape[1], 2 * len(names), 4))
+    if likelihood is None:
+        likelihood = np.ones(dense_px.shape[:2])
     for c, name in enumerate(names):
         cam = calib[name]
         K, dist, size = (np.array(cam[k], float) for k in ("matrix", "distortions", "size"))
@@ -223,8 +228,9 @@ def pose2sim_triangulate(calib: dict, names: list[str], dense_px: np.ndarray) ->
         seen = np.isfinite(dense_px[c, :, 0])
         xy = cv2.undistortPoints(dense_px[c, seen].reshape(-1, 1, 2), K, dist, None, optim_K)
         x, y = xy.reshape(-1, 2).T
-        rows[seen, 2 * c] = P[0] - x[:, None] * P[2]
-        rows[seen, 2 * c + 1] = P[1] - y[:, None] * P[2]
+        w = likelihood[c, seen][:, None]
+        rows[seen, 2 * c] = (P[0] - x[:, None] * P[2]) * w
+        rows[seen, 2 * c + 1] = (P[1] - y[:, None] * P[2]) * w
     q = np.linalg.svd(rows)[2][:, -1]
     return q[:, :3] / q[:, 3:]
 
@@ -254,10 +260,23 @@ def test_pose2sim_export_triangulates_points2d_onto_points3d(original: Path, tmp
     trial = original / "out" / "trials" / "c2d"
     p2, p3 = read_points2d(trial / "points2d.csv"), read_points3d(trial / "points3d.csv")
     dense = np.full((len(ids), len(p3.field), 2), np.nan)
+    weight = np.full((len(ids), len(p3.field)), np.nan)
     used = p2.point >= 0
-    dense[[ids.index(c) for c in p2.camera[used]], p2.point[used]] = p2.xy_px[used]
+    cam = [ids.index(c) for c in p2.camera[used]]
+    dense[cam, p2.point[used]] = p2.xy_px[used]
+    weight[cam, p2.point[used]] = p2.weight[used]
     d = np.linalg.norm(pose2sim_triangulate(calib, names, dense) * 1000 - p3.xyz_mm, axis=1)
     assert len(d) > 300 and np.median(d) < 0.03 and d.max() < 0.1, (np.median(d), d.max())
+    # points2d's weight column is 1 / depth (m) of the point in the camera; as Pose2Sim's
+    # likelihoods it makes the DLT rows pixel distances, kisscal's error: closer still
+    rig = current_rig(original)
+    for c in rig:
+        rows = np.flatnonzero(used & (p2.camera == c.id))
+        depth_m = c.depth_mm(p3.xyz_mm[p2.point[rows]]) / 1000
+        np.testing.assert_allclose(p2.weight[rows], 1 / depth_m, rtol=1e-4)
+    dw = pose2sim_triangulate(calib, names, dense, weight) * 1000 - p3.xyz_mm
+    dw = np.linalg.norm(dw, axis=1)
+    assert np.percentile(dw, 99) < np.percentile(d, 99) and dw.max() < 0.1, dw.max()
 
 
 def test_pose2sim_names_map_onto_session_cameras_on_import(original: Path, tmp_path: Path):

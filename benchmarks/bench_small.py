@@ -1,0 +1,100 @@
+"""A small session: ``python -m kisscal run`` on the default synthetic KISS session against
+decoding its images, both timed in the same run (issue 28: within 2x on all cores).
+
+The session is ``kisscal synth`` with its defaults (the KISS preset, seed 1: 6 cameras of
+752 x 291 px, trials walk01, stick, throw and the replayed walk5, about 4000 PNG files),
+synthesised once into a cache folder (a few minutes) and reused. What a session of that
+size costs beyond its images is start-up: processes, the calibration exports, figures and
+the report, which every session pays whatever its length.
+
+Reference: reading and decoding every image the run reads (``cv2.imread``, as kisscal's
+reader) in a process pool on all cores, after a pass that brings the files into the page
+cache. ``python -m kisscal run`` then runs in a child process from scratch (``out/``
+removed): interpreter start-up and imports count, as they do for a user. Its stage
+timings come from its ``summary.json``.
+
+Both are also given as processor time (user + system, the process and its children): on a
+machine shared with other work the wall-clock ratio moves with the load, the processor
+time much less.
+
+Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
+``~/.cache/kisscal/bench-small``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from benchmarks._harness import Timing, report
+from benchmarks.bench_pipeline import _decode, _decode_all
+
+#: Issue 28's bar: the run within this many times the decode time.
+BAR = 2.0
+
+
+def _synthesised(folder: Path) -> Path:
+    """The cached default synthetic session, made on the first call."""
+    root = folder / "kiss-seed1"
+    if (root / "session.toml").is_file():
+        return root
+    from kisscal.session.synth import synthesise
+
+    print(f"synthesising {root} (once; a few minutes)", flush=True)
+    shutil.rmtree(root, ignore_errors=True)
+    synthesise(root)
+    return root
+
+
+def _children_cpu_s() -> float:
+    """Processor time (user + system) of the finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run(root: Path, n_images: int) -> tuple[Timing, dict]:
+    """``python -m kisscal run root`` from scratch in a child process."""
+    shutil.rmtree(root / "out", ignore_errors=True)
+    t0 = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-m", "kisscal", "run", str(root)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise RuntimeError(f"kisscal run {root} failed:\n{done.stderr[-2000:]}")
+    summary = json.loads((root / "out" / "summary.json").read_text())
+    return Timing("python -m kisscal run", seconds, n_images, "images"), summary
+
+
+def main() -> list[str]:
+    default = Path.home() / ".cache" / "kisscal" / "bench-small"
+    root = _synthesised(Path(os.environ.get("KISSCAL_BENCH_SMALL", default)))
+    images = sorted(
+        p for p in root.rglob("*.png") if p.relative_to(root).parts[0] in ("grid", "rods", "trials")
+    )
+    cores = os.cpu_count() or 1
+    _decode(images)  # the files into the page cache, as the run finds them
+    cpu0 = _children_cpu_s()
+    decode = _decode_all(images, cores)
+    cpu1 = _children_cpu_s()
+    run, summary = _run(root, len(images))
+    cpu2 = _children_cpu_s()
+    cpu_decode, cpu_run = cpu1 - cpu0, cpu2 - cpu1
+    stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in summary["timings"].items())
+    return [
+        f"default synthetic KISS session: {len(images)} images; {cores} cores",
+        "  " + report(decode),
+        "  " + report(run, decode) + f" (bar: {BAR:g}x)",
+        f"  processor time: decode {cpu_decode:.1f} s, run {cpu_run:.1f} s, "
+        f"ratio {cpu_run / cpu_decode:.2f}x",
+        f"  stages (s): {stages}",
+    ]
