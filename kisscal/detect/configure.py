@@ -69,7 +69,8 @@ from numpy.typing import NDArray
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
-from kisscal.detect.population import marker_population
+from kisscal.detect.polarity import frames_polarity
+from kisscal.detect.population import largest_size, marker_population, odd_size
 from kisscal.detect.shape import spreads
 from kisscal.detect.survey import (
     GreyLevels,
@@ -96,6 +97,7 @@ DERIVED = (
     "min_pixels",
     "centroid_margin_x_px",
     "centroid_margin_y_px",
+    "centroid_highpass_px",
 )
 
 #: Fraction of the faint markers' contrast at which the threshold sits.
@@ -108,6 +110,8 @@ ODD_SHAPES_MAX = 0.3
 OVERSIZE_GAP = 1.5
 #: Headroom of the upper size limit over the largest marker seen (area).
 SIZE_HEADROOM = 2.0
+#: Side of the band-pass centroid's mean, in largest-marker widths.
+HIGHPASS_SIDE = 0.9
 
 
 @dataclass(frozen=True)
@@ -157,8 +161,9 @@ class DetectionSetup:
             else f"{p.threshold:.0f} (grey level; background {self.levels.background:.0f}"
         )
         limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
+        spots = "dark spots, inverted" if p.polarity == "dark" else f"{p.polarity} spots"
         text = (
-            f"{self.kind}: threshold {level}, noise {self.levels.noise:.1f}), "
+            f"{self.kind} ({spots}): threshold {level}, noise {self.levels.noise:.1f}), "
             f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
             f"{self.marker_pixels[1]} px, oversize above {limit} px"
         )
@@ -194,13 +199,15 @@ def configure_detection(
     -------
     DetectionSetup
     """
-    given = dict(given or {})
+    given = {k: v for k, v in (given or {}).items() if (k, v) != ("polarity", "auto")}
     base = DetectionParams.from_layers(given)  # unknown names and bad values: one-line errors
     frames = [check_image(im) for im in images]
     if not frames:
         raise InputError("detect: no images to derive the detection settings from")
+    polarity = frames_polarity(frames, base.polarity)  # dark dots on white: inverted
+    frames = polarity[2]
     if any(f.dtype == np.bool_ for f in frames):
-        return _thresholded(base, given, kind, len(frames))
+        return _thresholded(base.replace(polarity=polarity[0]), given, kind, len(frames))
     raw_max = [float(np.max(im)) for im in images]
     shape = frames[0].shape
     survey_tile = max(32, min(shape) // 8)
@@ -209,7 +216,9 @@ def configure_detection(
     ]
     levels = grey_levels(frames, raw_max, survey_tile, max(wide, default=256))
     known = None if pixel_aspect is None else (float(pixel_aspect), aspect_why)
-    return _Derivation(frames, given, kind, levels, known).run()
+    derivation = _Derivation(frames, given, kind, levels, known)
+    derivation.choose("polarity", *polarity[:2])
+    return derivation.run()
 
 
 def _thresholded(
@@ -218,7 +227,7 @@ def _thresholded(
     levels = GreyLevels(0.0, 0.0, 0.0, 1.0, 1)
     choices = {
         k: Choice(getattr(params, k), "given" if k in given else "default", "thresholded images")
-        for k in DERIVED
+        for k in ("polarity", *DERIVED)
     }
     return DetectionSetup(params, choices, kind, n, levels, notes=("images are binary",))
 
@@ -242,6 +251,7 @@ class _Derivation:
         self.choices: dict[str, Choice] = {}
         self.notes: list[str] = []
         self.values: dict[str, Any] = {}
+        self.marker_width = 0.0  # of the largest markers at the survey's probe level (px)
 
     def choose(self, name: str, value: Any, why: str) -> Any:
         """Record a derived value unless the user gave one; return what holds."""
@@ -260,6 +270,7 @@ class _Derivation:
         if len(first) == 0:
             return self._nothing_bright(probe)
         markers0, _ = marker_population(first)
+        self.marker_width = largest_size(first.width[markers0]) if markers0.any() else 0.0
         self._threshold(first.take(markers0))
         final = self._final_groups()
         markers, top = marker_population(final)
@@ -394,7 +405,7 @@ class _Derivation:
         # single markers (isolated, filled): touching pairs are split before the limits;
         # markers are round, so their extent follows from their area and the pixel aspect
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
-        pixels = _largest((single if len(single) >= 5 else m).pixels)
+        pixels = largest_size((single if len(single) >= 5 else m).pixels)
         if top is not None:  # the objects' crowd reaches further than most singles
             pixels = max(pixels, min(top, float(m.pixels.max())))
         aspect = float(self._partial_params().pixel_aspect)
@@ -429,8 +440,8 @@ class _Derivation:
             self.choose(name, int(max(limit, math.ceil(size[key]) + 1)), why)
 
     def _detach_kernel(self, size: dict[str, float], big: Groups) -> None:
-        kw = _odd(1.2 * size["width"] + 1)
-        kh = _odd(1.2 * size["height"] + 1)
+        kw = odd_size(1.2 * size["width"] + 1)
+        kh = odd_size(1.2 * size["height"] + 1)
         fits = not len(big) or (kw < big.width.min() and kh < big.height.min())
         self.choose(
             "detach_kernel_px",
@@ -441,8 +452,13 @@ class _Derivation:
         )
 
     def _margins(self) -> None:
-        """Centroid margins from the rims of the markers (not of LED rings and their flare)."""
+        """Centroid margins from the markers' rims (not LED rings' flare); on uneven
+        backgrounds (halos, ghosts, glow) a band-pass centroid about a marker wide."""
         p = self._partial_params()
+        local = p.background_tile_px > 0 and self.marker_width > 0
+        side = odd_size(HIGHPASS_SIDE * self.marker_width) if local else 0
+        why = "uneven background: band-pass of 0.9 largest marker widths" if local else ""
+        self.choose("centroid_highpass_px", side, why or "even background: plain weights")
         reach = []
         for image in self.frames:
             white, background = threshold_image(image, p)
@@ -457,13 +473,3 @@ class _Derivation:
     def _rim_floor(self) -> float:
         # a ring fainter than twice the noise adds more noise to a centroid than light
         return max(2.0 * self.levels.noise, 0.5 * self.levels.unit)
-
-
-def _largest(values: NDArray) -> float:
-    """The size of the largest markers: the 99th percentile (a few merged pairs aside)."""
-    return float(np.percentile(values, 99)) if len(values) >= 50 else float(np.max(values))
-
-
-def _odd(value: float) -> int:
-    n = max(math.ceil(value), 3)
-    return n if n % 2 else n + 1

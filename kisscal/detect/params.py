@@ -8,6 +8,8 @@ can be given in ``session.toml`` ``[detection]``.
 
 References
 ----------
+Crocker, J. C., & Grier, D. G. (1996). Methods of digital video microscopy for colloidal
+studies. Journal of Colloid and Interface Science, 179(1), 298-310.
 Shafiq, M. S., Tümer, S. T., & Güler, H. C. (2001). Marker detection and trajectory
 generation algorithms for a multicamera based gait analysis system. Mechatronics, 11(4),
 409-437.
@@ -27,6 +29,13 @@ class DetectionParams(Params):
 
     Attributes
     ----------
+    polarity : {"auto", "bright", "dark"}
+        Which way round the objects are: "bright" spots on a darker surround (IR markers,
+        lit particles, back-lit targets) or "dark" spots on a bright background (black
+        dots printed on a white plate), which are inverted before everything else, so
+        that every grey-level setting below reads the inverted image. "auto" decides per
+        image from its grey levels (:mod:`kisscal.detect.polarity`); the derived settings
+        of a camera hold the decision.
     threshold : float
         Grey level (8-bit scale: 16-bit images are read on it) at or above which a pixel is
         white; with ``background_tile_px`` > 0, the grey levels a pixel must stand above its
@@ -164,6 +173,14 @@ class DetectionParams(Params):
     centroid_margin_x_px, centroid_margin_y_px : int
         The weighted centroid sums over the group's bounding rectangle grown by these many
         pixels, so the blurred rim below the threshold is included.
+    centroid_highpass_px : int
+        0: the weighted centroid weighs ``I - background``. Otherwise it weighs how far each
+        pixel stands above the mean grey level of the square of this side around it (zero
+        where below), as particle trackers' band-pass centroids do (Crocker & Grier 1996):
+        a dim halo, a reflected ghost crescent or a glow wider than the spot then adds
+        little weight and the centroid stays on the spot's bright core. Derived with the
+        size limits for uneven (locally thresholded) backgrounds, about 1.5 marker
+        diameters.
     background : float or None
         Background grey level subtracted before weighting (global background only);
         ``None`` estimates it per image as the median of a sparse pixel sample.
@@ -171,6 +188,7 @@ class DetectionParams(Params):
 
     section: ClassVar[str] = "detection"
 
+    polarity: str = param("auto", choices=("auto", "bright", "dark"))
     threshold: float = param(40.0, unit="grey levels", ge=0)
     background_tile_px: int = param(0, unit="px", ge=0)
     noise_factor: float = param(5.0, ge=0)
@@ -215,6 +233,7 @@ class DetectionParams(Params):
     weighted_centroid: bool = param(True)
     centroid_margin_x_px: int = param(3, unit="px", ge=0)
     centroid_margin_y_px: int = param(3, unit="px", ge=0)
+    centroid_highpass_px: int = param(0, unit="px", ge=0)
     background: float | None = param(None, unit="grey levels")
 
     def without_advanced_analysis(self) -> DetectionParams:

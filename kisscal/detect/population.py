@@ -6,6 +6,8 @@ from the noise specks below them, nor from LED rings, reflections and streaks ab
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -69,3 +71,14 @@ def objects_top(groups: Groups, compact: NDArray[np.bool_]) -> float:
     steps = order[mid + 1 :] / order[mid:-1]
     jumps = np.flatnonzero(steps >= SIZE_GAP)
     return float(order[mid + jumps[0]] if jumps.size else order[-1])
+
+
+def largest_size(values: NDArray) -> float:
+    """The size of the largest markers: the 99th percentile (a few merged pairs aside)."""
+    return float(np.percentile(values, 99)) if len(values) >= 50 else float(np.max(values))
+
+
+def odd_size(value: float) -> int:
+    """The odd number of pixels (at least 3) at or above ``value``: a kernel's side."""
+    n = max(math.ceil(value), 3)
+    return n if n % 2 else n + 1

@@ -47,7 +47,7 @@ MAX_FRAMES = 24
 #: A lattice aspect this close to 1 is square pixels (a grid 14 degrees off face-on).
 LATTICE_SQUARE_TOLERANCE = 0.03
 #: Bumped whenever the derivation changes, so cached settings are derived again.
-DERIVATION_VERSION = 3
+DERIVATION_VERSION = 4
 
 
 @dataclasses.dataclass(frozen=True)
