@@ -208,9 +208,20 @@ class Live:
             # from its prediction to Shafiq's five-point parabola through the track's last
             # positions measures that lag, and widens the gate.
             half_kalman += np.abs(parabola - position)
+        if params.gate_error_factor:
+            half_kalman += self._error_widening(state[..., 1])
         step = np.abs(parabola - self.history[:, -1])
         half_initial = np.maximum(params.initial_gate_factor * step, setup.floor[self.n])
         return pred, np.where(kal, half_kalman, half_initial)
+
+    def _error_widening(self, velocity: NDArray) -> NDArray:
+        """How much each row's gate widens (T, 1) for its recent prediction errors:
+        ``gate_error_factor`` times the RMS running error of the better prediction (the one
+        in use), at most the row's step per field (its filter's speed), so that a slow noisy
+        marker's gate does not grow over its neighbours (NaN for rows without a filter)."""
+        rms = np.sqrt(self.errors.min(axis=1))
+        speed = np.sqrt(np.einsum("tc,tc->t", velocity, velocity))
+        return np.minimum(self.setup.params.gate_error_factor * rms, speed)[:, None]
 
     def _gate(
         self, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
