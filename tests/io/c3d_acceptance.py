@@ -124,12 +124,16 @@ class Retrack:
     seconds: float
 
 
-def retrack(xyz: np.ndarray, rate_hz: float, seed: int = 0) -> Retrack:
-    """Track a file's markers from shuffled anonymous points; count identity switches
-    (changes of true channel along each trajectory's measured samples) and coverage."""
+def retrack(
+    xyz: np.ndarray, rate_hz: float, seed: int = 0, params: TrackingParams | None = None
+) -> Retrack:
+    """Track a file's markers from shuffled anonymous points (default parameters unless
+    ``params``); count identity switches (changes of true channel along each trajectory's
+    measured samples) and coverage."""
     field, points, channel = shuffled(xyz, seed)
+    params = reconstructed_points(params or TrackingParams())
     t0 = time.perf_counter()
-    res = build_trajectories(field, points, reconstructed_points(TrackingParams()), rate_hz=rate_hz)
+    res = build_trajectories(field, points, params, rate_hz=rate_hz)
     dt = time.perf_counter() - t0
     tr = res.tracks
     ident = true_channel(tr, field, points, channel)
