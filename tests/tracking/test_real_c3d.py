@@ -37,6 +37,20 @@ def test_the_measure_sees_a_switch():
     swapped[45:, [0, 1]] = swapped[45:, [1, 0]]  # channels exchange their markers
     r = retrack(swapped, c3d.rate_hz)
     assert r.switches >= 2
+    assert r.relabels == 0  # both channels go on: not the file renaming one marker
+
+
+def test_a_marker_the_file_renames_is_a_switch_the_file_makes():
+    """A marker whose samples move from one channel to a new one half-way (as OptiTrack
+    relabels a static marker): the trajectory follows the marker, one switch, and it is
+    the file's own (``relabels``)."""
+    c3d = read_c3d(FIXTURES / "pc_real.c3d")
+    xyz = distinct(c3d.xyz_mm)
+    renamed = np.concatenate([xyz, np.full_like(xyz[:, :1], np.nan)], axis=1)
+    renamed[45:, -1] = renamed[45:, 0]
+    renamed[45:, 0] = np.nan
+    r = retrack(renamed, c3d.rate_hz)
+    assert (r.switches, r.relabels, r.coverage) == (1, 1, 1.0)
 
 
 @pytest.mark.slow
