@@ -265,15 +265,23 @@ class Live:
                 continue
             r, c = inside[rows][:, free].nonzero()
             if not _one_to_one(r, c):
-                extra = None
+                extra, weight = None, 1.0
                 if tier is single:
+                    # A one-point track has no velocity: how far the candidate lies says
+                    # little (a fast foot moves more than a slow marker's neighbour is
+                    # away); whether the pair continues says much.
                     extra = lookahead_cost(
                         pred[rows], points[free], later, 0.5 * params.initial_gate_mm
                     )
-                # A one-point track has no velocity: how far the candidate lies says little
-                # (a fast foot moves more than a slow marker's neighbour is away); whether
-                # the pair continues says much.
-                weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
+                    weight = _SINGLE_STEP_WEIGHT
+                elif tier is kal:
+                    # Markers of one fast limb share their prediction error, and a track
+                    # whose own point is missing can take a neighbour's: whether the track
+                    # goes on through the candidate into the next field tells them apart
+                    # (weighed lightly: a slow marker's neighbour continues almost as well).
+                    extra = lookahead_cost(
+                        self.history[rows, -1], points[free], later, 2.0 * params.initial_gate_mm
+                    )
                 r, c = associate(pred[rows], half[rows], points[free], extra, weight)
             out_rows.append(rows[r])
             out_cols.append(free[c])

@@ -56,13 +56,13 @@ def test_a_marker_the_file_renames_is_a_switch_the_file_makes():
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "most"),
-    [("kinematics_tennis_serve.c3d", 15), ("kinematics_racing_propulsion.c3d", 25)],
+    [("kinematics_tennis_serve.c3d", 12), ("kinematics_racing_propulsion.c3d", 20)],
 )
 def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, most):
     """A serve's hand at 50 Hz (to 13 m/s) and a push-rim stroke's glove triads at 70 Hz
     (41 mm apart, accelerating by more than that per field): the gates widened by each
     track's own recent prediction errors keep far more identities than without (measured
-    12 and 21 switches against 66 and 122). The files are in the C3D cache folder
+    10 and 17 switches against 63 and 114). The files are in the C3D cache folder
     ($KISSCAL_C3D_CACHE), not committed."""
     path = find(name, cache_folder())
     if path is None:
