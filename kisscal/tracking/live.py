@@ -265,13 +265,16 @@ class Live:
                 continue
             r, c = inside[rows][:, free].nonzero()
             if not _one_to_one(r, c):
+                # Only rows and points in some gate can pair: the costs are for those.
+                rr, cc = np.unique(r), np.unique(c)
+                sub_rows, sub_pts = rows[rr], points[free[cc]]
                 extra, weight = None, 1.0
                 if tier is single:
                     # A one-point track has no velocity: how far the candidate lies says
                     # little (a fast foot moves more than a slow marker's neighbour is
                     # away); whether the pair continues says much.
                     extra = lookahead_cost(
-                        pred[rows], points[free], later, 0.5 * params.initial_gate_mm
+                        pred[sub_rows], sub_pts, later, 0.5 * params.initial_gate_mm
                     )
                     weight = _SINGLE_STEP_WEIGHT
                 elif tier is kal:
@@ -280,9 +283,10 @@ class Live:
                     # goes on through the candidate into the next field tells them apart
                     # (weighed lightly: a slow marker's neighbour continues almost as well).
                     extra = lookahead_cost(
-                        self.history[rows, -1], points[free], later, 2.0 * params.initial_gate_mm
+                        self.history[sub_rows, -1], sub_pts, later, 2.0 * params.initial_gate_mm
                     )
-                r, c = associate(pred[rows], half[rows], points[free], extra, weight)
+                r, c = associate(pred[sub_rows], half[sub_rows], sub_pts, extra, weight)
+                r, c = rr[r], cc[c]
             out_rows.append(rows[r])
             out_cols.append(free[c])
             taken[free[c]] = True
