@@ -5,10 +5,13 @@ mask word, the header's scale).
 Reading keeps markers only: the POINT channels a file declares as model outputs
 (``POINT:ANGLES``, ``FORCES``, ``MOMENTS``, ``POWERS``, ``SCALARS``, ``REACTIONS``,
 ``MODELED_MARKERS``, their ``*2``, ``*3`` ... extensions and any group ``POINT:TYPE_GROUPS``
-names) are left out and listed. Labels continue in ``POINT:LABELS2``, ``LABELS3`` ... when a
-file has more than 255 points. Every frame of the file is kept, empty ones included, with
-the file's own number of the first frame. Intel and DEC files are read with ezc3d; SGI/MIPS
-files, which ezc3d does not read, with the ``c3d`` package.
+names) are left out and listed, and so are the segment axes Plug-in Gait writes as
+ordinary points (four points per segment named after it, origin ``O``, anterior ``A``,
+lateral ``L``, proximal ``P``: ``PELO``, ``PELA``, ``PELL``, ``PELP``). Labels continue in
+``POINT:LABELS2``, ``LABELS3`` ... when a file has more than 255 points. Every frame of the
+file is kept, empty ones included, with the file's own number of the first frame. Intel and
+DEC files are read with ezc3d; SGI/MIPS files, which ezc3d does not read, with the ``c3d``
+package.
 """
 
 from __future__ import annotations
@@ -111,6 +114,8 @@ def read_c3d(path: Path) -> C3DPoints:
     SCALE), the TRIAL group (ACTUAL_START_FIELD) and the processor types.
     Motion Lab Systems (2008). The C3D file format, a technical user guide (model outputs
     stored as points: ANGLES, FORCES, MOMENTS, POWERS).
+    Vicon Motion Systems (2016). Plug-in Gait reference guide (the segments' axis points
+    written as points: origin, anterior, lateral, proximal).
     """
     path = Path(path)
     if not path.is_file():
@@ -222,6 +227,25 @@ def _model_outputs(params: dict[tuple[str, str], list]) -> set[str]:
     return names
 
 
+#: The suffixes of a segment's axis points as Plug-in Gait writes them: origin, anterior,
+#: lateral and proximal point of the segment (Vicon Motion Systems 2016).
+SEGMENT_AXES = ("O", "A", "L", "P")
+
+
+def _segment_axes(labels: list[str]) -> set[str]:
+    """Labels that are a segment's axis points: all four of ``<segment>O``, ``A``, ``L``,
+    ``P`` present (subject prefix ``Name:`` aside), the segment named by two letters or
+    more. Plug-in Gait stores them as plain points in no model-output group; they move
+    with their segment like markers, and crowd a marker set's template (a walking trial
+    holds 36 of them beside 18 markers)."""
+    bare = {lab: lab.rsplit(":", 1)[-1].strip().upper() for lab in labels}
+    names = set(bare.values())
+    segments = {
+        b[:-1] for b in names if len(b) >= 3 and all(b[:-1] + s in names for s in SEGMENT_AXES)
+    }
+    return {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+
+
 def _first_frame(params: dict[tuple[str, str], list], header_first: int) -> int:
     """TRIAL:ACTUAL_START_FIELD (two 16-bit words, low first: frames past 65535) when the
     file has it, else the header's first frame."""
@@ -247,7 +271,7 @@ def _markers(
     scale = _UNITS_MM.get(units)
     if scale is None:
         raise InputError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
-    outputs = _model_outputs(params)
+    outputs = _model_outputs(params) | _segment_axes(labels)
     keep = np.array([lab not in outputs for lab in labels], dtype=bool)
     xyz = np.where((residual < 0)[..., None], np.nan, xyz.astype(float) * scale)
     company = " ".join(

@@ -196,6 +196,6 @@ def c3d_trial_points(
         shown = ", ".join(c3d.excluded[:12]) + (" ..." if len(c3d.excluded) > 12 else "")
         echo(
             f"  reconstruct {trial.name}: left out {len(c3d.excluded)} model outputs "
-            f"(POINT:ANGLES, FORCES, MOMENTS, POWERS ...): {shown}"
+            f"(POINT:ANGLES, FORCES, MOMENTS, POWERS ..., segment axes): {shown}"
         )
     return store.points3d(trial.name)

@@ -208,9 +208,20 @@ class Live:
             # from its prediction to Shafiq's five-point parabola through the track's last
             # positions measures that lag, and widens the gate.
             half_kalman += np.abs(parabola - position)
+        if params.gate_error_factor:
+            half_kalman += self._error_widening(state[..., 1])
         step = np.abs(parabola - self.history[:, -1])
         half_initial = np.maximum(params.initial_gate_factor * step, setup.floor[self.n])
         return pred, np.where(kal, half_kalman, half_initial)
+
+    def _error_widening(self, velocity: NDArray) -> NDArray:
+        """How much each row's gate widens (T, 1) for its recent prediction errors:
+        ``gate_error_factor`` times the RMS running error of the better prediction (the one
+        in use), at most the row's step per field (its filter's speed), so that a slow noisy
+        marker's gate does not grow over its neighbours (NaN for rows without a filter)."""
+        rms = np.sqrt(self.errors.min(axis=1))
+        speed = np.sqrt(np.einsum("tc,tc->t", velocity, velocity))
+        return np.minimum(self.setup.params.gate_error_factor * rms, speed)[:, None]
 
     def _gate(
         self, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
@@ -254,16 +265,28 @@ class Live:
                 continue
             r, c = inside[rows][:, free].nonzero()
             if not _one_to_one(r, c):
-                extra = None
+                # Only rows and points in some gate can pair: the costs are for those.
+                rr, cc = np.unique(r), np.unique(c)
+                sub_rows, sub_pts = rows[rr], points[free[cc]]
+                extra, weight = None, 1.0
                 if tier is single:
+                    # A one-point track has no velocity: how far the candidate lies says
+                    # little (a fast foot moves more than a slow marker's neighbour is
+                    # away); whether the pair continues says much.
                     extra = lookahead_cost(
-                        pred[rows], points[free], later, 0.5 * params.initial_gate_mm
+                        pred[sub_rows], sub_pts, later, 0.5 * params.initial_gate_mm
                     )
-                # A one-point track has no velocity: how far the candidate lies says little
-                # (a fast foot moves more than a slow marker's neighbour is away); whether
-                # the pair continues says much.
-                weight = _SINGLE_STEP_WEIGHT if extra is not None else 1.0
-                r, c = associate(pred[rows], half[rows], points[free], extra, weight)
+                    weight = _SINGLE_STEP_WEIGHT
+                elif tier is kal:
+                    # Markers of one fast limb share their prediction error, and a track
+                    # whose own point is missing can take a neighbour's: whether the track
+                    # goes on through the candidate into the next field tells them apart
+                    # (weighed lightly: a slow marker's neighbour continues almost as well).
+                    extra = lookahead_cost(
+                        self.history[sub_rows, -1], sub_pts, later, 2.0 * params.initial_gate_mm
+                    )
+                r, c = associate(pred[sub_rows], half[sub_rows], sub_pts, extra, weight)
+                r, c = rr[r], cc[c]
             out_rows.append(rows[r])
             out_cols.append(free[c])
             taken[free[c]] = True

@@ -41,6 +41,12 @@ class TrackingParams(Params):
         Widen each Kalman gate per axis by the distance between the filter's prediction and
         Shafiq's five-point parabola through the track's last positions, so that filters
         with little process noise (which lag accelerating markers) keep their tracks.
+    gate_error_factor : float
+        Widen each Kalman gate per axis by this many times the RMS of the track's own recent
+        prediction errors (the running error of the prediction in use), at most by the
+        track's step per field: a fast limb's acceleration changes within a few fields, and
+        markers on it can be closer than its prediction misses them by (a serve at 50 Hz,
+        a push-rim stroke at 70 Hz). 0 turns it off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
@@ -164,6 +170,7 @@ class TrackingParams(Params):
     )
     coast_accel_mm_per_field2: float = param(5.0, unit="mm/field²", ge=0)
     lag_widening: bool = param(True)
+    gate_error_factor: float = param(2.0, ge=0)
     initial_gate_mm: float = param(120.0, unit="mm", gt=0)
     initial_gate_factor: float = param(0.6, gt=0)
     min_initial_length: int = param(5, ge=2)

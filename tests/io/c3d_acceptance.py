@@ -9,8 +9,9 @@ files) is read with :func:`kisscal.io.c3d.read_c3d` (markers only) and:
 - re-tracked from shuffled anonymous points: every frame's valid samples in random order,
   no labels, tracked with default parameters; a sample's true marker is the channel it
   came from (exact coordinates). Reported: identity switches (a change of true marker
-  along one trajectory), coverage (the file's valid samples that come out as measured
-  samples of a trajectory), trajectories;
+  along one trajectory), of them those where the file itself renames the marker
+  (``relabel``: see :func:`file_relabels`), coverage (the file's valid samples that come
+  out as measured samples of a trajectory), trajectories;
 - when the file's markers belong to a shipped marker set (``SET`` below), labelled from
   the set alone as the system wrote them (every channel, in the file's order, labels
   dropped): names right / named / markers of the set in the file, and names forced on
@@ -120,27 +121,58 @@ class Retrack:
     valid: int
     trajectories: int
     switches: int
+    relabels: int
     coverage: float
     seconds: float
 
 
-def retrack(xyz: np.ndarray, rate_hz: float, seed: int = 0) -> Retrack:
-    """Track a file's markers from shuffled anonymous points; count identity switches
-    (changes of true channel along each trajectory's measured samples) and coverage."""
+def file_relabels(
+    xyz: np.ndarray, before: np.ndarray, after: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> int:
+    """How many switches from channel ``a`` (field ``before``) to ``b`` (field ``after``)
+    the file makes itself: ``a`` has no sample at ``after`` (the file stops naming the
+    marker ``a``) and ``b`` either has none at ``before`` or its own sample there is
+    farther from its sample at ``after`` than ``a``'s is (the name ``b`` jumps onto the
+    marker). A tracker that follows the marker must count these switches."""
+    gone = ~np.isfinite(xyz[after, a, 0])
+    own = np.linalg.norm(xyz[after, b] - xyz[before, b], axis=1)
+    cross = np.linalg.norm(xyz[after, b] - xyz[before, a], axis=1)
+    taken = ~np.isfinite(own) | (own > cross)
+    return int(np.sum(gone & taken))
+
+
+def retrack(
+    xyz: np.ndarray, rate_hz: float, seed: int = 0, params: TrackingParams | None = None
+) -> Retrack:
+    """Track a file's markers from shuffled anonymous points (default parameters unless
+    ``params``); count identity switches (changes of true channel along each trajectory's
+    measured samples) and coverage."""
     field, points, channel = shuffled(xyz, seed)
+    params = reconstructed_points(params or TrackingParams())
     t0 = time.perf_counter()
-    res = build_trajectories(field, points, reconstructed_points(TrackingParams()), rate_hz=rate_hz)
+    res = build_trajectories(field, points, params, rate_hz=rate_hz)
     dt = time.perf_counter() - t0
     tr = res.tracks
     ident = true_channel(tr, field, points, channel)
-    switches = 0
+    switches = relabels = 0
+    clean = distinct(xyz)
     for t in range(tr.n_tracks):
         rows = np.flatnonzero((tr.track == t) & (tr.status == MEASURED))
-        ids = ident[rows[np.argsort(tr.field[rows])]]
-        switches += int(np.sum(ids[1:] != ids[:-1]))
+        rows = rows[np.argsort(tr.field[rows])]
+        ids, fields = ident[rows], tr.field[rows]
+        at = np.flatnonzero(ids[1:] != ids[:-1])
+        switches += at.size
+        relabels += file_relabels(clean, fields[at], fields[at + 1], ids[at], ids[at + 1])
     held = len(np.unique(np.stack([tr.field, ident])[:, ident >= 0], axis=1).T)
     return Retrack(
-        xyz.shape[1], xyz.shape[0], len(field), tr.n_tracks, switches, held / max(len(field), 1), dt
+        xyz.shape[1],
+        xyz.shape[0],
+        len(field),
+        tr.n_tracks,
+        switches,
+        relabels,
+        held / max(len(field), 1),
+        dt,
     )
 
 
@@ -228,7 +260,7 @@ def labels_report(cache: Path) -> list[str]:
 def report(cache: Path) -> list[str]:
     lines = [
         f"{'file':34} {'system':44} {'mk':>3} {'frames':>6} {'valid':>6} {'traj':>4} "
-        f"{'switch':>6} {'cover %':>7} {'s':>5}"
+        f"{'switch':>6} {'relabel':>7} {'cover %':>7} {'s':>5}"
     ]
     for item in FILES:
         path = find(item.name, cache)
@@ -239,7 +271,8 @@ def report(cache: Path) -> list[str]:
         r = retrack(c3d.xyz_mm, c3d.rate_hz)
         lines.append(
             f"{item.name:34} {item.system:44} {r.markers:3d} {r.frames:6d} {r.valid:6d} "
-            f"{r.trajectories:4d} {r.switches:6d} {100 * r.coverage:7.2f} {r.seconds:5.1f}"
+            f"{r.trajectories:4d} {r.switches:6d} {r.relabels:7d} {100 * r.coverage:7.2f} "
+            f"{r.seconds:5.1f}"
         )
     return lines
 

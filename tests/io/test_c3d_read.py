@@ -76,6 +76,23 @@ def test_declared_model_outputs_are_left_out_and_named(tmp_path):
     np.testing.assert_allclose(c.xyz_mm, xyz[:, [0, 2]], atol=1e-3)
 
 
+def test_plug_in_gait_segment_axes_are_left_out_and_named(tmp_path):
+    """Plug-in Gait writes each segment's origin, anterior, lateral and proximal point as
+    plain points (no model-output group): all four of a segment go, a label that only
+    looks like one (three of the four, or a marker named like an axis) stays."""
+    labels = (
+        "Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP",  # pelvis axes
+        "Sub:LASI", "Sub:RASI",
+        "Sub:LTOO", "Sub:LTOA", "Sub:LTOL",  # three of four: kept
+        "Sub:STRN", "Sub:CLAV",
+    )  # fmt: skip
+    xyz = np.random.default_rng(2).uniform(-500, 500, (4, len(labels), 3))
+    c = read_c3d(write(tmp_path / "axes.c3d", labels, xyz))
+    assert set(c.excluded) == {"Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP"}
+    assert c.labels == labels[4:]
+    np.testing.assert_allclose(c.xyz_mm, xyz[:, 4:], atol=1e-3)
+
+
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
     xyz = np.random.default_rng(1).uniform(-1, 1, (3, 4, 3))
     path = write(tmp_path / "l.c3d", ("A", "B"), xyz, units="m", LABELS2=["C", "D"])

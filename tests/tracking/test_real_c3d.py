@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from kisscal.io.c3d import read_c3d
-from tests.io.c3d_acceptance import FIXTURES, distinct, retrack, shuffled
+from kisscal.tracking import TrackingParams
+from tests.io.c3d_acceptance import FIXTURES, cache_folder, distinct, find, retrack, shuffled
 
 
 @pytest.mark.parametrize("name", ["pc_real.c3d", "sgi_int.c3d"])
@@ -36,3 +37,39 @@ def test_the_measure_sees_a_switch():
     swapped[45:, [0, 1]] = swapped[45:, [1, 0]]  # channels exchange their markers
     r = retrack(swapped, c3d.rate_hz)
     assert r.switches >= 2
+    assert r.relabels == 0  # both channels go on: not the file renaming one marker
+
+
+def test_a_marker_the_file_renames_is_a_switch_the_file_makes():
+    """A marker whose samples move from one channel to a new one half-way (as OptiTrack
+    relabels a static marker): the trajectory follows the marker, one switch, and it is
+    the file's own (``relabels``)."""
+    c3d = read_c3d(FIXTURES / "pc_real.c3d")
+    xyz = distinct(c3d.xyz_mm)
+    renamed = np.concatenate([xyz, np.full_like(xyz[:, :1], np.nan)], axis=1)
+    renamed[45:, -1] = renamed[45:, 0]
+    renamed[45:, 0] = np.nan
+    r = retrack(renamed, c3d.rate_hz)
+    assert (r.switches, r.relabels, r.coverage) == (1, 1, 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "most"),
+    [("kinematics_tennis_serve.c3d", 12), ("kinematics_racing_propulsion.c3d", 20)],
+)
+def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, most):
+    """A serve's hand at 50 Hz (to 13 m/s) and a push-rim stroke's glove triads at 70 Hz
+    (41 mm apart, accelerating by more than that per field): the gates widened by each
+    track's own recent prediction errors keep far more identities than without (measured
+    10 and 17 switches against 63 and 114). The files are in the C3D cache folder
+    ($KISSCAL_C3D_CACHE), not committed."""
+    path = find(name, cache_folder())
+    if path is None:
+        pytest.skip(f"{name} not in the C3D cache folder")
+    c3d = read_c3d(path)
+    widened = retrack(c3d.xyz_mm, c3d.rate_hz)
+    plain = retrack(c3d.xyz_mm, c3d.rate_hz, params=TrackingParams(gate_error_factor=0.0))
+    assert widened.coverage == plain.coverage == 1.0
+    assert widened.switches <= most
+    assert plain.switches > 3 * widened.switches
