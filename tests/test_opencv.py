@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import tomli_w
 
-from kisscal.camera import Camera
+from kisscal.camera import Camera, distort
 from kisscal.errors import KisscalError
 from kisscal.io.cameras_toml import read_cameras_toml, write_cameras_toml
-from kisscal.opencv import camera_from_opencv, opencv_from_camera
+from kisscal.opencv import camera_from_opencv, image_grid, opencv_from_camera
 
 
 def brown_camera(name: str = "c1", k1: float = -0.05, k2: float = 0.0) -> Camera:
@@ -136,3 +136,33 @@ def test_twelve_coefficients_follow_a_grid_polynomial_closer_and_read_back(tmp_p
     K, R, t = back.K, back.R, back.t
     x = (xyz @ R.T + t) @ K.T
     np.testing.assert_allclose(ideal, x[:, :2] / x[:, 2:], atol=1e-6)
+
+
+def test_the_fit_follows_kisscal_closer_where_the_control_points_were():
+    """A bent polynomial no OpenCV model follows everywhere: fitted within the control
+    points' extent (the centre of the image), OpenCV's camera lands closer to kisscal's
+    there than the fit over the whole image, and farther beyond it."""
+    cv = brown_camera(k1=-0.1, k2=0.02)
+    L, lin, _ = camera_from_opencv(cv)
+    rng = np.random.default_rng(5)
+    bent = lin.__class__(
+        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
+    )
+    cam = Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    used = rng.uniform((320, 256), (960, 768), (40, 2))
+    whole = opencv_from_camera(cam)
+    there = opencv_from_camera(cam, used_px=used)
+    uv = image_grid(cam.size_px)
+    inside = np.all((uv >= used.min(axis=0)) & (uv <= used.max(axis=0)), axis=1)
+    rays = cam.undistort_px(uv)
+
+    def gap(fit) -> np.ndarray:  # px between the two cameras' images of the same rays
+        K, R = fit.camera.K, fit.camera.R
+        back = np.c_[rays, np.ones(len(rays))] @ np.linalg.inv(cam.K).T @ cam.R
+        xn = back @ R.T
+        x = distort(fit.camera.lens, xn[:, :2] / xn[:, 2:])
+        return np.hypot(*((x @ K[:2, :2].T + K[:2, 2]) - uv).T)
+
+    near_whole, near_there = gap(whole)[inside], gap(there)[inside]
+    assert np.sqrt(np.mean(near_there**2)) < 0.7 * np.sqrt(np.mean(near_whole**2))
+    assert gap(there)[~inside].max() > gap(whole)[~inside].max()

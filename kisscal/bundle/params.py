@@ -70,6 +70,12 @@ class BundleParams(Params):
     holdout_fraction : float
         Fraction of wand fields left out of the adjustment for the held-out wand length
         error (0: none).
+    keep_sigmas : float
+        On rods, the wand's calibration is kept only when its held-out wand length
+        errors (squared, field by field) are below those of the rods' calibration on the
+        same fields by at least this many standard errors of their mean difference (and
+        its leave-one-rod-out error is lower): a difference within the noise keeps the
+        rods' calibration.
     control_weight : float
         Weight of a control point's (rod marker's) squared residual against a wand
         observation's. 0: their noise variances' inverse ratio, estimated from the rods'
@@ -103,6 +109,7 @@ class BundleParams(Params):
     length_tol: float = param(0.03, gt=0, lt=1)
     match_tol_mm: float = param(15.0, unit="mm", gt=0)
     holdout_fraction: float = param(0.2, ge=0, lt=1)
+    keep_sigmas: float = param(2.0, ge=0)
     control_weight: float = param(0.0, ge=0)
     control_weight_factors: tuple[float, ...] = param((1.0, 10.0, 100.0))
 

@@ -105,22 +105,60 @@ def camera_figures(cal: WandCalibration, sizes_px: Sequence[tuple[int, int]]) ->
     return CameraFigures(rms, points, cover)
 
 
+def held_out_fields(n_fields: int, params: BundleParams = DEFAULT_PARAMS) -> NDArray[np.bool_]:
+    """The wand fields left out for the held-out length: every ``1 / holdout_fraction``-th
+    (none with ``holdout_fraction`` 0 or fewer than 10 fields)."""
+    if params.holdout_fraction <= 0 or n_fields < 10:
+        return np.zeros(n_fields, dtype=bool)
+    step = max(2, round(1.0 / params.holdout_fraction))
+    return np.arange(n_fields) % step == step // 2
+
+
+def field_lengths(
+    cameras: Sequence[Camera],
+    cal: WandCalibration,
+    fields: NDArray[np.bool_],
+    markers_mm: Sequence[float],
+) -> NDArray[np.float64]:
+    """Wand lengths (mm) of the marked fields of ``cal``'s inlier observations, measured
+    by ``cameras`` (acting on the same coordinates): how another calibration, one that
+    never saw these fields, measures the wand."""
+    obs = cal.observations.subset(cal.result.inlier)
+    test, _, _ = select_fields(obs, cal.result.wand, cal.fields, fields)
+    xyz = wand_markers(cameras, test, int(fields.sum()), len(markers_mm))
+    return end_to_end_mm(xyz, markers_mm)
+
+
 def held_out_lengths(
     cal: WandCalibration, markers_mm: Sequence[float], params: BundleParams = DEFAULT_PARAMS
 ) -> NDArray[np.float64]:
-    """Wand lengths (mm) of every ``1 / holdout_fraction``-th field, measured by cameras
-    adjusted without those fields (started from the final adjustment)."""
-    n_fields = len(cal.fields)
-    if params.holdout_fraction <= 0 or n_fields < 10:
+    """Wand lengths (mm) of the :func:`held_out_fields`, measured by cameras adjusted
+    without those fields (started from the final adjustment)."""
+    held = held_out_fields(len(cal.fields), params)
+    if not held.any():
         return np.zeros(0)
-    step = max(2, round(1.0 / params.holdout_fraction))
-    held = np.arange(n_fields) % step == step // 2
     obs = cal.observations.subset(cal.result.inlier)
     train, wand, _ = select_fields(obs, cal.result.wand, cal.fields, ~held)
     refit = adjust_bundle(cal.cameras, train, markers_mm, wand, cal.control, params, cal.anchor)
-    test, _, _ = select_fields(obs, cal.result.wand, cal.fields, held)
-    xyz = wand_markers(refit.cameras, test, int(held.sum()), len(markers_mm))
-    return end_to_end_mm(xyz, markers_mm)
+    return field_lengths(refit.cameras, cal, held, markers_mm)
+
+
+def paired_length_gain(
+    wand_mm: NDArray[np.float64], other_mm: NDArray[np.float64], nominal_mm: float
+) -> dict[str, float]:
+    """How much lower the wand's squared length errors are than another calibration's on
+    the same fields: their mean difference (mm², negative when the wand's are lower),
+    its standard error and the fields measured by both (a paired comparison: the
+    fields' own noise, common to both, cancels)."""
+    ok = np.isfinite(wand_mm) & np.isfinite(other_mm)
+    d = (wand_mm[ok] - nominal_mm) ** 2 - (other_mm[ok] - nominal_mm) ** 2
+    if len(d) < 2:
+        return {"fields": len(d)}
+    return {
+        "mean_difference_mm2": float(np.mean(d)),
+        "standard_error_mm2": float(np.std(d, ddof=1) / np.sqrt(len(d))),
+        "fields": len(d),
+    }
 
 
 def leave_one_group_out(

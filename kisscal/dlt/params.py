@@ -38,6 +38,11 @@ class DltParams(Params):
         Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
         the fewest before the comparison (the lens model's 5 extra terms must lower the
         held-out error by 10 % to be chosen).
+    linear_margin : float
+        The linear DLT is chosen over the refined one (the same 11 unknowns) only when
+        its held-out error is lower by this fraction: the refinement is the
+        maximum-likelihood fit under pixel noise (Woltring & Huiskes 1990), and a few
+        rods left out cannot tell two fits of the same unknowns apart more finely.
     min_points : int
         Fewest control points accepted per camera (the 11-parameter DLT needs 6).
     min_spread_ratio : float
@@ -101,6 +106,7 @@ class DltParams(Params):
     select_model: bool = param(True)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
+    linear_margin: float = param(0.1, ge=0)
     min_points: int = param(6, ge=6)
     min_spread_ratio: float = param(1e-3, gt=0, lt=1)
     max_iterations: int = param(2000, ge=1)

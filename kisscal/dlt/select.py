@@ -7,10 +7,13 @@ each candidate model is fitted with some control points left out and judged by h
 the rig then reconstructs them (cross-validation, Stone 1974): one rod at a time for the
 rods, or one of ``model_folds`` interleaved subsets of other control points. The model
 whose held-out 3D error is smallest is chosen for every camera, after weighing each
-model's error by ``1 + model_margin`` per unknown beyond the fewest (more terms must earn
-their keep: with four rods, leaving one out leaves 18 points for the 16 unknowns of the
-lens model, and a lens model a few per cent better on the left-out rods can bend the
-volume between the rods several times more than the plain DLT does). Each camera's
+model's error by ``1 + model_margin`` per unknown beyond the fewest, and the linear DLT's
+by ``1 + linear_margin`` against the refined one (the maximum-likelihood fit of the same
+unknowns under pixel noise, which held-out rods cannot tell apart from it more finely),
+before the comparison (more terms must earn their keep: with four rods, leaving one out
+leaves 18 points for the 16 unknowns of the lens model, and a lens model a few per cent
+better on the left-out rods can bend the volume between the rods several times more than
+the plain DLT does). Each camera's
 held-out reprojection error under every model is kept beside it, for the report.
 
 With a single camera (``--camera``) no point can be reconstructed; the held-out
@@ -191,7 +194,10 @@ def choose_model(
         score = {m: float(np.mean([held_px[c][m] for c in cameras])) for m in candidates}
     fewest = min(MODEL_UNKNOWNS[m] for m in candidates)
     weighed = {
-        m: score[m] * (1.0 + params.model_margin * (MODEL_UNKNOWNS[m] - fewest)) for m in candidates
+        m: score[m]
+        * (1.0 + params.model_margin * (MODEL_UNKNOWNS[m] - fewest))
+        * (1.0 + (params.linear_margin if m == "dlt" and "refined" in candidates else 0.0))
+        for m in candidates
     }
     best = min(weighed.values())
     chosen = candidates[0]

@@ -60,6 +60,9 @@ def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
     wand = (check.get("wand_held_out") or {}).get("length_rms_error_mm")
     if wand is not None:
         out["wand_length_rms_error_mm"] = wand
+    alone = (check.get("wand_held_out_rods_alone") or {}).get("length_rms_error_mm")
+    if alone is not None:
+        out["rods_alone_wand_length_rms_error_mm"] = alone
     if "lens_models" in check:
         out["camera_model"] = check["lens_models"]
     return out

@@ -291,7 +291,7 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
     if not w:
         return Html("")
     top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
-    for group in ("held_out", "axes"):
+    for group in ("held_out", "held_out_rods_alone", "axes"):
         sub = w.get(group)
         if isinstance(sub, dict):
             top += [
@@ -306,8 +306,9 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
                 "p",
                 join(
                     [
-                        tag("b", "The wand did not lower the leave-one-rod-out error"),
-                        ": the rods' calibration is kept; the wand's figures are below.",
+                        tag("b", "The wand did not lower the held-out error"),
+                        ": the rods' calibration is kept (leave-one-rod-out and the held-out "
+                        "wand fields, rods alone against wand); the wand's figures are below.",
                     ]
                 ),
             )

@@ -3,7 +3,8 @@
 closely each matches kisscal's own cameras; ``kisscal export`` writes one of them alone.
 
 * ``cameras.toml``: OpenCV's model fitted to each camera
-  (:func:`kisscal.opencv.opencv_from_camera`); ``exports.json`` gives the fit's RMS and
+  (:func:`kisscal.opencv.opencv_from_camera`) within the extent of the control points
+  its calibration used; ``exports.json`` gives the fit's RMS and
   largest distance over the image (px) and the DLT's skew, which OpenCV's matrix cannot
   hold.
 * ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
@@ -30,7 +31,7 @@ from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.rig import Rig
-from kisscal.session.calibrated import current_rig
+from kisscal.session.calibrated import current_rig, read_dlt_files
 from kisscal.session.inputs import load_config
 from kisscal.session.progress import Echo, quiet
 
@@ -67,6 +68,20 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
+def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
+    """Raw pixels of the control points a camera's DLT was fitted to (``points`` of
+    ``dlt/<camera>.json``), through the camera; None when the file lists none."""
+    points = (dlt.data or {}).get("points") if dlt is not None else None
+    if not points:
+        return None
+    try:
+        xyz = np.array([[p["x_mm"], p["y_mm"], p["z_mm"]] for p in points], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return None
+    uv = camera.project(xyz[np.isfinite(xyz).all(axis=1)])
+    return uv[np.isfinite(uv).all(axis=1)]
+
+
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
     return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
 
@@ -83,7 +98,11 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    fits = {c.id: opencv_from_camera(c) for c in rig if c.size_px is not None}
+    fits = {
+        c.id: opencv_from_camera(c, used_px=control_px(c, dlts.get(c.id)))
+        for c in rig
+        if c.size_px is not None
+    }
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
         "dltdv": {
@@ -124,15 +143,24 @@ def export(
         raise InputError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
     units = _export_units(to, units)
     root = Path(root)
-    load_config(root)
+    config = load_config(root)
     rig = current_rig(root, echo)
+    dlts = read_dlt_files(root, config, required=False)
     store = SessionStore(root)
     if to == "dltdv8":
         path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
     pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
-    fits = [opencv_from_camera(c, coefficients=5 if pose2sim else 12, k3=not pose2sim) for c in rig]
+    fits = [
+        opencv_from_camera(
+            c,
+            coefficients=5 if pose2sim else 12,
+            k3=not pose2sim,
+            used_px=control_px(c, dlts.get(c.id)),
+        )
+        for c in rig
+    ]
     for f in fits:
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
     meta = {"source": "kisscal", "fit_rms_px": {f.camera.id: f.rms_px for f in fits}}

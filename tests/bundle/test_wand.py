@@ -13,6 +13,8 @@ from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import (
     camera_figures,
     end_to_end_mm,
+    field_lengths,
+    held_out_fields,
     held_out_lengths,
     length_figures,
     wand_markers,
@@ -71,6 +73,16 @@ def test_wand_on_rods_beats_the_rods_alone(wand_scene: WandScene) -> None:
     assert (per_cam.rms_px < 0.1).all() and (per_cam.points > 100).all()
     held = length_figures(held_out_lengths(cal, wand_scene.markers_mm), 500.0)
     assert held["length_rms_error_mm"] < 0.5
+    fields = held_out_fields(len(cal.fields))
+    assert 0.15 < fields.mean() < 0.25
+    # the same held-out fields through other cameras: the true ones measure the wand
+    # as well as the wand's (image noise), the rods' noisy DLTs (which never saw it) worse
+    true = [Camera.from_dlt(c.dlt) for c in wand_scene.rig]
+    truth = length_figures(field_lengths(true, cal, fields, wand_scene.markers_mm), 500.0)
+    alone = length_figures(field_lengths(starts, cal, fields, wand_scene.markers_mm), 500.0)
+    assert truth["length_fields"] == held["length_fields"] == alone["length_fields"]
+    assert abs(held["length_rms_error_mm"] / truth["length_rms_error_mm"] - 1) < 0.1
+    assert held["length_rms_error_mm"] < alone["length_rms_error_mm"]
 
 
 def test_a_wand_ten_percent_off_is_refused(wand_scene: WandScene) -> None:

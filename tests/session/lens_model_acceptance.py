@@ -18,7 +18,8 @@ forced and by default, and grid + rods + wand by default. Each is scored on lab 
 that no calibration used: 1000 inside the control volume (the central 60 % of each side)
 and 1000 at its edges (beyond 80 %), imaged by the true cameras (raw, distorted pixels),
 put through the written linearisations and triangulated with the written DLTs. Also the
-leave-one-rod-out mean of both routes and the round trip through ``out/cameras.toml``
+leave-one-rod-out mean of both routes, the held-out judges that decided whether the
+wand's calibration was kept, and the round trip through ``out/cameras.toml``
 (the same points' raw images through the exported cameras, median 3D difference).
 """
 
@@ -217,6 +218,7 @@ def measure_rig(preset: str, seed: int, work: Path) -> dict[str, Any]:
     line["wand"] = {"kept": kept, **volume_errors(wand, preset, seed)}
     line["wand loo_mm"] = check["leave_one_rod_out"]["mean_mm"]
     line["wand rods_alone_loo_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
+    line["wand judges"] = check.get("judges", {})
     return line
 
 

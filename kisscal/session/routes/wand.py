@@ -46,6 +46,9 @@ from kisscal.session.routes import (
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
 from kisscal.session.trials import trial_blobs, trial_input_files
 
+#: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
+PINHOLES = ("dlt", "refined")
+
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
     """Every camera from the wand trial, on the rods or with the axes object.
@@ -132,8 +135,13 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     frames = frame_files(inputs, config.rods.images, "rod", fields)
     found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
     blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
-    # the adjustment starts from pinholes: L12..L16 could not carry over into it
-    rod_cal = calibrate_rods(blobs, rods, params.dlt, True, ("dlt", "refined"))
+    # what the rods alone give (the rods route's own choice of model), kept when the wand
+    # does not do better; the adjustment starts from pinholes (L12..L16 could not carry
+    # over into it), so from a second fit without them when the rods chose them
+    rods_alone = calibrate_rods(blobs, rods, params.dlt, True)
+    rod_cal = rods_alone
+    if rods_alone.models is not None and rods_alone.models.chosen not in PINHOLES:
+        rod_cal = calibrate_rods(blobs, rods, params.dlt, True, PINHOLES)
     ids = config.camera_ids
     cams, xyz, uv, group = [], [], [], []
     for c, cam in enumerate(ids):
@@ -158,7 +166,7 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     cal = calibrate_on_control(*args, wand)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
         cal = _best_weight(inputs, cal, args, wand)
-    return cal, rod_cal
+    return cal, rods_alone
 
 
 def _best_weight(

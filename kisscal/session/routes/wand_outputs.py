@@ -18,9 +18,12 @@ from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import (
     camera_figures,
     end_to_end_mm,
+    field_lengths,
+    held_out_fields,
     held_out_lengths,
     leave_one_group_out,
     length_figures,
+    paired_length_gain,
     triangulate_points,
     wand_markers,
 )
@@ -63,21 +66,30 @@ def write_wand_outputs(
         wand_markers(cal.cameras, inlier, len(cal.fields), len(markers)), markers
     )
     held = held_out_lengths(cal, markers, wand_params(inputs))
+    nominal = float(np.ptp(markers))
     per_cam = camera_figures(cal, sizes)
     wand_doc: dict[str, Any] = {
         "trial": config.wand.trial,
         "markers_mm": list(markers),
         "start": "rods" if rod_cal is not None else "axes",
         **length_figures(lengths, float(np.ptp(markers))),
-        "held_out": length_figures(held, float(np.ptp(markers))),
+        "held_out": length_figures(held, nominal),
         "fields_used": len(cal.fields),
         "iterations": cal.result.iterations,
         "seconds": round(seconds, 2),
         "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
     }
+    if rod_cal is not None:
+        fields = held_out_fields(len(cal.fields), wand_params(inputs))
+        alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
+        wand_doc["held_out_rods_alone"] = {
+            **length_figures(alone, nominal),
+            "wand_minus_rods": paired_length_gain(held, alone, nominal),
+        }
     check = _checks(inputs, cal, rod_cal, wand_doc)
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
+    check["judges"] = _judges(check, wand_params(inputs).keep_sigmas)
     wand_doc["kept"] = check["kept"] = _kept(check)
     if check["kept"] == "rods":
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
@@ -92,17 +104,46 @@ def write_wand_outputs(
 
 
 def _kept(check: dict[str, Any]) -> str:
-    """``wand``, or ``rods`` when the wand did not lower the leave-one-rod-out error.
+    """``wand``, or ``rods`` when any held-out judge does not find the wand better.
 
-    Both calibrations reconstruct each rod from cameras calibrated without it; the rods
-    are the only points of known position, so this is the held-out evidence that decides
-    (a wand that fits its own images better can still bend the lab frame).
+    Two judges, each comparing the calibrations on points neither fitted: every rod
+    reconstructed by cameras calibrated without it (leave-one-rod-out; the rods are the
+    only points of known position, but four of them are a weak judge) and the wand's
+    length in the fields left out of the adjustment, measured by the wand's cameras
+    adjusted without them and by the rods' cameras (which never saw the wand), field by
+    field: the wand's squared errors must be lower by ``keep_sigmas`` standard errors of
+    their mean difference. A wand that fits its own images better can still bend the lab
+    frame: it is kept only when both judges say it is better.
     """
+    verdicts = [v["wand_better"] for v in check.get("judges", {}).values()]
+    return "wand" if all(verdicts) else "rods"
+
+
+def _judges(check: dict[str, Any], sigmas: float) -> dict[str, dict[str, Any]]:
+    """Each held-out judge's figure for the wand and for the rods alone, and whether it
+    finds the wand better."""
+    out = {}
     loo = check.get("leave_one_rod_out", {})
-    alone = loo.get("rods_alone_mean_mm")
-    if alone is None or loo.get("mean_mm", np.inf) < alone:
-        return "wand"
-    return "rods"
+    if loo.get("rods_alone_mean_mm") is not None:
+        w, r = loo["mean_mm"], loo["rods_alone_mean_mm"]
+        out["leave_one_rod_out_mean_mm"] = {"wand": w, "rods_alone": r, "wand_better": w < r}
+    alone = check.get("wand_held_out_rods_alone", {})
+    gain = alone.get("wand_minus_rods", {})
+    if "mean_difference_mm2" in gain:
+        w = check["wand_held_out"]["length_rms_error_mm"]
+        limit = -sigmas * gain["standard_error_mm2"]
+        out["held_out_wand_length_rms_error_mm"] = {
+            "wand": w,
+            "rods_alone": alone["length_rms_error_mm"],
+            "wand_better": bool(gain["mean_difference_mm2"] < limit),
+        }
+    return out
+
+
+def _rod_cameras(rod_cal: RodCalibration, ids: Sequence[str]) -> list[Camera]:
+    """The rods' cameras on the grid's linearisation (Kolahi's terms when chosen)."""
+    res = rod_cal.results
+    return [Camera.from_dlt(res[c].L, c, None, res[c].lens) for c in ids]
 
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
@@ -150,6 +191,8 @@ def _checks(
 ) -> dict[str, Any]:
     """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads."""
     check: dict[str, Any] = {"route": ROUTE, "wand_held_out": wand_doc["held_out"]}
+    if "held_out_rods_alone" in wand_doc:
+        check["wand_held_out_rods_alone"] = wand_doc["held_out_rods_alone"]
     held = wand_doc["held_out"]
     if "length_rms_error_mm" in held:
         check["leave_out_mean_mm"] = held["length_rms_error_mm"]
@@ -235,8 +278,12 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
             f" ({w['seconds']:.1f} s)"
         )
     held = wand_doc["held_out"]
+    alone = wand_doc.get("held_out_rods_alone", {}).get("length_rms_error_mm")
     if "length_rms_error_mm" in held:
-        echo(f"  held-out wand fields: length RMS error {held['length_rms_error_mm']:.3f} mm")
+        echo(
+            f"  held-out wand fields: length RMS error {held['length_rms_error_mm']:.3f} mm"
+            + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
+        )
     loo = check.get("leave_one_rod_out")
     if loo:
         alone = loo.get("rods_alone_mean_mm")
@@ -245,9 +292,10 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
             + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
         )
     if check.get("kept") == "rods":
+        worse = [k for k, v in check.get("judges", {}).items() if not v["wand_better"]]
         echo(
-            "  the wand did not lower the leave-one-rod-out error: kept the rods' "
-            "calibration (the wand's figures stay in dlt/wand.json)"
+            f"  the wand did not lower the held-out error ({', '.join(worse)}): kept the "
+            "rods' calibration (the wand's figures stay in dlt/wand.json)"
         )
     axes = wand_doc.get("axes")
     if axes:
