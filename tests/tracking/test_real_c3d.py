@@ -8,7 +8,7 @@ import pytest
 
 from kisscal.io.c3d import read_c3d
 from kisscal.tracking import TrackingParams
-from tests.io.c3d_acceptance import FIXTURES, cache_folder, distinct, find, retrack, shuffled
+from tests.io.c3d_acceptance import FIXTURES, distinct, retrack, shuffled
 
 
 @pytest.mark.parametrize("name", ["pc_real.c3d", "sgi_int.c3d"])
@@ -62,12 +62,8 @@ def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, mos
     """A serve's hand at 50 Hz (to 13 m/s) and a push-rim stroke's glove triads at 70 Hz
     (41 mm apart, accelerating by more than that per field): the gates widened by each
     track's own recent prediction errors keep far more identities than without (measured
-    10 and 17 switches against 63 and 114). The files are in the C3D cache folder
-    ($KISSCAL_C3D_CACHE), not committed."""
-    path = find(name, cache_folder())
-    if path is None:
-        pytest.skip(f"{name} not in the C3D cache folder")
-    c3d = read_c3d(path)
+    10 and 17 switches against 63 and 114). Both files are committed fixtures."""
+    c3d = read_c3d(FIXTURES / name)
     widened = retrack(c3d.xyz_mm, c3d.rate_hz)
     plain = retrack(c3d.xyz_mm, c3d.rate_hz, params=TrackingParams(gate_error_factor=0.0))
     assert widened.coverage == plain.coverage == 1.0
