@@ -102,6 +102,32 @@ def batch_kabsch(
     return r, ct - np.einsum("nij,j->ni", r, cs)
 
 
+def _carriers(
+    target: NDArray,
+    dense: NDArray,
+    exclude: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    fewest: int,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], tuple[NDArray, NDArray]] | None:
+    """Markers that could carry ``target`` across the gap [lo, hi): seen through it and on
+    at least two fields of each side's window, with the SD of their distance to the target
+    over the trial, and the two windows (:func:`_windows`); None when the target's windows
+    or fewer than ``fewest`` markers allow no fill."""
+    before, after = _windows(target, lo, hi, params.body_context_fields)
+    if before.size < 2 or after.size < 2:
+        return None
+    through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
+    through[exclude] = False
+    cand = np.flatnonzero(through)
+    near = np.all(np.isfinite(dense[cand]), axis=2)
+    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
+    if cand.size < fewest:
+        return None
+    return cand, _distance_sd(dense[cand], target[None])[:, 0], (before, after)
+
+
 def _windows(series: NDArray, lo: int, hi: int, n: int) -> tuple[NDArray, NDArray]:
     """Fields of up to ``n`` measured samples of ``series`` just before ``lo`` and just
     after ``hi`` (exclusive)."""
@@ -144,17 +170,10 @@ def rigid_donors(
     ``rigid_fill_markers`` in all; none when fewer than three carry it.
     """
     none = np.zeros(0, dtype=np.int64), np.zeros(0)
-    before, after = _windows(target, lo, hi, params.body_context_fields)
-    if before.size < 2 or after.size < 2:
+    carriers = _carriers(target, dense, exclude, lo, hi, params, 3)
+    if carriers is None:
         return none
-    through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
-    through[exclude] = False
-    cand = np.flatnonzero(through)
-    near = np.all(np.isfinite(dense[cand]), axis=2)
-    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
-    if cand.size < 3:
-        return none
-    to_target = _distance_sd(dense[cand], target[None])[:, 0]
+    cand, to_target, _ = carriers
     mutual = _distance_sd(dense[cand], dense[cand])
     core: list[int] = []
     for i in np.argsort(to_target).tolist():
@@ -232,17 +251,10 @@ def axis_fill(
     (:func:`_axis_frames`) is averaged over each side and drifts linearly across the gap.
     A segment with two markers in view (the pelvis when one of its three is hidden too, a
     shank) turns little about their axis, which rigid-body fill needs three markers for."""
-    before, after = _windows(target, lo, hi, params.body_context_fields)
-    if before.size < 2 or after.size < 2:
+    carriers = _carriers(target, dense, exclude, lo, hi, params, 2)
+    if carriers is None:
         return None
-    through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
-    through[exclude] = False
-    cand = np.flatnonzero(through)
-    near = np.all(np.isfinite(dense[cand]), axis=2)
-    cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
-    if cand.size < 2:
-        return None
-    to_target = _distance_sd(dense[cand], target[None])[:, 0]
+    cand, to_target, (before, after) = carriers
     order = np.argsort(to_target)[:2]
     pair = cand[order]
     limit = params.rigid_fill_sd_mm
