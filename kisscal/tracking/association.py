@@ -41,21 +41,35 @@ def associate(
     if predicted.shape[0] == 0 or points.shape[0] == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
-    scaled = (points[None, :, :] - predicted[:, None, :]) / half_width[:, None, :]
-    inside = (np.abs(scaled) <= 1.0).all(axis=2)
+    inside, cost = gate_costs(predicted, half_width, points, extra_cost, distance_weight)
     rows_any = np.flatnonzero(inside.any(axis=1))
     cols_any = np.flatnonzero(inside.any(axis=0))
     if rows_any.size == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
-    cost = distance_weight * np.einsum("tmc,tmc->tm", scaled, scaled)
-    if extra_cost is not None:
-        cost = cost + extra_cost
     sub_inside = inside[np.ix_(rows_any, cols_any)]
     sub = np.where(sub_inside, cost[np.ix_(rows_any, cols_any)], _FAR)
     r, c = linear_sum_assignment(sub)
     keep = sub_inside[r, c]
     return rows_any[r[keep]], cols_any[c[keep]]
+
+
+def gate_costs(
+    predicted: NDArray,
+    half_width: NDArray,
+    points: NDArray,
+    extra_cost: NDArray | None = None,
+    distance_weight: float = 1.0,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """Which (track, point) pairs lie in the track's box gate (T, M), and the cost of each
+    pair: ``distance_weight`` times the gate-normalised squared distance, plus
+    ``extra_cost``."""
+    scaled = (points[None, :, :] - predicted[:, None, :]) / half_width[:, None, :]
+    inside = (np.abs(scaled) <= 1.0).all(axis=2)
+    cost = distance_weight * np.einsum("tmc,tmc->tm", scaled, scaled)
+    if extra_cost is not None:
+        cost = cost + extra_cost
+    return inside, cost
 
 
 def lookahead_cost(
@@ -76,3 +90,49 @@ def lookahead_cost(
     ahead = 2.0 * candidates[None, :, :] - start[:, None, :]  # (T, M, 3)
     d2 = ((ahead[:, :, None, :] - later[None, None, :, :]) ** 2).sum(axis=3).min(axis=2)
     return np.minimum(d2 / half_width**2, 4.0)
+
+
+def ambiguous_rows(
+    cost: NDArray, inside: NDArray, rows: NDArray, cols: NDArray, margin: float
+) -> NDArray[np.bool_]:
+    """Tracks whose assignment another one-to-one choice nearly matches.
+
+    Parameters
+    ----------
+    cost : (T, M) gate-normalised costs; inside : (T, M) which pairs lie in their gates;
+    rows, cols : the assignment chosen (e.g. by :func:`associate`); margin : how much
+    (in the units of ``cost``) another choice may cost more and still count as as likely.
+
+    Returns
+    -------
+    (T,) bool: rows that could as well have exchanged their points (two assigned tracks
+    whose swap costs less than ``margin`` more), have lost a point in their gate to a
+    track that wanted it barely more (both marked), or leave a point in their gate
+    unassigned that costs them barely more than theirs. A track that took another marker's
+    point can only be told from one that did not by both sides of the field (Shafiq et al.
+    2001's continuity): the tracks are cut there and blending joins the pieces.
+    """
+    n_rows, n_cols = cost.shape
+    out = np.zeros(n_rows, dtype=bool)
+    if rows.size == 0 or margin <= 0:
+        return out
+    c = np.where(inside, cost, np.inf)
+    own = np.full(n_rows, np.inf)
+    own[rows] = c[rows, cols]
+    # Swaps between two assigned rows: c[i, col(k)] + c[k, col(i)] - own[i] - own[k].
+    cross = c[np.ix_(rows, cols)]
+    swap = cross + cross.T - own[rows][:, None] - own[rows][None, :]
+    np.fill_diagonal(swap, np.inf)
+    close = swap < margin
+    out[rows] = close.any(axis=1)
+    # An unassigned row that wanted an assigned point nearly as much as its owner.
+    loser = np.ones(n_rows, dtype=bool)
+    loser[rows] = False
+    lost = (c[np.ix_(loser, cols)] - own[rows][None, :]) < margin  # (losers, assigned)
+    out[np.flatnonzero(loser)[lost.any(axis=1)]] = True
+    out[rows[lost.any(axis=0)]] = True
+    # An assigned row with a free point in its gate almost as near as its own.
+    free = np.ones(n_cols, dtype=bool)
+    free[cols] = False
+    out[rows] |= ((c[np.ix_(rows, free)] - own[rows][:, None]) < margin).any(axis=1)
+    return out

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.association import associate, lookahead_cost
+from kisscal.tracking.association import ambiguous_rows, associate, gate_costs, lookahead_cost
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
@@ -89,12 +89,33 @@ def _one_to_one(rows: NDArray, cols: NDArray) -> bool:
     return len(set(listed_rows)) == len(listed_rows) and len(set(listed_cols)) == len(listed_cols)
 
 
+def _cut_pieces(field: NDArray, track: NDArray, cuts: list[tuple[int, NDArray]]) -> NDArray:
+    """Piece numbers after cutting each track before its sample at each cut field."""
+    span = int(field.max()) + 1
+    cut_keys = np.concatenate([t * span + f for f, t in cuts])
+    key = track * span + field
+    order = np.argsort(key, kind="stable")
+    starts = np.isin(key[order], cut_keys)
+    starts[1:] |= track[order][1:] != track[order][:-1]
+    starts[0] = True
+    piece = np.empty_like(track)
+    piece[order] = np.cumsum(starts) - 1
+    return piece
+
+
 class Samples:
     """The samples tracking emits, gathered field by field; :meth:`tracks` makes the table."""
 
     def __init__(self) -> None:
         self._fields: list[int] = []
         self._parts: list[tuple[NDArray, ...]] = []
+        self._cuts: list[tuple[int, NDArray]] = []
+
+    def cut(self, field: int, track: NDArray) -> None:
+        """Start a new piece of each track of ``track`` at ``field`` (an ambiguous
+        assignment: blending judges the join from both sides)."""
+        if track.size:
+            self._cuts.append((field, track))
 
     def add(
         self, field: int, track: NDArray, point: NDArray, xyz: NDArray, filtered: NDArray
@@ -108,8 +129,11 @@ class Samples:
     def tracks(self) -> Tracks:
         track, point, xyz, filtered = (np.concatenate(c) for c in zip(*self._parts, strict=True))
         sizes = [p[0].size for p in self._parts]
+        field = np.repeat(np.asarray(self._fields, dtype=np.int64), sizes)
+        if self._cuts:
+            track = _cut_pieces(field, track, self._cuts)
         return make_tracks(
-            np.repeat(np.asarray(self._fields, dtype=np.int64), sizes),
+            field,
             track,
             xyz,
             filtered[:, :, 0],
@@ -138,6 +162,9 @@ class Live:
         self.alive = np.zeros(capacity, dtype=bool)
         # Running squared errors of the filter's and the constant-acceleration prediction.
         self.errors = np.zeros((capacity, 2))
+        # Tracks whose point was ambiguous: cut where they next take one.
+        self.pending = np.zeros(capacity, dtype=bool)
+        self.ambiguous = np.zeros(capacity, dtype=bool)
         self._candidates = (np.zeros((capacity, 3)), np.zeros((capacity, 3)))
         self._bind()
 
@@ -161,6 +188,7 @@ class Live:
         self.kalman[slots] = False
         self.alive[slots] = True
         self.errors[slots] = 0.0
+        self.pending[slots] = False
         self.samples.add(field, ids, point, xyz, self.state[slots])
 
     def _grow(self, extra: int) -> None:
@@ -172,6 +200,8 @@ class Live:
         self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
         self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
         self.errors = np.concatenate([self.errors, np.zeros((more, 2))])
+        self.pending = np.concatenate([self.pending, np.zeros(more, dtype=bool)])
+        self.ambiguous = np.concatenate([self.ambiguous, np.zeros(more, dtype=bool)])
         self._bind()
 
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
@@ -286,11 +316,62 @@ class Live:
                         self.history[sub_rows, -1], sub_pts, later, 2.0 * params.initial_gate_mm
                     )
                 r, c = associate(pred[sub_rows], half[sub_rows], sub_pts, extra, weight)
+                if params.ambiguity_margin > 0:
+                    judged = self._judge(
+                        tier is single, pred[sub_rows], half[sub_rows], sub_pts, r, c, extra
+                    )
+                    self.ambiguous[sub_rows[judged]] = True
                 r, c = rr[r], cc[c]
             out_rows.append(rows[r])
             out_cols.append(free[c])
             taken[free[c]] = True
-        return np.concatenate(out_rows), np.concatenate(out_cols)
+        rows, cols = np.concatenate(out_rows), np.concatenate(out_cols)
+        if params.ambiguity_margin > 0:
+            self._nearer_losers(inside, pred, points, rows, cols)
+        return rows, cols
+
+    def _judge(
+        self,
+        single: bool,
+        pred: NDArray,
+        half: NDArray,
+        points: NDArray,
+        r: NDArray,
+        c: NDArray,
+        extra: NDArray | None,
+    ) -> NDArray[np.bool_]:
+        """Which of a tier's rows in conflict chose ambiguously: for tracks with a
+        velocity, another one-to-one choice nearly as cheap (:func:`ambiguous_rows`, with
+        the look-ahead ``extra`` cost they chose by); for one-point tracks, whose choice
+        weighs the field after more than the distance, a choice other than the nearest
+        one-to-one."""
+        params = self.setup.params
+        if single:
+            near_r, near_c = associate(pred, half, points)
+            nearest = np.full(pred.shape[0], -1)
+            nearest[near_r] = near_c
+            chosen = np.full(pred.shape[0], -1)
+            chosen[r] = c
+            return nearest != chosen
+        inside, cost = gate_costs(pred, half, points, extra)
+        return ambiguous_rows(cost, inside, r, c, params.ambiguity_margin)
+
+    def _nearer_losers(
+        self, inside: NDArray, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray
+    ) -> None:
+        """Mark ambiguous a track that took a point another track, left without one, had in
+        its gate and predicted nearer (tiers choose in turn: a young track with a wide gate
+        may take the point of a marker that appeared a field before)."""
+        losers = self.alive.copy()
+        losers[rows] = False
+        if not losers.any() or rows.size == 0:
+            return
+        lost = losers.nonzero()[0]
+        d_taker = np.linalg.norm(points[cols] - pred[rows], axis=1)
+        d_loser = np.linalg.norm(points[cols][None, :, :] - pred[lost][:, None, :], axis=2)
+        nearer = inside[np.ix_(lost, cols)] & (d_loser < d_taker[None, :])
+        self.ambiguous[rows[nearer.any(axis=0)]] = True
+        self.ambiguous[lost[nearer.any(axis=1)]] = True
 
     def _score_predictors(self, rows: NDArray, found: NDArray) -> None:
         """Update the running squared error of both predictions of the rows that found a
@@ -335,6 +416,13 @@ class Live:
             state[born, :, 1] = np.einsum("k,tkc->tc", setup.w_vel, recent)
             self.age[born] = 0
             self.kalman[born] = True
+        # An ambiguous track, or one that was and took no point then, starts a new piece
+        # with the point it takes.
+        if self.pending.any() or self.ambiguous.any():
+            cut = hit & (self.pending | self.ambiguous)
+            self.samples.cut(field, self.ids[cut])
+            self.pending = (self.pending | self.ambiguous) & ~hit & stay
+            self.ambiguous.fill(False)
         out = (self.alive & stay).nonzero()[0]
         sample_point = self._sample_point
         sample_point.fill(-1)

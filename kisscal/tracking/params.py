@@ -47,6 +47,12 @@ class TrackingParams(Params):
         track's step per field: a fast limb's acceleration changes within a few fields, and
         markers on it can be closer than its prediction misses them by (a serve at 50 Hz,
         a push-rim stroke at 70 Hz). 0 turns it off.
+    ambiguity_margin : float
+        Where gates conflict, a Kalman track whose point another one-to-one choice explains
+        almost as well (a swap with another track, a point it lost or left, costing less than
+        this much more in gate-normalised squared distance) is cut there into two pieces,
+        and blending, which sees both sides, joins them: fast close markers are otherwise
+        exchanged by a one-sided prediction. 0 turns it off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
@@ -171,6 +177,7 @@ class TrackingParams(Params):
     coast_accel_mm_per_field2: float = param(5.0, unit="mm/field²", ge=0)
     lag_widening: bool = param(True)
     gate_error_factor: float = param(2.0, ge=0)
+    ambiguity_margin: float = param(0.5, ge=0)
     initial_gate_mm: float = param(120.0, unit="mm", gt=0)
     initial_gate_factor: float = param(0.6, gt=0)
     min_initial_length: int = param(5, ge=2)

@@ -13,7 +13,9 @@ the track ends and its trailing predictions are dropped.
 Association is one-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment``
 on gate-normalised squared distances), Kalman tracks first, then initial tracks on the
 points left, rather than first-come nearest neighbour. A one-point track looks one field
-ahead (offline, the next field is known) to tell which candidate continues.
+ahead (offline, the next field is known) to tell which candidate continues. Where another
+one-to-one choice explains the field almost as well (``ambiguity_margin``), the tracks
+involved are cut there rather than guessed: blending sees both sides of the cut.
 
 The pieces are then checked, because a gate can take the wrong point: a short run of
 points after coasting is split off (a ghost caught after the marker left), and a track is

@@ -79,15 +79,32 @@ def find(name: str, cache: Path) -> Path | None:
     return None
 
 
+#: Two samples of one frame closer than this are one marker: markers are at least about a
+#: diameter (6 mm and up) apart. In the regression set, the closest two channels of one
+#: frame are 19.6 mm apart except for one pair (tennis serve, LWRA on LWRB, 1.0 mm).
+SAME_MARKER_MM = 5.0
+
+
 def distinct(xyz: np.ndarray) -> np.ndarray:
-    """``xyz`` with a sample that repeats an earlier channel's in its frame (within 0.01 mm) made
-    invalid (Vicon's Plug-in Gait writes segment points that coincide, e.g. RFOO and
-    RTOP): one point in space is one sample."""
+    """``xyz`` with a sample that repeats an earlier channel's in its frame (within
+    :data:`SAME_MARKER_MM`) made invalid (Vicon's Plug-in Gait writes segment points that
+    coincide, e.g. RFOO and RTOP; the tennis serve's LWRA jumps 102 mm onto LWRB, 1.0 mm
+    from it, for one frame and back): one point in space is one sample, kept under the name
+    whose path it continues (the smaller step from the previous frame)."""
     out = xyz.copy()
     n = xyz.shape[1]
+    # How far each channel's sample moved from its previous frame's (inf: no previous).
+    step = np.full(xyz.shape[:2], np.inf)
+    step[1:] = np.linalg.norm(xyz[1:] - xyz[:-1], axis=2)
+    step[~np.isfinite(step)] = np.inf
     for j in range(1, n):
-        same = (np.abs(xyz[:, :j] - xyz[:, j : j + 1]).max(axis=2) < 0.01).any(axis=1)
-        out[same, j] = np.nan
+        d = np.linalg.norm(out[:, :j] - out[:, j : j + 1], axis=2)
+        same = np.flatnonzero((d < SAME_MARKER_MM).any(axis=1))
+        i = np.argmin(np.where(np.isfinite(d[same]), d[same], np.inf), axis=1)
+        # The sample is the marker's whose path it continues; the other name is dropped.
+        keep_j = step[same, j] < step[same, i]
+        out[same[~keep_j], j] = np.nan
+        out[same[keep_j], i[keep_j]] = np.nan
     return out
 
 
@@ -130,15 +147,33 @@ def file_relabels(
     xyz: np.ndarray, before: np.ndarray, after: np.ndarray, a: np.ndarray, b: np.ndarray
 ) -> int:
     """How many switches from channel ``a`` (field ``before``) to ``b`` (field ``after``)
-    the file makes itself: ``a`` has no sample at ``after`` (the file stops naming the
-    marker ``a``) and ``b`` either has none at ``before`` or its own sample there is
-    farther from its sample at ``after`` than ``a``'s is (the name ``b`` jumps onto the
-    marker). A tracker that follows the marker must count these switches."""
-    gone = ~np.isfinite(xyz[after, a, 0])
+    the file makes itself: the name ``b`` takes up ``a``'s path and the name ``a`` leaves
+    it. ``b``'s sample at ``after`` lies nearer to ``a``'s constant-velocity extrapolation
+    than half the usual distance between the two channels, and ``b`` either has no sample
+    at ``before`` or its own sample there is farther than ``a``'s; ``a`` has no sample at
+    ``after``, or one no nearer to its extrapolation than half that distance (one marker
+    under two names: two markers cannot trade places across a frame while staying apart).
+    A tracker that follows the marker must count these switches."""
     own = np.linalg.norm(xyz[after, b] - xyz[before, b], axis=1)
     cross = np.linalg.norm(xyz[after, b] - xyz[before, a], axis=1)
     taken = ~np.isfinite(own) | (own > cross)
-    return int(np.sum(gone & taken))
+    step = xyz[before, a] - xyz[np.maximum(before - 1, 0), a]
+    step = np.where(np.isfinite(step), step, 0.0)
+    ahead = xyz[before, a] + (after - before)[:, None] * step
+    half = 0.5 * np.array(
+        [_usual_distance(xyz[:, i], xyz[:, j]) for i, j in zip(a, b, strict=True)]
+    )
+    continues = np.linalg.norm(xyz[after, b] - ahead, axis=1) < half
+    left = np.linalg.norm(xyz[after, a] - ahead, axis=1)
+    gone = ~np.isfinite(left) | (left >= half)
+    return int(np.sum(gone & taken & continues))
+
+
+def _usual_distance(p: np.ndarray, q: np.ndarray) -> float:
+    """Median distance between two channels over the fields where both have a sample
+    (infinite when they never do: then they cannot be told apart by it)."""
+    both = np.isfinite(p[:, 0]) & np.isfinite(q[:, 0])
+    return float(np.median(np.linalg.norm(p[both] - q[both], axis=1))) if both.any() else np.inf
 
 
 def retrack(

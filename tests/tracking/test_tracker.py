@@ -3,6 +3,7 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.tracking import MEASURED, PREDICTED, TrackingParams, associate, track_points
+from kisscal.tracking.association import ambiguous_rows
 from kisscal.tracking.tracker import lookahead_cost, split_short_reacquisitions
 
 
@@ -142,3 +143,27 @@ def test_any_initial_length_tracks_a_path_whole(n_init):
     assert np.flatnonzero(filtered)[0] == n_init - 1
     error = tracks.corrected_mm[filtered] - path[tracks.field[filtered].astype(int)]
     assert np.abs(error).max() < 6.0  # 1 mm noise per axis
+
+
+def test_ambiguous_rows_mark_near_swaps_lost_and_left_points():
+    """Two tracks and two points: a swap costing no more is ambiguous, one costing 2
+    more is not; a track that lost a point it wanted nearly as much as its owner, and a
+    track that left a free point almost as near as its own, are ambiguous."""
+    inside = np.ones((2, 2), dtype=bool)
+    rows, cols = np.array([0, 1]), np.array([0, 1])
+    near = np.array([[0.1, 0.15], [0.15, 0.2]])
+    far = np.array([[0.1, 1.1], [1.2, 0.2]])
+    assert ambiguous_rows(near, inside, rows, cols, 0.5).tolist() == [True, True]
+    assert ambiguous_rows(far, inside, rows, cols, 0.5).tolist() == [False, False]
+    assert ambiguous_rows(near, inside, rows, cols, 0.0).tolist() == [False, False]
+    # Track 1 lost point 0 to track 0 (0.3 against 0.1); point 1 is in no gate.
+    lost = np.array([[0.1, 9.0], [0.3, 9.0]])
+    gate = np.array([[True, False], [True, False]])
+    zero = np.array([0])
+    assert ambiguous_rows(lost, gate, zero, zero, 0.5).tolist() == [True, True]
+    assert ambiguous_rows(lost, gate, zero, zero, 0.1).tolist() == [False, False]
+    # Track 0 took point 0 (0.1) and left point 1 (0.4) free: ambiguous at 0.5.
+    left = np.array([[0.1, 0.4], [9.0, 9.0]])
+    gate = np.array([[True, True], [False, False]])
+    assert ambiguous_rows(left, gate, zero, zero, 0.5).tolist() == [True, False]
+    assert ambiguous_rows(left, gate, zero, zero, 0.2).tolist() == [False, False]
