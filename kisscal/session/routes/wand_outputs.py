@@ -81,6 +81,8 @@ def write_wand_outputs(
         "seconds": round(seconds, 2),
         "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
     }
+    if cal.control is not None:
+        wand_doc["rods_weight"] = float(cal.control.weight)
     if rod_cal is not None:
         fields = held_out_fields(len(cal.fields), wand_params(inputs))
         alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
@@ -89,6 +91,8 @@ def write_wand_outputs(
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
         }
     check = _checks(inputs, cal, rod_cal, wand_doc)
+    if "held_out_rod_markers" in check:
+        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"]
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
     check["judges"] = judges(check, wand_params(inputs).keep_sigmas)
