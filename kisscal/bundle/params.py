@@ -71,11 +71,14 @@ class BundleParams(Params):
         Fraction of wand fields left out of the adjustment for the held-out wand length
         error (0: none).
     keep_sigmas : float
-        On rods, the wand's calibration is kept only when its held-out wand length
-        errors (squared, field by field) are below those of the rods' calibration on the
-        same fields by at least this many standard errors of their mean difference (and
-        its leave-one-rod-out error is lower): a difference within the noise keeps the
-        rods' calibration.
+        On rods, the wand's calibration is not kept when its held-out wand length errors
+        (squared, field by field) are above those of the rods' calibration on the same
+        fields by more than this many standard errors of their mean difference.
+    judge_folds : int
+        On rods, every ``judge_folds``-th marker of each rod is left out in turn and
+        reconstructed by the wand's and the rods' calibrations fitted without it; the
+        wand's calibration is kept only when those held-out markers' squared 3D errors are
+        lower on average (:mod:`kisscal.session.routes.wand_judge`).
     control_weight : float
         Weight of a control point's (rod marker's) squared residual against a wand
         observation's. 0: their noise variances' inverse ratio, estimated from the rods'
@@ -110,6 +113,7 @@ class BundleParams(Params):
     match_tol_mm: float = param(15.0, unit="mm", gt=0)
     holdout_fraction: float = param(0.2, ge=0, lt=1)
     keep_sigmas: float = param(2.0, ge=0)
+    judge_folds: int = param(3, ge=2)
     control_weight: float = param(0.0, ge=0)
     control_weight_factors: tuple[float, ...] = param((1.0, 10.0, 100.0))
 

@@ -169,13 +169,48 @@ def leave_one_group_out(
     control = cal.control
     if control is None or not len(control):
         return {}
+    _, fold, err = leave_control_out(cal, markers_mm, control.group, params)
+    return {int(g): err[fold == g] for g in np.unique(fold)}
+
+
+def leave_control_out(
+    cal: WandCalibration,
+    markers_mm: Sequence[float],
+    fold: NDArray[np.int64],
+    params: BundleParams = DEFAULT_PARAMS,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """3D error (mm) of the control points of each fold when the cameras are adjusted
+    without that fold's observations (started from the final adjustment).
+
+    Parameters
+    ----------
+    cal : WandCalibration
+        With control points.
+    markers_mm : sequence of float
+    fold : ndarray of int, shape (len(cal.control),)
+        The fold of each control observation (all observations of one point in one
+        fold; -1: never left out).
+    params : BundleParams
+
+    Returns
+    -------
+    xyz_mm : ndarray, shape (n, 3)
+        The left-out points' known positions, fold by fold.
+    point_fold : ndarray of int, shape (n,)
+    errors_mm : ndarray, shape (n,)
+        NaN where fewer than two cameras saw the point.
+    """
+    control = cal.control
+    fold = np.asarray(fold)
     obs = cal.observations.subset(cal.result.inlier)
-    out = {}
-    for g in np.unique(control.group):
-        rest = control.subset(control.group != g)
+    xyz_out, fold_out, err_out = [np.zeros((0, 3))], [np.zeros(0, np.int64)], [np.zeros(0)]
+    for k in np.unique(fold[fold >= 0]):
+        rest = control.subset(fold != k)
         refit = adjust_bundle(cal.cameras, obs, markers_mm, cal.result.wand, rest, params)
-        mine = control.subset(control.group == g)
+        mine = control.subset(fold == k)
         ids, point = np.unique(mine.xyz_mm, axis=0, return_inverse=True)
         xyz = triangulate_points(refit.cameras, mine.camera, point.ravel(), mine.uv_px, len(ids))
-        out[int(g)] = np.linalg.norm(xyz - ids, axis=1)
-    return out
+        xyz_out.append(ids)
+        fold_out.append(np.full(len(ids), k, dtype=np.int64))
+        err_out.append(np.linalg.norm(xyz - ids, axis=1))
+    return np.concatenate(xyz_out), np.concatenate(fold_out), np.concatenate(err_out)

@@ -93,29 +93,9 @@ def leave_one_rod_out(
         not determine a DLT (too few or coplanar points) is left out of that fold.
     """
     muv = np.asarray(marker_uv_px, dtype=float)
-    n_cams, n_rods, n_markers, _ = muv.shape
-    cameras = list(cameras) if cameras is not None else [f"#{i}" for i in range(n_cams)]
-    truth = np.full((n_rods, n_markers, 3), np.nan)
-    for ir, rod in enumerate(rods):
-        truth[ir, : len(rod.points_mm)] = rod.points_mm
-    errors = np.full((n_rods, n_markers), np.nan)
-    for out in range(n_rods):
-        Ls, obs = [], []
-        rest = np.arange(n_rods) != out
-        for ic in range(n_cams):
-            uv = muv[ic, rest].reshape(-1, 2)
-            xyz = truth[rest].reshape(-1, 3)
-            keep = np.isfinite(uv).all(axis=1) & np.isfinite(xyz).all(axis=1)
-            try:
-                result = calibrate_camera(xyz[keep], uv[keep], params, cameras[ic])
-            except KisscalError:
-                continue
-            Ls.append(result.L)
-            obs.append(correct_lens(result.L, result.lens, muv[ic, out]))
-        if len(Ls) < 2:
-            continue
-        xyz_rec, _ = triangulate_dlt(np.array(Ls), np.array(obs))
-        errors[out] = np.linalg.norm(xyz_rec - truth[out], axis=1)
+    n_rods, n_markers = muv.shape[1:3]
+    fold = np.repeat(np.arange(n_rods), n_markers).reshape(n_rods, n_markers)
+    errors = leave_folds_out(muv, rods, fold, params, cameras)
     n_found = np.isfinite(errors).sum(axis=1)
     with np.errstate(invalid="ignore"):
         mean = np.array([np.nanmean(e) if np.isfinite(e).any() else np.nan for e in errors])
@@ -127,3 +107,59 @@ def leave_one_rod_out(
         n_markers=n_found,
         errors_mm=errors,
     )
+
+
+def leave_folds_out(
+    marker_uv_px: ArrayLike,
+    rods: Sequence[Rod],
+    fold: ArrayLike,
+    params: DltParams = DEFAULT_PARAMS,
+    cameras: Sequence[str] | None = None,
+) -> NDArray[np.float64]:
+    """3D error (mm) of every rod marker when each camera is calibrated without its fold.
+
+    Parameters
+    ----------
+    marker_uv_px : array_like, shape (C, n_rods, n_markers, 2)
+        As for :func:`leave_one_rod_out`.
+    rods : sequence of Rod
+    fold : array_like of int, shape (n_rods, n_markers)
+        The fold of each marker: the markers of one fold are left out together and
+        reconstructed by cameras calibrated on the others (-1: never left out). A rod's
+        index: leave one rod out; every k-th marker of each rod: markers held out
+        between calibrated ones, no extrapolation.
+    params : DltParams
+    cameras : sequence of str, optional
+        Camera ids for messages.
+
+    Returns
+    -------
+    ndarray, shape (n_rods, n_markers)
+        NaN where a marker was never left out or not reconstructed (fewer than two
+        cameras determined a DLT without its fold, or fewer than two saw it).
+    """
+    muv = np.asarray(marker_uv_px, dtype=float)
+    n_cams, n_rods, n_markers, _ = muv.shape
+    fold = np.asarray(fold)
+    cameras = list(cameras) if cameras is not None else [f"#{i}" for i in range(n_cams)]
+    truth = np.full((n_rods, n_markers, 3), np.nan)
+    for ir, rod in enumerate(rods):
+        truth[ir, : len(rod.points_mm)] = rod.points_mm
+    errors = np.full((n_rods, n_markers), np.nan)
+    for k in np.unique(fold[fold >= 0]):
+        Ls, obs = [], []
+        rest, out = fold != k, fold == k
+        for ic in range(n_cams):
+            uv, xyz = muv[ic][rest], truth[rest]
+            keep = np.isfinite(uv).all(axis=1) & np.isfinite(xyz).all(axis=1)
+            try:
+                result = calibrate_camera(xyz[keep], uv[keep], params, cameras[ic])
+            except KisscalError:
+                continue
+            Ls.append(result.L)
+            obs.append(correct_lens(result.L, result.lens, muv[ic][out]))
+        if len(Ls) < 2:
+            continue
+        xyz_rec, _ = triangulate_dlt(np.array(Ls), np.array(obs))
+        errors[out] = np.linalg.norm(xyz_rec - truth[out], axis=1)
+    return errors

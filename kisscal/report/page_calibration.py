@@ -291,7 +291,7 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
     if not w:
         return Html("")
     top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
-    for group in ("held_out", "held_out_rods_alone", "axes"):
+    for group in ("held_out", "held_out_rods_alone", "held_out_rod_markers", "axes"):
         sub = w.get(group)
         if isinstance(sub, dict):
             top += [
@@ -307,8 +307,9 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
                 join(
                     [
                         tag("b", "The wand did not lower the held-out error"),
-                        ": the rods' calibration is kept (leave-one-rod-out and the held-out "
-                        "wand fields, rods alone against wand); the wand's figures are below.",
+                        ": the rods' calibration is kept (rod markers held out in turn and "
+                        "the held-out wand fields, rods alone against wand); the wand's "
+                        "figures are below.",
                     ]
                 ),
             )

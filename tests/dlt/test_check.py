@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.dlt import DltParams, leave_one_rod_out, project, triangulate_dlt
+from kisscal.dlt.check import leave_folds_out
 from tests.dlt.conftest import kiss_rig, rod_xyz
 
 
@@ -52,6 +53,24 @@ def test_leave_one_rod_out_reports_each_rod():
     assert exact.overall_max_mm < 1e-6
     refined = leave_one_rod_out(muv, rig.rods, DltParams(mdlt=True, refine=True))
     assert np.isfinite(refined.overall_mean_mm)
+
+
+def test_markers_held_out_between_calibrated_ones_are_not_extrapolated():
+    rig = kiss_rig(3)
+    rng = np.random.default_rng(3)
+    muv = _marker_uv(rig, rng, 0.1)
+    fold = np.tile(np.arange(6) % 3, (4, 1))
+    fold[2, 5] = -1  # never left out
+    errors = leave_folds_out(muv, rig.rods, fold)
+    assert errors.shape == (4, 6) and np.isnan(errors[2, 5])
+    assert np.isfinite(np.delete(errors.ravel(), 2 * 6 + 5)).all()
+    # a rod's index as its fold is leave-one-rod-out, marker for marker
+    by_rod = leave_folds_out(muv, rig.rods, np.repeat(np.arange(4), 6).reshape(4, 6))
+    np.testing.assert_allclose(by_rod, leave_one_rod_out(muv, rig.rods).errors_mm)
+    # held out between calibrated markers: no extrapolation, smaller errors
+    assert np.nanmean(errors) < 0.5 * np.nanmean(by_rod)
+    exact = leave_folds_out(_marker_uv(rig, rng, 0.0), rig.rods, fold)
+    assert np.nanmax(exact) < 1e-6
 
 
 def test_parallel_rays_give_nan_not_an_exception(rig):

@@ -29,6 +29,7 @@ from kisscal.bundle.quality import (
 )
 from kisscal.bundle.wand import AxesFrame, WandCalibration
 from kisscal.camera import LENS_TERMS, Camera
+from kisscal.dlt import make_rods
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
@@ -38,6 +39,7 @@ from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
+from kisscal.session.routes.wand_judge import held_out_markers, judges, kept
 
 ROUTE = "wand"
 
@@ -79,6 +81,8 @@ def write_wand_outputs(
         "seconds": round(seconds, 2),
         "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
     }
+    if cal.control is not None:
+        wand_doc["rods_weight"] = float(cal.control.weight)
     if rod_cal is not None:
         fields = held_out_fields(len(cal.fields), wand_params(inputs))
         alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
@@ -87,10 +91,12 @@ def write_wand_outputs(
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
         }
     check = _checks(inputs, cal, rod_cal, wand_doc)
+    if "held_out_rod_markers" in check:
+        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"]
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
-    check["judges"] = _judges(check, wand_params(inputs).keep_sigmas)
-    wand_doc["kept"] = check["kept"] = _kept(check)
+    check["judges"] = judges(check, wand_params(inputs).keep_sigmas)
+    wand_doc["kept"] = check["kept"] = kept(check) if rod_cal is not None else "wand"
     if check["kept"] == "rods":
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
         _keep_rods(inputs, rod_cal)
@@ -101,43 +107,6 @@ def write_wand_outputs(
     _say(inputs, wand_doc, check)
     _figures(inputs, cal, cameras, frame, per_cam, lengths)
     return check
-
-
-def _kept(check: dict[str, Any]) -> str:
-    """``wand``, or ``rods`` when any held-out judge does not find the wand better.
-
-    Two judges, each comparing the calibrations on points neither fitted: every rod
-    reconstructed by cameras calibrated without it (leave-one-rod-out; the rods are the
-    only points of known position, but four of them are a weak judge) and the wand's
-    length in the fields left out of the adjustment, measured by the wand's cameras
-    adjusted without them and by the rods' cameras (which never saw the wand), field by
-    field: the wand's squared errors must be lower by ``keep_sigmas`` standard errors of
-    their mean difference. A wand that fits its own images better can still bend the lab
-    frame: it is kept only when both judges say it is better.
-    """
-    verdicts = [v["wand_better"] for v in check.get("judges", {}).values()]
-    return "wand" if all(verdicts) else "rods"
-
-
-def _judges(check: dict[str, Any], sigmas: float) -> dict[str, dict[str, Any]]:
-    """Each held-out judge's figure for the wand and for the rods alone, and whether it
-    finds the wand better."""
-    out = {}
-    loo = check.get("leave_one_rod_out", {})
-    if loo.get("rods_alone_mean_mm") is not None:
-        w, r = loo["mean_mm"], loo["rods_alone_mean_mm"]
-        out["leave_one_rod_out_mean_mm"] = {"wand": w, "rods_alone": r, "wand_better": w < r}
-    alone = check.get("wand_held_out_rods_alone", {})
-    gain = alone.get("wand_minus_rods", {})
-    if "mean_difference_mm2" in gain:
-        w = check["wand_held_out"]["length_rms_error_mm"]
-        limit = -sigmas * gain["standard_error_mm2"]
-        out["held_out_wand_length_rms_error_mm"] = {
-            "wand": w,
-            "rods_alone": alone["length_rms_error_mm"],
-            "wand_better": bool(gain["mean_difference_mm2"] < limit),
-        }
-    return out
 
 
 def _rod_cameras(rod_cal: RodCalibration, ids: Sequence[str]) -> list[Camera]:
@@ -227,6 +196,16 @@ def _checks(
         "rods_alone_mean_mm": rod_cal.summary().get("leave_one_rod_out", {}).get("mean_mm"),
     }
     check["leave_out_mean_mm"] = check["leave_one_rod_out"]["mean_mm"]
+    rods = make_rods([(r.name, r.points_mm) for r in inputs.config.rods.rods])
+    check["held_out_rod_markers"] = held_out_markers(
+        cal,
+        rod_cal,
+        rods,
+        inputs.config.camera_ids,
+        markers,
+        inputs.params.dlt,
+        wand_params(inputs),
+    )
     return check
 
 
@@ -291,11 +270,21 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
             f"  leave-one-rod-out mean {loo['mean_mm']:.3f} mm"
             + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
         )
-    if check.get("kept") == "rods":
-        worse = [k for k, v in check.get("judges", {}).items() if not v["wand_better"]]
+    markers = check.get("held_out_rod_markers", {})
+    if "wand_rms_mm" in markers:
         echo(
-            f"  the wand did not lower the held-out error ({', '.join(worse)}): kept the "
-            "rods' calibration (the wand's figures stay in dlt/wand.json)"
+            f"  held-out rod markers ({markers['markers']}, every "
+            f"{wand_params(inputs).judge_folds}th left out in turn): RMS 3D error "
+            f"{markers['wand_rms_mm']:.3f} mm (rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
+        )
+    if check.get("kept") == "rods":
+        failed = [
+            f"{k} ({v['asks']})" for k, v in check.get("judges", {}).items() if not v["wand_passes"]
+        ] or ["held-out rod markers not measured"]
+        echo(
+            f"  the wand's calibration is not kept, held out it is not better than the "
+            f"rods' ({', '.join(failed)}): kept the rods' calibration (the wand's figures "
+            "stay in dlt/wand.json)"
         )
     axes = wand_doc.get("axes")
     if axes:
