@@ -12,7 +12,7 @@ import numpy as np
 
 from kisscal._shared import new_figure
 from kisscal.errors import InputError
-from kisscal.report.figures import padded_range
+from kisscal.report.figures import padded_range, panel_grid
 from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
 
@@ -88,8 +88,8 @@ def segment_length_figure(
     time_axis = np.arange(n_fields) / (rate_hz or 1.0)
     cols = min(columns, len(pairs))
     rows = -(-len(pairs) // cols)
-    fig = new_figure(4.0 * cols, 0.6 + 1.7 * rows)
-    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False).ravel())
+    top = 0.3 + (0.35 if title else 0.0)  # the panels' titles, and the figure's
+    fig, axes = panel_grid(rows, cols, (3.4, 1.35), margins_in=(0.6, 0.15, 0.45, top))
     for ax in axes[len(pairs) :]:
         fig.delaxes(ax)
     for ax, (a, b) in zip(axes, pairs, strict=False):
