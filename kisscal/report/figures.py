@@ -77,6 +77,7 @@ def panel_grid(
     panel_in: tuple[float, float],
     margins_in: tuple[float, float, float, float] = (0.6, 0.15, 0.45, 0.1),
     gaps_in: tuple[float, float] = (0.45, 0.3),
+    sharex: bool = True,
 ) -> tuple[Figure, np.ndarray]:
     """A figure of ``rows`` x ``cols`` panels of ``panel_in`` (width, height) inches, laid
     out once here: ``margins_in`` (left, right, bottom, top) and ``gaps_in`` (between
@@ -84,7 +85,7 @@ def panel_grid(
 
     Fixed margins instead of matplotlib's constrained layout: its placement draws every
     panel twice on saving, the larger share of a many-panel figure's time. Returns the
-    figure and its axes, row by row (x axes shared).
+    figure and its axes, row by row (x axes shared with ``sharex``).
     """
     left, right, bottom, top = margins_in
     gap_x, gap_y = gaps_in
@@ -94,7 +95,7 @@ def panel_grid(
     axes = fig.subplots(
         rows,
         cols,
-        sharex=True,
+        sharex=sharex,
         squeeze=False,
         gridspec_kw={
             "left": left / width,
