@@ -21,9 +21,11 @@ import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from kisscal._shared import worker_pool
+
+T = TypeVar("T")
 
 _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": [], "handed": None}
 
@@ -88,6 +90,17 @@ def handing_back() -> Iterator[list[bytes]]:
 
 def _draw_packed(packed: bytes) -> None:
     draw_figure(*pickle.loads(packed))
+
+
+def after_figures(work: Callable[..., T], *args: Any) -> T:
+    """``work(*args)`` in the background process once the figures submitted so far are
+    drawn (its tasks run in order), or here when there is none: the report, whose own
+    figures then need no second import of matplotlib. ``work`` is a module-level
+    function; its error is raised here."""
+    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    if pool is None:
+        return work(*args)
+    return pool.submit(work, *args).result()
 
 
 def wait_for_figures() -> None:
