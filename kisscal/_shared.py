@@ -183,16 +183,19 @@ def as_points(points: ArrayLike, dim: int, name: str = "points") -> NDArray[np.f
     return array
 
 
-def new_figure(width_in: float, height_in: float) -> Figure:
-    """A matplotlib figure (constrained layout) on an Agg canvas: no pyplot state.
+def new_figure(width_in: float, height_in: float, constrained: bool = True) -> Figure:
+    """A matplotlib figure on an Agg canvas: no pyplot state.
 
+    With ``constrained`` (constrained layout) matplotlib places the panels around their
+    labels, which costs it a second drawing pass on saving; a figure of many alike panels
+    places them itself (``constrained=False``, :func:`kisscal.report.figures.panel_grid`).
     matplotlib is imported here, when a figure is drawn, so that the modules drawing
     figures import without it.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    fig = Figure(figsize=(width_in, height_in), layout="constrained" if constrained else None)
     FigureCanvasAgg(fig)
     return fig
 

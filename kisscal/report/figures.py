@@ -71,6 +71,44 @@ def scale_key(ax, arrows, length: float, label: str, fontsize: float = 7) -> Non
     )
 
 
+def panel_grid(
+    rows: int,
+    cols: int,
+    panel_in: tuple[float, float],
+    margins_in: tuple[float, float, float, float] = (0.6, 0.15, 0.45, 0.1),
+    gaps_in: tuple[float, float] = (0.45, 0.3),
+    sharex: bool = True,
+) -> tuple[Figure, np.ndarray]:
+    """A figure of ``rows`` x ``cols`` panels of ``panel_in`` (width, height) inches, laid
+    out once here: ``margins_in`` (left, right, bottom, top) and ``gaps_in`` (between
+    columns, between rows) hold the tick labels, axis labels and small panel titles.
+
+    Fixed margins instead of matplotlib's constrained layout: its placement draws every
+    panel twice on saving, the larger share of a many-panel figure's time. Returns the
+    figure and its axes, row by row (x axes shared with ``sharex``).
+    """
+    left, right, bottom, top = margins_in
+    gap_x, gap_y = gaps_in
+    width = left + right + cols * panel_in[0] + (cols - 1) * gap_x
+    height = bottom + top + rows * panel_in[1] + (rows - 1) * gap_y
+    fig = new_figure(width, height, constrained=False)
+    axes = fig.subplots(
+        rows,
+        cols,
+        sharex=sharex,
+        squeeze=False,
+        gridspec_kw={
+            "left": left / width,
+            "right": 1 - right / width,
+            "bottom": bottom / height,
+            "top": 1 - top / height,
+            "wspace": gap_x / panel_in[0],
+            "hspace": gap_y / panel_in[1],
+        },
+    )
+    return fig, axes.ravel()
+
+
 def padded_range(values: np.ndarray, centre: float, half: float = MIN_HALF_RANGE_MM) -> tuple:
     """Axis limits around ``centre`` spanning the data and at least ``half`` each side."""
     v = values[np.isfinite(values)]

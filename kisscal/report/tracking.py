@@ -10,9 +10,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kisscal._shared import new_figure
 from kisscal.errors import InputError
-from kisscal.report.figures import padded_range
+from kisscal.report.figures import padded_range, panel_grid
 from kisscal.tracking.pipeline import Trajectories
 from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
 
@@ -25,8 +24,8 @@ _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
 def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -> Figure:
     """Three orthogonal views of every trajectory (like the thesis' top, right and front
     views); gaps stay gaps, filled samples are drawn as small crosses."""
-    fig = new_figure(15, 5)
-    axes = fig.subplots(1, 3)
+    top = 0.3 + (0.35 if title else 0.0)  # the panels' titles, and the figure's
+    fig, axes = panel_grid(1, 3, (4.1, 4.0), (0.95, 0.15, 0.55, top), (0.95, 0.0), sharex=False)
     dense = tracks.positions() if tracks.field.size else np.zeros((0, 0, 3))
     colours = [f"C{i % 10}" for i in range(tracks.n_tracks)]
     for ax, (name, i, j) in zip(axes, _VIEWS, strict=True):
@@ -88,8 +87,8 @@ def segment_length_figure(
     time_axis = np.arange(n_fields) / (rate_hz or 1.0)
     cols = min(columns, len(pairs))
     rows = -(-len(pairs) // cols)
-    fig = new_figure(4.0 * cols, 0.6 + 1.7 * rows)
-    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False).ravel())
+    top = 0.3 + (0.35 if title else 0.0)  # the panels' titles, and the figure's
+    fig, axes = panel_grid(rows, cols, (3.4, 1.35), margins_in=(0.6, 0.15, 0.45, top))
     for ax in axes[len(pairs) :]:
         fig.delaxes(ax)
     for ax, (a, b) in zip(axes, pairs, strict=False):

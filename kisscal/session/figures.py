@@ -5,8 +5,11 @@ matplotlib a second or more, and the numbers it illustrates are written already.
 :func:`drawing_beside` (the outermost session command holds it), figures go to one
 background process that draws them while the stage goes on: reconstruction and tracking
 use one core, so the other one draws. The block ends only when every figure is written,
-so a command's outputs are complete when it returns. Anywhere else (a worker process, a
-plain library call) a figure is drawn at once.
+so a command's outputs are complete when it returns. A worker process of the stage
+(:func:`kisscal.session.parallel.each_camera`) hands its figures back with its result
+(:func:`handing_back`), and the session's process passes them on to the background one:
+matplotlib is then imported and its figures drawn in one process, not in every worker.
+Anywhere else (a plain library call) a figure is drawn at once.
 """
 
 from __future__ import annotations
@@ -18,11 +21,13 @@ import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from kisscal._shared import worker_pool
 
-_STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": []}
+T = TypeVar("T")
+
+_STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": [], "handed": None}
 
 
 def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
@@ -39,24 +44,63 @@ def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
 
 
 def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
-    """Draw a figure in the background process when there is one here, else now.
+    """Draw a figure in the background process when there is one here, hand it back
+    inside :func:`handing_back`, else draw it now.
 
     ``draw`` is a module-level function (pickled by name for the background process)."""
     pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    handed = _STATE["handed"]
     figure = (path, draw, args)
     try:
         # pickled here, once: data that cannot travel is drawn at once instead
-        packed = pickle.dumps(figure, protocol=pickle.HIGHEST_PROTOCOL) if pool else None
+        travels = pool is not None or handed is not None
+        packed = pickle.dumps(figure, protocol=pickle.HIGHEST_PROTOCOL) if travels else None
     except (pickle.PicklingError, TypeError, AttributeError):
         packed = None
-    if pool is None or packed is None:
+    if packed is None:
         draw_figure(*figure)
+    elif handed is not None:
+        handed.append(packed)
+    else:
+        submit_packed(packed)
+
+
+def submit_packed(packed: bytes) -> None:
+    """A figure handed back by :func:`handing_back`: to the background process when
+    there is one here, else drawn now."""
+    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    if pool is None:
+        _draw_packed(packed)
         return
     _STATE["pending"].append(pool.submit(_draw_packed, packed))
 
 
+@contextlib.contextmanager
+def handing_back() -> Iterator[list[bytes]]:
+    """Collect the block's figures (pickled) instead of drawing them: a worker process
+    returns them with its result, and the session's process gives each to
+    :func:`submit_packed`."""
+    outer = _STATE["handed"]
+    _STATE["handed"] = handed = []
+    try:
+        yield handed
+    finally:
+        _STATE["handed"] = outer
+
+
 def _draw_packed(packed: bytes) -> None:
     draw_figure(*pickle.loads(packed))
+
+
+def after_figures(work: Callable[..., T], *args: Any) -> T:
+    """``work(*args)`` in the background process once the figures submitted so far are
+    drawn (its tasks run in order), or here when there is none: the report, whose own
+    figures then need no second import of matplotlib. ``work`` is a module-level
+    function; its error is raised here."""
+    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    if pool is None:
+        return work(*args)
+    return pool.submit(work, *args).result()
 
 
 def wait_for_figures() -> None:

@@ -6,7 +6,9 @@ its figure), so cameras can be done side by side. Workers are forked: the work f
 and its inputs are inherited, not pickled (spawned workers, on Windows, get them pickled
 once: the work function must then be a module-level function or a ``functools.partial``
 of one, else the cameras are done in this process); results come back pickled, and every
-message a worker says is repeated by the parent, camera by camera, in the cameras' order.
+message a worker says is repeated by the parent, camera by camera, in the cameras' order,
+and every figure it drew is handed back to the parent's figure process
+(:func:`kisscal.session.figures.handing_back`).
 """
 
 from __future__ import annotations
@@ -17,22 +19,31 @@ from typing import Any, TypeVar
 
 from kisscal._shared import inherited, worker_pool
 from kisscal.errors import KisscalError
+from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.progress import Echo, counted
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 
-def _call(work: Callable[[Any, Echo], Any], item: Any) -> tuple[Any, list[str]]:
-    """``work(item)``'s result (or the KisscalError it raised) and what it said."""
+#: What a worker returns for one item: the result (or the KisscalError it raised), what it
+#: said, and the figures it drew (pickled, for the parent's figure process).
+_Done = tuple[Any, list[str], list[bytes]]
+
+
+def _call(work: Callable[[Any, Echo], Any], item: Any) -> _Done:
+    """``work(item)``'s result (or the KisscalError it raised), what it said and the
+    figures it drew."""
     said: list[str] = []
-    try:
-        return work(item, said.append), said
-    except KisscalError as exc:
-        return exc, said
+    with handing_back() as figures:
+        try:
+            result = work(item, said.append)
+        except KisscalError as exc:
+            result = exc
+    return result, said, figures
 
 
-def _inherited_call(index: int) -> tuple[Any, list[str]]:
+def _inherited_call(index: int) -> _Done:
     """:func:`_call` in a worker process, on item ``index`` of what it inherited."""
     work, items = inherited()
     return _call(work, items[index])
@@ -40,7 +51,7 @@ def _inherited_call(index: int) -> tuple[Any, list[str]]:
 
 def _results(
     work: Callable[[Any, Echo], Any], items: Sequence[Any], workers: int
-) -> Iterator[tuple[Any, list[str]]]:
+) -> Iterator[_Done]:
     pool = worker_pool(workers, (work, items)) if workers > 1 else None
     if pool is None:
         yield from (_call(work, item) for item in items)
@@ -65,9 +76,11 @@ def each_camera(
     n = min(workers or os.cpu_count() or 1, len(items))
     results: list[R] = []
     failed: KisscalError | None = None
-    for result, said in counted(_results(work, items, n), stage, len(items)):
+    for result, said, figures in counted(_results(work, items, n), stage, len(items)):
         for line in said:
             echo(line)
+        for packed in figures:
+            submit_packed(packed)
         if isinstance(result, KisscalError):
             failed = failed or result
         results.append(result)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from kisscal.errors import MissingDataError
 from kisscal.io.store import SessionStore
-from kisscal.session.figures import wait_for_figures
+from kisscal.report.params import ReportParams
+from kisscal.session.figures import after_figures, wait_for_figures
 from kisscal.session.inputs import load_config, writes_session
 from kisscal.session.params import stage_params
 from kisscal.session.progress import Echo, quiet
@@ -15,13 +16,20 @@ from kisscal.session.progress import Echo, quiet
 @writes_session
 def report(root: Path, echo: Echo = quiet) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
-    from kisscal.report.html import build_report  # matplotlib: only when a report is made
-
     config = load_config(root)  # a session folder, not just any path
     if not SessionStore(root).has_results():
         raise MissingDataError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = stage_params(config).report
-    wait_for_figures()  # a stage's figures, drawn in the background, go into the page
-    path = build_report(Path(root), params)
+    # built in the figure process, after the stages' figures (which go into the page):
+    # matplotlib is imported there already
+    path = after_figures(_build, Path(root), params)
+    wait_for_figures()  # a figure that failed (a bug) says so
     echo(f"report: {path}")
     return path
+
+
+def _build(root: Path, params: ReportParams) -> Path:
+    """:func:`kisscal.report.html.build_report`, imported where it runs (with matplotlib)."""
+    from kisscal.report.html import build_report
+
+    return build_report(root, params)

@@ -9,7 +9,13 @@ from pathlib import Path
 import pytest
 from matplotlib.figure import Figure
 
-from kisscal.session.figures import drawing_beside, submit_figure, wait_for_figures
+from kisscal.session.figures import (
+    after_figures,
+    drawing_beside,
+    submit_figure,
+    wait_for_figures,
+)
+from kisscal.session.parallel import each_camera
 
 
 def square(n: int) -> Figure:
@@ -21,6 +27,23 @@ def square(n: int) -> Figure:
 
 def guarded(n: int, _lock: object) -> Figure:
     return square(n)
+
+
+def signed(path: Path) -> Figure:
+    """A figure that records which process drew it, beside its PNG."""
+    path.with_suffix(".pid").write_text(str(os.getpid()))
+    return square(3)
+
+
+def camera_work(path: Path, _say: object) -> int:
+    """A camera's work in a worker process: one figure; returns the worker's id."""
+    submit_figure(path, signed, (path,))
+    return os.getpid()
+
+
+def listing(folder: Path) -> tuple[list[str], int]:
+    """The PNG files in ``folder`` and the process that looked."""
+    return sorted(p.name for p in folder.glob("*.png")), os.getpid()
 
 
 def broken(_n: int) -> Figure:
@@ -69,3 +92,25 @@ def test_the_block_own_error_wins(tmp_path: Path) -> None:
     with pytest.raises(KeyError), drawing_beside():
         submit_figure(tmp_path / "bug.png", broken, (1,))
         raise KeyError("the stage failed")
+
+
+def test_figures_of_worker_processes_are_drawn_by_the_one_figure_process(tmp_path: Path) -> None:
+    paths = [tmp_path / f"cam{k}.png" for k in range(4)]
+    with drawing_beside():
+        workers = set(each_camera(camera_work, paths, "figures", lambda _line: None, 2))
+    drawers = {int(p.with_suffix(".pid").read_text()) for p in paths}
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)
+    assert os.getpid() not in workers  # the work ran in worker processes
+    assert len(drawers) == 1 and not drawers & (workers | {os.getpid()})
+
+
+def test_work_after_the_figures_runs_in_the_figure_process_once_they_are_drawn(
+    tmp_path: Path,
+) -> None:
+    with drawing_beside():
+        for k in range(3):
+            submit_figure(tmp_path / f"stage{k}.png", square, (40,))
+        names, pid = after_figures(listing, tmp_path)
+    assert names == [f"stage{k}.png" for k in range(3)]
+    assert pid != os.getpid()
+    assert after_figures(listing, tmp_path)[1] == os.getpid()  # no block: here
