@@ -53,7 +53,6 @@ from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctes
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
 from kisscal.gait.signals import (
     derivative,
-    find_peaks,
     finite_runs,
     hysteresis_crossings,
     kink_time,
@@ -430,6 +429,8 @@ def coordinate_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS)
 
 def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
     """Sub-sample times of the clear maxima of ``y``, run of valid samples by run."""
+    from scipy.signal import find_peaks
+
     valid = np.isfinite(y)
     if valid.sum() < 3:
         return np.array([])
@@ -441,7 +442,7 @@ def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
     for a, b in finite_runs(valid):
         if b - a < 3:
             continue
-        for i in find_peaks(y[a:b], prominence, distance):
+        for i in find_peaks(y[a:b], prominence=prominence, distance=distance)[0]:
             out.append(peak_time(t, y, a + int(i)))
     return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
 

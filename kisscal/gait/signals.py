@@ -1,17 +1,11 @@
-"""Signal helpers for gait events: gap-aware derivatives, smoothing, peaks, crossings,
-kink fits.
-
-The Savitzky-Golay slope and the peak finder are written here on numpy rather than taken
-from ``scipy.signal``: importing that package imports ``scipy.stats`` (about 1 s, every
-``kisscal run``) for two small functions.
-"""
+"""Signal helpers for gait events: gap-aware derivatives, smoothing, crossings, kink fits."""
 
 from __future__ import annotations
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
+from scipy.signal import savgol_filter
 
 
 def finite_runs(valid: NDArray[np.bool_]) -> list[tuple[int, int]]:
@@ -37,66 +31,8 @@ def derivative(x: NDArray[np.float64], rate_hz: float, span_ms: float) -> NDArra
     valid = np.all(np.isfinite(x.reshape(len(x), -1)), axis=1)
     for a, b in finite_runs(valid):
         if b - a >= n:
-            out[a:b] = quadratic_slope(x[a:b], n, 1.0 / rate_hz)
+            out[a:b] = savgol_filter(x[a:b], n, 2, deriv=1, delta=1.0 / rate_hz, axis=0)
     return out
-
-
-def quadratic_slope(x: NDArray[np.float64], n: int, delta: float) -> NDArray[np.float64]:
-    """Slope along axis 0 of least-squares quadratics fitted to ``n`` samples (odd,
-    ``n <= len(x)``) spaced ``delta`` apart: at each sample, the fit centred on it; in the
-    first and last ``n // 2``, the fit to the first or last ``n`` samples (Savitzky and
-    Golay 1964).
-
-    The slope of the centred quadratic is that of the centred straight line (the square
-    term is even), a fixed weighting of the window.
-    """
-    x = np.asarray(x, dtype=float)
-    flat = x.reshape(len(x), -1)
-    half = n // 2
-    t = np.arange(n) - half
-    out = np.empty_like(flat)
-    out[half : len(x) - half] = sliding_window_view(flat, n, axis=0) @ (t / (t @ t))
-    fit = np.linalg.pinv(np.column_stack([np.ones(n), t, t * t]))  # (3, n)
-    for rows, window in ((slice(0, half), flat[:n]), (slice(len(x) - half, None), flat[-n:])):
-        c = fit @ window
-        at = t[rows] if rows.start == 0 else t[n - half :]
-        out[rows] = c[1] + 2 * np.outer(at, c[2])
-    return (out / delta).reshape(x.shape)
-
-
-def find_peaks(y: NDArray[np.float64], prominence: float, distance: int) -> NDArray[np.int64]:
-    """Indices of the maxima of ``y`` (finite) at least ``distance`` samples apart (the
-    higher kept) and standing ``prominence`` above the higher of the lowest points
-    between them and a higher sample (or the end) on either side.
-
-    A flat top is one maximum, at its middle; the first and last samples are none.
-    """
-    y = np.asarray(y, dtype=float)
-    start = np.flatnonzero(np.concatenate([[True], y[1:] != y[:-1]]))  # runs of equal values
-    stop = np.append(start[1:], len(y)) - 1
-    v = y[start]
-    top = np.flatnonzero((v[1:-1] > v[:-2]) & (v[1:-1] > v[2:])) + 1
-    peaks = (start[top] + stop[top]) // 2
-    keep = np.ones(len(peaks), dtype=bool)
-    for j in np.argsort(y[peaks])[::-1]:  # the highest first: it removes its close neighbours
-        if keep[j]:
-            near = np.abs(peaks - peaks[j]) < distance
-            keep[near] = False
-            keep[j] = True
-    peaks = peaks[keep]
-    rise = np.array([_prominence(y, p) for p in peaks], dtype=float)
-    return peaks[rise >= prominence]
-
-
-def _prominence(y: NDArray[np.float64], peak: int) -> float:
-    """How far ``y[peak]`` stands above the higher of its two bases (the lowest point
-    between it and the nearest higher sample, or the end, on each side)."""
-    higher = np.flatnonzero(y > y[peak])
-    left = higher[higher < peak]
-    right = higher[higher > peak]
-    lo = left[-1] + 1 if len(left) else 0
-    hi = right[0] if len(right) else len(y)
-    return float(y[peak] - max(y[lo : peak + 1].min(), y[peak:hi].min()))
 
 
 def smooth(x: NDArray[np.float64], sigma_samples: float) -> NDArray[np.float64]:
