@@ -70,10 +70,12 @@ def length_partners(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Tracks whose distance to track ``t`` keeps within ``rigid_fill_sd_mm`` SD over the
     trial (its segment's markers), and that SD (at least ``ray_length_sd_floor_mm``)."""
-    sd = _distance_sd(dense, dense[t][None])[:, 0]
-    sd[t] = np.inf
-    keep = np.flatnonzero(sd <= params.rigid_fill_sd_mm)
-    return keep, np.maximum(sd[keep], params.ray_length_sd_floor_mm)
+    seen = np.isfinite(dense[:, :, 0])
+    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= 4)  # _distance_sd's least
+    cand = cand[cand != t]
+    sd = _distance_sd(dense[cand], dense[t][None])[:, 0]
+    keep = sd <= params.rigid_fill_sd_mm
+    return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
 
 
 def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
