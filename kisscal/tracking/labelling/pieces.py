@@ -5,11 +5,12 @@ segment's other markers are hidden too, so spreading (:mod:`.spread`) has no rig
 partner to name the piece by, and it is left ``M<k>`` while its marker's trajectory has
 a gap exactly where the piece is. Such a piece joins the named trajectory when it lies
 inside one of its gaps (no field measured by both), continues its path at both ends of
-the gap (within ``30 mm`` per field crossed beyond a partner's own motion, as
-:mod:`kisscal.tracking.raychain` follows a path) and keeps the trajectory's lengths
+the gap (within ``30 mm`` per field crossed, 100 mm at most, beyond a partner's own motion,
+as :mod:`kisscal.tracking.raychain` follows a path) and keeps the trajectory's lengths
 to its segment's partners where they are seen (RMS difference at most
 ``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
-when exactly one named trajectory is so continued.
+when exactly one named trajectory is so continued and none is measured where the piece
+is (within :data:`SAME_MARKER_MM`: the same marker seen twice).
 
 References
 ----------
@@ -31,8 +32,14 @@ from kisscal.tracking.tracks import MEASURED, make_tracks, numbering
 #: Fewest (partner, field) lengths a piece must keep to join a trajectory.
 MIN_LENGTH_CHECKS = 3
 
-#: Largest step (mm per field crossed) from a trajectory's end beside a gap to a piece.
+#: Largest step (mm per field crossed, and in all) from a trajectory's end beside a gap
+#: to a piece, beyond its segment partner's own motion.
 REACH_MM_PER_FIELD = 30.0
+MAX_REACH_MM = 100.0
+
+#: A piece nearer than this (mm, on average) to another trajectory where both are measured
+#: is that marker seen twice, and joins no gap.
+SAME_MARKER_MM = 20.0
 
 
 def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
@@ -50,7 +57,7 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
         own = dense[partners, y] - dense[partners, x]
         own = own[np.all(np.isfinite(own), axis=1)]
         step = np.linalg.norm(dense[u, y] - dense[t, x] - np.r_[own, np.zeros((1, 3))], axis=1)
-        if step.min() > REACH_MM_PER_FIELD * n:
+        if step.min() > min(REACH_MM_PER_FIELD * n, MAX_REACH_MM):
             return False
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
     length = np.nanmedian(np.where(np.isfinite(own), own, np.nan), axis=1)
@@ -77,6 +84,11 @@ def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
     into = np.arange(tr.n_tracks)
     with np.errstate(invalid="ignore"):
         for u in labelling.unlabelled:
+            near = np.linalg.norm(dense[named] - dense[u][None], axis=2)
+            both = np.isfinite(near)
+            mean = np.where(both, near, 0.0).sum(axis=1) / np.maximum(both.sum(axis=1), 1)
+            if np.any(both.any(axis=1) & (mean < SAME_MARKER_MM)):
+                continue
             hosts = [t for t in named if _fits(dense, t, u, params)]
             if len(hosts) == 1:
                 into[u] = hosts[0]
