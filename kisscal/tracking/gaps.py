@@ -25,7 +25,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill
+from kisscal.tracking.raychain import chain_fill, runs
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import (
     FILLED,
@@ -38,13 +38,6 @@ from kisscal.tracking.tracks import (
 )
 
 _COLUMNS = ("field", "track", "xyz_mm", "corrected_mm", "status", "point")
-
-
-def _runs(mask: NDArray) -> tuple[NDArray, NDArray]:
-    """Start and stop (exclusive) of each run of True in a 1-D mask."""
-    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(padded)
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[int, int]]:
@@ -60,7 +53,7 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     covered = np.zeros(f1 - f0 + 1, dtype=bool)
     inside = (f >= f0) & (f <= f1)
     covered[f[kept & inside] - f0] = True
-    gap_lo, gap_hi = _runs(~covered)
+    gap_lo, gap_hi = runs(~covered)
     longest = max(params.max_fill_gap_fields, params.max_body_fill_fields)
     return [
         (int(lo + f0), int(hi + f0))
@@ -106,7 +99,7 @@ def _fill_gap(
     placed = np.isfinite(chain.sd_mm)
     dense[t, lo:hi][placed] = chain.xyz_mm[placed]
     out = []
-    for a, b in zip(*_runs(placed), strict=True):
+    for a, b in zip(*runs(placed), strict=True):
         err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
         fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
         out.append((chain.xyz_mm[a:b], fill))
@@ -115,7 +108,7 @@ def _fill_gap(
     rest = params.replace(
         max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_length_max_error_mm)
     )
-    for a, b in zip(*_runs(~placed), strict=True):
+    for a, b in zip(*runs(~placed), strict=True):
         out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
     return out
 

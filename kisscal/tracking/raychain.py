@@ -21,7 +21,8 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
-   ``ray_length_max_error_mm``; otherwise it is left to the other fills.
+   ``ray_length_max_error_mm``, in runs of at least :data:`MIN_RUN` such fields;
+   otherwise it is left to the other fills.
 
 References
 ----------
@@ -41,6 +42,16 @@ from kisscal.dlt.model import project_rows
 from kisscal.tracking.bodyfill import _distance_sd, _ramp, _windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, _ray_directions
+
+#: Fewest consecutive fields placed on rays for them to be kept.
+MIN_RUN = 3
+
+
+def runs(mask: NDArray) -> tuple[NDArray, NDArray]:
+    """Start and stop (exclusive) of each run of True in a 1-D mask."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(padded)
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 @dataclass(frozen=True)
@@ -277,12 +288,17 @@ def chain_fill(
     fwd = _choose(pts, guide, target[lo - 1], -1, order)
     bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
-    taken = []
+    rows = np.full(hi - lo, -1)
     for k, i in fwd.items():
         x, e, row = cands[k][i]
         if bwd.get(k) == i and e <= params.ray_length_max_error_mm:
-            xyz[k], err[k] = x, e
-            taken.append(row)
-    if not taken:
+            xyz[k], err[k], rows[k] = x, e, row
+    # a path, not a stray field: shorter runs of placed fields are left out
+    placed = np.zeros(hi - lo, dtype=bool)
+    for a, b in zip(*runs(np.isfinite(err)), strict=True):
+        placed[a:b] = b - a >= MIN_RUN
+    xyz[~placed], err[~placed] = np.nan, np.nan
+    taken = rows[placed]
+    if not taken.size:
         return None
     return ChainFill(xyz, err, tuple(int(p) for p in partners), np.asarray(taken, dtype=np.int64))
