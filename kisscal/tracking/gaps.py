@@ -103,10 +103,10 @@ def _fill_gap(
         err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
         fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
         out.append((chain.xyz_mm[a:b], fill))
-    # the rest, between fields placed on rays, from the body only when it expects as
-    # little error as the rays (it borrows their fields as its context)
+    # the rest, between fields placed on rays, from the body only when it expects
+    # little error (``ray_rest_max_error_mm``: it borrows their fields as its context)
     rest = params.replace(
-        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_length_max_error_mm)
+        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
     )
     for a, b in zip(*runs(~placed), strict=True):
         out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))

@@ -134,6 +134,9 @@ class TrackingParams(Params):
     ray_length_max_error_mm : float
         Largest expected error (mm) along the ray of a field placed on it by the
         segment's lengths.
+    ray_rest_max_error_mm : float
+        Largest expected error (mm) of a body fill between fields placed on rays (it
+        borrows them as its context, and an error measured beside them tells less).
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
@@ -210,7 +213,8 @@ class TrackingParams(Params):
     ray_chain_gate_px: float = param(3.0, unit="px", gt=0)
     ray_chain_coast_fields: int = param(3, unit="fields", ge=0)
     ray_length_sd_floor_mm: float = param(1.0, unit="mm", gt=0)
-    ray_length_max_error_mm: float = param(3.0, unit="mm", gt=0)
+    ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
+    ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)
     refill_predicted: bool = param(True)
     label_tolerance_mm: float = param(120.0, unit="mm", gt=0)
     label_segment_tolerance_mm: float = param(6.0, unit="mm", ge=0)

@@ -16,8 +16,10 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
    less than twice as far); the two directions must agree where both found a blob;
 2. on its ray, the depths where the distance to each partner equals its length (the
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
-   once (several rays: their least-squares point); of these the one that continues the
-   marker's path from both sides of the gap is taken;
+   once (rays of two cameras: a point each, the one of smaller error kept where they
+   agree); of these the one that continues the
+   marker's path from both sides of the gap is taken (or the only one, on a blob
+   followed in the image);
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
@@ -80,9 +82,11 @@ def length_partners(
     dense: NDArray, t: int, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Tracks whose distance to track ``t`` keeps within ``rigid_fill_sd_mm`` SD over the
-    trial (its segment's markers), and that SD (at least ``ray_length_sd_floor_mm``)."""
+    trial (its segment's markers), measured together in at least ``body_context_fields``
+    fields (a few fields may agree by chance), and that SD (at least
+    ``ray_length_sd_floor_mm``)."""
     seen = np.isfinite(dense[:, :, 0])
-    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= 4)  # _distance_sd's least
+    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
     cand = cand[cand != t]
     sd = _distance_sd(dense[cand], dense[t][None])[:, 0]
     keep = sd <= params.rigid_fill_sd_mm
@@ -275,10 +279,10 @@ def chain_fill(
     partners, sd = length_partners(dense, t, params)
     if partners.size == 0:
         return None
-    ks, rows = chain_blobs(target, lo, hi, spare, params)
+    ks, chained = chain_blobs(target, lo, hi, spare, params)
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = _lengths(dense, t, partners, lo, hi, params.body_context_fields)
-    cands = _candidates(dense, partners, sd, length, lo, np.r_[ks, k2], np.r_[rows, r2], spare)
+    cands = _candidates(dense, partners, sd, length, lo, np.r_[ks, k2], np.r_[chained, r2], spare)
     if not cands:
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
@@ -289,10 +293,16 @@ def chain_fill(
     bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     rows = np.full(hi - lo, -1)
-    for k, i in fwd.items():
-        x, e, row = cands[k][i]
-        if bwd.get(k) == i and e <= params.ray_length_max_error_mm:
-            xyz[k], err[k], rows[k] = x, e, row
+    followed = set(chained.tolist())
+    for k, c in cands.items():
+        # the path from both sides agrees, or the one point is on a blob followed in the
+        # image from the gap's side
+        i = fwd.get(k)
+        sure = len(c) == 1 and c[0][2] in followed
+        if (i is not None and bwd.get(k) == i) or sure:
+            x, e, row = c[0] if sure else c[i]
+            if e <= params.ray_length_max_error_mm:
+                xyz[k], err[k], rows[k] = x, e, row
     # a path, not a stray field: shorter runs of placed fields are left out
     placed = np.zeros(hi - lo, dtype=bool)
     for a, b in zip(*runs(np.isfinite(err)), strict=True):
