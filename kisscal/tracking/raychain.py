@@ -17,9 +17,9 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
 2. on its ray, the depths where the distance to each partner equals its length (the
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
-   agree); of these the one that continues the
-   marker's path from both sides of the gap is taken (or the only one, on a blob
-   followed in the image);
+   agree); of these the one that continues the marker's path from both sides of the
+   gap is taken (or the only one, on a blob followed in the image); free blobs in
+   fields no path reached are tried too, and kept only where both sides' paths agree;
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
@@ -41,9 +41,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.dlt.model import project_rows
-from kisscal.tracking.bodyfill import _distance_sd, _ramp, _windows
+from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.rayfill import SpareBlobs, _ray_directions
+from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 3
@@ -88,7 +88,7 @@ def length_partners(
     seen = np.isfinite(dense[:, :, 0])
     cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
     cand = cand[cand != t]
-    sd = _distance_sd(dense[cand], dense[t][None])[:, 0]
+    sd = distance_sd(dense[cand], dense[t][None])[:, 0]
     keep = sd <= params.rigid_fill_sd_mm
     return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
 
@@ -105,12 +105,12 @@ def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int
         count = seen[:, f].sum(axis=1)
         return np.where(count > 0, dist[:, f].sum(axis=1) / np.maximum(count, 1), np.nan)
 
-    before, after = (mean(f) for f in _windows(dense[t], lo, hi, n))
+    before, after = (mean(f) for f in side_windows(dense[t], lo, hi, n))
     before = np.where(
         np.isfinite(before), before, np.where(np.isfinite(after), after, mean(slice(None)))
     )
     after = np.where(np.isfinite(after), after, before)
-    w = _ramp(lo, hi)[:, None]
+    w = ramp(lo, hi)[:, None]
     return before[None] * (1 - w) + after[None] * w
 
 
@@ -248,7 +248,7 @@ def _candidates(
     ``rows`` whose lengths to the partners seen there agree within three SDs; of points
     closer than 20 mm (two cameras' rays of the marker), the one of smallest error."""
     cam = spare.camera[rows]
-    d = _ray_directions(spare.dlts[cam], spare.uv_px[rows])
+    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centres = spare.centres[cam]
     cands: dict[int, list] = {}
     for j, k in enumerate(ks.tolist()):
