@@ -46,7 +46,7 @@ from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 #: Fewest consecutive fields placed on rays for them to be kept.
-MIN_RUN = 3
+MIN_RUN = 2
 
 
 def runs(mask: NDArray) -> tuple[NDArray, NDArray]:
