@@ -5,8 +5,9 @@ segment's other markers are hidden too, so spreading (:mod:`.spread`) has no rig
 partner to name the piece by, and it is left ``M<k>`` while its marker's trajectory has
 a gap exactly where the piece is. Such a piece joins the named trajectory when it lies
 inside one of its gaps (no field measured by both), continues its path at both ends of
-the gap (within ``30 mm`` per field crossed, 100 mm at most, beyond a partner's own motion,
-as :mod:`kisscal.tracking.raychain` follows a path) and keeps the trajectory's lengths
+the gap (within ``30 mm`` per field crossed, 150 mm at most, beyond a partner's own motion
+or the trajectory's own velocity beside the gap, as :mod:`kisscal.tracking.raychain`
+follows a path) and keeps the trajectory's lengths
 to its segment's partners where they are seen (RMS difference at most
 ``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
 when exactly one named trajectory is so continued and none is measured where the piece
@@ -35,7 +36,7 @@ MIN_LENGTH_CHECKS = 3
 #: Largest step (mm per field crossed, and in all) from a trajectory's end beside a gap
 #: to a piece, beyond its segment partner's own motion.
 REACH_MM_PER_FIELD = 30.0
-MAX_REACH_MM = 100.0
+MAX_REACH_MM = 150.0
 
 #: A piece nearer than this (mm, on average) to another trajectory where both are measured
 #: is that marker seen twice, and joins no gap.
@@ -52,11 +53,15 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     after = b + 1 + np.flatnonzero(mine[b + 1 :])[0]
     partners, _ = length_partners(dense, t, params)
     partners = partners[partners != u]
-    for x, y, n in ((before, a, a - before), (after, b, after - b)):
-        # the step, less the partners' own (a foot in swing moves fast, its marker with it)
+    for x, y, n, back in ((before, a, a - before, -1), (after, b, after - b, 1)):
+        # the step, less the partners' own or the trajectory's own motion at the gap (a
+        # foot in swing moves fast, its marker with it)
         own = dense[partners, y] - dense[partners, x]
-        own = own[np.all(np.isfinite(own), axis=1)]
-        step = np.linalg.norm(dense[u, y] - dense[t, x] - np.r_[own, np.zeros((1, 3))], axis=1)
+        motion = np.r_[own, np.zeros((1, 3))]
+        if 0 <= x + back < dense.shape[1]:
+            motion = np.r_[motion, (dense[t, x] - dense[t, x + back])[None] * n]
+        motion = motion[np.all(np.isfinite(motion), axis=1)]
+        step = np.linalg.norm(dense[u, y] - dense[t, x] - motion, axis=1)
         if step.min() > min(REACH_MM_PER_FIELD * n, MAX_REACH_MM):
             return False
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
