@@ -113,9 +113,9 @@ def _carriers(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], tuple[NDArray, NDArray]] | None:
     """Markers that could carry ``target`` across the gap [lo, hi): seen through it and on
     at least two fields of each side's window, with the SD of their distance to the target
-    over the trial, and the two windows (:func:`_windows`); None when the target's windows
+    over the trial, and the two windows (:func:`side_windows`); None when the target's windows
     or fewer than ``fewest`` markers allow no fill."""
-    before, after = _windows(target, lo, hi, params.body_context_fields)
+    before, after = side_windows(target, lo, hi, params.body_context_fields)
     if before.size < 2 or after.size < 2:
         return None
     through = np.all(np.isfinite(dense[:, lo:hi]), axis=(1, 2))
@@ -125,10 +125,10 @@ def _carriers(
     cand = cand[(near[:, before].sum(axis=1) >= 2) & (near[:, after].sum(axis=1) >= 2)]
     if cand.size < fewest:
         return None
-    return cand, _distance_sd(dense[cand], target[None])[:, 0], (before, after)
+    return cand, distance_sd(dense[cand], target[None])[:, 0], (before, after)
 
 
-def _windows(series: NDArray, lo: int, hi: int, n: int) -> tuple[NDArray, NDArray]:
+def side_windows(series: NDArray, lo: int, hi: int, n: int) -> tuple[NDArray, NDArray]:
     """Fields of up to ``n`` measured samples of ``series`` just before ``lo`` and just
     after ``hi`` (exclusive)."""
     ok = np.all(np.isfinite(series), axis=1)
@@ -137,12 +137,12 @@ def _windows(series: NDArray, lo: int, hi: int, n: int) -> tuple[NDArray, NDArra
     return before, after
 
 
-def _ramp(lo: int, hi: int) -> NDArray[np.float64]:
+def ramp(lo: int, hi: int) -> NDArray[np.float64]:
     """Weight of the after-side across the gap fields lo..hi-1 (0 near lo, 1 near hi)."""
     return (np.arange(lo, hi) - lo + 1.0) / (hi - lo + 1.0)
 
 
-def _distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
+def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
     """SD (mm) over the trial of the distance between each series of ``a`` (k, n, 3) and
     each of ``b`` (m, n, 3), over the fields where both are measured: (k, m); inf with
     fewer than 4 such fields."""
@@ -174,7 +174,7 @@ def rigid_donors(
     if carriers is None:
         return none
     cand, to_target, _ = carriers
-    mutual = _distance_sd(dense[cand], dense[cand])
+    mutual = distance_sd(dense[cand], dense[cand])
     core: list[int] = []
     for i in np.argsort(to_target).tolist():
         if to_target[i] <= params.rigid_fill_sd_mm and np.all(
@@ -208,7 +208,7 @@ def rigid_fill(
     donors, weight = rigid_donors(target, dense, exclude, lo, hi, params)
     if donors.size < 3:
         return None
-    before, after = _windows(target, lo, hi, params.body_context_fields)
+    before, after = side_windows(target, lo, hi, params.body_context_fields)
     local = []
     shape = None
     for side in (before, after):
@@ -221,7 +221,7 @@ def rigid_fill(
         r, t = batch_kabsch(shape, pts[ok], weight)
         local.append(np.einsum("nji,nj->ni", r, target[side[ok]] - t).mean(axis=0))
     r, t = batch_kabsch(shape, dense[donors][:, lo:hi].transpose(1, 0, 2), weight)
-    w = _ramp(lo, hi)[:, None]
+    w = ramp(lo, hi)[:, None]
     here = local[0] * (1 - w) + local[1] * w
     return np.einsum("nij,nj->ni", r, here) + t, tuple(int(d) for d in donors)
 
@@ -260,7 +260,7 @@ def axis_fill(
     limit = params.rigid_fill_sd_mm
     if (
         to_target[order].max() > limit
-        or _distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
+        or distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
     ):
         return None
     axis = dense[pair[1], lo:hi] - dense[pair[0], lo:hi]
@@ -280,7 +280,7 @@ def axis_fill(
             return None  # the frame does not hold the target still beside the gap
         local.append(here.mean(axis=0))
     r = _axis_frames(dense[pair[0], lo:hi], dense[pair[1], lo:hi], ref)
-    w = _ramp(lo, hi)[:, None]
+    w = ramp(lo, hi)[:, None]
     here = local[0] * (1 - w) + local[1] * w
     return np.einsum("nij,nj->ni", r, here) + dense[pair[0], lo:hi], tuple(int(d) for d in pair)
 
@@ -298,7 +298,7 @@ def pattern_fill(
     cand = np.flatnonzero(through)
     if cand.size == 0:
         return None
-    before, after = _windows(target, lo, hi, params.body_context_fields)
+    before, after = side_windows(target, lo, hi, params.body_context_fields)
     if before.size < 2 or after.size < 2 or before[-1] != lo - 1 or after[0] != hi:
         return None
     off_b = target[lo - 1] - dense[cand, lo - 1]
@@ -315,7 +315,7 @@ def pattern_fill(
     if not np.isfinite(wobble[best]):
         return None
     d = cand[best]
-    w = _ramp(lo, hi)[:, None]
+    w = ramp(lo, hi)[:, None]
     offset = off_b[best] * (1 - w) + off_a[best] * w
     return dense[d, lo:hi] + offset, (int(d),)
 

@@ -25,17 +25,19 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import chain_fill, runs
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
-from kisscal.tracking.tracks import FILLED, MEASURED, PREDICTED, Tracks, is_filled, make_tracks
+from kisscal.tracking.tracks import (
+    FILLED,
+    FILLED_RIGID,
+    MEASURED,
+    PREDICTED,
+    Tracks,
+    is_filled,
+    make_tracks,
+)
 
 _COLUMNS = ("field", "track", "xyz_mm", "corrected_mm", "status", "point")
-
-
-def _runs(mask: NDArray) -> tuple[NDArray, NDArray]:
-    """Start and stop (exclusive) of each run of True in a 1-D mask."""
-    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(padded)
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[int, int]]:
@@ -51,7 +53,7 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     covered = np.zeros(f1 - f0 + 1, dtype=bool)
     inside = (f >= f0) & (f <= f1)
     covered[f[kept & inside] - f0] = True
-    gap_lo, gap_hi = _runs(~covered)
+    gap_lo, gap_hi = runs(~covered)
     longest = max(params.max_fill_gap_fields, params.max_body_fill_fields)
     return [
         (int(lo + f0), int(hi + f0))
@@ -79,6 +81,36 @@ def _fill_one(
     if not rays:
         return [(chosen.xyz_mm, chosen.fill)]
     return _with_rays(chosen, spare, params)
+
+
+def _fill_gap(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs | None
+) -> list[tuple[NDArray, GapFill]]:
+    """A gap longer than a spline bridges: the fields the marker's own blobs place on
+    their rays by the segment's lengths (:func:`~kisscal.tracking.raychain.chain_fill`;
+    status ``filled_rigid``, every field counted in ``ray_fields``) become context (in
+    ``dense``) for the rest, filled by :func:`_fill_one`."""
+    chain = None
+    if spare is not None and hi - lo > params.max_fill_gap_fields:
+        chain = chain_fill(dense, t, lo, hi, spare, params)
+    if chain is None:
+        return _fill_one(dense, t, lo, hi, params, spare)
+    spare.free[chain.rows] = False
+    placed = np.isfinite(chain.sd_mm)
+    dense[t, lo:hi][placed] = chain.xyz_mm[placed]
+    out = []
+    for a, b in zip(*runs(placed), strict=True):
+        err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
+        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
+        out.append((chain.xyz_mm[a:b], fill))
+    # the rest, between fields placed on rays, from the body only when it expects
+    # little error (``ray_rest_max_error_mm``: it borrows their fields as its context)
+    rest = params.replace(
+        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
+    )
+    for a, b in zip(*runs(~placed), strict=True):
+        out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
+    return out
 
 
 def _with_rays(
@@ -133,7 +165,7 @@ def fill_gaps_logged(
         spare = dataclasses.replace(spare, free=spare.free.copy())
     for t in range(tracks.n_tracks):
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params):
-            for xyz, fill in _fill_one(dense, t, lo, hi, params, spare):
+            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare):
                 filled_xyz.append(xyz)
                 fills.append(fill)
     if not fills:

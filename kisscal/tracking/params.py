@@ -128,6 +128,21 @@ class TrackingParams(Params):
     ray_fill_px : float
         Single-camera fill: the SD (px) of a blob's position that weighs its ray against
         the body's fill.
+    ray_chain_gate_px : float
+        Single-camera fill from the blob itself (:mod:`kisscal.tracking.raychain`): how far
+        (px, plus half the blob's motion per field) a blob may lie from where its path in
+        the image was predicted.
+    ray_chain_coast_fields : int
+        Fields without a blob the path in the image is continued over.
+    ray_length_sd_floor_mm : float
+        Smallest SD (mm) taken for a length of the marker's segment (its SD in the trial
+        when larger).
+    ray_length_max_error_mm : float
+        Largest expected error (mm) along the ray of a field placed on it by the
+        segment's lengths.
+    ray_rest_max_error_mm : float
+        Largest expected error (mm) of a body fill between fields placed on rays (it
+        borrows them as its context, and an error measured beside them tells less).
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
@@ -202,6 +217,11 @@ class TrackingParams(Params):
     max_body_fill_error_mm: float = param(5.0, unit="mm", gt=0)
     ray_fill_gate: float = param(3.0, gt=0)
     ray_fill_px: float = param(0.1, unit="px", gt=0)
+    ray_chain_gate_px: float = param(3.0, unit="px", gt=0)
+    ray_chain_coast_fields: int = param(3, unit="fields", ge=0)
+    ray_length_sd_floor_mm: float = param(1.0, unit="mm", gt=0)
+    ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
+    ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)
     refill_predicted: bool = param(True)
     label_tolerance_mm: float = param(120.0, unit="mm", gt=0)
     label_segment_tolerance_mm: float = param(6.0, unit="mm", ge=0)

@@ -13,6 +13,7 @@ from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.gaps import fill_gaps_logged, smooth_tracks
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
+from kisscal.tracking.labelling.pieces import join_gap_pieces
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
@@ -134,16 +135,17 @@ def _label(
     template_upright: bool = False,
 ) -> Labelling:
     """Label with the set, or with names and template; judged by the anatomy when the
-    rate is known."""
+    rate is known; unnamed pieces that fill a named trajectory's gap joined to it."""
     template = None if template_mm is None else np.asarray(template_mm, dtype=float)
     if marker_set is not None and rate_hz:
-        return label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
+        labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
+        return join_gap_pieces(labelling, params)
     labelling = label_tracks(blended, names, params, template, segments)
     if rate_hz and names and template is not None:
         anatomy = Anatomy.of_names(tuple(names))
         if anatomy.pairs:
             labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
-    return labelling
+    return join_gap_pieces(labelling, params)
 
 
 @dataclass(frozen=True)

@@ -94,7 +94,7 @@ def spare_blobs(
     return SpareBlobs(f[order], c[order], uv[order], L, np.ones(order.size, dtype=bool))
 
 
-def _ray_directions(L: NDArray, uv: NDArray) -> NDArray[np.float64]:
+def ray_directions(L: NDArray, uv: NDArray) -> NDArray[np.float64]:
     """Unit direction (n, 3) of the ray of pixel ``uv[k]`` of DLT ``L[k]``: the line where
     the two planes ``(L1 - u L9) . x = u - L4`` and ``(L5 - v L9) . x = v - L8`` meet."""
     a1 = L[:, 0:3] - uv[:, :1] * L[:, 8:11]
@@ -165,7 +165,7 @@ def ray_correct(
     if not take.any():
         return prior.copy(), *none
     rows, k, cam, pix = rows[take], k[take], cam[take], pix[take]
-    d = _ray_directions(spare.dlts[cam], spare.uv_px[rows])
+    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centre = spare.centres[cam]
     across = np.eye(3)[None] - d[:, :, None] * d[:, None, :]  # (m, 3, 3)
     w_ray = 1.0 / (params.ray_fill_px * pix) ** 2

@@ -1,0 +1,122 @@
+"""Unnamed pieces that fill a named trajectory's gap join it.
+
+With three or four cameras a marker is often measured by two cameras only while its
+segment's other markers are hidden too, so spreading (:mod:`.spread`) has no rigid
+partner to name the piece by, and it is left ``M<k>`` while its marker's trajectory has
+a gap exactly where the piece is. Such a piece joins the named trajectory when it lies
+inside one of its gaps (no field measured by both), continues its path at both ends of
+the gap (within ``30 mm`` per field crossed, 150 mm at most, beyond a partner's own motion
+or the trajectory's own velocity beside the gap, as :mod:`kisscal.tracking.raychain`
+follows a path) and keeps the trajectory's lengths
+to its segment's partners where they are seen (RMS difference at most
+``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
+when exactly one named trajectory is so continued and none is measured where the piece
+is (within :data:`SAME_MARKER_MM`: the same marker seen twice).
+
+References
+----------
+Shafiq et al. 2001 (joining track pieces of one marker).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import length_partners
+from kisscal.tracking.tracks import MEASURED, make_tracks, numbering
+
+#: Fewest (partner, field) lengths a piece must keep to join a trajectory.
+MIN_LENGTH_CHECKS = 3
+
+#: Largest step (mm per field crossed, and in all) from a trajectory's end beside a gap
+#: to a piece, beyond its segment partner's own motion.
+REACH_MM_PER_FIELD = 30.0
+MAX_REACH_MM = 150.0
+
+#: A piece nearer than this (mm, on average) to another trajectory where both are measured
+#: is that marker seen twice, and joins no gap.
+SAME_MARKER_MM = 20.0
+
+
+def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
+    """Whether piece ``u`` fills a gap of track ``t`` (see module)."""
+    mine, piece = np.isfinite(dense[t, :, 0]), np.flatnonzero(np.isfinite(dense[u, :, 0]))
+    a, b = piece[0], piece[-1]
+    if mine[a : b + 1].any() or not mine[:a].any() or not mine[b + 1 :].any():
+        return False
+    before = np.flatnonzero(mine[:a])[-1]
+    after = b + 1 + np.flatnonzero(mine[b + 1 :])[0]
+    partners, _ = length_partners(dense, t, params)
+    partners = partners[partners != u]
+    for x, y, n, back in ((before, a, a - before, -1), (after, b, after - b, 1)):
+        # the step, less the partners' own or the trajectory's own motion at the gap (a
+        # foot in swing moves fast, its marker with it)
+        own = dense[partners, y] - dense[partners, x]
+        motion = np.r_[own, np.zeros((1, 3))]
+        if 0 <= x + back < dense.shape[1]:
+            motion = np.r_[motion, (dense[t, x] - dense[t, x + back])[None] * n]
+        motion = motion[np.all(np.isfinite(motion), axis=1)]
+        step = np.linalg.norm(dense[u, y] - dense[t, x] - motion, axis=1)
+        if step.min() > min(REACH_MM_PER_FIELD * n, MAX_REACH_MM):
+            return False
+    own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
+    length = np.nanmedian(np.where(np.isfinite(own), own, np.nan), axis=1)
+    there = np.linalg.norm(dense[partners][:, piece] - dense[u, piece][None], axis=2)
+    miss = there - length[:, None]
+    miss = miss[np.isfinite(miss)]
+    return (
+        miss.size >= MIN_LENGTH_CHECKS
+        and float(np.sqrt(np.mean(miss**2))) <= params.label_segment_tolerance_mm
+    )
+
+
+def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
+    """``labelling`` with each unnamed piece that fills exactly one named trajectory's
+    gap (see module) joined to it; the coasted samples it replaces are dropped and the
+    remaining unnamed tracks renamed ``M1``, ``M2``, ... in order."""
+    if not labelling.unlabelled or not labelling.fits_marker_set:
+        return labelling
+    tr = labelling.tracks
+    meas = tr.status == MEASURED
+    dense = np.full((tr.n_tracks, int(tr.field.max()) + 1, 3), np.nan)
+    dense[tr.track[meas], tr.field[meas]] = tr.xyz_mm[meas]
+    named = [t for t in range(tr.n_tracks) if t not in set(labelling.unlabelled)]
+    into = np.arange(tr.n_tracks)
+    with np.errstate(invalid="ignore"):
+        for u in labelling.unlabelled:
+            near = np.linalg.norm(dense[named] - dense[u][None], axis=2)
+            both = np.isfinite(near)
+            mean = np.where(both, near, 0.0).sum(axis=1) / np.maximum(both.sum(axis=1), 1)
+            if np.any(both.any(axis=1) & (mean < SAME_MARKER_MM)):
+                continue
+            hosts = [t for t in named if _fits(dense, t, u, params)]
+            if len(hosts) == 1:
+                into[u] = hosts[0]
+    if np.all(into == np.arange(tr.n_tracks)):
+        return labelling
+    # the hosts' coasted samples where a joined piece was measured go
+    taken = np.zeros(dense.shape[:2], dtype=bool)
+    moved = into[tr.track] != tr.track
+    taken[into[tr.track[moved]], tr.field[moved]] = True
+    keep = moved | meas | ~taken[tr.track, tr.field]
+    cols = [getattr(tr, c)[keep] for c in ("field", "track", "xyz_mm", "corrected_mm")]
+    cols[1] = into[cols[1]]
+    joined = make_tracks(*cols, tr.status[keep], tr.point[keep])
+    ids, rank, _ = numbering(cols[0], cols[1])
+    order = np.empty(ids.size, dtype=np.int64)
+    order[rank] = ids
+    labels, unlabelled = [], []
+    for i, old in enumerate(order.tolist()):
+        if old in set(labelling.unlabelled):
+            unlabelled.append(i)
+            labels.append(f"M{len(unlabelled)}")
+        else:
+            labels.append(labelling.labels[old])
+    return dataclasses.replace(
+        labelling, tracks=joined, labels=tuple(labels), unlabelled=tuple(unlabelled)
+    )

@@ -1,0 +1,314 @@
+"""Single-camera fill from the blob itself: followed in the image, placed on its ray by
+the segment's lengths.
+
+Where a marker is seen by one camera only for longer than a spline bridges (a foot in
+swing behind the other leg, in a lab of three or four cameras) and its segment has too
+few markers in view for a rigid-body fill, the body's estimates are poor (a pattern fill
+across the ankle misses by centimetres), so :mod:`kisscal.tracking.rayfill` has nothing
+good to correct. The camera's blob is still there, unused by any 3D point: two of the
+marker's three coordinates lie on its ray, and the third, the depth along the ray, is
+fixed by the marker's distances to the other markers of its segment, constant in the
+trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe):
+
+1. the blob is followed through the gap in each camera's image, from the marker's
+   projection on each side of the gap (constant-velocity prediction, the nearest free
+   blob within ``ray_chain_gate_px`` plus half a field's motion, none when a second is
+   less than twice as far); the two directions must agree where both found a blob;
+2. on its ray, the depths where the distance to each partner equals its length (the
+   ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
+   once (rays of two cameras: a point each, the one of smaller error kept where they
+   agree); of these the one that continues the marker's path from both sides of the
+   gap is taken (or the only one, on a blob followed in the image); free blobs in
+   fields no path reached are tried too, and kept only where both sides' paths agree;
+3. the field is filled when every length agrees within three SDs and the expected error
+   along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
+   direction, σ_u the SD of that length in the trial), is at most
+   ``ray_length_max_error_mm``, in runs of at least :data:`MIN_RUN` such fields;
+   otherwise it is left to the other fills.
+
+References
+----------
+Hartley & Zisserman 2004 (rays of a projective camera; least-squares point from rays);
+Challis 1995 (segments as rigid bodies of markers); Gløersen & Federolf 2016 (filling
+from the other markers of the body).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.dlt.model import project_rows
+from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+
+#: Fewest consecutive fields placed on rays for them to be kept.
+MIN_RUN = 2
+
+
+def runs(mask: NDArray) -> tuple[NDArray, NDArray]:
+    """Start and stop (exclusive) of each run of True in a 1-D mask."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(padded)
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+@dataclass(frozen=True)
+class ChainFill:
+    """A gap's fields placed on the rays of the marker's own blobs.
+
+    Attributes
+    ----------
+    xyz_mm : (n, 3) float array
+        Position per gap field (NaN where none was placed).
+    sd_mm : (n,) float array
+        Expected error per field (NaN where none was placed).
+    partners : tuple of int
+        Tracks whose distances fixed the depth.
+    rows : int array
+        Rows of the spare blobs taken.
+    """
+
+    xyz_mm: NDArray[np.float64]
+    sd_mm: NDArray[np.float64]
+    partners: tuple[int, ...]
+    rows: NDArray[np.int64]
+
+
+def length_partners(
+    dense: NDArray, t: int, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Tracks whose distance to track ``t`` keeps within ``rigid_fill_sd_mm`` SD over the
+    trial (its segment's markers), measured together in at least ``body_context_fields``
+    fields (a few fields may agree by chance), and that SD (at least
+    ``ray_length_sd_floor_mm``)."""
+    seen = np.isfinite(dense[:, :, 0])
+    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
+    cand = cand[cand != t]
+    sd = distance_sd(dense[cand], dense[t][None])[:, 0]
+    keep = sd <= params.rigid_fill_sd_mm
+    return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
+
+
+def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
+    """Length (mm) from track ``t`` to each partner per gap field (hi - lo, k): its mean
+    in the ``n`` fields each side (the trial's where a side has none), drifting linearly
+    across the gap."""
+    dist = np.linalg.norm(dense[partners] - dense[t][None], axis=2)  # (k, n_fields)
+    seen = np.isfinite(dist)
+    dist = np.where(seen, dist, 0.0)
+
+    def mean(f: NDArray | slice) -> NDArray:
+        count = seen[:, f].sum(axis=1)
+        return np.where(count > 0, dist[:, f].sum(axis=1) / np.maximum(count, 1), np.nan)
+
+    before, after = (mean(f) for f in side_windows(dense[t], lo, hi, n))
+    before = np.where(
+        np.isfinite(before), before, np.where(np.isfinite(after), after, mean(slice(None)))
+    )
+    after = np.where(np.isfinite(after), after, before)
+    w = ramp(lo, hi)[:, None]
+    return before[None] * (1 - w) + after[None] * w
+
+
+def _follow(
+    spare: SpareBlobs, cam: int, uv: NDArray, vel: NDArray, fields: NDArray, params: TrackingParams
+) -> dict[int, int]:
+    """The blob rows of camera ``cam`` that continue a path in the image from ``uv`` with
+    velocity ``vel`` (px/field) over ``fields`` (consecutive, either direction); the
+    path coasts over at most ``ray_chain_coast_fields`` fields without a blob."""
+    found: dict[int, int] = {}
+    missed = 0
+    for f in fields.tolist():
+        pred = uv + vel
+        a, b = np.searchsorted(spare.field, [f, f + 1])
+        rows = np.arange(a, b)
+        rows = rows[spare.free[rows] & (spare.camera[rows] == cam)]
+        dist = np.sort(np.linalg.norm(spare.uv_px[rows] - pred, axis=1))
+        gate = params.ray_chain_gate_px + 0.5 * float(np.linalg.norm(vel))
+        if dist.size and dist[0] <= gate and (dist.size == 1 or dist[1] >= 2.0 * dist[0]):
+            row = int(rows[np.argmin(np.linalg.norm(spare.uv_px[rows] - pred, axis=1))])
+            found[f] = row
+            vel, uv, missed = spare.uv_px[row] - uv, spare.uv_px[row], 0
+            continue
+        uv, missed = pred, missed + 1
+        if missed > params.ray_chain_coast_fields:
+            break
+    return found
+
+
+def chain_blobs(
+    target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Gap field offsets and spare rows of the marker's blobs in the gap [lo, hi) of
+    ``target`` (n_fields, 3), followed in every camera from both sides (see module)."""
+    ks, rows = [], []
+    for cam in range(len(spare.dlts)):
+        picks = []
+        for edge, step, fields in (
+            (lo - 1, -1, np.arange(lo, hi)),
+            (hi, 1, np.arange(hi - 1, lo - 1, -1)),
+        ):
+            ends = (
+                target[[edge, edge + step]]
+                if 0 <= edge + step < len(target)
+                else target[[edge] * 2]
+            )
+            if not np.all(np.isfinite(ends[0])):
+                picks.append({})
+                continue
+            ends = np.where(np.isfinite(ends), ends, ends[:1])
+            uv = project_rows(spare.dlts, [cam, cam], ends)
+            picks.append(_follow(spare, cam, uv[0], uv[0] - uv[1], fields, params))
+        fwd, bwd = picks
+        for f in sorted(set(fwd) | set(bwd)):
+            if f in fwd and f in bwd and fwd[f] != bwd[f]:
+                continue
+            ks.append(f - lo)
+            rows.append(fwd.get(f, bwd.get(f)))
+    return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
+
+
+def on_ray(
+    centre: NDArray, d: NDArray, partners: NDArray, length: NDArray, sd: NDArray, iters: int = 8
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Points of the ray ``centre + s d`` (unit ``d``) whose distances to ``partners``
+    (m, 3) best match ``length`` (m,) weighed by ``1 / sd²``: from each place where the
+    ray meets a partner's sphere (or passes nearest it), Gauss-Newton on all lengths.
+    Returns the distinct points (p, 3), their largest length residual in SDs (p,) and
+    their expected error along the ray (p,) mm."""
+    rel = partners - centre
+    b = rel @ d
+    root = np.sqrt(np.maximum(length**2 - (np.sum(rel**2, axis=1) - b**2), 0.0))
+    s = np.concatenate([b - root, b + root])
+    for i in range(iters + 1):
+        v = (centre + s[:, None] * d)[:, None] - partners[None]  # (S, m, 3)
+        dist = np.linalg.norm(v, axis=2)
+        res = (dist - length) / sd
+        jac = (v @ d) / np.maximum(dist, 1e-9) / sd
+        info = np.sum(jac**2, axis=1)
+        if i < iters:
+            step = np.sum(jac * res, axis=1) / np.maximum(info, 1e-12)
+            s = s - np.clip(step, -100.0, 100.0)
+    order = np.argsort(s)
+    keep = order[np.r_[True, np.diff(s[order]) > 1.0]]
+    return (
+        centre + s[keep, None] * d,
+        np.abs(res[keep]).max(axis=1),
+        1.0 / np.sqrt(np.maximum(info[keep], 1e-12)),
+    )
+
+
+def _choose(
+    cands: dict[int, NDArray], guide: NDArray, start: NDArray, k_prev: int, ks: list[int]
+) -> dict[int, int]:
+    """Per gap field offset of ``ks`` (in the order walked), the candidate (index into
+    ``cands[k]``, an (p, 3) array) nearest the path continued from ``start`` (at offset
+    ``k_prev``): moved as the segment's partner ``guide`` ((n + 2, 3), offsets -1..n)
+    moved, if within 30 mm per field walked (100 mm at most); none where the runner-up
+    is less than twice as far."""
+    out: dict[int, int] = {}
+    prev = start
+    for k in ks:
+        gap = abs(k - k_prev)
+        step = guide[k + 1] - guide[k_prev + 1]
+        pred = prev + np.nan_to_num(step)
+        dist = np.linalg.norm(cands[k] - pred, axis=1)
+        i = int(np.argmin(dist))
+        if dist[i] > min(30.0 * gap, 100.0) or np.any(np.delete(dist, i) < 2.0 * dist[i]):
+            continue
+        out[k] = i
+        prev, k_prev = cands[k][i], k
+    return out
+
+
+def _loose_rows(spare: SpareBlobs, lo: int, hi: int, ks: NDArray) -> tuple[NDArray, NDArray]:
+    """Offsets and rows of every free blob in the gap's fields where no path in the
+    image reached (the segment's lengths and the path in 3D judge them)."""
+    rows = spare.rows(lo, hi)
+    k = spare.field[rows] - lo
+    keep = ~np.isin(k, ks)
+    return k[keep], rows[keep]
+
+
+def _candidates(
+    dense: NDArray,
+    partners: NDArray,
+    sd: NDArray,
+    length: NDArray,
+    lo: int,
+    ks: NDArray,
+    rows: NDArray,
+    spare: SpareBlobs,
+) -> dict[int, list]:
+    """Per gap field offset, the points (xyz, expected error, row) on the rays of
+    ``rows`` whose lengths to the partners seen there agree within three SDs; of points
+    closer than 20 mm (two cameras' rays of the marker), the one of smallest error."""
+    cam = spare.camera[rows]
+    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
+    centres = spare.centres[cam]
+    cands: dict[int, list] = {}
+    for j, k in enumerate(ks.tolist()):
+        seen = np.all(np.isfinite(dense[partners, lo + k]), axis=1)
+        if not seen.any():
+            continue
+        got = on_ray(centres[j], d[j], dense[partners[seen], lo + k], length[k, seen], sd[seen])
+        ok = got[1] <= 3.0
+        for x, e in zip(got[0][ok], got[2][ok], strict=True):
+            cands.setdefault(k, []).append((x, e, int(rows[j])))
+    for k, v in cands.items():
+        v.sort(key=lambda c: c[1])
+        cands[k] = [
+            c for i, c in enumerate(v) if all(np.linalg.norm(c[0] - o[0]) > 20.0 for o in v[:i])
+        ]
+    return cands
+
+
+def chain_fill(
+    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+) -> ChainFill | None:
+    """Place the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN
+    where not measured) on the rays of its own unused blobs (see module); None when no
+    field could be placed. The blobs taken are not marked used here."""
+    target = dense[t]
+    if lo < 2 or hi + 1 >= len(target) or not np.all(np.isfinite(target[[lo - 1, hi]])):
+        return None
+    partners, sd = length_partners(dense, t, params)
+    if partners.size == 0:
+        return None
+    ks, chained = chain_blobs(target, lo, hi, spare, params)
+    k2, r2 = _loose_rows(spare, lo, hi, ks)
+    length = _lengths(dense, t, partners, lo, hi, params.body_context_fields)
+    cands = _candidates(dense, partners, sd, length, lo, np.r_[ks, k2], np.r_[chained, r2], spare)
+    if not cands:
+        return None
+    pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
+    order = sorted(pts)
+    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
+    guide = dense[partners[np.argmax(seen.sum(axis=1))], lo - 1 : hi + 1]
+    fwd = _choose(pts, guide, target[lo - 1], -1, order)
+    bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
+    xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
+    rows = np.full(hi - lo, -1)
+    followed = set(chained.tolist())
+    for k, c in cands.items():
+        # the path from both sides agrees, or the one point is on a blob followed in the
+        # image from the gap's side
+        i = fwd.get(k)
+        sure = len(c) == 1 and c[0][2] in followed
+        if (i is not None and bwd.get(k) == i) or sure:
+            x, e, row = c[0] if sure else c[i]
+            if e <= params.ray_length_max_error_mm:
+                xyz[k], err[k], rows[k] = x, e, row
+    # a path, not a stray field: shorter runs of placed fields are left out
+    placed = np.zeros(hi - lo, dtype=bool)
+    for a, b in zip(*runs(np.isfinite(err)), strict=True):
+        placed[a:b] = b - a >= MIN_RUN
+    xyz[~placed], err[~placed] = np.nan, np.nan
+    taken = rows[placed]
+    if not taken.size:
+        return None
+    return ChainFill(xyz, err, tuple(int(p) for p in partners), np.asarray(taken, dtype=np.int64))

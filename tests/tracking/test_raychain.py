@@ -1,0 +1,97 @@
+"""Single-camera fill from the marker's own blob (kisscal.tracking.raychain) and unnamed
+pieces joining a named trajectory's gap (labelling.pieces), against truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.dlt.model import project_rows
+from kisscal.tracking import FILLED_RIGID, TrackingParams, spare_blobs
+from kisscal.tracking.gaps import fill_gaps_logged
+from kisscal.tracking.labelling import Labelling
+from kisscal.tracking.labelling.pieces import join_gap_pieces
+from kisscal.tracking.tracks import MEASURED, make_tracks
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_rayfill import _look_at
+
+GAP = slice(100, 160)
+
+
+def _spare(xyz: np.ndarray, seed: int) -> object:
+    """A camera looking along marker 0 -> 3 (the ray crosses their length well) sees
+    marker 3 through the gap, and three noise blobs a field anywhere."""
+    toward = np.mean(xyz[3, GAP] - xyz[0, GAP], axis=0)
+    target = xyz[3, GAP].mean(axis=0)
+    dlts = _look_at(target + 3000.0 * toward / np.linalg.norm(toward) + [0, 300, 0], target)[None]
+    fields = np.arange(GAP.start, GAP.stop)
+    uv = project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[3, GAP])
+    rng = np.random.default_rng(seed)
+    noise = rng.uniform([0, 0], [640, 480], (3 * fields.size, 2))
+    return spare_blobs(
+        np.r_[fields, np.repeat(fields, 3)],
+        np.zeros(4 * fields.size),
+        np.r_[uv + rng.normal(0, 0.05, uv.shape), noise],
+        dlts,
+    )
+
+
+def test_a_marker_only_one_camera_sees_is_placed_on_its_ray_by_its_segment():
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    # marker 3 and two of its segment's markers hidden for 0.6 s: no rigid-body fill,
+    # only marker 0 carries it; camera 0 still sees marker 3
+    tracks = _tracks_of(xyz, {3: GAP, 1: GAP, 2: GAP})
+    params = TrackingParams()
+    out, fills = fill_gaps_logged(tracks, params, _spare(xyz, 3))
+    plain, _ = fill_gaps_logged(tracks, params)
+    placed = [g for g in fills if g.track == 3 and g.ray_fields and g.status == FILLED_RIGID]
+    assert sum(g.n_fields for g in placed) >= 30  # where the ray crosses the length well
+    for g in placed:
+        rows = (out.track == 3) & (out.field >= g.first_field)
+        rows &= out.field < g.first_field + g.n_fields
+        err = np.linalg.norm(out.xyz_mm[rows] - xyz[3, out.field[rows]], axis=1)
+        assert np.sqrt(np.mean(err**2)) < max(g.expected_error_mm, 1.0) + 0.5
+        assert g.expected_error_mm <= params.ray_length_max_error_mm
+
+    # more of the gap within 3 mm of truth than the body alone places
+    def good(trk):
+        rows = (trk.track == 3) & (trk.field >= GAP.start) & (trk.field < GAP.stop)
+        return np.sum(np.linalg.norm(trk.xyz_mm[rows] - xyz[3, trk.field[rows]], axis=1) < 3)
+
+    assert good(out) > good(plain) + 20
+
+
+def test_without_the_marker_s_blob_nothing_is_placed_on_a_noise_ray():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    tracks = _tracks_of(xyz, {3: GAP, 1: GAP, 2: GAP})
+    spare = _spare(xyz, 5)
+    # the marker's own blobs (each field's first: the sort is stable) used elsewhere
+    spare.free[np.searchsorted(spare.field, np.arange(GAP.start, GAP.stop))] = False
+    _, fills = fill_gaps_logged(tracks, TrackingParams(), spare)
+    assert not any(g.ray_fields and g.track == 3 for g in fills)
+
+
+def _labelling(xyz: np.ndarray, piece: slice, decoy: np.ndarray) -> Labelling:
+    """Markers 0-3 named A-D, D hidden in GAP, its samples in ``piece`` a separate
+    unnamed track, and an unnamed decoy track in the same fields."""
+    tracks = _tracks_of(xyz, {3: GAP})
+    f = np.arange(piece.start, piece.stop)
+    fields = np.r_[tracks.field, f, f]
+    track = np.r_[tracks.track, np.full(f.size, 4), np.full(f.size, 5)]
+    pts = np.r_[tracks.xyz_mm, xyz[3, piece], decoy]
+    n = fields.size
+    joined = make_tracks(fields, track, pts, np.full((n, 3), np.nan), np.zeros(n), np.arange(n))
+    return Labelling(joined, ("A", "B", "C", "D", "M1", "M2"), True, (4, 5), (), 1.0)
+
+
+def test_an_unnamed_piece_inside_a_named_gap_joins_it_and_a_decoy_does_not():
+    xyz = rigid_body(seed=6, noise_mm=0.2)
+    decoy = xyz[3, 110:150] + [0.0, 0.0, 150.0]  # moves with the marker, 15 cm above it
+    got = join_gap_pieces(_labelling(xyz, slice(110, 150), decoy), TrackingParams())
+    assert got.labels.count("D") == 1 and got.unlabelled == (got.labels.index("M1"),)
+    d = got.tracks.track == got.labels.index("D")
+    meas = d & (got.tracks.status == MEASURED)
+    assert np.isin(np.arange(110, 150), got.tracks.field[meas]).all()
+    err = np.linalg.norm(got.tracks.xyz_mm[meas] - xyz[3, got.tracks.field[meas]], axis=1)
+    assert err.max() < 2.0
+    m1 = got.tracks.track == got.labels.index("M1")
+    assert np.allclose(got.tracks.xyz_mm[m1], decoy)
