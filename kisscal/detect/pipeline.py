@@ -16,6 +16,7 @@ from kisscal.detect.advanced import (
     size_flags,
     splittable,
 )
+from kisscal.detect.appendage import detach_appendages, round_outline
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.centroid import Background, SpotMoments, window_moments
@@ -33,6 +34,9 @@ DEFAULT_PARAMS = DetectionParams()
 #: A frame with more of its pixels white than this holds no spots to find: markers are a
 #: small bright population on a darker surround (overexposed, or the threshold too low).
 MAX_WHITE_FRACTION = 0.9
+#: Least pixels of a group examined for thin appendages: a thick body (a disc of
+#: :data:`~kisscal.detect.appendage.THICK_PX` radius) and something attached.
+APPENDAGE_MIN_PIXELS = 40
 #: Largest grey level a float image may hold (a 16-bit image's range).
 MAX_FLOAT_GREY = 65535.0
 
@@ -179,6 +183,10 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
+    if params.detach_appendages:
+        thin = _cut_appendages(grouping, table, params)
+        if thin is not grouping:
+            grouping, table = thin, measure_groups(thin.runs)
     if params.detach_cores and params.apply_size_limits and image.dtype != np.bool_:
         cored = detach_cores(grouping, table, image, background, params)
         if cored is not grouping:
@@ -215,6 +223,17 @@ def highpass_moments(
         params.pixel_aspect,
         splittable(table, params),
     )
+
+
+def _cut_appendages(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+    """Thin appendages off thick spots (:mod:`kisscal.detect.appendage`): groups large
+    enough for a body of ten pixels across, not one round disc, at most a cluster's size."""
+    candidates = (table.pixels >= APPENDAGE_MIN_PIXELS) & splittable(table, params)
+    if candidates.any():
+        candidates &= ~round_outline(
+            grouping.runs, table, APPENDAGE_MIN_PIXELS, params.pixel_aspect
+        )
+    return detach_appendages(grouping, table, candidates, max(params.min_pixels, 2))
 
 
 def _first_groups(
