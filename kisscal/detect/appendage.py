@@ -10,8 +10,10 @@ dot whole and removes the streak (Serra 1982). Each thin piece left over becomes
 of its own (flag ``detached``), so that the dot's centroid weighs only the dot.
 
 Only groups with a thick body (largest inscribed radius at least :data:`THICK_PX`, a dot
-of about ten pixels across or more) that are not already one round disc are examined,
-and only the pixels of those groups are read: one distance transform of their crops
+of about six pixels across or more) that are not already one round disc are examined,
+and only those whose body left by the opening is a roundish disc are cut (irregular
+blobs such as particle images keep their ragged edges). Only the pixels of those
+groups are read: one distance transform of their crops
 stacked on one canvas, one of the bodies' complement and one labelling of the thin
 pieces, whatever their number.
 
@@ -33,12 +35,15 @@ from kisscal.detect.advanced import Grouping, group_pixels, regroup
 from kisscal.detect.centroid import binary_moments
 from kisscal.detect.groups import GroupTable, group_canvas
 from kisscal.detect.scan import Runs
-from kisscal.detect.shape import principal_axes
+from kisscal.detect.shape import PIXEL_AREA_VAR, principal_axes
 
 #: Largest major / minor axis ratio (round units) of one round spot.
 ROUND_ELONGATION = 1.25
 #: Least fraction of its moments' ellipse a round spot's white pixels fill.
 ROUND_FILL = 0.85
+#: Largest major / minor axis ratio of an opened body (the opening leaves the base of a
+#: streak on it, a little more than on a round spot alone).
+BODY_ELONGATION = 1.5
 #: Radius of the opening disc, in largest inscribed radii of the group.
 OPEN_FRACTION = 0.4
 #: Least largest inscribed radius (pixels) of a group examined: a thick body.
@@ -67,7 +72,11 @@ def round_outline(
 
 
 def detach_appendages(
-    grouping: Grouping, table: GroupTable, candidates: NDArray[np.bool_], min_pixels: int
+    grouping: Grouping,
+    table: GroupTable,
+    candidates: NDArray[np.bool_],
+    min_pixels: int,
+    pixel_aspect: float = 1.0,
 ) -> Grouping:
     """Cut the thin pieces off the thick body of each candidate group (see module).
 
@@ -79,7 +88,10 @@ def detach_appendages(
         Rows of ``table`` examined (large enough to hold a thick body, not round).
     min_pixels : int
         Thin pieces smaller than this are ragged rim and stay with the body; a group is
-        cut only when its other thin pieces hold :data:`THIN_SHARE` of its pixels.
+        cut only when its other thin pieces hold :data:`THIN_SHARE` of its pixels and
+        its body is one round disc.
+    pixel_aspect : float
+        Width / height of a round spot in pixels (the body's roundness).
 
     Returns
     -------
@@ -111,6 +123,7 @@ def detach_appendages(
     n_thin = np.bincount(slot, label > 0, minlength=idx.size)
     thick = radius >= OPEN_FRACTION * THICK_PX
     cut = thick & (n_thin > 0) & (n_thin >= THIN_SHARE * table.pixels[idx])
+    cut &= _round_body(pixels.x, pixels.y, slot, label == 0, idx.size, pixel_aspect)
     if not cut.any():
         return grouping
     part = _rank_pieces(label, slot, idx.size)
@@ -122,6 +135,32 @@ def detach_appendages(
     flag = np.full(nan.shape[0], fl.DETACHED)
     centres = (nan, nan, np.ones_like(nan))  # no rim shared: the pieces are apart
     return regroup(grouping, table.label[idx[cut]], pixels, part, flag, centres)
+
+
+def _round_body(
+    x: NDArray[np.int64],
+    y: NDArray[np.int64],
+    slot: NDArray[np.int64],
+    body: NDArray[np.bool_],
+    groups: int,
+    pixel_aspect: float,
+) -> NDArray[np.bool_]:
+    """Whether each group's body is one roundish disc (elongation at most
+    :data:`BODY_ELONGATION`, filled as :func:`round_outline` asks): a target dot or a
+    marker, not an irregular blob (a particle image, glare) whose thin edges the
+    opening would shave off."""
+    s = slot[body]
+    bx, by = x[body].astype(float), y[body].astype(float)
+    n = np.bincount(s, minlength=groups).astype(float)
+    safe = np.maximum(n, 1.0)
+    mx, my = np.bincount(s, bx, groups) / safe, np.bincount(s, by, groups) / safe
+    dx, dy = bx - mx[s], by - my[s]
+    var_x = np.bincount(s, dx * dx, groups) / safe + PIXEL_AREA_VAR
+    var_y = np.bincount(s, dy * dy, groups) / safe + PIXEL_AREA_VAR
+    cov = np.bincount(s, dx * dy, groups) / safe
+    major, minor, _, _ = principal_axes(var_x, var_y, cov, pixel_aspect)
+    ellipse = 4.0 * np.pi * np.sqrt(major * minor) * pixel_aspect
+    return (n > 0) & (major <= BODY_ELONGATION**2 * minor) & (n >= ROUND_FILL * ellipse)
 
 
 def _rank_pieces(

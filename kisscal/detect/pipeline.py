@@ -233,7 +233,9 @@ def _cut_appendages(grouping: Grouping, table: GroupTable, params: DetectionPara
         candidates &= ~round_outline(
             grouping.runs, table, APPENDAGE_MIN_PIXELS, params.pixel_aspect
         )
-    return detach_appendages(grouping, table, candidates, max(params.min_pixels, 2))
+    return detach_appendages(
+        grouping, table, candidates, max(params.min_pixels, 2), params.pixel_aspect
+    )
 
 
 def _first_groups(
