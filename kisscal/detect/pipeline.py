@@ -37,6 +37,11 @@ MAX_WHITE_FRACTION = 0.9
 #: Least pixels of a group examined for thin appendages: a thick body (a disc of
 #: :data:`~kisscal.detect.appendage.THICK_PX` radius) and something attached.
 APPENDAGE_MIN_PIXELS = 40
+#: Groups examined for appendages are at most this many times a marker's largest width
+#: and height (or :data:`APPENDAGE_MAX_PX` without limits): a dot with a streak, not a
+#: region.
+APPENDAGE_EXTENT = 2
+APPENDAGE_MAX_PX = 32
 #: Largest grey level a float image may hold (a 16-bit image's range).
 MAX_FLOAT_GREY = 65535.0
 
@@ -227,8 +232,12 @@ def highpass_moments(
 
 def _cut_appendages(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
     """Thin appendages off thick spots (:mod:`kisscal.detect.appendage`): groups large
-    enough for a body of ten pixels across, not one round disc, at most a cluster's size."""
+    enough for a thick body, not one round disc, at most a cluster's size and twice a
+    marker's extent."""
     candidates = (table.pixels >= APPENDAGE_MIN_PIXELS) & splittable(table, params)
+    # a dot and its streak: within twice a marker's extent (bounds the crops' canvas)
+    for limit, extent in ((params.max_width_px, table.width), (params.max_height_px, table.height)):
+        candidates &= extent <= APPENDAGE_EXTENT * (limit or APPENDAGE_MAX_PX)
     if candidates.any():
         candidates &= ~round_outline(
             grouping.runs, table, APPENDAGE_MIN_PIXELS, params.pixel_aspect
