@@ -9,8 +9,9 @@ relative to the group itself, half-way from the group's own median level to its 
 half-maximum of the brightest spot it holds), and at least the threshold's contrast above
 that median, keeps the bright cores; each core of a marker's size becomes a group of its
 own (flag ``detached``), and the rest stays one oversized group (``too_large``), provided
-it is still larger than a marker without them (two or three touching markers leave only
-their rims, and the split tests separate them).
+it is still larger than a marker without them, in pixels or in extent (a dot touching a
+dim streak): two or three touching markers leave only their rims, and the split tests
+separate them.
 A uniformly bright region (an LED ring, a lit surface) has no such core of a marker's
 size and is left as it was.
 """
@@ -28,6 +29,11 @@ from kisscal.detect.params import DetectionParams
 
 #: The cut between a group's median and its peak (0.5: half maximum).
 CORE_LEVEL = 0.5
+#: A group wider or higher than a marker whose pixels outside its cores outnumber the
+#: cores' this many times holds a dim region besides them (a marker's own rim, below
+#: half maximum, is under twice its core, and under six times even for small spots on
+#: non-square pixels).
+REST_SHARE = 6.0
 
 
 def detach_cores(
@@ -67,10 +73,7 @@ def detach_cores(
     # a region with cores on it stays larger than a marker without them; a pair or
     # cluster of markers does not (its rims are all that is left): the split tests
     # take those
-    rest = table.pixels[big] - np.bincount(pixels.slot, core > 0, minlength=big.size)
-    keep = count > 0
-    if params.max_pixels is not None:
-        keep &= rest > params.max_pixels
+    keep = (count > 0) & _rest_oversized(pixels, core == 0, big.size, params)
     if not keep.any():
         return grouping
     # the kept groups' pixels come out in the same order again, a subsequence
@@ -93,6 +96,31 @@ def detach_cores(
     out = regroup(grouping, labels[keep], pixels, part, flag, (centres[0], centres[1], centres[2]))
     out.flags[grouping.flags.size + np.arange(n) * k] |= fl.TOO_LARGE  # part 0: the region
     return out
+
+
+def _rest_oversized(
+    pixels: GroupPixels, rest: NDArray[np.bool_], groups: int, params: DetectionParams
+) -> NDArray[np.bool_]:
+    """Whether each group's pixels outside its cores still exceed an upper size limit: more
+    pixels than a marker, or wider or higher than one while outnumbering the cores'
+    pixels :data:`REST_SHARE` times (a dim streak or region a dot touches). The rims left
+    by two or three touching markers are fewer than that: the split tests take those."""
+    slot = pixels.slot[rest]
+    size = np.bincount(slot, minlength=groups)
+    over = np.zeros(groups, dtype=bool)
+    if params.max_pixels is not None:
+        over |= size > params.max_pixels
+    wide = np.zeros(groups, dtype=bool)
+    for limit, coord in ((params.max_width_px, pixels.x), (params.max_height_px, pixels.y)):
+        if limit is None or slot.size == 0:
+            continue
+        low = np.full(groups, np.iinfo(np.int64).max)
+        high = np.full(groups, -1)
+        np.minimum.at(low, slot, coord[rest])
+        np.maximum.at(high, slot, coord[rest])
+        wide |= high - low + 1 > limit
+    cores = np.bincount(pixels.slot[~rest], minlength=groups)
+    return over | (wide & (size >= REST_SHARE * cores))
 
 
 def _cores(

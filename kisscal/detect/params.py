@@ -142,6 +142,10 @@ class DetectionParams(Params):
         Width and height (pixels, odd) of the elliptical opening that keeps an LED ring
         and removes markers: larger than a marker image, smaller than an LED ring. Derived
         with the size limits; None: no detaching.
+    detach_appendages : bool
+        Cut thin pieces (a streak, a fibre, a speck on a thin neck) off a thick spot they
+        touch, by a morphological opening of the group (:mod:`kisscal.detect.appendage`),
+        so that a target dot's centroid weighs only the dot; not in Shafiq et al. 2001.
     detach_cores : bool
         Separate the bright cores of marker size from an oversized group (a marker in a
         glare halo, on a lit wall, with a comet tail or a dim ghost): within the group,
@@ -223,6 +227,7 @@ class DetectionParams(Params):
     pixel_aspect: float = param(1.0, gt=0)
     detach_from_large: bool = param(True)
     detach_kernel_px: tuple[int, int] | None = param(None, unit="px", gt=0, odd=True)
+    detach_appendages: bool = param(True)
     detach_cores: bool = param(True)
     detach_min_pixels: int = param(8, unit="px", ge=0)
     apply_size_limits: bool = param(True)
@@ -241,6 +246,7 @@ class DetectionParams(Params):
         return self.replace(
             merge_submarkers=False,
             detach_from_large=False,
+            detach_appendages=False,
             detach_cores=False,
             split_touching=False,
             split_overlaps=False,

@@ -16,6 +16,7 @@ from kisscal.detect.advanced import (
     size_flags,
     splittable,
 )
+from kisscal.detect.appendage import detach_appendages, round_outline
 from kisscal.detect.background import background_level, local_background
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.centroid import Background, SpotMoments, window_moments
@@ -33,6 +34,14 @@ DEFAULT_PARAMS = DetectionParams()
 #: A frame with more of its pixels white than this holds no spots to find: markers are a
 #: small bright population on a darker surround (overexposed, or the threshold too low).
 MAX_WHITE_FRACTION = 0.9
+#: Least pixels of a group examined for thin appendages: a thick body (a disc of
+#: :data:`~kisscal.detect.appendage.THICK_PX` radius) and something attached.
+APPENDAGE_MIN_PIXELS = 40
+#: Groups examined for appendages are at most this many times a marker's largest width
+#: and height (or :data:`APPENDAGE_MAX_PX` without limits): a dot with a streak, not a
+#: region.
+APPENDAGE_EXTENT = 2
+APPENDAGE_MAX_PX = 32
 #: Largest grey level a float image may hold (a 16-bit image's range).
 MAX_FLOAT_GREY = 65535.0
 
@@ -179,6 +188,10 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouping, table = _first_groups(Grouping.start(runs), params, white.shape)
     if len(table) == 0:
         return Blobs.empty()
+    if params.detach_appendages:
+        thin = _cut_appendages(grouping, table, params)
+        if thin is not grouping:
+            grouping, table = thin, measure_groups(thin.runs)
     if params.detach_cores and params.apply_size_limits and image.dtype != np.bool_:
         cored = detach_cores(grouping, table, image, background, params)
         if cored is not grouping:
@@ -214,6 +227,23 @@ def highpass_moments(
         mean,
         params.pixel_aspect,
         splittable(table, params),
+    )
+
+
+def _cut_appendages(grouping: Grouping, table: GroupTable, params: DetectionParams) -> Grouping:
+    """Thin appendages off thick spots (:mod:`kisscal.detect.appendage`): groups large
+    enough for a thick body, not one round disc, at most a cluster's size and twice a
+    marker's extent."""
+    candidates = (table.pixels >= APPENDAGE_MIN_PIXELS) & splittable(table, params)
+    # a dot and its streak: within twice a marker's extent (bounds the crops' canvas)
+    for limit, extent in ((params.max_width_px, table.width), (params.max_height_px, table.height)):
+        candidates &= extent <= APPENDAGE_EXTENT * (limit or APPENDAGE_MAX_PX)
+    if candidates.any():
+        candidates &= ~round_outline(
+            grouping.runs, table, APPENDAGE_MIN_PIXELS, params.pixel_aspect
+        )
+    return detach_appendages(
+        grouping, table, candidates, max(params.min_pixels, 2), params.pixel_aspect
     )
 
 

@@ -24,7 +24,8 @@ from kisscal.detect.advanced import (
     oversized,
     splittable,
 )
-from kisscal.detect.centroid import Background, SpotMoments, binary_moments, window_moments
+from kisscal.detect.appendage import ROUND_ELONGATION, round_outline
+from kisscal.detect.centroid import Background, SpotMoments, window_moments
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.shape import (
@@ -36,11 +37,6 @@ from kisscal.detect.shape import (
     spreads,
 )
 from kisscal.detect.touching import split_touching
-
-#: Largest major / minor axis ratio (round units) of one round spot.
-ROUND_ELONGATION = 1.25
-#: Least fraction of its moments' ellipse a round spot's white pixels fill.
-ROUND_FILL = 0.85
 
 
 @dataclass(frozen=True)
@@ -156,16 +152,11 @@ class _Facts:
         neck between them, do not). A target's dots, markers seen face on.
         """
         major, minor, _, _ = self.axes
-        m = binary_moments(self.grouping.runs, self.table)
-        a = self.params.pixel_aspect
-        outline = principal_axes(m.var_x, m.var_y, m.cov_xy, a)
-        ellipse = 4.0 * np.pi * np.sqrt(outline[0] * outline[1]) * a  # its pixels
-        pixels = self.table.pixels
-        return (
-            (pixels >= self.params.long_wide_min_pixels)
-            & (major <= ROUND_ELONGATION**2 * minor)
-            & (pixels >= ROUND_FILL * ellipse)
+        p = self.params
+        outline = round_outline(
+            self.grouping.runs, self.table, p.long_wide_min_pixels, p.pixel_aspect
         )
+        return outline & (major <= ROUND_ELONGATION**2 * minor)
 
     @cached_property
     def testable(self) -> NDArray[np.bool_]:
