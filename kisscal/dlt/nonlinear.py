@@ -116,8 +116,14 @@ class _Problem:
         proj = h[:, :2] / h[:, 2:3]
         u = self.u
         if lens:
-            u = u + lens_offsets(u, _principal_point(P), theta[self.n_camera(constrained) :])
+            terms = self.lens_terms(theta, constrained)
+            u = u + lens_offsets(u, _principal_point(P), terms)
         return (u - proj).ravel()
+
+    def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
+        """L12..L16 (normalised) from the estimated first ones, the rest 0."""
+        est = theta[self.n_camera(constrained) :]
+        return np.r_[est, np.zeros(N_LENS - len(est))]
 
     def to_dlt(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         P = np.linalg.solve(self.T2, self.matrix(theta, constrained) @ self.T3)
@@ -205,20 +211,21 @@ def refine_dlt(
     -------
     L : ndarray, shape (11,)
     lens : ndarray, shape (5,) or None
-        L12..L16 in pixel units (Kolahi eq. 2) when ``params.lens``.
+        L12..L16 in pixel units (Kolahi eq. 2) when ``params.lens``; beyond the first
+        ``params.lens_terms`` they are 0.
     n_evaluations : int
     """
     xyz, uv = check_control_points(xyz_mm, uv_px, params, camera)
     if params.lens and len(xyz) < 11:
         raise EstimationFailed(
-            f"camera {camera}: the 16-parameter DLT needs at least 11 control points, "
-            f"got {len(xyz)}"
+            f"camera {camera}: the {11 + params.lens_terms}-parameter DLT needs at least 11 "
+            f"control points, got {len(xyz)}"
         )
     prob = _Problem(xyz, uv, np.asarray(L0, dtype=float))
     constrained = params.mdlt
     theta0 = prob.theta_constrained if constrained else prob.theta_free
     if params.lens:
-        theta0 = np.r_[theta0, np.zeros(N_LENS)]
+        theta0 = np.r_[theta0, np.zeros(params.lens_terms)]
     res = _solve(lambda th: prob.geometric(th, constrained, params.lens), theta0, params, camera)
-    lens = prob.lens_to_px(res.x[prob.n_camera(constrained) :]) if params.lens else None
+    lens = prob.lens_to_px(prob.lens_terms(res.x, constrained)) if params.lens else None
     return prob.to_dlt(res.x, constrained), lens, int(res.nfev)

@@ -27,6 +27,10 @@ class DltParams(Params):
     lens : bool
         Also estimate Kolahi's lens terms L12..L16 (eq. 2) during refinement (``--lens``);
         implies ``refine``. Off by default: kisscal linearises pixels from the grid first.
+    lens_terms : int
+        How many of L12..L16, in that order, ``lens`` estimates (the rest stay 0): 1 is
+        the one radial term ``L12 r^2``, 3 the radial terms, 5 all of them (with the
+        decentring L15, L16).
     select_model : bool
         With none of ``mdlt``, ``refine``, ``lens`` given, choose each camera's model
         (linear DLT, refined, refined with L12..L16) by its held-out control points
@@ -103,6 +107,7 @@ class DltParams(Params):
     mdlt: bool = param(False)
     refine: bool = param(False)
     lens: bool = param(False)
+    lens_terms: int = param(5, ge=1, le=5)
     select_model: bool = param(True)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)

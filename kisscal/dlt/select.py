@@ -1,7 +1,7 @@
 """Which camera model the control points support: chosen by held-out points.
 
 A technician cannot judge whether a lens needs Kolahi's L12..L16 (Kolahi et al. 2007,
-eqs. 2-3) on top of the grid's linearisation, or whether the pixel refinement of Woltring
+eqs. 2-3), or only his radial term L12, on top of the grid's linearisation, or whether the pixel refinement of Woltring
 & Huiskes (1990) helps: a model with more terms always fits its own points better. So
 each candidate model is fitted with some control points left out and judged by how well
 the rig then reconstructs them (cross-validation, Stone 1974): one rod at a time for the
@@ -45,20 +45,22 @@ from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import KisscalError
 
 #: The candidate models, simplest first: name -> the DLT switches that fit it.
-MODELS: dict[str, dict[str, bool]] = {
-    "dlt": {"mdlt": False, "refine": False, "lens": False},
-    "refined": {"mdlt": False, "refine": True, "lens": False},
-    "lens": {"mdlt": False, "refine": True, "lens": True},
+MODELS: dict[str, dict[str, bool | int]] = {
+    "dlt": {"mdlt": False, "refine": False, "lens": False, "lens_terms": 5},
+    "refined": {"mdlt": False, "refine": True, "lens": False, "lens_terms": 5},
+    "radial": {"mdlt": False, "refine": True, "lens": True, "lens_terms": 1},
+    "lens": {"mdlt": False, "refine": True, "lens": True, "lens_terms": 5},
 }
 
 #: Unknowns of each model per camera: a model's held-out error is weighed by
 #: ``1 + model_margin * (its unknowns - the fewest)`` before the comparison.
-MODEL_UNKNOWNS: dict[str, int] = {"dlt": 11, "refined": 11, "lens": 16}
+MODEL_UNKNOWNS: dict[str, int] = {"dlt": 11, "refined": 11, "radial": 12, "lens": 16}
 
 #: What each model is, in words (report tables).
 MODEL_NAMES: dict[str, str] = {
     "dlt": "linear DLT (11 parameters)",
     "refined": "DLT refined in pixels",
+    "radial": "DLT + L12 (one radial term)",
     "lens": "DLT + L12-L16 lens terms",
 }
 

@@ -96,6 +96,19 @@ def test_lens_terms_are_recovered(rig):
     assert lens.lens is not None and lens.lens[0] == pytest.approx(-4e-7, rel=0.05)
 
 
+def test_one_radial_term_follows_a_radial_lens_and_keeps_the_rest_zero(rig):
+    rng = np.random.default_rng(6)
+    xyz = rng.uniform([0, 0, 0], [2400, 1400, 2000], (80, 3))
+    L_true = rig.L[2]
+    lens_true = np.array([-4e-7, 0.0, 0.0, 0.0, 0.0])
+    uv = _distort(L_true, lens_true, project(L_true, xyz)) + rng.normal(0, 0.05, (80, 2))
+    plain = calibrate_camera(xyz, uv, DltParams(refine=True))
+    radial = calibrate_camera(xyz, uv, DltParams(lens=True, lens_terms=1))
+    assert plain.rms_px > 0.5 and radial.rms_px < 0.08
+    assert radial.lens[0] == pytest.approx(-4e-7, rel=0.05)
+    assert np.all(radial.lens[1:] == 0.0)
+
+
 def test_lens_needs_eleven_points(rig):
     xyz = rod_xyz(rig)[[0, 2, 4, 6, 8, 10, 12, 14, 16, 18]]
     with pytest.raises(KisscalError, match="16-parameter DLT needs at least 11"):

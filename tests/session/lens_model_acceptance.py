@@ -45,7 +45,7 @@ from kisscal.synth.presets import synth_options
 from tests.bundle.wand_scoring import volume_points
 
 REAL = Path("/work/shared/data/real/openptv-cavity")  # --real to point elsewhere
-MODELS = ("dlt", "refined", "lens")
+MODELS = ("dlt", "refined", "radial", "lens")
 OFF = {"mdlt": False, "refine": False, "lens": False}
 
 
@@ -55,6 +55,8 @@ def forced(model: str | None) -> dict[str, Any]:
         return dict(OFF)
     if model == "dlt":
         return {**OFF, "overrides": Overrides(dlt={"select_model": False})}
+    if model == "radial":
+        return {**OFF, "lens": True, "overrides": Overrides(dlt={"lens_terms": 1})}
     return {**OFF, model if model == "lens" else "refine": True}
 
 
@@ -186,8 +188,9 @@ def _loo(root: Path) -> float | None:
     return loo.get("mean_mm")
 
 
-def measure_rig(preset: str, seed: int, work: Path) -> dict[str, Any]:
-    """One synthetic rig: the rods with each model and by default, then with the wand."""
+def measure_rig(preset: str, seed: int, work: Path, wand_too: bool = True) -> dict[str, Any]:
+    """One synthetic rig: the rods with each model and by default, then with the wand
+    (``wand_too``)."""
     base = work / f"{preset}{seed}"
     if not (base / "session.toml").is_file():
         session.synthesise(base, preset=preset, seed=seed, fields=10, walking5=False, force=True)
@@ -206,6 +209,8 @@ def measure_rig(preset: str, seed: int, work: Path) -> dict[str, Any]:
     }
     line["rods loo_mm"] = _loo(rods)
     line["round_trip_mm"] = round_trip_mm(rods, preset, seed)
+    if not wand_too:
+        return line
     wand = work / f"{preset}{seed}-wand"
     if not wand.is_dir():
         from tests.session.wand_session import add_wand_trial
@@ -228,12 +233,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("rigs", nargs="*", help="PRESET:SEED, e.g. modern:11")
     parser.add_argument("--work", type=Path, default=Path("lens-model-acceptance"))
     parser.add_argument("--real", type=Path, default=REAL, help="the openptv-cavity folder")
+    parser.add_argument("--no-wand", action="store_true", help="the rods only (parts 2, 3)")
     args = parser.parse_args(argv)
     if args.what == "real":
         measure_real(args.work, args.real)
     for rig in args.rigs:
         preset, seed = rig.split(":")
-        print(json.dumps(measure_rig(preset, int(seed), args.work)), flush=True)
+        print(json.dumps(measure_rig(preset, int(seed), args.work, not args.no_wand)), flush=True)
 
 
 if __name__ == "__main__":
