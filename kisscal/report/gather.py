@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.io.calibration_record import LensModels, WandRecord
 from kisscal.io.config import load_session
 from kisscal.io.detection_record import DetectionRecord
 from kisscal.io.dltfiles import DltFile
@@ -63,7 +64,7 @@ class SessionOutputs:
         Camera -> its calibration (``out/dlt/<camera>.json``).
     detection : dict
         Camera -> its detection settings (``out/detection/<camera>.json``).
-    wand : dict or None
+    wand : WandRecord or None
         ``out/dlt/wand.json``.
     trial_outputs : dict
         Trial -> :class:`TrialOutputs`.
@@ -85,7 +86,7 @@ class SessionOutputs:
     summary: dict[str, Any]
     dlt: dict[str, DltFile]
     detection: dict[str, DetectionRecord]
-    wand: dict[str, Any] | None
+    wand: WandRecord | None
     trial_outputs: dict[str, TrialOutputs]
     figures: dict[str, Path]
     limits: ReportParams
@@ -94,6 +95,10 @@ class SessionOutputs:
     def camera_figures(self, camera: str) -> CameraFigures:
         """The figures of ``camera`` in :attr:`summary`, typed."""
         return CameraFigures.read(self.summary, camera)
+
+    def lens_models(self, camera: str) -> LensModels | None:
+        """The camera models compared for ``camera`` (None when its calibration has none)."""
+        return LensModels.read(self.dlt[camera].data) if camera in self.dlt else None
 
     def rig_check(self) -> RigCheck:
         """The calibration's 3D check in :attr:`summary`, typed."""
@@ -253,7 +258,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         summary=summary,
         dlt={c: d for c in cameras if (d := _dlt(store, c, notes)) is not None},
         detection=detection,
-        wand=_json(store.calibration_file("wand"), notes),
+        wand=WandRecord.read(_json(store.calibration_file("wand"), notes)),
         trial_outputs={t: _trial(store, t, notes) for t in trials},
         figures=figures,
         limits=_limits(store, params or _session_params(config, notes), notes),
