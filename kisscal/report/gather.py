@@ -8,7 +8,7 @@ the report must be written even for a half-processed session.
 
 from __future__ import annotations
 
-import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -109,42 +109,17 @@ class SessionOutputs:
         return TrialFigures.read(self.summary, trial)
 
 
-def _json(path: Path, notes: list[str]) -> Any:
-    if not path.is_file():
-        return None
+def _noted(notes: list[str], read: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``read(*args, **kwargs)``, or None with a note when the file cannot be read."""
     try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        notes.append(f"{path.name}: not read ({exc})")
-        return None
-
-
-def _dlt(store: SessionStore, camera: str, notes: list[str]) -> DltFile | None:
-    if not store.dlt_path(camera).is_file():
-        return None
-    try:
-        return store.dlt(camera)
-    except KisscalError as exc:
+        return read(*args, **kwargs)
+    except (KisscalError, OSError) as exc:
         notes.append(str(exc))
         return None
 
 
-def _detection(store: SessionStore, camera: str, notes: list[str]) -> DetectionRecord | None:
-    try:
-        return store.detection_record(camera)
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return None
-
-
-def _table(path: Path, notes: list[str], required: tuple[str, ...] = ()) -> Any:
-    if not path.is_file():
-        return None
-    try:
-        return read_table(path, required=required, numeric=())
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return None
+def _table(path: Path, notes: list[str]) -> Any:
+    return _noted(notes, read_table, path, numeric=()) if path.is_file() else None
 
 
 def _config(root: Path, notes: list[str]) -> Any:
@@ -188,7 +163,7 @@ def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
 
 def _limits(store: SessionStore, base: ReportParams, notes: list[str]) -> ReportParams:
     """``kisscal check`` limits stored in ``out/limits.json`` replace the defaults."""
-    stored = _json(store.limits_path, notes) or {}
+    stored = _noted(notes, store.read_json, store.limits_path) or {}
     changes = {k: v for k, v in stored.items() if k in LIMIT_KEYS and v is not None}
     try:
         return base.replace(**changes)
@@ -230,7 +205,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     store = SessionStore(root)
     notes: list[str] = []
     config = _config(root, notes)
-    summary = _json(store.summary_path, notes)
+    summary = _noted(notes, store.read_json, store.summary_path)
     if summary is None:
         summary = _summary_from_outputs(root, config is not None, notes)
     if config is not None:
@@ -246,7 +221,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     # a hidden name is a figure still being written (kisscal.io.files writes beside, then renames)
     pngs = sorted(figures_dir.glob("[!.]*.png")) if figures_dir.is_dir() else []
     figures = {p.stem: p for p in pngs}
-    detection = {c: r for c in cameras if (r := _detection(store, c, notes)) is not None}
+    detection = {c: r for c in cameras if (r := _noted(notes, store.detection_record, c))}
     return SessionOutputs(
         root=root,
         session=session,
@@ -256,9 +231,13 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         marker_names=names,
         segments=segments,
         summary=summary,
-        dlt={c: d for c in cameras if (d := _dlt(store, c, notes)) is not None},
+        dlt={
+            c: d
+            for c in cameras
+            if store.dlt_path(c).is_file() and (d := _noted(notes, store.dlt, c))
+        },
         detection=detection,
-        wand=WandRecord.read(_json(store.calibration_file("wand"), notes)),
+        wand=WandRecord.read(_noted(notes, store.calibration_doc, "wand")),
         trial_outputs={t: _trial(store, t, notes) for t in trials},
         figures=figures,
         limits=_limits(store, params or _session_params(config, notes), notes),
