@@ -144,15 +144,11 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
 
 def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
     files = store.trial(name)
+    t = _noted(notes, store.trajectories, name) if files.trajectories().is_file() else None
     dense = None
-    if files.trajectories().is_file():
-        try:
-            t = store.trajectories(name)
-        except KisscalError as exc:
-            notes.append(str(exc))
-        else:
-            status = np.asarray(STATUS_NAMES)[t.status]
-            dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
+    if t is not None:
+        status = np.asarray(STATUS_NAMES)[t.status]
+        dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
     return TrialOutputs(
         name,
         dense,
@@ -177,15 +173,11 @@ def _marker_names(config: Any, notes: list[str]) -> tuple[tuple, tuple]:
     markers = config.markers
     if markers is None:
         return (), ()
+    own = tuple(markers.names), tuple(markers.segments)
     if markers.set is None:
-        return tuple(markers.names), tuple(markers.segments)
-
-    try:
-        chosen = marker_set(markers.set, markers.names or None)
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return tuple(markers.names), tuple(markers.segments)
-    return chosen.names, tuple(markers.segments) or chosen.segments
+        return own
+    chosen = _noted(notes, marker_set, markers.set, markers.names or None)
+    return own if chosen is None else (chosen.names, own[1] or chosen.segments)
 
 
 def _session_params(config: Any, notes: list[str]) -> ReportParams:
