@@ -3,7 +3,6 @@
 - :func:`rms_px`: the residual figure of DESIGN.md, ``sqrt(mean(du^2 + dv^2))``;
 - :func:`similarity_normaliser` and :func:`apply_transform`: the conditioning of
   coordinates before a linear solve (Hartley 1997);
-- :func:`connected_labels`: connected components of a graph given by its edges;
 - :func:`lexsort_ints`: :func:`numpy.lexsort` of integer keys, by radix passes;
 - :func:`n_distinct`: the number of distinct integers, without sorting them;
 - :func:`worker_pool` and :func:`inherited`: worker processes that inherit their work
@@ -30,8 +29,6 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from kisscal.errors import InputError
 
@@ -78,29 +75,6 @@ def apply_transform(T: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
     """Points (N, d) through an affine homogeneous transform (d + 1, d + 1)."""
     T = np.asarray(T, dtype=float)
     return np.asarray(points, dtype=float) @ T[:-1, :-1].T + T[:-1, -1]
-
-
-def connected_labels(n: int, a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
-    """Label of each of ``n`` nodes: its connected component in the graph with edges (a, b).
-
-    Components are numbered 0, 1, ... in order of their smallest node.
-
-    Examples
-    --------
-    >>> connected_labels(5, [0, 3], [2, 4])
-    array([0, 1, 0, 2, 2])
-    """
-    a = np.asarray(a, dtype=np.int64)
-    b = np.asarray(b, dtype=np.int64)
-    graph = coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
-    # scipy numbers components by first visit, which is the smallest node: keep it explicit
-    first = np.full(labels.max() + 1 if n else 0, n, dtype=np.int64)
-    np.minimum.at(first, labels, np.arange(n))
-    order = np.argsort(first, kind="stable")
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.size)
-    return rank[labels].astype(np.int64)
 
 
 def lexsort_ints(keys: Sequence[ArrayLike]) -> NDArray[np.intp]:

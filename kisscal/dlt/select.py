@@ -1,20 +1,20 @@
 """Which camera model the control points support: chosen by held-out points.
 
-A technician cannot judge whether a lens needs Kolahi's L12..L16 (Kolahi et al. 2007,
-eqs. 2-3), or only his radial term L12, on top of the grid's linearisation, or whether the pixel refinement of Woltring
-& Huiskes (1990) helps: a model with more terms always fits its own points better. So
-each candidate model is fitted with some control points left out and judged by how well
-the rig then reconstructs them (cross-validation, Stone 1974): one rod at a time for the
-rods, or one of ``model_folds`` interleaved subsets of other control points. The model
-whose held-out 3D error is smallest is chosen for every camera, after weighing each
-model's error by ``1 + model_margin`` per unknown beyond the fewest, and the linear DLT's
-by ``1 + linear_margin`` against the refined one (the maximum-likelihood fit of the same
-unknowns under pixel noise, which held-out rods cannot tell apart from it more finely),
-before the comparison (more terms must earn their keep: with four rods, leaving one out
-leaves 18 points for the 16 unknowns of the lens model, and a lens model a few per cent
-better on the left-out rods can bend the volume between the rods several times more than
-the plain DLT does). Each camera's
-held-out reprojection error under every model is kept beside it, for the report.
+A technician cannot judge whether a lens needs Kolahi's L12..L16 (Kolahi et al. 2007, eqs.
+2-3), or only his radial term L12, on top of the grid's linearisation, or whether the
+pixel refinement of Woltring & Huiskes (1990) helps: a model with more terms always fits
+its own points better. So each candidate model is fitted with some control points left out
+and judged by how well the rig then reconstructs them (cross-validation, Stone 1974): one
+rod at a time for the rods, or one of ``model_folds`` interleaved subsets of other control
+points. The model whose held-out 3D error is smallest is chosen for every camera, after
+weighing each model's error by ``1 + model_margin`` per unknown beyond the fewest, and the
+linear DLT's by ``1 + linear_margin`` against the refined one (the maximum-likelihood fit
+of the same unknowns under pixel noise, which held-out rods cannot tell apart from it more
+finely), before the comparison (more terms must earn their keep: with four rods, leaving
+one out leaves 18 points for the 16 unknowns of the lens model, and a lens model a few per
+cent better on the left-out rods can bend the volume between the rods several times more
+than the plain DLT does). Each camera's held-out reprojection error under every model is
+kept beside it, for the report.
 
 With a single camera (``--camera``) no point can be reconstructed; the held-out
 reprojection error of that camera decides instead.

@@ -10,7 +10,6 @@ report show it. All of them go through :class:`DetectionRecord`, never the raw J
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -19,7 +18,7 @@ from typing import Any
 
 from kisscal.detect.configure import DetectionSetup
 from kisscal.errors import InputError
-from kisscal.io.files import write_json
+from kisscal.io.files import read_json, write_json
 
 
 @dataclass(frozen=True)
@@ -165,12 +164,12 @@ def read_detection_record(path: Path) -> DetectionRecord | None:
     Raises
     ------
     InputError
-        The file is there but is not a detection document.
+        The file is there but is not JSON, or not a detection document.
     """
-    if not path.is_file():
+    doc = read_json(path)
+    if doc is None:
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
         kinds = doc["kinds"]
         size = doc.get("size")
         return DetectionRecord(

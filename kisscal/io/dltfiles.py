@@ -32,7 +32,7 @@ from kisscal.dlt.model import shift_dlt_pixels
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import atomic_path, write_text
+from kisscal.io.files import atomic_path, read_json, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
 #: kisscal's pixel coordinates (L of ``<camera>.json`` maps to these, linearised).
@@ -180,12 +180,9 @@ def read_dlt_json(path: str | Path) -> DltFile:
         Missing file, invalid JSON, or no 11 finite numbers under ``L``.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: DLT file not found") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    doc = read_json(path)
+    if doc is None:
+        raise MissingDataError(f"{path}: DLT file not found")
     if not isinstance(doc, dict) or "L" not in doc:
         raise InputError(f'{path}: a DLT file needs an "L" list of 11 numbers')
     L = _eleven(doc["L"], f'{path}: "L"')

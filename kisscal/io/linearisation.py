@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError, KisscalError, MissingDataError, with_context
 from kisscal.grid.poly import TERM_NAMES, Linearisation, LinearisationQuality
-from kisscal.io.files import write_text
+from kisscal.io.files import read_json, write_text
 
 FORMAT_VERSION = 1
 _QUALITY_KEYS = {f.name for f in fields(LinearisationQuality)}
@@ -156,26 +156,17 @@ def read_linearisation(path: str | Path) -> tuple[str, Linearisation]:
         File missing, not JSON, or not a valid linearisation document.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MissingDataError(f"linearisation file not found: {path}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    doc = read_json(path)
+    if doc is None:
+        raise MissingDataError(f"linearisation file not found: {path}")
     lin = linearisation_from_dict(doc, str(path))
     return str(doc.get("camera", path.stem)), lin
 
 
 def read_linearisation_doc(path: str | Path) -> dict[str, Any] | None:
     """The JSON document of a linearisation file, or None when there is no file."""
-    path = Path(path)
-    if not path.is_file():
-        return None
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(doc, dict):
+    doc = read_json(Path(path))
+    if doc is not None and not isinstance(doc, dict):
         raise InputError(f"{path}: expected a JSON object")
     return doc
 

@@ -31,7 +31,7 @@ from kisscal.grid.poly import Linearisation
 from kisscal.io.cache import load_blob_frames
 from kisscal.io.detection_record import DetectionRecord, read_detection_record
 from kisscal.io.dltfiles import DltFile, read_dlt_json
-from kisscal.io.files import write_text
+from kisscal.io.files import read_json, write_text
 from kisscal.io.linearisation import read_linearisation, read_linearisation_doc
 from kisscal.io.points2d import Points2DFile, read_points2d
 from kisscal.io.points3d import Points3DFile, read_points3d
@@ -257,19 +257,9 @@ class SessionStore:
 
     # -- typed readers ---------------------------------------------------------------
     def read_json(self, path: Path) -> Any:
-        """A JSON file of the store, or None when there is none.
-
-        Raises
-        ------
-        KisscalError
-            The file is there but is not JSON.
-        """
-        if not path.is_file():
-            return None
-        try:
-            return json.loads(path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+        """A JSON file of the store, or None when there is none (see
+        :func:`kisscal.io.files.read_json`)."""
+        return read_json(path)
 
     def linearisation(self, camera: str) -> Linearisation:
         """The linearisation written for ``camera`` (a :class:`KisscalError` when none)."""

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from kisscal.io.calibration_record import LensModels
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore, TrialFiles
@@ -106,12 +107,11 @@ def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> d
             "rms_px": doc.get("rms_px"),
             "centre_mm": doc.get("centre_mm"),
         }
-        models = doc.get("lens_models")
-        if models:  # the held-out reprojection error of each model compared
-            entry["dlt"]["model"] = models["chosen"]
-            entry["dlt"]["held_out_rms_px"] = {
-                m: v.get("held_out_rms_px") for m, v in models["models"].items()
-            }
+        models = LensModels.read(doc)
+        if models is not None:  # the held-out reprojection error of each model compared
+            entry["dlt"]["model"] = models.chosen
+            scores = models.models.items()
+            entry["dlt"]["held_out_rms_px"] = {m: s.held_out_rms_px for m, s in scores}
     return entry
 
 

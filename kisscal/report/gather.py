@@ -8,7 +8,7 @@ the report must be written even for a half-processed session.
 
 from __future__ import annotations
 
-import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
+from kisscal.io.calibration_record import LensModels, WandRecord
 from kisscal.io.config import load_session
 from kisscal.io.detection_record import DetectionRecord
 from kisscal.io.dltfiles import DltFile
@@ -63,7 +64,7 @@ class SessionOutputs:
         Camera -> its calibration (``out/dlt/<camera>.json``).
     detection : dict
         Camera -> its detection settings (``out/detection/<camera>.json``).
-    wand : dict or None
+    wand : WandRecord or None
         ``out/dlt/wand.json``.
     trial_outputs : dict
         Trial -> :class:`TrialOutputs`.
@@ -85,7 +86,7 @@ class SessionOutputs:
     summary: dict[str, Any]
     dlt: dict[str, DltFile]
     detection: dict[str, DetectionRecord]
-    wand: dict[str, Any] | None
+    wand: WandRecord | None
     trial_outputs: dict[str, TrialOutputs]
     figures: dict[str, Path]
     limits: ReportParams
@@ -94,6 +95,10 @@ class SessionOutputs:
     def camera_figures(self, camera: str) -> CameraFigures:
         """The figures of ``camera`` in :attr:`summary`, typed."""
         return CameraFigures.read(self.summary, camera)
+
+    def lens_models(self, camera: str) -> LensModels | None:
+        """The camera models compared for ``camera`` (None when its calibration has none)."""
+        return LensModels.read(self.dlt[camera].data) if camera in self.dlt else None
 
     def rig_check(self) -> RigCheck:
         """The calibration's 3D check in :attr:`summary`, typed."""
@@ -104,42 +109,17 @@ class SessionOutputs:
         return TrialFigures.read(self.summary, trial)
 
 
-def _json(path: Path, notes: list[str]) -> Any:
-    if not path.is_file():
-        return None
+def _noted(notes: list[str], read: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``read(*args, **kwargs)``, or None with a note when the file cannot be read."""
     try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        notes.append(f"{path.name}: not read ({exc})")
-        return None
-
-
-def _dlt(store: SessionStore, camera: str, notes: list[str]) -> DltFile | None:
-    if not store.dlt_path(camera).is_file():
-        return None
-    try:
-        return store.dlt(camera)
-    except KisscalError as exc:
+        return read(*args, **kwargs)
+    except (KisscalError, OSError) as exc:
         notes.append(str(exc))
         return None
 
 
-def _detection(store: SessionStore, camera: str, notes: list[str]) -> DetectionRecord | None:
-    try:
-        return store.detection_record(camera)
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return None
-
-
-def _table(path: Path, notes: list[str], required: tuple[str, ...] = ()) -> Any:
-    if not path.is_file():
-        return None
-    try:
-        return read_table(path, required=required, numeric=())
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return None
+def _table(path: Path, notes: list[str]) -> Any:
+    return _noted(notes, read_table, path, numeric=()) if path.is_file() else None
 
 
 def _config(root: Path, notes: list[str]) -> Any:
@@ -164,15 +144,11 @@ def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> di
 
 def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
     files = store.trial(name)
+    t = _noted(notes, store.trajectories, name) if files.trajectories().is_file() else None
     dense = None
-    if files.trajectories().is_file():
-        try:
-            t = store.trajectories(name)
-        except KisscalError as exc:
-            notes.append(str(exc))
-        else:
-            status = np.asarray(STATUS_NAMES)[t.status]
-            dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
+    if t is not None:
+        status = np.asarray(STATUS_NAMES)[t.status]
+        dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
     return TrialOutputs(
         name,
         dense,
@@ -183,7 +159,7 @@ def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
 
 def _limits(store: SessionStore, base: ReportParams, notes: list[str]) -> ReportParams:
     """``kisscal check`` limits stored in ``out/limits.json`` replace the defaults."""
-    stored = _json(store.limits_path, notes) or {}
+    stored = _noted(notes, store.read_json, store.limits_path) or {}
     changes = {k: v for k, v in stored.items() if k in LIMIT_KEYS and v is not None}
     try:
         return base.replace(**changes)
@@ -197,15 +173,11 @@ def _marker_names(config: Any, notes: list[str]) -> tuple[tuple, tuple]:
     markers = config.markers
     if markers is None:
         return (), ()
+    own = tuple(markers.names), tuple(markers.segments)
     if markers.set is None:
-        return tuple(markers.names), tuple(markers.segments)
-
-    try:
-        chosen = marker_set(markers.set, markers.names or None)
-    except KisscalError as exc:
-        notes.append(str(exc))
-        return tuple(markers.names), tuple(markers.segments)
-    return chosen.names, tuple(markers.segments) or chosen.segments
+        return own
+    chosen = _noted(notes, marker_set, markers.set, markers.names or None)
+    return own if chosen is None else (chosen.names, own[1] or chosen.segments)
 
 
 def _session_params(config: Any, notes: list[str]) -> ReportParams:
@@ -225,7 +197,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     store = SessionStore(root)
     notes: list[str] = []
     config = _config(root, notes)
-    summary = _json(store.summary_path, notes)
+    summary = _noted(notes, store.read_json, store.summary_path)
     if summary is None:
         summary = _summary_from_outputs(root, config is not None, notes)
     if config is not None:
@@ -241,7 +213,7 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     # a hidden name is a figure still being written (kisscal.io.files writes beside, then renames)
     pngs = sorted(figures_dir.glob("[!.]*.png")) if figures_dir.is_dir() else []
     figures = {p.stem: p for p in pngs}
-    detection = {c: r for c in cameras if (r := _detection(store, c, notes)) is not None}
+    detection = {c: r for c in cameras if (r := _noted(notes, store.detection_record, c))}
     return SessionOutputs(
         root=root,
         session=session,
@@ -251,9 +223,13 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
         marker_names=names,
         segments=segments,
         summary=summary,
-        dlt={c: d for c in cameras if (d := _dlt(store, c, notes)) is not None},
+        dlt={
+            c: d
+            for c in cameras
+            if store.dlt_path(c).is_file() and (d := _noted(notes, store.dlt, c))
+        },
         detection=detection,
-        wand=_json(store.calibration_file("wand"), notes),
+        wand=WandRecord.read(_noted(notes, store.calibration_doc, "wand")),
         trial_outputs={t: _trial(store, t, notes) for t in trials},
         figures=figures,
         limits=_limits(store, params or _session_params(config, notes), notes),

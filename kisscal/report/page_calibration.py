@@ -105,34 +105,25 @@ def rod_table(o: SessionOutputs) -> Html:
 def model_table(o: SessionOutputs) -> Html:
     """The camera models compared on held-out points (``lens_models`` of each camera's
     ``dlt/<camera>.json``): one row per camera, the chosen model marked."""
-    docs = {
-        c: d.data["lens_models"]
-        for c in o.cameras
-        if (d := o.dlt.get(c)) is not None and d.data and "lens_models" in d.data
-    }
+    docs = {c: m for c in o.cameras if (m := o.lens_models(c)) is not None}
     if not docs:
         return Html("")
-    models = list(next(iter(docs.values()))["models"])
+    first = next(iter(docs.values()))
+    models = list(first.models)
     rows = []
     for cam, doc in docs.items():
         cells = []
         for m in models:
-            text = fmt(doc["models"].get(m, {}).get("held_out_rms_px"), 4)
-            cells.append(tag("b", text) if m == doc["chosen"] else text)
-        rows.append([tag("b", cam), doc["chosen"], *cells])
-    first = next(iter(docs.values()))
-    rows.append(
-        [
-            "rig, 3D (mm)",
-            first["chosen"],
-            *(fmt(first["models"][m].get("held_out_3d_rms_mm"), 4) for m in models),
-        ]
-    )
-    names = [f"{m}: {first['models'][m]['model']}, held-out (px)" for m in models]
+            text = fmt(doc.held_out_rms_px(m), 4)
+            cells.append(tag("b", text) if m == doc.chosen else text)
+        rows.append([tag("b", cam), doc.chosen, *cells])
+    rig_3d = (fmt(first.models[m].held_out_3d_rms_mm, 4) for m in models)
+    rows.append(["rig, 3D (mm)", first.chosen, *rig_3d])
+    names = [f"{m}: {first.models[m].model}, held-out (px)" for m in models]
     note = tag(
         "p",
-        f"Camera model chosen by {esc(first['by'])}: each model fitted with one of "
-        f"{first['folds']} subsets of the control points left out in turn (a rod, or "
+        f"Camera model chosen by {esc(first.by)}: each model fitted with one of "
+        f"{first.folds} subsets of the control points left out in turn (a rod, or "
         "interleaved points), and judged on the points it did not see. The rows give each "
         "camera's held-out reprojection error, the last row the RMS 3D error of the "
         "held-out points reconstructed by the rig. --mdlt, --refine or --lens overrides.",
@@ -221,15 +212,6 @@ def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: s
     return section("calibration", "Calibration", join(parts), RMS_NOTE)
 
 
-def _scalar_columns(docs: dict[str, dict[str, Any]]) -> list[str]:
-    keys: list[str] = []
-    for doc in docs.values():
-        for k, v in doc.items():
-            if k not in keys and k != "camera" and isinstance(v, int | float | str | bool):
-                keys.append(k)
-    return keys
-
-
 def _cell(value: Any) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(_cell(v) for v in value[:6]) + (" …" if len(value) > 6 else "")
@@ -288,19 +270,10 @@ WAND_NOTE = (
 def wand_section(o: SessionOutputs, used: set[str]) -> Html:
     """Wand calibration figures (``out/dlt/wand.json``): length, per-camera residuals."""
     w = o.wand
-    if not w:
+    if w is None:
         return Html("")
-    top = [(k, v) for k, v in w.items() if isinstance(v, int | float) and not isinstance(v, bool)]
-    for group in ("held_out", "held_out_rods_alone", "held_out_rod_markers", "axes"):
-        sub = w.get(group)
-        if isinstance(sub, dict):
-            top += [
-                (f"{group}_{k}", v)
-                for k, v in sub.items()
-                if isinstance(v, int | float) and not isinstance(v, bool)
-            ]
     parts = []
-    if w.get("kept") == "rods":
+    if w.kept == "rods":
         parts.append(
             tag(
                 "p",
@@ -314,14 +287,12 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
                 ),
             )
         )
-    if top:
-        rows = [[heading(k), _cell(v)] for k, v in top]
+    if w.figures:
+        rows = [[heading(k), _cell(v)] for k, v in w.figures]
         parts.append(table(["wand figure", "value"], rows, (1,)))
-    per_cam = w.get("cameras") or w.get("per_camera") or {}
-    if isinstance(per_cam, dict) and per_cam:
-        docs = {c: d for c, d in per_cam.items() if isinstance(d, dict)}
-        keys = _scalar_columns(docs)
-        rows = [[tag("b", c), *(_cell(docs[c].get(k, "–")) for k in keys)] for c in docs]
+    if w.cameras:
+        keys = w.camera_columns
+        rows = [[tag("b", c), *(_cell(d.get(k, "–")) for k in keys)] for c, d in w.cameras.items()]
         headers = ["camera", *(heading(k) for k in keys)]
         parts.append(table(headers, rows, tuple(range(1, len(keys) + 1))))
     for name in sorted(o.figures):

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -41,14 +40,6 @@ class Verdict:
 def worst(states: list[str]) -> str:
     """The most serious of ``states`` (:data:`NONE` for none)."""
     return max(states, key=_ORDER.__getitem__, default=NONE)
-
-
-def number(value: Any) -> float:
-    """``value`` as a float; NaN for None, text or anything else that is not a number."""
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _within(value: float, limit: float) -> str:

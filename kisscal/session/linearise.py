@@ -60,16 +60,9 @@ def linearise(
         return {c.id: _identity(c) for c in cameras}
 
     # a partial of a module-level function: spawned workers (Windows) receive it pickled
-    fit = functools.partial(_fit_camera, Path(root), config, params)
+    fit = functools.partial(_linearise_camera, Path(root), config, params)
     fits = each_camera(fit, cameras, "linearise", echo, workers)
     return {c.id: lin for c, lin in zip(cameras, fits, strict=True)}
-
-
-def _fit_camera(
-    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, say: Echo
-) -> Linearisation:
-    """:func:`_linearise_camera` with the camera last, as :func:`each_camera` calls it."""
-    return _linearise_camera(root, config, cam, params, say)
 
 
 def _identity(cam: CameraConfig) -> Linearisation:
@@ -86,9 +79,10 @@ def _identity(cam: CameraConfig) -> Linearisation:
 
 
 def _linearise_camera(
-    root: Path, config: SessionConfig, cam: CameraConfig, params: StageParams, echo: Echo
+    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, echo: Echo
 ) -> Linearisation:
-    """One camera's linearisation: from the cache, or fitted and written with its figure."""
+    """One camera's linearisation: from the cache, or fitted and written with its figure
+    (the camera last, as :func:`each_camera` calls it)."""
     if config.grid is None:
         raise InputError(f"{config.path}: camera {cam.id} has no [grid] to linearise from")
     store = SessionStore(root)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -13,7 +12,7 @@ from numpy.typing import NDArray
 from kisscal.errors import InputError
 from kisscal.io.c3d import read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
-from kisscal.io.files import write_json
+from kisscal.io.files import read_json, write_json
 from kisscal.io.points2d import COLUMNS as POINTS2D_COLUMNS
 from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, write_points3d, write_trial_points
@@ -130,9 +129,8 @@ def inverse_depth_m(
 
 def _echo_warnings(trial: str, recon_json: Path, echo: Echo) -> None:
     """The coverage warnings of a trial reconstructed earlier (a cached run says them too)."""
-    if recon_json.is_file():
-        for line in json.loads(recon_json.read_text()).get("warnings", []):
-            echo(f"  warning: {trial}: {line}")
+    for line in (read_json(recon_json) or {}).get("warnings", []):
+        echo(f"  warning: {trial}: {line}")
 
 
 def c3d_trial_points(

@@ -23,7 +23,6 @@ from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
 from kisscal.session.synth_session import load_walking5, write_synthetic_session
 from kisscal.session.synth_target import write_target_session
-from kisscal.synth.cameras import MAX_CAMERAS
 from kisscal.synth.evaluate import (
     gravity_error,
     score_trajectories,
@@ -31,7 +30,7 @@ from kisscal.synth.evaluate import (
     thrown_gravity,
 )
 from kisscal.synth.plan import plan_session
-from kisscal.synth.presets import PRESETS, synth_options
+from kisscal.synth.presets import synth_options
 
 
 def default_walking5_path() -> Path | None:
@@ -78,12 +77,8 @@ def synthesise(
     (:class:`~kisscal.synth.plan.SynthOptions`).
     """
     echo = echo or _silent
-    if preset not in PRESETS:
-        raise InputError(f"--preset must be one of {', '.join(PRESETS)}, got {preset!r}")
     if n_markers not in (13, 15):
         raise InputError(f"--markers must be 13 or 15, got {n_markers}")
-    if n_cameras is not None and not 2 <= n_cameras <= MAX_CAMERAS:
-        raise InputError(f"--cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
     if fields is not None and fields < 10:
         raise InputError(f"--fields must be at least 10, got {fields}")
     if wand_only and not wand_fields:

@@ -15,7 +15,7 @@ from kisscal.dlt.model import pixel_size_mm
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
-from kisscal.io.files import write_json
+from kisscal.io.files import read_json, write_json
 from kisscal.io.points3d import Points3DFile
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
@@ -189,8 +189,7 @@ def _spare_blobs(root: Path, trial: str) -> SpareBlobs | None:
 
 def _first_frame(files: TrialFiles) -> int:
     """The source's number of field 0: a C3D trial's first frame (``recon.json``), else 1."""
-    recon = files.recon
-    return int(json.loads(recon.read_text()).get("first_frame", 1)) if recon.is_file() else 1
+    return int((read_json(files.recon) or {}).get("first_frame", 1))
 
 
 def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
@@ -228,8 +227,7 @@ def _rate_doubt(
 def _trial_fields(files: TrialFiles, field: np.ndarray) -> int:
     """Fields of a trial: from ``recon.json`` (blank fields count), else up to its last
     point, and at least one."""
-    recon = files.recon
-    known = json.loads(recon.read_text()).get("fields", 0) if recon.is_file() else 0
+    known = (read_json(files.recon) or {}).get("fields", 0)
     return max(int(known), int(field.max(initial=-1)) + 1, 1)
 
 

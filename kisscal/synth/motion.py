@@ -29,8 +29,6 @@ from kisscal.synth.walker import GaitTruth, grounded_walk
 G_MM_S2 = 9806.0
 #: Length of the validation stick between its two marker centres (seed 003 section 5.1).
 STICK_LENGTH_MM = 502.5
-#: Marker sphere radius (25 mm markers, seed 003 section 1).
-MARKER_RADIUS_MM = 12.5
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from typing import Literal
 
 import numpy as np
 
+from kisscal.errors import InputError
 from kisscal.synth.cameras import MAX_CAMERAS, PIXEL_ASPECT, VOLUME_MM
 from kisscal.synth.plan import RigSpec, SynthOptions
 from kisscal.synth.render import Glow, RenderParams
@@ -273,11 +274,11 @@ def synth_options(
     gait trial.
     """
     if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
+        raise InputError(f"preset must be one of {', '.join(PRESETS)}, got {preset!r}")
     p = PRESETS[preset]
     n_cameras = p.n_cameras if n_cameras is None else n_cameras
     if not 2 <= n_cameras <= MAX_CAMERAS:
-        raise ValueError(f"n_cameras must be 2..{MAX_CAMERAS}, got {n_cameras}")
+        raise InputError(f"cameras must be between 2 and {MAX_CAMERAS}, got {n_cameras}")
     fields = p.fields if fields is None else fields
     if p.layout == "kiss":
         render = RenderParams() if blur_px is None else RenderParams(blur_px=blur_px)

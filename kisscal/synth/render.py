@@ -247,17 +247,6 @@ def record(
     return np.clip(np.rint(image * params.dn_scale), 0, top).astype(np.uint16)
 
 
-def render_field(
-    size_px: tuple[int, int],
-    spots: Spots,
-    rng: np.random.Generator,
-    params: RenderParams,
-    background: NDArray[np.float64] | None = None,
-) -> NDArray[np.uint8] | NDArray[np.uint16]:
-    """Render one field: spots, optical blur, noise pixels/streaks, background, noise."""
-    return record(render_scene(size_px, spots, params), rng, params, spots.centre_px, background)
-
-
 def glow_map(
     size_px: tuple[int, int],
     glow: Glow,

@@ -131,7 +131,7 @@ def rod_set(
     """The four rods R1..R4 hanging plumb near the vertical edges of the volume.
 
     The rods hang near ``(+-x, +-y)`` of ``corners_xy_mm``; ``attempt`` draws another
-    small placement for the same seed (see :func:`rods_clear_of_leds`).
+    small placement for the same seed (see :func:`rod_conflicts`).
     """
     rng = np.random.default_rng([seed, 5005, attempt] if attempt else [seed, 5005])
     sign = np.asarray(_ROD_CORNERS)
@@ -197,13 +197,6 @@ def rod_conflicts(
             gaps = _line_gaps_px(cam.project_ideal(points), rod_of)
             conflicts += int((gaps < line_gap_px).sum())
     return conflicts
-
-
-def rods_clear_of_leds(
-    rig: Sequence[Camera], rods: Sequence[Rod], params: RenderParams, margin_px: float = 4.0
-) -> bool:
-    """True when no rod marker's image touches an LED ring's in any camera."""
-    return rod_conflicts(rig, rods, params, margin_px) == 0
 
 
 def _touching(a: Spots, b: Spots, margin_px: float) -> NDArray[np.bool_]:

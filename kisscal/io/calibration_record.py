@@ -1,0 +1,125 @@
+"""The calibration's comparison documents, typed: ``lens_models`` and ``dlt/wand.json``.
+
+``lens_models`` (in each ``dlt/<camera>.json``) compares the camera models on held-out
+points; ``dlt/wand.json`` holds the wand adjustment's figures (DESIGN.md). Each is read
+once from its JSON form into a frozen record; the summary and the report go through
+these records, never the raw dicts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+#: A value of a JSON document shown as it is (a number, a word, a yes/no).
+Scalar = int | float | str | bool
+#: ``dlt/wand.json`` groups whose numbers are wand figures too (named ``<group>_<key>``).
+WAND_GROUPS = ("held_out", "held_out_rods_alone", "held_out_rod_markers", "axes")
+
+
+def _number(value: Any) -> int | float | None:
+    """``value`` when it is a number (not a yes/no), as it is; else None."""
+    return value if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+@dataclass(frozen=True)
+class ModelScore:
+    """One camera model judged on the points its fits left out (None: not measured)."""
+
+    model: str
+    held_out_rms_px: float | None
+    held_out_3d_rms_mm: float | None
+    in_sample_rms_px: float | None
+
+
+@dataclass(frozen=True)
+class LensModels:
+    """A camera's models compared (``lens_models`` of ``dlt/<camera>.json``).
+
+    Attributes
+    ----------
+    chosen : str
+        The model the calibration kept.
+    by : str
+        What decided (``"held-out 3D error"`` or ``"held-out reprojection error"``).
+    folds : int
+        How many subsets of the control points were left out in turn.
+    models : mapping of str -> ModelScore
+        Each model compared, in the document's order.
+    """
+
+    chosen: str
+    by: str
+    folds: int
+    models: Mapping[str, ModelScore]
+
+    @classmethod
+    def read(cls, doc: Mapping[str, Any] | None) -> LensModels | None:
+        """The comparison in a camera's DLT document (None when it has none)."""
+        entry = (doc or {}).get("lens_models")
+        if not isinstance(entry, Mapping) or "models" not in entry:
+            return None
+        models = {
+            str(m): ModelScore(
+                str(v.get("model", m)),
+                _number(v.get("held_out_rms_px")),
+                _number(v.get("held_out_3d_rms_mm")),
+                _number(v.get("in_sample_rms_px")),
+            )
+            for m, v in entry["models"].items()
+        }
+        return cls(
+            str(entry["chosen"]), str(entry.get("by", "")), int(entry.get("folds", 0)), models
+        )
+
+    def held_out_rms_px(self, model: str) -> float | None:
+        """The held-out reprojection error of ``model`` (None when it was not compared)."""
+        score = self.models.get(model)
+        return score.held_out_rms_px if score is not None else None
+
+
+@dataclass(frozen=True)
+class WandRecord:
+    """``dlt/wand.json``, typed.
+
+    Attributes
+    ----------
+    figures : tuple of (str, int or float)
+        Every number of the document in its order, those of :data:`WAND_GROUPS` named
+        ``<group>_<key>`` (wand length, held-out length, iterations, axes fit, ...).
+    kept : str
+        ``"wand"``, or ``"rods"`` when the wand did not lower the held-out error.
+    cameras : mapping of str -> mapping of str -> Scalar
+        Each camera's figures (residual, points, coverage, intrinsics, lens terms).
+    """
+
+    figures: tuple[tuple[str, int | float], ...]
+    kept: str
+    cameras: Mapping[str, Mapping[str, Scalar]]
+
+    @classmethod
+    def read(cls, doc: Any) -> WandRecord | None:
+        """The record of a ``wand.json`` document (None when there is none)."""
+        if not isinstance(doc, Mapping) or not doc:
+            return None
+        figures = [(str(k), x) for k, v in doc.items() if (x := _number(v)) is not None]
+        for group in WAND_GROUPS:
+            sub = doc.get(group)
+            if isinstance(sub, Mapping):
+                figures += [
+                    (f"{group}_{k}", x) for k, v in sub.items() if (x := _number(v)) is not None
+                ]
+        per_cam = doc.get("cameras") or doc.get("per_camera") or {}
+        cameras = {
+            str(c): {str(k): v for k, v in d.items() if isinstance(v, Scalar)}
+            for c, d in (per_cam.items() if isinstance(per_cam, Mapping) else ())
+            if isinstance(d, Mapping)
+        }
+        return cls(tuple(figures), str(doc.get("kept", "")), cameras)
+
+    @property
+    def camera_columns(self) -> tuple[str, ...]:
+        """The figures of :attr:`cameras`, each once, in order of first appearance."""
+        keys = (k for d in self.cameras.values() for k in d if k != "camera")
+        return tuple(dict.fromkeys(keys))
