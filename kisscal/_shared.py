@@ -106,6 +106,20 @@ def lexsort_ints(keys: Sequence[ArrayLike]) -> NDArray[np.intp]:
     return order
 
 
+def true_runs(mask: ArrayLike) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Start and stop (exclusive) of each run of True in a 1-D mask.
+
+    Examples
+    --------
+    >>> starts, stops = true_runs([False, True, True, False, True])
+    >>> starts.tolist(), stops.tolist()
+    ([1, 4], [3, 5])
+    """
+    padded = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]]).astype(np.int8)
+    d = np.diff(padded)
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
 def n_distinct(values: ArrayLike) -> int:
     """Number of distinct integers in ``values`` (``len(np.unique(values))``).
 

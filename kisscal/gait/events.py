@@ -48,12 +48,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import true_runs
 from kisscal.gait.landing import extremum, foot_strikes
 from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctest)
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
 from kisscal.gait.signals import (
     derivative,
-    finite_runs,
     hysteresis_crossings,
     kink_time,
     peak_time,
@@ -439,7 +439,7 @@ def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
     distance = max(1, round(params.min_step_s * rate))
     t = np.arange(len(y)) / rate
     out = []
-    for a, b in finite_runs(valid):
+    for a, b in zip(*true_runs(valid), strict=True):
         if b - a < 3:
             continue
         for i in find_peaks(y[a:b], prominence=prominence, distance=distance)[0]:

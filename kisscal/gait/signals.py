@@ -7,11 +7,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import savgol_filter
 
-
-def finite_runs(valid: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """(start, stop) of every run of True in ``valid``."""
-    edges = np.diff(np.concatenate([[0], valid.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+from kisscal._shared import true_runs
 
 
 def window_samples(span_ms: float, rate_hz: float, minimum: int = 5) -> int:
@@ -29,7 +25,7 @@ def derivative(x: NDArray[np.float64], rate_hz: float, span_ms: float) -> NDArra
     out = np.full_like(x, np.nan)
     n = window_samples(span_ms, rate_hz)
     valid = np.all(np.isfinite(x.reshape(len(x), -1)), axis=1)
-    for a, b in finite_runs(valid):
+    for a, b in zip(*true_runs(valid), strict=True):
         if b - a >= n:
             out[a:b] = savgol_filter(x[a:b], n, 2, deriv=1, delta=1.0 / rate_hz, axis=0)
     return out

@@ -396,19 +396,6 @@ def expected_errors(
     return rms[0], rms[1]
 
 
-def expected_error(
-    method: FillMethod,
-    target: NDArray,
-    dense: NDArray,
-    exclude: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-) -> float:
-    """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi)."""
-    return expected_errors(method, target, dense, exclude, lo, hi, params)[0]
-
-
 #: What a gap longer than ``max_fill_gap_fields`` may be filled with. Not the spline:
 #: beyond a few fields it misses a heel strike's stop, and its error measured beside the
 #: gap does not tell (a 7-field heel gap: 3 mm expected, 16 mm true).
@@ -455,7 +442,7 @@ def body_fill(
     dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], GapFill] | None:
     """Fill the gap [lo, hi) of track ``t`` from the body: the method (rigid-body or
-    pattern fill) whose :func:`expected_error` is smaller and at most
+    pattern fill) whose :func:`expected_errors` is smaller and at most
     ``max_body_fill_error_mm``.
 
     Parameters

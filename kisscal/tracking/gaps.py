@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_smoothing_spline
 
+from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
     BODY_METHODS,
     Candidate,
@@ -25,7 +26,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill, runs
+from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import (
     FILLED,
@@ -53,7 +54,7 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     covered = np.zeros(f1 - f0 + 1, dtype=bool)
     inside = (f >= f0) & (f <= f1)
     covered[f[kept & inside] - f0] = True
-    gap_lo, gap_hi = runs(~covered)
+    gap_lo, gap_hi = true_runs(~covered)
     longest = max(params.max_fill_gap_fields, params.max_body_fill_fields)
     return [
         (int(lo + f0), int(hi + f0))
@@ -99,7 +100,7 @@ def _fill_gap(
     placed = np.isfinite(chain.sd_mm)
     dense[t, lo:hi][placed] = chain.xyz_mm[placed]
     out = []
-    for a, b in zip(*runs(placed), strict=True):
+    for a, b in zip(*true_runs(placed), strict=True):
         err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
         fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
         out.append((chain.xyz_mm[a:b], fill))
@@ -108,7 +109,7 @@ def _fill_gap(
     rest = params.replace(
         max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
     )
-    for a, b in zip(*runs(~placed), strict=True):
+    for a, b in zip(*true_runs(~placed), strict=True):
         out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
     return out
 

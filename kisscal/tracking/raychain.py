@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.params import TrackingParams
@@ -47,13 +48,6 @@ from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
-
-
-def runs(mask: NDArray) -> tuple[NDArray, NDArray]:
-    """Start and stop (exclusive) of each run of True in a 1-D mask."""
-    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(padded)
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 @dataclass(frozen=True)
@@ -305,7 +299,7 @@ def chain_fill(
                 xyz[k], err[k], rows[k] = x, e, row
     # a path, not a stray field: shorter runs of placed fields are left out
     placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*runs(np.isfinite(err)), strict=True):
+    for a, b in zip(*true_runs(np.isfinite(err)), strict=True):
         placed[a:b] = b - a >= MIN_RUN
     xyz[~placed], err[~placed] = np.nan, np.nan
     taken = rows[placed]

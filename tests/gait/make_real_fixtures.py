@@ -100,10 +100,10 @@ def _contacts(loaded: np.ndarray, rate: float) -> list[tuple[float | None, float
     dropouts under 20 ms). An end cut by the recording, or without 50 ms unloaded next
     to it, is None; so is the end of a contact shorter than MIN_CONTACT_S (a foot that
     rolled off the plate onto the floor, not a foot off)."""
-    from kisscal.gait.signals import finite_runs
+    from kisscal._shared import true_runs
 
     merged: list[list[int]] = []
-    for a, b in finite_runs(loaded):
+    for a, b in zip(*true_runs(loaded), strict=True):
         if merged and a - merged[-1][1] < 0.02 * rate:
             merged[-1][1] = b
         else:
