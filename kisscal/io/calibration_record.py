@@ -123,3 +123,47 @@ class WandRecord:
         """The figures of :attr:`cameras`, each once, in order of first appearance."""
         keys = (k for d in self.cameras.values() for k in d if k != "camera")
         return tuple(dict.fromkeys(keys))
+
+
+@dataclass(frozen=True)
+class TargetCamera:
+    """One camera's match of the known target (None: not in the document)."""
+
+    visible: int | None
+    matched: int | None
+    unmatched: int
+    rms_px: float | None
+    seed_rms_px: float | None
+
+
+@dataclass(frozen=True)
+class TargetRecord:
+    """``dlt/target.json``, typed: the target points each camera saw and matched.
+
+    Attributes
+    ----------
+    cameras : mapping of str -> TargetCamera
+        Each camera's visible and matched points and its reprojection errors.
+    """
+
+    cameras: Mapping[str, TargetCamera]
+
+    @classmethod
+    def read(cls, doc: Any) -> TargetRecord | None:
+        """The record of a ``target.json`` document (None when it matched no camera)."""
+        cams = doc.get("cameras") if isinstance(doc, Mapping) else None
+        if not isinstance(cams, Mapping) or not cams:
+            return None
+        return cls(
+            {
+                str(c): TargetCamera(
+                    _number(e.get("visible")),
+                    _number(e.get("matched")),
+                    len(e.get("unmatched") or ()),
+                    _number(e.get("rms_px")),
+                    _number(e.get("seed_rms_px")),
+                )
+                for c, e in cams.items()
+                if isinstance(e, Mapping)
+            }
+        )

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.errors import KisscalError
-from kisscal.io.calibration_record import LensModels, WandRecord
+from kisscal.io.calibration_record import LensModels, TargetRecord, WandRecord
 from kisscal.io.config import load_session
 from kisscal.io.detection_record import DetectionRecord
 from kisscal.io.dltfiles import DltFile
@@ -103,6 +103,10 @@ class SessionOutputs:
     def rig_check(self) -> RigCheck:
         """The calibration's 3D check in :attr:`summary`, typed."""
         return RigCheck.read(self.summary)
+
+    def target(self) -> TargetRecord | None:
+        """The known target's match per camera in :attr:`summary` (None without one)."""
+        return TargetRecord.read(self.summary.get("target"))
 
     def trial_figures(self, trial: str) -> TrialFigures:
         """The figures of ``trial`` in :attr:`summary`, typed."""

@@ -133,20 +133,19 @@ def model_table(o: SessionOutputs) -> Html:
 
 def target_table(o: SessionOutputs) -> Html:
     """Target points matched per camera (``[calibration] target``) and the held-out error."""
-    target = o.summary.get("target") or {}
-    cams = target.get("cameras") or {}
-    if not cams:
+    record = o.target()
+    if record is None:
         return Html("")
     rows = [
         [
             tag("b", c),
-            fmt(e.get("visible")),
-            fmt(e.get("matched")),
-            fmt(len(e.get("unmatched") or [])),
-            fmt(e.get("rms_px")),
-            fmt(e.get("seed_rms_px")),
+            fmt(e.visible),
+            fmt(e.matched),
+            fmt(e.unmatched),
+            fmt(e.rms_px),
+            fmt(e.seed_rms_px),
         ]
-        for c, e in cams.items()
+        for c, e in record.cameras.items()
     ]
     headers = ["camera", "visible points", "matched", "unmatched", "rms (px)", "seeds rms (px)"]
     parts = [table(headers, rows, (1, 2, 3, 4, 5))]

@@ -1,8 +1,8 @@
-"""The typed readers of ``lens_models`` and ``dlt/wand.json``."""
+"""The typed readers of ``lens_models``, ``dlt/wand.json`` and ``dlt/target.json``."""
 
 from __future__ import annotations
 
-from kisscal.io.calibration_record import LensModels, WandRecord
+from kisscal.io.calibration_record import LensModels, TargetCamera, TargetRecord, WandRecord
 
 
 def test_wand_figures_keep_their_type_and_their_group() -> None:
@@ -45,3 +45,20 @@ def test_lens_models_read_the_comparison_and_nothing_else() -> None:
     assert m.held_out_rms_px("refined") is None
     assert m.models["dlt"].held_out_3d_rms_mm == 1.2 and m.models["lens"].model == "DLT + lens"
     assert LensModels.read({"L": [0.0] * 11}) is None and LensModels.read(None) is None
+
+
+def test_target_record_counts_unmatched_points_and_skips_bad_entries() -> None:
+    """Unmatched points are counted from their list; a missing figure is None, not 0; a
+    camera entry that is not a table is left out; no camera at all is no record."""
+    doc = {
+        "seconds": 1.2,
+        "cameras": {
+            "cam1": {"visible": 40, "matched": 38, "unmatched": [3, 9], "rms_px": 0.21},
+            "cam2": "broken",
+        },
+    }
+    record = TargetRecord.read(doc)
+    assert record is not None
+    assert dict(record.cameras) == {"cam1": TargetCamera(40, 38, 2, 0.21, None)}
+    assert TargetRecord.read({"cameras": {}}) is None
+    assert TargetRecord.read(None) is None

@@ -126,6 +126,11 @@ def test_target_route_matches_every_point(tmp_path: Path) -> None:
     assert check["leave_out_mean_mm"] < 0.2
     failures = session.check(root, max_3d_mm=0.2)
     assert not failures
+    session.report(root)
+    page = (root / "out" / "report.html").read_text()
+    assert "seeds rms (px)" in page
+    for cam, entry in doc["cameras"].items():
+        assert f"<b>{cam}</b>" in page and f">{entry['matched']}<" in page
 
 
 def test_the_session_picks_the_route_and_says_why(wand_session: Path, tmp_path: Path) -> None:
