@@ -11,8 +11,7 @@ camera-dependent setting the user did not give:
   at least two lines tall and keep their shape, and at least five noise deviations above
   the background. When
   the background is uneven by more than half that margin, it is taken locally (tiles of
-  two of the largest marker diameters, :data:`TILE_MARKERS`) and the threshold counts
-  from it.
+  four of the largest marker diameters) and the threshold counts from it.
 - **pixel aspect**: isolated markers are round, so their width over their height is the
   pixel aspect. Thresholding widens every spot by about the same number of pixels in x and
   y, which pulls small spots towards round; the slope of the spots' x spread against their
@@ -113,14 +112,6 @@ OVERSIZE_GAP = 1.5
 SIZE_HEADROOM = 2.0
 #: Side of the band-pass centroid's mean, in largest-marker widths.
 HIGHPASS_SIDE = 0.9
-#: Side of the local background's tiles, in largest-marker diameters. The background is
-#: the median of 5 x 5 samples spread over about 1.25 tiles: a marker half a tile wide
-#: covers an eighth of them and does not move it, while smaller tiles follow glare that
-#: varies over a few marker sizes (lit walls, bright edges), which would otherwise take
-#: the markers beside it into one oversized group.
-TILE_MARKERS = 2.0
-#: Smallest local-background tile (px): four samples a side.
-MIN_TILE_PX = 16
 
 
 @dataclass(frozen=True)
@@ -328,15 +319,14 @@ class _Derivation:
             else 8.0
         )
         local = lv.unevenness > 0.5 * excess
-        tile = max(MIN_TILE_PX, math.ceil(TILE_MARKERS * size))
-        tile = int(min(tile, min(self.frames[0].shape) // 2))
+        tile = int(min(max(32, 4 * math.ceil(size)), min(self.frames[0].shape) // 2))
         # a threshold given keeps the terms the derived one would be in (above the local
         # background here), so that copying the printed value back gives the same blobs
         self.choose(
             "background_tile_px",
             tile if local else 0,
-            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of "
-            f"{TILE_MARKERS:g} marker diameters"
+            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of 4 marker "
+            "diameters"
             if local
             else f"background even (spread {lv.unevenness:.0f} grey levels): one level per image",
         )
