@@ -69,7 +69,8 @@ def noise_sigma(image: NDArray) -> float:
 def _sample_grid(shape: tuple[int, ...], tile_px: int) -> tuple[slice, slice, int]:
     """Rows and columns of a sparse pixel sample, one every quarter tile, and the step."""
     step = max(int(tile_px) // 4, 1)
-    return slice(step // 2, None, step), slice(step // 2, shape[1] - 1, step), step
+    # one line and column short of the far edges: each sample has a neighbour below and right
+    return slice(step // 2, shape[0] - 1, step), slice(step // 2, shape[1] - 1, step), step
 
 
 def _rank5(small: NDArray[np.float32], fraction: float) -> NDArray[np.float32]:

@@ -136,3 +136,20 @@ def test_dark_frames_and_binary_frames() -> None:
     assert configure_detection(binary).params.threshold == 40.0
     with pytest.raises(KisscalError, match="no images"):
         configure_detection([])
+
+
+@pytest.mark.parametrize("shape", [(1024, 1280), (1023, 1279), (211, 197)])
+@pytest.mark.parametrize("tile", [16, 24, 52])
+def test_local_background_of_any_image_and_tile_size(shape, tile) -> None:
+    """The sparse sample of the local background fits every image height and tile (a
+    sample on the last line has no line below it), and the map follows a glow."""
+    from kisscal.detect.background import local_background
+
+    h, w = shape
+    glow = np.tile(np.linspace(10.0, 90.0, w), (h, 1))
+    noise = np.random.default_rng(1).normal(0.0, 1.0, shape)
+    local = local_background((glow + noise).clip(0, 255).astype(np.uint8), tile)
+    assert local.level.shape == shape
+    inner = (slice(tile, h - tile), slice(tile, w - tile))  # the edges are extrapolated
+    assert np.abs(local.level[inner] - glow[inner]).max() < 3.0
+    assert 0.5 < float(np.median(local.noise)) < 1.6
