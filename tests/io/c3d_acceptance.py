@@ -10,8 +10,9 @@ files) is read with :func:`kisscal.io.c3d.read_c3d` (markers only) and:
   no labels, tracked with default parameters; a sample's true marker is the channel it
   came from (exact coordinates). Reported: identity switches (a change of true marker
   along one trajectory), of them those where the file itself renames the marker
-  (``relabel``: see :func:`file_relabels`), coverage (the file's valid samples that come
-  out as measured samples of a trajectory), trajectories;
+  (``relabel``: see :func:`file_relabels`; a channel's straight-line gap fill by the
+  writing system is no sample of the marker, :func:`system_fills`), coverage (the
+  file's valid samples that come out as measured samples of a trajectory), trajectories;
 - when the file's markers belong to a shipped marker set (``SET`` below), labelled from
   the set alone as the system wrote them (every channel, in the file's order, labels
   dropped): names right / named / markers of the set in the file, and names forced on
