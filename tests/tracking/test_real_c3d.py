@@ -8,7 +8,14 @@ import pytest
 
 from kisscal.io.c3d import read_c3d
 from kisscal.tracking import TrackingParams
-from tests.io.c3d_acceptance import FIXTURES, distinct, file_relabels, retrack, shuffled
+from tests.io.c3d_acceptance import (
+    FIXTURES,
+    distinct,
+    file_relabels,
+    retrack,
+    shuffled,
+    system_fills,
+)
 
 
 @pytest.mark.parametrize("name", ["pc_real.c3d", "sgi_int.c3d"])
@@ -60,6 +67,32 @@ def test_a_jump_to_another_marker_is_not_the_files_rename():
     on_path = xyz.copy()
     on_path[5, 1] = xyz[4, 0] + [2.0, 0.0, 0.0]
     assert file_relabels(on_path, before, after, a, b) == 1
+
+
+def test_the_systems_linear_fill_is_not_the_marker():
+    """A channel whose samples for a few frames lie on the straight line between its
+    samples either side (the writing system's gap fill) while the marker's measurement is
+    written under another name (the tennis serve's RFRM in frames 190-192, its marker
+    under RELB at 190): the file renamed the marker; a measured sample in the same place
+    (noisy, off the line) keeps it the tracker's switch."""
+    rng = np.random.default_rng(1)
+    t = np.arange(12.0)
+    path = np.stack([30.0 * t, 2.0 * t**2, 0 * t], axis=1)  # a marker accelerating
+    xyz = np.full((12, 2, 3), np.nan)
+    xyz[:, 0] = path + rng.normal(0.0, 0.2, path.shape)
+    xyz[:, 1] = xyz[:, 0] + [0.0, 100.0, 0.0]
+    # Frames 6-8: channel 0 filled by a straight line from frame 5 to frame 9, the
+    # marker's measurement written under channel 1 at frame 6 (channel 1 then missing).
+    xyz[6:9, 0] = xyz[5, 0] + (xyz[9, 0] - xyz[5, 0]) * ((t[6:9] - 5.0) / 4.0)[:, None]
+    xyz[6, 1] = path[6] + [0.1, -0.1, 0.0]
+    fills = system_fills(xyz)
+    assert fills[6:9, 0].all() and fills.sum() == 3
+    before, after, a, b = np.array([5]), np.array([6]), np.array([0]), np.array([1])
+    assert file_relabels(xyz, before, after, a, b) == 0  # the fill stands near the path
+    assert file_relabels(xyz, before, after, a, b, fills) == 1
+    measured = xyz.copy()
+    measured[6:9, 0] += rng.normal(0.0, 0.2, (3, 3))
+    assert not system_fills(measured).any()
 
 
 def test_a_marker_the_file_renames_is_a_switch_the_file_makes():

@@ -167,3 +167,43 @@ def test_ambiguous_rows_mark_near_swaps_lost_and_left_points():
     gate = np.array([[True, True], [False, False]])
     assert ambiguous_rows(left, gate, zero, zero, 0.5).tolist() == [True, False]
     assert ambiguous_rows(left, gate, zero, zero, 0.2).tolist() == [False, False]
+
+
+def _young_scene(fast_mm_per_field):
+    """Four filtered markers (one of them at ``fast_mm_per_field``) and a marker A seen
+    for three fields (10-12) that vanishes, with a marker B appearing 53 mm from A's path
+    at field 13 (BTS.c3d's SCR1 and SCR2): paths, and the (path, field) pairs missing."""
+    f = np.arange(30.0)[:, None]
+    paths = [np.hstack([2.0 * f, 300.0 * k + 0 * f, 900 + 0 * f]) for k in range(3)]
+    paths.append(np.hstack([fast_mm_per_field * f, -400 + 0 * f, 900 + 0 * f]))
+    a = np.hstack([1000 + 1.5 * f, 1000 + 0 * f, 500 + 0 * f])
+    b = a + [-29.0, -44.0, -23.0] + np.hstack([1.0 * (f - 13), 0 * f, 0 * f])
+    paths += [a, b]
+    missing = {(4, k) for k in range(30) if not 10 <= k <= 12}
+    missing |= {(5, k) for k in range(13)}
+    return paths, missing
+
+
+@pytest.mark.parametrize("fast", [2.0, 40.0])
+def test_young_track_does_not_take_a_marker_appearing_beside_it(fast):
+    """A three-point track's gate is at least the Kalman gate of the trial's fastest
+    filtered speed, not a fixed 60 mm: in a trial moving at most 2 or 40 mm/field, a
+    marker that appears 53 mm from where a young one vanished starts its own track."""
+    paths, missing = _young_scene(fast)
+    field, xyz, who = _cloud(paths, noise_mm=0.2, missing=missing)
+    tracks = track_points(field, xyz, TrackingParams())
+    ids = _identities(tracks, who)
+    assert {4} in ids and {5} in ids
+    assert all(len(s) == 1 for s in ids)
+
+
+def test_young_track_keeps_a_turning_marker_in_a_fast_trial():
+    """When the trial's markers move fast (here 100 mm/field), a young track's gate stays
+    wide enough for a marker of it to change its velocity by 40 mm in a field."""
+    paths, missing = _young_scene(100.0)
+    # Path 5 is marker A going on from field 13, 40 mm off its straight line.
+    paths[5] = paths[4] + (np.arange(30.0) >= 13)[:, None] * np.array([-40.0, 0.0, 0.0])
+    field, xyz, who = _cloud(paths, noise_mm=0.2, missing=missing)
+    tracks = track_points(field, xyz, TrackingParams())
+    ids = _identities(tracks, who)
+    assert {4, 5} in ids  # one marker (path 5 continues path 4), one track
