@@ -161,6 +161,14 @@ def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: Trackin
     return not residual > params.split_tolerance_mm
 
 
+def _held_through(state: LabelState, fields: NDArray, partners: NDArray) -> bool:
+    """Whether the names ``partners`` (mask) are seen together with a piece in at least
+    half of its ``fields`` and in ``min_track_length`` of them: a distance kept that
+    long while the body walks is a segment's, not a chance."""
+    seen = np.isfinite(state.name_pos[partners][:, fields, 0]).any(axis=0).sum()
+    return bool(seen >= max(state.params.min_track_length, fields.size / 2))
+
+
 def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
     the body fit; a short piece must also continue its name's trajectory."""
@@ -174,10 +182,13 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     )
     undecided = np.concatenate((one_partner, unknown))
     long = state.n_measured[t] >= params.min_track_length
-    if j < 0 and undecided.size == 1 and one_partner.size == 1 and long:
-        # Every other free name is ruled out by its rigid partners and one partner
-        # confirms this one: a long piece (not a ghost) takes it.
-        j = int(undecided[0])
+    if j < 0 and one_partner.size == 1 and long:
+        # Every other free name is ruled out by its rigid partners, or has none in view,
+        # and one partner confirms this one: a long piece (not a ghost) takes it when
+        # it is alone or when that partner keeps the template distance through most of
+        # the piece (a toe by its heel, while the shank above is never seen).
+        if undecided.size == 1 or _held_through(state, f_t, rigid[one_partner[0]]):
+            j = int(one_partner[0])
     if j < 0 and undecided.size and state.n_measured[t] >= params.min_body_fit_points:
         j = by_body_fit(
             f_t, xyz_t, undecided, state.name_pos, state.template, params, prefer=one_partner

@@ -23,6 +23,9 @@ from kisscal.tracking.tracks import MEASURED, Tracks
 # less than this (SD, mm) and matches the template's within RIGID_MATCH_MM.
 RIGID_SPREAD_MM = 5.0
 RIGID_MATCH_MM = 15.0
+# ... seen together in at least this fraction of the fields they are judged on (a knee
+# and a heel seen together in a few fields of one stance keep their distance by chance).
+RIGID_SHARED_FRACTION = 0.5
 
 
 def rich_fields(present: NDArray) -> NDArray[np.int64]:
@@ -182,14 +185,19 @@ class LabelState:
 
     def rigid_pairs(self) -> NDArray[np.bool_]:
         """Name pairs on one rigid segment: the given segments, plus named trajectories
-        whose distance barely varies over :attr:`rich` and equals the template's."""
+        whose distance barely varies over :attr:`rich` and equals the template's, seen
+        together in at least :data:`RIGID_SHARED_FRACTION` of those fields."""
         n = len(self.names)
+        seen = np.isfinite(self.name_pos[:, self.rich, 0]).astype(float)
+        shared = seen @ seen.T
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
             spread = distance_spread(self.name_pos, np.arange(n), self.rich)
             median = median_distances(self.name_pos, np.arange(n), self.rich)
-            ok = (spread < RIGID_SPREAD_MM) & (
-                np.abs(median - self.template_distance) < RIGID_MATCH_MM
+            ok = (
+                (spread < RIGID_SPREAD_MM)
+                & (np.abs(median - self.template_distance) < RIGID_MATCH_MM)
+                & (shared >= RIGID_SHARED_FRACTION * self.rich.size)
             )
         np.fill_diagonal(ok, False)
         return segment_mask(self.names, self.segments) | ok
