@@ -10,6 +10,7 @@ averages out the swing of the legs, which a single field's rigid fit cannot.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import dataclass
 
@@ -51,6 +52,10 @@ UPRIGHT_FIELDS = 20
 PARTIAL_FRACTION = 1 / 3
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 SWAP_STARTS = 24
+# Correspondences whose swap cost is within this factor of the lowest are near ties that
+# the rigid fit to the real fields decides (a body and its mirror image, an ASIS and the
+# sacrum when the pelvis' other markers are out of view).
+NEAR_TIE = 1.05
 # With an upright template: how far (SD, mm) a marker's median height while walking may
 # lie from its template height (a heel rises in swing, knees flex).
 HEIGHT_SD_MM = 60.0
@@ -180,6 +185,48 @@ def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray
     return heights, unary
 
 
+def near_ties(
+    refined: list,
+    median: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    unary: NDArray | None = None,
+) -> list[tuple[float, NDArray[np.int64]]]:
+    """``refined`` plus the neighbours of its best correspondences (one piece moved to a
+    free name, or two pieces' names exchanged) whose swap cost is within
+    :data:`NEAR_TIE` of the lowest.
+
+    The swap search stops in one of two valleys that the averaged pose cannot tell
+    apart (an ASIS or the sacrum seen without the rest of the pelvis); the rigid fit to
+    the real fields then chooses between them (:func:`left_right_fits`).
+    """
+    lowest = min(c for c, _ in refined)
+    bound = lowest * NEAR_TIE + 1e-9
+    out = list(refined)
+    seen_keys = {tuple(a) for _, a in refined}
+    for cost, assign in refined:
+        if cost > bound:
+            continue
+        named = np.flatnonzero(assign >= 0)
+        free = np.setdiff1d(np.arange(template_distance.shape[0]), assign[named])
+        variants = []
+        for i in named:
+            for x in free:
+                variants.append(assign.copy())
+                variants[-1][i] = x
+        for i, k in itertools.combinations(named, 2):
+            variants.append(assign.copy())
+            variants[-1][[i, k]] = assign[[k, i]]
+        for v in variants:
+            if tuple(v) in seen_keys:
+                continue
+            seen_keys.add(tuple(v))
+            c = swap_cost(v, median, weight, template_distance, unary)
+            if c <= bound:
+                out.append((c, v))
+    return out
+
+
 def left_right_fits(
     state: LabelState, refined: list, core: NDArray, rich: NDArray
 ) -> list[tuple[float, NDArray[np.int64]]]:
@@ -191,7 +238,7 @@ def left_right_fits(
     seen_keys = set()
     for cost, assign in refined:
         # Only the distance-wise best (and equally good) correspondences go on.
-        if cost > lowest * 1.05 + 1e-9 or tuple(assign) in seen_keys:
+        if cost > lowest * NEAR_TIE + 1e-9 or tuple(assign) in seen_keys:
             continue
         seen_keys.add(tuple(assign))
         tries = [assign]
@@ -319,6 +366,9 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     )
     if not refined:
         return none
+    refined = near_ties(
+        refined, median, weight, state.template_distance[np.ix_(names, names)], unary
+    )
     # Back to the set's name numbers.
     refined = [(cost, np.where(a >= 0, names[np.maximum(a, 0)], -1)) for cost, a in refined]
     candidates = left_right_fits(state, refined, core, rich)
