@@ -27,6 +27,9 @@ MAX_WINDOWS = 12
 #: most this many times the first window's (held-out trials: 1.1 where it named a leg
 #: right, 3 to 4 where pieces mixing two markers of a foot took names).
 SHORT_WINDOW_FIT = 1.5
+#: A long piece takes the one name a rigid partner confirms, other names having no
+#: partner in view, when they are seen together this many times ``min_track_length``.
+HELD_PIECES = 3
 
 
 def by_segments(
@@ -163,10 +166,11 @@ def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: Trackin
 
 def _held_through(state: LabelState, fields: NDArray, partners: NDArray) -> bool:
     """Whether the names ``partners`` (mask) are seen together with a piece in at least
-    half of its ``fields`` and in ``min_track_length`` of them: a distance kept that
-    long while the body walks is a segment's, not a chance."""
+    half of its ``fields`` and in :data:`HELD_PIECES` times ``min_track_length`` of them:
+    a distance kept that long while the body walks is a segment's, not a chance (nor a
+    short piece named wrongly before it)."""
     seen = np.isfinite(state.name_pos[partners][:, fields, 0]).any(axis=0).sum()
-    return bool(seen >= max(state.params.min_track_length, fields.size / 2))
+    return bool(seen >= max(HELD_PIECES * state.params.min_track_length, fields.size / 2))
 
 
 def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:

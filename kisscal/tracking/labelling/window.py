@@ -56,6 +56,9 @@ SWAP_STARTS = 24
 # the rigid fit to the real fields decides (a body and its mirror image, an ASIS and the
 # sacrum when the pelvis' other markers are out of view).
 NEAR_TIE = 1.05
+# A given rigid pair whose pieces point the other way than their names in more than this
+# fraction of the window's fields is exchanged (:func:`pair_direction`).
+PAIR_DIRECTION = 2 / 3
 # With an upright template: how far (SD, mm) a marker's median height while walking may
 # lie from its template height (a heel rises in swing, knees flex).
 HEIGHT_SD_MM = 60.0
@@ -260,7 +263,8 @@ def settle_rigid_swaps(
     state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, fit_rms: float
 ) -> tuple[float, NDArray[np.int64]]:
     """Exchange the names of two core pieces named as a given rigid pair when the real
-    fields' rigid fit is clearly better so.
+    fields' rigid fit is clearly better so, or when the two point the other way than
+    their names in most fields (:func:`pair_direction`).
 
     Two markers of one segment seen without their neighbours (a heel and a toe of a foot
     whose ankle is hidden) can swap names at no cost in distances.
@@ -273,9 +277,37 @@ def settle_rigid_swaps(
         variant[[a, b]] = assign[[b, a]]
         ok = variant >= 0
         rms = field_fits(state.dense, rich, core[ok], variant[ok], state.template)
-        if rms.size and np.median(rms) < 0.95 * fit_rms:
+        if not rms.size:
+            continue
+        agree = pair_direction(state, core, rich, assign, a, b)
+        if np.median(rms) < 0.95 * fit_rms or agree < 1 - PAIR_DIRECTION:
             fit_rms, assign = float(np.median(rms)), variant
     return fit_rms, assign
+
+
+def pair_direction(
+    state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, a: int, b: int
+) -> float:
+    """Fraction of ``rich`` fields in which core pieces ``a`` and ``b`` point the way
+    their names do: the vector between them, turned into the template's frame by the
+    rigid fit of the other named core pieces, on the side of the template's vector
+    between the names (NaN without such a field).
+
+    A heel and a toe exchanged point backwards whatever the joints do; their distances
+    to the rest of the body, averaged over a stride, may favour either.
+    """
+    others = np.flatnonzero(assign >= 0)
+    others = others[(others != a) & (others != b)]
+    want = state.template[assign[a]] - state.template[assign[b]]
+    votes = []
+    for f in rich:
+        seen = others[np.isfinite(state.dense[core[others], f, 0])]
+        pair = state.dense[core[[a, b]], f]
+        if seen.size < 3 or not np.isfinite(pair).all():
+            continue
+        r, _ = kabsch(state.dense[core[seen], f], state.template[assign[seen]])
+        votes.append(float((pair[0] - pair[1]) @ r.T @ want) > 0)
+    return float(np.mean(votes)) if votes else float("nan")
 
 
 def drop_broken_pairs(
