@@ -193,7 +193,11 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
         # the piece (a toe by its heel, while the shank above is never seen).
         if undecided.size == 1 or _held_through(state, f_t, rigid[one_partner[0]]):
             j = int(one_partner[0])
-    if j < 0 and undecided.size and state.n_measured[t] >= params.min_body_fit_points:
+    # Two names that one partner each confirms equally (an ASIS and the sacrum by the
+    # other ASIS) are left to the joint naming of the pieces seen together (phase 4):
+    # the body fit, from markers across joints, cannot tell them apart reliably.
+    tied = one_partner.size >= 2
+    if j < 0 and undecided.size and not tied and state.n_measured[t] >= params.min_body_fit_points:
         j = by_body_fit(
             f_t, xyz_t, undecided, state.name_pos, state.template, params, prefer=one_partner
         )
