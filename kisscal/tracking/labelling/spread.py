@@ -173,6 +173,20 @@ def _held_through(state: LabelState, fields: NDArray, partners: NDArray) -> bool
     return bool(seen >= max(HELD_PIECES * state.params.min_track_length, fields.size / 2))
 
 
+def _partner_rms(
+    state: LabelState, fields: NDArray, xyz: NDArray, names: NDArray, rigid: NDArray
+) -> NDArray[np.float64]:
+    """Per name, RMS misfit (mm) of the piece's distances to that name's rigid partners
+    held in its fields against the template's."""
+    d = np.linalg.norm(state.name_pos[:, fields] - xyz[None], axis=2)  # (n, F)
+    out = np.full(names.size, np.inf)
+    for i, j in enumerate(names.tolist()):
+        miss = d[rigid[j]] - state.template_distance[j, rigid[j]][:, None]
+        if np.isfinite(miss).any():
+            out[i] = np.sqrt(np.nanmean(miss**2))
+    return out
+
+
 def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
     the body fit; a short piece must also continue its name's trajectory."""
@@ -193,14 +207,17 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
         # the piece (a toe by its heel, while the shank above is never seen).
         if undecided.size == 1 or _held_through(state, f_t, rigid[one_partner[0]]):
             j = int(one_partner[0])
-    # Two names that one partner each confirms equally (an ASIS and the sacrum by the
-    # other ASIS) are left to the joint naming of the pieces seen together (phase 4):
-    # the body fit, from markers across joints, cannot tell them apart reliably.
-    tied = one_partner.size >= 2
-    if j < 0 and undecided.size and not tied and state.n_measured[t] >= params.min_body_fit_points:
+    if j < 0 and undecided.size and state.n_measured[t] >= params.min_body_fit_points:
         j = by_body_fit(
             f_t, xyz_t, undecided, state.name_pos, state.template, params, prefer=one_partner
         )
+        if one_partner.size >= 2 and j in one_partner:
+            # Names that one partner each confirms (an ASIS and the sacrum by the other
+            # ASIS): the body fit, from markers across joints, may only pick the one
+            # whose partners keep their distance best.
+            rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
+            if one_partner[np.argmin(rms)] != j:
+                j = -1
     # A short piece next to its name's trajectory must continue it: a ghost by a marker
     # that just went out of sight need not.
     if j >= 0 and not long and not continues(state.name_pos[j], f_t, xyz_t, params):
