@@ -23,9 +23,10 @@ from kisscal.tracking.tracks import MEASURED, Tracks
 # less than this (SD, mm) and matches the template's within RIGID_MATCH_MM.
 RIGID_SPREAD_MM = 5.0
 RIGID_MATCH_MM = 15.0
-# ... seen together in at least this fraction of the fields they are judged on (a knee
-# and a heel seen together in a few fields of one stance keep their distance by chance).
-RIGID_SHARED_FRACTION = 0.5
+#: Fields two named trajectories must share for their distance to count (as rigid, or as
+#: a length): a knee and a heel seen together in a few fields of one stance keep their
+#: distance by chance.
+MIN_SHARED_FIELDS = 10
 
 
 def rich_fields(present: NDArray) -> NDArray[np.int64]:
@@ -186,7 +187,8 @@ class LabelState:
     def rigid_pairs(self) -> NDArray[np.bool_]:
         """Name pairs on one rigid segment: the given segments, plus named trajectories
         whose distance barely varies over :attr:`rich` and equals the template's, seen
-        together in at least :data:`RIGID_SHARED_FRACTION` of those fields."""
+        together in :data:`MIN_SHARED_FIELDS` of those fields (or all of them, when
+        fewer)."""
         n = len(self.names)
         seen = np.isfinite(self.name_pos[:, self.rich, 0]).astype(float)
         shared = seen @ seen.T
@@ -197,7 +199,7 @@ class LabelState:
             ok = (
                 (spread < RIGID_SPREAD_MM)
                 & (np.abs(median - self.template_distance) < RIGID_MATCH_MM)
-                & (shared >= RIGID_SHARED_FRACTION * self.rich.size)
+                & (shared >= min(MIN_SHARED_FIELDS, self.rich.size))
             )
         np.fill_diagonal(ok, False)
         return segment_mask(self.names, self.segments) | ok
