@@ -351,11 +351,14 @@ def refine_with_kicks(
 ) -> NDArray[np.int64]:
     """:func:`refine_by_swaps`, then iterated local search: exchange the names of four
     random named tracks at a time (a kick out of the valley) and descend again; keep
-    the best. Deterministic for a given ``seed``.
+    the best. When names are free (fewer tracks than names), as many kicks again give
+    four tracks names drawn from theirs and the free ones. Deterministic for a given
+    ``seed``.
 
     The exchange search only descends, and a walking trial's average pose blurs the
     feet so much that an assignment with three foot markers wrong in one exchange each
-    can be a local minimum twenty times the true one's cost.
+    can be a local minimum twenty times the true one's cost; and a foot whose ankle is
+    hidden, named as the shank's pair, only reaches its own names when both move.
 
     References
     ----------
@@ -367,10 +370,20 @@ def refine_with_kicks(
     named = np.flatnonzero(best >= 0)
     if named.size < 5:
         return best
-    for _ in range(kicks):
+    n_names = template_distance.shape[0]
+    free_rng = np.random.default_rng([seed, 1])
+    has_free = n_names > named.size
+    for kick in range(kicks * (2 if has_free else 1)):
         trial = best.copy()
-        idx = rng.choice(named, 4, replace=False)
-        trial[idx] = trial[rng.permutation(idx)]
+        if kick < kicks:
+            idx = rng.choice(named, 4, replace=False)
+            trial[idx] = trial[rng.permutation(idx)]
+        else:
+            # Names no track holds enter too: a segment named as its neighbour (a foot
+            # as the shank's pair) moves to the free names only all at once.
+            idx = free_rng.choice(named, 4, replace=False)
+            pool = np.union1d(trial[idx], np.setdiff1d(np.arange(n_names), trial[named]))
+            trial[idx] = free_rng.choice(pool, 4, replace=False)
         trial = refine_by_swaps(distance, weight, template_distance, trial, unary=unary)
         cost = swap_cost(trial, distance, weight, template_distance, unary)
         if cost < best_cost - 1e-9:

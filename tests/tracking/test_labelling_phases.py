@@ -204,3 +204,35 @@ def test_join_with_too_few_names_gives_generic_names():
     result = join(state)
     assert not result.fits_marker_set
     assert result.labels == tuple(f"M{i + 1}" for i in range(15))
+
+
+def test_rigid_pairs_need_the_names_seen_together_in_enough_fields():
+    """Two names seen together in a few fields keep any distance there by chance: a pair
+    counts as rigid only over MIN_SHARED_FIELDS of the judged fields."""
+    from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS
+
+    tracks, owner = _pieces(gait_truth(100, 1))
+    i = {n: k for k, n in enumerate(NAMES)}
+    for shared, found in ((MIN_SHARED_FIELDS - 4, False), (MIN_SHARED_FIELDS, True)):
+        state = _state(tracks, segments=())
+        state.rich = np.arange(0, 100, 5)
+        for t, m in enumerate(owner):
+            state.name_piece(t, int(m))
+        state.name_pos[i["RANK"], state.rich[shared:]] = np.nan
+        assert bool(state.rigid_pairs()[i["RKNE"], i["RANK"]]) is found
+
+
+def test_pair_direction_tells_a_heel_from_its_toe():
+    """A heel and a toe named the wrong way round point backwards in nearly every field,
+    whatever their distances to the rest of the body."""
+    from kisscal.tracking.labelling.window import pair_direction
+
+    tracks, owner = _pieces(gait_truth(100, 2))
+    state = _state(tracks)
+    core = np.arange(state.long_ids.size)
+    assign = owner[state.long_ids].copy()
+    rich = np.arange(0, 100, 5)
+    a, b = (int(np.flatnonzero(assign == NAMES.index(n))[0]) for n in ("RHEE", "RTOE"))
+    assert pair_direction(state, core, rich, assign, a, b) > 0.9
+    assign[[a, b]] = assign[[b, a]]
+    assert pair_direction(state, core, rich, assign, a, b) < 0.1

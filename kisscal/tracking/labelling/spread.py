@@ -27,6 +27,9 @@ MAX_WINDOWS = 12
 #: most this many times the first window's (held-out trials: 1.1 where it named a leg
 #: right, 3 to 4 where pieces mixing two markers of a foot took names).
 SHORT_WINDOW_FIT = 1.5
+#: A long piece takes the one name a rigid partner confirms, other names having no
+#: partner in view, when they are seen together this many times ``min_track_length``.
+HELD_PIECES = 3
 
 
 def by_segments(
@@ -161,6 +164,29 @@ def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: Trackin
     return not residual > params.split_tolerance_mm
 
 
+def _held_through(state: LabelState, fields: NDArray, partners: NDArray) -> bool:
+    """Whether the names ``partners`` (mask) are seen together with a piece in at least
+    half of its ``fields`` and in :data:`HELD_PIECES` times ``min_track_length`` of them:
+    a distance kept that long while the body walks is a segment's, not a chance (nor a
+    short piece named wrongly before it)."""
+    seen = np.isfinite(state.name_pos[partners][:, fields, 0]).any(axis=0).sum()
+    return bool(seen >= max(HELD_PIECES * state.params.min_track_length, fields.size / 2))
+
+
+def _partner_rms(
+    state: LabelState, fields: NDArray, xyz: NDArray, names: NDArray, rigid: NDArray
+) -> NDArray[np.float64]:
+    """Per name, RMS misfit (mm) of the piece's distances to that name's rigid partners
+    held in its fields against the template's."""
+    d = np.linalg.norm(state.name_pos[:, fields] - xyz[None], axis=2)  # (n, F)
+    out = np.full(names.size, np.inf)
+    for i, j in enumerate(names.tolist()):
+        miss = d[rigid[j]] - state.template_distance[j, rigid[j]][:, None]
+        if np.isfinite(miss).any():
+            out[i] = np.sqrt(np.nanmean(miss**2))
+    return out
+
+
 def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
     the body fit; a short piece must also continue its name's trajectory."""
@@ -174,14 +200,24 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
     )
     undecided = np.concatenate((one_partner, unknown))
     long = state.n_measured[t] >= params.min_track_length
-    if j < 0 and undecided.size == 1 and one_partner.size == 1 and long:
-        # Every other free name is ruled out by its rigid partners and one partner
-        # confirms this one: a long piece (not a ghost) takes it.
-        j = int(undecided[0])
+    if j < 0 and one_partner.size == 1 and long:
+        # Every other free name is ruled out by its rigid partners, or has none in view,
+        # and one partner confirms this one: a long piece (not a ghost) takes it when
+        # it is alone or when that partner keeps the template distance through most of
+        # the piece (a toe by its heel, while the shank above is never seen).
+        if undecided.size == 1 or _held_through(state, f_t, rigid[one_partner[0]]):
+            j = int(one_partner[0])
     if j < 0 and undecided.size and state.n_measured[t] >= params.min_body_fit_points:
         j = by_body_fit(
             f_t, xyz_t, undecided, state.name_pos, state.template, params, prefer=one_partner
         )
+        if one_partner.size >= 2 and j in one_partner:
+            # Names that one partner each confirms (an ASIS and the sacrum by the other
+            # ASIS): the body fit, from markers across joints, may only pick the one
+            # whose partners keep their distance best.
+            rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
+            if one_partner[np.argmin(rms)] != j:
+                j = -1
     # A short piece next to its name's trajectory must continue it: a ghost by a marker
     # that just went out of sight need not.
     if j >= 0 and not long and not continues(state.name_pos[j], f_t, xyz_t, params):

@@ -23,6 +23,10 @@ from kisscal.tracking.tracks import MEASURED, Tracks
 # less than this (SD, mm) and matches the template's within RIGID_MATCH_MM.
 RIGID_SPREAD_MM = 5.0
 RIGID_MATCH_MM = 15.0
+#: Fields two named trajectories must share for their distance to count (as rigid, or as
+#: a length): a knee and a heel seen together in a few fields of one stance keep their
+#: distance by chance.
+MIN_SHARED_FIELDS = 10
 
 
 def rich_fields(present: NDArray) -> NDArray[np.int64]:
@@ -182,14 +186,20 @@ class LabelState:
 
     def rigid_pairs(self) -> NDArray[np.bool_]:
         """Name pairs on one rigid segment: the given segments, plus named trajectories
-        whose distance barely varies over :attr:`rich` and equals the template's."""
+        whose distance barely varies over :attr:`rich` and equals the template's, seen
+        together in :data:`MIN_SHARED_FIELDS` of those fields (or all of them, when
+        fewer)."""
         n = len(self.names)
+        seen = np.isfinite(self.name_pos[:, self.rich, 0]).astype(float)
+        shared = seen @ seen.T
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
             spread = distance_spread(self.name_pos, np.arange(n), self.rich)
             median = median_distances(self.name_pos, np.arange(n), self.rich)
-            ok = (spread < RIGID_SPREAD_MM) & (
-                np.abs(median - self.template_distance) < RIGID_MATCH_MM
+            ok = (
+                (spread < RIGID_SPREAD_MM)
+                & (np.abs(median - self.template_distance) < RIGID_MATCH_MM)
+                & (shared >= min(MIN_SHARED_FIELDS, self.rich.size))
             )
         np.fill_diagonal(ok, False)
         return segment_mask(self.names, self.segments) | ok

@@ -34,6 +34,7 @@ from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import (
+    MIN_SHARED_FIELDS,
     RIGID_SPREAD_MM,
     LabelState,
     segment_mask,
@@ -47,8 +48,6 @@ from kisscal.tracking.tracks import Tracks
 HEIGHTS_MM = np.arange(1400.0, 2001.0, 50.0)
 #: How much a template position may move (mm) per mm of segment length it puts right.
 PRIOR_WEIGHT = 0.05
-#: Fields two named trajectories must share for their distance to count.
-MIN_SHARED_FIELDS = 10
 
 
 def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:

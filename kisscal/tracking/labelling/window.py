@@ -10,6 +10,7 @@ averages out the swing of the legs, which a single field's rigid fit cannot.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import dataclass
 
@@ -51,6 +52,13 @@ UPRIGHT_FIELDS = 20
 PARTIAL_FRACTION = 1 / 3
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 SWAP_STARTS = 24
+# Correspondences whose swap cost is within this factor of the lowest are near ties that
+# the rigid fit to the real fields decides (a body and its mirror image, an ASIS and the
+# sacrum when the pelvis' other markers are out of view).
+NEAR_TIE = 1.05
+# A given rigid pair whose pieces point the other way than their names in more than this
+# fraction of the window's fields is exchanged (:func:`pair_direction`).
+PAIR_DIRECTION = 2 / 3
 # With an upright template: how far (SD, mm) a marker's median height while walking may
 # lie from its template height (a heel rises in swing, knees flex).
 HEIGHT_SD_MM = 60.0
@@ -180,6 +188,48 @@ def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray
     return heights, unary
 
 
+def near_ties(
+    refined: list,
+    median: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    unary: NDArray | None = None,
+) -> list[tuple[float, NDArray[np.int64]]]:
+    """``refined`` plus the neighbours of its best correspondences (one piece moved to a
+    free name, or two pieces' names exchanged) whose swap cost is within
+    :data:`NEAR_TIE` of the lowest.
+
+    The swap search stops in one of two valleys that the averaged pose cannot tell
+    apart (an ASIS or the sacrum seen without the rest of the pelvis); the rigid fit to
+    the real fields then chooses between them (:func:`left_right_fits`).
+    """
+    lowest = min(c for c, _ in refined)
+    bound = lowest * NEAR_TIE + 1e-9
+    out = list(refined)
+    seen_keys = {tuple(a) for _, a in refined}
+    for cost, assign in refined:
+        if cost > bound:
+            continue
+        named = np.flatnonzero(assign >= 0)
+        free = np.setdiff1d(np.arange(template_distance.shape[0]), assign[named])
+        variants = []
+        for i in named:
+            for x in free:
+                variants.append(assign.copy())
+                variants[-1][i] = x
+        for i, k in itertools.combinations(named, 2):
+            variants.append(assign.copy())
+            variants[-1][[i, k]] = assign[[k, i]]
+        for v in variants:
+            if tuple(v) in seen_keys:
+                continue
+            seen_keys.add(tuple(v))
+            c = swap_cost(v, median, weight, template_distance, unary)
+            if c <= bound:
+                out.append((c, v))
+    return out
+
+
 def left_right_fits(
     state: LabelState, refined: list, core: NDArray, rich: NDArray
 ) -> list[tuple[float, NDArray[np.int64]]]:
@@ -191,7 +241,7 @@ def left_right_fits(
     seen_keys = set()
     for cost, assign in refined:
         # Only the distance-wise best (and equally good) correspondences go on.
-        if cost > lowest * 1.05 + 1e-9 or tuple(assign) in seen_keys:
+        if cost > lowest * NEAR_TIE + 1e-9 or tuple(assign) in seen_keys:
             continue
         seen_keys.add(tuple(assign))
         tries = [assign]
@@ -213,7 +263,8 @@ def settle_rigid_swaps(
     state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, fit_rms: float
 ) -> tuple[float, NDArray[np.int64]]:
     """Exchange the names of two core pieces named as a given rigid pair when the real
-    fields' rigid fit is clearly better so.
+    fields' rigid fit is clearly better so, or when the two point the other way than
+    their names in most fields (:func:`pair_direction`).
 
     Two markers of one segment seen without their neighbours (a heel and a toe of a foot
     whose ankle is hidden) can swap names at no cost in distances.
@@ -226,9 +277,37 @@ def settle_rigid_swaps(
         variant[[a, b]] = assign[[b, a]]
         ok = variant >= 0
         rms = field_fits(state.dense, rich, core[ok], variant[ok], state.template)
-        if rms.size and np.median(rms) < 0.95 * fit_rms:
+        if not rms.size:
+            continue
+        agree = pair_direction(state, core, rich, assign, a, b)
+        if np.median(rms) < 0.95 * fit_rms or agree < 1 - PAIR_DIRECTION:
             fit_rms, assign = float(np.median(rms)), variant
     return fit_rms, assign
+
+
+def pair_direction(
+    state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, a: int, b: int
+) -> float:
+    """Fraction of ``rich`` fields in which core pieces ``a`` and ``b`` point the way
+    their names do: the vector between them, turned into the template's frame by the
+    rigid fit of the other named core pieces, on the side of the template's vector
+    between the names (NaN without such a field).
+
+    A heel and a toe exchanged point backwards whatever the joints do; their distances
+    to the rest of the body, averaged over a stride, may favour either.
+    """
+    others = np.flatnonzero(assign >= 0)
+    others = others[(others != a) & (others != b)]
+    want = state.template[assign[a]] - state.template[assign[b]]
+    votes = []
+    for f in rich:
+        seen = others[np.isfinite(state.dense[core[others], f, 0])]
+        pair = state.dense[core[[a, b]], f]
+        if seen.size < 3 or not np.isfinite(pair).all():
+            continue
+        r, _ = kabsch(state.dense[core[seen], f], state.template[assign[seen]])
+        votes.append(float((pair[0] - pair[1]) @ r.T @ want) > 0)
+    return float(np.mean(votes)) if votes else float("nan")
 
 
 def drop_broken_pairs(
@@ -319,6 +398,9 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     )
     if not refined:
         return none
+    refined = near_ties(
+        refined, median, weight, state.template_distance[np.ix_(names, names)], unary
+    )
     # Back to the set's name numbers.
     refined = [(cost, np.where(a >= 0, names[np.maximum(a, 0)], -1)) for cost, a in refined]
     candidates = left_right_fits(state, refined, core, rich)
