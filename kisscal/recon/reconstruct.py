@@ -10,12 +10,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
-from kisscal.recon.epipolar import all_fundamentals
-from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
+from kisscal.recon.group import Solved, triangulate_markers
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
-from kisscal.recon.shared import SharedPoints, shared_blob_points
-from kisscal.recon.stationary import at_epipoles, false_detections
+from kisscal.recon.stationary import false_detections
 
 
 @dataclass(frozen=True)
@@ -225,7 +223,7 @@ def reconstruct_trial(
     marker = np.full(len(field), -1, dtype=np.int64)
     solved = Solved()
     marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved)
-    pts = points_from_markers(
+    return points_from_markers(
         marker,
         field,
         camera,
@@ -235,56 +233,4 @@ def reconstruct_trial(
         still,
         test,
         solved.expanded(keep, len(field)),
-    )
-    if not (params.allow_two_camera and len(dlts) <= params.two_camera_alone_max_cameras):
-        return pts
-    rms = pts.rms_px[np.isfinite(pts.rms_px)]
-    if len(rms) == 0:
-        return pts
-    usable = ~still & ~at_epipoles(camera, uv, dlts, params.led_radius_px)
-    shared = shared_blob_points(
-        pts.marker,
-        usable,
-        field,
-        camera,
-        uv,
-        dlts,
-        (pts.xyz_mm, pts.field, pts.n_cameras >= 3),
-        all_fundamentals(dlts),
-        params,
-        residual_limit_px(rms, params),
-    )
-    return with_shared(pts, shared, camera)
-
-
-def with_shared(pts: Points3D, shared: SharedPoints, camera: NDArray[np.int64]) -> Points3D:
-    """``pts`` with the points of :func:`~kisscal.recon.shared.shared_blob_points` added
-    (points again in field order): each new point's own blob is its alone, a partner
-    blob that another point holds stays that point's in ``marker`` and is listed in both
-    points' ``blob_row``."""
-    n_old, n_new = len(pts), len(shared.field)
-    if n_new == 0:
-        return pts
-    ids = n_old + np.arange(n_new)
-    rows = np.full((n_new, pts.blob_row.shape[1]), -1, dtype=np.int64)
-    for k in range(2):
-        rows[np.arange(n_new), camera[shared.rows[:, k]]] = shared.rows[:, k]
-    field = np.concatenate([pts.field, shared.field])
-    order = np.argsort(field, kind="stable")
-    new_id = np.empty(len(order), dtype=np.int64)
-    new_id[order] = np.arange(len(order))
-    marker = pts.marker.copy()
-    marker[shared.rows[:, 0]] = ids
-    own = shared.rows[shared.own_partner, 1]
-    marker[own] = ids[shared.own_partner]
-    marker = np.where(marker >= 0, new_id[np.maximum(marker, 0)], -1)
-    return Points3D(
-        field[order],
-        np.concatenate([pts.xyz_mm, shared.xyz_mm])[order],
-        np.concatenate([pts.n_cameras, np.full(n_new, 2)])[order],
-        np.concatenate([pts.rms_px, shared.rms_px])[order],
-        np.concatenate([pts.blob_row, rows])[order],
-        marker,
-        pts.stationary,
-        pts.stationary_test,
     )
