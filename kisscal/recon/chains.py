@@ -1,11 +1,12 @@
 """Two-camera ghosts that move smoothly: runs of pairs made of two markers' blobs.
 
-Two markers that move together (the two anterior pelvis markers, say), each seen by one
+Two markers that move together (two pelvis markers, say), each seen by one
 camera of a pair, can lie on each other's epipolar lines for many fields: their rays
 cross at a point that moves as smoothly as a marker, so the pairs' continuity check
 (:mod:`kisscal.recon.pairs`) takes it, for a run of fields, and the blobs go to the
-ghost instead of the markers (issue 27: 3.6 % ghosts on one three-camera trial, all of
-one such run).
+ghost instead of the markers (issue 27: 3.6 % ghosts on one three-camera trial, all
+made by the rays of the sacrum and a front pelvis marker). Off by default
+(``two_camera_split_mm`` = 0): see that parameter for what it changes downstream.
 
 Each blob is followed in its own image to the neighbouring field (the nearest blob of
 the camera, when the next nearest is at least twice as far). The blobs of a real marker

@@ -433,7 +433,7 @@ def match_trial(
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
         marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led, solved)
-        if len(dlts) <= params.two_camera_alone_max_cameras:
+        if params.two_camera_split_mm and len(dlts) <= params.two_camera_alone_max_cameras:
             marker = drop_split_runs(marker, field, camera, uv, dlts, params, solved)
     return marker
 

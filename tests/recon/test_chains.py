@@ -44,7 +44,7 @@ def _table(ghost_from: int) -> tuple:
 
 def test_a_run_whose_blobs_come_from_two_markers_is_dropped() -> None:
     field, camera, uv, marker, dlts, truth = _table(ghost_from=6)
-    out = drop_split_runs(marker, field, camera, uv, dlts, ReconParams())
+    out = drop_split_runs(marker, field, camera, uv, dlts, ReconParams(two_camera_split_mm=100.0))
     assert np.all(out[truth < 0] == -1)  # the whole ghost run, not only its first field
     assert np.all(out[truth >= 0] >= 0)  # the markers' own runs stay
     assert len(np.unique(out[out >= 0])) == 2 * 6
@@ -52,6 +52,6 @@ def test_a_run_whose_blobs_come_from_two_markers_is_dropped() -> None:
 
 def test_markers_whose_blobs_continue_together_are_kept() -> None:
     field, camera, uv, marker, dlts, _ = _table(ghost_from=N_FIELDS)
-    out = drop_split_runs(marker, field, camera, uv, dlts, ReconParams())
+    out = drop_split_runs(marker, field, camera, uv, dlts, ReconParams(two_camera_split_mm=100.0))
     assert np.array_equal(out >= 0, marker >= 0)
     assert len(np.unique(out)) == 2 * N_FIELDS
