@@ -73,6 +73,8 @@ def detach_cores(
     # a region with cores on it stays larger than a marker without them; a pair or
     # cluster of markers does not (its rims are all that is left): the split tests
     # take those
+    if not count.any():
+        return grouping
     keep = (count > 0) & _rest_oversized(pixels, core == 0, big.size, params)
     if not keep.any():
         return grouping

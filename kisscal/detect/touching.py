@@ -90,7 +90,7 @@ def marker_peaks(
 
 
 def _several_maxima(
-    grouping: Grouping, table: GroupTable, idx: NDArray[np.int64]
+    grouping: Grouping, table: GroupTable, idx: NDArray[np.int64], stretch: int = 1
 ) -> NDArray[np.bool_]:
     """Which of the groups ``idx`` have two or more ridges of high distance-transform
     values, the only ones :func:`marker_peaks` can find two peaks in.
@@ -98,9 +98,12 @@ def _several_maxima(
     One distance transform, maximum filter and labelling on a canvas of all the groups
     (:func:`~kisscal.detect.groups.group_canvas`: each crop gets what it would alone)
     instead of one per group: on real frames hundreds of irregular groups are examined
-    and nearly all have a single ridge. Square pixels only (no row stretching).
+    and nearly all have a single ridge. Rows are repeated ``stretch`` times, as
+    :func:`marker_peaks` repeats each crop's (each crop's border rows stay its own).
     """
     canvas, top = group_canvas(grouping.runs, table, idx)
+    if stretch > 1:
+        canvas, top = np.repeat(canvas, stretch, axis=0), top * stretch
     dist = cv2.distanceTransform(canvas, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     crop = np.searchsorted(top, np.arange(canvas.shape[0]), side="right") - 1
     highest = np.maximum.reduceat(dist.max(axis=1), top)
@@ -127,8 +130,8 @@ def split_touching(
     fairly; parts are flagged ``split_touching``.
     """
     idx = candidates.nonzero()[0]
-    if idx.size and round(params.pixel_aspect) <= 1:
-        idx = idx[_several_maxima(grouping, table, idx)]
+    if idx.size:
+        idx = idx[_several_maxima(grouping, table, idx, max(round(params.pixel_aspect), 1))]
     if idx.size == 0:
         return grouping
     labels, found = [], []

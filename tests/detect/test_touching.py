@@ -7,7 +7,10 @@ import pytest
 
 from kisscal.detect import blobs as fl
 from kisscal.detect import detect_blobs
-from kisscal.detect.touching import marker_peaks
+from kisscal.detect.advanced import Grouping
+from kisscal.detect.groups import group_crops, measure_groups
+from kisscal.detect.scan import group_runs
+from kisscal.detect.touching import _several_maxima, marker_peaks
 from tests.detect.conftest import ASPECT, KISS, render
 
 
@@ -71,3 +74,22 @@ def test_two_touching_discs_have_two_peaks_with_their_radii():
     assert len(peaks) == 2
     assert np.allclose(sorted(peaks[:, 0]), [12.0, 23.5], atol=1.0)
     assert peaks[0, 2] > peaks[1, 2]  # the larger marker's peak is higher
+
+
+def test_canvas_ridges_keep_every_group_with_two_peaks():
+    """Every group in which marker_peaks finds two or more peaks on its own has two
+    ridges on the stretched canvas of all groups (and singles mostly do not)."""
+    rng = np.random.default_rng(5)
+    centres = np.column_stack([rng.uniform(20, 730, 400), rng.uniform(10, 280, 400)])
+    image = render(centres, rng.uniform(2.5, 6.0, 400))
+    runs = group_runs(image >= 40)
+    grouping = Grouping.start(runs)
+    table = measure_groups(runs)
+    idx = np.flatnonzero(table.pixels >= 16)
+    several = _several_maxima(grouping, table, idx, round(ASPECT))
+    peaks = np.array(
+        [len(marker_peaks(c, ASPECT, 1.2)) for _, _, _, c in group_crops(runs, table, idx)]
+    )
+    assert (peaks >= 2).sum() >= 10  # touching pairs are there
+    assert several[peaks >= 2].all()
+    assert several.sum() < idx.size / 2  # and the canvas keeps most singles off
