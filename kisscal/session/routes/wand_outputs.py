@@ -39,7 +39,12 @@ from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
-from kisscal.session.routes.wand_judge import held_out_markers, judges, kept
+from kisscal.session.routes.wand_judge import (
+    Judgement,
+    PairedErrors,
+    held_out_markers,
+    length_evidence,
+)
 
 ROUTE = "wand"
 
@@ -90,13 +95,16 @@ def write_wand_outputs(
             **length_figures(alone, nominal),
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
         }
-    check = _checks(inputs, cal, rod_cal, wand_doc)
-    if "held_out_rod_markers" in check:
-        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"]
+    check, markers = _checks(inputs, cal, rod_cal, wand_doc)
+    if markers is not None:
+        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"] = markers.as_dict()
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
-    check["judges"] = judges(check, wand_params(inputs).keep_sigmas)
-    wand_doc["kept"] = check["kept"] = kept(check) if rod_cal is not None else "wand"
+    judgement = Judgement(
+        markers or PairedErrors(0), length_evidence(wand_doc), wand_params(inputs).keep_sigmas
+    )
+    check["judges"] = judgement.as_dict()
+    wand_doc["kept"] = check["kept"] = judgement.kept if rod_cal is not None else "wand"
     if check["kept"] == "rods":
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
         _keep_rods(inputs, rod_cal)
@@ -157,8 +165,9 @@ def _checks(
     cal: WandCalibration,
     rod_cal: RodCalibration | None,
     wand_doc: dict[str, Any],
-) -> dict[str, Any]:
-    """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads."""
+) -> tuple[dict[str, Any], PairedErrors | None]:
+    """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads; and the
+    held-out rod markers of both calibrations (None without the rods)."""
     check: dict[str, Any] = {"route": ROUTE, "wand_held_out": wand_doc["held_out"]}
     if "held_out_rods_alone" in wand_doc:
         check["wand_held_out_rods_alone"] = wand_doc["held_out_rods_alone"]
@@ -166,7 +175,7 @@ def _checks(
     if "length_rms_error_mm" in held:
         check["leave_out_mean_mm"] = held["length_rms_error_mm"]
     if rod_cal is None or cal.control is None:
-        return check
+        return check, None
     markers = inputs.config.wand.markers_mm if inputs.config.wand else ()
     control = cal.control
     ids_xyz, point = np.unique(control.xyz_mm, axis=0, return_inverse=True)
@@ -197,7 +206,7 @@ def _checks(
     }
     check["leave_out_mean_mm"] = check["leave_one_rod_out"]["mean_mm"]
     rods = make_rods([(r.name, r.points_mm) for r in inputs.config.rods.rods])
-    check["held_out_rod_markers"] = held_out_markers(
+    held = held_out_markers(
         cal,
         rod_cal,
         rods,
@@ -206,7 +215,7 @@ def _checks(
         inputs.params.dlt,
         wand_params(inputs),
     )
-    return check
+    return check, held
 
 
 def _write_cameras(
