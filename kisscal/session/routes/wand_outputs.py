@@ -52,7 +52,11 @@ ROUTE = "wand"
 def wand_params(inputs: RouteInputs) -> BundleParams:
     """The adjustment's parameters: on the rods with a grid, see ``grid_lens``."""
     config, params = inputs.config, inputs.params.wand
-    return params.on_grid() if config.grid is not None and config.rods is not None else params
+    return (
+        params.on_grid()
+        if config.grid is not None and config.rods is not None
+        else params.off_grid()
+    )
 
 
 def write_wand_outputs(
@@ -67,10 +71,10 @@ def write_wand_outputs(
     markers = config.wand.markers_mm
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
-    cameras = frame.cameras(cal.cameras) if frame is not None else cal.cameras
+    cameras = frame.cameras(cal.written) if frame is not None else cal.written
     inlier = cal.observations.subset(cal.result.inlier)
     lengths = end_to_end_mm(
-        wand_markers(cal.cameras, inlier, len(cal.fields), len(markers)), markers
+        wand_markers(cal.written, inlier, len(cal.fields), len(markers)), markers
     )
     held = held_out_lengths(cal, markers, wand_params(inputs))
     nominal = float(np.ptp(markers))
@@ -84,7 +88,9 @@ def write_wand_outputs(
         "fields_used": len(cal.fields),
         "iterations": cal.result.iterations,
         "seconds": round(seconds, 2),
-        "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
+        "cameras": {
+            cam: _camera_entry(cameras[c], cal.cameras[c], per_cam, c) for c, cam in enumerate(ids)
+        },
     }
     if cal.control is not None:
         wand_doc["rods_weight"] = float(cal.control.weight)
@@ -133,7 +139,9 @@ def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
             write_json(store.linearisation_path(cam.id), doc["refined"]["grid_fit"])
 
 
-def _camera_entry(cam: Camera, per_cam: Any, c: int) -> dict[str, Any]:
+def _camera_entry(cam: Camera, adjusted: Camera, per_cam: Any, c: int) -> dict[str, Any]:
+    """One camera's figures: the written camera's pinhole, the adjustment's Brown terms
+    and, when resected, the written Kolahi terms."""
     entry = {
         "rms_px": float(per_cam.rms_px[c]),
         "points": int(per_cam.points[c]),
@@ -144,7 +152,9 @@ def _camera_entry(cam: Camera, per_cam: Any, c: int) -> dict[str, Any]:
         "v0_px": float(cam.K[1, 2]),
         "skew_px": float(cam.K[0, 1]),
     }
-    entry.update({term: float(v) for term, v in zip(LENS_TERMS, cam.lens, strict=True)})
+    entry.update({term: float(v) for term, v in zip(LENS_TERMS, adjusted.lens, strict=True)})
+    if cam.kolahi is not None:
+        entry["kolahi_L12_L16"] = [float(v) for v in cam.kolahi]
     return entry
 
 
@@ -180,7 +190,7 @@ def _checks(
     control = cal.control
     ids_xyz, point = np.unique(control.xyz_mm, axis=0, return_inverse=True)
     xyz = triangulate_points(
-        cal.cameras, control.camera, point.ravel(), control.uv_px, len(ids_xyz)
+        cal.written, control.camera, point.ravel(), control.uv_px, len(ids_xyz)
     )
     err = np.linalg.norm(xyz - ids_xyz, axis=1)
     check["rods_in_sample_mean_mm"] = float(np.nanmean(err))
