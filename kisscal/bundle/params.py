@@ -19,13 +19,18 @@ class BundleParams(Params):
     lens_terms : tuple of str
         Brown lens terms estimated for every camera (any of ``k1 k2 p1 p2 k3``; empty:
         none). Without a grid they are the whole lens model; with one see ``grid_lens``.
-    grid_lens : {"keep", "brown"}
-        Started from the rods' DLTs on a grid's linearisation: ``keep`` holds the
-        grid's 30-coefficient polynomial as it is and refines each camera's 11 DLT
-        parameters (a pinhole with skew, no Brown terms, since a grid's linearised
-        pixels are a projective image of the distortion-free ones); ``brown`` adds
-        ``lens_terms`` (and ``skew`` as set) on top of the polynomial, folded into a
-        refitted polynomial afterwards.
+    grid_lens : {"resect", "keep", "brown"}
+        Started from the rods' DLTs on a grid's linearisation: ``resect`` holds the
+        grid's 30-coefficient polynomial as it is, adjusts each camera as a pinhole with
+        skew plus ``lens_terms`` on the linearised pixels (the small correction the
+        polynomial left over) and writes each camera as a DLT with ``resect_terms`` of
+        Kolahi's terms fitted to the adjusted wand and rod points
+        (:mod:`kisscal.bundle.resect`); ``keep`` refines the 11 DLT parameters alone (a
+        pinhole with skew, no lens terms); ``brown`` adds ``lens_terms`` (and ``skew`` as
+        set) on top of the polynomial, folded into a refitted polynomial afterwards.
+    resect_terms : int
+        How many of Kolahi's terms L12.. (``[dlt] lens_terms``' order: 3 are the radial
+        ones) the written cameras carry with ``grid_lens`` ``resect``.
     skew : bool
         Estimate each camera's skew (non-perpendicular pixel axes). Sensors have none;
         a DLT calibration has it as its eleventh parameter.
@@ -96,7 +101,8 @@ class BundleParams(Params):
     section: ClassVar[str] = "wand"
 
     lens_terms: tuple[LensTerm, ...] = param(("k1", "k2", "p1", "p2"))
-    grid_lens: Literal["keep", "brown"] = param("keep")
+    grid_lens: Literal["resect", "keep", "brown"] = param("resect")
+    resect_terms: int = param(3, ge=1, le=5)
     skew: bool = param(False)
     loss: Literal["soft_l1", "huber", "cauchy", "linear"] = param("soft_l1")
     loss_scale_px: float = param(0.2, unit="px", gt=0)
@@ -121,7 +127,14 @@ class BundleParams(Params):
         """The parameters for cameras on a grid's linearisation (see ``grid_lens``)."""
         if self.grid_lens == "brown":
             return self
+        if self.grid_lens == "resect":
+            return replace(self, skew=True)
         return replace(self, lens_terms=(), skew=True)
+
+    def off_grid(self) -> BundleParams:
+        """The parameters for cameras on raw pixels: the Brown terms are the whole lens
+        model, never resected."""
+        return replace(self, grid_lens="brown") if self.grid_lens == "resect" else self
 
     def check(self) -> None:
         if len(set(self.lens_terms)) != len(self.lens_terms):

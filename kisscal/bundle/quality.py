@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from kisscal.bundle.adjust import WandObservations, adjust_bundle
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.bundle.resect import final_cameras
 from kisscal.bundle.wand import WandCalibration, select_fields
 from kisscal.camera import Camera
 from kisscal.dlt.triangulate import triangulate_observations
@@ -140,7 +141,8 @@ def held_out_lengths(
     obs = cal.observations.subset(cal.result.inlier)
     train, wand, _ = select_fields(obs, cal.result.wand, cal.fields, ~held)
     refit = adjust_bundle(cal.cameras, train, markers_mm, wand, cal.control, params, cal.anchor)
-    return field_lengths(refit.cameras, cal, held, markers_mm)
+    cameras = final_cameras(refit, train, cal.control, markers_mm, params)
+    return field_lengths(cameras, cal, held, markers_mm)
 
 
 def paired_length_gain(
@@ -207,9 +209,10 @@ def leave_control_out(
     for k in np.unique(fold[fold >= 0]):
         rest = control.subset(fold != k)
         refit = adjust_bundle(cal.cameras, obs, markers_mm, cal.result.wand, rest, params)
+        cameras = final_cameras(refit, obs, rest, markers_mm, params)
         mine = control.subset(fold == k)
         ids, point = np.unique(mine.xyz_mm, axis=0, return_inverse=True)
-        xyz = triangulate_points(refit.cameras, mine.camera, point.ravel(), mine.uv_px, len(ids))
+        xyz = triangulate_points(cameras, mine.camera, point.ravel(), mine.uv_px, len(ids))
         xyz_out.append(ids)
         fold_out.append(np.full(len(ids), k, dtype=np.int64))
         err_out.append(np.linalg.norm(xyz - ids, axis=1))

@@ -36,6 +36,7 @@ from kisscal.bundle.find import find_wand_images, find_wand_points, pairs_within
 from kisscal.bundle.frame import ObjectMatch, recognise_object
 from kisscal.bundle.initialise import start_from_wand, wand_poses
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.bundle.resect import final_cameras
 from kisscal.camera import Camera, camera_linearisation
 from kisscal.errors import EstimationFailed, InputError
 from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
@@ -93,6 +94,9 @@ class WandCalibration:
         The rods' markers, when they were used.
     anchor : int or None
         The camera whose pose fixed the frame (wand alone), None with control points.
+    resected : tuple of Camera or None
+        The cameras as written when they are resected on the adjusted points
+        (:mod:`kisscal.bundle.resect`), else None.
     """
 
     result: BundleResult
@@ -100,10 +104,17 @@ class WandCalibration:
     fields: NDArray[np.int64]
     control: ControlPoints | None
     anchor: int | None
+    resected: tuple[Camera, ...] | None = None
 
     @property
     def cameras(self) -> tuple[Camera, ...]:
+        """The adjustment's cameras (lens terms on the coordinates it worked in)."""
         return self.result.cameras
+
+    @property
+    def written(self) -> tuple[Camera, ...]:
+        """The cameras the route writes and measures with."""
+        return self.resected if self.resected is not None else self.result.cameras
 
 
 def lens_rig(
@@ -282,7 +293,9 @@ def calibrate_on_control(
     elif params.control_weight != control.weight:
         control = control.weighted(params.control_weight)
         result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
-    return WandCalibration(result, obs, fields, control, None)
+    final = final_cameras(result, obs, control, markers_mm, params)
+    resected = final if final is not result.cameras else None
+    return WandCalibration(result, obs, fields, control, None, resected)
 
 
 def noise_ratio(start: Sequence[Camera], control: ControlPoints, result: BundleResult) -> float:

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.camera import LENS_TERMS, Camera, camera_linearisation
-from kisscal.dlt import DltParams, DltResult, decompose_dlt, project, solve_dlt
+from kisscal.dlt import DltParams, DltResult, correct_lens, decompose_dlt, project, solve_dlt
 from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
@@ -102,20 +102,22 @@ def write_lens_camera(
     grid_doc = grid_document(lin_path, inputs.config.grid is not None)
     before = linearisation_from_dict(grid_doc, str(lin_path)) if grid_doc else None
     xyz, uv, _, labels = points
+    kolahi = None
     if before is not None and not np.any(camera.lens):
-        # the grid's polynomial kept as it is: the camera is exactly its DLT on it
+        # the grid's polynomial kept as it is: the camera is exactly its DLT on it, with
+        # Kolahi's terms when it carries them (resected)
         write_json(lin_path, grid_doc)
-        written, L, fit_max = uv, camera.dlt, 0.0
+        written, L, fit_max, kolahi = uv, camera.dlt, 0.0, camera.kolahi
     else:
         written, L, fit_max = _fold_lens(
             lin_path, cfg, camera, route, before, grid_doc, points, inputs.params.dlt
         )
-    res = written - project(L, xyz)
+    res = correct_lens(L, kolahi, written) - project(L, xyz)
     K, R, centre = decompose_dlt(L)
     result = DltResult(
         L=L,
         method=route,
-        lens=None,
+        lens=kolahi,
         residuals_px=res,
         rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
         constraint_linear=hatze_violation(camera.dlt),

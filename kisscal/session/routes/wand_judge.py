@@ -21,7 +21,8 @@ Leave-one-rod-out stays in ``check.json`` as a figure, not a judge.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,7 +43,7 @@ def held_out_markers(
     markers_mm: Sequence[float],
     dlt: DltParams,
     params: BundleParams,
-) -> dict[str, Any]:
+) -> PairedErrors:
     """Held-out rod markers reconstructed by both calibrations (see the module).
 
     Parameters
@@ -63,10 +64,8 @@ def held_out_markers(
 
     Returns
     -------
-    dict
-        RMS 3D error (mm) of each calibration over the markers both reconstructed, the
-        mean paired difference of their squared errors (mm², negative: the wand's lower),
-        its standard error and the number of markers; ``{"markers": 0}`` when none.
+    PairedErrors
+        Over the markers both calibrations reconstructed.
     """
     n_markers = max(len(r.points_mm) for r in rods)
     truth = np.full((len(rods), n_markers, 3), np.nan)
@@ -92,50 +91,142 @@ def _marker_of(xyz_mm: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArr
     return np.argmin(np.where(np.isfinite(d), d, np.inf), axis=1)
 
 
-def paired_errors(wand_mm: NDArray[np.float64], rods_mm: NDArray[np.float64]) -> dict[str, Any]:
+@dataclass(frozen=True)
+class PairedErrors:
+    """Two calibrations' 3D errors on the same held-out points, compared point by point.
+
+    Attributes
+    ----------
+    markers : int
+        Points both calibrations reconstructed (the figures below need two or more).
+    wand_rms_mm, rods_alone_rms_mm : float
+        RMS 3D error of each (NaN with fewer than two points).
+    mean_difference_mm2 : float
+        Mean of the wand's squared error minus the rods' (negative: the wand's lower).
+    standard_error_mm2 : float
+        Its standard error (the points' own noise, common to both, cancels).
+    """
+
+    markers: int
+    wand_rms_mm: float = float("nan")
+    rods_alone_rms_mm: float = float("nan")
+    mean_difference_mm2: float = float("nan")
+    standard_error_mm2: float = float("nan")
+
+    @property
+    def measured(self) -> bool:
+        return self.markers >= 2
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``check.json`` group (only ``markers`` when not measured)."""
+        return asdict(self) if self.measured else {"markers": self.markers}
+
+
+def paired_errors(wand_mm: NDArray[np.float64], rods_mm: NDArray[np.float64]) -> PairedErrors:
     """Paired comparison of two calibrations' 3D errors (mm) on the same points."""
     ok = np.isfinite(wand_mm) & np.isfinite(rods_mm)
     n = int(ok.sum())
     if n < 2:
-        return {"markers": n}
+        return PairedErrors(n)
     d = wand_mm[ok] ** 2 - rods_mm[ok] ** 2
-    return {
-        "wand_rms_mm": float(np.sqrt(np.mean(wand_mm[ok] ** 2))),
-        "rods_alone_rms_mm": float(np.sqrt(np.mean(rods_mm[ok] ** 2))),
-        "mean_difference_mm2": float(np.mean(d)),
-        "standard_error_mm2": float(np.std(d, ddof=1) / np.sqrt(n)),
-        "markers": n,
-    }
+    return PairedErrors(
+        n,
+        float(np.sqrt(np.mean(wand_mm[ok] ** 2))),
+        float(np.sqrt(np.mean(rods_mm[ok] ** 2))),
+        float(np.mean(d)),
+        float(np.std(d, ddof=1) / np.sqrt(n)),
+    )
 
 
-def judges(check: dict[str, Any], sigmas: float) -> dict[str, dict[str, Any]]:
-    """Each held-out judge's figures for the wand and the rods alone, what it asks of the
-    wand (``better`` or ``not worse``) and whether the wand passes."""
-    out = {}
-    markers = check.get("held_out_rod_markers", {})
-    if "mean_difference_mm2" in markers:
-        out["held_out_rod_markers_rms_mm"] = {
-            "wand": markers["wand_rms_mm"],
-            "rods_alone": markers["rods_alone_rms_mm"],
-            "asks": "better",
-            "wand_passes": bool(markers["mean_difference_mm2"] < 0.0),
-        }
-    alone = check.get("wand_held_out_rods_alone", {})
+@dataclass(frozen=True)
+class Verdict:
+    """One held-out judge: both calibrations' figures, what it asks of the wand
+    (``better`` or ``not worse``) and whether the wand passes."""
+
+    wand: float
+    rods_alone: float
+    asks: Literal["better", "not worse"]
+    wand_passes: bool
+
+
+@dataclass(frozen=True)
+class LengthEvidence:
+    """The held-out wand fields measured by both calibrations.
+
+    Attributes
+    ----------
+    wand_rms_mm, rods_alone_rms_mm : float
+        RMS error of the wand's end-to-end length.
+    mean_difference_mm2, standard_error_mm2 : float
+        The paired difference of their squared errors and its standard error
+        (:func:`kisscal.bundle.quality.paired_length_gain`).
+    """
+
+    wand_rms_mm: float
+    rods_alone_rms_mm: float
+    mean_difference_mm2: float
+    standard_error_mm2: float
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """The evidence that decides between the wand's calibration and the rods' alone.
+
+    Attributes
+    ----------
+    markers : PairedErrors
+        Held-out rod markers (decides: the wand must be better).
+    length : LengthEvidence or None
+        Held-out wand length (guard: the wand must not be worse by more than ``sigmas``
+        standard errors), None when not measured.
+    sigmas : float
+        ``[wand] keep_sigmas``.
+    """
+
+    markers: PairedErrors
+    length: LengthEvidence | None
+    sigmas: float
+
+    def verdicts(self) -> dict[str, Verdict]:
+        """Each judge that could be measured, by its ``check.json`` name."""
+        out = {}
+        m = self.markers
+        if m.measured:
+            better = bool(m.mean_difference_mm2 < 0.0)
+            out["held_out_rod_markers_rms_mm"] = Verdict(
+                m.wand_rms_mm, m.rods_alone_rms_mm, "better", better
+            )
+        g = self.length
+        if g is not None:
+            fine = bool(g.mean_difference_mm2 <= self.sigmas * g.standard_error_mm2)
+            out["held_out_wand_length_rms_error_mm"] = Verdict(
+                g.wand_rms_mm, g.rods_alone_rms_mm, "not worse", fine
+            )
+        return out
+
+    @property
+    def kept(self) -> Literal["wand", "rods"]:
+        """``wand`` when the held-out rod markers find it better and no judge finds it
+        worse, else ``rods`` (also when the markers could not be judged)."""
+        verdicts = self.verdicts()
+        if "held_out_rod_markers_rms_mm" not in verdicts:
+            return "rods"
+        return "wand" if all(v.wand_passes for v in verdicts.values()) else "rods"
+
+    def as_dict(self) -> dict[str, dict[str, Any]]:
+        """``check.json``'s ``judges`` group."""
+        return {name: asdict(v) for name, v in self.verdicts().items()}
+
+
+def length_evidence(wand_doc: dict[str, Any]) -> LengthEvidence | None:
+    """The held-out wand length figures of ``dlt/wand.json`` (None when not measured)."""
+    alone = wand_doc.get("held_out_rods_alone", {})
     gain = alone.get("wand_minus_rods", {})
-    if "mean_difference_mm2" in gain:
-        out["held_out_wand_length_rms_error_mm"] = {
-            "wand": check["wand_held_out"]["length_rms_error_mm"],
-            "rods_alone": alone["length_rms_error_mm"],
-            "asks": "not worse",
-            "wand_passes": bool(gain["mean_difference_mm2"] <= sigmas * gain["standard_error_mm2"]),
-        }
-    return out
-
-
-def kept(check: dict[str, Any]) -> str:
-    """``wand`` when the held-out rod markers judge finds it better and no judge finds it
-    worse, else ``rods`` (also when the markers could not be judged)."""
-    verdicts = check.get("judges", {})
-    if "held_out_rod_markers_rms_mm" not in verdicts:
-        return "rods"
-    return "wand" if all(v["wand_passes"] for v in verdicts.values()) else "rods"
+    if "mean_difference_mm2" not in gain:
+        return None
+    return LengthEvidence(
+        float(wand_doc["held_out"]["length_rms_error_mm"]),
+        float(alone["length_rms_error_mm"]),
+        float(gain["mean_difference_mm2"]),
+        float(gain["standard_error_mm2"]),
+    )

@@ -39,7 +39,12 @@ from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
-from kisscal.session.routes.wand_judge import held_out_markers, judges, kept
+from kisscal.session.routes.wand_judge import (
+    Judgement,
+    PairedErrors,
+    held_out_markers,
+    length_evidence,
+)
 
 ROUTE = "wand"
 
@@ -47,7 +52,11 @@ ROUTE = "wand"
 def wand_params(inputs: RouteInputs) -> BundleParams:
     """The adjustment's parameters: on the rods with a grid, see ``grid_lens``."""
     config, params = inputs.config, inputs.params.wand
-    return params.on_grid() if config.grid is not None and config.rods is not None else params
+    return (
+        params.on_grid()
+        if config.grid is not None and config.rods is not None
+        else params.off_grid()
+    )
 
 
 def write_wand_outputs(
@@ -62,10 +71,10 @@ def write_wand_outputs(
     markers = config.wand.markers_mm
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
-    cameras = frame.cameras(cal.cameras) if frame is not None else cal.cameras
+    cameras = frame.cameras(cal.written) if frame is not None else cal.written
     inlier = cal.observations.subset(cal.result.inlier)
     lengths = end_to_end_mm(
-        wand_markers(cal.cameras, inlier, len(cal.fields), len(markers)), markers
+        wand_markers(cal.written, inlier, len(cal.fields), len(markers)), markers
     )
     held = held_out_lengths(cal, markers, wand_params(inputs))
     nominal = float(np.ptp(markers))
@@ -79,7 +88,9 @@ def write_wand_outputs(
         "fields_used": len(cal.fields),
         "iterations": cal.result.iterations,
         "seconds": round(seconds, 2),
-        "cameras": {cam: _camera_entry(cameras[c], per_cam, c) for c, cam in enumerate(ids)},
+        "cameras": {
+            cam: _camera_entry(cameras[c], cal.cameras[c], per_cam, c) for c, cam in enumerate(ids)
+        },
     }
     if cal.control is not None:
         wand_doc["rods_weight"] = float(cal.control.weight)
@@ -90,13 +101,16 @@ def write_wand_outputs(
             **length_figures(alone, nominal),
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
         }
-    check = _checks(inputs, cal, rod_cal, wand_doc)
-    if "held_out_rod_markers" in check:
-        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"]
+    check, markers = _checks(inputs, cal, rod_cal, wand_doc)
+    if markers is not None:
+        wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"] = markers.as_dict()
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
-    check["judges"] = judges(check, wand_params(inputs).keep_sigmas)
-    wand_doc["kept"] = check["kept"] = kept(check) if rod_cal is not None else "wand"
+    judgement = Judgement(
+        markers or PairedErrors(0), length_evidence(wand_doc), wand_params(inputs).keep_sigmas
+    )
+    check["judges"] = judgement.as_dict()
+    wand_doc["kept"] = check["kept"] = judgement.kept if rod_cal is not None else "wand"
     if check["kept"] == "rods":
         check["leave_out_mean_mm"] = check["leave_one_rod_out"]["rods_alone_mean_mm"]
         _keep_rods(inputs, rod_cal)
@@ -125,7 +139,9 @@ def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
             write_json(store.linearisation_path(cam.id), doc["refined"]["grid_fit"])
 
 
-def _camera_entry(cam: Camera, per_cam: Any, c: int) -> dict[str, Any]:
+def _camera_entry(cam: Camera, adjusted: Camera, per_cam: Any, c: int) -> dict[str, Any]:
+    """One camera's figures: the written camera's pinhole, the adjustment's Brown terms
+    and, when resected, the written Kolahi terms."""
     entry = {
         "rms_px": float(per_cam.rms_px[c]),
         "points": int(per_cam.points[c]),
@@ -136,7 +152,9 @@ def _camera_entry(cam: Camera, per_cam: Any, c: int) -> dict[str, Any]:
         "v0_px": float(cam.K[1, 2]),
         "skew_px": float(cam.K[0, 1]),
     }
-    entry.update({term: float(v) for term, v in zip(LENS_TERMS, cam.lens, strict=True)})
+    entry.update({term: float(v) for term, v in zip(LENS_TERMS, adjusted.lens, strict=True)})
+    if cam.kolahi is not None:
+        entry["kolahi_L12_L16"] = [float(v) for v in cam.kolahi]
     return entry
 
 
@@ -157,8 +175,9 @@ def _checks(
     cal: WandCalibration,
     rod_cal: RodCalibration | None,
     wand_doc: dict[str, Any],
-) -> dict[str, Any]:
-    """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads."""
+) -> tuple[dict[str, Any], PairedErrors | None]:
+    """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads; and the
+    held-out rod markers of both calibrations (None without the rods)."""
     check: dict[str, Any] = {"route": ROUTE, "wand_held_out": wand_doc["held_out"]}
     if "held_out_rods_alone" in wand_doc:
         check["wand_held_out_rods_alone"] = wand_doc["held_out_rods_alone"]
@@ -166,12 +185,12 @@ def _checks(
     if "length_rms_error_mm" in held:
         check["leave_out_mean_mm"] = held["length_rms_error_mm"]
     if rod_cal is None or cal.control is None:
-        return check
+        return check, None
     markers = inputs.config.wand.markers_mm if inputs.config.wand else ()
     control = cal.control
     ids_xyz, point = np.unique(control.xyz_mm, axis=0, return_inverse=True)
     xyz = triangulate_points(
-        cal.cameras, control.camera, point.ravel(), control.uv_px, len(ids_xyz)
+        cal.written, control.camera, point.ravel(), control.uv_px, len(ids_xyz)
     )
     err = np.linalg.norm(xyz - ids_xyz, axis=1)
     check["rods_in_sample_mean_mm"] = float(np.nanmean(err))
@@ -197,7 +216,7 @@ def _checks(
     }
     check["leave_out_mean_mm"] = check["leave_one_rod_out"]["mean_mm"]
     rods = make_rods([(r.name, r.points_mm) for r in inputs.config.rods.rods])
-    check["held_out_rod_markers"] = held_out_markers(
+    held = held_out_markers(
         cal,
         rod_cal,
         rods,
@@ -206,7 +225,7 @@ def _checks(
         inputs.params.dlt,
         wand_params(inputs),
     )
-    return check
+    return check, held
 
 
 def _write_cameras(

@@ -1,0 +1,92 @@
+"""The wand's cameras written on the grid's own polynomial: DLT plus Kolahi's radial terms.
+
+On a grid's linearisation the adjustment estimates Brown terms on the linearised pixels,
+a small correction of what the grid's 30-coefficient polynomial left over. The written
+files cannot carry Brown terms beside the grid's polynomial, and folding them into a new
+polynomial (a fourth-order one cannot follow the r^4 term) costs more than they gain.
+So each camera is resected instead (Kolahi et al. 2007, eqs. 1-3): a DLT with Kolahi's
+radial terms L12..L14 (as many as ``resect_terms``) is fitted in pixels to the adjusted
+wand markers and the rods' surveyed markers together with their linearised images,
+thousands of points across the whole image and volume (the rods alone hold a lens model
+only between the rods; here the wand fills the volume). The grid's polynomial is kept
+as it is, and the DLT files carry the rest exactly, as the rods route writes its own
+lens model.
+
+References
+----------
+Kolahi, A., et al. (2007). Design of a marker-based human motion tracking system.
+Biomedical Signal Processing and Control 2, 59-67.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from kisscal.bundle.adjust import BundleResult, ControlPoints, WandObservations, centred_offsets
+from kisscal.bundle.params import BundleParams
+from kisscal.camera import Camera
+from kisscal.dlt import DltParams, calibrate_camera
+
+
+def resects(params: BundleParams, cameras: Sequence[Camera]) -> bool:
+    """Whether cameras adjusted with ``params`` are written resected (``grid_lens``
+    ``resect``, with lens terms estimated)."""
+    return (
+        params.grid_lens == "resect"
+        and params.resect_terms > 0
+        and any(c.has_brown for c in cameras)
+    )
+
+
+def final_cameras(
+    result: BundleResult,
+    observations: WandObservations,
+    control: ControlPoints | None,
+    markers_mm: Sequence[float],
+    params: BundleParams,
+    dlt: DltParams | None = None,
+) -> tuple[Camera, ...]:
+    """The cameras as written: resected on the adjusted points when :func:`resects`,
+    else the adjustment's own.
+
+    Parameters
+    ----------
+    result : BundleResult
+        An adjustment of ``observations`` (its ``inlier`` marks their rows).
+    observations : WandObservations
+    control : ControlPoints or None
+        The rods' markers (surveyed positions and images).
+    markers_mm : sequence of float
+        The wand's markers.
+    params : BundleParams
+        ``grid_lens`` and ``resect_terms``.
+    dlt : DltParams, optional
+        Tolerances of the DLT fit (its model switches are set here).
+
+    Returns
+    -------
+    tuple of Camera
+        Each a DLT with Kolahi's terms (``kolahi``) acting on the grid-linearised pixels.
+    """
+    if not resects(params, result.cameras):
+        return result.cameras
+    dlt = replace(
+        dlt or DltParams(), refine=True, lens=True, lens_terms=params.resect_terms, mdlt=False
+    )
+    obs = observations.subset(result.inlier)
+    offsets = centred_offsets(markers_mm)[obs.marker]
+    wand_xyz = (
+        result.wand.centre_mm[obs.field] + offsets[:, None] * result.wand.direction[obs.field]
+    )
+    out = []
+    for c in range(len(result.cameras)):
+        xyz, uv = [wand_xyz[obs.camera == c]], [obs.uv_px[obs.camera == c]]
+        if control is not None:
+            xyz.append(control.xyz_mm[control.camera == c])
+            uv.append(control.uv_px[control.camera == c])
+        fit = calibrate_camera(np.concatenate(xyz), np.concatenate(uv), dlt)
+        out.append(Camera.from_dlt(fit.L, kolahi=fit.lens))
+    return tuple(out)
