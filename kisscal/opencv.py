@@ -5,9 +5,10 @@ with zero skew, no grid polynomial and Brown's lens (up to OpenCV's 12 coefficie
 A camera kisscal calibrated is the 11-parameter DLT (any skew, Abdel-Aziz & Karara 1971)
 on pixel coordinates linearised by a 30-coefficient polynomial (Küçük 2005).
 The two models differ: :func:`opencv_from_camera` fits OpenCV's to kisscal's so that their
-projections of the same lab points land as close as they can, over the whole image, and
-reports what is left; :func:`camera_from_opencv` goes the other way (the DLT of ``K [R | t]``
-and a polynomial fitted to OpenCV's undistortion).
+projections of the same lab points land as close as they can (within the calibrated
+volume when it is known, else over the image), and reports what is left;
+:func:`camera_from_opencv` goes the other way (the DLT of ``K [R | t]``, a polynomial and
+Kolahi's L12..L16 fitted together to OpenCV's undistortion).
 
 Both models project through the same centre (``translation = -R C``), so the fit is one
 of directions: the rays through a grid of raw pixels covering the image.
@@ -18,6 +19,8 @@ Abdel-Aziz, Y. I., & Karara, H. M. (1971). Direct linear transformation from com
 coordinates into object space coordinates in close-range photogrammetry.
 Bradski, G. (2000). The OpenCV library. Dr. Dobb's Journal of Software Tools.
 Brown, D. C. (1966). Decentering distortion of lenses. Photogrammetric Engineering.
+Kolahi, A., et al. (2007). Design of a marker-based human motion tracking system.
+Biomedical Signal Processing and Control 2, 59-67.
 Küçük, M. (2005). Calibration and 3D reconstruction for the KISS gait laboratory (thesis).
 
 Examples
