@@ -28,9 +28,9 @@ def brown_camera(name: str = "c1", k1: float = -0.05, k2: float = 0.0) -> Camera
 @pytest.mark.parametrize(("k1", "k2"), [(-0.05, 0.0), (0.05, 0.0), (-0.1, 0.02)])
 def test_round_trip_through_kisscal_keeps_the_projection(k1, k2):
     cv = brown_camera(k1=k1, k2=k2)
-    L, lin, rms = camera_from_opencv(cv)
-    assert rms < 0.05  # a 4th-order polynomial follows a moderate lens over the image
-    cam = Camera.from_dlt(L, "c1", lin, size_px=cv.size_px)
+    L, lin, lens, rms = camera_from_opencv(cv)
+    assert rms < 0.01  # a 4th-order polynomial and L12..L16 follow a moderate lens
+    cam = Camera.from_dlt(L, "c1", lin, lens, size_px=cv.size_px)
     fit = opencv_from_camera(cam)
     assert fit.rms_px < 0.05 and abs(fit.skew_px) < 1e-6
     rng = np.random.default_rng(1)
@@ -42,16 +42,27 @@ def test_round_trip_through_kisscal_keeps_the_projection(k1, k2):
     np.testing.assert_allclose(fit.camera.centre_mm, cv.centre_mm, atol=1e-6)
 
 
-def test_a_strong_lens_beyond_the_polynomial_is_measured():
-    """A 4th-order polynomial cannot follow a strong lens over the whole image: the fit's
-    RMS says so (kisscal linearise warns above 0.05 px)."""
-    _, _, rms = camera_from_opencv(brown_camera(k1=-0.25))
-    assert rms > 0.5
+def test_a_strong_lens_beyond_the_polynomial_is_followed_with_the_lens_terms():
+    """A 4th-order polynomial cannot follow a strong lens over the whole image (the fit's
+    RMS says so: kisscal linearise warns above 0.05 px); with L12..L16, radial in square
+    pixels as OpenCV's terms are in normalised coordinates, it is followed closely, and
+    the imported camera images lab points where OpenCV's does."""
+    cv = brown_camera(k1=-0.25)
+    plain = camera_from_opencv(cv, lens_terms=False)
+    both = camera_from_opencv(cv)
+    assert plain.lens is None and plain.rms_px > 0.5
+    assert both.lens is not None and both.rms_px < 0.1 * plain.rms_px
+    cam = Camera.from_dlt(both.L, "c1", both.linearisation, both.lens, size_px=cv.size_px)
+    xyz = np.random.default_rng(2).uniform(-800, 800, (2000, 3))
+    uv = cv.project(xyz)
+    inside = cv.in_image(uv, 20.0)
+    d = np.hypot(*(cam.project(xyz) - uv)[inside].T)
+    assert inside.sum() > 500 and np.sqrt(np.mean(d**2)) < 0.1 * plain.rms_px
 
 
 def test_skew_is_reported_and_fitted_around():
     cv = brown_camera(k1=-0.1)
-    L, lin, _ = camera_from_opencv(cv)
+    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     K = np.array([[1400.0, 2.0, 650.0], [0, 1390.0, 500.0], [0, 0, 1]])
     from kisscal.dlt.camera import decompose_dlt
     from kisscal.dlt.model import dlt_from_krt
@@ -117,7 +128,7 @@ def test_twelve_coefficients_follow_a_grid_polynomial_closer_and_read_back(tmp_p
     prism and rational terms follow it closer than k1 k2 p1 p2 k3, inside the image, and
     a cameras.toml of 12 coefficients reads back to the same projection."""
     cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _ = camera_from_opencv(cv)
+    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     rng = np.random.default_rng(3)
     bent = lin.__class__(  # the polynomial bent a few tenths of a pixel in every term
         lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
@@ -143,7 +154,7 @@ def test_the_fit_follows_kisscal_closer_where_the_control_points_were():
     points' extent (the centre of the image), OpenCV's camera lands closer to kisscal's
     there than the fit over the whole image, and farther beyond it."""
     cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _ = camera_from_opencv(cv)
+    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     rng = np.random.default_rng(5)
     bent = lin.__class__(
         lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
@@ -166,3 +177,28 @@ def test_the_fit_follows_kisscal_closer_where_the_control_points_were():
     near_whole, near_there = gap(whole)[inside], gap(there)[inside]
     assert np.sqrt(np.mean(near_there**2)) < 0.7 * np.sqrt(np.mean(near_whole**2))
     assert gap(there)[~inside].max() > gap(whole)[~inside].max()
+
+
+def test_the_fit_follows_kisscal_closer_within_the_calibrated_volume():
+    """Fitted on the rays through a calibrated volume (that fills the centre of the
+    image), OpenCV's camera images the volume's points closer to where kisscal's does
+    than the fit over the whole image."""
+    from kisscal.opencv import volume_rays
+
+    cv = brown_camera(k1=-0.1, k2=0.02)
+    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
+    rng = np.random.default_rng(7)
+    bent = lin.__class__(
+        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
+    )
+    cam = Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    ahead = cam.R.T @ (np.array([0.0, 0.0, 4200.0]) - cam.t)  # on the optical axis
+    volume = (ahead - 700.0, ahead + 700.0)
+    raw, _ = volume_rays(cam, volume)
+    assert len(raw) > 1000 and np.ptp(raw[:, 0]) < 0.8 * cam.size_px[0]
+    xyz = rng.uniform(*volume, (500, 3))
+
+    def gap(fit) -> float:  # RMS px between the two cameras' images of the volume
+        return float(np.sqrt(np.mean(np.sum((fit.camera.project(xyz) - cam.project(xyz)) ** 2, 1))))
+
+    assert gap(opencv_from_camera(cam, volume_mm=volume)) < 0.5 * gap(opencv_from_camera(cam))

@@ -39,42 +39,68 @@ from kisscal.errors import EstimationFailed
 N_LENS = 5
 
 
+def lens_frame(P: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Where and in what shape the lens terms of a 3 x 4 projection matrix act.
+
+    Returns the principal point ``(u0, v0)`` (px) and ``A = K2 / fu``, the upper 2 x 2 of
+    ``K`` scaled to ``A[0, 0] = 1`` (``[[1, skew / fu], [0, fv / fu]]``): a pixel offset
+    ``d`` from the principal point is ``A q`` with ``q`` the offset in square, unskewed
+    pixels of the width of ``u``'s. Read from ``K K^T = M M^T / |m3|^2`` (``M`` the
+    left 3 x 3 of ``P``, ``m3`` its last row), so it needs no decomposition and does
+    not depend on the scale or sign of ``P``.
+    """
+    M = np.asarray(P, dtype=float)[:, :3]
+    c = M[2]
+    cc = c @ c
+    centre = M[:2] @ c / cc
+    G = M[:2] @ M[:2].T / cc - np.outer(centre, centre)  # K2 K2^T
+    fv = np.sqrt(G[1, 1])
+    skew = G[0, 1] / fv
+    fu = np.sqrt(G[0, 0] - skew**2)
+    return centre, np.array([[1.0, skew / fu], [0.0, fv / fu]])
+
+
 def lens_offsets(
-    uv: NDArray[np.float64], centre: NDArray[np.float64], lens: ArrayLike
+    uv: NDArray[np.float64],
+    frame: tuple[NDArray[np.float64], NDArray[np.float64]],
+    lens: ArrayLike,
 ) -> NDArray[np.float64]:
     """Kolahi et al. 2007 eqs. 2-3: image corrections ``(du, dv)`` for L12..L16.
 
-    ``xi, eta = u - u0, v - v0``, ``r^2 = xi^2 + eta^2``;
-    ``du = xi (L12 r^2 + L13 r^4 + L14 r^6) + L15 (r^2 + 2 xi^2) + L16 xi eta``,
-    ``dv = eta (L12 r^2 + L13 r^4 + L14 r^6) + L16 (r^2 + 2 eta^2) + L15 xi eta``
-    (written exactly as in the paper). Corrected coordinates are ``uv + offsets``.
+    ``frame`` is :func:`lens_frame`'s ``(centre, A)``. The terms act on the offset from
+    the principal point in square pixels, ``(xi, eta) = A^-1 (u - u0, v - v0)``, with
+    ``r^2 = xi^2 + eta^2``:
+    ``dxi = xi (L12 r^2 + L13 r^4 + L14 r^6) + L15 (r^2 + 2 xi^2) + L16 xi eta``,
+    ``deta = eta (L12 r^2 + L13 r^4 + L14 r^6) + L16 (r^2 + 2 eta^2) + L15 xi eta``
+    (Kolahi's eq. 2), and ``(du, dv) = A (dxi, deta)``. For square pixels without skew
+    (``A = I``) this is the paper's pixel form; with a pixel aspect (the KISS cameras'
+    pixels are nearly twice as tall as wide) the terms stay radial about the optical
+    axis, as a lens is, and as Brown's model (and OpenCV's) is in normalised coordinates.
+    Corrected coordinates are ``uv + offsets``.
     """
     k1, k2, k3, p1, p2 = np.asarray(lens, dtype=float)
+    centre, A = frame
     d = uv - centre
-    xi, eta = d[..., 0], d[..., 1]
+    eta = d[..., 1] / A[1, 1]
+    xi = d[..., 0] - A[0, 1] * eta
     r2 = xi**2 + eta**2
     radial = k1 * r2 + k2 * r2**2 + k3 * r2**3
-    du = xi * radial + p1 * (r2 + 2 * xi**2) + p2 * xi * eta
-    dv = eta * radial + p2 * (r2 + 2 * eta**2) + p1 * xi * eta
-    return np.stack([du, dv], axis=-1)
+    dxi = xi * radial + p1 * (r2 + 2 * xi**2) + p2 * xi * eta
+    deta = eta * radial + p2 * (r2 + 2 * eta**2) + p1 * xi * eta
+    return np.stack([dxi + A[0, 1] * deta, A[1, 1] * deta], axis=-1)
 
 
 def correct_lens(L: ArrayLike, lens: ArrayLike | None, uv_px: ArrayLike) -> NDArray[np.float64]:
     """Apply Kolahi's lens correction (eq. 1): pixel coordinates the 11 DLT terms map to.
 
-    The projection point ``(u0, v0)`` of eq. 3 is the principal point of ``L``.
+    The projection point ``(u0, v0)`` of eq. 3 is the principal point of ``L``, and the
+    terms act in its square pixels (:func:`lens_offsets`).
     With ``lens`` None the coordinates are returned unchanged.
     """
     uv = np.asarray(uv_px, dtype=float)
     if lens is None:
         return uv
-    return uv + lens_offsets(uv, _principal_point(dlt_to_matrix(L)), lens)
-
-
-def _principal_point(P: NDArray[np.float64]) -> NDArray[np.float64]:
-    c = P[2, :3]
-    cc = c @ c
-    return np.array([P[0, :3] @ c / cc, P[1, :3] @ c / cc])
+    return uv + lens_offsets(uv, lens_frame(dlt_to_matrix(L)), lens)
 
 
 class _Problem:
@@ -117,7 +143,7 @@ class _Problem:
         u = self.u
         if lens:
             terms = self.lens_terms(theta, constrained)
-            u = u + lens_offsets(u, _principal_point(P), terms)
+            u = u + lens_offsets(u, lens_frame(P), terms)
         return (u - proj).ravel()
 
     def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:

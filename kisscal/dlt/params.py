@@ -152,7 +152,8 @@ class DltResult:
     method : str
         ``"dlt"``, ``"mdlt"`` or ``"refined"``.
     lens : ndarray, shape (5,) or None
-        Kolahi's L12..L16 (pixel units, eq. 2) when estimated, else None.
+        Kolahi's L12..L16 (pixel units, eq. 2, radial in square pixels: see
+        :func:`kisscal.dlt.nonlinear.lens_offsets`) when estimated, else None.
     residuals_px : ndarray, shape (N, 2)
         Per control point ``(du, dv)`` = observed - projected, pixels (after the lens
         correction when ``lens`` is set).

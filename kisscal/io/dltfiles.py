@@ -82,6 +82,13 @@ class DltFile:
     data: dict[str, Any] | None = None
 
 
+#: What ``lens`` holds, written beside it.
+LENS_MODEL = (
+    "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels, radial about the "
+    "principal point in square pixels (the v offset scaled by fu / fv)"
+)
+
+
 def _floats(a: ArrayLike) -> list:
     return np.asarray(a, dtype=float).tolist()
 
@@ -108,7 +115,7 @@ def dlt_document(
         "constraint_violation": float(result.constraint),
         "constraint_violation_linear": float(result.constraint_linear),
         "lens": None if result.lens is None else _floats(result.lens),
-        "lens_model": "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels",
+        "lens_model": LENS_MODEL,
         "iterations": int(result.iterations),
         "pixel_convention": PIXEL_CONVENTION,
         "dltdv_csv_convention": DLTDV8_CONVENTION,

@@ -3,8 +3,9 @@
 closely each matches kisscal's own cameras; ``kisscal export`` writes one of them alone.
 
 * ``cameras.toml``: OpenCV's model fitted to each camera
-  (:func:`kisscal.opencv.opencv_from_camera`) within the extent of the control points
-  its calibration used; ``exports.json`` gives the fit's RMS and
+  (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the calibrated volume
+  (the extent of the control points, :func:`control_volume`), or within the control
+  points' extent in the image when they span no volume; ``exports.json`` gives the fit's RMS and
   largest distance over the image (px) and the DLT's skew, which OpenCV's matrix cannot
   hold.
 * ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
@@ -68,9 +69,9 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
-def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
-    """Raw pixels of the control points a camera's DLT was fitted to (``points`` of
-    ``dlt/<camera>.json``), through the camera; None when the file lists none."""
+def control_xyz(dlt: DltFile | None) -> np.ndarray | None:
+    """Lab points (mm) a camera's DLT was fitted to (``points`` of ``dlt/<camera>.json``);
+    None when the file lists none."""
     points = (dlt.data or {}).get("points") if dlt is not None else None
     if not points:
         return None
@@ -78,8 +79,31 @@ def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
         xyz = np.array([[p["x_mm"], p["y_mm"], p["z_mm"]] for p in points], dtype=float)
     except (KeyError, TypeError, ValueError):
         return None
-    uv = camera.project(xyz[np.isfinite(xyz).all(axis=1)])
+    xyz = xyz.reshape(-1, 3)
+    return xyz[np.isfinite(xyz).all(axis=1)]
+
+
+def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
+    """Raw pixels of the control points a camera's DLT was fitted to, through the
+    camera; None when the file lists none."""
+    xyz = control_xyz(dlt)
+    if xyz is None:
+        return None
+    uv = camera.project(xyz)
     return uv[np.isfinite(uv).all(axis=1)]
+
+
+def control_volume(dlts: Mapping[str, DltFile]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The calibrated volume: lowest and highest corner (mm) of every camera's control
+    points; None without any, or when they span no volume (fewer than 4 points, flat)."""
+    found = [x for x in (control_xyz(d) for d in dlts.values()) if x is not None and len(x)]
+    if not found:
+        return None
+    xyz = np.concatenate(found)
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    if len(xyz) < 4 or np.any(hi - lo <= 1e-6 * max(float(np.max(hi - lo)), 1.0)):
+        return None
+    return lo, hi
 
 
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
@@ -98,8 +122,9 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
+    volume = control_volume(dlts)
     fits = {
-        c.id: opencv_from_camera(c, used_px=control_px(c, dlts.get(c.id)))
+        c.id: opencv_from_camera(c, used_px=control_px(c, dlts.get(c.id)), volume_mm=volume)
         for c in rig
         if c.size_px is not None
     }
@@ -152,12 +177,14 @@ def export(
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
     pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
+    volume = control_volume(dlts)
     fits = [
         opencv_from_camera(
             c,
             coefficients=5 if pose2sim else 12,
             k3=not pose2sim,
             used_px=control_px(c, dlts.get(c.id)),
+            volume_mm=volume,
         )
         for c in rig
     ]

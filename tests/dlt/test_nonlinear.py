@@ -15,7 +15,8 @@ from kisscal.dlt import (
     solve_mdlt,
 )
 from kisscal.dlt.linear import solve_dlt
-from kisscal.dlt.nonlinear import lens_offsets
+from kisscal.dlt.model import dlt_to_matrix
+from kisscal.dlt.nonlinear import lens_frame, lens_offsets
 from kisscal.errors import KisscalError
 from tests.dlt.conftest import rod_xyz
 
@@ -74,11 +75,9 @@ def test_refinement_never_increases_the_pixel_error(rig):
 
 def _distort(L, lens, uv_ideal):
     """Observed pixels whose Kolahi correction gives ``uv_ideal`` (fixed-point inverse)."""
-    from kisscal.dlt.camera import principal_point_px
-
     uv = uv_ideal.copy()
     for _ in range(30):
-        uv = uv_ideal - lens_offsets(uv, principal_point_px(L), lens)
+        uv = uv_ideal - lens_offsets(uv, lens_frame(dlt_to_matrix(L)), lens)
     return uv
 
 
@@ -122,3 +121,23 @@ def test_linear_is_the_start_of_mdlt(rig):
     L, n_eval = solve_mdlt(xyz, uv, L0=L0)
     assert n_eval >= 1
     np.testing.assert_allclose(project(L, xyz), uv, atol=1e-6)
+
+
+def test_lens_terms_are_radial_in_normalised_coordinates():
+    # KISS-like pixels (about twice as tall as wide) with a little skew: L12 moves a pixel
+    # along its ray from the principal point by k r^2, r measured in square pixels, which
+    # is Brown's (and OpenCV's) radial term in normalised coordinates.
+    from kisscal.dlt import compose_dlt
+
+    fu, skew = 720.0, 0.7
+    K = np.array([[fu, skew, 376.0], [0.0, 0.52 * fu, 145.0], [0.0, 0.0, 1.0]])
+    L = compose_dlt(K, np.eye(3), [0.0, 0.0, -3000.0])
+    centre, A = lens_frame(-3.0 * dlt_to_matrix(L))  # any scale and sign of P
+    np.testing.assert_allclose(centre, [376.0, 145.0])
+    np.testing.assert_allclose(A, K[:2, :2] / fu)
+    uv = np.random.default_rng(1).uniform([0, 0], [752, 291], (50, 2))
+    d = uv - K[:2, 2]
+    xn = np.linalg.solve(K[:2, :2], d.T).T  # normalised coordinates
+    k = 3e-7
+    expected = d * (k * fu**2 * np.sum(xn**2, axis=1))[:, None]
+    np.testing.assert_allclose(lens_offsets(uv, (centre, A), [k, 0, 0, 0, 0]), expected)

@@ -66,18 +66,19 @@ def test_a_camera_seeing_too_little_is_named():
 
 def test_lens_terms_through_the_whole_rig():
     # Without linearisation: Kolahi's lens terms absorb a mild radial distortion.
-    from kisscal.dlt.camera import principal_point_px
-    from kisscal.dlt.nonlinear import lens_offsets
+    from kisscal.dlt.model import dlt_to_matrix
+    from kisscal.dlt.nonlinear import lens_frame, lens_offsets
 
     rig = kiss_rig(6)
     rng = np.random.default_rng(6)
-    lens = np.array([-6e-7, 0, 0, 0, 0])
+    # r in square pixels: the rods bend as much as -6e-7 bent them in raw pixels
+    lens = np.array([-1.6e-7, 0, 0, 0, 0])
     blobs = {}
     for cam in range(6):
         uv, _ = rod_image(rig, cam, rng, n_extra=2)
         ideal = uv.copy()
         for _ in range(30):  # observed = ideal - offsets(observed)
-            uv = ideal - lens_offsets(uv, principal_point_px(rig.L[cam]), lens)
+            uv = ideal - lens_offsets(uv, lens_frame(dlt_to_matrix(rig.L[cam])), lens)
         blobs[f"cam{cam + 1}"] = uv
     plain = calibrate_rods(blobs, rig.rods, DltParams(refine=True))
     with_lens = calibrate_rods(blobs, rig.rods, DltParams(lens=True))

@@ -157,8 +157,10 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     cvs = read_cameras_toml(root / "out" / "cameras.toml", rig.ids)
     back = []
     for cam in rig.cameras:
-        L, lin, _ = camera_from_opencv(cvs[cam.id])
-        back.append(Camera.from_dlt(L, cam.id, lin, None, cam.size_px))
+        imported = camera_from_opencv(cvs[cam.id])
+        back.append(
+            Camera.from_dlt(imported.L, cam.id, imported.linearisation, imported.lens, cam.size_px)
+        )
     truth = [
         camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]

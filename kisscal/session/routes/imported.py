@@ -3,10 +3,11 @@
 
 Both write the version-1 files, so everything downstream is unchanged:
 
-* ``cameras``: ``linearisation/<camera>.json`` (model ``poly4``, fitted to the file's
-  OpenCV distortion over the image; :func:`imported_linearisation`, called by
-  ``kisscal linearise``) and ``dlt/<camera>.json`` (the DLT of ``K [R | t]``, method
-  ``"cameras"``).
+* ``cameras``: ``linearisation/<camera>.json`` (model ``poly4``) and
+  ``dlt/<camera>.json`` (the DLT of ``K [R | t]``, method ``"cameras"``, with the lens
+  terms L12..L16 when they help), fitted together to the file's OpenCV distortion over
+  the image (:func:`kisscal.opencv.camera_from_opencv`; :func:`imported_linearisation`
+  is called by ``kisscal linearise``).
 * ``dlt``: ``dlt/<camera>.json`` (the file's coefficients in kisscal's pixel convention,
   method ``"dltdv"``); the linearisation is the grid's, or none (DLTdv has no lens model).
 """
@@ -74,10 +75,11 @@ def imported_linearisation(
             f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
             f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
         )
-    _L, lin, rms = camera_from_opencv(cv)
+    imported = camera_from_opencv(cv)
+    lin, rms = imported.linearisation, imported.rms_px
     doc = linearisation_to_dict(lin, cam.id)
     doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
-    doc["fit_rms_px"] = rms  # polynomial vs OpenCV's undistortion over the image
+    doc["fit_rms_px"] = rms  # polynomial (and L12..L16) vs OpenCV's undistortion
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, json.dumps(doc, indent=2) + "\n")
     store.mark_current(out, key)
@@ -90,19 +92,19 @@ def imported_linearisation(
     return lin
 
 
-def _imported_result(L: np.ndarray, method: str) -> DltResult:
+def _imported_result(L: np.ndarray, method: str, lens: np.ndarray | None = None) -> DltResult:
     """A DltResult for coefficients taken as they are (no control points: rms NaN)."""
     K, R, centre = decompose_dlt(L)
     violation = hatze_violation(L)
     return DltResult(
-        L, method, None, np.zeros((0, 2)), math.nan, violation, violation, K, R, centre
+        L, method, lens, np.zeros((0, 2)), math.nan, violation, violation, K, R, centre
     )
 
 
 def _write(inputs: RouteInputs, files: dict[str, DltFile], method: str, source: Path) -> dict:
     summary: dict[str, Any] = {}
     for cam in inputs.cameras:
-        result = _imported_result(files[cam.id].L, method)
+        result = _imported_result(files[cam.id].L, method, files[cam.id].lens)
         write_dlt_json(
             inputs.store.dlt_path(cam.id),
             cam.id,
@@ -121,7 +123,8 @@ def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
     """Each camera's DLT from the ``K [R | t]`` of ``[calibration] cameras``."""
     path = _source(inputs.config, "cameras")
     cvs = read_cameras_toml(path, [c.id for c in inputs.cameras], _names(inputs.config))
-    files = {c: DltFile(c, camera_from_opencv(cv)[0]) for c, cv in cvs.items()}
+    imported = {c: camera_from_opencv(cv) for c, cv in cvs.items()}
+    files = {c: DltFile(c, m.L, lens=m.lens) for c, m in imported.items()}
     return _write(inputs, files, "cameras", path)
 
 
