@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.model import shift_dlt_pixels
+from kisscal.dlt.model import dlt_to_matrix, shift_dlt_pixels
+from kisscal.dlt.nonlinear import lens_frame
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import InputError, MissingDataError
@@ -81,6 +82,10 @@ class DltFile:
     missing_rod_markers: tuple[str, ...] = ()
     data: dict[str, Any] | None = None
 
+
+#: What ``lens`` held before the terms were made radial in square pixels: the same
+#: numbers mean another lens when the pixels are not square.
+PIXEL_UNIT_LENS_MODEL = "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels"
 
 #: What ``lens`` holds, written beside it.
 LENS_MODEL = (
@@ -198,6 +203,11 @@ def read_dlt_json(path: str | Path) -> DltFile:
         lens = np.asarray(lens, dtype=float)
         if lens.shape != (5,):
             raise InputError(f'{path}: "lens" must hold 5 numbers (L12..L16)')
+        if doc.get("lens_model") == PIXEL_UNIT_LENS_MODEL and not _square_pixels(L):
+            raise InputError(
+                f"{path}: its lens terms are in the pixel-unit form of an older kisscal, "
+                "which differs on non-square pixels; run `kisscal calibrate` again"
+            )
     return DltFile(
         camera=str(doc.get("camera", path.stem)),
         L=L,
@@ -208,6 +218,12 @@ def read_dlt_json(path: str | Path) -> DltFile:
         missing_rod_markers=tuple(str(m) for m in (doc.get("rods") or {}).get("missing", ())),
         data=doc,
     )
+
+
+def _square_pixels(L: NDArray[np.float64]) -> bool:
+    """Whether the camera of DLT ``L`` has square, unskewed pixels (within 0.1 %)."""
+    _, A = lens_frame(dlt_to_matrix(L))
+    return bool(np.allclose(A, np.eye(2), atol=1e-3))
 
 
 def _eleven(values: Any, where: str) -> NDArray[np.float64]:

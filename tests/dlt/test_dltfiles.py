@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from kisscal.dlt import DltParams, calibrate_camera, project
+from kisscal.dlt.model import dlt_to_matrix
+from kisscal.dlt.nonlinear import lens_frame
 from kisscal.errors import KisscalError
 from kisscal.io.dltfiles import read_dlt_json, read_dltdv_csv, write_dlt_json, write_dltdv_csv
 from tests.dlt.conftest import rod_xyz
@@ -106,3 +108,29 @@ def test_control_points_csv(rig, tmp_path):
     path.write_text("u_px,v_px,x_mm,y_mm,zz_mm\n1,2,3,4,5\n")
     with pytest.raises(KisscalError, match="missing z_mm; unknown zz_mm"):
         read_control_points_csv(path)
+
+
+def test_pixel_unit_lens_terms_on_non_square_pixels_ask_for_a_new_calibration(rig, tmp_path):
+    """Lens terms written in the older pixel-unit form mean the same lens only on square
+    pixels: read there, refused with one line where the pixels are twice as tall."""
+    old = "Kolahi et al. 2007 eq. 2 (L12..L16), applied to observed pixels"
+    square = rig.L[1].copy()
+    square[4:8] /= lens_frame(dlt_to_matrix(square))[1][1, 1]  # the KISS pixel aspect undone
+    tall = square.copy()
+    tall[4:8] *= 2.0  # v = 2 v: pixels twice as tall as wide
+    lens = [-1e-8, 0.0, 0.0, 0.0, 0.0]
+    for name, L, model, fails in [
+        ("square", square, old, False),
+        ("tall_old", tall, old, True),
+        ("tall_new", tall, None, False),
+    ]:
+        doc = {"camera": name, "L": L.tolist(), "lens": lens}
+        if model is not None:
+            doc["lens_model"] = model
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(doc))
+        if fails:
+            with pytest.raises(KisscalError, match=r"pixel-unit form .* calibrate"):
+                read_dlt_json(path)
+        else:
+            np.testing.assert_array_equal(read_dlt_json(path).lens, lens)
