@@ -60,7 +60,9 @@ def test_lens_terms_reach_reconstruction(small_session: Path, tmp_path: Path) ->
     session.reconstruct(root, "rodview")
     with_lens = _rod_error_mm(root)
     in_sample = json.loads((root / "out" / "dlt" / "check.json").read_text())
-    session.calibrate(root, lens=False)
+    session.calibrate(root, lens=False, refine=True)  # forced: no lens terms at all
+    docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
+    assert docs and all(d["lens"] is None for d in docs)
     session.reconstruct(root, "rodview")
     plain = _rod_error_mm(root)
     assert with_lens < 0.5 * plain, (with_lens, plain)
