@@ -18,7 +18,6 @@ from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import InputError
 from kisscal.recon.assign import accept, check_table, extend, finish, solve_one
-from kisscal.recon.chains import drop_split_runs
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -433,8 +432,6 @@ def match_trial(
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
         marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led, solved)
-        if params.two_camera_split_mm and len(dlts) <= params.two_camera_alone_max_cameras:
-            marker = drop_split_runs(marker, field, camera, uv, dlts, params, solved)
     return marker
 
 

@@ -56,22 +56,6 @@ class ReconParams(Params):
         Largest second difference ``|p(f-1) - 2 p(f) + p(f+1)|`` (mm) of three consecutive
         positions through a two-camera point: acceleration times the field interval
         squared (20 mm: 50 m/s^2 at 50 Hz, the peak of a foot marker in swing).
-    two_camera_follow_px : float
-        Largest image motion (px) of a blob from one field to the next where a rig of up
-        to ``two_camera_alone_max_cameras`` cameras follows the blobs of its two-camera
-        points (:mod:`kisscal.recon.chains`): a run of such points whose blobs continue
-        into two different points is two markers' rays crossing, and is dropped (20 px:
-        a foot at 5 m/s, 4 m from a 640-px-wide camera of 60 degrees, at 50 Hz).
-    two_camera_split_mm : float
-        The blobs of such a run's point continue into two different points only where
-        both lie farther than this (mm) from where the run goes (constant velocity
-        through the point and its run's point in the other direction): a marker's own
-        point in the next field is nearer. 0 (the default) keeps every run. Issue 27,
-        with 100 mm (5 m/s at 50 Hz): ghosts on the kiss preset's 3-camera subset, seed
-        312, 3.57 -> 0.63 % (123 points of SACR and LASI rays crossing) and on lowcost 301
-        0.26 -> 0 %, recall of markers seen by two cameras unchanged on 18 trials; but
-        tracking lowcost 301 without its 13 ghost points labels 14/15 with 248 switches
-        (15/15, 0 with them): off until labelling is robust to it.
     max_rms_px : float
         Largest reprojection ``rms_px`` (px) of a triple and of an accepted 3D marker;
         worse markers lose their worst observation (split) or are dropped. Generous on
@@ -133,8 +117,6 @@ class ReconParams(Params):
     two_camera_alone_max_cameras: int = param(4, ge=0)
     two_camera_step_mm: float = param(300.0, unit="mm", gt=0)
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
-    two_camera_follow_px: float = param(20.0, unit="px", gt=0)
-    two_camera_split_mm: float = param(0.0, unit="mm", ge=0)
     max_rms_px: float = param(2.0, unit="px", gt=0)
     outlier_rms_factor: float = param(5.0, ge=0)
     outlier_floor_px: float = param(0.2, unit="px", gt=0)
