@@ -137,6 +137,10 @@ def volume_rays(
     axes = [np.linspace(a, b, samples) for a, b in zip(lo, hi, strict=True)]
     xyz = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     xyz = xyz[camera.depth_mm(xyz) > 0]
+    # the volume of all cameras reaches far outside this one's view, where the inverse
+    # of its linearisation and lens terms does not converge: only points its linearised
+    # image shows go on
+    xyz = xyz[camera.in_image(camera.project_ideal(xyz))]
     raw = camera.project(xyz)
     seen = camera.in_image(raw) & np.isfinite(raw).all(axis=1)
     return raw[seen], xyz[seen] - camera.centre_mm
