@@ -25,6 +25,17 @@ def brown_camera(name: str = "c1", k1: float = -0.05, k2: float = 0.0) -> Camera
     )
 
 
+def bent_camera(rng: np.random.Generator) -> Camera:
+    """A strong Brown lens read in as kisscal's polynomial, then bent a few tenths of a
+    pixel in every term: a lens no OpenCV model follows everywhere."""
+    cv = brown_camera(k1=-0.1, k2=0.02)
+    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
+    bent = lin.__class__(
+        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
+    )
+    return Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+
+
 @pytest.mark.parametrize(("k1", "k2"), [(-0.05, 0.0), (0.05, 0.0), (-0.1, 0.02)])
 def test_round_trip_through_kisscal_keeps_the_projection(k1, k2):
     cv = brown_camera(k1=k1, k2=k2)
@@ -127,13 +138,8 @@ def test_twelve_coefficients_follow_a_grid_polynomial_closer_and_read_back(tmp_p
     """A camera whose linearisation is a 4th-order polynomial (not a Brown lens): the thin
     prism and rational terms follow it closer than k1 k2 p1 p2 k3, inside the image, and
     a cameras.toml of 12 coefficients reads back to the same projection."""
-    cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     rng = np.random.default_rng(3)
-    bent = lin.__class__(  # the polynomial bent a few tenths of a pixel in every term
-        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
-    )
-    cam = Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    cam = bent_camera(rng)
     five = opencv_from_camera(cam, coefficients=5)
     twelve = opencv_from_camera(cam, coefficients=12)
     assert twelve.camera.lens.shape == (12,)
@@ -153,13 +159,8 @@ def test_the_fit_follows_kisscal_closer_where_the_control_points_were():
     """A bent polynomial no OpenCV model follows everywhere: fitted within the control
     points' extent (the centre of the image), OpenCV's camera lands closer to kisscal's
     there than the fit over the whole image, and farther beyond it."""
-    cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     rng = np.random.default_rng(5)
-    bent = lin.__class__(
-        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
-    )
-    cam = Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    cam = bent_camera(rng)
     used = rng.uniform((320, 256), (960, 768), (40, 2))
     whole = opencv_from_camera(cam)
     there = opencv_from_camera(cam, used_px=used)
@@ -183,13 +184,8 @@ def test_the_fit_follows_kisscal_closer_within_the_calibrated_volume():
     """Fitted on the rays through a calibrated volume (that fills the centre of the
     image), OpenCV's camera images the volume's points closer to where kisscal's does
     than the fit over the whole image."""
-    cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
     rng = np.random.default_rng(7)
-    bent = lin.__class__(
-        lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
-    )
-    cam = Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    cam = bent_camera(rng)
     ahead = cam.R.T @ (np.array([0.0, 0.0, 4200.0]) - cam.t)  # on the optical axis
     volume = (ahead - 700.0, ahead + 700.0)
     raw, _ = volume_rays(cam, volume)
