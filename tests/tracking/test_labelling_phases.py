@@ -7,6 +7,7 @@ import pytest
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.groups import name_group, unnamed_groups
+from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import join
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState, segment_mask
@@ -236,3 +237,43 @@ def test_pair_direction_tells_a_heel_from_its_toe():
     assert pair_direction(state, core, rich, assign, a, b) > 0.9
     assign[[a, b]] = assign[[b, a]]
     assert pair_direction(state, core, rich, assign, a, b) < 0.1
+
+
+def _without(tracks, owner, drop):
+    """``tracks`` less the pieces ``drop``, and the marker of each remaining piece."""
+    keep = ~np.isin(tracks.track, drop)
+    out = make_tracks(
+        tracks.field[keep], tracks.track[keep], tracks.xyz_mm[keep],
+        tracks.corrected_mm[keep], tracks.status[keep], tracks.point[keep],
+    )  # fmt: skip
+    return out, np.delete(owner, drop)
+
+
+def test_a_late_piece_with_no_partner_in_view_is_named_from_the_trial():
+    truth = gait_truth(200, 3)
+    stray_f = np.arange(150, 200)
+    stray = truth[5, 150:200] + [0.0, 0.0, 450.0]  # beside the thigh: keeps no name's distances
+    tracks, owner = _pieces(truth, cuts={6: (140,), 7: (140,), 8: (150,)}, extra=[(stray_f, stray)])
+    # The ankle and heel are never seen again after field 140; the toe comes back at 150.
+    starts = tracks.field[tracks.bounds()[0]]
+    gone = np.flatnonzero(np.isin(owner, (6, 7)) & (starts == 140))
+    tracks, owner = _without(tracks, owner, gone)
+    state = _state(tracks)
+    starts = tracks.field[state.start]
+    late = int(np.flatnonzero((owner == 8) & (starts == 150))[0])
+    for t, m in enumerate(owner):
+        if m >= 0 and t != late:
+            state.name_piece(t, int(m))
+    state.rich = np.arange(0, 140, 5)
+    assert name_from_trial(state)
+    assert state.label_of[late] == 8
+    assert state.label_of[owner < 0].tolist() == [-1]
+    # A marker whose name the trial never showed is not named: without the toe's early
+    # piece, nothing tells what a toe's distances are.
+    state.label_of[:] = -1
+    state.name_pos[:] = np.nan
+    for t, m in enumerate(owner):
+        if m >= 0 and m != 8:
+            state.name_piece(t, int(m))
+    name_from_trial(state)
+    assert state.label_of[owner == 8].tolist() == [-1, -1]

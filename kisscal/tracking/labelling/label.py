@@ -7,6 +7,7 @@ from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
 from kisscal.tracking.labelling.groups import name_groups
+from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState
@@ -81,4 +82,6 @@ def name_pieces(state: LabelState) -> bool:
     spread(state)
     rematch(state)
     name_groups(state)
+    if name_from_trial(state):
+        spread(state)
     return True

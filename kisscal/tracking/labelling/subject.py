@@ -30,6 +30,7 @@ from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks, name_pieces
+from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.labelling.spread import rematch, spread
@@ -171,6 +172,8 @@ def _second_pass(
     spread(state)
     rematch(state)
     name_groups(state)
+    if name_from_trial(state):
+        spread(state)
     return state
 
 
