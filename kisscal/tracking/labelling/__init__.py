@@ -23,7 +23,10 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
    again.
 4. :mod:`~.groups`: groups of unnamed pieces that entered the view together (a whole
    foot) are named jointly.
-5. :mod:`~.result`, joining: pieces sharing a name are joined. Short pieces that fit no
+5. :mod:`~.learned`: long pieces still unnamed (no named partner in their fields: a
+   toe seen again after its heel has gone) take the free name whose distances to the
+   names around them they keep as the trial showed them.
+6. :mod:`~.result`, joining: pieces sharing a name are joined. Short pieces that fit no
    name are ghosts and are dropped (Shafiq et al. 2001's clean-up); long ones are kept,
    named ``M<k>`` and reported. When too few names are matched (a stick, a thrown ball),
    all tracks are named M1, M2, ... .

@@ -28,7 +28,8 @@ def label_tracks(
     The phases, each a function on a :class:`~kisscal.tracking.labelling.state.LabelState`:
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
-    name groups of pieces that entered the view together; join pieces sharing a name.
+    name groups of pieces that entered the view together; name long pieces left without a
+    partner by the distances the trial showed; join pieces sharing a name.
 
     Parameters
     ----------
@@ -76,7 +77,7 @@ def label_tracks(
 
 
 def name_pieces(state: LabelState) -> bool:
-    """Phases 1 to 4 on ``state``; False when the first window matches no body."""
+    """Phases 1 to 5 on ``state``; False when the first window matches no body."""
     if not match_first_window(state):
         return False
     spread(state)

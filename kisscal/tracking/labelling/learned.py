@@ -9,10 +9,11 @@ stride when the nearest named markers are on the other leg. But every name given
 has a trajectory, and between two trajectories the trial shows how far apart the two
 markers are and how much that varies while the subject walks (a heel from the sacrum:
 about a metre, give or take a few centimetres; from the other foot: anything within a
-stride). So a long unnamed piece takes the free name (held in none of its fields, named
-elsewhere in the trial) whose distances to the names held in its fields it keeps as the
-trial does: within :data:`MAX_SCORE` spreads (:func:`trial_scores`), from at least
-:data:`MIN_PARTNERS` names, and clearly better than any other free name (:data:`MARGIN`).
+stride). So a long unnamed piece (:data:`LONG_PIECE`) takes the free name (held in none
+of its fields, named elsewhere in the trial) whose distances to the names held in its
+fields it keeps as the trial does: within :data:`MAX_SCORE` spreads (:func:`trial_scores`),
+from at least :data:`MIN_PARTNERS` names, and clearly better than any other free name
+(:data:`MARGIN`).
 A marker whose name no trajectory holds has no such distances and is never named here;
 nor is a piece near the body that the trial never showed as a marker of the set (its
 distances do not keep any name's).
@@ -38,6 +39,11 @@ MAX_SCORE = 2.5
 #: The runner-up's misfit (mean squared spreads) must exceed the best free name's by this
 #: much: over k held names, a likelihood ratio of exp(k * MARGIN / 2) for the best.
 MARGIN = 3.0
+#: Pieces at least this many times ``min_track_length`` are named here: over fewer
+#: fields a piece of the other side's marker can keep a name's distances as well as its
+#: own (lowcost 302 and 303: right ASIS pieces of 11 and 16 fields fit the left ASIS's
+#: distances better than the right one's, at the end of the walk).
+LONG_PIECE = 2
 #: Fewest names held in the piece's fields that the distances are taken to.
 MIN_PARTNERS = 3
 
@@ -94,7 +100,8 @@ def name_from_trial(state: LabelState) -> bool:
     """Phase 5 (see module): long unnamed pieces, longest first, take the free name whose
     trial distances they keep. Returns whether any piece was named."""
     params = state.params
-    waiting = np.flatnonzero((state.label_of < 0) & (state.n_measured >= params.min_track_length))
+    long = state.n_measured >= LONG_PIECE * params.min_track_length
+    waiting = np.flatnonzero((state.label_of < 0) & long)
     if waiting.size == 0:
         return False
     waiting = waiting[np.argsort(-state.n_measured[waiting], kind="stable")]

@@ -1,4 +1,4 @@
-"""Phase 5: the labelling's result, pieces sharing a name joined into one trajectory."""
+"""Phase 6: the labelling's result, pieces sharing a name joined into one trajectory."""
 
 from __future__ import annotations
 
@@ -85,7 +85,7 @@ def generic(tracks: Tracks, params: TrackingParams, names: tuple, fit_rms: float
 
 
 def join(state: LabelState) -> Labelling:
-    """Phase 5: pieces sharing a name become one trajectory.
+    """Phase 6: pieces sharing a name become one trajectory.
 
     Short pieces that fit no name are ghosts and are dropped (Shafiq et al. 2001's
     clean-up); long ones are kept, named ``M<k>`` and reported. When fewer than
