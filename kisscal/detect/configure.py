@@ -11,7 +11,9 @@ camera-dependent setting the user did not give:
   at least two lines tall and keep their shape, and at least five noise deviations above
   the background. When
   the background is uneven by more than half that margin, it is taken locally (tiles of
-  four of the largest marker diameters) and the threshold counts from it.
+  four of the largest marker diameters; two where the background is lit at the markers'
+  own scale, walls and edges of a real scene, not a smooth glow) and the threshold
+  counts from it.
 - **pixel aspect**: isolated markers are round, so their width over their height is the
   pixel aspect. Thresholding widens every spot by about the same number of pixels in x and
   y, which pulls small spots towards round; the slope of the spots' x spread against their
@@ -78,6 +80,7 @@ from kisscal.detect.survey import (
     grey_levels,
     marker_mask,
     rim_reach_px,
+    structure_share,
     survey_frames,
 )
 from kisscal.errors import InputError
@@ -112,6 +115,11 @@ OVERSIZE_GAP = 1.5
 SIZE_HEADROOM = 2.0
 #: Side of the band-pass centroid's mean, in largest-marker widths.
 HIGHPASS_SIDE = 0.9
+#: Largest share of the image whose background may be lit at the markers' scale (above
+#: the white test's margin over the 4-diameter tile background) for those tiles to stay.
+STRUCTURE_SHARE_MAX = 0.02
+#: Smallest background tile (px).
+MIN_TILE_PX = 16
 
 
 @dataclass(frozen=True)
@@ -318,23 +326,43 @@ class _Derivation:
             if len(markers)
             else 8.0
         )
-        local = lv.unevenness > 0.5 * excess
-        tile = int(min(max(32, 4 * math.ceil(size)), min(self.frames[0].shape) // 2))
+        tile, share = self._tile(size, excess)
+        fine = share > STRUCTURE_SHARE_MAX
+        local = lv.unevenness > 0.5 * excess or fine
+        lit = f"lit at the markers' scale over {share:.1%} of the image"
+        tile_why = f"background even (spread {lv.unevenness:.0f} grey levels): one level"
+        if fine:
+            tile_why = f"local, tiles of 2 marker diameters: the background is {lit} (walls, edges)"
+        elif local:
+            tile_why = f"background uneven by {lv.unevenness:.0f} grey levels, {lit}: local, "
+            tile_why += "tiles of 4 marker diameters"
         # a threshold given keeps the terms the derived one would be in (above the local
         # background here), so that copying the printed value back gives the same blobs
-        self.choose(
-            "background_tile_px",
-            tile if local else 0,
-            f"background uneven by {lv.unevenness:.0f} grey levels: local, tiles of 4 marker "
-            "diameters"
-            if local
-            else f"background even (spread {lv.unevenness:.0f} grey levels): one level per image",
-        )
+        self.choose("background_tile_px", tile if local else 0, tile_why)
         self.choose(
             "threshold",
             round(excess, 1) if local else round(lv.background + excess, 1),
             why + (" over the local background" if local else ""),
         )
+
+    def _tile(self, size: float, excess: float) -> tuple[int, float]:
+        """Background tile (px) for markers ``size`` px wide, and the share of the image
+        lit at the markers' scale (:func:`~kisscal.detect.survey.structure_share`).
+
+        Four marker diameters keep the markers out of the tile median even where they
+        crowd. Where the background itself is lit at a finer scale (walls, edges, bands
+        of a real scene, between a marker and such a tile) over more than
+        :data:`STRUCTURE_SHARE_MAX` of the image, tiles of two diameters follow it; a
+        smooth glow keeps the larger tiles, which are steadier.
+        """
+        limit = min(self.frames[0].shape) // 2
+        tile = int(min(max(32, 4 * math.ceil(size)), limit))
+        small = int(min(max(MIN_TILE_PX, 2 * math.ceil(size)), tile))
+        if small >= tile:
+            return tile, 0.0
+        noise_factor = float(self._partial_params().noise_factor)
+        share = structure_share(self.frames, tile, small, excess, noise_factor)
+        return (small if share > STRUCTURE_SHARE_MAX else tile), share
 
     def _partial_params(self) -> DetectionParams:
         return DetectionParams.from_layers(self.values, self.given)

@@ -98,6 +98,27 @@ def grey_levels(
     )
 
 
+def structure_share(
+    images: Sequence[NDArray], tile_px: int, small_px: int, excess: float, noise_factor: float
+) -> float:
+    """Share of the image where the background has structure at the markers' scale.
+
+    The local background over tiles of ``small_px`` (a couple of marker diameters) is
+    compared with the one over tiles of ``tile_px``: where the former stands above the
+    latter by the white test's margin (``excess``, and ``noise_factor`` local noise
+    deviations), something narrower than the large tile but wider than a marker is lit
+    (the walls, edges and bands of a real scene) and the large tile's background would
+    leave it white. A smooth glow follows both maps alike. The median over ``images``.
+    """
+    shares = []
+    for image in images:
+        large = local_background(image, tile_px)
+        fine = background_map(image, small_px)
+        above = np.maximum(np.float32(excess), np.float32(noise_factor) * large.noise)
+        shares.append(float(np.mean(fine[::2, ::2] - large.level[::2, ::2] > above[::2, ::2])))
+    return float(np.median(shares)) if shares else 0.0
+
+
 @dataclass(frozen=True)
 class Groups:
     """Bright groups of the surveyed frames, one row per group (all frames together).

@@ -8,6 +8,7 @@ import pytest
 from kisscal.detect import detect_blobs
 from kisscal.detect.aspect import measure_pixel_aspect
 from kisscal.detect.configure import configure_detection
+from kisscal.detect.pipeline import threshold_image
 from kisscal.detect.survey import survey_frames
 from kisscal.errors import KisscalError
 from tests.detect.conftest import render
@@ -153,3 +154,28 @@ def test_local_background_of_any_image_and_tile_size(shape, tile) -> None:
     inner = (slice(tile, h - tile), slice(tile, w - tile))  # the edges are extrapolated
     assert np.abs(local.level[inner] - glow[inner]).max() < 3.0
     assert 0.5 < float(np.median(local.noise)) < 1.6
+
+
+def test_background_lit_at_the_markers_scale_gets_finer_tiles(rng) -> None:
+    # lit walls of a real scene: bands about two marker diameters wide, bright above the
+    # threshold; tiles of four marker diameters leave them white, finer tiles follow them
+    # (three frames: a calibration image or a short sample, nothing called stationary)
+    xx = np.arange(SIZE[0])
+    walls = (100, 260, 380, 560)
+    glow = np.zeros((SIZE[1], SIZE[0]))
+    for x in walls:
+        glow += 120.0 * np.exp(-0.5 * ((xx - x) / 5.0) ** 2)[None, :]
+    frames, truth = [], []
+    for _ in range(3):
+        keep_off = [((x, y), 12.0) for x in walls for y in range(0, SIZE[1], 8)]
+        centres, radii = _scene(rng, 20, (2.0, 5.0), keep_off)
+        frames.append(render(centres, radii, SIZE, noise_sigma=1.5, rng=rng, aspect=1.0, glow=glow))
+        truth.append((centres, radii))
+    setup = configure_detection(frames)
+    tile = setup.params.background_tile_px
+    assert 0 < tile <= 24, setup.choices["background_tile_px"]
+    # four marker diameters (the tile a smooth glow gets) leave about twice the walls white
+    coarse = setup.params.replace(background_tile_px=2 * tile)
+    white = [np.mean(threshold_image(frames[0], p)[0]) for p in (setup.params, coarse)]
+    assert white[0] < 0.6 * white[1]
+    assert _recall_rms(frames, truth, setup.params)[0] == 1.0
