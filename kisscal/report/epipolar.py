@@ -118,6 +118,16 @@ def zoom_window(
     return cu - half_u, cu + half_u, cv - half_v, cv + half_v
 
 
+def _panels(rows: int, cols: int, titled: bool) -> Figure:
+    """The figure of ``rows`` x ``cols`` camera panels, its legend below them."""
+    size = (6.5 * cols, 0.8 + 2.9 * rows)
+    legend_in = 0.75  # the legend's rows below the panels
+    margins = (0.45, 0.1, 0.3 + legend_in, 0.3 + (0.3 if titled else 0.0))
+    fig = new_figure(*size, constrained=False)
+    fig.subplots_adjust(**fixed_margins(size, (rows, cols), margins, (0.45, 0.5)))
+    return fig
+
+
 def _frame(ax: Any, uv: NDArray[np.float64], width: int, height: int) -> None:
     """Zoom on the blobs (where the lines must cross), never beyond the image."""
     u0, u1, v0, v1 = zoom_window(uv, width, height)
@@ -184,11 +194,7 @@ def epipolar_figure(
     F = all_fundamentals(dlts)
     cols = 2 if n_cam > 1 else 1
     rows = int(np.ceil(n_cam / cols))
-    size = (6.5 * cols, 0.8 + 2.9 * rows)
-    legend_in = 0.75  # the legend's rows below the panels
-    margins = (0.45, 0.1, 0.3 + legend_in, 0.3 + (0.3 if title else 0.0))
-    fig = new_figure(*size, constrained=False)
-    fig.subplots_adjust(**fixed_margins(size, (rows, cols), margins, (0.45, 0.5)))
+    fig = _panels(rows, cols, bool(title))
     for j in range(n_cam):
         ax = fig.add_subplot(rows, cols, j + 1)
         w, h = sizes[j]
