@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kisscal._shared import new_figure
+from kisscal._shared import fixed_margins, new_figure
 from kisscal.gait.events import progression
 from kisscal.gait.markers import GaitMarkers
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
@@ -62,8 +62,11 @@ def gait_cycle_figure(
     """
     t = markers.time_s
     direction, pelvis_v = progression(markers, params)
-    fig = new_figure(12, 6.5)
-    axes = fig.subplots(2, 2, sharex=True)
+    margins = (0.75, 0.15, 0.5, 0.3 + (0.35 if title else 0.0))
+    fig = new_figure(12, 6.5, constrained=False)
+    axes = fig.subplots(
+        2, 2, sharex=True, gridspec_kw=fixed_margins((12, 6.5), (2, 2), margins, (0.8, 0.35))
+    )
     pelvis_fwd = np.sum(pelvis_v[:, :2] * direction, axis=1) / 1000.0
     for col, side in enumerate(SIDES):
         top, bottom = axes[0, col], axes[1, col]

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from kisscal._shared import new_figure
+from kisscal._shared import fixed_margins, new_figure
 from kisscal.report.figures import arrow_gain, nice_number, scale_key
 
 if TYPE_CHECKING:
@@ -66,7 +66,9 @@ def residual_figure(
     n = max(len(names), 1)
     cols = min(columns, n)
     rows = -(-n // cols)
-    fig = new_figure(5.5 * cols, 2.8 * rows)
+    size = (5.5 * cols, 2.8 * rows)
+    fig = new_figure(*size, constrained=False)
+    fig.subplots_adjust(**fixed_margins(size, (rows, cols), (0.45, 0.1, 0.3, 0.3), (0.5, 0.5)))
     if scale is None:
         every = [np.asarray(c.residuals_px, dtype=float).reshape(-1, 2) for c in cameras.values()]
         scale = arrow_gain(np.concatenate(every) if every else np.zeros((0, 2)), 40.0)
@@ -130,7 +132,7 @@ def rig_figure(
     -------
     matplotlib.figure.Figure
     """
-    fig = new_figure(7, 6)
+    fig = new_figure(7, 6, constrained=False)
     ax = fig.add_subplot(projection="3d")
     for name, pts in rods_mm:
         p = np.asarray(pts, dtype=float)

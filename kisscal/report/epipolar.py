@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal._shared import new_figure
+from kisscal._shared import fixed_margins, new_figure
 from kisscal.errors import InputError
 from kisscal.recon.epipolar import all_fundamentals, epipolar_lines
 from kisscal.recon.reconstruct import Points3D
@@ -90,7 +90,7 @@ def _legend(fig: Figure, any_hidden: bool) -> None:
                 label="matched blob, lines not drawn (to keep the panel readable)",
             ),
         )
-    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=2, fontsize=8, frameon=False)
 
 
 def zoom_window(
@@ -116,6 +116,16 @@ def zoom_window(
     cu = float(np.clip((lo[0] + hi[0]) / 2, half_u - 0.5, width - 0.5 - half_u))
     cv = float(np.clip((lo[1] + hi[1]) / 2, half_v - 0.5, height - 0.5 - half_v))
     return cu - half_u, cu + half_u, cv - half_v, cv + half_v
+
+
+def _panels(rows: int, cols: int, titled: bool) -> Figure:
+    """The figure of ``rows`` x ``cols`` camera panels, its legend below them."""
+    size = (6.5 * cols, 0.8 + 2.9 * rows)
+    legend_in = 0.75  # the legend's rows below the panels
+    margins = (0.45, 0.1, 0.3 + legend_in, 0.3 + (0.3 if titled else 0.0))
+    fig = new_figure(*size, constrained=False)
+    fig.subplots_adjust(**fixed_margins(size, (rows, cols), margins, (0.45, 0.5)))
+    return fig
 
 
 def _frame(ax: Any, uv: NDArray[np.float64], width: int, height: int) -> None:
@@ -184,7 +194,7 @@ def epipolar_figure(
     F = all_fundamentals(dlts)
     cols = 2 if n_cam > 1 else 1
     rows = int(np.ceil(n_cam / cols))
-    fig = new_figure(6.5 * cols, 0.8 + 2.9 * rows)
+    fig = _panels(rows, cols, bool(title))
     for j in range(n_cam):
         ax = fig.add_subplot(rows, cols, j + 1)
         w, h = sizes[j]

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kisscal._shared import new_figure
+from kisscal._shared import fixed_margins, new_figure
 from kisscal.report.validation import StickLength, ThrowFit
 
 if TYPE_CHECKING:
@@ -18,6 +18,8 @@ if TYPE_CHECKING:
 
 #: Least half-range of a length axis (mm): sub-millimetre noise must not fill the panel.
 MIN_HALF_RANGE_MM = 3.0
+#: The stick and throw figures' two panels (9 x 3 inches, a title above).
+_PAIR = fixed_margins((9.0, 3.0), (1, 2), (0.7, 0.15, 0.5, 0.4), (0.8, 0))
 
 
 def nice_number(value: float) -> float:
@@ -92,20 +94,8 @@ def panel_grid(
     width = left + right + cols * panel_in[0] + (cols - 1) * gap_x
     height = bottom + top + rows * panel_in[1] + (rows - 1) * gap_y
     fig = new_figure(width, height, constrained=False)
-    axes = fig.subplots(
-        rows,
-        cols,
-        sharex=sharex,
-        squeeze=False,
-        gridspec_kw={
-            "left": left / width,
-            "right": 1 - right / width,
-            "bottom": bottom / height,
-            "top": 1 - top / height,
-            "wspace": gap_x / panel_in[0],
-            "hspace": gap_y / panel_in[1],
-        },
-    )
+    layout = fixed_margins((width, height), (rows, cols), margins_in, gaps_in)
+    axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False, gridspec_kw=layout)
     return fig, axes.ravel()
 
 
@@ -125,8 +115,8 @@ def stick_figure(stick: StickLength, title: str = "") -> Figure:
     ----------
     Shafiq, Tümer, Güler 2001, section 5.1 (the 502.5 mm stick).
     """
-    fig = new_figure(9.0, 3.0)
-    ax, hx = fig.subplots(1, 2, width_ratios=[3, 1])
+    fig = new_figure(9.0, 3.0, constrained=False)
+    ax, hx = fig.subplots(1, 2, width_ratios=[3, 1], gridspec_kw=_PAIR)
     t, length = stick.time_s, stick.length_mm
     m, sd = stick.mean_mm, stick.sd_mm
     ax.axhspan(m - sd, m + sd, color="tab:blue", alpha=0.15, lw=0, label="mean ± SD")
@@ -158,8 +148,8 @@ def throw_figure(fit: ThrowFit, g_m_s2: float = 9.81, title: str = "") -> Figure
     ----------
     Shafiq, Tümer, Güler 2001, section 5.1 (the thrown marker).
     """
-    fig = new_figure(9.0, 3.0)
-    ax, rx = fig.subplots(1, 2)
+    fig = new_figure(9.0, 3.0, constrained=False)
+    ax, rx = fig.subplots(1, 2, gridspec_kw=_PAIR)
     t = fit.time_s
     dense_t = np.linspace(t.min(), t.max(), 200)
     ax.plot(t, fit.xyz_mm[:, 2], "o", ms=3, color="tab:blue", label=f"measured {fit.label}")

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kisscal._shared import new_figure
+from kisscal._shared import fixed_margins, new_figure
 from kisscal.grid.fit import GridFit
 from kisscal.grid.quality import line_distances
 from kisscal.report.figures import arrow_gain, nice_number, scale_key
@@ -55,8 +55,10 @@ def grid_correction_figure(
     dist = fit.grid_uv
     corr = fit.corrected_uv
     opt = fit.optimal.uv
-    fig = new_figure(9.0, 7.5)
-    ax, bx = fig.subplots(2, 1)
+    fig = new_figure(9.0, 7.5, constrained=False)
+    ax, bx = fig.subplots(
+        2, 1, gridspec_kw=fixed_margins((9.0, 7.5), (2, 1), (0.75, 0.15, 0.55, 0.3), (0, 0.85))
+    )
     ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
     ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
     ax.quiver(

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
 
+import matplotlib
 from matplotlib.figure import Figure
 
 from kisscal.io.files import write_bytes, write_text
@@ -52,6 +53,12 @@ from kisscal.report.status import (
     trial_verdict,
     worst,
 )
+
+#: matplotlib settings a stage figure is drawn with (``matplotlib.rc_context``): panel
+#: titles stay where they are put (1.0 axes height, plus the pad) instead of matplotlib
+#: measuring each panel's tick labels before placing its title, a fifth of a many-panel
+#: figure's processor time; no kisscal figure has tick labels above a panel.
+FIGURE_RC = {"axes.titley": 1.0}
 
 
 def figure_png(fig: Figure, dpi: int = 90) -> bytes:
@@ -284,7 +291,8 @@ def build_report(root: Path, params: ReportParams | None = None) -> Path:
         path = store.figure_path(name)
         key = store.key("report figure", *key_parts)
         if not store.is_current(path, key):
-            write_bytes(path, figure_png(make()))
+            with matplotlib.rc_context(FIGURE_RC):
+                write_bytes(path, figure_png(make()))
             store.mark_current(path, key)
         return path.read_bytes()
 

@@ -33,10 +33,12 @@ _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": [], "handed": No
 def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
     """Draw ``draw(*args)`` into ``path``; a figure that cannot be drawn (a degenerate
     trial) is skipped: figures illustrate numbers that are already written."""
-    from kisscal.report.html import save_figure  # matplotlib: only when a figure is drawn
+    import matplotlib  # only when a figure is drawn
+
+    from kisscal.report.html import FIGURE_RC, save_figure
 
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), matplotlib.rc_context(FIGURE_RC):
             warnings.simplefilter("ignore")
             save_figure(draw(*args), path)
     except (ValueError, IndexError):

@@ -1,0 +1,133 @@
+"""Where the small session's processor time goes: ``kisscal run`` of the default
+synthetic KISS session in this one process (one worker, figures drawn here), each part
+timed in processor time and given as a multiple of decoding the session's images,
+timed in the same run (issue 28's bar is the whole run within 2x the decode).
+
+Parts are timed by wrapping the functions the session calls (detection of one frame,
+reading one image, the detection set-up, the grid fit, the DLT, the exports, the
+reconstruction, the tracking, the gait, the figures, the report); a stage's line holds
+the parts inside it, and "other" is what no listed part covers. One process, so the
+processor time is the sum of what the run's processes would spend (without their
+start-up); it does not move with the load as wall time does. Session as in
+:mod:`benchmarks.bench_small` (its cache folder).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import shutil
+import time
+from collections import defaultdict
+from collections.abc import Iterator
+from pathlib import Path
+
+from benchmarks.bench_pipeline import _decode
+from benchmarks.bench_small import BAR, _synthesised
+
+#: (module, function, part) timed; parts nest inside the stages (STAGE lines).
+PARTS = (
+    ("kisscal.session.stages", "linearise", "STAGE linearise"),
+    ("kisscal.session.stages", "calibrate", "STAGE calibrate"),
+    ("kisscal.session.stages", "reconstruct", "STAGE reconstruct"),
+    ("kisscal.session.stages", "track", "STAGE track"),
+    ("kisscal.session.run", "validate", "STAGE validate"),
+    ("kisscal.session.run", "summarise", "STAGE summary"),
+    ("kisscal.session.run", "report", "STAGE report"),
+    ("kisscal.session.figures", "draw_figure", "figures (stage figures)"),
+    ("kisscal.detect.sequence", "detect_blobs", "detection (per frame)"),
+    ("kisscal.io.frames", "read_image", "image reading (decode)"),
+    ("kisscal.session.configure", "configure_detection", "detection set-up (survey)"),
+    ("kisscal.session.linearise", "linearise_frames", "grid fit"),
+    ("kisscal.session.routes.rods", "calibrate_rods", "DLT (rods)"),
+    ("kisscal.session.calibrate", "write_exports", "exports (cameras.toml fits)"),
+    ("kisscal.session.reconstruct", "reconstruct_trial", "reconstruction"),
+    ("kisscal.session.track", "build_trajectories", "tracking and labelling"),
+    ("kisscal.session.track", "gait_outputs", "gait"),
+)
+
+
+@contextlib.contextmanager
+def _timed_parts(spent: dict[str, float], inclusive: dict[str, float]) -> Iterator[None]:
+    """Every function of :data:`PARTS` adds its processor time to ``inclusive`` and,
+    less the time of the parts called inside it, to ``spent`` meanwhile (so that the
+    ``spent`` values add up to the whole)."""
+    saved, stack = [], []
+    for module_name, name, part in PARTS:
+        module = importlib.import_module(module_name)
+        original = getattr(module, name)
+
+        def wrapped(*args, _f=original, _part=part, **kwargs):
+            stack.append(0.0)  # processor time of the parts inside this call
+            t0 = time.process_time()
+            try:
+                return _f(*args, **kwargs)
+            finally:
+                elapsed = time.process_time() - t0
+                inner = stack.pop()
+                spent[_part] += elapsed - inner
+                inclusive[_part] += elapsed
+                if stack:
+                    stack[-1] += elapsed
+
+        saved.append((module, name, original))
+        setattr(module, name, wrapped)
+    try:
+        yield
+    finally:
+        for module, name, original in saved:
+            setattr(module, name, original)
+
+
+def _run_here(root: Path, spent: dict[str, float], inclusive: dict[str, float]) -> float:
+    """``kisscal run root`` from scratch in this process; its processor time."""
+    import kisscal.session.figures as figures
+    from kisscal.session.run import run
+
+    start = figures._start
+    figures._start = lambda: None  # figures drawn here, not in a background process
+    shutil.rmtree(root / "out", ignore_errors=True)
+    try:
+        with _timed_parts(spent, inclusive):
+            t0 = time.process_time()
+            run(root, workers=1)
+            return time.process_time() - t0
+    finally:
+        figures._start = start
+
+
+def main() -> list[str]:
+    default = Path.home() / ".cache" / "kisscal" / "bench-small"
+    root = _synthesised(Path(os.environ.get("KISSCAL_BENCH_SMALL", default)))
+    images = sorted(
+        p for p in root.rglob("*.png") if p.relative_to(root).parts[0] in ("grid", "rods", "trials")
+    )
+    _decode(images)  # the files into the page cache, as the run finds them
+    t0 = time.process_time()
+    _decode(images)
+    decode = time.process_time() - t0
+    spent: dict[str, float] = defaultdict(float)
+    inclusive: dict[str, float] = defaultdict(float)
+    t0 = time.process_time()
+    import kisscal.cli  # the command line's imports, as a user pays them
+    import kisscal.session.run  # noqa: F401
+
+    spent["imports"] = time.process_time() - t0
+    whole = _run_here(root, spent, inclusive) + spent["imports"]
+    spent["other (run, outside any stage)"] = whole - sum(spent.values())
+    lines = [
+        f"default synthetic KISS session: {len(images)} images, one process, processor time",
+        f"  decode (cv2.imread, one process) {decode:7.2f} s",
+        f"  whole run                        {whole:7.2f} s  {whole / decode:5.2f}x decode"
+        f" (bar: {BAR:g}x)",
+        "  parts (a stage's line: what its listed parts leave):",
+    ]
+    for part, seconds in sorted(spent.items(), key=lambda kv: -kv[1]):
+        lines.append(
+            f"  {part:32s} {seconds:7.2f} s  {seconds / decode:5.2f}x decode"
+            f"  {100 * seconds / whole:5.1f} %"
+        )
+    stages = [(p, s) for p, s in inclusive.items() if p.startswith("STAGE")]
+    lines.append("  stages, all included: " + ", ".join(f"{p[6:]} {s:.1f} s" for p, s in stages))
+    return lines
