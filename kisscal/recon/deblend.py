@@ -32,7 +32,7 @@ from kisscal.recon.epipolar import (
     pair_distances_px,
 )
 from kisscal.recon.group import near_cameras
-from kisscal.recon.pairs import _choose, _embed
+from kisscal.recon.pairs import choose_pairs, embed_fields
 from kisscal.recon.params import ReconParams
 
 #: Pixel u offset per field, so that one k-d tree holds every field of a camera apart.
@@ -202,9 +202,11 @@ def deblend_merged(
     P, c, p_a = _near_blobs(
         p_field, p_xyz, field, camera, uv, usable, dlts, params.deblend_radius_px
     )
-    # a blob within the residual limit of the point's projection is the point's alone
     mine = (marker[c] < 0) | (marker[c] == P)
-    mine &= np.linalg.norm(uv[c] - p_a, axis=1) > limit_px
+    P, c, p_a = P[mine], c[mine], p_a[mine]
+    p_a = _projection_without(P, c, marker, camera, uv, dlts, p_a, params.reweight_iterations)
+    # a blob within the residual limit of the point's projection is the point's alone
+    mine = np.linalg.norm(uv[c] - p_a, axis=1) > limit_px
     P, c, p_a = P[mine], c[mine], p_a[mine]
     if len(P) == 0 or len(free) == 0:
         return empty
@@ -225,8 +227,40 @@ def deblend_merged(
     if len(k) == 0:
         return empty
     virtual = len(field) + k  # one deblended image per (point, blob)
-    won = _choose(u, virtual, xyz, field[u], p_xyz, p_field, params, True, alone=False)
+    won = choose_pairs(u, virtual, xyz, field[u], p_xyz, p_field, params, True, alone=True)
     return Deblended(xyz[won], field[u[won]], rms[won], u[won], c[k[won]])
+
+
+def _projection_without(
+    P: NDArray[np.int64],
+    c: NDArray[np.int64],
+    marker: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    p_a: NDArray[np.float64],
+    reweight: int,
+) -> NDArray[np.float64]:
+    """Projections ``p_a`` of points ``P`` into blob ``c``'s camera, for the points that
+    hold ``c`` and two more blobs recomputed without ``c``: a merged blob within the
+    residual limit pulls the point towards itself."""
+    out = p_a.copy()
+    rows = np.flatnonzero(marker >= 0)
+    rows = rows[np.argsort(marker[rows], kind="stable")]
+    lo = np.searchsorted(marker[rows], P, side="left")
+    n = np.searchsorted(marker[rows], P, side="right") - lo
+    sel = np.flatnonzero((marker[c] == P) & (n >= 3))
+    if len(sel) == 0:
+        return out
+    k = np.repeat(sel, n[sel])
+    obs = rows[np.repeat(lo[sel] - np.cumsum(n[sel]) + n[sel], n[sel]) + np.arange(n[sel].sum())]
+    keep = obs != c[k]
+    k, obs = k[keep], obs[keep]
+    idx = np.searchsorted(sel, k)
+    t = triangulate_observations(dlts, idx, camera[obs], uv[obs], len(sel), reweight)
+    ok = np.all(np.isfinite(t.xyz_mm), axis=1)
+    out[sel[ok]] = project_rows(dlts, camera[c[sel[ok]]], t.xyz_mm[ok])
+    return out
 
 
 def _apart(
@@ -240,8 +274,8 @@ def _apart(
     ok = np.all(np.isfinite(p_xyz), axis=1)
     if not ok.any():
         return np.ones(len(xyz), dtype=bool)
-    tree = cKDTree(_embed(p_xyz[ok], p_field[ok]))
-    return tree.query(_embed(xyz, field))[0] >= radius_mm
+    tree = cKDTree(embed_fields(p_xyz[ok], p_field[ok]))
+    return tree.query(embed_fields(xyz, field))[0] >= radius_mm
 
 
 def deblend_pairs(
@@ -294,7 +328,7 @@ def deblend_pairs(
     xyz = np.concatenate([xyz_a, xyz_b])
     f2 = np.concatenate([field[c], field[c]])
     virtual = len(field) + np.arange(2 * n)  # each half's image of c
-    won = _choose(own, virtual, xyz, f2, p_xyz, p_field, params, True, alone=False)
+    won = choose_pairs(own, virtual, xyz, f2, p_xyz, p_field, params, True, alone=False)
     both = won[:n] & won[n:]
     # a blob of two triples' winning halves: neither triple holds it
     both &= np.bincount(c[both], minlength=len(field))[c] == 1
