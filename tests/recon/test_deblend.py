@@ -39,6 +39,12 @@ def test_a_marker_hidden_in_a_neighbours_blob_is_found_from_its_own_blob(seed: i
     merged = np.linalg.norm(uv_a - uv_b, axis=1) < 3.0
     # the merged blob sits off A's image by more than the trial's residual limit
     assert 4 <= merged.sum() <= 20 and tab.n_merged == merged.sum()
+    # the scenario's merged blob: the area-weighted centroid of the two images
+    f = np.flatnonzero(merged)[0]
+    blob = tab.uv[(tab.field == f) & (tab.camera == 1)]
+    w = 1.0 / (xyz[f] @ dlts[1, 8:11] + 1.0) ** 2
+    centroid = (w[0] * uv_a[f] + w[1] * uv_b[f]) / w.sum()
+    assert len(blob) == 1 and np.linalg.norm(blob[0] - centroid) < 0.3
 
     def b_error(deblend: bool) -> np.ndarray:
         params = ReconParams(deblend_merged=deblend, stationary_filter=False)
