@@ -10,8 +10,9 @@ the body fill was built). Rigs: ``kisscal synth --preset lowcost``
 full kiss (6) and modern (8) rigs for "unchanged"; each walk made long enough to cross the
 volume (:data:`FIELDS`). Scenario: :mod:`tests.recon.scenario`'s truth-level one (true
 centroids + 0.05 px noise, other cameras' LEDs, two noise blobs per camera and field,
-markers closer than 3 px merged) plus blobs a camera loses beside the body's own
-occlusions (:func:`dropouts`: 0.2 runs a second per marker and camera, 0.1-1 s long), so
+markers closer than 3 px merged into one blob at their area-weighted centroid) plus
+blobs a camera loses beside the body's own occlusions (:func:`dropouts`: 0.2 runs a
+second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
 Reconstructed and tracked with default settings and the trial's marker set (the 2D
 blobs no 3D point used go to single-camera fill; ``score_trial(..., rays=False)`` without), scored
