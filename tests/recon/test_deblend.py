@@ -34,7 +34,7 @@ def _merging_walk(seed: int) -> tuple:
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_marker_hidden_in_a_neighbours_blob_is_found_from_its_own_blob(seed: int) -> None:
     dlts, xyz, visible = _merging_walk(seed)
-    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False)
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
     uv_a, uv_b = project(dlts[1], xyz[:, 0]), project(dlts[1], xyz[:, 1])
     merged = np.linalg.norm(uv_a - uv_b, axis=1) < 3.0
     # the merged blob sits off A's image by more than the trial's residual limit
@@ -70,7 +70,7 @@ def test_a_blob_that_fits_the_known_marker_is_not_shared() -> None:
     dlts, xyz, visible = _merging_walk(0)
     xyz = xyz.copy()
     xyz[:, 1] += [0.0, 0.0, 400.0]
-    tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False)
+    tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
     assert tab.n_merged == 0
     on = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams())
     off = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(deblend_merged=False))
