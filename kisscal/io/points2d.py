@@ -64,7 +64,8 @@ class Points2DFile:
 def observation_points(blob_row: ArrayLike, n_obs: int) -> NDArray[np.int64]:
     """The 3D point each of ``n_obs`` 2D observations went into (-1: none), from the
     (n_points, n_cameras) table of observation rows per point
-    (:attr:`kisscal.recon.Points3D.blob_row`).
+    (:attr:`kisscal.recon.Points3D.blob_row`). A blob that two points share (two
+    markers merged into one blob, :mod:`kisscal.recon.deblend`) goes to the first.
 
     Examples
     --------
@@ -72,9 +73,11 @@ def observation_points(blob_row: ArrayLike, n_obs: int) -> NDArray[np.int64]:
     array([ 0, -1,  0,  1,  1, -1])
     """
     blob_row = np.asarray(blob_row, dtype=np.int64)
-    point = np.full(n_obs, -1, dtype=np.int64)
+    n_points = len(blob_row)
+    point = np.full(n_obs, n_points, dtype=np.int64)
     used = blob_row >= 0
-    point[blob_row[used]] = np.nonzero(used)[0]
+    np.minimum.at(point, blob_row[used], np.nonzero(used)[0])
+    point[point == n_points] = -1
     return point
 
 

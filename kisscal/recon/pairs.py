@@ -48,7 +48,9 @@ _FIELD_SEPARATION_MM = 1e7
 _NEIGHBOURS = 4
 
 
-def _embed(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
+def embed_fields(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Points with their field's offset in x (:data:`_FIELD_SEPARATION_MM` per field), so
+    that one k-d tree holds the points of every field of a trial apart."""
     out = xyz.copy()
     out[:, 0] += field * _FIELD_SEPARATION_MM
     return out
@@ -150,7 +152,7 @@ def _continuity(
 
 class _Part:
     """Points of a pool, with their ids, in one k-d tree (fields kept apart by
-    :func:`_embed`)."""
+    :func:`embed_fields`)."""
 
     def __init__(
         self, xyz: NDArray[np.float64], field: NDArray[np.int64], ids: NDArray[np.int64]
@@ -158,7 +160,7 @@ class _Part:
         ok = np.all(np.isfinite(xyz), axis=1)
         self.xyz = np.vstack([xyz[ok], np.full((1, 3), np.nan)])  # row -1: "none found"
         self.ids = np.r_[ids[ok], -1]
-        self.tree = cKDTree(_embed(xyz[ok], field[ok]))
+        self.tree = cKDTree(embed_fields(xyz[ok], field[ok]))
 
 
 class _Pool:
@@ -177,7 +179,7 @@ class _Pool:
         dist, near, ids = [], [], []
         for part in self.parts:
             k = min(_NEIGHBOURS, part.tree.n)
-            d, j = part.tree.query(_embed(xyz, at), k=k, distance_upper_bound=step_mm)
+            d, j = part.tree.query(embed_fields(xyz, at), k=k, distance_upper_bound=step_mm)
             dist.append(d.reshape(len(xyz), k))
             near.append(part.xyz[j.reshape(len(xyz), k)])
             ids.append(part.ids[j.reshape(len(xyz), k)])
@@ -203,7 +205,7 @@ class _Pool:
         ids = np.full(len(a), -1, dtype=np.int64)
         ok = np.flatnonzero(np.all(np.isfinite(target), axis=1))
         for part in self.parts:
-            dp, j = part.tree.query(_embed(target[ok], at[ok]), distance_upper_bound=self.tol)
+            dp, j = part.tree.query(embed_fields(target[ok], at[ok]), distance_upper_bound=self.tol)
             better = dp < d[ok]
             rows = ok[better]
             d[rows], out[rows], ids[rows] = dp[better], part.xyz[j[better]], part.ids[j[better]]
@@ -283,7 +285,7 @@ def match_two_camera(
     # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
     judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
-    won = _choose(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
+    won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     order = np.argsort(field[a[won]], kind="stable")
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids
@@ -315,11 +317,11 @@ def _crowded(
     new = ok[ok >= first_new]
     if len(new) == 0:
         return False
-    tree = cKDTree(_embed(xyz[ok], field[ok]))
-    return bool((tree.query(_embed(xyz[new], field[new]), k=2)[0][:, 1] < radius_mm).any())
+    tree = cKDTree(embed_fields(xyz[ok], field[ok]))
+    return bool((tree.query(embed_fields(xyz[new], field[new]), k=2)[0][:, 1] < radius_mm).any())
 
 
-def _choose(
+def choose_pairs(
     a: NDArray[np.int64],
     b: NDArray[np.int64],
     xyz: NDArray[np.float64],
@@ -432,9 +434,10 @@ def _within_reach(
     rows = np.flatnonzero(among & np.all(np.isfinite(xyz), axis=1))
     if len(rows) == 0 or not new.any():
         return out
-    tree = cKDTree(_embed(xyz[rows], field[rows]))
+    tree = cKDTree(embed_fields(xyz[rows], field[rows]))
     for shift in (-3, -2, -1, 1, 2, 3):
-        hits = tree.query_ball_point(_embed(xyz[new], field[new] + shift), abs(shift) * step_mm)
+        at = embed_fields(xyz[new], field[new] + shift)
+        hits = tree.query_ball_point(at, abs(shift) * step_mm)
         out[rows[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])]] = True
     return out
 

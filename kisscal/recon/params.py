@@ -56,6 +56,20 @@ class ReconParams(Params):
         Largest second difference ``|p(f-1) - 2 p(f) + p(f+1)|`` (mm) of three consecutive
         positions through a two-camera point: acceleration times the field interval
         squared (20 mm: 50 m/s^2 at 50 Hz, the peak of a foot marker in swing).
+    deblend_merged : bool
+        Make two-camera points of markers whose image merged with a known point's image
+        into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
+        point's share, gives the hidden marker's image. Needs ``allow_two_camera``; rigs
+        of up to ``deblend_max_cameras`` cameras.
+    deblend_max_cameras : int
+        Largest rig that deblends: with more cameras a marker merged in one view is
+        seen by three others nearly always, and the few deblended points (placed by
+        another point's projection) were as often 10 mm off as right (issue 27: kiss
+        preset, 6 cameras).
+    deblend_radius_px : float
+        Farthest (px) a known point's projection lies from a blob it shares with another
+        marker: the centroid of two overlapping images lies within one marker image's
+        radius of each.
     max_rms_px : float
         Largest reprojection ``rms_px`` (px) of a triple and of an accepted 3D marker;
         worse markers lose their worst observation (split) or are dropped. Generous on
@@ -117,6 +131,9 @@ class ReconParams(Params):
     two_camera_alone_max_cameras: int = param(4, ge=0)
     two_camera_step_mm: float = param(300.0, unit="mm", gt=0)
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
+    deblend_merged: bool = param(True)
+    deblend_max_cameras: int = param(4, ge=0)
+    deblend_radius_px: float = param(3.0, unit="px", gt=0)
     max_rms_px: float = param(2.0, unit="px", gt=0)
     outlier_rms_factor: float = param(5.0, ge=0)
     outlier_floor_px: float = param(0.2, unit="px", gt=0)

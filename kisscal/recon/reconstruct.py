@@ -10,7 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
-from kisscal.recon.group import Solved, triangulate_markers
+from kisscal.recon.deblend import Deblended, deblend_merged, deblend_pairs
+from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import false_detections
@@ -223,7 +224,7 @@ def reconstruct_trial(
     marker = np.full(len(field), -1, dtype=np.int64)
     solved = Solved()
     marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved)
-    return points_from_markers(
+    pts = points_from_markers(
         marker,
         field,
         camera,
@@ -233,4 +234,67 @@ def reconstruct_trial(
         still,
         test,
         solved.expanded(keep, len(field)),
+    )
+    if deblends(params, len(dlts)) and len(pts):
+        limit = residual_limit_px(pts.rms_px, params)
+        two = deblend_pairs(
+            pts.marker,
+            ~still,
+            field,
+            camera,
+            uv,
+            dlts,
+            params,
+            pts.field,
+            pts.xyz_mm,
+            limit,
+        )
+        pts = _with_points(pts, two, camera)
+        for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
+            new = deblend_merged(
+                pts.field, pts.xyz_mm, pts.marker, ~still, field, camera, uv, dlts, params, limit
+            )
+            if len(new.field) == 0:
+                break
+            pts = _with_points(pts, new, camera)
+    return pts
+
+
+def deblends(params: ReconParams, n_cameras: int) -> bool:
+    """Whether a rig of ``n_cameras`` cameras deblends merged blobs (see ``params``)."""
+    return (
+        params.allow_two_camera
+        and params.deblend_merged
+        and (n_cameras <= params.deblend_max_cameras)
+    )
+
+
+#: Rounds of :func:`~kisscal.recon.deblend.deblend_merged`, each with the points of the last.
+_DEBLEND_PASSES = 3
+
+
+def _with_points(pts: Points3D, new: Deblended, camera: NDArray[np.int64]) -> Points3D:
+    """``pts`` with the deblended points added, in field order (the merged blob stays
+    with its first point in ``marker``)."""
+    n_old, m = len(pts), len(new.field)
+    field = np.concatenate([pts.field, new.field])
+    order = np.argsort(field, kind="stable")
+    index = np.empty(len(order), dtype=np.int64)
+    index[order] = np.arange(len(order))
+    rows = np.full((m, pts.blob_row.shape[1]), -1, dtype=np.int64)
+    rows[np.arange(m), camera[new.own_row]] = new.own_row
+    rows[np.arange(m), camera[new.merged_row]] = new.merged_row
+    marker = np.where(pts.marker >= 0, index[np.maximum(pts.marker, 0)], -1)
+    marker[new.own_row] = index[n_old:]
+    taken = marker[new.merged_row] < 0  # a free merged blob goes to its first new point
+    marker[new.merged_row[taken][::-1]] = index[n_old:][taken][::-1]
+    return Points3D(
+        field[order],
+        np.concatenate([pts.xyz_mm, new.xyz_mm])[order],
+        np.concatenate([pts.n_cameras, np.full(m, 2, dtype=np.int64)])[order],
+        np.concatenate([pts.rms_px, new.rms_px])[order],
+        np.concatenate([pts.blob_row, rows])[order],
+        marker,
+        pts.stationary,
+        pts.stationary_test,
     )

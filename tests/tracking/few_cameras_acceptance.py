@@ -3,6 +3,7 @@
     python -m tests.tracking.few_cameras_acceptance [seed ...]          # rigs table
     python -m tests.tracking.few_cameras_acceptance [seed] --gaps       # fill methods
     python -m tests.tracking.few_cameras_acceptance 101 --rig=lowcost   # one kind of rig
+    python -m tests.tracking.few_cameras_acceptance --merge=centroid    # merged blobs
 
 Default seeds 301-303, held out (development used 1-7; 101-103 were looked at while
 the body fill was built). Rigs: ``kisscal synth --preset lowcost``
@@ -10,8 +11,10 @@ the body fill was built). Rigs: ``kisscal synth --preset lowcost``
 full kiss (6) and modern (8) rigs for "unchanged"; each walk made long enough to cross the
 volume (:data:`FIELDS`). Scenario: :mod:`tests.recon.scenario`'s truth-level one (true
 centroids + 0.05 px noise, other cameras' LEDs, two noise blobs per camera and field,
-markers closer than 3 px merged) plus blobs a camera loses beside the body's own
-occlusions (:func:`dropouts`: 0.2 runs a second per marker and camera, 0.1-1 s long), so
+markers closer than 3 px merged: ``--merge=centroid`` puts the blob at their
+area-weighted centroid, as a detector does, instead of at the first marker's image) plus
+blobs a camera loses beside the body's own occlusions (:func:`dropouts`: 0.2 runs a
+second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
 Reconstructed and tracked with default settings and the trial's marker set (the 2D
 blobs no 3D point used go to single-camera fill; ``score_trial(..., rays=False)`` without), scored
@@ -68,6 +71,9 @@ class RigTrial:
     spare: SpareBlobs
 
 
+#: Where the scenario puts a merged blob (:func:`tests.recon.scenario.observe`'s ``merge``).
+MERGE = ["first"]
+
 #: Fields of the walk per preset: long enough to cross the volume (cut to the fields inside).
 FIELDS = {"kiss": 400, "modern": 600, "lowcost": 400}
 
@@ -101,7 +107,7 @@ def rig_trial(preset: str, seed: int, n_cameras: int | None = None) -> RigTrial:
     visible = np.stack([visibility(rig[c], motion) for c in cams], axis=-1)
     visible &= ~dropouts(visible.shape, motion.rate_hz, seed)
     dlts = np.array([rig[c].dlt for c in cams])
-    tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed)
+    tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed, merge=MERGE[0])
     pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(), motion.rate_hz)
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, motion.xyz_mm)
     unused = (pts.marker < 0) & ~pts.stationary
@@ -304,6 +310,7 @@ if __name__ == "__main__":
     seeds = tuple(int(a) for a in args) or (301, 302, 303)
     only = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--rig=")), None)
     rigs = {k: v for k, v in RIGS.items() if only is None or k.startswith(only)}
+    MERGE[0] = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--merge=")), "first")
     if "--gaps" in sys.argv:
         for preset in ("kiss", "modern", "lowcost"):
             print("\n".join(gap_table(preset, seeds[0])))
