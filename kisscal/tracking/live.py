@@ -31,6 +31,10 @@ _HISTORY = 5
 _SINGLE_STEP_WEIGHT = 0.1
 # Weight of the newest squared error in each predictor's running error (per track).
 _ERROR_MEMORY = 0.5
+# A track's point nearer its prediction than this (mm) is not judged against its rivals
+# (:meth:`Live._close_rivals`): a few times the noise of reconstructed points, far below
+# the spacing of markers.
+_RIVAL_MIN_MM = 10.0
 
 
 @dataclass(frozen=True)
@@ -209,6 +213,8 @@ class Live:
         ``later`` the next field's points; returns which points were taken."""
         pred, half = self._predict()
         rows, cols = self._gate(pred, half, points, later)
+        if self.setup.params.rival_ratio > 0 and rows.size:
+            self._close_rivals(pred, points, rows, cols)
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 
@@ -350,6 +356,23 @@ class Live:
         if params.ambiguity_margin > 0:
             self._nearer_losers(inside, pred, points, rows, cols)
         return rows, cols
+
+    def _close_rivals(self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray) -> None:
+        """Mark ambiguous a track that took a point farther than :data:`_RIVAL_MIN_MM` from
+        its prediction while another point of the field, in its gate or not, lies less than
+        ``rival_ratio`` times as far. On fast markers a few centimetres apart (a glove at
+        70 Hz, a hand at 120 Hz) the prediction misses by about their spacing: when a
+        track's marker vanishes it takes the neighbour, and the gate costs cannot tell.
+        Cut there, the two sides are judged by blending's continuity test instead."""
+        d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
+        far = d_own > _RIVAL_MIN_MM
+        if not far.any() or points.shape[0] < 2:
+            return
+        rows, cols, d_own = rows[far], cols[far], d_own[far]
+        d = np.linalg.norm(points[None, :, :] - pred[rows][:, None, :], axis=2)
+        d[np.arange(rows.size), cols] = np.inf
+        close = d.min(axis=1) < self.setup.params.rival_ratio * d_own
+        self.ambiguous[rows[close]] = True
 
     def _judge(
         self,
