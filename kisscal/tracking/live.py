@@ -372,8 +372,7 @@ class Live:
         :data:`_RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
         lies less than ``rival_ratio`` times as far: on fast markers a few centimetres
         apart the prediction misses by about their spacing, so a track whose marker
-        vanished takes the neighbour. (A one-point track's first step says too little:
-        cut there, a synthetic walk's labels went 15 -> 9 of 15 right.)"""
+        vanished takes the neighbour (not a one-point track: its first step says little)."""
         d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
         far = (d_own > _RIVAL_MIN_MM) & (self.misses[rows] == 0) & (self.n[rows] >= 2)
         if not far.any() or points.shape[0] < 2:

@@ -56,9 +56,9 @@ class TrackingParams(Params):
     rival_ratio : float
         A track of two points or more, not coasting, whose point lies more than 10 mm from
         its prediction is cut there likewise when another point of the field, in its gate
-        or not, lies less than this many times as far: a track whose marker vanished takes the nearest
-        neighbour, which its prediction misses by about as much (C3D regression set: a
-        glove at 70 Hz, hands at 120 Hz). 0 turns it off.
+        or not, lies less than this many times as far: a track whose marker vanished
+        takes the nearest neighbour, which its prediction misses by about as much (C3D
+        regression set: a glove at 70 Hz, hands at 120 Hz). 0 turns it off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
