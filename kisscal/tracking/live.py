@@ -368,13 +368,13 @@ class Live:
         return rows, cols
 
     def _close_rivals(self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray) -> None:
-        """Mark ambiguous a track (two points or more, not coasting) whose point lies over
+        """Mark ambiguous a track (two points or more, coasting or not) whose point lies over
         :data:`_RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
         lies less than ``rival_ratio`` times as far: on fast markers a few centimetres
         apart the prediction misses by about their spacing, so a track whose marker
         vanished takes the neighbour (not a one-point track: its first step says little)."""
         d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
-        far = (d_own > _RIVAL_MIN_MM) & (self.misses[rows] == 0) & (self.n[rows] >= 2)
+        far = (d_own > _RIVAL_MIN_MM) & (self.n[rows] >= 2)
         if not far.any() or points.shape[0] < 2:
             return
         rows, cols, d_own = rows[far], cols[far], d_own[far]

@@ -54,7 +54,7 @@ class TrackingParams(Params):
         and blending, which sees both sides, joins them: fast close markers are otherwise
         exchanged by a one-sided prediction. 0 turns it off.
     rival_ratio : float
-        A track of two points or more, not coasting, whose point lies more than 10 mm from
+        A track of two points or more (coasting too) whose point lies more than 10 mm from
         its prediction is cut there likewise when another point of the field, in its gate
         or not, lies less than this many times as far: a track whose marker vanished
         takes the nearest neighbour, which its prediction misses by about as much (C3D
