@@ -31,6 +31,13 @@ _HISTORY = 5
 _SINGLE_STEP_WEIGHT = 0.1
 # Weight of the newest squared error in each predictor's running error (per track).
 _ERROR_MEMORY = 0.5
+# A track's point nearer its prediction than this (mm) is not judged against its rivals
+# (:meth:`Live._close_rivals`): a few times the noise of reconstructed points, far below
+# the spacing of markers.
+_RIVAL_MIN_MM = 10.0
+# A one-point track's first step longer than this many times the fastest filtered track's
+# speed is cut (:meth:`Live._fast_first_steps`).
+_FIRST_STEP_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -166,6 +173,8 @@ class Live:
         self.pending = np.zeros(capacity, dtype=bool)
         self.ambiguous = np.zeros(capacity, dtype=bool)
         self._candidates = (np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+        # Speed (mm/field) of the fastest filtered track this field (None: no such track).
+        self._speed: float | None = None
         self._bind()
 
     def _bind(self) -> None:
@@ -207,8 +216,13 @@ class Live:
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
         """Extend the live tracks by this field's ``points`` (input rows ``point``), with
         ``later`` the next field's points; returns which points were taken."""
+        self._speed = None
         pred, half = self._predict()
         rows, cols = self._gate(pred, half, points, later)
+        if self.setup.params.rival_ratio > 0 and rows.size:
+            self._close_rivals(pred, points, rows, cols)
+        if self._speed is not None and rows.size:
+            self._fast_first_steps(pred, points, rows, cols)
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 
@@ -254,7 +268,8 @@ class Live:
         vanished (BTS.c3d of the C3D regression set: 53 mm at about 2 mm/field) is then not
         taken into the other's track. Two-point tracks keep the wide floor: their velocity
         is one step, and on fast markers (a push-rim stroke at 70 Hz) a tighter floor
-        makes them lose their marker to a one-point track, which is judged worse."""
+        makes them lose their marker to a one-point track, which is judged worse. Keeps
+        that speed for :meth:`_fast_first_steps`."""
         setup = self.setup
         floor = setup.floor[self.n]
         seen = self.alive & self.kalman
@@ -262,6 +277,7 @@ class Live:
             return floor
         velocity = self.state[seen, :, 1]
         speed = np.sqrt(np.einsum("tc,tc->t", velocity, velocity).max())
+        self._speed = float(speed)
         young = np.minimum(floor, setup.m_axes * np.maximum(speed, setup.k_axes))
         return np.where(self.n[:, None] >= 3, young, floor)
 
@@ -350,6 +366,38 @@ class Live:
         if params.ambiguity_margin > 0:
             self._nearer_losers(inside, pred, points, rows, cols)
         return rows, cols
+
+    def _close_rivals(self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray) -> None:
+        """Mark ambiguous a track (two points or more, coasting or not) whose point lies over
+        :data:`_RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
+        lies less than ``rival_ratio`` times as far: on fast markers a few centimetres
+        apart the prediction misses by about their spacing, so a track whose marker
+        vanished takes the neighbour (not a one-point track: its first step says little)."""
+        d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
+        far = (d_own > _RIVAL_MIN_MM) & (self.n[rows] >= 2)
+        if not far.any() or points.shape[0] < 2:
+            return
+        rows, cols, d_own = rows[far], cols[far], d_own[far]
+        d = np.linalg.norm(points[None, :, :] - pred[rows][:, None, :], axis=2)
+        d[np.arange(rows.size), cols] = np.inf
+        close = d.min(axis=1) < self.setup.params.rival_ratio * d_own
+        self.ambiguous[rows[close]] = True
+
+    def _fast_first_steps(
+        self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray
+    ) -> None:
+        """Mark ambiguous a one-point track whose first step is more than
+        :data:`_FIRST_STEP_FACTOR` times the speed of the fastest filtered track (at least
+        the gate's ``k``): a marker that vanishes a field after it appeared leaves its
+        one-point track the nearest other marker in the wide initial gate (the basket
+        sprint of the C3D regression set: 45 mm while every marker moves 2 mm per field)."""
+        one = self.n[rows] == 1
+        if not one.any():
+            return
+        rows, cols = rows[one], cols[one]
+        step = np.linalg.norm(points[cols] - pred[rows], axis=1)
+        limit = _FIRST_STEP_FACTOR * max(self._speed, float(self.setup.k_axes.max()))
+        self.ambiguous[rows[step > limit]] = True
 
     def _judge(
         self,
