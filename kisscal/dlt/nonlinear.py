@@ -162,6 +162,11 @@ class _Problem:
 
 
 def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str):
+    if not np.isfinite(fun(theta0)).all():  # a point on the start's focal plane
+        raise EstimationFailed(
+            f"camera {camera}: the DLT iteration cannot start (non-finite residuals at the "
+            "linear solution: a control point on the camera's focal plane)"
+        )
     result = scipy.optimize.least_squares(
         fun,
         theta0,

@@ -37,7 +37,7 @@ class DltParams(Params):
         (:mod:`kisscal.dlt.select`); False: the linear DLT.
     model_folds : int
         Subsets the control points are split into for that choice when they are not
-        rods (leave-one-rod-out otherwise).
+        rods (rods: one rod, and one marker of every rod, out at a time).
     model_margin : float
         Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
         the fewest before the comparison (the lens model's 5 extra terms must lower the

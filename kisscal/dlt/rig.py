@@ -30,7 +30,7 @@ from kisscal.dlt.params import (
 )
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
-from kisscal.dlt.select import MODELS, CameraPoints, ModelChoice, choose_model
+from kisscal.dlt.select import MODELS, CameraPoints, ModelChoice, choose_model, staggered_folds
 from kisscal.errors import KisscalError, with_context
 
 
@@ -58,7 +58,8 @@ class RodCalibration:
     check : RodCheck or None
         Leave-one-rod-out result (None with fewer than 3 rods or 2 cameras).
     models : ModelChoice or None
-        The camera models compared by leaving one rod out, when the model was chosen
+        The camera models compared by leaving one rod, then one marker of every rod,
+        out at a time (:func:`kisscal.dlt.select.staggered_folds`), when the model was chosen
         from the data (no ``--mdlt`` / ``--refine`` / ``--lens``).
     """
 
@@ -220,7 +221,9 @@ def _choose(
     params: DltParams,
     candidates: Sequence[str],
 ) -> ModelChoice:
-    """The camera model by leaving one rod out at a time (:mod:`kisscal.dlt.select`)."""
+    """The camera model by two fold designs: one rod out at a time (how the model
+    reaches into the corner a missing rod leaves), and one marker of every rod out at a
+    time (:func:`kisscal.dlt.select.staggered_folds`: how it does between the rods)."""
     n_rods, n_markers = truth.shape[:2]
     ids = np.arange(n_rods * n_markers)
     points = {}
@@ -229,7 +232,9 @@ def _choose(
         points[cam] = CameraPoints(
             truth.reshape(-1, 3)[found], muv.reshape(-1, 2)[found], ids[found]
         )
-    return choose_model(points, ids // n_markers, params, candidates)
+    rod = ids // n_markers
+    designs = np.stack([rod, staggered_folds(rod, ids % n_markers, n_markers)])
+    return choose_model(points, designs, params, candidates)
 
 
 def _calibrate_or_explain(

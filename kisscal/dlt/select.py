@@ -4,16 +4,22 @@ A technician cannot judge whether a lens needs Kolahi's L12..L16 (Kolahi et al. 
 2-3), or only his radial term L12, on top of the grid's linearisation, or whether the
 pixel refinement of Woltring & Huiskes (1990) helps: a model with more terms always fits
 its own points better. So each candidate model is fitted with some control points left out
-and judged by how well the rig then reconstructs them (cross-validation, Stone 1974): one
-rod at a time for the rods, or one of ``model_folds`` interleaved subsets of other control
-points. The model whose held-out 3D error is smallest is chosen for every camera, after
-weighing each model's error by ``1 + model_margin`` per unknown beyond the fewest, and the
-linear DLT's by ``1 + linear_margin`` against the refined one (the maximum-likelihood fit
-of the same unknowns under pixel noise, which held-out rods cannot tell apart from it more
-finely), before the comparison (more terms must earn their keep: with four rods, leaving
-one out leaves 18 points for the 16 unknowns of the lens model, and a lens model a few per
-cent better on the left-out rods can bend the volume between the rods several times more
-than the plain DLT does). Each camera's held-out reprojection error under every model is
+and judged by how well the rig then reconstructs them (cross-validation, Stone 1974). For
+other control points, each of ``model_folds`` interleaved subsets is left out in turn. The
+rods are left out by two designs, and a model's held-out error is the geometric mean of
+the two RMS errors, so that it must do well in both: one rod at a time (how the model
+reaches into the corner a missing rod leaves), and one marker of every rod at a time, at a
+different height on each (:func:`staggered_folds`: how it does between the other markers).
+Either design alone misleads on some synthetic rigs: leaving rods out judges only the
+reach into an empty corner, where the 16-unknown lens model does no better than one radial
+term on a rig where it is three times better inside the volume; leaving markers out ranks
+it first on a rig where it bends the volume between the rods. The model
+whose held-out 3D error is smallest is chosen for every camera, after weighing each model's
+error by ``1 + model_margin`` per unknown beyond the fewest, and the linear DLT's by
+``1 + linear_margin`` against the refined one (the maximum-likelihood fit of the same
+unknowns under pixel noise, which held-out points cannot tell apart from it more finely),
+before the comparison (more terms must earn their keep). Each camera's held-out
+reprojection error under every model (the quadratic mean over the designs) is
 kept beside it, for the report.
 
 With a single camera (``--camera``) no point can be reconstructed; the held-out
@@ -92,8 +98,9 @@ class ModelChoice:
     chosen : str
         The key of :data:`MODELS` chosen for every camera.
     held_out_3d_mm : dict
-        Model -> RMS 3D error (mm) of the held-out points the rig reconstructed (inf
-        with a single camera, or when some camera cannot carry the model).
+        Model -> RMS 3D error (mm) of the held-out points the rig reconstructed, the
+        geometric mean over the fold designs when there are several (inf with a single
+        camera, or when some camera cannot carry the model).
     held_out_3d_mean_mm, held_out_3d_max_mm : dict
         Model -> mean and largest of those errors (mm).
     held_out_px : dict
@@ -151,6 +158,19 @@ def interleaved_folds(ids: NDArray[np.int64], folds: int) -> NDArray[np.int64]:
     return rank.ravel() % max(1, folds)
 
 
+def staggered_folds(
+    group: NDArray[np.int64], index: NDArray[np.int64], folds: int
+) -> NDArray[np.int64]:
+    """Fold of each point given its group (rod) and place in it (marker): a Latin square.
+
+    Fold ``f`` holds the marker ``(f - rod) mod folds`` of every rod: one marker of each
+    rod, at a different height on each, so every fold leaves points out from inside the
+    span of the rest (the top and bottom of the volume stay covered by the other rods)
+    rather than a whole corner of the volume.
+    """
+    return (np.asarray(index) + np.asarray(group)) % max(1, folds)
+
+
 def choose_model(
     cameras: Mapping[str, CameraPoints],
     fold_of_point: NDArray[np.int64],
@@ -163,8 +183,10 @@ def choose_model(
     ----------
     cameras : mapping
         Camera id -> its control points.
-    fold_of_point : ndarray of int
-        Fold of each point id (its rod, or :func:`interleaved_folds`).
+    fold_of_point : ndarray of int, shape (n_ids,) or (n_designs, n_ids)
+        Fold of each point id (:func:`interleaved_folds`), or one row per fold design
+        (the rods: its rod, and :func:`staggered_folds`); each design is run in turn and
+        a model's held-out 3D error is the geometric mean of the designs' RMS errors.
     params : DltParams
         Tolerances (the switches are set per model) and ``model_margin``.
     candidates : sequence of str
@@ -174,21 +196,22 @@ def choose_model(
     -------
     ModelChoice
     """
-    fold_of_point = np.asarray(fold_of_point)
-    folds = np.unique(fold_of_point)
+    designs = np.atleast_2d(np.asarray(fold_of_point))
     held_3d, mean_3d, max_3d, held_px, inside, counts = {}, {}, {}, {}, {}, {}
     for name in candidates:
         p = replace(params, **MODELS[name])
-        err3, px = _cross_validate(cameras, fold_of_point, folds, p)
-        for cam, r in px.items():
-            held_px.setdefault(cam, {})[name] = r
+        runs = [_cross_validate(cameras, d, np.unique(d), p) for d in designs]
+        for cam in cameras:
+            held_px.setdefault(cam, {})[name] = _quadratic_mean([px[cam] for _, px in runs])
             inside.setdefault(cam, {})[name] = _in_sample(cameras[cam], p, cam)
         carried = all(np.isfinite(inside[c][name]) for c in cameras)  # every camera or none
-        ok = carried and len(err3) > 0
-        held_3d[name] = float(np.sqrt(np.mean(err3**2))) if ok else np.inf
-        mean_3d[name] = float(np.mean(err3)) if ok else np.inf
-        max_3d[name] = float(np.max(err3)) if ok else np.inf
-        counts[name] = len(err3)
+        ok = carried and all(len(e) > 0 for e, _ in runs)
+        every = np.concatenate([e for e, _ in runs])
+        rms = [float(np.sqrt(np.mean(e**2))) for e, _ in runs] if ok else [np.inf]
+        held_3d[name] = float(np.exp(np.mean(np.log(rms))))  # geometric mean of designs
+        mean_3d[name] = float(np.mean(every)) if ok else np.inf
+        max_3d[name] = float(np.max(every)) if ok else np.inf
+        counts[name] = len(every)
     three_d = len(cameras) >= 2 and any(np.isfinite(v) for v in held_3d.values())
     if three_d:
         score = held_3d
@@ -206,9 +229,8 @@ def choose_model(
     if np.isfinite(best):
         chosen = next(m for m in candidates if weighed[m] <= best)
     by = "held-out 3D error" if three_d else "held-out reprojection error"
-    return ModelChoice(
-        chosen, held_3d, mean_3d, max_3d, held_px, inside, len(folds), counts[chosen], by
-    )
+    folds = sum(len(np.unique(d)) for d in designs)
+    return ModelChoice(chosen, held_3d, mean_3d, max_3d, held_px, inside, folds, counts[chosen], by)
 
 
 def _in_sample(points: CameraPoints, params: DltParams, camera: str) -> float:
@@ -267,6 +289,10 @@ def _fold_errors(
     true = np.array([truth[i] for i in ids.tolist()])
     err = np.linalg.norm(tri.xyz_mm - true, axis=1)[enough]
     return err[np.isfinite(err)]
+
+
+def _quadratic_mean(values: list[float]) -> float:
+    return float(np.sqrt(np.mean(np.square(values))))
 
 
 def _rms(rows: list[NDArray]) -> float:

@@ -123,10 +123,12 @@ def model_table(o: SessionOutputs) -> Html:
     note = tag(
         "p",
         f"Camera model chosen by {esc(first.by)}: each model fitted with one of "
-        f"{first.folds} subsets of the control points left out in turn (a rod, or "
-        "interleaved points), and judged on the points it did not see. The rows give each "
-        "camera's held-out reprojection error, the last row the RMS 3D error of the "
-        "held-out points reconstructed by the rig. --mdlt, --refine or --lens overrides.",
+        f"{first.folds} subsets of the control points left out in turn (with rods: each "
+        "rod, then one marker of every rod; otherwise interleaved points), and judged on "
+        "the points it did not see. The rows give each camera's held-out reprojection "
+        "error, the last row the RMS 3D error of the held-out points reconstructed by the "
+        "rig (with rods, the geometric mean of the two ways of leaving points out). "
+        "--mdlt, --refine or --lens overrides.",
     )
     return join([note, table(["camera", "chosen", *names], rows, tuple(range(2, 2 + len(models))))])
 

@@ -141,3 +141,19 @@ def test_lens_terms_are_radial_in_normalised_coordinates():
     k = 3e-7
     expected = d * (k * fu**2 * np.sum(xn**2, axis=1))[:, None]
     np.testing.assert_allclose(lens_offsets(uv, (centre, A), [k, 0, 0, 0, 0]), expected)
+
+
+def test_an_iteration_that_cannot_start_is_a_clear_estimation_failure():
+    """Non-finite residuals at the linear start (a fold of the real cavity target's points
+    under the lens model) end as EstimationFailed, which the model choice skips, not as
+    scipy's ValueError."""
+    from kisscal.dlt.nonlinear import _solve
+    from kisscal.dlt.params import DltParams
+    from kisscal.errors import EstimationFailed
+
+    def fun(theta):
+        return np.r_[theta - 1.0, np.nan]
+
+    with pytest.raises(EstimationFailed, match="camera cam2: the DLT iteration cannot start"):
+        _solve(fun, np.zeros(3), DltParams(), "cam2")
+    assert np.allclose(_solve(lambda t: np.r_[t - 1.0, 0.0], np.zeros(3), DltParams(), "c").x, 1)

@@ -7,7 +7,13 @@ import pytest
 
 from kisscal.dlt import calibrate_camera
 from kisscal.dlt.params import DltParams
-from kisscal.dlt.select import MODELS, CameraPoints, choose_model, interleaved_folds
+from kisscal.dlt.select import (
+    MODELS,
+    CameraPoints,
+    choose_model,
+    interleaved_folds,
+    staggered_folds,
+)
 from kisscal.synth.cameras import VOLUME_MM, kiss_rig
 
 
@@ -71,3 +77,29 @@ def test_the_linear_dlt_must_beat_the_refined_one_by_the_margin():
         got = choose_model(cams, folds, DltParams(linear_margin=margin, model_margin=1.0))
         assert got.held_out_3d_mm == err  # the margin weighs, it does not change the figures
         assert got.chosen == ("dlt" if ratio > 1 + margin else "refined")
+
+
+def test_staggered_folds_leave_one_marker_of_every_rod_out_at_different_heights():
+    rod, marker = np.divmod(np.arange(24), 6)
+    folds = staggered_folds(rod, marker, 6)
+    for f in range(6):
+        held = folds == f
+        assert sorted(rod[held].tolist()) == [0, 1, 2, 3]  # one marker of every rod
+        assert len(set(marker[held].tolist())) == 4  # at a different height on each
+    for r in range(4):  # each rod's markers spread over distinct folds
+        assert len(set(folds[rod == r].tolist())) == 6
+
+
+def test_two_fold_designs_score_by_the_geometric_mean_of_their_errors():
+    cams, _ = _points(True, n=40)
+    ids = np.arange(40)
+    by_group, interleaved = ids // 10, interleaved_folds(ids, 5)
+    params = DltParams(model_margin=0.0, linear_margin=0.0)
+    one = choose_model(cams, by_group, params)
+    two = choose_model(cams, interleaved, params)
+    both = choose_model(cams, np.stack([by_group, interleaved]), params)
+    assert both.folds == one.folds + two.folds and both.points == 80  # every point twice
+    for m in MODELS:
+        want = np.sqrt(one.held_out_3d_mm[m] * two.held_out_3d_mm[m])
+        assert both.held_out_3d_mm[m] == pytest.approx(want, rel=1e-9)
+    assert both.chosen == min(MODELS, key=both.held_out_3d_mm.get)
