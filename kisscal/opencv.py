@@ -58,6 +58,9 @@ GRID_STEP_PX = 12.0
 VOLUME_SAMPLES = 20
 #: Cap on the evaluations of the joint fit of the polynomial and L12..L16 on import.
 MAX_NFEV = 40
+#: Cap on the evaluations of the export's fit (Levenberg-Marquardt, 19 parameters): on a
+#: flat valley of the 12 coefficients it creeps on for thousands without a visible gain.
+EXPORT_MAX_NFEV = 400
 #: Weight, on import, of the image beyond the region the export fitted (``region_px``).
 REGION_OUTSIDE_WEIGHT = 1e-3
 
@@ -233,7 +236,9 @@ def opencv_from_camera(
         return ((_project(th, rays) - raw) * weight).ravel()
 
     th = theta0.copy()
-    th[free] = least_squares(residuals, theta0[free], method="lm", x_scale="jac").x
+    th[free] = least_squares(
+        residuals, theta0[free], method="lm", x_scale="jac", max_nfev=EXPORT_MAX_NFEV
+    ).x
     R_fit = cv2.Rodrigues(th[0:3])[0]
     matrix = np.array([[th[3], 0.0, th[5]], [0.0, th[4], th[6]], [0.0, 0.0, 1.0]])
     cv = Camera(matrix, R_fit, -R_fit @ centre, th[7:].copy(), camera.id, camera.size_px)
