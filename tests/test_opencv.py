@@ -10,7 +10,7 @@ import tomli_w
 
 from kisscal.camera import Camera, distort
 from kisscal.errors import KisscalError
-from kisscal.io.cameras_toml import read_cameras_toml, write_cameras_toml
+from kisscal.io.cameras_toml import read_cameras_toml, read_fit_regions, write_cameras_toml
 from kisscal.opencv import camera_from_opencv, image_grid, opencv_from_camera, volume_rays
 
 
@@ -211,3 +211,47 @@ def test_a_volume_reaching_far_beyond_the_view_fits_on_the_part_the_camera_sees(
     assert len(raw) > 20 and cam.in_image(raw).all() and len(rays) == len(raw)
     fit = opencv_from_camera(cam, volume_mm=volume)
     assert fit.rms_px < 0.5
+
+
+def test_the_import_follows_opencv_closer_within_the_region_the_export_fitted():
+    """Exported on the rays through a calibrated volume, the OpenCV camera holds the
+    volume's extent in the image (``region_px``); imported back with it, kisscal's
+    polynomial and L12..L16 follow OpenCV's undistortion closer there than fitted over
+    the whole image, where OpenCV's model only extrapolates kisscal's."""
+    rng = np.random.default_rng(7)
+    cam = bent_camera(rng)
+    ahead = cam.R.T @ (np.array([0.0, 0.0, 4200.0]) - cam.t)
+    volume = (ahead - 700.0, ahead + 700.0)
+    fit = opencv_from_camera(cam, volume_mm=volume)
+    raw_v, _ = volume_rays(cam, volume)
+    np.testing.assert_allclose(fit.region_px, [*raw_v.min(axis=0), *raw_v.max(axis=0)])
+    grid = image_grid(cam.size_px, 4.0)
+    within = np.all((grid >= raw_v.min(axis=0)) & (grid <= raw_v.max(axis=0)), axis=1)
+    assert 0.1 < within.mean() < 0.8
+
+    def gap(imported) -> np.ndarray:  # px between kisscal's undistortion and OpenCV's
+        back = Camera.from_dlt(imported.L, "c1", imported.linearisation, imported.lens)
+        return np.hypot(*(back.undistort_px(grid) - fit.camera.undistort_px(grid)).T)
+
+    whole = gap(camera_from_opencv(fit.camera))
+    there = gap(camera_from_opencv(fit.camera, region_px=fit.region_px))
+    rms = lambda d: float(np.sqrt(np.mean(d**2)))  # noqa: E731
+    assert rms(there[within]) < 0.5 * rms(whole[within])
+    assert rms(there[~within]) > rms(whole[~within])
+
+
+def test_fit_regions_read_back_by_camera_and_checked(tmp_path):
+    cams = [brown_camera("left"), brown_camera("right")]
+    meta = {"fit_region_px": {"left": [100.0, 80.0, 1100.0, 900.0]}}
+    path = write_cameras_toml(tmp_path / "c.toml", cams, meta)
+    assert read_fit_regions(path, ["right", "left"]) == {
+        "right": None,
+        "left": (100.0, 80.0, 1100.0, 900.0),
+    }
+    assert read_fit_regions(path, ["left"], {"right": "left"}) == {"left": None}
+    for bad in ([100.0, 80.0, 1100.0], [1100.0, 80.0, 100.0, 900.0]):
+        write_cameras_toml(path, cams, {"fit_region_px": {"left": bad}})
+        with pytest.raises(KisscalError, match=r"fit_region_px\.left"):
+            read_fit_regions(path, ["left"])
+    with pytest.raises(KisscalError, match="fit region"):
+        camera_from_opencv(cams[0], region_px=(5.0, 5.0, 1.0, 900.0))

@@ -13,8 +13,9 @@ One table per camera, named by the camera id::
     translation = [tx, ty, tz]        # x_cam = R X + t, mm
     fisheye = false
 
-and a ``[metadata]`` table (both tools skip it when they look for cameras) with the units
-and how closely each camera's OpenCV model matches kisscal's (``fit_rms_px``).
+and a ``[metadata]`` table (both tools skip it when they look for cameras) with the units,
+how closely each camera's OpenCV model matches kisscal's (``fit_rms_px``) and where in
+the image it was fitted to (``fit_region_px``, read back by :func:`read_fit_regions`).
 aniposelib reads every other table as a camera; Pose2Sim works in metres, anipose in the
 unit of its calibration board: kisscal writes mm unless told otherwise (``units``) and
 reads any (``metadata.units``, or metres when every camera lies within 100 units of the
@@ -150,6 +151,51 @@ def read_cameras_toml(
         missing key, a malformed value.
     """
     path = Path(path)
+    doc, tables, keys = _camera_tables(path, camera_ids, names)
+    scale = _units_mm(path, doc, tables)
+    return {
+        cam: dataclasses.replace(_camera(path, key, tables[key], scale), id=cam)
+        for cam, key in keys.items()
+    }
+
+
+def read_fit_regions(
+    path: str | Path, camera_ids: Sequence[str], names: Mapping[str, str] | None = None
+) -> dict[str, tuple[float, float, float, float] | None]:
+    """Where each camera's OpenCV model was fitted to follow a calibration:
+    ``metadata.fit_region_px`` (``u_min, v_min, u_max, v_max``, raw px, by table name),
+    which kisscal's export writes; None for a camera without one (other tools' files).
+
+    Raises
+    ------
+    KisscalError
+        As :func:`read_cameras_toml`, and a region that is not 4 finite numbers.
+    """
+    path = Path(path)
+    doc, _, keys = _camera_tables(path, camera_ids, names)
+    meta = doc.get("metadata") if isinstance(doc.get("metadata"), dict) else {}
+    regions = meta.get("fit_region_px", {})
+    if not isinstance(regions, dict):
+        raise InputError(f"{path}: metadata.fit_region_px must be a table of camera regions")
+    out: dict[str, tuple[float, float, float, float] | None] = {}
+    for cam, key in keys.items():
+        value = regions.get(key)
+        if value is None:
+            out[cam] = None
+            continue
+        box = _numbers(path, "metadata", f"fit_region_px.{key}", value, (4,))
+        if np.any(box[2:] <= box[:2]):
+            raise InputError(
+                f"{path}: metadata.fit_region_px.{key} must be u0, v0, u1 > u0, v1 > v0"
+            )
+        out[cam] = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
+    return out
+
+
+def _camera_tables(
+    path: Path, camera_ids: Sequence[str], names: Mapping[str, str] | None
+) -> tuple[dict[str, Any], dict[str, dict], dict[str, str]]:
+    """The file's document, its camera tables and the table of each session camera."""
     doc = load_toml(path)
     tables = {k: v for k, v in doc.items() if isinstance(v, dict) and k not in NOT_CAMERAS}
     if not tables:
@@ -163,8 +209,7 @@ def read_cameras_toml(
             f"file (it has {', '.join(sorted(by_name))})"
         )
     foreign = {sid: name for name, sid in names.items()}
-    scale = _units_mm(path, doc, tables)
-    out = {}
+    keys = {}
     for cam in camera_ids:
         name = foreign.get(cam, cam)
         key = by_name.get(name, name if name in tables else None)
@@ -173,8 +218,8 @@ def read_cameras_toml(
                 f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
                 f"map them with [calibration] names = {{ {_hint(by_name)} }})"
             )
-        out[cam] = dataclasses.replace(_camera(path, key, tables[key], scale), id=cam)
-    return out
+        keys[cam] = key
+    return doc, tables, keys
 
 
 def _hint(by_name: Mapping[str, str]) -> str:

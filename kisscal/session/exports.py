@@ -106,6 +106,19 @@ def control_volume(dlts: Mapping[str, DltFile]) -> tuple[np.ndarray, np.ndarray]
     return lo, hi
 
 
+def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
+    """The ``[metadata]`` of a ``cameras.toml`` by table name: how closely each camera
+    follows kisscal's (``fit_rms_px``) and where it was fitted to (``fit_region_px``,
+    which kisscal's import follows, :func:`kisscal.opencv.camera_from_opencv`)."""
+    return {
+        "source": "kisscal",
+        "fit_rms_px": {name: f.rms_px for name, f in fits.items()},
+        "fit_region_px": {
+            name: list(f.region_px) for name, f in fits.items() if f.region_px is not None
+        },
+    }
+
+
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
     return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
 
@@ -135,11 +148,7 @@ def write_exports(
             "lens_error": {c.id: lens_error_px(c) for c in rig if c.size_px is not None},
         },
     }
-    write_cameras_toml(
-        store.cameras_toml_path,
-        [f.camera for f in fits.values()],
-        {"source": "kisscal", "fit_rms_px": {c: f.rms_px for c, f in fits.items()}},
-    )
+    write_cameras_toml(store.cameras_toml_path, [f.camera for f in fits.values()], _meta(fits))
     write_json(store.exports_path, report)
     for cam, f in fits.items():
         lens = report["dltdv"]["lens_error"][cam]
@@ -190,7 +199,7 @@ def export(
     ]
     for f in fits:
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
-    meta = {"source": "kisscal", "fit_rms_px": {f.camera.id: f.rms_px for f in fits}}
+    meta = _meta({f.camera.id: f for f in fits})
     cams = [f.camera for f in fits]
     if to == "pose2sim":
         names = pose2sim_names(len(cams))
@@ -198,9 +207,8 @@ def export(
         meta = {
             "adjusted": False,
             "error": 0.0,
-            "source": "kisscal",
             "cameras": dict(zip(names, rig.ids, strict=True)),
-            "fit_rms_px": dict(zip(names, meta["fit_rms_px"].values(), strict=True)),
+            **_meta(dict(zip(names, fits, strict=True))),
         }
         path = write_cameras_toml(
             dest or store.pose2sim_path,

@@ -150,14 +150,15 @@ def volume_errors(root: Path, preset: str, seed: int, rig: Rig | None = None) ->
 def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     """Median 3D difference (mm) between the session's rig and ``out/cameras.toml`` read
     back (kisscal's import of the OpenCV cameras), over the held-out lab points."""
-    from kisscal.io.cameras_toml import read_cameras_toml
+    from kisscal.io.cameras_toml import read_cameras_toml, read_fit_regions
     from kisscal.opencv import camera_from_opencv
 
     rig = current_rig(root)
     cvs = read_cameras_toml(root / "out" / "cameras.toml", rig.ids)
+    regions = read_fit_regions(root / "out" / "cameras.toml", rig.ids)
     back = []
     for cam in rig.cameras:
-        imported = camera_from_opencv(cvs[cam.id])
+        imported = camera_from_opencv(cvs[cam.id], region_px=regions[cam.id])
         back.append(
             Camera.from_dlt(imported.L, cam.id, imported.linearisation, imported.lens, cam.size_px)
         )

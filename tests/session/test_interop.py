@@ -120,6 +120,8 @@ def test_cv2_project_points_with_cameras_toml_lands_on_kisscal_projection(origin
         assert inside.sum() > 500
         assert np.sqrt(np.mean(d**2)) < 0.05, cam.id
         assert doc["metadata"]["fit_rms_px"][cam.id] < 0.05
+        u0, v0, u1, v1 = doc["metadata"]["fit_region_px"][cam.id]  # the volume's extent
+        assert -0.5 <= u0 < u1 <= w - 0.5 and -0.5 <= v0 < v1 <= h - 0.5
 
 
 def test_dltdv_csv_in_dltdv8_pixels_matches_linearised_projection(original: Path):

@@ -6,7 +6,8 @@ Both write the version-1 files, so everything downstream is unchanged:
 * ``cameras``: ``linearisation/<camera>.json`` (model ``poly4``) and
   ``dlt/<camera>.json`` (the DLT of ``K [R | t]``, method ``"cameras"``, with the lens
   terms L12..L16 when they help), fitted together to the file's OpenCV distortion over
-  the image (:func:`kisscal.opencv.camera_from_opencv`; :func:`imported_linearisation`
+  the image, within the region kisscal's export fitted when the file gives it
+  (:func:`kisscal.opencv.camera_from_opencv`; :func:`imported_linearisation`
   is called by ``kisscal linearise``).
 * ``dlt``: ``dlt/<camera>.json`` (the file's coefficients in kisscal's pixel convention,
   method ``"dltdv"``); the linearisation is the grid's, or none (DLTdv has no lens model).
@@ -25,7 +26,7 @@ from kisscal.dlt.camera import decompose_dlt, hatze_violation
 from kisscal.dlt.params import DltResult
 from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid import Linearisation
-from kisscal.io.cameras_toml import read_cameras_toml
+from kisscal.io.cameras_toml import read_cameras_toml, read_fit_regions
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.dltfiles import DltFile, read_dltdv_csv, write_dlt_json
 from kisscal.io.files import write_text
@@ -75,7 +76,8 @@ def imported_linearisation(
             f"{path}: camera {cam.id} is {cv.size_px[0]} x {cv.size_px[1]} pixels there, "
             f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
         )
-    imported = camera_from_opencv(cv)
+    region = read_fit_regions(path, config.camera_ids, _names(config))[cam.id]
+    imported = camera_from_opencv(cv, region_px=region)
     lin, rms = imported.linearisation, imported.rms_px
     doc = linearisation_to_dict(lin, cam.id)
     doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
@@ -123,7 +125,8 @@ def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
     """Each camera's DLT from the ``K [R | t]`` of ``[calibration] cameras``."""
     path = _source(inputs.config, "cameras")
     cvs = read_cameras_toml(path, [c.id for c in inputs.cameras], _names(inputs.config))
-    imported = {c: camera_from_opencv(cv) for c, cv in cvs.items()}
+    regions = read_fit_regions(path, [c.id for c in inputs.cameras], _names(inputs.config))
+    imported = {c: camera_from_opencv(cv, region_px=regions[c]) for c, cv in cvs.items()}
     files = {c: DltFile(c, m.L, lens=m.lens) for c, m in imported.items()}
     return _write(inputs, files, "cameras", path)
 
