@@ -277,3 +277,22 @@ def test_a_late_piece_with_no_partner_in_view_is_named_from_the_trial():
             state.name_piece(t, int(m))
     name_from_trial(state)
     assert state.label_of[owner == 8].tolist() == [-1, -1]
+
+
+def test_a_piece_that_fits_a_held_name_as_well_as_a_free_one_stays_unnamed():
+    truth = gait_truth(200, 3)
+    tracks, owner = _pieces(truth, cuts={7: (150,), 8: (150,)})
+    state = _state(tracks)
+    starts = tracks.field[state.start]
+    heel_late = int(np.flatnonzero((owner == 7) & (starts == 150))[0])
+    toe_late = int(np.flatnonzero((owner == 8) & (starts == 150))[0])
+    for t, m in enumerate(owner):
+        if m >= 0 and t not in (heel_late, toe_late):
+            state.name_piece(t, int(m))
+    # A track carries the heel's name onto the toe late in the trial; the toe's name is
+    # then free there, and the real heel piece keeps the toe's distances to the body
+    # nearly as well as its own: which name it is, distances cannot say.
+    state.name_piece(toe_late, 7)
+    state.rich = np.arange(0, 150, 5)
+    name_from_trial(state)
+    assert state.label_of[heel_late] == -1

@@ -12,8 +12,10 @@ about a metre, give or take a few centimetres; from the other foot: anything wit
 stride). So a long unnamed piece (:data:`LONG_PIECE`) takes the free name (held in none
 of its fields, named elsewhere in the trial) whose distances to the names held in its
 fields it keeps as the trial does: within :data:`MAX_SCORE` spreads (:func:`trial_scores`),
-from at least :data:`MIN_PARTNERS` names, and clearly better than any other free name
-(:data:`MARGIN`).
+from at least :data:`MIN_PARTNERS` names, and clearly better than any other name the
+trial showed, held ones included (:data:`MARGIN`): a heel and a toe keep nearly the same
+distances to the rest of the body, so a heel piece whose own name a track holds wrongly
+would otherwise take the free toe name (kiss 3-camera seed 312).
 A marker whose name no trajectory holds has no such distances and is never named here;
 nor is a piece near the body that the trial never showed as a marker of the set (its
 distances do not keep any name's).
@@ -36,7 +38,7 @@ SPREAD_FLOOR_MM = 10.0
 MAX_PAIR_SCORE = 4.0
 #: Largest misfit, in spreads, of a piece's distances to the names around it.
 MAX_SCORE = 2.5
-#: The runner-up's misfit (mean squared spreads) must exceed the best free name's by this
+#: The runner-up's misfit (mean squared spreads) must exceed the best name's by this
 #: much: over k held names, a likelihood ratio of exp(k * MARGIN / 2) for the best.
 MARGIN = 3.0
 #: Pieces at least this many times ``min_track_length`` are named here: over fewer
@@ -110,14 +112,17 @@ def name_from_trial(state: LabelState) -> bool:
     named = False
     for t in waiting.tolist():
         fields, _ = state.piece(t)
-        free = known[~np.isfinite(state.name_pos[known][:, fields, 0]).any(axis=1)]
-        if free.size == 0:
+        is_free = ~np.isfinite(state.name_pos[known][:, fields, 0]).any(axis=1)
+        if not is_free.any():
             continue
-        score = trial_scores(state, t, free, median, spread)
+        # every name the trial showed competes, held ones too: a heel piece whose own
+        # name is held by a track that carries it wrongly fits the free toe name almost as
+        # well as its own, and must then stay unnamed (kiss3 312)
+        score = trial_scores(state, t, known, median, spread)
         order = np.argsort(score)
         best = score[order[0]]
         second = score[order[1]] if order.size > 1 else np.inf
-        if best <= MAX_SCORE**2 and second - best >= MARGIN:
-            state.name_piece(t, int(free[order[0]]))
+        if is_free[order[0]] and best <= MAX_SCORE**2 and second - best >= MARGIN:
+            state.name_piece(t, int(known[order[0]]))
             named = True
     return named
