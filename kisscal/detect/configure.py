@@ -9,11 +9,9 @@ camera-dependent setting the user did not give:
   background. The threshold sits at 15 % of the contrast of the faint end of that
   population (5th percentile of the groups' peaks), low so that small far markers stay
   at least two lines tall and keep their shape, and at least five noise deviations above
-  the background. When
-  the background is uneven by more than half that margin, it is taken locally (tiles of
-  four of the largest marker diameters; two where the background is lit at the markers'
-  own scale, walls and edges of a real scene, not a smooth glow) and the threshold
-  counts from it.
+  the background. When the background is uneven by more than half that margin, it is
+  taken locally (tiles of four of the largest marker diameters; two where it is lit at
+  the markers' own scale, as walls of a real scene) and the threshold counts from it.
 - **pixel aspect**: isolated markers are round, so their width over their height is the
   pixel aspect. Thresholding widens every spot by about the same number of pixels in x and
   y, which pulls small spots towards round; the slope of the spots' x spread against their
@@ -118,8 +116,7 @@ HIGHPASS_SIDE = 0.9
 #: Largest share of the image whose background may be lit at the markers' scale (above
 #: the white test's margin over the 4-diameter tile background) for those tiles to stay.
 STRUCTURE_SHARE_MAX = 0.02
-#: Smallest background tile (px).
-MIN_TILE_PX = 16
+MIN_TILE_PX = 16  # smallest background tile (px)
 
 
 @dataclass(frozen=True)
