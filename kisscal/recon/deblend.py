@@ -35,9 +35,6 @@ from kisscal.recon.group import near_cameras
 from kisscal.recon.pairs import choose_pairs, embed_fields
 from kisscal.recon.params import ReconParams
 
-#: Pixel u offset per field, so that one k-d tree holds every field of a camera apart.
-_FIELD_SEPARATION_PX = 1e6
-
 
 @dataclass(frozen=True)
 class Deblended:
@@ -80,11 +77,8 @@ def _near_blobs(
         proj = project_rows(dlts, np.full(len(p_xyz), j), p_xyz)
         front = _depth(dlts, np.full(len(p_xyz), j), p_xyz) > 0
         pts = np.flatnonzero(front & np.all(np.isfinite(proj), axis=1))
-        key = uv[rows].copy()
-        key[:, 0] += field[rows] * _FIELD_SEPARATION_PX
-        q = proj[pts].copy()
-        q[:, 0] += p_field[pts] * _FIELD_SEPARATION_PX
-        hits = cKDTree(key).query_ball_point(q, radius_px)
+        tree = cKDTree(embed_fields(uv[rows], field[rows]))
+        hits = tree.query_ball_point(embed_fields(proj[pts], p_field[pts]), radius_px)
         n_hits = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
         if n_hits.sum() == 0:
             continue

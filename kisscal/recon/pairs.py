@@ -49,8 +49,9 @@ _NEIGHBOURS = 4
 
 
 def embed_fields(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Points with their field's offset in x (:data:`_FIELD_SEPARATION_MM` per field), so
-    that one k-d tree holds the points of every field of a trial apart."""
+    """Points (3D in mm, or image points in px) with their field's offset in the first
+    coordinate (:data:`_FIELD_SEPARATION_MM` per field), so that one k-d tree holds the
+    points of every field of a trial apart."""
     out = xyz.copy()
     out[:, 0] += field * _FIELD_SEPARATION_MM
     return out
