@@ -21,6 +21,25 @@ a valid blob within 1 px in the first class it fits, one JSON line per camera:
   background, slack and noise margin are above OpenPTV's flat 9 grey levels over a box
   mean).
 - ``no_blob``: white, but in a group removed as noise (one pixel wide or high).
+
+``textured`` is the share of the missed targets (any class) where the local noise
+deviation kisscal measures is more than twice the frame's sensor noise: glass walls,
+glare and streaks, where kisscal's white test asks for more than a flat grey margin.
+
+With OpenPTV's view of a frame (the cavity), each *extra* valid blob (more than 1 px from
+every target) goes in the first class it fits:
+
+- ``extra_piece``: the nearest target within 4 px has another valid blob within 1 px:
+  kisscal found two spots where OpenPTV counts one target.
+- ``extra_offset``: the nearest target within 4 px has no blob within 1 px: the same spot,
+  the centroids 1-4 px apart (the mirror of the misses' offset and two-spot classes).
+- ``extra_faint``: OpenPTV's image (high-passed) peaks below its threshold in the 3 x 3
+  pixels at the blob's centroid: a spot too faint for OpenPTV's flat threshold.
+- ``extra_small``: fewer than OpenPTV's least pixel count above its threshold, or less
+  than its least summed grey, in the 5 x 5 pixels at the centroid (an approximation of
+  its region): a spot too small for OpenPTV's target size limits.
+- ``extra_other``: bright and large enough for OpenPTV, no target within 4 px (joined by
+  its region growing to a target farther away, or dropped by its other rules).
 """
 
 from __future__ import annotations
@@ -30,15 +49,17 @@ import json
 from collections import Counter
 from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
 from kisscal.detect import DetectionParams, detect_blobs
+from kisscal.detect.background import local_background, noise_sigma
 from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import threshold_image
 from kisscal.io.frames import read_image
 from tests.detect.openptv_heldout import _frames, _targets
-from tests.detect.real_acceptance import DATA, MATCH_PX, openptv_targets
+from tests.detect.real_acceptance import DATA, MATCH_PX, OpenptvView, openptv_view
 
 #: Farthest blob (px) a missed target is put in a class by.
 NEAR_PX = 4.0
@@ -50,6 +71,9 @@ CLASSES = (
     "below_threshold",
     "no_blob",
 )
+EXTRA_CLASSES = ("extra_piece", "extra_offset", "extra_faint", "extra_small", "extra_other")
+#: Local noise over the frame's sensor noise above which a background is textured.
+TEXTURED = 2.0
 
 
 def _between(t: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -59,8 +83,14 @@ def _between(t: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.hypot(*(t - a - s[:, None] * ab).T)
 
 
-def census(image: np.ndarray, targets: np.ndarray, params: DetectionParams) -> Counter:
-    """Targets found within 1 px (``found``) and the class of each missed one."""
+def census(
+    image: np.ndarray,
+    targets: np.ndarray,
+    params: DetectionParams,
+    view: OpenptvView | None = None,
+) -> Counter:
+    """Targets found within 1 px (``found``), the class of each missed one, how many of
+    them lie on a textured background, and with OpenPTV's ``view`` the extras' classes."""
     blobs = detect_blobs(image, params)
     valid = blobs.valid_only()
     out = Counter(targets=len(targets))
@@ -76,25 +106,57 @@ def census(image: np.ndarray, targets: np.ndarray, params: DetectionParams) -> C
     shared = np.bincount(i[near, 0], minlength=len(valid))[i[:, 0]] >= 2
     da, ia = cKDTree(blobs.xy_px).query(targets)
     white, _ = threshold_image(image, params)
-    h, w = white.shape
-    xi = np.clip(np.rint(targets[:, 0]).astype(int), 0, w - 1)
-    yi = np.clip(np.rint(targets[:, 1]).astype(int), 0, h - 1)
+    xi, yi = _pixel(targets, white.shape)
     rest = miss & ~pair & ~near
     oversized = rest & (da <= NEAR_PX) & ~blobs.valid[ia]
     dark = rest & ~oversized & ~white[yi, xi]
     masks = (pair, near & shared, near & ~shared, oversized, dark, rest & ~oversized & ~dark)
     for name, mask in zip(CLASSES, masks, strict=True):
         out[name] = int(mask.sum())
+    noise = local_background(image, params.background_tile_px or 32).noise[yi, xi]
+    out["textured"] = int((miss & (noise > TEXTURED * noise_sigma(image))).sum())
     out["extra"] = int((cKDTree(targets).query(valid.xy_px)[0] > MATCH_PX).sum())
+    if view is not None:
+        out += _extras(valid.xy_px, targets, view)
     return out
+
+
+def _pixel(points: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The pixel (column, row) each point falls in, clipped to the image."""
+    xi = np.clip(np.rint(points[:, 0]).astype(int), 0, shape[1] - 1)
+    yi = np.clip(np.rint(points[:, 1]).astype(int), 0, shape[0] - 1)
+    return xi, yi
+
+
+def _extras(xy: np.ndarray, targets: np.ndarray, view: OpenptvView) -> Counter:
+    """The class of each valid blob (centroids ``xy``) more than 1 px from every target."""
+    d, j = cKDTree(targets).query(xy)
+    extra = d > MATCH_PX
+    to_target, _ = cKDTree(xy).query(targets)
+    near = extra & (d <= NEAR_PX)
+    piece = near & (to_target[j] <= MATCH_PX)
+    offset = near & ~piece
+    grey = view.image.astype(np.float32)
+    xi, yi = _pixel(xy, grey.shape)
+    peak = cv2.dilate(grey, np.ones((3, 3), np.uint8))[yi, xi]
+    lit = (grey >= view.threshold).astype(np.float32)
+    count = cv2.boxFilter(lit, -1, (5, 5), normalize=False)[yi, xi]
+    summed = cv2.boxFilter(grey * lit, -1, (5, 5), normalize=False)[yi, xi]
+    rest = extra & ~near
+    faint = rest & (peak < view.threshold)
+    small = rest & ~faint & ((count < view.min_pixels) | (summed < view.min_sum_grey))
+    masks = (piece, offset, faint, small, rest & ~faint & ~small)
+    return Counter({k: int(m.sum()) for k, m in zip(EXTRA_CLASSES, masks, strict=True)})
 
 
 def _line(label: str, total: Counter) -> str:
     n = max(total["targets"], 1)
     row = {"camera": label, "targets": total["targets"], "found_pct": 100 * total["found"] / n}
     row |= {k: 100 * total[k] / n for k in CLASSES}
+    row["textured_of_missed_pct"] = 100 * total["textured"] / max(n - total["found"], 1)
     row = {k: round(v, 1) if isinstance(v, float) else v for k, v in row.items()}
-    return json.dumps(row | {"extra": total["extra"]})
+    extras = {k: total[k] for k in EXTRA_CLASSES if k in total}
+    return json.dumps(row | {"extra": total["extra"]} | extras)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -110,11 +172,11 @@ def main(argv: list[str] | None = None) -> None:
             params = configure_detection(images, args.given).params
             total: Counter = Counter()
             for image in images:
-                targets = openptv_targets(image, cam, DATA)
-                if targets is None:
+                view = openptv_view(image, cam, DATA)
+                if view is None:
                     print("optv is not installed: no cavity targets")
                     break
-                total += census(image, targets, params)
+                total += census(image, view.targets, params, view)
             print(_line(f"cavity cam{cam + 1}", total), flush=True)
     for folder in args.folders:
         for cam, paths in _frames(folder).items():

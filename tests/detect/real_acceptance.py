@@ -35,6 +35,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -121,6 +122,22 @@ def openptv_targets(image: np.ndarray, cam: int, data: Path) -> np.ndarray | Non
 
     OpenPTV's pixel origin is the corner of the top-left pixel: 0.5 px is subtracted.
     """
+    seen = openptv_view(image, cam, data)
+    return None if seen is None else seen[0]
+
+
+class OpenptvView(NamedTuple):
+    """OpenPTV's targets of a frame (kisscal's pixels) and how its detection read it."""
+
+    targets: np.ndarray
+    image: np.ndarray  # the grey levels it thresholds (high-passed when ptv.par asks)
+    threshold: float  # grey level of that image a target's pixels reach (targ_rec.par)
+    min_pixels: int  # least pixels of a target
+    min_sum_grey: float  # least summed grey of a target
+
+
+def openptv_view(image: np.ndarray, cam: int, data: Path) -> OpenptvView | None:
+    """OpenPTV's view of a frame (:class:`OpenptvView`), or None without optv."""
     try:
         from optv.image_processing import preprocess_image
         from optv.parameters import ControlParams, TargetParams
@@ -134,7 +151,11 @@ def openptv_targets(image: np.ndarray, cam: int, data: Path) -> np.ndarray | Non
     if cpar.get_hp_flag():
         image = preprocess_image(image, 0, cpar, 25)  # pyptv's high-pass: a 25 px box
     found = target_recognition(image, tpar, cam, cpar)
-    return np.array([t.pos() for t in found], dtype=float).reshape(-1, 2) - 0.5
+    targets = np.array([t.pos() for t in found], dtype=float).reshape(-1, 2) - 0.5
+    threshold = float(tpar.get_grey_thresholds()[cam])
+    return OpenptvView(
+        targets, image, threshold, tpar.get_pixel_count_bounds()[0], tpar.get_min_sum_grey()
+    )
 
 
 def _dots(data: Path, cam: int) -> np.ndarray:

@@ -1,0 +1,28 @@
+"""The census of OpenPTV's targets: each extra detection lands in the class it was built for."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.detect.openptv_census import EXTRA_CLASSES, _extras
+from tests.detect.real_acceptance import OpenptvView
+
+
+def test_extra_detections_fall_in_the_class_they_were_built_for() -> None:
+    grey = np.zeros((60, 80), np.uint8)
+    grey[40, 10] = 200  # one bright pixel: too small for OpenPTV (4 pixels, 150 summed)
+    grey[39:42, 59:62] = 100  # 9 pixels, 900 summed: OpenPTV would take it
+    targets = np.array([[10.0, 10.0], [30.0, 10.0]])
+    blobs = np.array(
+        [
+            [10.4, 10.0],  # target 0 itself (not an extra)
+            [12.5, 10.0],  # a second spot beside target 0: piece
+            [32.5, 10.0],  # target 1 seen 2.5 px off: offset
+            [40.0, 25.0],  # nothing in OpenPTV's image: faint
+            [10.0, 40.0],  # the bright pixel: small
+            [60.0, 40.0],  # the 3 x 3 block: other
+        ]
+    )
+    view = OpenptvView(targets, grey, 9.0, 4, 150.0)
+    got = _extras(blobs, targets, view)
+    assert [got[k] for k in EXTRA_CLASSES] == [1, 1, 1, 1, 1]
