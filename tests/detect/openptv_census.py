@@ -26,7 +26,8 @@ a valid blob within 1 px in the first class it fits, one JSON line per camera:
 deviation kisscal measures is more than twice the frame's sensor noise: glass walls,
 glare and streaks, where kisscal's white test asks for more than a flat grey margin.
 
-With OpenPTV's view of a frame (the cavity), each *extra* valid blob (more than 1 px from
+With OpenPTV's view of a frame (the cavity; a folder whose experiment's ``parameters``
+sit beside it), each *extra* valid blob (more than 1 px from
 every target) goes in the first class it fits:
 
 - ``extra_piece``: the nearest target within 4 px has another valid blob within 1 px:
@@ -72,6 +73,10 @@ CLASSES = (
     "no_blob",
 )
 EXTRA_CLASSES = ("extra_piece", "extra_offset", "extra_faint", "extra_small", "extra_other")
+#: A stored target is given back by OpenPTV's detection when one lies this close (px), and
+#: the detection reads the frame as the stored one did when it gives back this share.
+SAME_PX = 0.1
+SAME_SHARE = 0.9
 #: Local noise over the frame's sensor noise above which a background is textured.
 TEXTURED = 2.0
 
@@ -184,8 +189,27 @@ def main(argv: list[str] | None = None) -> None:
             params = configure_detection(images, args.given).params
             total = Counter()
             for path, image in zip(paths, images, strict=True):
-                total += census(image, _targets(path), params)
+                targets = _targets(path)
+                total += census(image, targets, params, _stored_view(image, cam, folder, targets))
             print(_line(f"{folder.name} {cam}", total), flush=True)
+
+
+def _stored_view(
+    image: np.ndarray, cam: str, folder: Path, targets: np.ndarray
+) -> OpenptvView | None:
+    """OpenPTV's view of a working folder's frame, when the experiment's ``parameters``
+    sit beside the folder, optv is installed and its detection, high-passed or not (the
+    GUI may high-pass whatever ``ptv.par`` says), gives back the stored ``targets``."""
+    data = folder.resolve().parent
+    if not (data / "parameters" / "targ_rec.par").is_file() or len(targets) == 0:
+        return None
+    for highpass in (False, True):
+        view = openptv_view(image, int(cam.removeprefix("cam")) - 1, data, highpass)
+        if view is None or len(view.targets) == 0:
+            continue
+        if np.mean(cKDTree(view.targets).query(targets)[0] < SAME_PX) >= SAME_SHARE:
+            return view._replace(targets=targets)
+    return None
 
 
 if __name__ == "__main__":

@@ -136,8 +136,11 @@ class OpenptvView(NamedTuple):
     min_sum_grey: float  # least summed grey of a target
 
 
-def openptv_view(image: np.ndarray, cam: int, data: Path) -> OpenptvView | None:
-    """OpenPTV's view of a frame (:class:`OpenptvView`), or None without optv."""
+def openptv_view(
+    image: np.ndarray, cam: int, data: Path, highpass: bool | None = None
+) -> OpenptvView | None:
+    """OpenPTV's view of a frame (:class:`OpenptvView`), or None without optv; high-passed
+    as ``ptv.par`` says unless ``highpass`` says otherwise."""
     try:
         from optv.image_processing import preprocess_image
         from optv.parameters import ControlParams, TargetParams
@@ -148,7 +151,7 @@ def openptv_view(image: np.ndarray, cam: int, data: Path) -> OpenptvView | None:
     cpar.read_control_par(str(data / "parameters" / "ptv.par"))
     tpar = TargetParams()
     tpar.read(str(data / "parameters" / "targ_rec.par"))
-    if cpar.get_hp_flag():
+    if cpar.get_hp_flag() if highpass is None else highpass:
         image = preprocess_image(image, 0, cpar, 25)  # pyptv's high-pass: a 25 px box
     found = target_recognition(image, tpar, cam, cpar)
     targets = np.array([t.pos() for t in found], dtype=float).reshape(-1, 2) - 0.5
