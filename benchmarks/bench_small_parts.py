@@ -36,7 +36,7 @@ PARTS = (
     ("kisscal.session.run", "summarise", "STAGE summary"),
     ("kisscal.session.run", "report", "STAGE report"),
     ("kisscal.session.figures", "draw_figure", "figures (stage figures)"),
-    ("kisscal.detect.sequence", "detect_blobs", "detection (per frame)"),
+    ("kisscal.detect.sequence", "detect_frames", "detection (stacked frames)"),
     ("kisscal.io.frames", "read_image", "image reading (decode)"),
     ("kisscal.session.configure", "configure_detection", "detection set-up (survey)"),
     ("kisscal.session.linearise", "linearise_frames", "grid fit"),
