@@ -3,7 +3,7 @@ synthetic KISS session in this one process (one worker, figures drawn here), eac
 timed in processor time and given as a multiple of decoding the session's images,
 timed in the same run (issue 28's bar is the whole run within 2x the decode).
 
-Parts are timed by wrapping the functions the session calls (detection of one frame,
+Parts are timed by wrapping the functions the session calls (detection of a chunk of frames,
 reading one image, the detection set-up, the grid fit, the DLT, the exports, the
 reconstruction, the tracking, the gait, the figures, the report); a stage's line holds
 the parts inside it, and "other" is what no listed part covers. One process, so the
