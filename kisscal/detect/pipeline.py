@@ -222,22 +222,22 @@ def detect_frames(
     order as one frame alone gives them, for the steps that read the frame's own image,
     background and statistics (cores, splits, moments).
     """
-    frames = [_prepared(image, params) for image in images]
-    out: list[Blobs] = [Blobs.empty()] * len(frames)
-    for members in _stacks(frames):
-        shape = frames[members[0]][1].shape  # type: ignore[index]
+    out = [Blobs.empty()] * len(images)
+    frames = [(i, _prepared(image, params)) for i, image in enumerate(images)]
+    for stack in _stacks([(i, f) for i, f in frames if f is not None]):
+        shape = stack[0][1][1].shape
         stride = shape[0] + max(
             STACK_GAP_ROWS, params.closeness_rows + 1, params.submarker_margin_px + 2
         )
-        white = np.zeros((stride * (len(members) - 1) + shape[0], shape[1]), dtype=bool)
-        for k, f in enumerate(members):
-            white[k * stride : k * stride + shape[0]] = frames[f][1]  # type: ignore[index]
-        grouped = _grouped(white, params, shape, stride if len(members) > 1 else None)
+        white = np.zeros((stride * (len(stack) - 1) + shape[0], shape[1]), dtype=bool)
+        for k, (_i, frame) in enumerate(stack):
+            white[k * stride : k * stride + shape[0]] = frame[1]
+        grouped = _grouped(white, params, shape, stride if len(stack) > 1 else None)
         if grouped is None:
             continue
-        for k, one in enumerate(_unstacked(*grouped, len(members), stride)):
+        for (i, frame), one in zip(stack, _unstacked(*grouped, len(stack), stride), strict=True):
             if one is not None:
-                out[members[k]] = _finished(frames[members[k]], *one, params)  # type: ignore[arg-type]
+                out[i] = _finished(frame, *one, params)
     return out
 
 
@@ -255,21 +255,20 @@ def _prepared(image: NDArray, params: DetectionParams) -> _Frame | None:
     return image, white, background
 
 
-def _stacks(frames: Sequence[_Frame | None]) -> Iterator[list[int]]:
-    """Indices of consecutive frames with something to find, of one shape, at most
-    :data:`STACK_PX` pixels together (or one larger frame)."""
-    members: list[int] = []
-    for i, frame in enumerate(frames):
-        if frame is None:
-            continue
-        if members:
-            first = frames[members[0]][1]  # type: ignore[index]
-            if first.shape != frame[1].shape or (len(members) + 1) * first.size > STACK_PX:
-                yield members
-                members = []
-        members.append(i)
-    if members:
-        yield members
+def _stacks(frames: list[tuple[int, _Frame]]) -> Iterator[list[tuple[int, _Frame]]]:
+    """Runs of consecutive ``(index, frame)`` of one size, at most :data:`STACK_PX`
+    pixels together (or one larger frame)."""
+    stack: list[tuple[int, _Frame]] = []
+    for item in frames:
+        white = item[1][1]
+        if stack and (
+            stack[0][1][1].shape != white.shape or (len(stack) + 1) * white.size > STACK_PX
+        ):
+            yield stack
+            stack = []
+        stack.append(item)
+    if stack:
+        yield stack
 
 
 def _grouped(
