@@ -10,6 +10,13 @@ the parts inside it, and "other" is what no listed part covers. One process, so 
 processor time is the sum of what the run's processes would spend (without their
 start-up); it does not move with the load as wall time does. Session as in
 :mod:`benchmarks.bench_small` (its cache folder).
+
+Recorded (2026-11-28, 4044 images, 2 cores shared with other work at a load of about
+20; the decode reference itself moved 2.75-3.35 s between runs): per-frame detection
+(commit 647317e) whole run 50.65 s = 15.11x decode, detection 13.27 s = 3.96x (26 % of
+the run); frames stacked by chunk (:func:`kisscal.detect.pipeline.detect_frames`) whole
+run 42.78 s = 15.56x decode, detection 9.11 s = 3.31x (21 %). Within one run
+:mod:`benchmarks.bench_small_detect` compares the two detection paths directly.
 """
 
 from __future__ import annotations
