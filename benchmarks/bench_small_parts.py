@@ -3,13 +3,20 @@ synthetic KISS session in this one process (one worker, figures drawn here), eac
 timed in processor time and given as a multiple of decoding the session's images,
 timed in the same run (issue 28's bar is the whole run within 2x the decode).
 
-Parts are timed by wrapping the functions the session calls (detection of one frame,
+Parts are timed by wrapping the functions the session calls (detection of a chunk of frames,
 reading one image, the detection set-up, the grid fit, the DLT, the exports, the
 reconstruction, the tracking, the gait, the figures, the report); a stage's line holds
 the parts inside it, and "other" is what no listed part covers. One process, so the
 processor time is the sum of what the run's processes would spend (without their
 start-up); it does not move with the load as wall time does. Session as in
 :mod:`benchmarks.bench_small` (its cache folder).
+
+Recorded (2026-11-28, 4044 images, 2 cores shared with other work at a load of about
+20; the decode reference itself moved 2.75-3.35 s between runs): per-frame detection
+(commit 647317e) whole run 50.65 s = 15.11x decode, detection 13.27 s = 3.96x (26 % of
+the run); frames stacked by chunk (:func:`kisscal.detect.pipeline.detect_frames`) whole
+run 42.78 s = 15.56x decode, detection 9.11 s = 3.31x (21 %). Within one run
+:mod:`benchmarks.bench_small_detect` compares the two detection paths directly.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ PARTS = (
     ("kisscal.session.run", "summarise", "STAGE summary"),
     ("kisscal.session.run", "report", "STAGE report"),
     ("kisscal.session.figures", "draw_figure", "figures (stage figures)"),
-    ("kisscal.detect.sequence", "detect_blobs", "detection (per frame)"),
+    ("kisscal.detect.sequence", "detect_frames", "detection (stacked frames)"),
     ("kisscal.io.frames", "read_image", "image reading (decode)"),
     ("kisscal.session.configure", "configure_detection", "detection set-up (survey)"),
     ("kisscal.session.linearise", "linearise_frames", "grid fit"),

@@ -27,6 +27,7 @@ def detach_from_large(
     table: GroupTable,
     params: DetectionParams,
     shape: tuple[int, ...] | None = None,
+    stride: int | None = None,
 ) -> Grouping:
     """Separate markers touching an oversized blob (an LED ring) before the size limits.
 
@@ -37,7 +38,9 @@ def detach_from_large(
     image of ``shape`` (the opening leaves slivers in the corners of a ring the border
     cuts), provided the opened blob alone still has more than ``max_pixels`` pixels. The
     group is then split between the blob and those markers by distance relative to each
-    one's size (:func:`~kisscal.detect.advanced.split_groups`).
+    one's size (:func:`~kisscal.detect.advanced.split_groups`). With ``stride``, the
+    groups are those of frames of ``shape`` stacked every ``stride`` rows, and the border
+    is each frame's own.
     """
     if params.detach_kernel_px is None or params.max_pixels is None:
         return grouping
@@ -51,7 +54,7 @@ def detach_from_large(
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
     found: dict[int, Parts] = {}
     for part in _canvas_chunks(table, idx, kh):
-        found.update(_detach_parts(grouping, table, part, params, shape, kernel, kh))
+        found.update(_detach_parts(grouping, table, part, params, (shape, stride), kernel, kh))
     if not found:
         return grouping
     found = dict(sorted(found.items()))  # rings in table order
@@ -103,7 +106,7 @@ def _detach_parts(
     table: GroupTable,
     idx: NDArray[np.int64],
     params: DetectionParams,
-    shape: tuple[int, ...] | None,
+    frame: tuple[tuple[int, ...] | None, int | None],
     kernel: NDArray[np.uint8],
     kh: int,
 ) -> dict[int, Parts]:
@@ -118,7 +121,7 @@ def _detach_parts(
     ring = np.add.reduceat(np.count_nonzero(core, axis=1), top) > params.max_pixels
     if not ring.any():
         return {}
-    return _ring_parts(canvas, core, top, ring, table, idx, params, shape)
+    return _ring_parts(canvas, core, top, ring, table, idx, params, frame)
 
 
 def _ring_parts(
@@ -129,7 +132,7 @@ def _ring_parts(
     table: GroupTable,
     idx: NDArray[np.int64],
     params: DetectionParams,
-    shape: tuple[int, ...] | None,
+    frame: tuple[tuple[int, ...] | None, int | None],
 ) -> dict[int, Parts]:
     """The core and the marker-sized pieces of every LED ring that lost pieces to the
     opening, by table row (rings in table order). A ring with more pieces than
@@ -151,8 +154,11 @@ def _ring_parts(
     x0 = table.x1[idx] - 1
     y0 = table.y1[idx] - 1
     keep &= ring[crop]
+    shape, stride = frame  # the image's shape; rows between stacked frames, or None
     if shape is not None:  # slivers of a ring cut by the image border
         px, py = x0[crop] + left, y0[crop] + above
+        if stride:
+            py = py % stride
         keep &= (px > 0) & (py > 0) & (px + w < shape[1]) & (py + h < shape[0])
     # more pieces than a cluster of markers holds: a glare with specks along its edge,
     # not an LED ring with markers on it; left whole (and the cost stays bounded)

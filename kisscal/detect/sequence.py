@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from kisscal._shared import inherited, worker_pool
 from kisscal.detect.blobs import Blobs
 from kisscal.detect.params import DetectionParams
-from kisscal.detect.pipeline import DEFAULT_PARAMS, detect_blobs
+from kisscal.detect.pipeline import DEFAULT_PARAMS, STACK_PX, detect_frames
 from kisscal.errors import InputError, KisscalError
 
 #: Consecutive images a worker takes at a time (a video reader's sequential runs aside).
@@ -40,9 +40,26 @@ def _chunk(
     """Blobs of images ``start:stop`` of job ``job``, or the error that stopped them."""
     spec = jobs[job]
     try:
-        return [detect_blobs(spec.load(i), spec.params) for i in range(start, stop)], None
+        return _detected(spec, start, stop), None
     except KisscalError as exc:  # a bad frame fails its own sequence, not the others
         return [], exc  # its kind kept: it is raised again in the caller's process
+
+
+def _detected(spec: ImageJob, start: int, stop: int) -> list[Blobs]:
+    """Blobs of images ``start:stop`` of ``spec``, loaded and detected a stack at a time
+    (:func:`~kisscal.detect.pipeline.detect_frames`): at most :data:`STACK_PX` pixels
+    of images held at once, however long the range (a video worker's share)."""
+    out: list[Blobs] = []
+    held: list[NDArray] = []
+    pixels = 0
+    for i in range(start, stop):
+        image = spec.load(i)
+        if held and pixels + image.size > STACK_PX:
+            out += detect_frames(held, spec.params)
+            held, pixels = [], 0
+        held.append(image)
+        pixels += image.size
+    return out + detect_frames(held, spec.params)
 
 
 def _inherited_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], KisscalError | None]:
