@@ -29,9 +29,11 @@ from scipy.spatial import cKDTree
 
 from kisscal._shared import n_distinct
 from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.recon.claimed import claimed_pieces
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
     Solved,
+    embed_fields,
     first_per_key,
     merge_groups,
     near_cameras,
@@ -41,20 +43,9 @@ from kisscal.recon.group import (
 )
 from kisscal.recon.params import ReconParams
 
-#: Lab x offset (mm) per field, so that one k-d tree holds every field of a trial apart.
-_FIELD_SEPARATION_MM = 1e7
 #: Points of a neighbouring field tried as a point's previous (or next) position, nearest
 #: first: a marker moves less in one field than to beyond its third-nearest neighbour.
 _NEIGHBOURS = 4
-
-
-def embed_fields(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Points (3D in mm, or image points in px) with their field's offset in the first
-    coordinate (:data:`_FIELD_SEPARATION_MM` per field), so that one k-d tree holds the
-    points of every field of a trial apart."""
-    out = xyz.copy()
-    out[:, 0] += field * _FIELD_SEPARATION_MM
-    return out
 
 
 def continuity_mm(
@@ -287,6 +278,20 @@ def match_two_camera(
     judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
     won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
+    # a piece whose two rays other trajectories claim is a ghost: withdraw its pairs and
+    # let their blobs compete again (kisscal.recon.claimed)
+    for _ in range(_CLAIM_ROUNDS if judge_motion else 0):
+        claimed = np.flatnonzero(won)[
+            claimed_pieces(
+                a[won], b[won], xyz[won], m_xyz, m_field, (field, camera, uv), dlts, params
+            )
+        ]
+        if len(claimed) == 0:
+            break
+        keep = np.ones(len(a), dtype=bool)
+        keep[claimed] = False
+        a, b, xyz = a[keep], b[keep], xyz[keep]
+        won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     order = np.argsort(field[a[won]], kind="stable")
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids
@@ -307,6 +312,10 @@ def match_two_camera(
             solved,
         )
     return renumber(out, field), limit_px
+
+
+#: Rounds of withdrawing claimed pieces: each round frees the true pairs a ghost held.
+_CLAIM_ROUNDS = 5
 
 
 def _crowded(
