@@ -2,7 +2,7 @@
 
 A marker seen by only two cameras has no third view to verify it: any blob of the other
 camera within the epipolar band is as good a partner as the true one (Shafiq et al. 2001,
-4.1, accept the closest, which makes ghost markers). Two checks replace the third view:
+4.1, accept the closest, which makes ghost markers). Three checks replace the third view:
 
 * the pair must reproject within the trial's residual limit (the band of the
   multi-camera markers, not the matching band);
@@ -11,7 +11,12 @@ camera within the epipolar band is as good a partner as the true one (Shafiq et 
   at most ``two_camera_continuity_mm`` (:func:`continuity_mm`). A ghost pair is the
   crossing of two rays of different markers; it jumps when either marker moves, while a
   true marker moves smoothly (Küçük 2005, 3.4: the tracker's prediction gate, here with
-  a constant-velocity predictor over one field).
+  a constant-velocity predictor over one field);
+* the trajectory must not be made of rays that other trajectories claim: a piece of
+  pairs whose two rays, at its first or last field, lie on the predictions of two
+  trajectories that end there is two single-view markers whose rays cross and move
+  together (:mod:`kisscal.recon.claimed`); its pairs are withdrawn, the blobs compete
+  again.
 
 The check applies to every two-camera pair, ambiguous or not: a blob with a single
 candidate partner is not proof, because the true partner may be hidden (gait: one leg's
