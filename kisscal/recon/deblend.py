@@ -31,8 +31,8 @@ from kisscal.recon.epipolar import (
     epipolar_lines,
     pair_distances_px,
 )
-from kisscal.recon.group import near_cameras
-from kisscal.recon.pairs import choose_pairs, embed_fields
+from kisscal.recon.group import embed_fields, near_cameras
+from kisscal.recon.pairs import choose_pairs
 from kisscal.recon.params import ReconParams
 
 

@@ -14,6 +14,18 @@ from kisscal.dlt.model import camera_centre_mm
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 from kisscal.recon.params import ReconParams
 
+#: Lab x offset (mm) per field, so that one k-d tree holds every field of a trial apart.
+_FIELD_SEPARATION_MM = 1e7
+
+
+def embed_fields(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Points (3D in mm, or image points in px) with their field's offset in the first
+    coordinate (:data:`_FIELD_SEPARATION_MM` per field), so that one k-d tree holds the
+    points of every field of a trial apart."""
+    out = xyz.copy()
+    out[:, 0] += field * _FIELD_SEPARATION_MM
+    return out
+
 
 def renumber(marker: NDArray[np.int64], field: NDArray[np.int64]) -> NDArray[np.int64]:
     """Renumber markers 0..m-1 in order of (field, old id); -1 stays -1.

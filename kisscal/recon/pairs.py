@@ -2,7 +2,7 @@
 
 A marker seen by only two cameras has no third view to verify it: any blob of the other
 camera within the epipolar band is as good a partner as the true one (Shafiq et al. 2001,
-4.1, accept the closest, which makes ghost markers). Two checks replace the third view:
+4.1, accept the closest, which makes ghost markers). Three checks replace the third view:
 
 * the pair must reproject within the trial's residual limit (the band of the
   multi-camera markers, not the matching band);
@@ -11,7 +11,12 @@ camera within the epipolar band is as good a partner as the true one (Shafiq et 
   at most ``two_camera_continuity_mm`` (:func:`continuity_mm`). A ghost pair is the
   crossing of two rays of different markers; it jumps when either marker moves, while a
   true marker moves smoothly (Küçük 2005, 3.4: the tracker's prediction gate, here with
-  a constant-velocity predictor over one field).
+  a constant-velocity predictor over one field);
+* the trajectory must not be made of rays that other trajectories claim: a piece of
+  pairs whose two rays, at its first or last field, lie on the predictions of two
+  trajectories that end there is two single-view markers whose rays cross and move
+  together (:mod:`kisscal.recon.claimed`); its pairs are withdrawn, the blobs compete
+  again.
 
 The check applies to every two-camera pair, ambiguous or not: a blob with a single
 candidate partner is not proof, because the true partner may be hidden (gait: one leg's
@@ -29,9 +34,11 @@ from scipy.spatial import cKDTree
 
 from kisscal._shared import n_distinct
 from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.recon.claimed import claimed_pieces
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
     Solved,
+    embed_fields,
     first_per_key,
     merge_groups,
     near_cameras,
@@ -41,20 +48,9 @@ from kisscal.recon.group import (
 )
 from kisscal.recon.params import ReconParams
 
-#: Lab x offset (mm) per field, so that one k-d tree holds every field of a trial apart.
-_FIELD_SEPARATION_MM = 1e7
 #: Points of a neighbouring field tried as a point's previous (or next) position, nearest
 #: first: a marker moves less in one field than to beyond its third-nearest neighbour.
 _NEIGHBOURS = 4
-
-
-def embed_fields(xyz: NDArray[np.float64], field: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Points (3D in mm, or image points in px) with their field's offset in the first
-    coordinate (:data:`_FIELD_SEPARATION_MM` per field), so that one k-d tree holds the
-    points of every field of a trial apart."""
-    out = xyz.copy()
-    out[:, 0] += field * _FIELD_SEPARATION_MM
-    return out
 
 
 def continuity_mm(
@@ -287,6 +283,20 @@ def match_two_camera(
     judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
     won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
+    # a piece whose two rays other trajectories claim is a ghost: withdraw its pairs and
+    # let their blobs compete again (kisscal.recon.claimed)
+    for _ in range(_CLAIM_ROUNDS if judge_motion else 0):
+        claimed = np.flatnonzero(won)[
+            claimed_pieces(
+                a[won], b[won], xyz[won], m_xyz, m_field, (field, camera, uv), dlts, params
+            )
+        ]
+        if len(claimed) == 0:
+            break
+        keep = np.ones(len(a), dtype=bool)
+        keep[claimed] = False
+        a, b, xyz = a[keep], b[keep], xyz[keep]
+        won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     order = np.argsort(field[a[won]], kind="stable")
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids
@@ -307,6 +317,10 @@ def match_two_camera(
             solved,
         )
     return renumber(out, field), limit_px
+
+
+#: Rounds of withdrawing claimed pieces: each round frees the true pairs a ghost held.
+_CLAIM_ROUNDS = 5
 
 
 def _crowded(

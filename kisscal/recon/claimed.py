@@ -1,0 +1,191 @@
+"""Two-camera trajectories made of rays that other trajectories claim.
+
+Two markers each seen by one camera give two rays; when the rays cross within the
+epipolar band they make a point. When the two markers move together (the pelvis markers,
+a foot's markers) that point moves smoothly too, and passes the continuity check of
+:mod:`kisscal.recon.pairs` for as long as each marker stays seen by its one camera: a ghost
+trajectory, hundreds of millimetres from either marker. It begins (or ends) where the
+two markers lose (or gain) their second camera, so that at its first field the
+trajectories the markers leave behind predict positions on its rays, far from its point:
+the tracker's prediction explains each ray by another marker (Küçük 2005, 3.4: the
+constant-velocity prediction gate). A true marker's trajectory begins where its own
+trajectory is absent; its ray may pass by another marker's prediction only where the two
+images overlap.
+
+:func:`claimed_pieces` finds such pieces of two-camera points (points of one camera pair
+in consecutive fields, each within a field's step of the last) so that the caller can
+withdraw their pairs and let the blobs' true pairs compete again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from kisscal.dlt.model import pixel_size_mm, project_rows
+from kisscal.recon.group import embed_fields
+from kisscal.recon.params import ReconParams
+
+
+def pieces(
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    cams: NDArray[np.int64],
+    step_mm: float,
+) -> NDArray[np.int64]:
+    """Piece label of each two-camera point: points of one camera pair (``cams`` (n, 2))
+    in consecutive fields, each the nearest such point within ``step_mm`` of the last."""
+    n = len(xyz)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    key = cams[:, 0] * (cams.max() + 1) + cams[:, 1]
+    # one tree, fields and camera pairs kept apart
+    emb = embed_fields(xyz, field * (key.max() + 1) + key)
+    tree = cKDTree(emb)
+    nxt = embed_fields(xyz, (field + 1) * (key.max() + 1) + key)
+    d, j = tree.query(nxt, distance_upper_bound=step_mm)
+    ok = np.isfinite(d)
+    graph = coo_matrix((np.ones(int(ok.sum())), (np.flatnonzero(ok), j[ok])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def predictions(
+    xyz: NDArray[np.float64], field: NDArray[np.int64], step_mm: float, side: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Constant-velocity predictions of every point one field on (``side`` +1) or back
+    (-1): ``2 q - r`` with ``r`` the nearest point of the field before ``q`` (after, going
+    back) within ``step_mm``; ``q`` itself without one. Returns the predictions and their
+    fields."""
+    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
+    tree = cKDTree(embed_fields(xyz[ok], field[ok]))
+    d, j = tree.query(embed_fields(xyz[ok], field[ok] - side), distance_upper_bound=step_mm)
+    prev = np.where(np.isfinite(d)[:, None], xyz[ok][np.minimum(j, len(ok) - 1)], xyz[ok])
+    return 2.0 * xyz[ok] - prev, field[ok] + side
+
+
+def claimed_pieces(
+    a: NDArray[np.int64],
+    b: NDArray[np.int64],
+    xyz: NDArray[np.float64],
+    known_xyz: NDArray[np.float64],
+    known_field: NDArray[np.int64],
+    table: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]],
+    dlts: NDArray[np.float64],
+    params: ReconParams,
+) -> NDArray[np.bool_]:
+    """Which two-camera points lie on pieces whose rays other trajectories claim.
+
+    A ray (blob) is claimed at a piece's first (last) field when a trajectory absent
+    from that field (no point, known or two-camera, within the tolerance of its
+    prediction from the two fields before (after)) predicts a position within the
+    tolerance of the ray and farther than that from the piece's point. A piece is
+    withdrawn when its two rays are claimed by two different trajectories at either
+    end: one trajectory near both rays is the point's own, predicted a little off.
+    (One claimed ray was tried as enough: it withdrew true pieces wherever a marker's
+    ray passes another's prediction, and cost up to 13 points of recall.)
+
+    Parameters
+    ----------
+    a, b : ndarray of int, shape (n,)
+        The two blobs (rows of ``table``) of each two-camera point; ``xyz`` (n, 3) the
+        points.
+    known_xyz, known_field : ndarray
+        The markers that three or more cameras see.
+    table : tuple of ndarray
+        The trial's 2D table: field, camera and uv (linearised px) of each blob.
+    dlts : ndarray, shape (n_cameras, 11)
+    params : ReconParams
+        ``two_camera_step_mm`` (the reach of a piece from one field to the next) and
+        ``two_camera_continuity_mm`` (the tolerance).
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+        Points of withdrawn pieces.
+
+    References
+    ----------
+    Küçük, M. (2005). 3D reconstruction and tracking of markers (thesis), 3.4: the
+    constant-velocity prediction gate.
+    """
+    step_mm, tolerance_mm = params.two_camera_step_mm, params.two_camera_continuity_mm
+    t_field, camera, uv = table
+    field = t_field[a]
+    out = np.zeros(len(a), dtype=bool)
+    if len(a) == 0:
+        return out
+    label = pieces(xyz, field, np.column_stack([camera[a], camera[b]]), step_mm)
+    all_xyz = np.concatenate([known_xyz, xyz])
+    all_field = np.concatenate([known_field, field])
+    ok = np.all(np.isfinite(all_xyz), axis=1)
+    here = cKDTree(embed_fields(all_xyz[ok], all_field[ok]))
+    flagged = np.zeros(label.max() + 1, dtype=bool)
+    for side in (1, -1):  # the first field of a piece (from the field before), the last
+        ends = _piece_ends(label, field, side)
+        pred, p_field = predictions(all_xyz, all_field, step_mm, side)
+        gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
+        pred, p_field = pred[gone], p_field[gone]
+        if len(pred) == 0 or len(ends) == 0:
+            continue
+        hits = [
+            _claims(
+                blob[ends], xyz[ends], field[ends], pred, p_field, camera, uv, dlts, tolerance_mm
+            )
+            for blob in (a, b)
+        ]
+        ha, hb = hits[0] >= 0, hits[1] >= 0
+        # two different trajectories, one on each ray (one near both is the point's own)
+        claimed = np.any(
+            ha[:, :, None] & hb[:, None, :] & (hits[0][:, :, None] != hits[1][:, None, :]),
+            axis=(1, 2),
+        )
+        flagged[label[ends[claimed]]] = True
+    out[flagged[label]] = True
+    return out
+
+
+def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:
+    """Index of each piece's first point (``side`` +1) or last (-1)."""
+    order = np.lexsort((side * field, label))
+    first = np.r_[True, label[order][1:] != label[order][:-1]]
+    return order[first]
+
+
+def _claims(
+    blob: NDArray[np.int64],
+    point: NDArray[np.float64],
+    p_field: NDArray[np.int64],
+    pred: NDArray[np.float64],
+    pred_field: NDArray[np.int64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    dlts: NDArray[np.float64],
+    tolerance_mm: float,
+) -> NDArray[np.int64]:
+    """Per blob (of a point in ``p_field``), the predictions of its field (index, up to
+    three; -1 none) within ``tolerance_mm`` of the blob's ray and farther than that from
+    the point."""
+    k = 3  # a prediction per nearby trajectory
+    out = np.full((len(blob), k), -1, dtype=np.int64)
+    for c in np.unique(camera[blob]):
+        rows = np.flatnonzero(camera[blob] == c)
+        proj = project_rows(dlts, np.full(len(pred), c), pred)
+        fine = np.all(np.isfinite(proj), axis=1)
+        if not fine.any():
+            continue
+        tree = cKDTree(embed_fields(proj[fine], pred_field[fine]))
+        kk = min(k, int(fine.sum()))
+        _, j = tree.query(embed_fields(uv[blob[rows]], p_field[rows]), k=kk)
+        j = j.reshape(len(rows), kk)
+        cand = np.flatnonzero(fine)[np.minimum(j, int(fine.sum()) - 1)]
+        same = pred_field[cand] == p_field[rows][:, None]
+        q = pred[cand].reshape(-1, 3)
+        size = pixel_size_mm(dlts, np.full(len(q), c), q).reshape(cand.shape)
+        across = np.linalg.norm(proj[cand] - uv[blob[rows]][:, None], axis=2) * size
+        far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > tolerance_mm
+        hit = same & (across <= tolerance_mm) & far
+        out[rows, :kk] = np.where(hit, cand, -1)
+    return out

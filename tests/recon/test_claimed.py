@@ -1,0 +1,60 @@
+"""Ghost trajectories of two single-view markers whose rays cross (kisscal.recon.claimed)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.dlt.model import project
+from kisscal.recon import reconstruct_trial
+from kisscal.recon.claimed import pieces
+from kisscal.recon.epipolar import camera_centre_mm
+
+from .rig import make_rig
+
+
+def _table(dlts: np.ndarray, xyz: np.ndarray, seen: np.ndarray, seed: int) -> tuple:
+    """2D table of markers ``xyz`` (F, M, 3) where ``seen`` (F, M, C) says which camera
+    sees which marker, 0.05 px noise."""
+    rng = np.random.default_rng(seed)
+    f, m, c = np.nonzero(seen)
+    uv = np.array([project(dlts[k], xyz[i, j][None])[0] for i, j, k in zip(f, m, c, strict=True)])
+    return f, c, uv + rng.normal(0.0, 0.05, uv.shape)
+
+
+def test_crossing_rays_of_two_comoving_markers_that_lose_a_camera_make_no_ghost() -> None:
+    # markers A and B move together; camera 0's ray through A and camera 2's ray through B
+    # cross at G (about 200 mm from each) in every field. Fields 0-9: every camera sees
+    # both; 10-19: A seen by cameras 0 and 1, B by 1 and 2; from field 20 A by camera 0
+    # only and B by camera 2 only: the crossing is a smooth two-camera trajectory, but
+    # its rays are A's and B's, whose trajectories end where it begins
+    dlts = make_rig(7, n_cameras=3)
+    n = 40
+    g = np.array([-200.0, 0.0, 900.0]) + np.arange(n)[:, None] * [12.0, 2.0, 0.0]
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    a = c0 + 0.95 * (g - c0)
+    b = c2 + 1.05 * (g - c2)
+    xyz = np.stack([a, b], axis=1)
+    seen = np.zeros((n, 2, 3), dtype=bool)
+    seen[:10] = True
+    seen[10:20, 0, :2] = seen[10:20, 1, 1:] = True
+    seen[20:, 0, 0] = seen[20:, 1, 2] = True
+    field, camera, uv = _table(dlts, xyz, seen, 1)
+    pts = reconstruct_trial(field, camera, uv, dlts)
+    d = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2).min(axis=1)
+    assert not np.any(d > 10.0), f"ghost points in fields {np.unique(pts.field[d > 10.0])}"
+    near = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2) < 10.0
+    found = np.zeros((n, 2), dtype=bool)
+    point, marker = np.nonzero(near)
+    found[pts.field[point], marker] = True
+    assert found[:20].all(), "the markers' own pairs are kept"
+
+
+def test_pieces_follow_one_camera_pair_from_field_to_field() -> None:
+    field = np.array([0, 1, 2, 3, 1, 2, 5])
+    xyz = np.array(
+        [[0.0, 0, 0], [10, 0, 0], [20, 0, 0], [30, 0, 0], [0, 900, 0], [10, 0, 0], [40, 0, 0]]
+    )
+    cams = np.array([[0, 1]] * 4 + [[0, 1], [0, 2], [0, 1]])
+    label = pieces(xyz, field, cams, 300.0)
+    assert len(set(label[:4])) == 1  # one trajectory of cameras 0-1
+    assert len(set(label)) == 4  # too far, another camera pair, after a gap: apart
