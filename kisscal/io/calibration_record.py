@@ -9,8 +9,10 @@ these records, never the raw dicts.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
+
+from kisscal.io.files import lookup
 
 #: A value of a JSON document shown as it is (a number, a word, a yes/no).
 Scalar = int | float | str | bool
@@ -21,6 +23,12 @@ WAND_GROUPS = ("held_out", "held_out_rods_alone", "held_out_rod_markers", "axes"
 def _number(value: Any) -> int | float | None:
     """``value`` when it is a number (not a yes/no), as it is; else None."""
     return value if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def _numbers(cls: type, doc: Mapping[str, Any]) -> dict[str, int | float | None]:
+    """The numbers of ``doc`` named as the fields of dataclass ``cls`` that hold one."""
+    kinds = ("float | None", "int | None")
+    return {f.name: _number(doc.get(f.name)) for f in fields(cls) if f.type in kinds}
 
 
 @dataclass(frozen=True)
@@ -57,16 +65,11 @@ class LensModels:
     @classmethod
     def read(cls, doc: Mapping[str, Any] | None) -> LensModels | None:
         """The comparison in a camera's DLT document (None when it has none)."""
-        entry = (doc or {}).get("lens_models")
+        entry = lookup(doc, "lens_models")
         if not isinstance(entry, Mapping) or "models" not in entry:
             return None
         models = {
-            str(m): ModelScore(
-                str(v.get("model", m)),
-                _number(v.get("held_out_rms_px")),
-                _number(v.get("held_out_3d_rms_mm")),
-                _number(v.get("in_sample_rms_px")),
-            )
+            str(m): ModelScore(str(v.get("model", m)), **_numbers(ModelScore, v))
             for m, v in entry["models"].items()
         }
         return cls(
@@ -151,17 +154,13 @@ class TargetRecord:
     @classmethod
     def read(cls, doc: Any) -> TargetRecord | None:
         """The record of a ``target.json`` document (None when it matched no camera)."""
-        cams = doc.get("cameras") if isinstance(doc, Mapping) else None
+        cams = lookup(doc, "cameras")
         if not isinstance(cams, Mapping) or not cams:
             return None
         return cls(
             {
                 str(c): TargetCamera(
-                    _number(e.get("visible")),
-                    _number(e.get("matched")),
-                    len(e.get("unmatched") or ()),
-                    _number(e.get("rms_px")),
-                    _number(e.get("seed_rms_px")),
+                    unmatched=len(e.get("unmatched") or ()), **_numbers(TargetCamera, e)
                 )
                 for c, e in cams.items()
                 if isinstance(e, Mapping)

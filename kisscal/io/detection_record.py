@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -142,19 +142,19 @@ def _kind(entry: Mapping[str, Any], where: str) -> KindRecord:
     ):
         raise InputError(f"{where}: each setting needs a value")
     band = entry.get("marker_pixels") or (0, 0)
+    scalars = {
+        f.name: type(f.default)(entry[f.name])
+        for f in fields(KindRecord)
+        if isinstance(f.default, int | float | str) and f.name in entry
+    }
     return KindRecord(
         settings={
             k: Setting(s["value"], str(s.get("source", "given")), str(s.get("why", "")))
             for k, s in settings.items()
         },
-        key=str(entry.get("key", "")),
-        frames_surveyed=int(entry.get("frames_surveyed", 0)),
-        bits=int(entry.get("bits", 8)),
-        background=float(entry.get("background", math.nan)),
-        noise_sigma=float(entry.get("noise_sigma", math.nan)),
-        background_unevenness=float(entry.get("background_unevenness", math.nan)),
         marker_pixels=(int(band[0]), int(band[1])),
         notes=tuple(str(n) for n in entry.get("notes", ())),
+        **scalars,
     )
 
 

@@ -92,6 +92,19 @@ def read_json(path: Path) -> Any:
         raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
 
 
+def lookup(doc: Any, *keys: str) -> Any:
+    """``doc[k1][k2]...`` of a JSON document, None where a level is missing or not a table.
+
+    Examples
+    --------
+    >>> lookup({"a": {"b": 1}}, "a", "b"), lookup({"a": 1}, "a", "b")
+    (1, None)
+    """
+    for key in keys:
+        doc = doc.get(key) if isinstance(doc, Mapping) else None
+    return doc
+
+
 def write_json(path: Path, obj: object) -> None:
     write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
 

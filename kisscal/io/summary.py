@@ -6,18 +6,17 @@ the report falls back on it when ``summary.json`` is missing (a stage run alone)
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from kisscal.io.calibration_record import LensModels
 from kisscal.io.config import load_session
-from kisscal.io.files import read_table
+from kisscal.io.files import lookup, read_json, read_table
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.tracking.tracks import STATUS_NAMES
 
@@ -33,7 +32,7 @@ def summarise(root: Path) -> dict[str, Any]:
     warnings = [
         f"{name}: {line}"
         for name, entry in trials.items()
-        for line in entry.get("reconstruction", {}).get("warnings", [])
+        for line in lookup(entry, "reconstruction", "warnings") or []
     ]
     summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
     summary["held_out"] = held_out_figures(check)
@@ -58,12 +57,9 @@ def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
         out["held_out_points"] = check["held_out_points"]
         out["held_out_points_mean_mm"] = check["leave_out_mean_mm"]
         out["held_out_points_max_mm"] = check.get("leave_out_max_mm")
-    wand = (check.get("wand_held_out") or {}).get("length_rms_error_mm")
-    if wand is not None:
-        out["wand_length_rms_error_mm"] = wand
-    alone = (check.get("wand_held_out_rods_alone") or {}).get("length_rms_error_mm")
-    if alone is not None:
-        out["rods_alone_wand_length_rms_error_mm"] = alone
+    for key, group in (("", "wand_held_out"), ("rods_alone_", "wand_held_out_rods_alone")):
+        if (rms := lookup(check, group, "length_rms_error_mm")) is not None:
+            out[f"{key}wand_length_rms_error_mm"] = rms
     if "lens_models" in check:
         out["camera_model"] = check["lens_models"]
     return out
@@ -71,26 +67,21 @@ def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
 
 def _calibration_summary(store: SessionStore) -> dict[str, Any]:
     """The calibration route, and the wand's or target's own figures when there are any."""
-    entry: dict[str, Any] = {}
-    record = store.calibration_doc("calibration")
-    if record is not None:
-        entry["calibration"] = {"route": record.get("route")}
-    for name in ("wand", "target"):
-        doc = store.calibration_doc(name)
-        if doc is not None:
-            entry[name] = doc
-    return entry
+    docs = {name: store.calibration_doc(name) for name in ("calibration", "wand", "target")}
+    if docs["calibration"] is not None:
+        docs["calibration"] = {"route": docs["calibration"].get("route")}
+    return {name: doc for name, doc in docs.items() if doc is not None}
 
 
 def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> dict[str, Any]:
     entry: dict[str, Any] = {}
-    fit = exports.get("cameras_toml", {}).get(cam)
-    lens = exports.get("dltdv", {}).get("lens_error", {}).get(cam)
+    fit = lookup(exports, "cameras_toml", cam)
+    lens = lookup(exports, "dltdv", "lens_error", cam)
     if fit or lens:  # how closely cameras.toml / dltdv.csv follow this camera (px)
         entry["export"] = {
-            "opencv_fit_rms_px": (fit or {}).get("rms_px"),
-            "opencv_fit_max_px": (fit or {}).get("max_px"),
-            "dltdv_corner_error_px": max((lens or {}).get("corners_px", [0.0]) or [0.0]),
+            "opencv_fit_rms_px": lookup(fit, "rms_px"),
+            "opencv_fit_max_px": lookup(fit, "max_px"),
+            "dltdv_corner_error_px": max(lookup(lens, "corners_px") or [0.0]),
         }
     doc = store.linearisation_doc(cam)
     if doc is not None:
@@ -102,11 +93,7 @@ def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> d
         entry["detection"] = {kind: r.values() for kind, r in record.kinds.items()}
     doc = store.read_json(store.dlt_path(cam))
     if doc is not None:
-        entry["dlt"] = {
-            "method": doc.get("method"),
-            "rms_px": doc.get("rms_px"),
-            "centre_mm": doc.get("centre_mm"),
-        }
+        entry["dlt"] = {k: doc.get(k) for k in ("method", "rms_px", "centre_mm")}
         models = LensModels.read(doc)
         if models is not None:  # the held-out reprojection error of each model compared
             entry["dlt"]["model"] = models.chosen
@@ -116,14 +103,8 @@ def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> d
 
 
 def _trial_summary(files: TrialFiles) -> dict[str, Any]:
-    entry: dict[str, Any] = {}
-    for name, path in (
-        ("tracking", files.tracking),
-        ("reconstruction", files.recon),
-        ("gait", files.gait),
-    ):
-        if path.is_file():
-            entry[name] = json.loads(path.read_text())
+    docs = {"tracking": files.tracking, "reconstruction": files.recon, "gait": files.gait}
+    entry: dict[str, Any] = {name: read_json(path) for name, path in docs.items() if path.is_file()}
     if files.trajectories().is_file():
         tr = read_table(files.trajectories())
         labels = sorted(set(tr["label"].tolist()))
@@ -145,11 +126,42 @@ def _float(value: Any) -> float:
         return math.nan
 
 
-def _entry(doc: Any, *keys: str) -> dict[str, Any]:
-    """``doc[k1][k2]...``, an empty dict where a level is missing or not a table."""
-    for key in keys:
-        doc = doc.get(key) if isinstance(doc, Mapping) else None
-    return dict(doc) if isinstance(doc, Mapping) else {}
+def _str(value: Any) -> str | None:
+    return None if value is None else str(value)
+
+
+def _centre(value: Any) -> tuple[float, ...] | None:
+    return (
+        tuple(map(_float, value)) if isinstance(value, list | tuple) and len(value) == 3 else None
+    )
+
+
+#: How a figure of a summary entry becomes a record's field, after the field's declared
+#: type: the one place where a figure not measured gets its missing value.
+_AS: dict[str, Callable[[Any], Any]] = {
+    "float": _float,
+    "int | None": lambda v: None if v is None else int(v),
+    "str | None": _str,
+    "bool": bool,
+    "tuple[str, ...]": lambda v: tuple(map(str, v or ())),
+    "tuple[int, ...] | None": lambda v: None if v is None else tuple(map(int, v)),
+    "tuple[float, float, float] | None": _centre,
+}
+_R = TypeVar("_R")
+
+
+def _key(*path: str) -> Any:
+    """A record's field read at ``path`` of its summary entry (see :func:`_read`)."""
+    return field(metadata={"path": path})
+
+
+def _read(cls: type[_R], doc: Any, **given: Any) -> _R:
+    """Record ``cls`` from a summary entry: each field not ``given`` read at its path (its
+    own name by default), converted after its declared type by :data:`_AS`."""
+    for f in fields(cls):  # type: ignore[arg-type]
+        if f.name not in given:
+            given[f.name] = _AS[str(f.type)](lookup(doc, *f.metadata.get("path", (f.name,))))
+    return cls(**given)
 
 
 @dataclass(frozen=True)
@@ -160,34 +172,19 @@ class CameraFigures:
     """
 
     grid: bool
-    grid_rms_px_before: float
-    grid_rms_px: float
-    dots_used: int | None
-    dlt_method: str | None
-    dlt_rms_px: float
-    centre_mm: tuple[float, float, float] | None
-    exported: bool
-    export_fit_rms_px: float
+    grid_rms_px_before: float = _key("grid", "rms_px_before")
+    grid_rms_px: float = _key("grid", "rms_px")
+    dots_used: int | None = _key("grid", "dots_used")
+    dlt_method: str | None = _key("dlt", "method")
+    dlt_rms_px: float = _key("dlt", "rms_px")
+    centre_mm: tuple[float, float, float] | None = _key("dlt", "centre_mm")
+    exported: bool = _key("export")
+    export_fit_rms_px: float = _key("export", "opencv_fit_rms_px")
 
     @classmethod
     def read(cls, summary: Mapping[str, Any], camera: str) -> CameraFigures:
         """The figures of ``camera`` in a summary (all missing when it has none)."""
-        entry = _entry(summary, "cameras", camera)
-        grid, dlt, export = _entry(entry, "grid"), _entry(entry, "dlt"), _entry(entry, "export")
-        centre = dlt.get("centre_mm")
-        ok = isinstance(centre, list | tuple) and len(centre) == 3
-        dots = grid.get("dots_used")
-        return cls(
-            grid=bool(grid),
-            grid_rms_px_before=_float(grid.get("rms_px_before")),
-            grid_rms_px=_float(grid.get("rms_px")),
-            dots_used=int(dots) if isinstance(dots, int | float) else None,
-            dlt_method=dlt.get("method"),
-            dlt_rms_px=_float(dlt.get("rms_px")),
-            centre_mm=tuple(map(_float, centre)) if ok else None,  # type: ignore[arg-type]
-            exported="export" in entry,
-            export_fit_rms_px=_float(export.get("opencv_fit_rms_px")),
-        )
+        return _read(cls, lookup(summary, "cameras", camera))
 
 
 @dataclass(frozen=True)
@@ -196,34 +193,21 @@ class TrialFigures:
     and why the trial failed (``failed_trials``) if it did."""
 
     processed: bool
-    points: int | None
-    fields: int | None
-    rms_px_median: float
-    points_by_n_cameras: tuple[int, ...] | None
-    fits_marker_set: bool
-    missing: tuple[str, ...]
-    flagged: tuple[str, ...]
+    points: int | None = _key("reconstruction", "points")
+    fields: int | None = _key("reconstruction", "fields")
+    rms_px_median: float = _key("reconstruction", "rms_px_median")
+    points_by_n_cameras: tuple[int, ...] | None = _key("reconstruction", "points_by_n_cameras")
+    fits_marker_set: bool = _key("tracking", "fits_marker_set")
+    missing: tuple[str, ...] = _key("tracking", "missing")
+    flagged: tuple[str, ...] = _key("tracking", "flagged")
     failed: str | None
 
     @classmethod
     def read(cls, summary: Mapping[str, Any], trial: str) -> TrialFigures:
         """The figures of ``trial`` in a summary (not processed when it has none)."""
-        processed = trial in _entry(summary, "trials")
-        recon = _entry(summary, "trials", trial, "reconstruction")
-        tracking = _entry(summary, "trials", trial, "tracking")
-        by_n = recon.get("points_by_n_cameras")
-        failed = _entry(summary, "failed_trials").get(trial)
-        return cls(
-            processed=processed,
-            points=int(recon["points"]) if recon.get("points") is not None else None,
-            fields=int(recon["fields"]) if recon.get("fields") else None,
-            rms_px_median=_float(recon.get("rms_px_median")),
-            points_by_n_cameras=tuple(int(n) for n in by_n) if by_n is not None else None,
-            fits_marker_set=bool(tracking.get("fits_marker_set", False)),
-            missing=tuple(tracking.get("missing", ())),
-            flagged=tuple(tracking.get("flagged", ())),
-            failed=str(failed) if failed else None,
-        )
+        entry = lookup(summary, "trials", trial)
+        failed = lookup(summary, "failed_trials", trial)
+        return _read(cls, entry, processed=entry is not None, failed=_str(failed or None))
 
 
 @dataclass(frozen=True)
@@ -242,10 +226,10 @@ class RigCheck:
     """The calibration's 3D check (``dlt/check.json``, ``rods`` in ``summary.json``),
     typed: rod markers in the fit, each rod held out, target points held out (mm)."""
 
-    in_sample_mean_mm: float
-    in_sample_max_mm: float
-    leave_one_rod_out_mean_mm: float
-    leave_one_rod_out_max_mm: float
+    in_sample_mean_mm: float = _key("rods_in_sample_mean_mm")
+    in_sample_max_mm: float = _key("rods_in_sample_max_mm")
+    leave_one_rod_out_mean_mm: float = _key("leave_one_rod_out", "mean_mm")
+    leave_one_rod_out_max_mm: float = _key("leave_one_rod_out", "max_mm")
     per_rod: tuple[RodHeldOut, ...]
     held_out_points: int | None
     leave_out_mean_mm: float
@@ -254,27 +238,13 @@ class RigCheck:
     @classmethod
     def read(cls, summary: Mapping[str, Any]) -> RigCheck:
         """The check of a summary (every figure NaN when the calibration has none)."""
-        rods = _entry(summary, "rods")
-        loo = _entry(rods, "leave_one_rod_out")
-        per_rod = tuple(
-            RodHeldOut(
-                str(name),
-                int(r["n_markers"]) if r.get("n_markers") is not None else None,
-                _float(r.get("mean_mm")),
-                _float(r.get("max_mm")),
-                _float(r.get("rods_alone_mean_mm")),
-            )
-            for name, r in _entry(loo, "per_rod").items()
-            if isinstance(r, Mapping)
-        )
-        held = rods.get("held_out_points")
-        return cls(
-            in_sample_mean_mm=_float(rods.get("rods_in_sample_mean_mm")),
-            in_sample_max_mm=_float(rods.get("rods_in_sample_max_mm")),
-            leave_one_rod_out_mean_mm=_float(loo.get("mean_mm")),
-            leave_one_rod_out_max_mm=_float(loo.get("max_mm")),
-            per_rod=per_rod,
-            held_out_points=int(held) if held is not None else None,
-            leave_out_mean_mm=_float(rods.get("leave_out_mean_mm")),
-            leave_out_max_mm=_float(rods.get("leave_out_max_mm")),
+        rods = lookup(summary, "rods")
+        per_rod = lookup(rods, "leave_one_rod_out", "per_rod")
+        per_rod = per_rod.items() if isinstance(per_rod, Mapping) else ()
+        return _read(
+            cls,
+            rods,
+            per_rod=tuple(
+                _read(RodHeldOut, r, name=str(n)) for n, r in per_rod if isinstance(r, Mapping)
+            ),
         )

@@ -113,37 +113,20 @@ class SessionOutputs:
         return TrialFigures.read(self.summary, trial)
 
 
-def _noted(notes: list[str], read: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-    """``read(*args, **kwargs)``, or None with a note when the file cannot be read."""
+def _noted(
+    notes: list[str], read: Callable[..., Any], *args: Any, note: str = "{}", **kwargs: Any
+) -> Any:
+    """``read(*args, **kwargs)``, or None with a note (``note`` around the error) when the
+    file cannot be read."""
     try:
         return read(*args, **kwargs)
     except (KisscalError, OSError) as exc:
-        notes.append(str(exc))
+        notes.append(note.format(exc))
         return None
 
 
 def _table(path: Path, notes: list[str]) -> Any:
     return _noted(notes, read_table, path, numeric=()) if path.is_file() else None
-
-
-def _config(root: Path, notes: list[str]) -> Any:
-    try:
-        return load_session(root)
-    except (KisscalError, OSError) as exc:
-        notes.append(f"session.toml not read ({exc}); names come from summary.json")
-        return None
-
-
-def _summary_from_outputs(root: Path, have_config: bool, notes: list[str]) -> dict[str, Any]:
-    """Without ``summary.json`` (a stage run on its own), the figures read from ``out/``."""
-    if not have_config:
-        return {}
-
-    try:
-        return summarise(root)
-    except (KisscalError, OSError) as exc:
-        notes.append(f"summary.json missing and outputs not read ({exc})")
-        return {}
 
 
 def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
@@ -200,10 +183,13 @@ def gather(root: Path, params: ReportParams | None = None) -> SessionOutputs:
     root = Path(root)
     store = SessionStore(root)
     notes: list[str] = []
-    config = _config(root, notes)
+    note = "session.toml not read ({}); names come from summary.json"
+    config = _noted(notes, load_session, root, note=note)
     summary = _noted(notes, store.read_json, store.summary_path)
-    if summary is None:
-        summary = _summary_from_outputs(root, config is not None, notes)
+    if summary is None and config is not None:  # a stage run on its own: read from out/
+        note = "summary.json missing and outputs not read ({})"
+        summary = _noted(notes, summarise, root, note=note)
+    summary = summary or {}
     if config is not None:
         cameras, trials = config.camera_ids, tuple(t.name for t in config.trials)
         names, segments = _marker_names(config, notes)

@@ -12,6 +12,7 @@ import numpy as np
 from kisscal._text import plural
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
+from kisscal.io.summary import CameraFigures, RigCheck, TrialFigures
 from kisscal.session.report import report
 from kisscal.session.run import run
 from kisscal.session.synth import evaluate, synthesise
@@ -53,18 +54,17 @@ def _print_summary(summary: dict[str, Any], echo: Echo) -> None:
     echo("")
     echo(f"kisscal demo: {summary['session']} ({summary['timings']['total_s']} s)")
     echo(f"{'camera':<8}{'grid rms px':>12}{'DLT rms px':>12}")
-    for cam, entry in summary["cameras"].items():
-        g = entry.get("grid", {}).get("rms_px", float("nan"))
-        d = entry.get("dlt", {}).get("rms_px", float("nan"))
-        echo(f"{cam:<8}{g:>12.3f}{d:>12.3f}")
-    rods = summary.get("rods", {})
-    if rods:
-        loo = rods.get("leave_one_rod_out", {}).get("mean_mm", float("nan"))
-        in_sample = rods.get("rods_in_sample_mean_mm", float("nan"))
-        echo(f"rod markers, 3D error in-sample {in_sample:.3f} mm, leave-one-rod-out {loo:.3f} mm")
+    for cam in summary["cameras"]:
+        f = CameraFigures.read(summary, cam)
+        echo(f"{cam:<8}{f.grid_rms_px:>12.3f}{f.dlt_rms_px:>12.3f}")
+    if summary.get("rods"):
+        rig = RigCheck.read(summary)
+        echo(
+            f"rod markers, 3D error in-sample {rig.in_sample_mean_mm:.3f} mm, "
+            f"leave-one-rod-out {rig.leave_one_rod_out_mean_mm:.3f} mm"
+        )
     for trial, t in summary["truth"].items():
-        tracking = summary.get("trials", {}).get(trial, {}).get("tracking", {})
-        echo(_trial_line(trial, t, bool(tracking.get("fits_marker_set"))))
+        echo(_trial_line(trial, t, TrialFigures.read(summary, trial).fits_marker_set))
 
 
 def _trial_line(trial: str, t: dict[str, Any], labelled: bool) -> str:
