@@ -292,9 +292,9 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
     markers = check.get("held_out_rod_markers", {})
     if "wand_rms_mm" in markers:
         echo(
-            f"  held-out rod markers ({markers['markers']}, every "
-            f"{wand_params(inputs).judge_folds}th left out in turn): RMS 3D error "
-            f"{markers['wand_rms_mm']:.3f} mm (rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
+            f"  held-out rod markers ({markers['markers']}, each left out of both "
+            f"calibrations): RMS 3D error {markers['wand_rms_mm']:.3f} mm "
+            f"(rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
         )
     if check.get("kept") == "rods":
         failed = [
