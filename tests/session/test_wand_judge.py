@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -12,15 +14,18 @@ from kisscal.session.routes.wand_judge import (
     Judgement,
     LengthEvidence,
     length_evidence,
+    markers_burden,
     paired_errors,
     rods_held_out,
 )
 from tests.dlt.conftest import kiss_rig, rod_xyz
 
 
-def _judgement(wand_mm: np.ndarray, rods_mm: np.ndarray, length_diff: float) -> Judgement:
+def _judgement(
+    wand_mm: np.ndarray, rods_mm: np.ndarray, length_diff: float, burden: float = 0.0
+) -> Judgement:
     length = LengthEvidence(0.5, 0.5, length_diff, 0.01)
-    return Judgement(paired_errors(wand_mm, rods_mm), length, 2.0)
+    return Judgement(paired_errors(wand_mm, rods_mm), length, 2.0, burden)
 
 
 def test_the_paired_errors_compare_the_same_markers_only() -> None:
@@ -48,16 +53,32 @@ def test_the_wand_is_kept_only_better_on_held_out_markers_and_not_worse_in_lengt
         verdicts = judgement.as_dict()
         assert verdicts["held_out_rod_markers_rms_mm"]["asks"] == "better"
         assert verdicts["held_out_wand_length_rms_error_mm"]["wand_passes"] == (length_diff <= 0.02)
-    # lower on average but by less than two standard errors: not told from worse
+    # lower on average but by less than two standard errors: not told from worse when
+    # the rods' model has more unknowns than the wand's (the wand was kept on this before)
     d = -0.0002 + 0.002 * (-1.0) ** np.arange(24)
-    close = _judgement(np.sqrt(rods**2 + d), rods, 0.0)
-    assert close.markers.mean_difference_mm2 < 0.0  # the wand was kept on this before
+    close = _judgement(np.sqrt(rods**2 + d), rods, 0.0, burden=2.0)
+    assert close.markers.mean_difference_mm2 < 0.0
     assert close.kept == "rods"
-    assert not close.as_dict()["held_out_rod_markers_rms_mm"]["wand_passes"]
+    verdict = close.as_dict()["held_out_rod_markers_rms_mm"]
+    assert not verdict["wand_passes"] and verdict["sigmas"] == 2.0
+    assert _judgement(np.sqrt(rods**2 + d), rods, 0.0).kept == "wand"
     # nothing to judge by: the rods' calibration stays
     assert _judgement(rods[:1], rods[:1], 0.0).kept == "rods"
     # markers better, length not measured: the markers decide
     assert Judgement(paired_errors(0.8 * rods, rods), None, 2.0).kept == "wand"
+
+
+def test_the_burden_of_proof_follows_the_lens_terms_of_either_side() -> None:
+    def rods(*terms: int) -> SimpleNamespace:
+        lens = [None if t < 0 else np.r_[np.ones(t), np.zeros(5 - t)] for t in terms]
+        return SimpleNamespace(
+            results={f"c{i}": SimpleNamespace(lens=x) for i, x in enumerate(lens)}
+        )
+
+    assert markers_burden(rods(5, 5), 3, 2.0) == 2.0  # L12..L16 against the wand's L12..L14
+    assert markers_burden(rods(1, 1), 3, 2.0) == 0.0  # one radial term
+    assert markers_burden(rods(-1, -1), 0, 2.0) == 0.0  # pinholes both
+    assert markers_burden(rods(1, -1), 0, 2.0) == 2.0  # the wand not resected
 
 
 def test_the_length_evidence_is_read_from_the_wand_record() -> None:

@@ -44,6 +44,7 @@ from kisscal.session.routes.wand_judge import (
     PairedErrors,
     held_out_markers,
     length_evidence,
+    markers_burden,
 )
 
 ROUTE = "wand"
@@ -106,8 +107,13 @@ def write_wand_outputs(
         wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"] = markers.as_dict()
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
+    params = wand_params(inputs)
+    burden = 0.0
+    if rod_cal is not None:
+        terms = params.resect_terms if cal.resected is not None else 0
+        burden = markers_burden(rod_cal, terms, params.keep_sigmas)
     judgement = Judgement(
-        markers or PairedErrors(0), length_evidence(wand_doc), wand_params(inputs).keep_sigmas
+        markers or PairedErrors(0), length_evidence(wand_doc), params.keep_sigmas, burden
     )
     check["judges"] = judgement.as_dict()
     wand_doc["kept"] = check["kept"] = judgement.kept if rod_cal is not None else "wand"
