@@ -76,14 +76,16 @@ class BundleParams(Params):
         Fraction of wand fields left out of the adjustment for the held-out wand length
         error (0: none).
     keep_sigmas : float
-        On rods, the wand's calibration is not kept when its held-out wand length errors
-        (squared, field by field) are above those of the rods' calibration on the same
-        fields by more than this many standard errors of their mean difference.
+        On rods, when the rods' cameras carry more lens terms than the wand's, the wand's
+        calibration is kept only when its held-out rod markers' squared 3D errors are
+        below those of the rods' calibration by more than this many standard errors of
+        their mean difference; it is not kept when its held-out wand length errors
+        (squared, field by field) are above the rods' on the same fields by more than as
+        many (:mod:`kisscal.session.routes.wand_judge`).
     judge_folds : int
-        On rods, every ``judge_folds``-th marker of each rod is left out in turn and
-        reconstructed by the wand's and the rods' calibrations fitted without it; the
-        wand's calibration is kept only when those held-out markers' squared 3D errors are
-        lower on average (:mod:`kisscal.session.routes.wand_judge`).
+        On rods, every ``judge_folds``-th marker of each rod is left out of the wand's
+        adjustment in turn and reconstructed by the cameras adjusted without it (the
+        rods' calibration leaves its markers out one at a time).
     control_weight : float
         Weight of a control point's (rod marker's) squared residual against a wand
         observation's. 0: their noise variances' inverse ratio, estimated from the rods'

@@ -44,6 +44,7 @@ from kisscal.session.routes.wand_judge import (
     PairedErrors,
     held_out_markers,
     length_evidence,
+    markers_burden,
 )
 
 ROUTE = "wand"
@@ -106,8 +107,13 @@ def write_wand_outputs(
         wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"] = markers.as_dict()
     if frame is not None:
         wand_doc["axes"] = _axes_entry(frame, ids)
+    params = wand_params(inputs)
+    burden = 0.0
+    if rod_cal is not None:
+        terms = params.resect_terms if cal.resected is not None else 0
+        burden = markers_burden(rod_cal, terms, params.keep_sigmas)
     judgement = Judgement(
-        markers or PairedErrors(0), length_evidence(wand_doc), wand_params(inputs).keep_sigmas
+        markers or PairedErrors(0), length_evidence(wand_doc), params.keep_sigmas, burden
     )
     check["judges"] = judgement.as_dict()
     wand_doc["kept"] = check["kept"] = judgement.kept if rod_cal is not None else "wand"
@@ -292,9 +298,9 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
     markers = check.get("held_out_rod_markers", {})
     if "wand_rms_mm" in markers:
         echo(
-            f"  held-out rod markers ({markers['markers']}, every "
-            f"{wand_params(inputs).judge_folds}th left out in turn): RMS 3D error "
-            f"{markers['wand_rms_mm']:.3f} mm (rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
+            f"  held-out rod markers ({markers['markers']}, each left out of both "
+            f"calibrations): RMS 3D error {markers['wand_rms_mm']:.3f} mm "
+            f"(rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
         )
     if check.get("kept") == "rods":
         failed = [
