@@ -1,0 +1,114 @@
+"""Which of two window matches to keep: a body turned round never wins.
+
+With few cameras the first window is often short, and its average pose can fit the
+template as well turned round about the vertical (heels named toes, left named right,
+the sacrum named an ASIS): such a body is proper (no mirror image), its distances nearly
+the template's, and a few points added near a marker tip one way or the other. The
+walk can tell: a subject walks forward, so toe markers lie ahead of heel markers, and
+anterior pelvis markers ahead of posterior ones, along the direction the body moves
+(lab Z up, as :mod:`~kisscal.tracking.labelling.anatomy` assumes).
+:func:`facing` measures that for a match; :func:`better` keeps the match that faces
+forward, else the one naming more pieces if it agrees with the other's names.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.labelling.state import LabelState
+
+#: The body moves at least this far (mm, horizontally) through a window for its
+#: walking direction to count.
+MIN_TRAVEL_MM = 100.0
+#: A match whose front names lie ahead of their back names in at least this fraction of
+#: the votes faces forward; in at most 1 - FACING of them it is turned round.
+FACING = 2 / 3
+_HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
+_FRONT = re.compile(r"ASI")
+_BACK = re.compile(r"PSI|SACR?$")
+
+
+def front_back_pairs(names: tuple[str, ...]) -> tuple[tuple[int, int], ...]:
+    """(front, back) name pairs the naming convention gives: ``<side>TOE`` ahead of
+    ``<side>HEE`` (or ``HEEL``, ``CAL``), each ``*ASI*`` ahead of each ``*PSI*`` or
+    ``SACR``."""
+    index = {n: i for i, n in enumerate(names)}
+    pairs = []
+    for n in names:
+        m = _HEEL.match(n)
+        if m and m.group(1) + "TOE" in index:
+            pairs.append((index[m.group(1) + "TOE"], index[n]))
+    front = [i for i, n in enumerate(names) if _FRONT.search(n)]
+    back = [i for i, n in enumerate(names) if _BACK.search(n)]
+    pairs += [(f, b) for f in front for b in back]
+    return tuple(pairs)
+
+
+def facing(state: LabelState, core: NDArray | None, assign: NDArray, rich: NDArray) -> float:
+    """Fraction of (front/back pair, field) votes in which a match's front-named piece
+    lies ahead of its back-named one along the walking direction (NaN without a vote:
+    no such pair named, or the body does not travel :data:`MIN_TRAVEL_MM`).
+
+    The walking direction is the median horizontal displacement of the core pieces
+    from the first to the last third of the fields ``rich`` span.
+    """
+    pairs = front_back_pairs(state.names)
+    if core is None or not pairs or rich.size < 3:
+        return float("nan")
+    row = {int(j): int(core[k]) for k, j in enumerate(assign) if j >= 0}
+    pairs = [(row[a], row[b]) for a, b in pairs if a in row and b in row]
+    if not pairs:
+        return float("nan")
+    third = max((rich[-1] - rich[0] + 1) // 3, 1)
+    early = state.dense[core, rich[0] : rich[0] + third, :2]
+    late = state.dense[core, rich[-1] + 1 - third : rich[-1] + 1, :2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pieces unseen in a third
+        travel = np.nanmedian(np.nanmean(late, axis=1) - np.nanmean(early, axis=1), axis=0)
+    if not np.all(np.isfinite(travel)) or np.linalg.norm(travel) < MIN_TRAVEL_MM:
+        return float("nan")
+    front, back = np.array(pairs).T
+    ahead = (state.dense[np.ix_(front, rich)] - state.dense[np.ix_(back, rich)])[..., :2]
+    votes = ahead @ travel
+    votes = votes[np.isfinite(votes)]
+    return float(np.mean(votes > 0)) if votes.size else float("nan")
+
+
+def _side(value: float) -> int:
+    """+1 facing forward, -1 turned round, 0 unknown."""
+    if value >= FACING:
+        return 1
+    return -1 if value <= 1 - FACING else 0
+
+
+def agrees(found_core: NDArray, found_assign: NDArray, core: NDArray, assign: NDArray) -> bool:
+    """Whether a match (``core``, ``assign``) gives another's names to most of the pieces
+    both name (True when they share none)."""
+    named = dict(zip(found_core[found_assign >= 0], found_assign[found_assign >= 0], strict=True))
+    shared = [(named[k], j) for k, j in zip(core, assign, strict=True) if j >= 0 and k in named]
+    return not shared or 2 * sum(x == y for x, y in shared) > len(shared)
+
+
+def better(state: LabelState, found, other) -> bool:
+    """Whether window match ``other`` should replace ``found``
+    (:class:`~kisscal.tracking.labelling.window.WindowMatch` both).
+
+    A match facing forward (:func:`facing`) beats one turned round, whatever they name;
+    otherwise ``other`` must name more pieces and agree with ``found`` on most pieces
+    both name: a short window's pose does not average out the legs' swing, so it adds
+    names, it does not overrule longer windows alone.
+    """
+    n_other = 0 if other.core is None else int(np.sum(other.assign >= 0))
+    if found.core is None or n_other == 0:
+        return n_other > 0
+    a = _side(facing(state, found.core, found.assign, found.rich))
+    b = _side(facing(state, other.core, other.assign, other.rich))
+    if a != b and -1 in (a, b):
+        return b > a
+    return n_other > int(np.sum(found.assign >= 0)) and agrees(
+        found.core, found.assign, other.core, other.assign
+    )
