@@ -32,16 +32,17 @@ _FRONT = re.compile(r"ASI")
 _BACK = re.compile(r"PSI|SACR?$")
 
 
-def front_back_pairs(names: tuple[str, ...]) -> tuple[tuple[int, int], ...]:
-    """(front, back) name pairs the naming convention gives: ``<side>TOE`` ahead of
-    ``<side>HEE`` (or ``HEEL``, ``CAL``), each ``*ASI*`` ahead of each ``*PSI*`` or
-    ``SACR``."""
+def foot_pairs(names: tuple[str, ...]) -> list[tuple[int, int]]:
+    """(toe, heel) name pairs: ``<side>TOE`` and ``<side>HEE`` (or ``HEEL``, ``CAL``)."""
     index = {n: i for i, n in enumerate(names)}
-    pairs = []
-    for n in names:
-        m = _HEEL.match(n)
-        if m and m.group(1) + "TOE" in index:
-            pairs.append((index[m.group(1) + "TOE"], index[n]))
+    found = [(m.group(1) + "TOE", n) for n in names if (m := _HEEL.match(n))]
+    return [(index[toe], index[heel]) for toe, heel in found if toe in index]
+
+
+def front_back_pairs(names: tuple[str, ...]) -> tuple[tuple[int, int], ...]:
+    """(front, back) name pairs the naming convention gives: toes ahead of heels
+    (:func:`foot_pairs`), each ``*ASI*`` ahead of each ``*PSI*`` or ``SACR``."""
+    pairs = foot_pairs(names)
     front = [i for i, n in enumerate(names) if _FRONT.search(n)]
     back = [i for i, n in enumerate(names) if _BACK.search(n)]
     pairs += [(f, b) for f in front for b in back]
@@ -112,3 +113,92 @@ def better(state: LabelState, found, other) -> bool:
     return n_other > int(np.sum(found.assign >= 0)) and agrees(
         found.core, found.assign, other.core, other.assign
     )
+
+
+#: Fields either side over which a name's displacement gives the walking direction.
+STEP_FIELDS = 5
+
+
+def walking_direction(name_pos: NDArray) -> NDArray[np.float64]:
+    """Per field, the horizontal direction the body moves (F, 2), not normalised: the
+    median over the names held of their displacement over :data:`STEP_FIELDS` fields
+    either side (NaN where unknown)."""
+    k = STEP_FIELDS
+    out = np.full((name_pos.shape[1], 2), np.nan)
+    step = name_pos[:, 2 * k :, :2] - name_pos[:, : -2 * k, :2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
+        out[k:-k] = np.nanmedian(step, axis=0)
+    return out
+
+
+def settle_feet(state: LabelState) -> None:
+    """Heel and toe pieces of one foot named the wrong way round, renamed.
+
+    A short piece named heel or toe by the body fit (whose expected positions, placed
+    from the knee and thigh, are off by a step while the foot rolls) decides the name of
+    the long piece next to it. A piece named ``<side>HEE`` or ``<side>TOE`` and a piece
+    that keeps the template heel-toe distance from it (within
+    ``label_segment_tolerance_mm``, median over the fields both are seen) are the foot's
+    two markers; the one ahead along the walk in most of those fields (:data:`FACING`)
+    is the toe. Both are renamed when the names are free in their fields.
+    """
+    tol = state.params.label_segment_tolerance_mm
+    direction = walking_direction(state.name_pos)
+    for toe, heel in foot_pairs(state.names):
+        length = state.template_distance[toe, heel]
+        for p in np.flatnonzero(np.isin(state.label_of, (toe, heel))).tolist():
+            if state.label_of[p] not in (toe, heel):
+                continue  # renamed with an earlier piece
+            f_p, x_p = state.piece(p)
+            for q in _partners(state, p, f_p, x_p, length, tol):
+                f_q, x_q = state.piece(q)
+                shared, i_p, i_q = np.intersect1d(f_p, f_q, return_indices=True)
+                ahead = np.sum((x_p[i_p, :2] - x_q[i_q, :2]) * direction[shared], axis=1)
+                ahead = ahead[np.isfinite(ahead)]
+                if ahead.size == 0:
+                    continue
+                p_is_toe = np.mean(ahead > 0) >= FACING
+                if not (p_is_toe or np.mean(ahead < 0) >= FACING):
+                    continue
+                want_p, want_q = (toe, heel) if p_is_toe else (heel, toe)
+                if (state.label_of[p], state.label_of[q]) == (want_p, want_q):
+                    continue
+                if _rename(state, (p, q), (want_p, want_q)):
+                    break
+
+
+def _partners(state: LabelState, p: int, f_p: NDArray, x_p: NDArray, length: float, tol: float):
+    """Pieces (other than ``p``, named a foot name or unnamed) seen with piece ``p`` in
+    at least three fields at the template's heel-toe ``length`` within ``tol``."""
+    tracks = state.tracks
+    rows = np.flatnonzero(np.isin(tracks.field, f_p) & (tracks.track != p))
+    out = []
+    for q in np.unique(tracks.track[rows]).tolist():
+        f_q, x_q = state.piece(q)
+        _, i_p, i_q = np.intersect1d(f_p, f_q, return_indices=True)
+        if i_p.size < 3:
+            continue
+        d = np.linalg.norm(x_p[i_p] - x_q[i_q], axis=1)
+        if abs(np.median(d) - length) <= tol:
+            out.append(q)
+    return out
+
+
+def _rename(state: LabelState, pieces: tuple[int, int], names: tuple[int, int]) -> bool:
+    """Give ``pieces`` the ``names`` when each name is held in its piece's fields by no
+    piece but these two; returns whether it did."""
+    old = [int(state.label_of[t]) for t in pieces]
+    for t, j in zip(pieces, old, strict=True):
+        if j >= 0:
+            state.name_pos[j, state.piece(t)[0]] = np.nan
+    free = all(
+        not np.isfinite(state.name_pos[j, state.piece(t)[0], 0]).any()
+        for t, j in zip(pieces, names, strict=True)
+    )
+    for t, j in zip(pieces, names if free else old, strict=True):
+        if j >= 0:
+            state.name_piece(t, j)
+        else:
+            state.label_of[t] = -1
+    return free

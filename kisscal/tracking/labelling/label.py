@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
+from kisscal.tracking.labelling.facing import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import Labelling, generic, join
@@ -14,6 +15,9 @@ from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.labelling.window import match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
+
+#: Passes of phase 5 (each followed by spreading) while it names pieces.
+LEARNED_PASSES = 3
 
 
 def label_tracks(
@@ -83,6 +87,9 @@ def name_pieces(state: LabelState) -> bool:
     spread(state)
     rematch(state)
     name_groups(state)
-    if name_from_trial(state):
+    for _ in range(LEARNED_PASSES):  # a piece named may give the next its partner
+        if not name_from_trial(state):
+            break
         spread(state)
+    settle_feet(state)
     return True
