@@ -132,7 +132,7 @@ def walking_direction(name_pos: NDArray) -> NDArray[np.float64]:
     return out
 
 
-def settle_feet(state: LabelState) -> None:
+def settle_feet(state: LabelState) -> bool:
     """Heel and toe pieces of one foot named the wrong way round, renamed.
 
     A short piece named heel or toe by the body fit (whose expected positions, placed
@@ -141,10 +141,12 @@ def settle_feet(state: LabelState) -> None:
     that keeps the template heel-toe distance from it (within
     ``label_segment_tolerance_mm``, median over the fields both are seen) are the foot's
     two markers; the one ahead along the walk in most of those fields (:data:`FACING`)
-    is the toe. Both are renamed when the names are free in their fields.
+    is the toe. Both are renamed when the names are free in their fields. Returns
+    whether any piece was renamed.
     """
     tol = state.params.label_segment_tolerance_mm
     direction = walking_direction(state.name_pos)
+    renamed = False
     for toe, heel in foot_pairs(state.names):
         length = state.template_distance[toe, heel]
         for p in np.flatnonzero(np.isin(state.label_of, (toe, heel))).tolist():
@@ -165,7 +167,9 @@ def settle_feet(state: LabelState) -> None:
                 if (state.label_of[p], state.label_of[q]) == (want_p, want_q):
                     continue
                 if _rename(state, (p, q), (want_p, want_q)):
+                    renamed = True
                     break
+    return renamed
 
 
 def _partners(state: LabelState, p: int, f_p: NDArray, x_p: NDArray, length: float, tol: float):

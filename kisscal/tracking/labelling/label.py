@@ -91,5 +91,6 @@ def name_pieces(state: LabelState) -> bool:
         if not name_from_trial(state):
             break
         spread(state)
-    settle_feet(state)
+    if settle_feet(state):
+        spread(state)  # a renamed foot gives its ankle a partner
     return True
