@@ -16,9 +16,6 @@ from kisscal.tracking.labelling.window import match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
 
-#: Passes of phase 5 (each followed by spreading) while it names pieces.
-LEARNED_PASSES = 3
-
 
 def label_tracks(
     tracks: Tracks,
@@ -33,7 +30,8 @@ def label_tracks(
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
-    partner by the distances the trial showed; join pieces sharing a name.
+    partner by the distances the trial showed; rename heel and toe pieces the walk finds
+    the wrong way round; join pieces sharing a name.
 
     Parameters
     ----------
@@ -87,9 +85,7 @@ def name_pieces(state: LabelState) -> bool:
     spread(state)
     rematch(state)
     name_groups(state)
-    for _ in range(LEARNED_PASSES):  # a piece named may give the next its partner
-        if not name_from_trial(state):
-            break
+    if name_from_trial(state):
         spread(state)
     if settle_feet(state):
         spread(state)  # a renamed foot gives its ankle a partner

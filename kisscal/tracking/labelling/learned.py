@@ -122,33 +122,7 @@ def name_from_trial(state: LabelState) -> bool:
         order = np.argsort(score)
         best = score[order[0]]
         second = score[order[1]] if order.size > 1 else np.inf
-        if best > MAX_SCORE**2 or second - best < MARGIN:
-            continue
-        j = int(known[order[0]])
-        if is_free[order[0]] or _unname_short_holders(state, t, j):
-            state.name_piece(t, j)
+        if is_free[order[0]] and best <= MAX_SCORE**2 and second - best >= MARGIN:
+            state.name_piece(t, int(known[order[0]]))
             named = True
     return named
-
-
-def _unname_short_holders(state: LabelState, t: int, j: int) -> bool:
-    """Take name ``j`` from the pieces holding it in piece ``t``'s fields when they are
-    all short (under :data:`LONG_PIECE` times ``min_track_length``) and seen mostly
-    inside ``t``'s span: a few fields of a heel named toe by the body fit must not keep
-    a long toe piece that clearly keeps the toe's distances unnamed (modern 3-camera
-    seed 313). Returns whether it did."""
-    fields, _ = state.piece(t)
-    lo, hi = int(fields[0]), int(fields[-1])
-    others = np.flatnonzero(state.label_of == j)
-    holders = [
-        k for k in others.tolist() if np.isin(state.piece(k)[0], fields, assume_unique=True).any()
-    ]
-    limit = LONG_PIECE * state.params.min_track_length
-    for k in holders:
-        f_k = state.piece(k)[0]
-        if state.n_measured[k] >= limit or np.mean((f_k >= lo) & (f_k <= hi)) < 0.5:
-            return False
-    for k in holders:
-        state.label_of[k] = -1
-        state.name_pos[j, state.piece(k)[0]] = np.nan
-    return bool(holders)
