@@ -87,11 +87,11 @@ def _side(value: float) -> int:
 
 
 def agrees(found_core: NDArray, found_assign: NDArray, core: NDArray, assign: NDArray) -> bool:
-    """Whether a match (``core``, ``assign``) gives another's names to most of the pieces
-    both name (True when they share none)."""
+    """Whether a match (``core``, ``assign``) gives another's names to at least half of
+    the pieces both name (True when they share none)."""
     named = dict(zip(found_core[found_assign >= 0], found_assign[found_assign >= 0], strict=True))
     shared = [(named[k], j) for k, j in zip(core, assign, strict=True) if j >= 0 and k in named]
-    return not shared or 2 * sum(x == y for x, y in shared) > len(shared)
+    return 2 * sum(x == y for x, y in shared) >= len(shared)
 
 
 def better(state: LabelState, found, other) -> bool:
@@ -99,8 +99,8 @@ def better(state: LabelState, found, other) -> bool:
     (:class:`~kisscal.tracking.labelling.window.WindowMatch` both).
 
     A match facing forward (:func:`facing`) beats one turned round, whatever they name;
-    otherwise ``other`` must name more pieces and agree with ``found`` on most pieces
-    both name: a short window's pose does not average out the legs' swing, so it adds
+    otherwise ``other`` must name more pieces and agree with ``found`` on at least half
+    of the pieces both name: a short window's pose does not average out the legs' swing, so it adds
     names, it does not overrule longer windows alone.
     """
     n_other = 0 if other.core is None else int(np.sum(other.assign >= 0))
