@@ -3,7 +3,7 @@
     python -m tests.tracking.few_cameras_acceptance [seed ...]          # rigs table
     python -m tests.tracking.few_cameras_acceptance [seed] --gaps       # fill methods
     python -m tests.tracking.few_cameras_acceptance 101 --rig=lowcost   # one kind of rig
-    python -m tests.tracking.few_cameras_acceptance --merge=centroid    # merged blobs
+    python -m tests.tracking.few_cameras_acceptance --merge=first       # old merge model
 
 Default seeds 301-303, held out (development used 1-7; 101-103 were looked at while
 the body fill was built). Rigs: ``kisscal synth --preset lowcost``
@@ -11,8 +11,8 @@ the body fill was built). Rigs: ``kisscal synth --preset lowcost``
 full kiss (6) and modern (8) rigs for "unchanged"; each walk made long enough to cross the
 volume (:data:`FIELDS`). Scenario: :mod:`tests.recon.scenario`'s truth-level one (true
 centroids + 0.05 px noise, other cameras' LEDs, two noise blobs per camera and field,
-markers closer than 3 px merged: ``--merge=centroid`` puts the blob at their
-area-weighted centroid, as a detector does, instead of at the first marker's image) plus
+markers closer than 3 px merged into one blob at their area-weighted centroid, as a
+detector does; ``--merge=first`` puts it at the first marker's image instead) plus
 blobs a camera loses beside the body's own occlusions (:func:`dropouts`: 0.2 runs a
 second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
@@ -72,7 +72,7 @@ class RigTrial:
 
 
 #: Where the scenario puts a merged blob (:func:`tests.recon.scenario.observe`'s ``merge``).
-MERGE = ["first"]
+MERGE = ["centroid"]
 
 #: Fields of the walk per preset: long enough to cross the volume (cut to the fields inside).
 FIELDS = {"kiss": 400, "modern": 600, "lowcost": 400}
@@ -94,9 +94,12 @@ def dropouts(
     return lost
 
 
-def rig_trial(preset: str, seed: int, n_cameras: int | None = None) -> RigTrial:
+def rig_trial(
+    preset: str, seed: int, n_cameras: int | None = None, merge: str | None = None
+) -> RigTrial:
     """Reconstruct the walk of ``kisscal synth --preset <preset> --seed <seed> --cameras
-    <n_cameras>`` (default: the preset's cameras) from the truth-level scenario."""
+    <n_cameras>`` (default: the preset's cameras) from the truth-level scenario, merged
+    blobs placed as ``merge`` says (default :data:`MERGE`)."""
     from kisscal.synth.plan import plan_session
     from kisscal.synth.presets import synth_options
     from kisscal.synth.scene import visibility
@@ -107,7 +110,7 @@ def rig_trial(preset: str, seed: int, n_cameras: int | None = None) -> RigTrial:
     visible = np.stack([visibility(rig[c], motion) for c in cams], axis=-1)
     visible &= ~dropouts(visible.shape, motion.rate_hz, seed)
     dlts = np.array([rig[c].dlt for c in cams])
-    tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed, merge=MERGE[0])
+    tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed, merge=merge or MERGE[0])
     pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(), motion.rate_hz)
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, motion.xyz_mm)
     unused = (pts.marker < 0) & ~pts.stationary
@@ -310,7 +313,7 @@ if __name__ == "__main__":
     seeds = tuple(int(a) for a in args) or (301, 302, 303)
     only = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--rig=")), None)
     rigs = {k: v for k, v in RIGS.items() if only is None or k.startswith(only)}
-    MERGE[0] = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--merge=")), "first")
+    MERGE[0] = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--merge=")), MERGE[0])
     if "--gaps" in sys.argv:
         for preset in ("kiss", "modern", "lowcost"):
             print("\n".join(gap_table(preset, seeds[0])))

@@ -11,7 +11,9 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
    template by rigid fits (24 starts, Hungarian + Kabsch), refined by exchanging names
    to fit the distances that stay constant (markers on one segment), and of a
    correspondence and its left/right mirror image (equal in distances) the one that
-   fits the real fields with a proper rotation is kept. With a shipped (upright) set,
+   fits the real fields with a proper rotation is kept; of a long window and shorter
+   ones, a match facing forward along the walk beats one turned round (:mod:`~.facing`),
+   and a shorter window's more names must agree with the kept ones. With a shipped (upright) set,
    when the window's average pose stood on the template (:mod:`~.upright`) finds
    pieces for less than two thirds of the names (a full-body set on a lower-body file,
    markers of another set), only those pieces and names enter the search, so absent
@@ -26,6 +28,8 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
 5. :mod:`~.learned`: long pieces still unnamed (no named partner in their fields: a
    toe seen again after its heel has gone) take the free name whose distances to the
    names around them they keep as the trial showed them.
+   Then (:mod:`~.facing`) a foot's heel and toe pieces named the wrong way round
+   are renamed: along the walk the toe is ahead.
 6. :mod:`~.result`, joining: pieces sharing a name are joined. Short pieces that fit no
    name are ghosts and are dropped (Shafiq et al. 2001's clean-up); long ones are kept,
    named ``M<k>`` and reported. When too few names are matched (a stick, a thrown ball),

@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
+from kisscal.tracking.labelling.facing import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import Labelling, generic, join
@@ -29,7 +30,8 @@ def label_tracks(
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
-    partner by the distances the trial showed; join pieces sharing a name.
+    partner by the distances the trial showed; rename heel and toe pieces the walk finds
+    the wrong way round; join pieces sharing a name.
 
     Parameters
     ----------
@@ -85,4 +87,6 @@ def name_pieces(state: LabelState) -> bool:
     name_groups(state)
     if name_from_trial(state):
         spread(state)
+    if settle_feet(state):
+        spread(state)  # a renamed foot gives its ankle a partner
     return True

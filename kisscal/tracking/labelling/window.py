@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.facing import FACING, better, facing
 from kisscal.tracking.labelling.state import (
     RIGID_MATCH_MM,
     RIGID_SPREAD_MM,
@@ -459,8 +460,10 @@ def match_first_window(state: LabelState) -> bool:
 
     When that window names fewer than ``min_label_fraction`` of the names (with few
     cameras, gaps cut pieces, and a long window holds few of them whole), shorter windows
-    holding more whole pieces (:func:`shorter_windows`) are matched too and the one that
-    names most is kept; later windows (phase 3) take its length.
+    holding more whole pieces (:func:`shorter_windows`) are matched too, longest first,
+    as they are when it names a body turned round; one replaces the match kept so far
+    as :func:`~kisscal.tracking.labelling.facing.better` decides (facing forward; then
+    more names, agreeing with the kept ones). Later windows (phase 3) take its length.
 
     Sets ``state.rich`` and ``state.fit_rms``; False when no body was matched (the
     trial does not fit the marker set).
@@ -468,11 +471,12 @@ def match_first_window(state: LabelState) -> bool:
     longest = state.window
     centre = first_centre(state)
     found, chosen = match_window(state, centre), longest
-    if _n_named(found) < state.params.min_label_fraction * len(state.names):
+    few = _n_named(found) < state.params.min_label_fraction * len(state.names)
+    if few or facing(state, found.core, found.assign, found.rich) <= 1 - FACING:
         for c, length in shorter_windows(state):
             state.window = length
             other = match_window(state, c)
-            if _n_named(other) > _n_named(found):
+            if better(state, found, other):
                 found, centre, chosen = other, c, length
     state.window = chosen
     state.fit_rms, state.rich = found.fit_rms, found.rich

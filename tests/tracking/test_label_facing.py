@@ -1,0 +1,88 @@
+"""A body turned round (heels named toes, left named right) is told by the walk: window
+matches that face backwards lose, and a foot's heel and toe pieces named the wrong way
+round are renamed (issue 27, few-camera labs)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.tracking.labelling.facing import (
+    better,
+    facing,
+    foot_pairs,
+    front_back_pairs,
+    settle_feet,
+)
+from kisscal.tracking.labelling.window import WindowMatch
+from tests.tracking._data import NAMES, gait_truth
+from tests.tracking.test_labelling_phases import _pieces, _state
+
+INDEX = {n: i for i, n in enumerate(NAMES)}
+
+
+def _turned(assign):
+    """Names of a body turned round about the vertical: left <-> right and heel <-> toe
+    (the pelvis left unnamed)."""
+    swap = {"HEE": "TOE", "TOE": "HEE"}
+    out = []
+    for j in assign:
+        n = NAMES[j]
+        side = {"L": "R", "R": "L"}.get(n[0], "")
+        rest = n[1:] if side else n
+        out.append(-1 if rest in ("ASI", "SACR") else INDEX[side + swap.get(rest, rest)])
+    return np.asarray(out)
+
+
+def test_naming_convention_gives_feet_and_pelvis_pairs():
+    pairs = set(front_back_pairs(NAMES))
+    assert (INDEX["RTOE"], INDEX["RHEE"]) in pairs and (INDEX["LTOE"], INDEX["LHEE"]) in pairs
+    assert (INDEX["RASI"], INDEX["SACR"]) in pairs and (INDEX["LASI"], INDEX["SACR"]) in pairs
+    assert len(foot_pairs(NAMES)) == 2
+    assert front_back_pairs(("A", "B", "C")) == ()
+
+
+def test_a_body_turned_round_faces_backwards_and_loses_to_one_facing_forward():
+    tracks, owner = _pieces(gait_truth(200, 1))
+    state = _state(tracks)
+    core = np.arange(owner.size)
+    rich = np.arange(0, 200, 5)
+    right = WindowMatch(core, owner.copy(), 50.0, rich)
+    turned = WindowMatch(core, _turned(owner), 50.0, rich)
+    assert facing(state, core, right.assign, rich) > 0.9
+    assert facing(state, core, turned.assign, rich) < 0.1
+    assert better(state, turned, right) and not better(state, right, turned)
+    # standing still: no walking direction, no vote
+    still = np.arange(0, 3)
+    assert np.isnan(facing(state, core, right.assign, still))
+
+
+def test_a_window_naming_more_must_agree_with_the_names_kept():
+    tracks, owner = _pieces(gait_truth(200, 2))
+    state = _state(tracks)
+    rich = np.arange(0, 200, 5)
+    legs = np.flatnonzero(np.isin(owner, [INDEX[n] for n in ("RKNE", "LKNE", "RTIB", "LTIB")]))
+    kept = WindowMatch(legs, owner[legs], 50.0, rich)
+    more = np.arange(owner.size)
+    wrong = owner.copy()
+    wrong[legs] = owner[legs[[1, 0, 3, 2]]]  # the legs' names exchanged
+    assert better(state, kept, WindowMatch(more, owner.copy(), 50.0, rich))
+    assert not better(state, kept, WindowMatch(more, wrong, 50.0, rich))
+
+
+def test_heel_and_toe_pieces_named_the_wrong_way_round_are_renamed():
+    truth = gait_truth(200, 3)
+    heel, toe = INDEX["RHEE"], INDEX["RTOE"]
+    tracks, owner = _pieces(truth, cuts={heel: (120, 140), toe: (120,)})
+    state = _state(tracks)
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    # a short heel piece named toe, and the toe piece beside it named heel
+    short = int(np.flatnonzero(owner == heel)[1])
+    late_toe = int(np.flatnonzero(owner == toe)[1])
+    state.label_of[[short, late_toe]] = -1
+    state.name_pos[[heel, toe], 120:] = np.nan
+    state.name_piece(short, toe)
+    state.name_piece(late_toe, heel)
+    settle_feet(state)
+    assert state.label_of[short] == heel and state.label_of[late_toe] == toe
+    np.testing.assert_array_equal(state.label_of, owner)
