@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from kisscal.errors import InputError
 from kisscal.tracking.association import associate, lookahead_cost
 from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
-from kisscal.tracking.live import _RIVAL_MIN_MM, Live, Setup
+from kisscal.tracking.live import RIVAL_MIN_MM, Live, Setup
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
 
@@ -123,7 +123,7 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
 def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Tracks:
     """Split off the first point of a piece that never became a Kalman track (fewer than
     ``min_initial_length`` measured points) when its first step was a guess: longer than
-    :data:`~kisscal.tracking.live._RIVAL_MIN_MM` while another point of that field lies
+    :data:`~kisscal.tracking.live.RIVAL_MIN_MM` while another point of that field lies
     less than ``rival_ratio`` times as far from the first point.
 
     One point gives no direction: the nearest candidate is taken, and on a fast limb two
@@ -146,7 +146,7 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     probe = np.c_[apart * tracks.field[second], tracks.xyz_mm[first]]
     within = tree.query_ball_point(probe, params.rival_ratio * step, return_length=True)
     # The second point itself is within reach; a rival makes two.
-    guess = (step > _RIVAL_MIN_MM) & (np.asarray(within) >= 2)
+    guess = (step > RIVAL_MIN_MM) & (np.asarray(within) >= 2)
     if not guess.any():
         return tracks
     piece = tracks.track.copy()

@@ -41,12 +41,11 @@ def _shank(marker_set: MarkerSet, foot: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def _error(dist: NDArray, target: NDArray) -> NDArray:
-    """Mean squared relative error per assignment, over the pairs both seen (inf if none)."""
+    """Mean squared relative error per assignment; infinite when a pair of its
+    trajectories is never seen together (a piece that fits by seeing little)."""
     rel = ((dist - target) / target) ** 2
-    seen = np.isfinite(rel)
-    n = seen.sum(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(n > 0, np.where(seen, rel, 0.0).sum(axis=-1) / n, np.inf)
+    seen = np.isfinite(rel).all(axis=-1)
+    return np.where(seen, np.where(seen[..., None], rel, 0.0).mean(axis=-1), np.inf)
 
 
 def _distances(dense: NDArray, tracks: NDArray) -> NDArray:
