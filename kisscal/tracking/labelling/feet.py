@@ -92,7 +92,8 @@ def _contest(
         own_score = float(_error(dist_h[iu_h], target[np.ix_(sub, sub)][iu_h]))
     else:
         own_score = float(score[own[0]])
-    if not np.isfinite(score[best]) or score[best] > _BETTER * own_score:
+    # Held names never seen together cannot be compared: they stay.
+    if not np.isfinite(own_score) or score[best] > _BETTER * own_score:
         return None
     return cands[choices[best]]
 
