@@ -34,7 +34,7 @@ _ERROR_MEMORY = 0.5
 # A track's point nearer its prediction than this (mm) is not judged against its rivals
 # (:meth:`Live._close_rivals`): a few times the noise of reconstructed points, far below
 # the spacing of markers.
-_RIVAL_MIN_MM = 10.0
+RIVAL_MIN_MM = 10.0
 # A one-point track's first step longer than this many times the fastest filtered track's
 # speed is cut (:meth:`Live._fast_first_steps`).
 _FIRST_STEP_FACTOR = 1.5
@@ -369,12 +369,12 @@ class Live:
 
     def _close_rivals(self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray) -> None:
         """Mark ambiguous a track (two points or more, coasting or not) whose point lies over
-        :data:`_RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
+        :data:`RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
         lies less than ``rival_ratio`` times as far: on fast markers a few centimetres
         apart the prediction misses by about their spacing, so a track whose marker
         vanished takes the neighbour (not a one-point track: its first step says little)."""
         d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
-        far = (d_own > _RIVAL_MIN_MM) & (self.n[rows] >= 2)
+        far = (d_own > RIVAL_MIN_MM) & (self.n[rows] >= 2)
         if not far.any() or points.shape[0] < 2:
             return
         rows, cols, d_own = rows[far], cols[far], d_own[far]

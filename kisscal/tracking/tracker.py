@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from kisscal.errors import InputError
 from kisscal.tracking.association import associate, lookahead_cost
 from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
-from kisscal.tracking.live import Live, Setup
+from kisscal.tracking.live import RIVAL_MIN_MM, Live, Setup
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
 
@@ -116,7 +117,43 @@ def track_points(field: ArrayLike, xyz_mm: ArrayLike, params: TrackingParams) ->
     tolerance = max(params.split_tolerance_mm, params.split_noise_factor * smoothness_mm(tracks))
     # One-sided extrapolation is twice as uncertain as the two-sided fit.
     tracks = split_stray_ends(split_discontinuities(tracks, tolerance), 2.0 * tolerance)
-    return trim_predicted_ends(tracks)
+    return split_ambiguous_first_steps(trim_predicted_ends(tracks), params)
+
+
+def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Tracks:
+    """Split off the first point of a piece that never became a Kalman track (fewer than
+    ``min_initial_length`` measured points) when its first step was a guess: longer than
+    :data:`~kisscal.tracking.live.RIVAL_MIN_MM` while another point of that field lies
+    less than ``rival_ratio`` times as far from the first point.
+
+    One point gives no direction: the nearest candidate is taken, and on a fast limb two
+    markers can be almost equally far (a serve at 50 Hz: elbow and upper arm 121 and 129
+    mm from the elbow's last point). Kalman tracks keep their start, as live tracking
+    built them; a short piece loses nothing that blending would use.
+    """
+    meas = np.flatnonzero(tracks.status == MEASURED)
+    if params.rival_ratio <= 0 or meas.size < 3:
+        return tracks
+    tr = tracks.track[meas]
+    lo = np.searchsorted(tr, np.arange(tracks.n_tracks), "left")
+    hi = np.searchsorted(tr, np.arange(tracks.n_tracks), "right")
+    short = np.flatnonzero((hi - lo >= 2) & (hi - lo < params.min_initial_length))
+    first, second = meas[lo[short]], meas[lo[short] + 1]
+    step = np.linalg.norm(tracks.xyz_mm[second] - tracks.xyz_mm[first], axis=1)
+    # Points of one field only: each field is far from every other in a 4th coordinate.
+    apart = 1e3 * (np.ptp(tracks.xyz_mm[meas]) + 1.0)
+    tree = cKDTree(np.c_[apart * tracks.field[meas], tracks.xyz_mm[meas]])
+    probe = np.c_[apart * tracks.field[second], tracks.xyz_mm[first]]
+    within = tree.query_ball_point(probe, params.rival_ratio * step, return_length=True)
+    # The second point itself is within reach; a rival makes two.
+    guess = (step > RIVAL_MIN_MM) & (np.asarray(within) >= 2)
+    if not guess.any():
+        return tracks
+    piece = tracks.track.copy()
+    piece[first[guess]] = tracks.n_tracks + np.arange(int(guess.sum()))
+    return make_tracks(
+        tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
+    )
 
 
 def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:

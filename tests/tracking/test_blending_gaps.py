@@ -106,3 +106,29 @@ def test_a_neighbour_that_three_samples_a_side_would_join_is_refused():
     for ahead_mm, joined in ((60.0, False), (0.0, True)):
         tracks = _tracks([(early, bar(early, 0.0)), (late, bar(late, ahead_mm))])
         assert (blend_tracks(tracks, params).n_tracks == 1) == joined
+
+
+def test_a_join_another_marker_contests_in_its_gap_is_refused():
+    """Two markers 20 mm apart on a push rim (radius 300 mm) turning 30 mm per field: the
+    front one is lost after field 9, the rear one is seen at 8-11 (a piece too short to
+    blend), lost at 12 and seen again from 13. Joining the front marker's piece to the
+    rear one's return passes the continuity tests (the rim's path is one smooth curve);
+    the rear marker's samples at 10 and 11, on the return's path and in a piece that ran
+    beside the front one, refuse it. The front marker's own return is joined."""
+    rng = np.random.default_rng(1)
+    lag = 2 * np.arcsin(20.0 / 2 / 300.0)
+
+    def rim(f, phase):
+        t = 0.1 * f + phase
+        xyz = np.stack([300 * np.cos(t), 300 * np.sin(t), np.full(f.size, 800.0)], axis=1)
+        return xyz + rng.normal(0.0, 0.1, xyz.shape)
+
+    front, rear, back = np.arange(0, 10), np.arange(8, 12), np.arange(13, 40)
+    params = TrackingParams()
+    for phase, joined in ((lag, False), (0.0, True)):
+        tracks = _tracks(
+            [(front, rim(front, 0.0)), (rear, rim(rear, lag)), (back, rim(back, phase))]
+        )
+        out = blend_tracks(tracks, params)
+        first = out.track[out.field == 0][0]
+        assert (39 in out.field[out.track == first]) == joined

@@ -4,7 +4,12 @@ import pytest
 from kisscal.errors import KisscalError
 from kisscal.tracking import MEASURED, PREDICTED, TrackingParams, associate, track_points
 from kisscal.tracking.association import ambiguous_rows
-from kisscal.tracking.tracker import lookahead_cost, split_short_reacquisitions
+from kisscal.tracking.tracker import (
+    lookahead_cost,
+    split_ambiguous_first_steps,
+    split_short_reacquisitions,
+)
+from kisscal.tracking.tracks import make_tracks
 
 
 def _cloud(paths, seed=0, noise_mm=1.0, missing=()):
@@ -207,3 +212,26 @@ def test_young_track_keeps_a_turning_marker_in_a_fast_trial():
     tracks = track_points(field, xyz, TrackingParams())
     ids = _identities(tracks, who)
     assert {4, 5} in ids  # one marker (path 5 continues path 4), one track
+
+
+def test_a_short_pieces_guessed_first_step_is_split_off():
+    """Two-point pieces: one whose second point had another point of its field almost as
+    near its first (121 and 129 mm: which marker it took was a guess) loses its first
+    point; one whose rival is three times as far keeps it, as does a Kalman-length piece."""
+    xyz = np.array(
+        [
+            [0.0, 0.0, 0.0], [121.0, 0.0, 0.0], [0.0, 129.0, 0.0],  # guessed
+            [1e3, 0.0, 0.0], [1121.0, 0.0, 0.0], [1e3, 363.0, 0.0],  # clear
+        ]
+    )  # fmt: skip
+    field = np.array([0, 1, 1, 0, 1, 1])
+    track = np.array([0, 0, 1, 2, 2, 3])
+    n = field.size
+    tracks = make_tracks(field, track, xyz, np.full((n, 3), np.nan), np.zeros(n), np.arange(n))
+    params = TrackingParams()
+    out = split_ambiguous_first_steps(tracks, params)
+    assert out.n_tracks == 5
+    alone = out.track[out.point == 0][0]
+    assert np.sum(out.track == alone) == 1
+    assert out.track[out.point == 3][0] == out.track[out.point == 4][0]
+    assert split_ambiguous_first_steps(tracks, params.replace(min_initial_length=2)).n_tracks == 4
