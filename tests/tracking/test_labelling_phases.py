@@ -296,3 +296,29 @@ def test_a_piece_that_fits_a_held_name_as_well_as_a_free_one_stays_unnamed():
     state.rich = np.arange(0, 150, 5)
     name_from_trial(state)
     assert state.label_of[heel_late] == -1
+
+
+def test_a_pair_pointing_the_way_of_its_names_keeps_them_against_a_slightly_better_fit():
+    """Lowcost seed 301 (centroid merges, ghost pieces withdrawn): the walking body's
+    median rigid fit to the standing template was 138 mm with the right names and 131 mm
+    with the left ankle and toe exchanged, though the pair pointed the way of its names
+    in every field; the exchange broke the leg's rigid pairs and the left leg lost its
+    names (646 switches). A pair its direction confirms keeps its names."""
+    from kisscal.tracking.labelling.window import settle_rigid_swaps
+    from kisscal.tracking.rigid import field_fits
+
+    tracks, owner = _pieces(gait_truth(100, 2))
+    state = _state(tracks)
+    core = np.arange(state.long_ids.size)
+    assign = owner[state.long_ids].copy()
+    rich = np.arange(0, 100, 5)
+    a, b = (int(np.flatnonzero(assign == NAMES.index(n))[0]) for n in ("RANK", "RHEE"))
+    swapped = assign.copy()
+    swapped[[a, b]] = assign[[b, a]]
+    exchanged = np.median(field_fits(state.dense, rich, core, swapped, state.template))
+    # the kept names' fit a few percent worse than the exchange's, as the legs' swing makes it
+    _, kept = settle_rigid_swaps(state, core, rich, assign, 1.06 * exchanged)
+    np.testing.assert_array_equal(kept, assign)
+    # names pointing the wrong way are still exchanged, whatever the fit
+    _, fixed = settle_rigid_swaps(state, core, rich, swapped, 0.5 * exchanged)
+    np.testing.assert_array_equal(fixed, assign)

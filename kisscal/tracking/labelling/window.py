@@ -263,9 +263,10 @@ def left_right_fits(
 def settle_rigid_swaps(
     state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, fit_rms: float
 ) -> tuple[float, NDArray[np.int64]]:
-    """Exchange the names of two core pieces named as a given rigid pair when the real
-    fields' rigid fit is clearly better so, or when the two point the other way than
-    their names in most fields (:func:`pair_direction`).
+    """Exchange the names of two core pieces named as a given rigid pair when they point
+    the other way than their names in most fields (:func:`pair_direction`), or when the
+    real fields' rigid fit is clearly better so and their direction does not confirm
+    their names.
 
     Two markers of one segment seen without their neighbours (a heel and a toe of a foot
     whose ankle is hidden) can swap names at no cost in distances.
@@ -281,7 +282,11 @@ def settle_rigid_swaps(
         if not rms.size:
             continue
         agree = pair_direction(state, core, rich, assign, a, b)
-        if np.median(rms) < 0.95 * fit_rms or agree < 1 - PAIR_DIRECTION:
+        # The median fit of a walking body to the standing template is poor (legs swing,
+        # 100-150 mm): a few percent on it is no evidence against a pair that points the
+        # way its names do in most fields, so only an unconfirmed pair goes by the fit.
+        by_fit = np.median(rms) < 0.95 * fit_rms and not agree >= PAIR_DIRECTION
+        if by_fit or agree < 1 - PAIR_DIRECTION:
             fit_rms, assign = float(np.median(rms)), variant
     return fit_rms, assign
 
