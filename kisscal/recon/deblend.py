@@ -51,6 +51,28 @@ class Deblended:
     own_row: NDArray[np.int64]
     merged_row: NDArray[np.int64]
 
+    @classmethod
+    def empty(cls) -> Deblended:
+        """No point."""
+        none = np.zeros(0, dtype=np.int64)
+        return cls(np.zeros((0, 3)), none, np.zeros(0), none, none)
+
+
+@dataclass(frozen=True)
+class MergeScene:
+    """What deblending reads of a trial: its 2D table (``field``, ``camera``, ``uv`` in
+    linearised px; ``usable``: blobs that may be a marker's, not stationary false
+    detections), the rig's ``dlts`` (n_cameras, 11), the settings, and ``limit_px``, the
+    largest reprojection ``rms_px`` of a new point (the trial's residual limit)."""
+
+    field: NDArray[np.int64]
+    camera: NDArray[np.int64]
+    uv: NDArray[np.float64]
+    usable: NDArray[np.bool_]
+    dlts: NDArray[np.float64]
+    params: ReconParams
+    limit_px: float
+
 
 def _depth(dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]):
     """DLT denominators ``L9 X + L10 Y + L11 Z + 1`` (proportional to depth)."""
@@ -153,45 +175,34 @@ def _solve(
 
 
 def deblend_merged(
+    scene: MergeScene,
+    marker: NDArray[np.int64],
     p_field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],
-    marker: NDArray[np.int64],
-    usable: NDArray[np.bool_],
-    field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    params: ReconParams,
-    limit_px: float,
 ) -> Deblended:
     """Two-camera points of markers whose image merged with a known point's (see module).
 
     Parameters
     ----------
-    p_field, p_xyz : ndarray, shapes (m,), (m, 3)
-        The trial's points so far.
-    marker : ndarray of int, shape (n,)
-        Point of each blob of the 2D table (-1: unused).
-    usable : ndarray of bool, shape (n,)
-        Blobs that may be a marker's (not stationary false detections).
-    field, camera, uv : ndarray
-        The trial's 2D table (linearised px).
-    dlts : ndarray, shape (n_cameras, 11)
-    params : ReconParams
+    scene : MergeScene
+        The trial's 2D table, rig and residual limit. Of its ``params``:
         ``deblend_radius_px`` (how far a known point's projection may lie from the blob it
         shares), ``epipolar_band_px``, ``group_radius_mm`` (a new point lies at least
         this far from the points of its field), ``camera_clearance_mm``, the two-camera
         continuity settings and ``reweight_iterations``.
-    limit_px : float
-        Largest reprojection ``rms_px`` of a new point: the trial's residual limit.
+    marker : ndarray of int, shape (n,)
+        Point of each blob of the 2D table (-1: unused).
+    p_field, p_xyz : ndarray, shapes (m,), (m, 3)
+        The trial's points so far.
 
     Returns
     -------
     Deblended
         The new points, at most one per own blob, in no particular order.
     """
-    none = np.zeros(0, dtype=np.int64)
-    empty = Deblended(np.zeros((0, 3)), none, np.zeros(0), none, none)
+    field, camera, uv, usable = scene.field, scene.camera, scene.uv, scene.usable
+    dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
+    empty = Deblended.empty()
     free = np.flatnonzero((marker < 0) & usable)
     P, c, p_a = _near_blobs(
         p_field, p_xyz, field, camera, uv, usable, dlts, params.deblend_radius_px
@@ -273,27 +284,22 @@ def _apart(
 
 
 def deblend_pairs(
+    scene: MergeScene,
     marker: NDArray[np.int64],
-    usable: NDArray[np.bool_],
-    field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    params: ReconParams,
     p_field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],
-    limit_px: float,
 ) -> Deblended:
     """Two markers each seen by two cameras, merged into one free blob ``c`` in a third
     view: each has a free blob of its own elsewhere (``a``, ``b``). Their images in
     ``c``'s camera lie on the epipolar lines of ``a`` and ``b`` and average (weighted by
     area) to ``c``, which places both (the intersection of one line with the other
     reflected through ``c``); the images must lie more than twice the residual limit
-    ``limit_px`` apart (else the blob is one marker's). Nothing is left over to check the
+    ``scene.limit_px`` apart (else the blob is one marker's). Nothing is left over to check the
     solution: both points must continue trajectories through the points of the trial
     (``p_field``, ``p_xyz``), and both win their blobs, or neither is made."""
-    none = np.zeros(0, dtype=np.int64)
-    empty = Deblended(np.zeros((0, 3)), none, np.zeros(0), none, none)
+    field, camera, uv, usable = scene.field, scene.camera, scene.uv, scene.usable
+    dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
+    empty = Deblended.empty()
     free = np.flatnonzero((marker < 0) & usable)
     F = all_fundamentals(dlts)
     x, y, _ = candidate_pairs(field[free], camera[free], uv[free], F, params.epipolar_band_px)

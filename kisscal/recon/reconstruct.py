@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
-from kisscal.recon.deblend import Deblended, deblend_merged, deblend_pairs
+from kisscal.recon.deblend import Deblended, MergeScene, deblend_merged, deblend_pairs
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
@@ -237,23 +237,11 @@ def reconstruct_trial(
     )
     if deblends(params, len(dlts)) and len(pts):
         limit = residual_limit_px(pts.rms_px, params)
-        two = deblend_pairs(
-            pts.marker,
-            ~still,
-            field,
-            camera,
-            uv,
-            dlts,
-            params,
-            pts.field,
-            pts.xyz_mm,
-            limit,
-        )
+        scene = MergeScene(field, camera, uv, ~still, dlts, params, limit)
+        two = deblend_pairs(scene, pts.marker, pts.field, pts.xyz_mm)
         pts = _with_points(pts, two, camera)
         for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
-            new = deblend_merged(
-                pts.field, pts.xyz_mm, pts.marker, ~still, field, camera, uv, dlts, params, limit
-            )
+            new = deblend_merged(scene, pts.marker, pts.field, pts.xyz_mm)
             if len(new.field) == 0:
                 break
             pts = _with_points(pts, new, camera)
