@@ -234,7 +234,6 @@ def write_opencv_yaml(path: str | Path, cam: Camera, units: str = "mm") -> Path:
     if units not in UNITS_MM:
         raise InputError(f"units must be one of {', '.join(UNITS_MM)}, got {units!r}")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         fs = cv2.FileStorage(str(tmp.with_suffix(".yml")), cv2.FILE_STORAGE_WRITE)
         fs.write("image_width", int(cam.size_px[0]))

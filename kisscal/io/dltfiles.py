@@ -98,15 +98,31 @@ def _floats(a: ArrayLike) -> list:
     return np.asarray(a, dtype=float).tolist()
 
 
-def dlt_document(
+def write_dlt_json(
+    path: str | Path,
     camera: str,
     result: DltResult,
     xyz_mm: ArrayLike | None = None,
     uv_px: ArrayLike | None = None,
     labels: Sequence[str] | None = None,
     extra: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The JSON document of one camera's calibration (see :func:`write_dlt_json`)."""
+) -> Path:
+    """Write ``out/dlt/<camera>.json``.
+
+    Parameters
+    ----------
+    path : path
+        File to write (parent folders are created).
+    camera : str
+        Camera id.
+    result : DltResult
+        The calibration.
+    xyz_mm, uv_px, labels : optional
+        Control points (as fitted) and their names (e.g. ``"R1.1"``), for the
+        per-point residual table.
+    extra : mapping, optional
+        More keys (e.g. rod recognition report, linearisation used).
+    """
     doc: dict[str, Any] = {
         "camera": camera,
         "L": _floats(result.L),
@@ -148,37 +164,7 @@ def dlt_document(
     ]
     if extra:
         doc.update(extra)
-    return doc
-
-
-def write_dlt_json(
-    path: str | Path,
-    camera: str,
-    result: DltResult,
-    xyz_mm: ArrayLike | None = None,
-    uv_px: ArrayLike | None = None,
-    labels: Sequence[str] | None = None,
-    extra: Mapping[str, Any] | None = None,
-) -> Path:
-    """Write ``out/dlt/<camera>.json``.
-
-    Parameters
-    ----------
-    path : path
-        File to write (parent folders are created).
-    camera : str
-        Camera id.
-    result : DltResult
-        The calibration.
-    xyz_mm, uv_px, labels : optional
-        Control points (as fitted) and their names (e.g. ``"R1.1"``), for the
-        per-point residual table.
-    extra : mapping, optional
-        More keys (e.g. rod recognition report, linearisation used).
-    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    doc = dlt_document(camera, result, xyz_mm, uv_px, labels, extra)
     write_text(path, json.dumps(doc, indent=1, allow_nan=True) + "\n")
     return path
 
@@ -240,7 +226,6 @@ def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> P
     """Write ``dltdv.csv``: 11 rows (L1..L11), one column per camera, in mapping order,
     converted from kisscal's pixel convention to DLTdv8's (:data:`DLTDV8_CONVENTION`)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     cols = [
         shift_dlt_pixels(_eleven(L, f"camera {cam}: L"), DLTDV8_OFFSET_PX)
         for cam, L in L_by_camera.items()

@@ -101,7 +101,6 @@ def write_c3d(
         add_gait_events(c3d, events, first_frame, rate_hz)
     words = _sample_words(tracks, points, residual_mm, n_fields, scale)
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         c3d.write(str(tmp))
         patch_sample_words(tmp, words, scale, first_frame)
@@ -236,7 +235,6 @@ def write_trc(
     dense = _dense(tracks, labels, rate_hz, n_fields) @ TRC_AXES[up].T
     n_tracks, n_fields, _ = dense.shape
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     lines = [
         f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
         "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"

@@ -141,7 +141,6 @@ def write_linearisation(
     :func:`linearisation_to_dict`).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     doc = linearisation_to_dict(lin, camera, missing_rc, missing_uv, refined)
     write_text(path, json.dumps(doc, indent=2) + "\n")
     return path

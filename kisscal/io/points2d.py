@@ -115,7 +115,6 @@ def write_points2d(
         lines = np.char.add(np.char.add(lines, ","), column)
     text = ",".join(COLUMNS) + "\n" + "".join(line + "\n" for line in lines.tolist())
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     write_text(path, text)
     return path
 

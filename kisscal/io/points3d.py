@@ -85,7 +85,6 @@ def write_points3d(
         raise InputError(f"points3d: {blob.shape[1]} blob columns for {len(camera_ids)} camera ids")
     if not (len(xyz) == len(n_cam) == len(rms) == len(field)):
         raise InputError("points3d: columns of different lengths")
-    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow([*BASE_COLUMNS, *(f"blob_{c}" for c in camera_ids)])

@@ -54,7 +54,6 @@ def write_trajectories_csv(path: str | Path, tracks: Tracks, labels: tuple[str, 
     if len(labels) != tracks.n_tracks:
         raise InputError(f"trajectories: {len(labels)} labels for {tracks.n_tracks} tracks")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     names = np.asarray(labels, dtype=object)[tracks.track]
     status = np.asarray(STATUS_NAMES, dtype=object)[tracks.status]
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
@@ -96,7 +95,6 @@ def write_sweep_csv(path: str | Path, rows: list[SweepRow]) -> Path:
     (pnc, mnc, segment, kind); and beside it ``<stem>_predictions.csv`` with the number of
     missing-point predictions per (pnc, mnc, label) (thesis table 5.13)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(SWEEP_HEADER)

@@ -15,7 +15,7 @@ from kisscal.report.status import FAIL, WARN, TrialAnalysis, Verdict, trial_cove
 from kisscal.report.viewer import trial_data, viewer_data, viewer_html
 
 
-def _duration(o: SessionOutputs, a: TrialAnalysis, name: str) -> str:
+def _duration(o: SessionOutputs, name: str) -> str:
     t = o.trial_outputs[name].dense
     if t is None:
         return "–"
@@ -58,10 +58,10 @@ def trial_table(
             [
                 tag("b", name),
                 badge(verdicts[name].state),
-                _duration(o, a, name),
+                _duration(o, name),
                 fmt(len(ms)),
                 labelled,
-                fmt(100 * trial_coverage(o, name, a), 1),
+                fmt(100 * trial_coverage(o, a), 1),
                 fmt(sum(m.gaps for m in ms)),
                 fmt(sum(m.gap_fields for m in ms)),
                 fmt(sum(m.filled for m in ms)),
@@ -71,8 +71,7 @@ def trial_table(
             ]
         )
         classes.append(None)
-    body = table(headers, [_pad(r, len(headers)) for r in rows], range(2, 12), None, classes)
-    return body
+    return table(headers, [_pad(r, len(headers)) for r in rows], range(2, 12), None, classes)
 
 
 def _pad(row: list[Any], n: int) -> list[Any]:

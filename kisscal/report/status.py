@@ -151,7 +151,7 @@ def _validation_verdict(
     return None
 
 
-def trial_coverage(o: SessionOutputs, name: str, a: TrialAnalysis) -> float:
+def trial_coverage(o: SessionOutputs, a: TrialAnalysis) -> float:
     """Mean coverage of the marker set's trajectories (of all when none is labelled)."""
     wanted = [m.coverage for m in a.markers if m.label in o.marker_names]
     values = wanted or [m.coverage for m in a.markers]
@@ -184,7 +184,7 @@ def trial_verdict(o: SessionOutputs, name: str, a: TrialAnalysis) -> Verdict:
     checked = _validation_verdict(name, a, lim, o.rate_hz)
     if checked is not None:
         return checked
-    coverage = trial_coverage(o, name, a)
+    coverage = trial_coverage(o, a)
     cover = f"coverage {100 * coverage:.1f} %"
     filled = sum(m.filled for m in a.markers)
     limit = f"every marker of the set, coverage ≥ {100 * lim.min_coverage:g} %"

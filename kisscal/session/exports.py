@@ -16,7 +16,7 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -119,6 +119,24 @@ def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
     }
 
 
+def _opencv_fits(
+    cameras: Iterable[Camera], dlts: Mapping[str, DltFile], pose2sim: bool = False
+) -> dict[str, OpenCvFit]:
+    """OpenCV's model fitted to each camera over the calibrated volume (for Pose2Sim, which
+    reads ``k1 k2 p1 p2`` only, without ``k3``)."""
+    volume = control_volume(dlts)
+    return {
+        c.id: opencv_from_camera(
+            c,
+            coefficients=5 if pose2sim else 12,
+            k3=not pose2sim,
+            used_px=control_px(c, dlts.get(c.id)),
+            volume_mm=volume,
+        )
+        for c in cameras
+    }
+
+
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
     return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
 
@@ -135,12 +153,7 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    volume = control_volume(dlts)
-    fits = {
-        c.id: opencv_from_camera(c, used_px=control_px(c, dlts.get(c.id)), volume_mm=volume)
-        for c in rig
-        if c.size_px is not None
-    }
+    fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts)
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
         "dltdv": {
@@ -185,22 +198,11 @@ def export(
         path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    pose2sim = to == "pose2sim"  # Pose2Sim reads k1 k2 p1 p2 only
-    volume = control_volume(dlts)
-    fits = [
-        opencv_from_camera(
-            c,
-            coefficients=5 if pose2sim else 12,
-            k3=not pose2sim,
-            used_px=control_px(c, dlts.get(c.id)),
-            volume_mm=volume,
-        )
-        for c in rig
-    ]
-    for f in fits:
+    fits = _opencv_fits(rig, dlts, pose2sim=to == "pose2sim")
+    for f in fits.values():
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
-    meta = _meta({f.camera.id: f for f in fits})
-    cams = [f.camera for f in fits]
+    meta = _meta(fits)
+    cams = [f.camera for f in fits.values()]
     if to == "pose2sim":
         names = pose2sim_names(len(cams))
         # Pose2Sim's own [metadata] keys, then which session camera each table is
@@ -208,7 +210,7 @@ def export(
             "adjusted": False,
             "error": 0.0,
             "cameras": dict(zip(names, rig.ids, strict=True)),
-            **_meta(dict(zip(names, fits, strict=True))),
+            **_meta(dict(zip(names, fits.values(), strict=True))),
         }
         path = write_cameras_toml(
             dest or store.pose2sim_path,

@@ -234,7 +234,7 @@ def _swing_sole(
     return ball - b.sole * _direction(alpha, theta), ball, tip
 
 
-def footprints(path: WalkPath, g: GaitTiming, b: Body, t_end: float) -> dict[str, tuple]:
+def footprints(path: WalkPath, g: GaitTiming, t_end: float) -> dict[str, tuple]:
     """Per side: strike times, heel contact points and headings, a stride beyond each end."""
     out = {}
     lead = 0.40 * g.step  # heel ahead of the pelvis at foot strike

@@ -361,6 +361,12 @@ def _volume_half_mid(volume_mm: tuple) -> tuple[NDArray[np.float64], NDArray[np.
     return (hi - lo) / 2, (hi + lo) / 2
 
 
+def unit_direction(azimuth: NDArray, elevation: NDArray) -> NDArray[np.float64]:
+    """Unit vectors (n, 3) at ``azimuth`` about Z from X and ``elevation`` above the XY plane."""
+    ce = np.cos(elevation)
+    return np.stack([ce * np.cos(azimuth), ce * np.sin(azimuth), np.sin(elevation)], axis=1)
+
+
 def stick_trial(
     seed: int, n_fields: int = 200, rate_hz: float = 50.0, volume_mm: tuple = VOLUME_MM
 ) -> Motion:
@@ -385,14 +391,7 @@ def stick_trial(
     )
     azimuth = 2 * np.pi * 0.3 * t + ph[3]
     elevation = 0.9 * np.sin(2 * np.pi * 0.4 * t + ph[4])
-    direction = np.stack(
-        [
-            np.cos(elevation) * np.cos(azimuth),
-            np.cos(elevation) * np.sin(azimuth),
-            np.sin(elevation),
-        ],
-        axis=1,
-    )
+    direction = unit_direction(azimuth, elevation)
     half = 0.5 * STICK_LENGTH_MM * direction
     xyz = np.stack([centre - half, centre + half], axis=1)
     return Motion(

@@ -31,6 +31,7 @@ from kisscal.synth.render import (
     Spots,
     concat_spots,
     glow_map,
+    pixel_truth,
     record,
     render_scene,
     sphere_spots,
@@ -410,10 +411,7 @@ def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict]:
     truth = {
         "row": r,
         "col": c,
-        "u_px": view.uv_px[:, 0],
-        "v_px": view.uv_px[:, 1],
-        "u_ideal_px": view.uv_ideal_px[:, 0],
-        "v_ideal_px": view.uv_ideal_px[:, 1],
+        **pixel_truth(view.uv_px, view.uv_ideal_px),
     }
     return frames, truth
 
@@ -452,10 +450,7 @@ def render_rods(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict, d
         "x_mm": points[:, 0],
         "y_mm": points[:, 1],
         "z_mm": points[:, 2],
-        "u_px": spots.centre_px[:, 0],
-        "v_px": spots.centre_px[:, 1],
-        "u_ideal_px": uv_ideal[:, 0],
-        "v_ideal_px": uv_ideal[:, 1],
+        **pixel_truth(spots.centre_px, uv_ideal),
     }
     return frames, truth, _led_truth(leds)
 

@@ -347,6 +347,17 @@ def sphere_spots(
     return Spots(centre, shape, np.broadcast_to(np.asarray(peak, float), len(xyz_mm)).copy())
 
 
+def pixel_truth(uv_px: NDArray, ideal_px: NDArray) -> dict[str, NDArray]:
+    """Truth table columns of image positions: as imaged (``u_px``, ``v_px``) and through
+    a lens without distortion (``u_ideal_px``, ``v_ideal_px``)."""
+    return {
+        "u_px": uv_px[:, 0],
+        "v_px": uv_px[:, 1],
+        "u_ideal_px": ideal_px[:, 0],
+        "v_ideal_px": ideal_px[:, 1],
+    }
+
+
 def concat_spots(*parts: Spots) -> Spots:
     """One :class:`Spots` holding all the given spots, in order."""
     return Spots(

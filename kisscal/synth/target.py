@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from kisscal.camera import Camera
 from kisscal.synth.cameras import brown_lens, look_at
-from kisscal.synth.render import Spots, draw_spots
+from kisscal.synth.render import Spots, draw_spots, pixel_truth
 
 TargetKind = Literal["planar", "stepped"]
 #: Radius of the target's dots (mm).
@@ -156,13 +156,8 @@ def seed_points(
 
 def truth_table(camera: Camera, xyz_mm: NDArray[np.float64]) -> dict[str, Sequence]:
     """Every dot's true image position (distorted and ideal) and whether it is visible."""
-    uv = camera.project(xyz_mm)
-    ideal = camera.project_ideal(xyz_mm)
     return {
         "index": np.arange(len(xyz_mm)),
-        "u_px": uv[:, 0],
-        "v_px": uv[:, 1],
-        "u_ideal_px": ideal[:, 0],
-        "v_ideal_px": ideal[:, 1],
+        **pixel_truth(camera.project(xyz_mm), camera.project_ideal(xyz_mm)),
         "visible": visible_dots(camera, xyz_mm).astype(int),
     }

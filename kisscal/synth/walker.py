@@ -212,7 +212,7 @@ def grounded_walk(
     t_end = float(t[-1])
     g = _timing(speed_mm_s, height_mm, phase)
     path = WalkPath(start_xy, heading, turn_rad / max(speed_mm_s * t_end, 1e-9))
-    prints = footprints(path, g, b, t_end)
+    prints = footprints(path, g, t_end)
     height = _pelvis_height(t_end, path, prints, g, b)
     origin, forward = _pelvis_pose(t, path, g, b)
     origin[:, 2] = height(t)
@@ -253,7 +253,7 @@ def grounded_walk(
         ):
             caps.append(np.stack([leg[a], leg[c]], axis=1))
             radii.append(r * b.k)
-    truth = _truth(prints, g, b, height_mm, heading, t_end, rate_hz)
+    truth = _truth(prints, g, height_mm, heading, t_end, rate_hz)
     radius = {"heel": b.radius, "ball": b.radius, "tip": b.tip}
     truth = replace(
         truth,
@@ -266,7 +266,6 @@ def grounded_walk(
 def _truth(
     prints: dict,
     g: GaitTiming,
-    b: Body,
     height_mm: float,
     heading: float,
     t_end: float,

@@ -32,8 +32,15 @@ from numpy.typing import NDArray
 
 from kisscal.camera import Camera
 from kisscal.synth.cameras import VOLUME_MM
-from kisscal.synth.motion import Motion
-from kisscal.synth.render import RenderParams, concat_spots, record, render_scene, sphere_spots
+from kisscal.synth.motion import Motion, unit_direction
+from kisscal.synth.render import (
+    RenderParams,
+    concat_spots,
+    pixel_truth,
+    record,
+    render_scene,
+    sphere_spots,
+)
 from kisscal.synth.scene import led_spots
 
 #: The name of the wand trial in synthetic sessions.
@@ -106,14 +113,7 @@ def wand_trial(
     centre = inner_lo + unit * (inner_hi - inner_lo)
     azimuth = 2 * np.pi * rng.uniform(0.25, 0.35) * t + ph[3]
     elevation = 1.2 * np.sin(2 * np.pi * rng.uniform(0.35, 0.45) * t + ph[4])
-    direction = np.stack(
-        [
-            np.cos(elevation) * np.cos(azimuth),
-            np.cos(elevation) * np.sin(azimuth),
-            np.sin(elevation),
-        ],
-        axis=1,
-    )
+    direction = unit_direction(azimuth, elevation)
     s = np.asarray(markers_mm, dtype=float)
     s = s - 0.5 * (s.min() + s.max())
     xyz = centre[:, None, :] + s[None, :, None] * direction[:, None, :]
@@ -183,9 +183,6 @@ def render_axes(
         "x_mm": axes_mm[:, 0],
         "y_mm": axes_mm[:, 1],
         "z_mm": axes_mm[:, 2],
-        "u_px": spots.centre_px[:, 0],
-        "v_px": spots.centre_px[:, 1],
-        "u_ideal_px": ideal[:, 0],
-        "v_ideal_px": ideal[:, 1],
+        **pixel_truth(spots.centre_px, ideal),
     }
     return frames, truth

@@ -82,7 +82,6 @@ def imported_linearisation(
     doc = linearisation_to_dict(lin, cam.id)
     doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
     doc["fit_rms_px"] = rms  # polynomial (and L12..L16) vs OpenCV's undistortion
-    out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, json.dumps(doc, indent=2) + "\n")
     store.mark_current(out, key)
     echo(f"  linearise {cam.id}: polynomial fitted to {path.name}'s lens, rms {rms:.4f} px")
