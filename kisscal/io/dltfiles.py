@@ -33,7 +33,7 @@ from kisscal.dlt.nonlinear import lens_frame
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import atomic_path, read_json, write_text
+from kisscal.io.files import read_json, write_csv, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
 #: kisscal's pixel coordinates (L of ``<camera>.json`` maps to these, linearised).
@@ -225,16 +225,11 @@ def _eleven(values: Any, where: str) -> NDArray[np.float64]:
 def write_dltdv_csv(path: str | Path, L_by_camera: Mapping[str, ArrayLike]) -> Path:
     """Write ``dltdv.csv``: 11 rows (L1..L11), one column per camera, in mapping order,
     converted from kisscal's pixel convention to DLTdv8's (:data:`DLTDV8_CONVENTION`)."""
-    path = Path(path)
     cols = [
         shift_dlt_pixels(_eleven(L, f"camera {cam}: L"), DLTDV8_OFFSET_PX)
         for cam, L in L_by_camera.items()
     ]
-    with atomic_path(path) as tmp, tmp.open("w", newline="") as f:
-        writer = csv.writer(f)
-        for row in np.array(cols).T:
-            writer.writerow([repr(float(x)) for x in row])
-    return path
+    return write_csv(path, None, ([repr(float(x)) for x in row] for row in np.array(cols).T))
 
 
 def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> dict[str, DltFile]:

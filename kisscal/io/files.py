@@ -14,7 +14,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +74,18 @@ def write_bytes(path: Path, data: bytes) -> None:
 
 def write_text(path: Path, text: str) -> None:
     write_bytes(path, text.encode("utf-8"))
+
+
+def write_csv(
+    path: Path, header: Iterable[Any] | None, rows: Iterable[Iterable[Any]], eol: str = "\r\n"
+) -> Path:
+    """Write CSV rows (after ``header``, when given) atomically, lines ending in ``eol``."""
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator=eol)
+        if header is not None:
+            writer.writerow(header)
+        writer.writerows(rows)
+    return Path(path)
 
 
 def read_json(path: Path) -> Any:

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import atomic_path
+from kisscal.io.files import write_csv
 from kisscal.recon.reconstruct import Points3D
 
 BASE_COLUMNS = ("field", "x_mm", "y_mm", "z_mm", "n_cameras", "rms_px")
@@ -85,22 +85,11 @@ def write_points3d(
         raise InputError(f"points3d: {blob.shape[1]} blob columns for {len(camera_ids)} camera ids")
     if not (len(xyz) == len(n_cam) == len(rms) == len(field)):
         raise InputError("points3d: columns of different lengths")
-    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow([*BASE_COLUMNS, *(f"blob_{c}" for c in camera_ids)])
-        for k in range(len(field)):
-            w.writerow(
-                [
-                    int(field[k]),
-                    f"{xyz[k, 0]:.4f}",
-                    f"{xyz[k, 1]:.4f}",
-                    f"{xyz[k, 2]:.4f}",
-                    int(n_cam[k]),
-                    f"{rms[k]:.4f}",
-                    *(int(b) for b in blob[k]),
-                ]
-            )
-    return path
+    rows = (
+        [int(f), f"{x:.4f}", f"{y:.4f}", f"{z:.4f}", int(n), f"{r:.4f}", *(int(b) for b in bs)]
+        for f, (x, y, z), n, r, bs in zip(field, xyz, n_cam, rms, blob, strict=True)
+    )
+    return write_csv(path, [*BASE_COLUMNS, *(f"blob_{c}" for c in camera_ids)], rows, "\n")
 
 
 def read_points3d(path: str | Path) -> Points3DFile:

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import atomic_path
+from kisscal.io.files import write_csv
 from kisscal.tracking.pipeline import SweepRow
 from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES, Tracks
 
@@ -56,14 +56,13 @@ def write_trajectories_csv(path: str | Path, tracks: Tracks, labels: tuple[str, 
     path = Path(path)
     names = np.asarray(labels, dtype=object)[tracks.track]
     status = np.asarray(STATUS_NAMES, dtype=object)[tracks.status]
-    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(HEADER)
+    rows = (
+        (int(f), int(t), lab, f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", st)
         for f, t, lab, (x, y, z), st in zip(
             tracks.field, tracks.track, names, tracks.xyz_mm, status, strict=True
-        ):
-            w.writerow((int(f), int(t), lab, f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", st))
-    return path
+        )
+    )
+    return write_csv(path, HEADER, rows)
 
 
 def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
@@ -95,29 +94,15 @@ def write_sweep_csv(path: str | Path, rows: list[SweepRow]) -> Path:
     (pnc, mnc, segment, kind); and beside it ``<stem>_predictions.csv`` with the number of
     missing-point predictions per (pnc, mnc, label) (thesis table 5.13)."""
     path = Path(path)
-    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(SWEEP_HEADER)
-        for row in rows:
-            for s in row.segments:
-                w.writerow(
-                    (
-                        row.pnc,
-                        row.mnc,
-                        f"{s.segment[0]}-{s.segment[1]}",
-                        s.kind,
-                        s.n_fields,
-                        f"{s.mean_mm:.3f}",
-                        f"{s.variance_mm2:.3f}",
-                        f"{s.sd_mm:.3f}",
-                        f"{s.sd_over_mean:.4f}",
-                    )
-                )
-    pred_path = path.with_name(f"{path.stem}_predictions.csv")
-    with atomic_path(pred_path) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(PREDICTION_HEADER)
-        for row in rows:
-            for label, n in row.predictions.items():
-                w.writerow((row.pnc, row.mnc, label, n))
+    segments = (
+        (row.pnc, row.mnc, f"{s.segment[0]}-{s.segment[1]}", s.kind, s.n_fields)
+        + (f"{s.mean_mm:.3f}", f"{s.variance_mm2:.3f}", f"{s.sd_mm:.3f}", f"{s.sd_over_mean:.4f}")
+        for row in rows
+        for s in row.segments
+    )
+    write_csv(path, SWEEP_HEADER, segments)
+    predictions = (
+        (row.pnc, row.mnc, label, n) for row in rows for label, n in row.predictions.items()
+    )
+    write_csv(path.with_name(f"{path.stem}_predictions.csv"), PREDICTION_HEADER, predictions)
     return path
