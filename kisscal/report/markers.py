@@ -12,15 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: Codes of :attr:`Dense.status`, in the order of ``trajectories.csv``'s ``status`` names.
-#: ``filled`` is the spline fill's name before contract version 3.
+from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES
+
+#: Codes of :attr:`Dense.status`: the tracker's status codes (``filled`` is the spline
+#: fill's name before contract version 3) after :data:`GAP`.
 STATUS_CODES = {
-    "measured": 1,
-    "predicted": 2,
-    "filled_spline": 3,
-    "filled_rigid": 4,
-    "filled_pattern": 5,
-    "filled": 3,
+    name: code + 1
+    for name, code in (*((n, i) for i, n in enumerate(STATUS_NAMES)), *LEGACY_STATUS.items())
 }
 GAP, MEASURED, PREDICTED, FILLED, FILLED_RIGID, FILLED_PATTERN = 0, 1, 2, 3, 4, 5
 #: How a gap was filled, by the Dense code of its samples.

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.report.htmlkit import Html
+from kisscal.report.htmlkit import Html, esc
 from kisscal.report.markers import Dense
 
 
@@ -97,7 +97,7 @@ def viewer_html(data: Mapping[str, Any]) -> Html:
     """The viewer's markup, its data as JSON and its script, ready to inline."""
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     options = "".join(
-        f'<option value="{k}">{_esc(t["name"])}</option>' for k, t in enumerate(data["trials"])
+        f'<option value="{k}">{esc(t["name"])}</option>' for k, t in enumerate(data["trials"])
     )
     return Html(
         '<div class="viewer" id="kc-viewer">'
@@ -121,12 +121,6 @@ def viewer_html(data: Mapping[str, Any]) -> Html:
         f'<script type="application/json" id="kc-data">{payload}</script>'
         f"<script>{VIEWER_JS}</script>"
     )
-
-
-def _esc(text: str) -> str:
-    import html
-
-    return html.escape(text)
 
 
 VIEWER_JS = r"""

@@ -41,17 +41,15 @@ def check(
     limits = {"max_grid_px": max_grid_px, "max_reproj_px": max_reproj_px, "max_3d_mm": max_3d_mm}
     write_json(store.limits_path, limits)  # the report judges against the limits checked
     failures = []
+    per_camera = [("dlt", max_reproj_px, store.dlt_path, "calibrate")]
+    if config.grid is not None:
+        per_camera.insert(0, ("grid", max_grid_px, store.linearisation_path, "linearise"))
     for cam in config.camera_ids:
-        if max_grid_px is not None and config.grid is not None:
-            path = store.linearisation_path(cam)
-            value = _figure_from(path, "rms_px", f"kisscal linearise {root}")
-            if not value <= max_grid_px:
-                failures.append(CheckFailure(cam, "grid rms_px", value, max_grid_px))
-        if max_reproj_px is not None:
-            path = store.dlt_path(cam)
-            value = _figure_from(path, "rms_px", f"kisscal calibrate {root}")
-            if not value <= max_reproj_px:
-                failures.append(CheckFailure(cam, "dlt rms_px", value, max_reproj_px))
+        for name, limit, path, command in per_camera:
+            if limit is not None:
+                value = _figure_from(path(cam), "rms_px", f"kisscal {command} {root}")
+                if not value <= limit:
+                    failures.append(CheckFailure(cam, f"{name} rms_px", value, limit))
     if max_3d_mm is not None:
         doc = store.calibration_doc("check")
         if doc is None:

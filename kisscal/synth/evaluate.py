@@ -126,17 +126,12 @@ def stick_length_error(
     labels, counts = np.unique(label[status == "measured"], return_counts=True)
     if len(labels) < 2:
         return float("nan"), float("nan"), 0
-    a, b = labels[np.argsort(counts)[-2:]]
-    fa = {
-        f: p
-        for f, p, s in zip(field[label == a], xyz_mm[label == a], status[label == a], strict=True)
-        if s == "measured"
-    }
-    fb = {
-        f: p
-        for f, p, s in zip(field[label == b], xyz_mm[label == b], status[label == b], strict=True)
-        if s == "measured"
-    }
+
+    def measured(name: str) -> dict:
+        rows = (label == name) & (status == "measured")
+        return dict(zip(field[rows], xyz_mm[rows], strict=True))
+
+    fa, fb = (measured(name) for name in labels[np.argsort(counts)[-2:]])
     common = sorted(set(fa) & set(fb))
     length = np.array([np.linalg.norm(fa[f] - fb[f]) for f in common])
     err = length - STICK_LENGTH_MM
