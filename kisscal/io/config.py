@@ -226,11 +226,14 @@ def _cameras(top: Table, optional: bool = False) -> tuple[CameraConfig, ...]:
                 number(top.path, f"{t.where}size[1]", size[1], int),
             )
         cameras.append(CameraConfig(cid, size))
-    ids = [c.id for c in cameras]
-    repeated = sorted({i for i in ids if ids.count(i) > 1})
-    if repeated:
-        raise top.fail(f"camera ids must be unique; repeated: {', '.join(repeated)}")
+    _unique(top, "camera ids", [c.id for c in cameras])
     return tuple(cameras)
+
+
+def _unique(t: Table, what: str, names: list[str]) -> None:
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise t.fail(f"{what} must be unique; repeated: {', '.join(repeated)}")
 
 
 def _grid(t: Table) -> GridConfig:
@@ -250,9 +253,7 @@ def _rods(t: Table) -> RodsConfig:
         rods.append(RodConfig(r.string("name", r.required("name")) or "", r.points("points_mm")))
     if not rods:
         raise t.fail("[rods] needs at least one [[rods.rod]] with name and points_mm")
-    names = [r.name for r in rods]
-    if len(set(names)) != len(names):
-        raise t.fail(f"rod names must be unique, got {', '.join(names)}")
+    _unique(t, "rod names", [r.name for r in rods])
     images = t.string("images", t.required("images")) or ""
     return RodsConfig(images, tuple(rods), t.choice("fields", FIELD_ORDERS))
 
@@ -388,10 +389,7 @@ def _trials(top: Table) -> tuple[TrialConfig, ...]:
                 f"trial {name!r}: fields (interlaced field order) applies to images or video only"
             )
         trials.append(TrialConfig(name, **{given[0]: t.string(given[0])}, fields=fields))
-    names = [t.name for t in trials]
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise top.fail(f"trial names must be unique; repeated: {', '.join(repeated)}")
+    _unique(top, "trial names", [t.name for t in trials])
     return tuple(trials)
 
 

@@ -103,7 +103,8 @@ def _calibration_inputs(config: SessionConfig) -> list[Problem]:
     for what, pattern, video, fields in image_sources(config):
         if what.startswith("trial"):
             continue
-        problems += [_problem(SESSION, m) for m in _frame_set(config, what, pattern, video, fields)]
+        found = _frames_and_counts(config, what, pattern, video, fields)[0]
+        problems += [_problem(SESSION, m) for m in found]
     return problems + [Problem(SESSION, m) for m in _calibration_files(config)]
 
 
@@ -138,16 +139,11 @@ def _seed_problems(path: Path, camera: str) -> list[str]:
     return [f"{path}: camera {camera}: {few}"] if few else []
 
 
-def _frame_set(
-    config: SessionConfig, what: str, pattern: str, video: bool, fields: str | None = None
-) -> list[str]:
-    """Problems of one set of frames: missing per camera, or of another size."""
-    return _frames_and_counts(config, what, pattern, video, fields)[0]
-
-
 def _frames_and_counts(
     config: SessionConfig, what: str, pattern: str, video: bool, fields: str | None = None
 ) -> tuple[list[str], dict[str, int]]:
+    """Problems of one set of frames (missing per camera, or of another size), and the
+    number of frames of each camera."""
     problems, counts, missing = [], {}, []
     for cam in config.cameras:
         try:
