@@ -54,42 +54,23 @@ def _drawn_markers(n_matches: int, max_markers: int) -> list[int]:
 def _legend(fig: Figure, any_hidden: bool) -> None:
     from matplotlib.lines import Line2D
 
-    handles = [
-        Line2D(
-            [],
-            [],
-            marker="o",
-            ls="",
-            mfc="none",
-            mec="tab:blue",
-            mew=1.5,
-            ms=8,
-            label="blob matched to a 3D marker (one colour per marker)",
+    ring = {"marker": "o", "ls": "", "mfc": "none"}
+    keys: list[tuple[str, dict]] = [
+        (
+            "blob matched to a 3D marker (one colour per marker)",
+            {**ring, "mec": "tab:blue", "mew": 1.5, "ms": 8},
         ),
-        Line2D(
-            [],
-            [],
-            color="tab:blue",
-            lw=1,
-            label="its epipolar lines from the other cameras (should cross the ring)",
+        (
+            "its epipolar lines from the other cameras (should cross the ring)",
+            {"color": "tab:blue", "lw": 1},
         ),
-        Line2D([], [], marker="x", ls="", color="0.3", label="unmatched blob"),
-        Line2D([], [], color="0.6", lw=0.6, ls=":", label="epipolar line of an unmatched blob"),
+        ("unmatched blob", {"marker": "x", "ls": "", "color": "0.3"}),
+        ("epipolar line of an unmatched blob", {"color": "0.6", "lw": 0.6, "ls": ":"}),
     ]
     if any_hidden:
-        handles.insert(
-            1,
-            Line2D(
-                [],
-                [],
-                marker="o",
-                ls="",
-                mfc="none",
-                mec="0.55",
-                ms=6,
-                label="matched blob, lines not drawn (to keep the panel readable)",
-            ),
-        )
+        hidden = "matched blob, lines not drawn (to keep the panel readable)"
+        keys.insert(1, (hidden, {**ring, "mec": "0.55", "ms": 6}))
+    handles = [Line2D([], [], label=label, **style) for label, style in keys]
     fig.legend(handles=handles, loc="lower center", ncol=2, fontsize=8, frameon=False)
 
 

@@ -1,4 +1,4 @@
-"""Figures of a grid linearisation: dots before/after with residual vectors, straightness.
+"""The figure of a grid linearisation: dots before/after with residual vectors.
 
 Functions return matplotlib Figures (Agg canvas, no pyplot state); writing them is the
 session layer's job.
@@ -12,7 +12,6 @@ import numpy as np
 
 from kisscal._shared import fixed_margins, new_figure
 from kisscal.grid.fit import GridFit
-from kisscal.grid.quality import line_distances
 from kisscal.report.figures import arrow_gain, nice_number, scale_key
 
 if TYPE_CHECKING:
@@ -122,45 +121,4 @@ def grid_correction_figure(
         a.set_ylabel("v (px)")
     scale_key(bx, arrows, key * gain, f"{key:g} px", fontsize=8)
     ax.legend(fontsize=7, loc="upper right", framealpha=0.8)
-    return fig
-
-
-def straightness_figure(fit: GridFit, camera: str = "") -> Figure:
-    """RMS distance of the dots to each fitted row and column line, before and after.
-
-    Returns
-    -------
-    Figure
-        Two bar panels (rows, columns), before and after correction, log scale.
-    """
-    dist = fit.grid_uv
-    corr = fit.corrected_uv
-    idx = fit.index
-    row, col = idx.row[idx.indexed], idx.col[idx.indexed]
-    fig = new_figure(9.0, 4.5)
-    axes = fig.subplots(1, 2)
-    for a, lines, n, name in ((axes[0], row, idx.rows, "row"), (axes[1], col, idx.cols, "column")):
-        per = []
-        for pts in (dist, corr):
-            d = line_distances(pts, lines)
-            sq = np.bincount(lines, np.nan_to_num(d) ** 2, minlength=n)
-            cnt = np.bincount(lines, np.isfinite(d).astype(float), minlength=n)
-            per.append(np.sqrt(sq / np.maximum(cnt, 1)))
-        k = np.arange(n)
-        a.bar(k - 0.2, per[0], width=0.4, color="tab:red", label="before")
-        a.bar(k + 0.2, per[1], width=0.4, color="tab:blue", label="after")
-        a.set_yscale("log")
-        a.set_xticks(k[:: max(1, n // 10)])
-        a.set_xlabel(f"grid {name}")
-        a.set_ylabel("RMS distance to straight line (px)")
-        a.legend(fontsize=7)
-    q = fit.linearisation.quality
-    title = f"straightness {camera}".strip()
-    if q is not None:
-        ratio = q.straightness_rms_before_px / max(q.straightness_rms_after_px, 1e-12)
-        title += (
-            f": {q.straightness_rms_before_px:.3f} -> {q.straightness_rms_after_px:.4f} px RMS"
-            f" ({ratio:.0f}x)"
-        )
-    fig.suptitle(title, fontsize=9)
     return fig

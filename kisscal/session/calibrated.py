@@ -7,10 +7,12 @@ grid linearisations (brought up to date first) as one :class:`~kisscal.rig.Rig`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from kisscal.camera import Camera
 from kisscal.errors import MissingDataError
+from kisscal.grid import Linearisation
 from kisscal.io.config import SessionConfig
 from kisscal.io.dltfiles import DltFile
 from kisscal.io.store import SessionStore
@@ -42,10 +44,17 @@ def current_rig(root: Path, echo: Echo = quiet) -> Rig:
     """
     config = load_config(root)
     lins = current_linearisations(root, echo)
-    dlts = read_dlt_files(root, config)
+    return calibrated_rig(config, lins, read_dlt_files(root, config))
+
+
+def calibrated_rig(
+    config: SessionConfig, lins: Mapping[str, Linearisation], dlts: Mapping[str, DltFile]
+) -> Rig:
+    """The cameras of the session that have a DLT, in session order."""
     return Rig(
         tuple(
-            Camera.from_dlt(dlts[c.id].L, c.id, lins[c.id], dlts[c.id].lens, c.size_px)
+            Camera.from_dlt(dlts[c.id].L, c.id, lins.get(c.id), dlts[c.id].lens, c.size_px)
             for c in config.cameras
+            if c.id in dlts
         )
     )

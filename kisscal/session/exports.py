@@ -31,26 +31,12 @@ from kisscal.io.dltfiles import DLTDV8_CONVENTION, DltFile, write_dltdv_csv
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
-from kisscal.rig import Rig
-from kisscal.session.calibrated import current_rig, read_dlt_files
+from kisscal.session.calibrated import calibrated_rig, current_rig, read_dlt_files
 from kisscal.session.inputs import load_config
 from kisscal.session.progress import Echo, quiet
 
 #: ``kisscal export --to`` choices.
 EXPORT_FORMATS = ("anipose", "pose2sim", "dltdv8", "opencv")
-
-
-def calibrated_rig(
-    config: SessionConfig, lins: Mapping[str, Linearisation], dlts: Mapping[str, DltFile]
-) -> Rig:
-    """The cameras of the session that have a DLT, in session order."""
-    return Rig(
-        tuple(
-            Camera.from_dlt(dlts[c.id].L, c.id, lins.get(c.id), dlts[c.id].lens, c.size_px)
-            for c in config.cameras
-            if c.id in dlts
-        )
-    )
 
 
 def lens_error_px(camera: Camera) -> dict[str, Any]:
