@@ -229,8 +229,8 @@ def detect_frames(
     order that the frame alone gives them.
     """
     out = [Blobs.empty()] * len(images)
-    frames = [(i, _prepared(image, params)) for i, image in enumerate(images)]
-    for stack in _stacks([(i, f) for i, f in frames if f is not None]):
+    prepared = [(i, _prepared(image, params)) for i, image in enumerate(images)]
+    for stack in _stacks([(i, f) for i, f in prepared if f is not None]):
         height = stack[0][1][1].shape[0]
         gap = max(STACK_GAP_ROWS, params.closeness_rows + 1, params.submarker_margin_px + 2)
         rows = _Rows(height + gap, len(stack)) if len(stack) > 1 else None
