@@ -8,11 +8,15 @@ take them: :func:`kisscal.detect.detect_blobs` on each frame (the per-frame path
 :func:`kisscal.detect.pipeline.detect_frames` on the chunk (the workers' path), both in
 processor time of this one process, as multiples of decoding the same images
 (``cv2.imread``) timed in the same run. The frames whose blobs differ between the two
-paths are counted (any column off by more than 1e-9 px, or another flag).
+paths are counted (any column not bit-identical, or another flag).
 
 Recorded (2026-11-28, 4044 frames of 752 x 291 px, 2 cores shared with other work, load
-about 18): decode 2.46 s; per frame 15.83 s (6.43x decode); stacked 10.82 s (4.39x
-decode, 0.68 of the per-frame time); 0 frames differ.
+about 18): decode 2.46 s; per frame 15.83 s (6.43x decode); grouping steps stacked
+(commit a755e38) 10.82 s (4.39x decode, 0.68 of the per-frame time); 0 frames differ.
+Every step stacked, cores, splits and moments included (2026-11-29, load about 30):
+decode 2.38 s; per frame 15.48 s (6.52x); stacked 4.87 s (2.05x decode, 0.31 of the
+per-frame time); 0 frames differ to 1e-9 px; compared bit for bit in a second run:
+decode 2.32 s, per frame 15.43 s (6.64x), stacked 4.91 s (2.11x, 0.32), 0 frames differ.
 """
 
 from __future__ import annotations
@@ -51,7 +55,7 @@ def _settings(root: Path) -> dict[tuple[str, str], object]:
 def _differ(a: Blobs, b: Blobs) -> bool:
     if len(a) != len(b) or not np.array_equal(a.flags, b.flags):
         return True
-    return any(not np.allclose(getattr(a, c), getattr(b, c), rtol=0, atol=1e-9) for c in COLUMNS)
+    return any(not np.array_equal(getattr(a, c), getattr(b, c)) for c in COLUMNS)
 
 
 def main() -> list[str]:

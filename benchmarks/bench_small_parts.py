@@ -17,6 +17,15 @@ Recorded (2026-11-28, 4044 images, 2 cores shared with other work at a load of a
 the run); frames stacked by chunk (:func:`kisscal.detect.pipeline.detect_frames`) whole
 run 42.78 s = 15.56x decode, detection 9.11 s = 3.31x (21 %). Within one run
 :mod:`benchmarks.bench_small_detect` compares the two detection paths directly.
+
+Every detection step stacked (cores, splits, moments too: :mod:`kisscal.detect.stack`)
+and the figures' palette PNG made from Agg's pixels (2026-11-29, load about 28; the
+decode reference 4.19 s before, 3.24 s after): commit a5f31b7 whole run 47.83 s
+(11.42x decode), detection 10.42 s (2.49x, 21.8 %), figures 8.33 s; commit dfdb291
+whole run 41.83 s (12.91x decode), detection 5.17 s (1.59x, 12.4 %), figures 7.94 s.
+The other parts (tracking 4.99 s, exports 4.77 s, survey 4.49 s, DLT 4.11 s, image
+reading 2.91 s, imports 2.45 s) did not change; the session's outputs are byte-identical
+(every JSON, CSV, TOML and cached blob file; summary.json's timings aside).
 """
 
 from __future__ import annotations

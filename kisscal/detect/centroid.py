@@ -19,8 +19,10 @@ from numpy.typing import NDArray
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.scan import Runs
+from kisscal.detect.stack import Frames, background_at
 
-#: The background a spot's weights are measured from: one grey level, or a map per pixel.
+#: The background a spot's weights are measured from: one grey level, a map per pixel,
+#: or for stacked frames (:mod:`kisscal.detect.stack`) one level per frame.
 Background = float | NDArray[np.floating]
 
 
@@ -54,6 +56,7 @@ def window_moments(
     background: Background,
     pixel_aspect: float,
     windowed: NDArray[np.bool_] | None = None,
+    frames: Frames | None = None,
 ) -> SpotMoments:
     """Background-subtracted weighted moments of each group in ``table`` over its window.
 
@@ -72,8 +75,8 @@ def window_moments(
     margin_x_px, margin_y_px : int
         Growth of each rectangle to take in the blurred rim.
     background : float or ndarray
-        Grey level subtracted from every pixel before weighting: one level, or a map of
-        the image's shape (local background).
+        Grey level subtracted from every pixel before weighting: one level, a map of
+        the image's shape (local background), or one level per frame of ``frames``.
     pixel_aspect : float
         Width / height of a round marker in pixels (nearest-centre distance).
     windowed : ndarray of bool, optional
@@ -81,6 +84,10 @@ def window_moments(
         surfaces: groups far larger than a marker, whose rectangles may span the image)
         get the plain moments of their own white pixels (:func:`binary_moments`), so
         that the cost follows the white pixels, not the rectangles' areas.
+    frames : Frames, optional
+        The frames stacked in ``image`` (default: one): the groups are in their own
+        frame's coordinates (:func:`~kisscal.detect.stack.unstack`) and read the image
+        at their frame's rows.
 
     Returns
     -------
@@ -98,14 +105,18 @@ def window_moments(
             background,
             pixel_aspect,
             windowed,
+            frames,
         )
-    height, width = image.shape
+    width = image.shape[1]
+    height = image.shape[0] if frames is None else frames.height
     x0 = np.maximum(table.x1 - margin_x_px, 0)
     ncol = np.minimum(table.x2 + margin_x_px, width - 1) - x0 + 1
     y0 = np.maximum(table.y1 - margin_y_px, 0)
     nrow = np.minimum(table.y2 + margin_y_px, height - 1) - y0 + 1
     windows = _Windows(x0, y0, ncol, nrow)
-    spot = _Spot(image, white, grouping, table, background, pixel_aspect)
+    frame = None if frames is None else frames.of(grouping, table)
+    stacked = (frames, frame)
+    spot = _Spot(image, white, grouping, table, background, pixel_aspect, stacked)
     area = ncol * nrow
     if int(area.sum()) <= WINDOW_CHUNK_PX:  # the usual image: every window at once
         sums = _window_sums(spot, windows, np.arange(len(table)), 0, nrow)
@@ -123,6 +134,7 @@ def _partly_windowed(
     background: Background,
     pixel_aspect: float,
     windowed: NDArray[np.bool_],
+    frames: Frames | None,
 ) -> SpotMoments:
     """Window moments of the ``windowed`` groups, binary moments of the others."""
     plain = binary_moments(grouping.runs, table)
@@ -132,7 +144,9 @@ def _partly_windowed(
     mine[table.label[windowed]] = True
     part = grouping.relabel(grouping.runs.take(mine[grouping.runs.group]))
     sub = table.take(windowed)
-    some = window_moments(image, white, part, sub, *margins, background, pixel_aspect)
+    some = window_moments(
+        image, white, part, sub, *margins, background, pixel_aspect, frames=frames
+    )
     out = {}
     for name in SpotMoments.__dataclass_fields__:
         column = getattr(plain, name).copy()
@@ -193,6 +207,8 @@ class _Spot:
     table: GroupTable
     background: Background
     pixel_aspect: float
+    #: the stacked frames and each table row's frame (None, None: one frame)
+    stacked: tuple[Frames | None, NDArray[np.int64] | None]
 
 
 def _chunked_sums(spot: _Spot, win: _Windows) -> NDArray[np.float64]:
@@ -239,7 +255,11 @@ def _window_sums(
     row, col = np.divmod(np.arange(g.size) - first[g], ncol[g])
     row += np.asarray(start).repeat(area) if np.ndim(start) else start
     t = group[g]  # table row of each pixel
-    flat = (win.y0 * width + win.x0)[t] + row * width + col
+    corner = win.y0 * width + win.x0
+    frames, frame = spot.stacked
+    if frames is not None and frame is not None:  # each group at its frame's rows
+        corner = corner + frame * (frames.stride * width)
+    flat = corner[t] + row * width + col
     own = _own_pixels(spot, win, group, start, rows, first, g.size)
     # Raw moments about each window's corner (small numbers: no cancellation) of the
     # window's weights and of its own pixels' weights (core), all in one segment
@@ -251,8 +271,7 @@ def _window_sums(
     if image.dtype == np.bool_:
         weight[:] = own
     else:
-        background = spot.background
-        bg = background.ravel().take(flat) if np.ndim(background) else background
+        bg = background_at(spot.background, flat, None if frame is None else frame[t])
         np.subtract(image.ravel().take(flat), bg, out=weight, dtype=np.float64)
         weight[spot.white.ravel().take(flat) & ~own] = 0.0
     split = (~np.isnan(grouping.centre_x[table.label])).nonzero()[0]

@@ -26,6 +26,7 @@ import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import Grouping, GroupPixels, group_pixels, oversized, regroup
 from kisscal.detect.groups import GroupTable
 from kisscal.detect.params import DetectionParams
+from kisscal.detect.stack import Frames, background_at
 
 #: The cut between a group's median and its peak (0.5: half maximum).
 CORE_LEVEL = 0.5
@@ -42,6 +43,7 @@ def detach_cores(
     image: NDArray,
     background: float | NDArray[np.floating],
     params: DetectionParams,
+    frames: Frames | None = None,
 ) -> Grouping:
     """Separate the marker-sized bright cores of oversized groups from them (see module).
 
@@ -52,9 +54,12 @@ def detach_cores(
     image : ndarray
         The grey image.
     background : float or ndarray
-        Background level, one value or a map of the image's shape.
+        Background level, one value, a map of the image's shape or one value per frame
+        of ``frames``.
     params : DetectionParams
         Size limits (a core must be within them and hold ``min_pixels``) and threshold.
+    frames : Frames, optional
+        The frames stacked in ``image`` (default: one).
 
     Returns
     -------
@@ -64,12 +69,21 @@ def detach_cores(
     big = oversized(table, params).nonzero()[0]
     if big.size == 0 or image.dtype == np.bool_:
         return grouping
-    contrast = params.threshold
-    if not params.background_tile_px:
-        contrast -= float(np.mean(background))
     labels = table.label[big]
     pixels = group_pixels(grouping, labels)
-    core, count = _cores(pixels, image, background, max(contrast, 1.0), params)
+    # each group at its own frame's rows of the stack, against its frame's background
+    frame = np.zeros(big.size, np.int64) if frames is None else frames.of(grouping, table)[big]
+    rows = pixels.y if frames is None else pixels.y + (frame * frames.stride)[pixels.slot]
+    excess = image[rows, pixels.x].astype(np.float32)
+    level = background_at(background, rows * image.shape[1] + pixels.x, frame[pixels.slot])
+    if np.ndim(background) == 2:
+        excess -= level
+    else:  # one level (per frame): a float32 level, as for one frame
+        excess -= np.asarray(level, dtype=np.float32)
+    contrast: float | NDArray[np.float64] = params.threshold
+    if not params.background_tile_px:  # one level per frame
+        contrast = contrast - np.asarray(background, dtype=float).reshape(-1)[frame]
+    core, count = _cores(pixels, (excess, rows), np.maximum(contrast, 1.0), params)
     # a region with cores on it stays larger than a marker without them; a pair or
     # cluster of markers does not (its rims are all that is left): the split tests
     # take those
@@ -127,16 +141,16 @@ def _rest_oversized(
 
 def _cores(
     pixels: GroupPixels,
-    image: NDArray,
-    background: float | NDArray[np.floating],
-    contrast: float,
+    spot: tuple[NDArray[np.float32], NDArray[np.int64]],
+    contrast: NDArray[np.float64],
     params: DetectionParams,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Each pixel's core within its group (0: none, else 1, 2, ...) and each group's
-    number of cores: components of the pixels above the group's cut, of marker size."""
-    x, y, slot = pixels.x, pixels.y, pixels.slot
-    excess = image[y, x].astype(np.float32)
-    excess -= background[y, x] if np.ndim(background) else np.float32(background)
+    number of cores: components of the pixels above the group's cut, of marker size.
+    ``spot``: each pixel's grey level above the background and its image row (rows of
+    stacked frames keep their frames apart); ``contrast`` per group."""
+    x, slot = pixels.x, pixels.slot
+    excess, y = spot
     groups = int(slot.max()) + 1
     # one sort of (group, grey level) keys: the grey levels are bounded (8- or 16-bit
     # scale), so each group's levels fill its own band of the key

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from functools import partial
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -27,8 +28,9 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.polarity import orient
-from kisscal.detect.scan import Runs, group_runs
+from kisscal.detect.scan import group_runs
 from kisscal.detect.splits import Spots, split_markers
+from kisscal.detect.stack import Frames, unstack
 from kisscal.errors import InputError
 
 DEFAULT_PARAMS = DetectionParams()
@@ -189,13 +191,13 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     grouped = _grouped(frame[1], params, frame[1].shape, None)
     if grouped is None:
         return Blobs.empty()
-    return _finished(frame, *grouped, params)
+    return _finished(frame, *grouped, params)[0]
 
 
 def detect_frames(
     images: Sequence[NDArray], params: DetectionParams = DEFAULT_PARAMS
 ) -> list[Blobs]:
-    """:func:`detect_blobs` of each image, the grouping steps done once for many frames.
+    """:func:`detect_blobs` of each image, every step done once for many frames.
 
     Parameters
     ----------
@@ -211,33 +213,40 @@ def detect_frames(
 
     Notes
     -----
-    The white pixels of consecutive frames of one size are stacked into one tall image,
-    :data:`STACK_GAP_ROWS` (or more) blank rows apart so that no grouping reach (Shafiq
-    et al. 2001, eq. 3), sub-marker rectangle or detach canvas joins two frames, and
-    grouping, noise removal, the sub-marker merge, the LED-ring detach (each frame's
-    border its own) and the appendage cut run once on the stack, at most
-    :data:`STACK_PX` pixels at a time: on small frames with a dozen spots the numpy calls'
-    own overhead, paid once per stack instead of once per frame, is most of their cost.
-    The groups are then handed back to their frames in frame coordinates, in the same
-    order as one frame alone gives them, for the steps that read the frame's own image,
-    background and statistics (cores, splits, moments).
+    Consecutive frames of one size and kind are stacked into one tall image (grey
+    levels, white pixels, background), :data:`STACK_GAP_ROWS` (or more) blank rows apart
+    so that no grouping reach (Shafiq et al. 2001, eq. 3), sub-marker rectangle or
+    detach canvas joins two frames, at most :data:`STACK_PX` pixels at a time, and
+    every step runs once on the stack: on small frames with a dozen spots the numpy
+    calls' own overhead, paid once per stack instead of once per frame, is most of their
+    cost. After the grouping steps (the LED-ring detach reads each frame's own border)
+    the groups go back to their frames' coordinates, told apart by label
+    (:func:`~kisscal.detect.stack.unstack`): cores, splits and moments compute from the
+    same numbers as for each frame alone, read the grey levels at their frame's rows,
+    and take what they need of a frame as a whole (its background level, its spots'
+    growth and typical marker) from their own frame. Every step numbers the groups it
+    makes after the ones there were, in table order, so each frame's groups keep the
+    order that the frame alone gives them.
     """
     out = [Blobs.empty()] * len(images)
-    frames = [(i, _prepared(image, params)) for i, image in enumerate(images)]
-    for stack in _stacks([(i, f) for i, f in frames if f is not None]):
+    prepared = [(i, _prepared(image, params)) for i, image in enumerate(images)]
+    for stack in _stacks([(i, f) for i, f in prepared if f is not None]):
+        height = stack[0][1][1].shape[0]
+        gap = max(STACK_GAP_ROWS, params.closeness_rows + 1, params.submarker_margin_px + 2)
+        rows = _Rows(height + gap, len(stack)) if len(stack) > 1 else None
+        frame = _stacked([f for _i, f in stack], rows)
         shape = stack[0][1][1].shape
-        stride = shape[0] + max(
-            STACK_GAP_ROWS, params.closeness_rows + 1, params.submarker_margin_px + 2
-        )
-        white = np.zeros((stride * (len(stack) - 1) + shape[0], shape[1]), dtype=bool)
-        for k, (_i, frame) in enumerate(stack):
-            white[k * stride : k * stride + shape[0]] = frame[1]
-        grouped = _grouped(white, params, shape, stride if len(stack) > 1 else None)
+        grouped = _grouped(frame[1], params, shape, None if rows is None else rows.stride)
         if grouped is None:
             continue
-        for (i, frame), one in zip(stack, _unstacked(*grouped, len(stack), stride), strict=True):
-            if one is not None:
-                out[i] = _finished(frame, *one, params)
+        if rows is None:
+            out[stack[0][0]] = _finished(frame, *grouped, params)[0]
+            continue
+        local, frames = unstack(grouped[0], rows.stride, height, len(stack))
+        blobs, which = _finished(frame, local, measure_groups(local.runs), params, frames)
+        bounds = np.searchsorted(which, np.arange(len(stack) + 1))
+        for k, (i, _frame) in enumerate(stack):
+            out[i] = blobs.select(np.arange(bounds[k], bounds[k + 1]))
     return out
 
 
@@ -256,19 +265,54 @@ def _prepared(image: NDArray, params: DetectionParams) -> _Frame | None:
 
 
 def _stacks(frames: list[tuple[int, _Frame]]) -> Iterator[list[tuple[int, _Frame]]]:
-    """Runs of consecutive ``(index, frame)`` of one size, at most :data:`STACK_PX`
-    pixels together (or one larger frame)."""
+    """Runs of consecutive ``(index, frame)`` of one size and kind (grey type, one
+    background level or a map), at most :data:`STACK_PX` pixels together (or one
+    larger frame)."""
     stack: list[tuple[int, _Frame]] = []
+
+    def kind(frame: _Frame) -> tuple[object, ...]:
+        return frame[1].shape, frame[0].dtype, np.ndim(frame[2])
+
     for item in frames:
         white = item[1][1]
         if stack and (
-            stack[0][1][1].shape != white.shape or (len(stack) + 1) * white.size > STACK_PX
+            kind(stack[0][1]) != kind(item[1]) or (len(stack) + 1) * white.size > STACK_PX
         ):
             yield stack
             stack = []
         stack.append(item)
     if stack:
         yield stack
+
+
+class _Rows(NamedTuple):
+    """Frames stacked every ``stride`` rows, ``count`` of them."""
+
+    stride: int
+    count: int
+
+
+def _stacked(frames: list[_Frame], rows: _Rows | None) -> _Frame:
+    """The frames stacked every ``rows.stride`` rows, blank between (one frame: itself):
+    grey levels, white pixels, and the background maps or one level per frame."""
+    if rows is None:
+        return frames[0]
+    height, width = frames[0][1].shape
+    size = (rows.stride * (rows.count - 1) + height, width)
+    image = np.zeros(size, dtype=frames[0][0].dtype)
+    white = np.zeros(size, dtype=bool)
+    maps = np.ndim(frames[0][2]) == 2
+    level = frames[0][2]
+    background = np.zeros(size, np.asarray(level).dtype) if maps else np.zeros(rows.count)
+    for k, (grey, mask, level) in enumerate(frames):
+        band = slice(k * rows.stride, k * rows.stride + height)
+        image[band] = grey
+        white[band] = mask
+        if maps:
+            background[band] = level
+        else:
+            background[k] = level
+    return image, white, background
 
 
 def _grouped(
@@ -293,57 +337,29 @@ def _grouped(
     return grouping, table
 
 
-def _unstacked(
-    grouping: Grouping, table: GroupTable, count: int, stride: int
-) -> list[tuple[Grouping, GroupTable] | None]:
-    """The groups of each of ``count`` frames stacked every ``stride`` rows, in frame
-    coordinates, runs and labels in the order the stack holds them (None: no group).
-
-    The bookkeeping arrays stay whole (indexed by label, every frame's labels in them):
-    only the order of the labels matters to the steps after, and it is the order that
-    one frame alone gives, since every step numbers the groups it makes after the ones
-    there were, in table order.
-    """
-    runs = grouping.runs
-    if count == 1:
-        return [(grouping, table)]
-    frame = runs.y // stride
-    order = np.argsort(frame, kind="stable")
-    bounds = np.searchsorted(frame[order], np.arange(count + 1))
-    out: list[tuple[Grouping, GroupTable] | None] = []
-    for k in range(count):
-        take = order[bounds[k] : bounds[k + 1]]
-        if take.size == 0:
-            out.append(None)
-            continue
-        own = Runs(runs.y[take] - k * stride, runs.x1[take], runs.x2[take], runs.group[take])
-        one = Grouping(
-            own,
-            grouping.flags.copy(),
-            grouping.parent,
-            grouping.centre_x,
-            grouping.centre_y - k * stride,
-            grouping.radius,
-        )
-        out.append((one, measure_groups(own)))
-    return out
-
-
 def _finished(
-    frame: _Frame, grouping: Grouping, table: GroupTable, params: DetectionParams
-) -> Blobs:
-    """The steps that read one frame's image and statistics: the core detach, the split
-    tests with their moments, the high-pass centroids, the result table."""
+    frame: _Frame,
+    grouping: Grouping,
+    table: GroupTable,
+    params: DetectionParams,
+    frames: Frames | None = None,
+) -> tuple[Blobs, NDArray[np.int64]]:
+    """The steps that read the image and its statistics (each frame's own, for
+    ``frames`` stacked): the core detach, the split tests with their moments, the
+    high-pass centroids; the result table (one frame's after another) and each row's
+    frame."""
     image, white, background = frame
     if params.detach_cores and params.apply_size_limits and image.dtype != np.bool_:
-        cored = detach_cores(grouping, table, image, background, params)
+        cored = detach_cores(grouping, table, image, background, params, frames)
         if cored is not grouping:
             grouping, table = cored, measure_groups(cored.runs)
-    spots = Spots(image, white, background, params)
+    spots = Spots(image, white, background, params, frames)
     grouping, table, moments = split_markers(grouping, table, spots, params)
     if params.centroid_highpass_px and image.dtype != np.bool_ and len(table):
-        moments = highpass_moments(image, white, grouping, table, params)
-    return _blob_table(grouping, table, moments, params, weighted=image.dtype != np.bool_)
+        moments = highpass_moments(image, white, grouping, table, params, frames)
+    frame = np.zeros(len(table), np.int64) if frames is None else frames.of(grouping, table)
+    weighted = image.dtype != np.bool_
+    return _blob_table(grouping, table, moments, params, (weighted, frame))
 
 
 def highpass_moments(
@@ -352,14 +368,23 @@ def highpass_moments(
     grouping: Grouping,
     table: GroupTable,
     params: DetectionParams,
+    frames: Frames | None = None,
 ) -> SpotMoments:
     """Window moments weighing each pixel by how far it stands above the mean of the
     ``centroid_highpass_px`` square around it (zero below): a band-pass centroid
-    (Crocker & Grier 1996) that dim halos and ghosts wider than the spot hardly move."""
+    (Crocker & Grier 1996) that dim halos and ghosts wider than the spot hardly move.
+    For ``frames`` stacked in ``image`` each frame's mean is its own (its border
+    reflected)."""
     side = int(params.centroid_highpass_px)
     # 8-bit frames stay 8-bit: a tenth of the float cost, the mean within half a level
     grey = image if image.dtype == np.uint8 else image.astype(np.float32, copy=False)
-    mean = cv2.blur(grey, (side, side), borderType=cv2.BORDER_REFLECT)
+    if frames is None:
+        mean = cv2.blur(grey, (side, side), borderType=cv2.BORDER_REFLECT)
+    else:
+        mean = np.zeros_like(grey)
+        for k in range(frames.count):  # a few frames per stack
+            band = slice(k * frames.stride, k * frames.stride + frames.height)
+            mean[band] = cv2.blur(grey[band], (side, side), borderType=cv2.BORDER_REFLECT)
     return window_moments(
         np.maximum(grey, mean),
         white,
@@ -370,6 +395,7 @@ def highpass_moments(
         mean,
         params.pixel_aspect,
         splittable(table, params),
+        frames,
     )
 
 
@@ -423,16 +449,19 @@ def _blob_table(
     table: GroupTable,
     moments: SpotMoments,
     params: DetectionParams,
-    weighted: bool,
-) -> Blobs:
-    """The result table: flags (size limits last), centroids, sorted by rectangle corner."""
+    how: tuple[bool, NDArray[np.int64]],
+) -> tuple[Blobs, NDArray[np.int64]]:
+    """The result table: flags (size limits last), centroids (``how``: weighted ones or
+    not, and each group's frame), sorted by frame and rectangle corner; each row's
+    frame."""
+    weighted, frame = how
     flags = grouping.flags[table.label]
     if params.apply_size_limits:
         flags = flags | size_flags(table, params)
     xb, yb = table.x_binary, table.y_binary
     x, y = (moments.x, moments.y) if weighted and params.weighted_centroid else (xb, yb)
-    order = np.lexsort((table.x1, table.y1))
-    return Blobs(
+    order = np.lexsort((table.x1, table.y1, frame))
+    blobs = Blobs(
         x_px=x[order],
         y_px=y[order],
         x_binary_px=xb[order],
@@ -443,3 +472,4 @@ def _blob_table(
         valid=(flags[order] & fl.INVALID_FLAGS) == 0,
         flags=flags[order],
     )
+    return blobs, frame[order]

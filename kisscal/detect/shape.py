@@ -53,21 +53,41 @@ def estimate_growth(
     min_groups : int
         Least number of usable groups for a per-image estimate.
     """
+    one = np.zeros(usable.size, dtype=np.int64)
+    growth = frame_growth(sigma_x, sigma_y, usable, (one, 1), pixel_aspect, fallback, min_groups)
+    return float(growth[0])
+
+
+def frame_growth(
+    sigma_x: NDArray[np.float64],
+    sigma_y: NDArray[np.float64],
+    usable: NDArray[np.bool_],
+    frames: tuple[NDArray[np.int64], int],
+    pixel_aspect: float,
+    fallback: float,
+    min_groups: int,
+) -> NDArray[np.float64]:
+    """:func:`estimate_growth` of each of several frames' groups at once: ``frames`` is
+    each group's frame and the number of frames; one growth per frame."""
+    frame, count = frames
     # (sigma_x - a sigma_y) / (1 - a) amplifies the spreads' noise by 1 / |1 - a|: near
     # square pixels the growth cannot be told from the marker, and the default stands
-    if np.count_nonzero(usable) < min_groups or abs(1.0 - pixel_aspect) < MIN_ASPECT_CONTRAST:
-        return fallback
+    if abs(1.0 - pixel_aspect) < MIN_ASPECT_CONTRAST:
+        return np.full(count, fallback, dtype=float)
+    own = frame[usable]
     per_group = (sigma_x[usable] - pixel_aspect * sigma_y[usable]) / (1.0 - pixel_aspect)
-    return small_median(per_group)
+    median = frame_medians(per_group, own, count, fallback)
+    return np.where(np.bincount(own, minlength=count) >= min_groups, median, fallback)
 
 
 def corrected_moments(
     var_x: NDArray[np.float64],
     var_y: NDArray[np.float64],
     cov_xy: NDArray[np.float64],
-    growth: float,
+    growth: float | NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Second moments with pixel area and growth removed (correlation kept)."""
+    """Second moments with pixel area and growth removed (correlation kept); ``growth``
+    one value, or one per group."""
     # x and y stacked: the same element-wise steps as spreads(), in half the numpy calls
     spread = np.sqrt(np.maximum(np.stack([var_x, var_y]) - PIXEL_AREA_VAR, 1e-6))
     rho = np.minimum(np.maximum(cov_xy / np.sqrt(np.maximum(var_x * var_y, 1e-12)), -1.0), 1.0)
@@ -119,3 +139,23 @@ def small_median(values: NDArray) -> float:
     if ordered.size % 2:
         return float(ordered[k])
     return float((ordered[k - 1] + ordered[k]) / 2)
+
+
+def frame_medians(
+    values: NDArray, frame: NDArray[np.int64], count: int, empty: float
+) -> NDArray[np.float64]:
+    """The median of each frame's ``values`` (``empty`` for a frame without any), each as
+    :func:`small_median` gives it: the middle value, or the mean
+    of the two middle ones taken as ``(a + b) / 2``."""
+    out = np.full(count, empty, dtype=float)
+    if values.size == 0:
+        return out
+    ordered = values[np.lexsort((values, frame))]
+    size = np.bincount(frame, minlength=count)
+    has = size > 0
+    first = (size.cumsum() - size)[has]
+    half = size[has] // 2
+    upper = ordered[first + half]
+    lower = ordered[first + np.maximum(half - 1, 0)]
+    out[has] = np.where(size[has] % 2 == 1, upper, (lower + upper) / 2)
+    return out

@@ -30,12 +30,13 @@ from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.shape import (
     corrected_moments,
-    estimate_growth,
+    frame_growth,
+    frame_medians,
     height_ratio,
     principal_axes,
-    small_median,
     spreads,
 )
+from kisscal.detect.stack import Frames
 from kisscal.detect.touching import split_touching
 
 
@@ -47,6 +48,7 @@ class Spots:
     white: NDArray[np.bool_]
     background: Background
     params: DetectionParams
+    frames: Frames | None = None
 
     def moments(self, grouping: Grouping, table: GroupTable) -> SpotMoments:
         p = self.params
@@ -60,6 +62,7 @@ class Spots:
             self.background,
             p.pixel_aspect,
             splittable(table, p),
+            self.frames,
         )
 
 
@@ -75,7 +78,9 @@ def split_markers(
     moments = spots.moments(grouping, table)
     if not (params.split_overlaps or params.split_long_wide or params.split_touching):
         return grouping, table, moments
-    facts = _Facts(grouping, table, moments, spots.white.shape, params)
+    height = spots.white.shape[0] if spots.frames is None else spots.frames.height
+    where = ((height, spots.white.shape[1]), spots.frames)
+    facts = _Facts(grouping, table, moments, where, params)
     tests = [
         (params.split_touching, _touching_step),
         (params.split_overlaps, _overlap_step),
@@ -88,39 +93,58 @@ def split_markers(
         if split is not facts.grouping:
             table = measure_groups(split.runs)
             moments = spots.moments(split, table)
-            facts = _Facts(split, table, moments, facts.shape, params, facts.growth)
+            facts = _Facts(split, table, moments, facts.where, params, facts.growth)
     return facts.grouping, facts.table, facts.moments
 
 
 class _Facts:
-    """One set of groups and what the split tests read of it, each computed on first use."""
+    """One set of groups and what the split tests read of it, each computed on first use.
+
+    The groups may be those of several frames stacked (``where``: a frame's shape and
+    the :class:`~kisscal.detect.stack.Frames`, or None), each in its own frame's
+    coordinates: what a test takes from a frame as a whole (its spots' growth, its
+    typical marker) is each frame's own.
+    """
 
     def __init__(
         self,
         grouping: Grouping,
         table: GroupTable,
         moments: SpotMoments,
-        shape: tuple[int, ...],
+        where: tuple[tuple[int, int], Frames | None],
         params: DetectionParams,
-        growth: float | None = None,
+        growth: NDArray[np.float64] | None = None,
     ) -> None:
         self.grouping = grouping
         self.table = table
         self.moments = moments
-        self.shape = shape
+        self.where = where
+        frames = where[1]
+        self.count = 1 if frames is None else frames.count
+        # each group's frame
+        self.frame = (
+            np.zeros(len(table), np.int64) if frames is None else frames.of(grouping, table)
+        )
         self.params = params
-        self.growth = self._image_growth() if growth is None else growth
+        self.growth = self._image_growth() if growth is None else growth  # per frame
 
-    def _image_growth(self) -> float:
+    def _image_growth(self) -> NDArray[np.float64]:
         p = self.params
         sx, sy = spreads(self.moments.core_var_x, self.moments.core_var_y)
         usable = self.inside & (self.table.pixels >= p.long_wide_min_pixels) & ~self.oversized
-        return estimate_growth(sx, sy, usable, p.pixel_aspect, p.growth_px, p.growth_min_groups)
+        frames = (self.frame, self.count)
+        aspect, fallback = p.pixel_aspect, p.growth_px
+        return frame_growth(sx, sy, usable, frames, aspect, fallback, p.growth_min_groups)
+
+    def _per_frame(self, values: NDArray, among: NDArray[np.bool_], empty: float) -> NDArray:
+        """The median of ``values`` over the ``among`` groups of each group's frame."""
+        medians = frame_medians(values[among], self.frame[among], self.count, empty)
+        return medians[self.frame]
 
     @cached_property
     def inside(self) -> NDArray[np.bool_]:
         """Groups clear of the image border (a cut-off spot looks long or wide but is one)."""
-        height, width = self.shape
+        height, width = self.where[0]
         t = self.table
         return (t.x1 > 0) & (t.y1 > 0) & (t.x2 < width - 1) & (t.y2 < height - 1)
 
@@ -132,7 +156,8 @@ class _Facts:
     def corrected(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Core moments with pixel area and the image's growth removed."""
         m = self.moments
-        return corrected_moments(m.core_var_x, m.core_var_y, m.core_cov_xy, self.growth)
+        growth = self.growth[self.frame]
+        return corrected_moments(m.core_var_x, m.core_var_y, m.core_cov_xy, growth)
 
     @cached_property
     def ratio(self) -> NDArray[np.float64]:
@@ -175,7 +200,7 @@ class _Facts:
         if not part.any():
             return inside
         whole = inside & ~part
-        typical = small_median(table.pixels[whole]) if whole.any() else 0.0
+        typical = self._per_frame(table.pixels, whole, 0.0)
         return inside & (~part | (table.pixels > 1.6 * typical))
 
     def not_single(self) -> NDArray[np.bool_]:
@@ -189,7 +214,7 @@ class _Facts:
         major, minor, _, _ = self.axes
         sized = (pixels >= self.params.long_wide_min_pixels) & self.inside
         marker = sized & ~self.oversized
-        typical = small_median(pixels[marker]) if marker.any() else np.inf
+        typical = self._per_frame(pixels, marker, np.inf)
         ratio = self.ratio
         odd_shape = (ratio < 0.85) | (ratio > 1.18) | (np.sqrt(major / minor) > 1.2)
         # Up to about three typical markers; beyond that a round group is an LED ring.

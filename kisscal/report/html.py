@@ -64,14 +64,23 @@ FIGURE_RC = {"axes.titley": 1.0}
 def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     """A matplotlib figure as PNG bytes (256-colour palette when Pillow is there)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
     try:
         from PIL import Image  # Pillow: matplotlib's own PNG writer
     except ImportError:
+        fig.savefig(buf, format="png", dpi=dpi)
         return buf.getvalue()
+    # The canvas's pixels as they are, not written as PNG and read back for the palette:
+    # Agg's canvas is the figure's size at ``dpi``, each side truncated to whole pixels.
+    fig.savefig(buf, format="rgba", dpi=dpi)
+    size = tuple(int(side) for side in fig.get_size_inches() * dpi)
+    if len(buf.getvalue()) == 4 * size[0] * size[1]:
+        canvas = Image.frombuffer("RGBA", size, buf.getvalue(), "raw", "RGBA", 0, 1)
+    else:  # a canvas of another size: as PNG, the way matplotlib writes it
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=dpi)
+        canvas = Image.open(buf)
     # Plots hold few colours: a 256-colour palette keeps them sharp at a quarter the size.
-    buf.seek(0)
-    image = Image.open(buf).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
+    image = canvas.convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
     small = io.BytesIO()
     image.save(small, format="png")  # optimize=True: 10 % smaller, 3x the time
     return small.getvalue()

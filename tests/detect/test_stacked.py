@@ -1,5 +1,6 @@
-"""detect_frames (frames stacked for the grouping steps) gives what detect_blobs gives
-frame by frame: same blobs, same order, same flags, the same centroids."""
+"""detect_frames (frames stacked, every step run once per stack) gives what detect_blobs
+gives frame by frame: same blobs, same order, same flags, the same centroids to the bit,
+each frame reading its own background, growth, typical marker and border."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import kisscal.detect.blobs as fl
 from kisscal.detect import Blobs, DetectionParams, detect_blobs
 from kisscal.detect.advanced import Grouping
 from kisscal.detect.configure import configure_detection
@@ -29,7 +31,7 @@ def _same(got: list[Blobs], want: list[Blobs]) -> None:
         assert np.array_equal(g.flags, w.flags), f"frame {k}"
         for name in COLUMNS:
             a, b = getattr(g, name), getattr(w, name)
-            assert np.allclose(a, b, rtol=0, atol=1e-9), f"frame {k} {name}: {a} vs {b}"
+            assert np.array_equal(a, b), f"frame {k} {name}: {a} vs {b}"
 
 
 def _ring_at_bottom() -> np.ndarray:
@@ -104,4 +106,41 @@ def test_real_frames_stacked_give_their_own_blobs(name: str) -> None:
     frames = [image, image[::-1].copy(), image[:, ::-1].copy(), np.roll(image, 17, axis=0)]
     want = [detect_blobs(f, params) for f in frames]
     assert all(len(b) > 10 for b in want)
+    _same(detect_frames(frames, params), want)
+
+
+def _unlike_frames() -> list[np.ndarray]:
+    """Frames of one size unlike in all that a frame gives as a whole: background level
+    (weighted centroids, the cores' contrast), blur (the spots' growth), marker size (the
+    split tests' typical marker); each with spots on its top and bottom borders, three
+    touching markers and a dim lit patch with a dot on it (cores)."""
+    rng = np.random.default_rng(11)
+    frames = []
+    # background, blur, marker radius, the dot's height over its patch: the cut of the
+    # cores (half maximum, at least the frame's contrast) changes with the background
+    looks = [(6, 0.6, 3.0, 60), (30, 1.3, 4.5, 30), (14, 0.9, 2.4, 70), (3, 0.4, 5.5, 80)]
+    looks.append((22, 1.0, 3.5, 30))
+    for k, (level, blur, radius, height) in enumerate(looks):
+        spots = np.column_stack([rng.uniform(30, 560, 14), rng.uniform(10, 280, 14)])
+        spots[0] = [100 + 7 * k, 1.5]
+        spots[1] = [400 + 3 * k, 289.5]
+        spots[2:5] = [[600.0, 150.0], [600 + 1.7 * radius, 150.5], [600 + 3.4 * radius, 151]]
+        image = render(spots, radius, blur_px=blur, background=level, noise_sigma=1.0, rng=rng)
+        patch = image[60:78, 200:250]
+        np.maximum(patch, 42 + 6 * k, out=patch)
+        dot = render(np.array([[225.0 + k, 69.0]]), 3.0, peak=height, background=0)
+        frames.append(np.maximum(image, dot + patch.min() * (dot > 0)).astype(np.uint8))
+    return frames
+
+
+@pytest.mark.parametrize(
+    "params",
+    [KISS, KISS.replace(centroid_highpass_px=11), KISS.replace(background_tile_px=32)],
+    ids=["global", "highpass", "local"],
+)
+def test_each_frame_reads_its_own_frame(params: DetectionParams) -> None:
+    frames = _unlike_frames()
+    want = [detect_blobs(f, params) for f in frames]
+    flags = np.bitwise_or.reduce(np.concatenate([b.flags for b in want]))
+    assert flags & fl.SPLIT_TOUCHING and flags & fl.DETACHED
     _same(detect_frames(frames, params), want)
