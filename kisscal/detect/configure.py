@@ -160,16 +160,16 @@ class DetectionSetup:
         given = [k for k, c in self.choices.items() if c.source == "given"]
         level = (
             f"{p.threshold:.0f} grey levels above the local background (tiles "
-            f"{p.background_tile_px} px"
-            if p.background_tile_px
+            f"{p.peak_highpass_px if p.route == 'peaks' else p.background_tile_px} px"
+            if p.background_tile_px or p.route == "peaks"
             else f"{p.threshold:.0f} (grey level; background {self.levels.background:.0f}"
         )
         limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
         spots = "dark spots, inverted" if p.polarity == "dark" else f"{p.polarity} spots"
         text = (
-            f"{self.kind} ({spots}): threshold {level}, noise {self.levels.noise:.1f}), "
-            f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
-            f"{self.marker_pixels[1]} px, oversize above {limit} px"
+            f"{self.kind} ({spots}, {p.route} route): threshold {level}, noise "
+            f"{self.levels.noise:.1f}), pixel aspect {p.pixel_aspect:.2f}, markers "
+            f"{self.marker_pixels[0]}-{self.marker_pixels[1]} px, oversize above {limit} px"
         )
         return text + (f"; given: {', '.join(given)}" if given else "")
 

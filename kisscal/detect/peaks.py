@@ -69,11 +69,14 @@ def regions(
         big = _too_large(stats, largest)
         if not big.any():
             break
-        inside = big[labels]
+        box = _box(stats[big])  # the cut reads only the pixels around the large regions
+        inside = big[labels[box]]
         level = 2.0 * max(level, 1.0)
-        core = (inside & (hp > level)).astype(np.uint8)
+        core = (inside & (hp[box] > level)).astype(np.uint8)
         n, pieces, more, _ = cv2.connectedComponentsWithStats(core, connectivity=4)
-        labels = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels)
+        labels[box] = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels[box])
+        more[:, cv2.CC_STAT_LEFT] += box[1].start
+        more[:, cv2.CC_STAT_TOP] += box[0].start
         stats = np.vstack([np.where(big[:, None], 0, stats), more[1:]])
         count += n - 1
     return _compact(labels)
@@ -88,6 +91,14 @@ def _too_large(stats: NDArray, largest: tuple[int | None, int | None, int | None
             big |= stats[:, column] > limit
     big[0] = False
     return big
+
+
+def _box(stats: NDArray) -> tuple[slice, slice]:
+    """Rows and columns of the bounding box of components (OpenCV ``stats`` rows)."""
+    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
+    right = left + stats[:, cv2.CC_STAT_WIDTH]
+    bottom = top + stats[:, cv2.CC_STAT_HEIGHT]
+    return slice(int(top.min()), int(bottom.max())), slice(int(left.min()), int(right.max()))
 
 
 def _compact(labels: NDArray) -> tuple[NDArray, int]:

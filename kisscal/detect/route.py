@@ -9,8 +9,9 @@ but textured background and nothing larger than a particle but glare: the peaks 
 
 The survey's groups say which: the route is "peaks" when a frame holds at least
 :data:`MIN_SPOTS` of them, :data:`MIN_DENSITY` per megapixel, most of them small (median
-at most :data:`SMALL_SPOT_PX` pixels), and their sizes fall off with no population of
-larger spots of their own size (target dots, markers, LED rings: :func:`marker_mode`).
+at most :data:`SMALL_SPOT_PX` pixels) and of many sizes (:data:`SIZE_SPAN`), falling off
+with no population of larger spots of their own size (target dots, markers, LED rings:
+:func:`marker_mode`).
 Its threshold is :data:`NOISE_FACTOR` deviations of the high-passed image's noise.
 
 References
@@ -37,6 +38,9 @@ MIN_SPOTS = 200
 MIN_DENSITY = 1000.0
 #: Largest median white pixels of those spots (particle images are a few pixels wide).
 SMALL_SPOT_PX = 16.0
+#: Least ratio of the 90th to the 10th percentile of the spots' sizes: particle images
+#: have every size, the dots of a target (or a grid) one size.
+SIZE_SPAN = 4.0
 #: A bin of the size histogram (octaves) holding this many times the one below, and
 #: :data:`MODE_EXTRA` more, is a population of its own (dots, markers, rings).
 MODE_RISE = 1.25
@@ -56,12 +60,16 @@ def particle_scene(groups: Groups, shape: tuple[int, ...], frames: int) -> tuple
         return False, "no spots surveyed: blob route"
     per_frame = len(groups) / max(frames, 1)
     density = per_frame / (shape[0] * shape[1] / 1e6)
-    median = float(np.median(groups.pixels))
+    low, median, high = np.percentile(groups.pixels, [10, 50, 90])
     bump = marker_mode(groups)
-    facts = f"{per_frame:.0f} spots a frame ({density:.0f} per megapixel), median {median:.0f} px"
+    facts = (
+        f"{per_frame:.0f} spots a frame ({density:.0f} per megapixel), median {median:.0f} px, "
+        f"10-90 % {low:.0f}-{high:.0f} px"
+    )
     if bump is not None:
         return False, f"{facts}, a population of larger spots about {bump} px: blob route"
-    if per_frame >= MIN_SPOTS and density >= MIN_DENSITY and median <= SMALL_SPOT_PX:
+    crowd = per_frame >= MIN_SPOTS and density >= MIN_DENSITY and median <= SMALL_SPOT_PX
+    if crowd and high >= SIZE_SPAN * max(low, 1.0):
         return True, f"particle frames ({facts}, no larger population): peaks route"
     return False, f"{facts}: blob route"
 
