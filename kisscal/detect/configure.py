@@ -25,8 +25,8 @@ camera-dependent setting the user did not give:
 - **centroid margins**: how far the blurred rim of the spots reaches beyond their white
   pixels, measured in x and y.
 
-Grid images are surveyed on their own (300 near-identical dots give their own size), with
-the pixel aspect taken from the camera's marker images when there are any.
+Grid images are surveyed on their own (300 near-identical dots give their own size). A
+crowd of small spots with nothing marker-sized is particle frames: :mod:`~.route`.
 
 References
 ----------
@@ -50,8 +50,6 @@ Examples
 >>> setup = configure_detection(frames)
 >>> setup.params.pixel_aspect
 1.0
->>> setup.choices["threshold"].source
-'derived'
 >>> len(detect_blobs(frames[0], setup.params).valid_only()) >= 35
 True
 """
@@ -71,6 +69,7 @@ from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
+from kisscal.detect.route import choose_route
 from kisscal.detect.shape import spreads
 from kisscal.detect.survey import (
     GreyLevels,
@@ -161,16 +160,16 @@ class DetectionSetup:
         given = [k for k, c in self.choices.items() if c.source == "given"]
         level = (
             f"{p.threshold:.0f} grey levels above the local background (tiles "
-            f"{p.background_tile_px} px"
-            if p.background_tile_px
+            f"{p.peak_highpass_px if p.route == 'peaks' else p.background_tile_px} px"
+            if p.background_tile_px or p.route == "peaks"
             else f"{p.threshold:.0f} (grey level; background {self.levels.background:.0f}"
         )
         limit = "none" if p.max_pixels is None else f"{p.max_pixels}"
         spots = "dark spots, inverted" if p.polarity == "dark" else f"{p.polarity} spots"
         text = (
-            f"{self.kind} ({spots}): threshold {level}, noise {self.levels.noise:.1f}), "
-            f"pixel aspect {p.pixel_aspect:.2f}, markers {self.marker_pixels[0]}-"
-            f"{self.marker_pixels[1]} px, oversize above {limit} px"
+            f"{self.kind} ({spots}, {p.route} route): threshold {level}, noise "
+            f"{self.levels.noise:.1f}), pixel aspect {p.pixel_aspect:.2f}, markers "
+            f"{self.marker_pixels[0]}-{self.marker_pixels[1]} px, oversize above {limit} px"
         )
         return text + (f"; given: {', '.join(given)}" if given else "")
 
@@ -287,6 +286,7 @@ class _Derivation:
                 self.choose(name, False, "grid dots never touch: nothing to split")
         else:
             self._shape_tests(final.take(markers & (final.isolation > 2.0)))
+            choose_route(self.choose, self.frames, final)  # particle frames?
         params = DetectionParams.from_layers(self.values, self.given)
         seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)

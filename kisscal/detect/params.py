@@ -188,6 +188,20 @@ class DetectionParams(Params):
     background : float or None
         Background grey level subtracted before weighting (global background only);
         ``None`` estimates it per image as the median of a sparse pixel sample.
+    route : {"blobs", "peaks"}
+        "blobs": the run-length grouping and tests above (markers, dots). "peaks": particle
+        images as particle-tracking velocimetry finds them (Maas et al. 1993;
+        :mod:`kisscal.detect.peaks`): the image less its ``peak_highpass_px`` box mean,
+        4-connected regions above ``threshold`` there, regions larger than ``max_pixels``
+        cut at twice the level while too large, weighted centroids. Derived per camera: chosen
+        for frames of many small spots and no marker-sized blobs
+        (:mod:`kisscal.detect.route`).
+    peak_highpass_px : int
+        Side (odd) of the box whose mean the "peaks" route subtracts.
+    peak_min_extent_px : int
+        "peaks" route: a region narrower or lower than this is too small.
+    peak_min_sum_grey : float
+        "peaks" route: a region whose high-passed grey levels sum to less is too small.
     """
 
     section: ClassVar[str] = "detection"
@@ -240,6 +254,10 @@ class DetectionParams(Params):
     centroid_margin_y_px: int = param(3, unit="px", ge=0)
     centroid_highpass_px: int = param(0, unit="px", ge=0)
     background: float | None = param(None, unit="grey levels")
+    route: str = param("blobs", choices=("blobs", "peaks"))
+    peak_highpass_px: int = param(51, unit="px", ge=3, odd=True)
+    peak_min_extent_px: int = param(2, unit="px", ge=1)
+    peak_min_sum_grey: float = param(0.0, unit="grey levels", ge=0)
 
     def without_advanced_analysis(self) -> DetectionParams:
         """These parameters with every section 2.3 test (and kisscal's additions) off."""

@@ -27,6 +27,7 @@ from kisscal.detect.detach import detach_from_large
 from kisscal.detect.groups import GroupTable, measure_groups
 from kisscal.detect.noise import noise_groups
 from kisscal.detect.params import DetectionParams
+from kisscal.detect.peaks import detect_peaks
 from kisscal.detect.polarity import orient
 from kisscal.detect.scan import group_runs
 from kisscal.detect.splits import Spots, split_markers
@@ -185,6 +186,8 @@ def detect_blobs(image: NDArray, params: DetectionParams = DEFAULT_PARAMS) -> Bl
     >>> len(blobs), float(blobs.x_px[0]), float(blobs.y_px[0])
     (1, 32.0, 22.0)
     """
+    if params.route == "peaks":  # particle frames (kisscal.detect.peaks)
+        return detect_peaks(orient(check_image(image), params.polarity), params)
     frame = _prepared(image, params)
     if frame is None:
         return Blobs.empty()
@@ -228,6 +231,8 @@ def detect_frames(
     makes after the ones there were, in table order, so each frame's groups keep the
     order that the frame alone gives them.
     """
+    if params.route == "peaks":  # whole-image operations: nothing to share
+        return [detect_blobs(image, params) for image in images]
     out = [Blobs.empty()] * len(images)
     prepared = [(i, _prepared(image, params)) for i, image in enumerate(images)]
     for stack in _stacks([(i, f) for i, f in prepared if f is not None]):

@@ -1,0 +1,136 @@
+"""Which detection route a camera's images call for, from what they show.
+
+Marker images (gait trials, wands, target dots) hold tens to a few hundred spots of a
+size band, often with LED rings or dots larger than the specks around them; the blob
+route (:mod:`kisscal.detect.pipeline`) with its merge, split and size tests is made for
+them. Particle-tracking frames hold a crowd of small spots of every brightness on a dark
+but textured background and nothing larger than a particle but glare: the peaks route
+(:mod:`kisscal.detect.peaks`, after Maas et al. 1993) reads them as particle trackers do.
+
+The survey's groups say which: the route is "peaks" when a frame holds at least
+:data:`MIN_SPOTS` of them, :data:`MIN_DENSITY` per megapixel, most of them small (median
+at most :data:`SMALL_SPOT_PX` pixels) and of many sizes (:data:`SIZE_SPAN`), falling off
+with no population of larger spots of their own size (target dots, markers, LED rings:
+:func:`marker_mode`).
+Its threshold is :data:`NOISE_FACTOR` deviations of the high-passed image's noise.
+
+References
+----------
+Maas, H.-G., Gruen, A., & Papantoniou, D. (1993). Particle tracking velocimetry in
+three-dimensional flows. Experiments in Fluids, 15(2), 133-146.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.detect.params import DetectionParams
+from kisscal.detect.survey import Groups
+
+#: Least spots of the marker population per frame for a particle scene.
+MIN_SPOTS = 200
+#: Least spots per megapixel per frame.
+MIN_DENSITY = 1000.0
+#: Largest median white pixels of those spots (particle images are a few pixels wide).
+SMALL_SPOT_PX = 16.0
+#: Least ratio of the 90th to the 10th percentile of the spots' sizes: particle images
+#: have every size, the dots of a target (or a grid) one size.
+SIZE_SPAN = 4.0
+#: A bin of the size histogram (octaves) holding this many times the one below, and
+#: :data:`MODE_EXTRA` more, is a population of its own (dots, markers, rings).
+MODE_RISE = 1.25
+MODE_EXTRA = 2
+#: ... and at least this share of all the filled spots (not a few glare patches).
+MODE_SHARE = 0.01
+#: Threshold of the peaks route, in noise deviations of the high-passed image.
+NOISE_FACTOR = 2.5
+#: Least summed high-passed grey of a particle image, in thresholds (four pixels three
+#: thresholds up; OpenPTV's cavity experiment asks 150 at thresholds of 9 and 11).
+SUM_FACTOR = 12.0
+
+
+def particle_scene(groups: Groups, shape: tuple[int, ...], frames: int) -> tuple[bool, str]:
+    """Whether surveyed ``groups`` are a particle scene, and why, in words."""
+    if len(groups) == 0:
+        return False, "no spots surveyed: blob route"
+    per_frame = len(groups) / max(frames, 1)
+    density = per_frame / (shape[0] * shape[1] / 1e6)
+    low, median, high = np.percentile(groups.pixels, [10, 50, 90])
+    bump = marker_mode(groups)
+    facts = (
+        f"{per_frame:.0f} spots a frame ({density:.0f} per megapixel), median {median:.0f} px, "
+        f"10-90 % {low:.0f}-{high:.0f} px"
+    )
+    if bump is not None:
+        return False, f"{facts}, a population of larger spots about {bump} px: blob route"
+    crowd = per_frame >= MIN_SPOTS and density >= MIN_DENSITY and median <= SMALL_SPOT_PX
+    if crowd and high >= SIZE_SPAN * max(low, 1.0):
+        return True, f"particle frames ({facts}, no larger population): peaks route"
+    return False, f"{facts}: blob route"
+
+
+def marker_mode(groups: Groups) -> int | None:
+    """Size (white pixels, a power of two) of a population of filled spots larger than the
+    specks, or None: a bin of the octave histogram of the isolated filled spots' sizes,
+    above its mode, holding :data:`MODE_RISE` times the bin below it (and a few more) and
+    :data:`MODE_SHARE` of the spots.
+
+    Particle images have every size, fewer the larger (each octave about half the one
+    below); marker or dot images are a population of their own size among the specks.
+    """
+    spots = groups.pixels[groups.inside & (groups.fill > 0.6)]
+    if spots.size == 0:
+        return None
+    counts = np.bincount(np.log2(np.maximum(spots, 1)).astype(int))
+    above = np.arange(counts.size) > np.argmax(counts)
+    rise = np.zeros(counts.size, dtype=bool)
+    rise[1:] = counts[1:] >= MODE_RISE * counts[:-1] + MODE_EXTRA
+    found = np.flatnonzero(rise & above & (counts >= MODE_SHARE * spots.size))
+    return int(2 ** found[0]) if found.size else None
+
+
+def highpass_noise(frames: Sequence[NDArray], side: int) -> float:
+    """Robust deviation (1.4826 MAD) of the frames less their ``side`` box mean."""
+    values = []
+    for image in frames:
+        grey = image.astype(np.float32, copy=False)
+        diff = grey - cv2.blur(grey, (side, side), borderType=cv2.BORDER_REPLICATE)
+        values.append(diff[::2, ::2].ravel())
+    d = np.concatenate(values)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))))
+
+
+def peak_settings(frames: Sequence[NDArray]) -> dict[str, tuple[object, str]]:
+    """The peaks route's derived settings for a camera's frames: value and reason."""
+    side = DetectionParams().peak_highpass_px
+    noise = highpass_noise(frames, side)
+    threshold = round(max(NOISE_FACTOR * noise, 1.0), 1)
+    return {
+        "threshold": (
+            threshold,
+            f"{NOISE_FACTOR:g} deviations of the high-passed noise ({noise:.1f}) above the "
+            f"{side} px box mean",
+        ),
+        "peak_min_sum_grey": (
+            round(SUM_FACTOR * threshold, 1),
+            f"{SUM_FACTOR:g} thresholds of summed high-passed grey",
+        ),
+    }
+
+
+def choose_route(
+    choose: Callable[[str, Any, str], Any],
+    frames: Sequence[NDArray],
+    groups: Groups,
+) -> None:
+    """Record the route (and the peaks route's settings) through ``choose(name, value,
+    why)``, which keeps a value the user gave."""
+    chosen, why = particle_scene(groups, frames[0].shape, len(frames))
+    if choose("route", "peaks" if chosen else "blobs", why) == "peaks":
+        for name, (value, reason) in peak_settings(frames).items():
+            choose(name, value, reason)
