@@ -42,6 +42,13 @@ class DltParams(Params):
         Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
         the fewest before the comparison (the lens model's 5 extra terms must lower the
         held-out error by 10 % to be chosen).
+    fold_fit_factor : float
+        A camera whose fit to a fold's remaining points has an RMS residual this many
+        times its fit to all of them (at least ``fold_fit_floor_px``) sits that fold out
+        of the comparison: the rest no longer determine it.
+    fold_fit_floor_px : float
+        Floor of that reference residual, so that nearly exact synthetic points do not
+        send cameras out for a few thousandths of a pixel.
     linear_margin : float
         The linear DLT is chosen over the refined one (the same 11 unknowns) only when
         its held-out error is lower by this fraction: the refinement is the
@@ -111,6 +118,8 @@ class DltParams(Params):
     select_model: bool = param(True)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
+    fold_fit_factor: float = param(3.0, gt=1)
+    fold_fit_floor_px: float = param(0.1, unit="px", gt=0)
     linear_margin: float = param(0.1, ge=0)
     min_points: int = param(6, ge=6)
     min_spread_ratio: float = param(1e-3, gt=0, lt=1)
