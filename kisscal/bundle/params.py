@@ -79,7 +79,8 @@ class BundleParams(Params):
         On rods, when the rods' cameras carry more lens terms than the wand's, the wand's
         calibration is kept only when its held-out rod markers' squared 3D errors are
         below those of the rods' calibration by more than this many standard errors of
-        their mean difference; it is not kept when its held-out wand length errors
+        their mean difference (otherwise, unless they are above by more than as many);
+        it is not kept when its held-out wand length errors
         (squared, field by field) are above the rods' on the same fields by more than as
         many (:mod:`kisscal.session.routes.wand_judge`).
     judge_folds : int
