@@ -66,12 +66,14 @@ def test_wand_on_rods_refines_every_camera_and_restores_the_grid_when_rods_alone
     loo = check["leave_one_rod_out"]
     assert loo["mean_mm"] < loo["rods_alone_mean_mm"]
     # the wand is kept only when its held-out rod markers are better than the rods' alone
-    # (by the standard errors the judge asks) and its held-out wand length is not worse
+    # (or not worse, by the standard errors the judge asks) and its held-out wand length
+    # is not worse
     judges = check["judges"]
     assert set(judges) == {"held_out_rod_markers_rms_mm", "held_out_wand_length_rms_error_mm"}
     markers = check["held_out_rod_markers"]
     assert markers["markers"] >= 12 and markers["wand_rms_mm"] < 1.0
-    asked = judges["held_out_rod_markers_rms_mm"]["sigmas"]
+    verdict = judges["held_out_rod_markers_rms_mm"]
+    asked = verdict["sigmas"] if verdict["asks"] == "better" else -verdict["sigmas"]
     markers_better = markers["mean_difference_mm2"] < -asked * markers["standard_error_mm2"]
     assert judges["held_out_rod_markers_rms_mm"]["wand_passes"] == markers_better
     alone = wand["held_out_rods_alone"]
