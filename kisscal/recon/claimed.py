@@ -92,10 +92,11 @@ def claimed_pieces(
     ray passes another's prediction, and cost up to 13 points of recall.) One claimed
     ray is enough when the claim comes with the ray's own pair: a candidate pair
     (``rivals``) of that field shares the blob with the piece's point, lies farther than
-    the tolerance from it, and within the tolerance of the claiming trajectory's
-    prediction. The piece then holds the blob that a marker's trajectory, continued
-    into the piece's fields, needs: one marker's ray crossed with a single-view marker's
-    ray, the blob's true pair left out.
+    the tolerance from it and within half the tolerance of the prediction of a
+    trajectory that outlasts the piece (a known marker, or a longer piece) and predicts
+    farther than twice the tolerance from the piece's point. The piece then holds the
+    blob that a marker's trajectory, continued into the piece's fields, needs: one
+    marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
 
     Parameters
     ----------
@@ -221,8 +222,9 @@ def _rival_claims(
 ) -> NDArray[np.bool_]:
     """Per piece end (``ends``: rows of ``points``, blobs a, b, point, field; its piece
     ``length`` fields long), whether a rival candidate pair shares one of its blobs,
-    lies farther than ``tolerance_mm`` from its point and within ``tolerance_mm`` of a
-    prediction of a trajectory absent from the field that outlasts the piece (``claims``:
+    lies farther than ``tolerance_mm`` from its point and within half of it of a
+    prediction of a trajectory absent from the field that outlasts the piece and
+    predicts farther than twice ``tolerance_mm`` from the point (``claims``:
     predictions, their fields, and how many fields their trajectory holds)."""
     a, b, xyz, field = points
     pred, pred_field, held = claims
@@ -244,7 +246,15 @@ def _rival_claims(
         rival = cand[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
         away = np.linalg.norm(r_xyz[rival] - xyz[ends[end_of]], axis=1) > tolerance_mm
         end_of, rival = end_of[away], rival[away]
+        if len(rival) == 0:
+            continue
         d, j = tree.query(embed_fields(r_xyz[rival], field[ends[end_of]]))
-        hit = d <= tolerance_mm
-        out[end_of[hit][held[j[hit]] > length[end_of[hit]]]] = True
+        # the rival on the prediction (within half the tolerance: a rival through a blob
+        # that two markers' images share lies off by the other marker's share), and the
+        # claimer another marker's trajectory (the piece's own, predicted a tolerance
+        # off with its point a tolerance off the other way, claims nothing)
+        hit = np.flatnonzero(d <= tolerance_mm / 2)
+        other = np.linalg.norm(pred[j[hit]] - xyz[ends[end_of[hit]]], axis=1) > 2 * tolerance_mm
+        hit = hit[other & (held[j[hit]] > length[end_of[hit]])]
+        out[end_of[hit]] = True
     return out
