@@ -10,7 +10,10 @@ trajectories the markers leave behind predict positions on its rays, far from it
 the tracker's prediction explains each ray by another marker (Küçük 2005, 3.4: the
 constant-velocity prediction gate). A true marker's trajectory begins where its own
 trajectory is absent; its ray may pass by another marker's prediction only where the two
-images overlap.
+images overlap. A ghost also ends where one of its markers gains a second camera: the
+marker's own pair begins there, sharing the ghost's blob, and the marker's trajectory,
+continued back into the ghost's last field, lands on that pair (one claimed ray, backed
+by the blob's true pair, from a trajectory that outlasts the piece).
 
 :func:`claimed_pieces` finds such pieces of two-camera points (points of one camera pair
 in consecutive fields, each within a field's step of the last) so that the caller can
@@ -75,6 +78,7 @@ def claimed_pieces(
     table: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]],
     dlts: NDArray[np.float64],
     params: ReconParams,
+    rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]] | None = None,
 ) -> NDArray[np.bool_]:
     """Which two-camera points lie on pieces whose rays other trajectories claim.
 
@@ -85,7 +89,14 @@ def claimed_pieces(
     withdrawn when its two rays are claimed by two different trajectories at either
     end: one trajectory near both rays is the point's own, predicted a little off.
     (One claimed ray was tried as enough: it withdrew true pieces wherever a marker's
-    ray passes another's prediction, and cost up to 13 points of recall.)
+    ray passes another's prediction, and cost up to 13 points of recall.) One claimed
+    ray is enough when the claim comes with the ray's own pair: a candidate pair
+    (``rivals``) of that field shares the blob with the piece's point, lies farther than
+    the tolerance from it and within half the tolerance of the prediction of a
+    trajectory that outlasts the piece (a known marker, or a longer piece) and predicts
+    farther than twice the tolerance from the piece's point. The piece then holds the
+    blob that a marker's trajectory, continued into the piece's fields, needs: one
+    marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
 
     Parameters
     ----------
@@ -100,6 +111,8 @@ def claimed_pieces(
     params : ReconParams
         ``two_camera_step_mm`` (the reach of a piece from one field to the next) and
         ``two_camera_continuity_mm`` (the tolerance).
+    rivals : tuple of ndarray, optional
+        All candidate pairs: blobs ``a``, ``b`` (n_candidates,) and points (n_candidates, 3).
 
     Returns
     -------
@@ -127,7 +140,7 @@ def claimed_pieces(
         ends = _piece_ends(label, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
         gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
-        pred, p_field = pred[gone], p_field[gone]
+        pred, p_field, src = pred[gone], p_field[gone], np.flatnonzero(ok)[gone]
         if len(pred) == 0 or len(ends) == 0:
             continue
         hits = [
@@ -143,6 +156,14 @@ def claimed_pieces(
             axis=(1, 2),
         )
         flagged[label[ends[claimed]]] = True
+        if rivals is not None:
+            # a claimer outlasting the piece: a known marker, or a longer piece
+            held = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]][src]
+            length = np.bincount(label)[label[ends]]
+            stolen = _rival_claims(
+                ends, length, (a, b, xyz, field), rivals, (pred, p_field, held), tolerance_mm
+            )
+            flagged[label[ends[stolen]]] = True
     out[flagged[label]] = True
     return out
 
@@ -188,4 +209,52 @@ def _claims(
         far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > tolerance_mm
         hit = same & (across <= tolerance_mm) & far
         out[rows, :kk] = np.where(hit, cand, -1)
+    return out
+
+
+def _rival_claims(
+    ends: NDArray[np.int64],
+    length: NDArray[np.int64],
+    points: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]],
+    rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]],
+    claims: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]],
+    tolerance_mm: float,
+) -> NDArray[np.bool_]:
+    """Per piece end (``ends``: rows of ``points``, blobs a, b, point, field; its piece
+    ``length`` fields long), whether a rival candidate pair shares one of its blobs,
+    lies farther than ``tolerance_mm`` from its point and within half of it of a
+    prediction of a trajectory absent from the field that outlasts the piece and
+    predicts farther than twice ``tolerance_mm`` from the point (``claims``:
+    predictions, their fields, and how many fields their trajectory holds)."""
+    a, b, xyz, field = points
+    pred, pred_field, held = claims
+    ra, rb, r_xyz = rivals
+    out = np.zeros(len(ends), dtype=bool)
+    ok = np.all(np.isfinite(r_xyz), axis=1)
+    if len(pred) == 0 or not ok.any():
+        return out
+    # rival index by blob: each candidate under both its blobs
+    blob = np.concatenate([ra[ok], rb[ok]])
+    cand = np.concatenate([np.flatnonzero(ok)] * 2)
+    order = np.argsort(blob, kind="stable")
+    blob, cand = blob[order], cand[order]
+    tree = cKDTree(embed_fields(pred, pred_field))
+    for mine in (a[ends], b[ends]):
+        lo, hi = np.searchsorted(blob, mine), np.searchsorted(blob, mine, side="right")
+        n = hi - lo
+        end_of = np.repeat(np.arange(len(ends)), n)
+        rival = cand[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
+        away = np.linalg.norm(r_xyz[rival] - xyz[ends[end_of]], axis=1) > tolerance_mm
+        end_of, rival = end_of[away], rival[away]
+        if len(rival) == 0:
+            continue
+        d, j = tree.query(embed_fields(r_xyz[rival], field[ends[end_of]]))
+        # the rival on the prediction (within half the tolerance: a rival through a blob
+        # that two markers' images share lies off by the other marker's share), and the
+        # claimer another marker's trajectory (the piece's own, predicted a tolerance
+        # off with its point a tolerance off the other way, claims nothing)
+        hit = np.flatnonzero(d <= tolerance_mm / 2)
+        other = np.linalg.norm(pred[j[hit]] - xyz[ends[end_of[hit]]], axis=1) > 2 * tolerance_mm
+        hit = hit[other & (held[j[hit]] > length[end_of[hit]])]
+        out[end_of[hit]] = True
     return out

@@ -15,7 +15,8 @@ camera within the epipolar band is as good a partner as the true one (Shafiq et 
 * the trajectory must not be made of rays that other trajectories claim: a piece of
   pairs whose two rays, at its first or last field, lie on the predictions of two
   trajectories that end there is two single-view markers whose rays cross and move
-  together (:mod:`kisscal.recon.claimed`); its pairs are withdrawn, the blobs compete
+  together (:mod:`kisscal.recon.claimed`); so is a piece that holds, at its end, the
+  blob of a longer trajectory's own pair; its pairs are withdrawn, the blobs compete
   again.
 
 The check applies to every two-camera pair, ambiguous or not: a blob with a single
@@ -284,15 +285,17 @@ def match_two_camera(
     alone = len(dlts) <= params.two_camera_alone_max_cameras
     won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
     # a piece whose two rays other trajectories claim is a ghost: withdraw its pairs and
-    # let their blobs compete again (kisscal.recon.claimed)
+    # let their blobs compete again (kisscal.recon.claimed); once none is left, a piece
+    # holding the blob of a longer trajectory's own pair (among the first candidates)
+    rivals, with_rivals, table = (a, b, xyz), False, (field, camera, uv)
     for _ in range(_CLAIM_ROUNDS if judge_motion else 0):
-        claimed = np.flatnonzero(won)[
-            claimed_pieces(
-                a[won], b[won], xyz[won], m_xyz, m_field, (field, camera, uv), dlts, params
-            )
-        ]
+        mine = a[won], b[won], xyz[won], m_xyz, m_field, table, dlts, params
+        claimed = np.flatnonzero(won)[claimed_pieces(*mine, rivals if with_rivals else None)]
         if len(claimed) == 0:
-            break
+            if with_rivals:
+                break
+            with_rivals = True
+            continue
         keep = np.ones(len(a), dtype=bool)
         keep[claimed] = False
         a, b, xyz = a[keep], b[keep], xyz[keep]
@@ -319,8 +322,9 @@ def match_two_camera(
     return renumber(out, field), limit_px
 
 
-#: Rounds of withdrawing claimed pieces: each round frees the true pairs a ghost held.
-_CLAIM_ROUNDS = 5
+#: Rounds of withdrawing claimed pieces: each round frees the true pairs a ghost held (the
+#: first round without two-ray claims turns to rival pairs).
+_CLAIM_ROUNDS = 8
 
 
 def _crowded(

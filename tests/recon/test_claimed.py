@@ -49,6 +49,34 @@ def test_crossing_rays_of_two_comoving_markers_that_lose_a_camera_make_no_ghost(
     assert found[:20].all(), "the markers' own pairs are kept"
 
 
+def test_crossing_that_holds_the_blob_of_a_longer_trajectorys_own_pair_is_withdrawn() -> None:
+    # A seen by camera 0 only and B by camera 2 only from field 0: their rays cross at G,
+    # a smooth two-camera trajectory that no third view or ending trajectory refutes.
+    # From field 24 camera 1 sees B too and B's own pair (1, 2) begins, a trajectory that
+    # lasts to field 69; from field 30 camera 0 loses A. Up to field 29 the crossing holds
+    # B's camera-2 blob: B's trajectory, continued back into the crossing's last field,
+    # lands on its own pair there, far from the crossing (issue 27: kiss 3 cameras seed
+    # 312, camera 0's SACR with camera 2's LASI)
+    dlts = make_rig(7, n_cameras=3)
+    n = 70
+    g = np.array([-400.0, 0.0, 900.0]) + np.arange(n)[:, None] * [12.0, 2.0, 0.0]
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    a = c0 + 0.95 * (g - c0)
+    b = c2 + 1.05 * (g - c2)
+    xyz = np.stack([a, b], axis=1)
+    seen = np.zeros((n, 2, 3), dtype=bool)
+    seen[:30, 0, 0] = True
+    seen[:, 1, 2] = True
+    seen[24:, 1, 1] = True
+    field, camera, uv = _table(dlts, xyz, seen, 2)
+    pts = reconstruct_trial(field, camera, uv, dlts)
+    d = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2)
+    ghost = d.min(axis=1) > 10.0
+    assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
+    found_b = np.unique(pts.field[d[:, 1] < 10.0])
+    assert np.array_equal(found_b, np.arange(24, n)), "B's own pairs are kept"
+
+
 def test_pieces_follow_one_camera_pair_from_field_to_field() -> None:
     field = np.array([0, 1, 2, 3, 1, 2, 5])
     xyz = np.array(
