@@ -25,6 +25,7 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
     spline_fill,
 )
+from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill
@@ -92,9 +93,10 @@ def _fill_gap(
     their rays by the segment's lengths to its measured markers
     (:func:`~kisscal.tracking.raychain.chain_fill`), then, in the runs it left, together
     with the segment's other markers on theirs
-    (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`; status ``filled_rigid``, every
-    field counted in ``ray_fields``) become context (in ``dense``) for the rest, filled
-    by :func:`_fill_one`."""
+    (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`), then at a spline's distance
+    from the camera (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`; status
+    ``filled_rigid``, every field counted in ``ray_fields``) become context (in
+    ``dense``) for the rest, filled by :func:`_fill_one`."""
     if spare is None or hi - lo <= params.max_fill_gap_fields:
         return _fill_one(dense, t, lo, hi, params, spare)
     out: list[tuple[NDArray, GapFill]] = []
@@ -105,14 +107,33 @@ def _fill_gap(
             if got is not None:
                 out.extend(_take_placed(dense, t, lo + a, got, spare))
                 placed[a:b] = np.isfinite(got.sd_mm)
-    if not placed.any():
-        return _fill_one(dense, t, lo, hi, params, spare)
     # the rest, between fields placed on rays, from the body only when it expects
     # little error (``ray_rest_max_error_mm``: it borrows their fields as its context)
     rest = params.replace(
         max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
     )
     for a, b in zip(*true_runs(~placed), strict=True):
+        out.extend(_fill_rest(dense, t, lo + a, lo + b, rest if placed.any() else params, spare))
+    return out
+
+
+def _fill_rest(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs
+) -> list[tuple[NDArray, GapFill]]:
+    """:func:`_fill_one`; where it finds no fill, the marker's blobs in one camera at a
+    spline's distance from it (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), the
+    fields without a blob then by :func:`_fill_one` with ``ray_rest_max_error_mm``."""
+    out = _fill_one(dense, t, lo, hi, params, spare)
+    if out or hi - lo <= params.max_fill_gap_fields:
+        return out
+    got = depth_ray_fill(dense, t, lo, hi, spare, params)
+    if got is None:
+        return []
+    out = _take_placed(dense, t, lo, got, spare)
+    rest = params.replace(
+        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
+    )
+    for a, b in zip(*true_runs(~np.isfinite(got.sd_mm)), strict=True):
         out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
     return out
 
