@@ -7,6 +7,7 @@ import numpy as np
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import FILLED_RIGID, TrackingParams, spare_blobs
+from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
@@ -16,6 +17,7 @@ from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import _look_at
 
 GAP = slice(100, 160)
+PARAMS = TrackingParams()
 
 
 def _spare(xyz: np.ndarray, seed: int) -> object:
@@ -144,3 +146,28 @@ def test_a_segment_on_rays_with_a_wrong_blob_is_not_placed():
         placed = np.isfinite(got.sd_mm)
         err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
         assert err.size <= 5 or np.sqrt(np.mean(err**2)) < 3.0
+
+
+def test_a_marker_one_camera_sees_alone_is_placed_at_the_spline_s_distance():
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    # the whole body but marker 0 hidden: no length fixes the depth, the spline does
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    got = depth_ray_fill(dense, 3, GAP.start, GAP.stop, _segment_on_rays(xyz, 7, (3,)), PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.9 * (GAP.stop - GAP.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < max(2.0 * got.sd_mm[placed][0], 1.0)
+    assert got.sd_mm[placed][0] <= PARAMS.ray_depth_max_error_mm
+
+
+def test_a_marker_bobbing_along_the_camera_s_sight_is_not_placed_by_depth():
+    xyz = rigid_body(seed=8, noise_mm=0.2)
+    spare = _segment_on_rays(xyz, 8, (3,))
+    sight = xyz[3, GAP].mean(axis=0) - spare.centres[0]
+    sight /= np.linalg.norm(sight)
+    # towards and away from the camera, 30 mm, twice per gap's length
+    xyz[3] += 30.0 * np.sin(np.arange(xyz.shape[1]) * 4 * np.pi / 60)[:, None] * sight
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    spare = _segment_on_rays(xyz, 8, (3,))
+    assert depth_ray_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is None
