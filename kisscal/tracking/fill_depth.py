@@ -65,14 +65,22 @@ def depth_error(
 
 
 def depth_ray_fill(
-    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    measured: NDArray | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
     3; NaN where not measured) on the rays of its own blobs in the camera that sees most
     of the gap, at the spline's distance from that camera (see module); None when the
     spline's expected error exceeds ``ray_depth_max_error_mm`` or no run of
     :data:`~kisscal.tracking.raychain.MIN_RUN` fields has a blob. The blobs taken are not
-    marked used here."""
+    marked used here. With ``measured`` ((n_fields,) bool), the spline and its error
+    use only those samples of the track (not fields placed on rays by other fills),
+    across the whole run of unmeasured fields around the gap."""
     series = dense[t]
     if lo < 2 or hi + 1 >= len(series) or not np.all(np.isfinite(series[[lo - 1, hi]])):
         return None
@@ -85,10 +93,17 @@ def depth_ray_fill(
     ks, first = np.unique(ks, return_index=True)
     rows = rows[first]
     centre = spare.centres[cam]
-    err = depth_error(series, centre, lo, hi, params)
-    depth = _depth_spline(series, centre, lo, hi, params.fill_context_fields)
+    own, a, b = series, lo, hi
+    if measured is not None:
+        own = np.where(measured[:, None], series, np.nan)
+        seen = np.flatnonzero(measured)
+        a = int(seen[seen < lo][-1]) + 1 if np.any(seen < lo) else 0
+        b = int(seen[seen >= hi][0]) if np.any(seen >= hi) else len(series)
+    err = depth_error(own, centre, a, b, params)
+    depth = _depth_spline(own, centre, a, b, params.fill_context_fields)
     if depth is None or not err <= params.ray_depth_max_error_mm:
         return None
+    depth = depth[lo - a : hi - a]
     has = np.zeros(hi - lo, dtype=bool)
     has[ks] = True
     placed = np.zeros(hi - lo, dtype=bool)

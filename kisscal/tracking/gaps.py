@@ -87,7 +87,13 @@ def _fill_one(
 
 
 def _fill_gap(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs | None
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    spare: SpareBlobs | None,
+    measured: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """A gap longer than a spline bridges: the fields the marker's own blobs place on
     their rays by the segment's lengths to its measured markers
@@ -96,7 +102,8 @@ def _fill_gap(
     (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`), then at a spline's distance
     from the camera (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`; status
     ``filled_rigid``, every field counted in ``ray_fields``) become context (in
-    ``dense``) for the rest, filled by :func:`_fill_one`."""
+    ``dense``) for the rest, filled by :func:`_fill_one`. ``measured`` (n_fields,) bool:
+    the track's measured fields (for the depth fill's spline)."""
     if spare is None or hi - lo <= params.max_fill_gap_fields:
         return _fill_one(dense, t, lo, hi, params, spare)
     out: list[tuple[NDArray, GapFill]] = []
@@ -113,12 +120,19 @@ def _fill_gap(
         max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
     )
     for a, b in zip(*true_runs(~placed), strict=True):
-        out.extend(_fill_rest(dense, t, lo + a, lo + b, rest if placed.any() else params, spare))
+        p = rest if placed.any() else params
+        out.extend(_fill_rest(dense, t, lo + a, lo + b, p, spare, measured))
     return out
 
 
 def _fill_rest(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    spare: SpareBlobs,
+    measured: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """:func:`_fill_one`; where it finds no fill, the marker's blobs in one camera at a
     spline's distance from it (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), the
@@ -126,7 +140,7 @@ def _fill_rest(
     out = _fill_one(dense, t, lo, hi, params, spare)
     if out or hi - lo <= params.max_fill_gap_fields:
         return out
-    got = depth_ray_fill(dense, t, lo, hi, spare, params)
+    got = depth_ray_fill(dense, t, lo, hi, spare, params, measured)
     if got is None:
         return []
     out = _take_placed(dense, t, lo, got, spare)
@@ -201,12 +215,13 @@ def fill_gaps_logged(
     n_fields = int(tracks.field.max()) + 1
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
+    measured = np.isfinite(dense[:, :, 0])
     fills, filled_xyz = [], []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     for t in range(tracks.n_tracks):
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params):
-            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare):
+            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
                 filled_xyz.append(xyz)
                 fills.append(fill)
     if not fills:
