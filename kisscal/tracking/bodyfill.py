@@ -148,12 +148,10 @@ def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
     fewer than 4 such fields."""
     dist = np.linalg.norm(a[:, None] - b[None], axis=3)
     seen = np.isfinite(dist)
-    sd = (
-        np.nanstd(np.where(seen, dist, np.nan), axis=2)
-        if seen.any()
-        else np.full(seen.shape[:2], np.inf)
-    )
-    return np.where(seen.sum(axis=2) >= 4, sd, np.inf)
+    n = np.maximum(seen.sum(axis=2), 1)
+    mean = np.where(seen, dist, 0.0).sum(axis=2) / n
+    var = np.where(seen, (dist - mean[..., None]) ** 2, 0.0).sum(axis=2) / n
+    return np.where(seen.sum(axis=2) >= 4, np.sqrt(var), np.inf)
 
 
 def rigid_donors(

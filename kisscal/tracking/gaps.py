@@ -25,8 +25,10 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
     spline_fill,
 )
+from kisscal.tracking.fill_depth import depth_ray_fill
+from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill
+from kisscal.tracking.raychain import ChainFill, chain_fill
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import (
     FILLED,
@@ -85,32 +87,84 @@ def _fill_one(
 
 
 def _fill_gap(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs | None
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    spare: SpareBlobs | None,
+    measured: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """A gap longer than a spline bridges: the fields the marker's own blobs place on
-    their rays by the segment's lengths (:func:`~kisscal.tracking.raychain.chain_fill`;
-    status ``filled_rigid``, every field counted in ``ray_fields``) become context (in
-    ``dense``) for the rest, filled by :func:`_fill_one`."""
-    chain = None
-    if spare is not None and hi - lo > params.max_fill_gap_fields:
-        chain = chain_fill(dense, t, lo, hi, spare, params)
-    if chain is None:
+    their rays by the segment's lengths to its measured markers
+    (:func:`~kisscal.tracking.raychain.chain_fill`), then, in the runs it left, together
+    with the segment's other markers on theirs
+    (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`), then at a spline's distance
+    from the camera (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`; status
+    ``filled_rigid``, every field counted in ``ray_fields``) become context (in
+    ``dense``) for the rest, filled by :func:`_fill_one`. ``measured`` (n_fields,) bool:
+    the track's measured fields (for the depth fill's spline)."""
+    if spare is None or hi - lo <= params.max_fill_gap_fields:
         return _fill_one(dense, t, lo, hi, params, spare)
-    spare.free[chain.rows] = False
-    placed = np.isfinite(chain.sd_mm)
-    dense[t, lo:hi][placed] = chain.xyz_mm[placed]
-    out = []
-    for a, b in zip(*true_runs(placed), strict=True):
-        err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
-        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
-        out.append((chain.xyz_mm[a:b], fill))
+    out: list[tuple[NDArray, GapFill]] = []
+    placed = np.zeros(hi - lo, dtype=bool)
+    for placer in (chain_fill, joint_ray_fill):
+        for a, b in zip(*true_runs(~placed), strict=True):
+            got = placer(dense, t, lo + a, lo + b, spare, params)
+            if got is not None:
+                out.extend(_take_placed(dense, t, lo + a, got, spare))
+                placed[a:b] = np.isfinite(got.sd_mm)
     # the rest, between fields placed on rays, from the body only when it expects
     # little error (``ray_rest_max_error_mm``: it borrows their fields as its context)
     rest = params.replace(
         max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
     )
     for a, b in zip(*true_runs(~placed), strict=True):
+        p = rest if placed.any() else params
+        out.extend(_fill_rest(dense, t, lo + a, lo + b, p, spare, measured))
+    return out
+
+
+def _fill_rest(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    spare: SpareBlobs,
+    measured: NDArray | None = None,
+) -> list[tuple[NDArray, GapFill]]:
+    """:func:`_fill_one`; where it finds no fill, the marker's blobs in one camera at a
+    spline's distance from it (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), the
+    fields without a blob then by :func:`_fill_one` with ``ray_rest_max_error_mm``."""
+    out = _fill_one(dense, t, lo, hi, params, spare)
+    if out or hi - lo <= params.max_fill_gap_fields:
+        return out
+    got = depth_ray_fill(dense, t, lo, hi, spare, params, measured)
+    if got is None:
+        return []
+    out = _take_placed(dense, t, lo, got, spare)
+    rest = params.replace(
+        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
+    )
+    for a, b in zip(*true_runs(~np.isfinite(got.sd_mm)), strict=True):
         out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
+    return out
+
+
+def _take_placed(
+    dense: NDArray, t: int, lo: int, chain: ChainFill, spare: SpareBlobs
+) -> list[tuple[NDArray, GapFill]]:
+    """The fields ``chain`` placed from ``lo`` on: written into ``dense`` (context for
+    the rest), their blobs marked used, one :class:`GapFill` per run."""
+    spare.free[chain.rows] = False
+    placed = np.isfinite(chain.sd_mm)
+    dense[t, lo : lo + placed.size][placed] = chain.xyz_mm[placed]
+    out = []
+    for a, b in zip(*true_runs(placed), strict=True):
+        err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
+        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
+        out.append((chain.xyz_mm[a:b], fill))
     return out
 
 
@@ -161,12 +215,13 @@ def fill_gaps_logged(
     n_fields = int(tracks.field.max()) + 1
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
+    measured = np.isfinite(dense[:, :, 0])
     fills, filled_xyz = [], []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     for t in range(tracks.n_tracks):
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params):
-            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare):
+            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
                 filled_xyz.append(xyz)
                 fills.append(fill)
     if not fills:

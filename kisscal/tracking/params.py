@@ -146,6 +146,10 @@ class TrackingParams(Params):
     ray_length_max_error_mm : float
         Largest expected error (mm) along the ray of a field placed on it by the
         segment's lengths.
+    ray_depth_max_error_mm : float
+        Largest expected error (mm) of a marker's distance from the one camera that sees
+        it, bridged by a spline across the gap, for its blob's ray to place it
+        (:mod:`kisscal.tracking.fill_depth`).
     ray_rest_max_error_mm : float
         Largest expected error (mm) of a body fill between fields placed on rays (it
         borrows them as its context, and an error measured beside them tells less).
@@ -228,6 +232,7 @@ class TrackingParams(Params):
     ray_chain_coast_fields: int = param(3, unit="fields", ge=0)
     ray_length_sd_floor_mm: float = param(1.0, unit="mm", gt=0)
     ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
+    ray_depth_max_error_mm: float = param(3.0, unit="mm", gt=0)
     ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)
     refill_predicted: bool = param(True)
     label_tolerance_mm: float = param(120.0, unit="mm", gt=0)

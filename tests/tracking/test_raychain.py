@@ -7,6 +7,8 @@ import numpy as np
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import FILLED_RIGID, TrackingParams, spare_blobs
+from kisscal.tracking.fill_depth import depth_ray_fill
+from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
 from kisscal.tracking.labelling.pieces import join_gap_pieces
@@ -15,6 +17,7 @@ from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import _look_at
 
 GAP = slice(100, 160)
+PARAMS = TrackingParams()
 
 
 def _spare(xyz: np.ndarray, seed: int) -> object:
@@ -95,3 +98,76 @@ def test_an_unnamed_piece_inside_a_named_gap_joins_it_and_a_decoy_does_not():
     assert err.max() < 2.0
     m1 = got.tracks.track == got.labels.index("M1")
     assert np.allclose(got.tracks.xyz_mm[m1], decoy)
+
+
+def _segment_on_rays(xyz: np.ndarray, seed: int, markers=(1, 2, 3)) -> object:
+    """One camera 3 m from the body sees ``markers`` through the gap, with two noise
+    blobs a field anywhere."""
+    target = xyz[3, GAP].mean(axis=0)
+    dlts = _look_at(target + [2500.0, 1500.0, 600.0], target)[None]
+    fields = np.arange(GAP.start, GAP.stop)
+    rng = np.random.default_rng(seed)
+    uv = [project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[m, GAP]) for m in markers]
+    uv = np.concatenate(uv) + rng.normal(0, 0.05, (len(markers) * fields.size, 2))
+    noise = rng.uniform([0, 0], [640, 480], (2 * fields.size, 2))
+    f = np.r_[np.tile(fields, len(markers)), np.repeat(fields, 2)]
+    return spare_blobs(f, np.zeros(f.size), np.r_[uv, noise], dlts)
+
+
+def _dense(tracks) -> np.ndarray:
+    dense = np.full((tracks.n_tracks, int(tracks.field.max()) + 1, 3), np.nan)
+    meas = tracks.status == MEASURED
+    dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
+    return dense
+
+
+def test_a_segment_one_camera_sees_is_placed_on_its_rays_together():
+    xyz = rigid_body(seed=4, noise_mm=0.2)
+    # three of the four markers hidden for 0.6 s, each on its ray in one camera
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    got = joint_ray_fill(dense, 3, GAP.start, GAP.stop, _segment_on_rays(xyz, 4), TrackingParams())
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.8 * (GAP.stop - GAP.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0
+    assert np.all(got.sd_mm[placed] <= TrackingParams().ray_length_max_error_mm)
+
+
+def test_a_segment_on_rays_with_a_wrong_blob_is_not_placed():
+    xyz = rigid_body(seed=6, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    wrong = xyz.copy()
+    wrong[3, GAP] += [0.0, 0.0, 25.0]  # the target's blob is another marker's, 25 mm off
+    got = joint_ray_fill(
+        dense, 3, GAP.start, GAP.stop, _segment_on_rays(wrong, 6), TrackingParams()
+    )
+    if got is not None:
+        placed = np.isfinite(got.sd_mm)
+        err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+        assert err.size <= 5 or np.sqrt(np.mean(err**2)) < 3.0
+
+
+def test_a_marker_one_camera_sees_alone_is_placed_at_the_spline_s_distance():
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    # the whole body but marker 0 hidden: no length fixes the depth, the spline does
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    got = depth_ray_fill(dense, 3, GAP.start, GAP.stop, _segment_on_rays(xyz, 7, (3,)), PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.9 * (GAP.stop - GAP.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < max(2.0 * got.sd_mm[placed][0], 1.0)
+    assert got.sd_mm[placed][0] <= PARAMS.ray_depth_max_error_mm
+
+
+def test_a_marker_bobbing_along_the_camera_s_sight_is_not_placed_by_depth():
+    xyz = rigid_body(seed=8, noise_mm=0.2)
+    spare = _segment_on_rays(xyz, 8, (3,))
+    sight = xyz[3, GAP].mean(axis=0) - spare.centres[0]
+    sight /= np.linalg.norm(sight)
+    # towards and away from the camera, 30 mm, twice per gap's length
+    xyz[3] += 30.0 * np.sin(np.arange(xyz.shape[1]) * 4 * np.pi / 60)[:, None] * sight
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    spare = _segment_on_rays(xyz, 8, (3,))
+    assert depth_ray_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is None

@@ -1,0 +1,121 @@
+"""Single-camera fill by depth: a marker on its blob's ray, its distance from the camera
+bridged by a spline.
+
+Where one camera alone sees a marker and neither the segment's lengths
+(:mod:`kisscal.tracking.raychain`, :mod:`kisscal.tracking.fill_joint`) nor a body fill
+place it (a shank marker whose partners are hidden too), two of its three coordinates are
+still measured: it lies on the ray of its own blob, followed in the image from both sides
+of the gap (:func:`~kisscal.tracking.raychain.chain_blobs`). The third, its distance from
+that camera, changes smoothly and is bridged by a cubic interpolating spline through the
+distances of the marker's measured samples on each side (``fill_context_fields``).
+
+The fill is kept only when the same spline, run on stretches of the marker's own measured
+samples of the gap's length (:func:`~kisscal.tracking.bodyfill.pseudo_gaps`), misses their
+distance from the camera by at most ``ray_depth_max_error_mm`` RMS: a marker turning
+towards the camera in the gap is left to the other fills.
+
+References
+----------
+Hartley & Zisserman 2004 (rays of a projective camera); Gløersen & Federolf 2016 (gap
+filling from what the trial measured).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import make_interp_spline
+
+from kisscal._shared import true_runs
+from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs
+from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+
+
+def _depth_spline(
+    series: NDArray, centre: NDArray, lo: int, hi: int, n: int
+) -> NDArray[np.float64] | None:
+    """Distance (mm) of ``series`` (n_fields, 3) from ``centre`` over fields [lo, hi): the
+    cubic spline through up to ``n`` measured samples on each side (None without two)."""
+    before, after = side_windows(series, lo, hi, n)
+    if before.size < 2 or after.size < 2:
+        return None
+    f = np.r_[before, after]
+    depth = np.linalg.norm(series[f] - centre, axis=1)
+    return make_interp_spline(f, depth, k=min(3, f.size - 1))(np.arange(lo, hi))
+
+
+def depth_error(
+    series: NDArray, centre: NDArray, lo: int, hi: int, params: TrackingParams
+) -> float:
+    """RMS error (mm) of :func:`_depth_spline` on :func:`pseudo_gaps` beside [lo, hi),
+    scaled up as the square of the gap's length over a shorter stretch's (as
+    :func:`~kisscal.tracking.bodyfill.expected_errors`); NaN without a stretch."""
+    err = []
+    for plo, phi in pseudo_gaps(series, lo, hi, params.body_context_fields // 2):
+        cut = series.copy()
+        cut[plo:phi] = np.nan
+        got = _depth_spline(cut, centre, plo, phi, params.fill_context_fields)
+        if got is None:
+            continue
+        miss = got - np.linalg.norm(series[plo:phi] - centre, axis=1)
+        err.append(np.sqrt(np.mean(miss**2)) * ((hi - lo) / (phi - plo)) ** 2)
+    return float(np.sqrt(np.mean(np.square(err)))) if err else float("nan")
+
+
+def depth_ray_fill(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    measured: NDArray | None = None,
+) -> ChainFill | None:
+    """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
+    3; NaN where not measured) on the rays of its own blobs in the camera that sees most
+    of the gap, at the spline's distance from that camera (see module); None when the
+    spline's expected error exceeds ``ray_depth_max_error_mm`` or no run of
+    :data:`~kisscal.tracking.raychain.MIN_RUN` fields has a blob. The blobs taken are not
+    marked used here. With ``measured`` ((n_fields,) bool), the spline and its error
+    use only those samples of the track (not fields placed on rays by other fills),
+    across the whole run of unmeasured fields around the gap."""
+    series = dense[t]
+    if lo < 2 or hi + 1 >= len(series) or not np.all(np.isfinite(series[[lo - 1, hi]])):
+        return None
+    ks, rows = chain_blobs(series, lo, hi, spare, params)
+    if ks.size == 0:
+        return None
+    cam = int(np.bincount(spare.camera[rows]).argmax())
+    keep = spare.camera[rows] == cam
+    ks, rows = ks[keep], rows[keep]
+    ks, first = np.unique(ks, return_index=True)
+    rows = rows[first]
+    centre = spare.centres[cam]
+    own, a, b = series, lo, hi
+    if measured is not None:
+        own = np.where(measured[:, None], series, np.nan)
+        seen = np.flatnonzero(measured)
+        a = int(seen[seen < lo][-1]) + 1 if np.any(seen < lo) else 0
+        b = int(seen[seen >= hi][0]) if np.any(seen >= hi) else len(series)
+    err = depth_error(own, centre, a, b, params)
+    depth = _depth_spline(own, centre, a, b, params.fill_context_fields)
+    if depth is None or not err <= params.ray_depth_max_error_mm:
+        return None
+    depth = depth[lo - a : hi - a]
+    has = np.zeros(hi - lo, dtype=bool)
+    has[ks] = True
+    placed = np.zeros(hi - lo, dtype=bool)
+    for a, b in zip(*true_runs(has), strict=True):
+        placed[a:b] = b - a >= MIN_RUN
+    if not placed.any():
+        return None
+    take = placed[ks]
+    ks, rows = ks[take], rows[take]
+    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
+    d *= np.sign((series[lo - 1] - centre) @ d.T)[:, None]  # towards the marker
+    xyz = np.full((hi - lo, 3), np.nan)
+    xyz[ks] = centre + depth[ks, None] * d
+    sd = np.where(placed, err, np.nan)
+    return ChainFill(xyz, sd, (), rows)
