@@ -25,7 +25,8 @@ from kisscal.tracking.labelling.state import LabelState
 #: The body moves at least this far (mm, horizontally) through a window for its
 #: walking direction to count.
 MIN_TRAVEL_MM = 100.0
-_HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
+#: A heel marker name: its side prefix, then HEE, HEEL or CAL.
+HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
 _FRONT = re.compile(r"ASI")
 _BACK = re.compile(r"PSI|SACR?$")
 
@@ -33,7 +34,7 @@ _BACK = re.compile(r"PSI|SACR?$")
 def foot_pairs(names: tuple[str, ...]) -> list[tuple[int, int]]:
     """(toe, heel) name pairs: ``<side>TOE`` and ``<side>HEE`` (or ``HEEL``, ``CAL``)."""
     index = {n: i for i, n in enumerate(names)}
-    found = [(m.group(1) + "TOE", n) for n in names if (m := _HEEL.match(n))]
+    found = [(m.group(1) + "TOE", n) for n in names if (m := HEEL.match(n))]
     return [(index[toe], index[heel]) for toe, heel in found if toe in index]
 
 

@@ -28,7 +28,7 @@ from itertools import permutations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.facing import _HEEL, foot_pairs, walking_direction
+from kisscal.tracking.labelling.facing import HEEL, foot_pairs, walking_direction
 from kisscal.tracking.labelling.spread import spread
 from kisscal.tracking.labelling.state import LabelState, median_distances
 
@@ -58,7 +58,7 @@ def feet_of(names: tuple[str, ...]) -> list[Foot]:
     index = {n: i for i, n in enumerate(names)}
     out = []
     for toe, heel in foot_pairs(names):
-        side = _HEEL.match(names[heel]).group(1)
+        side = HEEL.match(names[heel]).group(1)
         ankle = [index[side + a] for a in _ANKLE if side + a in index]
         shank = [index[side + s] for s in _SHANK if side + s in index]
         if shank:
@@ -121,6 +121,8 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     shank by the best :func:`score` when it is at most ``foot_margin`` of the held one."""
     params = state.params
     held_any = np.isfinite(state.name_pos[foot.names, :, 0]).any(axis=1)
+    if not held_any.any():
+        return False  # no naming of the labelling's own to compare with
     pool = _near_unnamed(state, foot, target)
     cand = np.concatenate([state.name_pos[foot.names[held_any]], state.dense[pool]])
     k, s = foot.names.size, foot.shank.size
@@ -213,9 +215,11 @@ def _rename_names(
 
 def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """Each piece holding a foot name, shortest first, against each other foot name in
-    its fields: it takes that name (the pieces holding it there take its own) when the
+    its fields: it takes that name, and its partner there takes its own, when the
     :func:`score` of its distances to the shank and the rest of the foot is at most
-    ``foot_margin`` of its own."""
+    ``foot_margin`` of its own. The partner is the name's holder in those fields, else an
+    unnamed piece at the template's distance between the two names (within
+    ``label_segment_tolerance_mm``, median over the fields both are seen)."""
     moved = False
     order = np.flatnonzero(np.isin(state.label_of, foot.names))
     for p in order[np.argsort(state.n_measured[order], kind="stable")].tolist():
@@ -224,34 +228,84 @@ def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: ND
         if n not in foot.names or fields.size < _MIN_SHARED:
             continue
         for m in foot.names[foot.names != n].tolist():
-            if _piece_better(state, foot, p, n, m, target, direction) and _exchange(state, p, n, m):
-                moved = True
+            holders = _overlapping(state, np.flatnonzero(state.label_of == m), fields)
+            partners = [holders] if holders else [[u] for u in _partners(state, p, n, m)]
+            for q in partners:
+                other = _positions(state, q, fields)
+                if _piece_better(state, foot, p, n, m, other, target, direction) and _exchange(
+                    state, p, n, m, q
+                ):
+                    moved = True
+                    break
+            if state.label_of[p] != n:
                 break
     return moved
 
 
+def _overlapping(state: LabelState, pieces: NDArray, fields: NDArray) -> list[int]:
+    """The ``pieces`` seen in any of ``fields``."""
+    return [int(q) for q in pieces if np.intersect1d(state.piece(int(q))[0], fields).size]
+
+
+def _positions(state: LabelState, pieces: list[int], fields: NDArray) -> NDArray:
+    """Positions of ``pieces`` at ``fields`` (NaN where none is seen)."""
+    out = np.full((fields.size, 3), np.nan)
+    for q in pieces:
+        f_q, x_q = state.piece(q)
+        _, i, j = np.intersect1d(fields, f_q, return_indices=True)
+        out[i] = x_q[j]
+    return out
+
+
+def _partners(state: LabelState, p: int, n: int, m: int) -> list[int]:
+    """Unnamed pieces seen with piece ``p`` in :data:`_MIN_SHARED` fields or more at the
+    state's template distance between names ``n`` and ``m`` (within
+    ``label_segment_tolerance_mm``, median)."""
+    fields, xyz = state.piece(p)
+    tracks = state.tracks
+    rows = np.flatnonzero(np.isin(tracks.field, fields) & (tracks.track != p))
+    out = []
+    for q in np.unique(tracks.track[rows]).tolist():
+        if state.label_of[q] >= 0:
+            continue
+        other = _positions(state, [q], fields)
+        d = np.linalg.norm(other - xyz, axis=1)
+        d = d[np.isfinite(d)]
+        length = state.template_distance[n, m]
+        if d.size >= _MIN_SHARED and abs(np.median(d) - length) <= (
+            state.params.label_segment_tolerance_mm
+        ):
+            out.append(q)
+    return out
+
+
 def _piece_better(
-    state: LabelState, foot: Foot, p: int, n: int, m: int, target: NDArray, direction: NDArray
+    state: LabelState,
+    foot: Foot,
+    p: int,
+    n: int,
+    m: int,
+    other: NDArray,
+    target: NDArray,
+    direction: NDArray,
 ) -> bool:
-    """Whether piece ``p`` (named ``n``) scores far better named ``m``, the holder of
-    ``m`` in its fields named ``n``."""
+    """Whether piece ``p`` (named ``n``) scores far better named ``m`` with its partner
+    at positions ``other`` (its fields) named ``n``."""
     fields, xyz = state.piece(p)
     refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
-    other = state.name_pos[m, fields]  # the holder of m there: n after the exchange
     pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
     d = np.linalg.norm(pos - xyz[None], axis=2)
     shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
-    if not shared[:-1].any():
-        return False  # only the exchanged pair: the same in both namings
+    if not shared.any():
+        return False
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         dist = np.nanmedian(d[shared], axis=1)
     refs_used = np.concatenate([refs, [m]])[shared]
     own_t = target[n, refs_used]
     alt_t = target[m, np.where(refs_used == m, n, refs_used)]  # the pair n-m either way
-    at = {n: xyz, m: other}
     fraction, margin = state.params.facing_fraction, state.params.foot_margin
-    own_trails = _trails_as(state, foot, fields, at, direction, fraction)
+    own_trails = _trails_as(state, foot, fields, {n: xyz, m: other}, direction, fraction)
     alt_trails = _trails_as(state, foot, fields, {m: xyz, n: other}, direction, fraction)
     own = float(score(dist, own_t, own_trails, margin))
     alt = float(score(dist, alt_t, alt_trails, margin))
@@ -266,24 +320,20 @@ def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
     return bool(trailing(toe, heel, direction[fields], fraction))
 
 
-def _exchange(state: LabelState, p: int, n: int, m: int) -> bool:
-    """Piece ``p`` named ``m``, and the pieces holding ``m`` in its fields named ``n``,
-    when ``n`` is free in their fields; returns whether it did."""
+def _exchange(state: LabelState, p: int, n: int, m: int, partners: list[int]) -> bool:
+    """Piece ``p`` named ``m`` and its ``partners`` named ``n``, when ``n`` is free in
+    the partners' fields but for ``p``; returns whether it did."""
     fields = state.piece(p)[0]
-    holders = [
-        int(q)
-        for q in np.flatnonzero(state.label_of == m)
-        if np.intersect1d(state.piece(int(q))[0], fields).size
-    ]
     state.name_pos[n, fields] = np.nan
-    for q in holders:
+    for q in partners:
         if np.isfinite(state.name_pos[n, state.piece(q)[0], 0]).any():
             state.name_piece(p, n)
             return False
-    for q in holders:
-        state.name_pos[m, state.piece(q)[0]] = np.nan
+    for q in partners:
+        if state.label_of[q] == m:
+            state.name_pos[m, state.piece(q)[0]] = np.nan
     state.name_piece(p, m)
-    for q in holders:
+    for q in partners:
         state.name_piece(q, n)
     return True
 
@@ -316,6 +366,10 @@ def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: 
             refs = np.concatenate([foot.shank, foot.names[foot.names != m]])
             dist = _distances(state, fields, xyz, refs)
             seen = np.isfinite(dist)
+            if not seen.any():
+                scores.append(np.inf)
+                fits.append(False)
+                continue
             trails = _trails_as(state, foot, fields, {m: xyz}, direction, params.facing_fraction)
             scores.append(float(score(dist[seen], target[m, refs[seen]], trails, 1.0)))
             inner = seen & np.isin(refs, foot.names)
