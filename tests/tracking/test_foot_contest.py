@@ -88,3 +88,19 @@ def test_a_short_ankle_piece_named_heel_while_the_heel_is_unnamed_takes_the_ankl
     _rename(state, [heel, short], [-1, HEE])
     assert settle_feet(state, state.template)
     np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_a_toe_piece_named_heel_beside_the_unnamed_heel_is_renamed_by_the_walk():
+    """Three cameras, kiss seed 312: no shank marker named, a 12-field toe piece named
+    heel and the heel's own piece beside it unnamed, at the foot's length: the walk puts
+    the toe ahead, and the two take their names."""
+    truth = gait_truth(200, 3)
+    tracks, owner = _pieces(truth, cuts={HEE: (110, 140), TOE: (120, 132)})
+    state = _named(tracks, owner)
+    for m in (INDEX["RKNE"], INDEX["RTIB"], ANK):
+        _rename(state, np.flatnonzero(owner == m).tolist(), [-1] * int(np.sum(owner == m)))
+    toe = int(np.flatnonzero(owner == TOE)[1])
+    heel = int(np.flatnonzero(owner == HEE)[1])
+    _rename(state, [toe, heel], [HEE, -1])
+    assert settle_feet(state, state.template)
+    assert state.label_of[toe] == TOE and state.label_of[heel] == HEE
