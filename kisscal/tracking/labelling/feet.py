@@ -222,7 +222,7 @@ def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: ND
     :func:`score` of its distances to the shank and the rest of the foot is at most
     ``foot_margin`` of its own. The partner is the name's holder in those fields, else an
     unnamed piece at the template's distance between the two names (within
-    ``label_segment_tolerance_mm``, median over the fields both are seen)."""
+    ``label_segment_tolerance_mm``, median over the fields both are seen), else none."""
     moved = False
     order = np.flatnonzero(np.isin(state.label_of, foot.names))
     for p in order[np.argsort(state.n_measured[order], kind="stable")].tolist():
@@ -232,7 +232,8 @@ def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: ND
             continue
         for m in foot.names[foot.names != n].tolist():
             holders = _overlapping(state, np.flatnonzero(state.label_of == m), fields)
-            partners = [holders] if holders else [[u] for u in _partners(state, p, n, m)]
+            # The name's holders there; where it is free, an unnamed partner or none.
+            partners = [holders] if holders else [[u] for u in _partners(state, p, n, m)] + [[]]
             for q in partners:
                 other = _positions(state, q, fields)
                 if _piece_better(state, foot, p, n, m, other, target, direction) and _exchange(
