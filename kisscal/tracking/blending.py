@@ -20,17 +20,6 @@ from kisscal.tracking.predictors import extrapolation_weights, shafiq_rule
 from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks
 
 _FAR = 1e12
-# The join test of :func:`_smooth_as_pieces`: samples a side through the gap, samples of
-# each piece for its own roughness, and how much rougher a join may be.
-_JOIN_POINTS = 5
-_PIECE_POINTS = 10
-_ROUGHER = 4.0
-# A sample of another piece in a join's gap this near one side's extrapolation, as a share
-# of the distance between the two sides' extrapolations there, is that side's marker seen
-# in the gap (:func:`_rival_in_gap`). In the regression set of real C3D files the two
-# wrong joins this refuses have their rival at 0.01 and 0.11 of it; the nearest sample of
-# another marker to a right join is at 0.21.
-_RIVAL_SHARE = 0.2
 
 
 def _end_points(
@@ -97,11 +86,11 @@ def _ranges(lo: NDArray, hi: NDArray) -> NDArray[np.int64]:
     return np.repeat(lo - first, size) + np.arange(int(size.sum()))
 
 
-def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray) -> NDArray[np.bool_]:
+def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray, share: float) -> NDArray[np.bool_]:
     """Which joins ``a[i]`` -> ``b[i]`` another marker contests inside their gap.
 
     At each field of the gap, both sides are extrapolated into it (Shafiq's rule, as the
-    coarse gate). A measured sample of a third piece within :data:`_RIVAL_SHARE` of the
+    coarse gate). A measured sample of a third piece within ``share`` (``blend_rival_share``) of the
     distance between the two extrapolations of the later piece's is the later marker seen
     there; when that third piece began before the earlier piece ended, it ran beside it:
     it is another marker than the earlier one, and the later piece continues it, not the
@@ -129,7 +118,7 @@ def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray) -> NDArray[np.bool_]:
     q = np.repeat(np.arange(gap_field.size), hi - lo)
     rows = m[_ranges(lo, hi)]
     x, c = tracks.xyz_mm[rows], tracks.track[rows]
-    reach = _RIVAL_SHARE * np.linalg.norm(fa[q] - fb[q], axis=1)
+    reach = share * np.linalg.norm(fa[q] - fb[q], axis=1)
     other = (c != ia[q]) & (c != ib[q])
     later_seen = (np.linalg.norm(x - fb[q], axis=1) <= reach) & (start_field[c] <= end_field[ia[q]])
     earlier_seen = (np.linalg.norm(x - fa[q], axis=1) <= reach) & (
@@ -317,8 +306,9 @@ def blend_pairs(
         noise_mm = smoothness_mm(tracks)
     tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
     ok = residual <= tolerance if residual.size else np.zeros(0, bool)
-    smooth = _smooth_as_pieces(tracks, a[ok], b[ok], max(noise_mm, tolerance / _ROUGHER))
-    ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok])
+    floor = max(noise_mm, tolerance / params.blend_rougher)
+    smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)
+    ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share)
     a, b = a[ok], b[ok]
     if a.size == 0:
         return a, b
@@ -331,28 +321,29 @@ def blend_pairs(
     return ra[r[keep]], cb[c[keep]]
 
 
-def _smooth_as_pieces(tracks: Tracks, a: NDArray, b: NDArray, floor_mm: float) -> NDArray:
+def _smooth_as_pieces(
+    tracks: Tracks, a: NDArray, b: NDArray, floor_mm: float, params: TrackingParams
+) -> NDArray:
     """Which joins ``a[i]`` -> ``b[i]`` are as smooth as the pieces themselves: one cubic
-    through the last and first :data:`_JOIN_POINTS` measured samples of the two fits them
-    within :data:`_ROUGHER` times the RMS residual of a cubic through the last (first)
-    :data:`_PIECE_POINTS` samples of either piece (at least ``floor_mm``). Three samples a
+    through the last and first ``blend_join_points`` measured samples of the two fits them
+    within ``blend_rougher`` times the RMS residual of a cubic through the last (first)
+    ``blend_piece_points`` samples of either piece (at least ``floor_mm``). Three samples a
     side fit a fast marker's neighbour within the tolerance (a basket sprint at 120 Hz:
     2.6 mm across a 3-field gap); five, against each piece's own path, do not (4.6 mm,
     8 times the pieces'), while a fast glove's true joins stay within 3.1 times."""
     if a.size == 0:
         return np.zeros(0, dtype=bool)
-    _, end_hist, end_n, end_fields = _end_points(tracks, True, _PIECE_POINTS)
-    _, start_hist, start_n, start_fields = _end_points(tracks, False, _PIECE_POINTS)
+    k, rougher = params.blend_join_points, params.blend_rougher
+    _, end_hist, end_n, end_fields = _end_points(tracks, True, params.blend_piece_points)
+    _, start_hist, start_n, start_fields = _end_points(tracks, False, params.blend_piece_points)
     out = np.ones(a.size, dtype=bool)
-    for k, (i, j) in enumerate(zip(a, b, strict=True)):
+    for n, (i, j) in enumerate(zip(a, b, strict=True)):
         fa, xa = end_fields[i, -end_n[i] :], end_hist[i, -end_n[i] :]
         fb, xb = start_fields[j, -start_n[j] :][::-1], start_hist[j, -start_n[j] :][::-1]
-        join = bridge_residual_mm(
-            fa[-_JOIN_POINTS:], xa[-_JOIN_POINTS:], fb[:_JOIN_POINTS], xb[:_JOIN_POINTS]
-        )
+        join = bridge_residual_mm(fa[-k:], xa[-k:], fb[:k], xb[:k])
         own = [bridge_residual_mm(f[:0], x[:0], f, x) for f, x in ((fa, xa), (fb, xb))]
         own = max([floor_mm, *(r for r in own if np.isfinite(r))])
-        out[k] = join <= _ROUGHER * own
+        out[n] = join <= rougher * own
     return out
 
 

@@ -96,6 +96,21 @@ class TrackingParams(Params):
         pieces to be blended (about 4 x the residual of a true join at 0.5 mm noise).
     blend_noise_factor : float
         The blend tolerance is at least this many times the trial's smoothness residual.
+    blend_join_points : int
+        Measured samples a side through which one cubic judges a join as smooth as its
+        pieces (three a side fit a fast marker's neighbour: a basket sprint at 120 Hz,
+        2.6 mm across a 3-field gap; five, against each piece's own path, do not).
+    blend_piece_points : int
+        Measured samples at a piece's end whose own cubic residual is the piece's roughness.
+    blend_rougher : float
+        A join may be at most this many times rougher than its pieces (C3D regression set:
+        a wrong join 8 times, a fast glove's true joins within 3.1 times).
+    blend_rival_share : float
+        A sample of another piece in a join's gap this near one side's extrapolation, as a
+        share of the distance between the two sides' extrapolations there, is that side's
+        marker seen in the gap and the join is refused (C3D regression set: the two wrong
+        joins have their rival at 0.01 and 0.11 of it; the nearest sample of another
+        marker to a right join is at 0.21).
     min_track_length : int
         Pieces with fewer measured points that take no name (or all pieces, when no marker
         set fits) are removed in the clean-up (short ghost tracks, Shafiq et al. §4.3);
@@ -182,6 +197,20 @@ class TrackingParams(Params):
         the markers below it) in fewer than this fraction of the fields is flagged as
         uncertain; a left/right pair the wrong way round in more than this fraction is
         exchanged.
+    facing_fraction : float
+        Toe names ahead of heel names (anterior pelvis ahead of posterior) along the walk in
+        at least this fraction of the votes face forward; in at most 1 - it, turned round.
+    foot_margin : float
+        The foot contest (:mod:`~kisscal.tracking.labelling.feet`) gives a foot's names
+        another way only when that assignment's score (mean squared relative error of its
+        distances to the shank's and within the foot against the template, times
+        ``1 / foot_margin`` when its toe trails its heel along the walk) is at most this
+        share of the labelling's own.
+    foot_reach : float
+        Unnamed pieces whose median distance to a shank marker exceeds this many times the
+        template's farthest foot-to-shank distance take no part in the foot contest.
+    foot_candidates : int
+        At most this many unnamed pieces near the shank (the most often seen) take part.
     min_label_fraction : float
         Fraction of the marker names that must be matched for a trial to fit the marker set;
         below it the tracks are named M1, M2, ...
@@ -216,6 +245,10 @@ class TrackingParams(Params):
     blend_points: int = param(3, ge=0)
     blend_tolerance_mm: float = param(3.0, unit="mm", gt=0)
     blend_noise_factor: float = param(5.0, ge=0)
+    blend_join_points: int = param(5, ge=2)
+    blend_piece_points: int = param(10, ge=2)
+    blend_rougher: float = param(4.0, gt=0)
+    blend_rival_share: float = param(0.2, ge=0)
     min_track_length: int = param(10, ge=0)
     keep_short_pieces: bool = param(False)
     max_fill_gap_fields: int = param(5, unit="fields", ge=0)
@@ -242,6 +275,10 @@ class TrackingParams(Params):
     label_window_fields: int = param(500, unit="fields", ge=1)
     label_fields: int = param(40, ge=0)
     min_label_fraction: float = param(0.5, ge=0, le=1)
+    facing_fraction: float = param(2 / 3, gt=0.5, le=1)
+    foot_margin: float = param(0.25, gt=0, le=1)
+    foot_reach: float = param(1.5, gt=0)
+    foot_candidates: int = param(4, ge=0)
     set_window_s: float = param(1.0, unit="s", gt=0)
     min_side_confidence: float = param(0.8, gt=0.5, le=1)
     smoothing: bool = param(False)

@@ -13,7 +13,6 @@ from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.gaps import fill_gaps_logged, smooth_tracks
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
-from kisscal.tracking.labelling.feet import foot_contest
 from kisscal.tracking.labelling.pieces import join_gap_pieces
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
@@ -140,7 +139,7 @@ def _label(
     template = None if template_mm is None else np.asarray(template_mm, dtype=float)
     if marker_set is not None and rate_hz:
         labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
-        return join_gap_pieces(foot_contest(labelling, marker_set), params)
+        return join_gap_pieces(labelling, params)
     labelling = label_tracks(blended, names, params, template, segments)
     if rate_hz and names and template is not None:
         anatomy = Anatomy.of_names(tuple(names))

@@ -2,73 +2,105 @@
 
 import numpy as np
 
-from kisscal.markersets import marker_set
-from kisscal.tracking.labelling.feet import _contest, foot_contest
-from kisscal.tracking.labelling.result import Labelling
-from kisscal.tracking.tracks import make_tracks
+from kisscal.tracking.labelling.feet import feet_of, score, settle_feet
+from tests.tracking._data import NAMES, gait_truth
+from tests.tracking.test_labelling_phases import _pieces, _state
 
-SHANK_FOOT = ("RKNE", "RTIB", "RANK", "RHEE", "RTOE")
+INDEX = {n: i for i, n in enumerate(NAMES)}
+ANK, HEE, TOE = INDEX["RANK"], INDEX["RHEE"], INDEX["RTOE"]
 
 
-def _walk(names, labels, unlabelled, missing):
-    """Right shank and foot of the set's template carried 20 mm a field with a swinging
-    foot (rotating about the ankle), noise 1 mm; one trajectory per name, labelled
-    ``labels``."""
-    mset = marker_set("plug-in-gait-full")
-    rng = np.random.default_rng(0)
-    base = np.array([mset.template_mm[mset.index(n)] for n in names])
-    ankle = base[2]
-    fields = np.arange(60)
-    field, track, xyz = [], [], []
-    for f in fields:
-        a = 0.3 * np.sin(f / 6)
-        rot = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
-        pos = base.copy()
-        pos[3:] = ankle + (base[3:] - ankle) @ rot.T  # the foot turns at the ankle
-        pos += [20.0 * f, 0.0, 0.0]
-        field += [f] * len(names)
-        track += list(range(len(names)))
-        xyz.append(pos + rng.normal(0.0, 1.0, pos.shape))
-    n = len(field)
-    tracks = make_tracks(
-        np.array(field), np.array(track), np.concatenate(xyz),
-        np.full((n, 3), np.nan), np.zeros(n), np.arange(n),
-    )  # fmt: skip
-    return mset, Labelling(
-        tracks, tuple(labels), True, unlabelled, missing, 1.0, height_mm=mset.height_mm
-    )
+def _named(tracks, owner):
+    """A state with every piece named after its true marker."""
+    state = _state(tracks)
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    return state
+
+
+def _rename(state, pieces, names):
+    """Pieces ``pieces`` named ``names`` (-1: unnamed) instead of what they hold."""
+    for t in pieces:
+        state.name_pos[state.label_of[t], state.piece(t)[0]] = np.nan
+        state.label_of[t] = -1
+    for t, j in zip(pieces, names, strict=True):
+        if j >= 0:
+            state.name_piece(t, j)
+
+
+def test_the_naming_convention_gives_each_foot_with_its_shank():
+    feet = feet_of(NAMES)
+    assert len(feet) == 2
+    right = next(f for f in feet if f.toe == TOE)
+    assert [NAMES[j] for j in right.names] == ["RANK", "RHEE", "RTOE"]
+    assert [NAMES[j] for j in right.shank] == ["RKNE", "RTIB"]
+    assert feet_of(("A", "B", "RHEE", "RTOE")) == []  # no shank: no contest
+
+
+def test_the_score_needs_every_pair_seen_and_charges_a_toe_behind_its_heel():
+    """A piece that fits by never being seen with the rest of the foot scores infinite (the
+    tennis serve: later pieces of the heel and toe took their names from the whole-trial
+    trajectories); a toe trailing its heel costs ``1 / margin``."""
+    target = np.array([100.0, 200.0, 50.0])
+    dist = np.array([[110.0, 190.0, 50.0], [100.0, np.nan, 50.0]])
+    out = score(dist, target, np.array([False, False]), 0.25)
+    assert 0 < out[0] < 0.01 and np.isinf(out[1])
+    trailing = score(dist[:1], target, np.array([True]), 0.25)
+    np.testing.assert_allclose(trailing, 4 * out[0])
 
 
 def test_a_foot_whose_names_the_match_rotated_gets_them_back():
     """As in a real Vicon walk: the ankle's trajectory named heel, the toe's ankle, the
     heel's unnamed. The distances to the knee and tibia markers and within the foot fit
     the template only with the names back in place; right names stay."""
-    mset, wrong = _walk(SHANK_FOOT, ("RKNE", "RTIB", "RHEE", "RANK", "M1"), (4,), ("RTOE",))
-    fixed = foot_contest(wrong, mset)
-    assert fixed.labels == SHANK_FOOT
-    assert fixed.unlabelled == () and "RTOE" not in fixed.missing
-    mset, right = _walk(SHANK_FOOT, SHANK_FOOT, (), ())
-    assert foot_contest(right, mset).labels == SHANK_FOOT
+    tracks, owner = _pieces(gait_truth(200, 3))
+    state = _named(tracks, owner)
+    assert not settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)
+    piece = {m: int(np.flatnonzero(owner == m)[0]) for m in (ANK, HEE, TOE)}
+    _rename(state, [piece[ANK], piece[TOE], piece[HEE]], [HEE, ANK, -1])
+    assert settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)
 
 
-def test_a_piece_never_seen_with_the_rest_of_the_foot_takes_no_name():
-    """Held heel, toe and ankle whose heel-toe distance is 30 % longer than the
-    template's, and another piece on the heel never seen with the toe: scored without that
-    distance it fits perfectly, and would take the heel's name; an assignment counts only
-    when all its trajectories are seen together (the tennis serve: later pieces of the
-    heel and toe took their names from the whole-trial trajectories)."""
-    mset = marker_set("plug-in-gait-full")
-    names = ("RKNE", "RTIB", "RHEE", "RTOE", "RANK")
-    pos = np.array([mset.template_mm[mset.index(n)] for n in names])
-    target = np.linalg.norm(pos[:, None] - pos[None, :], axis=2)
-    d = np.full((6, 6), np.nan)
-    d[:5, :5] = target
-    d[2, 3] = d[3, 2] = 1.3 * target[2, 3]
-    d[5, :5], d[:5, 5] = target[2], target[2]  # the second heel piece
-    d[5, 3] = d[3, 5] = np.nan  # never seen with the toe
-    d[5, 2] = d[2, 5] = 0.0
-    d[5, 5] = 0.0
-    cands, held = np.array([10, 11, 12, 13]), np.array([10, 11, 12])
-    assert _contest(d, np.array([0, 1]), cands, held, target) is None
-    d[5, 3] = d[3, 5] = target[2, 3]  # seen together and fitting: it takes the name
-    assert list(_contest(d, np.array([0, 1]), cands, held, target)) == [13, 11, 12]
+def test_heel_and_toe_pieces_named_the_wrong_way_round_are_renamed():
+    """A short heel piece named toe, and the toe piece beside it named heel: the walk
+    puts the toe ahead."""
+    truth = gait_truth(200, 3)
+    tracks, owner = _pieces(truth, cuts={HEE: (120, 140), TOE: (120,)})
+    state = _named(tracks, owner)
+    short = int(np.flatnonzero(owner == HEE)[1])
+    late_toe = int(np.flatnonzero(owner == TOE)[1])
+    _rename(state, [short, late_toe], [TOE, HEE])
+    assert settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_a_short_ankle_piece_named_heel_while_the_heel_is_unnamed_takes_the_ankle():
+    """With three cameras a seven-field ankle piece was fitted to the heel from the body
+    while the heel's own piece there was unnamed: its distances to the knee, tibia and
+    toe are the ankle's; the heel's piece then takes the heel by its partners."""
+    truth = gait_truth(200, 3)
+    tracks, owner = _pieces(truth, cuts={ANK: (100, 107), HEE: (95, 115)})
+    state = _named(tracks, owner)
+    heel = int(np.flatnonzero(owner == HEE)[1])
+    short = int(np.flatnonzero(owner == ANK)[1])
+    _rename(state, [heel, short], [-1, HEE])
+    assert settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_a_toe_piece_named_heel_beside_the_unnamed_heel_is_renamed_by_the_walk():
+    """Three cameras, kiss seed 312: no shank marker named, a 12-field toe piece named
+    heel and the heel's own piece beside it unnamed, at the foot's length: the walk puts
+    the toe ahead, and the two take their names."""
+    truth = gait_truth(200, 3)
+    tracks, owner = _pieces(truth, cuts={HEE: (110, 140), TOE: (120, 132)})
+    state = _named(tracks, owner)
+    for m in (INDEX["RKNE"], INDEX["RTIB"], ANK):
+        _rename(state, np.flatnonzero(owner == m).tolist(), [-1] * int(np.sum(owner == m)))
+    toe = int(np.flatnonzero(owner == TOE)[1])
+    heel = int(np.flatnonzero(owner == HEE)[1])
+    _rename(state, [toe, heel], [HEE, -1])
+    assert settle_feet(state, state.template)
+    assert state.label_of[toe] == TOE and state.label_of[heel] == HEE

@@ -1,6 +1,6 @@
 """A body turned round (heels named toes, left named right) is told by the walk: window
-matches that face backwards lose, and a foot's heel and toe pieces named the wrong way
-round are renamed (issue 27, few-camera labs)."""
+matches that face backwards lose (issue 27, few-camera labs; the feet's own contest is
+tested in ``test_foot_contest``)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ from kisscal.tracking.labelling.facing import (
     facing,
     foot_pairs,
     front_back_pairs,
-    settle_feet,
 )
 from kisscal.tracking.labelling.window import WindowMatch
 from tests.tracking._data import NAMES, gait_truth
@@ -67,22 +66,3 @@ def test_a_window_naming_more_must_agree_with_the_names_kept():
     wrong[legs] = owner[legs[[1, 0, 3, 2]]]  # the legs' names exchanged
     assert better(state, kept, WindowMatch(more, owner.copy(), 50.0, rich))
     assert not better(state, kept, WindowMatch(more, wrong, 50.0, rich))
-
-
-def test_heel_and_toe_pieces_named_the_wrong_way_round_are_renamed():
-    truth = gait_truth(200, 3)
-    heel, toe = INDEX["RHEE"], INDEX["RTOE"]
-    tracks, owner = _pieces(truth, cuts={heel: (120, 140), toe: (120,)})
-    state = _state(tracks)
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
-    # a short heel piece named toe, and the toe piece beside it named heel
-    short = int(np.flatnonzero(owner == heel)[1])
-    late_toe = int(np.flatnonzero(owner == toe)[1])
-    state.label_of[[short, late_toe]] = -1
-    state.name_pos[[heel, toe], 120:] = np.nan
-    state.name_piece(short, toe)
-    state.name_piece(late_toe, heel)
-    settle_feet(state)
-    assert state.label_of[short] == heel and state.label_of[late_toe] == toe
-    np.testing.assert_array_equal(state.label_of, owner)

@@ -8,7 +8,8 @@ walk can tell: a subject walks forward, so toe markers lie ahead of heel markers
 anterior pelvis markers ahead of posterior ones, along the direction the body moves
 (lab Z up, as :mod:`~kisscal.tracking.labelling.anatomy` assumes).
 :func:`facing` measures that for a match; :func:`better` keeps the match that faces
-forward, else the one naming more pieces if it agrees with the other's names.
+forward (``facing_fraction`` of the votes), else the one naming more pieces if it agrees
+with the other's names.
 """
 
 from __future__ import annotations
@@ -24,10 +25,8 @@ from kisscal.tracking.labelling.state import LabelState
 #: The body moves at least this far (mm, horizontally) through a window for its
 #: walking direction to count.
 MIN_TRAVEL_MM = 100.0
-#: A match whose front names lie ahead of their back names in at least this fraction of
-#: the votes faces forward; in at most 1 - FACING of them it is turned round.
-FACING = 2 / 3
-_HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
+#: A heel marker name: its side prefix, then HEE, HEEL or CAL.
+HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
 _FRONT = re.compile(r"ASI")
 _BACK = re.compile(r"PSI|SACR?$")
 
@@ -35,7 +34,7 @@ _BACK = re.compile(r"PSI|SACR?$")
 def foot_pairs(names: tuple[str, ...]) -> list[tuple[int, int]]:
     """(toe, heel) name pairs: ``<side>TOE`` and ``<side>HEE`` (or ``HEEL``, ``CAL``)."""
     index = {n: i for i, n in enumerate(names)}
-    found = [(m.group(1) + "TOE", n) for n in names if (m := _HEEL.match(n))]
+    found = [(m.group(1) + "TOE", n) for n in names if (m := HEEL.match(n))]
     return [(index[toe], index[heel]) for toe, heel in found if toe in index]
 
 
@@ -79,11 +78,11 @@ def facing(state: LabelState, core: NDArray | None, assign: NDArray, rich: NDArr
     return float(np.mean(votes > 0)) if votes.size else float("nan")
 
 
-def _side(value: float) -> int:
-    """+1 facing forward, -1 turned round, 0 unknown."""
-    if value >= FACING:
+def _side(value: float, fraction: float) -> int:
+    """+1 facing forward, -1 turned round, 0 unknown (``facing_fraction``)."""
+    if value >= fraction:
         return 1
-    return -1 if value <= 1 - FACING else 0
+    return -1 if value <= 1 - fraction else 0
 
 
 def agrees(found_core: NDArray, found_assign: NDArray, core: NDArray, assign: NDArray) -> bool:
@@ -106,8 +105,9 @@ def better(state: LabelState, found, other) -> bool:
     n_other = 0 if other.core is None else int(np.sum(other.assign >= 0))
     if found.core is None or n_other == 0:
         return n_other > 0
-    a = _side(facing(state, found.core, found.assign, found.rich))
-    b = _side(facing(state, other.core, other.assign, other.rich))
+    fraction = state.params.facing_fraction
+    a = _side(facing(state, found.core, found.assign, found.rich), fraction)
+    b = _side(facing(state, other.core, other.assign, other.rich), fraction)
     if a != b and -1 in (a, b):
         return b > a
     return n_other > int(np.sum(found.assign >= 0)) and agrees(
@@ -130,79 +130,3 @@ def walking_direction(name_pos: NDArray) -> NDArray[np.float64]:
         warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
         out[k:-k] = np.nanmedian(step, axis=0)
     return out
-
-
-def settle_feet(state: LabelState) -> bool:
-    """Heel and toe pieces of one foot named the wrong way round, renamed.
-
-    A short piece named heel or toe by the body fit (whose expected positions, placed
-    from the knee and thigh, are off by a step while the foot rolls) decides the name of
-    the long piece next to it. A piece named ``<side>HEE`` or ``<side>TOE`` and a piece
-    that keeps the template heel-toe distance from it (within
-    ``label_segment_tolerance_mm``, median over the fields both are seen) are the foot's
-    two markers; the one ahead along the walk in most of those fields (:data:`FACING`)
-    is the toe. Both are renamed when the names are free in their fields. Returns
-    whether any piece was renamed.
-    """
-    tol = state.params.label_segment_tolerance_mm
-    direction = walking_direction(state.name_pos)
-    renamed = False
-    for toe, heel in foot_pairs(state.names):
-        length = state.template_distance[toe, heel]
-        for p in np.flatnonzero(np.isin(state.label_of, (toe, heel))).tolist():
-            if state.label_of[p] not in (toe, heel):
-                continue  # renamed with an earlier piece
-            f_p, x_p = state.piece(p)
-            for q in _partners(state, p, f_p, x_p, length, tol):
-                f_q, x_q = state.piece(q)
-                shared, i_p, i_q = np.intersect1d(f_p, f_q, return_indices=True)
-                ahead = np.sum((x_p[i_p, :2] - x_q[i_q, :2]) * direction[shared], axis=1)
-                ahead = ahead[np.isfinite(ahead)]
-                if ahead.size == 0:
-                    continue
-                p_is_toe = np.mean(ahead > 0) >= FACING
-                if not (p_is_toe or np.mean(ahead < 0) >= FACING):
-                    continue
-                want_p, want_q = (toe, heel) if p_is_toe else (heel, toe)
-                if (state.label_of[p], state.label_of[q]) == (want_p, want_q):
-                    continue
-                if _rename(state, (p, q), (want_p, want_q)):
-                    renamed = True
-                    break
-    return renamed
-
-
-def _partners(state: LabelState, p: int, f_p: NDArray, x_p: NDArray, length: float, tol: float):
-    """Pieces (other than ``p``, named a foot name or unnamed) seen with piece ``p`` in
-    at least three fields at the template's heel-toe ``length`` within ``tol``."""
-    tracks = state.tracks
-    rows = np.flatnonzero(np.isin(tracks.field, f_p) & (tracks.track != p))
-    out = []
-    for q in np.unique(tracks.track[rows]).tolist():
-        f_q, x_q = state.piece(q)
-        _, i_p, i_q = np.intersect1d(f_p, f_q, return_indices=True)
-        if i_p.size < 3:
-            continue
-        d = np.linalg.norm(x_p[i_p] - x_q[i_q], axis=1)
-        if abs(np.median(d) - length) <= tol:
-            out.append(q)
-    return out
-
-
-def _rename(state: LabelState, pieces: tuple[int, int], names: tuple[int, int]) -> bool:
-    """Give ``pieces`` the ``names`` when each name is held in its piece's fields by no
-    piece but these two; returns whether it did."""
-    old = [int(state.label_of[t]) for t in pieces]
-    for t, j in zip(pieces, old, strict=True):
-        if j >= 0:
-            state.name_pos[j, state.piece(t)[0]] = np.nan
-    free = all(
-        not np.isfinite(state.name_pos[j, state.piece(t)[0], 0]).any()
-        for t, j in zip(pieces, names, strict=True)
-    )
-    for t, j in zip(pieces, names if free else old, strict=True):
-        if j >= 0:
-            state.name_piece(t, j)
-        else:
-            state.label_of[t] = -1
-    return free

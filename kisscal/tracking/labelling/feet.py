@@ -1,181 +1,406 @@
-"""A last contest for each foot's names, judged by distances to the shank.
+"""The last contest for each foot's names: distances to the shank and within the foot,
+and the walk.
 
 Labelling matches positions to a standing template; a walking foot sits on average 80-130
-mm behind where the standing pose puts it, so the one-to-one match can hand the ankle's
-name to the heel's trajectory and the toe's to the ankle's (a real Vicon walk). The
-distances between a foot's markers and from them to the shank's do not depend on the
-pose: heel to toe is the foot's length, the ankle is the shank marker's neighbour. Each
-side's ankle, heel and toe names are re-assigned among the trajectories holding them and
-the unnamed ones near the shank, when another assignment fits the template's distances
-far better than the labelling's own.
+mm behind where the standing pose puts it, so the match can hand the ankle's name to the
+heel's trajectory and the toe's to the ankle's (a real Vicon walk), and a short piece
+named from the body's fit (placed from the knee and thigh, off by a step while the foot
+rolls) can take its neighbour's name (an ankle piece of seven fields named heel with
+three cameras). Two things do not depend on the pose: the distances between a foot's
+markers and from them to the shank's (heel to toe is the foot's length, the ankle is the
+shank marker's neighbour), and the walk (a subject walks forward, so the toe lies ahead
+of the heel along the direction the body moves).
+
+:func:`settle_feet` scores a way of giving a foot's names by one number,
+:func:`score`: the mean squared relative error of its distances against the template's,
+divided by ``foot_margin`` when its toe trails its heel along the walk in
+``facing_fraction`` of the fields. Another way replaces the labelling's own when it
+scores at most ``foot_margin`` times as much: first for the names' whole trajectories
+and the unnamed pieces near the shank, then for each piece holding a foot name (with
+the name's holder, or an unnamed piece at the foot's distance, as its partner); last,
+unnamed pieces near the foot take a free foot name that scores far better than the
+others and fits the foot's rigid distances. It runs once, after the last naming pass.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
+from dataclasses import dataclass
 from itertools import permutations
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.markersets.model import MarkerSet
-from kisscal.tracking.labelling.result import Labelling
-from kisscal.tracking.labelling.state import median_distances
+from kisscal.tracking.labelling.facing import HEEL, foot_pairs, walking_direction
+from kisscal.tracking.labelling.spread import spread
+from kisscal.tracking.labelling.state import LabelState, median_distances
 
-#: Another assignment replaces the labelling's own when its mean squared relative distance
-#: error is at most this share of the labelling's.
-_BETTER = 0.25
-#: Unnamed trajectories farther than this many times the template's farthest foot-to-shank
-#: distance from a shank marker (median) do not take part.
-_NEAR = 1.5
-#: At most this many unnamed trajectories (the most often seen) take part.
-_MOST = 4
+#: Name endings of the ankle and of the shank markers beside a foot's heel and toe
+#: (``<side>HEE`` and ``<side>TOE``, :func:`~kisscal.tracking.labelling.facing.foot_pairs`).
+_ANKLE = ("ANK",)
+_SHANK = ("KNE", "KNEE", "TIB")
+#: Fields a piece must share with a name for their distance to count.
+_MIN_SHARED = 3
 
 
-def _shank(marker_set: MarkerSet, foot: tuple[str, ...]) -> tuple[str, ...]:
-    """Names joined to the foot's by a segment or a hinge that are not the foot's."""
-    pairs = tuple(marker_set.segments) + tuple(marker_set.hinge_segments)
-    out = {b if a in foot else a for a, b in pairs if (a in foot) != (b in foot)}
-    return tuple(n for n in marker_set.names if n in out)
+@dataclass(frozen=True)
+class Foot:
+    """Name indices of one foot: the shank's, the foot's (ankle first when the set has
+    one), and the toe and heel among the foot's (positions in ``names``)."""
+
+    shank: NDArray[np.int64]
+    names: NDArray[np.int64]
+    toe: int
+    heel: int
 
 
-def _error(dist: NDArray, target: NDArray) -> NDArray:
-    """Mean squared relative error per assignment; infinite when a pair of its
-    trajectories is never seen together (a piece that fits by seeing little)."""
-    rel = ((dist - target) / target) ** 2
-    seen = np.isfinite(rel).all(axis=-1)
-    return np.where(seen, np.where(seen[..., None], rel, 0.0).mean(axis=-1), np.inf)
-
-
-def _distances(dense: NDArray, tracks: NDArray) -> NDArray:
-    """Median distance between every pair of ``tracks`` over the trial (NaN: never seen
-    together)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return median_distances(dense, tracks, np.arange(dense.shape[1]))
-
-
-def _foot_pairs(n: int, n_ref: int) -> tuple[NDArray, NDArray]:
-    """Index pairs (i < j) of ``n`` names, the first ``n_ref`` the shank's, with a foot name."""
-    i, j = np.triu_indices(n, 1)
-    keep = j >= n_ref
-    return i[keep], j[keep]
-
-
-def _contest(
-    d: NDArray, ref: NDArray, cands: NDArray, held: NDArray, target: NDArray
-) -> NDArray | None:
-    """The best assignment of the foot's names (rows of ``target``) to ``cands`` (columns
-    of ``d`` beyond the ``ref`` ones), or None when the held one is as good."""
-    k = target.shape[0] - ref.size
-    choices = np.array(list(permutations(range(cands.size), k)), dtype=np.int64)
-    if choices.size == 0:
-        return None
-    cols = np.concatenate([np.broadcast_to(np.arange(ref.size), (len(choices), ref.size)),
-                           ref.size + choices], axis=1)  # fmt: skip
-    dist = d[cols[:, :, None], cols[:, None, :]]
-    # Pairs with a foot name (the shank's own distance is the same in every assignment).
-    iu = _foot_pairs(target.shape[0], ref.size)
-    score = _error(dist[:, iu[0], iu[1]], target[iu])
-    best = int(np.argmin(score))
-    own = np.flatnonzero((choices == np.searchsorted(cands, held)[None, :]).all(axis=1))
-    if (held < 0).any() or own.size == 0:
-        # The labelling left a name free: it is scored over the names it gave.
-        given = np.flatnonzero(held >= 0)
-        sub = np.concatenate([np.arange(ref.size), ref.size + given])
-        cols_h = np.concatenate(
-            [np.arange(ref.size), ref.size + np.searchsorted(cands, held[given])]
-        )
-        dist_h = d[cols_h[:, None], cols_h[None, :]]
-        iu_h = _foot_pairs(sub.size, ref.size)
-        own_score = float(_error(dist_h[iu_h], target[np.ix_(sub, sub)][iu_h]))
-    else:
-        own_score = float(score[own[0]])
-    # Held names never seen together cannot be compared: they stay.
-    if not np.isfinite(own_score) or score[best] > _BETTER * own_score:
-        return None
-    return cands[choices[best]]
-
-
-def foot_contest(labelling: Labelling, marker_set: MarkerSet) -> Labelling:
-    """Re-assign each foot's ankle, heel and toe names where the distances among the
-    foot's trajectories and to the shank's fit the set's template (scaled to the
-    labelling's stature) at most :data:`_BETTER` times as badly as the labelling's own.
-
-    References
-    ----------
-    Winter 2009 (segment lengths proportional to stature, which the scaled template
-    assumes).
-    """
-    if not labelling.fits_marker_set or labelling.tracks.n_tracks == 0:
-        return labelling
-    height = labelling.height_mm
-    template = marker_set.scaled(height).template_mm if np.isfinite(height) else None
-    if template is None:
-        return labelling
-    labels = list(labelling.labels)
-    unnamed = np.array(labelling.unlabelled, dtype=np.int64)
-    dense = labelling.tracks.positions()
-    seen = np.isfinite(dense[..., 0]).sum(axis=1)
-    changed = False
-    for side in ("left", "right"):
-        foot = tuple(n for n in marker_set.foot(side).values() if n in marker_set.names)
-        shank = tuple(n for n in _shank(marker_set, foot) if n in labels)
-        if len(foot) < 2 or not shank:
-            continue
-        ref = np.array([labels.index(n) for n in shank])
-        held = np.array([labels.index(n) if n in labels else -1 for n in foot])
-        idx = [marker_set.index(n) for n in shank + foot]
-        target = np.linalg.norm(template[idx][:, None] - template[idx][None, :], axis=2)
-        cands = _candidates(dense, ref, held, unnamed, seen, target[: ref.size, ref.size :])
-        if cands.size < len(foot):
-            continue
-        d = _distances(dense, np.concatenate([ref, cands]))
-        best = _contest(d, ref, cands, held, target)
-        if best is None:
-            continue
-        labels = _rename(labels, foot, held, best)
-        changed = True
-    if not changed:
-        return labelling
-    return _relabelled(labelling, labels, marker_set.names)
-
-
-def _candidates(
-    dense: NDArray, ref: NDArray, held: NDArray, unnamed: NDArray, seen: NDArray, reach: NDArray
-) -> NDArray[np.int64]:
-    """The trajectories holding the foot's names and up to :data:`_MOST` unnamed ones
-    (the most often seen) within :data:`_NEAR` times the farthest foot-to-shank distance
-    of every shank marker, sorted."""
-    pool = unnamed[seen[unnamed] > 0] if unnamed.size else unnamed
-    if pool.size:
-        d = _distances(dense, np.concatenate([ref, pool]))
-        d = d[: ref.size, ref.size :]
-        near = (d <= _NEAR * reach.max(axis=1)[:, None]).all(axis=0)
-        pool = pool[near]
-        pool = pool[np.argsort(-seen[pool], kind="stable")[:_MOST]]
-    return np.unique(np.concatenate([held[held >= 0], pool]))
-
-
-def _rename(labels: list[str], foot: tuple[str, ...], held: NDArray, best: NDArray) -> list[str]:
-    """``labels`` with ``foot[i]`` on trajectory ``best[i]``; a trajectory that loses a
-    foot name and gets none is unnamed (an ``M`` name after the highest in use)."""
-    out = list(labels)
-    for t in held[held >= 0]:
-        out[t] = ""
-    for name, t in zip(foot, best, strict=True):
-        out[t] = name
-    used = [int(x[1:]) for x in labels if x.startswith("M") and x[1:].isdigit()]
-    k = max(used, default=0)
-    for t in range(len(out)):
-        if out[t] == "":
-            k += 1
-            out[t] = f"M{k}"
+def feet_of(names: tuple[str, ...]) -> list[Foot]:
+    """The feet the naming convention gives: ``<side>TOE`` and ``<side>HEE`` (or
+    ``HEEL``, ``CAL``), with ``<side>ANK`` and the shank's ``<side>KNE`` and
+    ``<side>TIB`` when present."""
+    index = {n: i for i, n in enumerate(names)}
+    out = []
+    for toe, heel in foot_pairs(names):
+        side = HEEL.match(names[heel]).group(1)
+        ankle = [index[side + a] for a in _ANKLE if side + a in index]
+        shank = [index[side + s] for s in _SHANK if side + s in index]
+        if shank:
+            foot = np.array([*ankle, heel, toe], dtype=np.int64)
+            out.append(Foot(np.array(shank, dtype=np.int64), foot, toe, heel))
     return out
 
 
-def _relabelled(labelling: Labelling, labels: list[str], names: tuple[str, ...]) -> Labelling:
-    unlabelled = tuple(t for t, n in enumerate(labels) if n not in names)
-    missing = tuple(n for n in names if n not in labels)
-    return replace(labelling, labels=tuple(labels), unlabelled=unlabelled, missing=missing)
+def score(dist: NDArray, target: NDArray, trails: NDArray, margin: float) -> NDArray:
+    """The contest's score of each way of naming (rows): mean squared relative error of
+    its distances ``dist`` against ``target`` (the last axis), divided by ``margin`` where
+    its toe ``trails`` its heel; infinite when a pair was never seen together (a piece
+    that fits by seeing little)."""
+    rel = ((dist - target) / target) ** 2
+    seen = np.isfinite(rel).all(axis=-1)
+    err = np.where(seen, np.where(seen[..., None], rel, 0.0).mean(axis=-1), np.inf)
+    return np.where(trails, err / margin, err)
+
+
+def trailing(a: NDArray, b: NDArray, direction: NDArray, fraction: float) -> NDArray:
+    """Whether positions ``a`` (..., F, 3) lie behind ``b`` along the walk
+    ``direction`` (F, 2) in at least ``fraction`` of the fields both are seen."""
+    votes = np.sum((a[..., :2] - b[..., :2]) * direction, axis=-1)
+    ok = np.isfinite(votes)
+    n = ok.sum(axis=-1)
+    behind = np.sum(ok & (votes < 0), axis=-1)
+    return (n > 0) & (behind >= fraction * np.maximum(n, 1))
+
+
+def settle_feet(state: LabelState, template: NDArray) -> bool:
+    """Give each foot's names (:func:`feet_of`) the way that fits ``template`` and the
+    walk far better than the labelling's own, then spread names again; returns whether
+    any name moved.
+
+    Three rounds with one :func:`score`: the foot's names as whole trajectories together
+    with up to ``foot_candidates`` unnamed long pieces within ``foot_reach`` of the shank
+    (:func:`_name_contest`); then each piece holding a foot name against the foot's other
+    names in its fields (:func:`_piece_contest`); then unnamed pieces near the foot for
+    the foot's names free in their fields (:func:`_unnamed_contest`).
+
+    References
+    ----------
+    Winter 2009 (segment lengths proportional to stature, which a scaled template
+    assumes).
+    """
+    target = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    direction = walking_direction(state.name_pos)
+    moved = False
+    for foot in feet_of(state.names):
+        moved |= _name_contest(state, foot, target, direction)
+        moved |= _piece_contest(state, foot, target, direction)
+        moved |= _unnamed_contest(state, foot, target, direction)
+    if moved:
+        spread(state)  # a renamed foot gives its ankle a partner
+    return moved
+
+
+def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
+    """The foot's names given among their trajectories and the unnamed pieces near the
+    shank by the best :func:`score` when it is at most ``foot_margin`` of the held one."""
+    params = state.params
+    held_any = np.isfinite(state.name_pos[foot.names, :, 0]).any(axis=1)
+    if not held_any.any():
+        return False  # no naming of the labelling's own to compare with
+    pool = _near_unnamed(state, foot, target)
+    cand = np.concatenate([state.name_pos[foot.names[held_any]], state.dense[pool]])
+    k, s = foot.names.size, foot.shank.size
+    if cand.shape[0] < k:
+        return False
+    pos = np.concatenate([state.name_pos[foot.shank], cand])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        d = median_distances(pos, np.arange(pos.shape[0]), np.arange(state.n_fields))
+    toe, heel = (
+        int(np.flatnonzero(foot.names == foot.toe)[0]),
+        int(np.flatnonzero(foot.names == foot.heel)[0]),
+    )
+    behind = trailing(cand[:, None], cand[None, :], direction, params.facing_fraction)
+    names = np.concatenate([foot.shank, foot.names])
+    i, j = np.triu_indices(s + k, 1)
+    keep = j >= s
+    i, j = i[keep], j[keep]
+    choices = np.array(list(permutations(range(cand.shape[0]), k)), dtype=np.int64)
+    cols = np.concatenate([np.broadcast_to(np.arange(s), (len(choices), s)), s + choices], 1)
+    scores = score(
+        d[cols[:, i], cols[:, j]],
+        target[names[i], names[j]],
+        behind[choices[:, toe], choices[:, heel]],
+        params.foot_margin,
+    )
+    held = np.where(held_any, np.cumsum(held_any) - 1, -1)
+    own = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
+    best = int(np.argmin(scores))
+    if not np.isfinite(own) or scores[best] > params.foot_margin * own:
+        return False
+    if np.array_equal(choices[best], held):
+        return False
+    _rename_names(state, foot, held_any, pool, choices[best])
+    return True
+
+
+def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> float:
+    """:func:`score` of the names as held, over the names held (the shank's always)."""
+    given = np.flatnonzero(held >= 0)
+    cols = np.concatenate([np.arange(s), s + held[given]])
+    sub = np.concatenate([np.arange(s), s + given])
+    i, j = np.triu_indices(cols.size, 1)
+    keep = j >= s
+    i, j = i[keep], j[keep]
+    trails = held[toe] >= 0 and held[heel] >= 0 and behind[held[toe], held[heel]]
+    return float(score(d[cols[i], cols[j]], target[names[sub[i]], names[sub[j]]], trails, margin))
+
+
+def _near_unnamed(state: LabelState, foot: Foot, target: NDArray) -> NDArray[np.int64]:
+    """Rows of ``state.dense`` of unnamed long pieces within ``foot_reach`` times the
+    template's farthest foot-to-shank distance of every shank marker (median), the
+    ``foot_candidates`` most often seen."""
+    params = state.params
+    rows = np.flatnonzero(state.label_of[state.long_ids] < 0)
+    seen = state.present[rows].sum(axis=1)
+    rows = rows[seen > 0]
+    if rows.size == 0 or params.foot_candidates == 0:
+        return rows
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        d = np.stack(
+            [
+                np.nanmedian(np.linalg.norm(state.dense[rows] - state.name_pos[j], axis=2), 1)
+                for j in foot.shank
+            ],
+            axis=1,
+        )
+    reach = params.foot_reach * target[np.ix_(foot.shank, foot.names)].max(axis=1)
+    rows = rows[(d <= reach).all(axis=1)]
+    order = np.argsort(-state.present[rows].sum(axis=1), kind="stable")
+    return rows[order[: params.foot_candidates]]
+
+
+def _rename_names(
+    state: LabelState, foot: Foot, held_any: NDArray, pool: NDArray, choice: NDArray
+) -> None:
+    """Foot name ``i`` to candidate ``choice[i]``: the pieces of a held name (candidates
+    first, in the foot's order) or an unnamed long piece of ``pool``."""
+    held_names = foot.names[held_any]
+    pieces = [np.flatnonzero(state.label_of == j) for j in held_names]
+    pieces += [state.long_ids[[r]] for r in pool]
+    for j in foot.names:
+        state.label_of[state.label_of == j] = -1
+        state.name_pos[j] = np.nan
+    for j, c in zip(foot.names, choice, strict=True):
+        for t in pieces[c]:
+            state.name_piece(int(t), int(j))
+
+
+def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
+    """Each piece holding a foot name, shortest first, against each other foot name in
+    its fields: it takes that name, and its partner there takes its own, when the
+    :func:`score` of its distances to the shank and the rest of the foot is at most
+    ``foot_margin`` of its own. The partner is the name's holder in those fields, else an
+    unnamed piece at the template's distance between the two names (within
+    ``label_segment_tolerance_mm``, median over the fields both are seen), else none."""
+    moved = False
+    order = np.flatnonzero(np.isin(state.label_of, foot.names))
+    for p in order[np.argsort(state.n_measured[order], kind="stable")].tolist():
+        n = int(state.label_of[p])
+        fields = state.piece(p)[0]
+        if n not in foot.names or fields.size < _MIN_SHARED:
+            continue
+        for m in foot.names[foot.names != n].tolist():
+            holders = _overlapping(state, np.flatnonzero(state.label_of == m), fields)
+            # The name's holders there; where it is free, an unnamed partner or none.
+            partners = [holders] if holders else [[u] for u in _partners(state, p, n, m)] + [[]]
+            for q in partners:
+                other = _positions(state, q, fields)
+                if _piece_better(state, foot, p, n, m, other, target, direction) and _exchange(
+                    state, p, n, m, q
+                ):
+                    moved = True
+                    break
+            if state.label_of[p] != n:
+                break
+    return moved
+
+
+def _overlapping(state: LabelState, pieces: NDArray, fields: NDArray) -> list[int]:
+    """The ``pieces`` seen in any of ``fields``."""
+    return [int(q) for q in pieces if np.intersect1d(state.piece(int(q))[0], fields).size]
+
+
+def _positions(state: LabelState, pieces: list[int], fields: NDArray) -> NDArray:
+    """Positions of ``pieces`` at ``fields`` (NaN where none is seen)."""
+    out = np.full((fields.size, 3), np.nan)
+    for q in pieces:
+        f_q, x_q = state.piece(q)
+        _, i, j = np.intersect1d(fields, f_q, return_indices=True)
+        out[i] = x_q[j]
+    return out
+
+
+def _partners(state: LabelState, p: int, n: int, m: int) -> list[int]:
+    """Unnamed pieces seen with piece ``p`` in :data:`_MIN_SHARED` fields or more at the
+    state's template distance between names ``n`` and ``m`` (within
+    ``label_segment_tolerance_mm``, median)."""
+    fields, xyz = state.piece(p)
+    tracks = state.tracks
+    rows = np.flatnonzero(np.isin(tracks.field, fields) & (tracks.track != p))
+    out = []
+    for q in np.unique(tracks.track[rows]).tolist():
+        if state.label_of[q] >= 0:
+            continue
+        other = _positions(state, [q], fields)
+        d = np.linalg.norm(other - xyz, axis=1)
+        d = d[np.isfinite(d)]
+        length = state.template_distance[n, m]
+        if d.size >= _MIN_SHARED and abs(np.median(d) - length) <= (
+            state.params.label_segment_tolerance_mm
+        ):
+            out.append(q)
+    return out
+
+
+def _piece_better(
+    state: LabelState,
+    foot: Foot,
+    p: int,
+    n: int,
+    m: int,
+    other: NDArray,
+    target: NDArray,
+    direction: NDArray,
+) -> bool:
+    """Whether piece ``p`` (named ``n``) scores far better named ``m`` with its partner
+    at positions ``other`` (its fields) named ``n``."""
+    fields, xyz = state.piece(p)
+    refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
+    pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
+    d = np.linalg.norm(pos - xyz[None], axis=2)
+    shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
+    if not shared.any():
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        dist = np.nanmedian(d[shared], axis=1)
+    refs_used = np.concatenate([refs, [m]])[shared]
+    own_t = target[n, refs_used]
+    alt_t = target[m, np.where(refs_used == m, n, refs_used)]  # the pair n-m either way
+    fraction, margin = state.params.facing_fraction, state.params.foot_margin
+    own_trails = _trails_as(state, foot, fields, {n: xyz, m: other}, direction, fraction)
+    alt_trails = _trails_as(state, foot, fields, {m: xyz, n: other}, direction, fraction)
+    own = float(score(dist, own_t, own_trails, margin))
+    alt = float(score(dist, alt_t, alt_trails, margin))
+    return bool(np.isfinite(own) and alt <= margin * own)
+
+
+def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
+    """Whether the toe trails the heel in ``fields`` with the names ``at`` placed so
+    (other names where the labelling has them)."""
+    toe = at.get(foot.toe, state.name_pos[foot.toe, fields])
+    heel = at.get(foot.heel, state.name_pos[foot.heel, fields])
+    return bool(trailing(toe, heel, direction[fields], fraction))
+
+
+def _exchange(state: LabelState, p: int, n: int, m: int, partners: list[int]) -> bool:
+    """Piece ``p`` named ``m`` and its ``partners`` named ``n``, when ``n`` is free in
+    the partners' fields but for ``p``; returns whether it did."""
+    fields = state.piece(p)[0]
+    state.name_pos[n, fields] = np.nan
+    for q in partners:
+        if np.isfinite(state.name_pos[n, state.piece(q)[0], 0]).any():
+            state.name_piece(p, n)
+            return False
+    for q in partners:
+        if state.label_of[q] == m:
+            state.name_pos[m, state.piece(q)[0]] = np.nan
+    state.name_piece(p, m)
+    for q in partners:
+        state.name_piece(q, n)
+    return True
+
+
+def _distances(state: LabelState, fields: NDArray, xyz: NDArray, refs: NDArray) -> NDArray:
+    """Median distance from positions ``xyz`` (at ``fields``) to each name of ``refs``
+    over the fields both are seen, NaN when fewer than :data:`_MIN_SHARED`."""
+    d = np.linalg.norm(state.name_pos[refs][:, fields] - xyz[None], axis=2)
+    shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
+    out = np.full(refs.size, np.nan)
+    if shared.any():
+        out[shared] = np.nanmedian(d[shared], axis=1)
+    return out
+
+
+def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
+    """Unnamed pieces near the foot, longest first, take a foot name free in all their
+    fields: the one whose :func:`score` (distances to the shank and to the rest of the
+    foot) is at most ``foot_margin`` of every other free name's, with the toe not trailing
+    the heel, when the distances within the foot (a rigid segment) fit the state's
+    template within ``label_segment_tolerance_mm`` RMS (as spreading names requires)."""
+    params = state.params
+    cands = _near_pieces(state, foot, target)
+    moved = False
+    for u in cands[np.argsort(-state.n_measured[cands], kind="stable")].tolist():
+        fields, xyz = state.piece(u)
+        free = [m for m in foot.names.tolist() if not np.isfinite(state.name_pos[m, fields]).any()]
+        scores, fits = [], []
+        for m in free:
+            refs = np.concatenate([foot.shank, foot.names[foot.names != m]])
+            dist = _distances(state, fields, xyz, refs)
+            seen = np.isfinite(dist)
+            if not seen.any():
+                scores.append(np.inf)
+                fits.append(False)
+                continue
+            trails = _trails_as(state, foot, fields, {m: xyz}, direction, params.facing_fraction)
+            scores.append(float(score(dist[seen], target[m, refs[seen]], trails, 1.0)))
+            inner = seen & np.isin(refs, foot.names)
+            miss = dist[inner] - state.template_distance[m, refs[inner]]
+            ok = inner.any() and np.sqrt(np.mean(miss**2)) <= params.label_segment_tolerance_mm
+            fits.append(bool(ok and np.isfinite(scores[-1]) and not trails))
+        if not free:
+            continue
+        best = int(np.argmin(scores))
+        rest = np.delete(np.asarray(scores), best)
+        if fits[best] and (rest.size == 0 or scores[best] <= params.foot_margin * rest.min()):
+            state.name_piece(u, free[best])
+            moved = True
+    return moved
+
+
+def _near_pieces(state: LabelState, foot: Foot, target: NDArray) -> NDArray[np.int64]:
+    """Unnamed pieces of at least :data:`_MIN_SHARED` samples whose first sample lies
+    within ``foot_reach`` times the template's farthest foot distance of a shank or foot
+    name seen there."""
+    cands = np.flatnonzero((state.label_of < 0) & (state.n_measured >= _MIN_SHARED))
+    if cands.size == 0:
+        return cands
+    refs = np.concatenate([foot.shank, foot.names])
+    first = state.start[cands]
+    at = state.name_pos[refs][:, state.tracks.field[first]]
+    d = np.linalg.norm(at - state.tracks.xyz_mm[first][None], axis=2)
+    reach = state.params.foot_reach * target[np.ix_(refs, foot.names)].max(axis=1)
+    with np.errstate(invalid="ignore"):
+        return cands[(d <= reach[:, None]).any(axis=0)]

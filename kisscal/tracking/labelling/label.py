@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
-from kisscal.tracking.labelling.facing import settle_feet
+from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import Labelling, generic, join
@@ -30,8 +30,9 @@ def label_tracks(
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
-    partner by the distances the trial showed; rename heel and toe pieces the walk finds
-    the wrong way round; join pieces sharing a name.
+    partner by the distances the trial showed; give each foot's names the way the
+    distances to the shank and the walk find far better
+    (:func:`~kisscal.tracking.labelling.feet.settle_feet`); join pieces sharing a name.
 
     Parameters
     ----------
@@ -75,11 +76,13 @@ def label_tracks(
         return generic(tracks, params, names, float("nan"))
     if not name_pieces(state):
         return generic(tracks, params, names, state.fit_rms)
+    settle_feet(state, state.template)
     return join(state)
 
 
 def name_pieces(state: LabelState) -> bool:
-    """Phases 1 to 5 on ``state``; False when the first window matches no body."""
+    """Phases 1 to 5 on ``state`` (the feet are settled once, after the last naming
+    pass); False when the first window matches no body."""
     if not match_first_window(state):
         return False
     spread(state)
@@ -87,6 +90,4 @@ def name_pieces(state: LabelState) -> bool:
     name_groups(state)
     if name_from_trial(state):
         spread(state)
-    if settle_feet(state):
-        spread(state)  # a renamed foot gives its ankle a partner
     return True

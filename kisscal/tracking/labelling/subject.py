@@ -28,6 +28,7 @@ from scipy.sparse import csr_matrix, identity, vstack
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
+from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks, name_pieces
 from kisscal.tracking.labelling.learned import name_from_trial
@@ -252,6 +253,7 @@ def label_with_set(
     exchanged = _settled(first, anatomy, rate_hz)
     template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
     second = _second_pass(first, template, segments, params)
+    settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
     judged = judge_sides(found, anatomy, template, rate_hz, params)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)

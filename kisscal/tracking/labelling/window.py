@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.facing import FACING, better, facing
+from kisscal.tracking.labelling.facing import better, facing
 from kisscal.tracking.labelling.state import (
     RIGID_MATCH_MM,
     RIGID_SPREAD_MM,
@@ -477,7 +477,8 @@ def match_first_window(state: LabelState) -> bool:
     centre = first_centre(state)
     found, chosen = match_window(state, centre), longest
     few = _n_named(found) < state.params.min_label_fraction * len(state.names)
-    if few or facing(state, found.core, found.assign, found.rich) <= 1 - FACING:
+    turned = facing(state, found.core, found.assign, found.rich) <= 1 - state.params.facing_fraction
+    if few or turned:
         for c, length in shorter_windows(state):
             state.window = length
             other = match_window(state, c)
