@@ -24,22 +24,13 @@ from collections import Counter
 
 import numpy as np
 
-from kisscal.tracking import MEASURED, PREDICTED, build_trajectories
-from tests.tracking.few_cameras_acceptance import RIGS, rig_trial
+from kisscal.tracking import MEASURED, PREDICTED
+from tests.tracking.few_cameras_acceptance import RIGS, rig_trial, track_trial
 
 
 def classify(trial, params=None) -> tuple[Counter, list[str]]:
     """Missing samples of ``trial`` per class, and one line per open gap."""
-    res = build_trajectories(
-        trial.field,
-        trial.xyz_mm,
-        params,
-        trial.names,
-        trial.template_mm,
-        trial.segments,
-        rate_hz=trial.rate_hz,
-        spare=trial.spare,
-    )
+    res = track_trial(trial, params)
     tr, truth = res.tracks, trial.truth
     n_seen = trial.visible.sum(axis=2)
     labels = np.asarray(res.labels, dtype=object)

@@ -149,15 +149,10 @@ class TrialScore:
     filled_by: dict[str, int]
 
 
-def score_trial(
-    trial: RigTrial, params: TrackingParams | None = None, rays: bool = True
-) -> TrialScore:
-    """Track ``trial`` with its marker set and score it against truth (see module); with
-    ``rays``, the unused blobs go to single-camera fill."""
-    from kisscal.tracking import STATUS_NAMES
-
-    t0 = time.perf_counter()
-    res = build_trajectories(
+def track_trial(trial: RigTrial, params: TrackingParams | None = None, rays: bool = True):
+    """Track ``trial`` with its marker set; with ``rays`` the unused blobs go to
+    single-camera fill."""
+    return build_trajectories(
         trial.field,
         trial.xyz_mm,
         params,
@@ -167,6 +162,17 @@ def score_trial(
         rate_hz=trial.rate_hz,
         spare=trial.spare if rays else None,
     )
+
+
+def score_trial(
+    trial: RigTrial, params: TrackingParams | None = None, rays: bool = True
+) -> TrialScore:
+    """Track ``trial`` with its marker set and score it against truth (see module); with
+    ``rays``, the unused blobs go to single-camera fill."""
+    from kisscal.tracking import STATUS_NAMES
+
+    t0 = time.perf_counter()
+    res = track_trial(trial, params, rays)
     seconds = time.perf_counter() - t0
     n_seen = trial.visible.sum(axis=2)
     exactly2 = n_seen == 2
