@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.facing import HEEL, foot_pairs, walking_direction
-from kisscal.tracking.labelling.spread import spread
+from kisscal.tracking.labelling.spread import continues, spread
 from kisscal.tracking.labelling.state import LabelState, median_distances
 
 #: Name endings of the ankle and of the shank markers beside a foot's heel and toe
@@ -358,13 +358,19 @@ def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: 
     fields: the one whose :func:`score` (distances to the shank and to the rest of the
     foot) is at most ``foot_margin`` of every other free name's, with the toe not trailing
     the heel, when the distances within the foot (a rigid segment) fit the state's
-    template within ``label_segment_tolerance_mm`` RMS (as spreading names requires)."""
+    template within ``label_segment_tolerance_mm`` RMS (as spreading names requires: half
+    that for a piece shorter than ``min_track_length``, which must also continue the
+    name's trajectory)."""
     params = state.params
     cands = _near_pieces(state, foot, target)
     moved = False
     for u in cands[np.argsort(-state.n_measured[cands], kind="stable")].tolist():
         fields, xyz = state.piece(u)
         free = [m for m in foot.names.tolist() if not np.isfinite(state.name_pos[m, fields]).any()]
+        # Short pieces are mostly ghosts: as when names spread, a closer fit, and the
+        # name's trajectory continued.
+        short = state.n_measured[u] < params.min_track_length
+        tolerance = params.label_segment_tolerance_mm * (0.5 if short else 1.0)
         scores, fits = [], []
         for m in free:
             refs = np.concatenate([foot.shank, foot.names[foot.names != m]])
@@ -378,12 +384,14 @@ def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: 
             scores.append(float(score(dist[seen], target[m, refs[seen]], trails, 1.0)))
             inner = seen & np.isin(refs, foot.names)
             miss = dist[inner] - state.template_distance[m, refs[inner]]
-            ok = inner.any() and np.sqrt(np.mean(miss**2)) <= params.label_segment_tolerance_mm
+            ok = inner.any() and np.sqrt(np.mean(miss**2)) <= tolerance
             fits.append(bool(ok and np.isfinite(scores[-1]) and not trails))
         if not free:
             continue
         best = int(np.argmin(scores))
         rest = np.delete(np.asarray(scores), best)
+        if short and not continues(state.name_pos[free[best]], fields, xyz, params):
+            continue
         if fits[best] and (rest.size == 0 or scores[best] <= params.foot_margin * rest.min()):
             state.name_piece(u, free[best])
             moved = True
