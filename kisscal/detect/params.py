@@ -202,6 +202,11 @@ class DetectionParams(Params):
         "peaks" route: a region narrower or lower than this is too small.
     peak_min_sum_grey : float
         "peaks" route: a region whose high-passed grey levels sum to less is too small.
+    peak_step : float
+        "peaks" route: a particle image grows from its peak while no step enters a pixel
+        (or a pixel beside it) more than this above the one it leaves, so that a bright
+        particle beside a faint one is an image of its own (Maas 1992's discontinuity;
+        OpenPTV's experiments use 100).
     """
 
     section: ClassVar[str] = "detection"
@@ -258,6 +263,7 @@ class DetectionParams(Params):
     peak_highpass_px: int = param(51, unit="px", ge=3, odd=True)
     peak_min_extent_px: int = param(2, unit="px", ge=1)
     peak_min_sum_grey: float = param(0.0, unit="grey levels", ge=0)
+    peak_step: float = param(100.0, unit="grey levels", gt=0)
 
     def without_advanced_analysis(self) -> DetectionParams:
         """These parameters with every section 2.3 test (and kisscal's additions) off."""

@@ -32,6 +32,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy import sparse
+from scipy.sparse import csgraph
 
 import kisscal.detect.blobs as fl
 from kisscal.detect.blobs import Blobs
@@ -54,32 +56,158 @@ def regions(
     hp: NDArray[np.float32],
     threshold: float,
     largest: tuple[int | None, int | None, int | None] = (None, None, None),
+    step: float = np.inf,
 ) -> tuple[NDArray, int]:
     """Label image of the particle regions of a high-passed image and their count.
 
-    4-connected regions of ``hp > threshold``. A region larger than a particle (``largest``:
-    pixels, width, height; None: no limit) is lit structure (a wall, glare): the particles
-    standing on it are its pieces above twice the level, four times, ... while they are
-    too large.
+    The regions above ``threshold`` grown from the peaks without climbing more than
+    ``step`` (:func:`grow_regions`; infinite: the 4-connected regions). A region larger
+    than a particle (``largest``: pixels, width, height; None: no limit) is lit structure
+    (a wall, glare): the particles standing on it are its regions above twice the level,
+    four times, ... while they are too large.
     """
-    mask = (hp > threshold).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
+    labels, count = grow_regions(hp, threshold, step)
+    count += 1
     level = threshold
     while count > 1 and level < MAX_LEVEL:
-        big = _too_large(stats, largest)
+        big = _too_large(_stats(labels, count), largest)
         if not big.any():
             break
-        box = _box(stats[big])  # the cut reads only the pixels around the large regions
-        inside = big[labels[box]]
+        rows, cols = np.nonzero(big[labels])
+        box = slice(rows.min(), rows.max() + 1), slice(cols.min(), cols.max() + 1)
+        inside = big[labels[box]]  # the cut reads only the pixels around the large regions
         level = 2.0 * max(level, 1.0)
-        core = (inside & (hp[box] > level)).astype(np.uint8)
-        n, pieces, more, _ = cv2.connectedComponentsWithStats(core, connectivity=4)
-        labels[box] = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels[box])
-        more[:, cv2.CC_STAT_LEFT] += box[1].start
-        more[:, cv2.CC_STAT_TOP] += box[0].start
-        stats = np.vstack([np.where(big[:, None], 0, stats), more[1:]])
-        count += n - 1
+        pieces, n = grow_regions(np.where(inside, hp[box], np.float32(0)), level, step)
+        labels[box] = np.where(inside, np.where(pieces > 0, pieces + count - 1, 0), labels[box])
+        count += n
     return _compact(labels)
+
+
+def _stats(labels: NDArray, count: int) -> NDArray:
+    """OpenCV-like ``stats`` rows (left, top, width, height, area) of labels 0..count-1
+    (row 0, the background, is left zero)."""
+    ys, xs = np.nonzero(labels)
+    lab = labels[ys, xs]
+    x0 = np.full(count, labels.shape[1])
+    y0 = np.full(count, labels.shape[0])
+    x1 = np.full(count, -1)
+    y1 = np.full(count, -1)
+    np.minimum.at(x0, lab, xs)
+    np.minimum.at(y0, lab, ys)
+    np.maximum.at(x1, lab, xs)
+    np.maximum.at(y1, lab, ys)
+    stats = np.column_stack([x0, y0, x1 - x0 + 1, y1 - y0 + 1, np.bincount(lab, minlength=count)])
+    stats[0] = 0
+    return stats
+
+
+def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
+    """Label image of the particle images of a high-passed image, grown from its peaks,
+    and their count.
+
+    A pixel above ``threshold`` belongs to the particle image of a local maximum (8
+    neighbours) it is reached from by a 4-connected path above the threshold whose every
+    step enters a pixel no brighter, nor next to (4 neighbours) a pixel brighter, than
+    ``step`` above the pixel it leaves (Maas 1992's discontinuity). Where several peaks
+    reach a pixel it goes to the faintest (a faint particle keeps its halo; a bright one
+    beside it is what cannot be climbed to); pixels reached from no peak are left out.
+    The result does not depend on the order the image is read in.
+    """
+    mask = hp > threshold
+    count, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=4)
+    cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    pairs = _steps(hp, cross, mask, step)
+    blocked = np.unique(np.concatenate([a[~(f & r)] for a, _, f, r in pairs]))
+    if blocked.size == 0:
+        return comp.astype(np.int32), count - 1
+    hard = np.zeros(count, dtype=bool)
+    hard[comp.ravel()[blocked]] = True
+    hard[0] = False
+    inside = hard[comp]
+    owner = _reached(hp, inside, pairs)
+    labels = np.where(inside, np.where(owner > 0, owner + count, 0), comp)
+    return _compact(labels)
+
+
+#: The pixel and its four neighbours.
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+
+
+def _steps(
+    hp: NDArray[np.float32], cross: NDArray[np.float32], mask: NDArray, step: float
+) -> list[tuple[NDArray, NDArray, NDArray, NDArray]]:
+    """Horizontal and vertical pairs of neighbouring pixels above the threshold: the flat
+    index of each pixel ``a``, of its neighbour ``b``, and whether the step a -> b, and
+    b -> a, enters a pixel whose cross (``cross``: it and its 4 neighbours) is at most
+    ``step`` above the pixel left."""
+    w = hp.shape[1]
+    on = mask.ravel()
+    grey, top = hp.ravel(), cross.ravel()
+    lit = np.flatnonzero(on)
+    out = []
+    for shift, edge in ((1, lit % w < w - 1), (w, lit < on.size - w)):
+        a = lit[edge]
+        a = a[on[a + shift]]
+        b = a + shift
+        out.append((a, b, top[b] <= grey[a] + step, top[a] <= grey[b] + step))
+    return out
+
+
+def _reached(
+    hp: NDArray[np.float32], inside: NDArray, pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]]
+) -> NDArray:
+    """For the pixels ``inside``, 1 + the rank (grey, then position) of the faintest peak
+    that reaches each along allowed steps (``pairs``), 0 where none does.
+
+    The allowed steps are a directed graph; its strongly connected parts (pixels that
+    reach one another) take their faintest peak, then pass it down the steps between
+    parts until nothing changes.
+    """
+    h, w = hp.shape
+    pixels = np.flatnonzero(inside.ravel())
+    node = np.full(h * w, -1, dtype=np.int64)
+    node[pixels] = np.arange(pixels.size)
+    src, dst = [], []
+    for a, b, forward, back in pairs:
+        keep = inside.ravel()[a]
+        a, b, forward, back = node[a[keep]], node[b[keep]], forward[keep], back[keep]
+        src += [a[forward], b[back]]
+        dst += [b[forward], a[back]]
+    s, d = np.concatenate(src), np.concatenate(dst)
+    graph = sparse.csr_matrix((np.ones(s.size, np.int8), (s, d)), shape=(pixels.size,) * 2)
+    parts, part = csgraph.connected_components(graph, directed=True, connection="strong")
+    grey = hp.ravel()[pixels]
+    ring = cv2.dilate(hp, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
+    peak = np.flatnonzero(grey >= ring.ravel()[pixels])
+    rank = np.empty(peak.size, dtype=np.int64)
+    rank[np.lexsort((pixels[peak], grey[peak]))] = np.arange(peak.size)
+    key = np.full(parts, np.iinfo(np.int64).max)
+    np.minimum.at(key, part[peak], rank)
+    _pass_down(key, part[s], part[d])
+    owner = np.zeros(h * w, dtype=np.int64)
+    reached = key[part] < peak.size
+    owner[pixels[reached]] = key[part][reached] + 1
+    return owner.reshape(h, w)
+
+
+def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:
+    """Lower ``key`` of each node to the least key of the nodes with a path to it (edges
+    ``src`` -> ``dst`` between strongly connected parts, a graph without cycles)."""
+    cross = src != dst
+    if not cross.any():
+        return
+    edges = np.unique(src[cross] * key.size + dst[cross])
+    src, dst = edges // key.size, edges % key.size  # sorted by src, then dst
+    order = np.argsort(dst, kind="stable")
+    src, dst = src[order], dst[order]
+    starts = np.flatnonzero(np.r_[True, dst[1:] != dst[:-1]])
+    heads = dst[starts]
+    while True:
+        least = np.minimum.reduceat(key[src], starts)
+        lower = least < key[heads]
+        if not lower.any():
+            return
+        key[heads[lower]] = least[lower]
 
 
 def _too_large(stats: NDArray, largest: tuple[int | None, int | None, int | None]) -> NDArray:
@@ -91,14 +219,6 @@ def _too_large(stats: NDArray, largest: tuple[int | None, int | None, int | None
             big |= stats[:, column] > limit
     big[0] = False
     return big
-
-
-def _box(stats: NDArray) -> tuple[slice, slice]:
-    """Rows and columns of the bounding box of components (OpenCV ``stats`` rows)."""
-    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
-    right = left + stats[:, cv2.CC_STAT_WIDTH]
-    bottom = top + stats[:, cv2.CC_STAT_HEIGHT]
-    return slice(int(top.min()), int(bottom.max())), slice(int(left.min()), int(right.max()))
 
 
 def _compact(labels: NDArray) -> tuple[NDArray, int]:
@@ -172,7 +292,7 @@ def detect_peaks(image: NDArray, params: DetectionParams) -> Blobs:
         raise InputError('detect: the "peaks" route needs grey images, not thresholded ones')
     hp = highpass(image, int(params.peak_highpass_px))
     largest = (params.max_pixels, params.max_width_px, params.max_height_px)
-    labels, count = regions(hp, float(params.threshold), largest)
+    labels, count = regions(hp, float(params.threshold), largest, float(params.peak_step))
     if count == 0:
         return Blobs.empty()
     t = region_table(hp, labels, count, float(params.threshold))
