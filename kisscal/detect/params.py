@@ -192,8 +192,9 @@ class DetectionParams(Params):
         "blobs": the run-length grouping and tests above (markers, dots). "peaks": particle
         images as particle-tracking velocimetry finds them (Maas et al. 1993;
         :mod:`kisscal.detect.peaks`): the image less its ``peak_highpass_px`` box mean,
-        4-connected regions above ``threshold`` there, regions larger than ``max_pixels``
-        cut at twice the level while too large, weighted centroids. Derived per camera: chosen
+        regions above ``threshold`` there grown from their peaks (``peak_step``), regions
+        larger than ``max_pixels`` grown again at twice the level while too large,
+        weighted centroids. Derived per camera: chosen
         for frames of many small spots and no marker-sized blobs
         (:mod:`kisscal.detect.route`).
     peak_highpass_px : int
@@ -207,6 +208,23 @@ class DetectionParams(Params):
         (or a pixel beside it) more than this above the one it leaves, so that a bright
         particle beside a faint one is an image of its own (Maas 1992's discontinuity;
         OpenPTV's experiments use 100).
+    peak_min_spots : int
+        Route choice (:mod:`kisscal.detect.route`): least spots of the marker population
+        per frame for particle frames.
+    peak_min_density : float
+        Route choice: least such spots per megapixel per frame.
+    peak_small_spot_px : float
+        Route choice: largest median white pixels of those spots (particle images are a
+        few pixels wide).
+    peak_size_span : float
+        Route choice: least ratio of the 90th to the 10th percentile of the spots' sizes
+        (particle images have every size, the dots of a target or grid one size).
+    peak_noise_factor : float
+        "peaks" route's derived ``threshold``, in robust deviations (1.4826 MAD) of the
+        frames less their ``peak_highpass_px`` box mean.
+    peak_sum_factor : float
+        "peaks" route's derived ``peak_min_sum_grey``, in thresholds (four pixels three
+        thresholds up; OpenPTV's cavity experiment asks 150 at thresholds of 9 and 11).
     """
 
     section: ClassVar[str] = "detection"
@@ -264,6 +282,12 @@ class DetectionParams(Params):
     peak_min_extent_px: int = param(2, unit="px", ge=1)
     peak_min_sum_grey: float = param(0.0, unit="grey levels", ge=0)
     peak_step: float = param(100.0, unit="grey levels", gt=0)
+    peak_min_spots: int = param(200, ge=1)
+    peak_min_density: float = param(1000.0, unit="per megapixel", ge=0)
+    peak_small_spot_px: float = param(16.0, unit="px", gt=0)
+    peak_size_span: float = param(4.0, ge=1)
+    peak_noise_factor: float = param(2.5, gt=0)
+    peak_sum_factor: float = param(12.0, ge=0)
 
     def without_advanced_analysis(self) -> DetectionParams:
         """These parameters with every section 2.3 test (and kisscal's additions) off."""

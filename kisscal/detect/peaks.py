@@ -8,12 +8,16 @@ recognition reads them in four steps, each a whole-image operation here:
    it is zero), so that slow glare and lit walls fall to the noise;
 2. **flat threshold**: a pixel is part of a particle image when the high-passed grey
    stands more than ``threshold`` above zero;
-3. **regions**: the 4-connected regions of such pixels. A region larger than a particle
+3. **regions grown from peaks**: each local maximum above the threshold grows into the
+   pixels above it it reaches by 4-connected steps that never enter a pixel (or a pixel
+   beside it) more than ``peak_step`` above the one left (Maas's discontinuity): a faint
+   spot cannot climb into a bright particle beside it, and the bright one stays a target
+   of its own. Maas's region growing reads the image in scan order; here peaks that reach
+   one another are one target and a pixel reached from several goes to the faintest
+   (:func:`grow_regions`), the same whatever the order. A region larger than a particle
    (the upper size limits) is lit structure, a wall or glare, that particles stand on:
-   it is cut at twice the level, four times, ... until its pieces are particle-sized.
-   (Maas's region growing also stops where the grey climbs by more than a discontinuity,
-   in scan order; a symmetric version of that rule, and a watershed between grey-level
-   peaks, both matched OpenPTV's targets worse on its own frames and are not used);
+   it is grown again at twice the level, four times, ... until its pieces are
+   particle-sized;
 4. **limits and centroids**: regions touching the image border, with fewer pixels than
    ``min_pixels``, narrower or lower than ``peak_min_extent_px``, or with a summed grey
    below ``peak_min_sum_grey`` are dropped (``too_small``; ``too_large`` above the upper

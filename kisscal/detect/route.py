@@ -8,11 +8,11 @@ but textured background and nothing larger than a particle but glare: the peaks 
 (:mod:`kisscal.detect.peaks`, after Maas et al. 1993) reads them as particle trackers do.
 
 The survey's groups say which: the route is "peaks" when a frame holds at least
-:data:`MIN_SPOTS` of them, :data:`MIN_DENSITY` per megapixel, most of them small (median
-at most :data:`SMALL_SPOT_PX` pixels) and of many sizes (:data:`SIZE_SPAN`), falling off
+``peak_min_spots`` of them, ``peak_min_density`` per megapixel, most of them small (median
+at most ``peak_small_spot_px`` pixels) and of many sizes (``peak_size_span``), falling off
 with no population of larger spots of their own size (target dots, markers, LED rings:
-:func:`marker_mode`).
-Its threshold is :data:`NOISE_FACTOR` deviations of the high-passed image's noise.
+:func:`marker_mode`). Its threshold is ``peak_noise_factor`` deviations of the
+high-passed image's noise (these settings are :class:`DetectionParams` fields).
 
 References
 ----------
@@ -32,30 +32,20 @@ from numpy.typing import NDArray
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.survey import Groups
 
-#: Least spots of the marker population per frame for a particle scene.
-MIN_SPOTS = 200
-#: Least spots per megapixel per frame.
-MIN_DENSITY = 1000.0
-#: Largest median white pixels of those spots (particle images are a few pixels wide).
-SMALL_SPOT_PX = 16.0
-#: Least ratio of the 90th to the 10th percentile of the spots' sizes: particle images
-#: have every size, the dots of a target (or a grid) one size.
-SIZE_SPAN = 4.0
 #: A bin of the size histogram (octaves) holding this many times the one below, and
 #: :data:`MODE_EXTRA` more, is a population of its own (dots, markers, rings).
 MODE_RISE = 1.25
 MODE_EXTRA = 2
 #: ... and at least this share of all the filled spots (not a few glare patches).
 MODE_SHARE = 0.01
-#: Threshold of the peaks route, in noise deviations of the high-passed image.
-NOISE_FACTOR = 2.5
-#: Least summed high-passed grey of a particle image, in thresholds (four pixels three
-#: thresholds up; OpenPTV's cavity experiment asks 150 at thresholds of 9 and 11).
-SUM_FACTOR = 12.0
 
 
-def particle_scene(groups: Groups, shape: tuple[int, ...], frames: int) -> tuple[bool, str]:
-    """Whether surveyed ``groups`` are a particle scene, and why, in words."""
+def particle_scene(
+    groups: Groups, shape: tuple[int, ...], frames: int, params: DetectionParams | None = None
+) -> tuple[bool, str]:
+    """Whether surveyed ``groups`` are a particle scene (by the ``peak_*`` choice settings
+    of ``params``, the defaults when None), and why, in words."""
+    p = params or DetectionParams()
     if len(groups) == 0:
         return False, "no spots surveyed: blob route"
     per_frame = len(groups) / max(frames, 1)
@@ -68,8 +58,9 @@ def particle_scene(groups: Groups, shape: tuple[int, ...], frames: int) -> tuple
     )
     if bump is not None:
         return False, f"{facts}, a population of larger spots about {bump} px: blob route"
-    crowd = per_frame >= MIN_SPOTS and density >= MIN_DENSITY and median <= SMALL_SPOT_PX
-    if crowd and high >= SIZE_SPAN * max(low, 1.0):
+    crowd = per_frame >= p.peak_min_spots and density >= p.peak_min_density
+    crowd = crowd and median <= p.peak_small_spot_px
+    if crowd and high >= p.peak_size_span * max(low, 1.0):
         return True, f"particle frames ({facts}, no larger population): peaks route"
     return False, f"{facts}: blob route"
 
@@ -105,21 +96,26 @@ def highpass_noise(frames: Sequence[NDArray], side: int) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))))
 
 
-def peak_settings(frames: Sequence[NDArray]) -> dict[str, tuple[object, str]]:
+def peak_settings(
+    frames: Sequence[NDArray], params: DetectionParams | None = None
+) -> dict[str, tuple[object, str]]:
     """The peaks route's derived settings for a camera's frames: value and reason."""
-    side = DetectionParams().peak_highpass_px
-    noise = highpass_noise(frames, side)
-    threshold = round(max(NOISE_FACTOR * noise, 1.0), 1)
+    p = params or DetectionParams()
+    noise = highpass_noise(frames, p.peak_highpass_px)
+    threshold = round(max(p.peak_noise_factor * noise, 1.0), 1)
+    unbounded = "a particle image is bounded by its pixels (OpenPTV's size limits), not its extent"
     return {
         "threshold": (
             threshold,
-            f"{NOISE_FACTOR:g} deviations of the high-passed noise ({noise:.1f}) above the "
-            f"{side} px box mean",
+            f"{p.peak_noise_factor:g} deviations of the high-passed noise ({noise:.1f}) above "
+            f"the {p.peak_highpass_px} px box mean",
         ),
         "peak_min_sum_grey": (
-            round(SUM_FACTOR * threshold, 1),
-            f"{SUM_FACTOR:g} thresholds of summed high-passed grey",
+            round(p.peak_sum_factor * threshold, 1),
+            f"{p.peak_sum_factor:g} thresholds of summed high-passed grey",
         ),
+        "max_width_px": (None, unbounded),
+        "max_height_px": (None, unbounded),
     }
 
 
@@ -127,10 +123,12 @@ def choose_route(
     choose: Callable[[str, Any, str], Any],
     frames: Sequence[NDArray],
     groups: Groups,
+    params: DetectionParams | None = None,
 ) -> None:
     """Record the route (and the peaks route's settings) through ``choose(name, value,
-    why)``, which keeps a value the user gave."""
-    chosen, why = particle_scene(groups, frames[0].shape, len(frames))
+    why)``, which keeps a value the user gave; ``params`` holds the ``peak_*`` settings
+    the choice reads (the defaults when None)."""
+    chosen, why = particle_scene(groups, frames[0].shape, len(frames), params)
     if choose("route", "peaks" if chosen else "blobs", why) == "peaks":
-        for name, (value, reason) in peak_settings(frames).items():
+        for name, (value, reason) in peak_settings(frames, params).items():
             choose(name, value, reason)

@@ -9,7 +9,7 @@ import pytest
 
 from kisscal.detect import DetectionParams, detect_blobs
 from kisscal.detect.configure import configure_detection
-from kisscal.detect.peaks import detect_peaks, highpass, regions
+from kisscal.detect.peaks import detect_peaks, grow_regions, highpass, regions
 from kisscal.detect.pipeline import detect_frames
 from kisscal.errors import InputError
 from kisscal.io.frames import read_image
@@ -71,15 +71,54 @@ def test_border_regions_dropped_and_small_ones_invalid() -> None:
         detect_blobs(image > 100, PEAKS)
 
 
+def test_a_bright_particle_beside_a_faint_one_is_grown_apart() -> None:
+    # a faint spot (peak 40) and a bright one (peak 220) 6 px apart, joined above 9 by a
+    # faint bridge: no step from the faint side climbs into the bright particle's core
+    hp = np.zeros((40, 60), np.float32)
+    hp += _spot(hp.shape, 22.0, 20.0, 40.0, 2.5).astype(np.float32)
+    hp += _spot(hp.shape, 28.0, 20.0, 220.0, 0.9).astype(np.float32)
+    hp[18:23, 22:29] = np.maximum(hp[18:23, 22:29], 20.0)
+    assert grow_regions(hp, 9.0, np.inf)[1] == 1  # no discontinuity: one region
+    labels, count = grow_regions(hp, 9.0, 100.0)
+    assert count == 2
+    bright = labels == labels[20, 28]
+    assert labels[20, 22] != labels[20, 28] and labels[20, 22] > 0
+    ys, xs = np.nonzero(bright)
+    w = hp[bright] - 9.0
+    assert abs(np.sum(w * xs) / w.sum() - 28.0) < 0.1 and abs(np.sum(w * ys) / w.sum() - 20.0) < 0.1
+    # the faint spot keeps the bridge it reaches first; the bright one keeps only its core
+    assert (labels == labels[20, 22]).sum() > bright.sum()
+
+
+def test_peaks_that_reach_one_another_are_one_region_whatever_the_scan_order() -> None:
+    rng = np.random.default_rng(11)
+    hp = np.zeros((80, 80), np.float32)
+    for _ in range(25):  # spots of every brightness, some touching
+        x, y = rng.uniform(8, 72, 2)
+        hp += _spot(hp.shape, x, y, rng.uniform(20, 240), rng.uniform(0.7, 2.0)).astype(np.float32)
+    hp += rng.uniform(0, 3, hp.shape).astype(np.float32)
+    labels, count = grow_regions(hp, 9.0, 100.0)
+    for flip in (np.fliplr, np.flipud, np.transpose):
+        other, n = grow_regions(np.ascontiguousarray(flip(hp)), 9.0, 100.0)
+        assert n == count
+        back = flip(other)
+        pairs = np.unique(np.column_stack([labels.ravel(), back.ravel()]), axis=0)
+        assert len(pairs) == count + 1  # the same regions, one to one (and the background)
+    # two noise maxima on one particle (a dip of 3 levels) stay one region
+    twin = _spot((30, 30), 14.0, 15.0, 120.0, 1.5) + _spot((30, 30), 17.0, 15.0, 120.0, 1.5)
+    assert grow_regions(twin.astype(np.float32), 9.0, 100.0)[1] == 1
+
+
 def test_real_particle_crop_chooses_the_peaks_route_and_finds_openptvs_targets() -> None:
     image = read_image(FIXTURES / "particles1.png")
     targets = np.loadtxt(FIXTURES / "particles1_targets.csv", delimiter=",", skiprows=1)
     setup = configure_detection([image])
     assert setup.params.route == "peaks", setup.choices["route"].why
     score = score_targets(detect_blobs(image, setup.params), targets)
-    # measured 128 of 143 (89.5 %) among 324 valid blobs: the crop alone (calmer than the
-    # whole frame) gives a threshold of 4.6 where the camera's frames give 9.4 (OpenPTV: 9)
-    assert score["found_1px"] >= 0.88 * len(targets), score
+    # measured 134 of 143 (93.7 %) among 337 valid blobs (128, 89.5 %, with plain regions
+    # before the growth from peaks): the crop alone (calmer than the whole frame) gives a
+    # threshold of 4.6 where the camera's frames give 9.4 (OpenPTV: 9)
+    assert score["found_1px"] >= 0.93 * len(targets), score
     assert score["valid_blobs"] <= 2.5 * len(targets), score
 
 
