@@ -286,8 +286,7 @@ class _Derivation:
                 self.choose(name, False, "grid dots never touch: nothing to split")
         else:
             self._shape_tests(final.take(markers & (final.isolation > 2.0)))
-            given = DetectionParams.from_layers(self.values, self.given)
-            choose_route(self.choose, self.frames, final, given)  # particle frames?
+            choose_route(self.choose, self.frames, final, self.given)  # particle frames?
         params = DetectionParams.from_layers(self.values, self.given)
         seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)

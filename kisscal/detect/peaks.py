@@ -67,24 +67,36 @@ def regions(
     The regions above ``threshold`` grown from the peaks without climbing more than
     ``step`` (:func:`grow_regions`; infinite: the 4-connected regions). A region larger
     than a particle (``largest``: pixels, width, height; None: no limit) is lit structure
-    (a wall, glare): the particles standing on it are its regions above twice the level,
-    four times, ... while they are too large.
+    (a wall, glare): the particles standing on it are its 4-connected pieces above twice
+    the level, four times, ... while they are too large.
     """
     labels, count = grow_regions(hp, threshold, step)
     count += 1
+    stats = _stats(labels, count)
     level = threshold
     while count > 1 and level < MAX_LEVEL:
-        big = _too_large(_stats(labels, count), largest)
+        big = _too_large(stats, largest)
         if not big.any():
             break
-        rows, cols = np.nonzero(big[labels])
-        box = slice(rows.min(), rows.max() + 1), slice(cols.min(), cols.max() + 1)
-        inside = big[labels[box]]  # the cut reads only the pixels around the large regions
+        box = _box(stats[big])  # the cut reads only the pixels around the large regions
+        inside = big[labels[box]]
         level = 2.0 * max(level, 1.0)
-        pieces, n = grow_regions(np.where(inside, hp[box], np.float32(0)), level, step)
-        labels[box] = np.where(inside, np.where(pieces > 0, pieces + count - 1, 0), labels[box])
-        count += n
+        core = (inside & (hp[box] > level)).astype(np.uint8)
+        n, pieces, more, _ = cv2.connectedComponentsWithStats(core, connectivity=4)
+        labels[box] = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels[box])
+        more[:, cv2.CC_STAT_LEFT] += box[1].start
+        more[:, cv2.CC_STAT_TOP] += box[0].start
+        stats = np.vstack([np.where(big[:, None], 0, stats), more[1:]])
+        count += n - 1
     return _compact(labels)
+
+
+def _box(stats: NDArray) -> tuple[slice, slice]:
+    """Rows and columns of the bounding box of components (OpenCV ``stats`` rows)."""
+    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
+    right = left + stats[:, cv2.CC_STAT_WIDTH]
+    bottom = top + stats[:, cv2.CC_STAT_HEIGHT]
+    return slice(int(top.min()), int(bottom.max())), slice(int(left.min()), int(right.max()))
 
 
 def _stats(labels: NDArray, count: int) -> NDArray:
@@ -115,7 +127,28 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     ``step`` above the pixel it leaves (Maas 1992's discontinuity). Where several peaks
     reach a pixel it goes to the faintest (a faint particle keeps its halo; a bright one
     beside it is what cannot be climbed to); pixels reached from no peak are left out.
-    The result does not depend on the order the image is read in.
+    The result does not depend on the order the image is read in (Maas's scan-order
+    growth gives a contested pixel to whichever peak it meets first).
+
+    Parameters
+    ----------
+    hp : ndarray of float32, shape (h, w)
+        High-passed image (:func:`highpass`).
+    threshold : float
+        Grey level a particle image's pixels stand above.
+    step : float
+        Largest climb of a step (``inf``: the 4-connected regions above the threshold).
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (h, w)
+        0 outside the regions, 1..count inside.
+    count : int
+
+    References
+    ----------
+    Maas, H.-G. (1992). Digitale Photogrammetrie in der dreidimensionalen
+    Strömungsmesstechnik. Dissertation, ETH Zürich.
     """
     mask = hp > threshold
     count, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=4)
@@ -167,14 +200,12 @@ def _reached(
     reach one another) take their faintest peak, then pass it down the steps between
     parts until nothing changes.
     """
-    h, w = hp.shape
-    pixels = np.flatnonzero(inside.ravel())
-    node = np.full(h * w, -1, dtype=np.int64)
-    node[pixels] = np.arange(pixels.size)
+    pixels = np.flatnonzero(inside.ravel())  # node i of the graph is pixel pixels[i]
     src, dst = [], []
     for a, b, forward, back in pairs:
         keep = inside.ravel()[a]
-        a, b, forward, back = node[a[keep]], node[b[keep]], forward[keep], back[keep]
+        a, b = np.searchsorted(pixels, a[keep]), np.searchsorted(pixels, b[keep])
+        forward, back = forward[keep], back[keep]
         src += [a[forward], b[back]]
         dst += [b[forward], a[back]]
     s, d = np.concatenate(src), np.concatenate(dst)
@@ -188,10 +219,10 @@ def _reached(
     key = np.full(parts, np.iinfo(np.int64).max)
     np.minimum.at(key, part[peak], rank)
     _pass_down(key, part[s], part[d])
-    owner = np.zeros(h * w, dtype=np.int64)
+    owner = np.zeros(hp.size, dtype=np.int32)
     reached = key[part] < peak.size
     owner[pixels[reached]] = key[part][reached] + 1
-    return owner.reshape(h, w)
+    return owner.reshape(hp.shape)
 
 
 def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:

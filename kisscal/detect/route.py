@@ -22,7 +22,7 @@ three-dimensional flows. Experiments in Fluids, 15(2), 133-146.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import cv2
@@ -123,11 +123,12 @@ def choose_route(
     choose: Callable[[str, Any, str], Any],
     frames: Sequence[NDArray],
     groups: Groups,
-    params: DetectionParams | None = None,
+    given: Mapping[str, Any] | None = None,
 ) -> None:
     """Record the route (and the peaks route's settings) through ``choose(name, value,
-    why)``, which keeps a value the user gave; ``params`` holds the ``peak_*`` settings
-    the choice reads (the defaults when None)."""
+    why)``, which keeps a value the user gave; the ``peak_*`` settings the choice reads
+    are the defaults or as ``given`` ([detection] values)."""
+    params = DetectionParams.from_layers(given or {})
     chosen, why = particle_scene(groups, frames[0].shape, len(frames), params)
     if choose("route", "peaks" if chosen else "blobs", why) == "peaks":
         for name, (value, reason) in peak_settings(frames, params).items():

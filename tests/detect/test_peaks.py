@@ -145,3 +145,6 @@ def test_a_crowd_of_one_size_is_a_target_and_of_every_size_particles() -> None:
     particles = _field(rng, rng.uniform(15, 200, n), rng.uniform(0.4, 1.1, n))
     setup = configure_detection([particles])
     assert setup.params.route == "peaks", setup.choices["route"].why
+    assert setup.params.max_width_px is None and setup.params.max_pixels is not None
+    fewer = configure_detection([particles], {"peak_min_spots": 100_000})  # the choice's own
+    assert fewer.params.route == "blobs", fewer.choices["route"].why  # settings are honoured
