@@ -9,8 +9,9 @@ What each row counts, and how:
 
 - hand-built ``out/`` paths outside the store: lines that join a path of the layout by
   hand (:func:`test_structure.hand_built_out_paths`, the check the structure test runs);
-- cache-key sites: functions that hash a stage's inputs (a ``hashlib`` call), and, beside
-  them, the calls of the one key function ``store.key(...)`` (uses, not key computations);
+- cache-key sites: modules whose functions hash a stage's inputs (a ``hashlib`` call; the
+  functions are listed), and, beside them, the calls of the one key function
+  ``store.key(...)`` (uses, not key computations);
 - hops of ``[detection] threshold``: with ``--trace``, a session's ``session.toml`` sets
   a threshold no survey would derive and the session's steps of ``kisscal reconstruct``
   (load, resolve, derive the cameras' settings, detect the trial) run under a profiler;
@@ -18,8 +19,9 @@ What each row counts, and how:
   ``DetectionParams``, the ``StageParams``, a detection job, ...) is one hop, and the
   detection record read back after it was written in the same run would be a disk round
   trip;
-- camera classes: classes named ``*Camera`` and what they hold; Brown implementations:
-  functions whose code multiplies ``k1`` with ``r2`` (the radial polynomial);
+- camera classes: classes named ``*Camera``, and whether they project; Brown
+  implementations: functions whose code (docstrings aside) names ``k1`` and ``r2`` on one
+  line, listed for a reader to tell a lens model from code that only draws coefficients;
 - cycles and upward arrows: the structure test's own graph (imports inside functions
   included, so a lazy import cannot hide a cycle); lazy imports are counted beside;
 - lines: every ``.py`` line under ``kisscal/``, per package;
@@ -237,7 +239,8 @@ def main() -> None:
     paths = out_paths()
     rows.append(("hand-built out/ paths outside the store", "38", len(paths), paths))
     hashing, uses = key_sites()
-    rows.append(("cache-key sites (functions hashing)", "10", len(hashing), hashing))
+    modules = {h.split(":")[0] for h in hashing}
+    rows.append(("cache-key sites (modules hashing)", "10", len(modules), hashing))
     rows.append(("  calls of store.key(...) (uses of the one key)", "", uses, []))
     cams = camera_classes()
     rows.append(("classes named *Camera", "4", len(cams), cams))
@@ -250,6 +253,15 @@ def main() -> None:
     up = upward()
     rows.append(("upward imports", "", len(up), up))
     rows.append(("kisscal imports inside functions", "", lazy_imports(), []))
+    gets = sum(p.read_text().count(".get(") for p in (PACKAGE / "report").glob("*.py"))
+    rows.append(("  .get( calls in report/ (untyped reads)", "62", gets, []))
+    loads = sum(
+        1
+        for p in ts._modules()
+        for n in ast.walk(ts._parsed(p))
+        if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "load_config"
+    )
+    rows.append(("  load_config calls", "12", loads, []))
     docs = undocumented()
     rows.append(("packages without a paragraph in architecture.md", "", len(docs), docs))
     per = lines()
