@@ -233,7 +233,7 @@ def test_a_dlt_from_4_points_is_a_failed_estimation() -> None:
 
 
 def test_files_not_there_and_files_not_readable_are_told_apart(tmp_path: Path) -> None:
-    with pytest.raises(MissingDataError, match="cannot read"):
+    with pytest.raises(MissingDataError, match="not found"):
         read_blobs(tmp_path / "blobs.csv")
     with pytest.raises(MissingDataError, match="file not found"):
         image_header(tmp_path / "frame.png")

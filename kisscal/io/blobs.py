@@ -15,8 +15,8 @@ from typing import TextIO
 import numpy as np
 
 from kisscal.detect.blobs import Blobs, flag_string, parse_flags
-from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import atomic_path
+from kisscal.errors import InputError
+from kisscal.io.files import atomic_path, read_text
 
 COLUMNS = ("image", "x_px", "y_px", "pixels", "w_px", "h_px", "valid", "flags")
 
@@ -70,13 +70,7 @@ def read_blobs(path: str | Path) -> dict[str, Blobs]:
     are NaN. Images without blobs do not appear (the file has no row for them).
     """
     path = Path(path)
-    try:
-        with open(path, newline="") as f:
-            rows = list(csv.reader(f))
-    except FileNotFoundError as exc:
-        raise MissingDataError(f"blobs: cannot read {path}: {exc.strerror}") from exc
-    except OSError as exc:
-        raise InputError(f"blobs: cannot read {path}: {exc.strerror}") from exc
+    rows = list(csv.reader(io.StringIO(read_text(path, "blob file"))))
     if not rows or tuple(rows[0]) != COLUMNS:
         raise InputError(f"blobs: {path} does not start with the header {','.join(COLUMNS)}")
     by_image: dict[str, list[list[str]]] = {}

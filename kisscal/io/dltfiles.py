@@ -33,7 +33,7 @@ from kisscal.dlt.nonlinear import lens_frame
 from kisscal.dlt.params import DltResult
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import read_json, write_csv, write_text
+from kisscal.io.files import read_json, read_text, write_csv, write_text
 
 RMS_DEFINITION = "sqrt(mean(du^2 + dv^2)) over control points, pixels (Euclidean RMS)"
 #: kisscal's pixel coordinates (L of ``<camera>.json`` maps to these, linearised).
@@ -250,10 +250,8 @@ def read_dltdv_csv(path: str | Path, cameras: Sequence[str] | None = None) -> di
         convention (the file's, DLTdv8's, shifted back by 1 px).
     """
     path = Path(path)
-    try:
-        rows = [r for r in csv.reader(path.read_text().splitlines()) if any(c.strip() for c in r)]
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: DLT coefficient file not found") from None
+    text = read_text(path, "DLT coefficient file")
+    rows = [r for r in csv.reader(text.splitlines()) if any(c.strip() for c in r)]
     header = None
     if rows:
         try:
@@ -301,10 +299,7 @@ def read_control_points_csv(
         The ``label`` column, or ``P1``, ``P2``, ... .
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: control point file not found") from None
+    text = read_text(path, "control point file")
     reader = csv.DictReader(text.splitlines())
     fields = [f.strip() for f in reader.fieldnames or []]
     missing = [c for c in CONTROL_COLUMNS if c not in fields]

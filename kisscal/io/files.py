@@ -88,6 +88,28 @@ def write_csv(
     return Path(path)
 
 
+def read_text(path: str | Path, what: str = "file") -> str:
+    """The text of a file (UTF-8; a byte-order mark, as Notepad writes, is dropped, and
+    Windows or old Mac line ends read as ``\\n``).
+
+    Raises
+    ------
+    MissingDataError
+        There is no such file (the message says ``<path>: <what> not found``).
+    InputError
+        The file is not UTF-8 text or cannot be read.
+    """
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise MissingDataError(f"{path}: {what} not found") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+
+
 def read_json(path: Path) -> Any:
     """A JSON file, or None when there is none.
 
@@ -99,7 +121,7 @@ def read_json(path: Path) -> Any:
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
 
@@ -172,14 +194,7 @@ def read_table(
     ``required`` column, or holds text in a column named in ``numeric``. A byte-order mark
     and Windows line ends are accepted.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: file not found") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text CSV file") from None
-    rows = list(csv.reader(io.StringIO(text)))
+    rows = list(csv.reader(io.StringIO(read_text(path))))
     if not rows:
         raise InputError(f"{path}: empty file, expected a header line")
     header, body = rows[0], rows[1:]

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import write_text
+from kisscal.errors import InputError
+from kisscal.io.files import read_text, write_text
 
 COLUMNS = ("camera", "field", "x_px", "y_px", "point", "weight")
 #: The header of files written before ``weight`` (read with NaN weights).
@@ -123,10 +123,7 @@ def read_points2d(path: str | Path) -> Points2DFile:
     """Read a points2d.csv written by :func:`write_points2d` (camera ids kept as text,
     ``01`` stays ``01``)."""
     path = Path(path)
-    try:
-        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: file not found") from None
+    rows = list(csv.reader(read_text(path).splitlines()))
     if not rows or tuple(rows[0]) not in (COLUMNS, _COLUMNS_V1):
         raise InputError(f"{path}: header must be {','.join(COLUMNS)}")
     try:

@@ -8,14 +8,15 @@ of that field in the order of the 2D input, that the point was built from (-1: n
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import write_csv
+from kisscal.errors import InputError
+from kisscal.io.files import read_text, write_csv
 from kisscal.recon.reconstruct import Points3D
 
 BASE_COLUMNS = ("field", "x_mm", "y_mm", "z_mm", "n_cameras", "rms_px")
@@ -95,10 +96,7 @@ def write_points3d(
 def read_points3d(path: str | Path) -> Points3DFile:
     """Read a points3d.csv written by :func:`write_points3d` (blob columns optional)."""
     path = Path(path)
-    if not path.is_file():
-        raise MissingDataError(f"points3d file not found: {path}")
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(fh))
+    rows = list(csv.reader(io.StringIO(read_text(path, "points3d file"))))
     if not rows or tuple(rows[0][: len(BASE_COLUMNS)]) != BASE_COLUMNS:
         raise InputError(f"{path}: header must start with {','.join(BASE_COLUMNS)}")
     header = rows[0]

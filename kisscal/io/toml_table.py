@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.errors import InputError, MissingDataError
+from kisscal.errors import InputError
+from kisscal.io.files import read_text
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -28,15 +29,7 @@ def load_toml(path: Path) -> dict[str, Any]:
 
     A UTF-8 byte-order mark and Windows line ends are accepted (files saved by Notepad).
     """
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8-sig")
-    except FileNotFoundError:
-        raise MissingDataError(f"{path}: file not found") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    text = read_text(path)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

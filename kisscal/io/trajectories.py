@@ -4,14 +4,15 @@ the PNC x MNC sweep (Küçük 2005 tables 5.1-5.13)."""
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.errors import InputError, MissingDataError
-from kisscal.io.files import write_csv
+from kisscal.errors import InputError
+from kisscal.io.files import read_text, write_csv
 from kisscal.tracking.pipeline import SweepRow
 from kisscal.tracking.tracks import LEGACY_STATUS, STATUS_NAMES, Tracks
 
@@ -70,10 +71,7 @@ def read_trajectories_csv(path: str | Path) -> TrajectoryTable:
     following DESIGN.md); ``status`` ``filled`` of files before contract version 3 reads
     as ``filled_spline``."""
     path = Path(path)
-    if not path.is_file():
-        raise MissingDataError(f"trajectories: no such file {path}")
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(fh))
+    rows = list(csv.reader(io.StringIO(read_text(path, "trajectories file"))))
     if not rows or tuple(rows[0]) != HEADER:
         raise InputError(f"trajectories: {path} must start with the header {','.join(HEADER)}")
     body = rows[1:]

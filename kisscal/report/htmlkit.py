@@ -42,9 +42,14 @@ def tag(name: str, body: Any = "", **attrs: Any) -> Html:
 
 
 def fmt(value: Any, digits: int = 3) -> str:
-    """A number for a table cell: ``digits`` decimals, integers as integers, '–' if none."""
+    """A value for a table cell: ``digits`` decimals, integers as integers, yes / no, '–'
+    if none, the first six items of a list or tuple; text as it is."""
+    if isinstance(value, list | tuple):
+        return ", ".join(fmt(v, digits) for v in value[:6]) + (" …" if len(value) > 6 else "")
     if value is None:
         return "–"
+    if isinstance(value, str):
+        return value
     if isinstance(value, bool):
         return "yes" if value else "no"
     if isinstance(value, int):

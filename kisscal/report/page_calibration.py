@@ -213,14 +213,6 @@ def calibration_section(o: SessionOutputs, verdicts: dict[str, Verdict], used: s
     return section("calibration", "Calibration", join(parts), RMS_NOTE)
 
 
-def _cell(value: Any) -> str:
-    if isinstance(value, list | tuple):
-        return ", ".join(_cell(v) for v in value[:6]) + (" …" if len(value) > 6 else "")
-    if isinstance(value, float):
-        return fmt(value, 3 if abs(value) < 100 else 1)
-    return fmt(value) if isinstance(value, int | bool) else str(value)
-
-
 #: Detection settings shown in the report, in order, with their column headings.
 DETECTION_COLUMNS = (
     ("threshold", "threshold"),
@@ -243,9 +235,9 @@ def detection_section(o: SessionOutputs) -> Html:
                 [
                     tag("b", cam),
                     esc(kind),
-                    *(_cell(values.get(k, "–")) for k, _ in DETECTION_COLUMNS),
+                    *(fmt(values.get(k, "–")) for k, _ in DETECTION_COLUMNS),
                     f"{low}–{high}" if high else "–",
-                    _cell(entry.noise_sigma),
+                    fmt(entry.noise_sigma),
                     esc(", ".join(given) or "–"),
                 ]
             )
@@ -289,11 +281,11 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
             )
         )
     if w.figures:
-        rows = [[heading(k), _cell(v)] for k, v in w.figures]
+        rows = [[heading(k), fmt(v)] for k, v in w.figures]
         parts.append(table(["wand figure", "value"], rows, (1,)))
     if w.cameras:
         keys = w.camera_columns
-        rows = [[tag("b", c), *(_cell(d.get(k, "–")) for k in keys)] for c, d in w.cameras.items()]
+        rows = [[tag("b", c), *(fmt(d.get(k, "–")) for k in keys)] for c, d in w.cameras.items()]
         headers = ["camera", *(heading(k) for k in keys)]
         parts.append(table(headers, rows, tuple(range(1, len(keys) + 1))))
     for name in sorted(o.figures):

@@ -294,7 +294,8 @@ def gait_section(o: SessionOutputs, used: set[str]) -> Html:
             cols = list(tab)
             n = len(tab[cols[0]]) if cols else 0
             numeric = [i for i, c in enumerate(cols) if np.asarray(tab[c]).dtype.kind == "f"]
-            rows = [[_value(tab[c][r]) for c in cols] for r in range(n)]
+            shown = [_whole_as_int(tab[c]) for c in cols]
+            rows = [[fmt(col[r]) for col in shown] for r in range(n)]
             parts.append(tag("h3", f"{name}: {title}"))
             parts.append(table(cols, rows, numeric, "compact"))
     for fig in sorted(o.figures):
@@ -306,8 +307,9 @@ def gait_section(o: SessionOutputs, used: set[str]) -> Html:
     return section("gait", "Gait events and parameters", join(parts))
 
 
-def _value(v: Any) -> str:
-    if isinstance(v, float | np.floating):
-        x = float(v)
-        return fmt(int(x)) if x.is_integer() and abs(x) < 1e9 else fmt(x, 3)
-    return str(v)
+def _whole_as_int(column: Any) -> list[Any]:
+    """A table column for :func:`fmt`: whole numbers (frames, counts) as integers."""
+    values = np.asarray(column)
+    if values.dtype.kind != "f":
+        return values.tolist()
+    return [int(x) if x.is_integer() and abs(x) < 1e9 else float(x) for x in values.tolist()]

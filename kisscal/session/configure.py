@@ -17,9 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -79,14 +78,13 @@ def camera_detection(
     them. They are derived again when the values given in ``[detection]`` or the camera's
     image size change, or when the file is deleted.
     """
-    store = SessionStore(root)
-    kept = _record(store, camera)  # the settings earlier runs kept
-    record = [kept]
+    survey = _Survey(SessionStore(root), config, camera, params, echo)
+    kept = survey.record  # the settings earlier runs kept
     try:
-        return _settings(store, record, config, camera, kind, params, echo).params
+        return survey.settings(kind).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
-        if record[0] != kept:
-            write_detection_record(store.detection_path(camera.id), record[0])
+        if survey.record != kept:
+            write_detection_record(survey.store.detection_path(camera.id), survey.record)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,75 +96,71 @@ class _Settings:
     lattice_aspect: bool
 
 
-def _settings(
-    store: SessionStore,
-    record: list[DetectionRecord],
-    config: SessionConfig,
-    camera: CameraConfig,
-    kind: str,
-    params: StageParams,
-    echo: Echo,
-) -> _Settings:
-    """The camera's settings for ``kind``: as kept in ``record[0]`` when current, else
-    derived and put in ``record[0]`` (which the caller writes)."""
-    given = params.detection_given
-    kept = _kept(store, record[0], camera, kind, params)
-    if kept is not None:
-        return kept
-    sample = _sample(config, camera, kind)
-    if sample is None:
-        raise MissingDataError(f"camera {camera.id} has no {kind} images to detect")
-    if kind == "grid":
-        setup = _grid_setup(sample, params)
-    else:
-        aspect = None
-        if "pixel_aspect" not in given and config.grid is not None:
-            grid = _settings(store, record, config, camera, "grid", params, echo)
-            aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
-        why = "the grid's dot lattice"
-        setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
-    entry = KindRecord.from_setup(setup, _key(store, camera, kind, given))
-    record[0] = record[0].with_kind(kind, entry)
-    echo(f"  detection {camera.id} {setup.summary()}")
-    lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
-    return _Settings(setup.params, lattice)
+@dataclasses.dataclass
+class _Survey:
+    """One camera's detection settings: what the session gives and its record (the
+    settings kept, to which what is derived is added)."""
+
+    store: SessionStore
+    config: SessionConfig
+    camera: CameraConfig
+    params: StageParams
+    echo: Echo = quiet
+    record: DetectionRecord = dataclasses.field(init=False)
+
+    def __post_init__(self) -> None:
+        """Start from the camera's record; an empty one when the file is missing or
+        unreadable (its settings are then derived again and the file rewritten)."""
+        try:
+            record = self.store.detection_record(self.camera.id)
+        except InputError:
+            record = None
+        self.record = record or DetectionRecord(self.camera.id, self.camera.size_px)
+
+    def settings(self, kind: str) -> _Settings:
+        """The camera's settings for ``kind``: as kept in the record when current, else
+        derived and put in the record (which the caller writes)."""
+        kept = self.kept(kind)
+        if kept is not None:
+            return kept
+        given, camera = self.params.detection_given, self.camera
+        sample = _sample(self.config, camera, kind)
+        if sample is None:
+            raise MissingDataError(f"camera {camera.id} has no {kind} images to detect")
+        if kind == "grid":
+            setup = _grid_setup(sample, self.params)
+        else:
+            aspect = None
+            if "pixel_aspect" not in given and self.config.grid is not None:
+                grid = self.settings("grid")
+                aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
+            why = "the grid's dot lattice"
+            setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
+        self.record = self.record.with_kind(kind, KindRecord.from_setup(setup, self.key(kind)))
+        self.echo(f"  detection {camera.id} {setup.summary()}")
+        lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
+        return _Settings(setup.params, lattice)
+
+    def kept(self, kind: str) -> _Settings | None:
+        """The camera's settings for ``kind`` as kept, if derived with the same given
+        values."""
+        entry = self.record.kinds.get(kind)
+        if entry is None or entry.key != self.key(kind):
+            return None
+        derived = entry.values(sources=("derived", "default"))
+        lattice = _on_lattice(kind, entry.source("pixel_aspect"))
+        return _Settings(self.params.detection.replace(**derived), lattice)
+
+    def key(self, kind: str) -> str:
+        """What the settings for ``kind`` were derived from: they stand while it does."""
+        given = dict(self.params.detection_given)
+        return self.store.key("detection", DERIVATION_VERSION, given, self.camera.size_px, kind)
 
 
 def _on_lattice(kind: str, aspect_source: str) -> bool:
     """True when a grid's settings hold a pixel aspect measured on its dot lattice (the
     only pixel aspect of grid frames recorded as ``derived``: see :func:`_grid_setup`)."""
     return kind == "grid" and aspect_source == "derived"
-
-
-def _kept(
-    store: SessionStore,
-    record: DetectionRecord,
-    camera: CameraConfig,
-    kind: str,
-    params: StageParams,
-) -> _Settings | None:
-    """The camera's settings for ``kind`` as kept, if derived with the same given values."""
-    entry = record.kinds.get(kind)
-    if entry is None or entry.key != _key(store, camera, kind, params.detection_given):
-        return None
-    derived = entry.values(sources=("derived", "default"))
-    lattice = _on_lattice(kind, entry.source("pixel_aspect"))
-    return _Settings(params.detection.replace(**derived), lattice)
-
-
-def _key(store: SessionStore, camera: CameraConfig, kind: str, given: Mapping[str, Any]) -> str:
-    """What a camera's settings for ``kind`` were derived from: they stand while it does."""
-    return store.key("detection", DERIVATION_VERSION, dict(given), camera.size_px, kind)
-
-
-def _record(store: SessionStore, camera: CameraConfig) -> DetectionRecord:
-    """The camera's detection record, or an empty one (also when the file is unreadable:
-    its settings are then derived again and the file rewritten)."""
-    try:
-        record = store.detection_record(camera.id)
-    except InputError:
-        record = None
-    return record or DetectionRecord(camera.id, camera.size_px)
 
 
 def _survey_camera(
@@ -191,7 +185,7 @@ def markers_detection(
     """
     cameras = list(config.cameras if cameras is None else cameras)
     store = SessionStore(root)
-    kept = {c.id: _kept(store, _record(store, c), c, "markers", params) for c in cameras}
+    kept = {c.id: _Survey(store, config, c, params).kept("markers") for c in cameras}
     known = {cam: s.params for cam, s in kept.items() if s is not None}
     todo = [c for c in cameras if c.id not in known]
 

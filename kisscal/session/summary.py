@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from kisscal.errors import MissingDataError
-from kisscal.io.files import write_json
+from kisscal.io.files import read_json, write_json
 from kisscal.io.store import SessionStore
 from kisscal.session.inputs import load_config, writes_session
 
@@ -65,6 +64,7 @@ def check(
 
 
 def _figure_from(path: Path, key: str, command: str) -> float:
-    if not path.is_file():
+    doc = read_json(path)
+    if doc is None:
         raise MissingDataError(f"{path}: missing; run `{command}` first")
-    return float(json.loads(path.read_text())[key])
+    return float(doc[key])

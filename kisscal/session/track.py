@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -263,7 +262,7 @@ def _with_static(
     else:
         echo(f"  static trial {static}: labelled first; its positions are the template")
         _track_trial(root, config, static, spec, params, echo)
-    doc = json.loads(path.read_text())
+    doc = read_json(path)
     return dataclasses.replace(
         spec,
         names=tuple(doc["names"]),

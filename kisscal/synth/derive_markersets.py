@@ -57,10 +57,6 @@ _MARKER_MM = 7.0
 _DATA = Path(__file__).parents[1] / "markersets" / "data"
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
-
-
 def _left_leg(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
     """Left-leg and pelvis markers: position (mm), placement SD (mm), landmark."""
     pw, depth = PELVIS_WIDTH * h, PELVIS_DEPTH * h

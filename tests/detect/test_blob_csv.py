@@ -33,7 +33,7 @@ def test_csv_reader_rejects_other_files(tmp_path):
     path.write_text("a,b\n1,2\n")
     with pytest.raises(KisscalError, match="header"):
         read_blobs(path)
-    with pytest.raises(KisscalError, match="cannot read"):
+    with pytest.raises(KisscalError, match="not found"):
         read_blobs(tmp_path / "missing.csv")
 
 
