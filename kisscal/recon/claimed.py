@@ -136,34 +136,30 @@ def claimed_pieces(
     ok = np.all(np.isfinite(all_xyz), axis=1)
     here = cKDTree(embed_fields(all_xyz[ok], all_field[ok]))
     flagged = np.zeros(label.max() + 1, dtype=bool)
+    # how many fields each trajectory holds: a known marker outlasts every piece
+    span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
     for side in (1, -1):  # the first field of a piece (from the field before), the last
         ends = _piece_ends(label, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
         gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
-        pred, p_field, src = pred[gone], p_field[gone], np.flatnonzero(ok)[gone]
-        if len(pred) == 0 or len(ends) == 0:
+        src = np.flatnonzero(ok)[gone]
+        if len(src) == 0 or len(ends) == 0:
             continue
-        hits = [
-            _claims(
-                blob[ends], xyz[ends], field[ends], pred, p_field, camera, uv, dlts, tolerance_mm
-            )
-            for blob in (a, b)
-        ]
+        # the trajectories absent from the field: their predictions, fields and spans
+        claimers = pred[gone], p_field[gone], span[src]
+        point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
+        hits, stolen = [], np.zeros(len(ends), dtype=bool)
+        for blob in (a, b):  # each ray of the piece's end, against the claimers
+            hits.append(_claims(blob[ends], point, claimers, (camera, uv), dlts, tolerance_mm))
+            if rivals is not None:
+                stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
         ha, hb = hits[0] >= 0, hits[1] >= 0
         # two different trajectories, one on each ray (one near both is the point's own)
         claimed = np.any(
             ha[:, :, None] & hb[:, None, :] & (hits[0][:, :, None] != hits[1][:, None, :]),
             axis=(1, 2),
         )
-        flagged[label[ends[claimed]]] = True
-        if rivals is not None:
-            # a claimer outlasting the piece: a known marker, or a longer piece
-            held = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]][src]
-            length = np.bincount(label)[label[ends]]
-            stolen = _rival_claims(
-                ends, length, (a, b, xyz, field), rivals, (pred, p_field, held), tolerance_mm
-            )
-            flagged[label[ends[stolen]]] = True
+        flagged[label[ends[claimed | stolen]]] = True
     out[flagged[label]] = True
     return out
 
@@ -177,18 +173,19 @@ def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -
 
 def _claims(
     blob: NDArray[np.int64],
-    point: NDArray[np.float64],
-    p_field: NDArray[np.int64],
-    pred: NDArray[np.float64],
-    pred_field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
+    point: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]],
+    claimers: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]],
+    image: tuple[NDArray[np.int64], NDArray[np.float64]],
     dlts: NDArray[np.float64],
     tolerance_mm: float,
 ) -> NDArray[np.int64]:
-    """Per blob (of a point in ``p_field``), the predictions of its field (index, up to
-    three; -1 none) within ``tolerance_mm`` of the blob's ray and farther than that from
-    the point."""
+    """Per blob (of a piece's end: ``point`` its point, field and piece length), the
+    claimers' predictions of its field (``claimers``: predictions, fields, spans; index,
+    up to three; -1 none) within ``tolerance_mm`` of the blob's ray (``image``: camera
+    and uv of every blob) and farther than that from the point."""
+    point, p_field = point[0], point[1]
+    pred, pred_field = claimers[0], claimers[1]
+    camera, uv = image
     k = 3  # a prediction per nearby trajectory
     out = np.full((len(blob), k), -1, dtype=np.int64)
     for c in np.unique(camera[blob]):
@@ -213,23 +210,21 @@ def _claims(
 
 
 def _rival_claims(
-    ends: NDArray[np.int64],
-    length: NDArray[np.int64],
-    points: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]],
+    mine: NDArray[np.int64],
+    point: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]],
     rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]],
-    claims: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]],
+    claimers: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]],
     tolerance_mm: float,
 ) -> NDArray[np.bool_]:
-    """Per piece end (``ends``: rows of ``points``, blobs a, b, point, field; its piece
-    ``length`` fields long), whether a rival candidate pair shares one of its blobs,
-    lies farther than ``tolerance_mm`` from its point and within half of it of a
-    prediction of a trajectory absent from the field that outlasts the piece and
-    predicts farther than twice ``tolerance_mm`` from the point (``claims``:
-    predictions, their fields, and how many fields their trajectory holds)."""
-    a, b, xyz, field = points
-    pred, pred_field, held = claims
+    """Per piece end (``mine``: one of its blobs; ``point``: its point, field and piece
+    length), whether a rival candidate pair (``rivals``: blobs a, b, point) shares the
+    blob, lies farther than ``tolerance_mm`` from the point and within half of it of a
+    claimer's prediction (``claimers``: predictions, fields, spans) whose trajectory
+    outlasts the piece and predicts farther than twice ``tolerance_mm`` from the point."""
+    xyz, field, length = point
+    pred, pred_field, held = claimers
     ra, rb, r_xyz = rivals
-    out = np.zeros(len(ends), dtype=bool)
+    out = np.zeros(len(mine), dtype=bool)
     ok = np.all(np.isfinite(r_xyz), axis=1)
     if len(pred) == 0 or not ok.any():
         return out
@@ -238,23 +233,22 @@ def _rival_claims(
     cand = np.concatenate([np.flatnonzero(ok)] * 2)
     order = np.argsort(blob, kind="stable")
     blob, cand = blob[order], cand[order]
+    lo, hi = np.searchsorted(blob, mine), np.searchsorted(blob, mine, side="right")
+    n = hi - lo
+    end_of = np.repeat(np.arange(len(mine)), n)
+    rival = cand[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
+    away = np.linalg.norm(r_xyz[rival] - xyz[end_of], axis=1) > tolerance_mm
+    end_of, rival = end_of[away], rival[away]
+    if len(rival) == 0:
+        return out
     tree = cKDTree(embed_fields(pred, pred_field))
-    for mine in (a[ends], b[ends]):
-        lo, hi = np.searchsorted(blob, mine), np.searchsorted(blob, mine, side="right")
-        n = hi - lo
-        end_of = np.repeat(np.arange(len(ends)), n)
-        rival = cand[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
-        away = np.linalg.norm(r_xyz[rival] - xyz[ends[end_of]], axis=1) > tolerance_mm
-        end_of, rival = end_of[away], rival[away]
-        if len(rival) == 0:
-            continue
-        d, j = tree.query(embed_fields(r_xyz[rival], field[ends[end_of]]))
-        # the rival on the prediction (within half the tolerance: a rival through a blob
-        # that two markers' images share lies off by the other marker's share), and the
-        # claimer another marker's trajectory (the piece's own, predicted a tolerance
-        # off with its point a tolerance off the other way, claims nothing)
-        hit = np.flatnonzero(d <= tolerance_mm / 2)
-        other = np.linalg.norm(pred[j[hit]] - xyz[ends[end_of[hit]]], axis=1) > 2 * tolerance_mm
-        hit = hit[other & (held[j[hit]] > length[end_of[hit]])]
-        out[end_of[hit]] = True
+    d, j = tree.query(embed_fields(r_xyz[rival], field[end_of]))
+    # the rival on the prediction (within half the tolerance: a rival through a blob
+    # that two markers' images share lies off by the other marker's share), and the
+    # claimer another marker's trajectory (the piece's own, predicted a tolerance
+    # off with its point a tolerance off the other way, claims nothing)
+    hit = np.flatnonzero(d <= tolerance_mm / 2)
+    other = np.linalg.norm(pred[j[hit]] - xyz[end_of[hit]], axis=1) > 2 * tolerance_mm
+    hit = hit[other & (held[j[hit]] > length[end_of[hit]])]
+    out[end_of[hit]] = True
     return out

@@ -18,6 +18,7 @@ from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import InputError
 from kisscal.recon.assign import accept, check_table, extend, finish, solve_one
+from kisscal.recon.body import RigidTriangles
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -390,6 +391,7 @@ def match_trial(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     solved: Solved | None = None,
+    body: RigidTriangles | None = None,
 ) -> NDArray[np.int64]:
     """Match a whole trial with the strategy named by ``params.strategy``.
 
@@ -401,7 +403,8 @@ def match_trial(
 
     ``solved`` (:class:`~kisscal.recon.group.Solved`, optional) carries the markers'
     triangulations from step to step (each step solves only the markers it changed) and
-    ends with a triangulation of markers of this table, for the caller to reuse.
+    ends with a triangulation of markers of this table, for the caller to reuse. ``body``
+    (:class:`~kisscal.recon.body.RigidTriangles`, optional) goes to the two-camera step.
 
     Returns
     -------
@@ -431,7 +434,9 @@ def match_trial(
         marker[free[found]] = again[found] + marker.max() + 1
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
-        marker, _ = match_two_camera(marker, field, camera, uv, dlts, params, limit, F, led, solved)
+        marker, _ = match_two_camera(
+            marker, field, camera, uv, dlts, params, limit, F, led, solved, body
+        )
     return marker
 
 

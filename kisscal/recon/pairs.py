@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from kisscal._shared import n_distinct
 from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.recon.body import RigidTriangles, body_pairs
 from kisscal.recon.claimed import claimed_pieces
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
@@ -221,6 +222,7 @@ def match_two_camera(
     F: NDArray[np.float64] | None = None,
     led: NDArray[np.bool_] | None = None,
     solved: Solved | None = None,
+    body: RigidTriangles | None = None,
 ) -> tuple[NDArray[np.int64], float]:
     """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
 
@@ -246,6 +248,8 @@ def match_two_camera(
         such blobs is two cameras' LED rings.
     solved : Solved, optional
         Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`).
+    body : RigidTriangles, optional
+        The marker set's rigid triangles (:func:`~kisscal.recon.body.body_pairs`).
 
     Returns
     -------
@@ -300,6 +304,7 @@ def match_two_camera(
         keep[claimed] = False
         a, b, xyz = a[keep], b[keep], xyz[keep]
         won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
+    won = body_pairs((a, b, xyz, field[a]), won, (m_xyz, m_field), body, params)
     order = np.argsort(field[a[won]], kind="stable")
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids

@@ -56,6 +56,10 @@ class ReconParams(Params):
         Largest second difference ``|p(f-1) - 2 p(f) + p(f+1)|`` (mm) of three consecutive
         positions through a two-camera point: acceleration times the field interval
         squared (20 mm: 50 m/s^2 at 50 Hz, the peak of a foot marker in swing).
+    two_camera_body_mm : float
+        Largest error (mm) of the rigid distances by which a two-camera pair too short to
+        continue a trajectory is taken (:mod:`kisscal.recon.body`, with a marker set):
+        skin moves markers of one segment by a few millimetres against each other.
     deblend_merged : bool
         Make two-camera points of markers whose image merged with a known point's image
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
@@ -131,6 +135,7 @@ class ReconParams(Params):
     two_camera_alone_max_cameras: int = param(4, ge=0)
     two_camera_step_mm: float = param(300.0, unit="mm", gt=0)
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
+    two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     deblend_merged: bool = param(True)
     deblend_max_cameras: int = param(4, ge=0)
     deblend_radius_px: float = param(3.0, unit="px", gt=0)

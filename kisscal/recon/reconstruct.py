@@ -10,6 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
+from kisscal.recon.body import RigidTriangles
 from kisscal.recon.deblend import Deblended, MergeScene, deblend_merged, deblend_pairs
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.match import match_trial
@@ -183,6 +184,7 @@ def reconstruct_trial(
     dlts: ArrayLike,
     params: ReconParams = DEFAULT_PARAMS,
     rate_hz: float = 50.0,
+    body: RigidTriangles | None = None,
 ) -> Points3D:
     """Reconstruct the 3D points of a trial from its linearised 2D blobs.
 
@@ -207,6 +209,11 @@ def reconstruct_trial(
     rate_hz : float
         Field rate (Hz), to judge whether the trial is long enough for the stationary
         filter (the KISS cameras' 50 Hz by default).
+    body : RigidTriangles, optional
+        The trial's marker set as rigid triangles
+        (:meth:`~kisscal.recon.body.RigidTriangles.from_marker_set`): two-camera pairs too
+        short to continue a trajectory are taken when they keep a segment's distances
+        to known points (:mod:`kisscal.recon.body`).
 
     Returns
     -------
@@ -223,7 +230,7 @@ def reconstruct_trial(
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)
     solved = Solved()
-    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved)
+    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved, body)
     pts = points_from_markers(
         marker,
         field,

@@ -16,7 +16,8 @@ detector does; ``--merge=first`` puts it at the first marker's image instead) pl
 blobs a camera loses beside the body's own occlusions (:func:`dropouts`: 0.2 runs a
 second per marker and camera, 0.1-1 s long), so
 that markers drop to two or fewer cameras for up to a second, as with real detection.
-Reconstructed and tracked with default settings and the trial's marker set (the 2D
+Reconstructed (with the marker set's rigid triangles, :mod:`kisscal.recon.body`) and
+tracked with default settings and the trial's marker set (the 2D
 blobs no 3D point used go to single-camera fill; ``score_trial(..., rays=False)`` without), scored
 against truth: recall of markers seen by exactly two cameras, ghosts, coverage of each
 marker's span (first to last field seen by >= 3 cameras) by samples of the trajectory
@@ -38,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.recon import ReconParams, reconstruct_trial
+from kisscal.recon.body import RigidTriangles
 from kisscal.tracking import (
     MEASURED,
     PREDICTED,
@@ -111,7 +113,10 @@ def rig_trial(
     visible &= ~dropouts(visible.shape, motion.rate_hz, seed)
     dlts = np.array([rig[c].dlt for c in cams])
     tab = observe(dlts, rig[0].size_px, motion.xyz_mm, visible, seed, merge=merge or MERGE[0])
-    pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(), motion.rate_hz)
+    body = RigidTriangles.from_marker_set(plan.marker_names, plan.template_mm, plan.segments)
+    pts = reconstruct_trial(
+        tab.field, tab.camera, tab.uv, dlts, ReconParams(), motion.rate_hz, body
+    )
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, motion.xyz_mm)
     unused = (pts.marker < 0) & ~pts.stationary
     spare = spare_blobs(tab.field[unused], tab.camera[unused], tab.uv[unused], dlts)
