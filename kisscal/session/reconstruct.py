@@ -18,6 +18,7 @@ from kisscal.io.points2d import observation_points, write_points2d
 from kisscal.io.points3d import Points3DFile, write_points3d, write_trial_points
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.recon import reconstruct_trial
+from kisscal.recon.body import RigidTriangles
 from kisscal.report.epipolar import trial_field_figure
 from kisscal.rig import Rig
 from kisscal.session.calibrated import current_rig
@@ -49,12 +50,14 @@ def reconstruct(
     rig = current_rig(root, echo)
     imaged = trial.source in ("images", "video")
     detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
+    body = session_body(config)
     stage_key = store.key(  # the columns: a points2d.csv of an older layout is redone
         "reconstruct",
         trial_input_files(config, trial),
         rig,
         detection,
         params.recon,
+        body,
         POINTS2D_COLUMNS,
     )
     if store.is_current(path, stage_key) and files.points2d.is_file():
@@ -66,7 +69,7 @@ def reconstruct(
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
     L = rig.dlts
-    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon, config.rate_hz)
+    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon, config.rate_hz, body)
     n_fields = max((len(v) for v in blobs.values()), default=0)
     summary = points.summary(n_fields, params.recon)
     write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
@@ -113,6 +116,16 @@ def reconstruct(
         )
     _echo_warnings(trial.name, files.recon, echo)
     return points
+
+
+def session_body(config: SessionConfig) -> RigidTriangles | None:
+    """The subject's rigid triangles for reconstruction, when ``[markers]`` gives the
+    subject's own ``template_mm`` and ``segments`` (a shipped set's template is scaled
+    from stature, too loose for the few-millimetre test of :mod:`kisscal.recon.body`)."""
+    markers = config.markers
+    if markers is None or markers.template_mm is None or not markers.segments:
+        return None
+    return RigidTriangles.from_marker_set(markers.names, markers.template_mm, markers.segments)
 
 
 def inverse_depth_m(
