@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError, KisscalError, MissingDataError
-from kisscal.io.c3d_data import header_holds, read_points_by_header
+from kisscal.io.c3d_data import header_holds, header_layout, read_points_by_header
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -158,18 +158,10 @@ def _read_either(path: Path, processor: str) -> _Raw:
         except Exception as exc:  # both readers raise plain exceptions on corrupt files
             errors.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
             continue
-        if reader is _read_ezc3d and raw[1].shape[1] < _header_points(path):
+        if reader is _read_ezc3d and raw[1].shape[1] < header_layout(path, processor)["points"]:
             continue  # the parameters describe fewer points than the data holds
         return raw
     raise InputError(f"{path}: not a readable C3D file ({'; '.join(errors)})") from None
-
-
-def _header_points(path: Path) -> int:
-    """The header's number of points per frame (its second word; both processor types
-    ezc3d reads store it little-endian)."""
-    with Path(path).open("rb") as fh:
-        head = fh.read(4)
-    return int.from_bytes(head[2:4], "little") if len(head) == 4 else 0
 
 
 #: A file as both backends give it: parameters {(GROUP, NAME): values}, positions
@@ -199,9 +191,14 @@ def _read_ezc3d(path: Path) -> _Raw:
 
 
 def _read_c3d_package(path: Path) -> _Raw:
+    import warnings
+
     import c3d
 
-    with path.open("rb") as fh:
+    with path.open("rb") as fh, warnings.catch_warnings():
+        # it warns of each odd parameter it works round (kisscal's fallback reader: the
+        # files it reads here are odd by definition)
+        warnings.simplefilter("ignore")
         reader = c3d.Reader(fh)
         params: dict[tuple[str, str], list] = {}
         for group_name, group in reader.group_items():

@@ -12,6 +12,7 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import processor_type, read_c3d
+from tests.io.c3d_acceptance import retrack
 
 REAL = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "c3d"
 
@@ -121,6 +122,10 @@ def test_a_file_whose_parameters_misdescribe_the_data_is_read_by_its_header():
     assert c.first_frame == 33
     step = np.linalg.norm(np.diff(c.xyz_mm, axis=0), axis=2)
     assert np.nanmedian(step) < 30.0 and np.nanmax(step) < 100.0  # walking, not noise
+    # re-tracked from shuffled anonymous points (issue 26's acceptance): read by the
+    # parameters it gave 1121 identity switches
+    r = retrack(c.xyz_mm, c.rate_hz)
+    assert r.switches == 0 and r.coverage > 0.99
     assert np.isfinite(c.xyz_mm).all(axis=2).mean() > 0.9
 
 
