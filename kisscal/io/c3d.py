@@ -264,15 +264,21 @@ SEGMENT_AXES = ("O", "A", "L", "P")
 def _segment_axes(labels: list[str]) -> set[str]:
     """Labels that are a segment's axis points: all four of ``<segment>O``, ``A``, ``L``,
     ``P`` present (subject prefix ``Name:`` aside), the segment named by two letters or
-    more. Plug-in Gait stores them as plain points in no model-output group; they move
-    with their segment like markers, and crowd a marker set's template (a walking trial
-    holds 36 of them beside 18 markers)."""
+    more; or all four of ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as
+    a Vicon lab's model writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
+    plain points in no model-output group; they move with their segment like markers,
+    and crowd a marker set's template (a walking trial holds 36 of them beside 18
+    markers)."""
     bare = {lab: lab.rsplit(":", 1)[-1].strip().upper() for lab in labels}
     names = set(bare.values())
     segments = {
         b[:-1] for b in names if len(b) >= 3 and all(b[:-1] + s in names for s in SEGMENT_AXES)
     }
-    return {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    out = {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    axes = {b[2:] for b in names if len(b) >= 4 and all(f"{s}_{b[2:]}" in names for s in "OXYZ")}
+    return out | {
+        lab for lab, b in bare.items() if b[:2] in ("O_", "X_", "Y_", "Z_") and b[2:] in axes
+    }
 
 
 def _unit_mm(units: str) -> float | None:

@@ -86,12 +86,16 @@ def test_plug_in_gait_segment_axes_are_left_out_and_named(tmp_path):
         "Sub:LASI", "Sub:RASI",
         "Sub:LTOO", "Sub:LTOA", "Sub:LTOL",  # three of four: kept
         "Sub:STRN", "Sub:CLAV",
+        "o_Trunk", "x_Trunk", "y_Trunk", "z_Trunk",  # origin and axis ends (C3D.org 11)
+        "o_Arm", "x_Arm", "y_Arm",  # three of four: kept
     )  # fmt: skip
     xyz = np.random.default_rng(2).uniform(-500, 500, (4, len(labels), 3))
     c = read_c3d(write(tmp_path / "axes.c3d", labels, xyz))
-    assert set(c.excluded) == {"Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP"}
-    assert c.labels == labels[4:]
-    np.testing.assert_allclose(c.xyz_mm, xyz[:, 4:], atol=1e-3)
+    axes = {"Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP"}
+    assert set(c.excluded) == axes | {"o_Trunk", "x_Trunk", "y_Trunk", "z_Trunk"}
+    kept = [i for i, lab in enumerate(labels) if lab not in c.excluded]
+    assert c.labels == tuple(labels[i] for i in kept) and len(kept) == 10
+    np.testing.assert_allclose(c.xyz_mm, xyz[:, kept], atol=1e-3)
 
 
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
