@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError, KisscalError, MissingDataError
+from kisscal.io.c3d_data import header_holds, header_layout, read_points_by_header
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -40,8 +41,11 @@ MODEL_OUTPUT_GROUPS = (
 #: Processor type byte of the parameter section (C3D.org 2023): 84 + n.
 PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
 
-#: POINT:UNITS to millimetres.
+#: POINT:UNITS to millimetres: the symbols, and the words (some writers spell the unit out,
+#: some cut it to the parameter's length: Peak Performance's "mete").
 _UNITS_MM = {"mm": 1.0, "m": 1000.0, "cm": 10.0}
+_UNIT_WORDS = {"millimeter": 1.0, "millimetre": 1.0, "centimeter": 10.0, "centimetre": 10.0}
+_UNIT_WORDS |= {"meter": 1000.0, "metre": 1000.0}
 
 
 @dataclass(frozen=True)
@@ -53,8 +57,9 @@ class C3DPoints:
     labels : tuple of str
         Marker labels (``POINT:LABELS`` continued by ``LABELS2`` ..., stripped).
     xyz_mm : (n_frames, n_markers, 3) float
-        Positions in mm, NaN where a sample is invalid (negative residual). Every frame of
-        the file, empty ones included.
+        Positions in mm, NaN where a sample is invalid (negative residual, or stored at
+        exactly 0 0 0 as older writers mark a missing sample). Every frame of the file,
+        empty ones included.
     rate_hz : float
         ``POINT:RATE``.
     first_frame : int
@@ -121,13 +126,10 @@ def read_c3d(path: Path) -> C3DPoints:
     if not path.is_file():
         raise MissingDataError(f"{path}: C3D file not found")
     processor = processor_type(path)
-    try:
-        raw = _read_c3d_package(path) if processor == "MIPS" else _read_ezc3d(path)
-    except KisscalError:
-        raise
-    except Exception as exc:  # both readers raise plain exceptions on corrupt files
-        raise InputError(f"{path}: not a readable C3D file ({exc})") from None
+    raw = _read_either(path, processor)
     params, xyz, residual, header_first, rate = raw
+    if header_holds(path, processor, params, rate):  # the parameters misdescribe the data
+        xyz, residual, header_first = read_points_by_header(path, processor)
     return _markers(path, params, xyz, residual, header_first, rate, processor)
 
 
@@ -140,6 +142,28 @@ def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], f
 
 # ------------------------------------------------------------------ reading: the two backends
 
+
+def _read_either(path: Path, processor: str) -> _Raw:
+    """The file through ezc3d, or through the ``c3d`` package where ezc3d cannot read it
+    (SGI/MIPS files; files whose parameters break the standard in ways ezc3d refuses, such
+    as a float ``ANALOG:OFFSET``; files with points in the data but none described by the
+    parameters, where the header's point count holds); one clear error if neither can."""
+    errors = []
+    readers = (_read_c3d_package,) if processor == "MIPS" else (_read_ezc3d, _read_c3d_package)
+    for reader in readers:
+        try:
+            raw = reader(path)
+        except KisscalError:
+            raise
+        except Exception as exc:  # both readers raise plain exceptions on corrupt files
+            errors.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            continue
+        if reader is _read_ezc3d and raw[1].shape[1] < header_layout(path, processor)["points"]:
+            continue  # the parameters describe fewer points than the data holds
+        return raw
+    raise InputError(f"{path}: not a readable C3D file ({'; '.join(errors)})") from None
+
+
 #: A file as both backends give it: parameters {(GROUP, NAME): values}, positions
 #: (n_frames, n_points, 3) in file units, residuals (n_frames, n_points), the header's
 #: first frame (from 1) and the point rate.
@@ -151,7 +175,7 @@ def _read_ezc3d(path: Path) -> _Raw:
 
     c3d = ezc3d.c3d(str(path))
     params = {
-        (group.upper(), name.upper()): list(np.atleast_1d(entry["value"]))
+        (group.upper(), name.upper()): list(np.ravel(entry["value"]))
         for group, entries in c3d["parameters"].items()
         for name, entry in entries.items()
         if isinstance(entry, dict) and "value" in entry
@@ -167,9 +191,14 @@ def _read_ezc3d(path: Path) -> _Raw:
 
 
 def _read_c3d_package(path: Path) -> _Raw:
+    import warnings
+
     import c3d
 
-    with path.open("rb") as fh:
+    with path.open("rb") as fh, warnings.catch_warnings():
+        # it warns of each odd parameter it works round (kisscal's fallback reader: the
+        # files it reads here are odd by definition)
+        warnings.simplefilter("ignore")
         reader = c3d.Reader(fh)
         params: dict[tuple[str, str], list] = {}
         for group_name, group in reader.group_items():
@@ -235,15 +264,31 @@ SEGMENT_AXES = ("O", "A", "L", "P")
 def _segment_axes(labels: list[str]) -> set[str]:
     """Labels that are a segment's axis points: all four of ``<segment>O``, ``A``, ``L``,
     ``P`` present (subject prefix ``Name:`` aside), the segment named by two letters or
-    more. Plug-in Gait stores them as plain points in no model-output group; they move
-    with their segment like markers, and crowd a marker set's template (a walking trial
-    holds 36 of them beside 18 markers)."""
+    more; or all four of ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as
+    a Vicon lab's model writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
+    plain points in no model-output group; they move with their segment like markers,
+    and crowd a marker set's template (a walking trial holds 36 of them beside 18
+    markers)."""
     bare = {lab: lab.rsplit(":", 1)[-1].strip().upper() for lab in labels}
     names = set(bare.values())
     segments = {
         b[:-1] for b in names if len(b) >= 3 and all(b[:-1] + s in names for s in SEGMENT_AXES)
     }
-    return {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    out = {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    axes = {b[2:] for b in names if len(b) >= 4 and all(f"{s}_{b[2:]}" in names for s in "OXYZ")}
+    return out | {
+        lab for lab, b in bare.items() if b[:2] in ("O_", "X_", "Y_", "Z_") and b[2:] in axes
+    }
+
+
+def _unit_mm(units: str) -> float | None:
+    """Millimetres per POINT:UNITS unit: a symbol, or a unit word in the singular or the
+    plural, whole or cut after at least three letters (None: not a length unit)."""
+    if units in _UNITS_MM:
+        return _UNITS_MM[units]
+    word = units.rstrip("s") if len(units) > 3 else units
+    hits = {mm for name, mm in _UNIT_WORDS.items() if len(word) >= 3 and name.startswith(word)}
+    return hits.pop() if len(hits) == 1 else None
 
 
 def _first_frame(params: dict[tuple[str, str], list], header_first: int) -> int:
@@ -268,12 +313,15 @@ def _markers(
     labels = _continued(params, "POINT", "LABELS")[:n_points]
     labels += [f"point{i + 1}" for i in range(len(labels), n_points)]  # unnamed channels
     units = (_strings(params, "POINT", "UNITS") or ["mm"])[0].lower() or "mm"
-    scale = _UNITS_MM.get(units)
+    scale = _unit_mm(units)
     if scale is None:
         raise InputError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
     outputs = _model_outputs(params) | _segment_axes(labels)
     keep = np.array([lab not in outputs for lab in labels], dtype=bool)
-    xyz = np.where((residual < 0)[..., None], np.nan, xyz.astype(float) * scale)
+    # Invalid: a negative residual, or (older writers) a sample stored at exactly 0 0 0
+    # with a valid residual (no real marker sits on the origin to the last bit).
+    missing = (residual < 0) | (xyz == 0).all(axis=2)
+    xyz = np.where(missing[..., None], np.nan, xyz.astype(float) * scale)
     company = " ".join(
         s
         for s in (

@@ -12,6 +12,7 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import processor_type, read_c3d
+from tests.io.c3d_acceptance import retrack
 
 REAL = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "c3d"
 
@@ -85,12 +86,16 @@ def test_plug_in_gait_segment_axes_are_left_out_and_named(tmp_path):
         "Sub:LASI", "Sub:RASI",
         "Sub:LTOO", "Sub:LTOA", "Sub:LTOL",  # three of four: kept
         "Sub:STRN", "Sub:CLAV",
+        "o_Trunk", "x_Trunk", "y_Trunk", "z_Trunk",  # origin and axis ends (C3D.org 11)
+        "o_Arm", "x_Arm", "y_Arm",  # three of four: kept
     )  # fmt: skip
     xyz = np.random.default_rng(2).uniform(-500, 500, (4, len(labels), 3))
     c = read_c3d(write(tmp_path / "axes.c3d", labels, xyz))
-    assert set(c.excluded) == {"Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP"}
-    assert c.labels == labels[4:]
-    np.testing.assert_allclose(c.xyz_mm, xyz[:, 4:], atol=1e-3)
+    axes = {"Sub:PELO", "Sub:PELA", "Sub:PELL", "Sub:PELP"}
+    assert set(c.excluded) == axes | {"o_Trunk", "x_Trunk", "y_Trunk", "z_Trunk"}
+    kept = [i for i, lab in enumerate(labels) if lab not in c.excluded]
+    assert c.labels == tuple(labels[i] for i in kept) and len(kept) == 10
+    np.testing.assert_allclose(c.xyz_mm, xyz[:, kept], atol=1e-3)
 
 
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
@@ -108,3 +113,57 @@ def test_not_a_c3d_is_one_clear_error(tmp_path):
         processor_type(bad)
     with pytest.raises(KisscalError, match="not found"):
         read_c3d(tmp_path / "missing.c3d")
+
+
+def test_a_file_whose_parameters_misdescribe_the_data_is_read_by_its_header():
+    """C3D.org's Sample27 (Kyowa Dengyo, DEC integer): POINT:USED says 12 points and
+    POINT:FRAMES 145, the header and the file's size 11 points in 152 frames. Laid out
+    by the parameters (as ezc3d reads it) every frame is shifted: a marker moves 373 mm a
+    frame (median) and up to 2 m; laid out by the header, 20 mm (1.2 m/s at 60 Hz) and
+    at most 70 mm (a foot in swing)."""
+    c = read_c3d(REAL / "kyowadengyo.c3d")
+    assert c.processor == "DEC" and len(c.labels) == 11 and c.n_frames == 152
+    assert c.first_frame == 33
+    step = np.linalg.norm(np.diff(c.xyz_mm, axis=0), axis=2)
+    assert np.nanmedian(step) < 30.0 and np.nanmax(step) < 100.0  # walking, not noise
+    # re-tracked from shuffled anonymous points (issue 26's acceptance): read by the
+    # parameters it gave 1121 identity switches
+    r = retrack(c.xyz_mm, c.rate_hz)
+    assert r.switches == 0 and r.coverage > 0.99
+    assert np.isfinite(c.xyz_mm).all(axis=2).mean() > 0.9
+
+
+def test_header_layout_decodes_intel_dec_and_mips_files_as_the_readers_do():
+    """The header decoder gives the samples ezc3d (Intel, DEC) and the c3d package (SGI)
+    give, integer and float, on one recording in three processor formats."""
+    from kisscal.io.c3d_data import read_points_by_header
+
+    ref = read_c3d(REAL / "pc_real.c3d")
+    for name, kind in (("pc_real", "Intel"), ("dec_int", "DEC"), ("sgi_int", "MIPS")):
+        xyz, word, first = read_points_by_header(REAL / f"{name}.c3d", kind)
+        xyz = np.where((word < 0)[..., None], np.nan, xyz)
+        assert first == 1 and xyz.shape == ref.xyz_mm.shape
+        np.testing.assert_array_equal(np.isnan(xyz), np.isnan(ref.xyz_mm))
+        assert np.nanmax(np.abs(xyz - ref.xyz_mm)) <= 0.2812
+
+
+def test_odd_parameters_units_words_two_d_values_and_zero_samples(tmp_path):
+    """Unit words (Peak Performance writes 'mete'), a parameter stored as a 1 x 2 array
+    (A.R.T.'s TRIAL:ACTUAL_START_FIELD) and samples stored at 0 0 0 with a valid
+    residual (older writers' missing sample) read as the standard means them."""
+    xyz = np.random.default_rng(3).uniform(0.2, 1.5, (4, 3, 3))
+    xyz[2, 1] = 0.0
+    path = write(tmp_path / "u.c3d", ("A", "B", "C"), xyz, units="mete")
+    c = read_c3d(path)
+    np.testing.assert_allclose(c.xyz_mm[np.isfinite(c.xyz_mm)], 1000 * xyz[xyz != 0], atol=0.1)
+    assert np.isnan(c.xyz_mm[2, 1]).all() and np.isfinite(c.xyz_mm).all(axis=2).sum() == 11
+    e = ezc3d.c3d(str(path))
+    e.add_parameter("TRIAL", "ACTUAL_START_FIELD", [7, 0])
+    e["parameters"]["TRIAL"]["ACTUAL_START_FIELD"]["value"] = np.array([[7.0, 0.0]])
+    e.write(str(tmp_path / "t.c3d"))
+    assert ezc3d.c3d(str(tmp_path / "t.c3d"))["parameters"]["TRIAL"]["ACTUAL_START_FIELD"][
+        "value"
+    ].shape == (1, 2)
+    assert read_c3d(tmp_path / "t.c3d").first_frame == 7
+    with pytest.raises(KisscalError, match="unsupported point units"):
+        read_c3d(write(tmp_path / "i.c3d", ("A",), xyz[:, :1], units="inch"))
