@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import hashlib
 import io
 import os
 import pickle
@@ -29,6 +28,9 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
 
 from kisscal._shared import worker_pool
 
@@ -63,7 +65,7 @@ def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
     try:
         # its key, and the figure pickled with it to travel to the drawing process; data
         # that cannot be pickled is drawn at once instead
-        key = figure_key(draw, args)
+        key = figure_key(path, draw, args)
         packed = pickle.dumps((path, draw, args, key), protocol=pickle.HIGHEST_PROTOCOL)
     except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
         draw_figure(path, draw, args)
@@ -88,32 +90,34 @@ def submit_packed(packed: bytes) -> None:
 
 
 @functools.cache
-def _code_digest() -> bytes:
-    """A digest of kisscal's source files and matplotlib's version: the code a figure is
+def _drawing_code() -> NDArray[np.uint8]:
+    """kisscal's source files and matplotlib's version, as bytes: the code a figure is
     drawn with."""
     from importlib.metadata import PackageNotFoundError, version
 
-    digest = hashlib.sha256()
     try:
-        digest.update(version("matplotlib").encode())
+        parts = [version("matplotlib").encode()]
     except PackageNotFoundError:  # the figures then fail on import, as before
-        pass
+        parts = []
     package = Path(__file__).resolve().parents[1]
     for source in sorted(package.rglob("*.py")):
-        digest.update(source.relative_to(package).as_posix().encode())
-        digest.update(source.read_bytes())
-    return digest.digest()
+        parts += [source.relative_to(package).as_posix().encode(), source.read_bytes()]
+    return np.frombuffer(b"\0".join(parts), dtype=np.uint8)
 
 
-def figure_key(draw: Callable[..., Any], args: tuple) -> str:
-    """The key of a figure: its drawing function and data, pickled without shared
-    references (two equal arguments give the same bytes however they were built), with
-    the code that draws them (:func:`_code_digest`): the same key, the same PNG."""
+def figure_key(path: Path, draw: Callable[..., Any], args: tuple) -> str:
+    """The key (:meth:`kisscal.io.store.SessionStore.key`) of the figure ``path`` drawn
+    by ``draw(*args)``: the function and its data, pickled without shared references
+    (two equal arguments give the same bytes however they were built), and the code that
+    draws them (:func:`_drawing_code`). The same key, the same PNG."""
+    from kisscal.io.store import SessionStore
+
     buf = io.BytesIO()
     pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
     pickler.fast = True  # no memo: each object written out where it occurs
     pickler.dump((draw, args))
-    return hashlib.sha256(_code_digest() + buf.getvalue()).hexdigest()[:20]
+    data = np.frombuffer(buf.getvalue(), dtype=np.uint8)
+    return SessionStore(path.parent).key("stage figure", _drawing_code(), data)
 
 
 def _is_drawn(path: Path, key: str) -> bool:
