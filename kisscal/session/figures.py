@@ -10,11 +10,17 @@ so a command's outputs are complete when it returns. A worker process of the sta
 (:func:`handing_back`), and the session's process passes them on to the background one:
 matplotlib is then imported and its figures drawn in one process, not in every worker.
 Anywhere else (a plain library call) a figure is drawn at once.
+
+A figure is drawn only when its PNG is not there already for the same drawing function,
+data and code (:func:`figure_key`): a session run again redraws only the figures whose
+content changed.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
+import io
 import os
 import pickle
 import warnings
@@ -23,6 +29,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+from numpy.typing import NDArray
+
 from kisscal._shared import worker_pool
 
 T = TypeVar("T")
@@ -30,9 +39,10 @@ T = TypeVar("T")
 _STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": [], "handed": None}
 
 
-def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
+def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> bool:
     """Draw ``draw(*args)`` into ``path``; a figure that cannot be drawn (a degenerate
-    trial) is skipped: figures illustrate numbers that are already written."""
+    trial) is skipped: figures illustrate numbers that are already written. True when
+    the figure was written."""
     import matplotlib  # only when a figure is drawn
 
     from kisscal.report.html import FIGURE_RC, save_figure
@@ -42,26 +52,28 @@ def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
             warnings.simplefilter("ignore")
             save_figure(draw(*args), path)
     except (ValueError, IndexError):
-        return
+        return False
+    return True
 
 
 def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
     """Draw a figure in the background process when there is one here, hand it back
-    inside :func:`handing_back`, else draw it now.
+    inside :func:`handing_back`, else draw it now; not at all when ``path`` holds it
+    already (:func:`figure_key`).
 
     ``draw`` is a module-level function (pickled by name for the background process)."""
-    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
-    handed = _STATE["handed"]
-    figure = (path, draw, args)
     try:
-        # pickled here, once: data that cannot travel is drawn at once instead
-        travels = pool is not None or handed is not None
-        packed = pickle.dumps(figure, protocol=pickle.HIGHEST_PROTOCOL) if travels else None
-    except (pickle.PicklingError, TypeError, AttributeError):
-        packed = None
-    if packed is None:
-        draw_figure(*figure)
-    elif handed is not None:
+        # its key, and the figure pickled with it to travel to the drawing process; data
+        # that cannot be pickled is drawn at once instead
+        key = figure_key(path, draw, args)
+        packed = pickle.dumps((path, draw, args, key), protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
+        draw_figure(path, draw, args)
+        return
+    if _is_drawn(path, key):
+        return
+    handed = _STATE["handed"]
+    if handed is not None:
         handed.append(packed)
     else:
         submit_packed(packed)
@@ -77,6 +89,55 @@ def submit_packed(packed: bytes) -> None:
     _STATE["pending"].append(pool.submit(_draw_packed, packed))
 
 
+@functools.cache
+def _drawing_code() -> NDArray[np.uint8]:
+    """kisscal's source files and matplotlib's version, as bytes: the code a figure is
+    drawn with."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        parts = [version("matplotlib").encode()]
+    except PackageNotFoundError:  # the figures then fail on import, as before
+        parts = []
+    package = Path(__file__).resolve().parents[1]
+    for source in sorted(package.rglob("*.py")):
+        parts += [source.relative_to(package).as_posix().encode(), source.read_bytes()]
+    return np.frombuffer(b"\0".join(parts), dtype=np.uint8)
+
+
+def figure_key(path: Path, draw: Callable[..., Any], args: tuple) -> str:
+    """The key (:meth:`kisscal.io.store.SessionStore.key`) of the figure ``path`` drawn
+    by ``draw(*args)``: the function and its data, pickled without shared references
+    (two equal arguments give the same bytes however they were built), and the code that
+    draws them (:func:`_drawing_code`). The same key, the same PNG."""
+    from kisscal.io.store import SessionStore
+
+    buf = io.BytesIO()
+    pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
+    pickler.fast = True  # no memo: each object written out where it occurs
+    pickler.dump((draw, args))
+    data = np.frombuffer(buf.getvalue(), dtype=np.uint8)
+    return SessionStore(path.parent).key("stage figure", _drawing_code(), data)
+
+
+def _is_drawn(path: Path, key: str) -> bool:
+    """True when ``path`` holds the figure of ``key`` already."""
+    from kisscal.io.store import SessionStore
+
+    return SessionStore.is_current(path, key)
+
+
+def _draw_packed(packed: bytes) -> None:
+    from kisscal.io.store import SessionStore
+
+    path, draw, args, key = pickle.loads(packed)
+    if _is_drawn(path, key):
+        return
+    SessionStore.forget(path)  # a figure that is not redrawn keeps no key
+    if draw_figure(path, draw, args):
+        SessionStore.mark_current(path, key)
+
+
 @contextlib.contextmanager
 def handing_back() -> Iterator[list[bytes]]:
     """Collect the block's figures (pickled) instead of drawing them: a worker process
@@ -88,10 +149,6 @@ def handing_back() -> Iterator[list[bytes]]:
         yield handed
     finally:
         _STATE["handed"] = outer
-
-
-def _draw_packed(packed: bytes) -> None:
-    draw_figure(*pickle.loads(packed))
 
 
 def after_figures(work: Callable[..., T], *args: Any) -> T:

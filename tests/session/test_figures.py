@@ -70,7 +70,7 @@ def test_the_report_waits_for_the_figures_of_the_stages_before_it(tmp_path: Path
         for k in range(3):
             submit_figure(tmp_path / f"stage{k}.png", square, (40,))
         wait_for_figures()
-        assert sorted(p.name for p in tmp_path.iterdir()) == [f"stage{k}.png" for k in range(3)]
+        assert sorted(p.name for p in tmp_path.glob("*.png")) == [f"stage{k}.png" for k in range(3)]
 
 
 def test_a_figure_that_cannot_be_pickled_is_drawn_at_once(tmp_path: Path) -> None:
@@ -114,3 +114,30 @@ def test_work_after_the_figures_runs_in_the_figure_process_once_they_are_drawn(
     assert names == [f"stage{k}.png" for k in range(3)]
     assert pid != os.getpid()
     assert after_figures(listing, tmp_path)[1] == os.getpid()  # no block: here
+
+
+def logged(log: Path, n: int) -> Figure:
+    """:func:`square`, noting each drawing in ``log``."""
+    with log.open("a") as f:
+        f.write(f"{n}\n")
+    return square(n)
+
+
+def test_a_figure_is_drawn_again_only_when_its_data_changed_or_its_file_is_gone(
+    tmp_path: Path,
+) -> None:
+    log, png = tmp_path / "log.txt", tmp_path / "fig.png"
+    with drawing_beside():
+        submit_figure(png, logged, (log, 3))
+    first = png.read_bytes()
+    with drawing_beside():
+        submit_figure(png, logged, (log, 3))  # the same figure: kept
+    assert log.read_text().split() == ["3"] and png.read_bytes() == first
+    submit_figure(png, logged, (log, 4))  # other data: drawn again
+    assert log.read_text().split() == ["3", "4"] and png.read_bytes() != first
+    png.unlink()
+    submit_figure(png, logged, (log, 4))  # its file gone: drawn again
+    assert log.read_text().split() == ["3", "4", "4"] and png.is_file()
+    submit_figure(png, degenerate, (4,))  # nothing to draw: the old file stays, unkept
+    submit_figure(png, logged, (log, 4))
+    assert log.read_text().split() == ["3", "4", "4", "4"]
