@@ -8,12 +8,20 @@ So each camera is resected instead (Kolahi et al. 2007, eqs. 1-3): a DLT with Ko
 radial terms L12..L14 (as many as ``resect_terms``) is fitted in pixels to the adjusted
 wand markers and the rods' surveyed markers together with their linearised images,
 thousands of points across the whole image and volume (the rods alone hold a lens model
-only between the rods; here the wand fills the volume). The grid's polynomial is kept
+only between the rods; here the wand fills the volume). Each source is weighed by the
+inverse of its own image variance, as in the adjustment (``control.weight``, the ratio
+of the wand's residual variance to the rods' by variance components, Förstner 1979): the
+rods' few static markers are 8 times less noisy than the moving wand's, and weighed
+equally their tens of points would count for nothing beside thousands. The grid's
+polynomial is kept
 as it is, and the DLT files carry the rest exactly, as the rods route writes its own
 lens model.
 
 References
 ----------
+Förstner, W. (1979). Ein Verfahren zur Schätzung von Varianz- und Kovarianzkomponenten.
+Allgemeine Vermessungs-Nachrichten 86, 446-453.
+
 Kolahi, A., et al. (2007). Design of a marker-based human motion tracking system.
 Biomedical Signal Processing and Control 2, 59-67.
 """
@@ -28,7 +36,9 @@ import numpy as np
 from kisscal.bundle.adjust import BundleResult, ControlPoints, WandObservations, centred_offsets
 from kisscal.bundle.params import BundleParams
 from kisscal.camera import Camera
-from kisscal.dlt import DltParams, calibrate_camera
+from kisscal.dlt import DltParams
+from kisscal.dlt.linear import solve_dlt
+from kisscal.dlt.nonlinear import refine_dlt
 
 
 def resects(params: BundleParams, cameras: Sequence[Camera]) -> bool:
@@ -58,7 +68,8 @@ def final_cameras(
         An adjustment of ``observations`` (its ``inlier`` marks their rows).
     observations : WandObservations
     control : ControlPoints or None
-        The rods' markers (surveyed positions and images).
+        The rods' markers (surveyed positions and images), weighed ``control.weight``
+        times a wand image.
     markers_mm : sequence of float
         The wand's markers.
     params : BundleParams
@@ -84,9 +95,15 @@ def final_cameras(
     out = []
     for c in range(len(result.cameras)):
         xyz, uv = [wand_xyz[obs.camera == c]], [obs.uv_px[obs.camera == c]]
+        weight = [np.ones(len(xyz[0]))]
         if control is not None:
-            xyz.append(control.xyz_mm[control.camera == c])
-            uv.append(control.uv_px[control.camera == c])
-        fit = calibrate_camera(np.concatenate(xyz), np.concatenate(uv), dlt)
-        out.append(Camera.from_dlt(fit.L, kolahi=fit.lens))
+            rows = control.camera == c
+            xyz.append(control.xyz_mm[rows])
+            uv.append(control.uv_px[rows])
+            weight.append(np.full(int(rows.sum()), control.weight))
+        xyz, uv = np.concatenate(xyz), np.concatenate(uv)
+        L, lens, _ = refine_dlt(
+            xyz, uv, solve_dlt(xyz, uv, dlt), dlt, weights=np.concatenate(weight)
+        )
+        out.append(Camera.from_dlt(L, kolahi=lens))
     return tuple(out)

@@ -223,8 +223,10 @@ def refine_dlt(
     L0: ArrayLike,
     params: DltParams = DEFAULT_PARAMS,
     camera: str = "",
+    weights: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int]:
-    """Minimise the reprojection error in pixels, started from ``L0`` (iterative adjustment).
+    """Minimise the (weighted) reprojection error in pixels, started from ``L0``
+    (iterative adjustment).
 
     Parameters
     ----------
@@ -237,6 +239,9 @@ def refine_dlt(
         ``lens`` adds Kolahi's L12..L16; tolerances and iteration cap.
     camera : str
         Camera id for messages.
+    weights : array_like, shape (N,), optional
+        Each point's weight (the inverse of its image variance, in any common unit):
+        points from sources of different noise in one fit. Default: all equal.
 
     Returns
     -------
@@ -257,6 +262,9 @@ def refine_dlt(
     theta0 = prob.theta_constrained if constrained else prob.theta_free
     if params.lens:
         theta0 = np.r_[theta0, np.zeros(params.lens_terms)]
-    res = _solve(lambda th: prob.geometric(th, constrained, params.lens), theta0, params, camera)
+    scale = 1.0 if weights is None else np.repeat(np.sqrt(np.asarray(weights, dtype=float)), 2)
+    res = _solve(
+        lambda th: scale * prob.geometric(th, constrained, params.lens), theta0, params, camera
+    )
     lens = prob.lens_to_px(prob.lens_terms(res.x, constrained)) if params.lens else None
     return prob.to_dlt(res.x, constrained), lens, int(res.nfev)

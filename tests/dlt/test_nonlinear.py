@@ -157,3 +157,28 @@ def test_an_iteration_that_cannot_start_is_a_clear_estimation_failure():
     with pytest.raises(EstimationFailed, match="camera cam2: the DLT iteration cannot start"):
         _solve(fun, np.zeros(3), DltParams(), "cam2")
     assert np.allclose(_solve(lambda t: np.r_[t - 1.0, 0.0], np.zeros(3), DltParams(), "c").x, 1)
+
+
+def test_weights_act_as_repeated_points(rig):
+    """A weight of k is k copies of the point; a quiet source weighed by its variance
+    pulls the fit to the truth that equal weights lose among noisy points."""
+    from kisscal.dlt.nonlinear import refine_dlt
+
+    xyz = rod_xyz(rig)
+    L_true = rig.L[0]
+    rng = np.random.default_rng(3)
+    quiet = np.arange(len(xyz)) % 2 == 0
+    noise = np.where(quiet, 0.01, 1.0)[:, None] * rng.normal(0, 1.0, (len(xyz), 2))
+    uv = project(L_true, xyz) + noise
+    params = DltParams(refine=True, lens=True, lens_terms=3)
+    k = np.where(quiet, 4, 1)
+    L0 = solve_dlt(xyz, uv, params)
+    weighted, lens_w, _ = refine_dlt(xyz, uv, L0, params, weights=k)
+    copies, lens_c, _ = refine_dlt(np.repeat(xyz, k, 0), np.repeat(uv, k, 0), L0, params)
+    np.testing.assert_allclose(weighted, copies, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(lens_w, lens_c, rtol=1e-5, atol=1e-9)
+    pinhole = DltParams(refine=True)
+    plain, _, _ = refine_dlt(xyz, uv, L0, pinhole)
+    by_variance, _, _ = refine_dlt(xyz, uv, L0, pinhole, weights=np.where(quiet, 1e4, 1.0))
+    err = [np.abs(project(L, xyz) - project(L_true, xyz)).max() for L in (plain, by_variance)]
+    assert err[1] < 0.5 * err[0]
