@@ -11,7 +11,7 @@ cross-validation spline (Woltring 1986, the biomechanics standard),
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +28,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.fill_depth import depth_ray_fill
+from kisscal.tracking.fill_ends import end_reach, one_sided
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill
@@ -67,6 +68,32 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     ]
 
 
+def _track_ends(
+    tracks: Tracks, params: TrackingParams, labels: Sequence[str] | None, unlabelled: Sequence[int]
+) -> list[tuple[int, int, int, int]]:
+    """(track, first field, stop field, end) of the ends of each named track to fill:
+    up to ``max_body_fill_fields`` fields before its first measured sample (end -1) and
+    after its last (end 1), within the trial and short of any sample of another track
+    of the same name."""
+    if labels is None:
+        return []
+    meas = tracks.status == MEASURED
+    n_fields = int(tracks.field.max()) + 1
+    reach = params.max_body_fill_fields
+    names = np.asarray(labels, dtype=object)
+    out = []
+    for t in sorted(set(range(tracks.n_tracks)) - set(unlabelled)):
+        mf = tracks.field[meas & (tracks.track == t)]
+        if mf.size == 0:
+            continue
+        others = tracks.field[(names[tracks.track] == names[t]) & (tracks.track != t)]
+        lo = max(0, int(mf[0]) - reach, *(others[others < mf[0]] + 1).tolist())
+        hi = min(n_fields, int(mf[-1]) + 1 + reach, *others[others > mf[-1]].tolist())
+        out += [(t, lo, int(mf[0]), -1)] if lo < mf[0] else []
+        out += [(t, int(mf[-1]) + 1, hi, 1)] if mf[-1] + 1 < hi else []
+    return out
+
+
 def _fill_one(
     dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs | None
 ) -> list[tuple[NDArray, GapFill]]:
@@ -92,7 +119,9 @@ def _fill_one(
 class _Gap:
     """One gap [lo, hi) of track ``t`` being filled: ``swept`` marks the fields placed by
     the sweeping fills, ``out`` collects the fills made. ``measured`` (n_fields,) bool:
-    the track's measured fields (for the depth fill's spline)."""
+    the track's measured fields (for the depth fill's spline). ``end``: 0 for a gap
+    inside the track, -1 for the fields before its first measured sample, 1 after its
+    last."""
 
     dense: NDArray
     t: int
@@ -103,6 +132,7 @@ class _Gap:
     measured: NDArray | None
     swept: NDArray
     out: list
+    end: int = 0
 
 
 def _rest_params(params: TrackingParams) -> TrackingParams:
@@ -135,6 +165,34 @@ def _body(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_
     return np.full(b - a, bool(got))
 
 
+def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """The fields of the end [a, b) of a track next to its measured samples that its
+    segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
+    measured, by them or by its two most rigid markers; then as far as those two are,
+    by them; each kept when its expected error is at most ``max_body_fill_error_mm``,
+    moved onto the rays of blobs a camera still sees there (:func:`_with_rays`)."""
+    placed = np.zeros(b - a, dtype=bool)
+    after = gap.end < 0
+    rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
+    done = 0
+    for k, methods in ((params.rigid_fill_markers, (rigid, axis)), (2, (axis,))):
+        n = end_reach(gap.dense, gap.t, a, b, after, params, k)
+        if n <= done:
+            continue
+        lo, hi = (b - n, b - done) if after else (a + done, a + n)
+        rays = gap.spare is not None and gap.spare.rows(lo, hi).size > 0
+        centres = gap.spare.centres if rays else None
+        cands = fill_candidates(gap.dense, gap.t, lo, hi, params, methods, centres)
+        chosen = best_candidate(cands, params)
+        if chosen is None:
+            break
+        got = _with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+        gap.out.extend(got)
+        placed[lo - a : hi - a] = True
+        done = n
+    return placed
+
+
 @dataclass(frozen=True)
 class Fill:
     """One way of filling missing fields of a track, and its reach.
@@ -157,6 +215,8 @@ class Fill:
     strict : str
         When the body's error limit is ``ray_rest_max_error_mm``: ``"never"``,
         ``"swept"`` (fields of the gap were placed by a sweeping fill) or ``"always"``.
+    ends : bool
+        Only at a track's ends (else only in gaps inside it).
     """
 
     name: str
@@ -166,12 +226,14 @@ class Fill:
     long_run: bool = False
     split_only: bool = False
     strict: str = "never"
+    ends: bool = False
 
     def reaches(self, gap: _Gap, a: int, b: int, split: bool) -> bool:
         """Whether this fill is tried on run [a, b) of ``gap``."""
         long_gap = gap.hi - gap.lo > gap.params.max_fill_gap_fields
         return (
-            (not self.rays or (gap.spare is not None and long_gap))
+            self.ends == (gap.end != 0)
+            and (not self.rays or (gap.spare is not None and long_gap))
             and (not self.long_run or b - a > gap.params.max_fill_gap_fields)
             and (not self.split_only or split)
         )
@@ -215,6 +277,7 @@ FILLS: tuple[Fill, ...] = (
         long_run=True,
     ),
     Fill("body between rays", _body, split_only=True, strict="always"),
+    Fill("end", _end, ends=True),
 )
 
 
@@ -318,11 +381,17 @@ def _with_rays(
 
 
 def fill_gaps_logged(
-    tracks: Tracks, params: TrackingParams, spare: SpareBlobs | None = None
+    tracks: Tracks,
+    params: TrackingParams,
+    spare: SpareBlobs | None = None,
+    labels: Sequence[str] | None = None,
+    unlabelled: Sequence[int] = (),
 ) -> tuple[Tracks, tuple[GapFill, ...]]:
     """:func:`fill_gaps`, and how each gap was filled (method and expected error); with
     ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
-    onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most)."""
+    onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
+    With ``labels`` (one per track), the ends of each named track (not in
+    ``unlabelled``) too, once every gap is filled (:func:`_track_ends`)."""
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -339,6 +408,12 @@ def fill_gaps_logged(
             for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
                 filled_xyz.append(xyz)
                 fills.append(fill)
+    for t, lo, hi, end in _track_ends(tracks, params, labels, unlabelled):
+        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
+        _apply(gap, FILLS, [(lo, hi)])
+        for xyz, fill in gap.out:
+            filled_xyz.append(xyz)
+            fills.append(fill)
     if not fills:
         return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])
@@ -349,7 +424,7 @@ def fill_gaps_logged(
     replaced[new_track * n_fields + new_field] = True
     keep = ~replaced[tracks.track * n_fields + tracks.field]
     n = new_field.size
-    out = make_tracks(
+    columns = (
         np.concatenate([tracks.field[keep], new_field]),
         np.concatenate([tracks.track[keep], new_track]),
         np.concatenate([tracks.xyz_mm[keep], *filled_xyz]),
@@ -357,6 +432,10 @@ def fill_gaps_logged(
         np.concatenate([tracks.status[keep], new_status]),
         np.concatenate([tracks.point[keep], np.full(n, -1)]),
     )
+    # sorted by (track, field), numbers kept: a filled end moves a track's first field,
+    # and its name (labels are per track number) must stay with it
+    order = np.lexsort((columns[0], columns[1]))
+    out = Tracks(*(c[order] for c in columns))
     return out, tuple(fills)
 
 
