@@ -22,11 +22,12 @@ from the other markers of the body); Kabsch 1976 (least-squares rotation).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.dlt.model import project_rows
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
     FillMethod,
@@ -35,6 +36,10 @@ from kisscal.tracking.bodyfill import (
     distance_sd,
 )
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import MIN_RUN, ChainFill
+from kisscal.tracking.raychain import _follow as follow_blobs
+from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.tracks import MEASURED, Tracks
 
 
 def _window(target: NDArray, lo: int, hi: int, after: bool, n: int) -> NDArray[np.int64]:
@@ -181,3 +186,103 @@ def end_reach(
         seen = seen[::-1]
     lost = np.flatnonzero(~seen)
     return int(lost[0]) if lost.size else hi - lo
+
+
+#: Largest distance (mm) of a point placed at an end from where the path, continued at
+#: constant velocity from the fields before, expects it.
+STEP_MM = 20.0
+
+
+def _triangulate(c: NDArray, d: NDArray) -> tuple[NDArray[np.float64], float]:
+    """Least-squares point of the rays ``c + s d`` (k, 3) and its largest distance to
+    them (Hartley & Zisserman 2004)."""
+    proj = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
+    x = np.linalg.solve(proj.sum(axis=0), np.einsum("kij,kj->i", proj, c))
+    return x, float(np.linalg.norm(np.einsum("kij,kj->ki", proj, x - c), axis=1).max())
+
+
+def _meet(rows: NDArray, spare: SpareBlobs) -> tuple[NDArray[np.float64], float, NDArray]:
+    """The point where the rays of blobs ``rows`` (two or more) meet best, its largest
+    distance to them and the rows used: all of them, or of three or more, the subset
+    without the one ray that misses the others most, when that is closer."""
+    c = spare.centres[spare.camera[rows]]
+    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
+    best = (*_triangulate(c, d), rows)
+    if rows.size >= 3:
+        for i in range(rows.size):
+            keep = np.arange(rows.size) != i
+            got = _triangulate(c[keep], d[keep])
+            if got[1] < best[1]:
+                best = (*got, rows[keep])
+    return best
+
+
+def rays_end_fill(
+    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams, end: int
+) -> ChainFill | None:
+    """Fields of the end [lo, hi) of track ``t`` (``end`` -1: before its first measured
+    sample, 1: after its last) where two or more cameras still see the marker: its blob
+    followed in each camera's image from the trajectory's edge (as
+    :func:`~kisscal.tracking.raychain.chain_blobs` follows it into a gap), the point
+    where their rays meet, field by field out from the edge. A field is left out when it
+    has fewer than two rays, the point is farther than ``ray_rest_max_error_mm`` from one
+    of them (of three or more rays, the two or more that meet best are kept) or than
+    :data:`STEP_MM` from the path continued at constant velocity; the walk stops after
+    ``ray_chain_coast_fields`` such fields in a row. None when fewer than
+    :data:`~kisscal.tracking.raychain.MIN_RUN` fields are placed."""
+    series = dense[t]
+    edge, step = (hi, 1) if end < 0 else (lo - 1, -1)
+    if not 0 <= edge + step < len(series) or not np.all(np.isfinite(series[[edge, edge + step]])):
+        return None
+    fields = np.arange(hi - 1, lo - 1, -1) if end < 0 else np.arange(lo, hi)
+    rows = np.full((len(spare.dlts), hi - lo), -1)
+    for cam in range(len(spare.dlts)):
+        uv = project_rows(spare.dlts, [cam, cam], series[[edge, edge + step]])
+        for f, row in follow_blobs(spare, cam, uv[0], uv[0] - uv[1], fields, params).items():
+            rows[cam, f - lo] = row
+    xyz, sd = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
+    last, vel, since = series[edge], series[edge] - series[edge + step], 0
+    for f in fields.tolist():
+        r = rows[:, f - lo][rows[:, f - lo] >= 0]
+        since += 1
+        if since > params.ray_chain_coast_fields + 1:
+            break
+        if r.size < 2:
+            continue
+        x, miss, used = _meet(r, spare)
+        if miss > params.ray_rest_max_error_mm or np.linalg.norm(x - last - since * vel) > STEP_MM:
+            continue
+        rows[:, f - lo][~np.isin(rows[:, f - lo], used)] = -1
+        xyz[f - lo], sd[f - lo] = x, max(miss, params.ray_length_sd_floor_mm)
+        last, vel, since = x, (x - last) / since, 0
+    placed = np.isfinite(sd)
+    if placed.sum() < MIN_RUN:
+        return None
+    taken = rows[:, placed]
+    return ChainFill(xyz, sd, (), taken[taken >= 0].astype(np.int64))
+
+
+def track_ends(
+    tracks: Tracks, params: TrackingParams, labels: Sequence[str] | None, unlabelled: Sequence[int]
+) -> list[tuple[int, int, int, int]]:
+    """(track, first field, stop field, end) of the ends of each named track to fill:
+    up to ``max_body_fill_fields`` fields before its first measured sample (end -1) and
+    after its last (end 1), within the trial and short of any sample of another track
+    of the same name."""
+    if labels is None:
+        return []
+    meas = tracks.status == MEASURED
+    n_fields = int(tracks.field.max()) + 1
+    reach = params.max_body_fill_fields
+    names = np.asarray(labels, dtype=object)
+    out = []
+    for t in sorted(set(range(tracks.n_tracks)) - set(unlabelled)):
+        mf = tracks.field[meas & (tracks.track == t)]
+        if mf.size == 0:
+            continue
+        others = tracks.field[(names[tracks.track] == names[t]) & (tracks.track != t)]
+        lo = max(0, int(mf[0]) - reach, *(others[others < mf[0]] + 1).tolist())
+        hi = min(n_fields, int(mf[-1]) + 1 + reach, *others[others > mf[-1]].tolist())
+        out += [(t, lo, int(mf[0]), -1)] if lo < mf[0] else []
+        out += [(t, int(mf[-1]) + 1, hi, 1)] if mf[-1] + 1 < hi else []
+    return out

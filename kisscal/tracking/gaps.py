@@ -28,7 +28,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.fill_depth import depth_ray_fill
-from kisscal.tracking.fill_ends import end_reach, one_sided
+from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill
@@ -66,32 +66,6 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
         for lo, hi in zip(gap_lo.tolist(), gap_hi.tolist(), strict=True)
         if hi - lo <= longest
     ]
-
-
-def _track_ends(
-    tracks: Tracks, params: TrackingParams, labels: Sequence[str] | None, unlabelled: Sequence[int]
-) -> list[tuple[int, int, int, int]]:
-    """(track, first field, stop field, end) of the ends of each named track to fill:
-    up to ``max_body_fill_fields`` fields before its first measured sample (end -1) and
-    after its last (end 1), within the trial and short of any sample of another track
-    of the same name."""
-    if labels is None:
-        return []
-    meas = tracks.status == MEASURED
-    n_fields = int(tracks.field.max()) + 1
-    reach = params.max_body_fill_fields
-    names = np.asarray(labels, dtype=object)
-    out = []
-    for t in sorted(set(range(tracks.n_tracks)) - set(unlabelled)):
-        mf = tracks.field[meas & (tracks.track == t)]
-        if mf.size == 0:
-            continue
-        others = tracks.field[(names[tracks.track] == names[t]) & (tracks.track != t)]
-        lo = max(0, int(mf[0]) - reach, *(others[others < mf[0]] + 1).tolist())
-        hi = min(n_fields, int(mf[-1]) + 1 + reach, *others[others > mf[-1]].tolist())
-        out += [(t, lo, int(mf[0]), -1)] if lo < mf[0] else []
-        out += [(t, int(mf[-1]) + 1, hi, 1)] if mf[-1] + 1 < hi else []
-    return out
 
 
 def _fill_one(
@@ -165,6 +139,13 @@ def _body(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_
     return np.full(b - a, bool(got))
 
 
+def _end_rays(gap: _Gap, a: int, b: int, params: TrackingParams) -> ChainFill | None:
+    """:func:`~kisscal.tracking.fill_ends.rays_end_fill` on the end [a, b) of ``gap``."""
+    if gap.spare is None:
+        return None
+    return rays_end_fill(gap.dense, gap.t, a, b, gap.spare, params, gap.end)
+
+
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """The fields of the end [a, b) of a track next to its measured samples that its
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
@@ -193,6 +174,11 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
     return placed
 
 
+def _enclosed(series: NDArray, a: int, b: int) -> bool:
+    """Whether ``series`` (n_fields, 3) has samples just before ``a`` and at ``b``."""
+    return 0 < a and b < len(series) and bool(np.all(np.isfinite(series[[a - 1, b]])))
+
+
 @dataclass(frozen=True)
 class Fill:
     """One way of filling missing fields of a track, and its reach.
@@ -217,6 +203,8 @@ class Fill:
         ``"swept"`` (fields of the gap were placed by a sweeping fill) or ``"always"``.
     ends : bool
         Only at a track's ends (else only in gaps inside it).
+    enclosed : bool
+        Only on runs with samples (measured or placed) on both sides.
     """
 
     name: str
@@ -227,6 +215,7 @@ class Fill:
     split_only: bool = False
     strict: str = "never"
     ends: bool = False
+    enclosed: bool = False
 
     def reaches(self, gap: _Gap, a: int, b: int, split: bool) -> bool:
         """Whether this fill is tried on run [a, b) of ``gap``."""
@@ -236,6 +225,7 @@ class Fill:
             and (not self.rays or (gap.spare is not None and long_gap))
             and (not self.long_run or b - a > gap.params.max_fill_gap_fields)
             and (not self.split_only or split)
+            and (not self.enclosed or _enclosed(gap.dense[gap.t], a, b))
         )
 
     def params_for(self, gap: _Gap) -> TrackingParams:
@@ -254,8 +244,12 @@ class Fill:
 #: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
 #: blobs of one camera at a spline's distance from it
 #: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), and the fields left between
-#: them by the body expecting little error. Fields placed on rays have status
-#: ``filled_rigid``, every one counted in ``ray_fields``.
+#: them by the body expecting little error. At a named track's ends, once every gap is
+#: filled: the point where two or more cameras' rays of the marker's blobs meet
+#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
+#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
+#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
+#: counted in ``ray_fields``.
 FILLS: tuple[Fill, ...] = (
     Fill(
         "chain",
@@ -277,6 +271,8 @@ FILLS: tuple[Fill, ...] = (
         long_run=True,
     ),
     Fill("body between rays", _body, split_only=True, strict="always"),
+    Fill("end rays", _placer(_end_rays), ends=True),
+    Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
 )
 
@@ -391,7 +387,8 @@ def fill_gaps_logged(
     ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
     onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
     With ``labels`` (one per track), the ends of each named track (not in
-    ``unlabelled``) too, once every gap is filled (:func:`_track_ends`)."""
+    ``unlabelled``) too, once every gap is filled
+    (:func:`~kisscal.tracking.fill_ends.track_ends`)."""
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -408,7 +405,7 @@ def fill_gaps_logged(
             for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
                 filled_xyz.append(xyz)
                 fills.append(fill)
-    for t, lo, hi, end in _track_ends(tracks, params, labels, unlabelled):
+    for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
         _apply(gap, FILLS, [(lo, hi)])
         for xyz, fill in gap.out:

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from kisscal.tracking import FILLED_RIGID, TrackingParams, is_filled
+from kisscal.dlt.model import project_rows
+from kisscal.tracking import FILLED_RIGID, TrackingParams, is_filled, spare_blobs
 from kisscal.tracking.gaps import fill_gaps_logged
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_rayfill import rig
 
 NAMES = ("A", "B", "C", "D")
 
@@ -72,3 +74,41 @@ def test_end_fill_keeps_track_numbers_so_names_stay():
         rows = out.track == k
         err = np.linalg.norm(out.xyz_mm[rows] - truth[k, out.field[rows]], axis=1)
         assert err.max() < 5.0
+
+
+def _two_cameras_see(xyz: np.ndarray, marker: int, fields: slice, cams: int, seed: int):
+    """Spare blobs of ``marker`` over ``fields`` in the first ``cams`` of two cameras 90
+    degrees apart (0.05 px noise), and three noise blobs per camera and field."""
+    f = np.arange(fields.start, fields.stop)
+    dlts = rig(xyz[marker, fields].mean(axis=0))
+    rng = np.random.default_rng(seed)
+    field, cam, uv = [], [], []
+    for c in range(len(dlts)):
+        if c < cams:
+            field.append(f)
+            cam.append(np.full(f.size, c))
+            p = project_rows(dlts, np.full(f.size, c), xyz[marker, fields])
+            uv.append(p + rng.normal(0, 0.05, p.shape))
+        field.append(np.repeat(f, 3))
+        cam.append(np.full(3 * f.size, c))
+        uv.append(rng.uniform([0, 0], [640, 480], (3 * f.size, 2)))
+    return spare_blobs(np.concatenate(field), np.concatenate(cam), np.concatenate(uv), dlts)
+
+
+def test_end_rays_place_a_marker_two_cameras_see_while_its_segment_is_hidden():
+    xyz = rigid_body(seed=6, noise_mm=0.2)
+    # marker 3 and two of its segment back at field 60, one at 40: no body to carry it
+    hidden = {0: slice(0, 40), 1: slice(0, 60), 2: slice(0, 60), 3: slice(0, 60)}
+    tracks = _tracks_of(xyz, hidden)
+    params = TrackingParams()
+    out = fill_gaps_logged(
+        tracks, params, _two_cameras_see(xyz, 3, slice(0, 60), 2, 6), labels=NAMES
+    )[0]
+    f, err = _filled_error(out, xyz, 3)
+    assert set(range(30, 60)) <= set(f.tolist())
+    assert np.sqrt(np.mean(err**2)) < 1.0
+    # one camera only: no point where rays meet, and no body to carry it
+    one = fill_gaps_logged(
+        tracks, params, _two_cameras_see(xyz, 3, slice(0, 60), 1, 6), labels=NAMES
+    )[0]
+    assert not np.isin(3, one.track[is_filled(one.status)])
