@@ -31,13 +31,12 @@ from kisscal.dlt.model import project_rows
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
     FillMethod,
-    _axis_frames,
+    axis_frames,
     batch_kabsch,
     distance_sd,
 )
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill
-from kisscal.tracking.raychain import _follow as follow_blobs
+from kisscal.tracking.raychain import MIN_RUN, ChainFill, follow_blobs
 from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 from kisscal.tracking.tracks import MEASURED, Tracks
 
@@ -163,7 +162,7 @@ def _axis_frames_of(dense: NDArray, pair: NDArray, lo: int, hi: int) -> Callable
         return None
 
     def frames(f: NDArray) -> tuple[NDArray, NDArray]:
-        return _axis_frames(dense[pair[0], f], dense[pair[1], f], ref), dense[pair[0], f]
+        return axis_frames(dense[pair[0], f], dense[pair[1], f], ref), dense[pair[0], f]
 
     return frames
 
