@@ -267,12 +267,14 @@ def track_ends(
     """(track, first field, stop field, end) of the ends of each named track to fill:
     up to ``max_body_fill_fields`` fields before its first measured sample (end -1) and
     after its last (end 1), within the trial and short of any sample of another track
-    of the same name."""
-    if labels is None:
+    of the same name; none when ``max_body_fill_fields`` is at most
+    ``max_fill_gap_fields`` (the body's fills are off: every gap fill beyond the spline
+    is)."""
+    reach = params.max_body_fill_fields
+    if labels is None or reach <= params.max_fill_gap_fields:
         return []
     meas = tracks.status == MEASURED
     n_fields = int(tracks.field.max()) + 1
-    reach = params.max_body_fill_fields
     names = np.asarray(labels, dtype=object)
     out = []
     for t in sorted(set(range(tracks.n_tracks)) - set(unlabelled)):

@@ -112,3 +112,10 @@ def test_end_rays_place_a_marker_two_cameras_see_while_its_segment_is_hidden():
         tracks, params, _two_cameras_see(xyz, 3, slice(0, 60), 1, 6), labels=NAMES
     )[0]
     assert not np.isin(3, one.track[is_filled(one.status)])
+
+
+def test_no_end_fill_when_the_body_fills_are_off():
+    xyz = rigid_body(seed=2, noise_mm=0.2)
+    tracks = _tracks_of(xyz, {3: slice(0, 40)})
+    off = TrackingParams(max_body_fill_fields=5)
+    assert not is_filled(fill_gaps_logged(tracks, off, labels=NAMES)[0].status).any()
