@@ -229,7 +229,7 @@ def rigid_fill(
 AXIS_MAX_COS = 0.7
 
 
-def _axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
+def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
     """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
     and whose third is square to it and to the lab direction ``ref`` (a frame of two
     markers; its turn about their axis follows the lab)."""
@@ -246,7 +246,7 @@ def axis_fill(
     """Fill fields [lo, hi) of ``target`` from the two markers that keep their distances
     to it and to each other best (SD over the trial at most ``rigid_fill_sd_mm``: its
     segment's), measured through the gap: the target's position in their frame
-    (:func:`_axis_frames`) is averaged over each side and drifts linearly across the gap.
+    (:func:`axis_frames`) is averaged over each side and drifts linearly across the gap.
     A segment with two markers in view (the pelvis when one of its three is hidden too, a
     shank) turns little about their axis, which rigid-body fill needs three markers for."""
     carriers = _carriers(target, dense, exclude, lo, hi, params, 2)
@@ -272,12 +272,12 @@ def axis_fill(
         if ok.sum() < 2:
             return None
         f = side[ok]
-        r = _axis_frames(dense[pair[0], f], dense[pair[1], f], ref)
+        r = axis_frames(dense[pair[0], f], dense[pair[1], f], ref)
         here = np.einsum("nji,nj->ni", r, target[f] - dense[pair[0], f])
         if np.sqrt(np.sum(here.var(axis=0))) > params.rigid_fill_sd_mm:
             return None  # the frame does not hold the target still beside the gap
         local.append(here.mean(axis=0))
-    r = _axis_frames(dense[pair[0], lo:hi], dense[pair[1], lo:hi], ref)
+    r = axis_frames(dense[pair[0], lo:hi], dense[pair[1], lo:hi], ref)
     w = ramp(lo, hi)[:, None]
     here = local[0] * (1 - w) + local[1] * w
     return np.einsum("nij,nj->ni", r, here) + dense[pair[0], lo:hi], tuple(int(d) for d in pair)

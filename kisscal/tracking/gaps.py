@@ -11,6 +11,8 @@ cross-validation spline (Woltring 1986, the biomechanics standard),
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +28,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.fill_depth import depth_ray_fill
+from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill
@@ -86,6 +89,226 @@ def _fill_one(
     return _with_rays(chosen, spare, params)
 
 
+@dataclass
+class _Gap:
+    """One gap [lo, hi) of track ``t`` being filled: ``swept`` marks the fields placed by
+    the sweeping fills, ``out`` collects the fills made. ``measured`` (n_fields,) bool:
+    the track's measured fields (for the depth fill's spline). ``end``: 0 for a gap
+    inside the track, -1 for the fields before its first measured sample, 1 after its
+    last."""
+
+    dense: NDArray
+    t: int
+    lo: int
+    hi: int
+    params: TrackingParams
+    spare: SpareBlobs | None
+    measured: NDArray | None
+    swept: NDArray
+    out: list
+    end: int = 0
+
+
+def _rest_params(params: TrackingParams) -> TrackingParams:
+    """``params`` with the body fill's error limit at most ``ray_rest_max_error_mm`` (for
+    fields between ones placed on rays: the body borrows them as its context)."""
+    return params.replace(
+        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
+    )
+
+
+def _placer(method: Callable) -> Callable:
+    """A fill of :data:`FILLS` from a single-camera placer ``method(gap, a, b, params)``
+    (a :class:`ChainFill` or None): its fields written as context, their blobs taken
+    (:func:`_take_placed`)."""
+
+    def fill(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+        got = method(gap, a, b, params)
+        if got is None:
+            return np.zeros(b - a, dtype=bool)
+        gap.out.extend(_take_placed(gap.dense, gap.t, a, got, gap.spare))
+        return np.isfinite(got.sd_mm)
+
+    return fill
+
+
+def _body(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`."""
+    got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare)
+    gap.out.extend(got)
+    return np.full(b - a, bool(got))
+
+
+def _end_rays(gap: _Gap, a: int, b: int, params: TrackingParams) -> ChainFill | None:
+    """:func:`~kisscal.tracking.fill_ends.rays_end_fill` on the end [a, b) of ``gap``."""
+    if gap.spare is None:
+        return None
+    return rays_end_fill(gap.dense, gap.t, a, b, gap.spare, params, gap.end)
+
+
+def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """The fields of the end [a, b) of a track next to its measured samples that its
+    segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
+    measured, by them or by its two most rigid markers; then as far as those two are,
+    by them; each kept when its expected error is at most ``max_body_fill_error_mm``,
+    moved onto the rays of blobs a camera still sees there (:func:`_with_rays`)."""
+    placed = np.zeros(b - a, dtype=bool)
+    after = gap.end < 0
+    rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
+    done = 0
+    for k, methods in ((params.rigid_fill_markers, (rigid, axis)), (2, (axis,))):
+        n = end_reach(gap.dense, gap.t, a, b, after, params, k)
+        if n <= done:
+            continue
+        lo, hi = (b - n, b - done) if after else (a + done, a + n)
+        rays = gap.spare is not None and gap.spare.rows(lo, hi).size > 0
+        centres = gap.spare.centres if rays else None
+        cands = fill_candidates(gap.dense, gap.t, lo, hi, params, methods, centres)
+        chosen = best_candidate(cands, params)
+        if chosen is None:
+            break
+        got = _with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+        gap.out.extend(got)
+        placed[lo - a : hi - a] = True
+        done = n
+    return placed
+
+
+def _enclosed(series: NDArray, a: int, b: int) -> bool:
+    """Whether ``series`` (n_fields, 3) has samples just before ``a`` and at ``b``."""
+    return 0 < a and b < len(series) and bool(np.all(np.isfinite(series[[a - 1, b]])))
+
+
+@dataclass(frozen=True)
+class Fill:
+    """One way of filling missing fields of a track, and its reach.
+
+    Attributes
+    ----------
+    name : str
+    fill : callable
+        ``fill(gap, a, b, params)`` fills what it can of fields [a, b) of ``gap`` (into
+        ``gap.out``) and returns the fields it placed, (b - a,) bool.
+    sweep : bool
+        Tried on every run left by the fills before it, the rest of the list only then
+        (otherwise the rest of the list goes on each run it leaves at once).
+    rays : bool
+        Only with spare blobs, in gaps longer than a spline bridges.
+    long_run : bool
+        Only on runs longer than a spline bridges (``max_fill_gap_fields``).
+    split_only : bool
+        Only on the runs left by the fill before it in a run it placed part of.
+    strict : str
+        When the body's error limit is ``ray_rest_max_error_mm``: ``"never"``,
+        ``"swept"`` (fields of the gap were placed by a sweeping fill) or ``"always"``.
+    ends : bool
+        Only at a track's ends (else only in gaps inside it).
+    enclosed : bool
+        Only on runs with samples (measured or placed) on both sides.
+    """
+
+    name: str
+    fill: Callable[[_Gap, int, int, TrackingParams], NDArray[np.bool_]]
+    sweep: bool = False
+    rays: bool = False
+    long_run: bool = False
+    split_only: bool = False
+    strict: str = "never"
+    ends: bool = False
+    enclosed: bool = False
+
+    def reaches(self, gap: _Gap, a: int, b: int, split: bool) -> bool:
+        """Whether this fill is tried on run [a, b) of ``gap``."""
+        long_gap = gap.hi - gap.lo > gap.params.max_fill_gap_fields
+        return (
+            self.ends == (gap.end != 0)
+            and (not self.rays or (gap.spare is not None and long_gap))
+            and (not self.long_run or b - a > gap.params.max_fill_gap_fields)
+            and (not self.split_only or split)
+            and (not self.enclosed or _enclosed(gap.dense[gap.t], a, b))
+        )
+
+    def params_for(self, gap: _Gap) -> TrackingParams:
+        """The parameters this fill runs with in ``gap``."""
+        if self.strict == "always" or (self.strict == "swept" and gap.swept.any()):
+            return _rest_params(gap.params)
+        return gap.params
+
+
+#: The fills of a gap, in order: each is tried on the fields the ones before it left
+#: (see :class:`Fill` for the reach of each). The marker's own blobs placed on their rays
+#: by the segment's lengths to its measured markers
+#: (:func:`~kisscal.tracking.raychain.chain_fill`), then together with the segment's
+#: other markers on theirs (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`); then
+#: the spline (short runs) or the body (:func:`_fill_one`), only expecting little error
+#: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
+#: blobs of one camera at a spline's distance from it
+#: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), and the fields left between
+#: them by the body expecting little error. At a named track's ends, once every gap is
+#: filled: the point where two or more cameras' rays of the marker's blobs meet
+#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
+#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
+#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
+#: counted in ``ray_fields``.
+FILLS: tuple[Fill, ...] = (
+    Fill(
+        "chain",
+        _placer(lambda g, a, b, p: chain_fill(g.dense, g.t, a, b, g.spare, p)),
+        sweep=True,
+        rays=True,
+    ),
+    Fill(
+        "joint",
+        _placer(lambda g, a, b, p: joint_ray_fill(g.dense, g.t, a, b, g.spare, p)),
+        sweep=True,
+        rays=True,
+    ),
+    Fill("body", _body, strict="swept"),
+    Fill(
+        "depth",
+        _placer(lambda g, a, b, p: depth_ray_fill(g.dense, g.t, a, b, g.spare, p, g.measured)),
+        rays=True,
+        long_run=True,
+    ),
+    Fill("body between rays", _body, split_only=True, strict="always"),
+    Fill("end rays", _placer(_end_rays), ends=True),
+    Fill("end holes", _body, ends=True, enclosed=True),
+    Fill("end", _end, ends=True),
+)
+
+
+def _left(a: int, placed: NDArray) -> list[tuple[int, int]]:
+    """The runs of fields from ``a`` that ``placed`` leaves."""
+    lo, hi = true_runs(~placed)
+    return [(a + x, a + y) for x, y in zip(lo.tolist(), hi.tolist(), strict=True)]
+
+
+def _apply(
+    gap: _Gap, fills: tuple[Fill, ...], runs: list[tuple[int, int]], split: bool = False
+) -> None:
+    """Try ``fills[0]`` on each run of ``runs`` in its reach, the rest of ``fills`` on
+    what it leaves (after all runs when it sweeps, run by run otherwise)."""
+    if not fills or not runs:
+        return
+    head, tail = fills[0], fills[1:]
+    left: list[tuple[int, int]] = []
+    for a, b in runs:
+        if not head.reaches(gap, a, b, split):
+            got = [(a, b)]
+            placed = False
+        else:
+            mask = head.fill(gap, a, b, head.params_for(gap))
+            got, placed = _left(a, mask), bool(mask.any())
+            if head.sweep:
+                gap.swept[a - gap.lo : b - gap.lo] |= mask
+        if head.sweep:
+            left.extend(got)
+        else:
+            _apply(gap, tail, got, placed)
+    if head.sweep:
+        _apply(gap, tail, left)
+
+
 def _fill_gap(
     dense: NDArray,
     t: int,
@@ -95,61 +318,12 @@ def _fill_gap(
     spare: SpareBlobs | None,
     measured: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
-    """A gap longer than a spline bridges: the fields the marker's own blobs place on
-    their rays by the segment's lengths to its measured markers
-    (:func:`~kisscal.tracking.raychain.chain_fill`), then, in the runs it left, together
-    with the segment's other markers on theirs
-    (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`), then at a spline's distance
-    from the camera (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`; status
-    ``filled_rigid``, every field counted in ``ray_fields``) become context (in
-    ``dense``) for the rest, filled by :func:`_fill_one`. ``measured`` (n_fields,) bool:
-    the track's measured fields (for the depth fill's spline)."""
-    if spare is None or hi - lo <= params.max_fill_gap_fields:
-        return _fill_one(dense, t, lo, hi, params, spare)
-    out: list[tuple[NDArray, GapFill]] = []
-    placed = np.zeros(hi - lo, dtype=bool)
-    for placer in (chain_fill, joint_ray_fill):
-        for a, b in zip(*true_runs(~placed), strict=True):
-            got = placer(dense, t, lo + a, lo + b, spare, params)
-            if got is not None:
-                out.extend(_take_placed(dense, t, lo + a, got, spare))
-                placed[a:b] = np.isfinite(got.sd_mm)
-    # the rest, between fields placed on rays, from the body only when it expects
-    # little error (``ray_rest_max_error_mm``: it borrows their fields as its context)
-    rest = params.replace(
-        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
-    )
-    for a, b in zip(*true_runs(~placed), strict=True):
-        p = rest if placed.any() else params
-        out.extend(_fill_rest(dense, t, lo + a, lo + b, p, spare, measured))
-    return out
-
-
-def _fill_rest(
-    dense: NDArray,
-    t: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-    spare: SpareBlobs,
-    measured: NDArray | None = None,
-) -> list[tuple[NDArray, GapFill]]:
-    """:func:`_fill_one`; where it finds no fill, the marker's blobs in one camera at a
-    spline's distance from it (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), the
-    fields without a blob then by :func:`_fill_one` with ``ray_rest_max_error_mm``."""
-    out = _fill_one(dense, t, lo, hi, params, spare)
-    if out or hi - lo <= params.max_fill_gap_fields:
-        return out
-    got = depth_ray_fill(dense, t, lo, hi, spare, params, measured)
-    if got is None:
-        return []
-    out = _take_placed(dense, t, lo, got, spare)
-    rest = params.replace(
-        max_body_fill_error_mm=min(params.max_body_fill_error_mm, params.ray_rest_max_error_mm)
-    )
-    for a, b in zip(*true_runs(~np.isfinite(got.sd_mm)), strict=True):
-        out.extend(_fill_one(dense, t, lo + a, lo + b, rest, spare))
-    return out
+    """The gap [lo, hi) of track ``t`` filled by :data:`FILLS`; placed fields become
+    context (in ``dense``) for the rest. ``measured`` (n_fields,) bool: the track's
+    measured fields (for the depth fill's spline)."""
+    gap = _Gap(dense, t, lo, hi, params, spare, measured, np.zeros(hi - lo, dtype=bool), [])
+    _apply(gap, FILLS, [(lo, hi)])
+    return gap.out
 
 
 def _take_placed(
@@ -203,11 +377,18 @@ def _with_rays(
 
 
 def fill_gaps_logged(
-    tracks: Tracks, params: TrackingParams, spare: SpareBlobs | None = None
+    tracks: Tracks,
+    params: TrackingParams,
+    spare: SpareBlobs | None = None,
+    labels: Sequence[str] | None = None,
+    unlabelled: Sequence[int] = (),
 ) -> tuple[Tracks, tuple[GapFill, ...]]:
     """:func:`fill_gaps`, and how each gap was filled (method and expected error); with
     ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
-    onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most)."""
+    onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
+    With ``labels`` (one per track), the ends of each named track (not in
+    ``unlabelled``) too, once every gap is filled
+    (:func:`~kisscal.tracking.fill_ends.track_ends`)."""
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -224,6 +405,12 @@ def fill_gaps_logged(
             for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
                 filled_xyz.append(xyz)
                 fills.append(fill)
+    for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
+        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
+        _apply(gap, FILLS, [(lo, hi)])
+        for xyz, fill in gap.out:
+            filled_xyz.append(xyz)
+            fills.append(fill)
     if not fills:
         return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])
@@ -234,7 +421,7 @@ def fill_gaps_logged(
     replaced[new_track * n_fields + new_field] = True
     keep = ~replaced[tracks.track * n_fields + tracks.field]
     n = new_field.size
-    out = make_tracks(
+    columns = (
         np.concatenate([tracks.field[keep], new_field]),
         np.concatenate([tracks.track[keep], new_track]),
         np.concatenate([tracks.xyz_mm[keep], *filled_xyz]),
@@ -242,6 +429,10 @@ def fill_gaps_logged(
         np.concatenate([tracks.status[keep], new_status]),
         np.concatenate([tracks.point[keep], np.full(n, -1)]),
     )
+    # sorted by (track, field), numbers kept: a filled end moves a track's first field,
+    # and its name (labels are per track number) must stay with it
+    order = np.lexsort((columns[0], columns[1]))
+    out = Tracks(*(c[order] for c in columns))
     return out, tuple(fills)
 
 

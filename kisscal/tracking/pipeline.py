@@ -110,7 +110,7 @@ def build_trajectories(
     )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
-    tracks, fills = fill_gaps_logged(tracks, params, spare)
+    tracks, fills = fill_gaps_logged(tracks, params, spare, labelling.labels, labelling.unlabelled)
     if params.smoothing:
         tracks = smooth_tracks(tracks)
     return Trajectories(

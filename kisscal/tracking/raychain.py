@@ -108,7 +108,7 @@ def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int
     return before[None] * (1 - w) + after[None] * w
 
 
-def _follow(
+def follow_blobs(
     spare: SpareBlobs, cam: int, uv: NDArray, vel: NDArray, fields: NDArray, params: TrackingParams
 ) -> dict[int, int]:
     """The blob rows of camera ``cam`` that continue a path in the image from ``uv`` with
@@ -156,7 +156,7 @@ def chain_blobs(
                 continue
             ends = np.where(np.isfinite(ends), ends, ends[:1])
             uv = project_rows(spare.dlts, [cam, cam], ends)
-            picks.append(_follow(spare, cam, uv[0], uv[0] - uv[1], fields, params))
+            picks.append(follow_blobs(spare, cam, uv[0], uv[0] - uv[1], fields, params))
         fwd, bwd = picks
         for f in sorted(set(fwd) | set(bwd)):
             if f in fwd and f in bwd and fwd[f] != bwd[f]:

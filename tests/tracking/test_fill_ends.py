@@ -1,0 +1,121 @@
+"""Fill at a trajectory's ends (kisscal.tracking.fill_ends, the "end" fill of
+kisscal.tracking.gaps.FILLS) against truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.dlt.model import project_rows
+from kisscal.tracking import FILLED_RIGID, TrackingParams, is_filled, spare_blobs
+from kisscal.tracking.gaps import fill_gaps_logged
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_rayfill import rig
+
+NAMES = ("A", "B", "C", "D")
+
+
+def _filled_error(out, xyz: np.ndarray, track: int) -> tuple[np.ndarray, np.ndarray]:
+    """Fields of ``track``'s filled samples and their errors (mm) against ``xyz``."""
+    rows = np.flatnonzero(is_filled(out.status) & (out.track == track))
+    f = out.field[rows]
+    return f, np.linalg.norm(out.xyz_mm[rows] - xyz[track, f], axis=1)
+
+
+def test_end_fill_carries_a_marker_hidden_at_both_ends_by_its_segment():
+    xyz = rigid_body(seed=2, noise_mm=0.2)
+    tracks = _tracks_of(xyz, {3: slice(0, 40), 1: slice(250, 300)})
+    out, fills = fill_gaps_logged(tracks, TrackingParams(), labels=NAMES)
+    f, err = _filled_error(out, xyz, 3)
+    assert set(f.tolist()) == set(range(40))  # the start, back to the first field
+    assert np.sqrt(np.mean(err**2)) < 1.0
+    f1, err1 = _filled_error(out, xyz, 1)
+    assert set(f1.tolist()) == set(range(250, 300))
+    assert np.sqrt(np.mean(err1**2)) < 1.0
+    assert all(g.status == FILLED_RIGID for g in fills)
+    # without names, or for an unlabelled track, the ends stay open
+    assert not is_filled(fill_gaps_logged(tracks, TrackingParams())[0].status).any()
+    skip = fill_gaps_logged(tracks, TrackingParams(), labels=NAMES, unlabelled=(3,))[0]
+    assert not np.isin(skip.field[is_filled(skip.status)], np.arange(40)).any()
+
+
+def test_end_fill_stops_where_the_segment_is_lost_and_at_the_same_name():
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    # two of the three partners lost before field 20: only fields 20-59 are carried
+    tracks = _tracks_of(xyz, {3: slice(0, 60), 0: slice(0, 20), 1: slice(0, 20)})
+    out = fill_gaps_logged(tracks, TrackingParams(), labels=NAMES)[0]
+    assert set(_filled_error(out, xyz, 3)[0].tolist()) == set(range(20, 60))
+    # the same name on another track with samples right before the end: nothing filled
+    out = fill_gaps_logged(tracks, TrackingParams(), labels=("A", "B", "C", "C"))[0]
+    rows = is_filled(out.status) & (out.track == 3)
+    assert not rows.any()
+
+
+def test_end_fill_refused_when_the_segment_does_not_carry_the_marker():
+    xyz = rigid_body(seed=4, noise_mm=0.2)
+    t = np.arange(xyz.shape[1])
+    xyz[3] += np.stack([60 * np.sin(t / 9), 30 * np.cos(t / 5), 0 * t], 1)  # not rigid
+    tracks = _tracks_of(xyz, {3: slice(0, 40)})
+    out = fill_gaps_logged(tracks, TrackingParams(), labels=NAMES)[0]
+    assert not is_filled(out.status).any()
+
+
+def test_end_fill_keeps_track_numbers_so_names_stay():
+    body = rigid_body(seed=5, noise_mm=0.2)
+    t = np.arange(body.shape[1])
+    other = body[0] + np.stack([300 * np.sin(t / 20), 500 + 0 * t, 100 * np.cos(t / 15)], 1)
+    xyz = np.concatenate([body, other[None]])
+    # tracks are numbered by first field: the other marker (from field 20) is 3, the
+    # body's fourth (from field 40) is 4; filled back to field 0, it would come first
+    tracks = _tracks_of(xyz, {4: slice(0, 20), 3: slice(0, 40)})
+    truth = xyz[[0, 1, 2, 4, 3]]
+    out = fill_gaps_logged(tracks, TrackingParams(), labels=(*NAMES, "E"), unlabelled=(3,))[0]
+    assert out.field[out.track == 4].min() == 0
+    for k in range(5):
+        rows = out.track == k
+        err = np.linalg.norm(out.xyz_mm[rows] - truth[k, out.field[rows]], axis=1)
+        assert err.max() < 5.0
+
+
+def _two_cameras_see(xyz: np.ndarray, marker: int, fields: slice, cams: int, seed: int):
+    """Spare blobs of ``marker`` over ``fields`` in the first ``cams`` of two cameras 90
+    degrees apart (0.05 px noise), and three noise blobs per camera and field."""
+    f = np.arange(fields.start, fields.stop)
+    dlts = rig(xyz[marker, fields].mean(axis=0))
+    rng = np.random.default_rng(seed)
+    field, cam, uv = [], [], []
+    for c in range(len(dlts)):
+        if c < cams:
+            field.append(f)
+            cam.append(np.full(f.size, c))
+            p = project_rows(dlts, np.full(f.size, c), xyz[marker, fields])
+            uv.append(p + rng.normal(0, 0.05, p.shape))
+        field.append(np.repeat(f, 3))
+        cam.append(np.full(3 * f.size, c))
+        uv.append(rng.uniform([0, 0], [640, 480], (3 * f.size, 2)))
+    return spare_blobs(np.concatenate(field), np.concatenate(cam), np.concatenate(uv), dlts)
+
+
+def test_end_rays_place_a_marker_two_cameras_see_while_its_segment_is_hidden():
+    xyz = rigid_body(seed=6, noise_mm=0.2)
+    # marker 3 and two of its segment back at field 60, one at 40: no body to carry it
+    hidden = {0: slice(0, 40), 1: slice(0, 60), 2: slice(0, 60), 3: slice(0, 60)}
+    tracks = _tracks_of(xyz, hidden)
+    params = TrackingParams()
+    out = fill_gaps_logged(
+        tracks, params, _two_cameras_see(xyz, 3, slice(0, 60), 2, 6), labels=NAMES
+    )[0]
+    f, err = _filled_error(out, xyz, 3)
+    assert set(range(30, 60)) <= set(f.tolist())
+    assert np.sqrt(np.mean(err**2)) < 1.0
+    # one camera only: no point where rays meet, and no body to carry it
+    one = fill_gaps_logged(
+        tracks, params, _two_cameras_see(xyz, 3, slice(0, 60), 1, 6), labels=NAMES
+    )[0]
+    assert not np.isin(3, one.track[is_filled(one.status)])
+
+
+def test_no_end_fill_when_the_body_fills_are_off():
+    xyz = rigid_body(seed=2, noise_mm=0.2)
+    tracks = _tracks_of(xyz, {3: slice(0, 40)})
+    off = TrackingParams(max_body_fill_fields=5)
+    assert not is_filled(fill_gaps_logged(tracks, off, labels=NAMES)[0].status).any()
