@@ -172,7 +172,24 @@ def rigid_donors(
     if carriers is None:
         return none
     cand, to_target, _ = carriers
-    mutual = distance_sd(dense[cand], dense[cand])
+    chosen, weight = segment_carriers(to_target, distance_sd(dense[cand], dense[cand]), params)
+    if len(chosen) < 3:
+        return none
+    return cand[chosen], weight
+
+
+def segment_carriers(
+    to_target: NDArray, mutual: NDArray, params: TrackingParams
+) -> tuple[list[int], NDArray[np.float64]]:
+    """Which candidates carry a target, and their weights, from their distance SDs (mm)
+    to the target ``to_target`` (c,) and to each other ``mutual`` (c, c).
+
+    The segment: candidates within ``rigid_fill_sd_mm`` of the target and of each other,
+    most rigid first, weight 1. With only two of them, neighbours across a joint (SD at
+    most ``rigid_fill_neighbour_sd_mm`` to the segment and the target) weigh
+    1 / (1 + SD²). At most ``rigid_fill_markers`` in all; none when fewer than two form
+    the segment.
+    """
     core: list[int] = []
     for i in np.argsort(to_target).tolist():
         if to_target[i] <= params.rigid_fill_sd_mm and np.all(
@@ -180,17 +197,15 @@ def rigid_donors(
         ):
             core.append(i)
     if len(core) < 2:
-        return none
+        return [], np.zeros(0)
     core = core[: params.rigid_fill_markers]
     if len(core) >= 3:
-        return cand[core], np.ones(len(core))
+        return core, np.ones(len(core))
     soft = np.maximum(to_target, mutual[:, core].max(axis=1))
     soft[core] = np.inf
     extra = [i for i in np.argsort(soft).tolist() if soft[i] <= params.rigid_fill_neighbour_sd_mm]
     extra = extra[: params.rigid_fill_markers - 2]
-    if not extra:
-        return none
-    return cand[core + extra], np.concatenate([[1.0, 1.0], 1.0 / (1.0 + soft[extra] ** 2)])
+    return core + extra, np.concatenate([[1.0, 1.0], 1.0 / (1.0 + soft[extra] ** 2)])
 
 
 def rigid_fill(

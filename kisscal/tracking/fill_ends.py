@@ -34,6 +34,7 @@ from kisscal.tracking.bodyfill import (
     axis_frames,
     batch_kabsch,
     distance_sd,
+    segment_carriers,
 )
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import MIN_RUN, ChainFill, follow_blobs
@@ -65,24 +66,10 @@ def end_donors(
     if cand.size < 2:
         return none
     to_target = distance_sd(dense[cand], target[None])[:, 0]
-    mutual = distance_sd(dense[cand], dense[cand])
-    core: list[int] = []
-    for i in np.argsort(to_target).tolist():
-        if to_target[i] <= params.rigid_fill_sd_mm and np.all(
-            mutual[i, core] <= params.rigid_fill_sd_mm
-        ):
-            core.append(i)
-    if len(core) < 2:
+    chosen, weight = segment_carriers(to_target, distance_sd(dense[cand], dense[cand]), params)
+    if len(chosen) < 2:
         return none
-    core = core[: params.rigid_fill_markers]
-    if len(core) >= 3:
-        return cand[core].astype(np.int64), np.ones(len(core))
-    soft = np.maximum(to_target, mutual[:, core].max(axis=1))
-    soft[core] = np.inf
-    extra = [i for i in np.argsort(soft).tolist() if soft[i] <= params.rigid_fill_neighbour_sd_mm]
-    extra = extra[: params.rigid_fill_markers - 2]
-    weight = np.concatenate([[1.0, 1.0], 1.0 / (1.0 + soft[extra] ** 2)])
-    return cand[core + extra].astype(np.int64), weight
+    return cand[chosen].astype(np.int64), weight
 
 
 def _local(
