@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import worker_pool
+from kisscal.io.store import SessionStore
 
 T = TypeVar("T")
 
@@ -70,7 +71,7 @@ def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
     except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
         draw_figure(path, draw, args)
         return
-    if _is_drawn(path, key):
+    if SessionStore.is_current(path, key):
         return
     handed = _STATE["handed"]
     if handed is not None:
@@ -110,8 +111,6 @@ def figure_key(path: Path, draw: Callable[..., Any], args: tuple) -> str:
     by ``draw(*args)``: the function and its data, pickled without shared references
     (two equal arguments give the same bytes however they were built), and the code that
     draws them (:func:`_drawing_code`). The same key, the same PNG."""
-    from kisscal.io.store import SessionStore
-
     buf = io.BytesIO()
     pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
     pickler.fast = True  # no memo: each object written out where it occurs
@@ -120,18 +119,9 @@ def figure_key(path: Path, draw: Callable[..., Any], args: tuple) -> str:
     return SessionStore(path.parent).key("stage figure", _drawing_code(), data)
 
 
-def _is_drawn(path: Path, key: str) -> bool:
-    """True when ``path`` holds the figure of ``key`` already."""
-    from kisscal.io.store import SessionStore
-
-    return SessionStore.is_current(path, key)
-
-
 def _draw_packed(packed: bytes) -> None:
-    from kisscal.io.store import SessionStore
-
     path, draw, args, key = pickle.loads(packed)
-    if _is_drawn(path, key):
+    if SessionStore.is_current(path, key):
         return
     SessionStore.forget(path)  # a figure that is not redrawn keeps no key
     if draw_figure(path, draw, args):
