@@ -77,9 +77,12 @@ def _cells(err: Errors) -> str:
     )
 
 
-def table(group: str = "EVENT") -> tuple[list[str], Errors, Errors]:
+def table(
+    group: str = "EVENT", trials: tuple[_real.RealTrial, ...] = _real.TRIALS
+) -> tuple[list[str], Errors, Errors]:
     """Per-trial and pooled errors against the events of ``group`` (the lab's EVENT
-    group, or ``_real.PLATE_GROUP``: the force plates' contacts)."""
+    group, or ``_real.PLATE_GROUP``: the force plates' contacts); a held-out trial whose
+    file is not in the cache is left out."""
     head = "mean worst miss"
     lines = [
         f"{'trial':<24} {'Hz':>4} {'n':>3}  {'kisscal FS':^17}  {'kisscal FO':^17}"
@@ -89,8 +92,8 @@ def table(group: str = "EVENT") -> tuple[list[str], Errors, Errors]:
     ours_all, zeni_all = Errors(), Errors()
     ours_heel, zeni_heel = Errors(), Errors()  # trials whose feet carry a heel marker
     ours_ankle, zeni_ankle = Errors(), Errors()  # the others (a heel stand-in)
-    for trial in _real.TRIALS:
-        if group == _real.PLATE_GROUP and not trial.plates:
+    for trial in trials:
+        if (group == _real.PLATE_GROUP and not trial.plates) or not trial.path.is_file():
             continue
         gm, marked = _real.load(trial, group)
         if not marked:
@@ -116,12 +119,17 @@ def table(group: str = "EVENT") -> tuple[list[str], Errors, Errors]:
 
 
 def main(argv: list[str]) -> None:
-    print("Against the events marked in the files:")
-    print("\n".join(table()[0]))
-    print("\nAgainst the force plates' contacts (20 N; the foot over the plate):")
-    print("\n".join(table(_real.PLATE_GROUP)[0]))
+    """``python -m tests.gait.real_events [held-out|all]``: the regression set (default),
+    the held-out files (their plates' contacts; ``$KISSCAL_C3D_CACHE``), or both pooled."""
+    which = argv[1] if len(argv) > 1 else "regression"
+    trials = {"regression": _real.TRIALS, "held-out": _real.HELD_OUT}
+    trials["all"] = _real.TRIALS + _real.HELD_OUT
+    print(f"{which}: against the events marked in the files:")
+    print("\n".join(table("EVENT", trials[which])[0]))
+    print(f"\n{which}: against the force plates' contacts (20 N; the foot over the plate):")
+    print("\n".join(table(_real.PLATE_GROUP, trials[which])[0]))
     print()
-    for trial in _real.TRIALS:
+    for trial in trials[which]:
         note = f"; {trial.note}" if trial.note else ""
         print(f"{trial.name}: {trial.system}; events: {trial.events_from}{note}")
 
