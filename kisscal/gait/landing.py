@@ -22,7 +22,8 @@ def foot_strikes(
     at the end of the window, its lowest is looked for later, :func:`_sunk`). Where the
     heel has no low point there (its height still falls at the end of the window and
     it never came to rest in it, as for a walker whose heel does not land first), the
-    coarse event itself (Zeni's rule). Also returns how many came from Zeni's rule
+    coarse event itself (Zeni's rule). Never before the coarse event: the heel lands
+    after it has swung furthest forward. Also returns how many came from Zeni's rule
     alone."""
     dt = float(t[1] - t[0])
     half = max(params.strike_fit_ms / 1000.0, 5 * dt)
@@ -39,7 +40,9 @@ def foot_strikes(
             # The heel stops descending once on the floor, not while still above it:
             # the corner lies from the field before the landing one on.
             corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
-            found.append(corner if np.isfinite(corner) else t[i])
+            # Nor before the heel has swung furthest forward (the coarse event): a
+            # rounded descent (filtered, low rate) otherwise puts the corner early.
+            found.append(max(corner if np.isfinite(corner) else t[i], float(c)))
         elif i is not None:
             found.append(float(c))
             fallback += 1
