@@ -41,7 +41,7 @@ walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 
 public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 10.9
 ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
 scatter as much), 24 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
-held-out files (gait-pig, 50 Hz, and nine files' plate contacts) 24 and 17 ms.
+held-out files (gait-pig, 50 Hz, and eight files' plate contacts) 24 and 17 ms.
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.

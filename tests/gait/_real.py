@@ -230,7 +230,10 @@ _A22 = tuple(f"A22:{n}" for n in ("LASI", "RASI", "SACR"))
 #: Held out: every C3D.org sample file of ``tests.io.c3d_acceptance.HELD_OUT`` (the
 #: cache's ``c3dio/``) not in ``TRIALS`` above whose lab marked its foot strikes and foot
 #: offs (EVENT group) or whose force plates see a foot's contact, with the markers the
-#: events need; first scored blind (issue 26), not kept in the fixtures.
+#: events need; first scored blind (issue 26), not kept in the fixtures. Left out:
+#: evart.c3d (DEC, 17 analog samples a frame by its header, 16.67 by its rates): ezc3d,
+#: which reads the plates here, lays its frames out wrong (kisscal's reader reads its
+#: markers right, but no analog channels), so its plates' contacts are not known.
 HELD_OUT = (
     RealTrial(
         "heldout_gait_pig",
@@ -261,16 +264,6 @@ HELD_OUT = (
         ("LTOE", "RTOE"),
         events_from=_PLATES,
         file="TYPE-3.c3d",
-    ),
-    RealTrial(
-        "heldout_evart",
-        _C3DORG + "evart.c3d",
-        "Motion Analysis (EVaRT)",
-        ("LASI", "RASI"),
-        ("LHEE", "RHEE"),
-        ("LTOE", "RTOE"),
-        events_from=_PLATES,
-        file="evart.c3d",
     ),
     RealTrial(
         "heldout_sample14",

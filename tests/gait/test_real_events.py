@@ -111,7 +111,7 @@ HELD_OUT = [t for t in _real.HELD_OUT if t.path.is_file()]
 @pytest.mark.skipif(not HELD_OUT, reason="held-out C3D.org files not in $KISSCAL_C3D_CACHE")
 def test_held_out_files_blind() -> None:
     """C3D.org files kept out of the set (run blind first): gait-pig's marked events
-    (50 Hz, ankle stand-in) and nine more files' plate contacts. Its foot strikes came
+    (50 Hz, ankle stand-in) and eight more files' plate contacts. Its foot strikes came
     45 ms early (54 worst) while the heel's rounded descent turned its corner before the
     heel had swung furthest forward: bounded by that, 24 ms (28 worst), Zeni's 26."""
     pig = next(t for t in HELD_OUT if t.name == "heldout_gait_pig")
