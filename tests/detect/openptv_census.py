@@ -22,6 +22,23 @@ a valid blob within 1 px in the first class it fits, one JSON line per camera:
   mean).
 - ``no_blob``: white, but in a group removed as noise (one pixel wide or high).
 
+On the "peaks" route (:mod:`kisscal.detect.peaks`, particle frames) the missed targets
+are put in the classes of that route instead (:data:`PEAK_CLASSES`, first fit), from the
+region of the high-passed image at the target (its pixel or one of its 8 neighbours):
+
+- ``peak_below_threshold``: no region there and the high-passed grey peaks at or below
+  the threshold in those 9 pixels (the threshold cut it);
+- ``peak_not_grown``: above the threshold but in no region (reached from no peak, or cut
+  away when a lit region too large was grown again at a higher level);
+- ``peak_merged``: its region holds another target too (OpenPTV cut a spot kisscal kept
+  whole: a higher threshold, or its scan-order growth);
+- ``peak_border``, ``peak_too_small`` (pixels, summed grey, extent), ``peak_too_large``:
+  the region is dropped by the route's limits;
+- ``peak_split``: its region is valid, more than 1 px off, and a second valid blob lies
+  within 3 px (kisscal cut the spot at two peaks too close for OpenPTV);
+- ``peak_offset``: its region is valid but its centroid more than 1 px off (the two
+  centroids weigh a different part of the spot: thresholds, high-pass box).
+
 ``textured`` is the share of the missed targets (any class) where the local noise
 deviation kisscal measures is more than twice the frame's sensor noise: glass walls,
 glare and streaks, where kisscal's white test asks for more than a flat grey margin.
@@ -55,6 +72,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from kisscal.detect import DetectionParams, detect_blobs
+from kisscal.detect import peaks as pk
 from kisscal.detect.background import local_background, noise_sigma
 from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import threshold_image
@@ -72,6 +90,18 @@ CLASSES = (
     "below_threshold",
     "no_blob",
 )
+PEAK_CLASSES = (
+    "peak_below_threshold",
+    "peak_not_grown",
+    "peak_merged",
+    "peak_border",
+    "peak_too_small",
+    "peak_too_large",
+    "peak_split",
+    "peak_offset",
+)
+#: Farthest (px) a second valid blob counts as the other half of a split target.
+SPLIT_PX = 3.0
 EXTRA_CLASSES = ("extra_piece", "extra_offset", "extra_faint", "extra_small", "extra_other")
 #: A stored target is given back by OpenPTV's detection when one lies this close (px), and
 #: the detection reads the frame as the stored one did when it gives back this share.
@@ -105,6 +135,11 @@ def census(
     found = d[:, 0] <= MATCH_PX
     out["found"] = int(found.sum())
     miss = ~found
+    out["extra"] = int((cKDTree(targets).query(valid.xy_px)[0] > MATCH_PX).sum())
+    if view is not None:
+        out += _extras(valid.xy_px, targets, view)
+    if params.route == "peaks":
+        return out + peak_census(image, targets, params, miss, d[:, 1] <= SPLIT_PX)
     pair = miss & (d[:, 1] <= NEAR_PX)
     pair &= _between(targets, valid.xy_px[i[:, 0]], valid.xy_px[i[:, 1]]) <= MATCH_PX
     near = miss & ~pair & (d[:, 0] <= NEAR_PX)
@@ -120,9 +155,52 @@ def census(
         out[name] = int(mask.sum())
     noise = local_background(image, params.background_tile_px or 32).noise[yi, xi]
     out["textured"] = int((miss & (noise > TEXTURED * noise_sigma(image))).sum())
-    out["extra"] = int((cKDTree(targets).query(valid.xy_px)[0] > MATCH_PX).sum())
-    if view is not None:
-        out += _extras(valid.xy_px, targets, view)
+    return out
+
+
+def peak_census(
+    image: np.ndarray,
+    targets: np.ndarray,
+    params: DetectionParams,
+    miss: np.ndarray,
+    pair: np.ndarray,
+) -> Counter:
+    """The "peaks" route's class (:data:`PEAK_CLASSES`) of each ``miss``-ed target
+    (``pair``: a second valid blob within :data:`SPLIT_PX`)."""
+    hp = pk.highpass(image, int(params.peak_highpass_px))
+    level = float(params.threshold)
+    largest = (params.max_pixels, params.max_width_px, params.max_height_px)
+    labels, count = pk.regions(hp, level, largest, float(params.peak_step))
+    t = pk.region_table(hp, labels, count, level)
+    xi, yi = _pixel(targets, hp.shape)
+    lab = np.zeros(len(targets), dtype=np.int64)
+    top = np.zeros(len(targets))
+    for dy, dx in sorted(np.ndindex(3, 3), key=lambda s: abs(s[0] - 1) + abs(s[1] - 1)):
+        y = np.clip(yi + dy - 1, 0, hp.shape[0] - 1)
+        x = np.clip(xi + dx - 1, 0, hp.shape[1] - 1)
+        lab = np.where(lab == 0, labels[y, x], lab)
+        top = np.maximum(top, hp[y, x])
+    r = np.maximum(lab - 1, 0)
+    small = (t["pixels"] < params.min_pixels) | (t["sum"] < params.peak_min_sum_grey)
+    small |= np.minimum(t["w"], t["h"]) < params.peak_min_extent_px
+    large = np.zeros(count, dtype=bool)
+    for limit, value in zip(largest, (t["pixels"], t["w"], t["h"]), strict=True):
+        large |= (value > limit) if limit is not None else False
+    shared = np.bincount(lab, minlength=count + 1)[lab] >= 2
+    tests = (
+        (lab == 0) & (top <= level),
+        lab == 0,
+        shared,
+        t["border"][r],
+        small[r],
+        large[r],
+        pair,
+        np.ones(len(targets), dtype=bool),
+    )
+    out, rest = Counter(), miss.copy()
+    for name, test in zip(PEAK_CLASSES, tests, strict=True):
+        out[name] = int((rest & test).sum())
+        rest &= ~test
     return out
 
 
@@ -157,8 +235,11 @@ def _extras(xy: np.ndarray, targets: np.ndarray, view: OpenptvView) -> Counter:
 def _line(label: str, total: Counter) -> str:
     n = max(total["targets"], 1)
     row = {"camera": label, "targets": total["targets"], "found_pct": 100 * total["found"] / n}
-    row |= {k: 100 * total[k] / n for k in CLASSES}
-    row["textured_of_missed_pct"] = 100 * total["textured"] / max(n - total["found"], 1)
+    if any(k in total for k in PEAK_CLASSES):
+        row |= {k: total[k] for k in PEAK_CLASSES}
+    else:
+        row |= {k: 100 * total[k] / n for k in CLASSES}
+        row["textured_of_missed_pct"] = 100 * total["textured"] / max(n - total["found"], 1)
     row = {k: round(v, 1) if isinstance(v, float) else v for k, v in row.items()}
     extras = {k: total[k] for k in EXTRA_CLASSES if k in total}
     return json.dumps(row | {"extra": total["extra"]} | extras)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tests.detect.openptv_census import EXTRA_CLASSES, _extras
+from kisscal.detect import DetectionParams
+from tests.detect.openptv_census import EXTRA_CLASSES, PEAK_CLASSES, _extras, census
 from tests.detect.real_acceptance import OpenptvView
 
 
@@ -26,3 +27,27 @@ def test_extra_detections_fall_in_the_class_they_were_built_for() -> None:
     view = OpenptvView(targets, grey, 9.0, 4, 150.0)
     got = _extras(blobs, targets, view)
     assert [got[k] for k in EXTRA_CLASSES] == [1, 1, 1, 1, 1]
+
+
+def test_missed_targets_fall_in_the_peaks_routes_classes() -> None:
+    grey = np.zeros((70, 110), np.uint8)
+    grey[19:22, 19:22] = 100  # found
+    grey[19:22, 39:42] = 5  # below the threshold of 10
+    grey[39:41, 18:24] = 100  # one spot, two targets: merged
+    grey[40, 60] = 200  # one pixel: too small
+    grey[39:42, 79:82] = 100  # its target 2 px off: offset
+    grey[39:42, 0:3] = 100  # on the border
+    targets = np.array(
+        [[20, 20], [40, 20], [19, 39.5], [22, 39.5], [60, 40], [82, 40], [1, 40]], dtype=float
+    )
+    params = DetectionParams(route="peaks", threshold=10.0, min_pixels=3)
+    got = census(grey, targets, params)
+    assert got["found"] == 1
+    expected = dict.fromkeys(PEAK_CLASSES, 0) | {
+        "peak_below_threshold": 1,
+        "peak_merged": 2,
+        "peak_too_small": 1,
+        "peak_offset": 1,
+        "peak_border": 1,
+    }
+    assert {k: got[k] for k in PEAK_CLASSES} == expected
