@@ -4,18 +4,22 @@ The images of one or several sequences (a session's cameras) go to one pool of w
 processes in chunks of consecutive frames: every core stays busy until the last chunk
 of the last sequence, and with a loader function each worker decodes its own frames, so
 no image crosses a process boundary and memory does not grow with the number of frames.
+The cameras' detection settings are derived the same way (:func:`configure_jobs`): each
+camera's sample of frames surveyed in one worker, decoded there.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 from numpy.typing import NDArray
 
 from kisscal._shared import inherited, worker_pool
 from kisscal.detect.blobs import Blobs
+from kisscal.detect.configure import DetectionSetup, Kind, configure_detection
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import DEFAULT_PARAMS, STACK_PX, detect_frames
 from kisscal.errors import InputError, KisscalError
@@ -186,3 +190,73 @@ def detect_sequence(
     if isinstance(blobs, KisscalError):
         raise blobs
     return blobs
+
+
+@dataclass(frozen=True)
+class SurveyJob:
+    """One camera's sample of frames to derive its settings from: ``load(i)`` for
+    ``i < count``, with what the user gave and what is known
+    (:func:`~kisscal.detect.configure.configure_detection`'s arguments)."""
+
+    load: Callable[[int], NDArray]
+    count: int
+    given: Mapping[str, Any] = field(default_factory=dict)
+    kind: Kind = "markers"
+    pixel_aspect: float | None = None
+    aspect_why: str = "known for this camera"
+
+    def derive(self) -> DetectionSetup:
+        """The camera's settings, from its frames decoded here."""
+        return configure_detection(
+            [self.load(i) for i in range(self.count)],
+            self.given,
+            kind=self.kind,
+            pixel_aspect=self.pixel_aspect,
+            aspect_why=self.aspect_why,
+        )
+
+
+def _surveyed(job: SurveyJob) -> DetectionSetup | KisscalError:
+    """``job``'s settings, or the error that stopped them (raised again by the caller)."""
+    try:
+        return job.derive()
+    except KisscalError as exc:
+        return exc
+
+
+def _inherited_survey(index: int) -> DetectionSetup | KisscalError:
+    """:func:`_surveyed` in a worker process, on job ``index`` of those it inherited."""
+    return _surveyed(inherited()[index])
+
+
+def configure_jobs(
+    jobs: Sequence[SurveyJob], workers: int | None = None
+) -> Iterator[DetectionSetup | KisscalError]:
+    """Each camera's settings, derived side by side in one pool of processes.
+
+    Parameters
+    ----------
+    jobs : sequence of SurveyJob
+        Each camera's sample (a loader of its frames) and what is given for it.
+    workers : int, optional
+        Processes to use; ``None`` uses all cores, 1 runs in this process.
+
+    Yields
+    ------
+    DetectionSetup or KisscalError
+        Each job's settings with their reasons, or the error that stopped them (the
+        other jobs go on), in the order of ``jobs``.
+
+    References
+    ----------
+    Shafiq, M. S., Tümer, S. T., & Güler, H. C. (2001). Marker detection and trajectory
+    generation algorithms for a multicamera based gait analysis system. Mechatronics,
+    11(4) (whose settings were tuned to each camera by hand).
+    """
+    workers = min(workers or os.cpu_count() or 1, len(jobs))
+    pool = worker_pool(workers, jobs) if workers > 1 else None
+    if pool is None:
+        yield from (_surveyed(job) for job in jobs)
+        return
+    with pool:
+        yield from pool.map(_inherited_survey, range(len(jobs)))

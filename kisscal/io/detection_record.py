@@ -181,6 +181,14 @@ def read_detection_record(path: Path) -> DetectionRecord | None:
         raise InputError(f"{path}: not a detection settings document ({exc})") from None
 
 
-def write_detection_record(path: Path, record: DetectionRecord) -> None:
-    """Write ``record`` to ``path`` (atomically)."""
+def write_detection_record(
+    path: Path,
+    record: DetectionRecord,
+    derived: Mapping[str, tuple[DetectionSetup, str]] | None = None,
+) -> None:
+    """Write ``record`` to ``path`` (atomically), with the settings ``derived`` for some
+    kinds of image (a survey's result and the key of what it was derived from) in place
+    of those it kept."""
+    for kind, (setup, key) in (derived or {}).items():
+        record = record.with_kind(kind, KindRecord.from_setup(setup, key))
     write_json(path, record.as_dict())
