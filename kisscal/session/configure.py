@@ -3,14 +3,16 @@
 For each camera, a few frames of each of its image sets are surveyed
 (:func:`kisscal.detect.configure.configure_detection`): its grid frames on their own
 (``grid``) and everything else together (``markers``: rods, axes, calibration target,
-trials). The camera's pixel aspect comes from its grid lattice when there is a grid
-(:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
-otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
-is used as given: it comes typed from the session's resolved parameters
-(:func:`kisscal.session.params.stage_params`), never from the raw table. The result, with
-the reason for every value, is written to ``out/detection/<camera>.json`` and kept: the
-settings are a property of the camera. The running session uses the settings it derived
-in memory; the file is read only to find settings an earlier run derived.
+trials), the cameras' marker images side by side in the detector's pool
+(:func:`kisscal.detect.sequence.surveyed`). The camera's pixel aspect comes from
+its grid lattice when there is a grid (:func:`kisscal.grid.lattice.lattice_pixel_aspect`,
+exact to a fraction of a percent), otherwise from the shape of its markers. What
+``[detection]`` (or the command line) gives is used as given: it comes typed from the
+session's resolved parameters (:func:`kisscal.session.params.stage_params`), never from
+the raw table. The result, with the reason for every value, is written to
+``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
+The running session uses the settings it derived in memory; the file is read only to
+find settings an earlier run derived.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
-from kisscal.detect.sequence import SurveyJob, configure_jobs
+from kisscal.detect.sequence import SurveyJob, mapped, surveyed
 from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid.frames import dots_from_frames
 from kisscal.grid.lattice import lattice_pixel_aspect
@@ -48,13 +50,8 @@ DERIVATION_VERSION = 4
 class _Sample:
     """Frames of one camera and kind picked for the survey (decoded only when needed)."""
 
-    sets: tuple[tuple[str, Sequence, tuple[int, ...]], ...]  # (what, frames, picked indices)
+    picks: tuple[tuple[Sequence, int], ...]  # (a set of frames, an index picked in it)
     camera: CameraConfig
-
-    @property
-    def picks(self) -> list[tuple[Sequence, int]]:
-        """Every frame picked, as (its sequence, its index there)."""
-        return [(seq, i) for _what, seq, picks in self.sets for i in picks]
 
     def frame(self, k: int) -> np.ndarray:
         """Picked frame ``k``, decoded and checked for the camera's size."""
@@ -102,7 +99,7 @@ def markers_detection(
 
     Every camera of the session unless ``cameras`` says which: as kept in its record
     when current, else derived from a sample of its frames, the cameras side by side in
-    ``workers`` processes (default: one per core; :func:`kisscal.detect.configure_jobs`)
+    ``workers`` processes (default: one per core; :func:`kisscal.detect.sequence.surveyed`)
     and recorded. The first error a camera raised is raised again once the others'
     settings are recorded.
     """
@@ -119,7 +116,8 @@ def markers_detection(
             failed.append(exc)
             survey.write()  # a grid's settings derived for its aspect are kept
     jobs = [job for _survey, job in todo]
-    setups = counted(configure_jobs(jobs, workers), "detection settings", len(jobs)) if jobs else []
+    done = mapped(surveyed, jobs, workers)
+    setups = counted(done, "detection settings", len(jobs)) if jobs else []
     for (survey, _job), setup in zip(todo, setups, strict=True):
         if isinstance(setup, KisscalError):
             failed.append(setup)
@@ -268,7 +266,7 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         for src in image_sources(config)
         if (src[0] == "grid") == (kind == "grid") and src[0] != "calibration"
     ]
-    sets = []
+    picks: list[tuple[Sequence, int]] = []
     per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
     for what, pattern, video, fields in sources:
         try:
@@ -276,11 +274,9 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         except KisscalError:
             continue  # missing frames are reported by the stage that needs them
         n = len(seq)
-        picks = tuple(int(i) for i in np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int)))
-        if not picks:
-            continue
-        sets.append((what, seq, picks))
-    return _Sample(tuple(sets), camera) if sets else None
+        picked = np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int))
+        picks += [(seq, int(i)) for i in picked]
+    return _Sample(tuple(picks), camera) if picks else None
 
 
 def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
