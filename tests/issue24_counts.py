@@ -15,10 +15,12 @@ What each row counts, and how:
 - hops of ``[detection] threshold``: with ``--trace``, a session's ``session.toml`` sets
   a threshold no survey would derive and the session's steps of ``kisscal reconstruct``
   (load, resolve, derive the cameras' settings, detect the trial) run under a profiler;
-  every kisscal function that receives the value in an argument (a table, a
-  ``DetectionParams``, the ``StageParams``, a detection job, ...) is one hop, and the
-  detection record read back after it was written in the same run would be a disk round
-  trip;
+  every kisscal function of another module that receives the value in an argument (a
+  table, a ``DetectionParams``, the ``StageParams``, a detection or survey job, a
+  recorded setting, ``*args`` included) is a hand-over: a hop when it passes the value
+  on (returns it, hands it to another module, or is the detector's pool), an end when
+  the value stops there (a cache key, a log line, a record written); the detection
+  record read back after it was written in the same run would be a disk round trip;
 - camera classes: classes named ``*Camera``, and whether they project; Brown
   implementations: functions whose code (docstrings aside) names ``k1`` and ``r2`` on one
   line, listed for a reader to tell a lens model from code that only draws coefficients;
