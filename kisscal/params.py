@@ -113,15 +113,6 @@ class Params:
         _check_names(cls, values)
         return cls(**values)
 
-    @classmethod
-    def describe(cls) -> list[dict[str, Any]]:
-        """Name, default, unit and bounds of every parameter (for docs and ``--help``)."""
-        rows = []
-        for f in dataclasses.fields(cls):
-            meta = f.metadata.get("kisscal", {})
-            rows.append({"name": f.name, "default": f.default, **meta})
-        return rows
-
 
 def _hints(cls: type) -> dict[str, Any]:
     cached = cls.__dict__.get("_kisscal_hints")

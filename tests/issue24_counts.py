@@ -15,10 +15,12 @@ What each row counts, and how:
 - hops of ``[detection] threshold``: with ``--trace``, a session's ``session.toml`` sets
   a threshold no survey would derive and the session's steps of ``kisscal reconstruct``
   (load, resolve, derive the cameras' settings, detect the trial) run under a profiler;
-  every kisscal function that receives the value in an argument (a table, a
-  ``DetectionParams``, the ``StageParams``, a detection job, ...) is one hop, and the
-  detection record read back after it was written in the same run would be a disk round
-  trip;
+  every kisscal function of another module that receives the value in an argument (a
+  table, a ``DetectionParams``, the ``StageParams``, a detection or survey job, a
+  recorded setting, ``*args`` included) is a hand-over: a hop when it passes the value
+  on (returns it, hands it to another module, or is the detector's pool), an end when
+  the value stops there (a cache key, a log line, a record written); the detection
+  record read back after it was written in the same run would be a disk round trip;
 - camera classes: classes named ``*Camera``, and whether they project; Brown
   implementations: functions whose code (docstrings aside) names ``k1`` and ``r2`` on one
   line, listed for a reader to tell a lens model from code that only draws coefficients;
@@ -31,6 +33,7 @@ What each row counts, and how:
 from __future__ import annotations
 
 import ast
+import inspect
 import re
 import sys
 from collections import Counter
@@ -156,33 +159,114 @@ SENTINEL = 137.25  # a threshold no survey derives
 
 
 def _carries(obj: object, depth: int = 0) -> bool:
-    """Whether ``obj`` holds the sentinel threshold (in a table, a dataclass, a job); the
-    whole ``SessionConfig`` is not counted (it goes everywhere): its two hand-overs of
-    the table, parsing and resolving, are counted by name in :func:`trace_threshold`."""
-    if depth > 3 or obj is None or isinstance(obj, str | bytes | int | float | Path):
+    """Whether ``obj`` holds the sentinel threshold (in a table, a dataclass, a job, a
+    recorded setting ``{"threshold": Setting(value, ...)}``); the whole ``SessionConfig``
+    is not counted (it goes everywhere): its two hand-overs of the table, parsing and
+    resolving, are counted by name in :func:`trace_threshold`."""
+    if depth > 4 or obj is None or isinstance(obj, str | bytes | int | float | Path):
         return False
     if type(obj).__name__ == "SessionConfig":
         return False
     if getattr(obj, "threshold", None) == SENTINEL and not isinstance(obj, type):
         return True
     if isinstance(obj, dict):
-        if obj.get("threshold") == SENTINEL:
+        given = obj.get("threshold")
+        if given == SENTINEL or getattr(given, "value", None) == SENTINEL:
             return True
         return any(_carries(v, depth + 1) for v in list(obj.values())[:16])
     if isinstance(obj, list | tuple):
         return any(_carries(v, depth + 1) for v in obj[:16])
+    if type(obj).__name__ == "partial":
+        return _carries([*obj.args, *obj.keywords.values()], depth + 1)
     fields = getattr(obj, "__dataclass_fields__", None) or getattr(obj, "_fields", None)
     if fields:
         return any(_carries(getattr(obj, name, None), depth + 1) for name in fields)
     return False
 
 
-def trace_threshold(tmp: Path) -> tuple[list[str], list[str]]:
+def _arguments(frame) -> list[object]:
+    """The values a call received: named, keyword-only, ``*args`` and ``**kwargs``."""
+    code = frame.f_code
+    n = code.co_argcount + code.co_kwonlyargcount
+    n += bool(code.co_flags & inspect.CO_VARARGS) + bool(code.co_flags & inspect.CO_VARKEYWORDS)
+    return [frame.f_locals.get(v) for v in code.co_varnames[:n]]
+
+
+class _Tracer:
+    """A profiler that records the hand-overs of the sentinel (see :func:`trace_threshold`)."""
+
+    def __init__(self) -> None:
+        self.order: list[str] = []
+        self.passes: set[str] = set()
+        self.open_calls: dict[int, str] = {}  # frames of hand-overs still running -> hop
+        self.written: set[str] = set()
+        self.round_trips: list[str] = []
+
+    @staticmethod
+    def module(frame) -> str:
+        path = frame.f_code.co_filename
+        if path == __file__:
+            return "session/reconstruct"  # this script stands for the command
+        if not path.startswith(str(PACKAGE)):
+            return "?"  # generated code (a dataclass's __init__): not a hand-over
+        name = str(Path(path).relative_to(PACKAGE).with_suffix(""))
+        if name == "session/progress" and frame.f_back is not None:
+            return _Tracer.module(frame.f_back)  # counts the items of a generator it iterates
+        # one parse of the table (its reader), one resolution (the Params validator)
+        return {"io/toml_table": "io/config", "params": "session/params"}.get(name, name)
+
+    def handed_on(self, frame) -> None:
+        """A hand-over below ``frame``: each hand-over still running above passed it on."""
+        outer = frame.f_back
+        while outer is not None:
+            if id(outer) in self.open_calls:
+                self.passes.add(self.open_calls[id(outer)])
+            outer = outer.f_back
+
+    def records(self, frame) -> None:
+        """Note the detection records written, and those read back after (round trips)."""
+        name, local = frame.f_code.co_name, frame.f_locals
+        if name == "write_detection_record":
+            self.written.add(Path(local["path"]).stem)
+        if name == "detection_record" and local.get("camera") in self.written:
+            self.round_trips.append(f"out/detection/{local['camera']}.json")
+
+    def __call__(self, frame, event, arg):
+        if not frame.f_code.co_filename.startswith(str(PACKAGE)):
+            return
+        if event == "return":
+            hop = self.open_calls.pop(id(frame), None)
+            if hop is not None and _carries(arg):
+                self.passes.add(hop)
+            return
+        if event != "call":
+            return
+        self.records(frame)
+        code, callee, caller = frame.f_code, self.module(frame), self.module(frame.f_back)
+        if callee == caller or caller == "?" or caller.startswith("detect/"):
+            return
+        table = code.co_name in ("load_session", "stage_params")  # the table, parsed, resolved
+        if table or any(_carries(a) for a in _arguments(frame)):
+            hop = f"{caller} -> {callee}.{code.co_name}"
+            if hop not in self.order:
+                self.order.append(hop)
+            if table or code.co_name == "detect_jobs":  # the detector's pool: the use
+                self.passes.add(hop)
+            self.handed_on(frame)
+            self.open_calls[id(frame)] = hop
+
+
+def trace_threshold(tmp: Path) -> tuple[list[str], list[str], list[str]]:
     """The hand-overs of ``[detection] threshold`` from ``session.toml`` to the detection
     of a trial: each call from one module into another whose arguments carry the value
-    (calls within a module, and inside the detect package, are not hops), with this
-    script standing for ``session/reconstruct.reconstruct``; and the detection records
-    read back after being written in the same run (disk round trips)."""
+    (calls within a module, and inside the detect package, are not hand-overs), with
+    this script standing for ``session/reconstruct.reconstruct``.
+
+    Returns the hops (hand-overs that pass the value on: the callee returns it, or hands
+    it on to another module before it returns, or is the detector's pool), the ends
+    (hand-overs where the value stops: a cache key, a log line, a record written), and
+    the detection records read back after being written in the same run (disk round
+    trips)."""
     from test_every_parameter import _marker_session
 
     from kisscal.session.configure import markers_detection
@@ -191,39 +275,8 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str]]:
     from kisscal.session.trials import trial_blobs
 
     root = _marker_session(tmp, {"threshold": SENTINEL})
-    hops: list[str] = []
-    written: set[str] = set()
-    round_trips: list[str] = []
-    kisscal_dir = str(PACKAGE)
-
-    def module(frame) -> str:
-        path = frame.f_code.co_filename
-        if path == __file__:
-            return "session/reconstruct"  # this script stands for the command
-        if not path.startswith(kisscal_dir):
-            return "?"  # generated code (a dataclass's __init__): not a hand-over
-        name = str(Path(path).relative_to(PACKAGE).with_suffix(""))
-        return "io/config" if name == "io/toml_table" else name  # one parse of the table
-
-    def profile(frame, event, _arg):
-        if event != "call" or not frame.f_code.co_filename.startswith(kisscal_dir):
-            return
-        code, callee, caller = frame.f_code, module(frame), module(frame.f_back)
-        if code.co_name == "write_detection_record":
-            written.add(Path(frame.f_locals["path"]).stem)
-        if code.co_name == "detection_record" and frame.f_locals.get("camera") in written:
-            round_trips.append(f"out/detection/{frame.f_locals['camera']}.json")
-        if callee == caller or caller == "?" or caller.startswith("detect/"):
-            return
-        n_args = code.co_argcount + code.co_kwonlyargcount
-        args = [frame.f_locals.get(v) for v in code.co_varnames[:n_args]]
-        table = code.co_name in ("load_session", "stage_params")  # the table, parsed, resolved
-        if table or any(_carries(a) for a in args):
-            hop = f"{caller} -> {callee}.{code.co_name}"
-            if hop not in hops:
-                hops.append(hop)
-
-    sys.setprofile(profile)
+    tracer = _Tracer()
+    sys.setprofile(tracer)
     try:
         config = load_config(root)
         params = stage_params(config)
@@ -231,7 +284,9 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str]]:
         trial_blobs(root, config, config.trial("walk"), detection, lambda _s: None, workers=1)
     finally:
         sys.setprofile(None)
-    return hops, round_trips
+    hops = [h for h in tracer.order if h in tracer.passes]
+    ends = [h for h in tracer.order if h not in tracer.passes]
+    return hops, ends, tracer.round_trips
 
 
 def main() -> None:
@@ -270,8 +325,9 @@ def main() -> None:
         import tempfile
 
         with tempfile.TemporaryDirectory() as tmp:
-            hops, round_trips = trace_threshold(Path(tmp))
+            hops, ends, round_trips = trace_threshold(Path(tmp))
         rows.append(("hops of [detection] threshold (module to module)", "12", len(hops), hops))
+        rows.append(("  hand-overs where it ends (key, log, record)", "", len(ends), ends))
         rows.append(("  disk round trips on the way", "1", len(round_trips), round_trips))
     width = max(len(r[0]) for r in rows)
     print(f"{'count':<{width}}  {'issue':>6}  {'now':>6}")

@@ -4,21 +4,29 @@ The images of one or several sequences (a session's cameras) go to one pool of w
 processes in chunks of consecutive frames: every core stays busy until the last chunk
 of the last sequence, and with a loader function each worker decodes its own frames, so
 no image crosses a process boundary and memory does not grow with the number of frames.
+The cameras' detection settings are derived the same way (:func:`surveyed`): each
+camera's sample of frames surveyed in one worker, decoded there.
 """
 
 from __future__ import annotations
 
+import functools
 import os
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 from numpy.typing import NDArray
 
 from kisscal._shared import inherited, worker_pool
 from kisscal.detect.blobs import Blobs
+from kisscal.detect.configure import DetectionSetup, Kind, configure_detection
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import DEFAULT_PARAMS, STACK_PX, detect_frames
 from kisscal.errors import InputError, KisscalError
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 #: Consecutive images a worker takes at a time (a video reader's sequential runs aside).
 CHUNK_IMAGES = 32
@@ -35,12 +43,13 @@ class ImageJob:
 
 
 def _chunk(
-    jobs: Sequence[ImageJob], job: int, start: int, stop: int
+    jobs: Sequence[ImageJob], chunk: tuple[int, int, int]
 ) -> tuple[list[Blobs], KisscalError | None]:
-    """Blobs of images ``start:stop`` of job ``job``, or the error that stopped them."""
-    spec = jobs[job]
+    """Blobs of images ``start:stop`` of job ``job`` (``chunk``), or the error that
+    stopped them."""
+    job, start, stop = chunk
     try:
-        return _detected(spec, start, stop), None
+        return _detected(jobs[job], start, stop), None
     except KisscalError as exc:  # a bad frame fails its own sequence, not the others
         return [], exc  # its kind kept: it is raised again in the caller's process
 
@@ -62,9 +71,27 @@ def _detected(spec: ImageJob, start: int, stop: int) -> list[Blobs]:
     return out + detect_frames(held, spec.params)
 
 
-def _inherited_chunk(job: int, start: int, stop: int) -> tuple[list[Blobs], KisscalError | None]:
-    """:func:`_chunk` in a worker process, of the jobs it inherited."""
-    return _chunk(inherited(), job, start, stop)
+def _inherited_item(index: int) -> Any:
+    """``work(items[index])`` in a worker process of :func:`mapped`, of what it holds."""
+    work, items = inherited()
+    return work(items[index])
+
+
+def mapped(work: Callable[[T], R], items: Sequence[T], workers: int | None = None) -> Iterator[R]:
+    """``work(item)`` for every item, in one pool of ``workers`` processes (``None``: one
+    per core; 1: in this process); the results in the order of ``items``.
+
+    The workers hold ``work`` and ``items`` (inherited when forked, pickled once when
+    spawned: :func:`kisscal._shared.worker_pool`, which also says when no process can be
+    started, and the items are then done here); only the results travel.
+    """
+    n = min(workers or os.cpu_count() or 1, len(items))
+    pool = worker_pool(n, (work, items)) if n > 1 else None
+    if pool is None:
+        yield from (work(item) for item in items)
+        return
+    with pool:
+        yield from pool.map(_inherited_item, range(len(items)))
 
 
 def _chunks(jobs: Sequence[ImageJob]) -> list[tuple[int, int, int]]:
@@ -107,14 +134,7 @@ def detect_jobs(
     if workers < 1:
         raise InputError(f"detect: workers must be >= 1, got {workers}")
     chunks = _chunks(jobs)
-    workers = min(workers, len(chunks))
-    pool = worker_pool(workers, jobs) if workers > 1 else None
-    if pool is None:
-        yield from _by_job(jobs, chunks, (_chunk(jobs, *c) for c in chunks))
-        return
-    with pool:
-        job, start, stop = zip(*chunks, strict=True)
-        yield from _by_job(jobs, chunks, pool.map(_inherited_chunk, job, start, stop))
+    yield from _by_job(jobs, chunks, mapped(functools.partial(_chunk, jobs), chunks, workers))
 
 
 def _by_job(
@@ -186,3 +206,43 @@ def detect_sequence(
     if isinstance(blobs, KisscalError):
         raise blobs
     return blobs
+
+
+@dataclass(frozen=True)
+class SurveyJob:
+    """One camera's sample of frames to derive its settings from: ``load(i)`` for
+    ``i < count``, with what the user gave and what is known
+    (:func:`~kisscal.detect.configure.configure_detection`'s arguments)."""
+
+    load: Callable[[int], NDArray]
+    count: int
+    given: Mapping[str, Any] = field(default_factory=dict)
+    kind: Kind = "markers"
+    pixel_aspect: float | None = None
+    aspect_why: str = "known for this camera"
+
+    def derive(self) -> DetectionSetup:
+        """The camera's settings, from its frames decoded here."""
+        return configure_detection(
+            [self.load(i) for i in range(self.count)],
+            self.given,
+            kind=self.kind,
+            pixel_aspect=self.pixel_aspect,
+            aspect_why=self.aspect_why,
+        )
+
+
+def surveyed(job: SurveyJob) -> DetectionSetup | KisscalError:
+    """``job``'s settings, or the error that stopped them (raised again by the caller, the
+    other cameras' settings done): what each worker of :func:`mapped` does for a camera.
+
+    References
+    ----------
+    Shafiq, M. S., Tümer, S. T., & Güler, H. C. (2001). Marker detection and trajectory
+    generation algorithms for a multicamera based gait analysis system. Mechatronics,
+    11(4) (whose settings were tuned to each camera by hand).
+    """
+    try:
+        return job.derive()
+    except KisscalError as exc:
+        return exc

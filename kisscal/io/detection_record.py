@@ -16,18 +16,9 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from kisscal.detect.configure import DetectionSetup
+from kisscal.detect.configure import Choice, DetectionSetup
 from kisscal.errors import InputError
 from kisscal.io.files import read_json, write_json
-
-
-@dataclass(frozen=True)
-class Setting:
-    """One setting of a camera: its value, where it came from and why."""
-
-    value: Any
-    source: str
-    why: str = ""
 
 
 @dataclass(frozen=True)
@@ -36,8 +27,8 @@ class KindRecord:
 
     Attributes
     ----------
-    settings : mapping of str -> Setting
-        Every camera-dependent detection setting.
+    settings : mapping of str -> Choice
+        Every camera-dependent detection setting: its value, where it came from and why.
     key : str
         What the settings were derived from (given values, image size, derivation
         version); empty when unknown.
@@ -49,7 +40,7 @@ class KindRecord:
     notes : tuple of str
     """
 
-    settings: Mapping[str, Setting]
+    settings: Mapping[str, Choice]
     key: str = ""
     frames_surveyed: int = 0
     bits: int = 8
@@ -64,7 +55,7 @@ class KindRecord:
         """The record of a survey's result, keyed by what it was derived from."""
         lv = setup.levels
         return cls(
-            settings={k: Setting(c.value, c.source, c.why) for k, c in setup.choices.items()},
+            settings=dict(setup.choices),
             key=key,
             frames_surveyed=setup.frames,
             bits=lv.bits,
@@ -149,7 +140,7 @@ def _kind(entry: Mapping[str, Any], where: str) -> KindRecord:
     }
     return KindRecord(
         settings={
-            k: Setting(s["value"], str(s.get("source", "given")), str(s.get("why", "")))
+            k: Choice(s["value"], str(s.get("source", "given")), str(s.get("why", "")))  # type: ignore[arg-type]
             for k, s in settings.items()
         },
         marker_pixels=(int(band[0]), int(band[1])),
@@ -181,6 +172,14 @@ def read_detection_record(path: Path) -> DetectionRecord | None:
         raise InputError(f"{path}: not a detection settings document ({exc})") from None
 
 
-def write_detection_record(path: Path, record: DetectionRecord) -> None:
-    """Write ``record`` to ``path`` (atomically)."""
+def write_detection_record(
+    path: Path,
+    record: DetectionRecord,
+    derived: Mapping[str, tuple[DetectionSetup, str]] | None = None,
+) -> None:
+    """Write ``record`` to ``path`` (atomically), with the settings ``derived`` for some
+    kinds of image (a survey's result and the key of what it was derived from) in place
+    of those it kept."""
+    for kind, (setup, key) in (derived or {}).items():
+        record = record.with_kind(kind, KindRecord.from_setup(setup, key))
     write_json(path, record.as_dict())

@@ -3,20 +3,21 @@
 For each camera, a few frames of each of its image sets are surveyed
 (:func:`kisscal.detect.configure.configure_detection`): its grid frames on their own
 (``grid``) and everything else together (``markers``: rods, axes, calibration target,
-trials). The camera's pixel aspect comes from its grid lattice when there is a grid
-(:func:`kisscal.grid.lattice.lattice_pixel_aspect`, exact to a fraction of a percent),
-otherwise from the shape of its markers. What ``[detection]`` (or the command line) gives
-is used as given: it comes typed from the session's resolved parameters
-(:func:`kisscal.session.params.stage_params`), never from the raw table. The result, with
-the reason for every value, is written to ``out/detection/<camera>.json`` and kept: the
-settings are a property of the camera. The running session uses the settings it derived
-in memory; the file is read only to find settings an earlier run derived.
+trials), the cameras' marker images side by side in the detector's pool
+(:func:`kisscal.detect.sequence.surveyed`). The camera's pixel aspect comes from
+its grid lattice when there is a grid (:func:`kisscal.grid.lattice.lattice_pixel_aspect`,
+exact to a fraction of a percent), otherwise from the shape of its markers. What
+``[detection]`` (or the command line) gives is used as given: it comes typed from the
+session's resolved parameters (:func:`kisscal.session.params.stage_params`), never from
+the raw table. The result, with the reason for every value, is written to
+``out/detection/<camera>.json`` and kept: the settings are a property of the camera.
+The running session uses the settings it derived in memory; the file is read only to
+find settings an earlier run derived.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -24,21 +25,17 @@ import numpy as np
 
 from kisscal.detect import DetectionParams
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
+from kisscal.detect.sequence import SurveyJob, mapped, surveyed
 from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid.frames import dots_from_frames
 from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.config import CameraConfig, SessionConfig
-from kisscal.io.detection_record import (
-    DetectionRecord,
-    KindRecord,
-    write_detection_record,
-)
+from kisscal.io.detection_record import DetectionRecord, write_detection_record
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
 from kisscal.session.inputs import image_sources
-from kisscal.session.parallel import each_camera
 from kisscal.session.params import StageParams
-from kisscal.session.progress import Echo, quiet
+from kisscal.session.progress import Echo, counted, quiet
 
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
 FRAMES_PER_SET = 8
@@ -53,12 +50,17 @@ DERIVATION_VERSION = 4
 class _Sample:
     """Frames of one camera and kind picked for the survey (decoded only when needed)."""
 
-    sets: tuple[tuple[str, Sequence, tuple[int, ...]], ...]  # (what, frames, picked indices)
+    picks: tuple[tuple[Sequence, int], ...]  # (a set of frames, an index picked in it)
     camera: CameraConfig
+
+    def frame(self, k: int) -> np.ndarray:
+        """Picked frame ``k``, decoded and checked for the camera's size."""
+        seq, i = self.picks[k]
+        return _sized(seq, i, self.camera)
 
     @property
     def frames(self) -> list[np.ndarray]:
-        return [_sized(seq, i, self.camera) for _what, seq, picks in self.sets for i in picks]
+        return [self.frame(k) for k in range(len(self.picks))]
 
 
 def camera_detection(
@@ -79,12 +81,52 @@ def camera_detection(
     image size change, or when the file is deleted.
     """
     survey = _Survey(SessionStore(root), config, camera, params, echo)
-    kept = survey.record  # the settings earlier runs kept
     try:
         return survey.settings(kind).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
-        if survey.record != kept:
-            write_detection_record(survey.store.detection_path(camera.id), survey.record)
+        survey.write()
+
+
+def markers_detection(
+    root: Path,
+    config: SessionConfig,
+    params: StageParams,
+    echo: Echo = quiet,
+    cameras: Sequence[CameraConfig] | None = None,
+    workers: int | None = None,
+) -> dict[str, DetectionParams]:
+    """Each camera's detection parameters for its marker images (rods, trials, ...).
+
+    Every camera of the session unless ``cameras`` says which: as kept in its record
+    when current, else derived from a sample of its frames, the cameras side by side in
+    ``workers`` processes (default: one per core; :func:`kisscal.detect.sequence.surveyed`)
+    and recorded. The first error a camera raised is raised again once the others'
+    settings are recorded.
+    """
+    store = SessionStore(root)
+    chosen = config.cameras if cameras is None else cameras
+    surveys = [_Survey(store, config, c, params, echo) for c in chosen]
+    known = {s.camera.id: k.params for s in surveys if (k := s.kept("markers")) is not None}
+    failed: list[KisscalError] = []
+    todo = []
+    for survey in (s for s in surveys if s.camera.id not in known):
+        try:
+            todo.append((survey, survey.job("markers")))
+        except KisscalError as exc:  # no marker images: the others are surveyed still
+            failed.append(exc)
+            survey.write()  # a grid's settings derived for its aspect are kept
+    jobs = [job for _survey, job in todo]
+    done = mapped(surveyed, jobs, workers)
+    setups = counted(done, "detection settings", len(jobs)) if jobs else []
+    for (survey, _job), setup in zip(todo, setups, strict=True):
+        if isinstance(setup, KisscalError):
+            failed.append(setup)
+        else:
+            known[survey.camera.id] = survey.derived("markers", setup).params
+        survey.write()
+    if failed:
+        raise failed[0]
+    return {s.camera.id: known[s.camera.id] for s in surveys}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,8 +140,8 @@ class _Settings:
 
 @dataclasses.dataclass
 class _Survey:
-    """One camera's detection settings: what the session gives and its record (the
-    settings kept, to which what is derived is added)."""
+    """One camera's detection settings: what the session gives, its record (the settings
+    kept) and the settings derived in this run (recorded by :meth:`write`)."""
 
     store: SessionStore
     config: SessionConfig
@@ -107,6 +149,7 @@ class _Survey:
     params: StageParams
     echo: Echo = quiet
     record: DetectionRecord = dataclasses.field(init=False)
+    new: dict[str, tuple[DetectionSetup, str]] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         """Start from the camera's record; an empty one when the file is missing or
@@ -119,27 +162,44 @@ class _Survey:
 
     def settings(self, kind: str) -> _Settings:
         """The camera's settings for ``kind``: as kept in the record when current, else
-        derived and put in the record (which the caller writes)."""
+        derived in this process."""
         kept = self.kept(kind)
         if kept is not None:
             return kept
-        given, camera = self.params.detection_given, self.camera
-        sample = _sample(self.config, camera, kind)
-        if sample is None:
-            raise MissingDataError(f"camera {camera.id} has no {kind} images to detect")
         if kind == "grid":
-            setup = _grid_setup(sample, self.params)
-        else:
-            aspect = None
-            if "pixel_aspect" not in given and self.config.grid is not None:
-                grid = self.settings("grid")
-                aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
-            why = "the grid's dot lattice"
-            setup = configure_detection(sample.frames, given, pixel_aspect=aspect, aspect_why=why)
-        self.record = self.record.with_kind(kind, KindRecord.from_setup(setup, self.key(kind)))
-        self.echo(f"  detection {camera.id} {setup.summary()}")
+            return self.derived(kind, _grid_setup(self.sample(kind), self.params))
+        return self.derived(kind, self.job(kind).derive())
+
+    def sample(self, kind: str) -> _Sample:
+        """The frames the camera's ``kind`` settings are derived from."""
+        sample = _sample(self.config, self.camera, kind)
+        if sample is None:
+            raise MissingDataError(f"camera {self.camera.id} has no {kind} images to detect")
+        return sample
+
+    def job(self, kind: str) -> SurveyJob:
+        """The survey of the camera's marker images: its sample and what is given, with
+        the pixel aspect of its grid's lattice (derived first when not kept)."""
+        sample, given = self.sample(kind), self.params.detection_given
+        aspect = None
+        if "pixel_aspect" not in given and self.config.grid is not None:
+            grid = self.settings("grid")
+            aspect = grid.params.pixel_aspect if grid.lattice_aspect else None
+        why = "the grid's dot lattice"
+        return SurveyJob(sample.frame, len(sample.picks), given, "markers", aspect, why)
+
+    def derived(self, kind: str, setup: DetectionSetup) -> _Settings:
+        """Settings derived for ``kind`` in this run, said and kept for the record."""
+        self.new[kind] = (setup, self.key(kind))
+        self.echo(f"  detection {self.camera.id} {setup.summary()}")
         lattice = _on_lattice(kind, setup.choices["pixel_aspect"].source)
         return _Settings(setup.params, lattice)
+
+    def write(self) -> None:
+        """Record the settings derived in this run (nothing when none were)."""
+        if self.new:
+            path = self.store.detection_path(self.camera.id)
+            write_detection_record(path, self.record, self.new)
 
     def kept(self, kind: str) -> _Settings | None:
         """The camera's settings for ``kind`` as kept, if derived with the same given
@@ -161,39 +221,6 @@ def _on_lattice(kind: str, aspect_source: str) -> bool:
     """True when a grid's settings hold a pixel aspect measured on its dot lattice (the
     only pixel aspect of grid frames recorded as ``derived``: see :func:`_grid_setup`)."""
     return kind == "grid" and aspect_source == "derived"
-
-
-def _survey_camera(
-    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, say: Echo
-) -> DetectionParams:
-    """The marker detection survey of one camera, as :func:`each_camera` calls it."""
-    return camera_detection(root, config, cam, "markers", params, say)
-
-
-def markers_detection(
-    root: Path,
-    config: SessionConfig,
-    params: StageParams,
-    echo: Echo = quiet,
-    cameras: Sequence[CameraConfig] | None = None,
-    workers: int | None = None,
-) -> dict[str, DetectionParams]:
-    """Each camera's detection parameters for its marker images (rods, trials, ...).
-
-    Every camera of the session unless ``cameras`` says which; the cameras still to be
-    surveyed are surveyed side by side in ``workers`` processes (default: one per core).
-    """
-    cameras = list(config.cameras if cameras is None else cameras)
-    store = SessionStore(root)
-    kept = {c.id: _Survey(store, config, c, params).kept("markers") for c in cameras}
-    known = {cam: s.params for cam, s in kept.items() if s is not None}
-    todo = [c for c in cameras if c.id not in known]
-
-    # a partial of a module-level function: spawned workers (Windows) receive it pickled
-    survey = functools.partial(_survey_camera, root, config, params)
-    surveyed = each_camera(survey, todo, "detection settings", echo, workers) if todo else []
-    known.update({c.id: p for c, p in zip(todo, surveyed, strict=True)})
-    return {c.id: known[c.id] for c in cameras}
 
 
 def _grid_setup(sample: _Sample, params: StageParams) -> DetectionSetup:
@@ -239,7 +266,7 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         for src in image_sources(config)
         if (src[0] == "grid") == (kind == "grid") and src[0] != "calibration"
     ]
-    sets = []
+    picks: list[tuple[Sequence, int]] = []
     per_set = min(max(MAX_FRAMES // max(len(sources), 1), 3), FRAMES_PER_SET)
     for what, pattern, video, fields in sources:
         try:
@@ -247,11 +274,9 @@ def _sample(config: SessionConfig, camera: CameraConfig, kind: str) -> _Sample |
         except KisscalError:
             continue  # missing frames are reported by the stage that needs them
         n = len(seq)
-        picks = tuple(int(i) for i in np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int)))
-        if not picks:
-            continue
-        sets.append((what, seq, picks))
-    return _Sample(tuple(sets), camera) if sets else None
+        picked = np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int))
+        picks += [(seq, int(i)) for i in picked]
+    return _Sample(tuple(picks), camera) if picks else None
 
 
 def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:

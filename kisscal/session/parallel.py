@@ -1,23 +1,26 @@
-"""A stage's work for each camera in parallel processes (detection surveys, grid fits).
+"""A stage's work for each camera in parallel processes (grid fits).
 
-A camera's detection survey and grid fit read only that camera's images and write only
-that camera's files (``out/detection/<camera>.json``, ``out/linearisation/<camera>.json``,
-its figure), so cameras can be done side by side. Workers are forked: the work function
-and its inputs are inherited, not pickled (spawned workers, on Windows, get them pickled
-once: the work function must then be a module-level function or a ``functools.partial``
-of one, else the cameras are done in this process); results come back pickled, and every
-message a worker says is repeated by the parent, camera by camera, in the cameras' order,
-and every figure it drew is handed back to the parent's figure process
+A camera's grid fit (with the survey of its grid frames) reads only that camera's
+images and writes only that camera's files (``out/detection/<camera>.json``,
+``out/linearisation/<camera>.json``, its figure), so cameras can be done side by side,
+in the detector's pool (:func:`kisscal.detect.sequence.mapped`). Workers are forked: the
+work function and its inputs are inherited, not pickled (spawned workers, on Windows,
+get them pickled once: the work function must then be a module-level function or a
+``functools.partial`` of one, else the cameras are done in this process); results come
+back pickled, and every message a worker says is repeated by the parent, camera by
+camera, in the cameras' order, and every figure it drew is handed back to the parent's
+figure process
 (:func:`kisscal.session.figures.handing_back`).
 """
 
 from __future__ import annotations
 
+import functools
 import os
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from kisscal._shared import inherited, worker_pool
+from kisscal.detect.sequence import mapped
 from kisscal.errors import KisscalError
 from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.progress import Echo, counted
@@ -43,23 +46,6 @@ def _call(work: Callable[[Any, Echo], Any], item: Any) -> _Done:
     return result, said, figures
 
 
-def _inherited_call(index: int) -> _Done:
-    """:func:`_call` in a worker process, on item ``index`` of what it inherited."""
-    work, items = inherited()
-    return _call(work, items[index])
-
-
-def _results(
-    work: Callable[[Any, Echo], Any], items: Sequence[Any], workers: int
-) -> Iterator[_Done]:
-    pool = worker_pool(workers, (work, items)) if workers > 1 else None
-    if pool is None:
-        yield from (_call(work, item) for item in items)
-        return
-    with pool:
-        yield from pool.map(_inherited_call, range(len(items)))
-
-
 def each_camera(
     work: Callable[[T, Echo], R],
     items: Sequence[T],
@@ -76,7 +62,8 @@ def each_camera(
     n = min(workers or os.cpu_count() or 1, len(items))
     results: list[R] = []
     failed: KisscalError | None = None
-    for result, said, figures in counted(_results(work, items, n), stage, len(items)):
+    done = mapped(functools.partial(_call, work), items, n)
+    for result, said, figures in counted(done, stage, len(items)):
         for line in said:
             echo(line)
         for packed in figures:

@@ -27,9 +27,9 @@ from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
 from kisscal.session.configure import markers_detection
-from kisscal.session.detection import camera_blobs
 from kisscal.session.params import StageParams
 from kisscal.session.progress import Echo
+from kisscal.session.trials import camera_blobs
 
 
 @dataclass(frozen=True)
