@@ -87,7 +87,7 @@ def length_partners(
     return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
 
 
-def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
+def partner_lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
     """Length (mm) from track ``t`` to each partner per gap field (hi - lo, k): its mean
     in the ``n`` fields each side (the trial's where a side has none), drifting linearly
     across the gap."""
@@ -275,7 +275,7 @@ def chain_fill(
         return None
     ks, chained = chain_blobs(target, lo, hi, spare, params)
     k2, r2 = _loose_rows(spare, lo, hi, ks)
-    length = _lengths(dense, t, partners, lo, hi, params.body_context_fields)
+    length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     cands = _candidates(dense, partners, sd, length, lo, np.r_[ks, k2], np.r_[chained, r2], spare)
     if not cands:
         return None
