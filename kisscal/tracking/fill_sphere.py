@@ -21,7 +21,11 @@ count, in one fit of the depth over the fields of the gap:
 * of the two roots, the one nearest the current fit is taken when the other lies outside
   three SDs of it; starting from the spline, the fit is redone as roots near the gap's
   ends tighten it, until the choice settles; a root more than three SDs from the final
-  fit is dropped and the fit redone.
+  fit is dropped and the fit redone;
+* a Kalman filter of the same walk walks the gap from each side, taking roots against
+  its prediction alike (each root taken tightens the next prediction): where either
+  takes a root the fit did not, one of them followed the wrong branch of the spheres,
+  and the gap is left to the other fills.
 
 A field is placed where the posterior SD of its depth (the fit's covariance) is at most
 ``ray_depth_max_error_mm``, in runs of at least
@@ -48,15 +52,22 @@ from kisscal.tracking.raychain import (
     ChainFill,
     chain_blobs,
     length_partners,
+    off_rays,
     partner_lengths,
 )
 from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 #: Smallest cosine between a ray and the direction from its root to the partner for the
 #: partner's length to fix a depth (nearer tangent, the two roots merge).
-MIN_COS = 0.2
+MIN_COS = 0.1
 
-#: Most refits while the roots taken settle.
+#: Fewest fields a partner is measured in together with the marker, as a share of the
+#: marker's measured fields: a thigh marker kept its distance to a shank one within
+#: 2 mm over the 44 % of the trial both were seen (the knee straight), and drifted by
+#: 10 mm in the swing the gap fell in.
+MIN_TOGETHER = 0.5
+
+#: Most refits while roots far from the fit are dropped.
 MAX_ROUNDS = 30
 
 
@@ -105,18 +116,51 @@ def _pick(roots: NDArray, rsd: NDArray, mean: NDArray, msd: NDArray) -> NDArray[
     return np.where(ok, roots[rows, near], np.nan)
 
 
-def _fit(
+def _walk(n: int, ends: tuple, data: tuple, acc_sd: float, forward: bool) -> NDArray:
+    """The root taken per datum (NaN where none) by a Kalman filter of the depth (a
+    random walk on its second difference, SD ``acc_sd``) walking the ``n`` fields from
+    one side: from that side's ``ends`` (index, depth, SD; the gap's data lie between
+    the two sides' ends), each datum (index, roots (m, 2), SD) taken by :func:`_pick`
+    against the filter's prediction and then used by it."""
+    e_idx, e_val, e_sd = ends
+    idx, roots, rsd = data
+    side = e_idx < idx.min() if forward else e_idx > idx.max()
+    e_idx, e_val, e_sd = e_idx[side], e_val[side], e_sd[side]
+    taken = np.full(idx.size, np.nan)
+    f = np.array([[2.0, -1.0], [1.0, 0.0]])
+    x, p = np.full(2, e_val[0]), np.diag([e_sd[0] ** 2, 1e6])
+    started = False
+    for i in range(n) if forward else range(n - 1, -1, -1):
+        if started:
+            x, p = f @ x, f @ p @ f.T + np.diag([acc_sd**2, 0.0])
+        z = [(v, sd) for v, sd in zip(e_val[e_idx == i], e_sd[e_idx == i], strict=True)]
+        j = np.flatnonzero(idx == i)
+        if j.size and started:
+            spread = np.full(j.size, np.sqrt(p[0, 0]))
+            taken[j] = _pick(roots[j], rsd[j], np.full(j.size, x[0]), spread)
+            z += [(taken[k], rsd[k]) for k in j if np.isfinite(taken[k])]
+        for v, sd in z:
+            gain = p[:, 0] / (p[0, 0] + sd**2)
+            x, p = x + gain * (v - x[0]), p - np.outer(gain, p[0])
+            started = True
+    return taken
+
+
+def _bridge(
     n: int, ends: tuple[NDArray, NDArray, NDArray], data: tuple, acc_sd: float
 ) -> tuple[NDArray, NDArray, NDArray]:
     """:func:`smooth_depth` on the ``ends`` (index, depth, SD) and the roots of ``data``
-    (index, roots (m, 2), SD) taken by :func:`_pick`, refitted until the choice settles
-    and no taken root lies more than three SDs from the fit. Returns the mean, its SD
-    and the depth taken per datum (NaN where none)."""
+    (index, roots (m, 2), SD) taken by :func:`_pick` against it, refitted until the
+    choice settles and no root taken lies more than three SDs from the fit. Returns the
+    mean, its SD and the depth taken per datum (NaN where none)."""
     e_idx, e_val, e_sd = ends
     idx, roots, rsd = data
     mean, msd = smooth_depth(n, e_idx, e_val, e_sd, acc_sd)
     taken = np.full(len(idx), np.nan)
-    dropped = np.zeros(len(idx), dtype=bool)
+    # a root off the spline by more than three SDs of both (it tells nearest the ends):
+    # the length does not hold in the gap (a partner across a joint)
+    far = np.abs(roots - mean[idx, None]) > 3.0 * np.sqrt(msd[idx, None] ** 2 + rsd[:, None] ** 2)
+    dropped = np.all(far, axis=1)
     for _ in range(MAX_ROUNDS):
         new = np.where(dropped, np.nan, _pick(roots, rsd, mean[idx], msd[idx]))
         if np.array_equal(new, taken, equal_nan=True):
@@ -130,6 +174,22 @@ def _fit(
         mean, msd = smooth_depth(
             n, np.r_[e_idx, idx[use]], np.r_[e_val, taken[use]], np.r_[e_sd, rsd[use]], acc_sd
         )
+    return mean, msd, taken
+
+
+def _fit(
+    n: int, ends: tuple[NDArray, NDArray, NDArray], data: tuple, acc_sd: float
+) -> tuple[NDArray, NDArray, NDArray] | None:
+    """:func:`_bridge`, checked by walks from each side (:func:`_walk`): None when a
+    walk takes a root the bridge does not (one of them followed the wrong branch of the
+    spheres)."""
+    mean, msd, taken = _bridge(n, ends, data, acc_sd)
+    if not np.isfinite(taken).any():
+        return None
+    for side in (True, False):
+        walk = _walk(n, ends, data, acc_sd, side)
+        if np.any(np.isfinite(walk) & ~(walk == taken)):
+            return None
     return mean, msd, taken
 
 
@@ -151,15 +211,21 @@ def _gap_data(
     rows: NDArray,
     ks: NDArray,
     params: TrackingParams,
+    mine: NDArray,
 ) -> tuple[NDArray, NDArray, NDArray, tuple[NDArray, NDArray, NDArray]]:
     """Rays (centres, directions) of ``rows`` (one per gap offset of ``ks``), and every
     partner's sphere roots on the rays: the partner of each datum (m,), and (datum
-    offset, roots (m, 2), SD (m,))."""
+    offset, roots (m, 2), SD (m,)). ``mine`` (n_fields,) bool: the marker's own
+    samples (for :data:`MIN_TOGETHER`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
     d *= np.sign(np.einsum("ij,ij->i", dense[t, lo - 1] - c, d))[:, None]  # towards it
     partners, psd = length_partners(dense, t, params)
+    # rigid over most of the marker's motion, not over a phase a joint held still in
+    together = (np.isfinite(dense[partners, :, 0]) & mine).sum(axis=1)
+    keep = together >= MIN_TOGETHER * mine.sum()
+    partners, psd = partners[keep], psd[keep]
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     j, p = np.meshgrid(np.arange(ks.size), np.arange(partners.size), indexing="ij")
     j, p = j.ravel(), p.ravel()
@@ -185,23 +251,6 @@ def _crowded(
     out = np.zeros(ks.size, dtype=bool)
     out[j[1][near]] = True
     return out
-
-
-def _off_rays(
-    at: NDArray, ks: NDArray, o_ks: NDArray, o_rows: NDArray, spare: SpareBlobs, gate: float
-) -> NDArray[np.int64]:
-    """Gap offsets of ``ks`` whose point ``at`` (m, 3) lies farther than ``gate`` mm
-    from the ray of another camera's blob of the marker there (offsets ``o_ks``, rows
-    ``o_rows``): one of the two blobs is not the marker's alone (a merged blob's centroid
-    lies off both markers' rays)."""
-    i = np.searchsorted(ks, o_ks)
-    hit = (i < ks.size) & (ks[np.minimum(i, ks.size - 1)] == o_ks)
-    i, o_rows = i[hit], o_rows[hit]
-    cam = spare.camera[o_rows]
-    d = ray_directions(spare.dlts[cam], spare.uv_px[o_rows])
-    rel = at[i] - spare.centres[cam]
-    off = np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
-    return np.unique(ks[i[off > gate]])
 
 
 def sphere_depth_fill(
@@ -232,7 +281,7 @@ def sphere_depth_fill(
         return None
     cam = int(np.bincount(spare.camera[rows]).argmax())
     keep = spare.camera[rows] == cam
-    others = ks[~keep], rows[~keep]
+    every = ks, rows
     ks, first = np.unique(ks[keep], return_index=True)
     rows = rows[keep][first]
     own = series if measured is None else np.where(measured[:, None], series, np.nan)
@@ -249,15 +298,18 @@ def sphere_depth_fill(
         np.linalg.norm(own[ends_f] - centre, axis=1),
         np.full(ends_f.size, params.ray_length_sd_floor_mm),
     )
-    c, d, partners, (k_data, roots, rsd) = _gap_data(dense, t, lo, hi, spare, rows, ks, params)
-    mean, msd, taken = _fit(n, ends, (k_data + lo - f0, roots, rsd), acc)
-    if not np.isfinite(taken).any():
+    c, d, partners, (k_data, roots, rsd) = _gap_data(
+        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0])
+    )
+    fit = _fit(n, ends, (k_data + lo - f0, roots, rsd), acc)
+    if fit is None:
         return None
+    mean, msd, taken = fit
     s, sd = mean[ks + lo - f0], msd[ks + lo - f0]
     at = c + s[:, None] * d
     good = np.zeros(hi - lo, dtype=bool)
     good[ks] = sd <= params.ray_depth_max_error_mm
-    good[_off_rays(at, ks, *others, spare, params.ray_depth_max_error_mm)] = False
+    good[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
     placed = np.zeros(hi - lo, dtype=bool)
     for a, b in zip(*true_runs(good), strict=True):
         placed[a:b] = b - a >= MIN_RUN

@@ -166,6 +166,26 @@ def chain_blobs(
     return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
 
 
+def off_rays(
+    at: NDArray, ks: NDArray, o_ks: NDArray, o_rows: NDArray, spare: SpareBlobs, gate: float
+) -> NDArray[np.int64]:
+    """Gap offsets of ``ks`` (ascending) whose point ``at`` (m, 3) lies farther than
+    ``gate`` mm from the ray of a blob of the marker there (offsets ``o_ks``, rows
+    ``o_rows``; the point's own blob is on its ray): a second camera's blob disagrees,
+    and one of the two is not the marker's alone (a merged blob's centroid lies off
+    both markers' rays)."""
+    if ks.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    i = np.searchsorted(ks, o_ks)
+    hit = (i < ks.size) & (ks[np.minimum(i, ks.size - 1)] == o_ks)
+    i, o_rows = i[hit], o_rows[hit]
+    cam = spare.camera[o_rows]
+    d = ray_directions(spare.dlts[cam], spare.uv_px[o_rows])
+    rel = at[i] - spare.centres[cam]
+    off = np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
+    return np.unique(ks[i[off > gate]])
+
+
 def on_ray(
     centre: NDArray, d: NDArray, partners: NDArray, length: NDArray, sd: NDArray, iters: int = 8
 ) -> tuple[NDArray, NDArray, NDArray]:
