@@ -260,7 +260,9 @@ def _candidates(
 ) -> dict[int, list]:
     """Per gap field offset, the points (xyz, expected error, row) on the rays of
     ``rows`` whose lengths to the partners seen there agree within three SDs; of points
-    closer than 20 mm (two cameras' rays of the marker), the one of smallest error."""
+    closer than three combined expected errors (two cameras' rays of the marker), the one
+    of smallest error; farther apart, both (a merged blob's ray lies off the marker's,
+    and the path chooses)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centres = spare.centres[cam]
@@ -276,7 +278,9 @@ def _candidates(
     for k, v in cands.items():
         v.sort(key=lambda c: c[1])
         cands[k] = [
-            c for i, c in enumerate(v) if all(np.linalg.norm(c[0] - o[0]) > 20.0 for o in v[:i])
+            c
+            for i, c in enumerate(v)
+            if all(np.linalg.norm(c[0] - o[0]) > 3.0 * np.hypot(c[1], o[1]) for o in v[:i])
         ]
     return cands
 

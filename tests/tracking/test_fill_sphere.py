@@ -92,3 +92,19 @@ def test_fields_where_a_second_camera_s_blob_is_off_the_point_are_not_placed():
     assert placed[n:].sum() >= 0.8 * n
     err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
     assert np.sqrt(np.mean(err**2)) < 2.0
+
+
+def test_a_partner_seen_with_the_marker_in_few_fields_does_not_place_it():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    n = xyz.shape[1]
+    # marker 0 seen with marker 3 in under half of 3's fields: its length may hold only
+    # in that phase (a joint held still), so it fixes no depth
+    hide0 = slice(GAP.stop + 5, n)
+    assert (GAP.start + 5) < 0.5 * (n - (GAP.stop - GAP.start))
+    dense = _dense(_tracks_of(xyz, {0: hide0, 1: slice(5, n), 2: slice(5, n), 3: GAP}))
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    assert sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is None
+    # seen together throughout, the same gap is placed
+    dense = _dense(_tracks_of(xyz, {1: slice(5, n), 2: slice(5, n), 3: GAP}))
+    assert sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is not None
