@@ -239,6 +239,11 @@ def _choose(
     return out
 
 
+def _apart(a: tuple, b: tuple) -> float:
+    """Distance (mm) between two candidates' points."""
+    return float(np.linalg.norm(a[0] - b[0]))
+
+
 def _loose_rows(spare: SpareBlobs, lo: int, hi: int, ks: NDArray) -> tuple[NDArray, NDArray]:
     """Offsets and rows of every free blob in the gap's fields where no path in the
     image reached (the segment's lengths and the path in 3D judge them)."""
@@ -260,9 +265,8 @@ def _candidates(
 ) -> dict[int, list]:
     """Per gap field offset, the points (xyz, expected error, row) on the rays of
     ``rows`` whose lengths to the partners seen there agree within three SDs; of points
-    closer than three combined expected errors (two cameras' rays of the marker), the one
-    of smallest error; farther apart, both (a merged blob's ray lies off the marker's,
-    and the path chooses)."""
+    closer than 20 mm (two cameras' rays of the marker), the one of smallest error; none
+    where two blobs' such points are farther apart than three combined expected errors."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centres = spare.centres[cam]
@@ -275,14 +279,17 @@ def _candidates(
         ok = got[1] <= 3.0
         for x, e in zip(got[0][ok], got[2][ok], strict=True):
             cands.setdefault(k, []).append((x, e, int(rows[j])))
+    out: dict[int, list] = {}
     for k, v in cands.items():
         v.sort(key=lambda c: c[1])
-        cands[k] = [
-            c
-            for i, c in enumerate(v)
-            if all(np.linalg.norm(c[0] - o[0]) > 3.0 * np.hypot(c[1], o[1]) for o in v[:i])
-        ]
-    return cands
+        # two cameras' points of the marker that disagree: a merged blob's ray lies off
+        # the marker's, and neither is sure
+        if any(
+            c[2] != o[2] and 3.0 * np.hypot(c[1], o[1]) < _apart(c, o) <= 20.0 for c in v for o in v
+        ):
+            continue
+        out[k] = [c for i, c in enumerate(v) if all(_apart(c, o) > 20.0 for o in v[:i])]
+    return out
 
 
 def chain_fill(
