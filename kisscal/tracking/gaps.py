@@ -30,6 +30,7 @@ from kisscal.tracking.bodyfill import (
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
 from kisscal.tracking.fill_joint import joint_ray_fill
+from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
@@ -197,7 +198,7 @@ class Fill:
     long_run : bool
         Only on runs longer than a spline bridges (``max_fill_gap_fields``).
     split_only : bool
-        Only on the runs left by the fill before it in a run it placed part of.
+        Only on the runs left by the fills before it in a run one of them placed part of.
     strict : str
         When the body's error limit is ``ray_rest_max_error_mm``: ``"never"``,
         ``"swept"`` (fields of the gap were placed by a sweeping fill) or ``"always"``.
@@ -243,7 +244,9 @@ class Fill:
 #: the spline (short runs) or the body (:func:`_fill_one`), only expecting little error
 #: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
 #: blobs of one camera at a spline's distance from it
-#: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), and the fields left between
+#: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), or at the depth fitted to
+#: that spline and the segment's lengths together
+#: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`), and the fields left between
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
@@ -267,6 +270,12 @@ FILLS: tuple[Fill, ...] = (
     Fill(
         "depth",
         _placer(lambda g, a, b, p: depth_ray_fill(g.dense, g.t, a, b, g.spare, p, g.measured)),
+        rays=True,
+        long_run=True,
+    ),
+    Fill(
+        "sphere depth",
+        _placer(lambda g, a, b, p: sphere_depth_fill(g.dense, g.t, a, b, g.spare, p, g.measured)),
         rays=True,
         long_run=True,
     ),
@@ -304,7 +313,7 @@ def _apply(
         if head.sweep:
             left.extend(got)
         else:
-            _apply(gap, tail, got, placed)
+            _apply(gap, tail, got, placed or split)
     if head.sweep:
         _apply(gap, tail, left)
 

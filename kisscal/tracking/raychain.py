@@ -87,7 +87,7 @@ def length_partners(
     return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
 
 
-def _lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
+def partner_lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
     """Length (mm) from track ``t`` to each partner per gap field (hi - lo, k): its mean
     in the ``n`` fields each side (the trial's where a side has none), drifting linearly
     across the gap."""
@@ -166,6 +166,26 @@ def chain_blobs(
     return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
 
 
+def off_rays(
+    at: NDArray, ks: NDArray, o_ks: NDArray, o_rows: NDArray, spare: SpareBlobs, gate: float
+) -> NDArray[np.int64]:
+    """Gap offsets of ``ks`` (ascending) whose point ``at`` (m, 3) lies farther than
+    ``gate`` mm from the ray of a blob of the marker there (offsets ``o_ks``, rows
+    ``o_rows``; the point's own blob is on its ray): a second camera's blob disagrees,
+    and one of the two is not the marker's alone (a merged blob's centroid lies off
+    both markers' rays)."""
+    if ks.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    i = np.searchsorted(ks, o_ks)
+    hit = (i < ks.size) & (ks[np.minimum(i, ks.size - 1)] == o_ks)
+    i, o_rows = i[hit], o_rows[hit]
+    cam = spare.camera[o_rows]
+    d = ray_directions(spare.dlts[cam], spare.uv_px[o_rows])
+    rel = at[i] - spare.centres[cam]
+    off = np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
+    return np.unique(ks[i[off > gate]])
+
+
 def on_ray(
     centre: NDArray, d: NDArray, partners: NDArray, length: NDArray, sd: NDArray, iters: int = 8
 ) -> tuple[NDArray, NDArray, NDArray]:
@@ -219,6 +239,11 @@ def _choose(
     return out
 
 
+def _apart(a: tuple, b: tuple) -> float:
+    """Distance (mm) between two candidates' points."""
+    return float(np.linalg.norm(a[0] - b[0]))
+
+
 def _loose_rows(spare: SpareBlobs, lo: int, hi: int, ks: NDArray) -> tuple[NDArray, NDArray]:
     """Offsets and rows of every free blob in the gap's fields where no path in the
     image reached (the segment's lengths and the path in 3D judge them)."""
@@ -240,7 +265,8 @@ def _candidates(
 ) -> dict[int, list]:
     """Per gap field offset, the points (xyz, expected error, row) on the rays of
     ``rows`` whose lengths to the partners seen there agree within three SDs; of points
-    closer than 20 mm (two cameras' rays of the marker), the one of smallest error."""
+    closer than 20 mm (two cameras' rays of the marker), the one of smallest error; none
+    where two blobs' such points are farther apart than three combined expected errors."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centres = spare.centres[cam]
@@ -253,12 +279,17 @@ def _candidates(
         ok = got[1] <= 3.0
         for x, e in zip(got[0][ok], got[2][ok], strict=True):
             cands.setdefault(k, []).append((x, e, int(rows[j])))
+    out: dict[int, list] = {}
     for k, v in cands.items():
         v.sort(key=lambda c: c[1])
-        cands[k] = [
-            c for i, c in enumerate(v) if all(np.linalg.norm(c[0] - o[0]) > 20.0 for o in v[:i])
-        ]
-    return cands
+        # two cameras' points of the marker that disagree: a merged blob's ray lies off
+        # the marker's, and neither is sure
+        if any(
+            c[2] != o[2] and 3.0 * np.hypot(c[1], o[1]) < _apart(c, o) <= 20.0 for c in v for o in v
+        ):
+            continue
+        out[k] = [c for i, c in enumerate(v) if all(_apart(c, o) > 20.0 for o in v[:i])]
+    return out
 
 
 def chain_fill(
@@ -275,7 +306,7 @@ def chain_fill(
         return None
     ks, chained = chain_blobs(target, lo, hi, spare, params)
     k2, r2 = _loose_rows(spare, lo, hi, ks)
-    length = _lengths(dense, t, partners, lo, hi, params.body_context_fields)
+    length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     cands = _candidates(dense, partners, sd, length, lo, np.r_[ks, k2], np.r_[chained, r2], spare)
     if not cands:
         return None

@@ -1,0 +1,110 @@
+"""Single-camera fill with the depth from the segment's lengths smoothed across the gap
+(kisscal.tracking.fill_sphere), against truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.dlt.model import project_rows
+from kisscal.tracking import TrackingParams, spare_blobs
+from kisscal.tracking.fill_sphere import MIN_COS, smooth_depth, sphere_depth_fill, sphere_roots
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_raychain import GAP, _dense
+from tests.tracking.test_rayfill import _look_at
+
+PARAMS = TrackingParams()
+
+
+def test_a_ray_meets_a_sphere_at_two_depths_and_none_near_tangent():
+    centre, d = np.zeros((2, 3)), np.array([[0.0, 0, 1], [0.0, 0, 1]])
+    partners = np.array([[30.0, 0, 1000], [99.8, 0, 1000]])  # the second nearly tangent
+    roots, sd = sphere_roots(centre, d, partners, np.array([50.0, 100.0]), np.ones(2))
+    assert np.allclose(roots[0], [960.0, 1040.0])
+    assert np.isclose(sd[0], 1.0 / 0.8)  # cos of the ray to the partner: 40 / 50
+    assert np.sqrt(100.0**2 - 99.8**2) / 100.0 < MIN_COS
+    assert np.all(np.isnan(roots[1])) and np.isnan(sd[1])
+
+
+def test_the_depth_smoother_bridges_a_straight_path_exactly_and_is_sure_near_data():
+    idx = np.r_[0:5, 25:30]
+    mean, sd = smooth_depth(30, idx, 1000.0 + 2.0 * idx, np.full(idx.size, 0.5), 1.0)
+    assert np.allclose(mean, 1000.0 + 2.0 * np.arange(30))
+    assert sd[15] > 5 * sd[2]  # the middle of the gap knows least
+    # a datum in the gap pins it there
+    idx2 = np.r_[idx, 15]
+    _, sd2 = smooth_depth(30, idx2, 1000.0 + 2.0 * idx2, np.full(idx2.size, 0.5), 1.0)
+    assert sd2[15] < 0.6
+
+
+def _one_camera(xyz: np.ndarray, cam_at: np.ndarray, seed: int, marker: int = 3) -> tuple:
+    """DLT of a camera at ``cam_at`` (offset from the marker's mean in the gap) and its
+    blobs of ``marker`` through the gap, plus two noise blobs a field."""
+    target = xyz[marker, GAP].mean(axis=0)
+    dlts = _look_at(target + cam_at, target)[None]
+    fields = np.arange(GAP.start, GAP.stop)
+    rng = np.random.default_rng(seed)
+    uv = project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[marker, GAP])
+    noise = rng.uniform([0, 0], [640, 480], (2 * fields.size, 2))
+    return (
+        dlts,
+        np.r_[fields, np.repeat(fields, 2)],
+        np.r_[uv + rng.normal(0, 0.05, uv.shape), noise],
+    )
+
+
+def test_a_marker_one_camera_sees_with_one_partner_is_placed_by_its_length():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    # marker 3 seen by one camera; of its segment only marker 0 is measured: its
+    # length puts marker 3 on a sphere the ray meets twice, the path picks the root
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    got = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.8 * (GAP.stop - GAP.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0
+    assert np.all(got.sd_mm[placed] <= PARAMS.ray_depth_max_error_mm)
+    assert got.partners == (0,)
+
+
+def test_fields_where_a_second_camera_s_blob_is_off_the_point_are_not_placed():
+    xyz = rigid_body(seed=9, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    d1, f1, uv1 = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 9)
+    # a second camera's blob, a merge 7 mm off the marker, in the first half of the gap
+    off = xyz.copy()
+    off[3] += [0.0, 6.0, -4.0]
+    d2, f2, uv2 = _one_camera(off, np.array([-2500.0, -1500.0, 600.0]), 10)
+    half = f2 < (GAP.start + GAP.stop) // 2
+    spare = spare_blobs(
+        np.r_[f1, f2[half]],
+        np.r_[np.zeros(f1.size), np.ones(half.sum())],
+        np.r_[uv1, uv2[half]],
+        np.concatenate([d1, d2]),
+    )
+    got = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    n = (GAP.stop - GAP.start) // 2
+    assert not placed[:n].any()  # the two cameras disagree there: neither blob is sure
+    assert placed[n:].sum() >= 0.8 * n
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0
+
+
+def test_a_partner_seen_with_the_marker_in_few_fields_does_not_place_it():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    n = xyz.shape[1]
+    # marker 0 seen with marker 3 in under half of 3's fields: its length may hold only
+    # in that phase (a joint held still), so it fixes no depth
+    hide0 = slice(GAP.stop + 5, n)
+    assert (GAP.start + 5) < 0.5 * (n - (GAP.stop - GAP.start))
+    dense = _dense(_tracks_of(xyz, {0: hide0, 1: slice(5, n), 2: slice(5, n), 3: GAP}))
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    assert sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is None
+    # seen together throughout, the same gap is placed
+    dense = _dense(_tracks_of(xyz, {1: slice(5, n), 2: slice(5, n), 3: GAP}))
+    assert sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is not None
