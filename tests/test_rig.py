@@ -91,14 +91,3 @@ def test_subset_index_and_errors(rig: Rig) -> None:
         Rig((rig.cameras[0], rig.cameras[0]))
     with pytest.raises(KisscalError, match="11 finite"):
         Camera.from_dlt(np.zeros(10), "x")
-
-
-def test_fundamental_matrix_holds_for_true_correspondences(rig: Rig) -> None:
-    xyz = np.array([[0.0, 0.0, 1000.0], [300.0, -200.0, 500.0]])
-    uv = rig.project(xyz)
-    F = rig.fundamental(0, 2)
-    h0 = np.column_stack([uv[0], np.ones(2)])
-    h2 = np.column_stack([uv[2], np.ones(2)])
-    lines = h0 @ F.T
-    dist = np.abs(np.sum(lines * h2, axis=1)) / np.hypot(lines[:, 0], lines[:, 1])
-    assert dist.max() < 1e-6
