@@ -49,7 +49,7 @@ from kisscal.synth.scene import (
     rod_set,
     visibility,
 )
-from kisscal.synth.wand import WAND_TRIAL, axes_points, wand_tables, wand_trial
+from kisscal.synth.wand import AXES_POINTS_MM, WAND_TRIAL, wand_tables, wand_trial
 
 Range = tuple[float, float]
 Volume = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -214,7 +214,7 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         segments=gait.segments,
         render=render,
         rod_conflicts=conflicts,
-        axes_mm=axes_points() if options.wand_fields else None,
+        axes_mm=np.asarray(AXES_POINTS_MM, dtype=float) if options.wand_fields else None,
     )
 
 
@@ -366,11 +366,8 @@ def camera_glow(
     if plate_px is None:
         return light
     plate_rng = np.random.default_rng([plan.options.seed, 7008, cam_index])
-    return light + glow_map(plan.rig[cam_index].size_px, _plate_only(glow), plate_rng, plate_px)
-
-
-def _plate_only(glow: Glow) -> Glow:
-    return Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
+    plate_only = Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
+    return light + glow_map(plan.rig[cam_index].size_px, plate_only, plate_rng, plate_px)
 
 
 def grid_scene(
