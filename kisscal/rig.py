@@ -121,10 +121,6 @@ class Rig:
         """The camera with this id."""
         return self.cameras[self.index(camera_id)]
 
-    def subset(self, camera_ids: Sequence[str]) -> Rig:
-        """A rig of some of the cameras, in the order given."""
-        return Rig(tuple(self.camera(c) for c in camera_ids))
-
     def observations(self, blobs_px: Mapping[str, Sequence[ArrayLike]]) -> Observations:
         """The long table of a trial's 2D data, linearised.
 
