@@ -236,20 +236,18 @@ def build_rig(options: SynthOptions) -> tuple[Camera, ...]:
     )
 
 
-def marker_radius_mm(
-    rig: tuple[Camera, ...], spec: RigSpec, bloom_px: float, samples: int = 9
-) -> float:
+def marker_radius_mm(rig: tuple[Camera, ...], spec: RigSpec, bloom_px: float) -> float:
     """The marker radius that puts every marker image in the volume in ``spec``'s band.
 
     A sphere of radius ``r`` at distance ``d`` images ``2 (f r / d + bloom)`` pixels across
-    (through the lens); over a ``samples``^3 lattice of the volume in every camera, the
+    (through the lens); over a 9^3 lattice of the volume in every camera, the
     radii that keep all images in the band form a range, and ``marker_size_quantile``
     picks one. An empty range (a band the geometry cannot meet) gives its middle.
     """
     if spec.marker_diameter_px is None:
         raise InputError("marker_radius_mm: the rig spec gives no marker_diameter_px band")
     lo, hi = (np.asarray(c, dtype=float) for c in spec.volume_mm)
-    axes = [np.linspace(lo[k], hi[k], samples) for k in range(3)]
+    axes = [np.linspace(lo[k], hi[k], 9) for k in range(3)]
     points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     per_mm = np.concatenate([sphere_spots(c, points, 1.0, 1.0, 0.0).radii_px for c in rig])
     small, large = spec.marker_diameter_px
