@@ -61,6 +61,11 @@ class LatticeIndex:
         """Mask of the input dots that have a lattice position."""
         return self.row >= 0
 
+    @property
+    def n_indexed(self) -> int:
+        """Number of indexed dots."""
+        return int(np.count_nonzero(self.indexed))
+
 
 def _principal_direction(vecs: NDArray[np.float64]) -> NDArray[np.float64]:
     """Unit axis (sign-free) of 2D vectors: mean of doubled angles, so v and -v agree."""
