@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from kisscal._shared import rms_px
 from kisscal.camera import Camera, distort
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_to_matrix
@@ -313,7 +314,7 @@ def camera_from_opencv(
     root_w = np.sqrt(weight)[:, None]
     centre, scale = ((w - 1) / 2, (h - 1) / 2), (w - 1) / 2
     lin = fit_polynomial(raw, ideal, centre, scale, weights=weight)
-    plain_rms = _rms((apply_linearisation(lin, raw) - ideal)[inside])
+    plain_rms = rms_px((apply_linearisation(lin, raw) - ideal)[inside])
     plain = ImportedCamera(cv.dlt, lin, None, plain_rms)
     if not lens_terms or plain.rms_px < 1e-6:
         return plain
@@ -359,7 +360,7 @@ def camera_from_opencv(
         max_nfev=MAX_NFEV,
     ).x
     lin_p = Linearisation(centre, scale, p[:n], p[n : 2 * n])
-    rms = _rms(gaps(p)[inside])
+    rms = rms_px(gaps(p)[inside])
     return ImportedCamera(cv.dlt, lin_p, p[2 * n :] / unit, rms) if rms < plain.rms_px else plain
 
 
@@ -388,7 +389,3 @@ def _uncorrect(
         if np.abs(step).max() < 1e-12:
             break
     return uv
-
-
-def _rms(d: NDArray[np.float64]) -> float:
-    return float(np.sqrt(np.mean(np.sum(d**2, axis=-1))))

@@ -46,7 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import as_points
 from kisscal.camera import Camera
-from kisscal.dlt.model import fundamental_from_dlt, project_rows
+from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 from kisscal.errors import InputError
 
@@ -121,10 +121,6 @@ class Rig:
         """The camera with this id."""
         return self.cameras[self.index(camera_id)]
 
-    def subset(self, camera_ids: Sequence[str]) -> Rig:
-        """A rig of some of the cameras, in the order given."""
-        return Rig(tuple(self.camera(c) for c in camera_ids))
-
     def observations(self, blobs_px: Mapping[str, Sequence[ArrayLike]]) -> Observations:
         """The long table of a trial's 2D data, linearised.
 
@@ -181,7 +177,3 @@ class Rig:
         return triangulate_observations(
             self.dlts, point, camera, uv_px, reweight_iterations=reweight_iterations
         )
-
-    def fundamental(self, i: int, j: int) -> NDArray[np.float64]:
-        """Fundamental matrix with ``x_j^T F x_i = 0`` for cameras ``i`` and ``j``."""
-        return fundamental_from_dlt(self.cameras[i].dlt, self.cameras[j].dlt)

@@ -29,7 +29,6 @@ Biomedical Signal Processing and Control 2, 59-67.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -57,7 +56,6 @@ def final_cameras(
     control: ControlPoints | None,
     markers_mm: Sequence[float],
     params: BundleParams,
-    dlt: DltParams | None = None,
 ) -> tuple[Camera, ...]:
     """The cameras as written: resected on the adjusted points when :func:`resects`,
     else the adjustment's own.
@@ -73,9 +71,7 @@ def final_cameras(
     markers_mm : sequence of float
         The wand's markers.
     params : BundleParams
-        ``grid_lens`` and ``resect_terms``.
-    dlt : DltParams, optional
-        Tolerances of the DLT fit (its model switches are set here).
+        ``grid_lens`` and ``resect_terms``: the DLT fit has the default tolerances.
 
     Returns
     -------
@@ -84,9 +80,7 @@ def final_cameras(
     """
     if not resects(params, result.cameras):
         return result.cameras
-    dlt = replace(
-        dlt or DltParams(), refine=True, lens=True, lens_terms=params.resect_terms, mdlt=False
-    )
+    dlt = DltParams(refine=True, lens=True, lens_terms=params.resect_terms, mdlt=False)
     obs = observations.subset(result.inlier)
     offsets = centred_offsets(markers_mm)[obs.marker]
     wand_xyz = (

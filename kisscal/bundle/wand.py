@@ -141,7 +141,7 @@ def wand_in_3d(
     numbered ``0 .. n - 1``), the wand poses of those fields, their trial fields and the
     end-to-end lengths the rig measured (mm).
     """
-    recon = recon or ReconParams(allow_two_camera=True)
+    recon = ReconParams(allow_two_camera=True)
     points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
     found = find_wand_points(points.field, points.xyz_mm, markers_mm, params.match_tol_mm)
     rows = points.blob_row[found.point]  # (n, k, C)
@@ -153,15 +153,13 @@ def wand_in_3d(
     return obs, wand_poses(xyz, centred_offsets(markers_mm)), found.field, ends
 
 
-def measured_lengths(
-    table: BlobTable, rig: Rig, recon: ReconParams | None = None
-) -> NDArray[np.float64]:
+def measured_lengths(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
     """The largest distance between reconstructed points of each field with two or more (mm).
 
     What a rig measures of the wand (its end markers are its two farthest points) when
     the wand is not found at its stated length: the diagnosis of a wrong ``markers_mm``.
     """
-    recon = recon or ReconParams(allow_two_camera=True)
+    recon = ReconParams(allow_two_camera=True)
     points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
     i, j = pairs_within_fields(points.field)
     if len(i) == 0:

@@ -12,7 +12,7 @@ or for the whole rig at once: ``calibrate_rods({camera: blobs_px, ...}, rods, pa
 
 from kisscal._shared import rms_px
 from kisscal.dlt.calibrate import calibrate_camera
-from kisscal.dlt.camera import compose_dlt, decompose_dlt, hatze_violation, principal_point_px
+from kisscal.dlt.camera import compose_dlt, decompose_dlt, hatze_violation
 from kisscal.dlt.check import leave_one_rod_out, triangulate_dlt
 from kisscal.dlt.linear import reprojection_residuals, solve_dlt
 from kisscal.dlt.model import dlt_from_krt, dlt_to_matrix, matrix_to_dlt, project
@@ -50,7 +50,6 @@ __all__ = [
     "make_rods",
     "marker_label",
     "matrix_to_dlt",
-    "principal_point_px",
     "project",
     "recognise_rods",
     "refine_dlt",

@@ -81,11 +81,3 @@ def hatze_violation(L: ArrayLike) -> float:
     a, b, c = L[0:3], L[4:7], L[8:11]
     num = (a @ c) * (b @ c) - (a @ b) * (c @ c)
     return float(num / (np.linalg.norm(a) * np.linalg.norm(b) * (c @ c)))
-
-
-def principal_point_px(L: ArrayLike) -> NDArray[np.float64]:
-    """Principal point ``(u0, v0)`` in pixels of DLT parameters (foot of the optical axis)."""
-    L = np.asarray(L, dtype=float)
-    a, b, c = L[0:3], L[4:7], L[8:11]
-    cc = c @ c
-    return np.array([a @ c / cc, b @ c / cc])

@@ -66,11 +66,6 @@ class LatticeIndex:
         """Number of indexed dots."""
         return int(np.count_nonzero(self.indexed))
 
-    @property
-    def fraction(self) -> float:
-        """Indexed dots over ``rows * cols``."""
-        return self.n_indexed / (self.rows * self.cols)
-
 
 def _principal_direction(vecs: NDArray[np.float64]) -> NDArray[np.float64]:
     """Unit axis (sign-free) of 2D vectors: mean of doubled angles, so v and -v agree."""

@@ -49,7 +49,7 @@ from kisscal.synth.scene import (
     rod_set,
     visibility,
 )
-from kisscal.synth.wand import WAND_TRIAL, axes_points, wand_tables, wand_trial
+from kisscal.synth.wand import AXES_POINTS_MM, WAND_TRIAL, wand_tables, wand_trial
 
 Range = tuple[float, float]
 Volume = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -214,7 +214,7 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         segments=gait.segments,
         render=render,
         rod_conflicts=conflicts,
-        axes_mm=axes_points() if options.wand_fields else None,
+        axes_mm=np.asarray(AXES_POINTS_MM, dtype=float) if options.wand_fields else None,
     )
 
 
@@ -236,20 +236,18 @@ def build_rig(options: SynthOptions) -> tuple[Camera, ...]:
     )
 
 
-def marker_radius_mm(
-    rig: tuple[Camera, ...], spec: RigSpec, bloom_px: float, samples: int = 9
-) -> float:
+def marker_radius_mm(rig: tuple[Camera, ...], spec: RigSpec, bloom_px: float) -> float:
     """The marker radius that puts every marker image in the volume in ``spec``'s band.
 
     A sphere of radius ``r`` at distance ``d`` images ``2 (f r / d + bloom)`` pixels across
-    (through the lens); over a ``samples``^3 lattice of the volume in every camera, the
+    (through the lens); over a 9^3 lattice of the volume in every camera, the
     radii that keep all images in the band form a range, and ``marker_size_quantile``
     picks one. An empty range (a band the geometry cannot meet) gives its middle.
     """
     if spec.marker_diameter_px is None:
         raise InputError("marker_radius_mm: the rig spec gives no marker_diameter_px band")
     lo, hi = (np.asarray(c, dtype=float) for c in spec.volume_mm)
-    axes = [np.linspace(lo[k], hi[k], samples) for k in range(3)]
+    axes = [np.linspace(lo[k], hi[k], 9) for k in range(3)]
     points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     per_mm = np.concatenate([sphere_spots(c, points, 1.0, 1.0, 0.0).radii_px for c in rig])
     small, large = spec.marker_diameter_px
@@ -366,11 +364,8 @@ def camera_glow(
     if plate_px is None:
         return light
     plate_rng = np.random.default_rng([plan.options.seed, 7008, cam_index])
-    return light + glow_map(plan.rig[cam_index].size_px, _plate_only(glow), plate_rng, plate_px)
-
-
-def _plate_only(glow: Glow) -> Glow:
-    return Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
+    plate_only = Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
+    return light + glow_map(plan.rig[cam_index].size_px, plate_only, plate_rng, plate_px)
 
 
 def grid_scene(

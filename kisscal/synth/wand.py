@@ -137,11 +137,6 @@ def wand_trial(
     )
 
 
-def axes_points(points_mm: Sequence[Sequence[float]] = AXES_POINTS_MM) -> NDArray[np.float64]:
-    """The L-frame's marker centres in lab mm, shape (n, 3) (the lab frame is the frame's)."""
-    return np.asarray(points_mm, dtype=float).reshape(-1, 3)
-
-
 def wand_tables(config: dict, axes_mm: NDArray[np.float64], wand_only: bool) -> dict:
     """``session.toml`` content with ``[wand]`` and ``[axes]`` added (and, for a session
     calibrated from the wand alone, ``[grid]`` and ``[rods]`` left out)."""
