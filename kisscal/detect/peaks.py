@@ -68,53 +68,45 @@ def regions(
     ``step`` (:func:`grow_regions`; infinite: the 4-connected regions). A region larger
     than a particle (``largest``: pixels, width, height; None: no limit) is lit structure
     (a wall, glare): the particles standing on it are its 4-connected pieces above twice
-    the level, four times, ... while they are too large.
+    the level, four times, ... while they are too large. Each cut reads only the pixels
+    of the regions too large (their flat indices), never the whole image.
     """
-    labels, count = grow_regions(hp, threshold, step)
-    count += 1
-    stats = _stats(labels, count)
-    level = threshold
-    while count > 1 and level < MAX_LEVEL:
-        big = _too_large(stats, largest)
-        if not big.any():
-            break
-        box = _box(stats[big])  # the cut reads only the pixels around the large regions
-        inside = big[labels[box]]
+    labels, top = _grow(hp, threshold, step)
+    flat, grey, width = labels.reshape(-1), hp.reshape(-1), hp.shape[1]
+    lit = np.flatnonzero(flat)
+    inside = lit[_too_large(lit, flat[lit], top + 1, width, largest)[flat[lit]]]
+    level, free = threshold, top + 1  # free: the first label not yet used
+    while inside.size and level < MAX_LEVEL:
         level = 2.0 * max(level, 1.0)
-        core = (inside & (hp[box] > level)).astype(np.uint8)
-        n, pieces, more, _ = cv2.connectedComponentsWithStats(core, connectivity=4)
-        labels[box] = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels[box])
-        more[:, cv2.CC_STAT_LEFT] += box[1].start
-        more[:, cv2.CC_STAT_TOP] += box[0].start
-        stats = np.vstack([np.where(big[:, None], 0, stats), more[1:]])
-        count += n - 1
+        core = inside[grey[inside] > level]
+        flat[inside] = 0
+        piece, n = _pieces(core, width)
+        flat[core] = piece + free
+        inside = core[_too_large(core, piece, n, width, largest)[piece]]
+        free += n
     return _compact(labels)
 
 
-def _box(stats: NDArray) -> tuple[slice, slice]:
-    """Rows and columns of the bounding box of components (OpenCV ``stats`` rows)."""
-    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
-    right = left + stats[:, cv2.CC_STAT_WIDTH]
-    bottom = top + stats[:, cv2.CC_STAT_HEIGHT]
-    return slice(int(top.min()), int(bottom.max())), slice(int(left.min()), int(right.max()))
-
-
-def _stats(labels: NDArray, count: int) -> NDArray:
-    """OpenCV-like ``stats`` rows (left, top, width, height, area) of labels 0..count-1
-    (row 0, the background, is left zero)."""
-    ys, xs = np.nonzero(labels)
-    lab = labels[ys, xs]
-    x0 = np.full(count, labels.shape[1])
-    y0 = np.full(count, labels.shape[0])
-    x1 = np.full(count, -1)
-    y1 = np.full(count, -1)
-    np.minimum.at(x0, lab, xs)
-    np.minimum.at(y0, lab, ys)
-    np.maximum.at(x1, lab, xs)
-    np.maximum.at(y1, lab, ys)
-    stats = np.column_stack([x0, y0, x1 - x0 + 1, y1 - y0 + 1, np.bincount(lab, minlength=count)])
-    stats[0] = 0
-    return stats
+def _pieces(pixels: NDArray, width: int) -> tuple[NDArray, int]:
+    """4-connected pieces of a sorted set of flat pixel indices of an image ``width``
+    wide: the piece of each pixel, numbered 0..n-1 in the order of their first pixel in
+    a row-by-row reading (as OpenCV numbers connected components), and n."""
+    if pixels.size == 0:
+        return pixels.astype(np.int64), 0
+    after = np.flatnonzero((np.diff(pixels) == 1) & (pixels[:-1] % width != width - 1))
+    below = np.minimum(np.searchsorted(pixels, pixels + width), pixels.size - 1)
+    down = np.flatnonzero(pixels[below] == pixels + width)
+    src = np.concatenate([after, down])
+    dst = np.concatenate([after + 1, below[down]])
+    graph = sparse.csr_matrix(
+        (np.ones(src.size, np.int8), (src, dst)), shape=(pixels.size, pixels.size)
+    )
+    n, part = csgraph.connected_components(graph, directed=False)
+    first = np.full(n, pixels.size)
+    np.minimum.at(first, part, np.arange(pixels.size))
+    rank = np.empty(n, dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(n)
+    return rank[part], int(n)
 
 
 def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
@@ -150,6 +142,12 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     Maas, H.-G. (1992). Digitale Photogrammetrie in der dreidimensionalen
     Strömungsmesstechnik. Dissertation, ETH Zürich.
     """
+    return _compact(_grow(hp, threshold, step)[0])
+
+
+def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
+    """:func:`grow_regions`' labels before they are numbered 1..count (the same order,
+    with gaps) and the highest label."""
     mask = hp > threshold
     count, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=4)
     cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -163,7 +161,7 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     inside = hard[comp]
     owner = _reached(hp, inside, pairs)
     labels = np.where(inside, np.where(owner > 0, owner + count, 0), comp)
-    return _compact(labels)
+    return labels, int(labels.max())
 
 
 #: The pixel and its four neighbours.
@@ -245,14 +243,27 @@ def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:
         key[heads[lower]] = least[lower]
 
 
-def _too_large(stats: NDArray, largest: tuple[int | None, int | None, int | None]) -> NDArray:
-    """Rows of connected-component ``stats`` above any of the limits (row 0 never)."""
-    big = np.zeros(len(stats), dtype=bool)
-    columns = (cv2.CC_STAT_AREA, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT)
-    for limit, column in zip(largest, columns, strict=True):
+def _too_large(
+    pixels: NDArray,
+    label: NDArray,
+    count: int,
+    width: int,
+    largest: tuple[int | None, int | None, int | None],
+) -> NDArray:
+    """Which of labels 0..count-1 of the flat pixel indices ``pixels``
+    (sorted) of an image ``width`` wide are above any of the limits ``largest`` (pixels,
+    width, height); a label without pixels never is."""
+    most_pixels, most_width, most_height = largest
+    big = np.zeros(count, dtype=bool)
+    if most_pixels is not None:
+        big |= np.bincount(label, minlength=count) > most_pixels
+    for limit, coord in ((most_width, pixels % width), (most_height, pixels // width)):
         if limit is not None:
-            big |= stats[:, column] > limit
-    big[0] = False
+            low = np.full(count, np.iinfo(np.int64).max // 2)
+            high = np.full(count, -1)
+            np.minimum.at(low, label, coord)
+            np.maximum.at(high, label, coord)
+            big |= high - low + 1 > limit
     return big
 
 
