@@ -147,21 +147,23 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
 
 def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
     """:func:`grow_regions`' labels before they are numbered 1..count (the same order,
-    with gaps) and the highest label."""
+    with gaps) and a label at least the highest."""
     mask = hp > threshold
-    count, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=4)
+    count, comp = cv2.connectedComponents(mask.view(np.uint8), connectivity=4)
     cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    pairs = _steps(hp, cross, mask, step)
-    blocked = np.unique(np.concatenate([a[~(f & r)] for a, _, f, r in pairs]))
-    if blocked.size == 0:
-        return comp.astype(np.int32), count - 1
+    lit, pairs = _steps(hp, cross, mask, step)
+    part_of = comp.reshape(-1)[lit]
     hard = np.zeros(count, dtype=bool)
-    hard[comp.ravel()[blocked]] = True
+    for i, _, forward, back in pairs:
+        hard[part_of[i[~(forward & back)]]] = True
     hard[0] = False
-    inside = hard[comp]
-    owner = _reached(hp, inside, pairs)
-    labels = np.where(inside, np.where(owner > 0, owner + count, 0), comp)
-    return labels, int(labels.max())
+    if not hard.any():
+        return comp.astype(np.int32, copy=False), count - 1
+    inside = hard[part_of]
+    owner = _reached(hp, lit, inside, pairs)
+    labels = comp.astype(np.int32, copy=False)
+    labels.reshape(-1)[lit[inside]] = np.where(owner > 0, owner + count, 0)
+    return labels, count + int(owner.max(initial=0))
 
 
 #: The pixel and its four neighbours.
@@ -170,57 +172,62 @@ _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 def _steps(
     hp: NDArray[np.float32], cross: NDArray[np.float32], mask: NDArray, step: float
-) -> list[tuple[NDArray, NDArray, NDArray, NDArray]]:
-    """Horizontal and vertical pairs of neighbouring pixels above the threshold: the flat
-    index of each pixel ``a``, of its neighbour ``b``, and whether the step a -> b, and
-    b -> a, enters a pixel whose cross (``cross``: it and its 4 neighbours) is at most
-    ``step`` above the pixel left."""
+) -> tuple[NDArray, list[tuple[NDArray, NDArray, NDArray, NDArray]]]:
+    """The flat indices ``lit`` of the pixels above the threshold (``mask``), and their
+    horizontal and vertical pairs of neighbours: the place in ``lit`` of each pixel ``a``,
+    of its neighbour ``b``, and whether the step a -> b, and b -> a, enters a pixel whose
+    cross (``cross``: it and its 4 neighbours) is at most ``step`` above the pixel left."""
     w = hp.shape[1]
-    on = mask.ravel()
-    grey, top = hp.ravel(), cross.ravel()
+    on = mask.reshape(-1)
+    grey, top = hp.reshape(-1), cross.reshape(-1)
     lit = np.flatnonzero(on)
     out = []
     for shift, edge in ((1, lit % w < w - 1), (w, lit < on.size - w)):
-        a = lit[edge]
-        a = a[on[a + shift]]
+        i = np.flatnonzero(edge)
+        i = i[on[lit[i] + shift]]
+        a = lit[i]
         b = a + shift
-        out.append((a, b, top[b] <= grey[a] + step, top[a] <= grey[b] + step))
-    return out
+        j = i + 1 if shift == 1 else np.searchsorted(lit, b)
+        out.append((i, j, top[b] <= grey[a] + step, top[a] <= grey[b] + step))
+    return lit, out
 
 
 def _reached(
-    hp: NDArray[np.float32], inside: NDArray, pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]]
+    hp: NDArray[np.float32],
+    lit: NDArray,
+    inside: NDArray,
+    pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]],
 ) -> NDArray:
-    """For the pixels ``inside``, 1 + the rank (grey, then position) of the faintest peak
-    that reaches each along allowed steps (``pairs``), 0 where none does.
+    """For the pixels ``lit[inside]``, 1 + the rank (grey, then position) of the faintest
+    peak that reaches each along allowed steps (``pairs``, places in ``lit``), 0 where
+    none does.
 
     The allowed steps are a directed graph; its strongly connected parts (pixels that
     reach one another) take their faintest peak, then pass it down the steps between
     parts until nothing changes.
     """
-    pixels = np.flatnonzero(inside.ravel())  # node i of the graph is pixel pixels[i]
+    pixels = lit[inside]  # node k of the graph is pixel pixels[k]
+    node = np.cumsum(inside) - 1  # the node of each pixel of lit inside
     src, dst = [], []
-    for a, b, forward, back in pairs:
-        keep = inside.ravel()[a]
-        a, b = np.searchsorted(pixels, a[keep]), np.searchsorted(pixels, b[keep])
+    for i, j, forward, back in pairs:
+        keep = inside[i]
+        a, b = node[i[keep]], node[j[keep]]
         forward, back = forward[keep], back[keep]
         src += [a[forward], b[back]]
         dst += [b[forward], a[back]]
     s, d = np.concatenate(src), np.concatenate(dst)
     graph = sparse.csr_matrix((np.ones(s.size, np.int8), (s, d)), shape=(pixels.size,) * 2)
     parts, part = csgraph.connected_components(graph, directed=True, connection="strong")
-    grey = hp.ravel()[pixels]
+    grey = hp.reshape(-1)[pixels]
     ring = cv2.dilate(hp, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
-    peak = np.flatnonzero(grey >= ring.ravel()[pixels])
+    peak = np.flatnonzero(grey >= ring.reshape(-1)[pixels])
     rank = np.empty(peak.size, dtype=np.int64)
     rank[np.lexsort((pixels[peak], grey[peak]))] = np.arange(peak.size)
     key = np.full(parts, np.iinfo(np.int64).max)
     np.minimum.at(key, part[peak], rank)
     _pass_down(key, part[s], part[d])
-    owner = np.zeros(hp.size, dtype=np.int32)
-    reached = key[part] < peak.size
-    owner[pixels[reached]] = key[part][reached] + 1
-    return owner.reshape(hp.shape)
+    key = key[part]
+    return np.where(key < peak.size, key + 1, 0)
 
 
 def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:
