@@ -71,9 +71,9 @@ def regions(
     the level, four times, ... while they are too large. Each cut reads only the pixels
     of the regions too large (their flat indices), never the whole image.
     """
-    labels, top = _grow(hp, threshold, step)
+    labels, top, lit = _grow(hp, threshold, step)
     flat, grey, width = labels.reshape(-1), hp.reshape(-1), hp.shape[1]
-    lit = np.flatnonzero(flat)
+    lit = lit[flat[lit] > 0]
     inside = lit[_too_large(lit, flat[lit], top + 1, width, largest)[flat[lit]]]
     level, free = threshold, top + 1  # free: the first label not yet used
     while inside.size and level < MAX_LEVEL:
@@ -84,7 +84,7 @@ def regions(
         flat[core] = piece + free
         inside = core[_too_large(core, piece, n, width, largest)[piece]]
         free += n
-    return _compact(labels)
+    return _compact(labels, lit)
 
 
 def _pieces(pixels: NDArray, width: int) -> tuple[NDArray, int]:
@@ -142,12 +142,16 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     Maas, H.-G. (1992). Digitale Photogrammetrie in der dreidimensionalen
     Strömungsmesstechnik. Dissertation, ETH Zürich.
     """
-    return _compact(_grow(hp, threshold, step)[0])
+    labels, _, lit = _grow(hp, threshold, step)
+    return _compact(labels, lit)
 
 
-def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
+def _grow(
+    hp: NDArray[np.float32], threshold: float, step: float
+) -> tuple[NDArray, int, NDArray]:
     """:func:`grow_regions`' labels before they are numbered 1..count (the same order,
-    with gaps) and a label at least the highest."""
+    with gaps), a label at least the highest, and the flat indices of the pixels above
+    the threshold (the labelled ones among them)."""
     mask = hp > threshold
     count, comp = cv2.connectedComponents(mask.view(np.uint8), connectivity=4)
     cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -158,12 +162,12 @@ def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArr
         hard[part_of[i[~(forward & back)]]] = True
     hard[0] = False
     if not hard.any():
-        return comp.astype(np.int32, copy=False), count - 1
+        return comp.astype(np.int32, copy=False), count - 1, lit
     inside = hard[part_of]
     owner = _reached(hp, lit, inside, pairs)
     labels = comp.astype(np.int32, copy=False)
     labels.reshape(-1)[lit[inside]] = np.where(owner > 0, owner + count, 0)
-    return labels, count + int(owner.max(initial=0))
+    return labels, count + int(owner.max(initial=0)), lit
 
 
 #: The pixel and its four neighbours.
@@ -274,13 +278,17 @@ def _too_large(
     return big
 
 
-def _compact(labels: NDArray) -> tuple[NDArray, int]:
-    """Labels renumbered 1..n in order (0 stays background), and n."""
-    used = np.flatnonzero(np.bincount(labels.ravel()))
+def _compact(labels: NDArray, pixels: NDArray) -> tuple[NDArray, int]:
+    """Labels renumbered 1..n in order (0 stays background), and n; ``pixels``: flat
+    indices holding every label above 0 (the rest of the image is read as 0)."""
+    flat = labels.reshape(-1)[pixels]
+    used = np.flatnonzero(np.bincount(flat))
     used = used[used > 0]
-    remap = np.zeros(int(labels.max()) + 1, dtype=np.int32)
+    remap = np.zeros(int(used[-1]) + 1 if used.size else 1, dtype=np.int32)
     remap[used] = np.arange(1, used.size + 1, dtype=np.int32)
-    return remap[labels], int(used.size)
+    out = np.zeros(labels.shape, dtype=np.int32)
+    out.reshape(-1)[pixels] = remap[flat]
+    return out, int(used.size)
 
 
 def region_table(
