@@ -174,16 +174,14 @@ def _steps(
     cross (``cross``: it and its 4 neighbours) is at most ``step`` above the pixel left."""
     w = hp.shape[1]
     on = mask.reshape(-1)
-    grey, top = hp.reshape(-1), cross.reshape(-1)
     lit = np.flatnonzero(on)
+    grey, top = hp.reshape(-1)[lit], cross.reshape(-1)[lit]
+    beside = np.flatnonzero((np.diff(lit) == 1) & (lit[:-1] % w != w - 1))
+    below = np.flatnonzero(lit < on.size - w)
+    below = below[on[lit[below] + w]]
     out = []
-    for shift, edge in ((1, lit % w < w - 1), (w, lit < on.size - w)):
-        i = np.flatnonzero(edge)
-        i = i[on[lit[i] + shift]]
-        a = lit[i]
-        b = a + shift
-        j = i + 1 if shift == 1 else np.searchsorted(lit, b)
-        out.append((i, j, top[b] <= grey[a] + step, top[a] <= grey[b] + step))
+    for i, j in ((beside, beside + 1), (below, np.searchsorted(lit, lit[below] + w))):
+        out.append((i, j, top[j] <= grey[i] + step, top[i] <= grey[j] + step))
     return lit, out
 
 
@@ -286,10 +284,10 @@ def region_table(
     hp: NDArray[np.float32], labels: NDArray, count: int, threshold: float
 ) -> dict[str, NDArray]:
     """Pixels, extent, summed grey, border contact and weighted centroid of each region."""
-    on = labels > 0
-    lab = labels[on] - 1
-    ys, xs = np.nonzero(on)
-    g = hp[on].astype(np.float64)
+    on = np.flatnonzero(labels)  # row by row, as np.nonzero reads them
+    lab = labels.reshape(-1)[on] - 1
+    ys, xs = np.divmod(on, labels.shape[1])
+    g = hp.reshape(-1)[on].astype(np.float64)
     w = g - threshold
     n = np.bincount(lab, minlength=count)
     sw = np.bincount(lab, w, minlength=count)
