@@ -53,7 +53,8 @@ def highpass(image: NDArray, side: int) -> NDArray[np.float32]:
     where below (Maas et al. 1993)."""
     grey = image.astype(np.float32, copy=False)
     mean = cv2.blur(grey, (side, side), borderType=cv2.BORDER_REPLICATE)
-    return np.maximum(grey - mean, np.float32(0.0))
+    np.subtract(grey, mean, out=mean)  # in place: one float image less at the peak
+    return np.maximum(mean, np.float32(0.0), out=mean)
 
 
 def regions(
@@ -147,6 +148,7 @@ def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArr
     count, comp = cv2.connectedComponents(mask.view(np.uint8), connectivity=4)
     cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
     lit, pairs = _steps(hp, cross, mask, step)
+    del cross, mask  # whole images no longer needed: freed before the growth's own
     part_of = comp.reshape(-1)[lit]
     hard = np.zeros(count, dtype=bool)
     for i, _, forward, back in pairs:
