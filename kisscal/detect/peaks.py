@@ -53,7 +53,8 @@ def highpass(image: NDArray, side: int) -> NDArray[np.float32]:
     where below (Maas et al. 1993)."""
     grey = image.astype(np.float32, copy=False)
     mean = cv2.blur(grey, (side, side), borderType=cv2.BORDER_REPLICATE)
-    return np.maximum(grey - mean, np.float32(0.0))
+    np.subtract(grey, mean, out=mean)  # in place: one float image less at the peak
+    return np.maximum(mean, np.float32(0.0), out=mean)
 
 
 def regions(
@@ -68,53 +69,38 @@ def regions(
     ``step`` (:func:`grow_regions`; infinite: the 4-connected regions). A region larger
     than a particle (``largest``: pixels, width, height; None: no limit) is lit structure
     (a wall, glare): the particles standing on it are its 4-connected pieces above twice
-    the level, four times, ... while they are too large.
+    the level, four times, ... while they are too large. Each cut reads only the pixels
+    of the regions too large (their flat indices), never the whole image.
     """
-    labels, count = grow_regions(hp, threshold, step)
-    count += 1
-    stats = _stats(labels, count)
-    level = threshold
-    while count > 1 and level < MAX_LEVEL:
-        big = _too_large(stats, largest)
-        if not big.any():
-            break
-        box = _box(stats[big])  # the cut reads only the pixels around the large regions
-        inside = big[labels[box]]
+    labels, top, lit = _grow(hp, threshold, step)
+    flat, grey, width = labels.reshape(-1), hp.reshape(-1), hp.shape[1]
+    lit = lit[flat[lit] > 0]
+    inside = lit[_too_large(lit, flat[lit], top + 1, width, largest)[flat[lit]]]
+    level, free = threshold, top + 1  # free: the first label not yet used
+    while inside.size and level < MAX_LEVEL:
         level = 2.0 * max(level, 1.0)
-        core = (inside & (hp[box] > level)).astype(np.uint8)
-        n, pieces, more, _ = cv2.connectedComponentsWithStats(core, connectivity=4)
-        labels[box] = np.where(inside, np.where(core > 0, pieces + count - 1, 0), labels[box])
-        more[:, cv2.CC_STAT_LEFT] += box[1].start
-        more[:, cv2.CC_STAT_TOP] += box[0].start
-        stats = np.vstack([np.where(big[:, None], 0, stats), more[1:]])
-        count += n - 1
-    return _compact(labels)
+        core = inside[grey[inside] > level]
+        flat[inside] = 0
+        piece, n = _pieces(core, width)
+        flat[core] = piece + free
+        inside = core[_too_large(core, piece, n, width, largest)[piece]]
+        free += n
+    return _compact(labels, lit)
 
 
-def _box(stats: NDArray) -> tuple[slice, slice]:
-    """Rows and columns of the bounding box of components (OpenCV ``stats`` rows)."""
-    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
-    right = left + stats[:, cv2.CC_STAT_WIDTH]
-    bottom = top + stats[:, cv2.CC_STAT_HEIGHT]
-    return slice(int(top.min()), int(bottom.max())), slice(int(left.min()), int(right.max()))
-
-
-def _stats(labels: NDArray, count: int) -> NDArray:
-    """OpenCV-like ``stats`` rows (left, top, width, height, area) of labels 0..count-1
-    (row 0, the background, is left zero)."""
-    ys, xs = np.nonzero(labels)
-    lab = labels[ys, xs]
-    x0 = np.full(count, labels.shape[1])
-    y0 = np.full(count, labels.shape[0])
-    x1 = np.full(count, -1)
-    y1 = np.full(count, -1)
-    np.minimum.at(x0, lab, xs)
-    np.minimum.at(y0, lab, ys)
-    np.maximum.at(x1, lab, xs)
-    np.maximum.at(y1, lab, ys)
-    stats = np.column_stack([x0, y0, x1 - x0 + 1, y1 - y0 + 1, np.bincount(lab, minlength=count)])
-    stats[0] = 0
-    return stats
+def _pieces(pixels: NDArray, width: int) -> tuple[NDArray, int]:
+    """4-connected pieces of a sorted set of flat pixel indices of an image ``width``
+    wide, found by OpenCV in their bounding box: the piece of each pixel, numbered 0..n-1
+    as OpenCV numbers them (in the order of their first pixel read row by row), and n."""
+    if pixels.size == 0:
+        return pixels.astype(np.int32), 0
+    rows, cols = np.divmod(pixels, width)
+    rows -= rows[0]
+    cols -= cols.min()
+    box = np.zeros((int(rows[-1]) + 1, int(cols.max()) + 1), np.uint8)
+    box[rows, cols] = 1
+    n, piece = cv2.connectedComponents(box, connectivity=4)
+    return piece[rows, cols] - 1, n - 1
 
 
 def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int]:
@@ -150,20 +136,31 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     Maas, H.-G. (1992). Digitale Photogrammetrie in der dreidimensionalen
     Strömungsmesstechnik. Dissertation, ETH Zürich.
     """
+    labels, _, lit = _grow(hp, threshold, step)
+    return _compact(labels, lit)
+
+
+def _grow(hp: NDArray[np.float32], threshold: float, step: float) -> tuple[NDArray, int, NDArray]:
+    """:func:`grow_regions`' labels before they are numbered 1..count (the same order,
+    with gaps), a label at least the highest, and the flat indices of the pixels above
+    the threshold (the labelled ones among them)."""
     mask = hp > threshold
-    count, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=4)
+    count, comp = cv2.connectedComponents(mask.view(np.uint8), connectivity=4)
     cross = cv2.dilate(hp, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    pairs = _steps(hp, cross, mask, step)
-    blocked = np.unique(np.concatenate([a[~(f & r)] for a, _, f, r in pairs]))
-    if blocked.size == 0:
-        return comp.astype(np.int32), count - 1
+    lit, pairs = _steps(hp, cross, mask, step)
+    del cross, mask  # whole images no longer needed: freed before the growth's own
+    part_of = comp.reshape(-1)[lit]
     hard = np.zeros(count, dtype=bool)
-    hard[comp.ravel()[blocked]] = True
+    for i, _, forward, back in pairs:
+        hard[part_of[i[~(forward & back)]]] = True
     hard[0] = False
-    inside = hard[comp]
-    owner = _reached(hp, inside, pairs)
-    labels = np.where(inside, np.where(owner > 0, owner + count, 0), comp)
-    return _compact(labels)
+    if not hard.any():
+        return comp.astype(np.int32, copy=False), count - 1, lit
+    inside = hard[part_of]
+    owner = _reached(hp, lit, inside, pairs)
+    labels = comp.astype(np.int32, copy=False)
+    labels.reshape(-1)[lit[inside]] = np.where(owner > 0, owner + count, 0)
+    return labels, count + int(owner.max(initial=0)), lit
 
 
 #: The pixel and its four neighbours.
@@ -172,57 +169,60 @@ _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 def _steps(
     hp: NDArray[np.float32], cross: NDArray[np.float32], mask: NDArray, step: float
-) -> list[tuple[NDArray, NDArray, NDArray, NDArray]]:
-    """Horizontal and vertical pairs of neighbouring pixels above the threshold: the flat
-    index of each pixel ``a``, of its neighbour ``b``, and whether the step a -> b, and
-    b -> a, enters a pixel whose cross (``cross``: it and its 4 neighbours) is at most
-    ``step`` above the pixel left."""
+) -> tuple[NDArray, list[tuple[NDArray, NDArray, NDArray, NDArray]]]:
+    """The flat indices ``lit`` of the pixels above the threshold (``mask``), and their
+    horizontal and vertical pairs of neighbours: the place in ``lit`` of each pixel ``a``,
+    of its neighbour ``b``, and whether the step a -> b, and b -> a, enters a pixel whose
+    cross (``cross``: it and its 4 neighbours) is at most ``step`` above the pixel left."""
     w = hp.shape[1]
-    on = mask.ravel()
-    grey, top = hp.ravel(), cross.ravel()
+    on = mask.reshape(-1)
     lit = np.flatnonzero(on)
+    grey, top = hp.reshape(-1)[lit], cross.reshape(-1)[lit]
+    beside = np.flatnonzero((np.diff(lit) == 1) & (lit[:-1] % w != w - 1))
+    below = np.flatnonzero(lit < on.size - w)
+    below = below[on[lit[below] + w]]
     out = []
-    for shift, edge in ((1, lit % w < w - 1), (w, lit < on.size - w)):
-        a = lit[edge]
-        a = a[on[a + shift]]
-        b = a + shift
-        out.append((a, b, top[b] <= grey[a] + step, top[a] <= grey[b] + step))
-    return out
+    for i, j in ((beside, beside + 1), (below, np.searchsorted(lit, lit[below] + w))):
+        out.append((i, j, top[j] <= grey[i] + step, top[i] <= grey[j] + step))
+    return lit, out
 
 
 def _reached(
-    hp: NDArray[np.float32], inside: NDArray, pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]]
+    hp: NDArray[np.float32],
+    lit: NDArray,
+    inside: NDArray,
+    pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]],
 ) -> NDArray:
-    """For the pixels ``inside``, 1 + the rank (grey, then position) of the faintest peak
-    that reaches each along allowed steps (``pairs``), 0 where none does.
+    """For the pixels ``lit[inside]``, 1 + the rank (grey, then position) of the faintest
+    peak that reaches each along allowed steps (``pairs``, places in ``lit``), 0 where
+    none does.
 
     The allowed steps are a directed graph; its strongly connected parts (pixels that
     reach one another) take their faintest peak, then pass it down the steps between
     parts until nothing changes.
     """
-    pixels = np.flatnonzero(inside.ravel())  # node i of the graph is pixel pixels[i]
+    pixels = lit[inside]  # node k of the graph is pixel pixels[k]
+    node = np.cumsum(inside) - 1  # the node of each pixel of lit inside
     src, dst = [], []
-    for a, b, forward, back in pairs:
-        keep = inside.ravel()[a]
-        a, b = np.searchsorted(pixels, a[keep]), np.searchsorted(pixels, b[keep])
+    for i, j, forward, back in pairs:
+        keep = inside[i]
+        a, b = node[i[keep]], node[j[keep]]
         forward, back = forward[keep], back[keep]
         src += [a[forward], b[back]]
         dst += [b[forward], a[back]]
     s, d = np.concatenate(src), np.concatenate(dst)
     graph = sparse.csr_matrix((np.ones(s.size, np.int8), (s, d)), shape=(pixels.size,) * 2)
     parts, part = csgraph.connected_components(graph, directed=True, connection="strong")
-    grey = hp.ravel()[pixels]
+    grey = hp.reshape(-1)[pixels]
     ring = cv2.dilate(hp, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
-    peak = np.flatnonzero(grey >= ring.ravel()[pixels])
+    peak = np.flatnonzero(grey >= ring.reshape(-1)[pixels])
     rank = np.empty(peak.size, dtype=np.int64)
     rank[np.lexsort((pixels[peak], grey[peak]))] = np.arange(peak.size)
     key = np.full(parts, np.iinfo(np.int64).max)
     np.minimum.at(key, part[peak], rank)
     _pass_down(key, part[s], part[d])
-    owner = np.zeros(hp.size, dtype=np.int32)
-    reached = key[part] < peak.size
-    owner[pixels[reached]] = key[part][reached] + 1
-    return owner.reshape(hp.shape)
+    key = key[part]
+    return np.where(key < peak.size, key + 1, 0)
 
 
 def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:
@@ -245,34 +245,51 @@ def _pass_down(key: NDArray, src: NDArray, dst: NDArray) -> None:
         key[heads[lower]] = least[lower]
 
 
-def _too_large(stats: NDArray, largest: tuple[int | None, int | None, int | None]) -> NDArray:
-    """Rows of connected-component ``stats`` above any of the limits (row 0 never)."""
-    big = np.zeros(len(stats), dtype=bool)
-    columns = (cv2.CC_STAT_AREA, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT)
-    for limit, column in zip(largest, columns, strict=True):
+def _too_large(
+    pixels: NDArray,
+    label: NDArray,
+    count: int,
+    width: int,
+    largest: tuple[int | None, int | None, int | None],
+) -> NDArray:
+    """Which of labels 0..count-1 of the flat pixel indices ``pixels``
+    (sorted) of an image ``width`` wide are above any of the limits ``largest`` (pixels,
+    width, height); a label without pixels never is."""
+    most_pixels, most_width, most_height = largest
+    big = np.zeros(count, dtype=bool)
+    if most_pixels is not None:
+        big |= np.bincount(label, minlength=count) > most_pixels
+    for limit, coord in ((most_width, pixels % width), (most_height, pixels // width)):
         if limit is not None:
-            big |= stats[:, column] > limit
-    big[0] = False
+            low = np.full(count, np.iinfo(np.int64).max // 2)
+            high = np.full(count, -1)
+            np.minimum.at(low, label, coord)
+            np.maximum.at(high, label, coord)
+            big |= high - low + 1 > limit
     return big
 
 
-def _compact(labels: NDArray) -> tuple[NDArray, int]:
-    """Labels renumbered 1..n in order (0 stays background), and n."""
-    used = np.flatnonzero(np.bincount(labels.ravel()))
+def _compact(labels: NDArray, pixels: NDArray) -> tuple[NDArray, int]:
+    """Labels renumbered 1..n in order (0 stays background), and n; ``pixels``: flat
+    indices holding every label above 0 (the rest of the image is read as 0)."""
+    flat = labels.reshape(-1)[pixels]
+    used = np.flatnonzero(np.bincount(flat))
     used = used[used > 0]
-    remap = np.zeros(int(labels.max()) + 1, dtype=np.int32)
+    remap = np.zeros(int(used[-1]) + 1 if used.size else 1, dtype=np.int32)
     remap[used] = np.arange(1, used.size + 1, dtype=np.int32)
-    return remap[labels], int(used.size)
+    out = np.zeros(labels.shape, dtype=np.int32)
+    out.reshape(-1)[pixels] = remap[flat]
+    return out, int(used.size)
 
 
 def region_table(
     hp: NDArray[np.float32], labels: NDArray, count: int, threshold: float
 ) -> dict[str, NDArray]:
     """Pixels, extent, summed grey, border contact and weighted centroid of each region."""
-    on = labels > 0
-    lab = labels[on] - 1
-    ys, xs = np.nonzero(on)
-    g = hp[on].astype(np.float64)
+    on = np.flatnonzero(labels)  # row by row, as np.nonzero reads them
+    lab = labels.reshape(-1)[on] - 1
+    ys, xs = np.divmod(on, labels.shape[1])
+    g = hp.reshape(-1)[on].astype(np.float64)
     w = g - threshold
     n = np.bincount(lab, minlength=count)
     sw = np.bincount(lab, w, minlength=count)
