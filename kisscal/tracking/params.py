@@ -197,11 +197,6 @@ class TrackingParams(Params):
         the markers below it) in fewer than this fraction of the fields is flagged as
         uncertain; a left/right pair the wrong way round in more than this fraction is
         exchanged.
-    min_name_margin_mm : float
-        A name (from a marker set) whose trajectory fits it better than every other name
-        of the set by less than this (median distance misfit to its neighbours and height
-        above the floor, against the set's template:
-        :mod:`~kisscal.tracking.labelling.runnerup`) is flagged as uncertain.
     facing_fraction : float
         Toe names ahead of heel names (anterior pelvis ahead of posterior) along the walk in
         at least this fraction of the votes face forward; in at most 1 - it, turned round.
@@ -286,7 +281,6 @@ class TrackingParams(Params):
     foot_candidates: int = param(4, ge=0)
     set_window_s: float = param(1.0, unit="s", gt=0)
     min_side_confidence: float = param(0.8, gt=0.5, le=1)
-    min_name_margin_mm: float = param(0.0, unit="mm")
     smoothing: bool = param(False)
 
 

@@ -279,7 +279,7 @@ def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyChec
     while walking, upper markers above lower ones, front markers of a segment ahead of
     its back ones, every marker near its template height above the floor."""
     forward, source = forward_directions(pos, anatomy, rate_hz)
-    return AnatomyCheck(_confidence(pos, anatomy, forward, source, floor_height(pos, anatomy)), source)
+    return AnatomyCheck(_confidence(pos, anatomy, forward, source, _floor(pos, anatomy)), source)
 
 
 check_anatomy.__doc__ = (
@@ -303,7 +303,7 @@ check_anatomy.__doc__ = (
 )
 
 
-def floor_height(pos: NDArray, anatomy: Anatomy) -> float:
+def _floor(pos: NDArray, anatomy: Anatomy) -> float:
     """Height of the floor: where the lowest marker spends its lowest tenth of the time,
     put at the lowest template height (feet markers sit a few centimetres above it); the
     same whatever the names."""
@@ -347,7 +347,7 @@ def settle_sides(
             done.append((a, b))
     moved = np.empty_like(pos)
     moved[perm] = pos
-    floor = floor_height(pos, anatomy)
+    floor = _floor(pos, anatomy)
     conf = _confidence(moved, anatomy, forward, source, floor)
     for a, b in anatomy.above + anatomy.ahead:
         if not (conf[a] < 1.0 - min_confidence and conf[b] < 1.0 - min_confidence):

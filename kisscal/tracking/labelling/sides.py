@@ -13,9 +13,8 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height, settle_sides
+from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, settle_sides
 from kisscal.tracking.labelling.result import Labelling
-from kisscal.tracking.labelling.runnerup import name_margins
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rigid import field_fits
 
@@ -66,7 +65,6 @@ def judge_sides(
     template: NDArray,
     rate_hz: float,
     params: TrackingParams,
-    reference: NDArray | None = None,
 ) -> Labelling:
     """``labelling`` with left and right settled by ``anatomy`` and its confidence.
 
@@ -81,12 +79,7 @@ def judge_sides(
     rate_hz : float
         Field rate: the walking direction is smoothed over a fixed time.
     params : TrackingParams
-        ``min_side_confidence``, ``min_name_margin_mm``.
-    reference : (n, 3) array, optional
-        A template the labelling did not shape (the set's, scaled to the subject), rows
-        as ``anatomy.names``: a name whose trajectory it does not tell from another name
-        by ``min_name_margin_mm`` (:func:`~kisscal.tracking.labelling.runnerup.name_margins`)
-        is flagged. Default ``template``.
+        ``min_side_confidence``.
 
     Returns
     -------
@@ -107,11 +100,6 @@ def judge_sides(
         n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
     }
     flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
-    ref = template if reference is None else reference
-    margin = name_margins(
-        moved, ref, anatomy.heights_mm, floor_height(moved, anatomy), anatomy.pairs
-    )
-    flagged |= {n for n, m in zip(names, margin, strict=True) if m < params.min_name_margin_mm}
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:

@@ -205,6 +205,10 @@ def label_with_set(
         ``template_mm`` is in the lab frame, Z up (a static trial's positions): its
         heights above the floor are checked too.
 
+    Without ``template_mm``, the trial's vertical is found from the data (Y up, Z up or
+    any lab axis and sign, :func:`~kisscal.tracking.labelling.vertical.upright_rotation`);
+    the labelling runs turned upright and the trajectories come back in the lab frame.
+
     Returns
     -------
     Labelling
@@ -273,7 +277,7 @@ def _label_upright(
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
-    judged = judge_sides(found, anatomy, template, rate_hz, params, scaled)
+    judged = judge_sides(found, anatomy, template, rate_hz, params)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this
