@@ -277,7 +277,7 @@ def _label_upright(
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
-    judged = judge_sides(found, anatomy, template, rate_hz, params)
+    judged = judge_sides(found, anatomy, template, rate_hz, params, scaled)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this
