@@ -16,7 +16,10 @@ files) is read with :func:`kisscal.io.c3d.read_c3d` (markers only) and:
 - when the file's markers belong to a shipped marker set (``SET`` below), labelled from
   the set alone as the system wrote them (every channel, in the file's order, labels
   dropped): names right / named / markers of the set in the file, and names forced on
-  the wrong marker (``wrong``; flagged ones counted apart).
+  the wrong marker (``wrong``; flagged ones counted apart), and right names that are
+  flagged (``(flag)``); a full-body file also without its arm markers, and the files of
+  :data:`TURNED` also with the lab turned (another axis up: the vertical must come from
+  the data).
 
 Files, their systems, sources and licences: ``fixtures/real/c3d/README.md``.
 """

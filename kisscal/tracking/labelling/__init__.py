@@ -41,7 +41,9 @@ standing template), and :mod:`~.subject` the subject's stature and own template 
 the trial; every labelling made with a set, or with names following the ``L``/``R``
 convention, is then judged by the anatomy (:mod:`~.anatomy`,
 :mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
-confidence per name, uncertain names flagged.
+confidence per name, uncertain names flagged: names the checks cannot tell apart (a
+wrist bar's two ends), and names that another name of the set fits clearly better
+against the set's own template (:mod:`~.runnerup`).
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.

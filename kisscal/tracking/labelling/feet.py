@@ -16,7 +16,8 @@ of the heel along the direction the body moves).
 divided by ``foot_margin`` when its toe trails its heel along the walk in
 ``facing_fraction`` of the fields. Another way replaces the labelling's own when it
 scores at most ``foot_margin`` times as much: first for the names' whole trajectories
-and the unnamed pieces near the shank, then for each piece holding a foot name (with
+and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
+heel marker has, some names are left free), then for each piece holding a foot name (with
 the name's holder, or an unnamed piece at the foot's distance, as its partner); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
 others and fits the foot's rigid distances. It runs once, after the last naming pass.
