@@ -197,6 +197,11 @@ class TrackingParams(Params):
         the markers below it) in fewer than this fraction of the fields is flagged as
         uncertain; a left/right pair the wrong way round in more than this fraction is
         exchanged.
+    name_deficit_fraction : float
+        A name (labelling from a marker set) that another name of the set fits better
+        by more than this fraction of stature (median misfit of the distances to its
+        neighbours and of its height, against the set's template:
+        :mod:`~kisscal.tracking.labelling.runnerup`) is flagged as uncertain.
     facing_fraction : float
         Toe names ahead of heel names (anterior pelvis ahead of posterior) along the walk in
         at least this fraction of the votes face forward; in at most 1 - it, turned round.
@@ -281,6 +286,7 @@ class TrackingParams(Params):
     foot_candidates: int = param(4, ge=0)
     set_window_s: float = param(1.0, unit="s", gt=0)
     min_side_confidence: float = param(0.8, gt=0.5, le=1)
+    name_deficit_fraction: float = param(0.04, ge=0)
     smoothing: bool = param(False)
 
 

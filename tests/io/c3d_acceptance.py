@@ -16,7 +16,10 @@ files) is read with :func:`kisscal.io.c3d.read_c3d` (markers only) and:
 - when the file's markers belong to a shipped marker set (``SET`` below), labelled from
   the set alone as the system wrote them (every channel, in the file's order, labels
   dropped): names right / named / markers of the set in the file, and names forced on
-  the wrong marker (``wrong``; flagged ones counted apart).
+  the wrong marker (``wrong``; flagged ones counted apart), and right names that are
+  flagged (``(flag)``); a full-body file also without its arm markers, and the files of
+  :data:`TURNED` also with the lab turned (another axis up: the vertical must come from
+  the data).
 
 Files, their systems, sources and licences: ``fixtures/real/c3d/README.md``.
 """
@@ -306,6 +309,7 @@ ARMS = tuple(f"{s}{m}" for s in "LR" for m in ("SHO", "UPA", "ELB", "FRM", "WRA"
 class Labels:
     in_set: int
     right: int
+    right_flagged: int
     named_wrong: int
     flagged_wrong: int
     extra_named: int
@@ -319,14 +323,19 @@ def set_name(label: str, aliases: dict[str, str]) -> str:
     return aliases.get(bare, bare)
 
 
-def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
-    """Label a file's markers from a shipped set alone (labels dropped, every channel);
-    count names right, names on the wrong marker (silent or flagged) and names given to
-    markers that are not in the set."""
+def label_raw(
+    c3d, set_name_: str, drop: tuple[str, ...] = (), turn: np.ndarray | None = None
+) -> Labels:
+    """Label a file's markers from a shipped set alone (labels dropped, every channel;
+    the lab turned by the rotation ``turn`` when given: p -> turn @ p); count names
+    right (and of them flagged), names on the wrong marker (silent or flagged) and names
+    given to markers that are not in the set."""
     mset = marker_set(set_name_)
     names = [set_name(lab, mset.aliases) for lab in c3d.labels]
     keep = [i for i, n in enumerate(names) if n not in drop]
     xyz = distinct(c3d.xyz_mm[:, keep])
+    if turn is not None:
+        xyz = xyz @ turn.T
     names = [names[i] for i in keep]
     field, points, channel = shuffled(xyz)
     t0 = time.perf_counter()
@@ -339,7 +348,7 @@ def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
     ident = true_channel(tr, field, points, channel)
     unnamed = set(lab.unlabelled)
     got: dict[str, str] = {}
-    wrong = flagged = extra = 0
+    wrong = flagged = extra = right_flagged = 0
     for t, label in enumerate(res.labels):
         ids = ident[(tr.track == t) & (ident >= 0)]
         if t in unnamed or not ids.size:
@@ -347,6 +356,7 @@ def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
         owner = names[int(np.bincount(ids).argmax())]
         if owner == label:
             got[owner] = label
+            right_flagged += label in lab.flagged
         elif owner not in mset.names:
             extra += 1
         elif label in lab.flagged:
@@ -354,26 +364,38 @@ def label_raw(c3d, set_name_: str, drop: tuple[str, ...] = ()) -> Labels:
         else:
             wrong += 1
     in_set = len({n for n in names if n in mset.names})
-    return Labels(in_set, len(got), wrong, flagged, extra, dt)
+    return Labels(in_set, len(got), right_flagged, wrong, flagged, extra, dt)
+
+
+#: Files also labelled with the lab turned (the vertical found from the data): name,
+#: variant, rotation (rows: the new axes in the file's; Z up becomes Y up, X down).
+TURNED = (
+    ("gait-pig-nz.c3d", "Y up", np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])),
+    ("gait-pig-nz.c3d", "-X up", np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])),
+    ("Vicon_analysis.c3d", "Y up", np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])),
+)
 
 
 def labels_report(cache: Path) -> list[str]:
+    """One line per file (and variant: no arms, lab turned): names right, right but
+    flagged, wrong and silent, wrong and flagged, names on markers outside the set."""
     lines = [
-        f"{'file':34} {'set':18} {'in set':>6} {'right':>5} {'wrong':>5} {'flagged':>7} "
-        f"{'extra':>5} {'s':>5}"
+        f"{'file':34} {'set':18} {'in set':>6} {'right':>5} {'(flag)':>6} {'wrong':>5} "
+        f"{'flagged':>7} {'extra':>5} {'s':>5}"
     ]
     for item in FILES + HELD_OUT:
         path = find(item.name, cache) if item.marker_set else None
         if path is None:
             continue
         c3d = read_c3d(path)
-        variants = [(item.name, ())]
+        variants = [(item.name, (), None)]
         if any(set_name(lab, {}) in ARMS for lab in c3d.labels):
-            variants.append((f"{item.name} (no arms)", ARMS))
-        for name, drop in variants:
-            r = label_raw(c3d, item.marker_set, drop)
+            variants.append((f"{item.name} (no arms)", ARMS, None))
+        variants += [(f"{n} ({v})", (), r) for n, v, r in TURNED if n == item.name]
+        for name, drop, turn in variants:
+            r = label_raw(c3d, item.marker_set, drop, turn)
             lines.append(
-                f"{name:34} {item.marker_set:18} {r.in_set:6d} {r.right:5d} "
+                f"{name:34} {item.marker_set:18} {r.in_set:6d} {r.right:5d} {r.right_flagged:6d} "
                 f"{r.named_wrong:5d} {r.flagged_wrong:7d} {r.extra_named:5d} {r.seconds:5.1f}"
             )
     return lines

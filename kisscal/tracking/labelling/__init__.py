@@ -35,11 +35,15 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
    named ``M<k>`` and reported. When too few names are matched (a stick, a thrown ball),
    all tracks are named M1, M2, ... .
 
-With a shipped marker set and no template, :mod:`~.subject` first finds the subject's
-stature and own template from the trial; every labelling made with a set, or with names
-following the ``L``/``R`` convention, is then judged by the anatomy (:mod:`~.anatomy`,
+With a shipped marker set and no template, :mod:`~.vertical` first finds which lab
+axis is up (a body is tallest along the vertical; stood on its head it does not fit the
+standing template), and :mod:`~.subject` the subject's stature and own template from
+the trial; every labelling made with a set, or with names following the ``L``/``R``
+convention, is then judged by the anatomy (:mod:`~.anatomy`,
 :mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
-confidence per name, uncertain names flagged.
+confidence per name, uncertain names flagged: names the checks cannot tell apart (a
+wrist bar's two ends), and names that another name of the set fits clearly better
+against the set's own template (:mod:`~.runnerup`).
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.

@@ -63,6 +63,10 @@ class Anatomy:
         Template height of each name above the floor (an upright template), and
     height_tolerance_mm : float
         how far from it a marker may be (:data:`HEIGHT_FRACTION` of stature).
+    twins : tuple of (int, int)
+        Names of one side closer in the template than :data:`NEAR_FRACTION` of stature
+        with no check between them (a wrist bar's two ends): nothing here tells them
+        apart, so their names are never certain.
     """
 
     names: tuple[str, ...]
@@ -75,6 +79,7 @@ class Anatomy:
     ahead: tuple[tuple[int, int], ...] = ()
     heights_mm: NDArray[np.float64] | None = None
     height_tolerance_mm: float = float("nan")
+    twins: tuple[tuple[int, int], ...] = ()
 
     @classmethod
     def of_names(cls, names: tuple[str, ...]) -> Anatomy:
@@ -104,6 +109,7 @@ class Anatomy:
         x = marker_set.template_mm[:, 0]
         centre = float(np.mean(x[pelvis])) if pelvis else 0.0
         feet = [marker_set.foot(side) for side in ("left", "right")]
+        above, ahead = _above(marker_set), _ahead(marker_set)
         return cls(
             tuple(names),
             pairs,
@@ -111,10 +117,11 @@ class Anatomy:
             back=tuple(i for i in pelvis if x[i] <= centre),
             heel=tuple(index[f["heel"]] for f in feet if "heel" in f),
             toe=tuple(index[f["toe"]] for f in feet if "toe" in f),
-            above=_above(marker_set),
-            ahead=_ahead(marker_set),
+            above=above,
+            ahead=ahead,
             heights_mm=_heights(marker_set, template_mm) if heights else None,
             height_tolerance_mm=HEIGHT_FRACTION * marker_set.height_mm,
+            twins=_twins(marker_set, pairs, above + ahead),
         )
 
 
@@ -137,6 +144,18 @@ def _above(marker_set: MarkerSet) -> tuple[tuple[int, int], ...]:
     height = marker_set.height_mm
     pick = (gap > ABOVE_FRACTION * height) | (one_side & (gap > NEAR_FRACTION * height))
     return tuple((int(i), int(j)) for i, j in zip(*np.nonzero(pick), strict=True))
+
+
+def _twins(marker_set: MarkerSet, pairs: tuple, checked: tuple) -> tuple[tuple[int, int], ...]:
+    """Pairs of names closer in the template than :data:`NEAR_FRACTION` of stature, not
+    mirror partners, that no vertical or front/back check involves together."""
+    t = marker_set.template_mm
+    d = np.linalg.norm(t[:, None] - t[None, :], axis=2)
+    apart = {frozenset(p) for p in pairs} | {frozenset(p) for p in checked}
+    close = np.triu(d < NEAR_FRACTION * marker_set.height_mm, 1)
+    return tuple(
+        (int(i), int(j)) for i, j in zip(*np.nonzero(close), strict=True) if {i, j} not in apart
+    )
 
 
 def _ahead(marker_set: MarkerSet) -> tuple[tuple[int, int], ...]:
@@ -279,7 +298,9 @@ def check_anatomy(pos: NDArray, anatomy: Anatomy, rate_hz: float) -> AnatomyChec
     while walking, upper markers above lower ones, front markers of a segment ahead of
     its back ones, every marker near its template height above the floor."""
     forward, source = forward_directions(pos, anatomy, rate_hz)
-    return AnatomyCheck(_confidence(pos, anatomy, forward, source, _floor(pos, anatomy)), source)
+    return AnatomyCheck(
+        _confidence(pos, anatomy, forward, source, floor_height(pos, anatomy)), source
+    )
 
 
 check_anatomy.__doc__ = (
@@ -303,7 +324,7 @@ check_anatomy.__doc__ = (
 )
 
 
-def _floor(pos: NDArray, anatomy: Anatomy) -> float:
+def floor_height(pos: NDArray, anatomy: Anatomy) -> float:
     """Height of the floor: where the lowest marker spends its lowest tenth of the time,
     put at the lowest template height (feet markers sit a few centimetres above it); the
     same whatever the names."""
@@ -347,7 +368,7 @@ def settle_sides(
             done.append((a, b))
     moved = np.empty_like(pos)
     moved[perm] = pos
-    floor = _floor(pos, anatomy)
+    floor = floor_height(pos, anatomy)
     conf = _confidence(moved, anatomy, forward, source, floor)
     for a, b in anatomy.above + anatomy.ahead:
         if not (conf[a] < 1.0 - min_confidence and conf[b] < 1.0 - min_confidence):

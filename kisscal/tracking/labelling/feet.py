@@ -16,7 +16,8 @@ of the heel along the direction the body moves).
 divided by ``foot_margin`` when its toe trails its heel along the walk in
 ``facing_fraction`` of the fields. Another way replaces the labelling's own when it
 scores at most ``foot_margin`` times as much: first for the names' whole trajectories
-and the unnamed pieces near the shank, then for each piece holding a foot name (with
+and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
+heel marker has, some names are left free), then for each piece holding a foot name (with
 the name's holder, or an unnamed piece at the foot's distance, as its partner); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
 others and fits the foot's rigid distances. It runs once, after the last naming pass.
@@ -70,15 +71,30 @@ def feet_of(names: tuple[str, ...]) -> list[Foot]:
     return out
 
 
-def score(dist: NDArray, target: NDArray, trails: NDArray, margin: float) -> NDArray:
+def score(
+    dist: NDArray, target: NDArray, trails: NDArray, margin: float, use: NDArray | None = None
+) -> NDArray:
     """The contest's score of each way of naming (rows): mean squared relative error of
-    its distances ``dist`` against ``target`` (the last axis), divided by ``margin`` where
-    its toe ``trails`` its heel; infinite when a pair was never seen together (a piece
-    that fits by seeing little)."""
-    rel = ((dist - target) / target) ** 2
-    seen = np.isfinite(rel).all(axis=-1)
-    err = np.where(seen, np.where(seen[..., None], rel, 0.0).mean(axis=-1), np.inf)
+    its distances ``dist`` against ``target`` (the last axis) over the pairs in ``use``
+    (default all: a way that leaves a name free has no distance for it), divided by
+    ``margin`` where its toe ``trails`` its heel; infinite when a pair used was never
+    seen together (a piece that fits by seeing little) or none is used."""
+    use = np.ones(np.shape(dist), dtype=bool) if use is None else use
+    rel = np.where(use, ((dist - target) / target) ** 2, 0.0)
+    seen = (np.isfinite(rel) | ~use).all(axis=-1) & use.any(axis=-1)
+    total = np.where(np.isfinite(rel), rel, 0.0).sum(axis=-1)
+    err = np.where(seen, total / np.maximum(use.sum(axis=-1), 1), np.inf)
     return np.where(trails, err / margin, err)
+
+
+def naming_choices(n_candidates: int, n_names: int) -> NDArray[np.int64]:
+    """Every way (rows) of giving ``n_names`` names to distinct candidates: the candidate
+    of each name, -1 for a name left free when there are fewer candidates than names (a
+    foot with no heel marker: its heel name is not forced on the ankle)."""
+    if n_candidates >= n_names:
+        return np.array(list(permutations(range(n_candidates), n_names)), dtype=np.int64)
+    slots = list(range(n_candidates)) + [-1] * (n_names - n_candidates)
+    return np.array(sorted(set(permutations(slots, n_names))), dtype=np.int64)
 
 
 def trailing(a: NDArray, b: NDArray, direction: NDArray, fraction: float) -> NDArray:
@@ -121,7 +137,9 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
 
 def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """The foot's names given among their trajectories and the unnamed pieces near the
-    shank by the best :func:`score` when it is at most ``foot_margin`` of the held one."""
+    shank by the best :func:`score` when it is at most ``foot_margin`` of the held one;
+    with fewer of them than names, as many names as there are candidates are given
+    (:func:`naming_choices`), the others left free."""
     params = state.params
     held_any = np.isfinite(state.name_pos[foot.names, :, 0]).any(axis=1)
     if not held_any.any():
@@ -129,8 +147,8 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     pool = _near_unnamed(state, foot, target)
     cand = np.concatenate([state.name_pos[foot.names[held_any]], state.dense[pool]])
     k, s = foot.names.size, foot.shank.size
-    if cand.shape[0] < k:
-        return False
+    if cand.shape[0] < 2:
+        return False  # nothing to give another way
     pos = np.concatenate([state.name_pos[foot.shank], cand])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -144,13 +162,16 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     i, j = np.triu_indices(s + k, 1)
     keep = j >= s
     i, j = i[keep], j[keep]
-    choices = np.array(list(permutations(range(cand.shape[0]), k)), dtype=np.int64)
-    cols = np.concatenate([np.broadcast_to(np.arange(s), (len(choices), s)), s + choices], 1)
+    choices = naming_choices(cand.shape[0], k)
+    given = np.where(choices >= 0, s + choices, -1)
+    cols = np.concatenate([np.broadcast_to(np.arange(s), (len(choices), s)), given], 1)
+    both = (choices[:, toe] >= 0) & (choices[:, heel] >= 0)
     scores = score(
         d[cols[:, i], cols[:, j]],
         target[names[i], names[j]],
-        behind[choices[:, toe], choices[:, heel]],
+        both & behind[choices[:, toe], choices[:, heel]],
         params.foot_margin,
+        (cols[:, i] >= 0) & (cols[:, j] >= 0),
     )
     held = np.where(held_any, np.cumsum(held_any) - 1, -1)
     own = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
@@ -204,7 +225,7 @@ def _rename_names(
     state: LabelState, foot: Foot, held_any: NDArray, pool: NDArray, choice: NDArray
 ) -> None:
     """Foot name ``i`` to candidate ``choice[i]``: the pieces of a held name (candidates
-    first, in the foot's order) or an unnamed long piece of ``pool``."""
+    first, in the foot's order) or an unnamed long piece of ``pool``; none for -1."""
     held_names = foot.names[held_any]
     pieces = [np.flatnonzero(state.label_of == j) for j in held_names]
     pieces += [state.long_ids[[r]] for r in pool]
@@ -212,7 +233,7 @@ def _rename_names(
         state.label_of[state.label_of == j] = -1
         state.name_pos[j] = np.nan
     for j, c in zip(foot.names, choice, strict=True):
-        for t in pieces[c]:
+        for t in pieces[c] if c >= 0 else ():
             state.name_piece(int(t), int(j))
 
 

@@ -13,8 +13,9 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, settle_sides
+from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height, settle_sides
 from kisscal.tracking.labelling.result import Labelling
+from kisscal.tracking.labelling.runnerup import name_margins
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rigid import field_fits
 
@@ -65,6 +66,7 @@ def judge_sides(
     template: NDArray,
     rate_hz: float,
     params: TrackingParams,
+    reference: NDArray | None = None,
 ) -> Labelling:
     """``labelling`` with left and right settled by ``anatomy`` and its confidence.
 
@@ -79,7 +81,12 @@ def judge_sides(
     rate_hz : float
         Field rate: the walking direction is smoothed over a fixed time.
     params : TrackingParams
-        ``min_side_confidence``.
+        ``min_side_confidence``, ``name_deficit_fraction``.
+    reference : (n, 3) array, optional
+        A template the labelling did not shape (the set's, scaled to the subject), rows
+        as ``anatomy.names``: a name that another name fits clearly better against it
+        (:func:`~kisscal.tracking.labelling.runnerup.name_margins`) is flagged. Default
+        ``template``.
 
     Returns
     -------
@@ -100,10 +107,18 @@ def judge_sides(
         n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
     }
     flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
+    ref = template if reference is None else reference
+    margin = name_margins(
+        moved, ref, anatomy.heights_mm, floor_height(moved, anatomy), anatomy.pairs
+    )
+    deficit = params.name_deficit_fraction * float(np.ptp(ref[:, 2]))
+    flagged |= {n for n, m in zip(names, margin, strict=True) if m < -deficit}
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:
         flagged |= paired & set(_relabelled(labelling, names, perm))
+    # Names nothing tells apart from a close neighbour (a wrist bar's ends) are uncertain.
+    flagged |= {names[i] for pair in anatomy.twins for i in pair} & set(labelling.labels)
     return replace(
         labelling,
         labels=_relabelled(labelling, names, perm),

@@ -42,6 +42,7 @@ from kisscal.tracking.labelling.state import (
     segment_mask,
 )
 from kisscal.tracking.labelling.upright import capped_assignment, fit_pose, floor_lift
+from kisscal.tracking.labelling.vertical import turned, upright_rotation
 from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
@@ -204,6 +205,10 @@ def label_with_set(
         ``template_mm`` is in the lab frame, Z up (a static trial's positions): its
         heights above the floor are checked too.
 
+    Without ``template_mm``, the trial's vertical is found from the data (Y up, Z up or
+    any lab axis and sign, :func:`~kisscal.tracking.labelling.vertical.upright_rotation`);
+    the labelling runs turned upright and the trajectories come back in the lab frame.
+
     Returns
     -------
     Labelling
@@ -240,6 +245,23 @@ def label_with_set(
         return judge_sides(found, anatomy, template, rate_hz, params)
     window = max(round(params.set_window_s * rate_hz), 10)
     first_params = params.replace(label_window_fields=min(params.label_window_fields, window))
+    up = upright_rotation(tracks, marker_set, first_params)
+    if not np.array_equal(up, np.eye(3)):
+        # The trial's vertical is not lab Z: label it turned upright, give it back as it was.
+        found = _label_upright(turned(tracks, up), marker_set, params, rate_hz, first_params)
+        return replace(found, tracks=turned(found.tracks, up.T))
+    return _label_upright(tracks, marker_set, params, rate_hz, first_params)
+
+
+def _label_upright(
+    tracks: Tracks,
+    marker_set: MarkerSet,
+    params: TrackingParams,
+    rate_hz: float,
+    first_params: TrackingParams,
+) -> Labelling:
+    """:func:`label_with_set` without a template, on pieces whose vertical is Z."""
+    names, segments = marker_set.names, marker_set.segments
     height = estimate_height(tracks, marker_set, first_params)
     if not np.isfinite(height):
         return generic(tracks, params, names, float("nan"))
@@ -255,7 +277,7 @@ def label_with_set(
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
-    judged = judge_sides(found, anatomy, template, rate_hz, params)
+    judged = judge_sides(found, anatomy, template, rate_hz, params, scaled)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this

@@ -1,0 +1,102 @@
+"""Names the evidence does not support: a foot with fewer markers than names, names
+nothing tells apart, a name another fits clearly better (kisscal.tracking.labelling:
+feet, anatomy, runnerup)."""
+
+import numpy as np
+
+from kisscal.markersets import marker_set
+from kisscal.synth.motion import walking_trial
+from kisscal.tracking import TrackingParams, blend_tracks, track_points
+from kisscal.tracking.labelling import label_with_set
+from kisscal.tracking.labelling.anatomy import Anatomy, floor_height
+from kisscal.tracking.labelling.feet import naming_choices, score, settle_feet
+from kisscal.tracking.labelling.runnerup import name_margins
+from kisscal.tracking.labelling.state import LabelState
+
+KISS = marker_set("kiss")
+
+
+def test_naming_choices_leave_names_free_only_when_candidates_are_short():
+    full = naming_choices(3, 3)
+    assert full.shape == (6, 3) and (full >= 0).all()
+    short = naming_choices(2, 3)
+    # Two candidates for three names: 3 * 2 ways, each with one name free.
+    assert short.shape == (6, 3)
+    assert ((short == -1).sum(axis=1) == 1).all()
+    assert all(sorted(row[row >= 0].tolist()) == [0, 1] for row in short)
+
+
+def test_score_counts_only_the_pairs_used():
+    dist = np.array([[100.0, 200.0, np.nan]])
+    target = np.array([[100.0, 100.0, 50.0]])
+    used = np.array([[True, True, False]])
+    assert score(dist, target, np.array([False]), 0.25, used)[0] == 0.5  # (0 + 1) / 2
+    assert np.isinf(score(dist, target, np.array([False]), 0.25)[0])  # a pair never seen
+
+
+def test_a_foot_without_its_heel_marker_keeps_ankle_and_toe_names():
+    """The walker's left heel marker removed: the left foot has two markers for three
+    names; ankle and toe keep their names and the heel name is given to none."""
+    m = walking_trial(2, 150, 50.0, path_mm=3500, model="grounded", height_m=1.6, heading_deg=230)
+    xyz = m.xyz_mm.copy()
+    xyz[:, m.names.index("LHEE")] = np.nan
+    f, k = np.nonzero(np.isfinite(xyz[..., 0]))
+    pieces = blend_tracks(track_points(f, xyz[f, k], TrackingParams()), TrackingParams())
+    found = label_with_set(pieces, KISS, TrackingParams(), 50.0)
+    t = found.tracks
+    for i, name in enumerate(found.labels):
+        if name in m.names:
+            rows = t.track == i
+            assert np.allclose(t.xyz_mm[rows][0], xyz[t.field[rows][0], m.names.index(name)])
+    assert "LANK" in found.labels and "LTOE" in found.labels and "LHEE" not in found.labels
+
+
+def test_a_heelless_foot_named_one_marker_back_is_given_back_its_names():
+    """A foot with no heel marker whose names moved back by one (heel name on the ankle,
+    ankle name on the toe, as labelling gave a real Vicon file): the feet contest gives
+    ankle and toe their names and leaves the heel name free."""
+    m = walking_trial(2, 150, 50.0, path_mm=3500, model="grounded", height_m=1.6, heading_deg=230)
+    xyz = m.xyz_mm.copy()
+    xyz[:, m.names.index("LHEE")] = np.nan
+    f, k = np.nonzero(np.isfinite(xyz[..., 0]))
+    pieces = blend_tracks(track_points(f, xyz[f, k], TrackingParams()), TrackingParams())
+    template = KISS.scaled(1600.0).template_mm
+    state = LabelState.begin(pieces, KISS.names, template, KISS.segments, TrackingParams())
+    truth = {}
+    for t in range(pieces.n_tracks):
+        fields, pts = state.piece(t)
+        j = int(np.nanargmin(np.linalg.norm(xyz[fields[0]] - pts[0], axis=1)))
+        truth[t] = m.names[j]
+    shifted = {"LANK": "LHEE", "LTOE": "LANK"}
+    for t, name in truth.items():
+        state.name_piece(t, KISS.names.index(shifted.get(name, name)))
+    assert settle_feet(state, template)
+    got = {t: KISS.names[j] for t, j in enumerate(state.label_of) if j >= 0}
+    assert all(got.get(t) == name for t, name in truth.items() if name in ("LANK", "LTOE"))
+    assert KISS.names.index("LHEE") not in state.label_of
+
+
+def test_wrist_bar_ends_are_twins():
+    full = marker_set("plug-in-gait-full")
+    a = Anatomy.of_set(full)
+    assert {(a.names[i], a.names[j]) for i, j in a.twins} == {("LWRA", "LWRB"), ("RWRA", "RWRB")}
+    assert Anatomy.of_set(KISS).twins == ()
+
+
+def test_a_leg_named_one_marker_up_is_clearly_beaten():
+    """The true names of a walk are not beaten by another name by 4 % of stature; the
+    thigh's name on the knee and the knee's on the ankle are."""
+    m = walking_trial(1, 150, 50.0, path_mm=3500, model="grounded", heading_deg=300)
+    pos = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in KISS.names]]
+    anatomy = Anatomy.of_set(KISS)
+    deficit = TrackingParams().name_deficit_fraction * np.ptp(KISS.template_mm[:, 2])
+
+    def margins(p):
+        return name_margins(p, KISS.template_mm, anatomy.heights_mm, floor_height(p, anatomy))
+
+    assert np.nanmin(margins(pos)) > -deficit
+    thigh, knee, ankle = (KISS.names.index(n) for n in ("LTHI", "LKNE", "LANK"))
+    shifted = pos.copy()
+    shifted[thigh], shifted[knee], shifted[ankle] = pos[knee], pos[ankle], np.nan
+    got = margins(shifted)
+    assert got[thigh] < -deficit and got[knee] < -deficit
