@@ -22,7 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.association import ambiguous_rows, associate, gate_costs, lookahead_cost
+from kisscal.tracking.association import (
+    ambiguous_rows,
+    associate,
+    certain_rows,
+    gate_costs,
+    lookahead_cost,
+)
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
@@ -223,6 +229,13 @@ class Live:
             self._close_rivals(pred, points, rows, cols)
         if self._speed is not None and rows.size:
             self._fast_first_steps(pred, points, rows, cols)
+        if self.setup.params.certain_ratio > 0 and rows.size:
+            # Own misses, not the gate, decide doubt (at least the measurement noise).
+            kal = rows[self.kalman[rows]]
+            spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))
+            found = points[cols[self.kalman[rows]]]
+            certain = certain_rows(pred[kal], found, points, spread, self.setup.params.certain_ratio)
+            self.ambiguous[kal[certain]] = False
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 
