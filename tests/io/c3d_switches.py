@@ -96,9 +96,7 @@ def _kind(xyz: np.ndarray, before: int, after: int, a: int, b: int) -> tuple[str
     return kind, apart, speed, accel, miss
 
 
-def switches(
-    xyz: np.ndarray, rate_hz: float, params: TrackingParams | None = None
-) -> list[Switch]:
+def switches(xyz: np.ndarray, rate_hz: float, params: TrackingParams | None = None) -> list[Switch]:
     """The switches of one file's re-tracking that the file does not make itself."""
     field, points, channel = shuffled(xyz)
     params = reconstructed_points(params or TrackingParams())
