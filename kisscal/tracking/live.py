@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking import association as assoc
+import kisscal.tracking.association as assoc
 from kisscal.tracking.association import ambiguous_rows, associate, gate_costs, lookahead_cost
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
