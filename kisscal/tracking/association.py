@@ -136,3 +136,36 @@ def ambiguous_rows(
     free[cols] = False
     out[rows] |= ((c[np.ix_(rows, free)] - own[rows][:, None]) < margin).any(axis=1)
     return out
+
+
+def certain_rows(
+    pred: NDArray,
+    found: NDArray,
+    points: NDArray,
+    spread: NDArray,
+    ratio: float,
+    others: NDArray,
+) -> NDArray[np.bool_]:
+    """Which tracks took their point beyond doubt: every other point of the field lies
+    more than ``ratio`` times farther from the prediction than the larger of the point
+    taken and the track's own prediction error (``spread``, mm: its recent RMS miss, at
+    least the measurement noise).
+
+    A gate is as wide as a marker's speed (Küçük 2005 eq. 3.16) while a smooth marker's
+    prediction misses by far less; judged by the gate, two markers closer than it are
+    always a doubt (a golf club's LEDs 5 mm apart at 3 m/s), judged by the track's own
+    misses they are not. ``pred``, ``found`` (T, 3) the tracks' predictions and points,
+    ``points`` (M, 3) the field's, ``spread`` (T,); ``others`` (K, 3) every live track's
+    prediction: a point another track predicted nearer stays a doubt (its own marker
+    may have vanished and the track taken a neighbour's).
+    """
+    if pred.shape[0] == 0 or points.shape[0] < 2 or ratio <= 0:
+        return np.zeros(pred.shape[0], dtype=bool)
+    d_own = np.linalg.norm(found - pred, axis=1)
+    d_all = np.linalg.norm(points[None, :, :] - pred[:, None, :], axis=2)
+    # The point taken must be the nearest; the second nearest is then the nearest rival.
+    nearest, d_rival = np.partition(d_all, 1, axis=1)[:, :2].T
+    # Nearest to this track among all live tracks (this one's prediction is in ``others``).
+    d_track = np.linalg.norm(found[:, None, :] - others[None, :, :], axis=2).min(axis=1)
+    own = (d_own <= nearest + 1e-9) & (d_own <= d_track + 1e-9)
+    return own & (d_rival > ratio * np.maximum(d_own, spread))

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+import kisscal.tracking.association as assoc
 from kisscal.tracking.association import ambiguous_rows, associate, gate_costs, lookahead_cost
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
@@ -32,8 +33,7 @@ _SINGLE_STEP_WEIGHT = 0.1
 # Weight of the newest squared error in each predictor's running error (per track).
 _ERROR_MEMORY = 0.5
 # A track's point nearer its prediction than this (mm) is not judged against its rivals
-# (:meth:`Live._close_rivals`): a few times the noise of reconstructed points, far below
-# the spacing of markers.
+# (:meth:`Live._close_rivals`): a few times the noise of reconstructed points.
 RIVAL_MIN_MM = 10.0
 # A one-point track's first step longer than this many times the fastest filtered track's
 # speed is cut (:meth:`Live._fast_first_steps`).
@@ -223,6 +223,12 @@ class Live:
             self._close_rivals(pred, points, rows, cols)
         if self._speed is not None and rows.size:
             self._fast_first_steps(pred, points, rows, cols)
+        if (ratio := self.setup.params.certain_ratio) > 0 and rows.size:
+            # Own misses, not the gate, decide doubt (at least the measurement noise).
+            kal, found = rows[self.kalman[rows]], points[cols[self.kalman[rows]]]
+            spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))
+            sure = assoc.certain_rows(pred[kal], found, points, spread, ratio, pred[self.alive])
+            self.ambiguous[kal[sure]] = False
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 
@@ -260,16 +266,10 @@ class Live:
 
     def _young_floor(self) -> NDArray:
         """Least gate half-width (T, 1) or (T, 3) of each initial track: the initial gate
-        for a one-point track, half of it for a two-point one; from three points on (a
-        least-squares velocity), half of it or less when the trial is slower: the Kalman
-        gate (eq. 3.16) of the fastest filtered track's speed. A young track's prediction
-        misses by its change of velocity, which is no larger than the speeds markers of
-        the trial reach; a marker that appears a few centimetres from where another
-        vanished (BTS.c3d of the C3D regression set: 53 mm at about 2 mm/field) is then not
-        taken into the other's track. Two-point tracks keep the wide floor: their velocity
-        is one step, and on fast markers (a push-rim stroke at 70 Hz) a tighter floor
-        makes them lose their marker to a one-point track, which is judged worse. Keeps
-        that speed for :meth:`_fast_first_steps`."""
+        for a one-point track, half of it for a two-point one (a velocity of one step); from
+        three points on, the Kalman gate (eq. 3.16) of the fastest filtered track's speed
+        when smaller (a marker appearing 53 mm from where another vanished at 2 mm/field,
+        BTS.c3d, is not taken in). Keeps that speed for :meth:`_fast_first_steps`."""
         setup = self.setup
         floor = setup.floor[self.n]
         seen = self.alive & self.kalman

@@ -53,6 +53,13 @@ class TrackingParams(Params):
         this much more in gate-normalised squared distance) is cut there into two pieces,
         and blending, which sees both sides, joins them: fast close markers are otherwise
         exchanged by a one-sided prediction. 0 turns it off.
+    certain_ratio : float
+        A Kalman track is never cut as ambiguous (``ambiguity_margin``, ``rival_ratio``)
+        when its point is the nearest to its prediction and every other point of the field
+        lies more than this many times farther than the larger of that point and the
+        track's own recent RMS prediction error (at least sqrt(``mnc``)): the gate grows
+        with speed, a smooth marker's misses do not (LEDs on a golf club 5 mm apart at
+        3 m/s). 0 turns it off.
     rival_ratio : float
         A track of two points or more (coasting too) whose point lies more than 10 mm from
         its prediction is cut there likewise when another point of the field, in its gate
@@ -238,6 +245,7 @@ class TrackingParams(Params):
     gate_error_factor: float = param(2.0, ge=0)
     ambiguity_margin: float = param(0.5, ge=0)
     rival_ratio: float = param(1.35, ge=0)
+    certain_ratio: float = param(4.0, ge=0)
     initial_gate_mm: float = param(120.0, unit="mm", gt=0)
     initial_gate_factor: float = param(0.6, gt=0)
     min_initial_length: int = param(5, ge=2)

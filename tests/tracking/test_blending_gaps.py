@@ -132,3 +132,41 @@ def test_a_join_another_marker_contests_in_its_gap_is_refused():
         out = blend_tracks(tracks, params)
         first = out.track[out.field == 0][0]
         assert (39 in out.field[out.track == first]) == joined
+
+
+def test_a_join_whose_end_another_piece_explains_better_is_refused():
+    """Two LEDs 5 mm apart along a club moving 30 mm per field: the first is tracked at
+    0-9 and, from 10, seen in a piece too short to blend (10-12); the second appears at
+    10. One cubic takes the first piece on to the second LED (a 5 mm step in 30), but the
+    first LED's sample at 10 lies on the first piece's extrapolation: refused. Without that
+    sample the join is made."""
+
+    def club(f, offset):
+        f = np.asarray(f, dtype=float)
+        xyz = np.stack([30.0 * f + offset, 2.0 * f, 0.05 * f**2], axis=1)
+        return xyz + np.random.default_rng(2).normal(0.0, 0.05, xyz.shape)
+
+    first, again, second = np.arange(0, 10), np.arange(10, 13), np.arange(10, 30)
+    for seen, joined in ((True, False), (False, True)):
+        pieces = [(first, club(first, 0.0)), (second, club(second, 5.0))]
+        if seen:
+            pieces.append((again, club(again, 0.0)))
+        out = blend_tracks(_tracks(pieces), TrackingParams())
+        start = out.track[out.field == 0][0]
+        assert (29 in out.field[out.track == start]) == joined
+
+
+def test_a_track_is_certain_of_its_point_when_rivals_lie_beyond_its_own_misses():
+    """A track predicting within 0.3 mm is sure of its point when the next lies 5 mm away
+    (4 times 0.3 is less), not when its misses are 2 mm, nor when another track predicted
+    its point nearer."""
+    from kisscal.tracking.association import certain_rows
+
+    pred = np.array([[0.0, 0.0, 0.0]])
+    points = np.array([[0.2, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    found = points[:1]
+    for spread, sure in ((0.3, True), (2.0, False)):
+        got = certain_rows(pred, found, points, np.array([spread]), 4.0, pred)
+        assert bool(got[0]) == sure
+    other = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])
+    assert not certain_rows(pred, found, points, np.array([0.3]), 4.0, other)[0]
