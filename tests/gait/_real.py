@@ -40,13 +40,15 @@ class RealTrial:
     #: the other belt loads it, so a belt's contacts are not one foot's stance).
     plates: bool = True
     #: A held-out trial: the source file's name in the C3D cache (``cache_folder``), read
-    #: whole (not a trimmed fixture); its plates' contacts are found on loading.
+    #: whole unless a trimmed fixture of its name is committed; its plates' contacts are
+    #: found on loading.
     file: str = ""
 
     @property
     def path(self) -> Path:
-        if not self.file:
-            return FIXTURES / f"{self.name}.c3d"
+        trimmed = FIXTURES / f"{self.name}.c3d"
+        if not self.file or trimmed.is_file():
+            return trimmed
         hits = sorted(cache_folder().rglob(self.file)) if cache_folder().is_dir() else []
         return hits[0] if hits else cache_folder() / "c3dio" / self.file
 

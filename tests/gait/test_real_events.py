@@ -105,25 +105,19 @@ def test_the_heel_stand_in_holds_on_trials_it_was_not_chosen_on() -> None:
     assert stand_in.mean_ms("foot_off") <= ankle.mean_ms("foot_off") + 0.5
 
 
-HELD_OUT = [t for t in _real.HELD_OUT if t.path.is_file()]
-
-
-@pytest.mark.skipif(not HELD_OUT, reason="held-out C3D.org files not in $KISSCAL_C3D_CACHE")
-def test_held_out_files_blind() -> None:
-    """C3D.org files kept out of the set (run blind first): gait-pig's marked events
-    (50 Hz, ankle stand-in) and eight more files' plate contacts. Its foot strikes came
-    45 ms early (54 worst) while the heel's rounded descent turned its corner before the
-    heel had swung furthest forward: bounded by that, 24 ms (28 worst), Zeni's 26."""
-    pig = next(t for t in HELD_OUT if t.name == "heldout_gait_pig")
+def test_held_out_gait_pig() -> None:
+    """A C3D.org file kept out of the set and run blind first (its trimmed copy is
+    committed since): gait-pig's marked events, 50 Hz, ankle stand-in. Its foot strikes
+    came 45 ms early (54 worst) while the heel's rounded descent turned its corner before
+    the heel had swung furthest forward: bounded by that, 24 ms (28 worst), Zeni's 26.
+    The eight held-out files scored against their plates need ``$KISSCAL_C3D_CACHE``:
+    ``python -m tests.gait.real_events held-out``."""
+    pig = next(t for t in _real.HELD_OUT if t.name == "heldout_gait_pig")
     gm, events = _real.load(pig)
     ours = score(detect_events(gm), events, gm.n_fields / gm.rate_hz)
     assert len(ours.errors["foot_strike"]) >= 4
     assert ours.mean_ms("foot_strike") < 27.0 and ours.worst_ms("foot_strike") < 32.0
     assert ours.mean_ms("foot_off") < 12.0
-    _, plates, zeni = table(_real.PLATE_GROUP, tuple(HELD_OUT))
-    assert len(plates.errors["foot_strike"]) >= 12
-    assert plates.mean_ms("foot_strike") < 18.0  # 16.5 (19.7 before the bound)
-    assert plates.mean_ms("foot_strike") < 0.5 * zeni.mean_ms("foot_strike")  # 41.4
 
 
 def test_a_treadmill_walk_is_walking() -> None:
