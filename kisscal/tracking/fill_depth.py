@@ -29,7 +29,7 @@ from scipy.interpolate import make_interp_spline
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs
+from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs, one_camera_blobs
 from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 
@@ -87,11 +87,7 @@ def depth_ray_fill(
     ks, rows = chain_blobs(series, lo, hi, spare, params)
     if ks.size == 0:
         return None
-    cam = int(np.bincount(spare.camera[rows]).argmax())
-    keep = spare.camera[rows] == cam
-    ks, rows = ks[keep], rows[keep]
-    ks, first = np.unique(ks, return_index=True)
-    rows = rows[first]
+    cam, ks, rows = one_camera_blobs(ks, rows, spare)
     centre = spare.centres[cam]
     own, a, b = series, lo, hi
     if measured is not None:

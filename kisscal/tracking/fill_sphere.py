@@ -53,6 +53,7 @@ from kisscal.tracking.raychain import (
     chain_blobs,
     length_partners,
     off_rays,
+    one_camera_blobs,
     partner_lengths,
 )
 from kisscal.tracking.rayfill import SpareBlobs, ray_directions
@@ -279,11 +280,8 @@ def sphere_depth_fill(
     ks, rows = ks[alone], rows[alone]
     if ks.size == 0:
         return None
-    cam = int(np.bincount(spare.camera[rows]).argmax())
-    keep = spare.camera[rows] == cam
     every = ks, rows
-    ks, first = np.unique(ks[keep], return_index=True)
-    rows = rows[keep][first]
+    cam, ks, rows = one_camera_blobs(ks, rows, spare)
     own = series if measured is None else np.where(measured[:, None], series, np.nan)
     centre = spare.centres[cam]
     acc = acceleration_sd(own, centre)

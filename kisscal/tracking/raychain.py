@@ -166,6 +166,17 @@ def chain_blobs(
     return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
 
 
+def one_camera_blobs(
+    ks: NDArray[np.int64], rows: NDArray[np.int64], spare: SpareBlobs
+) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+    """The camera that sees most of a gap's blobs (``ks``, ``rows`` as
+    :func:`chain_blobs`), and its blobs, the first of each field."""
+    cam = int(np.bincount(spare.camera[rows]).argmax())
+    keep = spare.camera[rows] == cam
+    ks, first = np.unique(ks[keep], return_index=True)
+    return cam, ks, rows[keep][first]
+
+
 def off_rays(
     at: NDArray, ks: NDArray, o_ks: NDArray, o_rows: NDArray, spare: SpareBlobs, gate: float
 ) -> NDArray[np.int64]:
