@@ -49,6 +49,12 @@ class RealTrial:
         trimmed = FIXTURES / f"{self.name}.c3d"
         if not self.file or trimmed.is_file():
             return trimmed
+        return self.source_file
+
+    @property
+    def source_file(self) -> Path:
+        """A held-out trial's whole source file in the C3D cache (its force plates: a
+        trimmed fixture keeps none)."""
         hits = sorted(cache_folder().rglob(self.file)) if cache_folder().is_dir() else []
         return hits[0] if hits else cache_folder() / "c3dio" / self.file
 
@@ -423,7 +429,9 @@ def _plates(trial: RealTrial, markers: dict, rate: float) -> dict[tuple[str, str
 
     from tests.gait.make_real_fixtures import plate_events
 
-    c3d = ezc3d.c3d(str(trial.path))
+    if not trial.source_file.is_file():
+        return {}
+    c3d = ezc3d.c3d(str(trial.source_file))
     params = c3d["parameters"]
     if "FORCE_PLATFORM" not in params:
         return {}
