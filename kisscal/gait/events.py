@@ -24,7 +24,10 @@ Two steps per event:
      has swung furthest forward relative to the pelvis (the coarse crossing: a rounded
      descent, filtered or at a low rate, otherwise turns its corner early); where the
      heel has no low point after the swing (no heel-strike pattern), Zeni's crossing,
-     with a warning;
+     with a warning; and where the foot lands flat or on its forefoot (Perry 1992), the
+     tip of the foot (``tip_ahead_mm`` ahead of the toe marker on the heel-to-toe line)
+     reaches the floor first, while the heel marker still falls: foot strike is then
+     the tip's landing;
    * foot off: the push-off turns the foot (heel-to-toe line) down faster and faster
      until the toes leave the floor, then the foot's rotation stops at once: foot off is
      the corner of the foot's pitch rate at its fastest plantarflexion, found by the
@@ -40,7 +43,7 @@ Measured (``python -m tests.gait.acceptance``, ``tests.gait.real_events``): with
 walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 Hz; on 18
 public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 10.9
 ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
-scatter as much), 24 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
+scatter as much), 16.5 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
 held-out files (gait-pig, 50 Hz, and eight files' plate contacts) 24 and 17 ms.
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
@@ -194,7 +197,7 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     for side in SIDES:
         strikes, offs = coarse[side]
         times[(side, "foot_strike")], zeni_only[side] = foot_strikes(
-            t, markers.heel[side], strikes / rate, stride_s, params
+            t, markers.heel[side], strikes / rate, stride_s, params, markers.toe[side]
         )
         times[(side, "foot_off")] = _offs(
             t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params

@@ -1,8 +1,10 @@
-"""Foot strike instants: where the heel marker lands, near each coarse (Zeni) strike.
+"""Foot strike instants: where the foot lands, near each coarse (Zeni) strike.
 
 The heel stops descending when it meets the floor; its height turns a corner there
 (Hreljac & Marshall 2000), found by a broken-curve fit from where the heel first comes
-to rest (Ghoussayni, Stevens, Durham & Ewins 2004): see :func:`kisscal.gait.detect_events`.
+to rest (Ghoussayni, Stevens, Durham & Ewins 2004); a foot landing flat or on its
+forefoot strikes where its tip reaches the floor, if before the heel (Perry 1992): see
+:func:`kisscal.gait.detect_events`.
 """
 
 from __future__ import annotations
@@ -15,15 +17,22 @@ from kisscal.gait.signals import first_within, kink_time
 
 
 def foot_strikes(
-    t: NDArray, heel: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+    t: NDArray,
+    heel: NDArray,
+    coarse: NDArray,
+    stride_s: float,
+    params: GaitParams,
+    toe: NDArray | None = None,
 ) -> tuple[list[float], int]:
     """Foot strikes: the corner of the heel's height near each coarse one, from where
     the heel first reaches its floor (a marker may sink lower in stance; still sinking
     at the end of the window, its lowest is looked for later, :func:`_sunk`). Where the
     heel has no low point there (its height still falls at the end of the window and
     it never came to rest in it, as for a walker whose heel does not land first), the
-    coarse event itself (Zeni's rule). Never before the coarse event: the heel lands
-    after it has swung furthest forward. Also returns how many came from Zeni's rule
+    coarse event itself (Zeni's rule). Given the ``toe`` marker, a flat or forefoot
+    landing strikes where the tip of the foot lands if that comes first
+    (:func:`forefoot_landing`). Never before the coarse event: the foot lands after the
+    heel has swung furthest forward. Also returns how many came from Zeni's rule
     alone."""
     dt = float(t[1] - t[0])
     half = max(params.strike_fit_ms / 1000.0, 5 * dt)
@@ -42,11 +51,58 @@ def foot_strikes(
             corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
             # Nor before the heel has swung furthest forward (the coarse event): a
             # rounded descent (filtered, low rate) otherwise puts the corner early.
-            found.append(max(corner if np.isfinite(corner) else t[i], float(c)))
+            strike = corner if np.isfinite(corner) else t[i]
+            if toe is not None:  # a forefoot (or flat) landing: the toe down first
+                strike = np.fmin(strike, forefoot_landing(t, heel, toe, c, stride_s, params))
+            found.append(max(strike, float(c)))
         elif i is not None:
             found.append(float(c))
             fallback += 1
     return found, fallback
+
+
+def forefoot_landing(
+    t: NDArray, heel: NDArray, toe: NDArray, c: float, stride_s: float, params: GaitParams
+) -> float:
+    """Where the tip of the foot reached the floor after the coarse foot strike ``c``:
+    sub-field, NaN if not in the strike window (or the window meets an end of the trial
+    or a gap).
+
+    Heights are taken above foot flat: the sample of early stance (from the strike
+    window's start to ``strike_sink`` of the stride after ``c``) where the heel and toe
+    markers are lowest together. The tip lies ``tip_ahead_mm`` ahead of the toe marker
+    on the heel-to-toe line, so its height is the toe marker's plus that distance times
+    the foot's slope (the toe's height less the heel's, over their distance); the
+    landing is where the tip, on its last descent to foot flat from ``tip_floor_mm[1]``
+    up, comes within ``tip_floor_mm[0]`` of the floor.
+
+    In a heel-first landing the tip comes down 50-150 ms after the heel; in a flat or
+    forefoot landing with it or before it, while the heel marker (or a stand-in behind
+    the ankle) still falls (Perry 1992: initial contact by the forefoot or the whole
+    foot).
+    """
+    lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
+    reach = params.strike_sink * stride_s  # back into the swing, on into stance
+    sel = np.flatnonzero((t >= c - reach) & (t <= c + reach))  # the swing's may be cut
+    if len(sel) < 3 or t[0] >= lo or sel[-1] == len(t) - 1:
+        return float("nan")
+    h, k = heel[sel], toe[sel]
+    if not (np.all(np.isfinite(h)) and np.all(np.isfinite(k))):
+        return float("nan")
+    stance = np.flatnonzero(t[sel] >= lo)
+    flat = int(stance[np.argmin(h[stance, 2] + k[stance, 2])])
+    up_heel, up_toe = h[:, 2] - h[flat, 2], k[:, 2] - k[flat, 2]
+    tip = up_toe + params.tip_ahead_mm * (up_toe - up_heel) / np.linalg.norm(k - h, axis=1)
+    # The tip's last descent to foot flat: from the last sample still tip_floor_mm[1]
+    # up (more than noise), the first within tip_floor_mm[0] of the floor.
+    up = np.flatnonzero(~(tip[:flat] <= params.tip_floor_mm[1]))
+    down = np.flatnonzero(tip[: flat + 1] <= params.tip_floor_mm[0])
+    down = down[down > up[-1]] if len(up) else down[:0]
+    if not len(down) or not lo <= t[sel[down[0]]] <= hi:
+        return float("nan")
+    j = int(down[0]) - 1  # the tip falls through tip_floor_mm[0] between j and j + 1
+    frac = (tip[j] - params.tip_floor_mm[0]) / (tip[j] - tip[j + 1])
+    return float(t[sel[j]] + np.clip(frac, 0.0, 1.0) * (t[sel[j + 1]] - t[sel[j]]))
 
 
 def _sunk(t: NDArray, z: NDArray, lo: float, hi: float, until: float, params: GaitParams) -> int:

@@ -43,6 +43,14 @@ class GaitParams(Params):
         its lowest there: the corner of its height is looked for around that sample, not
         around the lowest one (a heel marker can sink a few mm more as the foot rolls
         down to foot flat, 30-100 ms after the strike).
+    tip_ahead_mm : float
+    tip_floor_mm : (float, float)
+        A flat or forefoot landing: the tip of the foot lies ``tip_ahead_mm`` ahead of
+        the toe marker on the heel-to-toe line (toe markers sit over the metatarsal
+        heads, the toes' pads 30-50 mm ahead), and the foot strikes where the tip comes
+        within ``tip_floor_mm[0]`` of its height at foot flat on its last descent from
+        ``tip_floor_mm[1]`` up (more than marker noise), if that is before the heel
+        lands (:func:`kisscal.gait.landing.forefoot_landing`).
     strike_fit_ms, strike_search_ms : float
         Half width of the window over which the corner of the heel's height is fitted,
         and how far from the sample where the heel reached the floor the corner may lie.
@@ -92,6 +100,8 @@ class GaitParams(Params):
     off_window: tuple[float, float] = param((-0.2, 0.05), ge=-0.5, le=0.5)
     strike_sink: float = param(0.4, gt=0, le=0.6)
     strike_floor_mm: float = param(1.0, unit="mm", gt=0)
+    tip_ahead_mm: float = param(40.0, unit="mm", ge=0)
+    tip_floor_mm: tuple[float, float] = param((1.0, 3.0), unit="mm", gt=0)
     strike_fit_ms: float = param(80.0, unit="ms", gt=0)
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
@@ -108,7 +118,7 @@ class GaitParams(Params):
     human_speed: tuple[float, float] = param((0.1, 3.0), unit="m/s", gt=0)
 
     def check(self) -> None:
-        for name in ("strike_window", "off_window", "human_cadence", "human_speed"):
+        for name in ("strike_window", "off_window", "tip_floor_mm", "human_cadence", "human_speed"):
             lo, hi = getattr(self, name)
             if not lo < hi:
                 self.fail(f"{name} must be (earlier, later), got {(lo, hi)!r}")

@@ -165,3 +165,41 @@ def test_a_heel_sinking_on_through_stance_still_lands_where_it_lands() -> None:
     # Without looking on past the window it is taken from Zeni's crossing alone.
     (zeni,), fallback = foot_strikes(t, heel, coarse, 1.1, GaitParams(strike_sink=0.2))
     assert fallback == 1 and zeni == coarse[0]
+
+
+def _landing(rate: float, t0: float, noise_mm: float, on_tip: bool) -> tuple:
+    """A foot landing at ``t0``, falling at 0.3 m/s, on its tip (the heel 0.12 rad up)
+    or on its heel (the toes 0.3 rad up), then rolling down about that point to foot
+    flat in 80 ms; heel off 0.38 s after the landing. Time, heel and toe markers (150 mm
+    apart, the tip 40 mm ahead of the toe marker, both 40 mm up at foot flat)."""
+    t = np.arange(round(2 * t0 * rate)) / rate
+    tau = t - t0
+    drop = np.where(tau < 0, -300.0 * tau, 0.0)  # the landing point's height
+    start = 0.12 if on_tip else -0.3  # the heel's pitch up (the toes down)
+    pitch = np.where(tau < 0, start, start * np.clip(1 - tau / 0.08, 0, 1) ** 2)
+    pitch = pitch + np.where(tau > 0.38, 2.0 * (tau - 0.38) ** 2, 0.0)  # heel off
+    forward = np.stack([np.cos(pitch), np.zeros_like(t), -np.sin(pitch)], axis=1)
+    pivot = np.stack([np.zeros_like(t), np.zeros_like(t), 40.0 + drop], axis=1)
+    heel = pivot - 190.0 * forward if on_tip else pivot
+    noise = np.random.default_rng(1).normal(0.0, noise_mm, (2, len(t), 3))
+    return t, heel + noise[0], heel + 150.0 * forward + noise[1]
+
+
+def test_a_forefoot_landing_strikes_when_the_tip_lands_not_the_heel() -> None:
+    """A flat or forefoot landing (Perry 1992): the foot's tip lands at 1.0 s while the
+    heel marker is still 20 mm up and falling; it comes down 80 ms later. Foot strike is
+    the tip's landing (within a field: the tip is 1 mm up 3 ms before), not the heel's;
+    a heel-first landing keeps the heel's (its tip lands 80 ms later)."""
+    from kisscal.gait.landing import foot_strikes
+
+    coarse = np.array([0.98])
+    for rate in (60.0, 100.0, 250.0):
+        for on_tip in (True, False):
+            t, heel, toe = _landing(rate, 1.0, 0.3, on_tip)
+            (heel_only,), _ = foot_strikes(t, heel, coarse, 1.1, GaitParams())
+            (found,), _ = foot_strikes(t, heel, coarse, 1.1, GaitParams(), toe)
+            assert abs(found - 1.0) < 1.0 / rate, (rate, on_tip)
+            if on_tip:
+                assert heel_only - 1.0 > 0.05, rate  # the heel lands late
+            else:
+                assert found == heel_only, rate
