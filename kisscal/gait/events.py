@@ -20,9 +20,12 @@ Two steps per event:
      corner is found by a broken-curve fit (two quadratics meeting at the event) from
      where the heel first comes within ``strike_floor_mm`` of its lowest (Ghoussayni et
      al. 2004 time heel contact where the heel comes to rest), not around that lowest,
-     which a marker sinking in stance reaches 30-150 ms late; and not before the heel
-     has swung furthest forward relative to the pelvis (the coarse crossing: a rounded
-     descent, filtered or at a low rate, otherwise turns its corner early); where the
+     which a marker sinking in stance reaches 30-150 ms late, nor from where the heel
+     sank under the load after it had come to rest (at rest: sinking less than
+     ``strike_floor_mm`` over ``strike_search_ms``, once the toes no longer rise); and
+     not before the heel has swung furthest forward relative to the pelvis (the coarse
+     crossing: a rounded descent, filtered or at a low rate, otherwise turns its corner
+     early); where the
      heel has no low point after the swing (no heel-strike pattern), Zeni's crossing,
      with a warning; and where the foot lands flat or on its forefoot (Perry 1992), the
      tip of the foot (``tip_ahead_mm`` ahead of the toe marker on the heel-to-toe line)
@@ -41,9 +44,9 @@ Two steps per event:
 
 Measured (``python -m tests.gait.acceptance``, ``tests.gait.real_events``): within 6 ms of
 walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 Hz; on 18
-public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 10.9
+public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 10.0
 ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
-scatter as much), 16.5 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
+scatter as much), 15.4 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
 held-out files (gait-pig, 50 Hz, and eight files' plate contacts) 24 and 17 ms.
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,

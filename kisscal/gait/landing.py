@@ -10,6 +10,7 @@ forefoot strikes where its tip reaches the floor, if before the heel (Perry 1992
 from __future__ import annotations
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from kisscal.gait.params import GaitParams
@@ -29,8 +30,9 @@ def foot_strikes(
     at the end of the window, its lowest is looked for later, :func:`_sunk`). Where the
     heel has no low point there (its height still falls at the end of the window and
     it never came to rest in it, as for a walker whose heel does not land first), the
-    coarse event itself (Zeni's rule). Given the ``toe`` marker, a flat or forefoot
-    landing strikes where the tip of the foot lands if that comes first
+    coarse event itself (Zeni's rule). Given the ``toe`` marker, from where the heel
+    came to rest if it sank on under the load (:func:`_heel_rest`), and a flat or
+    forefoot landing strikes where the tip of the foot lands if that comes first
     (:func:`forefoot_landing`). Never before the coarse event: the foot lands after the
     heel has swung furthest forward. Also returns how many came from Zeni's rule
     alone."""
@@ -46,6 +48,8 @@ def foot_strikes(
             i = _sunk(t, heel[:, 2], lo, hi, c + params.strike_sink * stride_s, params)
         if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
             i = first_within(t, heel[:, 2], lo, i, params.strike_floor_mm)
+            if toe is not None:  # came to rest before sinking on (loading, soft tissue)
+                i = min(i, _heel_rest(t, heel, toe, lo, i, params))
             # The heel stops descending once on the floor, not while still above it:
             # the corner lies from the field before the landing one on.
             corner = kink_time(t, heel[:, 2], t[i], half, search, earliest=t[i] - dt)
@@ -103,6 +107,31 @@ def forefoot_landing(
     j = int(down[0]) - 1  # the tip falls through tip_floor_mm[0] between j and j + 1
     frac = (tip[j] - params.tip_floor_mm[0]) / (tip[j] - tip[j + 1])
     return float(t[sel[j]] + np.clip(frac, 0.0, 1.0) * (t[sel[j + 1]] - t[sel[j]]))
+
+
+def _heel_rest(
+    t: NDArray, heel: NDArray, toe: NDArray, lo: float, i: int, params: GaitParams
+) -> int:
+    """The first sample from ``lo`` up to sample ``i`` where the heel marker is at rest:
+    it sinks less than ``strike_floor_mm`` over the next ``strike_search_ms`` and lies
+    within ``heel_down_mm`` of ``heel[i]``, once the foot has stopped turning its toes
+    up (past its highest pitch: in terminal swing a heel can hover above the floor while
+    the toes still rise); ``i`` if none.
+
+    A heel marker may come to rest on landing and sink a few mm more under the loading
+    that follows, its height lowest 50-70 ms late (Ghoussayni et al. 2004 time heel
+    contact where the heel marker comes to rest).
+    """
+    sel = np.flatnonzero((t >= lo) & (np.arange(len(t)) <= i))
+    d = toe[sel] - heel[sel]
+    if not np.all(np.isfinite(d)):
+        return i
+    sel = sel[int(np.argmax(np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])))) :]
+    z = heel[:, 2]
+    w = max(2, round(params.strike_search_ms / 1000.0 / float(t[1] - t[0])))
+    ahead = sliding_window_view(np.append(z, np.full(w, np.inf)), w + 1)[sel].min(axis=1)
+    rest = sel[(z[sel] <= ahead + params.strike_floor_mm) & (z[sel] <= z[i] + params.heel_down_mm)]
+    return int(rest[0]) if len(rest) else i
 
 
 def _sunk(t: NDArray, z: NDArray, lo: float, hi: float, until: float, params: GaitParams) -> int:

@@ -42,7 +42,9 @@ class GaitParams(Params):
         The heel has reached the floor at the first sample of the window within this of
         its lowest there: the corner of its height is looked for around that sample, not
         around the lowest one (a heel marker can sink a few mm more as the foot rolls
-        down to foot flat, 30-100 ms after the strike).
+        down to foot flat, 30-100 ms after the strike); nor after it had come to rest,
+        sinking less than this over the next ``strike_search_ms``, once the toes stopped
+        rising (a heel marker sinking on under the load).
     tip_ahead_mm : float
     tip_floor_mm : (float, float)
         A flat or forefoot landing: the tip of the foot lies ``tip_ahead_mm`` ahead of

@@ -74,27 +74,28 @@ def test_foot_strike_where_the_heel_is_marked() -> None:
             assert err.worst_ms("foot_strike") < 20.0, trial.name
             assert err.mean_ms("foot_off") < 10.0, trial.name
         assert not err.errors["foot_strike"] or err.mean_ms("foot_strike") < 35.0, trial.name
-    assert pooled.mean_ms("foot_strike") < 11.8  # 10.9 ms (11.2 before the swing bound)
+    assert pooled.mean_ms("foot_strike") < 10.6  # 10.0 ms (10.9 before the heel's rest)
     assert len(pooled.errors["foot_strike"]) >= 40
 
 
 def test_foot_strike_where_the_ankle_stands_in_for_the_heel(marked) -> None:
     """Every trial, the four without a heel marker included (their heel a stand-in
-    behind the ankle): 12.2 ms mean, 57 ms worst (13.8 and 75 ms before a flat or
-    forefoot landing struck where the foot's tip lands, vicon_2198928's; 14.2 before the
-    heel had to swing furthest forward first; 19.2 and 83 ms with the ankle marker
-    itself as the heel)."""
+    behind the ankle): 11.2 ms mean, 55 ms worst (12.2 and 57 ms before a heel at rest
+    on landing that sank on under the load struck where it came to rest,
+    vicon_ws44_plugingait's; 13.8 and 75 ms before a flat or forefoot landing struck
+    where the foot's tip lands, vicon_2198928's; 14.2 before the heel had to swing
+    furthest forward first; 19.2 and 83 ms with the ankle marker itself as the heel)."""
     _, ours, _ = marked
     assert len(ours.errors["foot_strike"]) >= 75
-    assert ours.mean_ms("foot_strike") < 13.0
-    assert ours.worst_ms("foot_strike") < 60.0
+    assert ours.mean_ms("foot_strike") < 12.0
+    assert ours.worst_ms("foot_strike") < 57.0
 
 
 def test_the_heel_stand_in_holds_on_trials_it_was_not_chosen_on() -> None:
     """Its 40 mm were chosen on the ankle markers of four trials that also carry heel
     markers (their source files, not kept here); on the four trials without a heel
     marker its foot strikes are far closer to the marked ones than the ankle marker's
-    own (16.5 against 46 ms mean; 23.6 before forefoot landings), and its foot offs no
+    own (15.4 against 46 ms mean; 23.6 before forefoot landings), and its foot offs no
     worse (same pitch line)."""
     stand_in, ankle = Errors(), Errors()
     for trial in (t for t in _real.TRIALS if t.ankle):
