@@ -1,6 +1,7 @@
 """Does one correct extra 3D point make tracking worse? (issue 27; not a test, run it).
 
-    python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" [--n=8] [--any] [--at=RANK@49]
+    python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" [--n=8] [--any] [--all]
+    python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" --at=RANK@49,LHEE@107
 
 Reconstructs the walk of :mod:`tests.tracking.few_cameras_acceptance` (kept in
 /tmp/extra_point_probe_*.pkl: delete them after changing reconstruction), then, one at
@@ -10,7 +11,8 @@ more), and tracks again with default settings. Per insertion: identity switches 
 names right (as the acceptance table scores them) and, to tell which stage made a
 change, the samples of track pieces that mix two markers after tracking (``raw``) and
 after blending (``blend``), and the measured samples whose label names another marker
-after labelling (``wrong``). A correct point must never make any of them worse.
+after labelling (``wrong``). A correct point must never make any of them worse. With
+``--all``, every missed point at once (as a perfect two-camera reconstruction would).
 """
 
 from __future__ import annotations
@@ -130,6 +132,14 @@ if __name__ == "__main__":
             name, f = item.split("@")
             todo.append((int(f), trial.names.index(name)))
     rng = np.random.default_rng([seed, 39])
+    if "--all" in sys.argv:  # every missed point at once: a perfect two-camera recall
+        todo = candidates(trial, 10**9, seed, "--any" not in sys.argv)
+        every = trial
+        for f, j in todo:
+            every = with_point(every, f, j, rng)
+        got = stages(every)
+        print(f"all {len(todo)}: {got}  change { {k: got[k] - base[k] for k in got} }")
+        todo = []
     for f, j in todo:
         got = stages(with_point(trial, f, j, rng))
         diff = {k: got[k] - base[k] for k in got}

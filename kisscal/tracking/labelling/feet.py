@@ -18,7 +18,9 @@ divided by ``foot_margin`` when its toe trails its heel along the walk in
 scores at most ``foot_margin`` times as much: first for the names' whole trajectories
 and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
 heel marker has, some names are left free), then for each piece holding a foot name (with
-the name's holder, or an unnamed piece at the foot's distance, as its partner); last,
+the name's holder, or an unnamed piece at the foot's distance, as its partner: when
+its distances fit the template either way within ``label_segment_tolerance_mm``, as a
+heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
 others and fits the foot's rigid distances. It runs once, after the last naming pass.
 """
