@@ -121,7 +121,7 @@ if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     seed = int(args[0]) if args else 301
     opt = dict(a[2:].split("=", 1) for a in sys.argv[1:] if a.startswith("--") and "=" in a)
-    preset, cams = RIGS[opt.get("rig", "kiss 3")]
+    preset, cams = next(v for k, v in RIGS.items() if k.startswith(opt.get("rig", "kiss 3")))
     trial = cached_trial(preset, seed, cams)
     base = stages(trial)
     print(f"base: {base}", flush=True)
