@@ -184,7 +184,8 @@ class TrackingParams(Params):
         piece from where the body's rigid fit expects a name for it to take that name.
     label_segment_tolerance_mm : float
         Largest RMS difference (mm) between a piece's distances to the rigid partners of a
-        name and the template's for the piece to take that name.
+        name and the template's for the piece to take that name; in the foot contest, two
+        names whose distances both fit within it are told apart by the walk alone.
     min_label_points : int
         Measured points a piece needs to be considered for a name at all.
     min_body_fit_points : int

@@ -18,7 +18,9 @@ divided by ``foot_margin`` when its toe trails its heel along the walk in
 scores at most ``foot_margin`` times as much: first for the names' whole trajectories
 and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
 heel marker has, some names are left free), then for each piece holding a foot name (with
-the name's holder, or an unnamed piece at the foot's distance, as its partner); last,
+the name's holder, or an unnamed piece at the foot's distance, as its partner: when
+its distances fit the template either way within ``label_segment_tolerance_mm``, as a
+heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
 others and fits the foot's rigid distances. It runs once, after the last naming pass.
 """
@@ -315,7 +317,10 @@ def _piece_better(
     direction: NDArray,
 ) -> bool:
     """Whether piece ``p`` (named ``n``) scores far better named ``m`` with its partner
-    at positions ``other`` (its fields) named ``n``."""
+    at positions ``other`` (its fields) named ``n``. When the distances fit the template
+    both ways within ``label_segment_tolerance_mm`` (RMS), they cannot tell the names
+    apart and the walk alone decides: the exchange is better when the names as held put
+    the toe behind the heel and the exchange does not."""
     fields, xyz = state.piece(p)
     refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
     pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
@@ -332,9 +337,19 @@ def _piece_better(
     fraction, margin = state.params.facing_fraction, state.params.foot_margin
     own_trails = _trails_as(state, foot, fields, {n: xyz, m: other}, direction, fraction)
     alt_trails = _trails_as(state, foot, fields, {m: xyz, n: other}, direction, fraction)
+    tolerance = state.params.label_segment_tolerance_mm
+    if max(_rms(dist - own_t), _rms(dist - alt_t)) <= tolerance:
+        # Both ways fit within noise (a heel and a toe seen with the shank alone: the
+        # tibia and knee are about as far from either, kiss template 264 and 266 mm):
+        # the scores' ratio is noise (0.4 against 0.9 mm), the walk decides.
+        return own_trails and not alt_trails
     own = float(score(dist, own_t, own_trails, margin))
     alt = float(score(dist, alt_t, alt_trails, margin))
     return bool(np.isfinite(own) and alt <= margin * own)
+
+
+def _rms(miss: NDArray) -> float:
+    return float(np.sqrt(np.mean(miss**2)))
 
 
 def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
