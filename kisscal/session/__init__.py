@@ -30,9 +30,9 @@ from kisscal.session.detection import detect_images
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Progress, reporting_progress
-from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.run import run
+from kisscal.session.stages import reconstruct
 from kisscal.session.summary import CheckFailure, check
 from kisscal.session.track import track
 from kisscal.session.validate import Problem, validate

@@ -26,9 +26,8 @@ from kisscal.detect import DetectionParams
 from kisscal.detect.configure import DERIVED
 from kisscal.errors import KisscalError
 from kisscal.io.config import load_session
-from kisscal.session.configure import markers_detection
 from kisscal.session.params import MEMBERS, stage_params
-from kisscal.session.reconstruct import trial_blobs
+from kisscal.session.runner import markers_detection, trial_blobs
 
 
 def _base(tmp: Path) -> dict[str, Any]:

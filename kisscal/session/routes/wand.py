@@ -44,7 +44,8 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
-from kisscal.session.trials import trial_blobs, trial_input_files
+from kisscal.session.runner import trial_blobs
+from kisscal.session.trials import trial_input_files
 
 #: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
 PINHOLES = ("dlt", "refined")
