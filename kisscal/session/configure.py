@@ -25,13 +25,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from kisscal.detect.configure import Choice, DetectionSetup, configure_detection
-from kisscal.errors import InputError, KisscalError
+from kisscal.errors import KisscalError
 from kisscal.grid.frames import dots_from_frames
 from kisscal.grid.lattice import lattice_pixel_aspect
 from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.frames import camera_frames
 from kisscal.session.inputs import image_sources
 from kisscal.session.params import StageParams
+from kisscal.session.trials import SizedFrames
 
 #: Frames surveyed per image set (spread evenly over it) and per camera and kind at most.
 FRAMES_PER_SET = 8
@@ -50,7 +51,7 @@ class Sample:
     def frame(self, k: int) -> np.ndarray:
         """Picked frame ``k``, decoded and checked for the camera's size."""
         seq, i = self.picks[k]
-        return _sized(seq, i, self.camera)
+        return SizedFrames(seq, self.camera.id, self.camera.size_px)[i]
 
     @property
     def frames(self) -> list[np.ndarray]:
@@ -111,17 +112,3 @@ def survey_sample(config: SessionConfig, camera: CameraConfig, kind: str) -> Sam
         picked = np.unique(np.linspace(0, n - 1, min(n, per_set)).astype(int))
         picks += [(seq, int(i)) for i in picked]
     return Sample(tuple(picks), camera) if picks else None
-
-
-def _sized(frames: Sequence, index: int, camera: CameraConfig) -> np.ndarray:
-    """Frame ``index``, refused (naming its file) when it is not the camera's size."""
-    image = frames[index]
-    h, w = image.shape[:2]
-    if camera.size_px is not None and (w, h) != tuple(camera.size_px):
-        paths = getattr(frames, "paths", None)
-        name = paths[index] if paths is not None else f"{getattr(frames, 'path', '')} frame {index}"
-        raise InputError(
-            f"{name}: {w} x {h} pixels, but camera {camera.id}'s frames are "
-            f"{camera.size_px[0]} x {camera.size_px[1]}"
-        )
-    return image

@@ -27,7 +27,8 @@ from kisscal.session.parallel import each_camera
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
-from kisscal.session.runner import SizedFrames, camera_detection
+from kisscal.session.runner import camera_detection
+from kisscal.session.trials import SizedFrames
 
 
 @writes_session

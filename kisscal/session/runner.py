@@ -32,13 +32,13 @@ from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.io.cache import save_blob_frames
 from kisscal.io.config import CameraConfig, SessionConfig, TrialConfig
 from kisscal.io.detection_record import DetectionRecord, write_detection_record
-from kisscal.io.frames import frame_name, source_files
+from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.session.configure import Sample, grid_setup, survey_sample
 from kisscal.session.inputs import load_config
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, counted, quiet
-from kisscal.session.trials import centroid_files, trial_frames_of, trial_input_files
+from kisscal.session.trials import SizedFrames, centroid_files, trial_frames_of, trial_input_files
 
 #: Bumped whenever the derivation changes, so cached settings are derived again.
 DERIVATION_VERSION = 4
@@ -202,37 +202,6 @@ def _on_lattice(kind: str, aspect_source: str) -> bool:
     """True when a grid's settings hold a pixel aspect measured on its dot lattice (the
     only pixel aspect of grid frames recorded as ``derived``: see :func:`_grid_setup`)."""
     return kind == "grid" and aspect_source == "derived"
-
-
-@dataclass(frozen=True)
-class SizedFrames(Sequence):
-    """A camera's frames, each checked for the camera's image size when it is read.
-
-    A frame of another size among a camera's frames (a file from another camera, a
-    resized export) would otherwise be detected in the wrong pixel frame and lost.
-    """
-
-    frames: Sequence[np.ndarray]
-    camera: str
-    size_px: tuple[int, int]
-
-    def __len__(self) -> int:
-        return len(self.frames)
-
-    def __getitem__(self, index):  # type: ignore[override]
-        image = self.frames[index]
-        h, w = image.shape[:2]
-        if (w, h) != tuple(self.size_px):
-            raise InputError(
-                f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
-                f"{self.camera}'s frames are "
-                f"{self.size_px[0]} x {self.size_px[1]}"
-            )
-        return image
-
-    @property
-    def sequential(self) -> bool:
-        return bool(getattr(self.frames, "sequential", False))
 
 
 def chunk_size(frames: Sequence, workers: int | None) -> int:

@@ -1,9 +1,12 @@
-"""A trial's 2D sources: its frames per camera (images or video), its centroid files, and
-the files they come from (for cache keys). Their blobs are detected by the runner
+"""A trial's 2D sources: its frames per camera (images or video, each frame checked for
+the camera's size when read), its centroid files, and the files they come from (for
+cache keys). Their blobs are detected by the runner
 (:func:`kisscal.session.runner.trial_blobs`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -13,10 +16,41 @@ from numpy.typing import NDArray
 from kisscal.errors import InputError, MissingDataError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
-from kisscal.io.frames import source_files, trial_frames
+from kisscal.io.frames import frame_name, source_files, trial_frames
 
 #: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
 CENTROID_COLUMNS = ("field", "x_px", "y_px")
+
+
+@dataclass(frozen=True)
+class SizedFrames(Sequence):
+    """A camera's frames, each checked for the camera's image size when it is read.
+
+    A frame of another size among a camera's frames (a file from another camera, a
+    resized export) would otherwise be detected in the wrong pixel frame and lost.
+    """
+
+    frames: Sequence[np.ndarray]
+    camera: str
+    size_px: tuple[int, int] | None
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        image = self.frames[index]
+        h, w = image.shape[:2]
+        if self.size_px is not None and (w, h) != tuple(self.size_px):
+            raise InputError(
+                f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
+                f"{self.camera}'s frames are "
+                f"{self.size_px[0]} x {self.size_px[1]}"
+            )
+        return image
+
+    @property
+    def sequential(self) -> bool:
+        return bool(getattr(self.frames, "sequential", False))
 
 
 def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
