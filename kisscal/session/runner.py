@@ -110,7 +110,7 @@ def markers_detection(
     return {s.camera.id: known[s.camera.id] for s in surveys}
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclass(frozen=True)
 class _Settings:
     """A camera's settings for one kind of image, and whether its pixel aspect was
     measured on its grid's dot lattice (grid images only)."""
@@ -119,7 +119,7 @@ class _Settings:
     lattice_aspect: bool
 
 
-@dataclasses.dataclass
+@dataclass
 class _Survey:
     """One camera's detection settings: what the session gives, its record (the settings
     kept) and the settings derived in this run (recorded by :meth:`write`)."""
@@ -200,7 +200,8 @@ class _Survey:
 
 def _on_lattice(kind: str, aspect_source: str) -> bool:
     """True when a grid's settings hold a pixel aspect measured on its dot lattice (the
-    only pixel aspect of grid frames recorded as ``derived``: see :func:`_grid_setup`)."""
+    only pixel aspect of grid frames recorded as ``derived``: see
+    :func:`kisscal.session.configure.grid_setup`)."""
     return kind == "grid" and aspect_source == "derived"
 
 
