@@ -39,9 +39,9 @@ COLUMNS = ("x_px", "y_px", "x_binary_px", "y_binary_px", "pixels", "w_px", "h_px
 
 def _settings(root: Path) -> dict[tuple[str, str], object]:
     """Each camera's session settings for its grid and marker images."""
-    from kisscal.session.configure import camera_detection
     from kisscal.session.inputs import load_config
     from kisscal.session.params import Overrides, stage_params
+    from kisscal.session.runner import camera_detection
 
     config = load_config(root)
     params = stage_params(config, Overrides())

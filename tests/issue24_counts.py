@@ -13,8 +13,9 @@ What each row counts, and how:
   functions are listed), and, beside them, the calls of the one key function
   ``store.key(...)`` (uses, not key computations);
 - hops of ``[detection] threshold``: with ``--trace``, a session's ``session.toml`` sets
-  a threshold no survey would derive and the session's steps of ``kisscal reconstruct``
-  (load, resolve, derive the cameras' settings, detect the trial) run under a profiler;
+  a threshold no survey would derive and the runner runs a trial stage on it
+  (:func:`kisscal.session.runner.run_trial`: load, resolve, derive the cameras'
+  settings, key, detect the trial, hand the stage its blobs) under a profiler;
   every kisscal function of another module that receives the value in an argument (a
   table, a ``DetectionParams``, the ``StageParams``, a detection or survey job, a
   recorded setting, ``*args`` included) is a hand-over: a hop when it passes the value
@@ -206,7 +207,7 @@ class _Tracer:
     def module(frame) -> str:
         path = frame.f_code.co_filename
         if path == __file__:
-            return "session/reconstruct"  # this script stands for the command
+            return "session/reconstruct"  # this script's stage stands for the command's
         if not path.startswith(str(PACKAGE)):
             return "?"  # generated code (a dataclass's __init__): not a hand-over
         name = str(Path(path).relative_to(PACKAGE).with_suffix(""))
@@ -260,7 +261,8 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str], list[str]]:
     """The hand-overs of ``[detection] threshold`` from ``session.toml`` to the detection
     of a trial: each call from one module into another whose arguments carry the value
     (calls within a module, and inside the detect package, are not hand-overs), with
-    this script standing for ``session/reconstruct.reconstruct``.
+    the stage's own functions (defined here, handed the blobs) standing for
+    ``session/reconstruct``'s.
 
     Returns the hops (hand-overs that pass the value on: the callee returns it, or hands
     it on to another module before it returns, or is the detector's pool), the ends
@@ -269,21 +271,25 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str], list[str]]:
     trips)."""
     from test_every_parameter import _marker_session
 
-    from kisscal.session.configure import markers_detection
-    from kisscal.session.inputs import load_config
-    from kisscal.session.params import stage_params
-    from kisscal.session.trials import trial_blobs
+    from kisscal.session.runner import TrialStage, run_trial
 
     root = _marker_session(tmp, {"threshold": SENTINEL})
+    handed: list[object] = []  # what the stage was handed (its blobs must be detected)
+    stage = TrialStage(
+        "reconstruct",
+        inputs=lambda run: (),
+        output=lambda files: (files.points3d, False),
+        cached=lambda run: None,
+        compute=lambda run, inputs, blobs: handed.append(blobs),
+        without_blobs=lambda run: None,
+    )
     tracer = _Tracer()
     sys.setprofile(tracer)
     try:
-        config = load_config(root)
-        params = stage_params(config)
-        detection = markers_detection(root, config, params, workers=1)
-        trial_blobs(root, config, config.trial("walk"), detection, lambda _s: None, workers=1)
+        run_trial(stage, root, "walk", workers=1)
     finally:
         sys.setprofile(None)
+    assert handed and any(len(f) for b in handed for f in b.values()), "no blobs handed on"
     hops = [h for h in tracer.order if h in tracer.passes]
     ends = [h for h in tracer.order if h not in tracer.passes]
     return hops, ends, tracer.round_trips

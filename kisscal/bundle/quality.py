@@ -141,7 +141,7 @@ def held_out_lengths(
     obs = cal.observations.subset(cal.result.inlier)
     train, wand, _ = select_fields(obs, cal.result.wand, cal.fields, ~held)
     refit = adjust_bundle(cal.cameras, train, markers_mm, wand, cal.control, params, cal.anchor)
-    cameras = final_cameras(refit, train, cal.control, markers_mm, params)
+    cameras = final_cameras(refit, train, cal.control, markers_mm, params, cal.dlt)
     return field_lengths(cameras, cal, held, markers_mm)
 
 
@@ -209,7 +209,7 @@ def leave_control_out(
     for k in np.unique(fold[fold >= 0]):
         rest = control.subset(fold != k)
         refit = adjust_bundle(cal.cameras, obs, markers_mm, cal.result.wand, rest, params)
-        cameras = final_cameras(refit, obs, rest, markers_mm, params)
+        cameras = final_cameras(refit, obs, rest, markers_mm, params, cal.dlt)
         mine = control.subset(fold == k)
         ids, point = np.unique(mine.xyz_mm, axis=0, return_inverse=True)
         xyz = triangulate_points(cameras, mine.camera, point.ravel(), mine.uv_px, len(ids))

@@ -38,6 +38,7 @@ from kisscal.camera import Camera
 from kisscal.dlt import DltParams
 from kisscal.dlt.linear import solve_dlt
 from kisscal.dlt.nonlinear import refine_dlt
+from kisscal.dlt.params import DEFAULT_PARAMS as DEFAULT_DLT
 
 
 def resects(params: BundleParams, cameras: Sequence[Camera]) -> bool:
@@ -56,6 +57,7 @@ def final_cameras(
     control: ControlPoints | None,
     markers_mm: Sequence[float],
     params: BundleParams,
+    dlt: DltParams = DEFAULT_DLT,
 ) -> tuple[Camera, ...]:
     """The cameras as written: resected on the adjusted points when :func:`resects`,
     else the adjustment's own.
@@ -71,7 +73,10 @@ def final_cameras(
     markers_mm : sequence of float
         The wand's markers.
     params : BundleParams
-        ``grid_lens`` and ``resect_terms``: the DLT fit has the default tolerances.
+        ``grid_lens`` and ``resect_terms``.
+    dlt : DltParams
+        The session's DLT settings: the fit's iterations and tolerance (its model is
+        set here: refined, with ``resect_terms`` of Kolahi's terms, no MDLT).
 
     Returns
     -------
@@ -80,7 +85,7 @@ def final_cameras(
     """
     if not resects(params, result.cameras):
         return result.cameras
-    dlt = DltParams(refine=True, lens=True, lens_terms=params.resect_terms, mdlt=False)
+    dlt = dlt.replace(refine=True, lens=True, lens_terms=params.resect_terms, mdlt=False)
     obs = observations.subset(result.inlier)
     offsets = centred_offsets(markers_mm)[obs.marker]
     wand_xyz = (

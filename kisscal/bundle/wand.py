@@ -38,6 +38,8 @@ from kisscal.bundle.initialise import start_from_wand, wand_poses
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.resect import final_cameras
 from kisscal.camera import Camera, camera_linearisation
+from kisscal.dlt import DltParams
+from kisscal.dlt.params import DEFAULT_PARAMS as DEFAULT_DLT
 from kisscal.errors import EstimationFailed, InputError
 from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
 from kisscal.rig import Rig
@@ -97,6 +99,9 @@ class WandCalibration:
     resected : tuple of Camera or None
         The cameras as written when they are resected on the adjusted points
         (:mod:`kisscal.bundle.resect`), else None.
+    dlt : DltParams
+        The DLT settings of that resection (a refit of this calibration resects with
+        them too).
     """
 
     result: BundleResult
@@ -105,6 +110,7 @@ class WandCalibration:
     control: ControlPoints | None
     anchor: int | None
     resected: tuple[Camera, ...] | None = None
+    dlt: DltParams = DEFAULT_DLT
 
     @property
     def cameras(self) -> tuple[Camera, ...]:
@@ -259,6 +265,7 @@ def calibrate_on_control(
     ids: Sequence[str],
     trial: str,
     params: BundleParams = DEFAULT_PARAMS,
+    dlt: DltParams = DEFAULT_DLT,
 ) -> WandCalibration:
     """Wand calibration started from calibrated cameras, with fixed control points.
 
@@ -273,6 +280,9 @@ def calibrate_on_control(
     markers_mm, sizes_px, ids, trial
         The wand, image sizes, camera ids and the trial's name (for messages).
     params : BundleParams
+    dlt : DltParams
+        The session's DLT settings, for the cameras resected on the adjusted points
+        (:func:`kisscal.bundle.resect.final_cameras`).
     """
     rig = lens_rig(start, sizes_px, ids)
     obs, wand, fields, lengths = wand_in_3d(table, rig, markers_mm, params)
@@ -291,9 +301,9 @@ def calibrate_on_control(
     elif params.control_weight != control.weight:
         control = control.weighted(params.control_weight)
         result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
-    final = final_cameras(result, obs, control, markers_mm, params)
+    final = final_cameras(result, obs, control, markers_mm, params, dlt)
     resected = final if final is not result.cameras else None
-    return WandCalibration(result, obs, fields, control, None, resected)
+    return WandCalibration(result, obs, fields, control, None, resected, dlt)
 
 
 def noise_ratio(start: Sequence[Camera], control: ControlPoints, result: BundleResult) -> float:

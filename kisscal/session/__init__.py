@@ -11,11 +11,13 @@ Modules: :mod:`~kisscal.session.params` (parameters and CLI overrides),
 :mod:`~kisscal.session.inputs` (config, output folder, cache-key parts, figures),
 :mod:`~kisscal.session.progress`, one module per stage (``detection``, ``linearise``,
 ``calibrate`` with its ``routes``, ``reconstruct``, ``track``), ``calibrated`` (the
-session's calibrated rig, :func:`current_rig`), ``trials`` (a trial's 2D data), ``exports`` (the
-calibration for anipose, Pose2Sim, DLTdv8 and OpenCV), ``summary`` (``summary.json``, ``check``),
-``report``, ``run``, ``batch`` (Dask), ``validate`` and ``init``; ``synth`` writes
-(``synth_session``, ``synth_target``) and scores synthetic sessions (the rigs themselves,
-:mod:`kisscal.synth`, never touch files) and ``demo`` runs one end to end.
+session's calibrated rig, :func:`current_rig`), ``trials`` (a trial's 2D sources),
+``runner`` (each camera's detection settings and blobs, and the run of a trial stage),
+``exports`` (the calibration for anipose, Pose2Sim, DLTdv8 and OpenCV), ``summary``
+(``summary.json``, ``check``), ``report``, ``run``, ``batch`` (Dask), ``validate`` and
+``init``; ``synth`` writes (``synth_session``, ``synth_target``) and scores synthetic
+sessions (the rigs themselves, :mod:`kisscal.synth`, never touch files) and ``demo``
+runs one end to end.
 """
 
 from __future__ import annotations
@@ -30,9 +32,9 @@ from kisscal.session.detection import detect_images
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Progress, reporting_progress
-from kisscal.session.reconstruct import reconstruct
 from kisscal.session.report import report
 from kisscal.session.run import run
+from kisscal.session.stages import reconstruct
 from kisscal.session.summary import CheckFailure, check
 from kisscal.session.track import track
 from kisscal.session.validate import Problem, validate

@@ -17,10 +17,10 @@ from kisscal.io.blobs import write_blobs
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import read_image
 from kisscal.report.overlay import draw_overlay
-from kisscal.session.configure import camera_detection
 from kisscal.session.inputs import load_config, select_cameras, writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
+from kisscal.session.runner import camera_detection
 
 
 def detect_images(

@@ -49,8 +49,8 @@ class StageParams:
     """Every stage's parameters for one session, resolved once by :func:`stage_params`.
 
     ``detection`` holds the defaults with what the user gave; each camera's own settings
-    are derived from its images (:func:`kisscal.session.configure.markers_detection`,
-    :func:`~kisscal.session.configure.camera_detection`), keeping the values in
+    are derived from its images (:func:`kisscal.session.runner.markers_detection`,
+    :func:`~kisscal.session.runner.camera_detection`), keeping the values in
     ``detection_given`` (the same values, typed, by name: what the derivation must not
     change).
     """

@@ -1,4 +1,8 @@
-"""``kisscal reconstruct``: a trial's 2D blobs (or centroid files) to 3D points per field."""
+"""``kisscal reconstruct``: a trial's 2D blobs (or centroid files) to 3D points per field.
+
+The stage as the runner runs it (:data:`RECONSTRUCT`): the runner resolves the trial's
+blobs and keys the stage; this module turns blobs into points.
+"""
 
 from __future__ import annotations
 
@@ -22,84 +26,48 @@ from kisscal.recon.body import RigidTriangles
 from kisscal.report.epipolar import trial_field_figure
 from kisscal.rig import Rig
 from kisscal.session.calibrated import current_rig
-from kisscal.session.configure import markers_detection
-from kisscal.session.inputs import figure, load_config, writes_session
-from kisscal.session.params import Overrides, stage_params
+from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo, quiet
-from kisscal.session.trials import trial_blobs, trial_input_files
+from kisscal.session.runner import TrialRun, TrialStage
 
 
-@writes_session
-def reconstruct(
-    root: Path,
-    trial_name: str,
-    overrides: Overrides | None = None,
-    echo: Echo = quiet,
-    workers: int | None = None,
-) -> Any:
-    """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv``."""
-    root = Path(root)
-    config = load_config(root)
-    trial = config.trial(trial_name)
-    params = stage_params(config, overrides)
-    store = SessionStore(root)
-    files = store.trial(trial.name)
-    path = files.points3d
-    if trial.source == "c3d":
-        return c3d_trial_points(config, trial, files, echo)
-    rig = current_rig(root, echo)
-    imaged = trial.source in ("images", "video")
-    detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
-    body = session_body(config)
-    stage_key = store.key(  # the columns: a points2d.csv of an older layout is redone
-        "reconstruct",
-        trial_input_files(config, trial),
-        rig,
-        detection,
-        params.recon,
-        body,
-        POINTS2D_COLUMNS,
-    )
-    if store.is_current(path, stage_key) and files.points2d.is_file():
-        echo(f"  reconstruct {trial.name}: cached")
-        _echo_warnings(trial.name, files.recon, echo)
-        return store.points3d(trial.name)
-    blobs = trial_blobs(root, config, trial, detection, echo, workers)
+def _inputs(run: TrialRun) -> tuple:
+    """What a trial's points depend on besides its blobs; the columns: a points2d.csv of
+    an older layout is redone."""
+    rig = current_rig(run.root, run.echo)
+    return rig, run.params.recon, session_body(run.config), POINTS2D_COLUMNS
+
+
+def _output(files: TrialFiles) -> tuple[Path, bool]:
+    return files.points3d, files.points2d.is_file()
+
+
+def _cached(run: TrialRun) -> Points3DFile:
+    _echo_warnings(run.trial.name, run.files.recon, run.echo)
+    return run.store.points3d(run.trial.name)
+
+
+def _points(run: TrialRun, inputs: tuple, blobs: dict[str, list[NDArray]]) -> Any:
+    """A trial's 3D points from its blobs, written with its 2D observations, its summary
+    and, for the session's first trial, the epipolar figure of its busiest field."""
+    rig, recon, body, _columns = inputs
+    config, trial, files, echo = run.config, run.trial, run.files, run.echo
     obs = rig.observations(blobs)
     field_idx, cam_idx, uv = obs.field, obs.camera, obs.uv_px
     t0 = time.perf_counter()
-    L = rig.dlts
-    points = reconstruct_trial(field_idx, cam_idx, uv, L, params.recon, config.rate_hz, body)
+    points = reconstruct_trial(field_idx, cam_idx, uv, rig.dlts, recon, config.rate_hz, body)
     n_fields = max((len(v) for v in blobs.values()), default=0)
-    summary = points.summary(n_fields, params.recon)
-    write_trial_points(path, points, field_idx, cam_idx, config.camera_ids)
+    summary = points.summary(n_fields, recon)
+    write_trial_points(files.points3d, points, field_idx, cam_idx, config.camera_ids)
     point = observation_points(points.blob_row, len(obs))
-    write_points2d(
-        files.points2d,
-        rig.ids,
-        cam_idx,
-        field_idx,
-        obs.raw_px,
-        point,
-        inverse_depth_m(rig, cam_idx, point, points.xyz_mm),
-    )
+    depth = inverse_depth_m(rig, cam_idx, point, points.xyz_mm)
+    write_points2d(files.points2d, rig.ids, cam_idx, field_idx, obs.raw_px, point, depth)
     write_json(files.recon, summary)
-    store.mark_current(path, stage_key)
     if len(points) and trial.name == config.trials[0].name:  # one field is enough to see
         busiest = int(np.bincount(points.field).argmax())
-        figure(
-            root,
-            f"epipolar_{trial.name}",
-            trial_field_figure,
-            points,
-            busiest,
-            field_idx,
-            cam_idx,
-            uv,
-            L,
-            [c.size_px for c in config.cameras],
-            list(config.camera_ids),
-        )
+        sizes = [c.size_px for c in config.cameras]
+        args = (points, busiest, field_idx, cam_idx, uv, rig.dlts, sizes, list(config.camera_ids))
+        figure(run.root, f"epipolar_{trial.name}", trial_field_figure, *args)
     median_rms = np.median(points.rms_px) if len(points) else float("nan")
     by_n = ", ".join(f"{k} by {n}" for n, k in enumerate(summary["points_by_n_cameras"]) if k)
     echo(
@@ -110,12 +78,20 @@ def reconstruct(
     if points.stationary_test == "short":
         echo(
             f"  reconstruct {trial.name}: stationary filter not applied (trial under "
-            f"{params.recon.stationary_min_s:g} s, or nothing moves), so reflections that stay "
+            f"{recon.stationary_min_s:g} s, or nothing moves), so reflections that stay "
             "put are kept; the cameras' LED rings are still dropped: a point that lies at a "
             "camera's centre is that camera's ring, seen by the others"
         )
     _echo_warnings(trial.name, files.recon, echo)
     return points
+
+
+def _c3d(run: TrialRun) -> Points3DFile:
+    return c3d_trial_points(run.config, run.trial, run.files, run.echo)
+
+
+#: ``kisscal reconstruct`` as the runner runs it (:func:`kisscal.session.runner.run_trial`).
+RECONSTRUCT = TrialStage("reconstruct", _inputs, _output, _cached, _points, _c3d)
 
 
 def session_body(config: SessionConfig) -> RigidTriangles | None:

@@ -13,14 +13,16 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from kisscal.io.config import SessionConfig
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import needs_calibration
+from kisscal.session.inputs import needs_calibration, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
-from kisscal.session.progress import Echo
-from kisscal.session.reconstruct import reconstruct
+from kisscal.session.progress import Echo, quiet
+from kisscal.session.reconstruct import RECONSTRUCT
+from kisscal.session.runner import run_trial
 from kisscal.session.track import track
 
 
@@ -80,6 +82,19 @@ def _linearise(call: StageCall) -> object:
 
 def _calibrate(call: StageCall) -> object:
     return calibrate(call.root, overrides=call.overrides, echo=call.echo, workers=call.workers)
+
+
+@writes_session
+def reconstruct(
+    root: Path,
+    trial_name: str,
+    overrides: Overrides | None = None,
+    echo: Echo = quiet,
+    workers: int | None = None,
+) -> Any:
+    """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv`` (the
+    runner hands :mod:`kisscal.session.reconstruct` the trial's blobs)."""
+    return run_trial(RECONSTRUCT, Path(root), trial_name, overrides, echo, workers)
 
 
 def _reconstruct(call: StageCall) -> object:

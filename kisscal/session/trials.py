@@ -1,13 +1,11 @@
-"""The session's blobs: each camera's frames (a trial's, or a static object's) detected
-with that camera's settings and cached, and a trial's 2D data for the stages that take
-it: the raw blob centroids of every field per camera, detected in the trial's images or
-video or read from centroid files, and the files they come from (for cache keys)."""
+"""A trial's 2D sources: its frames per camera (images or video, each frame checked for
+the camera's size when read), its centroid files, and the files they come from (for
+cache keys). Their blobs are detected by the runner
+(:func:`kisscal.session.runner.trial_blobs`)."""
 
 from __future__ import annotations
 
-import os
-import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,14 +13,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect import Blobs, DetectionParams, ImageJob, detect_jobs
-from kisscal.errors import InputError, KisscalError, MissingDataError
-from kisscal.io.cache import save_blob_frames
+from kisscal.errors import InputError, MissingDataError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
 from kisscal.io.frames import frame_name, source_files, trial_frames
-from kisscal.io.store import SessionStore
-from kisscal.session.progress import Echo, counted, quiet
 
 #: Columns of a centroid file (``[[trials]] centroids``), raw pixel coordinates.
 CENTROID_COLUMNS = ("field", "x_px", "y_px")
@@ -38,7 +32,7 @@ class SizedFrames(Sequence):
 
     frames: Sequence[np.ndarray]
     camera: str
-    size_px: tuple[int, int]
+    size_px: tuple[int, int] | None
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -46,7 +40,7 @@ class SizedFrames(Sequence):
     def __getitem__(self, index):  # type: ignore[override]
         image = self.frames[index]
         h, w = image.shape[:2]
-        if (w, h) != tuple(self.size_px):
+        if self.size_px is not None and (w, h) != tuple(self.size_px):
             raise InputError(
                 f"{frame_name(self.frames, index)}: {w} x {h} pixels, but camera "
                 f"{self.camera}'s frames are "
@@ -59,75 +53,6 @@ class SizedFrames(Sequence):
         return bool(getattr(self.frames, "sequential", False))
 
 
-def chunk_size(frames: Sequence, workers: int | None) -> int:
-    """Consecutive frames a detection worker takes at a time: 32, or for a video (decoded
-    in order) an even share of the whole, so that each worker seeks once."""
-    n_workers = max(workers or os.cpu_count() or 1, 1)
-    if not getattr(frames, "sequential", False):
-        return 32
-    share = -(-len(frames) // n_workers)
-    return max(share + share % 2, 2)  # even: both fields of a frame go to one worker
-
-
-def camera_blobs(
-    root: Path,
-    config: SessionConfig,
-    frames: Mapping[str, Sequence[np.ndarray]],
-    detection: Mapping[str, DetectionParams],
-    fields: str | None,
-    name: tuple[str, str],
-    echo: Echo = quiet,
-    workers: int | None = None,
-) -> dict[str, list[Blobs]]:
-    """Blobs of every frame of each camera's ``frames``, from the cache when it is current.
-
-    The cameras whose cache is stale are detected together, in one pool of processes
-    (:func:`kisscal.detect.detect_jobs`): the workers decode and detect, and no core
-    waits for the last frames of one camera before the next camera starts. ``name`` is
-    ``(cache stem, label)``: caches are ``out/cache/blobs/<stem>-<camera>.npz`` and
-    messages say ``detect <label>``. A frame that cannot be read fails after the other
-    cameras' blobs are cached.
-    """
-    stem, label = name
-    sizes = {c.id: c.size_px for c in config.cameras}
-    out: dict[str, list[Blobs]] = {}
-    stale = []
-    store = SessionStore(config.root)
-    for cam, seq in frames.items():
-        key = store.key("detect", source_files(seq), fields, detection[cam])
-        cache = store.blobs_cache(stem, cam)
-        if store.is_current(cache, key):
-            out[cam] = store.blobs(stem, cam)
-        else:
-            stale.append((cam, SizedFrames(seq, cam, sizes[cam]), cache, key))
-    if out:
-        echo(f"  detect {label}: {len(out)} of {len(frames)} cameras cached")
-    jobs = [
-        ImageJob(s.__getitem__, len(s), detection[cam], chunk_size(s, workers))
-        for cam, s, _cache, _key in stale
-    ]
-    t0 = time.perf_counter()
-    failed: KisscalError | None = None
-    for j, found in counted(detect_jobs(jobs, workers), f"detect {label}", len(jobs)):
-        cam, _s, cache, key = stale[j]
-        if isinstance(found, KisscalError):
-            failed = failed or found
-            continue
-        save_blob_frames(cache, found)
-        store.mark_current(cache, key)
-        out[cam] = found
-    if failed is not None:
-        raise failed
-    if stale:
-        n = sum(len(s) for _cam, s, _cache, _key in stale)
-        seconds = time.perf_counter() - t0
-        echo(
-            f"  detect {label}: {len(stale)} cameras, {n} frames in {seconds:.1f} s "
-            f"({n / max(seconds, 1e-9):.0f} frames/s)"
-        )
-    return {cam: out[cam] for cam in frames}
-
-
 def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
     """Per camera, the files a trial's 2D data come from (for cache keys)."""
     if trial.source == "centroids":
@@ -135,7 +60,7 @@ def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, li
             c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
         }
     else:
-        frames = _frames(config, trial)
+        frames = trial_frames_of(config, trial)
         paths = {c: source_files(f) for c, f in frames.items()}
     for c, ps in paths.items():
         for p in ps:
@@ -144,27 +69,7 @@ def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, li
     return paths
 
 
-def trial_blobs(
-    root: Path,
-    config: SessionConfig,
-    trial: TrialConfig,
-    detection: dict[str, DetectionParams],
-    echo: Echo,
-    workers: int | None = None,
-) -> dict[str, list[NDArray]]:
-    """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
-
-    ``detection`` holds each camera's detection parameters (unused for centroid files).
-    """
-    if trial.source == "centroids":
-        return _centroid_files(config, trial)
-    frames = _frames(config, trial)
-    name = (f"trial-{trial.name}", trial.name)
-    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
-    return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
-
-
-def _frames(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
+def trial_frames_of(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
     """Per camera, the frame sequence of an image or video trial."""
     return trial_frames(
         config.root,
@@ -176,7 +81,7 @@ def _frames(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
     )
 
 
-def _centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
+def centroid_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[NDArray]]:
     """Centroids given per camera as ``field,x_px,y_px`` rows (raw pixels)."""
     out = {}
     for cam in config.cameras:

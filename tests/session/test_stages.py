@@ -12,10 +12,13 @@ from pathlib import Path
 
 import pytest
 
+from kisscal.detect import DetectionParams
 from kisscal.io.config import load_session
 from kisscal.io.store import SessionStore, TrialFiles
-from kisscal.session.params import MEMBERS
+from kisscal.session.params import MEMBERS, Overrides
+from kisscal.session.runner import TrialRun, TrialStage, run_trial
 from kisscal.session.stages import PIPELINE, session_stages
+from tests.session.test_every_parameter import _marker_session
 
 ARCHITECTURE = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
 
@@ -102,3 +105,36 @@ def test_the_documented_table_of_stages_is_the_table() -> None:
     assert stage_table() in ARCHITECTURE.read_text(), (
         "docs/architecture.md's table of stages differs from PIPELINE; paste:\n" + stage_table()
     )
+
+
+def test_the_runner_hands_a_trial_stage_its_blobs_and_keys_it(tmp_path: Path) -> None:
+    """``run_trial``: the stage is handed the trial's blobs, detected with the session's
+    ``[detection] threshold`` (between the faint and the bright markers: the three bright
+    ones of each frame), never the detection settings; a second run finds its output
+    current and is not run again, and another threshold runs it again."""
+    root = _marker_session(tmp_path, {"threshold": 150})
+    handed: list[tuple] = []
+
+    def compute(run: TrialRun, inputs: tuple, blobs: dict) -> str:
+        handed.append((run.params.detection, blobs))
+        run.files.points3d.parent.mkdir(parents=True, exist_ok=True)
+        run.files.points3d.write_text("written\n")
+        return "computed"
+
+    stage = TrialStage(
+        "probe",
+        inputs=lambda run: (),
+        output=lambda files: (files.points3d, True),
+        cached=lambda run: "cached",
+        compute=compute,
+        without_blobs=lambda run: "c3d",
+    )
+    assert run_trial(stage, root, "walk", workers=1) == "computed"
+    detection, blobs = handed[0]
+    assert detection == DetectionParams()  # the stage never sees [detection]'s values
+    assert sorted(blobs) == ["cam1", "cam2"]
+    assert all(len(b) == 4 and all(len(f) == 3 for f in b) for b in blobs.values())
+    assert run_trial(stage, root, "walk", workers=1) == "cached"
+    overrides = Overrides(detection={"threshold": 60})
+    assert run_trial(stage, root, "walk", overrides, workers=1) == "computed"
+    assert all(len(f) == 6 for b in handed[1][1].values() for f in b)

@@ -26,10 +26,9 @@ from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
-from kisscal.session.configure import markers_detection
 from kisscal.session.params import StageParams
 from kisscal.session.progress import Echo
-from kisscal.session.trials import camera_blobs
+from kisscal.session.runner import camera_blobs, markers_detection
 
 
 @dataclass(frozen=True)

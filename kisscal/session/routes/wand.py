@@ -44,7 +44,8 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
-from kisscal.session.trials import trial_blobs, trial_input_files
+from kisscal.session.runner import trial_blobs
+from kisscal.session.trials import trial_input_files
 
 #: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
 PINHOLES = ("dlt", "refined")
@@ -163,7 +164,7 @@ def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, An
     wand = wand_params(inputs)
     sizes = [c.size_px for c in config.cameras]
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
-    cal = calibrate_on_control(*args, wand)
+    cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
         cal = _best_weight(inputs, cal, args, wand)
     return cal, rods_alone
@@ -178,7 +179,8 @@ def _best_weight(
     markers = args[3]
     best, best_loo = cal, np.inf
     for factor in params.control_weight_factors:
-        trial = calibrate_on_control(*args, replace(params, control_weight=estimated * factor))
+        weighed = replace(params, control_weight=estimated * factor)
+        trial = calibrate_on_control(*args, weighed, inputs.params.dlt)
         errors = leave_one_group_out(trial, markers, params)
         loo = float(np.mean(np.concatenate(list(errors.values())))) if errors else np.inf
         inputs.echo(
