@@ -256,8 +256,9 @@ def _contradicted(
     distance from ``centre`` of a sample of ``series`` placed by another fill (in
     ``series``, not in ``own``; expected error at most ``err``) by more than three
     combined SDs: the fit followed another marker's blob or the wrong branch of the
-    spheres (lowcost seed 311: RANK on the blobs of a heel hiding it, 10-18 mm off
-    beside fields placed on its own blobs 2-4 mm off)."""
+    spheres (lowcost seed 311, with a looser one-sided rule in the chain fill: RANK fitted
+    on the blobs of the heel hiding it, 10-18 mm off, beside fields placed 2-4 mm off on
+    its own blobs in another camera)."""
     f = f0 + np.arange(mean.size)
     f = f[f < len(series)]
     placed = np.isfinite(series[f, 0]) & ~np.isfinite(own[f, 0])

@@ -18,8 +18,11 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
    agree); of these the one that continues the marker's path from both sides of the
-   gap is taken (or the only one, on a blob followed in the image); free blobs in
-   fields no path reached are tried too, and kept only where both sides' paths agree;
+   gap is taken (or the only one, on a blob followed in the image; or, where the path
+   from one side joins no point of the gap, the one the other side's path takes
+   without a break, when every partner was measured with the marker over most of its
+   motion); free blobs in fields no path reached are tried too, and kept only where
+   both sides' paths agree;
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
