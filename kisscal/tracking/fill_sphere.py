@@ -49,6 +49,7 @@ from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
     MIN_RUN,
+    MIN_TOGETHER,
     ChainFill,
     chain_blobs,
     length_partners,
@@ -61,12 +62,6 @@ from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 #: Smallest cosine between a ray and the direction from its root to the partner for the
 #: partner's length to fix a depth (nearer tangent, the two roots merge).
 MIN_COS = 0.1
-
-#: Fewest fields a partner is measured in together with the marker, as a share of the
-#: marker's measured fields: a thigh marker kept its distance to a shank one within
-#: 2 mm over the 44 % of the trial both were seen (the knee straight), and drifted by
-#: 10 mm in the swing the gap fell in.
-MIN_TOGETHER = 0.5
 
 #: Most refits while roots far from the fit are dropped.
 MAX_ROUNDS = 30
@@ -254,6 +249,24 @@ def _crowded(
     return out
 
 
+def _contradicted(
+    series: NDArray, own: NDArray, centre: NDArray, f0: int, mean: NDArray, msd: NDArray, err: float
+) -> bool:
+    """Whether the fitted depth ``mean`` (SD ``msd``; fields from ``f0``) misses the
+    distance from ``centre`` of a sample of ``series`` placed by another fill (in
+    ``series``, not in ``own``; expected error at most ``err``) by more than three
+    combined SDs: the fit followed another marker's blob or the wrong branch of the
+    spheres (lowcost seed 311, with a looser one-sided rule in the chain fill: RANK fitted
+    on the blobs of the heel hiding it, 10-18 mm off, beside fields placed 2-4 mm off on
+    its own blobs in another camera)."""
+    f = f0 + np.arange(mean.size)
+    f = f[f < len(series)]
+    placed = np.isfinite(series[f, 0]) & ~np.isfinite(own[f, 0])
+    f = f[placed]
+    miss = np.abs(np.linalg.norm(series[f] - centre, axis=1) - mean[f - f0])
+    return bool(np.any(miss > 3.0 * np.hypot(msd[f - f0], err)))
+
+
 def sphere_depth_fill(
     dense: NDArray,
     t: int,
@@ -303,6 +316,8 @@ def sphere_depth_fill(
     if fit is None:
         return None
     mean, msd, taken = fit
+    if _contradicted(series, own, centre, f0, mean, msd, params.ray_length_max_error_mm):
+        return None
     s, sd = mean[ks + lo - f0], msd[ks + lo - f0]
     at = c + s[:, None] * d
     good = np.zeros(hi - lo, dtype=bool)

@@ -32,7 +32,7 @@ from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, trac
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_fill
+from kisscal.tracking.raychain import ChainFill, chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import (
     FILLED,
@@ -74,7 +74,8 @@ def _fill_one(
 ) -> list[tuple[NDArray, GapFill]]:
     """Spline for short gaps, the body (:func:`body_fill`) for longer ones; with
     ``spare`` blobs, each filled field a camera still sees moved onto its ray
-    (:func:`_with_rays`)."""
+    (:func:`_with_rays`); no spline where the marker's blobs followed in the image from
+    the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
     short = hi - lo <= params.max_fill_gap_fields
     if not short and hi - lo > params.max_body_fill_fields:
         return []
@@ -84,6 +85,10 @@ def _fill_one(
     cands = fill_candidates(dense, t, lo, hi, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     if chosen is None:
+        return []
+    # a spline has no error of its own to check: between samples the marker's own image
+    # does not join, it may bridge to another marker's
+    if short and rays and parted(dense[t], lo, hi, spare, params):
         return []
     if not rays:
         return [(chosen.xyz_mm, chosen.fill)]

@@ -18,8 +18,11 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
    agree); of these the one that continues the marker's path from both sides of the
-   gap is taken (or the only one, on a blob followed in the image); free blobs in
-   fields no path reached are tried too, and kept only where both sides' paths agree;
+   gap is taken (or the only one, on a blob followed in the image; or, where the path
+   from one side joins no point of the gap, the one the other side's path takes
+   without a break, when every partner was measured with the marker over most of its
+   motion); free blobs in fields no path reached are tried too, and kept only where
+   both sides' paths agree;
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
@@ -48,6 +51,12 @@ from kisscal.tracking.rayfill import SpareBlobs, ray_directions
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
+
+#: Fewest fields a partner is measured in together with the marker, as a share of the
+#: marker's measured fields: a thigh marker kept its distance to a shank one within
+#: 2 mm over the 44 % of the trial both were seen (the knee straight), and drifted by
+#: 10 mm in the swing the gap fell in.
+MIN_TOGETHER = 0.5
 
 
 @dataclass(frozen=True)
@@ -134,12 +143,13 @@ def follow_blobs(
     return found
 
 
-def chain_blobs(
+def side_paths(
     target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Gap field offsets and spare rows of the marker's blobs in the gap [lo, hi) of
-    ``target`` (n_fields, 3), followed in every camera from both sides (see module)."""
-    ks, rows = [], []
+) -> list[tuple[dict[int, int], dict[int, int]]]:
+    """Per camera, the marker's blobs (field: spare row) in the gap [lo, hi) of
+    ``target`` (n_fields, 3) followed in the image from the side before the gap and from
+    the side after it (:func:`follow_blobs`, from the marker's projection there)."""
+    out = []
     for cam in range(len(spare.dlts)):
         picks = []
         for edge, step, fields in (
@@ -157,13 +167,35 @@ def chain_blobs(
             ends = np.where(np.isfinite(ends), ends, ends[:1])
             uv = project_rows(spare.dlts, [cam, cam], ends)
             picks.append(follow_blobs(spare, cam, uv[0], uv[0] - uv[1], fields, params))
-        fwd, bwd = picks
+        out.append((picks[0], picks[1]))
+    return out
+
+
+def chain_blobs(
+    target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Gap field offsets and spare rows of the marker's blobs in the gap [lo, hi) of
+    ``target`` (n_fields, 3), followed in every camera from both sides (see module)."""
+    ks, rows = [], []
+    for fwd, bwd in side_paths(target, lo, hi, spare, params):
         for f in sorted(set(fwd) | set(bwd)):
             if f in fwd and f in bwd and fwd[f] != bwd[f]:
                 continue
             ks.append(f - lo)
             rows.append(fwd.get(f, bwd.get(f)))
     return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
+
+
+def parted(target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams) -> bool:
+    """Whether the marker's blobs followed in a camera's image from the two sides of the
+    run [lo, hi) of ``target`` (n_fields, 3) part in some field (:func:`side_paths`):
+    the two sides' samples are then not ends of one path in the image, and one of them
+    may be another marker's (a sample of two merged images)."""
+    return any(
+        f in bwd and bwd[f] != row
+        for fwd, bwd in side_paths(target, lo, hi, spare, params)
+        for f, row in fwd.items()
+    )
 
 
 def one_camera_blobs(
@@ -250,6 +282,45 @@ def _choose(
     return out
 
 
+def _steady(dense: NDArray, t: int, partners: NDArray) -> bool:
+    """Whether each partner was measured with track ``t`` in at least
+    :data:`MIN_TOGETHER` of ``t``'s fields: its length then held over most of the
+    marker's motion, not only over a phase a joint held still in."""
+    seen = np.isfinite(dense[t, :, 0])
+    together = (np.isfinite(dense[partners, :, 0]) & seen).sum(axis=1)
+    return bool(np.all(together >= MIN_TOGETHER * seen.sum()))
+
+
+def _connected(picks: dict[int, int], start: int, coast: int) -> set[int]:
+    """The gap offsets of a walk's ``picks`` (in the order walked, from offset
+    ``start``, the gap's edge) reached with no more than ``coast`` fields in a row
+    without a pick: farther on, its predicted path has drifted for too long to tell two
+    near points apart."""
+    out: set[int] = set()
+    last = start
+    for k in picks:
+        if abs(k - last) - 1 > coast:
+            break
+        out.add(k)
+        last = k
+    return out
+
+
+def _agreed(i: int | None, j: int | None, near_i: bool, near_j: bool) -> int | None:
+    """The candidate the two walks from a gap's sides (picks ``i`` forward, ``j``
+    backward; ``near_*`` whether unbroken from their edge, :func:`_connected`) settle
+    on: the one both took, or the one a walk unbroken from its side took where the
+    other walk took none (the sample beyond the gap's far side may be another
+    marker's: a walk from it finds no path)."""
+    if i is not None and i == j:
+        return i
+    if i is not None and near_i and j is None:
+        return i
+    if j is not None and near_j and i is None:
+        return j
+    return None
+
+
 def _apart(a: tuple, b: tuple) -> float:
     """Distance (mm) between two candidates' points."""
     return float(np.linalg.norm(a[0] - b[0]))
@@ -327,15 +398,23 @@ def chain_fill(
     guide = dense[partners[np.argmax(seen.sum(axis=1))], lo - 1 : hi + 1]
     fwd = _choose(pts, guide, target[lo - 1], -1, order)
     bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
+    coast = params.ray_chain_coast_fields
+    near = (_connected(fwd, -1, coast), _connected(bwd, hi - lo, coast))
+    if (fwd and bwd) or not _steady(dense, t, partners):
+        # one walk alone only where the other joins no point of the gap (its end is
+        # not the marker's, or out of reach), and with lengths that held over the
+        # marker's motion (a drifting one shows only as the two walks parting)
+        near = (set(), set())
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     rows = np.full(hi - lo, -1)
     followed = set(chained.tolist())
     for k, c in cands.items():
         # the path from both sides agrees, or the one point is on a blob followed in the
-        # image from the gap's side
-        i = fwd.get(k)
+        # image from the gap's side, or the path unbroken from one side takes it and
+        # the other side's path took no point
+        i = _agreed(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
         sure = len(c) == 1 and c[0][2] in followed
-        if (i is not None and bwd.get(k) == i) or sure:
+        if i is not None or sure:
             x, e, row = c[0] if sure else c[i]
             if e <= params.ray_length_max_error_mm:
                 xyz[k], err[k], rows[k] = x, e, row

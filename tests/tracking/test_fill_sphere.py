@@ -108,3 +108,22 @@ def test_a_partner_seen_with_the_marker_in_few_fields_does_not_place_it():
     # seen together throughout, the same gap is placed
     dense = _dense(_tracks_of(xyz, {1: slice(5, n), 2: slice(5, n), 3: GAP}))
     assert sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is not None
+
+
+def test_a_fit_that_misses_samples_placed_beside_it_places_nothing():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    measured = np.isfinite(dense[3, :, 0])
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    lo = GAP.start + 5
+    # the gap's first five fields placed by another fill: on truth, the fit agrees
+    dense[3, GAP.start : lo] = xyz[3, GAP.start : lo]
+    got = sphere_depth_fill(dense, 3, lo, GAP.stop, spare, PARAMS, measured)
+    assert got is not None and np.isfinite(got.sd_mm).sum() >= 0.8 * (GAP.stop - lo)
+    # placed 20 mm off along the camera's sight (another marker's blob): the fit,
+    # following its own blobs, contradicts them
+    sight = xyz[3, GAP.start : lo] - spare.centres[0]
+    sight /= np.linalg.norm(sight, axis=1)[:, None]
+    dense[3, GAP.start : lo] = xyz[3, GAP.start : lo] + 20.0 * sight
+    assert sphere_depth_fill(dense, 3, lo, GAP.stop, spare, PARAMS, measured) is None

@@ -12,6 +12,7 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
 from kisscal.tracking.labelling.pieces import join_gap_pieces
+from kisscal.tracking.raychain import _agreed, _connected, parted
 from kisscal.tracking.tracks import MEASURED, make_tracks
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import _look_at
@@ -171,3 +172,28 @@ def test_a_marker_bobbing_along_the_camera_s_sight_is_not_placed_by_depth():
     dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
     spare = _segment_on_rays(xyz, 8, (3,))
     assert depth_ray_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS) is None
+
+
+def test_a_walk_unbroken_from_its_side_settles_a_field_the_other_walk_left():
+    # forward picks at offsets 0, 1, 2, then 9 after a hole of six fields; backward
+    # (from offset 12) picks 11, 10 and, far from its side, 1
+    fwd = {0: 0, 1: 0, 2: 1, 9: 0}
+    bwd = {11: 0, 10: 0, 1: 1}
+    near_f, near_b = _connected(fwd, -1, 3), _connected(bwd, 12, 3)
+    assert near_f == {0, 1, 2} and near_b == {11, 10}
+    got = {k: _agreed(fwd.get(k), bwd.get(k), k in near_f, k in near_b) for k in range(12)}
+    # both walks' or one unbroken walk's where the other took none; never a field the
+    # walks disagree on, nor one only a broken walk reached
+    assert got == {0: 0, 1: None, 2: 1, 9: None, 10: 0, 11: 0} | {k: None for k in range(3, 9)}
+
+
+def test_blob_paths_from_two_sides_part_when_one_end_is_another_marker_s():
+    xyz = rigid_body(seed=4, noise_mm=0.2)
+    spare = _segment_on_rays(xyz, 4, (2, 3))
+    run = slice(GAP.start + 20, GAP.start + 25)
+    target = xyz[3].copy()
+    target[run] = np.nan
+    assert not parted(target, run.start, run.stop, spare, PARAMS)
+    # the samples after the run are marker 2's: its blobs lead back to them
+    target[run.stop :] = xyz[2, run.stop :]
+    assert parted(target, run.start, run.stop, spare, PARAMS)
