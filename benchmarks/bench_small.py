@@ -17,6 +17,25 @@ Both are also given as processor time (user + system, the process and its childr
 machine shared with other work the wall-clock ratio moves with the load, the processor
 time much less.
 
+Recorded (2026-11-29, 4044 images, 2 cores shared with 8 other sessions at a load of 8
+to 22, where wall-clock ratios are not worth reading; processor time, the run's and its
+processes'): main ddf3077 12.41x decode (29.7 s against 2.4 s), this version 11.72x
+(25.3 s against 2.2 s), 25 minutes apart; run against main in turns under the same load,
+0.97x main's processor time (25.7 and 26.2 s against 26.6 and 26.7 s). 14 worker pools
+of the run (28 forked processes) were started only to find the grid linearisations
+current (every ``current_rig`` of calibrate, reconstruct and track); they are now read
+in the run's process (0.05 -> 0.015 s of processor time and 0.44 -> 0.10 s of wall a
+call). The exports' six OpenCV fits (a sixth of the run's processor time) now go side by
+side to the pool (``each_camera``): the same processor time, half the wall time of that
+step on two free cores (116 -> 56 s for the six on the loaded machine). Every JSON, CSV,
+TOML, C3D, TRC, NPZ and PNG of ``out/`` byte-identical; ``summary.json`` and
+``report.html`` differ by their timings, and the figures' ``.key`` files by the source
+they hash. What is left, as multiples of decoding in one process
+(:mod:`benchmarks.bench_small_parts`): figures 1.9x, exports 1.7x, detection 1.4x, image
+reading 0.85x, DLT on the rods 0.8x, the rest of calibrate 0.85x, imports 0.6x
+(scipy.signal for the gait's Savitzky-Golay derivative brings scipy.stats: 0.2x),
+tracking 0.6x.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

@@ -27,6 +27,12 @@ The other parts (tracking 4.99 s, exports 4.77 s, survey 4.49 s, DLT 4.11 s, ima
 reading 2.91 s, imports 2.45 s) did not change; the session's outputs are byte-identical
 (every JSON, CSV, TOML and cached blob file; summary.json's timings aside).
 
+This benchmark runs with one worker and no background process: the cost of the run's
+processes (forking a pool, its workers' start and exit) is not in it. On 2026-11-29 the
+run as a user starts it (:mod:`benchmarks.bench_small`, its processes included) spent
+29.7 s of processor time where this one counted 24.2 s; 14 of its 21 pools only found the
+linearisations current (now read without a pool: :func:`kisscal.session.linearise.linearise`).
+
 The last line runs the session again over the ``out/`` the first run left (a user's
 second ``kisscal run``): stage figures whose PNG was drawn from the same function, data
 and code are kept (:func:`kisscal.session.figures.figure_key`). 2026-11-29, main b96d99b

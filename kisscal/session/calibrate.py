@@ -90,7 +90,7 @@ def calibrate(
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
-    write_exports(root, config, lins, read_dlt_files(root, config, False), echo)
+    write_exports(root, config, lins, read_dlt_files(root, config, False), echo, workers)
     record = SessionStore(root).calibration_file("calibration")
     write_json(record, {"route": route, "options": switches})
     return summary

@@ -16,6 +16,7 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.session.calibrated import calibrated_rig, current_rig, read_dlt_files
 from kisscal.session.inputs import load_config
+from kisscal.session.parallel import each_camera
 from kisscal.session.progress import Echo, quiet
 
 #: ``kisscal export --to`` choices.
@@ -106,21 +108,38 @@ def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
 
 
 def _opencv_fits(
-    cameras: Iterable[Camera], dlts: Mapping[str, DltFile], pose2sim: bool = False
+    cameras: Iterable[Camera],
+    dlts: Mapping[str, DltFile],
+    pose2sim: bool = False,
+    workers: int | None = None,
 ) -> dict[str, OpenCvFit]:
     """OpenCV's model fitted to each camera over the calibrated volume (for Pose2Sim, which
-    reads ``k1 k2 p1 p2`` only, without ``k3``)."""
-    volume = control_volume(dlts)
-    return {
-        c.id: opencv_from_camera(
-            c,
-            coefficients=5 if pose2sim else 12,
-            k3=not pose2sim,
-            used_px=control_px(c, dlts.get(c.id)),
-            volume_mm=volume,
-        )
-        for c in cameras
-    }
+    reads ``k1 k2 p1 p2`` only, without ``k3``), the cameras side by side in ``workers``
+    processes (default: one per core; 1: in this process): each fit is seconds of
+    Levenberg-Marquardt on its own camera."""
+    cameras = list(cameras)
+    fit = functools.partial(
+        _opencv_fit, dlts=dict(dlts), volume=control_volume(dlts), pose2sim=pose2sim
+    )
+    fits = each_camera(fit, cameras, "export", quiet, workers)
+    return {c.id: f for c, f in zip(cameras, fits, strict=True)}
+
+
+def _opencv_fit(
+    camera: Camera,
+    echo: Echo,
+    dlts: Mapping[str, DltFile],
+    volume: tuple[np.ndarray, np.ndarray] | None,
+    pose2sim: bool,
+) -> OpenCvFit:
+    """:func:`~kisscal.opencv.opencv_from_camera` of one camera (:func:`_opencv_fits`)."""
+    return opencv_from_camera(
+        camera,
+        coefficients=5 if pose2sim else 12,
+        k3=not pose2sim,
+        used_px=control_px(camera, dlts.get(camera.id)),
+        volume_mm=volume,
+    )
 
 
 def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
@@ -133,13 +152,15 @@ def write_exports(
     lins: Mapping[str, Linearisation],
     dlts: Mapping[str, DltFile],
     echo: Echo = quiet,
+    workers: int | None = None,
 ) -> dict[str, Any]:
     """Write ``out/dlt/dltdv.csv``, ``out/cameras.toml`` and ``out/exports.json`` for
-    every calibrated camera; returns the content of ``exports.json``."""
+    every calibrated camera, the cameras' fits in ``workers`` processes (default: one
+    per core); returns the content of ``exports.json``."""
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts)
+    fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts, workers=workers)
     report = {
         "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
         "dltdv": {

@@ -9,6 +9,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from kisscal.detect import DetectionParams
 from kisscal.errors import InputError, KisscalError, with_context
 from kisscal.grid import GridFit, Linearisation, identity_linearisation, linearise_frames
 from kisscal.io.config import CameraConfig, SessionConfig
@@ -59,10 +60,49 @@ def linearise(
     if config.grid is None:
         return {c.id: _identity(c) for c in cameras}
 
+    kept = _all_cached(Path(root), config, params, cameras, echo)
+    if kept is not None:
+        return kept
     # a partial of a module-level function: spawned workers (Windows) receive it pickled
     fit = functools.partial(_linearise_camera, Path(root), config, params)
     fits = each_camera(fit, cameras, "linearise", echo, workers)
     return {c.id: lin for c, lin in zip(cameras, fits, strict=True)}
+
+
+def _all_cached(
+    root: Path,
+    config: SessionConfig,
+    params: StageParams,
+    cameras: Sequence[CameraConfig],
+    echo: Echo,
+) -> dict[str, Linearisation] | None:
+    """Every camera's linearisation read from its cache, here; None when one of them is
+    not current (all are then fitted or read side by side, :func:`each_camera`).
+
+    The later stages ask for the linearisations a dozen times a session (every
+    :func:`~kisscal.session.calibrated.current_rig`): a pool of processes started only
+    to find the caches current cost more than the check. Checked only where every
+    camera's linearisation and detection settings were written: else the check itself
+    would derive the grid's detection settings here, one camera after the other.
+    """
+    store = SessionStore(root)
+    written = (store.linearisation_path(c.id) for c in cameras)
+    surveyed = (store.detection_path(c.id) for c in cameras)
+    if not all(p.is_file() for p in (*written, *surveyed)):
+        return None
+    kept = {}
+    for cam in cameras:
+        try:
+            key = _grid_inputs(root, config, params, cam, echo)[2]
+        except KisscalError:  # said by the cameras' own processes, the others done
+            return None
+        lin = _read_current(store, cam.id, key)
+        if lin is None:
+            return None
+        kept[cam.id] = lin
+    for cam in cameras:
+        echo(f"  linearise {cam.id}: cached")
+    return kept
 
 
 def _identity(cam: CameraConfig) -> Linearisation:
@@ -83,20 +123,13 @@ def _linearise_camera(
 ) -> Linearisation:
     """One camera's linearisation: from the cache, or fitted and written with its figure
     (the camera last, as :func:`each_camera` calls it)."""
-    if config.grid is None:
-        raise InputError(f"{config.path}: camera {cam.id} has no [grid] to linearise from")
     store = SessionStore(root)
     out = store.linearisation_path(cam.id)
-    frames = camera_frames(
-        config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
-    )
-    detection = camera_detection(root, config, cam, "grid", params, echo)
-    key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
-    if store.is_current(out, key):
+    frames, detection, key = _grid_inputs(root, config, params, cam, echo)
+    kept = _read_current(store, cam.id, key)
+    if kept is not None:
         echo(f"  linearise {cam.id}: cached")
-        doc = store.linearisation_doc(cam.id)
-        grid = grid_fit_of(doc, str(out)) if doc is not None else None
-        return grid if grid is not None else read_linearisation(out)[1]
+        return kept
     t0 = time.perf_counter()
     try:
         fit = linearise_frames(
@@ -116,6 +149,31 @@ def _linearise_camera(
     store.mark_current(out, key)
     _say_fitted(echo, cam.id, fit, time.perf_counter() - t0)
     return fit.linearisation
+
+
+def _grid_inputs(
+    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, echo: Echo
+) -> tuple[Sequence, DetectionParams, str]:
+    """A camera's grid frames, their detection settings and the key of its linearisation."""
+    if config.grid is None:
+        raise InputError(f"{config.path}: camera {cam.id} has no [grid] to linearise from")
+    frames = camera_frames(
+        config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
+    )
+    detection = camera_detection(root, config, cam, "grid", params, echo)
+    store = SessionStore(root)
+    key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
+    return frames, detection, key
+
+
+def _read_current(store: SessionStore, camera: str, key: str) -> Linearisation | None:
+    """A camera's linearisation from its cache when written for ``key``, else None."""
+    out = store.linearisation_path(camera)
+    if not store.is_current(out, key):
+        return None
+    doc = store.linearisation_doc(camera)
+    grid = grid_fit_of(doc, str(out)) if doc is not None else None
+    return grid if grid is not None else read_linearisation(out)[1]
 
 
 def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:

@@ -176,3 +176,42 @@ def test_single_camera_fill_reads_the_unused_blobs_in_the_rigs_pixels(processed:
     assert np.array_equal(np.sort(spare.field), np.sort(obs.field[~used]))
     summary = json.loads(files.tracking.read_text())
     assert all("single_camera_fields" in g for g in summary["fills"])
+
+
+def test_current_linearisations_are_read_without_a_pool(
+    processed: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A processed session's linearisations are current: the later stages' every
+    ``current_rig`` (a dozen a run) reads them in its own process, starting no pool,
+    and gets the written ones."""
+    import kisscal.detect.sequence as sequence
+    from kisscal.io.linearisation import read_linearisation
+    from kisscal.session import current_rig
+
+    def no_pool(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a worker pool was started to read current linearisations")
+
+    monkeypatch.setattr(sequence, "worker_pool", no_pool)
+    rig = current_rig(processed)
+    for cam in rig:
+        written = read_linearisation(processed / "out" / "linearisation" / f"{cam.id}.json")[1]
+        assert np.array_equal(cam.linearisation.x, written.x)
+        assert np.array_equal(cam.linearisation.y, written.y)
+
+
+def test_export_fits_side_by_side_equal_those_in_one_process(processed: Path) -> None:
+    """The exports' OpenCV fits done in worker processes are the fits done here, to the
+    bit (two cameras: each fit is a second of Levenberg-Marquardt)."""
+    from kisscal.session.calibrated import current_rig, read_dlt_files
+    from kisscal.session.exports import _opencv_fits
+    from kisscal.session.inputs import load_config
+
+    cams = list(current_rig(processed))[:2]
+    dlts = read_dlt_files(processed, load_config(processed))
+    here = _opencv_fits(cams, dlts, workers=1)
+    beside = _opencv_fits(cams, dlts, workers=2)
+    assert list(here) == list(beside) == [c.id for c in cams]
+    for cam in here:
+        assert here[cam].rms_px == beside[cam].rms_px
+        assert np.array_equal(here[cam].camera.lens, beside[cam].camera.lens)
+        assert np.array_equal(here[cam].camera.K, beside[cam].camera.K)
