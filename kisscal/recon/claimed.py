@@ -29,6 +29,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import pixel_size_mm, project_rows
+from kisscal.recon.carried import carried
 from kisscal.recon.group import embed_fields
 from kisscal.recon.params import ReconParams
 
@@ -148,9 +149,12 @@ def claimed_pieces(
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
+        lost = _carried_claimers(all_xyz[ok], all_field[ok], span[ok], here, params, side)
+        margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
+        both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
         for blob in (a, b):  # each ray of the piece's end, against the claimers
-            hits.append(_claims(blob[ends], point, claimers, (camera, uv), dlts, tolerance_mm))
+            hits.append(_claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm))
             if rivals is not None:
                 stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
         ha, hb = hits[0] >= 0, hits[1] >= 0
@@ -162,6 +166,26 @@ def claimed_pieces(
         flagged[label[ends[claimed | stolen]]] = True
     out[flagged[label]] = True
     return out
+
+
+def _carried_claimers(
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    span: NDArray[np.float64],
+    here: cKDTree,
+    params: ReconParams,
+    side: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """The trajectories lost a few fields before (after) a field, carried into it by a
+    marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
+    lies within the tolerance: their positions, fields and spans."""
+    tolerance_mm = params.two_camera_continuity_mm
+    pos, p_field, end = carried(xyz, field, params.two_camera_step_mm, tolerance_mm, side, _CARRY)
+    gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
+    return pos[gone], p_field[gone], span[end[gone]]
+
+
+_CARRY = 30
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:
@@ -203,7 +227,7 @@ def _claims(
         q = pred[cand].reshape(-1, 3)
         size = pixel_size_mm(dlts, np.full(len(q), c), q).reshape(cand.shape)
         across = np.linalg.norm(proj[cand] - uv[blob[rows]][:, None], axis=2) * size
-        far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > tolerance_mm
+        far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > claimers[3][cand]
         hit = same & (across <= tolerance_mm) & far
         out[rows, :kk] = np.where(hit, cand, -1)
     return out
