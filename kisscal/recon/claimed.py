@@ -80,6 +80,7 @@ def claimed_pieces(
     dlts: NDArray[np.float64],
     params: ReconParams,
     rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]] | None = None,
+    carry_fields: int = 0,
 ) -> NDArray[np.bool_]:
     """Which two-camera points lie on pieces whose rays other trajectories claim.
 
@@ -149,7 +150,8 @@ def claimed_pieces(
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
-        lost = _carried_claimers(all_xyz[ok], all_field[ok], span[ok], here, params, side)
+        trajectories = all_xyz[ok], all_field[ok], span[ok]
+        lost = _carried_claimers(*trajectories, here, params, side, carry_fields)
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
@@ -175,17 +177,15 @@ def _carried_claimers(
     here: cKDTree,
     params: ReconParams,
     side: int,
+    fields: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """The trajectories lost a few fields before (after) a field, carried into it by a
     marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
     lies within the tolerance: their positions, fields and spans."""
     tolerance_mm = params.two_camera_continuity_mm
-    pos, p_field, end = carried(xyz, field, params.two_camera_step_mm, tolerance_mm, side, _CARRY)
+    pos, p_field, end = carried(xyz, field, params.two_camera_step_mm, tolerance_mm, side, fields)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]]
-
-
-_CARRY = 30
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:
