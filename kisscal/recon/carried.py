@@ -35,34 +35,46 @@ def links(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The next and the previous point (index, -1 none) of each point on its trajectory.
 
-    A point's next is the point of the next field nearest to its constant-velocity
-    prediction (from the nearest point of the field before within ``step_mm``, or itself),
-    within ``tolerance_mm``; a link holds when it is also the next point's previous, found
-    the same way backwards.
+    First the mutually nearest points of consecutive fields within ``step_mm``; then a
+    point with a previous one goes on to the point of the next field nearest to its
+    constant-velocity prediction, within ``tolerance_mm``, or nowhere (its marker left:
+    the nearest point is another marker's). Each point has one previous, the one whose
+    prediction it is nearest to.
     """
     n = len(xyz)
-    ends = []
+    nxt, prv = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
     ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
-    out = np.full((2, n), -1, dtype=np.int64)
     if len(ok) < 2:
-        return out[0], out[1]
+        return nxt, prv
     tree = cKDTree(embed_fields(xyz[ok], field[ok]))
+    near = []
     for side in (1, -1):
-        d, j = tree.query(embed_fields(xyz[ok], field[ok] - side), distance_upper_bound=step_mm)
-        prev = np.where(np.isfinite(d)[:, None], xyz[ok][np.minimum(j, len(ok) - 1)], xyz[ok])
-        d, j = tree.query(
-            embed_fields(2.0 * xyz[ok] - prev, field[ok] + side), distance_upper_bound=tolerance_mm
-        )
-        near = np.full(n, -1, dtype=np.int64)
-        hit = np.isfinite(d)
-        near[ok[hit]] = ok[j[hit]]
-        ends.append(near)
-    nxt, prv = ends
-    mutual = nxt >= 0
-    mutual[mutual] = prv[nxt[mutual]] == np.flatnonzero(mutual)
-    out[0, mutual] = nxt[mutual]
-    out[1, nxt[mutual]] = np.flatnonzero(mutual)
-    return out[0], out[1]
+        d, j = tree.query(embed_fields(xyz[ok], field[ok] + side), distance_upper_bound=step_mm)
+        out = np.full(n, -1, dtype=np.int64)
+        out[ok[np.isfinite(d)]] = ok[j[np.isfinite(d)]]
+        near.append(out)
+    after, before = near
+    mutual = np.flatnonzero(after >= 0)
+    mutual = mutual[before[after[mutual]] == mutual]
+    plain = np.full(n, -1, dtype=np.int64)
+    plain[after[mutual]] = mutual  # the previous point, by nearness alone
+    has = ok[plain[ok] >= 0]
+    go = np.full(n, -1, dtype=np.int64)
+    go[mutual] = after[mutual]
+    go[has] = -1
+    d, j = tree.query(
+        embed_fields(2.0 * xyz[has] - xyz[plain[has]], field[has] + 1),
+        distance_upper_bound=tolerance_mm,
+    )
+    go[has[np.isfinite(d)]] = ok[j[np.isfinite(d)]]
+    dist = np.full(n, np.inf)
+    dist[has[np.isfinite(d)]] = d[np.isfinite(d)]
+    src = np.flatnonzero(go >= 0)
+    src = src[np.lexsort((dist[src], go[src]))]  # per next point, the nearest first
+    first = np.r_[True, go[src][1:] != go[src][:-1]]
+    nxt[src[first]] = go[src[first]]
+    prv[go[src[first]]] = src[first]
+    return nxt, prv
 
 
 def _walk(chain: NDArray[np.int64], start: NDArray[np.int64], steps: int) -> NDArray[np.int64]:
@@ -71,6 +83,52 @@ def _walk(chain: NDArray[np.int64], start: NDArray[np.int64], steps: int) -> NDA
     for _ in range(steps):
         at = np.where(at >= 0, chain[np.maximum(at, 0)], -1)
     return at
+
+
+def _lasts(chain: NDArray[np.int64], start: NDArray[np.int64], most: int) -> NDArray[np.int64]:
+    """Links along ``chain`` from each ``start`` before it ends, up to ``most``."""
+    n = np.zeros(len(start), dtype=np.int64)
+    at = start.copy()
+    for _ in range(most):
+        at = np.where(at >= 0, chain[np.maximum(at, 0)], -1)
+        if not (at >= 0).any():
+            break
+        n += at >= 0
+    return n
+
+
+def _companions(
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    chains: tuple[NDArray[np.int64], NDArray[np.int64]],
+    end: NDArray[np.int64],
+    step_mm: float,
+    tolerance_mm: float,
+    fields: int,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """For each trajectory ``end``, its companion (see :func:`carried`): the ends that have
+    one, and their companions."""
+    on, back = chains
+    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
+    tree = cKDTree(embed_fields(xyz[ok], field[ok]))
+    k = min(_COMPANIONS + 1, len(ok))
+    _, j = tree.query(embed_fields(xyz[end], field[end]), k=k, distance_upper_bound=step_mm)
+    cand = np.where(j < len(ok), ok[np.minimum(j, len(ok) - 1)], -1).reshape(len(end), k)
+    cand[cand == end[:, None]] = -1
+    old = _walk(back, end, _STEADY_FIELDS)
+    old_c = _walk(back, cand.ravel(), _STEADY_FIELDS).reshape(cand.shape)
+    drift = np.linalg.norm(
+        (xyz[end][:, None] - xyz[np.maximum(cand, 0)]) - (xyz[old][:, None] - xyz[old_c]), axis=2
+    )
+    fine = (cand >= 0) & (old[:, None] >= 0) & (old_c >= 0) & (drift <= tolerance_mm)
+    lasts = _lasts(on, np.where(fine, cand, -1).ravel(), fields).reshape(cand.shape)
+    # the steady companion that goes on longest (the sacrum for an iliac spine, not the
+    # other spine that is lost a field later), the steadier of those that last as long
+    rank = np.where(fine & (lasts >= 2), lasts - drift / (2.0 * tolerance_mm), -np.inf)
+    best = rank.argmax(axis=1)
+    row = np.arange(len(end))
+    has = np.isfinite(rank[row, best])
+    return end[has], cand[row, best][has]
 
 
 def carried(
@@ -84,11 +142,12 @@ def carried(
     """Positions of each trajectory's end carried ``2 .. fields`` fields on (``side`` +1)
     or back (-1) by its companion.
 
-    The companion is, of the points of the end's field nearest to it, the one whose
-    trajectory goes on past the end and whose offset to the ending trajectory changed
-    least (at most ``tolerance_mm``) over the :data:`_STEADY_FIELDS` fields before it;
-    the carried position is the end plus the companion's displacement since. (One field
-    on, the constant-velocity prediction of :mod:`kisscal.recon.claimed` stands.)
+    The companion is one of the points of the end's field nearest to it whose offset to
+    the ending trajectory changed by at most ``tolerance_mm`` over the
+    :data:`_STEADY_FIELDS` fields before the end: of those, the one whose trajectory goes
+    on longest past the end. The carried position is the end plus the companion's
+    displacement since, for as long as the companion goes on. (One field on, the
+    constant-velocity prediction of :mod:`kisscal.recon.claimed` stands.)
 
     Returns
     -------
@@ -99,24 +158,9 @@ def carried(
     nxt, prv = links(xyz, field, step_mm, tolerance_mm)
     on, back = (nxt, prv) if side > 0 else (prv, nxt)
     end = np.flatnonzero((on < 0) & (back >= 0))
-    if len(end) == 0:
+    if len(end) == 0 or fields < 2:
         return empty
-    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
-    tree = cKDTree(embed_fields(xyz[ok], field[ok]))
-    k = min(_COMPANIONS + 1, len(ok))
-    _, j = tree.query(embed_fields(xyz[end], field[end]), k=k, distance_upper_bound=step_mm)
-    cand = np.where(j < len(ok), ok[np.minimum(j, len(ok) - 1)], -1).reshape(len(end), k)
-    cand[cand == end[:, None]] = -1
-    old = _walk(back, end, _STEADY_FIELDS)
-    old_c = _walk(back, cand.ravel(), _STEADY_FIELDS).reshape(cand.shape)
-    fine = (cand >= 0) & (old[:, None] >= 0) & (old_c >= 0) & (on[np.maximum(cand, 0)] >= 0)
-    drift = np.linalg.norm(
-        (xyz[end][:, None] - xyz[np.maximum(cand, 0)]) - (xyz[old][:, None] - xyz[old_c]), axis=2
-    )
-    drift = np.where(fine, drift, np.inf)
-    best = drift.argmin(axis=1)
-    steady = drift[np.arange(len(end)), best] <= tolerance_mm
-    end, comp = end[steady], cand[np.arange(len(end)), best][steady]
+    end, comp = _companions(xyz, field, (on, back), end, step_mm, tolerance_mm, fields)
     out_xyz, out_field, out_end = [], [], []
     at = on[comp]
     for _ in range(2, fields + 1):
