@@ -13,7 +13,11 @@ trajectory is absent; its ray may pass by another marker's prediction only where
 images overlap. A ghost also ends where one of its markers gains a second camera: the
 marker's own pair begins there, sharing the ghost's blob, and the marker's trajectory,
 continued back into the ghost's last field, lands on that pair (one claimed ray, backed
-by the blob's true pair, from a trajectory that outlasts the piece).
+by the blob's true pair, from a trajectory that outlasts the piece). Markers lost a
+while before the piece begins (two iliac spine markers seen by no camera for half a
+second, then each by one) leave no trajectory that ends there; a marker of their rigid
+body that stays in view carries them (:mod:`kisscal.recon.carried`), and their carried
+positions claim the rays as the predictions do.
 
 :func:`claimed_pieces` finds such pieces of two-camera points (points of one camera pair
 in consecutive fields, each within a field's step of the last) so that the caller can
@@ -99,6 +103,11 @@ def claimed_pieces(
     farther than twice the tolerance from the piece's point. The piece then holds the
     blob that a marker's trajectory, continued into the piece's fields, needs: one
     marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
+    Trajectories lost up to ``carry_fields`` fields before the piece's first field (after
+    its last) claim rays too, from where their rigid companions carry them
+    (:func:`~kisscal.recon.carried.carried`), where no point lies: less exact than a
+    prediction over one field, such a claim counts only farther than twice the tolerance
+    from the piece's point.
 
     Parameters
     ----------
@@ -115,6 +124,9 @@ def claimed_pieces(
         ``two_camera_continuity_mm`` (the tolerance).
     rivals : tuple of ndarray, optional
         All candidate pairs: blobs ``a``, ``b`` (n_candidates,) and points (n_candidates, 3).
+    carry_fields : int
+        Fields a lost trajectory is carried (``params.two_camera_carry_s`` at the field
+        rate); 0 carries none.
 
     Returns
     -------
@@ -145,7 +157,7 @@ def claimed_pieces(
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
         gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
         src = np.flatnonzero(ok)[gone]
-        if len(src) == 0 or len(ends) == 0:
+        if len(ends) == 0:
             continue
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]

@@ -17,7 +17,8 @@ camera within the epipolar band is as good a partner as the true one (Shafiq et 
   trajectories that end there is two single-view markers whose rays cross and move
   together (:mod:`kisscal.recon.claimed`); so is a piece that holds, at its end, the
   blob of a longer trajectory's own pair; its pairs are withdrawn, the blobs compete
-  again.
+  again. Markers lost a while before claim from where a marker of their rigid body
+  carries them (:mod:`kisscal.recon.carried`).
 
 The check applies to every two-camera pair, ambiguous or not: a blob with a single
 candidate partner is not proof, because the true partner may be hidden (gait: one leg's
