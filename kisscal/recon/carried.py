@@ -12,7 +12,7 @@ start to cross (a pelvis seen from two sides: one anterior superior iliac spine 
 by one camera, the other by another, the sacrum marker carrying both).
 
 :func:`links` joins the points of consecutive fields into trajectories; :func:`carried`
-carries each trajectory's end along its steadiest companion.
+carries each trajectory's end along the steady companion that goes on longest.
 """
 
 from __future__ import annotations
@@ -134,13 +134,14 @@ def _companions(
 def carried(
     xyz: NDArray[np.float64],
     field: NDArray[np.int64],
+    chains: tuple[NDArray[np.int64], NDArray[np.int64]],
     step_mm: float,
     tolerance_mm: float,
     side: int,
     fields: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
     """Positions of each trajectory's end carried ``2 .. fields`` fields on (``side`` +1)
-    or back (-1) by its companion.
+    or back (-1) by its companion; ``chains`` are the points' :func:`links`.
 
     The companion is one of the points of the end's field nearest to it whose offset to
     the ending trajectory changed by at most ``tolerance_mm`` over the
@@ -155,8 +156,7 @@ def carried(
         Carried positions, with their ``field`` (k,) and the index of the end (k,).
     """
     empty = np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    nxt, prv = links(xyz, field, step_mm, tolerance_mm)
-    on, back = (nxt, prv) if side > 0 else (prv, nxt)
+    on, back = chains if side > 0 else chains[::-1]
     end = np.flatnonzero((on < 0) & (back >= 0))
     if len(end) == 0 or fields < 2:
         return empty

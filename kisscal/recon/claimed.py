@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import pixel_size_mm, project_rows
-from kisscal.recon.carried import carried
+from kisscal.recon.carried import carried, links
 from kisscal.recon.group import embed_fields
 from kisscal.recon.params import ReconParams
 
@@ -152,6 +152,8 @@ def claimed_pieces(
     flagged = np.zeros(label.max() + 1, dtype=bool)
     # how many fields each trajectory holds: a known marker outlasts every piece
     span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
+    chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
+    trajectories = all_xyz[ok], all_field[ok], span[ok], chains
     for side in (1, -1):  # the first field of a piece (from the field before), the last
         ends = _piece_ends(label, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
@@ -162,7 +164,6 @@ def claimed_pieces(
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
-        trajectories = all_xyz[ok], all_field[ok], span[ok]
         lost = _carried_claimers(*trajectories, here, params, side, carry_fields)
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
@@ -186,6 +187,7 @@ def _carried_claimers(
     xyz: NDArray[np.float64],
     field: NDArray[np.int64],
     span: NDArray[np.float64],
+    chains: tuple[NDArray[np.int64], NDArray[np.int64]],
     here: cKDTree,
     params: ReconParams,
     side: int,
@@ -195,7 +197,8 @@ def _carried_claimers(
     marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
     lies within the tolerance: their positions, fields and spans."""
     tolerance_mm = params.two_camera_continuity_mm
-    pos, p_field, end = carried(xyz, field, params.two_camera_step_mm, tolerance_mm, side, fields)
+    step_mm = params.two_camera_step_mm
+    pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]]
 

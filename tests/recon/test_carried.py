@@ -35,7 +35,8 @@ def test_links_join_each_marker_from_field_to_field() -> None:
 
 def test_a_lost_marker_is_carried_by_its_rigid_companion() -> None:
     xyz, field, marker, truth = _walk(40)
-    pos, at, end = carried(xyz, field, 300.0, 20.0, side=1, fields=20)
+    chains = links(xyz, field, 300.0, 20.0)
+    pos, at, end = carried(xyz, field, chains, 300.0, 20.0, side=1, fields=20)
     mine = (marker[end] == 0) & (field[end] == 9)
     assert np.array_equal(at[mine], np.arange(11, 30)), "2 to 20 fields on"
     # S carries A where it is (C, nearer and swinging, is not steady)
@@ -45,5 +46,6 @@ def test_a_lost_marker_is_carried_by_its_rigid_companion() -> None:
 def test_nothing_is_carried_without_a_steady_companion() -> None:
     xyz, field, marker, _ = _walk(40)
     swing = marker != 1  # A and C alone: C's offset to A changes by more than 20 mm
-    pos, _, _ = carried(xyz[swing], field[swing], 300.0, 20.0, side=1, fields=20)
+    chains = links(xyz[swing], field[swing], 300.0, 20.0)
+    pos, _, _ = carried(xyz[swing], field[swing], chains, 300.0, 20.0, side=1, fields=20)
     assert len(pos) == 0
