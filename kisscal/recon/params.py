@@ -65,8 +65,9 @@ class ReconParams(Params):
         its rigid body (:mod:`kisscal.recon.carried`), to tell a two-camera piece made of
         two lost markers' rays from a marker (:mod:`kisscal.recon.claimed`). A walking
         pelvis turns by a few degrees in a second (13 mm at an iliac spine marker after
-        0.9 s, within the continuity tolerance); carried for 4 s, offsets long out of date
-        claimed true pieces (issue 27: lowcost seed 303, 2-camera recall 97.4 -> 93.1 %).
+        0.9 s, within the continuity tolerance). Issue 27, lowcost seeds 303 and 312: the
+        iliac spines were lost 0.7-0.9 s before their rays crossed (0.5 s finds neither
+        crossing, 1-4 s both, nothing else changed); 0 carries none.
     deblend_merged : bool
         Make two-camera points of markers whose image merged with a known point's image
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
