@@ -13,7 +13,11 @@ trajectory is absent; its ray may pass by another marker's prediction only where
 images overlap. A ghost also ends where one of its markers gains a second camera: the
 marker's own pair begins there, sharing the ghost's blob, and the marker's trajectory,
 continued back into the ghost's last field, lands on that pair (one claimed ray, backed
-by the blob's true pair, from a trajectory that outlasts the piece).
+by the blob's true pair, from a trajectory that outlasts the piece). Markers lost a
+while before the piece begins (two iliac spine markers seen by no camera for half a
+second, then each by one) leave no trajectory that ends there; a marker of their rigid
+body that stays in view carries them (:mod:`kisscal.recon.carried`), and their carried
+positions claim the rays as the predictions do.
 
 :func:`claimed_pieces` finds such pieces of two-camera points (points of one camera pair
 in consecutive fields, each within a field's step of the last) so that the caller can
@@ -29,6 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import pixel_size_mm, project_rows
+from kisscal.recon.carried import carried, links
 from kisscal.recon.group import embed_fields
 from kisscal.recon.params import ReconParams
 
@@ -79,6 +84,7 @@ def claimed_pieces(
     dlts: NDArray[np.float64],
     params: ReconParams,
     rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]] | None = None,
+    carry_fields: int = 0,
 ) -> NDArray[np.bool_]:
     """Which two-camera points lie on pieces whose rays other trajectories claim.
 
@@ -97,6 +103,11 @@ def claimed_pieces(
     farther than twice the tolerance from the piece's point. The piece then holds the
     blob that a marker's trajectory, continued into the piece's fields, needs: one
     marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
+    Trajectories lost up to ``carry_fields`` fields before the piece's first field (after
+    its last) claim rays too, from where their rigid companions carry them
+    (:func:`~kisscal.recon.carried.carried`), where no point lies: less exact than a
+    prediction over one field, such a claim counts only farther than twice the tolerance
+    from the piece's point.
 
     Parameters
     ----------
@@ -113,6 +124,9 @@ def claimed_pieces(
         ``two_camera_continuity_mm`` (the tolerance).
     rivals : tuple of ndarray, optional
         All candidate pairs: blobs ``a``, ``b`` (n_candidates,) and points (n_candidates, 3).
+    carry_fields : int
+        Fields a lost trajectory is carried (``params.two_camera_carry_s`` at the field
+        rate); 0 carries none.
 
     Returns
     -------
@@ -138,19 +152,24 @@ def claimed_pieces(
     flagged = np.zeros(label.max() + 1, dtype=bool)
     # how many fields each trajectory holds: a known marker outlasts every piece
     span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
+    chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
+    trajectories = all_xyz[ok], all_field[ok], span[ok], chains
     for side in (1, -1):  # the first field of a piece (from the field before), the last
         ends = _piece_ends(label, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
         gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
         src = np.flatnonzero(ok)[gone]
-        if len(src) == 0 or len(ends) == 0:
+        if len(ends) == 0:
             continue
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
+        lost = _carried_claimers(*trajectories, here, params, side, carry_fields)
+        margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
+        both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
         for blob in (a, b):  # each ray of the piece's end, against the claimers
-            hits.append(_claims(blob[ends], point, claimers, (camera, uv), dlts, tolerance_mm))
+            hits.append(_claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm))
             if rivals is not None:
                 stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
         ha, hb = hits[0] >= 0, hits[1] >= 0
@@ -162,6 +181,26 @@ def claimed_pieces(
         flagged[label[ends[claimed | stolen]]] = True
     out[flagged[label]] = True
     return out
+
+
+def _carried_claimers(
+    xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    span: NDArray[np.float64],
+    chains: tuple[NDArray[np.int64], NDArray[np.int64]],
+    here: cKDTree,
+    params: ReconParams,
+    side: int,
+    fields: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """The trajectories lost a few fields before (after) a field, carried into it by a
+    marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
+    lies within the tolerance: their positions, fields and spans."""
+    tolerance_mm = params.two_camera_continuity_mm
+    step_mm = params.two_camera_step_mm
+    pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields)
+    gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
+    return pos[gone], p_field[gone], span[end[gone]]
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:
@@ -203,7 +242,7 @@ def _claims(
         q = pred[cand].reshape(-1, 3)
         size = pixel_size_mm(dlts, np.full(len(q), c), q).reshape(cand.shape)
         across = np.linalg.norm(proj[cand] - uv[blob[rows]][:, None], axis=2) * size
-        far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > tolerance_mm
+        far = np.linalg.norm(pred[cand] - point[rows][:, None], axis=2) > claimers[3][cand]
         hit = same & (across <= tolerance_mm) & far
         out[rows, :kk] = np.where(hit, cand, -1)
     return out

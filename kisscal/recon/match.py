@@ -392,6 +392,7 @@ def match_trial(
     params: ReconParams = DEFAULT_PARAMS,
     solved: Solved | None = None,
     body: RigidTriangles | None = None,
+    rate_hz: float = 50.0,
 ) -> NDArray[np.int64]:
     """Match a whole trial with the strategy named by ``params.strategy``.
 
@@ -404,7 +405,8 @@ def match_trial(
     ``solved`` (:class:`~kisscal.recon.group.Solved`, optional) carries the markers'
     triangulations from step to step (each step solves only the markers it changed) and
     ends with a triangulation of markers of this table, for the caller to reuse. ``body``
-    (:class:`~kisscal.recon.body.RigidTriangles`, optional) goes to the two-camera step.
+    (:class:`~kisscal.recon.body.RigidTriangles`, optional) and the field rate ``rate_hz``
+    go to the two-camera step.
 
     Returns
     -------
@@ -435,7 +437,7 @@ def match_trial(
         marker = renumber(marker, field)
     if params.allow_two_camera and np.count_nonzero(marker < 0) >= 2:
         marker, _ = match_two_camera(
-            marker, field, camera, uv, dlts, params, limit, F, led, solved, body
+            marker, field, camera, uv, dlts, params, limit, F, led, solved, body, rate_hz
         )
     return marker
 

@@ -17,7 +17,8 @@ camera within the epipolar band is as good a partner as the true one (Shafiq et 
   trajectories that end there is two single-view markers whose rays cross and move
   together (:mod:`kisscal.recon.claimed`); so is a piece that holds, at its end, the
   blob of a longer trajectory's own pair; its pairs are withdrawn, the blobs compete
-  again.
+  again. Markers lost a while before claim from where a marker of their rigid body
+  carries them (:mod:`kisscal.recon.carried`).
 
 The check applies to every two-camera pair, ambiguous or not: a blob with a single
 candidate partner is not proof, because the true partner may be hidden (gait: one leg's
@@ -223,6 +224,7 @@ def match_two_camera(
     led: NDArray[np.bool_] | None = None,
     solved: Solved | None = None,
     body: RigidTriangles | None = None,
+    rate_hz: float = 50.0,
 ) -> tuple[NDArray[np.int64], float]:
     """Make two-camera markers of the blobs with ``marker < 0`` (see module docstring).
 
@@ -250,6 +252,8 @@ def match_two_camera(
         Markers of this table triangulated before (:class:`~kisscal.recon.group.Solved`).
     body : RigidTriangles, optional
         The marker set's rigid triangles (:func:`~kisscal.recon.body.body_pairs`).
+    rate_hz : float
+        Field rate (Hz): lost markers are carried ``params.two_camera_carry_s``.
 
     Returns
     -------
@@ -292,9 +296,11 @@ def match_two_camera(
     # let their blobs compete again (kisscal.recon.claimed); once none is left, a piece
     # holding the blob of a longer trajectory's own pair (among the first candidates)
     rivals, with_rivals, table = (a, b, xyz), False, (field, camera, uv)
+    carry = round(params.two_camera_carry_s * rate_hz)
     for _ in range(_CLAIM_ROUNDS if judge_motion else 0):
         mine = a[won], b[won], xyz[won], m_xyz, m_field, table, dlts, params
-        claimed = np.flatnonzero(won)[claimed_pieces(*mine, rivals if with_rivals else None)]
+        withdrawn = claimed_pieces(*mine, rivals if with_rivals else None, carry)
+        claimed = np.flatnonzero(won)[withdrawn]
         if len(claimed) == 0:
             if with_rivals:
                 break
@@ -313,17 +319,8 @@ def match_two_camera(
     if _crowded(*near, len(m_xyz), params.group_radius_mm):
         # a pair may be a piece of a marker already made: unite them (pairs are within
         # the limit, and so is every union merge_groups makes)
-        out = merge_groups(
-            out,
-            field,
-            camera,
-            uv,
-            dlts,
-            params.group_radius_mm,
-            limit_px,
-            params.reweight_iterations,
-            solved,
-        )
+        united = params.group_radius_mm, limit_px, params.reweight_iterations, solved
+        out = merge_groups(out, field, camera, uv, dlts, *united)
     return renumber(out, field), limit_px
 
 

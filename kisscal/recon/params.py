@@ -60,6 +60,14 @@ class ReconParams(Params):
         Largest error (mm) of the rigid distances by which a two-camera pair too short to
         continue a trajectory is taken (:mod:`kisscal.recon.body`, with a marker set):
         skin moves markers of one segment by a few millimetres against each other.
+    two_camera_carry_s : float
+        How long (s) after a marker was lost its position is still known from a marker of
+        its rigid body (:mod:`kisscal.recon.carried`), to tell a two-camera piece made of
+        two lost markers' rays from a marker (:mod:`kisscal.recon.claimed`). A walking
+        pelvis turns by a few degrees in a second (13 mm at an iliac spine marker after
+        0.9 s, within the continuity tolerance). Issue 27, lowcost seeds 303 and 312: the
+        iliac spines were lost 0.7-0.9 s before their rays crossed (0.5 s finds neither
+        crossing, 1-4 s both, nothing else changed); 0 carries none.
     deblend_merged : bool
         Make two-camera points of markers whose image merged with a known point's image
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
@@ -136,6 +144,7 @@ class ReconParams(Params):
     two_camera_step_mm: float = param(300.0, unit="mm", gt=0)
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
+    two_camera_carry_s: float = param(1.0, unit="s", ge=0)
     deblend_merged: bool = param(True)
     deblend_max_cameras: int = param(4, ge=0)
     deblend_radius_px: float = param(3.0, unit="px", gt=0)

@@ -208,7 +208,8 @@ def reconstruct_trial(
     params : ReconParams
     rate_hz : float
         Field rate (Hz), to judge whether the trial is long enough for the stationary
-        filter (the KISS cameras' 50 Hz by default).
+        filter, and how many fields a lost marker is carried by its rigid companion
+        (``params.two_camera_carry_s``; the KISS cameras' 50 Hz by default).
     body : RigidTriangles, optional
         The trial's marker set as rigid triangles
         (:meth:`~kisscal.recon.body.RigidTriangles.from_marker_set`): two-camera pairs too
@@ -230,7 +231,8 @@ def reconstruct_trial(
     keep = np.flatnonzero(~still)
     marker = np.full(len(field), -1, dtype=np.int64)
     solved = Solved()
-    marker[keep] = match_trial(field[keep], camera[keep], uv[keep], dlts, params, solved, body)
+    kept = field[keep], camera[keep], uv[keep]
+    marker[keep] = match_trial(*kept, dlts, params, solved, body, rate_hz)
     pts = points_from_markers(
         marker,
         field,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.dlt.model import project
-from kisscal.recon import reconstruct_trial
+from kisscal.recon import ReconParams, reconstruct_trial
 from kisscal.recon.claimed import pieces
 from kisscal.recon.epipolar import camera_centre_mm
 
@@ -86,3 +86,37 @@ def test_pieces_follow_one_camera_pair_from_field_to_field() -> None:
     label = pieces(xyz, field, cams, 300.0)
     assert len(set(label[:4])) == 1  # one trajectory of cameras 0-1
     assert len(set(label)) == 4  # too far, another camera pair, after a gap: apart
+
+
+def test_crossing_of_two_markers_lost_a_while_before_is_withdrawn() -> None:
+    # A, B and S are one rigid body bobbing as it walks (a pelvis: two iliac spines and
+    # the sacrum); camera 0's ray through A and camera 2's ray through B cross at G, about
+    # 300 mm from each, in every field. Fields 0-19 every camera sees all three; 20-29 A
+    # and B are lost; from 30 camera 0 sees A and camera 2 sees B alone: the crossing is a
+    # smooth two-camera trajectory whose rays' own markers left ten fields before, so
+    # that no trajectory ends where it begins. S, seen throughout, carries where A and B
+    # are (issue 27: lowcost seed 303, RASI x LASI)
+    dlts = make_rig(7, n_cameras=3)
+    n = 60
+    t = np.arange(n)
+    g = np.array([-500.0, 0.0, 900.0]) + t[:, None] * [15.0, 2.0, 0.0]
+    g[:, 2] += 25.0 * np.sin(2.0 * np.pi * t / 18.0)  # the bob a constant velocity misses
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    a = c0 + 0.93 * (g - c0)  # A - B = 0.07 (c0 - c2) in every field: one rigid body
+    b = c2 + 0.93 * (g - c2)
+    s = (a + b) / 2.0 + [0.0, 120.0, -60.0]
+    xyz = np.stack([a, b, s], axis=1)
+    seen = np.zeros((n, 3, 3), dtype=bool)
+    seen[:20] = seen[:, 2] = True
+    seen[30:, 0, 0] = seen[30:, 1, 2] = True
+    field, camera, uv = _table(dlts, xyz, seen, 3)
+    pts = reconstruct_trial(field, camera, uv, dlts, rate_hz=50.0)
+    d = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2)
+    ghost = d.min(axis=1) > 10.0
+    assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
+    assert np.array_equal(np.unique(pts.field[d[:, 2] < 10.0]), t), "S is kept"
+    assert (d[:, :2] < 10.0).any(axis=0).all(), "A and B are kept while seen"
+    # a second of carrying is what finds it: with none, the crossing stays
+    none = reconstruct_trial(field, camera, uv, dlts, ReconParams(two_camera_carry_s=0.0))
+    d = np.linalg.norm(none.xyz_mm[:, None] - xyz[none.field], axis=2)
+    assert (d.min(axis=1) > 10.0).sum() >= 20
