@@ -124,6 +124,8 @@ def judge_sides(
         n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
     }
     flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
+    # What the labelling itself doubted (a foot named among near ties) stays doubtful.
+    flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
     flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
     paired = {names[i] for pair in anatomy.pairs for i in pair}
