@@ -210,6 +210,13 @@ class TrackingParams(Params):
         by more than this fraction of stature (median misfit of the distances to its
         neighbours and of its height, against the set's template:
         :mod:`~kisscal.tracking.labelling.runnerup`) is flagged as uncertain.
+    free_deficit_fraction : float
+        ... and a name that a name no trajectory holds fits better by more than this
+        fraction of stature (:func:`~kisscal.tracking.labelling.runnerup.free_name_margins`).
+        On the regression set (issue 26) names forced one marker along the body lose to a
+        free name by 0.4-2.3 % (a thigh marker named finger, the thigh's name free), true
+        names by up to 2.0 % (shoulders and elbows, the free names their arm's): the two
+        overlap, and at 1 % about as many true names are flagged as wrong ones caught.
     facing_fraction : float
         Toe names ahead of heel names (anterior pelvis ahead of posterior) along the walk in
         at least this fraction of the votes face forward; in at most 1 - it, turned round.
@@ -296,6 +303,7 @@ class TrackingParams(Params):
     set_window_s: float = param(1.0, unit="s", gt=0)
     min_side_confidence: float = param(0.8, gt=0.5, le=1)
     name_deficit_fraction: float = param(0.04, ge=0)
+    free_deficit_fraction: float = param(0.01, ge=0)
     smoothing: bool = param(False)
 
 

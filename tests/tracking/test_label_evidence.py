@@ -1,6 +1,7 @@
 """Names the evidence does not support: a foot with fewer markers than names, names
 nothing tells apart, a name another fits clearly better (kisscal.tracking.labelling:
-feet, anatomy, runnerup)."""
+feet, anatomy, runnerup), a leg not level with the other, a subject moving otherwise
+than forward."""
 
 import numpy as np
 
@@ -8,9 +9,15 @@ from kisscal.markersets import marker_set
 from kisscal.synth.motion import walking_trial
 from kisscal.tracking import TrackingParams, blend_tracks, track_points
 from kisscal.tracking.labelling import label_with_set
-from kisscal.tracking.labelling.anatomy import Anatomy, floor_height
-from kisscal.tracking.labelling.feet import naming_choices, score, settle_feet
-from kisscal.tracking.labelling.runnerup import name_margins
+from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height
+from kisscal.tracking.labelling.feet import (
+    _near_ties,
+    feet_of,
+    naming_choices,
+    score,
+    settle_feet,
+)
+from kisscal.tracking.labelling.runnerup import free_name_margins, name_margins, uneven_legs
 from kisscal.tracking.labelling.state import LabelState
 
 KISS = marker_set("kiss")
@@ -100,3 +107,72 @@ def test_a_leg_named_one_marker_up_is_clearly_beaten():
     shifted[thigh], shifted[knee], shifted[ankle] = pos[knee], pos[ankle], np.nan
     got = margins(shifted)
     assert got[thigh] < -deficit and got[knee] < -deficit
+
+
+def test_a_name_a_free_name_fits_better_is_doubted():
+    """With the thigh markers' names free (no trajectory holds them), a walk's true names
+    lose to none of them by ``free_deficit_fraction`` of stature; a thigh marker named
+    tibia, its tibia marker unnamed, loses clearly to the free thigh name."""
+    m = walking_trial(1, 150, 50.0, path_mm=3500, model="grounded", heading_deg=300)
+    pos = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in KISS.names]]
+    anatomy = Anatomy.of_set(KISS)
+    limit = TrackingParams().free_deficit_fraction * np.ptp(KISS.template_mm[:, 2])
+    thigh, tibia = KISS.names.index("LTHI"), KISS.names.index("LTIB")
+
+    def margins(p):
+        args = (p, KISS.template_mm, anatomy.heights_mm, floor_height(p, anatomy))
+        return free_name_margins(*args, anatomy.pairs)
+
+    free = pos.copy()
+    free[[thigh, KISS.names.index("RTHI")]] = np.nan
+    assert np.nanmin(margins(free)) > -limit
+    shifted = free.copy()
+    shifted[tibia] = pos[thigh]
+    assert margins(shifted)[tibia] < -limit
+    # With every name held nothing is free to weigh.
+    assert np.isnan(margins(pos)).all()
+
+
+def test_a_leg_named_one_marker_down_is_not_level_with_the_other():
+    m = walking_trial(1, 150, 50.0, path_mm=3500, model="grounded", heading_deg=300)
+    pos = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in KISS.names]]
+    a = Anatomy.of_set(KISS)
+    assert not uneven_legs(pos, a.heights_mm, a.pairs, a.front + a.back).any()
+    thigh, knee, tibia = (KISS.names.index(n) for n in ("RTHI", "RKNE", "RTIB"))
+    shifted = pos.copy()
+    shifted[thigh], shifted[knee], shifted[tibia] = pos[knee], pos[tibia], np.nan
+    got = {
+        a.names[i]
+        for i in np.flatnonzero(uneven_legs(shifted, a.heights_mm, a.pairs, a.front + a.back))
+    }
+    assert {"RTHI", "LTHI", "RKNE", "LKNE"} <= got
+
+
+def test_foot_namings_within_a_near_tie_are_doubted():
+    """Two ways of naming a foot score within FOOT_TIE: the names they give differently
+    are doubtful, the name they agree on is not."""
+    m = walking_trial(2, 150, 50.0, path_mm=3500, model="grounded", height_m=1.6, heading_deg=230)
+    f, k = np.nonzero(np.isfinite(m.xyz_mm[..., 0]))
+    pieces = blend_tracks(track_points(f, m.xyz_mm[f, k], TrackingParams()), TrackingParams())
+    state = LabelState.begin(pieces, KISS.names, KISS.template_mm, KISS.segments, TrackingParams())
+    foot = feet_of(KISS.names)[0]
+    choices = np.array([[0, 1, 2], [1, 0, 2], [2, 1, 0]])
+    _near_ties(state, foot, choices, np.array([1.0, 1.1, 2.0]), choices[0], 1.0)
+    assert state.doubtful == {int(foot.names[0]), int(foot.names[1])}
+
+
+def test_a_subject_moving_otherwise_than_forward_faces_where_the_pelvis_does():
+    """A standing body carried about in random directions (a tennis serve's steps): the
+    direction of travel is no forward, the pelvis' is, and every left name stays left of
+    its right partner."""
+    m = walking_trial(1, 150, 50.0, path_mm=3500, model="grounded", heading_deg=0)
+    still = m.xyz_mm.transpose(1, 0, 2)[[m.names.index(n) for n in KISS.names]][:, :1]
+    rng = np.random.default_rng(3)
+    steps = np.repeat(rng.normal(size=(12, 2)), 25, axis=0)  # a new direction every 0.5 s
+    steps = 12.0 * steps / np.linalg.norm(steps, axis=1, keepdims=True)  # 600 mm/s
+    path = np.c_[np.cumsum(steps, axis=0), np.zeros(len(steps))]
+    pos = still + path[None]
+    anatomy = Anatomy.of_set(KISS)
+    check = check_anatomy(pos, anatomy, 50.0)
+    assert check.forward == "pelvis"
+    assert np.nanmin(check.confidence) > TrackingParams().min_side_confidence

@@ -42,8 +42,10 @@ the trial; every labelling made with a set, or with names following the ``L``/``
 convention, is then judged by the anatomy (:mod:`~.anatomy`,
 :mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
 confidence per name, uncertain names flagged: names the checks cannot tell apart (a
-wrist bar's two ends), and names that another name of the set fits clearly better
-against the set's own template (:mod:`~.runnerup`).
+wrist bar's two ends), names that another name of the set fits clearly better
+against the set's own template, or a name left free fits better, legs not level with
+each other (:mod:`~.runnerup`), and a foot's names that a near tie of the feet contest
+gives to other markers (:mod:`~.feet`).
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.

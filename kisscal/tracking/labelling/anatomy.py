@@ -37,6 +37,13 @@ HEIGHT_FRACTION = 0.15
 WALKING_MM_S = 150.0
 #: The walking direction is the pelvis velocity smoothed over this (s, Gaussian SD).
 DIRECTION_S = 0.4
+#: A moving subject's direction of travel is its forward only when it agrees with the
+#: pelvis' back-to-front direction in at least this fraction of the fields, or disagrees
+#: in as many (a pelvis named back to front, which the walk must reveal). Between the
+#: two the subject moves otherwise than forward, and the pelvis tells: walks agree in
+#: 100 % of the fields (the regression set's), a tennis serve in 52 % (steps sideways
+#: and back).
+ALONG_FRACTION = 2 / 3
 
 
 @dataclass(frozen=True)
@@ -204,6 +211,15 @@ def _mean_of(pos: NDArray, rows: tuple[int, ...]) -> NDArray:
         return np.nanmean(pos[list(rows)], axis=0)
 
 
+def _pelvis_facing(pos: NDArray, anatomy: Anatomy) -> NDArray[np.float64]:
+    """The pelvis' horizontal back-to-front direction per field (F, 2), unit (NaN where
+    its front or back markers are not seen, or the set has none)."""
+    gap = (_mean_of(pos, anatomy.front) - _mean_of(pos, anatomy.back))[:, :2]
+    norm = np.linalg.norm(gap, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, gap / norm, np.nan)
+
+
 def forward_directions(
     pos: NDArray, anatomy: Anatomy, rate_hz: float
 ) -> tuple[NDArray[np.float64], str]:
@@ -211,8 +227,9 @@ def forward_directions(
     unknown, and what it came from.
 
     While walking (pelvis, or all names' centroid, faster than :data:`WALKING_MM_S`), the
-    smoothed walking direction; else the pelvis' back-to-front direction; else the feet's
-    heel-to-toe direction.
+    smoothed walking direction, unless the subject moves otherwise than forward
+    (:data:`ALONG_FRACTION`: then the pelvis' back-to-front direction in each field);
+    standing, the pelvis' back-to-front direction; else the feet's heel-to-toe direction.
     """
     sigma = max(DIRECTION_S * rate_hz, 1.0)
     centre = _mean_of(pos, anatomy.front + anatomy.back) if anatomy.front else None
@@ -223,7 +240,14 @@ def forward_directions(
     walking = speed > WALKING_MM_S
     if walking.mean() > 0.5:
         with np.errstate(invalid="ignore"):
-            return np.where(walking[:, None], velocity / speed[:, None], np.nan), "walking"
+            travel = np.where(walking[:, None], velocity / speed[:, None], np.nan)
+        facing = _pelvis_facing(pos, anatomy)
+        with np.errstate(invalid="ignore"):
+            along = np.sum(travel * facing, axis=1)
+        agree = np.mean(along[np.isfinite(along)] > 0) if np.isfinite(along).any() else 1.0
+        if 1 - ALONG_FRACTION < agree < ALONG_FRACTION:
+            return facing, "pelvis"
+        return travel, "walking"
     # Standing: the pelvis' back-to-front and the feet's heel-to-toe directions, which
     # must agree when both are known (else a front/back mix-up could turn every side).
     found = {}

@@ -44,6 +44,11 @@ _ANKLE = ("ANK",)
 _SHANK = ("KNE", "KNEE", "TIB")
 #: Fields a piece must share with a name for their distance to count.
 _MIN_SHARED = 3
+#: A way of giving a foot's names that scores within this factor of the way kept is a
+#: near tie: the names the two give differently are doubtful (:func:`_near_ties`).
+#: Among foreign foot markers (pyCGM2's metatarsal heads), the ways that put the heel's
+#: or the ankle's name on another marker score within 1.11 of the best.
+FOOT_TIE = 1.25
 
 
 @dataclass(frozen=True)
@@ -179,11 +184,27 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     own = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
     best = int(np.argmin(scores))
     if not np.isfinite(own) or scores[best] > params.foot_margin * own:
+        _near_ties(state, foot, choices, scores, held, own)
         return False
+    _near_ties(state, foot, choices, scores, choices[best], scores[best])
     if np.array_equal(choices[best], held):
         return False
     _rename_names(state, foot, held_any, pool, choices[best])
     return True
+
+
+def _near_ties(
+    state: LabelState, foot: Foot, choices: NDArray, scores: NDArray, kept: NDArray, at: float
+) -> None:
+    """Doubt (``state.doubtful``) the foot's names that a way of giving them scoring
+    within :data:`FOOT_TIE` of the way ``kept`` (score ``at``) gives to another candidate:
+    the distances do not tell which marker is the name's (a foot with markers of another
+    set: metatarsal heads beside the toe, a malleolus beside the ankle)."""
+    if not np.isfinite(at):
+        return
+    close = choices[scores <= FOOT_TIE * at]
+    differ = (close != kept[None, :]).any(axis=0)
+    state.doubtful |= {int(j) for j in foot.names[differ]}
 
 
 def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> float:

@@ -124,4 +124,7 @@ def join(state: LabelState) -> Labelling:
             labels.append(f"M{len(unlabelled)}")
     taken = set(matched.tolist())
     missing = tuple(n for j, n in enumerate(names) if j not in taken)
-    return Labelling(joined, tuple(labels), True, tuple(unlabelled), missing, state.fit_rms)
+    doubtful = tuple(names[j] for j in sorted(state.doubtful) if j in taken)
+    return Labelling(
+        joined, tuple(labels), True, tuple(unlabelled), missing, state.fit_rms, flagged=doubtful
+    )

@@ -16,7 +16,10 @@ neighbours and taken out). A name that another name fits by more than
 On real files, against a generic template, right names fall short of their runner-up
 by up to about 20 mm (marker placement differs from the template's); so the margin
 cannot certify a name (most names would have to be flagged), it can only catch a name
-that the evidence clearly contradicts.
+that the evidence clearly contradicts. A name left free by the labelling is another
+matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
+better than the trajectory's own name is doubtful by a smaller margin
+(``free_deficit_fraction``). And the two legs stand level (:func:`uneven_legs`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,11 @@ from numpy.typing import NDArray
 NEIGHBOUR_FRACTION = 0.35
 #: Fields sampled (evenly) for the median distances.
 MARGIN_FIELDS = 200
+#: Left and right leg markers whose median heights differ by more than this fraction of
+#: stature are doubtful (:func:`uneven_legs`). On the regression set (issue 26), true leg
+#: names differ by up to 8.0 % (the tennis serve's thighs: one knee bent through the
+#: serve); a leg whose names moved by one marker, by 12-16 % (test1.c3d, standing).
+UNEVEN_FRACTION = 0.10
 
 
 def median_distances(pos: NDArray) -> NDArray[np.float64]:
@@ -50,10 +58,11 @@ def name_margins(
     heights_mm: NDArray | None,
     floor_mm: float,
     pairs: tuple[tuple[int, int], ...] = (),
+    among_free: bool = False,
 ) -> NDArray[np.float64]:
     """Per name (rows of ``pos``, (n, F, 3), Z up), the margin (mm) of its trajectory's
     fit to its own name over its fit to the best other name (NaN: not seen, or no
-    neighbour).
+    neighbour, or no other name to weigh).
 
     The fit of trajectory ``i`` to name ``j`` is the median, over its neighbours ``k``
     (:data:`NEIGHBOUR_FRACTION` of the template's height) and the floor, of the absolute
@@ -63,7 +72,8 @@ def name_margins(
     them, or without a floor, distances alone); when ``j`` is ``k``'s name, the two
     exchange, and ``k`` is weighed as ``i``'s name. A name's mirror partner (``pairs``:
     left, right) is no runner-up: distances cannot tell a body from its mirror image,
-    the anatomy's sides do.
+    the anatomy's sides do. With ``among_free``, the other names weighed are only those
+    no trajectory holds (:func:`free_name_margins`).
     """
     n = pos.shape[0]
     measured = median_distances(pos)
@@ -78,6 +88,7 @@ def name_margins(
     mirror = np.arange(n)
     for a, b in pairs:
         mirror[a], mirror[b] = b, a
+    held = np.isfinite(pos[..., 0]).any(axis=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
         height = (np.nanmedian(pos[..., 2], axis=1) - (floor_mm if known else 0.0)) / scale
@@ -92,5 +103,58 @@ def name_margins(
         if known:
             misfit = np.c_[misfit, np.abs(height[i] - heights_mm)]
         fit = np.median(misfit, axis=1)
-        margins[i] = float(np.delete(fit, np.unique([i, mirror[i]])).min() - fit[i])
+        other = np.ones(n, dtype=bool)
+        other[[i, mirror[i]]] = False
+        if among_free:
+            other &= ~held
+        if other.any():
+            margins[i] = float(fit[other].min() - fit[i])
     return margins
+
+
+def free_name_margins(
+    pos: NDArray,
+    template: NDArray,
+    heights_mm: NDArray | None,
+    floor_mm: float,
+    pairs: tuple[tuple[int, int], ...] = (),
+) -> NDArray[np.float64]:
+    """:func:`name_margins` against the names no trajectory holds only.
+
+    A name held by another trajectory is a runner-up that can be right as well (two
+    neighbours fit each other's names nearly as well on a generic template), so it must
+    win clearly (``name_deficit_fraction``). A free name competes with nothing: when it
+    fits a trajectory better than the name the trajectory was given, the labelling
+    preferred a worse name while a better one was left unused, which happens when a
+    chain of names shifted along the body (a thigh marker named finger with the arms
+    absent, the thigh's name left free). With every name held (a complete set) this
+    weighs nothing (NaN).
+    """
+    return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
+
+
+def uneven_legs(
+    pos: NDArray, heights_mm: NDArray, pairs: tuple[tuple[int, int], ...], pelvis: tuple[int, ...]
+) -> NDArray[np.bool_]:
+    """Per name, whether it is a leg's (template height below the pelvis' markers) whose
+    trajectory's median height differs from its mirror partner's by more than
+    :data:`UNEVEN_FRACTION` of the template's height (both names of such a pair).
+
+    A walk, a run, a jump or a stance puts both legs' markers at one height on average;
+    a leg whose names moved along it by one marker (the thigh's name on the knee, the
+    knee's on the shin: each still above the next, each near enough its template height
+    for the anatomy) does not stand level with the other leg. Which of the two moved is
+    not known, so both are doubtful.
+    """
+    out = np.zeros(pos.shape[0], dtype=bool)
+    if not pelvis or not pairs:
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
+        height = np.nanmedian(pos[..., 2], axis=1)
+    legs = heights_mm < np.min(heights_mm[list(pelvis)])
+    limit = UNEVEN_FRACTION * float(np.ptp(heights_mm))
+    for a, b in pairs:
+        if legs[a] and legs[b] and abs(height[a] - height[b]) > limit:
+            out[[a, b]] = True
+    return out

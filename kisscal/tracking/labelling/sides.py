@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height, settle_sides
 from kisscal.tracking.labelling.result import Labelling
-from kisscal.tracking.labelling.runnerup import name_margins
+from kisscal.tracking.labelling.runnerup import free_name_margins, name_margins, uneven_legs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rigid import field_fits
 
@@ -55,6 +55,24 @@ def mirror_fit_ratio(pos: NDArray, template: NDArray, pairs: tuple) -> float:
     return float(np.median(other) / max(float(np.median(own)), 1e-9))
 
 
+def doubted(
+    pos: NDArray, anatomy: Anatomy, reference: NDArray, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """Per name, whether the evidence the labelling did not shape doubts it
+    (:mod:`~kisscal.tracking.labelling.runnerup`): another name fits its trajectory
+    better by ``name_deficit_fraction`` of stature, a name no trajectory holds by
+    ``free_deficit_fraction``, or it is a leg's not level with the other leg."""
+    floor = floor_height(pos, anatomy)
+    stature = float(np.ptp(reference[:, 2]))
+    args = (pos, reference, anatomy.heights_mm, floor, anatomy.pairs)
+    with np.errstate(invalid="ignore"):
+        out = name_margins(*args) < -params.name_deficit_fraction * stature
+        out |= free_name_margins(*args) < -params.free_deficit_fraction * stature
+    if anatomy.heights_mm is not None:
+        out |= uneven_legs(pos, anatomy.heights_mm, anatomy.pairs, anatomy.front + anatomy.back)
+    return out
+
+
 def _relabelled(labelling: Labelling, names: tuple[str, ...], perm: NDArray) -> tuple[str, ...]:
     row = {n: i for i, n in enumerate(names)}
     return tuple(names[perm[row[lab]]] if lab in row else lab for lab in labelling.labels)
@@ -81,12 +99,11 @@ def judge_sides(
     rate_hz : float
         Field rate: the walking direction is smoothed over a fixed time.
     params : TrackingParams
-        ``min_side_confidence``, ``name_deficit_fraction``.
+        ``min_side_confidence``, ``name_deficit_fraction``, ``free_deficit_fraction``.
     reference : (n, 3) array, optional
         A template the labelling did not shape (the set's, scaled to the subject), rows
         as ``anatomy.names``: a name that another name fits clearly better against it
-        (:func:`~kisscal.tracking.labelling.runnerup.name_margins`) is flagged. Default
-        ``template``.
+        (:func:`doubted`) is flagged. Default ``template``.
 
     Returns
     -------
@@ -107,12 +124,10 @@ def judge_sides(
         n: float(c) for n, c in zip(names, check.confidence, strict=True) if np.isfinite(c)
     }
     flagged = {n for n, c in confidence.items() if c < params.min_side_confidence}
+    # What the labelling itself doubted (a foot named among near ties) stays doubtful.
+    flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
-    margin = name_margins(
-        moved, ref, anatomy.heights_mm, floor_height(moved, anatomy), anatomy.pairs
-    )
-    deficit = params.name_deficit_fraction * float(np.ptp(ref[:, 2]))
-    flagged |= {n for n, m in zip(names, margin, strict=True) if m < -deficit}
+    flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:

@@ -103,6 +103,10 @@ class LabelState:
         The trial may hold only part of the set, and markers of other sets: a window's
         pieces and names are first narrowed to those the upright match finds near each
         other (:func:`~kisscal.tracking.labelling.window.set_members`; needs ``upright``).
+    doubtful : set of int
+        Names a phase gave while another way of giving them fitted nearly as well (a
+        foot among foreign markers, :func:`~kisscal.tracking.labelling.feet.settle_feet`):
+        flagged in the result.
     """
 
     tracks: Tracks
@@ -126,6 +130,7 @@ class LabelState:
     fit_rms: float = float("nan")
     upright: bool = False
     partial: bool = False
+    doubtful: set[int] = field(default_factory=set)
 
     @classmethod
     def begin(
