@@ -65,6 +65,11 @@ class ReconParams(Params):
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
         point's share, gives the hidden marker's image. Needs ``allow_two_camera``; rigs
         of up to ``deblend_max_cameras`` cameras.
+    deblend_hidden : bool
+        Also place two markers that the same two cameras see, merged into one blob in
+        one of them, by their trajectories (:mod:`kisscal.recon.hidden`): on their own
+        rays, their images' area-weighted mean the merged blob, a rigid segment of the
+        marker set apart. Needs ``deblend_merged`` and the marker set (``body``).
     deblend_max_cameras : int
         Largest rig that deblends: with more cameras a marker merged in one view is
         seen by three others nearly always, and the few deblended points (placed by
@@ -137,6 +142,7 @@ class ReconParams(Params):
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     deblend_merged: bool = param(True)
+    deblend_hidden: bool = param(True)
     deblend_max_cameras: int = param(4, ge=0)
     deblend_radius_px: float = param(3.0, unit="px", gt=0)
     max_rms_px: float = param(2.0, unit="px", gt=0)
