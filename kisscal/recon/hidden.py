@@ -19,8 +19,9 @@ mean, each prediction takes the free blob of another camera whose ray passes nea
 predictions' distance (within ``two_camera_body_mm``) is their distance. Both depths
 along the own rays then follow by Gauss-Newton from three equations: the weighted mean
 of the two images is ``c`` (two) and the distance (one). The fit's RMS residual must lie
-within the trial's residual limit, and each marker within ``two_camera_continuity_mm``
-of its prediction; each blob serves one solution, best residual first. A two-camera
+within the trial's residual limit, and each marker within ``hidden_prediction_mm`` of
+its prediction (a marker beside another's image, not merged with it, fits only when
+both are pushed further); each blob serves one solution, best residual first. A two-camera
 point that held ``c`` and an own blob moves to its marker's solved position.
 
 The trajectories are followed both ways, one field per round, so a pair merged for a
@@ -37,11 +38,19 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import pixel_size_mm, project_rows
-from kisscal.recon.deblend import Deblended, MergeScene, _depth
+from kisscal.recon.deblend import Deblended, MergeScene
 from kisscal.recon.group import embed_fields, near_cameras
 
 #: Points of the neighbouring field tried as a trajectory's previous position, nearest first.
 _NEIGHBOURS = 4
+
+
+def _depth_of(
+    dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """DLT denominators ``L9 X + L10 Y + L11 Z + 1`` (proportional to depth): an image's
+    area falls with its square."""
+    return np.einsum("ij,ij->i", dlts[camera, 8:11], xyz) + 1.0
 
 
 @dataclass(frozen=True)
@@ -132,7 +141,8 @@ def deblend_hidden(
     scene : MergeScene
         The trial's 2D table, rig and residual limit; of its ``params``:
         ``two_camera_step_mm``, ``two_camera_continuity_mm``, ``deblend_radius_px``,
-        ``group_radius_mm``, ``camera_clearance_mm``.
+        ``two_camera_body_mm``, ``hidden_prediction_mm``, ``group_radius_mm``,
+        ``camera_clearance_mm``.
     marker : ndarray of int, shape (n,)
         Point of each blob of the 2D table (-1: unused).
     p_field, p_xyz, p_cameras : ndarray, shapes (m,), (m, 3), (m,)
@@ -173,8 +183,9 @@ def deblend_hidden(
     P, Q, c, a, b, holder, want = (v[ok] for v in (P, Q, c, a, b, holder, want))
     xa, xb, resid = _solve_pair(scene, c, a, b, pxyz[P], pxyz[Q], want)
     good = resid <= scene.limit_px
-    good &= np.linalg.norm(xa - pxyz[P], axis=1) <= tol
-    good &= np.linalg.norm(xb - pxyz[Q], axis=1) <= tol
+    near = params.hidden_prediction_mm
+    good &= np.linalg.norm(xa - pxyz[P], axis=1) <= near
+    good &= np.linalg.norm(xb - pxyz[Q], axis=1) <= near
     good &= np.linalg.norm(xa - xb, axis=1) >= params.group_radius_mm
     good &= ~near_cameras(np.nan_to_num(xa), scene.dlts, params.camera_clearance_mm)
     good &= ~near_cameras(np.nan_to_num(xb), scene.dlts, params.camera_clearance_mm)
@@ -204,7 +215,7 @@ def _merged_pairs(
         if len(rows) == 0 or len(pf) < 2:
             continue
         img = project_rows(dlts, np.full(len(pf), j), pxyz)
-        front = (_depth(dlts, np.full(len(pf), j), pxyz) > 0) & np.all(np.isfinite(img), axis=1)
+        front = (_depth_of(dlts, np.full(len(pf), j), pxyz) > 0) & np.all(np.isfinite(img), axis=1)
         ids = np.flatnonzero(front)
         pairs = cKDTree(embed_fields(img[ids], pf[ids])).query_pairs(2.0 * r, output_type="ndarray")
         if len(pairs) == 0:
@@ -274,8 +285,8 @@ def _solve_pair(
 
     def resid(s: NDArray[np.float64]) -> NDArray[np.float64]:
         xa, xb = a0 + s[:, :1] * ua, b0 + s[:, 1:] * ub
-        wa = 1.0 / np.maximum(_depth(dlts, j, xa) ** 2, 1e-18)
-        wb = 1.0 / np.maximum(_depth(dlts, j, xb) ** 2, 1e-18)
+        wa = 1.0 / np.maximum(_depth_of(dlts, j, xa) ** 2, 1e-18)
+        wb = 1.0 / np.maximum(_depth_of(dlts, j, xb) ** 2, 1e-18)
         img = wa[:, None] * project_rows(dlts, j, xa) + wb[:, None] * project_rows(dlts, j, xb)
         cen = img / (wa + wb)[:, None] - uv[c]
         return np.column_stack([cen, (np.linalg.norm(xa - xb, axis=1) - want) / px_mm])

@@ -75,6 +75,29 @@ def test_a_segment_merged_in_one_view_is_placed_by_its_length(seed: int) -> None
 def test_without_the_marker_set_nothing_changes() -> None:
     dlts, xyz, visible = _segment_walk(0)
     tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
-    on = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams())
-    off = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(deblend_hidden=False))
+    on = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(deblend_hidden=True))
+    off = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams())
     np.testing.assert_array_equal(on.xyz_mm, off.xyz_mm)
+
+
+@pytest.mark.parametrize("seed", [1, 2])  # seed 2: 24 ghosts without the gate
+def test_a_marker_hidden_beside_its_neighbour_is_not_invented(seed: int) -> None:
+    # B occluded in camera 1 where its image would merge with A's: the blob is A's
+    # alone, and no solution may push both along their rays to explain it
+    dlts, xyz, visible = _segment_walk(seed)
+    near = np.linalg.norm(project(dlts[1], xyz[:, 0]) - project(dlts[1], xyz[:, 1]), axis=1)
+    visible[near < 6.0, 1, 1] = False
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    assert tab.n_merged == 0
+    body = RigidTriangles(np.array([SEGMENT_MM]), np.array([400.0]), np.array([450.0]))
+    pts = reconstruct_trial(
+        tab.field,
+        tab.camera,
+        tab.uv,
+        dlts,
+        ReconParams(deblend_hidden=True, stationary_filter=False),
+        body=body,
+    )
+    found, ghosts = _found(pts, xyz)
+    assert ghosts == 0
+    assert found[:, 0].all()  # A keeps its place
