@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -13,6 +13,7 @@ from kisscal.recon.assign import check_table
 from kisscal.recon.body import RigidTriangles
 from kisscal.recon.deblend import Deblended, MergeScene, deblend_merged, deblend_pairs
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
+from kisscal.recon.hidden import deblend_hidden
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import false_detections
@@ -254,6 +255,22 @@ def reconstruct_trial(
             if len(new.field) == 0:
                 break
             pts = _with_points(pts, new, camera)
+        if params.deblend_hidden and body is not None:
+            pts = _hidden(pts, scene, body)
+    return pts
+
+
+def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+    """``pts`` with the markers :func:`~kisscal.recon.hidden.deblend_hidden` places, one
+    field further along their trajectories per round."""
+    lengths = np.unique(np.r_[body.d_ij, body.d_ik, body.d_jk])
+    for _ in range(_HIDDEN_PASSES):
+        got = deblend_hidden(scene, pts.marker, pts.field, pts.xyz_mm, pts.n_cameras, lengths)
+        if len(got.new.field) == 0:
+            break
+        xyz = pts.xyz_mm.copy()
+        xyz[got.moved] = got.moved_xyz
+        pts = _with_points(replace(pts, xyz_mm=xyz), got.new, scene.camera)
     return pts
 
 
@@ -268,6 +285,10 @@ def deblends(params: ReconParams, n_cameras: int) -> bool:
 
 #: Rounds of :func:`~kisscal.recon.deblend.deblend_merged`, each with the points of the last.
 _DEBLEND_PASSES = 3
+
+#: Rounds of :func:`~kisscal.recon.hidden.deblend_hidden`, one field each way per round: a
+#: blob lost for up to a second (50 fields at 50 Hz) is crossed from both ends.
+_HIDDEN_PASSES = 30
 
 
 def _with_points(pts: Points3D, new: Deblended, camera: NDArray[np.int64]) -> Points3D:
