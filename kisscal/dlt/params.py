@@ -42,6 +42,11 @@ class DltParams(Params):
         Each model's held-out error is weighed by ``1 + model_margin`` per unknown beyond
         the fewest before the comparison (the lens model's 5 extra terms must lower the
         held-out error by 10 % to be chosen).
+    model_noise_ses : float
+        A model with more unknowns is chosen only when its held-out gain over the best
+        of the fewer-unknown models exceeds this many standard errors of that gain (the
+        paired per-point differences of squared 3D errors): the one-standard-error rule
+        (Hastie et al. 2009); 0 keeps the simpler model only when it is no worse.
     fold_fit_factor : float
         A camera whose fit to a fold's remaining points has an RMS residual this many
         times its fit to all of them (at least ``fold_fit_floor_px``) sits that fold out
@@ -118,6 +123,7 @@ class DltParams(Params):
     select_model: bool = param(True)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
+    model_noise_ses: float = param(1.0, ge=0)
     fold_fit_factor: float = param(3.0, gt=1)
     fold_fit_floor_px: float = param(0.1, unit="px", gt=0)
     linear_margin: float = param(0.1, ge=0)
