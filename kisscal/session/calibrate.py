@@ -82,14 +82,14 @@ def calibrate(
         root,
         config,
         select_cameras(config, camera),
-        grid_linearisations(root, echo),
+        grid_linearisations(config, echo),
         params,
         echo,
         workers,
     )
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
-    lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
+    lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated
     write_exports(root, config, lins, read_dlt_files(root, config, False), echo)
     record = SessionStore(root).calibration_file("calibration")
     write_json(record, {"route": route, "options": switches})

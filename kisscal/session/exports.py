@@ -177,7 +177,7 @@ def export(
     units = _export_units(to, units)
     root = Path(root)
     config = load_config(root)
-    rig = current_rig(root, echo)
+    rig = current_rig(root, echo, config)
     dlts = read_dlt_files(root, config, required=False)
     store = SessionStore(root)
     if to == "dltdv8":

@@ -39,6 +39,7 @@ def linearise(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
+    config: SessionConfig | None = None,
 ) -> dict[str, Linearisation]:
     """``kisscal linearise``: each camera's linearisation from its grid frames.
 
@@ -47,8 +48,9 @@ def linearise(
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
     A session without ``[grid]`` gets the identity linearisation; one calibrated by
     ``[calibration] cameras`` the polynomial fitted to that file's OpenCV distortion.
+    ``config`` is the session's, when the caller has it loaded already.
     """
-    config = load_config(root)
+    config = config or load_config(root)
     o = overrides or Overrides()
     if model is not None:
         o = dataclasses.replace(o, grid={**o.grid, "model": model})
@@ -129,7 +131,7 @@ def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:
         echo(f"  warning: {camera}: {warning}")
 
 
-def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+def grid_linearisations(config: SessionConfig, echo: Echo) -> dict[str, Linearisation]:
     """Each camera's grid linearisation (identity without a grid; an imported camera's
     lens), fitted if missing or stale: what a calibration route starts from.
 
@@ -141,14 +143,14 @@ def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
             echo(line)
 
     with reporting_progress(Progress()):
-        return linearise(root, echo=news)
+        return linearise(config.root, echo=news, config=config)
 
 
-def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+def current_linearisations(config: SessionConfig, echo: Echo) -> dict[str, Linearisation]:
     """The linearisation every camera's DLT goes with: the grid's, or the one a
     calibration route estimated (a wand's lens terms) and wrote in its place."""
-    lins = grid_linearisations(root, echo)
-    store = SessionStore(root)
+    lins = grid_linearisations(config, echo)
+    store = SessionStore(config.root)
     for cam in lins:
         if refined_by(store.linearisation_doc(cam)) is not None:
             lins[cam] = store.linearisation(cam)
