@@ -92,7 +92,7 @@ def _linearise_camera(
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
     )
-    detection = camera_detection(root, config, cam, "grid", params, echo)
+    detection = camera_detection(config, cam, "grid", params, echo)
     key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
     if store.is_current(out, key):
         echo(f"  linearise {cam.id}: cached")

@@ -45,7 +45,6 @@ DERIVATION_VERSION = 4
 
 
 def camera_detection(
-    root: Path,
     config: SessionConfig,
     camera: CameraConfig,
     kind: str,
@@ -61,7 +60,7 @@ def camera_detection(
     them. They are derived again when the values given in ``[detection]`` or the camera's
     image size change, or when the file is deleted.
     """
-    survey = _Survey(SessionStore(root), config, camera, params, echo)
+    survey = _Survey(SessionStore(config.root), config, camera, params, echo)
     try:
         return survey.settings(kind).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
@@ -69,7 +68,6 @@ def camera_detection(
 
 
 def markers_detection(
-    root: Path,
     config: SessionConfig,
     params: StageParams,
     echo: Echo = quiet,
@@ -84,7 +82,7 @@ def markers_detection(
     and recorded. The first error a camera raised is raised again once the others'
     settings are recorded.
     """
-    store = SessionStore(root)
+    store = SessionStore(config.root)
     chosen = config.cameras if cameras is None else cameras
     surveys = [_Survey(store, config, c, params, echo) for c in chosen]
     known = {s.camera.id: k.params for s in surveys if (k := s.kept("markers")) is not None}
@@ -216,7 +214,6 @@ def chunk_size(frames: Sequence, workers: int | None) -> int:
 
 
 def camera_blobs(
-    root: Path,
     config: SessionConfig,
     frames: Mapping[str, Sequence[np.ndarray]],
     detection: Mapping[str, DetectionParams],
@@ -275,7 +272,6 @@ def camera_blobs(
 
 
 def trial_blobs(
-    root: Path,
     config: SessionConfig,
     trial: TrialConfig,
     detection: dict[str, DetectionParams],
@@ -290,7 +286,7 @@ def trial_blobs(
         return centroid_files(config, trial)
     frames = trial_frames_of(config, trial)
     name = (f"trial-{trial.name}", trial.name)
-    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
+    blobs = camera_blobs(config, frames, detection, trial.fields, name, echo, workers)
     return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
@@ -366,14 +362,14 @@ def run_trial(
         return stage.without_blobs(run)
     inputs = stage.inputs(run)
     imaged = trial.source in ("images", "video")
-    detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
+    detection = markers_detection(config, params, echo, workers=workers) if imaged else {}
     store = run.store
     key = store.key(stage.name, trial_input_files(config, trial), detection, *inputs)
     output, complete = stage.output(run.files)
     if store.is_current(output, key) and complete:
         echo(f"  {stage.name} {trial.name}: cached")
         return stage.cached(run)
-    blobs = trial_blobs(root, config, trial, detection, echo, workers)
+    blobs = trial_blobs(config, trial, detection, echo, workers)
     result = stage.compute(run, inputs, blobs)
     store.mark_current(output, key)
     return result
