@@ -23,11 +23,10 @@ from kisscal.io.linearisation import (
 from kisscal.io.store import SessionStore
 from kisscal.report.grid import grid_correction_figure
 from kisscal.session.inputs import figure, load_config, select_cameras, writes_session
-from kisscal.session.parallel import each_camera
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
-from kisscal.session.runner import camera_detection
+from kisscal.session.runner import camera_detection, each_camera
 from kisscal.session.trials import SizedFrames
 
 

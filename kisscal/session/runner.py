@@ -9,18 +9,21 @@ sample of its frames, the cameras side by side in the detector's pool,
 settings in one pool (:func:`kisscal.detect.detect_jobs`) and cached. A trial stage
 (:class:`TrialStage`) is keyed on the trial's source files, its cameras' settings and
 what the stage itself declares (:meth:`kisscal.io.store.SessionStore.key`), skipped
-when its output is current, else handed its blobs (:func:`run_trial`).
+when its output is current, else handed its blobs (:func:`run_trial`). A session stage
+whose cameras are independent (a grid fit reads only its camera's images and writes only
+its camera's files) is run camera by camera in the same pool (:func:`each_camera`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +38,7 @@ from kisscal.io.detection_record import DetectionRecord, write_detection_record
 from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.session.configure import Sample, grid_setup, survey_sample
+from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.inputs import load_config
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, counted, quiet
@@ -373,3 +377,59 @@ def run_trial(
     result = stage.compute(run, inputs, blobs)
     store.mark_current(output, key)
     return result
+
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+#: What a worker returns for one item: the result (or the KisscalError it raised), what it
+#: said, and the figures it drew (pickled, for the parent's figure process).
+_Done = tuple[Any, list[str], list[bytes]]
+
+
+def _call(work: Callable[[Any, Echo], Any], item: Any) -> _Done:
+    """``work(item)``'s result (or the KisscalError it raised), what it said and the
+    figures it drew."""
+    said: list[str] = []
+    with handing_back() as figures:
+        try:
+            result = work(item, said.append)
+        except KisscalError as exc:
+            result = exc
+    return result, said, figures
+
+
+def each_camera(
+    work: Callable[[T, Echo], R],
+    items: Sequence[T],
+    stage: str,
+    echo: Echo,
+    workers: int | None = None,
+) -> list[R]:
+    """``work(item, echo)`` for every item, in parallel processes; the results in order.
+
+    The detector's pool (:func:`kisscal.detect.sequence.mapped`): workers are forked, so
+    ``work`` and its inputs are inherited, not pickled (spawned workers, on Windows, get
+    them pickled once: ``work`` must then be a module-level function or a
+    ``functools.partial`` of one, else the items are done in this process). Every
+    message a worker says is repeated here, item by item in order, and every figure it
+    drew is handed to this process's figure process
+    (:func:`kisscal.session.figures.handing_back`). ``workers`` None uses every core, 1
+    works in this process. The first :class:`KisscalError` an item raised is raised
+    again once every item is done (the others' files are written).
+    """
+    n = min(workers or os.cpu_count() or 1, len(items))
+    results: list[R] = []
+    failed: KisscalError | None = None
+    done = mapped(functools.partial(_call, work), items, n)
+    for result, said, figures in counted(done, stage, len(items)):
+        for line in said:
+            echo(line)
+        for packed in figures:
+            submit_packed(packed)
+        if isinstance(result, KisscalError):
+            failed = failed or result
+        results.append(result)
+    if failed is not None:
+        raise failed
+    return results
