@@ -60,14 +60,14 @@ def run(
     for step, stage in enumerate(stages):
         if not stage.per_trial:
             echo(f"[{step + 1}/{steps}] {stage.title}")
-            timed(f"{stage.name}_s", stage, StageCall(root, overrides, echo, workers))
+            timed(f"{stage.name}_s", stage, StageCall(config, overrides, echo, workers))
     failures: dict[str, str] = {}
     for trial in _in_order(config, echo):
         if trial.name in broken:
             failures[trial.name] = broken[trial.name]
             echo(f"  skipped {broken[trial.name]}")
             continue
-        call = StageCall(root, overrides, echo, workers, trial.name)
+        call = StageCall(config, overrides, echo, workers, trial.name)
         try:
             for step, stage in enumerate(stages):
                 if stage.per_trial:

@@ -39,7 +39,6 @@ from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.session.configure import Sample, grid_setup, survey_sample
 from kisscal.session.figures import handing_back, submit_packed
-from kisscal.session.inputs import load_config
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, counted, quiet
 from kisscal.session.trials import SizedFrames, centroid_files, trial_frames_of, trial_input_files
@@ -346,7 +345,7 @@ class TrialStage:
 
 def run_trial(
     stage: TrialStage,
-    root: Path,
+    config: SessionConfig,
     trial_name: str,
     overrides: Overrides | None = None,
     echo: Echo = quiet,
@@ -355,13 +354,12 @@ def run_trial(
     """Run ``stage`` on one trial: keyed on the trial's source files, its cameras' marker
     settings (:func:`markers_detection`, for images and video) and ``stage.inputs``;
     skipped when its output is current, else handed the trial's blobs."""
-    config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     # the stage is handed blobs, never detection settings: [detection]'s values are not a
     # camera's settings (those are derived per camera), so no stage can use them by mistake
     stage_own = dataclasses.replace(params, detection=DetectionParams(), detection_given={})
-    run = TrialRun(Path(root), config, trial, stage_own, echo)
+    run = TrialRun(config.root, config, trial, stage_own, echo)
     if trial.source == "c3d":
         return stage.without_blobs(run)
     inputs = stage.inputs(run)
