@@ -40,7 +40,7 @@ def run(
     """
     root = Path(root)
     config = load_config(root)
-    problems = validate(root, overrides)
+    problems = validate(root, overrides, config)
     for p in problems:
         if p.warning:
             echo(f"  warning: {p}")
@@ -80,7 +80,7 @@ def run(
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
     summary["failed_trials"] = failures
     write_json(SessionStore(root).summary_path, summary)
-    report(root, echo=echo)
+    report(root, echo=echo, config=config)
     if failures:  # the base class: trials fail for different reasons, each line says its own
         raise KisscalError(
             f"{len(failures)} of {len(config.trials)} trials failed "

@@ -84,7 +84,7 @@ def _linearise(call: StageCall) -> object:
 
 def _calibrate(call: StageCall) -> object:
     o, echo, workers = call.overrides, call.echo, call.workers
-    return calibrate(call.config.root, overrides=o, echo=echo, workers=workers)
+    return calibrate(call.config.root, overrides=o, echo=echo, workers=workers, config=call.config)
 
 
 @writes_session
@@ -105,7 +105,7 @@ def _reconstruct(call: StageCall) -> object:  # kisscal run holds the session's 
 
 
 def _track(call: StageCall) -> object:
-    return track(call.config.root, call.trial, call.overrides, echo=call.echo)
+    return track(call.config.root, call.trial, call.overrides, echo=call.echo, config=call.config)
 
 
 #: ``kisscal run``, in order.

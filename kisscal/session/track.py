@@ -51,6 +51,7 @@ def track(
     overrides: Overrides | None = None,
     sweep: bool = False,
     echo: Echo = quiet,
+    config: SessionConfig | None = None,
 ) -> Trajectories:
     """``kisscal track``: labelled trajectories of a trial from its ``points3d.csv``.
 
@@ -59,9 +60,10 @@ def track(
     ``gait.json`` (and the events into the C3D); with ``sweep``, the thesis' PNC x MNC
     segment-length table as ``sweep.csv``. With ``[markers] static``, the static trial is
     labelled first (or read from its cache) and its positions are the template.
+    ``config`` is the session's, when the caller has it loaded already.
     """
     root = Path(root)
-    config = load_config(root)
+    config = config or load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     spec = marker_spec(config)
