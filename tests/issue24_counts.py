@@ -271,6 +271,7 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str], list[str]]:
     trips)."""
     from test_every_parameter import _marker_session
 
+    from kisscal.session.inputs import load_config
     from kisscal.session.runner import TrialStage, run_trial
 
     root = _marker_session(tmp, {"threshold": SENTINEL})
@@ -286,7 +287,7 @@ def trace_threshold(tmp: Path) -> tuple[list[str], list[str], list[str]]:
     tracer = _Tracer()
     sys.setprofile(tracer)
     try:
-        run_trial(stage, root, "walk", workers=1)
+        run_trial(stage, load_config(root), "walk", workers=1)
     finally:
         sys.setprofile(None)
     assert handed and any(len(f) for b in handed for f in b.values()), "no blobs handed on"

@@ -57,6 +57,7 @@ def calibrate(
     echo: Echo = quiet,
     workers: int | None = None,
     route: str | None = None,
+    config: SessionConfig | None = None,
 ) -> dict[str, Any]:
     """``kisscal calibrate``: DLT parameters of each camera, by the session's route.
 
@@ -70,9 +71,10 @@ def calibrate(
     Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
     (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
     returns ``{camera: DltResult}`` plus the route's held-out check under ``"_check"``.
+    ``config`` is the session's, when the caller has it loaded already.
     """
     root = Path(root)
-    config = load_config(root)
+    config = config or load_config(root)
     o = overrides or Overrides()
     switches = _dlt_switches(root, {"mdlt": mdlt, "refine": refine, "lens": lens}, echo)
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
@@ -82,14 +84,14 @@ def calibrate(
         root,
         config,
         select_cameras(config, camera),
-        grid_linearisations(root, echo),
+        grid_linearisations(config, echo),
         params,
         echo,
         workers,
     )
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
-    lins = current_linearisations(root, quiet)  # a wand's or target's lens, where estimated
+    lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated
     write_exports(root, config, lins, read_dlt_files(root, config, False), echo, workers)
     record = SessionStore(root).calibration_file("calibration")
     write_json(record, {"route": route, "options": switches})

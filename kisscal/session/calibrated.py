@@ -35,15 +35,16 @@ def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> 
     return result
 
 
-def current_rig(root: Path, echo: Echo = quiet) -> Rig:
+def current_rig(root: Path, echo: Echo = quiet, config: SessionConfig | None = None) -> Rig:
     """The session's calibrated rig: current linearisations and the written DLT files.
 
     Linearises the cameras whose grid linearisation is missing or out of date (writing
     ``out/linearisation/``); raises :class:`~kisscal.errors.MissingDataError` when a
-    camera has no calibration yet (``kisscal calibrate`` first).
+    camera has no calibration yet (``kisscal calibrate`` first). ``config`` is the
+    session's, when the caller has it loaded already.
     """
-    config = load_config(root)
-    lins = current_linearisations(root, echo)
+    config = config or load_config(root)
+    lins = current_linearisations(config, echo)
     return calibrated_rig(config, lins, read_dlt_files(root, config))
 
 

@@ -79,7 +79,7 @@ def _session_params(
 
     @writes_session
     def derive(root: Path) -> DetectionParams:
-        return camera_detection(root, config, cam, kind, params, echo)
+        return camera_detection(config, cam, kind, params, echo)
 
     detection = derive(root)
     echo(

@@ -34,8 +34,8 @@ from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.session.calibrated import calibrated_rig, current_rig, read_dlt_files
 from kisscal.session.inputs import load_config
-from kisscal.session.parallel import each_camera
 from kisscal.session.progress import Echo, quiet
+from kisscal.session.runner import each_camera
 
 #: ``kisscal export --to`` choices.
 EXPORT_FORMATS = ("anipose", "pose2sim", "dltdv8", "opencv")
@@ -198,7 +198,7 @@ def export(
     units = _export_units(to, units)
     root = Path(root)
     config = load_config(root)
-    rig = current_rig(root, echo)
+    rig = current_rig(root, echo, config)
     dlts = read_dlt_files(root, config, required=False)
     store = SessionStore(root)
     if to == "dltdv8":

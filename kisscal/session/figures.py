@@ -6,7 +6,7 @@ matplotlib a second or more, and the numbers it illustrates are written already.
 background process that draws them while the stage goes on: reconstruction and tracking
 use one core, so the other one draws. The block ends only when every figure is written,
 so a command's outputs are complete when it returns. A worker process of the stage
-(:func:`kisscal.session.parallel.each_camera`) hands its figures back with its result
+(:func:`kisscal.session.runner.each_camera`) hands its figures back with its result
 (:func:`handing_back`), and the session's process passes them on to the background one:
 matplotlib is then imported and its figures drawn in one process, not in every worker.
 Anywhere else (a plain library call) a figure is drawn at once.

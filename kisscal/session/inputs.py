@@ -25,7 +25,7 @@ def writes_session(func: F) -> F:
     @functools.wraps(func)
     def locked(root: Path, *args: Any, **kwargs: Any) -> Any:
         if not (Path(root) / "session.toml").is_file():
-            load_config(root)  # says what is missing; never create a folder for a typo
+            load_session(Path(root))  # says what is missing; never create a folder for a typo
         with session_lock(SessionStore(root).out), drawing_beside():
             return func(root, *args, **kwargs)
 

@@ -24,11 +24,10 @@ from kisscal.io.linearisation import (
 from kisscal.io.store import SessionStore
 from kisscal.report.grid import grid_correction_figure
 from kisscal.session.inputs import figure, load_config, select_cameras, writes_session
-from kisscal.session.parallel import each_camera
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
-from kisscal.session.runner import camera_detection
+from kisscal.session.runner import camera_detection, each_camera
 from kisscal.session.trials import SizedFrames
 
 
@@ -40,6 +39,7 @@ def linearise(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
+    config: SessionConfig | None = None,
 ) -> dict[str, Linearisation]:
     """``kisscal linearise``: each camera's linearisation from its grid frames.
 
@@ -48,8 +48,9 @@ def linearise(
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
     A session without ``[grid]`` gets the identity linearisation; one calibrated by
     ``[calibration] cameras`` the polynomial fitted to that file's OpenCV distortion.
+    ``config`` is the session's, when the caller has it loaded already.
     """
-    config = load_config(root)
+    config = config or load_config(root)
     o = overrides or Overrides()
     if model is not None:
         o = dataclasses.replace(o, grid={**o.grid, "model": model})
@@ -160,7 +161,7 @@ def _grid_inputs(
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
     )
-    detection = camera_detection(root, config, cam, "grid", params, echo)
+    detection = camera_detection(config, cam, "grid", params, echo)
     store = SessionStore(root)
     key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
     return frames, detection, key
@@ -187,7 +188,7 @@ def _say_fitted(echo: Echo, camera: str, fit: GridFit, seconds: float) -> None:
         echo(f"  warning: {camera}: {warning}")
 
 
-def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+def grid_linearisations(config: SessionConfig, echo: Echo) -> dict[str, Linearisation]:
     """Each camera's grid linearisation (identity without a grid; an imported camera's
     lens), fitted if missing or stale: what a calibration route starts from.
 
@@ -199,14 +200,14 @@ def grid_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
             echo(line)
 
     with reporting_progress(Progress()):
-        return linearise(root, echo=news)
+        return linearise(config.root, echo=news, config=config)
 
 
-def current_linearisations(root: Path, echo: Echo) -> dict[str, Linearisation]:
+def current_linearisations(config: SessionConfig, echo: Echo) -> dict[str, Linearisation]:
     """The linearisation every camera's DLT goes with: the grid's, or the one a
     calibration route estimated (a wand's lens terms) and wrote in its place."""
-    lins = grid_linearisations(root, echo)
-    store = SessionStore(root)
+    lins = grid_linearisations(config, echo)
+    store = SessionStore(config.root)
     for cam in lins:
         if refined_by(store.linearisation_doc(cam)) is not None:
             lins[cam] = store.linearisation(cam)

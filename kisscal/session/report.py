@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kisscal.errors import MissingDataError
+from kisscal.io.config import SessionConfig
 from kisscal.io.store import SessionStore
 from kisscal.report.params import ReportParams
 from kisscal.session.figures import after_figures, wait_for_figures
@@ -14,9 +15,10 @@ from kisscal.session.progress import Echo, quiet
 
 
 @writes_session
-def report(root: Path, echo: Echo = quiet) -> Path:
-    """``kisscal report``: rebuild ``out/report.html`` from the session's outputs."""
-    config = load_config(root)  # a session folder, not just any path
+def report(root: Path, echo: Echo = quiet, config: SessionConfig | None = None) -> Path:
+    """``kisscal report``: rebuild ``out/report.html`` from the session's outputs (``config``:
+    the session's, when the caller has it loaded already)."""
+    config = config or load_config(root)  # a session folder, not just any path
     if not SessionStore(root).has_results():
         raise MissingDataError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = stage_params(config).report

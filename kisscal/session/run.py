@@ -40,7 +40,7 @@ def run(
     """
     root = Path(root)
     config = load_config(root)
-    problems = validate(root, overrides)
+    problems = validate(root, overrides, config)
     for p in problems:
         if p.warning:
             echo(f"  warning: {p}")
@@ -60,14 +60,14 @@ def run(
     for step, stage in enumerate(stages):
         if not stage.per_trial:
             echo(f"[{step + 1}/{steps}] {stage.title}")
-            timed(f"{stage.name}_s", stage, StageCall(root, overrides, echo, workers))
+            timed(f"{stage.name}_s", stage, StageCall(config, overrides, echo, workers))
     failures: dict[str, str] = {}
     for trial in _in_order(config, echo):
         if trial.name in broken:
             failures[trial.name] = broken[trial.name]
             echo(f"  skipped {broken[trial.name]}")
             continue
-        call = StageCall(root, overrides, echo, workers, trial.name)
+        call = StageCall(config, overrides, echo, workers, trial.name)
         try:
             for step, stage in enumerate(stages):
                 if stage.per_trial:
@@ -80,7 +80,7 @@ def run(
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
     summary["failed_trials"] = failures
     write_json(SessionStore(root).summary_path, summary)
-    report(root, echo=echo)
+    report(root, echo=echo, config=config)
     if failures:  # the base class: trials fail for different reasons, each line says its own
         raise KisscalError(
             f"{len(failures)} of {len(config.trials)} trials failed "

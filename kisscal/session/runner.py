@@ -9,18 +9,21 @@ sample of its frames, the cameras side by side in the detector's pool,
 settings in one pool (:func:`kisscal.detect.detect_jobs`) and cached. A trial stage
 (:class:`TrialStage`) is keyed on the trial's source files, its cameras' settings and
 what the stage itself declares (:meth:`kisscal.io.store.SessionStore.key`), skipped
-when its output is current, else handed its blobs (:func:`run_trial`).
+when its output is current, else handed its blobs (:func:`run_trial`). A session stage
+whose cameras are independent (a grid fit reads only its camera's images and writes only
+its camera's files) is run camera by camera in the same pool (:func:`each_camera`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +38,7 @@ from kisscal.io.detection_record import DetectionRecord, write_detection_record
 from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.session.configure import Sample, grid_setup, survey_sample
-from kisscal.session.inputs import load_config
+from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, counted, quiet
 from kisscal.session.trials import SizedFrames, centroid_files, trial_frames_of, trial_input_files
@@ -45,7 +48,6 @@ DERIVATION_VERSION = 4
 
 
 def camera_detection(
-    root: Path,
     config: SessionConfig,
     camera: CameraConfig,
     kind: str,
@@ -61,7 +63,7 @@ def camera_detection(
     them. They are derived again when the values given in ``[detection]`` or the camera's
     image size change, or when the file is deleted.
     """
-    survey = _Survey(SessionStore(root), config, camera, params, echo)
+    survey = _Survey(SessionStore(config.root), config, camera, params, echo)
     try:
         return survey.settings(kind).params
     finally:  # what was derived is kept, the grid's even when the markers' failed
@@ -69,7 +71,6 @@ def camera_detection(
 
 
 def markers_detection(
-    root: Path,
     config: SessionConfig,
     params: StageParams,
     echo: Echo = quiet,
@@ -84,7 +85,7 @@ def markers_detection(
     and recorded. The first error a camera raised is raised again once the others'
     settings are recorded.
     """
-    store = SessionStore(root)
+    store = SessionStore(config.root)
     chosen = config.cameras if cameras is None else cameras
     surveys = [_Survey(store, config, c, params, echo) for c in chosen]
     known = {s.camera.id: k.params for s in surveys if (k := s.kept("markers")) is not None}
@@ -216,7 +217,6 @@ def chunk_size(frames: Sequence, workers: int | None) -> int:
 
 
 def camera_blobs(
-    root: Path,
     config: SessionConfig,
     frames: Mapping[str, Sequence[np.ndarray]],
     detection: Mapping[str, DetectionParams],
@@ -275,7 +275,6 @@ def camera_blobs(
 
 
 def trial_blobs(
-    root: Path,
     config: SessionConfig,
     trial: TrialConfig,
     detection: dict[str, DetectionParams],
@@ -290,7 +289,7 @@ def trial_blobs(
         return centroid_files(config, trial)
     frames = trial_frames_of(config, trial)
     name = (f"trial-{trial.name}", trial.name)
-    blobs = camera_blobs(root, config, frames, detection, trial.fields, name, echo, workers)
+    blobs = camera_blobs(config, frames, detection, trial.fields, name, echo, workers)
     return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
@@ -346,7 +345,7 @@ class TrialStage:
 
 def run_trial(
     stage: TrialStage,
-    root: Path,
+    config: SessionConfig,
     trial_name: str,
     overrides: Overrides | None = None,
     echo: Echo = quiet,
@@ -355,25 +354,80 @@ def run_trial(
     """Run ``stage`` on one trial: keyed on the trial's source files, its cameras' marker
     settings (:func:`markers_detection`, for images and video) and ``stage.inputs``;
     skipped when its output is current, else handed the trial's blobs."""
-    config = load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     # the stage is handed blobs, never detection settings: [detection]'s values are not a
     # camera's settings (those are derived per camera), so no stage can use them by mistake
     stage_own = dataclasses.replace(params, detection=DetectionParams(), detection_given={})
-    run = TrialRun(Path(root), config, trial, stage_own, echo)
+    run = TrialRun(config.root, config, trial, stage_own, echo)
     if trial.source == "c3d":
         return stage.without_blobs(run)
     inputs = stage.inputs(run)
     imaged = trial.source in ("images", "video")
-    detection = markers_detection(root, config, params, echo, workers=workers) if imaged else {}
+    detection = markers_detection(config, params, echo, workers=workers) if imaged else {}
     store = run.store
     key = store.key(stage.name, trial_input_files(config, trial), detection, *inputs)
     output, complete = stage.output(run.files)
     if store.is_current(output, key) and complete:
         echo(f"  {stage.name} {trial.name}: cached")
         return stage.cached(run)
-    blobs = trial_blobs(root, config, trial, detection, echo, workers)
+    blobs = trial_blobs(config, trial, detection, echo, workers)
     result = stage.compute(run, inputs, blobs)
     store.mark_current(output, key)
     return result
+
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+#: What a worker returns for one item: the result (or the KisscalError it raised), what it
+#: said, and the figures it drew (pickled, for the parent's figure process).
+_Done = tuple[Any, list[str], list[bytes]]
+
+
+def _call(work: Callable[[Any, Echo], Any], item: Any) -> _Done:
+    """``work(item)``'s result (or the KisscalError it raised), what it said and the
+    figures it drew."""
+    said: list[str] = []
+    with handing_back() as figures:
+        try:
+            result = work(item, said.append)
+        except KisscalError as exc:
+            result = exc
+    return result, said, figures
+
+
+def each_camera(
+    work: Callable[[T, Echo], R],
+    items: Sequence[T],
+    stage: str,
+    echo: Echo,
+    workers: int | None = None,
+) -> list[R]:
+    """``work(item, echo)`` for every item, in parallel processes; the results in order.
+
+    The detector's pool (:func:`kisscal.detect.sequence.mapped`): workers are forked, so
+    ``work`` and its inputs are inherited, not pickled (spawned workers, on Windows, get
+    them pickled once: ``work`` must then be a module-level function or a
+    ``functools.partial`` of one, else the items are done in this process). Every
+    message a worker says is repeated here, item by item in order, and every figure it
+    drew is handed to this process's figure process
+    (:func:`kisscal.session.figures.handing_back`). ``workers`` None uses every core, 1
+    works in this process. The first :class:`KisscalError` an item raised is raised
+    again once every item is done (the others' files are written).
+    """
+    n = min(workers or os.cpu_count() or 1, len(items))
+    results: list[R] = []
+    failed: KisscalError | None = None
+    done = mapped(functools.partial(_call, work), items, n)
+    for result, said, figures in counted(done, stage, len(items)):
+        for line in said:
+            echo(line)
+        for packed in figures:
+            submit_packed(packed)
+        if isinstance(result, KisscalError):
+            failed = failed or result
+        results.append(result)
+    if failed is not None:
+        raise failed
+    return results

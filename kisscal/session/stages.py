@@ -17,7 +17,7 @@ from typing import Any
 
 from kisscal.io.config import SessionConfig
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import needs_calibration, writes_session
+from kisscal.session.inputs import load_config, needs_calibration, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
@@ -28,10 +28,11 @@ from kisscal.session.track import track
 
 @dataclass(frozen=True)
 class StageCall:
-    """What one run of a stage is given: the session, its overrides, where to say what
-    happens, the number of worker processes and, for a trial stage, the trial."""
+    """What one run of a stage is given: the session (read once, by ``kisscal run``), its
+    overrides, where to say what happens, the number of worker processes and, for a trial
+    stage, the trial."""
 
-    root: Path
+    config: SessionConfig
     overrides: Overrides | None
     echo: Echo
     workers: int | None
@@ -77,11 +78,13 @@ class Stage:
 
 
 def _linearise(call: StageCall) -> object:
-    return linearise(call.root, overrides=call.overrides, echo=call.echo, workers=call.workers)
+    o, echo, workers = call.overrides, call.echo, call.workers
+    return linearise(call.config.root, overrides=o, echo=echo, workers=workers, config=call.config)
 
 
 def _calibrate(call: StageCall) -> object:
-    return calibrate(call.root, overrides=call.overrides, echo=call.echo, workers=call.workers)
+    o, echo, workers = call.overrides, call.echo, call.workers
+    return calibrate(call.config.root, overrides=o, echo=echo, workers=workers, config=call.config)
 
 
 @writes_session
@@ -94,15 +97,15 @@ def reconstruct(
 ) -> Any:
     """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv`` (the
     runner hands :mod:`kisscal.session.reconstruct` the trial's blobs)."""
-    return run_trial(RECONSTRUCT, Path(root), trial_name, overrides, echo, workers)
+    return run_trial(RECONSTRUCT, load_config(root), trial_name, overrides, echo, workers)
 
 
-def _reconstruct(call: StageCall) -> object:
-    return reconstruct(call.root, call.trial, call.overrides, call.echo, call.workers)
+def _reconstruct(call: StageCall) -> object:  # kisscal run holds the session's lock
+    return run_trial(RECONSTRUCT, call.config, call.trial, call.overrides, call.echo, call.workers)
 
 
 def _track(call: StageCall) -> object:
-    return track(call.root, call.trial, call.overrides, echo=call.echo)
+    return track(call.config.root, call.trial, call.overrides, echo=call.echo, config=call.config)
 
 
 #: ``kisscal run``, in order.

@@ -51,6 +51,7 @@ def track(
     overrides: Overrides | None = None,
     sweep: bool = False,
     echo: Echo = quiet,
+    config: SessionConfig | None = None,
 ) -> Trajectories:
     """``kisscal track``: labelled trajectories of a trial from its ``points3d.csv``.
 
@@ -59,9 +60,10 @@ def track(
     ``gait.json`` (and the events into the C3D); with ``sweep``, the thesis' PNC x MNC
     segment-length table as ``sweep.csv``. With ``[markers] static``, the static trial is
     labelled first (or read from its cache) and its positions are the template.
+    ``config`` is the session's, when the caller has it loaded already.
     """
     root = Path(root)
-    config = load_config(root)
+    config = config or load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     spec = marker_spec(config)
@@ -108,7 +110,7 @@ def _track_trial(
         marker_set=spec.marker_set if spec.label_with_set else None,
         rate_hz=config.rate_hz,
         template_upright=spec.template_upright,
-        spare=None if from_c3d else _spare_blobs(root, trial),
+        spare=None if from_c3d else _spare_blobs(config, trial),
     )
     static = config.markers.static if config.markers else None
     template = subject_template(result, spec, trial) if trial == static else None
@@ -140,7 +142,7 @@ def _track_trial(
         result.labels,
         config.rate_hz,
         points=pts,
-        residual_mm=None if from_c3d else _residual_mm(root, pts),
+        residual_mm=None if from_c3d else _residual_mm(config, pts),
         events=events,
         n_fields=frames,
         first_frame=_first_frame(files),
@@ -167,14 +169,14 @@ def _track_trial(
     return result
 
 
-def _spare_blobs(root: Path, trial: str) -> SpareBlobs | None:
+def _spare_blobs(config: SessionConfig, trial: str) -> SpareBlobs | None:
     """The trial's 2D blobs no 3D point used (``points2d.csv``), linearised, with the
     rig's cameras: for single-camera fill. None without the file or a calibrated rig."""
-    store = SessionStore(root)
+    store = SessionStore(config.root)
     if not store.trial(trial).points2d.is_file():
         return None
     try:
-        rig = current_rig(root)
+        rig = current_rig(config.root, config=config)
         obs = store.points2d(trial)
     except KisscalError:
         return None
@@ -191,13 +193,13 @@ def _first_frame(files: TrialFiles) -> int:
     return int((read_json(files.recon) or {}).get("first_frame", 1))
 
 
-def _residual_mm(root: Path, pts: Points3DFile) -> np.ndarray | None:
+def _residual_mm(config: SessionConfig, pts: Points3DFile) -> np.ndarray | None:
     """Each point's reconstruction residual in mm: ``rms_px`` times the mean size of a pixel
     at the point over the cameras that saw it (None without a calibrated rig)."""
     if not len(pts.field):
         return None
     try:
-        rig = current_rig(root)
+        rig = current_rig(config.root, config=config)
     except KisscalError:
         return None
     index = [rig.index(c) for c in pts.camera_ids]

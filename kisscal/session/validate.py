@@ -52,13 +52,16 @@ class Problem:
         return where + self.message
 
 
-def validate(root: Path, overrides: Overrides | None = None) -> list[Problem]:
+def validate(
+    root: Path, overrides: Overrides | None = None, config: SessionConfig | None = None
+) -> list[Problem]:
     """Every problem with the inputs of the session at ``root`` (empty: ready to run).
 
     Raises :class:`KisscalError` only when ``session.toml`` itself cannot be read, since
-    then nothing else can be checked.
+    then nothing else can be checked. ``config`` is the session's, when the caller has it
+    loaded already.
     """
-    config = load_config(root)
+    config = config or load_config(root)
     problems = _parameters(config, overrides)
     problems += _calibration_inputs(config)
     for trial in config.trials:

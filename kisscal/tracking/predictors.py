@@ -74,14 +74,6 @@ def extrapolate(history: NDArray, n_points: NDArray, ahead: int = 1) -> NDArray[
     return out
 
 
-def gate_half_width(velocity: NDArray, m: NDArray, k: NDArray) -> NDArray[np.float64]:
-    """Track-gate half-width per axis, f(v) = m|v| for |v| >= k else m k (thesis eq. 3.16).
-
-    ``velocity`` is (T, 3) in mm/field; ``m`` and ``k`` broadcast per axis.
-    """
-    return np.asarray(m) * np.maximum(np.abs(velocity), np.asarray(k))
-
-
 def kalman_predict(
     state: NDArray, cov: NDArray, pnc: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -194,7 +194,7 @@ def derived(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """The settings the survey derives for camera 1 with nothing given."""
     root = _marker_session(tmp_path_factory.mktemp("derived"), {})
     config = load_session(root)
-    params = markers_detection(root, config, stage_params(config), workers=1)["cam1"]
+    params = markers_detection(config, stage_params(config), workers=1)["cam1"]
     return {name: getattr(params, name) for name in DERIVED}
 
 
@@ -225,9 +225,9 @@ def test_a_detection_setting_given_is_what_each_camera_detects_with(
         value, before = _set_value(DetectionParams, "detection", f), f.default
     root = _marker_session(tmp_path, {name: _toml(value)})
     config = load_session(root)
-    got = markers_detection(root, config, stage_params(config), workers=1)
+    got = markers_detection(config, stage_params(config), workers=1)
     assert all(getattr(p, name) == value != before for p in got.values())
-    kept = markers_detection(root, config, stage_params(config), workers=1)  # read back
+    kept = markers_detection(config, stage_params(config), workers=1)  # read back
     assert kept == got
 
 
@@ -239,9 +239,9 @@ def test_the_threshold_given_changes_what_is_detected(tmp_path: Path) -> None:
         root = _marker_session(tmp_path / str(len(given)), given)
         config = load_session(root)
         params = stage_params(config)
-        detection = markers_detection(root, config, params, workers=1)
+        detection = markers_detection(config, params, workers=1)
         trial = config.trial("walk")
-        blobs = trial_blobs(root, config, trial, detection, lambda _s: None, workers=1)
+        blobs = trial_blobs(config, trial, detection, lambda _s: None, workers=1)
         counts[len(given)] = {len(b) for b in blobs["cam1"]}
     assert counts == {0: {6}, 1: {3}}
 
@@ -259,7 +259,7 @@ def test_the_grid_lattice_aspect_reaches_the_marker_detection(
         copy(small_session / part, root / part)
     config = load_session(root)
     cam = config.cameras[0]
-    params = markers_detection(root, config, stage_params(config), cameras=[cam], workers=1)
+    params = markers_detection(config, stage_params(config), cameras=[cam], workers=1)
     doc = json.loads((root / "out" / "detection" / f"{cam.id}.json").read_text())
     grid = doc["kinds"]["grid"]["settings"]["pixel_aspect"]
     assert grid["source"] == "derived" and abs(grid["value"] - 1.0) > 0.5  # 752 x 291 fields

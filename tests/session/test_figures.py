@@ -15,7 +15,7 @@ from kisscal.session.figures import (
     submit_figure,
     wait_for_figures,
 )
-from kisscal.session.parallel import each_camera
+from kisscal.session.runner import each_camera
 
 
 def square(n: int) -> Figure:

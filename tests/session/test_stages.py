@@ -15,6 +15,7 @@ import pytest
 from kisscal.detect import DetectionParams
 from kisscal.io.config import load_session
 from kisscal.io.store import SessionStore, TrialFiles
+from kisscal.session.inputs import load_config
 from kisscal.session.params import MEMBERS, Overrides
 from kisscal.session.runner import TrialRun, TrialStage, run_trial
 from kisscal.session.stages import PIPELINE, session_stages
@@ -129,12 +130,12 @@ def test_the_runner_hands_a_trial_stage_its_blobs_and_keys_it(tmp_path: Path) ->
         compute=compute,
         without_blobs=lambda run: "c3d",
     )
-    assert run_trial(stage, root, "walk", workers=1) == "computed"
+    assert run_trial(stage, load_config(root), "walk", workers=1) == "computed"
     detection, blobs = handed[0]
     assert detection == DetectionParams()  # the stage never sees [detection]'s values
     assert sorted(blobs) == ["cam1", "cam2"]
     assert all(len(b) == 4 and all(len(f) == 3 for f in b) for b in blobs.values())
-    assert run_trial(stage, root, "walk", workers=1) == "cached"
+    assert run_trial(stage, load_config(root), "walk", workers=1) == "cached"
     overrides = Overrides(detection={"threshold": 60})
-    assert run_trial(stage, root, "walk", overrides, workers=1) == "computed"
+    assert run_trial(stage, load_config(root), "walk", overrides, workers=1) == "computed"
     assert all(len(f) == 6 for b in handed[1][1].values() for f in b)

@@ -4,7 +4,6 @@ import pytest
 from kisscal.tracking.predictors import (
     extrapolate,
     extrapolation_weights,
-    gate_half_width,
     kalman_correct,
     kalman_gains,
     kalman_predict,
@@ -37,12 +36,6 @@ def test_extrapolate_uses_shafiq_rule_per_track_length():
     assert pred[1, 0] == pytest.approx(16 + 7)  # two points: linear
     assert pred[2, 0] == pytest.approx(np.polyval(np.polyfit([2, 3, 4], [4, 9, 16], 1), 5))
     assert pred[3, 0] == pytest.approx(25.0)  # parabola is exact
-
-
-def test_gate_follows_thesis_eq_3_16():
-    v = np.array([[1.0, -30.0, 50.0]])
-    g = gate_half_width(v, np.array([2.0, 2.0, 2.0]), np.array([10.0, 10.0, 10.0]))
-    np.testing.assert_allclose(g, [[20.0, 60.0, 100.0]])
 
 
 def test_kalman_matches_a_plain_matrix_implementation():

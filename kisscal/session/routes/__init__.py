@@ -80,9 +80,8 @@ def frame_files(
 
 def marker_detection(inputs: RouteInputs) -> dict[str, DetectionParams]:
     """Each camera's detection settings for marker images (derived once, then kept)."""
-    return markers_detection(
-        inputs.root, inputs.config, inputs.params, inputs.echo, inputs.cameras, inputs.workers
-    )
+    config, params, echo = inputs.config, inputs.params, inputs.echo
+    return markers_detection(config, params, echo, inputs.cameras, inputs.workers)
 
 
 def static_blobs(
@@ -97,7 +96,6 @@ def static_blobs(
     ``what`` names the object in messages and in the cache (``rods``, ``axes`` ...).
     """
     blobs = camera_blobs(
-        inputs.root,
         inputs.config,
         {cam.id: frames[cam.id] for cam in inputs.cameras},
         detection,
