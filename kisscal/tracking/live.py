@@ -227,7 +227,11 @@ class Live:
             # Own misses, not the gate, decide doubt (at least the measurement noise).
             kal, found = rows[self.kalman[rows]], points[cols[self.kalman[rows]]]
             spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))
-            sure = assoc.certain_rows(pred[kal], found, points, spread, ratio, pred[self.alive])
+            lost = self.alive.copy()
+            lost[rows] = False
+            sure = assoc.certain_rows(
+                pred[kal], found, points, spread, ratio, pred[self.alive], pred[lost]
+            )
             self.ambiguous[kal[sure]] = False
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
