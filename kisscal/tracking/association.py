@@ -159,7 +159,9 @@ def certain_rows(
     ``points`` (M, 3) the field's, ``spread`` (T,); ``others`` (K, 3) every live track's
     prediction: a point another track predicted nearer stays a doubt (its own marker
     may have vanished and the track taken a neighbour's). ``lost`` (L, 3), the predictions
-    of the live tracks that take no point this field: one within the same reach of the
+    of the live tracks that lose their point this field (not those already coasting, whose
+    predictions have drifted: a swinging knee hidden five fields as it passed the other,
+    TYPE-3.c3d): one within the same reach of the
     point taken could own it as well (a cluster's LED that vanished, its track predicting
     the point a neighbour's track took 12 mm away with misses of 14 mm RMS: Phoenix
     golf swing), so the point stays a doubt.

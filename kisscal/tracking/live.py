@@ -226,7 +226,7 @@ class Live:
         if (ratio := self.setup.params.certain_ratio) > 0 and rows.size:
             kal, found = rows[self.kalman[rows]], points[cols[self.kalman[rows]]]
             spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))
-            lost = self.alive & (np.bincount(rows, minlength=len(pred)) == 0)
+            lost = self.alive & (self.misses == 0) & (np.bincount(rows, minlength=len(pred)) == 0)
             args = (pred[kal], found, points, spread, ratio, pred[self.alive], pred[lost])
             self.ambiguous[kal[assoc.certain_rows(*args)]] = False
         self._update(field, pred, rows, cols, points, point)
