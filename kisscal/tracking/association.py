@@ -145,6 +145,7 @@ def certain_rows(
     spread: NDArray,
     ratio: float,
     others: NDArray,
+    lost: NDArray | None = None,
 ) -> NDArray[np.bool_]:
     """Which tracks took their point beyond doubt: every other point of the field lies
     more than ``ratio`` times farther from the prediction than the larger of the point
@@ -157,7 +158,13 @@ def certain_rows(
     misses they are not. ``pred``, ``found`` (T, 3) the tracks' predictions and points,
     ``points`` (M, 3) the field's, ``spread`` (T,); ``others`` (K, 3) every live track's
     prediction: a point another track predicted nearer stays a doubt (its own marker
-    may have vanished and the track taken a neighbour's).
+    may have vanished and the track taken a neighbour's). ``lost`` (L, 3), the predictions
+    of the live tracks that lose their point this field (not those already coasting, whose
+    predictions have drifted: a swinging knee hidden five fields as it passed the other,
+    TYPE-3.c3d): one within the same reach of the
+    point taken could own it as well (a cluster's LED that vanished, its track predicting
+    the point a neighbour's track took 12 mm away with misses of 14 mm RMS: Phoenix
+    golf swing), so the point stays a doubt.
     """
     if pred.shape[0] == 0 or points.shape[0] < 2 or ratio <= 0:
         return np.zeros(pred.shape[0], dtype=bool)
@@ -168,4 +175,8 @@ def certain_rows(
     # Nearest to this track among all live tracks (this one's prediction is in ``others``).
     d_track = np.linalg.norm(found[:, None, :] - others[None, :, :], axis=2).min(axis=1)
     own = (d_own <= nearest + 1e-9) & (d_own <= d_track + 1e-9)
-    return own & (d_rival > ratio * np.maximum(d_own, spread))
+    reach = ratio * np.maximum(d_own, spread)
+    if lost is not None and lost.shape[0]:
+        d_lost = np.linalg.norm(found[:, None, :] - lost[None, :, :], axis=2).min(axis=1)
+        own &= d_lost > reach
+    return own & (d_rival > reach)

@@ -224,11 +224,11 @@ class Live:
         if self._speed is not None and rows.size:
             self._fast_first_steps(pred, points, rows, cols)
         if (ratio := self.setup.params.certain_ratio) > 0 and rows.size:
-            # Own misses, not the gate, decide doubt (at least the measurement noise).
             kal, found = rows[self.kalman[rows]], points[cols[self.kalman[rows]]]
             spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))
-            sure = assoc.certain_rows(pred[kal], found, points, spread, ratio, pred[self.alive])
-            self.ambiguous[kal[sure]] = False
+            lost = self.alive & (self.misses == 0) & (np.bincount(rows, minlength=len(pred)) == 0)
+            args = (pred[kal], found, points, spread, ratio, pred[self.alive], pred[lost])
+            self.ambiguous[kal[assoc.certain_rows(*args)]] = False
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 

@@ -57,9 +57,11 @@ class TrackingParams(Params):
         A Kalman track is never cut as ambiguous (``ambiguity_margin``, ``rival_ratio``)
         when its point is the nearest to its prediction and every other point of the field
         lies more than this many times farther than the larger of that point and the
-        track's own recent RMS prediction error (at least sqrt(``mnc``)): the gate grows
-        with speed, a smooth marker's misses do not (LEDs on a golf club 5 mm apart at
-        3 m/s). 0 turns it off.
+        track's own recent RMS prediction error (at least sqrt(``mnc``)), and so does the
+        prediction of every live track that loses its point in that field (its marker
+        may be the one seen; not one already coasting, whose prediction has drifted):
+        the gate grows with speed, a smooth marker's misses do not (LEDs on a golf club
+        5 mm apart at 3 m/s). 0 turns it off.
     rival_ratio : float
         A track of two points or more (coasting too) whose point lies more than 10 mm from
         its prediction is cut there likewise when another point of the field, in its gate

@@ -162,6 +162,30 @@ def distinct(xyz: np.ndarray) -> np.ndarray:
     return out
 
 
+def shared_samples(
+    xyz: np.ndarray,
+    clean: np.ndarray,
+    before: np.ndarray,
+    after: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+) -> np.ndarray:
+    """Which changes from channel ``a`` (field ``before``) to ``b`` (``after``) join a
+    sample that is both markers' (:func:`distinct` kept it under one name and dropped the
+    other, within :data:`SAME_MARKER_MM`): ``b``'s own sample at ``before`` dropped as
+    the sample taken, or ``a``'s at ``after``. The truth does not say whose that one point
+    is (two Codamotion sacral wand markers 3-5 mm apart merge in 44 fields), so following
+    it under either name is no switch. ``xyz`` the file's samples, ``clean`` after
+    :func:`distinct`."""
+
+    def merged(f: np.ndarray, kept: np.ndarray, gone: np.ndarray) -> np.ndarray:
+        d = np.linalg.norm(xyz[f, gone] - xyz[f, kept], axis=-1)
+        return ~np.isfinite(clean[f, gone, 0]) & (d < SAME_MARKER_MM)
+
+    known = (a >= 0) & (b >= 0)
+    return known & (merged(before, a, b) | merged(after, b, a))
+
+
 def shuffled(xyz: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every frame's distinct valid samples in random order: (field, points, channel)."""
     rng = np.random.default_rng(seed)
@@ -286,6 +310,7 @@ def retrack(
         rows = rows[np.argsort(tr.field[rows])]
         ids, fields = ident[rows], tr.field[rows]
         at = np.flatnonzero(ids[1:] != ids[:-1])
+        at = at[~shared_samples(xyz, clean, fields[at], fields[at + 1], ids[at], ids[at + 1])]
         switches += at.size
         relabels += file_relabels(clean, fields[at], fields[at + 1], ids[at], ids[at + 1], fills)
     held = len(np.unique(np.stack([tr.field, ident])[:, ident >= 0], axis=1).T)

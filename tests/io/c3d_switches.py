@@ -4,7 +4,8 @@
 
 For each file (default: every file of :mod:`tests.io.c3d_acceptance` found), the file's
 markers are re-tracked from shuffled anonymous points as the acceptance does, and every
-switch that the file itself does not make (``relabel`` there) is listed: the fields
+switch that the file itself does not make (``relabel`` there) and that does not join
+a sample both markers share (:func:`~tests.io.c3d_acceptance.shared_samples`) is listed: the fields
 before and after it, the two true markers, the stage that joined the two samples
 (``track``: one piece of the tracker; ``blend``: two pieces blended; ``label``: joined
 after blending) and a class:
@@ -40,6 +41,7 @@ from tests.io.c3d_acceptance import (
     distinct,
     file_relabels,
     find,
+    shared_samples,
     shuffled,
     system_fills,
     true_channel,
@@ -117,6 +119,8 @@ def switches(xyz: np.ndarray, rate_hz: float, params: TrackingParams | None = No
             f0, f1, a, b = (int(v) for v in (fields[i], fields[i + 1], ids[i], ids[i + 1]))
             args = (np.array([f0]), np.array([f1]), np.array([a]), np.array([b]))
             if a < 0 or b < 0 or file_relabels(clean, *args, fills):
+                continue
+            if shared_samples(xyz, clean, *args).any():
                 continue
             r0, r1 = pts[i], pts[i + 1]
             if raw_piece[r0] == raw_piece[r1]:

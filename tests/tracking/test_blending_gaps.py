@@ -170,3 +170,18 @@ def test_a_track_is_certain_of_its_point_when_rivals_lie_beyond_its_own_misses()
         assert bool(got[0]) == sure
     other = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])
     assert not certain_rows(pred, found, points, np.array([0.3]), 4.0, other)[0]
+
+
+def test_a_point_a_track_left_without_one_predicted_within_reach_stays_a_doubt():
+    """A cluster's LED vanishes: its track, left without a point, predicted the point a
+    neighbour's track took within that track's reach (4 times its 3 mm misses: 12 mm),
+    so the neighbour is not sure of it; a lost track 20 mm off leaves it sure."""
+    from kisscal.tracking.association import certain_rows
+
+    pred = np.array([[0.0, 0.0, 0.0]])
+    points = np.array([[1.0, 0.0, 0.0], [50.0, 0.0, 0.0]])
+    found, spread = points[:1], np.array([3.0])
+    assert certain_rows(pred, found, points, spread, 4.0, pred)[0]
+    for lost_at, sure in ((8.0, False), (20.0, True)):
+        lost = np.array([[lost_at, 0.0, 0.0]])
+        assert bool(certain_rows(pred, found, points, spread, 4.0, pred, lost)[0]) == sure

@@ -13,6 +13,7 @@ from tests.io.c3d_acceptance import (
     distinct,
     file_relabels,
     retrack,
+    shared_samples,
     shuffled,
     system_fills,
 )
@@ -169,3 +170,19 @@ def test_fast_limbs_switch_only_where_the_file_renames(name):
     r = retrack(c3d.xyz_mm, c3d.rate_hz)
     assert r.coverage == 1.0
     assert r.switches == r.relabels
+
+
+def test_a_sample_two_markers_share_is_no_switch_either_way():
+    """Two markers 3 mm apart in one field are one sample (kept under one name): a track
+    that enters or leaves it under the other name made no switch; a change between
+    separate samples still is one."""
+    t = np.arange(10.0)
+    xyz = np.zeros((10, 2, 3))
+    xyz[:, :, 0] = 2.0 * t[:, None]
+    xyz[:, 1, 1] = 20.0
+    xyz[5, 1, 1] = 3.0  # marker 1 touches marker 0 in field 5
+    clean = distinct(xyz)
+    assert np.isnan(clean[5, 1]).all() and np.isfinite(clean[5, 0]).all()
+    before, after = np.array([4, 5, 3, 6]), np.array([5, 6, 4, 7])
+    a, b = np.array([1, 0, 1, 0]), np.array([0, 1, 0, 1])
+    assert shared_samples(xyz, clean, before, after, a, b).tolist() == [True, True, False, False]
