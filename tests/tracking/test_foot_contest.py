@@ -151,3 +151,29 @@ def test_a_heel_and_toe_the_shank_cannot_tell_apart_take_their_names_from_the_wa
     _rename(state, [heel, toe], [j["LTOE"], j["LHEE"]])
     assert settle_feet(state, state.template)
     np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_a_knee_never_seen_does_not_keep_a_heel_and_toe_exchanged():
+    """Kiss 3 cameras, seed 301, with nine more true points: the left knee is never seen,
+    the window named the heel's trajectory toe and the toe's heel, and the ankle's piece
+    stayed unnamed. A distance to a name never seen is unknown, not infinitely wrong: the
+    tibia, the ankle's piece and the walk still give the foot its names."""
+    motion = walking_trial(3, 200)
+    names = motion.names
+    j = {n: k for k, n in enumerate(names)}
+    truth = motion.xyz_mm.transpose(1, 0, 2)
+    alone = {j["LKNE"], j["LTIB"], j["LHEE"], j["LTOE"]}
+    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
+    spans += [(j["LTIB"], 0, 60), (j["LHEE"], 0, 90), (j["LHEE"], 100, 200)]
+    spans += [(j["LTOE"], 0, 120), (j["LTOE"], 130, 200)]
+    tracks, owner = _walk_pieces(truth, spans)
+    state = LabelState.begin(
+        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    )
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    heel, toe = (np.flatnonzero(owner == j[n]).tolist() for n in ("LHEE", "LTOE"))
+    ankle = int(np.flatnonzero(owner == j["LANK"])[0])
+    _rename(state, [*heel, *toe, ankle], [j["LTOE"]] * 2 + [j["LHEE"]] * 2 + [-1])
+    assert settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)

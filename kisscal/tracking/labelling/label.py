@@ -86,6 +86,7 @@ def name_pieces(state: LabelState) -> bool:
     if not match_first_window(state):
         return False
     spread(state)
+    settle_feet(state, state.template)
     rematch(state)
     name_groups(state)
     if name_from_trial(state):
