@@ -22,7 +22,9 @@ the name's holder, or an unnamed piece at the foot's distance, as its partner: w
 its distances fit the template either way within ``label_segment_tolerance_mm``, as a
 heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
-others and fits the foot's rigid distances. It runs once, after the last naming pass.
+others and fits the foot's rigid distances. It runs after the first spreading (a foot
+named the wrong way round would give its neighbours' names to the wrong pieces as names
+spread) and again after the last naming pass.
 """
 
 from __future__ import annotations
@@ -156,7 +158,10 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     """The foot's names given among their trajectories and the unnamed pieces near the
     shank by the best :func:`score` when it is at most ``foot_margin`` of the held one;
     with fewer of them than names, as many names as there are candidates are given
-    (:func:`naming_choices`), the others left free."""
+    (:func:`naming_choices`), the others left free. When the names as held put the toe
+    behind the heel, the best way that does not and fits the template within
+    ``label_segment_tolerance_mm`` (RMS) is taken whatever the scores' ratio: within
+    noise, the walk decides (as in :func:`_piece_better`)."""
     params = state.params
     held_any = np.isfinite(state.name_pos[foot.names, :, 0]).any(axis=1)
     if not held_any.any():
