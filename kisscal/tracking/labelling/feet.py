@@ -22,9 +22,9 @@ the name's holder, or an unnamed piece at the foot's distance, as its partner: w
 its distances fit the template either way within ``label_segment_tolerance_mm``, as a
 heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
-others and fits the foot's rigid distances. It runs after the first spreading (a foot
-named the wrong way round would give its neighbours' names to the wrong pieces as names
-spread) and again after the last naming pass.
+others and fits the foot's rigid distances. It runs after the first window, after the
+first spreading (a foot named the wrong way round would give its neighbours' names to
+the wrong pieces as names spread) and again after the last naming pass.
 """
 
 from __future__ import annotations
