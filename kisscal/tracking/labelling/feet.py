@@ -145,11 +145,9 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
 
 
 def _seen_shank(state: LabelState, foot: Foot) -> Foot:
-    """``foot`` with only the shank names the labelling holds somewhere (all of them
-    when it holds none: the pieces' contest still compares the foot's names among
-    themselves): a distance to a name never seen is unknown, and :func:`score` makes
-    every way that uses it infinite, so a knee out of view all trial would leave a
-    foot's names as the body's fit gave them (a heel and a toe exchanged)."""
+    """``foot`` with only the shank names held somewhere (all when none is): a distance
+    to a name never seen is unknown, yet :func:`score` makes every way using it
+    infinite, and a knee never seen left a heel and a toe exchanged."""
     seen = np.isfinite(state.name_pos[foot.shank, :, 0]).any(axis=1)
     return replace(foot, shank=foot.shank[seen]) if seen.any() else foot
 
