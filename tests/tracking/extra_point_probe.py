@@ -2,6 +2,7 @@
 
     python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" [--n=8] [--any] [--all]
     python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" --at=RANK@49,LHEE@107
+    python -m tests.tracking.extra_point_probe 301 --rig="kiss 3" --at=LANK@340,LHEE@340 --together
 
 Reconstructs the walk of :mod:`tests.tracking.few_cameras_acceptance` (kept in
 /tmp/extra_point_probe_*.pkl: delete them after changing reconstruction), then, one at
@@ -12,7 +13,8 @@ names right (as the acceptance table scores them) and, to tell which stage made 
 change, the samples of track pieces that mix two markers after tracking (``raw``) and
 after blending (``blend``), and the measured samples whose label names another marker
 after labelling (``wrong``). A correct point must never make any of them worse. With
-``--all``, every missed point at once (as a perfect two-camera reconstruction would).
+``--all``, every missed point at once (as a perfect two-camera reconstruction would);
+with ``--together``, the ``--at`` points at once.
 """
 
 from __future__ import annotations
@@ -132,6 +134,13 @@ if __name__ == "__main__":
             name, f = item.split("@")
             todo.append((int(f), trial.names.index(name)))
     rng = np.random.default_rng([seed, 39])
+    if "--together" in sys.argv:  # the --at points at once (several may break what one cannot)
+        every = trial
+        for f, j in todo:
+            every = with_point(every, f, j, rng)
+        got = stages(every)
+        print(f"together {len(todo)}: {got}  change { {k: got[k] - base[k] for k in got} }")
+        todo = []
     if "--all" in sys.argv:  # every missed point at once: a perfect two-camera recall
         todo = candidates(trial, 10**9, seed, "--any" not in sys.argv)
         every = trial

@@ -22,13 +22,15 @@ the name's holder, or an unnamed piece at the foot's distance, as its partner: w
 its distances fit the template either way within ``label_segment_tolerance_mm``, as a
 heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
-others and fits the foot's rigid distances. It runs once, after the last naming pass.
+others and fits the foot's rigid distances. It runs after the first window, after the
+first spreading (a foot named the wrong way round would give its neighbours' names to
+the wrong pieces as names spread) and again after the last naming pass.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import permutations
 
 import numpy as np
@@ -133,7 +135,7 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
     target = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     direction = walking_direction(state.name_pos)
     moved = False
-    for foot in feet_of(state.names):
+    for foot in (_seen_shank(state, f) for f in feet_of(state.names)):
         moved |= _name_contest(state, foot, target, direction)
         moved |= _piece_contest(state, foot, target, direction)
         moved |= _unnamed_contest(state, foot, target, direction)
@@ -142,11 +144,22 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
     return moved
 
 
+def _seen_shank(state: LabelState, foot: Foot) -> Foot:
+    """``foot`` with only the shank names held somewhere (all when none is): a distance
+    to a name never seen is unknown, yet :func:`score` makes every way using it
+    infinite, and a knee never seen left a heel and a toe exchanged."""
+    seen = np.isfinite(state.name_pos[foot.shank, :, 0]).any(axis=1)
+    return replace(foot, shank=foot.shank[seen]) if seen.any() else foot
+
+
 def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """The foot's names given among their trajectories and the unnamed pieces near the
     shank by the best :func:`score` when it is at most ``foot_margin`` of the held one;
     with fewer of them than names, as many names as there are candidates are given
-    (:func:`naming_choices`), the others left free."""
+    (:func:`naming_choices`), the others left free. When the names as held put the toe
+    behind the heel, the best way that does not and fits the template within
+    ``label_segment_tolerance_mm`` (RMS) is taken whatever the scores' ratio: within
+    noise, the walk decides (as in :func:`_piece_better`)."""
     params = state.params
     held_any = np.isfinite(state.name_pos[foot.names, :, 0]).any(axis=1)
     if not held_any.any():
@@ -173,17 +186,20 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     given = np.where(choices >= 0, s + choices, -1)
     cols = np.concatenate([np.broadcast_to(np.arange(s), (len(choices), s)), given], 1)
     both = (choices[:, toe] >= 0) & (choices[:, heel] >= 0)
-    scores = score(
-        d[cols[:, i], cols[:, j]],
-        target[names[i], names[j]],
-        both & behind[choices[:, toe], choices[:, heel]],
-        params.foot_margin,
-        (cols[:, i] >= 0) & (cols[:, j] >= 0),
-    )
+    trails = both & behind[choices[:, toe], choices[:, heel]]
+    use = (cols[:, i] >= 0) & (cols[:, j] >= 0)
+    dist, want = d[cols[:, i], cols[:, j]], target[names[i], names[j]]
+    scores = score(dist, want, trails, params.foot_margin, use)
     held = np.where(held_any, np.cumsum(held_any) - 1, -1)
-    own = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
-    best = int(np.argmin(scores))
-    if not np.isfinite(own) or scores[best] > params.foot_margin * own:
+    own, own_trails = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
+    # A way that fits within noise with the toe ahead beats names whose toe trails.
+    forward = both & ~trails & (fit_mm(dist, want, use) <= params.label_segment_tolerance_mm)
+    best = int(
+        np.argmin(np.where(forward, scores, np.inf) if own_trails and forward.any() else scores)
+    )
+    if not (own_trails and forward[best]) and (
+        not np.isfinite(own) or scores[best] > params.foot_margin * own
+    ):
         _near_ties(state, foot, choices, scores, held, own)
         return False
     _near_ties(state, foot, choices, scores, choices[best], scores[best])
@@ -207,8 +223,18 @@ def _near_ties(
     state.doubtful |= {int(j) for j in foot.names[differ]}
 
 
-def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> float:
-    """:func:`score` of the names as held, over the names held (the shank's always)."""
+def fit_mm(dist: NDArray, target: NDArray, use: NDArray) -> NDArray:
+    """RMS (mm) of each way's (rows) distances ``dist`` against ``target`` over the pairs
+    in ``use``; infinite when a pair used was never seen together or none is used."""
+    miss = np.where(use, dist - target, 0.0)
+    seen = np.isfinite(miss).all(axis=-1) & use.any(axis=-1)
+    total = np.where(np.isfinite(miss), miss**2, 0.0).sum(axis=-1)
+    return np.where(seen, np.sqrt(total / np.maximum(use.sum(axis=-1), 1)), np.inf)
+
+
+def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> tuple[float, bool]:
+    """:func:`score` of the names as held, over the names held (the shank's always), and
+    whether their toe trails their heel."""
     given = np.flatnonzero(held >= 0)
     cols = np.concatenate([np.arange(s), s + held[given]])
     sub = np.concatenate([np.arange(s), s + given])
@@ -216,7 +242,10 @@ def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> float:
     keep = j >= s
     i, j = i[keep], j[keep]
     trails = held[toe] >= 0 and held[heel] >= 0 and behind[held[toe], held[heel]]
-    return float(score(d[cols[i], cols[j]], target[names[sub[i]], names[sub[j]]], trails, margin))
+    trails = bool(trails)
+    return float(
+        score(d[cols[i], cols[j]], target[names[sub[i]], names[sub[j]]], trails, margin)
+    ), trails
 
 
 def _near_unnamed(state: LabelState, foot: Foot, target: NDArray) -> NDArray[np.int64]:

@@ -81,11 +81,16 @@ def label_tracks(
 
 
 def name_pieces(state: LabelState) -> bool:
-    """Phases 1 to 5 on ``state`` (the feet are settled once, after the last naming
-    pass); False when the first window matches no body."""
+    """Phases 1 to 5 on ``state``; the feet are settled after the first window and
+    after the first spreading (a foot named the wrong way round would hand its ankle's
+    pieces the tibia's name as names spread, which the last contest cannot take back)
+    and again, by :func:`label_tracks`, after the last naming pass. False when the first
+    window matches no body."""
     if not match_first_window(state):
         return False
+    settle_feet(state, state.template)
     spread(state)
+    settle_feet(state, state.template)
     rematch(state)
     name_groups(state)
     if name_from_trial(state):
