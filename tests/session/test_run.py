@@ -158,6 +158,7 @@ def test_single_camera_fill_reads_the_unused_blobs_in_the_rigs_pixels(processed:
     from kisscal.io.points3d import read_points3d
     from kisscal.io.store import SessionStore
     from kisscal.session.calibrated import current_rig
+    from kisscal.session.inputs import load_config
     from kisscal.session.track import _spare_blobs
 
     files = SessionStore(processed).trial("walk01")
@@ -171,7 +172,7 @@ def test_single_camera_fill_reads_the_unused_blobs_in_the_rigs_pixels(processed:
         uv[cam == i] = camera.undistort_px(obs.xy_px[used][cam == i])
     miss = np.linalg.norm(rig.project_rows(cam, pts.xyz_mm[obs.point[used]]) - uv, axis=1)
     assert np.median(miss) < 0.5
-    spare = _spare_blobs(processed, "walk01")
+    spare = _spare_blobs(load_config(processed), "walk01")
     assert spare is not None and spare.field.size == int((~used).sum())
     assert np.array_equal(np.sort(spare.field), np.sort(obs.field[~used]))
     summary = json.loads(files.tracking.read_text())

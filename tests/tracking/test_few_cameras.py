@@ -46,9 +46,7 @@ def test_without_two_camera_points_alone_four_cameras_lose_markers(lowcost, monk
     import tests.tracking.few_cameras_acceptance as acceptance
     from kisscal.recon import ReconParams
 
-    monkeypatch.setattr(
-        acceptance, "ReconParams", lambda: ReconParams(two_camera_alone_max_cameras=3)
-    )
+    monkeypatch.setattr(acceptance, "RECON", [ReconParams(two_camera_alone_max_cameras=3)])
     strict = acceptance.rig_trial("lowcost", 1)
     n2 = strict.visible.sum(axis=2) == 2
     assert strict.found[n2].mean() < lowcost.found[n2].mean() - 0.03
