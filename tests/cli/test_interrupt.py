@@ -15,6 +15,13 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def _as_a_terminal_starts_it() -> None:
+    # A shell starts a foreground job with Ctrl-C at its default; a test process may
+    # ignore it (a pytest-xdist worker of the whole suite does), and an ignored SIGINT
+    # is inherited: Python would then never raise KeyboardInterrupt in the run.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("after_s", [0.5, 3.0])
 def test_ctrl_c_stops_run_with_one_line(
@@ -30,6 +37,7 @@ def test_ctrl_c_stops_run_with_one_line(
         text=True,
         start_new_session=True,
         cwd=ROOT,
+        preexec_fn=_as_a_terminal_starts_it,
     )
     assert run.stderr is not None
     first = run.stderr.readline()  # the pipeline has started (worker pools come next)
