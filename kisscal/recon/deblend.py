@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import project_rows
 from kisscal.dlt.triangulate import triangulate_observations
+from kisscal.recon.body import RigidTriangles, body_error
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -32,7 +33,7 @@ from kisscal.recon.epipolar import (
     pair_distances_px,
 )
 from kisscal.recon.group import embed_fields, near_cameras
-from kisscal.recon.pairs import choose_pairs
+from kisscal.recon.pairs import choose_pairs, continuity_mm
 from kisscal.recon.params import ReconParams
 
 
@@ -392,3 +393,70 @@ def _place_two(
 #: Smallest sine of the angle between the two epipolar lines through a merged blob: more
 #: nearly parallel lines place the two markers along them by the noise alone.
 _MIN_SIN = 0.1
+
+
+def deblend_held(
+    scene: MergeScene,
+    marker: NDArray[np.int64],
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    blob_row: NDArray[np.int64],
+    body: RigidTriangles,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], Deblended]:
+    """:func:`deblend_pairs` where the merged blob ``c`` and one marker's own blob ``a``
+    already make a two-camera point: a pair of blobs that agree along an epipolar line
+    is taken whole, so the second marker in ``c`` (its own blob ``b`` free in a third
+    camera) is left without an image, and the point, pulled to the centroid, sits off
+    its marker. Both are placed as there; when both continue trajectories and win their
+    blobs, the point moves to its half and the other half is a new point.
+
+    Returns
+    -------
+    moved : ndarray of int
+        Points (rows of ``p_xyz``) that move.
+    moved_xyz : ndarray, shape (len(moved), 3)
+        Where they move.
+    new : Deblended
+        The other markers.
+    """
+    field, camera, uv, usable = scene.field, scene.camera, scene.uv, scene.usable
+    dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
+    none = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), Deblended.empty()
+    held = blob_row >= 0
+    two = np.flatnonzero(held.sum(axis=1) == 2)
+    free = np.flatnonzero((marker < 0) & usable)
+    if len(two) == 0 or len(free) == 0:
+        return none
+    rows = np.sort(blob_row[two], axis=1)[:, -2:]  # the point's two blobs
+    P = np.r_[two, two]
+    c, a = np.r_[rows[:, 0], rows[:, 1]], np.r_[rows[:, 1], rows[:, 0]]
+    F = all_fundamentals(dlts)
+    k, b = _partners(c, uv[c], free, field, camera, uv, F, params.epipolar_band_px)
+    k, b = k[camera[b] != camera[a[k]]], b[camera[b] != camera[a[k]]]
+    if len(k) == 0:
+        return none
+    P, c, a = P[k], c[k], a[k]
+    xyz_a, xyz_b, ok = _place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
+    # b is the point's own image in a third camera when the point projects onto it
+    at_b = project_rows(dlts, camera[b], p_xyz[P])
+    ok &= np.linalg.norm(at_b - uv[b], axis=1) > params.deblend_radius_px
+    P, c, a, b, xyz_a, xyz_b = P[ok], c[ok], a[ok], b[ok], xyz_a[ok], xyz_b[ok]
+    # the point's half continues the trajectory the point was taken for, through the
+    # known points alone (moved halves of neighbouring fields support each other)
+    step, tol = params.two_camera_step_mm, params.two_camera_continuity_mm
+    ok = continuity_mm(xyz_a, field[c], p_xyz, p_field, step, tol) <= tol
+    # the other half is a marker of the set: a segment's distances to two known points
+    # (a single-view marker's ray through the blob's line places it anywhere along it)
+    ok &= body_error(xyz_b, field[c], p_xyz, p_field, body) <= params.two_camera_body_mm
+    P, c, a, b, xyz_a, xyz_b = P[ok], c[ok], a[ok], b[ok], xyz_a[ok], xyz_b[ok]
+    n = len(P)
+    if n == 0:
+        return none
+    own = np.r_[a, b]
+    xyz, f2 = np.concatenate([xyz_a, xyz_b]), np.r_[field[c], field[c]]
+    virtual = len(field) + np.arange(2 * n)
+    won = choose_pairs(own, virtual, xyz, f2, p_xyz, p_field, params, True, alone=False)
+    both = won[:n] & won[n:]
+    both &= np.bincount(P[both], minlength=len(p_xyz))[P] == 1  # one way per point
+    new = Deblended(xyz_b[both], field[c[both]], np.zeros(int(both.sum())), b[both], c[both])
+    return P[both], xyz_a[both], new

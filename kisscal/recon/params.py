@@ -73,6 +73,10 @@ class ReconParams(Params):
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
         point's share, gives the hidden marker's image. Needs ``allow_two_camera``; rigs
         of up to ``deblend_max_cameras`` cameras.
+    deblend_held : bool
+        Also place two markers merged into one blob that a two-camera point already
+        holds with one marker's own blob, the other marker's own blob free in a third
+        camera (:func:`~kisscal.recon.deblend.deblend_held`).
     deblend_hidden : bool
         Also place two markers that the same two cameras see, merged into one blob in
         one of them, by their trajectories (:mod:`kisscal.recon.hidden`): on their own
@@ -159,6 +163,7 @@ class ReconParams(Params):
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     two_camera_carry_s: float = param(1.0, unit="s", ge=0)
     deblend_merged: bool = param(True)
+    deblend_held: bool = param(False)
     deblend_hidden: bool = param(False)
     hidden_prediction_mm: float = param(10.0, unit="mm", gt=0)
     deblend_max_cameras: int = param(4, ge=0)

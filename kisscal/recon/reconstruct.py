@@ -11,7 +11,13 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.errors import InputError
 from kisscal.recon.assign import check_table
 from kisscal.recon.body import RigidTriangles
-from kisscal.recon.deblend import Deblended, MergeScene, deblend_merged, deblend_pairs
+from kisscal.recon.deblend import (
+    Deblended,
+    MergeScene,
+    deblend_held,
+    deblend_merged,
+    deblend_pairs,
+)
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.hidden import deblend_hidden
 from kisscal.recon.match import match_trial
@@ -250,6 +256,8 @@ def reconstruct_trial(
         scene = MergeScene(field, camera, uv, ~still, dlts, params, limit)
         two = deblend_pairs(scene, pts.marker, pts.field, pts.xyz_mm)
         pts = _with_points(pts, two, camera)
+        if params.deblend_held and body is not None:
+            pts = _held(pts, scene, body)
         for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
             new = deblend_merged(scene, pts.marker, pts.field, pts.xyz_mm)
             if len(new.field) == 0:
@@ -258,6 +266,17 @@ def reconstruct_trial(
         if params.deblend_hidden and body is not None:
             pts = _hidden(pts, scene, body)
     return pts
+
+
+def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+    """``pts`` with the two-camera points that hold a merged blob moved to their marker,
+    and the other marker in it added (:func:`~kisscal.recon.deblend.deblend_held`)."""
+    moved, moved_xyz, new = deblend_held(scene, pts.marker, pts.field, pts.xyz_mm, pts.blob_row, body)
+    if len(moved) == 0:
+        return pts
+    xyz = pts.xyz_mm.copy()
+    xyz[moved] = moved_xyz
+    return _with_points(replace(pts, xyz_mm=xyz), new, scene.camera)
 
 
 def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:

@@ -330,6 +330,8 @@ if __name__ == "__main__":
     MERGE[0] = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--merge=")), MERGE[0])
     if "--hidden" in sys.argv:
         RECON[0] = ReconParams(deblend_hidden=True)
+    if "--held" in sys.argv:
+        RECON[0] = ReconParams(deblend_hidden="--hidden" in sys.argv, deblend_held=True)
     if "--gaps" in sys.argv:
         for preset in ("kiss", "modern", "lowcost"):
             print("\n".join(gap_table(preset, seeds[0])))
