@@ -446,8 +446,12 @@ def deblend_held(
     step, tol = params.two_camera_step_mm, params.two_camera_continuity_mm
     ok = continuity_mm(xyz_a, field[c], p_xyz, p_field, step, tol) <= tol
     # the other half is a marker of the set: a segment's distances to two known points
-    # (a single-view marker's ray through the blob's line places it anywhere along it)
-    ok &= body_error(xyz_b, field[c], p_xyz, p_field, body) <= params.two_camera_body_mm
+    # (a single-view marker's ray through the blob's line places it anywhere along it);
+    # a point that fits its segment must fit it better once freed of the centroid's pull
+    tol_body = params.two_camera_body_mm
+    ok &= body_error(xyz_b, field[c], p_xyz, p_field, body) <= tol_body
+    was = body_error(p_xyz[P], field[c], p_xyz, p_field, body)
+    ok &= (was > tol_body) | (body_error(xyz_a, field[c], p_xyz, p_field, body) <= was)
     P, c, a, b, xyz_a, xyz_b = P[ok], c[ok], a[ok], b[ok], xyz_a[ok], xyz_b[ok]
     n = len(P)
     if n == 0:

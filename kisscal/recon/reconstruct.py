@@ -271,7 +271,9 @@ def reconstruct_trial(
 def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     """``pts`` with the two-camera points that hold a merged blob moved to their marker,
     and the other marker in it added (:func:`~kisscal.recon.deblend.deblend_held`)."""
-    moved, moved_xyz, new = deblend_held(scene, pts.marker, pts.field, pts.xyz_mm, pts.blob_row, body)
+    moved, moved_xyz, new = deblend_held(
+        scene, pts.marker, pts.field, pts.xyz_mm, pts.blob_row, body
+    )
     if len(moved) == 0:
         return pts
     xyz = pts.xyz_mm.copy()

@@ -7,6 +7,7 @@ import pytest
 
 from kisscal.dlt.model import project
 from kisscal.recon import ReconParams, reconstruct_trial
+from kisscal.recon.body import RigidTriangles
 from kisscal.recon.epipolar import camera_centre_mm
 
 from .rig import SIZE_PX, make_rig
@@ -76,3 +77,50 @@ def test_a_blob_that_fits_the_known_marker_is_not_shared() -> None:
     off = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, ReconParams(deblend_merged=False))
     np.testing.assert_array_equal(on.xyz_mm, off.xyz_mm)
     np.testing.assert_array_equal(on.marker, off.marker)
+
+
+def _held_walk(seed: int) -> tuple:
+    """:func:`_merging_walk` with A seen by cameras 0 and 1 only and B by 1 and 2 only, so
+    that A's own pair takes the blob they merge into in camera 1; B is rigid with two
+    markers Q, R that every camera sees (a segment of the marker set)."""
+    dlts, xyz, visible = _merging_walk(seed)
+    b = xyz[:, 1]
+    q, r = b + [0.0, 0.0, 250.0], b + [0.0, 220.0, 120.0]
+    xyz = np.stack([xyz[:, 0], b, q, r], axis=1)
+    visible = np.ones((len(xyz), 4, 3), dtype=bool)
+    visible[:, 0, 2] = visible[:, 1, 0] = False
+    body = RigidTriangles.from_marker_set(
+        ("A", "B", "Q", "R"), xyz[0], (("B", "Q"), ("B", "R"), ("Q", "R"))
+    )
+    return dlts, xyz, visible, body
+
+
+def _held_errors(seed: int, held: bool) -> tuple:
+    """Over the fields where A and B merge in camera 1: B found within 10 mm, A's
+    errors (mm), and the trial's points 10 mm from every marker."""
+    dlts, xyz, visible, body = _held_walk(seed)
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    merged = np.linalg.norm(project(dlts[1], xyz[:, 0]) - project(dlts[1], xyz[:, 1]), axis=1) < 3
+    params = ReconParams(deblend_held=held, stationary_filter=False)
+    pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, params, body=body)
+    err = np.full(xyz.shape[:2], np.inf)
+    ghosts = 0
+    for f in range(len(xyz)):
+        d = np.linalg.norm(pts.xyz_mm[pts.field == f][:, None] - xyz[f][None], axis=2)
+        err[f] = d.min(axis=0, initial=np.inf)
+        ghosts += int(np.sum(d.min(axis=1, initial=np.inf) > 10.0))
+    return int(np.sum(err[merged, 1] < 10.0)), err[merged, 0], ghosts, int(merged.sum())
+
+
+def test_a_merged_blob_held_by_a_two_camera_point_is_shared_with_the_other_marker() -> None:
+    # measured over seeds 0-3 (53 merged fields): B 0 -> 19 found, A's median error
+    # 5.1 -> 2.2 mm (the centroid's pull removed), 2 -> 3 points off every marker (seed
+    # 0: a B placed 15 mm off) -- why deblend_held stays off
+    off = [_held_errors(seed, False) for seed in range(4)]
+    on = [_held_errors(seed, True) for seed in range(4)]
+    n_merged = sum(o[3] for o in off)
+    assert n_merged >= 40 and sum(o[0] for o in off) == 0  # A's pair holds the blob
+    assert sum(o[0] for o in on) >= n_merged / 4
+    a_off, a_on = (np.median(np.concatenate([o[1] for o in x])) for x in (off, on))
+    assert a_on < a_off
+    assert sum(o[2] for o in on) <= sum(o[2] for o in off) + 1

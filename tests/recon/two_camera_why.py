@@ -16,7 +16,14 @@ put in one class:
 * ``contested``: continues a trajectory but lost (or never won) the competition;
 * ``claimed``: won, then withdrawn as a piece whose rays other trajectories claim;
 * ``later``: won in the two-camera step, lost after it (grouping, residual split);
-* ``never paired``: both free, not a candidate of the last two-camera call.
+
+Stop 40, ``--hidden`` (missed: merged / taken by another marker's 2-camera point / taken
+by a 3-camera point / taken by a ghost / no trajectory / residual): lowcost 301 28 =
+10/0/1/1/11/5, 302 37 = 12/0/1/0/22/2, 303 50 = 17/11/4/7/8/3, 311 34 =
+19/1/2/3/7/2, 312 38 = 20/0/6/5/4/3, 313 0; kiss 3 301 21 = 5/0/3/0/9/4, 302 32 =
+5/0/3/9/9/6. 303's eleven "taken by a 2-camera point" are one merge: marker 13 (cameras
+1, 3) holds the blob it shares with marker 12 (cameras 2, 3) in camera 3
+(``ReconParams.deblend_held`` recovers it; off, see there).
 """
 
 from __future__ import annotations
@@ -130,7 +137,7 @@ def why(preset: str, seed: int, n_cameras: int | None, hidden: bool, verbose: bo
             k = who[taker]
             c = "taken by ghost" if k < 0 else f"taken by other ({pts.n_cameras[taker]} cams)"
             br = pts.blob_row[taker][pts.blob_row[taker] >= 0]
-            extra = f" taker {k}, its blobs' truth {tab.truth[br].tolist()} cams {tab.camera[br].tolist()}"
+            extra = f" taker {k}, blobs of {tab.truth[br].tolist()} in {tab.camera[br].tolist()}"
         else:
             keep = np.flatnonzero(~pts.stationary)
             rk = np.searchsorted(keep, r)
@@ -174,4 +181,7 @@ if __name__ == "__main__":
     seeds = tuple(int(a) for a in sys.argv[1:] if not a.startswith("-")) or (303,)
     only = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--rig=")), "lowcost")
     for seed in seeds:
-        print(why(RIGS[only][0], seed, RIGS[only][1], "--hidden" in sys.argv, "-v" in sys.argv), flush=True)
+        print(
+            why(RIGS[only][0], seed, RIGS[only][1], "--hidden" in sys.argv, "-v" in sys.argv),
+            flush=True,
+        )

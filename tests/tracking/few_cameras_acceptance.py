@@ -5,6 +5,7 @@
     python -m tests.tracking.few_cameras_acceptance 101 --rig=lowcost   # one kind of rig
     python -m tests.tracking.few_cameras_acceptance --merge=first       # old merge model
     python -m tests.tracking.few_cameras_acceptance --hidden            # recon/hidden.py on
+    python -m tests.tracking.few_cameras_acceptance --hidden --held     # and deblend_held
 
 Default seeds 301-303, held out (development used 1-7; 101-103 were looked at while
 the body fill was built). Rigs: ``kisscal synth --preset lowcost``
