@@ -401,6 +401,7 @@ def deblend_held(
     p_field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],
     blob_row: NDArray[np.int64],
+    p_rms: NDArray[np.float64],
     body: RigidTriangles,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], Deblended]:
     """:func:`deblend_pairs` where the merged blob ``c`` and one marker's own blob ``a``
@@ -423,7 +424,11 @@ def deblend_held(
     dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
     none = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), Deblended.empty()
     held = blob_row >= 0
-    two = np.flatnonzero(held.sum(axis=1) == 2)
+    # a point pulled by a centroid fits its two blobs worse than the trial's typical
+    # marker does (a pair within the noise shows no second image in its blob)
+    rms_ok = np.isfinite(p_rms)
+    typical = np.median(p_rms[rms_ok]) if rms_ok.any() else np.inf
+    two = np.flatnonzero((held.sum(axis=1) == 2) & (p_rms > typical))
     free = np.flatnonzero((marker < 0) & usable)
     if len(two) == 0 or len(free) == 0:
         return none

@@ -76,11 +76,12 @@ class ReconParams(Params):
     deblend_held : bool
         Also place two markers merged into one blob that a two-camera point already
         holds with one marker's own blob, the other marker's own blob free in a third
-        camera (:func:`~kisscal.recon.deblend.deblend_held`; needs the marker set). Off:
-        issue 27's largest class of recoverable misses on lowcost seed 303 (11 of 50),
-        two-camera recall 97.72 -> 98.17 %, ghosts 13 -> 11, but seed 312 98.35 ->
-        98.65 % with ghosts 0.14 -> 0.20 % (a single-view marker's ray through an
-        unmerged blob's line, placed 50 mm off, fits a segment by chance).
+        camera (:func:`~kisscal.recon.deblend.deblend_held`; needs ``deblend_merged`` and
+        the marker set).
+        Issue 27, lowcost seed 303 with ``deblend_hidden``: the largest class of its
+        two-camera misses that no new ghost pays for (11 of 50, one merge), recall
+        97.72 -> 98.17 %, ghosts 13 -> 12; 312 98.35 -> 98.70 %, 301 and 311 +0.1 %,
+        ghosts equal; kiss 3 cameras unchanged.
     deblend_hidden : bool
         Also place two markers that the same two cameras see, merged into one blob in
         one of them, by their trajectories (:mod:`kisscal.recon.hidden`): on their own
@@ -167,7 +168,7 @@ class ReconParams(Params):
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     two_camera_carry_s: float = param(1.0, unit="s", ge=0)
     deblend_merged: bool = param(True)
-    deblend_held: bool = param(False)
+    deblend_held: bool = param(True)
     deblend_hidden: bool = param(False)
     hidden_prediction_mm: float = param(10.0, unit="mm", gt=0)
     deblend_max_cameras: int = param(4, ge=0)

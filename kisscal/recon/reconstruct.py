@@ -272,7 +272,7 @@ def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     """``pts`` with the two-camera points that hold a merged blob moved to their marker,
     and the other marker in it added (:func:`~kisscal.recon.deblend.deblend_held`)."""
     moved, moved_xyz, new = deblend_held(
-        scene, pts.marker, pts.field, pts.xyz_mm, pts.blob_row, body
+        scene, pts.marker, pts.field, pts.xyz_mm, pts.blob_row, pts.rms_px, body
     )
     if len(moved) == 0:
         return pts

@@ -113,9 +113,8 @@ def _held_errors(seed: int, held: bool) -> tuple:
 
 
 def test_a_merged_blob_held_by_a_two_camera_point_is_shared_with_the_other_marker() -> None:
-    # measured over seeds 0-3 (53 merged fields): B 0 -> 19 found, A's median error
-    # 5.1 -> 2.2 mm (the centroid's pull removed), 2 -> 3 points off every marker (seed
-    # 0: a B placed 15 mm off) -- why deblend_held stays off
+    # measured over seeds 0-3 (53 merged fields): B 0 -> 16 found, A's median error
+    # 5.1 -> 2.2 mm (the centroid's pull removed), 2 -> 0 points off every marker
     off = [_held_errors(seed, False) for seed in range(4)]
     on = [_held_errors(seed, True) for seed in range(4)]
     n_merged = sum(o[3] for o in off)
@@ -123,4 +122,4 @@ def test_a_merged_blob_held_by_a_two_camera_point_is_shared_with_the_other_marke
     assert sum(o[0] for o in on) >= n_merged / 4
     a_off, a_on = (np.median(np.concatenate([o[1] for o in x])) for x in (off, on))
     assert a_on < a_off
-    assert sum(o[2] for o in on) <= sum(o[2] for o in off) + 1
+    assert sum(o[2] for o in on) <= sum(o[2] for o in off)

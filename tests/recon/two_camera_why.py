@@ -23,7 +23,7 @@ by a 3-camera point / taken by a ghost / no trajectory / residual): lowcost 301 
 19/1/2/3/7/2, 312 38 = 20/0/6/5/4/3, 313 0; kiss 3 301 21 = 5/0/3/0/9/4, 302 32 =
 5/0/3/9/9/6. 303's eleven "taken by a 2-camera point" are one merge: marker 13 (cameras
 1, 3) holds the blob it shares with marker 12 (cameras 2, 3) in camera 3
-(``ReconParams.deblend_held`` recovers it; off, see there).
+(``ReconParams.deblend_held``, on by default, recovers it).
 """
 
 from __future__ import annotations
