@@ -12,7 +12,9 @@ put in one class:
   (``other``, with its number of cameras) or by a ghost (``ghost``);
 * ``band``: both free, outside each other's epipolar band;
 * ``residual``: in band, the pair beyond the residual limit (or at a camera, or LEDs);
-* ``no trajectory``: no four-field window within the continuity tolerance, no body fit;
+* ``no trajectory``: no four-field window within the continuity tolerance, no body fit
+  (``-v`` prints the score, the pair's error, its body fit and the marker's cameras and
+  finds over f-3..f+3);
 * ``contested``: continues a trajectory but lost (or never won) the competition;
 * ``claimed``: won, then withdrawn as a piece whose rays other trajectories claim;
 * ``later``: won in the two-camera step, lost after it (grouping, residual split);
@@ -23,7 +25,10 @@ by a 3-camera point / taken by a ghost / no trajectory / residual): lowcost 301 
 19/1/2/3/7/2, 312 38 = 20/0/6/5/4/3, 313 0; kiss 3 301 21 = 5/0/3/0/9/4, 302 32 =
 5/0/3/9/9/6. 303's eleven "taken by a 2-camera point" are one merge: marker 13 (cameras
 1, 3) holds the blob it shares with marker 12 (cameras 2, 3) in camera 3
-(``ReconParams.deblend_held``, on by default, recovers it).
+(``ReconParams.deblend_held``, on by default, recovers it: 303 40 = 16/3/4/6/8/3, 312 30
+= 12/0/6/5/4/3). The "no trajectory" ones (302: 22) are two-camera glimpses of one to
+three fields, or noisy pairs, where the walk enters and leaves the volume: no known point
+of the marker within three fields and fewer than two of its segment's markers known.
 """
 
 from __future__ import annotations
@@ -34,8 +39,9 @@ from collections import Counter
 import numpy as np
 
 import kisscal.recon.pairs as pairs_mod
+from kisscal.dlt.triangulate import triangulate_observations as tri
 from kisscal.recon import ReconParams, reconstruct_trial
-from kisscal.recon.body import RigidTriangles
+from kisscal.recon.body import RigidTriangles, body_error
 from kisscal.recon.epipolar import all_fundamentals, pair_distances_px
 from tests.recon.scenario import observe
 from tests.recon.subsets import found_and_ghosts
@@ -116,6 +122,7 @@ def why(preset: str, seed: int, n_cameras: int | None, hidden: bool, verbose: bo
     a_f, b_f = last_body_args[0][:2]
     first = TRACE["choose"][0][0]
     a0, b0, xyz0, field0 = first[:4]
+    won0 = TRACE["choose"][0][1]
     ever_won = set()
     for args, out in TRACE["choose"]:
         for x, y in zip(args[0][out], args[1][out], strict=True):
@@ -150,8 +157,6 @@ def why(preset: str, seed: int, n_cameras: int | None, hidden: bool, verbose: bo
             elif i0 < 0:
                 c = "residual"
                 m_in = TRACE["input"][0]
-                from kisscal.dlt.triangulate import triangulate_observations as tri
-
                 tt = tri(dlts, np.zeros(2, dtype=int), tab.camera[r], tab.uv[r], 1, 2)
                 extra = (
                     f" rms {tt.rms_px[0]:.3f} limit {TRACE['limit']:.3f}, marker at input "
@@ -163,6 +168,16 @@ def why(preset: str, seed: int, n_cameras: int | None, hidden: bool, verbose: bo
                 c = "claimed"
             else:
                 c = "contested" if score[i0] <= params.two_camera_continuity_mm else "no trajectory"
+                e = np.linalg.norm(xyz0[i0] - xyz[f, m])
+                be = body_error(xyz0[i0 : i0 + 1], field0[i0 : i0 + 1], first[4], first[5], body)
+                nb = [
+                    int(visible[g, m].sum()) for g in range(max(f - 3, 0), min(f + 4, len(found)))
+                ]
+                fb = [int(found[g, m]) for g in range(max(f - 3, 0), min(f + 4, len(found)))]
+                extra = (
+                    f" score {score[i0]:.1f}, pair {e:.1f} mm off, body {be[0]:.1f}, "
+                    f"cams f-3..f+3 {nb} found {fb}, won {won0[i0]}"
+                )
         count[c] += 1
         lines.append(f"  field {f} marker {m} cams {cams.tolist()}: {c}{extra}")
     head = (
