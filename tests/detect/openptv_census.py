@@ -56,6 +56,10 @@ every target) goes in the first class it fits:
 - ``extra_small``: fewer than OpenPTV's least pixel count above its threshold, or less
   than its least summed grey, in the 5 x 5 pixels at the centroid (an approximation of
   its region): a spot too small for OpenPTV's target size limits.
+- ``extra_lit``: in a lit region of OpenPTV's image (4-connected above its threshold)
+  larger than its largest target (``nnmax``, 500 px on the cavity): a wall, glare or the
+  lid's edge, which OpenPTV drops whole and kisscal cuts at twice its level, four times,
+  ... into particle-sized pieces (particles standing on it, or pieces of the glare).
 - ``extra_other``: bright and large enough for OpenPTV, no target within 4 px (joined by
   its region growing to a target farther away, or dropped by its other rules).
 """
@@ -102,7 +106,14 @@ PEAK_CLASSES = (
 )
 #: Farthest (px) a second valid blob counts as the other half of a split target.
 SPLIT_PX = 3.0
-EXTRA_CLASSES = ("extra_piece", "extra_offset", "extra_faint", "extra_small", "extra_other")
+EXTRA_CLASSES = (
+    "extra_piece",
+    "extra_offset",
+    "extra_faint",
+    "extra_small",
+    "extra_lit",
+    "extra_other",
+)
 #: A stored target is given back by OpenPTV's detection when one lies this close (px), and
 #: the detection reads the frame as the stored one did when it gives back this share.
 SAME_PX = 0.1
@@ -228,7 +239,12 @@ def _extras(xy: np.ndarray, targets: np.ndarray, view: OpenptvView) -> Counter:
     rest = extra & ~near
     faint = rest & (peak < view.threshold)
     small = rest & ~faint & ((count < view.min_pixels) | (summed < view.min_sum_grey))
-    masks = (piece, offset, faint, small, rest & ~faint & ~small)
+    _, region, stats, _ = cv2.connectedComponentsWithStats(
+        (grey > view.threshold).view(np.uint8), connectivity=4
+    )
+    area = stats[:, cv2.CC_STAT_AREA][region[yi, xi]]
+    wall = rest & ~faint & ~small & (region[yi, xi] > 0) & (area > view.max_pixels)
+    masks = (piece, offset, faint, small, wall, rest & ~faint & ~small & ~wall)
     return Counter({k: int(m.sum()) for k, m in zip(EXTRA_CLASSES, masks, strict=True)})
 
 

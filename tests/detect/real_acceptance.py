@@ -134,6 +134,7 @@ class OpenptvView(NamedTuple):
     threshold: float  # grey level of that image a target's pixels reach (targ_rec.par)
     min_pixels: int  # least pixels of a target
     min_sum_grey: float  # least summed grey of a target
+    max_pixels: int = 500  # most pixels of a target (OpenPTV's nnmax; larger: dropped whole)
 
 
 def openptv_view(
@@ -156,9 +157,8 @@ def openptv_view(
     found = target_recognition(image, tpar, cam, cpar)
     targets = np.array([t.pos() for t in found], dtype=float).reshape(-1, 2) - 0.5
     threshold = float(tpar.get_grey_thresholds()[cam])
-    return OpenptvView(
-        targets, image, threshold, tpar.get_pixel_count_bounds()[0], tpar.get_min_sum_grey()
-    )
+    least, most = tpar.get_pixel_count_bounds()
+    return OpenptvView(targets, image, threshold, least, tpar.get_min_sum_grey(), most)
 
 
 def _dots(data: Path, cam: int) -> np.ndarray:

@@ -13,6 +13,7 @@ def test_extra_detections_fall_in_the_class_they_were_built_for() -> None:
     grey = np.zeros((60, 80), np.uint8)
     grey[40, 10] = 200  # one bright pixel: too small for OpenPTV (4 pixels, 150 summed)
     grey[39:42, 59:62] = 100  # 9 pixels, 900 summed: OpenPTV would take it
+    grey[50:58, 20:50] = 60  # 240 pixels: more than OpenPTV's largest target (200 here)
     targets = np.array([[10.0, 10.0], [30.0, 10.0]])
     blobs = np.array(
         [
@@ -22,11 +23,12 @@ def test_extra_detections_fall_in_the_class_they_were_built_for() -> None:
             [40.0, 25.0],  # nothing in OpenPTV's image: faint
             [10.0, 40.0],  # the bright pixel: small
             [60.0, 40.0],  # the 3 x 3 block: other
+            [30.0, 54.0],  # a piece of the lit band: lit
         ]
     )
-    view = OpenptvView(targets, grey, 9.0, 4, 150.0)
+    view = OpenptvView(targets, grey, 9.0, 4, 150.0, 200)
     got = _extras(blobs, targets, view)
-    assert [got[k] for k in EXTRA_CLASSES] == [1, 1, 1, 1, 1]
+    assert [got[k] for k in EXTRA_CLASSES] == [1, 1, 1, 1, 1, 1]
 
 
 def test_missed_targets_fall_in_the_peaks_routes_classes() -> None:
