@@ -1,5 +1,5 @@
 """Gap fill of a marker whose segment's two other markers are measured: its turn about
-their axis bridged by a spline.
+their axis carried across the gap by a cubic.
 
 A foot (heel, ankle, toe) or a shank (knee, tibia, ankle) carries three markers. With one
 hidden and the two others measured through the gap, the hidden one lies on a circle about
@@ -9,10 +9,11 @@ carrier to fix that angle, and a marker across a joint (the tibia for a heel) mo
 wrong; the two-marker fill (:func:`~kisscal.tracking.bodyfill.axis_fill`) holds the
 angle against a lab direction, which a foot rolling through stance and swing does not.
 Here the angle, measured against the lab direction least along the axis (the frame of
-:func:`~kisscal.tracking.bodyfill.axis_frames`), is bridged across the gap by a cubic
-interpolating spline through up to ``fill_context_fields`` samples on each side, as a
-spline bridges a coordinate; the place along the axis and the distance from it drift
-linearly from each side's mean to the other's.
+:func:`~kisscal.tracking.bodyfill.axis_frames`), is carried across the gap by a cubic
+in time fitted by least squares to up to ``fill_context_fields`` samples on each side
+(:data:`DEGREE`; an interpolating spline through them passed their noise on: 5 mm RMS
+against 0.7 on a 0.3 s gap with 0.3 mm noise); the place along the axis and the distance
+from it drift linearly from each side's mean to the other's.
 
 Its expected error is measured as for the other body fills
 (:func:`~kisscal.tracking.bodyfill.expected_errors`, on stretches of the marker's own
@@ -21,7 +22,7 @@ measured samples), which refuses it where the angle turns too fast for the splin
 References
 ----------
 Challis 1995 (segments as rigid bodies of markers); Gløersen & Federolf 2016 (gap
-filling from the other markers of the body); de Boor 1978 (cubic splines).
+filling from the other markers of the body).
 """
 
 from __future__ import annotations
