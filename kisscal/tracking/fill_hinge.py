@@ -17,7 +17,7 @@ from it drift linearly from each side's mean to the other's.
 
 Its expected error is measured as for the other body fills
 (:func:`~kisscal.tracking.bodyfill.expected_errors`, on stretches of the marker's own
-measured samples), which refuses it where the angle turns too fast for the spline.
+measured samples), which refuses it where the angle turns too fast for the cubic.
 
 References
 ----------
