@@ -3,7 +3,8 @@
 Gaps inside a trajectory (blended gaps, and coasted fields whose Kalman prediction is
 replaced by a two-sided estimate) are filled by a cubic interpolating spline through the
 measured samples on both sides when short, and from the body (rigid-body or pattern fill,
-:mod:`kisscal.tracking.bodyfill`) when longer. Smoothing uses the generalised
+:mod:`kisscal.tracking.bodyfill`; about two markers' axis, :mod:`kisscal.tracking.fill_hinge`)
+when longer. Smoothing uses the generalised
 cross-validation spline (Woltring 1986, the biomechanics standard),
 ``scipy.interpolate.make_smoothing_spline``.
 """
@@ -20,7 +21,6 @@ from scipy.interpolate import make_smoothing_spline
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
-    BODY_METHODS,
     Candidate,
     GapFill,
     best_candidate,
@@ -29,6 +29,7 @@ from kisscal.tracking.bodyfill import (
 )
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
+from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
@@ -80,7 +81,7 @@ def _fill_one(
     if not short and hi - lo > params.max_body_fill_fields:
         return []
     rays = spare is not None and spare.rows(lo, hi).size > 0
-    methods = ((FILLED, spline_fill),) if short else BODY_METHODS
+    methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
     cands = fill_candidates(dense, t, lo, hi, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
