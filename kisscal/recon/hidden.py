@@ -26,11 +26,14 @@ point that held ``c`` and an own blob moves to its marker's solved position.
 
 The trajectories are followed both ways, one field per round, so a pair merged for a
 stretch is found from the fields where it was seen apart. The prediction carries the
-trajectory only to the next field: the depths come from the blobs and the segment.
+trajectory only to the next field: the depths come from the blobs and the segment, save
+where the segment lies across the rays of the camera that sees the two apart; there the
+length barely changes as the depths trade, and the predictions hold them as a prior.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -276,12 +279,20 @@ def _solve_pair(
     """Both markers on their own blobs' rays (depths ``s``): the area-weighted mean of
     their images is blob ``c`` and they lie ``want`` (mm, a rigid segment) apart, by
     Gauss-Newton from the predictions ``pa``, ``pb``. Returns both points and the RMS
-    residual (px; the distance error in pixels at the markers)."""
+    residual (px; the distance error in pixels at the markers) of those three equations.
+
+    The blob and the length leave a valley, nearly flat when the segment lies across the
+    rays, along which the two depths trade: image noise moves its floor by many
+    millimetres. The predictions settle it, as a prior (Kalman's update): each depth's
+    offset from its prediction counts as an image residual of ``s / hidden_prediction_mm``
+    residual limits, so the fit keeps to them along the valley and to the blob across it.
+    """
     camera, uv, dlts = scene.camera, scene.uv, scene.dlts
     j = camera[c]
     a0, ua = _ray(dlts, camera[a], uv[a], pa)
     b0, ub = _ray(dlts, camera[b], uv[b], pb)
     px_mm = pixel_size_mm(dlts, j, np.nan_to_num(pa))
+    prior = scene.limit_px / scene.params.hidden_prediction_mm
 
     def resid(s: NDArray[np.float64]) -> NDArray[np.float64]:
         xa, xb = a0 + s[:, :1] * ua, b0 + s[:, 1:] * ub
@@ -289,18 +300,47 @@ def _solve_pair(
         wb = 1.0 / np.maximum(_depth_of(dlts, j, xb) ** 2, 1e-18)
         img = wa[:, None] * project_rows(dlts, j, xa) + wb[:, None] * project_rows(dlts, j, xb)
         cen = img / (wa + wb)[:, None] - uv[c]
-        return np.column_stack([cen, (np.linalg.norm(xa - xb, axis=1) - want) / px_mm])
+        length = (np.linalg.norm(xa - xb, axis=1) - want) / px_mm
+        return np.column_stack([cen, length, prior * s])
 
     s = np.zeros((len(c), 2))
+    cost = _cost(resid(s))
     for _ in range(_GAUSS_NEWTON):
         r0 = resid(s)
         jac = np.stack([(resid(s + e) - r0) / _STEP_MM for e in np.eye(2) * _STEP_MM], axis=2)
         g = np.einsum("nki,nkj->nij", jac, jac) + 1e-9 * np.eye(2)
-        s = s - np.linalg.solve(g, np.einsum("nki,nk->ni", jac, r0)[..., None])[..., 0]
-    r = resid(s)
+        step = np.linalg.solve(g, np.einsum("nki,nk->ni", jac, r0)[..., None])[..., 0]
+        s, cost = _backtrack(resid, s, step, cost)
+    r = resid(s)[:, :3]
     ok = np.all(np.isfinite(r), axis=1)
     rms = np.where(ok, np.sqrt(np.mean(np.nan_to_num(r) ** 2, axis=1)), np.inf)
     return a0 + s[:, :1] * ua, b0 + s[:, 1:] * ub, rms
+
+
+def _cost(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sum of squared residuals per row (inf where one is not finite)."""
+    c = np.sum(r**2, axis=1)
+    return np.where(np.isfinite(c), c, np.inf)
+
+
+def _backtrack(
+    resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    s: NDArray[np.float64],
+    step: NDArray[np.float64],
+    cost: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``s - t step`` for the largest ``t`` of 1, 1/2, 1/4, ... that lowers the cost, per
+    row (``s`` kept where none does), and its cost. The blob and the length leave a flat
+    valley along which the two depths trade: a full Gauss-Newton step overshoots across
+    it, and undamped steps went on oscillating 10 mm along it (Nocedal & Wright 2006,
+    backtracking line search)."""
+    s, cost, done = s.copy(), cost.copy(), np.zeros(len(s), dtype=bool)
+    for k in range(_HALVINGS):
+        trial = s - step * 0.5**k
+        c = _cost(resid(trial))
+        take = ~done & (c < cost)
+        s[take], cost[take], done = trial[take], c[take], done | take
+    return s, cost
 
 
 def _nearest_length(
@@ -376,6 +416,8 @@ def _outcome(
     return Hidden(new, moved, np.r_[xa[moves_a], xb[moves_b]])
 
 
-#: Gauss-Newton steps of :func:`_solve_pair` and its finite-difference step (mm).
-_GAUSS_NEWTON = 6
+#: Gauss-Newton steps of :func:`_solve_pair`, halvings of a step that does not lower the
+#: cost (:func:`_backtrack`) and the finite-difference step (mm).
+_GAUSS_NEWTON = 10
+_HALVINGS = 6
 _STEP_MM = 0.05

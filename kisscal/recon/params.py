@@ -86,15 +86,16 @@ class ReconParams(Params):
         Also place two markers that the same two cameras see, merged into one blob in
         one of them, by their trajectories (:mod:`kisscal.recon.hidden`): on their own
         rays, their images' area-weighted mean the merged blob, a rigid segment of the
-        marker set apart. Needs ``deblend_merged`` and the marker set (``body``). Off:
-        its points are right (within 3 mm) and raise two-camera recall (kiss 3 cameras
-        seed 302: 97.73 -> 98.87 %), but the labelling answers some of them with swapped
-        names (issue 27: kiss 3 cameras seed 301, 0 -> 645 switches with true points).
+        marker set apart. Needs ``deblend_merged`` and the marker set (``body``). Its
+        points lie within 3 mm of the truth and raise two-camera recall (issue 27: kiss
+        3 cameras seed 302, 97.73 -> 98.87 %) at no ghost's or identity switch's cost.
     hidden_prediction_mm : float
         Farthest (mm) such a marker's solved position lies from its trajectory's
         constant-velocity prediction: a marker beside another's image (hidden from that
         camera, not merged) fits the blob only when both are pushed along their rays
-        by more than a field's change of velocity.
+        by more than a field's change of velocity. Also the SD of those predictions
+        as the fit's prior, which holds the two depths where the blob and the length
+        leave them free to trade.
     deblend_max_cameras : int
         Largest rig that deblends: with more cameras a marker merged in one view is
         seen by three others nearly always, and the few deblended points (placed by
@@ -169,7 +170,7 @@ class ReconParams(Params):
     two_camera_carry_s: float = param(1.0, unit="s", ge=0)
     deblend_merged: bool = param(True)
     deblend_held: bool = param(True)
-    deblend_hidden: bool = param(False)
+    deblend_hidden: bool = param(True)
     hidden_prediction_mm: float = param(10.0, unit="mm", gt=0)
     deblend_max_cameras: int = param(4, ge=0)
     deblend_radius_px: float = param(3.0, unit="px", gt=0)

@@ -49,11 +49,23 @@ def _window(target: NDArray, lo: int, hi: int, after: bool, n: int) -> NDArray[n
     return hi + np.flatnonzero(ok[hi:])[:n] if after else np.flatnonzero(ok[:lo])[-n:]
 
 
+def _edge(window: NDArray, after: bool) -> int:
+    """The field of the end next to the measured fields ``window`` (after it when
+    ``after``, else before it)."""
+    return int(window[0] - 1 if after else window[-1] + 1)
+
+
 def end_donors(
-    target: NDArray, dense: NDArray, exclude: int, window: NDArray, params: TrackingParams
+    target: NDArray,
+    dense: NDArray,
+    exclude: int,
+    window: NDArray,
+    params: TrackingParams,
+    edge: int,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Tracks that carry ``target`` beside its measured fields ``window`` (measured on at
-    least two of them), and their weights, chosen as
+    least two of them, and in the end's field ``edge`` next to them), and their weights,
+    chosen as
     :func:`~kisscal.tracking.bodyfill.rigid_donors` chooses them across a gap: the
     segment (distances to the target and to each other within ``rigid_fill_sd_mm`` SD
     over the trial), most rigid first, weight 1; with two of them, neighbours across a
@@ -61,6 +73,10 @@ def end_donors(
     ``rigid_fill_markers``; the segment alone when it has two only and no neighbour."""
     none = np.zeros(0, dtype=np.int64), np.zeros(0)
     near = np.all(np.isfinite(dense[:, window]), axis=2).sum(axis=1) >= 2
+    # A marker on two segments (an ankle: shank and foot) is carried by the one measured
+    # where the end starts: chosen by rigidity alone, the other (lost there) carries
+    # nothing, and which one wins may turn on a tenth of a millimetre of SD.
+    near &= np.all(np.isfinite(dense[:, edge]), axis=1)
     near[exclude] = False
     cand = np.flatnonzero(near)
     if cand.size < 2:
@@ -106,7 +122,7 @@ def one_sided(after: bool, axis: bool = False) -> FillMethod:
         window = _window(target, lo, hi, after, params.body_context_fields)
         if window.size < 2:
             return None
-        donors, weight = end_donors(target, dense, exclude, window, params)
+        donors, weight = end_donors(target, dense, exclude, window, params, _edge(window, after))
         if axis:
             donors, weight = donors[:2], weight[:2]
         if donors.size < (2 if axis else 3) or not np.all(np.isfinite(dense[donors, lo:hi])):
@@ -164,7 +180,7 @@ def end_reach(
     window = _window(dense[t], lo, hi, after, params.body_context_fields)
     if window.size < 2:
         return 0
-    donors = end_donors(dense[t], dense, t, window, params)[0][:k]
+    donors = end_donors(dense[t], dense, t, window, params, _edge(window, after))[0][:k]
     if donors.size < 2:
         return 0
     seen = np.all(np.isfinite(dense[donors, lo:hi]), axis=(0, 2))

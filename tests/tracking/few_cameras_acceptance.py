@@ -4,8 +4,8 @@
     python -m tests.tracking.few_cameras_acceptance [seed] --gaps       # fill methods
     python -m tests.tracking.few_cameras_acceptance 101 --rig=lowcost   # one kind of rig
     python -m tests.tracking.few_cameras_acceptance --merge=first       # old merge model
-    python -m tests.tracking.few_cameras_acceptance --hidden            # recon/hidden.py on
-    python -m tests.tracking.few_cameras_acceptance --hidden --no-held  # deblend_held off
+    python -m tests.tracking.few_cameras_acceptance --no-hidden         # recon/hidden.py off
+    python -m tests.tracking.few_cameras_acceptance --no-held           # deblend_held off
 
 Default seeds 301-303, held out (development used 1-7; 101-103 were looked at while
 the body fill was built). Rigs: ``kisscal synth --preset lowcost``
@@ -78,8 +78,8 @@ class RigTrial:
 #: Where the scenario puts a merged blob (:func:`tests.recon.scenario.observe`'s ``merge``).
 MERGE = ["centroid"]
 
-#: Reconstruction settings of every trial (``--hidden``: markers merged in one view placed
-#: by a rigid segment, :mod:`kisscal.recon.hidden`, off by default).
+#: Reconstruction settings of every trial (``--no-hidden``: without the markers merged in
+#: one view placed by a rigid segment, :mod:`kisscal.recon.hidden`, on by default).
 RECON = [ReconParams()]
 
 #: Fields of the walk per preset: long enough to cross the volume (cut to the fields inside).
@@ -329,10 +329,10 @@ if __name__ == "__main__":
     only = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--rig=")), None)
     rigs = {k: v for k, v in RIGS.items() if only is None or k.startswith(only)}
     MERGE[0] = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--merge=")), MERGE[0])
-    if "--hidden" in sys.argv:
-        RECON[0] = ReconParams(deblend_hidden=True)
-    if "--no-held" in sys.argv:
-        RECON[0] = ReconParams(deblend_hidden="--hidden" in sys.argv, deblend_held=False)
+    if "--no-hidden" in sys.argv or "--no-held" in sys.argv:
+        RECON[0] = ReconParams(
+            deblend_hidden="--no-hidden" not in sys.argv, deblend_held="--no-held" not in sys.argv
+        )
     if "--gaps" in sys.argv:
         for preset in ("kiss", "modern", "lowcost"):
             print("\n".join(gap_table(preset, seeds[0])))

@@ -119,3 +119,31 @@ def test_no_end_fill_when_the_body_fills_are_off():
     tracks = _tracks_of(xyz, {3: slice(0, 40)})
     off = TrackingParams(max_body_fill_fields=5)
     assert not is_filled(fill_gaps_logged(tracks, off, labels=NAMES)[0].status).any()
+
+
+def _ankle(seed: int) -> np.ndarray:
+    """A marker on two segments (an ankle: of the shank and of the foot) and three more
+    of each, the foot turning about it by up to 0.5 rad: (7, N, 3); the shank's markers
+    (0-2) measured with 0.1 mm noise, the foot's (4-6) with 0.4 mm, the ankle (3) 0.1 mm."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    shank = rigid_body(seed=seed)
+    t = np.arange(shank.shape[1]) / 100.0
+    turn = Rotation.from_rotvec(np.stack([0.5 * np.sin(3 * t), 0.2 * np.cos(2 * t), 0 * t], 1))
+    foot = np.array([[0.0, 120, -40], [0, -60, -50], [60, 0, -70]])
+    xyz = np.concatenate([shank, np.stack([turn.apply(p) + shank[3] for p in foot])])
+    sd = np.array([0.1, 0.1, 0.1, 0.1, 0.4, 0.4, 0.4])[:, None, None]
+    return xyz + rng.normal(0, 1, xyz.shape) * sd
+
+
+def test_end_fill_carries_a_marker_on_two_segments_by_the_one_measured_there():
+    # the ankle lost before field 40, the shank (more rigid to it) before 50, the foot
+    # measured throughout: the foot carries the ankle back to field 0 (chosen by
+    # rigidity alone, the shank would, and carry nothing where it is lost)
+    xyz = _ankle(seed=7)
+    tracks = _tracks_of(xyz, {3: slice(0, 40), 0: slice(0, 50), 1: slice(0, 50), 2: slice(0, 50)})
+    out = fill_gaps_logged(tracks, TrackingParams(), labels=tuple("ABCDEFG"))[0]
+    f, err = _filled_error(out, xyz, 3)
+    assert set(f.tolist()) == set(range(40))
+    assert np.sqrt(np.mean(err**2)) < 1.5
