@@ -77,8 +77,8 @@ def imported_linearisation(
             f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
         )
     region = read_fit_regions(path, config.camera_ids, _names(config))[cam.id]
-    imported = camera_from_opencv(cv, region_px=region)
-    lin, rms = imported.linearisation, imported.rms_px
+    imported, rms = camera_from_opencv(cv, region_px=region)
+    lin = imported.linearisation
     doc = linearisation_to_dict(lin, cam.id)
     doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
     doc["fit_rms_px"] = rms  # polynomial (and L12..L16) vs OpenCV's undistortion
@@ -125,8 +125,8 @@ def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
     path = _source(inputs.config, "cameras")
     cvs = read_cameras_toml(path, [c.id for c in inputs.cameras], _names(inputs.config))
     regions = read_fit_regions(path, [c.id for c in inputs.cameras], _names(inputs.config))
-    imported = {c: camera_from_opencv(cv, region_px=regions[c]) for c, cv in cvs.items()}
-    files = {c: DltFile(c, m.L, lens=m.lens) for c, m in imported.items()}
+    imported = {c: camera_from_opencv(cv, region_px=regions[c])[0] for c, cv in cvs.items()}
+    files = {c: DltFile(c, m.dlt, lens=m.kolahi) for c, m in imported.items()}
     return _write(inputs, files, "cameras", path)
 
 
