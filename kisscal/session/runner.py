@@ -48,11 +48,7 @@ DERIVATION_VERSION = 4
 
 
 def camera_detection(
-    config: SessionConfig,
-    camera: CameraConfig,
-    kind: str,
-    params: StageParams,
-    echo: Echo = quiet,
+    config: SessionConfig, camera: CameraConfig, kind: str, params: StageParams, echo: Echo = quiet
 ) -> DetectionParams:
     """Detection parameters of one camera for its ``"grid"`` or ``"markers"`` images.
 

@@ -84,12 +84,7 @@ def track(
 
 
 def _track_trial(
-    root: Path,
-    config: SessionConfig,
-    trial: str,
-    spec: MarkerSpec,
-    params: StageParams,
-    echo: Echo,
+    root: Path, config: SessionConfig, trial: str, spec: MarkerSpec, params: StageParams, echo: Echo
 ) -> Trajectories:
     """Track and label one trial and write its outputs: gait ones, or, for the static
     trial, the subject's template (checked before anything is written)."""
@@ -240,14 +235,7 @@ def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate
         result,
         f"trial {trial}: trajectories (mm)",
     )
-    figure(
-        root,
-        f"segments_{trial}",
-        segment_length_figure,
-        result,
-        segments,
-        rate_hz,
-    )
+    figure(root, f"segments_{trial}", segment_length_figure, result, segments, rate_hz)
 
 
 def _with_static(
