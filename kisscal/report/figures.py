@@ -61,15 +61,9 @@ def scale_key(ax, arrows, length: float, label: str, fontsize: float = 7) -> Non
     bottom, top = ax.get_ylim()
     band = 0.14 * abs(top - bottom)
     ax.set_ylim(bottom + band if bottom > top else bottom - band, top)
+    font = {"size": fontsize}
     ax.quiverkey(
-        arrows,
-        0.80,
-        0.05,
-        length,
-        label,
-        labelpos="E",
-        coordinates="axes",
-        fontproperties={"size": fontsize},
+        arrows, 0.80, 0.05, length, label, labelpos="E", coordinates="axes", fontproperties=font
     )
 
 

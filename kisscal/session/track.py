@@ -228,13 +228,8 @@ def _trial_fields(files: TrialFiles, field: np.ndarray) -> int:
 
 
 def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:
-    figure(
-        root,
-        f"trajectories_{trial}",
-        trajectories_figure,
-        result,
-        f"trial {trial}: trajectories (mm)",
-    )
+    title = f"trial {trial}: trajectories (mm)"
+    figure(root, f"trajectories_{trial}", trajectories_figure, result, title)
     figure(root, f"segments_{trial}", segment_length_figure, result, segments, rate_hz)
 
 
