@@ -38,7 +38,6 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -264,22 +263,13 @@ def _extent(uv: NDArray[np.float64] | None) -> tuple[float, float, float, float]
     return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
 
 
-class ImportedCamera(NamedTuple):
-    """kisscal's model of an OpenCV camera (:func:`camera_from_opencv`)."""
-
-    L: NDArray[np.float64]
-    linearisation: Linearisation
-    lens: NDArray[np.float64] | None
-    rms_px: float
-
-
 def camera_from_opencv(
     cv: Camera,
     step_px: float = GRID_STEP_PX,
     lens_terms: bool = True,
     region_px: ArrayLike | None = None,
     outside_weight: float = REGION_OUTSIDE_WEIGHT,
-) -> ImportedCamera:
+) -> tuple[Camera, float]:
     """kisscal's model of an OpenCV camera: the DLT of ``K [R | t]``, a 4th-order
     linearisation and, with ``lens_terms``, Kolahi's L12..L16 on top, fitted together to
     OpenCV's undistortion over the image.
@@ -301,10 +291,12 @@ def camera_from_opencv(
 
     Returns
     -------
-    ImportedCamera
-        ``L`` (11,), ``linearisation``, ``lens`` (L12..L16, or None) and ``rms_px``, the
-        RMS distance between kisscal's undistortion and OpenCV's over the image (within
-        ``region_px`` when given).
+    camera : Camera
+        The DLT of ``K [R | t]`` (:attr:`Camera.dlt`, as OpenCV's matrix gives it), its
+        ``linearisation`` and ``kolahi`` (L12..L16, or None); no Brown terms.
+    rms_px : float
+        The RMS distance between kisscal's undistortion and OpenCV's over the image
+        (within ``region_px`` when given).
     """
     w, h = cv.size_px
     raw = image_grid(cv.size_px, step_px)
@@ -315,8 +307,8 @@ def camera_from_opencv(
     centre, scale = ((w - 1) / 2, (h - 1) / 2), (w - 1) / 2
     lin = fit_polynomial(raw, ideal, centre, scale, weights=weight)
     plain_rms = rms_px((apply_linearisation(lin, raw) - ideal)[inside])
-    plain = ImportedCamera(cv.dlt, lin, None, plain_rms)
-    if not lens_terms or plain.rms_px < 1e-6:
+    plain = (Camera.from_dlt(cv.dlt, cv.id, lin, None, cv.size_px), plain_rms)
+    if not lens_terms or plain_rms < 1e-6:
         return plain
     frame = lens_frame(dlt_to_matrix(cv.dlt))
     basis = np.stack([lens_offsets(raw, frame, e) for e in np.eye(N_LENS)], axis=-1)
@@ -361,7 +353,9 @@ def camera_from_opencv(
     ).x
     lin_p = Linearisation(centre, scale, p[:n], p[n : 2 * n])
     rms = rms_px(gaps(p)[inside])
-    return ImportedCamera(cv.dlt, lin_p, p[2 * n :] / unit, rms) if rms < plain.rms_px else plain
+    if rms >= plain_rms:
+        return plain
+    return Camera.from_dlt(cv.dlt, cv.id, lin_p, p[2 * n :] / unit, cv.size_px), rms
 
 
 def region_weights(

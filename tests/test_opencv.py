@@ -29,19 +29,19 @@ def bent_camera(rng: np.random.Generator) -> Camera:
     """A strong Brown lens read in as kisscal's polynomial, then bent a few tenths of a
     pixel in every term: a lens no OpenCV model follows everywhere."""
     cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
+    lin = camera_from_opencv(cv, lens_terms=False)[0].linearisation
     bent = lin.__class__(
         lin.center_px, lin.scale_px, lin.x + rng.normal(0, 0.3, lin.x.shape), lin.y, None
     )
-    return Camera.from_dlt(L, "c1", bent, size_px=cv.size_px)
+    return Camera.from_dlt(cv.dlt, "c1", bent, size_px=cv.size_px)
 
 
 @pytest.mark.parametrize(("k1", "k2"), [(-0.05, 0.0), (0.05, 0.0), (-0.1, 0.02)])
 def test_round_trip_through_kisscal_keeps_the_projection(k1, k2):
     cv = brown_camera(k1=k1, k2=k2)
-    L, lin, lens, rms = camera_from_opencv(cv)
+    cam, rms = camera_from_opencv(cv)
     assert rms < 0.01  # a 4th-order polynomial and L12..L16 follow a moderate lens
-    cam = Camera.from_dlt(L, "c1", lin, lens, size_px=cv.size_px)
+    assert cam.size_px == cv.size_px and not cam.has_brown  # OpenCV's lens is in L12..L16
     fit = opencv_from_camera(cam)
     assert fit.rms_px < 0.05 and abs(fit.skew_px) < 1e-6
     rng = np.random.default_rng(1)
@@ -59,21 +59,23 @@ def test_a_strong_lens_beyond_the_polynomial_is_followed_with_the_lens_terms():
     pixels as OpenCV's terms are in normalised coordinates, it is followed closely, and
     the imported camera images lab points where OpenCV's does."""
     cv = brown_camera(k1=-0.25)
-    plain = camera_from_opencv(cv, lens_terms=False)
-    both = camera_from_opencv(cv)
-    assert plain.lens is None and plain.rms_px > 0.5
-    assert both.lens is not None and both.rms_px < 0.1 * plain.rms_px
-    cam = Camera.from_dlt(both.L, "c1", both.linearisation, both.lens, size_px=cv.size_px)
+    (plain, plain_rms), (cam, rms) = (
+        camera_from_opencv(cv, lens_terms=False),
+        camera_from_opencv(cv),
+    )
+    assert plain.kolahi is None and plain_rms > 0.5
+    assert cam.kolahi is not None and rms < 0.1 * plain_rms
     xyz = np.random.default_rng(2).uniform(-800, 800, (2000, 3))
     uv = cv.project(xyz)
     inside = cv.in_image(uv, 20.0)
     d = np.hypot(*(cam.project(xyz) - uv)[inside].T)
-    assert inside.sum() > 500 and np.sqrt(np.mean(d**2)) < 0.1 * plain.rms_px
+    assert inside.sum() > 500 and np.sqrt(np.mean(d**2)) < 0.1 * plain_rms
 
 
 def test_skew_is_reported_and_fitted_around():
     cv = brown_camera(k1=-0.1)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
+    imported = camera_from_opencv(cv, lens_terms=False)[0]
+    L, lin = imported.dlt, imported.linearisation
     K = np.array([[1400.0, 2.0, 650.0], [0, 1390.0, 500.0], [0, 0, 1]])
     from kisscal.dlt.camera import decompose_dlt
     from kisscal.dlt.model import dlt_from_krt
@@ -203,8 +205,7 @@ def test_a_volume_reaching_far_beyond_the_view_fits_on_the_part_the_camera_sees(
     it lies far outside its view, where its polynomial cannot be inverted. Those points
     are left out, not an error; those it sees all land on its image."""
     cv = brown_camera(k1=-0.1, k2=0.02)
-    L, lin, _, _ = camera_from_opencv(cv, lens_terms=False)
-    cam = Camera.from_dlt(L, "c1", lin, size_px=cv.size_px)
+    cam = camera_from_opencv(cv, lens_terms=False)[0]
     ahead = cam.R.T @ (np.array([0.0, 0.0, 4200.0]) - cam.t)
     volume = (ahead - 30000.0, ahead + 30000.0)
     raw, rays = volume_rays(cam, volume)
@@ -230,7 +231,7 @@ def test_the_import_follows_opencv_closer_within_the_region_the_export_fitted():
     assert 0.1 < within.mean() < 0.8
 
     def gap(imported) -> np.ndarray:  # px between kisscal's undistortion and OpenCV's
-        back = Camera.from_dlt(imported.L, "c1", imported.linearisation, imported.lens)
+        back = imported[0]
         return np.hypot(*(back.undistort_px(grid) - fit.camera.undistort_px(grid)).T)
 
     whole = gap(camera_from_opencv(fit.camera))

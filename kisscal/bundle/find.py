@@ -64,9 +64,7 @@ def wand_fractions(markers_mm: ArrayLike) -> NDArray[np.float64]:
 
 
 def find_wand_images(
-    blobs_px: Sequence[ArrayLike],
-    markers_mm: ArrayLike,
-    params: BundleParams = DEFAULT_PARAMS,
+    blobs_px: Sequence[ArrayLike], markers_mm: ArrayLike, params: BundleParams = DEFAULT_PARAMS
 ) -> WandImages:
     """The wand in each field of one camera (blobs already cleared of stationary ones).
 

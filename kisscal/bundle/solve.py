@@ -168,11 +168,7 @@ def _normal_equations(problem: Problem, blocks: _Blocks, state: State, loss: Los
 
 
 def _damped_step(
-    problem: Problem,
-    blocks: _Blocks,
-    normal: tuple,
-    lam: float,
-    free: NDArray[np.bool_],
+    problem: Problem, blocks: _Blocks, normal: tuple, lam: float, free: NDArray[np.bool_]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     U, V, W, g_cam, g_wand = normal
     C = problem.n_cameras

@@ -260,13 +260,7 @@ def calibrate(
 
     with progress_bars() as echo:
         session.calibrate(
-            session_dir,
-            camera=camera,
-            mdlt=mdlt,
-            refine=refine,
-            lens=lens,
-            echo=echo,
-            route=route,
+            session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=echo, route=route
         )
 
 

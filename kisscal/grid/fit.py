@@ -265,9 +265,7 @@ def fit_linearisation(
 
 
 def linearise_dots(
-    dots_uv: ArrayLike,
-    params: GridParams | None = None,
-    size_px: tuple[int, int] | None = None,
+    dots_uv: ArrayLike, params: GridParams | None = None, size_px: tuple[int, int] | None = None
 ) -> GridFit:
     """Index detected grid dots and fit the linearisation: the whole stage on 2D dots.
 

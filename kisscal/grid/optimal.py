@@ -135,10 +135,7 @@ def primary_grid(dots_uv: ArrayLike, index: LatticeIndex) -> PrimaryGrid:
     dx = 0.5 * (np.linalg.norm(pts[i] - left) + np.linalg.norm(right - pts[i]))
     dy = 0.5 * (np.linalg.norm(pts[i] - up) + np.linalg.norm(down - pts[i]))
     uv = np.column_stack(
-        [
-            pts[i, 0] + (index.col[ok] - c) * dx,
-            pts[i, 1] + (index.row[ok] - r) * dy,
-        ]
+        [pts[i, 0] + (index.col[ok] - c) * dx, pts[i, 1] + (index.row[ok] - r) * dy]
     )
     return PrimaryGrid((r, c), pts[i].copy(), float(dx), float(dy), uv)
 
@@ -202,10 +199,7 @@ def _fit_homography(g: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[n
 
 
 def optimal_grid(
-    primary: PrimaryGrid,
-    dots_uv: ArrayLike,
-    index: LatticeIndex,
-    params: GridParams | None = None,
+    primary: PrimaryGrid, dots_uv: ArrayLike, index: LatticeIndex, params: GridParams | None = None
 ) -> OptimalGrid:
     """Least-squares optimal grid (Küçük 2005, section 2.2, eq. 2.1).
 

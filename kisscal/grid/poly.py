@@ -34,10 +34,7 @@ TERM_NAMES = (
     "v^4",
 )
 # (power of u, power of v) of each term, in the thesis' order.
-TERM_POWERS = np.array(
-    [(i - j, j) for i in range(5) for j in range(i + 1)],
-    dtype=int,
-)
+TERM_POWERS = np.array([(i - j, j) for i in range(5) for j in range(i + 1)], dtype=int)
 
 
 @dataclass(frozen=True)
@@ -274,11 +271,7 @@ def _jacobian(lin: Linearisation, uv: NDArray[np.float64]) -> NDArray[np.float64
 
 
 def invert_linearisation(
-    lin: Linearisation,
-    uv: ArrayLike,
-    *,
-    tol_px: float = 1e-9,
-    max_iter: int = 30,
+    lin: Linearisation, uv: ArrayLike, *, tol_px: float = 1e-9, max_iter: int = 30
 ) -> NDArray[np.float64]:
     """Distorted coordinates whose linearisation is ``uv``, by Newton iteration.
 

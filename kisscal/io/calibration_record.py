@@ -129,8 +129,9 @@ class WandRecord:
 
 
 @dataclass(frozen=True)
-class TargetCamera:
-    """One camera's match of the known target (None: not in the document)."""
+class TargetMatchRecord:
+    """The figures of one camera's match of the known target (None: not in the document):
+    a record of the match, not a camera model."""
 
     visible: int | None
     matched: int | None
@@ -145,11 +146,11 @@ class TargetRecord:
 
     Attributes
     ----------
-    cameras : mapping of str -> TargetCamera
+    cameras : mapping of str -> TargetMatchRecord
         Each camera's visible and matched points and its reprojection errors.
     """
 
-    cameras: Mapping[str, TargetCamera]
+    cameras: Mapping[str, TargetMatchRecord]
 
     @classmethod
     def read(cls, doc: Any) -> TargetRecord | None:
@@ -159,8 +160,8 @@ class TargetRecord:
             return None
         return cls(
             {
-                str(c): TargetCamera(
-                    unmatched=len(e.get("unmatched") or ()), **_numbers(TargetCamera, e)
+                str(c): TargetMatchRecord(
+                    unmatched=len(e.get("unmatched") or ()), **_numbers(TargetMatchRecord, e)
                 )
                 for c, e in cams.items()
                 if isinstance(e, Mapping)

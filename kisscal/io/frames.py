@@ -293,12 +293,7 @@ def is_video(pattern: str) -> bool:
 
 
 def camera_frames(
-    root: Path,
-    pattern: str,
-    camera: str,
-    what: str,
-    video: bool = False,
-    fields: str | None = None,
+    root: Path, pattern: str, camera: str, what: str, video: bool = False, fields: str | None = None
 ) -> Sequence:
     """The frames of one camera, as a lazy sequence: image files, or one video (``video``,
     or a pattern ending in a video suffix); with ``fields``, split into fields."""

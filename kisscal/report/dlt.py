@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal._shared import fixed_margins, new_figure
-from kisscal.report.figures import arrow_gain, nice_number, scale_key
+from kisscal.report.figures import arrow_gain, image_outline, nice_number, scale_key
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -79,28 +79,16 @@ def residual_figure(
         uv = np.asarray(c.uv_px, dtype=float).reshape(-1, 2)
         r = np.asarray(c.residuals_px, dtype=float).reshape(-1, 2)
         w, h = c.size_px
-        ax.plot(
-            [-0.5, w - 0.5, w - 0.5, -0.5, -0.5], [-0.5, -0.5, h - 0.5, h - 0.5, -0.5], "k-", lw=0.5
-        )
+        image_outline(ax, c.size_px, "k-", lw=0.5)
         ax.plot(uv[:, 0], uv[:, 1], "o", ms=2.5, color="tab:blue")
-        arrows = ax.quiver(
-            uv[:, 0],
-            uv[:, 1],
-            r[:, 0] * scale,
-            r[:, 1] * scale,
-            angles="xy",
-            scale_units="xy",
-            scale=1,
-            color="tab:red",
-            width=0.004,
-        )
+        to_scale = {"angles": "xy", "scale_units": "xy", "scale": 1}  # arrows in data px
+        arrows = ax.quiver(*uv.T, *(r * scale).T, **to_scale, color="tab:red", width=0.004)
         ax.set_xlim(-10, w + 10)
         ax.set_ylim(h + 10, -10)  # image y axis points down
         ax.set_aspect("equal")
         scale_key(ax, arrows, key * scale, f"{key:g} px")
         ax.set_title(
-            f"{name}: rms {c.rms_px:.3f} px, {len(uv)} points, arrows x{scale:.0f}",
-            fontsize=9,
+            f"{name}: rms {c.rms_px:.3f} px, {len(uv)} points, arrows x{scale:.0f}", fontsize=9
         )
         ax.tick_params(labelsize=7)
     return fig

@@ -203,23 +203,10 @@ def epipolar_figure(
         grey = np.array([k in hidden for k in own], dtype=bool)
         free = ~shown & ~grey
         if shown.any():
-            ax.scatter(
-                pts[j][shown, 0],
-                pts[j][shown, 1],
-                s=60,
-                facecolors="none",
-                edgecolors=[colour_of[k] for k, s in zip(own, shown, strict=True) if s],
-                linewidths=1.6,
-            )
+            edges = [colour_of[k] for k, s in zip(own, shown, strict=True) if s]
+            ax.scatter(*pts[j][shown].T, s=60, facecolors="none", edgecolors=edges, linewidths=1.6)
         if grey.any():
-            ax.scatter(
-                pts[j][grey, 0],
-                pts[j][grey, 1],
-                s=30,
-                facecolors="none",
-                edgecolors="0.55",
-                linewidths=1.0,
-            )
+            ax.scatter(*pts[j][grey].T, s=30, facecolors="none", edgecolors="0.55", linewidths=1.0)
         if free.any():
             ax.scatter(pts[j][free, 0], pts[j][free, 1], s=25, c="0.3", marker="x")
         _frame(ax, pts[j], w, h)

@@ -61,16 +61,17 @@ def scale_key(ax, arrows, length: float, label: str, fontsize: float = 7) -> Non
     bottom, top = ax.get_ylim()
     band = 0.14 * abs(top - bottom)
     ax.set_ylim(bottom + band if bottom > top else bottom - band, top)
+    font = {"size": fontsize}
     ax.quiverkey(
-        arrows,
-        0.80,
-        0.05,
-        length,
-        label,
-        labelpos="E",
-        coordinates="axes",
-        fontproperties={"size": fontsize},
+        arrows, 0.80, 0.05, length, label, labelpos="E", coordinates="axes", fontproperties=font
     )
+
+
+def image_outline(ax, size_px: tuple[int, int], *style: str, **kw: object) -> None:
+    """Draw the edge of an image of ``size_px`` (width, height) on ``ax``: pixel centres
+    are at whole numbers, so the edge runs half a pixel outside the outer ones."""
+    w, h = size_px[0] - 0.5, size_px[1] - 0.5
+    ax.plot([-0.5, w, w, -0.5, -0.5], [-0.5, -0.5, h, h, -0.5], *style, **kw)
 
 
 def panel_grid(
@@ -153,14 +154,8 @@ def throw_figure(fit: ThrowFit, g_m_s2: float = 9.81, title: str = "") -> Figure
     t = fit.time_s
     dense_t = np.linspace(t.min(), t.max(), 200)
     ax.plot(t, fit.xyz_mm[:, 2], "o", ms=3, color="tab:blue", label=f"measured {fit.label}")
-    ax.plot(
-        dense_t,
-        np.polyval(fit.coefficients[2], dense_t),
-        "-",
-        color="k",
-        lw=1,
-        label=f"parabola, g = {fit.g_m_s2:.3f} m/s²",
-    )
+    parabola = np.polyval(fit.coefficients[2], dense_t)
+    ax.plot(dense_t, parabola, "-", color="k", lw=1, label=f"parabola, g = {fit.g_m_s2:.3f} m/s²")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("height Z (mm)")
     ax.legend(fontsize=7)

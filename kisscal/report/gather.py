@@ -137,10 +137,7 @@ def _trial(store: SessionStore, name: str, notes: list[str]) -> TrialOutputs:
         status = np.asarray(STATUS_NAMES)[t.status]
         dense = dense_trajectories(t.field, t.track, t.label, t.xyz_mm, status)
     return TrialOutputs(
-        name,
-        dense,
-        _table(files.events, notes),
-        _table(files.spatiotemporal, notes),
+        name, dense, _table(files.events, notes), _table(files.spatiotemporal, notes)
     )
 
 

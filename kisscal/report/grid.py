@@ -12,7 +12,7 @@ import numpy as np
 
 from kisscal._shared import fixed_margins, new_figure
 from kisscal.grid.fit import GridFit
-from kisscal.report.figures import arrow_gain, nice_number, scale_key
+from kisscal.report.figures import arrow_gain, image_outline, nice_number, scale_key
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -49,29 +49,17 @@ def grid_correction_figure(
         ``correction_gain`` times), missing and rejected positions.
         Bottom: residual vectors (corrected - optimal), magnified ``vector_gain`` times.
     """
-    lin = fit.linearisation
-    q = lin.quality
-    dist = fit.grid_uv
-    corr = fit.corrected_uv
-    opt = fit.optimal.uv
+    q, dist, corr, opt = fit.linearisation.quality, fit.grid_uv, fit.corrected_uv, fit.optimal.uv
     fig = new_figure(9.0, 7.5, constrained=False)
     ax, bx = fig.subplots(
         2, 1, gridspec_kw=fixed_margins((9.0, 7.5), (2, 1), (0.75, 0.15, 0.55, 0.3), (0, 0.85))
     )
     ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
     ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
-    ax.quiver(
-        dist[:, 0],
-        dist[:, 1],
-        (corr[:, 0] - dist[:, 0]) * correction_gain,
-        (corr[:, 1] - dist[:, 1]) * correction_gain,
-        angles="xy",
-        scale_units="xy",
-        scale=1.0,
-        width=0.0015,
-        color="0.3",
-        label=f"correction x {correction_gain:g}",
-    )
+    to_scale = {"angles": "xy", "scale_units": "xy", "scale": 1.0}  # arrows in data px
+    label = f"correction x {correction_gain:g}"
+    moved = (corr - dist) * correction_gain
+    ax.quiver(*dist.T, *moved.T, **to_scale, width=0.0015, color="0.3", label=label)
     if len(fit.index.missing_uv):
         m = fit.index.missing_uv
         ax.plot(m[:, 0], m[:, 1], "o", mfc="none", color="tab:orange", label="missing dot")
@@ -89,32 +77,13 @@ def grid_correction_figure(
     span = np.ptp(opt, axis=0) if len(opt) else np.ones(2)
     spacing = float(np.sqrt(max(span[0] * span[1], 1.0) / max(len(opt), 1)))
     gain = vector_gain if vector_gain is not None else arrow_gain(res, 0.6 * spacing)
-    arrows = bx.quiver(
-        opt[:, 0],
-        opt[:, 1],
-        res[:, 0] * gain,
-        res[:, 1] * gain,
-        angles="xy",
-        scale_units="xy",
-        scale=1.0,
-        width=0.0025,
-        color="tab:blue",
-    )
+    arrows = bx.quiver(*opt.T, *(res * gain).T, **to_scale, width=0.0025, color="tab:blue")
     key = nice_number(0.6 * spacing / gain)
-    bx.set_title(
-        f"residual vectors (corrected - optimal grid), magnified x {gain:.0f}",
-        fontsize=9,
-        loc="left",
-    )
+    magnified = f"residual vectors (corrected - optimal grid), magnified x {gain:.0f}"
+    bx.set_title(magnified, fontsize=9, loc="left")
     for a in (ax, bx):
         if size_px is not None:
-            w, h = size_px
-            a.plot(
-                [-0.5, w - 0.5, w - 0.5, -0.5, -0.5],
-                [-0.5, -0.5, h - 0.5, h - 0.5, -0.5],
-                color="0.7",
-                lw=0.8,
-            )
+            image_outline(a, size_px, color="0.7", lw=0.8)
         a.set_aspect("equal")
         a.invert_yaxis()
         a.set_xlabel("u (px)")

@@ -186,16 +186,9 @@ def status_section(
             )
         )
     rows = [[badge(v.state), v.scope, v.result, v.limit] for v in calibration + trials]
-    return tag(
-        "section",
-        join(
-            [
-                tag("div", join(tiles), class_="tiles"),
-                table(["", "check", "result", "limit"], rows, (), "status"),
-            ]
-        ),
-        id="status",
-    )
+    head = ["", "check", "result", "limit"]
+    body = join([tag("div", join(tiles), class_="tiles"), table(head, rows, (), "status")])
+    return tag("section", body, id="status")
 
 
 def _header(o: SessionOutputs) -> Html:

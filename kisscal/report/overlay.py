@@ -61,23 +61,7 @@ def draw_overlay(
         ay = blobs.h_px[i] * sy / 2 * one
         centre = (round(cx), round(cy))
         cv2.ellipse(rgb, centre, (round(ax), round(ay)), 0, 0, 360, colour, 1, cv2.LINE_8, _SHIFT)
-        arm = 3 * one
-        cv2.line(
-            rgb,
-            (centre[0] - arm, centre[1]),
-            (centre[0] + arm, centre[1]),
-            colour,
-            1,
-            cv2.LINE_8,
-            _SHIFT,
-        )
-        cv2.line(
-            rgb,
-            (centre[0], centre[1] - arm),
-            (centre[0], centre[1] + arm),
-            colour,
-            1,
-            cv2.LINE_8,
-            _SHIFT,
-        )
+        (u, v), arm = centre, 3 * one
+        for a, b in (((u - arm, v), (u + arm, v)), ((u, v - arm), (u, v + arm))):  # a cross
+            cv2.line(rgb, a, b, colour, 1, cv2.LINE_8, _SHIFT)
     return rgb

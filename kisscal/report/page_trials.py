@@ -160,27 +160,14 @@ def marker_details(
         ]
         worst = max(s.sd_mm for s in a.segments)
         parts.append(tag("h4", f"Rigid segments: length SD at most {worst:.2f} mm"))
-        parts.append(
-            table(
-                ["segment", "mean length (mm)", "SD (mm)", "max − min (mm)", "fields"],
-                seg_rows,
-                range(1, 5),
-                "compact",
-            )
-        )
+        head = ["segment", "mean length (mm)", "SD (mm)", "max − min (mm)", "fields"]
+        parts.append(table(head, seg_rows, range(1, 5), "compact"))
         fig = f"segments_{a.name}"
         if fig in o.figures:
             used.add(fig)
-            parts.append(
-                details(
-                    "length curves of every segment",
-                    png(
-                        o.figures[fig],
-                        fig,
-                        "Length over time: measured (solid) and Kalman-corrected (dashed).",
-                    ),
-                )
-            )
+            caption = "Length over time: measured (solid) and Kalman-corrected (dashed)."
+            curves = png(o.figures[fig], fig, caption)
+            parts.append(details("length curves of every segment", curves))
     fig = f"trajectories_{a.name}"
     if fig in o.figures:
         used.add(fig)

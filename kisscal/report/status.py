@@ -114,11 +114,7 @@ def analyse_trial(o: SessionOutputs, t: TrialOutputs) -> TrialAnalysis:
     )
     throw = None if stick else throw_fit(t.dense, t.name, o.rate_hz, lim.g_m_s2, labelled)
     return TrialAnalysis(
-        t.name,
-        marker_stats(t.dense),
-        segment_stats(t.dense, o.segments),
-        stick,
-        throw,
+        t.name, marker_stats(t.dense), segment_stats(t.dense, o.segments), stick, throw
     )
 
 

@@ -30,11 +30,7 @@ def thin_step(n_markers: int, n_fields: int, max_samples: int) -> int:
 
 
 def trial_data(
-    name: str,
-    dense: Dense,
-    rate_hz: float,
-    segments: Sequence[tuple[str, str]],
-    max_samples: int,
+    name: str, dense: Dense, rate_hz: float, segments: Sequence[tuple[str, str]], max_samples: int
 ) -> dict[str, Any]:
     """One trial for the viewer: thinned positions in whole mm, gaps as ``null``."""
     step = thin_step(len(dense.labels), dense.n_fields, max_samples)

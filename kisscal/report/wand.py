@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal._shared import new_figure
+from kisscal.report.figures import image_outline
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -52,7 +53,7 @@ def coverage_figure(cameras: Mapping[str, WandView], columns: int = 3) -> Figure
         uv = np.asarray(view.uv_px, dtype=float).reshape(-1, 2)
         w, h = view.size_px
         ax = fig.add_subplot(rows, cols, k + 1)
-        ax.plot([-0.5, w - 0.5, w - 0.5, -0.5, -0.5], [-0.5, -0.5, h - 0.5, h - 0.5, -0.5], "k-")
+        image_outline(ax, view.size_px, "k-")
         ax.plot(uv[:, 0], uv[:, 1], ".", ms=1.2, color="tab:blue", alpha=0.5)
         ax.set_xlim(-10, w + 10)
         ax.set_ylim(h + 10, -10)

@@ -80,15 +80,8 @@ def calibrate(
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
     route, why = session_route(config, route)
     echo(f"  calibrate: route {route} ({why})")
-    inputs = RouteInputs(
-        root,
-        config,
-        select_cameras(config, camera),
-        grid_linearisations(config, echo),
-        params,
-        echo,
-        workers,
-    )
+    cameras, lins = select_cameras(config, camera), grid_linearisations(config, echo)
+    inputs = RouteInputs(root, config, cameras, lins, params, echo, workers)
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated

@@ -220,12 +220,7 @@ def export(
             **_meta(dict(zip(names, fits.values(), strict=True))),
         }
         path = write_cameras_toml(
-            dest or store.pose2sim_path,
-            cams,
-            meta,
-            units="m",
-            names=names,
-            k3=False,
+            dest or store.pose2sim_path, cams, meta, units="m", names=names, k3=False
         )
         echo(f"{path}: {len(cams)} cameras as {', '.join(names)} (Pose2Sim layout, m)")
         return [path]

@@ -103,23 +103,13 @@ def gait_outputs(
         for side in ("left", "right")
         for event in ("foot_strike", "foot_off")
     }
-    write_json(
-        files.gait,
-        {
-            "events": counts,
-            "markers": markers.names,
-            "spatiotemporal": parameters.summary(),
-            "warnings": list(events.warnings),
-        },
-    )
-    figure(
-        root,
-        f"gait_{trial}",
-        gait_cycle_figure,
-        markers,
-        events,
-        None,
-        f"trial {trial}: gait cycle (heel and toe height, events)",
-        params,
-    )
+    doc = {
+        "events": counts,
+        "markers": markers.names,
+        "spatiotemporal": parameters.summary(),
+        "warnings": list(events.warnings),
+    }
+    write_json(files.gait, doc)
+    title = f"trial {trial}: gait cycle (heel and toe height, events)"
+    figure(root, f"gait_{trial}", gait_cycle_figure, markers, events, None, title, params)
     return events

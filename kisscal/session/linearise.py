@@ -27,7 +27,7 @@ from kisscal.session.inputs import figure, load_config, select_cameras, writes_s
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
-from kisscal.session.runner import camera_detection, each_camera
+from kisscal.session.runner import camera_detection, each_camera, run_keyed
 from kisscal.session.trials import SizedFrames
 
 
@@ -94,10 +94,11 @@ def _all_cached(
     kept = {}
     for cam in cameras:
         try:
-            key = _grid_inputs(root, config, params, cam, echo)[2]
+            stage = _grid_inputs(root, config, params, cam, echo)[2]
         except KisscalError:  # said by the cameras' own processes, the others done
             return None
-        lin = _read_current(store, cam.id, key)
+        read = functools.partial(_read, store, cam.id)
+        lin = run_keyed(store, store.linearisation_path(cam.id), stage, read)
         if lin is None:
             return None
         kept[cam.id] = lin
@@ -126,53 +127,46 @@ def _linearise_camera(
     (the camera last, as :func:`each_camera` calls it)."""
     store = SessionStore(root)
     out = store.linearisation_path(cam.id)
-    frames, detection, key = _grid_inputs(root, config, params, cam, echo)
-    kept = _read_current(store, cam.id, key)
-    if kept is not None:
+    frames, detection, stage = _grid_inputs(root, config, params, cam, echo)
+
+    def cached() -> Linearisation:
         echo(f"  linearise {cam.id}: cached")
-        return kept
-    t0 = time.perf_counter()
-    try:
-        fit = linearise_frames(
-            list(SizedFrames(frames, cam.id, cam.size_px)), params.grid, detection
-        )
-    except KisscalError as exc:
-        raise with_context(exc, f"camera {cam.id} grid: ") from None
-    write_linearisation(out, fit.linearisation, cam.id, fit.index.missing_rc, fit.index.missing_uv)
-    figure(
-        root,
-        f"grid_{cam.id}",
-        grid_correction_figure,
-        fit,
-        cam.id,
-        cam.size_px,
-    )
-    store.mark_current(out, key)
-    _say_fitted(echo, cam.id, fit, time.perf_counter() - t0)
-    return fit.linearisation
+        return _read(store, cam.id)
+
+    def compute() -> Linearisation:
+        t0 = time.perf_counter()
+        try:
+            sized = list(SizedFrames(frames, cam.id, cam.size_px))
+            fit = linearise_frames(sized, params.grid, detection)
+        except KisscalError as exc:
+            raise with_context(exc, f"camera {cam.id} grid: ") from None
+        lin, index = fit.linearisation, fit.index
+        write_linearisation(out, lin, cam.id, index.missing_rc, index.missing_uv)
+        figure(root, f"grid_{cam.id}", grid_correction_figure, fit, cam.id, cam.size_px)
+        _say_fitted(echo, cam.id, fit, time.perf_counter() - t0)
+        return lin
+
+    return run_keyed(store, out, stage, cached, compute)
 
 
 def _grid_inputs(
     root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, echo: Echo
-) -> tuple[Sequence, DetectionParams, str]:
-    """A camera's grid frames, their detection settings and the key of its linearisation."""
+) -> tuple[Sequence, DetectionParams, tuple]:
+    """A camera's grid frames, their detection settings and what its linearisation is
+    keyed on (:func:`~kisscal.session.runner.run_keyed`)."""
     if config.grid is None:
         raise InputError(f"{config.path}: camera {cam.id} has no [grid] to linearise from")
     frames = camera_frames(
         config.root, config.grid.images, cam.id, "grid", fields=config.grid.fields
     )
     detection = camera_detection(config, cam, "grid", params, echo)
-    store = SessionStore(root)
-    key = store.key("linearise", source_files(frames), config.grid.fields, params.grid, detection)
-    return frames, detection, key
+    stage = ("linearise", source_files(frames), config.grid.fields, params.grid, detection)
+    return frames, detection, stage
 
 
-def _read_current(store: SessionStore, camera: str, key: str) -> Linearisation | None:
-    """A camera's linearisation from its cache when written for ``key``, else None."""
-    out = store.linearisation_path(camera)
-    if not store.is_current(out, key):
-        return None
-    doc = store.linearisation_doc(camera)
+def _read(store: SessionStore, camera: str) -> Linearisation:
+    """A camera's linearisation as its stage wrote it."""
+    doc, out = store.linearisation_doc(camera), store.linearisation_path(camera)
     grid = grid_fit_of(doc, str(out)) if doc is not None else None
     return grid if grid is not None else read_linearisation(out)[1]
 

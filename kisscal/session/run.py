@@ -25,10 +25,7 @@ _LOG = logging.getLogger(__name__)
 
 @writes_session
 def run(
-    root: Path,
-    overrides: Overrides | None = None,
-    echo: Echo = quiet,
-    workers: int | None = None,
+    root: Path, overrides: Overrides | None = None, echo: Echo = quiet, workers: int | None = None
 ) -> dict[str, Any]:
     """``kisscal run``: the session's stages (:data:`~kisscal.session.stages.PIPELINE`):
     linearise, calibrate, then reconstruct and track every trial.

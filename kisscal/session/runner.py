@@ -48,11 +48,7 @@ DERIVATION_VERSION = 4
 
 
 def camera_detection(
-    config: SessionConfig,
-    camera: CameraConfig,
-    kind: str,
-    params: StageParams,
-    echo: Echo = quiet,
+    config: SessionConfig, camera: CameraConfig, kind: str, params: StageParams, echo: Echo = quiet
 ) -> DetectionParams:
     """Detection parameters of one camera for its ``"grid"`` or ``"markers"`` images.
 
@@ -379,6 +375,28 @@ def run_trial(
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+
+def run_keyed(
+    store: SessionStore,
+    output: Path,
+    inputs: tuple,
+    cached: Callable[[], R | None],
+    compute: Callable[[], R] | None = None,
+) -> R | None:
+    """A session stage (a linearisation, a calibration route) keyed on ``inputs`` as
+    :func:`run_trial` keys a trial's: ``cached()`` while ``output``'s key matches (and it
+    is not None: another route may have written since), else ``compute()`` (None without
+    one) and the key kept beside ``output``."""
+    key = store.key(*inputs)
+    if store.is_current(output, key) and (kept := cached()) is not None:
+        return kept
+    if compute is None:
+        return None
+    result = compute()
+    store.mark_current(output, key)
+    return result
+
 
 #: What a worker returns for one item: the result (or the KisscalError it raised), what it
 #: said, and the figures it drew (pickled, for the parent's figure process).

@@ -84,12 +84,7 @@ def track(
 
 
 def _track_trial(
-    root: Path,
-    config: SessionConfig,
-    trial: str,
-    spec: MarkerSpec,
-    params: StageParams,
-    echo: Echo,
+    root: Path, config: SessionConfig, trial: str, spec: MarkerSpec, params: StageParams, echo: Echo
 ) -> Trajectories:
     """Track and label one trial and write its outputs: gait ones, or, for the static
     trial, the subject's template (checked before anything is written)."""
@@ -233,21 +228,9 @@ def _trial_fields(files: TrialFiles, field: np.ndarray) -> int:
 
 
 def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:
-    figure(
-        root,
-        f"trajectories_{trial}",
-        trajectories_figure,
-        result,
-        f"trial {trial}: trajectories (mm)",
-    )
-    figure(
-        root,
-        f"segments_{trial}",
-        segment_length_figure,
-        result,
-        segments,
-        rate_hz,
-    )
+    title = f"trial {trial}: trajectories (mm)"
+    figure(root, f"trajectories_{trial}", trajectories_figure, result, title)
+    figure(root, f"segments_{trial}", segment_length_figure, result, segments, rate_hz)
 
 
 def _with_static(

@@ -71,13 +71,9 @@ def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, li
 
 def trial_frames_of(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:
     """Per camera, the frame sequence of an image or video trial."""
+    pattern, video = trial.images or trial.video or "", trial.source == "video"
     return trial_frames(
-        config.root,
-        trial.images or trial.video or "",
-        config.camera_ids,
-        trial.name,
-        video=trial.source == "video",
-        fields=trial.fields,
+        config.root, pattern, config.camera_ids, trial.name, video=video, fields=trial.fields
     )
 
 

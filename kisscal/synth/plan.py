@@ -403,11 +403,7 @@ def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict]:
         for k in range(plan.options.grid_frames)
     ]
     r, c = np.divmod(np.arange(view.rows * view.cols), view.cols)
-    truth = {
-        "row": r,
-        "col": c,
-        **pixel_truth(view.uv_px, view.uv_ideal_px),
-    }
+    truth = {"row": r, "col": c, **pixel_truth(view.uv_px, view.uv_ideal_px)}
     return frames, truth
 
 

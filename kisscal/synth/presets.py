@@ -237,10 +237,7 @@ PRESETS: dict[str, RigPreset] = {
         fields=90,
         throw_s=0.9,
         sensor=Sensor(
-            read_noise_dn=(2.5, 5.0),
-            electrons_per_dn=8.0,
-            noise_pixels=5.0,
-            streak_probability=0.0,
+            read_noise_dn=(2.5, 5.0), electrons_per_dn=8.0, noise_pixels=5.0, streak_probability=0.0
         ),
         glow=Glow(
             level_dn=(15.0, 30.0),

@@ -101,10 +101,7 @@ def camera_detection_truth(
             "trials_and_rods": _background(plan, room),
             "grid": _background(plan, grid_background),
         },
-        "markers": {
-            "trials": dict(trials),
-            "rods": spots_ranges(rod_light, markers, plan),
-        },
+        "markers": {"trials": dict(trials), "rods": spots_ranges(rod_light, markers, plan)},
         "grid_dots": spots_ranges(grid_light, view.spots, plan),
         "led_rings": spots_ranges(rod_light, leds, plan),
     }

@@ -256,20 +256,13 @@ def grounded_walk(
     truth = _truth(prints, g, height_mm, heading, t_end, rate_hz)
     radius = {"heel": b.radius, "ball": b.radius, "tip": b.tip}
     truth = replace(
-        truth,
-        spheres_mm=spheres,
-        sphere_radius_mm={k: radius[k.split("_")[1]] for k in spheres},
+        truth, spheres_mm=spheres, sphere_radius_mm={k: radius[k.split("_")[1]] for k in spheres}
     )
     return markers, np.stack(caps, axis=1), np.asarray(radii), truth
 
 
 def _truth(
-    prints: dict,
-    g: GaitTiming,
-    height_mm: float,
-    heading: float,
-    t_end: float,
-    rate: float,
+    prints: dict, g: GaitTiming, height_mm: float, heading: float, t_end: float, rate: float
 ) -> GaitTruth:
     times = {}
     for side in ("left", "right"):

@@ -164,11 +164,7 @@ def render_axes(
     keep_clear = concat_spots(spots, leds).centre_px
     frames = [
         record(
-            scene,
-            np.random.default_rng([seed, 9009, cam_index, k]),
-            params,
-            keep_clear,
-            background,
+            scene, np.random.default_rng([seed, 9009, cam_index, k]), params, keep_clear, background
         )
         for k in range(n_frames)
     ]

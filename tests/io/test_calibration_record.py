@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from kisscal.io.calibration_record import LensModels, TargetCamera, TargetRecord, WandRecord
+from kisscal.io.calibration_record import LensModels, TargetMatchRecord, TargetRecord, WandRecord
 
 
 def test_wand_figures_keep_their_type_and_their_group() -> None:
@@ -59,6 +59,6 @@ def test_target_record_counts_unmatched_points_and_skips_bad_entries() -> None:
     }
     record = TargetRecord.read(doc)
     assert record is not None
-    assert dict(record.cameras) == {"cam1": TargetCamera(40, 38, 2, 0.21, None)}
+    assert dict(record.cameras) == {"cam1": TargetMatchRecord(40, 38, 2, 0.21, None)}
     assert TargetRecord.read({"cameras": {}}) is None
     assert TargetRecord.read(None) is None

@@ -158,10 +158,7 @@ def round_trip_mm(root: Path, preset: str, seed: int) -> float:
     regions = read_fit_regions(root / "out" / "cameras.toml", rig.ids)
     back = []
     for cam in rig.cameras:
-        imported = camera_from_opencv(cvs[cam.id], region_px=regions[cam.id])
-        back.append(
-            Camera.from_dlt(imported.L, cam.id, imported.linearisation, imported.lens, cam.size_px)
-        )
+        back.append(camera_from_opencv(cvs[cam.id], region_px=regions[cam.id])[0])
     truth = [
         camera_from_truth(c)
         for c in json.loads((root / "truth" / "cameras.json").read_text())["cameras"]

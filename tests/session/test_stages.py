@@ -17,7 +17,7 @@ from kisscal.io.config import load_session
 from kisscal.io.store import SessionStore, TrialFiles
 from kisscal.session.inputs import load_config
 from kisscal.session.params import MEMBERS, Overrides
-from kisscal.session.runner import TrialRun, TrialStage, run_trial
+from kisscal.session.runner import TrialRun, TrialStage, run_keyed, run_trial
 from kisscal.session.stages import PIPELINE, session_stages
 from tests.session.test_every_parameter import _marker_session
 
@@ -139,3 +139,33 @@ def test_the_runner_hands_a_trial_stage_its_blobs_and_keys_it(tmp_path: Path) ->
     overrides = Overrides(detection={"threshold": 60})
     assert run_trial(stage, load_config(root), "walk", overrides, workers=1) == "computed"
     assert all(len(f) == 6 for b in handed[1][1].values() for f in b)
+
+
+def test_the_runner_keys_a_session_stage_and_reuses_it_only_while_its_inputs_stand(
+    tmp_path: Path,
+) -> None:
+    """``run_keyed`` (a linearisation, a calibration route): computed on the first run,
+    read back while its key stands, computed again when an input changes or when what it
+    wrote does not stand (``cached`` None: another route wrote since); without
+    ``compute`` it only reads."""
+    store, out = SessionStore(tmp_path), tmp_path / "out" / "stage.json"
+    calls: list[str] = []
+
+    def compute() -> str:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text("written\n")
+        calls.append("computed")
+        return "computed"
+
+    source = tmp_path / "input.txt"
+    source.write_text("a\n")
+    stage = ("probe", [source], {"threshold": 1.0})
+    assert run_keyed(store, out, stage, lambda: None) is None  # nothing written yet
+    assert run_keyed(store, out, stage, lambda: "cached", compute) == "computed"
+    assert run_keyed(store, out, stage, lambda: "cached", compute) == "cached"
+    assert run_keyed(store, out, stage, lambda: "cached") == "cached"
+    assert run_keyed(store, out, stage, lambda: None, compute) == "computed"
+    other = ("probe", [source], {"threshold": 2.0})
+    assert run_keyed(store, out, other, lambda: "cached", compute) == "computed"
+    assert run_keyed(store, out, stage, lambda: "cached") is None  # the key moved on
+    assert calls == ["computed"] * 3

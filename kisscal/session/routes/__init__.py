@@ -95,14 +95,9 @@ def static_blobs(
 
     ``what`` names the object in messages and in the cache (``rods``, ``axes`` ...).
     """
+    chosen = {cam.id: frames[cam.id] for cam in inputs.cameras}
     blobs = camera_blobs(
-        inputs.config,
-        {cam.id: frames[cam.id] for cam in inputs.cameras},
-        detection,
-        fields,
-        (what, what),
-        inputs.echo,
-        inputs.workers,
+        inputs.config, chosen, detection, fields, (what, what), inputs.echo, inputs.workers
     )
     return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 

@@ -15,6 +15,7 @@ Both write the version-1 files, so everything downstream is unchanged:
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -35,6 +36,7 @@ from kisscal.io.store import SessionStore
 from kisscal.opencv import camera_from_opencv
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.routes import RouteInputs
+from kisscal.session.runner import run_keyed
 
 
 def _source(config: SessionConfig, key: str) -> Path:
@@ -66,9 +68,15 @@ def imported_linearisation(
     path = _source(config, "cameras")
     store = SessionStore(config.root)
     out = store.linearisation_path(cam.id)
-    key = store.key("imported-linearisation", [path], cam.id, _names(config))
-    if store.is_current(out, key):
-        return store.linearisation(cam.id)
+    stage = ("imported-linearisation", [path], cam.id, _names(config))
+    fit = functools.partial(_fit, config, cam, path, out, echo)
+    return run_keyed(store, out, stage, lambda: store.linearisation(cam.id), fit)
+
+
+def _fit(
+    config: SessionConfig, cam: CameraConfig, path: Path, out: Path, echo: Echo
+) -> Linearisation:
+    """The linearisation of :func:`imported_linearisation`, fitted, written and said."""
     # every camera of the session is checked before any file is written
     cv = read_cameras_toml(path, config.camera_ids, _names(config))[cam.id]
     if cam.size_px is not None and tuple(cam.size_px) != tuple(cv.size_px):
@@ -77,13 +85,12 @@ def imported_linearisation(
             f"{cam.size_px[0]} x {cam.size_px[1]} in session.toml"
         )
     region = read_fit_regions(path, config.camera_ids, _names(config))[cam.id]
-    imported = camera_from_opencv(cv, region_px=region)
-    lin, rms = imported.linearisation, imported.rms_px
+    imported, rms = camera_from_opencv(cv, region_px=region)
+    lin = imported.linearisation
     doc = linearisation_to_dict(lin, cam.id)
     doc["source"] = f"{path.name}: OpenCV distortions = {cv.lens.tolist()}"
     doc["fit_rms_px"] = rms  # polynomial (and L12..L16) vs OpenCV's undistortion
     write_text(out, json.dumps(doc, indent=2) + "\n")
-    store.mark_current(out, key)
     echo(f"  linearise {cam.id}: polynomial fitted to {path.name}'s lens, rms {rms:.4f} px")
     if rms > POLY_FIT_WARN_PX:
         echo(
@@ -125,8 +132,8 @@ def calibrate_from_cameras(inputs: RouteInputs) -> dict[str, DltResult]:
     path = _source(inputs.config, "cameras")
     cvs = read_cameras_toml(path, [c.id for c in inputs.cameras], _names(inputs.config))
     regions = read_fit_regions(path, [c.id for c in inputs.cameras], _names(inputs.config))
-    imported = {c: camera_from_opencv(cv, region_px=regions[c]) for c, cv in cvs.items()}
-    files = {c: DltFile(c, m.L, lens=m.lens) for c, m in imported.items()}
+    imported = {c: camera_from_opencv(cv, region_px=regions[c])[0] for c, cv in cvs.items()}
+    files = {c: DltFile(c, m.dlt, lens=m.kolahi) for c, m in imported.items()}
     return _write(inputs, files, "cameras", path)
 
 

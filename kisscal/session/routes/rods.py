@@ -25,6 +25,7 @@ from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
 from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
+from kisscal.session.runner import run_keyed
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -36,12 +37,33 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
     if config.rods is None:
         raise InputError(f"{config.path}: the rods route needs a [rods] table")
     store = inputs.store
-    check_json = store.calibration_file("check")
     rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
     rod_frames = frame_files(inputs, config.rods.images, "rod", config.rods.fields)
     lins = inputs.linearisations
     detection = marker_detection(inputs)
-    stage_key = store.key(
+
+    def compute() -> dict[str, Any]:
+        blobs = static_blobs(inputs, rod_frames, "rods", config.rods.fields, detection)
+        blobs_px = {c: [apply_linearisation(lins[c], uv) for uv in f] for c, f in blobs.items()}
+        t0 = time.perf_counter()
+        cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
+        write_dlt_outputs(cal, store.dlt_path, store.dltdv_path)
+        rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
+        summary: dict[str, Any] = dict(cal.results)
+        if inputs.whole_rig:
+            write_json(store.calibration_file("check"), rig)
+            summary["_check"] = rig
+        _say_rods(inputs.echo, cal, rig, time.perf_counter() - t0)
+        _rod_figures(inputs, cal, rods)
+        return summary
+
+    def cached() -> dict[str, Any]:
+        inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
+        return {"_check": store.calibration_doc("check")}
+
+    if not inputs.whole_rig:  # the rig's check is the output the key is kept beside
+        return compute()
+    stage = (
         "calibrate",
         {c: source_files(f) for c, f in rod_frames.items()},
         config.rods.fields,
@@ -50,27 +72,7 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
     )
-    if inputs.whole_rig and store.is_current(check_json, stage_key):
-        inputs.echo("  calibrate: cached (rod images, linearisation and parameters unchanged)")
-        return {"_check": store.calibration_doc("check")}
-    blobs_px = {
-        cam: [apply_linearisation(lins[cam], uv) for uv in frames]
-        for cam, frames in static_blobs(
-            inputs, rod_frames, "rods", config.rods.fields, detection
-        ).items()
-    }
-    t0 = time.perf_counter()
-    cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
-    write_dlt_outputs(cal, store.dlt_path, store.dltdv_path)
-    rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
-    summary: dict[str, Any] = dict(cal.results)
-    if inputs.whole_rig:
-        write_json(check_json, rig)
-        store.mark_current(check_json, stage_key)
-        summary["_check"] = rig
-    _say_rods(inputs.echo, cal, rig, time.perf_counter() - t0)
-    _rod_figures(inputs, cal, rods)
-    return summary
+    return run_keyed(store, store.calibration_file("check"), stage, cached, compute)
 
 
 def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: float) -> None:

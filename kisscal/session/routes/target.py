@@ -29,6 +29,7 @@ from kisscal.report.dlt import CameraResiduals, residual_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
+from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
 from kisscal.target.resect import model_name
@@ -52,7 +53,37 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
     seed_paths = {c.id: config.root / cal.seeds.replace("{camera}", c.id) for c in inputs.cameras}
     store = inputs.store
     target_json = store.calibration_file("target")
-    key = store.key(
+
+    def compute() -> dict[str, Any]:
+        t0 = time.perf_counter()
+        matches, dots = {}, {}
+        for cam in inputs.cameras:
+            lin = inputs.linearisations[cam.id]
+            seeds_uv, seeds_xyz, _ = read_control_points_csv(seed_paths[cam.id])
+            found = [find_target_dots(i, seeds_uv, inputs.params.target) for i in frames[cam.id]]
+            dots[cam.id] = apply_linearisation(lin, average_static(found))
+            seeds = (apply_linearisation(lin, seeds_uv), seeds_xyz)
+            about = (cam.size_px, cam.id, inputs.params.target, inputs.params.dlt)
+            matches[cam.id] = match_target(target, *seeds, dots[cam.id], *about)
+        doc = _report(matches, time.perf_counter() - t0)
+        for cam in inputs.cameras:
+            _write_camera(inputs, cam, matches[cam.id], dots[cam.id], target)
+        check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
+        write_json(target_json, doc)
+        if inputs.whole_rig:
+            write_check(inputs, check)
+        _say(inputs, doc, check)
+        return {"_check": check}
+
+    def cached() -> dict[str, Any] | None:
+        if not outputs_of(inputs, ROUTE):
+            return None
+        inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
+        return {"_check": store.calibration_doc("check")}
+
+    if not inputs.whole_rig:  # the key stands for the whole rig's outputs
+        return compute()
+    stage = (
         "calibrate-target",
         [target_path, *seed_paths.values()],
         {c: source_files(f) for c, f in frames.items()},
@@ -60,36 +91,7 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         inputs.params.target,
         inputs.params.dlt,
     )
-    if inputs.whole_rig and store.is_current(target_json, key) and outputs_of(inputs, ROUTE):
-        inputs.echo("  calibrate: cached (target, photographs, seeds and parameters unchanged)")
-        return {"_check": store.calibration_doc("check")}
-    t0 = time.perf_counter()
-    matches, dots = {}, {}
-    for cam in inputs.cameras:
-        lin = inputs.linearisations[cam.id]
-        seeds_uv, seeds_xyz, _ = read_control_points_csv(seed_paths[cam.id])
-        found = [find_target_dots(img, seeds_uv, inputs.params.target) for img in frames[cam.id]]
-        dots[cam.id] = apply_linearisation(lin, average_static(found))
-        matches[cam.id] = match_target(
-            target,
-            apply_linearisation(lin, seeds_uv),
-            seeds_xyz,
-            dots[cam.id],
-            cam.size_px,
-            cam.id,
-            inputs.params.target,
-            inputs.params.dlt,
-        )
-    doc = _report(matches, time.perf_counter() - t0)
-    for cam in inputs.cameras:
-        _write_camera(inputs, cam, matches[cam.id], dots[cam.id], target)
-    check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
-    write_json(target_json, doc)
-    if inputs.whole_rig:
-        write_check(inputs, check)
-        store.mark_current(target_json, key)
-    _say(inputs, doc, check)
-    return {"_check": check}
+    return run_keyed(store, target_json, stage, cached, compute)
 
 
 def _report(matches: dict[str, TargetMatch], seconds: float) -> dict[str, Any]:

@@ -44,7 +44,7 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
-from kisscal.session.runner import trial_blobs
+from kisscal.session.runner import run_keyed, trial_blobs
 from kisscal.session.trials import trial_input_files
 
 #: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
@@ -64,33 +64,32 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
             "a wand calibration adjusts every camera together; run kisscal calibrate "
             "without --camera"
         )
-    if config.rods is None and config.axes is None:
-        raise InputError(
-            f"{config.path}: [wand] needs [rods] or [axes] to fix the lab frame and origin"
-        )
     store = inputs.store
     wand_json, check_json = store.calibration_file("wand"), store.calibration_file("check")
-    key = _stage_key(inputs)
-    current = store.is_current(wand_json, key) and (
-        outputs_of(inputs, "wand") or store.calibration_doc("wand").get("kept") == "rods"
-    )
-    if current and check_json.is_file():
+
+    def cached() -> dict[str, Any] | None:
+        kept = outputs_of(inputs, "wand") or store.calibration_doc("wand").get("kept") == "rods"
+        if not (kept and check_json.is_file()):
+            return None
         inputs.echo("  calibrate: cached (wand trial, calibration images and parameters unchanged)")
         return {"_check": store.calibration_doc("check")}
-    t0 = time.perf_counter()
-    table = _wand_table(inputs)
-    if config.rods is not None:
-        cal, rod_check = _on_rods(inputs, table)
-        frame = None
-    else:
-        cal, frame = _with_axes(inputs, table)
-        rod_check = None
-    check = write_wand_outputs(inputs, cal, frame, rod_check, time.perf_counter() - t0)
-    store.mark_current(wand_json, key)
-    return {"_check": check}
+
+    def compute() -> dict[str, Any]:
+        t0 = time.perf_counter()
+        table = _wand_table(inputs)
+        if config.rods is not None:
+            (cal, rod_check), frame = _on_rods(inputs, table), None
+        else:
+            (cal, frame), rod_check = _with_axes(inputs, table), None
+        return {
+            "_check": write_wand_outputs(inputs, cal, frame, rod_check, time.perf_counter() - t0)
+        }
+
+    return run_keyed(store, wand_json, _stage(inputs), cached, compute)
 
 
-def _stage_key(inputs: RouteInputs) -> str:
+def _stage(inputs: RouteInputs) -> tuple:
+    """What the wand route is keyed on (:func:`~kisscal.session.runner.run_keyed`)."""
     config, params = inputs.config, inputs.params
     trial = config.trial(config.wand.trial)
     objects = []
@@ -102,7 +101,7 @@ def _stage_key(inputs: RouteInputs) -> str:
         axes = frame_files(inputs, config.axes.images, "axes", config.axes.fields)
         objects.append({c: source_files(f) for c, f in axes.items()})
         objects.append(config.axes.points_mm)
-    return inputs.store.key(
+    return (
         "calibrate-wand",
         trial_input_files(config, trial),
         objects,

@@ -235,10 +235,7 @@ def _checks(
 
 
 def _write_cameras(
-    inputs: RouteInputs,
-    cal: WandCalibration,
-    cameras: Sequence[Camera],
-    frame: AxesFrame | None,
+    inputs: RouteInputs, cal: WandCalibration, cameras: Sequence[Camera], frame: AxesFrame | None
 ) -> None:
     """``linearisation/<camera>.json`` (lens folded in) and ``dlt/<camera>.json``."""
     config = inputs.config
