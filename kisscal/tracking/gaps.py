@@ -12,7 +12,7 @@ cross-validation spline (Woltring 1986, the biomechanics standard),
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +21,6 @@ from scipy.interpolate import make_smoothing_spline
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
-    Candidate,
     GapFill,
     best_candidate,
     fill_candidates,
@@ -31,10 +30,11 @@ from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
+from kisscal.tracking.fill_place import take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_fill, parted
-from kisscal.tracking.rayfill import SpareBlobs, ray_correct
+from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import (
     FILLED,
     FILLED_RIGID,
@@ -75,7 +75,7 @@ def _fill_one(
 ) -> list[tuple[NDArray, GapFill]]:
     """Spline for short gaps, the body (:func:`body_fill`) for longer ones; with
     ``spare`` blobs, each filled field a camera still sees moved onto its ray
-    (:func:`_with_rays`); no spline where the marker's blobs followed in the image from
+    (:func:`with_rays`); no spline where the marker's blobs followed in the image from
     the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
     short = hi - lo <= params.max_fill_gap_fields
     if not short and hi - lo > params.max_body_fill_fields:
@@ -93,7 +93,7 @@ def _fill_one(
         return []
     if not rays:
         return [(chosen.xyz_mm, chosen.fill)]
-    return _with_rays(chosen, spare, params)
+    return with_rays(chosen, spare, params)
 
 
 @dataclass
@@ -127,13 +127,13 @@ def _rest_params(params: TrackingParams) -> TrackingParams:
 def _placer(method: Callable) -> Callable:
     """A fill of :data:`FILLS` from a single-camera placer ``method(gap, a, b, params)``
     (a :class:`ChainFill` or None): its fields written as context, their blobs taken
-    (:func:`_take_placed`)."""
+    (:func:`take_placed`)."""
 
     def fill(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
         got = method(gap, a, b, params)
         if got is None:
             return np.zeros(b - a, dtype=bool)
-        gap.out.extend(_take_placed(gap.dense, gap.t, a, got, gap.spare))
+        gap.out.extend(take_placed(gap.dense, gap.t, a, got, gap.spare))
         return np.isfinite(got.sd_mm)
 
     return fill
@@ -158,7 +158,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
     measured, by them or by its two most rigid markers; then as far as those two are,
     by them; each kept when its expected error is at most ``max_body_fill_error_mm``,
-    moved onto the rays of blobs a camera still sees there (:func:`_with_rays`)."""
+    moved onto the rays of blobs a camera still sees there (:func:`with_rays`)."""
     placed = np.zeros(b - a, dtype=bool)
     after = gap.end < 0
     rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
@@ -174,7 +174,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
         chosen = best_candidate(cands, params)
         if chosen is None:
             break
-        got = _with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+        got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
         gap.out.extend(got)
         placed[lo - a : hi - a] = True
         done = n
@@ -258,7 +258,9 @@ class Fill:
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
 #: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
 #: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
-#: counted in ``ray_fields``.
+#: counted in ``ray_fields``. Between the two, once every track's gaps are filled, the
+#: fields they left are tried again with the partners placed since
+#: (:func:`_second_pass`).
 FILLS: tuple[Fill, ...] = (
     Fill(
         "chain",
@@ -289,6 +291,14 @@ FILLS: tuple[Fill, ...] = (
     Fill("end rays", _placer(_end_rays), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
+)
+
+
+#: The fills of the second pass (:func:`_second_pass`): the marker's own blobs placed on
+#: their rays by its segment's lengths, the rest by the body expecting little error.
+SECOND_PASS = (
+    *(f for f in FILLS if f.name in ("chain", "joint")),
+    Fill("body", _body, strict="always"),
 )
 
 
@@ -341,53 +351,43 @@ def _fill_gap(
     return gap.out
 
 
-def _take_placed(
-    dense: NDArray, t: int, lo: int, chain: ChainFill, spare: SpareBlobs
+def _second_pass(
+    dense: NDArray,
+    gaps: list[tuple[int, int, int]],
+    params: TrackingParams,
+    spare: SpareBlobs | None,
+    measured: NDArray,
+    made: Iterable[tuple[NDArray, GapFill]],
 ) -> list[tuple[NDArray, GapFill]]:
-    """The fields ``chain`` placed from ``lo`` on: written into ``dense`` (context for
-    the rest), their blobs marked used, one :class:`GapFill` per run."""
-    spare.free[chain.rows] = False
-    placed = np.isfinite(chain.sd_mm)
-    dense[t, lo : lo + placed.size][placed] = chain.xyz_mm[placed]
-    out = []
-    for a, b in zip(*true_runs(placed), strict=True):
-        err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
-        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
-        out.append((chain.xyz_mm[a:b], fill))
-    return out
+    """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
+    (xyz, fill) pairs), filled again by :data:`SECOND_PASS`, with its rigid and ray fills
+    (status ``filled_rigid``) expecting at most ``ray_rest_max_error_mm`` written into
+    ``dense`` as context (for these fills and the track ends after them).
 
-
-def _with_rays(
-    chosen: Candidate, spare: SpareBlobs, params: TrackingParams
-) -> list[tuple[NDArray, GapFill]]:
-    """The ``chosen`` fill with its fields moved onto the rays of unused blobs
-    (:func:`~kisscal.tracking.rayfill.ray_correct`): one :class:`GapFill` per run of
-    fields with and without a ray. A run with rays expects the fill's error along the
-    cameras' sight (:func:`~kisscal.tracking.bodyfill.expected_errors`), or, when larger,
-    the one its move onto the rays tells: an error without a preferred direction is
-    about 1/sqrt(2) of its part across the sight along it.
-
-    Only fills good enough on their own are moved: a fill too poor for a gap is often
-    wrong mostly along the one camera's sight, which the ray cannot tell (a pattern fill
-    whose along-sight error was expected at 4 mm was 11 mm off on a held-out trial).
+    Tracks are filled one after another, so a marker's gap is filled before its
+    segment's partner's gap in the same fields is: a toe seen by one camera while the
+    heel, seen by another one, waits its turn has no partner to be placed by. Once the
+    heel is placed, its length holds the toe on its ray as a measured heel's would.
+    Spline and pattern fills are not context (one through a partner's wrong samples
+    would carry the marker onto them), nor does the body fill expect more than
+    ``ray_rest_max_error_mm`` here (with the new context it went 12 mm off expecting 4).
     """
-    g = chosen.fill
-    err = g.expected_error_mm
-    sd = err if np.isfinite(err) else params.max_body_fill_error_mm
-    xyz, n_rays, used = ray_correct(chosen.xyz_mm, g.first_field, sd, spare, params)
-    spare.free[used] = False
-    rayed = n_rays > 0
-    along = err
-    if rayed.any():
-        moved = np.sqrt(np.mean(np.sum((xyz - chosen.xyz_mm)[rayed] ** 2, axis=1) / 2))
-        along = float(np.nanmax([chosen.along_sight_mm, moved]))
+    if spare is None:
+        return []
+    done = np.isfinite(dense[:, :, 0])
+    for xyz, fill in made:
+        span = slice(fill.first_field, fill.first_field + fill.n_fields)
+        done[fill.track, span] = True
+        if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
+            dense[fill.track, span] = xyz
     out = []
-    edges = np.flatnonzero(np.r_[True, np.diff(rayed) != 0, True])
-    for a, b in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
-        fill = dataclasses.replace(g, first_field=g.first_field + a, n_fields=b - a)
-        if rayed[a]:
-            fill = dataclasses.replace(fill, expected_error_mm=along, ray_fields=b - a)
-        out.append((xyz[a:b], fill))
+    for t, lo, hi in gaps:
+        left = ~done[t, lo:hi]
+        for a, b in zip(*true_runs(left), strict=True):
+            run = (lo + a, lo + b)
+            gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
+            _apply(gap, SECOND_PASS, [run])
+            out.extend(gap.out)
     return out
 
 
@@ -415,11 +415,19 @@ def fill_gaps_logged(
     fills, filled_xyz = [], []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
-    for t in range(tracks.n_tracks):
-        for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params):
-            for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
-                filled_xyz.append(xyz)
-                fills.append(fill)
+    gaps = [
+        (t, lo, hi)
+        for t in range(tracks.n_tracks)
+        for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
+    ]
+    for t, lo, hi in gaps:
+        for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
+            filled_xyz.append(xyz)
+            fills.append(fill)
+    made = list(zip(filled_xyz, fills, strict=True))
+    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made):
+        filled_xyz.append(xyz)
+        fills.append(fill)
     for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
         _apply(gap, FILLS, [(lo, hi)])
