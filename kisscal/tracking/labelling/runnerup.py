@@ -19,7 +19,9 @@ cannot certify a name (most names would have to be flagged), it can only catch a
 that the evidence clearly contradicts. A name left free by the labelling is another
 matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
 better than the trajectory's own name is doubtful by a smaller margin
-(``free_deficit_fraction``). And the two legs stand level (:func:`uneven_legs`).
+(``free_deficit_fraction``), and by any margin when none of its nearest names in the
+template is held (:func:`isolated`: a finger's name with the whole arm free). And the two
+legs stand level (:func:`uneven_legs`).
 """
 
 from __future__ import annotations
@@ -39,6 +41,10 @@ MARGIN_FIELDS = 200
 #: names differ by up to 8.0 % (the tennis serve's thighs: one knee bent through the
 #: serve); a leg whose names moved by one marker, by 12-16 % (test1.c3d, standing).
 UNEVEN_FRACTION = 0.10
+#: A name's template neighbours (:func:`isolated`): its this many nearest names in the
+#: template (a finger's: the wrist bar's two ends and the forearm; a heel's: the ankle,
+#: the toe and the tibia).
+TEMPLATE_NEIGHBOURS = 3
 
 
 def median_distances(pos: NDArray) -> NDArray[np.float64]:
@@ -131,6 +137,25 @@ def free_name_margins(
     weighs nothing (NaN).
     """
     return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
+
+
+def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
+    """Per name (rows of ``pos``, (n, F, 3)), whether it is held while none of its
+    :data:`TEMPLATE_NEIGHBOURS` nearest names in ``template`` is.
+
+    A marker set is placed in groups (a head, a hand, a foot), and a trial records whole
+    groups or leaves them out: a name held alone among its group's free names is a name
+    the labelling pushed along the body onto a marker of another group (a thigh marker
+    named finger in a trial without arms, the thigh's name free). Its distances may fit
+    the free name better by only a few millimetres (:func:`free_name_margins`), which a
+    true name's can too, but a true name has its group around it.
+    """
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    k = min(TEMPLATE_NEIGHBOURS, max(len(template) - 1, 0))
+    nearest = np.argsort(d, axis=1)[:, :k]
+    return held & (k > 0) & ~held[nearest].any(axis=1)
 
 
 def uneven_legs(
