@@ -21,6 +21,7 @@ from kisscal.tracking.labelling.runnerup import (
     free_name_margins,
     isolated,
     name_margins,
+    turned_round,
     uneven_legs,
 )
 from kisscal.tracking.labelling.sides import doubted
@@ -165,6 +166,28 @@ def test_a_name_alone_among_its_free_neighbours_is_doubted_by_any_margin():
     shifted[finger], shifted[thigh] = pos[thigh], np.nan
     assert np.flatnonzero(isolated(shifted, t)).tolist() == [finger]
     assert np.flatnonzero(doubted(shifted, anatomy, t, params)).tolist() == [finger]
+
+
+def test_a_head_whose_front_names_went_to_its_back_markers_is_turned_round():
+    """A full-body set walking along x: the head's back markers hold the forehead's names,
+    the forehead's markers are unnamed and the back names free; the unnamed markers move
+    rigidly with the named ones ahead of them, so the front names are doubted. Named the
+    right way (the back markers unnamed behind the front names), nothing is."""
+    full = marker_set("plug-in-gait-full")
+    t = full.template_mm
+    fields = np.arange(100)
+    shift = np.c_[24.0 * fields, np.zeros(100), 20.0 * np.sin(fields / 8.0)]
+    pos = t[:, None, :] + shift[None]
+    front = [full.names.index(n) for n in ("LFHD", "RFHD")]
+    back = [full.names.index(n) for n in ("LBHD", "RBHD")]
+    forward = np.tile([1.0, 0.0], (100, 1))
+    args = (Anatomy.of_set(full).ahead, t, forward, TrackingParams().min_side_confidence)
+    right = pos.copy()
+    right[back] = np.nan
+    assert not turned_round(right, pos[back], *args).any()
+    turned = right.copy()
+    turned[front] = pos[back]
+    assert np.flatnonzero(turned_round(turned, pos[front], *args)).tolist() == front
 
 
 def test_a_leg_named_one_marker_down_is_not_level_with_the_other():

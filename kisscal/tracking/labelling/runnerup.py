@@ -31,6 +31,8 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.state import RIGID_SPREAD_MM
+
 #: Neighbours: named trajectories whose median distance is below this fraction of the
 #: template's height (a foot's names weighed by the shank and foot, not the head).
 NEIGHBOUR_FRACTION = 0.35
@@ -45,6 +47,10 @@ UNEVEN_FRACTION = 0.10
 #: template (a finger's: the wrist bar's two ends and the forearm; a heel's: the ankle,
 #: the toe and the tibia).
 TEMPLATE_NEIGHBOURS = 3
+#: An unnamed trajectory stands in for a free name of a rigid pair when its distance to
+#: the held one is within this fraction of the template's (:func:`turned_round`; on the
+#: regression set a real head is 30 % longer than the set's template, scaled).
+TURNED_MATCH = 0.5
 
 
 def median_distances(pos: NDArray) -> NDArray[np.float64]:
@@ -156,6 +162,50 @@ def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
     k = min(TEMPLATE_NEIGHBOURS, max(len(template) - 1, 0))
     nearest = np.argsort(d, axis=1)[:, :k]
     return held & (k > 0) & ~held[nearest].any(axis=1)
+
+
+def turned_round(
+    pos: NDArray,
+    spare: NDArray,
+    ahead: tuple[tuple[int, int], ...],
+    template: NDArray,
+    forward: NDArray,
+    min_fraction: float,
+) -> NDArray[np.bool_]:
+    """Per name, whether it holds one end of a front/back pair of one segment
+    (``ahead``: front, back) whose other name is free, while an unnamed trajectory of
+    ``spare`` (m, F, 3) moves rigidly with it (distance SD below
+    :data:`~kisscal.tracking.labelling.state.RIGID_SPREAD_MM`, median within
+    :data:`TURNED_MATCH` of the pair's template distance) on the other side than the
+    free name's: ahead of a back name held alone, behind a front one, along ``forward``
+    (F, 2) in ``min_fraction`` of the fields.
+
+    The anatomy's front/back check needs both names held; a segment whose front names
+    went to its back markers (a head whose back markers were matched to the forehead's
+    names, the forehead's left unnamed) holds no back name to check against. Its
+    unnamed front markers still say which way round it is.
+    """
+    out = np.zeros(pos.shape[0], dtype=bool)
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    if not spare.shape[0]:
+        return out
+    for front, back in ahead:
+        for own, free, side in ((front, back, -1.0), (back, front, 1.0)):
+            if not held[own] or held[free]:
+                continue
+            d = np.linalg.norm(spare - pos[own][None], axis=2)
+            want = float(np.linalg.norm(template[front] - template[back]))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # never seen together
+                rigid = (np.nanstd(d, axis=1) < RIGID_SPREAD_MM) & (
+                    np.abs(np.nanmedian(d, axis=1) - want) < TURNED_MATCH * want
+                )
+            along = np.sum((spare[..., :2] - pos[own][None, :, :2]) * forward, axis=2)
+            ok = np.isfinite(along)
+            n = np.maximum(ok.sum(axis=1), 1)
+            wrong = np.sum(ok & (side * along < 0), axis=1) >= min_fraction * n
+            out[own] |= bool(np.any(rigid & wrong & (ok.sum(axis=1) > 0)))
+    return out
 
 
 def uneven_legs(

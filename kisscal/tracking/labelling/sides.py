@@ -13,12 +13,19 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height, settle_sides
+from kisscal.tracking.labelling.anatomy import (
+    Anatomy,
+    check_anatomy,
+    floor_height,
+    forward_directions,
+    settle_sides,
+)
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.runnerup import (
     free_name_margins,
     isolated,
     name_margins,
+    turned_round,
     uneven_legs,
 )
 from kisscal.tracking.params import TrackingParams
@@ -82,6 +89,24 @@ def doubted(
     return out
 
 
+def _turned(
+    labelling: Labelling,
+    pos: NDArray,
+    anatomy: Anatomy,
+    reference: NDArray,
+    rate_hz: float,
+    params: TrackingParams,
+) -> set[str]:
+    """Names of front/back pairs held alone that an unnamed trajectory finds turned
+    round (:func:`~kisscal.tracking.labelling.runnerup.turned_round`)."""
+    if not anatomy.ahead or not labelling.unlabelled:
+        return set()
+    spare = labelling.tracks.positions()[list(labelling.unlabelled)]
+    forward = forward_directions(pos, anatomy, rate_hz)[0]
+    args = (anatomy.ahead, reference, forward, params.min_side_confidence)
+    return {anatomy.names[i] for i in np.flatnonzero(turned_round(pos, spare, *args))}
+
+
 def _relabelled(labelling: Labelling, names: tuple[str, ...], perm: NDArray) -> tuple[str, ...]:
     row = {n: i for i, n in enumerate(names)}
     return tuple(names[perm[row[lab]]] if lab in row else lab for lab in labelling.labels)
@@ -137,6 +162,7 @@ def judge_sides(
     flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
     flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
+    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params)
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:
