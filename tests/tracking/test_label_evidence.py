@@ -143,8 +143,10 @@ def test_a_name_a_free_name_fits_better_is_doubted():
 def test_a_name_alone_among_its_free_neighbours_is_doubted_by_any_margin():
     """A full-body set on a trial without arms: the true names have their template
     neighbours around them and are not doubted, however little the free deficit asked;
-    a thigh marker named finger (the thigh's name free) is the only name of its hand and
-    is doubted although the free deficit asked is out of reach."""
+    a thigh marker named finger (the thigh's name free, the knee's held) is the only
+    name of its hand and is doubted although the free deficit asked is out of reach.
+    Without the knee and tibia markers too the free thigh name's group is absent as
+    well, and nothing says the finger's name strayed from it."""
     full = marker_set("plug-in-gait-full")
     t = full.template_mm
     fields = np.arange(100)
@@ -166,6 +168,8 @@ def test_a_name_alone_among_its_free_neighbours_is_doubted_by_any_margin():
     shifted[finger], shifted[thigh] = pos[thigh], np.nan
     assert np.flatnonzero(isolated(shifted, t)).tolist() == [finger]
     assert np.flatnonzero(doubted(shifted, anatomy, t, params)).tolist() == [finger]
+    shifted[[full.names.index(n) for n in ("RKNE", "RTIB")]] = np.nan
+    assert not doubted(shifted, anatomy, t, params)[finger]
 
 
 def test_a_head_whose_front_names_went_to_its_back_markers_is_turned_round():

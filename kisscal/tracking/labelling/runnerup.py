@@ -20,8 +20,8 @@ that the evidence clearly contradicts. A name left free by the labelling is anot
 matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
 better than the trajectory's own name is doubtful by a smaller margin
 (``free_deficit_fraction``), and by any margin when none of its nearest names in the
-template is held (:func:`isolated`: a finger's name with the whole arm free). And the two
-legs stand level (:func:`uneven_legs`).
+template is held while the free name's are (:func:`strays`: a finger's name on a thigh
+marker with the whole arm free). And the two legs stand level (:func:`uneven_legs`).
 """
 
 from __future__ import annotations
@@ -71,6 +71,7 @@ def name_margins(
     floor_mm: float,
     pairs: tuple[tuple[int, int], ...] = (),
     among_free: bool = False,
+    weighed: NDArray | None = None,
 ) -> NDArray[np.float64]:
     """Per name (rows of ``pos``, (n, F, 3), Z up), the margin (mm) of its trajectory's
     fit to its own name over its fit to the best other name (NaN: not seen, or no
@@ -85,7 +86,8 @@ def name_margins(
     exchange, and ``k`` is weighed as ``i``'s name. A name's mirror partner (``pairs``:
     left, right) is no runner-up: distances cannot tell a body from its mirror image,
     the anatomy's sides do. With ``among_free``, the other names weighed are only those
-    no trajectory holds (:func:`free_name_margins`).
+    no trajectory holds (:func:`free_name_margins`); ``weighed`` ((n, n) bool), only the
+    names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
     measured = median_distances(pos)
@@ -119,6 +121,8 @@ def name_margins(
         other[[i, mirror[i]]] = False
         if among_free:
             other &= ~held
+        if weighed is not None:
+            other &= weighed[i]
         if other.any():
             margins[i] = float(fit[other].min() - fit[i])
     return margins
@@ -145,23 +149,51 @@ def free_name_margins(
     return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
 
 
-def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
-    """Per name (rows of ``pos``, (n, F, 3)), whether it is held while none of its
-    :data:`TEMPLATE_NEIGHBOURS` nearest names in ``template`` is.
-
-    A marker set is placed in groups (a head, a hand, a foot), and a trial records whole
-    groups or leaves them out: a name held alone among its group's free names is a name
-    the labelling pushed along the body onto a marker of another group (a thigh marker
-    named finger in a trial without arms, the thigh's name free). Its distances may fit
-    the free name better by only a few millimetres (:func:`free_name_margins`), which a
-    true name's can too, but a true name has its group around it.
-    """
-    held = np.isfinite(pos[..., 0]).any(axis=1)
+def _nearest(template: NDArray) -> NDArray[np.int64]:
+    """(n, k) each name's :data:`TEMPLATE_NEIGHBOURS` nearest names in the template."""
     d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     np.fill_diagonal(d, np.inf)
     k = min(TEMPLATE_NEIGHBOURS, max(len(template) - 1, 0))
-    nearest = np.argsort(d, axis=1)[:, :k]
-    return held & (k > 0) & ~held[nearest].any(axis=1)
+    return np.argsort(d, axis=1)[:, :k]
+
+
+def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
+    """Per name (rows of ``pos``, (n, F, 3)), whether it is held while none of its
+    :data:`TEMPLATE_NEIGHBOURS` nearest names in ``template`` is."""
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    return held & ~held[_nearest(template)].any(axis=1)
+
+
+def strays(
+    pos: NDArray,
+    template: NDArray,
+    heights_mm: NDArray | None,
+    floor_mm: float,
+    pairs: tuple[tuple[int, int], ...] = (),
+) -> NDArray[np.bool_]:
+    """Per name, whether it is :func:`isolated` and a free name that has a held template
+    neighbour (other than the name itself) fits its trajectory better by any margin.
+
+    A marker set is placed in groups (a head, a hand, a foot), and a trial records whole
+    groups or leaves them out: a name held alone among its group's free names, whose
+    trajectory a free name of a held group fits better, is a name the labelling pushed
+    along the body onto a marker of that group (a thigh marker named finger in a trial
+    without arms, the thigh's name free, the knee's held). Its distances may fit the free
+    name better by only a few millimetres (:func:`free_name_margins`), which a true
+    name's can too, but a true name alone (a shoulder without the trunk's markers) is
+    beaten by names of groups that are absent as well.
+    """
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    alone = isolated(pos, template)
+    if not alone.any():
+        return alone
+    nearest = _nearest(template)
+    rows = np.arange(len(held))[:, None, None]
+    # anchored[i, j]: j is free and one of its nearest names other than i is held.
+    anchored = ~held[None, :] & (held[nearest][None] & (nearest[None] != rows)).any(axis=2)
+    margins = name_margins(pos, template, heights_mm, floor_mm, pairs, weighed=anchored)
+    with np.errstate(invalid="ignore"):
+        return alone & (margins < 0)
 
 
 def turned_round(

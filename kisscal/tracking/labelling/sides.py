@@ -23,8 +23,8 @@ from kisscal.tracking.labelling.anatomy import (
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.runnerup import (
     free_name_margins,
-    isolated,
     name_margins,
+    strays,
     turned_round,
     uneven_legs,
 )
@@ -74,16 +74,15 @@ def doubted(
     (:mod:`~kisscal.tracking.labelling.runnerup`): another name fits its trajectory
     better by ``name_deficit_fraction`` of stature, a name no trajectory holds by
     ``free_deficit_fraction`` (by any margin when none of its template neighbours is
-    held: :func:`~kisscal.tracking.labelling.runnerup.isolated`), or it is a leg's not
-    level with the other leg."""
+    held and the free name's group is: :func:`~kisscal.tracking.labelling.runnerup.strays`),
+    or it is a leg's not level with the other leg."""
     floor = floor_height(pos, anatomy)
     stature = float(np.ptp(reference[:, 2]))
     args = (pos, reference, anatomy.heights_mm, floor, anatomy.pairs)
     with np.errstate(invalid="ignore"):
         out = name_margins(*args) < -params.name_deficit_fraction * stature
-        free = free_name_margins(*args)
-        out |= free < -params.free_deficit_fraction * stature
-        out |= isolated(pos, reference) & (free < 0)
+        out |= free_name_margins(*args) < -params.free_deficit_fraction * stature
+    out |= strays(*args)
     if anatomy.heights_mm is not None:
         out |= uneven_legs(pos, anatomy.heights_mm, anatomy.pairs, anatomy.front + anatomy.back)
     return out
