@@ -93,6 +93,24 @@ def test_an_ankle_and_heel_swap_is_put_right() -> None:
     np.testing.assert_array_equal(moved, pos)
 
 
+def test_a_foreign_marker_on_an_elbows_name_is_not_given_the_pelvis_name() -> None:
+    """A full-body set walking, a forearm marker below the elbow holding the elbow's name
+    (the arm's other names free): the elbow's name sits below the pelvis' back marker of
+    its side, and the two exchanged would agree with every check; but the labelling does
+    not confuse names that far apart in the template, and the exchange is not made (it
+    is made when any pair may be exchanged)."""
+    full = marker_set("plug-in-gait-full")
+    fields = np.arange(100)
+    shift = np.c_[24.0 * fields, np.zeros(100), 20.0 * np.sin(fields / 8.0)]
+    pos = full.template_mm[:, None, :] + shift[None]
+    elbow, psi = full.names.index("RELB"), full.names.index("RPSI")
+    pos[[full.names.index(n) for n in ("RFRM", "RWRA", "RWRB", "RFIN")]] = np.nan
+    pos[elbow, :, 2] -= 300.0  # a forearm marker, 200 mm below the pelvis' back marker
+    anatomy = Anatomy.of_set(full)
+    assert settle_sides(pos, anatomy, 50.0, 0.8)[1] == []
+    assert settle_sides(pos, replace(anatomy, neighbours=None), 50.0, 0.8)[1] == [(elbow, psi)]
+
+
 def test_a_standing_subject_faces_the_way_pelvis_and_feet_say() -> None:
     pos = standing(turn_deg=30.0)
     forward, source = forward_directions(pos, Anatomy.of_set(PIG), 50.0)

@@ -17,7 +17,14 @@ from kisscal.tracking.labelling.feet import (
     score,
     settle_feet,
 )
-from kisscal.tracking.labelling.runnerup import free_name_margins, name_margins, uneven_legs
+from kisscal.tracking.labelling.runnerup import (
+    free_name_margins,
+    isolated,
+    name_margins,
+    turned_round,
+    uneven_legs,
+)
+from kisscal.tracking.labelling.sides import doubted
 from kisscal.tracking.labelling.state import LabelState
 
 KISS = marker_set("kiss")
@@ -131,6 +138,60 @@ def test_a_name_a_free_name_fits_better_is_doubted():
     assert margins(shifted)[tibia] < -limit
     # With every name held nothing is free to weigh.
     assert np.isnan(margins(pos)).all()
+
+
+def test_a_name_alone_among_its_free_neighbours_is_doubted_by_any_margin():
+    """A full-body set on a trial without arms: the true names have their template
+    neighbours around them and are not doubted, however little the free deficit asked;
+    a thigh marker named finger (the thigh's name free, the knee's held) is the only
+    name of its hand and is doubted although the free deficit asked is out of reach.
+    Without the knee and tibia markers too the free thigh name's group is absent as
+    well, and nothing says the finger's name strayed from it."""
+    full = marker_set("plug-in-gait-full")
+    t = full.template_mm
+    fields = np.arange(100)
+    # Walking along x at 1.2 m/s (50 Hz), the body bobbing 20 mm: distances as the template's.
+    shift = np.c_[24.0 * fields, np.zeros(100), 20.0 * np.sin(fields / 8.0)]
+    pos = t[:, None, :] + shift[None]
+    arms = [
+        full.names.index(n)
+        for n in full.names
+        if n[1:] in ("SHO", "UPA", "ELB", "FRM", "WRA", "WRB", "FIN")
+    ]
+    pos[arms] = np.nan
+    anatomy = Anatomy.of_set(full)
+    params = TrackingParams(name_deficit_fraction=1.0, free_deficit_fraction=1.0)
+    assert not isolated(pos, t).any()
+    assert not doubted(pos, anatomy, t, params).any()
+    thigh, finger = full.names.index("RTHI"), full.names.index("RFIN")
+    shifted = pos.copy()
+    shifted[finger], shifted[thigh] = pos[thigh], np.nan
+    assert np.flatnonzero(isolated(shifted, t)).tolist() == [finger]
+    assert np.flatnonzero(doubted(shifted, anatomy, t, params)).tolist() == [finger]
+    shifted[[full.names.index(n) for n in ("RKNE", "RTIB")]] = np.nan
+    assert not doubted(shifted, anatomy, t, params)[finger]
+
+
+def test_a_head_whose_front_names_went_to_its_back_markers_is_turned_round():
+    """A full-body set walking along x: the head's back markers hold the forehead's names,
+    the forehead's markers are unnamed and the back names free; the unnamed markers move
+    rigidly with the named ones ahead of them, so the front names are doubted. Named the
+    right way (the back markers unnamed behind the front names), nothing is."""
+    full = marker_set("plug-in-gait-full")
+    t = full.template_mm
+    fields = np.arange(100)
+    shift = np.c_[24.0 * fields, np.zeros(100), 20.0 * np.sin(fields / 8.0)]
+    pos = t[:, None, :] + shift[None]
+    front = [full.names.index(n) for n in ("LFHD", "RFHD")]
+    back = [full.names.index(n) for n in ("LBHD", "RBHD")]
+    forward = np.tile([1.0, 0.0], (100, 1))
+    args = (Anatomy.of_set(full).ahead, t, forward, TrackingParams().min_side_confidence)
+    right = pos.copy()
+    right[back] = np.nan
+    assert not turned_round(right, pos[back], *args).any()
+    turned = right.copy()
+    turned[front] = pos[back]
+    assert np.flatnonzero(turned_round(turned, pos[front], *args)).tolist() == front
 
 
 def test_a_leg_named_one_marker_down_is_not_level_with_the_other():

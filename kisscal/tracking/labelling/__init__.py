@@ -43,8 +43,10 @@ convention, is then judged by the anatomy (:mod:`~.anatomy`,
 :mod:`~.sides`): left and right settled by the walking direction and the pelvis, a
 confidence per name, uncertain names flagged: names the checks cannot tell apart (a
 wrist bar's two ends), names that another name of the set fits clearly better
-against the set's own template, or a name left free fits better, legs not level with
-each other (:mod:`~.runnerup`), and a foot's names that a near tie of the feet contest
+against the set's own template, or a name left free fits better (by any margin when
+none of the name's template neighbours is held), legs not level with each other, a
+segment's front or back name held alone with an unnamed marker moving rigidly on its
+wrong side (:mod:`~.runnerup`), and a foot's names that a near tie of the feet contest
 gives to other markers (:mod:`~.feet`).
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)

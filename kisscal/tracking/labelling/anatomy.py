@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from kisscal.markersets.model import MarkerSet
+from kisscal.tracking.labelling.runnerup import TEMPLATE_NEIGHBOURS
 
 #: Marker pairs at least this far apart in the template's height, as a fraction of
 #: stature, are checked for their vertical order (knee above ankle, hip above knee).
@@ -74,6 +75,11 @@ class Anatomy:
         Names of one side closer in the template than :data:`NEAR_FRACTION` of stature
         with no check between them (a wrist bar's two ends): nothing here tells them
         apart, so their names are never certain.
+    neighbours : tuple of (int, int) or None
+        Pairs of names one of which is among the other's
+        :data:`~kisscal.tracking.labelling.runnerup.TEMPLATE_NEIGHBOURS` nearest in the
+        template: the only names of one side or segment :func:`settle_sides` exchanges
+        (None: any).
     """
 
     names: tuple[str, ...]
@@ -87,6 +93,7 @@ class Anatomy:
     heights_mm: NDArray[np.float64] | None = None
     height_tolerance_mm: float = float("nan")
     twins: tuple[tuple[int, int], ...] = ()
+    neighbours: tuple[tuple[int, int], ...] | None = None
 
     @classmethod
     def of_names(cls, names: tuple[str, ...]) -> Anatomy:
@@ -129,6 +136,7 @@ class Anatomy:
             heights_mm=_heights(marker_set, template_mm) if heights else None,
             height_tolerance_mm=HEIGHT_FRACTION * marker_set.height_mm,
             twins=_twins(marker_set, pairs, above + ahead),
+            neighbours=_neighbours(marker_set.template_mm),
         )
 
 
@@ -163,6 +171,17 @@ def _twins(marker_set: MarkerSet, pairs: tuple, checked: tuple) -> tuple[tuple[i
     return tuple(
         (int(i), int(j)) for i, j in zip(*np.nonzero(close), strict=True) if {i, j} not in apart
     )
+
+
+def _neighbours(template: NDArray) -> tuple[tuple[int, int], ...]:
+    """Pairs (i < j) of which one is among the other's nearest names in the template."""
+    d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    k = min(TEMPLATE_NEIGHBOURS, max(len(template) - 1, 0))
+    near = np.zeros(d.shape, dtype=bool)
+    np.put_along_axis(near, np.argsort(d, axis=1)[:, :k], True, axis=1)
+    near |= near.T
+    return tuple((int(i), int(j)) for i, j in zip(*np.nonzero(np.triu(near, 1)), strict=True))
 
 
 def _ahead(marker_set: MarkerSet) -> tuple[tuple[int, int], ...]:
@@ -376,9 +395,12 @@ def settle_sides(
 
     Left/right pairs first (a name left of its right partner); then pairs of one side or
     one segment (above, ahead: an ankle and a heel swapped), each exchanged only if that
-    makes both names agree with the anatomy. ``pos[i]`` is the trajectory named
-    ``anatomy.names[i]``; the result ``perm`` says that trajectory ``i`` is name
-    ``perm[i]``.
+    makes both names agree with the anatomy and the two are template neighbours
+    (``anatomy.neighbours``): the labelling confuses neighbours; an elbow's name below
+    the pelvis' back marker on one side means a foreign marker (a forearm's) holds the
+    elbow's name, and giving it the pelvis' name would make two names wrong.
+    ``pos[i]`` is the trajectory named ``anatomy.names[i]``; the result ``perm`` says
+    that trajectory ``i`` is name ``perm[i]``.
     """
     forward, source = forward_directions(pos, anatomy, rate_hz)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
@@ -394,7 +416,10 @@ def settle_sides(
     moved[perm] = pos
     floor = floor_height(pos, anatomy)
     conf = _confidence(moved, anatomy, forward, source, floor)
+    close = None if anatomy.neighbours is None else set(anatomy.neighbours)
     for a, b in anatomy.above + anatomy.ahead:
+        if close is not None and (min(a, b), max(a, b)) not in close:
+            continue
         if not (conf[a] < 1.0 - min_confidence and conf[b] < 1.0 - min_confidence):
             continue
         trial = moved.copy()

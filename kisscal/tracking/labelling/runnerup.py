@@ -19,7 +19,9 @@ cannot certify a name (most names would have to be flagged), it can only catch a
 that the evidence clearly contradicts. A name left free by the labelling is another
 matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
 better than the trajectory's own name is doubtful by a smaller margin
-(``free_deficit_fraction``). And the two legs stand level (:func:`uneven_legs`).
+(``free_deficit_fraction``), and by any margin when none of its nearest names in the
+template is held while the free name's are (:func:`strays`: a finger's name on a thigh
+marker with the whole arm free). And the two legs stand level (:func:`uneven_legs`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ import warnings
 
 import numpy as np
 from numpy.typing import NDArray
+
+from kisscal.tracking.labelling.state import RIGID_SPREAD_MM
 
 #: Neighbours: named trajectories whose median distance is below this fraction of the
 #: template's height (a foot's names weighed by the shank and foot, not the head).
@@ -39,6 +43,14 @@ MARGIN_FIELDS = 200
 #: names differ by up to 8.0 % (the tennis serve's thighs: one knee bent through the
 #: serve); a leg whose names moved by one marker, by 12-16 % (test1.c3d, standing).
 UNEVEN_FRACTION = 0.10
+#: A name's template neighbours (:func:`isolated`): its this many nearest names in the
+#: template (a finger's: the wrist bar's two ends and the forearm; a heel's: the ankle,
+#: the toe and the tibia).
+TEMPLATE_NEIGHBOURS = 3
+#: An unnamed trajectory stands in for a free name of a rigid pair when its distance to
+#: the held one is within this fraction of the template's (:func:`turned_round`; on the
+#: regression set a real head is 30 % longer than the set's template, scaled).
+TURNED_MATCH = 0.5
 
 
 def median_distances(pos: NDArray) -> NDArray[np.float64]:
@@ -59,6 +71,7 @@ def name_margins(
     floor_mm: float,
     pairs: tuple[tuple[int, int], ...] = (),
     among_free: bool = False,
+    weighed: NDArray | None = None,
 ) -> NDArray[np.float64]:
     """Per name (rows of ``pos``, (n, F, 3), Z up), the margin (mm) of its trajectory's
     fit to its own name over its fit to the best other name (NaN: not seen, or no
@@ -73,7 +86,8 @@ def name_margins(
     exchange, and ``k`` is weighed as ``i``'s name. A name's mirror partner (``pairs``:
     left, right) is no runner-up: distances cannot tell a body from its mirror image,
     the anatomy's sides do. With ``among_free``, the other names weighed are only those
-    no trajectory holds (:func:`free_name_margins`).
+    no trajectory holds (:func:`free_name_margins`); ``weighed`` ((n, n) bool), only the
+    names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
     measured = median_distances(pos)
@@ -107,6 +121,8 @@ def name_margins(
         other[[i, mirror[i]]] = False
         if among_free:
             other &= ~held
+        if weighed is not None:
+            other &= weighed[i]
         if other.any():
             margins[i] = float(fit[other].min() - fit[i])
     return margins
@@ -131,6 +147,97 @@ def free_name_margins(
     weighs nothing (NaN).
     """
     return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
+
+
+def _nearest(template: NDArray) -> NDArray[np.int64]:
+    """(n, k) each name's :data:`TEMPLATE_NEIGHBOURS` nearest names in the template."""
+    d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    k = min(TEMPLATE_NEIGHBOURS, max(len(template) - 1, 0))
+    return np.argsort(d, axis=1)[:, :k]
+
+
+def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
+    """Per name (rows of ``pos``, (n, F, 3)), whether it is held while none of its
+    :data:`TEMPLATE_NEIGHBOURS` nearest names in ``template`` is."""
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    return held & ~held[_nearest(template)].any(axis=1)
+
+
+def strays(
+    pos: NDArray,
+    template: NDArray,
+    heights_mm: NDArray | None,
+    floor_mm: float,
+    pairs: tuple[tuple[int, int], ...] = (),
+) -> NDArray[np.bool_]:
+    """Per name, whether it is :func:`isolated` and a free name that has a held template
+    neighbour (other than the name itself) fits its trajectory better by any margin.
+
+    A marker set is placed in groups (a head, a hand, a foot), and a trial records whole
+    groups or leaves them out: a name held alone among its group's free names, whose
+    trajectory a free name of a held group fits better, is a name the labelling pushed
+    along the body onto a marker of that group (a thigh marker named finger in a trial
+    without arms, the thigh's name free, the knee's held). Its distances may fit the free
+    name better by only a few millimetres (:func:`free_name_margins`), which a true
+    name's can too, but a true name alone (a shoulder without the trunk's markers) is
+    beaten by names of groups that are absent as well.
+    """
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    alone = isolated(pos, template)
+    if not alone.any():
+        return alone
+    nearest = _nearest(template)
+    rows = np.arange(len(held))[:, None, None]
+    # anchored[i, j]: j is free and one of its nearest names other than i is held.
+    anchored = ~held[None, :] & (held[nearest][None] & (nearest[None] != rows)).any(axis=2)
+    margins = name_margins(pos, template, heights_mm, floor_mm, pairs, weighed=anchored)
+    with np.errstate(invalid="ignore"):
+        return alone & (margins < 0)
+
+
+def turned_round(
+    pos: NDArray,
+    spare: NDArray,
+    ahead: tuple[tuple[int, int], ...],
+    template: NDArray,
+    forward: NDArray,
+    min_fraction: float,
+) -> NDArray[np.bool_]:
+    """Per name, whether it holds one end of a front/back pair of one segment
+    (``ahead``: front, back) whose other name is free, while an unnamed trajectory of
+    ``spare`` (m, F, 3) moves rigidly with it (distance SD below
+    :data:`~kisscal.tracking.labelling.state.RIGID_SPREAD_MM`, median within
+    :data:`TURNED_MATCH` of the pair's template distance) on the other side than the
+    free name's: ahead of a back name held alone, behind a front one, along ``forward``
+    (F, 2) in ``min_fraction`` of the fields.
+
+    The anatomy's front/back check needs both names held; a segment whose front names
+    went to its back markers (a head whose back markers were matched to the forehead's
+    names, the forehead's left unnamed) holds no back name to check against. Its
+    unnamed front markers still say which way round it is.
+    """
+    out = np.zeros(pos.shape[0], dtype=bool)
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    if not spare.shape[0]:
+        return out
+    for front, back in ahead:
+        for own, free, side in ((front, back, -1.0), (back, front, 1.0)):
+            if not held[own] or held[free]:
+                continue
+            d = np.linalg.norm(spare - pos[own][None], axis=2)
+            want = float(np.linalg.norm(template[front] - template[back]))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # never seen together
+                rigid = (np.nanstd(d, axis=1) < RIGID_SPREAD_MM) & (
+                    np.abs(np.nanmedian(d, axis=1) - want) < TURNED_MATCH * want
+                )
+            along = np.sum((spare[..., :2] - pos[own][None, :, :2]) * forward, axis=2)
+            ok = np.isfinite(along)
+            n = np.maximum(ok.sum(axis=1), 1)
+            wrong = np.sum(ok & (side * along < 0), axis=1) >= min_fraction * n
+            out[own] |= bool(np.any(rigid & wrong & (ok.sum(axis=1) > 0)))
+    return out
 
 
 def uneven_legs(

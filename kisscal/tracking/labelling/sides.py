@@ -13,9 +13,21 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.anatomy import Anatomy, check_anatomy, floor_height, settle_sides
+from kisscal.tracking.labelling.anatomy import (
+    Anatomy,
+    check_anatomy,
+    floor_height,
+    forward_directions,
+    settle_sides,
+)
 from kisscal.tracking.labelling.result import Labelling
-from kisscal.tracking.labelling.runnerup import free_name_margins, name_margins, uneven_legs
+from kisscal.tracking.labelling.runnerup import (
+    free_name_margins,
+    name_margins,
+    strays,
+    turned_round,
+    uneven_legs,
+)
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rigid import field_fits
 
@@ -61,16 +73,37 @@ def doubted(
     """Per name, whether the evidence the labelling did not shape doubts it
     (:mod:`~kisscal.tracking.labelling.runnerup`): another name fits its trajectory
     better by ``name_deficit_fraction`` of stature, a name no trajectory holds by
-    ``free_deficit_fraction``, or it is a leg's not level with the other leg."""
+    ``free_deficit_fraction`` (by any margin when none of its template neighbours is
+    held and the free name's group is: :func:`~kisscal.tracking.labelling.runnerup.strays`),
+    or it is a leg's not level with the other leg."""
     floor = floor_height(pos, anatomy)
     stature = float(np.ptp(reference[:, 2]))
     args = (pos, reference, anatomy.heights_mm, floor, anatomy.pairs)
     with np.errstate(invalid="ignore"):
         out = name_margins(*args) < -params.name_deficit_fraction * stature
         out |= free_name_margins(*args) < -params.free_deficit_fraction * stature
+    out |= strays(*args)
     if anatomy.heights_mm is not None:
         out |= uneven_legs(pos, anatomy.heights_mm, anatomy.pairs, anatomy.front + anatomy.back)
     return out
+
+
+def _turned(
+    labelling: Labelling,
+    pos: NDArray,
+    anatomy: Anatomy,
+    reference: NDArray,
+    rate_hz: float,
+    params: TrackingParams,
+) -> set[str]:
+    """Names of front/back pairs held alone that an unnamed trajectory finds turned
+    round (:func:`~kisscal.tracking.labelling.runnerup.turned_round`)."""
+    if not anatomy.ahead or not labelling.unlabelled:
+        return set()
+    spare = labelling.tracks.positions()[list(labelling.unlabelled)]
+    forward = forward_directions(pos, anatomy, rate_hz)[0]
+    args = (anatomy.ahead, reference, forward, params.min_side_confidence)
+    return {anatomy.names[i] for i in np.flatnonzero(turned_round(pos, spare, *args))}
 
 
 def _relabelled(labelling: Labelling, names: tuple[str, ...], perm: NDArray) -> tuple[str, ...]:
@@ -128,6 +161,7 @@ def judge_sides(
     flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
     flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
+    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params)
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:
