@@ -2,7 +2,8 @@
 
 One-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment`` on
 gate-normalised squared distances) rather than first-come nearest neighbour; a one-point
-track, which has no velocity, is judged by the field after (:func:`lookahead_cost`).
+track, which has no velocity, is judged by the field after (:func:`lookahead_cost`), and so
+is a track whose nearest point a rival's continuation beats (:func:`continuation_doubts`).
 """
 
 from __future__ import annotations
