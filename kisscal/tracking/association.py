@@ -224,12 +224,17 @@ def continuation_doubts(
     h3, h2, h1 = history[:, 0], history[:, 1], history[:, 2]
     pred = 3.0 * h1 - 3.0 * h2 + h3
     miss = np.sum((points[None, :, :] - pred[:, None, :]) ** 2, axis=2)  # (T, M)
-    ahead = 3.0 * points[None, :, :] - (3.0 * h1 - h2)[:, None, :]  # (T, M, 3)
-    on = np.sum((ahead[:, :, None, :] - later[None, None, :, :]) ** 2, axis=3).min(axis=2)
-    cost = miss + on
     own_miss = np.sum((found - pred) ** 2, axis=1)
     own = np.sum((found[:, None, :] - points[None, :, :]) ** 2, axis=2).argmin(axis=1)
     rivals = (miss < reach**2 * own_miss[:, None]) & (own_miss > least_mm**2)[:, None]
     rivals[np.arange(own.size), own] = False
-    own_cost = cost[np.arange(own.size), own]
-    return (rivals & (cost < own_cost[:, None])).any(axis=1)
+    out = np.zeros(history.shape[0], dtype=bool)
+    t = np.flatnonzero(rivals.any(axis=1))  # the field after is weighed only where in doubt
+    if t.size == 0:
+        return out
+    ahead = 3.0 * points[None, :, :] - (3.0 * h1[t] - h2[t])[:, None, :]  # (t, M, 3)
+    on = np.sum((ahead[:, :, None, :] - later[None, None, :, :]) ** 2, axis=3).min(axis=2)
+    cost = miss[t] + on
+    own_cost = cost[np.arange(t.size), own[t]]
+    out[t] = (rivals[t] & (cost < own_cost[:, None])).any(axis=1)
+    return out
