@@ -2,7 +2,8 @@
 
 One-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment`` on
 gate-normalised squared distances) rather than first-come nearest neighbour; a one-point
-track, which has no velocity, is judged by the field after (:func:`lookahead_cost`).
+track, which has no velocity, is judged by the field after (:func:`lookahead_cost`), and so
+is a track whose nearest point a rival's continuation beats (:func:`continuation_doubts`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,9 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 _FAR = 1e12
+#: A rival farther than this many times the point taken from a track's quadratic
+#: prediction is not weighed by its continuation (:func:`continuation_doubts`).
+LOOKAHEAD_REACH = 2.0
 
 
 def associate(
@@ -180,3 +184,57 @@ def certain_rows(
         d_lost = np.linalg.norm(found[:, None, :] - lost[None, :, :], axis=2).min(axis=1)
         own &= d_lost > reach
     return own & (d_rival > reach)
+
+
+def continuation_doubts(
+    history: NDArray,
+    found: NDArray,
+    points: NDArray,
+    later: NDArray,
+    least_mm: float,
+    reach: float = LOOKAHEAD_REACH,
+) -> NDArray[np.bool_]:
+    """Which tracks took a point that continues their path worse than another point
+    within ``reach`` times its distance from the track's constant-acceleration prediction.
+
+    On fast markers a few centimetres apart (30 Hz, a limb moving 50-180 mm a field) the
+    prediction misses by about the spacing, so the nearest point may be a neighbour's. One
+    field more tells them apart: a path that jumps onto a neighbour steps by the spacing
+    ``d``, and its third difference (jerk) there and in the field after is about ``d``
+    and ``3 d``, while the marker's own path keeps a small one (Shafiq et al. 2001's
+    continuity, here over the candidate and the field after). The cost of each candidate
+    ``p`` is the squared miss of the quadratic through the track's last three points, plus
+    that of the quadratic through the last two and ``p`` at the nearest point of ``later``.
+
+    Parameters
+    ----------
+    history : (T, 3, 3) each track's last three positions, oldest first (mm).
+    found : (T, 3) the point each track took; points : (M, 3) the field's points;
+    later : (K, 3) the next field's points; least_mm : a point taken nearer than this to
+    the prediction is no doubt (a few times the noise); reach : how much farther from the
+    prediction a rival may lie than the point taken and still be weighed.
+
+    Returns
+    -------
+    (T,) bool: tracks for which a rival's continuation costs less than their point's
+    (cut there: blending judges the join with both sides).
+    """
+    if history.shape[0] == 0 or points.shape[0] < 2 or later.shape[0] == 0:
+        return np.zeros(history.shape[0], dtype=bool)
+    h3, h2, h1 = history[:, 0], history[:, 1], history[:, 2]
+    pred = 3.0 * h1 - 3.0 * h2 + h3
+    miss = np.sum((points[None, :, :] - pred[:, None, :]) ** 2, axis=2)  # (T, M)
+    own_miss = np.sum((found - pred) ** 2, axis=1)
+    own = np.sum((found[:, None, :] - points[None, :, :]) ** 2, axis=2).argmin(axis=1)
+    rivals = (miss < reach**2 * own_miss[:, None]) & (own_miss > least_mm**2)[:, None]
+    rivals[np.arange(own.size), own] = False
+    out = np.zeros(history.shape[0], dtype=bool)
+    t = np.flatnonzero(rivals.any(axis=1))  # the field after is weighed only where in doubt
+    if t.size == 0:
+        return out
+    ahead = 3.0 * points[None, :, :] - (3.0 * h1[t] - h2[t])[:, None, :]  # (t, M, 3)
+    on = np.sum((ahead[:, :, None, :] - later[None, None, :, :]) ** 2, axis=3).min(axis=2)
+    cost = miss[t] + on
+    own_cost = cost[np.arange(t.size), own[t]]
+    out[t] = (rivals[t] & (cost < own_cost[:, None])).any(axis=1)
+    return out

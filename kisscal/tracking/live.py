@@ -202,15 +202,11 @@ class Live:
 
     def _grow(self, extra: int) -> None:
         more = max(extra, self.ids.size)
-        self.ids = np.concatenate([self.ids, np.full(more, -1, dtype=np.int64)])
-        self.counts = np.concatenate([self.counts, np.zeros((more, 3), dtype=np.int64)])
-        self.history = np.concatenate([self.history, np.zeros((more, self.setup.depth, 3))])
-        self.state = np.concatenate([self.state, np.zeros((more, 3, 2))])
-        self.kalman = np.concatenate([self.kalman, np.zeros(more, dtype=bool)])
-        self.alive = np.concatenate([self.alive, np.zeros(more, dtype=bool)])
-        self.errors = np.concatenate([self.errors, np.zeros((more, 2))])
-        self.pending = np.concatenate([self.pending, np.zeros(more, dtype=bool)])
-        self.ambiguous = np.concatenate([self.ambiguous, np.zeros(more, dtype=bool)])
+        names = ("ids", "counts", "history", "state", "kalman", "alive", "errors")
+        for name in (*names, "pending", "ambiguous"):
+            old = getattr(self, name)
+            pad = np.full((more, *old.shape[1:]), -1 if name == "ids" else 0, dtype=old.dtype)
+            setattr(self, name, np.concatenate([old, pad]))
         self._bind()
 
     def step(self, field: int, point: NDArray, points: NDArray, later: NDArray) -> list[int]:
@@ -223,6 +219,10 @@ class Live:
             self._close_rivals(pred, points, rows, cols)
         if self._speed is not None and rows.size:
             self._fast_first_steps(pred, points, rows, cols)
+        seen = (self.n[rows] >= 3) & (self.misses[rows] == 0)
+        if seen.any() and later.shape[0]:  # a doubt on the nearest: the field after judges
+            args = (self.history[rows[seen], -3:], points[cols[seen]], points, later, RIVAL_MIN_MM)
+            self.ambiguous[rows[seen][assoc.continuation_doubts(*args)]] = True
         if (ratio := self.setup.params.certain_ratio) > 0 and rows.size:
             kal, found = rows[self.kalman[rows]], points[cols[self.kalman[rows]]]
             spread = np.sqrt(np.maximum(self.errors[kal].min(axis=1), self.setup.params.mnc))

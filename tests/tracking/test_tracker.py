@@ -235,3 +235,24 @@ def test_a_short_pieces_guessed_first_step_is_split_off():
     assert np.sum(out.track == alone) == 1
     assert out.track[out.point == 3][0] == out.track[out.point == 4][0]
     assert split_ambiguous_first_steps(tracks, params.replace(min_initial_length=2)).n_tracks == 4
+
+
+@pytest.mark.parametrize("jerk_mm", [0.0, 5.0])
+def test_continuation_tells_a_fast_marker_from_its_nearer_neighbour(jerk_mm):
+    """Two markers of one fast limb 16 mm apart on a cubic path (third difference 6 *
+    ``jerk_mm``): with a jerk the quadratic prediction misses the marker by 30 mm and its
+    neighbour lies nearer; the field after shows which point continues the path."""
+    from kisscal.tracking.association import continuation_doubts
+
+    t = np.arange(5.0)[:, None]
+    a = np.hstack([jerk_mm * t**3 + 40.0 * t, 2.0 * t**2, np.zeros_like(t)])
+    b = a + np.array([-15.0, 5.0, 0.0])
+    history = a[None, :3]
+    pred = 3 * a[2] - 3 * a[1] + a[0]
+    points, later = np.stack([a[3], b[3]]), np.stack([a[4], b[4]])
+    # With the jerk, the one-field choice (the nearest point) is the neighbour's.
+    nearest = np.argmin(np.linalg.norm(points - pred, axis=1))
+    assert nearest == (1 if jerk_mm else 0)
+    # Taking the neighbour is a doubt, taking the marker's own point is not.
+    got = [continuation_doubts(history, p[None], points, later, 10.0)[0] for p in points]
+    assert got == [False, True]
