@@ -7,7 +7,7 @@ Typical use::
 """
 
 from kisscal.tracking.blending import blend_tracks, clean_up
-from kisscal.tracking.gaps import fill_gaps, smooth_tracks
+from kisscal.tracking.gaps import fill_gaps
 from kisscal.tracking.labelling import Labelling, label_tracks
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.pipeline import (
@@ -19,6 +19,7 @@ from kisscal.tracking.pipeline import (
     sweep_noise,
 )
 from kisscal.tracking.rayfill import SpareBlobs, spare_blobs
+from kisscal.tracking.smooth import smooth_tracks
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import associate, track_points
 from kisscal.tracking.tracks import (

@@ -14,10 +14,10 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import make_smoothing_spline
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
@@ -71,13 +71,19 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
 
 
 def _fill_one(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams, spare: SpareBlobs | None
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    spare: SpareBlobs | None,
+    spline: bool = True,
 ) -> list[tuple[NDArray, GapFill]]:
-    """Spline for short gaps, the body (:func:`body_fill`) for longer ones; with
-    ``spare`` blobs, each filled field a camera still sees moved onto its ray
-    (:func:`with_rays`); no spline where the marker's blobs followed in the image from
-    the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
-    short = hi - lo <= params.max_fill_gap_fields
+    """Spline for short gaps (unless not ``spline``), the body (:func:`body_fill`) for
+    longer ones; with ``spare`` blobs, each filled field a camera still sees moved onto
+    its ray (:func:`with_rays`); no spline where the marker's blobs followed in the image
+    from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
+    short = spline and hi - lo <= params.max_fill_gap_fields
     if not short and hi - lo > params.max_body_fill_fields:
         return []
     rays = spare is not None and spare.rows(lo, hi).size > 0
@@ -139,9 +145,11 @@ def _placer(method: Callable) -> Callable:
     return fill
 
 
-def _body(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+def _body(
+    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
+) -> NDArray[np.bool_]:
     """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`."""
-    got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare)
+    got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare, spline)
     gap.out.extend(got)
     return np.full(b - a, bool(got))
 
@@ -295,10 +303,12 @@ FILLS: tuple[Fill, ...] = (
 
 
 #: The fills of the second pass (:func:`_second_pass`): the marker's own blobs placed on
-#: their rays by its segment's lengths, the rest by the body expecting little error.
+#: their rays by its segment's lengths, the rest by the body expecting little error, no
+#: spline (it has no error to check, and these runs lie beside what the first pass's
+#: checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
-    Fill("body", _body, strict="always"),
+    Fill("body", partial(_body, spline=False), strict="always"),
 )
 
 
@@ -476,25 +486,3 @@ def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
     Gløersen & Federolf 2016 (filling from the other markers of the body).
     """
     return fill_gaps_logged(tracks, params)[0]
-
-
-def smooth_tracks(tracks: Tracks, min_run: int = 5) -> Tracks:
-    """Smooth each run of consecutive fields of every track with a GCV smoothing spline.
-
-    The smoothing parameter is chosen per run and per axis set by generalised
-    cross-validation (Woltring 1986; ``make_smoothing_spline`` with ``lam=None``). Runs
-    shorter than ``min_run`` fields are left as they are. Statuses are unchanged.
-    """
-    xyz = tracks.xyz_mm.copy()
-    if tracks.field.size == 0:
-        return tracks
-    brk = np.flatnonzero((np.diff(tracks.field) != 1) | (np.diff(tracks.track) != 0)) + 1
-    lo = np.r_[0, brk]
-    hi = np.r_[brk, tracks.field.size]
-    for a, b in zip(lo, hi, strict=True):
-        if b - a < min_run:
-            continue
-        x = tracks.field[a:b].astype(float)
-        for axis in range(3):
-            xyz[a:b, axis] = make_smoothing_spline(x, xyz[a:b, axis])(x)
-    return Tracks(tracks.field, tracks.track, xyz, tracks.corrected_mm, tracks.status, tracks.point)

@@ -10,13 +10,14 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.blending import blend_tracks, clean_up
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.gaps import fill_gaps_logged, smooth_tracks
+from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.pieces import join_gap_pieces
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.smooth import smooth_tracks
 from kisscal.tracking.stats import SegmentStats, segment_statistics
 from kisscal.tracking.tracker import track_points
 from kisscal.tracking.tracks import PREDICTED, Tracks
