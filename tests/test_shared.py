@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 
 import numpy as np
 import pytest
 
+from kisscal import _shared
 from kisscal._shared import START_METHOD_ENV, inherited, start_method, worker_pool
 from kisscal.errors import KisscalError
 
@@ -55,3 +57,31 @@ def test_no_children_inside_a_daemonic_process() -> None:
     child.join(60)
     assert queue.get(timeout=10) is None
     assert start_method() in ("fork", "spawn")  # this (not daemonic) process may
+
+
+_AT_INITIALIZER: list[bool] = []
+
+
+def _sigint_state() -> tuple[bool, bool, bool]:
+    """(held back when the initializer began, ignored, held back) of Ctrl-C here."""
+    held = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, set())
+    return _AT_INITIALIZER[0], signal.getsignal(signal.SIGINT) == signal.SIG_IGN, held
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="no signal masks")
+def test_a_worker_starts_with_ctrl_c_held_back_and_then_ignores_it(monkeypatch) -> None:
+    # held back from the fork to the worker's initializer (a Ctrl-C in between killed the
+    # worker and broke the pool), ignored after it; the parent's mask is as it was
+    adopt = _shared._adopt
+
+    def recording(*args):
+        _AT_INITIALIZER.append(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, set()))
+        adopt(*args)
+
+    monkeypatch.setattr(_shared, "_adopt", recording)
+    monkeypatch.setenv(START_METHOD_ENV, "fork")
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, set())
+    with worker_pool(1) as pool:
+        at_start, ignored, held = pool.submit(_sigint_state).result()
+    assert at_start and ignored and not held
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, set()) == before
