@@ -244,6 +244,23 @@ def rigid_fill(
 AXIS_MAX_COS = 0.7
 
 
+def rigid_pair(
+    dense: NDArray, cand: NDArray, to_target: NDArray, params: TrackingParams
+) -> NDArray | None:
+    """The two of ``cand`` whose distance to the target (SD ``to_target``) holds best,
+    or None when theirs, or their own to each other, varies more than
+    ``rigid_fill_sd_mm``: a segment's axis to carry the target about."""
+    order = np.argsort(to_target)[:2]
+    pair = cand[order]
+    limit = params.rigid_fill_sd_mm
+    if (
+        to_target[order].max() > limit
+        or distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
+    ):
+        return None
+    return pair
+
+
 def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
     """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
     and whose third is square to it and to the lab direction ``ref`` (a frame of two
@@ -268,13 +285,8 @@ def axis_fill(
     if carriers is None:
         return None
     cand, to_target, (before, after) = carriers
-    order = np.argsort(to_target)[:2]
-    pair = cand[order]
-    limit = params.rigid_fill_sd_mm
-    if (
-        to_target[order].max() > limit
-        or distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
-    ):
+    pair = rigid_pair(dense, cand, to_target, params)
+    if pair is None:
         return None
     axis = dense[pair[1], lo:hi] - dense[pair[0], lo:hi]
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)

@@ -36,6 +36,7 @@ from kisscal.tracking.bodyfill import (
     axis_frames,
     distance_sd,
     ramp,
+    rigid_pair,
     side_windows,
 )
 from kisscal.tracking.params import TrackingParams
@@ -58,16 +59,7 @@ def _pair(
     cand = np.flatnonzero(through)
     if cand.size < 2:
         return None
-    to_target = distance_sd(dense[cand], target[None])[:, 0]
-    order = np.argsort(to_target)[:2]
-    pair = cand[order]
-    limit = params.rigid_fill_sd_mm
-    if (
-        to_target[order].max() > limit
-        or distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
-    ):
-        return None
-    return pair
+    return rigid_pair(dense, cand, distance_sd(dense[cand], target[None])[:, 0], params)
 
 
 def _local(target: NDArray, dense: NDArray, pair: NDArray, f: NDArray, ref: NDArray) -> NDArray:
