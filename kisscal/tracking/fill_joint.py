@@ -84,22 +84,36 @@ def _group(dense: NDArray, t: int, params: TrackingParams) -> _Group | None:
 def _member_rays(
     dense: NDArray, u: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
 ) -> NDArray[np.int64]:
-    """Spare row of track ``u``'s own blob per field of [lo, hi) (-1 where none, or where
-    ``u`` is measured), followed in the image across each of its unmeasured runs."""
-    out = np.full(hi - lo, -1, dtype=np.int64)
+    """Spare row of track ``u``'s own blob per camera and field of [lo, hi), shape
+    (n_cameras, hi - lo) (-1 where none, or where ``u`` is measured), followed in the
+    image across each of its unmeasured runs (from its one side at the trial's ends)."""
+    out = np.full((len(spare.dlts), hi - lo), -1, dtype=np.int64)
     series = dense[u]
     a_runs, b_runs = true_runs(~np.isfinite(series[:, 0]))
     for a, b in zip(a_runs.tolist(), b_runs.tolist(), strict=True):
-        if b <= lo or a >= hi or a < 2 or b + 1 >= len(series):
+        if b <= lo or a >= hi or (a == 0 and b == len(series)):
             continue
         ks, rows = chain_blobs(series, a, b, spare, params)
         k = ks + a - lo
         ok = (k >= 0) & (k < hi - lo)
-        # two cameras' blobs in one field: keep the first (one ray fixes the depth's line)
-        k, rows = k[ok], rows[ok]
-        first = np.unique(k, return_index=True)[1]
-        out[k[first]] = rows[first]
+        out[spare.camera[rows[ok]], k[ok]] = rows[ok]
     return out
+
+
+def _pick_rays(cands: NDArray[np.int64]) -> NDArray[np.int64]:
+    """One spare row per member and field from ``cands`` (m, n_cameras, n): the first
+    camera's blob that no other member's path follows too, else the first camera's.
+    Where two cameras see a marker and one of its blobs is shared (its image within a
+    pixel or two of another marker's, which that camera lost or merged with it), that
+    blob's ray passes both markers and fixes neither depth apart from the other; the
+    marker's other blob is its own."""
+    m = len(cands)
+    same = cands[:, :, None, None, :] == cands[None, None, :, :, :]  # (m, c, m, c, n)
+    same &= ~np.eye(m, dtype=bool)[:, None, :, None, None]
+    valid = cands >= 0
+    own = valid & ~same.any(axis=(2, 3))
+    pick = np.where(own.any(axis=1), own.argmax(axis=1), valid.argmax(axis=1))  # (m, n)
+    return np.take_along_axis(cands, pick[:, None, :], axis=1)[:, 0]
 
 
 def _solve(
@@ -194,12 +208,15 @@ def _walk(
     last = _edge_positions(dense[members], lo, hi, forward)  # (m, 3), NaN where none
     edge, step = (lo - 1, -1) if forward else (hi, 1)
     stale = ~np.isfinite(dense[members, edge, 0])
+    # a member never known on this side (a heel whose track starts after the gap) is
+    # stale: it starts on the sphere of its length about the target (_best_start)
+    last = np.where(np.isfinite(last), last, last[:1])
     vel = np.nan_to_num(dense[members[0], edge] - dense[members[0], edge + step])
     since = 0
     for k in range(n) if forward else range(n - 1, -1, -1):
         f = lo + k
         known = np.isfinite(dense[members, f, 0])
-        on = (rays[:, k] >= 0) & ~known & np.isfinite(last[:, 0])
+        on = (rays[:, k] >= 0) & ~known
         row = rays[:, k]
         if not on[0] or np.any(on[1:] & (row[1:] == row[0])):
             continue  # the target has no ray, or another marker follows its blob
@@ -231,7 +248,9 @@ def joint_ray_fill(
     grp = _group(dense, t, params)
     if grp is None:
         return None
-    rays = np.stack([_member_rays(dense, int(u), lo, hi, spare, params) for u in grp.members])
+    rays = _pick_rays(
+        np.stack([_member_rays(dense, int(u), lo, hi, spare, params) for u in grp.members])
+    )
     if not np.any(rays[0] >= 0):
         return None
     fwd, e_f = _walk(dense, grp, rays, lo, hi, spare, True)

@@ -156,6 +156,9 @@ def side_paths(
             (lo - 1, -1, np.arange(lo, hi)),
             (hi, 1, np.arange(hi - 1, lo - 1, -1)),
         ):
+            if not 0 <= edge < len(target):  # a run at the trial's start or end: one side
+                picks.append({})
+                continue
             ends = (
                 target[[edge, edge + step]]
                 if 0 <= edge + step < len(target)

@@ -261,3 +261,67 @@ def test_a_marker_is_placed_by_a_partner_its_own_gap_filled_later():
             r &= out.field < g.first_field + g.n_fields
             e = np.linalg.norm(out.xyz_mm[r] - xyz[0, out.field[r]], axis=1)
             assert np.sqrt(np.mean(e**2)) < max(g.expected_error_mm, 1.0) + 0.5
+
+
+def _hinged_foot(n: int = 300) -> np.ndarray:
+    """Markers 0-3 (4, n, 3): 1, 2 and 3 one rigid segment moving along X; 0 on a hinge
+    about the axis through 3 and 2 (lab Y), so its length to 1 changes (a shank marker
+    seen with the foot)."""
+    t = np.arange(n) / 100.0
+    move = np.stack([300 * t, 50 * np.sin(t), 900 + 0 * t], 1)
+    hinge = Rotation.from_rotvec(np.outer(0.8 * np.sin(3 * t), [0.0, 1.0, 0.0]))
+    return np.stack(
+        [
+            hinge.apply([60.0, -30.0, 90.0]) + move,
+            move + [80.0, 0.0, 20.0],
+            move + [0.0, -70.0, 0.0],
+            move,
+        ]
+    )
+
+
+def _merged_and_own(xyz: np.ndarray, run: slice, seed: int) -> object:
+    """Camera 0, looking along marker 2 -> 3, sees one blob where their images merge,
+    in ``run``; camera 1 sees markers 1 and 3 in GAP and 2 in ``run``; two noise blobs
+    a field in each."""
+    target = xyz[3, GAP].mean(axis=0)
+    dlts = np.stack(
+        [
+            _look_at(target + [0.0, 3000.0, 40.0], target),
+            _look_at(target + [2500, 1500, 600], target),
+        ]
+    )
+    rng = np.random.default_rng(seed)
+    parts = [(0, run, (xyz[2] + xyz[3]) / 2), (1, GAP, xyz[1]), (1, GAP, xyz[3]), (1, run, xyz[2])]
+    field, cam, uv = [], [], []
+    for c, span, pts in parts:
+        f = np.arange(span.start, span.stop)
+        field, cam = [*field, f], [*cam, np.full(f.size, c)]
+        uv.append(project_rows(dlts, cam[-1], pts[f]) + rng.normal(0, 0.05, (f.size, 2)))
+    f = np.repeat(np.arange(xyz.shape[1]), 4)
+    noise = rng.uniform([0, 0], [640, 480], (f.size, 2))
+    return spare_blobs(
+        np.concatenate([*field, f]),
+        np.concatenate([*cam, np.tile([0, 0, 1, 1], xyz.shape[1])]),
+        np.concatenate([*uv, noise]),
+        dlts,
+    )
+
+
+def test_a_segment_on_rays_takes_each_marker_s_own_blob_and_a_track_starting_after():
+    # the foot of a lab of four cameras in swing: ankle (3) and toe (1) on one camera's
+    # rays, the heel (2) too, its track starting only after the gap (seen by one camera
+    # before), and a second camera whose one blob is heel and ankle merged; only the
+    # shank marker (0), on a hinge, measured. The three lengths among the foot's rays
+    # fix it; the merged blob's ray is both markers' and neither's own.
+    xyz = _hinged_foot()
+    dense = xyz.copy()
+    dense[[1, 3], GAP] = np.nan
+    dense[2, : GAP.stop + 10] = np.nan
+    spare = _merged_and_own(xyz, slice(0, GAP.stop + 10), 7)
+    got = joint_ray_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.8 * (GAP.stop - GAP.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0
