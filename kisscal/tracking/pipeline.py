@@ -13,6 +13,7 @@ from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
+from kisscal.tracking.labelling.broken import drop_broken_samples
 from kisscal.tracking.labelling.pieces import join_gap_pieces
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.params import TrackingParams
@@ -136,17 +137,18 @@ def _label(
     template_upright: bool = False,
 ) -> Labelling:
     """Label with the set, or with names and template; judged by the anatomy when the
-    rate is known; unnamed pieces that fill a named trajectory's gap joined to it."""
+    rate is known; measured samples that break their segment's lengths dropped; unnamed
+    pieces that fill a named trajectory's gap joined to it."""
     template = None if template_mm is None else np.asarray(template_mm, dtype=float)
     if marker_set is not None and rate_hz:
         labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
-        return join_gap_pieces(labelling, params)
+        return join_gap_pieces(drop_broken_samples(labelling, params), params)
     labelling = label_tracks(blended, names, params, template, segments)
     if rate_hz and names and template is not None:
         anatomy = Anatomy.of_names(tuple(names))
         if anatomy.pairs:
             labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
-    return join_gap_pieces(labelling, params)
+    return join_gap_pieces(drop_broken_samples(labelling, params), params)
 
 
 @dataclass(frozen=True)
