@@ -136,6 +136,35 @@ def pixel_size_mm(dlts: ArrayLike, camera: ArrayLike, xyz_mm: ArrayLike) -> NDAr
     return 1.0 / np.sqrt(np.maximum(sv[:, 0] * sv[:, 1], 1e-300))
 
 
+def ray_directions(L: NDArray, uv: NDArray) -> NDArray[np.float64]:
+    """Unit direction (n, 3) of the ray of pixel ``uv[k]`` of DLT ``L[k]``: the line where
+    the two planes ``(L1 - u L9) . x = u - L4`` and ``(L5 - v L9) . x = v - L8`` meet."""
+    a1 = L[:, 0:3] - uv[:, :1] * L[:, 8:11]
+    a2 = L[:, 4:7] - uv[:, 1:] * L[:, 8:11]
+    d = np.cross(a1, a2)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def ray_points(
+    dlts: NDArray[np.float64],
+    camera: NDArray[np.int64],
+    uv: NDArray[np.float64],
+    target: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Per row, the point of the ray of blob ``uv`` in ``camera`` nearest to ``target``:
+    the ray is where both DLT equations ``(L1 - u L9) . X + L4 - u = 0`` and
+    ``(L5 - v L9) . X + L8 - v = 0`` hold."""
+    L = dlts[camera]
+    u, v = uv[:, 0:1], uv[:, 1:2]
+    A = np.stack([L[:, 0:3] - u * L[:, 8:11], L[:, 4:7] - v * L[:, 8:11]], axis=1)
+    rhs = np.stack([uv[:, 0] - L[:, 3], uv[:, 1] - L[:, 7]], axis=1)
+    r = np.einsum("nij,nj->ni", A, target) - rhs
+    g = np.einsum("nij,nkj->nik", A, A)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.linalg.solve(g, r[..., None])[..., 0]
+    return target - np.einsum("nij,ni->nj", A, lam)
+
+
 def camera_centre_mm(L: ArrayLike) -> NDArray[np.float64]:
     """Projection centre (mm) of a DLT camera: the null vector of ``P = [M | p4]``.
 

@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.dlt.model import pixel_size_mm, project_rows
+from kisscal.dlt.model import pixel_size_mm, project_rows, ray_directions, ray_points
 from kisscal.recon.deblend import Deblended, MergeScene
 from kisscal.recon.group import embed_fields, near_cameras
 
@@ -107,26 +107,6 @@ def predictions(
         at_all, pred_all = at_all[keep], pred_all[keep]
     stops = tree.query(embed_fields(pred_all, at_all))[0] > tol_mm
     return at_all, pred_all, stops
-
-
-def ray_points(
-    dlts: NDArray[np.float64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    target: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Per row, the point of the ray of blob ``uv`` in ``camera`` nearest to ``target``:
-    the ray is where both DLT equations ``(L1 - u L9) . X + L4 - u = 0`` and
-    ``(L5 - v L9) . X + L8 - v = 0`` hold."""
-    L = dlts[camera]
-    u, v = uv[:, 0:1], uv[:, 1:2]
-    A = np.stack([L[:, 0:3] - u * L[:, 8:11], L[:, 4:7] - v * L[:, 8:11]], axis=1)
-    rhs = np.stack([uv[:, 0] - L[:, 3], uv[:, 1] - L[:, 7]], axis=1)
-    r = np.einsum("nij,nj->ni", A, target) - rhs
-    g = np.einsum("nij,nkj->nik", A, A)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = np.linalg.solve(g, r[..., None])[..., 0]
-    return target - np.einsum("nij,ni->nj", A, lam)
 
 
 def deblend_hidden(
@@ -363,11 +343,7 @@ def _ray(
     target: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The ray of each blob: its point nearest ``target`` and its unit direction."""
-    L = dlts[camera]
-    n1 = L[:, 0:3] - uv[:, :1] * L[:, 8:11]
-    n2 = L[:, 4:7] - uv[:, 1:] * L[:, 8:11]
-    u = np.cross(n1, n2)
-    return ray_points(dlts, camera, uv, target), u / np.linalg.norm(u, axis=1, keepdims=True)
+    return ray_points(dlts, camera, uv, target), ray_directions(dlts[camera], uv)
 
 
 def _disjoint3(

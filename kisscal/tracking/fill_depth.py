@@ -27,10 +27,11 @@ from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from kisscal._shared import true_runs
+from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs, one_camera_blobs
-from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.rayfill import SpareBlobs
 
 
 def _depth_spline(

@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.model import project_rows
+from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
     FillMethod,
@@ -38,7 +38,7 @@ from kisscal.tracking.bodyfill import (
 )
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import MIN_RUN, ChainFill, follow_blobs
-from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import MEASURED, Tracks
 
 

@@ -34,10 +34,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
+from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import distance_sd
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs
-from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.rayfill import SpareBlobs
 
 #: Largest distance (mm) between the solutions of the two walks for a field to be kept.
 AGREE_MM = 5.0

@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.dlt.model import project_rows
+from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
@@ -57,7 +57,7 @@ from kisscal.tracking.raychain import (
     one_camera_blobs,
     partner_lengths,
 )
-from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.rayfill import SpareBlobs
 
 #: Smallest cosine between a ray and the direction from its root to the partner for the
 #: partner's length to fix a depth (nearer tangent, the two roots merge).

@@ -44,10 +44,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.dlt.model import project_rows
+from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.rayfill import SpareBlobs, ray_directions
+from kisscal.tracking.rayfill import SpareBlobs
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2

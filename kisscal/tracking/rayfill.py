@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal.dlt.model import camera_centre_mm, pixel_size_mm, project_rows
+from kisscal.dlt.model import camera_centre_mm, pixel_size_mm, project_rows, ray_directions
 from kisscal.errors import InputError
 from kisscal.tracking.params import TrackingParams
 
@@ -92,15 +92,6 @@ def spare_blobs(
     ok = np.all(np.isfinite(uv[order]), axis=1)
     order = order[ok]
     return SpareBlobs(f[order], c[order], uv[order], L, np.ones(order.size, dtype=bool))
-
-
-def ray_directions(L: NDArray, uv: NDArray) -> NDArray[np.float64]:
-    """Unit direction (n, 3) of the ray of pixel ``uv[k]`` of DLT ``L[k]``: the line where
-    the two planes ``(L1 - u L9) . x = u - L4`` and ``(L5 - v L9) . x = v - L8`` meet."""
-    a1 = L[:, 0:3] - uv[:, :1] * L[:, 8:11]
-    a2 = L[:, 4:7] - uv[:, 1:] * L[:, 8:11]
-    d = np.cross(a1, a2)
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def _pick(
