@@ -13,8 +13,9 @@ three layers, each the identity when absent:
 - Brown's distortion of the normalised coordinates (Brown 1966, 1971), in OpenCV's order
   and convention (Bradski 2000): radial ``k1 k2 p1 p2 k3``, then the rational model's
   ``k4 k5 k6`` and the thin prism's ``s1 s2 s3 s4``. The bundle adjustment, the synthetic
-  rigs and the OpenCV exports use it; :func:`distort`, :func:`distortion_jacobian` and
-  :func:`undistort` are its one implementation.
+  rigs and the OpenCV exports use it; its one implementation, :func:`distort`,
+  :func:`distortion_jacobian` and :func:`undistort`, is :mod:`kisscal.dlt.lens`'s (the
+  DLT's L12..L16 use it too), imported here.
 - Kolahi's lens terms L12..L16 (Kolahi et al. 2007), in the DLT's pixel frame.
 - The grid's 30-coefficient polynomial (Küçük 2005, eq. 2.2) from raw pixels to the
   pixels the terms above act on: the grid polynomial as a lens.
@@ -61,6 +62,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.camera import decompose_dlt
+from kisscal.dlt.lens import distort, undistort
+from kisscal.dlt.lens import distortion_jacobian as distortion_jacobian
 from kisscal.dlt.model import dlt_from_krt, project
 from kisscal.dlt.nonlinear import correct_lens
 from kisscal.errors import InputError
@@ -76,96 +79,6 @@ LENS_TERMS: tuple[str, ...] = ("k1", "k2", "p1", "p2", "k3")
 #: Lengths of a distortion vector OpenCV accepts.
 LENS_LENGTHS: tuple[int, ...] = (4, 5, 8, 12)
 _LAWSON_ROUNDS = 8
-
-
-def _terms(lens: ArrayLike) -> tuple[NDArray[np.float64], ...]:
-    """The twelve coefficients of one lens (shape (k,)) or one per row (shape (n, k))."""
-    d = np.asarray(lens, dtype=float)
-    pad = np.zeros((*d.shape[:-1], 12 - d.shape[-1]))
-    d = np.concatenate([d, pad], axis=-1)
-    return tuple(d[..., i] for i in range(12))
-
-
-def distort(lens: ArrayLike, xn: ArrayLike) -> NDArray[np.float64]:
-    """Brown's distortion of normalised coordinates, OpenCV's convention.
-
-    Parameters
-    ----------
-    lens : array_like, shape (k,) or (n, k)
-        One lens for every point, or one per row; ``k`` is 4, 5, 8 or 12
-        (``k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4]]]``).
-    xn : array_like, shape (..., 2)
-        Undistorted normalised coordinates.
-
-    Returns
-    -------
-    ndarray, shape (..., 2)
-        ``x ρ + 2 p1 x y + p2 (r² + 2 x²) + s1 r² + s2 r⁴`` and
-        ``y ρ + p1 (r² + 2 y²) + 2 p2 x y + s3 r² + s4 r⁴`` with
-        ``ρ = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)``.
-    """
-    xn = np.asarray(xn, dtype=float)
-    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = _terms(lens)
-    rational = np.shape(lens)[-1] > 5  # the rational model and the thin prism
-    x, y = xn[..., 0], xn[..., 1]
-    r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    if rational:
-        radial = radial / (1.0 + r2 * (k4 + r2 * (k5 + r2 * k6)))
-    xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
-    if rational:
-        xd = xd + r2 * (s1 + s2 * r2)
-        yd = yd + r2 * (s3 + s4 * r2)
-    return np.stack([xd, yd], axis=-1)
-
-
-def distortion_jacobian(lens: ArrayLike, xn: ArrayLike) -> NDArray[np.float64]:
-    """``d(xd, yd) / d(x, y)`` of :func:`distort`, shape (..., 2, 2)."""
-    xn = np.asarray(xn, dtype=float)
-    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = _terms(lens)
-    x, y = xn[..., 0], xn[..., 1]
-    r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    d_radial = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3)  # d radial / d r²
-    prism_x = prism_y = 0.0
-    if np.shape(lens)[-1] > 5:
-        den = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
-        d_den = k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2)
-        d_radial = (d_radial * den - radial * d_den) / den**2
-        radial = radial / den
-        prism_x, prism_y = s1 + 2.0 * s2 * r2, s3 + 2.0 * s4 * r2  # d prism / d r²
-    jac = np.empty((*x.shape, 2, 2))
-    jac[..., 0, 0] = radial + 2 * x * x * d_radial + 2 * p1 * y + 6 * p2 * x + 2 * x * prism_x
-    jac[..., 0, 1] = 2 * x * y * d_radial + 2 * p1 * x + 2 * p2 * y + 2 * y * prism_x
-    jac[..., 1, 0] = 2 * x * y * d_radial + 2 * p1 * x + 2 * p2 * y + 2 * x * prism_y
-    jac[..., 1, 1] = radial + 2 * y * y * d_radial + 6 * p1 * y + 2 * p2 * x + 2 * y * prism_y
-    return jac
-
-
-def undistort(lens: ArrayLike, xd: ArrayLike, tol: float = 1e-14) -> NDArray[np.float64]:
-    """Inverse of :func:`distort` by Newton's method (to ``tol``, at most 100 steps).
-
-    OpenCV's own ``undistortPoints`` stops after 5 fixed-point steps by default, too coarse
-    for a round trip; Newton's method converges to rounding for the lenses of a lab.
-    """
-    xd = np.asarray(xd, dtype=float)
-    x = xd.copy()
-    for _ in range(100):
-        err = distort(lens, x) - xd
-        D = distortion_jacobian(lens, x)
-        det = D[..., 0, 0] * D[..., 1, 1] - D[..., 0, 1] * D[..., 1, 0]
-        step = np.stack(
-            [
-                (D[..., 1, 1] * err[..., 0] - D[..., 0, 1] * err[..., 1]) / det,
-                (D[..., 0, 0] * err[..., 1] - D[..., 1, 0] * err[..., 0]) / det,
-            ],
-            axis=-1,
-        )
-        x -= step
-        if np.max(np.abs(step), initial=0.0) < tol:
-            break
-    return x
 
 
 def normalised_to_px(K: ArrayLike, xn: ArrayLike) -> NDArray[np.float64]:

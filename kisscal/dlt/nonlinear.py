@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal._shared import similarity_normaliser
 from kisscal.dlt.camera import decompose_matrix
+from kisscal.dlt.lens import distort
 from kisscal.dlt.linear import check_control_points, solve_dlt
 from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
@@ -76,17 +77,16 @@ def lens_offsets(
     (``A = I``) this is the paper's pixel form; with a pixel aspect (the KISS cameras'
     pixels are nearly twice as tall as wide) the terms stay radial about the optical
     axis, as a lens is, and as Brown's model (and OpenCV's) is in normalised coordinates.
-    Corrected coordinates are ``uv + offsets``.
+    Corrected coordinates are ``uv + offsets``. The terms are Brown's (L15 is OpenCV's
+    ``p2``, L16 its ``p1``), in the DLT literature's form (:func:`kisscal.dlt.lens.distort`).
     """
-    k1, k2, k3, p1, p2 = np.asarray(lens, dtype=float)
     centre, A = frame
     d = uv - centre
     eta = d[..., 1] / A[1, 1]
     xi = d[..., 0] - A[0, 1] * eta
-    r2 = xi**2 + eta**2
-    radial = k1 * r2 + k2 * r2**2 + k3 * r2**3
-    dxi = xi * radial + p1 * (r2 + 2 * xi**2) + p2 * xi * eta
-    deta = eta * radial + p2 * (r2 + 2 * eta**2) + p1 * xi * eta
+    # L12 L13 L14 L15 L16 in OpenCV's order k1 k2 p1 p2 k3
+    brown = np.asarray(lens, dtype=float)[[0, 1, 4, 3, 2]]
+    dxi, deta = np.moveaxis(distort(brown, np.stack([xi, eta], axis=-1), dlt_form=True), -1, 0)
     return np.stack([dxi + A[0, 1] * deta, A[1, 1] * deta], axis=-1)
 
 
