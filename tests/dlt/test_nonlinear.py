@@ -143,6 +143,22 @@ def test_lens_terms_are_radial_in_normalised_coordinates():
     np.testing.assert_allclose(lens_offsets(uv, (centre, A), [k, 0, 0, 0, 0]), expected)
 
 
+def test_lens_offsets_are_kolahis_equation_2_term_by_term():
+    # Square pixels (A = I): L12..L16 as Kolahi et al. (2007, eq. 2) write them, which the
+    # shared Brown implementation reproduces in its DLT form (cross terms x y at weight 1).
+    rng = np.random.default_rng(2)
+    uv = rng.uniform([0, 0], [752, 582], (200, 2))
+    centre = np.array([370.0, 290.0])
+    L12, L13, L14, L15, L16 = 2e-7, -3e-13, 4e-19, 5e-6, -7e-6
+    xi, eta = (uv - centre).T
+    r2 = xi**2 + eta**2
+    radial = L12 * r2 + L13 * r2**2 + L14 * r2**3
+    dxi = xi * radial + L15 * (r2 + 2 * xi**2) + L16 * xi * eta
+    deta = eta * radial + L15 * xi * eta + L16 * (r2 + 2 * eta**2)
+    got = lens_offsets(uv, (centre, np.eye(2)), [L12, L13, L14, L15, L16])
+    np.testing.assert_allclose(got, np.column_stack([dxi, deta]), rtol=1e-12, atol=1e-12)
+
+
 def test_an_iteration_that_cannot_start_is_a_clear_estimation_failure():
     """Non-finite residuals at the linear start (a fold of the real cavity target's points
     under the lens model) end as EstimationFailed, which the model choice skips, not as
