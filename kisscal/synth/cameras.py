@@ -265,7 +265,9 @@ def _barrel_lens(
     r2 = xn**2 + yn**2
     dist_px = np.hypot(corners[:, 0] - K[0, 2], corners[:, 1] - K[1, 2])
     target = rng.uniform(*corner_px)
-    shift_per_k1_px = r2 * dist_px  # a corner's first-order shift under k1 = 1
+    # A draw, not a lens model: under k1 = 1 a corner moves r² times its distance (first
+    # order), so this k1 moves the farthest corner by the drawn target.
+    shift_per_k1_px = r2 * dist_px
     k1 = -target / np.max(shift_per_k1_px)
     k2 = rng.uniform(-0.2, 0.2) * abs(k1)
     if exact:  # the r^4 term at most a fifth of the r^2 term at the corners, as in KISS
