@@ -20,7 +20,7 @@ from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.session.calibrated import read_dlt_files
 from kisscal.session.exports import write_exports
-from kisscal.session.inputs import load_config, select_cameras, writes_session
+from kisscal.session.inputs import select_cameras, writes_session
 from kisscal.session.linearise import (
     current_linearisations,
     grid_linearisations,
@@ -57,7 +57,8 @@ def calibrate(
     echo: Echo = quiet,
     workers: int | None = None,
     route: str | None = None,
-    config: SessionConfig | None = None,
+    *,
+    config: SessionConfig,
 ) -> dict[str, Any]:
     """``kisscal calibrate``: DLT parameters of each camera, by the session's route.
 
@@ -71,10 +72,10 @@ def calibrate(
     Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
     (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
     returns ``{camera: DltResult}`` plus the route's held-out check under ``"_check"``.
-    ``config`` is the session's, when the caller has it loaded already.
+    ``config`` is the session's, read from ``root`` when the caller has none
+    (:func:`~kisscal.session.inputs.loads_config`).
     """
     root = Path(root)
-    config = config or load_config(root)
     o = overrides or Overrides()
     switches = _dlt_switches(root, {"mdlt": mdlt, "refine": refine, "lens": lens}, echo)
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))

@@ -17,7 +17,7 @@ from kisscal.io.config import SessionConfig
 from kisscal.io.dltfiles import DltFile
 from kisscal.io.store import SessionStore
 from kisscal.rig import Rig
-from kisscal.session.inputs import load_config
+from kisscal.session.inputs import loads_config
 from kisscal.session.linearise import current_linearisations
 from kisscal.session.progress import Echo, quiet
 
@@ -35,15 +35,15 @@ def read_dlt_files(root: Path, config: SessionConfig, required: bool = True) -> 
     return result
 
 
-def current_rig(root: Path, echo: Echo = quiet, config: SessionConfig | None = None) -> Rig:
+@loads_config
+def current_rig(root: Path, echo: Echo = quiet, *, config: SessionConfig) -> Rig:
     """The session's calibrated rig: current linearisations and the written DLT files.
 
     Linearises the cameras whose grid linearisation is missing or out of date (writing
     ``out/linearisation/``); raises :class:`~kisscal.errors.MissingDataError` when a
     camera has no calibration yet (``kisscal calibrate`` first). ``config`` is the
-    session's, when the caller has it loaded already.
+    session's, read from ``root`` when the caller has none.
     """
-    config = config or load_config(root)
     lins = current_linearisations(config, echo)
     return calibrated_rig(config, lins, read_dlt_files(root, config))
 

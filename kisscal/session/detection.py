@@ -14,10 +14,11 @@ from kisscal.detect.configure import configure_detection
 from kisscal.detect.pipeline import hopeless
 from kisscal.errors import InputError
 from kisscal.io.blobs import write_blobs
+from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_bytes
 from kisscal.io.frames import read_image
 from kisscal.report.overlay import draw_overlay
-from kisscal.session.inputs import load_config, select_cameras, writes_session
+from kisscal.session.inputs import select_cameras, writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.runner import camera_detection
@@ -73,12 +74,11 @@ def _session_params(
     """A session camera's derived settings with ``given`` on top."""
     if camera is None:
         raise InputError("--session needs --camera: whose derived settings to use")
-    config = load_config(root)
-    cam = select_cameras(config, camera)[0]
-    params = stage_params(config, Overrides(detection=given))
 
     @writes_session
-    def derive(root: Path) -> DetectionParams:
+    def derive(root: Path, config: SessionConfig) -> DetectionParams:
+        cam = select_cameras(config, camera)[0]
+        params = stage_params(config, Overrides(detection=given))
         return camera_detection(config, cam, kind, params, echo)
 
     detection = derive(root)

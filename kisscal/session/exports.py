@@ -33,7 +33,7 @@ from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.opencv import OpenCvFit, image_grid, opencv_from_camera
 from kisscal.session.calibrated import calibrated_rig, current_rig, read_dlt_files
-from kisscal.session.inputs import load_config
+from kisscal.session.inputs import loads_config
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.runner import each_camera
 
@@ -181,8 +181,15 @@ def write_exports(
     return report
 
 
+@loads_config
 def export(
-    root: Path, to: str, dest: Path | None = None, echo: Echo = quiet, units: str | None = None
+    root: Path,
+    to: str,
+    dest: Path | None = None,
+    echo: Echo = quiet,
+    units: str | None = None,
+    *,
+    config: SessionConfig,
 ) -> list[Path]:
     """``kisscal export``: the session's calibration for another tool.
 
@@ -197,8 +204,7 @@ def export(
         raise InputError(f"export: --to must be one of {', '.join(EXPORT_FORMATS)}, got {to!r}")
     units = _export_units(to, units)
     root = Path(root)
-    config = load_config(root)
-    rig = current_rig(root, echo, config)
+    rig = current_rig(root, echo, config=config)
     dlts = read_dlt_files(root, config, required=False)
     store = SessionStore(root)
     if to == "dltdv8":

@@ -19,17 +19,29 @@ from kisscal.session.figures import drawing_beside, submit_figure
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def loads_config(func: F) -> F:
+    """Call ``func(root, ..., config=...)`` with the session's config: the caller's when it
+    has it loaded (a stage the runner calls), else :func:`load_config`'s. The one place a
+    command reads ``session.toml``, so a command reads it once and hands it down."""
+
+    @functools.wraps(func)
+    def loaded(root: Path, *args: Any, config: SessionConfig | None = None, **kwargs: Any) -> Any:
+        return func(root, *args, config=config or load_config(Path(root)), **kwargs)
+
+    return loaded  # type: ignore[return-value]
+
+
 def writes_session(func: F) -> F:
-    """Run ``func(root, ...)`` holding the session's write lock (see :mod:`kisscal.io.lock`)."""
+    """Run ``func(root, ..., config=...)`` holding the session's write lock (see
+    :mod:`kisscal.io.lock`), the config read first (:func:`loads_config`): a missing or bad
+    ``session.toml`` is said before the lock makes ``out/``, never a folder for a typo."""
 
     @functools.wraps(func)
     def locked(root: Path, *args: Any, **kwargs: Any) -> Any:
-        if not (Path(root) / "session.toml").is_file():
-            load_session(Path(root))  # says what is missing; never create a folder for a typo
         with session_lock(SessionStore(root).out), drawing_beside():
             return func(root, *args, **kwargs)
 
-    return locked  # type: ignore[return-value]
+    return loads_config(locked)
 
 
 def load_config(root: Path) -> SessionConfig:

@@ -23,7 +23,7 @@ from kisscal.io.linearisation import (
 )
 from kisscal.io.store import SessionStore
 from kisscal.report.grid import grid_correction_figure
-from kisscal.session.inputs import figure, load_config, select_cameras, writes_session
+from kisscal.session.inputs import figure, select_cameras, writes_session
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, Progress, quiet, reporting_progress, steps
 from kisscal.session.routes.imported import imported_linearisation
@@ -39,7 +39,8 @@ def linearise(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
-    config: SessionConfig | None = None,
+    *,
+    config: SessionConfig,
 ) -> dict[str, Linearisation]:
     """``kisscal linearise``: each camera's linearisation from its grid frames.
 
@@ -48,9 +49,9 @@ def linearise(
     Writes ``out/linearisation/<camera>.json`` and returns ``{camera: Linearisation}``.
     A session without ``[grid]`` gets the identity linearisation; one calibrated by
     ``[calibration] cameras`` the polynomial fitted to that file's OpenCV distortion.
-    ``config`` is the session's, when the caller has it loaded already.
+    ``config`` is the session's, read from ``root`` when the caller has none
+    (:func:`~kisscal.session.inputs.loads_config`).
     """
-    config = config or load_config(root)
     o = overrides or Overrides()
     if model is not None:
         o = dataclasses.replace(o, grid={**o.grid, "model": model})

@@ -34,7 +34,7 @@ from kisscal.session.runner import TrialRun, TrialStage
 def _inputs(run: TrialRun) -> tuple:
     """What a trial's points depend on besides its blobs; the columns: a points2d.csv of
     an older layout is redone."""
-    rig = current_rig(run.root, run.echo, run.config)
+    rig = current_rig(run.root, run.echo, config=run.config)
     return rig, run.params.recon, session_body(run.config), POINTS2D_COLUMNS
 
 

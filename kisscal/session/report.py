@@ -9,16 +9,15 @@ from kisscal.io.config import SessionConfig
 from kisscal.io.store import SessionStore
 from kisscal.report.params import ReportParams
 from kisscal.session.figures import after_figures, wait_for_figures
-from kisscal.session.inputs import load_config, writes_session
+from kisscal.session.inputs import writes_session
 from kisscal.session.params import stage_params
 from kisscal.session.progress import Echo, quiet
 
 
 @writes_session
-def report(root: Path, echo: Echo = quiet, config: SessionConfig | None = None) -> Path:
+def report(root: Path, echo: Echo = quiet, *, config: SessionConfig) -> Path:
     """``kisscal report``: rebuild ``out/report.html`` from the session's outputs (``config``:
-    the session's, when the caller has it loaded already)."""
-    config = config or load_config(root)  # a session folder, not just any path
+    the session's, read from ``root`` when the caller has none)."""
     if not SessionStore(root).has_results():
         raise MissingDataError(f"{root}: nothing to report yet; run `kisscal run {root}` first")
     params = stage_params(config).report

@@ -12,7 +12,7 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
-from kisscal.session.inputs import load_config, writes_session
+from kisscal.session.inputs import writes_session
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.report import report
@@ -25,7 +25,12 @@ _LOG = logging.getLogger(__name__)
 
 @writes_session
 def run(
-    root: Path, overrides: Overrides | None = None, echo: Echo = quiet, workers: int | None = None
+    root: Path,
+    overrides: Overrides | None = None,
+    echo: Echo = quiet,
+    workers: int | None = None,
+    *,
+    config: SessionConfig,
 ) -> dict[str, Any]:
     """``kisscal run``: the session's stages (:data:`~kisscal.session.stages.PIPELINE`):
     linearise, calibrate, then reconstruct and track every trial.
@@ -36,8 +41,7 @@ def run(
     parameter redoes only tracking. Writes ``out/summary.json`` and returns it.
     """
     root = Path(root)
-    config = load_config(root)
-    problems = validate(root, overrides, config)
+    problems = validate(root, overrides, config=config)
     for p in problems:
         if p.warning:
             echo(f"  warning: {p}")

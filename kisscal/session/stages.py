@@ -17,7 +17,7 @@ from typing import Any
 
 from kisscal.io.config import SessionConfig
 from kisscal.session.calibrate import calibrate
-from kisscal.session.inputs import load_config, needs_calibration, writes_session
+from kisscal.session.inputs import needs_calibration, writes_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides
 from kisscal.session.progress import Echo, quiet
@@ -94,10 +94,12 @@ def reconstruct(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
+    *,
+    config: SessionConfig,
 ) -> Any:
     """``kisscal reconstruct``: 3D points of one trial, written to ``points3d.csv`` (the
     runner hands :mod:`kisscal.session.reconstruct` the trial's blobs)."""
-    return run_trial(RECONSTRUCT, load_config(root), trial_name, overrides, echo, workers)
+    return run_trial(RECONSTRUCT, config, trial_name, overrides, echo, workers)
 
 
 def _reconstruct(call: StageCall) -> object:  # kisscal run holds the session's lock

@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from kisscal.errors import MissingDataError
+from kisscal.io.config import SessionConfig
 from kisscal.io.files import read_json, write_json
 from kisscal.io.store import SessionStore
-from kisscal.session.inputs import load_config, writes_session
+from kisscal.session.inputs import writes_session
 
 
 @dataclass(frozen=True)
@@ -29,13 +30,14 @@ def check(
     max_reproj_px: float | None = None,
     max_grid_px: float | None = None,
     max_3d_mm: float | None = None,
+    *,
+    config: SessionConfig,
 ) -> list[CheckFailure]:
     """``kisscal check``: every figure over its limit (an empty list when all pass).
 
     Reads the outputs of ``kisscal linearise`` and ``kisscal calibrate``; no truth needed.
     The limits are kept in ``out/limits.json``, so the report judges against them.
     """
-    config = load_config(root)
     store = SessionStore(root)
     limits = {"max_grid_px": max_grid_px, "max_reproj_px": max_reproj_px, "max_3d_mm": max_3d_mm}
     write_json(store.limits_path, limits)  # the report judges against the limits checked

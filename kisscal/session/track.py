@@ -24,7 +24,7 @@ from kisscal.report.tracking import segment_length_figure, trajectories_figure
 from kisscal.report.validation import rate_doubt, throw_fit
 from kisscal.session.calibrated import current_rig
 from kisscal.session.gait import clear_gait_outputs, gait_outputs
-from kisscal.session.inputs import figure, load_config, writes_session
+from kisscal.session.inputs import figure, writes_session
 from kisscal.session.markers import (
     MarkerSpec,
     marker_spec,
@@ -51,7 +51,8 @@ def track(
     overrides: Overrides | None = None,
     sweep: bool = False,
     echo: Echo = quiet,
-    config: SessionConfig | None = None,
+    *,
+    config: SessionConfig,
 ) -> Trajectories:
     """``kisscal track``: labelled trajectories of a trial from its ``points3d.csv``.
 
@@ -60,10 +61,10 @@ def track(
     ``gait.json`` (and the events into the C3D); with ``sweep``, the thesis' PNC x MNC
     segment-length table as ``sweep.csv``. With ``[markers] static``, the static trial is
     labelled first (or read from its cache) and its positions are the template.
-    ``config`` is the session's, when the caller has it loaded already.
+    ``config`` is the session's, read from ``root`` when the caller has none
+    (:func:`~kisscal.session.inputs.loads_config`).
     """
     root = Path(root)
-    config = config or load_config(root)
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     spec = marker_spec(config)

@@ -25,7 +25,7 @@ from kisscal.io.frames import (
     image_header,
     source_files,
 )
-from kisscal.session.inputs import folders_hint, image_sources, load_config, needs_calibration
+from kisscal.session.inputs import folders_hint, image_sources, loads_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.trials import CENTROID_COLUMNS
 from kisscal.target.match import too_few_seeds
@@ -52,16 +52,16 @@ class Problem:
         return where + self.message
 
 
+@loads_config
 def validate(
-    root: Path, overrides: Overrides | None = None, config: SessionConfig | None = None
+    root: Path, overrides: Overrides | None = None, *, config: SessionConfig
 ) -> list[Problem]:
     """Every problem with the inputs of the session at ``root`` (empty: ready to run).
 
     Raises :class:`KisscalError` only when ``session.toml`` itself cannot be read, since
-    then nothing else can be checked. ``config`` is the session's, when the caller has it
-    loaded already.
+    then nothing else can be checked. ``config`` is the session's, read from ``root`` when
+    the caller has none.
     """
-    config = config or load_config(root)
     problems = _parameters(config, overrides)
     problems += _calibration_inputs(config)
     for trial in config.trials:
