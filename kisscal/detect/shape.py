@@ -30,34 +30,6 @@ def spreads(
     )
 
 
-def estimate_growth(
-    sigma_x: NDArray[np.float64],
-    sigma_y: NDArray[np.float64],
-    usable: NDArray[np.bool_],
-    pixel_aspect: float,
-    fallback: float,
-    min_groups: int,
-) -> float:
-    """Growth ``g`` (pixels, in spread units) of one image's spots; see the module notes.
-
-    Parameters
-    ----------
-    sigma_x, sigma_y : ndarray
-        Spreads of the image's groups (:func:`spreads`).
-    usable : ndarray of bool
-        Groups of marker size clear of the border.
-    pixel_aspect : float
-        Width / height of a round marker in pixels.
-    fallback : float
-        Used when fewer than ``min_groups`` groups are usable.
-    min_groups : int
-        Least number of usable groups for a per-image estimate.
-    """
-    one = np.zeros(usable.size, dtype=np.int64)
-    growth = frame_growth(sigma_x, sigma_y, usable, (one, 1), pixel_aspect, fallback, min_groups)
-    return float(growth[0])
-
-
 def frame_growth(
     sigma_x: NDArray[np.float64],
     sigma_y: NDArray[np.float64],
@@ -67,8 +39,23 @@ def frame_growth(
     fallback: float,
     min_groups: int,
 ) -> NDArray[np.float64]:
-    """:func:`estimate_growth` of each of several frames' groups at once: ``frames`` is
-    each group's frame and the number of frames; one growth per frame."""
+    """Growth ``g`` (pixels, in spread units) of each frame's spots; see the module notes.
+
+    Parameters
+    ----------
+    sigma_x, sigma_y : ndarray
+        Spreads of the groups (:func:`spreads`).
+    usable : ndarray of bool
+        Groups of marker size clear of the border.
+    frames : (ndarray of int, int)
+        Each group's frame and the number of frames.
+    pixel_aspect : float
+        Width / height of a round marker in pixels.
+    fallback : float
+        Used for a frame with fewer than ``min_groups`` usable groups.
+    min_groups : int
+        Least number of usable groups for a per-frame estimate.
+    """
     frame, count = frames
     # (sigma_x - a sigma_y) / (1 - a) amplifies the spreads' noise by 1 / |1 - a|: near
     # square pixels the growth cannot be told from the marker, and the default stands
@@ -127,26 +114,11 @@ def principal_axes(
     return mean + half, np.maximum(mean - half, 1e-3), np.cos(theta), np.sin(theta)
 
 
-def small_median(values: NDArray) -> float:
-    """``float(np.median(values))`` of a short 1-D array without NaN, for a tenth of the cost.
-
-    np.median's generic machinery costs about ten microseconds per call whatever the size;
-    for the dozen groups of an image a sort does it: the middle value, or the mean of the
-    two middle ones computed as np.mean does, ``(a + b) / 2``, so the result is the same.
-    """
-    ordered = np.sort(values)
-    k = ordered.size // 2
-    if ordered.size % 2:
-        return float(ordered[k])
-    return float((ordered[k - 1] + ordered[k]) / 2)
-
-
 def frame_medians(
     values: NDArray, frame: NDArray[np.int64], count: int, empty: float
 ) -> NDArray[np.float64]:
-    """The median of each frame's ``values`` (``empty`` for a frame without any), each as
-    :func:`small_median` gives it: the middle value, or the mean
-    of the two middle ones taken as ``(a + b) / 2``."""
+    """The median of each frame's ``values`` (``empty`` for a frame without any): the middle
+    value, or the mean of the two middle ones taken as ``(a + b) / 2``, as np.median does."""
     out = np.full(count, empty, dtype=float)
     if values.size == 0:
         return out

@@ -7,7 +7,7 @@ import numpy as np
 from kisscal.detect.shape import (
     PIXEL_AREA_VAR,
     corrected_moments,
-    estimate_growth,
+    frame_growth,
     height_ratio,
     principal_axes,
 )
@@ -28,10 +28,11 @@ def test_growth_is_recovered_from_single_spots_with_a_few_pairs():
     vx[:3] += 4.0  # three side-by-side pairs among twenty groups
     usable = np.ones(20, dtype=bool)
     sx, sy = np.sqrt(vx - PIXEL_AREA_VAR), np.sqrt(vy - PIXEL_AREA_VAR)
-    growth = estimate_growth(sx, sy, usable, ASPECT, fallback=0.0, min_groups=5)
-    assert abs(growth - 0.4) < 0.02
+    one = (np.zeros(20, dtype=np.int64), 1)  # all groups in one frame
+    growth = frame_growth(sx, sy, usable, one, ASPECT, fallback=0.0, min_groups=5)
+    assert abs(growth[0] - 0.4) < 0.02
     # too few groups: the configured value
-    assert estimate_growth(sx, sy, usable & (a < 1.0), ASPECT, 0.35, 5) == 0.35
+    assert frame_growth(sx, sy, usable & (a < 1.0), one, ASPECT, 0.35, 5)[0] == 0.35
 
 
 def test_corrected_ratio_is_one_for_round_spots_of_any_size():
