@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
-from kisscal.tracking.fill_donors import donors_hold, phase_matched
+from kisscal.tracking.fill_donors import axis_frames, donors_hold, phase_matched
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
 
@@ -262,17 +262,6 @@ def rigid_pair(
     return pair
 
 
-def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
-    """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
-    and whose third is square to it and to the lab direction ``ref`` (a frame of two
-    markers; its turn about their axis follows the lab)."""
-    u = toward - origin
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    w = np.cross(u, ref)
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
-    return np.stack([u, np.cross(w, u), w], axis=2)
-
-
 def axis_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
@@ -412,12 +401,12 @@ def expected_errors(
     (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``); with one or two
     ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`)."""
     err, along = [], []
-    cut = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, 1 <= len(donors) <= 2)
+    spans = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, 1 <= len(donors) <= 2)
     sd = params.rigid_fill_sd_mm
-    for (plo, phi), turn in phase_matched(cut, target, dense, donors, (lo, hi), sd):
+    for (plo, phi), turn in phase_matched(spans, target, dense, donors, (lo, hi), sd)[:6]:
         cut = target.copy()
         cut[plo:phi] = np.nan
-        got = method(cut, dense, exclude, plo, phi, params)
+        got = None if len(err) == 2 else method(cut, dense, exclude, plo, phi, params)
         if got is None:
             continue
         # a stretch shorter than the gap tells less: a fill's error grows about with the

@@ -79,13 +79,22 @@ def donors_hold(
     return not bool(np.any(out))
 
 
+def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
+    """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
+    and whose third is square to it and to the lab direction ``ref`` (a frame of two
+    markers; its turn about their axis follows the lab)."""
+    u = toward - origin
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(u, ref)
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    return np.stack([u, np.cross(w, u), w], axis=2)
+
+
 def _local(target: NDArray, dense: NDArray, donors: tuple[int, ...], f: NDArray) -> NDArray:
     """``target`` at fields ``f`` in its donors' frame: its offset from a lone donor; with
     two, its place along their axis and its offset from it in the frame of
-    :func:`~kisscal.tracking.bodyfill.axis_frames` (turning about the axis with the lab);
+    :func:`axis_frames` (turning about the axis with the lab);
     NaN with more (their frame turns with them)."""
-    from kisscal.tracking.bodyfill import axis_frames  # bodyfill imports this module
-
     rel = target[f] - dense[donors[0], f]
     if len(donors) == 1:
         return rel
@@ -116,9 +125,10 @@ def phase_matched(
     gap: tuple[int, int],
     floor: float,
 ) -> list[tuple[tuple[int, int], float]]:
-    """Two of ``stretches`` (pseudo-gaps, nearest first,
-    :func:`~kisscal.tracking.bodyfill.pseudo_gaps`) to measure a fill of ``gap`` (lo, hi)
-    following one or two ``donors`` on, each with the factor its error is scaled up by.
+    """``stretches`` (pseudo-gaps, nearest first,
+    :func:`~kisscal.tracking.bodyfill.pseudo_gaps`) in the order to measure a fill of
+    ``gap`` (lo, hi) following one or two ``donors`` on (the first two the fill can be
+    made on), each with the factor its error is scaled up by.
 
     One or two donors do not fix their segment's turn about them (a heel about its
     ankle, or about the ankle-toe axis, as the foot rolls at heel strike); the fills
@@ -134,5 +144,5 @@ def phase_matched(
         return [(s, 1.0) for s in stretches[:2]]
     ratio = (moved(target, dense, donors, np.array([gap, *stretches])) + floor) / floor
     ratio = ratio[0] / ratio[1:]
-    best = np.argsort(np.abs(np.log(ratio)), kind="stable")[:2]
+    best = np.argsort(np.abs(np.log(ratio)), kind="stable")
     return [(stretches[i], max(1.0, float(ratio[i]))) for i in best.tolist()]
