@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
+from kisscal.tracking.fill_donors import axis_frames, donors_hold, phase_matched
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
 
@@ -261,17 +262,6 @@ def rigid_pair(
     return pair
 
 
-def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
-    """Rotations (n, 3, 3) whose first column points from ``origin`` to ``toward`` (n, 3)
-    and whose third is square to it and to the lab direction ``ref`` (a frame of two
-    markers; its turn about their axis follows the lab)."""
-    u = toward - origin
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    w = np.cross(u, ref)
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
-    return np.stack([u, np.cross(w, u), w], axis=2)
-
-
 def axis_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
@@ -362,12 +352,15 @@ def spline_fill(
     return make_interp_spline(mf[sel], target[mf[sel]], k=k)(np.arange(lo, hi)), ()
 
 
-def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[int, int]]:
+def pseudo_gaps(
+    target: NDArray, lo: int, hi: int, margin: int, every: bool = False
+) -> list[tuple[int, int]]:
     """Stretches of ``target``'s measured samples, with ``margin`` measured fields on each
     side, where a fill is tried against measurement: two of the gap's length, in the
     measured runs nearest the gap (beside it, or farther in the trial when the runs beside
     it are too short: a shorter stretch, its error scaled up, tells less); failing those,
-    the nearest shorter ones (at least 3 fields)."""
+    the nearest shorter ones (at least 3 fields). With ``every``, all, nearest first, and
+    one every half gap's length in each run (for :func:`phase_matched`)."""
     ok = np.all(np.isfinite(target), axis=1)
     padded = np.concatenate([[False], ok, [False]]).astype(np.int8)
     d = np.diff(padded)
@@ -383,8 +376,12 @@ def pseudo_gaps(target: NDArray, lo: int, hi: int, margin: int) -> list[tuple[in
         s = (b - margin - length, b - margin) if b <= lo else (a + margin, a + margin + length)
         distance = lo - s[1] if b <= lo else s[0] - hi
         (whole if length == n else short).append((distance, s))
-    ranked = sorted(whole) + sorted(short)
-    return [s for _, s in ranked[:2]]
+        if every and length == n:
+            x = np.arange(a + margin, b - margin - n + 1, max(n // 2, 1))
+            far = np.where(b <= lo, lo - x - n, x - hi)
+            whole.extend((int(f), (int(y), int(y) + n)) for f, y in zip(far, x, strict=True))
+    ranked = sorted(set(whole)) + sorted(short)
+    return [s for _, s in (ranked if every else ranked[:2])]
 
 
 def expected_errors(
@@ -396,21 +393,25 @@ def expected_errors(
     hi: int,
     params: TrackingParams,
     centres: NDArray | None = None,
+    donors: tuple[int, ...] = (),
 ) -> tuple[float, float]:
     """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi), and
     the RMS of its error along the line of sight of each camera of ``centres`` (n, 3):
     what is left once a single camera's ray fixes the other two coordinates
-    (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``)."""
+    (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``); with one or two
+    ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`)."""
     err, along = [], []
-    for plo, phi in pseudo_gaps(target, lo, hi, params.body_context_fields // 2):
+    spans = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, 1 <= len(donors) <= 2)
+    sd = params.rigid_fill_sd_mm
+    for (plo, phi), turn in phase_matched(spans, target, dense, donors, (lo, hi), sd)[:6]:
         cut = target.copy()
         cut[plo:phi] = np.nan
-        got = method(cut, dense, exclude, plo, phi, params)
+        got = None if len(err) == 2 else method(cut, dense, exclude, plo, phi, params)
         if got is None:
             continue
         # a stretch shorter than the gap tells less: a fill's error grows about with the
         # square of the time it bridges (a drift that accelerates), so scale it up so
-        scale = ((hi - lo) / (phi - plo)) ** 2
+        scale = ((hi - lo) / (phi - plo)) ** 2 * turn
         miss = got[0] - target[plo:phi]
         err.append(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * scale)
         if centres is not None:
@@ -450,15 +451,16 @@ def fill_candidates(
     methods: tuple[tuple[int, FillMethod], ...] = BODY_METHODS,
     centres: NDArray | None = None,
 ) -> list[Candidate]:
-    """Every fill of the gap [lo, hi) of track ``t`` that one of ``methods`` makes, with
-    its :func:`expected_errors` (along the sight of the cameras at ``centres`` too)."""
+    """Every fill of the gap [lo, hi) of track ``t`` that one of ``methods`` makes through
+    donors that hold their shape in the gap (:func:`donors_hold`), with its
+    :func:`expected_errors` (along the sight of the cameras at ``centres`` too)."""
     target = dense[t]
     out = []
     for status, method in methods:
         got = method(target, dense, t, lo, hi, params)
-        if got is None:
+        if got is None or not donors_hold(dense, t, got[1], lo, hi, params):
             continue
-        err, along = expected_errors(method, target, dense, t, lo, hi, params, centres)
+        err, along = expected_errors(method, target, dense, t, lo, hi, params, centres, got[1])
         out.append(Candidate(got[0], GapFill(t, lo, hi - lo, status, err, got[1]), along))
     return out
 
