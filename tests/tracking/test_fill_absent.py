@@ -8,6 +8,8 @@ import numpy as np
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_absent import absent_rows, mirror_lengths
+from kisscal.tracking.fill_joint import joint_ray_fill
+from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_raychain import _dense
@@ -100,3 +102,23 @@ def test_a_toe_one_camera_sees_is_placed_with_the_absent_ankle_on_another_s():
     good, rms = filled(("RANK",))
     assert good >= without + 10
     assert rms < 2.0
+
+
+def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_cannot():
+    right, truth = _feet(24)
+    dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
+    spare = _cameras(right, 24, GAP)
+    absent = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)
+    # each field's solution alone too loose to keep (here: a limit below its error)
+    loose = PARAMS.replace(ray_length_max_error_mm=1.0)
+    assert joint_ray_fill(dense, 5, GAP.start, GAP.stop, spare, loose, absent) is None
+    got = joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose, None, absent)
+    assert got is not None and 4 in got.partners  # the heel
+    assert all(p < len(LABELS) for p in got.partners)  # the ankle's row names none
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.9 * (GAP.stop - GAP.start)
+    assert np.all(got.sd_mm[placed] <= PARAMS.ray_depth_max_error_mm)
+    err = np.linalg.norm(got.xyz_mm[placed] - right[1, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < np.sqrt(np.mean(got.sd_mm[placed] ** 2)) + 0.5
+    # without the ankle's row the heel alone fixes no depth here
+    assert joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose) is None
