@@ -273,8 +273,7 @@ class Fill:
 #: blobs of one camera at a spline's distance from it
 #: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), or at the depth fitted to
 #: that spline and the segment's lengths together
-#: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`) or the joint fill's loose
-#: solutions (:mod:`~kisscal.tracking.fill_joint_depth`), and the fields left between
+#: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`), and the fields left between
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
@@ -299,7 +298,6 @@ FILLS: tuple[Fill, ...] = (
     Fill("body", _body, strict="swept"),
     Fill("depth", _depth_placer(depth_ray_fill), rays=True, long_run=True),
     Fill("sphere depth", _depth_placer(sphere_depth_fill), rays=True, long_run=True),
-    Fill("joint depth", _placer(_joint_depth), rays=True, long_run=True),
     Fill("body between rays", _body, split_only=True, strict="always"),
     Fill("end rays", _placer(_end_rays), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
@@ -308,11 +306,14 @@ FILLS: tuple[Fill, ...] = (
 
 
 #: The fills of the second pass (:func:`_second_pass`): the marker's own blobs placed on
-#: their rays by its segment's lengths, the rest by the body expecting little error, no
-#: spline (it has no error to check, and these runs lie beside what the first pass's
-#: checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
+#: their rays by its segment's lengths, or at a smooth depth through the joint fill's
+#: loose solutions (:mod:`.fill_joint_depth`; only what all else left: in the first pass
+#: it took lowcost 311 RTOE, 6.7 mm off expecting 1.6), the rest by the body expecting
+#: little error, no spline (it has no error to check, and these runs lie beside what
+#: the first pass's checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
+    Fill("joint depth", _placer(_joint_depth), rays=True, long_run=True),
     Fill("body", partial(_body, spline=False), strict="always"),
 )
 
@@ -422,9 +423,8 @@ def fill_gaps_logged(
     onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
-    (:func:`~kisscal.tracking.fill_ends.track_ends`). The ``missing`` names of the set
-    no track took are placed on their blobs' rays as context for the joint fills, not
-    output (:func:`~kisscal.tracking.fill_absent.absent_rows`)."""
+    (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
+    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`)."""
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
