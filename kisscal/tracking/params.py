@@ -174,13 +174,13 @@ class TrackingParams(Params):
         Largest expected error (mm) of a marker's distance from the one camera that sees
         it, bridged by a spline across the gap, for its blob's ray to place it
         (:mod:`kisscal.tracking.fill_depth`).
+    ray_rest_max_error_mm : float
+        Largest expected error (mm) of a body fill between fields placed on rays (it
+        borrows them as its context, and an error measured beside them tells less).
     mirror_length_sd_mm : float
         Smallest SD (mm) of a length of a marker no track took, taken from its mirror
         image's on the other side (:mod:`kisscal.tracking.fill_absent`): the sides'
         markers are placed by hand.
-    ray_rest_max_error_mm : float
-        Largest expected error (mm) of a body fill between fields placed on rays (it
-        borrows them as its context, and an error measured beside them tells less).
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
