@@ -216,6 +216,7 @@ def _walk(
     since = 0
     for k in range(n) if forward else range(n - 1, -1, -1):
         f = lo + k
+        since += 1  # fields since the last one placed, with a ray or not
         known = np.isfinite(dense[members, f, 0])
         on = (rays[:, k] >= 0) & ~known
         row = rays[:, k]
@@ -229,7 +230,6 @@ def _walk(
         c = spare.centres[cam]
         s, worst, e = _best_start(c, d, last, idx, anc, grp, dense[members[anc], f], stale)
         x = c + s[:, None] * d
-        since += 1
         if worst <= 3.0 and np.linalg.norm(x[0] - last[0] - since * vel) <= STEP_MM:
             xyz[k], err[k] = x[0], e
             vel, since = (x[0] - last[0]) / since, 0
@@ -238,12 +238,24 @@ def _walk(
     return xyz, err
 
 
-def joint_ray_fill(
-    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
-) -> ChainFill | None:
-    """Place fields of the gap [lo, hi) of track ``t`` on its own blob's rays together
-    with the other markers of its segment on theirs (see module); None when no field
-    could be placed. The blobs taken are not marked used here."""
+def joint_walks(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    absent: NDArray | None = None,
+) -> tuple[_Group, NDArray, NDArray, NDArray, NDArray, NDArray] | None:
+    """The two walks of :func:`joint_ray_fill` over the gap [lo, hi) of track ``t``: its
+    segment, the members' spare rows per field (m, hi - lo), and each walk's target
+    position (hi - lo, 3) and expected error (hi - lo,), NaN where not solved; None
+    when the gap has no sides, the segment too few tracks, or the target no ray. The
+    segment's members are tracks (rows of ``dense``) and markers no track took (rows of
+    ``absent``, numbered on after the tracks:
+    :func:`~kisscal.tracking.fill_absent.absent_rows`)."""
+    if absent is not None:
+        dense = np.concatenate([dense, absent])
     if lo < 2 or hi + 1 >= dense.shape[1] or not np.all(np.isfinite(dense[t, [lo - 1, hi]])):
         return None
     grp = _group(dense, t, params)
@@ -256,6 +268,26 @@ def joint_ray_fill(
         return None
     fwd, e_f = _walk(dense, grp, rays, lo, hi, spare, True)
     bwd, e_b = _walk(dense, grp, rays, lo, hi, spare, False)
+    return grp, rays, fwd, e_f, bwd, e_b
+
+
+def joint_ray_fill(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    absent: NDArray | None = None,
+) -> ChainFill | None:
+    """Place fields of the gap [lo, hi) of track ``t`` on its own blob's rays together
+    with the other markers of its segment on theirs (see module), tracks and ``absent``
+    ones (:func:`joint_walks`); None when no field could be placed. The blobs taken are
+    not marked used here."""
+    walks = joint_walks(dense, t, lo, hi, spare, params, absent)
+    if walks is None:
+        return None
+    grp, rays, fwd, e_f, bwd, e_b = walks
     agree = np.linalg.norm(fwd - bwd, axis=1) <= AGREE_MM
     err = np.fmax(e_f, e_b)
     good = agree & (err <= params.ray_length_max_error_mm)
@@ -266,4 +298,10 @@ def joint_ray_fill(
         return None
     xyz = np.where(placed[:, None], (fwd + bwd) / 2, np.nan)
     sd = np.where(placed, err, np.nan)
-    return ChainFill(xyz, sd, tuple(int(u) for u in grp.members[1:]), rays[0, placed])
+    return ChainFill(xyz, sd, tracks_of(grp.members[1:], len(dense)), rays[0, placed])
+
+
+def tracks_of(members: NDArray, n_tracks: int) -> tuple[int, ...]:
+    """The ``members`` that are tracks (below ``n_tracks``; an absent marker's row is
+    none to name as a partner)."""
+    return tuple(int(u) for u in members if u < n_tracks)

@@ -26,10 +26,12 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
     spline_fill,
 )
+from kisscal.tracking.fill_absent import absent_rows
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
+from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
@@ -108,7 +110,7 @@ class _Gap:
     the sweeping fills, ``out`` collects the fills made. ``measured`` (n_fields,) bool:
     the track's measured fields (for the depth fill's spline). ``end``: 0 for a gap
     inside the track, -1 for the fields before its first measured sample, 1 after its
-    last."""
+    last. ``absent``: rows of markers no track took (:mod:`.fill_absent`), joint fills."""
 
     dense: NDArray
     t: int
@@ -120,6 +122,7 @@ class _Gap:
     swept: NDArray
     out: list
     end: int = 0
+    absent: NDArray | None = None
 
 
 def _rest_params(params: TrackingParams) -> TrackingParams:
@@ -143,6 +146,16 @@ def _placer(method: Callable) -> Callable:
         return np.isfinite(got.sd_mm)
 
     return fill
+
+
+def _depth_placer(method: Callable) -> Callable:
+    """:func:`_placer` of a depth fill ``method(dense, t, a, b, spare, params, measured)``."""
+    return _placer(lambda g, a, b, p: method(g.dense, g.t, a, b, g.spare, p, g.measured))
+
+
+def _joint_depth(g: _Gap, a: int, b: int, p: TrackingParams) -> ChainFill | None:
+    """:func:`~kisscal.tracking.fill_joint_depth.joint_depth_fill` on [a, b) of ``g``."""
+    return joint_depth_fill(g.dense, g.t, a, b, g.spare, p, g.measured, g.absent)
 
 
 def _body(
@@ -278,23 +291,13 @@ FILLS: tuple[Fill, ...] = (
     ),
     Fill(
         "joint",
-        _placer(lambda g, a, b, p: joint_ray_fill(g.dense, g.t, a, b, g.spare, p)),
+        _placer(lambda g, a, b, p: joint_ray_fill(g.dense, g.t, a, b, g.spare, p, g.absent)),
         sweep=True,
         rays=True,
     ),
     Fill("body", _body, strict="swept"),
-    Fill(
-        "depth",
-        _placer(lambda g, a, b, p: depth_ray_fill(g.dense, g.t, a, b, g.spare, p, g.measured)),
-        rays=True,
-        long_run=True,
-    ),
-    Fill(
-        "sphere depth",
-        _placer(lambda g, a, b, p: sphere_depth_fill(g.dense, g.t, a, b, g.spare, p, g.measured)),
-        rays=True,
-        long_run=True,
-    ),
+    Fill("depth", _depth_placer(depth_ray_fill), rays=True, long_run=True),
+    Fill("sphere depth", _depth_placer(sphere_depth_fill), rays=True, long_run=True),
     Fill("body between rays", _body, split_only=True, strict="always"),
     Fill("end rays", _placer(_end_rays), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
@@ -303,11 +306,14 @@ FILLS: tuple[Fill, ...] = (
 
 
 #: The fills of the second pass (:func:`_second_pass`): the marker's own blobs placed on
-#: their rays by its segment's lengths, the rest by the body expecting little error, no
-#: spline (it has no error to check, and these runs lie beside what the first pass's
-#: checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
+#: their rays by its segment's lengths, or at a smooth depth through the joint fill's
+#: loose solutions (:mod:`.fill_joint_depth`; only what all else left: in the first pass
+#: it took lowcost 311 RTOE, 6.7 mm off expecting 1.6), the rest by the body expecting
+#: little error, no spline (it has no error to check, and these runs lie beside what
+#: the first pass's checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
+    Fill("joint depth", _placer(_joint_depth), rays=True, long_run=True),
     Fill("body", partial(_body, spline=False), strict="always"),
 )
 
@@ -352,11 +358,12 @@ def _fill_gap(
     params: TrackingParams,
     spare: SpareBlobs | None,
     measured: NDArray | None = None,
+    absent: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """The gap [lo, hi) of track ``t`` filled by :data:`FILLS`; placed fields become
     context (in ``dense``) for the rest. ``measured`` (n_fields,) bool: the track's
-    measured fields (for the depth fill's spline)."""
-    gap = _Gap(dense, t, lo, hi, params, spare, measured, np.zeros(hi - lo, dtype=bool), [])
+    measured fields (for the depth fill's spline); ``absent``: see :class:`_Gap`."""
+    gap = _Gap(dense, t, lo, hi, params, spare, measured, np.zeros(hi - lo, bool), [], 0, absent)
     _apply(gap, FILLS, [(lo, hi)])
     return gap.out
 
@@ -368,6 +375,7 @@ def _second_pass(
     spare: SpareBlobs | None,
     measured: NDArray,
     made: Iterable[tuple[NDArray, GapFill]],
+    absent: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by :data:`SECOND_PASS`, with its rigid and ray fills
@@ -396,6 +404,7 @@ def _second_pass(
         for a, b in zip(*true_runs(left), strict=True):
             run = (lo + a, lo + b)
             gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
+            gap.absent = absent
             _apply(gap, SECOND_PASS, [run])
             out.extend(gap.out)
     return out
@@ -407,13 +416,15 @@ def fill_gaps_logged(
     spare: SpareBlobs | None = None,
     labels: Sequence[str] | None = None,
     unlabelled: Sequence[int] = (),
+    missing: Sequence[str] = (),
 ) -> tuple[Tracks, tuple[GapFill, ...]]:
     """:func:`fill_gaps`, and how each gap was filled (method and expected error); with
     ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
     onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
-    (:func:`~kisscal.tracking.fill_ends.track_ends`)."""
+    (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
+    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`)."""
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -425,21 +436,22 @@ def fill_gaps_logged(
     fills, filled_xyz = [], []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
+    absent = absent_rows(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)
         for t in range(tracks.n_tracks)
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
     for t, lo, hi in gaps:
-        for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
+        for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t], absent):
             filled_xyz.append(xyz)
             fills.append(fill)
     made = list(zip(filled_xyz, fills, strict=True))
-    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made):
+    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made, absent):
         filled_xyz.append(xyz)
         fills.append(fill)
     for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
-        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
+        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end, absent)
         _apply(gap, FILLS, [(lo, hi)])
         for xyz, fill in gap.out:
             filled_xyz.append(xyz)

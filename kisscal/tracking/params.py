@@ -177,6 +177,10 @@ class TrackingParams(Params):
     ray_rest_max_error_mm : float
         Largest expected error (mm) of a body fill between fields placed on rays (it
         borrows them as its context, and an error measured beside them tells less).
+    mirror_length_sd_mm : float
+        Smallest SD (mm) of a length of a marker no track took, taken from its mirror
+        image's on the other side (:mod:`kisscal.tracking.fill_absent`): the sides'
+        markers are placed by hand.
     refill_predicted : bool
         Replace the Kalman predictions of coasted fields inside a trajectory by the
         two-sided gap fill (status ``filled``); the count of predictions per track is kept
@@ -290,6 +294,7 @@ class TrackingParams(Params):
     ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
     ray_depth_max_error_mm: float = param(3.0, unit="mm", gt=0)
     ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)
+    mirror_length_sd_mm: float = param(2.0, unit="mm", gt=0)
     refill_predicted: bool = param(True)
     label_tolerance_mm: float = param(120.0, unit="mm", gt=0)
     label_segment_tolerance_mm: float = param(6.0, unit="mm", ge=0)

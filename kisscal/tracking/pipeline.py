@@ -112,7 +112,9 @@ def build_trajectories(
     )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
-    tracks, fills = fill_gaps_logged(tracks, params, spare, labelling.labels, labelling.unlabelled)
+    tracks, fills = fill_gaps_logged(
+        tracks, params, spare, labelling.labels, labelling.unlabelled, labelling.missing
+    )
     if params.smoothing:
         tracks = smooth_tracks(tracks)
     return Trajectories(

@@ -1,0 +1,179 @@
+"""A marker no track took, placed on its blobs' rays as context for its segment's fills.
+
+In a lab of three cameras a marker may be seen by one camera for the whole trial (the
+right ankle, which the left leg hides from the other two): it makes no 3D point, so no
+track takes its name. Its blobs are still there, unused, and its segment's other markers
+(heel, toe, tibia) are tracked, and so are its mirror image and theirs on the other side
+(left ankle, heel, toe, tibia). A body's two sides are nearly symmetric, so the mirror
+image's distances to its partners (those whose SD over the trial is at most
+``rigid_fill_sd_mm``) give the absent marker's lengths, each with an SD of at least
+``mirror_length_sd_mm`` (the two sides' markers are placed by hand, not mirrored).
+
+In every field, each free blob's ray is tried: the depth where its distances to the
+partners measured there fit those lengths (Gauss-Newton from each point where the ray
+meets a partner's sphere). A field is placed where at least two partners are measured,
+every length fits within three SDs, the expected error along the ray (the solution's
+SD) is at most ``ray_length_max_error_mm`` and no other blob fits at another place
+(two markers' blobs that fit are not told apart), in runs of at least
+:data:`~kisscal.tracking.raychain.MIN_RUN` fields; its blobs are taken.
+
+The placed marker is no trajectory (it has no name of its own to check against): it is
+a row of context for the fills of its partners' gaps. Where the toe is seen by one camera
+and the ankle by another, neither fixes its own depth with the heel alone (a ray nearly
+square to the heel-toe line meets its sphere at a glancing angle); together, on two
+rays with three lengths, they are fixed (:mod:`kisscal.tracking.fill_joint`), and the
+ankle's blob is followed into the gap from the fields placed here.
+
+References
+----------
+Hartley & Zisserman 2004 (rays of a projective camera); Challis 1995 (segments as rigid
+bodies of markers); Gløersen & Federolf 2016 (filling from the other markers of the
+body).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal._shared import true_runs
+from kisscal.dlt.model import ray_directions
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import MIN_RUN
+from kisscal.tracking.rayfill import SpareBlobs
+
+#: Gauss-Newton iterations of a ray's depth.
+ITERS = 8
+
+#: Largest distance (mm) between two blobs' fits for a field to count them as one place.
+SAME_MM = 5.0
+
+
+def mirror_name(name: str) -> str | None:
+    """The other side's name (``L<x>`` for ``R<x>`` and back), None for a midline one."""
+    if len(name) > 1 and name[0] in "LR":
+        return {"L": "R", "R": "L"}[name[0]] + name[1:]
+    return None
+
+
+def mirror_lengths(
+    dense: NDArray, labels: Sequence[str], name: str, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Tracks whose mirror images keep their distance to ``name``'s mirror image (SD over
+    the trial at most ``rigid_fill_sd_mm``, measured together in at least
+    ``body_context_fields`` fields), that distance and its SD (at least
+    ``mirror_length_sd_mm``); empty when ``name``'s mirror is not tracked."""
+    index = {n: i for i, n in enumerate(labels)}
+    none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+    m = index.get(mirror_name(name) or "")
+    if m is None:
+        return none
+    pairs = [
+        (index[n], index[o])
+        for n in labels
+        if (o := mirror_name(n) or "") in index and index[o] != m and n != name
+    ]
+    if not pairs:
+        return none
+    own, other = np.array(pairs, dtype=np.int64).T
+    dist = np.linalg.norm(dense[other] - dense[m][None], axis=2)  # (k, n_fields)
+    seen = np.isfinite(dist)
+    n = seen.sum(axis=1)
+    mean = np.where(seen, dist, 0.0).sum(axis=1) / np.maximum(n, 1)
+    sd = np.sqrt(np.where(seen, (dist - mean[:, None]) ** 2, 0.0).sum(axis=1) / np.maximum(n, 1))
+    keep = (n >= max(params.body_context_fields, 4)) & (sd <= params.rigid_fill_sd_mm)
+    return own[keep], mean[keep], np.maximum(sd[keep], params.mirror_length_sd_mm)
+
+
+def _depths(
+    c: NDArray, d: NDArray, p: NDArray, length: NDArray, sd: NDArray
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Depth on each ray ``c + s d`` ((r, 3) each) fitting the lengths ``length`` (k,) to
+    the partners ``p`` (k, r, 3; NaN where not measured): the start of smallest worst
+    residual among the points where the ray meets each partner's sphere. Returns the
+    depths (r,), the worst residual in SDs and the expected error (mm) along the ray."""
+    known = np.isfinite(p[..., 0])
+    rel = np.where(known[..., None], p, 0.0) - c[None]  # (k, r, 3)
+    b = np.einsum("krj,rj->kr", rel, d)
+    root = np.sqrt(np.maximum(length[:, None] ** 2 - (np.sum(rel**2, axis=2) - b**2), 0.0))
+    s = np.concatenate([b - root, b + root]).T  # (r, 2k) starts
+    ok = np.concatenate([known, known]).T
+    w = (1.0 / sd)[:, None, None]
+    for _ in range(ITERS + 1):
+        v = s[None, :, :, None] * d[None, :, None] - rel[:, :, None]  # (k, r, S, 3)
+        dist = np.maximum(np.linalg.norm(v, axis=3), 1e-9)  # (k, r, S)
+        res = np.where(known[..., None], (dist - length[:, None, None]) * w, 0.0)
+        jac = np.where(known[..., None], np.einsum("krsj,rj->krs", v, d) / dist * w, 0.0)
+        info = np.sum(jac**2, axis=0)
+        step = np.sum(jac * res, axis=0) / np.maximum(info, 1e-12)
+        s = s - np.clip(step, -100.0, 100.0)
+    worst = np.where(ok, np.abs(res).max(axis=0), np.inf)
+    best = np.argmin(worst, axis=1)
+    pick = np.arange(len(s)), best
+    err = 1.0 / np.sqrt(np.maximum(info[pick], 1e-12))
+    # two partners' spheres meet in a circle, which a ray may cross twice: a second
+    # depth that fits as well leaves the blob's place open
+    other = (worst <= 3.0) & (np.abs(s - s[pick][:, None]) > SAME_MM)
+    return s[pick], np.where(other.any(axis=1), np.inf, worst[pick]), err
+
+
+def place_absent(
+    dense: NDArray,
+    partners: NDArray[np.int64],
+    length: NDArray,
+    sd: NDArray,
+    spare: SpareBlobs,
+    params: TrackingParams,
+) -> NDArray[np.float64]:
+    """The absent marker's position per field (n_fields, 3; NaN where not placed) from
+    the free blobs of ``spare`` and its lengths to ``partners`` (see module); the blobs
+    of the placed fields are taken."""
+    out = np.full((dense.shape[1], 3), np.nan)
+    rows = np.flatnonzero(spare.free & (spare.field < dense.shape[1]))
+    p = dense[partners][:, spare.field[rows]]  # (k, r, 3)
+    enough = np.isfinite(p[..., 0]).sum(axis=0) >= 2
+    rows, p = rows[enough], p[:, enough]
+    if rows.size == 0:
+        return out
+    cam = spare.camera[rows]
+    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
+    c = spare.centres[cam]
+    s, worst, err = _depths(c, d, p, length, sd)
+    fits = (worst <= 3.0) & (err <= params.ray_length_max_error_mm)
+    rows, x, err = rows[fits], c[fits] + s[fits, None] * d[fits], err[fits]
+    f = spare.field[rows]
+    order = np.lexsort((err, f))
+    rows, x, f = rows[order], x[order], f[order]
+    first = np.r_[True, f[1:] != f[:-1]]
+    lead = np.maximum.accumulate(np.where(first, np.arange(f.size), 0))
+    apart = np.linalg.norm(x - x[lead], axis=1) > SAME_MM
+    clash = np.zeros(dense.shape[1], dtype=bool)
+    clash[f[apart]] = True
+    one = np.zeros(dense.shape[1], dtype=bool)
+    one[f[first]] = True
+    one &= ~clash
+    for a, b in zip(*true_runs(one), strict=True):
+        one[a:b] = b - a >= MIN_RUN
+    keep = first & one[f]
+    out[f[keep]] = x[keep]
+    spare.free[rows[one[f]]] = False
+    return out
+
+
+def absent_rows(
+    dense: NDArray,
+    labels: Sequence[str] | None,
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> NDArray[np.float64]:
+    """One row (n_fields, 3) per name of ``missing`` whose mirror image is tracked,
+    placed by :func:`place_absent` (shape (m, n_fields, 3); m = 0 without ``spare``)."""
+    rows = []
+    for name in missing if spare is not None and labels else ():
+        partners, length, sd = mirror_lengths(dense, labels, name, params)
+        if partners.size >= 2:
+            rows.append(place_absent(dense, partners, length, sd, spare, params))
+    return np.stack(rows) if rows else np.zeros((0, *dense.shape[1:]))

@@ -1,0 +1,124 @@
+"""A marker no track took placed on its blobs' rays by its mirror image's lengths
+(kisscal.tracking.fill_absent), and the fills of its segment it helps, against truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.dlt.model import project_rows
+from kisscal.tracking import TrackingParams, spare_blobs
+from kisscal.tracking.fill_absent import absent_rows, mirror_lengths
+from kisscal.tracking.fill_joint import joint_ray_fill
+from kisscal.tracking.fill_joint_depth import joint_depth_fill
+from kisscal.tracking.gaps import fill_gaps_logged
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_raychain import _dense
+from tests.tracking.test_rayfill import _look_at
+
+GAP = slice(100, 140)
+PARAMS = TrackingParams()
+#: Tracks: the left foot whole, the right heel, toe and tibia; the right ankle has none.
+LABELS = ("LHEE", "LTOE", "LANK", "LTIB", "RHEE", "RTOE", "RTIB")
+
+
+def _feet(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Right foot (heel, toe, ankle, tibia; (4, N, 3)) and the tracks' truth (7, N, 3):
+    the left foot the same segment 300 mm aside half a second behind (its lengths the
+    right's, its pose not)."""
+    right = rigid_body(seed=seed, noise_mm=0.2)
+    left = np.roll(rigid_body(seed=seed + 1, noise_mm=0.2), 50, axis=1) + [0.0, 300.0, 0.0]
+    return right, np.concatenate([left, right[[0, 1, 3]]])
+
+
+def _cameras(right: np.ndarray, seed: int, toe: slice) -> object:
+    """Camera 0 sees the right ankle all trial, camera 1 the right toe over ``toe``;
+    two noise blobs a field in each."""
+    # camera 1 square to the heel-toe line: the heel's length alone fixes no depth
+    target = right[2].mean(axis=0)
+    toe_at = right[1, toe].mean(axis=0)
+    line = np.mean(right[1, toe] - right[0, toe], axis=0)
+    square = np.cross(line, [0.0, 0.0, 1.0])
+    square = 2800.0 * square / np.linalg.norm(square) + [0.0, 0.0, 600.0]
+    dlts = np.stack(
+        [_look_at(target + [2500.0, 1500.0, 600.0], target), _look_at(toe_at + square, toe_at)]
+    )
+    n = right.shape[1]
+    fields = np.arange(n)
+    toe_f = fields[toe]
+    rng = np.random.default_rng(seed)
+    uv = np.r_[
+        project_rows(dlts, np.zeros(n, dtype=int), right[2]),
+        project_rows(dlts, np.ones(toe_f.size, dtype=int), right[1, toe]),
+    ]
+    noise = rng.uniform([0, 0], [640, 480], (4 * n, 2))
+    f = np.r_[fields, toe_f, np.repeat(fields, 4)]
+    cam = np.r_[np.zeros(n), np.ones(toe_f.size), np.tile([0, 0, 1, 1], n)]
+    return spare_blobs(f, cam, np.r_[uv + rng.normal(0, 0.05, uv.shape), noise], dlts)
+
+
+def test_the_mirror_image_gives_the_absent_marker_s_lengths():
+    right, truth = _feet(21)
+    partners, length, sd = mirror_lengths(_dense(_tracks_of(truth, {})), LABELS, "RANK", PARAMS)
+    assert [LABELS[p] for p in partners] == ["RHEE", "RTOE", "RTIB"]
+    true = np.linalg.norm(right[[0, 1, 3]] - right[2][None], axis=2).mean(axis=1)
+    assert np.allclose(length, true, atol=1.0)
+    assert np.all(sd >= PARAMS.mirror_length_sd_mm)
+
+
+def test_an_ankle_no_track_took_is_placed_on_its_one_camera_s_rays():
+    right, truth = _feet(22)
+    dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
+    spare = _cameras(right, 22, GAP)
+    rows = absent_rows(dense, LABELS, ("RANK", "RKNE"), spare, PARAMS)
+    assert rows.shape == (1, *dense.shape[1:])  # RKNE has no mirror image tracked
+    placed = np.isfinite(rows[0, :, 0])
+    outside = np.ones(placed.size, dtype=bool)
+    outside[GAP] = False
+    # at least two partners measured outside the gap, only the heel in it
+    assert placed[outside].mean() > 0.8 and not placed[GAP].any()
+    err = np.linalg.norm(rows[0, placed] - right[2, placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0 and err.max() < 5.0
+    # the ankle's blobs are taken, and no other
+    taken = np.flatnonzero(~spare.free)
+    assert taken.size == placed.sum()
+    uv = project_rows(spare.dlts, spare.camera[taken], right[2, spare.field[taken]])
+    assert np.all(np.linalg.norm(uv - spare.uv_px[taken], axis=1) < 1.0)
+
+
+def test_a_toe_one_camera_sees_is_placed_with_the_absent_ankle_on_another_s():
+    right, truth = _feet(23)
+    # toe and tibia hidden for 0.4 s: the heel alone is measured beside the toe
+    tracks = _tracks_of(truth, {5: GAP, 6: GAP})
+
+    def filled(missing: tuple[str, ...]) -> tuple[int, float]:
+        out, fills = fill_gaps_logged(tracks, PARAMS, _cameras(right, 23, GAP), LABELS, (), missing)
+        rows = (out.track == 5) & (out.field >= GAP.start) & (out.field < GAP.stop)
+        err = np.linalg.norm(out.xyz_mm[rows] - right[1, out.field[rows]], axis=1)
+        for g in fills:
+            assert all(d < len(LABELS) for d in g.donors)  # the ankle's row names no donor
+        return int(np.sum(err < 3.0)), float(np.sqrt(np.mean(err**2))) if err.size else 0.0
+
+    without, _ = filled(())
+    good, rms = filled(("RANK",))
+    assert good >= without + 10
+    assert rms < 2.0
+
+
+def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_cannot():
+    right, truth = _feet(24)
+    dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
+    spare = _cameras(right, 24, GAP)
+    absent = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)
+    # each field's solution alone too loose to keep (here: a limit below its error)
+    loose = PARAMS.replace(ray_length_max_error_mm=1.0)
+    assert joint_ray_fill(dense, 5, GAP.start, GAP.stop, spare, loose, absent) is None
+    got = joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose, None, absent)
+    assert got is not None and 4 in got.partners  # the heel
+    assert all(p < len(LABELS) for p in got.partners)  # the ankle's row names none
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.9 * (GAP.stop - GAP.start)
+    assert np.all(got.sd_mm[placed] <= PARAMS.ray_depth_max_error_mm)
+    err = np.linalg.norm(got.xyz_mm[placed] - right[1, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < np.sqrt(np.mean(got.sd_mm[placed] ** 2)) + 0.5
+    # without the ankle's row the heel alone fixes no depth here
+    assert joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose) is None
