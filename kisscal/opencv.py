@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from kisscal._shared import rms_px
-from kisscal.camera import Camera, distort
+from kisscal.camera import Camera, distort, distort_each
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_to_matrix
 from kisscal.dlt.nonlinear import N_LENS, correct_lens, lens_frame, lens_offsets
@@ -121,10 +121,11 @@ class _ExportResiduals:
     The Jacobian is the forward difference scipy's ``least_squares`` takes by default
     (``jac="2-point"``: step ``sqrt(eps) max(1, |x|)``, its sign ``x``'s), value for
     value, but each column recomputes only what its parameter moves: the rays' rotation
-    for the three rotation parameters, Brown's distortion for a lens coefficient, the
-    last scaling for the four of the matrix. Finite differences evaluate the residuals
-    19 times a step, the fit's cost: this takes about half of it off, and the fit walks
-    the same path to the same numbers.
+    for the three rotation parameters, the terms of Brown's distortion a lens coefficient
+    enters (:func:`kisscal.camera.distort_each`), the last scaling for the four of the
+    matrix. The residuals are computed on flat arrays (u, v interleaved, as the fit
+    reads them), the same operations on the same numbers as :func:`_project`. The fit
+    walks the same path to the same numbers in about two thirds of the time.
     """
 
     def __init__(
@@ -135,7 +136,9 @@ class _ExportResiduals:
         raw: NDArray[np.float64],
         weight: NDArray[np.float64],
     ) -> None:
-        self.theta0, self.free, self.rays, self.raw, self.weight = theta0, free, rays, raw, weight
+        self.theta0, self.free, self.rays = theta0, free, rays
+        self.raw = raw.ravel()  # u0 v0 u1 v1 ...
+        self.weight = np.repeat(weight.ravel(), 2)
 
     def theta(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Every parameter, the free ones from ``x``."""
@@ -144,30 +147,36 @@ class _ExportResiduals:
         return th
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return self._weighted(_project(self.theta(x), self.rays))
+        th = self.theta(x)
+        return self._weighted(distort(th[7:], _normalised(th, self.rays)), th)
 
-    def _weighted(self, uv: NDArray[np.float64]) -> NDArray[np.float64]:
-        return ((uv - self.raw) * self.weight).ravel()
+    def _weighted(self, xy: NDArray[np.float64], th: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Weighted residuals of distorted normalised coordinates (n, 2) under the
+        matrix of ``th``: ``(xy * (fx, fy) + (cx, cy) - raw) * weight``, flat."""
+        n = len(xy)
+        return (xy.ravel() * np.tile(th[3:5], n) + np.tile(th[5:7], n) - self.raw) * self.weight
 
     def jacobian(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """d residuals / d x by forward differences, shape (residuals, free)."""
         th = self.theta(x)
         xn = _normalised(th, self.rays)
         xy = distort(th[7:], xn)
-        f0 = self._weighted(xy * th[3:5] + th[5:7])
+        f0 = self._weighted(xy, th)
         sign = (x >= 0).astype(float) * 2 - 1
         step = np.finfo(np.float64).eps ** 0.5 * sign * np.maximum(1.0, np.abs(x))
+        index = np.flatnonzero(self.free)
+        moved = th.copy()
+        moved[index] = x + step
+        lens = distort_each(th[7:], xn, moved[7:])
         jac_t = np.empty((x.size, f0.size))
-        for i, p in enumerate(np.flatnonzero(self.free)):
-            moved = th.copy()
-            moved[p] = x[i] + step[i]
+        for i, p in enumerate(index):
+            one = th.copy()
+            one[p] = moved[p]
             if p < 3:  # the rotation: the rays turn
-                uv = _project(moved, self.rays)
-            elif p < 7:  # focal lengths and principal point: the last scaling only
-                uv = xy * moved[3:5] + moved[5:7]
-            else:  # a lens coefficient: the same normalised coordinates
-                uv = distort(moved[7:], xn) * moved[3:5] + moved[5:7]
-            jac_t[i] = (self._weighted(uv) - f0) / ((x[i] + step[i]) - x[i])
+                moved_xy = distort(one[7:], _normalised(one, self.rays))
+            else:  # the matrix: the last scaling; a lens coefficient: its terms
+                moved_xy = xy if p < 7 else lens[p - 7]
+            jac_t[i] = (self._weighted(moved_xy, one) - f0) / ((x[i] + step[i]) - x[i])
         return jac_t.T
 
 
