@@ -36,6 +36,20 @@ reading 0.85x, DLT on the rods 0.8x, the rest of calibrate 0.85x, imports 0.6x
 (scipy.signal for the gait's Savitzky-Golay derivative brings scipy.stats: 0.2x),
 tracking 0.6x.
 
+Stop 41 (2026-11-29, ``python -m benchmarks small``, main aaba448 and this version in
+turns, 2 cores at a load of 14 to 18): processor time main 25.0 and 24.9 s (11.47x and
+11.60x decode), this version 22.7 and 23.7 s (10.81x and 10.70x). The exports' six fits
+take their forward-difference Jacobian column by column, recomputing only what each
+parameter moves (:class:`kisscal.opencv._ExportResiduals`: scipy's numbers, so the same
+fits; 4.2 -> 2.6-2.9 s for the six in one process), and the gait's Savitzky-Golay
+derivative no longer imports scipy.signal, nor scipy.stats with it
+(:func:`kisscal.gait.signals.savgol_slope`; the command line's imports 1.35 -> 1.00 s).
+Every JSON, CSV, TOML, C3D, TRC, NPZ and PNG of ``out/`` byte-identical between a
+``kisscal run`` of main and of this version. What is left
+(:mod:`benchmarks.bench_small_parts`): figures 1.85x, detection 1.5x, exports 1.1x
+(MINPACK's own steps are 60 % of it), image reading 0.8x, DLT on the rods 0.8x, the rest
+of calibrate 0.8x, tracking 0.5x, imports 0.4x.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """
