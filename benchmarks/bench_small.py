@@ -36,6 +36,24 @@ reading 0.85x, DLT on the rods 0.8x, the rest of calibrate 0.85x, imports 0.6x
 (scipy.signal for the gait's Savitzky-Golay derivative brings scipy.stats: 0.2x),
 tracking 0.6x.
 
+Stop 41 (2026-11-29, ``python -m benchmarks small``, main aaba448 and this branch in
+turns, 2 cores at a load of 14 to 18): processor time of the run, main 25.0, 24.9, 25.4
+and 25.2 s, this branch 22.7 and 23.7 s (exports and imports below), then 21.1 and
+23.2 s (and the local background's median); decode 2.1-2.2 s in every turn but the last
+two of this branch (1.3 and 1.4 s, so their ratios, 15.7x and 17.1x, say nothing: 10.0x
+and 11.0x against 2.1 s). The exports' six fits take their forward-difference Jacobian
+column by column, recomputing only what each parameter moves
+(:class:`kisscal.opencv._ExportResiduals`: scipy's numbers, so the same fits; 4.2 ->
+2.6-2.9 s for the six in one process); the gait's Savitzky-Golay derivative no longer
+imports scipy.signal, nor scipy.stats with it (:func:`kisscal.gait.signals.savgol_slope`;
+the command line's imports 1.35 -> 1.00 s); the local background's 5 x 5 median is
+OpenCV's median filter (``kisscal.detect.background._rank5``, 12 -> 0.26 ms on a 73 x
+188 map). Every JSON, CSV, TOML, C3D, TRC, NPZ and PNG of ``out/`` byte-identical between
+a ``kisscal run`` of main and of this branch. What is left
+(:mod:`benchmarks.bench_small_parts`): figures 1.6x, detection 1.3x, exports 1.0x
+(MINPACK's own steps are 60 % of it), image reading 0.8x, DLT on the rods 0.7x, the rest
+of calibrate 0.5x, imports 0.4x, tracking 0.4x.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

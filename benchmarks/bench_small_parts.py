@@ -49,6 +49,16 @@ it. An analytic Jacobian for that fit (Rodrigues' and the lens' derivatives, che
 against finite differences to 3e-11) took no time off (7.5 s against 6.4 s for the six
 cameras) and moved the rational coefficients along the valley (k1 0.5 -> -27.4, same
 rms within 0.0013 px): not kept.
+
+Stop 41 (2026-11-29, load 14 to 17, main aaba448 then this version): whole run 20.61 s
+(10.34x decode, 1.99 s) -> 18.56 s (9.12x, 2.04 s); exports 3.60 -> 2.22 s (1.81x ->
+1.09x: the fits' Jacobian recomputes per column only what its parameter moves, the same
+numbers), imports 1.25 -> 0.87 s (0.63x -> 0.43x: no scipy.signal, hence no
+scipy.stats); run again over its ``out/`` 5.81 -> 4.63 s (its calibration's exports are
+fitted again). The other parts unchanged (figures 3.81 and 3.77 s, detection 2.92 and
+3.02 s); every output byte-identical. With the local background's median by OpenCV's
+filter too (load 15): whole run 18.14 s (8.09x decode, 2.24 s), survey 0.60 s, the rest
+of calibrate 1.15 s (1.77 and 1.68 before), detection 2.97 s; run again 4.14 s.
 """
 
 from __future__ import annotations

@@ -63,6 +63,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.lens import distort, undistort
+from kisscal.dlt.lens import distort_each as distort_each
 from kisscal.dlt.lens import distortion_jacobian as distortion_jacobian
 from kisscal.dlt.model import dlt_from_krt, project
 from kisscal.dlt.nonlinear import correct_lens

@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from kisscal._shared import rms_px
-from kisscal.camera import Camera, distort
+from kisscal.camera import Camera, distort, distort_each
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_to_matrix
 from kisscal.dlt.nonlinear import N_LENS, correct_lens, lens_frame, lens_offsets
@@ -102,10 +102,82 @@ def image_grid(size_px: tuple[int, int], step_px: float = GRID_STEP_PX) -> NDArr
 def _project(theta: NDArray[np.float64], rays: NDArray[np.float64]) -> NDArray[np.float64]:
     """Pixels of camera-centred lab directions under parameters ``theta``:
     Rodrigues (3), fx, fy, cx, cy, then the distortion vector (5, 8 or 12)."""
+    xy = distort(theta[7:], _normalised(theta, rays))
+    return xy * theta[3:5] + theta[5:7]
+
+
+def _normalised(theta: NDArray[np.float64], rays: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Undistorted normalised coordinates of camera-centred lab directions under the
+    rotation ``theta[0:3]`` (Rodrigues)."""
     R = cv2.Rodrigues(theta[0:3])[0]
     pc = rays @ R.T
-    xy = distort(theta[7:], pc[:, :2] / pc[:, 2:3])
-    return xy * theta[3:5] + theta[5:7]
+    return pc[:, :2] / pc[:, 2:3]
+
+
+class _ExportResiduals:
+    """The export fit's weighted pixel residuals (:func:`opencv_from_camera`) as a
+    function of its free parameters ``x`` (``theta[free]``), and their Jacobian.
+
+    The Jacobian is the forward difference scipy's ``least_squares`` takes by default
+    (``jac="2-point"``: step ``sqrt(eps) max(1, |x|)``, its sign ``x``'s), value for
+    value, but each column recomputes only what its parameter moves: the rays' rotation
+    for the three rotation parameters, the terms of Brown's distortion a lens coefficient
+    enters (:func:`kisscal.camera.distort_each`), the last scaling for the four of the
+    matrix. The residuals are computed on flat arrays (u, v interleaved, as the fit
+    reads them), the same operations on the same numbers as :func:`_project`. The fit
+    walks the same path to the same numbers in about two thirds of the time.
+    """
+
+    def __init__(
+        self,
+        theta0: NDArray[np.float64],
+        free: NDArray[np.bool_],
+        rays: NDArray[np.float64],
+        raw: NDArray[np.float64],
+        weight: NDArray[np.float64],
+    ) -> None:
+        self.theta0, self.free, self.rays = theta0, free, rays
+        self.raw = raw.ravel()  # u0 v0 u1 v1 ...
+        self.weight = np.repeat(weight.ravel(), 2)
+
+    def theta(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Every parameter, the free ones from ``x``."""
+        th = self.theta0.copy()
+        th[self.free] = x
+        return th
+
+    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        th = self.theta(x)
+        return self._weighted(distort(th[7:], _normalised(th, self.rays)), th)
+
+    def _weighted(self, xy: NDArray[np.float64], th: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Weighted residuals of distorted normalised coordinates (n, 2) under the
+        matrix of ``th``: ``(xy * (fx, fy) + (cx, cy) - raw) * weight``, flat."""
+        n = len(xy)
+        return (xy.ravel() * np.tile(th[3:5], n) + np.tile(th[5:7], n) - self.raw) * self.weight
+
+    def jacobian(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """d residuals / d x by forward differences, shape (residuals, free)."""
+        th = self.theta(x)
+        xn = _normalised(th, self.rays)
+        xy = distort(th[7:], xn)
+        f0 = self._weighted(xy, th)
+        sign = (x >= 0).astype(float) * 2 - 1
+        step = np.finfo(np.float64).eps ** 0.5 * sign * np.maximum(1.0, np.abs(x))
+        index = np.flatnonzero(self.free)
+        moved = th.copy()
+        moved[index] = x + step
+        lens = distort_each(th[7:], xn, moved[7:])
+        jac_t = np.empty((x.size, f0.size))
+        for i, p in enumerate(index):
+            one = th.copy()
+            one[p] = moved[p]
+            if p < 3:  # the rotation: the rays turn
+                moved_xy = distort(one[7:], _normalised(one, self.rays))
+            else:  # the matrix: the last scaling; a lens coefficient: its terms
+                moved_xy = xy if p < 7 else lens[p - 7]
+            jac_t[i] = (self._weighted(moved_xy, one) - f0) / ((x[i] + step[i]) - x[i])
+        return jac_t.T
 
 
 def rim_weights(
@@ -230,15 +302,17 @@ def opencv_from_camera(
     free = np.ones(theta0.size, dtype=bool)
     free[11] = k3  # theta[11] is k3 (distortions start at theta[7]: k1 k2 p1 p2 k3 ...)
 
-    def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        th = theta0.copy()
-        th[free] = x
-        return ((_project(th, rays) - raw) * weight).ravel()
-
-    th = theta0.copy()
-    th[free] = least_squares(
-        residuals, theta0[free], method="lm", x_scale="jac", max_nfev=EXPORT_MAX_NFEV
-    ).x
+    residuals = _ExportResiduals(theta0, free, rays, raw, weight)
+    th = residuals.theta(
+        least_squares(
+            residuals,
+            theta0[free],
+            jac=residuals.jacobian,
+            method="lm",
+            x_scale="jac",
+            max_nfev=EXPORT_MAX_NFEV,
+        ).x
+    )
     R_fit = cv2.Rodrigues(th[0:3])[0]
     matrix = np.array([[th[3], 0.0, th[5]], [0.0, th[4], th[6]], [0.0, 0.0, 1.0]])
     cv = Camera(matrix, R_fit, -R_fit @ centre, th[7:].copy(), camera.id, camera.size_px)

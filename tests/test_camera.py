@@ -109,3 +109,19 @@ def test_linearisation_polynomial_follows_the_lens_where_the_data_are() -> None:
         lin, fit_max = camera_linearisation(cam, cam.size_px, data_px=data)
         err = np.linalg.norm(apply_linearisation(lin, data) - cam.undistort_px(data), axis=1)
         assert err.max() < 0.03 and fit_max < 0.35
+
+
+@pytest.mark.parametrize("k", [4, 5, 8, 12])
+def test_distort_each_is_distort_with_each_coefficient_moved_bit_for_bit(k):
+    from kisscal.camera import distort_each
+
+    rng = np.random.default_rng(k)
+    xn = rng.uniform(-0.6, 0.6, (300, 2))
+    lens = rng.normal(0, 0.05, k)
+    moved = lens + rng.normal(0, 1e-3, k)
+    rows = distort_each(lens, xn, moved)
+    assert rows.shape == (k, 300, 2)
+    for c in range(k):
+        one = lens.copy()
+        one[c] = moved[c]
+        assert np.array_equal(rows[c], distort(one, xn))

@@ -258,3 +258,25 @@ def test_fit_regions_read_back_by_camera_and_checked(tmp_path):
             read_fit_regions(path, ["left"])
     with pytest.raises(KisscalError, match="fit region"):
         camera_from_opencv(cams[0], region_px=(5.0, 5.0, 1.0, 900.0))
+
+
+@pytest.mark.parametrize(("coefficients", "k3"), [(12, True), (5, False)])
+def test_the_export_jacobian_is_scipys_forward_difference_value_for_value(coefficients, k3):
+    """The export fit's Jacobian, each column recomputing only what its parameter moves,
+    equals scipy's own 2-point difference bit for bit: the fit takes the same path."""
+    from scipy.optimize._numdiff import approx_derivative
+
+    from kisscal.opencv import _ExportResiduals
+
+    rng = np.random.default_rng(3)
+    rays = np.c_[rng.uniform(-0.4, 0.4, (500, 2)), np.ones(500)] * rng.uniform(2e3, 5e3, (500, 1))
+    raw = rng.uniform(0, 640, (500, 2))
+    weight = np.sqrt(rng.uniform(0.1, 2.0, (500, 1)))
+    lens = rng.normal(0, 0.02, coefficients)
+    theta0 = np.r_[0.1, -0.2, 0.05, 800.0, 790.0, 320.0, 240.0, lens]
+    free = np.ones(theta0.size, dtype=bool)
+    free[11] = k3
+    f = _ExportResiduals(theta0, free, rays, raw, weight)
+    for x in (theta0[free], theta0[free] * rng.uniform(0.9, 1.1, free.sum())):
+        expected = approx_derivative(f, x, method="2-point", f0=f(x))
+        assert np.array_equal(f.jacobian(x), expected)

@@ -86,6 +86,63 @@ def distort(lens: ArrayLike, xn: ArrayLike, dlt_form: bool = False) -> NDArray[n
     return np.stack([xd, yd], axis=-1)
 
 
+def distort_each(lens: ArrayLike, xn: ArrayLike, moved: ArrayLike) -> NDArray[np.float64]:
+    """:func:`distort` of one lens with one coefficient moved at a time, bit for bit.
+
+    Parameters
+    ----------
+    lens : array_like, shape (k,)
+        One lens (``k`` 4, 5, 8 or 12, as :func:`distort`).
+    xn : array_like, shape (n, 2)
+        Undistorted normalised coordinates.
+    moved : array_like, shape (k,)
+        The value each coefficient moves to.
+
+    Returns
+    -------
+    ndarray, shape (k, n, 2)
+        Row ``c``: ``distort(lens with lens[c] = moved[c], xn)``, the same numbers: each
+        term is computed as :func:`distort` computes it, and only those coefficient ``c``
+        enters are computed again (the columns of a forward-difference Jacobian).
+    """
+    xn = np.asarray(xn, dtype=float)
+    k0 = list(_terms(lens))
+    rational = np.shape(lens)[-1] > 5
+    x, y = xn[..., 0], xn[..., 1]
+    r2 = x * x + y * y
+    qx, qy = r2 + 2.0 * x * x, r2 + 2.0 * y * y
+
+    def terms(k: list, c: int | None) -> dict[str, NDArray[np.float64]]:
+        """The terms of ``xd`` (x..) and ``yd`` (y..) that coefficient ``c`` enters
+        (all of them for None)."""
+        out = {}
+        if c is None or c in (0, 1, 4, 5, 6, 7):
+            r, _ = _radial(tuple(k), r2, rational, 1.0)
+            out.update(xr=x * r, yr=y * r)
+        if c is None or c == 2:
+            out.update(xp1=2.0 * k[2] * x * y, yp1=k[2] * qy)
+        if c is None or c == 3:
+            out.update(xp2=k[3] * qx, yp2=2.0 * k[3] * x * y)
+        if rational and (c is None or c in (8, 9)):
+            out["xs"] = r2 * (k[8] + k[9] * r2)
+        if rational and (c is None or c in (10, 11)):
+            out["ys"] = r2 * (k[10] + k[11] * r2)
+        return out
+
+    base = terms(k0, None)
+    result = np.empty((np.shape(lens)[-1], *x.shape, 2))
+    for c, value in enumerate(np.asarray(moved, dtype=float)):
+        k = list(k0)
+        k[c] = value
+        t = {**base, **terms(k, c)}
+        result[c, ..., 0] = t["xr"] + t["xp1"] + t["xp2"]
+        result[c, ..., 1] = t["yr"] + t["yp1"] + t["yp2"]
+        if rational:
+            result[c, ..., 0] += t["xs"]
+            result[c, ..., 1] += t["ys"]
+    return result
+
+
 def distortion_jacobian(lens: ArrayLike, xn: ArrayLike) -> NDArray[np.float64]:
     """``d(xd, yd) / d(x, y)`` of :func:`distort`, shape (..., 2, 2)."""
     xn = np.asarray(xn, dtype=float)
