@@ -90,23 +90,50 @@ def name_margins(
     names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
+    fits = name_fits(pos, template, heights_mm, floor_mm)
+    mirror = mirror_rows(n, pairs)
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    margins = np.full(n, np.nan)
+    for i in np.flatnonzero(np.isfinite(fits).any(axis=1)):
+        other = np.ones(n, dtype=bool)
+        other[[i, mirror[i]]] = False
+        if among_free:
+            other &= ~held
+        if weighed is not None:
+            other &= weighed[i]
+        if other.any():
+            margins[i] = float(fits[i, other].min() - fits[i, i])
+    return margins
+
+
+def mirror_rows(n: int, pairs: tuple[tuple[int, int], ...]) -> NDArray[np.int64]:
+    """Each name's mirror partner's row (its own row without one)."""
+    mirror = np.arange(n)
+    for a, b in pairs:
+        mirror[a], mirror[b] = b, a
+    return mirror
+
+
+def name_fits(
+    pos: NDArray, template: NDArray, heights_mm: NDArray | None, floor_mm: float
+) -> NDArray[np.float64]:
+    """(n, n) fit (mm) of the trajectory named ``i`` to the name ``j`` (NaN: not seen,
+    or no neighbour), as :func:`name_margins` weighs it: the median misfit of its
+    distances to its neighbours and of its height."""
+    n = pos.shape[0]
+    fits = np.full((n, n), np.nan)
     measured = median_distances(pos)
     tdist = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     near = np.isfinite(measured) & (measured < NEIGHBOUR_FRACTION * float(np.ptp(template[:, 2])))
     np.fill_diagonal(near, False)
     if not near.any():
-        return np.full(n, np.nan)
+        return fits
     scale = float(np.median(measured[near] / np.maximum(tdist[near], 1.0)))
     measured = measured / scale
     known = heights_mm is not None and np.isfinite(floor_mm)
-    mirror = np.arange(n)
-    for a, b in pairs:
-        mirror[a], mirror[b] = b, a
-    held = np.isfinite(pos[..., 0]).any(axis=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
         height = (np.nanmedian(pos[..., 2], axis=1) - (floor_mm if known else 0.0)) / scale
-    margins = np.full(n, np.nan)
     rows = np.arange(n)[:, None]
     for i in np.flatnonzero(near.any(axis=1) & np.isfinite(height)):
         k = np.flatnonzero(near[i])
@@ -116,16 +143,47 @@ def name_margins(
         misfit = np.abs(measured[i, k][None, :] - tdist[rows, partner])
         if known:
             misfit = np.c_[misfit, np.abs(height[i] - heights_mm)]
-        fit = np.median(misfit, axis=1)
-        other = np.ones(n, dtype=bool)
-        other[[i, mirror[i]]] = False
-        if among_free:
-            other &= ~held
-        if weighed is not None:
-            other &= weighed[i]
-        if other.any():
-            margins[i] = float(fit[other].min() - fit[i])
-    return margins
+        fits[i] = np.median(misfit, axis=1)
+    return fits
+
+
+def chained(
+    fits: NDArray, mirror: NDArray, doubtful: NDArray, margin_mm: float
+) -> NDArray[np.bool_]:
+    """``doubtful`` (per name) spread along the names the trajectories prefer.
+
+    ``fits`` from :func:`name_fits` (rows: trajectories by their names; NaN: not held).
+    A trajectory that another held name fits better than its own by more than
+    ``margin_mm`` prefers that name (a mirror partner excepted). A name whose holder is
+    doubtful is as good as free: a trajectory preferring it is doubtful too; and a
+    doubtful trajectory's preferred name (the best) is held by a trajectory that is
+    doubtful too: if the doubtful one is that name's marker, the holder is not. Repeated
+    until nothing changes.
+
+    A chain of names shifted one marker along a limb (test1.c3d, standing: the
+    sternum's name on the elbow, the elbow's on the forearm, ..., the finger's on the
+    thigh, the thigh's on the knee, ..., the ankle's on the other foot's toe) holds every
+    name, so no name is free to compare with, and each link fits its neighbour's name
+    better by less than ``name_deficit_fraction``; but the links where the shift is
+    plain (the anatomy's order of the knee and the shank) are doubted, and the shift
+    carries the doubt along the chain to both its ends.
+    """
+    n = fits.shape[0]
+    gain = np.diagonal(fits)[:, None] - fits
+    held = np.isfinite(np.diagonal(fits))
+    other = np.isfinite(gain) & held[None, :] & ~np.eye(n, dtype=bool)
+    other[np.arange(n), mirror] = False
+    with np.errstate(invalid="ignore"):
+        better = other & (gain > margin_mm)
+    best = np.argmax(np.where(better, gain, -np.inf), axis=1)
+    points = better.any(axis=1)
+    out = doubtful.copy()
+    while True:
+        grown = out | (better & out[None, :]).any(axis=1)
+        grown[best[out & points]] = True
+        if np.array_equal(grown, out):
+            return out
+        out = grown
 
 
 def free_name_margins(
