@@ -33,7 +33,8 @@ def test_a_chain_of_names_shifted_along_arm_and_leg_is_doubted_to_its_ends():
     """Every name held, each marker of the chain named as the next one up (the toe's
     name on a foreign marker ahead of the toe, the sternum's name on the elbow, RBAK's
     on the sternum): no name is free to compare with. Every name the judged labelling
-    puts on a wrong marker is flagged; the true names are not (but the wrist bars'
+    puts on another marker of the set is flagged (the foreign marker's name is, as in
+    the acceptance table, an extra); the true names are not (but the wrist bars'
     twins)."""
     pos, names = _walk(), FULL.names
     keep = [i for i, n in enumerate(names) if n not in CHAIN and n != "RBAK"]
@@ -42,8 +43,10 @@ def test_a_chain_of_names_shifted_along_arm_and_leg_is_doubted_to_its_ends():
     truth = tuple(names[i] for i in rows) + ("foreign",)
     foreign = pos[names.index("RTOE")] + [60.0, 0.0, 0.0]
     judged = _judge(np.concatenate([pos[rows], foreign[None]]), labels)
-    wrong = {got for got, true in zip(judged.labels, truth, strict=True) if got != true}
-    assert {"RTIB", "RANK", "RTOE"} <= wrong  # the leg's end of the chain
+    wrong = {
+        got for got, true in zip(judged.labels, truth, strict=True) if true not in (got, "foreign")
+    }
+    assert {"RTIB", "RANK"} <= wrong  # the leg's end of the chain
     assert wrong <= set(judged.flagged)
     held = [i for i, n in enumerate(names) if n != "RBAK"]
     right = _judge(pos[held], tuple(names[i] for i in held))
