@@ -163,7 +163,8 @@ def judge_sides(
     reference : (n, 3) array, optional
         A template the labelling did not shape (the set's, scaled to the subject), rows
         as ``anatomy.names``: a name that another name fits clearly better against it
-        (:func:`doubted`) is flagged. Default ``template``.
+        (:func:`doubted`) is flagged, and so is one that a doubt reaches along a chain of
+        names shifted one marker (:func:`_chained`). Default ``template``.
 
     Returns
     -------
