@@ -56,21 +56,23 @@ def test_a_chain_of_names_shifted_along_arm_and_leg_is_doubted_to_its_ends():
 def test_a_doubted_name_on_the_true_back_marker_turns_a_trunk_name_round():
     """Without arms and head: the trunk's back name C7 on the clavicle marker, CLAV free,
     the true C7 marker behind it named LBHD. Only when LBHD is doubted does its marker
-    count as the evidence an unnamed one would be; named right, nothing is turned."""
+    count as the evidence an unnamed one would be (a name alone, its head absent); named
+    right, nothing is turned."""
     pos, names = _walk(), FULL.names
     parts = ("SHO", "UPA", "ELB", "FRM", "WRA", "WRB", "FIN", "FHD", "BHD")
     keep = [n for n in names if n[1:] not in parts and n != "RBAK"]
     anatomy, t, params = Anatomy.of_set(FULL), FULL.template_mm, TrackingParams()
 
     def turned(mapping: dict[str, str], doubtful: set[str]) -> set[str]:
-        """``mapping``: a marker's name when not its own ("": unnamed)."""
+        """``mapping``: a marker's name when not its own ("": unnamed, None: absent)."""
+        seen = [n for n in keep if mapping.get(n, n) is not None]
         moved = np.full_like(pos, np.nan)
-        for n in keep:
+        for n in seen:
             if mapping.get(n, n):
                 moved[names.index(mapping.get(n, n))] = pos[names.index(n)]
-        labels = tuple(mapping.get(n, n) for n in keep)
+        labels = tuple(mapping.get(n, n) for n in seen)
         labelling = replace(
-            _labelling(pos[[names.index(n) for n in keep]], labels),
+            _labelling(pos[[names.index(n) for n in seen]], labels),
             unlabelled=tuple(i for i, n in enumerate(labels) if not n),
         )
         return _turned(labelling, moved, anatomy, t, 50.0, params, doubtful)
@@ -81,3 +83,6 @@ def test_a_doubted_name_on_the_true_back_marker_turns_a_trunk_name_round():
     # The clavicle's marker unnamed, or named by a doubted name, ahead of the true C7.
     assert turned({"CLAV": ""}, {"LBHD"}) == set()
     assert turned({"CLAV": "LFHD"}, {"LFHD"}) == set()
+    # A doubted toe among its foot's names, ahead of the ankle, the heel absent: it is
+    # still the foot's toe, no stand-in for a heel turned round.
+    assert turned({"LHEE": None}, {"LTOE"}) == set()

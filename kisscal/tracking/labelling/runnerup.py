@@ -266,6 +266,7 @@ def turned_round(
     template: NDArray,
     forward: NDArray,
     min_fraction: float,
+    spare_names: NDArray | None = None,
 ) -> NDArray[np.bool_]:
     """Per name, whether it holds one end of a front/back pair of one segment
     (``ahead``: front, back) whose other name is free, while an unnamed trajectory of
@@ -278,12 +279,16 @@ def turned_round(
     The anatomy's front/back check needs both names held; a segment whose front names
     went to its back markers (a head whose back markers were matched to the forehead's
     names, the forehead's left unnamed) holds no back name to check against. Its
-    unnamed front markers still say which way round it is.
+    unnamed front markers still say which way round it is. A spare that holds a name
+    (``spare_names``: its row, -1 unnamed; a doubted name) counts only when the pair
+    turned round explains its place better than its own name
+    (:func:`_explained_by_name`).
     """
     out = np.zeros(pos.shape[0], dtype=bool)
     held = np.isfinite(pos[..., 0]).any(axis=1)
     if not spare.shape[0]:
         return out
+    names = np.full(spare.shape[0], -1) if spare_names is None else np.asarray(spare_names)
     for front, back in ahead:
         for own, free, side in ((front, back, -1.0), (back, front, 1.0)):
             if not held[own] or held[free]:
@@ -299,7 +304,44 @@ def turned_round(
             ok = np.isfinite(along)
             n = np.maximum(ok.sum(axis=1), 1)
             wrong = np.sum(ok & (side * along < 0), axis=1) >= min_fraction * n
+            rigid &= ~_explained_by_name(spare, names, pos[own], own, free, template, forward)
             out[own] |= bool(np.any(rigid & wrong & (ok.sum(axis=1) > 0)))
+    return out
+
+
+def _explained_by_name(
+    spare: NDArray,
+    names: NDArray,
+    own_pos: NDArray,
+    own: int,
+    free: int,
+    template: NDArray,
+    forward: NDArray,
+) -> NDArray[np.bool_]:
+    """Per spare, whether it holds a name whose template offset from ``own`` (along the
+    walk and up: the template's x and z) fits its median offset from ``own_pos`` better
+    than the pair turned round does (``own``'s marker being ``free``'s, the spare
+    ``own``'s).
+
+    A doubted toe beside its ankle, the heel free, sits ahead of the ankle as a turned
+    heel would, but where its own name puts it (gait-pig-nz); a doubted head name on
+    the true C7 marker sits behind C7's name on the clavicle where C7 would, 110 mm from
+    where the head name would (Vicon_analysis without arms)."""
+    out = np.zeros(spare.shape[0], dtype=bool)
+    named = np.flatnonzero(names >= 0)
+    if not named.size:
+        return out
+    gap = spare[named] - own_pos[None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # never seen together
+        seen = np.c_[
+            np.nanmedian(np.sum(gap[..., :2] * forward, axis=2), axis=1),
+            np.nanmedian(gap[..., 2], axis=1),
+        ]
+    turned = (template[own] - template[free])[[0, 2]]
+    as_named = (template[names[named]] - template[own])[:, [0, 2]]
+    own_fit = np.linalg.norm(seen - as_named, axis=1)
+    out[named] = own_fit <= np.linalg.norm(seen - turned, axis=1)
     return out
 
 

@@ -107,14 +107,16 @@ def _turned(
     A doubted name is no evidence of where its marker belongs: Vicon_analysis without
     arms had C7's name on the clavicle marker and the true C7 marker named LBHD (a head
     name alone, doubted); only C7's marker, behind the clavicle's, says the trunk's back
-    name sits on its front marker."""
-    rows = [anatomy.names.index(n) for n in doubtful if n in anatomy.names]
+    name sits on its front marker. A doubted marker that its own name puts where it is
+    (a toe ahead of its ankle, the heel free) is no evidence."""
+    rows = [i for i, n in enumerate(anatomy.names) if n in doubtful]
     if not anatomy.ahead or not (labelling.unlabelled or rows):
         return set()
     spare = labelling.tracks.positions()[list(labelling.unlabelled)]
     spare = np.concatenate([spare, pos[rows]])
+    spare_names = np.r_[np.full(len(labelling.unlabelled), -1), rows].astype(int)
     forward = forward_directions(pos, anatomy, rate_hz)[0]
-    args = (anatomy.ahead, reference, forward, params.min_side_confidence)
+    args = (anatomy.ahead, reference, forward, params.min_side_confidence, spare_names)
     return {anatomy.names[i] for i in np.flatnonzero(turned_round(pos, spare, *args))}
 
 
