@@ -191,7 +191,10 @@ def judge_sides(
     flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
     flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
-    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params, flagged)
+    # A doubted marker's place is weighed in the set's frame (x forward, z up): only
+    # against the set's own template.
+    doubtful = flagged if reference is not None else set()
+    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params, doubtful)
     flagged |= _chained(moved, anatomy, ref, params, flagged)
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
