@@ -45,9 +45,11 @@ confidence per name, uncertain names flagged: names the checks cannot tell apart
 wrist bar's two ends), names that another name of the set fits clearly better
 against the set's own template, or a name left free fits better (by any margin when
 none of the name's template neighbours is held), legs not level with each other, a
-segment's front or back name held alone with an unnamed marker moving rigidly on its
-wrong side (:mod:`~.runnerup`), and a foot's names that a near tie of the feet contest
-gives to other markers (:mod:`~.feet`).
+segment's front or back name held alone with an unnamed marker (or one whose name is
+doubted) moving rigidly on its wrong side (:mod:`~.runnerup`), and a foot's names that a
+near tie of the feet contest gives to other markers (:mod:`~.feet`). Doubt travels along
+the names trajectories prefer: a name whose holder is doubted is as good as free (a chain
+of names shifted along a limb holds every name).
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.

@@ -21,7 +21,9 @@ matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it f
 better than the trajectory's own name is doubtful by a smaller margin
 (``free_deficit_fraction``), and by any margin when none of its nearest names in the
 template is held while the free name's are (:func:`strays`: a finger's name on a thigh
-marker with the whole arm free). And the two legs stand level (:func:`uneven_legs`).
+marker with the whole arm free). A name held by a doubted trajectory is as good as free
+(:func:`chained`: a chain of names shifted along a limb holds every name). And the two
+legs stand level (:func:`uneven_legs`).
 """
 
 from __future__ import annotations
@@ -90,23 +92,50 @@ def name_margins(
     names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
+    fits = name_fits(pos, template, heights_mm, floor_mm)
+    mirror = mirror_rows(n, pairs)
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    margins = np.full(n, np.nan)
+    for i in np.flatnonzero(np.isfinite(fits).any(axis=1)):
+        other = np.ones(n, dtype=bool)
+        other[[i, mirror[i]]] = False
+        if among_free:
+            other &= ~held
+        if weighed is not None:
+            other &= weighed[i]
+        if other.any():
+            margins[i] = float(fits[i, other].min() - fits[i, i])
+    return margins
+
+
+def mirror_rows(n: int, pairs: tuple[tuple[int, int], ...]) -> NDArray[np.int64]:
+    """Each name's mirror partner's row (its own row without one)."""
+    mirror = np.arange(n)
+    for a, b in pairs:
+        mirror[a], mirror[b] = b, a
+    return mirror
+
+
+def name_fits(
+    pos: NDArray, template: NDArray, heights_mm: NDArray | None, floor_mm: float
+) -> NDArray[np.float64]:
+    """(n, n) fit (mm) of the trajectory named ``i`` to the name ``j`` (NaN: not seen,
+    or no neighbour), as :func:`name_margins` weighs it: the median misfit of its
+    distances to its neighbours and of its height."""
+    n = pos.shape[0]
+    fits = np.full((n, n), np.nan)
     measured = median_distances(pos)
     tdist = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     near = np.isfinite(measured) & (measured < NEIGHBOUR_FRACTION * float(np.ptp(template[:, 2])))
     np.fill_diagonal(near, False)
     if not near.any():
-        return np.full(n, np.nan)
+        return fits
     scale = float(np.median(measured[near] / np.maximum(tdist[near], 1.0)))
     measured = measured / scale
     known = heights_mm is not None and np.isfinite(floor_mm)
-    mirror = np.arange(n)
-    for a, b in pairs:
-        mirror[a], mirror[b] = b, a
-    held = np.isfinite(pos[..., 0]).any(axis=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # names never seen
         height = (np.nanmedian(pos[..., 2], axis=1) - (floor_mm if known else 0.0)) / scale
-    margins = np.full(n, np.nan)
     rows = np.arange(n)[:, None]
     for i in np.flatnonzero(near.any(axis=1) & np.isfinite(height)):
         k = np.flatnonzero(near[i])
@@ -116,16 +145,50 @@ def name_margins(
         misfit = np.abs(measured[i, k][None, :] - tdist[rows, partner])
         if known:
             misfit = np.c_[misfit, np.abs(height[i] - heights_mm)]
-        fit = np.median(misfit, axis=1)
-        other = np.ones(n, dtype=bool)
-        other[[i, mirror[i]]] = False
-        if among_free:
-            other &= ~held
-        if weighed is not None:
-            other &= weighed[i]
-        if other.any():
-            margins[i] = float(fit[other].min() - fit[i])
-    return margins
+        fits[i] = np.median(misfit, axis=1)
+    return fits
+
+
+def chained(
+    fits: NDArray, mirror: NDArray, doubtful: NDArray, margin_mm: float
+) -> NDArray[np.bool_]:
+    """``doubtful`` (per name) spread along links of names shifted one marker.
+
+    ``fits`` from :func:`name_fits` (rows: trajectories by their names; NaN: not held).
+    A trajectory whose own name another held name beats by more than ``margin_mm`` (a
+    mirror partner excepted) is displaced; a displaced trajectory that prefers the name
+    of another displaced one is a link of a shifted chain. A link to a doubtful holder
+    makes the trajectory doubtful (that name is as good as free), and a doubtful
+    trajectory's best link makes the holder doubtful (if the one is that name's marker,
+    the other is not). Repeated until nothing changes.
+
+    A chain of names shifted one marker along a limb (test1.c3d, standing: the
+    sternum's name on the elbow, the elbow's on the forearm, ..., the finger's on the
+    thigh, the thigh's on the knee, ..., the ankle's on the other foot's toe) holds every
+    name, so no name is free to compare with, and each link fits its neighbour's name
+    better by less than ``name_deficit_fraction``; but the links where the shift is
+    plain (the anatomy's order of the knee and the shank) are doubted, and the shift
+    carries the doubt along the chain to both its ends. A true name beaten by a doubted
+    neighbour's (a toe by its ankle's) is no link when that neighbour's own name is not
+    beaten: on the regression set such one-sided preferences flagged 4 right names.
+    """
+    n = fits.shape[0]
+    gain = np.diagonal(fits)[:, None] - fits
+    held = np.isfinite(np.diagonal(fits))
+    other = np.isfinite(gain) & held[None, :] & ~np.eye(n, dtype=bool)
+    other[np.arange(n), mirror] = False
+    with np.errstate(invalid="ignore"):
+        better = other & (gain > margin_mm)
+    link = better & better.any(axis=1)[None, :]
+    best = np.argmax(np.where(link, gain, -np.inf), axis=1)
+    linked = link.any(axis=1)
+    out = doubtful.copy()
+    while True:
+        grown = out | (link & out[None, :]).any(axis=1)
+        grown[best[out & linked]] = True
+        if np.array_equal(grown, out):
+            return out
+        out = grown
 
 
 def free_name_margins(
@@ -203,6 +266,7 @@ def turned_round(
     template: NDArray,
     forward: NDArray,
     min_fraction: float,
+    spare_names: NDArray | None = None,
 ) -> NDArray[np.bool_]:
     """Per name, whether it holds one end of a front/back pair of one segment
     (``ahead``: front, back) whose other name is free, while an unnamed trajectory of
@@ -215,12 +279,16 @@ def turned_round(
     The anatomy's front/back check needs both names held; a segment whose front names
     went to its back markers (a head whose back markers were matched to the forehead's
     names, the forehead's left unnamed) holds no back name to check against. Its
-    unnamed front markers still say which way round it is.
+    unnamed front markers still say which way round it is. A spare that holds a name
+    (``spare_names``: its row, -1 unnamed; a doubted name) counts only when the pair
+    turned round explains its place better than its own name
+    (:func:`_explained_by_name`).
     """
     out = np.zeros(pos.shape[0], dtype=bool)
     held = np.isfinite(pos[..., 0]).any(axis=1)
     if not spare.shape[0]:
         return out
+    names = np.full(spare.shape[0], -1) if spare_names is None else np.asarray(spare_names)
     for front, back in ahead:
         for own, free, side in ((front, back, -1.0), (back, front, 1.0)):
             if not held[own] or held[free]:
@@ -236,7 +304,44 @@ def turned_round(
             ok = np.isfinite(along)
             n = np.maximum(ok.sum(axis=1), 1)
             wrong = np.sum(ok & (side * along < 0), axis=1) >= min_fraction * n
+            rigid &= ~_explained_by_name(spare, names, pos[own], own, free, template, forward)
             out[own] |= bool(np.any(rigid & wrong & (ok.sum(axis=1) > 0)))
+    return out
+
+
+def _explained_by_name(
+    spare: NDArray,
+    names: NDArray,
+    own_pos: NDArray,
+    own: int,
+    free: int,
+    template: NDArray,
+    forward: NDArray,
+) -> NDArray[np.bool_]:
+    """Per spare, whether it holds a name whose template offset from ``own`` (along the
+    walk and up: the template's x and z) fits its median offset from ``own_pos`` better
+    than the pair turned round does (``own``'s marker being ``free``'s, the spare
+    ``own``'s).
+
+    A doubted toe beside its ankle, the heel free, sits ahead of the ankle as a turned
+    heel would, but where its own name puts it (gait-pig-nz); a doubted head name on
+    the true C7 marker sits behind C7's name on the clavicle where C7 would, 110 mm from
+    where the head name would (Vicon_analysis without arms)."""
+    out = np.zeros(spare.shape[0], dtype=bool)
+    named = np.flatnonzero(names >= 0)
+    if not named.size:
+        return out
+    gap = spare[named] - own_pos[None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # never seen together
+        seen = np.c_[
+            np.nanmedian(np.sum(gap[..., :2] * forward, axis=2), axis=1),
+            np.nanmedian(gap[..., 2], axis=1),
+        ]
+    turned = (template[own] - template[free])[[0, 2]]
+    as_named = (template[names[named]] - template[own])[:, [0, 2]]
+    own_fit = np.linalg.norm(seen - as_named, axis=1)
+    out[named] = own_fit <= np.linalg.norm(seen - turned, axis=1)
     return out
 
 

@@ -22,7 +22,10 @@ from kisscal.tracking.labelling.anatomy import (
 )
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.runnerup import (
+    chained,
     free_name_margins,
+    mirror_rows,
+    name_fits,
     name_margins,
     strays,
     turned_round,
@@ -95,15 +98,41 @@ def _turned(
     reference: NDArray,
     rate_hz: float,
     params: TrackingParams,
+    doubtful: set[str],
 ) -> set[str]:
-    """Names of front/back pairs held alone that an unnamed trajectory finds turned
-    round (:func:`~kisscal.tracking.labelling.runnerup.turned_round`)."""
-    if not anatomy.ahead or not labelling.unlabelled:
+    """Names of front/back pairs held alone that an unnamed trajectory, or one whose
+    name is ``doubtful``, finds turned round
+    (:func:`~kisscal.tracking.labelling.runnerup.turned_round`).
+
+    A doubted name is no evidence of where its marker belongs: Vicon_analysis without
+    arms had C7's name on the clavicle marker and the true C7 marker named LBHD (a head
+    name alone, doubted); only C7's marker, behind the clavicle's, says the trunk's back
+    name sits on its front marker. A doubted marker that its own name puts where it is
+    (a toe ahead of its ankle, the heel free) is no evidence."""
+    rows = [i for i, n in enumerate(anatomy.names) if n in doubtful]
+    if not anatomy.ahead or not (labelling.unlabelled or rows):
         return set()
     spare = labelling.tracks.positions()[list(labelling.unlabelled)]
+    spare = np.concatenate([spare, pos[rows]])
+    spare_names = np.r_[np.full(len(labelling.unlabelled), -1), rows].astype(int)
     forward = forward_directions(pos, anatomy, rate_hz)[0]
-    args = (anatomy.ahead, reference, forward, params.min_side_confidence)
+    args = (anatomy.ahead, reference, forward, params.min_side_confidence, spare_names)
     return {anatomy.names[i] for i in np.flatnonzero(turned_round(pos, spare, *args))}
+
+
+def _chained(
+    pos: NDArray, anatomy: Anatomy, reference: NDArray, params: TrackingParams, doubtful: set
+) -> set[str]:
+    """Names the doubt of ``doubtful`` reaches along the names trajectories prefer by
+    ``free_deficit_fraction`` of stature
+    (:func:`~kisscal.tracking.labelling.runnerup.chained`): a name whose holder is
+    doubted is as good as free."""
+    names = anatomy.names
+    fits = name_fits(pos, reference, anatomy.heights_mm, floor_height(pos, anatomy))
+    seed = np.isin(names, list(doubtful))
+    margin = params.free_deficit_fraction * float(np.ptp(reference[:, 2]))
+    out = chained(fits, mirror_rows(len(names), anatomy.pairs), seed, margin)
+    return {names[i] for i in np.flatnonzero(out)}
 
 
 def _relabelled(labelling: Labelling, names: tuple[str, ...], perm: NDArray) -> tuple[str, ...]:
@@ -136,7 +165,8 @@ def judge_sides(
     reference : (n, 3) array, optional
         A template the labelling did not shape (the set's, scaled to the subject), rows
         as ``anatomy.names``: a name that another name fits clearly better against it
-        (:func:`doubted`) is flagged. Default ``template``.
+        (:func:`doubted`) is flagged, and so is one that a doubt reaches along a chain of
+        names shifted one marker (:func:`_chained`). Default ``template``.
 
     Returns
     -------
@@ -161,7 +191,11 @@ def judge_sides(
     flagged |= {names[perm[names.index(n)]] for n in labelling.flagged if n in names}
     ref = template if reference is None else reference
     flagged |= {names[i] for i in np.flatnonzero(doubted(moved, anatomy, ref, params))}
-    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params)
+    # A doubted marker's place is weighed in the set's frame (x forward, z up): only
+    # against the set's own template.
+    doubtful = flagged if reference is not None else set()
+    flagged |= _turned(labelling, moved, anatomy, ref, rate_hz, params, doubtful)
+    flagged |= _chained(moved, anatomy, ref, params, flagged)
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
     if not judged and not ratio >= MIRROR_MARGIN:
