@@ -90,6 +90,12 @@ class GaitParams(Params):
         points to a wrong ``[session] rate_hz`` (times scale with it), and the log says so.
     human_speed : (float, float)
         The same for the walking speed (m/s).
+    human_walk_ratio : (float, float)
+        The same for the walk ratio, mean step length over mean cadence (m per
+        step/min): about 0.0064 in adults at any speed, lower in children and short
+        steps (Sekiya & Nagasaki 1998). A rate given too low (30 for 50 Hz) leaves
+        cadence and speed in the range of slow, pathological walking, but not the walk
+        ratio: step lengths do not change with the rate, the cadence does.
     """
 
     section = "gait"
@@ -118,9 +124,18 @@ class GaitParams(Params):
     min_step_s: float = param(0.5, unit="s", gt=0)
     human_cadence: tuple[float, float] = param((30.0, 200.0), unit="steps/min", gt=0)
     human_speed: tuple[float, float] = param((0.1, 3.0), unit="m/s", gt=0)
+    # 18 real trials of fixtures/real/gait: 0.0026-0.0074; a rate 0.6x too low: x 1.67
+    human_walk_ratio: tuple[float, float] = param((0.002, 0.0095), unit="m/(steps/min)", gt=0)
 
     def check(self) -> None:
-        for name in ("strike_window", "off_window", "tip_floor_mm", "human_cadence", "human_speed"):
+        for name in (
+            "strike_window",
+            "off_window",
+            "tip_floor_mm",
+            "human_cadence",
+            "human_speed",
+            "human_walk_ratio",
+        ):
             lo, hi = getattr(self, name)
             if not lo < hi:
                 self.fail(f"{name} must be (earlier, later), got {(lo, hi)!r}")

@@ -95,8 +95,9 @@ class Spatiotemporal:
 
 
 def outside_walking(st: Spatiotemporal, params: GaitParams) -> list[str]:
-    """The mean cadence and walking speed of a trial that no one walks at (both sides'
-    strides together), as ``"cadence 250 steps/min"``; empty when both are plausible.
+    """The mean cadence, walking speed and walk ratio (step length / cadence, Sekiya &
+    Nagasaki 1998) of a trial that no one walks at (both sides' strides together), as
+    ``"cadence 250 steps/min"``; empty when all three are plausible.
 
     Examples
     --------
@@ -106,17 +107,27 @@ def outside_walking(st: Spatiotemporal, params: GaitParams) -> list[str]:
     >>> outside_walking(st, GaitParams())
     ['cadence 255 steps/min (human: 30-200)']
     """
+    means = {p: _mean_of_sides(st, p) for p in ("cadence", "walking_speed", "step_length")}
+    # step lengths are distances, the cadence a rate: their ratio scales with 1 / rate_hz
+    means["walk_ratio"] = means.pop("step_length") / means["cadence"]
     found = []
     for parameter, (lo, hi) in (
         ("cadence", params.human_cadence),
         ("walking_speed", params.human_speed),
+        ("walk_ratio", params.human_walk_ratio),
     ):
-        values = np.concatenate([st.values.get((parameter, side), np.empty(0)) for side in SIDES])
-        mean = float(np.mean(values)) if len(values) else float("nan")
+        mean = means[parameter]
         if np.isfinite(mean) and not lo <= mean <= hi:
             name = parameter.replace("_", " ")
-            found.append(f"{name} {mean:.3g} {UNITS[parameter]} (human: {lo:g}-{hi:g})")
+            unit = UNITS.get(parameter, "m/(steps/min)")
+            found.append(f"{name} {mean:.3g} {unit} (human: {lo:g}-{hi:g})")
     return found
+
+
+def _mean_of_sides(st: Spatiotemporal, parameter: str) -> float:
+    """Mean of one parameter over both sides' strides (NaN without any)."""
+    values = np.concatenate([st.values.get((parameter, side), np.empty(0)) for side in SIDES])
+    return float(np.mean(values)) if len(values) else float("nan")
 
 
 def _none_if_nan(x: object) -> object:

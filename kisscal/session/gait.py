@@ -93,7 +93,7 @@ def gait_outputs(
     if implausible:  # the cameras measured distances; times are fields / rate_hz
         echo(
             f"  warning: {trial}: {' and '.join(implausible)}: is [session] rate_hz = "
-            f"{rate_hz:g} right? cadence and speed scale with it"
+            f"{rate_hz:g} right? cadence, speed and walk ratio scale with it"
         )
     files = SessionStore(root).trial(trial)
     write_table(files.events, _columns(events.rows(), EVENT_COLUMNS))

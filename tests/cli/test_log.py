@@ -70,6 +70,9 @@ def test_a_session_is_given_as_its_folder_its_toml_or_the_current_folder(
     assert empty.returncode == 2
     message = f"kisscal run: error: {tmp_path / 'session.toml'}: file not found"
     assert empty.stderr.strip() == message
+    # run given a session.toml reads its folder (it once said "session folder not found")
+    named = kisscal("run", str(tmp_path / "session.toml"))
+    assert named.returncode == 2 and named.stderr.strip() == message
 
 
 @pytest.mark.slow
@@ -83,6 +86,10 @@ def test_run_ends_with_a_verdict_line(small_session: Path, tmp_path: Path) -> No
     assert re.search(r"ms\] linearise: [\d.]+ s$", result.stderr, re.M)  # a debug line
     assert str(root / "out" / "report.html") in last
     assert "1 trajectories" not in result.stderr and "1 pieces" not in result.stderr
+    # the dltdv.csv line says what the corner difference is, not an alarm ("off by")
+    exports = [line for line in result.stderr.splitlines() if "dltdv.csv" in line]
+    assert exports and all("the lens distortion kisscal corrects" in e for e in exports)
+    assert not any("off by" in e for e in exports), exports
     assert result.stdout == ""
 
 

@@ -5,6 +5,7 @@ none for a trial without feet; scored against the grounded walker's true contact
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import ezc3d
@@ -129,3 +130,23 @@ def test_a_trial_without_feet_gets_no_gait_outputs(lab) -> None:
     for name in ("events.csv", "spatiotemporal.csv", "gait.json"):
         assert not (tdir / name).exists()
     assert "EVENT" not in ezc3d.c3d(str(tdir / "trajectories.c3d"))["parameters"]
+
+
+@pytest.mark.slow
+def test_a_rate_given_too_low_is_named_on_a_walk(lab, tmp_path: Path) -> None:
+    """Issue 28: rate_hz = 30 for 50 Hz cameras. The walk's times stretch by 1 / 0.6: its
+    cadence (about 66 steps/min) and speed are those of a slow walker, but its steps keep
+    their length, and the log asks for the rate; at the true rate it asks nothing."""
+    root, _ = lab
+    log: list[str] = []
+    session.track(root, "walk01", echo=log.append)
+    assert not [line for line in log if "rate_hz" in line], log
+    wrong = tmp_path / "s"
+    shutil.copytree(root, wrong)
+    config = (wrong / "session.toml").read_text()
+    (wrong / "session.toml").write_text(config.replace(f"{RATE}", f"{0.6 * RATE}"))
+    log.clear()
+    session.track(wrong, "walk01", echo=log.append)
+    doubts = [line for line in log if "rate_hz" in line]
+    assert len(doubts) == 1 and "walk ratio" in doubts[0], log
+    assert f"rate_hz = {0.6 * RATE:g} right?" in doubts[0]
