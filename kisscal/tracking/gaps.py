@@ -264,11 +264,14 @@ class Fill:
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
-#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
-#: counted in ``ray_fields``. Between the two, once every track's gaps are filled, the
+#: them as a gap (:func:`_fill_one`), its blobs in one camera placed on their rays by
+#: its segment's lengths (:func:`~kisscal.tracking.raychain.chain_fill` walked from the
+#: measured side), then the segment carrying it from one side (:func:`_end`). Fields
+#: placed on rays have status ``filled_rigid``, every one counted in ``ray_fields``.
+#: Between the two, once every track's gaps are filled, and again after the ends, the
 #: fields they left are tried again with the partners placed since
-#: (:func:`_second_pass`).
+#: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
+#: is placed only at its track's end).
 FILLS: tuple[Fill, ...] = (
     Fill(
         "chain",
@@ -297,6 +300,11 @@ FILLS: tuple[Fill, ...] = (
     ),
     Fill("body between rays", _body, split_only=True, strict="always"),
     Fill("end rays", _placer(_end_rays), ends=True),
+    Fill(
+        "end chain",
+        _placer(lambda g, a, b, p: g.spare and chain_fill(g.dense, g.t, a, b, g.spare, p, g.end)),
+        ends=True,
+    ),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
 )
@@ -444,6 +452,10 @@ def fill_gaps_logged(
         for xyz, fill in gap.out:
             filled_xyz.append(xyz)
             fills.append(fill)
+    made = list(zip(filled_xyz, fills, strict=True))
+    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made):
+        filled_xyz.append(xyz)
+        fills.append(fill)
     if not fills:
         return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])

@@ -147,3 +147,21 @@ def test_end_fill_carries_a_marker_on_two_segments_by_the_one_measured_there():
     f, err = _filled_error(out, xyz, 3)
     assert set(f.tolist()) == set(range(40))
     assert np.sqrt(np.mean(err**2)) < 1.5
+
+
+def test_end_chain_places_a_marker_one_camera_sees_on_its_ray_by_its_lengths():
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    # marker 3's track ends at field 150 and marker 1 is lost with it: two partners
+    # measured (no three-marker body), one camera still sees marker 3 to the end
+    end = slice(150, xyz.shape[1])
+    tracks = _tracks_of(xyz, {3: end, 1: end})
+    params = TrackingParams()
+    out, fills = fill_gaps_logged(tracks, params, _two_cameras_see(xyz, 3, end, 1, 7), labels=NAMES)
+    f, err = _filled_error(out, xyz, 3)
+    assert len(f) >= 0.9 * (end.stop - end.start)
+    assert np.sqrt(np.mean(err**2)) < 1.5
+    assert all(g.ray_fields == g.n_fields for g in fills if g.track == 3)
+    # one partner only: nothing checks the depth its length gives, the end stays open
+    lone = _tracks_of(xyz, {3: end, 2: end, 1: end})
+    got = fill_gaps_logged(lone, params, _two_cameras_see(xyz, 3, end, 1, 7), labels=NAMES)[0]
+    assert not np.isin(3, got.track[is_filled(got.status)])
