@@ -203,12 +203,42 @@ def _triangulate(c: NDArray, d: NDArray) -> tuple[NDArray[np.float64], float]:
     return x, float(np.linalg.norm(np.einsum("kij,kj->ki", proj, x - c), axis=1).max())
 
 
-def _meet(rows: NDArray, spare: SpareBlobs) -> tuple[NDArray[np.float64], float, NDArray]:
-    """The point where the rays of blobs ``rows`` (two or more) meet best, its largest
-    distance to them and the rows used: all of them, or of three or more, the subset
-    without the one ray that misses the others most, when that is closer."""
+def unmerged(
+    spare: SpareBlobs, rows: NDArray, others: NDArray, near: NDArray, merge_px: float
+) -> NDArray[np.float64]:
+    """The images of blobs ``rows`` of a marker near ``near`` (3,) with the share of
+    another marker's image taken out where one of ``others`` (m, 3; the other tracks
+    there) projects within ``merge_px`` of the blob: a merged blob's centroid is the
+    mean of the two images weighted by their areas, which fall with the square of the
+    depth (:mod:`kisscal.recon.deblend`), so ``u = c + w (c - u_o)`` with ``w`` the
+    other image's area over the marker's. Rows (k, 2)."""
+    uv = spare.uv_px[rows]
+    others = others[np.all(np.isfinite(others), axis=1)]
+    if others.size == 0:
+        return uv
+    cam = spare.camera[rows]
+    k, m = rows.size, len(others)
+    proj = project_rows(spare.dlts, np.repeat(cam, m), np.tile(others, (k, 1))).reshape(k, m, 2)
+    dist = np.linalg.norm(proj - uv[:, None], axis=2)
+    o = dist.argmin(axis=1)
+    lens = spare.dlts[cam, 8:11]
+    own = lens @ near + 1.0  # DLT denominators: proportional to depth
+    other = np.einsum("ij,ij->i", lens, others[o]) + 1.0
+    w = (own / other) ** 2
+    out = uv + w[:, None] * (uv - proj[np.arange(k), o])
+    return np.where((dist.min(axis=1) <= merge_px)[:, None], out, uv)
+
+
+def _meet(
+    rows: NDArray, spare: SpareBlobs, uv: NDArray | None = None
+) -> tuple[NDArray[np.float64], float, NDArray]:
+    """The point where the rays of blobs ``rows`` (two or more; their images ``uv``,
+    the blobs' own by default) meet best, its largest distance to them and the rows
+    used: all of them, or of three or more, the subset without the one ray that misses
+    the others most, when that is closer."""
+    uv = spare.uv_px[rows] if uv is None else uv
     c = spare.centres[spare.camera[rows]]
-    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
+    d = ray_directions(spare.dlts[spare.camera[rows]], uv)
     best = (*_triangulate(c, d), rows)
     if rows.size >= 3:
         for i in range(rows.size):
@@ -216,6 +246,24 @@ def _meet(rows: NDArray, spare: SpareBlobs) -> tuple[NDArray[np.float64], float,
             got = _triangulate(c[keep], d[keep])
             if got[1] < best[1]:
                 best = (*got, rows[keep])
+    return best
+
+
+def _meet_unmerged(
+    rows: NDArray, spare: SpareBlobs, own: NDArray
+) -> tuple[NDArray[np.float64], float, NDArray]:
+    """:func:`_meet` of the rays of blobs ``rows`` taken as they are or, each blob that
+    another marker's image may share, through its image with that share taken out
+    (``own``, :func:`unmerged`): of every such choice, the one whose rays meet best
+    (another marker's image that near is not always merged with the marker's)."""
+    may = np.flatnonzero(np.any(own != spare.uv_px[rows], axis=1))
+    best = _meet(rows, spare)
+    for pick in range(1, 2**may.size):
+        uv = spare.uv_px[rows].copy()
+        take = may[(pick >> np.arange(may.size)) & 1 == 1]
+        uv[take] = own[take]
+        got = _meet(rows, spare, uv)
+        best = got if got[1] < best[1] else best
     return best
 
 
@@ -244,6 +292,7 @@ def rays_end_fill(
             rows[cam, f - lo] = row
     xyz, sd = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     last, vel, since = series[edge], series[edge] - series[edge + step], 0
+    merge = params.ray_merge_px
     for f in fields.tolist():
         r = rows[:, f - lo][rows[:, f - lo] >= 0]
         since += 1
@@ -251,7 +300,8 @@ def rays_end_fill(
             break
         if r.size < 2:
             continue
-        x, miss, used = _meet(r, spare)
+        own = unmerged(spare, r, np.delete(dense[:, f], t, axis=0), last + since * vel, merge)
+        x, miss, used = _meet_unmerged(r, spare, own)
         if miss > params.ray_rest_max_error_mm or np.linalg.norm(x - last - since * vel) > STEP_MM:
             continue
         rows[:, f - lo][~np.isin(rows[:, f - lo], used)] = -1
