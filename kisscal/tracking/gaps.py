@@ -27,13 +27,19 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.fill_depth import depth_ray_fill
-from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
+from kisscal.tracking.fill_ends import (
+    chain_end_fill,
+    end_reach,
+    one_sided,
+    rays_end_fill,
+    track_ends,
+)
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_place import take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_fill, parted
+from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import (
     FILLED,
@@ -154,13 +160,6 @@ def _body(
     return np.full(b - a, bool(got))
 
 
-def _end_rays(gap: _Gap, a: int, b: int, params: TrackingParams) -> ChainFill | None:
-    """:func:`~kisscal.tracking.fill_ends.rays_end_fill` on the end [a, b) of ``gap``."""
-    if gap.spare is None:
-        return None
-    return rays_end_fill(gap.dense, gap.t, a, b, gap.spare, params, gap.end)
-
-
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """The fields of the end [a, b) of a track next to its measured samples that its
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
@@ -263,11 +262,12 @@ class Fill:
 #: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`), and the fields left between
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
-#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_fill_one`), its blobs in one camera placed on their rays by
-#: its segment's lengths (:func:`~kisscal.tracking.raychain.chain_fill` walked from the
-#: measured side), then the segment carrying it from one side (:func:`_end`). Fields
-#: placed on rays have status ``filled_rigid``, every one counted in ``ray_fields``.
+#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), its blobs in one camera placed
+#: on their rays by its segment's lengths
+#: (:func:`~kisscal.tracking.fill_ends.chain_end_fill`), the fields they left between
+#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
+#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
+#: counted in ``ray_fields``.
 #: Between the two, once every track's gaps are filled, and again after the ends, the
 #: fields they left are tried again with the partners placed since
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
@@ -299,10 +299,16 @@ FILLS: tuple[Fill, ...] = (
         long_run=True,
     ),
     Fill("body between rays", _body, split_only=True, strict="always"),
-    Fill("end rays", _placer(_end_rays), ends=True),
+    Fill(
+        "end rays",
+        _placer(lambda g, a, b, p: rays_end_fill(g.dense, g.t, a, b, g.spare, p, g.end)),
+        ends=True,
+    ),
     Fill(
         "end chain",
-        _placer(lambda g, a, b, p: g.spare and chain_fill(g.dense, g.t, a, b, g.spare, p, g.end)),
+        _placer(
+            lambda g, a, b, p: g.spare and chain_end_fill(g.dense, g.t, a, b, g.spare, p, g.end)
+        ),
         ends=True,
     ),
     Fill("end holes", _body, ends=True, enclosed=True),
@@ -430,7 +436,7 @@ def fill_gaps_logged(
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
     measured = np.isfinite(dense[:, :, 0])
-    fills, filled_xyz = [], []
+    made: list[tuple[NDArray, GapFill]] = []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     gaps = [
@@ -439,23 +445,15 @@ def fill_gaps_logged(
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
     for t, lo, hi in gaps:
-        for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t]):
-            filled_xyz.append(xyz)
-            fills.append(fill)
-    made = list(zip(filled_xyz, fills, strict=True))
-    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made):
-        filled_xyz.append(xyz)
-        fills.append(fill)
+        made += _fill_gap(dense, t, lo, hi, params, spare, measured[t])
+    made += _second_pass(dense, gaps, params, spare, measured, made)
     for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end)
         _apply(gap, FILLS, [(lo, hi)])
-        for xyz, fill in gap.out:
-            filled_xyz.append(xyz)
-            fills.append(fill)
-    made = list(zip(filled_xyz, fills, strict=True))
-    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made):
-        filled_xyz.append(xyz)
-        fills.append(fill)
+        made += gap.out
+    # what is left, again with the ends placed: a knee seen by one camera carries a tibia
+    made += _second_pass(dense, gaps, params, spare, measured, made)
+    filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
         return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])

@@ -399,25 +399,6 @@ def _guide(dense: NDArray, partners: NDArray, lo: int, hi: int) -> NDArray[np.fl
     return near[np.argmax(np.all(np.isfinite(near), axis=2).sum(axis=1))]
 
 
-def _checked(dense: NDArray, partners: NDArray, lo: int, hi: int) -> NDArray[np.bool_]:
-    """Fields of [lo, hi) where two or more partners are seen: their lengths then
-    over-determine the depth along the ray, and a blob that is not the marker's alone
-    (merged, its ray off the marker's) shows as lengths that disagree."""
-    return np.all(np.isfinite(dense[partners, lo:hi]), axis=2).sum(axis=0) >= 2
-
-
-def _end_run(placed: NDArray, end: int, coast: int) -> NDArray[np.bool_]:
-    """Of the fields ``placed`` at a track's end (1: after its last sample, -1: before
-    its first), the run that starts within ``coast`` fields of the measured side: with
-    no samples beyond, nothing checks a path that starts farther out."""
-    seq = placed if end > 0 else placed[::-1]
-    keep = np.zeros(seq.size, dtype=bool)
-    lo, hi = true_runs(seq)
-    if lo.size and lo[0] <= coast and hi[0] - lo[0] >= MIN_RUN:
-        keep[lo[0] : hi[0]] = True
-    return keep if end > 0 else keep[::-1]
-
-
 def chain_fill(
     dense: NDArray,
     t: int,
@@ -475,8 +456,6 @@ def chain_fill(
     placed = np.zeros(hi - lo, dtype=bool)
     for a, b in zip(*true_runs(np.isfinite(err)), strict=True):
         placed[a:b] = b - a >= MIN_RUN
-    if end:
-        placed &= _end_run(placed & _checked(dense, partners, lo, hi), end, coast)
     xyz[~placed], err[~placed] = np.nan, np.nan
     taken = rows[placed]
     if not taken.size:
