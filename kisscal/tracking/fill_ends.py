@@ -330,6 +330,8 @@ def _shared(
     """Which blobs ``rows`` another track projects within ``merge_px`` of in their
     field: another marker's image may share the blob, its centroid then off the
     marker's ray."""
+    if rows.size == 0 or len(dense) < 2:
+        return np.zeros(rows.size, dtype=bool)
     others = np.delete(dense, t, axis=0)[:, spare.field[rows]].transpose(1, 0, 2)  # (k, m, 3)
     m = others.shape[1]
     flat = others.reshape(-1, 3)

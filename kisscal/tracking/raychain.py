@@ -437,7 +437,8 @@ def chain_fill(
     if end or (fwd and bwd) or not _steady(dense, t, partners):
         # one walk alone only where the other joins no point of the gap (its end is
         # not the marker's, or out of reach), and with lengths that held over the
-        # marker's motion (a drifting one shows only as the two walks parting)
+        # marker's motion (a drifting one shows only as the two walks parting); at a
+        # track's end no other walk can join: only a point alone on a followed blob
         near = (set(), set())
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     rows = np.full(hi - lo, -1)
