@@ -165,7 +165,8 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
     measured, by them or by its two most rigid markers; then as far as those two are,
     by them; each kept when its expected error is at most ``max_body_fill_error_mm``,
-    moved onto the rays of blobs a camera still sees there (:func:`with_rays`)."""
+    moved onto the rays of blobs a camera still sees there (:func:`with_rays`) and
+    written into ``gap.dense`` (the edge the one-camera fill beyond walks from)."""
     placed = np.zeros(b - a, dtype=bool)
     after = gap.end < 0
     rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
@@ -183,6 +184,8 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
             break
         got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
         gap.out.extend(got)
+        for xyz, fill in got:
+            gap.dense[gap.t, fill.first_field : fill.first_field + fill.n_fields] = xyz
         placed[lo - a : hi - a] = True
         done = n
     return placed
@@ -262,12 +265,13 @@ class Fill:
 #: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`), and the fields left between
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
-#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), its blobs in one camera placed
-#: on their rays by its segment's lengths
-#: (:func:`~kisscal.tracking.fill_ends.chain_end_fill`), the fields they left between
-#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
-#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
-#: counted in ``ray_fields``.
+#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
+#: them as a gap (:func:`_fill_one`), the segment carrying it from one side
+#: (:func:`_end`), then beyond, its blobs in one camera placed on their rays by its
+#: segment's lengths (:func:`~kisscal.tracking.fill_ends.chain_end_fill`; after the
+#: segment, which carried kiss 3 seed 303's LTIB to 0.6 mm where one camera's ray took it
+#: to 2.3). Fields placed on rays have status ``filled_rigid``, every one counted in
+#: ``ray_fields``.
 #: Between the two, once every track's gaps are filled, and again after the ends, the
 #: fields they left are tried again with the partners placed since
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
@@ -304,15 +308,13 @@ FILLS: tuple[Fill, ...] = (
         _placer(lambda g, a, b, p: rays_end_fill(g.dense, g.t, a, b, g.spare, p, g.end)),
         ends=True,
     ),
-    Fill(
-        "end chain",
-        _placer(
-            lambda g, a, b, p: g.spare and chain_end_fill(g.dense, g.t, a, b, g.spare, p, g.end)
-        ),
-        ends=True,
-    ),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
+    Fill(
+        "end chain",
+        _placer(lambda g, a, b, p: chain_end_fill(g.dense, g.t, a, b, g.spare, p, g.end)),
+        ends=True,
+    ),
 )
 
 
