@@ -22,11 +22,13 @@ from the other markers of the body); Kabsch 1976 (least-squares rotation).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
@@ -37,7 +39,7 @@ from kisscal.tracking.bodyfill import (
     segment_carriers,
 )
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill, follow_blobs
+from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_fill, follow_blobs
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import MEASURED, Tracks
 
@@ -203,12 +205,42 @@ def _triangulate(c: NDArray, d: NDArray) -> tuple[NDArray[np.float64], float]:
     return x, float(np.linalg.norm(np.einsum("kij,kj->ki", proj, x - c), axis=1).max())
 
 
-def _meet(rows: NDArray, spare: SpareBlobs) -> tuple[NDArray[np.float64], float, NDArray]:
-    """The point where the rays of blobs ``rows`` (two or more) meet best, its largest
-    distance to them and the rows used: all of them, or of three or more, the subset
-    without the one ray that misses the others most, when that is closer."""
+def unmerged(
+    spare: SpareBlobs, rows: NDArray, others: NDArray, near: NDArray, merge_px: float
+) -> NDArray[np.float64]:
+    """The images of blobs ``rows`` of a marker near ``near`` (3,) with the share of
+    another marker's image taken out where one of ``others`` (m, 3; the other tracks
+    there) projects within ``merge_px`` of the blob: a merged blob's centroid is the
+    mean of the two images weighted by their areas, which fall with the square of the
+    depth (:mod:`kisscal.recon.deblend`), so ``u = c + w (c - u_o)`` with ``w`` the
+    other image's area over the marker's. Rows (k, 2)."""
+    uv = spare.uv_px[rows]
+    others = others[np.all(np.isfinite(others), axis=1)]
+    if others.size == 0:
+        return uv
+    cam = spare.camera[rows]
+    k, m = rows.size, len(others)
+    proj = project_rows(spare.dlts, np.repeat(cam, m), np.tile(others, (k, 1))).reshape(k, m, 2)
+    dist = np.linalg.norm(proj - uv[:, None], axis=2)
+    o = dist.argmin(axis=1)
+    lens = spare.dlts[cam, 8:11]
+    own = lens @ near + 1.0  # DLT denominators: proportional to depth
+    other = np.einsum("ij,ij->i", lens, others[o]) + 1.0
+    w = (own / other) ** 2
+    out = uv + w[:, None] * (uv - proj[np.arange(k), o])
+    return np.where((dist.min(axis=1) <= merge_px)[:, None], out, uv)
+
+
+def _meet(
+    rows: NDArray, spare: SpareBlobs, uv: NDArray | None = None
+) -> tuple[NDArray[np.float64], float, NDArray]:
+    """The point where the rays of blobs ``rows`` (two or more; their images ``uv``,
+    the blobs' own by default) meet best, its largest distance to them and the rows
+    used: all of them, or of three or more, the subset without the one ray that misses
+    the others most, when that is closer."""
+    uv = spare.uv_px[rows] if uv is None else uv
     c = spare.centres[spare.camera[rows]]
-    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
+    d = ray_directions(spare.dlts[spare.camera[rows]], uv)
     best = (*_triangulate(c, d), rows)
     if rows.size >= 3:
         for i in range(rows.size):
@@ -219,8 +251,32 @@ def _meet(rows: NDArray, spare: SpareBlobs) -> tuple[NDArray[np.float64], float,
     return best
 
 
+def _meet_unmerged(
+    rows: NDArray, spare: SpareBlobs, own: NDArray
+) -> tuple[NDArray[np.float64], float, NDArray]:
+    """:func:`_meet` of the rays of blobs ``rows`` taken as they are or, each blob that
+    another marker's image may share, through its image with that share taken out
+    (``own``, :func:`unmerged`): of every such choice, the one whose rays meet best
+    (another marker's image that near is not always merged with the marker's)."""
+    may = np.flatnonzero(np.any(own != spare.uv_px[rows], axis=1))
+    best = _meet(rows, spare)
+    for pick in range(1, 2**may.size):
+        uv = spare.uv_px[rows].copy()
+        take = may[(pick >> np.arange(may.size)) & 1 == 1]
+        uv[take] = own[take]
+        got = _meet(rows, spare, uv)
+        best = got if got[1] < best[1] else best
+    return best
+
+
 def rays_end_fill(
-    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams, end: int
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+    end: int,
 ) -> ChainFill | None:
     """Fields of the end [lo, hi) of track ``t`` (``end`` -1: before its first measured
     sample, 1: after its last) where two or more cameras still see the marker: its blob
@@ -231,7 +287,9 @@ def rays_end_fill(
     of them (of three or more rays, the two or more that meet best are kept) or than
     :data:`STEP_MM` from the path continued at constant velocity; the walk stops after
     ``ray_chain_coast_fields`` such fields in a row. None when fewer than
-    :data:`~kisscal.tracking.raychain.MIN_RUN` fields are placed."""
+    :data:`~kisscal.tracking.raychain.MIN_RUN` fields are placed, or without ``spare``."""
+    if spare is None:
+        return None
     series = dense[t]
     edge, step = (hi, 1) if end < 0 else (lo - 1, -1)
     if not 0 <= edge + step < len(series) or not np.all(np.isfinite(series[[edge, edge + step]])):
@@ -244,6 +302,7 @@ def rays_end_fill(
             rows[cam, f - lo] = row
     xyz, sd = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     last, vel, since = series[edge], series[edge] - series[edge + step], 0
+    merge = params.ray_merge_px
     for f in fields.tolist():
         r = rows[:, f - lo][rows[:, f - lo] >= 0]
         since += 1
@@ -251,7 +310,8 @@ def rays_end_fill(
             break
         if r.size < 2:
             continue
-        x, miss, used = _meet(r, spare)
+        own = unmerged(spare, r, np.delete(dense[:, f], t, axis=0), last + since * vel, merge)
+        x, miss, used = _meet_unmerged(r, spare, own)
         if miss > params.ray_rest_max_error_mm or np.linalg.norm(x - last - since * vel) > STEP_MM:
             continue
         rows[:, f - lo][~np.isin(rows[:, f - lo], used)] = -1
@@ -262,6 +322,72 @@ def rays_end_fill(
         return None
     taken = rows[:, placed]
     return ChainFill(xyz, sd, (), taken[taken >= 0].astype(np.int64))
+
+
+def _shared(
+    dense: NDArray, t: int, rows: NDArray, spare: SpareBlobs, merge_px: float
+) -> NDArray[np.bool_]:
+    """Which blobs ``rows`` another track projects within ``merge_px`` of in their
+    field: another marker's image may share the blob, its centroid then off the
+    marker's ray."""
+    if rows.size == 0 or len(dense) < 2:
+        return np.zeros(rows.size, dtype=bool)
+    others = np.delete(dense, t, axis=0)[:, spare.field[rows]].transpose(1, 0, 2)  # (k, m, 3)
+    m = others.shape[1]
+    flat = others.reshape(-1, 3)
+    seen = np.all(np.isfinite(flat), axis=1)
+    cams = np.repeat(spare.camera[rows], m)[seen]
+    dist = np.full(flat.shape[0], np.inf)
+    uv = np.repeat(spare.uv_px[rows], m, axis=0)[seen]
+    dist[seen] = np.linalg.norm(project_rows(spare.dlts, cams, flat[seen]) - uv, axis=1)
+    return dist.reshape(-1, m).min(axis=1, initial=np.inf) <= merge_px
+
+
+def _edge_run(placed: NDArray, end: int) -> NDArray[np.bool_]:
+    """Of the fields ``placed`` at a track's end (1: after its last sample, -1: before
+    its first), the run next to the measured side, if at least
+    :data:`~kisscal.tracking.raychain.MIN_RUN` long."""
+    seq = placed if end > 0 else placed[::-1]
+    keep = np.zeros(seq.size, dtype=bool)
+    lo, hi = true_runs(seq)
+    if lo.size and lo[0] == 0 and hi[0] - lo[0] >= MIN_RUN:
+        keep[lo[0] : hi[0]] = True
+    return keep if end > 0 else keep[::-1]
+
+
+def chain_end_fill(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+    end: int,
+) -> ChainFill | None:
+    """The end [lo, hi) of track ``t`` (``end`` as :func:`rays_end_fill`) that one
+    camera still sees: the marker's blobs placed on their rays by its segment's lengths
+    (:func:`~kisscal.tracking.raychain.chain_fill` walked from the measured side alone),
+    with the checks a second side would give replaced by stricter ones: no blob another
+    track projects within ``ray_merge_px`` of (a merged blob's centroid lies off the
+    marker's ray), only fields where two or more partners are seen (their lengths
+    over-determine the depth along the ray, and disagree on a wrong blob), and only the
+    run next to the measured side (nothing checks a path that does not start at the
+    sample it continues). None when nothing is placed, or without ``spare``."""
+    if spare is None:
+        return None
+    rows = spare.rows(lo, hi)
+    free = spare.free.copy()
+    free[rows[_shared(dense, t, rows, spare, params.ray_merge_px)]] = False
+    got = chain_fill(dense, t, lo, hi, dataclasses.replace(spare, free=free), params, end)
+    if got is None:
+        return None
+    placed = np.isfinite(got.sd_mm)
+    seen = np.all(np.isfinite(dense[list(got.partners), lo:hi]), axis=2).sum(axis=0) >= 2
+    keep = _edge_run(placed & seen, end)
+    if not keep.any():
+        return None
+    xyz, sd = np.where(keep[:, None], got.xyz_mm, np.nan), np.where(keep, got.sd_mm, np.nan)
+    return ChainFill(xyz, sd, got.partners, got.rows[keep[placed]])
 
 
 def track_ends(

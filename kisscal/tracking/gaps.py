@@ -28,14 +28,20 @@ from kisscal.tracking.bodyfill import (
 )
 from kisscal.tracking.fill_absent import absent_rows
 from kisscal.tracking.fill_depth import depth_ray_fill
-from kisscal.tracking.fill_ends import end_reach, one_sided, rays_end_fill, track_ends
+from kisscal.tracking.fill_ends import (
+    chain_end_fill,
+    end_reach,
+    one_sided,
+    rays_end_fill,
+    track_ends,
+)
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_fill, parted
+from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import (
     FILLED,
@@ -148,14 +154,12 @@ def _placer(method: Callable) -> Callable:
     return fill
 
 
-def _depth_placer(method: Callable) -> Callable:
-    """:func:`_placer` of a depth fill ``method(dense, t, a, b, spare, params, measured)``."""
-    return _placer(lambda g, a, b, p: method(g.dense, g.t, a, b, g.spare, p, g.measured))
-
-
-def _joint_depth(g: _Gap, a: int, b: int, p: TrackingParams) -> ChainFill | None:
-    """:func:`~kisscal.tracking.fill_joint_depth.joint_depth_fill` on [a, b) of ``g``."""
-    return joint_depth_fill(g.dense, g.t, a, b, g.spare, p, g.measured, g.absent)
+def _ray_placer(method: Callable, *extra: str) -> Callable:
+    """:func:`_placer` of a placer ``method(dense, t, a, b, spare, params, *extra)``, the
+    ``extra`` arguments being the gap's attributes of those names."""
+    return _placer(
+        lambda g, a, b, p: method(g.dense, g.t, a, b, g.spare, p, *(getattr(g, n) for n in extra))
+    )
 
 
 def _body(
@@ -167,19 +171,13 @@ def _body(
     return np.full(b - a, bool(got))
 
 
-def _end_rays(gap: _Gap, a: int, b: int, params: TrackingParams) -> ChainFill | None:
-    """:func:`~kisscal.tracking.fill_ends.rays_end_fill` on the end [a, b) of ``gap``."""
-    if gap.spare is None:
-        return None
-    return rays_end_fill(gap.dense, gap.t, a, b, gap.spare, params, gap.end)
-
-
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """The fields of the end [a, b) of a track next to its measured samples that its
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
     measured, by them or by its two most rigid markers; then as far as those two are,
     by them; each kept when its expected error is at most ``max_body_fill_error_mm``,
-    moved onto the rays of blobs a camera still sees there (:func:`with_rays`)."""
+    moved onto the rays of blobs a camera still sees there (:func:`with_rays`) and
+    written into ``gap.dense`` (the edge the one-camera fill beyond walks from)."""
     placed = np.zeros(b - a, dtype=bool)
     after = gap.end < 0
     rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
@@ -197,6 +195,8 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
             break
         got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
         gap.out.extend(got)
+        for xyz, fill in got:
+            gap.dense[gap.t, fill.first_field : fill.first_field + fill.n_fields] = xyz
         placed[lo - a : hi - a] = True
         done = n
     return placed
@@ -277,31 +277,27 @@ class Fill:
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_fill_one`), then the segment carrying it from one side
-#: (:func:`_end`). Fields placed on rays have status ``filled_rigid``, every one
-#: counted in ``ray_fields``. Between the two, once every track's gaps are filled, the
+#: them as a gap (:func:`_fill_one`), the segment carrying it from one side
+#: (:func:`_end`), then beyond, its blobs in one camera placed on their rays by its
+#: segment's lengths (:func:`~kisscal.tracking.fill_ends.chain_end_fill`; after the
+#: segment, which carried kiss 3 seed 303's LTIB to 0.6 mm where one camera's ray took it
+#: to 2.3). Fields placed on rays have status ``filled_rigid``, every one counted in
+#: ``ray_fields``.
+#: Between the two, once every track's gaps are filled, and again after the ends, the
 #: fields they left are tried again with the partners placed since
-#: (:func:`_second_pass`).
+#: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
+#: is placed only at its track's end).
 FILLS: tuple[Fill, ...] = (
-    Fill(
-        "chain",
-        _placer(lambda g, a, b, p: chain_fill(g.dense, g.t, a, b, g.spare, p)),
-        sweep=True,
-        rays=True,
-    ),
-    Fill(
-        "joint",
-        _placer(lambda g, a, b, p: joint_ray_fill(g.dense, g.t, a, b, g.spare, p, g.absent)),
-        sweep=True,
-        rays=True,
-    ),
+    Fill("chain", _ray_placer(chain_fill), sweep=True, rays=True),
+    Fill("joint", _ray_placer(joint_ray_fill, "absent"), sweep=True, rays=True),
     Fill("body", _body, strict="swept"),
-    Fill("depth", _depth_placer(depth_ray_fill), rays=True, long_run=True),
-    Fill("sphere depth", _depth_placer(sphere_depth_fill), rays=True, long_run=True),
+    Fill("depth", _ray_placer(depth_ray_fill, "measured"), rays=True, long_run=True),
+    Fill("sphere depth", _ray_placer(sphere_depth_fill, "measured"), rays=True, long_run=True),
     Fill("body between rays", _body, split_only=True, strict="always"),
-    Fill("end rays", _placer(_end_rays), ends=True),
+    Fill("end rays", _ray_placer(rays_end_fill, "end"), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
+    Fill("end chain", _ray_placer(chain_end_fill, "end"), ends=True),
 )
 
 
@@ -313,7 +309,9 @@ FILLS: tuple[Fill, ...] = (
 #: the first pass's checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
-    Fill("joint depth", _placer(_joint_depth), rays=True, long_run=True),
+    Fill(
+        "joint depth", _ray_placer(joint_depth_fill, "measured", "absent"), rays=True, long_run=True
+    ),
     Fill("body", partial(_body, spline=False), strict="always"),
 )
 
@@ -433,7 +431,7 @@ def fill_gaps_logged(
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
     measured = np.isfinite(dense[:, :, 0])
-    fills, filled_xyz = [], []
+    made: list[tuple[NDArray, GapFill]] = []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     absent = absent_rows(dense, labels, missing, spare, params)
@@ -443,19 +441,15 @@ def fill_gaps_logged(
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
     for t, lo, hi in gaps:
-        for xyz, fill in _fill_gap(dense, t, lo, hi, params, spare, measured[t], absent):
-            filled_xyz.append(xyz)
-            fills.append(fill)
-    made = list(zip(filled_xyz, fills, strict=True))
-    for xyz, fill in _second_pass(dense, gaps, params, spare, measured, made, absent):
-        filled_xyz.append(xyz)
-        fills.append(fill)
+        made += _fill_gap(dense, t, lo, hi, params, spare, measured[t], absent)
+    made += _second_pass(dense, gaps, params, spare, measured, made, absent)
     for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end, absent)
         _apply(gap, FILLS, [(lo, hi)])
-        for xyz, fill in gap.out:
-            filled_xyz.append(xyz)
-            fills.append(fill)
+        made += gap.out
+    # what is left, again with the ends placed: a knee seen by one camera carries a tibia
+    made += _second_pass(dense, gaps, params, spare, measured, made, absent)
+    filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
         return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])

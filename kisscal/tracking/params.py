@@ -174,6 +174,11 @@ class TrackingParams(Params):
         Largest expected error (mm) of a marker's distance from the one camera that sees
         it, bridged by a spline across the gap, for its blob's ray to place it
         (:mod:`kisscal.tracking.fill_depth`).
+    ray_merge_px : float
+        Farthest (px) another marker's projection lies from a blob it shares with the
+        marker (the centroid of two overlapping images lies within one image's radius of
+        each): at a track's end, the rays of two or more cameras meet on the blob with
+        that marker's share taken out, when they meet better so.
     ray_rest_max_error_mm : float
         Largest expected error (mm) of a body fill between fields placed on rays (it
         borrows them as its context, and an error measured beside them tells less).
@@ -293,6 +298,7 @@ class TrackingParams(Params):
     ray_length_sd_floor_mm: float = param(1.0, unit="mm", gt=0)
     ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
     ray_depth_max_error_mm: float = param(3.0, unit="mm", gt=0)
+    ray_merge_px: float = param(3.0, unit="px", gt=0)
     ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)
     mirror_length_sd_mm: float = param(2.0, unit="mm", gt=0)
     refill_predicted: bool = param(True)

@@ -421,14 +421,46 @@ def _candidates(
     return out
 
 
+def _walk_sides(target: NDArray, lo: int, hi: int, end: int) -> tuple[bool, bool]:
+    """Whether the walk from before the run [lo, hi) of ``target`` and the one from
+    after it start: a gap (``end`` 0) needs both sides' samples (and the field beyond
+    each, for the path's velocity); a track's end (-1: before its first sample, 1:
+    after its last) only the measured side's."""
+    fwd = lo >= 2 and bool(np.all(np.isfinite(target[lo - 1])))
+    bwd = hi + 1 < len(target) and bool(np.all(np.isfinite(target[hi])))
+    if end == 0:
+        return (True, True) if fwd and bwd else (False, False)
+    return (fwd, False) if end > 0 else (False, bwd)
+
+
+def _guide(dense: NDArray, partners: NDArray, lo: int, hi: int) -> NDArray[np.float64]:
+    """The partner measured most in fields lo - 1 .. hi (NaN outside the trial), those
+    fields of it, (hi - lo + 2, 3)."""
+    f = np.arange(lo - 1, hi + 1)
+    inside = (f >= 0) & (f < dense.shape[1])
+    near = np.full((partners.size, f.size, 3), np.nan)
+    near[:, inside] = dense[partners][:, f[inside]]
+    return near[np.argmax(np.all(np.isfinite(near), axis=2).sum(axis=1))]
+
+
 def chain_fill(
-    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    end: int = 0,
 ) -> ChainFill | None:
     """Place the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN
     where not measured) on the rays of its own unused blobs (see module); None when no
-    field could be placed. The blobs taken are not marked used here."""
+    field could be placed. With ``end`` (-1: the fields before the track's first
+    sample, 1: after its last), the run is a track's end, walked from its measured
+    side only (a knee seen by one camera after its second camera lost it for good).
+    The blobs taken are not marked used here."""
     target = dense[t]
-    if lo < 2 or hi + 1 >= len(target) or not np.all(np.isfinite(target[[lo - 1, hi]])):
+    walk = _walk_sides(target, lo, hi, end)
+    if not any(walk):
         return None
     partners, sd = length_partners(dense, t, params)
     if partners.size == 0:
@@ -443,16 +475,16 @@ def chain_fill(
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
     order = sorted(pts)
-    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
-    guide = dense[partners[np.argmax(seen.sum(axis=1))], lo - 1 : hi + 1]
-    fwd = _choose(pts, guide, target[lo - 1], -1, order)
-    bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
+    guide = _guide(dense, partners, lo, hi)
+    fwd = _choose(pts, guide, target[lo - 1], -1, order) if walk[0] else {}
+    bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1]) if walk[1] else {}
     coast = params.ray_chain_coast_fields
     near = (_connected(fwd, -1, coast), _connected(bwd, hi - lo, coast))
-    if (fwd and bwd) or not _steady(dense, t, partners):
+    if end or (fwd and bwd) or not _steady(dense, t, partners):
         # one walk alone only where the other joins no point of the gap (its end is
         # not the marker's, or out of reach), and with lengths that held over the
-        # marker's motion (a drifting one shows only as the two walks parting)
+        # marker's motion (a drifting one shows only as the two walks parting); at a
+        # track's end no other walk can join: only a point alone on a followed blob
         near = (set(), set())
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     rows = np.full(hi - lo, -1)

@@ -147,3 +147,61 @@ def test_end_fill_carries_a_marker_on_two_segments_by_the_one_measured_there():
     f, err = _filled_error(out, xyz, 3)
     assert set(f.tolist()) == set(range(40))
     assert np.sqrt(np.mean(err**2)) < 1.5
+
+
+def test_end_chain_places_a_marker_one_camera_sees_on_its_ray_by_its_lengths():
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    # marker 3's track ends at field 150 and marker 1 is lost with it: two partners
+    # measured (no three-marker body), one camera still sees marker 3 to the end
+    end = slice(150, xyz.shape[1])
+    tracks = _tracks_of(xyz, {3: end, 1: end})
+    params = TrackingParams()
+    out, fills = fill_gaps_logged(tracks, params, _two_cameras_see(xyz, 3, end, 1, 7), labels=NAMES)
+    f, err = _filled_error(out, xyz, 3)
+    assert len(f) >= 0.9 * (end.stop - end.start)
+    assert np.sqrt(np.mean(err**2)) < 1.5
+    assert all(g.ray_fields == g.n_fields for g in fills if g.track == 3)
+    # one partner only: nothing checks the depth its length gives, the end stays open
+    lone = _tracks_of(xyz, {3: end, 2: end, 1: end})
+    got = fill_gaps_logged(lone, params, _two_cameras_see(xyz, 3, end, 1, 7), labels=NAMES)[0]
+    assert not np.isin(3, got.track[is_filled(got.status)])
+
+
+def _merged_in_one_camera(seed: int):
+    """Marker 4 of a rigid body (and a fifth marker, 0, moving about it) with the body's
+    markers 2-4 back at field 60 and 1 at 40; two cameras 90 degrees apart see marker 4
+    from the start, camera 1 only in one blob with marker 0's image (2.5 px from it,
+    their centroid weighted by area, 1 / depth²), camera 0 apart. Truth (5, n, 3),
+    tracks and the spare blobs."""
+    body = rigid_body(seed=seed, noise_mm=0.2)
+    start, n = slice(0, 60), body.shape[1]
+    dlts = rig(body[3, start].mean(axis=0))
+    step = project_rows(dlts, [1, 1], np.stack([body[3, 30], body[3, 30] + [1.0, 0, 0]]))
+    r = 2.5 / np.linalg.norm(step[1] - step[0])  # mm per 2.5 px in camera 1
+    turn = np.arange(n) / 7.0
+    other = body[3] + r * np.stack([np.cos(turn), 2.4 + 0 * turn, np.sin(turn)], 1)
+    xyz = np.concatenate([other[None], body])
+    tracks = _tracks_of(xyz, {1: slice(0, 40), 2: start, 3: start, 4: start})
+    cams = np.repeat([0, 1], 60)
+    images = project_rows(dlts, cams, np.concatenate([xyz[4, start]] * 2))
+    shared = project_rows(dlts, np.ones(60, dtype=int), xyz[0, start])
+    w_own = 1.0 / (xyz[4, start] @ dlts[1, 8:11] + 1.0) ** 2
+    w_other = 1.0 / (xyz[0, start] @ dlts[1, 8:11] + 1.0) ** 2
+    images[60:] = (w_own[:, None] * images[60:] + w_other[:, None] * shared) / (w_own + w_other)[
+        :, None
+    ]
+    uv = images + np.random.default_rng(seed).normal(0, 0.05, images.shape)
+    f = np.arange(60)
+    return xyz, tracks, lambda: spare_blobs(np.r_[f, f], cams, uv, dlts)
+
+
+def test_end_rays_take_a_known_marker_out_of_a_blob_merged_with_it():
+    xyz, tracks, spare = _merged_in_one_camera(seed=9)
+    names = ("E", *NAMES)
+    out = fill_gaps_logged(tracks, TrackingParams(), spare(), labels=names)[0]
+    f, err = _filled_error(out, xyz, 4)
+    assert set(f.tolist()) == set(range(60))
+    assert np.sqrt(np.mean(err**2)) < 1.0
+    # the merged blob's centroid as the marker's image: its ray misses by millimetres
+    raw = fill_gaps_logged(tracks, TrackingParams(ray_merge_px=0.01), spare(), labels=names)[0]
+    assert np.sqrt(np.mean(_filled_error(raw, xyz, 4)[1] ** 2)) > 2.0
