@@ -41,6 +41,7 @@ from kisscal.tracking.bodyfill import (
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_fill, follow_blobs
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.shared_blobs import shared_blobs
 from kisscal.tracking.tracks import MEASURED, Tracks
 
 
@@ -324,25 +325,6 @@ def rays_end_fill(
     return ChainFill(xyz, sd, (), taken[taken >= 0].astype(np.int64))
 
 
-def _shared(
-    dense: NDArray, t: int, rows: NDArray, spare: SpareBlobs, merge_px: float
-) -> NDArray[np.bool_]:
-    """Which blobs ``rows`` another track projects within ``merge_px`` of in their
-    field: another marker's image may share the blob, its centroid then off the
-    marker's ray."""
-    if rows.size == 0 or len(dense) < 2:
-        return np.zeros(rows.size, dtype=bool)
-    others = np.delete(dense, t, axis=0)[:, spare.field[rows]].transpose(1, 0, 2)  # (k, m, 3)
-    m = others.shape[1]
-    flat = others.reshape(-1, 3)
-    seen = np.all(np.isfinite(flat), axis=1)
-    cams = np.repeat(spare.camera[rows], m)[seen]
-    dist = np.full(flat.shape[0], np.inf)
-    uv = np.repeat(spare.uv_px[rows], m, axis=0)[seen]
-    dist[seen] = np.linalg.norm(project_rows(spare.dlts, cams, flat[seen]) - uv, axis=1)
-    return dist.reshape(-1, m).min(axis=1, initial=np.inf) <= merge_px
-
-
 def _edge_run(placed: NDArray, end: int) -> NDArray[np.bool_]:
     """Of the fields ``placed`` at a track's end (1: after its last sample, -1: before
     its first), the run next to the measured side, if at least
@@ -368,16 +350,17 @@ def chain_end_fill(
     camera still sees: the marker's blobs placed on their rays by its segment's lengths
     (:func:`~kisscal.tracking.raychain.chain_fill` walked from the measured side alone),
     with the checks a second side would give replaced by stricter ones: no blob another
-    track projects within ``ray_merge_px`` of (a merged blob's centroid lies off the
-    marker's ray), only fields where two or more partners are seen (their lengths
-    over-determine the depth along the ray, and disagree on a wrong blob), and only the
+    track's image may share (:func:`~kisscal.tracking.shared_blobs.shared_blobs`, taken
+    out before the blobs are followed in the image), only fields where two or more
+    partners are seen (their lengths over-determine the depth along the ray, and
+    disagree on a wrong blob), and only the
     run next to the measured side (nothing checks a path that does not start at the
     sample it continues). None when nothing is placed, or without ``spare``."""
     if spare is None:
         return None
     rows = spare.rows(lo, hi)
     free = spare.free.copy()
-    free[rows[_shared(dense, t, rows, spare, params.ray_merge_px)]] = False
+    free[rows[shared_blobs(dense, t, lo, spare.field[rows] - lo, rows, spare, params)]] = False
     got = chain_fill(dense, t, lo, hi, dataclasses.replace(spare, free=free), params, end)
     if got is None:
         return None
