@@ -428,30 +428,16 @@ class Live:
     def _nearer_losers(
         self, inside: NDArray, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray
     ) -> None:
-        """Mark ambiguous a track that took a point another track, left without one, had in
-        its gate and predicted nearer (tiers choose in turn: a young track with a wide gate
-        may take the point of a marker that appeared a field before).
-
-        Likewise when the loser was seen the field before (its marker, or the taker's,
-        vanished this field) and, with a velocity, had the point in its gate or predicted
-        it less than ``rival_ratio`` times as far as the taker did, while the taker missed
-        by over :data:`RIVAL_MIN_MM`: nothing in this field says which marker vanished.
-        On PhaseSpace's hand (30 Hz, LEDs 40-70 mm apart, predictions missing by 70-140 mm
-        RMS) the track of a hidden LED took its neighbour's point, 96 mm from its
-        prediction, while the neighbour's own track predicted it 102 mm away; cut there,
-        blending judges who continues whom from both sides."""
+        """Mark ambiguous the takers and losers of points a track left without one
+        contests (:func:`~kisscal.tracking.association.contested_points`)."""
         losers = self.alive.copy()
         losers[rows] = False
         if not losers.any() or rows.size == 0:
             return
         lost = losers.nonzero()[0]
-        d_taker = np.linalg.norm(points[cols] - pred[rows], axis=1)
-        d_loser = np.linalg.norm(points[cols][None, :, :] - pred[lost][:, None, :], axis=2)
-        in_gate = inside[np.ix_(lost, cols)]
-        nearer = in_gate & (d_loser < d_taker[None, :])
         fresh = (self.misses[lost] == 0) & (self.n[lost] >= 2)
-        close = in_gate | (d_loser < self.setup.params.rival_ratio * d_taker[None, :])
-        nearer |= close & fresh[:, None] & (d_taker > RIVAL_MIN_MM)[None, :]
+        args = (inside[np.ix_(lost, cols)], pred[rows], pred[lost], points[cols], fresh)
+        nearer = assoc.contested_points(*args, self.setup.params.rival_ratio, RIVAL_MIN_MM)
         self.ambiguous[rows[nearer.any(axis=0)]] = True
         self.ambiguous[lost[nearer.any(axis=1)]] = True
 
