@@ -130,32 +130,80 @@ def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray, share: float) -> NDArr
 
 def _nearer_at_ends(
     tracks: Tracks, a: NDArray, b: NDArray, forward: NDArray, backward: NDArray
-) -> NDArray[np.bool_]:
+) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
     """Which joins ``a[i]`` -> ``b[i]`` another piece's sample explains better at their
     ends: in the later piece's first field, a sample of a third piece lies nearer the
     earlier piece's extrapolation (``forward``) than the later piece's first sample; or,
     in the earlier piece's last field, one lies nearer the later piece's backward
     extrapolation (``backward``) than the earlier piece's last sample. The earlier marker
     is then seen where the join would put it on another piece: a guess, refused (markers
-    5 mm apart at 3 m/s, Phoenix LEDs on a golf club, fit one cubic either way)."""
+    5 mm apart at 3 m/s, Phoenix LEDs on a golf club, fit one cubic either way).
+
+    A third piece that is itself a rival candidate (``a[i]`` may join it, or it may join
+    ``b[i]``) does not refuse the join here: it is returned as a contest (join index,
+    rival piece, whether it rivals the later piece) for :func:`_settle_contests` to judge
+    once every rival's join is chosen. Judged one join at a time, the sample nearer one
+    extrapolation wins: two PhaseSpace markers 30 mm apart, both lost for two fields, lost
+    both true joins (each 0.6-10 mm farther than a rival's sample) and kept the crossed
+    one alone.
+
+    Returns
+    -------
+    refused : (n,) bool array
+    join, rival : (k,) int arrays
+    later : (k,) bool array
+    """
     m = np.flatnonzero(tracks.status == MEASURED)
     m = m[np.argsort(tracks.field[m], kind="stable")]
     fm = tracks.field[m]
     start_field, start_hist = _end_points(tracks, from_end=False)[:2]
     end_field, end_hist = _end_points(tracks, from_end=True)[:2]
+    n = np.int64(tracks.n_tracks)
+    candidate = np.unique(a * n + b)
     out = np.zeros(a.size, dtype=bool)
-    for at, guess, own, mine in (
-        (start_field[b], forward, start_hist[b, -1], b),
-        (end_field[a], backward, end_hist[a, -1], a),
+    joins, rivals, sides = [], [], []
+    for at, guess, own, later in (
+        (start_field[b], forward, start_hist[b, -1], True),
+        (end_field[a], backward, end_hist[a, -1], False),
     ):
         lo, hi = np.searchsorted(fm, at, "left"), np.searchsorted(fm, at, "right")
         q = np.repeat(np.arange(a.size), hi - lo)
         rows = m[_ranges(lo, hi)]
+        c = tracks.track[rows]
         d = np.linalg.norm(tracks.xyz_mm[rows] - guess[q], axis=1)
         d_own = np.linalg.norm(own - guess, axis=1)
-        better = (tracks.track[rows] != mine[q]) & (d < d_own[q])
-        out[q[better]] = True
-    return out
+        mine = b[q] if later else a[q]
+        rival = np.isin(a[q] * n + c if later else c * n + b[q], candidate)
+        better = (c != mine) & (d < d_own[q])
+        out[q[better & ~rival]] = True
+        joins.append(q[better & rival])
+        rivals.append(c[better & rival])
+        sides.append(np.full(joins[-1].size, later))
+    return out, np.concatenate(joins), np.concatenate(rivals), np.concatenate(sides)
+
+
+def _settle_contests(
+    n_tracks: int,
+    a: NDArray,
+    b: NDArray,
+    join: NDArray,
+    rival: NDArray,
+    later: NDArray,
+) -> NDArray[np.bool_]:
+    """Which chosen joins ``a[i]`` -> ``b[i]`` keep: a join whose end a rival candidate's
+    sample explained better (:func:`_nearer_at_ends`; ``join`` indexes the chosen pairs)
+    stands only when the assignment gave that rival to another piece. The rival's sample
+    is then another marker's, accounted for; a rival left without a partner may be this
+    marker seen on another piece, and the join a guess."""
+    partner_of_later = np.full(n_tracks, -1, dtype=np.int64)
+    partner_of_later[b] = a
+    partner_of_earlier = np.full(n_tracks, -1, dtype=np.int64)
+    partner_of_earlier[a] = b
+    partner = np.where(later, partner_of_later[rival], partner_of_earlier[rival])
+    own = np.where(later, a[join], b[join])
+    keep = np.ones(a.size, dtype=bool)
+    keep[join[(partner < 0) | (partner == own)]] = False
+    return keep
 
 
 def _window_residuals(
@@ -292,8 +340,10 @@ def blend_pairs(
     continuity test: extrapolations of a fast foot over a few fields miss by centimetres,
     a wrong join leaves a jump no smooth curve absorbs); a join must be as smooth as its
     pieces (:func:`_smooth_as_pieces`) and no other marker seen in its gap may contest it
-    (:func:`_rival_in_gap`). Pairs are then chosen one-to-one by that residual.
-    ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
+    (:func:`_rival_in_gap`). Pairs are then chosen one-to-one by that residual, rival
+    joins together (:func:`_choose`): a rival candidate's sample nearer a join's ends does
+    not refuse it alone (:func:`_nearer_at_ends`), the choice of every rival's join
+    settles it. ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
@@ -320,8 +370,7 @@ def blend_pairs(
     reach = params.blend_reach_mm * ahead
     near = (miss_f <= reach) & (miss_b <= reach)
     a, b = a[near], b[near]
-    refused = _nearer_at_ends(tracks, a, b, forward[near], backward[near])
-    a, b = a[~refused], b[~refused]
+    refused, contest, rival, later = _nearer_at_ends(tracks, a, b, forward[near], backward[near])
     k = params.blend_points
     residual = np.array(
         [
@@ -337,20 +386,49 @@ def blend_pairs(
     if noise_mm is None:
         noise_mm = smoothness_mm(tracks)
     tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
-    ok = residual <= tolerance if residual.size else np.zeros(0, bool)
+    ok = (residual <= tolerance) & ~refused if residual.size else np.zeros(0, bool)
     floor = max(noise_mm, tolerance / params.blend_rougher)
     smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)
     ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share)
-    a, b = a[ok], b[ok]
-    if a.size == 0:
-        return a, b
-    ra, ia = np.unique(a, return_inverse=True)
-    cb, ib = np.unique(b, return_inverse=True)
-    cost = np.full((ra.size, cb.size), _FAR)
-    cost[ia, ib] = residual[ok]
-    r, c = linear_sum_assignment(cost)
-    keep = cost[r, c] < _FAR
-    return ra[r[keep]], cb[c[keep]]
+    cost = np.where(ok, residual, _FAR)
+    return _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
+
+
+def _choose(
+    n_tracks: int, a: NDArray, b: NDArray, cost: NDArray, contests: tuple[NDArray, ...]
+) -> tuple[NDArray, NDArray]:
+    """The joins chosen one-to-one at least total ``cost`` (:func:`_assign`) whose
+    contests the choice settles (:func:`_settle_contests`); a join left unsettled is
+    withdrawn and the rest chosen again, so that its rivals may take the pieces."""
+    contest, rival, later = contests
+    cost = cost.copy()
+    while True:
+        chosen = _assign(a, b, cost)
+        index = np.full(a.size, -1, dtype=np.int64)
+        index[chosen] = np.arange(chosen.size)
+        mine = index[contest] >= 0
+        keep = _settle_contests(
+            n_tracks, a[chosen], b[chosen], index[contest[mine]], rival[mine], later[mine]
+        )
+        if keep.all():
+            return a[chosen], b[chosen]
+        cost[chosen[~keep]] = _FAR
+
+
+def _assign(a: NDArray, b: NDArray, cost: NDArray) -> NDArray[np.int64]:
+    """Indices of the pairs ``a[i]`` -> ``b[i]`` chosen one-to-one at least total ``cost``
+    (``_FAR``: not allowed)."""
+    allowed = np.flatnonzero(cost < _FAR)
+    if allowed.size == 0:
+        return allowed
+    ra, ia = np.unique(a[allowed], return_inverse=True)
+    cb, ib = np.unique(b[allowed], return_inverse=True)
+    matrix = np.full((ra.size, cb.size), _FAR)
+    matrix[ia, ib] = cost[allowed]
+    pair = np.full((ra.size, cb.size), -1, dtype=np.int64)
+    pair[ia, ib] = allowed
+    r, c = linear_sum_assignment(matrix)
+    return np.sort(pair[r, c][matrix[r, c] < _FAR])
 
 
 def _smooth_as_pieces(

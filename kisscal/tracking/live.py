@@ -428,17 +428,16 @@ class Live:
     def _nearer_losers(
         self, inside: NDArray, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray
     ) -> None:
-        """Mark ambiguous a track that took a point another track, left without one, had in
-        its gate and predicted nearer (tiers choose in turn: a young track with a wide gate
-        may take the point of a marker that appeared a field before)."""
+        """Mark ambiguous the takers and losers of points a track left without one
+        contests (:func:`~kisscal.tracking.association.contested_points`)."""
         losers = self.alive.copy()
         losers[rows] = False
         if not losers.any() or rows.size == 0:
             return
         lost = losers.nonzero()[0]
-        d_taker = np.linalg.norm(points[cols] - pred[rows], axis=1)
-        d_loser = np.linalg.norm(points[cols][None, :, :] - pred[lost][:, None, :], axis=2)
-        nearer = inside[np.ix_(lost, cols)] & (d_loser < d_taker[None, :])
+        fresh = (self.misses[lost] == 0) & (self.n[lost] >= 2)
+        args = (inside[np.ix_(lost, cols)], pred[rows], pred[lost], points[cols], fresh)
+        nearer = assoc.contested_points(*args, self.setup.params.rival_ratio, RIVAL_MIN_MM)
         self.ambiguous[rows[nearer.any(axis=0)]] = True
         self.ambiguous[lost[nearer.any(axis=1)]] = True
 

@@ -156,6 +156,34 @@ def test_a_join_whose_end_another_piece_explains_better_is_refused():
         assert (29 in out.field[out.track == start]) == joined
 
 
+def test_rival_joins_are_chosen_together_not_refused_one_at_a_time():
+    """Two markers 30 mm apart on a foot both shift 40 mm back (a smooth step over fields
+    8-13) while unseen at 10 and 11. Each one's return lies farther from its own piece's
+    extrapolation than the other's return does, by a few mm: judged one join at a time,
+    each true join is refused for the rival's nearer sample and the crossed join is made
+    (or one marker left unjoined). Chosen together, both true joins are made and none
+    crossed."""
+
+    def foot(f, x0):
+        u = np.clip((np.asarray(f, dtype=float) - 8.0) / 5.0, 0.0, 1.0)
+        xyz = np.zeros((f.size, 3))
+        xyz[:, 0] = x0 - 40.0 * (3 * u**2 - 2 * u**3)
+        xyz[:, 2] = 800.0
+        return xyz + rng.normal(0.0, 0.3, xyz.shape)
+
+    rng = np.random.default_rng(1)
+    early, late = np.arange(0, 10), np.arange(12, 30)
+    pieces = [(early, foot(early, 0.0)), (early, foot(early, 30.0))]
+    pieces += [(late, foot(late, 0.0)), (late, foot(late, 30.0))]
+    out = blend_tracks(_tracks(pieces), TrackingParams())
+    assert out.n_tracks == 2
+    for x0 in (0.0, 30.0):
+        first = out.track[(out.field == 0) & (np.abs(out.xyz_mm[:, 0] - x0) < 5.0)][0]
+        mine = out.track == first
+        assert 29 in out.field[mine]
+        assert np.all(np.abs(out.xyz_mm[mine & (out.field >= 12), 0] - (x0 - 40.0)) < 5.0)
+
+
 def test_a_track_is_certain_of_its_point_when_rivals_lie_beyond_its_own_misses():
     """A track predicting within 0.3 mm is sure of its point when the next lies 5 mm away
     (4 times 0.3 is less), not when its misses are 2 mm, nor when another track predicted

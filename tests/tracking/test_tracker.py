@@ -256,3 +256,20 @@ def test_continuation_tells_a_fast_marker_from_its_nearer_neighbour(jerk_mm):
     # Taking the neighbour is a doubt, taking the marker's own point is not.
     got = [continuation_doubts(history, p[None], points, later, 10.0)[0] for p in points]
     assert got == [False, True]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_hidden_markers_track_is_cut_where_it_takes_its_neighbours_point(seed):
+    """Two markers 55 mm apart move 40 mm per field; at field 15 the limb jumps 40 mm
+    sideways towards the first, which is hidden for three fields. Its track's prediction
+    lies 15 mm from the second marker's point, the second's own track's 40 mm (inside
+    its gate): the first track takes it, and nothing in the field says which marker
+    vanished. The tracks are cut there, so that no piece holds both markers (blending
+    judges the joins from both sides)."""
+    f = np.arange(30.0)
+    a = np.stack([40.0 * f, -40.0 * (f >= 15), np.full(f.size, 800.0)], axis=1)
+    b = a + np.array([0.0, 55.0, 0.0])
+    missing = {(0, k) for k in range(15, 18)}
+    field, xyz, who = _cloud([a, b], seed=seed, noise_mm=0.5, missing=missing)
+    ids = _identities(track_points(field, xyz, TrackingParams()), who)
+    assert all(len(s) == 1 for s in ids)
