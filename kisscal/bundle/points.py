@@ -90,7 +90,8 @@ def calibrate_on_points(
     sizes_px : sequence of (int, int)
         Each camera's image size.
     params : BundleParams
-        Lens terms, loss, outliers, ``max_fields`` (here the most points used).
+        Lens terms, loss, outliers, ``max_fields`` (here the most points used),
+        ``control_weight`` (0: the rods' and the points' noise variance ratio).
     dlt : DltParams
         The session's DLT settings, for the cameras resected on the adjusted points.
     min_cameras : int
@@ -110,7 +111,9 @@ def calibrate_on_points(
         )
     cams = _zero_skew(start, params)
     result = adjust_bundle(cams, obs, POINT, points, control, params)
-    control = control.weighted(noise_ratio(start, control, result))
+    # again, each kind of observation by its own noise (or the weight given)
+    weight = params.control_weight or noise_ratio(start, control, result)
+    control = control.weighted(weight)
     result = adjust_bundle(result.cameras, obs, POINT, result.wand, control, params)
     final = final_cameras(result, obs, control, POINT, params, dlt)
     resected = final if final is not result.cameras else None

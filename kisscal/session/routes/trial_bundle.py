@@ -140,8 +140,7 @@ def lens_from_trials(
     start, control = rods_control(inputs, blobs_px, rods, rods_alone)
     bundle = params.wand.on_grid()
     try:
-        sizes = [c.size_px for c in inputs.config.cameras]
-        cal = calibrate_on_points(table, start, control, sizes, bundle, params.dlt)
+        cal, held = _best_weight(inputs, table, start, control, bundle)
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
@@ -150,13 +149,46 @@ def lens_from_trials(
     models = rods_alone.models
     if models is not None:
         models = replace(models, chosen=TRIALS, by="rods and trials adjusted together")
-    check = _rod_check(cal, rods, bundle) if rods_alone.check is not None else None
+    check = _rod_check(held, rods) if rods_alone.check is not None else None
     out = replace(rods_alone, results=results, models=models, check=check)
     return replace(out, in_sample_mm=_in_sample(out, rods)), cal
 
 
 #: What ``lens_models`` records as chosen when the trials decided the lens terms.
 TRIALS = "trials"
+
+
+def _best_weight(
+    inputs: RouteInputs,
+    table: BlobTable,
+    start: Sequence[Camera],
+    control: ControlPoints,
+    params: BundleParams,
+) -> tuple[WandCalibration, tuple[NDArray, NDArray, NDArray]]:
+    """The adjustment with the rods' weight (estimated, times each of
+    ``control_weight_factors``, as the wand route weighs them) whose leave-one-rod-out
+    mean 3D error is lowest, and that leave-one-rod-out (known positions, rod, error)."""
+    sizes = [c.size_px for c in inputs.config.cameras]
+    dlt = inputs.params.dlt
+    cal = calibrate_on_points(table, start, control, sizes, params, dlt)
+    factors = params.control_weight_factors if params.control_weight == 0.0 else (1.0,)
+    best, best_loo = None, np.inf
+    for factor in factors:
+        weighed = replace(params, control_weight=cal.control.weight * factor)
+        trial = (
+            cal
+            if factor == 1.0
+            else calibrate_on_points(table, start, control, sizes, weighed, dlt)
+        )
+        held = leave_control_out(trial, POINT, trial.control.group, weighed)
+        loo = float(np.nanmean(held[2])) if np.isfinite(held[2]).any() else np.inf
+        inputs.echo(
+            f"  rods weighed {trial.control.weight:.0f} x a trial marker's image: "
+            f"leave-one-rod-out mean {loo:.3f} mm"
+        )
+        if best is None or loo < best_loo:
+            best, best_loo = (trial, held), loo
+    return best
 
 
 def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
@@ -193,12 +225,12 @@ def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
     return np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(cal.in_sample_mm.shape)
 
 
-def _rod_check(cal: WandCalibration, rods: Sequence[Rod], params: BundleParams) -> RodCheck:
-    """Leave-one-rod-out of the adjustment: each rod's markers reconstructed by the
-    cameras adjusted without them."""
+def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> RodCheck:
+    """Leave-one-rod-out of the adjustment (:func:`kisscal.bundle.quality.leave_control_out`
+    by rod): each rod's markers reconstructed by the cameras adjusted without them."""
     n = max(len(r.points_mm) for r in rods)
     errors = np.full((len(rods), n), np.nan)
-    xyz, fold, err = leave_control_out(cal, POINT, cal.control.group, params)
+    xyz, fold, err = held
     for g, rod in enumerate(rods):
         mine = fold == g
         near = np.linalg.norm(xyz[mine, None] - rod.points_mm[None], axis=2).argmin(axis=1)
