@@ -30,10 +30,10 @@ from kisscal.bundle.resect import final_cameras
 from kisscal.bundle.wand import (
     BlobTable,
     WandCalibration,
-    _linearised,
-    _zero_skew,
     lens_rig,
     noise_ratio,
+    undistorted,
+    zero_skew,
 )
 from kisscal.camera import Camera
 from kisscal.dlt import DltParams
@@ -56,7 +56,7 @@ def trial_points(
     cameras (at most ``most``, evenly spread over the trial), as one-marker wands."""
     rig = lens_rig(cameras, sizes_px, [f"c{k}" for k in range(len(cameras))])
     recon = ReconParams(allow_two_camera=False)
-    points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
+    points = reconstruct_trial(table.field, table.camera, undistorted(table, rig), rig.dlts, recon)
     rows = points.blob_row
     keep = np.flatnonzero((rows >= 0).sum(axis=1) >= min_cameras)
     if len(keep) > most:
@@ -109,7 +109,7 @@ def calibrate_on_points(
             f"trial bundle: {len(points.centre_mm)} markers seen by {min_cameras} cameras "
             f"or more; at least {params.min_fields} are needed"
         )
-    cams = _zero_skew(start, params)
+    cams = zero_skew(start, params)
     result = adjust_bundle(cams, obs, POINT, points, control, params)
     # again, each kind of observation by its own noise (or the weight given)
     weight = params.control_weight or noise_ratio(start, control, result)

@@ -108,10 +108,11 @@ def trials_table(inputs: RouteInputs) -> BlobTable:
 
 def uses_trials(inputs: RouteInputs) -> bool:
     """Whether the rods route adjusts the rods and the trials together: the whole rig,
-    the model left to the data (``[dlt] trials_bundle``, no model switch) and a trial of
-    images or video besides the wand's."""
+    three rods or more (to leave one out), the model left to the data (``[dlt]
+    trials_bundle``, no model switch) and a trial of images or video besides the wand's."""
     dlt = inputs.params.dlt
-    return inputs.whole_rig and dlt.trials_bundle and dlt.selects and bool(image_trials(inputs))
+    enough = inputs.whole_rig and len(inputs.config.rods.rods) >= 3
+    return enough and dlt.trials_bundle and dlt.selects and bool(image_trials(inputs))
 
 
 def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
@@ -132,8 +133,10 @@ def lens_from_trials(
     the rods' own (and None) when the trials hold too few markers seen by three cameras.
 
     The adjustment is the wand route's on a grid (``[wand]`` lens terms, cameras resected
-    as DLTs with ``resect_terms`` of Kolahi's terms); its leave-one-rod-out check replaces
-    the rods'.
+    as DLTs with ``resect_terms`` of Kolahi's terms). It is kept only when its
+    leave-one-rod-out markers' squared 3D errors are below the rods' alone by more than
+    ``[wand] keep_sigmas`` standard errors of their paired mean difference (as the wand
+    route judges the wand); its leave-one-rod-out check then replaces the rods'.
     """
     params = inputs.params
     table = trials_table(inputs)
@@ -144,12 +147,21 @@ def lens_from_trials(
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
+    check = _rod_check(held, rods)
+    gain = paired_gain_ses(rods_alone.check, check)
+    inputs.echo(
+        f"  calibrate: rods and trials adjusted together ({len(cal.fields)} markers): "
+        f"leave-one-rod-out mean {check.overall_mean_mm:.3f} mm, the rods' alone "
+        f"{rods_alone.check.overall_mean_mm:.3f} mm ({gain:+.1f} standard errors)"
+    )
+    if gain <= bundle.keep_sigmas:
+        inputs.echo("  calibrate: not better by [wand] keep_sigmas; the rods' own model kept")
+        return rods_alone, None
     ids = inputs.config.camera_ids
     results = {c: _result(rods_alone, c, cam) for c, cam in zip(ids, cal.written, strict=True)}
     models = rods_alone.models
     if models is not None:
         models = replace(models, chosen=TRIALS, by="rods and trials adjusted together")
-    check = _rod_check(held, rods) if rods_alone.check is not None else None
     out = replace(rods_alone, results=results, models=models, check=check)
     return replace(out, in_sample_mm=_in_sample(out, rods)), cal
 
@@ -189,6 +201,16 @@ def _best_weight(
         if best is None or loo < best_loo:
             best, best_loo = (trial, held), loo
     return best
+
+
+def paired_gain_ses(alone: RodCheck, adjusted: RodCheck) -> float:
+    """The adjustment's mean gain in squared leave-one-rod-out 3D error over the rods'
+    alone, paired marker by marker, in standard errors of that mean (positive: better)."""
+    a, b = alone.errors_mm.ravel(), adjusted.errors_mm.ravel()
+    both = np.isfinite(a) & np.isfinite(b)
+    gain = a[both] ** 2 - b[both] ** 2
+    se = np.std(gain, ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else 0.0
+    return float(np.mean(gain) / se) if se > 0 else 0.0
 
 
 def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
