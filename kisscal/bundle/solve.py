@@ -172,7 +172,9 @@ def _damped_step(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     U, V, W, g_cam, g_wand = normal
     C = problem.n_cameras
-    Vd = V + lam * np.einsum("fii->fi", V)[:, :, None] * np.eye(N_WAND)
+    diag = np.einsum("fii->fi", V)
+    # a one-marker wand (a free point) has no direction: its two rows are zero, held
+    Vd = V + (lam * diag + (diag == 0.0))[:, :, None] * np.eye(N_WAND)
     Vinv = np.linalg.inv(Vd)
     Y = W @ Vinv[blocks.pair_field]  # (P, 16, 5)
     prod = np.einsum("kij,klj->kil", Y[blocks.combo_left], W[blocks.combo_right])

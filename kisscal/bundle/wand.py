@@ -148,7 +148,7 @@ def wand_in_3d(
     end-to-end lengths the rig measured (mm).
     """
     recon = ReconParams(allow_two_camera=True)
-    points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
+    points = reconstruct_trial(table.field, table.camera, undistorted(table, rig), rig.dlts, recon)
     found = find_wand_points(points.field, points.xyz_mm, markers_mm, params.match_tol_mm)
     rows = points.blob_row[found.point]  # (n, k, C)
     f, m, c = np.nonzero(rows >= 0)
@@ -166,7 +166,7 @@ def measured_lengths(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
     the wand is not found at its stated length: the diagnosis of a wrong ``markers_mm``.
     """
     recon = ReconParams(allow_two_camera=True)
-    points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
+    points = reconstruct_trial(table.field, table.camera, undistorted(table, rig), rig.dlts, recon)
     i, j = pairs_within_fields(points.field)
     if len(i) == 0:
         return np.zeros(0)
@@ -175,7 +175,8 @@ def measured_lengths(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
     return np.maximum.reduceat(d, starts)
 
 
-def _linearised(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
+def undistorted(table: BlobTable, rig: Rig) -> NDArray[np.float64]:
+    """The blobs in the coordinates each camera's DLT acts on (its lens undone)."""
     uv = np.empty_like(table.uv_px)
     for c, cam in enumerate(rig):
         rows = table.camera == c
@@ -245,7 +246,8 @@ def select_fields(
     return o, WandPoses(wand.centre_mm[keep], wand.direction[keep]), fields[keep]
 
 
-def _zero_skew(cameras: Sequence[Camera], params: BundleParams) -> tuple:
+def zero_skew(cameras: Sequence[Camera], params: BundleParams) -> tuple:
+    """The cameras with their skew set to zero, unless ``params.skew`` estimates it."""
     if params.skew:
         return tuple(cameras)
     out = []
@@ -293,7 +295,7 @@ def calibrate_on_control(
     keep = _spread(fields, params.max_fields)
     obs, wand, fields = select_fields(obs, wand, fields, keep)
     result = adjust_bundle(
-        _zero_skew(start, params), obs, markers_mm, wand, control, params, fixed_pose=None
+        zero_skew(start, params), obs, markers_mm, wand, control, params, fixed_pose=None
     )
     if params.control_weight == 0.0:  # again, each kind of observation by its own noise
         control = control.weighted(noise_ratio(start, control, result))
@@ -434,7 +436,7 @@ def axes_frame(
     table = BlobTable.of([[b] for b in blobs_px])
     rig = lens_rig(cameras, sizes_px, ids)
     recon = ReconParams(allow_two_camera=True, stationary_filter=False)
-    points = reconstruct_trial(table.field, table.camera, _linearised(table, rig), rig.dlts, recon)
+    points = reconstruct_trial(table.field, table.camera, undistorted(table, rig), rig.dlts, recon)
     match = recognise_object(points.xyz_mm, object_mm)
     if abs(match.scale - 1.0) > length_tol:
         raise InputError(

@@ -35,6 +35,14 @@ class DltParams(Params):
         With none of ``mdlt``, ``refine``, ``lens`` given, choose each camera's model
         (linear DLT, refined, refined with L12..L16) by its held-out control points
         (:mod:`kisscal.dlt.select`); False: the linear DLT.
+    trials_bundle : bool
+        With rods on the whole rig, the model left to the data and trials of images or
+        video in the session: each camera's lens terms are fitted on the rods' markers
+        and the trials' markers seen by three cameras or more together, a bundle
+        adjustment of the cameras and those markers with the rods fixing the frame and
+        scale (:mod:`kisscal.bundle.points`, the wand route's adjustment with ``[wand]``'s
+        lens settings), instead of a model chosen on the rods' 24 markers alone: those
+        cannot tell which model extrapolates (issue 25).
     model_folds : int
         Subsets the control points are split into for that choice when they are not
         rods (rods: one rod, and one marker of every rod, out at a time).
@@ -121,6 +129,7 @@ class DltParams(Params):
     lens: bool = param(False)
     lens_terms: int = param(5, ge=1, le=5)
     select_model: bool = param(True)
+    trials_bundle: bool = param(True)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
     model_noise_ses: float = param(1.0, ge=0)

@@ -25,7 +25,9 @@ from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
 from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
+from kisscal.session.routes.trial_bundle import image_trials, lens_from_trials, uses_trials
 from kisscal.session.runner import run_keyed
+from kisscal.session.trials import trial_input_files
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -47,6 +49,8 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
         blobs_px = {c: [apply_linearisation(lins[c], uv) for uv in f] for c, f in blobs.items()}
         t0 = time.perf_counter()
         cal = calibrate_rods(blobs_px, rods, params.dlt, leave_one_out=inputs.whole_rig)
+        if uses_trials(inputs):
+            cal = lens_from_trials(inputs, blobs_px, rods, cal)[0]
         write_dlt_outputs(cal, store.dlt_path, store.dltdv_path)
         rig = {k: v for k, v in cal.summary().items() if k != "cameras"}
         summary: dict[str, Any] = dict(cal.results)
@@ -71,8 +75,19 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
         detection,
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
+        _trial_inputs(inputs),
     )
     return run_keyed(store, store.calibration_file("check"), stage, cached, compute)
+
+
+def _trial_inputs(inputs: RouteInputs) -> list:
+    """The trials the calibration adjusts with the rods (their files and the wand
+    settings), when it does."""
+    if not uses_trials(inputs):
+        return []
+    config = inputs.config
+    trials = [trial_input_files(config, t) for t in image_trials(inputs)]
+    return [trials, inputs.params.wand]
 
 
 def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: float) -> None:

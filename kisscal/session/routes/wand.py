@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
 from kisscal.bundle.quality import leave_one_group_out
@@ -31,8 +30,7 @@ from kisscal.bundle.wand import (
     calibrate_on_control,
     calibrate_wand_alone,
 )
-from kisscal.camera import Camera
-from kisscal.dlt import calibrate_rods, make_rods
+from kisscal.dlt import calibrate_rods
 from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.frames import source_files
@@ -43,12 +41,10 @@ from kisscal.session.routes import (
     outputs_of,
     static_blobs,
 )
+from kisscal.session.routes.trial_bundle import rod_blobs, rods_control
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
 from kisscal.session.runner import run_keyed, trial_blobs
 from kisscal.session.trials import trial_input_files
-
-#: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
-PINHOLES = ("dlt", "refined")
 
 
 def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
@@ -129,36 +125,12 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
 
 def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, Any]:
     config, params = inputs.config, inputs.params
-    rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
-    lins = inputs.linearisations
-    fields = config.rods.fields
-    frames = frame_files(inputs, config.rods.images, "rod", fields)
-    found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
-    blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
+    blobs, rods = rod_blobs(inputs)
     # what the rods alone give (the rods route's own choice of model), kept when the wand
-    # does not do better; the adjustment starts from pinholes (L12..L16 could not carry
-    # over into it), so from a second fit without them when the rods chose them
+    # does not do better; the adjustment starts from their pinholes
     rods_alone = calibrate_rods(blobs, rods, params.dlt, True)
-    rod_cal = rods_alone
-    if rods_alone.models is not None and rods_alone.models.chosen not in PINHOLES:
-        rod_cal = calibrate_rods(blobs, rods, params.dlt, True, PINHOLES)
+    start, control = rods_control(inputs, blobs, rods, rods_alone)
     ids = config.camera_ids
-    cams, xyz, uv, group = [], [], [], []
-    for c, cam in enumerate(ids):
-        muv = rod_cal.marker_uv_px[cam]  # (rods, markers, 2)
-        for g, rod in enumerate(rods):
-            seen = np.isfinite(muv[g, : len(rod.points_mm)]).all(axis=1)
-            cams.append(np.full(int(seen.sum()), c))
-            xyz.append(rod.points_mm[seen])
-            uv.append(muv[g, : len(rod.points_mm)][seen])
-            group.append(np.full(int(seen.sum()), g))
-    control = ControlPoints(
-        np.concatenate(cams).astype(np.int64),
-        np.concatenate(xyz),
-        np.concatenate(uv),
-        np.concatenate(group).astype(np.int64),
-    )
-    start = [Camera.from_dlt(rod_cal.results[c].L) for c in ids]
     inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
     wand = wand_params(inputs)
     sizes = [c.size_px for c in config.cameras]

@@ -1,0 +1,122 @@
+"""Lens terms fitted on the rods and a trial's markers together (issue 25).
+
+The rods' 24 surveyed markers fix the lab frame and scale but hold a lens model only
+between the rods, and cannot tell which model extrapolates. A trial's markers seen by
+three cameras or more are unknown points, yet every one of them constrains the cameras
+(their rays must meet): a bundle adjustment of the cameras, their lens terms and the
+points, with the rods' markers as fixed control points (Triggs et al. 2000; the
+self-calibration of photogrammetry, Fraser 1997), lets thousands of rays spread over the
+volume decide the lens terms instead of a choice among models on the rods alone. It is
+the wand route's adjustment (:func:`kisscal.bundle.wand.calibrate_on_control`) with each
+trial marker a one-marker wand: a free 3D point.
+
+References
+----------
+Triggs, B., McLauchlan, P. F., Hartley, R. I., & Fitzgibbon, A. W. (2000). Bundle
+adjustment - a modern synthesis. Vision Algorithms: Theory and Practice, LNCS 1883.
+Fraser, C. S. (1997). Digital camera self-calibration. ISPRS Journal of Photogrammetry
+and Remote Sensing 52, 149-159.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
+from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
+from kisscal.bundle.resect import final_cameras
+from kisscal.bundle.wand import (
+    BlobTable,
+    WandCalibration,
+    lens_rig,
+    noise_ratio,
+    undistorted,
+    zero_skew,
+)
+from kisscal.camera import Camera
+from kisscal.dlt import DltParams
+from kisscal.dlt.params import DEFAULT_PARAMS as DEFAULT_DLT
+from kisscal.errors import EstimationFailed
+from kisscal.recon import ReconParams, reconstruct_trial
+
+#: A free point is a wand of one marker at its centre (its direction is then unused).
+POINT = (0.0,)
+
+
+def trial_points(
+    table: BlobTable,
+    cameras: Sequence[Camera],
+    sizes_px: Sequence[tuple[int, int]],
+    min_cameras: int,
+    most: int,
+) -> tuple[WandObservations, WandPoses]:
+    """The markers a rig reconstructs from a trial's blobs with ``min_cameras`` or more
+    cameras (at most ``most``, evenly spread over the trial), as one-marker wands."""
+    rig = lens_rig(cameras, sizes_px, [f"c{k}" for k in range(len(cameras))])
+    recon = ReconParams(allow_two_camera=False)
+    points = reconstruct_trial(table.field, table.camera, undistorted(table, rig), rig.dlts, recon)
+    rows = points.blob_row
+    keep = np.flatnonzero((rows >= 0).sum(axis=1) >= min_cameras)
+    if len(keep) > most:
+        keep = keep[np.linspace(0, len(keep) - 1, most).round().astype(int)]
+    rows = rows[keep]
+    p, c = np.nonzero(rows >= 0)
+    obs = WandObservations(p, c, np.zeros(len(p), np.int64), table.uv_px[rows[p, c]])
+    direction = np.tile([0.0, 0.0, 1.0], (len(keep), 1))
+    return obs, WandPoses(points.xyz_mm[keep], direction)
+
+
+def calibrate_on_points(
+    table: BlobTable,
+    start: Sequence[Camera],
+    control: ControlPoints,
+    sizes_px: Sequence[tuple[int, int]],
+    params: BundleParams = DEFAULT_PARAMS,
+    dlt: DltParams = DEFAULT_DLT,
+    min_cameras: int = 3,
+) -> WandCalibration:
+    """Cameras and lens terms adjusted to a trial's markers and fixed control points.
+
+    Parameters
+    ----------
+    table : BlobTable
+        The trials' blobs (grid-linearised pixels), fields of different trials apart.
+    start : sequence of Camera
+        Starting cameras (the rods' DLT, :meth:`kisscal.camera.Camera.from_dlt`).
+    control : ControlPoints
+        The rods' markers in the same coordinates; they fix the frame and scale.
+    sizes_px : sequence of (int, int)
+        Each camera's image size.
+    params : BundleParams
+        Lens terms, loss, outliers, ``max_fields`` (here the most points used),
+        ``control_weight`` (0: the rods' and the points' noise variance ratio).
+    dlt : DltParams
+        The session's DLT settings, for the cameras resected on the adjusted points.
+    min_cameras : int
+        Cameras a marker needs to be used (two rays only meet in a point, whatever the
+        lens).
+
+    Raises
+    ------
+    KisscalError
+        Fewer than ``params.min_fields`` markers seen by ``min_cameras`` cameras.
+    """
+    obs, points = trial_points(table, start, sizes_px, min_cameras, params.max_fields)
+    if len(points.centre_mm) < params.min_fields:
+        raise EstimationFailed(
+            f"trial bundle: {len(points.centre_mm)} markers seen by {min_cameras} cameras "
+            f"or more; at least {params.min_fields} are needed"
+        )
+    cams = zero_skew(start, params)
+    result = adjust_bundle(cams, obs, POINT, points, control, params)
+    # again, each kind of observation by its own noise (or the weight given)
+    weight = params.control_weight or noise_ratio(start, control, result)
+    control = control.weighted(weight)
+    result = adjust_bundle(result.cameras, obs, POINT, result.wand, control, params)
+    final = final_cameras(result, obs, control, POINT, params, dlt)
+    resected = final if final is not result.cameras else None
+    return WandCalibration(
+        result, obs, np.arange(len(points.centre_mm)), control, None, resected, dlt
+    )

@@ -1,0 +1,268 @@
+"""The rods and the session's trials adjusted together (issue 25): inputs of
+:func:`kisscal.bundle.points.calibrate_on_points`.
+
+The rods' surveyed markers, as the wand route hands them to its adjustment, and every
+image trial's blobs on the grid's linearisation, one table (fields of later trials
+numbered after those of earlier ones).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal._shared import rms_px
+from kisscal.bundle.adjust import ControlPoints
+from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import POINT, calibrate_on_points
+from kisscal.bundle.quality import leave_control_out
+from kisscal.bundle.wand import BlobTable, WandCalibration
+from kisscal.camera import Camera
+from kisscal.dlt import (
+    calibrate_rods,
+    correct_lens,
+    decompose_dlt,
+    hatze_violation,
+    make_rods,
+    reprojection_residuals,
+    triangulate_dlt,
+)
+from kisscal.dlt.params import DltResult, Rod, RodCheck
+from kisscal.dlt.rig import RodCalibration
+from kisscal.errors import EstimationFailed
+from kisscal.grid import apply_linearisation
+from kisscal.io.config import TrialConfig
+from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
+from kisscal.session.runner import trial_blobs
+
+#: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
+PINHOLES = ("dlt", "refined")
+
+
+def rods_control(
+    inputs: RouteInputs,
+    blobs_px: Mapping[str, Sequence[NDArray[np.float64]]],
+    rods: Sequence[Rod],
+    rods_alone: RodCalibration,
+) -> tuple[list[Camera], ControlPoints]:
+    """Starting cameras (the rods' pinhole choice) and the rods' markers as control points.
+
+    ``blobs_px`` are the rods' linearised blobs and ``rods_alone`` their calibration (the
+    rods' own choice of model).
+    """
+    config, params = inputs.config, inputs.params
+    # the adjustment starts from pinholes (L12..L16 could not carry over into it), so
+    # from a second fit without them when the rods chose them
+    rod_cal = rods_alone
+    if rods_alone.models is not None and rods_alone.models.chosen not in PINHOLES:
+        rod_cal = calibrate_rods(blobs_px, rods, params.dlt, True, PINHOLES)
+    cams, xyz, uv, group = [], [], [], []
+    for c, cam in enumerate(config.camera_ids):
+        muv = rod_cal.marker_uv_px[cam]  # (rods, markers, 2)
+        for g, rod in enumerate(rods):
+            seen = np.isfinite(muv[g, : len(rod.points_mm)]).all(axis=1)
+            cams.append(np.full(int(seen.sum()), c))
+            xyz.append(rod.points_mm[seen])
+            uv.append(muv[g, : len(rod.points_mm)][seen])
+            group.append(np.full(int(seen.sum()), g))
+    control = ControlPoints(
+        np.concatenate(cams).astype(np.int64),
+        np.concatenate(xyz),
+        np.concatenate(uv),
+        np.concatenate(group).astype(np.int64),
+    )
+    start = [Camera.from_dlt(rod_cal.results[c].L) for c in config.camera_ids]
+    return start, control
+
+
+def rod_blobs(
+    inputs: RouteInputs,
+) -> tuple[dict[str, list[NDArray[np.float64]]], tuple[Rod, ...]]:
+    """The rods' blobs of every camera on the grid's linearisation, and the rods."""
+    config, lins = inputs.config, inputs.linearisations
+    rods = make_rods([(r.name, r.points_mm) for r in config.rods.rods])
+    fields = config.rods.fields
+    frames = frame_files(inputs, config.rods.images, "rod", fields)
+    found = static_blobs(inputs, frames, "rods", fields, marker_detection(inputs))
+    blobs = {cam: [apply_linearisation(lins[cam], uv) for uv in f] for cam, f in found.items()}
+    return blobs, rods
+
+
+def trials_table(inputs: RouteInputs) -> BlobTable:
+    """Every image or video trial's blobs (not the wand's), grid-linearised, one table
+    (the fields of each trial after those of the one before)."""
+    config = inputs.config
+    per_camera: list[list] = [[] for _ in config.cameras]
+    detection = marker_detection(inputs)
+    for trial in image_trials(inputs):
+        blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers)
+        for c, cam in enumerate(config.cameras):
+            lin = inputs.linearisations[cam.id]
+            per_camera[c].extend(apply_linearisation(lin, uv) for uv in blobs[cam.id])
+    return BlobTable.of(per_camera)
+
+
+def uses_trials(inputs: RouteInputs) -> bool:
+    """Whether the rods route adjusts the rods and the trials together: the whole rig,
+    three rods or more (to leave one out), the model left to the data (``[dlt]
+    trials_bundle``, no model switch) and a trial of images or video besides the wand's."""
+    dlt = inputs.params.dlt
+    enough = inputs.whole_rig and len(inputs.config.rods.rods) >= 3
+    return enough and dlt.trials_bundle and dlt.selects and bool(image_trials(inputs))
+
+
+def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
+    """The session's image and video trials but the wand's."""
+    config = inputs.config
+    wand = config.wand.trial if config.wand is not None else None
+    return [t for t in config.trials if t.name != wand and t.source in ("images", "video")]
+
+
+def lens_from_trials(
+    inputs: RouteInputs,
+    blobs_px: Mapping[str, Sequence[NDArray[np.float64]]],
+    rods: Sequence[Rod],
+    rods_alone: RodCalibration,
+) -> tuple[RodCalibration, WandCalibration | None]:
+    """The rods' calibration with each camera replaced by the rods and trials adjusted
+    together (:func:`kisscal.bundle.points.calibrate_on_points`), and that adjustment;
+    the rods' own (and None) when the trials hold too few markers seen by three cameras.
+
+    The adjustment is the wand route's on a grid (``[wand]`` lens terms, cameras resected
+    as DLTs with ``resect_terms`` of Kolahi's terms). It is kept only when its
+    leave-one-rod-out markers' squared 3D errors are below the rods' alone by more than
+    ``[wand] keep_sigmas`` standard errors of their paired mean difference (as the wand
+    route judges the wand); its leave-one-rod-out check then replaces the rods'.
+    """
+    params = inputs.params
+    table = trials_table(inputs)
+    start, control = rods_control(inputs, blobs_px, rods, rods_alone)
+    bundle = params.wand.on_grid()
+    try:
+        cal, held = _best_weight(inputs, table, start, control, bundle)
+    except EstimationFailed as exc:
+        inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
+        return rods_alone, None
+    check = _rod_check(held, rods)
+    gain = paired_gain_ses(rods_alone.check, check)
+    inputs.echo(
+        f"  calibrate: rods and trials adjusted together ({len(cal.fields)} markers): "
+        f"leave-one-rod-out mean {check.overall_mean_mm:.3f} mm, the rods' alone "
+        f"{rods_alone.check.overall_mean_mm:.3f} mm ({gain:+.1f} standard errors)"
+    )
+    if gain <= bundle.keep_sigmas:
+        inputs.echo("  calibrate: not better by [wand] keep_sigmas; the rods' own model kept")
+        return rods_alone, None
+    ids = inputs.config.camera_ids
+    results = {c: _result(rods_alone, c, cam) for c, cam in zip(ids, cal.written, strict=True)}
+    models = rods_alone.models
+    if models is not None:
+        models = replace(models, chosen=TRIALS, by="rods and trials adjusted together")
+    out = replace(rods_alone, results=results, models=models, check=check)
+    return replace(out, in_sample_mm=_in_sample(out, rods)), cal
+
+
+#: What ``lens_models`` records as chosen when the trials decided the lens terms.
+TRIALS = "trials"
+
+
+def _best_weight(
+    inputs: RouteInputs,
+    table: BlobTable,
+    start: Sequence[Camera],
+    control: ControlPoints,
+    params: BundleParams,
+) -> tuple[WandCalibration, tuple[NDArray, NDArray, NDArray]]:
+    """The adjustment with the rods' weight (estimated, times each of
+    ``control_weight_factors``, as the wand route weighs them) whose leave-one-rod-out
+    mean 3D error is lowest, and that leave-one-rod-out (known positions, rod, error)."""
+    sizes = [c.size_px for c in inputs.config.cameras]
+    dlt = inputs.params.dlt
+    cal = calibrate_on_points(table, start, control, sizes, params, dlt)
+    factors = params.control_weight_factors if params.control_weight == 0.0 else (1.0,)
+    best, best_loo = None, np.inf
+    for factor in factors:
+        weighed = replace(params, control_weight=cal.control.weight * factor)
+        trial = (
+            cal
+            if factor == 1.0
+            else calibrate_on_points(table, start, control, sizes, weighed, dlt)
+        )
+        held = leave_control_out(trial, POINT, trial.control.group, weighed)
+        loo = float(np.nanmean(held[2])) if np.isfinite(held[2]).any() else np.inf
+        inputs.echo(
+            f"  rods weighed {trial.control.weight:.0f} x a trial marker's image: "
+            f"leave-one-rod-out mean {loo:.3f} mm"
+        )
+        if best is None or loo < best_loo:
+            best, best_loo = (trial, held), loo
+    return best
+
+
+def paired_gain_ses(alone: RodCheck, adjusted: RodCheck) -> float:
+    """The adjustment's mean gain in squared leave-one-rod-out 3D error over the rods'
+    alone, paired marker by marker, in standard errors of that mean (positive: better)."""
+    a, b = alone.errors_mm.ravel(), adjusted.errors_mm.ravel()
+    both = np.isfinite(a) & np.isfinite(b)
+    gain = a[both] ** 2 - b[both] ** 2
+    se = np.std(gain, ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else 0.0
+    return float(np.mean(gain) / se) if se > 0 else 0.0
+
+
+def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
+    """A camera's DLT file content: its rod markers' residuals under ``camera``."""
+    L, lens = camera.dlt, camera.kolahi
+    xyz, uv = rods_alone.control_xyz_mm[cam], rods_alone.control_uv_px[cam]
+    residuals = reprojection_residuals(L, xyz, correct_lens(L, lens, uv))
+    K, R, centre = decompose_dlt(L)
+    return DltResult(
+        L=L,
+        method="refined",
+        lens=lens,
+        residuals_px=residuals,
+        rms_px=rms_px(residuals),
+        constraint_linear=rods_alone.results[cam].constraint_linear,
+        constraint=hatze_violation(L),
+        K=K,
+        R=R,
+        centre_mm=centre,
+    )
+
+
+def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
+    """Each rod marker's 3D error reconstructed by every camera (mm)."""
+    cams = list(cal.results)
+    truth = np.full(cal.in_sample_mm.shape + (3,), np.nan)
+    for g, rod in enumerate(rods):
+        truth[g, : len(rod.points_mm)] = rod.points_mm
+    res = cal.results
+    obs = np.stack(
+        [correct_lens(res[c].L, res[c].lens, cal.marker_uv_px[c].reshape(-1, 2)) for c in cams]
+    )
+    xyz, _ = triangulate_dlt(np.array([res[c].L for c in cams]), obs)
+    return np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(cal.in_sample_mm.shape)
+
+
+def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> RodCheck:
+    """Leave-one-rod-out of the adjustment (:func:`kisscal.bundle.quality.leave_control_out`
+    by rod): each rod's markers reconstructed by the cameras adjusted without them."""
+    n = max(len(r.points_mm) for r in rods)
+    errors = np.full((len(rods), n), np.nan)
+    xyz, fold, err = held
+    for g, rod in enumerate(rods):
+        mine = fold == g
+        near = np.linalg.norm(xyz[mine, None] - rod.points_mm[None], axis=2).argmin(axis=1)
+        errors[g, near] = err[mine]
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a rod no two cameras saw
+        return RodCheck(
+            tuple(r.name for r in rods),
+            np.nanmean(errors, axis=1),
+            np.nanmax(errors, axis=1),
+            np.isfinite(errors).sum(axis=1),
+            errors,
+        )

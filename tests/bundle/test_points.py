@@ -1,0 +1,89 @@
+"""The rods and a trial's markers adjusted together (:mod:`kisscal.bundle.points`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
+from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import POINT, calibrate_on_points
+from kisscal.bundle.wand import BlobTable
+from kisscal.camera import Camera
+from kisscal.dlt import DltParams, calibrate_camera
+from kisscal.errors import KisscalError
+from kisscal.synth.wand import wand_trial
+from tests.bundle.conftest import WandScene
+from tests.bundle.test_wand import _rods, _volume_error_mm
+
+
+def _leftover_lens(wand_scene: WandScene) -> WandScene:
+    """The scene's cameras with a tenth of their lens (what a grid's polynomial leaves)."""
+    rig = tuple(Camera(c.K, c.R, c.t, 0.1 * c.lens, c.id, c.size_px) for c in wand_scene.rig)
+    return WandScene(rig, wand_scene.motion, wand_scene.markers_mm)
+
+
+def _noisy_rods(s: WandScene, noise_px: float) -> tuple[ControlPoints, list[np.ndarray]]:
+    """The rods' markers imaged through the lens, with noise."""
+    control, _ = _rods(s, 0.0)
+    rows = [control.camera == c for c in range(len(s.rig))]
+    uv = np.concatenate([s.rig[c].project(control.xyz_mm[r]) for c, r in enumerate(rows)])
+    uv += np.random.default_rng(5).normal(0.0, noise_px, uv.shape)
+    return ControlPoints(control.camera, control.xyz_mm, uv, control.group), rows
+
+
+def test_free_points_adjust_to_their_images() -> None:
+    """One-marker wands (free points) are adjusted without a singular direction."""
+    K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+    R = [np.eye(3), np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])]
+    cams = tuple(Camera(K, r, np.array([0.0, 0, 3000]), np.zeros(5)) for r in R)
+    xyz = np.random.default_rng(0).uniform(-300, 300, (40, 3))
+    f = np.arange(40)
+    obs = WandObservations(
+        np.r_[f, f], np.repeat([0, 1], 40), np.zeros(80, np.int64),
+        np.concatenate([c.project(xyz) for c in cams]),
+    )  # fmt: skip
+    start = WandPoses(xyz + 5.0, np.tile([0.0, 0.0, 1.0], (40, 1)))
+    params = BundleParams(lens_terms=())
+    fit = adjust_bundle(cams, obs, POINT, start, fixed_pose=0, params=params)
+    assert np.abs(fit.residuals_px).max() < 1e-6
+    assert np.all(np.isfinite(fit.wand.direction))
+
+
+def test_trial_markers_fit_the_lens_the_rods_alone_cannot(wand_scene: WandScene) -> None:
+    """A small lens left over, rods imaged with 0.01 px of noise and the trial's markers
+    with 0.05 px: the rods' 24 markers and the trial's markers (here the wand's, as free
+    points: their spacing unused) adjusted together reconstruct other points of the
+    volume better than each camera's DLT with Kolahi's radial terms fitted on the rods
+    alone (0.09 against 0.32 mm)."""
+    s = _leftover_lens(wand_scene)
+    table = s.blobs(ideal=False, noise_px=0.05, leds=False)
+    control, rows = _noisy_rods(s, 0.01)
+    starts = [
+        Camera.from_dlt(calibrate_camera(control.xyz_mm[r], control.uv_px[r]).L) for r in rows
+    ]
+    cal = calibrate_on_points(table, starts, control, s.sizes, BundleParams().on_grid())
+    assert cal.resected is not None and len(cal.fields) > 300
+    radial = DltParams(lens=True, lens_terms=3)
+    rods = []
+    for r in rows:
+        fit = calibrate_camera(control.xyz_mm[r], control.uv_px[r], radial)
+        rods.append(Camera.from_dlt(fit.L, kolahi=fit.lens))
+    other = wand_trial(9, 100, 50.0, s.markers_mm).xyz_mm.reshape(-1, 3)
+    trials = _volume_error_mm(cal.written, s.rig, other)
+    alone = _volume_error_mm(rods, s.rig, other)
+    assert trials < 0.5 * alone, (trials, alone)
+    assert cal.control.weight > 1.0  # the rods' images are the more precise
+
+
+def test_too_few_markers_seen_by_three_cameras_are_refused(wand_scene: WandScene) -> None:
+    s = _leftover_lens(wand_scene)
+    full = s.blobs(ideal=False, noise_px=0.05, leds=False)
+    keep = full.field < 3
+    table = BlobTable(full.field[keep], full.camera[keep], full.uv_px[keep], 3)
+    control, rows = _noisy_rods(s, 0.01)
+    starts = [
+        Camera.from_dlt(calibrate_camera(control.xyz_mm[r], control.uv_px[r]).L) for r in rows
+    ]
+    with pytest.raises(KisscalError, match="seen by 3 cameras"):
+        calibrate_on_points(table, starts, control, s.sizes, BundleParams().on_grid())
