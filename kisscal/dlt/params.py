@@ -42,7 +42,8 @@ class DltParams(Params):
         adjustment of the cameras and those markers with the rods fixing the frame and
         scale (:mod:`kisscal.bundle.points`, the wand route's adjustment with ``[wand]``'s
         lens settings), instead of a model chosen on the rods' 24 markers alone: those
-        cannot tell which model extrapolates (issue 25).
+        cannot tell which model extrapolates (issue 25). Off by default: the calibration
+        would then change whenever a trial is added, and cost a dozen adjustments.
     model_folds : int
         Subsets the control points are split into for that choice when they are not
         rods (rods: one rod, and one marker of every rod, out at a time).
@@ -129,7 +130,7 @@ class DltParams(Params):
     lens: bool = param(False)
     lens_terms: int = param(5, ge=1, le=5)
     select_model: bool = param(True)
-    trials_bundle: bool = param(True)
+    trials_bundle: bool = param(False)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
     model_noise_ses: float = param(1.0, ge=0)
