@@ -346,6 +346,16 @@ def bridged(dense: NDArray, tracks: NDArray, fields: NDArray, reach: int) -> NDA
     return np.where(ok[..., None], pts, np.nan)
 
 
+def _carried(dense: NDArray, t: int, partner: int, fields: NDArray, reach: int) -> NDArray:
+    """Track ``t`` about at ``fields`` of its gap: ``partner`` (:func:`bridged` within
+    ``reach``) plus the offset interpolated (a swinging foot strays from a line)."""
+    n, one = dense.shape[1], np.array([0])
+    got = bridged(dense[[partner]], one, fields, reach) + bridged(
+        dense[[t]] - dense[[partner]], one, fields, n
+    )
+    return np.where(np.isfinite(got), got, bridged(dense[[t]], one, fields, n))[:, 0]
+
+
 def shared_blobs(
     dense: NDArray,
     t: int,
@@ -354,22 +364,33 @@ def shared_blobs(
     rows: NDArray,
     spare: SpareBlobs,
     params: TrackingParams,
+    partner: int,
 ) -> NDArray[np.bool_]:
-    """Which blobs ``rows`` (at gap offsets ``ks`` from ``lo``) another track of ``dense``
-    (measured there, or within ``max_fill_gap_fields`` of its samples: :func:`bridged`)
-    projects within ``ray_chain_gate_px`` of in that field: the image cannot tell whose
-    they are, and a blob the marker's image merged into lies off its ray (lowcost 303: a
-    heel's blob merged with its ankle's, 1 px from each, placed 14 mm off). With two
-    partners the lengths do not see it: their circle about the partners' axis meets a
-    ray passed sideways along it, a turn about that axis no length measures."""
+    """Which blobs ``rows`` (at gap offsets ``ks`` from ``lo``) may hold another track's
+    image merged with the marker's: that track's image (:func:`bridged` within
+    ``max_fill_gap_fields``) lies as near as a merged blob's centroid would. Such a blob
+    lies off the marker's ray (lowcost 303: a heel's merged with its ankle's, placed 14 mm
+    off), and two partners' lengths do not see it (their circle about the partners' axis
+    meets a ray passed sideways along it). Images within ``ray_chain_gate_px`` make one
+    blob at their centroid weighted by their areas (1 / depth²): the other's image lies
+    at most ``ray_chain_gate_px * z_o² / (z_m² + z_o²)`` from it (``z_m``, ``z_o`` the
+    distances from the camera, the marker carried by ``partner``: :func:`_carried`),
+    give or take three SDs of a blob's position (``ray_fill_px``). Farther, the blob is
+    the marker's own, the other hidden from that camera or seen apart (lowcost 312: a
+    toe's image 2.4 px from an ankle's own blob had cost a 1.5 mm fill)."""
     others = np.delete(np.arange(len(dense)), t)
     if rows.size == 0 or others.size == 0:
         return np.zeros(rows.size, dtype=bool)
     pts = bridged(dense, others, lo + ks, params.max_fill_gap_fields)  # (m, n_others, 3)
-    cams = np.repeat(spare.camera[rows], others.size)
+    own = _carried(dense, t, partner, lo + ks, params.max_fill_gap_fields)[:, None]
+    centre = spare.centres[spare.camera[rows]][:, None]
     with np.errstate(invalid="ignore"):
+        cams = np.repeat(spare.camera[rows], others.size)
         uv = project_rows(spare.dlts, cams, pts.reshape(-1, 3)).reshape(*pts.shape[:2], 2)
-        near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= params.ray_chain_gate_px
+        z_o, z_m = (np.sum((p - centre) ** 2, axis=2) for p in (pts, own))
+        share = np.where(np.isfinite(z_m), z_o / (z_m + z_o), 1.0)
+        reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
+        near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
     return np.any(near, axis=1)
 
 
@@ -437,14 +458,15 @@ def chain_fill(
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     ks, rows = np.r_[ks, k2], np.r_[chained, r2]
-    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params)
+    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
+    most = int(partners[np.argmax(seen.sum(axis=1))])
+    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params, most)
     cands = _candidates(dense, partners, sd, length, lo, ks[alone], rows[alone], spare)
     if not cands:
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
     order = sorted(pts)
-    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
-    guide = dense[partners[np.argmax(seen.sum(axis=1))], lo - 1 : hi + 1]
+    guide = dense[most, lo - 1 : hi + 1]
     fwd = _choose(pts, guide, target[lo - 1], -1, order)
     bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
     coast = params.ray_chain_coast_fields

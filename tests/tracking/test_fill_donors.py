@@ -104,3 +104,29 @@ def test_a_fill_through_an_ankle_measured_out_of_shape_in_the_gap_is_refused():
     toward = xyz[2, merged] - xyz[0, merged]
     dense[0, merged] += 15.0 * toward / np.linalg.norm(toward, axis=1, keepdims=True)
     _honest(dense, xyz, gap)
+
+
+def test_the_heel_s_own_blob_beside_the_hidden_ankle_s_image_is_placed():
+    # the same camera, the ankle hidden from it: no merge, every blob the heel's own. Where
+    # the ankle's image lies 2-3 px from it, farther than a merged blob's centroid could
+    # (half the 3 px merge at equal depth), the blob is placed (it had been refused as
+    # shared: lowcost 312 lost a 0.6 mm tibia fill so)
+    xyz = _rolling_foot(1)
+    heel, ankle = xyz[2, MERGED].mean(axis=0), xyz[0, MERGED].mean(axis=0)
+    dlts = _look_at(heel + 3000.0 * (heel - ankle) / np.linalg.norm(heel - ankle), heel)[None]
+    fields = np.arange(GAP.start, GAP.stop)
+    cam = np.zeros(fields.size, dtype=int)
+    uv = project_rows(dlts, cam, xyz[2, fields])
+    apart = np.linalg.norm(uv - project_rows(dlts, cam, xyz[0, fields]), axis=1)
+    rng = np.random.default_rng(3)
+    spare = spare_blobs(fields, cam, uv + rng.normal(0, 0.05, uv.shape), dlts)
+    beside = (apart > 2.0) & (apart < PARAMS.ray_chain_gate_px)
+    assert beside.sum() >= 2
+    dense = xyz.copy()
+    dense[2, GAP] = np.nan
+    got = chain_fill(dense, 2, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed[beside].all()
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[2, GAP][placed], axis=1)
+    assert np.all(err <= 3.0 * np.maximum(got.sd_mm[placed], 1.0))
