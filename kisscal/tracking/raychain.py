@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
+from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 
@@ -329,71 +330,6 @@ def _apart(a: tuple, b: tuple) -> float:
     return float(np.linalg.norm(a[0] - b[0]))
 
 
-def bridged(dense: NDArray, tracks: NDArray, fields: NDArray, reach: int) -> NDArray:
-    """Positions (len(fields), len(tracks), 3) of ``tracks`` of ``dense`` at ``fields``:
-    measured, or on the line between their samples on each side of a run of at most
-    ``reach`` missing fields (a marker lost for a field or two is still there; its image
-    merged into another's is often why it was lost); NaN elsewhere."""
-    n = dense.shape[1]
-    seen = np.isfinite(dense[tracks, :, 0])
-    idx = np.arange(n)
-    prev = np.maximum.accumulate(np.where(seen, idx, -1), axis=1)[:, fields].T
-    nxt = np.minimum.accumulate(np.where(seen, idx, n)[:, ::-1], axis=1)[:, ::-1][:, fields].T
-    ok = (prev >= 0) & (nxt < n) & (nxt - prev <= reach + 1)
-    p, q = np.where(ok, prev, 0), np.where(ok, nxt, 0)
-    w = ((fields[:, None] - p) / np.maximum(q - p, 1))[..., None]
-    pts = dense[tracks[None], p] * (1 - w) + dense[tracks[None], q] * w
-    return np.where(ok[..., None], pts, np.nan)
-
-
-def _carried(dense: NDArray, t: int, partner: int, fields: NDArray, reach: int) -> NDArray:
-    """Track ``t`` about at ``fields`` of its gap: ``partner`` (:func:`bridged` within
-    ``reach``) plus the offset interpolated (a swinging foot strays from a line)."""
-    n, one = dense.shape[1], np.array([0])
-    got = bridged(dense[[partner]], one, fields, reach) + bridged(
-        dense[[t]] - dense[[partner]], one, fields, n
-    )
-    return np.where(np.isfinite(got), got, bridged(dense[[t]], one, fields, n))[:, 0]
-
-
-def shared_blobs(
-    dense: NDArray,
-    t: int,
-    lo: int,
-    ks: NDArray,
-    rows: NDArray,
-    spare: SpareBlobs,
-    params: TrackingParams,
-    partner: int,
-) -> NDArray[np.bool_]:
-    """Which blobs ``rows`` (at gap offsets ``ks`` from ``lo``) may hold another track's
-    image merged with the marker's: that track's image (:func:`bridged` within
-    ``max_fill_gap_fields``) lies as near as a merged blob's centroid would. Such a blob
-    lies off the marker's ray (lowcost 303: a heel's merged with its ankle's, placed 14 mm
-    off), and two partners' lengths do not see it (their circle about the partners' axis
-    meets a ray passed sideways along it). Images within ``ray_chain_gate_px`` make one
-    blob at their centroid weighted by their areas (1 / depth²): the other's image lies
-    at most ``ray_chain_gate_px * z_o² / (z_m² + z_o²)`` from it (``z_m``, ``z_o`` the
-    distances from the camera, the marker carried by ``partner``: :func:`_carried`),
-    give or take three SDs of a blob's position (``ray_fill_px``). Farther, the blob is
-    the marker's own, the other hidden from that camera or seen apart (lowcost 312: a
-    toe's image 2.4 px from an ankle's own blob had cost a 1.5 mm fill)."""
-    others = np.delete(np.arange(len(dense)), t)
-    if rows.size == 0 or others.size == 0:
-        return np.zeros(rows.size, dtype=bool)
-    pts = bridged(dense, others, lo + ks, params.max_fill_gap_fields)  # (m, n_others, 3)
-    own = _carried(dense, t, partner, lo + ks, params.max_fill_gap_fields)[:, None]
-    centre = spare.centres[spare.camera[rows]][:, None]
-    with np.errstate(invalid="ignore"):
-        cams = np.repeat(spare.camera[rows], others.size)
-        uv = project_rows(spare.dlts, cams, pts.reshape(-1, 3)).reshape(*pts.shape[:2], 2)
-        z_o, z_m = (np.sum((p - centre) ** 2, axis=2) for p in (pts, own))
-        share = np.where(np.isfinite(z_m), z_o / (z_m + z_o), 1.0)
-        reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
-        near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
-    return np.any(near, axis=1)
-
-
 def _loose_rows(spare: SpareBlobs, lo: int, hi: int, ks: NDArray) -> tuple[NDArray, NDArray]:
     """Offsets and rows of every free blob in the gap's fields where no path in the
     image reached (the segment's lengths and the path in 3D judge them)."""
@@ -458,15 +394,14 @@ def chain_fill(
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     ks, rows = np.r_[ks, k2], np.r_[chained, r2]
-    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
-    most = int(partners[np.argmax(seen.sum(axis=1))])
-    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params, most)
+    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params, partners)
     cands = _candidates(dense, partners, sd, length, lo, ks[alone], rows[alone], spare)
     if not cands:
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
     order = sorted(pts)
-    guide = dense[most, lo - 1 : hi + 1]
+    seen = np.all(np.isfinite(dense[partners, lo - 1 : hi + 1]), axis=2)
+    guide = dense[partners[np.argmax(seen.sum(axis=1))], lo - 1 : hi + 1]
     fwd = _choose(pts, guide, target[lo - 1], -1, order)
     bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1])
     coast = params.ray_chain_coast_fields
