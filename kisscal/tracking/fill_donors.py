@@ -1,4 +1,5 @@
-"""Whether the markers a body fill follows through a gap are measured sound there.
+"""Whether the markers a fill follows through a gap are measured sound there, and which
+blobs a single-camera fill may take as the marker's own (:func:`shared_blobs`).
 
 A body fill's expected error (:func:`~kisscal.tracking.bodyfill.expected_errors`) is
 measured beside the gap, where its donors are sound. A donor measured wrong in the gap
@@ -6,20 +7,25 @@ carries the fill with it, and nothing beside the gap shows it: in a lab of three
 cameras the hidden marker's image is often hidden *in* a donor's (their blobs merged), and
 the donor's 3D point is pulled towards it (lowcost 303: an ankle 14 mm off where the heel
 was hidden; the heel, filled about the ankle-toe axis, 13 mm off expecting 1.6). Such a
-donor shows as a distance to the markers of its segment that does not hold in the gap.
+donor shows as a distance to the markers of its segment that does not hold in the gap;
+with three donors or more, the one to blame is left out (:func:`sound_fill`).
 
 References
 ----------
 Challis 1995 (segments as rigid bodies of markers); Gløersen & Federolf 2016 (gap
-filling from the other markers of the body).
+filling from the other markers of the body); Hartley & Zisserman 2004 (projection).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.dlt.model import project_rows
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rayfill import SpareBlobs
 
 #: Largest misfit of a donor's distance to a marker of its segment in a gap field, in SDs
 #: of that distance over the trial (at least ``ray_length_sd_floor_mm``): beyond it the
@@ -59,9 +65,33 @@ def donors_hold(
     bool
         False when a donor is out of shape in some field of the gap.
     """
-    if not donors:
-        return True
+    return not bool(np.any(unsound(dense, t, donors, lo, hi, params)))
+
+
+def unsound(
+    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """Per donor, whether it is not measured sound in the gap [lo, hi) (see
+    :func:`donors_hold`): it misses two mates or more (:func:`out_of_shape`), or misses
+    one that misses fewer itself (the miss cannot be pinned on either). A miss with a
+    mate out of shape is the mate's (lowcost 312: a knee, carrying a tibia hidden where
+    the ankle's point was pulled 5 mm by a merged blob, missed the ankle alone)."""
+    bad = misfits(dense, t, donors, lo, hi, params)
+    far = np.flatnonzero(bad.any(axis=0))
+    pinned = np.zeros(len(dense), dtype=bool)
+    pinned[far] = misfits(dense, t, tuple(far.tolist()), lo, hi, params).sum(axis=1) >= 2
+    return (bad.sum(axis=1) >= 2) | np.any(bad & ~pinned[None], axis=1)
+
+
+def misfits(
+    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """(len(donors), n_tracks): which distances from each donor to a mate of its segment
+    miss the trial's mean by more than :data:`DONOR_MISFIT_SD` SDs in some field of the
+    gap [lo, hi) (see :func:`donors_hold`)."""
     k = np.asarray(donors, dtype=np.int64)
+    if not k.size:
+        return np.zeros((0, len(dense)), dtype=bool)
     dist = np.linalg.norm(dense[k][:, None] - dense[None], axis=3)  # (k, n_tracks, n_fields)
     seen = np.isfinite(dist)
     n = seen.sum(axis=2)
@@ -71,12 +101,44 @@ def donors_hold(
     mates = (sd <= params.rigid_fill_sd_mm) | np.isin(np.arange(len(dense)), k)[None]
     mates[:, t] = False
     mates[np.arange(k.size), k] = False
-    miss = (
-        np.abs(dist[:, :, lo:hi] - mean[..., None])
-        / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
-    )
-    out = mates[..., None] & np.isfinite(miss) & (miss > DONOR_MISFIT_SD)
-    return not bool(np.any(out))
+    with np.errstate(invalid="ignore"):
+        miss = (
+            np.abs(dist[:, :, lo:hi] - mean[..., None])
+            / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
+        )
+        return mates & np.any(miss > DONOR_MISFIT_SD, axis=2)
+
+
+def out_of_shape(
+    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.int64]:
+    """The ``donors`` that miss two mates or more in the gap [lo, hi) (:func:`misfits`):
+    one marker pulled off, as by a hidden marker's image merged into its own, misses all
+    its mates, and each of those misses it alone."""
+    bad = misfits(dense, t, donors, lo, hi, params)
+    return np.asarray(donors, dtype=np.int64)[bad.sum(axis=1) >= 2]
+
+
+def sound_fill(
+    method: Callable, dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[tuple[NDArray, tuple[int, ...]] | None, NDArray]:
+    """A body fill ``method``'s (positions, donors) for the gap [lo, hi) of track ``t``
+    through donors that hold in the gap (:func:`donors_hold`), and the positions it was
+    made from: ``dense``, or, where three donors or more do not hold and the misfit is
+    one's (:func:`out_of_shape`), a copy without that donor (the method made again from
+    the rest; its error is to be measured without it too). (None, dense) when none."""
+    got = method(dense[t], dense, t, lo, hi, params)
+    if got is None or donors_hold(dense, t, got[1], lo, hi, params):
+        return got, dense
+    bad = out_of_shape(dense, t, got[1], lo, hi, params) if len(got[1]) >= 3 else []
+    if not len(bad):
+        return None, dense
+    src = dense.copy()
+    src[bad] = np.nan
+    got = method(dense[t], src, t, lo, hi, params)
+    if got is None or not donors_hold(dense, t, got[1], lo, hi, params):
+        return None, dense
+    return got, src
 
 
 def axis_frames(origin: NDArray, toward: NDArray, ref: NDArray) -> NDArray[np.float64]:
@@ -146,3 +208,71 @@ def phase_matched(
     ratio = ratio[0] / ratio[1:]
     best = np.argsort(np.abs(np.log(ratio)), kind="stable")
     return [(stretches[i], max(1.0, float(ratio[i]))) for i in best.tolist()]
+
+
+def bridged(dense: NDArray, tracks: NDArray, fields: NDArray, reach: int) -> NDArray:
+    """Positions (len(fields), len(tracks), 3) of ``tracks`` of ``dense`` at ``fields``:
+    measured, or on the line between their samples on each side of a run of at most
+    ``reach`` missing fields (a marker lost for a field or two is still there; its image
+    merged into another's is often why it was lost); NaN elsewhere."""
+    n = dense.shape[1]
+    seen = np.isfinite(dense[tracks, :, 0])
+    idx = np.arange(n)
+    prev = np.maximum.accumulate(np.where(seen, idx, -1), axis=1)[:, fields].T
+    nxt = np.minimum.accumulate(np.where(seen, idx, n)[:, ::-1], axis=1)[:, ::-1][:, fields].T
+    ok = (prev >= 0) & (nxt < n) & (nxt - prev <= reach + 1)
+    p, q = np.where(ok, prev, 0), np.where(ok, nxt, 0)
+    w = ((fields[:, None] - p) / np.maximum(q - p, 1))[..., None]
+    pts = dense[tracks[None], p] * (1 - w) + dense[tracks[None], q] * w
+    return np.where(ok[..., None], pts, np.nan)
+
+
+def _carried(dense: NDArray, t: int, partner: int, fields: NDArray, reach: int) -> NDArray:
+    """Track ``t`` about at ``fields`` of its gap: ``partner`` (:func:`bridged` within
+    ``reach``) plus the offset interpolated (a swinging foot strays from a line)."""
+    n, one = dense.shape[1], np.array([0])
+    got = bridged(dense[[partner]], one, fields, reach) + bridged(
+        dense[[t]] - dense[[partner]], one, fields, n
+    )
+    return np.where(np.isfinite(got), got, bridged(dense[[t]], one, fields, n))[:, 0]
+
+
+def shared_blobs(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    ks: NDArray,
+    rows: NDArray,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    partners: NDArray,
+) -> NDArray[np.bool_]:
+    """Which blobs ``rows`` (at gap offsets ``ks`` from ``lo``) may hold another track's
+    image merged with the marker's: that track's image (:func:`bridged` within
+    ``max_fill_gap_fields``) lies as near as a merged blob's centroid would. Such a blob
+    lies off the marker's ray (lowcost 303: a heel's merged with its ankle's, placed 14 mm
+    off), and two partners' lengths do not see it (their circle about the partners' axis
+    meets a ray passed sideways along it). Images within ``ray_chain_gate_px`` make one
+    blob at their centroid weighted by their areas (1 / depth²): the other's image lies
+    at most ``ray_chain_gate_px * z_o² / (z_m² + z_o²)`` from it (``z_m``, ``z_o`` the
+    distances from the camera, the marker carried by the partner of ``partners`` seen
+    most beside it: :func:`_carried`),
+    give or take three SDs of a blob's position (``ray_fill_px``). Farther, the blob is
+    the marker's own, the other hidden from that camera or seen apart (lowcost 312: a
+    toe's image 2.4 px from an ankle's own blob had cost a 1.5 mm fill)."""
+    others = np.delete(np.arange(len(dense)), t)
+    if rows.size == 0 or others.size == 0:
+        return np.zeros(rows.size, dtype=bool)
+    pts = bridged(dense, others, lo + ks, params.max_fill_gap_fields)  # (m, n_others, 3)
+    seen = np.isfinite(dense[partners][:, max(lo - 1, 0) : lo + int(ks.max()) + 2, 0])
+    partner = int(partners[np.argmax(seen.sum(axis=1))])
+    own = _carried(dense, t, partner, lo + ks, params.max_fill_gap_fields)[:, None]
+    centre = spare.centres[spare.camera[rows]][:, None]
+    with np.errstate(invalid="ignore"):
+        cams = np.repeat(spare.camera[rows], others.size)
+        uv = project_rows(spare.dlts, cams, pts.reshape(-1, 3)).reshape(*pts.shape[:2], 2)
+        z_o, z_m = (np.sum((p - centre) ** 2, axis=2) for p in (pts, own))
+        share = np.where(np.isfinite(z_m), z_o / (z_m + z_o), 1.0)
+        reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
+        near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
+    return np.any(near, axis=1)

@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
+from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.shared_blobs import shared_blobs
@@ -426,7 +427,7 @@ def chain_fill(
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     ks, rows = np.r_[ks, k2], np.r_[chained, r2]
-    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params)
+    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params, partners)
     cands = _candidates(dense, partners, sd, length, lo, ks[alone], rows[alone], spare)
     if not cands:
         return None

@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.bodyfill import best_candidate, fill_candidates
+from kisscal.tracking.fill_donors import out_of_shape
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.raychain import chain_fill
 from tests.tracking.test_rayfill import _look_at
@@ -104,3 +105,54 @@ def test_a_fill_through_an_ankle_measured_out_of_shape_in_the_gap_is_refused():
     toward = xyz[2, merged] - xyz[0, merged]
     dense[0, merged] += 15.0 * toward / np.linalg.norm(toward, axis=1, keepdims=True)
     _honest(dense, xyz, gap)
+
+
+def test_the_heel_s_own_blob_beside_the_hidden_ankle_s_image_is_placed():
+    # the same camera, the ankle hidden from it: no merge, every blob the heel's own. Where
+    # the ankle's image lies 2-3 px from it, farther than a merged blob's centroid could
+    # (half the 3 px merge at equal depth), the blob is placed (it had been refused as
+    # shared: lowcost 312 lost a 0.6 mm tibia fill so)
+    xyz = _rolling_foot(1)
+    heel, ankle = xyz[2, MERGED].mean(axis=0), xyz[0, MERGED].mean(axis=0)
+    dlts = _look_at(heel + 3000.0 * (heel - ankle) / np.linalg.norm(heel - ankle), heel)[None]
+    fields = np.arange(GAP.start, GAP.stop)
+    cam = np.zeros(fields.size, dtype=int)
+    uv = project_rows(dlts, cam, xyz[2, fields])
+    apart = np.linalg.norm(uv - project_rows(dlts, cam, xyz[0, fields]), axis=1)
+    rng = np.random.default_rng(3)
+    spare = spare_blobs(fields, cam, uv + rng.normal(0, 0.05, uv.shape), dlts)
+    beside = (apart > 2.0) & (apart < PARAMS.ray_chain_gate_px)
+    assert beside.sum() >= 2
+    dense = xyz.copy()
+    dense[2, GAP] = np.nan
+    got = chain_fill(dense, 2, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert placed[beside].all()
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[2, GAP][placed], axis=1)
+    assert np.all(err <= 3.0 * np.maximum(got.sd_mm[placed], 1.0))
+
+
+def test_a_rigid_fill_drops_the_one_donor_out_of_shape_and_fills_from_the_rest():
+    # four markers of a rigid segment carry a fifth through its gap; one of them, its
+    # blob merged with another's for ten fields, is measured 6 mm off there. The fill is
+    # made from the three others (it had been refused: lowcost 312 lost such a 1.5 mm
+    # fill), and within its expected error of truth
+    rng = np.random.default_rng(5)
+    n, gap, pulled = 300, slice(100, 130), slice(110, 120)
+    body = np.array([[0.0, 0, 0], [120, 10, 0], [30, 90, 20], [60, 40, 110], [80, 60, 50]])
+    turn = Rotation.from_rotvec(np.outer(np.sin(np.arange(n) / 40.0), [0.3, 0.2, 1.0]))
+    move = np.stack(
+        [5.0 * np.arange(n), 200 * np.sin(np.arange(n) / 50.0), 900 + 0 * np.arange(n)], 1
+    )
+    xyz = np.stack([turn.apply(p) + move for p in body]) + rng.normal(0, 0.3, (5, n, 3))
+    dense = xyz.copy()
+    dense[4, gap] = np.nan
+    toward = xyz[4, pulled] - xyz[0, pulled]  # pulled towards the hidden marker's image
+    dense[0, pulled] += 6.0 * toward / np.linalg.norm(toward, axis=1, keepdims=True)
+    assert out_of_shape(dense, 4, (0, 1, 2, 3), gap.start, gap.stop, PARAMS).tolist() == [0]
+    cands = fill_candidates(dense, 4, gap.start, gap.stop, PARAMS)
+    best = best_candidate(cands, PARAMS)
+    assert best is not None and 0 not in best.fill.donors
+    err = np.sqrt(np.mean(np.sum((best.xyz_mm - xyz[4, gap]) ** 2, axis=1)))
+    assert err <= 2.0 * best.fill.expected_error_mm + 1.0
