@@ -49,7 +49,6 @@ from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
-from kisscal.tracking.shared_blobs import shared_blobs
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
