@@ -38,10 +38,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN
+from kisscal.tracking.raychain import path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: Gauss-Newton iterations of a ray's depth.
@@ -154,8 +153,7 @@ def place_absent(
     one = np.zeros(dense.shape[1], dtype=bool)
     one[f[first]] = True
     one &= ~clash
-    for a, b in zip(*true_runs(one), strict=True):
-        one[a:b] = b - a >= MIN_RUN
+    one = path_runs(one)
     keep = first & one[f]
     out[f[keep]] = x[keep]
     spare.free[rows[one[f]]] = False

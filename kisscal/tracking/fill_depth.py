@@ -26,11 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
-from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs, one_camera_blobs
+from kisscal.tracking.raychain import ChainFill, chain_blobs, one_camera_blobs, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 
@@ -103,9 +102,7 @@ def depth_ray_fill(
     depth = depth[lo - a : hi - a]
     has = np.zeros(hi - lo, dtype=bool)
     has[ks] = True
-    placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*true_runs(has), strict=True):
-        placed[a:b] = b - a >= MIN_RUN
+    placed = path_runs(has)
     if not placed.any():
         return None
     take = placed[ks]

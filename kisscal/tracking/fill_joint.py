@@ -37,7 +37,7 @@ from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import distance_sd
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill, chain_blobs
+from kisscal.tracking.raychain import ChainFill, chain_blobs, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: Largest distance (mm) between the solutions of the two walks for a field to be kept.
@@ -291,9 +291,7 @@ def joint_ray_fill(
     agree = np.linalg.norm(fwd - bwd, axis=1) <= AGREE_MM
     err = np.fmax(e_f, e_b)
     good = agree & (err <= params.ray_length_max_error_mm)
-    placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*true_runs(good), strict=True):
-        placed[a:b] = b - a >= MIN_RUN
+    placed = path_runs(good)
     if not placed.any():
         return None
     xyz = np.where(placed[:, None], (fwd + bwd) / 2, np.nan)

@@ -31,13 +31,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.fill_joint import AGREE_MM, joint_walks, tracks_of
 from kisscal.tracking.fill_sphere import MAX_ROUNDS, acceleration_sd, smooth_depth
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_RUN, ChainFill
+from kisscal.tracking.raychain import ChainFill, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 
@@ -136,9 +135,7 @@ def joint_depth_fill(
     at = centre + mean[ks + lo - f0, None] * d
     good = np.zeros(hi - lo, dtype=bool)
     good[ks] = msd[ks + lo - f0] <= params.ray_depth_max_error_mm
-    placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*true_runs(good), strict=True):
-        placed[a:b] = b - a >= MIN_RUN
+    placed = path_runs(good)
     take = placed[ks]
     if not take.any():
         return None

@@ -43,12 +43,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
-    MIN_RUN,
     MIN_TOGETHER,
     ChainFill,
     chain_blobs,
@@ -56,6 +54,7 @@ from kisscal.tracking.raychain import (
     off_rays,
     one_camera_blobs,
     partner_lengths,
+    path_runs,
 )
 from kisscal.tracking.rayfill import SpareBlobs
 
@@ -323,9 +322,7 @@ def sphere_depth_fill(
     good = np.zeros(hi - lo, dtype=bool)
     good[ks] = sd <= params.ray_depth_max_error_mm
     good[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
-    placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*true_runs(good), strict=True):
-        placed[a:b] = b - a >= MIN_RUN
+    placed = path_runs(good)
     take = placed[ks]
     if not take.any():
         return None

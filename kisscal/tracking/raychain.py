@@ -60,6 +60,15 @@ MIN_RUN = 2
 MIN_TOGETHER = 0.5
 
 
+def path_runs(placed: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The fields of ``placed`` in runs of at least :data:`MIN_RUN`: a path, not a
+    stray field."""
+    out = np.zeros(placed.shape, dtype=bool)
+    for a, b in zip(*true_runs(placed), strict=True):
+        out[a:b] = b - a >= MIN_RUN
+    return out
+
+
 @dataclass(frozen=True)
 class ChainFill:
     """A gap's fields placed on the rays of the marker's own blobs.
@@ -456,10 +465,7 @@ def chain_fill(
             x, e, row = c[0] if sure else c[i]
             if e <= params.ray_length_max_error_mm:
                 xyz[k], err[k], rows[k] = x, e, row
-    # a path, not a stray field: shorter runs of placed fields are left out
-    placed = np.zeros(hi - lo, dtype=bool)
-    for a, b in zip(*true_runs(np.isfinite(err)), strict=True):
-        placed[a:b] = b - a >= MIN_RUN
+    placed = path_runs(np.isfinite(err))
     xyz[~placed], err[~placed] = np.nan, np.nan
     taken = rows[placed]
     if not taken.size:
