@@ -36,8 +36,9 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import distance_sd
+from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_blobs, path_runs
+from kisscal.tracking.raychain import ChainFill, chain_blobs, length_partners, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: Largest distance (mm) between the solutions of the two walks for a field to be kept.
@@ -87,7 +88,8 @@ def _member_rays(
 ) -> NDArray[np.int64]:
     """Spare row of track ``u``'s own blob per camera and field of [lo, hi), shape
     (n_cameras, hi - lo) (-1 where none, or where ``u`` is measured), followed in the
-    image across each of its unmeasured runs (from its one side at the trial's ends)."""
+    image across each of its unmeasured runs (from its one side at the trial's ends), but
+    not one another track's image may share (:func:`.fill_donors.shared_blobs`)."""
     out = np.full((len(spare.dlts), hi - lo), -1, dtype=np.int64)
     series = dense[u]
     a_runs, b_runs = true_runs(~np.isfinite(series[:, 0]))
@@ -97,6 +99,9 @@ def _member_rays(
         ks, rows = chain_blobs(series, a, b, spare, params)
         k = ks + a - lo
         ok = (k >= 0) & (k < hi - lo)
+        partners = length_partners(dense, u, params)[0]
+        if partners.size:  # a blob another marker's image may share lies off u's ray
+            ok &= ~shared_blobs(dense, u, a, ks, rows, spare, params, partners)
         out[spare.camera[rows[ok]], k[ok]] = rows[ok]
     return out
 
