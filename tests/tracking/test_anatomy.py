@@ -14,8 +14,11 @@ from kisscal.tracking.labelling.anatomy import (
     forward_directions,
     settle_sides,
 )
+from kisscal.tracking.labelling.facing import walking_direction
+from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
+from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.tracks import make_tracks
 
 LOWER = (
@@ -213,3 +216,35 @@ def test_a_true_pelvis_is_left_alone() -> None:
     for seed, heading in ((8, 0.0), (9, 140.0)):
         pos = walker(seed, heading)
         assert settle_sides(pos, Anatomy.of_names(LOWER), 50.0, 0.8)[1] == []
+
+
+def _pieces_state(pos: np.ndarray) -> tuple[LabelState, np.ndarray]:
+    """A labelling state whose pieces are the trajectories of ``pos`` cut in two halves,
+    each named right (pieces are numbered by first field: piece ``h n + i`` is half
+    ``h`` of name ``i``)."""
+    n, f, _ = pos.shape
+    field = np.tile(np.arange(f), n)
+    piece = 2 * np.repeat(np.arange(n), f) + (field >= f // 2)
+    xyz = pos.reshape(-1, 3)
+    tracks = make_tracks(field, piece, xyz, xyz, np.zeros(n * f), np.arange(n * f))
+    state = LabelState.begin(tracks, LOWER, PIG.template_mm, None, TrackingParams())
+    for t in range(2 * n):
+        state.name_piece(t, t % n)
+    return state, state.label_of.copy()
+
+
+@pytest.mark.parametrize("asis", ["LASI", "RASI"])
+def test_pieces_of_an_asis_and_the_sacrum_named_the_other_way_round_are_put_right(
+    asis: str,
+) -> None:
+    """Issue 27's kiss 3 seed 307: a short first window named the second halves of an
+    ASIS and the sacrum the other way round, later windows named the first halves right
+    (a whole-name exchange only moves the error); the walk gives each piece its name."""
+    state, right = _pieces_state(walker(10, 75.0))
+    i, j = LOWER.index(asis), LOWER.index("SACR")
+    state.name_piece(len(LOWER) + i, j)
+    state.name_piece(len(LOWER) + j, i)
+    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == [(i, j)]
+    np.testing.assert_array_equal(state.label_of, right)
+    again, _ = _pieces_state(walker(10, 75.0))
+    assert settle_pelvis_pieces(again, walking_direction(again.name_pos)) == []

@@ -16,6 +16,8 @@ import re
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.state import LabelState
+
 #: Anterior pelvis marker names (``LASI``, ``RASIS``) and posterior ones (``LPSI``,
 #: ``SACR``, ``SAC``), by the naming convention.
 PELVIS_FRONT = re.compile(r"ASI")
@@ -65,4 +67,63 @@ def settle_pelvis(
             break
         pos = trial
         done.append((f, b))
+    return done
+
+
+def _wrong_way(state: LabelState, f: int, b: int, direction: NDArray) -> set[int]:
+    """Long pieces named ``f`` (front) or ``b`` (back) that lie the wrong way round
+    along ``direction`` against a piece of the other name in more than
+    ``min_side_confidence`` of the fields both are seen in (at least
+    ``min_track_length`` of them)."""
+    named = state.label_of[state.long_ids]
+    rows_f, rows_b = np.flatnonzero(named == f), np.flatnonzero(named == b)
+    sure, least = state.params.min_side_confidence, state.params.min_track_length
+    wrong: set[int] = set()
+    for p in rows_f:
+        for q in rows_b:
+            both = state.present[p] & state.present[q] & np.isfinite(direction[:, 0])
+            if both.sum() < least:
+                continue
+            gap = state.dense[p, both, :2] - state.dense[q, both, :2]
+            if np.mean(np.sum(gap * direction[both], axis=1) > 0) < 1.0 - sure:
+                wrong |= {int(state.long_ids[p]), int(state.long_ids[q])}
+    return wrong
+
+
+def _overlaps(state: LabelState, pieces: list[int], names: list[int]) -> bool:
+    """Whether two of ``pieces``, named ``names``, share a name and a field."""
+    for j in set(names):
+        fields = [state.piece(t)[0] for t, n in zip(pieces, names, strict=True) if n == j]
+        if fields and np.unique(np.concatenate(fields)).size < sum(x.size for x in fields):
+            return True
+    return False
+
+
+def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[int, int]]:
+    """Exchange front and back pelvis names (``*ASI*``, ``SACR``/``*PSI*``) between the
+    pieces that hold them the wrong way round along the walk (``direction``, (F, 2),
+    e.g. :func:`~kisscal.tracking.labelling.facing.walking_direction`), when that leaves
+    no name on two pieces in one field; the (front, back) name pairs exchanged.
+
+    A short first window that sees one ASIS and the sacrum can name them the other way
+    round (their distances to the other ASIS differ by a few centimetres); later windows
+    name later pieces right, so a whole-name exchange (:func:`settle_pelvis`) would only
+    move the error to the other part of the trial.
+    """
+    front, back = pelvis_roles(state.names)
+    done = []
+    for f in front:
+        for b in back:
+            wrong = sorted(_wrong_way(state, f, b, direction))
+            if not wrong:
+                continue
+            new = [b if state.label_of[t] == f else f for t in wrong]
+            held = [int(t) for t in np.flatnonzero(np.isin(state.label_of, (f, b)))]
+            names = [new[wrong.index(t)] if t in wrong else int(state.label_of[t]) for t in held]
+            if _overlaps(state, held, names):
+                continue
+            state.name_pos[[f, b]] = np.nan
+            for t, j in zip(held, names, strict=True):
+                state.name_piece(t, j)
+            done.append((f, b))
     return done
