@@ -14,8 +14,11 @@ from kisscal.tracking.labelling.anatomy import (
     forward_directions,
     settle_sides,
 )
+from kisscal.tracking.labelling.facing import walking_direction
+from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
+from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.tracks import make_tracks
 
 LOWER = (
@@ -149,11 +152,11 @@ def test_judging_exchanges_a_swapped_pair_and_reports_it() -> None:
 
 
 def test_nothing_to_tell_sides_apart_means_flagged() -> None:
-    """A standing subject named only by the L/R convention (no pelvis, no feet roles, so
-    no forward direction) and a flat template (the frontal plane: a half turn maps it
-    onto its mirror image, so the fit cannot tell either): not certain."""
+    """A standing subject named only by the L/R convention (no pelvis roles, no feet
+    roles, so no forward direction) and a flat template (the frontal plane: a half turn
+    maps it onto its mirror image, so the fit cannot tell either): not certain."""
     pos = standing(turn_deg=-50.0)
-    names_only = Anatomy.of_names(LOWER)
+    names_only = replace(Anatomy.of_names(LOWER), front=(), back=())
     template = PIG.template_mm * [0.0, 1.0, 1.0]
     judged = judge_sides(_labelling(pos, LOWER), names_only, template, 50.0, TrackingParams())
     assert judged.sides_from == "fit"
@@ -175,3 +178,73 @@ def test_a_walking_frame_template_may_fit_the_mirror_better_the_anatomy_decides(
     )
     assert judged.labels == LOWER and judged.exchanged == () and judged.certain
     assert judged.sides_from == "anatomy"
+
+
+def test_the_naming_convention_gives_the_pelvis_front_and_back() -> None:
+    a = Anatomy.of_names(LOWER)
+    assert {LOWER[i] for i in a.front} == {"LASI", "RASI"}
+    assert {LOWER[i] for i in a.back} == {"SACR"}
+    assert Anatomy.of_names(("LKNE", "RKNE", "SACR")).front == ()
+
+
+@pytest.mark.parametrize("asis", ["LASI", "RASI"])
+@pytest.mark.parametrize("of_set", [False, True])
+def test_an_asis_exchanged_with_the_sacrum_is_put_right(asis: str, of_set: bool) -> None:
+    """Issue 27 (kiss 3, seed 307) in small: the sacrum and one ASIS named the other way
+    round for the whole walk pass every left/right check (the sacrum lies on the midline,
+    on either ASIS's side of the other); the walk puts the sacrum behind both ASIS."""
+    pos = walker(7, 250.0)
+    anatomy = Anatomy.of_set(PIG) if of_set else Anatomy.of_names(LOWER)
+    i, j = LOWER.index(asis), LOWER.index("SACR")
+    wrong = pos.copy()
+    wrong[[i, j]] = pos[[j, i]]
+    perm, done = settle_sides(wrong, anatomy, 50.0, 0.8)
+    assert done == [(i, j)]
+    moved = np.empty_like(wrong)
+    moved[perm] = wrong
+    np.testing.assert_array_equal(moved, pos)
+    labels = list(LOWER)
+    labels[i], labels[j] = labels[j], labels[i]
+    judged = judge_sides(
+        _labelling(pos, tuple(labels)), anatomy, PIG.template_mm, 50.0, TrackingParams()
+    )
+    assert judged.labels == LOWER and judged.exchanged == ((asis, "SACR"),)
+    assert judged.confidence["SACR"] >= 0.85 and judged.flagged == ()
+
+
+def test_a_true_pelvis_is_left_alone() -> None:
+    for seed, heading in ((8, 0.0), (9, 140.0)):
+        pos = walker(seed, heading)
+        assert settle_sides(pos, Anatomy.of_names(LOWER), 50.0, 0.8)[1] == []
+
+
+def _pieces_state(pos: np.ndarray) -> tuple[LabelState, np.ndarray]:
+    """A labelling state whose pieces are the trajectories of ``pos`` cut in two halves,
+    each named right (pieces are numbered by first field: piece ``h n + i`` is half
+    ``h`` of name ``i``)."""
+    n, f, _ = pos.shape
+    field = np.tile(np.arange(f), n)
+    piece = 2 * np.repeat(np.arange(n), f) + (field >= f // 2)
+    xyz = pos.reshape(-1, 3)
+    tracks = make_tracks(field, piece, xyz, xyz, np.zeros(n * f), np.arange(n * f))
+    state = LabelState.begin(tracks, LOWER, PIG.template_mm, None, TrackingParams())
+    for t in range(2 * n):
+        state.name_piece(t, t % n)
+    return state, state.label_of.copy()
+
+
+@pytest.mark.parametrize("asis", ["LASI", "RASI"])
+def test_pieces_of_an_asis_and_the_sacrum_named_the_other_way_round_are_put_right(
+    asis: str,
+) -> None:
+    """Issue 27's kiss 3 seed 307: a short first window named the second halves of an
+    ASIS and the sacrum the other way round, later windows named the first halves right
+    (a whole-name exchange only moves the error); the walk gives each piece its name."""
+    state, right = _pieces_state(walker(10, 75.0))
+    i, j = LOWER.index(asis), LOWER.index("SACR")
+    state.name_piece(len(LOWER) + i, j)
+    state.name_piece(len(LOWER) + j, i)
+    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == [(i, j)]
+    np.testing.assert_array_equal(state.label_of, right)
+    again, _ = _pieces_state(walker(10, 75.0))
+    assert settle_pelvis_pieces(again, walking_direction(again.name_pos)) == []

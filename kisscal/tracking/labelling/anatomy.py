@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from kisscal.markersets.model import MarkerSet
+from kisscal.tracking.labelling.pelvis import pelvis_roles, settle_pelvis
 from kisscal.tracking.labelling.runnerup import TEMPLATE_NEIGHBOURS
 
 #: Marker pairs at least this far apart in the template's height, as a fraction of
@@ -97,14 +98,17 @@ class Anatomy:
 
     @classmethod
     def of_names(cls, names: tuple[str, ...]) -> Anatomy:
-        """Mirror pairs by the naming convention alone: ``L<x>`` and ``R<x>``."""
+        """Mirror pairs and pelvis roles by the naming convention alone: ``L<x>`` and
+        ``R<x>``; ``*ASI*`` ahead of ``*PSI*`` and ``SACR``
+        (:func:`~kisscal.tracking.labelling.pelvis.pelvis_roles`)."""
         index = {n: i for i, n in enumerate(names)}
         pairs = tuple(
             (i, index["R" + n[1:]])
             for i, n in enumerate(names)
             if n.startswith("L") and len(n) > 1 and "R" + n[1:] in index
         )
-        return cls(tuple(names), pairs)
+        front, back = pelvis_roles(tuple(names))
+        return cls(tuple(names), pairs, front=front, back=back)
 
     @classmethod
     def of_set(
@@ -414,6 +418,13 @@ def settle_sides(
             done.append((a, b))
     moved = np.empty_like(pos)
     moved[perm] = pos
+    if source == "walking":
+        # An ASIS and the sacrum exchanged pass every left/right check (pelvis.py).
+        for a, b in settle_pelvis(moved, anatomy.front, anatomy.back, forward, min_confidence):
+            moved[[a, b]] = moved[[b, a]]
+            at_a, at_b = np.flatnonzero(perm == a)[0], np.flatnonzero(perm == b)[0]
+            perm[at_a], perm[at_b] = b, a
+            done.append((a, b))
     floor = floor_height(pos, anatomy)
     conf = _confidence(moved, anatomy, forward, source, floor)
     close = None if anatomy.neighbours is None else set(anatomy.neighbours)

@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.pelvis import PELVIS_BACK, PELVIS_FRONT
 from kisscal.tracking.labelling.state import LabelState
 
 #: The body moves at least this far (mm, horizontally) through a window for its
@@ -27,8 +28,6 @@ from kisscal.tracking.labelling.state import LabelState
 MIN_TRAVEL_MM = 100.0
 #: A heel marker name: its side prefix, then HEE, HEEL or CAL.
 HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
-_FRONT = re.compile(r"ASI")
-_BACK = re.compile(r"PSI|SACR?$")
 
 
 def foot_pairs(names: tuple[str, ...]) -> list[tuple[int, int]]:
@@ -42,8 +41,8 @@ def front_back_pairs(names: tuple[str, ...]) -> tuple[tuple[int, int], ...]:
     """(front, back) name pairs the naming convention gives: toes ahead of heels
     (:func:`foot_pairs`), each ``*ASI*`` ahead of each ``*PSI*`` or ``SACR``."""
     pairs = foot_pairs(names)
-    front = [i for i, n in enumerate(names) if _FRONT.search(n)]
-    back = [i for i, n in enumerate(names) if _BACK.search(n)]
+    front = [i for i, n in enumerate(names) if PELVIS_FRONT.search(n)]
+    back = [i for i, n in enumerate(names) if PELVIS_BACK.search(n)]
     pairs += [(f, b) for f in front for b in back]
     return tuple(pairs)
 

@@ -6,9 +6,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
+from kisscal.tracking.labelling.facing import walking_direction
 from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
+from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState
@@ -95,4 +97,6 @@ def name_pieces(state: LabelState) -> bool:
     name_groups(state)
     if name_from_trial(state):
         spread(state)
+    # A first window can name an ASIS and the sacrum the other way round (pelvis.py).
+    settle_pelvis_pieces(state, walking_direction(state.name_pos))
     return True
