@@ -248,3 +248,12 @@ def test_pieces_of_an_asis_and_the_sacrum_named_the_other_way_round_are_put_righ
     np.testing.assert_array_equal(state.label_of, right)
     again, _ = _pieces_state(walker(10, 75.0))
     assert settle_pelvis_pieces(again, walking_direction(again.name_pos)) == []
+
+
+def test_pelvis_pieces_named_right_stay_so_when_the_subject_walks_backwards() -> None:
+    """Walking backwards puts every ASIS behind the sacrum along the walk, as on real
+    trials where the walk was misjudged (test1, newwalk: right pelvis names exchanged,
+    silently); the template's distances to the other names say the names are right."""
+    state, right = _pieces_state(walker(10, 75.0)[:, ::-1].copy())
+    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == []
+    np.testing.assert_array_equal(state.label_of, right)

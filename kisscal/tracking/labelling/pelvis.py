@@ -99,6 +99,27 @@ def _overlaps(state: LabelState, pieces: list[int], names: list[int]) -> bool:
     return False
 
 
+def _fits_better(state: LabelState, f: int, b: int, wrong: list[int]) -> bool:
+    """Whether the pieces ``wrong`` named the other way round (``f`` for ``b``) fit the
+    template's distances to the other names held in their fields better than as named
+    (median absolute misfit): the walk alone misjudged real trials (test1, newwalk:
+    right pelvis names exchanged, silently), the distances and the walk together did
+    not."""
+    fields = np.zeros(state.n_fields, dtype=bool)
+    for t in wrong:
+        fields[state.piece(t)[0]] = True
+    others = np.setdiff1d(np.arange(len(state.names)), (f, b))
+    pos = state.name_pos[:, fields]
+    target = state.template_distance[[f, b]][:, others][:, :, None]  # (2, m, 1)
+
+    def misfit(at_f: NDArray, at_b: NDArray) -> float:
+        d = np.linalg.norm(pos[others][None] - np.stack([at_f, at_b])[:, None], axis=3)
+        e = np.abs(d - target)
+        return float(np.nanmedian(e)) if np.isfinite(e).any() else np.inf
+
+    return misfit(pos[b], pos[f]) < misfit(pos[f], pos[b])
+
+
 def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[int, int]]:
     """Exchange front and back pelvis names (``*ASI*``, ``SACR``/``*PSI*``) between the
     pieces that hold them the wrong way round along the walk (``direction``, (F, 2),
@@ -108,14 +129,15 @@ def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[in
     A short first window that sees one ASIS and the sacrum can name them the other way
     round (their distances to the other ASIS differ by a few centimetres); later windows
     name later pieces right, so a whole-name exchange (:func:`settle_pelvis`) would only
-    move the error to the other part of the trial.
+    move the error to the other part of the trial. Exchanged only where the template's distances
+    to the other names held agree (:func:`_fits_better`).
     """
     front, back = pelvis_roles(state.names)
     done = []
     for f in front:
         for b in back:
             wrong = sorted(_wrong_way(state, f, b, direction))
-            if not wrong:
+            if not wrong or not _fits_better(state, f, b, wrong):
                 continue
             new = [b if state.label_of[t] == f else f for t in wrong]
             held = [int(t) for t in np.flatnonzero(np.isin(state.label_of, (f, b)))]
