@@ -93,13 +93,13 @@ def _member_rays(
     out = np.full((len(spare.dlts), hi - lo), -1, dtype=np.int64)
     series = dense[u]
     a_runs, b_runs = true_runs(~np.isfinite(series[:, 0]))
+    partners = length_partners(dense, u, params)[0]
     for a, b in zip(a_runs.tolist(), b_runs.tolist(), strict=True):
         if b <= lo or a >= hi or (a == 0 and b == len(series)):
             continue
         ks, rows = chain_blobs(series, a, b, spare, params)
         k = ks + a - lo
         ok = (k >= 0) & (k < hi - lo)
-        partners = length_partners(dense, u, params)[0]
         if partners.size:  # a blob another marker's image may share lies off u's ray
             ok &= ~shared_blobs(dense, u, a, ks, rows, spare, params, partners)
         out[spare.camera[rows[ok]], k[ok]] = rows[ok]
