@@ -42,8 +42,9 @@ class DltParams(Params):
         adjustment of the cameras and those markers with the rods fixing the frame and
         scale (:mod:`kisscal.bundle.points`, the wand route's adjustment with ``[wand]``'s
         lens settings), instead of a model chosen on the rods' 24 markers alone: those
-        cannot tell which model extrapolates (issue 25). Off by default: the calibration
-        would then change whenever a trial is added, and cost a dozen adjustments.
+        cannot tell which model extrapolates (issue 25). Off by default: with every trial
+        it changes whenever a trial is added, and the calibration trials alone (stick,
+        throw) were too few on four cameras.
     bundle_trials : tuple of str
         The trials (by name) ``trials_bundle`` adjusts with the rods; empty: every image
         or video trial of the session but the wand's. Named, the calibration does not
