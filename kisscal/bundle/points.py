@@ -76,6 +76,7 @@ def calibrate_on_points(
     params: BundleParams = DEFAULT_PARAMS,
     dlt: DltParams = DEFAULT_DLT,
     min_cameras: int = 3,
+    weight_factor: float = 1.0,
 ) -> WandCalibration:
     """Cameras and lens terms adjusted to a trial's markers and fixed control points.
 
@@ -91,12 +92,16 @@ def calibrate_on_points(
         Each camera's image size.
     params : BundleParams
         Lens terms, loss, outliers, ``max_fields`` (here the most points used),
-        ``control_weight`` (0: the rods' and the points' noise variance ratio).
+        ``control_weight`` (0: the rods' and the points' noise variance ratio times
+        ``weight_factor``).
     dlt : DltParams
         The session's DLT settings, for the cameras resected on the adjusted points.
     min_cameras : int
         Cameras a marker needs to be used (two rays only meet in a point, whatever the
         lens).
+    weight_factor : float
+        With ``control_weight`` 0, the estimated noise variance ratio is multiplied by
+        this before it weighs the control points.
 
     Raises
     ------
@@ -112,7 +117,7 @@ def calibrate_on_points(
     cams = zero_skew(start, params)
     result = adjust_bundle(cams, obs, POINT, points, control, params)
     # again, each kind of observation by its own noise (or the weight given)
-    weight = params.control_weight or noise_ratio(start, control, result)
+    weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
     control = control.weighted(weight)
     result = adjust_bundle(result.cameras, obs, POINT, result.wand, control, params)
     final = final_cameras(result, obs, control, POINT, params, dlt)

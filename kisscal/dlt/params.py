@@ -42,8 +42,21 @@ class DltParams(Params):
         adjustment of the cameras and those markers with the rods fixing the frame and
         scale (:mod:`kisscal.bundle.points`, the wand route's adjustment with ``[wand]``'s
         lens settings), instead of a model chosen on the rods' 24 markers alone: those
-        cannot tell which model extrapolates (issue 25). Off by default: the calibration
-        would then change whenever a trial is added, and cost a dozen adjustments.
+        cannot tell which model extrapolates (issue 25). Off by default: with every trial
+        it changes whenever a trial is added, and the calibration trials alone (stick,
+        throw) were too few on four cameras.
+    bundle_trials : tuple of str
+        The trials (by name) ``trials_bundle`` adjusts with the rods; empty: every image
+        or video trial of the session but the wand's. Named, the calibration does not
+        change when a trial is added to the session later (a walk reconstructed with it).
+    bundle_rods_weight : float
+        In that adjustment, the weight of a rod marker's squared residual against a
+        trial marker's, over their estimated noise variance ratio (``[wand]
+        control_weight``, when not 0, is used as it is). The ratio of the residuals
+        leaves out what the grid's polynomial and the resected terms miss over the
+        trials' wider reach, and with its weight alone the trials' markers bend the lens
+        terms (issue 25, seed 71: lowcost 0.080/0.095 mm inside/edges against 0.067/0.078
+        at 10 times it).
     model_folds : int
         Subsets the control points are split into for that choice when they are not
         rods (rods: one rod, and one marker of every rod, out at a time).
@@ -131,6 +144,8 @@ class DltParams(Params):
     lens_terms: int = param(5, ge=1, le=5)
     select_model: bool = param(True)
     trials_bundle: bool = param(False)
+    bundle_trials: tuple[str, ...] = param(())
+    bundle_rods_weight: float = param(10.0, gt=0)
     model_folds: int = param(5, ge=2)
     model_margin: float = param(0.02, ge=0)
     model_noise_ses: float = param(1.0, ge=0)

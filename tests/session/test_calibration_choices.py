@@ -12,6 +12,7 @@ import tomli_w
 from scipy.spatial import cKDTree
 
 from kisscal import session
+from kisscal.errors import KisscalError
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table
 from kisscal.session.params import Overrides
@@ -72,28 +73,38 @@ def test_lens_terms_reach_reconstruction(small_session: Path, tmp_path: Path) ->
     assert with_lens < 2 * in_sample["rods_in_sample_mean_mm"] + 0.05
 
 
-def test_the_trials_bundle_is_kept_only_when_the_left_out_rods_say_better(
+def test_the_trials_bundle_reconstructs_the_volume_better_than_the_rods_model(
     synthesised: Path, tmp_path: Path
 ) -> None:
-    """Issue 25: the seed-7 session (four cameras; walk01, stick and throw) adjusts the
-    rods and the trials' markers together, but its leave-one-rod-out gain over the rods'
-    own model is short of ``[wand] keep_sigmas`` standard errors, so the rods' model is
-    written, as with ``[dlt] trials_bundle = false`` (the default). Forced through (``keep_sigmas``
-    0), the adjustment does reconstruct the volume's points worse than the rods' model
-    (0.057 against 0.044 mm inside): the judge was right."""
+    """Issue 25: on the seed-7 session (four cameras; walk01, stick and throw) the rods and
+    the trials' markers adjusted together (``[dlt] trials_bundle``) reconstruct held-out
+    points of the volume better than the rods' own model (measured 0.012/0.018 against
+    0.044/0.034 mm inside/edges), though their leave-one-rod-out says the opposite (which
+    is why it no longer judges the adjustment)."""
     root = copy_of(synthesised, tmp_path / "s")
     log: list[str] = []
-    on = Overrides(dlt={"trials_bundle": True})
-    session.calibrate(root, overrides=on, echo=log.append)
-    assert any("rods and trials adjusted together" in line for line in log)
-    assert any("the rods' own model kept" in line for line in log)
-    kept = volume_errors(root, "kiss", 7)
+    session.calibrate(root, overrides=Overrides(dlt={"trials_bundle": True}), echo=log.append)
+    assert any("rods and trials (walk01, stick, throw) adjusted" in line for line in log)
     docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
-    assert docs and all(d["lens_models"]["chosen"] != "trials" for d in docs)
+    assert docs and all(d["lens_models"]["chosen"] == "trials" and d["lens"] for d in docs)
+    bundle = volume_errors(root, "kiss", 7)
     session.calibrate(root, overrides=Overrides(dlt={"trials_bundle": False}))
-    assert volume_errors(root, "kiss", 7) == kept
-    session.calibrate(root, overrides=Overrides(dlt=on.dlt, wand={"keep_sigmas": 0.0}))
-    docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
-    assert all(d["lens_models"]["chosen"] == "trials" and d["lens"] for d in docs)
-    forced = volume_errors(root, "kiss", 7)
-    assert forced["inside"] > kept["inside"], (forced, kept)
+    rods = volume_errors(root, "kiss", 7)
+    assert bundle["inside"] < 0.5 * rods["inside"], (bundle, rods)
+    assert bundle["edges"] < rods["edges"], (bundle, rods)
+
+
+def test_the_trials_bundle_uses_only_the_trials_named(synthesised: Path, tmp_path: Path) -> None:
+    """With ``[dlt] bundle_trials`` named, a trial added to the session later (here the
+    walk) leaves the calibration as it was; a name that is no trial is refused."""
+    named = {"trials_bundle": True, "bundle_trials": ("stick", "throw")}
+    dlts = []
+    for name, trials in (("before", ("stick", "throw")), ("after", None)):
+        root = copy_of(synthesised, tmp_path / name, trials=trials)
+        session.calibrate(root, overrides=Overrides(dlt=named))
+        docs = [json.loads(p.read_text()) for p in sorted((root / "out" / "dlt").glob("cam*.json"))]
+        assert docs and all("(stick, throw)" in d["lens_models"]["by"] for d in docs)
+        dlts.append(np.array([d["L"] for d in docs]))
+    np.testing.assert_allclose(dlts[1], dlts[0], rtol=0, atol=1e-9)
+    with pytest.raises(KisscalError, match="bundle_trials names nosuch"):
+        session.calibrate(root, overrides=Overrides(dlt={**named, "bundle_trials": ("nosuch",)}))

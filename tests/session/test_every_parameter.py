@@ -74,6 +74,8 @@ def _candidates(member: str, f: dataclasses.Field, hint: Any) -> list[Any]:
         element = typing.get_args(kind)[0]
         if typing.get_origin(element) is Literal:
             return [tuple(typing.get_args(element)[:n]) for n in (1, 2, 3)]
+        if element is str:  # names (of trials)
+            return [("walk01",), ("walk01", "stick")]
         base = default if default is not None else (3, 3)
         return [tuple(element(v) for v in vs) for vs in _scaled(base, element)]
     raise AssertionError(f"no candidate values for {member}.{f.name} ({hint})")

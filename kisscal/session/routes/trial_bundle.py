@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 
 from kisscal._shared import rms_px
 from kisscal.bundle.adjust import ControlPoints
-from kisscal.bundle.params import BundleParams
 from kisscal.bundle.points import POINT, calibrate_on_points
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import BlobTable, WandCalibration
@@ -33,7 +32,7 @@ from kisscal.dlt import (
 )
 from kisscal.dlt.params import DltResult, Rod, RodCheck
 from kisscal.dlt.rig import RodCalibration
-from kisscal.errors import EstimationFailed
+from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.config import TrialConfig
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
@@ -116,10 +115,21 @@ def uses_trials(inputs: RouteInputs) -> bool:
 
 
 def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
-    """The session's image and video trials but the wand's."""
+    """The trials the rods are adjusted with: those ``[dlt] bundle_trials`` names, or
+    (none named) the session's image and video trials but the wand's."""
     config = inputs.config
     wand = config.wand.trial if config.wand is not None else None
-    return [t for t in config.trials if t.name != wand and t.source in ("images", "video")]
+    usable = {
+        t.name: t for t in config.trials if t.name != wand and t.source in ("images", "video")
+    }
+    named = inputs.params.dlt.bundle_trials
+    unknown = [n for n in named if n not in usable]
+    if unknown:
+        raise InputError(
+            f"{config.path}: [dlt] bundle_trials names {', '.join(unknown)}, not an image "
+            f"or video trial of the session (those: {', '.join(usable) or 'none'})"
+        )
+    return [usable[n] for n in named] if named else list(usable.values())
 
 
 def lens_from_trials(
@@ -133,84 +143,45 @@ def lens_from_trials(
     the rods' own (and None) when the trials hold too few markers seen by three cameras.
 
     The adjustment is the wand route's on a grid (``[wand]`` lens terms, cameras resected
-    as DLTs with ``resect_terms`` of Kolahi's terms). It is kept only when its
-    leave-one-rod-out markers' squared 3D errors are below the rods' alone by more than
-    ``[wand] keep_sigmas`` standard errors of their paired mean difference (as the wand
-    route judges the wand); its leave-one-rod-out check then replaces the rods'.
+    as DLTs with ``resect_terms`` of Kolahi's terms), the rods weighed ``[dlt]
+    bundle_rods_weight`` times their estimated noise ratio: one adjustment, and its
+    leave-one-rod-out for the check. That leave-one-rod-out does not judge it: the left-out
+    rods' markers disagreed with the volume's truth in sign (issue 25: on the four-camera
+    seed-7 rig -2.6 standard errors against the rods' own model, for a volume error 3.5
+    times lower).
     """
     params = inputs.params
     table = trials_table(inputs)
     start, control = rods_control(inputs, blobs_px, rods, rods_alone)
     bundle = params.wand.on_grid()
+    sizes = [c.size_px for c in inputs.config.cameras]
     try:
-        cal, held = _best_weight(inputs, table, start, control, bundle)
+        cal = calibrate_on_points(
+            table, start, control, sizes, bundle, params.dlt, 3, params.dlt.bundle_rods_weight
+        )
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
-    check = _rod_check(held, rods)
-    gain = paired_gain_ses(rods_alone.check, check)
+    weighed = replace(bundle, control_weight=cal.control.weight)
+    check = _rod_check(leave_control_out(cal, POINT, cal.control.group, weighed), rods)
+    names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
-        f"  calibrate: rods and trials adjusted together ({len(cal.fields)} markers): "
+        f"  calibrate: rods and trials ({names}) adjusted together ({len(cal.fields)} "
+        f"markers, rods weighed {cal.control.weight:.0f} x a marker's image): "
         f"leave-one-rod-out mean {check.overall_mean_mm:.3f} mm, the rods' alone "
-        f"{rods_alone.check.overall_mean_mm:.3f} mm ({gain:+.1f} standard errors)"
+        f"{rods_alone.check.overall_mean_mm:.3f} mm"
     )
-    if gain <= bundle.keep_sigmas:
-        inputs.echo("  calibrate: not better by [wand] keep_sigmas; the rods' own model kept")
-        return rods_alone, None
     ids = inputs.config.camera_ids
     results = {c: _result(rods_alone, c, cam) for c, cam in zip(ids, cal.written, strict=True)}
     models = rods_alone.models
     if models is not None:
-        models = replace(models, chosen=TRIALS, by="rods and trials adjusted together")
+        models = replace(models, chosen=TRIALS, by=f"rods and trials adjusted together ({names})")
     out = replace(rods_alone, results=results, models=models, check=check)
     return replace(out, in_sample_mm=_in_sample(out, rods)), cal
 
 
 #: What ``lens_models`` records as chosen when the trials decided the lens terms.
 TRIALS = "trials"
-
-
-def _best_weight(
-    inputs: RouteInputs,
-    table: BlobTable,
-    start: Sequence[Camera],
-    control: ControlPoints,
-    params: BundleParams,
-) -> tuple[WandCalibration, tuple[NDArray, NDArray, NDArray]]:
-    """The adjustment with the rods' weight (estimated, times each of
-    ``control_weight_factors``, as the wand route weighs them) whose leave-one-rod-out
-    mean 3D error is lowest, and that leave-one-rod-out (known positions, rod, error)."""
-    sizes = [c.size_px for c in inputs.config.cameras]
-    dlt = inputs.params.dlt
-    cal = calibrate_on_points(table, start, control, sizes, params, dlt)
-    factors = params.control_weight_factors if params.control_weight == 0.0 else (1.0,)
-    best, best_loo = None, np.inf
-    for factor in factors:
-        weighed = replace(params, control_weight=cal.control.weight * factor)
-        trial = (
-            cal
-            if factor == 1.0
-            else calibrate_on_points(table, start, control, sizes, weighed, dlt)
-        )
-        held = leave_control_out(trial, POINT, trial.control.group, weighed)
-        loo = float(np.nanmean(held[2])) if np.isfinite(held[2]).any() else np.inf
-        inputs.echo(
-            f"  rods weighed {trial.control.weight:.0f} x a trial marker's image: "
-            f"leave-one-rod-out mean {loo:.3f} mm"
-        )
-        if best is None or loo < best_loo:
-            best, best_loo = (trial, held), loo
-    return best
-
-
-def paired_gain_ses(alone: RodCheck, adjusted: RodCheck) -> float:
-    """The adjustment's mean gain in squared leave-one-rod-out 3D error over the rods'
-    alone, paired marker by marker, in standard errors of that mean (positive: better)."""
-    a, b = alone.errors_mm.ravel(), adjusted.errors_mm.ravel()
-    both = np.isfinite(a) & np.isfinite(b)
-    gain = a[both] ** 2 - b[both] ** 2
-    se = np.std(gain, ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else 0.0
-    return float(np.mean(gain) / se) if se > 0 else 0.0
 
 
 def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
