@@ -89,9 +89,16 @@ def misfits(
     """(len(donors), n_tracks): which distances from each donor to a mate of its segment
     miss the trial's mean by more than :data:`DONOR_MISFIT_SD` SDs in some field of the
     gap [lo, hi) (see :func:`donors_hold`)."""
+    return misfit_fields(dense, t, donors, lo, hi, params).any(axis=2)
+
+
+def misfit_fields(
+    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """:func:`misfits` field by field: (len(donors), n_tracks, hi - lo)."""
     k = np.asarray(donors, dtype=np.int64)
     if not k.size:
-        return np.zeros((0, len(dense)), dtype=bool)
+        return np.zeros((0, len(dense), hi - lo), dtype=bool)
     dist = np.linalg.norm(dense[k][:, None] - dense[None], axis=3)  # (k, n_tracks, n_fields)
     seen = np.isfinite(dist)
     n = seen.sum(axis=2)
@@ -106,7 +113,7 @@ def misfits(
             np.abs(dist[:, :, lo:hi] - mean[..., None])
             / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
         )
-        return mates & np.any(miss > DONOR_MISFIT_SD, axis=2)
+        return mates[..., None] & (miss > DONOR_MISFIT_SD)
 
 
 def out_of_shape(
