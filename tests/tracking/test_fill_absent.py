@@ -122,3 +122,29 @@ def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_canno
     assert np.sqrt(np.mean(err**2)) < np.sqrt(np.mean(got.sd_mm[placed] ** 2)) + 0.5
     # without the ankle's row the heel alone fixes no depth here
     assert joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose) is None
+
+
+def test_an_absent_ankle_s_field_off_its_path_is_not_placed():
+    # in one field the tibia is hidden and the ankle's blob is replaced by the image of a
+    # point 50 mm away on the heel-toe circle: it fits both lengths, and was placed there
+    right, truth = _feet(21)
+    dense = _dense(_tracks_of(truth, {}))
+    f = 60
+    dense[6, f] = np.nan
+    heel, toe, ankle = dense[4, f], dense[5, f], right[2, f]
+    axis = (toe - heel) / np.linalg.norm(toe - heel)
+    centre = heel + np.dot(ankle - heel, axis) * axis
+    arm = ankle - centre
+    turn = 2 * np.arcsin(25.0 / np.linalg.norm(arm))
+    wrong = centre + np.cos(turn) * arm + np.sin(turn) * np.cross(axis, arm)
+    spare = _cameras(right, 21, GAP)
+    rows = np.flatnonzero((spare.field == f) & (spare.camera == 0))
+    own = project_rows(spare.dlts, [0], ankle[None])
+    row = rows[np.argmin(np.linalg.norm(spare.uv_px[rows] - own, axis=1))]
+    spare.uv_px[row] = project_rows(spare.dlts, [0], wrong[None])[0]
+    placed = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)[0]
+    err = np.linalg.norm(placed - right[2], axis=1)
+    assert np.isnan(err[f])
+    # its neighbours stay placed, on the ankle
+    assert np.all(err[[f - 2, f - 1, f + 1, f + 2]] < 2.0)
+    assert spare.free[row]  # the wrong blob is not taken
