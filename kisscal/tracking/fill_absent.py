@@ -161,7 +161,7 @@ def place_absent(
     one &= ~clash
     pos = np.full((dense.shape[1], 3), np.nan)
     pos[f[first]] = x[first]
-    one = path_runs(one & ~off_path(np.where(one[:, None], pos, np.nan)))
+    one = path_runs(_on_path(one, pos))
     keep = first & one[f]
     out[f[keep]] = x[keep]
     spare.free[rows[one[f]]] = False
@@ -170,16 +170,37 @@ def place_absent(
 
 def off_path(pos: NDArray) -> NDArray[np.bool_]:
     """Fields of ``pos`` (n_fields, 3; NaN where not placed) that jump off the path of
-    their two neighbours (:data:`OFF_PATH_MM`, :data:`OFF_PATH_RATIO`): a blob that fit
-    the lengths in one field, away from the marker (kiss 3 seed 304: an ankle field
-    51 mm off between fields on its path). Fields without both neighbours, or next to
-    one without, are not judged."""
+    their neighbours (:data:`OFF_PATH_MM`, :data:`OFF_PATH_RATIO`): a blob that fit the
+    lengths in one field, away from the marker (kiss 3 seed 304: an ankle 51 mm off in
+    the last field of a run). Inside a run, against the midpoint of its two neighbours;
+    at a run's end, against the path continued at constant velocity from the two
+    fields before (twice the miss of the neighbour's midpoint, which the neighbour
+    before it does not share); not judged without the neighbours this needs."""
     dev = np.full(len(pos), np.nan)
     dev[1:-1] = np.linalg.norm(pos[1:-1] - 0.5 * (pos[:-2] + pos[2:]), axis=1)
+    back, back2 = np.r_[np.nan, dev[:-1]], np.r_[np.nan, np.nan, dev[:-2]]
+    ahead, ahead2 = np.r_[dev[1:], np.nan], np.r_[dev[2:], np.nan, np.nan]
+    placed = np.isfinite(pos[:, 0])
+    last = placed & ~np.r_[placed[1:], False]
+    first = placed & ~np.r_[False, placed[:-1]]
     # NaN (no judgement) where a neighbour has no midpoint of its own
-    near = np.maximum(np.r_[np.nan, dev[:-1]], np.r_[dev[1:], np.nan])
+    near = np.maximum(back, ahead)
     with np.errstate(invalid="ignore"):
-        return (dev > OFF_PATH_MM) & (dev > OFF_PATH_RATIO * near)
+        inside = (dev > OFF_PATH_MM) & (dev > OFF_PATH_RATIO * near)
+        after = last & (2 * back > OFF_PATH_MM) & (back > OFF_PATH_RATIO * back2)
+        before = first & (2 * ahead > OFF_PATH_MM) & (ahead > OFF_PATH_RATIO * ahead2)
+    return inside | after | before
+
+
+def _on_path(one: NDArray, pos: NDArray) -> NDArray[np.bool_]:
+    """``one`` (n_fields,) without the fields :func:`off_path` finds, again on what is
+    left (a wrong field next to a run's end makes the end look off its path first)."""
+    for _ in range(3):
+        off = off_path(np.where(one[:, None], pos, np.nan))
+        if not off.any():
+            break
+        one = one & ~off
+    return one
 
 
 def absent_rows(
