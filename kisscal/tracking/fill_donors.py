@@ -18,6 +18,7 @@ filling from the other markers of the body); Hartley & Zisserman 2004 (projectio
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -283,3 +284,23 @@ def shared_blobs(
         reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
         near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
     return np.any(near, axis=1)
+
+
+def unshared(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    partners: NDArray,
+) -> SpareBlobs:
+    """``spare`` with the blobs of fields [lo, hi) another track's image may share
+    (:func:`shared_blobs`) no longer free: taken out
+    before the marker's blob is followed in the image (a merged blob is not the
+    marker's own image, nor a step of its path)."""
+    rows = spare.rows(lo, hi)
+    shared = shared_blobs(dense, t, lo, spare.field[rows] - lo, rows, spare, params, partners)
+    free = spare.free.copy()
+    free[rows[shared]] = False
+    return dataclasses.replace(spare, free=free)
