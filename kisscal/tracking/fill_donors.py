@@ -18,6 +18,7 @@ filling from the other markers of the body); Hartley & Zisserman 2004 (projectio
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -89,9 +90,16 @@ def misfits(
     """(len(donors), n_tracks): which distances from each donor to a mate of its segment
     miss the trial's mean by more than :data:`DONOR_MISFIT_SD` SDs in some field of the
     gap [lo, hi) (see :func:`donors_hold`)."""
+    return misfit_fields(dense, t, donors, lo, hi, params).any(axis=2)
+
+
+def misfit_fields(
+    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """:func:`misfits` field by field: (len(donors), n_tracks, hi - lo)."""
     k = np.asarray(donors, dtype=np.int64)
     if not k.size:
-        return np.zeros((0, len(dense)), dtype=bool)
+        return np.zeros((0, len(dense), hi - lo), dtype=bool)
     dist = np.linalg.norm(dense[k][:, None] - dense[None], axis=3)  # (k, n_tracks, n_fields)
     seen = np.isfinite(dist)
     n = seen.sum(axis=2)
@@ -106,7 +114,7 @@ def misfits(
             np.abs(dist[:, :, lo:hi] - mean[..., None])
             / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
         )
-        return mates & np.any(miss > DONOR_MISFIT_SD, axis=2)
+        return mates[..., None] & (miss > DONOR_MISFIT_SD)
 
 
 def out_of_shape(
@@ -276,3 +284,23 @@ def shared_blobs(
         reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
         near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
     return np.any(near, axis=1)
+
+
+def unshared(
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    partners: NDArray,
+) -> SpareBlobs:
+    """``spare`` with the blobs of fields [lo, hi) another track's image may share
+    (:func:`shared_blobs`) no longer free: taken out
+    before the marker's blob is followed in the image (a merged blob is not the
+    marker's own image, nor a step of its path)."""
+    rows = spare.rows(lo, hi)
+    shared = shared_blobs(dense, t, lo, spare.field[rows] - lo, rows, spare, params, partners)
+    free = spare.free.copy()
+    free[rows[shared]] = False
+    return dataclasses.replace(spare, free=free)

@@ -22,7 +22,6 @@ from the other markers of the body); Kabsch 1976 (least-squares rotation).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -38,14 +37,12 @@ from kisscal.tracking.bodyfill import (
     distance_sd,
     segment_carriers,
 )
-from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
     MIN_RUN,
     ChainFill,
     chain_fill,
     follow_blobs,
-    length_partners,
 )
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import MEASURED, Tracks
@@ -355,22 +352,14 @@ def chain_end_fill(
     """The end [lo, hi) of track ``t`` (``end`` as :func:`rays_end_fill`) that one
     camera still sees: the marker's blobs placed on their rays by its segment's lengths
     (:func:`~kisscal.tracking.raychain.chain_fill` walked from the measured side alone),
-    with the checks a second side would give replaced by stricter ones: no blob another
-    track's image may share (:func:`~kisscal.tracking.fill_donors.shared_blobs`, taken
-    out before the blobs are followed in the image), only fields where two or more
-    partners are seen (their lengths over-determine the depth along the ray, and
-    disagree on a wrong blob), and only the
-    run next to the measured side (nothing checks a path that does not start at the
-    sample it continues). None when nothing is placed, or without ``spare``."""
+    with the checks a second side would give replaced by stricter ones: only fields
+    where two or more partners are seen (their lengths over-determine the depth along
+    the ray, and disagree on a wrong blob), and only the run next to the measured side
+    (nothing checks a path that does not start at the sample it continues). None when
+    nothing is placed, or without ``spare``."""
     if spare is None:
         return None
-    rows, (partners, _) = spare.rows(lo, hi), length_partners(dense, t, params)
-    if partners.size == 0:
-        return None
-    shared = shared_blobs(dense, t, lo, spare.field[rows] - lo, rows, spare, params, partners)
-    free = spare.free.copy()
-    free[rows[shared]] = False
-    got = chain_fill(dense, t, lo, hi, dataclasses.replace(spare, free=free), params, end)
+    got = chain_fill(dense, t, lo, hi, spare, params, end)
     if got is None:
         return None
     placed = np.isfinite(got.sd_mm)

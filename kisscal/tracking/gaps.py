@@ -35,6 +35,7 @@ from kisscal.tracking.fill_ends import (
     rays_end_fill,
     track_ends,
 )
+from kisscal.tracking.fill_held import held_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
@@ -291,6 +292,7 @@ FILLS: tuple[Fill, ...] = (
     Fill("chain", _ray_placer(chain_fill), sweep=True, rays=True),
     Fill("joint", _ray_placer(joint_ray_fill, "absent"), sweep=True, rays=True),
     Fill("body", _body, strict="swept"),
+    Fill("body where donors hold", held_body, long_run=True, strict="swept"),
     Fill("depth", _ray_placer(depth_ray_fill, "measured"), rays=True, long_run=True),
     Fill("sphere depth", _ray_placer(sphere_depth_fill, "measured"), rays=True, long_run=True),
     Fill("body between rays", _body, split_only=True, strict="always"),

@@ -13,7 +13,9 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
 1. the blob is followed through the gap in each camera's image, from the marker's
    projection on each side of the gap (constant-velocity prediction, the nearest free
    blob within ``ray_chain_gate_px`` plus half a field's motion, none when a second is
-   less than twice as far); the two directions must agree where both found a blob;
+   less than twice as far; blobs another track's image may share taken out first,
+   :func:`~kisscal.tracking.fill_donors.unshared`); the two directions must agree where
+   both found a blob;
 2. on its ray, the depths where the distance to each partner equals its length (the
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
@@ -46,7 +48,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
-from kisscal.tracking.fill_donors import shared_blobs
+from kisscal.tracking.fill_donors import unshared
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 
@@ -431,12 +433,12 @@ def chain_fill(
     partners, sd = length_partners(dense, t, params)
     if partners.size == 0:
         return None
+    spare = unshared(dense, t, lo, hi, spare, params, partners)
     ks, chained = chain_blobs(target, lo, hi, spare, params)
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     ks, rows = np.r_[ks, k2], np.r_[chained, r2]
-    alone = ~shared_blobs(dense, t, lo, ks, rows, spare, params, partners)
-    cands = _candidates(dense, partners, sd, length, lo, ks[alone], rows[alone], spare)
+    cands = _candidates(dense, partners, sd, length, lo, ks, rows, spare)
     if not cands:
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
@@ -122,3 +123,31 @@ def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_canno
     assert np.sqrt(np.mean(err**2)) < np.sqrt(np.mean(got.sd_mm[placed] ** 2)) + 0.5
     # without the ankle's row the heel alone fixes no depth here
     assert joint_depth_fill(dense, 5, GAP.start, GAP.stop, spare, loose) is None
+
+
+@pytest.mark.parametrize("f", [0, 60, 299])  # a run's first field, inside, its last
+def test_an_absent_ankle_s_field_off_its_path_is_not_placed(f: int):
+    # in one field the tibia is hidden and the ankle's blob is replaced by the image of a
+    # point 50 mm away on the heel-toe circle: it fits both lengths, and was placed there
+    right, truth = _feet(21)
+    dense = _dense(_tracks_of(truth, {}))
+    dense[6, f] = np.nan
+    clean = absent_rows(dense, LABELS, ("RANK",), _cameras(right, 21, GAP), PARAMS)[0]
+    heel, toe, ankle = dense[4, f], dense[5, f], right[2, f]
+    axis = (toe - heel) / np.linalg.norm(toe - heel)
+    centre = heel + np.dot(ankle - heel, axis) * axis
+    arm = ankle - centre
+    turn = 2 * np.arcsin(25.0 / np.linalg.norm(arm))
+    wrong = centre + np.cos(turn) * arm + np.sin(turn) * np.cross(axis, arm)
+    spare = _cameras(right, 21, GAP)
+    rows = np.flatnonzero((spare.field == f) & (spare.camera == 0))
+    own = project_rows(spare.dlts, [0], ankle[None])
+    row = rows[np.argmin(np.linalg.norm(spare.uv_px[rows] - own, axis=1))]
+    spare.uv_px[row] = project_rows(spare.dlts, [0], wrong[None])[0]
+    placed = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)[0]
+    assert np.isnan(placed[f, 0])
+    assert spare.free[row]  # the wrong blob is not taken
+    # the fields placed without it stay placed, where they were
+    others = np.isfinite(clean[:, 0])
+    others[f] = False
+    assert np.allclose(placed[others], clean[others])

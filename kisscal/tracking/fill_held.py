@@ -1,0 +1,97 @@
+"""Body fill of a gap through donors pulled out of shape in a few of its fields: made
+across the whole gap, kept where its donors hold.
+
+A donor whose blob merged with another marker's image is pulled off for a field or two
+(lowcost 312: an ankle 10 mm off in one field of an 11-field tibia gap). The body fills
+refuse donors out of shape anywhere in the gap (:func:`~.fill_donors.donors_hold`), and
+with only two donors the fill is lost for the whole gap. Yet a rigid, two-marker or
+hinge fill places each field from its donors in that field alone: a donor's bad field
+spoils that field of the fill, not the others. So the samples out of shape are bridged
+by a spline through the donor's own (so the methods run across the gap, from the same
+side windows and with the same expected error, :func:`~.bodyfill.expected_errors`, as
+without the pull), and the fields where the chosen fill's donors were bridged are
+dropped from it.
+
+References
+----------
+Challis 1995 (segments as rigid bodies of markers).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal._shared import true_runs
+from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates, spline_fill
+from kisscal.tracking.fill_donors import misfit_fields
+from kisscal.tracking.fill_hinge import HINGE_METHODS
+from kisscal.tracking.fill_place import with_rays
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import FILLED_RIGID
+
+
+def out_of_shape_fields(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """(n_tracks, hi - lo): the gap fields where each track other than ``t`` misses two
+    of its segment's mates or more (:func:`~.fill_donors.misfit_fields`; one marker
+    pulled off misses all its mates, each of them misses it alone)."""
+    out = np.zeros((len(dense), hi - lo), dtype=bool)
+    seen = np.flatnonzero(np.isfinite(dense[:, lo:hi, 0]).any(axis=1))
+    for k in seen[seen != t].tolist():
+        # one track at a time: a fill's donors count as mates of each other
+        out[k] = misfit_fields(dense, t, (k,), lo, hi, params)[0].sum(axis=0) >= 2
+    return out
+
+
+def _bridged(dense: NDArray, flagged: NDArray, lo: int, params: TrackingParams) -> NDArray:
+    """A copy of ``dense`` whose samples ``flagged`` (n_tracks, m) from field ``lo`` are
+    replaced by the spline through each track's samples beside them (NaN without)."""
+    src = dense.copy()
+    for k in np.flatnonzero(flagged.any(axis=1)).tolist():
+        src[k, lo : lo + flagged.shape[1]][flagged[k]] = np.nan
+        series = src[k].copy()
+        for a, b in zip(*true_runs(flagged[k]), strict=True):
+            got = spline_fill(series, src, k, lo + a, lo + b, params)
+            if got is not None:
+                src[k, lo + a : lo + b] = got[0]
+    return src
+
+
+def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """Fill what the body (with the hinge, :data:`~.fill_hinge.HINGE_METHODS`) can of
+    fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) where some track
+    is out of shape in some of them (see module): the fill of least expected error, at
+    most ``max_body_fill_error_mm``, made with those samples bridged, kept in the
+    fields where none of its donors was; each piece moved onto the rays of blobs a
+    camera still sees there (:func:`~.fill_place.with_rays`) and, when a rigid fill
+    expecting at most ``ray_rest_max_error_mm``, written into ``gap.dense`` as context
+    (the fields dropped lie between its pieces). Returns the fields placed."""
+    flagged = out_of_shape_fields(gap.dense, gap.t, a, b, params)
+    if not flagged.any():
+        return np.zeros(b - a, dtype=bool)
+    src = _bridged(gap.dense, flagged, a, params)
+    rays = gap.spare is not None and gap.spare.rows(a, b).size > 0
+    centres = gap.spare.centres if rays else None
+    cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
+    chosen = best_candidate(cands, params)
+    if chosen is None:
+        return np.zeros(b - a, dtype=bool)
+    keep = ~flagged[list(chosen.fill.donors)].any(axis=0)
+    context = (
+        chosen.fill.status == FILLED_RIGID
+        and chosen.fill.expected_error_mm <= params.ray_rest_max_error_mm
+    )
+    for x, y in zip(*true_runs(keep), strict=True):
+        fill = dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x)
+        piece = Candidate(chosen.xyz_mm[x:y], fill, chosen.along_sight_mm)
+        got = with_rays(piece, gap.spare, params) if rays else [(piece.xyz_mm, fill)]
+        gap.out.extend(got)
+        if context:
+            for xyz, f in got:
+                gap.dense[gap.t, f.first_field : f.first_field + f.n_fields] = xyz
+    return keep
