@@ -47,10 +47,11 @@ def with_rays(
     the one its move onto the rays tells: an error without a preferred direction is
     about 1/sqrt(2) of its part across the sight along it. A run without rays expects
     the fill's error, or, when larger, the whole error the move tells (sqrt(3/2) of its
-    part across the sight). Runs expecting more than ``max_body_fill_error_mm`` are
-    refused: the rays measured the fill there (modern 3 seed 306: a heel's end filled
-    expecting 4.8 mm moved 9.5 mm onto its rays, the rayed fields kept 7 mm off
-    expecting 6.7, the ones between without a blob 17 mm off expecting 4.8).
+    part across the sight). Runs where the error the move tells exceeds
+    ``max_body_fill_error_mm`` are refused: the rays measured the fill there (modern 3
+    seed 306: a heel's end filled expecting 4.8 mm moved 9.5 mm onto its rays, the rayed
+    fields kept 7 mm off expecting 6.7, the ones between without a blob 17 mm off
+    expecting 4.8).
 
     Only fills good enough on their own are moved: a fill too poor for a gap is often
     wrong mostly along the one camera's sight, which the ray cannot tell (a pattern fill
@@ -61,25 +62,26 @@ def with_rays(
     sd = err if np.isfinite(err) else params.max_body_fill_error_mm
     xyz, n_rays, used = ray_correct(chosen.xyz_mm, g.first_field, sd, spare, params)
     rayed = n_rays > 0
-    along, whole = err, err
+    told: dict[bool, float] = {}
     if rayed.any():
+        # the move's RMS across the sight: the error along one direction, and in all three
         across = np.sqrt(np.mean(np.sum((xyz - chosen.xyz_mm)[rayed] ** 2, axis=1)))
-        along = float(np.nanmax([chosen.along_sight_mm, across / np.sqrt(2.0)]))
-        whole = float(np.nanmax([err, across * np.sqrt(1.5)]))
+        told = {True: across / np.sqrt(2.0), False: across * np.sqrt(1.5)}
     out = []
     edges = np.flatnonzero(np.r_[True, np.diff(rayed) != 0, True])
     for a, b in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
         fill = dataclasses.replace(g, first_field=g.first_field + a, n_fields=b - a)
+        moved = told.get(bool(rayed[a]), np.nan)
+        if moved > params.max_body_fill_error_mm:
+            continue
         if rayed[a]:
+            along = float(np.nanmax([chosen.along_sight_mm, moved]))
             fill = dataclasses.replace(fill, expected_error_mm=along, ray_fields=b - a)
-        else:
-            fill = dataclasses.replace(fill, expected_error_mm=whole)
-        if not fill.expected_error_mm > params.max_body_fill_error_mm:
-            out.append((xyz[a:b], fill))
+        elif told:
+            fill = dataclasses.replace(fill, expected_error_mm=float(np.nanmax([err, moved])))
+        out.append((xyz[a:b], fill))
     # a blob whose field is refused stays free for the fills after this one
-    kept = np.zeros(len(xyz), dtype=bool)
-    for _, f in out:
-        kept[f.first_field - g.first_field : f.first_field - g.first_field + f.n_fields] = True
+    kept = placed_mask(out, g.first_field, g.first_field + len(xyz))
     spare.free[used[kept[spare.field[used] - g.first_field]]] = False
     return out
 
