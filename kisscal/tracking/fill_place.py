@@ -45,7 +45,13 @@ def with_rays(
     fields with and without a ray. A run with rays expects the fill's error along the
     cameras' sight (:func:`~kisscal.tracking.bodyfill.expected_errors`), or, when larger,
     the one its move onto the rays tells: an error without a preferred direction is
-    about 1/sqrt(2) of its part across the sight along it.
+    about 1/sqrt(2) of its part across the sight along it. A run without rays expects
+    the fill's error, or, when larger, the whole error the move tells (sqrt(3/2) of its
+    part across the sight). Runs where the error the move tells exceeds
+    ``max_body_fill_error_mm`` are refused: the rays measured the fill there (modern 3
+    seed 306: a heel's end filled expecting 4.8 mm moved 9.5 mm onto its rays, the rayed
+    fields kept 7 mm off expecting 6.7, the ones between without a blob 17 mm off
+    expecting 4.8).
 
     Only fills good enough on their own are moved: a fill too poor for a gap is often
     wrong mostly along the one camera's sight, which the ray cannot tell (a pattern fill
@@ -55,17 +61,39 @@ def with_rays(
     err = g.expected_error_mm
     sd = err if np.isfinite(err) else params.max_body_fill_error_mm
     xyz, n_rays, used = ray_correct(chosen.xyz_mm, g.first_field, sd, spare, params)
-    spare.free[used] = False
     rayed = n_rays > 0
-    along = err
+    told: dict[bool, float] = {}
     if rayed.any():
-        moved = np.sqrt(np.mean(np.sum((xyz - chosen.xyz_mm)[rayed] ** 2, axis=1) / 2))
-        along = float(np.nanmax([chosen.along_sight_mm, moved]))
+        # the move's RMS across the sight: the error along one direction, and in all three
+        across = np.sqrt(np.mean(np.sum((xyz - chosen.xyz_mm)[rayed] ** 2, axis=1)))
+        told = {True: across / np.sqrt(2.0), False: across * np.sqrt(1.5)}
     out = []
     edges = np.flatnonzero(np.r_[True, np.diff(rayed) != 0, True])
     for a, b in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
         fill = dataclasses.replace(g, first_field=g.first_field + a, n_fields=b - a)
+        moved = told.get(bool(rayed[a]), np.nan)
+        if moved > params.max_body_fill_error_mm:
+            continue
         if rayed[a]:
+            along = float(np.nanmax([chosen.along_sight_mm, moved]))
             fill = dataclasses.replace(fill, expected_error_mm=along, ray_fields=b - a)
+        elif told:
+            fill = dataclasses.replace(fill, expected_error_mm=float(np.nanmax([err, moved])))
         out.append((xyz[a:b], fill))
+    # a blob whose field is refused stays free for the fills after this one
+    kept = placed_mask(out, g.first_field, g.first_field + len(xyz))
+    spare.free[used[kept[spare.field[used] - g.first_field]]] = False
     return out
+
+
+def placed_mask(
+    got: list[tuple[NDArray, GapFill]], a: int, b: int, series: NDArray | None = None
+) -> NDArray[np.bool_]:
+    """Which fields of [a, b) the fills ``got`` ((xyz, fill) pairs) placed; written into
+    ``series`` (n_fields, 3) when given."""
+    placed = np.zeros(b - a, dtype=bool)
+    for xyz, f in got:
+        placed[f.first_field - a : f.first_field - a + f.n_fields] = True
+        if series is not None:
+            series[f.first_field : f.first_field + f.n_fields] = xyz
+    return placed

@@ -39,7 +39,7 @@ from kisscal.tracking.fill_held import held_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
-from kisscal.tracking.fill_place import take_placed, with_rays
+from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
@@ -169,7 +169,7 @@ def _body(
     """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`."""
     got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare, spline)
     gap.out.extend(got)
-    return np.full(b - a, bool(got))
+    return placed_mask(got, a, b)
 
 
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
@@ -196,9 +196,9 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
             break
         got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
         gap.out.extend(got)
-        for xyz, fill in got:
-            gap.dense[gap.t, fill.first_field : fill.first_field + fill.n_fields] = xyz
-        placed[lo - a : hi - a] = True
+        placed[lo - a : hi - a] = mine = placed_mask(got, lo, hi, gap.dense[gap.t])
+        if not mine.all():
+            break  # its rays refused part of it: what lies beyond has no edge to walk from
         done = n
     return placed
 

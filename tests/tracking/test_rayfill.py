@@ -7,7 +7,9 @@ import pytest
 
 from kisscal.dlt.model import camera_centre_mm, dlt_from_krt, project_rows
 from kisscal.errors import InputError
-from kisscal.tracking import TrackingParams, is_filled, spare_blobs
+from kisscal.tracking import FILLED_RIGID, TrackingParams, is_filled, spare_blobs
+from kisscal.tracking.bodyfill import Candidate, GapFill
+from kisscal.tracking.fill_place import with_rays
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.rayfill import ray_correct
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
@@ -115,3 +117,42 @@ def test_bad_spare_blobs_are_refused():
         spare_blobs([0], [3], np.zeros((1, 2)), np.zeros((2, 11)))
     with pytest.raises(InputError):
         spare_blobs([0], [0], np.zeros((1, 2)), np.zeros((2, 10)))
+
+
+def _drifting_fill(drift_mm: float) -> tuple[list, np.ndarray, np.ndarray]:
+    """A body fill of 40 fields expecting 3 mm that drifts off the truth by up to
+    ``drift_mm`` (as much along camera 0's sight as along each direction across it), a
+    blob of the marker in camera 0 in every field but 15-24: (the fill moved onto the
+    rays, truth, which blobs are left free)."""
+    truth = np.array([0.0, 0, 900]) + np.linspace(0, 400, 40)[:, None] * [1.0, 0.2, 0]
+    dlts = rig(truth.mean(axis=0))
+    sight = truth - camera_centre_mm(dlts[0])
+    sight /= np.linalg.norm(sight, axis=1, keepdims=True)
+    side = np.cross(sight, [0.0, 0, 1])
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    way = (sight + side + np.cross(sight, side)) / np.sqrt(3)
+    off = way * (drift_mm * np.sin(np.linspace(0, np.pi, 40)))[:, None]
+    seen = np.r_[0:15, 25:40]
+    uv = project_rows(dlts, np.zeros(seen.size, dtype=int), truth[seen])
+    spare = spare_blobs(seen + 200, np.zeros(seen.size), uv, dlts)
+    fill = GapFill(7, 200, 40, FILLED_RIGID, 3.0, (1, 2))
+    got = with_rays(Candidate(truth + off, fill, 1.5), spare, TrackingParams())
+    return got, truth, spare.free
+
+
+@pytest.mark.parametrize("drift_mm", [2.0, 12.0])
+def test_a_fill_its_rays_move_far_is_refused(drift_mm):
+    # the body's fill expected 3 mm; where the rays move it far, it was that far off:
+    # the fields between the blobs keep all of it, the ones on rays the part along the
+    # sight. Each run kept is within the limit of the truth, and what it expects tells
+    # its error; a refused run leaves its blobs free for the fills after it
+    limit = TrackingParams().max_body_fill_error_mm
+    got, truth, free = _drifting_fill(drift_mm)
+    for xyz, f in got:
+        miss = np.linalg.norm(xyz - truth[f.first_field - 200 :][: f.n_fields], axis=1)
+        rms = np.sqrt(np.mean(miss**2))
+        assert f.expected_error_mm <= limit and rms <= limit
+        assert rms <= 1.5 * f.expected_error_mm
+    n = sum(f.n_fields for _, f in got)
+    assert free.sum() == 30 - sum(f.ray_fields for _, f in got)
+    assert n == {2.0: 40, 12.0: 30}[drift_mm]  # 12 mm: the ten fields between refused
