@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal._shared import similarity_normaliser
 from kisscal.dlt.camera import decompose_matrix
-from kisscal.dlt.lens import distort
+from kisscal.dlt.lens import distort_xy
 from kisscal.dlt.linear import check_control_points, solve_dlt
 from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
@@ -86,7 +86,7 @@ def lens_offsets(
     xi = d[..., 0] - A[0, 1] * eta
     # L12 L13 L14 L15 L16 in OpenCV's order k1 k2 p1 p2 k3
     brown = np.asarray(lens, dtype=float)[[0, 1, 4, 3, 2]]
-    dxi, deta = np.moveaxis(distort(brown, np.stack([xi, eta], axis=-1), dlt_form=True), -1, 0)
+    dxi, deta = distort_xy(brown, xi, eta, dlt_form=True)
     return np.stack([dxi + A[0, 1] * deta, A[1, 1] * deta], axis=-1)
 
 
@@ -120,7 +120,7 @@ class _Problem:
 
     def matrix(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         if not constrained:
-            return np.append(theta[:11], 1.0).reshape(3, 4)
+            return np.concatenate([theta[:11], [1.0]]).reshape(3, 4)
         fu, fv, u0, v0 = theta[:4]
         K = np.array([[fu, 0.0, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
         R = self.R0 @ Rotation.from_rotvec(theta[4:7]).as_matrix()
@@ -149,7 +149,7 @@ class _Problem:
     def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         """L12..L16 (normalised) from the estimated first ones, the rest 0."""
         est = theta[self.n_camera(constrained) :]
-        return np.r_[est, np.zeros(N_LENS - len(est))]
+        return np.concatenate([est, np.zeros(N_LENS - len(est))])
 
     def to_dlt(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         P = np.linalg.solve(self.T2, self.matrix(theta, constrained) @ self.T3)
