@@ -59,6 +59,25 @@ fitted again). The other parts unchanged (figures 3.81 and 3.77 s, detection 2.9
 3.02 s); every output byte-identical. With the local background's median by OpenCV's
 filter too (load 15): whole run 18.14 s (8.09x decode, 2.24 s), survey 0.60 s, the rest
 of calibrate 1.15 s (1.77 and 1.68 before), detection 2.97 s; run again 4.14 s.
+
+Stop 42 (2026-11-29, ``python -m benchmarks small_parts``, main 5f7b3c0 and this branch
+in turns, load 11 to 23, decode 1.97-2.05 s): whole run, main 19.33, 19.42, 18.69 and
+18.03 s; this branch 18.47 and 18.48 s (the first two changes below), then 17.29 and
+18.05 s (all three). DLT (rods), main 2.00, 1.93, 1.95, 1.90 s; this branch 1.61, 1.58,
+then 1.13, 1.17 s (0.96x -> 0.58x decode): the lens terms L12..L16 without array
+overhead (:func:`kisscal.dlt.lens.distort_xy`: no stacking, one lens's coefficients as
+scalars, no unused derivative), and the refinement's forward-difference Jacobian with
+its moved points evaluated together (``kisscal.dlt.nonlinear._forward_jacobian``,
+scipy's 2-point numbers value for value: the 228 refinements of this session 1.3-1.9 ->
+0.61 s, each result bit-identical). Figures, main 3.87, 3.94, 3.73, 3.56 s; this branch
+3.63, 3.68, 3.44, 3.66 s: the DLT residual figure (11 x 8.4 in at 90 dpi) was drawn twice,
+its Agg canvas 756 px high where the size in inches times dpi, truncated, said 755, so
+the palette PNG took matplotlib's PNG path and drew it again (0.57 -> 0.39 s alone; the
+size is now the canvas's). Every JSON, CSV, TOML, C3D, TRC, NPZ and PNG of ``out/``
+byte-identical in every turn (summary.json's timings aside). What is left: figures 1.8x
+(tick creation 0.6 s and tick/text drawing most of it), detection 1.4x, exports 1.2x,
+image reading 0.8x, tracking 0.8x, the rest of calibrate 0.6x, DLT on the rods 0.6x,
+imports 0.45x.
 """
 
 from __future__ import annotations

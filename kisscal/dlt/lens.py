@@ -29,17 +29,28 @@ from numpy.typing import ArrayLike, NDArray
 def _terms(lens: ArrayLike) -> tuple[NDArray[np.float64], ...]:
     """The twelve coefficients of one lens (shape (k,)) or one per row (shape (n, k))."""
     d = np.asarray(lens, dtype=float)
+    if d.ndim == 1:  # scalars: the same products as 0-d arrays, without their overhead
+        full = np.zeros(12)
+        full[: d.size] = d
+        return tuple(full)
     pad = np.zeros((*d.shape[:-1], 12 - d.shape[-1]))
     d = np.concatenate([d, pad], axis=-1)
     return tuple(d[..., i] for i in range(12))
 
 
 def _radial(
-    terms: tuple[NDArray[np.float64], ...], r2: NDArray[np.float64], rational: bool, one: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The radial factor ``ρ`` (``one`` + the series) and ``dρ / d(r²)``."""
+    terms: tuple[NDArray[np.float64], ...],
+    r2: NDArray[np.float64],
+    rational: bool,
+    one: float,
+    slope: bool = True,
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """The radial factor ``ρ`` (``one`` + the series) and ``dρ / d(r²)`` (None without
+    ``slope``: the distortion alone needs no derivative)."""
     k1, k2, _, _, k3, k4, k5, k6 = terms[:8]
     radial = one + r2 * (k1 + r2 * (k2 + r2 * k3))
+    if not slope:
+        return (radial / (1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))) if rational else radial), None
     d_radial = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3)
     if rational:
         den = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
@@ -71,19 +82,27 @@ def distort(lens: ArrayLike, xn: ArrayLike, dlt_form: bool = False) -> NDArray[n
         ``ρ = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)``.
     """
     xn = np.asarray(xn, dtype=float)
+    return np.stack(distort_xy(lens, xn[..., 0], xn[..., 1], dlt_form), axis=-1)
+
+
+def distort_xy(
+    lens: ArrayLike, x: NDArray[np.float64], y: NDArray[np.float64], dlt_form: bool = False
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`distort` of coordinates given as ``x`` and ``y`` apart, returned apart: the
+    same numbers without stacking them (the DLT's lens terms, evaluated thousands of
+    times a fit on a few dozen points, :func:`kisscal.dlt.nonlinear.lens_offsets`)."""
     terms = _terms(lens)
     p1, p2, s1, s2, s3, s4 = terms[2], terms[3], *terms[8:]
     rational = np.shape(lens)[-1] > 5  # the rational model and the thin prism
-    x, y = xn[..., 0], xn[..., 1]
     r2 = x * x + y * y
-    radial, _ = _radial(terms, r2, rational, 0.0 if dlt_form else 1.0)
+    radial, _ = _radial(terms, r2, rational, 0.0 if dlt_form else 1.0, slope=False)
     cross = 1.0 if dlt_form else 2.0
     xd = x * radial + cross * p1 * x * y + p2 * (r2 + 2.0 * x * x)
     yd = y * radial + p1 * (r2 + 2.0 * y * y) + cross * p2 * x * y
     if rational:
         xd = xd + r2 * (s1 + s2 * r2)
         yd = yd + r2 * (s3 + s4 * r2)
-    return np.stack([xd, yd], axis=-1)
+    return xd, yd
 
 
 def distort_each(lens: ArrayLike, xn: ArrayLike, moved: ArrayLike) -> NDArray[np.float64]:

@@ -24,6 +24,9 @@ transforms keep rotations orthogonal and skew zero) and convert back to L1..L11.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
@@ -31,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal._shared import similarity_normaliser
 from kisscal.dlt.camera import decompose_matrix
-from kisscal.dlt.lens import distort
+from kisscal.dlt.lens import distort_xy
 from kisscal.dlt.linear import check_control_points, solve_dlt
 from kisscal.dlt.model import dlt_to_matrix, matrix_to_dlt
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams
@@ -86,8 +89,28 @@ def lens_offsets(
     xi = d[..., 0] - A[0, 1] * eta
     # L12 L13 L14 L15 L16 in OpenCV's order k1 k2 p1 p2 k3
     brown = np.asarray(lens, dtype=float)[[0, 1, 4, 3, 2]]
-    dxi, deta = np.moveaxis(distort(brown, np.stack([xi, eta], axis=-1), dlt_form=True), -1, 0)
+    dxi, deta = distort_xy(brown, xi, eta, dlt_form=True)
     return np.stack([dxi + A[0, 1] * deta, A[1, 1] * deta], axis=-1)
+
+
+def _lens_offsets_rows(
+    u: NDArray[np.float64], frames: list, lenses: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:func:`lens_offsets` of the same points ``u`` (N, 2) under each of several frames
+    and lenses (rows of ``lenses``), shape (H, N, 2): the same element-wise operations
+    on the same numbers, every row at once (the columns of a forward-difference
+    Jacobian)."""
+    n = len(u)
+    centre = np.stack([f[0] for f in frames])[:, None, :]
+    A = np.stack([f[1] for f in frames])
+    a01, a11 = A[:, 0, 1, None], A[:, 1, 1, None]
+    d = u - centre
+    eta = d[..., 1] / a11
+    xi = d[..., 0] - a01 * eta
+    brown = np.repeat(lenses[:, [0, 1, 4, 3, 2]], n, axis=0)  # one lens per point
+    dxi, deta = distort_xy(brown, xi.ravel(), eta.ravel(), dlt_form=True)
+    dxi, deta = dxi.reshape(xi.shape), deta.reshape(xi.shape)
+    return np.stack([dxi + a01 * deta, a11 * deta], axis=-1)
 
 
 def correct_lens(L: ArrayLike, lens: ArrayLike | None, uv_px: ArrayLike) -> NDArray[np.float64]:
@@ -120,7 +143,7 @@ class _Problem:
 
     def matrix(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         if not constrained:
-            return np.append(theta[:11], 1.0).reshape(3, 4)
+            return np.concatenate([theta[:11], [1.0]]).reshape(3, 4)
         fu, fv, u0, v0 = theta[:4]
         K = np.array([[fu, 0.0, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
         R = self.R0 @ Rotation.from_rotvec(theta[4:7]).as_matrix()
@@ -146,10 +169,25 @@ class _Problem:
             u = u + lens_offsets(u, lens_frame(P), terms)
         return (u - proj).ravel()
 
+    def geometric_rows(
+        self, thetas: NDArray[np.float64], constrained: bool, lens: bool
+    ) -> NDArray[np.float64]:
+        """:meth:`geometric` of each row of ``thetas``, the same numbers: each row's
+        matrix, projection and lens frame as there (small products, row by row), the
+        lens terms of every row at once."""
+        Ps = [self.matrix(theta, constrained) for theta in thetas]
+        h = np.stack([self.X @ P.T for P in Ps])
+        proj = h[..., :2] / h[..., 2:3]
+        u = np.broadcast_to(self.u, proj.shape)
+        if lens:
+            terms = np.stack([self.lens_terms(theta, constrained) for theta in thetas])
+            u = u + _lens_offsets_rows(self.u, [lens_frame(P) for P in Ps], terms)
+        return (u - proj).reshape(len(thetas), -1)
+
     def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         """L12..L16 (normalised) from the estimated first ones, the rest 0."""
         est = theta[self.n_camera(constrained) :]
-        return np.r_[est, np.zeros(N_LENS - len(est))]
+        return np.concatenate([est, np.zeros(N_LENS - len(est))])
 
     def to_dlt(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         P = np.linalg.solve(self.T2, self.matrix(theta, constrained) @ self.T3)
@@ -161,7 +199,26 @@ class _Problem:
         return lens_n * np.array([a**2, a**4, a**6, a, a])
 
 
-def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str):
+def _forward_jacobian(fun, rows) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """The Jacobian of ``fun`` by forward differences, value for value scipy's
+    (``least_squares``' default ``jac="2-point"``: step ``sqrt(eps) max(1, |x|)`` of
+    ``x``'s sign, the step taken as ``(x + h) - x``), the moved points' residuals from
+    ``rows`` (a row of residuals per row of parameters) in one call: the refinement's
+    Jacobian costs a few residual evaluations instead of one per parameter."""
+    rel = np.finfo(np.float64).eps ** 0.5
+
+    def jacobian(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        f0 = fun(x)
+        h = rel * ((x >= 0).astype(float) * 2 - 1) * np.maximum(1.0, np.abs(x))
+        moved = np.tile(x, (x.size, 1))
+        moved[np.diag_indices(x.size)] = x + h
+        dx = (x + h) - x
+        return ((rows(moved) - f0) / dx[:, None]).T
+
+    return jacobian
+
+
+def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str, jac: Any = "2-point"):
     if not np.isfinite(fun(theta0)).all():  # a point on the start's focal plane
         raise EstimationFailed(
             f"camera {camera}: the DLT iteration cannot start (non-finite residuals at the "
@@ -175,6 +232,7 @@ def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str):
         ftol=params.tolerance,
         gtol=params.tolerance,
         max_nfev=params.max_iterations,
+        jac=jac,
     )
     if result.status <= 0 or not np.isfinite(result.x).all():
         raise EstimationFailed(
@@ -263,8 +321,13 @@ def refine_dlt(
     if params.lens:
         theta0 = np.r_[theta0, np.zeros(params.lens_terms)]
     scale = 1.0 if weights is None else np.repeat(np.sqrt(np.asarray(weights, dtype=float)), 2)
-    res = _solve(
-        lambda th: scale * prob.geometric(th, constrained, params.lens), theta0, params, camera
-    )
+
+    def residuals(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        return scale * prob.geometric(theta, constrained, params.lens)
+
+    def rows(thetas: NDArray[np.float64]) -> NDArray[np.float64]:
+        return scale * prob.geometric_rows(thetas, constrained, params.lens)
+
+    res = _solve(residuals, theta0, params, camera, _forward_jacobian(residuals, rows))
     lens = prob.lens_to_px(prob.lens_terms(res.x, constrained)) if params.lens else None
     return prob.to_dlt(res.x, constrained), lens, int(res.nfev)

@@ -69,10 +69,17 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     except ImportError:
         fig.savefig(buf, format="png", dpi=dpi)
         return buf.getvalue()
-    # The canvas's pixels as they are, not written as PNG and read back for the palette:
-    # Agg's canvas is the figure's size at ``dpi``, each side truncated to whole pixels.
+    # The canvas's pixels as they are, not written as PNG and read back for the palette.
+    # Their size is that of the Agg canvas savefig drew on: matplotlib rounds a side
+    # within 1e-8 px of a whole pixel up, so the size in inches times ``dpi``, truncated,
+    # can be a pixel short (8.4 in at 90 dpi), which drew such a figure a second time.
     fig.savefig(buf, format="rgba", dpi=dpi)
-    size = tuple(int(side) for side in fig.get_size_inches() * dpi)
+    drawn = getattr(fig.canvas, "renderer", None)
+    size = (
+        (int(drawn.width), int(drawn.height))
+        if drawn is not None
+        else tuple(int(side) for side in fig.get_size_inches() * dpi)
+    )
     if len(buf.getvalue()) == 4 * size[0] * size[1]:
         canvas = Image.frombuffer("RGBA", size, buf.getvalue(), "raw", "RGBA", 0, 1)
     else:  # a canvas of another size: as PNG, the way matplotlib writes it

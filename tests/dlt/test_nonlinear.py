@@ -198,3 +198,40 @@ def test_weights_act_as_repeated_points(rig):
     by_variance, _, _ = refine_dlt(xyz, uv, L0, pinhole, weights=np.where(quiet, 1e4, 1.0))
     err = [np.abs(project(L, xyz) - project(L_true, xyz)).max() for L in (plain, by_variance)]
     assert err[1] < 0.5 * err[0]
+
+
+@pytest.mark.parametrize(("mdlt", "lens_terms"), [(False, 3), (True, 5), (False, 0)])
+def test_refinement_jacobian_is_scipys_forward_difference(rig, mdlt, lens_terms):
+    """The refinement's Jacobian, its moved points' residuals computed together, is
+    scipy's default 2-point one value for value: the fit walks scipy's path to the same
+    numbers in the same number of evaluations."""
+    import scipy.optimize
+
+    from kisscal.dlt.nonlinear import _forward_jacobian, _Problem
+
+    xyz = rod_xyz(rig)
+    rng = np.random.default_rng(11)
+    lens_true = np.array([-4e-7, 1e-12, 0.0, 2e-5, -1e-5])
+    uv = _distort(rig.L[1], lens_true, project(rig.L[1], xyz)) + rng.normal(0, 0.1, (len(xyz), 2))
+    params = DltParams(refine=True, mdlt=mdlt, lens=lens_terms > 0, lens_terms=max(lens_terms, 1))
+    prob = _Problem(xyz, uv, solve_dlt(xyz, uv, params))
+    start = prob.theta_constrained if mdlt else prob.theta_free
+    theta0 = np.r_[start, np.zeros(lens_terms)]
+    weight = np.repeat(rng.uniform(0.5, 2.0, len(xyz)), 2)
+
+    def fun(theta):
+        return weight * prob.geometric(theta, mdlt, params.lens)
+
+    def rows(thetas):
+        return weight * prob.geometric_rows(thetas, mdlt, params.lens)
+
+    moved = theta0 + rng.normal(0, 1e-3, (4, theta0.size))
+    assert np.array_equal(rows(moved), np.stack([fun(theta) for theta in moved]))
+    fits = [
+        scipy.optimize.least_squares(fun, theta0, method="lm", jac=jac)
+        for jac in ("2-point", _forward_jacobian(fun, rows))
+    ]
+    assert np.array_equal(fits[0].jac, fits[1].jac)
+    assert np.array_equal(fits[0].x, fits[1].x)
+    assert fits[0].nfev == fits[1].nfev
+    assert fits[0].cost < 0.5 * np.sum(fun(theta0) ** 2)  # it did fit
