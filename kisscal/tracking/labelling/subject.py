@@ -32,6 +32,7 @@ from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks, name_pieces
 from kisscal.tracking.labelling.learned import name_from_trial
+from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.labelling.spread import rematch, spread
@@ -277,7 +278,13 @@ def _label_upright(
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
-    judged = judge_sides(found, anatomy, template, rate_hz, params, scaled)
+
+    def judge(labelling: Labelling) -> Labelling:
+        # What the labelling itself doubted (a foot's near ties) stays doubtful.
+        own = replace(labelling, flagged=found.flagged)
+        return judge_sides(own, anatomy, template, rate_hz, params, scaled)
+
+    judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this
