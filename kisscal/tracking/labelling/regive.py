@@ -9,7 +9,7 @@ name was left free: a finger's name on a thigh marker with the arms absent, the 
 name free (Vicon_analysis.c3d without its arm markers). So each doubted trajectory
 keeps its name or takes a free name of a group the trial records (one of whose template
 neighbours is held), whichever fits it best, one to one (a minimum-cost assignment, Kuhn
-1955), the names around them updated and the assignment made again until it settles.
+1955); a free name is a candidate only where it fits better than the name held.
 Another held name is no candidate: its holder is as doubtful, and a chain of names
 permuted among doubted holders has no fixed end to hold it (test1.c3d).
 
@@ -34,8 +34,6 @@ from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.runnerup import name_fits, name_margins, nearest_names
 from kisscal.tracking.labelling.sides import name_positions
 
-#: Rounds of assignment, the names around the doubted trajectories updated in between.
-ROUNDS = 4
 #: Cost (mm) of a name that cannot be weighed for a trajectory, and of another held name.
 _BARRED_MM = 1e6
 
@@ -57,27 +55,22 @@ def regiven_rows(
     ``reference`` (the set's template scaled to the subject), one to one; the others
     keep theirs."""
     out = np.arange(pos.shape[0])
-    rows = np.flatnonzero(doubted & np.isfinite(pos[..., 0]).any(axis=1))
-    if not rows.size:
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    rows = np.flatnonzero(doubted & held)
+    free = np.flatnonzero(free_anchored(held, reference))
+    if not rows.size or not free.size:
         return out
-    floor = floor_height(pos, anatomy)
-    for _ in range(ROUNDS):
-        moved = np.full_like(pos, np.nan)
-        moved[out] = pos
-        free = np.flatnonzero(free_anchored(np.isfinite(moved[..., 0]).any(axis=1), reference))
-        if not free.size:
-            break
-        fits = name_fits(moved, reference, anatomy.heights_mm, floor)[out[rows]]
-        own = np.full((rows.size, rows.size), _BARRED_MM)
-        np.fill_diagonal(own, fits[np.arange(rows.size), out[rows]])
-        cost = np.nan_to_num(np.c_[own, fits[:, free]], nan=_BARRED_MM)
-        r, c = linear_sum_assignment(cost)
-        took = c >= rows.size
-        new = out.copy()
-        new[rows[r[took]]] = free[c[took] - rows.size]
-        if np.array_equal(new, out):
-            break
-        out = new
+    fits = name_fits(pos, reference, anatomy.heights_mm, floor_height(pos, anatomy))[rows]
+    kept = fits[np.arange(rows.size), rows]
+    own = np.full((rows.size, rows.size), _BARRED_MM)
+    np.fill_diagonal(own, kept)
+    # A free name is a candidate only where it fits better than the name held: once a
+    # name moves, its neighbours' fits are weighed against a labelling no one judged.
+    with np.errstate(invalid="ignore"):
+        better = np.where(fits[:, free] < kept[:, None], fits[:, free], np.nan)
+    r, c = linear_sum_assignment(np.nan_to_num(np.c_[own, better], nan=_BARRED_MM))
+    took = c >= rows.size
+    out[rows[r[took]]] = free[c[took] - rows.size]
     return out
 
 
