@@ -13,7 +13,9 @@ shorter, places markers a little differently, and walks. So:
    segments) has its measured length; left/right are settled by the anatomy first;
 4. **second pass**: from the first pass' names of the long pieces, the phases spread
    names again with the subject's template and the set's segments; the result is
-   judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`).
+   judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`), and
+   its doubted names given again where a free name fits better
+   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`).
 """
 
 from __future__ import annotations
