@@ -50,6 +50,10 @@ doubted) moving rigidly on its wrong side (:mod:`~.runnerup`), and a foot's name
 near tie of the feet contest gives to other markers (:mod:`~.feet`). Doubt travels along
 the names trajectories prefer: a name whose holder is doubted is as good as free (a chain
 of names shifted along a limb holds every name).
+A doubted trajectory then keeps its name or takes a free name of a group the trial
+records that fits it better (:mod:`~.regive`: a finger's name on a thigh marker with
+the arms absent gives way to the thigh's); the result is judged again and kept when
+fewer names are doubted, a moved name certain only when it is its trajectory's best.
 
 The rigid geometry (Kabsch fits, rigid correspondences, classical MDS, the swap search)
 is in :mod:`kisscal.tracking.rigid`.

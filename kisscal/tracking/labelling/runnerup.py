@@ -212,7 +212,7 @@ def free_name_margins(
     return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
 
 
-def _nearest(template: NDArray) -> NDArray[np.int64]:
+def nearest_names(template: NDArray) -> NDArray[np.int64]:
     """(n, k) each name's :data:`TEMPLATE_NEIGHBOURS` nearest names in the template."""
     d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     np.fill_diagonal(d, np.inf)
@@ -224,7 +224,7 @@ def isolated(pos: NDArray, template: NDArray) -> NDArray[np.bool_]:
     """Per name (rows of ``pos``, (n, F, 3)), whether it is held while none of its
     :data:`TEMPLATE_NEIGHBOURS` nearest names in ``template`` is."""
     held = np.isfinite(pos[..., 0]).any(axis=1)
-    return held & ~held[_nearest(template)].any(axis=1)
+    return held & ~held[nearest_names(template)].any(axis=1)
 
 
 def strays(
@@ -250,7 +250,7 @@ def strays(
     alone = isolated(pos, template)
     if not alone.any():
         return alone
-    nearest = _nearest(template)
+    nearest = nearest_names(template)
     rows = np.arange(len(held))[:, None, None]
     # anchored[i, j]: j is free and one of its nearest names other than i is held.
     anchored = ~held[None, :] & (held[nearest][None] & (nearest[None] != rows)).any(axis=2)

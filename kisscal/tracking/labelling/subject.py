@@ -13,7 +13,9 @@ shorter, places markers a little differently, and walks. So:
    segments) has its measured length; left/right are settled by the anatomy first;
 4. **second pass**: from the first pass' names of the long pieces, the phases spread
    names again with the subject's template and the set's segments; the result is
-   judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`).
+   judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`), and
+   its doubted names given again where a free name fits better
+   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks, name_pieces
 from kisscal.tracking.labelling.learned import name_from_trial
+from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
 from kisscal.tracking.labelling.spread import rematch, spread
@@ -277,7 +280,13 @@ def _label_upright(
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
     found = replace(join(second), height_mm=height)
-    judged = judge_sides(found, anatomy, template, rate_hz, params, scaled)
+
+    def judge(labelling: Labelling) -> Labelling:
+        # What the labelling itself doubted (a foot's near ties) stays doubtful.
+        own = replace(labelling, flagged=found.flagged)
+        return judge_sides(own, anatomy, template, rate_hz, params, scaled)
+
+    judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this
