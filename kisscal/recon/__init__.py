@@ -6,6 +6,7 @@ Typical use on a whole trial (long-format 2D table of linearised blobs)::
     points = reconstruct_trial(field, camera, uv, dlts, ReconParams())
 """
 
+from kisscal.dlt.triangulate import Triangulation, triangulate, triangulate_observations
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -24,7 +25,6 @@ from kisscal.recon.reconstruct import (
     reconstruct_trial,
 )
 from kisscal.recon.stationary import at_epipoles, false_detections, stationary_mask
-from kisscal.recon.triangulate import Triangulation, triangulate, triangulate_observations
 
 __all__ = [
     "Points3D",
