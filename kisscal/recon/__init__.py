@@ -6,7 +6,6 @@ Typical use on a whole trial (long-format 2D table of linearised blobs)::
     points = reconstruct_trial(field, camera, uv, dlts, ReconParams())
 """
 
-from kisscal.dlt.triangulate import Triangulation, triangulate, triangulate_observations
 from kisscal.recon.epipolar import (
     all_fundamentals,
     candidate_pairs,
@@ -29,7 +28,6 @@ from kisscal.recon.stationary import at_epipoles, false_detections, stationary_m
 __all__ = [
     "Points3D",
     "ReconParams",
-    "Triangulation",
     "all_fundamentals",
     "at_epipoles",
     "candidate_pairs",
@@ -48,6 +46,4 @@ __all__ = [
     "points_from_markers",
     "reconstruct_trial",
     "stationary_mask",
-    "triangulate",
-    "triangulate_observations",
 ]
