@@ -269,8 +269,9 @@ def _offs(
     off is where it has recovered ``params.off_recovery[1]`` instead.
     """
     rate = 1.0 / float(t[1] - t[0])
-    rate_of_pitch = pitch_rate(heel, toe, rate)
-    guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
+    pitch = foot_pitch(heel, toe)
+    rate_of_pitch = np.gradient(pitch, 1.0 / rate)  # rad/s, unsmoothed: see _fastest
+    guide = derivative(pitch, rate, params.derivative_ms)
     sharp = max(params.off_sharp_ms / 1000.0, 1.0 / rate)
     found = []
     for c in coarse:
@@ -302,11 +303,6 @@ def foot_pitch(heel: NDArray, toe: NDArray) -> NDArray[np.float64]:
     """Pitch of the heel-to-toe line above the horizontal (rad, toe up positive)."""
     d = toe - heel
     return np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
-
-
-def pitch_rate(heel: NDArray, toe: NDArray, rate_hz: float) -> NDArray[np.float64]:
-    """The foot's pitch rate (rad/s) by central differences (no smoothing: see _fastest)."""
-    return np.gradient(foot_pitch(heel, toe), 1.0 / rate_hz)
 
 
 def _fastest(t: NDArray, rate_of_pitch: NDArray, i: int, params: GaitParams) -> float:

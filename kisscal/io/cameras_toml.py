@@ -204,15 +204,11 @@ def _camera_tables(
         if key is None:
             raise InputError(
                 f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
-                f"map them with [calibration] names = {{ {_hint(by_name)} }})"
+                f"map them with [calibration] names = {{ {sorted(by_name)[0]} = "
+                '"<camera id>", ... })'
             )
         keys[cam] = key
     return doc, tables, keys
-
-
-def _hint(by_name: Mapping[str, str]) -> str:
-    """``cam_01 = "<camera id>", ...``: how a name map starts, for a message."""
-    return f'{sorted(by_name)[0]} = "<camera id>", ...'
 
 
 def write_opencv_yaml(path: str | Path, cam: Camera, units: str = "mm") -> Path:
