@@ -21,10 +21,10 @@ BAR_FIELDS_PER_S = 5000.0  # issue 18: reconstruction on one core
 
 
 def main() -> list[str]:
+    from kisscal.dlt.triangulate import triangulate_observations
     from kisscal.recon import ReconParams, reconstruct_trial, stationary_mask
     from kisscal.recon.match import match_trial
     from kisscal.recon.params import DEFAULT_PARAMS
-    from kisscal.recon.triangulate import triangulate_observations
     from tests.recon.synth_trials import make_trial
 
     trial = make_trial("walk", 1, n_fields=N_FIELDS)

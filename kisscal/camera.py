@@ -278,20 +278,18 @@ def camera_linearisation(
     size_px: tuple[int, int],
     before: Linearisation | None = None,
     data_px: ArrayLike | None = None,
-    samples: int = 25,
-    lattice_weight: float = 0.1,
     minimax: bool = False,
 ) -> tuple[Linearisation, float]:
     """The 30-coefficient polynomial taking raw pixels to the camera's distortion-free pixels.
 
     A fourth-order polynomial cannot follow a lens model exactly. The least-squares fit
     is weighted where it matters, on the raw image positions the camera was calibrated
-    from (``data_px``), with a ``samples`` x ``samples`` lattice over the whole image
-    (corners included) carrying ``lattice_weight`` of their total weight so the
-    polynomial stays faithful where there were none. With ``minimax`` (for a polynomial
-    that is the whole lens model, without a grid's before it) Lawson's reweighting
-    (Lawson 1961) then spreads the error evenly, which brings the image corners to about
-    a third of the least-squares error there, for a little more inside.
+    from (``data_px``), with a 25 x 25 lattice over the whole image (corners included)
+    carrying a tenth of their total weight so the polynomial stays faithful where there
+    were none. With ``minimax`` (for a polynomial that is the whole lens model, without a
+    grid's before it) Lawson's reweighting (Lawson 1961) then spreads the error evenly,
+    which brings the image corners to about a third of the least-squares error there,
+    for a little more inside.
 
     Parameters
     ----------
@@ -303,10 +301,6 @@ def camera_linearisation(
         A linearisation applied first (a grid's), composed with the lens inverse.
     data_px : array_like, shape (n, 2), optional
         Raw positions of the observations (default: the lattice alone).
-    samples : int
-        Lattice points per side.
-    lattice_weight : float
-        The lattice's share of the data's weight.
     minimax : bool
         Spread the largest errors evenly (Lawson's iteratively reweighted least squares).
 
@@ -318,11 +312,11 @@ def camera_linearisation(
         Largest distance between the polynomial and the exact map over the lattice (px).
     """
     w, h = size_px
-    u, v = np.meshgrid(np.linspace(-0.5, w - 0.5, samples), np.linspace(-0.5, h - 0.5, samples))
+    u, v = np.meshgrid(np.linspace(-0.5, w - 0.5, 25), np.linspace(-0.5, h - 0.5, 25))
     lattice = np.column_stack([u.ravel(), v.ravel()])
     data = np.zeros((0, 2)) if data_px is None else np.asarray(data_px, dtype=float).reshape(-1, 2)
     raw = np.concatenate([lattice, data])
-    share = lattice_weight * len(data) / len(lattice) if len(data) else 1.0
+    share = 0.1 * len(data) / len(lattice) if len(data) else 1.0
     weights = np.r_[np.full(len(lattice), share), np.ones(len(data))]
     mid = raw if before is None else apply_linearisation(before, raw)
     target = camera.undistort_px(mid)

@@ -1,53 +1,22 @@
 """Foot strike and foot off from marker trajectories, any walking direction.
 
-Two steps per event:
+Two steps per event (the whole account, with the measured accuracy, is the section
+"Gait events and spatiotemporal parameters" of ``docs/methods.md``):
 
 1. **Strides** (coarse): Zeni et al. 2008's velocity method. The heel's velocity relative
-   to the pelvis, along the local direction of progression, changes from forward to
-   backward once per stride, just before foot strike; the toe's changes from backward to
-   forward just after foot off. The direction of progression is the pelvis' horizontal
-   velocity smoothed over about a second, so any heading works and turns are followed;
-   on a treadmill (the pelvis still in the lab) it is the direction the feet point in,
-   and the walking speed the belt's (:func:`belt_speed`). A hysteresis (the relative
-   velocity must pass a fraction of the walking speed on both sides of the crossing,
-   and stay there a while) rejects noise; a stride cut by the start or end of the
-   trial, or by a gap, gives no event.
-2. **Instants** (fine), near each coarse event, with sub-field precision:
-
-   * foot strike: the heel marker stops descending when the heel meets the floor and
-     then rises as the foot rolls over the heel, so its height turns a corner there
-     (Hreljac & Marshall 2000 time foot strike by the heel's vertical motion); the
-     corner is found by a broken-curve fit (two quadratics meeting at the event) from
-     where the heel first comes within ``strike_floor_mm`` of its lowest (Ghoussayni et
-     al. 2004 time heel contact where the heel comes to rest), not around that lowest,
-     which a marker sinking in stance reaches 30-150 ms late, nor from where the heel
-     sank under the load after it had come to rest (at rest: sinking less than
-     ``strike_floor_mm`` over ``strike_search_ms``, once the toes no longer rise); and
-     not before the heel has swung furthest forward relative to the pelvis (the coarse
-     crossing: a rounded descent, filtered or at a low rate, otherwise turns its corner
-     early); where the
-     heel has no low point after the swing (no heel-strike pattern), Zeni's crossing,
-     with a warning; and where the foot lands flat or on its forefoot (Perry 1992), the
-     tip of the foot (``tip_ahead_mm`` ahead of the toe marker on the heel-to-toe line)
-     reaches the floor first, while the heel marker still falls: foot strike is then
-     the tip's landing;
-   * foot off: the push-off turns the foot (heel-to-toe line) down faster and faster
-     until the toes leave the floor, then the foot's rotation stops at once: foot off is
-     the corner of the foot's pitch rate at its fastest plantarflexion, found by the
-     same fit. This is a kinematic cousin of O'Connor et al. 2007's foot velocity
-     algorithm (peak upward velocity of the foot centre), which peaks 10-20 ms before
-     foot off. Trajectories low-pass filtered before they were saved (as labs often
-     save them) round that corner into a valley whose bottom comes 30-70 ms early;
-     there foot off is where the pitch rate has recovered a fifth of its fastest
-     plantarflexion (a level crossing on a steep slope, which a symmetric filter hardly
-     moves).
-
-Measured (``python -m tests.gait.acceptance``, ``tests.gait.real_events``): within 6 ms of
-walking5.c3d's plates, 1.3-2.1 ms of the grounded walker's true contacts at 100 Hz; on 18
-public C3D walks of five systems foot off 9.5 ms mean (Zeni's rule 13.6), foot strike 10.0
-ms with a heel marker (2-9 ms but on older filtered Vicon files, whose marked strikes
-scatter as much), 15.4 ms with a stand-in behind the ankle (the ankle itself: 46 ms); on
-held-out files (gait-pig, 50 Hz, and eight files' plate contacts) 24 and 17 ms.
+   to the pelvis, along the local direction of progression (:func:`progression`; on a
+   treadmill the feet's, :func:`belt_speed`), turns from forward to backward just before
+   foot strike, the toe's from backward to forward just after foot off; a hysteresis
+   rejects noise, and a stride cut by the trial's ends or a gap gives no event.
+2. **Instants** (fine), near each coarse event, with sub-field precision, each the
+   corner of a broken-curve fit (two quadratics meeting at the event): foot strike where
+   the heel's height turns as the heel meets the floor (Hreljac & Marshall 2000), looked
+   for from where the heel comes to rest (Ghoussayni et al. 2004), or where the tip of a
+   foot landing flat or on its forefoot reaches the floor first (Perry 1992); foot off
+   where the foot's pitch rate stops at the end of push-off (a kinematic cousin of
+   O'Connor et al. 2007's foot velocity algorithm), or, on trajectories low-pass filtered
+   before they were saved, where the pitch rate has recovered part of its fastest
+   plantarflexion.
 
 Each detection says why it lacks events or full strides (:func:`explain`): too short,
 a marker missing, no walking, no heel-strike pattern, a side without two strikes.
@@ -300,8 +269,9 @@ def _offs(
     off is where it has recovered ``params.off_recovery[1]`` instead.
     """
     rate = 1.0 / float(t[1] - t[0])
-    rate_of_pitch = pitch_rate(heel, toe, rate)
-    guide = derivative(foot_pitch(heel, toe), rate, params.derivative_ms)
+    pitch = foot_pitch(heel, toe)
+    rate_of_pitch = np.gradient(pitch, 1.0 / rate)  # rad/s, unsmoothed: see _fastest
+    guide = derivative(pitch, rate, params.derivative_ms)
     sharp = max(params.off_sharp_ms / 1000.0, 1.0 / rate)
     found = []
     for c in coarse:
@@ -333,11 +303,6 @@ def foot_pitch(heel: NDArray, toe: NDArray) -> NDArray[np.float64]:
     """Pitch of the heel-to-toe line above the horizontal (rad, toe up positive)."""
     d = toe - heel
     return np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
-
-
-def pitch_rate(heel: NDArray, toe: NDArray, rate_hz: float) -> NDArray[np.float64]:
-    """The foot's pitch rate (rad/s) by central differences (no smoothing: see _fastest)."""
-    return np.gradient(foot_pitch(heel, toe), 1.0 / rate_hz)
 
 
 def _fastest(t: NDArray, rate_of_pitch: NDArray, i: int, params: GaitParams) -> float:

@@ -144,9 +144,7 @@ def _at(track: NDArray[np.float64], rate_hz: float, times_s: NDArray) -> NDArray
     return out
 
 
-def spatiotemporal_parameters(
-    events: GaitEvents, markers: GaitMarkers, max_stride_factor: float = 1.5
-) -> Spatiotemporal:
+def spatiotemporal_parameters(events: GaitEvents, markers: GaitMarkers) -> Spatiotemporal:
     """Spatiotemporal parameters of one trial.
 
     Parameters
@@ -155,9 +153,6 @@ def spatiotemporal_parameters(
         Foot strikes and foot offs (e.g. from :func:`kisscal.gait.detect_events`).
     markers : GaitMarkers
         Heel trajectories give the positions at foot strike.
-    max_stride_factor : float
-        A stride longer than this times the median stride is taken to hide a missed
-        foot strike and is not used.
 
     Returns
     -------
@@ -194,7 +189,8 @@ def spatiotemporal_parameters(
     strikes = {s: events.times(s, "foot_strike") for s in SIDES}
     offs = {s: events.times(s, "foot_off") for s in SIDES}
     durations = np.concatenate([np.diff(strikes[s]) for s in SIDES])
-    limit = max_stride_factor * float(np.median(durations)) if len(durations) else 0.0
+    # a stride longer than 1.5 median strides hides a missed foot strike: not used
+    limit = 1.5 * float(np.median(durations)) if len(durations) else 0.0
     values: dict[tuple[str, str], list[float]] = {(p, s): [] for p in UNITS for s in SIDES}
     for side in SIDES:
         other = _OTHER[side]

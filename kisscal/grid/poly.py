@@ -270,10 +270,9 @@ def _jacobian(lin: Linearisation, uv: NDArray[np.float64]) -> NDArray[np.float64
     return jac / lin.scale_px
 
 
-def invert_linearisation(
-    lin: Linearisation, uv: ArrayLike, *, tol_px: float = 1e-9, max_iter: int = 30
-) -> NDArray[np.float64]:
-    """Distorted coordinates whose linearisation is ``uv``, by Newton iteration.
+def invert_linearisation(lin: Linearisation, uv: ArrayLike) -> NDArray[np.float64]:
+    """Distorted coordinates whose linearisation is ``uv``, by Newton iteration (at most
+    30 steps, until no point moves by more than 1e-9 px).
 
     Parameters
     ----------
@@ -281,10 +280,6 @@ def invert_linearisation(
         The forward map (distorted -> linearised).
     uv : array_like, shape (..., 2)
         Linearised pixel coordinates.
-    tol_px : float
-        Stop when no point moves by more than this (px).
-    max_iter : int
-        Largest number of Newton steps.
 
     Returns
     -------
@@ -302,7 +297,7 @@ def invert_linearisation(
     # Start from the point moved back by the correction there: within 0.1 px of the
     # answer for lens distortion, so Newton converges in two or three steps.
     p = p - (apply_linearisation(lin, p) - target)
-    for _ in range(max_iter):
+    for _ in range(30):
         r = apply_linearisation(lin, p) - target
         jac = _jacobian(lin, p)
         det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
@@ -314,7 +309,7 @@ def invert_linearisation(
         step = np.hypot(du, dv)
         if not np.all(np.isfinite(step)):
             break
-        if step.size == 0 or step.max() < tol_px:
+        if step.size == 0 or step.max() < 1e-9:
             return p
     raise EstimationFailed(
         "inverse linearisation did not converge: a point lies far outside the linearised area"

@@ -2,25 +2,13 @@
 files: written from, and read into, :class:`kisscal.camera.Camera` (OpenCV's model: zero
 skew, Brown's lens, no polynomial).
 
-One table per camera, named by the camera id::
-
-    [cam1]
-    name = "cam1"
-    size = [752, 291]                 # width, height, px
-    matrix = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
-    distortions = [k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4]  # OpenCV's order
-    rotation = [rx, ry, rz]           # Rodrigues vector, lab -> camera
-    translation = [tx, ty, tz]        # x_cam = R X + t, mm
-    fisheye = false
-
-and a ``[metadata]`` table (both tools skip it when they look for cameras) with the units,
-how closely each camera's OpenCV model matches kisscal's (``fit_rms_px``) and where in
-the image it was fitted to (``fit_region_px``, read back by :func:`read_fit_regions`).
-aniposelib reads every other table as a camera; Pose2Sim works in metres, anipose in the
-unit of its calibration board: kisscal writes mm unless told otherwise (``units``) and
-reads any (``metadata.units``, or metres when every camera lies within 100 units of the
-origin, as no lab camera does in mm). Tables may carry other names than the session's
-camera ids (Pose2Sim's ``cam_01``, ...): ``names`` maps them on reading.
+One table per camera, named by the camera id, and a ``[metadata]`` table (units,
+``fit_rms_px``, ``fit_region_px``, read back by :func:`read_fit_regions`) that both tools
+skip: each key is described in ``docs/outputs/cameras.md``. Pose2Sim works in metres,
+anipose in the unit of its calibration board: kisscal writes mm unless told otherwise
+(``units``) and reads any (``metadata.units``, or metres when every camera lies within
+100 units of the origin, as no lab camera does in mm). Tables may carry other names than
+the session's camera ids (Pose2Sim's ``cam_01``, ...): ``names`` maps them on reading.
 """
 
 from __future__ import annotations
@@ -216,15 +204,11 @@ def _camera_tables(
         if key is None:
             raise InputError(
                 f"{path}: no camera named {cam!r} (the file has {', '.join(sorted(by_name))}; "
-                f"map them with [calibration] names = {{ {_hint(by_name)} }})"
+                f"map them with [calibration] names = {{ {sorted(by_name)[0]} = "
+                '"<camera id>", ... })'
             )
         keys[cam] = key
     return doc, tables, keys
-
-
-def _hint(by_name: Mapping[str, str]) -> str:
-    """``cam_01 = "<camera id>", ...``: how a name map starts, for a message."""
-    return f'{sorted(by_name)[0]} = "<camera id>", ...'
 
 
 def write_opencv_yaml(path: str | Path, cam: Camera, units: str = "mm") -> Path:

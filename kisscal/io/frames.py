@@ -287,17 +287,12 @@ class Fields(Sequence):
         return f"{frame_name(self.frames, index // 2)} field {index % 2 + 1}"
 
 
-def is_video(pattern: str) -> bool:
-    """A path pattern naming one video file per camera (by its suffix)."""
-    return Path(pattern).suffix.lower() in VIDEO_SUFFIXES
-
-
 def camera_frames(
     root: Path, pattern: str, camera: str, what: str, video: bool = False, fields: str | None = None
 ) -> Sequence:
     """The frames of one camera, as a lazy sequence: image files, or one video (``video``,
     or a pattern ending in a video suffix); with ``fields``, split into fields."""
-    if video or is_video(pattern):
+    if video or Path(pattern).suffix.lower() in VIDEO_SUFFIXES:
         path = Path(root) / pattern.replace("{camera}", camera)
         if not path.is_file():
             raise MissingDataError(f"{path}: {what} video for camera {camera} not found")

@@ -1,19 +1,11 @@
 """Reading and writing ``out/trials/<trial>/points2d.csv``: a trial's 2D input, for other
 triangulators (DESIGN.md, contract version 3).
 
-Columns: ``camera,field,x_px,y_px,point,weight``. One row per 2D observation kisscal
-reconstructed the trial from (the valid blobs of every camera and field, or the rows of
-a centroid file), sorted by field, then camera in session order, a camera's blobs of a
-field in their detection order. ``x_px, y_px`` are raw pixels as measured (not
-linearised; origin at the centre of the top-left pixel, y down), to 1e-6 px. ``point``
-is the 3D point the observation went into: the 0-based data row of the trial's
-``points3d.csv``; empty when the observation was not used (unmatched, or dropped as a
-stationary false detection). ``weight`` is 1 / the depth (m) of that 3D point in the
-camera, empty when unused: the per-camera weight (Pose2Sim's likelihood) that turns an
-algebraic DLT triangulator's rows ``P[0] - x P[2]``, ``P[1] - y P[2]`` of ``P = K [R | t]``
-into image distances in pixels, the error kisscal's triangulation minimises (Woltring &
-Huiskes 1990, sec. 3); the depth is that of kisscal's own point, so these are the weights
-of its last step. Files written before the column existed read with NaN weights.
+Columns: ``camera,field,x_px,y_px,point,weight``, one row per 2D observation kisscal
+reconstructed the trial from: raw pixels, the ``points3d.csv`` row it went into and the
+per-camera weight (1 / depth, m) that makes an algebraic DLT triangulator minimise image
+distances, as kisscal's does (Woltring & Huiskes 1990, sec. 3). Each column is described
+in ``docs/outputs/points3d.md``. Files written before ``weight`` read with NaN weights.
 
 References
 ----------

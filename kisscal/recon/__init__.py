@@ -24,12 +24,10 @@ from kisscal.recon.reconstruct import (
     reconstruct_trial,
 )
 from kisscal.recon.stationary import at_epipoles, false_detections, stationary_mask
-from kisscal.recon.triangulate import Triangulation, triangulate, triangulate_observations
 
 __all__ = [
     "Points3D",
     "ReconParams",
-    "Triangulation",
     "all_fundamentals",
     "at_epipoles",
     "candidate_pairs",
@@ -48,6 +46,4 @@ __all__ = [
     "points_from_markers",
     "reconstruct_trial",
     "stationary_mask",
-    "triangulate",
-    "triangulate_observations",
 ]

@@ -102,11 +102,10 @@ def finish(
     uv: NDArray[np.float64],
     dlts: NDArray[np.float64],
     params: ReconParams,
-    min_cameras: int = 3,
     solved: Solved | None = None,
 ) -> NDArray[np.int64]:
-    """3D grouping, then the residual limit: split or drop markers with fewer than
-    ``min_cameras`` observations or over the limit. ``solved``: markers of this table
+    """3D grouping, then the residual limit: split or drop markers with fewer than three
+    observations or over the limit. ``solved``: markers of this table
     solved before (:class:`~kisscal.recon.group.Solved`)."""
     marker = merge_groups(
         marker,
@@ -129,7 +128,7 @@ def finish(
         uv,
         dlts,
         residual_limit_px(tri.rms_px, params),
-        min_cameras,
+        3,
         params.reweight_iterations,
         solved,
     )

@@ -99,7 +99,6 @@ def rig_figure(
     rods_mm: Sequence[tuple[str, ArrayLike]],
     rotations: Mapping[str, ArrayLike] | None = None,
     reconstructed_mm: ArrayLike | None = None,
-    axis_length_mm: float = 600.0,
 ) -> Figure:
     """Cameras and calibration rods in the lab frame (3D).
 
@@ -110,11 +109,9 @@ def rig_figure(
     rods_mm : sequence of (name, points_mm (k, 3))
         Surveyed rod markers.
     rotations : mapping, optional
-        Camera id -> rotation lab -> camera; the optical axis is drawn when given.
+        Camera id -> rotation lab -> camera; the optical axis is drawn (600 mm) when given.
     reconstructed_mm : array_like, shape (M, 3), optional
         Reconstructed rod markers, drawn as crosses over the surveyed ones.
-    axis_length_mm : float
-        Length of the drawn optical axes (mm).
 
     Returns
     -------
@@ -131,7 +128,7 @@ def rig_figure(
         ax.scatter(*c, marker="s", s=25, color="k")
         ax.text(*c, f" {cam}", fontsize=8)
         if rotations is not None and cam in rotations:
-            axis = np.asarray(rotations[cam], dtype=float)[2] * axis_length_mm
+            axis = np.asarray(rotations[cam], dtype=float)[2] * 600.0
             ax.plot(*np.stack([c, c + axis]).T, color="tab:gray", lw=1)
     if reconstructed_mm is not None:
         q = np.asarray(reconstructed_mm, dtype=float).reshape(-1, 3)

@@ -124,7 +124,6 @@ def epipolar_figure(
     matches: list[dict[int, int]] | None = None,
     camera_ids: list[str] | None = None,
     title: str = "",
-    max_markers: int = 6,
 ) -> Figure:
     """Draw one field in every camera with the epipolar lines of the other cameras' blobs.
 
@@ -135,17 +134,15 @@ def epipolar_figure(
     dlts : array_like, shape (n_cameras, 11)
     size_px : (width, height) or one per camera
     matches : list of dict, optional
-        Output of :func:`kisscal.recon.match_field`. Up to ``max_markers`` matched
-        markers get a colour each, with their blobs ringed and their epipolar lines drawn
-        in it; with a good calibration every line of a colour crosses the ring of that
-        colour. Other matched blobs get grey rings; unmatched blobs are crosses with grey
-        dotted lines. A legend says so.
+        Output of :func:`kisscal.recon.match_field`. Up to six matched markers get a
+        colour each, with their blobs ringed and their epipolar lines drawn in it; with a
+        good calibration every line of a colour crosses the ring of that colour. Other
+        matched blobs get grey rings; unmatched blobs are crosses with grey dotted lines.
+        A legend says so.
     camera_ids : list of str, optional
         Panel titles.
     title : str
         Figure title.
-    max_markers : int
-        Most markers whose lines are drawn (more only tangle the panels).
 
     Returns
     -------
@@ -162,7 +159,7 @@ def epipolar_figure(
     pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points_per_camera]
     ids = camera_ids or [f"camera {k + 1}" for k in range(n_cam)]
     matches = matches or []
-    drawn = _drawn_markers(len(matches), max_markers)
+    drawn = _drawn_markers(len(matches), 6)  # more lines only tangle the panels
     cmap = matplotlib.colormaps["tab10"]
     colour_of: dict[tuple[int, int], tuple[float, ...]] = {}
     hidden: set[tuple[int, int]] = set()

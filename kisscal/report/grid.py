@@ -22,8 +22,6 @@ def grid_correction_figure(
     fit: GridFit,
     camera: str = "",
     size_px: tuple[int, int] | None = None,
-    vector_gain: float | None = None,
-    correction_gain: float = 5.0,
 ) -> Figure:
     """Distorted dots, corrected dots and the residual vectors of the fit.
 
@@ -35,19 +33,15 @@ def grid_correction_figure(
         Camera id for the titles.
     size_px : (int, int), optional
         Image width and height, px, to draw the frame of the field of view.
-    vector_gain : float, optional
-        Magnification of the residual vectors (they are hundredths of a pixel); by default
-        the 95th-percentile residual is drawn 60 % of the dot spacing long. A key arrow
-        states the scale.
-    correction_gain : float
-        Magnification of the correction vectors (distorted -> corrected, a few px).
 
     Returns
     -------
     Figure
-        Top: distorted dots, corrected dots, the correction between them (magnified
-        ``correction_gain`` times), missing and rejected positions.
-        Bottom: residual vectors (corrected - optimal), magnified ``vector_gain`` times.
+        Top: distorted dots, corrected dots, the correction between them (a few px,
+        magnified 5 times), missing and rejected positions.
+        Bottom: residual vectors (corrected - optimal; hundredths of a pixel), magnified
+        so that the 95th-percentile residual is 60 % of the dot spacing long; a key arrow
+        states the scale.
     """
     q, dist, corr, opt = fit.linearisation.quality, fit.grid_uv, fit.corrected_uv, fit.optimal.uv
     fig = new_figure(9.0, 7.5, constrained=False)
@@ -57,9 +51,8 @@ def grid_correction_figure(
     ax.plot(dist[:, 0], dist[:, 1], ".", ms=3, color="tab:red", label="distorted dots")
     ax.plot(corr[:, 0], corr[:, 1], "+", ms=4, color="tab:blue", label="corrected dots")
     to_scale = {"angles": "xy", "scale_units": "xy", "scale": 1.0}  # arrows in data px
-    label = f"correction x {correction_gain:g}"
-    moved = (corr - dist) * correction_gain
-    ax.quiver(*dist.T, *moved.T, **to_scale, width=0.0015, color="0.3", label=label)
+    moved = (corr - dist) * 5.0
+    ax.quiver(*dist.T, *moved.T, **to_scale, width=0.0015, color="0.3", label="correction x 5")
     if len(fit.index.missing_uv):
         m = fit.index.missing_uv
         ax.plot(m[:, 0], m[:, 1], "o", mfc="none", color="tab:orange", label="missing dot")
@@ -76,7 +69,7 @@ def grid_correction_figure(
     res = corr - opt
     span = np.ptp(opt, axis=0) if len(opt) else np.ones(2)
     spacing = float(np.sqrt(max(span[0] * span[1], 1.0) / max(len(opt), 1)))
-    gain = vector_gain if vector_gain is not None else arrow_gain(res, 0.6 * spacing)
+    gain = arrow_gain(res, 0.6 * spacing)
     arrows = bx.quiver(*opt.T, *(res * gain).T, **to_scale, width=0.0025, color="tab:blue")
     key = nice_number(0.6 * spacing / gain)
     magnified = f"residual vectors (corrected - optimal grid), magnified x {gain:.0f}"

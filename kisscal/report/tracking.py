@@ -13,7 +13,7 @@ import numpy as np
 from kisscal.errors import InputError
 from kisscal.report.figures import padded_range, panel_grid
 from kisscal.tracking.pipeline import Trajectories
-from kisscal.tracking.tracks import MEASURED, Tracks, is_filled
+from kisscal.tracking.tracks import MEASURED, is_filled
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -21,9 +21,10 @@ if TYPE_CHECKING:
 _VIEWS = (("top (X-Y)", 0, 1), ("side (X-Z)", 0, 2), ("front (Y-Z)", 1, 2))
 
 
-def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -> Figure:
+def trajectories_figure(result: Trajectories, title: str = "") -> Figure:
     """Three orthogonal views of every trajectory (like the thesis' top, right and front
     views); gaps stay gaps, filled samples are drawn as small crosses."""
+    tracks, labels = result.tracks, result.labels
     top = 0.3 + (0.35 if title else 0.0)  # the panels' titles, and the figure's
     fig, axes = panel_grid(1, 3, (4.1, 4.0), (0.95, 0.15, 0.55, top), (0.95, 0.0), sharex=False)
     dense = tracks.positions() if tracks.field.size else np.zeros((0, 0, 3))
@@ -45,11 +46,6 @@ def trajectory_views(tracks: Tracks, labels: tuple[str, ...], title: str = "") -
     if title:
         fig.suptitle(title)
     return fig
-
-
-def trajectories_figure(result: Trajectories, title: str = "") -> Figure:
-    """:func:`trajectory_views` of a :class:`~kisscal.tracking.Trajectories` result."""
-    return trajectory_views(result.tracks, result.labels, title)
 
 
 def segment_length_figure(

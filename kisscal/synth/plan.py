@@ -63,33 +63,16 @@ class RigSpec:
     ----------
     preset : str
         The preset it was drawn from.
-    layout : {"kiss", "ring"}
-        Camera placement (:func:`~kisscal.synth.cameras.kiss_rig` or
-        :func:`~kisscal.synth.cameras.ring_rig`).
+    layout, pixel_aspect, volume_mm, clearance_mm, height_mm, ring_start_deg
+        As in :class:`~kisscal.synth.presets.RigPreset`.
+    corner_distortion_px, marker_diameter_px, grid_fill, throw_s
+        As in :class:`~kisscal.synth.presets.RigPreset`.
     size_px : (int, int)
         Image width and height.
-    pixel_aspect : float
-        Height / width of a pixel, ``fx / fy`` (1.94 for KISS fields, 1 for square pixels).
-    volume_mm : ((x, y, z), (x, y, z))
-        Control volume (min, max corners); every camera sees it whole.
-    clearance_mm, height_mm : (float, float)
-        Ring layout: distance of the cameras outside the volume's footprint, height.
-    ring_start_deg : (float, float) or None
-        Ring layout: range of the first camera's azimuth from the walkway (lab +X);
-        ``None``: anywhere within one camera spacing.
-    corner_distortion_px : (float, float)
-        Range of the lens distortion at the image corners.
-    marker_diameter_px : (float, float) or None
-        Band every marker image falls in: the marker radius is chosen for it; ``None``:
-        the KISS lab's 25 mm markers.
     marker_size_quantile : float
         Where in the feasible range of marker radii this rig's radius lies (0 to 1).
     bit_depth : int
         Bits per pixel of the images (also in the render parameters).
-    grid_fill : float
-        Fraction of the image width the dot grid spans.
-    throw_s : float
-        Flight time of the thrown marker.
     """
 
     preset: str = "kiss"

@@ -44,10 +44,6 @@ class GaitTruth:
     events : GaitEvents
         Foot strikes (heel sphere reaches the floor) and foot offs (forefoot sphere leaves
         it) inside the trial, exact times.
-    footprints_mm : dict
-        Side -> (k, 3) heel contact points of every foot strike (inside the trial or not).
-    strike_times_s : dict
-        Side -> (k,) times of those foot strikes.
     stride_time_s, speed_mm_s, stance_fraction, step_width_mm, step_length_mm : float
         The walker's nominal gait (the same on both sides; stride and step length along a
         straight path).
@@ -60,8 +56,6 @@ class GaitTruth:
     """
 
     events: GaitEvents
-    footprints_mm: dict[str, NDArray[np.float64]]
-    strike_times_s: dict[str, NDArray[np.float64]]
     stride_time_s: float
     speed_mm_s: float
     stance_fraction: float
@@ -272,8 +266,6 @@ def _truth(
         times[(side, "foot_off")] = offs[(offs >= 0) & (offs <= t_end)]
     return GaitTruth(
         events=GaitEvents.from_times(times, rate),
-        footprints_mm={s: prints[s][1] for s in ("left", "right")},
-        strike_times_s={s: prints[s][0] for s in ("left", "right")},
         stride_time_s=g.period_s,
         speed_mm_s=g.speed,
         stance_fraction=g.stance,

@@ -165,7 +165,8 @@ def seed_models(
             f"{where}the seeds lie on one line of the target; click points spread over it"
         )
     if is_planar(target_xyz, dlt):
-        starts = [_homography_start(seeds_xyz, seeds_uv, camera)]
+        proj = _homography(seeds_xyz, seeds_uv, camera)
+        starts = [_Start(proj, None, rms_px(proj(seeds_xyz) - seeds_uv))]
     else:
         cams = resect(seeds_xyz, seeds_uv, size_px)
         if not cams:
@@ -184,11 +185,6 @@ def seed_models(
             "its x_mm,y_mm,z_mm name"
         )
     return [s for s in starts if s.seed_rms_px <= params.seed_tol_px][:_MAX_CANDIDATES]
-
-
-def _homography_start(xyz: NDArray, uv: NDArray, camera: str) -> _Start:
-    proj = _homography(xyz, uv, camera)
-    return _Start(proj, None, rms_px(proj(xyz) - uv))
 
 
 def _homography(xyz: NDArray[np.float64], uv: NDArray[np.float64], camera: str) -> Projector:

@@ -1,24 +1,20 @@
 """One camera from points of a known object, with only the model the points can carry.
 
-A long lens (focal length several thousand pixels) looking at a near-flat part of a
-target does not determine an 11-parameter DLT: its principal point trades against the
-camera's direction and its focal length against the distance, so a DLT (or OpenCV's
-``calibrateCamera`` started from one) lands the principal point outside the image. The
-camera is therefore built up from the model the points can carry:
+A long lens looking at a near-flat part of a target does not determine an 11-parameter
+DLT (its principal point lands outside the image), so the camera is built up from the
+model the points can carry (the reasons, and the rest of the route, are the section
+"Known-target calibration" of ``docs/methods.md``):
 
 1. **Resection** (:func:`resect`): a pinhole camera with its principal point at the
-   image centre, square pixels and no lens; focal length, rotation and position are 7
-   numbers, so 4 points fix it. It starts from OpenCV's perspective-n-point solutions
-   over a ladder of focal lengths (SQPnP, Terzakis & Lourakis 2020; for near-flat points
-   also IPPE, Collins & Bartoli 2014, which returns the mirrored pose a flat view cannot
-   tell from the true one) and is refined by least squares (Hartley & Zisserman 2004,
-   ch. 7). Every distinct camera that fits is returned, best first.
+   image centre, square pixels and no lens (7 numbers, which 4 points fix), started from
+   OpenCV's perspective-n-point solutions over a ladder of focal lengths (SQPnP,
+   Terzakis & Lourakis 2020; IPPE, Collins & Bartoli 2014, for near-flat points) and
+   refined by least squares (Hartley & Zisserman 2004, ch. 7). Every distinct camera
+   that fits is returned, best first.
 2. **Terms the held-out points ask for** (:func:`choose_camera`): principal point, pixel
    aspect, Brown's k1, k2, p1 p2, k3 (Brown 1971), added by forward selection, each only
    when the leave-one-point-out reprojection error (Allen 1974) drops by at least
-   ``min_gain``. The
-   principal point of a flat target stays at the image centre (one view of a plane
-   cannot tell it, Zhang 2000).
+   ``min_gain``; a flat target's principal point stays at the image centre (Zhang 2000).
 
 No OpenCV error reaches the caller: a perspective-n-point call that fails only drops
 that start.

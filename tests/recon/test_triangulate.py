@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from kisscal.dlt.model import project
+from kisscal.dlt.triangulate import triangulate, triangulate_observations
 from kisscal.errors import KisscalError
-from kisscal.recon.triangulate import triangulate, triangulate_observations
 
 from .rig import make_rig, random_markers
 
