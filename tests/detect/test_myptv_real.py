@@ -33,3 +33,15 @@ def test_target_dots_of_another_lab_found_whole_as_a_grid() -> None:
     score = score_dots(detect_blobs(image, setup.params), dots, dots)
     assert score["found_1px"] >= 0.9 * len(dots), score
     assert score["split"] == 0, score
+
+
+def test_target_dots_of_another_lab_not_cut_as_markers() -> None:
+    # ``kisscal detect``'s default kind: a fifth of the isolated dots are not round enough
+    # for the shape tests, which cut 23 of 45 dots in two while they stayed on (43 of 45
+    # found, 3 split by the neck test, once off)
+    image, dots = _load()
+    setup = configure_detection([image])
+    assert not setup.params.split_long_wide, "shape tests left on"
+    score = score_dots(detect_blobs(image, setup.params), dots, dots)
+    assert score["found_1px"] >= 0.9 * len(dots), score
+    assert score["split"] <= 0.1 * len(dots), score
