@@ -102,10 +102,8 @@ DERIVED = (
 
 #: Fraction of the faint markers' contrast at which the threshold sits.
 THRESHOLD_FRACTION = 0.15
-#: Largest fraction of isolated spots that the shape tests would call two markers, for
-#: those tests to stay on (single markers image as round spots). Every such spot is a
-#: single marker cut in two: beyond one in seven the tests cut more markers than the
-#: merged pairs they separate, which are a few percent of the groups even in gait frames.
+#: Largest fraction of isolated (single) spots the shape tests would cut in two, for them
+#: to stay on: beyond one in seven they cut more markers than the merged pairs they free.
 ODD_SHAPES_MAX = 0.15
 #: The smallest oversized blob at least this many times the largest markers (area,
 #: width, height) is another population: the upper limits sit between the two.
