@@ -102,9 +102,9 @@ DERIVED = (
 
 #: Fraction of the faint markers' contrast at which the threshold sits.
 THRESHOLD_FRACTION = 0.15
-#: Largest fraction of isolated spots that the shape tests would call two markers, for
-#: those tests to stay on (single markers image as round spots).
-ODD_SHAPES_MAX = 0.3
+#: Largest fraction of isolated (single) spots the shape tests would cut in two, for them
+#: to stay on: beyond one in seven they cut more markers than the merged pairs they free.
+ODD_SHAPES_MAX = 0.15
 #: The smallest oversized blob at least this many times the largest markers (area,
 #: width, height) is another population: the upper limits sit between the two.
 OVERSIZE_GAP = 1.5
