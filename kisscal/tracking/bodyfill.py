@@ -262,29 +262,15 @@ def rigid_pair(
     return pair
 
 
-def trial_ref(origin: NDArray, toward: NDArray) -> NDArray[np.float64]:
-    """The lab direction least along the axis from ``origin`` to ``toward`` (n_fields, 3;
-    NaN where not measured) over the whole trial: the one the frame of
-    :func:`axis_fill` turns with. Chosen over the trial, not the gap, so that the
-    stretches its error is measured on (:func:`expected_errors`) use the frame the gap's
-    fill does: a heel's place about the ankle-toe axis holds with the vertical as
-    reference where the foot is flat and swings 14 mm in 37 fields with the
-    mediolateral one as it pitches, and a per-span choice measured the one and filled
-    with the other (0.8 mm expected, 13.6 mm true)."""
-    axis = toward - origin
-    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-    return np.eye(3)[int(np.argmin(np.abs(np.nanmean(axis, axis=0))))]
-
-
 def axis_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
     """Fill fields [lo, hi) of ``target`` from the two markers that keep their distances
     to it and to each other best (SD over the trial at most ``rigid_fill_sd_mm``: its
     segment's), measured through the gap: the target's position in their frame
-    (:func:`axis_frames`) is averaged over each side and drifts linearly across the gap.
-    A segment with two markers in view (the pelvis when one of its three is hidden too, a
-    shank) turns little about their axis, which rigid-body fill needs three markers for."""
+    (:func:`axis_frames`, turning with the lab direction least along their axis over the
+    trial) is averaged over each side and drifts linearly across the gap. A segment with
+    two markers in view (a shank) turns little about their axis (rigid fill needs three)."""
     carriers = _carriers(target, dense, exclude, lo, hi, params, 2)
     if carriers is None:
         return None
@@ -292,9 +278,12 @@ def axis_fill(
     pair = rigid_pair(dense, cand, to_target, params)
     if pair is None:
         return None
-    ref = trial_ref(dense[pair[0]], dense[pair[1]])
-    axis = dense[pair[1], lo:hi] - dense[pair[0], lo:hi]
-    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    # the lab direction least along it over the trial, not the span: expected_errors's
+    # stretches then use the gap's frame (per span: a heel 0.8 mm expected, 13.6 true)
+    whole = dense[pair[1]] - dense[pair[0]]
+    whole /= np.linalg.norm(whole, axis=1, keepdims=True)
+    ref = np.eye(3)[int(np.argmin(np.abs(np.nanmean(whole, axis=0))))]
+    axis = whole[lo:hi]
     if np.abs(axis @ ref).max() > AXIS_MAX_COS:
         return None  # the axis turns towards the lab direction: the frame's turn is lost
     local = []
