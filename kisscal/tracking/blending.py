@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from kisscal.tracking.blending_chains import bridge_residual_mm, chain_costs
+from kisscal.tracking.blending_chains import bridge_residual_mm, chain_costs, through_gaps
 from kisscal.tracking.blending_chains import extrapolate_gap as _extrapolate_gap
 from kisscal.tracking.blending_chains import ranges as _ranges
 from kisscal.tracking.params import TrackingParams
@@ -354,12 +354,15 @@ def blend_pairs(
     # A join across a gap where the markers were seen as one-sample pieces is judged by
     # the path through those samples, not end to end (blending_chains).
     ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
-    chain = chain_costs(tracks, a[ok], b[ok], ends, k, params.blend_reach_mm)
-    seen = np.flatnonzero(ok)[np.isfinite(chain)]
+    judged = np.flatnonzero(ok)
+    chain, routes = chain_costs(tracks, a[judged], b[judged], ends, k, params.blend_reach_mm)
+    seen = judged[np.isfinite(chain)]
     residual[seen] = chain[np.isfinite(chain)]
     ok[seen] = residual[seen] <= tolerance
     cost = np.where(ok, residual, _FAR)
-    return _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
+    earlier, later = _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
+    paths = dict(zip(zip(a[judged].tolist(), b[judged].tolist(), strict=True), routes, strict=True))
+    return through_gaps(earlier, later, paths)
 
 
 def _choose(

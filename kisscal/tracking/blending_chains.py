@@ -69,6 +69,28 @@ def ranges(lo: NDArray, hi: NDArray) -> NDArray[np.int64]:
     return np.repeat(lo - first, size) + np.arange(int(size.sum()))
 
 
+def through_gaps(
+    earlier: NDArray, later: NDArray, routes: dict[tuple[int, int], NDArray]
+) -> tuple[NDArray, NDArray]:
+    """The chosen joins ``earlier[i]`` -> ``later[i]`` with the one-sample pieces of the
+    path each was judged by (``routes``) joined in between: a gap's sample belongs to the
+    marker whose path passes through it. A piece two chosen paths would take joins neither
+    (the two joins stand end to end)."""
+    paths = [
+        routes.get((int(e), int(x)), np.empty(0, dtype=np.int64))
+        for e, x in zip(earlier, later, strict=True)
+    ]
+    used = np.concatenate([np.empty(0, dtype=np.int64), *paths])
+    pieces, counts = np.unique(used, return_counts=True)
+    shared = pieces[counts > 1]
+    pairs = []
+    for e, x, path in zip(earlier, later, paths, strict=True):
+        chain = [e, *(path if not np.isin(path, shared).any() else ()), x]
+        pairs += list(itertools.pairwise(chain))
+    out = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    return out[:, 0], out[:, 1]
+
+
 def chain_costs(
     tracks: Tracks,
     a: NDArray,
@@ -76,10 +98,11 @@ def chain_costs(
     ends: tuple[NDArray, ...],
     k: int,
     reach_mm: float,
-) -> NDArray:
+) -> tuple[NDArray, list[NDArray]]:
     """Per join ``a[i]`` -> ``b[i]``: the RMS residual (mm) of the smoothest path through
     the samples of one-sample pieces seen in its gap (:func:`chain_residual_mm`), NaN
-    where no such sample lies within reach (then the join is judged end to end).
+    where no such sample lies within reach (then the join is judged end to end); and the
+    pieces of that path, in field order (empty: none).
 
     ``ends`` are blending's (end field, end history, end count, end fields, start field,
     start history, start count, start fields) per piece (nearest last, at most 5); ``k``
@@ -88,10 +111,11 @@ def chain_costs(
     """
     end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields = ends
     out = np.full(a.size, np.nan)
+    routes = [np.empty(0, dtype=np.int64)] * a.size
     inner = np.maximum(start_field[b] - end_field[a] - 1, 0)
     pair = np.repeat(np.arange(a.size), inner)
     if pair.size == 0:
-        return out
+        return out, routes
     ahead = ranges(np.ones_like(inner), inner + 1)
     ia, ib = a[pair], b[pair]
     gap_field = end_field[ia] + ahead
@@ -121,8 +145,9 @@ def chain_costs(
             start_fields[b[i], 5 - n_b :][::-1],
             start_hist[b[i], 5 - n_b :][::-1],
         )
-        out[i] = chain_residual_mm(ends_i, options, tracks.field, tracks.xyz_mm)
-    return out
+        out[i], route = chain_residual_mm(ends_i, options, tracks.field, tracks.xyz_mm)
+        routes[i] = tracks.track[route]
+    return out, routes
 
 
 def chain_residual_mm(
@@ -130,7 +155,7 @@ def chain_residual_mm(
     options: list[NDArray],
     field: NDArray,
     xyz: NDArray,
-) -> float:
+) -> tuple[float, NDArray]:
     """RMS residual (mm) of the smoothest path from one piece's end through one sample of
     each gap field that holds any (``options``: candidate rows per such field) to the
     next piece's start: one least-squares cubic through the chain
@@ -139,11 +164,13 @@ def chain_residual_mm(
     A field whose samples lie within reach is crossed through one of them: the marker was
     seen there, and a path that skips the samples fits a rival join as well as the true
     one. ``ends`` are the (fields, positions) of the earlier piece's last and the later
-    piece's first samples.
+    piece's first samples. Returns the residual and the rows of the path's samples.
     """
     fa, xa, fb, xb = ends
-    best = np.inf
+    best, rows = np.inf, np.empty(0, dtype=np.int64)
     for route in itertools.product(*options):
         r = np.asarray(route, dtype=np.int64)
-        best = min(best, bridge_residual_mm(np.r_[fa, field[r]], np.r_[xa, xyz[r]], fb, xb))
-    return best
+        residual = bridge_residual_mm(np.r_[fa, field[r]], np.r_[xa, xyz[r]], fb, xb)
+        if residual < best:
+            best, rows = residual, r
+    return best, rows
