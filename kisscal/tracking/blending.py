@@ -351,10 +351,12 @@ def blend_pairs(
     floor = max(noise_mm, tolerance / params.blend_rougher)
     smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)
     ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share)
-    # A join across a gap where the markers were seen as one-sample pieces is judged by
-    # the path through those samples, not end to end (blending_chains).
+    # A join with a rival in the coarse gate, across a gap where the markers were seen as
+    # one-sample pieces, is judged by the path through those samples, not end to end
+    # (blending_chains). Without a rival it stays judged end to end: the tracker cut a
+    # lone marker there for a stray sample (pc_real: 1.5 mm end to end, 5.3 through it).
     ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
-    judged = np.flatnonzero(ok)
+    judged = np.flatnonzero(ok & _rivalled(a, b))
     chain, routes = chain_costs(tracks, a[judged], b[judged], ends, k, params.blend_reach_mm)
     seen = judged[np.isfinite(chain)]
     residual[seen] = chain[np.isfinite(chain)]
@@ -363,6 +365,13 @@ def blend_pairs(
     earlier, later = _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
     paths = dict(zip(zip(a[judged].tolist(), b[judged].tolist(), strict=True), routes, strict=True))
     return through_gaps(earlier, later, paths)
+
+
+def _rivalled(a: NDArray, b: NDArray) -> NDArray[np.bool_]:
+    """Which candidate joins ``a[i]`` -> ``b[i]`` share a piece with another."""
+    _, ia, na = np.unique(a, return_inverse=True, return_counts=True)
+    _, ib, nb = np.unique(b, return_inverse=True, return_counts=True)
+    return (na[ia.ravel()] > 1) | (nb[ib.ravel()] > 1)
 
 
 def _choose(
