@@ -304,7 +304,10 @@ def blend_pairs(
     (:func:`_rival_in_gap`). Pairs are then chosen one-to-one by that residual, rival
     joins together (:func:`_choose`): a rival candidate's sample nearer a join's ends does
     not refuse it alone (:func:`_nearer_at_ends`), the choice of every rival's join
-    settles it. ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
+    settles it. A join with a rival candidate across a gap where one-sample pieces lie in
+    reach is judged (cost and tolerance) by the path through them, and takes them in
+    (:func:`~kisscal.tracking.blending_chains.chain_costs`). ``noise_mm`` defaults to
+    :func:`smoothness_mm` of the tracks.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
