@@ -15,8 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from kisscal.tracking.blending_chains import bridge_residual_mm, chain_costs, through_gaps
+from kisscal.tracking.blending_chains import extrapolate_gap as _extrapolate_gap
+from kisscal.tracking.blending_chains import ranges as _ranges
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.predictors import extrapolation_weights, shafiq_rule
 from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks
 
 _FAR = 1e12
@@ -43,47 +45,6 @@ def _end_points(
         fields[ok, depth - 1 - j] = tracks.field[m[rows[ok]]]
     edge = tracks.field[m[np.where(from_end, stop - 1, start)]] if n else np.empty(0, int)
     return edge, history, count, fields
-
-
-def bridge_residual_mm(
-    fields_a: NDArray, xyz_a: NDArray, fields_b: NDArray, xyz_b: NDArray
-) -> float:
-    """RMS residual (mm) of one least-squares polynomial through the end of one piece and
-    the start of the next: small when both are the same smooth marker path.
-
-    The degree is 3, or lower when few points are given (at least two points are left
-    over for the residual).
-    """
-    f = np.concatenate((fields_a, fields_b)).astype(float)
-    x = np.concatenate((xyz_a, xyz_b))
-    degree = min(3, f.size - 3)
-    if degree < 1:
-        return float("inf")
-    vander = np.vander(f - f.mean(), degree + 1)
-    coef, *_ = np.linalg.lstsq(vander, x, rcond=None)
-    return float(np.sqrt(np.mean(np.sum((x - vander @ coef) ** 2, axis=1))))
-
-
-def _extrapolate_gap(history: NDArray, count: NDArray, ahead: NDArray) -> NDArray:
-    """Shafiq's extrapolation of each piece's history (nearest last) ``ahead`` fields on;
-    one weight vector per (points, fields ahead) combination."""
-    out = np.empty((history.shape[0], 3))
-    keys = np.stack([np.minimum(count, 5), ahead], axis=1)
-    combos, which = np.unique(keys, axis=0, return_inverse=True)
-    which = which.ravel()
-    for k, (n_points, fields) in enumerate(combos):
-        used, degree = shafiq_rule(int(n_points))
-        w = extrapolation_weights(used, degree, int(fields))
-        rows = which == k
-        out[rows] = np.einsum("u,nuc->nc", w, history[rows, -used:])
-    return out
-
-
-def _ranges(lo: NDArray, hi: NDArray) -> NDArray[np.int64]:
-    """``lo[0]..hi[0]-1, lo[1]..hi[1]-1, ...`` concatenated."""
-    size = np.maximum(hi - lo, 0)
-    first = np.cumsum(size) - size
-    return np.repeat(lo - first, size) + np.arange(int(size.sum()))
 
 
 def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray, share: float) -> NDArray[np.bool_]:
@@ -343,7 +304,10 @@ def blend_pairs(
     (:func:`_rival_in_gap`). Pairs are then chosen one-to-one by that residual, rival
     joins together (:func:`_choose`): a rival candidate's sample nearer a join's ends does
     not refuse it alone (:func:`_nearer_at_ends`), the choice of every rival's join
-    settles it. ``noise_mm`` defaults to :func:`smoothness_mm` of the tracks.
+    settles it. A join with a rival candidate across a gap where one-sample pieces lie in
+    reach is judged (cost and tolerance) by the path through them, and takes them in
+    (:func:`~kisscal.tracking.blending_chains.chain_costs`). ``noise_mm`` defaults to
+    :func:`smoothness_mm` of the tracks.
     """
     if tracks.n_tracks < 2:
         e = np.empty(0, dtype=np.int64)
@@ -390,8 +354,27 @@ def blend_pairs(
     floor = max(noise_mm, tolerance / params.blend_rougher)
     smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)
     ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share)
+    # A join with a rival in the coarse gate, across a gap where the markers were seen as
+    # one-sample pieces, is judged by the path through those samples, not end to end
+    # (blending_chains). Without a rival it stays judged end to end: the tracker cut a
+    # lone marker there for a stray sample (pc_real: 1.5 mm end to end, 5.3 through it).
+    ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
+    judged = np.flatnonzero(ok & _rivalled(a, b))
+    chain, routes = chain_costs(tracks, a[judged], b[judged], ends, k, params.blend_reach_mm)
+    seen = judged[np.isfinite(chain)]
+    residual[seen] = chain[np.isfinite(chain)]
+    ok[seen] = residual[seen] <= tolerance
     cost = np.where(ok, residual, _FAR)
-    return _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
+    earlier, later = _choose(tracks.n_tracks, a, b, cost, (contest, rival, later))
+    paths = dict(zip(zip(a[judged].tolist(), b[judged].tolist(), strict=True), routes, strict=True))
+    return through_gaps(earlier, later, paths)
+
+
+def _rivalled(a: NDArray, b: NDArray) -> NDArray[np.bool_]:
+    """Which candidate joins ``a[i]`` -> ``b[i]`` share a piece with another."""
+    _, ia, na = np.unique(a, return_inverse=True, return_counts=True)
+    _, ib, nb = np.unique(b, return_inverse=True, return_counts=True)
+    return (na[ia.ravel()] > 1) | (nb[ib.ravel()] > 1)
 
 
 def _choose(

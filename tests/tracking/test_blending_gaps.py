@@ -213,3 +213,51 @@ def test_a_point_a_track_left_without_one_predicted_within_reach_stays_a_doubt()
     for lost_at, sure in ((8.0, False), (20.0, True)):
         lost = np.array([[lost_at, 0.0, 0.0]])
         assert bool(certain_rows(pred, found, points, spread, 4.0, pred, lost)[0]) == sure
+
+
+def _turning_pair(turn: float, steps: int = 4):
+    """Two markers 50 mm apart on a body that turns ``turn`` (radians) within ``steps``
+    fields from field 30, both seen only as one-sample pieces while it turns: pieces
+    (fields, positions, true marker) before, one per turning field, and after."""
+    f = np.arange(64)
+    angle = np.clip((f - 29) / steps, 0, 1) * turn
+    centre = np.stack([3.0 * f, 2.0 * f, 900.0 + 0 * f], axis=1)
+    before, after = f < 30, f >= 29 + steps
+    pieces = []
+    for k, phase in enumerate((0.0, np.pi)):
+        x = centre + 25.0 * np.stack([np.cos(angle + phase), np.sin(angle + phase), 0 * f], 1)
+        pieces += [(f[before], x[before], k), (f[after], x[after], k)]
+        pieces += [(f[g : g + 1], x[g : g + 1], k) for g in np.flatnonzero(~before & ~after)]
+    return pieces
+
+
+def _markers_per_track(pieces, out):
+    """How many true markers each output track holds (matched by field and position)."""
+    key = {
+        (int(g), *np.round(p, 6).tolist()): k
+        for f, x, k in pieces
+        for g, p in zip(f, x, strict=True)
+    }
+    per_track = []
+    for t in range(out.n_tracks):
+        rows = np.flatnonzero(out.track == t)
+        per_track.append(
+            len({key[(int(out.field[r]), *np.round(out.xyz_mm[r], 6).tolist())] for r in rows})
+        )
+    return per_track
+
+
+def test_blending_judges_a_join_through_the_one_sample_pieces_in_its_gap():
+    # A half turn within the gap brings each marker to where the other was: end to end,
+    # each piece's end meets the other marker's start (the crossed join fits best); the
+    # one-sample pieces seen while it turns show the paths do not continue that way.
+    pieces = _turning_pair(np.pi)
+    out = blend_tracks(_tracks([(f, x) for f, x, _ in pieces]), TrackingParams())
+    assert max(_markers_per_track(pieces, out)) == 1
+
+
+def test_blending_still_joins_across_one_sample_pieces_that_continue_the_path():
+    pieces = _turning_pair(0.2 * np.pi)
+    out = blend_tracks(_tracks([(f, x) for f, x, _ in pieces]), TrackingParams())
+    # each marker's pieces, the one-sample ones in the gap too, make one track
+    assert out.n_tracks == 2 and max(_markers_per_track(pieces, out)) == 1
