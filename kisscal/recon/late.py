@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.dlt.triangulate import triangulate_observations
-from kisscal.recon.deblend import Deblended, MergeScene, _apart
+from kisscal.recon.deblend import Deblended, MergeScene, apart
 from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import near_cameras
 from kisscal.recon.pairs import choose_pairs
@@ -64,7 +64,7 @@ def late_pairs(
         params.reweight_iterations,
     )
     good = (t.rms_px <= limit_px) & ~near_cameras(t.xyz_mm, dlts, params.camera_clearance_mm)
-    good[good] &= _apart(t.xyz_mm[good], field[a[good]], p_xyz, p_field, params.group_radius_mm)
+    good[good] &= apart(t.xyz_mm[good], field[a[good]], p_xyz, p_field, params.group_radius_mm)
     a, b, xyz, rms = a[good], b[good], t.xyz_mm[good], t.rms_px[good]
     if len(a) == 0:
         return Deblended.empty()
