@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
-from kisscal.tracking.fill_donors import axis_frames, phase_matched, sound_fill
+from kisscal.tracking.fill_donors import axis_frames, lab_reference, phase_matched, sound_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
 
@@ -278,12 +278,10 @@ def axis_fill(
     pair = rigid_pair(dense, cand, to_target, params)
     if pair is None:
         return None
-    # the lab direction the axis comes least near in the trial, not the span: so its
-    # expected_errors' stretches use the gap's frame (per span: 0.8 mm expected, 13.6 true)
-    whole = dense[pair[1]] - dense[pair[0]]
-    whole /= np.linalg.norm(whole, axis=1, keepdims=True)
-    ref = np.eye(3)[int(np.argmin(np.nanmax(np.abs(whole), axis=0)))]
-    axis = whole[lo:hi]
+    # the trial's reference, not the span's: expected_errors' stretches use the gap's frame
+    ref = lab_reference(dense[pair[1]] - dense[pair[0]])
+    axis = dense[pair[1], lo:hi] - dense[pair[0], lo:hi]
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     if np.abs(axis @ ref).max() > AXIS_MAX_COS:
         return None  # the axis turns towards the lab direction: the frame's turn is lost
     local = []

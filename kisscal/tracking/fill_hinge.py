@@ -8,8 +8,9 @@ rigid), and only its angle about the axis is unknown. Rigid-body fill needs a th
 carrier to fix that angle, and a marker across a joint (the tibia for a heel) moves it
 wrong; the two-marker fill (:func:`~kisscal.tracking.bodyfill.axis_fill`) holds the
 angle against a lab direction, which a foot rolling through stance and swing does not.
-Here the angle, measured against the lab direction least along the axis (the frame of
-:func:`~kisscal.tracking.bodyfill.axis_frames`), is carried across the gap by a cubic
+Here the angle, measured against the lab direction the axis comes least near in the
+trial (:func:`~kisscal.tracking.fill_donors.lab_reference`; the frame of
+:func:`~kisscal.tracking.fill_donors.axis_frames`), is carried across the gap by a cubic
 in time fitted by least squares to up to ``fill_context_fields`` samples on each side
 (:data:`DEGREE`; an interpolating spline through them passed their noise on: 5 mm RMS
 against 0.7 on a 0.3 s gap with 0.3 mm noise); the place along the axis and the distance
@@ -39,6 +40,7 @@ from kisscal.tracking.bodyfill import (
     rigid_pair,
     side_windows,
 )
+from kisscal.tracking.fill_donors import lab_reference
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
 
@@ -113,9 +115,9 @@ def _hinge(
 ) -> NDArray[np.float64] | None:
     """Fields [lo, hi) of ``target`` about the axis of ``pair``, its angle measured from
     ``ref`` (n_fields, 3: the direction the angle is counted from; None: the lab axis
-    least along the pair's axis over the fill's span) carried by :func:`_bridge`; None
-    with fewer than two samples of all on a side, or where the axis turns within
-    ``acos(max_cos)`` of ``ref``."""
+    the pair's axis comes least near in the trial, :func:`lab_reference`) carried by
+    :func:`_bridge`; None with fewer than two samples of all on a side, or where the
+    axis turns within ``acos(max_cos)`` of ``ref``."""
     both = np.all(np.isfinite(dense[pair]), axis=(0, 2))
     if ref is not None:
         both &= np.all(np.isfinite(ref), axis=1)
@@ -126,10 +128,9 @@ def _hinge(
     f = np.r_[before, after]
     span = np.arange(before[0], after[-1] + 1)
     axis = dense[pair[1], span] - dense[pair[0], span]
-    if ref is None:
-        unit = axis[np.all(np.isfinite(axis), axis=1)]
-        unit /= np.linalg.norm(unit, axis=1, keepdims=True)
-        ref = np.broadcast_to(np.eye(3)[int(np.argmin(np.abs(unit.mean(axis=0))))], target.shape)
+    if ref is None:  # the trial's, not the span's: expected_errors' stretches share it
+        lab = lab_reference(dense[pair[1]] - dense[pair[0]])
+        ref = np.broadcast_to(lab, target.shape)
     cos = np.sum(axis * ref[span], axis=1)
     cos /= np.linalg.norm(axis, axis=1) * np.linalg.norm(ref[span], axis=1)
     if np.nanmax(np.abs(cos)) > max_cos:
@@ -150,7 +151,8 @@ def hinge_fill(
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
     """Fill fields [lo, hi) of ``target`` (n_fields, 3; NaN where not measured) about
     the axis of the two markers of its segment measured through the gap (see module),
-    its angle counted from the lab direction least along the axis; None without two
+    its angle counted from the lab direction the axis comes least near in the trial
+    (the same for the gap and the stretches its error is measured on); None without two
     such markers, with fewer than two samples of all three on a side, or where the
     axis turns within ``acos(AXIS_MAX_COS)`` of the lab direction."""
     pair = _pair(target, dense, exclude, lo, hi, params)
