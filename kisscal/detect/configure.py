@@ -278,7 +278,7 @@ class _Derivation:
         self.marker_width = largest_size(first.width[markers0]) if markers0.any() else 0.0
         self._threshold(faint_sample(first, markers0, top0, lv))  # clipped: objects' size
         final = self._final_groups()
-        self.notes.extend(crowd_notes(final, len(self.frames), self.values.get("threshold", 0)))
+        self.notes.extend(crowd_notes(self.frames, self._partial_params()))  # in the specks?
         markers, top = marker_population(final)
         self._aspect(final.take(markers & (final.isolation > 3.0)))
         self._size_limits(final, markers, top)

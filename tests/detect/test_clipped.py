@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from kisscal.detect import detect_blobs
-from kisscal.detect.clipped import CROWD_MAX, crowd_notes, noise_free
+from kisscal.detect import DetectionParams, detect_blobs
+from kisscal.detect.clipped import crowd_notes, noise_free
 from kisscal.detect.configure import configure_detection
 
 
@@ -44,16 +44,17 @@ def test_clipped_background_threshold_comes_from_the_dots() -> None:
     assert setup.params.threshold > 12
 
 
-class _Many:
-    def __init__(self, n: int) -> None:
-        self.n = n
-
-    def __len__(self) -> int:
-        return self.n
-
-
-def test_a_crowd_of_groups_is_reported() -> None:
-    assert crowd_notes(_Many(2 * CROWD_MAX), 3, 3.0) == ()  # type: ignore[arg-type]
-    with pytest.warns(UserWarning, match="groups per frame"):
-        notes = crowd_notes(_Many(3 * CROWD_MAX), 2, 3.0)  # type: ignore[arg-type]
-    assert len(notes) == 1 and "threshold" in notes[0]
+@pytest.mark.parametrize(("step", "warned"), [(3, True), (5, False)])
+def test_a_crowd_of_groups_is_reported(step: int, warned: bool) -> None:
+    # 2 x 2 specks every ``step`` pixels: 27 889 groups (a crowd) or 10 000 (dense particles)
+    image = np.zeros((500, 500), np.uint8)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            image[dy::step, dx::step] = 100
+    params = DetectionParams(threshold=50.0)
+    if warned:
+        with pytest.warns(UserWarning, match="groups per frame"):
+            notes = crowd_notes([image], params)
+        assert len(notes) == 1 and str(len(range(0, 500, step)) ** 2) in notes[0]
+    else:
+        assert crowd_notes([image], params) == ()
