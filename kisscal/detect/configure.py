@@ -65,6 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
+from kisscal.detect.clipped import crowd_notes, faint_sample
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.polarity import frames_polarity
@@ -273,10 +274,11 @@ class _Derivation:
         first = survey_frames(self.frames, probe, tile0)
         if len(first) == 0:
             return self._nothing_bright(probe)
-        markers0, _ = marker_population(first)
+        markers0, top0 = marker_population(first)
         self.marker_width = largest_size(first.width[markers0]) if markers0.any() else 0.0
-        self._threshold(first.take(markers0))
+        self._threshold(faint_sample(first, markers0, top0, lv))  # clipped: objects' size
         final = self._final_groups()
+        self.notes.extend(crowd_notes(self.frames, self._partial_params()))  # in the specks?
         markers, top = marker_population(final)
         self._aspect(final.take(markers & (final.isolation > 3.0)))
         self._size_limits(final, markers, top)
@@ -318,11 +320,8 @@ class _Derivation:
             self.notes.append(
                 f"faint markers ({faint:.0f} grey levels) are near the noise ({lv.noise:.1f})"
             )
-        size = (
-            float(np.percentile(np.maximum(markers.width, markers.height), 95))
-            if len(markers)
-            else 8.0
-        )
+        extent = np.maximum(markers.width, markers.height)
+        size = float(np.percentile(extent, 95)) if len(markers) else 8.0
         tile, share = self._tile(size, excess)
         fine = share > STRUCTURE_SHARE_MAX
         local = lv.unevenness > 0.5 * excess or fine
