@@ -33,7 +33,8 @@ def label_tracks(
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
-    partner by the distances the trial showed; give each foot's names the way the
+    partner by the distances the trial showed, and pieces of names the trial never
+    showed by the template's; give each foot's names the way the
     distances to the shank and the walk find far better
     (:func:`~kisscal.tracking.labelling.feet.settle_feet`); join pieces sharing a name.
 
