@@ -28,6 +28,9 @@ the subject stands or faces. The phases run on one :class:`~.state.LabelState`:
 5. :mod:`~.learned`: long pieces still unnamed (no named partner in their fields: a
    toe seen again after its heel has gone) take the free name whose distances to the
    names around them they keep as the trial showed them.
+   :mod:`~.unseen`: a piece of a marker whose name the trial never showed (a thigh
+   seen by two cameras for a few fields, its knee never) takes that name when it keeps
+   its template distances to the names held around it clearly best of all names.
    Then (:mod:`~.facing`) a foot's heel and toe pieces named the wrong way round
    are renamed: along the walk the toe is ahead.
 6. :mod:`~.result`, joining: pieces sharing a name are joined. Short pieces that fit no

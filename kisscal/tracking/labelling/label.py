@@ -14,6 +14,7 @@ from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.unseen import name_unseen
 from kisscal.tracking.labelling.window import match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
@@ -32,7 +33,8 @@ def label_tracks(
     match the window where most long pieces are seen to the template; spread names
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
-    partner by the distances the trial showed; give each foot's names the way the
+    partner by the distances the trial showed, and pieces of names the trial never
+    showed by the template's; give each foot's names the way the
     distances to the shank and the walk find far better
     (:func:`~kisscal.tracking.labelling.feet.settle_feet`); join pieces sharing a name.
 
@@ -96,6 +98,8 @@ def name_pieces(state: LabelState) -> bool:
     rematch(state)
     name_groups(state)
     if name_from_trial(state):
+        spread(state)
+    if name_unseen(state):
         spread(state)
     # A first window can name an ASIS and the sacrum the other way round (pelvis.py).
     settle_pelvis_pieces(state, walking_direction(state.name_pos))
