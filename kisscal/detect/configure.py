@@ -67,6 +67,7 @@ from numpy.typing import NDArray
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
+from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
 from kisscal.detect.route import choose_route
@@ -281,14 +282,15 @@ class _Derivation:
         self._aspect(final.take(markers & (final.isolation > 3.0)))
         self._size_limits(final, markers, top)
         self._margins()
+        seen = final.pixels[markers]
         if self.kind == "grid":
             for name in ("split_touching", "split_overlaps", "split_long_wide"):
                 self.choose(name, False, "grid dots never touch: nothing to split")
         else:
             self._shape_tests(final.take(markers & (final.isolation > 2.0)))
             choose_route(self.choose, self.frames, final, self.given)  # particle frames?
+            choose_noise_removal(self.choose, self.frames, self._partial_params(), seen)
         params = DetectionParams.from_layers(self.values, self.given)
-        seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
         return DetectionSetup(
             params, self.choices, self.kind, len(self.frames), lv, band, tuple(self.notes)
@@ -318,11 +320,8 @@ class _Derivation:
             self.notes.append(
                 f"faint markers ({faint:.0f} grey levels) are near the noise ({lv.noise:.1f})"
             )
-        size = (
-            float(np.percentile(np.maximum(markers.width, markers.height), 95))
-            if len(markers)
-            else 8.0
-        )
+        widths = np.maximum(markers.width, markers.height)
+        size = float(np.percentile(widths, 95)) if len(markers) else 8.0
         tile, share = self._tile(size, excess)
         fine = share > STRUCTURE_SHARE_MAX
         local = lv.unevenness > 0.5 * excess or fine
