@@ -68,6 +68,7 @@ from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.clipped import crowd_notes, faint_sample
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
+from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
 from kisscal.detect.route import choose_route
@@ -103,8 +104,7 @@ DERIVED = (
 
 #: Fraction of the faint markers' contrast at which the threshold sits.
 THRESHOLD_FRACTION = 0.15
-#: Largest fraction of isolated (single) spots the shape tests would cut in two, for them
-#: to stay on: beyond one in seven they cut more markers than the merged pairs they free.
+#: Share of single spots the shape tests may cut and stay on: beyond, they cut more than free.
 ODD_SHAPES_MAX = 0.15
 #: The smallest oversized blob at least this many times the largest markers (area,
 #: width, height) is another population: the upper limits sit between the two.
@@ -283,14 +283,15 @@ class _Derivation:
         self._aspect(final.take(markers & (final.isolation > 3.0)))
         self._size_limits(final, markers, top)
         self._margins()
+        seen = final.pixels[markers]
         if self.kind == "grid":
             for name in ("split_touching", "split_overlaps", "split_long_wide"):
                 self.choose(name, False, "grid dots never touch: nothing to split")
         else:
             self._shape_tests(final.take(markers & (final.isolation > 2.0)))
             choose_route(self.choose, self.frames, final, self.given)  # particle frames?
+            choose_noise_removal(self.choose, self.frames, self._partial_params(), seen)
         params = DetectionParams.from_layers(self.values, self.given)
-        seen = final.pixels[markers]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
         return DetectionSetup(
             params, self.choices, self.kind, len(self.frames), lv, band, tuple(self.notes)
