@@ -49,12 +49,11 @@ def test_stature_is_found_from_the_average_pose():
 def test_a_child_walker_is_labelled_at_its_own_stature():
     # A 1.0 m child with the whole set: its distances fit no adult template (issue 26: the
     # estimate stuck at 1.40 m, the range's bound, and every name was doubted).
-    truth, visible, field, xyz = walker_trial(3, 1.0, 140.0, 0.8, 50.0)
+    truth, _, field, xyz = walker_trial(3, 1.0, 140.0, 0.8, 50.0)
     res = build_trajectories(field, xyz, TrackingParams(), marker_set=PIG, rate_hz=50.0)
     assert abs(res.labelling.height_mm - 1000.0) <= 60.0
     assert wrong_labels(res, truth, LOWER) == []
     assert res.labelling.certain and res.labelling.flagged == ()
-
 
 
 def test_subject_template_takes_the_measured_rigid_lengths():
