@@ -99,21 +99,37 @@ def estimate_height(
     (the stature then from :func:`partial_height`, among :data:`PARTIAL_HEIGHTS_MM`).
 
     Phase 1 (:func:`~kisscal.tracking.labelling.window.match_first_window`) runs with the
-    template scaled to each of :data:`HEIGHTS_MM`; the lowest fit RMS wins.
+    template scaled to each of :data:`PARTIAL_HEIGHTS_MM` (adults); the lowest fit RMS
+    wins, and only when it is the lowest adult stature are the smaller statures of
+    :data:`HEIGHTS_MM` tried too (each stature costs a first-window match).
     """
     partial = partial_height(tracks, marker_set, params)
     if np.isfinite(partial):
         return partial, True
+    rms, height = _window_fit(tracks, marker_set, params, PARTIAL_HEIGHTS_MM)
+    if height == PARTIAL_HEIGHTS_MM[0]:
+        small = HEIGHTS_MM[HEIGHTS_MM < height]
+        small_rms, small_height = _window_fit(tracks, marker_set, params, small)
+        if small_rms < rms:
+            height = small_height
+    return height, False
+
+
+def _window_fit(
+    tracks: Tracks, marker_set: MarkerSet, params: TrackingParams, heights: NDArray
+) -> tuple[float, float]:
+    """(fit RMS, stature) of the best first-window match among ``heights`` (inf, NaN
+    when none matches)."""
     best_rms, best_height = np.inf, float("nan")
-    for height in HEIGHTS_MM:
+    for height in heights:
         scaled = marker_set.scaled(float(height))
         state = LabelState.begin(tracks, scaled.names, scaled.template_mm, None, params)
         if state is None:
-            return float("nan"), False
+            return np.inf, float("nan")
         state.upright = True
         if match_first_window(state) and state.fit_rms < best_rms:
             best_rms, best_height = state.fit_rms, float(height)
-    return best_height, False
+    return best_rms, best_height
 
 
 def fit_template(
