@@ -10,7 +10,11 @@ from kisscal.markersets import marker_set
 from kisscal.tracking import TrackingParams, build_trajectories
 from kisscal.tracking.blending import blend_tracks
 from kisscal.tracking.labelling.state import segment_mask
-from kisscal.tracking.labelling.subject import HEIGHTS_MM, estimate_height, fit_template
+from kisscal.tracking.labelling.subject import (
+    HEIGHTS_MM,
+    estimate_height,
+    fit_template,
+)
 from kisscal.tracking.rigid import refine_by_swaps
 from kisscal.tracking.tracker import track_points
 from tests.tracking._eval import score
@@ -38,8 +42,18 @@ def test_stature_is_found_from_the_average_pose():
     _, _, field, xyz = walker_trial(2, 1.62, 140.0, 1.0, 50.0)
     params = TrackingParams(label_window_fields=50)
     tracks = blend_tracks(track_points(field, xyz, params), params)
-    height = estimate_height(tracks, PIG, params)
-    assert height in HEIGHTS_MM and abs(height - 1620.0) <= 60.0
+    height, partial = estimate_height(tracks, PIG, params)
+    assert height in HEIGHTS_MM and abs(height - 1620.0) <= 60.0 and not partial
+
+
+def test_a_child_walker_is_labelled_at_its_own_stature():
+    # A 1.0 m child with the whole set: its distances fit no adult template (issue 26: the
+    # estimate stuck at 1.40 m, the range's bound, and every name was doubted).
+    truth, _, field, xyz = walker_trial(3, 1.0, 140.0, 0.8, 50.0)
+    res = build_trajectories(field, xyz, TrackingParams(), marker_set=PIG, rate_hz=50.0)
+    assert abs(res.labelling.height_mm - 1000.0) <= 60.0
+    assert wrong_labels(res, truth, LOWER) == []
+    assert res.labelling.certain and res.labelling.flagged == ()
 
 
 def test_subject_template_takes_the_measured_rigid_lengths():

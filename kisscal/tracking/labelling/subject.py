@@ -3,9 +3,10 @@
 A shipped set's template is a typical adult of 1.75 m standing; the subject is taller or
 shorter, places markers a little differently, and walks. So:
 
-1. **stature**: the set's template is scaled (isometrically) to the statures 1.40-2.00 m
-   and matched to the average pose of a window of about one stride
-   (:func:`estimate_height`); the best fit gives the subject's stature;
+1. **stature**: the set's template is scaled (isometrically) to the statures 0.80-2.00 m
+   (1.40-2.00 m for a part of the set: a lower body fits the whole body of a smaller
+   subject about as well as its own) and matched to the average pose of a window of
+   about one stride (:func:`estimate_height`); the best fit gives the subject's stature;
 2. **first pass**: the phases run with the scaled template and without rigid
    segments (their lengths are the subject's, not the template's);
 3. **the subject's template** (:func:`fit_template`): the scaled template, moved as
@@ -50,8 +51,14 @@ from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, matc
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
 
-#: Statures (mm) tried when the subject's is unknown.
-HEIGHTS_MM = np.arange(1400.0, 2001.0, 50.0)
+#: Statures (mm) tried when the subject's is unknown: children to tall adults.
+HEIGHTS_MM = np.arange(800.0, 2001.0, 50.0)
+#: Statures (mm) tried when the trial holds only part of the set. A part's pose fits the
+#: whole body of a smaller subject about as well as its own subject's (a lower body of
+#: 1.45 m is matched by the legs and trunk of a 0.90 m template, issue 26): below
+#: 1.40 m the fit cannot tell the two apart, so the range stays adult and a best fit at
+#: its bound leaves every name doubtful.
+PARTIAL_HEIGHTS_MM = HEIGHTS_MM[HEIGHTS_MM >= 1400.0]
 #: How much a template position may move (mm) per mm of segment length it puts right.
 PRIOR_WEIGHT = 0.05
 
@@ -73,7 +80,7 @@ def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
         return float("nan")
     cap = params.label_tolerance_mm
     fits = []
-    for height in HEIGHTS_MM:
+    for height in PARTIAL_HEIGHTS_MM:
         template = marker_set.scaled(float(height)).template_mm
         cost, r, t = fit_pose(pose[seen], template, cap, floor_lift(pos, template))
         held = capped_assignment(pose[seen] @ r.T + t, template, cap)[0].size
@@ -84,26 +91,45 @@ def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
     return height
 
 
-def estimate_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
+def estimate_height(
+    tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
+) -> tuple[float, bool]:
     """Stature (mm) whose scaled template fits the first window's average pose best
-    (NaN when no stature gives a match).
+    (NaN when no stature gives a match), and whether the trial holds only part of the set
+    (the stature then from :func:`partial_height`, among :data:`PARTIAL_HEIGHTS_MM`).
 
     Phase 1 (:func:`~kisscal.tracking.labelling.window.match_first_window`) runs with the
-    template scaled to each of :data:`HEIGHTS_MM`; the lowest fit RMS wins.
+    template scaled to each of :data:`PARTIAL_HEIGHTS_MM` (adults); the lowest fit RMS
+    wins, and only when it is the lowest adult stature are the smaller statures of
+    :data:`HEIGHTS_MM` tried too (each stature costs a first-window match).
     """
     partial = partial_height(tracks, marker_set, params)
     if np.isfinite(partial):
-        return partial
+        return partial, True
+    rms, height = _window_fit(tracks, marker_set, params, PARTIAL_HEIGHTS_MM)
+    if height == PARTIAL_HEIGHTS_MM[0]:
+        small = HEIGHTS_MM[HEIGHTS_MM < height]
+        small_rms, small_height = _window_fit(tracks, marker_set, params, small)
+        if small_rms < rms:
+            height = small_height
+    return height, False
+
+
+def _window_fit(
+    tracks: Tracks, marker_set: MarkerSet, params: TrackingParams, heights: NDArray
+) -> tuple[float, float]:
+    """(fit RMS, stature) of the best first-window match among ``heights`` (inf, NaN
+    when none matches)."""
     best_rms, best_height = np.inf, float("nan")
-    for height in HEIGHTS_MM:
+    for height in heights:
         scaled = marker_set.scaled(float(height))
         state = LabelState.begin(tracks, scaled.names, scaled.template_mm, None, params)
         if state is None:
-            return float("nan")
+            return np.inf, float("nan")
         state.upright = True
         if match_first_window(state) and state.fit_rms < best_rms:
             best_rms, best_height = state.fit_rms, float(height)
-    return best_height
+    return best_rms, best_height
 
 
 def fit_template(
@@ -265,7 +291,7 @@ def _label_upright(
 ) -> Labelling:
     """:func:`label_with_set` without a template, on pieces whose vertical is Z."""
     names, segments = marker_set.names, marker_set.segments
-    height = estimate_height(tracks, marker_set, first_params)
+    height, partial = estimate_height(tracks, marker_set, first_params)
     if not np.isfinite(height):
         return generic(tracks, params, names, float("nan"))
     scaled = marker_set.scaled(height).template_mm
@@ -288,7 +314,8 @@ def _label_upright(
 
     judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
-    if height in (HEIGHTS_MM[0], HEIGHTS_MM[-1]) and judged.fits_marker_set:
+    tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
+    if height in (tried[0], tried[-1]) and judged.fits_marker_set:
         # The best stature is a bound of the plausible range: the template fits this
         # trial at no plausible stature, and nothing it named is certain.
         taken = set(judged.labels)
