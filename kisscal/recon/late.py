@@ -16,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.deblend import Deblended, MergeScene, apart
-from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
+from kisscal.recon.epipolar import all_fundamentals, triangulated_pairs
 from kisscal.recon.group import near_cameras
 from kisscal.recon.pairs import choose_pairs
 
@@ -51,18 +50,10 @@ def late_pairs(
     dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
     free = np.flatnonzero((marker < 0) & usable)
     F = all_fundamentals(dlts)
-    a, b, _ = candidate_pairs(field[free], camera[free], uv[free], F, params.epipolar_band_px)
-    a, b = free[a], free[b]
+    band, reweight = params.epipolar_band_px, params.reweight_iterations
+    a, b, t = triangulated_pairs(free, field, camera, uv, dlts, F, band, reweight)
     if len(a) == 0:
         return Deblended.empty()
-    t = triangulate_observations(
-        dlts,
-        np.repeat(np.arange(len(a)), 2),
-        np.column_stack([camera[a], camera[b]]).ravel(),
-        np.stack([uv[a], uv[b]], axis=1).reshape(-1, 2),
-        len(a),
-        params.reweight_iterations,
-    )
     good = (t.rms_px <= limit_px) & ~near_cameras(t.xyz_mm, dlts, params.camera_clearance_mm)
     good[good] &= apart(t.xyz_mm[good], field[a[good]], p_xyz, p_field, params.group_radius_mm)
     a, b, xyz, rms = a[good], b[good], t.xyz_mm[good], t.rms_px[good]
