@@ -228,7 +228,7 @@ def deblend_merged(
     good = np.all(np.isfinite(xyz), axis=1) & (rms <= limit_px)
     good &= np.linalg.norm(image - uv[c[k]], axis=1) <= 2.0 * params.deblend_radius_px
     good &= ~near_cameras(xyz, dlts, params.camera_clearance_mm)
-    good[good] &= apart(xyz[good], field[u[good]], p_xyz, p_field, params.group_radius_mm)
+    good[good] &= _apart(xyz[good], field[u[good]], p_xyz, p_field, params.group_radius_mm)
     k, u, xyz, rms = k[good], u[good], xyz[good], rms[good]
     if len(k) == 0:
         return empty
@@ -269,7 +269,7 @@ def _projection_without(
     return out
 
 
-def apart(
+def _apart(
     xyz: NDArray[np.float64],
     field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],

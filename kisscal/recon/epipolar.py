@@ -18,7 +18,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import lexsort_ints
 from kisscal.dlt.model import camera_centre_mm, fundamental_from_dlt
-from kisscal.dlt.triangulate import Triangulation, triangulate_observations
 
 __all__ = [
     "all_fundamentals",
@@ -289,32 +288,6 @@ class _Cells:
                     for a, b, f0, f1 in zip(cuts[:-1], cuts[1:], edges[:-1], edges[1:], strict=True)
                 ]
             )
-
-
-def triangulated_pairs(
-    free: NDArray[np.int64],
-    field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    dlts: NDArray[np.float64],
-    F: NDArray[np.float64],
-    band_px: float,
-    reweight_iterations: int,
-) -> tuple[NDArray[np.int64], NDArray[np.int64], Triangulation]:
-    """The :func:`candidate_pairs` of the blobs ``free`` (rows of the 2D table) with each
-    pair's two-ray point: the pairs' rows ``a``, ``b`` into the whole table, and their
-    :func:`~kisscal.dlt.triangulate.triangulate_observations`."""
-    a, b, _ = candidate_pairs(field[free], camera[free], uv[free], F, band_px)
-    a, b = free[a], free[b]
-    t = triangulate_observations(
-        dlts,
-        np.repeat(np.arange(len(a)), 2),
-        np.column_stack([camera[a], camera[b]]).ravel(),
-        np.stack([uv[a], uv[b]], axis=1).reshape(-1, 2),
-        len(a),
-        reweight_iterations,
-    )
-    return a, b, t
 
 
 def _window(

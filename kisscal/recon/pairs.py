@@ -35,9 +35,10 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from kisscal._shared import n_distinct
+from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.body import RigidTriangles, body_pairs
 from kisscal.recon.claimed import claimed_pieces
-from kisscal.recon.epipolar import all_fundamentals, triangulated_pairs
+from kisscal.recon.epipolar import all_fundamentals, candidate_pairs
 from kisscal.recon.group import (
     Solved,
     embed_fields,
@@ -265,8 +266,16 @@ def match_two_camera(
     free = np.flatnonzero(marker < 0)
     out = marker.copy()
     F = all_fundamentals(dlts) if F is None else F
-    band, reweight = params.epipolar_band_px, params.reweight_iterations
-    a, b, t = triangulated_pairs(free, field, camera, uv, dlts, F, band, reweight)
+    a, b, _ = candidate_pairs(field[free], camera[free], uv[free], F, params.epipolar_band_px)
+    a, b = free[a], free[b]
+    t = triangulate_observations(
+        dlts,
+        np.repeat(np.arange(len(a)), 2),
+        np.column_stack([camera[a], camera[b]]).ravel(),
+        np.stack([uv[a], uv[b]], axis=1).reshape(-1, 2),
+        len(a),
+        params.reweight_iterations,
+    )
     if limit_px is None:
         limit_px = residual_limit_px(t.rms_px, params)
     good = (t.rms_px <= limit_px) & ~near_cameras(t.xyz_mm, dlts, params.camera_clearance_mm)

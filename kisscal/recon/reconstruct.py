@@ -20,7 +20,6 @@ from kisscal.recon.deblend import (
 )
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.hidden import deblend_hidden
-from kisscal.recon.late import late_pairs
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.stationary import false_detections
@@ -261,14 +260,11 @@ def reconstruct_trial(
             pts = _held(pts, scene, body)
         for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
             new = deblend_merged(scene, pts.marker, pts.field, pts.xyz_mm)
-            pts = _with_points(pts, new, camera)
-            again = late_pairs(scene, pts.marker, pts.field, pts.xyz_mm)
-            pts = _with_points(pts, again, camera)
-            if len(new.field) + len(again.field) == 0:
+            if len(new.field) == 0:
                 break
+            pts = _with_points(pts, new, camera)
         if params.deblend_hidden and body is not None:
             pts = _hidden(pts, scene, body)
-            pts = _with_points(pts, late_pairs(scene, pts.marker, pts.field, pts.xyz_mm), camera)
     return pts
 
 
