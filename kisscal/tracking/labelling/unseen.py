@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.learned import MAX_PAIR_SCORE, MIN_PARTNERS
+from kisscal.tracking.labelling.learned import trial_scores
 from kisscal.tracking.labelling.state import LabelState
 
 #: Floor (mm) of a template distance's spread: the piece's own noise and the subject's
@@ -48,22 +48,11 @@ def template_scores(state: LabelState, t: int) -> NDArray[np.float64]:
     :data:`~.learned.MAX_PAIR_SCORE`) of piece ``t``'s distances to the names held in its
     fields against every name's template distances to them; inf with fewer than
     :data:`~.learned.MIN_PARTNERS` held names."""
-    fields, xyz = state.piece(t)
-    d = np.linalg.norm(state.name_pos[:, fields] - xyz[None], axis=2)  # (n, F)
     template = state.template_distance  # (J, n): every name against every held one
     spread = SPREAD_FLOOR_MM + RELATIVE_SPREAD * template
-    z = (d[None] - template[:, :, None]) / spread[:, :, None]  # (J, n, F)
-    ok = np.isfinite(z)
-    count = ok.sum(axis=2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per_name = np.sqrt(np.where(ok, z * z, 0.0).sum(axis=2) / count)
     # a name is not its own partner: its column says where it is held, not how far
-    np.fill_diagonal(count, 0)
-    capped = np.where(count > 0, np.minimum(np.nan_to_num(per_name), MAX_PAIR_SCORE), 0.0)
-    partners = (count > 0).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        score = (capped**2).sum(axis=1) / partners
-    return np.where(partners >= MIN_PARTNERS, score, np.inf)
+    np.fill_diagonal(spread, np.nan)
+    return trial_scores(state, t, np.arange(len(template)), template, spread)
 
 
 def name_unseen(state: LabelState) -> bool:
