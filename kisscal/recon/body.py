@@ -74,6 +74,10 @@ class RigidTriangles:
         ]
         return cls(*d)
 
+    def lengths(self) -> NDArray[np.float64]:
+        """The distinct rigid distances of the marker set (mm, sorted)."""
+        return np.unique(np.r_[self.d_ij, self.d_ik, self.d_jk])
+
     def __len__(self) -> int:
         return len(self.d_ij)
 

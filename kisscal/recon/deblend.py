@@ -228,7 +228,7 @@ def deblend_merged(
     good = np.all(np.isfinite(xyz), axis=1) & (rms <= limit_px)
     good &= np.linalg.norm(image - uv[c[k]], axis=1) <= 2.0 * params.deblend_radius_px
     good &= ~near_cameras(xyz, dlts, params.camera_clearance_mm)
-    good[good] &= _apart(xyz[good], field[u[good]], p_xyz, p_field, params.group_radius_mm)
+    good[good] &= apart(xyz[good], field[u[good]], p_xyz, p_field, params.group_radius_mm)
     k, u, xyz, rms = k[good], u[good], xyz[good], rms[good]
     if len(k) == 0:
         return empty
@@ -269,7 +269,7 @@ def _projection_without(
     return out
 
 
-def _apart(
+def apart(
     xyz: NDArray[np.float64],
     field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],
@@ -298,26 +298,11 @@ def deblend_pairs(
     ``scene.limit_px`` apart (else the blob is one marker's). Nothing is left over to check the
     solution: both points must continue trajectories through the points of the trial
     (``p_field``, ``p_xyz``), and both win their blobs, or neither is made."""
-    field, camera, uv, usable = scene.field, scene.camera, scene.uv, scene.usable
+    field, camera, uv = scene.field, scene.camera, scene.uv
     dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
     empty = Deblended.empty()
-    free = np.flatnonzero((marker < 0) & usable)
     F = all_fundamentals(dlts)
-    x, y, _ = candidate_pairs(field[free], camera[free], uv[free], F, params.epipolar_band_px)
-    x, y = free[x], free[y]
-    # every blob c with two partners a, b (the pairs hold each direction once)
-    c = np.concatenate([x, y])
-    o = np.concatenate([y, x])
-    order = np.lexsort((o, c))
-    c, o = c[order], o[order]
-    start = np.searchsorted(c, c, side="left")
-    count = np.searchsorted(c, c, side="right") - start
-    rep = np.maximum(count - 1, 0)
-    i1 = np.repeat(np.arange(len(c)), rep)
-    within = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-    i2 = start[i1] + within + (start[i1] + within >= np.arange(len(c))[i1])
-    keep = i1 < i2  # each unordered {a, b} once
-    c, a, b = c[i1[keep]], o[i1[keep]], o[i2[keep]]
+    c, a, b = free_triples(scene, marker, F)
     if len(c) == 0:
         return empty
     xyz_a, xyz_b, ok = _place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
@@ -335,6 +320,30 @@ def deblend_pairs(
     both &= np.bincount(c[both], minlength=len(field))[c] == 1
     keep = np.r_[both, both]
     return Deblended(xyz[keep], f2[keep], np.zeros(int(keep.sum())), own[keep], np.r_[c, c][keep])
+
+
+def free_triples(
+    scene: MergeScene, marker: NDArray[np.int64], F: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Every free blob ``c`` with two free partners ``a``, ``b`` (blobs of other cameras
+    in its field, each pair within ``epipolar_band_px``), each unordered {a, b} once."""
+    field, camera, uv = scene.field, scene.camera, scene.uv
+    free = np.flatnonzero((marker < 0) & scene.usable)
+    band = scene.params.epipolar_band_px
+    x, y, _ = candidate_pairs(field[free], camera[free], uv[free], F, band)
+    x, y = free[x], free[y]
+    c = np.concatenate([x, y])  # the pairs hold each direction once
+    o = np.concatenate([y, x])
+    order = np.lexsort((o, c))
+    c, o = c[order], o[order]
+    start = np.searchsorted(c, c, side="left")
+    count = np.searchsorted(c, c, side="right") - start
+    rep = np.maximum(count - 1, 0)
+    i1 = np.repeat(np.arange(len(c)), rep)
+    within = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+    i2 = start[i1] + within + (start[i1] + within >= np.arange(len(c))[i1])
+    keep = i1 < i2
+    return c[i1[keep]], o[i1[keep]], o[i2[keep]]
 
 
 def _place_two(

@@ -22,6 +22,7 @@ from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.hidden import deblend_hidden
 from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
+from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
 
 
@@ -258,6 +259,8 @@ def reconstruct_trial(
         pts = _with_points(pts, two, camera)
         if params.deblend_held and body is not None:
             pts = _held(pts, scene, body)
+        if params.deblend_hidden and body is not None:
+            pts = _seeded(pts, scene, body)
         for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
             new = deblend_merged(scene, pts.marker, pts.field, pts.xyz_mm)
             if len(new.field) == 0:
@@ -281,12 +284,20 @@ def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     return _with_points(replace(pts, xyz_mm=xyz), new, scene.camera)
 
 
+def _seeded(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+    """``pts`` with the pairs of markers merged in one view and apart in one other that
+    :func:`~kisscal.recon.seeded.deblend_seeded` places from their pair points."""
+    new = deblend_seeded(scene, pts.marker, pts.field, pts.xyz_mm, body.lengths())
+    return _with_points(pts, new, scene.camera) if len(new.field) else pts
+
+
 def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     """``pts`` with the markers :func:`~kisscal.recon.hidden.deblend_hidden` places, one
     field further along their trajectories per round."""
-    lengths = np.unique(np.r_[body.d_ij, body.d_ik, body.d_jk])
     for _ in range(_HIDDEN_PASSES):
-        got = deblend_hidden(scene, pts.marker, pts.field, pts.xyz_mm, pts.n_cameras, lengths)
+        got = deblend_hidden(
+            scene, pts.marker, pts.field, pts.xyz_mm, pts.n_cameras, body.lengths()
+        )
         if len(got.new.field) == 0:
             break
         xyz = pts.xyz_mm.copy()
