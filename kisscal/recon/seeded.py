@@ -139,4 +139,3 @@ def _plausible(
         good &= ~near_cameras(np.nan_to_num(x), scene.dlts, params.camera_clearance_mm)
         good &= apart(np.nan_to_num(x), field, p_xyz, p_field, params.group_radius_mm)
     return good
-
