@@ -161,10 +161,10 @@ def deblend_hidden(
     ok &= (held == 0) | ((held == 2) & (mc >= 0))
     holder = np.where(held == 2, h, -1)
     gap = np.linalg.norm(pxyz[P] - pxyz[Q], axis=1)
-    want, off = _nearest_length(gap, lengths_mm)
+    want, off = nearest_length(gap, lengths_mm)
     ok &= off <= params.two_camera_body_mm
     P, Q, c, a, b, holder, want = (v[ok] for v in (P, Q, c, a, b, holder, want))
-    xa, xb, resid = _solve_pair(scene, c, a, b, pxyz[P], pxyz[Q], want)
+    xa, xb, resid = solve_pair(scene, c, a, b, pxyz[P], pxyz[Q], want)
     good = resid <= scene.limit_px
     near = params.hidden_prediction_mm
     good &= np.linalg.norm(xa - pxyz[P], axis=1) <= near
@@ -247,7 +247,7 @@ def _own_blobs(
     return best, dist
 
 
-def _solve_pair(
+def solve_pair(
     scene: MergeScene,
     c: NDArray[np.int64],
     a: NDArray[np.int64],
@@ -323,7 +323,7 @@ def _backtrack(
     return s, cost
 
 
-def _nearest_length(
+def nearest_length(
     gap: NDArray[np.float64], lengths: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The length nearest to each ``gap`` and how far (inf when there is none)."""
@@ -392,7 +392,7 @@ def _outcome(
     return Hidden(new, moved, np.r_[xa[moves_a], xb[moves_b]])
 
 
-#: Gauss-Newton steps of :func:`_solve_pair`, halvings of a step that does not lower the
+#: Gauss-Newton steps of :func:`solve_pair`, halvings of a step that does not lower the
 #: cost (:func:`_backtrack`) and the finite-difference step (mm).
 _GAUSS_NEWTON = 10
 _HALVINGS = 6

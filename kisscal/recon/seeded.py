@@ -32,7 +32,7 @@ from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.recon.deblend import Deblended, MergeScene, apart, free_triples
 from kisscal.recon.epipolar import all_fundamentals
 from kisscal.recon.group import near_cameras
-from kisscal.recon.hidden import _nearest_length, _solve_pair
+from kisscal.recon.hidden import nearest_length, solve_pair
 from kisscal.recon.pairs import choose_pairs
 
 
@@ -71,10 +71,10 @@ def deblend_seeded(
     if len(c) == 0:
         return Deblended.empty()
     seed_a, seed_b = _pair_points(scene, c, a), _pair_points(scene, c, b)
-    want, off = _nearest_length(np.linalg.norm(seed_a - seed_b, axis=1), lengths_mm)
+    want, off = nearest_length(np.linalg.norm(seed_a - seed_b, axis=1), lengths_mm)
     ok = np.isfinite(off) & (off <= params.two_camera_body_mm)
     c, a, b, seed_a, seed_b, want = (v[ok] for v in (c, a, b, seed_a, seed_b, want))
-    xa, xb, rms = _solve_pair(scene, c, a, b, seed_a, seed_b, want)
+    xa, xb, rms = solve_pair(scene, c, a, b, seed_a, seed_b, want)
     good = _plausible(scene, c, (xa, xb, rms), (seed_a, seed_b), p_xyz, p_field)
     c, a, b, xa, xb, rms = (v[good] for v in (c, a, b, xa, xb, rms))
     n = len(c)

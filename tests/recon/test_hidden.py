@@ -110,7 +110,7 @@ def test_a_segment_across_the_seeing_cameras_rays_is_held_to_its_predictions() -
     # With the predictions (2 mm off) as a prior, both markers stay within 5 mm.
     from kisscal.dlt.model import dlt_from_krt
     from kisscal.recon.deblend import MergeScene
-    from kisscal.recon.hidden import _solve_pair
+    from kisscal.recon.hidden import solve_pair
 
     from .rig import look_at
 
@@ -139,7 +139,7 @@ def test_a_segment_across_the_seeing_cameras_rays_is_held_to_its_predictions() -
     scene = MergeScene(np.tile(np.arange(n), 3), camera, uv, camera >= 0, dlts, ReconParams(), 0.2)
     k = np.arange(n)
     pa, pb = a + rng.normal(0, 2, (n, 3)), b + rng.normal(0, 2, (n, 3))
-    xa, xb, rms = _solve_pair(scene, 2 * n + k, k, n + k, pa, pb, np.full(n, SEGMENT_MM))
+    xa, xb, rms = solve_pair(scene, 2 * n + k, k, n + k, pa, pb, np.full(n, SEGMENT_MM))
     err = np.maximum(np.linalg.norm(xa - a, axis=1), np.linalg.norm(xb - b, axis=1))
     assert np.all(rms <= 0.2)
     assert err.max() < 5.0 and np.quantile(err, 0.95) < 3.5
