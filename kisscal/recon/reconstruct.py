@@ -259,8 +259,6 @@ def reconstruct_trial(
         pts = _with_points(pts, two, camera)
         if params.deblend_held and body is not None:
             pts = _held(pts, scene, body)
-        if params.deblend_hidden and body is not None:
-            pts = _seeded(pts, scene, body)
         for _ in range(_DEBLEND_PASSES):  # a point found may reveal the next hidden one
             new = deblend_merged(scene, pts.marker, pts.field, pts.xyz_mm)
             if len(new.field) == 0:
@@ -268,6 +266,9 @@ def reconstruct_trial(
             pts = _with_points(pts, new, camera)
         if params.deblend_hidden and body is not None:
             pts = _hidden(pts, scene, body)
+            seeded = _seeded(pts, scene, body)  # no trajectory to predict from: last
+            if seeded is not pts:  # and the trajectories they start carried on
+                pts = _hidden(seeded, scene, body)
     return pts
 
 
