@@ -18,6 +18,7 @@ from kisscal.recon.deblend import (
     deblend_merged,
     deblend_pairs,
 )
+from kisscal.recon.ends import extend_ends
 from kisscal.recon.group import Solved, residual_limit_px, triangulate_markers
 from kisscal.recon.hidden import deblend_hidden
 from kisscal.recon.match import match_trial
@@ -269,6 +270,7 @@ def reconstruct_trial(
             seeded = _seeded(pts, scene, body)  # no trajectory to predict from: last
             if seeded is not pts:  # and the trajectories they start carried on
                 pts = _hidden(seeded, scene, body)
+            pts = _ends(pts, scene)
     return pts
 
 
@@ -290,6 +292,17 @@ def _seeded(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     :func:`~kisscal.recon.seeded.deblend_seeded` places from their pair points."""
     new = deblend_seeded(scene, pts.marker, pts.field, pts.xyz_mm, body.lengths())
     return _with_points(pts, new, scene.camera) if len(new.field) else pts
+
+
+def _ends(pts: Points3D, scene: MergeScene) -> Points3D:
+    """``pts`` with the free pairs :func:`~kisscal.recon.ends.extend_ends` takes at the
+    trajectories' ends, one field further per round."""
+    for _ in range(_HIDDEN_PASSES):
+        new = extend_ends(scene, pts.marker, pts.field, pts.xyz_mm)
+        if len(new.field) == 0:
+            break
+        pts = _with_points(pts, new, scene.camera)
+    return pts
 
 
 def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
