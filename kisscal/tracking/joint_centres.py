@@ -1,0 +1,142 @@
+"""Joint centres as length partners: the point of a neighbouring segment a marker turns
+about, found on the trial itself.
+
+A marker seen by one camera lies on its blob's ray; its depth along the ray is fixed by
+its lengths to its segment's other markers (:mod:`kisscal.tracking.raychain`,
+:mod:`kisscal.tracking.fill_sphere`). A thigh carries two markers (thigh wand and knee):
+when the ray runs square to the line between them, it meets the knee's sphere at a
+glancing angle and the depth is poorly fixed (modern 3 seed 304, RTHI seen by one camera
+for 31 fields: the cosine of the ray to the knee fell from 0.11 to 0). The segment has a
+third point that is not a marker: the joint it turns about on the next segment (the hip
+joint centre, fixed in the pelvis). The thigh marker keeps its distance to it, and the
+ray meets that sphere at another angle (0.16-0.26 there).
+
+The centre is found functionally (Gamage & Lasenby 2002): for each rigid cluster of at
+least three markers (pairwise distances within ``rigid_fill_sd_mm`` SD over the trial)
+none of which keeps its distance to the marker, the marker's samples are expressed in
+the cluster's frame (Kabsch 1976 per field) and a sphere is fitted to them in closed
+form (centre from the linear least-squares equations, radius the mean distance). When
+the radius's SD over the trial is at most ``rigid_fill_sd_mm`` the marker turns about
+that point of the cluster: the point, carried by the cluster into every field where its
+markers are known, is a partner of the marker's (its length SD that radius SD). No
+names are used: a thigh marker about the pelvis's hip, a shank's about the thigh's knee
+axis alike.
+
+References
+----------
+Gamage & Lasenby 2002 (new least squares solutions for estimating the average centre of
+rotation); Kabsch 1976 (best rotation between two point sets); Challis 1995 (segments as
+rigid bodies of markers).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.tracking.bodyfill import batch_kabsch, distance_sd
+from kisscal.tracking.params import TrackingParams
+
+#: Fewest markers of a cluster whose frame carries a centre (a pose needs three).
+MIN_CLUSTER = 3
+
+
+@dataclass(frozen=True)
+class Centres:
+    """Joint centres a marker keeps its distance to.
+
+    Attributes
+    ----------
+    xyz_mm : (k, n_fields, 3) float array
+        Each centre per field (NaN where its cluster is not all known).
+    radius_sd_mm : (k,) float array
+        SD over the trial of the marker's distance to each centre.
+    clusters : tuple of tuple of int
+        The tracks whose frame carries each centre.
+    """
+
+    xyz_mm: NDArray[np.float64]
+    radius_sd_mm: NDArray[np.float64]
+    clusters: tuple[tuple[int, ...], ...]
+
+
+def sphere_centre(points: NDArray) -> tuple[NDArray[np.float64], float, float]:
+    """Centre, radius and the SD of the distances of ``points`` (n, 3) from the centre
+    of the sphere fitted to them in closed form (Gamage & Lasenby 2002: the centre
+    solves ``C c = mean((|x|² - mean |x|²)(x - mean x)) / 2``, C the points' covariance;
+    least squares, so a cap spread in one direction only, an arc, still gets the centre
+    nearest its points)."""
+    mu = points.mean(axis=0)
+    sq = np.sum(points**2, axis=1)
+    cov = (points - mu).T @ (points - mu) / len(points)
+    rhs = 0.5 * ((sq - sq.mean())[:, None] * (points - mu)).mean(axis=0)
+    centre = np.linalg.lstsq(cov, rhs, rcond=None)[0]
+    dist = np.linalg.norm(points - centre, axis=1)
+    return centre, float(dist.mean()), float(dist.std())
+
+
+def rigid_clusters(dense: NDArray, t: int, params: TrackingParams) -> list[NDArray[np.int64]]:
+    """Clusters of at least :data:`MIN_CLUSTER` tracks of ``dense`` (n_tracks, n_fields,
+    3) whose pairwise distances keep within ``rigid_fill_sd_mm`` SD over the trial,
+    none of which keeps its distance to track ``t`` so (another segment than ``t``'s);
+    grown greedily from each such track, each once."""
+    sd = distance_sd(dense, dense)
+    rigid = sd <= params.rigid_fill_sd_mm
+    np.fill_diagonal(rigid, False)
+    other = ~rigid[t] & np.isfinite(sd[t])
+    other[t] = False
+    out: list[NDArray[np.int64]] = []
+    seen: set[tuple[int, ...]] = set()
+    for u in np.flatnonzero(other).tolist():
+        members = [u]
+        for v in np.flatnonzero(rigid[u] & other).tolist():
+            if rigid[v, members].all():
+                members.append(v)
+        key = tuple(sorted(members))
+        if len(key) >= MIN_CLUSTER and key not in seen:
+            seen.add(key)
+            out.append(np.asarray(key, dtype=np.int64))
+    return out
+
+
+def _frames(dense: NDArray, cluster: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Fields where every marker of ``cluster`` is known, and the cluster's pose there
+    (rotations (m, 3, 3) and translations (m, 3)) from its shape in the first of them."""
+    pts = dense[cluster]  # (k, n_fields, 3)
+    known = np.flatnonzero(np.all(np.isfinite(pts), axis=(0, 2)))
+    if known.size == 0:
+        return known, np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    ref = pts[:, known[0]]
+    r, tr = batch_kabsch(ref, np.transpose(pts[:, known], (1, 0, 2)))
+    return known, r, tr, ref
+
+
+def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
+    """The joint centres track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN where not
+    known) turns about (see module): one per cluster of :func:`rigid_clusters` in whose
+    frame its samples (at least ``body_context_fields``) lie on a sphere whose radius
+    keeps within ``rigid_fill_sd_mm`` SD."""
+    n_fields = dense.shape[1]
+    xyz, sds, used = [], [], []
+    for cluster in rigid_clusters(dense, t, params):
+        known, r, tr, _ = _frames(dense, cluster)
+        own = dense[t, known]
+        ok = np.isfinite(own[:, 0])
+        if ok.sum() < max(params.body_context_fields, 4):
+            continue
+        local = np.einsum("nji,nj->ni", r[ok], own[ok] - tr[ok])  # r.T (x - t)
+        centre, _, sd = sphere_centre(local)
+        if not sd <= params.rigid_fill_sd_mm:
+            continue
+        at = np.full((n_fields, 3), np.nan)
+        at[known] = np.einsum("nij,j->ni", r, centre) + tr
+        xyz.append(at)
+        sds.append(sd)
+        used.append(tuple(int(c) for c in cluster))
+    return Centres(
+        np.asarray(xyz, dtype=float).reshape(len(xyz), n_fields, 3),
+        np.asarray(sds, dtype=float),
+        tuple(used),
+    )
