@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.bodyfill import batch_kabsch, distance_sd
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.raychain import length_partners
 
 #: Fewest markers of a cluster whose frame carries a centre (a pose needs three).
 MIN_CLUSTER = 3
@@ -62,19 +63,26 @@ class Centres:
     clusters: tuple[tuple[int, ...], ...]
 
 
-def sphere_centre(points: NDArray) -> tuple[NDArray[np.float64], float, float]:
-    """Centre, radius and the SD of the distances of ``points`` (n, 3) from the centre
-    of the sphere fitted to them in closed form (Gamage & Lasenby 2002: the centre
-    solves ``C c = mean((|x|² - mean |x|²)(x - mean x)) / 2``, C the points' covariance;
-    least squares, so a cap spread in one direction only, an arc, still gets the centre
-    nearest its points)."""
-    mu = points.mean(axis=0)
-    sq = np.sum(points**2, axis=1)
-    cov = (points - mu).T @ (points - mu) / len(points)
-    rhs = 0.5 * ((sq - sq.mean())[:, None] * (points - mu)).mean(axis=0)
-    centre = np.linalg.lstsq(cov, rhs, rcond=None)[0]
-    dist = np.linalg.norm(points - centre, axis=1)
-    return centre, float(dist.mean()), float(dist.std())
+def sphere_centre(
+    points: NDArray, member: NDArray | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Centre of the concentric spheres fitted to ``points`` (n, 3), one sphere per
+    value of ``member`` (n,) int (default one), in closed form: ``|x|² = 2 x·c + k_m``
+    is linear in the centre c and one constant per sphere (Gamage & Lasenby 2002's
+    least squares, for one sphere; an arc spread in one direction only still gets the
+    centre nearest its points). Returns the centre, and per sphere the mean distance of
+    its points from it and their SD."""
+    member = np.zeros(len(points), dtype=np.int64) if member is None else member
+    m = int(member.max()) + 1
+    shift = points.mean(axis=0)  # conditioning: |x|² of lab coordinates is large
+    x = points - shift
+    a = np.concatenate([2.0 * x, np.eye(m)[member]], axis=1)
+    sol = np.linalg.lstsq(a, np.sum(x**2, axis=1), rcond=None)[0]
+    dist = np.linalg.norm(x - sol[:3], axis=1)
+    count = np.bincount(member, minlength=m)
+    mean = np.bincount(member, dist, minlength=m) / count
+    var = np.bincount(member, (dist - mean[member]) ** 2, minlength=m) / count
+    return sol[:3] + shift, mean, np.sqrt(var)
 
 
 def rigid_clusters(dense: NDArray, t: int, params: TrackingParams) -> list[NDArray[np.int64]]:
@@ -113,27 +121,43 @@ def _frames(dense: NDArray, cluster: NDArray) -> tuple[NDArray, NDArray, NDArray
     return known, r, tr, ref
 
 
+def _local(dense: NDArray, members: NDArray, known: NDArray, r: NDArray, tr: NDArray) -> tuple:
+    """Samples of ``members`` in the frames (``r``, ``tr``) of fields ``known``: points
+    (n, 3) and the index into ``members`` of each (n,)."""
+    own = dense[members][:, known]  # (m, k, 3)
+    i, k = np.nonzero(np.isfinite(own[..., 0]))
+    return np.einsum("nji,nj->ni", r[k], own[i, k] - tr[k]), i  # r.T (x - t)
+
+
 def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
     """The joint centres track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN where not
     known) turns about (see module): one per cluster of :func:`rigid_clusters` in whose
-    frame its samples (at least ``body_context_fields``) lie on a sphere whose radius
-    keeps within ``rigid_fill_sd_mm`` SD."""
+    frame the samples of ``t`` and of its segment's markers
+    (:func:`~kisscal.tracking.raychain.length_partners`) lie on spheres about one centre
+    whose radii each keep within ``rigid_fill_sd_mm`` SD. A centre is a point of the
+    marker's segment, so at least one partner, with ``t``, must have
+    ``body_context_fields`` samples in that frame: a marker seen over part of its motion
+    alone (kiss 3 seed 303's RTIB, 106 fields) fits a sphere in the pelvis's frame within
+    1.5 mm that its truth misses by 20 mm SD."""
     n_fields = dense.shape[1]
+    members = np.r_[t, length_partners(dense, t, params)[0]].astype(np.int64)
+    fewest = max(params.body_context_fields, 4)
     xyz, sds, used = [], [], []
     for cluster in rigid_clusters(dense, t, params):
         known, r, tr, _ = _frames(dense, cluster)
-        own = dense[t, known]
-        ok = np.isfinite(own[:, 0])
-        if ok.sum() < max(params.body_context_fields, 4):
+        pts, who = _local(dense, members, known, r, tr)
+        enough = np.bincount(who, minlength=members.size) >= fewest
+        if not enough[0] or enough.sum() < 2:
             continue
-        local = np.einsum("nji,nj->ni", r[ok], own[ok] - tr[ok])  # r.T (x - t)
-        centre, _, sd = sphere_centre(local)
-        if not sd <= params.rigid_fill_sd_mm:
+        keep = enough[who]
+        kept = np.cumsum(enough) - 1  # members with enough samples, renumbered
+        centre, _, sd = sphere_centre(pts[keep], kept[who[keep]])
+        if not np.all(sd <= params.rigid_fill_sd_mm):
             continue
         at = np.full((n_fields, 3), np.nan)
         at[known] = np.einsum("nij,j->ni", r, centre) + tr
         xyz.append(at)
-        sds.append(sd)
+        sds.append(sd[0])
         used.append(tuple(int(c) for c in cluster))
     return Centres(
         np.asarray(xyz, dtype=float).reshape(len(xyz), n_fields, 3),

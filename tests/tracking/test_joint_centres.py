@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_sphere import sphere_depth_fill
-from kisscal.tracking.joint_centres import joint_centres, sphere_centre
+from kisscal.tracking.joint_centres import _frames, _local, joint_centres, sphere_centre
 from tests.tracking.test_bodyfill import _tracks_of
 from tests.tracking.test_raychain import _dense
 from tests.tracking.test_rayfill import _look_at
@@ -28,8 +28,9 @@ THIGH = np.array([[0.0, -70, -200], [0.0, -70, -420]])
 
 
 def walk(seed: int = 0, noise_mm: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
-    """Pelvis (3 markers) walking along x and a right thigh (2 markers) swinging about
-    its hip: (5, N, 3) markers (sacrum, iliac spines, thigh, knee) and the hip (N, 3)."""
+    """Pelvis (3 markers) walking along x, a right thigh (2 markers) swinging about its
+    hip and a tibia marker about the knee, straight half of each stride: (6, N, 3)
+    markers (sacrum, iliac spines, thigh, knee, tibia) and the hip (N, 3)."""
     t = np.arange(N) / 100.0
     rng = np.random.default_rng(seed)
     pelvis = Rotation.from_euler(
@@ -39,8 +40,16 @@ def walk(seed: int = 0, noise_mm: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
     thigh = pelvis * Rotation.from_euler(
         "yx", np.stack([0.45 * np.sin(2 * t + 0.3), 0.08 * np.sin(3 * t)], 1)
     )
+    shank = thigh * Rotation.from_euler(
+        "y", -1.2 * np.maximum(np.sin(2 * t + 1.0), 0.0)[:, None] ** 2
+    )
     hip = pelvis.apply(HIP) + move
-    xyz = np.stack([pelvis.apply(p) + move for p in PELVIS] + [thigh.apply(p) + hip for p in THIGH])
+    knee = thigh.apply([0.0, 0, -420]) + hip
+    xyz = np.stack(
+        [pelvis.apply(p) + move for p in PELVIS]
+        + [thigh.apply(p) + hip for p in THIGH]
+        + [shank.apply([0.0, -60, -200]) + knee]
+    )
     return xyz + rng.normal(0, noise_mm, xyz.shape), hip
 
 
@@ -66,9 +75,36 @@ def test_a_sphere_fit_finds_the_centre_of_points_on_an_arc():
     angle = rng.uniform(-0.6, 0.6, 200)
     spread = rng.uniform(-0.1, 0.1, 200)
     pts = 250.0 * np.stack([np.sin(angle), np.sin(spread), -np.cos(angle) * np.cos(spread)], 1)
-    centre, radius, sd = sphere_centre(pts + [10.0, 20, 30] + rng.normal(0, 0.1, pts.shape))
+    pts = pts + [10.0, 20, 30] + rng.normal(0, 0.1, pts.shape)
+    centre, radius, sd = sphere_centre(pts)
     assert np.linalg.norm(centre - [10.0, 20, 30]) < 5.0
-    assert abs(radius - 250.0) < 5.0 and sd < 0.3
+    assert abs(radius[0] - 250.0) < 5.0 and sd[0] < 0.3
+    # two markers of one segment about the same centre, at their own radii
+    member = np.arange(200) % 2
+    pts[member == 1] = (pts[member == 1] - [10.0, 20, 30]) * 0.6 + [10.0, 20, 30]
+    centre, radius, sd = sphere_centre(pts, member)
+    assert np.linalg.norm(centre - [10.0, 20, 30]) < 5.0
+    assert np.allclose(radius, [250.0, 150.0], atol=5.0) and np.all(sd < 0.3)
+
+
+def test_a_marker_seen_over_part_of_its_motion_alone_gets_no_centre():
+    xyz, _ = walk()
+    # the tibia measured only while its knee is straight (walk's flexion is nil there):
+    # in the pelvis's frame it lies on a sphere about the hip then, which its truth
+    # leaves when the knee bends
+    straight = np.flatnonzero(np.sin(2 * np.arange(N) / 100.0 + 1.0) <= 0.0)[:60]
+    hidden = np.ones(N, dtype=bool)
+    hidden[straight] = False
+    dense = _dense(_tracks_of(xyz[[0, 1, 2, 5]], {3: hidden}))  # the thigh not tracked
+    known, r, tr, _ = _frames(dense, np.array([0, 1, 2]))
+    pts, _ = _local(dense, np.array([3]), known, r, tr)
+    centre, _, sd = sphere_centre(pts)
+    assert sd[0] < 0.5 * PARAMS.rigid_fill_sd_mm  # a sphere fits its samples
+    at = np.einsum("nij,j->ni", r, centre) + tr
+    assert np.linalg.norm(xyz[5, known] - at, axis=1).std() > 10.0  # not its truth's
+    # no marker of its segment keeps its distance to that point with it: no centre
+    # (kiss 3 seed 303's RTIB, no partner tracked, 20 mm SD off such a sphere)
+    assert joint_centres(dense, 3, PARAMS).clusters == ()
 
 
 def test_the_thigh_marker_keeps_its_distance_to_the_hip_found_in_the_pelvis():
