@@ -17,7 +17,10 @@ count, in one fit of the depth over the fields of the gap:
 * each partner's root, where the ray meets the sphere, is a datum of SD
   ``sd_L / cos θ`` (``sd_L`` the length's SD in the trial, θ between the ray and the
   direction to the partner); a ray within ``acos(MIN_COS)`` of tangent (where the two
-  roots merge and a small error moves the depth a lot) gives none;
+  roots merge and a small error moves the depth a lot) gives none; the joint centres
+  the marker turns about (:mod:`kisscal.tracking.joint_centres`: a thigh marker's hip,
+  carried by the pelvis) are partners too, where the ray runs square to the segment's
+  own markers (modern 3 seed 304's RTHI, cos to the knee 0.11 -> 0, to the hip 0.16-0.26);
 * of the two roots, the one nearest the current fit is taken when the other lies outside
   three SDs of it; starting from the spline, the fit is redone as roots near the gap's
   ends tighten it, until the choice settles; a root more than three SDs from the final
