@@ -13,14 +13,18 @@ ray meets that sphere at another angle (0.16-0.26 there).
 
 The centre is found functionally (Gamage & Lasenby 2002): for each rigid cluster of at
 least three markers (pairwise distances within ``rigid_fill_sd_mm`` SD over the trial)
-none of which keeps its distance to the marker, the marker's samples are expressed in
-the cluster's frame (Kabsch 1976 per field) and a sphere is fitted to them in closed
-form (centre from the linear least-squares equations, radius the mean distance). When
-the radius's SD over the trial is at most ``rigid_fill_sd_mm`` the marker turns about
-that point of the cluster: the point, carried by the cluster into every field where its
-markers are known, is a partner of the marker's (its length SD that radius SD). No
-names are used: a thigh marker about the pelvis's hip, a shank's about the thigh's knee
-axis alike.
+none of which keeps its distance to the marker, the samples of the marker and of its
+segment's markers (its length partners) are expressed in the cluster's frame (Kabsch
+1976 per field) and concentric spheres, one per marker, are fitted to them in closed
+form (linear least squares in the centre and one constant per sphere). A centre is a
+point of the marker's segment, so it is kept only when at least one partner is fitted
+with the marker, each radius keeps within ``rigid_fill_sd_mm`` SD over the trial, and
+the marker is seen in the cluster's frame in
+:data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over most of its motion,
+not a phase: a marker seen over part of its motion alone fits a sphere in almost any
+frame). The point, carried by the cluster into every field where its markers are known,
+is a partner of the marker's. No names are used: a thigh marker about the pelvis's hip,
+a shank's about the thigh's knee axis alike.
 
 References
 ----------
