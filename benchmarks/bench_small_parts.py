@@ -78,6 +78,11 @@ byte-identical in every turn (summary.json's timings aside). What is left: figur
 (tick creation 0.6 s and tick/text drawing most of it), detection 1.4x, exports 1.2x,
 image reading 0.8x, tracking 0.8x, the rest of calibrate 0.6x, DLT on the rods 0.6x,
 imports 0.45x.
+
+Stop 43: a ``kisscal run`` with one worker detects no trial ahead
+(:mod:`kisscal.session.ahead` needs a second process), so this benchmark's parts, all in
+one process, are what they were; :mod:`benchmarks.bench_small` reads the run's wall time
+on two free cores.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -135,6 +136,50 @@ def detect_jobs(
         raise InputError(f"detect: workers must be >= 1, got {workers}")
     chunks = _chunks(jobs)
     yield from _by_job(jobs, chunks, mapped(functools.partial(_chunk, jobs), chunks, workers))
+
+
+class JobsAhead:
+    """Every job's images detected in the background, in one pool started at once
+    (:func:`detect_ahead`): the caller goes on with other work meanwhile and takes each
+    job's blobs when it needs them (:meth:`result`); :meth:`close` ends the pool."""
+
+    def __init__(self, jobs: Sequence[ImageJob], pool: Executor) -> None:
+        self._chunks, self._pool = _chunks(jobs), pool
+        # every chunk queued now, the jobs in order: the workers take them as they come
+        # free, so the first job's blobs are ready first
+        self._futures = [pool.submit(_inherited_item, i) for i in range(len(self._chunks))]
+
+    def result(self, job: int) -> list[Blobs] | KisscalError:
+        """Job ``job``'s blobs (one table per image, in order) once detected, or the error
+        a frame of it raised, as :func:`detect_jobs` yields them."""
+        chunks = [i for i, (j, _start, _stop) in enumerate(self._chunks) if j == job]
+        done: list[Blobs] = []
+        for i in chunks:
+            blobs, failed = self._futures[i].result()
+            if failed is not None:
+                return failed
+            done += blobs
+        return done
+
+    def close(self, error: BaseException | None = None) -> None:
+        """End the pool: the chunks not started are dropped, the running ones finish,
+        and on an error (Ctrl-C above all) the workers are ended at once."""
+        for future in self._futures:
+            future.cancel()
+        exc_type = type(error) if error is not None else None
+        self._pool.__exit__(exc_type, error, None)  # kisscal._shared's pool: ends at once
+
+
+def detect_ahead(jobs: Sequence[ImageJob], workers: int | None = None) -> JobsAhead | None:
+    """Start detecting every job's images in ``workers`` background processes (``None``:
+    one per core) and return at once; ``None`` where no background detection can run
+    (one worker, no chunk to detect, or no process can be started:
+    :func:`kisscal._shared.worker_pool`), the caller then detects when it needs the blobs.
+    """
+    chunks = _chunks(jobs)
+    n = min(workers or os.cpu_count() or 1, len(chunks))
+    pool = worker_pool(n, (functools.partial(_chunk, jobs), chunks)) if n > 1 else None
+    return JobsAhead(jobs, pool) if pool is not None else None
 
 
 def _by_job(

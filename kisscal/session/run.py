@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -12,11 +13,14 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
+from kisscal.session.ahead import blob_slot, detecting_ahead, image_job, start
 from kisscal.session.inputs import writes_session
-from kisscal.session.params import Overrides
+from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
 from kisscal.session.report import report
+from kisscal.session.runner import markers_detection, trial_stem
 from kisscal.session.stages import Stage, StageCall, session_stages
+from kisscal.session.trials import trial_frames_of
 from kisscal.session.validate import SESSION, Problem, validate
 
 #: Debug lines (``kisscal --verbose``): each stage's time.
@@ -49,34 +53,39 @@ def run(
     _stop_on_session_problems(problems, echo)
     broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
+    trials = _in_order(config, echo)
+    ahead: list[bool] = []  # whether the trials' detection was started in the background
 
     def timed(name: str, stage: Stage, call: StageCall) -> None:
         t = time.perf_counter()
+        if stage.name != "linearise" and not ahead:  # the markers' survey needs the grid's
+            ahead.append(_detect_trials_ahead(config, overrides, echo, workers, trials, broken))
         stage.run(call)
         timings[name] = time.perf_counter() - t
         _LOG.debug("%s: %.2f s", name.removesuffix("_s"), timings[name])
 
     stages = session_stages(config)
     steps = len(stages)
-    for step, stage in enumerate(stages):
-        if not stage.per_trial:
-            echo(f"[{step + 1}/{steps}] {stage.title}")
-            timed(f"{stage.name}_s", stage, StageCall(config, overrides, echo, workers))
     failures: dict[str, str] = {}
-    for trial in _in_order(config, echo):
-        if trial.name in broken:
-            failures[trial.name] = broken[trial.name]
-            echo(f"  skipped {broken[trial.name]}")
-            continue
-        call = StageCall(config, overrides, echo, workers, trial.name)
-        try:
-            for step, stage in enumerate(stages):
-                if stage.per_trial:
-                    echo(f"[{step + 1}/{steps}] {stage.title}: {trial.name}")
-                    timed(f"{stage.name}_{trial.name}_s", stage, call)
-        except KisscalError as exc:  # one bad trial must not stop the others
-            failures[trial.name] = f"trial {trial.name}: {exc}"
-            echo(f"  failed {failures[trial.name]}")
+    with detecting_ahead():
+        for step, stage in enumerate(stages):
+            if not stage.per_trial:
+                echo(f"[{step + 1}/{steps}] {stage.title}")
+                timed(f"{stage.name}_s", stage, StageCall(config, overrides, echo, workers))
+        for trial in trials:
+            if trial.name in broken:
+                failures[trial.name] = broken[trial.name]
+                echo(f"  skipped {broken[trial.name]}")
+                continue
+            call = StageCall(config, overrides, echo, workers, trial.name)
+            try:
+                for step, stage in enumerate(stages):
+                    if stage.per_trial:
+                        echo(f"[{step + 1}/{steps}] {stage.title}: {trial.name}")
+                        timed(f"{stage.name}_{trial.name}_s", stage, call)
+            except KisscalError as exc:  # one bad trial must not stop the others
+                failures[trial.name] = f"trial {trial.name}: {exc}"
+                echo(f"  failed {failures[trial.name]}")
     summary = summarise(root)
     summary["timings"] = {k: round(v, 3) for k, v in timings.items()}
     summary["failed_trials"] = failures
@@ -88,6 +97,43 @@ def run(
             f"({'; '.join(failures.values())}); the other trials' outputs are complete"
         )
     return summary
+
+
+def _detect_trials_ahead(
+    config: SessionConfig,
+    overrides: Overrides | None,
+    echo: Echo,
+    workers: int | None,
+    trials: list[TrialConfig],
+    broken: dict[str, str],
+) -> bool:
+    """Start detecting the trials' images in the background (:mod:`kisscal.session.ahead`)
+    where their blob caches are stale: the stages that follow run in this process
+    meanwhile. The cameras' marker settings are derived first (the calibration, and
+    every trial, read them kept). Nothing is started with one worker, nor when the
+    settings cannot be derived (the stage that needs them says why). True when started."""
+    if (workers or os.cpu_count() or 1) < 2:
+        return False
+    imaged = [t for t in trials if t.source in ("images", "video") and t.name not in broken]
+    if not imaged:
+        return False
+    store = SessionStore(config.root)
+    sizes = {c.id: c.size_px for c in config.cameras}
+    try:
+        detection = markers_detection(config, stage_params(config, overrides), echo, None, workers)
+    except KisscalError:
+        return False
+    jobs = {}
+    for trial in imaged:
+        try:
+            frames = trial_frames_of(config, trial)
+        except KisscalError:  # said when the trial is processed
+            continue
+        for cam, seq in frames.items():
+            slot = blob_slot(store, trial_stem(trial), cam, seq, trial.fields, detection[cam])
+            if not store.is_current(*slot):
+                jobs[slot] = image_job(seq, cam, sizes[cam], detection[cam], workers)
+    return start(jobs, workers)
 
 
 def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:

@@ -20,7 +20,7 @@ import dataclasses
 import functools
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -35,13 +35,13 @@ from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.io.cache import save_blob_frames
 from kisscal.io.config import CameraConfig, SessionConfig, TrialConfig
 from kisscal.io.detection_record import DetectionRecord, write_detection_record
-from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore, TrialFiles
+from kisscal.session.ahead import blob_slot, image_job, take
 from kisscal.session.configure import Sample, grid_setup, survey_sample
 from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Echo, counted, quiet
-from kisscal.session.trials import SizedFrames, centroid_files, trial_frames_of, trial_input_files
+from kisscal.session.trials import centroid_files, trial_frames_of, trial_input_files
 
 #: Bumped whenever the derivation changes, so cached settings are derived again.
 DERIVATION_VERSION = 4
@@ -202,16 +202,6 @@ def _on_lattice(kind: str, aspect_source: str) -> bool:
     return kind == "grid" and aspect_source == "derived"
 
 
-def chunk_size(frames: Sequence, workers: int | None) -> int:
-    """Consecutive frames a detection worker takes at a time: 32, or for a video (decoded
-    in order) an even share of the whole, so that each worker seeks once."""
-    n_workers = max(workers or os.cpu_count() or 1, 1)
-    if not getattr(frames, "sequential", False):
-        return 32
-    share = -(-len(frames) // n_workers)
-    return max(share + share % 2, 2)  # even: both fields of a frame go to one worker
-
-
 def camera_blobs(
     config: SessionConfig,
     frames: Mapping[str, Sequence[np.ndarray]],
@@ -225,7 +215,9 @@ def camera_blobs(
 
     The cameras whose cache is stale are detected together, in one pool of processes
     (:func:`kisscal.detect.detect_jobs`): the workers decode and detect, and no core
-    waits for the last frames of one camera before the next camera starts. ``name`` is
+    waits for the last frames of one camera before the next camera starts; a camera
+    whose blobs ``kisscal run`` detected ahead is taken from there
+    (:mod:`kisscal.session.ahead`). ``name`` is
     ``(cache stem, label)``: caches are ``out/cache/blobs/<stem>-<camera>.npz`` and
     messages say ``detect <label>``. A frame that cannot be read fails after the other
     cameras' blobs are cached.
@@ -236,21 +228,19 @@ def camera_blobs(
     stale = []
     store = SessionStore(config.root)
     for cam, seq in frames.items():
-        key = store.key("detect", source_files(seq), fields, detection[cam])
-        cache = store.blobs_cache(stem, cam)
+        cache, key = blob_slot(store, stem, cam, seq, fields, detection[cam])
         if store.is_current(cache, key):
             out[cam] = store.blobs(stem, cam)
         else:
-            stale.append((cam, SizedFrames(seq, cam, sizes[cam]), cache, key))
+            stale.append(
+                (cam, image_job(seq, cam, sizes[cam], detection[cam], workers), cache, key)
+            )
     if out:
         echo(f"  detect {label}: {len(out)} of {len(frames)} cameras cached")
-    jobs = [
-        ImageJob(s.__getitem__, len(s), detection[cam], chunk_size(s, workers))
-        for cam, s, _cache, _key in stale
-    ]
     t0 = time.perf_counter()
     failed: KisscalError | None = None
-    for j, found in counted(detect_jobs(jobs, workers), f"detect {label}", len(jobs)):
+    here: list[int] = []  # the cameras detected here, not ahead
+    for j, found in counted(_detected(stale, workers, here), f"detect {label}", len(stale)):
         cam, _s, cache, key = stale[j]
         if isinstance(found, KisscalError):
             failed = failed or found
@@ -260,14 +250,42 @@ def camera_blobs(
         out[cam] = found
     if failed is not None:
         raise failed
-    if stale:
-        n = sum(len(s) for _cam, s, _cache, _key in stale)
-        seconds = time.perf_counter() - t0
+    _say_detected(echo, label, [stale[j][1] for j in here], time.perf_counter() - t0)
+    ahead = [job for j, (_cam, job, _c, _k) in enumerate(stale) if j not in here]
+    if ahead:
+        n = sum(job.count for job in ahead)
+        echo(f"  detect {label}: {len(ahead)} cameras, {n} frames, detected in the background")
+    return {cam: out[cam] for cam in frames}
+
+
+def _say_detected(echo: Echo, label: str, jobs: list[ImageJob], seconds: float) -> None:
+    if jobs:
+        n = sum(job.count for job in jobs)
         echo(
-            f"  detect {label}: {len(stale)} cameras, {n} frames in {seconds:.1f} s "
+            f"  detect {label}: {len(jobs)} cameras, {n} frames in {seconds:.1f} s "
             f"({n / max(seconds, 1e-9):.0f} frames/s)"
         )
-    return {cam: out[cam] for cam in frames}
+
+
+def _detected(
+    stale: list[tuple[str, ImageJob, Path, str]], workers: int | None, here: list[int]
+) -> Iterator[tuple[int, list[Blobs] | KisscalError]]:
+    """The blobs of every stale camera (by index): detected ahead in the background
+    (:func:`kisscal.session.ahead.take`), else here, in one pool (their indices put in
+    ``here``)."""
+    for j, (_cam, _job, cache, key) in enumerate(stale):
+        found = take(cache, key)
+        if found is None:
+            here.append(j)
+        else:
+            yield j, found
+    for i, found in detect_jobs([stale[j][1] for j in here], workers):
+        yield here[i], found
+
+
+def trial_stem(trial: TrialConfig) -> str:
+    """The stem of a trial's blob caches (:func:`camera_blobs`)."""
+    return f"trial-{trial.name}"
 
 
 def trial_blobs(
@@ -284,7 +302,7 @@ def trial_blobs(
     if trial.source == "centroids":
         return centroid_files(config, trial)
     frames = trial_frames_of(config, trial)
-    name = (f"trial-{trial.name}", trial.name)
+    name = (trial_stem(trial), trial.name)
     blobs = camera_blobs(config, frames, detection, trial.fields, name, echo, workers)
     return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 

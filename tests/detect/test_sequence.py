@@ -1,4 +1,5 @@
-"""detect_jobs: several cameras' sequences in one pool, a bad frame failing only its own."""
+"""detect_jobs: several cameras' sequences in one pool, a bad frame failing only its own;
+detect_ahead: the same, started in the background."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 import pytest
 
 from kisscal.detect import ImageJob, detect_blobs, detect_jobs
+from kisscal.detect.sequence import detect_ahead
 from kisscal.errors import KisscalError
 from tests.detect.conftest import KISS, render
 
@@ -50,3 +52,30 @@ def test_a_bad_frame_fails_its_own_job_only() -> None:
     results = dict(detect_jobs(jobs, workers=2))
     assert isinstance(results[0], KisscalError) and "frame 3" in str(results[0])
     assert len(results[1]) == 5 and all(len(b) >= 3 for b in results[1])
+
+
+def test_jobs_detected_ahead_are_those_detected_in_turn() -> None:
+    """detect_ahead returns at once; each job's blobs taken later (in any order) are
+    detect_jobs' blobs, and a bad frame fails its own job only."""
+    jobs = [
+        ImageJob(_broken, 6, KISS, chunksize=2),
+        ImageJob(_frame, 7, KISS, chunksize=3),
+        ImageJob(_shifted, 4, KISS, chunksize=3),
+    ]
+    ahead = detect_ahead(jobs, workers=2)
+    assert ahead is not None
+    try:
+        got = {j: ahead.result(j) for j in (2, 0, 1)}
+    finally:
+        ahead.close()
+    want = dict(detect_jobs(jobs, workers=1))
+    assert isinstance(got[0], KisscalError) and str(got[0]) == str(want[0])
+    for j in (1, 2):
+        assert len(got[j]) == jobs[j].count
+        for a, b in zip(got[j], want[j], strict=True):
+            assert np.array_equal(a.x_px, b.x_px) and np.array_equal(a.y_px, b.y_px)
+            assert np.array_equal(a.flags, b.flags)
+
+
+def test_nothing_is_detected_ahead_with_one_worker() -> None:
+    assert detect_ahead([ImageJob(_frame, 5, KISS)], workers=1) is None

@@ -216,3 +216,37 @@ def test_export_fits_side_by_side_equal_those_in_one_process(processed: Path) ->
         assert here[cam].rms_px == beside[cam].rms_px
         assert np.array_equal(here[cam].camera.lens, beside[cam].camera.lens)
         assert np.array_equal(here[cam].camera.K, beside[cam].camera.K)
+
+
+def test_trial_blobs_detected_ahead_are_those_detected_here(processed: Path) -> None:
+    """`kisscal run` detected the trial's images in the background while it calibrated
+    (its log says so, where there are two cores); the blobs it cached are, frame by frame,
+    those one process detects (two cameras)."""
+    import os
+
+    from kisscal.detect import detect_jobs
+    from kisscal.io.store import SessionStore
+    from kisscal.session.ahead import image_job
+    from kisscal.session.inputs import load_config
+    from kisscal.session.params import stage_params
+    from kisscal.session.runner import markers_detection, trial_stem
+    from kisscal.session.trials import trial_frames_of
+
+    config = load_config(processed)
+    trial = config.trials[0]
+    frames = trial_frames_of(config, trial)
+    if (os.cpu_count() or 1) >= 2:
+        n = sum(len(seq) for seq in frames.values())
+        line = f"detect {trial.name}: {len(frames)} cameras, {n} frames, detected in the background"
+        assert line in (processed / "run.log").read_text()
+    detection = markers_detection(config, stage_params(config), workers=1)
+    sizes = {c.id: c.size_px for c in config.cameras}
+    store = SessionStore(processed)
+    for cam, seq in list(frames.items())[:2]:
+        job = image_job(seq, cam, sizes[cam], detection[cam], 1)
+        ((_, here),) = detect_jobs([job], workers=1)
+        cached = store.blobs(trial_stem(trial), cam)
+        assert len(here) == len(cached) == len(seq)
+        for a, b in zip(here, cached, strict=True):
+            assert np.array_equal(a.x_px, b.x_px) and np.array_equal(a.y_px, b.y_px)
+            assert np.array_equal(a.valid, b.valid)
