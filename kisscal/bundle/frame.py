@@ -53,8 +53,6 @@ class ObjectMatch:
     rotation : ndarray, shape (3, 3)
     shift_mm : ndarray, shape (3,)
         The rigid motion ``X_lab = rotation X + shift_mm`` (scale not applied).
-    runner_up : float
-        Relative distance error of the second-best assignment (large when unambiguous).
     """
 
     index: NDArray[np.int64]
@@ -62,7 +60,6 @@ class ObjectMatch:
     rms_mm: float
     rotation: NDArray[np.float64]
     shift_mm: NDArray[np.float64]
-    runner_up: float
 
 
 def similarity(
@@ -144,7 +141,7 @@ def recognise_object(
     shift = obj.mean(axis=0) - R @ pts[index].mean(axis=0)
     fitted = pts[index] @ R.T + shift
     rms = float(np.sqrt(np.mean(np.sum((fitted - obj) ** 2, axis=1))))
-    return ObjectMatch(index, s, rms, R, shift, runner)
+    return ObjectMatch(index, s, rms, R, shift)
 
 
 def _candidates(

@@ -107,7 +107,6 @@ class _Blocks:
         self.pair_camera = p.camera[self.pair_start]
         fchange = np.flatnonzero(np.diff(p.field)) + 1
         self.field_start = np.r_[0, fchange]
-        self.field_of_segment = p.field[self.field_start]
         pchange = np.flatnonzero(np.diff(self.pair_field)) + 1
         self.field_pair_start = np.r_[0, pchange]
         counts = np.diff(np.r_[self.field_pair_start, len(self.pair_field)])
