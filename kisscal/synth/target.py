@@ -110,9 +110,9 @@ def render_target(
     xyz_mm: NDArray[np.float64],
     surfaces_mm: NDArray[np.float64],
     rng: np.random.Generator,
-    noise_dn: float = 2.0,
 ) -> NDArray[np.uint8]:
-    """A photograph of the target: light plate, dark dots, uneven light, blur and noise."""
+    """A photograph of the target: light plate, dark dots, uneven light, blur and noise
+    (2 DN read noise)."""
     w, h = camera.size_px
     v, u = np.mgrid[0:h, 0:w].astype(float)
     lamp = rng.uniform([0.2 * w, 0.2 * h], [0.8 * w, 0.8 * h])
@@ -129,7 +129,7 @@ def render_target(
     draw_spots(cover, dot_spots(camera, xyz_mm[seen]))
     image = (image * (1.0 - cover) + 35.0 * cover) * light
     image = cv2.GaussianBlur(image, (0, 0), 0.8)
-    image += rng.normal(0.0, noise_dn, image.shape) + rng.normal(0.0, 0.02, image.shape) * image
+    image += rng.normal(0.0, 2.0, image.shape) + rng.normal(0.0, 0.02, image.shape) * image
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 
@@ -137,20 +137,18 @@ def seed_points(
     camera: Camera,
     xyz_mm: NDArray[np.float64],
     rng: np.random.Generator,
-    n: int = 6,
-    click_px: float = 0.5,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``n`` clicked points: visible dots spread in 3D (farthest-point order), clicked
-    with ``click_px`` of error. Returns ``(uv_px (n, 2), xyz_mm (n, 3))``."""
+    """Six clicked points: visible dots spread in 3D (farthest-point order), clicked
+    with 0.5 px of error. Returns ``(uv_px (6, 2), xyz_mm (6, 3))``."""
     seen = np.flatnonzero(visible_dots(camera, xyz_mm, margin_px=40.0))
     pts = xyz_mm[seen]
     chosen = [int(np.argmax(np.linalg.norm(pts - pts.mean(axis=0), axis=1)))]
     dist = np.linalg.norm(pts - pts[chosen[0]], axis=1)
-    while len(chosen) < n:
+    while len(chosen) < 6:
         chosen.append(int(np.argmax(dist)))
         dist = np.minimum(dist, np.linalg.norm(pts - pts[chosen[-1]], axis=1))
     picked = pts[chosen]
-    uv = camera.project(picked) + rng.normal(0.0, click_px, (n, 2))
+    uv = camera.project(picked) + rng.normal(0.0, 0.5, (6, 2))
     return uv, picked
 
 
