@@ -139,7 +139,6 @@ def wand_in_3d(
     rig: Rig,
     markers_mm: Sequence[float],
     params: BundleParams = DEFAULT_PARAMS,
-    recon: ReconParams | None = None,
 ) -> tuple[WandObservations, WandPoses, NDArray[np.int64], NDArray[np.float64]]:
     """The wand found among the points a calibrated rig reconstructs from the blobs.
 
@@ -368,7 +367,7 @@ def calibrate_wand_alone(
         start.cameras, start.observations, markers_mm, start.wand, None, params, start.anchor
     )
     rig = lens_rig(first.cameras, sizes_px, ids)
-    obs, wand, fields, _ = wand_in_3d(table, rig, markers_mm, params, recon)
+    obs, wand, fields, _ = wand_in_3d(table, rig, markers_mm, params)
     _enough(obs, params.min_fields, ids, trial)
     obs, wand, fields = select_fields(obs, wand, fields, _spread(fields, params.max_fields))
     result = adjust_bundle(first.cameras, obs, markers_mm, wand, None, params, start.anchor)
