@@ -360,7 +360,8 @@ def calibrate_wand_alone(
     found = []
     for c in range(len(ids)):
         rows = (table.camera == c) & ~still
-        per_field = _per_field(table.field[rows], table.uv_px[rows], table.n_fields)
+        cuts = np.searchsorted(table.field[rows], np.arange(1, table.n_fields))
+        per_field = np.split(table.uv_px[rows], cuts)  # one (n_f, 2) array per field
         found.append(find_wand_images(per_field, markers_mm, params))
     start = start_from_wand(found, markers_mm, sizes_px, ids, params.min_fields)
     first = adjust_bundle(
@@ -372,14 +373,6 @@ def calibrate_wand_alone(
     obs, wand, fields = select_fields(obs, wand, fields, _spread(fields, params.max_fields))
     result = adjust_bundle(first.cameras, obs, markers_mm, wand, None, params, start.anchor)
     return WandCalibration(result, obs, fields, None, start.anchor)
-
-
-def _per_field(
-    field: NDArray[np.int64], uv: NDArray[np.float64], n_fields: int
-) -> list[NDArray[np.float64]]:
-    """Blobs split into one (n_f, 2) array per field (``field`` ascending)."""
-    cuts = np.searchsorted(field, np.arange(1, n_fields))
-    return np.split(uv, cuts)
 
 
 @dataclass(frozen=True)

@@ -66,7 +66,7 @@ def validate(
     problems += _calibration_inputs(config)
     for trial in config.trials:
         problems += [_problem(trial.name, m) for m in _trial_inputs(config, trial)]
-    return _once(problems)
+    return list(dict.fromkeys(problems))  # misnamed camera folders show in every frame set
 
 
 def _problem(scope: str, message: str) -> Problem:
@@ -77,11 +77,6 @@ def _problem(scope: str, message: str) -> Problem:
 
 
 _WARNING = "warning: "
-
-
-def _once(problems: list[Problem]) -> list[Problem]:
-    """Each problem once: misnamed camera folders show in every set of frames alike."""
-    return list(dict.fromkeys(problems))
 
 
 def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Problem]:
