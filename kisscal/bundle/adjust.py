@@ -1,19 +1,10 @@
 """Bundle adjustment of cameras, lenses and wand poses (Triggs et al. 2000).
 
-Unknowns: per camera the principal distances (pixel aspect included), principal point,
-optionally skew, rotation, translation and Brown lens terms; per wand field the wand's
-centre and direction. The wand is rigid: its markers lie at the known offsets
-``markers_mm`` along its axis, so the marker spacing is a hard constraint of the model
-rather than a penalty (the wand-length term of easyWand, Theriault et al. 2014, made
-exact). Control points of known lab position (the rods' surveyed markers) add their
-reprojection errors with the points held fixed; they fix the lab frame and scale.
-Without them one camera's pose is held and the scale comes from the wand alone.
-
-The robust reprojection cost (pixels) is minimised by the sparse Levenberg-Marquardt of
-:mod:`kisscal.bundle.solve`, or, with ``solver="least_squares"``, by
-:func:`scipy.optimize.least_squares` given the sparse Jacobian pattern (``jac_sparsity``),
-the same loss and ``x_scale="jac"``. A second pass drops observations far outside the
-residual distribution (a wand marker mistaken for a ghost, a merged blob).
+The unknowns, the rigid wand (its marker spacing a hard constraint: Theriault et al.
+2014's wand-length term made exact), the robust cost and the outlier passes are those of
+docs/methods.md, "Wand calibration". Control points (the rods' surveyed markers, held
+fixed) fix the lab frame and scale; without them one camera's pose is held. The solver is
+:mod:`kisscal.bundle.solve`'s, or :func:`scipy.optimize.least_squares` (``solver``).
 
 References
 ----------

@@ -1,14 +1,9 @@
 """The lab frame from an axes object: recognise its markers in 3D, fit the rigid motion.
 
-A wand calibration without surveyed points knows the cameras up to a rigid motion (the
-wand fixes the scale). A static object of known shape on the floor (an "L-frame" of
-four or more markers, not all on one line) fixes it: its markers are reconstructed by
-the wand-calibrated cameras, recognised among the reconstructed points (and ghosts such
-as other cameras' lights) by their mutual distances, and the rotation and translation
-that carry them onto the object's ``points_mm`` are found by the SVD method of Arun et
-al. (1987) with Umeyama's (1991) reflection guard and scale estimate. The scale is kept
-from the wand; the object's scale is returned as a check of the wand length (and of the
-object's own dimensions).
+A wand calibration without surveyed points knows the cameras up to a rigid motion; an
+object of known shape (an "L-frame" of four or more markers, not all on one line) fixes
+it, as docs/methods.md, "Wand calibration", tells. The scale is kept from the wand; the
+object's scale is returned as a check of the wand length.
 
 References
 ----------
