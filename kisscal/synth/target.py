@@ -1,17 +1,11 @@
 """Synthetic known-target calibration: dot plates photographed under uneven light.
 
 Labs that own a calibration object (a frame, a stepped dot plate) photograph it with
-every camera and click a few of its points. This module makes such a set-up with truth:
-
-* :func:`target_points`: a ``planar`` plate (a 17 x 13 lattice of dots, 50 mm pitch)
-  or a ``stepped`` one (four bands of three rows of dots, each band 200 mm higher and
-  80 mm further back), standing upright in the lab's XZ plane.
-* :func:`target_rig`: three to four cameras in front of it, 1280 x 1024 pixels, square
-  pixels, barrel lenses of 4 to 12 px at the corners.
-* :func:`render_target`: a photograph: a light plate with dark dots in a darker room, lit
-  by an off-centre lamp with vignetting, blurred, with sensor noise, as 8-bit grey.
-* :func:`seed_points`: the six points a user would click: spread over the target (on
-  more than one step of a stepped plate), with half a pixel of clicking error.
+every camera and click a few of its points. This module makes such a set-up with truth,
+as docs/synthetic.md ("Calibration objects beyond the rods") describes:
+:func:`target_points` (the plate, upright in the lab's XZ plane), :func:`target_rig`
+(its cameras: 1280 x 1024, square pixels, barrel lenses of 4 to 12 px at the corners),
+:func:`render_target` (a photograph) and :func:`seed_points` (the clicked points).
 
 Example
 -------
