@@ -76,9 +76,7 @@ def similarity(
     return R, mb / scale - R @ ma, scale
 
 
-def recognise_object(
-    xyz_mm: ArrayLike, object_mm: ArrayLike, max_error: float = 0.05
-) -> ObjectMatch:
+def recognise_object(xyz_mm: ArrayLike, object_mm: ArrayLike) -> ObjectMatch:
     """Find the object's markers among reconstructed points by their mutual distances.
 
     Parameters
@@ -87,14 +85,12 @@ def recognise_object(
         Reconstructed points (the object's markers and possibly others), m >= n.
     object_mm : array_like, shape (n, 3)
         The object's markers (``[axes] points_mm``), n >= 4.
-    max_error : float
-        Largest relative RMS difference between the points' and the object's mutual
-        distances (after the best common scale).
 
     Raises
     ------
     KisscalError
-        Too few points, no assignment within ``max_error``, or two that fit equally well
+        Too few points, no assignment whose mutual distances differ from the object's
+        by 5 % RMS or less (after the best common scale), or two that fit equally well
         (a symmetric object).
     """
     pts = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
@@ -121,7 +117,7 @@ def recognise_object(
     order = np.argsort(err)
     best = order[0]
     runner = float(err[order[1]]) if len(order) > 1 else np.inf
-    if err[best] > max_error:
+    if err[best] > 0.05:
         raise EstimationFailed(
             f"axes: no {n} reconstructed markers have the axes object's shape (best relative "
             f"distance error {err[best]:.1%}); check [axes] points_mm"
