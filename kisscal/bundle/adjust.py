@@ -227,7 +227,8 @@ def adjust_bundle(
             observations.subset(keep), offsets, control, len(cameras), len(wand.centre_mm)
         )
         state, iterations, message = _run(problem, state, free, params)
-        res = -_residuals(state, observations, offsets)
+        xyz = wand_points(state, observations.field, offsets[observations.marker])
+        res = observations.uv_px - project(state, observations.camera, xyz, False)[0]
         norm = np.linalg.norm(res, axis=1)
         sigma = 1.4826 * float(np.median(norm[keep]))
         new_keep = norm <= max(params.outlier_px, params.outlier_sigmas * sigma)
@@ -243,14 +244,6 @@ def adjust_bundle(
         ctrl = control.uv_px - project(state, control.camera, control.xyz_mm, False)[0]
     poses = WandPoses(state.centre_mm, state.direction)
     return BundleResult(state.cameras(), poses, res, keep, ctrl, iterations, message)
-
-
-def _residuals(
-    state: State, obs: WandObservations, offsets: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Projected minus observed (px) of every wand observation, shape (n, 2)."""
-    xyz = wand_points(state, obs.field, offsets[obs.marker])
-    return project(state, obs.camera, xyz, False)[0] - obs.uv_px
 
 
 def _problem(
