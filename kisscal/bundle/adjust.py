@@ -1,19 +1,10 @@
 """Bundle adjustment of cameras, lenses and wand poses (Triggs et al. 2000).
 
-Unknowns: per camera the principal distances (pixel aspect included), principal point,
-optionally skew, rotation, translation and Brown lens terms; per wand field the wand's
-centre and direction. The wand is rigid: its markers lie at the known offsets
-``markers_mm`` along its axis, so the marker spacing is a hard constraint of the model
-rather than a penalty (the wand-length term of easyWand, Theriault et al. 2014, made
-exact). Control points of known lab position (the rods' surveyed markers) add their
-reprojection errors with the points held fixed; they fix the lab frame and scale.
-Without them one camera's pose is held and the scale comes from the wand alone.
-
-The robust reprojection cost (pixels) is minimised by the sparse Levenberg-Marquardt of
-:mod:`kisscal.bundle.solve`, or, with ``solver="least_squares"``, by
-:func:`scipy.optimize.least_squares` given the sparse Jacobian pattern (``jac_sparsity``),
-the same loss and ``x_scale="jac"``. A second pass drops observations far outside the
-residual distribution (a wand marker mistaken for a ghost, a merged blob).
+The unknowns, the rigid wand (its marker spacing a hard constraint: Theriault et al.
+2014's wand-length term made exact), the robust cost and the outlier passes are those of
+docs/methods.md, "Wand calibration". Control points (the rods' surveyed markers, held
+fixed) fix the lab frame and scale; without them one camera's pose is held. The solver is
+:mod:`kisscal.bundle.solve`'s, or :func:`scipy.optimize.least_squares` (``solver``).
 
 References
 ----------
@@ -236,7 +227,8 @@ def adjust_bundle(
             observations.subset(keep), offsets, control, len(cameras), len(wand.centre_mm)
         )
         state, iterations, message = _run(problem, state, free, params)
-        res = -_residuals(state, observations, offsets)
+        xyz = wand_points(state, observations.field, offsets[observations.marker])
+        res = observations.uv_px - project(state, observations.camera, xyz, False)[0]
         norm = np.linalg.norm(res, axis=1)
         sigma = 1.4826 * float(np.median(norm[keep]))
         new_keep = norm <= max(params.outlier_px, params.outlier_sigmas * sigma)
@@ -252,14 +244,6 @@ def adjust_bundle(
         ctrl = control.uv_px - project(state, control.camera, control.xyz_mm, False)[0]
     poses = WandPoses(state.centre_mm, state.direction)
     return BundleResult(state.cameras(), poses, res, keep, ctrl, iterations, message)
-
-
-def _residuals(
-    state: State, obs: WandObservations, offsets: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Projected minus observed (px) of every wand observation, shape (n, 2)."""
-    xyz = wand_points(state, obs.field, offsets[obs.marker])
-    return project(state, obs.camera, xyz, False)[0] - obs.uv_px
 
 
 def _problem(

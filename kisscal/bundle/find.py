@@ -183,15 +183,12 @@ def find_wand_points(
     point = np.column_stack(members)
     f_of = field[point[:, 0]]
     # a symmetric wand passes both ways round: keep one; two distinct wands: drop the field
-    canonical = point[:, 0] < point[:, -1] if _symmetric(frac) else np.ones(len(point), bool)
+    symmetric = np.all(np.abs(frac - (1.0 - frac[::-1])) <= 1e-9)
+    canonical = point[:, 0] < point[:, -1] if symmetric else np.ones(len(point), bool)
     point, f_of = point[canonical][:, _given_order(s)], f_of[canonical]
     uniq, count = np.unique(f_of, return_counts=True)
     single = np.isin(f_of, uniq[count == 1])
     return WandPoints(f_of[single], point[single])
-
-
-def _symmetric(frac: NDArray[np.float64], tol: float = 1e-9) -> bool:
-    return bool(np.all(np.abs(frac - (1.0 - frac[::-1])) <= tol))
 
 
 def pairs_within_fields(field: NDArray[np.int64]) -> tuple[NDArray, NDArray]:

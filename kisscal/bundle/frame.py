@@ -1,14 +1,9 @@
 """The lab frame from an axes object: recognise its markers in 3D, fit the rigid motion.
 
-A wand calibration without surveyed points knows the cameras up to a rigid motion (the
-wand fixes the scale). A static object of known shape on the floor (an "L-frame" of
-four or more markers, not all on one line) fixes it: its markers are reconstructed by
-the wand-calibrated cameras, recognised among the reconstructed points (and ghosts such
-as other cameras' lights) by their mutual distances, and the rotation and translation
-that carry them onto the object's ``points_mm`` are found by the SVD method of Arun et
-al. (1987) with Umeyama's (1991) reflection guard and scale estimate. The scale is kept
-from the wand; the object's scale is returned as a check of the wand length (and of the
-object's own dimensions).
+A wand calibration without surveyed points knows the cameras up to a rigid motion; an
+object of known shape (an "L-frame" of four or more markers, not all on one line) fixes
+it, as docs/methods.md, "Wand calibration", tells. The scale is kept from the wand; the
+object's scale is returned as a check of the wand length.
 
 References
 ----------
@@ -53,8 +48,6 @@ class ObjectMatch:
     rotation : ndarray, shape (3, 3)
     shift_mm : ndarray, shape (3,)
         The rigid motion ``X_lab = rotation X + shift_mm`` (scale not applied).
-    runner_up : float
-        Relative distance error of the second-best assignment (large when unambiguous).
     """
 
     index: NDArray[np.int64]
@@ -62,7 +55,6 @@ class ObjectMatch:
     rms_mm: float
     rotation: NDArray[np.float64]
     shift_mm: NDArray[np.float64]
-    runner_up: float
 
 
 def similarity(
@@ -84,9 +76,7 @@ def similarity(
     return R, mb / scale - R @ ma, scale
 
 
-def recognise_object(
-    xyz_mm: ArrayLike, object_mm: ArrayLike, max_error: float = 0.05
-) -> ObjectMatch:
+def recognise_object(xyz_mm: ArrayLike, object_mm: ArrayLike) -> ObjectMatch:
     """Find the object's markers among reconstructed points by their mutual distances.
 
     Parameters
@@ -95,14 +85,12 @@ def recognise_object(
         Reconstructed points (the object's markers and possibly others), m >= n.
     object_mm : array_like, shape (n, 3)
         The object's markers (``[axes] points_mm``), n >= 4.
-    max_error : float
-        Largest relative RMS difference between the points' and the object's mutual
-        distances (after the best common scale).
 
     Raises
     ------
     KisscalError
-        Too few points, no assignment within ``max_error``, or two that fit equally well
+        Too few points, no assignment whose mutual distances differ from the object's
+        by 5 % RMS or less (after the best common scale), or two that fit equally well
         (a symmetric object).
     """
     pts = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
@@ -129,7 +117,7 @@ def recognise_object(
     order = np.argsort(err)
     best = order[0]
     runner = float(err[order[1]]) if len(order) > 1 else np.inf
-    if err[best] > max_error:
+    if err[best] > 0.05:
         raise EstimationFailed(
             f"axes: no {n} reconstructed markers have the axes object's shape (best relative "
             f"distance error {err[best]:.1%}); check [axes] points_mm"
@@ -144,7 +132,7 @@ def recognise_object(
     shift = obj.mean(axis=0) - R @ pts[index].mean(axis=0)
     fitted = pts[index] @ R.T + shift
     rms = float(np.sqrt(np.mean(np.sum((fitted - obj) ** 2, axis=1))))
-    return ObjectMatch(index, s, rms, R, shift, runner)
+    return ObjectMatch(index, s, rms, R, shift)
 
 
 def _candidates(

@@ -1,23 +1,13 @@
 """Starting cameras from the wand alone: a camera pair, then every other camera by resection.
 
-With no calibration at all, the wand images give the cameras in four steps:
-
-1. For the pair of cameras that see the wand together most often, the fundamental matrix
-   from the wand's marker images (OpenCV's RANSAC). A symmetric wand's ends cannot be
-   told apart in an image; the midpoint of its marker images is, to a pixel or two, the
-   image of its centre, which gives a first fundamental matrix that then decides which
-   end is which in every field.
-2. The pair's principal distances (each camera's own, pixel aspect free; principal
-   point at the image centre): those for which the essential matrix
-   ``E = K2^T F K1`` (decomposed by OpenCV's ``recoverPose``) reconstructs the wand with
-   the same length in every field. A rigid bar moving freely fixes the metric
-   reconstruction (Borghese & Cerveri 2000); the usual self-calibration from the
-   fundamental matrix alone fails for lab rigs, whose optical axes all meet near the
-   volume's centre. The wand's known length then fixes the scale.
-3. Every other camera, strongest overlap first, by the linear DLT of its wand images
-   against the wand points triangulated so far (Woltring & Huiskes 1990, eq. 15 gives
-   ``K, R, t``), which adds the points it sees to the chain.
-4. The bundle adjustment (:mod:`kisscal.bundle.adjust`) then refines everything.
+With no calibration at all, the wand images give the cameras in the steps of
+docs/methods.md, "Wand calibration" (*Alone*): the fundamental matrix of the pair that
+sees the wand together most often, the pair's principal distances that reconstruct the
+wand with one length in every field (Borghese & Cerveri 2000), then every other camera by
+a linear DLT (Woltring & Huiskes 1990), before :mod:`kisscal.bundle.adjust` refines
+everything. A symmetric wand's ends cannot be told apart in an image: the midpoint of
+its marker images, the image of its centre to a pixel or two, gives a first fundamental
+matrix that then decides which end is which in every field.
 
 References
 ----------

@@ -107,27 +107,20 @@ class _Blocks:
         self.pair_camera = p.camera[self.pair_start]
         fchange = np.flatnonzero(np.diff(p.field)) + 1
         self.field_start = np.r_[0, fchange]
-        self.field_of_segment = p.field[self.field_start]
         pchange = np.flatnonzero(np.diff(self.pair_field)) + 1
         self.field_pair_start = np.r_[0, pchange]
         counts = np.diff(np.r_[self.field_pair_start, len(self.pair_field)])
         first = np.repeat(self.field_pair_start, counts)  # per pair: first pair of its field
         per_pair = counts[np.repeat(np.arange(len(counts)), counts)]
         left = np.repeat(np.arange(len(self.pair_field)), per_pair)
-        right = np.repeat(first, per_pair) + _ranks(per_pair)
+        rank = np.arange(len(left)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+        right = np.repeat(first, per_pair) + rank  # rank: 0 .. c - 1 in each run of c
         block = self.pair_camera[left] * p.n_cameras + self.pair_camera[right]
         order = np.argsort(block, kind="stable")
         self.combo_left, self.combo_right = left[order], right[order]
         bchange = np.flatnonzero(np.diff(block[order])) + 1
         self.combo_start = np.r_[0, bchange]
         self.combo_block = block[order][self.combo_start]
-
-
-def _ranks(counts: NDArray[np.int64]) -> NDArray[np.int64]:
-    """0, 1, ..., c-1 for each count c, concatenated."""
-    total = int(counts.sum())
-    starts = np.repeat(np.cumsum(counts) - counts, counts)
-    return np.arange(total) - starts
 
 
 def evaluate(

@@ -139,7 +139,6 @@ def wand_in_3d(
     rig: Rig,
     markers_mm: Sequence[float],
     params: BundleParams = DEFAULT_PARAMS,
-    recon: ReconParams | None = None,
 ) -> tuple[WandObservations, WandPoses, NDArray[np.int64], NDArray[np.float64]]:
     """The wand found among the points a calibrated rig reconstructs from the blobs.
 
@@ -361,26 +360,19 @@ def calibrate_wand_alone(
     found = []
     for c in range(len(ids)):
         rows = (table.camera == c) & ~still
-        per_field = _per_field(table.field[rows], table.uv_px[rows], table.n_fields)
+        cuts = np.searchsorted(table.field[rows], np.arange(1, table.n_fields))
+        per_field = np.split(table.uv_px[rows], cuts)  # one (n_f, 2) array per field
         found.append(find_wand_images(per_field, markers_mm, params))
     start = start_from_wand(found, markers_mm, sizes_px, ids, params.min_fields)
     first = adjust_bundle(
         start.cameras, start.observations, markers_mm, start.wand, None, params, start.anchor
     )
     rig = lens_rig(first.cameras, sizes_px, ids)
-    obs, wand, fields, _ = wand_in_3d(table, rig, markers_mm, params, recon)
+    obs, wand, fields, _ = wand_in_3d(table, rig, markers_mm, params)
     _enough(obs, params.min_fields, ids, trial)
     obs, wand, fields = select_fields(obs, wand, fields, _spread(fields, params.max_fields))
     result = adjust_bundle(first.cameras, obs, markers_mm, wand, None, params, start.anchor)
     return WandCalibration(result, obs, fields, None, start.anchor)
-
-
-def _per_field(
-    field: NDArray[np.int64], uv: NDArray[np.float64], n_fields: int
-) -> list[NDArray[np.float64]]:
-    """Blobs split into one (n_f, 2) array per field (``field`` ascending)."""
-    cuts = np.searchsorted(field, np.arange(1, n_fields))
-    return np.split(uv, cuts)
 
 
 @dataclass(frozen=True)

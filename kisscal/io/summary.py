@@ -37,7 +37,11 @@ def summarise(root: Path) -> dict[str, Any]:
     summary = {"session": config.name, "cameras": cams, "rods": check, "trials": trials}
     summary["held_out"] = held_out_figures(check)
     summary["warnings"] = warnings
-    summary.update(_calibration_summary(store))
+    # the calibration route, and the wand's or target's own figures when there are any
+    docs = {name: store.calibration_doc(name) for name in ("calibration", "wand", "target")}
+    if docs["calibration"] is not None:
+        docs["calibration"] = {"route": docs["calibration"].get("route")}
+    summary.update({name: doc for name, doc in docs.items() if doc is not None})
     return summary
 
 
@@ -63,14 +67,6 @@ def held_out_figures(check: dict[str, Any]) -> dict[str, Any]:
     if "lens_models" in check:
         out["camera_model"] = check["lens_models"]
     return out
-
-
-def _calibration_summary(store: SessionStore) -> dict[str, Any]:
-    """The calibration route, and the wand's or target's own figures when there are any."""
-    docs = {name: store.calibration_doc(name) for name in ("calibration", "wand", "target")}
-    if docs["calibration"] is not None:
-        docs["calibration"] = {"route": docs["calibration"].get("route")}
-    return {name: doc for name, doc in docs.items() if doc is not None}
 
 
 def _camera_summary(store: SessionStore, cam: str, exports: dict[str, Any]) -> dict[str, Any]:

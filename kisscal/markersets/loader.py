@@ -63,9 +63,7 @@ def marker_set(name: str, names: Sequence[str] | None = None) -> MarkerSet:
     >>> round(float(pig.scaled(1900.0).position("LASI")[2]))
     1081
     """
-    full = _load(name)
-    default = _default_names(name)
-    return full.select(tuple(default if names is None else names))
+    return _load(name).select(tuple(_raw(name)["names"] if names is None else names))
 
 
 @functools.cache
@@ -77,10 +75,6 @@ def _raw(name: str) -> dict:
         )
     text = resources.files("kisscal.markersets").joinpath("data", f"{name}.toml").read_text("utf-8")
     return tomllib.loads(text)
-
-
-def _default_names(name: str) -> tuple[str, ...]:
-    return tuple(_raw(name)["names"])
 
 
 @functools.cache

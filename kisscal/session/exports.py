@@ -142,10 +142,6 @@ def _opencv_fit(
     )
 
 
-def _fit_summary(fit: OpenCvFit) -> dict[str, float]:
-    return {"rms_px": fit.rms_px, "max_px": fit.max_px, "skew_px": fit.skew_px}
-
-
 def write_exports(
     root: Path,
     config: SessionConfig,
@@ -162,7 +158,10 @@ def write_exports(
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
     fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts, workers=workers)
     report = {
-        "cameras_toml": {c: _fit_summary(f) for c, f in fits.items()},
+        "cameras_toml": {
+            c: {"rms_px": f.rms_px, "max_px": f.max_px, "skew_px": f.skew_px}
+            for c, f in fits.items()
+        },
         "dltdv": {
             "pixel_convention": DLTDV8_CONVENTION,
             "lens_error": {c.id: lens_error_px(c) for c in rig if c.size_px is not None},

@@ -95,7 +95,7 @@ def _all_cached(
     kept = {}
     for cam in cameras:
         try:
-            stage = _grid_inputs(root, config, params, cam, echo)[2]
+            stage = _grid_inputs(config, params, cam, echo)[2]
         except KisscalError:  # said by the cameras' own processes, the others done
             return None
         read = functools.partial(_read, store, cam.id)
@@ -128,7 +128,7 @@ def _linearise_camera(
     (the camera last, as :func:`each_camera` calls it)."""
     store = SessionStore(root)
     out = store.linearisation_path(cam.id)
-    frames, detection, stage = _grid_inputs(root, config, params, cam, echo)
+    frames, detection, stage = _grid_inputs(config, params, cam, echo)
 
     def cached() -> Linearisation:
         echo(f"  linearise {cam.id}: cached")
@@ -151,7 +151,7 @@ def _linearise_camera(
 
 
 def _grid_inputs(
-    root: Path, config: SessionConfig, params: StageParams, cam: CameraConfig, echo: Echo
+    config: SessionConfig, params: StageParams, cam: CameraConfig, echo: Echo
 ) -> tuple[Sequence, DetectionParams, tuple]:
     """A camera's grid frames, their detection settings and what its linearisation is
     keyed on (:func:`~kisscal.session.runner.run_keyed`)."""

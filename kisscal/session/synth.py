@@ -21,6 +21,7 @@ from kisscal.errors import InputError
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.store import SessionStore
+from kisscal.session.progress import quiet
 from kisscal.session.synth_session import load_walking5, write_synthetic_session
 from kisscal.session.synth_target import write_target_session
 from kisscal.synth.evaluate import (
@@ -42,10 +43,6 @@ def default_walking5_path() -> Path | None:
     candidates = [Path(env)] if env else []
     candidates.append(Path(__file__).resolve().parents[1] / "data" / "walking5.c3d")
     return next((p for p in candidates if p.is_file()), None)
-
-
-def _silent(_: str) -> None:
-    return None
 
 
 def synthesise(
@@ -76,7 +73,7 @@ def synthesise(
     ``replay_in_view`` cuts ``walk5`` to the fields the rig sees whole
     (:class:`~kisscal.synth.plan.SynthOptions`).
     """
-    echo = echo or _silent
+    echo = echo or quiet
     if n_markers not in (13, 15):
         raise InputError(f"--markers must be 13 or 15, got {n_markers}")
     if fields is not None and fields < 10:
@@ -134,7 +131,7 @@ def synthesise_target(
         raise InputError(f"a target session has 2 to 4 cameras, got {n_cameras}")
     t0 = time.perf_counter()
     write_target_session(Path(out), kind, seed, n_cameras, force=force)  # type: ignore[arg-type]
-    (echo or _silent)(
+    (echo or quiet)(
         f"wrote {out}: {n_cameras} cameras photographing a {kind} dot plate, "
         f"target.csv, seeds, truth/ ({time.perf_counter() - t0:.1f} s)"
     )

@@ -30,12 +30,11 @@ def write_target_session(
     kind: TargetKind,
     seed: int = 1,
     n_cameras: int = 3,
-    frames: int = 2,
     force: bool = False,
 ) -> Path:
     """A session calibrated from photographs of a ``planar`` or ``stepped`` dot plate.
 
-    Writes ``target.csv``, ``calibration/<camera>/*.tif`` (``frames`` photographs per
+    Writes ``target.csv``, ``calibration/<camera>/*.tif`` (two photographs per
     camera), ``calibration/<camera>_seeds.csv`` (six clicked points) and ``truth/``
     (``cameras.json``, ``target/<camera>.csv``).
     """
@@ -58,7 +57,7 @@ def write_target_session(
         for ci, cam in enumerate(rig):
             folder = root / "calibration" / cam.id
             folder.mkdir(parents=True)
-            for k in range(frames):
+            for k in range(2):
                 image = render_target(cam, xyz, surfaces, np.random.default_rng([seed, ci, k]))
                 cv2.imwrite(str(folder / f"{k:04d}.tif"), image)
             uv, picked = seed_points(cam, xyz, np.random.default_rng([seed, ci, 99]))

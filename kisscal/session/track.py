@@ -16,7 +16,7 @@ from kisscal.io.config import SessionConfig
 from kisscal.io.export import write_c3d, write_sample_cameras, write_trc
 from kisscal.io.files import read_json, write_json
 from kisscal.io.points3d import Points3DFile
-from kisscal.io.store import SessionStore, TrialFiles
+from kisscal.io.store import SessionStore
 from kisscal.io.trajectories import write_sweep_csv, write_trajectories_csv
 from kisscal.report.markers import dense_trajectories
 from kisscal.report.params import ReportParams
@@ -110,9 +110,10 @@ def _track_trial(
     )
     static = config.markers.static if config.markers else None
     template = subject_template(result, spec, trial) if trial == static else None
-    # every field of the trial, trailing ones without points too (a trial without markers
-    # still gets its files: header only, frames without points)
-    frames = _trial_fields(files, pts.field)
+    # every field of the trial (recon.json's count: blank fields count), trailing ones
+    # without points too (a trial without markers still gets its files: header only)
+    recon = read_json(files.recon) or {}
+    frames = max(int(recon.get("fields", 0)), int(pts.field.max(initial=-1)) + 1, 1)
     write_trajectories_csv(files.trajectories(), result.tracks, result.labels)
     write_trc(
         files.trajectories(".trc"),
@@ -141,7 +142,7 @@ def _track_trial(
         residual_mm=None if from_c3d else _residual_mm(config, pts),
         events=events,
         n_fields=frames,
-        first_frame=_first_frame(files),
+        first_frame=int(recon.get("first_frame", 1)),  # a C3D trial's, else 1
     )
     if len(pts.camera_ids):
         write_sample_cameras(files.trajectory_cameras, result.tracks, result.labels, pts)
@@ -184,11 +185,6 @@ def _spare_blobs(config: SessionConfig, trial: str) -> SpareBlobs | None:
     return spare_blobs(obs.field[unused], cam, uv, rig.dlts)
 
 
-def _first_frame(files: TrialFiles) -> int:
-    """The source's number of field 0: a C3D trial's first frame (``recon.json``), else 1."""
-    return int((read_json(files.recon) or {}).get("first_frame", 1))
-
-
 def _residual_mm(config: SessionConfig, pts: Points3DFile) -> np.ndarray | None:
     """Each point's reconstruction residual in mm: ``rms_px`` times the mean size of a pixel
     at the point over the cameras that saw it (None without a calibrated rig)."""
@@ -219,13 +215,6 @@ def _rate_doubt(
     dense = dense_trajectories(tracks.field, tracks.track, labels, tracks.xyz_mm, status)
     fit = throw_fit(dense, trial, config.rate_hz, limits.g_m_s2)
     return "" if fit is None else rate_doubt(fit, config.rate_hz, limits.g_m_s2, limits.max_g_error)
-
-
-def _trial_fields(files: TrialFiles, field: np.ndarray) -> int:
-    """Fields of a trial: from ``recon.json`` (blank fields count), else up to its last
-    point, and at least one."""
-    known = (read_json(files.recon) or {}).get("fields", 0)
-    return max(int(known), int(field.max(initial=-1)) + 1, 1)
 
 
 def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:

@@ -66,7 +66,7 @@ def validate(
     problems += _calibration_inputs(config)
     for trial in config.trials:
         problems += [_problem(trial.name, m) for m in _trial_inputs(config, trial)]
-    return _once(problems)
+    return list(dict.fromkeys(problems))  # misnamed camera folders show in every frame set
 
 
 def _problem(scope: str, message: str) -> Problem:
@@ -77,11 +77,6 @@ def _problem(scope: str, message: str) -> Problem:
 
 
 _WARNING = "warning: "
-
-
-def _once(problems: list[Problem]) -> list[Problem]:
-    """Each problem once: misnamed camera folders show in every set of frames alike."""
-    return list(dict.fromkeys(problems))
 
 
 def _parameters(config: SessionConfig, overrides: Overrides | None) -> list[Problem]:
@@ -172,7 +167,8 @@ def _frame_sizes(
         return [f"no {what} frames for camera {camera}"]
     paths = source_files(frames)
     if getattr(frames, "sequential", False):  # a video: every frame has the first's size
-        sizes, problems = [_frame_size(frames[0])], []
+        h, w = frames[0].shape[:2]
+        sizes, problems = [(int(w), int(h))], []
     else:
         headers = [image_header(p) for p in paths]
         order = getattr(frames, "order", None)
@@ -189,12 +185,6 @@ def _frame_sizes(
             f"{given} {expected[0]} x {expected[1]}"
         )
     return problems
-
-
-def _frame_size(frame: object) -> tuple[int, int]:
-    """The size of a decoded frame (a video's first)."""
-    h, w = frame.shape[:2]  # type: ignore[attr-defined]
-    return int(w), int(h)
 
 
 def _field_size(size: tuple[int, int], order: str | None) -> tuple[int, int]:

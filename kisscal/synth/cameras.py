@@ -190,7 +190,6 @@ def ring_rig(
     clearance_mm: tuple[float, float],
     height_mm: tuple[float, float],
     corner_distortion_px: tuple[float, float],
-    fill: float = 0.95,
     pixel_aspect: float = 1.0,
     start_deg: tuple[float, float] | None = None,
 ) -> tuple[Camera, ...]:
@@ -199,7 +198,8 @@ def ring_rig(
     The ring is an ellipse ``clearance_mm`` outside the volume's footprint; azimuths are
     evenly spaced from a seed-drawn start, each jittered by up to a tenth of the spacing;
     heights alternate between the low and the high half of ``height_mm``. Every camera
-    sees the whole volume (its principal distance is the largest that does).
+    sees the whole volume (its principal distance is the largest that keeps it within 95 %
+    of the way to each image edge).
     ``pixel_aspect`` is a pixel's height / width (``fx / fy``; 1: square pixels).
     ``start_deg`` is the range of the first camera's azimuth (degrees from lab +X, the
     walkway); by default anywhere within one spacing.
@@ -238,7 +238,7 @@ def ring_rig(
         R = look_at(centre, target, roll_deg=rng.uniform(-2.0, 2.0))
         principal = ((w - 1) / 2 + rng.normal(0, 0.004 * w), (h - 1) / 2 + rng.normal(0, 0.004 * h))
         t = -R @ centre
-        K = fitted_intrinsics(R, t, size_px, principal, 1.0 / pixel_aspect, corners, fill)
+        K = fitted_intrinsics(R, t, size_px, principal, 1.0 / pixel_aspect, corners, 0.95)
         lens = _barrel_lens(rng, K, size_px, corner_distortion_px, exact=True)
         cams.append(Camera(K, R, t, lens, f"cam{i + 1}", size_px))
     return tuple(cams)

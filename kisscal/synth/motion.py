@@ -80,16 +80,12 @@ _REFERENCE_HEIGHT_MM = 1755.0
 _STRIDE_SAMPLES = 400
 
 
-def _joint_curves() -> tuple[CubicSpline, CubicSpline, CubicSpline]:
-    return tuple(
+def _leg_points(phase: NDArray[np.float64], side: float) -> dict[str, NDArray[np.float64]]:
+    """Points of one leg at gait-cycle phases ``phase`` (see :func:`_leg_from_angles`)."""
+    hip_c, knee_c, ankle_c = (
         CubicSpline(_PHASE_KNOTS, np.radians(k), bc_type="periodic")
         for k in (_HIP_DEG, _KNEE_DEG, _ANKLE_DEG)
     )
-
-
-def _leg_points(phase: NDArray[np.float64], side: float) -> dict[str, NDArray[np.float64]]:
-    """Points of one leg at gait-cycle phases ``phase`` (see :func:`_leg_from_angles`)."""
-    hip_c, knee_c, ankle_c = _joint_curves()
     return _leg_from_angles(hip_c(phase % 1.0), knee_c(phase % 1.0), ankle_c(phase % 1.0), side)
 
 

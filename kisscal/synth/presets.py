@@ -2,21 +2,9 @@
 
 A :class:`RigPreset` describes a kind of lab as ranges (image sizes, lens distortion,
 marker and grid-dot sizes in pixels, sensor noise, background glow, bit depth, field rate);
-:func:`synth_options` draws one rig of that kind from a seed. Marker and dot sizes in
-pixels are not painted on: they follow from the marker radius, the principal distance
-and the distance to the camera, and the marker radius is drawn (per seed) from the range
-that keeps every marker image of the volume inside the preset's band.
-
-- ``kiss``: the KISS lab of Shafiq et al. (2001): six cameras (up to 16) recording
-  752 x 291 interlaced video fields (pixels 1.94 times as tall as wide) at 50 Hz around a
-  2.4 x 1.4 x 2 m volume; dark, noise-free thresholded video with speckles and streaks.
-- ``modern``: an optical motion-capture system: 8 (2 to 16) square-pixel CMOS cameras of
-  1280 x 1024 or 2048 x 2048 pixels in a ring around a 4 x 2 x 2 m walkway volume, 100 to
-  150 Hz, 8-bit or 10/12-bit images (stored in 16-bit PNG files, values not shifted),
-  read and shot noise, a faint uneven background and the strobe rings of facing cameras.
-- ``lowcost``: four webcams, 640 x 480, 30 to 60 Hz, wide-angle lenses (10 px or more of
-  distortion at the corners), heavy noise, a bright uneven glow of room light through
-  the infrared filter, small markers.
+:func:`synth_options` draws one rig of that kind from a seed. The three presets (``kiss``,
+the KISS lab of Shafiq et al. 2001; ``modern``; ``lowcost``) and how marker sizes in
+pixels follow from a drawn marker radius: docs/synthetic.md, "Presets".
 
 Examples
 --------

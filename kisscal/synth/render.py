@@ -179,11 +179,10 @@ def add_noise_pixels(
     rng: np.random.Generator,
     params: RenderParams,
     keep_clear_px: NDArray[np.float64],
-    clearance_px: float = 8.0,
 ) -> None:
     """Add isolated bright pixels and, sometimes, a one-pixel-wide streak (in place).
 
-    Noise is kept ``clearance_px`` away from the points in ``keep_clear_px`` (the spots), so
+    Noise is kept 8 px away from the points in ``keep_clear_px`` (the spots), so
     that truth centroids stay the centroids of the spots alone.
     """
     h, w = image.shape
@@ -203,7 +202,7 @@ def add_noise_pixels(
         u, v = np.concatenate([u, su]), np.concatenate([v, sv])
     if len(keep_clear_px) and len(u):
         d = np.hypot(u[:, None] - keep_clear_px[None, :, 0], v[:, None] - keep_clear_px[None, :, 1])
-        clear = d.min(axis=1) > clearance_px
+        clear = d.min(axis=1) > 8.0
         if streak and not clear[n:].all():
             clear[n:] = False  # a streak is drawn whole or not at all
         u, v = u[clear], v[clear]

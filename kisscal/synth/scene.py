@@ -234,24 +234,23 @@ class GridView:
 def grid_view(
     camera: Camera,
     seed: int,
-    rows: int = 15,
-    cols: int = 20,
-    tilt_deg: float = 3.0,
     fill: float = 0.88,
     dot_radius_px: float = 2.6,
 ) -> GridView:
-    """The dot grid at close range, nearly square to ``camera``, filling its view.
+    """The dot grid (15 rows, 20 columns) at close range, nearly square to ``camera``,
+    filling its view.
 
-    The grid plane is tilted by up to ``tilt_deg`` about both image axes and turned by up
+    The grid plane is tilted by up to 3 degrees about both image axes and turned by up
     to 2 degrees in its plane; dots are flat discs that image about ``2 dot_radius_px``
     pixels wide. Returns distorted and ideal pixel positions of every dot.
     """
     rng = np.random.default_rng([seed, 6006, int(camera.id.removeprefix("cam") or 0)])
     depth_mm = 1500.0
+    rows, cols = 15, 20
     w = camera.size_px[0]
     half_x = min(camera.K[0, 2], w - 1 - camera.K[0, 2]) / camera.K[0, 0]
     spacing_mm = fill * 2 * half_x * depth_mm / (cols - 1)
-    ax, ay = np.radians(rng.uniform(-tilt_deg, tilt_deg, 2))
+    ax, ay = np.radians(rng.uniform(-3.0, 3.0, 2))
     az = np.radians(rng.uniform(-2.0, 2.0))
     rx = np.array([[1, 0, 0], [0, np.cos(ax), -np.sin(ax)], [0, np.sin(ax), np.cos(ax)]])
     ry = np.array([[np.cos(ay), 0, np.sin(ay)], [0, 1, 0], [-np.sin(ay), 0, np.cos(ay)]])

@@ -1,17 +1,11 @@
 """Synthetic known-target calibration: dot plates photographed under uneven light.
 
 Labs that own a calibration object (a frame, a stepped dot plate) photograph it with
-every camera and click a few of its points. This module makes such a set-up with truth:
-
-* :func:`target_points`: a ``planar`` plate (a 17 x 13 lattice of dots, 50 mm pitch)
-  or a ``stepped`` one (four bands of three rows of dots, each band 200 mm higher and
-  80 mm further back), standing upright in the lab's XZ plane.
-* :func:`target_rig`: three to four cameras in front of it, 1280 x 1024 pixels, square
-  pixels, barrel lenses of 4 to 12 px at the corners.
-* :func:`render_target`: a photograph: a light plate with dark dots in a darker room, lit
-  by an off-centre lamp with vignetting, blurred, with sensor noise, as 8-bit grey.
-* :func:`seed_points`: the six points a user would click: spread over the target (on
-  more than one step of a stepped plate), with half a pixel of clicking error.
+every camera and click a few of its points. This module makes such a set-up with truth,
+as docs/synthetic.md ("Calibration objects beyond the rods") describes:
+:func:`target_points` (the plate, upright in the lab's XZ plane), :func:`target_rig`
+(its cameras: 1280 x 1024, square pixels, barrel lenses of 4 to 12 px at the corners),
+:func:`render_target` (a photograph) and :func:`seed_points` (the clicked points).
 
 Example
 -------
@@ -110,9 +104,9 @@ def render_target(
     xyz_mm: NDArray[np.float64],
     surfaces_mm: NDArray[np.float64],
     rng: np.random.Generator,
-    noise_dn: float = 2.0,
 ) -> NDArray[np.uint8]:
-    """A photograph of the target: light plate, dark dots, uneven light, blur and noise."""
+    """A photograph of the target: light plate, dark dots, uneven light, blur and noise
+    (2 DN read noise)."""
     w, h = camera.size_px
     v, u = np.mgrid[0:h, 0:w].astype(float)
     lamp = rng.uniform([0.2 * w, 0.2 * h], [0.8 * w, 0.8 * h])
@@ -129,7 +123,7 @@ def render_target(
     draw_spots(cover, dot_spots(camera, xyz_mm[seen]))
     image = (image * (1.0 - cover) + 35.0 * cover) * light
     image = cv2.GaussianBlur(image, (0, 0), 0.8)
-    image += rng.normal(0.0, noise_dn, image.shape) + rng.normal(0.0, 0.02, image.shape) * image
+    image += rng.normal(0.0, 2.0, image.shape) + rng.normal(0.0, 0.02, image.shape) * image
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 
@@ -137,20 +131,18 @@ def seed_points(
     camera: Camera,
     xyz_mm: NDArray[np.float64],
     rng: np.random.Generator,
-    n: int = 6,
-    click_px: float = 0.5,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``n`` clicked points: visible dots spread in 3D (farthest-point order), clicked
-    with ``click_px`` of error. Returns ``(uv_px (n, 2), xyz_mm (n, 3))``."""
+    """Six clicked points: visible dots spread in 3D (farthest-point order), clicked
+    with 0.5 px of error. Returns ``(uv_px (6, 2), xyz_mm (6, 3))``."""
     seen = np.flatnonzero(visible_dots(camera, xyz_mm, margin_px=40.0))
     pts = xyz_mm[seen]
     chosen = [int(np.argmax(np.linalg.norm(pts - pts.mean(axis=0), axis=1)))]
     dist = np.linalg.norm(pts - pts[chosen[0]], axis=1)
-    while len(chosen) < n:
+    while len(chosen) < 6:
         chosen.append(int(np.argmax(dist)))
         dist = np.minimum(dist, np.linalg.norm(pts - pts[chosen[-1]], axis=1))
     picked = pts[chosen]
-    uv = camera.project(picked) + rng.normal(0.0, click_px, (n, 2))
+    uv = camera.project(picked) + rng.normal(0.0, 0.5, (6, 2))
     return uv, picked
 
 

@@ -47,8 +47,6 @@ class GaitTruth:
     stride_time_s, speed_mm_s, stance_fraction, step_width_mm, step_length_mm : float
         The walker's nominal gait (the same on both sides; stride and step length along a
         straight path).
-    height_mm, heading_deg : float
-        Stature and initial walking direction (degrees from lab +X towards +Y).
     spheres_mm : dict
         ``"left_heel"``, ``"left_ball"``, ``"left_tip"``, ``"right_..."`` -> (n_fields, 3)
         centres of the spheres the foot touches the floor with (heel, metatarsal heads,
@@ -61,8 +59,6 @@ class GaitTruth:
     stance_fraction: float
     step_width_mm: float
     step_length_mm: float
-    height_mm: float
-    heading_deg: float
     spheres_mm: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     sphere_radius_mm: dict[str, float] = field(default_factory=dict)
 
@@ -247,7 +243,7 @@ def grounded_walk(
         ):
             caps.append(np.stack([leg[a], leg[c]], axis=1))
             radii.append(r * b.k)
-    truth = _truth(prints, g, height_mm, heading, t_end, rate_hz)
+    truth = _truth(prints, g, t_end, rate_hz)
     radius = {"heel": b.radius, "ball": b.radius, "tip": b.tip}
     truth = replace(
         truth, spheres_mm=spheres, sphere_radius_mm={k: radius[k.split("_")[1]] for k in spheres}
@@ -255,9 +251,7 @@ def grounded_walk(
     return markers, np.stack(caps, axis=1), np.asarray(radii), truth
 
 
-def _truth(
-    prints: dict, g: GaitTiming, height_mm: float, heading: float, t_end: float, rate: float
-) -> GaitTruth:
+def _truth(prints: dict, g: GaitTiming, t_end: float, rate: float) -> GaitTruth:
     times = {}
     for side in ("left", "right"):
         strikes = prints[side][0]
@@ -271,6 +265,4 @@ def _truth(
         stance_fraction=g.stance,
         step_width_mm=g.width,
         step_length_mm=g.step,
-        height_mm=height_mm,
-        heading_deg=float(np.degrees(heading) % 360.0),
     )

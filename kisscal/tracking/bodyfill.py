@@ -1,22 +1,11 @@
 """Gap filling that uses the body: rigid-body fill and pattern fill, with expected errors.
 
-A gap too long for a spline (the marker hidden for a second by the other leg, or seen by
-fewer than two cameras) is filled from markers that were seen through it:
-
-* **rigid-body fill**: three or more markers whose distances to the hidden one stay
-  constant in the trial (they ride on its segment) carry it: the hidden marker's position
-  in their frame is learnt from the fields on both sides of the gap (or from the static
-  trial's template when the trial has none) and moved with them, field by field
-  (Kabsch 1976 fits; the position in the frame drifts linearly from the one side's to
-  the other's, as skin does);
-* **pattern fill**: one neighbour whose motion it shares: the hidden marker follows the
-  neighbour's path, its offset from the neighbour drifting linearly from its value
-  before the gap to its value after (the pattern fill of commercial systems).
-
-Each method's **expected error** is measured on the trial itself: the same fill, run on
-stretches of the same length cut out of the marker's measured samples beside the gap, is
-compared with what was measured there. Per gap, the method with the smaller expected
-error fills it.
+A gap too long for a spline is filled from markers seen through it: **rigid-body fill**
+(markers riding on the hidden one's segment carry it; its place in their frame is learnt
+beside the gap, or from the static trial's template when the trial has none) or
+**pattern fill** (it follows one neighbour's path). Each method's **expected error** is
+measured by the same fill on stretches of the marker's own measured samples beside the
+gap, and the smaller fills it: docs/methods.md, "Gap filling", tells each step.
 
 Everything works on dense ``(n_tracks, n_fields, 3)`` arrays of measured positions (NaN
 elsewhere); nothing knows about files.

@@ -295,7 +295,6 @@ def refine_by_swaps(
     weight: NDArray,
     template_distance: NDArray,
     assign: NDArray,
-    max_passes: int = 20,
     unary: NDArray | None = None,
 ) -> NDArray[np.int64]:
     """Improve a track -> template assignment by exchanging labels (2-opt local search).
@@ -322,7 +321,7 @@ def refine_by_swaps(
     u = None if unary is None else unary[rows]
     wd = w * d
     wdd = (wd * d).sum(axis=1)
-    for _ in range(max_passes * p.size):
+    for _ in range(20 * p.size):  # passes at most
         gains, at = _best_moves(d, w, wd, wdd, template_distance, p, u)
         if min(gains) > -1e-9:
             break
@@ -346,14 +345,11 @@ def refine_with_kicks(
     template_distance: NDArray,
     assign: NDArray,
     unary: NDArray | None = None,
-    kicks: int = 60,
-    seed: int = 0,
 ) -> NDArray[np.int64]:
     """:func:`refine_by_swaps`, then iterated local search: exchange the names of four
     random named tracks at a time (a kick out of the valley) and descend again; keep
     the best. When names are free (fewer tracks than names), as many kicks again give
-    four tracks names drawn from theirs and the free ones. Deterministic for a given
-    ``seed``.
+    four tracks names drawn from theirs and the free ones. Deterministic (a fixed seed).
 
     The exchange search only descends, and a walking trial's average pose blurs the
     feet so much that an assignment with three foot markers wrong in one exchange each
@@ -364,14 +360,15 @@ def refine_with_kicks(
     ----------
     Lourenço, Martin & Stützle 2003 (iterated local search).
     """
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(0)
+    kicks = 60  # exchanges of four named tracks; as many again with free names
     best = refine_by_swaps(distance, weight, template_distance, assign, unary=unary)
     best_cost = swap_cost(best, distance, weight, template_distance, unary)
     named = np.flatnonzero(best >= 0)
     if named.size < 5:
         return best
     n_names = template_distance.shape[0]
-    free_rng = np.random.default_rng([seed, 1])
+    free_rng = np.random.default_rng([0, 1])
     has_free = n_names > named.size
     for kick in range(kicks * (2 if has_free else 1)):
         trial = best.copy()
