@@ -248,6 +248,14 @@ def calibrate(
             show_default=False,
         ),
     ] = None,
+    refresh: Annotated[
+        bool,
+        typer.Option(
+            "--refresh",
+            help="Adjust the rods with every trial the session has now, not those of its "
+            "first calibration.",
+        ),
+    ] = False,
 ) -> None:
     """Calibrate every camera by the route the session describes (it says which).
 
@@ -255,12 +263,21 @@ def calibrate(
     [calibration]: control points or a known target. --mdlt, --refine and --lens
     (rods and points routes) are remembered: later calibrations of the session (and
     `kisscal run`) keep them until turned off with --no-mdlt, --no-refine, --no-lens.
+    The trials the rods are adjusted with are kept the same way: a walk added later
+    leaves the calibration as it was until --refresh.
     """
     from kisscal import session
 
     with progress_bars() as echo:
         session.calibrate(
-            session_dir, camera=camera, mdlt=mdlt, refine=refine, lens=lens, echo=echo, route=route
+            session_dir,
+            camera=camera,
+            mdlt=mdlt,
+            refine=refine,
+            lens=lens,
+            echo=echo,
+            route=route,
+            refresh=refresh,
         )
 
 

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from kisscal.dlt.params import DltParams
 from kisscal.errors import InputError
 from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_json
@@ -33,6 +34,7 @@ from kisscal.session.routes.imported import calibrate_from_cameras, calibrate_fr
 from kisscal.session.routes.points import calibrate_from_points
 from kisscal.session.routes.rods import calibrate_from_rods
 from kisscal.session.routes.target import calibrate_from_target
+from kisscal.session.routes.trial_bundle import usable_trials, uses_trials
 from kisscal.session.routes.wand import calibrate_from_wand
 
 #: Every route by name: what ``calibration.json`` records and ``--route`` chooses.
@@ -57,6 +59,7 @@ def calibrate(
     echo: Echo = quiet,
     workers: int | None = None,
     route: str | None = None,
+    refresh: bool = False,
     *,
     config: SessionConfig,
 ) -> dict[str, Any]:
@@ -69,6 +72,12 @@ def calibrate(
     this session chose (``out/dlt/calibration.json``), so that ``kisscal run`` never
     silently undoes ``kisscal calibrate --mdlt``; ``False`` turns a switch off.
 
+    The trials the rods are adjusted with (``[dlt] trials_bundle``) are recorded there
+    too and reused, as a lab expects of a calibration: made once, it stays as it was
+    when a walk is added later, until ``refresh`` (``--refresh``) makes it again with
+    every trial the session has then (:func:`_bundle_trials`). ``[dlt] bundle_trials``
+    named in ``session.toml`` decides instead.
+
     Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
     (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
     returns ``{camera: DltResult}`` plus the route's held-out check under ``"_check"``.
@@ -80,6 +89,11 @@ def calibrate(
     switches = _dlt_switches(root, {"mdlt": mdlt, "refine": refine, "lens": lens}, echo)
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
     route, why = session_route(config, route)
+    previous = SessionStore(root).calibration_doc("calibration") or {}
+    if route == "rods" and params.dlt.trials_bundle and params.dlt.selects:
+        trials = _bundle_trials(config, params.dlt, previous, refresh, echo)
+        dlt = dataclasses.replace(params.dlt, bundle_trials=trials)
+        params = dataclasses.replace(params, dlt=dlt)
     echo(f"  calibrate: route {route} ({why})")
     cameras, lins = select_cameras(config, camera), grid_linearisations(config, echo)
     inputs = RouteInputs(root, config, cameras, lins, params, echo, workers)
@@ -87,9 +101,46 @@ def calibrate(
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated
     write_exports(root, config, lins, read_dlt_files(root, config, False), echo, workers)
-    record = SessionStore(root).calibration_file("calibration")
-    write_json(record, {"route": route, "options": switches})
+    record = {"route": route, "options": switches}
+    # the trials the rods were adjusted with, or those of the calibration before (a
+    # forced model or one camera leaves the record for the next default calibration)
+    used = params.dlt.bundle_trials if route == "rods" and uses_trials(inputs) else ()
+    kept = used or previous.get("bundle_trials")
+    write_json(
+        SessionStore(root).calibration_file("calibration"),
+        {**record, "bundle_trials": list(kept)} if kept else record,
+    )
     return summary
+
+
+def _bundle_trials(
+    config: SessionConfig,
+    dlt: DltParams,
+    previous: dict[str, Any],
+    refresh: bool,
+    echo: Echo,
+) -> tuple[str, ...]:
+    """The trials the rods are adjusted with: ``[dlt] bundle_trials`` when named; else
+    those the session's calibration recorded (``previous``, ``calibration.json``) that it
+    still has, so that a walk added later leaves the calibration as it was; else, and with
+    ``refresh``, every image or video trial it has now (the wand's aside).
+
+    Named explicitly either way, so that the calibration's cache key is the same whether
+    the trials came from the record or from the session.
+    """
+    if dlt.bundle_trials:
+        return dlt.bundle_trials
+    usable = tuple(usable_trials(config))
+    recorded = [] if refresh else previous.get("bundle_trials") or []
+    kept = tuple(n for n in recorded if n in usable)
+    if not kept:
+        return usable
+    if set(usable) - set(kept):
+        echo(
+            f"  calibrate: the rods stay adjusted with {', '.join(kept)}, as this session "
+            f"was calibrated (--refresh adds {', '.join(sorted(set(usable) - set(kept)))})"
+        )
+    return kept
 
 
 def session_route(config: SessionConfig, forced: str | None = None) -> tuple[str, str]:

@@ -10,7 +10,8 @@ One line per session: the model the calibration chose, the held-out 3D error of 
 volume's points inside and at the edges, the round trip through ``out/cameras.toml``
 and the leave-one-rod-out mean. ``--off`` calibrates with the trials bundle off (the
 rods' own choice), to compare; ``--trials stick,throw`` adjusts those trials only
-(``[dlt] bundle_trials``).
+(``[dlt] bundle_trials``); without it, the trials the session's first calibration
+recorded in ``out/dlt/calibration.json`` (every trial, in a session that had none).
 """
 
 from __future__ import annotations

@@ -73,17 +73,22 @@ def test_lens_terms_reach_reconstruction(small_session: Path, tmp_path: Path) ->
     assert with_lens < 2 * in_sample["rods_in_sample_mean_mm"] + 0.05
 
 
+def _dlts(root: Path) -> np.ndarray:
+    docs = [json.loads(p.read_text()) for p in sorted((root / "out" / "dlt").glob("cam*.json"))]
+    return np.array([d["L"] for d in docs])
+
+
 def test_the_trials_bundle_reconstructs_the_volume_better_than_the_rods_model(
     synthesised: Path, tmp_path: Path
 ) -> None:
-    """Issue 25: on the seed-7 session (four cameras; walk01, stick and throw) the rods and
-    the trials' markers adjusted together (``[dlt] trials_bundle``) reconstruct held-out
-    points of the volume better than the rods' own model (measured 0.012/0.018 against
-    0.044/0.034 mm inside/edges), though their leave-one-rod-out says the opposite (which
-    is why it no longer judges the adjustment)."""
+    """Issue 25: by default, on the seed-7 session (four cameras; walk01, stick and throw)
+    the rods and the trials' markers adjusted together (``[dlt] trials_bundle``)
+    reconstruct held-out points of the volume better than the rods' own model (measured
+    0.012/0.018 against 0.044/0.034 mm inside/edges), though their leave-one-rod-out says
+    the opposite (which is why it does not judge the adjustment)."""
     root = copy_of(synthesised, tmp_path / "s")
     log: list[str] = []
-    session.calibrate(root, overrides=Overrides(dlt={"trials_bundle": True}), echo=log.append)
+    session.calibrate(root, echo=log.append)
     assert any("rods and trials (walk01, stick, throw) adjusted" in line for line in log)
     docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
     assert docs and all(d["lens_models"]["chosen"] == "trials" and d["lens"] for d in docs)
@@ -94,17 +99,45 @@ def test_the_trials_bundle_reconstructs_the_volume_better_than_the_rods_model(
     assert bundle["edges"] < rods["edges"], (bundle, rods)
 
 
+def test_a_walk_added_later_leaves_the_calibration_as_it_was(
+    synthesised: Path, tmp_path: Path
+) -> None:
+    """The rods are adjusted with the trials the session had at its first calibration
+    (here stick and throw), recorded in ``calibration.json``: the walk added later leaves
+    every DLT as it was (the calibration is not even made again), a calibration with a
+    forced model keeps the record, and ``refresh`` adjusts them with the walk too."""
+    root = copy_of(synthesised, tmp_path / "s", trials=("stick", "throw"))
+    record = root / "out" / "dlt" / "calibration.json"
+    session.calibrate(root)
+    first = _dlts(root)
+    assert json.loads(record.read_text())["bundle_trials"] == ["stick", "throw"]
+    shutil.copy(synthesised / "session.toml", root / "session.toml")  # the walk comes
+    log: list[str] = []
+    session.calibrate(root, echo=log.append)
+    assert any("calibrate: cached" in line for line in log), log
+    assert any("--refresh adds walk01" in line for line in log), log
+    np.testing.assert_array_equal(_dlts(root), first)
+    session.calibrate(root, refine=True)  # a forced model: no bundle, the record stays
+    session.calibrate(root, refine=False)
+    np.testing.assert_array_equal(_dlts(root), first)
+    session.calibrate(root, refresh=True)
+    assert json.loads(record.read_text())["bundle_trials"] == ["walk01", "stick", "throw"]
+    docs = [json.loads(p.read_text()) for p in (root / "out" / "dlt").glob("cam*.json")]
+    assert all("(walk01, stick, throw)" in d["lens_models"]["by"] for d in docs)
+    assert np.abs(_dlts(root) - first).max() > 1e-6
+
+
 def test_the_trials_bundle_uses_only_the_trials_named(synthesised: Path, tmp_path: Path) -> None:
-    """With ``[dlt] bundle_trials`` named, a trial added to the session later (here the
-    walk) leaves the calibration as it was; a name that is no trial is refused."""
-    named = {"trials_bundle": True, "bundle_trials": ("stick", "throw")}
+    """With ``[dlt] bundle_trials`` named, they are the trials, whatever the record; a
+    name that is no trial is refused."""
+    named = {"bundle_trials": ("stick", "throw")}
     dlts = []
     for name, trials in (("before", ("stick", "throw")), ("after", None)):
         root = copy_of(synthesised, tmp_path / name, trials=trials)
         session.calibrate(root, overrides=Overrides(dlt=named))
         docs = [json.loads(p.read_text()) for p in sorted((root / "out" / "dlt").glob("cam*.json"))]
         assert docs and all("(stick, throw)" in d["lens_models"]["by"] for d in docs)
-        dlts.append(np.array([d["L"] for d in docs]))
+        dlts.append(_dlts(root))
     np.testing.assert_allclose(dlts[1], dlts[0], rtol=0, atol=1e-9)
     with pytest.raises(KisscalError, match="bundle_trials names nosuch"):
         session.calibrate(root, overrides=Overrides(dlt={**named, "bundle_trials": ("nosuch",)}))

@@ -34,7 +34,7 @@ from kisscal.dlt.params import DltResult, Rod, RodCheck
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid import apply_linearisation
-from kisscal.io.config import TrialConfig
+from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
 from kisscal.session.runner import trial_blobs
 
@@ -118,10 +118,7 @@ def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
     """The trials the rods are adjusted with: those ``[dlt] bundle_trials`` names, or
     (none named) the session's image and video trials but the wand's."""
     config = inputs.config
-    wand = config.wand.trial if config.wand is not None else None
-    usable = {
-        t.name: t for t in config.trials if t.name != wand and t.source in ("images", "video")
-    }
+    usable = usable_trials(config)
     named = inputs.params.dlt.bundle_trials
     unknown = [n for n in named if n not in usable]
     if unknown:
@@ -130,6 +127,13 @@ def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
             f"or video trial of the session (those: {', '.join(usable) or 'none'})"
         )
     return [usable[n] for n in named] if named else list(usable.values())
+
+
+def usable_trials(config: SessionConfig) -> dict[str, TrialConfig]:
+    """The session's trials the rods can be adjusted with, by name: its image and video
+    trials but the wand's."""
+    wand = config.wand.trial if config.wand is not None else None
+    return {t.name: t for t in config.trials if t.name != wand and t.source in ("images", "video")}
 
 
 def lens_from_trials(
