@@ -8,7 +8,10 @@ shorter, places markers a little differently, and walks. So:
    subject about as well as its own) and matched to the average pose of a window of
    about one stride (:func:`estimate_height`); the best fit gives the subject's stature;
 2. **first pass**: the phases run with the scaled template and without rigid
-   segments (their lengths are the subject's, not the template's);
+   segments (their lengths are the subject's, not the template's); a part of the set
+   fitted at its bound, or whose names break one of the set's rigid segments, takes the
+   stature whose first pass holds the most segments rigid, all its names then flagged
+   (:func:`~kisscal.tracking.labelling.partial.rigid_height`);
 3. **the subject's template** (:func:`fit_template`): the scaled template, moved as
    little as possible so that every pair the first pass found rigid (and the set's
    segments) has its measured length; left/right are settled by the anatomy first;
