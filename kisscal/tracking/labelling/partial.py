@@ -93,36 +93,28 @@ def first_pass(
     return state if name_pieces(state) else None
 
 
-def _rank(state: LabelState, marker_set: MarkerSet) -> tuple[int, float, int]:
-    """(held - broken segments, -misfit, broken) of a first pass' names."""
+def _rank(state: LabelState, marker_set: MarkerSet) -> tuple[int, float]:
+    """(held - broken segments, -misfit) of a first pass' names."""
     rigid = segment_mask(marker_set.names, marker_set.segments)
     held, broken, misfit = segment_score(state.name_pos, state.template, rigid)
-    return held - broken, -misfit, broken
+    return held - broken, -misfit
 
 
 def rigid_height(
-    first: LabelState,
-    marker_set: MarkerSet,
-    params: TrackingParams,
-    height_mm: float,
-    at_bound: bool,
+    first: LabelState, marker_set: MarkerSet, params: TrackingParams, height_mm: float
 ) -> tuple[float, LabelState]:
     """The stature, and its first pass, whose names hold the most segments rigid.
 
-    ``first`` is the first pass at ``height_mm``, the floor fit's stature. When it
-    breaks none of the segments it names and the fit is not at its bound (``at_bound``),
-    it is kept as it is. Else the first pass runs at each of :data:`JUDGED_HEIGHTS_MM`;
-    the one holding the most segments net of those it breaks (then whose held lengths
-    fit its template best) replaces ``first`` when it holds :data:`MIN_SEGMENT_GAIN`
-    more.
+    ``first`` is the first pass at ``height_mm``, the floor fit's stature. The first
+    pass runs at each of :data:`JUDGED_HEIGHTS_MM`; the one holding the most segments
+    net of those it breaks (then whose held lengths fit its template best) replaces
+    ``first`` when it holds :data:`MIN_SEGMENT_GAIN` more.
     """
     own = _rank(first, marker_set)
-    if own[2] == 0 and not at_bound:
-        return height_mm, first
     best, best_height, best_state = own, height_mm, first
     for height in JUDGED_HEIGHTS_MM[JUDGED_HEIGHTS_MM != height_mm]:
         state = first_pass(first.tracks, marker_set, params, float(height))
-        if state is not None and _rank(state, marker_set)[:2] > best[:2]:
+        if state is not None and _rank(state, marker_set) > best:
             best, best_height, best_state = _rank(state, marker_set), float(height), state
     if best[0] >= own[0] + MIN_SEGMENT_GAIN:
         return best_height, best_state

@@ -9,8 +9,8 @@ shorter, places markers a little differently, and walks. So:
    about one stride (:func:`estimate_height`); the best fit gives the subject's stature;
 2. **first pass**: the phases run with the scaled template and without rigid
    segments (their lengths are the subject's, not the template's); a part of the set
-   fitted at its bound, or whose names break one of the set's rigid segments, takes the
-   stature whose first pass holds the most segments rigid, all its names then flagged
+   fitted at its bound takes the stature whose first pass holds the most segments
+   rigid, all its names then flagged
    (:func:`~kisscal.tracking.labelling.partial.rigid_height`);
 3. **the subject's template** (:func:`fit_template`): the scaled template, moved as
    little as possible so that every pair the first pass found rigid (and the set's
@@ -302,11 +302,10 @@ def _label_upright(
     if first is None:
         return replace(generic(tracks, params, names, float("nan")), height_mm=height)
     fitted = height
-    if partial:
-        # A part stood on the floor fits many statures (partial.py): one whose names
-        # break the set's segments, or at the adult bound, is judged by the segments.
-        at_bound = height == PARTIAL_HEIGHTS_MM[0]
-        height, first = rigid_height(first, marker_set, first_params, height, at_bound)
+    if partial and height == PARTIAL_HEIGHTS_MM[0]:
+        # A part stood on the floor fits many statures (partial.py): at the adult bound
+        # the stature is judged by the set's segments its names hold rigid.
+        height, first = rigid_height(first, marker_set, first_params, height)
     scaled = marker_set.scaled(height).template_mm
     anatomy = Anatomy.of_set(marker_set.scaled(height))
     exchanged = _settled(first, anatomy, rate_hz)
