@@ -43,12 +43,16 @@ def test_right_names_hold_more_segments_than_names_shifted_along_the_legs():
 
 
 @pytest.mark.slow
-def test_a_childs_lower_body_named_from_the_full_body_set_is_never_silently_wrong():
-    # The lower body of a 1.0 m child is a part of the full-body set; stood on the floor it
-    # fitted 1.45 m and its legs' names were shifted up by one marker, some not flagged.
-    truth, _, field, xyz = walker_trial(3, 1.0, 140.0, 0.8, 50.0)
+def test_a_childs_lower_body_named_from_the_full_body_set_gets_its_legs_right():
+    # The lower body of a 0.9 m child is a part of the full-body set; stood on the floor it
+    # fitted the adult bound, 1.40 m, and its legs' names were shifted up by one marker.
+    truth, _, field, xyz = walker_trial(4, 0.9, 140.0, 0.8, 50.0)
     res = build_trajectories(field, xyz, TrackingParams(), marker_set=FULL, rate_hz=50.0)
     wrong = wrong_labels(res, truth, LOWER)
-    assert [w for w in wrong if w[0] not in res.labelling.flagged] == []
-    legs = [w for w in wrong if w[1] not in ("LASI", "RASI", "SACR")]
-    assert legs == [] and abs(res.labelling.height_mm - 1000.0) <= 100.0
+    # SACR is no marker of the full-body set (it has LPSI and RPSI).
+    assert [w for w in wrong if w[1] != "SACR"] == []
+    assert abs(res.labelling.height_mm - 900.0) <= 100.0
+    # The stature overrules the floor fit: nothing is certain, a wrong name never silent.
+    unnamed = set(res.labelling.unlabelled)
+    named = {label for t, label in enumerate(res.labels) if t not in unnamed}
+    assert named and set(res.labelling.flagged) == named
