@@ -8,7 +8,10 @@ shorter, places markers a little differently, and walks. So:
    subject about as well as its own) and matched to the average pose of a window of
    about one stride (:func:`estimate_height`); the best fit gives the subject's stature;
 2. **first pass**: the phases run with the scaled template and without rigid
-   segments (their lengths are the subject's, not the template's);
+   segments (their lengths are the subject's, not the template's); a part of the set
+   fitted at its bound takes the stature whose first pass holds the most segments
+   rigid, all its names then flagged
+   (:func:`~kisscal.tracking.labelling.partial.rigid_height`);
 3. **the subject's template** (:func:`fit_template`): the scaled template, moved as
    little as possible so that every pair the first pass found rigid (and the set's
    segments) has its measured length; left/right are settled by the anatomy first;
@@ -33,8 +36,9 @@ from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
 from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
-from kisscal.tracking.labelling.label import label_tracks, name_pieces
+from kisscal.tracking.labelling.label import label_tracks
 from kisscal.tracking.labelling.learned import name_from_trial
+from kisscal.tracking.labelling.partial import first_pass, rigid_height
 from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
@@ -294,12 +298,15 @@ def _label_upright(
     height, partial = estimate_height(tracks, marker_set, first_params)
     if not np.isfinite(height):
         return generic(tracks, params, names, float("nan"))
-    scaled = marker_set.scaled(height).template_mm
-    first = LabelState.begin(tracks, names, scaled, None, first_params)
-    if first is not None:
-        first.upright = first.partial = True
-    if first is None or not name_pieces(first):
+    first = first_pass(tracks, marker_set, first_params, height)
+    if first is None:
         return replace(generic(tracks, params, names, float("nan")), height_mm=height)
+    fitted = height
+    if partial and height == PARTIAL_HEIGHTS_MM[0]:
+        # A part stood on the floor fits many statures (partial.py): at the adult bound
+        # the stature is judged by the set's segments its names hold rigid.
+        height, first = rigid_height(first, marker_set, first_params, height)
+    scaled = marker_set.scaled(height).template_mm
     anatomy = Anatomy.of_set(marker_set.scaled(height))
     exchanged = _settled(first, anatomy, rate_hz)
     template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
@@ -315,9 +322,10 @@ def _label_upright(
     judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
-    if height in (tried[0], tried[-1]) and judged.fits_marker_set:
-        # The best stature is a bound of the plausible range: the template fits this
-        # trial at no plausible stature, and nothing it named is certain.
+    if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
+        # The floor fit's stature is a bound of the plausible range (the template fits
+        # this trial at no plausible stature), or the segments chose another: nothing
+        # named is certain.
         taken = set(judged.labels)
         return replace(judged, flagged=tuple(n for n in names if n in taken))
     return judged

@@ -1,0 +1,121 @@
+"""The stature of a part of a set judged by the rigidity of the segments it names.
+
+A part of the set (a lower body, markers of another set beside it) stood on the floor
+fits the scaled template of many statures about as well (issue 26: sample14's 1.45 m
+subject and 2198928's child of 0.90 m both fitted best at the adult range's bound,
+1.40 m), and the names a wrong stature gives are shifted along the limbs: a thigh's
+name on the ASIS, the knee's on the thigh marker. Such names break the set's rigid
+segments over the trial (the ASIS and the thigh marker move apart as the hip flexes),
+while right names hold them (the thigh and knee markers keep their distance). So when
+the floor fit sits at its bound, the first pass is run at statures across the whole
+range and the one whose names hold the most segments rigid is kept.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal.markersets.model import MarkerSet
+from kisscal.tracking.labelling.label import name_pieces
+from kisscal.tracking.labelling.state import (
+    MIN_SHARED_FIELDS,
+    RIGID_SPREAD_MM,
+    LabelState,
+    segment_mask,
+)
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import Tracks
+
+#: Statures (mm) whose first pass is judged when the floor fit of a part sits at its
+#: bound: the whole range, every 100 mm (segment lengths tell 10 cm apart).
+JUDGED_HEIGHTS_MM = np.arange(800.0, 2001.0, 100.0)
+#: A stature replaces the floor fit's when its names hold at least this many more
+#: segments rigid (net of the segments they break): one pair of markers on one body
+#: segment holds rigid under any two names of a segment, by chance.
+MIN_SEGMENT_GAIN = 2
+
+
+def segment_score(
+    name_pos: NDArray, template: NDArray, rigid: NDArray, min_shared: int = MIN_SHARED_FIELDS
+) -> tuple[int, int, float]:
+    """How well named trajectories hold the set's rigid segments.
+
+    Parameters
+    ----------
+    name_pos : (n, n_fields, 3) array
+        Each name's trajectory (NaN where not held).
+    template : (n, 3) array
+        The set's template at the stature judged.
+    rigid : (n, n) bool array
+        The set's segments (:func:`~kisscal.tracking.labelling.state.segment_mask`).
+    min_shared : int
+        Fields two names must share for their segment to be judged.
+
+    Returns
+    -------
+    held : int
+        Segments whose two names keep their distance (SD under the rigid spread, 5 mm).
+    broken : int
+        Segments whose two names are seen together but not rigidly.
+    misfit : float
+        RMS log ratio of the held segments' median lengths to the template's (inf when
+        none is held): a stature's segments have its lengths (Winter 2009).
+    """
+    a, b = np.nonzero(np.triu(rigid, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        d = np.linalg.norm(name_pos[a] - name_pos[b], axis=2)
+        count = np.isfinite(d).sum(axis=1)
+        sd = np.nanstd(d, axis=1)
+        length = np.nanmedian(d, axis=1)
+    seen = count >= min_shared
+    held = seen & (sd < RIGID_SPREAD_MM)
+    broken = int((seen & ~held).sum())
+    if not held.any():
+        return 0, broken, np.inf
+    ratio = length[held] / np.linalg.norm(template[a[held]] - template[b[held]], axis=1)
+    return int(held.sum()), broken, float(np.sqrt(np.mean(np.log(ratio) ** 2)))
+
+
+def first_pass(
+    tracks: Tracks, marker_set: MarkerSet, params: TrackingParams, height_mm: float
+) -> LabelState | None:
+    """Phases 1-5 on the set's template scaled to ``height_mm``, without segments (their
+    lengths are the subject's); None when no body is matched."""
+    scaled = marker_set.scaled(height_mm).template_mm
+    state = LabelState.begin(tracks, marker_set.names, scaled, None, params)
+    if state is None:
+        return None
+    state.upright = state.partial = True
+    return state if name_pieces(state) else None
+
+
+def _rank(state: LabelState, marker_set: MarkerSet) -> tuple[int, float]:
+    """(held - broken segments, -misfit) of a first pass' names."""
+    rigid = segment_mask(marker_set.names, marker_set.segments)
+    held, broken, misfit = segment_score(state.name_pos, state.template, rigid)
+    return held - broken, -misfit
+
+
+def rigid_height(
+    first: LabelState, marker_set: MarkerSet, params: TrackingParams, height_mm: float
+) -> tuple[float, LabelState]:
+    """The stature, and its first pass, whose names hold the most segments rigid.
+
+    ``first`` is the first pass at ``height_mm``, the floor fit's stature. The first
+    pass runs at each of :data:`JUDGED_HEIGHTS_MM`; the one holding the most segments
+    net of those it breaks (then whose held lengths fit its template best) replaces
+    ``first`` when it holds :data:`MIN_SEGMENT_GAIN` more.
+    """
+    own = _rank(first, marker_set)
+    best, best_height, best_state = own, height_mm, first
+    for height in JUDGED_HEIGHTS_MM[JUDGED_HEIGHTS_MM != height_mm]:
+        state = first_pass(first.tracks, marker_set, params, float(height))
+        if state is not None and _rank(state, marker_set) > best:
+            best, best_height, best_state = _rank(state, marker_set), float(height), state
+    if best[0] >= own[0] + MIN_SEGMENT_GAIN:
+        return best_height, best_state
+    return height_mm, first
