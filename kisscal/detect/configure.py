@@ -66,6 +66,7 @@ from numpy.typing import NDArray
 
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.clipped import crowd_notes, faint_sample
+from kisscal.detect.extent import marker_extent
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.points import choose_noise_removal
@@ -426,14 +427,15 @@ class _Derivation:
             return
         big = groups.take(~markers & (groups.pixels > m.pixels.max()))
         # single markers (isolated, filled): touching pairs are split before the limits;
-        # markers are round, so their extent follows from their area and the pixel aspect
+        # markers are round, so their extent follows from their area and the pixel aspect,
+        # unless they are seen obliquely (kisscal.detect.extent)
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
         pixels = largest_size((single if len(single) >= 5 else m).pixels)
         if top is not None:  # the objects' crowd reaches further than most singles
             pixels = max(pixels, min(top, float(m.pixels.max())))
-        aspect = float(self._partial_params().pixel_aspect)
-        lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
-        size = {"pixels": pixels, "width": lines * aspect + 1.0, "height": lines + 1.0}
+        p = self._partial_params()
+        width, height = marker_extent(m, pixels, p.pixel_aspect, p.long_wide_min_pixels)
+        size = {"pixels": pixels, "width": width, "height": height}
         self._upper_limits(size, big)
         self._detach_kernel(size, big)
         smallest = float(np.percentile(m.pixels, 1)) if len(m) >= 50 else float(m.pixels.min())

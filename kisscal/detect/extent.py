@@ -1,0 +1,59 @@
+"""The extent (width, height) of the largest markers, for the upper size limits.
+
+Markers seen face-on image as round spots (up to the pixel aspect): their extent follows
+from their area. Dots of a target seen obliquely image as ellipses, every one alike, and
+a round spot of the same area is narrower than they are tall (or wide): limits from it
+flag the larger dots of the target as too large. Where the markers' median elongation
+(principal axes of their moments, round units) exceeds the round-spot bound, the largest
+markers' own extents are taken where they reach further.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from kisscal.detect.appendage import ROUND_ELONGATION
+from kisscal.detect.population import largest_size
+from kisscal.detect.shape import PIXEL_AREA_VAR, principal_axes
+from kisscal.detect.survey import Groups
+
+#: Fewest marker-sized spots whose shape is read for their elongation.
+MIN_SHAPES = 20
+
+
+def marker_extent(
+    markers: Groups, pixels: float, aspect: float, min_pixels: int
+) -> tuple[float, float]:
+    """Width and height (px) of the largest markers.
+
+    Parameters
+    ----------
+    markers : Groups
+        The surveyed marker population.
+    pixels : float
+        The largest markers' area (px).
+    aspect : float
+        Pixel aspect (width / height of a round marker's image).
+    min_pixels : int
+        Least area whose shape is read (the shape tests' own floor: smaller spots are a
+        few pixels across and have no shape to speak of).
+
+    Returns
+    -------
+    tuple of float
+        Width and height (px), a round spot's of ``pixels`` plus one pixel, or the
+        largest elongated markers' own where they are wider or taller.
+    """
+    lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
+    width, height = lines * aspect + 1.0, lines + 1.0
+    sized = markers.take(markers.inside & (markers.pixels >= min_pixels))
+    if len(sized) < MIN_SHAPES:
+        return width, height
+    var_x = np.maximum(sized.var_x - PIXEL_AREA_VAR, 1e-3)
+    var_y = np.maximum(sized.var_y - PIXEL_AREA_VAR, 1e-3)
+    major, minor, _, _ = principal_axes(var_x, var_y, sized.cov_xy, aspect)
+    if np.median(np.sqrt(major / minor)) <= ROUND_ELONGATION:
+        return width, height
+    return max(width, largest_size(sized.width)), max(height, largest_size(sized.height))
