@@ -427,14 +427,14 @@ class _Derivation:
             return
         big = groups.take(~markers & (groups.pixels > m.pixels.max()))
         # single markers (isolated, filled): touching pairs are split before the limits;
-        # markers are round, so their extent follows from their area and the pixel aspect,
-        # unless they are seen obliquely (kisscal.detect.extent)
+        # extents: round markers' from their area; a target's dots seen obliquely their own
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
         pixels = largest_size((single if len(single) >= 5 else m).pixels)
         if top is not None:  # the objects' crowd reaches further than most singles
             pixels = max(pixels, min(top, float(m.pixels.max())))
         p = self._partial_params()
-        width, height = marker_extent(m, pixels, p.pixel_aspect, p.long_wide_min_pixels)
+        target = self.kind == "grid"
+        width, height = marker_extent(m, pixels, p.pixel_aspect, p.long_wide_min_pixels, target)
         size = {"pixels": pixels, "width": width, "height": height}
         self._upper_limits(size, big)
         self._detach_kernel(size, big)

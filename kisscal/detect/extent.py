@@ -3,9 +3,11 @@
 Markers seen face-on image as round spots (up to the pixel aspect): their extent follows
 from their area. Dots of a target seen obliquely image as ellipses, every one alike, and
 a round spot of the same area is narrower than they are tall (or wide): limits from it
-flag the larger dots of the target as too large. Where the markers' median elongation
-(principal axes of their moments, round units) exceeds the round-spot bound, the largest
-markers' own extents are taken where they reach further.
+flag the larger dots of the target as too large. On images of a target, where the dots'
+median elongation (principal axes of their moments, round units) exceeds the round-spot
+bound, the largest dots' own extents are taken where they reach further. Marker frames
+keep the round extents: markers blur as they move, and a merged pair or a streak must
+stay too large.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ MIN_SHAPES = 20
 
 
 def marker_extent(
-    markers: Groups, pixels: float, aspect: float, min_pixels: int
+    markers: Groups, pixels: float, aspect: float, min_pixels: int, target: bool = True
 ) -> tuple[float, float]:
     """Width and height (px) of the largest markers.
 
@@ -39,6 +41,9 @@ def marker_extent(
     min_pixels : int
         Least area whose shape is read (the shape tests' own floor: smaller spots are a
         few pixels across and have no shape to speak of).
+    target : bool
+        The images show a target (the grid kind), whose dots may be seen obliquely;
+        False for marker frames, which keep the round extents.
 
     Returns
     -------
@@ -49,7 +54,7 @@ def marker_extent(
     lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
     width, height = lines * aspect + 1.0, lines + 1.0
     sized = markers.take(markers.inside & (markers.pixels >= min_pixels))
-    if len(sized) < MIN_SHAPES:
+    if not target or len(sized) < MIN_SHAPES:
         return width, height
     var_x = np.maximum(sized.var_x - PIXEL_AREA_VAR, 1e-3)
     var_y = np.maximum(sized.var_y - PIXEL_AREA_VAR, 1e-3)
