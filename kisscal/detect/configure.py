@@ -432,9 +432,8 @@ class _Derivation:
         pixels = largest_size((single if len(single) >= 5 else m).pixels)
         if top is not None:  # the objects' crowd reaches further than most singles
             pixels = max(pixels, min(top, float(m.pixels.max())))
-        p = self._partial_params()
-        target = self.kind == "grid"
-        width, height = marker_extent(m, pixels, p.pixel_aspect, p.long_wide_min_pixels, target)
+        aspect = float(self._partial_params().pixel_aspect)
+        width, height = marker_extent(m, pixels, aspect, target=self.kind == "grid")
         size = {"pixels": pixels, "width": width, "height": height}
         self._upper_limits(size, big)
         self._detach_kernel(size, big)

@@ -23,10 +23,13 @@ from kisscal.detect.survey import Groups
 
 #: Fewest marker-sized spots whose shape is read for their elongation.
 MIN_SHAPES = 20
+#: Least area (px) of a spot whose elongation is read: about 9 px across. Smaller spots'
+#: moments are mostly pixel area and blur (a KISS grid dot of 20 px, 7 x 3, reads 1.2).
+SHAPE_MIN_PIXELS = 64
 
 
 def marker_extent(
-    markers: Groups, pixels: float, aspect: float, min_pixels: int, target: bool = True
+    markers: Groups, pixels: float, aspect: float, target: bool = True
 ) -> tuple[float, float]:
     """Width and height (px) of the largest markers.
 
@@ -38,9 +41,6 @@ def marker_extent(
         The largest markers' area (px).
     aspect : float
         Pixel aspect (width / height of a round marker's image).
-    min_pixels : int
-        Least area whose shape is read (the shape tests' own floor: smaller spots are a
-        few pixels across and have no shape to speak of).
     target : bool
         The images show a target (the grid kind), whose dots may be seen obliquely;
         False for marker frames, which keep the round extents.
@@ -53,7 +53,7 @@ def marker_extent(
     """
     lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
     width, height = lines * aspect + 1.0, lines + 1.0
-    sized = markers.take(markers.inside & (markers.pixels >= min_pixels))
+    sized = markers.take(markers.inside & (markers.pixels >= SHAPE_MIN_PIXELS))
     if not target or len(sized) < MIN_SHAPES:
         return width, height
     var_x = np.maximum(sized.var_x - PIXEL_AREA_VAR, 1e-3)
