@@ -1,24 +1,26 @@
 """Held-out check: default detection on a lab's calibration-target images never seen.
 
-``python -m tests.detect.openlpt_heldout OPENLPT`` with OPENLPT a checkout of github
-JHU-NI-LAB/OpenLPT_Shake-The-Box (commit e916093; no licence file, so nothing of it is
-copied into this repository) scores kisscal's default detection on the calibration
+``python -m tests.detect.openlpt_heldout OPENLPT [--no-cost]`` with OPENLPT a checkout of
+github JHU-NI-LAB/OpenLPT_Shake-The-Box (commit e916093; no licence file, so nothing of
+it is copied into this repository) scores kisscal's default detection on the calibration
 images of Ni's lab at Johns Hopkins (issue 23: real images kisscal was not tuned on):
 ``MATLAB/1_Calibration/calib_Ni2017_V3/calib_Ni2017_V3/working/09.28.17 Calibration
 Target``, six 1024 x 1024 8-bit frames of six high-speed cameras looking at one back-lit
-plate of dark dots (about 15 px wide, 50 px apart, seen face-on to about 60 degrees
-obliquely), and the dots the lab's calibration GUI located in them (``camN.txt``: u, v,
-then the dot's column and row on the plate; 133-496 dots a camera, a complete block of
-the grid). Its pixel convention is MATLAB's (centre of the top-left pixel at 1, 1): 1 px
-is subtracted (the median offset of kisscal's matches is then within 0.4 px).
+plate of dark dots (12-25 px wide, 20-55 px apart, seen face-on to strongly obliquely:
+ellipses up to twice as tall as wide, some along a diagonal), and the dots the lab's
+calibration GUI located in them (``camN.txt``: u, v, then the dot's column and row on
+the plate; 133-496 dots a camera, a complete block of the grid). Its pixel convention is
+MATLAB's (centre of the top-left pixel at 1, 1): 1 px is subtracted (the median offset
+of kisscal's matches is then within 0.4 px).
 
 One JSON line per camera and method: kisscal with the settings ``kisscal detect``
-derives (``--kind markers``, the default, and ``--kind grid``), and OpenCV's
-SimpleBlobDetector with its default parameters (dark blobs, what findCirclesGrid runs).
-For each: the lab's dots found within 1 px, split (two detections or more within 0.3
-dot spacings), extra (detections inside the block of the lab's dots more than 1 px
-from every one of them), the time of settings + detection (s, one thread) and the peak
-memory of a fresh process that does it (MB).
+derives (``--kind markers``, the default, and ``--kind grid``, what a user picks for a
+target), and OpenCV's SimpleBlobDetector with its default parameters (dark blobs, what
+findCirclesGrid runs). For each: the lab's dots found within 1 px, split (two detections
+or more within 0.3 dot spacings), extra (detections inside the block of the lab's dots
+more than 1 px from every one of them: specks on the plate, mostly), and unless
+``--no-cost`` the time of settings + detection (s, one thread, best of three) and the
+peak memory of a fresh process that does it (MB, imports included).
 """
 
 from __future__ import annotations
