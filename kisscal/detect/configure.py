@@ -66,13 +66,14 @@ from numpy.typing import NDArray
 
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.clipped import crowd_notes, faint_sample
+from kisscal.detect.extent import marker_extent
 from kisscal.detect.params import DetectionParams
 from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
 from kisscal.detect.route import choose_route
-from kisscal.detect.shape import spreads
+from kisscal.detect.shape import cut_by_shape
 from kisscal.detect.survey import (
     GreyLevels,
     Groups,
@@ -403,11 +404,9 @@ class _Derivation:
             self.choose("split_overlaps", False, why)
             self.choose("split_long_wide", False, why)
             return
-        # as the tests read it: spreads less pixel area and growth (kisscal.detect.shape)
-        sx, sy = spreads(spots.var_x[ok], spots.var_y[ok])
-        g = p.growth_px
-        ratio = p.pixel_aspect * np.maximum(sy - g, 0.05) / np.maximum(sx - g, 0.05)
-        odd = float(np.mean((ratio < p.min_ratio) | (ratio > p.max_ratio)))
+        # as the tests read them: moments less pixel area and growth (kisscal.detect.shape)
+        cut = cut_by_shape(spots.var_x[ok], spots.var_y[ok], spots.cov_xy[ok], p.growth_px, p)
+        odd = float(np.mean(cut))
         if odd <= ODD_SHAPES_MAX:
             return
         why = (
@@ -428,14 +427,14 @@ class _Derivation:
             return
         big = groups.take(~markers & (groups.pixels > m.pixels.max()))
         # single markers (isolated, filled): touching pairs are split before the limits;
-        # markers are round, so their extent follows from their area and the pixel aspect
+        # extents: round markers' from their area; a target's dots seen obliquely their own
         single = m.take((m.isolation > 3.0) & (m.fill > 0.6))
         pixels = largest_size((single if len(single) >= 5 else m).pixels)
         if top is not None:  # the objects' crowd reaches further than most singles
             pixels = max(pixels, min(top, float(m.pixels.max())))
         aspect = float(self._partial_params().pixel_aspect)
-        lines = 2.0 * math.sqrt(pixels / (math.pi * aspect))
-        size = {"pixels": pixels, "width": lines * aspect + 1.0, "height": lines + 1.0}
+        width, height = marker_extent(m, pixels, aspect, target=self.kind == "grid")
+        size = {"pixels": pixels, "width": width, "height": height}
         self._upper_limits(size, big)
         self._detach_kernel(size, big)
         smallest = float(np.percentile(m.pixels, 1)) if len(m) >= 50 else float(m.pixels.min())

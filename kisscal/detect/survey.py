@@ -136,6 +136,8 @@ class Groups:
         Second moments (px^2) of the spot's grey levels above the background over its
         rectangle grown by :data:`MOMENT_MARGIN_PX`: the blurred spot's own spread, not
         its thresholded outline.
+    cov_xy : ndarray of float
+        Their covariance (px^2): a spot elongated along a diagonal (a dot seen obliquely).
     fill : ndarray of float
         White pixels / bounding-rectangle pixels.
     inside : ndarray of bool
@@ -154,6 +156,7 @@ class Groups:
     peak: NDArray[np.float64]
     var_x: NDArray[np.float64]
     var_y: NDArray[np.float64]
+    cov_xy: NDArray[np.float64]
     fill: NDArray[np.float64]
     inside: NDArray[np.bool_]
     isolation: NDArray[np.float64]
@@ -217,6 +220,7 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
         peak.astype(float),
         var_x,
         var_y,
+        moments.cov_xy,
         table.fill,
         inside,
         isolation,
