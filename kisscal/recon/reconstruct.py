@@ -257,7 +257,7 @@ def reconstruct_trial(
     if deblends(params, len(dlts)) and len(pts):
         limit = residual_limit_px(pts.rms_px, params)
         scene = MergeScene(field, camera, uv, ~still, dlts, params, limit)
-        pts = _unmerged(pts, scene)
+        pts = unmerged(pts, scene)
         two = deblend_pairs(scene, pts.marker, pts.field, pts.xyz_mm)
         pts = _with_points(pts, two, camera)
         if params.deblend_held and body is not None:
@@ -296,7 +296,7 @@ def _without(pts: Points3D, drop: NDArray[np.bool_]) -> Points3D:
     )
 
 
-def _unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
+def unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
     """``pts`` with the two-camera points made of two merged blobs
     (:func:`~kisscal.recon.unmerged.merged_pairs`) replaced by what
     :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs."""
