@@ -205,7 +205,10 @@ def reconstruct_trial(
     each marker triangulated from all its blobs by least squares (Shafiq eq. 10) plus
     reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
     split or dropped, and the blobs this frees matched once more; points at a camera (its
-    LED ring seen by the others) dropped.
+    LED ring seen by the others) dropped. On small rigs (:func:`deblends`), two-camera points
+    made of two merged blobs are replaced by deblended ones (:func:`unmerged`), then merged
+    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden`,
+    :mod:`~kisscal.recon.seeded`, :mod:`~kisscal.recon.ends`).
 
     Parameters
     ----------
