@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.recon.deblend import MergeScene, _near_blobs
+from kisscal.recon.deblend import MergeScene, near_blobs
 
 
 def merged_pairs(
@@ -45,7 +45,7 @@ def merged_pairs(
     k, _ = np.nonzero(blob_row >= 0)
     owner[blob_row[blob_row >= 0]] = k
     held = owner >= 0
-    point, blob, _ = _near_blobs(
+    point, blob, _ = near_blobs(
         p_field,
         p_xyz,
         scene.field,
