@@ -302,20 +302,35 @@ def _without(pts: Points3D, drop: NDArray[np.bool_]) -> Points3D:
 def unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
     """``pts`` with the two-camera points made of two merged blobs
     (:func:`~kisscal.recon.unmerged.merged_pairs`) replaced by what
-    :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs."""
+    :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs; a pair
+    nothing replaces stays (it may be right: partners' images on the marker's own)."""
     drop = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     if not drop.any():
         return pts
+    rest, new = _replaced(pts, drop, scene)
+    found = np.isin(pts.field, new.field)
+    if not np.all(found[drop]):
+        drop &= found
+        if not drop.any():
+            return pts
+        rest, new = _replaced(pts, drop, scene)
+    return _with_points(rest, new, scene.camera) if len(new.field) else rest
+
+
+def _replaced(
+    pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
+) -> tuple[Points3D, Deblended]:
+    """``pts`` without the points ``drop`` marks, and the deblended points of their fields
+    (own blob free before: a freed merged blob is no point's own)."""
     fields, freed = pts.field[drop], pts.blob_row[drop]
-    pts = _without(pts, drop)
+    rest = _without(pts, drop)
     # only the fields of the dropped points: elsewhere every step sees what it saw before
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
-    new = deblend_merged(there, pts.marker, pts.field, pts.xyz_mm)
-    own = ~np.isin(new.own_row, freed[freed >= 0])  # a merged blob is no point's own
-    new = Deblended(
+    new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
+    own = ~np.isin(new.own_row, freed[freed >= 0])
+    return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )
-    return _with_points(pts, new, scene.camera) if len(new.field) else pts
 
 
 def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:

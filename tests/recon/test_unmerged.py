@@ -116,3 +116,17 @@ def test_points_of_clean_blobs_are_not_flagged() -> None:
     # the same pairs apart: X from cameras 0 and 1 is no pair of two merged blobs
     pts, scene = _points(dlts, xyz, tab, {0: (0, 1), 1: (0, 3), 2: (1, 3)}, both)
     assert not merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+
+
+def test_a_pair_nothing_replaces_stays() -> None:
+    # X's clean view in camera 0 lost where it merges: nothing to deblend with, the pair
+    # (the only estimate of X there) is kept
+    dlts, xyz, visible, _ = _doubly_merged_walk(0)
+    both = _merged(dlts, xyz)
+    visible[both, 0, 0] = False
+    tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, both)
+    assert merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).sum() == both.sum()
+    after = unmerged(pts, scene)
+    np.testing.assert_array_equal(after.xyz_mm, pts.xyz_mm)
+    np.testing.assert_array_equal(after.marker, pts.marker)
