@@ -80,7 +80,7 @@ def _depth(dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np
     return np.einsum("ij,ij->i", dlts[camera, 8:11], xyz) + 1.0
 
 
-def _near_blobs(
+def near_blobs(
     p_field: NDArray[np.int64],
     p_xyz: NDArray[np.float64],
     field: NDArray[np.int64],
@@ -205,7 +205,7 @@ def deblend_merged(
     dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
     empty = Deblended.empty()
     free = np.flatnonzero((marker < 0) & usable)
-    P, c, p_a = _near_blobs(
+    P, c, p_a = near_blobs(
         p_field, p_xyz, field, camera, uv, usable, dlts, params.deblend_radius_px
     )
     mine = (marker[c] < 0) | (marker[c] == P)

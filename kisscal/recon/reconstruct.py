@@ -25,6 +25,7 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
+from kisscal.recon.unmerged import merged_pairs
 
 
 @dataclass(frozen=True)
@@ -204,7 +205,10 @@ def reconstruct_trial(
     each marker triangulated from all its blobs by least squares (Shafiq eq. 10) plus
     reweighted steps (Woltring & Huiskes 1990), markers over the trial's residual limit
     split or dropped, and the blobs this frees matched once more; points at a camera (its
-    LED ring seen by the others) dropped.
+    LED ring seen by the others) dropped. On small rigs (:func:`deblends`), two-camera points
+    made of two merged blobs are replaced by deblended ones (:func:`unmerged`), then merged
+    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden`,
+    :mod:`~kisscal.recon.seeded`, :mod:`~kisscal.recon.ends`).
 
     Parameters
     ----------
@@ -256,6 +260,7 @@ def reconstruct_trial(
     if deblends(params, len(dlts)) and len(pts):
         limit = residual_limit_px(pts.rms_px, params)
         scene = MergeScene(field, camera, uv, ~still, dlts, params, limit)
+        pts = unmerged(pts, scene)
         two = deblend_pairs(scene, pts.marker, pts.field, pts.xyz_mm)
         pts = _with_points(pts, two, camera)
         if params.deblend_held and body is not None:
@@ -272,6 +277,60 @@ def reconstruct_trial(
                 pts = _hidden(seeded, scene, body)
             pts = _ends(pts, scene)
     return pts
+
+
+def _without(pts: Points3D, drop: NDArray[np.bool_]) -> Points3D:
+    """``pts`` without the points ``drop`` marks, their blobs free again."""
+    if not drop.any():
+        return pts
+    index = np.cumsum(~drop) - 1
+    held = pts.marker >= 0
+    keep = held & ~drop[np.maximum(pts.marker, 0)]
+    marker = np.where(keep, index[np.maximum(pts.marker, 0)], -1)
+    k = ~drop
+    return replace(
+        pts,
+        field=pts.field[k],
+        xyz_mm=pts.xyz_mm[k],
+        n_cameras=pts.n_cameras[k],
+        rms_px=pts.rms_px[k],
+        blob_row=pts.blob_row[k],
+        marker=marker,
+    )
+
+
+def unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
+    """``pts`` with the two-camera points made of two merged blobs
+    (:func:`~kisscal.recon.unmerged.merged_pairs`) replaced by what
+    :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs; a pair
+    nothing replaces stays (it may be right: partners' images on the marker's own)."""
+    drop = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    if not drop.any():
+        return pts
+    rest, new = _replaced(pts, drop, scene)
+    found = np.isin(pts.field, new.field)
+    if not np.all(found[drop]):
+        drop &= found
+        if not drop.any():
+            return pts
+        rest, new = _replaced(pts, drop, scene)
+    return _with_points(rest, new, scene.camera) if len(new.field) else rest
+
+
+def _replaced(
+    pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
+) -> tuple[Points3D, Deblended]:
+    """``pts`` without the points ``drop`` marks, and the deblended points of their fields
+    (own blob free before: a freed merged blob is no point's own)."""
+    fields, freed = pts.field[drop], pts.blob_row[drop]
+    rest = _without(pts, drop)
+    # only the fields of the dropped points: elsewhere every step sees what it saw before
+    there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
+    new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
+    own = ~np.isin(new.own_row, freed[freed >= 0])
+    return rest, Deblended(
+        new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
+    )
 
 
 def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:

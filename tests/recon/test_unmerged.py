@@ -1,0 +1,132 @@
+"""Two-camera points made of two merged blobs: dropped, the marker deblended instead."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kisscal.dlt.model import project
+from kisscal.recon import ReconParams
+from kisscal.recon.deblend import MergeScene
+from kisscal.recon.epipolar import camera_centre_mm
+from kisscal.recon.group import residual_limit_px
+from kisscal.recon.reconstruct import points_from_markers, unmerged
+from kisscal.recon.unmerged import merged_pairs
+
+from .rig import SIZE_PX, make_rig
+from .scenario import observe
+
+#: Cameras that see the ankle X, the heel H and the toe T (the six others: every camera).
+SEEN = ((0, 1, 2), (0, 1, 3), (1, 2, 3))
+
+
+def _doubly_merged_walk(seed: int) -> tuple:
+    """Four cameras; an ankle X seen by cameras 0-2, a heel H by 0, 1, 3 and a toe T by
+    1-3. H lies 150 mm behind ``X + 2 shift`` on camera 1's ray through it, T on camera
+    2's, so that where ``shift`` is 10 mm up (the middle fields) X's image merges with H's
+    in camera 1 and with T's in camera 2, both blobs near the images of ``Y = X + shift``:
+    the two merged blobs pair up at Y. Towards the ends the shift grows and the images
+    part. Six markers apart from these, seen by every camera, set the trial's residual
+    limit. Returns the DLTs, truth, visibility and Y."""
+    dlts = make_rig(seed, n_cameras=4)
+    n = 30
+    x = np.array([-300.0, 0.0, 300.0]) + np.arange(n)[:, None] * [12.0, 1.0, 0.5]
+    up = 10.0 + 8.0 * np.maximum(np.abs(np.arange(n) - n // 2) - 7, 0)
+    shift = up[:, None] * [0.0, 0.0, 1.0]
+    mirror = x + 2.0 * shift
+
+    def behind(cam: int) -> np.ndarray:
+        ray = mirror - camera_centre_mm(dlts[cam])
+        return mirror + 150.0 * ray / np.linalg.norm(ray, axis=1)[:, None]
+
+    corners = np.array([[0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 1, 1], [1, 0, 1], [1, 1, 0]])
+    others = x[:, None] + corners * [400.0, 300.0, 500.0]
+    xyz = np.concatenate([np.stack([x, behind(1), behind(2)], axis=1), others], axis=1)
+    visible = np.ones((n, 9, 4), dtype=bool)
+    for k, cams in enumerate(SEEN):
+        visible[:, k] = np.isin(np.arange(4), cams)
+    return dlts, xyz, visible, x + shift
+
+
+def _points(dlts, xyz, tab, pairs: dict, where: np.ndarray) -> tuple:
+    """The trial's points as a matcher may leave them: every marker from its nearest blob
+    in each camera that sees it, or in the fields ``where`` of ``pairs[k]``'s cameras."""
+    marker = np.full(len(tab.field), -1, dtype=np.int64)
+    n_fields, n_markers = xyz.shape[:2]
+    for f in range(n_fields):
+        for k in range(n_markers):
+            for c in pairs.get(k, range(len(dlts))) if where[f] else SEEN[k] if k < 3 else range(4):
+                rows = np.flatnonzero((tab.field == f) & (tab.camera == c))
+                d = np.linalg.norm(tab.uv[rows] - project(dlts[c], xyz[f, k : k + 1]), axis=1)
+                marker[rows[d.argmin()]] = f * n_markers + k
+    params = ReconParams(stationary_filter=False)
+    pts = points_from_markers(marker, tab.field, tab.camera, tab.uv, dlts, 2)
+    usable = np.ones(len(tab.field), dtype=bool)
+    limit = residual_limit_px(pts.rms_px, params)
+    return pts, MergeScene(tab.field, tab.camera, tab.uv, usable, dlts, params, limit)
+
+
+def _nearest(pts, xyz: np.ndarray, k: int, at: np.ndarray | None = None) -> np.ndarray:
+    """Per field, the distance of the nearest point to marker ``k`` (or to ``at``)."""
+    target = xyz[:, k] if at is None else at
+    out = np.full(len(xyz), np.inf)
+    for f in range(len(xyz)):
+        p = pts.xyz_mm[pts.field == f]
+        out[f] = np.linalg.norm(p - target[f], axis=1).min(initial=np.inf)
+    return out
+
+
+def _merged(dlts, xyz) -> np.ndarray:
+    """Fields where X's image lies within 3 px of H's in camera 1 and of T's in camera 2."""
+    near = [
+        np.linalg.norm(project(dlts[c], xyz[:, 0]) - project(dlts[c], xyz[:, c]), axis=1) < 3
+        for c in (1, 2)
+    ]
+    return near[0] & near[1]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_of_two_merged_blobs_gives_way_to_the_deblended_marker(seed: int) -> None:
+    dlts, xyz, visible, y = _doubly_merged_walk(seed)
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    both = _merged(dlts, xyz)
+    assert 10 <= both.sum() <= 20 and tab.n_merged >= 2 * both.sum()
+    # the matcher's pair of the merged blobs (as on lowcost seed 304's ankle): H and T
+    # from their clean blobs, X from the merged ones, which meet near Y's images
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, both)
+    assert np.all(_nearest(pts, xyz, 0, at=y)[both] < 3.0)
+    assert np.all(_nearest(pts, xyz, 0)[both] > 7.0)
+    flagged = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    assert flagged.sum() == both.sum()  # X's pair in the merged fields, nothing else
+    after = unmerged(pts, scene)
+    # X placed from its clean blob in camera 0 and a deblended one; Y gone; H, T kept
+    assert np.mean(_nearest(after, xyz, 0)[both] < 3.0) >= 0.9
+    assert np.all(_nearest(after, xyz, 0, at=y)[both] > 5.0)
+    for k in (1, 2):
+        np.testing.assert_array_equal(_nearest(after, xyz, k), _nearest(pts, xyz, k))
+
+
+def test_points_of_clean_blobs_are_not_flagged() -> None:
+    # every marker from all its cameras: the merged blobs belong to 3-camera points
+    dlts, xyz, visible, _ = _doubly_merged_walk(0)
+    tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
+    both = _merged(dlts, xyz)
+    pts, scene = _points(dlts, xyz, tab, dict(enumerate(SEEN)), both)
+    assert not merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+    # the same pairs apart: X from cameras 0 and 1 is no pair of two merged blobs
+    pts, scene = _points(dlts, xyz, tab, {0: (0, 1), 1: (0, 3), 2: (1, 3)}, both)
+    assert not merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+
+
+def test_a_pair_nothing_replaces_stays() -> None:
+    # X's clean view in camera 0 lost where it merges: nothing to deblend with, the pair
+    # (the only estimate of X there) is kept
+    dlts, xyz, visible, _ = _doubly_merged_walk(0)
+    both = _merged(dlts, xyz)
+    visible[both, 0, 0] = False
+    tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, both)
+    assert merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).sum() == both.sum()
+    after = unmerged(pts, scene)
+    np.testing.assert_array_equal(after.xyz_mm, pts.xyz_mm)
+    np.testing.assert_array_equal(after.marker, pts.marker)
