@@ -8,7 +8,9 @@ assigned to them in a field move as they do whichever of them took which: the me
 displacement of a cluster's points, from their tracks' last positions, does not depend
 on the pairing (the translation of Umeyama 1991's least-squares rigid fit). A track is
 predicted by that common move of its cluster where its own prediction cannot tell its
-neighbours apart, and the field is assigned again (:func:`carry`).
+neighbours apart, and the field is assigned again (:func:`carry`). The track's own point
+of the first assignment is left out of the mean: it is the one in doubt (with it,
+PhaseSpace keeps 8 net switches instead of 4).
 """
 
 from __future__ import annotations
