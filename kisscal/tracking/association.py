@@ -58,6 +58,14 @@ def associate(
     return rows_any[r[keep]], cols_any[c[keep]]
 
 
+def one_to_one(rows: NDArray, cols: NDArray) -> bool:
+    """Whether the (row, point) pairs of a gating use no row and no point twice; then the
+    linear sum assignment would return exactly these pairs (any other matching pays the
+    cost of a pair outside its gate)."""
+    listed_rows, listed_cols = rows.tolist(), cols.tolist()
+    return len(set(listed_rows)) == len(listed_rows) and len(set(listed_cols)) == len(listed_cols)
+
+
 def gate_costs(
     predicted: NDArray,
     half_width: NDArray,

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import kisscal.tracking.association as assoc
+import kisscal.tracking.cluster as cluster
 from kisscal.tracking.association import ambiguous_rows, associate, gate_costs, lookahead_cost
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
@@ -86,14 +87,6 @@ class Setup:
             # an initial track's first filter state is fitted to its last n_init points
             depth=max(_HISTORY, n_init),
         )
-
-
-def _one_to_one(rows: NDArray, cols: NDArray) -> bool:
-    """Whether the (row, point) pairs of a gating use no row and no point twice; then the
-    linear sum assignment would return exactly these pairs (any other matching pays the
-    cost of a pair outside its gate)."""
-    listed_rows, listed_cols = rows.tolist(), cols.tolist()
-    return len(set(listed_rows)) == len(listed_rows) and len(set(listed_cols)) == len(listed_cols)
 
 
 def _cut_pieces(field: NDArray, track: NDArray, cuts: list[tuple[int, NDArray]]) -> NDArray:
@@ -215,6 +208,10 @@ class Live:
         self._speed = None
         pred, half = self._predict()
         rows, cols = self._gate(pred, half, points, later)
+        args = (self.history, self.n, self.alive & (self.misses == 0), points, rows, cols)
+        if cluster.carry(pred, *args, self.setup.params.cluster_radius_mm, RIVAL_MIN_MM):
+            self.ambiguous.fill(False)  # assigned again from the carried predictions
+            rows, cols = self._gate(pred, half, points, later)
         if self.setup.params.rival_ratio > 0 and rows.size:
             self._close_rivals(pred, points, rows, cols)
         if self._speed is not None and rows.size:
@@ -308,7 +305,7 @@ class Live:
         inside &= near[2]
         inside &= self.alive[:, None]
         rows, cols = inside.nonzero()
-        if _one_to_one(rows, cols):
+        if assoc.one_to_one(rows, cols):
             # No point is wanted by two gates and no gate holds two points: the
             # assignment is the gating itself.
             return rows, cols
@@ -331,7 +328,7 @@ class Live:
             if rows.size == 0 or free.size == 0:
                 continue
             r, c = inside[rows][:, free].nonzero()
-            if not _one_to_one(r, c):
+            if not assoc.one_to_one(r, c):
                 # Only rows and points in some gate can pair: the costs are for those.
                 rr, cc = np.unique(r), np.unique(c)
                 sub_rows, sub_pts = rows[rr], points[free[cc]]

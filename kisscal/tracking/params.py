@@ -68,6 +68,15 @@ class TrackingParams(Params):
         or not, lies less than this many times as far: a track whose marker vanished
         takes the nearest neighbour, which its prediction misses by about as much (C3D
         regression set: a glove at 70 Hz, hands at 120 Hz). 0 turns it off.
+    cluster_radius_mm : float
+        Where a track's prediction lies farther from where its neighbours carry it than the
+        nearest other track (its own prediction cannot tell the neighbours apart), the
+        tracks whose last points lie within this radius (mm) and whose distance to it
+        stayed constant over the last fields (a rigid cluster: LEDs a few centimetres
+        apart on a hand) predict it by their common move this field, and the field is
+        assigned again
+        (:func:`~kisscal.tracking.cluster.carry`; PhaseSpace's hand at 30 Hz, LEDs
+        30-70 mm apart moving 60-170 mm a field). 0 turns it off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).
@@ -265,6 +274,7 @@ class TrackingParams(Params):
     ambiguity_margin: float = param(0.5, ge=0)
     rival_ratio: float = param(1.35, ge=0)
     certain_ratio: float = param(4.0, ge=0)
+    cluster_radius_mm: float = param(100.0, unit="mm", ge=0)
     initial_gate_mm: float = param(120.0, unit="mm", gt=0)
     initial_gate_factor: float = param(0.6, gt=0)
     min_initial_length: int = param(5, ge=2)

@@ -1,0 +1,114 @@
+"""A rigid cluster's markers predict each other (the tracker's second look at a field).
+
+On a fast limb at a low rate (PhaseSpace's hand at 30 Hz: LEDs 30-70 mm apart, a field's
+step 60-170 mm) a track's constant-velocity or quadratic prediction misses by more than
+the markers are apart, and a track that has just appeared has no velocity at all: the
+nearest point is a neighbour's. The markers of a hand move together, and the points
+assigned to them in a field move as they do whichever of them took which: the mean
+displacement of a cluster's points, from their tracks' last positions, does not depend
+on the pairing (the translation of Umeyama 1991's least-squares rigid fit). A track is
+predicted by that common move of its cluster where its own prediction cannot tell its
+neighbours apart, and the field is assigned again (:func:`carry`). The track's own point
+of the first assignment is left out of the mean: it is the one in doubt (with it,
+PhaseSpace keeps 8 net switches instead of 4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: A neighbour moved together with a track while their distance over their last
+#: :data:`TOGETHER_FIELDS` shared positions stayed within this share of it now (a hand's
+#: LEDs: 5-10 mm over a trial at 30-50 mm apart; over three fields, less).
+TOGETHER_SHARE = 0.1
+TOGETHER_FIELDS = 3
+
+
+def carry(
+    pred: NDArray,
+    history: NDArray,
+    n: NDArray,
+    fresh: NDArray,
+    points: NDArray,
+    rows: NDArray,
+    cols: NDArray,
+    radius_mm: float,
+    least_mm: float,
+) -> bool:
+    """Move to where its cluster carries it the prediction of each track that lies
+    farther from there than its nearest other track (and over ``least_mm``); returns
+    whether any prediction moved (``pred`` is changed in place).
+
+    A track seen last field is carried by the mean move this field (from their last
+    positions to the points of a first assignment ``rows`` -> ``cols``) of the assigned
+    tracks within ``radius_mm`` that moved together with it (:func:`together`). A slow or
+    well predicted track is left alone: nothing is carried in a field where every track
+    found its point within ``least_mm`` of its prediction.
+
+    Parameters
+    ----------
+    pred : (T, 3) every row's prediction; history : (T, H, 3) its last positions (nearest
+    last); n : (T,) its number of points; fresh : (T,) bool, alive and seen last field.
+    points : (M, 3) the field's points; rows, cols : the first assignment.
+    radius_mm : ``cluster_radius_mm`` (0: nothing is carried); least_mm : a miss this
+    small is no miss (a few times the noise).
+    """
+    keep = fresh[rows]
+    rows, cols = rows[keep], cols[keep]
+    if radius_mm <= 0 or rows.size < 2:
+        return False
+    miss = points[cols] - pred[rows]
+    if np.einsum("tc,tc->t", miss, miss).max() <= least_mm**2:
+        return False
+    last = history[:, -1]
+    live = np.flatnonzero(fresh)
+    move = points[cols] - last[rows]
+    apart = np.linalg.norm(last[live][:, None] - last[live][None], axis=2)
+    np.fill_diagonal(apart, np.inf)
+    spacing = np.maximum(apart.min(axis=1), least_mm)
+    near = apart[:, np.searchsorted(live, rows)] < radius_mm
+    # First by nearness alone; a track far from its carried place is judged again with
+    # the neighbours that moved together with it (few: the costlier test).
+    far = _carried_far(pred[live], last[live], near, move, spacing)
+    if not far.any():
+        return False
+    far_rows = live[far]
+    near = near[far] & together(history, n, far_rows, rows)
+    use = _carried_far(pred[far_rows], last[far_rows], near, move, spacing[far])
+    pred[far_rows[use]] = (last[far_rows] + _mean_move(near, move))[use]
+    return bool(use.any())
+
+
+def together(history: NDArray, n: NDArray, a: NDArray, b: NDArray) -> NDArray[np.bool_]:
+    """(A, B) whether rows ``a`` and ``b`` moved together: their distance over their last
+    shared positions (up to :data:`TOGETHER_FIELDS`) stayed within
+    :data:`TOGETHER_SHARE` of the last one.
+
+    A track that has just appeared shares one position with a track that has a past, and
+    nothing says they do not (a hidden LED reappearing among its cluster); two that have
+    both just appeared carry nothing to each other: their first moves are nearest-point
+    guesses (the first field of a trial, or a fast marker passing a new one).
+    """
+    k = TOGETHER_FIELDS
+    d = np.linalg.norm(history[a, None, -k:] - history[None, b, -k:], axis=3)
+    shared = np.minimum(np.minimum(n[a][:, None], n[b][None, :]), k)
+    old = np.arange(k)[None, None, :] < (k - shared)[:, :, None]
+    change = np.where(old, 0.0, np.abs(d - d[:, :, -1:])).max(axis=2)
+    rigid = (shared >= 2) & (change <= TOGETHER_SHARE * d[:, :, -1])
+    return rigid | ((n[a] == 1)[:, None] != (n[b] == 1)[None, :])
+
+
+def _carried_far(
+    pred: NDArray, last: NDArray, near: NDArray, move: NDArray, spacing: NDArray
+) -> NDArray[np.bool_]:
+    """Which tracks the mean ``move`` of their ``near`` neighbours carries farther from
+    their prediction than ``spacing``."""
+    carried = last + _mean_move(near, move)
+    return near.any(axis=1) & (np.linalg.norm(carried - pred, axis=1) > spacing)
+
+
+def _mean_move(near: NDArray, move: NDArray) -> NDArray:
+    """Mean of ``move`` (K, 3) over each row's ``near`` (T, K) entries (0 where none)."""
+    count = near.sum(axis=1, keepdims=True)
+    return (near @ move) / np.maximum(count, 1)
