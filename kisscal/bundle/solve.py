@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg import solve_triangular
 
 from kisscal.bundle.model import (
     N_CAMERA,
@@ -191,7 +192,7 @@ def _damped_step(
     idx = np.flatnonzero(free.ravel())
     sub = S[np.ix_(idx, idx)]
     scale = 1.0 / np.sqrt(np.maximum(np.diag(sub), 1e-300))
-    x = np.linalg.solve(sub * scale[:, None] * scale[None, :], rhs.ravel()[idx] * scale)
+    x = _spd_solve(sub * scale[:, None] * scale[None, :], rhs.ravel()[idx] * scale)
     d_cam = np.zeros(C * N_CAMERA)
     d_cam[idx] = x * scale
     d_cam = d_cam.reshape(C, N_CAMERA)
@@ -199,6 +200,18 @@ def _damped_step(
     back_f = np.add.reduceat(back, blocks.field_pair_start)
     d_wand = np.einsum("fij,fj->fi", Vinv, -g_wand - back_f)
     return d_cam, d_wand
+
+
+def _spd_solve(A: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``A^-1 b`` for the damped reduced camera system, symmetric positive definite: by
+    Cholesky's factor and two triangular solves (Triggs et al. 2000), which
+    cost a tenth to a hundredth of LAPACK's general LU solve on a busy machine (OpenBLAS
+    threads spinning on a 100-unknown system); by LU when rounding left it indefinite."""
+    try:
+        L = np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(A, b)
+    return solve_triangular(L.T, solve_triangular(L, b, lower=True), lower=False)
 
 
 def levenberg_marquardt(
