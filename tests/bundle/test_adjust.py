@@ -11,7 +11,9 @@ from kisscal.bundle.adjust import (
     adjust_bundle,
     centred_offsets,
 )
+from kisscal.bundle.model import N_CAMERA, N_WAND
 from kisscal.bundle.params import BundleParams
+from kisscal.bundle.solve import Problem, _Blocks, _damped_step
 from kisscal.camera import Camera
 from kisscal.synth.scene import rod_set, visibility
 from tests.bundle.conftest import scene
@@ -99,3 +101,53 @@ def test_outliers_are_dropped_and_do_not_bend_the_cameras() -> None:
 
 def test_offsets_are_centred_on_the_end_markers() -> None:
     assert centred_offsets([0.0, 190.0, 500.0]).tolist() == [-250.0, -60.0, 250.0]
+
+
+def test_schur_step_solves_the_whole_damped_system() -> None:
+    """The reduced camera system (wand unknowns eliminated field by field, Hartley &
+    Zisserman A6.3) gives the step of the whole damped normal equations solved densely:
+    cameras that miss fields, a held camera unknown, a field with a zero diagonal."""
+    rng = np.random.default_rng(3)
+    C, F = 4, 30
+    seen = [np.sort(rng.choice(C, rng.integers(2, C + 1), replace=False)) for _ in range(F)]
+    field = np.concatenate([np.full(len(s), f) for f, s in enumerate(seen)])
+    camera = np.concatenate(seen)
+    problem = Problem(
+        field, camera, np.zeros(len(field)), np.zeros((len(field), 2)),
+        np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), C, F,
+    )  # fmt: skip
+    blocks = _Blocks(problem)
+    a = rng.normal(size=(C, N_CAMERA, N_CAMERA))
+    U = a @ a.transpose(0, 2, 1) + 40.0 * np.eye(N_CAMERA)
+    b = rng.normal(size=(F, N_WAND, N_WAND))
+    V = b @ b.transpose(0, 2, 1) + np.eye(N_WAND)
+    V[0, 3:, :] = V[0, :, 3:] = 0.0  # a free point: its direction rows are zero
+    W = 0.3 * rng.normal(size=(len(blocks.pair_start), N_CAMERA, N_WAND))
+    W[blocks.pair_field == 0, :, 3:] = 0.0
+    g_cam, g_wand = rng.normal(size=(C, N_CAMERA)), rng.normal(size=(F, N_WAND))
+    g_wand[0, 3:] = 0.0
+    free = np.ones((C, N_CAMERA), dtype=bool)
+    free[1, 5] = False
+    lam = 0.01
+    d_cam, d_wand = _damped_step(problem, blocks, (U, V, W, g_cam, g_wand), lam, free)
+
+    n = C * N_CAMERA
+    H = np.zeros((n + F * N_WAND, n + F * N_WAND))
+    for c in range(C):
+        H[c * N_CAMERA : (c + 1) * N_CAMERA, c * N_CAMERA : (c + 1) * N_CAMERA] = U[c]
+    for f in range(F):
+        s = slice(n + f * N_WAND, n + (f + 1) * N_WAND)
+        H[s, s] = V[f]
+    for p, (c, f) in enumerate(zip(blocks.pair_camera, blocks.pair_field, strict=True)):
+        rows, cols = (
+            slice(c * N_CAMERA, (c + 1) * N_CAMERA),
+            slice(n + f * N_WAND, n + (f + 1) * N_WAND),
+        )
+        H[rows, cols], H[cols, rows] = W[p], W[p].T
+    diag = np.diag(H).copy()
+    H[np.diag_indices_from(H)] += lam * diag + (diag == 0.0)
+    keep = np.r_[free.ravel(), np.ones(F * N_WAND, dtype=bool)]
+    step = np.zeros(len(H))
+    step[keep] = np.linalg.solve(H[np.ix_(keep, keep)], -np.r_[g_cam.ravel(), g_wand.ravel()][keep])
+    np.testing.assert_allclose(d_cam.ravel(), step[:n], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(d_wand.ravel(), step[n:], rtol=1e-9, atol=1e-12)

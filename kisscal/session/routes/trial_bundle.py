@@ -55,10 +55,11 @@ def rods_control(
     """
     config, params = inputs.config, inputs.params
     # the adjustment starts from pinholes (L12..L16 could not carry over into it), so
-    # from a second fit without them when the rods chose them
+    # from a second fit without them when the rods chose them (its cameras only: no
+    # leave-one-rod-out, the adjustment's own is the check)
     rod_cal = rods_alone
     if rods_alone.models is not None and rods_alone.models.chosen not in PINHOLES:
-        rod_cal = calibrate_rods(blobs_px, rods, params.dlt, True, PINHOLES)
+        rod_cal = calibrate_rods(blobs_px, rods, params.dlt, False, PINHOLES)
     cams, xyz, uv, group = [], [], [], []
     for c, cam in enumerate(config.camera_ids):
         muv = rod_cal.marker_uv_px[cam]  # (rods, markers, 2)
