@@ -73,7 +73,7 @@ from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
 from kisscal.detect.route import choose_route
-from kisscal.detect.shape import cut_by_shape
+from kisscal.detect.shape import spreads
 from kisscal.detect.survey import (
     GreyLevels,
     Groups,
@@ -404,9 +404,10 @@ class _Derivation:
             self.choose("split_overlaps", False, why)
             self.choose("split_long_wide", False, why)
             return
-        # as the tests read them: moments less pixel area and growth (kisscal.detect.shape)
-        cut = cut_by_shape(spots.var_x[ok], spots.var_y[ok], spots.cov_xy[ok], p.growth_px, p)
-        odd = float(np.mean(cut))
+        g = p.growth_px  # as the tests read it: spreads less pixel area and growth (shape)
+        sx, sy = spreads(spots.var_x[ok], spots.var_y[ok])
+        ratio = p.pixel_aspect * np.maximum(sy - g, 0.05) / np.maximum(sx - g, 0.05)
+        odd = float(np.mean((ratio < p.min_ratio) | (ratio > p.max_ratio)))
         if odd <= ODD_SHAPES_MAX:
             return
         why = (

@@ -15,8 +15,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.detect.params import DetectionParams
-
 PIXEL_AREA_VAR = 1.0 / 12.0  # variance of a uniform pixel: part of every measured spread
 #: Least ``|1 - pixel_aspect|`` at which the growth is estimated per image.
 MIN_ASPECT_CONTRAST = 0.2
@@ -133,28 +131,3 @@ def frame_medians(
     lower = ordered[first + np.maximum(half - 1, 0)]
     out[has] = np.where(size[has] % 2 == 1, upper, (lower + upper) / 2)
     return out
-
-
-def cut_by_shape(
-    var_x: NDArray[np.float64],
-    var_y: NDArray[np.float64],
-    cov_xy: NDArray[np.float64],
-    growth: float,
-    params: DetectionParams,
-) -> NDArray[np.bool_]:
-    """Spots a shape test would take for two markers, from their moments alone.
-
-    The long/wide test (Shafiq et al. 2001, section 2.3.3) reads the height-to-width
-    ratio; the overlap test (2.3.2, :func:`~kisscal.detect.advanced.overlap_split`) also
-    takes a spot elongated along a diagonal for an overlapped pair. A dot seen obliquely
-    is such a spot, and its ratio may still look round: both readings are counted, as
-    the tests make them (growth removed, round units).
-    """
-    cvx, cvy, cxy = corrected_moments(var_x, var_y, cov_xy, growth)
-    ratio = height_ratio(cvx, cvy, params.pixel_aspect)
-    odd = (ratio < params.min_ratio) | (ratio > params.max_ratio)
-    major, minor, ux, uy = principal_axes(cvx, cvy, cxy, params.pixel_aspect)
-    angle = np.degrees(np.arctan2(np.abs(uy), np.abs(ux)))
-    diagonal = (angle >= params.overlap_angle_deg) & (angle <= 90 - params.overlap_angle_deg)
-    elongated = np.sqrt(major / minor) >= params.overlap_min_elongation
-    return odd | (diagonal & elongated & params.split_overlaps)

@@ -1,13 +1,14 @@
 """Dots of a target seen obliquely are found whole with default settings.
 
 A tilted plate images its round dots as ellipses, every dot alike (Ni's lab's calibration
-images, tests/detect/openlpt_heldout.py). Tilted about a diagonal, the ellipses' x and y
-spreads are equal, so the height-to-width ratio reads them as round, but the overlap test
-(Shafiq et al. 2001, section 2.3.2, read from moments) takes a spot elongated along a
-diagonal for two overlapped markers: on camera 5 the default kind cut 91 of 133 dots in
-two. The check that turns the shape tests off reads both. Tilted about the horizontal, the
-dots are tall, and size limits taken for round spots of their area flagged the plate's
-larger orientation dots too large (cameras 2, 3, 6, as a grid).
+images, tests/detect/openlpt_heldout.py). Tilted about the horizontal, the dots are tall,
+and size limits taken for round spots of their area flagged the plate's larger
+orientation dots too large (cameras 2, 3, 6, as a grid).
+
+Not yet handled: tilted about a diagonal, the ellipses read round by the height-to-width
+ratio, but the overlap test cuts them (camera 5, default kind: 91 of 133 dots cut).
+Counting those spots in the check that turns the shape tests off pushed a synthetic walk
+camera (tests/detect/test_rig.py, seed 1, camera 3) to 15 % and its recall below 99.5 %.
 """
 
 from __future__ import annotations
@@ -51,20 +52,6 @@ def _oblique_target(
     cover = ((u / axes[0]) ** 2 + (v / axes[1]) ** 2 <= 1).mean(axis=(2, 3))
     image = 220.0 - 180.0 * cover + rng.normal(0, 2.0, cover.shape)
     return np.clip(image, 0, 255).astype(np.uint8), centres
-
-
-def test_obliquely_seen_dots_are_not_cut_as_overlapped_pairs() -> None:
-    # measured: 64 of 64 found within 0.5 px, none split; before the check read the
-    # overlap test: 0 of 64, each cut in two
-    rng = np.random.default_rng(23)
-    for angle in (45.0, 135.0):
-        image, dots = _oblique_target(rng, angle)
-        setup = configure_detection([image])  # kisscal detect's default kind (markers)
-        valid = detect_blobs(image, setup.params).valid_only()
-        d, _ = cKDTree(valid.xy_px).query(dots)
-        pieces = cKDTree(valid.xy_px).query_ball_point(dots, 0.3 * SPACING, return_length=True)
-        assert (d <= 0.5).all(), (angle, int((d > 0.5).sum()))
-        assert (np.asarray(pieces) == 1).all(), (angle, int((np.asarray(pieces) > 1).sum()))
 
 
 def test_larger_dots_of_an_oblique_grid_are_not_too_large() -> None:
