@@ -34,7 +34,7 @@ from kisscal.session.routes.imported import calibrate_from_cameras, calibrate_fr
 from kisscal.session.routes.points import calibrate_from_points
 from kisscal.session.routes.rods import calibrate_from_rods
 from kisscal.session.routes.target import calibrate_from_target
-from kisscal.session.routes.trial_bundle import usable_trials, uses_trials
+from kisscal.session.routes.trial_bundle import has_files, usable_trials, uses_trials
 from kisscal.session.routes.wand import calibrate_from_wand
 
 #: Every route by name: what ``calibration.json`` records and ``--route`` chooses.
@@ -133,8 +133,8 @@ def _bundle_trials(
     usable = tuple(usable_trials(config))
     recorded = [] if refresh else previous.get("bundle_trials") or []
     kept = tuple(n for n in recorded if n in usable)
-    if not kept:
-        return usable
+    if not kept:  # a trial without its files is left to fail on its own
+        return tuple(n for n, t in usable_trials(config).items() if has_files(config, t))
     if set(usable) - set(kept):
         echo(
             f"  calibrate: the rods stay adjusted with {', '.join(kept)}, as this session "

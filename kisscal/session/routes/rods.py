@@ -25,7 +25,12 @@ from kisscal.report.dlt import CameraResiduals, residual_figure, rig_figure
 from kisscal.session.inputs import figure
 from kisscal.session.progress import Echo
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
-from kisscal.session.routes.trial_bundle import image_trials, lens_from_trials, uses_trials
+from kisscal.session.routes.trial_bundle import (
+    has_files,
+    image_trials,
+    lens_from_trials,
+    uses_trials,
+)
 from kisscal.session.runner import run_keyed
 from kisscal.session.trials import trial_input_files
 
@@ -67,6 +72,13 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
 
     if not inputs.whole_rig:  # the rig's check is the output the key is kept beside
         return compute()
+    lost = _lost_trials(inputs)
+    if lost and store.calibration_file("check").is_file():
+        inputs.echo(
+            f"  calibrate: trial {', '.join(lost)}, which the rods were adjusted with, has "
+            "no images now; the calibration made with it is kept (--refresh redoes it)"
+        )
+        return cached()
     stage = (
         "calibrate",
         {c: source_files(f) for c, f in rod_frames.items()},
@@ -86,8 +98,15 @@ def _trial_inputs(inputs: RouteInputs) -> list:
     if not uses_trials(inputs):
         return []
     config = inputs.config
-    trials = [trial_input_files(config, t) for t in image_trials(inputs)]
+    trials = [trial_input_files(config, t) for t in image_trials(inputs) if has_files(config, t)]
     return [trials, inputs.params.wand]
+
+
+def _lost_trials(inputs: RouteInputs) -> list[str]:
+    """The trials the rods are adjusted with that have lost their files."""
+    if not uses_trials(inputs):
+        return []
+    return [t.name for t in image_trials(inputs) if not has_files(inputs.config, t)]
 
 
 def _say_rods(echo: Echo, cal: RodCalibration, rig: dict[str, Any], seconds: float) -> None:

@@ -32,11 +32,12 @@ from kisscal.dlt import (
 )
 from kisscal.dlt.params import DltResult, Rod, RodCheck
 from kisscal.dlt.rig import RodCalibration
-from kisscal.errors import EstimationFailed, InputError
+from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
 from kisscal.session.runner import trial_blobs
+from kisscal.session.trials import trial_input_files
 
 #: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
 PINHOLES = ("dlt", "refined")
@@ -99,7 +100,11 @@ def trials_table(inputs: RouteInputs) -> BlobTable:
     per_camera: list[list] = [[] for _ in config.cameras]
     detection = marker_detection(inputs)
     for trial in image_trials(inputs):
-        blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers)
+        try:
+            blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers)
+        except KisscalError as exc:  # the trial fails on its own later, as without the bundle
+            inputs.echo(f"  calibrate: trial {trial.name!r} left out of the adjustment: {exc}")
+            continue
         for c, cam in enumerate(config.cameras):
             lin = inputs.linearisations[cam.id]
             per_camera[c].extend(apply_linearisation(lin, uv) for uv in blobs[cam.id])
@@ -127,7 +132,19 @@ def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
             f"{config.path}: [dlt] bundle_trials names {', '.join(unknown)}, not an image "
             f"or video trial of the session (those: {', '.join(usable) or 'none'})"
         )
-    return [usable[n] for n in named] if named else list(usable.values())
+    if named:
+        return [usable[n] for n in named]
+    return [t for t in usable.values() if has_files(config, t)]
+
+
+def has_files(config: SessionConfig, trial: TrialConfig) -> bool:
+    """Whether every camera of ``trial`` has its files: a trial without them is left to
+    fail on its own, not to fail the calibration of the session's other trials."""
+    try:
+        trial_input_files(config, trial)
+    except KisscalError:
+        return False
+    return True
 
 
 def usable_trials(config: SessionConfig) -> dict[str, TrialConfig]:
