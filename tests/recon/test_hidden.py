@@ -17,18 +17,24 @@ from .scenario import observe
 SEGMENT_MM = 108.0
 
 
-def _segment_walk(seed: int, n: int = 60) -> tuple:
-    """Three cameras; markers A and B, SEGMENT_MM apart, seen by cameras 0 and 1 only.
-    The segment turns through camera 1's line of sight, so that B's image there merges
-    with A's for a stretch of fields while camera 0 sees them apart."""
+def turning_segment(seed: int, angles_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Three cameras; marker A walks, B lies SEGMENT_MM from it at ``angles_deg`` (one per
+    field) off camera 1's line of sight through A. Returns the DLTs, A and B."""
     dlts = make_rig(seed, n_cameras=3)
-    a = np.array([-300.0, 0.0, 900.0]) + np.arange(n)[:, None] * [12.0, 2.0, 0.0]
+    a = np.array([-300.0, 0.0, 900.0]) + np.arange(len(angles_deg))[:, None] * [12.0, 2.0, 0.0]
     ray = a - camera_centre_mm(dlts[1])
     ray /= np.linalg.norm(ray, axis=1)[:, None]
     side = np.cross(ray, [0.0, 0.0, 1.0])
     side /= np.linalg.norm(side, axis=1)[:, None]
-    angle = np.radians(np.linspace(-40.0, 40.0, n))
-    b = a + SEGMENT_MM * (np.cos(angle)[:, None] * ray + np.sin(angle)[:, None] * side)
+    angle = np.radians(angles_deg)[:, None]
+    return dlts, a, a + SEGMENT_MM * (np.cos(angle) * ray + np.sin(angle) * side)
+
+
+def _segment_walk(seed: int, n: int = 60) -> tuple:
+    """Markers A and B of :func:`turning_segment`, seen by cameras 0 and 1 only. The
+    segment turns through camera 1's line of sight, so that B's image there merges with
+    A's for a stretch of fields while camera 0 sees them apart."""
+    dlts, a, b = turning_segment(seed, np.linspace(-40.0, 40.0, n))
     xyz = np.stack([a, b], axis=1)
     visible = np.ones((n, 2, 3), dtype=bool)
     visible[:, :, 2] = False

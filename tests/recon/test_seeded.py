@@ -10,9 +10,9 @@ from kisscal.recon import ReconParams, reconstruct_trial
 from kisscal.recon.body import RigidTriangles
 from kisscal.recon.epipolar import camera_centre_mm
 
-from .rig import SIZE_PX, make_rig
+from .rig import SIZE_PX
 from .scenario import observe
-from .test_hidden import SEGMENT_MM, _found
+from .test_hidden import SEGMENT_MM, _found, turning_segment
 
 #: The marker set: the segment A-B and two lengths no pair here comes near.
 BODY = RigidTriangles(np.array([SEGMENT_MM]), np.array([400.0]), np.array([450.0]))
@@ -23,14 +23,7 @@ def _walk(seed: int, n: int = 40) -> tuple[np.ndarray, np.ndarray]:
     1's line of sight through A (their images there 1.2-2.3 px apart: one blob), and
     camera 0 sees them apart; camera 2 sees neither. A third marker C, seen by all three
     cameras, gives the trial its points. Returns the DLTs and A, B, C (n, 3, 3)."""
-    dlts = make_rig(seed, n_cameras=3)
-    a = np.array([-300.0, 0.0, 900.0]) + np.arange(n)[:, None] * [12.0, 2.0, 0.0]
-    ray = a - camera_centre_mm(dlts[1])
-    ray /= np.linalg.norm(ray, axis=1)[:, None]
-    side = np.cross(ray, [0.0, 0.0, 1.0])
-    side /= np.linalg.norm(side, axis=1)[:, None]
-    angle = np.radians(np.linspace(4.0, 8.0, n))[:, None]
-    b = a + SEGMENT_MM * (np.cos(angle) * ray + np.sin(angle) * side)
+    dlts, a, b = turning_segment(seed, np.linspace(4.0, 8.0, n))
     return dlts, np.stack([a, b, a + [0.0, 0.0, 300.0]], axis=1)
 
 
