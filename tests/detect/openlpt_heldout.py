@@ -27,10 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -41,7 +38,7 @@ from scipy.spatial import Delaunay, cKDTree
 from kisscal.detect import detect_blobs
 from kisscal.detect.configure import configure_detection
 from kisscal.io.frames import read_image
-from tests.detect.real_acceptance import MATCH_PX, nearest
+from tests.detect.real_acceptance import MATCH_PX, in_fresh_process, nearest
 
 TARGET = Path(
     "MATLAB/1_Calibration/calib_Ni2017_V3/calib_Ni2017_V3/working/09.28.17 Calibration Target"
@@ -78,16 +75,7 @@ def _score(found: np.ndarray, dots: np.ndarray) -> dict:
 
 def _cost(path: Path, method: str) -> dict:
     """Time (best of three) and peak memory of ``method`` on ``path``, in a fresh process."""
-    run = subprocess.run(
-        [sys.executable, "-m", "tests.detect.openlpt_heldout", "--cost-of", str(path), method],
-        capture_output=True,
-        text=True,
-        cwd=Path(__file__).resolve().parents[2],
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-    )
-    if run.returncode != 0:
-        return {"cost_error": (run.stderr.strip().splitlines() or ["?"])[-1]}
-    return json.loads(run.stdout.strip().splitlines()[-1])
+    return in_fresh_process("tests.detect.openlpt_heldout", ["--cost-of", str(path), method])
 
 
 def _measure(path: Path, method: str) -> None:

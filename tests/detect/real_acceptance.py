@@ -178,9 +178,15 @@ def _settings(paths: list[Path]) -> DetectionParams:
 def cost(path: Path, sample: list[Path]) -> dict:
     """Peak memory of a fresh process deriving the settings from ``sample`` and detecting
     ``path``, and the detection time against OpenCV's (one thread each)."""
+    args = ["--cost-of", str(path)] + [str(p) for p in sample]
+    return in_fresh_process("tests.detect.real_acceptance", args)
+
+
+def in_fresh_process(module: str, args: list[str]) -> dict:
+    """The JSON line a fresh ``python -m module args`` prints last (one OpenMP thread), or
+    its last error line as ``cost_error``: memory and time measured from nothing."""
     run = subprocess.run(
-        [sys.executable, "-m", "tests.detect.real_acceptance", "--cost-of", str(path)]
-        + [str(p) for p in sample],
+        [sys.executable, "-m", module, *args],
         capture_output=True,
         text=True,
         cwd=Path(__file__).resolve().parents[2],
