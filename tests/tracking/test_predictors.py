@@ -1,13 +1,73 @@
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
-from kisscal.tracking.predictors import (
-    extrapolate,
-    extrapolation_weights,
-    kalman_correct,
-    kalman_gains,
-    kalman_predict,
-)
+from kisscal.tracking.predictors import extrapolation_weights, kalman_gains, shafiq_rule
+
+# The tracker predicts with Shafiq's rule and looks the Kalman gains up; these are the
+# plain forms of both (for many tracks at once) that the tests check them against.
+
+
+def extrapolate(history: NDArray, n_points: NDArray, ahead: int = 1) -> NDArray[np.float64]:
+    """Extrapolate many tracks at once with Shafiq's rule for their length.
+
+    Parameters
+    ----------
+    history : (T, H, 3) array
+        Last H >= 5 positions of each track, the most recent last (older slots unused).
+    n_points : (T,) int array
+        Number of points each track has (>= 1).
+    ahead : int
+        Fields past the last point.
+
+    Returns
+    -------
+    (T, 3) predicted positions.
+    """
+    history = np.asarray(history, dtype=float)
+    n_points = np.asarray(n_points)
+    out = np.empty((history.shape[0], 3))
+    for lo, hi in ((1, 1), (2, 2), (3, 4), (5, np.inf)):
+        sel = (n_points >= lo) & (n_points <= hi)
+        if not sel.any():
+            continue
+        used, degree = shafiq_rule(lo)
+        w = extrapolation_weights(used, degree, ahead)
+        out[sel] = np.einsum("k,tkc->tc", w, history[sel, -used:])
+    return out
+
+
+def kalman_predict(
+    state: NDArray, cov: NDArray, pnc: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A-priori state and covariance: x' = A x, P' = A P A^T + Q (thesis eqs. 2.24, 3.14).
+
+    ``state`` is (T, 3, 2) = (position, velocity) per axis; ``cov`` is (T, 2, 2).
+    """
+    new_state = np.empty_like(state)
+    new_state[..., 0] = state[..., 0] + state[..., 1]
+    new_state[..., 1] = state[..., 1]
+    p00, p01, p11 = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    new_cov = np.empty_like(cov)
+    new_cov[:, 0, 0] = p00 + 2 * p01 + p11 + pnc
+    new_cov[:, 0, 1] = new_cov[:, 1, 0] = p01 + p11
+    new_cov[:, 1, 1] = p11 + pnc
+    return new_state, new_cov
+
+
+def kalman_correct(
+    state: NDArray, cov: NDArray, measured: NDArray, mnc: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A-posteriori state and covariance from position measurements (thesis eqs. 2.30-2.33).
+
+    ``measured`` is (T, 3); K = P' H^T / (H P' H^T + R), x = x' + K (z - H x'),
+    P = (I - K H) P'.
+    """
+    gain = cov[:, :, 0] / (cov[:, 0, 0] + mnc)[:, None]  # (T, 2)
+    innovation = measured - state[..., 0]  # (T, 3)
+    new_state = state + gain[:, None, :] * innovation[:, :, None]
+    new_cov = cov - gain[:, :, None] * cov[:, None, 0, :]
+    return new_state, new_cov
 
 
 def test_two_point_rule_is_thesis_eq_3_11():
