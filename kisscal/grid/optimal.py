@@ -41,17 +41,14 @@ class PrimaryGrid:
 
     Attributes
     ----------
-    center_rc : tuple of int
-        ``(row, col)`` of the dot nearest the centre of the distorted grid.
     center_uv : ndarray, shape (2,)
-        Its position, px.
+        Position (px) of the dot nearest the centre of the distorted grid.
     spacing_u_px, spacing_v_px : float
         Mean distance to its left/right and to its upper/lower neighbours, px.
     uv : ndarray, shape (N, 2)
         Primary-grid position of each indexed dot (order of the indexed input dots).
     """
 
-    center_rc: tuple[int, int]
     center_uv: NDArray[np.float64]
     spacing_u_px: float
     spacing_v_px: float
@@ -71,9 +68,6 @@ class OptimalGrid:
         the centre dot, see :func:`square_frame`) to optimal-grid pixels.
     pixel_aspect : float or None
         Fitted (or given) pixel aspect ``a`` of the similarity model; None for a homography.
-    scale, rotation_rad : float
-        Scale ``s`` and rotation ``alpha`` of eq. 2.1 (similarity model; for a homography
-        those of its affine part at the centre).
     uv : ndarray, shape (N, 2)
         Optimal-grid position of each indexed dot, px.
     rms_px : float
@@ -84,8 +78,6 @@ class OptimalGrid:
     model: str
     matrix: NDArray[np.float64]
     pixel_aspect: float | None
-    scale: float
-    rotation_rad: float
     uv: NDArray[np.float64]
     rms_px: float
 
@@ -137,7 +129,7 @@ def primary_grid(dots_uv: ArrayLike, index: LatticeIndex) -> PrimaryGrid:
     uv = np.column_stack(
         [pts[i, 0] + (index.col[ok] - c) * dx, pts[i, 1] + (index.row[ok] - r) * dy]
     )
-    return PrimaryGrid((r, c), pts[i].copy(), float(dx), float(dy), uv)
+    return PrimaryGrid(pts[i].copy(), float(dx), float(dy), uv)
 
 
 def square_frame(primary: PrimaryGrid, cell_aspect: float = 1.0) -> NDArray[np.float64]:
@@ -236,16 +228,12 @@ def optimal_grid(
             aspect = float(np.exp(res.x))
         (pp, qq, tu, tv), _ = _similarity_for_aspect(g, d, aspect)
         matrix = np.array([[pp, -qq, tu], [aspect * qq, aspect * pp, tv], [0.0, 0.0, 1.0]])
-        scale, rot = float(np.hypot(pp, qq)), float(np.arctan2(qq, pp))
         pixel_aspect: float | None = aspect
     else:
         if len(d) < 8:
             raise EstimationFailed("a homography optimal grid needs at least 8 dots")
         matrix = _fit_homography(g, d)
-        lin = matrix[:2, :2] - np.outer(matrix[:2, 2], matrix[2, :2])
-        scale = float(np.sqrt(abs(np.linalg.det(lin))))
-        rot = float(np.arctan2(lin[1, 0] - lin[0, 1], lin[0, 0] + lin[1, 1]))
         pixel_aspect = None
     uv = _apply_h(matrix, g)
     rms = rms_px(d - uv)
-    return OptimalGrid(p.model, matrix, pixel_aspect, scale, rot, uv, rms)
+    return OptimalGrid(p.model, matrix, pixel_aspect, uv, rms)
