@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
 from kisscal.grid.lattice import LatticeIndex, index_lattice
-from kisscal.grid.optimal import OptimalGrid, PrimaryGrid, optimal_grid, primary_grid
+from kisscal.grid.optimal import OptimalGrid, optimal_grid, primary_grid
 from kisscal.grid.params import GridParams
 from kisscal.grid.poly import (
     Linearisation,
@@ -33,8 +33,8 @@ class GridFit:
         The 30 coefficients, normalisation and quality figures.
     index : LatticeIndex
         Row/column of each detected dot, missing positions, rejected blobs.
-    primary, optimal : PrimaryGrid, OptimalGrid
-        The two reference grids of Küçük 2005, section 2.2.
+    optimal : OptimalGrid
+        The optimal grid of Küçük 2005, section 2.2 (fitted to the primary grid).
     dots_uv : ndarray, shape (N, 2)
         The detected dots as given (all of them, including rejected blobs), px.
     params : GridParams
@@ -43,7 +43,6 @@ class GridFit:
 
     linearisation: Linearisation
     index: LatticeIndex
-    primary: PrimaryGrid
     optimal: OptimalGrid
     dots_uv: NDArray[np.float64]
     params: GridParams = field(default_factory=GridParams)
@@ -261,7 +260,7 @@ def fit_linearisation(
         cv_rms_px=leave_rows_out_rms(grid, optimal.uv, row, centre, scale),
     )
     lin = Linearisation(lin.center_px, lin.scale_px, lin.x, lin.y, quality)
-    return GridFit(lin, index, primary, optimal, pts, p)
+    return GridFit(lin, index, optimal, pts, p)
 
 
 def linearise_dots(
