@@ -1,7 +1,7 @@
 """Marker sets kisscal ships: names, rigid segments, mirror pairs and a standing template.
 
 A session picks one by name (``[markers] set = "plug-in-gait-lower"``); the data live in
-``kisscal/markersets/data/*.toml``, written by :mod:`kisscal.synth.derive_markersets` from
+``kisscal/markersets/data/*.toml``, written by ``tests/markersets/derive_markersets.py`` from
 anthropometric proportions (Winter 2009; Bell et al. 1990).
 
 Example

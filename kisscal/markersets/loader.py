@@ -51,7 +51,7 @@ def marker_set(name: str, names: Sequence[str] | None = None) -> MarkerSet:
     References
     ----------
     Davis et al. 1991 (Plug-in Gait lower body); Küçük 2005 (the KISS set); Winter 2009
-    and Bell et al. 1990 (the templates' geometry, see :mod:`kisscal.synth.derive_markersets`).
+    and Bell et al. 1990 (the templates' geometry, see ``tests/markersets/derive_markersets.py``).
 
     Examples
     --------

@@ -10,8 +10,8 @@ import pytest
 from kisscal.errors import KisscalError
 from kisscal.markersets import available_marker_sets, marker_set
 from kisscal.markersets.loader import tomllib
-from kisscal.synth.derive_markersets import WALKING5_ALIASES, tables
 from kisscal.synth.motion import gait_marker_names, gait_segments, standing_template, walking_trial
+from tests.markersets.derive_markersets import WALKING5_ALIASES, tables
 
 SETS = ("kiss", "plug-in-gait-full", "plug-in-gait-lower")
 

@@ -1,10 +1,11 @@
 """Where the shipped standing templates come from: anthropometric proportions -> marker mm.
 
 The data files in ``kisscal/markersets/data`` are written by this module, a developer's
-tool (``python -m kisscal.synth.derive_markersets`` rewrites them; a test checks they
-match). It lives beside the synthetic walker because the KISS set is the walker's own
-geometry; :mod:`kisscal.markersets` only reads the files. The geometry of every marker
-can be traced to a proportion of stature or to a published landmark relation:
+tool (``python -m tests.markersets.derive_markersets`` rewrites them; a test checks they
+match), kept with the tests because the package never runs it: :mod:`kisscal.markersets`
+only reads the files, and the KISS set is the synthetic walker's own geometry. The
+geometry of every marker can be traced to a proportion of stature or to a published
+landmark relation:
 
 * Heights and lengths as fractions of stature ``H``: Winter 2009 (table after Drillis &
   Contini 1966): hip (greater trochanter) 0.530 H, knee 0.285 H, ankle 0.039 H, shoulder
@@ -54,7 +55,7 @@ PROPORTION_CV = 0.03
 PELVIS_WIDTH, PELVIS_DEPTH = 0.13, 0.095
 _MARKER_MM = 7.0
 
-_DATA = Path(__file__).parents[1] / "markersets" / "data"
+_DATA = Path(__file__).parents[2] / "kisscal" / "markersets" / "data"
 
 
 def _left_leg(h: float) -> dict[str, tuple[np.ndarray, float, str]]:
@@ -193,7 +194,7 @@ _PIG_SOURCE = (
     "Proportions of stature: Winter 2009 (after Drillis & Contini 1966); hip joint centre: "
     "Bell et al. 1990; placement: Davis et al. 1991 and the Vicon Plug-in Gait reference "
     "guide; SD: Della Croce et al. 1999 plus 3 % proportion spread. Derivation: "
-    "kisscal/synth/derive_markersets.py"
+    "tests/markersets/derive_markersets.py"
 )
 #: Names the OpenSim / Vicon FULLBODY_2009 set (walking5.c3d) gives the same landmarks.
 WALKING5_ALIASES = {
@@ -275,7 +276,7 @@ def kiss() -> dict:
         "source": (
             "kisscal.synth.motion.standing_template (the walker's geometry: thigh 430 mm, "
             "shank 420 mm, hip half-width 85 mm); stature from its hip height, 0.530 H "
-            "(Winter 2009); SD as for Plug-in Gait (kisscal/synth/derive_markersets.py)"
+            "(Winter 2009); SD as for Plug-in Gait (tests/markersets/derive_markersets.py)"
         ),
         "names": names,
         "alternatives": {},
@@ -318,7 +319,9 @@ def _toml_list(key: str, values: list) -> str:
 
 def to_toml(table: dict) -> str:
     """The data-file text of one set (a compact TOML layout, read back by ``tomllib``)."""
-    out = ["# Written by kisscal/synth/derive_markersets.py; see its docstring for the sources.\n"]
+    out = [
+        "# Written by tests/markersets/derive_markersets.py; see its docstring for the sources.\n"
+    ]
     for key, value in table.items():
         if isinstance(value, list) and len(value) > 4:
             out.append(_toml_list(key, value))
