@@ -218,7 +218,8 @@ def choose_model(
         full = {c: inside[c][name] for c in cameras}
         runs = [_cross_validate(cameras, d, p, full) for d in designs]
         for cam in cameras:
-            held_px.setdefault(cam, {})[name] = _quadratic_mean([px[cam] for *_, px in runs])
+            px_rms = np.sqrt(np.mean(np.square([px[cam] for *_, px in runs])))
+            held_px.setdefault(cam, {})[name] = float(px_rms)  # the designs' quadratic mean
         carried = all(np.isfinite(inside[c][name]) for c in cameras)  # every camera or none
         ok = carried and all(len(e) > 0 for _, e, _ in runs)
         every = np.concatenate([e for _, e, _ in runs])
@@ -355,10 +356,6 @@ def _fold_errors(
     err = np.linalg.norm(tri.xyz_mm - true, axis=1)
     keep = enough & np.isfinite(err)
     return ids[keep].astype(np.int64), err[keep]
-
-
-def _quadratic_mean(values: list[float]) -> float:
-    return float(np.sqrt(np.mean(np.square(values))))
 
 
 def _rms(rows: list[NDArray]) -> float:

@@ -82,7 +82,8 @@ def gait_cycle_figure(
             _mark(ax, events, side, "C0", 1.2)
             if truth is not None:
                 _mark(ax, truth, side, "0.4", 0.6)
-        top.set_title(f"{side} ({_count(events, side)})")
+        counts = [f"{len(events.times(side, e))} {label}" for e, (_, label) in _STYLE.items()]
+        top.set_title(f"{side} ({', '.join(counts)}; solid FS, dashed FO)")
         top.set_ylabel("height (mm)")
         bottom.set_ylabel("forward speed (m/s)")
         bottom.set_xlabel("time (s)")
@@ -97,8 +98,3 @@ def _mark(ax, events: GaitEvents, side: str, colour: str, width: float) -> None:
     for event, (style, _) in _STYLE.items():
         for x in events.times(side, event):
             ax.axvline(x, color=colour, ls=style, lw=width)
-
-
-def _count(events: GaitEvents, side: str) -> str:
-    parts = [f"{len(events.times(side, e))} {label}" for e, (_, label) in _STYLE.items()]
-    return ", ".join(parts) + "; solid FS, dashed FO"

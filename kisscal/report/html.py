@@ -227,11 +227,6 @@ _NAV = (
 )
 
 
-def _nav(sections: list[Html]) -> Html:
-    present = [(k, t) for k, t in _NAV if any(f'id="{k}"' in s for s in sections)]
-    return tag("nav", join(tag("a", t, href=f"#{k}") for k, t in present))
-
-
 def render(o: SessionOutputs, draw: Callable[[str, tuple, Callable[[], Figure]], bytes]) -> str:
     """The report page of gathered outputs.
 
@@ -255,7 +250,9 @@ def render(o: SessionOutputs, draw: Callable[[str, tuple, Callable[[], Figure]],
     body += [other_figures_section(o, used), timings_section(o), notes_section(o)]
     body.append(truth_section(o))
     status = status_section(o, cams, rig, trials, analyses)
-    page = join([_header(o), _nav([status, *body]), status, *body])
+    present = [(k, t) for k, t in _NAV if any(f'id="{k}"' in s for s in [status, *body])]
+    nav = tag("nav", join(tag("a", t, href=f"#{k}") for k, t in present))
+    page = join([_header(o), nav, status, *body])
     title = html.escape(f"kisscal report: {o.session}")
     return (
         "<!doctype html>\n<html lang='en'><head><meta charset='utf-8'>"
