@@ -230,16 +230,11 @@ def volume_rays(
 
 def opencv_from_camera(
     camera: Camera,
-    step_px: float = GRID_STEP_PX,
     coefficients: int = 12,
-    rim_fraction: float = 0.08,
-    rim_weight: float = 0.1,
     *,
     k3: bool = True,
     used_px: NDArray[np.float64] | None = None,
-    outside_weight: float = 0.01,
     volume_mm: tuple[ArrayLike, ArrayLike] | None = None,
-    image_weight: float = 1e-3,
 ) -> OpenCvFit:
     """OpenCV's model fitted to a kisscal camera: matrix, distortions and rotation by
     least squares (Levenberg-Marquardt) on the rays through a grid of raw pixels covering
@@ -249,8 +244,8 @@ def opencv_from_camera(
     8 (with the rational model's ``k4 k5 k6``) or 12 (and the thin prism's ``s1..s4``).
     OpenCV's functions, and so anipose and Pose2Sim, accept all three; 12 follows a
     grid's 4th-order polynomial best (a third to a half of the 5-term model's 3D error
-    on the synthetic rigs). The image's rim (``rim_fraction`` of its smaller side)
-    counts ``rim_weight`` as much as its inside: there the polynomial extrapolates
+    on the synthetic rigs). The image's rim (8 % of its smaller side) counts a tenth
+    as much as its inside: there the polynomial extrapolates
     beyond the grid's dots, and no model follows it there without giving up the inside,
     where the measurements are.
 
@@ -259,14 +254,14 @@ def opencv_from_camera(
 
     ``used_px``, the raw pixels of the points the calibration used (its control points),
     replaces the rim rule: the fit follows kisscal's camera within their bounding box and
-    counts ``outside_weight`` as much beyond it, where no measurement backs either model
+    counts 1 % as much beyond it, where no measurement backs either model
     (on the synthetic kiss and webcam rigs this lowered the round trip through
     ``cameras.toml`` by a fifth to a third).
 
     ``volume_mm``, the calibrated volume (lowest and highest corner, lab mm: the extent
     of the control points), replaces both: the fit follows kisscal's camera on the rays
     to a lattice of points filling it (:func:`volume_rays`), as densely as the volume
-    fills the image, and on the grid of raw pixels at ``image_weight`` each. A lab
+    fills the image, and on the grid of raw pixels at 0.001 each. A lab
     measures within its volume, so that is where the two models must agree: on the
     synthetic webcam rigs this halved the 3D gap between them against the control
     points' extent in the image. Each volume point's pixel residual is weighted by its
@@ -285,16 +280,15 @@ def opencv_from_camera(
     if coefficients not in (5, 8, 12):
         raise InputError(f"OpenCV distortion coefficients must be 5, 8 or 12, got {coefficients}")
     K, R, centre = decompose_dlt(camera.dlt)
-    raw = image_grid(camera.size_px, step_px)
-    rim = (rim_fraction, rim_weight)
-    weight = fit_weights(raw, camera.size_px, used_px, rim, outside_weight)
+    raw = image_grid(camera.size_px)
+    weight = fit_weights(raw, camera.size_px, used_px, (0.08, 0.1), 0.01)
     region = _extent(used_px)
     uv = camera.undistort_px(raw)
     rays = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(K).T @ R  # lab directions, forward
     if volume_mm is not None:
         raw_v, rays_v = volume_rays(camera, volume_mm)
         raw, rays = np.r_[raw, raw_v], np.r_[rays, rays_v]
-        weight = np.r_[np.full(len(weight), image_weight), _lateral_weights(rays_v @ R[2])]
+        weight = np.r_[np.full(len(weight), 1e-3), _lateral_weights(rays_v @ R[2])]
         region = _extent(raw_v)
     weight = np.sqrt(weight)[:, None]
     rvec = cv2.Rodrigues(R)[0].ravel()
@@ -338,11 +332,7 @@ def _extent(uv: NDArray[np.float64] | None) -> tuple[float, float, float, float]
 
 
 def camera_from_opencv(
-    cv: Camera,
-    step_px: float = GRID_STEP_PX,
-    lens_terms: bool = True,
-    region_px: ArrayLike | None = None,
-    outside_weight: float = REGION_OUTSIDE_WEIGHT,
+    cv: Camera, lens_terms: bool = True, region_px: ArrayLike | None = None
 ) -> tuple[Camera, float]:
     """kisscal's model of an OpenCV camera: the DLT of ``K [R | t]``, a 4th-order
     linearisation and, with ``lens_terms``, Kolahi's L12..L16 on top, fitted together to
@@ -359,7 +349,7 @@ def camera_from_opencv(
     ``region_px`` (``u_min, v_min, u_max, v_max``, raw px), where the OpenCV model was
     fitted to follow a calibration (kisscal's export writes it,
     :func:`kisscal.io.cameras_toml.read_fit_regions`): the fit follows OpenCV's camera
-    there and counts ``outside_weight`` as much beyond it, where OpenCV's model only
+    there and counts :data:`REGION_OUTSIDE_WEIGHT` as much beyond it, where OpenCV's model only
     extrapolates; on the synthetic webcam rigs this cut the import's share of the
     ``cameras.toml`` round trip by two thirds.
 
@@ -373,9 +363,9 @@ def camera_from_opencv(
         (within ``region_px`` when given).
     """
     w, h = cv.size_px
-    raw = image_grid(cv.size_px, step_px)
+    raw = image_grid(cv.size_px)
     ideal = cv.undistort_px(raw)
-    weight = region_weights(raw, region_px, outside_weight)
+    weight = region_weights(raw, region_px, REGION_OUTSIDE_WEIGHT)
     inside = weight == 1.0
     root_w = np.sqrt(weight)[:, None]
     centre, scale = ((w - 1) / 2, (h - 1) / 2), (w - 1) / 2
