@@ -25,7 +25,7 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import merged_pairs
+from kisscal.recon.unmerged import deblended_in, merged_pairs, shared_blobs
 
 
 @dataclass(frozen=True)
@@ -300,34 +300,36 @@ def _without(pts: Points3D, drop: NDArray[np.bool_]) -> Points3D:
 
 
 def unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
-    """``pts`` with the two-camera points made of two merged blobs
+    """``pts`` with the two-camera points that hold a merged blob
     (:func:`~kisscal.recon.unmerged.merged_pairs`) replaced by what
     :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs; a pair
-    nothing replaces stays (it may be right: partners' images on the marker's own)."""
+    none of whose blobs a new point deblends stays (it may be right: partners' images on
+    the marker's own), as a new point of its field may be another marker's."""
     drop = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     if not drop.any():
         return pts
-    rest, new = _replaced(pts, drop, scene)
-    found = np.isin(pts.field, new.field)
+    shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    rest, new = _replaced(pts, drop, scene, shared)
+    found = deblended_in(pts.blob_row, new.merged_row)
     if not np.all(found[drop]):
         drop &= found
         if not drop.any():
             return pts
-        rest, new = _replaced(pts, drop, scene)
+        rest, new = _replaced(pts, drop, scene, shared)
     return _with_points(rest, new, scene.camera) if len(new.field) else rest
 
 
 def _replaced(
-    pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
+    pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene, shared: NDArray[np.bool_]
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
-    (own blob free before: a freed merged blob is no point's own)."""
-    fields, freed = pts.field[drop], pts.blob_row[drop]
+    (own blob not a ``shared`` one: a freed merged blob is no point's own)."""
+    fields = pts.field[drop]
     rest = _without(pts, drop)
     # only the fields of the dropped points: elsewhere every step sees what it saw before
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
-    own = ~np.isin(new.own_row, freed[freed >= 0])
+    own = ~shared[new.own_row]
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )

@@ -1,4 +1,4 @@
-"""Two-camera points made of two merged blobs: dropped, the marker deblended instead."""
+"""Two-camera points holding merged blobs: dropped, the marker deblended instead."""
 
 from __future__ import annotations
 
@@ -113,9 +113,24 @@ def test_points_of_clean_blobs_are_not_flagged() -> None:
     both = _merged(dlts, xyz)
     pts, scene = _points(dlts, xyz, tab, dict(enumerate(SEEN)), both)
     assert not merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
-    # the same pairs apart: X from cameras 0 and 1 is no pair of two merged blobs
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_with_one_merged_blob_gives_way_too(seed: int) -> None:
+    # X from its clean blob in camera 0 and the one merged with H in camera 1 (lowcost
+    # seed 304's ankle, 13.7 mm off: its partner in the other camera 3.0 px away, not
+    # merged): pulled towards H by the centroid, and replaced by the deblended marker
+    dlts, xyz, visible, _ = _doubly_merged_walk(seed)
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    both = _merged(dlts, xyz)
     pts, scene = _points(dlts, xyz, tab, {0: (0, 1), 1: (0, 3), 2: (1, 3)}, both)
-    assert not merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+    before = _nearest(pts, xyz, 0)[both]
+    assert np.median(before) > 5.0
+    flagged = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    assert flagged.sum() == both.sum()
+    after = _nearest(unmerged(pts, scene), xyz, 0)[both]
+    assert np.median(after) < 3.0  # most fields deblended, none made worse or lost
+    assert np.all(after <= before + 0.5)
 
 
 def test_a_pair_nothing_replaces_stays() -> None:
