@@ -25,7 +25,7 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import deblended_in, merged_pairs
+from kisscal.recon.unmerged import deblended_in, merged_pairs, shared_blobs
 
 
 @dataclass(frozen=True)
@@ -302,18 +302,18 @@ def _without(pts: Points3D, drop: NDArray[np.bool_]) -> Points3D:
 def unmerged(pts: Points3D, scene: MergeScene) -> Points3D:
     """``pts`` with the two-camera points that hold a merged blob
     (:func:`~kisscal.recon.unmerged.merged_pairs`) replaced by what
-    :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs, own
-    blob in a third camera; a pair none of whose blobs a new point deblends stays (it may
+    :func:`~kisscal.recon.deblend.deblend_merged` makes of their fields' free blobs
+    (:func:`_replaced`); a pair none of whose blobs a new point deblends stays (it may
     be right: partners' images on the marker's own, or hidden there)."""
     drop = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     if not drop.any():
         return pts
     rest, new = _replaced(pts, drop, scene)
-    found = deblended_in(pts.blob_row, new.merged_row)
+    found = deblended_in(pts.blob_row, np.r_[new.merged_row, new.own_row])
     if not np.all(found[drop]):
-        # the others back as they were: no new point holds their blobs (own blobs were
-        # not freed ones, merged ones not theirs); deblending again without them would
-        # meet their pulled points in the next fields and refuse the rest (continuity)
+        # the others back as they were: no new point holds their blobs; deblending again
+        # without them would meet their pulled points in the next fields and refuse the
+        # rest (continuity)
         drop &= found
         if not drop.any():
             return pts
@@ -325,15 +325,20 @@ def _replaced(
     pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
-    whose own blob was free before: a freed blob is no new point's own (a merged one is
-    no marker's own; a clean one, deblended with the other, would rest on the merge
-    alone, where the other marker may be hidden: lowcost seed 307's toe, 31 mm off)."""
-    fields, freed = pts.field[drop], pts.blob_row[drop]
+    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and,
+    if a dropped pair's clean blob, fits with a smaller residual than the pair did: else
+    the new point rests on the merge alone, the other marker perhaps hidden there
+    (lowcost seed 307's toe, its pair's residual 0.00 px, went 31 mm off)."""
+    fields = pts.field[drop]
+    shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    pair_rms = np.full(len(scene.field), np.inf)
+    rows = pts.blob_row[drop]
+    pair_rms[rows[rows >= 0]] = np.repeat(pts.rms_px[drop], (rows >= 0).sum(axis=1))
     rest = _without(pts, drop)
     # only the fields of the dropped points: elsewhere every step sees what it saw before
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
-    own = ~np.isin(new.own_row, freed[freed >= 0])
+    own = ~shared[new.own_row] & (new.rms_px < pair_rms[new.own_row])
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )

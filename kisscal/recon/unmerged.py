@@ -76,19 +76,19 @@ def shared_blobs(
     return shared
 
 
-def deblended_in(blob_row: NDArray[np.int64], merged_row: NDArray[np.int64]) -> NDArray[np.bool_]:
-    """Points one of whose blobs a new point deblended (one of ``merged_row``): replaced
-    by it, where a new point of the same field may be another marker's.
+def deblended_in(blob_row: NDArray[np.int64], rows: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Points one of whose blobs a new point took (one of ``rows``, its merged and own
+    blobs): replaced by it, where a new point of the same field may be another marker's.
 
     Parameters
     ----------
     blob_row : ndarray of int, shape (m, n_cameras)
         Row of each point's blob per camera (-1: none).
-    merged_row : ndarray of int, shape (k,)
-        The merged blob of each new point (:class:`~kisscal.recon.deblend.Deblended`).
+    rows : ndarray of int, shape (k,)
+        Blobs of the new points (:class:`~kisscal.recon.deblend.Deblended`).
 
     Returns
     -------
     ndarray of bool, shape (m,)
     """
-    return np.any(np.isin(blob_row, merged_row) & (blob_row >= 0), axis=1)
+    return np.any(np.isin(blob_row, rows) & (blob_row >= 0), axis=1)

@@ -148,10 +148,25 @@ def test_a_pair_with_one_merged_blob_gives_way_too(seed: int) -> None:
     assert np.all(after <= before + 0.01)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_without_a_third_view_the_deblended_marker_replaces_a_worse_fit(seed: int) -> None:
+    # X hidden from camera 0: its pair of camera 2's own blob and camera 1's merged one
+    # is replaced by the pair with camera 1's blob deblended, which fits them better
+    dlts, xyz, visible, merged = _singly_merged_walk(seed)
+    visible[:, 0, 0] = False
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, merged)
+    before = _nearest(pts, xyz, 0)[merged]
+    assert np.median(before) > 5.0
+    after = _nearest(unmerged(pts, scene), xyz, 0)[merged]
+    assert np.median(after) < 2.0
+    assert np.all(after < before)
+
+
 def test_a_pair_of_own_blobs_beside_a_hidden_image_stays() -> None:
     # H hidden from camera 1 where its image would merge with X's, X hidden from camera 0
-    # (lowcost seed 307's toe): X's pair is flagged, but nothing tells the blob from a
-    # merged one but the merge, and a deblended X would be 30 mm off; it stays
+    # (lowcost seed 307's toe): X's pair is flagged, but X deblended from camera 1's blob
+    # (30 mm off there) fits worse than its pair of own blobs; the pair stays
     dlts, xyz, visible, merged = _singly_merged_walk(0, hidden=True)
     tab = observe(dlts, SIZE_PX, xyz, visible, 0, noise_blobs=0, leds=False, merge="centroid")
     pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, merged)
