@@ -326,9 +326,10 @@ def _replaced(
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
     whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and,
-    if a dropped pair's clean blob, fits with a smaller residual than the pair did: else
-    the new point rests on the merge alone, the other marker perhaps hidden there
-    (lowcost seed 307's toe, its pair's residual 0.00 px, went 31 mm off)."""
+    if a dropped pair's clean blob, fits with a residual smaller than the pair's by more
+    than the trial's median one: else the new point rests on the merge alone, the other
+    marker perhaps hidden there (lowcost seed 307's toe, its pair's residual 0.00-0.02 px,
+    went 26-31 mm off)."""
     fields = pts.field[drop]
     shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     pair_rms = np.full(len(scene.field), np.inf)
@@ -338,7 +339,8 @@ def _replaced(
     # only the fields of the dropped points: elsewhere every step sees what it saw before
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
-    own = ~shared[new.own_row] & (new.rms_px < pair_rms[new.own_row])
+    typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
+    own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )
