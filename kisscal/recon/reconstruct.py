@@ -327,9 +327,10 @@ def _replaced(
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
     whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and,
     if a dropped pair's clean blob, fits with a residual smaller than the pair's by more
-    than the trial's median one: else the new point rests on the merge alone, the other
-    marker perhaps hidden there (lowcost seed 307's toe, its pair's residual 0.00-0.02 px,
-    went 26-31 mm off)."""
+    than the trial's median one, the pair's an outlier (``merged_pair_rms_factor`` times
+    that median): else the new point rests on the merge alone, the other marker perhaps
+    hidden there (lowcost seed 307's toe, its pair's residual 0.00-0.02 px, went 26-31 mm
+    off)."""
     fields = pts.field[drop]
     shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     pair_rms = np.full(len(scene.field), np.inf)
@@ -340,6 +341,7 @@ def _replaced(
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
     typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
+    pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
     own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
