@@ -1,4 +1,4 @@
-"""Two-camera points made of two merged blobs: not evidence of a marker.
+"""Two-camera points holding a merged blob: not evidence of a marker.
 
 A marker whose image merges with a neighbour's in two cameras (a different neighbour in
 each, as an ankle between heel and toe) gives two blobs at the intensity centroids of the
@@ -7,7 +7,14 @@ pair triangulates with a small residual, yet off the marker by the centroids' sh
 the depth over the focal length (seed 304 of the lowcost rig: 20 mm, 0.02 px). Neither blob
 is the point's own, so the pair proves nothing; it also holds the blobs that
 :func:`~kisscal.recon.deblend.deblend_merged` would deblend with the marker's clean blob in
-a third camera. Such a pair is dropped before deblending.
+a third camera. One merged blob is enough: its centroid's shift moves the pair along the
+other camera's ray all the same (lowcost seed 304 fields 71-72, the ankle 13.7 and
+12.6 mm off, its blob in the other camera its own, the heel's image 3.0 px from it and
+not merged). Such a pair is dropped before deblending, and kept where no new point
+takes one of its blobs. Its clean blob serves a new point only if the deblended pair
+fits it better than the pulled one by more than noise: a blob beside the image of a
+marker hidden from its camera is flagged the same way (lowcost seed 307's toe beside its
+heel's image), and deblended as if merged it would be 26-31 mm off.
 """
 
 from __future__ import annotations
@@ -24,8 +31,7 @@ def merged_pairs(
     p_xyz: NDArray[np.float64],
     blob_row: NDArray[np.int64],
 ) -> NDArray[np.bool_]:
-    """Two-camera points each of whose blobs lies within ``params.deblend_radius_px`` of
-    another point's projection in its field (a merged blob).
+    """Two-camera points one of whose blobs at least is merged (:func:`shared_blobs`).
 
     Parameters
     ----------
@@ -40,7 +46,20 @@ def merged_pairs(
     -------
     ndarray of bool, shape (m,)
     """
-    n_blobs = (blob_row >= 0).sum(axis=1)
+    shared = shared_blobs(scene, p_field, p_xyz, blob_row)
+    n_shared = np.sum(shared[blob_row] & (blob_row >= 0), axis=1)
+    return ((blob_row >= 0).sum(axis=1) == 2) & (n_shared >= 1)
+
+
+def shared_blobs(
+    scene: MergeScene,
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    blob_row: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """Blobs of the 2D table held by a point and within ``params.deblend_radius_px`` of
+    another point's projection in its field (merged with that point's image); arguments
+    as :func:`merged_pairs`. Returns a mask of shape (n_blobs,)."""
     owner = np.full(len(scene.field), -1, dtype=np.int64)
     k, _ = np.nonzero(blob_row >= 0)
     owner[blob_row[blob_row >= 0]] = k
@@ -57,5 +76,22 @@ def merged_pairs(
     )
     shared = np.zeros(len(scene.field), dtype=bool)
     shared[blob[owner[blob] != point]] = True  # near a point that is not its owner's
-    n_shared = np.bincount(owner[shared], minlength=len(p_field))
-    return (n_blobs == 2) & (n_shared == 2)
+    return shared
+
+
+def deblended_in(blob_row: NDArray[np.int64], rows: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Points one of whose blobs a new point took (one of ``rows``, its merged and own
+    blobs): replaced by it, where a new point of the same field may be another marker's.
+
+    Parameters
+    ----------
+    blob_row : ndarray of int, shape (m, n_cameras)
+        Row of each point's blob per camera (-1: none).
+    rows : ndarray of int, shape (k,)
+        Blobs of the new points (:class:`~kisscal.recon.deblend.Deblended`).
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+    """
+    return np.any(np.isin(blob_row, rows) & (blob_row >= 0), axis=1)

@@ -27,6 +27,7 @@ from kisscal.tracking.bodyfill import (
     spline_fill,
 )
 from kisscal.tracking.fill_absent import absent_rows
+from kisscal.tracking.fill_anchor import anchored
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
@@ -166,9 +167,10 @@ def _ray_placer(method: Callable, *extra: str) -> Callable:
 def _body(
     gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
 ) -> NDArray[np.bool_]:
-    """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`."""
+    """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`,
+    expecting at least the error of the gap's fills it reads (:func:`anchored`)."""
     got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare, spline)
-    gap.out.extend(got)
+    gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
 
