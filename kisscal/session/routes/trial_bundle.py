@@ -184,12 +184,14 @@ def lens_from_trials(
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
-    weighed = replace(bundle, control_weight=cal.control.weight)
+    terms = cal.lens_terms if cal.lens_terms is not None else bundle.lens_terms
+    weighed = replace(bundle, control_weight=cal.control.weight, lens_terms=terms)
     check = _rod_check(leave_control_out(cal, POINT, cal.control.group, weighed), rods)
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: rods and trials ({names}) adjusted together ({len(cal.fields)} "
-        f"markers, rods weighed {cal.control.weight:.0f} x a marker's image): "
+        f"markers, rods weighed {cal.control.weight:.0f} x a marker's image, lens terms "
+        f"{', '.join(terms) or 'none'}): "
         f"leave-one-rod-out mean {check.overall_mean_mm:.3f} mm, the rods' alone "
         f"{rods_alone.check.overall_mean_mm:.3f} mm"
     )
