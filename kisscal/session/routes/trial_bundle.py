@@ -164,9 +164,10 @@ def lens_from_trials(
     together (:func:`kisscal.bundle.points.calibrate_on_points`), and that adjustment;
     the rods' own (and None) when the trials hold too few markers seen by three cameras.
 
-    The adjustment is the wand route's on a grid (``[wand]`` lens terms, cameras resected
-    as DLTs with ``resect_terms`` of Kolahi's terms), the rods weighed ``[dlt]
-    bundle_rods_weight`` times their estimated noise ratio: one adjustment, and its
+    The adjustment is the wand route's on a grid (``[wand]`` lens terms, those beyond the
+    first where the trials' markers show them, cameras resected as DLTs with
+    ``resect_terms`` of Kolahi's terms), the rods weighed ``[dlt] bundle_rods_weight``
+    times their estimated noise ratio: one adjustment, and its
     leave-one-rod-out for the check. That leave-one-rod-out does not judge it: the left-out
     rods' markers disagreed with the volume's truth in sign (issue 25: on the four-camera
     seed-7 rig -2.6 standard errors against the rods' own model, for a volume error 3.5
