@@ -27,6 +27,7 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.resect import final_cameras
+from kisscal.bundle.terms import fewest_terms
 from kisscal.bundle.wand import (
     BlobTable,
     WandCalibration,
@@ -91,7 +92,9 @@ def calibrate_on_points(
     sizes_px : sequence of (int, int)
         Each camera's image size.
     params : BundleParams
-        Lens terms, loss, outliers, ``max_fields`` (here the most points used),
+        Lens terms (those beyond the first kept only where the markers prefer them,
+        :func:`kisscal.bundle.terms.fewest_terms`), loss, outliers, ``max_fields`` (here
+        the most points used),
         ``control_weight`` (0: the rods' and the points' noise variance ratio times
         ``weight_factor``).
     dlt : DltParams
@@ -120,8 +123,9 @@ def calibrate_on_points(
     weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
     control = control.weighted(weight)
     result = adjust_bundle(result.cameras, obs, POINT, result.wand, control, params)
+    # the terms beyond the first only where the markers show them (not the rods alone)
+    result, params = fewest_terms(result, obs, POINT, control, params)
     final = final_cameras(result, obs, control, POINT, params, dlt)
     resected = final if final is not result.cameras else None
-    return WandCalibration(
-        result, obs, np.arange(len(points.centre_mm)), control, None, resected, dlt
-    )
+    fields = np.arange(len(points.centre_mm))
+    return WandCalibration(result, obs, fields, control, None, resected, dlt, params.lens_terms)

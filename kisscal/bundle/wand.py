@@ -102,6 +102,10 @@ class WandCalibration:
     dlt : DltParams
         The DLT settings of that resection (a refit of this calibration resects with
         them too).
+    lens_terms : tuple of str or None
+        The Brown terms the adjustment estimated when the data chose them among
+        ``[wand] lens_terms`` (:func:`kisscal.bundle.terms.fewest_terms`; a refit
+        estimates those), None: every one of them.
     """
 
     result: BundleResult
@@ -111,6 +115,7 @@ class WandCalibration:
     anchor: int | None
     resected: tuple[Camera, ...] | None = None
     dlt: DltParams = DEFAULT_DLT
+    lens_terms: tuple[str, ...] | None = None
 
     @property
     def cameras(self) -> tuple[Camera, ...]:

@@ -164,9 +164,10 @@ def lens_from_trials(
     together (:func:`kisscal.bundle.points.calibrate_on_points`), and that adjustment;
     the rods' own (and None) when the trials hold too few markers seen by three cameras.
 
-    The adjustment is the wand route's on a grid (``[wand]`` lens terms, cameras resected
-    as DLTs with ``resect_terms`` of Kolahi's terms), the rods weighed ``[dlt]
-    bundle_rods_weight`` times their estimated noise ratio: one adjustment, and its
+    The adjustment is the wand route's on a grid (``[wand]`` lens terms, those beyond the
+    first where the trials' markers show them, cameras resected as DLTs with
+    ``resect_terms`` of Kolahi's terms), the rods weighed ``[dlt] bundle_rods_weight``
+    times their estimated noise ratio: one adjustment, and its
     leave-one-rod-out for the check. That leave-one-rod-out does not judge it: the left-out
     rods' markers disagreed with the volume's truth in sign (issue 25: on the four-camera
     seed-7 rig -2.6 standard errors against the rods' own model, for a volume error 3.5
@@ -184,12 +185,14 @@ def lens_from_trials(
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
-    weighed = replace(bundle, control_weight=cal.control.weight)
+    terms = cal.lens_terms if cal.lens_terms is not None else bundle.lens_terms
+    weighed = replace(bundle, control_weight=cal.control.weight, lens_terms=terms)
     check = _rod_check(leave_control_out(cal, POINT, cal.control.group, weighed), rods)
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: rods and trials ({names}) adjusted together ({len(cal.fields)} "
-        f"markers, rods weighed {cal.control.weight:.0f} x a marker's image): "
+        f"markers, rods weighed {cal.control.weight:.0f} x a marker's image, lens terms "
+        f"{', '.join(terms) or 'none'}): "
         f"leave-one-rod-out mean {check.overall_mean_mm:.3f} mm, the rods' alone "
         f"{rods_alone.check.overall_mean_mm:.3f} mm"
     )
