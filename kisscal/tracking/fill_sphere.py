@@ -211,12 +211,13 @@ def _gap_data(
     ks: NDArray,
     params: TrackingParams,
     mine: NDArray,
-) -> tuple[NDArray, NDArray, list[tuple[int, ...]], tuple[NDArray, NDArray, NDArray]]:
+    known: NDArray | None = None,
+) -> tuple[NDArray, NDArray, list[tuple[int, ...]], tuple[NDArray, NDArray, NDArray], NDArray]:
     """Rays (centres, directions) of ``rows`` (one per gap offset of ``ks``), and every
     partner's sphere roots on the rays: the tracks of each datum's partner (m,; a joint
-    centre's are its cluster's, :mod:`.joint_centres`), and (datum offset, roots (m, 2),
-    SD (m,)). ``mine`` (n_fields,) bool: the marker's own samples (for
-    :data:`MIN_TOGETHER`)."""
+    centre's are its cluster's, :mod:`.joint_centres`), (datum offset, roots (m, 2),
+    SD (m,)) and a factor on each SD (:func:`_placed_factor`; ones without ``known``).
+    ``mine`` (n_fields,) bool: the marker's own samples (for :data:`MIN_TOGETHER`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
@@ -238,8 +239,26 @@ def _gap_data(
     seen = np.all(np.isfinite(where), axis=1)
     j, p, where = j[seen], p[seen], where[seen]
     roots, rsd = sphere_roots(c[j], d[j], where, length[ks[j], p], psd[p])
+    factor = np.ones(rsd.size)
+    if known is not None:
+        factor = _placed_factor(known, tracks, partners[p], lo + ks[j], psd[p], params)
     ok = np.isfinite(rsd)
-    return c, d, [tracks[u] for u in partners[p[ok]]], (ks[j[ok]], roots[ok], rsd[ok])
+    data = (ks[j[ok]], roots[ok], rsd[ok])
+    return c, d, [tracks[u] for u in partners[p[ok]]], data, factor[ok]
+
+
+def _placed_factor(
+    known: NDArray, tracks: list, partners: NDArray, f: NDArray, sd: NDArray, params: TrackingParams
+) -> NDArray[np.float64]:
+    """Factor on the SD of each root (partner rows ``partners`` of ``tracks``: a track,
+    or a joint centre's cluster; at fields ``f``; length SD ``sd``) for a partner there
+    that ``known`` ((n_tracks, n_fields) bool: measured samples) does not hold (a centre:
+    one of its cluster's): placed by another fill, its own error (up to
+    ``ray_rest_max_error_mm``) adds to the length's (kiss 3 seed 306, RTIB on a placed
+    ankle 2-3 mm off: 5.6 mm off expecting 1.3)."""
+    rows = [known] + [known[list(c)].all(axis=0)[None] for c in tracks[len(known) :]]
+    placed = ~np.concatenate(rows)[partners, f]
+    return np.where(placed, np.hypot(sd, params.ray_rest_max_error_mm) / sd, 1.0)
 
 
 def _crowded(
@@ -284,6 +303,7 @@ def sphere_depth_fill(
     spare: SpareBlobs,
     params: TrackingParams,
     measured: NDArray | None = None,
+    known: NDArray | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
     3; NaN where not measured) on the rays of its own blobs in the camera that sees most
@@ -291,7 +311,9 @@ def sphere_depth_fill(
     lengths (see module); None when no run of
     :data:`~kisscal.tracking.raychain.MIN_RUN` fields is placed or no length was used.
     With ``measured`` ((n_fields,) bool), the ends of the fit are only those samples of
-    the track. The blobs taken are not marked used here."""
+    the track. With ``known`` ((n_tracks, n_fields) bool, the measured samples), a
+    partner placed by another fill counts its error too (:func:`_placed_factor`). The
+    blobs taken are not marked used here."""
     series = dense[t]
     if lo < 2 or hi + 1 >= len(series) or not np.all(np.isfinite(series[[lo - 1, hi]])):
         return None
@@ -318,8 +340,8 @@ def sphere_depth_fill(
         np.linalg.norm(own[ends_f] - centre, axis=1),
         np.full(ends_f.size, params.ray_length_sd_floor_mm),
     )
-    c, d, partners, (k_data, roots, rsd) = _gap_data(
-        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0])
+    c, d, partners, (k_data, roots, rsd), factor = _gap_data(
+        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0]), known
     )
     fit = _fit(n, ends, (k_data + lo - f0, roots, rsd), acc)
     if fit is None:
@@ -327,6 +349,18 @@ def sphere_depth_fill(
     mean, msd, taken = fit
     if _contradicted(series, own, centre, f0, mean, msd, params.ray_length_max_error_mm):
         return None
+    # the roots are chosen and checked as measured partners' are (a placed partner's
+    # error is the same over its run: looser SDs let a biased one through); the SD of
+    # the depth counts it
+    use = np.isfinite(taken)
+    e_idx, e_val, e_sd = ends
+    msd = smooth_depth(
+        n,
+        np.r_[e_idx, k_data[use] + lo - f0],
+        np.r_[e_val, taken[use]],
+        np.r_[e_sd, (rsd * factor)[use]],
+        acc,
+    )[1]
     s, sd = mean[ks + lo - f0], msd[ks + lo - f0]
     at = c + s[:, None] * d
     good = np.zeros(hi - lo, dtype=bool)

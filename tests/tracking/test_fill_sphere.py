@@ -127,3 +127,28 @@ def test_a_fit_that_misses_samples_placed_beside_it_places_nothing():
     sight /= np.linalg.norm(sight, axis=1)[:, None]
     dense[3, GAP.start : lo] = xyz[3, GAP.start : lo] + 20.0 * sight
     assert sphere_depth_fill(dense, 3, lo, GAP.stop, spare, PARAMS, measured) is None
+
+
+def test_a_placed_partner_s_error_counts_in_the_depth_not_in_the_choice_of_roots():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    for shift, placed in (([3.0, -3.0, 0.0], True), ([0.0, 3.0, 3.0], False)):
+        # the only partner placed by another fill through the gap, 4.2 mm off
+        dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+        dense[0, GAP] += shift
+        known = np.isfinite(dense[:, :, 0])
+        known[0, GAP] = False
+        as_measured = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+        got = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS, known=known)
+        if not placed:  # its roots miss the path: refused, as a measured partner's
+            assert as_measured is None and got is None
+            continue
+        assert as_measured is not None and got is not None
+        ok = np.isfinite(got.sd_mm)
+        assert np.array_equal(ok, np.isfinite(as_measured.sd_mm))
+        assert np.allclose(got.xyz_mm[ok], as_measured.xyz_mm[ok])  # the same roots
+        err = np.sqrt(np.mean(np.sum((got.xyz_mm[ok] - xyz[3, GAP][ok]) ** 2, axis=1)))
+        # taken as measured, the partner's error is missed: 3.0 mm off expecting 0.95
+        assert err > 2.0 * np.sqrt(np.mean(as_measured.sd_mm[ok] ** 2))
+        assert err < 1.5 * np.sqrt(np.mean(got.sd_mm[ok] ** 2))
