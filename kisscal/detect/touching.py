@@ -20,10 +20,6 @@ from kisscal.detect.groups import GroupTable, group_canvas, group_crops
 from kisscal.detect.params import DetectionParams
 
 NECK = 0.8  # a neck is lower than this fraction of the lower of the two peaks
-#: ... and lower than it by more than this (pixels): a pixel centre's distance to the true
-#: outline is known to half a pixel's diagonal; along a thin ellipse's staircase outline the
-#: distance transform dips by as much with no neck at all (a dot seen obliquely)
-NECK_DEPTH_PX = float(np.sqrt(0.5))
 
 
 def _neck(
@@ -55,8 +51,8 @@ def marker_peaks(
     min_separation : float
         Two peaks count as two markers only when they are further apart than this many
         times the larger of their heights (radii) and the distance transform drops
-        between them below ``NECK`` times the lower one and by more than
-        ``NECK_DEPTH_PX`` (a neck); otherwise they are maxima along one marker's ridge.
+        between them below ``NECK`` times the lower one (a neck); otherwise they are
+        maxima along one marker's ridge.
 
     Returns
     -------
@@ -84,8 +80,7 @@ def marker_peaks(
         if all(
             np.hypot((x - kx) / pixel_aspect, y - ky)
             > min_separation * max(height, kh) / pixel_aspect
-            and _neck(dist, (x, y), (kx, ky), stretch)
-            < min(NECK * min(height, kh), min(height, kh) - NECK_DEPTH_PX)
+            and _neck(dist, (x, y), (kx, ky), stretch) < NECK * min(height, kh)
             for kx, ky, kh in kept
         ):
             kept.append((x, y, height))
