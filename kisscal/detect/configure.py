@@ -72,8 +72,8 @@ from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
+from kisscal.detect.roundness import shapes_off_reason
 from kisscal.detect.route import choose_route
-from kisscal.detect.shape import spreads
 from kisscal.detect.survey import (
     GreyLevels,
     Groups,
@@ -105,8 +105,6 @@ DERIVED = (
 
 #: Fraction of the faint markers' contrast at which the threshold sits.
 THRESHOLD_FRACTION = 0.15
-#: Share of single spots the shape tests may cut and stay on: beyond, they cut more than free.
-ODD_SHAPES_MAX = 0.15
 #: The smallest oversized blob at least this many times the largest markers (area,
 #: width, height) is another population: the upper limits sit between the two.
 OVERSIZE_GAP = 1.5
@@ -404,16 +402,9 @@ class _Derivation:
             self.choose("split_overlaps", False, why)
             self.choose("split_long_wide", False, why)
             return
-        g = p.growth_px  # as the tests read it: spreads less pixel area and growth (shape)
-        sx, sy = spreads(spots.var_x[ok], spots.var_y[ok])
-        ratio = p.pixel_aspect * np.maximum(sy - g, 0.05) / np.maximum(sx - g, 0.05)
-        odd = float(np.mean((ratio < p.min_ratio) | (ratio > p.max_ratio)))
-        if odd <= ODD_SHAPES_MAX:
+        why = shapes_off_reason(spots.var_x[ok], spots.var_y[ok], spots.cov_xy[ok], p)
+        if why is None:
             return
-        why = (
-            f"{odd:.0%} of {int(ok.sum())} isolated spots are not round: shape alone does not "
-            "tell two markers from one"
-        )
         self.choose("split_overlaps", False, why)
         self.choose("split_long_wide", False, why)
 
