@@ -38,7 +38,7 @@ from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks
 from kisscal.tracking.labelling.learned import name_from_trial
-from kisscal.tracking.labelling.partial import first_pass, rigid_height
+from kisscal.tracking.labelling.partial import first_pass, rigid_height, unvouched
 from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
@@ -321,6 +321,11 @@ def _label_upright(
 
     judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
+    if partial and judged.fits_marker_set:
+        # A part fits many statures, and a wrong one shifts names along the limbs where
+        # nothing above flags them (partial.py): the set's segments must vouch for each.
+        doubt = set(judged.flagged) | set(unvouched(judged, marker_set))
+        judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
     if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
         # The floor fit's stature is a bound of the plausible range (the template fits
