@@ -81,6 +81,12 @@ def test_the_segments_vouch_for_right_names_and_not_for_names_shifted_along_the_
     truth, _, _, _ = walker_trial(seed, height_m, 140.0, 0.8, 50.0)
     right = {n: n for n in LOWER if n in FULL.names}
     assert unvouched(_labelling(truth, right), FULL) == ()
+    # A trial without the heel and tibia markers: the toe's and ankle's names, right,
+    # have no segment partner and no rigid unnamed neighbour, so nothing doubts them.
+    absent = truth.copy()
+    absent[[LOWER.index(n) for n in ("LHEE", "LTIB")]] = np.nan
+    fewer = {n: m for n, m in right.items() if n not in ("LHEE", "LTIB")}
+    assert unvouched(_labelling(absent, fewer), FULL) == ()
     # As the 1.0 m child of seed 3 fitted at 1.45 m was named: the left knee's name on
     # the thigh marker (the thigh's name given to none), the right leg shifted up from
     # the left ASIS; the shanks and feet right.

@@ -14,10 +14,10 @@ Away from the bound the fit can be wrong too (issue 26: a 1.0-1.2 m child's lowe
 fitted 1.45-1.75 m, the thigh's name on the ASIS and the knee's on the thigh marker), and
 judging every stature there costs a first pass each and re-names right parts (a tennis
 serve's head holds its segments under any order of names). So the names a part ends
-with are vouched for by the set's segments instead (:func:`unvouched`): a name is taken
-as certain only when one of its segments holds rigid over the trial and none breaks.
-Shifted names break the segment they name across a joint (ASIS to thigh marker, 13-18
-mm SD over a walk) or leave it unseen (the knee's name with no thigh's beside it).
+with are vouched for by the set's segments instead (:func:`unvouched`). Shifted names
+break the segment they name across a joint (ASIS to thigh marker, 13-18 mm SD over a
+walk), or leave it unseen beside the unnamed marker they were shifted from (the knee's
+name on the thigh marker, the knee marker unnamed and rigid to it).
 """
 
 from __future__ import annotations
@@ -136,36 +136,66 @@ def rigid_height(
     return height_mm, first
 
 
-def named_positions(labelling: Labelling, names: tuple[str, ...]) -> NDArray[np.float64]:
-    """Each of ``names``' measured trajectory (n, n_fields, 3) in ``labelling`` (NaN
-    where not measured or not named)."""
+def _dense(labelling: Labelling, row_of_track: NDArray, n_rows: int) -> NDArray[np.float64]:
+    """Measured samples (n_rows, n_fields, 3) of the tracks ``row_of_track`` maps to a row
+    (-1: none); NaN elsewhere."""
     tr = labelling.tracks
     n_fields = int(tr.field.max()) + 1 if tr.field.size else 0
-    pos = np.full((len(names), n_fields, 3), np.nan)
-    index = {name: i for i, name in enumerate(names)}
-    unnamed = set(labelling.unlabelled)
-    of_track = np.array(
-        [-1 if t in unnamed else index.get(lab, -1) for t, lab in enumerate(labelling.labels)],
-        dtype=np.int64,
-    )
-    if of_track.size == 0:
+    pos = np.full((n_rows, n_fields, 3), np.nan)
+    if row_of_track.size == 0:
         return pos
-    row = of_track[tr.track]
+    row = row_of_track[tr.track]
     keep = (tr.status == MEASURED) & (row >= 0)
     pos[row[keep], tr.field[keep]] = tr.xyz_mm[keep]
     return pos
 
 
+def named_positions(labelling: Labelling, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """Each of ``names``' measured trajectory (n, n_fields, 3) in ``labelling`` (NaN
+    where not measured or not named)."""
+    index = {name: i for i, name in enumerate(names)}
+    unnamed = set(labelling.unlabelled)
+    of_track = [
+        -1 if t in unnamed else index.get(lab, -1) for t, lab in enumerate(labelling.labels)
+    ]
+    return _dense(labelling, np.array(of_track, dtype=np.int64), len(names))
+
+
+def unnamed_positions(labelling: Labelling) -> NDArray[np.float64]:
+    """The unnamed trajectories' measured samples (u, n_fields, 3)."""
+    row = np.full(len(labelling.labels), -1, dtype=np.int64)
+    unnamed = np.array(sorted(labelling.unlabelled), dtype=np.int64)
+    row[unnamed] = np.arange(unnamed.size)
+    return _dense(labelling, row, unnamed.size)
+
+
+def _rigid_to_unnamed(one: NDArray, unnamed: NDArray, min_shared: int) -> bool:
+    """Whether an unnamed trajectory keeps its distance to ``one`` (n_fields, 3): an SD
+    under :data:`VOUCH_SPREAD_MM` over at least half of ``one``'s fields (a short
+    piece beside any marker looks rigid)."""
+    if unnamed.shape[0] == 0:
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pieces never seen with it
+        d = np.linalg.norm(unnamed - one[None], axis=2)
+        sd = np.nanstd(d, axis=1)
+    shared = np.isfinite(d).sum(axis=1)
+    enough = max(min_shared, np.isfinite(one[:, 0]).sum() // 2)
+    return bool(((shared >= enough) & (sd < VOUCH_SPREAD_MM)).any())
+
+
 def unvouched(
     labelling: Labelling, marker_set: MarkerSet, min_shared: int = MIN_SHARED_FIELDS
 ) -> tuple[str, ...]:
-    """Names of ``labelling`` that no segment of the set vouches for.
+    """Names of ``labelling`` that the set's segments do not vouch for.
 
     A segment vouches for its two names when they are seen together in ``min_shared``
     fields and their distance keeps an SD under :data:`VOUCH_SPREAD_MM`; it breaks them
-    when it spreads more. A name is unvouched when a segment breaks it or none vouches
-    for it (its partners not named, or the set giving it no segment): its neighbours
-    along the limb cannot show it is not shifted (see module).
+    when it spreads more. A name is unvouched when a segment breaks it, or when none
+    vouches for it while an unnamed trajectory keeps a rigid distance to it: that one is
+    its segment's partner left unnamed, or the marker whose name it took when the names
+    are shifted along the limb (see module). A name with no partner in the trial, and no
+    rigid unnamed neighbour, has nothing to be shifted onto from.
 
     References
     ----------
@@ -183,8 +213,11 @@ def unvouched(
     n = len(names)
     vouched = np.bincount(np.r_[a[vouch], b[vouch]], minlength=n) > 0
     breaks = np.bincount(np.r_[a[broken], b[broken]], minlength=n) > 0
-    unnamed = set(labelling.unlabelled)
-    held = {lab for t, lab in enumerate(labelling.labels) if t not in unnamed}
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    others = unnamed_positions(labelling)
     return tuple(
-        name for i, name in enumerate(names) if name in held and (breaks[i] or not vouched[i])
+        name
+        for i, name in enumerate(names)
+        if held[i]
+        and (breaks[i] or (not vouched[i] and _rigid_to_unnamed(pos[i], others, min_shared)))
     )

@@ -19,8 +19,8 @@ shorter, places markers a little differently, and walks. So:
    names again with the subject's template and the set's segments; the result is
    judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`), and
    its doubted names given again where a free name fits better
-   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`); a part's names that no
-   rigid segment vouches for are flagged
+   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`); a part's names that the
+   set's rigid segments do not vouch for are flagged
    (:func:`~kisscal.tracking.labelling.partial.unvouched`).
 """
 
