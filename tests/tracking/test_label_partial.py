@@ -6,8 +6,10 @@ import pytest
 
 from kisscal.markersets import marker_set
 from kisscal.tracking import TrackingParams, build_trajectories
-from kisscal.tracking.labelling.partial import MIN_SEGMENT_GAIN, segment_score
+from kisscal.tracking.labelling.partial import MIN_SEGMENT_GAIN, segment_score, unvouched
+from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import segment_mask
+from kisscal.tracking.tracks import make_tracks
 from tests.tracking.markerset_acceptance import LOWER, walker_trial, wrong_labels
 
 FULL = marker_set("plug-in-gait-full")
@@ -56,3 +58,57 @@ def test_a_childs_lower_body_named_from_the_full_body_set_gets_its_legs_right():
     unnamed = set(res.labelling.unlabelled)
     named = {label for t, label in enumerate(res.labels) if t not in unnamed}
     assert named and set(res.labelling.flagged) == named
+
+
+def _labelling(truth: np.ndarray, held: dict[str, str]) -> Labelling:
+    """A labelling of the true markers (one trajectory each, all measured) giving each
+    name of ``held`` to the true marker it maps to; the other markers unnamed."""
+    n, n_fields = truth.shape[:2]
+    field = np.tile(np.arange(n_fields), n)
+    track = np.repeat(np.arange(n), n_fields)
+    xyz = truth.reshape(-1, 3)
+    tracks = make_tracks(field, track, xyz, xyz, np.zeros(field.size, int), np.arange(field.size))
+    name_of = {LOWER.index(marker): name for name, marker in held.items()}
+    labels = tuple(name_of.get(t, f"M{t}") for t in range(n))
+    unlabelled = tuple(t for t in range(n) if t not in name_of)
+    return Labelling(tracks, labels, True, unlabelled, (), 0.0)
+
+
+@pytest.mark.parametrize("seed, height_m", [(3, 1.0), (1, 1.2), (5, 1.6)])
+def test_the_segments_vouch_for_right_names_and_not_for_names_shifted_along_the_legs(
+    seed, height_m
+):
+    truth, _, _, _ = walker_trial(seed, height_m, 140.0, 0.8, 50.0)
+    right = {n: n for n in LOWER if n in FULL.names}
+    assert unvouched(_labelling(truth, right), FULL) == ()
+    # A trial without the heel and tibia markers: the toe's and ankle's names, right,
+    # have no segment partner and no rigid unnamed neighbour, so nothing doubts them.
+    absent = truth.copy()
+    absent[[LOWER.index(n) for n in ("LHEE", "LTIB")]] = np.nan
+    fewer = {n: m for n, m in right.items() if n not in ("LHEE", "LTIB")}
+    assert unvouched(_labelling(absent, fewer), FULL) == ()
+    # As the 1.0 m child of seed 3 fitted at 1.45 m was named: the left knee's name on
+    # the thigh marker (the thigh's name given to none), the right leg shifted up from
+    # the left ASIS; the shanks and feet right.
+    wrong = {"LKNE": "LTHI", "RTHI": "LASI", "RKNE": "RTHI"}
+    part = {n: n for n in ("LTIB", "LANK", "LHEE", "LTOE", "RTIB", "RANK", "RHEE", "RTOE")}
+    assert set(wrong) <= set(unvouched(_labelling(truth, part | wrong), FULL))
+    # Every leg name shifted up one marker: the thigh's and knee's names (on the ASIS and
+    # the thigh marker) break the thigh. Lower down rigidity cannot tell: the knee and
+    # ankle markers sit on their joint's axis, so the shank's names on the knee and
+    # tibia markers, or the foot's on the ankle and toe markers, keep their distance.
+    shifted = {n: SHIFTED.get(n, n) for n in right}
+    thighs = {f"{s}{m}" for s in "LR" for m in ("THI", "KNE")}
+    assert thighs <= set(unvouched(_labelling(truth, shifted), FULL))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("height_m", [1.0, 1.1, 1.2])
+def test_a_childs_lower_body_fitted_above_the_bound_gets_no_silent_wrong_name(seed, height_m):
+    # A 1.0-1.2 m child's lower body named from the full-body set fits 1.45-1.75 m, away
+    # from the 1.40 m bound the segments judge, and its legs' names shift up a marker.
+    truth, _, field, xyz = walker_trial(seed, height_m, 140.0, 0.8, 50.0)
+    res = build_trajectories(field, xyz, TrackingParams(), marker_set=FULL, rate_hz=50.0)
+    wrong = wrong_labels(res, truth, LOWER)
+    assert [w for w in wrong if w[0] not in res.labelling.flagged] == []

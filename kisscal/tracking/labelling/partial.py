@@ -9,6 +9,15 @@ segments over the trial (the ASIS and the thigh marker move apart as the hip fle
 while right names hold them (the thigh and knee markers keep their distance). So when
 the floor fit sits at its bound, the first pass is run at statures across the whole
 range and the one whose names hold the most segments rigid is kept.
+
+Away from the bound the fit can be wrong too (issue 26: a 1.0-1.2 m child's lower body
+fitted 1.45-1.75 m, the thigh's name on the ASIS and the knee's on the thigh marker), and
+judging every stature there costs a first pass each and re-names right parts (a tennis
+serve's head holds its segments under any order of names). So the names a part ends
+with are vouched for by the set's segments instead (:func:`unvouched`). Shifted names
+break the segment they name across a joint (ASIS to thigh marker, 13-18 mm SD over a
+walk), or leave it unseen beside the unnamed marker they were shifted from (the knee's
+name on the thigh marker, the knee marker unnamed and rigid to it).
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ from numpy.typing import NDArray
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.label import name_pieces
+from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import (
     MIN_SHARED_FIELDS,
     RIGID_SPREAD_MM,
@@ -27,7 +37,7 @@ from kisscal.tracking.labelling.state import (
     segment_mask,
 )
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.tracks import Tracks
+from kisscal.tracking.tracks import MEASURED, Tracks
 
 #: Statures (mm) whose first pass is judged when the floor fit of a part sits at its
 #: bound: the whole range, every 100 mm (segment lengths tell 10 cm apart).
@@ -36,6 +46,11 @@ JUDGED_HEIGHTS_MM = np.arange(800.0, 2001.0, 100.0)
 #: segments rigid (net of the segments they break): one pair of markers on one body
 #: segment holds rigid under any two names of a segment, by chance.
 MIN_SEGMENT_GAIN = 2
+#: A segment vouches for its two names when their distance keeps an SD under this (mm)
+#: over the trial, and breaks them above it: twice the rigid spread, as real pelvises,
+#: thighs, shanks and feet keep 1-5 mm through skin motion where names shifted across a
+#: joint spread 13 mm and more.
+VOUCH_SPREAD_MM = 2.0 * RIGID_SPREAD_MM
 
 
 def segment_score(
@@ -119,3 +134,90 @@ def rigid_height(
     if best[0] >= own[0] + MIN_SEGMENT_GAIN:
         return best_height, best_state
     return height_mm, first
+
+
+def _dense(labelling: Labelling, row_of_track: NDArray, n_rows: int) -> NDArray[np.float64]:
+    """Measured samples (n_rows, n_fields, 3) of the tracks ``row_of_track`` maps to a row
+    (-1: none); NaN elsewhere."""
+    tr = labelling.tracks
+    n_fields = int(tr.field.max()) + 1 if tr.field.size else 0
+    pos = np.full((n_rows, n_fields, 3), np.nan)
+    if row_of_track.size == 0:
+        return pos
+    row = row_of_track[tr.track]
+    keep = (tr.status == MEASURED) & (row >= 0)
+    pos[row[keep], tr.field[keep]] = tr.xyz_mm[keep]
+    return pos
+
+
+def named_positions(labelling: Labelling, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """Each of ``names``' measured trajectory (n, n_fields, 3) in ``labelling`` (NaN
+    where not measured or not named)."""
+    index = {name: i for i, name in enumerate(names)}
+    unnamed = set(labelling.unlabelled)
+    of_track = [
+        -1 if t in unnamed else index.get(lab, -1) for t, lab in enumerate(labelling.labels)
+    ]
+    return _dense(labelling, np.array(of_track, dtype=np.int64), len(names))
+
+
+def unnamed_positions(labelling: Labelling) -> NDArray[np.float64]:
+    """The unnamed trajectories' measured samples (u, n_fields, 3)."""
+    row = np.full(len(labelling.labels), -1, dtype=np.int64)
+    unnamed = np.array(sorted(labelling.unlabelled), dtype=np.int64)
+    row[unnamed] = np.arange(unnamed.size)
+    return _dense(labelling, row, unnamed.size)
+
+
+def _rigid_to_unnamed(one: NDArray, unnamed: NDArray, min_shared: int) -> bool:
+    """Whether an unnamed trajectory keeps its distance to ``one`` (n_fields, 3): an SD
+    under :data:`VOUCH_SPREAD_MM` over at least half of ``one``'s fields (a short
+    piece beside any marker looks rigid)."""
+    if unnamed.shape[0] == 0:
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pieces never seen with it
+        d = np.linalg.norm(unnamed - one[None], axis=2)
+        sd = np.nanstd(d, axis=1)
+    shared = np.isfinite(d).sum(axis=1)
+    enough = max(min_shared, np.isfinite(one[:, 0]).sum() // 2)
+    return bool(((shared >= enough) & (sd < VOUCH_SPREAD_MM)).any())
+
+
+def unvouched(
+    labelling: Labelling, marker_set: MarkerSet, min_shared: int = MIN_SHARED_FIELDS
+) -> tuple[str, ...]:
+    """Names of ``labelling`` that the set's segments do not vouch for.
+
+    A segment vouches for its two names when they are seen together in ``min_shared``
+    fields and their distance keeps an SD under :data:`VOUCH_SPREAD_MM`; it breaks them
+    when it spreads more. A name is unvouched when a segment breaks it, or when none
+    vouches for it while an unnamed trajectory keeps a rigid distance to it: that one is
+    its segment's partner left unnamed, or the marker whose name it took when the names
+    are shifted along the limb (see module). A name with no partner in the trial, and no
+    rigid unnamed neighbour, has nothing to be shifted onto from.
+
+    References
+    ----------
+    Shafiq et al. 2001 (rigid segment lengths as a check on a marker's identity).
+    """
+    names = marker_set.names
+    pos = named_positions(labelling, names)
+    a, b = np.nonzero(np.triu(segment_mask(names, marker_set.segments), 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        d = np.linalg.norm(pos[a] - pos[b], axis=2)
+        sd = np.nanstd(d, axis=1)
+    seen = np.isfinite(d).sum(axis=1) >= min_shared
+    vouch, broken = seen & (sd < VOUCH_SPREAD_MM), seen & (sd >= VOUCH_SPREAD_MM)
+    n = len(names)
+    vouched = np.bincount(np.r_[a[vouch], b[vouch]], minlength=n) > 0
+    breaks = np.bincount(np.r_[a[broken], b[broken]], minlength=n) > 0
+    held = np.isfinite(pos[..., 0]).any(axis=1)
+    others = unnamed_positions(labelling)
+    return tuple(
+        name
+        for i, name in enumerate(names)
+        if held[i]
+        and (breaks[i] or (not vouched[i] and _rigid_to_unnamed(pos[i], others, min_shared)))
+    )

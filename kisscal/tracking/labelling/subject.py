@@ -19,7 +19,9 @@ shorter, places markers a little differently, and walks. So:
    names again with the subject's template and the set's segments; the result is
    judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`), and
    its doubted names given again where a free name fits better
-   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`).
+   (:func:`~kisscal.tracking.labelling.regive.regive_doubted`); a part's names that the
+   set's rigid segments do not vouch for are flagged
+   (:func:`~kisscal.tracking.labelling.partial.unvouched`).
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks
 from kisscal.tracking.labelling.learned import name_from_trial
-from kisscal.tracking.labelling.partial import first_pass, rigid_height
+from kisscal.tracking.labelling.partial import first_pass, rigid_height, unvouched
 from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.sides import judge_sides
@@ -321,6 +323,11 @@ def _label_upright(
 
     judged = regive_doubted(judge(found), anatomy, scaled, judge)
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
+    if partial and judged.fits_marker_set:
+        # A part fits many statures, and a wrong one shifts names along the limbs where
+        # nothing above flags them (partial.py): the set's segments must vouch for each.
+        doubt = set(judged.flagged) | set(unvouched(judged, marker_set))
+        judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
     if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
         # The floor fit's stature is a bound of the plausible range (the template fits
