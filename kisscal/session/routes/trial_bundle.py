@@ -111,6 +111,16 @@ def trials_table(inputs: RouteInputs) -> BlobTable:
     return BlobTable.of(per_camera)
 
 
+def trials_key(inputs: RouteInputs) -> list:
+    """What a calibration adjusted with the trials is keyed on besides its own inputs:
+    the trials' files and the wand settings, when :func:`uses_trials`."""
+    if not uses_trials(inputs):
+        return []
+    config = inputs.config
+    trials = [trial_input_files(config, t) for t in image_trials(inputs) if has_files(config, t)]
+    return [trials, inputs.params.wand]
+
+
 def uses_trials(inputs: RouteInputs) -> bool:
     """Whether the rods route adjusts the rods and the trials together: the whole rig,
     three rods or more (to leave one out), the model left to the data (``[dlt]

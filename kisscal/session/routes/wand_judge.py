@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import POINT
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import WandCalibration
 from kisscal.dlt.check import leave_folds_out
@@ -65,6 +66,7 @@ def held_out_markers(
     markers_mm: Sequence[float],
     dlt: DltParams,
     params: BundleParams,
+    baseline: WandCalibration | None = None,
 ) -> PairedErrors:
     """Held-out rod markers reconstructed by both calibrations (see the module).
 
@@ -83,6 +85,10 @@ def held_out_markers(
         The session's ``[dlt]`` parameters (the rods' chosen model is applied to them).
     params : BundleParams
         The adjustment's parameters (``judge_folds``).
+    baseline : WandCalibration, optional
+        The rods and trials adjusted together (:mod:`.trial_bundle`), whose cameras
+        ``rod_cal`` holds: then held out as the wand is, by the same folds of markers
+        (both adjustments lose the same rods' markers and keep their own rays).
 
     Returns
     -------
@@ -92,13 +98,29 @@ def held_out_markers(
     truth = _rod_truth(rods)
     fold = np.tile(np.arange(truth.shape[1]) % params.judge_folds, (len(rods), 1))
     fold[~np.isfinite(truth).all(axis=-1)] = -1
-    rods_err = rods_held_out(rod_cal, rods, ids, dlt).ravel()
+    if baseline is not None:
+        rods_err = _folds_held_out(baseline, POINT, truth, fold, params)
+    else:
+        rods_err = rods_held_out(rod_cal, rods, ids, dlt).ravel()
+    wand_err = _folds_held_out(cal, markers_mm, truth, fold, params)
+    return paired_errors(wand_err, rods_err)
+
+
+def _folds_held_out(
+    cal: WandCalibration,
+    markers_mm: Sequence[float],
+    truth: NDArray[np.float64],
+    fold: NDArray[np.int64],
+    params: BundleParams,
+) -> NDArray[np.float64]:
+    """Each rod marker's 3D error (mm, NaN where not reconstructed) by ``cal`` adjusted
+    again without its fold of markers."""
     flat = truth.reshape(-1, 3)
     row = _marker_of(cal.control.xyz_mm, flat)
     xyz, _, err = leave_control_out(cal, markers_mm, fold.ravel()[row], params)
-    wand_err = np.full(len(flat), np.nan)
-    wand_err[_marker_of(xyz, flat)] = err
-    return paired_errors(wand_err, rods_err)
+    out = np.full(len(flat), np.nan)
+    out[_marker_of(xyz, flat)] = err
+    return out
 
 
 def rods_held_out(
