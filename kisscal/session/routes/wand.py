@@ -2,7 +2,10 @@
 
 On rods (``[wand]`` with ``[rods]``): the rods' calibration on the grid's linearisation
 is the start and the rods' surveyed markers stay fixed in the adjustment, which also
-estimates each camera's intrinsics, pose and lens terms and every wand pose. Alone
+estimates each camera's intrinsics, pose and lens terms and every wand pose; with the
+session's other trials adjusted with the rods (the rods route's default), their markers
+enter the same adjustment and that default is the calibration the wand must not be worse
+than (:mod:`.wand_judge`). Alone
 (``[wand]`` with ``[axes]``, no grid or rods needed): the cameras start from the wand
 images, and the axes object then fixes the lab frame. See :mod:`kisscal.bundle`.
 

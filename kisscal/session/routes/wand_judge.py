@@ -37,6 +37,12 @@ Both calibrations are judged on points neither was fitted to, on equal footing:
   by both; a wand whose length errors are higher by ``keep_sigmas`` standard errors of
   the paired difference is not kept (a scale the rods do not fix well).
 
+With trials adjusted with the rods (``[dlt] trials_bundle``, the rods route's default), the
+wand is adjusted with the same trials' markers and the rods' calibration to beat is that
+default: both are bundle adjustments on the same rods, so both are held out by the same
+folds of markers (``baseline`` of :func:`held_out_markers`), and the burden is "not worse"
+(both written with ``resect_terms`` of Kolahi's terms).
+
 Leave-one-rod-out stays in ``check.json`` as a figure, not a judge.
 """
 
