@@ -126,7 +126,8 @@ def uses_trials(inputs: RouteInputs) -> bool:
     three rods or more (to leave one out), the model left to the data (``[dlt]
     trials_bundle``, no model switch) and a trial of images or video besides the wand's."""
     dlt = inputs.params.dlt
-    enough = inputs.whole_rig and len(inputs.config.rods.rods) >= 3
+    rods = inputs.config.rods  # none on the wand route with an axes object
+    enough = inputs.whole_rig and rods is not None and len(rods.rods) >= 3
     return enough and dlt.trials_bundle and dlt.selects and bool(image_trials(inputs))
 
 
