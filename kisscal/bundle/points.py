@@ -8,7 +8,11 @@ points, with the rods' markers as fixed control points (Triggs et al. 2000; the
 self-calibration of photogrammetry, Fraser 1997), lets thousands of rays spread over the
 volume decide the lens terms instead of a choice among models on the rods alone. It is
 the wand route's adjustment (:func:`kisscal.bundle.wand.calibrate_on_control`) with each
-trial marker a one-marker wand: a free 3D point.
+trial marker a one-marker wand: a free 3D point. With a wand trial too
+(:func:`calibrate_on_wand_and_points`), the wand's fields and the trials' markers enter
+one adjustment: the wand's rigid length adds scale and the volume's middle, the trials'
+markers the rays of the whole session (on a four-camera rig they are what fixes the lens
+terms; issue 25).
 
 References
 ----------
@@ -31,6 +35,7 @@ from kisscal.bundle.terms import fewest_terms
 from kisscal.bundle.wand import (
     BlobTable,
     WandCalibration,
+    found_wand,
     lens_rig,
     noise_ratio,
     undistorted,
@@ -129,3 +134,86 @@ def calibrate_on_points(
     resected = final if final is not result.cameras else None
     fields = np.arange(len(points.centre_mm))
     return WandCalibration(result, obs, fields, control, None, resected, dlt, params.lens_terms)
+
+
+def with_points(markers_mm: Sequence[float]) -> tuple[tuple[float, ...], int]:
+    """The wand's markers and a free point's: one more marker at the wand's centre (its
+    offset along the wand is 0, so a field of that marker alone is a free 3D point, as
+    :data:`POINT`), and its index. The end markers, hence the wand's length and centre,
+    are unchanged."""
+    s = tuple(float(m) for m in markers_mm)
+    return (*s, 0.5 * (min(s) + max(s))), len(s)
+
+
+def calibrate_on_wand_and_points(
+    wand_table: BlobTable,
+    trials: BlobTable,
+    start: Sequence[Camera],
+    control: ControlPoints,
+    wand: tuple[Sequence[float], Sequence[str], str],
+    sizes_px: Sequence[tuple[int, int]],
+    params: BundleParams = DEFAULT_PARAMS,
+    dlt: DltParams = DEFAULT_DLT,
+    weight_factor: float = 1.0,
+) -> WandCalibration:
+    """Cameras and lens terms adjusted to a wand trial, other trials' markers and fixed
+    control points together.
+
+    The wand is found as :func:`kisscal.bundle.wand.calibrate_on_control` finds it, the
+    trials' markers seen by three cameras or more as :func:`calibrate_on_points` finds
+    them; one adjustment holds both (a trial marker is a field of the centre marker of
+    :func:`with_points`), the control points weighed as :func:`calibrate_on_points`
+    weighs them.
+
+    Parameters
+    ----------
+    wand_table, trials : BlobTable
+        The wand trial's blobs and the other trials' (grid-linearised pixels).
+    start : sequence of Camera
+        Starting cameras (the rods' DLT).
+    control : ControlPoints
+        The rods' markers; they fix the frame and scale.
+    wand : (markers_mm, ids, trial)
+        The wand's markers, the camera ids and the wand trial's name (for messages).
+    sizes_px : sequence of (int, int)
+    params : BundleParams
+        As :func:`calibrate_on_points` (``max_fields`` caps the wand fields and the
+        trials' markers each).
+    dlt : DltParams
+    weight_factor : float
+        With ``control_weight`` 0, times the estimated noise variance ratio.
+
+    Returns
+    -------
+    WandCalibration
+        Its ``markers_mm`` those of :func:`with_points`; the trials' markers have trial
+        field -1 in ``fields``.
+    """
+    markers_mm, ids, trial = wand
+    obs, poses, fields = found_wand(wand_table, start, markers_mm, sizes_px, ids, trial, params)
+    p_obs, points = trial_points(trials, start, sizes_px, 3, params.max_fields)
+    markers, centre = with_points(markers_mm)
+    n = len(fields)
+    obs = WandObservations(
+        np.r_[obs.field, p_obs.field + n],
+        np.r_[obs.camera, p_obs.camera],
+        np.r_[obs.marker, np.full(len(p_obs), centre)],
+        np.concatenate([obs.uv_px, p_obs.uv_px]),
+    )
+    poses = WandPoses(
+        np.concatenate([poses.centre_mm, points.centre_mm]),
+        np.concatenate([poses.direction, points.direction]),
+    )
+    fields = np.r_[fields, np.full(len(points.centre_mm), -1)].astype(np.int64)
+    cams = zero_skew(start, params)
+    result = adjust_bundle(cams, obs, markers, poses, control, params)
+    weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
+    control = control.weighted(weight)
+    result = adjust_bundle(result.cameras, obs, markers, result.wand, control, params)
+    # as calibrate_on_points: the terms beyond the first only where the data show them
+    result, params = fewest_terms(result, obs, markers, control, params)
+    final = final_cameras(result, obs, control, markers, params, dlt)
+    resected = final if final is not result.cameras else None
+    return WandCalibration(
+        result, obs, fields, control, None, resected, dlt, params.lens_terms, markers
+    )

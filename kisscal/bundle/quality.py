@@ -138,6 +138,7 @@ def held_out_lengths(
     held = held_out_fields(len(cal.fields), params)
     if not held.any():
         return np.zeros(0)
+    params = cal.refit_params(params)
     obs = cal.observations.subset(cal.result.inlier)
     train, wand, _ = select_fields(obs, cal.result.wand, cal.fields, ~held)
     refit = adjust_bundle(cal.cameras, train, markers_mm, wand, cal.control, params, cal.anchor)
@@ -204,6 +205,7 @@ def leave_control_out(
     """
     control = cal.control
     fold = np.asarray(fold)
+    params = cal.refit_params(params)
     obs = cal.observations.subset(cal.result.inlier)
     xyz_out, fold_out, err_out = [np.zeros((0, 3))], [np.zeros(0, np.int64)], [np.zeros(0)]
     for k in np.unique(fold[fold >= 0]):

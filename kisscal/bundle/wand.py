@@ -19,7 +19,7 @@ session has a grid, raw pixels otherwise.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -106,6 +106,10 @@ class WandCalibration:
         The Brown terms the adjustment estimated when the data chose them among
         ``[wand] lens_terms`` (:func:`kisscal.bundle.terms.fewest_terms`; a refit
         estimates those), None: every one of them.
+    markers_mm : tuple of float or None
+        The markers ``observations.marker`` indexes when they are not the wand's alone
+        (trials' markers adjusted with the wand: :func:`kisscal.bundle.points.with_points`),
+        else None. Refits and figures of this calibration use :meth:`markers`.
     """
 
     result: BundleResult
@@ -116,6 +120,16 @@ class WandCalibration:
     resected: tuple[Camera, ...] | None = None
     dlt: DltParams = DEFAULT_DLT
     lens_terms: tuple[str, ...] | None = None
+    markers_mm: tuple[float, ...] | None = None
+
+    def markers(self, wand_mm: Sequence[float]) -> tuple[float, ...]:
+        """The markers the observations index: ``markers_mm``, or the wand's ``wand_mm``."""
+        return self.markers_mm if self.markers_mm is not None else tuple(wand_mm)
+
+    def refit_params(self, params: BundleParams) -> BundleParams:
+        """``params`` with the lens terms this adjustment estimated: a refit of it (held-out
+        fields, folds of control points) estimates the same model."""
+        return params if self.lens_terms is None else replace(params, lens_terms=self.lens_terms)
 
     @property
     def cameras(self) -> tuple[Camera, ...]:
@@ -262,6 +276,33 @@ def zero_skew(cameras: Sequence[Camera], params: BundleParams) -> tuple:
     return tuple(out)
 
 
+def found_wand(
+    table: BlobTable,
+    start: Sequence[Camera],
+    markers_mm: Sequence[float],
+    sizes_px: Sequence[tuple[int, int]],
+    ids: Sequence[str],
+    trial: str,
+    params: BundleParams = DEFAULT_PARAMS,
+) -> tuple[WandObservations, WandPoses, NDArray[np.int64]]:
+    """The wand found in 3D by calibrated cameras (at most ``max_fields`` fields, evenly
+    spread), its length checked against ``markers_mm``: the images, poses and trial
+    fields an adjustment on control points starts from.
+
+    Raises
+    ------
+    KisscalError
+        The cameras measure another length, or too few fields hold the wand.
+    """
+    rig = lens_rig(start, sizes_px, ids)
+    obs, wand, fields, lengths = wand_in_3d(table, rig, markers_mm, params)
+    if len(fields) < params.min_fields:  # not at its length: is the length wrong?
+        lengths = measured_lengths(table, rig)
+    check_length(lengths, markers_mm, params.length_tol, "the rods' calibration", params.min_fields)
+    _enough(obs, params.min_fields, ids, trial)
+    return select_fields(obs, wand, fields, _spread(fields, params.max_fields))
+
+
 def calibrate_on_control(
     table: BlobTable,
     start: Sequence[Camera],
@@ -290,14 +331,7 @@ def calibrate_on_control(
         The session's DLT settings, for the cameras resected on the adjusted points
         (:func:`kisscal.bundle.resect.final_cameras`).
     """
-    rig = lens_rig(start, sizes_px, ids)
-    obs, wand, fields, lengths = wand_in_3d(table, rig, markers_mm, params)
-    if len(fields) < params.min_fields:  # not at its length: is the length wrong?
-        lengths = measured_lengths(table, rig)
-    check_length(lengths, markers_mm, params.length_tol, "the rods' calibration", params.min_fields)
-    _enough(obs, params.min_fields, ids, trial)
-    keep = _spread(fields, params.max_fields)
-    obs, wand, fields = select_fields(obs, wand, fields, keep)
+    obs, wand, fields = found_wand(table, start, markers_mm, sizes_px, ids, trial, params)
     result = adjust_bundle(
         zero_skew(start, params), obs, markers_mm, wand, control, params, fixed_pose=None
     )

@@ -90,7 +90,8 @@ def calibrate(
     params = stage_params(config, dataclasses.replace(o, dlt={**o.dlt, **switches}))
     route, why = session_route(config, route)
     previous = SessionStore(root).calibration_doc("calibration") or {}
-    if route == "rods" and params.dlt.trials_bundle and params.dlt.selects:
+    # the wand route adjusts the same trials with the wand (and judges against them)
+    if route in ("rods", "wand") and params.dlt.trials_bundle and params.dlt.selects:
         trials = _bundle_trials(config, params.dlt, previous, refresh, echo)
         dlt = dataclasses.replace(params.dlt, bundle_trials=trials)
         params = dataclasses.replace(params, dlt=dlt)
@@ -101,16 +102,26 @@ def calibrate(
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated
     write_exports(root, config, lins, read_dlt_files(root, config, False), echo, workers)
-    record = {"route": route, "options": switches}
+    record = {"route": route, "options": switches, **_kept(summary.get("_check"))}
     # the trials the rods were adjusted with, or those of the calibration before (a
     # forced model or one camera leaves the record for the next default calibration)
-    used = params.dlt.bundle_trials if route == "rods" and uses_trials(inputs) else ()
+    used = params.dlt.bundle_trials if route in ("rods", "wand") and uses_trials(inputs) else ()
     kept = used or previous.get("bundle_trials")
     write_json(
         SessionStore(root).calibration_file("calibration"),
         {**record, "bundle_trials": list(kept)} if kept else record,
     )
     return summary
+
+
+def _kept(check: dict[str, Any] | None) -> dict[str, Any]:
+    """The wand route's choice, for ``calibration.json``: which calibration was kept,
+    against which, and each held-out judge's verdict on the wand's (empty otherwise)."""
+    if not check or "kept" not in check or "judges" not in check:
+        return {}
+    verdicts = {k: v["wand_passes"] for k, v in check["judges"].items()}
+    why = {"compared_with": check.get("compared_with"), "wand_passes": verdicts}
+    return {"kept": check["kept"], "kept_why": why}
 
 
 def _bundle_trials(

@@ -10,13 +10,18 @@ import pytest
 from kisscal.bundle import points
 from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
 from kisscal.bundle.params import BundleParams
-from kisscal.bundle.points import POINT, calibrate_on_points
-from kisscal.bundle.wand import BlobTable
+from kisscal.bundle.points import (
+    POINT,
+    calibrate_on_points,
+    calibrate_on_wand_and_points,
+    with_points,
+)
+from kisscal.bundle.wand import BlobTable, calibrate_on_control
 from kisscal.camera import Camera
 from kisscal.dlt import DltParams, calibrate_camera
 from kisscal.errors import KisscalError
 from kisscal.synth.wand import wand_trial
-from tests.bundle.conftest import WandScene
+from tests.bundle.conftest import WandScene, scene
 from tests.bundle.test_wand import _rods, _volume_error_mm
 
 
@@ -144,3 +149,49 @@ def test_a_lens_the_markers_show_keeps_every_term(wand_scene: WandScene) -> None
     chosen = _volume_error_mm(cal.written, s.rig, other)
     first = _volume_error_mm(alone.written, s.rig, other)
     assert chosen < first, (chosen, first)
+
+
+def _half(s: WandScene, other: bool) -> WandScene:
+    """The fields of ``s`` whose wand centre lies on one side of the volume (x below the
+    median; ``other``: at or above it)."""
+    m = s.motion
+    x = m.xyz_mm.mean(axis=1)[:, 0]
+    keep = (x >= np.median(x)) if other else (x < np.median(x))
+    motion = replace(m, xyz_mm=m.xyz_mm[keep], capsules_mm=m.capsules_mm[keep])
+    return WandScene(s.rig, motion, s.markers_mm)
+
+
+def test_with_points_keeps_the_wands_ends_and_adds_its_centre() -> None:
+    markers, centre = with_points((0.0, 190.0, 500.0))
+    assert markers == (0.0, 190.0, 500.0, 250.0) and centre == 3
+
+
+def test_the_wand_adjusted_with_the_trials_markers_is_not_the_wand_alone(
+    wand_scene: WandScene,
+) -> None:
+    """A wand waved in one half of the volume, a trial's markers in the other (a small lens
+    left over, 0.05 px of noise, the rods' markers 0.01 px): the wand adjusted on the rods
+    alone extrapolates the lens terms into the half it never saw (0.108 mm RMS on other
+    points of the volume); adjusted with the trial's markers, it does as well as the rods
+    and those markers (0.043 against 0.043 mm). Before issue 25's change the wand route
+    dropped the trial's markers (the first)."""
+    s = _leftover_lens(wand_scene)
+    wand = _half(s, False).blobs(ideal=False, noise_px=0.05, leds=False)
+    trial = _half(WandScene(s.rig, scene(3, 200).motion, s.markers_mm), True)
+    points = trial.blobs(ideal=False, noise_px=0.05, seed=1, leds=False)
+    control, rows = _noisy_rods(s, 0.01)
+    starts = [
+        Camera.from_dlt(calibrate_camera(control.xyz_mm[r], control.uv_px[r]).L) for r in rows
+    ]
+    params = BundleParams().on_grid()
+    both = calibrate_on_wand_and_points(
+        wand, points, starts, control, (s.markers_mm, s.ids, "w"), s.sizes, params, weight_factor=10
+    )
+    alone = calibrate_on_control(wand, starts, control, s.markers_mm, s.sizes, s.ids, "w", params)
+    trials = calibrate_on_points(points, starts, control, s.sizes, params, weight_factor=10)
+    other = wand_trial(9, 100, 50.0, s.markers_mm).xyz_mm.reshape(-1, 3)
+    err = [_volume_error_mm(c.written, s.rig, other) for c in (both, alone, trials)]
+    assert err[0] < 0.7 * err[1], err
+    assert err[0] < 1.1 * err[2], err
+    assert np.sum(both.fields >= 0) > 50 and np.sum(both.fields < 0) > 100
+    assert both.markers_mm == with_points(s.markers_mm)[0]

@@ -29,10 +29,10 @@ from kisscal.session.routes.trial_bundle import (
     has_files,
     image_trials,
     lens_from_trials,
+    trials_key,
     uses_trials,
 )
 from kisscal.session.runner import run_keyed
-from kisscal.session.trials import trial_input_files
 
 
 def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
@@ -87,19 +87,9 @@ def calibrate_from_rods(inputs: RouteInputs) -> dict[str, Any]:
         detection,
         params.dlt,
         [(r.name, r.points_mm) for r in config.rods.rods],
-        _trial_inputs(inputs),
+        trials_key(inputs),
     )
     return run_keyed(store, store.calibration_file("check"), stage, cached, compute)
-
-
-def _trial_inputs(inputs: RouteInputs) -> list:
-    """The trials the calibration adjusts with the rods (their files and the wand
-    settings), when it does."""
-    if not uses_trials(inputs):
-        return []
-    config = inputs.config
-    trials = [trial_input_files(config, t) for t in image_trials(inputs) if has_files(config, t)]
-    return [trials, inputs.params.wand]
 
 
 def _lost_trials(inputs: RouteInputs) -> list[str]:

@@ -111,12 +111,23 @@ def trials_table(inputs: RouteInputs) -> BlobTable:
     return BlobTable.of(per_camera)
 
 
+def trials_key(inputs: RouteInputs) -> list:
+    """What a calibration adjusted with the trials is keyed on besides its own inputs:
+    the trials' files and the wand settings, when :func:`uses_trials`."""
+    if not uses_trials(inputs):
+        return []
+    config = inputs.config
+    trials = [trial_input_files(config, t) for t in image_trials(inputs) if has_files(config, t)]
+    return [trials, inputs.params.wand]
+
+
 def uses_trials(inputs: RouteInputs) -> bool:
     """Whether the rods route adjusts the rods and the trials together: the whole rig,
     three rods or more (to leave one out), the model left to the data (``[dlt]
     trials_bundle``, no model switch) and a trial of images or video besides the wand's."""
     dlt = inputs.params.dlt
-    enough = inputs.whole_rig and len(inputs.config.rods.rods) >= 3
+    rods = inputs.config.rods  # none on the wand route with an axes object
+    enough = inputs.whole_rig and rods is not None and len(rods.rods) >= 3
     return enough and dlt.trials_bundle and dlt.selects and bool(image_trials(inputs))
 
 
@@ -185,8 +196,8 @@ def lens_from_trials(
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
-    terms = cal.lens_terms if cal.lens_terms is not None else bundle.lens_terms
-    weighed = replace(bundle, control_weight=cal.control.weight, lens_terms=terms)
+    weighed = cal.refit_params(replace(bundle, control_weight=cal.control.weight))
+    terms = weighed.lens_terms
     check = _rod_check(leave_control_out(cal, POINT, cal.control.group, weighed), rods)
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(

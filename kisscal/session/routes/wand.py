@@ -2,7 +2,10 @@
 
 On rods (``[wand]`` with ``[rods]``): the rods' calibration on the grid's linearisation
 is the start and the rods' surveyed markers stay fixed in the adjustment, which also
-estimates each camera's intrinsics, pose and lens terms and every wand pose. Alone
+estimates each camera's intrinsics, pose and lens terms and every wand pose; with the
+session's other trials adjusted with the rods (the rods route's default), their markers
+enter the same adjustment and that default is the calibration the wand must not be worse
+than (:mod:`.wand_judge`). Alone
 (``[wand]`` with ``[axes]``, no grid or rods needed): the cameras start from the wand
 images, and the axes object then fixes the lab frame. See :mod:`kisscal.bundle`.
 
@@ -19,8 +22,10 @@ from typing import Any
 
 import numpy as np
 
+from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import calibrate_on_wand_and_points
 from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
@@ -31,6 +36,7 @@ from kisscal.bundle.wand import (
     calibrate_wand_alone,
 )
 from kisscal.dlt import calibrate_rods
+from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.frames import source_files
@@ -41,7 +47,15 @@ from kisscal.session.routes import (
     outputs_of,
     static_blobs,
 )
-from kisscal.session.routes.trial_bundle import rod_blobs, rods_control
+from kisscal.session.routes.trial_bundle import (
+    image_trials,
+    lens_from_trials,
+    rod_blobs,
+    rods_control,
+    trials_key,
+    trials_table,
+    uses_trials,
+)
 from kisscal.session.routes.wand_outputs import wand_params, write_wand_outputs
 from kisscal.session.runner import run_keyed, trial_blobs
 from kisscal.session.trials import trial_input_files
@@ -73,13 +87,13 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
     def compute() -> dict[str, Any]:
         t0 = time.perf_counter()
         table = _wand_table(inputs)
+        baseline = None
         if config.rods is not None:
-            (cal, rod_check), frame = _on_rods(inputs, table), None
+            (cal, rod_check, baseline), frame = _on_rods(inputs, table), None
         else:
             (cal, frame), rod_check = _with_axes(inputs, table), None
-        return {
-            "_check": write_wand_outputs(inputs, cal, frame, rod_check, time.perf_counter() - t0)
-        }
+        seconds = time.perf_counter() - t0
+        return {"_check": write_wand_outputs(inputs, cal, frame, rod_check, seconds, baseline)}
 
     return run_keyed(store, wand_json, _stage(inputs), cached, compute)
 
@@ -107,6 +121,7 @@ def _stage(inputs: RouteInputs) -> tuple:
         params.dlt,
         params.recon,
         params.wand,
+        trials_key(inputs),
     )
 
 
@@ -123,22 +138,66 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
     return BlobTable.of(per_camera)
 
 
-def _on_rods(inputs: RouteInputs, table: BlobTable) -> tuple[WandCalibration, Any]:
+def _on_rods(
+    inputs: RouteInputs, table: BlobTable
+) -> tuple[WandCalibration, RodCalibration, WandCalibration | None]:
+    """The wand's calibration on the rods, what the rods route would write (kept when the
+    wand does not do better) and, when that is the rods and trials adjusted together,
+    their adjustment (the judge holds it out as it holds out the wand's)."""
     config, params = inputs.config, inputs.params
     blobs, rods = rod_blobs(inputs)
-    # what the rods alone give (the rods route's own choice of model), kept when the wand
-    # does not do better; the adjustment starts from their pinholes
+    # what the rods alone give (the rods route's own choice of model); the adjustment
+    # starts from their pinholes
     rods_alone = calibrate_rods(blobs, rods, params.dlt, True)
     start, control = rods_control(inputs, blobs, rods, rods_alone)
     ids = config.camera_ids
     inputs.echo(f"  calibrate: wand on the rods' calibration ({len(rods)} rods)")
     wand = wand_params(inputs)
     sizes = [c.size_px for c in config.cameras]
+    if uses_trials(inputs):
+        # the rods route's default, the rods and trials: the calibration to beat
+        default, baseline = lens_from_trials(inputs, blobs, rods, rods_alone)
+        if baseline is not None:
+            return _with_trials(inputs, table, start, control), default, baseline
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
     cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
         cal = _best_weight(inputs, cal, args, wand)
-    return cal, rods_alone
+    return cal, rods_alone, None
+
+
+def _with_trials(
+    inputs: RouteInputs, table: BlobTable, start: list, control: ControlPoints
+) -> WandCalibration:
+    """The wand and the session's other trials adjusted together on the rods
+    (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
+    default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials and
+    the rods' weight ``[dlt] bundle_rods_weight`` times their noise ratio), so the wand
+    adds to what fixed the lens terms rather than replacing it (issue 25: on the
+    four-camera lowcost rig, seed 71, the wand alone on the rods was 10 % worse inside
+    the volume than the rods and trials)."""
+    config, params = inputs.config, inputs.params
+    trials = trials_table(inputs)
+    wand = (config.wand.markers_mm, config.camera_ids, config.wand.trial)
+    sizes = [c.size_px for c in config.cameras]
+    cal = calibrate_on_wand_and_points(
+        table,
+        trials,
+        start,
+        control,
+        wand,
+        sizes,
+        wand_params(inputs),
+        params.dlt,
+        params.dlt.bundle_rods_weight,
+    )
+    names = ", ".join(t.name for t in image_trials(inputs))
+    inputs.echo(
+        f"  calibrate: the wand ({int(np.sum(cal.fields >= 0))} fields) and the trials' "
+        f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, rods weighed "
+        f"{cal.control.weight:.0f} x an image"
+    )
+    return cal
 
 
 def _best_weight(

@@ -37,6 +37,12 @@ Both calibrations are judged on points neither was fitted to, on equal footing:
   by both; a wand whose length errors are higher by ``keep_sigmas`` standard errors of
   the paired difference is not kept (a scale the rods do not fix well).
 
+With trials adjusted with the rods (``[dlt] trials_bundle``, the rods route's default), the
+wand is adjusted with the same trials' markers and the rods' calibration to beat is that
+default: both are bundle adjustments on the same rods, so both are held out by the same
+folds of markers (``baseline`` of :func:`held_out_markers`), and the burden is "not worse"
+(both written with ``resect_terms`` of Kolahi's terms).
+
 Leave-one-rod-out stays in ``check.json`` as a figure, not a judge.
 """
 
@@ -50,6 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import POINT
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import WandCalibration
 from kisscal.dlt.check import leave_folds_out
@@ -65,6 +72,7 @@ def held_out_markers(
     markers_mm: Sequence[float],
     dlt: DltParams,
     params: BundleParams,
+    baseline: WandCalibration | None = None,
 ) -> PairedErrors:
     """Held-out rod markers reconstructed by both calibrations (see the module).
 
@@ -83,6 +91,10 @@ def held_out_markers(
         The session's ``[dlt]`` parameters (the rods' chosen model is applied to them).
     params : BundleParams
         The adjustment's parameters (``judge_folds``).
+    baseline : WandCalibration, optional
+        The rods and trials adjusted together (:mod:`.trial_bundle`), whose cameras
+        ``rod_cal`` holds: then held out as the wand is, by the same folds of markers
+        (both adjustments lose the same rods' markers and keep their own rays).
 
     Returns
     -------
@@ -92,13 +104,29 @@ def held_out_markers(
     truth = _rod_truth(rods)
     fold = np.tile(np.arange(truth.shape[1]) % params.judge_folds, (len(rods), 1))
     fold[~np.isfinite(truth).all(axis=-1)] = -1
-    rods_err = rods_held_out(rod_cal, rods, ids, dlt).ravel()
+    if baseline is not None:
+        rods_err = _folds_held_out(baseline, POINT, truth, fold, params)
+    else:
+        rods_err = rods_held_out(rod_cal, rods, ids, dlt).ravel()
+    wand_err = _folds_held_out(cal, markers_mm, truth, fold, params)
+    return paired_errors(wand_err, rods_err)
+
+
+def _folds_held_out(
+    cal: WandCalibration,
+    markers_mm: Sequence[float],
+    truth: NDArray[np.float64],
+    fold: NDArray[np.int64],
+    params: BundleParams,
+) -> NDArray[np.float64]:
+    """Each rod marker's 3D error (mm, NaN where not reconstructed) by ``cal`` adjusted
+    again without its fold of markers."""
     flat = truth.reshape(-1, 3)
     row = _marker_of(cal.control.xyz_mm, flat)
     xyz, _, err = leave_control_out(cal, markers_mm, fold.ravel()[row], params)
-    wand_err = np.full(len(flat), np.nan)
-    wand_err[_marker_of(xyz, flat)] = err
-    return paired_errors(wand_err, rods_err)
+    out = np.full(len(flat), np.nan)
+    out[_marker_of(xyz, flat)] = err
+    return out
 
 
 def rods_held_out(

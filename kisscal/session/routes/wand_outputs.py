@@ -66,10 +66,14 @@ def write_wand_outputs(
     frame: AxesFrame | None,
     rod_cal: RodCalibration | None,
     seconds: float,
+    baseline: WandCalibration | None = None,
 ) -> dict[str, Any]:
-    """Write every output of the wand route; returns the ``check.json`` content."""
+    """Write every output of the wand route; returns the ``check.json`` content.
+
+    ``rod_cal`` is the calibration the wand's must not be worse than (the rods alone, or
+    the rods and trials adjusted together: ``baseline``, their adjustment)."""
     config = inputs.config
-    markers = config.wand.markers_mm
+    markers = cal.markers(config.wand.markers_mm)  # with the trials' markers' own
     ids = config.camera_ids
     sizes = [c.size_px for c in config.cameras]
     cameras = frame.cameras(cal.written) if frame is not None else cal.written
@@ -82,11 +86,11 @@ def write_wand_outputs(
     per_cam = camera_figures(cal, sizes)
     wand_doc: dict[str, Any] = {
         "trial": config.wand.trial,
-        "markers_mm": list(markers),
+        "markers_mm": list(config.wand.markers_mm),
         "start": "rods" if rod_cal is not None else "axes",
         **length_figures(lengths, float(np.ptp(markers))),
         "held_out": length_figures(held, nominal),
-        "fields_used": len(cal.fields),
+        "fields_used": int(np.sum(cal.fields >= 0)),
         "iterations": cal.result.iterations,
         "seconds": round(seconds, 2),
         "cameras": {
@@ -95,6 +99,8 @@ def write_wand_outputs(
     }
     if cal.control is not None:
         wand_doc["rods_weight"] = float(cal.control.weight)
+    if np.any(cal.fields < 0):
+        wand_doc["trial_markers_used"] = int(np.sum(cal.fields < 0))
     if rod_cal is not None:
         fields = held_out_fields(len(cal.fields), wand_params(inputs))
         alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
@@ -102,7 +108,7 @@ def write_wand_outputs(
             **length_figures(alone, nominal),
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
         }
-    check, markers = _checks(inputs, cal, rod_cal, wand_doc)
+    check, markers = _checks(inputs, cal, rod_cal, wand_doc, baseline)
     if markers is not None:
         wand_doc["held_out_rod_markers"] = check["held_out_rod_markers"] = markers.as_dict()
     if frame is not None:
@@ -181,6 +187,7 @@ def _checks(
     cal: WandCalibration,
     rod_cal: RodCalibration | None,
     wand_doc: dict[str, Any],
+    baseline: WandCalibration | None = None,
 ) -> tuple[dict[str, Any], PairedErrors | None]:
     """``check.json``: the held-out 3D figures ``kisscal check --max-3d-mm`` reads; and the
     held-out rod markers of both calibrations (None without the rods)."""
@@ -192,7 +199,7 @@ def _checks(
         check["leave_out_mean_mm"] = held["length_rms_error_mm"]
     if rod_cal is None or cal.control is None:
         return check, None
-    markers = inputs.config.wand.markers_mm if inputs.config.wand else ()
+    markers = cal.markers(inputs.config.wand.markers_mm)
     control = cal.control
     ids_xyz, point = np.unique(control.xyz_mm, axis=0, return_inverse=True)
     xyz = triangulate_points(
@@ -230,8 +237,19 @@ def _checks(
         markers,
         inputs.params.dlt,
         wand_params(inputs),
+        baseline,
     )
+    check["compared_with"] = _compared_with(rod_cal, baseline)
     return check, held
+
+
+def _compared_with(rod_cal: RodCalibration, baseline: WandCalibration | None) -> str:
+    """What the wand's calibration was judged against (kept, as ``rods``, when the wand's
+    is not): the rods alone, or the rods and trials adjusted together (by which trials)."""
+    if baseline is None:
+        return "rods alone"
+    models = rod_cal.models
+    return models.by if models is not None else "rods and trials adjusted together"
 
 
 def _write_cameras(
@@ -244,13 +262,17 @@ def _write_cameras(
     if frame is not None:
         Q, shift = frame.match.rotation, frame.match.shift_mm
         wand = WandPoses(wand.centre_mm @ Q.T + shift, wand.direction @ Q.T)
-    offsets = centred_offsets(config.wand.markers_mm)
+    offsets = centred_offsets(cal.markers(config.wand.markers_mm))
     xyz_obs = wand.centre_mm[obs.field] + offsets[obs.marker, None] * wand.direction[obs.field]
     names = [rod.name for rod in config.rods.rods] if config.rods else []
     for c, cfg in enumerate(config.cameras):
         rows = (obs.camera == c) & r.inlier
         fields, marks = cal.fields[obs.field[rows]], obs.marker[rows]
-        labels = [f"W{m + 1}@{f}" for f, m in zip(fields, marks, strict=True)]
+        # a trial's marker adjusted with the wand (trial field -1) by its row
+        labels = [
+            f"W{m + 1}@{f}" if f >= 0 else f"T@{k}"
+            for k, (f, m) in enumerate(zip(fields, marks, strict=True))
+        ]
         xyz, uv, res = xyz_obs[rows], obs.uv_px[rows], r.residuals_px[rows]
         if cal.control is not None:
             ctl = cal.control.camera == c
@@ -266,6 +288,7 @@ def _write_cameras(
 
 def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -> None:
     echo = inputs.echo
+    other = check.get("compared_with", "rods alone")
     for cam, e in wand_doc["cameras"].items():
         echo(
             f"  calibrate {cam}: wand, {e['points']} wand points, rms {e['rms_px']:.3f} px, "
@@ -283,21 +306,21 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
     if "length_rms_error_mm" in held:
         echo(
             f"  held-out wand fields: length RMS error {held['length_rms_error_mm']:.3f} mm"
-            + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
+            + (f" ({other} {alone:.3f} mm)" if alone is not None else "")
         )
     loo = check.get("leave_one_rod_out")
     if loo:
         alone = loo.get("rods_alone_mean_mm")
         echo(
             f"  leave-one-rod-out mean {loo['mean_mm']:.3f} mm"
-            + (f" (rods alone {alone:.3f} mm)" if alone is not None else "")
+            + (f" ({other} {alone:.3f} mm)" if alone is not None else "")
         )
     markers = check.get("held_out_rod_markers", {})
     if "wand_rms_mm" in markers:
         echo(
             f"  held-out rod markers ({markers['markers']}, each left out of both "
             f"calibrations): RMS 3D error {markers['wand_rms_mm']:.3f} mm "
-            f"(rods alone {markers['rods_alone_rms_mm']:.3f} mm)"
+            f"({other} {markers['rods_alone_rms_mm']:.3f} mm)"
         )
     if check.get("kept") == "rods":
         failed = [
@@ -305,9 +328,11 @@ def _say(inputs: RouteInputs, wand_doc: dict[str, Any], check: dict[str, Any]) -
         ] or ["held-out rod markers not measured"]
         echo(
             f"  the wand's calibration is not kept, held out it is not better than the "
-            f"rods' ({', '.join(failed)}): kept the rods' calibration (the wand's figures "
+            f"{other} ({', '.join(failed)}): kept that calibration (the wand's figures "
             "stay in dlt/wand.json)"
         )
+    elif check.get("judges"):
+        echo(f"  the wand's calibration is kept: held out, not worse than the {other}")
     axes = wand_doc.get("axes")
     if axes:
         n = axes["markers"]
@@ -338,7 +363,8 @@ def _figures(
     root = inputs.root
     figure(root, "wand_coverage", coverage_figure, views)
     nominal = float(np.ptp(config.wand.markers_mm)) if config.wand else 0.0
-    figure(root, "wand_length", length_figure, cal.fields, lengths, nominal)
+    wand = cal.fields >= 0  # not the trials' markers adjusted with it
+    figure(root, "wand_length", length_figure, cal.fields[wand], lengths[wand], nominal)
     objects = [(r.name, r.points_mm) for r in config.rods.rods] if config.rods else []
     if config.axes is not None:
         objects.append(("axes", config.axes.points_mm))
