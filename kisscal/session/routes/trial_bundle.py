@@ -8,7 +8,6 @@ numbered after those of earlier ones).
 
 from __future__ import annotations
 
-import functools
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -18,7 +17,6 @@ from numpy.typing import NDArray
 
 from kisscal._shared import rms_px
 from kisscal.bundle.adjust import ControlPoints
-from kisscal.bundle.params import BundleParams
 from kisscal.bundle.points import POINT, calibrate_on_points
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import BlobTable, WandCalibration
@@ -37,9 +35,8 @@ from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.config import SessionConfig, TrialConfig
-from kisscal.session.progress import quiet
 from kisscal.session.routes import RouteInputs, frame_files, marker_detection, static_blobs
-from kisscal.session.runner import each_camera, trial_blobs
+from kisscal.session.runner import trial_blobs
 from kisscal.session.trials import trial_input_files
 
 #: The rods' models the adjustment can start from (a DLT as a pinhole with skew).
@@ -190,7 +187,7 @@ def lens_from_trials(
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")
         return rods_alone, None
     weighed = replace(bundle, control_weight=cal.control.weight)
-    check = _rod_check(left_out_by_rod(cal, weighed, inputs.workers), rods)
+    check = _rod_check(leave_control_out(cal, POINT, cal.control.group, weighed), rods)
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: rods and trials ({names}) adjusted together ({len(cal.fields)} "
@@ -205,27 +202,6 @@ def lens_from_trials(
         models = replace(models, chosen=TRIALS, by=f"rods and trials adjusted together ({names})")
     out = replace(rods_alone, results=results, models=models, check=check)
     return replace(out, in_sample_mm=_in_sample(out, rods)), cal
-
-
-def left_out_by_rod(
-    cal: WandCalibration, params: BundleParams, workers: int | None
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """:func:`~kisscal.bundle.quality.leave_control_out` by rod, each rod's refit in a
-    worker process of ``workers`` (:func:`~kisscal.session.runner.each_camera`): the refits are
-    independent, and the other core sat idle through them (a second of processor time
-    on 1200 markers and four rods). The same arrays, rod by rod in order."""
-    rods = [int(g) for g in np.unique(cal.control.group)]
-    work = functools.partial(_rod_left_out, cal, params)
-    held = each_camera(work, rods, "leave-one-rod-out", quiet, workers)
-    xyz, fold, err = zip(*held, strict=True)
-    return np.concatenate(xyz), np.concatenate(fold), np.concatenate(err)
-
-
-def _rod_left_out(
-    cal: WandCalibration, params: BundleParams, rod: int, _echo: object
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """The refit without one rod's markers (:func:`left_out_by_rod`'s work in a worker)."""
-    return leave_control_out(cal, POINT, np.where(cal.control.group == rod, rod, -1), params)
 
 
 #: What ``lens_models`` records as chosen when the trials decided the lens terms.
