@@ -95,6 +95,41 @@ CSV, TOML, C3D, TRC, NPZ and PNG of ``kisscal demo``'s ``out/`` byte-identical; 
 with an unreadable trial image fails that trial with the same message and the same other
 outputs.
 
+Stop 44 (2026-11-30, the trials bundle's cost, issue 25's default; load 20 to 28, main
+7e2041c): ``python -m benchmarks small`` once each, main 24.8 s of processor time
+(11.54x decode), 15.8 s on two free cores (14.70x); this branch (with the refits in the
+pool, reverted below) 24.9 s, 14.8 s (14.02x): within the noise, as are the turns
+below. Where the bundle's time goes, by
+processor time in the run's process (calibrate of the bench session, blobs cached):
+4.6 s with the bundle against 1.4 s without; of the bundle's 3.0 s, the adjustment with
+its outlier pass 1.1 s, its leave-one-rod-out refits (four adjustments) 0.9 s, the rods'
+second, pinhole fit 0.6 s, the trials' table 0.4 s. Inside the six adjustments
+(cProfile, processor time): the Schur step's ``W V^-1 W^T`` a third (its (camera,
+field) grid filled, then one product per two cameras), Jacobian einsums and segment
+sums a fifth; Jacobian, line search and resection little. Kept, every number
+bit-identical: the grid allocated once per problem instead of every damped step, no
+segment sum over pairs of one observation (free points); the six adjustments 1.52 ->
+1.36 s; the rods' pinhole fit made before the trials' table, so it runs while the
+background detection still has the other core (its 0.6 s was on one core after it).
+Tried and not kept, measured: (1) OpenBLAS on one thread (``OPENBLAS_NUM_THREADS=1``
+for the whole run): processor time 24.7 s against 24.8 s, two free cores 15.8 s against
+15.8 s, calibrate 12.86 s against 12.89 s in one process: although a 1000 x 12 SVD
+costs 0.14 ms on one thread and 50 ms on two on this loaded machine, the run's LAPACK
+calls are too few to show (stop 43 replaced the one that did, the bundle's LU); (2)
+the four leave-one-rod-out refits side by side in the pool
+(``each_camera``, the same arrays bit for bit): farm-bench 3 pairs of ``kisscal run``,
+processor time 1.024x main's (sys 2.27 -> 2.72 s), two free cores 17.78 and 17.20 s
+against main's 16.81 and 17.52 s in turns: no gain above the noise, reverted. By the
+parallelism profile (one run of this branch, 14.5 s on two free cores) one core idles
+4.9 s: 1.25 s from the trials' table to the bundle's end (one adjustment after the
+other), 1.1 s from there to the first trial (the figures, the exports' unevenly long
+fits), 1.4 s in the last trial's tracking and the report, the rest in start-up. The trials'
+reconstruction and tracking side by side (candidate 3) was not tried: the static trial
+goes first, the blobs detected ahead are held by the run's process, and the trials'
+messages and failures must keep their order. Every JSON, CSV, TOML, C3D, TRC and NPZ of
+``kisscal demo``'s ``out/`` byte-identical; ``python -m tests.session.lens_trial_bundle
+kiss:71:...`` the same numbers to the last digit.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

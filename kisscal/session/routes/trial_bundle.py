@@ -185,8 +185,10 @@ def lens_from_trials(
     times lower).
     """
     params = inputs.params
-    table = trials_table(inputs)
+    # the rods' pinhole fit first: it runs while the trials' images are still detected in
+    # the background (kisscal.session.ahead), which the trials' table then waits for
     start, control = rods_control(inputs, blobs_px, rods, rods_alone)
+    table = trials_table(inputs)
     bundle = params.wand.on_grid()
     sizes = [c.size_px for c in inputs.config.cameras]
     try:
