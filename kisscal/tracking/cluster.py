@@ -84,17 +84,17 @@ def carry(
     return bool(use.any())
 
 
-def together(history: NDArray, n: NDArray, a: NDArray, b: NDArray) -> NDArray[np.bool_]:
+def together(
+    history: NDArray, n: NDArray, a: NDArray, b: NDArray, k: int = TOGETHER_FIELDS
+) -> NDArray[np.bool_]:
     """(A, B) whether rows ``a`` and ``b`` moved together: their distance over their last
-    shared positions (up to :data:`TOGETHER_FIELDS`) stayed within
-    :data:`TOGETHER_SHARE` of the last one.
+    shared positions (up to ``k``) stayed within :data:`TOGETHER_SHARE` of the last one.
 
     A track that has just appeared shares one position with a track that has a past, and
     nothing says they do not (a hidden LED reappearing among its cluster); two that have
     both just appeared carry nothing to each other: their first moves are nearest-point
     guesses (the first field of a trial, or a fast marker passing a new one).
     """
-    k = TOGETHER_FIELDS
     d = np.linalg.norm(history[a, None, -k:] - history[None, b, -k:], axis=3)
     shared = np.minimum(np.minimum(n[a][:, None], n[b][None, :]), k)
     old = np.arange(k)[None, None, :] < (k - shared)[:, :, None]
@@ -129,8 +129,8 @@ def broken(
     least_mm: float,
 ) -> NDArray[np.int64]:
     """Rows of the assignment ``rows`` -> ``cols`` whose point breaks their cluster: a
-    neighbour (within ``radius_mm``) that moved together with the track over its last
-    fields (:func:`together`) lies at a distance from the new point that differs from
+    neighbour (within ``radius_mm``) that moved together with the track over all its
+    positions kept (:func:`together`) lies at a distance from the new point that differs from
     their last one by over :data:`TOGETHER_SHARE` of it (at least ``least_mm``).
 
     A track that took a neighbour's point (its own LED hidden, or the two swapped) keeps
@@ -159,6 +159,8 @@ def broken(
     near = (before < radius_mm) & ~np.eye(rows.size, dtype=bool)
     if not near.any():
         return rows[:0]
-    near &= together(history, n, rows, rows)
+    # Over every position kept: two markers passing each other keep their distance for
+    # a field or two about their closest approach, not for five.
+    near &= together(history, n, rows, rows, history.shape[1])
     jump = np.abs(now - before) > np.maximum(TOGETHER_SHARE * before, least_mm)
     return rows[(near & jump).any(axis=1)]
