@@ -156,11 +156,12 @@ def broken(
     last = history[rows, -1]
     before = np.linalg.norm(last[:, None] - last[None], axis=2)
     now = np.linalg.norm(points[cols][:, None] - points[cols][None], axis=2)
-    near = (before < radius_mm) & ~np.eye(rows.size, dtype=bool)
-    if not near.any():
+    jump = np.abs(now - before) > np.maximum(TOGETHER_SHARE * before, least_mm)
+    jump &= before < radius_mm  # (the diagonal never jumps)
+    if not jump.any():  # most fields: no distance changed, nothing to judge (cheap)
         return rows[:0]
     # Over every position kept: two markers passing each other keep their distance for
     # a field or two about their closest approach, not for five.
-    near &= together(history, n, rows, rows, history.shape[1])
-    jump = np.abs(now - before) > np.maximum(TOGETHER_SHARE * before, least_mm)
-    return rows[(near & jump).any(axis=1)]
+    who = np.flatnonzero(jump.any(axis=1))
+    jump = jump[np.ix_(who, who)] & together(history, n, rows[who], rows[who], history.shape[1])
+    return rows[who[jump.any(axis=1)]]
