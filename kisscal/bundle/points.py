@@ -27,6 +27,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
@@ -122,18 +123,38 @@ def calibrate_on_points(
             f"trial bundle: {len(points.centre_mm)} markers seen by {min_cameras} cameras "
             f"or more; at least {params.min_fields} are needed"
         )
-    cams = zero_skew(start, params)
-    result = adjust_bundle(cams, obs, POINT, points, control, params)
+    fields = np.arange(len(points.centre_mm))
+    return _weighed_adjustment(
+        start, obs, POINT, points, fields, control, params, dlt, weight_factor
+    )
+
+
+def _weighed_adjustment(
+    start: Sequence[Camera],
+    obs: WandObservations,
+    markers_mm: tuple[float, ...],
+    poses: WandPoses,
+    fields: NDArray[np.int64],
+    control: ControlPoints,
+    params: BundleParams,
+    dlt: DltParams,
+    weight_factor: float,
+) -> WandCalibration:
+    """Adjust, weigh the control points by the two kinds' noise, adjust again, keep the
+    lens terms the observations show, and resect (both routes of this module)."""
+    result = adjust_bundle(zero_skew(start, params), obs, markers_mm, poses, control, params)
     # again, each kind of observation by its own noise (or the weight given)
     weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
     control = control.weighted(weight)
-    result = adjust_bundle(result.cameras, obs, POINT, result.wand, control, params)
+    result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
     # the terms beyond the first only where the markers show them (not the rods alone)
-    result, params = fewest_terms(result, obs, POINT, control, params)
-    final = final_cameras(result, obs, control, POINT, params, dlt)
+    result, params = fewest_terms(result, obs, markers_mm, control, params)
+    final = final_cameras(result, obs, control, markers_mm, params, dlt)
     resected = final if final is not result.cameras else None
-    fields = np.arange(len(points.centre_mm))
-    return WandCalibration(result, obs, fields, control, None, resected, dlt, params.lens_terms)
+    markers = None if markers_mm == POINT else markers_mm
+    return WandCalibration(
+        result, obs, fields, control, None, resected, dlt, params.lens_terms, markers
+    )
 
 
 def with_points(markers_mm: Sequence[float]) -> tuple[tuple[float, ...], int]:
@@ -205,15 +226,6 @@ def calibrate_on_wand_and_points(
         np.concatenate([poses.direction, points.direction]),
     )
     fields = np.r_[fields, np.full(len(points.centre_mm), -1)].astype(np.int64)
-    cams = zero_skew(start, params)
-    result = adjust_bundle(cams, obs, markers, poses, control, params)
-    weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
-    control = control.weighted(weight)
-    result = adjust_bundle(result.cameras, obs, markers, result.wand, control, params)
-    # as calibrate_on_points: the terms beyond the first only where the data show them
-    result, params = fewest_terms(result, obs, markers, control, params)
-    final = final_cameras(result, obs, control, markers, params, dlt)
-    resected = final if final is not result.cameras else None
-    return WandCalibration(
-        result, obs, fields, control, None, resected, dlt, params.lens_terms, markers
+    return _weighed_adjustment(
+        start, obs, markers, poses, fields, control, params, dlt, weight_factor
     )
