@@ -53,14 +53,14 @@ def walk(seed: int = 0, noise_mm: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
     return xyz + rng.normal(0, noise_mm, xyz.shape), hip
 
 
-def _side_camera(xyz: np.ndarray, seed: int) -> object:
-    """A camera 3 m to the right, at the thigh marker's height, sees it through the gap
-    (its ray square to the thigh-knee line), plus two noise blobs a field."""
-    target = xyz[3, GAP].mean(axis=0)
-    dlts = _look_at(target + [0.0, -3000, 0], target)[None]
+def one_camera(xyz: np.ndarray, marker: int, seed: int, offset: list[float]) -> object:
+    """One camera at ``offset`` from ``marker``'s mean position in the gap, seeing it
+    through the gap, plus two noise blobs a field."""
+    target = xyz[marker, GAP].mean(axis=0)
+    dlts = _look_at(target + offset, target)[None]
     fields = np.arange(GAP.start, GAP.stop)
     rng = np.random.default_rng(seed)
-    uv = project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[3, GAP])
+    uv = project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[marker, GAP])
     noise = rng.uniform([0, 0], [640, 480], (2 * fields.size, 2))
     return spare_blobs(
         np.r_[fields, np.repeat(fields, 2)],
@@ -68,6 +68,12 @@ def _side_camera(xyz: np.ndarray, seed: int) -> object:
         np.r_[uv + rng.normal(0, 0.05, uv.shape), noise],
         dlts,
     )
+
+
+def _side_camera(xyz: np.ndarray, seed: int) -> object:
+    """A camera 3 m to the right, at the thigh marker's height, sees it through the gap
+    (its ray square to the thigh-knee line), plus two noise blobs a field."""
+    return one_camera(xyz, 3, seed, [0.0, -3000, 0])
 
 
 def test_a_sphere_fit_finds_the_centre_of_points_on_an_arc():

@@ -6,12 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kisscal.dlt.model import project_rows
-from kisscal.tracking import TrackingParams, is_filled, spare_blobs
+from kisscal.tracking import TrackingParams, is_filled
 from kisscal.tracking.gaps import fill_gaps_logged
 from tests.tracking.test_bodyfill import _tracks_of
-from tests.tracking.test_joint_centres import GAP, walk
-from tests.tracking.test_rayfill import _look_at
+from tests.tracking.test_joint_centres import GAP, one_camera, walk
 
 PARAMS = TrackingParams()
 NAMES = ("RTHI", "RKNE", "RTIB", "SACR", "RASI", "LASI")
@@ -20,18 +18,7 @@ NAMES = ("RTHI", "RKNE", "RTIB", "SACR", "RASI", "LASI")
 def _camera(xyz: np.ndarray, seed: int, offset: list[float]) -> object:
     """One camera at ``offset`` from the thigh marker's mean in the gap, seeing it (0)
     through the gap, plus two noise blobs a field."""
-    target = xyz[0, GAP].mean(axis=0)
-    dlts = _look_at(target + offset, target)[None]
-    fields = np.arange(GAP.start, GAP.stop)
-    rng = np.random.default_rng(seed)
-    uv = project_rows(dlts, np.zeros(fields.size, dtype=int), xyz[0, GAP])
-    noise = rng.uniform([0, 0], [640, 480], (2 * fields.size, 2))
-    return spare_blobs(
-        np.r_[fields, np.repeat(fields, 2)],
-        np.zeros(3 * fields.size),
-        np.r_[uv + rng.normal(0, 0.05, uv.shape), noise],
-        dlts,
-    )
+    return one_camera(xyz, 0, seed, offset)
 
 
 @pytest.mark.parametrize(
