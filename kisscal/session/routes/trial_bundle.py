@@ -184,11 +184,23 @@ def lens_from_trials(
     seed-7 rig -2.6 standard errors against the rods' own model, for a volume error 3.5
     times lower).
     """
-    params = inputs.params
     # the rods' pinhole fit first: it runs while the trials' images are still detected in
     # the background (kisscal.session.ahead), which the trials' table then waits for
     start, control = rods_control(inputs, blobs_px, rods, rods_alone)
-    table = trials_table(inputs)
+    return adjusted_with_trials(inputs, trials_table(inputs), start, control, rods, rods_alone)
+
+
+def adjusted_with_trials(
+    inputs: RouteInputs,
+    table: BlobTable,
+    start: Sequence[Camera],
+    control: ControlPoints,
+    rods: Sequence[Rod],
+    rods_alone: RodCalibration,
+) -> tuple[RodCalibration, WandCalibration | None]:
+    """:func:`lens_from_trials` from the trials' table and the rods' pinholes and control
+    points (:func:`trials_table`, :func:`rods_control`) already made."""
+    params = inputs.params
     bundle = params.wand.on_grid()
     sizes = [c.size_px for c in inputs.config.cameras]
     try:

@@ -48,8 +48,8 @@ from kisscal.session.routes import (
     static_blobs,
 )
 from kisscal.session.routes.trial_bundle import (
+    adjusted_with_trials,
     image_trials,
-    lens_from_trials,
     rod_blobs,
     rods_control,
     trials_key,
@@ -156,9 +156,10 @@ def _on_rods(
     sizes = [c.size_px for c in config.cameras]
     if uses_trials(inputs):
         # the rods route's default, the rods and trials: the calibration to beat
-        default, baseline = lens_from_trials(inputs, blobs, rods, rods_alone)
+        trials = trials_table(inputs)
+        default, baseline = adjusted_with_trials(inputs, trials, start, control, rods, rods_alone)
         if baseline is not None:
-            return _with_trials(inputs, table, start, control), default, baseline
+            return _with_trials(inputs, table, trials, start, control), default, baseline
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
     cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
@@ -167,7 +168,11 @@ def _on_rods(
 
 
 def _with_trials(
-    inputs: RouteInputs, table: BlobTable, start: list, control: ControlPoints
+    inputs: RouteInputs,
+    table: BlobTable,
+    trials: BlobTable,
+    start: list,
+    control: ControlPoints,
 ) -> WandCalibration:
     """The wand and the session's other trials adjusted together on the rods
     (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
@@ -177,7 +182,6 @@ def _with_trials(
     four-camera lowcost rig, seed 71, the wand alone on the rods was 10 % worse inside
     the volume than the rods and trials)."""
     config, params = inputs.config, inputs.params
-    trials = trials_table(inputs)
     wand = (config.wand.markers_mm, config.camera_ids, config.wand.trial)
     sizes = [c.size_px for c in config.cameras]
     cal = calibrate_on_wand_and_points(
