@@ -49,13 +49,16 @@ def test_kisscal_finds_isolated_and_touching_particles(
 ) -> None:
     result = score(frame, kisscal_xy)
     bins = _bins(result)
-    assert bins["7-inf"]["found_pct"] >= 85.0, bins["7-inf"]
-    assert bins["5-7"]["found_pct"] >= 66.0, bins["5-7"]  # without the peak step: 64
-    # touching pairs 3-5 px apart: each found within 1 px, not a centroid between them
-    near = [bins["3-4"], bins["4-5"]]
+    # OpenPTV with the cavity's settings on this frame: isolated 77 %, 2-5 px 38 %
+    assert bins["7-inf"]["found_pct"] >= 80.0, bins["7-inf"]
+    # touching pairs 2-5 px apart: each found within 1 px, not a centroid between them
+    # (one region per 4-connected patch, without the peak step: 36 %)
+    near = [bins["2-3"], bins["3-4"], bins["4-5"]]
     found = sum(r["found_pct"] * r["particles"] for r in near) / sum(r["particles"] for r in near)
-    assert found >= 48.0, near  # without the peak step (one 4-connected region): 43
-    assert sum(r["split"] for r in result["bins"]) <= 2, result
+    assert found >= 40.0, near
+    assert sum(r["split"] for r in result["bins"]) <= 3, result
+    # a streak (a particle moving in the exposure) is one particle
+    assert result["streaks"]["split"] == 0 and result["streaks"]["found_pct"] >= 80.0
     assert result["extra_false"] <= 0.01 * result["detections"], result
 
 
