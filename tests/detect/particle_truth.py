@@ -13,8 +13,13 @@ were measured once to set the model below; nothing here reads them:
   times longer than wide; particles moving during the exposure): a Gaussian drawn along a
   segment of 3-10 px (:data:`STREAK_SHARE` of the particles, their peak lowered as their
   light spreads: the same summed grey as the spot);
-- background: 22 / 35 / 69 grey levels (5 / 50 / 95 %), smooth, with a sensor noise of
-  3.2 levels (deviation where the high-passed frame is dark);
+- background: 22 / 35 / 69 grey levels (5 / 50 / 95 %), textured: less its 51 px box
+  mean it deviates by 3.3 levels (1.4826 MAD) and correlates with itself by 0.73 / 0.6 /
+  0.53 / 0.48 / 0.4 / 0.35 at 1 / 2 / 3 / 4 / 6 / 8 px, rendered as white noise, a fine
+  texture (Gaussian of 1.5 px) and a coarse one (6 px): deviations 0.5 / 0.55 / 0.67 of
+  3.3 (a rendered frame's: 0.66 / 0.56 / 0.45 / 0.37 / 0.26 / 0.19, deviation 3.36);
+- lit walls (with ``walls``): the cavity's glass edges and glare, bands across the frame
+  of 1-12 px (Gaussian deviation), 20-150 levels, their grey varying +-10 % along them;
 - density: 1550-1680 of OpenPTV's targets a frame (1280 x 1024), their nearest neighbour
   closer than 3 / 5 / 6 px for 3.6 / 12 / 19 % of them.
 
@@ -33,7 +38,7 @@ Touching pairs are too rare there for a table by distance, so :func:`particle_fr
 Centres are in kisscal's pixel convention (the centre of the top-left pixel is 0, 0); each
 particle is an elliptical Gaussian integrated over each pixel (4 x 4 samples).
 
-``python -m tests.detect.particle_truth [--seed N] [--pairs N]`` prints the table: for
+``python -m tests.detect.particle_truth [--seed N] [--pairs N] [--walls N]`` prints the table: for
 kisscal's default detection (settings derived from the frame) and OpenPTV's (``optv``, the
 cavity's ``targ_rec.par``), the particles found within 1 px, merged and split by the
 distance to their nearest neighbour, the extra detections, and how many of the targets
@@ -60,7 +65,12 @@ ELONGATION_LOG_SD = 0.6
 #: Share of the particles drawn as streaks, and their length bounds (px).
 STREAK_SHARE, STREAK_PX = 0.25, (3.0, 10.0)
 #: Background levels and sensor noise (grey levels).
-BACKGROUND, BACKGROUND_SWING, NOISE = 35.0, 20.0, 3.2
+BACKGROUND, BACKGROUND_SWING, NOISE = 35.0, 20.0, 3.3
+#: Background texture: deviations (shares of NOISE) of white noise and of two Gaussian
+#: textures, and those textures' deviations (px).
+TEXTURE_SHARES, TEXTURE_PX = (0.5, 0.55, 0.67), (1.5, 6.0)
+#: Lit walls: deviation across (px), grey levels, variation along them.
+WALL_PX, WALL_GREY, WALL_RIPPLE = (1.0, 12.0), (20.0, 150.0), 0.1
 #: Half side (px) of the square each particle is rendered in; samples a pixel side.
 HALF, SUB = 8, 4
 
@@ -107,13 +117,30 @@ def _centres(rng: np.random.Generator, shape: tuple[int, int], pairs: int) -> ND
     return np.concatenate([field, first, second])
 
 
-def _background(rng: np.random.Generator, shape: tuple[int, int]) -> NDArray:
-    """A smooth background: a few long waves around :data:`BACKGROUND`."""
+def _texture(rng: np.random.Generator, shape: tuple[int, int], px: float) -> NDArray:
+    """Gaussian noise blurred by a Gaussian of ``px``, scaled to unit deviation."""
+    import cv2
+
+    field = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), px)
+    return field / field.std()
+
+
+def _background(rng: np.random.Generator, shape: tuple[int, int], walls: int) -> NDArray:
+    """A few long waves around :data:`BACKGROUND`, its texture and ``walls`` lit walls."""
     yy, xx = np.mgrid[: shape[0], : shape[1]].astype(float)
     out = np.full(shape, BACKGROUND)
     for _ in range(4):
         k = rng.uniform(-1, 1, 2) * 2 * np.pi / 300
         out += BACKGROUND_SWING / 4 * np.sin(k[0] * xx + k[1] * yy + rng.uniform(0, 2 * np.pi))
+    white, fine, coarse = (NOISE * share for share in TEXTURE_SHARES)
+    out += white * rng.standard_normal(shape)
+    out += fine * _texture(rng, shape, TEXTURE_PX[0]) + coarse * _texture(rng, shape, TEXTURE_PX[1])
+    ripple = _texture(rng, shape, 4.0) if walls else 0.0
+    for _ in range(walls):  # nearly upright bands, as the cavity's glass edges
+        x0, tilt = rng.uniform(50, shape[1] - 50), rng.uniform(-0.05, 0.05)
+        width, grey = rng.uniform(*WALL_PX), rng.uniform(*WALL_GREY)
+        band = np.exp(-((xx - x0 - tilt * yy) ** 2) / (2 * width**2))
+        out += grey * band * (1 + WALL_RIPPLE * ripple)
     return out
 
 
@@ -155,15 +182,14 @@ def render(
 
 
 def particle_frame(
-    seed: int, shape: tuple[int, int] = (1024, 1280), pairs: int = 400
+    seed: int, shape: tuple[int, int] = (1024, 1280), pairs: int = 400, walls: int = 0
 ) -> ParticleFrame:
     """A cavity-camera-3-like frame of ``shape`` (rows, columns) with ``pairs`` planted
-    touching pairs, drawn from ``seed``; 8-bit, saturated at 255."""
+    touching pairs and ``walls`` lit walls, drawn from ``seed``; 8-bit, saturated at 255."""
     rng = np.random.default_rng(seed)
     xy = _centres(rng, shape, pairs)
     peak, sigma, angle, length = _draw(rng, len(xy))
-    grey = _background(rng, shape) + render(shape, xy, peak, sigma, angle, length)
-    grey += rng.normal(0.0, NOISE, shape)
+    grey = _background(rng, shape, walls) + render(shape, xy, peak, sigma, angle, length)
     image = np.clip(np.rint(grey), 0, 255).astype(np.uint8)
     return ParticleFrame(image, xy, peak, sigma, angle, length)
 
@@ -326,8 +352,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--pairs", type=int, default=400)
+    parser.add_argument("--walls", type=int, default=0)
     args = parser.parse_args(argv)
-    truth = particle_frame(args.seed, pairs=args.pairs)
+    truth = particle_frame(args.seed, pairs=args.pairs, walls=args.walls)
     params = configure_detection([truth.image]).params
     ours = detect_blobs(truth.image, params).valid_only().xy_px
     theirs = openptv_targets(truth.image)

@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from kisscal.detect import detect_blobs
 from kisscal.detect.configure import configure_detection
+from kisscal.detect.route import highpass_noise
 from tests.detect.particle_truth import ParticleFrame, openptv_targets, particle_frame, score
 
 SHAPE = (512, 640)
@@ -22,7 +23,7 @@ SHAPE = (512, 640)
 
 @pytest.fixture(scope="module")
 def frame() -> ParticleFrame:
-    return particle_frame(5, SHAPE, pairs=150)
+    return particle_frame(5, SHAPE, pairs=300)
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +43,8 @@ def test_frames_look_like_the_cavitys_camera_3(frame: ParticleFrame) -> None:
     assert 20 <= grey[0] <= 35 and 30 <= grey[1] <= 42, grey
     visible = frame.peak >= 20
     assert 0.08 < (frame.peak[visible] > 220).mean() < 0.3
+    # the background's texture: 3.35 levels (1.4826 MAD) less the 51 px box mean on cam3
+    assert 3.0 < highpass_noise([frame.image], 51) < 3.7
 
 
 def test_kisscal_finds_isolated_and_touching_particles(
@@ -49,16 +52,18 @@ def test_kisscal_finds_isolated_and_touching_particles(
 ) -> None:
     result = score(frame, kisscal_xy)
     bins = _bins(result)
-    # OpenPTV with the cavity's settings on this frame: isolated 77 %, 2-5 px 38 %
+    # OpenPTV with the cavity's settings on this frame: isolated 77 %, 2-5 px 38 %;
+    # kisscal 85 % and 47 %
     assert bins["7-inf"]["found_pct"] >= 80.0, bins["7-inf"]
     # touching pairs 2-5 px apart: each found within 1 px, not a centroid between them
-    # (one region per 4-connected patch, without the peak step: 36 %)
+    # (one region per 4-connected patch, without the peak step: 39 %)
     near = [bins["2-3"], bins["3-4"], bins["4-5"]]
     found = sum(r["found_pct"] * r["particles"] for r in near) / sum(r["particles"] for r in near)
-    assert found >= 40.0, near
-    assert sum(r["split"] for r in result["bins"]) <= 3, result
+    assert found >= 43.0, near
+    assert sum(r["split"] for r in result["bins"]) <= 0.01 * result["visible"], result
     # a streak (a particle moving in the exposure) is one particle
-    assert result["streaks"]["split"] == 0 and result["streaks"]["found_pct"] >= 80.0
+    streaks = result["streaks"]
+    assert streaks["split"] <= 0.05 * streaks["particles"] and streaks["found_pct"] >= 80.0
     assert result["extra_false"] <= 0.01 * result["detections"], result
 
 
