@@ -77,7 +77,8 @@ HALF, SUB = 8, 4
 
 class ParticleFrame(NamedTuple):
     """A rendered frame and its truth: centres (x, y px), peaks, deviations (long, short),
-    the long axis's angle (radians) and the streak's length along it (px; 0: a spot)."""
+    the long axis's angle (radians), the streak's length along it (px; 0: a spot), and
+    the grey the lit walls add to each pixel."""
 
     image: NDArray[np.uint8]
     xy: NDArray[np.float64]
@@ -85,6 +86,7 @@ class ParticleFrame(NamedTuple):
     sigma: NDArray[np.float64]
     angle: NDArray[np.float64]
     length: NDArray[np.float64]
+    wall: NDArray[np.float32]  # grey the lit walls add to each pixel
 
 
 def _draw(rng: np.random.Generator, n: int) -> tuple[NDArray, ...]:
@@ -125,8 +127,11 @@ def _texture(rng: np.random.Generator, shape: tuple[int, int], px: float) -> NDA
     return field / field.std()
 
 
-def _background(rng: np.random.Generator, shape: tuple[int, int], walls: int) -> NDArray:
-    """A few long waves around :data:`BACKGROUND`, its texture and ``walls`` lit walls."""
+def _background(
+    rng: np.random.Generator, shape: tuple[int, int], walls: int
+) -> tuple[NDArray, NDArray]:
+    """A few long waves around :data:`BACKGROUND` and its texture, and the grey of
+    ``walls`` lit walls."""
     yy, xx = np.mgrid[: shape[0], : shape[1]].astype(float)
     out = np.full(shape, BACKGROUND)
     for _ in range(4):
@@ -136,12 +141,13 @@ def _background(rng: np.random.Generator, shape: tuple[int, int], walls: int) ->
     out += white * rng.standard_normal(shape)
     out += fine * _texture(rng, shape, TEXTURE_PX[0]) + coarse * _texture(rng, shape, TEXTURE_PX[1])
     ripple = _texture(rng, shape, 4.0) if walls else 0.0
+    lit = np.zeros(shape, np.float32)
     for _ in range(walls):  # nearly upright bands, as the cavity's glass edges
         x0, tilt = rng.uniform(50, shape[1] - 50), rng.uniform(-0.05, 0.05)
         width, grey = rng.uniform(*WALL_PX), rng.uniform(*WALL_GREY)
         band = np.exp(-((xx - x0 - tilt * yy) ** 2) / (2 * width**2))
-        out += grey * band * (1 + WALL_RIPPLE * ripple)
-    return out
+        lit += grey * band * (1 + WALL_RIPPLE * ripple)
+    return out, lit
 
 
 def render(
@@ -189,9 +195,10 @@ def particle_frame(
     rng = np.random.default_rng(seed)
     xy = _centres(rng, shape, pairs)
     peak, sigma, angle, length = _draw(rng, len(xy))
-    grey = _background(rng, shape, walls) + render(shape, xy, peak, sigma, angle, length)
+    grey, wall = _background(rng, shape, walls)
+    grey += wall + render(shape, xy, peak, sigma, angle, length)
     image = np.clip(np.rint(grey), 0, 255).astype(np.uint8)
-    return ParticleFrame(image, xy, peak, sigma, angle, length)
+    return ParticleFrame(image, xy, peak, sigma, angle, length, wall)
 
 
 #: Least peak (grey levels) of a particle counted in the truth (6 sensor deviations:
@@ -345,6 +352,36 @@ def _only_in(truth: ParticleFrame, a: NDArray, b: NDArray) -> dict:
     return {"only_here": len(alone), "of_them_particles": int(true.sum())}
 
 
+#: A pixel is on a lit wall where the walls add more than this (grey levels).
+LIT = 15.0
+
+
+def on_walls(truth: ParticleFrame, found: NDArray) -> dict:
+    """Visible particles on lit walls and off them (the walls add more than :data:`LIT`)
+    and the share found within 1 px; detections on walls and how many of those are more
+    than 1 px from every particle."""
+    from scipy.spatial import cKDTree
+
+    def lit(xy: NDArray) -> NDArray:
+        rows = np.clip(np.rint(xy[:, 1]).astype(int), 0, truth.wall.shape[0] - 1)
+        cols = np.clip(np.rint(xy[:, 0]).astype(int), 0, truth.wall.shape[1] - 1)
+        return truth.wall[rows, cols] > LIT
+
+    visible = truth.peak >= VISIBLE
+    hit = _near(truth.xy, found) <= MATCH_PX
+    on, there = lit(truth.xy), lit(found)
+    false = cKDTree(truth.xy).query(found)[0] > MATCH_PX
+    return {
+        "on_walls": int((visible & on).sum()),
+        "on_walls_found_pct": round(100 * float(hit[visible & on].mean()), 1),
+        "off_walls": int((visible & ~on).sum()),
+        "off_walls_found_pct": round(100 * float(hit[visible & ~on].mean()), 1),
+        "detections_on_walls": int(there.sum()),
+        "false_on_walls": int((there & false).sum()),
+        "false_off_walls": int((~there & false).sum()),
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
     from kisscal.detect import detect_blobs
     from kisscal.detect.configure import configure_detection
@@ -356,6 +393,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     truth = particle_frame(args.seed, pairs=args.pairs, walls=args.walls)
     params = configure_detection([truth.image]).params
+    print(json.dumps({"route": params.route, "threshold": params.threshold}))
     ours = detect_blobs(truth.image, params).valid_only().xy_px
     theirs = openptv_targets(truth.image)
     for name, xy, other in (("kisscal", ours, theirs), ("openptv", theirs, ours)):
@@ -364,6 +402,8 @@ def main(argv: list[str] | None = None) -> None:
             print(json.dumps({"detector": name, **row}))
         print(json.dumps({"detector": name, "streaks": result.pop("streaks")}))
         print(json.dumps({"detector": name, **result, **_only_in(truth, xy, other)}))
+        if args.walls:
+            print(json.dumps({"detector": name, **on_walls(truth, xy)}))
     found = float(np.mean(_near(theirs, ours) <= MATCH_PX))
     print(json.dumps({"openptv_targets_kisscal_finds_pct": round(100 * found, 1)}))
 
