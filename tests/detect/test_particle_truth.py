@@ -3,20 +3,20 @@
 The frames of :mod:`tests.detect.particle_truth` hold a Poisson field of particle images
 with planted touching pairs; kisscal's default detection (settings derived from the frame,
 the peaks route) is scored against the rendered centres by the distance to each
-particle's nearest neighbour, and against OpenPTV's target recognition with the cavity's
-``targ_rec.par`` settings when ``optv`` is installed.
+particle's nearest neighbour. The comparison with OpenPTV's own target recognition (the
+cavity's ``targ_rec.par``, needs ``optv``) is the module's command line, not a test: the
+README's test command runs on a machine without it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from kisscal.detect import detect_blobs
 from kisscal.detect.configure import configure_detection
 from kisscal.detect.route import highpass_noise
-from tests.detect.particle_truth import ParticleFrame, openptv_targets, particle_frame, score
+from tests.detect.particle_truth import ParticleFrame, particle_frame, score
 
 SHAPE = (512, 640)
 
@@ -65,17 +65,3 @@ def test_kisscal_finds_isolated_and_touching_particles(
     streaks = result["streaks"]
     assert streaks["split"] <= 0.05 * streaks["particles"] and streaks["found_pct"] >= 80.0
     assert result["extra_false"] <= 0.01 * result["detections"], result
-
-
-def test_kisscal_is_as_right_as_openptv_at_every_distance(
-    frame: ParticleFrame, kisscal_xy: np.ndarray
-) -> None:
-    pytest.importorskip("optv")
-    targets = openptv_targets(frame.image)
-    ours, theirs = _bins(score(frame, kisscal_xy)), _bins(score(frame, targets))
-    for key in ("2-3", "3-4", "4-5", "5-7", "7-inf"):
-        assert ours[key]["found_pct"] >= theirs[key]["found_pct"] - 2.0, (key, ours, theirs)
-    # the targets kisscal does not give back are mostly not particles (merged centroids)
-    missed = cKDTree(kisscal_xy).query(targets)[0] > 1.0
-    true = cKDTree(frame.xy).query(targets[missed])[0] <= 1.0
-    assert missed.mean() < 0.05 and true.sum() <= 0.5 * missed.sum(), (missed.sum(), true.sum())
