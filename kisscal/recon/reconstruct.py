@@ -25,7 +25,7 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import deblended_in, merged_pairs, shared_blobs
+from kisscal.recon.unmerged import deblended_in, merged_pairs, on_left_blobs, shared_blobs
 
 
 @dataclass(frozen=True)
@@ -343,6 +343,9 @@ def _replaced(
     typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
     pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
     own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
+    own &= on_left_blobs(
+        scene, pts.blob_row[drop], shared, new.xyz_mm, new.own_row, new.merged_row
+    )
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )

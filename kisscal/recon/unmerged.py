@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.dlt.model import project_rows
 from kisscal.recon.deblend import MergeScene, near_blobs
 
 
@@ -95,3 +96,52 @@ def deblended_in(blob_row: NDArray[np.int64], rows: NDArray[np.int64]) -> NDArra
     ndarray of bool, shape (m,)
     """
     return np.any(np.isin(blob_row, rows) & (blob_row >= 0), axis=1)
+
+
+def on_left_blobs(
+    scene: MergeScene,
+    blob_row: NDArray[np.int64],
+    shared: NDArray[np.bool_],
+    xyz_mm: NDArray[np.float64],
+    own_row: NDArray[np.int64],
+    merged_row: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """New points that project onto every blob they leave of a pair they take a blob
+    from: within the trial's residual limit ``scene.limit_px`` of a clean blob, within
+    ``params.deblend_radius_px`` of a merged one (``shared``). A pair pulled by a merged
+    blob moves along its clean blob's ray, and its marker lies on that ray too; a new
+    point off it is another marker's (lowcost seed 303 field 391: the heel's pair of its
+    own blobs, one beside the hidden toe's image, taken with the ankle-and-heel blob of a
+    third camera, 20.7 mm off and 1.8 px from the pair's clean blob: within a merge's
+    radius, not the residual limit).
+
+    Parameters
+    ----------
+    scene : MergeScene
+        The trial's 2D table and rig.
+    blob_row : ndarray of int, shape (m, n_cameras)
+        Blobs of the pairs given way (-1: none).
+    shared : ndarray of bool, shape (n_blobs,)
+        Merged blobs (:func:`shared_blobs`).
+    xyz_mm : ndarray, shape (k, 3)
+        The new points, each with its ``own_row`` and ``merged_row`` (k,).
+
+    Returns
+    -------
+    ndarray of bool, shape (k,)
+    """
+    pair = np.full(len(scene.field), -1, dtype=np.int64)
+    k, _ = np.nonzero(blob_row >= 0)
+    pair[blob_row[blob_row >= 0]] = k
+    ok = np.ones(len(xyz_mm), dtype=bool)
+    for taken in (own_row, merged_row):
+        j = np.flatnonzero(pair[taken] >= 0)
+        rows = blob_row[pair[taken[j]]]  # (len(j), n_cameras)
+        left = (rows >= 0) & (rows != own_row[j, None]) & (rows != merged_row[j, None])
+        jj, c = np.nonzero(left)
+        b = rows[jj, c]
+        at = project_rows(scene.dlts, scene.camera[b], xyz_mm[j[jj]])
+        reach = np.where(shared[b], scene.params.deblend_radius_px, scene.limit_px)
+        far = ~(np.linalg.norm(at - scene.uv[b], axis=1) <= reach)
+        ok[j[jj[far]]] = False
+    return ok
