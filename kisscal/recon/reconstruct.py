@@ -325,12 +325,13 @@ def _replaced(
     pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
-    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and,
-    if a dropped pair's clean blob, fits with a residual smaller than the pair's by more
-    than the trial's median one, the pair's an outlier (``merged_pair_rms_factor`` times
-    that median): else the new point rests on the merge alone, the other marker perhaps
-    hidden there (lowcost seed 307's toe, its pair's residual 0.00-0.02 px, went 26-31 mm
-    off)."""
+    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and
+    that fit with a residual smaller than a dropped pair's whose blob they take, by more
+    than the trial's median one: if its clean blob, the pair's an outlier
+    (``merged_pair_rms_factor`` times that median), else the new point rests on the merge
+    alone, the other marker perhaps hidden there (lowcost seed 307's toe, its pair's
+    residual 0.00-0.02 px, went 26-31 mm off); if its merged blob, unless the new point
+    lies on the pair's clean blob's ray (:func:`~kisscal.recon.unmerged.on_left_blobs`)."""
     fields = pts.field[drop]
     shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     pair_rms = np.full(len(scene.field), np.inf)
@@ -341,11 +342,12 @@ def _replaced(
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
     typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
-    pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
-    own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
-    own &= on_left_blobs(
-        scene, pts.blob_row[drop], shared, new.xyz_mm, new.own_row, new.merged_row
+    better = new.rms_px + typical < pair_rms[new.merged_row]
+    better |= on_left_blobs(
+        scene, rows, shared, new.xyz_mm, new.rms_px, new.own_row, new.merged_row
     )
+    pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
+    own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row]) & better
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )
