@@ -25,7 +25,7 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import deblended_in, merged_pairs, on_left_blobs, shared_blobs
+from kisscal.recon.unmerged import deblended_in, merged_pairs, predicted_beside, shared_blobs
 
 
 @dataclass(frozen=True)
@@ -325,13 +325,14 @@ def _replaced(
     pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
-    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and
-    that fit with a residual smaller than a dropped pair's whose blob they take, by more
-    than the trial's median one: if its clean blob, the pair's an outlier
-    (``merged_pair_rms_factor`` times that median), else the new point rests on the merge
-    alone, the other marker perhaps hidden there (lowcost seed 307's toe, its pair's
-    residual 0.00-0.02 px, went 26-31 mm off); if its merged blob, unless the new point
-    lies on the pair's clean blob's ray (:func:`~kisscal.recon.unmerged.on_left_blobs`)."""
+    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) nor
+    beside another trajectory's prediction (:func:`~kisscal.recon.unmerged.
+    predicted_beside`: a marker with no point there yet, lowcost seed 303 field 391) and,
+    if a dropped pair's clean blob, fits with a residual smaller than the pair's by more
+    than the trial's median one, the pair's an outlier (``merged_pair_rms_factor`` times
+    that median): else the new point rests on the merge alone, the other marker perhaps
+    hidden there (lowcost seed 307's toe, its pair's residual 0.00-0.02 px, went 26-31 mm
+    off)."""
     fields = pts.field[drop]
     shared = shared_blobs(scene, pts.field, pts.xyz_mm, pts.blob_row)
     pair_rms = np.full(len(scene.field), np.inf)
@@ -342,12 +343,9 @@ def _replaced(
     there = replace(scene, usable=scene.usable & np.isin(scene.field, fields))
     new = deblend_merged(there, rest.marker, rest.field, rest.xyz_mm)
     typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
-    better = new.rms_px + typical < pair_rms[new.merged_row]
-    better |= on_left_blobs(
-        scene, rows, shared, new.xyz_mm, new.rms_px, new.own_row, new.merged_row
-    )
     pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
-    own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row]) & better
+    own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
+    own &= ~predicted_beside(scene, rest.field, rest.xyz_mm, new.field, new.xyz_mm, new.own_row)
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )

@@ -14,7 +14,9 @@ not merged). Such a pair is dropped before deblending, and kept where no new poi
 takes one of its blobs. Its clean blob serves a new point only if the deblended pair
 fits it better than the pulled one by more than noise: a blob beside the image of a
 marker hidden from its camera is flagged the same way (lowcost seed 307's toe beside its
-heel's image), and deblended as if merged it would be 26-31 mm off.
+heel's image), and deblended as if merged it would be 26-31 mm off. Nor does a new point
+whose own blob lies beside the predicted image of another trajectory, a marker with no
+point there yet (:func:`predicted_beside`): that blob may hold it.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from numpy.typing import NDArray
 
 from kisscal.dlt.model import project_rows
 from kisscal.recon.deblend import MergeScene, near_blobs
+from kisscal.recon.hidden import predictions
 
 
 def merged_pairs(
@@ -98,56 +101,36 @@ def deblended_in(blob_row: NDArray[np.int64], rows: NDArray[np.int64]) -> NDArra
     return np.any(np.isin(blob_row, rows) & (blob_row >= 0), axis=1)
 
 
-def on_left_blobs(
+def predicted_beside(
     scene: MergeScene,
-    blob_row: NDArray[np.int64],
-    shared: NDArray[np.bool_],
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
     xyz_mm: NDArray[np.float64],
-    rms_px: NDArray[np.float64],
-    own_row: NDArray[np.int64],
-    merged_row: NDArray[np.int64],
+    row: NDArray[np.int64],
 ) -> NDArray[np.bool_]:
-    """New points that fit every blob they leave of a pair they take a blob from: a
-    clean blob as a third view of the point, the reprojection RMS over its own two blobs
-    (``rms_px``) and that one within the trial's residual limit ``scene.limit_px``; a
-    merged one (``shared``) within ``params.deblend_radius_px`` of its projection. A
-    pair pulled by a merged blob moves along its clean blob's ray, and its marker lies on
-    that ray too; a new point off it is another marker's (lowcost seed 303 field 391: the
-    heel's pair of its own blobs, one beside the hidden toe's image, taken with the
-    ankle-and-heel blob of a third camera, 20.7 mm off and 1.8 px from the pair's clean
-    blob; seed 304's ankle deblended 2.3 mm off projects 0.26 px from it, RMS 0.16 px).
-
-    Parameters
-    ----------
-    scene : MergeScene
-        The trial's 2D table and rig.
-    blob_row : ndarray of int, shape (m, n_cameras)
-        Blobs of the pairs given way (-1: none).
-    shared : ndarray of bool, shape (n_blobs,)
-        Merged blobs (:func:`shared_blobs`).
-    xyz_mm : ndarray, shape (k, 3)
-        The new points, each with its ``rms_px``, ``own_row`` and ``merged_row`` (k,).
-
-    Returns
-    -------
-    ndarray of bool, shape (k,)
-    """
-    pair = np.full(len(scene.field), -1, dtype=np.int64)
-    k, _ = np.nonzero(blob_row >= 0)
-    pair[blob_row[blob_row >= 0]] = k
-    ok = np.ones(len(xyz_mm), dtype=bool)
-    for taken in (own_row, merged_row):
-        j = np.flatnonzero(pair[taken] >= 0)
-        rows = blob_row[pair[taken[j]]]  # (len(j), n_cameras)
-        left = (rows >= 0) & (rows != own_row[j, None]) & (rows != merged_row[j, None])
-        jj, c = np.nonzero(left)
-        b = rows[jj, c]
-        at = project_rows(scene.dlts, scene.camera[b], xyz_mm[j[jj]])
-        d = np.linalg.norm(at - scene.uv[b], axis=1)
-        # the point held where it is: an upper bound of its three-view RMS
-        three = np.sqrt((2.0 * rms_px[j[jj]] ** 2 + d**2) / 3.0)
-        far = np.where(
-            shared[b], ~(d <= scene.params.deblend_radius_px), ~(three <= scene.limit_px)
-        )
-        ok[j[jj[far]]] = False
-    return ok
+    """New points (``field``, ``xyz_mm``) whose blob ``row`` lies within
+    ``params.deblend_radius_px`` of the image of another trajectory's constant-velocity
+    prediction (:func:`~kisscal.recon.hidden.predictions` through the points ``p_field``,
+    ``p_xyz``; another's: farther than ``two_camera_continuity_mm`` from the new point):
+    the blob may be that marker's, merged with it or its alone (lowcost seed 303 field
+    391: the ankle's blob, merged with the heel's, deblended as the heel's own, 20.7 mm
+    off; the ankle had no point there yet)."""
+    params = scene.params
+    tol = params.two_camera_continuity_mm
+    pf, pxyz, _ = predictions(p_field, p_xyz, params.two_camera_step_mm, tol)
+    out = np.zeros(len(row), dtype=bool)
+    if len(pf) == 0 or len(row) == 0:
+        return out
+    order = np.argsort(pf, kind="stable")
+    pf, pxyz = pf[order], pxyz[order]
+    lo = np.searchsorted(pf, field, side="left")
+    n = np.searchsorted(pf, field, side="right") - lo
+    k = np.repeat(np.arange(len(row)), n)
+    q = np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())
+    other = np.linalg.norm(pxyz[q] - xyz_mm[k], axis=1) > tol
+    k, q = k[other], q[other]
+    img = project_rows(scene.dlts, scene.camera[row[k]], pxyz[q])
+    near = np.linalg.norm(img - scene.uv[row[k]], axis=1) <= params.deblend_radius_px
+    out[k[near]] = True
+    return out
