@@ -110,15 +110,20 @@ def predicted_beside(
     row: NDArray[np.int64],
 ) -> NDArray[np.bool_]:
     """New points (``field``, ``xyz_mm``) whose blob ``row`` lies within
-    ``params.deblend_radius_px`` of the image of another trajectory's constant-velocity
-    prediction (:func:`~kisscal.recon.hidden.predictions` through the points ``p_field``,
-    ``p_xyz``; another's: farther than ``two_camera_continuity_mm`` from the new point):
-    the blob may be that marker's, merged with it or its alone (lowcost seed 303 field
-    391: the ankle's blob, merged with the heel's, deblended as the heel's own, 20.7 mm
-    off; the ankle had no point there yet)."""
+    ``params.deblend_radius_px`` of the image of the constant-velocity prediction of
+    another trajectory that stops there (:func:`~kisscal.recon.hidden.predictions`
+    through the points ``p_field``, ``p_xyz``; another's: farther than
+    ``two_camera_continuity_mm`` from the new point): the blob may be that marker's,
+    merged with it or its alone (lowcost seed 303 field 391: the ankle's blob, merged
+    with the heel's, deblended as the heel's own, 20.7 mm off). A trajectory that goes on
+    through a point of its own there does not count (seed 306 field 340: the ankle's
+    own blob 2.8 px from the image of the heel, hidden from that camera)."""
     params = scene.params
     tol = params.two_camera_continuity_mm
-    pf, pxyz, _ = predictions(p_field, p_xyz, params.two_camera_step_mm, tol)
+    pf, pxyz, stops = predictions(p_field, p_xyz, params.two_camera_step_mm, tol)
+    # a trajectory with a point there accounts for its marker: a blob beside its image
+    # is a marker's hidden from that camera, as shared_blobs judges held ones
+    pf, pxyz = pf[stops], pxyz[stops]
     out = np.zeros(len(row), dtype=bool)
     if len(pf) == 0 or len(row) == 0:
         return out
