@@ -25,7 +25,13 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import deblended_in, merged_pairs, predicted_beside, shared_blobs
+from kisscal.recon.unmerged import (
+    deblended_in,
+    merged_pairs,
+    predicted_beside,
+    predicted_pairs,
+    shared_blobs,
+)
 
 
 @dataclass(frozen=True)
@@ -271,7 +277,7 @@ def reconstruct_trial(
                 break
             pts = _with_points(pts, new, camera)
         if params.deblend_hidden and body is not None:
-            pts = _hidden(pts, scene, body)
+            pts = _hidden_over_pairs(pts, scene, body)
             seeded = _seeded(pts, scene, body)  # no trajectory to predict from: last
             if seeded is not pts:  # and the trajectories they start carried on
                 pts = _hidden(seeded, scene, body)
@@ -380,6 +386,24 @@ def _ends(pts: Points3D, scene: MergeScene) -> Points3D:
             break
         pts = _with_points(pts, new, scene.camera)
     return pts
+
+
+def _hidden_over_pairs(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+    """:func:`_hidden` without the two-camera points whose blobs both lie beside lost
+    trajectories' predictions (:func:`~kisscal.recon.unmerged.predicted_pairs`): the
+    hidden markers are placed from those blobs; a pair whose blobs no point takes is put
+    back as it was."""
+    drop = predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    if not drop.any():
+        return _hidden(pts, scene, body)
+    out = _hidden(_without(pts, drop), scene, body)
+    rows = np.sort(pts.blob_row[drop], axis=1)[:, -2:]
+    back = np.all(out.marker[rows] < 0, axis=1)
+    if not back.any():
+        return out
+    k = np.flatnonzero(drop)[back]
+    again = Deblended(pts.xyz_mm[k], pts.field[k], pts.rms_px[k], rows[back, 1], rows[back, 0])
+    return _with_points(out, again, scene.camera)
 
 
 def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:

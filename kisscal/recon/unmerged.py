@@ -139,3 +139,23 @@ def predicted_beside(
     near = np.linalg.norm(img - scene.uv[row[k]], axis=1) <= params.deblend_radius_px
     out[k[near]] = True
     return out
+
+
+def predicted_pairs(
+    scene: MergeScene,
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    blob_row: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """Two-camera points each of whose blobs lies beside the predicted image of another
+    trajectory that stops there (:func:`predicted_beside`): both blobs may hold a marker
+    the pair leaves without a point, and the pair sits off its own (lowcost seed 307
+    field 397: the ankle's pair of blobs merged with the toe's and with the heel's, 14.7 mm
+    off, both of these lost there). Arguments as :func:`merged_pairs`."""
+    two = np.flatnonzero((blob_row >= 0).sum(axis=1) == 2)
+    rows = np.sort(blob_row[two], axis=1)[:, -2:]
+    f, xyz = np.repeat(p_field[two], 2), np.repeat(p_xyz[two], 2, axis=0)
+    beside = predicted_beside(scene, p_field, p_xyz, f, xyz, rows.ravel()).reshape(-1, 2)
+    out = np.zeros(len(p_field), dtype=bool)
+    out[two[beside.all(axis=1)]] = True
+    return out
