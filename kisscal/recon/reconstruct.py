@@ -277,7 +277,7 @@ def reconstruct_trial(
                 break
             pts = _with_points(pts, new, camera)
         if params.deblend_hidden and body is not None:
-            pts = _hidden_over_pairs(pts, scene, body)
+            pts = hidden_over_pairs(pts, scene, body)
             seeded = _seeded(pts, scene, body)  # no trajectory to predict from: last
             if seeded is not pts:  # and the trajectories they start carried on
                 pts = _hidden(seeded, scene, body)
@@ -388,7 +388,7 @@ def _ends(pts: Points3D, scene: MergeScene) -> Points3D:
     return pts
 
 
-def _hidden_over_pairs(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+def hidden_over_pairs(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     """:func:`_hidden` without the two-camera points whose blobs both lie beside lost
     trajectories' predictions (:func:`~kisscal.recon.unmerged.predicted_pairs`): the
     hidden markers are placed from those blobs; a pair whose blobs no point takes is put

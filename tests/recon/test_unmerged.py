@@ -7,11 +7,12 @@ import pytest
 
 from kisscal.dlt.model import project, ray_points
 from kisscal.recon import ReconParams
+from kisscal.recon.body import RigidTriangles
 from kisscal.recon.deblend import MergeScene
 from kisscal.recon.epipolar import camera_centre_mm
 from kisscal.recon.group import residual_limit_px
-from kisscal.recon.reconstruct import points_from_markers, unmerged
-from kisscal.recon.unmerged import merged_pairs
+from kisscal.recon.reconstruct import hidden_over_pairs, points_from_markers, unmerged
+from kisscal.recon.unmerged import merged_pairs, predicted_pairs
 
 from .rig import SIZE_PX, make_rig
 from .scenario import observe
@@ -254,3 +255,54 @@ def test_a_blob_beside_another_trajectorys_prediction_is_no_new_points_own(seed:
     at = after.xyz_mm[after.field == 8]
     assert np.linalg.norm(at - w, axis=1).min() > 5.0
     np.testing.assert_allclose(_nearest(after, xyz, 0), _nearest(pts, xyz, 0), atol=1e-9)
+
+
+def _lost_pair(seed: int, heel_goes_on: bool) -> tuple:
+    """Three cameras, 8 fields: a heel H and a toe T 150 mm apart, each from cameras 0
+    and 2 up to field 6; at field 7 (lowcost seed 307 field 397) a pair of one blob 1 px
+    beside T's image in camera 0 and one beside H's in camera 2, H and T lost there (or
+    H from cameras 0 and 1, ``heel_goes_on``). Returns the points and their scene."""
+    dlts = make_rig(seed, n_cameras=3)
+    n = 8
+    t = np.arange(n)[:, None]
+    heel = np.array([-100.0, 0.0, 900.0]) + t * [15.0, 0.0, 0.0]
+    toe = heel + [150.0, 0.0, 60.0]
+    rows = []
+    for f in range(n - 1):
+        for k, x in enumerate((heel, toe)):
+            rows += [(f, c, *project(dlts[c], x[f : f + 1])[0], 2 * f + k) for c in (0, 2)]
+    last = 2 * (n - 1)
+    rows.append((n - 1, 0, *(project(dlts[0], toe[-1:])[0] + [1.0, 0.0]), last))
+    rows.append((n - 1, 2, *(project(dlts[2], heel[-1:])[0] + [1.0, 0.0]), last))
+    if heel_goes_on:
+        rows += [(n - 1, c, *project(dlts[c], heel[-1:])[0], last + 1) for c in (0, 1)]
+    table = np.array(rows)
+    field, camera, marker = (table[:, i].astype(np.int64) for i in (0, 1, 4))
+    params = ReconParams(stationary_filter=False)
+    pts = points_from_markers(marker, field, camera, table[:, 2:4], dlts, 2)
+    usable = np.ones(len(field), dtype=bool)
+    scene = MergeScene(field, camera, table[:, 2:4], usable, dlts, params, 0.2)
+    return pts, scene, np.stack([heel, toe], axis=1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_at_two_lost_markers_images_is_set_aside(seed: int) -> None:
+    pts, scene, truth = _lost_pair(seed, heel_goes_on=False)
+    pair = np.flatnonzero(pts.field == 7)
+    assert len(pair) == 1
+    assert np.linalg.norm(truth[7] - pts.xyz_mm[pair], axis=1).min() > 25.0
+    flagged = predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    np.testing.assert_array_equal(np.flatnonzero(flagged), pair)
+    # one of them measured there: its image explains nothing lost, the pair stays
+    pts, scene, _ = _lost_pair(seed, heel_goes_on=True)
+    assert not predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+
+
+def test_a_pair_set_aside_that_nothing_replaces_is_put_back() -> None:
+    # no segment of the marker set fits H and T (1 m): the hidden passes place nothing
+    pts, scene, _ = _lost_pair(0, heel_goes_on=False)
+    body = RigidTriangles(np.array([1000.0]), np.array([1100.0]), np.array([1200.0]))
+    after = hidden_over_pairs(pts, scene, body)
+    order = np.lexsort(after.xyz_mm.T)
+    np.testing.assert_array_equal(after.xyz_mm[order], pts.xyz_mm[np.lexsort(pts.xyz_mm.T)])
+    np.testing.assert_array_equal(after.marker >= 0, pts.marker >= 0)
