@@ -213,7 +213,8 @@ def reconstruct_trial(
     split or dropped, and the blobs this frees matched once more; points at a camera (its
     LED ring seen by the others) dropped. On small rigs (:func:`deblends`), two-camera points
     made of two merged blobs are replaced by deblended ones (:func:`unmerged`), then merged
-    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden`,
+    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden` with
+    the pairs at lost trajectories' predictions set aside (:func:`hidden_over_pairs`),
     :mod:`~kisscal.recon.seeded`, :mod:`~kisscal.recon.ends`).
 
     Parameters
