@@ -25,7 +25,13 @@ from kisscal.recon.match import match_trial
 from kisscal.recon.params import DEFAULT_PARAMS, ReconParams
 from kisscal.recon.seeded import deblend_seeded
 from kisscal.recon.stationary import false_detections
-from kisscal.recon.unmerged import deblended_in, merged_pairs, shared_blobs
+from kisscal.recon.unmerged import (
+    deblended_in,
+    merged_pairs,
+    predicted_beside,
+    predicted_pairs,
+    shared_blobs,
+)
 
 
 @dataclass(frozen=True)
@@ -207,7 +213,8 @@ def reconstruct_trial(
     split or dropped, and the blobs this frees matched once more; points at a camera (its
     LED ring seen by the others) dropped. On small rigs (:func:`deblends`), two-camera points
     made of two merged blobs are replaced by deblended ones (:func:`unmerged`), then merged
-    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden`,
+    blobs are deblended (:mod:`kisscal.recon.deblend`, :mod:`~kisscal.recon.hidden` with
+    the pairs at lost trajectories' predictions set aside (:func:`hidden_over_pairs`),
     :mod:`~kisscal.recon.seeded`, :mod:`~kisscal.recon.ends`).
 
     Parameters
@@ -271,7 +278,7 @@ def reconstruct_trial(
                 break
             pts = _with_points(pts, new, camera)
         if params.deblend_hidden and body is not None:
-            pts = _hidden(pts, scene, body)
+            pts = hidden_over_pairs(pts, scene, body)
             seeded = _seeded(pts, scene, body)  # no trajectory to predict from: last
             if seeded is not pts:  # and the trajectories they start carried on
                 pts = _hidden(seeded, scene, body)
@@ -325,7 +332,9 @@ def _replaced(
     pts: Points3D, drop: NDArray[np.bool_], scene: MergeScene
 ) -> tuple[Points3D, Deblended]:
     """``pts`` without the points ``drop`` marks, and the deblended points of their fields
-    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) and,
+    whose own blob is no merged one (:func:`~kisscal.recon.unmerged.shared_blobs`) nor
+    beside another trajectory's prediction (:func:`~kisscal.recon.unmerged.
+    predicted_beside`: a marker with no point there yet, lowcost seed 303 field 391) and,
     if a dropped pair's clean blob, fits with a residual smaller than the pair's by more
     than the trial's median one, the pair's an outlier (``merged_pair_rms_factor`` times
     that median): else the new point rests on the merge alone, the other marker perhaps
@@ -343,6 +352,7 @@ def _replaced(
     typical = float(np.median(pts.rms_px))  # a marker's residual: differences below it are noise
     pair_rms[pair_rms <= scene.params.merged_pair_rms_factor * typical] = 0.0
     own = ~shared[new.own_row] & (new.rms_px + typical < pair_rms[new.own_row])
+    own &= ~predicted_beside(scene, rest.field, rest.xyz_mm, new.field, new.xyz_mm, new.own_row)
     return rest, Deblended(
         new.xyz_mm[own], new.field[own], new.rms_px[own], new.own_row[own], new.merged_row[own]
     )
@@ -377,6 +387,24 @@ def _ends(pts: Points3D, scene: MergeScene) -> Points3D:
             break
         pts = _with_points(pts, new, scene.camera)
     return pts
+
+
+def hidden_over_pairs(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
+    """:func:`_hidden` without the two-camera points whose blobs both lie beside lost
+    trajectories' predictions (:func:`~kisscal.recon.unmerged.predicted_pairs`): the
+    hidden markers are placed from those blobs; a pair whose blobs no point takes is put
+    back as it was."""
+    drop = predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    if not drop.any():
+        return _hidden(pts, scene, body)
+    out = _hidden(_without(pts, drop), scene, body)
+    rows = np.sort(pts.blob_row[drop], axis=1)[:, -2:]
+    back = np.all(out.marker[rows] < 0, axis=1)
+    if not back.any():
+        return out
+    k = np.flatnonzero(drop)[back]
+    again = Deblended(pts.xyz_mm[k], pts.field[k], pts.rms_px[k], rows[back, 1], rows[back, 0])
+    return _with_points(out, again, scene.camera)
 
 
 def _hidden(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:

@@ -14,7 +14,9 @@ not merged). Such a pair is dropped before deblending, and kept where no new poi
 takes one of its blobs. Its clean blob serves a new point only if the deblended pair
 fits it better than the pulled one by more than noise: a blob beside the image of a
 marker hidden from its camera is flagged the same way (lowcost seed 307's toe beside its
-heel's image), and deblended as if merged it would be 26-31 mm off.
+heel's image), and deblended as if merged it would be 26-31 mm off. Nor does a new point
+whose own blob lies beside the predicted image of another trajectory, a marker with no
+point there yet (:func:`predicted_beside`): that blob may hold it.
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.dlt.model import project_rows
 from kisscal.recon.deblend import MergeScene, near_blobs
+from kisscal.recon.hidden import predictions
 
 
 def merged_pairs(
@@ -95,3 +99,63 @@ def deblended_in(blob_row: NDArray[np.int64], rows: NDArray[np.int64]) -> NDArra
     ndarray of bool, shape (m,)
     """
     return np.any(np.isin(blob_row, rows) & (blob_row >= 0), axis=1)
+
+
+def predicted_beside(
+    scene: MergeScene,
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    field: NDArray[np.int64],
+    xyz_mm: NDArray[np.float64],
+    row: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """New points (``field``, ``xyz_mm``) whose blob ``row`` lies within
+    ``params.deblend_radius_px`` of the image of the constant-velocity prediction of
+    another trajectory that stops there (:func:`~kisscal.recon.hidden.predictions`
+    through the points ``p_field``, ``p_xyz``; another's: farther than
+    ``two_camera_continuity_mm`` from the new point): the blob may be that marker's,
+    merged with it or its alone (lowcost seed 303 field 391: the ankle's blob, merged
+    with the heel's, deblended as the heel's own, 20.7 mm off). A trajectory that goes on
+    through a point of its own there does not count (seed 306 field 340: the ankle's
+    own blob 2.8 px from the image of the heel, hidden from that camera)."""
+    params = scene.params
+    tol = params.two_camera_continuity_mm
+    pf, pxyz, stops = predictions(p_field, p_xyz, params.two_camera_step_mm, tol)
+    # a trajectory with a point there accounts for its marker: a blob beside its image
+    # is a marker's hidden from that camera, as shared_blobs judges held ones
+    pf, pxyz = pf[stops], pxyz[stops]
+    out = np.zeros(len(row), dtype=bool)
+    if len(pf) == 0 or len(row) == 0:
+        return out
+    order = np.argsort(pf, kind="stable")
+    pf, pxyz = pf[order], pxyz[order]
+    lo = np.searchsorted(pf, field, side="left")
+    n = np.searchsorted(pf, field, side="right") - lo
+    k = np.repeat(np.arange(len(row)), n)
+    q = np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())
+    other = np.linalg.norm(pxyz[q] - xyz_mm[k], axis=1) > tol
+    k, q = k[other], q[other]
+    img = project_rows(scene.dlts, scene.camera[row[k]], pxyz[q])
+    near = np.linalg.norm(img - scene.uv[row[k]], axis=1) <= params.deblend_radius_px
+    out[k[near]] = True
+    return out
+
+
+def predicted_pairs(
+    scene: MergeScene,
+    p_field: NDArray[np.int64],
+    p_xyz: NDArray[np.float64],
+    blob_row: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """Two-camera points each of whose blobs lies beside the predicted image of another
+    trajectory that stops there (:func:`predicted_beside`): both blobs may hold a marker
+    the pair leaves without a point, and the pair sits off its own (lowcost seed 307
+    field 397: the ankle's pair of blobs merged with the toe's and with the heel's, 14.7 mm
+    off, both of these lost there). Arguments as :func:`merged_pairs`."""
+    two = np.flatnonzero((blob_row >= 0).sum(axis=1) == 2)
+    rows = np.sort(blob_row[two], axis=1)[:, -2:]
+    f, xyz = np.repeat(p_field[two], 2), np.repeat(p_xyz[two], 2, axis=0)
+    beside = predicted_beside(scene, p_field, p_xyz, f, xyz, rows.ravel()).reshape(-1, 2)
+    out = np.zeros(len(p_field), dtype=bool)
+    out[two[beside.all(axis=1)]] = True
+    return out

@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kisscal.dlt.model import project
+from kisscal.dlt.model import project, ray_points
 from kisscal.recon import ReconParams
+from kisscal.recon.body import RigidTriangles
 from kisscal.recon.deblend import MergeScene
 from kisscal.recon.epipolar import camera_centre_mm
 from kisscal.recon.group import residual_limit_px
-from kisscal.recon.reconstruct import points_from_markers, unmerged
-from kisscal.recon.unmerged import merged_pairs
+from kisscal.recon.reconstruct import hidden_over_pairs, points_from_markers, unmerged
+from kisscal.recon.unmerged import merged_pairs, predicted_pairs
 
 from .rig import SIZE_PX, make_rig
 from .scenario import observe
@@ -188,3 +189,120 @@ def test_a_pair_nothing_replaces_stays() -> None:
     after = unmerged(pts, scene)
     np.testing.assert_array_equal(after.xyz_mm, pts.xyz_mm)
     np.testing.assert_array_equal(after.marker, pts.marker)
+
+
+def _ray_point(dlts, cam: int, uv: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """The point of camera ``cam``'s ray through ``uv`` nearest to ``near``."""
+    return ray_points(dlts, np.array([cam]), uv[None], near[None])[0]
+
+
+def _beside_prediction(seed: int) -> tuple:
+    """Four cameras, 12 fields; at field F = 8 (lowcost seed 303 field 391): a heel H
+    (cameras 0 and 3) whose camera-0 blob lies 1.5 px beside the image of a toe T hidden
+    from camera 0, 300 mm behind H (T from cameras 1 and 3), so H's pair is flagged;
+    and an ankle X (cameras 1 and 2) seen only by camera 2 at F, its blob there where
+    the ray of H's blob, deblended as if merged with T's image, meets camera 2's: that
+    makes a point W near H, which continues H's trajectory. Returns the DLTs, the 2D table
+    (field, camera, uv, point of each blob), truth (n, 3 markers, 3) and W."""
+    dlts = make_rig(seed, n_cameras=4)
+    n, F = 12, 8
+    t = (np.arange(n) - F)[:, None]
+    h = np.array([0.0, 0.0, 900.0]) + t * [15.0, 0.0, 0.0]
+    b0 = project(dlts[0], h[F : F + 1])[0]
+    delta = np.array([1.5, 0.0])
+    ray = h[F] - camera_centre_mm(dlts[0])
+    t_f = _ray_point(dlts, 0, b0 + delta, h[F] + 300.0 * ray / np.linalg.norm(ray))
+    toe = t_f + t * [15.0, 0.0, 40.0]  # apart from H's image in the other fields
+    w = h[F]
+    for _ in range(5):  # the deblended image's weights: 1 / depth^2 (deblend module)
+        ratio = ((dlts[0, 8:11] @ w + 1.0) / (dlts[0, 8:11] @ t_f + 1.0)) ** 2
+        w = _ray_point(dlts, 0, b0 - ratio * delta, h[F])
+    u2 = project(dlts[2], w[None])[0]
+    ray2 = w - camera_centre_mm(dlts[2])
+    x = _ray_point(dlts, 2, u2, w + 200.0 * ray2 / np.linalg.norm(ray2)) + t * [15.0, 0.0, -40.0]
+    xyz = np.stack([h, toe, x], axis=1)
+    seen = {0: (0, 3), 1: (1, 3), 2: (1, 2)}
+    rows = []
+    for f in range(n):
+        for k, cams in seen.items():
+            cams = (2,) if (k == 2 and f == F) else cams if (k < 2 or f < F) else ()
+            point = f * 3 + k if len(cams) == 2 else -1
+            for c in cams:
+                rows.append((f, c, *project(dlts[c], xyz[f, k : k + 1])[0], point))
+    table = np.array(rows)
+    field, camera, point = (table[:, i].astype(np.int64) for i in (0, 1, 4))
+    return dlts, (field, camera, table[:, 2:4], point), xyz, w
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_blob_beside_another_trajectorys_prediction_is_no_new_points_own(seed: int) -> None:
+    # H's pair, flagged for T's image beside its blob, must not give way to W, whose own
+    # blob is X's (X, with no point at F, predicted there by its trajectory)
+    dlts, (field, camera, uv, point), xyz, w = _beside_prediction(seed)
+    _, marker = np.unique(point, return_inverse=True)
+    marker = np.where(point >= 0, marker - (point < 0).any(), -1)
+    params = ReconParams(stationary_filter=False)
+    pts = points_from_markers(marker, field, camera, uv, dlts, 2)
+    limit = residual_limit_px(pts.rms_px, params)
+    scene = MergeScene(field, camera, uv, np.ones(len(field), dtype=bool), dlts, params, limit)
+    flagged = merged_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    heel = np.flatnonzero(pts.field == 8)[
+        np.argmin(np.linalg.norm(pts.xyz_mm[pts.field == 8] - xyz[8, 0], axis=1))
+    ]
+    assert flagged[heel]
+    assert np.linalg.norm(w - xyz[8, 0]) > 5.0
+    after = unmerged(pts, scene)
+    at = after.xyz_mm[after.field == 8]
+    assert np.linalg.norm(at - w, axis=1).min() > 5.0
+    np.testing.assert_allclose(_nearest(after, xyz, 0), _nearest(pts, xyz, 0), atol=1e-9)
+
+
+def _lost_pair(seed: int, heel_goes_on: bool) -> tuple:
+    """Three cameras, 8 fields: a heel H and a toe T 150 mm apart, each from cameras 0
+    and 2 up to field 6; at field 7 (lowcost seed 307 field 397) a pair of one blob 1 px
+    beside T's image in camera 0 and one beside H's in camera 2, H and T lost there (or
+    H from cameras 0 and 1, ``heel_goes_on``). Returns the points and their scene."""
+    dlts = make_rig(seed, n_cameras=3)
+    n = 8
+    t = np.arange(n)[:, None]
+    heel = np.array([-100.0, 0.0, 900.0]) + t * [15.0, 0.0, 0.0]
+    toe = heel + [150.0, 0.0, 60.0]
+    rows = []
+    for f in range(n - 1):
+        for k, x in enumerate((heel, toe)):
+            rows += [(f, c, *project(dlts[c], x[f : f + 1])[0], 2 * f + k) for c in (0, 2)]
+    last = 2 * (n - 1)
+    rows.append((n - 1, 0, *(project(dlts[0], toe[-1:])[0] + [1.0, 0.0]), last))
+    rows.append((n - 1, 2, *(project(dlts[2], heel[-1:])[0] + [1.0, 0.0]), last))
+    if heel_goes_on:
+        rows += [(n - 1, c, *project(dlts[c], heel[-1:])[0], last + 1) for c in (0, 1)]
+    table = np.array(rows)
+    field, camera, marker = (table[:, i].astype(np.int64) for i in (0, 1, 4))
+    params = ReconParams(stationary_filter=False)
+    pts = points_from_markers(marker, field, camera, table[:, 2:4], dlts, 2)
+    usable = np.ones(len(field), dtype=bool)
+    scene = MergeScene(field, camera, table[:, 2:4], usable, dlts, params, 0.2)
+    return pts, scene, np.stack([heel, toe], axis=1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_at_two_lost_markers_images_is_set_aside(seed: int) -> None:
+    pts, scene, truth = _lost_pair(seed, heel_goes_on=False)
+    pair = np.flatnonzero(pts.field == 7)
+    assert len(pair) == 1
+    assert np.linalg.norm(truth[7] - pts.xyz_mm[pair], axis=1).min() > 25.0
+    flagged = predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row)
+    np.testing.assert_array_equal(np.flatnonzero(flagged), pair)
+    # one of them measured there: its image explains nothing lost, the pair stays
+    pts, scene, _ = _lost_pair(seed, heel_goes_on=True)
+    assert not predicted_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row).any()
+
+
+def test_a_pair_set_aside_that_nothing_replaces_is_put_back() -> None:
+    # no segment of the marker set fits H and T (1 m): the hidden passes place nothing
+    pts, scene, _ = _lost_pair(0, heel_goes_on=False)
+    body = RigidTriangles(np.array([1000.0]), np.array([1100.0]), np.array([1200.0]))
+    after = hidden_over_pairs(pts, scene, body)
+    order = np.lexsort(after.xyz_mm.T)
+    np.testing.assert_array_equal(after.xyz_mm[order], pts.xyz_mm[np.lexsort(pts.xyz_mm.T)])
+    np.testing.assert_array_equal(after.marker >= 0, pts.marker >= 0)
