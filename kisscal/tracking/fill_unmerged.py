@@ -135,11 +135,16 @@ def unmerged_depth_fill(
     )
     if got is None:
         return None
+    # the lateral error where the ray is an unmerged blob's (the fit keeps one camera)
+    mine = np.isin(got.rows, rows)
     side = np.zeros(hi - lo)
-    side[ks] = lateral
+    by_row = np.argsort(rows)
+    side[spare.field[got.rows[mine]] - lo] = lateral[
+        by_row[np.searchsorted(rows[by_row], got.rows[mine])]
+    ]
     sd = np.hypot(got.sd_mm, side)
     placed = path_runs(sd <= params.ray_depth_max_error_mm)
-    if not placed[ks].any():
+    if not placed[spare.field[got.rows[mine]] - lo].any():
         return None
     xyz, sd = np.where(placed[:, None], got.xyz_mm, np.nan), np.where(placed, sd, np.nan)
     return ChainFill(xyz, sd, got.partners, got.rows[placed[spare.field[got.rows] - lo]])

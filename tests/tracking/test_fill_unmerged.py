@@ -76,6 +76,9 @@ def test_a_blob_merged_with_a_measured_neighbour_places_the_marker_on_its_own_ra
 def test_a_placed_neighbour_s_error_counts_and_its_image_alone_is_not_unmerged():
     xyz, dense, spare = _scene(5)
     expected = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    as_measured = unmerged_depth_fill(
+        dense, 3, GAP.start, GAP.stop, spare, PARAMS, expected=expected
+    )
     # the neighbour placed by another fill, 1.5 mm off, expecting 1.5 mm
     dense[4, GAP] += [0.0, 0.0, 1.5]
     expected[4, GAP] = 1.5
@@ -84,6 +87,7 @@ def test_a_placed_neighbour_s_error_counts_and_its_image_alone_is_not_unmerged()
     placed = np.isfinite(got.sd_mm)
     err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
     assert np.sqrt(np.mean(err**2)) < 1.5 * np.sqrt(np.mean(got.sd_mm[placed] ** 2))
+    assert np.all(got.sd_mm[placed] > as_measured.sd_mm[placed])  # its error counted
     # its error not known: not unmerged
     expected[4, GAP] = np.nan
     assert (
