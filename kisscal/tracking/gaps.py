@@ -269,6 +269,9 @@ SECOND_PASS = (
 #: pelvis's sacrum only at its track's end). Not before: a run it splits is walked by
 #: the chain fill from a placed edge (kiss 3 seed 306 RTIB, 4.6 mm RMS off expecting
 #: 2.7), and before the body it took lowcost 311 RANK on the toe's sphere 19.7 mm off.
+#: Last, the same depth on the rays of blobs merged with a neighbour placed by then, its
+#: share taken out (:mod:`.fill_unmerged`; lowcost 311 RANK in line with its heel). On
+#: runs of any length: what is left of a gap may be shorter than a spline bridges.
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
