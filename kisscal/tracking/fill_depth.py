@@ -12,7 +12,11 @@ distances of the marker's measured samples on each side (``fill_context_fields``
 The fill is kept only when the same spline, run on stretches of the marker's own measured
 samples of the gap's length (:func:`~kisscal.tracking.bodyfill.pseudo_gaps`), misses their
 distance from the camera by at most ``ray_depth_max_error_mm`` RMS: a marker turning
-towards the camera in the gap is left to the other fills.
+towards the camera in the gap is left to the other fills. A field is left out where a
+second camera's blob of the marker lies farther than ``ray_depth_max_error_mm`` from the
+point (:func:`~kisscal.tracking.raychain.off_rays`, as the sphere fill does): one of the
+two blobs is not the marker's alone (lowcost seed 306's heel, its image merged with the
+ankle's in the camera taken, 7-13 mm off expecting 2.5, its own blob in another).
 
 References
 ----------
@@ -29,7 +33,13 @@ from scipy.interpolate import make_interp_spline
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_blobs, one_camera_blobs, path_runs
+from kisscal.tracking.raychain import (
+    ChainFill,
+    chain_blobs,
+    off_rays,
+    one_camera_blobs,
+    path_runs,
+)
 from kisscal.tracking.rayfill import SpareBlobs
 
 
@@ -87,6 +97,7 @@ def depth_ray_fill(
     ks, rows = chain_blobs(series, lo, hi, spare, params)
     if ks.size == 0:
         return None
+    every = ks, rows
     cam, ks, rows = one_camera_blobs(ks, rows, spare)
     centre = spare.centres[cam]
     own, a, b = series, lo, hi
@@ -100,16 +111,19 @@ def depth_ray_fill(
     if depth is None or not err <= params.ray_depth_max_error_mm:
         return None
     depth = depth[lo - a : hi - a]
+    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
+    d *= np.sign((series[lo - 1] - centre) @ d.T)[:, None]  # towards the marker
+    at = centre + depth[ks, None] * d
     has = np.zeros(hi - lo, dtype=bool)
     has[ks] = True
+    # a second camera's blob off the point: one of the two is not the marker's alone
+    has[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
     placed = path_runs(has)
     if not placed.any():
         return None
     take = placed[ks]
     ks, rows = ks[take], rows[take]
-    d = ray_directions(spare.dlts[spare.camera[rows]], spare.uv_px[rows])
-    d *= np.sign((series[lo - 1] - centre) @ d.T)[:, None]  # towards the marker
     xyz = np.full((hi - lo, 3), np.nan)
-    xyz[ks] = centre + depth[ks, None] * d
+    xyz[ks] = at[take]
     sd = np.where(placed, err, np.nan)
     return ChainFill(xyz, sd, (), rows)

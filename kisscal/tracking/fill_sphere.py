@@ -277,6 +277,19 @@ def _crowded(
     return out
 
 
+def alone_blobs(
+    dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Gap offsets and rows of the blobs of track ``t`` followed in the image through the
+    gap [lo, hi) (:func:`~kisscal.tracking.raychain.chain_blobs`) that lie farther than
+    twice ``ray_chain_gate_px`` from every other track known there (:func:`_crowded`)."""
+    ks, rows = chain_blobs(dense[t], lo, hi, spare, params)
+    if ks.size == 0:
+        return ks, rows
+    alone = ~_crowded(dense, t, lo, ks, rows, spare, 2.0 * params.ray_chain_gate_px)
+    return ks[alone], rows[alone]
+
+
 def _contradicted(
     series: NDArray, own: NDArray, centre: NDArray, f0: int, mean: NDArray, msd: NDArray, err: float
 ) -> bool:
@@ -304,6 +317,7 @@ def sphere_depth_fill(
     params: TrackingParams,
     measured: NDArray | None = None,
     known: NDArray | None = None,
+    blobs: tuple[NDArray, NDArray] | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
     3; NaN where not measured) on the rays of its own blobs in the camera that sees most
@@ -313,15 +327,13 @@ def sphere_depth_fill(
     With ``measured`` ((n_fields,) bool), the ends of the fit are only those samples of
     the track. With ``known`` ((n_tracks, n_fields) bool, the measured samples), a
     partner placed by another fill counts its error too (:func:`_placed_factor`). The
-    blobs taken are not marked used here."""
+    blobs taken are not marked used here. ``blobs``: the gap offsets and rows of the
+    marker's blobs, when the caller chose them (:mod:`.fill_unmerged`); by default
+    those followed in the image that no other track's image is near."""
     series = dense[t]
     if lo < 2 or hi + 1 >= len(series) or not np.all(np.isfinite(series[[lo - 1, hi]])):
         return None
-    ks, rows = chain_blobs(series, lo, hi, spare, params)
-    if ks.size == 0:
-        return None
-    alone = ~_crowded(dense, t, lo, ks, rows, spare, 2.0 * params.ray_chain_gate_px)
-    ks, rows = ks[alone], rows[alone]
+    ks, rows = alone_blobs(dense, t, lo, hi, spare, params) if blobs is None else blobs
     if ks.size == 0:
         return None
     every = ks, rows

@@ -43,6 +43,7 @@ from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_table import Fill
+from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs
@@ -121,7 +122,9 @@ class _Gap:
     inside the track, -1 for the fields before its first measured sample, 1 after its
     last. ``absent``: rows of markers no track took (:mod:`.fill_absent`), joint fills.
     ``known`` (n_tracks, n_fields) bool: every track's measured samples (the second
-    passes': the sphere fill counts a placed partner's error)."""
+    passes': the sphere fill counts a placed partner's error). ``expected`` (n_tracks,
+    n_fields): the error of each track's known samples, NaN where none (the last
+    pass's, :mod:`.fill_unmerged`)."""
 
     dense: NDArray
     t: int
@@ -135,6 +138,7 @@ class _Gap:
     end: int = 0
     absent: NDArray | None = None
     known: NDArray | None = None
+    expected: NDArray | None = None
 
 
 def _placer(method: Callable) -> Callable:
@@ -265,7 +269,14 @@ SECOND_PASS = (
 #: pelvis's sacrum only at its track's end). Not before: a run it splits is walked by
 #: the chain fill from a placed edge (kiss 3 seed 306 RTIB, 4.6 mm RMS off expecting
 #: 2.7), and before the body it took lowcost 311 RANK on the toe's sphere 19.7 mm off.
-LAST_PASS = (*SECOND_PASS, *(f for f in FILLS if f.name == "sphere depth"))
+#: Last, the same depth on the rays of blobs merged with a neighbour placed by then, its
+#: share taken out (:mod:`.fill_unmerged`; lowcost 311 RANK in line with its heel). On
+#: runs of any length: what is left of a gap may be shorter than a spline bridges.
+LAST_PASS = (
+    *SECOND_PASS,
+    *(f for f in FILLS if f.name == "sphere depth"),
+    Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected")),
+)
 
 
 def _left(a: int, placed: NDArray) -> list[tuple[int, int]]:
@@ -345,18 +356,20 @@ def _second_pass(
     if spare is None:
         return []
     done = np.isfinite(dense[:, :, 0])
+    expected = np.where(measured, 0.0, np.nan)
     for xyz, fill in made:
         span = slice(fill.first_field, fill.first_field + fill.n_fields)
         done[fill.track, span] = True
         if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
             dense[fill.track, span] = xyz
+            expected[fill.track, span] = fill.expected_error_mm
     out = []
     for t, lo, hi in gaps:
         left = ~done[t, lo:hi]
         for a, b in zip(*true_runs(left), strict=True):
             run = (lo + a, lo + b)
             gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
-            gap.absent, gap.known = absent, measured
+            gap.absent, gap.known, gap.expected = absent, measured, expected
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out

@@ -1,0 +1,42 @@
+"""Single-camera fill at the spline's depth (kisscal.tracking.fill_depth) against truth:
+a second camera's blob off the point leaves the field."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.tracking import TrackingParams, spare_blobs
+from kisscal.tracking.fill_depth import depth_ray_fill
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_fill_sphere import _one_camera
+from tests.tracking.test_raychain import GAP, _dense
+
+PARAMS = TrackingParams()
+
+
+def test_fields_where_a_second_camera_s_blob_is_off_the_depth_fill_are_not_placed():
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    # the whole body but marker 0 hidden: the spline fixes the depth
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    n = (GAP.stop - GAP.start) // 2
+    # the camera that sees all the gap: in its first half, the marker's image merged with
+    # a neighbour's, the blob's ray 8 mm off it (lowcost seed 306's heel, 7-13 mm)
+    off = xyz.copy()
+    off[3, GAP.start : GAP.start + n] += [0.0, 0.0, 8.0]
+    d1, f1, uv1 = _one_camera(off, np.array([2500.0, 1500.0, 600.0]), 7)
+    # a second camera sees the marker's own image in that half
+    d2, f2, uv2 = _one_camera(xyz, np.array([-1500.0, 2500.0, 900.0]), 8)
+    half = f2 < GAP.start + n
+    spare = spare_blobs(
+        np.r_[f1, f2[half]],
+        np.r_[np.zeros(f1.size), np.ones(half.sum())],
+        np.r_[uv1, uv2[half]],
+        np.concatenate([d1, d2]),
+    )
+    got = depth_ray_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    assert got is not None
+    placed = np.isfinite(got.sd_mm)
+    assert not placed[:n].any()  # the two cameras disagree there: neither blob is sure
+    assert placed[n:].sum() >= 0.8 * n
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < max(2.0 * np.max(got.sd_mm[placed]), 1.0)
