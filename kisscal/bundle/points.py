@@ -29,7 +29,14 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
+from kisscal.bundle.adjust import (
+    BundleResult,
+    ControlPoints,
+    WandObservations,
+    WandPoses,
+    adjust_bundle,
+    variance_components,
+)
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.resect import final_cameras
 from kisscal.bundle.terms import fewest_terms
@@ -47,6 +54,11 @@ from kisscal.dlt import DltParams
 from kisscal.dlt.params import DEFAULT_PARAMS as DEFAULT_DLT
 from kisscal.errors import EstimationFailed
 from kisscal.recon import ReconParams, reconstruct_trial
+
+#: Reweighings of the control points at most, and the ratio of two weights in a row
+#: below which the weight has settled.
+HELMERT_PASSES = 4
+HELMERT_SETTLED = 1.1
 
 #: A free point is a wand of one marker at its centre (its direction is then unused).
 POINT = (0.0,)
@@ -139,6 +151,7 @@ def _weighed_adjustment(
     params: BundleParams,
     dlt: DltParams,
     weight_factor: float,
+    group: NDArray[np.int64] | None = None,
 ) -> WandCalibration:
     """Adjust, weigh the control points by the two kinds' noise, adjust again, keep the
     lens terms the observations show, and resect (both routes of this module)."""
@@ -147,6 +160,8 @@ def _weighed_adjustment(
     weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
     control = control.weighted(weight)
     result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
+    if group is not None and not params.control_weight:
+        result, obs, control = _helmert(result, obs, markers_mm, control, params, group)
     # the terms beyond the first only where the markers show them (not the rods alone)
     result, params = fewest_terms(result, obs, markers_mm, control, params)
     final = final_cameras(result, obs, control, markers_mm, params, dlt)
@@ -155,6 +170,49 @@ def _weighed_adjustment(
     return WandCalibration(
         result, obs, fields, control, None, resected, dlt, params.lens_terms, markers
     )
+
+
+def _helmert(
+    result: BundleResult,
+    obs: WandObservations,
+    markers_mm: tuple[float, ...],
+    control: ControlPoints,
+    params: BundleParams,
+    group: NDArray[np.int64],
+) -> tuple[BundleResult, WandObservations, ControlPoints]:
+    """Each kind of observation (``group``, and the control points) reweighed by the
+    inverse of the noise variance the adjustment's residuals show, relative to the first
+    kind's, and adjusted again, until the weights settle (Helmert's variance components,
+    Förstner 1979)."""
+    for _ in range(HELMERT_PASSES):
+        kinds, ctrl = variance_components(result, obs, markers_mm, control, group, params)
+        if not (np.all(np.isfinite(kinds) & (kinds > 0)) and np.isfinite(ctrl) and ctrl > 0):
+            break
+        new = np.r_[kinds[0] / kinds, kinds[0] / ctrl]
+        old = np.r_[_kind_weights(obs, group, len(kinds)), control.weight]
+        obs = obs.weighted((kinds[0] / kinds)[group])
+        control = control.weighted(float(new[-1]))
+        result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
+        if np.all(np.abs(np.log(new / old)) < np.log(HELMERT_SETTLED)):
+            break
+    return result, obs, control
+
+
+def _kind_weights(obs: WandObservations, group: NDArray[np.int64], n: int) -> NDArray:
+    """The weight each kind of observation has now (1 before any)."""
+    if obs.weight is None:
+        return np.ones(n)
+    return np.array([obs.weight[group == k][0] for k in range(n)])
+
+
+def trial_markers_weight(cal: WandCalibration) -> float:
+    """The weight of a trial marker's image against a wand image's in ``cal`` (1 when
+    the two kinds were not weighed apart)."""
+    obs = cal.observations
+    points = cal.fields[obs.field] < 0
+    if obs.weight is None or points.all() or not points.any():
+        return 1.0
+    return float(np.median(obs.weight[points]) / np.median(obs.weight[~points]))
 
 
 def with_points(markers_mm: Sequence[float]) -> tuple[tuple[float, ...], int]:
@@ -226,6 +284,8 @@ def calibrate_on_wand_and_points(
         np.concatenate([poses.direction, points.direction]),
     )
     fields = np.r_[fields, np.full(len(points.centre_mm), -1)].astype(np.int64)
+    # the wand's images and the trials' markers' are two kinds, each with its own noise
+    kinds = (obs.marker == centre).astype(np.int64)
     return _weighed_adjustment(
-        start, obs, markers, poses, fields, control, params, dlt, weight_factor
+        start, obs, markers, poses, fields, control, params, dlt, weight_factor, kinds
     )

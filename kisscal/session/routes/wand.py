@@ -25,7 +25,7 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
-from kisscal.bundle.points import calibrate_on_wand_and_points
+from kisscal.bundle.points import calibrate_on_wand_and_points, trial_markers_weight
 from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
@@ -198,8 +198,9 @@ def _with_trials(
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: the wand ({int(np.sum(cal.fields >= 0))} fields) and the trials' "
-        f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, rods weighed "
-        f"{cal.control.weight:.0f} x an image"
+        f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, weighed by "
+        f"their noise (variance components): a rod marker {cal.control.weight:.0f} x a wand "
+        f"image, a trial marker {trial_markers_weight(cal):.1f} x"
     )
     return cal
 
