@@ -20,6 +20,8 @@ Triggs, B., McLauchlan, P. F., Hartley, R. I., & Fitzgibbon, A. W. (2000). Bundl
 adjustment - a modern synthesis. Vision Algorithms: Theory and Practice, LNCS 1883.
 Fraser, C. S. (1997). Digital camera self-calibration. ISPRS Journal of Photogrammetry
 and Remote Sensing 52, 149-159.
+Förstner, W. (1979). Ein Verfahren zur Schätzung von Varianz- und Kovarianzkomponenten.
+Allgemeine Vermessungs-Nachrichten 86, 446-453.
 """
 
 from __future__ import annotations
@@ -154,7 +156,10 @@ def _weighed_adjustment(
     group: NDArray[np.int64] | None = None,
 ) -> WandCalibration:
     """Adjust, weigh the control points by the two kinds' noise, adjust again, keep the
-    lens terms the observations show, and resect (both routes of this module)."""
+    lens terms the observations show, and resect (both routes of this module). With
+    ``group`` (each observation's kind), every kind and the control points are then
+    weighed by their variance components (:func:`_helmert`) before the lens terms are
+    chosen."""
     result = adjust_bundle(zero_skew(start, params), obs, markers_mm, poses, control, params)
     # again, each kind of observation by its own noise (or the weight given)
     weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
@@ -241,8 +246,13 @@ def calibrate_on_wand_and_points(
     The wand is found as :func:`kisscal.bundle.wand.calibrate_on_control` finds it, the
     trials' markers seen by three cameras or more as :func:`calibrate_on_points` finds
     them; one adjustment holds both (a trial marker is a field of the centre marker of
-    :func:`with_points`), the control points weighed as :func:`calibrate_on_points`
-    weighs them.
+    :func:`with_points`). The control points are first weighed as
+    :func:`calibrate_on_points` weighs them; then the control points, the wand's images
+    and the trials' markers are each weighed by the inverse of the noise variance their
+    residuals show (Helmert's variance components, Förstner 1979): a waved wand's images
+    are noisier than a walking subject's markers (issue 25: a trial marker weighs 1.7 to
+    41 times a wand image on the synthetic rigs), and the rods' residuals hold what the
+    lens model misses at their markers as well as their noise.
 
     Parameters
     ----------

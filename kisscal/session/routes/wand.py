@@ -176,11 +176,12 @@ def _with_trials(
 ) -> WandCalibration:
     """The wand and the session's other trials adjusted together on the rods
     (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
-    default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials and
-    the rods' weight ``[dlt] bundle_rods_weight`` times their noise ratio), so the wand
-    adds to what fixed the lens terms rather than replacing it (issue 25: on the
+    default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials), so
+    the wand adds to what fixed the lens terms rather than replacing it (issue 25: on the
     four-camera lowcost rig, seed 71, the wand alone on the rods was 10 % worse inside
-    the volume than the rods and trials)."""
+    the volume than the rods and trials). The rods, the wand's images and the trials'
+    markers are weighed by their own noise (Helmert's variance components), starting
+    from the rods' weight ``[dlt] bundle_rods_weight`` times their noise ratio."""
     config, params = inputs.config, inputs.params
     wand = (config.wand.markers_mm, config.camera_ids, config.wand.trial)
     sizes = [c.size_px for c in config.cameras]
