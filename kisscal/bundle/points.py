@@ -65,6 +65,9 @@ HELMERT_SETTLED = 1.1
 #: A free point is a wand of one marker at its centre (its direction is then unused).
 POINT = (0.0,)
 
+#: A trial's markers as one-marker wands: their images and starting points.
+TrialPoints = tuple[WandObservations, WandPoses]
+
 
 def trial_points(
     table: BlobTable,
@@ -72,7 +75,7 @@ def trial_points(
     sizes_px: Sequence[tuple[int, int]],
     min_cameras: int,
     most: int,
-) -> tuple[WandObservations, WandPoses]:
+) -> TrialPoints:
     """The markers a rig reconstructs from a trial's blobs with ``min_cameras`` or more
     cameras (at most ``most``, evenly spread over the trial), as one-marker wands."""
     rig = lens_rig(cameras, sizes_px, [f"c{k}" for k in range(len(cameras))])
@@ -98,6 +101,7 @@ def calibrate_on_points(
     dlt: DltParams = DEFAULT_DLT,
     min_cameras: int = 3,
     weight_factor: float = 1.0,
+    markers: TrialPoints | None = None,
 ) -> WandCalibration:
     """Cameras and lens terms adjusted to a trial's markers and fixed control points.
 
@@ -125,13 +129,16 @@ def calibrate_on_points(
     weight_factor : float
         With ``control_weight`` 0, the estimated noise variance ratio is multiplied by
         this before it weighs the control points.
+    markers : (WandObservations, WandPoses), optional
+        :func:`trial_points` of ``table`` and ``start`` already made (the same
+        ``min_cameras`` and ``params.max_fields``); None: made here.
 
     Raises
     ------
     KisscalError
         Fewer than ``params.min_fields`` markers seen by ``min_cameras`` cameras.
     """
-    obs, points = trial_points(table, start, sizes_px, min_cameras, params.max_fields)
+    obs, points = markers or trial_points(table, start, sizes_px, min_cameras, params.max_fields)
     if len(points.centre_mm) < params.min_fields:
         raise EstimationFailed(
             f"trial bundle: {len(points.centre_mm)} markers seen by {min_cameras} cameras "
@@ -239,6 +246,7 @@ def calibrate_on_wand_and_points(
     params: BundleParams = DEFAULT_PARAMS,
     dlt: DltParams = DEFAULT_DLT,
     weight_factor: float = 1.0,
+    markers: TrialPoints | None = None,
 ) -> WandCalibration:
     """Cameras and lens terms adjusted to a wand trial, other trials' markers and fixed
     control points together.
@@ -270,7 +278,12 @@ def calibrate_on_wand_and_points(
         trials' markers each).
     dlt : DltParams
     weight_factor : float
-        With ``control_weight`` 0, times the estimated noise variance ratio.
+        With ``control_weight`` 0, times the estimated noise variance ratio (the start of
+        the variance components).
+    markers : (WandObservations, WandPoses), optional
+        :func:`trial_points` of ``trials`` and ``start`` already made (three cameras,
+        ``params.max_fields``): those :func:`calibrate_on_points` adjusted; None: made
+        here.
 
     Returns
     -------
@@ -280,7 +293,7 @@ def calibrate_on_wand_and_points(
     """
     markers_mm, ids, trial = wand
     obs, poses, fields = found_wand(wand_table, start, markers_mm, sizes_px, ids, trial, params)
-    p_obs, points = trial_points(trials, start, sizes_px, 3, params.max_fields)
+    p_obs, points = markers or trial_points(trials, start, sizes_px, 3, params.max_fields)
     markers, centre = with_points(markers_mm)
     n = len(fields)
     obs = WandObservations(

@@ -25,7 +25,12 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
-from kisscal.bundle.points import calibrate_on_wand_and_points, trial_markers_weight
+from kisscal.bundle.points import (
+    TrialPoints,
+    calibrate_on_wand_and_points,
+    trial_markers_weight,
+    trial_points,
+)
 from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
@@ -157,9 +162,13 @@ def _on_rods(
     if uses_trials(inputs):
         # the rods route's default, the rods and trials: the calibration to beat
         trials = trials_table(inputs)
-        default, baseline = adjusted_with_trials(inputs, trials, start, control, rods, rods_alone)
+        # the trials' markers reconstructed once, for both adjustments
+        markers = trial_points(trials, start, sizes, 3, params.wand.on_grid().max_fields)
+        default, baseline = adjusted_with_trials(
+            inputs, trials, start, control, rods, rods_alone, markers
+        )
         if baseline is not None:
-            return _with_trials(inputs, table, trials, start, control), default, baseline
+            return _with_trials(inputs, table, trials, start, control, markers), default, baseline
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
     cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
@@ -173,6 +182,7 @@ def _with_trials(
     trials: BlobTable,
     start: list,
     control: ControlPoints,
+    markers: TrialPoints,
 ) -> WandCalibration:
     """The wand and the session's other trials adjusted together on the rods
     (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
@@ -195,6 +205,7 @@ def _with_trials(
         wand_params(inputs),
         params.dlt,
         params.dlt.bundle_rods_weight,
+        markers,
     )
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
