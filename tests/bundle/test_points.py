@@ -14,6 +14,7 @@ from kisscal.bundle.points import (
     POINT,
     calibrate_on_points,
     calibrate_on_wand_and_points,
+    trial_markers_weight,
     with_points,
 )
 from kisscal.bundle.wand import BlobTable, calibrate_on_control
@@ -206,8 +207,8 @@ def test_each_kind_is_weighed_by_its_noise_against_the_wands(
     the trial's markers are weighed against the wand by the noise variance ratios their
     residuals show (Helmert's variance components, Förstner 1979), whatever the rods'
     weight it starts from (their and the wand's DLT residuals times ``weight_factor``).
-    Before, the rods' weight was that start (10 times: 40 and 19 against 25 and 4) and
-    the trial's markers weighed as the wand."""
+    Before, the rods' weight was that start (4.0 and 1.2 times ``weight_factor``, against
+    25 and 4) and a trial's marker weighed as a wand image (1, against 1 and 6.25)."""
     s = _leftover_lens(wand_scene)
     wand = _half(s, False).blobs(ideal=False, noise_px=0.05, leds=False)
     trial = _half(WandScene(s.rig, scene(3, 200).motion, s.markers_mm), True)
@@ -220,9 +221,7 @@ def test_each_kind_is_weighed_by_its_noise_against_the_wands(
     params = BundleParams().on_grid()
     for factor in (1.0, 10.0):
         cal = calibrate_on_wand_and_points(*args, params, weight_factor=factor)
-        obs = cal.observations
-        weight = obs.weight if obs.weight is not None else np.ones(len(obs))
-        point = weight[obs.marker == len(cal.markers_mm) - 1]
-        got = np.array([cal.control.weight, np.median(point)])
-        truth = (0.05 / np.array([rods_px, points_px])) ** 2
-        assert np.all(np.abs(np.log(got / truth)) < np.log(1.25)), (factor, got, truth)
+        truth = (0.05 / rods_px) ** 2
+        assert abs(np.log(cal.control.weight / truth)) < np.log(1.25), (factor, cal.control.weight)
+        truth = (0.05 / points_px) ** 2
+        assert abs(np.log(trial_markers_weight(cal) / truth)) < np.log(1.25), factor
