@@ -12,6 +12,10 @@ Triggs, B., McLauchlan, P. F., Hartley, R. I., & Fitzgibbon, A. W. (2000). Bundl
 adjustment - a modern synthesis. Vision Algorithms: Theory and Practice, LNCS 1883.
 Theriault, D. H., Fuller, N. W., Jackson, B. E., et al. (2014). A protocol and calibration
 method for accurate multi-camera field videography. J. Exp. Biol. 217.
+Förstner, W. (1979). Ein Verfahren zur Schätzung von Varianz- und Kovarianzkomponenten.
+Allgemeine Vermessungs-Nachrichten 86, 446-453.
+Koch, K.-R. (1999). Parameter Estimation and Hypothesis Testing in Linear Models, 2nd ed.
+Springer.
 
 Examples
 --------
@@ -46,7 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.bundle.model import N_CAMERA, N_WAND, State, project, wand_points
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
-from kisscal.bundle.solve import Loss, Problem, levenberg_marquardt
+from kisscal.bundle.solve import Loss, Problem, control_share, levenberg_marquardt
 from kisscal.camera import LENS_TERMS, Camera
 from kisscal.errors import EstimationFailed
 
@@ -65,12 +69,16 @@ class WandObservations:
         Index into the wand's ``markers_mm``.
     uv_px : ndarray, shape (n, 2)
         Image coordinates (linearised by the grid when there is one, else raw).
+    weight : ndarray, shape (n,), optional
+        Weight of each row's squared residual (the inverse of its kind's noise variance
+        relative to the others'; None: 1 each).
     """
 
     field: NDArray[np.int64]
     camera: NDArray[np.int64]
     marker: NDArray[np.int64]
     uv_px: NDArray[np.float64]
+    weight: NDArray[np.float64] | None = None
 
     def __len__(self) -> int:
         return len(self.field)
@@ -78,7 +86,12 @@ class WandObservations:
     def subset(self, keep: ArrayLike) -> WandObservations:
         """The rows selected by a boolean mask or index array."""
         k = np.asarray(keep)
-        return WandObservations(self.field[k], self.camera[k], self.marker[k], self.uv_px[k])
+        w = None if self.weight is None else self.weight[k]
+        return WandObservations(self.field[k], self.camera[k], self.marker[k], self.uv_px[k], w)
+
+    def weighted(self, weight: NDArray[np.float64] | None) -> WandObservations:
+        """The same rows with another ``weight``."""
+        return WandObservations(self.field, self.camera, self.marker, self.uv_px, weight)
 
 
 @dataclass(frozen=True)
@@ -246,6 +259,80 @@ def adjust_bundle(
     return BundleResult(state.cameras(), poses, res, keep, ctrl, iterations, message)
 
 
+def variance_components(
+    result: BundleResult,
+    observations: WandObservations,
+    markers_mm: ArrayLike,
+    control: ControlPoints,
+    group: NDArray[np.int64],
+    params: BundleParams = DEFAULT_PARAMS,
+) -> tuple[NDArray[np.float64], float]:
+    """The noise variance (px^2 per coordinate) of an image of each kind of observation,
+    unweighted, that an adjustment's residuals show, each over its own redundancy
+    (Förstner 1979).
+
+    Each group's squared residuals (robust weights included) are divided by its count
+    less the unknowns it determines, so that no variance is lowered by what the
+    adjustment fitted to it: the rods' few markers, which alone fix the lab frame, would
+    otherwise look far more precise than they are. The control points' share of the
+    cameras' unknowns is exact (:func:`kisscal.bundle.solve.control_share`); a field's
+    own unknowns (a wand's 5, a free point's 3) go to its group, and the rest of the
+    cameras' to the groups in proportion to their observations (a few hundred unknowns
+    among thousands of observations). Reweighing each kind by the inverse of its variance
+    and adjusting again is Helmert's variance component estimation (Förstner 1979;
+    Koch 1999, section 3.6).
+
+    Parameters
+    ----------
+    result : BundleResult
+    observations : WandObservations
+        As adjusted (with their weights).
+    markers_mm : array_like
+    control : ControlPoints
+        As adjusted (with their weight).
+    group : ndarray of int, shape (len(observations),)
+        Each observation's kind (0, 1, ...); every field's observations of one kind.
+    params : BundleParams
+
+    Returns
+    -------
+    groups_px2 : ndarray, shape (max(group) + 1,)
+    control_px2 : float
+        NaN where a kind has no redundancy left.
+    """
+    keep = result.inlier
+    obs = observations.subset(keep)
+    problem = _problem(obs, centred_offsets(markers_mm), control, *_sizes(result))
+    state = State.of(result.cameras, result.wand.centre_mm, result.wand.direction)
+    free = free_unknowns(len(result.cameras), params, None)
+    loss = Loss(params.loss, params.loss_scale_px)
+    share = control_share(problem, state, free, loss)
+    g = group[keep]
+    n = np.bincount(g)
+    # a field's unknowns: a free point's centre (3), a wand's centre and direction (5)
+    offsets = centred_offsets(markers_mm)[obs.marker]
+    moving = np.zeros(problem.n_fields, bool)
+    moving[obs.field[offsets != 0.0]] = True
+    field_group = np.zeros(problem.n_fields, np.int64)
+    field_group[obs.field] = g
+    own = np.bincount(field_group, 3.0 + 2.0 * moving, len(n))[: len(n)]
+    redundancy = 2 * n - own - (free.sum() - share) * n / n.sum()
+    w = np.ones(len(g)) if obs.weight is None else obs.weight
+    r = result.residuals_px[keep]
+    robust = loss.cost(np.sqrt(w)[:, None] * r)[1]
+    squares = np.bincount(g, robust * np.sum(r * r, axis=1), len(n))
+    c = result.control_residuals_px
+    ctrl = float(np.sum(loss.cost(np.sqrt(control.weight) * c)[1] * np.sum(c * c, axis=1)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        groups = np.where(redundancy > 0, squares / redundancy, np.nan)
+    red_ctrl = 2 * len(c) - share
+    return groups, ctrl / red_ctrl if red_ctrl > 0 else float("nan")
+
+
+def _sizes(result: BundleResult) -> tuple[int, int]:
+    return len(result.cameras), len(result.wand.centre_mm)
+
+
 def _problem(
     obs: WandObservations,
     offsets: NDArray[np.float64],
@@ -278,6 +365,7 @@ def _problem(
         n_cameras,
         n_fields,
         c.weight,
+        o.weight,
     )
 
 
@@ -308,6 +396,8 @@ def _least_squares(
         s = unpack(x)
         xyz = wand_points(s, problem.field, problem.offsets)
         r = project(s, problem.camera, xyz, False)[0] - problem.uv_px
+        if problem.weight is not None:
+            r = r * np.sqrt(problem.weight)[:, None]
         cr = project(s, problem.control_camera, problem.control_xyz_mm, False)[0]
         cr = np.sqrt(problem.control_weight) * (cr - problem.control_uv_px)
         return np.concatenate([r.ravel(), cr.ravel()])

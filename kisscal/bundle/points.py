@@ -20,6 +20,8 @@ Triggs, B., McLauchlan, P. F., Hartley, R. I., & Fitzgibbon, A. W. (2000). Bundl
 adjustment - a modern synthesis. Vision Algorithms: Theory and Practice, LNCS 1883.
 Fraser, C. S. (1997). Digital camera self-calibration. ISPRS Journal of Photogrammetry
 and Remote Sensing 52, 149-159.
+Förstner, W. (1979). Ein Verfahren zur Schätzung von Varianz- und Kovarianzkomponenten.
+Allgemeine Vermessungs-Nachrichten 86, 446-453.
 """
 
 from __future__ import annotations
@@ -29,7 +31,14 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.bundle.adjust import ControlPoints, WandObservations, WandPoses, adjust_bundle
+from kisscal.bundle.adjust import (
+    BundleResult,
+    ControlPoints,
+    WandObservations,
+    WandPoses,
+    adjust_bundle,
+    variance_components,
+)
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 from kisscal.bundle.resect import final_cameras
 from kisscal.bundle.terms import fewest_terms
@@ -48,8 +57,16 @@ from kisscal.dlt.params import DEFAULT_PARAMS as DEFAULT_DLT
 from kisscal.errors import EstimationFailed
 from kisscal.recon import ReconParams, reconstruct_trial
 
+#: Reweighings of the control points at most, and the ratio of two weights in a row
+#: below which the weight has settled.
+HELMERT_PASSES = 4
+HELMERT_SETTLED = 1.1
+
 #: A free point is a wand of one marker at its centre (its direction is then unused).
 POINT = (0.0,)
+
+#: A trial's markers as one-marker wands: their images and starting points.
+TrialPoints = tuple[WandObservations, WandPoses]
 
 
 def trial_points(
@@ -58,7 +75,7 @@ def trial_points(
     sizes_px: Sequence[tuple[int, int]],
     min_cameras: int,
     most: int,
-) -> tuple[WandObservations, WandPoses]:
+) -> TrialPoints:
     """The markers a rig reconstructs from a trial's blobs with ``min_cameras`` or more
     cameras (at most ``most``, evenly spread over the trial), as one-marker wands."""
     rig = lens_rig(cameras, sizes_px, [f"c{k}" for k in range(len(cameras))])
@@ -84,6 +101,7 @@ def calibrate_on_points(
     dlt: DltParams = DEFAULT_DLT,
     min_cameras: int = 3,
     weight_factor: float = 1.0,
+    markers: TrialPoints | None = None,
 ) -> WandCalibration:
     """Cameras and lens terms adjusted to a trial's markers and fixed control points.
 
@@ -111,13 +129,16 @@ def calibrate_on_points(
     weight_factor : float
         With ``control_weight`` 0, the estimated noise variance ratio is multiplied by
         this before it weighs the control points.
+    markers : (WandObservations, WandPoses), optional
+        :func:`trial_points` of ``table`` and ``start`` already made (the same
+        ``min_cameras`` and ``params.max_fields``); None: made here.
 
     Raises
     ------
     KisscalError
         Fewer than ``params.min_fields`` markers seen by ``min_cameras`` cameras.
     """
-    obs, points = trial_points(table, start, sizes_px, min_cameras, params.max_fields)
+    obs, points = markers or trial_points(table, start, sizes_px, min_cameras, params.max_fields)
     if len(points.centre_mm) < params.min_fields:
         raise EstimationFailed(
             f"trial bundle: {len(points.centre_mm)} markers seen by {min_cameras} cameras "
@@ -139,14 +160,20 @@ def _weighed_adjustment(
     params: BundleParams,
     dlt: DltParams,
     weight_factor: float,
+    group: NDArray[np.int64] | None = None,
 ) -> WandCalibration:
     """Adjust, weigh the control points by the two kinds' noise, adjust again, keep the
-    lens terms the observations show, and resect (both routes of this module)."""
+    lens terms the observations show, and resect (both routes of this module). With
+    ``group`` (each observation's kind), every kind and the control points are then
+    weighed by their variance components (:func:`_helmert`) before the lens terms are
+    chosen."""
     result = adjust_bundle(zero_skew(start, params), obs, markers_mm, poses, control, params)
     # again, each kind of observation by its own noise (or the weight given)
     weight = params.control_weight or weight_factor * noise_ratio(start, control, result)
     control = control.weighted(weight)
     result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
+    if group is not None and not params.control_weight:
+        result, obs, control = _helmert(result, obs, markers_mm, control, params, group)
     # the terms beyond the first only where the markers show them (not the rods alone)
     result, params = fewest_terms(result, obs, markers_mm, control, params)
     final = final_cameras(result, obs, control, markers_mm, params, dlt)
@@ -155,6 +182,49 @@ def _weighed_adjustment(
     return WandCalibration(
         result, obs, fields, control, None, resected, dlt, params.lens_terms, markers
     )
+
+
+def _helmert(
+    result: BundleResult,
+    obs: WandObservations,
+    markers_mm: tuple[float, ...],
+    control: ControlPoints,
+    params: BundleParams,
+    group: NDArray[np.int64],
+) -> tuple[BundleResult, WandObservations, ControlPoints]:
+    """Each kind of observation (``group``, and the control points) reweighed by the
+    inverse of the noise variance the adjustment's residuals show, relative to the first
+    kind's, and adjusted again, until the weights settle (Helmert's variance components,
+    Förstner 1979)."""
+    for _ in range(HELMERT_PASSES):
+        kinds, ctrl = variance_components(result, obs, markers_mm, control, group, params)
+        if not (np.all(np.isfinite(kinds) & (kinds > 0)) and np.isfinite(ctrl) and ctrl > 0):
+            break
+        new = np.r_[kinds[0] / kinds, kinds[0] / ctrl]
+        old = np.r_[_kind_weights(obs, group, len(kinds)), control.weight]
+        obs = obs.weighted((kinds[0] / kinds)[group])
+        control = control.weighted(float(new[-1]))
+        result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
+        if np.all(np.abs(np.log(new / old)) < np.log(HELMERT_SETTLED)):
+            break
+    return result, obs, control
+
+
+def _kind_weights(obs: WandObservations, group: NDArray[np.int64], n: int) -> NDArray:
+    """The weight each kind of observation has now (1 before any)."""
+    if obs.weight is None:
+        return np.ones(n)
+    return np.array([obs.weight[group == k][0] for k in range(n)])
+
+
+def trial_markers_weight(cal: WandCalibration) -> float:
+    """The weight of a trial marker's image against a wand image's in ``cal`` (1 when
+    the two kinds were not weighed apart)."""
+    obs = cal.observations
+    points = cal.fields[obs.field] < 0
+    if obs.weight is None or points.all() or not points.any():
+        return 1.0
+    return float(np.median(obs.weight[points]) / np.median(obs.weight[~points]))
 
 
 def with_points(markers_mm: Sequence[float]) -> tuple[tuple[float, ...], int]:
@@ -176,6 +246,7 @@ def calibrate_on_wand_and_points(
     params: BundleParams = DEFAULT_PARAMS,
     dlt: DltParams = DEFAULT_DLT,
     weight_factor: float = 1.0,
+    markers: TrialPoints | None = None,
 ) -> WandCalibration:
     """Cameras and lens terms adjusted to a wand trial, other trials' markers and fixed
     control points together.
@@ -183,8 +254,13 @@ def calibrate_on_wand_and_points(
     The wand is found as :func:`kisscal.bundle.wand.calibrate_on_control` finds it, the
     trials' markers seen by three cameras or more as :func:`calibrate_on_points` finds
     them; one adjustment holds both (a trial marker is a field of the centre marker of
-    :func:`with_points`), the control points weighed as :func:`calibrate_on_points`
-    weighs them.
+    :func:`with_points`). The control points are first weighed as
+    :func:`calibrate_on_points` weighs them; then the control points, the wand's images
+    and the trials' markers are each weighed by the inverse of the noise variance their
+    residuals show (Helmert's variance components, Förstner 1979): a waved wand's images
+    are noisier than a walking subject's markers (issue 25: a trial marker weighs 1.7 to
+    41 times a wand image on the synthetic rigs), and the rods' residuals hold what the
+    lens model misses at their markers as well as their noise.
 
     Parameters
     ----------
@@ -202,7 +278,12 @@ def calibrate_on_wand_and_points(
         trials' markers each).
     dlt : DltParams
     weight_factor : float
-        With ``control_weight`` 0, times the estimated noise variance ratio.
+        With ``control_weight`` 0, times the estimated noise variance ratio (the start of
+        the variance components).
+    markers : (WandObservations, WandPoses), optional
+        :func:`trial_points` of ``trials`` and ``start`` already made (three cameras,
+        ``params.max_fields``): those :func:`calibrate_on_points` adjusted; None: made
+        here.
 
     Returns
     -------
@@ -212,7 +293,7 @@ def calibrate_on_wand_and_points(
     """
     markers_mm, ids, trial = wand
     obs, poses, fields = found_wand(wand_table, start, markers_mm, sizes_px, ids, trial, params)
-    p_obs, points = trial_points(trials, start, sizes_px, 3, params.max_fields)
+    p_obs, points = markers or trial_points(trials, start, sizes_px, 3, params.max_fields)
     markers, centre = with_points(markers_mm)
     n = len(fields)
     obs = WandObservations(
@@ -226,6 +307,8 @@ def calibrate_on_wand_and_points(
         np.concatenate([poses.direction, points.direction]),
     )
     fields = np.r_[fields, np.full(len(points.centre_mm), -1)].astype(np.int64)
+    # the wand's images and the trials' markers' are two kinds, each with its own noise
+    kinds = (obs.marker == centre).astype(np.int64)
     return _weighed_adjustment(
-        start, obs, markers, poses, fields, control, params, dlt, weight_factor
+        start, obs, markers, poses, fields, control, params, dlt, weight_factor, kinds
     )

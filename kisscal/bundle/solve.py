@@ -56,6 +56,8 @@ class Problem:
     control_weight : float
         Weight of a control observation's squared residual against a wand observation's
         (the inverse ratio of their noise variances).
+    weight : ndarray, shape (n,), optional
+        Weight of each wand observation's squared residual (None: 1 each).
     """
 
     field: NDArray[np.int64]
@@ -68,6 +70,7 @@ class Problem:
     n_cameras: int
     n_fields: int
     control_weight: float = 1.0
+    weight: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,13 @@ def evaluate(
     cuv, cjc, _ = project(state, problem.control_camera, problem.control_xyz_mm, jacobian)
     root = np.sqrt(problem.control_weight)  # weighted rows: the loss sees sqrt(w) r
     cjc = cjc * root if cjc is not None else None
-    return uv - problem.uv_px, jc, jw, root * (cuv - problem.control_uv_px), cjc
+    r = uv - problem.uv_px
+    if problem.weight is not None:
+        rows = np.sqrt(problem.weight)[:, None]
+        r = r * rows
+        jc = jc * rows[:, :, None] if jc is not None else None
+        jw = jw * rows[:, :, None] if jw is not None else None
+    return r, jc, jw, root * (cuv - problem.control_uv_px), cjc
 
 
 def _normal_equations(problem: Problem, blocks: _Blocks, state: State, loss: Loss):
@@ -188,10 +197,11 @@ def _field_products(
     return products.transpose(0, 2, 1, 3).reshape(C * N_CAMERA, C * N_CAMERA)
 
 
-def _damped_step(
-    problem: Problem, blocks: _Blocks, normal: tuple, lam: float, free: NDArray[np.bool_]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    U, V, W, g_cam, g_wand = normal
+def _reduced_system(
+    problem: Problem, blocks: _Blocks, normal: tuple, lam: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The damped reduced camera system ``S``, the wand blocks' inverses and ``W V^-1``."""
+    U, V, W = normal[:3]
     C = problem.n_cameras
     diag = np.einsum("fii->fi", V)
     # a one-marker wand (a free point) has no direction: its two rows are zero, held
@@ -202,7 +212,15 @@ def _damped_step(
     S[np.arange(C), :, np.arange(C)] = U + lam * np.einsum("cii->ci", U)[:, :, None] * np.eye(
         N_CAMERA
     )
-    S = S.reshape(C * N_CAMERA, C * N_CAMERA) - _field_products(blocks, Y, W, C)
+    return S.reshape(C * N_CAMERA, C * N_CAMERA) - _field_products(blocks, Y, W, C), Vinv, Y
+
+
+def _damped_step(
+    problem: Problem, blocks: _Blocks, normal: tuple, lam: float, free: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    _, _, W, g_cam, g_wand = normal
+    C = problem.n_cameras
+    S, Vinv, Y = _reduced_system(problem, blocks, normal, lam)
     rhs = -g_cam.copy()
     np.add.at(rhs, blocks.pair_camera, np.einsum("pij,pj->pi", Y, g_wand[blocks.pair_field]))
     idx = np.flatnonzero(free.ravel())
@@ -281,3 +299,31 @@ def levenberg_marquardt(
         if gain <= tolerance * cost:
             return state, iteration, "the cost stopped decreasing"
     return state, max_iterations, "iteration limit reached"
+
+
+def control_share(problem: Problem, state: State, free: NDArray[np.bool_], loss: Loss) -> float:
+    """The unknowns' share the control observations determine, ``tr(N^-1 N_c)``.
+
+    ``N`` is the normal matrix at ``state`` (robust weights included, no damping) and
+    ``N_c`` the control observations' part of it; the control observations' redundancy
+    is their count less this share (Förstner 1979), the rest of the unknowns are the
+    wand's. The control points are fixed, so ``N_c`` holds camera unknowns only and the
+    trace needs only the cameras' block of ``N^-1``, the reduced camera system's inverse.
+    """
+    blocks = _Blocks(problem)
+    normal = _normal_equations(problem, blocks, state, loss)
+    S = _reduced_system(problem, blocks, normal, 0.0)[0]
+    _, _, _, cr, cjc = evaluate(problem, state, jacobian=True)
+    if cjc is None or not len(cr):
+        return 0.0
+    cw = loss.cost(cr)[1]
+    C = problem.n_cameras
+    Nc = np.zeros((C, N_CAMERA, C, N_CAMERA))
+    for c in range(C):
+        sel = problem.control_camera == c
+        a = cjc[sel].reshape(-1, N_CAMERA)
+        b = (cjc[sel] * cw[sel, None, None]).reshape(-1, N_CAMERA)
+        Nc[c, :, c] = b.T @ a
+    idx = np.flatnonzero(free.ravel())
+    Nc = Nc.reshape(C * N_CAMERA, C * N_CAMERA)[np.ix_(idx, idx)]
+    return float(np.trace(np.linalg.solve(S[np.ix_(idx, idx)], Nc)))

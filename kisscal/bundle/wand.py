@@ -260,7 +260,7 @@ def select_fields(
     new = np.cumsum(keep) - 1
     rows = keep[obs.field]
     o = obs.subset(rows)
-    o = WandObservations(new[o.field], o.camera, o.marker, o.uv_px)
+    o = WandObservations(new[o.field], o.camera, o.marker, o.uv_px, o.weight)
     return o, WandPoses(wand.centre_mm[keep], wand.direction[keep]), fields[keep]
 
 

@@ -14,6 +14,7 @@ from kisscal.bundle.points import (
     POINT,
     calibrate_on_points,
     calibrate_on_wand_and_points,
+    trial_markers_weight,
     with_points,
 )
 from kisscal.bundle.wand import BlobTable, calibrate_on_control
@@ -195,3 +196,32 @@ def test_the_wand_adjusted_with_the_trials_markers_is_not_the_wand_alone(
     assert err[0] < 1.1 * err[2], err
     assert np.sum(both.fields >= 0) > 50 and np.sum(both.fields < 0) > 100
     assert both.markers_mm == with_points(s.markers_mm)[0]
+
+
+@pytest.mark.parametrize(("rods_px", "points_px"), [(0.01, 0.05), (0.025, 0.02)])
+def test_each_kind_is_weighed_by_its_noise_against_the_wands(
+    wand_scene: WandScene, rods_px: float, points_px: float
+) -> None:
+    """Issue 25: the wand imaged with 0.05 px of noise, a trial's markers with
+    ``points_px`` and the rods' markers with ``rods_px``: adjusted together, the rods and
+    the trial's markers are weighed against the wand by the noise variance ratios their
+    residuals show (Helmert's variance components, Förstner 1979), whatever the rods'
+    weight it starts from (their and the wand's DLT residuals times ``weight_factor``).
+    Before, the rods' weight was that start (4.0 and 1.2 times ``weight_factor``, against
+    25 and 4) and a trial's marker weighed as a wand image (1, against 1 and 6.25)."""
+    s = _leftover_lens(wand_scene)
+    wand = _half(s, False).blobs(ideal=False, noise_px=0.05, leds=False)
+    trial = _half(WandScene(s.rig, scene(3, 200).motion, s.markers_mm), True)
+    points = trial.blobs(ideal=False, noise_px=points_px, seed=1, leds=False)
+    control, rows = _noisy_rods(s, rods_px)
+    starts = [
+        Camera.from_dlt(calibrate_camera(control.xyz_mm[r], control.uv_px[r]).L) for r in rows
+    ]
+    args = (wand, points, starts, control, (s.markers_mm, s.ids, "w"), s.sizes)
+    params = BundleParams().on_grid()
+    for factor in (1.0, 10.0):
+        cal = calibrate_on_wand_and_points(*args, params, weight_factor=factor)
+        truth = (0.05 / rods_px) ** 2
+        assert abs(np.log(cal.control.weight / truth)) < np.log(1.25), (factor, cal.control.weight)
+        truth = (0.05 / points_px) ** 2
+        assert abs(np.log(trial_markers_weight(cal) / truth)) < np.log(1.25), factor

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import rms_px
 from kisscal.bundle.adjust import ControlPoints
-from kisscal.bundle.points import POINT, calibrate_on_points
+from kisscal.bundle.points import POINT, TrialPoints, calibrate_on_points
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import BlobTable, WandCalibration
 from kisscal.camera import Camera
@@ -197,15 +197,18 @@ def adjusted_with_trials(
     control: ControlPoints,
     rods: Sequence[Rod],
     rods_alone: RodCalibration,
+    markers: TrialPoints | None = None,
 ) -> tuple[RodCalibration, WandCalibration | None]:
     """:func:`lens_from_trials` from the trials' table and the rods' pinholes and control
-    points (:func:`trials_table`, :func:`rods_control`) already made."""
+    points (:func:`trials_table`, :func:`rods_control`) already made, and the trials'
+    markers (:func:`kisscal.bundle.points.trial_points`) when the caller needs them too."""
     params = inputs.params
     bundle = params.wand.on_grid()
     sizes = [c.size_px for c in inputs.config.cameras]
+    weight = params.dlt.bundle_rods_weight
     try:
         cal = calibrate_on_points(
-            table, start, control, sizes, bundle, params.dlt, 3, params.dlt.bundle_rods_weight
+            table, start, control, sizes, bundle, params.dlt, 3, weight, markers
         )
     except EstimationFailed as exc:
         inputs.echo(f"  calibrate: {exc}; the rods' own model kept")

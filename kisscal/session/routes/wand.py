@@ -25,7 +25,12 @@ import numpy as np
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.frame import average_static
 from kisscal.bundle.params import BundleParams
-from kisscal.bundle.points import calibrate_on_wand_and_points
+from kisscal.bundle.points import (
+    TrialPoints,
+    calibrate_on_wand_and_points,
+    trial_markers_weight,
+    trial_points,
+)
 from kisscal.bundle.quality import leave_one_group_out
 from kisscal.bundle.wand import (
     AxesFrame,
@@ -157,9 +162,13 @@ def _on_rods(
     if uses_trials(inputs):
         # the rods route's default, the rods and trials: the calibration to beat
         trials = trials_table(inputs)
-        default, baseline = adjusted_with_trials(inputs, trials, start, control, rods, rods_alone)
+        # the trials' markers reconstructed once, for both adjustments
+        markers = trial_points(trials, start, sizes, 3, params.wand.on_grid().max_fields)
+        default, baseline = adjusted_with_trials(
+            inputs, trials, start, control, rods, rods_alone, markers
+        )
         if baseline is not None:
-            return _with_trials(inputs, table, trials, start, control), default, baseline
+            return _with_trials(inputs, table, trials, start, control, markers), default, baseline
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
     cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
@@ -173,14 +182,16 @@ def _with_trials(
     trials: BlobTable,
     start: list,
     control: ControlPoints,
+    markers: TrialPoints,
 ) -> WandCalibration:
     """The wand and the session's other trials adjusted together on the rods
     (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
-    default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials and
-    the rods' weight ``[dlt] bundle_rods_weight`` times their noise ratio), so the wand
-    adds to what fixed the lens terms rather than replacing it (issue 25: on the
+    default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials), so
+    the wand adds to what fixed the lens terms rather than replacing it (issue 25: on the
     four-camera lowcost rig, seed 71, the wand alone on the rods was 10 % worse inside
-    the volume than the rods and trials)."""
+    the volume than the rods and trials). The rods, the wand's images and the trials'
+    markers are weighed by their own noise (Helmert's variance components), starting
+    from the rods' weight ``[dlt] bundle_rods_weight`` times their noise ratio."""
     config, params = inputs.config, inputs.params
     wand = (config.wand.markers_mm, config.camera_ids, config.wand.trial)
     sizes = [c.size_px for c in config.cameras]
@@ -194,12 +205,14 @@ def _with_trials(
         wand_params(inputs),
         params.dlt,
         params.dlt.bundle_rods_weight,
+        markers,
     )
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: the wand ({int(np.sum(cal.fields >= 0))} fields) and the trials' "
-        f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, rods weighed "
-        f"{cal.control.weight:.0f} x an image"
+        f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, weighed by "
+        f"their noise (variance components): a rod marker {cal.control.weight:.0f} x a wand "
+        f"image, a trial marker {trial_markers_weight(cal):.1f} x"
     )
     return cal
 

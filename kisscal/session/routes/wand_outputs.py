@@ -15,6 +15,7 @@ import numpy as np
 
 from kisscal.bundle.adjust import WandPoses, centred_offsets
 from kisscal.bundle.params import BundleParams
+from kisscal.bundle.points import trial_markers_weight
 from kisscal.bundle.quality import (
     camera_figures,
     end_to_end_mm,
@@ -101,6 +102,7 @@ def write_wand_outputs(
         wand_doc["rods_weight"] = float(cal.control.weight)
     if np.any(cal.fields < 0):
         wand_doc["trial_markers_used"] = int(np.sum(cal.fields < 0))
+        wand_doc["trial_markers_weight"] = trial_markers_weight(cal)
     if rod_cal is not None:
         fields = held_out_fields(len(cal.fields), wand_params(inputs))
         alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
