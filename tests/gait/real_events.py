@@ -21,7 +21,6 @@ import numpy as np
 from kisscal._shared import true_runs
 from kisscal.gait import GaitMarkers, detect_events
 from kisscal.gait.events import foot_direction, pelvis_centre
-from kisscal.gait.signals import peak_time
 from kisscal.gait.table import EVENTS, SIDES, GaitEvents
 from tests.gait import _real
 
@@ -83,6 +82,16 @@ def _peaks(y: np.ndarray, rate: float) -> np.ndarray:
         for i in find_peaks(y[a:b], prominence=PROMINENCE * (hi - lo), distance=distance)[0]:
             out.append(peak_time(t, y, a + int(i)))
     return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
+
+
+def peak_time(t: np.ndarray, y: np.ndarray, i: int) -> float:
+    """Sub-sample time of the maximum at sample ``i``: vertex of the parabola through i-1..i+1."""
+    if i <= 0 or i >= len(y) - 1 or not np.all(np.isfinite(y[i - 1 : i + 2])):
+        return float("nan")
+    a, b, c = y[i - 1 : i + 2]
+    den = a - 2 * b + c
+    shift = 0.0 if den >= 0 else 0.5 * (a - c) / den
+    return float(t[i] + shift * (t[i + 1] - t[i]))
 
 
 @dataclass
