@@ -103,13 +103,11 @@ class Params:
         return dataclasses.replace(self, **changes)
 
     @classmethod
-    def from_layers(cls: type[P], *layers: Mapping[str, Any], ignore: Sequence[str] = ()) -> P:
+    def from_layers(cls: type[P], *layers: Mapping[str, Any]) -> P:
         """Defaults, overridden by each mapping in turn (``session.toml``, then the CLI)."""
         values: dict[str, Any] = {}
         for layer in layers:
-            for key, value in layer.items():
-                if key not in ignore:
-                    values[key] = value
+            values.update(layer)
         _check_names(cls, values)
         return cls(**values)
 

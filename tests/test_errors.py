@@ -26,7 +26,6 @@ from kisscal.errors import (
     MissingDataError,
     with_context,
 )
-from kisscal.io.blobs import read_blobs
 from kisscal.io.config import load_session
 from kisscal.io.files import read_table
 from kisscal.io.frames import image_header
@@ -34,6 +33,7 @@ from kisscal.io.linearisation import linearisation_from_dict
 from kisscal.recon.assign import check_table
 from kisscal.recon.params import ReconParams
 from kisscal.rig import Rig
+from tests.io.blob_csv import read_blobs
 
 
 def _rig() -> Rig:

@@ -27,7 +27,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import true_runs
 from kisscal.gait.landing import extremum, foot_strikes
 from kisscal.gait.markers import GaitMarkers, gait_markers  # noqa: F401 (doctest)
 from kisscal.gait.params import DEFAULT_PARAMS, GaitParams
@@ -35,7 +34,6 @@ from kisscal.gait.signals import (
     derivative,
     hysteresis_crossings,
     kink_time,
-    peak_time,
     smooth,
 )
 from kisscal.gait.table import SIDES, GaitEvents
@@ -373,53 +371,6 @@ def pelvis_centre(markers: GaitMarkers) -> NDArray[np.float64]:
     """Mean position (n, 3) of the pelvis markers present at each field."""
     with np.errstate(invalid="ignore"), _quiet():
         return np.nanmean(np.stack(markers.pelvis), axis=0)
-
-
-def coordinate_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> GaitEvents:
-    """Zeni et al. (2008)'s coordinate rule alone: foot strike when the heel is furthest
-    ahead of the pelvis, foot off when the toe is furthest behind it.
-
-    Positions are taken relative to the centre of the pelvis markers along the feet's
-    direction (:func:`foot_direction`); an extremum counts if it stands out by
-    ``params.coordinate_prominence`` of the signal's range and is not cut by an end of
-    the trial or a gap. Times are sub-field (parabola through the extreme sample and its
-    neighbours).
-
-    References
-    ----------
-    Zeni, Richards & Higginson 2008.
-    """
-    direction = foot_direction(markers, params)
-    centre = pelvis_centre(markers)
-    times: dict[tuple[str, str], list[float]] = {}
-    for side in SIDES:
-        for event, track, sign in (
-            ("foot_strike", markers.heel[side], 1.0),
-            ("foot_off", markers.toe[side], -1.0),
-        ):
-            along = np.sum((track - centre)[:, :2] * direction, axis=1)
-            times[(side, event)] = list(_peaks(sign * along, markers.rate_hz, params))
-    return GaitEvents.from_times(times, markers.rate_hz)
-
-
-def _peaks(y: NDArray, rate: float, params: GaitParams) -> NDArray[np.float64]:
-    """Sub-sample times of the clear maxima of ``y``, run of valid samples by run."""
-    from scipy.signal import find_peaks
-
-    valid = np.isfinite(y)
-    if valid.sum() < 3:
-        return np.array([])
-    lo, hi = np.percentile(y[valid], [5, 95])
-    prominence = params.coordinate_prominence * (hi - lo)
-    distance = max(1, round(params.min_step_s * rate))
-    t = np.arange(len(y)) / rate
-    out = []
-    for a, b in zip(*true_runs(valid), strict=True):
-        if b - a < 3:
-            continue
-        for i in find_peaks(y[a:b], prominence=prominence, distance=distance)[0]:
-            out.append(peak_time(t, y, a + int(i)))
-    return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
 
 
 class _quiet:

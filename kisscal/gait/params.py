@@ -79,12 +79,6 @@ class GaitParams(Params):
     max_missing : float
         A side without a full stride names its heel or toe marker, or the pelvis,
         missing in more than this fraction of the fields (gaps hide events).
-    coordinate_prominence : float
-        Zeni et al. 2008's coordinate rule: an extremum of a foot's position relative to
-        the pelvis counts if it stands out by this fraction of the position's range.
-    min_step_s : float
-        Two extrema of one foot's relative position are at least this far apart (a
-        stride is longer than 0.7 s even when running).
     human_cadence : (float, float)
         Cadence (steps/min) outside which no one walks: a trial's mean cadence outside it
         points to a wrong ``[session] rate_hz`` (times scale with it), and the log says so.
@@ -120,8 +114,6 @@ class GaitParams(Params):
     heel_down_mm: float = param(10.0, unit="mm", gt=0)
     min_trial_s: float = param(1.5, unit="s", gt=0)
     max_missing: float = param(0.5, ge=0, le=1)
-    coordinate_prominence: float = param(0.3, gt=0, lt=1)
-    min_step_s: float = param(0.5, unit="s", gt=0)
     human_cadence: tuple[float, float] = param((30.0, 200.0), unit="steps/min", gt=0)
     human_speed: tuple[float, float] = param((0.1, 3.0), unit="m/s", gt=0)
     # 18 real trials of fixtures/real/gait: 0.0026-0.0074; a rate 0.6x too low: x 1.67

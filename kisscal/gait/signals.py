@@ -177,13 +177,3 @@ def kink_time(
     if best in (0, len(cands) - 1):
         return float("nan")
     return float(cands[best])
-
-
-def peak_time(t: NDArray[np.float64], y: NDArray[np.float64], i: int) -> float:
-    """Sub-sample time of the maximum at sample ``i``: vertex of the parabola through i-1..i+1."""
-    if i <= 0 or i >= len(y) - 1 or not np.all(np.isfinite(y[i - 1 : i + 2])):
-        return float("nan")
-    a, b, c = y[i - 1 : i + 2]
-    den = a - 2 * b + c
-    shift = 0.0 if den >= 0 else 0.5 * (a - c) / den
-    return float(t[i] + shift * (t[i + 1] - t[i]))

@@ -12,11 +12,8 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TextIO
 
-import numpy as np
-
-from kisscal.detect.blobs import Blobs, flag_string, parse_flags
-from kisscal.errors import InputError
-from kisscal.io.files import atomic_path, read_text
+from kisscal.detect.blobs import Blobs, flag_string
+from kisscal.io.files import atomic_path
 
 COLUMNS = ("image", "x_px", "y_px", "pixels", "w_px", "h_px", "valid", "flags")
 
@@ -61,42 +58,3 @@ def _write_rows(f: TextIO, tables: Iterable[tuple[str, Blobs]]) -> int:
         out.writerow(row)
         n += 1
     return n
-
-
-def read_blobs(path: str | Path) -> dict[str, Blobs]:
-    """Read a blob CSV back into one :class:`Blobs` per image, in first-appearance order.
-
-    The binary centroid is not stored in the file, so ``x_binary_px`` / ``y_binary_px``
-    are NaN. Images without blobs do not appear (the file has no row for them).
-    """
-    path = Path(path)
-    rows = list(csv.reader(io.StringIO(read_text(path, "blob file"))))
-    if not rows or tuple(rows[0]) != COLUMNS:
-        raise InputError(f"blobs: {path} does not start with the header {','.join(COLUMNS)}")
-    by_image: dict[str, list[list[str]]] = {}
-    for line, row in enumerate(rows[1:], start=2):
-        if len(row) != len(COLUMNS):
-            raise InputError(f"blobs: {path} line {line} has {len(row)} fields, expected 8")
-        by_image.setdefault(row[0], []).append(row)
-    tables: dict[str, Blobs] = {}
-    for image, group in by_image.items():
-        try:
-            x = np.array([float(r[1]) for r in group])
-            y = np.array([float(r[2]) for r in group])
-            ints = np.array([[int(r[3]), int(r[4]), int(r[5]), int(r[6])] for r in group])
-            flags = np.array([parse_flags(r[7]) for r in group], dtype=np.int64)
-        except ValueError as exc:
-            raise InputError(f"blobs: {path}, image {image}: {exc}") from exc
-        nan = np.full(x.size, np.nan)
-        tables[image] = Blobs(
-            x_px=x,
-            y_px=y,
-            x_binary_px=nan,
-            y_binary_px=nan.copy(),
-            pixels=ints[:, 0].astype(np.int64),
-            w_px=ints[:, 1].astype(np.int64),
-            h_px=ints[:, 2].astype(np.int64),
-            valid=ints[:, 3] != 0,
-            flags=flags,
-        )
-    return tables

@@ -38,7 +38,6 @@ class ModelScore:
     model: str
     held_out_rms_px: float | None
     held_out_3d_rms_mm: float | None
-    in_sample_rms_px: float | None
 
 
 @dataclass(frozen=True)

@@ -105,10 +105,6 @@ class DetectionRecord:
     size: tuple[int, int] | None = None
     kinds: Mapping[str, KindRecord] = field(default_factory=dict)
 
-    def with_kind(self, kind: str, record: KindRecord) -> DetectionRecord:
-        """This record with ``kind``'s settings replaced by ``record``."""
-        return replace(self, kinds={**self.kinds, kind: record})
-
     def as_dict(self) -> dict[str, Any]:
         """The JSON document."""
         return {
@@ -181,5 +177,6 @@ def write_detection_record(
     kinds of image (a survey's result and the key of what it was derived from) in place
     of those it kept."""
     for kind, (setup, key) in (derived or {}).items():
-        record = record.with_kind(kind, KindRecord.from_setup(setup, key))
+        kinds = {**record.kinds, kind: KindRecord.from_setup(setup, key)}
+        record = replace(record, kinds=kinds)
     write_json(path, record.as_dict())

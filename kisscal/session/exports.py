@@ -216,7 +216,9 @@ def export(
     meta = _meta(fits)
     cams = [f.camera for f in fits.values()]
     if to == "pose2sim":
-        names = pose2sim_names(len(cams))
+        # Pose2Sim pairs the calibration's cameras with its pose folders in order,
+        # sorted by their last number: cam_01, cam_02, ...
+        names = [f"cam_{i + 1:02d}" for i in range(len(cams))]
         # Pose2Sim's own [metadata] keys, then which session camera each table is
         meta = {
             "adjusted": False,
@@ -237,12 +239,6 @@ def export(
     paths = [write_opencv_yaml(Path(folder) / f"{c.id}.yml", c, units) for c in cams]
     echo(f"{folder}: {len(paths)} OpenCV camera files ({units})")
     return paths
-
-
-def pose2sim_names(n: int) -> list[str]:
-    """Pose2Sim's camera names, ``cam_01``, ``cam_02``, ...: it pairs the calibration's
-    cameras with its pose folders in order, sorted by their last number."""
-    return [f"cam_{i + 1:02d}" for i in range(n)]
 
 
 def _export_units(to: str, units: str | None) -> str:

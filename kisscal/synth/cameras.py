@@ -40,19 +40,6 @@ def truth_dict(camera: Camera) -> dict[str, object]:
     }
 
 
-def camera_from_truth(d: dict) -> Camera:
-    """The camera of one entry of ``truth/cameras.json`` (inverse of :func:`truth_dict`)."""
-    lens = {k: float(v) for k, v in d["distortion"].items()}
-    return Camera(
-        np.asarray(d["K"], dtype=float),
-        np.asarray(d["R"], dtype=float),
-        np.asarray(d["t"], dtype=float),
-        brown_lens(**lens),
-        str(d["id"]),
-        (int(d["size"][0]), int(d["size"][1])),
-    )
-
-
 def brown_lens(
     k1: float = 0.0, k2: float = 0.0, k3: float = 0.0, p1: float = 0.0, p2: float = 0.0
 ) -> NDArray[np.float64]:

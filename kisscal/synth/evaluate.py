@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from kisscal.synth.motion import G_MM_S2, STICK_LENGTH_MM
+from kisscal.synth.motion import STICK_LENGTH_MM
 
 
 @dataclass(frozen=True)
@@ -142,8 +142,3 @@ def thrown_gravity(field: NDArray[np.int64], xyz_mm: NDArray[np.float64], rate_h
     """Seed 003, 5.1: vertical acceleration (m/s^2) of a parabola fitted to z(t)."""
     t = np.asarray(field, dtype=float) / rate_hz
     return float(-2.0 * np.polyfit(t, xyz_mm[:, 2], 2)[0] / 1000.0)
-
-
-def gravity_error(g_m_s2: float) -> float:
-    """Relative error of a measured g against the seed's 9.806 m/s^2."""
-    return abs(g_m_s2 * 1000.0 - G_MM_S2) / G_MM_S2

@@ -56,14 +56,11 @@ class Centres:
     ----------
     xyz_mm : (k, n_fields, 3) float array
         Each centre per field (NaN where its cluster is not all known).
-    radius_sd_mm : (k,) float array
-        SD over the trial of the marker's distance to each centre.
     clusters : tuple of tuple of int
         The tracks whose frame carries each centre.
     """
 
     xyz_mm: NDArray[np.float64]
-    radius_sd_mm: NDArray[np.float64]
     clusters: tuple[tuple[int, ...], ...]
 
 
@@ -150,7 +147,7 @@ def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
     members = np.r_[t, length_partners(dense, t, params)[0]].astype(np.int64)
     fewest = max(params.body_context_fields, 4)
     mine = MIN_TOGETHER * np.isfinite(dense[t, :, 0]).sum()
-    xyz, sds, used = [], [], []
+    xyz, used = [], []
     for cluster in rigid_clusters(dense, t, params):
         known, r, tr, _ = _frames(dense, cluster)
         pts, who = _local(dense, members, known, r, tr)
@@ -166,10 +163,8 @@ def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
         at = np.full((n_fields, 3), np.nan)
         at[known] = np.einsum("nij,j->ni", r, centre) + tr
         xyz.append(at)
-        sds.append(sd[0])
         used.append(tuple(int(c) for c in cluster))
     return Centres(
         np.asarray(xyz, dtype=float).reshape(len(xyz), n_fields, 3),
-        np.asarray(sds, dtype=float),
         tuple(used),
     )

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from fixtures.fig9 import fig9_params, make_fig9
 from kisscal.detect import Blobs, detect_blobs
-from kisscal.errors import KisscalError
-from kisscal.io.blobs import COLUMNS, read_blobs, write_blobs
+from kisscal.io.blobs import COLUMNS, write_blobs
 from kisscal.report.overlay import INVALID_RGB, VALID_RGB, draw_overlay
+from tests.io.blob_csv import read_blobs
 
 
 def test_csv_round_trip(tmp_path):
@@ -26,15 +25,6 @@ def test_csv_round_trip(tmp_path):
     assert np.allclose(got.x_px, blobs.x_px, atol=1e-4)
     for name in ("pixels", "w_px", "h_px", "valid", "flags"):
         assert np.array_equal(getattr(got, name), getattr(blobs, name))
-
-
-def test_csv_reader_rejects_other_files(tmp_path):
-    path = tmp_path / "x.csv"
-    path.write_text("a,b\n1,2\n")
-    with pytest.raises(KisscalError, match="header"):
-        read_blobs(path)
-    with pytest.raises(KisscalError, match="not found"):
-        read_blobs(tmp_path / "missing.csv")
 
 
 def test_overlay_colours_valid_and_invalid():

@@ -18,8 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kisscal.gait import detect_events
-from kisscal.gait.events import coordinate_events
+from kisscal._shared import true_runs
+from kisscal.gait import GaitMarkers, detect_events
+from kisscal.gait.events import foot_direction, pelvis_centre
 from kisscal.gait.table import EVENTS, SIDES, GaitEvents
 from tests.gait import _real
 
@@ -29,6 +30,68 @@ MATCH_S = 0.15
 #: Marked events this close to the start or the end of a trial (s) belong to strides
 #: cut by it: not finding them is not a miss.
 EDGE_S = (0.4, 0.3)
+#: Zeni's rule: an extremum of a foot's position relative to the pelvis counts if it
+#: stands out by this fraction of the position's range ...
+PROMINENCE = 0.3
+#: ... and two extrema of one foot are at least this far apart (s): a stride is longer
+#: than 0.7 s even when running.
+MIN_STEP_S = 0.5
+
+
+def coordinate_events(markers: GaitMarkers) -> GaitEvents:
+    """Zeni et al. (2008)'s coordinate rule alone: foot strike when the heel is furthest
+    ahead of the pelvis, foot off when the toe is furthest behind it.
+
+    Positions are taken relative to the centre of the pelvis markers along the feet's
+    direction (:func:`~kisscal.gait.events.foot_direction`); an extremum counts if it
+    stands out by :data:`PROMINENCE` of the signal's range and is not cut by an end of
+    the trial or a gap. Times are sub-field (parabola through the extreme sample and its
+    neighbours).
+
+    References
+    ----------
+    Zeni, Richards & Higginson 2008.
+    """
+    direction = foot_direction(markers)
+    centre = pelvis_centre(markers)
+    times: dict[tuple[str, str], list[float]] = {}
+    for side in SIDES:
+        for event, track, sign in (
+            ("foot_strike", markers.heel[side], 1.0),
+            ("foot_off", markers.toe[side], -1.0),
+        ):
+            along = np.sum((track - centre)[:, :2] * direction, axis=1)
+            times[(side, event)] = list(_peaks(sign * along, markers.rate_hz))
+    return GaitEvents.from_times(times, markers.rate_hz)
+
+
+def _peaks(y: np.ndarray, rate: float) -> np.ndarray:
+    """Sub-sample times of the clear maxima of ``y``, run of valid samples by run."""
+    from scipy.signal import find_peaks
+
+    valid = np.isfinite(y)
+    if valid.sum() < 3:
+        return np.array([])
+    lo, hi = np.percentile(y[valid], [5, 95])
+    distance = max(1, round(MIN_STEP_S * rate))
+    t = np.arange(len(y)) / rate
+    out = []
+    for a, b in zip(*true_runs(valid), strict=True):
+        if b - a < 3:
+            continue
+        for i in find_peaks(y[a:b], prominence=PROMINENCE * (hi - lo), distance=distance)[0]:
+            out.append(peak_time(t, y, a + int(i)))
+    return np.asarray([x for x in out if np.isfinite(x)], dtype=float)
+
+
+def peak_time(t: np.ndarray, y: np.ndarray, i: int) -> float:
+    """Sub-sample time of the maximum at sample ``i``: vertex of the parabola through i-1..i+1."""
+    if i <= 0 or i >= len(y) - 1 or not np.all(np.isfinite(y[i - 1 : i + 2])):
+        return float("nan")
+    a, b, c = y[i - 1 : i + 2]
+    den = a - 2 * b + c
+    shift = 0.0 if den >= 0 else 0.5 * (a - c) / den
+    return float(t[i] + shift * (t[i + 1] - t[i]))
 
 
 @dataclass

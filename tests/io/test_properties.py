@@ -16,9 +16,10 @@ from hypothesis import strategies as st
 
 from kisscal.detect import Blobs
 from kisscal.errors import KisscalError
-from kisscal.io.blobs import read_blobs, write_blobs
+from kisscal.io.blobs import write_blobs
 from kisscal.io.config import load_toml, parse_session
 from kisscal.io.files import read_table, write_table
+from tests.io.blob_csv import read_blobs
 
 KEYS = ["session", "cameras", "grid", "rods", "trials", "markers", "wand", "axes", "detection"]
 SCALARS = st.one_of(

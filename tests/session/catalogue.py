@@ -179,7 +179,7 @@ def static_target(root: Path) -> None:
     """A one-field trial: 200 points of a static target, as each camera's raw centroids."""
     import json
 
-    from kisscal.synth.cameras import camera_from_truth
+    from tests.synth.truth_cameras import camera_from_truth
 
     rng = np.random.default_rng(7)
     grid = np.stack(np.meshgrid(*(np.linspace(-0.8, 0.8, k) for k in (8, 5, 5))), -1)

@@ -40,9 +40,9 @@ from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.rig import Rig
 from kisscal.session.calibrated import current_rig
 from kisscal.session.params import Overrides
-from kisscal.synth.cameras import camera_from_truth
 from kisscal.synth.presets import synth_options
 from tests.bundle.wand_scoring import volume_points
+from tests.synth.truth_cameras import camera_from_truth
 
 REAL = Path("/work/shared/data/real/openptv-cavity")  # --real to point elsewhere
 MODELS = ("dlt", "refined", "radial", "lens")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from kisscal.io.blobs import read_blobs
+from tests.io.blob_csv import read_blobs
 
 
 def kisscal(*args: str) -> subprocess.CompletedProcess[str]:

@@ -18,10 +18,10 @@ import tomli_w
 from kisscal.camera import Camera
 from kisscal.io.config import load_toml
 from kisscal.io.files import write_table
-from kisscal.synth.cameras import camera_from_truth
 from kisscal.synth.render import RenderParams
 from kisscal.synth.scene import visibility
 from kisscal.synth.wand import AXES_POINTS_MM, WAND_MARKERS_MM, render_axes, wand_trial
+from tests.synth.truth_cameras import camera_from_truth
 
 
 def truth_rig(root: Path) -> tuple[Camera, ...]:

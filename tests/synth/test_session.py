@@ -16,7 +16,7 @@ from kisscal import session
 from kisscal.camera import Camera
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table
-from kisscal.synth.cameras import camera_from_truth
+from tests.synth.truth_cameras import camera_from_truth
 
 
 def cameras(root: Path) -> dict[str, Camera]:
