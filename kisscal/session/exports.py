@@ -4,10 +4,10 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 
 * ``cameras.toml``: OpenCV's model fitted to each camera
   (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the calibrated volume
-  (the extent of the control points, :func:`control_volume`), or within the control
-  points' extent in the image when they span no volume; ``exports.json`` gives the fit's RMS and
-  largest distance over the image (px) and the DLT's skew, which OpenCV's matrix cannot
-  hold.
+  (the extent of the control points, :func:`control_volume`, within their convex hull),
+  or within the control points' extent in the image when they span no volume;
+  ``exports.json`` gives the fit's RMS and largest distance over the image (px) and the
+  DLT's skew, which OpenCV's matrix cannot hold.
 * ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
   applies the coefficients to pixels as digitised, while kisscal's map to linearised
   pixels; ``exports.json`` gives the size of that difference at the image corners and
@@ -81,13 +81,18 @@ def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
     return uv[np.isfinite(uv).all(axis=1)]
 
 
+def control_points(dlts: Mapping[str, DltFile]) -> np.ndarray | None:
+    """Every camera's control points (lab mm, each once); None without any."""
+    found = [x for x in (control_xyz(d) for d in dlts.values()) if x is not None and len(x)]
+    return np.unique(np.concatenate(found), axis=0) if found else None
+
+
 def control_volume(dlts: Mapping[str, DltFile]) -> tuple[np.ndarray, np.ndarray] | None:
     """The calibrated volume: lowest and highest corner (mm) of every camera's control
     points; None without any, or when they span no volume (fewer than 4 points, flat)."""
-    found = [x for x in (control_xyz(d) for d in dlts.values()) if x is not None and len(x)]
-    if not found:
+    xyz = control_points(dlts)
+    if xyz is None:
         return None
-    xyz = np.concatenate(found)
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
     if len(xyz) < 4 or np.any(hi - lo <= 1e-6 * max(float(np.max(hi - lo)), 1.0)):
         return None
@@ -119,7 +124,11 @@ def _opencv_fits(
     Levenberg-Marquardt on its own camera."""
     cameras = list(cameras)
     fit = functools.partial(
-        _opencv_fit, dlts=dict(dlts), volume=control_volume(dlts), pose2sim=pose2sim
+        _opencv_fit,
+        dlts=dict(dlts),
+        volume=control_volume(dlts),
+        hull=control_points(dlts),
+        pose2sim=pose2sim,
     )
     fits = each_camera(fit, cameras, "export", quiet, workers)
     return {c.id: f for c, f in zip(cameras, fits, strict=True)}
@@ -130,6 +139,7 @@ def _opencv_fit(
     echo: Echo,
     dlts: Mapping[str, DltFile],
     volume: tuple[np.ndarray, np.ndarray] | None,
+    hull: np.ndarray | None,
     pose2sim: bool,
 ) -> OpenCvFit:
     """:func:`~kisscal.opencv.opencv_from_camera` of one camera (:func:`_opencv_fits`)."""
@@ -139,6 +149,7 @@ def _opencv_fit(
         k3=not pose2sim,
         used_px=control_px(camera, dlts.get(camera.id)),
         volume_mm=volume,
+        hull_mm=hull,
     )
 
 
