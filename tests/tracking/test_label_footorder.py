@@ -35,6 +35,18 @@ def test_a_foot_named_one_marker_along_is_doubted_and_a_right_foot_is_not(
     assert _doubted(truth, toe_on_ankle | {"LTOE": "LANK"}, fitted_mm) == ("LTOE",)
 
 
+def test_a_foreign_forefoot_marker_a_little_ahead_of_the_toe_does_not_doubt_it():
+    # As walking5's first metatarsal head lies 21 mm ahead of the second's, which takes
+    # the toe's name: a marker rigid to the foot a tenth of its length ahead of the toe.
+    truth, _, _, _ = walker_trial(5, 1.8, 140.0, 0.8, 50.0)
+    toe, heel = (truth[LOWER.index(n)] for n in ("RTOE", "RHEE"))
+    extra = np.concatenate([truth, (toe + 0.1 * (toe - heel))[None]])
+    assert _doubted(extra, RIGHT, 1800.0) == ()
+    # A whole gap ahead, as the toe marker is when the toe's name is on the ankle's.
+    beyond = np.concatenate([truth, (toe + 0.5 * (toe - heel))[None]])
+    assert _doubted(beyond, RIGHT, 1800.0) == ("RTOE",)
+
+
 def test_without_a_forward_direction_nothing_is_doubted():
     # Standing still, with no pelvis back marker of the set (SACR is not one of the full
     # body set's): the only forward left is the feet's own, which the names give.

@@ -9,7 +9,12 @@ a toe marker on the forefoot, its foremost, and the foot's pitch in gait (about 
 toe up at heel strike, 50 heel up at toe off) never turns that order along the direction
 the subject faces (Perry & Burnfield 2010). So a trajectory rigid to the heel's name and
 near it that lies behind it along the subject's forward direction means the heel's name
-is on another marker of the foot, and likewise one ahead of the toe's name.
+is on another marker of the foot, and likewise one ahead of the toe's name. It must lie
+beyond by more than half the template's gap from that end to the foot's next name (the
+ankle's, or the other end's) along the foot: a name shifted one marker along leaves the
+end's own marker a whole gap beyond it, while a set's foreign forefoot marker may lie a
+little ahead of the toe marker (walking5's first metatarsal head, 21 mm ahead of the
+second's, which takes the toe's name).
 """
 
 from __future__ import annotations
@@ -21,15 +26,18 @@ from numpy.typing import NDArray
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, forward_directions
-from kisscal.tracking.labelling.facing import foot_pairs
+from kisscal.tracking.labelling.facing import HEEL, foot_pairs
 from kisscal.tracking.labelling.partial import VOUCH_SPREAD_MM, named_positions, unnamed_positions
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM
 
-#: A rigid neighbour must lie this far (mm, median along the forward direction) behind a
-#: heel's name, or ahead of a toe's, to doubt it: three rigid spreads, above the markers'
-#: skin motion, well below the 45-90 mm from a child's to an adult's heel to ankle.
+#: A rigid neighbour must lie at least this far (mm, median along the forward direction)
+#: behind a heel's name, or ahead of a toe's, to doubt it, whatever the template's gap:
+#: three rigid spreads, above the markers' skin motion.
 BEYOND_MM = 3.0 * RIGID_SPREAD_MM
+#: ... and beyond this fraction of the template's gap from the end to the foot's next
+#: name along the foot (see module).
+GAP_FRACTION = 0.5
 #: Forward directions that this module trusts: the walk, or the pelvis' facing; never the
 #: feet's own heel-to-toe direction, which the names being judged give.
 _SOURCES = ("walking", "pelvis")
@@ -51,6 +59,26 @@ def _beyond(one: NDArray, others: NDArray, forward: NDArray, reach_mm: float) ->
     enough = max(MIN_SHARED_FIELDS, int(np.isfinite(one[:, 0]).sum()) // 2)
     ok = (shared >= enough) & (sd < VOUCH_SPREAD_MM) & (dist <= reach_mm)
     return np.where(ok, offset, np.nan)
+
+
+def _ends(
+    names: tuple[str, ...], template: NDArray, toe: int, heel: int
+) -> list[tuple[int, float, float]]:
+    """(row, sign, margin mm) of a foot's heel (behind: -1) and toe (ahead: +1): the
+    margin is :data:`GAP_FRACTION` of the template's gap, along the heel-to-toe axis, to
+    the foot's next name (the ankle, ``<side>ANK``, when the set has one), at least
+    :data:`BEYOND_MM`."""
+    axis = template[toe] - template[heel]
+    axis = axis / np.linalg.norm(axis)
+    ankle = f"{HEEL.match(names[heel]).group(1)}ANK"
+    back = front = names.index(ankle) if ankle in names else None
+    back, front = (toe, heel) if back is None else (back, front)
+    gap_heel = float((template[back] - template[heel]) @ axis)
+    gap_toe = float((template[toe] - template[front]) @ axis)
+    return [
+        (heel, -1.0, max(BEYOND_MM, GAP_FRACTION * gap_heel)),
+        (toe, 1.0, max(BEYOND_MM, GAP_FRACTION * gap_toe)),
+    ]
 
 
 def out_of_order_feet(
@@ -92,12 +120,12 @@ def out_of_order_feet(
     doubted = set()
     for toe, heel in foot_pairs(names):
         reach = float(np.linalg.norm(template[toe] - template[heel]))
-        for row, sign in ((heel, -1.0), (toe, 1.0)):
+        for row, sign, margin in _ends(names, template, toe, heel):
             if not np.isfinite(pos[row, :, 0]).any():
                 continue
             rest = np.concatenate([others, np.delete(pos, row, axis=0)])
             offset = _beyond(pos[row], rest, forward, reach)
             with np.errstate(invalid="ignore"):
-                if np.any(sign * offset > BEYOND_MM):
+                if np.any(sign * offset > margin):
                     doubted.add(names[row])
     return tuple(n for n in names if n in doubted)
