@@ -209,7 +209,8 @@ class Live:
         pred, half = self._predict()
         rows, cols = self._gate(pred, half, points, later)
         args = (self.history, self.n, self.alive & (self.misses == 0), points, rows, cols)
-        if cluster.carry(pred, *args, self.setup.params.cluster_radius_mm, RIVAL_MIN_MM):
+        radius = self.setup.params.cluster_radius_mm
+        if cluster.carry(pred, *args, radius, RIVAL_MIN_MM):
             self.ambiguous.fill(False)  # assigned again from the carried predictions
             rows, cols = self._gate(pred, half, points, later)
         if self.setup.params.rival_ratio > 0 and rows.size:
@@ -226,6 +227,8 @@ class Live:
             lost = self.alive & (self.misses == 0) & (np.bincount(rows, minlength=len(pred)) == 0)
             args = (pred[kal], found, points, spread, ratio, pred[self.alive], pred[lost])
             self.ambiguous[kal[assoc.certain_rows(*args)]] = False
+        args = (self.history, self.n, self.alive & (self.misses == 0), points, rows, cols)
+        self.ambiguous[cluster.broken(*args, radius, RIVAL_MIN_MM)] = True  # blending judges
         self._update(field, pred, rows, cols, points, point)
         return cols.tolist()
 

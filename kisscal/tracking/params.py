@@ -76,7 +76,9 @@ class TrackingParams(Params):
         apart on a hand) predict it by their common move this field, and the field is
         assigned again
         (:func:`~kisscal.tracking.cluster.carry`; PhaseSpace's hand at 30 Hz, LEDs
-        30-70 mm apart moving 60-170 mm a field). 0 turns it off.
+        30-70 mm apart moving 60-170 mm a field). A track whose new point changes its
+        distance to such a neighbour is cut there (:func:`~kisscal.tracking.cluster.broken`).
+        0 turns both off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:
         the start point is its own prediction).

@@ -37,6 +37,7 @@ from scipy.sparse import csr_matrix, identity, vstack
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
 from kisscal.tracking.labelling.feet import settle_feet
+from kisscal.tracking.labelling.footorder import out_of_order_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.label import label_tracks
 from kisscal.tracking.labelling.learned import name_from_trial
@@ -308,8 +309,9 @@ def _label_upright(
         # A part stood on the floor fits many statures (partial.py): at the adult bound
         # the stature is judged by the set's segments its names hold rigid.
         height, first = rigid_height(first, marker_set, first_params, height)
-    scaled = marker_set.scaled(height).template_mm
-    anatomy = Anatomy.of_set(marker_set.scaled(height))
+    scaled_set = marker_set.scaled(height)
+    scaled = scaled_set.template_mm
+    anatomy = Anatomy.of_set(scaled_set)
     exchanged = _settled(first, anatomy, rate_hz)
     template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
     second = _second_pass(first, template, segments, params)
@@ -327,6 +329,11 @@ def _label_upright(
         # A part fits many statures, and a wrong one shifts names along the limbs where
         # nothing above flags them (partial.py): the set's segments must vouch for each.
         doubt = set(judged.flagged) | set(unvouched(judged, marker_set))
+        judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
+    if judged.fits_marker_set:
+        # A foot's markers stay rigid whatever their names: the walk orders them
+        # (footorder.py), a heel's name with a foot marker behind it is doubted.
+        doubt = set(judged.flagged) | set(out_of_order_feet(judged, scaled_set, anatomy, rate_hz))
         judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
     if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
