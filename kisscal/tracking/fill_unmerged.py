@@ -32,10 +32,10 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.model import project_rows, ray_directions
+from kisscal.dlt.model import project_rows
 from kisscal.tracking.fill_sphere import alone_blobs, sphere_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_blobs, path_runs
+from kisscal.tracking.raychain import ChainFill, chain_blobs, path_runs, ray_miss_mm
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: SDs of the neighbour's error its ray must miss it by for a blob to count as merged.
@@ -55,14 +55,6 @@ def _nearest_other(
     dist = np.where(np.isfinite(dist), dist, np.inf)
     o = dist.argmin(axis=0)
     return o, dist[o, np.arange(rows.size)]
-
-
-def _ray_miss(spare: SpareBlobs, rows: NDArray, xyz: NDArray) -> NDArray[np.float64]:
-    """Distance (mm) of ``xyz`` (m, 3) from the ray of each blob ``rows``."""
-    cam = spare.camera[rows]
-    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
-    rel = xyz - spare.centres[cam]
-    return np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
 
 
 def unmerged_blobs(
@@ -86,7 +78,7 @@ def unmerged_blobs(
     err = np.hypot(expected[o, f], params.ray_length_sd_floor_mm)
     other = dense[o, f]
     merged = (dist <= params.ray_merge_px) & np.isfinite(err)
-    merged[merged] = _ray_miss(spare, rows[merged], other[merged]) > MERGED_SDS * err[merged]
+    merged[merged] = ray_miss_mm(spare, rows[merged], other[merged]) > MERGED_SDS * err[merged]
     ks, rows, other, err, f = ks[merged], rows[merged], other[merged], err[merged], f[merged]
     a, b = dense[t, lo - 1], dense[t, hi]
     near = a + (f - lo + 1)[:, None] / (hi - lo + 1) * (b - a)  # the depth's weight only

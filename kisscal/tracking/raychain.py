@@ -237,11 +237,15 @@ def off_rays(
     i = np.searchsorted(ks, o_ks)
     hit = (i < ks.size) & (ks[np.minimum(i, ks.size - 1)] == o_ks)
     i, o_rows = i[hit], o_rows[hit]
-    cam = spare.camera[o_rows]
-    d = ray_directions(spare.dlts[cam], spare.uv_px[o_rows])
-    rel = at[i] - spare.centres[cam]
-    off = np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
-    return np.unique(ks[i[off > gate]])
+    return np.unique(ks[i[ray_miss_mm(spare, o_rows, at[i]) > gate]])
+
+
+def ray_miss_mm(spare: SpareBlobs, rows: NDArray, xyz: NDArray) -> NDArray[np.float64]:
+    """Distance (mm) of each lab point ``xyz`` (m, 3) from the ray of its blob ``rows``."""
+    cam = spare.camera[rows]
+    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
+    rel = xyz - spare.centres[cam]
+    return np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
 
 
 def on_ray(
