@@ -302,7 +302,8 @@ def variance_components(
     """
     keep = result.inlier
     obs = observations.subset(keep)
-    problem = _problem(obs, centred_offsets(markers_mm), control, *_sizes(result))
+    sizes = len(result.cameras), len(result.wand.centre_mm)
+    problem = _problem(obs, centred_offsets(markers_mm), control, *sizes)
     state = State.of(result.cameras, result.wand.centre_mm, result.wand.direction)
     free = free_unknowns(len(result.cameras), params, None)
     loss = Loss(params.loss, params.loss_scale_px)
@@ -327,10 +328,6 @@ def variance_components(
         groups = np.where(redundancy > 0, squares / redundancy, np.nan)
     red_ctrl = 2 * len(c) - share
     return groups, ctrl / red_ctrl if red_ctrl > 0 else float("nan")
-
-
-def _sizes(result: BundleResult) -> tuple[int, int]:
-    return len(result.cameras), len(result.wand.centre_mm)
 
 
 def _problem(

@@ -87,10 +87,10 @@ def control_points(dlts: Mapping[str, DltFile]) -> np.ndarray | None:
     return np.unique(np.concatenate(found), axis=0) if found else None
 
 
-def control_volume(dlts: Mapping[str, DltFile]) -> tuple[np.ndarray, np.ndarray] | None:
-    """The calibrated volume: lowest and highest corner (mm) of every camera's control
-    points; None without any, or when they span no volume (fewer than 4 points, flat)."""
-    xyz = control_points(dlts)
+def control_volume(xyz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The calibrated volume: lowest and highest corner (mm) of the control points
+    (:func:`control_points`); None without any, or when they span no volume (fewer than 4
+    points, flat)."""
     if xyz is None:
         return None
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
@@ -123,12 +123,9 @@ def _opencv_fits(
     processes (default: one per core; 1: in this process): each fit is seconds of
     Levenberg-Marquardt on its own camera."""
     cameras = list(cameras)
+    xyz = control_points(dlts)
     fit = functools.partial(
-        _opencv_fit,
-        dlts=dict(dlts),
-        volume=control_volume(dlts),
-        hull=control_points(dlts),
-        pose2sim=pose2sim,
+        _opencv_fit, dlts=dict(dlts), volume=control_volume(xyz), hull=xyz, pose2sim=pose2sim
     )
     fits = each_camera(fit, cameras, "export", quiet, workers)
     return {c.id: f for c, f in zip(cameras, fits, strict=True)}
