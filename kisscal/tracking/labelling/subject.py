@@ -27,6 +27,7 @@ shorter, places markers a little differently, and walks. So:
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -328,13 +329,11 @@ def _label_upright(
     if partial and judged.fits_marker_set:
         # A part fits many statures, and a wrong one shifts names along the limbs where
         # nothing above flags them (partial.py): the set's segments must vouch for each.
-        doubt = set(judged.flagged) | set(unvouched(judged, marker_set))
-        judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
+        judged = _doubting(judged, names, unvouched(judged, marker_set))
     if judged.fits_marker_set:
         # A foot's markers stay rigid whatever their names: the walk orders them
         # (footorder.py), a heel's name with a foot marker behind it is doubted.
-        doubt = set(judged.flagged) | set(out_of_order_feet(judged, scaled_set, anatomy, rate_hz))
-        judged = replace(judged, flagged=tuple(n for n in names if n in doubt))
+        judged = _doubting(judged, names, out_of_order_feet(judged, scaled_set, anatomy, rate_hz))
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
     if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
         # The floor fit's stature is a bound of the plausible range (the template fits
@@ -343,3 +342,9 @@ def _label_upright(
         taken = set(judged.labels)
         return replace(judged, flagged=tuple(n for n in names if n in taken))
     return judged
+
+
+def _doubting(labelling: Labelling, names: Sequence[str], doubted: Iterable[str]) -> Labelling:
+    """``labelling`` with ``doubted`` names flagged too, in the set's order."""
+    doubt = set(labelling.flagged) | set(doubted)
+    return replace(labelling, flagged=tuple(n for n in names if n in doubt))
