@@ -28,7 +28,12 @@ count, in one fit of the depth over the fields of the gap:
 * a Kalman filter of the same walk walks the gap from each side, taking roots against
   its prediction alike (each root taken tightens the next prediction): where either
   takes a root the fit did not, one of them followed the wrong branch of the spheres,
-  and the gap is left to the other fills.
+  and the gap is left to the other fills;
+* a partner another fill placed (the passes after the first) adds its own error to its
+  roots' SD in the depth's SD (not in their choice): ``ray_rest_max_error_mm``, the
+  most such a partner may expect, or, where the roots taken come from two partners or
+  more, which check each other, what its fill expects, if less (one placed partner
+  alone: nothing checks its fill's claim).
 
 A field is placed where the posterior SD of its depth (the fit's covariance) is at most
 ``ray_depth_max_error_mm``, in runs of at least
@@ -212,11 +217,13 @@ def _gap_data(
     params: TrackingParams,
     mine: NDArray,
     known: NDArray | None = None,
+    expected: NDArray | None = None,
 ) -> tuple[NDArray, NDArray, list[tuple[int, ...]], tuple[NDArray, NDArray, NDArray], NDArray]:
     """Rays (centres, directions) of ``rows`` (one per gap offset of ``ks``), and every
     partner's sphere roots on the rays: the tracks of each datum's partner (m,; a joint
     centre's are its cluster's, :mod:`.joint_centres`), (datum offset, roots (m, 2),
-    SD (m,)) and a factor on each SD (:func:`_placed_factor`; ones without ``known``).
+    SD (m,)) and a factor on each SD (:func:`_placed_factor`, with ``expected``; ones
+    without ``known``).
     ``mine`` (n_fields,) bool: the marker's own samples (for :data:`MIN_TOGETHER`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
@@ -239,26 +246,40 @@ def _gap_data(
     seen = np.all(np.isfinite(where), axis=1)
     j, p, where = j[seen], p[seen], where[seen]
     roots, rsd = sphere_roots(c[j], d[j], where, length[ks[j], p], psd[p])
-    factor = np.ones(rsd.size)
+    factor = np.ones((2, rsd.size))
     if known is not None:
-        factor = _placed_factor(known, tracks, partners[p], lo + ks[j], psd[p], params)
+        args = (known, tracks, partners[p], lo + ks[j], psd[p], params)
+        factor = np.stack([_placed_factor(*args), _placed_factor(*args, expected)])
     ok = np.isfinite(rsd)
     data = (ks[j[ok]], roots[ok], rsd[ok])
-    return c, d, [tracks[u] for u in partners[p[ok]]], data, factor[ok]
+    return c, d, [tracks[u] for u in partners[p[ok]]], data, factor[:, ok]
 
 
 def _placed_factor(
-    known: NDArray, tracks: list, partners: NDArray, f: NDArray, sd: NDArray, params: TrackingParams
+    known: NDArray,
+    tracks: list,
+    partners: NDArray,
+    f: NDArray,
+    sd: NDArray,
+    params: TrackingParams,
+    expected: NDArray | None = None,
 ) -> NDArray[np.float64]:
     """Factor on the SD of each root (partner rows ``partners`` of ``tracks``: a track,
     or a joint centre's cluster; at fields ``f``; length SD ``sd``) for a partner there
     that ``known`` ((n_tracks, n_fields) bool: measured samples) does not hold (a centre:
-    one of its cluster's): placed by another fill, its own error (up to
-    ``ray_rest_max_error_mm``) adds to the length's (kiss 3 seed 306, RTIB on a placed
-    ankle 2-3 mm off: 5.6 mm off expecting 1.3)."""
+    one of its cluster's): placed by another fill, its own error adds to the length's
+    (kiss 3 seed 306, RTIB on a placed ankle 2-3 mm off: 5.6 mm off expecting 1.3):
+    ``ray_rest_max_error_mm``, the most a placed partner may expect, or with
+    ``expected`` ((n_tracks, n_fields), each track's expected error there, NaN where
+    not known) what the fill that placed it expects, if less (a centre: its cluster's
+    largest)."""
     rows = [known] + [known[list(c)].all(axis=0)[None] for c in tracks[len(known) :]]
     placed = ~np.concatenate(rows)[partners, f]
-    return np.where(placed, np.hypot(sd, params.ray_rest_max_error_mm) / sd, 1.0)
+    err = np.full(f.size, params.ray_rest_max_error_mm)
+    if expected is not None:
+        own = [expected] + [expected[list(c)].max(axis=0)[None] for c in tracks[len(known) :]]
+        err = np.fmin(np.concatenate(own)[partners, f], err)
+    return np.where(placed, np.hypot(sd, err) / sd, 1.0)
 
 
 def _crowded(
@@ -317,6 +338,7 @@ def sphere_depth_fill(
     params: TrackingParams,
     measured: NDArray | None = None,
     known: NDArray | None = None,
+    expected: NDArray | None = None,
     blobs: tuple[NDArray, NDArray] | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
@@ -326,7 +348,10 @@ def sphere_depth_fill(
     :data:`~kisscal.tracking.raychain.MIN_RUN` fields is placed or no length was used.
     With ``measured`` ((n_fields,) bool), the ends of the fit are only those samples of
     the track. With ``known`` ((n_tracks, n_fields) bool, the measured samples), a
-    partner placed by another fill counts its error too (:func:`_placed_factor`). The
+    partner placed by another fill counts its error too (:func:`_placed_factor`):
+    ``ray_rest_max_error_mm``, or, where the roots taken come from two partners or more
+    (each checks the other), what ``expected`` ((n_tracks, n_fields), each track's
+    expected error, NaN where not known) says its fill expects there, if less. The
     blobs taken are not marked used here. ``blobs``: the gap offsets and rows of the
     marker's blobs, when the caller chose them (:mod:`.fill_unmerged`); by default
     those followed in the image that no other track's image is near."""
@@ -353,7 +378,7 @@ def sphere_depth_fill(
         np.full(ends_f.size, params.ray_length_sd_floor_mm),
     )
     c, d, partners, (k_data, roots, rsd), factor = _gap_data(
-        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0]), known
+        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0]), known, expected
     )
     fit = _fit(n, ends, (k_data + lo - f0, roots, rsd), acc)
     if fit is None:
@@ -363,14 +388,17 @@ def sphere_depth_fill(
         return None
     # the roots are chosen and checked as measured partners' are (a placed partner's
     # error is the same over its run: looser SDs let a biased one through); the SD of
-    # the depth counts it
+    # the depth counts it: the bound, or what its fill expects where another partner's
+    # roots check it (resting on one, kiss 3 seed 306's RTIB on an ankle placed 1.8 mm
+    # RMS off expecting 1.3 went 4.3 mm off expecting 2.3)
     use = np.isfinite(taken)
+    checked = len({partners[k] for k in np.flatnonzero(use)}) >= 2
     e_idx, e_val, e_sd = ends
     msd = smooth_depth(
         n,
         np.r_[e_idx, k_data[use] + lo - f0],
         np.r_[e_val, taken[use]],
-        np.r_[e_sd, (rsd * factor)[use]],
+        np.r_[e_sd, (rsd * factor[int(checked)])[use]],
         acc,
     )[1]
     s, sd = mean[ks + lo - f0], msd[ks + lo - f0]

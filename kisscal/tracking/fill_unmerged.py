@@ -122,9 +122,8 @@ def unmerged_depth_fill(
     blobs = np.r_[ks, a_ks][order], np.r_[rows, a_rows][order]
     shifted = spare.uv_px.copy()
     shifted[rows] = uv
-    got = sphere_depth_fill(
-        dense, t, lo, hi, dataclasses.replace(spare, uv_px=shifted), params, measured, known, blobs
-    )
+    moved = dataclasses.replace(spare, uv_px=shifted)
+    got = sphere_depth_fill(dense, t, lo, hi, moved, params, measured, known, blobs=blobs)
     if got is None:
         return None
     # the lateral error where the ray is an unmerged blob's (the fit keeps one camera)

@@ -152,3 +152,43 @@ def test_a_placed_partner_s_error_counts_in_the_depth_not_in_the_choice_of_roots
         # taken as measured, the partner's error is missed: 3.0 mm off expecting 0.95
         assert err > 2.0 * np.sqrt(np.mean(as_measured.sd_mm[ok] ** 2))
         assert err < 1.5 * np.sqrt(np.mean(got.sd_mm[ok] ** 2))
+
+
+def _two_placed(cut: dict, expect: float) -> tuple:
+    """Marker 3 of a rigid body through GAP seen by one camera, markers 0 and 1 (the
+    ones not ``cut``) placed by another fill 0.4 mm off, which expects ``expect`` mm:
+    the sphere fill with the bound for a placed partner, and with what its fill expects."""
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    dlts, f, uv = _one_camera(xyz, np.array([1500.0, -1500.0, 2500.0]), 5)
+    spare = spare_blobs(f, np.zeros(f.size), uv, dlts)
+    dense = _dense(_tracks_of(xyz, cut))
+    dense[:2, GAP] += [0.3, -0.3, 0.0]
+    known = np.isfinite(dense[:, :, 0])
+    known[:2, GAP] = False
+    expected = np.where(known, 0.0, np.nan)
+    expected[:2, GAP] = expect
+    bound = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS, known=known)
+    own = sphere_depth_fill(
+        dense, 3, GAP.start, GAP.stop, spare, PARAMS, known=known, expected=expected
+    )
+    return xyz, bound, own
+
+
+def test_placed_partners_that_check_each_other_count_the_error_their_fills_expect():
+    xyz, bound, got = _two_placed({2: GAP, 3: GAP}, 0.5)
+    assert bound is not None and got is not None
+    assert len(got.partners) == 2
+    ok = np.isfinite(bound.sd_mm)
+    assert np.all(np.isfinite(got.sd_mm[ok]))
+    assert np.allclose(got.xyz_mm[ok], bound.xyz_mm[ok])  # the same roots
+    # surer than at ray_rest_max_error_mm, and still honest against truth
+    assert np.all(got.sd_mm[ok] <= bound.sd_mm[ok])
+    assert got.sd_mm[ok].max() < 0.7 * bound.sd_mm[ok].max()
+    err = np.sqrt(np.mean(np.sum((got.xyz_mm[ok] - xyz[3, GAP][ok]) ** 2, axis=1)))
+    assert err < 1.5 * np.sqrt(np.mean(got.sd_mm[ok] ** 2))
+    # a fill expecting more than a placed partner may: the bound
+    _, bound, loose = _two_placed({2: GAP, 3: GAP}, 10.0)
+    assert np.allclose(loose.sd_mm, bound.sd_mm, equal_nan=True)
+    # one placed partner alone: nothing checks what its fill expects, the bound
+    _, bound, alone = _two_placed({1: GAP, 2: GAP, 3: GAP}, 0.5)
+    assert bound is not None and np.allclose(alone.sd_mm, bound.sd_mm, equal_nan=True)
