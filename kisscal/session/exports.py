@@ -3,9 +3,10 @@
 closely each matches kisscal's own cameras; ``kisscal export`` writes one of them alone.
 
 * ``cameras.toml``: OpenCV's model fitted to each camera
-  (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the calibrated volume
-  (the extent of the control points, :func:`control_volume`, within their convex hull),
-  or within the control points' extent in the image when they span no volume;
+  (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the volume the lab
+  measures in (:func:`fit_volume`: ``[export] volume_mm`` when given, else the convex
+  hull of the control points without the wand's own, :func:`measured_points`), or within
+  the control points' extent in the image when they span no volume;
   ``exports.json`` gives the fit's RMS and largest distance over the image (px) and the
   DLT's skew, which OpenCV's matrix cannot hold.
 * ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
@@ -17,6 +18,7 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 from __future__ import annotations
 
 import functools
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -57,15 +59,23 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
-def control_xyz(dlt: DltFile | None) -> np.ndarray | None:
+#: The label the wand route gives a wand's image in ``dlt/<camera>.json``: marker, field.
+WAND_LABEL = re.compile(r"W\d+@\d+")
+
+
+def control_xyz(dlt: DltFile | None, rods: Iterable[str] | None = None) -> np.ndarray | None:
     """Lab points (mm) a camera's DLT was fitted to (``points`` of ``dlt/<camera>.json``);
-    None when the file lists none."""
+    None when the file lists none. With ``rods`` (the session's rod names), without the
+    wand's own images (labels ``W<marker>@<field>``; those a rod named ``W1`` could have,
+    ``<rod>@<i>``, are kept: the label cannot tell them apart)."""
     points = (dlt.data or {}).get("points") if dlt is not None else None
     if not points:
         return None
     try:
+        if rods is not None:
+            points = [p for p in points if not _wand_image(str(p.get("label", "")), rods)]
         xyz = np.array([[p["x_mm"], p["y_mm"], p["z_mm"]] for p in points], dtype=float)
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, AttributeError):
         return None
     xyz = xyz.reshape(-1, 3)
     return xyz[np.isfinite(xyz).all(axis=1)]
@@ -81,10 +91,46 @@ def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
     return uv[np.isfinite(uv).all(axis=1)]
 
 
-def control_points(dlts: Mapping[str, DltFile]) -> np.ndarray | None:
-    """Every camera's control points (lab mm, each once); None without any."""
-    found = [x for x in (control_xyz(d) for d in dlts.values()) if x is not None and len(x)]
+def _wand_image(label: str, rods: Iterable[str]) -> bool:
+    """Whether a control point's label names a wand's image, not a rod's marker."""
+    return WAND_LABEL.fullmatch(label) is not None and label.split("@")[0] not in rods
+
+
+def control_points(
+    dlts: Mapping[str, DltFile], rods: Iterable[str] | None = None
+) -> np.ndarray | None:
+    """Every camera's control points (lab mm, each once), with ``rods`` without the
+    wand's own images (:func:`control_xyz`); None without any."""
+    found = [x for x in (control_xyz(d, rods) for d in dlts.values()) if x is not None and len(x)]
     return np.unique(np.concatenate(found), axis=0) if found else None
+
+
+def measured_points(config: SessionConfig, dlts: Mapping[str, DltFile]) -> np.ndarray | None:
+    """The control points where the lab measures: every camera's but the wand's own images,
+    i.e. the rods' markers, the session's trial markers the wand was adjusted with
+    (``T@<row>``), a target's dots; all of them when those span no volume (a wand and the
+    axes object alone, or a wand without trials); None without any.
+
+    A wand is waved through a box several times the lab's (on the synthetic webcam rig,
+    seed 71, 32 % of its points lie in the volume the rods stand in); the rods and the
+    trials' markers are where the lab stood its calibration and its subjects walked."""
+    rods = tuple(r.name for r in config.rods.rods) if config.rods else ()
+    lab = control_points(dlts, rods)
+    return lab if control_volume(lab) is not None else control_points(dlts)
+
+
+def fit_volume(
+    config: SessionConfig, dlts: Mapping[str, DltFile]
+) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None]:
+    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's: the lowest and
+    highest corner (mm) of the lattice's box and the lab points whose convex hull keeps
+    its points (None: the whole box). ``[export] volume_mm`` when given (its box whole),
+    else :func:`measured_points` (their box and hull)."""
+    box = config.export.volume_mm
+    if box is not None:
+        return (np.array(box[0]), np.array(box[1])), None
+    xyz = measured_points(config, dlts)
+    return control_volume(xyz), xyz
 
 
 def control_volume(xyz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -114,18 +160,19 @@ def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
 
 def _opencv_fits(
     cameras: Iterable[Camera],
+    config: SessionConfig,
     dlts: Mapping[str, DltFile],
     pose2sim: bool = False,
     workers: int | None = None,
 ) -> dict[str, OpenCvFit]:
-    """OpenCV's model fitted to each camera over the calibrated volume (for Pose2Sim, which
-    reads ``k1 k2 p1 p2`` only, without ``k3``), the cameras side by side in ``workers``
-    processes (default: one per core; 1: in this process): each fit is seconds of
-    Levenberg-Marquardt on its own camera."""
+    """OpenCV's model fitted to each camera over the volume the lab measures in
+    (:func:`fit_volume`; for Pose2Sim, which reads ``k1 k2 p1 p2`` only, without ``k3``),
+    the cameras side by side in ``workers`` processes (default: one per core; 1: in this
+    process): each fit is seconds of Levenberg-Marquardt on its own camera."""
     cameras = list(cameras)
-    xyz = control_points(dlts)
+    volume, hull = fit_volume(config, dlts)
     fit = functools.partial(
-        _opencv_fit, dlts=dict(dlts), volume=control_volume(xyz), hull=xyz, pose2sim=pose2sim
+        _opencv_fit, dlts=dict(dlts), volume=volume, hull=hull, pose2sim=pose2sim
     )
     fits = each_camera(fit, cameras, "export", quiet, workers)
     return {c.id: f for c, f in zip(cameras, fits, strict=True)}
@@ -164,7 +211,8 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts, workers=workers)
+    cams = [c for c in rig if c.size_px is not None]
+    fits = _opencv_fits(cams, config, dlts, workers=workers)
     report = {
         "cameras_toml": {
             c: {"rms_px": f.rms_px, "max_px": f.max_px, "skew_px": f.skew_px}
@@ -218,7 +266,7 @@ def export(
         path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    fits = _opencv_fits(rig, dlts, pose2sim=to == "pose2sim")
+    fits = _opencv_fits(rig, config, dlts, pose2sim=to == "pose2sim")
     for f in fits.values():
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
     meta = _meta(fits)

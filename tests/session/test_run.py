@@ -208,9 +208,10 @@ def test_export_fits_side_by_side_equal_those_in_one_process(processed: Path) ->
     from kisscal.session.inputs import load_config
 
     cams = list(current_rig(processed))[:2]
-    dlts = read_dlt_files(processed, load_config(processed))
-    here = _opencv_fits(cams, dlts, workers=1)
-    beside = _opencv_fits(cams, dlts, workers=2)
+    config = load_config(processed)
+    dlts = read_dlt_files(processed, config)
+    here = _opencv_fits(cams, config, dlts, workers=1)
+    beside = _opencv_fits(cams, config, dlts, workers=2)
     assert list(here) == list(beside) == [c.id for c in cams]
     for cam in here:
         assert here[cam].rms_px == beside[cam].rms_px
