@@ -403,19 +403,16 @@ def _export(t: Table) -> ExportConfig:
 
 
 def _box(t: Table) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """``export.volume_mm``: two opposite corners of a box (lab mm), as its lowest and
-    highest corner; None when not given."""
+    """``export.volume_mm``: two opposite corners (lab mm) as the lowest and highest."""
     if "volume_mm" not in t.data:
         return None
     pts = t.points("volume_mm")
-    if len(pts) != 2:
+    if len(pts) != 2 or np.any(np.ptp(pts, axis=0) <= 0):
         raise t.fail(
-            f"export.volume_mm must be two opposite corners [x, y, z] (mm), got {len(pts)}"
+            f"export.volume_mm must be two opposite corners [x, y, z] (mm) differing in x, y "
+            f"and z, got {pts.tolist()}"
         )
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    if np.any(hi <= lo):
-        raise t.fail("export.volume_mm spans no volume: its corners must differ in x, y and z")
-    return tuple(map(float, lo)), tuple(map(float, hi))
+    return tuple(map(float, pts.min(axis=0))), tuple(map(float, pts.max(axis=0)))
 
 
 _TABLES: dict[str, Callable[[Table], Any]] = {
