@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import re
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -105,32 +106,59 @@ def control_points(
     return np.unique(np.concatenate(found), axis=0) if found else None
 
 
-def measured_points(config: SessionConfig, dlts: Mapping[str, DltFile]) -> np.ndarray | None:
-    """The control points where the lab measures: every camera's but the wand's own images,
-    i.e. the rods' markers, the session's trial markers the wand was adjusted with
-    (``T@<row>``), a target's dots; all of them when those span no volume (a wand and the
-    axes object alone, or a wand without trials); None without any.
+def measured_points(
+    config: SessionConfig, dlts: Mapping[str, DltFile]
+) -> tuple[np.ndarray | None, str]:
+    """The control points where the lab measures, and what they are: every camera's but
+    the wand's own images, i.e. the rods' markers, the session's trial markers the wand
+    was adjusted with (``T@<row>``), a target's dots; all of them when those span no
+    volume (a wand and the axes object alone, or a wand without trials); None without any.
 
     A wand is waved through a box several times the lab's (on the synthetic webcam rig,
     seed 71, 32 % of its points lie in the volume the rods stand in); the rods and the
     trials' markers are where the lab stood its calibration and its subjects walked."""
     rods = tuple(r.name for r in config.rods.rods) if config.rods else ()
     lab = control_points(dlts, rods)
-    return lab if control_volume(lab) is not None else control_points(dlts)
+    if control_volume(lab) is not None:
+        return lab, "control points but the wand's images"
+    return control_points(dlts), "control points"
 
 
-def fit_volume(
-    config: SessionConfig, dlts: Mapping[str, DltFile]
-) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None]:
-    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's: the lowest and
-    highest corner (mm) of the lattice's box and the lab points whose convex hull keeps
-    its points (None: the whole box). ``[export] volume_mm`` when given (its box whole),
-    else :func:`measured_points` (their box and hull)."""
+@dataclass(frozen=True)
+class FitVolume:
+    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's (:func:`fit_volume`).
+
+    Attributes
+    ----------
+    box : tuple of 2 ndarray or None
+        The lowest and highest corner (lab mm) of the lattice the fit follows; None: the
+        control points' extent in the image instead (they span no volume).
+    hull : ndarray or None
+        Lab points (mm) whose convex hull keeps the lattice's points; None: all of them.
+    by : str
+        Where the box came from: ``export.volume_mm``, ``control points but the wand's
+        images`` or ``control points``.
+    """
+
+    box: tuple[np.ndarray, np.ndarray] | None
+    hull: np.ndarray | None
+    by: str
+
+    def doc(self) -> dict[str, Any]:
+        """For ``exports.json``: ``by`` and the box (mm)."""
+        box = None if self.box is None else [np.round(c, 1).tolist() for c in self.box]
+        return {"by": self.by, "box_mm": box}
+
+
+def fit_volume(config: SessionConfig, dlts: Mapping[str, DltFile]) -> FitVolume:
+    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's: ``[export]
+    volume_mm`` when given (its box whole), else :func:`measured_points` (their box,
+    within their convex hull)."""
     box = config.export.volume_mm
     if box is not None:
-        return (np.array(box[0]), np.array(box[1])), None
-    xyz = measured_points(config, dlts)
-    return control_volume(xyz), xyz
+        return FitVolume((np.array(box[0]), np.array(box[1])), None, "export.volume_mm")
+    xyz, by = measured_points(config, dlts)
+    return FitVolume(control_volume(xyz), xyz, by)
 
 
 def control_volume(xyz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -160,7 +188,7 @@ def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
 
 def _opencv_fits(
     cameras: Iterable[Camera],
-    config: SessionConfig,
+    volume: FitVolume,
     dlts: Mapping[str, DltFile],
     pose2sim: bool = False,
     workers: int | None = None,
@@ -170,9 +198,8 @@ def _opencv_fits(
     the cameras side by side in ``workers`` processes (default: one per core; 1: in this
     process): each fit is seconds of Levenberg-Marquardt on its own camera."""
     cameras = list(cameras)
-    volume, hull = fit_volume(config, dlts)
     fit = functools.partial(
-        _opencv_fit, dlts=dict(dlts), volume=volume, hull=hull, pose2sim=pose2sim
+        _opencv_fit, dlts=dict(dlts), volume=volume.box, hull=volume.hull, pose2sim=pose2sim
     )
     fits = each_camera(fit, cameras, "export", quiet, workers)
     return {c.id: f for c, f in zip(cameras, fits, strict=True)}
@@ -211,13 +238,14 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    cams = [c for c in rig if c.size_px is not None]
-    fits = _opencv_fits(cams, config, dlts, workers=workers)
+    cams, volume = [c for c in rig if c.size_px is not None], fit_volume(config, dlts)
+    fits = _opencv_fits(cams, volume, dlts, workers=workers)
     report = {
         "cameras_toml": {
             c: {"rms_px": f.rms_px, "max_px": f.max_px, "skew_px": f.skew_px}
             for c, f in fits.items()
         },
+        "cameras_toml_volume": volume.doc(),
         "dltdv": {
             "pixel_convention": DLTDV8_CONVENTION,
             "lens_error": {c.id: lens_error_px(c) for c in rig if c.size_px is not None},
@@ -266,7 +294,8 @@ def export(
         path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    fits = _opencv_fits(rig, config, dlts, pose2sim=to == "pose2sim")
+    volume = fit_volume(config, dlts)
+    fits = _opencv_fits(rig, volume, dlts, pose2sim=to == "pose2sim")
     for f in fits.values():
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
     meta = _meta(fits)

@@ -58,16 +58,17 @@ def test_the_export_follows_kisscal_where_the_lab_measures_not_where_the_wand_we
     dlts = {"c1": DltFile("c1", cam.dlt, "wand", data={"points": points})}
     config = parse_session(SESSION, Path("/lab"))
 
-    volume, hull = fit_volume(config, dlts)
-    np.testing.assert_allclose(volume, (corners.min(axis=0), corners.max(axis=0)))
-    assert len(hull) == len(corners) + len(trial)
+    volume = fit_volume(config, dlts)
+    np.testing.assert_allclose(volume.box, (corners.min(axis=0), corners.max(axis=0)))
+    assert len(volume.hull) == len(corners) + len(trial)
+    assert volume.by == "control points but the wand's images"
     held_out = _lab(rng, ahead, half, 1000)
 
     def gap(fit) -> float:  # RMS px between the two cameras' images of the lab's points
         d = fit.camera.project(held_out) - cam.project(held_out)
         return float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
 
-    export = gap(_opencv_fits([cam], config, dlts, workers=1)["c1"])
+    export = gap(_opencv_fits([cam], volume, dlts, workers=1)["c1"])
     box = (ahead - half, ahead + half)
     everywhere = np.concatenate([rods, trial, wand])
     wand_hull = (everywhere.min(axis=0), everywhere.max(axis=0))
@@ -89,10 +90,10 @@ def test_export_volume_mm_replaces_the_control_points_and_a_wand_alone_is_kept()
         )
     }
     plain = {k: v for k, v in SESSION.items() if k != "rods"}
-    volume, hull = fit_volume(parse_session(plain, Path("/lab")), dlts)
-    np.testing.assert_allclose(volume, (wand.min(axis=0), wand.max(axis=0)))
-    assert len(hull) == len(wand)
+    volume = fit_volume(parse_session(plain, Path("/lab")), dlts)
+    np.testing.assert_allclose(volume.box, (wand.min(axis=0), wand.max(axis=0)))
+    assert len(volume.hull) == len(wand) and volume.by == "control points"
     given = {**plain, "export": {"volume_mm": [[10, 0, 2000], [-10, 50, 0]]}}
-    volume, hull = fit_volume(parse_session(given, Path("/lab")), dlts)
-    assert hull is None
-    np.testing.assert_allclose(volume, ([-10, 0, 0], [10, 50, 2000]))
+    volume = fit_volume(parse_session(given, Path("/lab")), dlts)
+    assert volume.hull is None and volume.by == "export.volume_mm"
+    np.testing.assert_allclose(volume.box, ([-10, 0, 0], [10, 50, 2000]))
