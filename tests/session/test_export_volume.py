@@ -78,7 +78,8 @@ def test_the_export_follows_kisscal_where_the_lab_measures_not_where_the_wand_we
 
 def test_export_volume_mm_replaces_the_control_points_and_a_wand_alone_is_kept() -> None:
     """``[export] volume_mm`` is the fit's box, whole (its corners in any order); a wand's
-    images alone (no rods, no trial markers) still span the fit's volume."""
+    images alone (no rods, no trial markers) still span the fit's volume; a rod named like
+    a wand's marker keeps the points its label could name."""
     rng = np.random.default_rng(4)
     wand = rng.uniform(-1000, 1000, (50, 3))
     dlts = {
@@ -93,6 +94,12 @@ def test_export_volume_mm_replaces_the_control_points_and_a_wand_alone_is_kept()
     volume = fit_volume(parse_session(plain, Path("/lab")), dlts)
     np.testing.assert_allclose(volume.box, (wand.min(axis=0), wand.max(axis=0)))
     assert len(volume.hull) == len(wand) and volume.by == "control points"
+    rod = {
+        **SESSION,
+        "rods": {**SESSION["rods"], "rod": [{**SESSION["rods"]["rod"][0], "name": "W2"}]},
+    }
+    volume = fit_volume(parse_session(rod, Path("/lab")), dlts)
+    assert len(volume.hull) == len(wand) and volume.by == "control points but the wand's images"
     given = {**plain, "export": {"volume_mm": [[10, 0, 2000], [-10, 50, 0]]}}
     volume = fit_volume(parse_session(given, Path("/lab")), dlts)
     assert volume.hull is None and volume.by == "export.volume_mm"
