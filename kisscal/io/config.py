@@ -135,9 +135,13 @@ TRIAL_SOURCES: tuple[str, ...] = ("images", "video", "centroids", "c3d")
 
 @dataclass(frozen=True)
 class ExportConfig:
-    """How trajectories are exported: ``trc_up`` is the TRC's vertical axis (OpenSim: y)."""
+    """How results are exported: ``trc_up`` is the TRC's vertical axis (OpenSim: y);
+    ``volume_mm``, the lowest and highest corner (lab mm) of the volume the lab measures
+    in, where ``cameras.toml``'s OpenCV cameras are fitted to follow kisscal's (None: where
+    the calibration's rods and trial markers were, :mod:`kisscal.session.exports`)."""
 
     trc_up: Literal["z", "y"] = "z"
+    volume_mm: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
 
 @dataclass(frozen=True)
@@ -394,8 +398,21 @@ def _trials(top: Table) -> tuple[TrialConfig, ...]:
 
 
 def _export(t: Table) -> ExportConfig:
-    t.allow({"trc_up"})
-    return ExportConfig(trc_up=t.choice("trc_up", ("z", "y")) or "z")
+    t.allow({"trc_up", "volume_mm"})
+    return ExportConfig(trc_up=t.choice("trc_up", ("z", "y")) or "z", volume_mm=_box(t))
+
+
+def _box(t: Table) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """``export.volume_mm``: two opposite corners (lab mm) as the lowest and highest."""
+    if "volume_mm" not in t.data:
+        return None
+    pts = t.points("volume_mm")
+    if len(pts) != 2 or np.any(np.ptp(pts, axis=0) <= 0):
+        raise t.fail(
+            f"export.volume_mm must be two opposite corners [x, y, z] (mm) differing in x, y "
+            f"and z, got {pts.tolist()}"
+        )
+    return tuple(map(float, pts.min(axis=0))), tuple(map(float, pts.max(axis=0)))
 
 
 _TABLES: dict[str, Callable[[Table], Any]] = {

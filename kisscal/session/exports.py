@@ -3,9 +3,10 @@
 closely each matches kisscal's own cameras; ``kisscal export`` writes one of them alone.
 
 * ``cameras.toml``: OpenCV's model fitted to each camera
-  (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the calibrated volume
-  (the extent of the control points, :func:`control_volume`, within their convex hull),
-  or within the control points' extent in the image when they span no volume;
+  (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the volume the lab
+  measures in (:func:`fit_volume`: ``[export] volume_mm`` when given, else the convex
+  hull of the control points without the wand's own, :func:`measured_points`), or within
+  the control points' extent in the image when they span no volume;
   ``exports.json`` gives the fit's RMS and largest distance over the image (px) and the
   DLT's skew, which OpenCV's matrix cannot hold.
 * ``dltdv.csv``: the DLT in DLTdv8's pixel convention. DLTdv8 has no lens model: it
@@ -17,7 +18,9 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 from __future__ import annotations
 
 import functools
+import re
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -57,15 +60,23 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
-def control_xyz(dlt: DltFile | None) -> np.ndarray | None:
+#: The label the wand route gives a wand's image in ``dlt/<camera>.json``: marker, field.
+WAND_LABEL = re.compile(r"W\d+@\d+")
+
+
+def control_xyz(dlt: DltFile | None, rods: Iterable[str] | None = None) -> np.ndarray | None:
     """Lab points (mm) a camera's DLT was fitted to (``points`` of ``dlt/<camera>.json``);
-    None when the file lists none."""
+    None when the file lists none. With ``rods`` (the session's rod names), without the
+    wand's own images (labels ``W<marker>@<field>``; those a rod named ``W1`` could have,
+    ``<rod>@<i>``, are kept: the label cannot tell them apart)."""
     points = (dlt.data or {}).get("points") if dlt is not None else None
     if not points:
         return None
     try:
+        if rods is not None:
+            points = [p for p in points if not _wand_image(str(p.get("label", "")), rods)]
         xyz = np.array([[p["x_mm"], p["y_mm"], p["z_mm"]] for p in points], dtype=float)
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, AttributeError):
         return None
     xyz = xyz.reshape(-1, 3)
     return xyz[np.isfinite(xyz).all(axis=1)]
@@ -81,10 +92,73 @@ def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
     return uv[np.isfinite(uv).all(axis=1)]
 
 
-def control_points(dlts: Mapping[str, DltFile]) -> np.ndarray | None:
-    """Every camera's control points (lab mm, each once); None without any."""
-    found = [x for x in (control_xyz(d) for d in dlts.values()) if x is not None and len(x)]
+def _wand_image(label: str, rods: Iterable[str]) -> bool:
+    """Whether a control point's label names a wand's image, not a rod's marker."""
+    return WAND_LABEL.fullmatch(label) is not None and label.split("@")[0] not in rods
+
+
+def control_points(
+    dlts: Mapping[str, DltFile], rods: Iterable[str] | None = None
+) -> np.ndarray | None:
+    """Every camera's control points (lab mm, each once), with ``rods`` without the
+    wand's own images (:func:`control_xyz`); None without any."""
+    found = [x for x in (control_xyz(d, rods) for d in dlts.values()) if x is not None and len(x)]
     return np.unique(np.concatenate(found), axis=0) if found else None
+
+
+def measured_points(
+    config: SessionConfig, dlts: Mapping[str, DltFile]
+) -> tuple[np.ndarray | None, str]:
+    """The control points where the lab measures, and what they are: every camera's but
+    the wand's own images, i.e. the rods' markers, the session's trial markers the wand
+    was adjusted with (``T@<row>``), a target's dots; all of them when those span no
+    volume (a wand and the axes object alone, or a wand without trials); None without any.
+
+    A wand is waved through a box several times the lab's (on the synthetic webcam rig,
+    seed 71, 32 % of its points lie in the volume the rods stand in); the rods and the
+    trials' markers are where the lab stood its calibration and its subjects walked."""
+    rods = tuple(r.name for r in config.rods.rods) if config.rods else ()
+    lab = control_points(dlts, rods)
+    if control_volume(lab) is not None:
+        return lab, "control points but the wand's images"
+    return control_points(dlts), "control points"
+
+
+@dataclass(frozen=True)
+class FitVolume:
+    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's (:func:`fit_volume`).
+
+    Attributes
+    ----------
+    box : tuple of 2 ndarray or None
+        The lowest and highest corner (lab mm) of the lattice the fit follows; None: the
+        control points' extent in the image instead (they span no volume).
+    hull : ndarray or None
+        Lab points (mm) whose convex hull keeps the lattice's points; None: all of them.
+    by : str
+        Where the box came from: ``export.volume_mm``, ``control points but the wand's
+        images`` or ``control points``.
+    """
+
+    box: tuple[np.ndarray, np.ndarray] | None
+    hull: np.ndarray | None
+    by: str
+
+    def doc(self) -> dict[str, Any]:
+        """For ``exports.json``: ``by`` and the box (mm)."""
+        box = None if self.box is None else [np.round(c, 1).tolist() for c in self.box]
+        return {"by": self.by, "box_mm": box}
+
+
+def fit_volume(config: SessionConfig, dlts: Mapping[str, DltFile]) -> FitVolume:
+    """Where ``cameras.toml``'s cameras are fitted to follow kisscal's: ``[export]
+    volume_mm`` when given (its box whole), else :func:`measured_points` (their box,
+    within their convex hull)."""
+    box = config.export.volume_mm
+    if box is not None:
+        return FitVolume((np.array(box[0]), np.array(box[1])), None, "export.volume_mm")
+    xyz, by = measured_points(config, dlts)
+    return FitVolume(control_volume(xyz), xyz, by)
 
 
 def control_volume(xyz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -114,18 +188,18 @@ def _meta(fits: Mapping[str, OpenCvFit]) -> dict[str, Any]:
 
 def _opencv_fits(
     cameras: Iterable[Camera],
+    volume: FitVolume,
     dlts: Mapping[str, DltFile],
     pose2sim: bool = False,
     workers: int | None = None,
 ) -> dict[str, OpenCvFit]:
-    """OpenCV's model fitted to each camera over the calibrated volume (for Pose2Sim, which
-    reads ``k1 k2 p1 p2`` only, without ``k3``), the cameras side by side in ``workers``
-    processes (default: one per core; 1: in this process): each fit is seconds of
-    Levenberg-Marquardt on its own camera."""
+    """OpenCV's model fitted to each camera over the volume the lab measures in
+    (:func:`fit_volume`; for Pose2Sim, which reads ``k1 k2 p1 p2`` only, without ``k3``),
+    the cameras side by side in ``workers`` processes (default: one per core; 1: in this
+    process): each fit is seconds of Levenberg-Marquardt on its own camera."""
     cameras = list(cameras)
-    xyz = control_points(dlts)
     fit = functools.partial(
-        _opencv_fit, dlts=dict(dlts), volume=control_volume(xyz), hull=xyz, pose2sim=pose2sim
+        _opencv_fit, dlts=dict(dlts), volume=volume.box, hull=volume.hull, pose2sim=pose2sim
     )
     fits = each_camera(fit, cameras, "export", quiet, workers)
     return {c.id: f for c, f in zip(cameras, fits, strict=True)}
@@ -164,12 +238,14 @@ def write_exports(
     rig = calibrated_rig(config, lins, dlts)
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
-    fits = _opencv_fits([c for c in rig if c.size_px is not None], dlts, workers=workers)
+    cams, volume = [c for c in rig if c.size_px is not None], fit_volume(config, dlts)
+    fits = _opencv_fits(cams, volume, dlts, workers=workers)
     report = {
         "cameras_toml": {
             c: {"rms_px": f.rms_px, "max_px": f.max_px, "skew_px": f.skew_px}
             for c, f in fits.items()
         },
+        "cameras_toml_volume": volume.doc(),
         "dltdv": {
             "pixel_convention": DLTDV8_CONVENTION,
             "lens_error": {c.id: lens_error_px(c) for c in rig if c.size_px is not None},
@@ -218,7 +294,8 @@ def export(
         path = write_dltdv_csv(dest or store.dltdv_path, {c.id: c.dlt for c in rig})
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
-    fits = _opencv_fits(rig, dlts, pose2sim=to == "pose2sim")
+    volume = fit_volume(config, dlts)
+    fits = _opencv_fits(rig, volume, dlts, pose2sim=to == "pose2sim")
     for f in fits.values():
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")
     meta = _meta(fits)

@@ -35,12 +35,14 @@ def test_version_2_tables_parse() -> None:
             "points_mm": [[0, 0, 0], [400, 0, 0], [0, 300, 0], [150, 0, 0]],
         },
         markers={"set": "plug-in-gait-lower", "static": "static01"},
-        export={"trc_up": "y"},
+        export={"trc_up": "y", "volume_mm": [[1500, 750, 0], [-1500, -750, 1800]]},
     )
     assert config.wand.markers_mm == (0.0, 250.0, 500.0)
     assert config.axes.points_mm.shape == (4, 3)
     assert config.markers.set == "plug-in-gait-lower" and config.markers.names == ()
     assert config.export.trc_up == "y"
+    assert config.export.volume_mm == ((-1500, -750, 0), (1500, 750, 1800))
+    assert parse().export.volume_mm is None
     assert config.cameras[1].size_px is None
     assert [t.source for t in config.trials] == ["images", "images", "c3d", "video"]
     assert config.trial("walk03").fields == "top-first"
@@ -70,6 +72,10 @@ def test_calibration_names_map_foreign_cameras() -> None:
             "collinear",
         ),
         ({"export": {"trc_up": "x"}}, "one of 'z', 'y'"),
+        ({"export": {"volume_mm": [[0, 0, 0]]}}, "volume_mm must be two opposite corners"),
+        ({"export": {"volume_mm": [[0, 0, 0], [1, 1]]}}, "list of \\[x, y, z\\] in mm"),
+        ({"export": {"volume_mm": [[0, 0, 0], [1, 1, 0]]}}, "differing in x, y and z"),
+        ({"export": {"volume_mm": "lab"}}, "list of \\[x, y, z\\] in mm"),
         (
             {"calibration": {"cameras": "c.toml", "names": {"cam_01": "cam1"}}},
             "maps 'cam_01' to 'cam1', which is not a camera id",

@@ -204,13 +204,15 @@ def test_export_fits_side_by_side_equal_those_in_one_process(processed: Path) ->
     """The exports' OpenCV fits done in worker processes are the fits done here, to the
     bit (two cameras: each fit is a second of Levenberg-Marquardt)."""
     from kisscal.session.calibrated import current_rig, read_dlt_files
-    from kisscal.session.exports import _opencv_fits
+    from kisscal.session.exports import _opencv_fits, fit_volume
     from kisscal.session.inputs import load_config
 
     cams = list(current_rig(processed))[:2]
-    dlts = read_dlt_files(processed, load_config(processed))
-    here = _opencv_fits(cams, dlts, workers=1)
-    beside = _opencv_fits(cams, dlts, workers=2)
+    config = load_config(processed)
+    dlts = read_dlt_files(processed, config)
+    volume = fit_volume(config, dlts)
+    here = _opencv_fits(cams, volume, dlts, workers=1)
+    beside = _opencv_fits(cams, volume, dlts, workers=2)
     assert list(here) == list(beside) == [c.id for c in cams]
     for cam in here:
         assert here[cam].rms_px == beside[cam].rms_px
