@@ -42,7 +42,6 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.optimize
@@ -106,17 +105,17 @@ class ControlPoints:
     uv_px : ndarray, shape (m, 2)
     group : ndarray of int, shape (m,)
         Which object each point belongs to (its rod), for leave-one-out checks.
-    weight : float or ndarray, shape (m,)
+    weight : float
         Weight of each control observation's squared residual against a wand
         observation's: their noise variances' inverse ratio (rod centroids averaged over
-        frames are more precise than a moving wand's); one for all, or one per row.
+        frames are more precise than a moving wand's).
     """
 
     camera: NDArray[np.int64]
     xyz_mm: NDArray[np.float64]
     uv_px: NDArray[np.float64]
     group: NDArray[np.int64]
-    weight: float | NDArray[np.float64] = 1.0
+    weight: float = 1.0
 
     def __len__(self) -> int:
         return len(self.camera)
@@ -124,14 +123,11 @@ class ControlPoints:
     def subset(self, keep: ArrayLike) -> ControlPoints:
         """The rows selected by a boolean mask or index array."""
         k = np.asarray(keep)
-        w = self.weight if np.ndim(self.weight) == 0 else self.weight[k]
-        return ControlPoints(self.camera[k], self.xyz_mm[k], self.uv_px[k], self.group[k], w)
+        return ControlPoints(
+            self.camera[k], self.xyz_mm[k], self.uv_px[k], self.group[k], self.weight
+        )
 
-    def rows_weight(self) -> NDArray[np.float64]:
-        """Each row's weight, shape (m,)."""
-        return np.broadcast_to(np.asarray(self.weight, dtype=float), (len(self),)).copy()
-
-    def weighted(self, weight: float | NDArray[np.float64]) -> ControlPoints:
+    def weighted(self, weight: float) -> ControlPoints:
         """The same points with another ``weight``."""
         return ControlPoints(self.camera, self.xyz_mm, self.uv_px, self.group, weight)
 
@@ -270,8 +266,7 @@ def variance_components(
     control: ControlPoints,
     group: NDArray[np.int64],
     params: BundleParams = DEFAULT_PARAMS,
-    per_camera: bool = False,
-) -> tuple[NDArray[np.float64], Any]:
+) -> tuple[NDArray[np.float64], float]:
     """The noise variance (px^2 per coordinate) of an image of each kind of observation,
     unweighted, that an adjustment's residuals show, each over its own redundancy
     (Förstner 1979).
@@ -298,13 +293,11 @@ def variance_components(
     group : ndarray of int, shape (len(observations),)
         Each observation's group (0, 1, ...).
     params : BundleParams
-    per_camera : bool
-        The control points' variance camera by camera (each over its own redundancy).
 
     Returns
     -------
     groups_px2 : ndarray, shape (max(group) + 1,)
-    control_px2 : float, or ndarray of shape (n_cameras,) with ``per_camera``
+    control_px2 : float
         NaN where a kind has no redundancy left.
     """
     keep = result.inlier
@@ -323,16 +316,11 @@ def variance_components(
     redundancy = 2 * n - np.bincount(g, _unknowns_per_row(obs, markers_mm, free, share), len(n))
     squares = np.bincount(g, robust * np.sum(r * r, axis=1), len(n))
     c = result.control_residuals_px
-    robust = loss.cost(np.sqrt(control.rows_weight())[:, None] * c)[1]
-    ctrl = np.bincount(control.camera, robust * np.sum(c * c, axis=1), len(share))
-    red_ctrl = 2 * np.bincount(control.camera, minlength=len(share)) - share
+    ctrl = float(np.sum(loss.cost(np.sqrt(control.weight) * c)[1] * np.sum(c * c, axis=1)))
     with np.errstate(divide="ignore", invalid="ignore"):
         groups = np.where(redundancy > 0, squares / redundancy, np.nan)
-        cams = np.where(red_ctrl > 0, ctrl / red_ctrl, np.nan)
-    if per_camera:
-        return groups, cams
-    total = red_ctrl.sum()
-    return groups, float(ctrl.sum() / total) if total > 0 else float("nan")
+    red_ctrl = 2 * len(c) - share.sum()
+    return groups, ctrl / red_ctrl if red_ctrl > 0 else float("nan")
 
 
 def _unknowns_per_row(
@@ -424,7 +412,7 @@ def _least_squares(
         if problem.weight is not None:
             r = r * np.sqrt(problem.weight)[:, None]
         cr = project(s, problem.control_camera, problem.control_xyz_mm, False)[0]
-        cr = np.sqrt(problem.control_weight)[..., None] * (cr - problem.control_uv_px)
+        cr = np.sqrt(problem.control_weight) * (cr - problem.control_uv_px)
         return np.concatenate([r.ravel(), cr.ravel()])
 
     pattern = _sparsity(problem, free)

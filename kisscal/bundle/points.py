@@ -192,37 +192,22 @@ def _helmert(
     params: BundleParams,
     group: NDArray[np.int64],
 ) -> tuple[BundleResult, WandObservations, ControlPoints]:
-    """Each kind of observation (``group``) and each camera's control points reweighed
-    by the inverse of the noise variance the adjustment's residuals show, relative to the
-    first kind's, and adjusted again, until the weights settle (Helmert's variance
-    components, Förstner 1979).
-
-    The control points are weighed camera by camera: their residuals hold what the lens
-    model misses at the rods as well as the images' noise, and that differs from camera
-    to camera (synthetic modern rig, seed 71: 0.004 to 0.017 px). They alone fix the lab
-    frame, so a camera that follows them worse pulls the frame less (there, 0.0154 ->
-    0.0130 mm inside the volume, 0.0186 -> 0.0132 at its edges)."""
+    """Each kind of observation (``group``, and the control points) reweighed by the
+    inverse of the noise variance the adjustment's residuals show, relative to the first
+    kind's, and adjusted again, until the weights settle (Helmert's variance components,
+    Förstner 1979)."""
     for _ in range(HELMERT_PASSES):
-        kinds, ctrl = variance_components(result, obs, markers_mm, control, group, params, True)
-        # a camera that sees no control point: its weight weighs nothing
-        ctrl = np.where(np.bincount(control.camera, minlength=len(ctrl)) > 0, ctrl, kinds[0])
-        if not np.all(np.isfinite(np.r_[kinds, ctrl]) & (np.r_[kinds, ctrl] > 0)):
+        kinds, ctrl = variance_components(result, obs, markers_mm, control, group, params)
+        if not (np.all(np.isfinite(kinds) & (kinds > 0)) and np.isfinite(ctrl) and ctrl > 0):
             break
-        new = kinds[0] / np.r_[kinds, ctrl]
-        old = np.r_[_kind_weights(obs, group, len(kinds)), _camera_weights(control, len(ctrl))]
+        new = np.r_[kinds[0] / kinds, kinds[0] / ctrl]
+        old = np.r_[_kind_weights(obs, group, len(kinds)), control.weight]
         obs = obs.weighted((kinds[0] / kinds)[group])
-        control = control.weighted((kinds[0] / ctrl)[control.camera])
+        control = control.weighted(float(new[-1]))
         result = adjust_bundle(result.cameras, obs, markers_mm, result.wand, control, params)
         if np.all(np.abs(np.log(new / old)) < np.log(HELMERT_SETTLED)):
             break
     return result, obs, control
-
-
-def _camera_weights(control: ControlPoints, n: int) -> NDArray:
-    """The weight each camera's control points have now (1 for a camera without any)."""
-    out = np.ones(n)
-    out[control.camera] = control.rows_weight()
-    return out
 
 
 def _kind_weights(obs: WandObservations, group: NDArray[np.int64], n: int) -> NDArray:

@@ -98,7 +98,7 @@ def final_cameras(
             rows = control.camera == c
             xyz.append(control.xyz_mm[rows])
             uv.append(control.uv_px[rows])
-            weight.append(control.rows_weight()[rows])
+            weight.append(np.full(int(rows.sum()), control.weight))
         xyz, uv = np.concatenate(xyz), np.concatenate(uv)
         # started from the adjusted pinhole: the fit's own minimum, a few iterations
         # away, without the linear DLT's SVD of every point's two rows

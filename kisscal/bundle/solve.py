@@ -140,9 +140,8 @@ def evaluate(
     uv, jc, jp = project(state, problem.camera, xyz, jacobian)
     jw = wand_jacobian(state, problem.field, problem.offsets, jp) if jacobian else None
     cuv, cjc, _ = project(state, problem.control_camera, problem.control_xyz_mm, jacobian)
-    # weighted rows: the loss sees sqrt(w) r (one weight for all rows, or one per row)
-    root = np.sqrt(problem.control_weight)[..., None]
-    cjc = cjc * root[..., None] if cjc is not None else None
+    root = np.sqrt(problem.control_weight)  # weighted rows: the loss sees sqrt(w) r
+    cjc = cjc * root if cjc is not None else None
     r = uv - problem.uv_px
     if problem.weight is not None:
         rows = np.sqrt(problem.weight)[:, None]

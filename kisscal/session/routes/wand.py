@@ -208,13 +208,11 @@ def _with_trials(
         markers,
     )
     names = ", ".join(t.name for t in image_trials(inputs))
-    rods = np.atleast_1d(cal.control.weight)
     inputs.echo(
         f"  calibrate: the wand ({int(np.sum(cal.fields >= 0))} fields) and the trials' "
         f"markers ({names}: {int(np.sum(cal.fields < 0))}) adjusted together, weighed by "
-        f"their noise (variance components): a rod marker {rods.min():.0f} to "
-        f"{rods.max():.0f} x a wand image (by camera), a trial marker "
-        f"{trial_markers_weight(cal):.1f} x"
+        f"their noise (variance components): a rod marker {cal.control.weight:.0f} x a wand "
+        f"image, a trial marker {trial_markers_weight(cal):.1f} x"
     )
     return cal
 

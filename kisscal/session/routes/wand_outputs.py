@@ -99,8 +99,7 @@ def write_wand_outputs(
         },
     }
     if cal.control is not None:
-        # by camera with the trials' markers (variance components): their median
-        wand_doc["rods_weight"] = float(np.median(cal.control.weight))
+        wand_doc["rods_weight"] = float(cal.control.weight)
     if np.any(cal.fields < 0):
         wand_doc["trial_markers_used"] = int(np.sum(cal.fields < 0))
         wand_doc["trial_markers_weight"] = trial_markers_weight(cal)
