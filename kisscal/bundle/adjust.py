@@ -274,11 +274,11 @@ def variance_components(
     Each group's squared residuals (robust weights included) are divided by its count
     less the unknowns it determines, so that no variance is lowered by what the
     adjustment fitted to it: the rods' few markers, which alone fix the lab frame, would
-    otherwise look far more precise than they are. The control points' share of the
-    cameras' unknowns is exact (:func:`kisscal.bundle.solve.control_share`); a field's
-    own unknowns (a wand's 5, a free point's 3) go to its group, and the rest of the
-    cameras' to the groups in proportion to their observations (a few hundred unknowns
-    among thousands of observations). Reweighing each kind by the inverse of its variance
+    otherwise look far more precise than they are. The control points' share of each
+    camera's unknowns is exact (:func:`kisscal.bundle.solve.control_share`); a field's
+    own unknowns (a wand's 5, a free point's 3) are split over its observations, and the
+    rest of each camera's over that camera's observations, so a group may hold any rows
+    (a kind, a camera, a kind in one camera). Reweighing each kind by the inverse of its variance
     and adjusting again is Helmert's variance component estimation (Förstner 1979;
     Koch 1999, section 3.6).
 
@@ -291,7 +291,7 @@ def variance_components(
     control : ControlPoints
         As adjusted (with their weight).
     group : ndarray of int, shape (len(observations),)
-        Each observation's kind (0, 1, ...); every field's observations of one kind.
+        Each observation's group (0, 1, ...).
     params : BundleParams
 
     Returns
@@ -310,24 +310,40 @@ def variance_components(
     share = control_share(problem, state, free, loss)
     g = group[keep]
     n = np.bincount(g)
-    # a field's unknowns: a free point's centre (3), a wand's centre and direction (5)
-    offsets = centred_offsets(markers_mm)[obs.marker]
-    moving = np.zeros(problem.n_fields, bool)
-    moving[obs.field[offsets != 0.0]] = True
-    field_group = np.zeros(problem.n_fields, np.int64)
-    field_group[obs.field] = g
-    own = np.bincount(field_group, 3.0 + 2.0 * moving, len(n))[: len(n)]
-    redundancy = 2 * n - own - (free.sum() - share) * n / n.sum()
     w = np.ones(len(g)) if obs.weight is None else obs.weight
     r = result.residuals_px[keep]
     robust = loss.cost(np.sqrt(w)[:, None] * r)[1]
+    redundancy = 2 * n - np.bincount(g, _unknowns_per_row(obs, markers_mm, free, share), len(n))
     squares = np.bincount(g, robust * np.sum(r * r, axis=1), len(n))
     c = result.control_residuals_px
     ctrl = float(np.sum(loss.cost(np.sqrt(control.weight) * c)[1] * np.sum(c * c, axis=1)))
     with np.errstate(divide="ignore", invalid="ignore"):
         groups = np.where(redundancy > 0, squares / redundancy, np.nan)
-    red_ctrl = 2 * len(c) - share
+    red_ctrl = 2 * len(c) - share.sum()
     return groups, ctrl / red_ctrl if red_ctrl > 0 else float("nan")
+
+
+def _unknowns_per_row(
+    obs: WandObservations,
+    markers_mm: ArrayLike,
+    free: NDArray[np.bool_],
+    control_share: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Each observation's share of the unknowns it helps determine: its field's (a free
+    point's centre, 3; a wand's centre and direction, 5) over the field's observations,
+    and its camera's free unknowns less the control points' share of them over the
+    camera's observations. Any grouping of the observations (by kind, by camera) then
+    gets the unknowns its own rows fit; an equal split, where a precise image in fact
+    fixes more of its point than a noisy one (synthetic rig, four cameras at 0.02 to
+    0.1 px: each camera's noise within 17 %, :func:`variance_components`)."""
+    offsets = centred_offsets(markers_mm)[obs.marker]
+    moving = np.zeros(int(obs.field.max()) + 1, bool)
+    moving[obs.field[offsets != 0.0]] = True
+    per_field = np.bincount(obs.field, minlength=len(moving))
+    per_camera = np.bincount(obs.camera, minlength=len(free))
+    on_camera = (free.sum(axis=1) - control_share) / np.maximum(per_camera, 1)
+    on_field = (3.0 + 2.0 * moving) / np.maximum(per_field, 1)
+    return on_field[obs.field] + on_camera[obs.camera]
 
 
 def _problem(

@@ -301,8 +301,11 @@ def levenberg_marquardt(
     return state, max_iterations, "iteration limit reached"
 
 
-def control_share(problem: Problem, state: State, free: NDArray[np.bool_], loss: Loss) -> float:
-    """The unknowns' share the control observations determine, ``tr(N^-1 N_c)``.
+def control_share(
+    problem: Problem, state: State, free: NDArray[np.bool_], loss: Loss
+) -> NDArray[np.float64]:
+    """The unknowns' share the control observations determine, ``tr(N^-1 N_c)``, per
+    camera (the trace over that camera's unknowns; their sum is the whole share).
 
     ``N`` is the normal matrix at ``state`` (robust weights included, no damping) and
     ``N_c`` the control observations' part of it; the control observations' redundancy
@@ -314,10 +317,10 @@ def control_share(problem: Problem, state: State, free: NDArray[np.bool_], loss:
     normal = _normal_equations(problem, blocks, state, loss)
     S = _reduced_system(problem, blocks, normal, 0.0)[0]
     _, _, _, cr, cjc = evaluate(problem, state, jacobian=True)
-    if cjc is None or not len(cr):
-        return 0.0
-    cw = loss.cost(cr)[1]
     C = problem.n_cameras
+    if cjc is None or not len(cr):
+        return np.zeros(C)
+    cw = loss.cost(cr)[1]
     Nc = np.zeros((C, N_CAMERA, C, N_CAMERA))
     for c in range(C):
         sel = problem.control_camera == c
@@ -326,4 +329,5 @@ def control_share(problem: Problem, state: State, free: NDArray[np.bool_], loss:
         Nc[c, :, c] = b.T @ a
     idx = np.flatnonzero(free.ravel())
     Nc = Nc.reshape(C * N_CAMERA, C * N_CAMERA)[np.ix_(idx, idx)]
-    return float(np.trace(np.linalg.solve(S[np.ix_(idx, idx)], Nc)))
+    diag = np.einsum("ii->i", np.linalg.solve(S[np.ix_(idx, idx)], Nc))
+    return np.bincount(idx // N_CAMERA, diag, C)
