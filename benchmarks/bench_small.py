@@ -130,6 +130,33 @@ messages and failures must keep their order. Every JSON, CSV, TOML, C3D, TRC and
 ``kisscal demo``'s ``out/`` byte-identical; ``python -m tests.session.lens_trial_bundle
 kiss:71:...`` the same numbers to the last digit.
 
+Stop 46 (2026-11-30, main 8646c56 and this branch in turns, load 12 to 17): where the
+run's processor time goes, sampled in every process of one run (``setitimer`` profiling,
+a sample every 2 ms of processor time, 24.1 s in all): the figures' process 4.4 s
+(Agg's drawing 3.1 s, most of it the axes' ticks, created, labelled and measured, and
+text; building the figures 0.6 s; importing matplotlib 0.4 s), the run's own process
+10.2 s, the trials detected ahead 4.9 s, the markers' survey 2.1 s, the exports' fits
+1.7 s. In the run's own process a trial's frames were listed and keyed again and again
+(336 listings of a camera's frames, 200 files each, and the keys of those files): 1.0 s
+of its 10.2 s. Kept, the same keys and listings: ``is_image_file`` no longer rebuilds
+each path, a key takes a file's path inside the session from its parts
+(``relative_to`` parsed the root again for each of 4000 files), ``trials_key`` lists
+each trial once (it listed it three times), and an image trial's files are not checked
+a second time (its listing holds only files): listing the four trials 0.064 -> 0.037 s,
+the keys of their files 0.048 -> 0.021 s. Whole ``kisscal run``, 4 pairs timed from
+outside in turns: processor time 0.978x main's (medians 22.4 s against 23.0 s);
+``python -m benchmarks small`` in turns: main 23.7 and 22.2 s (11.28x and 10.86x
+decode), this branch 22.4 and 22.3 s (10.59x and 10.62x): the gain, about 0.5 s, is
+within one run's noise. Every JSON, CSV, TOML, C3D, TRC, NPZ, PNG and cache key of
+``out/`` byte-identical (``summary.json`` and ``report.html`` differ by their timings,
+the figures' ``.key`` files by the source they hash). The figures are left as they are:
+22 % of the ticks matplotlib creates lie outside the view (created and labelled, never
+drawn; keeping only those in view hands the tick formatter other locations, which can
+change a label), and a figure drawn a second time takes 0.5 to 0.8 of its first drawing
+(ticks and text metrics kept), so reusing one figure per kind would save at most about
+0.4 s (the six grid and four trajectory figures) for clearing every artist, limit and
+aspect by hand.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

@@ -58,10 +58,11 @@ IMAGE_SIGNATURES = (b"\x89PNG\r\n\x1a\n", b"II*\x00", b"MM\x00*", b"BM")
 def is_image_file(path: Path) -> bool:
     """True for a frame file: an image suffix, or any other name whose content starts
     like a PNG, TIFF or BMP image (numbered frames such as ``cam1.10000``)."""
-    path = Path(path)
-    if path.suffix.lower() in IMAGE_SUFFIXES:
+    path = path if isinstance(path, Path) else Path(path)  # not rebuilt: thousands a run
+    suffix = path.suffix.lower()
+    if suffix in IMAGE_SUFFIXES:
         return True
-    if path.suffix.lower() in VIDEO_SUFFIXES or not path.is_file():
+    if suffix in VIDEO_SUFFIXES or not path.is_file():
         return False
     with open(path, "rb") as f:
         head = f.read(8)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -232,12 +233,21 @@ class SessionStore:
             digest = hashlib.sha256(np.ascontiguousarray(obj).tobytes()).hexdigest()
             return digest + str(obj.shape)
         if isinstance(obj, Path):
-            st = obj.stat()
-            path = obj.relative_to(self.root) if obj.is_relative_to(self.root) else obj
-            return [path.as_posix(), st.st_size, st.st_mtime_ns]
+            st = os.stat(obj)
+            return [self._inside(obj), st.st_size, st.st_mtime_ns]
         if isinstance(obj, np.generic):
             return obj.item()
         return obj
+
+    def _inside(self, path: Path) -> str:
+        """``path`` inside the session (POSIX form), or whole when it is outside: what
+        ``relative_to`` gives, with its parts compared directly when they match (a
+        trial's key names thousands of files, and ``relative_to`` parses the root anew
+        for each)."""
+        root, parts = self.root.parts, path.parts
+        if root and parts[: len(root)] == root:
+            return "/".join(parts[len(root) :]) or "."
+        return (path.relative_to(self.root) if path.is_relative_to(self.root) else path).as_posix()
 
     @staticmethod
     def is_current(output: Path, key: str) -> bool:

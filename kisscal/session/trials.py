@@ -55,18 +55,14 @@ class SizedFrames(Sequence):
 
 def trial_input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]]:
     """Per camera, the files a trial's 2D data come from (for cache keys)."""
-    if trial.source == "centroids":
-        paths = {
-            c: [config.root / trial.centroids.replace("{camera}", c)] for c in config.camera_ids
-        }
-    else:
+    if trial.source != "centroids":  # frames are listed (or opened) only when they exist
         frames = trial_frames_of(config, trial)
-        paths = {c: source_files(f) for c, f in frames.items()}
-    for c, ps in paths.items():
-        for p in ps:
-            if not p.is_file():
-                raise MissingDataError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
-    return paths
+        return {c: source_files(f) for c, f in frames.items()}
+    paths = {c: config.root / trial.centroids.replace("{camera}", c) for c in config.camera_ids}
+    for c, p in paths.items():
+        if not p.is_file():
+            raise MissingDataError(f"{p}: file of trial {trial.name!r}, camera {c}, not found")
+    return {c: [p] for c, p in paths.items()}
 
 
 def trial_frames_of(config: SessionConfig, trial: TrialConfig) -> dict[str, Any]:

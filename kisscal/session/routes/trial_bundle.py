@@ -11,6 +11,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -116,9 +117,8 @@ def trials_key(inputs: RouteInputs) -> list:
     the trials' files and the wand settings, when :func:`uses_trials`."""
     if not uses_trials(inputs):
         return []
-    config = inputs.config
-    trials = [trial_input_files(config, t) for t in image_trials(inputs) if has_files(config, t)]
-    return [trials, inputs.params.wand]
+    listed = (_input_files(inputs.config, t) for t in image_trials(inputs))
+    return [[files for files in listed if files is not None], inputs.params.wand]
 
 
 def uses_trials(inputs: RouteInputs) -> bool:
@@ -151,11 +151,16 @@ def image_trials(inputs: RouteInputs) -> list[TrialConfig]:
 def has_files(config: SessionConfig, trial: TrialConfig) -> bool:
     """Whether every camera of ``trial`` has its files: a trial without them is left to
     fail on its own, not to fail the calibration of the session's other trials."""
+    return _input_files(config, trial) is not None
+
+
+def _input_files(config: SessionConfig, trial: TrialConfig) -> dict[str, list[Path]] | None:
+    """:func:`~kisscal.session.trials.trial_input_files` of ``trial``, or None when a
+    camera lacks its files (listed once: a trial's listing is thousands of files)."""
     try:
-        trial_input_files(config, trial)
+        return trial_input_files(config, trial)
     except KisscalError:
-        return False
-    return True
+        return None
 
 
 def usable_trials(config: SessionConfig) -> dict[str, TrialConfig]:
