@@ -6,6 +6,7 @@ Typical use::
     result = build_trajectories(field, xyz_mm, TrackingParams(), names, template_mm)
 """
 
+from kisscal.tracking.association import associate
 from kisscal.tracking.blending import blend_tracks, clean_up
 from kisscal.tracking.gaps import fill_gaps
 from kisscal.tracking.labelling import Labelling, label_tracks
@@ -21,7 +22,7 @@ from kisscal.tracking.pipeline import (
 from kisscal.tracking.rayfill import SpareBlobs, spare_blobs
 from kisscal.tracking.smooth import smooth_tracks
 from kisscal.tracking.stats import SegmentStats, segment_statistics
-from kisscal.tracking.tracker import associate, track_points
+from kisscal.tracking.tracker import track_points
 from kisscal.tracking.tracks import (
     FILLED,
     FILLED_PATTERN,

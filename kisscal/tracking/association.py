@@ -42,9 +42,6 @@ def associate(
     rows, cols : matched track and point indices; every pair lies inside its box gate and
     the sum of gate-normalised squared distances is minimal over all one-to-one matchings.
     """
-    if predicted.shape[0] == 0 or points.shape[0] == 0:
-        empty = np.empty(0, dtype=np.int64)
-        return empty, empty
     inside, cost = gate_costs(predicted, half_width, points, extra_cost, distance_weight)
     rows_any = np.flatnonzero(inside.any(axis=1))
     cols_any = np.flatnonzero(inside.any(axis=0))

@@ -54,10 +54,7 @@ from kisscal.tracking.tracks import (
     PREDICTED,
     Tracks,
     is_filled,
-    make_tracks,
 )
-
-_COLUMNS = ("field", "track", "xyz_mm", "corrected_mm", "status", "point")
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[int, int]]:
@@ -418,7 +415,7 @@ def fill_gaps_logged(
     made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS)
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
-        return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
+        return tracks.with_track(tracks.track), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])
     new_track = np.concatenate([np.full(g.n_fields, g.track) for g in fills])
     new_status = np.concatenate([np.full(g.n_fields, g.status, dtype=np.int8) for g in fills])

@@ -73,12 +73,6 @@ def build_trajectories(
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
-    Steps: :func:`track_points` (Küçük 2005 §3.3.8-3.3.9); :func:`blend_tracks` and
-    :func:`clean_up` (Shafiq et al. 2001 §4.3);
-    :func:`label_tracks` (joins pieces that take the same name); :func:`fill_gaps` (spline
-    for short gaps, rigid-body or pattern fill from the body for longer ones); and
-    :func:`smooth_tracks` when ``params.smoothing``.
-
     Parameters
     ----------
     field : (N,) int array

@@ -79,13 +79,12 @@ class Tracks:
 
     def renumber(self, new_track: NDArray) -> Tracks:
         """Give sample ``i`` the track ``new_track[self.track[i]]`` (merging tracks)."""
+        return self.with_track(np.asarray(new_track)[self.track])
+
+    def with_track(self, track: NDArray) -> Tracks:
+        """The samples with track numbers ``track`` (one per sample; splitting, merging)."""
         return make_tracks(
-            self.field,
-            np.asarray(new_track)[self.track],
-            self.xyz_mm,
-            self.corrected_mm,
-            self.status,
-            self.point,
+            self.field, track, self.xyz_mm, self.corrected_mm, self.status, self.point
         )
 
     def positions(self, n_fields: int | None = None) -> NDArray[np.float64]:
