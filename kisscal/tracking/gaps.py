@@ -440,16 +440,10 @@ def fill_gaps_logged(
 
 
 def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
-    """Fill the gaps inside each track: short ones by a spline, longer ones from the body.
-
-    A gap is a run of fields between a track's first and last measured sample without a
-    measured sample (or, with ``refill_predicted``, with only a Kalman prediction). Gaps of
-    at most ``max_fill_gap_fields`` are filled by a cubic spline
-    (``scipy.interpolate.make_interp_spline``) through up to ``fill_context_fields``
-    measured samples on each side (status ``filled_spline``); longer ones, up to
-    ``max_body_fill_fields``, by rigid-body or pattern fill when the trial supports one
-    (:func:`~kisscal.tracking.bodyfill.body_fill`; status ``filled_rigid`` or
-    ``filled_pattern``). Filled samples' ``corrected_mm`` is NaN.
+    """Fill the gaps inside each track (fields between its first and last measured sample
+    without one, or with only a Kalman prediction under ``refill_predicted``): short ones
+    (``max_fill_gap_fields``) by a spline, longer ones (``max_body_fill_fields``) from the
+    body (see module). Filled samples' ``corrected_mm`` is NaN.
 
     References
     ----------

@@ -294,9 +294,6 @@ class Live:
         self, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
     ) -> tuple[NDArray, NDArray]:
         """Matched rows and points: each point in at most one gate, one per gate."""
-        if not points.shape[0]:
-            empty = np.empty(0, dtype=np.int64)
-            return empty, empty
         # Axis by axis on contiguous (T, M) planes: several times faster than reducing a
         # (T, M, 3) array over its short last axis. |d| <= h is exactly |d / h| <= 1 in
         # IEEE arithmetic (the division rounds above 1 whenever |d| > h), the gate test

@@ -171,11 +171,7 @@ def side_paths(
             if not 0 <= edge < len(target):  # a run at the trial's start or end: one side
                 picks.append({})
                 continue
-            ends = (
-                target[[edge, edge + step]]
-                if 0 <= edge + step < len(target)
-                else target[[edge] * 2]
-            )
+            ends = target[[edge, edge + step if 0 <= edge + step < len(target) else edge]]
             if not np.all(np.isfinite(ends[0])):
                 picks.append({})
                 continue
