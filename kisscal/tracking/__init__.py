@@ -8,7 +8,6 @@ Typical use::
 
 from kisscal.tracking.association import associate
 from kisscal.tracking.blending import blend_tracks, clean_up
-from kisscal.tracking.gaps import fill_gaps
 from kisscal.tracking.labelling import Labelling, label_tracks
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.pipeline import (
@@ -54,7 +53,6 @@ __all__ = [
     "blend_tracks",
     "build_trajectories",
     "clean_up",
-    "fill_gaps",
     "is_filled",
     "label_tracks",
     "segment_statistics",

@@ -429,10 +429,8 @@ def chain_labels(n_tracks: int, earlier: NDArray, later: NDArray) -> NDArray[np.
 
 
 def blend_tracks(tracks: Tracks, params: TrackingParams, noise_mm: float | None = None) -> Tracks:
-    """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3).
-
-    The missing fields of a blended gap are left empty for :func:`fill_gaps`.
-    """
+    """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3);
+    the missing fields of a blended gap are left empty for gap filling."""
     earlier, later = blend_pairs(tracks, params, noise_mm)
     if earlier.size == 0:
         return tracks

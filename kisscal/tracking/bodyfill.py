@@ -447,27 +447,6 @@ def fill_candidates(
     return out
 
 
-def body_fill(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
-) -> tuple[NDArray[np.float64], GapFill] | None:
-    """Fill the gap [lo, hi) of track ``t`` from the body (:func:`best_candidate`).
-
-    Parameters
-    ----------
-    dense : (n_tracks, n_fields, 3) array
-        Measured positions of every track (NaN elsewhere).
-    t, lo, hi : int
-        Track and gap (fields lo..hi-1).
-    params : TrackingParams
-
-    Returns
-    -------
-    (positions (hi - lo, 3), GapFill), or None when neither method is supported.
-    """
-    best = best_candidate(fill_candidates(dense, t, lo, hi, params), params)
-    return None if best is None else (best.xyz_mm, best.fill)
-
-
 def best_candidate(cands: list[Candidate], params: TrackingParams) -> Candidate | None:
     """The candidate of smallest expected error, if at most ``max_body_fill_error_mm``."""
     ok = [c for c in cands if c.fill.expected_error_mm <= params.max_body_fill_error_mm]

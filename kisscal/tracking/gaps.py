@@ -88,7 +88,7 @@ def _fill_one(
     spare: SpareBlobs | None,
     spline: bool = True,
 ) -> list[tuple[NDArray, GapFill]]:
-    """Spline for short gaps (unless not ``spline``), the body (:func:`body_fill`) for
+    """Spline for short gaps (unless not ``spline``), the body (:func:`best_candidate`) for
     longer ones; with ``spare`` blobs, each filled field a camera still sees moved onto
     its ray (:func:`with_rays`); no spline where the marker's blobs followed in the image
     from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
@@ -380,13 +380,23 @@ def fill_gaps_logged(
     unlabelled: Sequence[int] = (),
     missing: Sequence[str] = (),
 ) -> tuple[Tracks, tuple[GapFill, ...]]:
-    """:func:`fill_gaps`, and how each gap was filled (method and expected error); with
-    ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
+    """Fill the gaps inside each track (fields between its first and last measured sample
+    without one, or with only a Kalman prediction under ``refill_predicted``): short ones
+    (``max_fill_gap_fields``) by a spline, longer ones (``max_body_fill_fields``) from the
+    body (see module); filled samples' ``corrected_mm`` is NaN. Returns the tracks and how
+    each gap was filled (method and expected error).
+
+    With ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
     onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
     (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
-    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`)."""
+    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`).
+
+    References
+    ----------
+    Gløersen & Federolf 2016 (filling from the other markers of the body).
+    """
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -437,16 +447,3 @@ def fill_gaps_logged(
     order = np.lexsort((columns[0], columns[1]))
     out = Tracks(*(c[order] for c in columns))
     return out, tuple(fills)
-
-
-def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
-    """Fill the gaps inside each track (fields between its first and last measured sample
-    without one, or with only a Kalman prediction under ``refill_predicted``): short ones
-    (``max_fill_gap_fields``) by a spline, longer ones (``max_body_fill_fields``) from the
-    body (see module). Filled samples' ``corrected_mm`` is NaN.
-
-    References
-    ----------
-    Gløersen & Federolf 2016 (filling from the other markers of the body).
-    """
-    return fill_gaps_logged(tracks, params)[0]
