@@ -308,22 +308,24 @@ def _apply(
         _apply(gap, tail, left)
 
 
-def _fill_gap(
+def _fill_runs(
     dense: NDArray,
-    t: int,
-    lo: int,
-    hi: int,
+    runs: Iterable[tuple[int, int, int, int]],
     params: TrackingParams,
     spare: SpareBlobs | None,
-    measured: NDArray | None = None,
-    absent: NDArray | None = None,
+    measured: NDArray,
+    absent: NDArray | None,
 ) -> list[tuple[NDArray, GapFill]]:
-    """The gap [lo, hi) of track ``t`` filled by :data:`FILLS`; placed fields become
-    context (in ``dense``) for the rest. ``measured`` (n_fields,) bool: the track's
-    measured fields (for the depth fill's spline); ``absent``: see :class:`_Gap`."""
-    gap = _Gap(dense, t, lo, hi, params, spare, measured, np.zeros(hi - lo, bool), [], 0, absent)
-    _apply(gap, FILLS, [(lo, hi)])
-    return gap.out
+    """Each run (track, lo, hi, end) filled by :data:`FILLS` in turn; placed fields become
+    context (in ``dense``) for the rest. ``measured``: every track's measured fields;
+    ``end`` and ``absent``: see :class:`_Gap`."""
+    out = []
+    for t, lo, hi, end in runs:
+        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(hi - lo, bool), [])
+        gap.end, gap.absent = end, absent
+        _apply(gap, FILLS, [(lo, hi)])
+        out += gap.out
+    return out
 
 
 def _second_pass(
@@ -405,7 +407,6 @@ def fill_gaps_logged(
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
     measured = np.isfinite(dense[:, :, 0])
-    made: list[tuple[NDArray, GapFill]] = []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     absent = absent_rows(dense, labels, missing, spare, params)
@@ -414,13 +415,10 @@ def fill_gaps_logged(
         for t in range(tracks.n_tracks)
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
-    for t, lo, hi in gaps:
-        made += _fill_gap(dense, t, lo, hi, params, spare, measured[t], absent)
+    made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent)
     made += _second_pass(dense, gaps, params, spare, measured, made, absent)
-    for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
-        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end, absent)
-        _apply(gap, FILLS, [(lo, hi)])
-        made += gap.out
+    ends = track_ends(tracks, params, labels, unlabelled)
+    made += _fill_runs(dense, ends, params, spare, measured, absent)
     # what is left, again with the ends placed: a knee seen by one camera carries a tibia
     made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS)
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
