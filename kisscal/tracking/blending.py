@@ -434,7 +434,7 @@ def blend_tracks(tracks: Tracks, params: TrackingParams, noise_mm: float | None 
     earlier, later = blend_pairs(tracks, params, noise_mm)
     if earlier.size == 0:
         return tracks
-    return tracks.renumber(chain_labels(tracks.n_tracks, earlier, later))
+    return tracks.with_track(chain_labels(tracks.n_tracks, earlier, later)[tracks.track])
 
 
 def clean_up(tracks: Tracks, params: TrackingParams) -> Tracks:

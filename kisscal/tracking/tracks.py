@@ -77,10 +77,6 @@ class Tracks:
             self.point[rows],
         )
 
-    def renumber(self, new_track: NDArray) -> Tracks:
-        """Give sample ``i`` the track ``new_track[self.track[i]]`` (merging tracks)."""
-        return self.with_track(np.asarray(new_track)[self.track])
-
     def with_track(self, track: NDArray) -> Tracks:
         """The samples with track numbers ``track`` (one per sample; splitting, merging)."""
         return make_tracks(
