@@ -1,12 +1,10 @@
-"""Gap filling and optional GCV smoothing of final trajectories.
+"""Gap filling of final trajectories (smoothing is :mod:`kisscal.tracking.smooth`'s).
 
 Gaps inside a trajectory (blended gaps, and coasted fields whose Kalman prediction is
 replaced by a two-sided estimate) are filled by a cubic interpolating spline through the
 measured samples on both sides when short, and from the body (rigid-body or pattern fill,
 :mod:`kisscal.tracking.bodyfill`; about two markers' axis, :mod:`kisscal.tracking.fill_hinge`)
-when longer. Smoothing uses the generalised
-cross-validation spline (Woltring 1986, the biomechanics standard),
-``scipy.interpolate.make_smoothing_spline``.
+when longer; then by the marker's blobs a camera still sees (:data:`FILLS`).
 """
 
 from __future__ import annotations
