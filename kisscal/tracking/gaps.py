@@ -4,7 +4,7 @@ Gaps inside a trajectory (blended gaps, and coasted fields whose Kalman predicti
 replaced by a two-sided estimate) are filled by a cubic interpolating spline through the
 measured samples on both sides when short, and from the body (rigid-body or pattern fill,
 :mod:`kisscal.tracking.bodyfill`; about two markers' axis, :mod:`kisscal.tracking.fill_hinge`)
-when longer; then by the marker's blobs a camera still sees (:data:`FILLS`).
+when longer, and on the rays of blobs a camera still sees (:data:`FILLS` gives the order).
 """
 
 from __future__ import annotations
