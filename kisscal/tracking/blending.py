@@ -296,6 +296,9 @@ def blend_pairs(
     (:func:`~kisscal.tracking.blending_chains.chain_costs`). ``noise_mm`` defaults to
     :func:`smoothness_mm` of the tracks.
     """
+    if tracks.n_tracks < 2:
+        e = np.empty(0, dtype=np.int64)
+        return e, e
     end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
     start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
     ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
