@@ -18,15 +18,15 @@ segment's markers (its length partners) are expressed in the cluster's frame (Ka
 1976 per field) and concentric spheres, one per marker, are fitted to them in closed
 form (linear least squares in the centre and one constant per sphere). A centre is a
 point of the marker's segment, so it is kept only when at least one partner is fitted
-with the marker (seen over part of its motion alone, kiss 3 seed 303's RTIB fits a sphere
-in the pelvis's frame within 1.5 mm that its truth misses by 20 mm SD), each radius keeps
-within ``rigid_fill_sd_mm`` SD over the trial, and the marker is seen in the cluster's
-frame in :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over most of its
-motion, not a phase: modern 3 seed 307's LASI fitted one in the left shank's frame, known
-in 59 fields, within 2.1 mm, its truth 23 mm SD off it). The point, carried by the
-cluster into every field where its markers are known, is a partner of the marker's. No
-names are used: a thigh marker about the pelvis's hip, a shank's about the thigh's knee
-axis alike.
+with the marker (seen over part of its motion alone, kiss 3 seed 303's RTIB, 106 fields,
+fits a sphere in the pelvis's frame within 1.5 mm that its truth misses by 20 mm SD), each
+radius keeps within ``rigid_fill_sd_mm`` SD over the trial, and the marker is seen in the
+cluster's frame in :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over
+most of its motion, not a phase: modern 3 seed 307's LASI fitted one in the left shank's
+frame, known in 59 fields, within 2.1 mm, its truth 23 mm SD off it). The point, carried
+by the cluster into every field where its markers are known, is a partner of the
+marker's. No names are used: a thigh marker about the pelvis's hip, a shank's about the
+thigh's knee axis alike.
 
 References
 ----------
