@@ -77,38 +77,6 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     ]
 
 
-def _fill_one(
-    dense: NDArray,
-    t: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-    spare: SpareBlobs | None,
-    spline: bool = True,
-) -> list[tuple[NDArray, GapFill]]:
-    """Spline for short gaps (unless not ``spline``), the body (:func:`best_candidate`) for
-    longer ones; with ``spare`` blobs, each filled field a camera still sees moved onto
-    its ray (:func:`with_rays`); no spline where the marker's blobs followed in the image
-    from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
-    short = spline and hi - lo <= params.max_fill_gap_fields
-    if not short and hi - lo > params.max_body_fill_fields:
-        return []
-    rays = spare is not None and spare.rows(lo, hi).size > 0
-    methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
-    centres = spare.centres if rays else None
-    cands = fill_candidates(dense, t, lo, hi, params, methods, centres)
-    chosen = cands[0] if short and cands else best_candidate(cands, params)
-    if chosen is None:
-        return []
-    # a spline has no error of its own to check: between samples the marker's own image
-    # does not join, it may bridge to another marker's
-    if short and rays and parted(dense[t], lo, hi, spare, params):
-        return []
-    if not rays:
-        return [(chosen.xyz_mm, chosen.fill)]
-    return with_rays(chosen, spare, params)
-
-
 @dataclass
 class _Gap:
     """One gap [lo, hi) of track ``t`` being filled: ``swept`` marks the fields placed by
@@ -162,9 +130,26 @@ def _ray_placer(method: Callable, *extra: str) -> Callable:
 def _body(
     gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
 ) -> NDArray[np.bool_]:
-    """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`,
-    expecting at least the error of the gap's fills it reads (:func:`anchored`)."""
-    got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare, spline)
+    """Spline for short runs (unless not ``spline``), the body (:func:`best_candidate`)
+    for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
+    fills it reads (:func:`anchored`); with spare blobs, each filled field a camera still
+    sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
+    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
+    none = np.zeros(b - a, dtype=bool)
+    short = spline and b - a <= params.max_fill_gap_fields
+    if not short and b - a > params.max_body_fill_fields:
+        return none
+    spare = gap.spare
+    rays = spare is not None and spare.rows(a, b).size > 0
+    methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
+    centres = spare.centres if rays else None
+    cands = fill_candidates(gap.dense, gap.t, a, b, params, methods, centres)
+    chosen = cands[0] if short and cands else best_candidate(cands, params)
+    # a spline has no error of its own to check: between samples the marker's own image
+    # does not join, it may bridge to another marker's
+    if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
+        return none
+    got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
@@ -205,7 +190,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: by the segment's lengths to its measured markers
 #: (:func:`~kisscal.tracking.raychain.chain_fill`), then together with the segment's
 #: other markers on theirs (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`); then
-#: the spline (short runs) or the body (:func:`_fill_one`), only expecting little error
+#: the spline (short runs) or the body (:func:`_body`), only expecting little error
 #: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
 #: blobs of one camera at a spline's distance from it
 #: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), or at the depth fitted to
@@ -214,7 +199,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_fill_one`), the segment carrying it from one side
+#: them as a gap (:func:`_body`), the segment carrying it from one side
 #: (:func:`_end`), then beyond, its blobs in one camera placed on their rays by its
 #: segment's lengths (:func:`~kisscal.tracking.fill_ends.chain_end_fill`; after the
 #: segment, which carried kiss 3 seed 303's LTIB to 0.6 mm where one camera's ray took it
