@@ -104,27 +104,19 @@ class _Gap:
     expected: NDArray | None = None
 
 
-def _placer(method: Callable) -> Callable:
-    """A fill of :data:`FILLS` from a single-camera placer ``method(gap, a, b, params)``
-    (a :class:`ChainFill` or None): its fields written as context, their blobs taken
-    (:func:`take_placed`)."""
+def _ray_placer(method: Callable, *extra: str) -> Callable:
+    """A fill of :data:`FILLS` from a single-camera placer ``method(dense, t, a, b, spare,
+    params, *extra)`` (a :class:`ChainFill` or None; ``extra`` names attributes of the
+    gap): its fields written as context, their blobs taken (:func:`take_placed`)."""
 
     def fill(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
-        got = method(gap, a, b, params)
+        got = method(gap.dense, gap.t, a, b, gap.spare, params, *(getattr(gap, n) for n in extra))
         if got is None:
             return np.zeros(b - a, dtype=bool)
         gap.out.extend(take_placed(gap.dense, gap.t, a, got, gap.spare))
         return np.isfinite(got.sd_mm)
 
     return fill
-
-
-def _ray_placer(method: Callable, *extra: str) -> Callable:
-    """:func:`_placer` of a placer ``method(dense, t, a, b, spare, params, *extra)``, the
-    ``extra`` arguments being the gap's attributes of those names."""
-    return _placer(
-        lambda g, a, b, p: method(g.dense, g.t, a, b, g.spare, p, *(getattr(g, n) for n in extra))
-    )
 
 
 def _body(
