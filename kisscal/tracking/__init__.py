@@ -6,8 +6,8 @@ Typical use::
     result = build_trajectories(field, xyz_mm, TrackingParams(), names, template_mm)
 """
 
+from kisscal.tracking.association import associate
 from kisscal.tracking.blending import blend_tracks, clean_up
-from kisscal.tracking.gaps import fill_gaps
 from kisscal.tracking.labelling import Labelling, label_tracks
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.pipeline import (
@@ -21,7 +21,7 @@ from kisscal.tracking.pipeline import (
 from kisscal.tracking.rayfill import SpareBlobs, spare_blobs
 from kisscal.tracking.smooth import smooth_tracks
 from kisscal.tracking.stats import SegmentStats, segment_statistics
-from kisscal.tracking.tracker import associate, track_points
+from kisscal.tracking.tracker import track_points
 from kisscal.tracking.tracks import (
     FILLED,
     FILLED_PATTERN,
@@ -53,7 +53,6 @@ __all__ = [
     "blend_tracks",
     "build_trajectories",
     "clean_up",
-    "fill_gaps",
     "is_filled",
     "label_tracks",
     "segment_statistics",

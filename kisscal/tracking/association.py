@@ -42,9 +42,6 @@ def associate(
     rows, cols : matched track and point indices; every pair lies inside its box gate and
     the sum of gate-normalised squared distances is minimal over all one-to-one matchings.
     """
-    if predicted.shape[0] == 0 or points.shape[0] == 0:
-        empty = np.empty(0, dtype=np.int64)
-        return empty, empty
     inside, cost = gate_costs(predicted, half_width, points, extra_cost, distance_weight)
     rows_any = np.flatnonzero(inside.any(axis=1))
     cols_any = np.flatnonzero(inside.any(axis=0))
@@ -200,10 +197,10 @@ def continuation_doubts(
     points: NDArray,
     later: NDArray,
     least_mm: float,
-    reach: float = LOOKAHEAD_REACH,
 ) -> NDArray[np.bool_]:
     """Which tracks took a point that continues their path worse than another point
-    within ``reach`` times its distance from the track's constant-acceleration prediction.
+    within :data:`LOOKAHEAD_REACH` times its distance from the track's constant-acceleration
+    prediction.
 
     On fast markers a few centimetres apart (30 Hz, a limb moving 50-180 mm a field) the
     prediction misses by about the spacing, so the nearest point may be a neighbour's. One
@@ -219,8 +216,7 @@ def continuation_doubts(
     history : (T, 3, 3) each track's last three positions, oldest first (mm).
     found : (T, 3) the point each track took; points : (M, 3) the field's points;
     later : (K, 3) the next field's points; least_mm : a point taken nearer than this to
-    the prediction is no doubt (a few times the noise); reach : how much farther from the
-    prediction a rival may lie than the point taken and still be weighed.
+    the prediction is no doubt (a few times the noise).
 
     Returns
     -------
@@ -234,7 +230,7 @@ def continuation_doubts(
     miss = np.sum((points[None, :, :] - pred[:, None, :]) ** 2, axis=2)  # (T, M)
     own_miss = np.sum((found - pred) ** 2, axis=1)
     own = np.sum((found[:, None, :] - points[None, :, :]) ** 2, axis=2).argmin(axis=1)
-    rivals = (miss < reach**2 * own_miss[:, None]) & (own_miss > least_mm**2)[:, None]
+    rivals = (miss < LOOKAHEAD_REACH**2 * own_miss[:, None]) & (own_miss > least_mm**2)[:, None]
     rivals[np.arange(own.size), own] = False
     out = np.zeros(history.shape[0], dtype=bool)
     t = np.flatnonzero(rivals.any(axis=1))  # the field after is weighed only where in doubt

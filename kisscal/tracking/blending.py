@@ -1,12 +1,8 @@
 """Blending of track pieces and clean-up of short tracks (Shafiq et al. 2001 §4.3).
 
-Pieces that end and start within a few fields are connectable. Each piece is extrapolated
-across the gap with the extrapolator its length allows (two-point line, three-point
-least-squares line, five-point parabola), forward from the end of the first and backward
-from the start of the second, as a coarse gate; continuity is then judged by one cubic
-fitted through both sides. Accepted pairs are chosen one-to-one (``linear_sum_assignment``)
-and chained. The clean-up then removes tracks with too few
-measured points: most ghost tracks are short.
+Pieces that end and start within a few fields are joined where Shafiq's extrapolations
+and one cubic through both sides say they are one path (:func:`blend_pairs`); the
+clean-up then removes tracks with too few measured points: most ghost tracks are short.
 """
 
 from __future__ import annotations
@@ -15,11 +11,18 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from kisscal.tracking.blending_chains import bridge_residual_mm, chain_costs, through_gaps
-from kisscal.tracking.blending_chains import extrapolate_gap as _extrapolate_gap
-from kisscal.tracking.blending_chains import ranges as _ranges
+from kisscal.tracking.blending_chains import (
+    bridge_residual_mm,
+    chain_costs,
+    extrapolate_gap,
+    gap_fields,
+    in_fields,
+    join_ends,
+    ranges,
+    through_gaps,
+)
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.tracks import MEASURED, Tracks, make_tracks
+from kisscal.tracking.tracks import MEASURED, Tracks
 
 _FAR = 1e12
 
@@ -47,8 +50,11 @@ def _end_points(
     return edge, history, count, fields
 
 
-def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray, share: float) -> NDArray[np.bool_]:
-    """Which joins ``a[i]`` -> ``b[i]`` another marker contests inside their gap.
+def _rival_in_gap(
+    tracks: Tracks, a: NDArray, b: NDArray, share: float, ends: tuple[NDArray, ...]
+) -> NDArray[np.bool_]:
+    """Which joins ``a[i]`` -> ``b[i]`` another marker contests inside their gap (``ends``
+    as :func:`~kisscal.tracking.blending_chains.chain_costs`).
 
     At each field of the gap, both sides are extrapolated into it (Shafiq's rule, as the
     coarse gate). A measured sample of a third piece within ``share`` (``blend_rival_share``) of the
@@ -61,23 +67,12 @@ def _rival_in_gap(tracks: Tracks, a: NDArray, b: NDArray, share: float) -> NDArr
     path; the samples in the gap tell them apart.
     """
     out = np.zeros(a.size, dtype=bool)
-    end_field, end_hist, end_n, _ = _end_points(tracks, from_end=True)
-    start_field, start_hist, start_n, _ = _end_points(tracks, from_end=False)
-    inner = np.maximum(start_field[b] - end_field[a] - 1, 0)
-    pair = np.repeat(np.arange(a.size), inner)
+    end_field, start_field = ends[0], ends[4]
+    pair, gap_field, _, fa, fb = gap_fields(a, b, ends)
     if pair.size == 0:
         return out
-    ahead = _ranges(np.ones_like(inner), inner + 1)
     ia, ib = a[pair], b[pair]
-    gap_field = end_field[ia] + ahead
-    fa = _extrapolate_gap(end_hist[ia], end_n[ia], ahead)
-    fb = _extrapolate_gap(start_hist[ib], start_n[ib], start_field[ib] - gap_field)
-    m = np.flatnonzero(tracks.status == MEASURED)
-    m = m[np.argsort(tracks.field[m], kind="stable")]
-    lo = np.searchsorted(tracks.field[m], gap_field, "left")
-    hi = np.searchsorted(tracks.field[m], gap_field, "right")
-    q = np.repeat(np.arange(gap_field.size), hi - lo)
-    rows = m[_ranges(lo, hi)]
+    q, rows = in_fields(tracks, np.flatnonzero(tracks.status == MEASURED), gap_field)
     x, c = tracks.xyz_mm[rows], tracks.track[rows]
     reach = share * np.linalg.norm(fa[q] - fb[q], axis=1)
     other = (c != ia[q]) & (c != ib[q])
@@ -115,8 +110,6 @@ def _nearer_at_ends(
     later : (k,) bool array
     """
     m = np.flatnonzero(tracks.status == MEASURED)
-    m = m[np.argsort(tracks.field[m], kind="stable")]
-    fm = tracks.field[m]
     start_field, start_hist = _end_points(tracks, from_end=False)[:2]
     end_field, end_hist = _end_points(tracks, from_end=True)[:2]
     n = np.int64(tracks.n_tracks)
@@ -127,9 +120,7 @@ def _nearer_at_ends(
         (start_field[b], forward, start_hist[b, -1], True),
         (end_field[a], backward, end_hist[a, -1], False),
     ):
-        lo, hi = np.searchsorted(fm, at, "left"), np.searchsorted(fm, at, "right")
-        q = np.repeat(np.arange(a.size), hi - lo)
-        rows = m[_ranges(lo, hi)]
+        q, rows = in_fields(tracks, m, at)
         c = tracks.track[rows]
         d = np.linalg.norm(tracks.xyz_mm[rows] - guess[q], axis=1)
         d_own = np.linalg.norm(own - guess, axis=1)
@@ -242,9 +233,7 @@ def split_discontinuities(tracks: Tracks, tolerance_mm: float, side: int = 3) ->
     new_piece[m[cut]] = 1
     new_piece[1:] += tracks.track[1:] != tracks.track[:-1]
     piece = np.cumsum(new_piece)
-    return make_tracks(
-        tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
-    )
+    return tracks.with_track(piece)
 
 
 def split_stray_ends(tracks: Tracks, tolerance_mm: float, fit_points: int = 5) -> Tracks:
@@ -282,9 +271,7 @@ def split_stray_ends(tracks: Tracks, tolerance_mm: float, fit_points: int = 5) -
             continue
         piece = tracks.track.copy()
         piece[stray] = tracks.n_tracks + np.arange(stray.size)
-        tracks = make_tracks(
-            tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
-        )
+        tracks = tracks.with_track(piece)
     return tracks
 
 
@@ -314,6 +301,7 @@ def blend_pairs(
         return e, e
     end_field, end_hist, end_n, end_fields = _end_points(tracks, from_end=True)
     start_field, start_hist, start_n, start_fields = _end_points(tracks, from_end=False)
+    ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
     # Only pieces that became Kalman tracks take part: shorter ones are initial tracks
     # that died, mostly ghosts, and a few points can line up with anything.
     grown = np.flatnonzero(tracks.n_status(MEASURED) >= params.min_initial_length)
@@ -322,13 +310,13 @@ def blend_pairs(
     lo = np.searchsorted(starts_sorted, end_field[grown] + 1, "left")
     hi = np.searchsorted(starts_sorted, end_field[grown] + params.blend_gap_fields + 2, "left")
     a = np.repeat(grown, hi - lo)
-    b = by_start[_ranges(lo, hi)]
+    b = by_start[ranges(lo, hi)]
     if a.size == 0:
         e = np.empty(0, dtype=np.int64)
         return e, e
     ahead = start_field[b] - end_field[a]
-    forward = _extrapolate_gap(end_hist[a], end_n[a], ahead)
-    backward = _extrapolate_gap(start_hist[b], start_n[b], ahead)
+    forward = extrapolate_gap(end_hist[a], end_n[a], ahead)
+    backward = extrapolate_gap(start_hist[b], start_n[b], ahead)
     miss_f = np.linalg.norm(forward - start_hist[b, -1], axis=1)
     miss_b = np.linalg.norm(backward - end_hist[a, -1], axis=1)
     reach = params.blend_reach_mm * ahead
@@ -337,15 +325,7 @@ def blend_pairs(
     refused, contest, rival, later = _nearer_at_ends(tracks, a, b, forward[near], backward[near])
     k = params.blend_points
     residual = np.array(
-        [
-            bridge_residual_mm(
-                end_fields[i, 5 - min(k, end_n[i]) :],
-                end_hist[i, 5 - min(k, end_n[i]) :],
-                start_fields[j, 5 - min(k, start_n[j]) :][::-1],
-                start_hist[j, 5 - min(k, start_n[j]) :][::-1],
-            )
-            for i, j in zip(a, b, strict=True)
-        ]
+        [bridge_residual_mm(*join_ends(ends, i, j, k)) for i, j in zip(a, b, strict=True)]
     )
     if noise_mm is None:
         noise_mm = smoothness_mm(tracks)
@@ -353,12 +333,11 @@ def blend_pairs(
     ok = (residual <= tolerance) & ~refused if residual.size else np.zeros(0, bool)
     floor = max(noise_mm, tolerance / params.blend_rougher)
     smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)
-    ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share)
+    ok[ok] = smooth & ~_rival_in_gap(tracks, a[ok], b[ok], params.blend_rival_share, ends)
     # A join with a rival in the coarse gate, across a gap where the markers were seen as
     # one-sample pieces, is judged by the path through those samples, not end to end
     # (blending_chains). Without a rival it stays judged end to end: the tracker cut a
     # lone marker there for a stray sample (pc_real: 1.5 mm end to end, 5.3 through it).
-    ends = (end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields)
     judged = np.flatnonzero(ok & _rivalled(a, b))
     chain, routes = chain_costs(tracks, a[judged], b[judged], ends, k, params.blend_reach_mm)
     seen = judged[np.isfinite(chain)]
@@ -420,10 +399,7 @@ def _smooth_as_pieces(
     """Which joins ``a[i]`` -> ``b[i]`` are as smooth as the pieces themselves: one cubic
     through the last and first ``blend_join_points`` measured samples of the two fits them
     within ``blend_rougher`` times the RMS residual of a cubic through the last (first)
-    ``blend_piece_points`` samples of either piece (at least ``floor_mm``). Three samples a
-    side fit a fast marker's neighbour within the tolerance (a basket sprint at 120 Hz:
-    2.6 mm across a 3-field gap); five, against each piece's own path, do not (4.6 mm,
-    8 times the pieces'), while a fast glove's true joins stay within 3.1 times."""
+    ``blend_piece_points`` samples of either piece (at least ``floor_mm``)."""
     if a.size == 0:
         return np.zeros(0, dtype=bool)
     k, rougher = params.blend_join_points, params.blend_rougher
@@ -456,14 +432,12 @@ def chain_labels(n_tracks: int, earlier: NDArray, later: NDArray) -> NDArray[np.
 
 
 def blend_tracks(tracks: Tracks, params: TrackingParams, noise_mm: float | None = None) -> Tracks:
-    """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3).
-
-    The missing fields of a blended gap are left empty for :func:`fill_gaps`.
-    """
+    """Connect track pieces whose gap and continuity allow it (Shafiq et al. 2001 §4.3);
+    the missing fields of a blended gap are left empty for gap filling."""
     earlier, later = blend_pairs(tracks, params, noise_mm)
     if earlier.size == 0:
         return tracks
-    return tracks.renumber(chain_labels(tracks.n_tracks, earlier, later))
+    return tracks.with_track(chain_labels(tracks.n_tracks, earlier, later)[tracks.track])
 
 
 def clean_up(tracks: Tracks, params: TrackingParams) -> Tracks:

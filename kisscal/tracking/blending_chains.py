@@ -69,6 +69,42 @@ def ranges(lo: NDArray, hi: NDArray) -> NDArray[np.int64]:
     return np.repeat(lo - first, size) + np.arange(int(size.sum()))
 
 
+def in_fields(tracks: Tracks, rows: NDArray, fields: NDArray) -> tuple[NDArray, NDArray]:
+    """The samples of ``rows`` in each of ``fields``: (index into ``fields``, row) pairs."""
+    rows = rows[np.argsort(tracks.field[rows], kind="stable")]
+    lo = np.searchsorted(tracks.field[rows], fields, "left")
+    hi = np.searchsorted(tracks.field[rows], fields, "right")
+    return np.repeat(np.arange(len(fields)), hi - lo), rows[ranges(lo, hi)]
+
+
+def gap_fields(a: NDArray, b: NDArray, ends: tuple[NDArray, ...]) -> tuple[NDArray, ...]:
+    """Per field inside the gap of each join ``a[i]`` -> ``b[i]`` (``ends`` as
+    :func:`chain_costs`): the join's index, the field, its fields past ``a[i]``'s end, and
+    both pieces' extrapolations into it (:func:`extrapolate_gap`)."""
+    end_field, end_hist, end_n, _, start_field, start_hist, start_n, _ = ends
+    inner = np.maximum(start_field[b] - end_field[a] - 1, 0)
+    pair = np.repeat(np.arange(a.size), inner)
+    ahead = ranges(np.ones_like(inner), inner + 1)
+    ia, ib = a[pair], b[pair]
+    gap_field = end_field[ia] + ahead
+    fa = extrapolate_gap(end_hist[ia], end_n[ia], ahead)
+    fb = extrapolate_gap(start_hist[ib], start_n[ib], start_field[ib] - gap_field)
+    return pair, gap_field, ahead, fa, fb
+
+
+def join_ends(ends: tuple[NDArray, ...], i: int, j: int, k: int) -> tuple[NDArray, ...]:
+    """(fields, positions) of the last ``k`` measured samples of piece ``i`` and of the
+    first ``k`` of piece ``j`` (``ends`` as :func:`chain_costs`), in field order."""
+    _, end_hist, end_n, end_fields, _, start_hist, start_n, start_fields = ends
+    n_a, n_b = min(k, end_n[i]), min(k, start_n[j])
+    return (
+        end_fields[i, 5 - n_a :],
+        end_hist[i, 5 - n_a :],
+        start_fields[j, 5 - n_b :][::-1],
+        start_hist[j, 5 - n_b :][::-1],
+    )
+
+
 def through_gaps(
     earlier: NDArray, later: NDArray, routes: dict[tuple[int, int], NDArray]
 ) -> tuple[NDArray, NDArray]:
@@ -109,28 +145,17 @@ def chain_costs(
     the samples used each side (``blend_points``); a gap sample is in reach when within
     ``reach_mm`` per field crossed of both pieces' extrapolations into its field.
     """
-    end_field, end_hist, end_n, end_fields, start_field, start_hist, start_n, start_fields = ends
     out = np.full(a.size, np.nan)
     routes = [np.empty(0, dtype=np.int64)] * a.size
-    inner = np.maximum(start_field[b] - end_field[a] - 1, 0)
-    pair = np.repeat(np.arange(a.size), inner)
+    pair, gap_field, ahead, fa, fb = gap_fields(a, b, ends)
     if pair.size == 0:
         return out, routes
-    ahead = ranges(np.ones_like(inner), inner + 1)
-    ia, ib = a[pair], b[pair]
-    gap_field = end_field[ia] + ahead
-    fa = extrapolate_gap(end_hist[ia], end_n[ia], ahead)
-    fb = extrapolate_gap(start_hist[ib], start_n[ib], start_field[ib] - gap_field)
     counts = tracks.n_status(MEASURED)
     rows = np.flatnonzero((tracks.status == MEASURED) & (counts[tracks.track] == 1))
-    rows = rows[np.argsort(tracks.field[rows], kind="stable")]
-    lo = np.searchsorted(tracks.field[rows], gap_field, "left")
-    hi = np.searchsorted(tracks.field[rows], gap_field, "right")
-    q = np.repeat(np.arange(gap_field.size), hi - lo)
-    cand = rows[ranges(lo, hi)]
+    q, cand = in_fields(tracks, rows, gap_field)
     x = tracks.xyz_mm[cand]
     near = (np.linalg.norm(x - fa[q], axis=1) <= reach_mm * ahead[q]) & (
-        np.linalg.norm(x - fb[q], axis=1) <= reach_mm * (start_field[ib[q]] - gap_field[q])
+        np.linalg.norm(x - fb[q], axis=1) <= reach_mm * (ends[4][b[pair[q]]] - gap_field[q])
     )
     q, cand = q[near], cand[near]
     for i in np.unique(pair[q]):
@@ -138,13 +163,7 @@ def chain_costs(
         options = [cand[mine][q[mine] == g] for g in np.unique(q[mine])]
         if math.prod(o.size for o in options) > MAX_ROUTES:
             continue
-        n_a, n_b = min(k, end_n[a[i]]), min(k, start_n[b[i]])
-        ends_i = (
-            end_fields[a[i], 5 - n_a :],
-            end_hist[a[i], 5 - n_a :],
-            start_fields[b[i], 5 - n_b :][::-1],
-            start_hist[b[i], 5 - n_b :][::-1],
-        )
+        ends_i = join_ends(ends, a[i], b[i], k)
         out[i], route = chain_residual_mm(ends_i, options, tracks.field, tracks.xyz_mm)
         routes[i] = tracks.track[route]
     return out, routes

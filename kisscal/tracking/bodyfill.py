@@ -147,16 +147,9 @@ def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
 def rigid_donors(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Markers that carry ``target`` through the gap [lo, hi), and their weights.
-
-    Candidates are measured through the gap and beside it on both sides. The segment: the
-    candidates that keep their distances to the target and to each other (SD over the
-    trial at most ``rigid_fill_sd_mm``; over the whole trial, since a joint may stay still
-    beside a gap), most rigid first, weight 1. With only two of them, neighbours across a
-    joint (SD at most ``rigid_fill_neighbour_sd_mm`` to the segment and the target) settle
-    the turn about the segment's axis, weighing 1 / (1 + SD²). At most
-    ``rigid_fill_markers`` in all; none when fewer than three carry it.
-    """
+    """Markers that carry ``target`` through the gap [lo, hi), and their weights: of the
+    :func:`_carriers`, those :func:`segment_carriers` chooses (SDs over the whole trial,
+    since a joint may stay still beside a gap); none when fewer than three carry it."""
     none = np.zeros(0, dtype=np.int64), np.zeros(0)
     carriers = _carriers(target, dense, exclude, lo, hi, params, 3)
     if carriers is None:
@@ -201,13 +194,9 @@ def segment_carriers(
 def rigid_fill(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.float64], tuple[int, ...]] | None:
-    """Fill fields [lo, hi) of ``target`` from three or more rigid partners (see module
-    and :func:`rigid_donors`).
-
-    The partners' shape is their positions at the last field before the gap where all are
-    measured. The target's position in their frame is averaged over each side and drifts
-    linearly from one side's to the other's across the gap.
-    """
+    """Fill fields [lo, hi) of ``target`` from three or more rigid partners
+    (:func:`rigid_donors`): its place in their frame is averaged over each side and drifts
+    linearly across the gap."""
     donors, weight = rigid_donors(target, dense, exclude, lo, hi, params)
     if donors.size < 3:
         return None
@@ -456,29 +445,6 @@ def fill_candidates(
         err, along = expected_errors(method, target, src, t, lo, hi, params, centres, got[1])
         out.append(Candidate(got[0], GapFill(t, lo, hi - lo, status, err, got[1]), along))
     return out
-
-
-def body_fill(
-    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
-) -> tuple[NDArray[np.float64], GapFill] | None:
-    """Fill the gap [lo, hi) of track ``t`` from the body: the method (rigid-body or
-    pattern fill) whose :func:`expected_errors` is smaller and at most
-    ``max_body_fill_error_mm``.
-
-    Parameters
-    ----------
-    dense : (n_tracks, n_fields, 3) array
-        Measured positions of every track (NaN elsewhere).
-    t, lo, hi : int
-        Track and gap (fields lo..hi-1).
-    params : TrackingParams
-
-    Returns
-    -------
-    (positions (hi - lo, 3), GapFill), or None when neither method is supported.
-    """
-    best = best_candidate(fill_candidates(dense, t, lo, hi, params), params)
-    return None if best is None else (best.xyz_mm, best.fill)
 
 
 def best_candidate(cands: list[Candidate], params: TrackingParams) -> Candidate | None:

@@ -1,12 +1,10 @@
-"""Gap filling and optional GCV smoothing of final trajectories.
+"""Gap filling of final trajectories (smoothing is :mod:`kisscal.tracking.smooth`'s).
 
 Gaps inside a trajectory (blended gaps, and coasted fields whose Kalman prediction is
 replaced by a two-sided estimate) are filled by a cubic interpolating spline through the
 measured samples on both sides when short, and from the body (rigid-body or pattern fill,
 :mod:`kisscal.tracking.bodyfill`; about two markers' axis, :mod:`kisscal.tracking.fill_hinge`)
-when longer. Smoothing uses the generalised
-cross-validation spline (Woltring 1986, the biomechanics standard),
-``scipy.interpolate.make_smoothing_spline``.
+when longer, and on the rays of blobs a camera still sees (:data:`FILLS` gives the order).
 """
 
 from __future__ import annotations
@@ -54,10 +52,7 @@ from kisscal.tracking.tracks import (
     PREDICTED,
     Tracks,
     is_filled,
-    make_tracks,
 )
-
-_COLUMNS = ("field", "track", "xyz_mm", "corrected_mm", "status", "point")
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[int, int]]:
@@ -80,38 +75,6 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
         for lo, hi in zip(gap_lo.tolist(), gap_hi.tolist(), strict=True)
         if hi - lo <= longest
     ]
-
-
-def _fill_one(
-    dense: NDArray,
-    t: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-    spare: SpareBlobs | None,
-    spline: bool = True,
-) -> list[tuple[NDArray, GapFill]]:
-    """Spline for short gaps (unless not ``spline``), the body (:func:`body_fill`) for
-    longer ones; with ``spare`` blobs, each filled field a camera still sees moved onto
-    its ray (:func:`with_rays`); no spline where the marker's blobs followed in the image
-    from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
-    short = spline and hi - lo <= params.max_fill_gap_fields
-    if not short and hi - lo > params.max_body_fill_fields:
-        return []
-    rays = spare is not None and spare.rows(lo, hi).size > 0
-    methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
-    centres = spare.centres if rays else None
-    cands = fill_candidates(dense, t, lo, hi, params, methods, centres)
-    chosen = cands[0] if short and cands else best_candidate(cands, params)
-    if chosen is None:
-        return []
-    # a spline has no error of its own to check: between samples the marker's own image
-    # does not join, it may bridge to another marker's
-    if short and rays and parted(dense[t], lo, hi, spare, params):
-        return []
-    if not rays:
-        return [(chosen.xyz_mm, chosen.fill)]
-    return with_rays(chosen, spare, params)
 
 
 @dataclass
@@ -141,13 +104,13 @@ class _Gap:
     expected: NDArray | None = None
 
 
-def _placer(method: Callable) -> Callable:
-    """A fill of :data:`FILLS` from a single-camera placer ``method(gap, a, b, params)``
-    (a :class:`ChainFill` or None): its fields written as context, their blobs taken
-    (:func:`take_placed`)."""
+def _ray_placer(method: Callable, *extra: str) -> Callable:
+    """A fill of :data:`FILLS` from a single-camera placer ``method(dense, t, a, b, spare,
+    params, *extra)`` (a :class:`ChainFill` or None; ``extra`` names attributes of the
+    gap): its fields written as context, their blobs taken (:func:`take_placed`)."""
 
     def fill(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
-        got = method(gap, a, b, params)
+        got = method(gap.dense, gap.t, a, b, gap.spare, params, *(getattr(gap, n) for n in extra))
         if got is None:
             return np.zeros(b - a, dtype=bool)
         gap.out.extend(take_placed(gap.dense, gap.t, a, got, gap.spare))
@@ -156,20 +119,29 @@ def _placer(method: Callable) -> Callable:
     return fill
 
 
-def _ray_placer(method: Callable, *extra: str) -> Callable:
-    """:func:`_placer` of a placer ``method(dense, t, a, b, spare, params, *extra)``, the
-    ``extra`` arguments being the gap's attributes of those names."""
-    return _placer(
-        lambda g, a, b, p: method(g.dense, g.t, a, b, g.spare, p, *(getattr(g, n) for n in extra))
-    )
-
-
 def _body(
     gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
 ) -> NDArray[np.bool_]:
-    """:func:`_fill_one` (spline or body, moved onto rays) as a fill of :data:`FILLS`,
-    expecting at least the error of the gap's fills it reads (:func:`anchored`)."""
-    got = _fill_one(gap.dense, gap.t, a, b, params, gap.spare, spline)
+    """Spline for short runs (unless not ``spline``), the body (:func:`best_candidate`)
+    for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
+    fills it reads (:func:`anchored`); with spare blobs, each filled field a camera still
+    sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
+    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
+    none = np.zeros(b - a, dtype=bool)
+    short = spline and b - a <= params.max_fill_gap_fields
+    if not short and b - a > params.max_body_fill_fields:
+        return none
+    spare = gap.spare
+    rays = spare is not None and spare.rows(a, b).size > 0
+    methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
+    centres = spare.centres if rays else None
+    cands = fill_candidates(gap.dense, gap.t, a, b, params, methods, centres)
+    chosen = cands[0] if short and cands else best_candidate(cands, params)
+    # a spline has no error of its own to check: between samples the marker's own image
+    # does not join, it may bridge to another marker's
+    if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
+        return none
+    got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
@@ -210,7 +182,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: by the segment's lengths to its measured markers
 #: (:func:`~kisscal.tracking.raychain.chain_fill`), then together with the segment's
 #: other markers on theirs (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`); then
-#: the spline (short runs) or the body (:func:`_fill_one`), only expecting little error
+#: the spline (short runs) or the body (:func:`_body`), only expecting little error
 #: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
 #: blobs of one camera at a spline's distance from it
 #: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), or at the depth fitted to
@@ -219,7 +191,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: them by the body expecting little error. At a named track's ends, once every gap is
 #: filled: the point where two or more cameras' rays of the marker's blobs meet
 #: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_fill_one`), the segment carrying it from one side
+#: them as a gap (:func:`_body`), the segment carrying it from one side
 #: (:func:`_end`), then beyond, its blobs in one camera placed on their rays by its
 #: segment's lengths (:func:`~kisscal.tracking.fill_ends.chain_end_fill`; after the
 #: segment, which carried kiss 3 seed 303's LTIB to 0.6 mm where one camera's ray took it
@@ -314,22 +286,24 @@ def _apply(
         _apply(gap, tail, left)
 
 
-def _fill_gap(
+def _fill_runs(
     dense: NDArray,
-    t: int,
-    lo: int,
-    hi: int,
+    runs: Iterable[tuple[int, int, int, int]],
     params: TrackingParams,
     spare: SpareBlobs | None,
-    measured: NDArray | None = None,
-    absent: NDArray | None = None,
+    measured: NDArray,
+    absent: NDArray | None,
 ) -> list[tuple[NDArray, GapFill]]:
-    """The gap [lo, hi) of track ``t`` filled by :data:`FILLS`; placed fields become
-    context (in ``dense``) for the rest. ``measured`` (n_fields,) bool: the track's
-    measured fields (for the depth fill's spline); ``absent``: see :class:`_Gap`."""
-    gap = _Gap(dense, t, lo, hi, params, spare, measured, np.zeros(hi - lo, bool), [], 0, absent)
-    _apply(gap, FILLS, [(lo, hi)])
-    return gap.out
+    """Each run (track, lo, hi, end) filled by :data:`FILLS` in turn; placed fields become
+    context (in ``dense``) for the rest. ``measured``: every track's measured fields;
+    ``end`` and ``absent``: see :class:`_Gap`."""
+    out = []
+    for t, lo, hi, end in runs:
+        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(hi - lo, bool), [])
+        gap.end, gap.absent = end, absent
+        _apply(gap, FILLS, [(lo, hi)])
+        out += gap.out
+    return out
 
 
 def _second_pass(
@@ -386,13 +360,23 @@ def fill_gaps_logged(
     unlabelled: Sequence[int] = (),
     missing: Sequence[str] = (),
 ) -> tuple[Tracks, tuple[GapFill, ...]]:
-    """:func:`fill_gaps`, and how each gap was filled (method and expected error); with
-    ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
+    """Fill the gaps inside each track (fields between its first and last measured sample
+    without one, or with only a Kalman prediction under ``refill_predicted``): short ones
+    (``max_fill_gap_fields``) by a spline, longer ones (``max_body_fill_fields``) from the
+    body (see module); filled samples' ``corrected_mm`` is NaN. Returns the tracks and how
+    each gap was filled (method and expected error).
+
+    With ``spare`` (2D blobs no 3D point used), filled fields a camera still sees are moved
     onto its ray (:mod:`kisscal.tracking.rayfill`; a blob fills one sample at most).
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
     (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
-    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`)."""
+    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`).
+
+    References
+    ----------
+    Gløersen & Federolf 2016 (filling from the other markers of the body).
+    """
     if tracks.field.size == 0:
         return tracks, ()
     start, stop = tracks.bounds()
@@ -401,7 +385,6 @@ def fill_gaps_logged(
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
     measured = np.isfinite(dense[:, :, 0])
-    made: list[tuple[NDArray, GapFill]] = []
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
     absent = absent_rows(dense, labels, missing, spare, params)
@@ -410,18 +393,15 @@ def fill_gaps_logged(
         for t in range(tracks.n_tracks)
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
-    for t, lo, hi in gaps:
-        made += _fill_gap(dense, t, lo, hi, params, spare, measured[t], absent)
+    made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent)
     made += _second_pass(dense, gaps, params, spare, measured, made, absent)
-    for t, lo, hi, end in track_ends(tracks, params, labels, unlabelled):
-        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(0, bool), [], end, absent)
-        _apply(gap, FILLS, [(lo, hi)])
-        made += gap.out
+    ends = track_ends(tracks, params, labels, unlabelled)
+    made += _fill_runs(dense, ends, params, spare, measured, absent)
     # what is left, again with the ends placed: a knee seen by one camera carries a tibia
     made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS)
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
-        return make_tracks(*(getattr(tracks, c) for c in _COLUMNS)), ()
+        return tracks.with_track(tracks.track), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])
     new_track = np.concatenate([np.full(g.n_fields, g.track) for g in fills])
     new_status = np.concatenate([np.full(g.n_fields, g.status, dtype=np.int8) for g in fills])
@@ -443,22 +423,3 @@ def fill_gaps_logged(
     order = np.lexsort((columns[0], columns[1]))
     out = Tracks(*(c[order] for c in columns))
     return out, tuple(fills)
-
-
-def fill_gaps(tracks: Tracks, params: TrackingParams) -> Tracks:
-    """Fill the gaps inside each track: short ones by a spline, longer ones from the body.
-
-    A gap is a run of fields between a track's first and last measured sample without a
-    measured sample (or, with ``refill_predicted``, with only a Kalman prediction). Gaps of
-    at most ``max_fill_gap_fields`` are filled by a cubic spline
-    (``scipy.interpolate.make_interp_spline``) through up to ``fill_context_fields``
-    measured samples on each side (status ``filled_spline``); longer ones, up to
-    ``max_body_fill_fields``, by rigid-body or pattern fill when the trial supports one
-    (:func:`~kisscal.tracking.bodyfill.body_fill`; status ``filled_rigid`` or
-    ``filled_pattern``). Filled samples' ``corrected_mm`` is NaN.
-
-    References
-    ----------
-    Gløersen & Federolf 2016 (filling from the other markers of the body).
-    """
-    return fill_gaps_logged(tracks, params)[0]

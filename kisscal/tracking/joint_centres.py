@@ -18,13 +18,15 @@ segment's markers (its length partners) are expressed in the cluster's frame (Ka
 1976 per field) and concentric spheres, one per marker, are fitted to them in closed
 form (linear least squares in the centre and one constant per sphere). A centre is a
 point of the marker's segment, so it is kept only when at least one partner is fitted
-with the marker, each radius keeps within ``rigid_fill_sd_mm`` SD over the trial, and
-the marker is seen in the cluster's frame in
-:data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over most of its motion,
-not a phase: a marker seen over part of its motion alone fits a sphere in almost any
-frame). The point, carried by the cluster into every field where its markers are known,
-is a partner of the marker's. No names are used: a thigh marker about the pelvis's hip,
-a shank's about the thigh's knee axis alike.
+with the marker (seen over part of its motion alone, kiss 3 seed 303's RTIB, 106 fields,
+fits a sphere in the pelvis's frame within 1.5 mm that its truth misses by 20 mm SD), each
+radius keeps within ``rigid_fill_sd_mm`` SD over the trial, and the marker is seen in the
+cluster's frame in :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over
+most of its motion, not a phase: modern 3 seed 307's LASI fitted one in the left shank's
+frame, known in 59 fields, within 2.1 mm, its truth 23 mm SD off it). The point, carried
+by the cluster into every field where its markers are known, is a partner of the
+marker's. No names are used: a thigh marker about the pelvis's hip, a shank's about the
+thigh's knee axis alike.
 
 References
 ----------
@@ -132,17 +134,8 @@ def _local(dense: NDArray, members: NDArray, known: NDArray, r: NDArray, tr: NDA
 
 def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
     """The joint centres track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN where not
-    known) turns about (see module): one per cluster of :func:`rigid_clusters` in whose
-    frame the samples of ``t`` and of its segment's markers
-    (:func:`~kisscal.tracking.raychain.length_partners`) lie on spheres about one centre
-    whose radii each keep within ``rigid_fill_sd_mm`` SD. A centre is a point of the
-    marker's segment, so at least one partner, with ``t``, must have
-    ``body_context_fields`` samples in that frame: a marker seen over part of its motion
-    alone (kiss 3 seed 303's RTIB, 106 fields) fits a sphere in the pelvis's frame within
-    1.5 mm that its truth misses by 20 mm SD. And the marker must be seen in the frame
-    in :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields, over most of its
-    motion: modern 3 seed 307's LASI, with its pelvis partners, fitted one in the left
-    shank's frame (known in 59 fields) within 2.1 mm, its truth 23 mm SD off it."""
+    known) turns about (see module), one per cluster of :func:`rigid_clusters`; ``t`` and
+    a partner need ``body_context_fields`` samples in its frame."""
     n_fields = dense.shape[1]
     members = np.r_[t, length_partners(dense, t, params)[0]].astype(np.int64)
     fewest = max(params.body_context_fields, 4)

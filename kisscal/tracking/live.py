@@ -282,10 +282,9 @@ class Live:
         return np.where(self.n[:, None] >= 3, young, floor)
 
     def _error_widening(self, velocity: NDArray) -> NDArray:
-        """How much each row's gate widens (T, 1) for its recent prediction errors:
-        ``gate_error_factor`` times the RMS running error of the better prediction (the one
-        in use), at most the row's step per field (its filter's speed), so that a slow noisy
-        marker's gate does not grow over its neighbours (NaN for rows without a filter)."""
+        """How much each row's gate widens (T, 1) for its recent prediction errors
+        (``gate_error_factor``), at most its filter's speed so that a slow noisy marker's
+        gate does not grow over its neighbours (NaN for rows without a filter)."""
         rms = np.sqrt(self.errors.min(axis=1))
         speed = np.sqrt(np.einsum("tc,tc->t", velocity, velocity))
         return np.minimum(self.setup.params.gate_error_factor * rms, speed)[:, None]
@@ -294,9 +293,6 @@ class Live:
         self, pred: NDArray, half: NDArray, points: NDArray, later: NDArray
     ) -> tuple[NDArray, NDArray]:
         """Matched rows and points: each point in at most one gate, one per gate."""
-        if not points.shape[0]:
-            empty = np.empty(0, dtype=np.int64)
-            return empty, empty
         # Axis by axis on contiguous (T, M) planes: several times faster than reducing a
         # (T, M, 3) array over its short last axis. |d| <= h is exactly |d / h| <= 1 in
         # IEEE arithmetic (the division rounds above 1 whenever |d| > h), the gate test
@@ -368,11 +364,8 @@ class Live:
         return rows, cols
 
     def _close_rivals(self, pred: NDArray, points: NDArray, rows: NDArray, cols: NDArray) -> None:
-        """Mark ambiguous a track (two points or more, coasting or not) whose point lies over
-        :data:`RIVAL_MIN_MM` from its prediction while another point, in its gate or not,
-        lies less than ``rival_ratio`` times as far: on fast markers a few centimetres
-        apart the prediction misses by about their spacing, so a track whose marker
-        vanished takes the neighbour (not a one-point track: its first step says little)."""
+        """Mark ambiguous a track of two points or more (a one-point track's first step says
+        little) that ``rival_ratio`` says may have taken a neighbour's point."""
         d_own = np.linalg.norm(points[cols] - pred[rows], axis=1)
         far = (d_own > RIVAL_MIN_MM) & (self.n[rows] >= 2)
         if not far.any() or points.shape[0] < 2:

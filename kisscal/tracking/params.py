@@ -55,13 +55,10 @@ class TrackingParams(Params):
         exchanged by a one-sided prediction. 0 turns it off.
     certain_ratio : float
         A Kalman track is never cut as ambiguous (``ambiguity_margin``, ``rival_ratio``)
-        when its point is the nearest to its prediction and every other point of the field
-        lies more than this many times farther than the larger of that point and the
-        track's own recent RMS prediction error (at least sqrt(``mnc``)), and so does the
-        prediction of every live track that loses its point in that field (its marker
-        may be the one seen; not one already coasting, whose prediction has drifted):
-        the gate grows with speed, a smooth marker's misses do not (LEDs on a golf club
-        5 mm apart at 3 m/s). 0 turns it off.
+        when every other point of the field lies more than this many times farther than
+        the larger of its point and its own recent RMS prediction error
+        (:func:`~kisscal.tracking.association.certain_rows`): the gate grows with speed, a
+        smooth marker's misses do not (LEDs on a golf club 5 mm apart at 3 m/s). 0: off.
     rival_ratio : float
         A track of two points or more (coasting too) whose point lies more than 10 mm from
         its prediction is cut there likewise when another point of the field, in its gate
@@ -69,15 +66,11 @@ class TrackingParams(Params):
         takes the nearest neighbour, which its prediction misses by about as much (C3D
         regression set: a glove at 70 Hz, hands at 120 Hz). 0 turns it off.
     cluster_radius_mm : float
-        Where a track's prediction lies farther from where its neighbours carry it than the
-        nearest other track (its own prediction cannot tell the neighbours apart), the
-        tracks whose last points lie within this radius (mm) and whose distance to it
-        stayed constant over the last fields (a rigid cluster: LEDs a few centimetres
-        apart on a hand) predict it by their common move this field, and the field is
-        assigned again
+        Radius (mm) of the rigid cluster (LEDs a few centimetres apart on a hand) whose
+        common move predicts a track its own prediction cannot tell from its neighbours
         (:func:`~kisscal.tracking.cluster.carry`; PhaseSpace's hand at 30 Hz, LEDs
-        30-70 mm apart moving 60-170 mm a field). A track whose new point changes its
-        distance to such a neighbour is cut there (:func:`~kisscal.tracking.cluster.broken`).
+        30-70 mm apart moving 60-170 mm a field), and within which a track whose new point
+        changes its distance to such a neighbour is cut (:func:`~kisscal.tracking.cluster.broken`).
         0 turns both off.
     initial_gate_mm : float
         Search radius (mm) around a track's only point when it has one point (thesis §3.3.8:

@@ -73,12 +73,6 @@ def build_trajectories(
 ) -> Trajectories:
     """Track, blend, clean up, label, fill gaps and (optionally) smooth.
 
-    Steps: :func:`track_points` (Küçük 2005 §3.3.8-3.3.9); :func:`blend_tracks` and
-    :func:`clean_up` (Shafiq et al. 2001 §4.3);
-    :func:`label_tracks` (joins pieces that take the same name); :func:`fill_gaps` (spline
-    for short gaps, rigid-body or pattern fill from the body for longer ones); and
-    :func:`smooth_tracks` when ``params.smoothing``.
-
     Parameters
     ----------
     field : (N,) int array
@@ -107,9 +101,18 @@ def build_trajectories(
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
     blended = blend_tracks(raw, params)
-    labelling = _label(
-        blended, params, names, template_mm, segments, marker_set, rate_hz, template_upright
-    )
+    template = None if template_mm is None else np.asarray(template_mm, dtype=float)
+    if marker_set is not None and rate_hz:
+        labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
+    else:
+        labelling = label_tracks(blended, names, params, template, segments)
+        if rate_hz and names and template is not None:
+            anatomy = Anatomy.of_names(tuple(names))
+            if anatomy.pairs:
+                labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
+    # measured samples that break their segment's lengths dropped; unnamed pieces that
+    # fill a named trajectory's gap joined to it
+    labelling = join_gap_pieces(drop_broken_samples(labelling, params), params)
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
     tracks, fills = fill_gaps_logged(
@@ -126,31 +129,6 @@ def build_trajectories(
         n_pieces_blended=clean_up(blended, params).n_tracks,
         fills=fills,
     )
-
-
-def _label(
-    blended: Tracks,
-    params: TrackingParams,
-    names: list[str] | tuple[str, ...] | None,
-    template_mm: ArrayLike | None,
-    segments: list[tuple[str, str]] | tuple | None,
-    marker_set: MarkerSet | None,
-    rate_hz: float | None,
-    template_upright: bool = False,
-) -> Labelling:
-    """Label with the set, or with names and template; judged by the anatomy when the
-    rate is known; measured samples that break their segment's lengths dropped; unnamed
-    pieces that fill a named trajectory's gap joined to it."""
-    template = None if template_mm is None else np.asarray(template_mm, dtype=float)
-    if marker_set is not None and rate_hz:
-        labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
-        return join_gap_pieces(drop_broken_samples(labelling, params), params)
-    labelling = label_tracks(blended, names, params, template, segments)
-    if rate_hz and names and template is not None:
-        anatomy = Anatomy.of_names(tuple(names))
-        if anatomy.pairs:
-            labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
-    return join_gap_pieces(drop_broken_samples(labelling, params), params)
 
 
 @dataclass(frozen=True)

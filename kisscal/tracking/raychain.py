@@ -171,11 +171,7 @@ def side_paths(
             if not 0 <= edge < len(target):  # a run at the trial's start or end: one side
                 picks.append({})
                 continue
-            ends = (
-                target[[edge, edge + step]]
-                if 0 <= edge + step < len(target)
-                else target[[edge] * 2]
-            )
+            ends = target[[edge, edge + step if 0 <= edge + step < len(target) else edge]]
             if not np.all(np.isfinite(ends[0])):
                 picks.append({})
                 continue
@@ -462,9 +458,6 @@ def chain_fill(
     rows = np.full(hi - lo, -1)
     followed = set(chained.tolist())
     for k, c in cands.items():
-        # the path from both sides agrees, or the one point is on a blob followed in the
-        # image from the gap's side, or the path unbroken from one side takes it and
-        # the other side's path took no point
         i = _agreed(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
         sure = len(c) == 1 and c[0][2] in followed
         if i is not None or sure:

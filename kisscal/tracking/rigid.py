@@ -1,22 +1,13 @@
-"""Rigid geometry of point sets: the fits and correspondences labelling is built on.
-
-* :func:`kabsch`: the proper rotation and translation that best map one point set onto
-  another (Kabsch 1976), never a reflection;
-* :func:`rigid_matches` / :func:`match_to_template`: which template point each point is,
-  when the points are the template moved rigidly (iterated Hungarian assignment, Kuhn
-  1955, and Kabsch fit, from 24 starts);
-* :func:`classical_mds`: points with given pairwise distances (Torgerson 1952);
-* :func:`refine_by_swaps`: a correspondence improved by exchanging names so that the
-  distances that stay constant match the template's (2-opt and 3-cycle local search);
-* :func:`mirror_permutation`: a marker set's left/right mirror image as a permutation;
-* :func:`field_fits`: the RMS of a proper rigid fit of tracks to the template, per field.
-
-Everything here works on numpy arrays; nothing knows about tracks or sessions.
+"""Rigid geometry of point sets: the fits and correspondences labelling is built on
+(Kabsch 1976 fits, Hungarian assignment after Kuhn 1955, classical MDS after Torgerson
+1952, 2-opt name exchanges). Everything here works on numpy arrays; nothing knows about
+tracks or sessions.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -413,16 +404,23 @@ def field_fits(
     ``dense`` is (tracks, fields, 3) with NaN where a track is not seen; fields where
     fewer than three of the tracks are seen are left out.
     """
-    out = []
+    out = [
+        np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1)))
+        for src, dst, r, t in _field_kabsch(dense, fields, rows, cols, template)
+    ]
+    return np.asarray(out)
+
+
+def _field_kabsch(
+    dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
+) -> Iterator[tuple[NDArray, NDArray, NDArray, NDArray]]:
+    """Per field of ``fields`` where three or more of tracks ``rows`` are seen: their
+    points, the template's ``cols`` points and the proper rigid fit (r, t) between them."""
     for f in fields:
         ok = np.isfinite(dense[rows, f, 0])
-        if ok.sum() < 3:
-            continue
-        src = dense[rows[ok], f]
-        dst = template[cols[ok]]
-        r, t = kabsch(src, dst)
-        out.append(np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1))))
-    return np.asarray(out)
+        if ok.sum() >= 3:
+            src, dst = dense[rows[ok], f], template[cols[ok]]
+            yield (src, dst, *kabsch(src, dst))
 
 
 def upright_fraction(
@@ -430,13 +428,8 @@ def upright_fraction(
 ) -> float:
     """Fraction of ``fields`` in which the proper rigid fit of tracks ``rows`` to template
     ``cols`` keeps the vertical within 45 degrees (both frames Z up)."""
-    upright = []
-    for f in fields:
-        ok = np.isfinite(dense[rows, f, 0])
-        if ok.sum() < 3:
-            continue
-        r, _ = kabsch(dense[rows[ok], f], template[cols[ok]])
-        upright.append(r[2, 2] > np.cos(np.pi / 4))
+    fits = _field_kabsch(dense, fields, rows, cols, template)
+    upright = [r[2, 2] > np.cos(np.pi / 4) for _, _, r, _ in fits]
     return float(np.mean(upright)) if upright else 0.0
 
 

@@ -1,26 +1,15 @@
 """Forward tracking of 3D points field by field (Küçük 2005 §3.3.8-3.3.9).
 
-Each new point starts an *initial track*, extended by Shafiq's extrapolators (one point:
-the point itself is the prediction; two: linear; three or four: least-squares line) and the
-nearest point in its search region; an initial track without a point in its region ends.
-Once an initial track has ``min_initial_length`` points, three constant-velocity Kalman
-filters (one per axis) are initialised on it and take over: each field they predict, a box
-gate of half-width f(v) per axis (eq. 3.16) is placed around the prediction, and the point
-in the gate becomes the measurement. With an empty gate the prediction stands in for the
-missing point (recorded as ``predicted``); after ``max_coasted_fields`` consecutive misses
-the track ends and its trailing predictions are dropped.
-
-Association is one-to-one over all tracks of a field (``scipy.optimize.linear_sum_assignment``
-on gate-normalised squared distances), Kalman tracks first, then initial tracks on the
-points left, rather than first-come nearest neighbour. A one-point track looks one field
-ahead (offline, the next field is known) to tell which candidate continues. Where another
-one-to-one choice explains the field almost as well (``ambiguity_margin``), the tracks
-involved are cut there rather than guessed: blending sees both sides of the cut.
+Each new point starts an *initial track* extended by Shafiq's extrapolators; after
+``min_initial_length`` points three constant-velocity Kalman filters (one per axis) take
+over, with a box gate (eq. 3.16) and the prediction standing in for a missing point for up
+to ``max_coasted_fields`` (:mod:`kisscal.tracking.live` steps the fields). Association is
+one-to-one (:mod:`kisscal.tracking.association`); where another choice explains a field
+almost as well, the tracks are cut there rather than guessed: blending sees both sides.
 
 The pieces are then checked, because a gate can take the wrong point: a short run of
 points after coasting is split off (a ghost caught after the marker left), and a track is
-cut where its path is not smooth (a cubic through three samples on each side misses them)
-or where its first or last point strays from the rest.
+cut where its path is not smooth or where its first or last point strays from the rest.
 """
 
 from __future__ import annotations
@@ -30,19 +19,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from kisscal.errors import InputError
-from kisscal.tracking.association import associate, lookahead_cost
 from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
 from kisscal.tracking.live import RIVAL_MIN_MM, Live, Setup
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
-
-__all__ = [
-    "associate",
-    "lookahead_cost",
-    "split_short_reacquisitions",
-    "track_points",
-    "trim_predicted_ends",
-]
 
 
 def _check_points(field: ArrayLike, xyz_mm: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -151,9 +131,7 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
         return tracks
     piece = tracks.track.copy()
     piece[first[guess]] = tracks.n_tracks + np.arange(int(guess.sum()))
-    return make_tracks(
-        tracks.field, piece, tracks.xyz_mm, tracks.corrected_mm, tracks.status, tracks.point
-    )
+    return tracks.with_track(piece)
 
 
 def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
@@ -182,16 +160,7 @@ def split_short_reacquisitions(tracks: Tracks, min_run: int) -> Tracks:
         # New piece numbers for the split runs, beyond every existing number.
         new_track = np.where(split, tracks.n_tracks + run_id, tracks.track)
         # Predictions between the track and the split run now end the track: drop them.
-        tracks = trim_predicted_ends(
-            make_tracks(
-                tracks.field,
-                new_track,
-                tracks.xyz_mm,
-                tracks.corrected_mm,
-                tracks.status,
-                tracks.point,
-            )
-        )
+        tracks = trim_predicted_ends(tracks.with_track(new_track))
     return tracks
 
 

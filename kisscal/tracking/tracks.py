@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,24 +68,12 @@ class Tracks:
 
     def select(self, rows: NDArray) -> Tracks:
         """Rows ``rows`` (mask or indices), with track numbers made consecutive again."""
-        return make_tracks(
-            self.field[rows],
-            self.track[rows],
-            self.xyz_mm[rows],
-            self.corrected_mm[rows],
-            self.status[rows],
-            self.point[rows],
-        )
+        return make_tracks(*(getattr(self, f.name)[rows] for f in fields(self)))
 
-    def renumber(self, new_track: NDArray) -> Tracks:
-        """Give sample ``i`` the track ``new_track[self.track[i]]`` (merging tracks)."""
+    def with_track(self, track: NDArray) -> Tracks:
+        """The samples with track numbers ``track`` (one per sample; splitting, merging)."""
         return make_tracks(
-            self.field,
-            np.asarray(new_track)[self.track],
-            self.xyz_mm,
-            self.corrected_mm,
-            self.status,
-            self.point,
+            self.field, track, self.xyz_mm, self.corrected_mm, self.status, self.point
         )
 
     def positions(self, n_fields: int | None = None) -> NDArray[np.float64]:

@@ -276,7 +276,13 @@ def gap_table(preset: str, seed: int, noise_mm: float = 0.5, n_cuts: int = 4) ->
     how many of them it could."""
     from kisscal.synth.plan import plan_session
     from kisscal.synth.presets import synth_options
-    from kisscal.tracking.bodyfill import axis_fill, body_fill, pattern_fill, rigid_fill
+    from kisscal.tracking.bodyfill import (
+        axis_fill,
+        best_candidate,
+        fill_candidates,
+        pattern_fill,
+        rigid_fill,
+    )
     from kisscal.tracking.gaps import spline_fill
 
     plan = plan_session(synth_options(preset, seed, fields=FIELDS[preset]))
@@ -312,9 +318,9 @@ def gap_table(preset: str, seed: int, noise_mm: float = 0.5, n_cuts: int = 4) ->
                     got = method(cut[j], cut, j, lo, lo + n, params)
                     if got is not None:
                         err[name].append(np.sum((got[0] - truth) ** 2, axis=1))
-                best = body_fill(cut, j, lo, lo + n, params)
+                best = best_candidate(fill_candidates(cut, j, lo, lo + n, params), params)
                 if best is not None:
-                    err["chosen"].append(np.sum((best[0] - truth) ** 2, axis=1))
+                    err["chosen"].append(np.sum((best.xyz_mm - truth) ** 2, axis=1))
         cells = [
             f"{np.sqrt(np.mean(np.concatenate(e))):.2f} mm ({len(e)}/{tried})" if e else "-"
             for e in err.values()

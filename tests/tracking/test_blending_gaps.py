@@ -6,9 +6,9 @@ from kisscal.tracking import (
     TrackingParams,
     blend_tracks,
     clean_up,
-    fill_gaps,
     smooth_tracks,
 )
+from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.tracks import make_tracks
 
 
@@ -63,7 +63,7 @@ def test_clean_up_removes_short_tracks():
 def test_fill_gaps_is_accurate_on_smooth_motion_and_marks_filled():
     f = np.r_[np.arange(0, 40), np.arange(48, 80)]
     tracks = _tracks([(f, _curve(f))])
-    out = fill_gaps(tracks, TrackingParams(max_fill_gap_fields=10))
+    out, _ = fill_gaps_logged(tracks, TrackingParams(max_fill_gap_fields=10))
     filled = out.status == FILLED
     assert out.field[filled].tolist() == list(range(40, 48))
     err = np.linalg.norm(out.xyz_mm[filled] - _curve(out.field[filled]), axis=1)
@@ -73,7 +73,7 @@ def test_fill_gaps_is_accurate_on_smooth_motion_and_marks_filled():
 
 def test_fill_gaps_leaves_long_gaps():
     f = np.r_[np.arange(0, 40), np.arange(80, 120)]
-    out = fill_gaps(_tracks([(f, _curve(f))]), TrackingParams(max_fill_gap_fields=25))
+    out, _ = fill_gaps_logged(_tracks([(f, _curve(f))]), TrackingParams(max_fill_gap_fields=25))
     assert not (out.status == FILLED).any()
 
 

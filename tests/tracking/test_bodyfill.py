@@ -14,10 +14,15 @@ from kisscal.tracking import (
     MEASURED,
     STATUS_NAMES,
     TrackingParams,
-    fill_gaps,
     is_filled,
 )
-from kisscal.tracking.bodyfill import axis_fill, body_fill, pattern_fill, rigid_fill
+from kisscal.tracking.bodyfill import (
+    axis_fill,
+    best_candidate,
+    fill_candidates,
+    pattern_fill,
+    rigid_fill,
+)
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.tracks import make_tracks
 
@@ -112,7 +117,8 @@ def test_body_fill_measures_its_expected_error_and_it_holds():
     xyz = rigid_body(seed=3, noise_mm=0.5)
     cut = xyz.copy()
     cut[3, 100:200] = np.nan
-    filled, how = body_fill(cut, 3, 100, 200, TrackingParams())
+    best = best_candidate(fill_candidates(cut, 3, 100, 200, TrackingParams()), TrackingParams())
+    filled, how = best.xyz_mm, best.fill
     true_rms = np.sqrt(np.mean(np.sum((filled - xyz[3, 100:200]) ** 2, axis=1)))
     assert how.status == FILLED_RIGID
     assert true_rms < 1.5
@@ -145,13 +151,12 @@ def test_fill_gaps_spline_for_short_gaps_body_for_long_and_statuses_say_so():
     filled = np.zeros(dense.shape[:2], dtype=bool)
     filled[out.track[is_filled(out.status)], out.field[is_filled(out.status)]] = True
     assert np.sqrt(np.mean(err[filled] ** 2)) < 3.0
-    assert np.array_equal(fill_gaps(tracks, TrackingParams()).status, out.status)
 
 
 def test_gaps_beyond_the_body_limit_stay_open():
     xyz = rigid_body()
     tracks = _tracks_of(xyz, {3: slice(50, 250)})
-    out = fill_gaps(tracks, TrackingParams(max_body_fill_fields=100))
+    out, _ = fill_gaps_logged(tracks, TrackingParams(max_body_fill_fields=100))
     assert not is_filled(out.status).any()
     assert (out.status == MEASURED).sum() == tracks.field.size
 
@@ -159,7 +164,7 @@ def test_gaps_beyond_the_body_limit_stay_open():
 def test_status_names_round_trip_and_legacy_filled_reads_as_spline(tmp_path):
     xyz = rigid_body()
     tracks = _tracks_of(xyz, {3: slice(200, 203), 2: slice(60, 160)})
-    out = fill_gaps(tracks, TrackingParams())
+    out, _ = fill_gaps_logged(tracks, TrackingParams())
     path = write_trajectories_csv(tmp_path / "t.csv", out, ("A", "B", "C", "D"))
     table = read_trajectories_csv(path)
     assert np.array_equal(table.status, out.status)

@@ -3,12 +3,8 @@ import pytest
 
 from kisscal.errors import KisscalError
 from kisscal.tracking import MEASURED, PREDICTED, TrackingParams, associate, track_points
-from kisscal.tracking.association import ambiguous_rows
-from kisscal.tracking.tracker import (
-    lookahead_cost,
-    split_ambiguous_first_steps,
-    split_short_reacquisitions,
-)
+from kisscal.tracking.association import ambiguous_rows, lookahead_cost
+from kisscal.tracking.tracker import split_ambiguous_first_steps, split_short_reacquisitions
 from kisscal.tracking.tracks import make_tracks
 
 
