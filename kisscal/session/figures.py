@@ -77,7 +77,9 @@ def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> bool:
     """Draw ``draw(*args)`` into ``path``; a figure that cannot be drawn (a degenerate
     trial) is skipped: figures illustrate numbers that are already written. True when
     the figure was written."""
-    import matplotlib  # only when a figure is drawn
+    # matplotlib and the report's pages (some 1.3 s of import on a loaded two-core
+    # machine) only when a figure is drawn: in the figure process, never in the session's
+    import matplotlib
 
     from kisscal.report.html import FIGURE_RC, save_figure
 
