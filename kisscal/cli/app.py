@@ -102,7 +102,6 @@ def run_verdict(summary: dict, seconds: float, report: Path) -> str:
     )
 
 
-@contextlib.contextmanager
 def session_package() -> ModuleType:
     """:mod:`kisscal.session`, the functions every command is a thin layer over, imported
     when a command runs rather than when the CLI starts: it brings NumPy, OpenCV and
@@ -114,6 +113,7 @@ def session_package() -> ModuleType:
     return session
 
 
+@contextlib.contextmanager
 def progress_bars() -> Iterator[Callable[[str], object]]:
     """A progress bar per pipeline stage on a terminal (stderr); none when it is redirected.
 
