@@ -8,10 +8,9 @@ use one core, so the other one draws. The block ends only when every figure is w
 so a command's outputs are complete when it returns. The block owns that process and its
 figures (a :class:`Figures`), which the stages inside it find in their context. A worker
 process of the stage (:func:`kisscal.session.runner.each_camera`) hands its figures back
-with its result
-(:func:`handing_back`), and the session's process passes them on to the background one:
-matplotlib is then imported and its figures drawn in one process, not in every worker.
-Anywhere else (a plain library call) a figure is drawn at once.
+with its result (:func:`handing_back`), and the session's process passes them on to the
+background one: matplotlib is then imported and its figures drawn in one process, not in
+every worker. Anywhere else (a plain library call) a figure is drawn at once.
 
 A figure is drawn only when its PNG is not there already for the same drawing function,
 data and code (:func:`figure_key`): a session run again redraws only the figures whose
