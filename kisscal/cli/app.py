@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as package_version
 from pathlib import Path
+from types import ModuleType
 from typing import Annotated
 
 import typer
@@ -101,6 +102,17 @@ def run_verdict(summary: dict, seconds: float, report: Path) -> str:
     )
 
 
+def session_package() -> ModuleType:
+    """:mod:`kisscal.session`, the functions every command is a thin layer over, imported
+    when a command runs rather than when the CLI starts: it brings NumPy, OpenCV and
+    SciPy (linalg, optimize, ndimage, sparse, spatial, interpolate), some 3 s of import on
+    a loaded two-core machine, which ``kisscal --help`` (0.05 s of kisscal imports) and a
+    mistyped option never need."""
+    from kisscal import session
+
+    return session
+
+
 @contextlib.contextmanager
 def progress_bars() -> Iterator[Callable[[str], object]]:
     """A progress bar per pipeline stage on a terminal (stderr); none when it is redirected.
@@ -118,8 +130,7 @@ def progress_bars() -> Iterator[Callable[[str], object]]:
         TimeRemainingColumn,
     )
 
-    from kisscal import session
-
+    session = session_package()
     console = Console(stderr=True)
     if not console.is_terminal or log.LOG.getEffectiveLevel() > logging.INFO:
         yield log.say

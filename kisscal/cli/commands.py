@@ -17,6 +17,7 @@ from kisscal.cli.app import (
     plural,
     progress_bars,
     run_verdict,
+    session_package,
 )
 from kisscal.cli.log import say
 from kisscal.errors import InputError, KisscalError
@@ -30,8 +31,7 @@ def demo(
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic rig.")] = 1,
 ) -> None:
     """Synthesise a KISS-like session and process it end to end."""
-    from kisscal import session
-
+    session = session_package()
     session.demo(out, seed=seed, echo=say)
 
 
@@ -94,8 +94,7 @@ def synth(
     ] = None,
 ) -> None:
     """Write a synthetic session with ground truth (tests, demos)."""
-    from kisscal import session
-
+    session = session_package()
     if target is not None:
         session.synthesise_target(
             out, target, seed=seed, n_cameras=cameras or 3, force=force, echo=say
@@ -172,9 +171,12 @@ def detect(
     derived settings with --session and --camera; what was used is printed. The table
     goes to standard output, or to the file given with --out.
     """
-    from kisscal import session
+    # the blob table's writer brings OpenCV and SciPy (kisscal.detect), the TOML reader
+    # NumPy: imported when the command runs, as kisscal.session is (session_package)
     from kisscal.io.blobs import format_blobs
     from kisscal.io.toml_table import read_detection_table
+
+    session = session_package()
 
     given = dict(read_detection_table(config)) if config is not None else {}
     given.update(
@@ -209,8 +211,7 @@ def linearise(
     ] = None,
 ) -> None:
     """Lens linearisation of each camera from its grid images."""
-    from kisscal import session
-
+    session = session_package()
     with progress_bars() as echo:
         session.linearise(session_dir, camera=camera, model=model, echo=echo)
 
@@ -266,8 +267,7 @@ def calibrate(
     The trials the rods are adjusted with are kept the same way: a walk added later
     leaves the calibration as it was until --refresh.
     """
-    from kisscal import session
-
+    session = session_package()
     with progress_bars() as echo:
         session.calibrate(
             session_dir,
@@ -284,8 +284,7 @@ def calibrate(
 @app.command(epilog=example_epilog("kisscal reconstruct lab/2026-11-21 walk01"))
 def reconstruct(session_dir: SessionArg, trial: TrialArg) -> None:
     """Reconstruct 3D marker positions of a trial, field by field."""
-    from kisscal import session
-
+    session = session_package()
     with progress_bars() as echo:
         session.reconstruct(session_dir, trial, echo=echo)
 
@@ -313,8 +312,7 @@ def track(
     ] = False,
 ) -> None:
     """Turn a trial's 3D points into labelled marker trajectories."""
-    from kisscal import session
-
+    session = session_package()
     tracking: dict[str, object] = {k: v for k, v in (("pnc", pnc), ("mnc", mnc)) if v is not None}
     if smooth:
         tracking["smoothing"] = True
@@ -350,9 +348,7 @@ def export(
     ] = None,
 ) -> None:
     """Write the session's calibration for another tool (after kisscal calibrate)."""
-    from kisscal.session.exports import export as export_calibration
-
-    export_calibration(session_dir, to, out, echo=say, units=units)
+    session_package().export(session_dir, to, out, echo=say, units=units)
 
 
 @app.command(
@@ -369,9 +365,7 @@ def init(
     ] = "modern",
 ) -> None:
     """Start a session: image folders and a commented session.toml."""
-    from kisscal.session.init import init_session
-
-    path = init_session(session_dir, cameras, preset)
+    path = session_package().init_session(session_dir, cameras, preset)
     say(f"wrote {path}: fill in the lines marked FILL IN, add the images, then")
     say(f"  kisscal validate {session_dir}")
 
@@ -379,8 +373,7 @@ def init(
 @app.command(epilog=example_epilog("kisscal validate", "kisscal validate lab/2026-11-21"))
 def validate(session_dir: SessionHereArg = Path()) -> None:
     """Check every input of a session before any work; list each problem."""
-    from kisscal import session
-
+    session = session_package()
     problems = session.validate(session_dir)
     for problem in problems:
         say(f"{'warning' if problem.warning else 'problem'}: {problem}")
@@ -397,8 +390,7 @@ def validate(session_dir: SessionHereArg = Path()) -> None:
 )
 def run(session_dir: SessionHereArg = Path()) -> None:
     """Process the whole session, grid images to trajectories."""
-    from kisscal import session
-
+    session = session_package()
     started = time.perf_counter()
     with progress_bars() as echo:
         summary = session.run(session_dir, echo=echo)
@@ -424,8 +416,7 @@ def check(
     ] = None,
 ) -> None:
     """CI gate: exit 1 when a calibration figure exceeds its limit."""
-    from kisscal import session
-
+    session = session_package()
     if max_reproj_px is None and max_grid_px is None and max_3d_mm is None:
         raise InputError("give at least one of --max-reproj-px, --max-grid-px, --max-3d-mm")
     failures = session.check(session_dir, max_reproj_px, max_grid_px, max_3d_mm)
@@ -445,8 +436,7 @@ def check(
 @app.command(epilog=example_epilog("kisscal report lab/2026-11-21"))
 def report(session_dir: SessionArg) -> None:
     """Rebuild out/report.html of a processed session."""
-    from kisscal import session
-
+    session = session_package()
     session.report(session_dir, echo=say)
 
 
@@ -462,8 +452,7 @@ def batch(
     ] = None,
 ) -> None:
     """Run many sessions in parallel on Dask."""
-    from kisscal import session
-
+    session = session_package()
     failed = session.batch(sessions, scheduler=scheduler, echo=say)
     if failed:
         raise typer.Exit(1)

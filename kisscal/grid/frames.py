@@ -4,17 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.detect import DetectionParams, detect_blobs
+from kisscal.detect.configure import configure_detection
+from kisscal.detect.pipeline import check_image
 from kisscal.errors import InputError
 from kisscal.grid.fit import GridFit, linearise_dots
 from kisscal.grid.params import GridParams
-
-if TYPE_CHECKING:  # detection is a sibling stage; imported only where it is used
-    from kisscal.detect import DetectionParams
 
 
 def average_frames(frames: Sequence[NDArray]) -> NDArray[np.float64]:
@@ -67,10 +66,6 @@ def dots_from_frames(
     averaged on the grey scale detection uses for a single frame, so that a threshold
     means the same for 16-bit grid frames as for 16-bit trial frames.
     """
-    from kisscal.detect import detect_blobs
-    from kisscal.detect.configure import configure_detection
-    from kisscal.detect.pipeline import check_image
-
     image = average_frames([check_image(np.asarray(f)) for f in frames])
     if detection is None:
         detection = configure_detection(list(frames), kind="grid").params

@@ -29,6 +29,8 @@ from kisscal.io.summary import summarise
 from kisscal.session.calibrate import calibrate
 from kisscal.session.calibrated import current_rig
 from kisscal.session.detection import detect_images
+from kisscal.session.exports import export
+from kisscal.session.init import init_session
 from kisscal.session.linearise import linearise
 from kisscal.session.params import Overrides, StageParams, stage_params
 from kisscal.session.progress import Progress, reporting_progress
@@ -74,6 +76,8 @@ __all__ = [
     "demo",
     "detect_images",
     "evaluate",
+    "export",
+    "init_session",
     "linearise",
     "reconstruct",
     "report",

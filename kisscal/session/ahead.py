@@ -4,11 +4,12 @@
 depend only on its images and its cameras' marker settings (derived once for the
 session). Most of what follows detection runs in one process (the calibration's DLT,
 each trial's reconstruction and tracking), so inside :func:`detecting_ahead` the run
-starts detecting every trial's images at once in a pool of its own (:func:`start`,
+starts detecting every trial's images at once in a pool of its own (:meth:`Ahead.start`,
 :func:`kisscal.detect.sequence.detect_ahead`) and goes on: the other core detects the
 next trials while this one calibrates and tracks. A trial's detection
 (:func:`kisscal.session.runner.camera_blobs`) takes its cameras' blobs from there
-(:func:`take`), the same blobs it would have detected, and caches them as before.
+(:meth:`Ahead.take`), the same blobs it would have detected, and caches them as before.
+The run owns its :class:`Ahead` and hands it down (no module state).
 """
 
 from __future__ import annotations
@@ -17,72 +18,76 @@ import contextlib
 import os
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from kisscal.detect import Blobs, DetectionParams, ImageJob
-from kisscal.detect.sequence import detect_ahead
+from kisscal.detect.sequence import JobsAhead, detect_ahead
 from kisscal.errors import KisscalError
 from kisscal.io.frames import source_files
 from kisscal.io.store import SessionStore
 from kisscal.session.trials import SizedFrames
 
-#: The background detection of this process (``pid``): by (blob cache, key), each
-#: job's index in it.
-_STATE: dict[str, Any] = {"ahead": None, "pid": None, "slots": {}}
+
+class Ahead:
+    """The trials' blobs of one ``kisscal run`` detected in the background: the run owns
+    it (:func:`detecting_ahead`) and hands it down to where a trial's blobs are taken
+    (:func:`kisscal.session.runner.camera_blobs`, through the stage's call), so no
+    module holds it.
+
+    It holds the pool of :func:`~kisscal.detect.sequence.detect_ahead` and each job's
+    index in it by (blob cache, key), for the process that made it (``_pid``: a forked
+    worker inherits the object, not the pool, and detects its own blobs).
+    """
+
+    def __init__(self) -> None:
+        self._pid = os.getpid()
+        self._jobs: JobsAhead | None = None
+        self._slots: dict[tuple[Path, str], int] = {}
+
+    @property
+    def started(self) -> bool:
+        """Whether its background detection was started (once a run)."""
+        return self._jobs is not None
+
+    def start(self, jobs: Mapping[tuple[Path, str], ImageJob], workers: int | None = None) -> bool:
+        """Detect ``jobs`` in ``workers`` background processes (``None``: one per core),
+        each job under its blob cache and key (what :meth:`take` is asked for). Once:
+        False when started already, in another process than the run's, or where nothing
+        can run in the background (:func:`~kisscal.detect.sequence.detect_ahead`)."""
+        if self.started or not jobs or os.getpid() != self._pid:
+            return False
+        found = detect_ahead(list(jobs.values()), workers)
+        if found is None:
+            return False
+        self._jobs, self._slots = found, {slot: j for j, slot in enumerate(jobs)}
+        return True
+
+    def take(self, cache: Path, key: str) -> list[Blobs] | KisscalError | None:
+        """The blobs detected ahead for ``cache`` under ``key`` (waiting for them), or the
+        error a frame raised; None when they were not detected ahead (nor with this key)."""
+        if os.getpid() != self._pid or self._jobs is None:
+            return None
+        job = self._slots.pop((cache, key), None)
+        return None if job is None else self._jobs.result(job)
+
+    def close(self, error: BaseException | None = None) -> None:
+        """End the background pool (at once after an error)."""
+        jobs, self._jobs, self._slots = self._jobs, None, {}
+        if jobs is not None and os.getpid() == self._pid:
+            jobs.close(error)
 
 
 @contextlib.contextmanager
-def detecting_ahead() -> Iterator[None]:
-    """A block where :func:`start` may detect in the background; its pool ends with the
-    block (at once when the block raised). Nested blocks share the outer one's."""
-    if _STATE["pid"] == os.getpid():
-        yield
-        return
-    _STATE.update(ahead=None, pid=os.getpid(), slots={})
+def detecting_ahead() -> Iterator[Ahead]:
+    """A run's :class:`Ahead`, whose pool ends with the block (at once when it raised)."""
+    ahead = Ahead()
     try:
-        yield
+        yield ahead
     except BaseException as exc:
-        _stop(exc)
+        ahead.close(exc)
         raise
-    _stop(None)
-
-
-def _stop(error: BaseException | None) -> None:
-    ahead = _STATE["ahead"]
-    _STATE.update(ahead=None, pid=None, slots={})
-    if ahead is not None:
-        ahead.close(error)
-
-
-def started() -> bool:
-    """Whether this block has started its background detection (or has none to start:
-    outside :func:`detecting_ahead`, in a worker process)."""
-    return _STATE["pid"] != os.getpid() or _STATE["ahead"] is not None
-
-
-def start(jobs: Mapping[tuple[Path, str], ImageJob], workers: int | None = None) -> bool:
-    """Detect ``jobs`` in ``workers`` background processes (``None``: one per core), each
-    job under its blob cache and key (what :func:`take` is asked for). Once a block:
-    False when one was started already, outside the block, or where nothing can run in
-    the background (:func:`~kisscal.detect.sequence.detect_ahead`)."""
-    if started() or not jobs:
-        return False
-    ahead = detect_ahead(list(jobs.values()), workers)
-    if ahead is None:
-        return False
-    _STATE.update(ahead=ahead, slots={slot: j for j, slot in enumerate(jobs)})
-    return True
-
-
-def take(cache: Path, key: str) -> list[Blobs] | KisscalError | None:
-    """The blobs detected ahead for ``cache`` under ``key`` (waiting for them), or the
-    error a frame raised; None when they were not detected ahead (nor with this key)."""
-    if _STATE["pid"] != os.getpid():
-        return None
-    job = _STATE["slots"].pop((cache, key), None)
-    return None if job is None else _STATE["ahead"].result(job)
+    ahead.close(None)
 
 
 def chunk_size(frames: Sequence, workers: int | None) -> int:

@@ -19,6 +19,7 @@ from kisscal.errors import InputError
 from kisscal.io.config import SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
+from kisscal.session.ahead import Ahead
 from kisscal.session.calibrated import read_dlt_files
 from kisscal.session.exports import write_exports
 from kisscal.session.inputs import select_cameras, writes_session
@@ -62,6 +63,7 @@ def calibrate(
     refresh: bool = False,
     *,
     config: SessionConfig,
+    ahead: Ahead | None = None,
 ) -> dict[str, Any]:
     """``kisscal calibrate``: DLT parameters of each camera, by the session's route.
 
@@ -76,7 +78,8 @@ def calibrate(
     too and reused, as a lab expects of a calibration: made once, it stays as it was
     when a walk is added later, until ``refresh`` (``--refresh``) makes it again with
     every trial the session has then (:func:`_bundle_trials`). ``[dlt] bundle_trials``
-    named in ``session.toml`` decides instead.
+    named in ``session.toml`` decides instead. ``ahead``: the trials' blobs ``kisscal
+    run`` detects in the background (:class:`~kisscal.session.ahead.Ahead`).
 
     Writes ``out/dlt/<camera>.json``, ``out/dlt/calibration.json`` and the exports
     (``out/dlt/dltdv.csv``, ``out/cameras.toml``, ``out/exports.json``);
@@ -97,7 +100,7 @@ def calibrate(
         params = dataclasses.replace(params, dlt=dlt)
     echo(f"  calibrate: route {route} ({why})")
     cameras, lins = select_cameras(config, camera), grid_linearisations(config, echo)
-    inputs = RouteInputs(root, config, cameras, lins, params, echo, workers)
+    inputs = RouteInputs(root, config, cameras, lins, params, echo, workers, ahead)
     summary = ROUTES[route](inputs)
     restore_grid_linearisations(root, [c.id for c in inputs.cameras], route)
     lins = current_linearisations(config, quiet)  # a wand's or target's lens, where estimated

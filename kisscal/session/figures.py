@@ -5,11 +5,12 @@ matplotlib a second or more, and the numbers it illustrates are written already.
 :func:`drawing_beside` (the outermost session command holds it), figures go to one
 background process that draws them while the stage goes on: reconstruction and tracking
 use one core, so the other one draws. The block ends only when every figure is written,
-so a command's outputs are complete when it returns. A worker process of the stage
-(:func:`kisscal.session.runner.each_camera`) hands its figures back with its result
-(:func:`handing_back`), and the session's process passes them on to the background one:
-matplotlib is then imported and its figures drawn in one process, not in every worker.
-Anywhere else (a plain library call) a figure is drawn at once.
+so a command's outputs are complete when it returns. The block owns that process and its
+figures (a :class:`Figures`), which the stages inside it find in their context. A worker
+process of the stage (:func:`kisscal.session.runner.each_camera`) hands its figures back
+with its result (:func:`handing_back`), and the session's process passes them on to the
+background one: matplotlib is then imported and its figures drawn in one process, not in
+every worker. Anywhere else (a plain library call) a figure is drawn at once.
 
 A figure is drawn only when its PNG is not there already for the same drawing function,
 data and code (:func:`figure_key`): a session run again redraws only the figures whose
@@ -19,13 +20,15 @@ content changed.
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import dataclasses
 import functools
 import io
 import os
 import pickle
 import warnings
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -37,14 +40,45 @@ from kisscal.io.store import SessionStore
 
 T = TypeVar("T")
 
-_STATE: dict[str, Any] = {"pool": None, "pid": None, "pending": [], "handed": None}
+
+@dataclasses.dataclass
+class Figures:
+    """Where a block's figures go: a session command's background process (``pool``,
+    started by ``pid``: a forked child inherits the object, not the process) and the
+    figures submitted to it (``pending``), or, inside :func:`handing_back`, a list
+    (``handed``) a worker process returns with its result.
+
+    The outermost session command owns it (:func:`drawing_beside`), and the stages
+    find it in their context (:data:`_FIGURES`), as they find the progress sink
+    (:mod:`kisscal.session.progress`): a figure is drawn deep inside a stage, and no
+    stage's signature carries it.
+    """
+
+    pool: ProcessPoolExecutor | None = None
+    pid: int | None = None
+    pending: list[Future] = dataclasses.field(default_factory=list)
+    handed: list[bytes] | None = None
+
+    @property
+    def here(self) -> ProcessPoolExecutor | None:
+        """The background process, when this process started it."""
+        return self.pool if self.pid == os.getpid() else None
+
+
+#: The figures of the running session command (None: a plain library call, figures are
+#: drawn at once).
+_FIGURES: contextvars.ContextVar[Figures | None] = contextvars.ContextVar(
+    "kisscal_figures", default=None
+)
 
 
 def draw_figure(path: Path, draw: Callable[..., Any], args: tuple) -> bool:
     """Draw ``draw(*args)`` into ``path``; a figure that cannot be drawn (a degenerate
     trial) is skipped: figures illustrate numbers that are already written. True when
     the figure was written."""
-    import matplotlib  # only when a figure is drawn
+    # matplotlib and the report's pages (some 1.3 s of import on a loaded two-core
+    # machine) only when a figure is drawn: in the figure process, never in the session's
+    import matplotlib
 
     from kisscal.report.html import FIGURE_RC, save_figure
 
@@ -73,9 +107,9 @@ def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
         return
     if SessionStore.is_current(path, key):
         return
-    handed = _STATE["handed"]
-    if handed is not None:
-        handed.append(packed)
+    figures = _FIGURES.get()
+    if figures is not None and figures.handed is not None:
+        figures.handed.append(packed)
     else:
         submit_packed(packed)
 
@@ -83,11 +117,12 @@ def submit_figure(path: Path, draw: Callable[..., Any], args: tuple) -> None:
 def submit_packed(packed: bytes) -> None:
     """A figure handed back by :func:`handing_back`: to the background process when
     there is one here, else drawn now."""
-    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    figures = _FIGURES.get()
+    pool = None if figures is None else figures.here
     if pool is None:
         _draw_packed(packed)
         return
-    _STATE["pending"].append(pool.submit(_draw_packed, packed))
+    figures.pending.append(pool.submit(_draw_packed, packed))
 
 
 @functools.cache
@@ -133,12 +168,19 @@ def handing_back() -> Iterator[list[bytes]]:
     """Collect the block's figures (pickled) instead of drawing them: a worker process
     returns them with its result, and the session's process gives each to
     :func:`submit_packed`."""
-    outer = _STATE["handed"]
-    _STATE["handed"] = handed = []
+    figures = _FIGURES.get()
+    token = None
+    if figures is None:  # outside any session command: this block's own
+        figures = Figures()
+        token = _FIGURES.set(figures)
+    outer = figures.handed
+    figures.handed = handed = []
     try:
         yield handed
     finally:
-        _STATE["handed"] = outer
+        figures.handed = outer
+        if token is not None:
+            _FIGURES.reset(token)
 
 
 def after_figures(work: Callable[..., T], *args: Any) -> T:
@@ -146,7 +188,8 @@ def after_figures(work: Callable[..., T], *args: Any) -> T:
     drawn (its tasks run in order), or here when there is none: the report, whose own
     figures then need no second import of matplotlib. ``work`` is a module-level
     function; its error is raised here."""
-    pool = _STATE["pool"] if _STATE["pid"] == os.getpid() else None
+    figures = _FIGURES.get()
+    pool = None if figures is None else figures.here
     if pool is None:
         return work(*args)
     return pool.submit(work, *args).result()
@@ -154,10 +197,10 @@ def after_figures(work: Callable[..., T], *args: Any) -> T:
 
 def wait_for_figures() -> None:
     """Wait until every figure submitted so far is written (before a report reads them)."""
-    if _STATE["pid"] != os.getpid():
+    figures = _FIGURES.get()
+    if figures is None or figures.pid != os.getpid():
         return
-    pending = _STATE["pending"]
-    _STATE["pending"] = []
+    pending, figures.pending = figures.pending, []
     for future in pending:
         error = future.exception()
         if error is not None:
@@ -176,22 +219,27 @@ def drawing_beside() -> Iterator[None]:
     Nested blocks share the outer block's process. A figure that failed (a bug, not a
     degenerate trial) raises its error when the block ends.
     """
-    if _STATE["pid"] == os.getpid():
+    outer = _FIGURES.get()
+    if outer is not None and outer.pid == os.getpid():
         yield
         return
-    _STATE.update(pool=_start(), pid=os.getpid(), pending=[])
+    # figures handed back stay handed back (a worker's command inside handing_back)
+    figures = Figures(_start(), os.getpid(), [], None if outer is None else outer.handed)
+    token = _FIGURES.set(figures)
     try:
         yield
     except BaseException:
-        _stop(cancel=True)  # the block's own error is the one to report
+        _stop(figures, cancel=True)  # the block's own error is the one to report
         raise
-    _stop(cancel=False)
+    finally:
+        _FIGURES.reset(token)
+    _stop(figures, cancel=False)
 
 
-def _stop(cancel: bool) -> None:
+def _stop(figures: Figures, cancel: bool) -> None:
     """End the background process: after its figures are drawn, or at once."""
-    pool, pending = _STATE["pool"], _STATE["pending"]
-    _STATE.update(pool=None, pid=None, pending=[])
+    pool, pending = figures.pool, figures.pending
+    figures.pool, figures.pid, figures.pending = None, None, []
     if pool is None:
         return
     try:

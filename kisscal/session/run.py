@@ -13,7 +13,7 @@ from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
-from kisscal.session.ahead import blob_slot, detecting_ahead, image_job, start
+from kisscal.session.ahead import Ahead, blob_slot, detecting_ahead, image_job
 from kisscal.session.inputs import writes_session
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.progress import Echo, quiet
@@ -54,12 +54,13 @@ def run(
     broken = {p.scope: str(p) for p in problems}
     timings: dict[str, float] = {}
     trials = _in_order(config, echo)
-    ahead: list[bool] = []  # whether the trials' detection was started in the background
+    tried: list[bool] = []  # whether the trials' detection was started in the background
 
     def timed(name: str, stage: Stage, call: StageCall) -> None:
         t = time.perf_counter()
-        if stage.name != "linearise" and not ahead:  # the markers' survey needs the grid's
-            ahead.append(_detect_trials_ahead(config, overrides, echo, workers, trials, broken))
+        if stage.name != "linearise" and not tried:  # the markers' survey needs the grid's
+            args = (config, overrides, echo, workers, trials, broken)
+            tried.append(_detect_trials_ahead(*args, call.ahead))
         stage.run(call)
         timings[name] = time.perf_counter() - t
         _LOG.debug("%s: %.2f s", name.removesuffix("_s"), timings[name])
@@ -67,17 +68,18 @@ def run(
     stages = session_stages(config)
     steps = len(stages)
     failures: dict[str, str] = {}
-    with detecting_ahead():
+    with detecting_ahead() as ahead:
         for step, stage in enumerate(stages):
             if not stage.per_trial:
                 echo(f"[{step + 1}/{steps}] {stage.title}")
-                timed(f"{stage.name}_s", stage, StageCall(config, overrides, echo, workers))
+                call = StageCall(config, overrides, echo, workers, ahead=ahead)
+                timed(f"{stage.name}_s", stage, call)
         for trial in trials:
             if trial.name in broken:
                 failures[trial.name] = broken[trial.name]
                 echo(f"  skipped {broken[trial.name]}")
                 continue
-            call = StageCall(config, overrides, echo, workers, trial.name)
+            call = StageCall(config, overrides, echo, workers, trial.name, ahead)
             try:
                 for step, stage in enumerate(stages):
                     if stage.per_trial:
@@ -106,13 +108,15 @@ def _detect_trials_ahead(
     workers: int | None,
     trials: list[TrialConfig],
     broken: dict[str, str],
+    ahead: Ahead | None,
 ) -> bool:
-    """Start detecting the trials' images in the background (:mod:`kisscal.session.ahead`)
-    where their blob caches are stale: the stages that follow run in this process
-    meanwhile. The cameras' marker settings are derived first (the calibration, and
-    every trial, read them kept). Nothing is started with one worker, nor when the
-    settings cannot be derived (the stage that needs them says why). True when started."""
-    if (workers or os.cpu_count() or 1) < 2:
+    """Start detecting the trials' images in the background (``ahead``, the run's
+    :class:`~kisscal.session.ahead.Ahead`) where their blob caches are stale: the stages
+    that follow run in this process meanwhile. The cameras' marker settings are derived
+    first (the calibration, and every trial, read them kept). Nothing is started with one
+    worker, nor when the settings cannot be derived (the stage that needs them says why).
+    True when started."""
+    if ahead is None or (workers or os.cpu_count() or 1) < 2:
         return False
     imaged = [t for t in trials if t.source in ("images", "video") and t.name not in broken]
     if not imaged:
@@ -133,7 +137,7 @@ def _detect_trials_ahead(
             slot = blob_slot(store, trial_stem(trial), cam, seq, trial.fields, detection[cam])
             if not store.is_current(*slot):
                 jobs[slot] = image_job(seq, cam, sizes[cam], detection[cam], workers)
-    return start(jobs, workers)
+    return ahead.start(jobs, workers)
 
 
 def _in_order(config: SessionConfig, echo: Echo) -> list[TrialConfig]:

@@ -36,7 +36,7 @@ from kisscal.io.cache import save_blob_frames
 from kisscal.io.config import CameraConfig, SessionConfig, TrialConfig
 from kisscal.io.detection_record import DetectionRecord, write_detection_record
 from kisscal.io.store import SessionStore, TrialFiles
-from kisscal.session.ahead import blob_slot, image_job, take
+from kisscal.session.ahead import Ahead, blob_slot, image_job
 from kisscal.session.configure import Sample, grid_setup, survey_sample
 from kisscal.session.figures import handing_back, submit_packed
 from kisscal.session.params import Overrides, StageParams, stage_params
@@ -210,14 +210,15 @@ def camera_blobs(
     name: tuple[str, str],
     echo: Echo = quiet,
     workers: int | None = None,
+    ahead: Ahead | None = None,
 ) -> dict[str, list[Blobs]]:
     """Blobs of every frame of each camera's ``frames``, from the cache when it is current.
 
     The cameras whose cache is stale are detected together, in one pool of processes
     (:func:`kisscal.detect.detect_jobs`): the workers decode and detect, and no core
     waits for the last frames of one camera before the next camera starts; a camera
-    whose blobs ``kisscal run`` detected ahead is taken from there
-    (:mod:`kisscal.session.ahead`). ``name`` is
+    whose blobs ``kisscal run`` detected ahead is taken from there (``ahead``, the run's
+    :class:`~kisscal.session.ahead.Ahead`). ``name`` is
     ``(cache stem, label)``: caches are ``out/cache/blobs/<stem>-<camera>.npz`` and
     messages say ``detect <label>``. A frame that cannot be read fails after the other
     cameras' blobs are cached.
@@ -240,7 +241,7 @@ def camera_blobs(
     t0 = time.perf_counter()
     failed: KisscalError | None = None
     here: list[int] = []  # the cameras detected here, not ahead
-    for j, found in counted(_detected(stale, workers, here), f"detect {label}", len(stale)):
+    for j, found in counted(_detected(stale, workers, here, ahead), f"detect {label}", len(stale)):
         cam, _s, cache, key = stale[j]
         if isinstance(found, KisscalError):
             failed = failed or found
@@ -268,13 +269,16 @@ def _say_detected(echo: Echo, label: str, jobs: list[ImageJob], seconds: float) 
 
 
 def _detected(
-    stale: list[tuple[str, ImageJob, Path, str]], workers: int | None, here: list[int]
+    stale: list[tuple[str, ImageJob, Path, str]],
+    workers: int | None,
+    here: list[int],
+    ahead: Ahead | None,
 ) -> Iterator[tuple[int, list[Blobs] | KisscalError]]:
     """The blobs of every stale camera (by index): detected ahead in the background
-    (:func:`kisscal.session.ahead.take`), else here, in one pool (their indices put in
-    ``here``)."""
+    (:meth:`kisscal.session.ahead.Ahead.take`), else here, in one pool (their indices
+    put in ``here``)."""
     for j, (_cam, _job, cache, key) in enumerate(stale):
-        found = take(cache, key)
+        found = None if ahead is None else ahead.take(cache, key)
         if found is None:
             here.append(j)
         else:
@@ -294,16 +298,18 @@ def trial_blobs(
     detection: dict[str, DetectionParams],
     echo: Echo,
     workers: int | None = None,
+    ahead: Ahead | None = None,
 ) -> dict[str, list[NDArray]]:
     """Per camera, the raw (distorted) valid blob centroids of every field, as (n, 2) arrays.
 
-    ``detection`` holds each camera's detection parameters (unused for centroid files).
+    ``detection`` holds each camera's detection parameters (unused for centroid files);
+    ``ahead`` the blobs ``kisscal run`` detected in the background (:func:`camera_blobs`).
     """
     if trial.source == "centroids":
         return centroid_files(config, trial)
     frames = trial_frames_of(config, trial)
     name = (trial_stem(trial), trial.name)
-    blobs = camera_blobs(config, frames, detection, trial.fields, name, echo, workers)
+    blobs = camera_blobs(config, frames, detection, trial.fields, name, echo, workers, ahead)
     return {cam: [b.valid_only().xy_px for b in found] for cam, found in blobs.items()}
 
 
@@ -364,10 +370,12 @@ def run_trial(
     overrides: Overrides | None = None,
     echo: Echo = quiet,
     workers: int | None = None,
+    ahead: Ahead | None = None,
 ) -> Any:
     """Run ``stage`` on one trial: keyed on the trial's source files, its cameras' marker
     settings (:func:`markers_detection`, for images and video) and ``stage.inputs``;
-    skipped when its output is current, else handed the trial's blobs."""
+    skipped when its output is current, else handed the trial's blobs (from ``ahead``
+    when ``kisscal run`` detected them in the background)."""
     trial = config.trial(trial_name)
     params = stage_params(config, overrides)
     # the stage is handed blobs, never detection settings: [detection]'s values are not a
@@ -385,7 +393,7 @@ def run_trial(
     if store.is_current(output, key) and complete:
         echo(f"  {stage.name} {trial.name}: cached")
         return stage.cached(run)
-    blobs = trial_blobs(config, trial, detection, echo, workers)
+    blobs = trial_blobs(config, trial, detection, echo, workers, ahead)
     result = stage.compute(run, inputs, blobs)
     store.mark_current(output, key)
     return result

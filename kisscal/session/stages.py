@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from kisscal.io.config import SessionConfig
+from kisscal.session.ahead import Ahead
 from kisscal.session.calibrate import calibrate
 from kisscal.session.inputs import needs_calibration, writes_session
 from kisscal.session.linearise import linearise
@@ -29,14 +30,16 @@ from kisscal.session.track import track
 @dataclass(frozen=True)
 class StageCall:
     """What one run of a stage is given: the session (read once, by ``kisscal run``), its
-    overrides, where to say what happens, the number of worker processes and, for a trial
-    stage, the trial."""
+    overrides, where to say what happens, the number of worker processes, for a trial
+    stage the trial, and the trials' blobs the run detects in the background
+    (:class:`~kisscal.session.ahead.Ahead`)."""
 
     config: SessionConfig
     overrides: Overrides | None
     echo: Echo
     workers: int | None
     trial: str = ""
+    ahead: Ahead | None = None
 
 
 def _always(config: SessionConfig) -> bool:
@@ -83,8 +86,10 @@ def _linearise(call: StageCall) -> object:
 
 
 def _calibrate(call: StageCall) -> object:
-    o, echo, workers = call.overrides, call.echo, call.workers
-    return calibrate(call.config.root, overrides=o, echo=echo, workers=workers, config=call.config)
+    o, echo, workers, config = call.overrides, call.echo, call.workers, call.config
+    return calibrate(
+        config.root, overrides=o, echo=echo, workers=workers, config=config, ahead=call.ahead
+    )
 
 
 @writes_session
@@ -103,7 +108,8 @@ def reconstruct(
 
 
 def _reconstruct(call: StageCall) -> object:  # kisscal run holds the session's lock
-    return run_trial(RECONSTRUCT, call.config, call.trial, call.overrides, call.echo, call.workers)
+    o, echo, workers = call.overrides, call.echo, call.workers
+    return run_trial(RECONSTRUCT, call.config, call.trial, o, echo, workers, call.ahead)
 
 
 def _track(call: StageCall) -> object:

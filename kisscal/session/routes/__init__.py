@@ -26,6 +26,7 @@ from kisscal.io.config import CameraConfig, SessionConfig
 from kisscal.io.files import write_json
 from kisscal.io.frames import camera_frames
 from kisscal.io.store import SessionStore
+from kisscal.session.ahead import Ahead
 from kisscal.session.params import StageParams
 from kisscal.session.progress import Echo
 from kisscal.session.runner import camera_blobs, markers_detection
@@ -49,6 +50,9 @@ class RouteInputs:
         Where log lines go.
     workers : int or None
         Detection processes.
+    ahead : Ahead or None
+        The trials' blobs ``kisscal run`` detects in the background
+        (:class:`kisscal.session.ahead.Ahead`).
     """
 
     root: Path
@@ -58,6 +62,7 @@ class RouteInputs:
     params: StageParams
     echo: Echo
     workers: int | None = None
+    ahead: Ahead | None = None
 
     @property
     def store(self) -> SessionStore:

@@ -102,7 +102,7 @@ def trials_table(inputs: RouteInputs) -> BlobTable:
     detection = marker_detection(inputs)
     for trial in image_trials(inputs):
         try:
-            blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers)
+            blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers, inputs.ahead)
         except KisscalError as exc:  # the trial fails on its own later, as without the bundle
             inputs.echo(f"  calibrate: trial {trial.name!r} left out of the adjustment: {exc}")
             continue
@@ -190,7 +190,7 @@ def lens_from_trials(
     times lower).
     """
     # the rods' pinhole fit first: it runs while the trials' images are still detected in
-    # the background (kisscal.session.ahead), which the trials' table then waits for
+    # the background (inputs.ahead, kisscal.session.ahead), which the trials' table then waits for
     start, control = rods_control(inputs, blobs_px, rods, rods_alone)
     return adjusted_with_trials(inputs, trials_table(inputs), start, control, rods, rods_alone)
 

@@ -135,7 +135,7 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
     config = inputs.config
     trial = config.trial(config.wand.trial)
     detection = marker_detection(inputs)
-    blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers)
+    blobs = trial_blobs(config, trial, detection, inputs.echo, inputs.workers, inputs.ahead)
     per_camera = []
     for cam in config.cameras:
         lin = inputs.linearisations[cam.id]
