@@ -65,6 +65,15 @@ class TrackingParams(Params):
         or not, lies less than this many times as far: a track whose marker vanished
         takes the nearest neighbour, which its prediction misses by about as much (C3D
         regression set: a glove at 70 Hz, hands at 120 Hz). 0 turns it off.
+    first_step_ratio : float
+        The first step of a piece that never became a Kalman track (one point: no
+        velocity, its prediction is the point itself) is split off as a guess when it is
+        longer than 10 mm and another point of that field lies less than this many times
+        as far from the first point: the step is the marker's whole motion, not a miss,
+        and a marker of a fast limb at a low rate moves about as far as its neighbours
+        are apart (PhaseSpace at 30 Hz: LEDs 30 mm apart moving 40-60 mm a field, the
+        neighbour's point taken at 0.55 of the distance to the marker's own). 0 turns
+        it off.
     cluster_radius_mm : float
         Radius (mm) of the rigid cluster (LEDs a few centimetres apart on a hand) whose
         common move predicts a track its own prediction cannot tell from its neighbours
@@ -268,6 +277,7 @@ class TrackingParams(Params):
     gate_error_factor: float = param(2.0, ge=0)
     ambiguity_margin: float = param(0.5, ge=0)
     rival_ratio: float = param(1.35, ge=0)
+    first_step_ratio: float = param(2.0, ge=0)
     certain_ratio: float = param(4.0, ge=0)
     cluster_radius_mm: float = param(100.0, unit="mm", ge=0)
     initial_gate_mm: float = param(120.0, unit="mm", gt=0)

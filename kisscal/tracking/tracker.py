@@ -104,7 +104,7 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     """Split off the first point of a piece that never became a Kalman track (fewer than
     ``min_initial_length`` measured points) when its first step was a guess: longer than
     :data:`~kisscal.tracking.live.RIVAL_MIN_MM` while another point of that field lies
-    less than ``rival_ratio`` times as far from the first point.
+    less than ``first_step_ratio`` times as far from the first point.
 
     One point gives no direction: the nearest candidate is taken, and on a fast limb two
     markers can be almost equally far (a serve at 50 Hz: elbow and upper arm 121 and 129
@@ -112,7 +112,7 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     built them; a short piece loses nothing that blending would use.
     """
     meas = np.flatnonzero(tracks.status == MEASURED)
-    if params.rival_ratio <= 0 or meas.size < 3:
+    if params.first_step_ratio <= 0 or meas.size < 3:
         return tracks
     tr = tracks.track[meas]
     lo = np.searchsorted(tr, np.arange(tracks.n_tracks), "left")
@@ -124,7 +124,7 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     apart = 1e3 * (np.ptp(tracks.xyz_mm[meas]) + 1.0)
     tree = cKDTree(np.c_[apart * tracks.field[meas], tracks.xyz_mm[meas]])
     probe = np.c_[apart * tracks.field[second], tracks.xyz_mm[first]]
-    within = tree.query_ball_point(probe, params.rival_ratio * step, return_length=True)
+    within = tree.query_ball_point(probe, params.first_step_ratio * step, return_length=True)
     # The second point itself is within reach; a rival makes two.
     guess = (step > RIVAL_MIN_MM) & (np.asarray(within) >= 2)
     if not guess.any():

@@ -157,11 +157,15 @@ def test_a_track_with_a_rival_nearly_as_near_is_cut():
     neighbour by about the markers' spacing (52-82 mm, the next point 1.1-1.3 times as far):
     cut there (``rival_ratio``), the tracker's identity switches fall from 2 to 0 at the
     same coverage (measured). Both without the cluster's carry (``cluster_radius_mm``),
-    which on this glove keeps every identity with or without the cut."""
+    which on this glove keeps every identity with or without the cut; the control also
+    keeps every first step (``first_step_ratio`` 0), as ``rival_ratio`` 0 did before that
+    ratio was its own."""
     c3d = read_c3d(FIXTURES / "kinematics_racing_propulsion.c3d")
     alone = TrackingParams(cluster_radius_mm=0.0)
     cut = retrack(c3d.xyz_mm, c3d.rate_hz, params=alone)
-    taken = retrack(c3d.xyz_mm, c3d.rate_hz, params=alone.replace(rival_ratio=0.0))
+    taken = retrack(
+        c3d.xyz_mm, c3d.rate_hz, params=alone.replace(rival_ratio=0.0, first_step_ratio=0.0)
+    )
     assert cut.coverage == taken.coverage == 1.0
     assert cut.switches - cut.relabels <= 2
     assert 3 * (cut.switches - cut.relabels) < taken.switches - taken.relabels
