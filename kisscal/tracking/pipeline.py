@@ -101,18 +101,9 @@ def build_trajectories(
     params = params or TrackingParams()
     raw = track_points(field, xyz_mm, params)
     blended = blend_tracks(raw, params)
-    template = None if template_mm is None else np.asarray(template_mm, dtype=float)
-    if marker_set is not None and rate_hz:
-        labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
-    else:
-        labelling = label_tracks(blended, names, params, template, segments)
-        if rate_hz and names and template is not None:
-            anatomy = Anatomy.of_names(tuple(names))
-            if anatomy.pairs:
-                labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
-    # measured samples that break their segment's lengths dropped; unnamed pieces that
-    # fill a named trajectory's gap joined to it
-    labelling = join_gap_pieces(drop_broken_samples(labelling, params), params)
+    labelling = _label(
+        blended, params, names, template_mm, segments, marker_set, rate_hz, template_upright
+    )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
     tracks, fills = fill_gaps_logged(
@@ -129,6 +120,31 @@ def build_trajectories(
         n_pieces_blended=clean_up(blended, params).n_tracks,
         fills=fills,
     )
+
+
+def _label(
+    blended: Tracks,
+    params: TrackingParams,
+    names: list[str] | tuple[str, ...] | None,
+    template_mm: ArrayLike | None,
+    segments: list[tuple[str, str]] | tuple | None,
+    marker_set: MarkerSet | None,
+    rate_hz: float | None,
+    template_upright: bool = False,
+) -> Labelling:
+    """Label with the set, or with names and template; judged by the anatomy when the
+    rate is known; measured samples that break their segment's lengths dropped; unnamed
+    pieces that fill a named trajectory's gap joined to it."""
+    template = None if template_mm is None else np.asarray(template_mm, dtype=float)
+    if marker_set is not None and rate_hz:
+        labelling = label_with_set(blended, marker_set, params, rate_hz, template, template_upright)
+        return join_gap_pieces(drop_broken_samples(labelling, params), params)
+    labelling = label_tracks(blended, names, params, template, segments)
+    if rate_hz and names and template is not None:
+        anatomy = Anatomy.of_names(tuple(names))
+        if anatomy.pairs:
+            labelling = judge_sides(labelling, anatomy, template, rate_hz, params)
+    return join_gap_pieces(drop_broken_samples(labelling, params), params)
 
 
 @dataclass(frozen=True)
