@@ -51,17 +51,20 @@ def lens_frame(P: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     ``d`` from the principal point is ``A q`` with ``q`` the offset in square, unskewed
     pixels of the width of ``u``'s. Read from ``K K^T = M M^T / |m3|^2`` (``M`` the
     left 3 x 3 of ``P``, ``m3`` its last row), so it needs no decomposition and does
-    not depend on the scale or sign of ``P``.
+    not depend on the scale or sign of ``P``. A matrix that is no camera (``K2 K2^T`` not
+    positive definite: a linear DLT of too flat or too few points) gives NaN, which the
+    refinement reports as a start it cannot take.
     """
     M = np.asarray(P, dtype=float)[:, :3]
     c = M[2]
     cc = c @ c
     centre = M[:2] @ c / cc
     G = M[:2] @ M[:2].T / cc - np.outer(centre, centre)  # K2 K2^T
-    fv = np.sqrt(G[1, 1])
-    skew = G[0, 1] / fv
-    fu = np.sqrt(G[0, 0] - skew**2)
-    return centre, np.array([[1.0, skew / fu], [0.0, fv / fu]])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fv = np.sqrt(G[1, 1])
+        skew = G[0, 1] / fv
+        fu = np.sqrt(G[0, 0] - skew**2)
+        return centre, np.array([[1.0, skew / fu], [0.0, fv / fu]])
 
 
 def lens_offsets(
@@ -219,10 +222,11 @@ def _forward_jacobian(fun, rows) -> Callable[[NDArray[np.float64]], NDArray[np.f
 
 
 def _solve(fun, theta0: NDArray[np.float64], params: DltParams, camera: str, jac: Any = "2-point"):
-    if not np.isfinite(fun(theta0)).all():  # a point on the start's focal plane
+    if not np.isfinite(fun(theta0)).all():
         raise EstimationFailed(
             f"camera {camera}: the DLT iteration cannot start (non-finite residuals at the "
-            "linear solution: a control point on the camera's focal plane)"
+            "linear solution: a control point on the camera's focal plane, or a linear DLT "
+            "that is no camera, from control points too flat or too few)"
         )
     result = scipy.optimize.least_squares(
         fun,

@@ -175,6 +175,22 @@ def test_an_iteration_that_cannot_start_is_a_clear_estimation_failure():
     assert np.allclose(_solve(lambda t: np.r_[t - 1.0, 0.0], np.zeros(3), DltParams(), "c").x, 1)
 
 
+def test_a_matrix_that_is_no_camera_has_no_lens_frame_and_says_so_quietly():
+    """A linear DLT whose left 3 x 3 has rank 2 (what too flat a fold of control points
+    gives) has no intrinsic matrix: its lens frame is non-finite, without a numpy warning
+    (the refinement then reports a start it cannot take), while a real camera's is exact."""
+    import warnings
+
+    P_flat = np.array([[1.0, 0, 0, 5], [0, 1, 0, 7], [1, 1, 0, 1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        centre, A = lens_frame(P_flat)
+    assert np.allclose(centre, 0.5) and not np.isfinite(A).all()
+    R = LEVEL_ALONG_Y
+    centre, A = lens_frame(K @ np.hstack([R, -(R @ np.array([1200.0, -3500, 1000]))[:, None]]))
+    assert np.allclose(centre, K[:2, 2]) and np.allclose(A, [[1, 0], [0, K[1, 1] / K[0, 0]]])
+
+
 def test_weights_act_as_repeated_points(rig):
     """A weight of k is k copies of the point; a quiet source weighed by its variance
     pulls the fit to the truth that equal weights lose among noisy points."""
