@@ -93,10 +93,9 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     return small.getvalue()
 
 
-def save_figure(fig: Figure, path: Path, dpi: int = 90) -> Path:
+def save_figure(fig: Figure, path: Path) -> None:
     """Write a matplotlib figure as PNG (atomically)."""
-    write_bytes(path, figure_png(fig, dpi))
-    return path
+    write_bytes(path, figure_png(fig, 90))
 
 
 CSS = """
