@@ -95,7 +95,7 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
 
 def save_figure(fig: Figure, path: Path) -> None:
     """Write a matplotlib figure as PNG (atomically)."""
-    write_bytes(path, figure_png(fig, 90))
+    write_bytes(path, figure_png(fig))
 
 
 CSS = """
