@@ -2,14 +2,8 @@
 of writing that ezc3d does not do as the standard asks (the per-sample residual and camera
 mask word, the header's scale).
 
-Reading keeps markers only: the POINT channels a file declares as model outputs
-(``POINT:ANGLES``, ``FORCES``, ``MOMENTS``, ``POWERS``, ``SCALARS``, ``REACTIONS``,
-``MODELED_MARKERS``, their ``*2``, ``*3`` ... extensions and any group ``POINT:TYPE_GROUPS``
-names) are left out and listed, and so are the segment axes Plug-in Gait writes as
-ordinary points (four points per segment named after it, origin ``O``, anterior ``A``,
-lateral ``L``, proximal ``P``: ``PELO``, ``PELA``, ``PELL``, ``PELP``). Labels continue in
-``POINT:LABELS2``, ``LABELS3`` ... when a file has more than 255 points. Every frame of the
-file is kept, empty ones included, with the file's own number of the first frame. Intel and
+Reading keeps markers only (declared model outputs and Plug-in Gait's segment axes are
+left out and listed) and every frame, with the file's own first frame number. Intel and
 DEC files are read with ezc3d; SGI/MIPS files, which ezc3d does not read, with the ``c3d``
 package.
 """
@@ -126,8 +120,7 @@ def read_c3d(path: Path) -> C3DPoints:
     if not path.is_file():
         raise MissingDataError(f"{path}: C3D file not found")
     processor = processor_type(path)
-    raw = _read_either(path, processor)
-    params, xyz, residual, header_first, rate = raw
+    params, xyz, residual, header_first, rate = _read_either(path, processor)
     if header_holds(path, processor, params, rate):  # the parameters misdescribe the data
         xyz, residual, header_first = read_points_by_header(path, processor)
     return _markers(path, params, xyz, residual, header_first, rate, processor)
@@ -322,14 +315,7 @@ def _markers(
     # with a valid residual (no real marker sits on the origin to the last bit).
     missing = (residual < 0) | (xyz == 0).all(axis=2)
     xyz = np.where(missing[..., None], np.nan, xyz.astype(float) * scale)
-    company = " ".join(
-        s
-        for s in (
-            *_strings(params, "MANUFACTURER", "COMPANY"),
-            *_strings(params, "MANUFACTURER", "SOFTWARE"),
-        )
-        if s
-    )
+    maker = [s for key in ("COMPANY", "SOFTWARE") for s in _strings(params, "MANUFACTURER", key)]
     return C3DPoints(
         labels=tuple(lab for lab, k in zip(labels, keep, strict=True) if k),
         xyz_mm=xyz[:, keep],
@@ -337,7 +323,7 @@ def _markers(
         first_frame=_first_frame(params, header_first),
         excluded=tuple(lab for lab, k in zip(labels, keep, strict=True) if not k),
         processor=processor,
-        manufacturer=company,
+        manufacturer=" ".join(s for s in maker if s),
     )
 
 

@@ -6,10 +6,8 @@ source file's first frame for a C3D trial: field k is frame ``first_frame + k``)
 where a track has no sample are missing (C3D: residual -1; TRC: empty cells).
 The C3D residual is in the point units (mm), as the standard defines it: kisscal's
 reconstruction residual (``rms_px``) times the size of a pixel at the point (see
-:func:`kisscal.dlt.model.pixel_size_mm`). The C3D camera mask names the first 7 cameras
-of ``[[cameras]]`` (all the standard's byte holds); ``points3d.csv`` names every camera
-of every reconstructed point (its blob columns), and :func:`write_sample_cameras` every
-camera of every measured trajectory sample.
+:func:`kisscal.dlt.model.pixel_size_mm`). The C3D camera mask holds the first 7 cameras
+only: :func:`write_sample_cameras` names them all.
 """
 
 from __future__ import annotations

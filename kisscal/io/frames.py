@@ -81,9 +81,6 @@ class ImageHeader:
 LOSSY_FORMATS = frozenset({"JPEG", "MPO"})
 
 
-_PNG = b"\x89PNG\r\n\x1a\n"
-
-
 def image_header(path: Path) -> ImageHeader:
     """Size and data format of an image file, from its header only (cheap: no decoding).
 
@@ -95,7 +92,7 @@ def image_header(path: Path) -> ImageHeader:
     try:
         with open(path, "rb") as file:
             head = file.read(24)
-        if head[:8] == _PNG and head[12:16] == b"IHDR":
+        if head[:8] == IMAGE_SIGNATURES[0] and head[12:16] == b"IHDR":
             w, h = struct.unpack(">II", head[16:24])
             return ImageHeader((int(w), int(h)), "PNG")
         with Image.open(path) as image:

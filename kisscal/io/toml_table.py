@@ -104,12 +104,12 @@ class Table:
         return [self.sub(key, i) for i in range(len(value))]
 
 
-def number(path: Path, where: str, value: Any, kind: type = float, positive: bool = True) -> Any:
+def number(path: Path, where: str, value: Any, kind: type = float) -> Any:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise InputError(f"{path}: {where} must be a number, got {value!r}")
     if kind is int and int(value) != value:
         raise InputError(f"{path}: {where} must be a whole number, got {value!r}")
-    if positive and value <= 0:
+    if value <= 0:
         raise InputError(f"{path}: {where} must be positive, got {value!r}")
     return kind(value)
 

@@ -42,21 +42,15 @@ class CameraResiduals:
     rms_px: float
 
 
-def residual_figure(
-    cameras: Mapping[str, CameraResiduals], scale: float | None = None, columns: int = 2
-) -> Figure:
-    """Residual vectors of every camera's control points, drawn in the image frame.
+def residual_figure(cameras: Mapping[str, CameraResiduals]) -> Figure:
+    """Residual vectors of every camera's control points, drawn in the image frame, two
+    panels a row. The 95th-percentile residual of all cameras is drawn 40 px long, the
+    same scale in every panel, and each panel has a key arrow giving it in pixels.
 
     Parameters
     ----------
     cameras : mapping
         Camera id -> :class:`CameraResiduals`.
-    scale : float, optional
-        Arrow magnification (arrow length in pixels per pixel of residual); by default
-        the 95th-percentile residual of all cameras is drawn 40 px long. The same scale is
-        used for every panel, and each panel has a key arrow giving it in pixels.
-    columns : int
-        Panels per row.
 
     Returns
     -------
@@ -64,14 +58,13 @@ def residual_figure(
     """
     names = list(cameras)
     n = max(len(names), 1)
-    cols = min(columns, n)
+    cols = min(2, n)
     rows = -(-n // cols)
     size = (5.5 * cols, 2.8 * rows)
     fig = new_figure(*size, constrained=False)
     fig.subplots_adjust(**fixed_margins(size, (rows, cols), (0.45, 0.1, 0.3, 0.3), (0.5, 0.5)))
-    if scale is None:
-        every = [np.asarray(c.residuals_px, dtype=float).reshape(-1, 2) for c in cameras.values()]
-        scale = arrow_gain(np.concatenate(every) if every else np.zeros((0, 2)), 40.0)
+    every = [np.asarray(c.residuals_px, dtype=float).reshape(-1, 2) for c in cameras.values()]
+    scale = arrow_gain(np.concatenate(every) if every else np.zeros((0, 2)), 40.0)
     key = nice_number(40.0 / scale)
     for k, name in enumerate(names):
         c = cameras[name]

@@ -27,21 +27,9 @@ def clip_lines(lines: NDArray[np.float64], width: int, height: int) -> NDArray[n
     u0, u1 = -0.5, width - 0.5
     v0, v1 = -0.5, height - 0.5
     with np.errstate(divide="ignore", invalid="ignore"):
-        ends_flat = np.stack(
-            [
-                np.column_stack([np.full(len(a), u0), -(a * u0 + c) / b]),
-                np.column_stack([np.full(len(a), u1), -(a * u1 + c) / b]),
-            ],
-            axis=1,
-        )
-        ends_steep = np.stack(
-            [
-                np.column_stack([-(b * v0 + c) / a, np.full(len(a), v0)]),
-                np.column_stack([-(b * v1 + c) / a, np.full(len(a), v1)]),
-            ],
-            axis=1,
-        )
-    return np.where(flat[:, None, None], ends_flat, ends_steep)
+        ends_flat = [np.column_stack([np.full(len(a), u), -(a * u + c) / b]) for u in (u0, u1)]
+        ends_steep = [np.column_stack([-(b * v + c) / a, np.full(len(a), v)]) for v in (v0, v1)]
+    return np.where(flat[:, None, None], np.stack(ends_flat, axis=1), np.stack(ends_steep, axis=1))
 
 
 def _drawn_markers(n_matches: int, max_markers: int) -> list[int]:

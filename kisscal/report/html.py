@@ -93,10 +93,9 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     return small.getvalue()
 
 
-def save_figure(fig: Figure, path: Path, dpi: int = 90) -> Path:
+def save_figure(fig: Figure, path: Path) -> None:
     """Write a matplotlib figure as PNG (atomically)."""
-    write_bytes(path, figure_png(fig, dpi))
-    return path
+    write_bytes(path, figure_png(fig))
 
 
 CSS = """
@@ -187,11 +186,8 @@ def status_section(
         lines += _problems(gait)[:3]
         tiles.append(_tile("Markers", worst([v.state for v in gait]), lines))
     if val:
-        tiles.append(
-            _tile(
-                "Validation", worst([v.state for v in val]), [f"{v.scope}: {v.result}" for v in val]
-            )
-        )
+        lines = [f"{v.scope}: {v.result}" for v in val]
+        tiles.append(_tile("Validation", worst([v.state for v in val]), lines))
     rows = [[badge(v.state), v.scope, v.result, v.limit] for v in calibration + trials]
     head = ["", "check", "result", "limit"]
     body = join([tag("div", join(tiles), class_="tiles"), table(head, rows, (), "status")])

@@ -131,9 +131,10 @@ def details(summary: Any, body: Any, open_: bool = False) -> Html:
     return tag("details", join([tag("summary", summary), body]), open=open_)
 
 
-def section(id_: str, title: str, body: Any, note: Any = None) -> Html:
+def section(id_: str, title: str, body: Any, note: Any = None, class_: str | None = None) -> Html:
     return tag(
         "section",
         join([tag("h2", title), tag("p", note, class_="note") if note else "", body]),
         id=id_,
+        class_=class_,
     )

@@ -6,6 +6,7 @@ Pure functions on a dense (marker x field) layout of ``trajectories.csv``.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -112,16 +113,9 @@ def filled_runs(status: NDArray[np.int8]) -> tuple[tuple[int, int, str], ...]:
     ((1, 2, 'spline'), (4, 3, 'rigid'), (7, 1, 'pattern'))
     """
     code = np.where(status >= FILLED, status, 0).astype(np.int16)
-    padded = np.concatenate([[0], code, [0]])
-    edge = np.flatnonzero(np.diff(padded) != 0)
-    starts = edge[:-1][code[edge[:-1]] > 0] if edge.size else edge
-    out = []
-    for a in starts.tolist():
-        b = a
-        while b < code.size and code[b] == code[a]:
-            b += 1
-        out.append((a, b - a, FILL_METHODS[int(code[a])]))
-    return tuple(out)
+    edge = np.flatnonzero(np.diff(np.concatenate([[0], code, [0]])) != 0).tolist()
+    runs = itertools.pairwise(edge)  # each run of one code: [a, b)
+    return tuple((a, b - a, FILL_METHODS[int(code[a])]) for a, b in runs if code[a] > 0)
 
 
 def marker_stats(dense: Dense) -> list[MarkerStats]:
@@ -192,9 +186,6 @@ def segment_stats(dense: Dense, segments: Sequence[tuple[str, str]]) -> list[Seg
         ok = length[np.isfinite(length)]
         if len(ok) == 0:
             continue
-        out.append(
-            SegmentStats(
-                a, b, float(ok.mean()), float(ok.std()), float(ok.max() - ok.min()), len(ok)
-            )
-        )
+        spread = float(ok.max() - ok.min())
+        out.append(SegmentStats(a, b, float(ok.mean()), float(ok.std()), spread, len(ok)))
     return out

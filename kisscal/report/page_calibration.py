@@ -139,14 +139,7 @@ def target_table(o: SessionOutputs) -> Html:
     if record is None:
         return Html("")
     rows = [
-        [
-            tag("b", c),
-            fmt(e.visible),
-            fmt(e.matched),
-            fmt(e.unmatched),
-            fmt(e.rms_px),
-            fmt(e.seed_rms_px),
-        ]
+        [tag("b", c), *map(fmt, (e.visible, e.matched, e.unmatched, e.rms_px, e.seed_rms_px))]
         for c, e in record.cameras.items()
     ]
     headers = ["camera", "visible points", "matched", "unmatched", "rms (px)", "seeds rms (px)"]
@@ -267,19 +260,11 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
         return Html("")
     parts = []
     if w.kept == "rods":
-        parts.append(
-            tag(
-                "p",
-                join(
-                    [
-                        tag("b", "The wand did not lower the held-out error"),
-                        ": the rods' calibration is kept (rod markers held out in turn and "
-                        "the held-out wand fields, rods alone against wand); the wand's "
-                        "figures are below.",
-                    ]
-                ),
-            )
+        why = (
+            ": the rods' calibration is kept (rod markers held out in turn and the held-out "
+            "wand fields, rods alone against wand); the wand's figures are below."
         )
+        parts.append(tag("p", join([tag("b", "The wand did not lower the held-out error"), why])))
     if w.figures:
         rows = [[heading(k), fmt(v)] for k, v in w.figures]
         parts.append(table(["wand figure", "value"], rows, (1,)))

@@ -51,23 +51,13 @@ def truth_section(o: SessionOutputs) -> Html:
     truth = o.summary.get("truth")
     if not truth:
         return Html("")
-    return tag(
-        "section",
-        join(
-            [
-                tag("h2", "Synthetic ground truth (simulated sessions only)"),
-                tag(
-                    "p",
-                    "This session was simulated: the figures below compare the results with "
-                    "the truth the simulator knows. A real session has no such section.",
-                    class_="note",
-                ),
-                truth_table(truth) if isinstance(truth, dict) else "",
-            ]
-        ),
-        id="truth",
-        class_="truth",
+    note = (
+        "This session was simulated: the figures below compare the results with "
+        "the truth the simulator knows. A real session has no such section."
     )
+    body = truth_table(truth) if isinstance(truth, dict) else ""
+    title = "Synthetic ground truth (simulated sessions only)"
+    return section("truth", title, body, note, class_="truth")
 
 
 def timings_section(o: SessionOutputs) -> Html:

@@ -55,18 +55,12 @@ def camera_verdicts(o: SessionOutputs) -> list[Verdict]:
     for cam in o.cameras:
         figures = o.camera_figures(cam)
         grid, dlt = figures.grid_rms_px, figures.dlt_rms_px
-        parts, states = [], []
-        if np.isfinite(grid):
-            parts.append(f"grid residual {grid:.3f} px")
-            states.append(_within(grid, lim.max_grid_px))
-        else:
-            parts.append("no grid linearisation")
-        if np.isfinite(dlt):
-            parts.append(f"DLT rms {dlt:.3f} px")
-            states.append(_within(dlt, lim.max_reproj_px))
-        else:
-            parts.append("not calibrated")
-            states.append(FAIL)
+        parts = [
+            f"grid residual {grid:.3f} px" if np.isfinite(grid) else "no grid linearisation",
+            f"DLT rms {dlt:.3f} px" if np.isfinite(dlt) else "not calibrated",
+        ]
+        states = [_within(grid, lim.max_grid_px)]  # no grid: NONE, no verdict
+        states.append(_within(dlt, lim.max_reproj_px) if np.isfinite(dlt) else FAIL)
         limit = f"grid ≤ {lim.max_grid_px:g} px, DLT ≤ {lim.max_reproj_px:g} px"
         out.append(Verdict(cam, "; ".join(parts), limit, worst(states)))
     return out

@@ -49,17 +49,13 @@ def trajectories_figure(result: Trajectories, title: str = "") -> Figure:
 
 
 def segment_length_figure(
-    result: Trajectories,
-    segments: list[tuple[str, str]] | tuple,
-    rate_hz: float | None = None,
-    title: str = "",
-    columns: int = 3,
+    result: Trajectories, segments: list[tuple[str, str]] | tuple, rate_hz: float | None = None
 ) -> Figure:
     """Length of each segment over time, from measured points (solid) and from the Kalman
     a-posteriori estimates (dashed), as in Küçük 2005 chapter 5. Time in seconds when
     ``rate_hz`` is given, else in fields.
 
-    One small panel per segment, titled with its mean and SD; each length axis spans at
+    One small panel per segment, three a row, titled with its mean and SD; each length axis spans at
     least :data:`~kisscal.report.figures.MIN_HALF_RANGE_MM` either side of the mean, so
     that sub-millimetre noise looks like what it is.
 
@@ -81,10 +77,9 @@ def segment_length_figure(
     corrected = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     corrected[tracks.track, tracks.field] = tracks.corrected_mm
     time_axis = np.arange(n_fields) / (rate_hz or 1.0)
-    cols = min(columns, len(pairs))
+    cols = min(3, len(pairs))
     rows = -(-len(pairs) // cols)
-    top = 0.3 + (0.35 if title else 0.0)  # the panels' titles, and the figure's
-    fig, axes = panel_grid(rows, cols, (3.4, 1.35), margins_in=(0.6, 0.15, 0.45, top))
+    fig, axes = panel_grid(rows, cols, (3.4, 1.35), margins_in=(0.6, 0.15, 0.45, 0.3))
     for ax in axes[len(pairs) :]:
         fig.delaxes(ax)
     for ax, (a, b) in zip(axes, pairs, strict=False):
@@ -105,6 +100,4 @@ def segment_length_figure(
     for ax in axes[max(len(pairs) - cols, 0) : len(pairs)]:  # the lowest panel of each column
         ax.set_xlabel("time (s)" if rate_hz else "field", fontsize=8)
         ax.xaxis.set_tick_params(labelbottom=True)
-    if title:
-        fig.suptitle(title)
     return fig
