@@ -106,7 +106,8 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     :data:`~kisscal.tracking.live.RIVAL_MIN_MM` while another point of that field lies
     less than ``first_step_ratio`` times as far from the first point, or (at any length)
     while another point of the first field lies less than ``first_step_ratio`` times as
-    far from the second point: another one-point track could as well have taken it.
+    far from the second point and its piece ended there: that track, left with no point,
+    could as well have taken it.
 
     One point gives no direction: the nearest candidate is taken, and on a fast limb two
     markers can be almost equally far (a serve at 50 Hz: elbow and upper arm 121 and 129
@@ -131,12 +132,14 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     probe = np.c_[apart * tracks.field[second], tracks.xyz_mm[first]]
     reach = params.first_step_ratio * step
     within = np.asarray(tree.query_ball_point(probe, reach, return_length=True))
-    # A rival track: another point of the first field as near the second point (the
-    # first point itself is within reach; a rival makes two).
+    # A rival track: a piece that ended in the first field (it found no point after)
+    # with its last point as near the second point.
+    last = meas[hi[hi > lo] - 1]
+    ended = cKDTree(np.c_[apart * tracks.field[last], tracks.xyz_mm[last]])
     probe = np.c_[apart * tracks.field[first], tracks.xyz_mm[second]]
-    rivals = np.asarray(tree.query_ball_point(probe, reach, return_length=True))
+    rivals = np.asarray(ended.query_ball_point(probe, reach, return_length=True))
     # The second point itself is within reach of the first; a rival makes two.
-    guess = ((step > RIVAL_MIN_MM) & (within >= 2)) | (rivals >= 2)
+    guess = ((step > RIVAL_MIN_MM) & (within >= 2)) | (rivals >= 1)
     if not guess.any():
         return tracks
     piece = tracks.track.copy()
