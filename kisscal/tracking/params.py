@@ -72,8 +72,11 @@ class TrackingParams(Params):
         as far from the first point: the step is the marker's whole motion, not a miss,
         and a marker of a fast limb at a low rate moves about as far as its neighbours
         are apart (PhaseSpace at 30 Hz: LEDs 30 mm apart moving 40-60 mm a field, the
-        neighbour's point taken at 0.55 of the distance to the marker's own). 0 turns
-        it off.
+        neighbour's point taken at 0.55 of the distance to the marker's own); likewise,
+        at any length, when another point of the first field lies less than this many
+        times as far from the second point and its track ended there (that track, left
+        with no point, could have taken it: Phoenix LEDs 3-8 mm apart on a golf club).
+        0 turns it off.
     cluster_radius_mm : float
         Radius (mm) of the rigid cluster (LEDs a few centimetres apart on a hand) whose
         common move predicts a track its own prediction cannot tell from its neighbours

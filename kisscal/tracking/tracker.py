@@ -104,11 +104,17 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     """Split off the first point of a piece that never became a Kalman track (fewer than
     ``min_initial_length`` measured points) when its first step was a guess: longer than
     :data:`~kisscal.tracking.live.RIVAL_MIN_MM` while another point of that field lies
-    less than ``first_step_ratio`` times as far from the first point.
+    less than ``first_step_ratio`` times as far from the first point, or (at any length)
+    while another point of the first field lies less than ``first_step_ratio`` times as
+    far from the second point and its piece ended there: that track, left with no point,
+    could as well have taken it.
 
     One point gives no direction: the nearest candidate is taken, and on a fast limb two
     markers can be almost equally far (a serve at 50 Hz: elbow and upper arm 121 and 129
-    mm from the elbow's last point). Kalman tracks keep their start, as live tracking
+    mm from the elbow's last point). A rival track is judged at any step length: Phoenix
+    LEDs 3-8 mm apart on a golf club move 10 mm a field, and when one is hidden its track
+    takes the neighbour's point, 7.4 mm away against the neighbour's own 9.7 mm (a 10 mm
+    floor on the step would keep that guess). Kalman tracks keep their start, as live tracking
     built them; a short piece loses nothing that blending would use.
     """
     meas = np.flatnonzero(tracks.status == MEASURED)
@@ -124,9 +130,16 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     apart = 1e3 * (np.ptp(tracks.xyz_mm[meas]) + 1.0)
     tree = cKDTree(np.c_[apart * tracks.field[meas], tracks.xyz_mm[meas]])
     probe = np.c_[apart * tracks.field[second], tracks.xyz_mm[first]]
-    within = tree.query_ball_point(probe, params.first_step_ratio * step, return_length=True)
-    # The second point itself is within reach; a rival makes two.
-    guess = (step > RIVAL_MIN_MM) & (np.asarray(within) >= 2)
+    reach = params.first_step_ratio * step
+    within = np.asarray(tree.query_ball_point(probe, reach, return_length=True))
+    # A rival track: a piece that ended in the first field (it found no point after)
+    # with its last point as near the second point.
+    last = meas[hi[hi > lo] - 1]
+    ended = cKDTree(np.c_[apart * tracks.field[last], tracks.xyz_mm[last]])
+    probe = np.c_[apart * tracks.field[first], tracks.xyz_mm[second]]
+    rivals = np.asarray(ended.query_ball_point(probe, reach, return_length=True))
+    # The second point itself is within reach of the first; a rival makes two.
+    guess = ((step > RIVAL_MIN_MM) & (within >= 2)) | (rivals >= 1)
     if not guess.any():
         return tracks
     piece = tracks.track.copy()

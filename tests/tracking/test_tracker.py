@@ -233,6 +233,29 @@ def test_a_short_pieces_guessed_first_step_is_split_off():
     assert split_ambiguous_first_steps(tracks, params.replace(min_initial_length=2)).n_tracks == 4
 
 
+def test_a_short_pieces_first_step_with_a_rival_track_is_split_off():
+    """A two-point piece whose second point lies almost as near another point of the
+    first field (LEDs 7.6 mm apart on a golf club, both moving 9.7 mm a field, one hidden
+    in the second: the hidden one's point is the nearer, 7.8 mm) loses its first point,
+    however short the step, when the rival's track ended there (it found no point); one
+    whose rival is four times as far keeps it, as does one whose rival went on."""
+    xyz = np.array(
+        [
+            [0.0, 0.0, 0.0], [6.0, -5.0, 0.6], [-2.0, -5.0, -5.0],  # guessed
+            [1e3, 0.0, 0.0], [1006.0, -5.0, 0.6], [1e3, -30.0, 0.0],  # clear
+            [2e3, 0.0, 0.0], [2006.0, -5.0, 0.6], [1998.0, -5.0, -5.0], [1998.0, -5.0, -13.0],
+        ]
+    )  # fmt: skip
+    field = np.array([0, 1, 0, 0, 1, 0, 0, 1, 0, 1])
+    track = np.array([0, 0, 1, 2, 2, 3, 4, 4, 5, 5])
+    n = field.size
+    tracks = make_tracks(field, track, xyz, np.full((n, 3), np.nan), np.zeros(n), np.arange(n))
+    out = split_ambiguous_first_steps(tracks, TrackingParams())
+    assert out.track[out.point == 0][0] != out.track[out.point == 1][0]
+    assert out.track[out.point == 3][0] == out.track[out.point == 4][0]
+    assert out.track[out.point == 6][0] == out.track[out.point == 7][0]
+
+
 @pytest.mark.parametrize("jerk_mm", [0.0, 5.0])
 def test_continuation_tells_a_fast_marker_from_its_nearer_neighbour(jerk_mm):
     """Two markers of one fast limb 16 mm apart on a cubic path (third difference 6 *
