@@ -58,8 +58,7 @@ def carry(
     radius_mm : ``cluster_radius_mm`` (0: nothing is carried); least_mm : a miss this
     small is no miss (a few times the noise).
     """
-    keep = fresh[rows]
-    rows, cols = rows[keep], cols[keep]
+    rows, cols = _fresh_pairs(fresh, rows, cols)
     if radius_mm <= 0 or rows.size < 2:
         return False
     miss = points[cols] - pred[rows]
@@ -112,6 +111,13 @@ def _carried_far(
     return near.any(axis=1) & (np.linalg.norm(carried - pred, axis=1) > spacing)
 
 
+def _fresh_pairs(fresh: NDArray, rows: NDArray, cols: NDArray) -> tuple[NDArray, NDArray]:
+    """The pairs of the assignment ``rows`` -> ``cols`` whose track was seen last field:
+    only those have a last position a cluster's move is measured from."""
+    keep = fresh[rows]
+    return rows[keep], cols[keep]
+
+
 def _mean_move(near: NDArray, move: NDArray) -> NDArray:
     """Mean of ``move`` (K, 3) over each row's ``near`` (T, K) entries (0 where none)."""
     count = near.sum(axis=1, keepdims=True)
@@ -149,8 +155,7 @@ def broken(
     points; rows, cols : the assignment. radius_mm : ``cluster_radius_mm`` (0: nothing is
     judged); least_mm : a change this small is noise.
     """
-    keep = fresh[rows]
-    rows, cols = rows[keep], cols[keep]
+    rows, cols = _fresh_pairs(fresh, rows, cols)
     if radius_mm <= 0 or rows.size < 2:
         return rows[:0]
     last = history[rows, -1]
