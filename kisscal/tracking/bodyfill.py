@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -363,6 +364,11 @@ def pseudo_gaps(
     return [s for _, s in (ranked if every else ranked[:2])]
 
 
+#: Stretches of the motion a fill is tried on (:func:`expected_errors`), nearest the
+#: gap's phase first.
+SPREAD_STRETCHES = 6
+
+
 def expected_errors(
     method: FillMethod,
     target: NDArray,
@@ -373,19 +379,24 @@ def expected_errors(
     params: TrackingParams,
     centres: NDArray | None = None,
     donors: tuple[int, ...] = (),
+    spread: bool = False,
 ) -> tuple[float, float]:
     """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi), and
     the RMS of its error along the line of sight of each camera of ``centres`` (n, 3):
     what is left once a single camera's ray fixes the other two coordinates
     (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``); with one or two
-    ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`)."""
+    ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`):
+    the first two it can be made on, or with ``spread`` all of the first
+    :data:`SPREAD_STRETCHES` (its spread over that phase, not two samples of it)."""
     err, along = [], []
     spans = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, 1 <= len(donors) <= 2)
     sd = params.rigid_fill_sd_mm
-    for (plo, phi), turn in phase_matched(spans, target, dense, donors, (lo, hi), sd)[:6]:
+    tried = phase_matched(spans, target, dense, donors, (lo, hi), sd)[:SPREAD_STRETCHES]
+    for (plo, phi), turn in tried:
         cut = target.copy()
         cut[plo:phi] = np.nan
-        got = None if len(err) == 2 else method(cut, dense, exclude, plo, phi, params)
+        enough = len(err) == 2 and not spread
+        got = None if enough else method(cut, dense, exclude, plo, phi, params)
         if got is None:
             continue
         # a stretch shorter than the gap tells less: a fill's error grows about with the
@@ -421,6 +432,40 @@ class Candidate:
     along_sight_mm: float
 
 
+def _pattern_errors(
+    target: NDArray,
+    dense: NDArray,
+    t: int,
+    lo: int,
+    hi: int,
+    params: TrackingParams,
+    centres: NDArray | None,
+    donors: tuple[int, ...],
+) -> tuple[float, float]:
+    """A pattern fill's :func:`expected_errors` (whole, along the sight), measured
+    following the neighbour it follows (:func:`followed`) on every stretch of the first
+    :data:`SPREAD_STRETCHES` in the gap's phase. Its offset from that neighbour drifts
+    linearly across the gap; how far the true offset strays from a line over the gap's
+    length varies over the motion, which the two stretches nearest the gap's phase may
+    miss (lowcost seed 311: a thigh following the pelvis across 12 fields, 3.9 mm on
+    those two, 9.2 mm on six, 6.6 mm off; over every stretch of the trial, 9.4 mm, but
+    its heel following the ankle across 7 fields 6.9 there, 4.1 on six, 2.4 mm off)."""
+    src = followed(dense, t, donors)
+    return expected_errors(pattern_fill, target, src, t, lo, hi, params, centres, donors, True)
+
+
+def followed(dense: NDArray, t: int, donors: tuple[int, ...]) -> NDArray:
+    """``dense`` with only track ``t`` and its fill's ``donors`` kept (NaN elsewhere): a
+    pattern fill free to take any neighbour on the stretches beside the gap takes the
+    one that follows the marker there, which tells nothing of the one it followed
+    across the gap (lowcost seed 311: an ankle following the thigh expected 2.4 mm,
+    8.3 mm off; following the thigh on a stretch of the trial, 25 mm)."""
+    out = np.full_like(dense, np.nan)
+    keep = [t, *donors]
+    out[keep] = dense[keep]
+    return out
+
+
 def fill_candidates(
     dense: NDArray,
     t: int,
@@ -432,7 +477,8 @@ def fill_candidates(
 ) -> list[Candidate]:
     """Every fill of the gap [lo, hi) of track ``t`` that one of ``methods`` makes through
     donors that hold their shape in the gap (:func:`donors_hold`), with its
-    :func:`expected_errors` (along the sight of the cameras at ``centres`` too). Where
+    :func:`expected_errors` (along the sight of the cameras at ``centres`` too; a
+    pattern fill's following its one neighbour, :func:`_pattern_errors`). Where
     three donors or more do not hold and the misfit is one's (:func:`out_of_shape`), the
     method is made again without it (lowcost 312: a toe 5 mm off in an ankle's gap cost
     a 1.5 mm fill from the three others)."""
@@ -442,7 +488,8 @@ def fill_candidates(
         got, src = sound_fill(method, dense, t, lo, hi, params)
         if got is None:
             continue
-        err, along = expected_errors(method, target, src, t, lo, hi, params, centres, got[1])
+        measure = _pattern_errors if method is pattern_fill else partial(expected_errors, method)
+        err, along = measure(target, src, t, lo, hi, params, centres, got[1])
         out.append(Candidate(got[0], GapFill(t, lo, hi - lo, status, err, got[1]), along))
     return out
 

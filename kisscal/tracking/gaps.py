@@ -87,7 +87,9 @@ class _Gap:
     ``known`` (n_tracks, n_fields) bool: every track's measured samples (the second
     passes': the sphere fill counts a placed partner's error). ``expected`` (n_tracks,
     n_fields): the error of each track's known samples, NaN where none (the last
-    pass's, :mod:`.fill_unmerged`)."""
+    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks, n_fields): every sample's
+    expected error (0 measured, a fill's as it is made, :func:`_note`; NaN where none),
+    for the chain fill's placed partners."""
 
     dense: NDArray
     t: int
@@ -102,6 +104,7 @@ class _Gap:
     absent: NDArray | None = None
     known: NDArray | None = None
     expected: NDArray | None = None
+    errors: NDArray | None = None
 
 
 def _ray_placer(method: Callable, *extra: str) -> Callable:
@@ -202,7 +205,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
 #: is placed only at its track's end).
 FILLS: tuple[Fill, ...] = (
-    Fill("chain", _ray_placer(chain_fill), sweep=True, rays=True),
+    Fill("chain", _ray_placer(chain_fill, "end", "errors"), sweep=True, rays=True),
     Fill("joint", _ray_placer(joint_ray_fill, "absent"), sweep=True, rays=True),
     Fill("body", _body, strict="swept"),
     Fill("body where donors hold", held_body, long_run=True, strict="swept"),
@@ -217,7 +220,7 @@ FILLS: tuple[Fill, ...] = (
     Fill("end rays", _ray_placer(rays_end_fill, "end"), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
-    Fill("end chain", _ray_placer(chain_end_fill, "end"), ends=True),
+    Fill("end chain", _ray_placer(chain_end_fill, "end", "errors"), ends=True),
 )
 
 
@@ -260,6 +263,15 @@ def _left(a: int, placed: NDArray) -> list[tuple[int, int]]:
     return [(a + x, a + y) for x, y in zip(lo.tolist(), hi.tolist(), strict=True)]
 
 
+def _note(gap: _Gap, made: int) -> None:
+    """The expected error of the fills of ``gap.out`` from ``made`` on into
+    ``gap.errors`` (read only where a fill's fields are in ``gap.dense``)."""
+    for _, fill in gap.out[made:] if gap.errors is not None else ():
+        gap.errors[fill.track, fill.first_field : fill.first_field + fill.n_fields] = (
+            fill.expected_error_mm
+        )
+
+
 def _apply(
     gap: _Gap, fills: tuple[Fill, ...], runs: list[tuple[int, int]], split: bool = False
 ) -> None:
@@ -274,7 +286,9 @@ def _apply(
             got = [(a, b)]
             placed = False
         else:
+            made = len(gap.out)
             mask = head.fill(gap, a, b, head.params_for(gap))
+            _note(gap, made)
             got, placed = _left(a, mask), bool(mask.any())
             if head.sweep:
                 gap.swept[a - gap.lo : b - gap.lo] |= mask
@@ -293,14 +307,15 @@ def _fill_runs(
     spare: SpareBlobs | None,
     measured: NDArray,
     absent: NDArray | None,
+    errors: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """Each run (track, lo, hi, end) filled by :data:`FILLS` in turn; placed fields become
     context (in ``dense``) for the rest. ``measured``: every track's measured fields;
-    ``end`` and ``absent``: see :class:`_Gap`."""
+    ``end``, ``absent`` and ``errors``: see :class:`_Gap`."""
     out = []
     for t, lo, hi, end in runs:
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(hi - lo, bool), [])
-        gap.end, gap.absent = end, absent
+        gap.end, gap.absent, gap.errors = end, absent, errors
         _apply(gap, FILLS, [(lo, hi)])
         out += gap.out
     return out
@@ -315,6 +330,7 @@ def _second_pass(
     made: Iterable[tuple[NDArray, GapFill]],
     absent: NDArray | None = None,
     fills: tuple[Fill, ...] = SECOND_PASS,
+    errors: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`SECOND_PASS`, or after the
@@ -347,6 +363,7 @@ def _second_pass(
             run = (lo + a, lo + b)
             gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
             gap.absent, gap.known, gap.expected = absent, measured, expected
+            gap.errors = errors
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out
@@ -393,12 +410,13 @@ def fill_gaps_logged(
         for t in range(tracks.n_tracks)
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
-    made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent)
-    made += _second_pass(dense, gaps, params, spare, measured, made, absent)
+    errors = np.where(measured, 0.0, np.nan)
+    made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent, errors)
+    made += _second_pass(dense, gaps, params, spare, measured, made, absent, errors=errors)
     ends = track_ends(tracks, params, labels, unlabelled)
-    made += _fill_runs(dense, ends, params, spare, measured, absent)
+    made += _fill_runs(dense, ends, params, spare, measured, absent, errors)
     # what is left, again with the ends placed: a knee seen by one camera carries a tibia
-    made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS)
+    made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors)
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
         return tracks.with_track(tracks.track), ()

@@ -50,7 +50,7 @@ from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.fill_donors import unshared
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.rayfill import SpareBlobs, placed_errors
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
@@ -245,13 +245,22 @@ def ray_miss_mm(spare: SpareBlobs, rows: NDArray, xyz: NDArray) -> NDArray[np.fl
 
 
 def on_ray(
-    centre: NDArray, d: NDArray, partners: NDArray, length: NDArray, sd: NDArray, iters: int = 8
+    centre: NDArray,
+    d: NDArray,
+    partners: NDArray,
+    length: NDArray,
+    sd: NDArray,
+    iters: int = 8,
+    placed_mm: NDArray | None = None,
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Points of the ray ``centre + s d`` (unit ``d``) whose distances to ``partners``
     (m, 3) best match ``length`` (m,) weighed by ``1 / sd²``: from each place where the
     ray meets a partner's sphere (or passes nearest it), Gauss-Newton on all lengths.
     Returns the distinct points (p, 3), their largest length residual in SDs (p,) and
-    their expected error along the ray (p,) mm."""
+    their expected error along the ray (p,) mm: ``placed_mm`` (m,), each partner's own
+    expected error (0 when measured), adds to its length's SD there (not in the fit nor
+    the residual: a placed partner's error is the same over its run, and a looser SD
+    would let a biased one through)."""
     rel = partners - centre
     b = rel @ d
     root = np.sqrt(np.maximum(length**2 - (np.sum(rel**2, axis=1) - b**2), 0.0))
@@ -267,6 +276,8 @@ def on_ray(
             s = s - np.clip(step, -100.0, 100.0)
     order = np.argsort(s)
     keep = order[np.r_[True, np.diff(s[order]) > 1.0]]
+    if placed_mm is not None:
+        info = np.sum((jac * sd / np.hypot(sd, placed_mm)) ** 2, axis=1)
     return (
         centre + s[keep, None] * d,
         np.abs(res[keep]).max(axis=1),
@@ -359,11 +370,14 @@ def _candidates(
     ks: NDArray,
     rows: NDArray,
     spare: SpareBlobs,
+    placed_mm: NDArray,
 ) -> dict[int, list]:
     """Per gap field offset, the points (xyz, expected error, row) on the rays of
     ``rows`` whose lengths to the partners seen there agree within three SDs; of points
     closer than 20 mm (two cameras' rays of the marker), the one of smallest error; none
-    where two blobs' such points are farther apart than three combined expected errors."""
+    where two blobs' such points are farther apart than three combined expected errors.
+    ``placed_mm`` (n_partners, n_fields): each partner's own expected error per field
+    (:func:`on_ray`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     centres = spare.centres[cam]
@@ -372,7 +386,9 @@ def _candidates(
         seen = np.all(np.isfinite(dense[partners, lo + k]), axis=1)
         if not seen.any():
             continue
-        got = on_ray(centres[j], d[j], dense[partners[seen], lo + k], length[k, seen], sd[seen])
+        where = dense[partners[seen], lo + k]
+        own = placed_mm[seen, lo + k]
+        got = on_ray(centres[j], d[j], where, length[k, seen], sd[seen], placed_mm=own)
         ok = got[1] <= 3.0
         for x, e in zip(got[0][ok], got[2][ok], strict=True):
             cands.setdefault(k, []).append((x, e, int(rows[j])))
@@ -419,12 +435,17 @@ def chain_fill(
     spare: SpareBlobs,
     params: TrackingParams,
     end: int = 0,
+    errors: NDArray | None = None,
 ) -> ChainFill | None:
     """Place the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN
     where not measured) on the rays of its own unused blobs (see module); None when no
     field could be placed. With ``end`` (-1: the fields before the track's first
     sample, 1: after its last), the run is a track's end, walked from its measured
     side only (a knee seen by one camera after its second camera lost it for good).
+    With ``errors`` (n_tracks, n_fields: each sample's expected error, 0 where
+    measured, NaN where unknown), a partner another fill placed counts its fill's
+    error in the expected error
+    (:func:`~kisscal.tracking.rayfill.placed_errors`).
     The blobs taken are not marked used here."""
     target = dense[t]
     walk = _walk_sides(target, lo, hi, end)
@@ -438,7 +459,8 @@ def chain_fill(
     k2, r2 = _loose_rows(spare, lo, hi, ks)
     length = partner_lengths(dense, t, partners, lo, hi, params.body_context_fields)
     ks, rows = np.r_[ks, k2], np.r_[chained, r2]
-    cands = _candidates(dense, partners, sd, length, lo, ks, rows, spare)
+    own = placed_errors(dense, partners, errors, params)
+    cands = _candidates(dense, partners, sd, length, lo, ks, rows, spare, own)
     if not cands:
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}

@@ -167,3 +167,17 @@ def ray_correct(
     np.add.at(b, k, w_ray[:, None] * np.einsum("mij,mj->mi", across, centre))
     xyz = np.linalg.solve(m, b[:, :, None])[:, :, 0]
     return xyz, np.bincount(k, minlength=n), rows
+
+
+def placed_errors(
+    dense: NDArray, partners: NDArray, errors: NDArray | None, params: TrackingParams
+) -> NDArray[np.float64]:
+    """Each partner's own expected error per field (len(partners), n_fields): ``errors``'
+    (0 where measured), ``ray_rest_max_error_mm`` where it holds a sample of unknown
+    error; zeros without ``errors`` (every sample taken as measured). A chain fill on a
+    placed partner inherits its error (lowcost seed 311: a toe on an ankle placed 3.8 mm
+    off expecting 3.0 went 4.9 mm off expecting 2.1 as on a measured ankle)."""
+    if errors is None:
+        return np.zeros(dense.shape[:2])[partners]
+    err = errors[partners]
+    return np.where(np.isnan(err), params.ray_rest_max_error_mm, err)

@@ -1,0 +1,71 @@
+"""Fills expect the error of what they rest on (issue 27, lowcost seed 311), against
+truth: a chain fill on a partner another fill placed (kisscal.tracking.raychain), a
+pattern fill measured following the neighbour it follows (kisscal.tracking.bodyfill)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kisscal.tracking import TrackingParams
+from kisscal.tracking.bodyfill import fill_candidates
+from kisscal.tracking.raychain import chain_fill
+from kisscal.tracking.tracks import FILLED_PATTERN
+from tests.tracking.test_bodyfill import _tracks_of, rigid_body
+from tests.tracking.test_raychain import GAP, _dense, _spare
+
+PARAMS = TrackingParams()
+
+
+def _rms(a: np.ndarray, b: np.ndarray) -> float:
+    ok = np.all(np.isfinite(a), axis=1)
+    return float(np.sqrt(np.mean(np.sum((a[ok] - b[ok]) ** 2, axis=1))))
+
+
+def test_a_chain_fill_on_a_placed_partner_expects_its_error() -> None:
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {3: GAP, 1: GAP, 2: GAP}))
+    # marker 0, the one partner seen through the gap, placed there by another fill 4 mm
+    # off towards marker 3 (a length error the ray turns into depth), expecting 4 mm
+    toward = xyz[3, GAP] - xyz[0, GAP]
+    toward /= np.linalg.norm(toward, axis=1, keepdims=True)
+    dense[0, GAP] = xyz[0, GAP] + 4.0 * toward
+    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    errors[0, GAP] = 4.0
+    spare = _spare(xyz, 3)
+    plain = chain_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    got = chain_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS, 0, errors)
+    assert plain is not None
+    true = _rms(plain.xyz_mm, xyz[3, GAP])
+    assert true > 3.0  # the placed partner's error carried into the fill
+    claim = float(np.sqrt(np.nanmean(plain.sd_mm**2)))
+    assert true > 2.0 * claim  # as if measured: dishonest
+    # counting the partner's own error: honest, or nothing placed
+    if got is not None:
+        placed = np.isfinite(got.sd_mm)
+        assert _rms(got.xyz_mm[placed], xyz[3, GAP][placed]) <= 2.0 * np.max(got.sd_mm[placed])
+        assert np.nanmin(got.sd_mm) >= 4.0 * min(1.0, np.nanmin(plain.sd_mm))
+
+
+def _follower(n: int = 400) -> np.ndarray:
+    """Three markers at 100 Hz: a target walking and swinging (0); a neighbour that keeps
+    its offset from it (1); a farther one whose offset from it swings by 60 mm (2)."""
+    t = np.arange(n) / 100.0
+    walk = np.column_stack([1200.0 * t, 30.0 * np.sin(2.0 * t), 900.0 + 20.0 * np.sin(12.0 * t)])
+    swing = np.column_stack([60.0 * np.sin(6.0 * t), 0 * t, 40.0 * np.cos(6.0 * t)])
+    return np.stack([walk, walk + [50.0, 0.0, 0.0], walk + [0.0, 200.0, 0.0] + swing])
+
+
+def test_a_pattern_fill_is_measured_following_the_neighbour_it_follows() -> None:
+    xyz = _follower()
+    rng = np.random.default_rng(2)
+    dense = xyz + rng.normal(0.0, 0.2, xyz.shape)
+    lo, hi = 200, 230
+    dense[0, lo:hi] = np.nan
+    dense[1, lo - 3 : hi + 3] = np.nan  # the neighbour that follows it is hidden too
+    cands = [
+        c for c in fill_candidates(dense, 0, lo, hi, PARAMS) if c.fill.status == FILLED_PATTERN
+    ]
+    assert len(cands) == 1 and cands[0].fill.donors == (2,)
+    true = _rms(cands[0].xyz_mm, xyz[0, lo:hi])
+    assert true > 5.0  # the swinging neighbour's offset strays from a line
+    assert true <= 2.0 * cands[0].fill.expected_error_mm
