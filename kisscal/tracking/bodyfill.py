@@ -442,16 +442,16 @@ def _pattern_errors(
     centres: NDArray | None,
     donors: tuple[int, ...],
 ) -> tuple[float, float]:
-    """A pattern fill's :func:`expected_errors` (whole, along the sight), measured
-    following the neighbour it follows (:func:`followed`) on every stretch of the first
-    :data:`SPREAD_STRETCHES` in the gap's phase. Its offset from that neighbour drifts
-    linearly across the gap; how far the true offset strays from a line over the gap's
-    length varies over the motion, which the two stretches nearest the gap's phase may
-    miss (lowcost seed 311: a thigh following the pelvis across 12 fields, 3.9 mm on
-    those two, 9.2 mm on six, 6.6 mm off; over every stretch of the trial, 9.4 mm, but
-    its heel following the ankle across 7 fields 6.9 there, 4.1 on six, 2.4 mm off)."""
+    """A pattern fill's :func:`expected_errors` (whole, along the sight) following its
+    neighbour (:func:`followed`): on the two stretches nearest the gap's phase, or on
+    all of the first :data:`SPREAD_STRETCHES` where more. Two may miss how far the
+    offset strays from a line over the motion (lowcost seed 311: a thigh following the
+    pelvis, 3.9 mm on two, 9.2 on six, 6.6 mm off), six may dilute it (modern 3 seed
+    301: a knee following the thigh, 3.7 on two, 2.9 on six, 3.4 mm off)."""
     src = followed(dense, t, donors)
-    return expected_errors(pattern_fill, target, src, t, lo, hi, params, centres, donors, True)
+    near = expected_errors(pattern_fill, target, src, t, lo, hi, params, centres, donors)
+    phase = expected_errors(pattern_fill, target, src, t, lo, hi, params, centres, donors, True)
+    return float(np.fmax(near[0], phase[0])), float(np.fmax(near[1], phase[1]))
 
 
 def followed(dense: NDArray, t: int, donors: tuple[int, ...]) -> NDArray:
