@@ -1,6 +1,7 @@
 """Fills expect the error of what they rest on (issue 27, lowcost seed 311), against
 truth: a chain fill on a partner another fill placed (kisscal.tracking.raychain), a
-pattern fill measured following the neighbour it follows (kisscal.tracking.bodyfill)."""
+pattern fill measured following the neighbour it follows (kisscal.tracking.bodyfill),
+a depth fill's spline through noisy samples beside its gap (kisscal.tracking.fill_depth)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,16 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import fill_candidates
+from kisscal.tracking.fill_depth import (
+    _depth_spline,
+    context_noise,
+    depth_error,
+    depth_ray_fill,
+)
 from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.tracks import FILLED_PATTERN
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
-from tests.tracking.test_raychain import GAP, _dense, _spare
+from tests.tracking.test_raychain import GAP, _dense, _segment_on_rays, _spare
 
 PARAMS = TrackingParams()
 
@@ -70,3 +77,22 @@ def test_a_pattern_fill_is_measured_following_the_neighbour_it_follows() -> None
     true = _rms(cands[0].xyz_mm, xyz[0, lo:hi])
     assert true > 5.0  # the swinging neighbour's offset strays from a line
     assert true <= 2.0 * cands[0].fill.expected_error_mm
+
+
+def test_a_depth_fill_beside_noisy_samples_expects_what_their_noise_carries() -> None:
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    gap = slice(100, 116)
+    dense = _dense(_tracks_of(xyz, {1: gap, 2: gap, 3: gap}))
+    # the six samples each side of the gap 1.5 mm noisy (seen by two cameras there), the
+    # rest of the trial's 0.2 mm: the stretches the spline is tried on do not show it
+    rng = np.random.default_rng(7)
+    for side in (slice(gap.start - 6, gap.start), slice(gap.stop, gap.stop + 6)):
+        dense[3, side] += rng.normal(0.0, 1.5, (6, 3))
+    spare = _segment_on_rays(xyz, 7, (3,))
+    centre = spare.centres[0]
+    spline = _depth_spline(dense[3], centre, gap.start, gap.stop, PARAMS.fill_context_fields)
+    true = np.sqrt(np.mean((spline - np.linalg.norm(xyz[3, gap] - centre, axis=1)) ** 2))
+    assert true > 2.0 * depth_error(dense[3], centre, gap.start, gap.stop, PARAMS)
+    # their noise carried into the gap is more than the depth fill may expect: refused
+    assert context_noise(dense[3], centre, gap.start, gap.stop, 6) > true / 2.0
+    assert depth_ray_fill(dense, 3, gap.start, gap.stop, spare, PARAMS) is None
