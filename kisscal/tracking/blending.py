@@ -134,6 +134,43 @@ def _nearer_at_ends(
     return out, np.concatenate(joins), np.concatenate(rivals), np.concatenate(sides)
 
 
+def _unresolved_ends(
+    tracks: Tracks,
+    a: NDArray,
+    b: NDArray,
+    guesses: tuple[NDArray, NDArray],
+    ends: tuple[NDArray, ...],
+    floor_mm: float,
+) -> NDArray[np.bool_]:
+    """Which joins ``a[i]`` -> ``b[i]`` neither extrapolation resolves: at both ends, the
+    extrapolation across the gap (``guesses``: forward into the later piece's first field,
+    backward into the earlier piece's last) misses the other piece's sample there by more
+    than ``floor_mm`` (the continuity tolerance: a miss within the noise says nothing of
+    the motion) and by more than that sample lies from another piece's sample.
+
+    A prediction tells two samples apart only when its error is smaller than their
+    spacing; beyond it, which one it meets nearer is chance, and a cubic through both
+    pieces fits either (Phoenix LEDs 18 mm apart on a golf club moving 130 mm a field,
+    lost for one field: the extrapolations missed the other LED's piece by 28 and 23 mm,
+    the LED's own samples lay 31 and 41 mm from them). Such a join is a guess at both
+    ends: refused, the gap left (``ends`` as
+    :func:`~kisscal.tracking.blending_chains.chain_costs`).
+    """
+    m = np.flatnonzero(tracks.status == MEASURED)
+    out = np.ones(a.size, dtype=bool)
+    for at, guess, own, mine in (
+        (ends[4][b], guesses[0], ends[5][b, -1], b),
+        (ends[0][a], guesses[1], ends[1][a, -1], a),
+    ):
+        miss = np.linalg.norm(own - guess, axis=1)
+        q, rows = in_fields(tracks, m, at)
+        spacing = np.linalg.norm(tracks.xyz_mm[rows] - own[q], axis=1)
+        close = np.zeros(a.size, dtype=bool)
+        close[q[(tracks.track[rows] != mine[q]) & (spacing < miss[q])]] = True
+        out &= close & (miss > floor_mm)
+    return out
+
+
 def _settle_contests(
     n_tracks: int,
     a: NDArray,
@@ -323,13 +360,14 @@ def blend_pairs(
     near = (miss_f <= reach) & (miss_b <= reach)
     a, b = a[near], b[near]
     refused, contest, rival, later = _nearer_at_ends(tracks, a, b, forward[near], backward[near])
+    if noise_mm is None:
+        noise_mm = smoothness_mm(tracks)
+    tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
+    refused |= _unresolved_ends(tracks, a, b, (forward[near], backward[near]), ends, tolerance)
     k = params.blend_points
     residual = np.array(
         [bridge_residual_mm(*join_ends(ends, i, j, k)) for i, j in zip(a, b, strict=True)]
     )
-    if noise_mm is None:
-        noise_mm = smoothness_mm(tracks)
-    tolerance = max(params.blend_tolerance_mm, params.blend_noise_factor * noise_mm)
     ok = (residual <= tolerance) & ~refused if residual.size else np.zeros(0, bool)
     floor = max(noise_mm, tolerance / params.blend_rougher)
     smooth = _smooth_as_pieces(tracks, a[ok], b[ok], floor, params)

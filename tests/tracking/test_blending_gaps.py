@@ -261,3 +261,37 @@ def test_blending_still_joins_across_one_sample_pieces_that_continue_the_path():
     out = blend_tracks(_tracks([(f, x) for f, x, _ in pieces]), TrackingParams())
     # each marker's pieces, the one-sample ones in the gap too, make one track
     assert out.n_tracks == 2 and max(_markers_per_track(pieces, out)) == 1
+
+
+def _swing(f, jerk: float, lead: float = 0.0):
+    """A club head at 130 mm a field whose speed peaks at field 10 (``jerk`` mm/field³); a
+    second LED ``lead`` fields ahead on the same path (0.14: 18.5 mm)."""
+    t = np.asarray(f, dtype=float) + lead
+    x = 130.0 * t - jerk * (t - 10.0) ** 3 / 6.0
+    return np.stack([x, 0.3 * x, 500.0 + 0.0 * t], axis=1)
+
+
+def test_a_join_neither_extrapolation_tells_from_a_neighbour_is_refused():
+    """Two LEDs 18.5 mm apart along a club's path: the first is tracked at 0-9, then seen
+    only as one-sample pieces; the second is seen as one-sample pieces up to 10 and tracked
+    from 11 (or, the other way round, the first LED is tracked again from 11). One cubic
+    takes the first piece on to either LED's later piece. At jerk 6 the extrapolations
+    across the gap miss by more (34 mm) than the LEDs are apart, at both ends: which LED
+    they meet nearer is chance, and no join is made (one was, to the second LED). At jerk 1
+    they tell the LEDs apart: the first LED's own later piece is joined, the other's not."""
+    first, later = np.arange(0, 10), np.arange(11, 25)
+    for jerk in (1.0, 6.0):
+        for same_led in (True, False):
+            ahead = {True: (0.0, 0.14), False: (0.14, 0.0)}[same_led]
+            pieces = [(first, _swing(first, jerk)), (later, _swing(later, jerk, ahead[0]))]
+            # the LED not tracked after the gap, seen alone; the second LED before it
+            pieces += [(np.array([g]), _swing([g], jerk, ahead[1])) for g in range(10, 25)]
+            pieces += [(np.array([g]), _swing([g], jerk, 0.14)) for g in range(0, 10)]
+            if not same_led:
+                pieces.append((np.array([10]), _swing([10], jerk, 0.14)))
+            out = blend_tracks(_tracks(pieces), TrackingParams())
+            start = out.track[
+                (out.field == 0) & (np.abs(out.xyz_mm[:, 0] - _swing([0], jerk)[0, 0]) < 1e-6)
+            ]
+            joined = np.isin(later, out.field[out.track == start[0]]).all()
+            assert joined == (same_led and jerk == 1.0), (jerk, same_led)
