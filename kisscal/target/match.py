@@ -44,12 +44,12 @@ from kisscal.dlt.params import DltParams
 from kisscal.errors import EstimationFailed
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
 from kisscal.target.resect import (
-    MIN_OFF_CENTRE_POINTS,
     NEAR_FLAT,
     OFF_CENTRE_TERMS,
     CameraFit,
     choose_camera,
     off_centre,
+    off_centre_hint,
     refine,
     resect,
 )
@@ -186,7 +186,9 @@ def seed_models(
             )
         starts = [_Start(c.project, c, rms_px(c.project(seeds_xyz) - seeds_uv)) for c in cams]
         if starts[0].seed_rms_px > params.seed_tol_px:  # a narrow view off the image centre?
-            starts = _off_centre_starts(seeds_xyz, seeds_uv, size_px) or starts
+            off = off_centre(seeds_xyz, seeds_uv, size_px)
+            fits = [(c, rms_px(c.project(seeds_xyz) - seeds_uv)) for c in off]
+            starts = [_Start(c.project, c, r, OFF_CENTRE_TERMS) for c, r in fits] or starts
     err = np.linalg.norm(starts[0].project(seeds_xyz) - seeds_uv, axis=1)
     if starts[0].seed_rms_px > params.seed_tol_px:
         worst = int(np.argmax(err))
@@ -194,30 +196,9 @@ def seed_models(
             f"{where}the {len(seeds_uv)} seeds contradict each other: no camera puts them "
             f"where they were clicked (rms {starts[0].seed_rms_px:.1f} px; seed row "
             f"{worst + 2} is off by {err[worst]:.1f} px); check each click is on the point "
-            f"its x_mm,y_mm,z_mm name{_off_centre_hint(len(seeds_uv))}"
+            f"its x_mm,y_mm,z_mm name{off_centre_hint(len(seeds_uv))}"
         )
     return [s for s in starts if s.seed_rms_px <= params.seed_tol_px][:_MAX_CANDIDATES]
-
-
-def _off_centre_starts(
-    seeds_xyz: NDArray[np.float64], seeds_uv: NDArray[np.float64], size_px: tuple[int, int]
-) -> list[_Start]:
-    """Starts with the principal point and pixel aspect free (:func:`off_centre`)."""
-    cams = off_centre(seeds_xyz, seeds_uv, size_px)
-    return [
-        _Start(c.project, c, rms_px(c.project(seeds_xyz) - seeds_uv), OFF_CENTRE_TERMS)
-        for c in cams
-    ]
-
-
-def _off_centre_hint(n_seeds: int) -> str:
-    """What else may make good seeds fit no centred camera, when more seeds would tell."""
-    if n_seeds >= MIN_OFF_CENTRE_POINTS:
-        return ""
-    return (
-        f", or the view is narrow and its centre far off the image's (a split or cropped "
-        f"image): then click {MIN_OFF_CENTRE_POINTS} seeds or more, not all in one plane"
-    )
 
 
 def _homography(xyz: NDArray[np.float64], uv: NDArray[np.float64], camera: str) -> Projector:

@@ -326,6 +326,16 @@ def off_centre(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) ->
     return sorted(found, key=lambda cam: rms_px(cam.project(xyz) - uv))
 
 
+def off_centre_hint(n_seeds: int) -> str:
+    """What else may make good seeds fit no centred camera, when more seeds would tell."""
+    if n_seeds >= MIN_OFF_CENTRE_POINTS:
+        return ""
+    return (
+        f", or the view is narrow and its centre far off the image's (a split or cropped "
+        f"image): then click {MIN_OFF_CENTRE_POINTS} seeds or more, not all in one plane"
+    )
+
+
 def _dlt_principal_point(xyz: NDArray[np.float64], uv: NDArray[np.float64]) -> NDArray | None:
     """The principal point (px) of the points' 11-term DLT, or None when degenerate."""
     h = np.column_stack([xyz, np.ones(len(xyz))])
