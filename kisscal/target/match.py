@@ -16,7 +16,10 @@ and match once more, which brings in the image corners where a pinhole is a few 
 off.
 
 Four seeds are the least: the pinhole camera of a resection is 7 numbers (focal length,
-rotation, position) and each seed gives two.
+rotation, position) and each seed gives two. A narrow view whose centre lies far off the
+image's (a split or cropped image) fits no centred camera; from six seeds on, its
+principal point and pixel aspect are freed from the start
+(:func:`kisscal.target.resect.off_centre`).
 
 References
 ----------
