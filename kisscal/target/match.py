@@ -16,7 +16,10 @@ and match once more, which brings in the image corners where a pinhole is a few 
 off.
 
 Four seeds are the least: the pinhole camera of a resection is 7 numbers (focal length,
-rotation, position) and each seed gives two.
+rotation, position) and each seed gives two. A narrow view whose centre lies far off the
+image's (a split or cropped image) fits no centred camera; from six seeds on, its
+principal point and pixel aspect are freed from the start
+(:func:`kisscal.target.resect.off_centre`).
 
 References
 ----------
@@ -43,7 +46,16 @@ from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
 from kisscal.dlt.params import DltParams
 from kisscal.errors import EstimationFailed
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
-from kisscal.target.resect import NEAR_FLAT, CameraFit, choose_camera, refine, resect
+from kisscal.target.resect import (
+    NEAR_FLAT,
+    OFF_CENTRE_TERMS,
+    CameraFit,
+    choose_camera,
+    off_centre,
+    off_centre_hint,
+    refine,
+    resect,
+)
 
 Projector = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -137,6 +149,7 @@ class _Start:
     project: Projector
     camera: Camera | None
     seed_rms_px: float
+    terms: tuple[str, ...] = ()  # free beyond the pinhole from the start (off-centre view)
 
 
 def seed_models(
@@ -175,6 +188,10 @@ def seed_models(
                 "check each click is on the point its x_mm,y_mm,z_mm name"
             )
         starts = [_Start(c.project, c, rms_px(c.project(seeds_xyz) - seeds_uv)) for c in cams]
+        if starts[0].seed_rms_px > params.seed_tol_px:  # a narrow view off the image centre?
+            off = off_centre(seeds_xyz, seeds_uv, size_px)
+            fits = [(c, rms_px(c.project(seeds_xyz) - seeds_uv)) for c in off]
+            starts = [_Start(c.project, c, r, OFF_CENTRE_TERMS) for c, r in fits] or starts
     err = np.linalg.norm(starts[0].project(seeds_xyz) - seeds_uv, axis=1)
     if starts[0].seed_rms_px > params.seed_tol_px:
         worst = int(np.argmax(err))
@@ -182,7 +199,7 @@ def seed_models(
             f"{where}the {len(seeds_uv)} seeds contradict each other: no camera puts them "
             f"where they were clicked (rms {starts[0].seed_rms_px:.1f} px; seed row "
             f"{worst + 2} is off by {err[worst]:.1f} px); check each click is on the point "
-            "its x_mm,y_mm,z_mm name"
+            f"its x_mm,y_mm,z_mm name{off_centre_hint(len(seeds_uv))}"
         )
     return [s for s in starts if s.seed_rms_px <= params.seed_tol_px][:_MAX_CANDIDATES]
 
@@ -316,7 +333,7 @@ def match_target(
             f"camera {camera}: only {int(m.sum())} target points matched a dot from the "
             f"seeds; {_why_few(seeds_xyz, starts, size_px)}"
         )
-    fit, final = _lens_rounds(target, dots, dot, size_px, cam, params, dlt)
+    fit, final = _lens_rounds(target, dots, dot, size_px, cam, params, dlt, starts[best].terms)
     projected = fit.camera.project(target)
     visible = _inside(projected, size_px)
     seen = visible & _dot_near(projected, dots, params)
@@ -370,7 +387,7 @@ def _rounds(
         if cam is None:
             proj = _homography(target[m], dots[dot[m]], camera)
         else:
-            cam = refine(target[m], dots[dot[m]], cam, size_px)
+            cam = refine(target[m], dots[dot[m]], cam, size_px, start.terms)
             proj = cam.project
     return dot, iterations, cam
 
@@ -409,17 +426,19 @@ def _lens_rounds(
     cam: Camera | None,
     params: TargetParams,
     dlt: DltParams,
+    terms: tuple[str, ...] = (),
 ) -> tuple[CameraFit, NDArray[np.int64]]:
     """The camera model the matches ask for, matched again with it until the matches
     settle (at most ``max_iterations`` rounds), outliers dropped each round; the model is
-    chosen again on the settled matches when they changed."""
+    chosen again on the settled matches when they changed. ``terms``: those the start
+    already frees (an off-centre view's), kept in every model."""
     m = dot >= 0
     planar = is_planar(target, dlt)
-    start = refine(target[m], dots[dot[m]], cam, size_px) if cam is not None else None
+    start = refine(target[m], dots[dot[m]], cam, size_px, terms) if cam is not None else None
     start = start or _resected(target[m], dots[dot[m]], size_px)
     dot = drop_outliers(start.project(target), dots, dot, params)
     m = dot >= 0
-    fit = choose_camera(target[m], dots[dot[m]], size_px, start, planar, params)
+    fit = choose_camera(target[m], dots[dot[m]], size_px, start, planar, params, terms)
     chosen_on = dot
     camera = fit.camera
     for _ in range(params.max_iterations):
@@ -433,7 +452,7 @@ def _lens_rounds(
         camera = refine(target[m], dots[dot[m]], camera, size_px, fit.terms)
     if not np.array_equal(dot, chosen_on):  # the model is chosen again on the final matches
         m = dot >= 0
-        return choose_camera(target[m], dots[dot[m]], size_px, camera, planar, params), dot
+        return choose_camera(target[m], dots[dot[m]], size_px, camera, planar, params, terms), dot
     return CameraFit(camera, fit.terms, fit.held_out_px), dot
 
 

@@ -29,6 +29,8 @@ Brown, D. C. (1971). Close-range camera calibration. Photogramm. Eng. 37(8).
 Allen, D. M. (1974). The relationship between variable selection and data augmentation
 and a method for prediction. Technometrics 16(1).
 Zhang, Z. (2000). A flexible new technique for camera calibration. IEEE PAMI 22(11).
+Abdel-Aziz, Y. I., & Karara, H. M. (1971). Direct linear transformation from comparator
+coordinates into object space coordinates in close-range photogrammetry.
 
 Example
 -------
@@ -73,6 +75,11 @@ _FOCAL_LADDER = np.geomspace(0.3, 30.0, 21)
 NEAR_FLAT = 0.1
 #: Starts refined by least squares, best seed fit first.
 _REFINED_STARTS = 8
+#: Terms an off-centre view's first camera frees (:func:`off_centre`).
+OFF_CENTRE_TERMS = ("principal_point", "aspect")
+#: Least points for :func:`off_centre`: a DLT's 11 numbers need 6 (12 equations), which
+#: also leave 3 to check the 9 numbers of the camera.
+MIN_OFF_CENTRE_POINTS = 6
 
 
 @dataclass(frozen=True)
@@ -278,22 +285,91 @@ def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> lis
     """
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
-    centre = centre_px(size_px)
+    found: list[tuple[float, Camera]] = []
+    for start in _ladder_starts(xyz, uv, size_px, centre_px(size_px)):
+        cam = refine(xyz, uv, start, size_px)
+        if in_front(cam, xyz) and not any(_same(cam, other) for _, other in found):
+            found.append((rms_px(cam.project(xyz) - uv), cam))
+    return [cam for _, cam in sorted(found, key=lambda s: s[0])]
+
+
+def off_centre(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> list[Camera]:
+    """Cameras with their principal point and pixel aspect free (:data:`OFF_CENTRE_TERMS`)
+    that fit points a centred pinhole does not, best first: a narrow view of a split or
+    cropped sensor, whose optical axis meets the image far from its centre.
+
+    The principal point of the points' 11-term DLT (Abdel-Aziz & Karara 1971; its matrix
+    split into ``K R`` by an RQ decomposition, Hartley & Zisserman 2004, 6.2.4) is held
+    while OpenCV's poses are found over the focal ladder, as :func:`resect` does at the
+    image centre, and the best are refined (:func:`refine`). A narrow view leaves the
+    principal point and the direction nearly interchangeable, so that a start at the
+    image centre does not reach it, and the DLT's own focal length and skew are loose.
+
+    Parameters
+    ----------
+    xyz_mm : array_like, shape (n, 3)
+        Object points, n >= :data:`MIN_OFF_CENTRE_POINTS`, not in one plane (else the
+        list is empty).
+    uv_px : array_like, shape (n, 2)
+    size_px : (int, int)
+    """
+    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    if len(xyz) < MIN_OFF_CENTRE_POINTS or spread_ratio(xyz) < NEAR_FLAT:
+        return []
+    principal = _dlt_principal_point(xyz, uv)
+    if principal is None:
+        return []
+    starts = _ladder_starts(xyz, uv, size_px, principal)
+    found = [refine(xyz, uv, cam, size_px, OFF_CENTRE_TERMS) for cam in starts]
+    found = [cam for cam in found if in_front(cam, xyz)]
+    return sorted(found, key=lambda cam: rms_px(cam.project(xyz) - uv))
+
+
+def off_centre_hint(n_seeds: int) -> str:
+    """What else may make good seeds fit no centred camera, when more seeds would tell."""
+    if n_seeds >= MIN_OFF_CENTRE_POINTS:
+        return ""
+    return (
+        f", or the view is narrow and its centre far off the image's (a split or cropped "
+        f"image): then click {MIN_OFF_CENTRE_POINTS} seeds or more, not all in one plane"
+    )
+
+
+def _dlt_principal_point(xyz: NDArray[np.float64], uv: NDArray[np.float64]) -> NDArray | None:
+    """The principal point (px) of the points' 11-term DLT, or None when degenerate."""
+    h = np.column_stack([xyz, np.ones(len(xyz))])
+    A = np.zeros((2 * len(xyz), 12))
+    A[0::2, 0:4] = h
+    A[0::2, 8:] = -uv[:, :1] * h
+    A[1::2, 4:8] = h
+    A[1::2, 8:] = -uv[:, 1:] * h
+    M = np.linalg.svd(A)[2][-1].reshape(3, 4)[:, :3]
+    # M = K R: K's last column is M's rows' products with its third row over its norm
+    m3 = float(M[2] @ M[2])
+    if not (np.isfinite(m3) and m3 > 0):
+        return None
+    return np.array([M[0] @ M[2], M[1] @ M[2]]) / m3
+
+
+def _ladder_starts(
+    xyz: NDArray[np.float64],
+    uv: NDArray[np.float64],
+    size_px: tuple[int, int],
+    principal_px: NDArray[np.float64],
+) -> list[Camera]:
+    """The best :data:`_REFINED_STARTS` poses OpenCV finds over the focal ladder for a
+    square-pixel camera with this principal point, best seed fit first."""
     near_flat = spread_ratio(xyz) < NEAR_FLAT
     starts = []
     for f in _FOCAL_LADDER * float(np.hypot(*size_px)):
-        K = np.array([[f, 0.0, centre[0]], [0.0, f, centre[1]], [0.0, 0.0, 1.0]])
+        K = np.array([[f, 0.0, principal_px[0]], [0.0, f, principal_px[1]], [0.0, 0.0, 1.0]])
         for rvec, tvec in _pnp(xyz, uv, K, near_flat):
             cam = Camera(K, cv2.Rodrigues(rvec)[0], tvec, np.zeros(len(LENS_TERMS)))
             if in_front(cam, xyz):
                 starts.append((rms_px(cam.project(xyz) - uv), cam))
     starts.sort(key=lambda s: s[0])
-    found: list[tuple[float, Camera]] = []
-    for _, start in starts[:_REFINED_STARTS]:
-        cam = refine(xyz, uv, start, size_px)
-        if in_front(cam, xyz) and not any(_same(cam, other) for _, other in found):
-            found.append((rms_px(cam.project(xyz) - uv), cam))
-    return [cam for _, cam in sorted(found, key=lambda s: s[0])]
+    return [cam for _, cam in starts[:_REFINED_STARTS]]
 
 
 def _same(a: Camera, b: Camera) -> bool:
@@ -358,6 +434,7 @@ def choose_camera(
     start: Camera,
     planar: bool,
     params: TargetParams = DEFAULT_PARAMS,
+    kept: tuple[str, ...] = (),
 ) -> CameraFit:
     """The pinhole camera plus the terms that lower the held-out reprojection error.
 
@@ -366,17 +443,17 @@ def choose_camera(
     (:func:`held_out_rms`) is lowest, when it is lower by at least the fraction
     ``params.min_gain``; a term's worth can show only once another is in (a principal
     point hides behind an unmodelled lens), so every step tries them all again. Models
-    need at least twice as many points as unknowns.
+    need at least twice as many points as unknowns. ``kept``: terms the start already
+    needed (an off-centre view's, :func:`off_centre`), kept free from the first fit.
     """
     xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
     uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
-    kept: tuple[str, ...] = ()
     best = refine(xyz, uv, start, size_px, kept)
     table: dict[str, float] = {}
     if len(xyz) < 2 * n_unknowns(kept):
         return CameraFit(best, kept, table)
     score = table[model_name(kept)] = held_out_rms(xyz, uv, best, kept)
-    left = list(candidate_terms(params, planar))
+    left = [term for term in candidate_terms(params, planar) if term not in kept]
     while left:
         tried = []
         for term in left:

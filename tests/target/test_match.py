@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kisscal.camera import Camera
 from kisscal.dlt import DltParams
 from kisscal.errors import KisscalError
 from kisscal.synth.target import render_target, seed_points, target_points, target_rig
@@ -73,3 +74,40 @@ def test_the_sessions_dlt_limit_tells_a_flat_target() -> None:
     flat = DltParams(min_spread_ratio=0.1)
     with pytest.raises(KisscalError, match="seeds contradict each other"):
         match_target(xyz, uv, picked, dots, cam.size_px, cam.id, dlt=flat)
+
+
+def _split_view(seed: int, zoom: float, turn_deg: float, xyz: np.ndarray) -> Camera:
+    """One quarter of a splitter's image: the rig's camera zoomed ``zoom`` times (a
+    narrow view), turned ``turn_deg`` away from the target and its window moved to where
+    the target's image fell, so that the optical axis meets the image plane outside it."""
+    cam = target_rig(seed)[1]
+    a = np.radians(turn_deg)
+    turn = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    K = cam.K.copy()
+    K[:2, :2] *= zoom
+    turned = Camera(K, turn @ cam.R, turn @ cam.t, np.zeros_like(cam.lens), cam.id, cam.size_px)
+    middle = np.median(turned.project(xyz), axis=0)
+    K[:2, 2] -= middle - (np.array(cam.size_px) - 1) / 2
+    return Camera(K, turned.R, turned.t, turned.lens, cam.id, cam.size_px)
+
+
+def test_a_narrow_view_off_the_image_centre_is_matched_from_six_seeds() -> None:
+    """A split or cropped image (OpenPTV's splitter): a pinhole centred on the image does
+    not fit the seeds (they were refused as contradicting), one with its principal point
+    free does. A target of three depth levels (alternate columns 100 mm apart)."""
+    x, z = np.meshgrid(np.arange(-200.0, 201.0, 40.0), np.arange(300.0, 701.0, 40.0))
+    xyz = np.column_stack([x.ravel(), 100.0 * (np.rint(x.ravel() / 40) % 3), z.ravel()])
+    cam = _split_view(3, 3.0, 20.0, xyz)
+    assert not cam.in_image(cam.K[:2, 2][None], 0.0)[0]  # the axis meets the plane outside
+    rng = np.random.default_rng(3)
+    truth = cam.project(xyz)
+    seen = cam.in_image(truth, 10.0)
+    dots = truth[seen] + rng.normal(0.0, 0.1, (int(seen.sum()), 2))
+    picked = np.flatnonzero(seen)[[0, 5, 40, 61, 88, -1]]
+    uv = truth[picked] + rng.normal(0.0, 0.3, (6, 2))
+    m = match_target(xyz, uv, xyz[picked], dots, cam.size_px, cam.id)
+    right = np.flatnonzero(seen)
+    assert m.matched.sum() >= 0.98 * seen.sum() > 60
+    assert np.array_equal(right[m.dot[m.matched]], np.flatnonzero(m.matched))  # none wrong
+    assert m.rms_px < 0.3
+    assert "principal_point" in m.terms
