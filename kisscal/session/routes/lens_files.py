@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.camera import LENS_TERMS, Camera, camera_linearisation
-from kisscal.dlt import DltParams, DltResult, correct_lens, decompose_dlt, project, solve_dlt
+from kisscal.dlt import DltParams, correct_lens, project, solve_dlt
+from kisscal.dlt.calibrate import dlt_result
 from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
@@ -113,19 +114,6 @@ def write_lens_camera(
             lin_path, cfg, camera, route, before, grid_doc, points, inputs.params.dlt
         )
     res = correct_lens(L, kolahi, written) - project(L, xyz)
-    K, R, centre = decompose_dlt(L)
-    result = DltResult(
-        L=L,
-        method=route,
-        lens=kolahi,
-        residuals_px=res,
-        rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
-        constraint_linear=hatze_violation(camera.dlt),
-        constraint=hatze_violation(L),
-        K=K,
-        R=R,
-        centre_mm=centre,
-        iterations=iterations,
-    )
+    result = dlt_result(L, route, kolahi, res, hatze_violation(camera.dlt), iterations)
     write_dlt_json(inputs.store.dlt_path(cfg.id), cfg.id, result, xyz, written, labels, extra)
     return fit_max

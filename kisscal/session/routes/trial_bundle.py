@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import rms_px
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.points import POINT, TrialPoints, calibrate_on_points
 from kisscal.bundle.quality import leave_control_out
@@ -25,12 +24,11 @@ from kisscal.camera import Camera
 from kisscal.dlt import (
     calibrate_rods,
     correct_lens,
-    decompose_dlt,
-    hatze_violation,
     make_rods,
     reprojection_residuals,
     triangulate_dlt,
 )
+from kisscal.dlt.calibrate import dlt_result
 from kisscal.dlt.params import DltResult, Rod, RodCheck
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import EstimationFailed, InputError, KisscalError
@@ -247,19 +245,7 @@ def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
     L, lens = camera.dlt, camera.kolahi
     xyz, uv = rods_alone.control_xyz_mm[cam], rods_alone.control_uv_px[cam]
     residuals = reprojection_residuals(L, xyz, correct_lens(L, lens, uv))
-    K, R, centre = decompose_dlt(L)
-    return DltResult(
-        L=L,
-        method="refined",
-        lens=lens,
-        residuals_px=residuals,
-        rms_px=rms_px(residuals),
-        constraint_linear=rods_alone.results[cam].constraint_linear,
-        constraint=hatze_violation(L),
-        K=K,
-        R=R,
-        centre_mm=centre,
-    )
+    return dlt_result(L, "refined", lens, residuals, rods_alone.results[cam].constraint_linear)
 
 
 def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
