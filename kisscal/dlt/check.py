@@ -95,18 +95,7 @@ def leave_one_rod_out(
     muv = np.asarray(marker_uv_px, dtype=float)
     n_rods, n_markers = muv.shape[1:3]
     fold = np.repeat(np.arange(n_rods), n_markers).reshape(n_rods, n_markers)
-    errors = leave_folds_out(muv, rods, fold, params, cameras)
-    n_found = np.isfinite(errors).sum(axis=1)
-    with np.errstate(invalid="ignore"):
-        mean = np.array([np.nanmean(e) if np.isfinite(e).any() else np.nan for e in errors])
-        worst = np.array([np.nanmax(e) if np.isfinite(e).any() else np.nan for e in errors])
-    return RodCheck(
-        rod_names=tuple(r.name for r in rods),
-        mean_mm=mean,
-        max_mm=worst,
-        n_markers=n_found,
-        errors_mm=errors,
-    )
+    return RodCheck.of(rods, leave_folds_out(muv, rods, fold, params, cameras))
 
 
 def leave_folds_out(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -311,6 +313,16 @@ class RodCheck:
     max_mm: NDArray[np.float64]
     n_markers: NDArray[np.int64]
     errors_mm: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, rods: Sequence[Rod], errors_mm: NDArray[np.float64]) -> RodCheck:
+        """The check of ``rods`` whose markers' 3D errors are ``errors_mm`` (NaN where a
+        marker was not reconstructed)."""
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a rod no two cameras saw
+            mean, worst = np.nanmean(errors_mm, axis=1), np.nanmax(errors_mm, axis=1)
+        found = np.isfinite(errors_mm).sum(axis=1)
+        return cls(tuple(r.name for r in rods), mean, worst, found, errors_mm)
 
     @property
     def overall_mean_mm(self) -> float:
