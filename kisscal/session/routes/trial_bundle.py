@@ -8,7 +8,6 @@ numbered after those of earlier ones).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -272,12 +271,4 @@ def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> R
         mine = fold == g
         near = np.linalg.norm(xyz[mine, None] - rod.points_mm[None], axis=2).argmin(axis=1)
         errors[g, near] = err[mine]
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # a rod no two cameras saw
-        return RodCheck(
-            tuple(r.name for r in rods),
-            np.nanmean(errors, axis=1),
-            np.nanmax(errors, axis=1),
-            np.isfinite(errors).sum(axis=1),
-            errors,
-        )
+    return RodCheck.of(rods, errors)
