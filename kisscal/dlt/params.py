@@ -243,6 +243,14 @@ class Rod:
     points_mm: NDArray[np.float64]
 
 
+def rod_markers(rods: Sequence[Rod]) -> NDArray[np.float64]:
+    """The rods' markers, shape (n_rods, n_markers, 3), NaN past a shorter rod's end."""
+    truth = np.full((len(rods), max(len(r.points_mm) for r in rods), 3), np.nan)
+    for i, rod in enumerate(rods):
+        truth[i, : len(rod.points_mm)] = rod.points_mm
+    return truth
+
+
 @dataclass(frozen=True)
 class RodMatch:
     """Rod markers identified among one camera's blobs.

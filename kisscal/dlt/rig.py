@@ -27,6 +27,7 @@ from kisscal.dlt.params import (
     RodCheck,
     RodMatch,
     marker_label,
+    rod_markers,
 )
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
@@ -161,10 +162,8 @@ def calibrate_rods(
         markers do not determine a DLT (message names the camera and what is missing).
     """
     validate_rods(rods, params)
-    n_markers = max(len(r.points_mm) for r in rods)
-    truth = np.full((len(rods), n_markers, 3), np.nan)
-    for ir, rod in enumerate(rods):
-        truth[ir, : len(rod.points_mm)] = rod.points_mm
+    truth = rod_markers(rods)
+    n_markers = truth.shape[1]
     names = [marker_label(r.name, i) for r in rods for i in range(n_markers)]
     results, matches, muvs, labels, cxyz, cuv = {}, {}, {}, {}, {}, {}
     for cam, blobs in blobs_px.items():
