@@ -28,7 +28,7 @@ from kisscal.dlt import (
     triangulate_dlt,
 )
 from kisscal.dlt.calibrate import dlt_result
-from kisscal.dlt.params import DltResult, Rod, RodCheck
+from kisscal.dlt.params import DltResult, Rod, RodCheck, rod_markers
 from kisscal.dlt.rig import RodCalibration
 from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.grid import apply_linearisation
@@ -250,9 +250,7 @@ def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
 def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
     """Each rod marker's 3D error reconstructed by every camera (mm)."""
     cams = list(cal.results)
-    truth = np.full(cal.in_sample_mm.shape + (3,), np.nan)
-    for g, rod in enumerate(rods):
-        truth[g, : len(rod.points_mm)] = rod.points_mm
+    truth = rod_markers(rods)
     res = cal.results
     obs = np.stack(
         [correct_lens(res[c].L, res[c].lens, cal.marker_uv_px[c].reshape(-1, 2)) for c in cams]
