@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.nonlinear import correct_lens
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck, rod_markers
 from kisscal.dlt.triangulate import triangulate
 from kisscal.errors import InputError, KisscalError
 
@@ -131,9 +131,7 @@ def leave_folds_out(
     n_cams, n_rods, n_markers, _ = muv.shape
     fold = np.asarray(fold)
     cameras = list(cameras) if cameras is not None else [f"#{i}" for i in range(n_cams)]
-    truth = np.full((n_rods, n_markers, 3), np.nan)
-    for ir, rod in enumerate(rods):
-        truth[ir, : len(rod.points_mm)] = rod.points_mm
+    truth = rod_markers(rods)
     errors = np.full((n_rods, n_markers), np.nan)
     for k in np.unique(fold[fold >= 0]):
         Ls, obs = [], []
