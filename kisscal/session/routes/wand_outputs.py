@@ -136,7 +136,7 @@ def write_wand_outputs(
     write_check(inputs, check)
     write_json(inputs.store.calibration_file("wand"), wand_doc)
     _say(inputs, wand_doc, check)
-    _figures(inputs, cal, cameras, frame, per_cam, lengths)
+    _figures(inputs, cal, cameras, per_cam, lengths)
     return check
 
 
@@ -344,7 +344,6 @@ def _figures(
     inputs: RouteInputs,
     cal: WandCalibration,
     cameras: Sequence[Camera],
-    frame: AxesFrame | None,
     per_cam: Any,
     lengths: np.ndarray,
 ) -> None:
