@@ -25,11 +25,10 @@ from kisscal.dlt import (
     correct_lens,
     make_rods,
     reprojection_residuals,
-    triangulate_dlt,
 )
 from kisscal.dlt.calibrate import dlt_result
 from kisscal.dlt.params import DltResult, Rod, RodCheck, rod_markers
-from kisscal.dlt.rig import RodCalibration
+from kisscal.dlt.rig import RodCalibration, in_sample_errors
 from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.config import SessionConfig, TrialConfig
@@ -232,7 +231,8 @@ def adjusted_with_trials(
     if models is not None:
         models = replace(models, chosen=TRIALS, by=f"rods and trials adjusted together ({names})")
     out = replace(rods_alone, results=results, models=models, check=check)
-    return replace(out, in_sample_mm=_in_sample(out, rods)), cal
+    in_sample = in_sample_errors(out.results, out.marker_uv_px, rod_markers(rods))
+    return replace(out, in_sample_mm=in_sample), cal
 
 
 #: What ``lens_models`` records as chosen when the trials decided the lens terms.
@@ -245,18 +245,6 @@ def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
     xyz, uv = rods_alone.control_xyz_mm[cam], rods_alone.control_uv_px[cam]
     residuals = reprojection_residuals(L, xyz, correct_lens(L, lens, uv))
     return dlt_result(L, "refined", lens, residuals, rods_alone.results[cam].constraint_linear)
-
-
-def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
-    """Each rod marker's 3D error reconstructed by every camera (mm)."""
-    cams = list(cal.results)
-    truth = rod_markers(rods)
-    res = cal.results
-    obs = np.stack(
-        [correct_lens(res[c].L, res[c].lens, cal.marker_uv_px[c].reshape(-1, 2)) for c in cams]
-    )
-    xyz, _ = triangulate_dlt(np.array([res[c].L for c in cams]), obs)
-    return np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(cal.in_sample_mm.shape)
 
 
 def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> RodCheck:
