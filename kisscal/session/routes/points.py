@@ -9,12 +9,19 @@ are dealt into ``model_folds`` subsets and each left out in turn.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from kisscal.dlt import DltParams, calibrate_camera
-from kisscal.dlt.select import CameraPoints, ModelChoice, choose_model, interleaved_folds
+from kisscal.dlt import calibrate_camera
+from kisscal.dlt.select import (
+    MODELS,
+    CameraPoints,
+    ModelChoice,
+    choose_model,
+    interleaved_folds,
+)
 from kisscal.errors import InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv, write_dlt_json
@@ -56,7 +63,9 @@ def calibrate_from_points(inputs: RouteInputs) -> dict[str, Any]:
     return summary
 
 
-def _choose(read: dict[str, tuple], params: DltParams) -> ModelChoice:
+def _choose(
+    read: dict[str, tuple], params: Any, candidates: Sequence[str] = tuple(MODELS)
+) -> ModelChoice:
     """Points matched across cameras by their lab position, dealt into folds."""
     every = np.concatenate([xyz for xyz, _, _ in read.values()])
     _, ids = np.unique(np.round(every, 6), axis=0, return_inverse=True)
@@ -66,7 +75,7 @@ def _choose(read: dict[str, tuple], params: DltParams) -> ModelChoice:
         points[cam] = CameraPoints(xyz, uv, ids[start : start + len(xyz)])
         start += len(xyz)
     folds = interleaved_folds(np.arange(ids.max() + 1), params.model_folds)
-    return choose_model(points, folds, params)
+    return choose_model(points, folds, params, candidates)
 
 
 def _check(choice: ModelChoice) -> dict[str, Any]:
