@@ -302,8 +302,9 @@ def _resect(
     img, pts = uv[both], wand[both]
     if not ordered[both].all():  # centres first: they need no marker order
         P = _robust_dlt(pts.mean(axis=1), img.mean(axis=1), camera)
-        direct = _reprojection(P, pts, img)
-        reverse = _reprojection(P, pts, img[:, ::-1])
+        seen = _project(P, pts)
+        direct = np.linalg.norm(seen - img, axis=-1).sum(axis=-1)
+        reverse = np.linalg.norm(seen - img[:, ::-1], axis=-1).sum(axis=-1)
         flip = ~ordered[both] & (reverse < direct)
         img = np.where(flip[:, None, None], img[:, ::-1], img)
     else:
@@ -312,11 +313,6 @@ def _resect(
     K, R, centre = decompose_matrix(P)
     K[0, 1] = 0.0
     return Camera(K, R, -R @ centre, np.zeros(5)), both[flip]
-
-
-def _reprojection(P: NDArray, pts: NDArray, img: NDArray) -> NDArray[np.float64]:
-    h = pts @ P[:, :3].T + P[:, 3]
-    return np.linalg.norm(h[..., :2] / h[..., 2:] - img, axis=-1).sum(axis=-1)
 
 
 def _robust_dlt(xyz: NDArray, uv: NDArray, camera: str) -> NDArray[np.float64]:
@@ -339,7 +335,7 @@ def _robust_dlt(xyz: NDArray, uv: NDArray, camera: str) -> NDArray[np.float64]:
 
 def _project(P: NDArray, xyz: NDArray) -> NDArray[np.float64]:
     h = xyz @ P[:, :3].T + P[:, 3]
-    return h[:, :2] / h[:, 2:]
+    return h[..., :2] / h[..., 2:]
 
 
 def wand_poses(markers: NDArray[np.float64], offsets: NDArray[np.float64]) -> WandPoses:

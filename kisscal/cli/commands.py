@@ -31,8 +31,7 @@ def demo(
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic rig.")] = 1,
 ) -> None:
     """Synthesise a KISS-like session and process it end to end."""
-    session = session_package()
-    session.demo(out, seed=seed, echo=say)
+    session_package().demo(out, seed=seed, echo=say)
 
 
 @app.command(
@@ -211,9 +210,8 @@ def linearise(
     ] = None,
 ) -> None:
     """Lens linearisation of each camera from its grid images."""
-    session = session_package()
     with progress_bars() as echo:
-        session.linearise(session_dir, camera=camera, model=model, echo=echo)
+        session_package().linearise(session_dir, camera=camera, model=model, echo=echo)
 
 
 @app.command(
@@ -267,9 +265,8 @@ def calibrate(
     The trials the rods are adjusted with are kept the same way: a walk added later
     leaves the calibration as it was until --refresh.
     """
-    session = session_package()
     with progress_bars() as echo:
-        session.calibrate(
+        session_package().calibrate(
             session_dir,
             camera=camera,
             mdlt=mdlt,
@@ -284,9 +281,8 @@ def calibrate(
 @app.command(epilog=example_epilog("kisscal reconstruct lab/2026-11-21 walk01"))
 def reconstruct(session_dir: SessionArg, trial: TrialArg) -> None:
     """Reconstruct 3D marker positions of a trial, field by field."""
-    session = session_package()
     with progress_bars() as echo:
-        session.reconstruct(session_dir, trial, echo=echo)
+        session_package().reconstruct(session_dir, trial, echo=echo)
 
 
 @app.command(
@@ -373,8 +369,7 @@ def init(
 @app.command(epilog=example_epilog("kisscal validate", "kisscal validate lab/2026-11-21"))
 def validate(session_dir: SessionHereArg = Path()) -> None:
     """Check every input of a session before any work; list each problem."""
-    session = session_package()
-    problems = session.validate(session_dir)
+    problems = session_package().validate(session_dir)
     for problem in problems:
         say(f"{'warning' if problem.warning else 'problem'}: {problem}")
     errors = [p for p in problems if not p.warning]
@@ -436,8 +431,7 @@ def check(
 @app.command(epilog=example_epilog("kisscal report lab/2026-11-21"))
 def report(session_dir: SessionArg) -> None:
     """Rebuild out/report.html of a processed session."""
-    session = session_package()
-    session.report(session_dir, echo=say)
+    session_package().report(session_dir, echo=say)
 
 
 @app.command(
@@ -452,7 +446,6 @@ def batch(
     ] = None,
 ) -> None:
     """Run many sessions in parallel on Dask."""
-    session = session_package()
-    failed = session.batch(sessions, scheduler=scheduler, echo=say)
+    failed = session_package().batch(sessions, scheduler=scheduler, echo=say)
     if failed:
         raise typer.Exit(1)

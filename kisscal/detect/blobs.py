@@ -102,7 +102,3 @@ class Blobs:
     def xy_px(self) -> NDArray[np.float64]:
         """Reported centroids as an ``(n, 2)`` array."""
         return np.column_stack([self.x_px, self.y_px])
-
-    def flag_strings(self) -> list[str]:
-        """The ``flags`` column as names (the blob CSV ``flags`` column)."""
-        return [flag_string(int(f)) for f in self.flags]

@@ -301,8 +301,3 @@ class DetectionParams(Params):
             split_long_wide=False,
             apply_size_limits=False,
         )
-
-    @property
-    def has_size_limits(self) -> bool:
-        """True when some upper size limit is set (LED rings can be told from markers)."""
-        return any(v is not None for v in (self.max_pixels, self.max_width_px, self.max_height_px))

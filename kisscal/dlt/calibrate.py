@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from numpy.typing import ArrayLike
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from kisscal._shared import rms_px
 from kisscal.dlt.camera import decompose_dlt, hatze_violation
@@ -45,17 +46,21 @@ def calibrate_camera(
         L, lens, n_refine = refine_dlt(xyz, uv, L, params, camera)
         n_eval += n_refine
     residuals = reprojection_residuals(L, xyz, correct_lens(L, lens, uv))
+    return dlt_result(L, params.method, lens, residuals, hatze_violation(L_linear), n_eval)
+
+
+def dlt_result(
+    L: NDArray[np.float64],
+    method: str,
+    lens: NDArray[np.float64] | None,
+    res: NDArray[np.float64],
+    linear: float,
+    iterations: int = 0,
+) -> DltResult:
+    """The :class:`DltResult` of ``L`` with its control points' residuals ``res`` (px):
+    their RMS, ``L``'s pinhole and Hatze violation, and ``linear``, the violation of the
+    linear solution it started from."""
     K, R, centre = decompose_dlt(L)
     return DltResult(
-        L=L,
-        method=params.method,
-        lens=lens,
-        residuals_px=residuals,
-        rms_px=rms_px(residuals),
-        constraint_linear=hatze_violation(L_linear),
-        constraint=hatze_violation(L),
-        K=K,
-        R=R,
-        centre_mm=centre,
-        iterations=n_eval,
+        L, method, lens, res, rms_px(res), linear, hatze_violation(L), K, R, centre, iterations
     )

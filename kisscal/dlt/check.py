@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kisscal.dlt.calibrate import calibrate_camera
 from kisscal.dlt.nonlinear import correct_lens
-from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck
+from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodCheck, rod_markers
 from kisscal.dlt.triangulate import triangulate
 from kisscal.errors import InputError, KisscalError
 
@@ -95,18 +95,7 @@ def leave_one_rod_out(
     muv = np.asarray(marker_uv_px, dtype=float)
     n_rods, n_markers = muv.shape[1:3]
     fold = np.repeat(np.arange(n_rods), n_markers).reshape(n_rods, n_markers)
-    errors = leave_folds_out(muv, rods, fold, params, cameras)
-    n_found = np.isfinite(errors).sum(axis=1)
-    with np.errstate(invalid="ignore"):
-        mean = np.array([np.nanmean(e) if np.isfinite(e).any() else np.nan for e in errors])
-        worst = np.array([np.nanmax(e) if np.isfinite(e).any() else np.nan for e in errors])
-    return RodCheck(
-        rod_names=tuple(r.name for r in rods),
-        mean_mm=mean,
-        max_mm=worst,
-        n_markers=n_found,
-        errors_mm=errors,
-    )
+    return RodCheck.of(rods, leave_folds_out(muv, rods, fold, params, cameras))
 
 
 def leave_folds_out(
@@ -142,9 +131,7 @@ def leave_folds_out(
     n_cams, n_rods, n_markers, _ = muv.shape
     fold = np.asarray(fold)
     cameras = list(cameras) if cameras is not None else [f"#{i}" for i in range(n_cams)]
-    truth = np.full((n_rods, n_markers, 3), np.nan)
-    for ir, rod in enumerate(rods):
-        truth[ir, : len(rod.points_mm)] = rod.points_mm
+    truth = rod_markers(rods)
     errors = np.full((n_rods, n_markers), np.nan)
     for k in np.unique(fold[fold >= 0]):
         Ls, obs = [], []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -241,6 +243,14 @@ class Rod:
     points_mm: NDArray[np.float64]
 
 
+def rod_markers(rods: Sequence[Rod]) -> NDArray[np.float64]:
+    """The rods' markers, shape (n_rods, n_markers, 3), NaN past a shorter rod's end."""
+    truth = np.full((len(rods), max(len(r.points_mm) for r in rods), 3), np.nan)
+    for i, rod in enumerate(rods):
+        truth[i, : len(rod.points_mm)] = rod.points_mm
+    return truth
+
+
 @dataclass(frozen=True)
 class RodMatch:
     """Rod markers identified among one camera's blobs.
@@ -311,6 +321,16 @@ class RodCheck:
     max_mm: NDArray[np.float64]
     n_markers: NDArray[np.int64]
     errors_mm: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, rods: Sequence[Rod], errors_mm: NDArray[np.float64]) -> RodCheck:
+        """The check of ``rods`` whose markers' 3D errors are ``errors_mm`` (NaN where a
+        marker was not reconstructed)."""
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a rod no two cameras saw
+            mean, worst = np.nanmean(errors_mm, axis=1), np.nanmax(errors_mm, axis=1)
+        found = np.isfinite(errors_mm).sum(axis=1)
+        return cls(tuple(r.name for r in rods), mean, worst, found, errors_mm)
 
     @property
     def overall_mean_mm(self) -> float:

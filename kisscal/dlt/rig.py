@@ -27,6 +27,7 @@ from kisscal.dlt.params import (
     RodCheck,
     RodMatch,
     marker_label,
+    rod_markers,
 )
 from kisscal.dlt.rod_geometry import validate_rods
 from kisscal.dlt.rods import recognise_rods
@@ -93,14 +94,7 @@ class RodCalibration:
             out["rods_in_sample_mean_mm"] = float(np.nanmean(self.in_sample_mm))
             out["rods_in_sample_max_mm"] = float(np.nanmax(self.in_sample_mm))
         if self.models is not None:
-            out["lens_models"] = {
-                "chosen": self.models.chosen,
-                "by": self.models.by,
-                "held_out_3d_rms_mm": {
-                    m: (v if np.isfinite(v) else None)
-                    for m, v in self.models.held_out_3d_mm.items()
-                },
-            }
+            out["lens_models"] = self.models.rig_dict()
         if self.check is not None and np.isfinite(self.check.errors_mm).any():
             out["leave_one_rod_out"] = {
                 "mean_mm": self.check.overall_mean_mm,
@@ -161,10 +155,8 @@ def calibrate_rods(
         markers do not determine a DLT (message names the camera and what is missing).
     """
     validate_rods(rods, params)
-    n_markers = max(len(r.points_mm) for r in rods)
-    truth = np.full((len(rods), n_markers, 3), np.nan)
-    for ir, rod in enumerate(rods):
-        truth[ir, : len(rod.points_mm)] = rod.points_mm
+    truth = rod_markers(rods)
+    n_markers = truth.shape[1]
     names = [marker_label(r.name, i) for r in rods for i in range(n_markers)]
     results, matches, muvs, labels, cxyz, cuv = {}, {}, {}, {}, {}, {}
     for cam, blobs in blobs_px.items():
@@ -204,15 +196,25 @@ def calibrate_rods(
     in_sample = np.full((len(rods), n_markers), np.nan)
     check = None
     if len(cams) >= 2:  # 3D checks need two cameras (``--camera C`` calibrates one)
-        Ls = np.array([results[c].L for c in cams])
-        obs = np.stack(
-            [correct_lens(results[c].L, results[c].lens, muvs[c].reshape(-1, 2)) for c in cams]
-        )
-        xyz, _ = triangulate_dlt(Ls, obs)
-        in_sample = np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(in_sample.shape)
+        in_sample = in_sample_errors(results, muvs, truth)
         if leave_one_out and len(rods) >= 3:
             check = leave_one_rod_out(np.stack([muvs[c] for c in cams]), rods, params, cams)
     return RodCalibration(results, matches, muvs, labels, cxyz, cuv, in_sample, check, choice)
+
+
+def in_sample_errors(
+    results: Mapping[str, DltResult],
+    marker_uv_px: Mapping[str, NDArray[np.float64]],
+    truth: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Each rod marker's 3D error (mm), reconstructed by every camera of ``results`` from
+    its images ``marker_uv_px``; ``truth``: :func:`~kisscal.dlt.params.rod_markers`."""
+    cams = list(results)
+    obs = np.stack(
+        [correct_lens(results[c].L, results[c].lens, marker_uv_px[c].reshape(-1, 2)) for c in cams]
+    )
+    xyz, _ = triangulate_dlt(np.array([results[c].L for c in cams]), obs)
+    return np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(truth.shape[:2])
 
 
 def _choose(

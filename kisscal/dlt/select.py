@@ -160,6 +160,11 @@ class ModelChoice:
             },
         }
 
+    def rig_dict(self) -> dict:
+        """JSON-ready choice for the rig's figures (``summary.json``, ``check.json``)."""
+        rms = {m: _finite(v) for m, v in self.held_out_3d_mm.items()}
+        return {"chosen": self.chosen, "by": self.by, "held_out_3d_rms_mm": rms}
+
 
 def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None

@@ -207,11 +207,6 @@ def wait_for_figures() -> None:
             raise error
 
 
-def _start() -> ProcessPoolExecutor | None:
-    """The background process, where there is a core to spare for it."""
-    return worker_pool(1) if (os.cpu_count() or 1) >= 2 else None
-
-
 @contextlib.contextmanager
 def drawing_beside() -> Iterator[None]:
     """Draw the block's figures in a background process; wait for them at its end.
@@ -223,8 +218,9 @@ def drawing_beside() -> Iterator[None]:
     if outer is not None and outer.pid == os.getpid():
         yield
         return
+    pool = worker_pool(1) if (os.cpu_count() or 1) >= 2 else None  # a core to spare
     # figures handed back stay handed back (a worker's command inside handing_back)
-    figures = Figures(_start(), os.getpid(), [], None if outer is None else outer.handed)
+    figures = Figures(pool, os.getpid(), [], None if outer is None else outer.handed)
     token = _FIGURES.set(figures)
     try:
         yield

@@ -40,12 +40,8 @@ _PROGRESS: contextvars.ContextVar[Progress | None] = contextvars.ContextVar(
 
 def steps(items: Iterable[T], stage: str) -> Iterator[T]:
     """Iterate over ``items``, reporting each one done (after its loop body) as a step."""
-    progress = _PROGRESS.get() or Progress()
     items = list(items)
-    progress.start(stage, len(items))
-    for item in items:
-        yield item
-        progress.advance()
+    return counted(items, stage, len(items))
 
 
 def counted(items: Iterable[T], stage: str, total: int) -> Iterator[T]:

@@ -147,7 +147,9 @@ def _track_trial(
     if len(pts.camera_ids):
         write_sample_cameras(files.trajectory_cameras, result.tracks, result.labels, pts)
     write_json(files.tracking, _tracking_summary(result))
-    _figures(root, trial, result, spec.segments, config.rate_hz)
+    title = f"trial {trial}: trajectories (mm)"
+    figure(root, f"trajectories_{trial}", trajectories_figure, result, title)
+    figure(root, f"segments_{trial}", segment_length_figure, result, spec.segments, config.rate_hz)
     shown = ", ".join(result.labels[:20]) + (" ..." if len(result.labels) > 20 else "")
     echo(
         f"  track {trial}: {plural(len(result.labels), 'trajectory')} from "
@@ -215,12 +217,6 @@ def _rate_doubt(
     dense = dense_trajectories(tracks.field, tracks.track, labels, tracks.xyz_mm, status)
     fit = throw_fit(dense, trial, config.rate_hz, limits.g_m_s2)
     return "" if fit is None else rate_doubt(fit, config.rate_hz, limits.g_m_s2, limits.max_g_error)
-
-
-def _figures(root: Path, trial: str, result: Trajectories, segments: tuple, rate_hz: float) -> None:
-    title = f"trial {trial}: trajectories (mm)"
-    figure(root, f"trajectories_{trial}", trajectories_figure, result, title)
-    figure(root, f"segments_{trial}", segment_length_figure, result, segments, rate_hz)
 
 
 def _with_static(

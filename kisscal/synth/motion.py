@@ -157,8 +157,8 @@ def gait_segments(names: tuple[str, ...]) -> tuple[tuple[str, str], ...]:
     return tuple((a, b) for a, b in pairs if a in names and b in names)
 
 
-def _stride_geometry() -> tuple[float, float]:
-    """Stride length (mm) per unit cycle and the pelvis height (mm) over a cycle's phases.
+def _stride_geometry() -> float:
+    """Stride length (mm) per unit cycle.
 
     The forward speed is the mean backward speed of the stance ankle relative to the
     pelvis over the stance phase (0-60 %): at that speed the stance foot does not slip.
@@ -167,8 +167,7 @@ def _stride_geometry() -> tuple[float, float]:
     leg = _leg_points(phase, -1.0)
     stance = phase < 0.6
     dx = np.gradient(leg["ankle"][:, 0], phase)
-    stride_mm = -np.mean(dx[stance])
-    return stride_mm, phase
+    return -np.mean(dx[stance])
 
 
 def _pelvis_height(phase: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -231,7 +230,7 @@ def walking_trial(
         raise ValueError(f"walker model must be 'kinematic' or 'grounded', not {model!r}")
     if turn_deg:
         raise ValueError("turn_deg needs model='grounded'")
-    stride_mm, _ = _stride_geometry()
+    stride_mm = _stride_geometry()
     cycle_s = k * stride_mm / speed
     phase = t / cycle_s + phase0
     forward = speed * (t - t[-1] / 2) if start_mm is None else speed * t

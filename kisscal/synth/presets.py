@@ -15,6 +15,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -272,21 +273,14 @@ def synth_options(
         )
     rng = np.random.default_rng([seed, 9009, list(PRESETS).index(preset)])
     width, height, bits = p.camera_models[rng.integers(len(p.camera_models))]
+    # the rig takes the preset's geometry as it is ("as in RigPreset", RigSpec says)
+    same = {f.name: getattr(p, f.name) for f in dataclasses.fields(RigSpec) if hasattr(p, f.name)}
     spec = RigSpec(
         preset=preset,
-        layout=p.layout,
         size_px=(width, height),
-        pixel_aspect=p.pixel_aspect,
-        volume_mm=p.volume_mm,
-        clearance_mm=p.clearance_mm,
-        height_mm=p.height_mm,
-        ring_start_deg=p.ring_start_deg,
-        corner_distortion_px=p.corner_distortion_px,
-        marker_diameter_px=p.marker_diameter_px,
         marker_size_quantile=float(rng.uniform(0.15, 0.85)),
         bit_depth=bits,
-        grid_fill=p.grid_fill,
-        throw_s=p.throw_s,
+        **same,
     )
     drawn_blur = float(rng.uniform(*p.blur_px))
     render = RenderParams(

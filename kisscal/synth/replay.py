@@ -8,6 +8,8 @@ every trial inside the volume, :func:`inside_volume` cuts it to the fields insid
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -84,15 +86,7 @@ def slim_capsules(motion: Motion, clearance_mm: float = 10.0, least_mm: float = 
     d = segment_distance(xyz, xyz, caps[:, None, :, 0, :], caps[:, None, :, 1, :])
     nearest = np.nanmin(np.nanmedian(d, axis=0), axis=0)  # (K,)
     radius = np.maximum(np.minimum(motion.capsule_radius_mm, nearest - clearance_mm), least_mm)
-    return Motion(
-        names=motion.names,
-        xyz_mm=motion.xyz_mm,
-        capsules_mm=caps,
-        capsule_radius_mm=radius,
-        rate_hz=motion.rate_hz,
-        segments=motion.segments,
-        truth=motion.truth,
-    )
+    return dataclasses.replace(motion, capsule_radius_mm=radius)
 
 
 def inside_volume(motion: Motion, volume_mm: tuple, max_fields: int) -> Motion:
@@ -111,12 +105,6 @@ def inside_volume(motion: Motion, volume_mm: tuple, max_fields: int) -> Motion:
     start, stop = int(starts[longest]), int(stops[longest])
     excess = max(0, (stop - start) - max_fields)
     start, stop = start + excess // 2, stop - (excess - excess // 2)
-    return Motion(
-        names=motion.names,
-        xyz_mm=xyz[start:stop],
-        capsules_mm=motion.capsules_mm[start:stop],
-        capsule_radius_mm=motion.capsule_radius_mm,
-        rate_hz=motion.rate_hz,
-        segments=motion.segments,
-        truth=motion.truth,
+    return dataclasses.replace(
+        motion, xyz_mm=xyz[start:stop], capsules_mm=motion.capsules_mm[start:stop]
     )

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from kisscal.dlt.camera import decompose_dlt, hatze_violation
+from kisscal.dlt.calibrate import dlt_result
+from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.params import DltResult
 from kisscal.errors import InputError, KisscalError, MissingDataError
 from kisscal.grid import Linearisation
@@ -100,19 +100,11 @@ def _fit(
     return lin
 
 
-def _imported_result(L: np.ndarray, method: str, lens: np.ndarray | None = None) -> DltResult:
-    """A DltResult for coefficients taken as they are (no control points: rms NaN)."""
-    K, R, centre = decompose_dlt(L)
-    violation = hatze_violation(L)
-    return DltResult(
-        L, method, lens, np.zeros((0, 2)), math.nan, violation, violation, K, R, centre
-    )
-
-
 def _write(inputs: RouteInputs, files: dict[str, DltFile], method: str, source: Path) -> dict:
     summary: dict[str, Any] = {}
     for cam in inputs.cameras:
-        result = _imported_result(files[cam.id].L, method, files[cam.id].lens)
+        L = files[cam.id].L  # taken as it is: no control points (rms NaN)
+        result = dlt_result(L, method, files[cam.id].lens, np.zeros((0, 2)), hatze_violation(L))
         write_dlt_json(
             inputs.store.dlt_path(cam.id),
             cam.id,

@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.camera import LENS_TERMS, Camera, camera_linearisation
-from kisscal.dlt import DltParams, DltResult, correct_lens, decompose_dlt, project, solve_dlt
+from kisscal.dlt import DltParams, correct_lens, project, solve_dlt
+from kisscal.dlt.calibrate import dlt_result
 from kisscal.dlt.camera import hatze_violation
 from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
@@ -57,9 +58,9 @@ def _fold_lens(
     grid_doc: dict[str, Any] | None,
     points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
     dlt: DltParams,
-) -> tuple[NDArray, NDArray, float]:
-    """The lens folded into a written polynomial; the points through it, the DLT refitted
-    to them, and the polynomial's largest error (px)."""
+) -> tuple[NDArray, NDArray]:
+    """The lens folded into a written polynomial; the points through it and the DLT
+    refitted to them."""
     xyz, uv, _, _ = points
     raw = invert_linearisation(before, uv) if before is not None and len(uv) else uv
     # without a grid the polynomial is the whole lens: it must hold to the image corners
@@ -79,7 +80,7 @@ def _fold_lens(
     L = camera.dlt
     if len(xyz) >= dlt.min_points and spread_ratio(xyz) >= dlt.min_spread_ratio:  # not flat
         L = solve_dlt(xyz, written, dlt, camera=cfg.id)
-    return written, L, fit_max
+    return written, L
 
 
 def write_lens_camera(
@@ -90,9 +91,8 @@ def write_lens_camera(
     points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
     iterations: int,
     extra: Mapping[str, Any] | None = None,
-) -> float:
-    """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``; returns the fit's
-    largest polynomial error (px).
+) -> None:
+    """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``.
 
     ``points`` are the observations the camera was fitted to: lab mm, image px (the lens
     model's coordinates), residuals px and labels; the file lists them through the
@@ -107,25 +107,11 @@ def write_lens_camera(
         # the grid's polynomial kept as it is: the camera is exactly its DLT on it, with
         # Kolahi's terms when it carries them (resected)
         write_json(lin_path, grid_doc)
-        written, L, fit_max, kolahi = uv, camera.dlt, 0.0, camera.kolahi
+        written, L, kolahi = uv, camera.dlt, camera.kolahi
     else:
-        written, L, fit_max = _fold_lens(
+        written, L = _fold_lens(
             lin_path, cfg, camera, route, before, grid_doc, points, inputs.params.dlt
         )
     res = correct_lens(L, kolahi, written) - project(L, xyz)
-    K, R, centre = decompose_dlt(L)
-    result = DltResult(
-        L=L,
-        method=route,
-        lens=kolahi,
-        residuals_px=res,
-        rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) if len(res) else float("nan"),
-        constraint_linear=hatze_violation(camera.dlt),
-        constraint=hatze_violation(L),
-        K=K,
-        R=R,
-        centre_mm=centre,
-        iterations=iterations,
-    )
+    result = dlt_result(L, route, kolahi, res, hatze_violation(camera.dlt), iterations)
     write_dlt_json(inputs.store.dlt_path(cfg.id), cfg.id, result, xyz, written, labels, extra)
-    return fit_max

@@ -85,13 +85,7 @@ def _check(choice: ModelChoice) -> dict[str, Any]:
         "leave_out_mean_mm": choice.held_out_3d_mean_mm[choice.chosen],
         "leave_out_max_mm": choice.held_out_3d_max_mm[choice.chosen],
         "leave_out_rms_mm": choice.held_out_3d_mm[choice.chosen],
-        "lens_models": {
-            "chosen": choice.chosen,
-            "by": choice.by,
-            "held_out_3d_rms_mm": {
-                m: (v if np.isfinite(v) else None) for m, v in choice.held_out_3d_mm.items()
-            },
-        },
+        "lens_models": choice.rig_dict(),
     }
 
 

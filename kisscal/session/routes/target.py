@@ -130,14 +130,8 @@ def _write_camera(
     write_lens_camera(
         inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
     )
-    sizes = {cfg.id: cfg.size_px}
-
-    figure(
-        inputs.root,
-        f"target_{cfg.id}",
-        residual_figure,
-        {cfg.id: CameraResiduals(uv, res, sizes[cfg.id], m.rms_px)},
-    )
+    residuals = {cfg.id: CameraResiduals(uv, res, cfg.size_px, m.rms_px)}
+    figure(inputs.root, f"target_{cfg.id}", residual_figure, residuals)
 
 
 def _held_out(

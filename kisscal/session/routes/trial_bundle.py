@@ -8,7 +8,6 @@ numbered after those of earlier ones).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -16,7 +15,6 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import rms_px
 from kisscal.bundle.adjust import ControlPoints
 from kisscal.bundle.points import POINT, TrialPoints, calibrate_on_points
 from kisscal.bundle.quality import leave_control_out
@@ -25,14 +23,12 @@ from kisscal.camera import Camera
 from kisscal.dlt import (
     calibrate_rods,
     correct_lens,
-    decompose_dlt,
-    hatze_violation,
     make_rods,
     reprojection_residuals,
-    triangulate_dlt,
 )
-from kisscal.dlt.params import DltResult, Rod, RodCheck
-from kisscal.dlt.rig import RodCalibration
+from kisscal.dlt.calibrate import dlt_result
+from kisscal.dlt.params import DltResult, Rod, RodCheck, rod_markers
+from kisscal.dlt.rig import RodCalibration, in_sample_errors
 from kisscal.errors import EstimationFailed, InputError, KisscalError
 from kisscal.grid import apply_linearisation
 from kisscal.io.config import SessionConfig, TrialConfig
@@ -235,7 +231,8 @@ def adjusted_with_trials(
     if models is not None:
         models = replace(models, chosen=TRIALS, by=f"rods and trials adjusted together ({names})")
     out = replace(rods_alone, results=results, models=models, check=check)
-    return replace(out, in_sample_mm=_in_sample(out, rods)), cal
+    in_sample = in_sample_errors(out.results, out.marker_uv_px, rod_markers(rods))
+    return replace(out, in_sample_mm=in_sample), cal
 
 
 #: What ``lens_models`` records as chosen when the trials decided the lens terms.
@@ -247,33 +244,7 @@ def _result(rods_alone: RodCalibration, cam: str, camera: Camera) -> DltResult:
     L, lens = camera.dlt, camera.kolahi
     xyz, uv = rods_alone.control_xyz_mm[cam], rods_alone.control_uv_px[cam]
     residuals = reprojection_residuals(L, xyz, correct_lens(L, lens, uv))
-    K, R, centre = decompose_dlt(L)
-    return DltResult(
-        L=L,
-        method="refined",
-        lens=lens,
-        residuals_px=residuals,
-        rms_px=rms_px(residuals),
-        constraint_linear=rods_alone.results[cam].constraint_linear,
-        constraint=hatze_violation(L),
-        K=K,
-        R=R,
-        centre_mm=centre,
-    )
-
-
-def _in_sample(cal: RodCalibration, rods: Sequence[Rod]) -> NDArray[np.float64]:
-    """Each rod marker's 3D error reconstructed by every camera (mm)."""
-    cams = list(cal.results)
-    truth = np.full(cal.in_sample_mm.shape + (3,), np.nan)
-    for g, rod in enumerate(rods):
-        truth[g, : len(rod.points_mm)] = rod.points_mm
-    res = cal.results
-    obs = np.stack(
-        [correct_lens(res[c].L, res[c].lens, cal.marker_uv_px[c].reshape(-1, 2)) for c in cams]
-    )
-    xyz, _ = triangulate_dlt(np.array([res[c].L for c in cams]), obs)
-    return np.linalg.norm(xyz - truth.reshape(-1, 3), axis=1).reshape(cal.in_sample_mm.shape)
+    return dlt_result(L, "refined", lens, residuals, rods_alone.results[cam].constraint_linear)
 
 
 def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> RodCheck:
@@ -286,12 +257,4 @@ def _rod_check(held: tuple[NDArray, NDArray, NDArray], rods: Sequence[Rod]) -> R
         mine = fold == g
         near = np.linalg.norm(xyz[mine, None] - rod.points_mm[None], axis=2).argmin(axis=1)
         errors[g, near] = err[mine]
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # a rod no two cameras saw
-        return RodCheck(
-            tuple(r.name for r in rods),
-            np.nanmean(errors, axis=1),
-            np.nanmax(errors, axis=1),
-            np.isfinite(errors).sum(axis=1),
-            errors,
-        )
+    return RodCheck.of(rods, errors)

@@ -60,7 +60,7 @@ from kisscal.bundle.points import POINT
 from kisscal.bundle.quality import leave_control_out
 from kisscal.bundle.wand import WandCalibration
 from kisscal.dlt.check import leave_folds_out
-from kisscal.dlt.params import DltParams, Rod
+from kisscal.dlt.params import DltParams, Rod, rod_markers
 from kisscal.dlt.rig import RodCalibration
 
 
@@ -101,7 +101,7 @@ def held_out_markers(
     PairedErrors
         Over the markers both calibrations reconstructed.
     """
-    truth = _rod_truth(rods)
+    truth = rod_markers(rods)
     fold = np.tile(np.arange(truth.shape[1]) % params.judge_folds, (len(rods), 1))
     fold[~np.isfinite(truth).all(axis=-1)] = -1
     if baseline is not None:
@@ -149,7 +149,7 @@ def rods_held_out(
     ndarray, shape (n_rods, n_markers)
         NaN where a marker is missing or was not reconstructed.
     """
-    truth = _rod_truth(rods)
+    truth = rod_markers(rods)
     fold = np.arange(truth.shape[0] * truth.shape[1]).reshape(truth.shape[:2])
     fold[~np.isfinite(truth).all(axis=-1)] = -1
     if rod_cal.models is not None:
@@ -180,14 +180,6 @@ def markers_burden(rod_cal: RodCalibration, wand_terms: int, sigmas: float) -> f
     lens = [r.lens for r in rod_cal.results.values() if r.lens is not None]
     rods_terms = max((int(np.count_nonzero(t)) for t in lens), default=0)
     return float(sigmas) if rods_terms > wand_terms else -float(sigmas)
-
-
-def _rod_truth(rods: Sequence[Rod]) -> NDArray[np.float64]:
-    """The rods' markers, shape (n_rods, n_markers, 3), NaN past a shorter rod's end."""
-    truth = np.full((len(rods), max(len(r.points_mm) for r in rods), 3), np.nan)
-    for i, rod in enumerate(rods):
-        truth[i, : len(rod.points_mm)] = rod.points_mm
-    return truth
 
 
 def _marker_of(xyz_mm: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.int64]:

@@ -89,7 +89,7 @@ def write_wand_outputs(
         "trial": config.wand.trial,
         "markers_mm": list(config.wand.markers_mm),
         "start": "rods" if rod_cal is not None else "axes",
-        **length_figures(lengths, float(np.ptp(markers))),
+        **length_figures(lengths, nominal),
         "held_out": length_figures(held, nominal),
         "fields_used": int(np.sum(cal.fields >= 0)),
         "iterations": cal.result.iterations,
@@ -105,7 +105,10 @@ def write_wand_outputs(
         wand_doc["trial_markers_weight"] = trial_markers_weight(cal)
     if rod_cal is not None:
         fields = held_out_fields(len(cal.fields), wand_params(inputs))
-        alone = field_lengths(_rod_cameras(rod_cal, ids), cal, fields, markers)
+        # the rods' cameras on the grid's linearisation (Kolahi's terms when chosen)
+        res = rod_cal.results
+        rods = [Camera.from_dlt(res[c].L, c, None, res[c].lens) for c in ids]
+        alone = field_lengths(rods, cal, fields, markers)
         wand_doc["held_out_rods_alone"] = {
             **length_figures(alone, nominal),
             "wand_minus_rods": paired_length_gain(held, alone, nominal),
@@ -133,14 +136,8 @@ def write_wand_outputs(
     write_check(inputs, check)
     write_json(inputs.store.calibration_file("wand"), wand_doc)
     _say(inputs, wand_doc, check)
-    _figures(inputs, cal, cameras, frame, per_cam, lengths)
+    _figures(inputs, cal, cameras, per_cam, lengths)
     return check
-
-
-def _rod_cameras(rod_cal: RodCalibration, ids: Sequence[str]) -> list[Camera]:
-    """The rods' cameras on the grid's linearisation (Kolahi's terms when chosen)."""
-    res = rod_cal.results
-    return [Camera.from_dlt(res[c].L, c, None, res[c].lens) for c in ids]
 
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
@@ -347,7 +344,6 @@ def _figures(
     inputs: RouteInputs,
     cal: WandCalibration,
     cameras: Sequence[Camera],
-    frame: AxesFrame | None,
     per_cam: Any,
     lengths: np.ndarray,
 ) -> None:
