@@ -169,3 +169,24 @@ def test_a_wand_adjusted_with_the_trials_is_judged_against_the_rods_and_trials()
         # both written with the same Kolahi terms: the wand must not be worse (burden -2)
         kept.append(Judgement(held, None, 2.0, -2.0).kept)
     assert kept == ["wand", "rods"]
+
+
+def test_keeping_the_rods_removes_a_lens_an_earlier_wand_run_left_without_a_grid(
+    tmp_path, monkeypatch
+) -> None:
+    """A session with no grid whose wand was kept once and refused on the next run: the
+    rods' DLTs must not be read with the first run's wand lens (grid cameras get the
+    grid's own linearisation back)."""
+    from kisscal.io.files import write_json
+    from kisscal.io.store import SessionStore
+    from kisscal.session.routes import wand_outputs
+
+    store = SessionStore(tmp_path)
+    grid = {"kind": "grid", "coefficients": [1.0, 2.0]}
+    write_json(store.linearisation_path("a"), {"refined": {"by": "wand", "grid_fit": None}})
+    write_json(store.linearisation_path("b"), {"refined": {"by": "wand", "grid_fit": grid}})
+    monkeypatch.setattr(wand_outputs, "write_dlt_outputs", lambda *args: None)
+    cameras = [SimpleNamespace(id="a"), SimpleNamespace(id="b")]
+    wand_outputs._keep_rods(SimpleNamespace(store=store, cameras=cameras), None)
+    assert store.linearisation_doc("a") is None
+    assert store.linearisation_doc("b") == grid

@@ -34,10 +34,10 @@ from kisscal.dlt import make_rods
 from kisscal.dlt.rig import RodCalibration
 from kisscal.io.dltfiles import write_dlt_outputs
 from kisscal.io.files import write_json
-from kisscal.io.linearisation import refined_by
 from kisscal.report.dlt import rig_figure
 from kisscal.report.wand import WandView, coverage_figure, length_figure
 from kisscal.session.inputs import figure
+from kisscal.session.linearise import restore_grid_linearisations
 from kisscal.session.routes import RouteInputs, write_check
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.session.routes.wand_judge import (
@@ -141,13 +141,11 @@ def write_wand_outputs(
 
 
 def _keep_rods(inputs: RouteInputs, rod_cal: RodCalibration) -> None:
-    """Write the rods' calibration, on the grid's own linearisation, as the result."""
+    """Write the rods' calibration, on the grid's own linearisation (none without a
+    grid), as the result: a lens an earlier run's wand estimated does not stay behind."""
     store = inputs.store
     write_dlt_outputs(rod_cal, store.dlt_path, store.dltdv_path)
-    for cam in inputs.cameras:
-        doc = store.linearisation_doc(cam.id)
-        if doc is not None and refined_by(doc) is not None and doc["refined"].get("grid_fit"):
-            write_json(store.linearisation_path(cam.id), doc["refined"]["grid_fit"])
+    restore_grid_linearisations(store.root, [cam.id for cam in inputs.cameras], "rods")
 
 
 def _camera_entry(cam: Camera, adjusted: Camera, per_cam: Any, c: int) -> dict[str, Any]:
