@@ -4,7 +4,8 @@ Both can be read back, so a lab can bring DLT coefficients from another tool:
 
 * ``<camera>.json``: at least ``{"camera": ..., "L": [11 numbers]}``; kisscal writes the
   method, ``rms_px`` (= sqrt(mean(du^2 + dv^2)), stated in the file), per-point
-  residuals, the camera centre, K, R, Hatze's constraint violation and lens terms.
+  residuals and what each point is (``kind``, :data:`POINT_KINDS`), the camera centre, K,
+  R, Hatze's constraint violation and lens terms.
 * ``dltdv.csv``: 11 rows (L1..L11), one column per camera, no header, in DLTdv8's pixel
   convention (:data:`DLTDV8_CONVENTION`; DLTdv8 reads it with ``dlmread``). An optional
   first row of camera names is accepted when reading.
@@ -48,6 +49,17 @@ DLTDV8_CONVENTION = (
 )
 #: kisscal pixel + this = DLTdv8 pixel.
 DLTDV8_OFFSET_PX = (1.0, 1.0)
+
+#: What a control point of ``<camera>.json`` is (its ``kind``), by the route that made
+#: it. A label is a name (a lab may name a rod ``W1``); the kind says which points are
+#: the lab's own (:func:`kisscal.session.exports.measured_points` leaves out a wand's).
+POINT_KINDS = {
+    "rod": "a rod's surveyed marker ([rods])",
+    "points": "a surveyed control point of [calibration] points",
+    "target": "a target's dot ([target])",
+    "wand": "a wand's marker in one field, placed by the wand's adjustment ([wand])",
+    "trial": "a trial's marker adjusted with the cameras (its position estimated)",
+}
 
 
 @dataclass(frozen=True)
@@ -106,6 +118,7 @@ def write_dlt_json(
     uv_px: ArrayLike | None = None,
     labels: Sequence[str] | None = None,
     extra: Mapping[str, Any] | None = None,
+    kinds: str | Sequence[str] | None = None,
 ) -> Path:
     """Write ``out/dlt/<camera>.json``.
 
@@ -122,6 +135,9 @@ def write_dlt_json(
         per-point residual table.
     extra : mapping, optional
         More keys (e.g. rod recognition report, linearisation used).
+    kinds : str or sequence of str
+        What each control point is (:data:`POINT_KINDS`), one for all or one per point;
+        required when there are control points.
     """
     doc: dict[str, Any] = {
         "camera": camera,
@@ -147,9 +163,11 @@ def write_dlt_json(
     uv = np.full((n, 2), np.nan) if uv_px is None else np.asarray(uv_px, dtype=float)
     if len(labels) != n or xyz.shape != (n, 3) or uv.shape != (n, 2):
         raise ValueError("labels, xyz_mm and uv_px must match the result's control points")
+    kind = _kinds(kinds, n)
     doc["points"] = [
         {
             "label": lab,
+            "kind": k,
             "x_mm": x[0],
             "y_mm": x[1],
             "z_mm": x[2],
@@ -158,8 +176,8 @@ def write_dlt_json(
             "du_px": r[0],
             "dv_px": r[1],
         }
-        for lab, x, u, r in zip(
-            labels, xyz.tolist(), uv.tolist(), _floats(result.residuals_px), strict=True
+        for lab, k, x, u, r in zip(
+            labels, kind, xyz.tolist(), uv.tolist(), _floats(result.residuals_px), strict=True
         )
     ]
     if extra:
@@ -167,6 +185,16 @@ def write_dlt_json(
     path = Path(path)
     write_text(path, json.dumps(doc, indent=1, allow_nan=True) + "\n")
     return path
+
+
+def _kinds(kinds: str | Sequence[str] | None, n: int) -> list[str]:
+    """One :data:`POINT_KINDS` entry per control point (``kinds`` one for all or each)."""
+    if n and kinds is None:
+        raise ValueError("the control points need their kind (POINT_KINDS)")
+    listed = [kinds] * n if isinstance(kinds, str) else list(kinds or ())
+    if len(listed) != n or not set(listed) <= POINT_KINDS.keys():
+        raise ValueError(f"kinds must be {n} of {', '.join(POINT_KINDS)}, got {kinds!r}")
+    return listed
 
 
 def read_dlt_json(path: str | Path) -> DltFile:
@@ -353,6 +381,7 @@ def write_dlt_outputs(
                 calibration.control_uv_px[cam],
                 calibration.labels[cam],
                 extra,
+                kinds="rod",
             )
         )
     paths.append(write_dltdv_csv(dltdv_path, {c: r.L for c, r in calibration.results.items()}))

@@ -5,7 +5,8 @@ closely each matches kisscal's own cameras; ``kisscal export`` writes one of the
 * ``cameras.toml``: OpenCV's model fitted to each camera
   (:func:`kisscal.opencv.opencv_from_camera`) on the rays through the volume the lab
   measures in (:func:`fit_volume`: ``[export] volume_mm`` when given, else the convex
-  hull of the control points without the wand's own, :func:`measured_points`), or within
+  hull of the control points without the wand's own, :func:`measured_points`, told by
+  their ``kind``), or within
   the control points' extent in the image when they span no volume;
   ``exports.json`` gives the fit's RMS and largest distance over the image (px) and the
   DLT's skew, which OpenCV's matrix cannot hold.
@@ -60,21 +61,29 @@ def lens_error_px(camera: Camera) -> dict[str, Any]:
     }
 
 
-#: The label the wand route gives a wand's image in ``dlt/<camera>.json``: marker, field.
+#: The label the wand route gives a wand's image in ``dlt/<camera>.json``: marker, field;
+#: what tells them in a file written before control points had a ``kind``.
 WAND_LABEL = re.compile(r"W\d+@\d+")
+
+#: Said once when an export tells the wand's images by :data:`WAND_LABEL`.
+BY_LABELS = (
+    "export: the DLT files' control points have no kind (an older kisscal wrote them): the "
+    "wand's images are told by their labels W<marker>@<field>, which a rod named like one "
+    "hides; `kisscal calibrate` writes the kinds"
+)
 
 
 def control_xyz(dlt: DltFile | None, rods: Iterable[str] | None = None) -> np.ndarray | None:
     """Lab points (mm) a camera's DLT was fitted to (``points`` of ``dlt/<camera>.json``);
     None when the file lists none. With ``rods`` (the session's rod names), without the
-    wand's own images (labels ``W<marker>@<field>``; those a rod named ``W1`` could have,
-    ``<rod>@<i>``, are kept: the label cannot tell them apart)."""
+    wand's own images: ``kind`` ``wand``; in a file written before points had a kind,
+    labels ``W<marker>@<field>`` (:func:`_wand_image`)."""
     points = (dlt.data or {}).get("points") if dlt is not None else None
     if not points:
         return None
     try:
         if rods is not None:
-            points = [p for p in points if not _wand_image(str(p.get("label", "")), rods)]
+            points = [p for p in points if not _wand_image(p, rods)]
         xyz = np.array([[p["x_mm"], p["y_mm"], p["z_mm"]] for p in points], dtype=float)
     except (KeyError, TypeError, ValueError, AttributeError):
         return None
@@ -92,9 +101,22 @@ def control_px(camera: Camera, dlt: DltFile | None) -> np.ndarray | None:
     return uv[np.isfinite(uv).all(axis=1)]
 
 
-def _wand_image(label: str, rods: Iterable[str]) -> bool:
-    """Whether a control point's label names a wand's image, not a rod's marker."""
+def _wand_image(point: Mapping[str, Any], rods: Iterable[str]) -> bool:
+    """Whether a control point is a wand's image: its ``kind`` says, or, without one, its
+    label (a rod named ``W1`` labels its markers ``W1@<i>`` too: those are kept)."""
+    if "kind" in point:
+        return point["kind"] == "wand"
+    label = str(point.get("label", ""))
     return WAND_LABEL.fullmatch(label) is not None and label.split("@")[0] not in rods
+
+
+def told_by_labels(dlts: Mapping[str, DltFile]) -> bool:
+    """Whether any camera's control points lack a ``kind`` (:data:`BY_LABELS`)."""
+    return any(
+        isinstance(p, Mapping) and "kind" not in p
+        for d in dlts.values()
+        for p in (d.data or {}).get("points") or ()
+    )
 
 
 def control_points(
@@ -110,8 +132,9 @@ def measured_points(
     config: SessionConfig, dlts: Mapping[str, DltFile]
 ) -> tuple[np.ndarray | None, str]:
     """The control points where the lab measures, and what they are: every camera's but
-    the wand's own images, i.e. the rods' markers, the session's trial markers the wand
-    was adjusted with (``T@<row>``), a target's dots; all of them when those span no
+    the wand's own images (``kind`` ``wand``), i.e. the rods' markers, the session's trial
+    markers the wand was adjusted with (``trial``), a target's dots, a lab's surveyed
+    points; all of them when those span no
     volume (a wand and the axes object alone, or a wand without trials); None without any.
 
     A wand is waved through a box several times the lab's (on the synthetic webcam rig,
@@ -138,11 +161,14 @@ class FitVolume:
     by : str
         Where the box came from: ``export.volume_mm``, ``control points but the wand's
         images`` or ``control points``.
+    by_labels : bool
+        Whether the wand's images were told by their labels (:data:`BY_LABELS`).
     """
 
     box: tuple[np.ndarray, np.ndarray] | None
     hull: np.ndarray | None
     by: str
+    by_labels: bool = False
 
     def doc(self) -> dict[str, Any]:
         """For ``exports.json``: ``by`` and the box (mm)."""
@@ -158,7 +184,7 @@ def fit_volume(config: SessionConfig, dlts: Mapping[str, DltFile]) -> FitVolume:
     if box is not None:
         return FitVolume((np.array(box[0]), np.array(box[1])), None, "export.volume_mm")
     xyz, by = measured_points(config, dlts)
-    return FitVolume(control_volume(xyz), xyz, by)
+    return FitVolume(control_volume(xyz), xyz, by, told_by_labels(dlts))
 
 
 def control_volume(xyz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -239,6 +265,8 @@ def write_exports(
     store = SessionStore(root)
     write_dltdv_csv(store.dltdv_path, {c.id: c.dlt for c in rig})
     cams, volume = [c for c in rig if c.size_px is not None], fit_volume(config, dlts)
+    if volume.by_labels:
+        echo(BY_LABELS)
     fits = _opencv_fits(cams, volume, dlts, workers=workers)
     report = {
         "cameras_toml": {
@@ -295,6 +323,8 @@ def export(
         echo(f"{path}: {len(rig)} cameras, {DLTDV8_CONVENTION}")
         return [path]
     volume = fit_volume(config, dlts)
+    if volume.by_labels:
+        echo(BY_LABELS)
     fits = _opencv_fits(rig, volume, dlts, pose2sim=to == "pose2sim")
     for f in fits.values():
         echo(f"  {f.camera.id}: OpenCV model within {f.rms_px:.4f} px rms of kisscal's")

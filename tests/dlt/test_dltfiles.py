@@ -24,19 +24,34 @@ def _result(rig, cam, params):
 def test_json_round_trip(rig, tmp_path):
     xyz, uv, result = _result(rig, 0, DltParams(mdlt=True))
     labels = [f"R{i // 6 + 1}.{i % 6 + 1}" for i in range(24)]
-    path = write_dlt_json(tmp_path / "out/dlt/cam1.json", "cam1", result, xyz, uv, labels)
+    path = write_dlt_json(
+        tmp_path / "out/dlt/cam1.json", "cam1", result, xyz, uv, labels, kinds="rod"
+    )
     back = read_dlt_json(path)
     assert back.camera == "cam1" and back.method == "mdlt" and back.lens is None
     np.testing.assert_array_equal(back.L, result.L)  # exact: repr of floats
     assert back.rms_px == result.rms_px
     doc = json.loads(path.read_text())
     assert "sqrt(mean(du^2 + dv^2))" in doc["rms_definition"]
-    assert doc["points"][7]["label"] == "R2.2"
+    assert doc["points"][7]["label"] == "R2.2" and doc["points"][7]["kind"] == "rod"
     du = np.array([[p["du_px"], p["dv_px"]] for p in doc["points"]])
     assert np.sqrt(np.mean((du**2).sum(axis=1))) == pytest.approx(doc["rms_px"])
     np.testing.assert_allclose(doc["centre_mm"], result.centre_mm)
     assert abs(doc["constraint_violation"]) < 1e-9
     assert np.array(doc["K"]).shape == (3, 3)
+
+
+def test_control_points_say_what_they_are(rig, tmp_path):
+    """Every control point is written with its kind, one for all or one each; points
+    without one, or of a kind kisscal does not know, are refused."""
+    xyz, uv, result = _result(rig, 0, DltParams())
+    labels = [f"W1@{i}" for i in range(24)]
+    kinds = ["rod"] * 12 + ["wand"] * 12
+    path = write_dlt_json(tmp_path / "c.json", "cam1", result, xyz, uv, labels, kinds=kinds)
+    assert [p["kind"] for p in read_dlt_json(path).data["points"]] == kinds
+    for wrong in (None, "wand?", kinds[:-1]):
+        with pytest.raises(ValueError, match="kind"):
+            write_dlt_json(tmp_path / "c.json", "cam1", result, xyz, uv, labels, kinds=wrong)
 
 
 def test_external_json_with_only_camera_and_L(rig, tmp_path):

@@ -49,6 +49,7 @@ def test_write_dlt_outputs(tmp_path):
     assert sorted(p.name for p in paths) == [*(f"cam{i}.json" for i in range(1, 7)), "dltdv.csv"]
     doc = json.loads((tmp_path / "out/dlt/cam3.json").read_text())
     assert doc["rods"]["missing"] == ["R1.4"] and len(doc["points"]) == 23
+    assert {p["kind"] for p in doc["points"]} == {"rod"}
     assert doc["rig"]["leave_one_rod_out"]["mean_mm"] > 0
     back = read_dltdv_csv(tmp_path / "out/dlt/dltdv.csv", [f"cam{i}" for i in range(1, 7)])
     np.testing.assert_array_equal(back["cam3"].L, read_dlt_json(paths[2]).L)

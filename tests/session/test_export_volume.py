@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from kisscal.dlt import DltParams, calibrate_camera
 from kisscal.io.config import parse_session
-from kisscal.io.dltfiles import DltFile
+from kisscal.io.dltfiles import DltFile, read_dlt_json, write_dlt_json
 from kisscal.opencv import opencv_from_camera
 from kisscal.session.exports import _opencv_fits, fit_volume
 from tests.test_opencv import bent_camera
@@ -61,7 +62,7 @@ def test_the_export_follows_kisscal_where_the_lab_measures_not_where_the_wand_we
     volume = fit_volume(config, dlts)
     np.testing.assert_allclose(volume.box, (corners.min(axis=0), corners.max(axis=0)))
     assert len(volume.hull) == len(corners) + len(trial)
-    assert volume.by == "control points but the wand's images"
+    assert volume.by == "control points but the wand's images" and volume.by_labels
     held_out = _lab(rng, ahead, half, 1000)
 
     def gap(fit) -> float:  # RMS px between the two cameras' images of the lab's points
@@ -100,7 +101,38 @@ def test_export_volume_mm_replaces_the_control_points_and_a_wand_alone_is_kept()
     }
     volume = fit_volume(parse_session(rod, Path("/lab")), dlts)
     assert len(volume.hull) == len(wand) and volume.by == "control points but the wand's images"
+    assert volume.by_labels  # a file of an older kisscal: its labels tell, as they can
     given = {**plain, "export": {"volume_mm": [[10, 0, 2000], [-10, 50, 0]]}}
     volume = fit_volume(parse_session(given, Path("/lab")), dlts)
     assert volume.hull is None and volume.by == "export.volume_mm"
     np.testing.assert_allclose(volume.box, ([-10, 0, 0], [10, 50, 2000]))
+
+
+def test_a_rod_named_like_a_wand_marker_leaves_the_wand_out_by_the_points_kind(
+    tmp_path: Path,
+) -> None:
+    """A lab names its rod ``W1``: its markers (``W1@<i>``, kind ``rod``) and the wand's
+    images of marker 1 (``W1@<field>``, kind ``wand``) share their labels. Written and
+    read back, the file's kinds keep the export to the rods' and the trials' volume, as
+    for a rod of any other name; the labels alone kept the wand's 600 images."""
+    rng = np.random.default_rng(5)
+    cam = bent_camera(rng)
+    ahead = cam.R.T @ (np.array([0.0, 0.0, 4200.0]) - cam.t)
+    corners = ahead + 600.0 * np.array(
+        [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    )
+    trial, wand = _lab(rng, ahead, 600.0, 100), _lab(rng, ahead, 1500.0, 600)
+    xyz = np.concatenate([corners, trial, wand])
+    labels = [f"W1@{i}" for i in range(len(corners))] + [f"T@{k}" for k in range(len(trial))]
+    labels += [f"W1@{f}" for f in range(len(wand))]
+    kinds = ["rod"] * len(corners) + ["trial"] * len(trial) + ["wand"] * len(wand)
+    result = calibrate_camera(xyz, cam.project_ideal(xyz), DltParams())
+    path = write_dlt_json(tmp_path / "c1.json", "c1", result, xyz, None, labels, kinds=kinds)
+    dlts = {"c1": read_dlt_json(path)}
+    rod = {**SESSION["rods"]["rod"][0], "name": "W1", "points_mm": corners[:2].tolist()}
+    config = parse_session({**SESSION, "rods": {**SESSION["rods"], "rod": [rod]}}, Path("/l"))
+
+    volume = fit_volume(config, dlts)
+    np.testing.assert_allclose(volume.box, (corners.min(axis=0), corners.max(axis=0)))
+    np.testing.assert_array_equal(np.unique(volume.hull, axis=0), np.unique(xyz[:108], axis=0))
+    assert volume.by == "control points but the wand's images" and not volume.by_labels

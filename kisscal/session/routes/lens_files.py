@@ -91,12 +91,15 @@ def write_lens_camera(
     points: tuple[NDArray, NDArray, NDArray, Sequence[str]],
     iterations: int,
     extra: Mapping[str, Any] | None = None,
+    *,
+    kinds: str | Sequence[str],
 ) -> None:
     """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``.
 
     ``points`` are the observations the camera was fitted to: lab mm, image px (the lens
     model's coordinates), residuals px and labels; the file lists them through the
-    written polynomial, with their residuals under the written DLT.
+    written polynomial, with their residuals under the written DLT, and what each is
+    (``kinds``, one for all or one per point: :data:`kisscal.io.dltfiles.POINT_KINDS`).
     """
     lin_path = inputs.store.linearisation_path(cfg.id)
     grid_doc = grid_document(lin_path, inputs.config.grid is not None)
@@ -114,4 +117,5 @@ def write_lens_camera(
         )
     res = correct_lens(L, kolahi, written) - project(L, xyz)
     result = dlt_result(L, route, kolahi, res, hatze_violation(camera.dlt), iterations)
-    write_dlt_json(inputs.store.dlt_path(cfg.id), cfg.id, result, xyz, written, labels, extra)
+    path = inputs.store.dlt_path(cfg.id)
+    write_dlt_json(path, cfg.id, result, xyz, written, labels, extra, kinds)

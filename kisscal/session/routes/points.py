@@ -48,7 +48,9 @@ def calibrate_from_points(inputs: RouteInputs) -> dict[str, Any]:
     for cam_id, (xyz, uv, labels) in read.items():
         res = calibrate_camera(xyz, uv, params, cam_id)
         extra = {"lens_models": choice.camera_dict(cam_id)} if choice is not None else None
-        write_dlt_json(inputs.store.dlt_path(cam_id), cam_id, res, xyz, uv, labels, extra)
+        write_dlt_json(
+            inputs.store.dlt_path(cam_id), cam_id, res, xyz, uv, labels, extra, kinds="points"
+        )
         summary[cam_id] = res
         inputs.echo(
             f"  calibrate {cam_id}: {res.method}, {len(xyz)} control points, "

@@ -128,7 +128,14 @@ def _write_camera(
         }
     }
     write_lens_camera(
-        inputs, cfg, m.camera, ROUTE, (target[k], uv, res, labels), m.iterations, extra
+        inputs,
+        cfg,
+        m.camera,
+        ROUTE,
+        (target[k], uv, res, labels),
+        m.iterations,
+        extra,
+        kinds="target",
     )
     residuals = {cfg.id: CameraResiduals(uv, res, cfg.size_px, m.rms_px)}
     figure(inputs.root, f"target_{cfg.id}", residual_figure, residuals)

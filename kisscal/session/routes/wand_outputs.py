@@ -270,6 +270,7 @@ def _write_cameras(
             f"W{m + 1}@{f}" if f >= 0 else f"T@{k}"
             for k, (f, m) in enumerate(zip(fields, marks, strict=True))
         ]
+        kinds = np.where(fields >= 0, "wand", "trial").tolist()
         xyz, uv, res = xyz_obs[rows], obs.uv_px[rows], r.residuals_px[rows]
         if cal.control is not None:
             ctl = cal.control.camera == c
@@ -277,9 +278,10 @@ def _write_cameras(
             uv = np.concatenate([cal.control.uv_px[ctl], uv])
             res = np.concatenate([r.control_residuals_px[ctl], res])
             labels = [f"{names[g]}@{i}" for i, g in enumerate(cal.control.group[ctl])] + labels
+            kinds = ["rod"] * int(ctl.sum()) + kinds
         extra = {"wand": {"trial": config.wand.trial}}
         write_lens_camera(
-            inputs, cfg, cameras[c], ROUTE, (xyz, uv, res, labels), r.iterations, extra
+            inputs, cfg, cameras[c], ROUTE, (xyz, uv, res, labels), r.iterations, extra, kinds=kinds
         )
 
 
