@@ -87,8 +87,12 @@ def test_wand_on_rods_refines_every_camera_and_restores_the_grid_when_rods_alone
         assert "is not kept" in _lines(said)
     lin = json.loads((out / "linearisation" / "cam1.json").read_text())
     assert "refined" not in lin and lin["model"] == "poly4"  # grid_lens "keep"
-    method = json.loads((out / "dlt" / "cam1.json").read_text())["method"]
-    assert method == "wand" if better else method in ("dlt", "refined")
+    cam1 = json.loads((out / "dlt" / "cam1.json").read_text())
+    assert cam1["method"] == "wand" if better else cam1["method"] in ("dlt", "refined")
+    # every control point says what it is: the rods' markers, the wand's images (and
+    # the trials' markers adjusted with them)
+    kinds = {p["kind"] for p in cam1["points"]}
+    assert {"rod", "wand"} <= kinds <= {"rod", "wand", "trial"} if better else kinds == {"rod"}
     assert _centre_errors_mm(root).max() < 5.0
     again: list[str] = []
     session.calibrate(root, echo=again.append)
