@@ -2,10 +2,10 @@
 of writing that ezc3d does not do as the standard asks (the per-sample residual and camera
 mask word, the header's scale).
 
-Reading keeps markers only (declared model outputs and Plug-in Gait's segment axes are
-left out and listed) and every frame, with the file's own first frame number. Intel and
-DEC files are read with ezc3d; SGI/MIPS files, which ezc3d does not read, with the ``c3d``
-package.
+Reading keeps markers only (declared model outputs, Plug-in Gait's segment axes and
+channels fixed to the bit in one coordinate are left out and listed) and every frame,
+with the file's own first frame number. Intel and DEC files are read with ezc3d;
+SGI/MIPS files, which ezc3d does not read, with the ``c3d`` package.
 """
 
 from __future__ import annotations
@@ -60,7 +60,8 @@ class C3DPoints:
         The file's number of its first frame (``TRIAL:ACTUAL_START_FIELD`` when present,
         else the header's first frame; counted from 1).
     excluded : tuple of str
-        Labels of the channels left out: declared model outputs.
+        Labels of the channels left out: declared model outputs, segment axis points
+        and computed channels (a coordinate exactly constant: floor projections, scalars).
     processor : str
         ``Intel``, ``DEC`` or ``MIPS``.
     manufacturer : str
@@ -250,28 +251,63 @@ def _model_outputs(params: dict[tuple[str, str], list]) -> set[str]:
 
 
 #: The suffixes of a segment's axis points as Plug-in Gait writes them: origin, anterior,
-#: lateral and proximal point of the segment (Vicon Motion Systems 2016).
+#: lateral and proximal point of the segment (Vicon Motion Systems 2016); the Oxford foot
+#: model's numbers them: origin 0 and the ends of its three axes 1, 2, 3 (``LFOF0`` ...
+#: ``LFOF3``, Carson et al. 2001 as Vicon's Oxford Foot Model plug-in writes it).
 SEGMENT_AXES = ("O", "A", "L", "P")
+NUMBERED_AXES = ("0", "1", "2", "3")
+
+#: A channel with one coordinate exactly constant over at least this many valid samples,
+#: while it moves by more than :data:`FLAT_MOVES_MM` along another, is not a measured
+#: marker (below).
+FLAT_MIN_SAMPLES = 10
+FLAT_MOVES_MM = 1.0
 
 
 def _segment_axes(labels: list[str]) -> set[str]:
     """Labels that are a segment's axis points: all four of ``<segment>O``, ``A``, ``L``,
     ``P`` present (subject prefix ``Name:`` aside), the segment named by two letters or
-    more; or all four of ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as
-    a Vicon lab's model writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
+    more; all four of ``<segment>0`` ... ``3``, the segment named by three letters or more
+    and only letters (the Oxford foot model's; numbered markers such as ``Marker_10`` ...
+    ``Marker_13`` or ``PT00`` ... ``PT03`` are not); or all four of
+    ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as a Vicon lab's model
+    writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
     plain points in no model-output group; they move with their segment like markers,
     and crowd a marker set's template (a walking trial holds 36 of them beside 18
     markers)."""
     bare = {lab: lab.rsplit(":", 1)[-1].strip().upper() for lab in labels}
     names = set(bare.values())
-    segments = {
-        b[:-1] for b in names if len(b) >= 3 and all(b[:-1] + s in names for s in SEGMENT_AXES)
-    }
-    out = {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    out = set()
+    for suffixes in (SEGMENT_AXES, NUMBERED_AXES):
+        segments = {
+            b[:-1]
+            for b in names
+            if len(b) >= 3 + (suffixes is NUMBERED_AXES)
+            and (b[:-1].isalpha() or suffixes is SEGMENT_AXES)
+            and all(b[:-1] + s in names for s in suffixes)
+        }
+        out |= {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in suffixes}
     axes = {b[2:] for b in names if len(b) >= 4 and all(f"{s}_{b[2:]}" in names for s in "OXYZ")}
     return out | {
         lab for lab, b in bare.items() if b[:2] in ("O_", "X_", "Y_", "Z_") and b[2:] in axes
     }
+
+
+def _flat_channels(xyz_mm: NDArray) -> NDArray[np.bool_]:
+    """Which channels have a coordinate exactly constant (to the bit) over every valid
+    sample while the channel moves along another: a floor projection (Plug-in Gait's
+    ``CentreOfMassFloor``, z = 0) or a scalar stored as a point (``LArchHeight``: x = y =
+    0), which lab software writes beside the markers in no model-output group. A measured
+    marker's coordinates carry its reconstruction noise, so none stays fixed to the bit
+    while the marker moves. When most channels are flat in one coordinate the recording is
+    planar and nothing is left out."""
+    valid = np.isfinite(xyz_mm).all(axis=2)[..., None]
+    high = np.where(valid, xyz_mm, -np.inf).max(axis=0, initial=-np.inf)
+    low = np.where(valid, xyz_mm, np.inf).min(axis=0, initial=np.inf)
+    span = high - low  # (n_channels, 3); -inf for a channel without a valid sample
+    flat = (span == 0).any(axis=1) & (span > FLAT_MOVES_MM).any(axis=1)
+    flat &= valid[..., 0].sum(axis=0) >= FLAT_MIN_SAMPLES
+    return flat if 2 * flat.sum() <= len(flat) else np.zeros_like(flat)
 
 
 def _unit_mm(units: str) -> float | None:
@@ -309,12 +345,12 @@ def _markers(
     scale = _unit_mm(units)
     if scale is None:
         raise InputError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
-    outputs = _model_outputs(params) | _segment_axes(labels)
-    keep = np.array([lab not in outputs for lab in labels], dtype=bool)
     # Invalid: a negative residual, or (older writers) a sample stored at exactly 0 0 0
     # with a valid residual (no real marker sits on the origin to the last bit).
     missing = (residual < 0) | (xyz == 0).all(axis=2)
     xyz = np.where(missing[..., None], np.nan, xyz.astype(float) * scale)
+    outputs = _model_outputs(params) | _segment_axes(labels)
+    keep = np.array([lab not in outputs for lab in labels], dtype=bool) & ~_flat_channels(xyz)
     maker = [s for key in ("COMPANY", "SOFTWARE") for s in _strings(params, "MANUFACTURER", key)]
     return C3DPoints(
         labels=tuple(lab for lab, k in zip(labels, keep, strict=True) if k),

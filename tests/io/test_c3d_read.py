@@ -98,6 +98,48 @@ def test_plug_in_gait_segment_axes_are_left_out_and_named(tmp_path):
     np.testing.assert_allclose(c.xyz_mm, xyz[:, kept], atol=1e-3)
 
 
+def test_numbered_segment_axes_go_numbered_markers_stay(tmp_path):
+    """The Oxford foot model's segment axes (``LFOF0`` ... ``LFOF3``: origin and three axis
+    ends, beside Plug-in Gait's in a Nexus trial of the biomechZoo sample study) are left
+    out; markers numbered the same way (``Marker_10`` ... ``Marker_13`` of an Optotrak
+    file, ``PT00`` ... ``PT03``, ``LHDF1`` ... ``LHDF3`` without its origin) stay."""
+    labels = (
+        "Sub:LFOF0", "Sub:LFOF1", "Sub:LFOF2", "Sub:LFOF3",  # forefoot axes
+        "LHDF1", "LHDF2", "LHDF3",  # no origin: kept
+        "Marker_10", "Marker_11", "Marker_12", "Marker_13",
+        "PT00", "PT01", "PT02", "PT03", "LHEE",
+    )  # fmt: skip
+    xyz = np.random.default_rng(4).uniform(-500, 500, (4, len(labels), 3))
+    c = read_c3d(write(tmp_path / "ofm.c3d", labels, xyz))
+    assert set(c.excluded) == {"Sub:LFOF0", "Sub:LFOF1", "Sub:LFOF2", "Sub:LFOF3"}
+    assert c.labels == labels[4:]
+
+
+def test_floor_projections_and_scalars_stored_as_points_are_left_out(tmp_path):
+    """Nexus writes Plug-in Gait's ``CentreOfMassFloor`` (the centre of mass on the floor:
+    z = 0 to the bit) and scalars as points (``LArchHeight``: x = y = 0) in no model-output
+    group. A coordinate fixed to the bit while the channel moves is no measurement; a
+    marker standing still, one seen in fewer than 10 samples, and a planar recording (every
+    marker at z = 0) are kept."""
+    rng = np.random.default_rng(5)
+    n = 40
+    walk = np.linspace(0, 1500, n)[:, None] + rng.normal(0, 0.3, (n, 3))
+    still = np.array([300.0, 200.0, 100.0]) + rng.normal(0, 0.2, (n, 3))
+    floor = walk * [1, 1, 0] + [0, 0, 0]
+    scalar = np.zeros((n, 3))
+    scalar[:, 2] = 20 + rng.normal(0, 2, n)
+    few = walk * [1, 1, 0] + [0, 0, 7.5]
+    few[8:] = np.nan  # 8 samples
+    xyz = np.stack([walk, still, floor, scalar, few, walk + 100, still - 50], axis=1)
+    labels = ("LASI", "RASI", "CentreOfMassFloor", "LArchHeight", "X", "LHEE", "LTOE")
+    c = read_c3d(write(tmp_path / "com.c3d", labels, np.nan_to_num(xyz)))
+    assert set(c.excluded) == {"CentreOfMassFloor", "LArchHeight"}
+    assert c.labels == ("LASI", "RASI", "X", "LHEE", "LTOE")
+    planar = xyz[:, [0, 1, 5, 6]] * [1, 1, 0]
+    c = read_c3d(write(tmp_path / "plane.c3d", ("A", "B", "C", "D"), planar + [0, 0, 5]))
+    assert c.excluded == () and len(c.labels) == 4
+
+
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
     xyz = np.random.default_rng(1).uniform(-1, 1, (3, 4, 3))
     path = write(tmp_path / "l.c3d", ("A", "B"), xyz, units="m", LABELS2=["C", "D"])
