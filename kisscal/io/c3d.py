@@ -18,7 +18,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError, KisscalError, MissingDataError
-from kisscal.io.c3d_data import header_holds, header_layout, read_points_by_header
+from kisscal.io.c3d_data import (
+    header_fits,
+    header_holds,
+    header_layout,
+    header_rate,
+    read_points_by_header,
+)
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -155,7 +161,18 @@ def _read_either(path: Path, processor: str) -> _Raw:
         if reader is _read_ezc3d and raw[1].shape[1] < header_layout(path, processor)["points"]:
             continue  # the parameters describe fewer points than the data holds
         return raw
-    raise InputError(f"{path}: not a readable C3D file ({'; '.join(errors)})") from None
+    if header_fits(path, processor):
+        # Neither reader parses the parameter section (BTK's test files of a broken
+        # parameter offset), but the header alone lays out the data and fills the file:
+        # the points, unnamed, in mm (the standard's default unit), at the header's rate.
+        xyz, residual, first = read_points_by_header(path, processor)
+        return {}, xyz, residual, first, header_rate(path, processor)
+    reasons = "; ".join(_IGNORE_HINT.sub("", e).strip(" :") for e in errors)
+    raise InputError(f"{path}: not a readable C3D file ({reasons})") from None
+
+
+#: ezc3d's advice to set its own ignoreBadFormatting flag, which a kisscal user cannot.
+_IGNORE_HINT = re.compile(r"\s*If you want to ignore this error, set \w+ to true\.?:?", re.I)
 
 
 #: A file as both backends give it: parameters {(GROUP, NAME): values}, positions

@@ -140,6 +140,31 @@ def test_floor_projections_and_scalars_stored_as_points_are_left_out(tmp_path):
     assert c.excluded == () and len(c.labels) == 4
 
 
+def test_a_file_whose_parameters_no_reader_parses_is_read_by_its_header(tmp_path):
+    """A parameter offset pointing past the parameter section (as BTK's
+    ``badParameterOffset.c3d`` and ``mocap36.c3d``): ezc3d and the c3d package both
+    refuse the file, but the header lays out the data and fills the file, so the points
+    are read by it, unnamed, at the header's rate. Cut short as well, the file is one
+    clear error (without ezc3d's advice to set its own flags)."""
+    xyz = np.random.default_rng(6).uniform(-900, 900, (20, 3, 3))
+    raw = bytearray(write(tmp_path / "ok.c3d", ("A", "B", "C"), xyz, RATE=[120.0]).read_bytes())
+    start = (raw[0] - 1) * 512 + 4  # the first group: name length, id, name, offset
+    at = start + 2 + raw[start]
+    raw[at : at + 2] = (32767).to_bytes(2, "little")
+    bad = tmp_path / "bad.c3d"
+    bad.write_bytes(bytes(raw))
+    with pytest.raises(Exception):  # noqa: B017 (ezc3d refuses it)
+        ezc3d.c3d(str(bad))
+    c = read_c3d(bad)
+    assert c.labels == ("point1", "point2", "point3") and c.rate_hz == 120.0
+    assert c.n_frames == 20 and c.first_frame == 1
+    np.testing.assert_allclose(c.xyz_mm, xyz, atol=1e-3)
+    bad.write_bytes(bytes(raw[: 512 * raw[0]]))  # the parameters only
+    with pytest.raises(KisscalError, match="not a readable C3D file") as err:
+        read_c3d(bad)
+    assert "ignoreBadFormatting" not in str(err.value)
+
+
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
     xyz = np.random.default_rng(1).uniform(-1, 1, (3, 4, 3))
     path = write(tmp_path / "l.c3d", ("A", "B"), xyz, units="m", LABELS2=["C", "D"])
