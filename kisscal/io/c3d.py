@@ -133,6 +133,17 @@ def read_c3d(path: Path) -> C3DPoints:
     return _markers(path, params, xyz, residual, header_first, rate, processor)
 
 
+def no_points(xyz_mm: NDArray) -> str:
+    """Why a C3D file gives no 3D point to track ('' when it gives some): no point channel
+    at all (force plates, EMG or rotations only: such files often store a point rate of
+    0), or channels without a valid sample."""
+    if xyz_mm.shape[1] == 0:
+        return "the file holds no 3D points (analog or other data only)"
+    if not np.isfinite(xyz_mm).all(axis=2).any():
+        return "no valid 3D point in the file"
+    return ""
+
+
 def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], float]:
     """Marker labels, positions (n_frames, n_markers, 3) in mm (NaN where invalid) and
     rate of a C3D file: :func:`read_c3d` without its frame numbering and log."""
