@@ -338,6 +338,51 @@ def _flat_channels(xyz_mm: NDArray) -> NDArray[np.bool_]:
     return flat if 2 * flat.sum() <= len(flat) else np.zeros_like(flat)
 
 
+#: Two channels whose samples of every frame lie closer than this are one marker: markers
+#: are at least a diameter (6 mm and up) apart.
+SAME_MARKER_MM = 5.0
+#: Frames (evenly spaced) on which pairs of channels are first compared.
+_PAIR_SAMPLE_FRAMES = 64
+
+
+def _copies(xyz_mm: NDArray) -> NDArray[np.bool_]:
+    """Which channels are copies of another: valid only where the other is and within
+    :data:`SAME_MARKER_MM` of it in every such frame (at least
+    :data:`FLAT_MIN_SAMPLES` of them). The Oxford foot model writes a point at the heel
+    marker (``LHE1``, 0.8 mm from ``LHEE`` in every frame), Motion Analysis Cortex its
+    virtual markers (``VRTO`` on ``R.TO``), a Qualisys export every marker three times;
+    fed to the tracker as a second point, one of the two becomes a one-sample trajectory
+    in every frame (a Nexus trial with the Oxford foot model: 569 of them). Of two copies
+    of each other the later channel goes."""
+    valid = np.isfinite(xyz_mm).all(axis=2)
+    n_frames, n = valid.shape
+    seen_together = np.zeros((n, n), dtype=bool)
+    apart = np.zeros((n, n), dtype=bool)
+    # candidates: close in every sampled frame where both are seen (a frame at a time:
+    # files hold up to a few hundred channels)
+    for f in np.unique(
+        np.linspace(0, n_frames - 1, min(n_frames, _PAIR_SAMPLE_FRAMES)).astype(int)
+    ):
+        both = valid[f, :, None] & valid[f, None]
+        with np.errstate(invalid="ignore"):
+            far = np.linalg.norm(xyz_mm[f, :, None] - xyz_mm[f, None], axis=2) >= SAME_MARKER_MM
+        seen_together |= both
+        apart |= both & far
+    candidate = seen_together & ~apart & ~np.eye(n, dtype=bool)
+    copy = np.zeros(n, dtype=bool)
+    for i, j in zip(*np.nonzero(np.triu(candidate)), strict=True):
+        a, b = valid[:, i], valid[:, j]
+        seen = a & b
+        close = np.linalg.norm(xyz_mm[seen, i] - xyz_mm[seen, j], axis=1) < SAME_MARKER_MM
+        if seen.sum() < FLAT_MIN_SAMPLES or not close.all() or copy[i]:
+            continue
+        if not (b & ~a).any():
+            copy[j] = True
+        elif not (a & ~b).any():
+            copy[i] = True
+    return copy
+
+
 def _unit_mm(units: str) -> float | None:
     """Millimetres per POINT:UNITS unit: a symbol, or a unit word in the singular or the
     plural, whole or cut after at least three letters (None: not a length unit)."""
@@ -379,6 +424,7 @@ def _markers(
     xyz = np.where(missing[..., None], np.nan, xyz.astype(float) * scale)
     outputs = _model_outputs(params) | _segment_axes(labels)
     keep = np.array([lab not in outputs for lab in labels], dtype=bool) & ~_flat_channels(xyz)
+    keep[keep] = ~_copies(xyz[:, keep])
     maker = [s for key in ("COMPANY", "SOFTWARE") for s in _strings(params, "MANUFACTURER", key)]
     return C3DPoints(
         labels=tuple(lab for lab, k in zip(labels, keep, strict=True) if k),

@@ -165,6 +165,29 @@ def test_a_file_whose_parameters_no_reader_parses_is_read_by_its_header(tmp_path
     assert "ignoreBadFormatting" not in str(err.value)
 
 
+def test_a_channel_that_copies_another_marker_is_left_out(tmp_path):
+    """Writers store points at a marker's place beside it (the Oxford foot model's ``LHE1``
+    0.8 mm from ``LHEE``, Cortex's virtual ``VRTO`` on ``R.TO``, a Qualisys file holding
+    every marker three times): within 5 mm of another channel wherever it is seen, it is
+    that marker again, and of the two the one seen less goes. Two markers passing within
+    3 mm of each other in one frame are two markers."""
+    rng = np.random.default_rng(7)
+    n = 40
+    path = np.linspace([0, 0, 900], [1500, 100, 950], n)
+    heel = path + rng.normal(0, 0.3, (n, 3))
+    copy = heel + rng.normal(0, 0.5, (n, 3))
+    toe = path + [150, 60, -850] + rng.normal(0, 0.3, (n, 3))
+    toe_filled = toe + rng.normal(0, 0.5, (n, 3))
+    toe[30:] = 0.0  # missing: the copy is seen longer
+    swing = path + [0, 100, 0] + np.linspace(0, 200, n)[:, None] * [0, -1, 0]
+    swing[20] = heel[20] + [0, 3, 0]  # passes within 3 mm of the heel once
+    xyz = np.stack([heel, toe, copy, toe_filled, swing], axis=1)
+    labels = ("LHEE", "LTOE", "LHE1", "LTOE2", "LWRA")
+    c = read_c3d(write(tmp_path / "copies.c3d", labels, xyz))
+    assert set(c.excluded) == {"LHE1", "LTOE"}
+    assert c.labels == ("LHEE", "LTOE2", "LWRA")
+
+
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):
     xyz = np.random.default_rng(1).uniform(-1, 1, (3, 4, 3))
     path = write(tmp_path / "l.c3d", ("A", "B"), xyz, units="m", LABELS2=["C", "D"])
