@@ -43,6 +43,21 @@ def test_a_short_qualisys_file_keeps_its_frame_numbers_and_system():
     assert np.isfinite(c.xyz_mm).all()
 
 
+def test_a_nexus_file_with_the_oxford_foot_model_keeps_its_markers_only():
+    """biomechZoo's Nexus walk (fixtures README): besides the declared outputs, the
+    channels it does not declare are computed ones (the centre of mass on the floor, arch
+    heights stored as points, the foot model's segment axes, a point at each heel
+    marker) and are left out; the 74 markers stay, Plug-in Gait's and the foot model's."""
+    c = read_c3d(REAL / "biomechzoo_nexus_ofm.c3d")
+    assert c.manufacturer == "Vicon Vicon Nexus" and c.first_frame == 185 and c.n_frames == 30
+    undeclared = {"CentreOfMassFloor", "LArchHeight", "RArchHeight", "LHE1", "RHE1"}
+    undeclared |= {f"{s}{seg}{k}" for s in "LR" for seg in ("FOF", "HDF", "HLX") for k in "0123"}
+    assert undeclared <= set(c.excluded) and len(c.labels) + len(c.excluded) == 290
+    markers = {"LASI", "RASI", "SACR", "LHEE", "RHEE", "LTOE", "RTOE", "LHLX", "RP1M", "LCPG"}
+    assert markers <= set(c.labels) and len(c.labels) == 74
+    assert np.isfinite(c.xyz_mm).all()
+
+
 def write(path: Path, labels, xyz_m_or_mm: np.ndarray, units="mm", **point_params) -> Path:
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
