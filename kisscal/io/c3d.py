@@ -2,10 +2,10 @@
 of writing that ezc3d does not do as the standard asks (the per-sample residual and camera
 mask word, the header's scale).
 
-Reading keeps markers only (declared model outputs and Plug-in Gait's segment axes are
-left out and listed) and every frame, with the file's own first frame number. Intel and
-DEC files are read with ezc3d; SGI/MIPS files, which ezc3d does not read, with the ``c3d``
-package.
+Reading keeps markers only (declared model outputs, Plug-in Gait's segment axes and
+channels fixed to the bit in one coordinate are left out and listed) and every frame,
+with the file's own first frame number. Intel and DEC files are read with ezc3d;
+SGI/MIPS files, which ezc3d does not read, with the ``c3d`` package.
 """
 
 from __future__ import annotations
@@ -18,7 +18,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError, KisscalError, MissingDataError
-from kisscal.io.c3d_data import header_holds, header_layout, read_points_by_header
+from kisscal.io.c3d_computed import copies, flat_channels
+from kisscal.io.c3d_data import (
+    header_fits,
+    header_holds,
+    header_layout,
+    header_rate,
+    read_points_by_header,
+)
 from kisscal.tracking.tracks import MEASURED
 
 #: POINT parameters whose values name channels that hold model outputs, not markers.
@@ -60,7 +67,8 @@ class C3DPoints:
         The file's number of its first frame (``TRIAL:ACTUAL_START_FIELD`` when present,
         else the header's first frame; counted from 1).
     excluded : tuple of str
-        Labels of the channels left out: declared model outputs.
+        Labels of the channels left out: declared model outputs, segment axis points
+        and computed channels (a coordinate exactly constant: floor projections, scalars).
     processor : str
         ``Intel``, ``DEC`` or ``MIPS``.
     manufacturer : str
@@ -126,6 +134,17 @@ def read_c3d(path: Path) -> C3DPoints:
     return _markers(path, params, xyz, residual, header_first, rate, processor)
 
 
+def no_points(xyz_mm: NDArray) -> str:
+    """Why a C3D file gives no 3D point to track ('' when it gives some): no point channel
+    at all (force plates, EMG or rotations only: such files often store a point rate of
+    0), or channels without a valid sample."""
+    if xyz_mm.shape[1] == 0:
+        return "the file holds no 3D points (analog or other data only)"
+    if not np.isfinite(xyz_mm).all(axis=2).any():
+        return "no valid 3D point in the file"
+    return ""
+
+
 def read_c3d_points(path: Path) -> tuple[tuple[str, ...], NDArray[np.float64], float]:
     """Marker labels, positions (n_frames, n_markers, 3) in mm (NaN where invalid) and
     rate of a C3D file: :func:`read_c3d` without its frame numbering and log."""
@@ -154,7 +173,18 @@ def _read_either(path: Path, processor: str) -> _Raw:
         if reader is _read_ezc3d and raw[1].shape[1] < header_layout(path, processor)["points"]:
             continue  # the parameters describe fewer points than the data holds
         return raw
-    raise InputError(f"{path}: not a readable C3D file ({'; '.join(errors)})") from None
+    if header_fits(path, processor):
+        # Neither reader parses the parameter section (BTK's test files of a broken
+        # parameter offset), but the header alone lays out the data and fills the file:
+        # the points, unnamed, in mm (the standard's default unit), at the header's rate.
+        xyz, residual, first = read_points_by_header(path, processor)
+        return {}, xyz, residual, first, header_rate(path, processor)
+    reasons = "; ".join(_IGNORE_HINT.sub("", e).strip(" :") for e in errors)
+    raise InputError(f"{path}: not a readable C3D file ({reasons})") from None
+
+
+#: ezc3d's advice to set its own ignoreBadFormatting flag, which a kisscal user cannot.
+_IGNORE_HINT = re.compile(r"\s*If you want to ignore this error, set \w+ to true\.?:?", re.I)
 
 
 #: A file as both backends give it: parameters {(GROUP, NAME): values}, positions
@@ -250,24 +280,36 @@ def _model_outputs(params: dict[tuple[str, str], list]) -> set[str]:
 
 
 #: The suffixes of a segment's axis points as Plug-in Gait writes them: origin, anterior,
-#: lateral and proximal point of the segment (Vicon Motion Systems 2016).
+#: lateral and proximal point of the segment (Vicon Motion Systems 2016); the Oxford foot
+#: model's numbers them: origin 0 and the ends of its three axes 1, 2, 3 (``LFOF0`` ...
+#: ``LFOF3``, Carson et al. 2001 as Vicon's Oxford Foot Model plug-in writes it).
 SEGMENT_AXES = ("O", "A", "L", "P")
+NUMBERED_AXES = ("0", "1", "2", "3")
 
 
 def _segment_axes(labels: list[str]) -> set[str]:
     """Labels that are a segment's axis points: all four of ``<segment>O``, ``A``, ``L``,
     ``P`` present (subject prefix ``Name:`` aside), the segment named by two letters or
-    more; or all four of ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as
-    a Vicon lab's model writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
+    more; all four of ``<segment>0`` ... ``3``, the segment named by three letters or more
+    and only letters (the Oxford foot model's; numbered markers such as ``Marker_10`` ...
+    ``Marker_13`` or ``PT00`` ... ``PT03`` are not); or all four of
+    ``o_<segment>``, ``x_``, ``y_``, ``z_`` (origin and axis ends, as a Vicon lab's model
+    writes ``o_Trunk`` ... ``z_Trunk``). Plug-in Gait stores them as
     plain points in no model-output group; they move with their segment like markers,
     and crowd a marker set's template (a walking trial holds 36 of them beside 18
     markers)."""
     bare = {lab: lab.rsplit(":", 1)[-1].strip().upper() for lab in labels}
     names = set(bare.values())
-    segments = {
-        b[:-1] for b in names if len(b) >= 3 and all(b[:-1] + s in names for s in SEGMENT_AXES)
-    }
-    out = {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in SEGMENT_AXES}
+    out = set()
+    for suffixes in (SEGMENT_AXES, NUMBERED_AXES):
+        segments = {
+            b[:-1]
+            for b in names
+            if len(b) >= 3 + (suffixes is NUMBERED_AXES)
+            and (b[:-1].isalpha() or suffixes is SEGMENT_AXES)
+            and all(b[:-1] + s in names for s in suffixes)
+        }
+        out |= {lab for lab, b in bare.items() if b[:-1] in segments and b[-1] in suffixes}
     axes = {b[2:] for b in names if len(b) >= 4 and all(f"{s}_{b[2:]}" in names for s in "OXYZ")}
     return out | {
         lab for lab, b in bare.items() if b[:2] in ("O_", "X_", "Y_", "Z_") and b[2:] in axes
@@ -309,12 +351,13 @@ def _markers(
     scale = _unit_mm(units)
     if scale is None:
         raise InputError(f"{path}: unsupported point units {units!r} (mm, cm or m)")
-    outputs = _model_outputs(params) | _segment_axes(labels)
-    keep = np.array([lab not in outputs for lab in labels], dtype=bool)
     # Invalid: a negative residual, or (older writers) a sample stored at exactly 0 0 0
     # with a valid residual (no real marker sits on the origin to the last bit).
     missing = (residual < 0) | (xyz == 0).all(axis=2)
     xyz = np.where(missing[..., None], np.nan, xyz.astype(float) * scale)
+    outputs = _model_outputs(params) | _segment_axes(labels)
+    keep = np.array([lab not in outputs for lab in labels], dtype=bool) & ~flat_channels(xyz)
+    keep[keep] = ~copies(xyz[:, keep])
     maker = [s for key in ("COMPANY", "SOFTWARE") for s in _strings(params, "MANUFACTURER", key)]
     return C3DPoints(
         labels=tuple(lab for lab, k in zip(labels, keep, strict=True) if k),

@@ -113,6 +113,27 @@ def _data_end(lay: dict[str, float], points: int, analog_words: int) -> int:
     return int((max(lay["block"], 1) - 1) * 512 + frames * (4 * points + analog_words) * size)
 
 
+def header_rate(path: Path, processor: str) -> float:
+    """The header's frame rate (words 11-12, a float in every format)."""
+    with Path(path).open("rb") as fh:
+        head = fh.read(24)
+    return float(_floats(head[20:24], processor)[0]) if len(head) == 24 else 0.0
+
+
+def header_fits(path: Path, processor: str) -> bool:
+    """Whether the header's layout (points and analog words a frame, frames, format)
+    fills the file's data section to its last 512-byte block: the header alone then
+    describes the data, whatever the parameter section holds."""
+    lay = header_layout(path, processor)
+    whole = lay["points"] > 0 and lay["last"] >= lay["first"]
+    return whole and _ends_last_block(path, _data_end(lay, lay["points"], lay["analog_words"]))
+
+
+def _ends_last_block(path: Path, end: int) -> bool:
+    size = Path(path).stat().st_size
+    return end <= size and size - end < 512
+
+
 def header_holds(
     path: Path, processor: str, params: dict[tuple[str, str], list], rate: float
 ) -> bool:
@@ -123,11 +144,6 @@ def header_holds(
     by_params = parameter_layout(params, rate)
     if (lay["points"], lay["analog_words"]) == by_params:
         return False
-    size = Path(path).stat().st_size
-
-    def fits(end: int) -> bool:
-        return end <= size and size - end < 512
-
-    return fits(_data_end(lay, lay["points"], lay["analog_words"])) and not fits(
-        _data_end(lay, *by_params)
-    )
+    return _ends_last_block(
+        path, _data_end(lay, lay["points"], lay["analog_words"])
+    ) and not _ends_last_block(path, _data_end(lay, *by_params))

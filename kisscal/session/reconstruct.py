@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.errors import InputError
-from kisscal.io.c3d import read_c3d
+from kisscal.io.c3d import no_points, read_c3d
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_json, write_json
 from kisscal.io.points2d import COLUMNS as POINTS2D_COLUMNS
@@ -140,6 +140,8 @@ def c3d_trial_points(
         echo(f"  reconstruct {trial.name}: cached")
         return store.points3d(trial.name)
     c3d = read_c3d(source)
+    if not c3d.xyz_mm.shape[1]:  # before the rate: such files often give a point rate of 0
+        raise InputError(f"{source}: {no_points(c3d.xyz_mm)}")
     if abs(c3d.rate_hz - config.rate_hz) > 1e-6 * c3d.rate_hz:
         raise InputError(
             f"{source}: {c3d.rate_hz:g} frames per second, but session.toml says rate_hz = "
@@ -147,7 +149,7 @@ def c3d_trial_points(
         )
     field, channel = np.nonzero(np.isfinite(c3d.xyz_mm).all(axis=2))
     if not len(field):
-        raise InputError(f"{source}: no valid 3D point in the file")
+        raise InputError(f"{source}: {no_points(c3d.xyz_mm)}")
     n = len(field)
     write_points3d(
         path,

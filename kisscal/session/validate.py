@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from kisscal.errors import KisscalError
-from kisscal.io.c3d import read_c3d_points
+from kisscal.io.c3d import no_points, read_c3d_points
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.dltfiles import read_control_points_csv
 from kisscal.io.files import read_table
@@ -230,9 +230,11 @@ def _c3d_input(config: SessionConfig, trial: TrialConfig) -> list[str]:
     if not path.is_file():
         return [f"{path}: C3D file not found"]
     try:
-        rate = read_c3d_points(path)[2]
+        _, xyz, rate = read_c3d_points(path)
     except KisscalError as exc:
         return [str(exc)]
+    if not xyz.shape[1]:  # before the rate: such files often give a point rate of 0
+        return [f"{path}: {no_points(xyz)}"]
     if abs(rate - config.rate_hz) > 1e-6 * rate:
         return [
             f"{path}: recorded at {rate:g} frames per second, but [session] rate_hz = "

@@ -388,6 +388,8 @@ def _events(group: dict, start_s: float) -> dict[tuple[str, str], np.ndarray]:
     labels = group.get("LABELS", {}).get("value", [])
     contexts = group.get("CONTEXTS", {}).get("value", [""] * len(labels))
     times = np.asarray(group.get("TIMES", {}).get("value", np.zeros((2, 0))), dtype=float)
+    if times.ndim == 1:  # BTK writes TIMES flat: minutes, seconds, minutes, ...
+        times = times.reshape(-1, 2).T
     out: dict[tuple[str, str], list[float]] = {}
     if not labels:  # ezc3d reads a blank event list back as no labels
         return {}

@@ -376,8 +376,8 @@ def label_raw(
     wrong = flagged = extra = right_flagged = 0
     for t, label in enumerate(res.labels):
         ids = ident[(tr.track == t) & (ident >= 0)]
-        if t in unnamed or not ids.size:
-            continue
+        if t in unnamed or label not in mset.names or not ids.size:
+            continue  # unnamed (a labelling that gives up names every track M1, M2 ...)
         owner = names[int(np.bincount(ids).argmax())]
         if owner == label:
             got[owner] = label

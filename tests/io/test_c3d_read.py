@@ -43,6 +43,21 @@ def test_a_short_qualisys_file_keeps_its_frame_numbers_and_system():
     assert np.isfinite(c.xyz_mm).all()
 
 
+def test_a_nexus_file_with_the_oxford_foot_model_keeps_its_markers_only():
+    """biomechZoo's Nexus walk (fixtures README): besides the declared outputs, the
+    channels it does not declare are computed ones (the centre of mass on the floor, arch
+    heights stored as points, the foot model's segment axes, a point at each heel
+    marker) and are left out; the 74 markers stay, Plug-in Gait's and the foot model's."""
+    c = read_c3d(REAL / "biomechzoo_nexus_ofm.c3d")
+    assert c.manufacturer == "Vicon Vicon Nexus" and c.first_frame == 185 and c.n_frames == 30
+    undeclared = {"CentreOfMassFloor", "LArchHeight", "RArchHeight", "LHE1", "RHE1"}
+    undeclared |= {f"{s}{seg}{k}" for s in "LR" for seg in ("FOF", "HDF", "HLX") for k in "0123"}
+    assert undeclared <= set(c.excluded) and len(c.labels) + len(c.excluded) == 290
+    markers = {"LASI", "RASI", "SACR", "LHEE", "RHEE", "LTOE", "RTOE", "LHLX", "RP1M", "LCPG"}
+    assert markers <= set(c.labels) and len(c.labels) == 74
+    assert np.isfinite(c.xyz_mm).all()
+
+
 def write(path: Path, labels, xyz_m_or_mm: np.ndarray, units="mm", **point_params) -> Path:
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
@@ -96,6 +111,96 @@ def test_plug_in_gait_segment_axes_are_left_out_and_named(tmp_path):
     kept = [i for i, lab in enumerate(labels) if lab not in c.excluded]
     assert c.labels == tuple(labels[i] for i in kept) and len(kept) == 10
     np.testing.assert_allclose(c.xyz_mm, xyz[:, kept], atol=1e-3)
+
+
+def test_numbered_segment_axes_go_numbered_markers_stay(tmp_path):
+    """The Oxford foot model's segment axes (``LFOF0`` ... ``LFOF3``: origin and three axis
+    ends, beside Plug-in Gait's in a Nexus trial of the biomechZoo sample study) are left
+    out; markers numbered the same way (``Marker_10`` ... ``Marker_13`` of an Optotrak
+    file, ``PT00`` ... ``PT03``, ``LHDF1`` ... ``LHDF3`` without its origin) stay."""
+    labels = (
+        "Sub:LFOF0", "Sub:LFOF1", "Sub:LFOF2", "Sub:LFOF3",  # forefoot axes
+        "LHDF1", "LHDF2", "LHDF3",  # no origin: kept
+        "Marker_10", "Marker_11", "Marker_12", "Marker_13",
+        "PT00", "PT01", "PT02", "PT03", "LHEE",
+    )  # fmt: skip
+    xyz = np.random.default_rng(4).uniform(-500, 500, (4, len(labels), 3))
+    c = read_c3d(write(tmp_path / "ofm.c3d", labels, xyz))
+    assert set(c.excluded) == {"Sub:LFOF0", "Sub:LFOF1", "Sub:LFOF2", "Sub:LFOF3"}
+    assert c.labels == labels[4:]
+
+
+def test_floor_projections_and_scalars_stored_as_points_are_left_out(tmp_path):
+    """Nexus writes Plug-in Gait's ``CentreOfMassFloor`` (the centre of mass on the floor:
+    z = 0 to the bit) and scalars as points (``LArchHeight``: x = y = 0) in no model-output
+    group. A coordinate fixed to the bit while the channel moves is no measurement; a
+    marker standing still, one seen in fewer than 10 samples, and a planar recording (every
+    marker at z = 0) are kept."""
+    rng = np.random.default_rng(5)
+    n = 40
+    walk = np.linspace(0, 1500, n)[:, None] + rng.normal(0, 0.3, (n, 3))
+    still = np.array([300.0, 200.0, 100.0]) + rng.normal(0, 0.2, (n, 3))
+    floor = walk * [1, 1, 0] + [0, 0, 0]
+    scalar = np.zeros((n, 3))
+    scalar[:, 2] = 20 + rng.normal(0, 2, n)
+    few = walk * [1, 1, 0] + [0, 0, 7.5]
+    few[8:] = np.nan  # 8 samples
+    xyz = np.stack([walk, still, floor, scalar, few, walk + 100, still - 50], axis=1)
+    labels = ("LASI", "RASI", "CentreOfMassFloor", "LArchHeight", "X", "LHEE", "LTOE")
+    c = read_c3d(write(tmp_path / "com.c3d", labels, np.nan_to_num(xyz)))
+    assert set(c.excluded) == {"CentreOfMassFloor", "LArchHeight"}
+    assert c.labels == ("LASI", "RASI", "X", "LHEE", "LTOE")
+    planar = xyz[:, [0, 1, 5, 6]] * [1, 1, 0]
+    c = read_c3d(write(tmp_path / "plane.c3d", ("A", "B", "C", "D"), planar + [0, 0, 5]))
+    assert c.excluded == () and len(c.labels) == 4
+
+
+def test_a_file_whose_parameters_no_reader_parses_is_read_by_its_header(tmp_path):
+    """A parameter offset pointing past the parameter section (as BTK's
+    ``badParameterOffset.c3d`` and ``mocap36.c3d``): ezc3d and the c3d package both
+    refuse the file, but the header lays out the data and fills the file, so the points
+    are read by it, unnamed, at the header's rate. Cut short as well, the file is one
+    clear error (without ezc3d's advice to set its own flags)."""
+    xyz = np.random.default_rng(6).uniform(-900, 900, (20, 3, 3))
+    raw = bytearray(write(tmp_path / "ok.c3d", ("A", "B", "C"), xyz, RATE=[120.0]).read_bytes())
+    start = (raw[0] - 1) * 512 + 4  # the first group: name length, id, name, offset
+    at = start + 2 + raw[start]
+    raw[at : at + 2] = (32767).to_bytes(2, "little")
+    bad = tmp_path / "bad.c3d"
+    bad.write_bytes(bytes(raw))
+    with pytest.raises(Exception):  # noqa: B017 (ezc3d refuses it)
+        ezc3d.c3d(str(bad))
+    c = read_c3d(bad)
+    assert c.labels == ("point1", "point2", "point3") and c.rate_hz == 120.0
+    assert c.n_frames == 20 and c.first_frame == 1
+    np.testing.assert_allclose(c.xyz_mm, xyz, atol=1e-3)
+    bad.write_bytes(bytes(raw[: 512 * raw[0]]))  # the parameters only
+    with pytest.raises(KisscalError, match="not a readable C3D file") as err:
+        read_c3d(bad)
+    assert "ignoreBadFormatting" not in str(err.value)
+
+
+def test_a_channel_that_copies_another_marker_is_left_out(tmp_path):
+    """Writers store points at a marker's place beside it (the Oxford foot model's ``LHE1``
+    0.8 mm from ``LHEE``, Cortex's virtual ``VRTO`` on ``R.TO``, a Qualisys file holding
+    every marker three times): within 5 mm of another channel wherever it is seen, it is
+    that marker again, and of the two the one seen less goes. Two markers passing within
+    3 mm of each other in one frame are two markers."""
+    rng = np.random.default_rng(7)
+    n = 40
+    path = np.linspace([0, 0, 900], [1500, 100, 950], n)
+    heel = path + rng.normal(0, 0.3, (n, 3))
+    copy = heel + rng.normal(0, 0.5, (n, 3))
+    toe = path + [150, 60, -850] + rng.normal(0, 0.3, (n, 3))
+    toe_filled = toe + rng.normal(0, 0.5, (n, 3))
+    toe[30:] = 0.0  # missing: the copy is seen longer
+    swing = path + [0, 100, 0] + np.linspace(0, 200, n)[:, None] * [0, -1, 0]
+    swing[20] = heel[20] + [0, 3, 0]  # passes within 3 mm of the heel once
+    xyz = np.stack([heel, toe, copy, toe_filled, swing], axis=1)
+    labels = ("LHEE", "LTOE", "LHE1", "LTOE2", "LWRA")
+    c = read_c3d(write(tmp_path / "copies.c3d", labels, xyz))
+    assert set(c.excluded) == {"LHE1", "LTOE"}
+    assert c.labels == ("LHEE", "LTOE2", "LWRA")
 
 
 def test_labels_continue_in_labels2_and_metres_become_mm(tmp_path):

@@ -110,6 +110,26 @@ def test_c3d_trial_rate_must_match_the_session(walking5_markers, tmp_path: Path)
         session.reconstruct(root, "walk")
 
 
+def test_a_file_without_points_is_said_so_not_blamed_on_rate_hz(tmp_path: Path) -> None:
+    """A force-plate file (Kistler's in the ezc3d test files) holds analog data only and
+    a point rate of 0: validate and run say the file holds no 3D points, rather than
+    asking whether rate_hz = 100 is right."""
+    root = c3d_session(tmp_path / "s", 100.0)
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [0.0]
+    c["parameters"]["ANALOG"]["RATE"]["value"] = [1000.0]
+    c["parameters"]["ANALOG"]["LABELS"]["value"] = ["Fz"]
+    c["parameters"]["ANALOG"]["USED"]["value"] = [1]
+    c["data"]["points"] = np.zeros((4, 0, 50))
+    c["data"]["analogs"] = np.random.default_rng(0).random((1, 1, 50))
+    c.write(str(root / "walk.c3d"))
+    problems = [p.message for p in session.validate(root)]
+    assert any("holds no 3D points" in p for p in problems), problems
+    assert not any("rate_hz" in p for p in problems)
+    with pytest.raises(KisscalError, match="holds no 3D points"):
+        session.reconstruct(root, "walk")
+
+
 def test_a_real_two_frame_qualisys_file_comes_out_whole_with_its_frame_numbers(tmp_path):
     """FP_Type3.c3d (QTM, 2 frames of 34 markers, frames 1166-1167): a session of C3D trials
     without [[cameras]]; every sample comes out (unlabelled: two frames cannot be
