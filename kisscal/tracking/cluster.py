@@ -126,7 +126,12 @@ def _joint_carry(
     overruling a right assignment: a move explaining one track is its nearest point (on
     PhaseSpace, without the two, 19 of 79 carried predictions went to another LED); one
     that uses only points already taken shifts a hidden LED's track onto a neighbour's
-    (without that condition, 12 of 69); with all, none of 39 did.
+    (without that condition, 12 of 69). A cluster must also have moved smoothly until
+    this field (every member's last second difference under half its spacing): two like
+    hands 100 mm apart shaken at 118 mm a field have no prediction to tell a move onto
+    their own points from one onto the other hand's (without it, 126 of 948 carried
+    wrong). With all, PhaseSpace carries 9 predictions, each to its own LED (the toe-off
+    of field 245 among them), the shaken hands none.
     """
     last = history[live, -1]
     member = (apart < radius_mm) & together(history, n, live, live)
@@ -143,6 +148,13 @@ def _joint_carry(
     free[cols] = False
     use &= (inliers & free[landed]).any(axis=1)
     use &= np.linalg.norm(carried - pred[live], axis=1) > spacing
+    # Only a cluster that moved smoothly so far (its tracks' last second differences under
+    # half their spacing): one shaken faster than its markers are apart has no prediction
+    # a move among its neighbours' points could be told from another cluster's by.
+    h = history[live, -3:]
+    accel = np.linalg.norm(h[:, 2] - 2.0 * h[:, 1] + h[:, 0], axis=1)
+    smooth = (n[live] >= 3) & (accel < 0.5 * spacing)
+    use &= ~(member & ~smooth[None]).any(axis=1)
     pred[live[use]] = carried[use]
     return use
 
