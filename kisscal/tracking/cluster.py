@@ -200,7 +200,13 @@ def joint_moves(
     assigned = np.zeros((n_live, k), dtype=bool)
     assigned[:, 0] = found >= 0
     first = np.where(assigned.reshape(-1)[None], support, 0.0).max(axis=1)
+    # A move is no cluster's where another, apart from it, explains as many: markers
+    # equally spaced along a line (walking5's condyles and knee centre, 51 mm apart) land
+    # on each other's points as well when shifted by one.
+    other = np.linalg.norm(hyp[None] - hyp[best][:, None], axis=2) > tol[:, None]
+    rival = np.where(other, support, -1.0).max(axis=1)
     inliers = member & hit[:, best].T  # (L, L): r's members its move explains
+    inliers &= (rival < support[np.arange(n_live), best])[:, None]
     moved = points[landed[:, best].T] - last[None]  # (L, L, 3)
     count = inliers.sum(axis=1)
     move = np.einsum("ri,ric->rc", inliers, moved) / np.maximum(count, 1)[:, None]
