@@ -155,6 +155,23 @@ def test_a_toe_off_is_followed_by_the_clusters_joint_move(seed, monkeypatch):
     assert _holding_two(track_points(field, xyz, TrackingParams()), who) > 0
 
 
+def test_a_move_a_shifted_one_explains_as_well_is_nobodys():
+    """Three markers 51 mm apart on a line (walking5's condyles and knee centre) all jump
+    31 mm across it: the middle one's cluster holds all three, and only the true move
+    explains them all; an end one's holds two, which a move one marker along the line
+    explains as well as the true one: no move for it (before this rule it was carried
+    one marker along, a switch)."""
+    last = np.array([[0.0, 0, 0], [0, 51, 0], [0, 102, 0]])
+    points = last + [-31.0, 0, 0]
+    member = np.array([[1, 1, 0], [1, 1, 1], [0, 1, 1]], dtype=bool)
+    found = np.full(3, -1)
+    move, count, *_ = cluster.joint_moves(
+        last, member, last + [5.0, 0, 0], points, found, np.full(3, 10.0)
+    )
+    assert count.tolist() == [0, 3, 0]
+    assert np.allclose(move[1], [-31.0, 0, 0])
+
+
 def test_a_one_point_tracks_first_step_to_a_neighbour_is_split_off():
     """The two hands of :func:`test_a_track_that_breaks_its_cluster_is_cut`, six trials:
     an LED found again starts a one-point track, which has no velocity, and its LED moves
