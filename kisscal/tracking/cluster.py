@@ -165,8 +165,10 @@ def joint_moves(
     """The move this field of each track's cluster, whichever point any track took: the
     translation that carries the most of the cluster's last positions onto the field's
     points, refitted over those (hypothesise and verify, Fischler & Bolles 1981's RANSAC,
-    with Umeyama 1991's translation as the refit). Returns the moves (L, 3) and how many
-    members each explains (L,).
+    with Umeyama 1991's translation as the refit). Returns the moves (L, 3), how many
+    members each explains (L,; 0 where no move is the cluster's), the most a move of the
+    first assignment explains (L,), which members each move explains (L, L) and the
+    points they land on (L, L).
 
     A move is hypothesised from each member's :data:`CANDIDATES` points nearest its
     prediction (the point minus the member's last position); a member is explained where
@@ -180,7 +182,8 @@ def joint_moves(
     ----------
     last : (L, 3) the tracks' last positions; member : (L, L) bool, ``member[r, i]``:
     track ``i`` belongs to ``r``'s cluster (``r`` itself included); pred : (L, 3) their
-    predictions; points : (M, 3) the field's points; tol : (L,) how near a landing is.
+    predictions; points : (M, 3) the field's points; found : (L,) the point of each in
+    the first assignment (-1: none); tol : (L,) how near a landing is.
     """
     n_live, k = last.shape[0], min(CANDIDATES, points.shape[0])
     tree = cKDTree(points)

@@ -119,9 +119,9 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
 
     What is left is judged again, until no short piece starts with a guess: the step
     after a guessed one was taken with the velocity the guess gave. On PhaseSpace at 30
-    Hz a hidden LED's track, cut where it took a neighbour's point, went on to the point
-    of a third (one pass: 2 tracker pieces holding two LEDs; passes until none is split:
-    none, 2526 -> 2638 pieces).
+    Hz, where LED 8 is hidden in field 157, its track took LED 9's point there and LED
+    9's young track the point of LED 10, found again: after one pass both pieces still
+    held two LEDs; passes until none is split leave none (2526 -> 2638 pieces).
     """
     for _ in range(params.min_initial_length):
         split = _split_first_steps_once(tracks, params)
