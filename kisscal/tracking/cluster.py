@@ -12,6 +12,12 @@ neighbours apart, and the field is assigned again (:func:`carry`). The track's o
 of the first assignment is left out of the mean: it is the one in doubt (with it,
 PhaseSpace keeps 8 net switches instead of 4).
 
+Where the first assignment is itself wrong (a toe-off: two LEDs leap by more than they
+are apart, one track takes the other's point and that one's track finds none), the mean of
+its moves is wrong too: the move that carries the most of a cluster's last positions onto
+the field's points, whoever took which, is found by hypothesis and check instead
+(:func:`joint_moves`).
+
 What the carried prediction still gets wrong, the cluster's distances show after the
 assignment: a track whose new point changes its distance to a marker it moved with is
 cut there, with that marker, for blending to judge (:func:`broken`).
@@ -21,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 #: A neighbour moved together with a track while their distance over their last
 #: :data:`TOGETHER_FIELDS` shared positions stayed within this share of it now (a hand's
@@ -47,8 +54,11 @@ def carry(
     A track seen last field is carried by the mean move this field (from their last
     positions to the points of a first assignment ``rows`` -> ``cols``) of the assigned
     tracks within ``radius_mm`` that moved together with it (:func:`together`). A slow or
-    well predicted track is left alone: nothing is carried in a field where every track
-    found its point within ``least_mm`` of its prediction.
+    well predicted track is left alone: nothing is carried that way in a field where every
+    track found its point within ``least_mm`` of its prediction. Before that, and also
+    where a track seen last field found none, a cluster's move found whichever track took
+    which point (:func:`joint_moves`) carries its tracks where the first assignment
+    explains fewer of them (:func:`_joint_carry`).
 
     Parameters
     ----------
@@ -59,10 +69,12 @@ def carry(
     small is no miss (a few times the noise).
     """
     rows, cols = _fresh_pairs(fresh, rows, cols)
-    if radius_mm <= 0 or rows.size < 2:
+    if radius_mm <= 0 or rows.size == 0 or np.count_nonzero(fresh) < 2:
         return False
     miss = points[cols] - pred[rows]
-    if np.einsum("tc,tc->t", miss, miss).max() <= least_mm**2:
+    missed = rows.size >= 2 and np.einsum("tc,tc->t", miss, miss).max() > least_mm**2
+    # A track seen last field that found no point may have lost it to a neighbour.
+    if not missed and np.count_nonzero(fresh) == rows.size:
         return False
     last = history[:, -1]
     live = np.flatnonzero(fresh)
@@ -71,16 +83,137 @@ def carry(
     np.fill_diagonal(apart, np.inf)
     spacing = np.maximum(apart.min(axis=1), least_mm)
     near = apart[:, np.searchsorted(live, rows)] < radius_mm
+    args = (history, n, live, points, rows, cols, apart, spacing, radius_mm, least_mm)
+    leapt = _joint_carry(pred, *args)
     # First by nearness alone; a track far from its carried place is judged again with
     # the neighbours that moved together with it (few: the costlier test).
-    far = _carried_far(pred[live], last[live], near, move, spacing)
-    if not far.any():
-        return False
+    far = _carried_far(pred[live], last[live], near, move, spacing) & ~leapt
+    if not missed or not far.any():
+        return bool(leapt.any())
     far_rows = live[far]
     near = near[far] & together(history, n, far_rows, rows)
     use = _carried_far(pred[far_rows], last[far_rows], near, move, spacing[far])
     pred[far_rows[use]] = (last[far_rows] + _mean_move(near, move))[use]
-    return bool(use.any())
+    return bool(use.any() or leapt.any())
+
+
+#: Candidate points per track for :func:`joint_moves`: the nearest to its prediction.
+CANDIDATES = 3
+
+
+def _joint_carry(
+    pred: NDArray,
+    history: NDArray,
+    n: NDArray,
+    live: NDArray,
+    points: NDArray,
+    rows: NDArray,
+    cols: NDArray,
+    apart: NDArray,
+    spacing: NDArray,
+    radius_mm: float,
+    least_mm: float,
+) -> NDArray[np.bool_]:
+    """Carry (``pred`` in place) each ``live`` track by its cluster's :func:`joint_moves`
+    where that move explains two members at least, more than any move of the first
+    assignment ``rows`` -> ``cols`` does, finds a point that assignment left to nobody,
+    and lies farther than ``spacing`` from the track's prediction; returns which (L,).
+
+    The mean move of the points assigned (:func:`carry`) is only as right as the
+    assignment: where a cluster's markers leap by more than they are apart, one track
+    takes its neighbour's point and the other none, and the mean of what was assigned is
+    the wrong move, which nobody contradicts. Each condition keeps the joint move from
+    overruling a right assignment: a move explaining one track is its nearest point (on
+    PhaseSpace, without the two, 19 of 79 carried predictions went to another LED); one
+    that uses only points already taken shifts a hidden LED's track onto a neighbour's
+    (without that condition, 12 of 69). A cluster must also have moved smoothly until
+    this field (every member's last second difference under half its spacing): two like
+    hands 100 mm apart shaken at 118 mm a field have no prediction to tell a move onto
+    their own points from one onto the other hand's (without it, 126 of 948 carried
+    wrong). With all, PhaseSpace carries 9 predictions, each to its own LED (the toe-off
+    of field 245 among them), the shaken hands none.
+    """
+    last = history[live, -1]
+    member = (apart < radius_mm) & together(history, n, live, live)
+    np.fill_diagonal(member, True)
+    found = np.full(live.size, -1)
+    found[np.searchsorted(live, rows)] = cols
+    tol = np.maximum(least_mm, TOGETHER_SHARE * spacing)
+    args = (last, member, pred[live], points, found, tol)
+    move, support, first, inliers, landed = joint_moves(*args)
+    carried = last + move
+    use = (support >= 2) & (support > first)  # a cluster's move explains two at least
+    # Only where the move finds a point the first assignment left to nobody.
+    free = np.ones(points.shape[0], dtype=bool)
+    free[cols] = False
+    use &= (inliers & free[landed]).any(axis=1)
+    use &= np.linalg.norm(carried - pred[live], axis=1) > spacing
+    # Only a cluster that moved smoothly so far (its tracks' last second differences under
+    # half their spacing): one shaken faster than its markers are apart has no prediction
+    # a move among its neighbours' points could be told from another cluster's by.
+    h = history[live, -3:]
+    accel = np.linalg.norm(h[:, 2] - 2.0 * h[:, 1] + h[:, 0], axis=1)
+    smooth = (n[live] >= 3) & (accel < 0.5 * spacing)
+    use &= ~(member & ~smooth[None]).any(axis=1)
+    pred[live[use]] = carried[use]
+    return use
+
+
+def joint_moves(
+    last: NDArray, member: NDArray, pred: NDArray, points: NDArray, found: NDArray, tol: NDArray
+) -> tuple[NDArray, ...]:
+    """The move this field of each track's cluster, whichever point any track took: the
+    translation that carries the most of the cluster's last positions onto the field's
+    points, refitted over those (hypothesise and verify, Fischler & Bolles 1981's RANSAC,
+    with Umeyama 1991's translation as the refit). Returns the moves (L, 3), how many
+    members each explains (L,; 0 where no move is the cluster's), the most a move of the
+    first assignment explains (L,), which members each move explains (L, L) and the
+    points they land on (L, L).
+
+    A move is hypothesised from each member's :data:`CANDIDATES` points nearest its
+    prediction (the point minus the member's last position); a member is explained where
+    its last position so moved lands within its ``tol`` of a point (ties: the least sum
+    of those distances). At a toe-off at 30 Hz (PhaseSpace: two LEDs 30 mm apart leap
+    41 mm) the leading LED's track finds the trailing one's point 11 mm from its
+    prediction and the trailing one's track finds nothing: the mean move of the points so
+    assigned explains one track; the move from the leading LED's own point, both.
+
+    Parameters
+    ----------
+    last : (L, 3) the tracks' last positions; member : (L, L) bool, ``member[r, i]``:
+    track ``i`` belongs to ``r``'s cluster (``r`` itself included); pred : (L, 3) their
+    predictions; points : (M, 3) the field's points; found : (L,) the point of each in
+    the first assignment (-1: none); tol : (L,) how near a landing is.
+    """
+    n_live, k = last.shape[0], min(CANDIDATES, points.shape[0])
+    tree = cKDTree(points)
+    near = tree.query(pred, k)[1].reshape(n_live, k)
+    # The first assignment's own moves lead (a track without a point: its nearest).
+    near = np.c_[np.where(found >= 0, found, near[:, 0]), near]
+    k += 1
+    hyp = (points[near] - last[:, None]).reshape(-1, 3)  # (L*k, 3): member j's k-th
+    dist, landed = tree.query(last[:, None] + hyp[None], 1)  # (L, L*k)
+    hit = dist < tol[:, None]
+    # A hypothesis of a member of r's cluster is r's; only members explain it.
+    member_f = member.astype(float)
+    support = np.where(np.repeat(member, k, axis=1), member_f @ hit, -1.0)
+    residual = member_f @ np.where(hit, dist, 0.0)
+    score = support - residual / (1.0 + residual.max())
+    best = np.argmax(score, axis=1)
+    assigned = np.zeros((n_live, k), dtype=bool)
+    assigned[:, 0] = found >= 0
+    first = np.where(assigned.reshape(-1)[None], support, 0.0).max(axis=1)
+    # A move is no cluster's where another, apart from it, explains as many: markers
+    # equally spaced along a line (walking5's condyles and knee centre, 51 mm apart) land
+    # on each other's points as well when shifted by one.
+    other = np.linalg.norm(hyp[None] - hyp[best][:, None], axis=2) > tol[:, None]
+    rival = np.where(other, support, -1.0).max(axis=1)
+    inliers = member & hit[:, best].T  # (L, L): r's members its move explains
+    inliers &= (rival < support[np.arange(n_live), best])[:, None]
+    moved = points[landed[:, best].T] - last[None]  # (L, L, 3)
+    count = inliers.sum(axis=1)
+    move = np.einsum("ri,ric->rc", inliers, moved) / np.maximum(count, 1)[:, None]
+    return move, count, first, inliers, landed[:, best].T
 
 
 def together(

@@ -116,7 +116,23 @@ def split_ambiguous_first_steps(tracks: Tracks, params: TrackingParams) -> Track
     takes the neighbour's point, 7.4 mm away against the neighbour's own 9.7 mm (a 10 mm
     floor on the step would keep that guess). Kalman tracks keep their start, as live tracking
     built them; a short piece loses nothing that blending would use.
+
+    What is left is judged again, until no short piece starts with a guess: the step
+    after a guessed one was taken with the velocity the guess gave. On PhaseSpace at 30
+    Hz, where LED 8 is hidden in field 157, its track took LED 9's point there and LED
+    9's young track the point of LED 10, found again: after one pass both pieces still
+    held two LEDs; passes until none is split leave none (2526 -> 2638 pieces).
     """
+    for _ in range(params.min_initial_length):
+        split = _split_first_steps_once(tracks, params)
+        if split.n_tracks == tracks.n_tracks:
+            break
+        tracks = split
+    return tracks
+
+
+def _split_first_steps_once(tracks: Tracks, params: TrackingParams) -> Tracks:
+    """One pass of :func:`split_ambiguous_first_steps`."""
     meas = np.flatnonzero(tracks.status == MEASURED)
     if params.first_step_ratio <= 0 or meas.size < 3:
         return tracks

@@ -233,6 +233,29 @@ def test_a_short_pieces_guessed_first_step_is_split_off():
     assert split_ambiguous_first_steps(tracks, params.replace(min_initial_length=2)).n_tracks == 4
 
 
+def test_a_step_after_a_guessed_first_step_is_judged_again():
+    """A three-point piece whose two steps were each as near another point of their field
+    (121 against 129 and 125 mm): the second was taken with the velocity of the guessed
+    first, and is split off as well, leaving three pieces; a piece whose second step is
+    clear (its rival three times as far) keeps it after losing its first point."""
+    xyz = np.array(
+        [
+            [0.0, 0.0, 0.0], [121.0, 0.0, 0.0], [242.0, 0.0, 0.0],  # guessed twice
+            [0.0, 129.0, 0.0], [121.0, 125.0, 0.0],  # their rivals
+            [1e3, 0.0, 0.0], [1121.0, 0.0, 0.0], [1242.0, 0.0, 0.0],  # guessed once
+            [1e3, 129.0, 0.0], [1121.0, 363.0, 0.0],  # their rivals
+        ]
+    )  # fmt: skip
+    field = np.array([0, 1, 2, 1, 2, 0, 1, 2, 1, 2])
+    track = np.array([0, 0, 0, 1, 2, 3, 3, 3, 4, 5])
+    n = field.size
+    tracks = make_tracks(field, track, xyz, np.full((n, 3), np.nan), np.zeros(n), np.arange(n))
+    out = split_ambiguous_first_steps(tracks, TrackingParams())
+    piece = {p: out.track[out.point == p][0] for p in range(n)}
+    assert len({piece[0], piece[1], piece[2]}) == 3
+    assert piece[5] != piece[6] == piece[7]
+
+
 def test_a_short_pieces_first_step_with_a_rival_track_is_split_off():
     """A two-point piece whose second point lies almost as near another point of the
     first field (LEDs 7.6 mm apart on a golf club, both moving 9.7 mm a field, one hidden
