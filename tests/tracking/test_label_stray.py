@@ -34,7 +34,7 @@ def test_still_points_far_from_the_walker_leave_every_name_right():
     still = np.array(
         [
             [*(centre + 2500.0 * side)[:2], floor - 430.0],
-            [*(centre - 2200.0 * side)[:2], floor],
+            [*(centre - 1500.0 * side)[:2], floor],
         ]
     )
     field, xyz = _with_still_points(field, xyz, still)
@@ -52,3 +52,16 @@ def test_far_from_body_tells_a_stray_piece_not_the_feet():
     stray = np.broadcast_to(window[0, 0] + [0.0, 2500.0, -400.0], (1, 50, 3))
     far = far_from_body(np.r_[window, stray])
     assert far.tolist() == [False] * len(LOWER) + [True]
+
+
+def test_a_still_piece_beside_a_walk_is_told_but_no_foot_of_the_walker():
+    # A still piece 1 m from the walk is not far from the body; it stays put while the
+    # body walks on. The walker's feet stand still in stance, but swing in every 1 s.
+    for speed in (0.6, 1.0, 1.4):
+        truth, _, _, _ = walker_trial(3, 1.6, 45.0, speed, 50.0)
+        for start in range(0, truth.shape[1] - 50, 25):
+            window = truth[:, start : start + 50]
+            assert not far_from_body(window).any()
+        window = truth[:, 50:100]
+        still = np.broadcast_to(np.nanmean(window[0], axis=0) + [700.0, -700.0, 0.0], (1, 50, 3))
+        assert far_from_body(np.r_[window, still])[-1] == (speed >= 1.0)

@@ -22,6 +22,13 @@ from numpy.typing import NDArray
 #: the pieces' median point is over this many times the pieces' median such distance: a
 #: standing body's farthest markers (feet, a hand raised) sit at about 2-3 times.
 FAR_FACTOR = 4.0
+#: The body walks when its median point travels over this many times its scale (the
+#: pieces' median distance to it) in a window: 0.8 m or more in the 1 s first window.
+WALKED_FACTOR = 2.0
+#: A piece is still while the body walks when it spans under this fraction of the
+#: body's travel: in a 1 s window of a walk every foot swings (stance lasts 0.6-0.7 s,
+#: Perry 1992), and a swing moves it 0.3 m and more.
+STILL_FRACTION = 0.1
 #: Fewest pieces whose median point and distance are trusted to tell a stray one.
 MIN_CLUSTER = 5
 
@@ -45,7 +52,20 @@ def far_from_body(pos: NDArray) -> NDArray[np.bool_]:
     scale = np.nanmedian(distance)
     if not np.isfinite(scale) or scale <= 0:
         return np.zeros(k, dtype=bool)
-    return np.nan_to_num(distance, nan=0.0) > FAR_FACTOR * scale
+    far = np.nan_to_num(distance, nan=0.0) > FAR_FACTOR * scale
+    return far | _still(pos, centre, scale)
+
+
+def _still(pos: NDArray, centre: NDArray, scale: float) -> NDArray[np.bool_]:
+    """Pieces that stay put while the body's median point travels over
+    :data:`WALKED_FACTOR` times the body's scale."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # fields or pieces unseen
+        travel = np.linalg.norm(np.nanmax(centre, axis=0) - np.nanmin(centre, axis=0))
+        extent = np.linalg.norm(np.nanmax(pos, axis=1) - np.nanmin(pos, axis=1), axis=1)
+    if not travel > WALKED_FACTOR * scale:
+        return np.zeros(pos.shape[0], dtype=bool)
+    return np.nan_to_num(extent, nan=np.inf) < STILL_FRACTION * travel
 
 
 def core_pieces(present: NDArray, rich: NDArray, dense: NDArray | None = None) -> NDArray[np.int64]:
