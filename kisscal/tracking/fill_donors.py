@@ -185,7 +185,12 @@ def _local(target: NDArray, dense: NDArray, donors: tuple[int, ...], f: NDArray)
     if len(donors) > 2:
         return np.full_like(rel, np.nan)
     axis = dense[donors[1], f] - dense[donors[0], f]
-    ref = np.eye(3)[int(np.argmin(np.abs(np.nanmean(axis, axis=0))))]
+    both = np.isfinite(axis).all(axis=1)
+    if not both.any():
+        # The two donors are never measured together at ``f`` (a gap's ends and its
+        # stretches' ends fall where a donor is missing too): no axis, no frame.
+        return np.full_like(rel, np.nan)
+    ref = np.eye(3)[int(np.argmin(np.abs(axis[both].mean(axis=0))))]
     r = axis_frames(dense[donors[0], f], dense[donors[1], f], ref)
     return np.einsum("nji,nj->ni", r, rel)
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.core import core_pieces
 from kisscal.tracking.labelling.facing import better, facing
 from kisscal.tracking.labelling.state import (
     RIGID_MATCH_MM,
@@ -98,22 +99,6 @@ def window_fields(present: NDArray, centre: int, window: int, label_fields: int)
     if rich.size > label_fields:
         rich = rich[np.linspace(0, rich.size - 1, label_fields).round().astype(int)]
     return rich
-
-
-def core_pieces(present: NDArray, rich: NDArray) -> NDArray[np.int64]:
-    """Long pieces seen in at least 60 % of ``rich``, every pair of them seen together.
-
-    Every pair of core pieces must share rich fields for a median distance; the piece
-    missing most pairs is dropped until they all do (two pieces of one marker never meet).
-    """
-    core = np.flatnonzero(present[:, rich].mean(axis=1) >= 0.6)
-    while core.size >= 3:
-        seen = present[np.ix_(core, rich)].astype(int)
-        never = ((seen @ seen.T) == 0).sum(axis=1)
-        if never.max() == 0:
-            break
-        core = np.delete(core, int(np.argmax(never)))
-    return core
 
 
 def swap_refined(
@@ -375,7 +360,7 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     none = WindowMatch(None, np.empty(0, dtype=np.int64), float("nan"), rich)
     if rich.size == 0:  # never three tracks at once: no body to match
         return none
-    core = core_pieces(state.present, rich)
+    core = core_pieces(state.present, rich, state.dense)
     if core.size < 3:
         return none
     names, pose = np.arange(len(state.names)), None
@@ -429,7 +414,7 @@ def first_pose(state: LabelState) -> tuple[NDArray, NDArray]:
     """The first window's core pieces (k, F, 3) over at most ``UPRIGHT_FIELDS`` fields,
     and their average pose (:func:`~kisscal.tracking.labelling.upright.average_pose`)."""
     rich = window_fields(state.present, first_centre(state), state.window, UPRIGHT_FIELDS)
-    pos = state.dense[np.ix_(core_pieces(state.present, rich), rich)]
+    pos = state.dense[np.ix_(core_pieces(state.present, rich, state.dense), rich)]
     return pos, average_pose(pos)
 
 
@@ -441,7 +426,7 @@ def shorter_windows(state: LabelState) -> list[tuple[int, int]]:
 
     def n_core(centre: int, length: int) -> int:
         rich = window_fields(state.present, centre, length, params.label_fields)
-        return core_pieces(state.present, rich).size if rich.size else 0
+        return core_pieces(state.present, rich, state.dense).size if rich.size else 0
 
     busiest = np.convolve(state.present.sum(axis=0), np.ones(state.window), mode="same")
     most = n_core(int(np.argmax(busiest)), state.window)
