@@ -72,7 +72,7 @@ from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
-from kisscal.detect.roundness import shapes_off_reason, single_cuts_reason
+from kisscal.detect.roundness import shapes_off_reason
 from kisscal.detect.route import choose_route
 from kisscal.detect.survey import (
     GreyLevels,
@@ -290,7 +290,7 @@ class _Derivation:
             self._shape_tests(final.take(markers & (final.isolation > 2.0)))
             choose_route(self.choose, self.frames, final, self.given)  # particle frames?
             choose_noise_removal(self.choose, self.frames, self._partial_params(), seen)
-        params = self._single_cuts(DetectionParams.from_layers(self.values, self.given))
+        params = DetectionParams.from_layers(self.values, self.given)
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
         return DetectionSetup(
             params, self.choices, self.kind, len(self.frames), lv, band, tuple(self.notes)
@@ -407,15 +407,6 @@ class _Derivation:
             return
         self.choose("split_overlaps", False, why)
         self.choose("split_long_wide", False, why)
-
-    def _single_cuts(self, params: DetectionParams) -> DetectionParams:
-        """The settings with the shape tests off where they cut single markers."""
-        why = single_cuts_reason(self.frames, params.replace(polarity="bright"))  # oriented
-        if why is None:
-            return params
-        self.choose("split_overlaps", False, why)
-        self.choose("split_long_wide", False, why)
-        return DetectionParams.from_layers(self.values, self.given)
 
     def _size_limits(self, groups: Groups, markers: NDArray[np.bool_], top: float | None) -> None:
         """Upper size limits between the markers and the oversized blobs, the detach
