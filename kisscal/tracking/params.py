@@ -76,7 +76,8 @@ class TrackingParams(Params):
         at any length, when another point of the first field lies less than this many
         times as far from the second point and its track ended there (that track, left
         with no point, could have taken it: Phoenix LEDs 3-8 mm apart on a golf club).
-        0 turns it off.
+        What is left of a split piece is judged again, at most ``min_initial_length``
+        passes: its next step was taken with the velocity the guess gave. 0 turns it off.
     cluster_radius_mm : float
         Radius (mm) of the rigid cluster (LEDs a few centimetres apart on a hand) whose
         common move predicts a track its own prediction cannot tell from its neighbours
