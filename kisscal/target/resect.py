@@ -55,7 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal._shared import rms_px
 from kisscal.bundle.model import State, project
 from kisscal.camera import LENS_TERMS, Camera, rotation_matrices
-from kisscal.dlt.linear import spread_ratio
+from kisscal.dlt.linear import solve_dlt_matrix, spread_ratio
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
 
 #: Numbers each optional term adds to the pinhole's 7, in the order they are tried.
@@ -338,13 +338,8 @@ def off_centre_hint(n_seeds: int) -> str:
 
 def _dlt_principal_point(xyz: NDArray[np.float64], uv: NDArray[np.float64]) -> NDArray | None:
     """The principal point (px) of the points' 11-term DLT, or None when degenerate."""
-    h = np.column_stack([xyz, np.ones(len(xyz))])
-    A = np.zeros((2 * len(xyz), 12))
-    A[0::2, 0:4] = h
-    A[0::2, 8:] = -uv[:, :1] * h
-    A[1::2, 4:8] = h
-    A[1::2, 8:] = -uv[:, 1:] * h
-    M = np.linalg.svd(A)[2][-1].reshape(3, 4)[:, :3]
+    Pn, T3, T2, _ = solve_dlt_matrix(xyz, uv)
+    M = np.linalg.solve(T2, Pn @ T3)[:, :3]
     # M = K R: K's last column is M's rows' products with its third row over its norm
     m3 = float(M[2] @ M[2])
     if not (np.isfinite(m3) and m3 > 0):
