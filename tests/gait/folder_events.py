@@ -1,0 +1,128 @@
+"""Gait events of every C3D file in a folder against the events its lab marked (run it):
+
+    python -m tests.gait.folder_events FOLDER [FOLDER ...]
+
+Not needed by the tests (the files are not committed): a check of kisscal's foot strikes
+and foot offs on walking trials as labs keep them (Plug-in Gait names, with or without a
+``subject:`` prefix; the ankle stands in for a heel marker with no data). Per trial and
+pooled: the mean signed error (bias), the mean and worst absolute error and the marked
+events missed, of kisscal and of Zeni et al. (2008)'s coordinate rule on the same markers
+(:func:`tests.gait.real_events.coordinate_events`). Pooled again over the marked events
+a force plate confirms (one of its contacts, :func:`plate_events`, within
+:data:`ON_PLATE_S`) and over the others (marked by eye or by the lab's software).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from kisscal.gait import GaitMarkers, detect_events, heel_from_ankle
+from kisscal.gait.table import EVENTS
+from tests.gait._real import _MM, read
+from tests.gait.make_real_fixtures import plate_events
+from tests.gait.real_events import Errors, coordinate_events, score
+
+#: A marked event with a plate's contact of its side and kind this close (s) is the plate's.
+ON_PLATE_S = 0.02
+_ROLES = {"pelvis": ("LASI", "RASI", "LPSI", "RPSI", "SACR"), "heel": ("LHEE", "RHEE")}
+_ROLES |= {"ankle": ("LANK", "RANK"), "toe": ("LTOE", "RTOE")}
+
+
+def gait_trial(markers: dict[str, np.ndarray], rate: float) -> GaitMarkers | None:
+    """The trial's gait markers by their Plug-in Gait names (None if some are missing)."""
+    found = {}
+    for name, track in markers.items():
+        key = name.split(":")[-1].strip().upper()
+        if np.isfinite(track).all(axis=1).mean() > 0.5 and key not in found:
+            found[key] = track
+    role = {r: [found.get(n) for n in names] for r, names in _ROLES.items()}
+    if any(x is None for x in role["toe"]) or not any(x is not None for x in role["pelvis"]):
+        return None
+    toe = dict(zip(("left", "right"), role["toe"], strict=True))
+    heel, stand_in = {}, []
+    for side, h, a in zip(("left", "right"), role["heel"], role["ankle"], strict=True):
+        if h is None and a is None:
+            return None
+        heel[side] = h if h is not None else heel_from_ankle(a, toe[side])
+        stand_in += [side] if h is None else []
+    pelvis = tuple(p for p in role["pelvis"] if p is not None)
+    return GaitMarkers(pelvis, heel, toe, rate, {}, tuple(stand_in))
+
+
+def plates(path: Path, gm: GaitMarkers) -> dict[tuple[str, str], np.ndarray]:
+    """The force plates' contacts of the file, as its foot strikes and foot offs."""
+    import ezc3d
+
+    c3d = ezc3d.c3d(str(path))
+    params = c3d["parameters"]
+    if "FORCE_PLATFORM" not in params or "CORNERS" not in params["FORCE_PLATFORM"]:
+        return {}
+    mm = _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    out: dict[tuple[str, str], list[float]] = {}
+    try:
+        contacts = plate_events(c3d, gm.heel, gm.toe, gm.rate_hz, "z", mm)
+    except (IndexError, KeyError, ValueError):
+        return {}
+    for side, label, t in contacts:
+        out.setdefault((side.lower(), label.lower().replace(" ", "_")), []).append(t)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def _cells(err: Errors) -> str:
+    out = []
+    for e in EVENTS:
+        signed = 1000 * np.mean(err.errors[e]) if err.errors[e] else np.nan
+        out.append(
+            f"{signed:+6.1f} {err.mean_ms(e):5.1f} {err.worst_ms(e):5.1f} {err.missed[e]:2d}"
+        )
+    return "  ".join(out)
+
+
+def table(paths: list[Path]) -> list[str]:
+    """One line per file with marked foot strikes and foot offs, then the pooled ones."""
+    head = "bias  mean worst mi"
+    lines = [
+        f"{'trial':<30} {'n':>3}  {'kisscal FS':^19}  {'kisscal FO':^19}"
+        f"  {'Zeni FS':^19}  {'Zeni FO':^19}",
+        f"{'':<30} {'':>3}  {head:^19}  {head:^19}  {head:^19}  {head:^19}",
+    ]
+    pooled = {k: (Errors(), Errors()) for k in ("all", "on a plate", "not on a plate")}
+    for path in paths:
+        markers, rate, _, marked = read(path)
+        gm = gait_trial(markers, rate) if marked else None
+        if gm is None:
+            continue
+        contacts = plates(path, gm)
+        on = {k: np.asarray([t for t in v if _near(contacts.get(k), t)]) for k, v in marked.items()}
+        off = {k: np.setdiff1d(v, on[k]) for k, v in marked.items()}
+        duration = gm.n_fields / rate
+        found = detect_events(gm), coordinate_events(gm)
+        for key, events in (("all", marked), ("on a plate", on), ("not on a plate", off)):
+            for pool, detection in zip(pooled[key], found, strict=True):
+                pool.add(score(detection, events, duration))
+        ours, zeni = (score(d, marked, duration) for d in found)
+        n = sum(len(v) for v in marked.values())
+        name = path.stem + ("*" if gm.heel_from_ankle else "")
+        lines.append(f"{name[:30]:<30} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+    for key, (ours, zeni) in pooled.items():
+        n = sum(len(v) for v in ours.errors.values()) + sum(ours.missed.values())
+        lines.append(f"{key:<30} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+    lines.append("ms; bias = mean signed error (detected - marked); mi = marked events missed;")
+    lines.append("* the ankle stands in for the heel")
+    return lines
+
+
+def _near(times: np.ndarray | None, t: float) -> bool:
+    return times is not None and bool(np.any(np.abs(times - t) <= ON_PLATE_S))
+
+
+def main(argv: list[str]) -> None:
+    paths = sorted(p for d in argv[1:] for p in Path(d).iterdir() if p.suffix.lower() == ".c3d")
+    print("\n".join(table(paths)))
+
+
+if __name__ == "__main__":
+    main(sys.argv)
