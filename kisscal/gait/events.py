@@ -164,13 +164,14 @@ def detect_events(markers: GaitMarkers, params: GaitParams = DEFAULT_PARAMS) -> 
     strides = np.concatenate([np.diff(c[0]) for c in coarse.values()]) / rate
     stride_s = float(np.median(strides)) if len(strides) else 1.1
     zeni_only = {}
+    filtered = noise_mm(markers.pelvis) < params.filtered_mm
     for side in SIDES:
         strikes, offs = coarse[side]
         times[(side, "foot_strike")], zeni_only[side] = foot_strikes(
             t, markers.heel[side], strikes / rate, stride_s, params, markers.toe[side]
         )
         times[(side, "foot_off")] = _offs(
-            t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params
+            t, markers.heel[side], markers.toe[side], offs / rate, stride_s, params, filtered
         )
     notes = explain(markers, times, direction, zeni_only, params)
     return GaitEvents.from_times(times, rate, notes)
@@ -254,7 +255,13 @@ def _vertical(markers: GaitMarkers) -> list[str]:
 
 
 def _offs(
-    t: NDArray, heel: NDArray, toe: NDArray, coarse: NDArray, stride_s: float, params: GaitParams
+    t: NDArray,
+    heel: NDArray,
+    toe: NDArray,
+    coarse: NDArray,
+    stride_s: float,
+    params: GaitParams,
+    filtered: bool = False,
 ):
     """Foot offs: the end of the push-off near each coarse one.
 
@@ -270,7 +277,7 @@ def _offs(
     pitch = foot_pitch(heel, toe)
     rate_of_pitch = np.gradient(pitch, 1.0 / rate)  # rad/s, unsmoothed: see _fastest
     guide = derivative(pitch, rate, params.derivative_ms)
-    sharp = max(params.off_sharp_ms / 1000.0, 1.0 / rate)
+    sharp = max(params.off_sharp_ms[int(filtered)] / 1000.0, 1.0 / rate)
     found = []
     for c in coarse:
         lo, hi = c + params.off_window[0] * stride_s, c + params.off_window[1] * stride_s
@@ -284,6 +291,18 @@ def _offs(
         later = _recovery(t, guide, i, params.off_recovery[1], until) if rounded else np.nan
         found.append(later if np.isfinite(later) else corner)
     return found
+
+
+def noise_mm(tracks: tuple[NDArray, ...]) -> float:
+    """Marker noise (mm): the median over ``tracks`` of the robust SD of their third
+    differences over sqrt(20) (white noise's gain), NaN where none is known."""
+    sds = []
+    for x in tracks:
+        d3 = np.diff(x, 3, axis=0)
+        d3 = d3[np.all(np.isfinite(d3), axis=1)]
+        if len(d3):
+            sds.append(1.4826 * float(np.median(np.abs(d3))) / np.sqrt(20.0))
+    return float(np.median(sds)) if sds else float("nan")
 
 
 def _recovery(t: NDArray, y: NDArray, i: int, fraction: float, until: float) -> float:

@@ -60,12 +60,19 @@ class GaitParams(Params):
         The same for the corner of the foot's pitch rate at foot off, around the
         fastest plantarflexion of the smoothed pitch rate.
     off_recovery : (float, float)
-    off_sharp_ms : float
+    off_sharp_ms : (float, float)
+    filtered_mm : float
         Trajectories filtered before they were saved round the corner of the pitch rate
         at foot off: when the pitch rate takes longer than ``off_sharp_ms`` (or one
         field) after the corner to recover the first fraction of its fastest
-        plantarflexion, foot off is taken where it has recovered the second (chosen on
-        half of the real trials, checked on the other half: ``tests/gait``).
+        plantarflexion, foot off is taken where it has recovered the second. The first
+        time is for raw trajectories, whose noise alone can delay the recovery (0.5 mm:
+        up to 15 ms), the second for trajectories filtered before they were saved
+        (pelvis noise under ``filtered_mm``: :func:`kisscal.gait.events.noise_mm`; raw
+        optical data 0.02-0.3 mm, Nexus-filtered 0.003-0.01 mm), where a corner 13-15 ms
+        before the first level lies 15-35 ms before foot off. Chosen on half of the real
+        trials (fixtures/real/gait and six biomechZoo subjects), checked on the other
+        half (``python -m tests.gait.folder_events``).
     ankle_heel_mm : float
         A foot without a heel marker gets a heel stand-in this far behind its ankle
         marker, on the line from the toe marker through the ankle (lateral malleolus to
@@ -108,8 +115,9 @@ class GaitParams(Params):
     strike_search_ms: float = param(30.0, unit="ms", gt=0)
     off_fit_ms: float = param(120.0, unit="ms", gt=0)
     off_search_ms: float = param(40.0, unit="ms", gt=0)
-    off_recovery: tuple[float, float] = param((0.2, 0.25), gt=0, lt=1)
-    off_sharp_ms: float = param(15.0, unit="ms", gt=0)
+    off_recovery: tuple[float, float] = param((0.2, 0.32), gt=0, lt=1)
+    off_sharp_ms: tuple[float, float] = param((15.0, 13.0), unit="ms", gt=0)
+    filtered_mm: float = param(0.02, unit="mm", gt=0)
     ankle_heel_mm: float = param(40.0, unit="mm", ge=0)
     heel_down_mm: float = param(10.0, unit="mm", gt=0)
     min_trial_s: float = param(1.5, unit="s", gt=0)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.gait._real import _MM, FIXTURES, PLATE_GROUP, TRIALS, RealTrial, z_up
+from tests.gait._real import _MM, FIXTURES, PLATE_GROUP, TRIALS, ZOO, RealTrial, point_labels, z_up
 
 THRESHOLD_N = 20.0
 #: A plate loaded for less than this is not a foot's stance.
@@ -125,7 +125,7 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
 
     c3d = ezc3d.c3d(str(src), extract_forceplat_data=False)
     params = c3d["parameters"]
-    labels = list(params["POINT"]["LABELS"]["value"])
+    labels = point_labels(params)
     idx = [labels.index(n) for n in trial.markers]
     rate = float(params["POINT"]["RATE"]["value"][0])
     first = int(c3d["header"]["points"]["first_frame"])
@@ -176,7 +176,7 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
 def main(argv: list[str]) -> None:
     root = Path(argv[1])
     FIXTURES.mkdir(parents=True, exist_ok=True)
-    for trial in TRIALS:
+    for trial in TRIALS + ZOO:
         trim(source_path(root, trial), trial, trial.path)
         print(f"{trial.name}: {trial.path.stat().st_size / 1024:.0f} kB")
 

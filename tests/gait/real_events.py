@@ -182,10 +182,11 @@ def table(
 
 
 def main(argv: list[str]) -> None:
-    """``python -m tests.gait.real_events [held-out|all]``: the regression set (default),
-    the held-out files (their plates' contacts; ``$KISSCAL_C3D_CACHE``), or both pooled."""
+    """``python -m tests.gait.real_events [held-out|zoo|all]``: the regression set
+    (default), the held-out files (their plates' contacts; ``$KISSCAL_C3D_CACHE``), the
+    biomechZoo Nexus trials, or the first two pooled."""
     which = argv[1] if len(argv) > 1 else "regression"
-    trials = {"regression": _real.TRIALS, "held-out": _real.HELD_OUT}
+    trials = {"regression": _real.TRIALS, "held-out": _real.HELD_OUT, "zoo": _real.ZOO}
     trials["all"] = _real.TRIALS + _real.HELD_OUT
     print(f"{which}: against the events marked in the files:")
     print("\n".join(table("EVENT", trials[which])[0]))

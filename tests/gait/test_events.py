@@ -220,3 +220,18 @@ def test_a_heel_at_rest_on_landing_then_sinking_under_load_lands_on_landing() ->
         (found,), _ = foot_strikes(t, heel, coarse, 1.1, GaitParams(), toe)
         assert late - 1.0 > 0.04, rate
         assert abs(found - 1.0) < 1.0 / rate, rate
+
+
+def test_marker_noise_tells_raw_trajectories_from_filtered_ones() -> None:
+    """The walker's 0.5 mm of noise per coordinate is measured as such; the same trial
+    low-pass filtered as labs save it (Butterworth, 6 Hz, zero lag) falls far below
+    ``filtered_mm`` (its foot offs then need a smaller sharp-corner margin)."""
+    from scipy.signal import butter, filtfilt
+
+    from kisscal.gait.events import noise_mm
+
+    tr = _synth.trial(7, 100.0, 30.0, 1.7, 1.1)
+    assert noise_mm(tr.markers.pelvis) == pytest.approx(_synth.NOISE_MM, rel=0.15)
+    b, a = butter(2, 6.0 / 50.0)
+    smooth = tuple(filtfilt(b, a, p, axis=0) for p in tr.markers.pelvis)
+    assert noise_mm(smooth) < 0.2 * GaitParams().filtered_mm

@@ -36,7 +36,7 @@ def test_the_set_is_real_and_varied() -> None:
 def test_foot_off_beats_zenis_rule_on_every_kind_of_file(marked) -> None:
     _, ours, zeni = marked
     assert len(ours.errors["foot_off"]) >= 65
-    assert ours.mean_ms("foot_off") < 10.5 and ours.worst_ms("foot_off") < 40.0  # 9.5, 34
+    assert ours.mean_ms("foot_off") < 10.5 and ours.worst_ms("foot_off") < 40.0  # 8.1, 38
     assert ours.mean_ms("foot_off") < zeni.mean_ms("foot_off")
     assert sum(ours.missed.values()) <= 10
 
@@ -45,7 +45,8 @@ def test_the_later_foot_off_level_holds_on_the_half_it_was_not_chosen_on() -> No
     """On filtered trajectories foot off is where the pitch rate has recovered a quarter
     of its fastest plantarflexion, not a fifth: chosen on the odd trials of the set
     (10.3 -> 9.5 ms mean, worst 34 ms both), it holds on the even ones (11.6 -> 9.5 ms,
-    worst 24.5 ms both)."""
+    worst 24.5 ms both). Since 32 % (issue 26, chosen with biomechZoo's trials): 8.9 ms
+    (worst 38) on the odd ones, 7.1 ms (worst 24.5) on the even ones."""
     fifth = GaitParams(off_recovery=(0.2, 0.2))
     ours, before = Errors(), Errors()
     for trial in _real.TRIALS[1::2]:
@@ -56,6 +57,25 @@ def test_the_later_foot_off_level_holds_on_the_half_it_was_not_chosen_on() -> No
     assert len(ours.errors["foot_off"]) >= 30
     assert ours.mean_ms("foot_off") < before.mean_ms("foot_off") - 1.0
     assert ours.worst_ms("foot_off") <= before.worst_ms("foot_off") + 1.0
+
+
+def test_foot_off_is_not_early_on_filtered_nexus_trials() -> None:
+    """biomechZoo's Nexus trials (six subjects, trajectories filtered before saving):
+    there a corner of the pitch rate 13-15 ms before its first recovery level was taken
+    for a sharp one and lay 15-35 ms before foot off. Against the marked events: bias
+    -8.7 -> -3.8 ms, mean 13.8 -> 11.9 ms; against the plates' contacts: bias -6.8 ->
+    +0.7 ms, mean 13.2 -> 9.2 ms. On their six held-out subjects (not kept here): bias
+    -4.3 -> -0.6 ms, mean 10.1 -> 9.4 ms."""
+    marked, plates = Errors(), Errors()
+    for trial in _real.ZOO:
+        for pooled, group in ((marked, "EVENT"), (plates, _real.PLATE_GROUP)):
+            gm, events = _real.load(trial, group)
+            pooled.add(score(detect_events(gm), events, gm.n_fields / gm.rate_hz))
+    on_file, on_plates = (np.array(p.errors["foot_off"]) for p in (marked, plates))
+    assert len(on_file) >= 30 and len(on_plates) >= 18
+    assert abs(on_file.mean()) < 0.005 and marked.mean_ms("foot_off") < 12.5
+    assert abs(on_plates.mean()) < 0.003 and plates.mean_ms("foot_off") < 10.5
+    assert marked.worst_ms("foot_off") < 40.0
 
 
 def test_foot_strike_where_the_heel_is_marked() -> None:
