@@ -270,8 +270,10 @@ def _offs(
     saving them, which rounds that corner into a valley whose bottom comes 30-70 ms
     before foot off; a symmetric filter moves a level crossing on a steep slope far less
     than a corner, so when the pitch rate takes longer than ``params.off_sharp_ms`` (or
-    one field) to recover ``params.off_recovery[0]`` of its fastest plantarflexion, foot
-    off is where it has recovered ``params.off_recovery[1]`` instead.
+    one field; its second value where the trajectories were ``filtered``, their noise
+    too low to delay the recovery: :func:`noise_mm`) to recover
+    ``params.off_recovery[0]`` of its fastest plantarflexion, foot off is where it has
+    recovered ``params.off_recovery[1]`` instead.
     """
     rate = 1.0 / float(t[1] - t[0])
     pitch = foot_pitch(heel, toe)
