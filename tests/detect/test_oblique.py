@@ -109,8 +109,8 @@ def test_ragged_dots_stay_whole_and_a_pair_is_cut() -> None:
     through aberrated optics: OpenPTV's one-dot-example splitter views, 4-6 of 64-82 dots
     a view cut in two), too few odd for the shape tests to be turned off, and one dot
     with a twin 1.1 radii beside it. A group no larger than 1.5 of its round neighbours
-    and no more elongated than four times their median excess is one dot
-    (kisscal.detect.splits): left whole; the pair (1.6 dots, elongation 1.5) is cut.
+    and no more elongated than four times the round dots' median excess is one dot
+    (kisscal.detect.splits): left whole; the pair (about 1.6 dots) is cut.
 
     Measured: 65 of 65 dots found within 1 px, one blob each; before, 62 found and 68
     blobs (3 dots cut in two)."""
