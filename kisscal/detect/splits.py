@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import (
@@ -38,6 +39,17 @@ from kisscal.detect.shape import (
 )
 from kisscal.detect.stack import Frames
 from kisscal.detect.touching import split_touching
+
+#: Nearest round groups a group's size is compared with (a target dot's neighbours on the
+#: plate; in a marker image, the markers around it).
+NEIGHBOURS = 4
+#: Most white pixels, in medians of its neighbours', of a group that is one spot among its
+#: like. Two equal discs a radius apart or more (a pair the tests must cut: its markers'
+#: centres are then half a radius or more off the pair's) cover at least 1.61 discs.
+LIKE_NEIGHBOURS = 1.5
+#: Most elongation excess (major / minor axis - 1), in medians of the frame's round
+#: spots' own, of a group that is one spot among its like: outlines as ragged as theirs.
+LIKE_ELONGATION = 4.0
 
 
 @dataclass(frozen=True)
@@ -184,6 +196,42 @@ class _Facts:
         return outline & (major <= ROUND_ELONGATION**2 * minor)
 
     @cached_property
+    def like_neighbours(self) -> NDArray[np.bool_]:
+        """Groups that are one spot among their like, whatever their shape: no larger
+        than :data:`LIKE_NEIGHBOURS` times the median of their :data:`NEIGHBOURS` nearest
+        round groups (:attr:`single_round`, single spots for sure) and no more elongated
+        than :data:`LIKE_ELONGATION` times the frame's round groups' median excess.
+
+        A target's dots seen at an angle or through aberrated optics have ragged,
+        elongated outlines the shape tests cut (OpenPTV's one-dot-example splitter views:
+        round groups' median elongation 1.12-1.14), while two markers a radius apart or
+        more cover at least 1.6 markers like theirs, and where single markers image round
+        (median 1.03-1.07 on rendered fields) a pair's elongation (1.4 or more) stands
+        out. Size alone cannot say this (the 1.5-marker rule reverted at stop 47): markers
+        far from the camera are smaller than the image's typical one, and a marker's
+        neighbours need not be its size.
+        """
+        t, p = self.table, self.params
+        out = np.zeros(len(t), dtype=bool)
+        round_ = np.flatnonzero(self.single_round & ~self.oversized)
+        ask = self.inside & ~self.single_round & (t.pixels >= p.long_wide_min_pixels)
+        ask = np.flatnonzero(ask)
+        if round_.size < NEIGHBOURS or ask.size == 0:
+            return out
+        # frames stacked far apart: no group of another frame is ever among the nearest
+        span = 2.0 * max(self.where[0])
+        xy = np.column_stack([t.x_binary, t.y_binary + 2.0 * span * self.frame])
+        dist, near = cKDTree(xy[round_]).query(xy[ask], NEIGHBOURS)
+        near = round_[np.minimum(near, round_.size - 1)]
+        typical = np.median(t.pixels[near], axis=1)
+        major, minor, _, _ = self.axes
+        excess = np.sqrt(major / minor) - 1.0
+        ragged = LIKE_ELONGATION * self._per_frame(excess, self.single_round, 0.0)
+        alike = (excess <= ragged)[ask] & (t.pixels[ask] <= LIKE_NEIGHBOURS * typical)
+        out[ask] = alike & (dist <= span).all(axis=1)
+        return out
+
+    @cached_property
     def testable(self) -> NDArray[np.bool_]:
         """Groups the overlap and long/wide tests may split.
 
@@ -195,6 +243,7 @@ class _Facts:
         """
         table = self.table
         inside = self.inside & splittable(table, self.params) & ~self.single_round
+        inside &= ~self.like_neighbours
         flags = self.grouping.flags[table.label]
         part = (flags & (fl.SPLIT_TOUCHING | fl.DETACHED)) != 0
         if not part.any():
@@ -224,7 +273,7 @@ class _Facts:
 
 def _touching_step(facts: _Facts) -> Grouping:
     candidates = facts.not_single() & splittable(facts.table, facts.params)
-    candidates &= ~facts.single_round
+    candidates &= ~facts.single_round & ~facts.like_neighbours
     return split_touching(facts.grouping, facts.table, facts.params, candidates)
 
 
