@@ -83,11 +83,12 @@ def camera_rows(root: Path, data: Path, n_seeds: int, seconds: float) -> list[di
         v = view(data, cam)
         written = json.loads((root / "out" / "dlt" / f"{cam}.json").read_text())
         on_ptv = rig[cam].project(v.xyz_mm) - v.uv_px
-        dlt = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(), cam)
-        try:
-            dlt_lens = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(lens=True), cam).rms_px
-        except KisscalError:  # the iteration may not converge on a near-flat view
-            dlt_lens = float("nan")
+        dlt = {}
+        for name, lens in (("dlt_px", False), ("dlt_lens_px", True)):
+            try:
+                dlt[name] = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(lens=lens), cam).rms_px
+            except KisscalError:  # a flat target has no depth; a near-flat view may not converge
+                dlt[name] = float("nan")
         out.append(
             {
                 "camera": cam,
@@ -99,8 +100,7 @@ def camera_rows(root: Path, data: Path, n_seeds: int, seconds: float) -> list[di
                 "kisscal_own_px": float(written["rms_px"]),
                 "kisscal_openptv_px": rms_px(on_ptv),
                 "openptv_px": rms_px(openptv_project(v.openptv, v.xyz_mm) - v.uv_px),
-                "dlt_px": dlt.rms_px,
-                "dlt_lens_px": dlt_lens,
+                **dlt,
                 "seconds": seconds,
             }
         )
