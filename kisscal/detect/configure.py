@@ -149,7 +149,8 @@ class DetectionSetup:
     levels : GreyLevels
         Background, noise and unevenness measured.
     marker_pixels : (int, int)
-        Smallest and largest white-pixel count of the markers seen.
+        Smallest and largest white-pixel count of the markers seen within the upper size
+        limit (moving glare may join the marker population but is oversized).
     """
 
     params: DetectionParams
@@ -297,6 +298,8 @@ class _Derivation:
             choose_route(self.choose, self.frames, final, self.given)  # particle frames?
             choose_noise_removal(self.choose, self.frames, self._partial_params(), seen)
         params = DetectionParams.from_layers(self.values, self.given)
+        if params.max_pixels is not None:  # the band printed is the one the limits keep
+            seen = seen[seen <= params.max_pixels]
         band = (int(seen.min()), int(seen.max())) if seen.size else (0, 0)
         return DetectionSetup(
             params, self.choices, self.kind, len(self.frames), lv, band, tuple(self.notes)
