@@ -179,3 +179,25 @@ def test_background_lit_at_the_markers_scale_gets_finer_tiles(rng) -> None:
     white = [np.mean(threshold_image(frames[0], p)[0]) for p in (setup.params, coarse)]
     assert white[0] < 0.6 * white[1]
     assert _recall_rms(frames, truth, setup.params)[0] == 1.0
+
+
+def test_the_printed_band_is_the_one_the_limits_keep(rng) -> None:
+    # Moving glare joins the moving marker population (multiplane_example_2's particle
+    # frames: "markers 2-3805 px, oversize above 304 px"): the band printed must not
+    # reach past the upper limit that flags it too large.
+    yy, xx = np.mgrid[:400, :600]
+    spots = rng.uniform([20, 20], [580, 380], (80, 2))
+    fixed = [(30, 30), (570, 30), (30, 370), (570, 370), (300, 20)]
+    frames = []
+    for f in range(6):
+        image = rng.normal(10, 1, xx.shape)
+        for x, y in np.vstack([spots + rng.uniform(-15, 15, spots.shape), fixed]):
+            image += 200 * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / 8.0)
+        image[(xx - 150 - 40 * f) ** 2 + (yy - 200) ** 2 <= 25**2] = 250  # a moving glare
+        frames.append(image.clip(0, 255).astype(np.uint8))
+    setup = configure_detection(frames)
+    low, high = setup.marker_pixels
+    assert 0 < low < high <= setup.params.max_pixels < 1900
+    assert f"markers {low}-{high} px, oversize above {setup.params.max_pixels} px" in (
+        setup.summary()
+    )

@@ -47,6 +47,13 @@ class CavityView:
     openptv: OpenPtvCamera
 
 
+def cameras(folder: Path) -> tuple[str, ...]:
+    """The cameras of a folder with ``cal/camN_dots.csv`` (any number: another lab's rig
+    staged by :mod:`tests.target.openptv_heldout`), else the cavity's four."""
+    found = sorted(folder.glob("cal/cam*_dots.csv"), key=lambda p: int(p.name[3:-9]))
+    return tuple(p.name.removesuffix("_dots.csv") for p in found) or CAMERAS
+
+
 def target_xyz(folder: Path) -> NDArray[np.float64]:
     """Every target point (73 x 3, mm), row ``i`` is point id ``i + 1``."""
     if (folder / "target_points.csv").is_file():

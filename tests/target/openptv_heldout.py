@@ -20,10 +20,12 @@ the CLI's own (``/usr/bin/time -v kisscal detect``).
 another ``ptv.par`` (a working folder may keep several parameter sets).
 
 Checked on (sources and licences: ``docs/methods.md``, "Held-out target calibrations"):
-OpenPTV one-dot-example (a four-view splitter, 6 seeds), jimmy516 OpenPTV_testfolder
-and OpenPTV example_calibration_4cam_2side_target (``--target
+OpenPTV one-dot-example (a four-view splitter, 6 seeds), jimmy516 OpenPTV_testfolder,
+OpenPTV example_calibration_4cam_2side_target (``--target
 Particle_motion_4/cal/target_on_a_side1.txt Particle_motion_4/cal/target_on_a_side2.txt
---ori Particle_motion_2/cal``).
+--ori Particle_motion_2/cal``) and OpenPTV example_2cam_90deg (two cameras, ``--target
+cal/flat_target.txt``; copy ``parametersRun1/detect_plate.par`` into ``parameters``).
+Any number of cameras: ``ptv.par`` says how many.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from kisscal.detect.configure import configure_detection
 from kisscal.errors import KisscalError
 from kisscal.io.frames import read_image
 from tests.detect.real_acceptance import score_dots
+from tests.target.cavity import cameras
 from tests.target.openptv import project, read_camera
 from tests.target.real_acceptance import camera_rows, print_table, write_session
 
@@ -74,7 +77,7 @@ def stage(folder: Path, targets: list[Path], ori: Path, ptv_par: Path, out: Path
     ids = np.arange(1, len(xyz) + 1)
     table = np.column_stack([ids, xyz])
     np.savetxt(out / "cal" / "target_on_a_side.txt", table, fmt="%d %.6g %.6g %.6g")
-    for cam in range(1, 5):
+    for cam in range(1, int(ptv_par.read_text().split()[0]) + 1):  # ptv.par: cameras first
         name = f"cam{cam}.tif"
         shutil.copy(folder / "cal" / name, out / "cal" / name)
         for ext in (".ori", ".addpar"):
@@ -92,14 +95,14 @@ def stage(folder: Path, targets: list[Path], ori: Path, ptv_par: Path, out: Path
 def detection_rows(data: Path) -> list[dict]:
     """Default detection of each staged photograph scored on its reference dots."""
     rows = []
-    for cam in range(1, 5):
-        image = read_image(data / "cal" / f"cam{cam}.tif")
-        table = np.loadtxt(data / "cal" / f"cam{cam}_dots.csv", delimiter=",", skiprows=1)
+    for cam in cameras(data):
+        image = read_image(data / "cal" / f"{cam}.tif")
+        table = np.loadtxt(data / "cal" / f"{cam}_dots.csv", delimiter=",", skiprows=1)
         dots = table.reshape(-1, 6)[:, 4:6]
         blobs = detect_blobs(image, configure_detection([image]).params)
         score = score_dots(blobs, dots, dots)
         keep = ("dots", "found_1px", "recall_pct", "split", "valid_blobs")
-        rows.append({"camera": f"cam{cam}", **{k: score[k] for k in keep}})
+        rows.append({"camera": cam, **{k: score[k] for k in keep}})
     return rows
 
 

@@ -45,7 +45,7 @@ from kisscal._shared import rms_px
 from kisscal.dlt import DltParams, calibrate_camera
 from kisscal.errors import KisscalError
 from kisscal.session.calibrated import current_rig
-from tests.target.cavity import CAMERAS, SIZE_PX, shared_data, spread_seeds, target_xyz, view
+from tests.target.cavity import SIZE_PX, cameras, shared_data, spread_seeds, target_xyz, view
 from tests.target.openptv import project as openptv_project
 
 
@@ -57,17 +57,17 @@ def write_session(root: Path, data: Path, n_seeds: int) -> Path:
     xyz = target_xyz(data)
     lines = ["x_mm,y_mm,z_mm", *(f"{x:g},{y:g},{z:g}" for x, y, z in xyz)]
     (root / "target.csv").write_text("\n".join(lines) + "\n")
-    for cam in CAMERAS:
+    for cam in cameras(data):
         (root / "cal" / f"{cam}.tif").symlink_to(data / "cal" / f"{cam}.tif")
         v = view(data, cam)
         rows = ["u_px,v_px,x_mm,y_mm,z_mm"]
         for i in spread_seeds(v, n_seeds):
             rows.append(",".join(f"{a:g}" for a in (*v.uv_px[i], *v.xyz_mm[i])))
         (root / f"{cam}_seeds.csv").write_text("\n".join(rows) + "\n")
-    cameras = "".join(f'[[cameras]]\nid = "{c}"\n\n' for c in CAMERAS)
+    listed = "".join(f'[[cameras]]\nid = "{c}"\n\n' for c in cameras(data))
     (root / "session.toml").write_text(
         '[session]\nname = "openptv-cavity"\nrate_hz = 100\n\n'
-        + cameras
+        + listed
         + '[calibration]\ntarget = "target.csv"\nimages = "cal/{camera}.tif"\n'
         + 'seeds = "{camera}_seeds.csv"\n'
     )
@@ -79,15 +79,16 @@ def camera_rows(root: Path, data: Path, n_seeds: int, seconds: float) -> list[di
     rig = {c.id: c for c in current_rig(root)}
     doc = json.loads((root / "out" / "dlt" / "target.json").read_text())["cameras"]
     out = []
-    for cam in CAMERAS:
+    for cam in cameras(data):
         v = view(data, cam)
         written = json.loads((root / "out" / "dlt" / f"{cam}.json").read_text())
         on_ptv = rig[cam].project(v.xyz_mm) - v.uv_px
-        dlt = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(), cam)
-        try:
-            dlt_lens = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(lens=True), cam).rms_px
-        except KisscalError:  # the iteration may not converge on a near-flat view
-            dlt_lens = float("nan")
+        dlt = {}
+        for name, lens in (("dlt_px", False), ("dlt_lens_px", True)):
+            try:
+                dlt[name] = calibrate_camera(v.xyz_mm, v.uv_px, DltParams(lens=lens), cam).rms_px
+            except KisscalError:  # a flat target has no depth; a near-flat view may not converge
+                dlt[name] = float("nan")
         out.append(
             {
                 "camera": cam,
@@ -99,8 +100,7 @@ def camera_rows(root: Path, data: Path, n_seeds: int, seconds: float) -> list[di
                 "kisscal_own_px": float(written["rms_px"]),
                 "kisscal_openptv_px": rms_px(on_ptv),
                 "openptv_px": rms_px(openptv_project(v.openptv, v.xyz_mm) - v.uv_px),
-                "dlt_px": dlt.rms_px,
-                "dlt_lens_px": dlt_lens,
+                **dlt,
                 "seconds": seconds,
             }
         )
@@ -117,7 +117,7 @@ def refraction_rows(data: Path) -> list[dict]:
     )
     volume = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
     rows = []
-    for cam in CAMERAS:
+    for cam in cameras(data):
         v = view(data, cam)
         uv = openptv_project(v.openptv, v.xyz_mm)
         L = calibrate_camera(v.xyz_mm, uv, DltParams(), cam).L
