@@ -63,18 +63,16 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
-import kisscal.detect.blobs as fl
 from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT, measure_pixel_aspect
 from kisscal.detect.clipped import crowd_notes, faint_sample
 from kisscal.detect.extent import marker_extent
 from kisscal.detect.params import DetectionParams
-from kisscal.detect.pipeline import check_image, detect_blobs, threshold_image
+from kisscal.detect.pipeline import check_image, threshold_image
 from kisscal.detect.points import choose_noise_removal
 from kisscal.detect.polarity import frames_polarity
 from kisscal.detect.population import largest_size, marker_population, odd_size
-from kisscal.detect.roundness import ODD_SHAPES_MAX, shapes_off_reason
+from kisscal.detect.roundness import cut_singles_reason, shapes_off_reason
 from kisscal.detect.route import choose_route
 from kisscal.detect.survey import (
     GreyLevels,
@@ -118,10 +116,6 @@ HIGHPASS_SIDE = 0.9
 #: the white test's margin over the 4-diameter tile background) for those tiles to stay.
 STRUCTURE_SHARE_MAX = 0.02
 MIN_TILE_PX = 16  # smallest background tile (px)
-#: Most frames on which the shape tests are tried on the isolated spots (the first ones).
-SHAPE_TRIAL_FRAMES = 3
-#: Flags of a part cut by the shape tests (overlap and long/wide).
-SHAPE_CUTS = fl.SPLIT_UL | fl.SPLIT_UR | fl.SPLIT_WIDE | fl.SPLIT_LONG
 
 
 @dataclass(frozen=True)
@@ -413,46 +407,11 @@ class _Derivation:
             return
         why = shapes_off_reason(spots.var_x[ok], spots.var_y[ok], spots.cov_xy[ok], p)
         if why is None:
-            why = self._cut_singles(spots.take(ok), p)
+            why = cut_singles_reason(self.frames, spots.take(ok), p)
         if why is None:
             return
         self.choose("split_overlaps", False, why)
         self.choose("split_long_wide", False, why)
-
-    def _cut_singles(self, singles: Groups, p: DetectionParams) -> str | None:
-        """Why the shape tests must be off: they cut too many isolated spots, or None.
-
-        The survey's moments weigh a spot's whole blurred light; the tests read its
-        white pixels at the threshold. A dot with a glint (a bead lit from one side)
-        reads round by the first and wide, or as an overlapped pair, by the second. So
-        the tests are run on the first frames, and an isolated spot (one object for
-        sure) with a part they cut within its half-extent counts as cut.
-        """
-        # the first frames, enough for twice the spots an aspect needs (each costs a pass)
-        seen = np.cumsum(np.bincount(singles.frame, minlength=len(self.frames)))
-        last = min(int(np.searchsorted(seen, 2 * MIN_SPOTS_FOR_ASPECT)), SHAPE_TRIAL_FRAMES - 1)
-        trial = singles.frame <= last
-        cut = np.zeros(int(trial.sum()), dtype=bool)
-        tried = singles.take(trial)
-        for f in np.unique(tried.frame):
-            blobs = detect_blobs(self.frames[f], p.replace(polarity="bright"))  # oriented
-            parts = (blobs.flags & SHAPE_CUTS) != 0
-            if not parts.any():
-                continue
-            here = tried.frame == f
-            centres = np.column_stack([tried.x[here], tried.y[here]])
-            reach = np.maximum(tried.width[here], tried.height[here]) / 2.0
-            xy = np.column_stack([blobs.x_px[parts], blobs.y_px[parts]])
-            near = cKDTree(xy).query_ball_point(centres, reach, return_length=True)
-            cut[here] = np.asarray(near) > 0
-        share = float(cut.mean()) if cut.size else 0.0
-        if share <= ODD_SHAPES_MAX:
-            return None
-        return (
-            f"the shape tests cut {share:.0%} of {cut.size} isolated spots (one object "
-            "each; a glint or an irregular outline at the threshold): shape alone does "
-            "not tell two markers from one"
-        )
 
     def _size_limits(self, groups: Groups, markers: NDArray[np.bool_], top: float | None) -> None:
         """Upper size limits between the markers and the oversized blobs, the detach

@@ -15,17 +15,28 @@ whether that holds. Two ways it fails:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
+import kisscal.detect.blobs as fl
+from kisscal.detect.aspect import MIN_SPOTS_FOR_ASPECT
 from kisscal.detect.params import DetectionParams
+from kisscal.detect.pipeline import detect_blobs
 from kisscal.detect.shape import corrected_moments, height_ratio, principal_axes
+from kisscal.detect.survey import Groups
 
 #: Share of single spots the shape tests may cut and stay on: beyond, they cut more than free.
 ODD_SHAPES_MAX = 0.15
 #: Share of single spots that, elongated along one axis, make single markers ellipses: most
 #: of them (a marker that moves or touches another is the exception among isolated spots).
 ALIGNED_ELLIPSES_MIN = 0.5
+#: Most frames on which the shape tests are tried on the isolated spots (the first ones).
+SHAPE_TRIAL_FRAMES = 3
+#: Flags of a part cut by the shape tests (overlap and long/wide).
+SHAPE_CUTS = fl.SPLIT_UL | fl.SPLIT_UR | fl.SPLIT_WIDE | fl.SPLIT_LONG
 
 
 def aligned_ellipses(
@@ -93,3 +104,40 @@ def shapes_off_reason(
             "obliquely): the overlap test would cut single markers"
         )
     return None
+
+
+def cut_singles_reason(
+    frames: Sequence[NDArray], singles: Groups, params: DetectionParams
+) -> str | None:
+    """Why the shape tests must be off: they cut too many isolated spots, or None.
+
+    The survey's moments weigh a spot's whole blurred light; the tests read its white
+    pixels at the threshold. A dot with a glint (a bead lit from one side) reads round by
+    the first and wide, or as an overlapped pair, by the second. So the tests are run on
+    the first frames, and an isolated spot (one object for sure) with a part they cut
+    within its half-extent counts as cut.
+    """
+    # the first frames, enough for twice the spots an aspect needs (each costs a pass)
+    seen = np.cumsum(np.bincount(singles.frame, minlength=len(frames)))
+    last = min(int(np.searchsorted(seen, 2 * MIN_SPOTS_FOR_ASPECT)), SHAPE_TRIAL_FRAMES - 1)
+    tried = singles.take(singles.frame <= last)
+    cut = np.zeros(len(tried.frame), dtype=bool)
+    for f in np.unique(tried.frame):
+        blobs = detect_blobs(frames[f], params.replace(polarity="bright"))  # oriented
+        parts = (blobs.flags & SHAPE_CUTS) != 0
+        if not parts.any():
+            continue
+        here = tried.frame == f
+        centres = np.column_stack([tried.x[here], tried.y[here]])
+        reach = np.maximum(tried.width[here], tried.height[here]) / 2.0
+        xy = np.column_stack([blobs.x_px[parts], blobs.y_px[parts]])
+        near = cKDTree(xy).query_ball_point(centres, reach, return_length=True)
+        cut[here] = np.asarray(near) > 0
+    share = float(cut.mean()) if cut.size else 0.0
+    if share <= ODD_SHAPES_MAX:
+        return None
+    return (
+        f"the shape tests cut {share:.0%} of {cut.size} isolated spots (one object each; "
+        "a glint or an irregular outline at the threshold): shape alone does not tell two "
+        "markers from one"
+    )
