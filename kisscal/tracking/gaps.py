@@ -21,6 +21,7 @@ from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
     GapFill,
     best_candidate,
+    context_noise,
     fill_candidates,
     spline_fill,
 )
@@ -129,7 +130,10 @@ def _body(
     for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
     fills it reads (:func:`anchored`); with spare blobs, each filled field a camera still
     sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
-    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
+    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
+    A spline expects at least what the noise of the samples it goes through carries
+    (:func:`~kisscal.tracking.bodyfill.context_noise`; lowcost 301-313: 98 samples over
+    twice their spline's expected error, the stretches it is tried on quieter)."""
     none = np.zeros(b - a, dtype=bool)
     short = spline and b - a <= params.max_fill_gap_fields
     if not short and b - a > params.max_body_fill_fields:
@@ -145,8 +149,16 @@ def _body(
     if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
         return none
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+    if short:  # after the rays (their gate is the stretches' error): through noisy samples
+        noise = context_noise(gap.dense[gap.t], None, a, b, max(params.fill_context_fields, 2))
+        got = [(x, _at_least(f, noise / np.sqrt(3) if f.ray_fields else noise)) for x, f in got]
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
+
+
+def _at_least(fill: GapFill, err: float) -> GapFill:
+    """``fill`` expecting at least ``err`` (mm; a NaN leaves it)."""
+    return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
 
 
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:

@@ -1,7 +1,8 @@
 """Fills expect the error of what they rest on (issue 27, lowcost seed 311), against
 truth: a chain fill on a partner another fill placed (kisscal.tracking.raychain), a
 pattern fill measured following the neighbour it follows (kisscal.tracking.bodyfill),
-a depth fill's spline through noisy samples beside its gap (kisscal.tracking.fill_depth)."""
+a depth fill's spline and a spline fill through noisy samples beside their gaps
+(kisscal.tracking.fill_depth, kisscal.tracking.bodyfill)."""
 
 from __future__ import annotations
 
@@ -15,8 +16,9 @@ from kisscal.tracking.fill_depth import (
     depth_error,
     depth_ray_fill,
 )
+from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.raychain import chain_fill
-from kisscal.tracking.tracks import FILLED_PATTERN
+from kisscal.tracking.tracks import FILLED, FILLED_PATTERN
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_raychain import GAP, _dense, _segment_on_rays, _spare
 
@@ -96,3 +98,19 @@ def test_a_depth_fill_beside_noisy_samples_expects_what_their_noise_carries() ->
     # their noise carried into the gap is more than the depth fill may expect: refused
     assert context_noise(dense[3], centre, gap.start, gap.stop, 6) > true / 2.0
     assert depth_ray_fill(dense, 3, gap.start, gap.stop, spare, PARAMS) is None
+
+
+def test_a_spline_beside_noisy_samples_expects_what_their_noise_carries() -> None:
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    gap = slice(100, 105)
+    # as the depth fill's: the six samples each side 1.5 mm noisy, the trial's 0.2 mm
+    seen = xyz.copy()
+    rng = np.random.default_rng(7)
+    for side in (slice(gap.start - 6, gap.start), slice(gap.stop, gap.stop + 6)):
+        seen[3, side] += rng.normal(0.0, 1.5, (6, 3))
+    out, fills = fill_gaps_logged(_tracks_of(seen, {3: gap}), PARAMS)
+    (fill,) = fills
+    assert fill.status == FILLED and fill.first_field == gap.start
+    true = _rms(out.xyz_mm[(out.track == 3) & (out.status == FILLED)], xyz[3, gap])
+    assert true > 5.0  # 6.5 mm; before, 0.84 expected from the quiet stretches
+    assert true <= 2.0 * fill.expected_error_mm <= 4.0 * true
