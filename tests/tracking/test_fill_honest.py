@@ -114,3 +114,17 @@ def test_a_spline_beside_noisy_samples_expects_what_their_noise_carries() -> Non
     true = _rms(out.xyz_mm[(out.track == 3) & (out.status == FILLED)], xyz[3, gap])
     assert true > 5.0  # 6.5 mm; before, 0.84 expected from the quiet stretches
     assert true <= 2.0 * fill.expected_error_mm <= 4.0 * true
+
+
+def test_a_chain_fill_on_noisy_partners_expects_what_its_lengths_miss_beside_the_gap() -> None:
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {3: GAP, 1: GAP, 2: GAP}))
+    # marker 0, the partner, 4 mm noisy in and beside the gap (few cameras see it there),
+    # 0.2 mm in the rest of the trial: its length's SD over the trial does not show it
+    near = slice(GAP.start - 20, GAP.stop + 20)
+    dense[0, near] += np.random.default_rng(3).normal(0.0, 4.0, dense[0, near].shape)
+    got = chain_fill(dense, 3, GAP.start, GAP.stop, _spare(xyz, 3), PARAMS)
+    assert got is not None
+    true = _rms(got.xyz_mm, xyz[3, GAP])
+    assert true > 3.0  # 4.2 mm; before, 1.4 expected
+    assert true <= 2.0 * float(np.sqrt(np.nanmean(got.sd_mm**2)))
