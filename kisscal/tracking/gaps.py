@@ -124,7 +124,7 @@ def _ray_placer(method: Callable, *extra: str) -> Callable:
 
 
 def _body(
-    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
+    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True, checked: bool = False
 ) -> NDArray[np.bool_]:
     """Spline for short runs (unless not ``spline``), the body (:func:`best_candidate`)
     for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
@@ -133,9 +133,12 @@ def _body(
     followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
     A spline expects at least what the noise of the samples it goes through carries
     (:func:`~kisscal.tracking.bodyfill.context_noise`; lowcost 301-313: 98 samples over
-    twice their spline's expected error, the stretches it is tried on quieter)."""
+    twice their spline's expected error, the stretches it is tried on quieter). With
+    ``checked``, a spline is kept only when, counting the largest expected error of the
+    samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
+    (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
     none = np.zeros(b - a, dtype=bool)
-    short = spline and b - a <= params.max_fill_gap_fields
+    short = (spline or checked) and b - a <= params.max_fill_gap_fields
     if not short and b - a > params.max_body_fill_fields:
         return none
     spare = gap.spare
@@ -147,11 +150,18 @@ def _body(
     # a spline has no error of its own to check: between samples the marker's own image
     # does not join, it may bridge to another marker's
     if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
-        return none
+        return _body(gap, a, b, params, spline=False) if checked and short else none
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     if short:  # after the rays (their gate is the stretches' error): through noisy samples
-        noise = context_noise(gap.dense[gap.t], None, a, b, max(params.fill_context_fields, 2))
+        n = max(params.fill_context_fields, 2)
+        noise = context_noise(gap.dense[gap.t], None, a, b, n)
         got = [(x, _at_least(f, noise / np.sqrt(3) if f.ray_fields else noise)) for x, f in got]
+        if checked:
+            near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
+            got = [(x, _at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
+            worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
+            if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
+                return _body(gap, a, b, params, spline=False)  # the body, as without
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
@@ -247,7 +257,7 @@ SECOND_PASS = (
     Fill(
         "joint depth", _ray_placer(joint_depth_fill, "measured", "absent"), rays=True, long_run=True
     ),
-    Fill("body", partial(_body, spline=False), strict="always"),
+    Fill("body", partial(_body, checked=True), strict="always"),
 )
 
 #: The last pass, after the ends: :data:`SECOND_PASS`, then on what it left the depth

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kisscal.tracking import TrackingParams
+from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.bodyfill import fill_candidates
 from kisscal.tracking.fill_depth import (
     _depth_spline,
@@ -16,7 +16,7 @@ from kisscal.tracking.fill_depth import (
     depth_error,
     depth_ray_fill,
 )
-from kisscal.tracking.gaps import fill_gaps_logged
+from kisscal.tracking.gaps import SECOND_PASS, _second_pass, fill_gaps_logged
 from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.tracks import FILLED, FILLED_PATTERN
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
@@ -128,3 +128,30 @@ def test_a_chain_fill_on_noisy_partners_expects_what_its_lengths_miss_beside_the
     true = _rms(got.xyz_mm, xyz[3, GAP])
     assert true > 3.0  # 4.2 mm; before, 1.4 expected
     assert true <= 2.0 * float(np.sqrt(np.nanmean(got.sd_mm**2)))
+
+
+def test_the_second_pass_splines_a_short_run_beside_placed_samples_expecting_their_error() -> None:
+    xyz = rigid_body(seed=4, noise_mm=0.2)
+    run = slice(120, 125)
+    # every marker hidden in the run (no body fill); marker 3's six fields before it were
+    # placed by a first-pass fill expecting 1.5 mm; one camera sees only noise blobs
+    dense = _dense(_tracks_of(xyz, {0: run, 1: run, 2: run, 3: run}))
+    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    errors[3, run.start - 6 : run.start] = 1.5
+    f = np.repeat(np.arange(run.start - 10, run.stop + 10), 2)
+    uv = np.random.default_rng(4).uniform([0, 0], [640, 480], (f.size, 2))
+    spare = spare_blobs(f, np.zeros(f.size), uv, _spare(xyz, 4).dlts)
+    measured = np.isfinite(dense[:, :, 0])
+    got = _second_pass(
+        dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
+    )
+    (fill,) = [g for _, g in got if g.track == 3]  # before, the second pass had no spline
+    xyz3 = np.concatenate([x for x, g in got if g.track == 3])
+    assert fill.status == FILLED and fill.expected_error_mm >= 1.5
+    assert _rms(xyz3, xyz[3, run]) <= 2.0 * fill.expected_error_mm
+    # beside samples expecting more than a body fill there may: refused
+    errors[3, run.start - 6 : run.start] = 2.0 * PARAMS.ray_rest_max_error_mm
+    got = _second_pass(
+        dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
+    )
+    assert not [g for _, g in got if g.track == 3]
