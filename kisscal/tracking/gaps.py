@@ -250,7 +250,8 @@ FILLS: tuple[Fill, ...] = (
 #: their rays by its segment's lengths, or at a smooth depth through the joint fill's
 #: loose solutions (:mod:`.fill_joint_depth`; only what all else left: in the first pass
 #: it took lowcost 311 RTOE, 6.7 mm off expecting 1.6), the rest by the body expecting
-#: little error, no spline (it has no error to check, and these runs lie beside what
+#: little error, a spline only where it expects little error too, counting the samples
+#: it reads and their noise (:func:`_body`'s ``checked``; these runs lie beside what
 #: the first pass's checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
