@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
-from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.bodyfill import context_noise, pseudo_gaps, side_windows
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
     ChainFill,
@@ -55,29 +55,6 @@ def _depth_spline(
     f = np.r_[before, after]
     depth = np.linalg.norm(series[f] - centre, axis=1)
     return make_interp_spline(f, depth, k=min(3, f.size - 1))(np.arange(lo, hi))
-
-
-def context_noise(series: NDArray, centre: NDArray, lo: int, hi: int, n: int) -> float:
-    """RMS (mm) over the gap [lo, hi) of what the noise of the samples the spline
-    :func:`_depth_spline` goes through carries into it: their distances' scatter about
-    a quadratic on each side, times the norm of each gap field's weights on them (the
-    spline is linear in them; across a gap it swings by several times their noise).
-    The stretches :func:`depth_error` tries have samples of their own noise, not these
-    (lowcost seed 311's sacrum across 16 fields beside samples 2.4 mm off: 0.68 mm
-    expected on the stretches, this 8.8, 8.95 mm RMS off). NaN with under four samples
-    a side (no scatter to measure)."""
-    sides = side_windows(series, lo, hi, n)
-    if min(s.size for s in sides) < 4:
-        return float("nan")
-    f = np.concatenate(sides)
-    depth = np.linalg.norm(series[f] - centre, axis=1)
-    res = [
-        np.polynomial.polynomial.polyfit(s - s[0], d, 2, full=True)[1][0]
-        for s, d in zip(sides, np.split(depth, [sides[0].size]), strict=True)
-    ]
-    sd = np.sqrt(np.sum(res) / (f.size - 6))
-    weights = make_interp_spline(f, np.eye(f.size), k=3)(np.arange(lo, hi))
-    return float(sd * np.sqrt(np.mean(np.sum(weights**2, axis=1))))
 
 
 def depth_error(

@@ -361,7 +361,10 @@ def sphere_depth_fill(
     ks, rows = alone_blobs(dense, t, lo, hi, spare, params) if blobs is None else blobs
     if ks.size == 0:
         return None
-    every = ks, rows
+    # every blob followed as the marker's checks the point, another track's image near
+    # it or not (lowcost 311 RANK 22-28: camera 1's blob the heel's, taken, 14.6 mm off
+    # expecting 1.7; camera 2's the ankle's own, beside the toe's image)
+    every = (ks, rows) if blobs is not None else chain_blobs(series, lo, hi, spare, params)
     cam, ks, rows = one_camera_blobs(ks, rows, spare)
     own = series if measured is None else np.where(measured[:, None], series, np.nan)
     centre = spare.centres[cam]

@@ -21,6 +21,7 @@ from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import (
     GapFill,
     best_candidate,
+    context_noise,
     fill_candidates,
     spline_fill,
 )
@@ -123,15 +124,21 @@ def _ray_placer(method: Callable, *extra: str) -> Callable:
 
 
 def _body(
-    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True
+    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True, checked: bool = False
 ) -> NDArray[np.bool_]:
     """Spline for short runs (unless not ``spline``), the body (:func:`best_candidate`)
     for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
     fills it reads (:func:`anchored`); with spare blobs, each filled field a camera still
     sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
-    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`)."""
+    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
+    A spline expects at least what the noise of the samples it goes through carries
+    (:func:`~kisscal.tracking.bodyfill.context_noise`; lowcost 301-313: 98 samples over
+    twice their spline's expected error, the stretches it is tried on quieter). With
+    ``checked``, a spline is kept only when, counting the largest expected error of the
+    samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
+    (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
     none = np.zeros(b - a, dtype=bool)
-    short = spline and b - a <= params.max_fill_gap_fields
+    short = (spline or checked) and b - a <= params.max_fill_gap_fields
     if not short and b - a > params.max_body_fill_fields:
         return none
     spare = gap.spare
@@ -143,10 +150,25 @@ def _body(
     # a spline has no error of its own to check: between samples the marker's own image
     # does not join, it may bridge to another marker's
     if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
-        return none
+        return _body(gap, a, b, params, spline=False) if checked and short else none
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+    if short:  # after the rays (their gate is the stretches' error): through noisy samples
+        n = max(params.fill_context_fields, 2)
+        noise = context_noise(gap.dense[gap.t], None, a, b, n)
+        got = [(x, _at_least(f, noise / np.sqrt(3) if f.ray_fields else noise)) for x, f in got]
+        if checked:
+            near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
+            got = [(x, _at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
+            worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
+            if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
+                return _body(gap, a, b, params, spline=False)  # the body, as without
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
+
+
+def _at_least(fill: GapFill, err: float) -> GapFill:
+    """``fill`` expecting at least ``err`` (mm; a NaN leaves it)."""
+    return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
 
 
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
@@ -228,14 +250,15 @@ FILLS: tuple[Fill, ...] = (
 #: their rays by its segment's lengths, or at a smooth depth through the joint fill's
 #: loose solutions (:mod:`.fill_joint_depth`; only what all else left: in the first pass
 #: it took lowcost 311 RTOE, 6.7 mm off expecting 1.6), the rest by the body expecting
-#: little error, no spline (it has no error to check, and these runs lie beside what
+#: little error, a spline only where it expects little error too, counting the samples
+#: it reads and their noise (:func:`_body`'s ``checked``; these runs lie beside what
 #: the first pass's checks refused: lowcost 303 RANK, a spline to a wrong sample 49 mm off).
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
     Fill(
         "joint depth", _ray_placer(joint_depth_fill, "measured", "absent"), rays=True, long_run=True
     ),
-    Fill("body", partial(_body, spline=False), strict="always"),
+    Fill("body", partial(_body, checked=True), strict="always"),
 )
 
 #: The last pass, after the ends: :data:`SECOND_PASS`, then on what it left the depth

@@ -1,13 +1,14 @@
 """Fills expect the error of what they rest on (issue 27, lowcost seed 311), against
 truth: a chain fill on a partner another fill placed (kisscal.tracking.raychain), a
 pattern fill measured following the neighbour it follows (kisscal.tracking.bodyfill),
-a depth fill's spline through noisy samples beside its gap (kisscal.tracking.fill_depth)."""
+a depth fill's spline and a spline fill through noisy samples beside their gaps
+(kisscal.tracking.fill_depth, kisscal.tracking.bodyfill)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from kisscal.tracking import TrackingParams
+from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.bodyfill import fill_candidates
 from kisscal.tracking.fill_depth import (
     _depth_spline,
@@ -15,8 +16,9 @@ from kisscal.tracking.fill_depth import (
     depth_error,
     depth_ray_fill,
 )
+from kisscal.tracking.gaps import SECOND_PASS, _second_pass, fill_gaps_logged
 from kisscal.tracking.raychain import chain_fill
-from kisscal.tracking.tracks import FILLED_PATTERN
+from kisscal.tracking.tracks import FILLED, FILLED_PATTERN
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_raychain import GAP, _dense, _segment_on_rays, _spare
 
@@ -96,3 +98,60 @@ def test_a_depth_fill_beside_noisy_samples_expects_what_their_noise_carries() ->
     # their noise carried into the gap is more than the depth fill may expect: refused
     assert context_noise(dense[3], centre, gap.start, gap.stop, 6) > true / 2.0
     assert depth_ray_fill(dense, 3, gap.start, gap.stop, spare, PARAMS) is None
+
+
+def test_a_spline_beside_noisy_samples_expects_what_their_noise_carries() -> None:
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    gap = slice(100, 105)
+    # as the depth fill's: the six samples each side 1.5 mm noisy, the trial's 0.2 mm
+    seen = xyz.copy()
+    rng = np.random.default_rng(7)
+    for side in (slice(gap.start - 6, gap.start), slice(gap.stop, gap.stop + 6)):
+        seen[3, side] += rng.normal(0.0, 1.5, (6, 3))
+    out, fills = fill_gaps_logged(_tracks_of(seen, {3: gap}), PARAMS)
+    (fill,) = fills
+    assert fill.status == FILLED and fill.first_field == gap.start
+    true = _rms(out.xyz_mm[(out.track == 3) & (out.status == FILLED)], xyz[3, gap])
+    assert true > 5.0  # 6.5 mm; before, 0.84 expected from the quiet stretches
+    assert true <= 2.0 * fill.expected_error_mm <= 4.0 * true
+
+
+def test_a_chain_fill_on_noisy_partners_expects_what_its_lengths_miss_beside_the_gap() -> None:
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {3: GAP, 1: GAP, 2: GAP}))
+    # marker 0, the partner, 4 mm noisy in and beside the gap (few cameras see it there),
+    # 0.2 mm in the rest of the trial: its length's SD over the trial does not show it
+    near = slice(GAP.start - 20, GAP.stop + 20)
+    dense[0, near] += np.random.default_rng(3).normal(0.0, 4.0, dense[0, near].shape)
+    got = chain_fill(dense, 3, GAP.start, GAP.stop, _spare(xyz, 3), PARAMS)
+    assert got is not None
+    true = _rms(got.xyz_mm, xyz[3, GAP])
+    assert true > 3.0  # 4.2 mm; before, 1.4 expected
+    assert true <= 2.0 * float(np.sqrt(np.nanmean(got.sd_mm**2)))
+
+
+def test_the_second_pass_splines_a_short_run_beside_placed_samples_expecting_their_error() -> None:
+    xyz = rigid_body(seed=4, noise_mm=0.2)
+    run = slice(120, 125)
+    # every marker hidden in the run (no body fill); marker 3's six fields before it were
+    # placed by a first-pass fill expecting 1.5 mm; one camera sees only noise blobs
+    dense = _dense(_tracks_of(xyz, {0: run, 1: run, 2: run, 3: run}))
+    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    errors[3, run.start - 6 : run.start] = 1.5
+    f = np.repeat(np.arange(run.start - 10, run.stop + 10), 2)
+    uv = np.random.default_rng(4).uniform([0, 0], [640, 480], (f.size, 2))
+    spare = spare_blobs(f, np.zeros(f.size), uv, _spare(xyz, 4).dlts)
+    measured = np.isfinite(dense[:, :, 0])
+    got = _second_pass(
+        dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
+    )
+    (fill,) = [g for _, g in got if g.track == 3]  # before, the second pass had no spline
+    xyz3 = np.concatenate([x for x, g in got if g.track == 3])
+    assert fill.status == FILLED and fill.expected_error_mm >= 1.5
+    assert _rms(xyz3, xyz[3, run]) <= 2.0 * fill.expected_error_mm
+    # beside samples expecting more than a body fill there may: refused
+    errors[3, run.start - 6 : run.start] = 2.0 * PARAMS.ray_rest_max_error_mm
+    got = _second_pass(
+        dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
+    )
+    assert not [g for _, g in got if g.track == 3]

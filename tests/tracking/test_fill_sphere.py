@@ -192,3 +192,28 @@ def test_placed_partners_that_check_each_other_count_the_error_their_fills_expec
     # one placed partner alone: nothing checks what its fill expects, the bound
     _, bound, alone = _two_placed({1: GAP, 2: GAP, 3: GAP}, 0.5)
     assert bound is not None and np.allclose(alone.sd_mm, bound.sd_mm, equal_nan=True)
+
+
+def test_a_second_camera_s_blob_beside_another_track_s_image_still_checks_the_point():
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    dense = _dense(_tracks_of(xyz, {1: GAP, 2: GAP, 3: GAP}))
+    # camera 0 follows another marker's blob 10 mm beside marker 3 (a heel by the
+    # ankle); camera 1, looking along marker 0 -> 3, sees marker 3's own blob beside
+    # marker 0's image: not alone, so not taken, but its ray still says where 3 is
+    wrong = xyz.copy()
+    wrong[3] += [0.0, 8.0, -6.0]
+    d0, f0, uv0 = _one_camera(wrong, np.array([1500.0, -1500.0, 2500.0]), 5)
+    along = np.mean(xyz[3, GAP] - xyz[0, GAP], axis=0)
+    d1, f1, uv1 = _one_camera(xyz, 8000.0 * along / np.linalg.norm(along), 6)
+    n = GAP.stop - GAP.start
+    near = np.linalg.norm(project_rows(d1, np.zeros(n, int), xyz[0, GAP]) - uv1[:n], axis=1)
+    assert near.max() < 2.0 * PARAMS.ray_chain_gate_px  # crowded throughout
+    spare = spare_blobs(
+        np.r_[f0, f1], np.r_[np.zeros(f0.size), np.ones(f1.size)], np.r_[uv0, uv1], np.r_[d0, d1]
+    )
+    got = sphere_depth_fill(dense, 3, GAP.start, GAP.stop, spare, PARAMS)
+    # before, placed on camera 0's blobs 10 mm off expecting 0.6-1.2 mm
+    if got is not None:
+        ok = np.isfinite(got.sd_mm)
+        err = np.linalg.norm(got.xyz_mm[ok] - xyz[3, GAP][ok], axis=1)
+        assert np.all(err <= 2.0 * got.sd_mm[ok])
