@@ -216,8 +216,8 @@ def absent_rows(
     spare: SpareBlobs | None,
     params: TrackingParams,
 ) -> NDArray[np.float64]:
-    """One row (n_fields, 3) per name of ``missing`` whose mirror image is tracked,
-    placed by :func:`place_absent` (shape (m, n_fields, 3); m = 0 without ``spare``)."""
+    """One row (n_fields, 3) per name of ``missing`` that :func:`place_absent` places
+    (:func:`absent_placed`; shape (m, n_fields, 3), m = 0 without ``spare``)."""
     return absent_placed(dense, labels, missing, spare, params)[1]
 
 
@@ -229,15 +229,32 @@ def absent_placed(
     params: TrackingParams,
 ) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
     """:func:`absent_rows` with, per row, its name and partners, and each placed field's
-    expected error along its ray ((m, n_fields), NaN where not placed)."""
+    expected error along its ray ((m, n_fields), NaN where not placed). Only names
+    placed somewhere have a row; a row placed is a partner of the names placed after
+    it, which are tried again while rows are added (kiss 3: an ankle that one camera
+    sees, placed by its heel and toe, and its knee, which another camera sees, by the
+    ankle and the tibia)."""
     rows, sds, who = [], [], []
-    for name in missing if spare is not None and labels else ():
-        partners, length, sd = mirror_lengths(dense, labels, name, params)
-        if partners.size >= 2:
-            row, err = place_absent(dense, partners, length, sd, spare, params)
+    names = list(labels or ())
+    waiting = list(missing) if spare is not None and labels else []
+    while waiting:
+        left = []
+        for name in waiting:
+            partners, length, sd = mirror_lengths(dense, names, name, params)
+            row = np.full(dense.shape[1:], np.nan)
+            if partners.size >= 2:
+                row, err = place_absent(dense, partners, length, sd, spare, params)
+            if not np.isfinite(row[:, 0]).any():
+                left.append(name)
+                continue
             rows.append(row)
             sds.append(err)
             who.append((name, partners))
+            dense = np.concatenate([dense, row[None]])
+            names.append(name)
+        if len(left) == len(waiting):
+            break
+        waiting = left
     if not rows:
         return [], np.zeros((0, *dense.shape[1:])), np.zeros((0, dense.shape[1]))
     return who, np.stack(rows), np.stack(sds)
@@ -256,6 +273,7 @@ def absent_tracks(
     expecting the run's RMS error along them, its partners the donors."""
     names, out = [], []
     for (name, partners), row, sd in zip(who, rows, sds, strict=True):
+        donors = tuple(partners[partners < first_track].tolist())  # not the absent rows
         placed = np.isfinite(row[:, 0])
         if placed.sum() < params.min_track_length:
             continue
@@ -263,6 +281,5 @@ def absent_tracks(
         names.append(name)
         for a, b in zip(*true_runs(placed), strict=True):
             err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
-            donors = tuple(partners.tolist())
             out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
     return names, out
