@@ -37,9 +37,12 @@ class Trajectories:
     tracks : Tracks
         One track per trajectory, numbered 0..n-1, samples measured / predicted / filled.
     labels : tuple of str
-        Name of each track (marker name, or M1, M2, ...).
+        Name of each track (marker name, or M1, M2, ...): the labelling's, then the names
+        no piece took that were placed on one camera's rays
+        (:func:`~kisscal.tracking.fill_absent.absent_tracks`).
     labelling : Labelling
-        How labelling went: whether the marker set fits, unlabelled tracks, missing names.
+        How labelling went: whether the marker set fits, unlabelled tracks, missing names
+        (of which those placed are left out).
     n_predicted : (n,) int array
         Missing-point predictions (coasted fields) per track before gap filling
         (thesis table 5.13).
