@@ -17,11 +17,13 @@ SD) is at most ``ray_length_max_error_mm`` and no other blob fits at another pla
 (two markers' blobs that fit are not told apart), in runs of at least
 :data:`~kisscal.tracking.raychain.MIN_RUN` fields; its blobs are taken.
 
-The placed marker is no trajectory (it has no name of its own to check against): it is
-a row of context for the fills of its partners' gaps. Where the toe is seen by one camera
-and the ankle by another, neither fixes its own depth with the heel alone (a ray nearly
-square to the heel-toe line meets its sphere at a glancing angle); together, on two
-rays with three lengths, they are fixed (:mod:`kisscal.tracking.fill_joint`), and the
+The placed marker is a row of context for the fills of its partners' gaps, and, placed
+in at least ``min_track_length`` fields, its name's trajectory (:func:`absent_tracks`):
+those lengths are its name's alone, so a lab of three cameras names a marker one camera
+sees (kiss 3: a knee the other leg hides from two cameras). Where the toe is seen by one
+camera and the ankle by another, neither fixes its own depth with the heel alone (a ray
+nearly square to the heel-toe line meets its sphere at a glancing angle); together, on
+two rays with three lengths, they are fixed (:mod:`kisscal.tracking.fill_joint`), and the
 ankle's blob is followed into the gap from the fields placed here.
 
 References
@@ -38,10 +40,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
+from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import path_runs
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.tracks import FILLED_RIGID
 
 #: Gauss-Newton iterations of a ray's depth.
 ITERS = 8
@@ -131,17 +136,18 @@ def place_absent(
     sd: NDArray,
     spare: SpareBlobs,
     params: TrackingParams,
-) -> NDArray[np.float64]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The absent marker's position per field (n_fields, 3; NaN where not placed) from
-    the free blobs of ``spare`` and its lengths to ``partners`` (see module); the blobs
-    of the placed fields are taken."""
+    the free blobs of ``spare`` and its lengths to ``partners`` (see module), and its
+    expected error along the ray (n_fields,); the blobs of the placed fields are taken."""
     out = np.full((dense.shape[1], 3), np.nan)
+    along = np.full(dense.shape[1], np.nan)
     rows = np.flatnonzero(spare.free & (spare.field < dense.shape[1]))
     p = dense[partners][:, spare.field[rows]]  # (k, r, 3)
     enough = np.isfinite(p[..., 0]).sum(axis=0) >= 2
     rows, p = rows[enough], p[:, enough]
     if rows.size == 0:
-        return out
+        return out, along
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
@@ -150,7 +156,7 @@ def place_absent(
     rows, x, err = rows[fits], c[fits] + s[fits, None] * d[fits], err[fits]
     f = spare.field[rows]
     order = np.lexsort((err, f))
-    rows, x, f = rows[order], x[order], f[order]
+    rows, x, f, err = rows[order], x[order], f[order], err[order]
     first = np.r_[True, f[1:] != f[:-1]]
     lead = np.maximum.accumulate(np.where(first, np.arange(f.size), 0))
     apart = np.linalg.norm(x - x[lead], axis=1) > SAME_MM
@@ -163,9 +169,9 @@ def place_absent(
     pos[f[first]] = x[first]
     one = path_runs(_on_path(one, pos))
     keep = first & one[f]
-    out[f[keep]] = x[keep]
+    out[f[keep]], along[f[keep]] = x[keep], err[keep]
     spare.free[rows[one[f]]] = False
-    return out
+    return out, along
 
 
 def off_path(pos: NDArray) -> NDArray[np.bool_]:
@@ -210,11 +216,70 @@ def absent_rows(
     spare: SpareBlobs | None,
     params: TrackingParams,
 ) -> NDArray[np.float64]:
-    """One row (n_fields, 3) per name of ``missing`` whose mirror image is tracked,
-    placed by :func:`place_absent` (shape (m, n_fields, 3); m = 0 without ``spare``)."""
-    rows = []
-    for name in missing if spare is not None and labels else ():
-        partners, length, sd = mirror_lengths(dense, labels, name, params)
-        if partners.size >= 2:
-            rows.append(place_absent(dense, partners, length, sd, spare, params))
-    return np.stack(rows) if rows else np.zeros((0, *dense.shape[1:]))
+    """One row (n_fields, 3) per name of ``missing`` that :func:`place_absent` places
+    (:func:`absent_placed`; shape (m, n_fields, 3), m = 0 without ``spare``)."""
+    return absent_placed(dense, labels, missing, spare, params)[1]
+
+
+def absent_placed(
+    dense: NDArray,
+    labels: Sequence[str] | None,
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`absent_rows` with, per row, its name and partners, and each placed field's
+    expected error along its ray ((m, n_fields), NaN where not placed). Only names
+    placed somewhere have a row; a row placed is a partner of the names placed after
+    it, which are tried again while rows are added (kiss 3: an ankle that one camera
+    sees, placed by its heel and toe, and its knee, which another camera sees, by the
+    ankle and the tibia)."""
+    rows, sds, who = [], [], []
+    names = list(labels or ())
+    waiting = list(missing) if spare is not None and labels else []
+    while waiting:
+        left = []
+        for name in waiting:
+            partners, length, sd = mirror_lengths(dense, names, name, params)
+            row = np.full(dense.shape[1:], np.nan)
+            if partners.size >= 2:
+                row, err = place_absent(dense, partners, length, sd, spare, params)
+            if not np.isfinite(row[:, 0]).any():
+                left.append(name)
+                continue
+            rows.append(row)
+            sds.append(err)
+            who.append((name, partners))
+            dense = np.concatenate([dense, row[None]])
+            names.append(name)
+        if len(left) == len(waiting):
+            break
+        waiting = left
+    if not rows:
+        return [], np.zeros((0, *dense.shape[1:])), np.zeros((0, dense.shape[1]))
+    return who, np.stack(rows), np.stack(sds)
+
+
+def absent_tracks(
+    who: list[tuple[str, NDArray[np.int64]]],
+    rows: NDArray,
+    sds: NDArray,
+    first_track: int,
+    params: TrackingParams,
+) -> tuple[list[str], list[tuple[NDArray, GapFill]]]:
+    """The rows of :func:`absent_placed` placed in at least ``min_track_length`` fields
+    (a piece long enough to be named) as tracks numbered from ``first_track``: their
+    names, and one (xyz, fill) per run, ``filled_rigid`` on the rays of one camera,
+    expecting the run's RMS error along them, its partners the donors."""
+    names, out = [], []
+    for (name, partners), row, sd in zip(who, rows, sds, strict=True):
+        donors = tuple(partners[partners < first_track].tolist())  # not the absent rows
+        placed = np.isfinite(row[:, 0])
+        if placed.sum() < params.min_track_length:
+            continue
+        t = first_track + len(names)
+        names.append(name)
+        for a, b in zip(*true_runs(placed), strict=True):
+            err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
+            out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
+    return names, out

@@ -25,7 +25,7 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
     spline_fill,
 )
-from kisscal.tracking.fill_absent import absent_rows
+from kisscal.tracking.fill_absent import absent_placed, absent_tracks
 from kisscal.tracking.fill_anchor import anchored
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
@@ -411,14 +411,30 @@ def fill_gaps_logged(
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
     (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
-    track took, placed for the joint fills only (:func:`.fill_absent.absent_rows`).
+    track took, placed on their blobs' rays (:func:`.fill_absent.absent_rows`) for the
+    joint fills, and those placed in ``min_track_length`` fields or more as tracks
+    numbered after the given ones (:func:`fill_gaps_named` says which names).
 
     References
     ----------
     Gløersen & Federolf 2016 (filling from the other markers of the body).
     """
+    tracks, fills, _ = fill_gaps_named(tracks, params, spare, labels, unlabelled, missing)
+    return tracks, fills
+
+
+def fill_gaps_named(
+    tracks: Tracks,
+    params: TrackingParams,
+    spare: SpareBlobs | None = None,
+    labels: Sequence[str] | None = None,
+    unlabelled: Sequence[int] = (),
+    missing: Sequence[str] = (),
+) -> tuple[Tracks, tuple[GapFill, ...], tuple[str, ...]]:
+    """:func:`fill_gaps_logged`, with the names of ``missing`` that became tracks (in
+    the order of their numbers, after the given tracks')."""
     if tracks.field.size == 0:
-        return tracks, ()
+        return tracks, (), ()
     start, stop = tracks.bounds()
     meas = tracks.status == MEASURED
     n_fields = int(tracks.field.max()) + 1
@@ -427,7 +443,7 @@ def fill_gaps_logged(
     measured = np.isfinite(dense[:, :, 0])
     if spare is not None:
         spare = dataclasses.replace(spare, free=spare.free.copy())
-    absent = absent_rows(dense, labels, missing, spare, params)
+    who, absent, absent_sd = absent_placed(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)
         for t in range(tracks.n_tracks)
@@ -440,14 +456,16 @@ def fill_gaps_logged(
     made += _fill_runs(dense, ends, params, spare, measured, absent, errors)
     # what is left, again with the ends placed: a knee seen by one camera carries a tibia
     made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors)
+    named, placed = absent_tracks(who, absent, absent_sd, tracks.n_tracks, params)
+    made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
-        return tracks.with_track(tracks.track), ()
+        return tracks.with_track(tracks.track), (), ()
     new_field = np.concatenate([g.first_field + np.arange(g.n_fields) for g in fills])
     new_track = np.concatenate([np.full(g.n_fields, g.track) for g in fills])
     new_status = np.concatenate([np.full(g.n_fields, g.status, dtype=np.int8) for g in fills])
     # A filled sample replaces the track's sample there (a Kalman prediction).
-    replaced = np.zeros(tracks.n_tracks * n_fields, dtype=bool)
+    replaced = np.zeros((tracks.n_tracks + len(named)) * n_fields, dtype=bool)
     replaced[new_track * n_fields + new_field] = True
     keep = ~replaced[tracks.track * n_fields + tracks.field]
     n = new_field.size
@@ -463,4 +481,4 @@ def fill_gaps_logged(
     # and its name (labels are per track number) must stay with it
     order = np.lexsort((columns[0], columns[1]))
     out = Tracks(*(c[order] for c in columns))
-    return out, tuple(fills)
+    return out, tuple(fills), tuple(named)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.blending import blend_tracks, clean_up
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.gaps import fill_gaps_logged
+from kisscal.tracking.gaps import fill_gaps_named
 from kisscal.tracking.labelling import Labelling, label_tracks, label_with_set
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.broken import drop_broken_samples
@@ -36,9 +37,12 @@ class Trajectories:
     tracks : Tracks
         One track per trajectory, numbered 0..n-1, samples measured / predicted / filled.
     labels : tuple of str
-        Name of each track (marker name, or M1, M2, ...).
+        Name of each track (marker name, or M1, M2, ...): the labelling's, then the names
+        no piece took that were placed on one camera's rays
+        (:func:`~kisscal.tracking.fill_absent.absent_tracks`).
     labelling : Labelling
-        How labelling went: whether the marker set fits, unlabelled tracks, missing names.
+        How labelling went: whether the marker set fits, unlabelled tracks, missing names
+        (of which those placed are left out).
     n_predicted : (n,) int array
         Missing-point predictions (coasted fields) per track before gap filling
         (thesis table 5.13).
@@ -106,14 +110,18 @@ def build_trajectories(
     )
     tracks = labelling.tracks
     n_predicted = tracks.n_status(PREDICTED)
-    tracks, fills = fill_gaps_logged(
+    tracks, fills, placed = fill_gaps_named(
         tracks, params, spare, labelling.labels, labelling.unlabelled, labelling.missing
     )
+    # names no piece took, placed on one camera's rays by their segment's lengths
+    n_predicted = np.r_[n_predicted, np.zeros(len(placed), dtype=np.int64)]
+    missing = tuple(n for n in labelling.missing if n not in placed)
+    labelling = dataclasses.replace(labelling, missing=missing)
     if params.smoothing:
         tracks = smooth_tracks(tracks)
     return Trajectories(
         tracks=tracks,
-        labels=labelling.labels,
+        labels=labelling.labels + placed,
         labelling=labelling,
         n_predicted=n_predicted,
         n_pieces=raw.n_tracks,

@@ -12,6 +12,7 @@ from kisscal.tracking.fill_absent import absent_rows, mirror_lengths
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged
+from kisscal.tracking.tracks import FILLED_RIGID
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_raychain import _dense
 from tests.tracking.test_rayfill import _look_at
@@ -103,6 +104,29 @@ def test_a_toe_one_camera_sees_is_placed_with_the_absent_ankle_on_another_s():
     good, rms = filled(("RANK",))
     assert good == GAP.stop - GAP.start > without + 5  # the whole gap within 3 mm
     assert rms < 2.0
+
+
+def test_an_ankle_one_camera_sees_all_trial_becomes_its_name_s_trajectory():
+    # kiss 3: a marker that one camera alone sees makes no 3D point, so no piece takes its
+    # name; placed on its rays by its mirror image's lengths, it becomes a track (RKNE,
+    # whose mirror is not tracked, does not)
+    right, truth = _feet(25)
+    tracks = _tracks_of(truth, {5: GAP, 6: GAP})
+    spare = _cameras(right, 25, GAP)
+    out, fills = fill_gaps_logged(tracks, PARAMS, spare, LABELS, (), ("RANK", "RKNE"))
+    assert out.n_tracks == len(LABELS) + 1
+    rows = out.track == len(LABELS)
+    assert rows.sum() > 0.8 * (truth.shape[1] - (GAP.stop - GAP.start))
+    err = np.linalg.norm(out.xyz_mm[rows] - right[2, out.field[rows]], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0 and err.max() < 5.0
+    own = [g for g in fills if g.track == len(LABELS)]
+    assert sum(g.n_fields for g in own) == rows.sum()
+    assert all(g.status == FILLED_RIGID and g.n_fields == g.ray_fields for g in own)
+    # each run's expected error is honest: its true RMS within twice what it expects
+    for g in own:
+        f = np.arange(g.first_field, g.first_field + g.n_fields)
+        miss = np.linalg.norm(out.xyz_mm[rows][np.isin(out.field[rows], f)] - right[2, f], axis=1)
+        assert np.sqrt(np.mean(miss**2)) <= 2.0 * max(g.expected_error_mm, 0.5)
 
 
 def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_cannot():
