@@ -20,11 +20,11 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
    agree); of these the one that continues the marker's path from both sides of the
-   gap is taken (or the only one, on a blob followed in the image; or, where the path
-   from one side joins no point of the gap, the one the other side's path takes
-   without a break, when every partner was measured with the marker over most of its
-   motion); free blobs in fields no path reached are tried too, and kept only where
-   both sides' paths agree;
+   gap is taken (or the only one, on a blob followed in the image, unless a walk took
+   it for the ray's other depth; or, where the path from one side joins no point of
+   the gap, the one the other side's path takes without a break, when every partner
+   was measured with the marker over most of its motion); free blobs in fields no
+   path reached are tried too, and kept only where both sides' paths agree;
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
@@ -286,26 +286,45 @@ def on_ray(
 
 
 def _choose(
-    cands: dict[int, NDArray], guide: NDArray, start: NDArray, k_prev: int, ks: list[int]
-) -> dict[int, int]:
+    cands: dict[int, NDArray],
+    guide: NDArray,
+    start: NDArray,
+    k_prev: int,
+    ks: list[int],
+    coast: int,
+) -> tuple[dict[int, int], set[int]]:
     """Per gap field offset of ``ks`` (in the order walked), the candidate (index into
     ``cands[k]``, an (p, 3) array) nearest the path continued from ``start`` (at offset
     ``k_prev``): moved as the segment's partner ``guide`` ((n + 2, 3), offsets -1..n)
     moved, if within 30 mm per field walked (100 mm at most); none where the runner-up
-    is less than twice as far."""
+    is less than twice as far. And the offsets where the walk refused a candidate as
+    another branch (over 30 mm from its pick, or out of reach within ``coast`` fields
+    of its last point) or its continuation (within 30 mm, half as far as the path): where a
+    drifting length (thigh to shank) leaves only the ray's other depth, a point alone
+    is not the marker (modern 3 seed 332 RTHI 465-517: 87-262 mm off, expecting 2.47)."""
     out: dict[int, int] = {}
-    prev = start
+    refused: set[int] = set()
+    prev, ref, k_ref = start, np.zeros((0, 3)), k_prev
     for k in ks:
         gap = abs(k - k_prev)
         step = guide[k + 1] - guide[k_prev + 1]
         pred = prev + np.nan_to_num(step)
         dist = np.linalg.norm(cands[k] - pred, axis=1)
-        i = int(np.argmin(dist))
-        if dist[i] > min(30.0 * gap, 100.0) or np.any(np.delete(dist, i) < 2.0 * dist[i]):
-            continue
-        out[k] = i
-        prev, k_prev = cands[k][i], k
-    return out
+        to_ref = np.linalg.norm(cands[k][:, None] - ref[None], axis=2).min(axis=1, initial=np.inf)
+        other = (abs(k - k_ref) == 1) & (to_ref <= 30.0) & (2.0 * to_ref < dist)
+        dist = np.where(other, np.inf, dist)
+        i, reach = int(np.argmin(dist)), min(30.0 * gap, 100.0)
+        picked = dist[i] <= reach and not np.any(np.delete(dist, i) < 2.0 * dist[i])
+        if picked:  # another branch: farther from the pick than a field's motion
+            other |= np.linalg.norm(cands[k] - cands[k][i], axis=1) > 30.0
+        elif gap - 1 <= coast:
+            other |= dist > reach
+        ref, k_ref = cands[k][other], k
+        refused |= {k} if other.any() else set()
+        if picked:
+            out[k] = i
+            prev, k_prev = cands[k][i], k
+    return out, refused
 
 
 def _steady(dense: NDArray, t: int, partners: NDArray) -> bool:
@@ -497,9 +516,11 @@ def chain_fill(
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
     order = sorted(pts)
     guide = _guide(dense, partners, lo, hi)
-    fwd = _choose(pts, guide, target[lo - 1], -1, order) if walk[0] else {}
-    bwd = _choose(pts, guide, target[hi], hi - lo, order[::-1]) if walk[1] else {}
     coast = params.ray_chain_coast_fields
+    fwd, no_f = _choose(pts, guide, target[lo - 1], -1, order, coast) if walk[0] else ({}, set())
+    bwd, no_b = (
+        _choose(pts, guide, target[hi], hi - lo, order[::-1], coast) if walk[1] else ({}, set())
+    )
     near = (_connected(fwd, -1, coast), _connected(bwd, hi - lo, coast))
     if end or (fwd and bwd) or not _steady(dense, t, partners):
         # one walk alone only where the other joins no point of the gap (its end is
@@ -512,7 +533,7 @@ def chain_fill(
     followed = set(chained.tolist())
     for k, c in cands.items():
         i = _agreed(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
-        sure = len(c) == 1 and c[0][2] in followed
+        sure = len(c) == 1 and c[0][2] in followed and k not in no_f | no_b
         if i is not None or sure:
             x, e, row = c[0] if sure else c[i]
             if e <= params.ray_length_max_error_mm:

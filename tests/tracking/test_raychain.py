@@ -13,7 +13,7 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
 from kisscal.tracking.labelling.pieces import join_gap_pieces
-from kisscal.tracking.raychain import _agreed, _connected, parted
+from kisscal.tracking.raychain import _agreed, _connected, chain_fill, parted
 from kisscal.tracking.tracks import MEASURED, make_tracks
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import _look_at
@@ -325,3 +325,31 @@ def test_a_segment_on_rays_takes_each_marker_s_own_blob_and_a_track_starting_aft
     assert placed.sum() >= 0.8 * (GAP.stop - GAP.start)
     err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, GAP][placed], axis=1)
     assert np.sqrt(np.mean(err**2)) < 2.0
+
+
+def test_a_partner_s_drifting_length_does_not_place_the_ray_s_other_root():
+    # marker 0 walks along y; one camera sees it through its gap [80, 140). Marker 1,
+    # rigid with it, meets its ray at two depths 80 mm apart (0 and its other root);
+    # marker 2's length fits both until field 100, then drifts (a thigh marker's to the
+    # shank across the knee) to fit only the other root until 126 (modern 3 seed 332
+    # RTHI 465-517: 87-262 mm off, expecting 2.47)
+    n, lo, hi, far, length = 200, 80, 140, 80.0, 400.0
+    t = np.arange(n)
+    xyz = np.stack([0 * t, 10.0 * t - 1000, 900 + 0 * t], 1)
+    centre = np.array([3000.0, 0, 1500])
+    dlts = _look_at(centre, np.array([0.0, 0, 900]))[None]
+    d = (xyz - centre) / np.linalg.norm(xyz - centre, axis=1)[:, None]
+    side = np.cross(d, [0.0, 0, 1])
+    side /= np.linalg.norm(side, axis=1)[:, None]
+    other = xyz + far * d
+    both = xyz + length * (0.1 * d + np.sqrt(0.99) * side)  # 0.1 = far / (2 length)
+    w = np.clip((t - 100) / 3.0, 0, 1) * np.clip((126 - t) / 3.0, 0, 1)
+    drift = both * (1 - w[:, None]) + (other + length * side) * w[:, None]
+    dense = np.stack([xyz, xyz + 0.5 * far * d + 150.0 * np.cross(d, side), drift])
+    dense[0, lo:hi] = np.nan
+    f = np.arange(lo, hi)
+    uv = project_rows(dlts, np.zeros(f.size, dtype=int), xyz[lo:hi])
+    got = chain_fill(dense, 0, lo, hi, spare_blobs(f, np.zeros(f.size), uv, dlts), PARAMS)
+    placed = np.isfinite(got.sd_mm)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[lo:hi][placed], axis=1)
+    assert placed.sum() >= 30 and np.all(err <= 2.0 * got.sd_mm[placed])
