@@ -32,7 +32,8 @@ from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
-from kisscal.tracking.bodyfill import context_noise, pseudo_gaps, side_windows
+from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.fill_spline import context_noise
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
     ChainFill,

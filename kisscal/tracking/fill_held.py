@@ -26,10 +26,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates, spline_fill
+from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
 from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import with_rays
+from kisscal.tracking.fill_spline import spline_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
 

@@ -18,13 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.tracking.bodyfill import (
-    GapFill,
-    best_candidate,
-    context_noise,
-    fill_candidates,
-    spline_fill,
-)
+from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_absent import absent_placed, absent_tracks
 from kisscal.tracking.fill_anchor import anchored
 from kisscal.tracking.fill_depth import depth_ray_fill
@@ -41,6 +35,7 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
+from kisscal.tracking.fill_spline import context_noise, spline_fill
 from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
@@ -132,7 +127,7 @@ def _body(
     sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
     followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
     A spline expects at least what the noise of the samples it goes through carries
-    (:func:`~kisscal.tracking.bodyfill.context_noise`; lowcost 301-313: 98 samples over
+    (:func:`~kisscal.tracking.fill_spline.context_noise`; lowcost 301-313: 98 samples over
     twice their spline's expected error, the stretches it is tried on quieter). With
     ``checked``, a spline is kept only when, counting the largest expected error of the
     samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``

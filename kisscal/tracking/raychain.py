@@ -51,6 +51,7 @@ from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.fill_donors import unshared
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, placed_errors
+from kisscal.tracking.raywalk import agreed_pick, connected_picks, walk_picks
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
@@ -285,48 +286,6 @@ def on_ray(
     )
 
 
-def _choose(
-    cands: dict[int, NDArray],
-    guide: NDArray,
-    start: NDArray,
-    k_prev: int,
-    ks: list[int],
-    coast: int,
-) -> tuple[dict[int, int], set[int]]:
-    """Per gap field offset of ``ks`` (in the order walked), the candidate (index into
-    ``cands[k]``, an (p, 3) array) nearest the path continued from ``start`` (at offset
-    ``k_prev``): moved as the segment's partner ``guide`` ((n + 2, 3), offsets -1..n)
-    moved, if within 30 mm per field walked (100 mm at most); none where the runner-up
-    is less than twice as far. And the offsets where the walk refused a candidate as
-    another branch (over 30 mm from its pick, or out of reach within ``coast`` fields
-    of its last point) or its continuation (within 30 mm, half as far as the path): where a
-    drifting length (thigh to shank) leaves only the ray's other depth, a point alone
-    is not the marker (modern 3 seed 332 RTHI 465-517: 87-262 mm off, expecting 2.47)."""
-    out: dict[int, int] = {}
-    refused: set[int] = set()
-    prev, ref, k_ref = start, np.zeros((0, 3)), k_prev
-    for k in ks:
-        gap = abs(k - k_prev)
-        step = guide[k + 1] - guide[k_prev + 1]
-        pred = prev + np.nan_to_num(step)
-        dist = np.linalg.norm(cands[k] - pred, axis=1)
-        to_ref = np.linalg.norm(cands[k][:, None] - ref[None], axis=2).min(axis=1, initial=np.inf)
-        other = (abs(k - k_ref) == 1) & (to_ref <= 30.0) & (2.0 * to_ref < dist)
-        dist = np.where(other, np.inf, dist)
-        i, reach = int(np.argmin(dist)), min(30.0 * gap, 100.0)
-        picked = dist[i] <= reach and not np.any(np.delete(dist, i) < 2.0 * dist[i])
-        if picked:  # another branch: farther from the pick than a field's motion
-            other |= np.linalg.norm(cands[k] - cands[k][i], axis=1) > 30.0
-        elif gap - 1 <= coast:
-            other |= dist > reach
-        ref, k_ref = cands[k][other], k
-        refused |= {k} if other.any() else set()
-        if picked:
-            out[k] = i
-            prev, k_prev = cands[k][i], k
-    return out, refused
-
-
 def _steady(dense: NDArray, t: int, partners: NDArray) -> bool:
     """Whether each partner was measured with track ``t`` in at least
     :data:`MIN_TOGETHER` of ``t``'s fields: its length then held over most of the
@@ -334,36 +293,6 @@ def _steady(dense: NDArray, t: int, partners: NDArray) -> bool:
     seen = np.isfinite(dense[t, :, 0])
     together = (np.isfinite(dense[partners, :, 0]) & seen).sum(axis=1)
     return bool(np.all(together >= MIN_TOGETHER * seen.sum()))
-
-
-def _connected(picks: dict[int, int], start: int, coast: int) -> set[int]:
-    """The gap offsets of a walk's ``picks`` (in the order walked, from offset
-    ``start``, the gap's edge) reached with no more than ``coast`` fields in a row
-    without a pick: farther on, its predicted path has drifted for too long to tell two
-    near points apart."""
-    out: set[int] = set()
-    last = start
-    for k in picks:
-        if abs(k - last) - 1 > coast:
-            break
-        out.add(k)
-        last = k
-    return out
-
-
-def _agreed(i: int | None, j: int | None, near_i: bool, near_j: bool) -> int | None:
-    """The candidate the two walks from a gap's sides (picks ``i`` forward, ``j``
-    backward; ``near_*`` whether unbroken from their edge, :func:`_connected`) settle
-    on: the one both took, or the one a walk unbroken from its side took where the
-    other walk took none (the sample beyond the gap's far side may be another
-    marker's: a walk from it finds no path)."""
-    if i is not None and i == j:
-        return i
-    if i is not None and near_i and j is None:
-        return i
-    if j is not None and near_j and i is None:
-        return j
-    return None
 
 
 def _apart(a: tuple, b: tuple) -> float:
@@ -517,11 +446,11 @@ def chain_fill(
     order = sorted(pts)
     guide = _guide(dense, partners, lo, hi)
     coast = params.ray_chain_coast_fields
-    fwd, no_f = _choose(pts, guide, target[lo - 1], -1, order, coast) if walk[0] else ({}, set())
+    fwd, no_f = walk_picks(pts, guide, target[lo - 1], -1, order, coast) if walk[0] else ({}, set())
     bwd, no_b = (
-        _choose(pts, guide, target[hi], hi - lo, order[::-1], coast) if walk[1] else ({}, set())
+        walk_picks(pts, guide, target[hi], hi - lo, order[::-1], coast) if walk[1] else ({}, set())
     )
-    near = (_connected(fwd, -1, coast), _connected(bwd, hi - lo, coast))
+    near = (connected_picks(fwd, -1, coast), connected_picks(bwd, hi - lo, coast))
     if end or (fwd and bwd) or not _steady(dense, t, partners):
         # one walk alone only where the other joins no point of the gap (its end is
         # not the marker's, or out of reach), and with lengths that held over the
@@ -532,7 +461,7 @@ def chain_fill(
     rows = np.full(hi - lo, -1)
     followed = set(chained.tolist())
     for k, c in cands.items():
-        i = _agreed(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
+        i = agreed_pick(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
         sure = len(c) == 1 and c[0][2] in followed and k not in no_f | no_b
         if i is not None or sure:
             x, e, row = c[0] if sure else c[i]

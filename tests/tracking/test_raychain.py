@@ -13,7 +13,8 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
 from kisscal.tracking.labelling.pieces import join_gap_pieces
-from kisscal.tracking.raychain import _agreed, _connected, chain_fill, parted
+from kisscal.tracking.raychain import chain_fill, parted
+from kisscal.tracking.raywalk import agreed_pick, connected_picks
 from kisscal.tracking.tracks import MEASURED, make_tracks
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import _look_at
@@ -180,9 +181,9 @@ def test_a_walk_unbroken_from_its_side_settles_a_field_the_other_walk_left():
     # (from offset 12) picks 11, 10 and, far from its side, 1
     fwd = {0: 0, 1: 0, 2: 1, 9: 0}
     bwd = {11: 0, 10: 0, 1: 1}
-    near_f, near_b = _connected(fwd, -1, 3), _connected(bwd, 12, 3)
+    near_f, near_b = connected_picks(fwd, -1, 3), connected_picks(bwd, 12, 3)
     assert near_f == {0, 1, 2} and near_b == {11, 10}
-    got = {k: _agreed(fwd.get(k), bwd.get(k), k in near_f, k in near_b) for k in range(12)}
+    got = {k: agreed_pick(fwd.get(k), bwd.get(k), k in near_f, k in near_b) for k in range(12)}
     # both walks' or one unbroken walk's where the other took none; never a field the
     # walks disagree on, nor one only a broken walk reached
     assert got == {0: 0, 1: None, 2: 1, 9: None, 10: 0, 11: 0} | {k: None for k in range(3, 9)}
