@@ -295,11 +295,12 @@ def calibrate_on_wand_and_points(
     rods_per_point : float
         The control points' weight against a trial marker's image (0: their own variance
         component). The rods route's (:func:`calibrate_on_points`' ``control.weight``)
-        keeps its lab frame: the rods' residuals hold what the lens model misses at their
-        markers, so their own component weighs them some ten times lower against the
-        trials' markers, and the frame they alone fix moves with the shape (issue 25:
-        synthetic kiss rig, seed 73, 0.0162 against the rods route's 0.0161 mm inside
-        the volume; weighed as the rods route weighs them, 0.0125 mm).
+        holds the lab frame the rods alone fix as that route does: the rods' residuals
+        hold what the lens model misses at their markers, so their own component weighs
+        them some ten times lower against the trials' markers (issue 25: synthetic kiss
+        rig, seed 73, 0.0162 mm inside the volume, the rods route 0.0161; weighed as the
+        rods route weighs them, 0.0125 mm; on seed 71 the other way, 0.0134 against
+        0.0180: the wand route keeps the lower leave-one-rod-out).
 
     Returns
     -------

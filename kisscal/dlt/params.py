@@ -61,8 +61,8 @@ class DltParams(Params):
         at 10 times it). The wand route, adjusted with the same trials' markers, weighs
         the wand's images against those markers by the noise their own residuals show
         (Helmert's variance components, :func:`kisscal.bundle.adjust.variance_components`)
-        and the rods against a trial marker as this adjustment weighs them, which keeps
-        its lab frame.
+        and the rods both by their own component and as this adjustment weighs them,
+        keeping the one with the lower leave-one-rod-out error.
     model_folds : int
         Subsets the control points are split into for that choice when they are not
         rods (rods: one rod, and one marker of every rod, out at a time).
