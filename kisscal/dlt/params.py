@@ -58,10 +58,11 @@ class DltParams(Params):
         leaves out what the grid's polynomial and the resected terms miss over the
         trials' wider reach, and with its weight alone the trials' markers bend the lens
         terms (issue 25, seed 71: lowcost 0.080/0.095 mm inside/edges against 0.067/0.078
-        at 10 times it). The wand route, adjusted with the same trials' markers, only
-        starts from it: there the rods, the wand's images and the trials' markers are
-        each weighed by the noise their own residuals show (Helmert's variance
-        components, :func:`kisscal.bundle.adjust.variance_components`).
+        at 10 times it). The wand route, adjusted with the same trials' markers, weighs
+        the wand's images against those markers by the noise their own residuals show
+        (Helmert's variance components, :func:`kisscal.bundle.adjust.variance_components`)
+        and the rods both by their own component and as this adjustment weighs them,
+        keeping the one with the lower leave-one-rod-out error.
     model_folds : int
         Subsets the control points are split into for that choice when they are not
         rods (rods: one rod, and one marker of every rod, out at a time).
