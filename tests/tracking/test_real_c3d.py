@@ -70,6 +70,30 @@ def test_a_jump_to_another_marker_is_not_the_files_rename():
     assert file_relabels(on_path, before, after, a, b) == 1
 
 
+def test_a_name_swapped_for_a_frame_or_leaving_its_path_is_the_files_rename():
+    """Two names swapped for one frame (sample_OptiTrack_walking's foot markers 5 and 3,
+    96 mm apart, frame 1952): the tracker that follows both markers makes four switches,
+    all the file's, the swap's giving back too. A name that leaps off its path (gait9's
+    "r mall": 28 then 66 mm a field while it moved 8) while a channel usually 431 mm away
+    takes the path up two frames later is the file's rename; a tracker that jumps
+    between two smooth markers 30 mm apart is not."""
+    t = np.arange(14.0)
+    path = np.stack([8.0 * t, 0.1 * t**2, 0 * t], axis=1)
+    xyz = np.stack([path, path + [0.0, 96.0, 0.0]], axis=1)
+    xyz[6] = xyz[6, ::-1]
+    before, after = np.array([5, 6, 5, 6]), np.array([6, 7, 6, 7])
+    a, b = np.array([0, 1, 1, 0]), np.array([1, 0, 0, 1])
+    assert file_relabels(xyz, before, after, a, b) == 4
+    left = np.stack([path, path + [0.0, 431.0, 0.0]], axis=1)
+    left[7:, 0] = path[7:] + np.where(t[7:, None] > 7, [0.0, -90.0, 0.0], [0.0, -28.0, 0.0])
+    left[5:8, 1] = np.nan
+    left[8:, 1] = path[8:]
+    one = (np.array([6]), np.array([8]), np.array([0]), np.array([1]))
+    assert file_relabels(left, *one) == 1
+    jump = np.stack([path, path + [0.0, 30.0, 0.0]], axis=1)
+    assert file_relabels(jump, np.array([6]), np.array([7]), *one[2:]) == 0
+
+
 def test_the_systems_linear_fill_is_not_the_marker():
     """A channel whose samples for a few frames lie on the straight line between its
     samples either side (the writing system's gap fill) while the marker's measurement is

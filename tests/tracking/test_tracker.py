@@ -315,3 +315,21 @@ def test_a_hidden_markers_track_is_cut_where_it_takes_its_neighbours_point(seed)
     field, xyz, who = _cloud([a, b], seed=seed, noise_mm=0.5, missing=missing)
     ids = _identities(track_points(field, xyz, TrackingParams()), who)
     assert all(len(s) == 1 for s in ids)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_two_point_tracks_next_marker_leaves_both_its_points(seed):
+    """Marker A (2.6 mm/field) is hidden for fields 5-11 and its track ends; its neighbour
+    B, 23 mm away, is seen in fields 10-11 only; at field 12 B's two-point track takes A's
+    point (22 mm from its prediction, in its gate). The cut test needs three samples
+    before a cut, and the stray-end test split off B's first point only: the second goes
+    too, and no piece holds both (OptiTrack at 160 Hz, sample_OptiTrack_walking)."""
+    f = np.arange(40.0)[:, None]
+    a = np.hstack([2.6 * f, 1.8 * f, 0.4 * f + 400.0])
+    paths = [a, a + [13.6, 16.2, -8.0]]
+    paths += [np.hstack([2.0 * f, 300.0 * k + 0 * f, 900 + 0 * f]) for k in range(1, 4)]
+    missing = {(0, k) for k in range(5, 12)} | {(1, k) for k in range(40) if k not in (10, 11)}
+    field, xyz, who = _cloud(paths, seed=seed, noise_mm=0.2, missing=missing)
+    ids = _identities(track_points(field, xyz, TrackingParams()), who)
+    assert all(len(s) == 1 for s in ids)
+    assert {0} in ids and {1} in ids
