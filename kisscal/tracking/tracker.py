@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from kisscal.errors import InputError
-from kisscal.tracking.blending import smoothness_mm, split_discontinuities, split_stray_ends
+from kisscal.tracking.continuity import smoothness_mm, split_discontinuities, split_stray_ends
 from kisscal.tracking.live import RIVAL_MIN_MM, Live, Setup
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import MEASURED, PREDICTED, Tracks, make_tracks
