@@ -119,9 +119,12 @@ def dishonest(trial) -> list[str]:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    args = [a for a in sys.argv[1:] if not a.startswith("-")]
     only = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--rig=")), "lowcost")
-    preset, cams = next(v for k, v in RIGS.items() if k.startswith(only))
+    rig = next((v for k, v in RIGS.items() if k.startswith(only)), None)
+    if not args or {"-h", "--help"} & set(sys.argv) or rig is None:
+        sys.exit(f"{__doc__}\n--rig= takes the start of one of: {', '.join(RIGS)}")
+    preset, cams = rig
     if "--dishonest" in sys.argv:
         print("\n".join(dishonest(rig_trial(preset, int(args[0]), cams))))
     else:
