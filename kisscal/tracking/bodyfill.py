@@ -144,6 +144,17 @@ def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
     return np.where(seen.sum(axis=2) >= 4, np.sqrt(var), np.inf)
 
 
+def mutual_sd(series: NDArray, to_target: NDArray, params: TrackingParams) -> NDArray[np.float64]:
+    """:func:`distance_sd` of ``series`` (c, n, 3) to each other (c, c), in the columns
+    :func:`segment_carriers` reads (candidates within ``rigid_fill_sd_mm`` of the target,
+    ``to_target``: only they join the segment), inf in the others: all c x c pairs over
+    a long trial took most of a re-track's time."""
+    out = np.full((len(series), len(series)), np.inf)
+    cols = np.flatnonzero(to_target <= params.rigid_fill_sd_mm)
+    out[:, cols] = distance_sd(series, series[cols])
+    return out
+
+
 def rigid_donors(
     target: NDArray, dense: NDArray, exclude: int, lo: int, hi: int, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
@@ -155,7 +166,7 @@ def rigid_donors(
     if carriers is None:
         return none
     cand, to_target, _ = carriers
-    chosen, weight = segment_carriers(to_target, distance_sd(dense[cand], dense[cand]), params)
+    chosen, weight = segment_carriers(to_target, mutual_sd(dense[cand], to_target, params), params)
     if len(chosen) < 3:
         return none
     return cand[chosen], weight

@@ -19,9 +19,12 @@ from kisscal.tracking import (
 from kisscal.tracking.bodyfill import (
     axis_fill,
     best_candidate,
+    distance_sd,
     fill_candidates,
+    mutual_sd,
     pattern_fill,
     rigid_fill,
+    segment_carriers,
 )
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.tracks import make_tracks
@@ -48,6 +51,26 @@ def test_rigid_fill_restores_a_rigid_body_marker_over_a_long_gap():
     assert got is not None
     assert sorted(got[1]) == [0, 1, 2]
     assert np.abs(got[0] - xyz[3, 100:200]).max() < 1e-6
+
+
+def test_carriers_are_chosen_from_the_distance_sds_they_need_only():
+    # Two rigid bodies and a wanderer: the SDs mutual_sd leaves out (inf) are never read,
+    # so the carriers and weights are those of the whole c x c matrix, bit for bit.
+    other = rigid_body(1, 0.5)[:, ::-1] + 200.0
+    wander = rigid_body(2)[:1] + np.random.default_rng(3).normal(0, 30, (1, N, 3))
+    dense = np.concatenate([rigid_body(0, 0.3), other, wander])
+    dense[2:5, 40:90] = np.nan
+    cand = np.arange(1, len(dense))
+    params = TrackingParams()
+    to_target = distance_sd(dense[cand], dense[:1])[:, 0]
+    full = distance_sd(dense[cand], dense[cand])
+    some = mutual_sd(dense[cand], to_target, params)
+    read = to_target <= params.rigid_fill_sd_mm
+    assert 0 < read.sum() < len(cand) and np.array_equal(some[:, read], full[:, read])
+    chosen, weight = segment_carriers(to_target, some, params)
+    assert len(chosen) >= 2
+    assert chosen == segment_carriers(to_target, full, params)[0]
+    assert np.array_equal(weight, segment_carriers(to_target, full, params)[1])
 
 
 def test_rigid_fill_needs_two_markers_of_the_segment():
