@@ -407,9 +407,15 @@ def read(path: Path | str, group: str = "EVENT") -> tuple[dict[str, np.ndarray],
     first = int(c3d["header"]["points"]["first_frame"])
     xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # older writers store a missing sample as 0 0 0
-    xyz *= _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    xyz *= mm_per_unit(params)
     markers = dict(zip(point_labels(params), xyz.transpose(1, 0, 2), strict=True))
     return markers, rate, first, _events(params.get(group, {}), first / rate)
+
+
+def mm_per_unit(params: dict) -> float:
+    """Millimetres per POINT:UNITS (1 when the file gives none: a file without points)."""
+    units = params["POINT"].get("UNITS", {}).get("value", []) or [""]
+    return _MM.get(units[0].strip().lower(), 1.0)
 
 
 def point_labels(params: dict) -> list[str]:
@@ -473,7 +479,7 @@ def _plates(trial: RealTrial, markers: dict, rate: float) -> dict[tuple[str, str
     params = c3d["parameters"]
     if "FORCE_PLATFORM" not in params:
         return {}
-    mm = _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    mm = mm_per_unit(params)
     mk = {k: z_up(v, trial.up) for k, v in markers.items()}
     roles = [
         {s: mk[n] for s, n in zip(("left", "right"), r, strict=True)}

@@ -22,7 +22,7 @@ import numpy as np
 
 from kisscal.gait import GaitMarkers, detect_events, heel_from_ankle
 from kisscal.gait.table import EVENTS
-from tests.gait._real import _MM, read
+from tests.gait._real import mm_per_unit, read
 from tests.gait.make_real_fixtures import plate_events
 from tests.gait.real_events import Errors, coordinate_events, score
 
@@ -61,7 +61,7 @@ def plates(path: Path, gm: GaitMarkers) -> dict[tuple[str, str], np.ndarray]:
     params = c3d["parameters"]
     if "FORCE_PLATFORM" not in params or "CORNERS" not in params["FORCE_PLATFORM"]:
         return {}
-    mm = _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    mm = mm_per_unit(params)
     out: dict[tuple[str, str], list[float]] = {}
     try:
         contacts = plate_events(c3d, gm.heel, gm.toe, gm.rate_hz, "z", mm)
@@ -91,7 +91,11 @@ def table(paths: list[Path]) -> list[str]:
     ]
     pooled = {k: (Errors(), Errors()) for k in ("all", "on a plate", "not on a plate")}
     for path in paths:
-        markers, rate, _, marked = read(path)
+        try:
+            markers, rate, _, marked = read(path)
+        except (OSError, RuntimeError, ValueError, IndexError) as e:  # ezc3d cannot read it
+            lines.append(f"{path.stem[:30]:<30} unreadable: {str(e).splitlines()[0][:60]}")
+            continue
         gm = gait_trial(markers, rate) if marked else None
         if gm is None:
             continue

@@ -17,7 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.gait._real import _MM, FIXTURES, PLATE_GROUP, TRIALS, ZOO, RealTrial, point_labels, z_up
+from tests.gait._real import (
+    FIXTURES,
+    PLATE_GROUP,
+    TRIALS,
+    ZOO,
+    RealTrial,
+    mm_per_unit,
+    point_labels,
+    z_up,
+)
 
 THRESHOLD_N = 20.0
 #: A plate loaded for less than this is not a foot's stance.
@@ -138,7 +147,7 @@ def trim(src: Path, trial: RealTrial, dst: Path) -> None:
     out["data"]["meta_points"] = {k: meta[k][:, idx, :] for k in ("residuals", "camera_masks")}
     xyz = c3d["data"]["points"][:3].transpose(2, 1, 0).copy()
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan
-    mm = _MM.get(params["POINT"]["UNITS"]["value"][0].strip().lower(), 1.0)
+    mm = mm_per_unit(params)
     xyz = z_up(xyz * mm, trial.up)
     mk: dict[str, np.ndarray] = {}
     for label, track in zip(labels, xyz.transpose(1, 0, 2), strict=True):
