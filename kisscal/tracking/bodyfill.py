@@ -144,15 +144,20 @@ def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
     return np.where(seen.sum(axis=2) >= 4, np.sqrt(var), np.inf)
 
 
-def mutual_sd(series: NDArray, to_target: NDArray, params: TrackingParams) -> NDArray[np.float64]:
-    """:func:`distance_sd` of ``series`` (c, n, 3) to each other (c, c), in the columns
-    :func:`segment_carriers` reads (candidates within ``rigid_fill_sd_mm`` of the target,
-    ``to_target``: only they join the segment), inf in the others: all c x c pairs over
-    a long trial took most of a re-track's time."""
-    out = np.full((len(series), len(series)), np.inf)
-    cols = np.flatnonzero(to_target <= params.rigid_fill_sd_mm)
-    out[:, cols] = distance_sd(series, series[cols])
-    return out
+class MutualSD:
+    """:func:`distance_sd` of ``series`` (c, n, 3) to each other, as ``[rows, columns]``
+    of a (c, c) matrix whose columns are computed when first read: :func:`segment_carriers`
+    reads those of the segment only, and all c x c pairs over a long trial took most of a
+    re-track's time (FunctionalWalk, BTKData)."""
+
+    def __init__(self, series: NDArray) -> None:
+        self.series, self.done = series, {}
+
+    def __getitem__(self, key: tuple) -> NDArray[np.float64]:
+        rows, cols = key
+        for j in set(cols) - self.done.keys():
+            self.done[j] = distance_sd(self.series, self.series[j : j + 1])[:, 0]
+        return np.array([self.done[j] for j in cols]).reshape(len(cols), len(self.series)).T[rows]
 
 
 def rigid_donors(
@@ -166,14 +171,14 @@ def rigid_donors(
     if carriers is None:
         return none
     cand, to_target, _ = carriers
-    chosen, weight = segment_carriers(to_target, mutual_sd(dense[cand], to_target, params), params)
+    chosen, weight = segment_carriers(to_target, MutualSD(dense[cand]), params)
     if len(chosen) < 3:
         return none
     return cand[chosen], weight
 
 
 def segment_carriers(
-    to_target: NDArray, mutual: NDArray, params: TrackingParams
+    to_target: NDArray, mutual: MutualSD, params: TrackingParams
 ) -> tuple[list[int], NDArray[np.float64]]:
     """Which candidates carry a target, and their weights, from their distance SDs (mm)
     to the target ``to_target`` (c,) and to each other ``mutual`` (c, c).

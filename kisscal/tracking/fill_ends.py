@@ -32,10 +32,10 @@ from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
     FillMethod,
+    MutualSD,
     axis_frames,
     batch_kabsch,
     distance_sd,
-    mutual_sd,
     segment_carriers,
 )
 from kisscal.tracking.fill_donors import lab_reference
@@ -90,7 +90,7 @@ def end_donors(
     if cand.size < 2:
         return none
     to_target = distance_sd(dense[cand], target[None])[:, 0]
-    chosen, weight = segment_carriers(to_target, mutual_sd(dense[cand], to_target, params), params)
+    chosen, weight = segment_carriers(to_target, MutualSD(dense[cand]), params)
     if len(chosen) < 2:
         return none
     return cand[chosen].astype(np.int64), weight

@@ -17,11 +17,11 @@ from kisscal.tracking import (
     is_filled,
 )
 from kisscal.tracking.bodyfill import (
+    MutualSD,
     axis_fill,
     best_candidate,
     distance_sd,
     fill_candidates,
-    mutual_sd,
     pattern_fill,
     rigid_fill,
     segment_carriers,
@@ -54,8 +54,8 @@ def test_rigid_fill_restores_a_rigid_body_marker_over_a_long_gap():
 
 
 def test_carriers_are_chosen_from_the_distance_sds_they_need_only():
-    # Two rigid bodies and a wanderer: the SDs mutual_sd leaves out (inf) are never read,
-    # so the carriers and weights are those of the whole c x c matrix, bit for bit.
+    # Two rigid bodies and a wanderer: MutualSD computes the columns segment_carriers
+    # reads, bit for bit those of the whole c x c matrix, and no others.
     other = rigid_body(1, 0.5)[:, ::-1] + 200.0
     wander = rigid_body(2)[:1] + np.random.default_rng(3).normal(0, 30, (1, N, 3))
     dense = np.concatenate([rigid_body(0, 0.3), other, wander])
@@ -64,11 +64,10 @@ def test_carriers_are_chosen_from_the_distance_sds_they_need_only():
     params = TrackingParams()
     to_target = distance_sd(dense[cand], dense[:1])[:, 0]
     full = distance_sd(dense[cand], dense[cand])
-    some = mutual_sd(dense[cand], to_target, params)
-    read = to_target <= params.rigid_fill_sd_mm
-    assert 0 < read.sum() < len(cand) and np.array_equal(some[:, read], full[:, read])
-    chosen, weight = segment_carriers(to_target, some, params)
-    assert len(chosen) >= 2
+    lazy = MutualSD(dense[cand])
+    chosen, weight = segment_carriers(to_target, lazy, params)
+    assert len(chosen) >= 2 and 0 < len(lazy.done) < len(cand)
+    assert all(np.array_equal(full[:, j], sd) for j, sd in lazy.done.items())
     assert chosen == segment_carriers(to_target, full, params)[0]
     assert np.array_equal(weight, segment_carriers(to_target, full, params)[1])
 
