@@ -43,9 +43,11 @@ def pieces(
     field: NDArray[np.int64],
     cams: NDArray[np.int64],
     step_mm: float,
+    tolerance_mm: float = np.inf,
 ) -> NDArray[np.int64]:
     """Piece label of each two-camera point: points of one camera pair (``cams`` (n, 2))
-    in consecutive fields, each the nearest such point within ``step_mm`` of the last."""
+    in consecutive fields, each the nearest such point within ``step_mm`` of the last and
+    continuing the last two within ``tolerance_mm`` (second difference)."""
     n = len(xyz)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
@@ -56,6 +58,14 @@ def pieces(
     nxt = embed_fields(xyz, (field + 1) * (key.max() + 1) + key)
     d, j = tree.query(nxt, distance_upper_bound=step_mm)
     ok = np.isfinite(d)
+    prev = np.full(n, -1)
+    prev[j[ok]] = np.flatnonzero(ok)
+    # a link that breaks the piece's motion (a jump the field before did not make) cuts it
+    i = np.flatnonzero(ok & (prev >= 0))
+    jump = np.linalg.norm(xyz[j[i]] - 2 * xyz[i] + xyz[prev[i]], axis=1) > tolerance_mm
+    after = np.zeros(n, dtype=bool)
+    after[i[jump]] = True
+    ok[i[jump & ~after[prev[i]]]] = False  # the field after a jump is judged across it
     graph = coo_matrix((np.ones(int(ok.sum())), (np.flatnonzero(ok), j[ok])), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
@@ -85,6 +95,7 @@ def claimed_pieces(
     params: ReconParams,
     rivals: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]] | None = None,
     carry_fields: int = 0,
+    coast_fields: int = 0,
 ) -> NDArray[np.bool_]:
     """Which two-camera points lie on pieces whose rays other trajectories claim.
 
@@ -92,10 +103,13 @@ def claimed_pieces(
     from that field (no point, known or two-camera, within the tolerance of its
     prediction from the two fields before (after)) predicts a position within the
     tolerance of the ray and farther than that from the piece's point. A piece is
-    withdrawn when its two rays are claimed by two different trajectories at either
-    end: one trajectory near both rays is the point's own, predicted a little off.
-    (One claimed ray was tried as enough: it withdrew true pieces wherever a marker's
-    ray passes another's prediction, and cost up to 13 points of recall.) One claimed
+    withdrawn (as far as its motion runs smoothly from the claimed end: a ghost whose
+    blob a marker's own pair takes back next field, 200 mm on, modern 3 cameras seed
+    332, is one piece with the marker by nearness alone) when its two rays are claimed
+    by two different trajectories at either end: one trajectory near both rays is the
+    point's own, predicted a little off. (One claimed ray was tried as enough: it
+    withdrew true pieces wherever a marker's ray passes another's prediction, and cost
+    up to 13 points of recall.) One claimed
     ray is enough when the claim comes with the ray's own pair: a candidate pair
     (``rivals``) of that field shares the blob with the piece's point, lies farther than
     the tolerance from it and within half the tolerance of the prediction of a
@@ -126,7 +140,8 @@ def claimed_pieces(
         All candidate pairs: blobs ``a``, ``b`` (n_candidates,) and points (n_candidates, 3).
     carry_fields : int
         Fields a lost trajectory is carried (``params.two_camera_carry_s`` at the field
-        rate); 0 carries none.
+        rate); 0 carries none. Those with no companion coast ``coast_fields`` on their
+        own velocity (:func:`~kisscal.recon.carried.coasted`).
 
     Returns
     -------
@@ -144,12 +159,15 @@ def claimed_pieces(
     out = np.zeros(len(a), dtype=bool)
     if len(a) == 0:
         return out
-    label = pieces(xyz, field, np.column_stack([camera[a], camera[b]]), step_mm)
+    cams = np.column_stack([camera[a], camera[b]])
+    label = pieces(xyz, field, cams, step_mm)
+    # what is withdrawn: the claimed end's run up to where the piece's motion jumps
+    smooth = pieces(xyz, field, cams, step_mm, tolerance_mm)
     all_xyz = np.concatenate([known_xyz, xyz])
     all_field = np.concatenate([known_field, field])
     ok = np.all(np.isfinite(all_xyz), axis=1)
     here = cKDTree(embed_fields(all_xyz[ok], all_field[ok]))
-    flagged = np.zeros(label.max() + 1, dtype=bool)
+    flagged = np.zeros(smooth.max() + 1, dtype=bool)
     # how many fields each trajectory holds: a known marker outlasts every piece
     span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
@@ -164,7 +182,8 @@ def claimed_pieces(
         # the trajectories absent from the field: their predictions, fields and spans
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
-        lost = _carried_claimers(*trajectories, here, params, side, carry_fields)
+        carry = carry_fields, coast_fields
+        lost = _carried_claimers(*trajectories, here, params, side, *carry)
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
@@ -178,8 +197,8 @@ def claimed_pieces(
             ha[:, :, None] & hb[:, None, :] & (hits[0][:, :, None] != hits[1][:, None, :]),
             axis=(1, 2),
         )
-        flagged[label[ends[claimed | stolen]]] = True
-    out[flagged[label]] = True
+        flagged[smooth[ends[claimed | stolen]]] = True
+    out[flagged[smooth]] = True
     return out
 
 
@@ -192,13 +211,14 @@ def _carried_claimers(
     params: ReconParams,
     side: int,
     fields: int,
+    coast: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """The trajectories lost a few fields before (after) a field, carried into it by a
     marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
     lies within the tolerance: their positions, fields and spans."""
     tolerance_mm = params.two_camera_continuity_mm
     step_mm = params.two_camera_step_mm
-    pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields)
+    pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields, coast)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]]
 

@@ -296,10 +296,10 @@ def match_two_camera(
     # let their blobs compete again (kisscal.recon.claimed); once none is left, a piece
     # holding the blob of a longer trajectory's own pair (among the first candidates)
     rivals, with_rivals, table = (a, b, xyz), False, (field, camera, uv)
-    carry = round(params.two_camera_carry_s * rate_hz)
+    carry = round(params.two_camera_carry_s * rate_hz), round(params.two_camera_coast_s * rate_hz)
     for _ in range(_CLAIM_ROUNDS if judge_motion else 0):
         mine = a[won], b[won], xyz[won], m_xyz, m_field, table, dlts, params
-        withdrawn = claimed_pieces(*mine, rivals if with_rivals else None, carry)
+        withdrawn = claimed_pieces(*mine, rivals if with_rivals else None, *carry)
         claimed = np.flatnonzero(won)[withdrawn]
         if len(claimed) == 0:
             if with_rivals:

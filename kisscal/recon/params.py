@@ -68,6 +68,13 @@ class ReconParams(Params):
         0.9 s, within the continuity tolerance). Issue 27, lowcost seeds 303 and 312: the
         iliac spines were lost 0.7-0.9 s before their rays crossed (0.5 s finds neither
         crossing, 1-4 s both, nothing else changed); 0 carries none.
+    two_camera_coast_s : float
+        How long (s) a lost marker none of whose segment stays in view is still known from
+        its own velocity before it was lost (:func:`~kisscal.recon.carried.coasted`): a
+        walking pelvis bobs at up to about 3 m/s^2, 15 mm off after 0.1 s. Issue 27,
+        modern 3 cameras seed 332: the whole pelvis was lost, each marker then seen by one
+        camera, and the iliac spines' rays crossed 11 fields (73 ms) later into a ghost
+        named SACR for 65 fields; 0 coasts none.
     deblend_merged : bool
         Make two-camera points of markers whose image merged with a known point's image
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
@@ -181,6 +188,7 @@ class ReconParams(Params):
     two_camera_continuity_mm: float = param(20.0, unit="mm", gt=0)
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     two_camera_carry_s: float = param(1.0, unit="s", ge=0)
+    two_camera_coast_s: float = param(0.1, unit="s", ge=0)
     deblend_merged: bool = param(True)
     deblend_held: bool = param(True)
     deblend_hidden: bool = param(True)

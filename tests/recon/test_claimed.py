@@ -88,6 +88,18 @@ def test_pieces_follow_one_camera_pair_from_field_to_field() -> None:
     assert len(set(label)) == 4  # too far, another camera pair, after a gap: apart
 
 
+def test_a_piece_ends_where_its_motion_jumps() -> None:
+    # a ghost moving 10 mm a field, then the marker's own pair 200 mm away in the next
+    # field (one camera pair, within a field's step): two pieces, not one
+    field = np.arange(8)
+    xyz = np.column_stack([10.0 * field, np.zeros(8), np.zeros(8)])
+    xyz[4:, 1] = 200.0
+    cams = np.array([[0, 2]] * 8)
+    assert len(set(pieces(xyz, field, cams, 300.0))) == 1
+    label = pieces(xyz, field, cams, 300.0, 20.0)
+    assert len(set(label[:4])) == len(set(label[4:])) == 1 and label[3] != label[4]
+
+
 def test_crossing_of_two_markers_lost_a_while_before_is_withdrawn() -> None:
     # A, B and S are one rigid body bobbing as it walks (a pelvis: two iliac spines and
     # the sacrum); camera 0's ray through A and camera 2's ray through B cross at G, about
@@ -120,3 +132,32 @@ def test_crossing_of_two_markers_lost_a_while_before_is_withdrawn() -> None:
     none = reconstruct_trial(field, camera, uv, dlts, ReconParams(two_camera_carry_s=0.0))
     d = np.linalg.norm(none.xyz_mm[:, None] - xyz[none.field], axis=2)
     assert (d.min(axis=1) > 10.0).sum() >= 20
+
+
+def test_crossing_of_a_whole_pelvis_lost_a_while_before_is_withdrawn() -> None:
+    # as above, but S is lost with A and B (camera 1 alone sees it: no companion carries
+    # them) and the rig runs at 150 Hz: from field 30 the crossing of camera 0's A and
+    # camera 2's B begins 11 fields after A and B left, which they coast to; from field
+    # 50 camera 2 sees A too and A's own pair goes on from the crossing's blob, 200 mm
+    # away: withdrawing the crossing must not take A's trajectory with it (issue 27:
+    # modern 3 cameras seed 332, LASI x RASI named SACR for 65 fields)
+    dlts = make_rig(7, n_cameras=3)
+    n = 90
+    t = np.arange(n)
+    g = np.array([-500.0, 0.0, 900.0]) + t[:, None] * [5.0, 0.7, 0.0]
+    g[:, 2] += 25.0 * np.sin(2.0 * np.pi * t / 75.0)  # the bob, at 150 Hz
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    a = c0 + 0.93 * (g - c0)
+    b = c2 + 0.93 * (g - c2)
+    s = (a + b) / 2.0 + [0.0, 120.0, -60.0]
+    xyz = np.stack([a, b, s], axis=1)
+    seen = np.zeros((n, 3, 3), dtype=bool)
+    seen[:19] = True
+    seen[:, 2, 1] = True
+    seen[30:, 0, 0] = seen[30:, 1, 2] = seen[50:, 0, 2] = True
+    field, camera, uv = _table(dlts, xyz, seen, 4)
+    pts = reconstruct_trial(field, camera, uv, dlts, rate_hz=150.0)
+    d = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2)
+    ghost = d.min(axis=1) > 10.0
+    assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
+    assert np.array_equal(np.unique(pts.field[d[:, 0] < 10.0]), np.r_[0:19, 50:n])
