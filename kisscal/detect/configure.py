@@ -271,7 +271,8 @@ class _Derivation:
         lv = self.levels
         probe = max(6.0 * lv.noise, 4.0 * lv.unit, 0.02 * (lv.top - lv.background))
         tile0 = max(32, min(self.frames[0].shape) // 8)
-        first = survey_frames(self.frames, probe, tile0)
+        # the first survey gives sizes and contrast only: its shapes are never read
+        first = survey_frames(self.frames, probe, tile0, shapes=False)
         if len(first) == 0:
             return self._nothing_bright(probe)
         markers0, top0 = marker_population(first)

@@ -135,7 +135,7 @@ class Groups:
     var_x, var_y : ndarray of float
         Second moments (px^2) of the spot's grey levels above the background over its
         rectangle grown by :data:`MOMENT_MARGIN_PX`: the blurred spot's own spread, not
-        its thresholded outline.
+        its thresholded outline (NaN from a survey without shapes).
     cov_xy : ndarray of float
         Their covariance (px^2): a spot elongated along a diagonal (a dot seen obliquely).
     fill : ndarray of float
@@ -177,11 +177,15 @@ def _run_pixels(runs: Runs) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArr
     return run_of, x, runs.y[run_of]
 
 
-def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) -> Groups:
+def survey_frame(
+    image: NDArray, excess: float, tile_px: int, frame: int = 0, shapes: bool = True
+) -> Groups:
     """The bright groups of one checked grey image: ``excess`` above the local background
     (and above its local noise and interpolation slack, as detection's local mode).
 
-    Noise groups (lonely pixels, one pixel wide or high) are left out.
+    Noise groups (lonely pixels, one pixel wide or high) are left out. Without
+    ``shapes`` the window moments (most of the survey's time) are not taken: ``var_x``,
+    ``var_y`` and ``cov_xy`` are NaN.
     """
     local = local_background(image, tile_px)
     bg = local.level
@@ -195,12 +199,14 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
     slot = np.searchsorted(table.label, runs.group[run_of])
     peak = np.full(len(table), -np.inf)
     np.maximum.at(peak, slot, contrast[y, x])
-    grouping = Grouping.start(runs)
-    m = MOMENT_MARGIN_PX
-    # glare and lit surfaces: their own pixels' moments (their rectangles may span the image)
-    windowed = table.pixels <= max(image.size // SURVEY_WINDOW_FRACTION, 64)
-    moments = window_moments(image, white, grouping, table, m, m, bg, 1.0, windowed)
-    var_x, var_y = moments.var_x, moments.var_y
+    var_x = var_y = cov_xy = np.full(len(table), np.nan)
+    if shapes:
+        m = MOMENT_MARGIN_PX
+        # glare, lit surfaces: their own pixels' moments (their rectangles may span the image)
+        windowed = table.pixels <= max(image.size // SURVEY_WINDOW_FRACTION, 64)
+        grouping = Grouping.start(runs)
+        moments = window_moments(image, white, grouping, table, m, m, bg, 1.0, windowed)
+        var_x, var_y, cov_xy = moments.var_x, moments.var_y, moments.cov_xy
     h, w = image.shape
     inside = (table.x1 > 0) & (table.y1 > 0) & (table.x2 < w - 1) & (table.y2 < h - 1)
     centres = np.column_stack([table.x_binary, table.y_binary])
@@ -220,7 +226,7 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
         peak.astype(float),
         var_x,
         var_y,
-        moments.cov_xy,
+        cov_xy,
         table.fill,
         inside,
         isolation,
@@ -228,9 +234,11 @@ def survey_frame(image: NDArray, excess: float, tile_px: int, frame: int = 0) ->
     return groups.take(keep)
 
 
-def survey_frames(images: Sequence[NDArray], excess: float, tile_px: int) -> Groups:
+def survey_frames(
+    images: Sequence[NDArray], excess: float, tile_px: int, shapes: bool = True
+) -> Groups:
     """:func:`survey_frame` of every image, stacked."""
-    parts = [survey_frame(im, excess, tile_px, k) for k, im in enumerate(images)]
+    parts = [survey_frame(im, excess, tile_px, k, shapes) for k, im in enumerate(images)]
     return Groups(
         *(np.concatenate([getattr(p, f) for p in parts]) for f in Groups.__dataclass_fields__)
     )

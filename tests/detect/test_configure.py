@@ -88,6 +88,17 @@ def test_pixel_aspect_of_non_square_pixels(rng, aspect) -> None:
     assert measure_pixel_aspect(survey_frames(square, 20.0, 40))[0] == 1.0
 
 
+def test_a_survey_without_shapes_skips_only_the_moments(rng) -> None:
+    # the first survey of the derivation reads sizes and contrast, never shapes
+    frames, _ = _frames(rng, k=3, noise=0.5)
+    full, quick = survey_frames(frames, 20.0, 40), survey_frames(frames, 20.0, 40, shapes=False)
+    assert len(full) > 20 and np.isfinite(full.var_x).all()
+    for name in ("var_x", "var_y", "cov_xy"):
+        assert np.isnan(getattr(quick, name)).all()
+    for name in ("frame", "x", "y", "pixels", "width", "height", "peak", "fill", "isolation"):
+        np.testing.assert_array_equal(getattr(quick, name), getattr(full, name))
+
+
 def test_uneven_glow_gets_a_local_background(rng) -> None:
     # Markers right on the edge of a bright region (within a tile of it) are biased by
     # the background's change under them; they are kept 20 px off it here.

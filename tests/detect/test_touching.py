@@ -93,3 +93,35 @@ def test_canvas_ridges_keep_every_group_with_two_peaks():
     assert (peaks >= 2).sum() >= 10  # touching pairs are there
     assert several[peaks >= 2].all()
     assert several.sum() < idx.size / 2  # and the canvas keeps most singles off
+
+
+def test_after_a_split_only_the_parts_are_weighed_again(rng, monkeypatch):
+    """The window moments after a split: the new parts and their families alone are
+    taken again (a third fewer window pixels on the cavity's target images), and the
+    blobs are those of weighing every group again."""
+    import kisscal.detect.splits as sp
+
+    image = render(*_cluster(rng))
+    weighed: list[int] = []  # groups of each call of the window moments
+    split: list[int] = []  # groups after each split
+    weigh, measure = sp.Spots.moments, sp.measure_groups
+
+    def counted(self, grouping, table):
+        weighed.append(len(table))
+        return weigh(self, grouping, table)
+
+    def measured(runs):
+        split.append(len(table := measure(runs)))
+        return table
+
+    monkeypatch.setattr(sp.Spots, "moments", counted)
+    monkeypatch.setattr(sp, "measure_groups", measured)
+    fast = detect_blobs(image, KISS)
+    monkeypatch.undo()
+    monkeypatch.setattr(sp, "_moments_after", lambda spots, before, g, t: weigh(spots, g, t))
+    full = detect_blobs(image, KISS)
+    assert (fast.flags & fl.SPLIT_TOUCHING).astype(bool).sum() >= 30
+    assert len(split) >= 1 and len(weighed) == len(split) + 1
+    assert all(w < n for w, n in zip(weighed[1:], split, strict=True))  # not every group
+    for name in ("x_px", "y_px", "pixels", "valid", "flags"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(full, name))
