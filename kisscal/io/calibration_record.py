@@ -17,7 +17,13 @@ from kisscal.io.files import lookup
 #: A value of a JSON document shown as it is (a number, a word, a yes/no).
 Scalar = int | float | str | bool
 #: ``dlt/wand.json`` groups whose numbers are wand figures too (named ``<group>_<key>``).
-WAND_GROUPS = ("held_out", "held_out_rods_alone", "held_out_rod_markers", "axes")
+WAND_GROUPS = (
+    "held_out",
+    "held_out_rods_alone",
+    "held_out_rod_markers",
+    "rods_weight_fits",
+    "axes",
+)
 
 
 def _number(value: Any) -> int | float | None:
@@ -94,11 +100,15 @@ class WandRecord:
         ``"wand"``, or ``"rods"`` when the wand did not lower the held-out error.
     cameras : mapping of str -> mapping of str -> Scalar
         Each camera's figures (residual, points, coverage, intrinsics, lens terms).
+    rods_weighed : str
+        On the rods with trials, the rods' weight kept (``own_noise`` or ``rods_route``;
+        both fits' figures are in ``rods_weight_fits``); "" otherwise.
     """
 
     figures: tuple[tuple[str, int | float], ...]
     kept: str
     cameras: Mapping[str, Mapping[str, Scalar]]
+    rods_weighed: str = ""
 
     @classmethod
     def read(cls, doc: Any) -> WandRecord | None:
@@ -118,7 +128,8 @@ class WandRecord:
             for c, d in (per_cam.items() if isinstance(per_cam, Mapping) else ())
             if isinstance(d, Mapping)
         }
-        return cls(tuple(figures), str(doc.get("kept", "")), cameras)
+        weighed = str(doc.get("rods_weighed", ""))
+        return cls(tuple(figures), str(doc.get("kept", "")), cameras, weighed)
 
     @property
     def camera_columns(self) -> tuple[str, ...]:

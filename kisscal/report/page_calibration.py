@@ -265,6 +265,10 @@ def wand_section(o: SessionOutputs, used: set[str]) -> Html:
             "wand fields, rods alone against wand); the wand's figures are below."
         )
         parts.append(tag("p", join([tag("b", "The wand did not lower the held-out error"), why])))
+    if w.rods_weighed:
+        how = "by their own noise" if w.rods_weighed == "own_noise" else "as the rods route does"
+        said = f"Rods weighed {how}: the lower leave-one-rod-out error of the two fits below."
+        parts.append(tag("p", esc(said)))
     if w.figures:
         rows = [[heading(k), fmt(v)] for k, v in w.figures]
         parts.append(table(["wand figure", "value"], rows, (1,)))

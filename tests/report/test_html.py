@@ -138,6 +138,11 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
                 "length_mean_mm": 500.02,
                 "length_sd_mm": 0.41,
                 "cameras": {"cam1": {"rms_px": 0.21, "points": 1200}},
+                "rods_weighed": "rods_route",
+                "rods_weight_fits": {
+                    "own_noise_leave_one_rod_out_mm": 0.0662,
+                    "rods_route_leave_one_rod_out_mm": 0.0613,
+                },
             }
         )
     )
@@ -153,6 +158,8 @@ def test_future_sections_appear_only_with_their_data(session: Path) -> None:
     assert "1.940" in detection and "threshold" in detection
     wand = _section(page, "wand")
     assert "length SD (mm)" in wand and "1 200" in wand and "0.210" in wand
+    # which of the rods' two weights was kept, and both fits' leave-one-rod-out (issue 25)
+    assert "Rods weighed as the rods route does" in wand and "0.061" in wand
     gait = _section(page, "gait")
     assert "foot_strike" in gait and "cadence_steps_min" in gait and "112.500" in gait
     cams = _section(page, "trials")

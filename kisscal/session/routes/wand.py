@@ -92,13 +92,14 @@ def calibrate_from_wand(inputs: RouteInputs) -> dict[str, Any]:
     def compute() -> dict[str, Any]:
         t0 = time.perf_counter()
         table = _wand_table(inputs)
-        baseline = None
+        baseline = weighing = None
         if config.rods is not None:
-            (cal, rod_check, baseline), frame = _on_rods(inputs, table), None
+            (cal, rod_check, baseline, weighing), frame = _on_rods(inputs, table), None
         else:
             (cal, frame), rod_check = _with_axes(inputs, table), None
         seconds = time.perf_counter() - t0
-        return {"_check": write_wand_outputs(inputs, cal, frame, rod_check, seconds, baseline)}
+        check = write_wand_outputs(inputs, cal, frame, rod_check, seconds, baseline, weighing)
+        return {"_check": check}
 
     return run_keyed(store, wand_json, _stage(inputs), cached, compute)
 
@@ -145,10 +146,11 @@ def _wand_table(inputs: RouteInputs) -> BlobTable:
 
 def _on_rods(
     inputs: RouteInputs, table: BlobTable
-) -> tuple[WandCalibration, RodCalibration, WandCalibration | None]:
+) -> tuple[WandCalibration, RodCalibration, WandCalibration | None, dict | None]:
     """The wand's calibration on the rods, what the rods route would write (kept when the
     wand does not do better) and, when that is the rods and trials adjusted together,
-    their adjustment (the judge holds it out as it holds out the wand's)."""
+    their adjustment (the judge holds it out as it holds out the wand's) and how the rods
+    were weighed (:func:`_with_trials`)."""
     config, params = inputs.config, inputs.params
     blobs, rods = rod_blobs(inputs)
     # what the rods alone give (the rods route's own choice of model); the adjustment
@@ -168,13 +170,13 @@ def _on_rods(
             inputs, trials, start, control, rods, rods_alone, markers
         )
         if baseline is not None:
-            cal = _with_trials(inputs, table, trials, start, control, markers, baseline)
-            return cal, default, baseline
+            cal, weighing = _with_trials(inputs, table, trials, start, control, markers, baseline)
+            return cal, default, baseline, weighing
     args = (table, start, control, config.wand.markers_mm, sizes, ids, config.wand.trial)
     cal = calibrate_on_control(*args, wand, inputs.params.dlt)
     if wand.control_weight == 0.0 and len(wand.control_weight_factors) > 1:
         cal = _best_weight(inputs, cal, args, wand)
-    return cal, rods_alone, None
+    return cal, rods_alone, None, None
 
 
 def _with_trials(
@@ -185,7 +187,7 @@ def _with_trials(
     control: ControlPoints,
     markers: TrialPoints,
     baseline: WandCalibration,
-) -> WandCalibration:
+) -> tuple[WandCalibration, dict]:
     """The wand and the session's other trials adjusted together on the rods
     (:func:`kisscal.bundle.points.calibrate_on_wand_and_points`): the trials' markers the
     default calibration adjusts the rods with (:mod:`.trial_bundle`, the same trials), so
@@ -199,24 +201,28 @@ def _with_trials(
     one with the lower leave-one-rod-out error is kept (issue 25: on the synthetic kiss
     rig, seed 73, the second is 0.0125 against 0.0162 mm inside the volume, the rods
     route's 0.0161; on seed 71 the first, 0.0134 against 0.0180; leave-one-rod-out
-    ranks both alike)."""
+    ranks both alike). Also returns the ``wand.json`` entries naming the weight kept
+    (``rods_weighed``) and both weights' figures (``rods_weight_fits``)."""
     config, params = inputs.config, inputs.params
     wand = (config.wand.markers_mm, config.camera_ids, config.wand.trial)
     sizes = [c.size_px for c in config.cameras]
     bundle = wand_params(inputs)
     args = (table, trials, start, control, wand, sizes, bundle, params.dlt)
-    best, best_loo = None, np.inf
-    for rods_per_point, how in ((0.0, "by their own noise"), (baseline.control.weight, None)):
-        how = how or f"{rods_per_point:.0f} x a trial marker, as without the wand"
+    fits, figures = {}, {}
+    for name, rods_per_point in (("own_noise", 0.0), ("rods_route", baseline.control.weight)):
+        how = f"{rods_per_point:.0f} x a trial marker, as without the wand"
+        how = how if rods_per_point else "by their own noise"
         cal = calibrate_on_wand_and_points(
             *args, params.dlt.bundle_rods_weight, markers, rods_per_point
         )
         errors = leave_one_group_out(cal, cal.markers(config.wand.markers_mm), bundle)
         loo = float(np.mean(np.concatenate(list(errors.values())))) if errors else np.inf
         inputs.echo(f"  rods weighed {how}: leave-one-rod-out mean {loo:.4f} mm")
-        if best is None or loo < best_loo:
-            best, best_loo = cal, loo
-    cal = best
+        fits[name] = (loo, cal)
+        figures[f"{name}_weight"] = float(cal.control.weight)
+        figures[f"{name}_leave_one_rod_out_mm"] = loo if np.isfinite(loo) else None
+    kept = min(fits, key=lambda k: fits[k][0])  # the first on a tie
+    cal = fits[kept][1]
     names = ", ".join(t.name for t in image_trials(inputs))
     inputs.echo(
         f"  calibrate: the wand ({int(np.sum(cal.fields >= 0))} fields) and the trials' "
@@ -224,7 +230,7 @@ def _with_trials(
         f"their noise (variance components): a rod marker {cal.control.weight:.0f} x a wand "
         f"image, a trial marker {trial_markers_weight(cal):.1f} x"
     )
-    return cal
+    return cal, {"rods_weighed": kept, "rods_weight_fits": figures}
 
 
 def _best_weight(

@@ -68,11 +68,13 @@ def write_wand_outputs(
     rod_cal: RodCalibration | None,
     seconds: float,
     baseline: WandCalibration | None = None,
+    weighing: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write every output of the wand route; returns the ``check.json`` content.
 
     ``rod_cal`` is the calibration the wand's must not be worse than (the rods alone, or
-    the rods and trials adjusted together: ``baseline``, their adjustment)."""
+    the rods and trials adjusted together: ``baseline``, their adjustment); ``weighing``
+    the rods' weights fitted and the one kept (``wand.json`` entries)."""
     config = inputs.config
     markers = cal.markers(config.wand.markers_mm)  # with the trials' markers' own
     ids = config.camera_ids
@@ -100,6 +102,7 @@ def write_wand_outputs(
     }
     if cal.control is not None:
         wand_doc["rods_weight"] = float(cal.control.weight)
+        wand_doc.update(weighing or {})
     if np.any(cal.fields < 0):
         wand_doc["trial_markers_used"] = int(np.sum(cal.fields < 0))
         wand_doc["trial_markers_weight"] = trial_markers_weight(cal)
