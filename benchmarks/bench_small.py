@@ -157,6 +157,30 @@ change a label), and a figure drawn a second time takes 0.5 to 0.8 of its first 
 0.4 s (the six grid and four trajectory figures) for clearing every artist, limit and
 aspect by hand.
 
+Stop 49 (2026-11-30, main 3e34862 and this branch, load 11 to 27 on the two cores):
+``python -m benchmarks small`` on main, one run: decode 2.3 s of processor time, the run
+88.7 s (37.9x; 44.0x on two free cores, wall 59x): under that load a run's processor time
+itself doubles (the same main ``kisscal run`` 49 s at 14:10, 55 s in farm-bench turns,
+where the stop-46 record is 22-23 s), so no ratio of this stop is worth reading against
+the 10.6x of stop 46. farm-bench, two pairs of ``kisscal run`` (this branch against main,
+in turns): processor time 0.79x and 1.29x (median 1.04x): the changes below are under the
+noise of a whole run on this machine and are argued by their own timings. Where the
+time goes (cProfile of ``run(root, workers=1)`` in one process, wall-clock under the
+load): figures 28 % (Agg's ticks and text most of it), the calibration's rods-and-trials
+bundle with its leave-one-rod-out refits 9 %, the exports' fits 6.5 %, the surveys 6 %,
+the grid fits 8 %, tracking 8 %, the window moments of detection 5 %, decoding 3.4 %.
+Kept: (1) the window moments place each pixel in its window by repeats, not an integer
+divmod per pixel (10.6 -> 5.7 ms for 750k window pixels, the same integers; the blobs of
+200 frames bit-identical); (2) ``kisscal run`` lists each camera's frame folder once
+(:func:`kisscal.io.frames.listing_once`: validation, surveys, cache keys and detection
+listed them 312 times, ``frame_paths`` 1.5 % of the run in one process), and an image is
+opened without a stat first. Every JSON, CSV, TOML, C3D, TRC, NPZ and PNG of ``out/``
+byte-identical to main's (two session copies; the ``.key`` files differ by the copies'
+file times, ``summary.json`` and ``report.html`` by timings). Issue 28's bar (the run
+within 2x decode on both cores) is out of reach of plain costs: the run reads every
+image (0.8x the decode) and detects it (1.4x, stop 42's parts), 2.2x before calibration,
+tracking, figures and the interpreter's start.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

@@ -8,9 +8,11 @@ frames into their two fields.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import os
 import struct
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,9 +38,10 @@ def read_image(path: Path) -> np.ndarray:
     :class:`KisscalError` naming the file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise MissingDataError(f"{path}: image file not found")
-    data = np.fromfile(path, dtype=np.uint8)
+    try:  # no stat first: the open says it (a stat per frame, thousands a run)
+        data = np.fromfile(path, dtype=np.uint8)
+    except (FileNotFoundError, IsADirectoryError):
+        raise MissingDataError(f"{path}: image file not found") from None
     image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if image is None:
         raise InputError(f"{path}: not a readable image (corrupt or unsupported format)")
@@ -111,14 +114,36 @@ def _glob(root: Path, pattern: str) -> list[Path]:
     return list(Path(root).glob(pattern))
 
 
+#: Frame listings kept inside :func:`listing_once` (None: none kept).
+_LISTED: contextvars.ContextVar[dict[tuple[str, str], list[Path]] | None] = contextvars.ContextVar(
+    "kisscal_listed", default=None
+)
+
+
+@contextlib.contextmanager
+def listing_once() -> Iterator[None]:
+    """Inside the block, each camera's frames are listed once (:func:`frame_paths`): a
+    session command's inputs do not change while it runs, and ``kisscal run`` listed the
+    same folders some 300 times (validation, surveys, cache keys, detection)."""
+    token = _LISTED.set({} if _LISTED.get() is None else _LISTED.get())
+    try:
+        yield
+    finally:
+        _LISTED.reset(token)
+
+
 def frame_paths(root: Path, pattern: str, camera: str, what: str) -> list[Path]:
     """Sorted frame files of ``camera`` matching ``pattern`` (``{camera}`` substituted;
-    relative to ``root``, or absolute).
+    relative to ``root``, or absolute); listed once inside :func:`listing_once`.
 
     A file is a frame by its suffix (PNG, TIFF, BMP) or, without one, by its content; when
     none is found the message names the files the pattern matched, or those beside it.
     """
     glob = pattern.replace("{camera}", camera)
+    listed = _LISTED.get()
+    key = (str(root), glob)
+    if listed is not None and key in listed:
+        return list(listed[key])
     matched = sorted(p for p in _glob(root, glob) if p.is_file())
     paths = [p for p in matched if is_image_file(p)]
     if not paths:
@@ -126,7 +151,9 @@ def frame_paths(root: Path, pattern: str, camera: str, what: str) -> list[Path]:
             f"{Path(root) / glob}: no {what} images for camera {camera}; "
             + _what_is_there(Path(root), glob, matched)
         )
-    return paths
+    if listed is not None:
+        listed[key] = paths
+    return list(paths)
 
 
 def _what_is_there(root: Path, glob: str, matched: list[Path]) -> str:

@@ -11,6 +11,7 @@ from typing import Any
 from kisscal.errors import KisscalError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import write_json
+from kisscal.io.frames import listing_once
 from kisscal.io.store import SessionStore
 from kisscal.io.summary import summarise
 from kisscal.session.ahead import Ahead, blob_slot, detecting_ahead, image_job
@@ -44,7 +45,13 @@ def run(
     Detection and calibration are cached: re-running after changing a tracking
     parameter redoes only tracking. Writes ``out/summary.json`` and returns it.
     """
-    root = Path(root)
+    with listing_once():  # the stages list the same frame folders: once a run
+        return _run(Path(root), overrides, echo, workers, config)
+
+
+def _run(
+    root: Path, overrides: Overrides | None, echo: Echo, workers: int | None, config: SessionConfig
+) -> dict[str, Any]:
     problems = validate(root, overrides, config=config)
     for p in problems:
         if p.warning:

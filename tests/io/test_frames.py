@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
+import kisscal.io.frames as frames_module
 from kisscal.errors import KisscalError
-from kisscal.io.frames import camera_frames, frame_paths, is_image_file
+from kisscal.io.frames import camera_frames, frame_paths, is_image_file, listing_once
 
 REAL = Path(__file__).resolve().parents[2] / "fixtures" / "real" / "openptv-cavity"
 
@@ -46,3 +47,21 @@ def test_a_pattern_that_misses_names_the_files_it_missed(tmp_path: Path) -> None
         frame_paths(tmp_path, "img/{camera}.*_targets", "cam1", "trial")
     with pytest.raises(KisscalError, match="there is no folder"):
         frame_paths(tmp_path, "nowhere/{camera}/*.png", "cam1", "trial")
+
+
+def test_a_run_lists_each_folder_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Inside ``listing_once`` (``kisscal run``) a camera's folder is globbed once and the
+    same files come back each time; outside it every call lists anew."""
+    _numbered(tmp_path / "img")
+    globs = []
+    real_glob = frames_module._glob
+    monkeypatch.setattr(frames_module, "_glob", lambda *a: globs.append(a) or real_glob(*a))
+    with listing_once():
+        first = frame_paths(tmp_path, "img/{camera}.*", "cam1", "trial")
+        (tmp_path / "img" / "cam1.10003.png").write_bytes(b"")  # not seen: listed once
+        again = [frame_paths(tmp_path, "img/{camera}.*", "cam1", "trial") for _ in range(3)]
+        assert all(paths == first for paths in again) and len(globs) == 1
+        again[0].clear()  # a caller's list is its own
+        assert frame_paths(tmp_path, "img/{camera}.*", "cam1", "trial") == first
+    assert len(frame_paths(tmp_path, "img/{camera}.*", "cam1", "trial")) == len(first) + 1
+    assert len(globs) == 2
