@@ -233,18 +233,26 @@ def absent_placed(
     placed somewhere have a row; a row placed is a partner of the names placed after
     it, which are tried again while rows are added (kiss 3: an ankle that one camera
     sees, placed by its heel and toe, and its knee, which another camera sees, by the
-    ankle and the tibia)."""
+    ankle and the tibia); a row placed in fewer than ``min_track_length`` fields (too
+    few to be named) waits until no other is added, its blobs free."""
     rows, sds, who = [], [], []
     names = list(labels or ())
     waiting = list(missing) if spare is not None and labels else []
+    last = False  # a row too short to be named is kept only once no other is added
     while waiting:
         left = []
         for name in waiting:
             partners, length, sd = mirror_lengths(dense, names, name, params)
             row = np.full(dense.shape[1:], np.nan)
             if partners.size >= 2:
+                free = spare.free.copy()
                 row, err = place_absent(dense, partners, length, sd, spare, params)
-            if not np.isfinite(row[:, 0]).any():
+            n = np.isfinite(row[:, 0]).sum()
+            if n == 0 or (n < params.min_track_length and not last):
+                # its blobs wait for the partners placed after it (kiss 3 seed 321: the
+                # knee, 5 fields by tibia and thigh, 22 with the ankle placed in 210)
+                if n:
+                    spare.free[:] = free
                 left.append(name)
                 continue
             rows.append(row)
@@ -253,7 +261,9 @@ def absent_placed(
             dense = np.concatenate([dense, row[None]])
             names.append(name)
         if len(left) == len(waiting):
-            break
+            if last:
+                break
+            last = True
         waiting = left
     if not rows:
         return [], np.zeros((0, *dense.shape[1:])), np.zeros((0, dense.shape[1]))
