@@ -328,13 +328,14 @@ def test_a_segment_on_rays_takes_each_marker_s_own_blob_and_a_track_starting_aft
     assert np.sqrt(np.mean(err**2)) < 2.0
 
 
-def test_a_partner_s_drifting_length_does_not_place_the_ray_s_other_root():
-    # marker 0 walks along y; one camera sees it through its gap [80, 140). Marker 1,
-    # rigid with it, meets its ray at two depths 80 mm apart (0 and its other root);
-    # marker 2's length fits both until field 100, then drifts (a thigh marker's to the
-    # shank across the knee) to fit only the other root until 126 (modern 3 seed 332
-    # RTHI 465-517: 87-262 mm off, expecting 2.47)
-    n, lo, hi, far, length = 200, 80, 140, 80.0, 400.0
+#: The gap [LO, HI) of a marker walking along y that one camera sees through it, the
+#: depth between its ray's two roots for a partner 400 mm away, and that length.
+LO, HI, FAR_MM, LENGTH_MM = 80, 140, 80.0, 400.0
+
+
+def _walk_seen_by_one_camera(n: int = 200) -> tuple[np.ndarray, ...]:
+    """A marker's path along y, the camera's DLT, and per field the unit sight line and
+    the horizontal unit vector across it."""
     t = np.arange(n)
     xyz = np.stack([0 * t, 10.0 * t - 1000, 900 + 0 * t], 1)
     centre = np.array([3000.0, 0, 1500])
@@ -342,8 +343,20 @@ def test_a_partner_s_drifting_length_does_not_place_the_ray_s_other_root():
     d = (xyz - centre) / np.linalg.norm(xyz - centre, axis=1)[:, None]
     side = np.cross(d, [0.0, 0, 1])
     side /= np.linalg.norm(side, axis=1)[:, None]
+    return xyz, dlts, d, side
+
+
+def test_a_partner_s_drifting_length_does_not_place_the_ray_s_other_root():
+    # marker 0 walks along y; one camera sees it through its gap [80, 140). Marker 1,
+    # rigid with it, meets its ray at two depths 80 mm apart (0 and its other root);
+    # marker 2's length fits both until field 100, then drifts (a thigh marker's to the
+    # shank across the knee) to fit only the other root until 126 (modern 3 seed 332
+    # RTHI 465-517: 87-262 mm off, expecting 2.47)
+    lo, hi, far, length = LO, HI, FAR_MM, LENGTH_MM
+    xyz, dlts, d, side = _walk_seen_by_one_camera()
     other = xyz + far * d
     both = xyz + length * (0.1 * d + np.sqrt(0.99) * side)  # 0.1 = far / (2 length)
+    t = np.arange(len(xyz))
     w = np.clip((t - 100) / 3.0, 0, 1) * np.clip((126 - t) / 3.0, 0, 1)
     drift = both * (1 - w[:, None]) + (other + length * side) * w[:, None]
     dense = np.stack([xyz, xyz + 0.5 * far * d + 150.0 * np.cross(d, side), drift])
@@ -362,14 +375,8 @@ def test_a_length_held_only_over_a_phase_is_no_partner_s():
     # only in fields 150-199 (36 % of its fields), where their distance held (a thigh
     # marker and the sacrum while the hip stays still); in the gap it fits only the other
     # root (modern 3 seed 332 RTHI 452-466 with SACR: 83 mm off, expecting 1.7)
-    n, lo, hi, far, length = 200, 80, 140, 80.0, 400.0
-    t = np.arange(n)
-    xyz = np.stack([0 * t, 10.0 * t - 1000, 900 + 0 * t], 1)
-    centre = np.array([3000.0, 0, 1500])
-    dlts = _look_at(centre, np.array([0.0, 0, 900]))[None]
-    d = (xyz - centre) / np.linalg.norm(xyz - centre, axis=1)[:, None]
-    side = np.cross(d, [0.0, 0, 1])
-    side /= np.linalg.norm(side, axis=1)[:, None]
+    lo, hi, far, length = LO, HI, FAR_MM, LENGTH_MM
+    xyz, dlts, d, side = _walk_seen_by_one_camera()
     phase = xyz + length * side
     phase[lo:hi] = xyz[lo:hi] + far * d[lo:hi] + length * side[lo:hi]
     phase[:lo] = phase[hi:150] = np.nan
