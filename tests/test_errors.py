@@ -121,7 +121,7 @@ KINDS = ("KisscalError", "InputError", "MissingDataError", "EstimationFailed")
 #: The sites that raise the base class, by (module, function), each with its reason.
 BASE_CLASS_SITES = {
     ("cli/commands.py", "validate"): "the problems listed are of several kinds",
-    ("session/run.py", "run"): "trials fail for different reasons, each named in the message",
+    ("session/run.py", "_run"): "trials fail for different reasons, each named in the message",
     ("session/run.py", "_stop_on_session_problems"): "validate's problems: several kinds",
     ("io/lock.py", "_acquire"): "the session is busy, neither wrong, missing nor failed",
     ("session/batch.py", "_dask"): "an optional package is not installed",
