@@ -346,26 +346,35 @@ def _walk_seen_by_one_camera(n: int = 200) -> tuple[np.ndarray, ...]:
     return xyz, dlts, d, side
 
 
+def _chain_fill_with_partners(
+    xyz: np.ndarray, dlts: np.ndarray, d: np.ndarray, side: np.ndarray, third: np.ndarray
+) -> tuple[object, np.ndarray, np.ndarray]:
+    """Chain-fill marker 0 through [LO, HI) on the camera's rays, beside marker 1 (rigid
+    with it, meeting its ray at two roots FAR_MM apart) and ``third``: the fill, which
+    fields it placed, and their errors against ``xyz``."""
+    dense = np.stack([xyz, xyz + 0.5 * FAR_MM * d + 150.0 * np.cross(d, side), third])
+    dense[0, LO:HI] = np.nan
+    f = np.arange(LO, HI)
+    uv = project_rows(dlts, np.zeros(f.size, dtype=int), xyz[LO:HI])
+    got = chain_fill(dense, 0, LO, HI, spare_blobs(f, np.zeros(f.size), uv, dlts), PARAMS)
+    placed = np.isfinite(got.sd_mm)
+    return got, placed, np.linalg.norm(got.xyz_mm[placed] - xyz[LO:HI][placed], axis=1)
+
+
 def test_a_partner_s_drifting_length_does_not_place_the_ray_s_other_root():
     # marker 0 walks along y; one camera sees it through its gap [80, 140). Marker 1,
     # rigid with it, meets its ray at two depths 80 mm apart (0 and its other root);
     # marker 2's length fits both until field 100, then drifts (a thigh marker's to the
     # shank across the knee) to fit only the other root until 126 (modern 3 seed 332
     # RTHI 465-517: 87-262 mm off, expecting 2.47)
-    lo, hi, far, length = LO, HI, FAR_MM, LENGTH_MM
+    far, length = FAR_MM, LENGTH_MM
     xyz, dlts, d, side = _walk_seen_by_one_camera()
     other = xyz + far * d
     both = xyz + length * (0.1 * d + np.sqrt(0.99) * side)  # 0.1 = far / (2 length)
     t = np.arange(len(xyz))
     w = np.clip((t - 100) / 3.0, 0, 1) * np.clip((126 - t) / 3.0, 0, 1)
     drift = both * (1 - w[:, None]) + (other + length * side) * w[:, None]
-    dense = np.stack([xyz, xyz + 0.5 * far * d + 150.0 * np.cross(d, side), drift])
-    dense[0, lo:hi] = np.nan
-    f = np.arange(lo, hi)
-    uv = project_rows(dlts, np.zeros(f.size, dtype=int), xyz[lo:hi])
-    got = chain_fill(dense, 0, lo, hi, spare_blobs(f, np.zeros(f.size), uv, dlts), PARAMS)
-    placed = np.isfinite(got.sd_mm)
-    err = np.linalg.norm(got.xyz_mm[placed] - xyz[lo:hi][placed], axis=1)
+    got, placed, err = _chain_fill_with_partners(xyz, dlts, d, side, drift)
     assert placed.sum() >= 30 and np.all(err <= 2.0 * got.sd_mm[placed])
 
 
@@ -375,17 +384,11 @@ def test_a_length_held_only_over_a_phase_is_no_partner_s():
     # only in fields 150-199 (36 % of its fields), where their distance held (a thigh
     # marker and the sacrum while the hip stays still); in the gap it fits only the other
     # root (modern 3 seed 332 RTHI 452-466 with SACR: 83 mm off, expecting 1.7)
-    lo, hi, far, length = LO, HI, FAR_MM, LENGTH_MM
+    lo, hi = LO, HI
     xyz, dlts, d, side = _walk_seen_by_one_camera()
-    phase = xyz + length * side
-    phase[lo:hi] = xyz[lo:hi] + far * d[lo:hi] + length * side[lo:hi]
+    phase = xyz + LENGTH_MM * side
+    phase[lo:hi] = xyz[lo:hi] + FAR_MM * d[lo:hi] + LENGTH_MM * side[lo:hi]
     phase[:lo] = phase[hi:150] = np.nan
-    dense = np.stack([xyz, xyz + 0.5 * far * d + 150.0 * np.cross(d, side), phase])
-    dense[0, lo:hi] = np.nan
-    f = np.arange(lo, hi)
-    uv = project_rows(dlts, np.zeros(f.size, dtype=int), xyz[lo:hi])
-    got = chain_fill(dense, 0, lo, hi, spare_blobs(f, np.zeros(f.size), uv, dlts), PARAMS)
-    placed = np.isfinite(got.sd_mm)
-    err = np.linalg.norm(got.xyz_mm[placed] - xyz[lo:hi][placed], axis=1)
+    got, placed, err = _chain_fill_with_partners(xyz, dlts, d, side, phase)
     assert placed.sum() >= 30 and np.all(err <= 2.0 * got.sd_mm[placed]), err.max()
     assert 2 not in got.partners
