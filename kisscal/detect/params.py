@@ -193,7 +193,7 @@ class DetectionParams(Params):
         images as particle-tracking velocimetry finds them (Maas et al. 1993;
         :mod:`kisscal.detect.peaks`): the image less its ``peak_highpass_px`` box mean,
         regions above ``threshold`` there grown from their peaks (``peak_step``), regions
-        larger than ``max_pixels`` grown again at twice the level while too large,
+        larger than ``max_pixels`` cut at higher levels while too large,
         weighted centroids. Derived per camera: chosen
         for frames of many small spots and no marker-sized blobs
         (:mod:`kisscal.detect.route`).

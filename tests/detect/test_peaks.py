@@ -58,6 +58,20 @@ def test_a_particle_on_a_lit_wall_is_cut_out_of_it() -> None:
     assert (regions(hp, 9.0)[0] > 0).sum() == 900
 
 
+def test_a_faint_particle_on_a_lit_wall_is_cut_out_below_twice_the_threshold() -> None:
+    # a wall 3 levels over the threshold, larger than a particle, under a particle whose
+    # peak (17) is below twice the threshold: cut at the first level the wall falls below
+    hp = np.zeros((80, 80), np.float32)
+    hp[20:50, 20:50] = 12.0
+    spot = _spot(hp.shape, 34.6, 36.3, 5.0, 1.2).astype(np.float32)
+    hp += np.where(spot > 0.5, spot, 0)
+    labels, count = regions(hp, 9.0, (200, None, None))
+    assert count == 1
+    ys, xs = np.nonzero(labels == 1)
+    w = hp[ys, xs] - 9.0
+    assert abs(np.sum(w * xs) / w.sum() - 34.6) < 0.3 and abs(np.sum(w * ys) / w.sum() - 36.3) < 0.3
+
+
 def test_border_regions_dropped_and_small_ones_invalid() -> None:
     image = np.full((60, 60), 10, np.uint8)
     image[0:3, 20:23] = 200  # touches the border
