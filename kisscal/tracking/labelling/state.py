@@ -193,7 +193,7 @@ class LabelState:
         """Name pairs on one rigid segment: the given segments, plus named trajectories
         whose distance barely varies over :attr:`rich` and equals the template's, seen
         together in :data:`MIN_SHARED_FIELDS` of those fields (or all of them, when
-        fewer)."""
+        fewer), and, in a set with a mirror image, whose mirror pair is found so too."""
         n = len(self.names)
         seen = np.isfinite(self.name_pos[:, self.rich, 0]).astype(float)
         shared = seen @ seen.T
