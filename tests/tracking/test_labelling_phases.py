@@ -322,3 +322,22 @@ def test_a_pair_pointing_the_way_of_its_names_keeps_them_against_a_slightly_bett
     # names pointing the wrong way are still exchanged, whatever the fit
     _, fixed = settle_rigid_swaps(state, core, rich, swapped, 0.5 * exchanged)
     np.testing.assert_array_equal(fixed, assign)
+
+
+def test_a_pair_across_a_pausing_joint_is_not_rigid_when_its_mirror_pair_moves():
+    """Issue 27 (modern 3 seed 353): a thigh and a shank marker keep their distance while
+    the knee stays straight through a stance, and the judged fields held only those; the
+    other leg's same pair, in swing then, does not. Found as rigid, such a pair ruled the
+    right name out for a later piece (an ASIS piece took the other side's ASIS name)."""
+    truth = gait_truth(200, 1)
+    tracks, owner = _pieces(truth)
+    i = {n: k for k, n in enumerate(NAMES)}
+    knee = np.linalg.norm(truth[i["RTHI"]] - truth[i["RTIB"]], axis=1)
+    state = _state(tracks, segments=())
+    state.rich = np.flatnonzero(knee > knee.max() - 3.0)  # the right knee straight
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    assert state.rich.size >= 10 and np.ptp(knee[state.rich]) < 3.0
+    rigid = state.rigid_pairs()
+    assert not rigid[i["RTHI"], i["RTIB"]]  # across the knee: the left one bends meanwhile
+    assert rigid[i["RKNE"], i["RANK"]] and rigid[i["LKNE"], i["LANK"]]  # the shanks

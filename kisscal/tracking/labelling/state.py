@@ -193,10 +193,11 @@ class LabelState:
         """Name pairs on one rigid segment: the given segments, plus named trajectories
         whose distance barely varies over :attr:`rich` and equals the template's, seen
         together in :data:`MIN_SHARED_FIELDS` of those fields (or all of them, when
-        fewer)."""
+        fewer), and, in a set with a mirror image, whose mirror pair is found so too."""
         n = len(self.names)
         seen = np.isfinite(self.name_pos[:, self.rich, 0]).astype(float)
         shared = seen @ seen.T
+        judged = shared >= min(MIN_SHARED_FIELDS, self.rich.size)
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
             spread = distance_spread(self.name_pos, np.arange(n), self.rich)
@@ -204,7 +205,13 @@ class LabelState:
             ok = (
                 (spread < RIGID_SPREAD_MM)
                 & (np.abs(median - self.template_distance) < RIGID_MATCH_MM)
-                & (shared >= min(MIN_SHARED_FIELDS, self.rich.size))
+                & judged
             )
+            if self.mirror_of is not None:
+                # A segment's mirror image is a segment: a pair across a joint keeps its
+                # length while that joint pauses (a hip in one stance), while the other
+                # leg's, in swing then, varies.
+                m = self.mirror_of
+                ok &= (judged & (spread < RIGID_SPREAD_MM))[np.ix_(m, m)]
         np.fill_diagonal(ok, False)
         return segment_mask(self.names, self.segments) | ok
