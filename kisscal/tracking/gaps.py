@@ -83,9 +83,10 @@ class _Gap:
     ``known`` (n_tracks, n_fields) bool: every track's measured samples (the second
     passes': the sphere fill counts a placed partner's error). ``expected`` (n_tracks,
     n_fields): the error of each track's known samples, NaN where none (the last
-    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks, n_fields): every sample's
-    expected error (0 measured, a fill's as it is made, :func:`_note`; NaN where none),
-    for the chain fill's placed partners."""
+    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks + len(absent), n_fields):
+    every sample's expected error (0 measured, a fill's as it is made, :func:`_note`,
+    the ``absent`` rows' along their rays; NaN where none), for the chain fill's
+    placed partners."""
 
     dense: NDArray
     t: int
