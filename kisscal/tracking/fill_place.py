@@ -32,7 +32,8 @@ def take_placed(
     out = []
     for a, b in zip(*true_runs(placed), strict=True):
         err = float(np.sqrt(np.mean(chain.sd_mm[a:b] ** 2)))
-        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, chain.partners, b - a)
+        donors = tuple(p for p in chain.partners if p < len(dense))  # not placed rows
+        fill = GapFill(t, lo + a, b - a, FILLED_RIGID, err, donors, b - a)
         out.append((chain.xyz_mm[a:b], fill))
     return out
 

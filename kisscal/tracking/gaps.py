@@ -83,9 +83,10 @@ class _Gap:
     ``known`` (n_tracks, n_fields) bool: every track's measured samples (the second
     passes': the sphere fill counts a placed partner's error). ``expected`` (n_tracks,
     n_fields): the error of each track's known samples, NaN where none (the last
-    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks, n_fields): every sample's
-    expected error (0 measured, a fill's as it is made, :func:`_note`; NaN where none),
-    for the chain fill's placed partners."""
+    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks + len(absent), n_fields):
+    every sample's expected error (0 measured, a fill's as it is made, :func:`_note`,
+    the ``absent`` rows' along their rays; NaN where none), for the chain fill's
+    placed partners."""
 
     dense: NDArray
     t: int
@@ -222,7 +223,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
 #: is placed only at its track's end).
 FILLS: tuple[Fill, ...] = (
-    Fill("chain", _ray_placer(chain_fill, "end", "errors"), sweep=True, rays=True),
+    Fill("chain", _ray_placer(chain_fill, "end", "errors", "absent"), sweep=True, rays=True),
     Fill("joint", _ray_placer(joint_ray_fill, "absent"), sweep=True, rays=True),
     Fill("body", _body, strict="swept"),
     Fill("body where donors hold", held_body, long_run=True, strict="swept"),
@@ -237,7 +238,7 @@ FILLS: tuple[Fill, ...] = (
     Fill("end rays", _ray_placer(rays_end_fill, "end"), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
-    Fill("end chain", _ray_placer(chain_end_fill, "end", "errors"), ends=True),
+    Fill("end chain", _ray_placer(chain_end_fill, "end", "errors", "absent"), ends=True),
 )
 
 
@@ -444,7 +445,7 @@ def fill_gaps_named(
         for t in range(tracks.n_tracks)
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
-    errors = np.where(measured, 0.0, np.nan)
+    errors = np.concatenate([np.where(measured, 0.0, np.nan), absent_sd])  # placed rows too
     made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent, errors)
     made += _second_pass(dense, gaps, params, spare, measured, made, absent, errors=errors)
     ends = track_ends(tracks, params, labels, unlabelled)

@@ -414,17 +414,23 @@ def chain_fill(
     params: TrackingParams,
     end: int = 0,
     errors: NDArray | None = None,
+    absent: NDArray | None = None,
 ) -> ChainFill | None:
     """Place the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN
     where not measured) on the rays of its own unused blobs (see module); None when no
     field could be placed. With ``end`` (-1: the fields before the track's first
     sample, 1: after its last), the run is a track's end, walked from its measured
     side only (a knee seen by one camera after its second camera lost it for good).
-    With ``errors`` (n_tracks, n_fields: each sample's expected error, 0 where
+    With ``errors`` (n_tracks + m, n_fields: each sample's expected error, 0 where
     measured, NaN where unknown), a partner another fill placed counts its fill's
     error in the expected error
-    (:func:`~kisscal.tracking.rayfill.placed_errors`).
-    The blobs taken are not marked used here."""
+    (:func:`~kisscal.tracking.rayfill.placed_errors`). ``absent`` (m, n_fields, 3): rows
+    of names no track took, placed on one camera's rays
+    (:func:`~kisscal.tracking.fill_absent.absent_rows`), partners too, numbered after
+    the tracks (kiss 3 seed 323: a heel on one camera held by its toe and the placed
+    ankle). The blobs taken are not marked used here."""
+    if absent is not None and len(absent):
+        dense = np.concatenate([dense, absent])
     target = dense[t]
     walk = _walk_sides(target, lo, hi, end)
     if not any(walk):

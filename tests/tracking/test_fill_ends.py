@@ -7,6 +7,7 @@ import numpy as np
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import FILLED_RIGID, TrackingParams, is_filled, spare_blobs
+from kisscal.tracking.fill_ends import chain_end_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
 from tests.tracking.test_rayfill import rig
@@ -205,3 +206,24 @@ def test_end_rays_take_a_known_marker_out_of_a_blob_merged_with_it():
     # the merged blob's centroid as the marker's image: its ray misses by millimetres
     raw = fill_gaps_logged(tracks, TrackingParams(ray_merge_px=0.01), spare(), labels=names)[0]
     assert np.sqrt(np.mean(_filled_error(raw, xyz, 4)[1] ** 2)) > 2.0
+
+
+def test_end_chain_takes_the_placed_row_of_a_name_no_track_took_as_a_partner():
+    # as above with one partner measured (marker 0); marker 2 no track took, placed on
+    # one camera's rays (1 mm along them): its row is the second partner (kiss 3 seed
+    # 323: a heel on one camera, its toe measured, its ankle placed)
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    end = slice(150, xyz.shape[1])
+    dense = xyz[[0, 3]].copy()
+    dense[1, end] = np.nan
+    rng = np.random.default_rng(7)
+    row = xyz[2:3] + rng.normal(0, 1.0 / np.sqrt(3), xyz[2:3].shape)
+    errors = np.r_[np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan), np.ones((1, len(row[0])))]
+    spare, params = _two_cameras_see(xyz, 3, end, 1, 7), TrackingParams()
+    assert chain_end_fill(dense, 1, end.start, end.stop, spare, params, 1, errors[:2]) is None
+    got = chain_end_fill(dense, 1, end.start, end.stop, spare, params, 1, errors, row)
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 0.9 * (end.stop - end.start)
+    err = np.linalg.norm(got.xyz_mm[placed] - xyz[3, end][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < min(1.5, np.sqrt(np.mean(got.sd_mm[placed] ** 2)) + 0.5)
+    assert 2 in got.partners  # the placed row, numbered after the tracks
