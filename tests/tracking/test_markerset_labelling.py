@@ -46,6 +46,17 @@ def test_stature_is_found_from_the_average_pose():
     assert height in HEIGHTS_MM and abs(height - 1620.0) <= 60.0 and not partial
 
 
+@pytest.mark.parametrize("seed, speed", [(0, 1.4), (1, 1.6)])
+def test_a_lower_body_walking_fast_stands_at_its_own_stature_on_the_full_body_set(seed, speed):
+    # The stature's average pose keeps the lab's heights (issue 26): with each field's
+    # vertical shift fitted, the pelvis sank and a 1.75 m lower body stood at 1.65 m.
+    _, _, field, xyz = walker_trial(seed, 1.75, 90.0 * seed, speed, 100.0)
+    params = TrackingParams(label_window_fields=100)
+    tracks = blend_tracks(track_points(field, xyz, params), params)
+    height, partial = estimate_height(tracks, marker_set("plug-in-gait-full"), params)
+    assert partial and abs(height - 1750.0) <= 50.0
+
+
 def test_a_child_walker_is_labelled_at_its_own_stature():
     # A 1.0 m child with the whole set: its distances fit no adult template (issue 26: the
     # estimate stuck at 1.40 m, the range's bound, and every name was doubted).

@@ -412,10 +412,14 @@ def first_centre(state: LabelState) -> int:
 
 def first_pose(state: LabelState) -> tuple[NDArray, NDArray]:
     """The first window's core pieces (k, F, 3) over at most ``UPRIGHT_FIELDS`` fields,
-    and their average pose (:func:`~kisscal.tracking.labelling.upright.average_pose`)."""
+    and their average pose (:func:`~kisscal.tracking.labelling.upright.average_pose`) at
+    the lab's heights: a stature is judged by them.
+
+    (:func:`set_members` keeps the fitted lift: at the lab's heights walking5 gave its
+    LKNE and LTOE names to the knee centre and first metatarsal markers beside them.)"""
     rich = window_fields(state.present, first_centre(state), state.window, UPRIGHT_FIELDS)
     pos = state.dense[np.ix_(core_pieces(state.present, rich, state.dense), rich)]
-    return pos, average_pose(pos)
+    return pos, average_pose(pos, lift=False)
 
 
 def shorter_windows(state: LabelState) -> list[tuple[int, int]]:
