@@ -322,3 +322,22 @@ def test_a_pair_pointing_the_way_of_its_names_keeps_them_against_a_slightly_bett
     # names pointing the wrong way are still exchanged, whatever the fit
     _, fixed = settle_rigid_swaps(state, core, rich, swapped, 0.5 * exchanged)
     np.testing.assert_array_equal(fixed, assign)
+
+
+def test_a_lone_pelvis_marker_takes_its_own_name_from_the_legs():
+    """Lowcost seed 315: the whole pelvis unseen, a right ASIS piece took the sacrum's
+    name by the body fit (the walking legs fitted the standing template with a
+    rotation 115-180 mm off, so the expected positions turned), the real sacrum then
+    the left ASIS's, and the left ASIS lost its name (31 switches). Turned by the
+    rotation of each name's own neighbours, each pelvis marker takes its own name."""
+    from kisscal.tracking.labelling.spread import by_body_fit
+
+    truth = gait_truth(60, 0)
+    legs = np.full_like(truth, np.nan)
+    legs[3:] = truth[3:]  # thighs, shanks and feet named; the pelvis names free
+    pelvis = np.arange(3)
+    for lo in range(0, 50, 5):
+        fields = np.arange(lo, lo + 10)
+        got = [by_body_fit(fields, truth[m, fields], pelvis, legs, template(30.0), PARAMS)
+               for m in pelvis]  # fmt: skip
+        assert got == pelvis.tolist(), lo
