@@ -152,7 +152,7 @@ def by_body_fit(
     body's turn, fitted to a walking pose (the standing template off by 100-180 mm),
     puts a lone pelvis marker nearer another pelvis name than its own (lowcost seed
     315: the right ASIS named the sacrum); the neighbours' turn, from two legs out of
-    step, can leave a shank's own name just outside the tolerance.
+    step, can leave a shank's own name clearly first but outside the tolerance.
     """
     dist = body_fit_distances(piece_fields, piece_xyz, free, name_pos, template)
     # A row is NaN throughout or nowhere: the median of the rows with distances is the
@@ -163,7 +163,9 @@ def by_body_fit(
     whole, own = np.median(dist[:, fitted], axis=1)
     tolerance = params.label_tolerance_mm
     j = _clear_name(own, free, tolerance, prefer)
-    if j < 0 and _clear_name(whole, free, tolerance, prefer) == free[np.argmin(own)]:
+    top = np.sort(own)
+    clear = top.size == 1 or top[1] >= 1.5 * top[0]
+    if j < 0 and clear and _clear_name(whole, free, tolerance, prefer) == free[np.argmin(own)]:
         j = int(free[np.argmin(own)])
     return j
 
