@@ -12,9 +12,9 @@ recognition reads them in four steps, each a whole-image operation here:
    pixels above it it reaches by 4-connected steps that never enter a pixel (or a pixel
    beside it) more than ``peak_step`` above the one left (Maas's discontinuity): a faint
    spot cannot climb into a bright particle beside it, and the bright one stays a target
-   of its own. Peaks that reach one another are one target and a pixel reached from
-   several goes to the first in scan order, as Maas's growth reading the image row by row
-   gives it (:func:`grow_regions`). A region larger than a particle
+   of its own. Maas's region growing reads the image in scan order; here peaks that reach
+   one another are one target and a pixel reached from several goes to the faintest
+   (:func:`grow_regions`), the same whatever the order. A region larger than a particle
    (the upper size limits) is lit structure, a wall or glare, that particles stand on:
    it is cut at levels a tenth higher each time up to twice the threshold, then twice as
    high each time, until its pieces are particle-sized;
@@ -117,10 +117,10 @@ def grow_regions(hp: NDArray[np.float32], threshold: float, step: float) -> tupl
     neighbours) it is reached from by a 4-connected path above the threshold whose every
     step enters a pixel no brighter, nor next to (4 neighbours) a pixel brighter, than
     ``step`` above the pixel it leaves (Maas 1992's discontinuity). Where several peaks
-    reach a pixel it goes to the first of them in scan order (row, then column), as
-    Maas's growth, reading the image row by row, gives it: OpenPTV's targets are cut so
-    (the faintest peak instead: 93.6 -> 96.0 % of them within 1 px on the cavity's cam3,
-    95.5-96.7 -> 97.5-98.2 % on cams 1, 2, 4). Pixels reached from no peak are left out.
+    reach a pixel it goes to the faintest (a faint particle keeps its halo; a bright one
+    beside it is what cannot be climbed to); pixels reached from no peak are left out.
+    The result does not depend on the order the image is read in (Maas's scan-order
+    growth gives a contested pixel to whichever peak it meets first).
 
     Parameters
     ----------
@@ -199,13 +199,13 @@ def _reached(
     inside: NDArray,
     pairs: list[tuple[NDArray, NDArray, NDArray, NDArray]],
 ) -> NDArray:
-    """For the pixels ``lit[inside]``, 1 + the rank (in scan order) of the first peak
-    that reaches each along allowed steps (``pairs``, places in ``lit``), 0 where none
-    does.
+    """For the pixels ``lit[inside]``, 1 + the rank (grey, then position) of the faintest
+    peak that reaches each along allowed steps (``pairs``, places in ``lit``), 0 where
+    none does.
 
     The allowed steps are a directed graph; its strongly connected parts (pixels that
-    reach one another) take their first peak, then pass it down the steps between parts
-    until nothing changes.
+    reach one another) take their faintest peak, then pass it down the steps between
+    parts until nothing changes.
     """
     pixels = lit[inside]  # node k of the graph is pixel pixels[k]
     node = np.cumsum(inside) - 1  # the node of each pixel of lit inside
@@ -222,8 +222,10 @@ def _reached(
     grey = hp.reshape(-1)[pixels]
     ring = cv2.dilate(hp, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
     peak = np.flatnonzero(grey >= ring.reshape(-1)[pixels])
+    rank = np.empty(peak.size, dtype=np.int64)
+    rank[np.lexsort((pixels[peak], grey[peak]))] = np.arange(peak.size)
     key = np.full(parts, np.iinfo(np.int64).max)
-    np.minimum.at(key, part[peak], np.arange(peak.size))  # pixels are in scan order
+    np.minimum.at(key, part[peak], rank)
     _pass_down(key, part[s], part[d])
     key = key[part]
     return np.where(key < peak.size, key + 1, 0)
