@@ -68,6 +68,15 @@ def mirror_name(name: str) -> str | None:
     return None
 
 
+def mirror_tracks(labels: Sequence[str] | None, n_tracks: int) -> NDArray[np.int64] | None:
+    """Each track's mirror image's track (by :func:`mirror_name`), -1 for none; None
+    without ``labels``."""
+    if labels is None:
+        return None
+    index = {n: k for k, n in enumerate(labels[:n_tracks])}
+    return np.array([index.get(mirror_name(n) or "", -1) for n in labels[:n_tracks]])
+
+
 def mirror_lengths(
     dense: NDArray, labels: Sequence[str], name: str, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:

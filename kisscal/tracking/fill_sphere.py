@@ -218,23 +218,27 @@ def _gap_data(
     mine: NDArray,
     known: NDArray | None = None,
     expected: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> tuple[NDArray, NDArray, list[tuple[int, ...]], tuple[NDArray, NDArray, NDArray], NDArray]:
     """Rays (centres, directions) of ``rows`` (one per gap offset of ``ks``), and every
     partner's sphere roots on the rays: the tracks of each datum's partner (m,; a joint
     centre's are its cluster's, :mod:`.joint_centres`), (datum offset, roots (m, 2),
     SD (m,)) and a factor on each SD (:func:`_placed_factor`, with ``expected``; ones
     without ``known``).
-    ``mine`` (n_fields,) bool: the marker's own samples (for :data:`MIN_TOGETHER`)."""
+    ``mine`` (n_fields,) bool: the marker's own samples (for :data:`MIN_TOGETHER`);
+    ``mirror``: each track's mirror image's (:func:`~.raychain.length_partners`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
     d *= np.sign(np.einsum("ij,ij->i", dense[t, lo - 1] - c, d))[:, None]  # towards it
     # the joints the marker turns about are partners too (past the tracks' rows): the
     # thigh's hip where the ray runs square to the thigh's two markers
-    joints = joint_centres(dense, t, params)
+    joints = joint_centres(dense, t, params, mirror)
     tracks = [(int(u),) for u in range(len(dense))] + list(joints.clusters)
     dense = np.concatenate([dense, joints.xyz_mm])
-    partners, psd = length_partners(dense, t, params)
+    if mirror is not None:  # a centre has no mirror track
+        mirror = np.r_[mirror, np.full(len(joints.clusters), -1)]
+    partners, psd = length_partners(dense, t, params, mirror)
     # rigid over most of the marker's motion, not over a phase a joint held still in
     together = (np.isfinite(dense[partners, :, 0]) & mine).sum(axis=1)
     keep = together >= MIN_TOGETHER * mine.sum()
@@ -339,6 +343,7 @@ def sphere_depth_fill(
     measured: NDArray | None = None,
     known: NDArray | None = None,
     expected: NDArray | None = None,
+    mirror: NDArray | None = None,
     blobs: tuple[NDArray, NDArray] | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields,
@@ -351,7 +356,9 @@ def sphere_depth_fill(
     partner placed by another fill counts its error too (:func:`_placed_factor`):
     ``ray_rest_max_error_mm``, or, where the roots taken come from two partners or more
     (each checks the other), what ``expected`` ((n_tracks, n_fields), each track's
-    expected error, NaN where not known) says its fill expects there, if less. The
+    expected error, NaN where not known) says its fill expects there, if less.
+    ``mirror``: each track's mirror image's track, -1 for none (the partners' test,
+    :func:`~kisscal.tracking.raychain.length_partners`). The
     blobs taken are not marked used here. ``blobs``: the gap offsets and rows of the
     marker's blobs, when the caller chose them (:mod:`.fill_unmerged`); by default
     those followed in the image that no other track's image is near."""
@@ -381,7 +388,7 @@ def sphere_depth_fill(
         np.full(ends_f.size, params.ray_length_sd_floor_mm),
     )
     c, d, partners, (k_data, roots, rsd), factor = _gap_data(
-        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0]), known, expected
+        dense, t, lo, hi, spare, rows, ks, params, np.isfinite(own[:, 0]), known, expected, mirror
     )
     fit = _fit(n, ends, (k_data + lo - f0, roots, rsd), acc)
     if fit is None:

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
-from kisscal.tracking.fill_absent import absent_placed, absent_tracks
+from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tracks
 from kisscal.tracking.fill_anchor import anchored
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
@@ -102,6 +102,7 @@ class _Gap:
     known: NDArray | None = None
     expected: NDArray | None = None
     errors: NDArray | None = None
+    mirror: NDArray | None = None
 
 
 def _ray_placer(method: Callable, *extra: str) -> Callable:
@@ -230,7 +231,7 @@ FILLS: tuple[Fill, ...] = (
     Fill("depth", _ray_placer(depth_ray_fill, "measured"), rays=True, long_run=True),
     Fill(
         "sphere depth",
-        _ray_placer(sphere_depth_fill, "measured", "known", "expected"),
+        _ray_placer(sphere_depth_fill, "measured", "known", "expected", "mirror"),
         rays=True,
         long_run=True,
     ),
@@ -327,6 +328,7 @@ def _fill_runs(
     measured: NDArray,
     absent: NDArray | None,
     errors: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """Each run (track, lo, hi, end) filled by :data:`FILLS` in turn; placed fields become
     context (in ``dense``) for the rest. ``measured``: every track's measured fields;
@@ -334,7 +336,7 @@ def _fill_runs(
     out = []
     for t, lo, hi, end in runs:
         gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(hi - lo, bool), [])
-        gap.end, gap.absent, gap.errors = end, absent, errors
+        gap.end, gap.absent, gap.errors, gap.mirror = end, absent, errors, mirror
         _apply(gap, FILLS, [(lo, hi)])
         out += gap.out
     return out
@@ -350,6 +352,7 @@ def _second_pass(
     absent: NDArray | None = None,
     fills: tuple[Fill, ...] = SECOND_PASS,
     errors: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`SECOND_PASS`, or after the
@@ -382,7 +385,7 @@ def _second_pass(
             run = (lo + a, lo + b)
             gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
             gap.absent, gap.known, gap.expected = absent, measured, expected
-            gap.errors = errors
+            gap.errors, gap.mirror = errors, mirror
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out
@@ -446,12 +449,19 @@ def fill_gaps_named(
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
     errors = np.concatenate([np.where(measured, 0.0, np.nan), absent_sd])  # placed rows too
-    made = _fill_runs(dense, [(*g, 0) for g in gaps], params, spare, measured, absent, errors)
-    made += _second_pass(dense, gaps, params, spare, measured, made, absent, errors=errors)
+    mirror = mirror_tracks(labels, tracks.n_tracks)
+    made = _fill_runs(
+        dense, [(*g, 0) for g in gaps], params, spare, measured, absent, errors, mirror
+    )
+    made += _second_pass(
+        dense, gaps, params, spare, measured, made, absent, errors=errors, mirror=mirror
+    )
     ends = track_ends(tracks, params, labels, unlabelled)
-    made += _fill_runs(dense, ends, params, spare, measured, absent, errors)
+    made += _fill_runs(dense, ends, params, spare, measured, absent, errors, mirror)
     # what is left, again with the ends placed: a knee seen by one camera carries a tibia
-    made += _second_pass(dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors)
+    made += _second_pass(
+        dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors, mirror
+    )
     named, placed = absent_tracks(who, absent, absent_sd, tracks.n_tracks, params)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]

@@ -132,12 +132,15 @@ def _local(dense: NDArray, members: NDArray, known: NDArray, r: NDArray, tr: NDA
     return np.einsum("nji,nj->ni", r[k], own[i, k] - tr[k]), i  # r.T (x - t)
 
 
-def joint_centres(dense: NDArray, t: int, params: TrackingParams) -> Centres:
+def joint_centres(
+    dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
+) -> Centres:
     """The joint centres track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN where not
     known) turns about (see module), one per cluster of :func:`rigid_clusters`; ``t`` and
-    a partner need ``body_context_fields`` samples in its frame."""
+    a partner (:func:`~kisscal.tracking.raychain.length_partners`, ``mirror`` passed on)
+    need ``body_context_fields`` samples in its frame."""
     n_fields = dense.shape[1]
-    members = np.r_[t, length_partners(dense, t, params)[0]].astype(np.int64)
+    members = np.r_[t, length_partners(dense, t, params, mirror)[0]].astype(np.int64)
     fewest = max(params.body_context_fields, 4)
     mine = MIN_TOGETHER * np.isfinite(dense[t, :, 0]).sum()
     xyz, used = [], []

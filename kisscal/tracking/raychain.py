@@ -95,17 +95,25 @@ class ChainFill:
 
 
 def length_partners(
-    dense: NDArray, t: int, params: TrackingParams
+    dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Tracks whose distance to track ``t`` keeps within ``rigid_fill_sd_mm`` SD over the
     trial (its segment's markers), measured together in at least ``body_context_fields``
     fields (a few fields may agree by chance), and that SD (at least
-    ``ray_length_sd_floor_mm``)."""
+    ``ray_length_sd_floor_mm``). With ``mirror`` (each track's mirror image's track, -1
+    for none), not one whose mirror pair's distance varies by more over the same fields:
+    a pair across a knee held straight keeps its length while the other leg swings
+    (kiss 3 seed 363, LTHI-LTIB 2.2 mm SD over LTIB's stance, RTHI-RTIB 19.9 mm there)."""
     seen = np.isfinite(dense[:, :, 0])
     cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
     cand = cand[cand != t]
     sd = distance_sd(dense[cand], dense[t][None])[:, 0]
     keep = sd <= params.rigid_fill_sd_mm
+    if mirror is not None and mirror[t] >= 0:
+        m = mirror[cand]
+        both = np.where(seen[cand] & seen[t], 1.0, np.nan)[..., None]
+        pair = distance_sd(dense[np.maximum(m, 0)] * both, dense[mirror[t]][None])[:, 0]
+        keep &= ~((m >= 0) & np.isfinite(pair) & (pair > params.rigid_fill_sd_mm))
     return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
 
 
