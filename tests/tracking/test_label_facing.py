@@ -12,7 +12,7 @@ from kisscal.tracking.labelling.facing import (
     foot_pairs,
     front_back_pairs,
 )
-from kisscal.tracking.labelling.window import WindowMatch
+from kisscal.tracking.labelling.window import WindowMatch, shorter_windows
 from tests.tracking._data import NAMES, gait_truth
 from tests.tracking.test_labelling_phases import _pieces, _state
 
@@ -66,3 +66,14 @@ def test_a_window_naming_more_must_agree_with_the_names_kept():
     wrong[legs] = owner[legs[[1, 0, 3, 2]]]  # the legs' names exchanged
     assert better(state, kept, WindowMatch(more, owner.copy(), 50.0, rich))
     assert not better(state, kept, WindowMatch(more, wrong, 50.0, rich))
+
+
+def test_every_window_tied_for_most_whole_pieces_is_offered():
+    # Each marker cut in two halves: windows of half the trial over either half hold every
+    # piece whole. kiss 3 seed 361 had five such windows; only the latest was tried, and it
+    # named the body turned round (8 of 8 names wrong), the other four facing forward.
+    truth = gait_truth(200, 0)
+    tracks, _ = _pieces(truth, cuts={m: (100,) for m in range(truth.shape[0])})
+    offered = shorter_windows(_state(tracks))
+    assert {c for c, n in offered if n == 100} >= {50, 150}
+    assert offered[0] == (150, 100)  # the latest first, as before

@@ -424,8 +424,10 @@ def first_pose(state: LabelState) -> tuple[NDArray, NDArray]:
 
 def shorter_windows(state: LabelState) -> list[tuple[int, int]]:
     """(centre, length) per window length, halving from ``label_window_fields`` down to
-    twice ``label_fields``: the window of that length holding most core pieces (long
-    pieces seen whole, :func:`core_pieces`), when it holds more than the longest window."""
+    twice ``label_fields``: the windows of that length holding most core pieces (long
+    pieces seen whole, :func:`core_pieces`), when more than the longest window; of
+    equals the latest first. (Every one: kiss 3 seed 361's latest of five named the body
+    turned round, the four others facing forward and right.)"""
     params = state.params
 
     def n_core(centre: int, length: int) -> int:
@@ -439,8 +441,9 @@ def shorter_windows(state: LabelState) -> list[tuple[int, int]]:
     while length >= max(2 * params.label_fields, 3):
         centres = range(length // 2, state.n_fields - length // 2 + 1, max(length // 4, 1))
         counts = [(n_core(c, length), c) for c in centres]
-        if counts and max(counts)[0] > most:
-            out.append((max(counts)[1], length))
+        top = max(counts)[0] if counts else 0
+        if top > most:
+            out += [(c, length) for n, c in sorted(counts, reverse=True) if n == top]
         length //= 2
     return out
 
