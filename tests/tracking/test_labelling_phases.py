@@ -9,7 +9,7 @@ from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.groups import name_group, unnamed_groups
 from kisscal.tracking.labelling.learned import name_from_trial
 from kisscal.tracking.labelling.result import join
-from kisscal.tracking.labelling.spread import by_body_fit, rematch, spread
+from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState, segment_mask
 from kisscal.tracking.labelling.window import core_pieces, match_first_window
 from kisscal.tracking.tracks import make_tracks
@@ -341,20 +341,3 @@ def test_a_pair_across_a_pausing_joint_is_not_rigid_when_its_mirror_pair_moves()
     rigid = state.rigid_pairs()
     assert not rigid[i["RTHI"], i["RTIB"]]  # across the knee: the left one bends meanwhile
     assert rigid[i["RKNE"], i["RANK"]] and rigid[i["LKNE"], i["LANK"]]  # the shanks
-
-
-def test_a_lone_pelvis_marker_takes_its_own_name_from_the_legs():
-    """Lowcost seed 315: the whole pelvis unseen, a right ASIS piece took the sacrum's
-    name by the body fit (the walking legs fitted the standing template with a
-    rotation 115-180 mm off, so the expected positions turned), the real sacrum then
-    the left ASIS's, and the left ASIS lost its name (31 switches). Turned by the
-    rotation of each name's own neighbours, each pelvis marker takes its own name."""
-    truth = gait_truth(60, 0)
-    legs = np.full_like(truth, np.nan)
-    legs[3:] = truth[3:]  # thighs, shanks and feet named; the pelvis names free
-    pelvis = np.arange(3)
-    for lo in range(0, 50, 5):
-        fields = np.arange(lo, lo + 10)
-        got = [by_body_fit(fields, truth[m, fields], pelvis, legs, template(30.0), PARAMS)
-               for m in pelvis]  # fmt: skip
-        assert got == pelvis.tolist(), lo

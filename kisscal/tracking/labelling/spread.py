@@ -79,57 +79,27 @@ def by_segments(
 def body_fit_distances(
     piece_fields: NDArray, piece_xyz: NDArray, free: NDArray, name_pos: NDArray, template: NDArray
 ) -> NDArray[np.float64]:
-    """Distance of the piece from where each free name is expected, at up to 9 fields:
-    (2, rows, J), the body's turn taken from every named marker (0) and from the name's
-    neighbours alone (1); NaN in fields where fewer than three names are held.
+    """Distance of the piece from where each free name is expected, at up to 9 fields
+    (rows; NaN where fewer than three names are held).
 
-    Name j is expected where its four template-nearest named neighbours put it (local,
-    so that bent joints far away do not matter): their centroid plus j's template offset
-    from theirs, turned by a proper rotation (Kabsch 1976) fitted to all named markers,
-    or to those four.
+    The body's orientation R comes from a rigid fit of every named marker to the
+    template; name j is expected at P_k + R^T (T_j - T_k) from each of its four
+    template-nearest named neighbours k (local, so that bent joints far away do not
+    matter).
     """
     pick = np.linspace(0, piece_fields.size - 1, min(9, piece_fields.size)).round().astype(int)
-    dist = np.full((2, pick.size, free.size), np.nan)
+    dist = np.full((pick.size, free.size), np.nan)
     for i, row in enumerate(pick):
         f = piece_fields[row]
         held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
         if held.size < 3:
             continue
+        r, _ = kabsch(name_pos[held, f], template[held])
         gap = np.linalg.norm(template[free][:, None] - template[held][None], axis=2)
         near = held[np.argsort(gap, axis=1)[:, :4]]  # (J, 4) nearest named neighbours
-        src, dst = template[near], name_pos[near, f]  # (J, 4, 3) each
-        c_src, c_dst = src.mean(axis=1), dst.mean(axis=1)
-        whole, _ = kabsch(name_pos[held, f], template[held])
-        # Per name, the rotation m = U V^T (SVD of src^T dst) taking template offsets
-        # (rows) onto the lab's, its last axis flipped where it would reflect.
-        h = np.transpose(src - c_src[:, None], (0, 2, 1)) @ (dst - c_dst[:, None])
-        u, _, vt = np.linalg.svd(h)
-        flip = np.ones((free.size, 3))
-        flip[:, 2] = np.where(np.linalg.det(u @ vt) < 0, -1.0, 1.0)
-        turns = np.stack([np.broadcast_to(whole, u.shape), (u * flip[:, None, :]) @ vt])
-        expect = c_dst + ((template[free] - c_src)[:, None, :] @ turns)[:, :, 0]  # (2, J, 3)
-        dist[:, i] = np.linalg.norm(piece_xyz[row] - expect, axis=2)
+        expect = name_pos[near, f] + (template[free][:, None, :] - template[near]) @ r
+        dist[i] = np.linalg.norm(piece_xyz[row] - expect.mean(axis=1), axis=1)
     return dist
-
-
-def _clear_name(score: NDArray, free: NDArray, tolerance: float, prefer: NDArray | None) -> int:
-    """The free name :func:`by_body_fit` takes by median distances ``score`` (J,)."""
-    order = np.argsort(score)
-    best = score[order[0]]
-    second = score[order[1]] if order.size > 1 else np.inf
-    if best <= tolerance and second >= 1.5 * best:
-        return int(free[order[0]])
-    if free.size == 1 and best <= 2.0 * tolerance:
-        # The only name the rigid partners leave: the body fit need only roughly agree
-        # (the other side's marker of the pair would lie farther still).
-        return int(free[0])
-    if prefer is not None and prefer.size == 1:
-        # The one name a rigid partner confirms wins unless the body clearly disagrees.
-        k = int(np.flatnonzero(free == prefer[0])[0])
-        others = np.delete(score, k)
-        if score[k] <= tolerance and not (others < score[k] / 1.5).any():
-            return int(prefer[0])
-    return -1
 
 
 def by_body_fit(
@@ -147,27 +117,32 @@ def by_body_fit(
     The median distance over the fields (:func:`body_fit_distances`) decides; the best
     must be within ``label_tolerance_mm`` and the runner-up at least 1.5 times farther.
     A single name in ``prefer`` (confirmed by one rigid partner) is taken when within
-    ``label_tolerance_mm`` and no other is 1.5 times closer. The name must come first by
-    the neighbours' own turn, and be clear by it or by the whole body's: the whole
-    body's turn, fitted to a walking pose (the standing template off by 100-180 mm),
-    puts a lone pelvis marker nearer another pelvis name than its own (lowcost seed
-    315: the right ASIS named the sacrum); the neighbours' turn, from two legs out of
-    step, can leave a shank's own name clearly first but outside the tolerance.
+    ``label_tolerance_mm`` and no other is 1.5 times closer.
     """
     dist = body_fit_distances(piece_fields, piece_xyz, free, name_pos, template)
     # A row is NaN throughout or nowhere: the median of the rows with distances is the
     # NaN-aware median, without np.nanmedian's masked arrays (slow on small ones).
-    fitted = ~np.isnan(dist[0, :, 0])
+    fitted = ~np.isnan(dist[:, 0])
     if not fitted.any():
         return -1
-    whole, own = np.median(dist[:, fitted], axis=1)
+    score = np.median(dist[fitted], axis=0)
+    order = np.argsort(score)
+    best = score[order[0]]
+    second = score[order[1]] if order.size > 1 else np.inf
     tolerance = params.label_tolerance_mm
-    j = _clear_name(own, free, tolerance, prefer)
-    top = np.sort(own)
-    clear = top.size == 1 or top[1] >= 1.5 * top[0]
-    if j < 0 and clear and _clear_name(whole, free, tolerance, prefer) == free[np.argmin(own)]:
-        j = int(free[np.argmin(own)])
-    return j
+    if best <= tolerance and second >= 1.5 * best:
+        return int(free[order[0]])
+    if free.size == 1 and best <= 2.0 * tolerance:
+        # The only name the rigid partners leave: the body fit need only roughly agree
+        # (the other side's marker of the pair would lie farther still).
+        return int(free[0])
+    if prefer is not None and prefer.size == 1:
+        # The one name a rigid partner confirms wins unless the body clearly disagrees.
+        k = int(np.flatnonzero(free == prefer[0])[0])
+        others = np.delete(score, k)
+        if score[k] <= tolerance and not (others < score[k] / 1.5).any():
+            return int(prefer[0])
+    return -1
 
 
 def continues(track_pos: NDArray, fields: NDArray, xyz: NDArray, params: TrackingParams) -> bool:
