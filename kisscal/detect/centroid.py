@@ -28,14 +28,13 @@ Background = float | NDArray[np.floating]
 
 @dataclass(frozen=True)
 class SpotMoments:
-    """Weighted moments of each group's window: total weight, centroid, central moments.
+    """Weighted moments of each group's window: centroid and central moments.
 
     ``core_var_x`` / ``core_var_y`` are the central moments over the group's own white
     pixels only (same weights): insensitive to the background level and to noise in the
     window's wide margin, which dominate the full-window second moments of small spots.
     """
 
-    total: NDArray[np.float64]
     x: NDArray[np.float64]
     y: NDArray[np.float64]
     var_x: NDArray[np.float64]
@@ -178,7 +177,7 @@ def binary_moments(runs: Runs, table: GroupTable) -> SpotMoments:
     var_y = np.bincount(row, n * y * y, size) / total - my * my
     cov = np.bincount(row, sx * y, size) / total - mx * my
     x, y0 = table.x1 + mx, table.y1 + my
-    return SpotMoments(total, x, y0, var_x, var_y, cov, var_x, var_y, cov)
+    return SpotMoments(x, y0, var_x, var_y, cov, var_x, var_y, cov)
 
 
 #: Most window pixels whose moment terms are held at once (about 100 bytes each): larger
@@ -378,7 +377,6 @@ def _moments_from_sums(
     # window, else the binary centroid stands
     ok = positive[0] & (np.minimum(mx, my) >= 0) & (mx <= ncol - 1) & (my <= nrow - 1)
     return SpotMoments(
-        total=total[0],
         x=np.where(ok, x0 + mx, table.x_binary),
         y=np.where(ok, y0 + my, table.y_binary),
         var_x=central[0, 0],

@@ -39,10 +39,6 @@ class Frames:
         """The frame of each group of ``table``."""
         return self.label_frame[grouping.parent[table.label]]
 
-    def shift(self, grouping: Grouping, table: GroupTable) -> NDArray[np.int64]:
-        """The first stacked row of each group's frame."""
-        return self.of(grouping, table) * self.stride
-
 
 def unstack(grouping: Grouping, stride: int, height: int, count: int) -> tuple[Grouping, Frames]:
     """The groups of ``count`` frames stacked every ``stride`` rows, their runs and split
