@@ -60,7 +60,7 @@ def _radial(
     return radial, d_radial
 
 
-def distort(lens: ArrayLike, xn: ArrayLike, dlt_form: bool = False) -> NDArray[np.float64]:
+def distort(lens: ArrayLike, xn: ArrayLike) -> NDArray[np.float64]:
     """Brown's distortion of normalised coordinates, OpenCV's convention.
 
     Parameters
@@ -70,9 +70,6 @@ def distort(lens: ArrayLike, xn: ArrayLike, dlt_form: bool = False) -> NDArray[n
         (``k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4]]]``).
     xn : array_like, shape (..., 2)
         Undistorted normalised coordinates.
-    dlt_form : bool
-        The DLT literature's form (Kolahi et al. 2007, eq. 2): the displacement alone
-        (``ρ - 1`` for ``ρ``) and ``p1 x y``, ``p2 x y`` for ``2 p1 x y``, ``2 p2 x y``.
 
     Returns
     -------
@@ -82,7 +79,7 @@ def distort(lens: ArrayLike, xn: ArrayLike, dlt_form: bool = False) -> NDArray[n
         ``ρ = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)``.
     """
     xn = np.asarray(xn, dtype=float)
-    return np.stack(distort_xy(lens, xn[..., 0], xn[..., 1], dlt_form), axis=-1)
+    return np.stack(distort_xy(lens, xn[..., 0], xn[..., 1]), axis=-1)
 
 
 def distort_xy(
@@ -90,7 +87,9 @@ def distort_xy(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`distort` of coordinates given as ``x`` and ``y`` apart, returned apart: the
     same numbers without stacking them (the DLT's lens terms, evaluated thousands of
-    times a fit on a few dozen points, :func:`kisscal.dlt.nonlinear.lens_offsets`)."""
+    times a fit on a few dozen points, :func:`kisscal.dlt.nonlinear.lens_offsets`).
+    ``dlt_form`` gives the DLT literature's form (Kolahi et al. 2007, eq. 2): the displacement
+    alone (``ρ - 1`` for ``ρ``) and ``p1 x y``, ``p2 x y`` for ``2 p1 x y``, ``2 p2 x y``."""
     terms = _terms(lens)
     p1, p2, s1, s2, s3, s4 = terms[2], terms[3], *terms[8:]
     rational = np.shape(lens)[-1] > 5  # the rational model and the thin prism
