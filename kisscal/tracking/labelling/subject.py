@@ -16,7 +16,9 @@ shorter, places markers a little differently, and walks. So:
    little as possible so that every pair the first pass found rigid (and the set's
    segments) has its measured length; left/right are settled by the anatomy first;
 4. **second pass**: from the first pass' names of the long pieces, the phases spread
-   names again with the subject's template and the set's segments; the result is
+   names again with the subject's template and the set's segments, and a piece rigid
+   with a segment whose other name the trial never showed takes that name
+   (:func:`~kisscal.tracking.labelling.unseen.name_by_segment`); the result is
    judged by the anatomy (:func:`~kisscal.tracking.labelling.sides.judge_sides`), and
    its doubted names given again where a free name fits better
    (:func:`~kisscal.tracking.labelling.regive.regive_doubted`); a part's names that the
@@ -53,6 +55,7 @@ from kisscal.tracking.labelling.state import (
     LabelState,
     segment_mask,
 )
+from kisscal.tracking.labelling.unseen import name_by_segment
 from kisscal.tracking.labelling.upright import capped_assignment, fit_pose, floor_lift
 from kisscal.tracking.labelling.vertical import turned, upright_rotation
 from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
@@ -317,6 +320,8 @@ def _label_upright(
     template = fit_template(first.name_pos, scaled, segment_mask(names, segments))
     second = _second_pass(first, template, segments, params)
     settle_feet(second, scaled)
+    if name_by_segment(second):  # the feet settled: their markers' segments hold
+        spread(second)
     found = replace(join(second), height_mm=height)
 
     def judge(labelling: Labelling) -> Labelling:

@@ -20,11 +20,14 @@ and is reported (``M<k>``).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.learned import trial_scores
-from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.learned import LONG_PIECE, trial_scores
+from kisscal.tracking.labelling.spread import body_fit_distances
+from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM, LabelState
 
 #: Floor (mm) of a template distance's spread: the piece's own noise and the subject's
 #: build against the template's.
@@ -41,6 +44,12 @@ MAX_FIT = 2.0
 #: distances to the near markers only, so :data:`~.learned.MARGIN` (3) is out of reach
 #: for it with spreads this wide.
 MARGIN = 1.5
+#: A piece rigid with a segment takes its name when the body fit puts the name within
+#: this many ``label_tolerance_mm`` of it, and every other free name this many times
+#: farther (:func:`name_by_segment`), as spreading's body fit asks of the one name a
+#: piece's rigid partners leave (:func:`~.spread.by_body_fit`).
+SEGMENT_REACH = 2.0
+SEGMENT_MARGIN = 1.5
 
 
 def template_scores(state: LabelState, t: int) -> NDArray[np.float64]:
@@ -72,5 +81,65 @@ def name_unseen(state: LabelState) -> bool:
         best, second = score[order[0]], score[order[1]]
         if unseen[order[0]] and best <= MAX_FIT and second - best >= MARGIN:
             state.name_piece(t, int(order[0]))
+            named = True
+    return named
+
+
+def segment_claims(state: LabelState) -> dict[int, list[int]]:
+    """Per name never held, the unnamed pieces that claim it: a piece of at least
+    :data:`~.learned.LONG_PIECE` times ``min_track_length`` measured samples keeps its
+    distance (SD under the rigid spread) to a named marker through half of its fields
+    and :data:`~.state.MIN_SHARED_FIELDS` at least (a few fields beside any marker look
+    rigid), and of the names of the set's segments that such markers hold, exactly one
+    is never held."""
+    unseen = ~np.isfinite(state.name_pos[..., 0]).any(axis=1)
+    long = state.n_measured >= LONG_PIECE * state.params.min_track_length
+    waiting = np.flatnonzero((state.label_of < 0) & long)
+    claims: dict[int, list[int]] = {}
+    if state.given_rigid is None or not unseen.any():
+        return claims
+    for t in waiting.tolist():
+        fields, xyz = state.piece(t)
+        d = np.linalg.norm(state.name_pos[:, fields] - xyz[None], axis=2)  # (n, F)
+        shared = np.isfinite(d).sum(axis=1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # names never seen with it
+            rigid = (np.nanstd(d, axis=1) < RIGID_SPREAD_MM) & (
+                shared >= max(MIN_SHARED_FIELDS, fields.size / 2)
+            )
+        names = np.flatnonzero(state.given_rigid[rigid].any(axis=0) & unseen)
+        if names.size == 1:
+            claims.setdefault(int(names[0]), []).append(t)
+    return claims
+
+
+def name_by_segment(state: LabelState) -> bool:
+    """Pieces rigid with a segment whose other name the trial never showed take it (see
+    module): one piece claims it (:func:`segment_claims`), and the body fit
+    (:func:`~.spread.body_fit_distances`, median) puts it within :data:`SEGMENT_REACH`
+    label tolerances and every other free name :data:`SEGMENT_MARGIN` times farther: the
+    marker sits off the template's place, but the other side's name or another limb's
+    lies farther still. Returns whether any piece was named.
+
+    References
+    ----------
+    Shafiq et al. 2001 (rigid segment lengths as a check on a marker's identity).
+    """
+    named = False
+    tolerance = state.params.label_tolerance_mm
+    for j, pieces in segment_claims(state).items():
+        if len(pieces) != 1:
+            continue  # two markers rigid with the segment: another set's beside it
+        fields, xyz = state.piece(pieces[0])
+        free = np.flatnonzero(~np.isfinite(state.name_pos[:, fields, 0]).any(axis=1))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # fields without 3 names
+            dist = np.nanmedian(
+                body_fit_distances(fields, xyz, free, state.name_pos, state.template), axis=0
+            )
+        own = dist[free == j][0]
+        others = dist[free != j]
+        if own <= SEGMENT_REACH * tolerance and not (others < SEGMENT_MARGIN * own).any():
+            state.name_piece(pieces[0], j)
             named = True
     return named
