@@ -34,7 +34,8 @@ def label_tracks(
     through rigid partners; match again the windows where unnamed long pieces remain;
     name groups of pieces that entered the view together; name long pieces left without a
     partner by the distances the trial showed, and pieces of names the trial never
-    showed by the template's; give each foot's names the way the
+    showed by the template's; name a long piece that two names' rigid partners allow
+    alike by the trajectory it continues; give each foot's names the way the
     distances to the shank and the walk find far better
     (:func:`~kisscal.tracking.labelling.feet.settle_feet`); join pieces sharing a name.
 
@@ -101,6 +102,7 @@ def name_pieces(state: LabelState) -> bool:
         spread(state)
     if name_unseen(state):
         spread(state)
+    spread(state, continuity=True)
     # A first window can name an ASIS and the sacrum the other way round (pelvis.py).
     settle_pelvis_pieces(state, walking_direction(state.name_pos))
     return True

@@ -43,6 +43,28 @@ MAX_REACH_MM = 150.0
 SAME_MARKER_MM = 20.0
 
 
+def reaches(
+    track: NDArray, partners: NDArray, x: int, y: int, at_y: NDArray, still: bool = False
+) -> bool:
+    """Whether a piece at ``at_y`` in field ``y`` continues ``track`` (F, 3), whose
+    nearest sample is in field ``x``: within :data:`REACH_MM_PER_FIELD` per field crossed
+    (:data:`MAX_REACH_MM` at most) of that sample moved as a segment partner
+    (``partners``, (k, F, 3)) moved from ``x`` to ``y``, or at the track's own velocity
+    beside ``x``, or (with ``still``, or when no partner is seen at both) standing still:
+    a partner that moved says the segment did."""
+    n, back = abs(y - x), (-1 if y > x else 1)
+    # the step, less the partners' own or the trajectory's own motion at the gap (a
+    # foot in swing moves fast, its marker with it)
+    own = partners[:, y] - partners[:, x]
+    own = own[np.all(np.isfinite(own), axis=1)]
+    motion = np.r_[own, np.zeros((int(still or own.size == 0), 3))]
+    if 0 <= x + back < track.shape[0]:
+        motion = np.r_[motion, (track[x] - track[x + back])[None] * n]
+    motion = motion[np.all(np.isfinite(motion), axis=1)]
+    step = np.linalg.norm(at_y - track[x] - motion, axis=1)
+    return bool(step.min() <= min(REACH_MM_PER_FIELD * n, MAX_REACH_MM))
+
+
 def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     """Whether piece ``u`` fills a gap of track ``t`` (see module)."""
     mine, piece = np.isfinite(dense[t, :, 0]), np.flatnonzero(np.isfinite(dense[u, :, 0]))
@@ -53,16 +75,8 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     after = b + 1 + np.flatnonzero(mine[b + 1 :])[0]
     partners, _ = length_partners(dense, t, params)
     partners = partners[partners != u]
-    for x, y, n, back in ((before, a, a - before, -1), (after, b, after - b, 1)):
-        # the step, less the partners' own or the trajectory's own motion at the gap (a
-        # foot in swing moves fast, its marker with it)
-        own = dense[partners, y] - dense[partners, x]
-        motion = np.r_[own, np.zeros((1, 3))]
-        if 0 <= x + back < dense.shape[1]:
-            motion = np.r_[motion, (dense[t, x] - dense[t, x + back])[None] * n]
-        motion = motion[np.all(np.isfinite(motion), axis=1)]
-        step = np.linalg.norm(dense[u, y] - dense[t, x] - motion, axis=1)
-        if step.min() > min(REACH_MM_PER_FIELD * n, MAX_REACH_MM):
+    for x, y in ((before, a), (after, b)):
+        if not reaches(dense[t], dense[partners], x, y, dense[u, y], still=True):
             return False
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
     length = np.nanmedian(np.where(np.isfinite(own), own, np.nan), axis=1)

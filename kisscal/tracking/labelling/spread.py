@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.blending import bridge_residual_mm
+from kisscal.tracking.labelling.pieces import reaches
 from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.labelling.window import match_window
 from kisscal.tracking.params import TrackingParams
@@ -187,9 +188,35 @@ def _partner_rms(
     return out
 
 
-def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
+def by_continuity(
+    state: LabelState, fields: NDArray, xyz: NDArray, names: NDArray, rigid: NDArray
+) -> int:
+    """The one of ``names`` (each confirmed by one rigid partner) whose trajectory the
+    piece continues where it ends and begins (:func:`~.pieces.reaches`), if the body fit
+    too puts the piece nearest that name's expected place; -1 otherwise. An ASIS and
+    the sacrum of a pelvis whose sides are alike, once the other ASIS is out of view,
+    are told apart by where each was last seen."""
+    pos = state.name_pos
+    ok = []
+    for j in names.tolist():
+        seen = np.flatnonzero(np.isfinite(pos[j, :, 0]))
+        before, after = seen[seen < fields[0]], seen[seen > fields[-1]]
+        ends = [(x, k) for near, k in ((before[-1:], 0), (after[:1], -1)) for x in near.tolist()]
+        if ends and all(reaches(pos[j], pos[rigid[j]], x, fields[k], xyz[k]) for x, k in ends):
+            ok.append(j)
+    if len(ok) != 1:
+        return -1
+    dist = body_fit_distances(fields, xyz, names, pos, state.template)
+    fitted = ~np.isnan(dist[:, 0])
+    if not fitted.any():
+        return -1
+    return ok[0] if names[np.argmin(np.median(dist[fitted], axis=0))] == ok[0] else -1
+
+
+def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool = False) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
-    the body fit; a short piece must also continue its name's trajectory."""
+    the body fit (with ``continuity``, then by :func:`by_continuity`); a short piece must
+    also continue its name's trajectory."""
     params = state.params
     f_t, xyz_t = state.piece(t)
     free = np.flatnonzero(~np.isfinite(state.name_pos[:, f_t, 0]).any(axis=1))
@@ -218,6 +245,8 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray) -> int:
             rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
             if one_partner[np.argmin(rms)] != j:
                 j = -1
+    if continuity and j < 0 and one_partner.size >= 2 and long:
+        j = by_continuity(state, f_t, xyz_t, one_partner, rigid)
     # A short piece next to its name's trajectory must continue it: a ghost by a marker
     # that just went out of sight need not.
     if j >= 0 and not long and not continues(state.name_pos[j], f_t, xyz_t, params):
@@ -277,7 +306,7 @@ def _hopeless(state: LabelState, pieces: NDArray, rigid: NDArray) -> NDArray[np.
     return ~could_pin.any(axis=0)
 
 
-def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int) -> bool:
+def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int, continuity: bool) -> bool:
     """One pass of :func:`spread` over the unnamed pieces, longest first; whether it
     named any."""
     params = state.params
@@ -303,7 +332,7 @@ def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int) -> boo
             continue  # nothing new around this piece since it was last tried
         if hopeless[i] and not touched[f_t].any():
             continue
-        j = name_for_piece(state, t, rigid)
+        j = name_for_piece(state, t, rigid, continuity)
         if j >= 0:
             state.name_piece(t, j)
             stamp[f_t] = sweep
@@ -312,14 +341,16 @@ def _sweep(state: LabelState, rigid: NDArray, stamp: NDArray, sweep: int) -> boo
     return changed
 
 
-def spread(state: LabelState) -> None:
+def spread(state: LabelState, continuity: bool = False) -> None:
     """Phase 2: other pieces, longest first, take names by their rigid partners, in
     sweeps until a sweep names nothing; a sweep retries only pieces near fields where
-    the previous one named something."""
+    the previous one named something. With ``continuity`` (last, once every other phase
+    has named what it could), a long piece that two names' partners allow alike may
+    take the one whose trajectory it continues (:func:`by_continuity`)."""
     rigid = state.rigid_pairs()
     stamp = np.zeros(state.n_fields, dtype=np.int64)  # last pass that named something there
     for sweep in range(1, MAX_SWEEPS + 1):
-        if not _sweep(state, rigid, stamp, sweep):
+        if not _sweep(state, rigid, stamp, sweep, continuity):
             break
         # Newly named pieces may show more rigid pairs (a name absent from the average
         # pose had none yet).
