@@ -359,6 +359,7 @@ def chain_end_fill(
     end: int,
     errors: NDArray | None = None,
     absent: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> ChainFill | None:
     """The end [lo, hi) of track ``t`` (``end`` as :func:`rays_end_fill`) that one
     camera still sees: the marker's blobs placed on their rays by its segment's lengths
@@ -367,10 +368,11 @@ def chain_end_fill(
     where two or more partners are seen (their lengths over-determine the depth along
     the ray, and disagree on a wrong blob), and only the run next to the measured side
     (nothing checks a path that does not start at the sample it continues). None when
-    nothing is placed, or without ``spare``. ``errors``, ``absent``: as the chain fill's."""
+    nothing is placed, or without ``spare``. ``errors``, ``absent``, ``mirror``: as the
+    chain fill's."""
     if spare is None:
         return None
-    got = chain_fill(dense, t, lo, hi, spare, params, end, errors, absent)
+    got = chain_fill(dense, t, lo, hi, spare, params, end, errors, absent, mirror)
     if absent is not None and len(absent):
         dense = np.concatenate([dense, absent])
     if got is None:

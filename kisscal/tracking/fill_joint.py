@@ -61,15 +61,12 @@ class _Group:
     sd: NDArray[np.float64]  # (m, m), inf where the pair is not rigid
 
 
-def _group(dense: NDArray, t: int, params: TrackingParams) -> _Group | None:
-    """Track ``t`` and the tracks whose distances to it keep within ``rigid_fill_sd_mm``
-    SD over the trial, measured together in at least ``body_context_fields`` fields."""
-    seen = np.isfinite(dense[:, :, 0])
-    together = (seen & seen[t]).sum(axis=1)
-    cand = np.flatnonzero(together >= max(params.body_context_fields, 4))
-    cand = cand[cand != t]
-    sd_t = distance_sd(dense[cand], dense[t][None])[:, 0]
-    members = np.r_[t, cand[sd_t <= params.rigid_fill_sd_mm]].astype(np.int64)
+def _group(
+    dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
+) -> _Group | None:
+    """Track ``t`` and its length partners (:func:`~.raychain.length_partners`, with
+    ``mirror``)."""
+    members = np.r_[t, length_partners(dense, t, params, mirror)[0]].astype(np.int64)
     if members.size < 3:
         return None
     sd = distance_sd(dense[members], dense[members])
@@ -84,7 +81,13 @@ def _group(dense: NDArray, t: int, params: TrackingParams) -> _Group | None:
 
 
 def _member_rays(
-    dense: NDArray, u: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
+    dense: NDArray,
+    u: int,
+    lo: int,
+    hi: int,
+    spare: SpareBlobs,
+    params: TrackingParams,
+    mirror: NDArray | None = None,
 ) -> NDArray[np.int64]:
     """Spare row of track ``u``'s own blob per camera and field of [lo, hi), shape
     (n_cameras, hi - lo) (-1 where none, or where ``u`` is measured), followed in the
@@ -93,7 +96,7 @@ def _member_rays(
     out = np.full((len(spare.dlts), hi - lo), -1, dtype=np.int64)
     series = dense[u]
     a_runs, b_runs = true_runs(~np.isfinite(series[:, 0]))
-    partners = length_partners(dense, u, params)[0]
+    partners = length_partners(dense, u, params, mirror)[0]
     for a, b in zip(a_runs.tolist(), b_runs.tolist(), strict=True):
         if b <= lo or a >= hi or (a == 0 and b == len(series)):
             continue
@@ -251,6 +254,7 @@ def joint_walks(
     spare: SpareBlobs,
     params: TrackingParams,
     absent: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> tuple[_Group, NDArray, NDArray, NDArray, NDArray, NDArray] | None:
     """The two walks of :func:`joint_ray_fill` over the gap [lo, hi) of track ``t``: its
     segment, the members' spare rows per field (m, hi - lo), and each walk's target
@@ -258,16 +262,17 @@ def joint_walks(
     when the gap has no sides, the segment too few tracks, or the target no ray. The
     segment's members are tracks (rows of ``dense``) and markers no track took (rows of
     ``absent``, numbered on after the tracks:
-    :func:`~kisscal.tracking.fill_absent.absent_rows`)."""
+    :func:`~kisscal.tracking.fill_absent.absent_rows`); ``mirror``: each row's mirror
+    image's row (:func:`~.raychain.length_partners`)."""
     if absent is not None:
         dense = np.concatenate([dense, absent])
     if lo < 2 or hi + 1 >= dense.shape[1] or not np.all(np.isfinite(dense[t, [lo - 1, hi]])):
         return None
-    grp = _group(dense, t, params)
+    grp = _group(dense, t, params, mirror)
     if grp is None:
         return None
     rays = _pick_rays(
-        np.stack([_member_rays(dense, int(u), lo, hi, spare, params) for u in grp.members])
+        np.stack([_member_rays(dense, int(u), lo, hi, spare, params, mirror) for u in grp.members])
     )
     if not np.any(rays[0] >= 0):
         return None
@@ -284,12 +289,13 @@ def joint_ray_fill(
     spare: SpareBlobs,
     params: TrackingParams,
     absent: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` on its own blob's rays together
     with the other markers of its segment on theirs (see module), tracks and ``absent``
-    ones (:func:`joint_walks`); None when no field could be placed. The blobs taken are
-    not marked used here."""
-    walks = joint_walks(dense, t, lo, hi, spare, params, absent)
+    ones, partners by ``mirror`` too (:func:`joint_walks`); None when no field could be
+    placed. The blobs taken are not marked used here."""
+    walks = joint_walks(dense, t, lo, hi, spare, params, absent, mirror)
     if walks is None:
         return None
     grp, rays, fwd, e_f, bwd, e_b = walks

@@ -88,16 +88,17 @@ def joint_depth_fill(
     params: TrackingParams,
     measured: NDArray | None = None,
     absent: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` on the rays of its own blobs in
     the camera that sees most of the gap, at the depth fitted to its samples on each
     side and the joint fill's solutions (see module); None when no run of
     :data:`~kisscal.tracking.raychain.MIN_RUN` fields is placed or no solution was
     used. With ``measured`` ((n_fields,) bool), the ends of the fit are only those
-    samples of the track; ``absent``: rows of markers no track took
+    samples of the track; ``absent``, ``mirror``: rows of markers no track took
     (:func:`~kisscal.tracking.fill_joint.joint_walks`). The blobs taken are not marked
     used here."""
-    walks = joint_walks(dense, t, lo, hi, spare, params, absent)
+    walks = joint_walks(dense, t, lo, hi, spare, params, absent, mirror)
     if walks is None:
         return None
     grp, rays, fwd, e_f, bwd, e_b = walks

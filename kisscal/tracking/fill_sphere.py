@@ -235,9 +235,11 @@ def _gap_data(
     # thigh's hip where the ray runs square to the thigh's two markers
     joints = joint_centres(dense, t, params, mirror)
     tracks = [(int(u),) for u in range(len(dense))] + list(joints.clusters)
-    dense = np.concatenate([dense, joints.xyz_mm])
     if mirror is not None:  # a centre has no mirror track
-        mirror = np.r_[mirror, np.full(len(joints.clusters), -1)]
+        mirror = np.r_[
+            np.where(mirror < len(dense), mirror, -1)[: len(dense)], [-1] * len(joints.clusters)
+        ]
+    dense = np.concatenate([dense, joints.xyz_mm])
     partners, psd = length_partners(dense, t, params, mirror)
     # rigid over most of the marker's motion, not over a phase a joint held still in
     together = (np.isfinite(dense[partners, :, 0]) & mine).sum(axis=1)

@@ -100,12 +100,13 @@ def unmerged_depth_fill(
     measured: NDArray | None = None,
     known: NDArray | None = None,
     expected: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> ChainFill | None:
     """Place fields of the gap [lo, hi) of track ``t`` of ``dense`` on the rays of its
     blobs merged with a known neighbour's image, that share taken out, together with its
     blobs no other image is near (:func:`~kisscal.tracking.fill_sphere.alone_blobs`), at
     the depth :func:`~kisscal.tracking.fill_sphere.sphere_depth_fill` fits (``measured``
-    and ``known`` as there); a field expects that depth's SD and the lateral error of
+    ``known`` and ``mirror`` as there); a field expects that depth's SD and the lateral error of
     its ray (see module). None without ``spare`` or ``expected`` ((n_tracks, n_fields), the error of
     each track's known samples, NaN where not known), or when no merged blob's field is
     placed."""
@@ -123,7 +124,9 @@ def unmerged_depth_fill(
     shifted = spare.uv_px.copy()
     shifted[rows] = uv
     moved = dataclasses.replace(spare, uv_px=shifted)
-    got = sphere_depth_fill(dense, t, lo, hi, moved, params, measured, known, blobs=blobs)
+    got = sphere_depth_fill(
+        dense, t, lo, hi, moved, params, measured, known, mirror=mirror, blobs=blobs
+    )
     if got is None:
         return None
     # the lateral error where the ray is an unmerged blob's (the fit keeps one camera)

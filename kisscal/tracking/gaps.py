@@ -33,7 +33,7 @@ from kisscal.tracking.fill_held import held_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
-from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
+from kisscal.tracking.fill_place import mirror_checked, placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, spline_fill
 from kisscal.tracking.fill_table import Fill
@@ -142,7 +142,8 @@ def _body(
     rays = spare is not None and spare.rows(a, b).size > 0
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
-    cands = fill_candidates(gap.dense, gap.t, a, b, params, methods, centres)
+    body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
+    cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
     # does not join, it may bridge to another marker's
@@ -186,7 +187,8 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
         lo, hi = (b - n, b - done) if after else (a + done, a + n)
         rays = gap.spare is not None and gap.spare.rows(lo, hi).size > 0
         centres = gap.spare.centres if rays else None
-        cands = fill_candidates(gap.dense, gap.t, lo, hi, params, methods, centres)
+        body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
+        cands = fill_candidates(body, gap.t, lo, hi, params, methods, centres)
         chosen = best_candidate(cands, params)
         if chosen is None:
             break
@@ -224,8 +226,10 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
 #: is placed only at its track's end).
 FILLS: tuple[Fill, ...] = (
-    Fill("chain", _ray_placer(chain_fill, "end", "errors", "absent"), sweep=True, rays=True),
-    Fill("joint", _ray_placer(joint_ray_fill, "absent"), sweep=True, rays=True),
+    Fill(
+        "chain", _ray_placer(chain_fill, "end", "errors", "absent", "mirror"), sweep=True, rays=True
+    ),
+    Fill("joint", _ray_placer(joint_ray_fill, "absent", "mirror"), sweep=True, rays=True),
     Fill("body", _body, strict="swept"),
     Fill("body where donors hold", held_body, long_run=True, strict="swept"),
     Fill("depth", _ray_placer(depth_ray_fill, "measured"), rays=True, long_run=True),
@@ -239,7 +243,7 @@ FILLS: tuple[Fill, ...] = (
     Fill("end rays", _ray_placer(rays_end_fill, "end"), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
     Fill("end", _end, ends=True),
-    Fill("end chain", _ray_placer(chain_end_fill, "end", "errors", "absent"), ends=True),
+    Fill("end chain", _ray_placer(chain_end_fill, "end", "errors", "absent", "mirror"), ends=True),
 )
 
 
@@ -253,7 +257,10 @@ FILLS: tuple[Fill, ...] = (
 SECOND_PASS = (
     *(f for f in FILLS if f.name in ("chain", "joint")),
     Fill(
-        "joint depth", _ray_placer(joint_depth_fill, "measured", "absent"), rays=True, long_run=True
+        "joint depth",
+        _ray_placer(joint_depth_fill, "measured", "absent", "mirror"),
+        rays=True,
+        long_run=True,
     ),
     Fill("body", partial(_body, checked=True), strict="always"),
 )
@@ -273,7 +280,7 @@ SECOND_PASS = (
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
-    Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected")),
+    Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected", "mirror")),
 )
 
 
@@ -449,7 +456,9 @@ def fill_gaps_named(
         for lo, hi in _track_gaps(tracks, slice(start[t], stop[t]), params)
     ]
     errors = np.concatenate([np.where(measured, 0.0, np.nan), absent_sd])  # placed rows too
-    mirror = mirror_tracks(labels, tracks.n_tracks)
+    # the placed rows' mirrors too: a chain fill's partner may be one (s50 review)
+    names = None if labels is None else [*labels[: tracks.n_tracks], *(w[0] for w in who)]
+    mirror = mirror_tracks(names, tracks.n_tracks + len(who))
     made = _fill_runs(
         dense, [(*g, 0) for g in gaps], params, spare, measured, absent, errors, mirror
     )

@@ -105,6 +105,9 @@ def length_partners(
     a pair across a knee held straight keeps its length while the other leg swings
     (kiss 3 seed 363, LTHI-LTIB 2.2 mm SD over LTIB's stance, RTHI-RTIB 19.9 mm there)."""
     seen = np.isfinite(dense[:, :, 0])
+    if mirror is not None:  # rows past the mirror's have none, nor mirrors past dense's
+        mirror = np.r_[mirror, [-1] * len(dense)][: len(dense)].astype(np.int64)
+        mirror[mirror >= len(dense)] = -1
     cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
     cand = cand[cand != t]
     sd = distance_sd(dense[cand], dense[t][None])[:, 0]
@@ -423,6 +426,7 @@ def chain_fill(
     end: int = 0,
     errors: NDArray | None = None,
     absent: NDArray | None = None,
+    mirror: NDArray | None = None,
 ) -> ChainFill | None:
     """Place the gap [lo, hi) of track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN
     where not measured) on the rays of its own unused blobs (see module); None when no
@@ -430,20 +434,20 @@ def chain_fill(
     sample, 1: after its last), the run is a track's end, walked from its measured
     side only (a knee seen by one camera after its second camera lost it for good).
     With ``errors`` (n_tracks + m, n_fields: each sample's expected error, 0 where
-    measured, NaN where unknown), a partner another fill placed counts its fill's
-    error in the expected error
+    measured, NaN where unknown), a partner another fill placed counts its fill's error
     (:func:`~kisscal.tracking.rayfill.placed_errors`). ``absent`` (m, n_fields, 3): rows
     of names no track took, placed on one camera's rays
     (:func:`~kisscal.tracking.fill_absent.absent_rows`), partners too, numbered after
     the tracks (kiss 3 seed 323: a heel on one camera held by its toe and the placed
-    ankle). The blobs taken are not marked used here."""
+    ankle). ``mirror``: each row's mirror's row (:func:`length_partners`; modern 3 seed
+    353's RTHI). The blobs taken are not marked used here."""
     if absent is not None and len(absent):
         dense = np.concatenate([dense, absent])
     target = dense[t]
     walk = _walk_sides(target, lo, hi, end)
     if not any(walk):
         return None
-    partners, sd = length_partners(dense, t, params)
+    partners, sd = length_partners(dense, t, params, mirror)
     held = together(dense, t, partners)
     steady = bool(held.all())
     # a length that held only over a phase a joint kept still in is no partner's (modern
