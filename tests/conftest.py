@@ -38,14 +38,20 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """Order and group the tests for the two CI workers (``-n 2 --dist loadgroup``).
 
     A module with a module-scoped fixture (a session synthesised and run for its tests)
-    goes to one worker whole: split over two, both would build the fixture. Modules with
-    slow tests come first, so that the long tests start early and the workers end together.
+    goes to one worker whole: split over two, both would build the fixture. So do the slow
+    tests of the processed session of tests/session/conftest.py: the first of them (the
+    bad-input tests) came to both workers at once, one waiting idle while the other built
+    it (13 s). Modules with slow tests come first, so that the long tests start early and
+    the workers end together.
     """
     slow_modules = set()
     for item in items:
         info = getattr(item, "_fixtureinfo", None)
-        defs = info.name2fixturedefs.values() if info is not None else ()
-        if any(d.scope == "module" for chain in defs for d in chain):
+        defs = info.name2fixturedefs if info is not None else {}
+        shared = any(d.scope == "session" for d in defs.get("processed", ())[-1:])
+        if shared and item.get_closest_marker("slow") is not None:
+            item.add_marker(pytest.mark.xdist_group("processed-session"))
+        elif any(d.scope == "module" for chain in defs.values() for d in chain):
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
         if item.get_closest_marker("slow") is not None:
             slow_modules.add(item.nodeid.split("::")[0])

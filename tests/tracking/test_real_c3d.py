@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import cache
+
 import numpy as np
 import pytest
 
@@ -10,6 +13,7 @@ from kisscal.io.c3d import read_c3d
 from kisscal.tracking import TrackingParams
 from tests.io.c3d_acceptance import (
     FIXTURES,
+    Retrack,
     distinct,
     file_relabels,
     retrack,
@@ -17,6 +21,21 @@ from tests.io.c3d_acceptance import (
     shuffled,
     system_fills,
 )
+
+
+@pytest.fixture(scope="module")
+def retracked() -> Callable[[str], Retrack]:
+    """``retracked(name)``: the fixture file ``name`` re-tracked with the default parameters,
+    once for the module (three tests read the push-rim stroke's, two the serve's; the
+    stroke's takes some 27 s). Module-scoped: tests/conftest.py keeps the module's tests on
+    one test process, so no two processes re-track the same file."""
+
+    @cache
+    def get(name: str) -> Retrack:
+        c3d = read_c3d(FIXTURES / name)
+        return retrack(c3d.xyz_mm, c3d.rate_hz)
+
+    return get
 
 
 @pytest.mark.parametrize("name", ["pc_real.c3d", "sgi_int.c3d"])
@@ -147,14 +166,14 @@ def test_a_marker_the_file_renames_is_a_switch_the_file_makes():
         ),
     ],
 )
-def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, most, off):
+def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, most, off, retracked):
     """A serve's hand at 50 Hz (to 13 m/s) and a push-rim stroke's glove triads at 70 Hz
     (41 mm apart, accelerating by more than that per field): the gates widened by each
     track's own recent prediction errors keep far more identities than without (measured
     5 and 6 switches against 52 and 85, ambiguous fields cut; since the cluster's cut, the
     stroke 0 against 15 without it either). Both files are committed fixtures."""
     c3d = read_c3d(FIXTURES / name)
-    widened = retrack(c3d.xyz_mm, c3d.rate_hz)
+    widened = retracked(name)
     plain = retrack(c3d.xyz_mm, c3d.rate_hz, params=TrackingParams(**off))
     assert widened.coverage == plain.coverage == 1.0
     assert widened.switches <= most
@@ -162,13 +181,13 @@ def test_fast_limbs_keep_identities_with_gates_widened_by_their_errors(name, mos
 
 
 @pytest.mark.slow
-def test_ambiguous_assignments_are_cut_for_blending_to_judge():
+def test_ambiguous_assignments_are_cut_for_blending_to_judge(retracked):
     """The push-rim glove triads (70 Hz, 43 mm apart): where another one-to-one choice
     explains a field almost as well, the tracks are cut and blending joins the pieces from
     both sides; the identity switches the tracker makes (the file's own renames apart) fall
     from 16 to 6 at the same coverage (measured)."""
     c3d = read_c3d(FIXTURES / "kinematics_racing_propulsion.c3d")
-    cut = retrack(c3d.xyz_mm, c3d.rate_hz)
+    cut = retracked("kinematics_racing_propulsion.c3d")
     guessed = retrack(c3d.xyz_mm, c3d.rate_hz, params=TrackingParams(ambiguity_margin=0.0))
     assert cut.coverage == guessed.coverage == 1.0
     assert cut.switches - cut.relabels <= 8
@@ -199,14 +218,13 @@ def test_a_track_with_a_rival_nearly_as_near_is_cut():
 @pytest.mark.parametrize(
     "name", ["kinematics_tennis_serve.c3d", "kinematics_racing_propulsion.c3d"]
 )
-def test_fast_limbs_switch_only_where_the_file_renames(name):
+def test_fast_limbs_switch_only_where_the_file_renames(name, retracked):
     """The serve (50 Hz) and the push-rim stroke (70 Hz) re-tracked: every identity switch
     left is the file's own rename. The serve's last one was a piece of two points whose
     second was a guess (elbow and upper arm 121 and 129 mm from the elbow's point: split
     off, :func:`~kisscal.tracking.tracker.split_ambiguous_first_steps`); the stroke's a join
     across frames 280-283 another glove marker, seen in the gap, contested."""
-    c3d = read_c3d(FIXTURES / name)
-    r = retrack(c3d.xyz_mm, c3d.rate_hz)
+    r = retracked(name)
     assert r.coverage == 1.0
     assert r.switches == r.relabels
 
