@@ -50,20 +50,22 @@ LONG_PIECE = 2
 MIN_PARTNERS = 3
 
 
-def distance_statistics(name_pos: NDArray) -> tuple[NDArray, NDArray]:
+def distance_statistics(name_pos: NDArray, rows: NDArray | None = None) -> tuple[NDArray, NDArray]:
     """Median and spread (SD, floored at :data:`SPREAD_FLOOR_MM`) of the distance between
     every two named trajectories over the fields where both are held (NaN when they
-    share fewer than :data:`MIN_SHARED_FIELDS`)."""
+    share fewer than :data:`MIN_SHARED_FIELDS`); with ``rows``, only from those names
+    (the other rows NaN)."""
     seen = np.isfinite(name_pos[..., 0])
     held = np.flatnonzero(seen.any(axis=1))
+    rows = held if rows is None else np.intersect1d(rows, held)
     n = name_pos.shape[0]
     median = np.full((n, n), np.nan)
     spread = np.full((n, n), np.nan)
-    if held.size < 2:
+    if held.size < 2 or rows.size == 0:
         return median, spread
     fields = np.flatnonzero(seen[held].sum(axis=0) >= 2)
     pos = name_pos[np.ix_(held, fields)]
-    d = np.linalg.norm(pos[:, None] - pos[None], axis=3)  # (h, h, F)
+    d = np.linalg.norm(name_pos[np.ix_(rows, fields)][:, None] - pos[None], axis=3)  # (r, h, F)
     shared = np.isfinite(d).sum(axis=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
@@ -71,8 +73,8 @@ def distance_statistics(name_pos: NDArray) -> tuple[NDArray, NDArray]:
         s = np.maximum(np.nanstd(d, axis=2), SPREAD_FLOOR_MM)
     few = shared < MIN_SHARED_FIELDS
     m[few] = s[few] = np.nan
-    np.fill_diagonal(m, np.nan)
-    median[np.ix_(held, held)], spread[np.ix_(held, held)] = m, s
+    median[np.ix_(rows, held)], spread[np.ix_(rows, held)] = m, s
+    np.fill_diagonal(median, np.nan)
     return median, spread
 
 

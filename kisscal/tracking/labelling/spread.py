@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.blending import bridge_residual_mm
+from kisscal.tracking.labelling.learned import distance_statistics, trial_scores
 from kisscal.tracking.labelling.pieces import reaches
 from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.labelling.window import match_window
@@ -31,6 +32,10 @@ SHORT_WINDOW_FIT = 1.5
 #: A long piece takes the one name a rigid partner confirms, other names having no
 #: partner in view, when they are seen together this many times ``min_track_length``.
 HELD_PIECES = 3
+#: A body-fit name is declined when another candidate keeps the distances the trial
+#: showed at least this much better (mean squared spreads, :mod:`.learned`; over k names
+#: held around, a likelihood ratio of exp(k / 2) against the body fit's name).
+TRIAL_VETO = 1.0
 
 
 def by_segments(
@@ -213,6 +218,23 @@ def by_continuity(
     return ok[0] if names[np.argmin(np.median(dist[fitted], axis=0))] == ok[0] else -1
 
 
+def _trial_prefers_other(state: LabelState, t: int, names: NDArray, j: int) -> bool:
+    """Whether piece ``t`` keeps the distances the trial showed between another of
+    ``names`` and the names held around it better than ``j``'s (by :data:`TRIAL_VETO`;
+    phase 5's misfit, :mod:`.learned`), when the trial showed ``j``'s.
+
+    The body fit places a standing template on the named markers around the piece; a
+    lone pelvis marker among walking legs is expected 100-180 mm off (lowcost seed 315:
+    the right ASIS nearer the sacrum's expected place than its own), while its distances
+    to the legs, as the trial showed them while the pelvis was named, tell the names
+    apart.
+    """
+    median, spread_sd = distance_statistics(state.name_pos, names)
+    score = trial_scores(state, t, names, median, spread_sd)
+    own = score[names == j][0]
+    return bool(np.isfinite(own) and np.any(score <= own - TRIAL_VETO))
+
+
 def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool = False) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
     the body fit (with ``continuity``, then by :func:`by_continuity`); a short piece must
@@ -245,7 +267,11 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool =
             rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
             if one_partner[np.argmin(rms)] != j:
                 j = -1
+        if j >= 0 and _trial_prefers_other(state, t, undecided, j):
+            j = -1
     if continuity and j < 0 and one_partner.size >= 2 and long:
+        # Where the piece continues a name's trajectory and the body fit agrees, the
+        # trial's own evidence outweighs the distance statistics' veto.
         j = by_continuity(state, f_t, xyz_t, one_partner, rigid)
     # A short piece next to its name's trajectory must continue it: a ghost by a marker
     # that just went out of sight need not.
