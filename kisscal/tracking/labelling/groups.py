@@ -223,8 +223,9 @@ def name_groups(state: LabelState) -> None:
     """Phase 4: name every group of unnamed pieces that can be named safely, spreading
     names after each; then the rigid sub-groups of groups too large to name, each piece
     keeping its name's distances as the trial shows them (:func:`.learned.trial_scores`):
-    one length alone fits many pairs of a set (two extra thigh markers of a lower-limb
-    file fit the head's), and the trial's distances tell a foot from a head."""
+    one length alone fits many pairs of a set (a lower-limb file's RTIB and an extra
+    shank-cluster marker, 108.5 mm apart, took the head's LFHD-RFHD), and the trial's
+    distances tell a foot from a head."""
     rigid = state.rigid_pairs()
     for group in unnamed_groups(state):
         names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
