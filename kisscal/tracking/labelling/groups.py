@@ -15,8 +15,9 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
 from kisscal.tracking.labelling.spread import spread
-from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM, LabelState
 from kisscal.tracking.rigid import kabsch
 
 # Largest number of joint name choices tried for a group of unnamed pieces.
@@ -25,10 +26,10 @@ MAX_GROUP_CHOICES = 20000
 Piece = tuple[NDArray[np.int64], NDArray[np.float64]]
 
 
-def unnamed_groups(state: LabelState) -> list[NDArray[np.int64]]:
+def unnamed_groups(state: LabelState, split: bool = False) -> list[NDArray[np.int64]]:
     """Groups of 2 to 4 unnamed pieces of at least ``min_body_fit_points`` points, each
     sharing at least three fields with another of its group, in order of their first
-    piece."""
+    piece; with ``split``, the sub-groups (:func:`_rigid_split`) of the larger ones."""
     cand = np.flatnonzero(
         (state.label_of < 0) & (state.n_measured >= state.params.min_body_fit_points)
     )
@@ -41,8 +42,36 @@ def unnamed_groups(state: LabelState) -> list[NDArray[np.int64]]:
     shared = (seen @ seen.T).toarray()
     _, component = connected_components(csr_matrix(shared >= 3), directed=False)
     groups = [cand[component == c] for c in np.unique(component)]
+    if split:
+        groups = [s for g in groups if g.size > 4 for s in _rigid_split(state, g)]
     groups.sort(key=lambda g: int(g[0]))
     return [g for g in groups if 2 <= g.size <= 4]
+
+
+def _rigid_split(state: LabelState, group: NDArray[np.int64]) -> list[NDArray[np.int64]]:
+    """The sub-groups of ``group`` joined by pairs of pieces that could be a rigid pair of
+    the set: their distance varies by less than ``RIGID_SPREAD_MM`` (SD, over at least
+    ``MIN_SHARED_FIELDS`` shared fields) and is, within ``label_segment_tolerance_mm``,
+    the template length of some rigid pair.
+
+    Unnamed pieces of several segments seen at one time chain into one group too large
+    to name (kiss 3-camera seed 361: a heel and a toe from field 0 with shank and sacrum
+    pieces in their fields); the pieces of one segment still keep its lengths.
+    """
+    lengths = state.template_distance[state.rigid_pairs()]
+    pieces = [state.piece(int(t)) for t in group]
+    k = len(pieces)
+    link = np.zeros((k, k), dtype=bool)
+    for a, b in itertools.combinations(range(k), 2):
+        (fa, xa), (fb, xb) = pieces[a], pieces[b]
+        _, ia, ib = np.intersect1d(fa, fb, return_indices=True)
+        if ia.size >= MIN_SHARED_FIELDS:
+            d = np.linalg.norm(xa[ia] - xb[ib], axis=1)
+            off = np.min(np.abs(lengths - np.median(d)), initial=np.inf)
+            link[a, b] = np.std(d) < RIGID_SPREAD_MM
+            link[a, b] &= off <= state.params.label_segment_tolerance_mm
+    _, component = connected_components(csr_matrix(link | link.T), directed=False)
+    return [group[component == c] for c in np.unique(component)]
 
 
 def _between(pieces: list[Piece]) -> NDArray[np.float64]:
@@ -192,11 +221,28 @@ def name_group(state: LabelState, pieces: list[Piece], rigid: NDArray) -> NDArra
 
 def name_groups(state: LabelState) -> None:
     """Phase 4: name every group of unnamed pieces that can be named safely, spreading
-    names after each."""
+    names after each; then the rigid sub-groups of groups too large to name, each piece
+    keeping its name's distances as the trial shows them (:func:`.learned.trial_scores`):
+    one length alone fits many pairs of a set (a lower-limb file's RTIB and an extra
+    shank-cluster marker, 108.5 mm apart, took the head's LFHD-RFHD), and the trial's
+    distances tell a foot from a head."""
     rigid = state.rigid_pairs()
     for group in unnamed_groups(state):
         names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
         if names_for is not None:
+            for t, j in zip(group, names_for, strict=True):
+                state.name_piece(int(t), int(j))
+            spread(state)
+    for group in unnamed_groups(state, split=True):
+        if np.any(state.label_of[group] >= 0):
+            continue  # named as names spread from an earlier group
+        names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
+        if names_for is None:
+            continue
+        median, spreads = distance_statistics(state.name_pos)
+        scores = [trial_scores(state, int(t), np.array([j]), median, spreads)[0]
+                  for t, j in zip(group, names_for, strict=True)]  # fmt: skip
+        if max(scores) <= MAX_SCORE**2:
             for t, j in zip(group, names_for, strict=True):
                 state.name_piece(int(t), int(j))
             spread(state)
