@@ -15,7 +15,7 @@ from kisscal.tracking.labelling.anatomy import (
     settle_sides,
 )
 from kisscal.tracking.labelling.facing import walking_direction
-from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
+from kisscal.tracking.labelling.pelvis import settle_pelvis_offsets, settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
 from kisscal.tracking.labelling.state import LabelState
@@ -257,3 +257,27 @@ def test_pelvis_pieces_named_right_stay_so_when_the_subject_walks_backwards() ->
     state, right = _pieces_state(walker(10, 75.0)[:, ::-1].copy())
     assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == []
     np.testing.assert_array_equal(state.label_of, right)
+
+
+@pytest.mark.parametrize("asis", ["LASI", "RASI"])
+def test_the_sacrum_s_piece_named_an_asis_alone_takes_the_sacrum_by_the_other_asis(
+    asis: str,
+) -> None:
+    """Issue 27's kiss 3 seed 365: a body fit from the legs named the sacrum's second
+    piece an ASIS whose own piece there stayed unnamed, so no two pieces of the exchanged
+    names are seen together; the other ASIS, level with an ASIS and ahead of the sacrum
+    along the walk, tells the piece its name. A subject walking backwards keeps right
+    names."""
+    state, right = _pieces_state(walker(10, 75.0))
+    i, j = LOWER.index(asis), LOWER.index("SACR")
+    mine, lost = len(LOWER) + j, len(LOWER) + i  # second halves of SACR and the ASIS
+    state.label_of[lost] = -1
+    state.name_pos[np.ix_([i, j], state.piece(mine)[0])] = np.nan
+    state.name_piece(mine, i)
+    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == []
+    assert settle_pelvis_offsets(state, walking_direction(state.name_pos))
+    right[lost] = -1
+    np.testing.assert_array_equal(state.label_of, right)
+    for pos in (walker(10, 75.0), walker(10, 75.0)[:, ::-1].copy()):
+        again, _ = _pieces_state(pos)
+        assert not settle_pelvis_offsets(again, walking_direction(again.name_pos))

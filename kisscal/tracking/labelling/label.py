@@ -10,7 +10,7 @@ from kisscal.tracking.labelling.facing import walking_direction
 from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
-from kisscal.tracking.labelling.pelvis import settle_pelvis_pieces
+from kisscal.tracking.labelling.pelvis import settle_pelvis_offsets, settle_pelvis_pieces
 from kisscal.tracking.labelling.result import Labelling, generic, join
 from kisscal.tracking.labelling.spread import rematch, spread
 from kisscal.tracking.labelling.state import LabelState
@@ -103,6 +103,9 @@ def name_pieces(state: LabelState) -> bool:
     if name_unseen(state):
         spread(state)
     spread(state, continuity=True)
+    # A body fit from the legs alone can name the sacrum an ASIS (pelvis.py).
+    if settle_pelvis_offsets(state, walking_direction(state.name_pos)):
+        spread(state, continuity=True)
     # A first window can name an ASIS and the sacrum the other way round (pelvis.py).
     settle_pelvis_pieces(state, walking_direction(state.name_pos))
     return True

@@ -99,12 +99,12 @@ def _overlaps(state: LabelState, pieces: list[int], names: list[int]) -> bool:
     return False
 
 
-def _fits_better(state: LabelState, f: int, b: int, wrong: list[int]) -> bool:
+def _fits_better(state: LabelState, f: int, b: int, wrong: list[int], worse: float = 1.0) -> bool:
     """Whether the pieces ``wrong`` named the other way round (``f`` for ``b``) fit the
     template's distances to the other names held in their fields better than as named
-    (median absolute misfit): the walk alone misjudged real trials (test1, newwalk:
-    right pelvis names exchanged, silently), the distances and the walk together did
-    not."""
+    (median absolute misfit), or at most ``worse`` times worse: the walk alone
+    misjudged real trials (test1, newwalk: right pelvis names exchanged, silently), the
+    distances and the walk together did not."""
     fields = np.zeros(state.n_fields, dtype=bool)
     for t in wrong:
         fields[state.piece(t)[0]] = True
@@ -117,7 +117,7 @@ def _fits_better(state: LabelState, f: int, b: int, wrong: list[int]) -> bool:
         e = np.abs(d - target)
         return float(np.nanmedian(e)) if np.isfinite(e).any() else np.inf
 
-    return misfit(pos[b], pos[f]) < misfit(pos[f], pos[b])
+    return misfit(pos[b], pos[f]) < worse * misfit(pos[f], pos[b])
 
 
 def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[int, int]]:
@@ -149,3 +149,70 @@ def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[in
                 state.name_piece(t, j)
             done.append((f, b))
     return done
+
+
+def _offset_says(state: LabelState, t: int, j: int, other: int, direction: NDArray) -> bool:
+    """Whether long piece ``t``, named pelvis name ``j``, lies along the walk
+    (``direction``) from the other pelvis names held with it where the template puts
+    name ``other`` rather than ``j``, in more than ``min_side_confidence`` of at least
+    ``min_track_length`` fields."""
+    front, back = pelvis_roles(state.names)
+    template = state.template
+    forward = template[list(front)].mean(axis=0) - template[list(back)].mean(axis=0)
+    forward = forward[:2] / np.linalg.norm(forward[:2])
+    fields, xyz = state.piece(t)
+    with np.errstate(invalid="ignore", divide="ignore"):  # standing still: no direction
+        unit = direction[fields] / np.linalg.norm(direction[fields], axis=1, keepdims=True)
+    votes = []
+    for k in set(front + back) - {j, other}:
+        seen = np.isfinite(state.name_pos[k, fields, 0]) & np.isfinite(unit[:, 0])
+        ahead = np.sum((xyz[seen, :2] - state.name_pos[k, fields[seen], :2]) * unit[seen], axis=1)
+        want, rival = (template[[j, other]] - template[k])[:, :2] @ forward
+        # within half the names' gap of the rival's place: a walk misjudged (turned
+        # round) puts a back name ahead by the gap, as far from the front name's place
+        votes.append(np.abs(ahead - rival) < np.abs(want - rival) / 2)
+    votes = np.concatenate(votes) if votes else np.zeros(0, dtype=bool)
+    least = state.params.min_track_length
+    return votes.size >= least and votes.mean() > state.params.min_side_confidence
+
+
+def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
+    """Give a long piece named a front pelvis name the back one (or back the front) when
+    its offset along the walk from the other pelvis names held says so
+    (:func:`_offset_says`); the pieces holding that name in its fields take the piece's
+    old name. Whether any was renamed.
+
+    :func:`settle_pelvis_pieces` needs the two exchanged names seen together; a body fit
+    from the legs alone can name the sacrum an ASIS where neither is otherwise held (kiss
+    3 seed 365: turned 60 degrees by one leg and the other foot, which walking holds
+    far from their standing places), and the ASIS's own piece, a few fields long, then
+    takes the sacrum's name. Distances cannot tell them apart in a pelvis near
+    equilateral; the other ASIS, level with an ASIS and ahead of the sacrum, can, unless
+    the distances fit the exchange more than 1.5 times worse (the ratio
+    :func:`~kisscal.tracking.labelling.spread.by_body_fit` asks of a clear answer).
+    """
+    front, back = pelvis_roles(state.names)
+    changed = False
+    for t in state.long_ids[np.isin(state.label_of[state.long_ids], front + back)].tolist():
+        j = int(state.label_of[t])
+        for other in back if j in front else front:
+            if not _offset_says(state, t, j, other, direction):
+                continue
+            fields = state.piece(t)[0]
+            held = np.flatnonzero(np.isin(state.label_of, (j, other)))
+            move = [int(u) for u in held if u == t or np.isin(state.piece(u)[0], fields).any()]
+            rest = [int(u) for u in held if u not in move]
+            names = [other if state.label_of[u] == j else j for u in move]
+            names += [int(state.label_of[u]) for u in rest]
+            # the distances may not tell (a pelvis near equilateral) but must not clearly
+            # disagree (sub_labels.c3d: an ASIS by wrongly named others)
+            if _overlaps(state, move + rest, names) or not _fits_better(
+                state, j, other, move, worse=1.5
+            ):
+                continue
+            state.name_pos[[j, other]] = np.nan
+            for u, name in zip(move + rest, names, strict=True):
+                state.name_piece(u, name)
+            changed = True
+            break
+    return changed
