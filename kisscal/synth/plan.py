@@ -7,9 +7,9 @@ produce the images of one camera (grid, rods, or one trial) with their truth, so
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -149,12 +149,20 @@ class SynthOptions:
     replay_in_view: bool = False
 
 
+class _Memo(dict):
+    """Scenes and glow of a plan's latest camera; pickled empty (to no other process)."""
+
+    def __reduce__(self) -> tuple:
+        return _Memo, ()
+
+
 @dataclass(frozen=True)
 class SynthPlan:
     """Everything a seed determines, before any image is rendered.
 
     ``render`` is ``options.render`` with the rig's marker radius; ``rod_conflicts`` counts
     rod-marker images that touch an LED ring or another rod (0 but on crowded rigs).
+    ``memo`` keeps the latest camera's scenes and glow (:func:`_per_camera`).
     """
 
     options: SynthOptions
@@ -167,6 +175,7 @@ class SynthPlan:
     render: RenderParams = field(default_factory=RenderParams)
     rod_conflicts: int = 0
     axes_mm: NDArray[np.float64] | None = None
+    memo: _Memo = field(default_factory=_Memo, init=False, repr=False, compare=False)
 
 
 def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPlan:
@@ -334,6 +343,23 @@ def session_config(plan: SynthPlan, name: str) -> dict:
 # ------------------------------------------------------------------------- rendering
 
 
+def _per_camera(plan: SynthPlan, key: str, cam_index: int, make: Callable[[], Any]) -> Any:
+    """``make()`` once per plan and camera: a camera's trials, rods, grid and detection
+    truth share its glow and scenes (recomputing them took a third of a rig check). Only
+    the latest camera's are kept (a 2048 x 2048 camera's take 32 MB each); their arrays are
+    read-only, as every caller shares them."""
+    if plan.memo.get("camera") != cam_index:
+        plan.memo.clear()
+        plan.memo["camera"] = cam_index
+    if key not in plan.memo:
+        value = make()
+        for a in value if isinstance(value, tuple) else (value,):
+            if isinstance(a, np.ndarray):
+                a.flags.writeable = False
+        plan.memo[key] = value
+    return plan.memo[key]
+
+
 def camera_glow(
     plan: SynthPlan, cam_index: int, plate_px: tuple[float, float, float, float] | None = None
 ) -> NDArray[np.float64] | None:
@@ -342,19 +368,26 @@ def camera_glow(
     glow = plan.render.glow
     if glow is None:
         return None
+    size = plan.rig[cam_index].size_px
     rng = np.random.default_rng([plan.options.seed, 7007, cam_index])
-    light = glow_map(plan.rig[cam_index].size_px, glow, rng)
+    light = _per_camera(plan, "glow", cam_index, lambda: glow_map(size, glow, rng))
     if plate_px is None:
         return light
     plate_rng = np.random.default_rng([plan.options.seed, 7008, cam_index])
     plate_only = Glow((0.0, 0.0), (0.0, 0.0), (0, 0), (0.0, 0.0), (0.1, 0.1), glow.plate_dn)
-    return light + glow_map(plan.rig[cam_index].size_px, plate_only, plate_rng, plate_px)
+    return light + glow_map(size, plate_only, plate_rng, plate_px)
 
 
 def grid_scene(
     plan: SynthPlan, cam_index: int
 ) -> tuple[GridView, NDArray[np.float64], NDArray[np.float64] | None]:
     """One camera's view of the grid: dots, their noise-free light, the background."""
+    return _per_camera(plan, "grid", cam_index, lambda: _grid_scene(plan, cam_index))
+
+
+def _grid_scene(
+    plan: SynthPlan, cam_index: int
+) -> tuple[GridView, NDArray[np.float64], NDArray[np.float64] | None]:
     cam = plan.rig[cam_index]
     view = grid_view(
         cam,
@@ -392,6 +425,10 @@ def render_grid(plan: SynthPlan, cam_index: int) -> tuple[list[NDArray], dict]:
 
 def rod_scene(plan: SynthPlan, cam_index: int) -> tuple[Spots, Spots, NDArray[np.float64]]:
     """One camera's view of the rods: marker spots, LED-ring spots, their noise-free light."""
+    return _per_camera(plan, "rods", cam_index, lambda: _rod_scene(plan, cam_index))
+
+
+def _rod_scene(plan: SynthPlan, cam_index: int) -> tuple[Spots, Spots, NDArray[np.float64]]:
     cam = plan.rig[cam_index]
     params = plan.render
     points = np.concatenate([r.points_mm for r in plan.rods])
