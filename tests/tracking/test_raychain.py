@@ -103,6 +103,38 @@ def test_an_unnamed_piece_inside_a_named_gap_joins_it_and_a_decoy_does_not():
     assert np.allclose(got.tracks.xyz_mm[m1], decoy)
 
 
+def _ends(xyz: np.ndarray, stretch_mm: float) -> Labelling:
+    """Markers 0-3 named A-D measured up to field 150; A (``stretch_mm`` farther from C)
+    and C seen again from field 160 and 165 as two unnamed pieces, nothing named there."""
+    tracks = _tracks_of(xyz[:, :150], {})
+    away = xyz[0, 160:] - xyz[2, 160:]
+    away *= stretch_mm / np.linalg.norm(away, axis=1, keepdims=True)
+    pieces = [(0, 160, away[:40]), (2, 165, 0.0)]
+    fields = np.concatenate([tracks.field] + [np.arange(a, 200) for _, a, _ in pieces])
+    track = np.concatenate(
+        [tracks.track] + [np.full(200 - p[1], 4 + k) for k, p in enumerate(pieces)]
+    )
+    pts = np.concatenate([tracks.xyz_mm] + [xyz[m, a:200] + up for m, a, up in pieces])
+    n = fields.size
+    joined = make_tracks(fields, track, pts, np.full((n, 3), np.nan), np.zeros(n), np.arange(n))
+    return Labelling(joined, ("A", "B", "C", "D", "M1", "M2"), True, (4, 5), (), 1.0)
+
+
+def test_two_pieces_past_two_partners_ends_join_them_when_they_keep_their_length():
+    # lowcost seed 373: RTIB and RANK seen again by two cameras after the rest of the leg
+    # left; nothing named beside them, only their 210 mm length says which they are
+    xyz = rigid_body(seed=7, noise_mm=0.2)
+    got = join_gap_pieces(_ends(xyz, 0.0), TrackingParams())
+    assert got.unlabelled == ()
+    for name, m in (("A", 0), ("C", 2)):
+        rows = got.tracks.track == got.labels.index(name)
+        assert np.isin(np.arange(165, 200), got.tracks.field[rows]).all()
+        err = np.linalg.norm(got.tracks.xyz_mm[rows] - xyz[m, got.tracks.field[rows]], axis=1)
+        assert err.max() < 2.0
+    # 55 mm apart, A-C's 80 less 25 (no pair of the body's is nearer than 70): unnamed
+    assert join_gap_pieces(_ends(xyz, -25.0), TrackingParams()).unlabelled == (4, 5)
+
+
 def _segment_on_rays(xyz: np.ndarray, seed: int, markers=(1, 2, 3)) -> object:
     """One camera 3 m from the body sees ``markers`` through the gap, with two noise
     blobs a field anywhere."""

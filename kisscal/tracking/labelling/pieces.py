@@ -11,7 +11,9 @@ follows a path) and keeps the trajectory's lengths
 to its segment's partners where they are seen (RMS difference at most
 ``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
 when exactly one named trajectory is so continued and none is measured where the piece
-is (within :data:`SAME_MARKER_MM`: the same marker seen twice).
+is (within :data:`SAME_MARKER_MM`: the same marker seen twice). Two pieces past the ends
+of two segment partners, neither partner measured there, join them when their distance
+keeps the partners' length and one continues its name's path (:func:`_end_pairs`).
 
 References
 ----------
@@ -89,10 +91,75 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     )
 
 
+def _beside(seen: NDArray, a: int, b: int) -> int | None:
+    """The field of ``seen``'s measured sample nearest outside ``[a, b]``, if only one
+    side has one (the piece is past the trajectory's end or before its start)."""
+    before, after = np.flatnonzero(seen[:a]), b + 1 + np.flatnonzero(seen[b + 1 :])
+    if (before.size > 0) == (after.size > 0):
+        return None
+    return int(before[-1]) if before.size else int(after[0])
+
+
+def _end_pairs(dense: NDArray, named: list, unnamed: list, params: TrackingParams) -> list:
+    """Two unnamed pieces past the ends of two named segment partners (lowcost seed 373:
+    RTIB and RANK seen by two cameras only after the rest of the leg left): ``(u, v, t,
+    s)`` where ``u`` continues ``t``'s path (:func:`reaches`), ``u``-``v`` keeps ``t``-``s``'s
+    length (RMS within ``label_segment_tolerance_mm`` over at least
+    :data:`MIN_LENGTH_CHECKS` fields), neither ``t`` nor ``s`` is measured from the
+    pieces' first field to their last, and no other pair of names fits the pieces; of
+    the two ways round, the one nearer the names' samples beside the pieces."""
+    seen = np.isfinite(dense[:, :, 0])
+    found: dict = {}
+    partners_of: dict = {}
+    for u in unnamed:
+        for v in unnamed:
+            both = seen[u] & seen[v]
+            if u == v or both.sum() < MIN_LENGTH_CHECKS:
+                continue
+            a, b = np.flatnonzero(seen[u] | seen[v])[[0, -1]]
+            d = np.linalg.norm(dense[u, both] - dense[v, both], axis=1)
+            for t in named:
+                x = _beside(seen[t], a, b)
+                if x is None:
+                    continue
+                if t not in partners_of:
+                    partners_of[t] = length_partners(dense, t, params)[0]
+                partners = partners_of[t]
+                for s in partners[np.isin(partners, named)]:
+                    z = _beside(seen[s], a, b)
+                    if z is None or seen[s, a : b + 1].any():
+                        continue
+                    length = np.nanmedian(np.linalg.norm(dense[t] - dense[s], axis=1))
+                    y, w = (np.flatnonzero(seen[k])[[0, -1]][int(x > b)] for k in (u, v))
+                    if float(np.sqrt(np.mean((d - length) ** 2))) > (
+                        params.label_segment_tolerance_mm
+                    ) or not reaches(
+                        dense[t],
+                        dense[partners[partners != s]],
+                        x,
+                        y,
+                        dense[u, y][None],
+                        still=True,
+                    ):
+                        continue
+                    step = np.linalg.norm(dense[u, y] - dense[t, x]) + np.linalg.norm(
+                        dense[v, w] - dense[s, z]
+                    )
+                    key = (min(u, v), max(u, v))
+                    found.setdefault(key, {}).setdefault(frozenset((t, int(s))), []).append(
+                        (step, u, v, t, int(s))
+                    )
+    pairs = [min(next(iter(f.values()))) for f in found.values() if len(f) == 1]
+    # a piece or a name in two fitting pairs is ambiguous: none of them
+    used = np.bincount(np.ravel([p[1:] for p in pairs]).astype(int), minlength=len(dense))
+    return [p[1:] for p in pairs if np.all(used[list(p[1:])] == 1)]
+
+
 def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
     """``labelling`` with each unnamed piece that fills exactly one named trajectory's
-    gap (see module) joined to it; the coasted samples it replaces are dropped and the
-    remaining unnamed tracks renamed ``M1``, ``M2``, ... in order."""
+    gap, and each pair past two partners' ends (see module), joined to it; the coasted
+    samples it replaces are dropped and the remaining unnamed tracks renamed ``M1``,
+    ``M2``, ... in order."""
     if not labelling.unlabelled or not labelling.fits_marker_set:
         return labelling
     tr = labelling.tracks
@@ -100,7 +167,7 @@ def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
     dense = np.full((tr.n_tracks, int(tr.field.max()) + 1, 3), np.nan)
     dense[tr.track[meas], tr.field[meas]] = tr.xyz_mm[meas]
     named = [t for t in range(tr.n_tracks) if t not in set(labelling.unlabelled)]
-    into = np.arange(tr.n_tracks)
+    into, free = np.arange(tr.n_tracks), []
     with np.errstate(invalid="ignore"):
         for u in labelling.unlabelled:
             near = np.linalg.norm(dense[named] - dense[u][None], axis=2)
@@ -108,9 +175,13 @@ def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
             mean = np.where(both, near, 0.0).sum(axis=1) / np.maximum(both.sum(axis=1), 1)
             if np.any(both.any(axis=1) & (mean < SAME_MARKER_MM)):
                 continue
+            free.append(u)
             hosts = [t for t in named if _fits(dense, t, u, params)]
             if len(hosts) == 1:
                 into[u] = hosts[0]
+        for u, v, t, s in _end_pairs(dense, named, free, params):
+            if into[u] == u and into[v] == v:
+                into[u], into[v] = t, s
     if np.all(into == np.arange(tr.n_tracks)):
         return labelling
     # the hosts' coasted samples where a joined piece was measured go
