@@ -55,3 +55,26 @@ def anchored(
             fill = dataclasses.replace(fill, expected_error_mm=float(floor))
         out.append((xyz, fill))
     return out
+
+
+def donor_noise(
+    got: list[tuple[NDArray, GapFill]], dense: NDArray
+) -> list[tuple[NDArray, GapFill]]:
+    """The fills ``got`` (xyz, fill) pairs, each expecting at least the noise of its
+    donors (rows of ``dense``, (n_tracks, n_fields, 3)) over its fields: the RMS of their
+    second differences over sqrt(6) (white noise; a walk's acceleration adds little at
+    a capture's rate). The stretches a fill is tried on may have quieter donors than its
+    gap (lowcost seed 362: a sacrum from two hip markers seen by two cameras, 1-4.6 mm
+    off, filled 2.7 mm RMS off expecting 1.0, as on stretches where three saw them)."""
+    out = []
+    for xyz, fill in got:
+        rows = dense[list(fill.donors), fill.first_field : fill.first_field + fill.n_fields]
+        acc = np.sum(np.diff(rows, 2, axis=1) ** 2, axis=2)
+        acc = acc[np.isfinite(acc)]
+        if fill.donors and acc.size:
+            floor = float(np.sqrt(np.mean(acc) / 6.0))
+            fill = dataclasses.replace(
+                fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, floor))
+            )
+        out.append((xyz, fill))
+    return out

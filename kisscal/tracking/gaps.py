@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tracks
-from kisscal.tracking.fill_anchor import anchored
+from kisscal.tracking.fill_anchor import anchored, donor_noise
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
@@ -35,20 +35,13 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
-from kisscal.tracking.fill_spline import context_noise, spline_fill
+from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
 from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs
-from kisscal.tracking.tracks import (
-    FILLED,
-    FILLED_RIGID,
-    MEASURED,
-    PREDICTED,
-    Tracks,
-    is_filled,
-)
+from kisscal.tracking.tracks import FILLED, FILLED_RIGID, MEASURED, PREDICTED, Tracks, is_filled
 
 
 def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tuple[int, int]]:
@@ -130,7 +123,9 @@ def _body(
     followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
     A spline expects at least what the noise of the samples it goes through carries
     (:func:`~kisscal.tracking.fill_spline.context_noise`; lowcost 301-313: 98 samples over
-    twice their spline's expected error, the stretches it is tried on quieter). With
+    twice their spline's expected error, the stretches it is tried on quieter); moved
+    onto a ray, what of that noise lies along the sight of the cameras whose blobs it
+    looked for (:func:`~kisscal.tracking.fill_spline.sight_noise`). With
     ``checked``, a spline is kept only when, counting the largest expected error of the
     samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
     (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
@@ -149,18 +144,20 @@ def _body(
     # does not join, it may bridge to another marker's
     if chosen is None or (short and rays and parted(gap.dense[gap.t], a, b, spare, params)):
         return _body(gap, a, b, params, spline=False) if checked and short else none
+    seen = spare.centres[np.unique(spare.camera[spare.rows(a, b)])] if rays else None
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     if short:  # after the rays (their gate is the stretches' error): through noisy samples
         n = max(params.fill_context_fields, 2)
         noise = context_noise(gap.dense[gap.t], None, a, b, n)
-        got = [(x, _at_least(f, noise / np.sqrt(3) if f.ray_fields else noise)) for x, f in got]
+        along = sight_noise(gap.dense[gap.t], seen, a, b, n) if rays else noise
+        got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
             got = [(x, _at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
             worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
             if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
                 return _body(gap, a, b, params, spline=False)  # the body, as without
-    gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
+    gap.out.extend(anchored(donor_noise(got, gap.dense), gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
 
@@ -193,7 +190,7 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
         if chosen is None:
             break
         got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
-        gap.out.extend(got)
+        gap.out.extend(donor_noise(got, gap.dense))
         placed[lo - a : hi - a] = mine = placed_mask(got, lo, hi, gap.dense[gap.t])
         if not mine.all():
             break  # its rays refused part of it: what lies beyond has no edge to walk from
