@@ -16,7 +16,7 @@ import re
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.state import CLEAR_RATIO, LabelState
 
 #: Anterior pelvis marker names (``LASI``, ``RASIS``) and posterior ones (``LPSI``,
 #: ``SACR``, ``SAC``), by the naming convention.
@@ -188,8 +188,9 @@ def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
     far from their standing places), and the ASIS's own piece, a few fields long, then
     takes the sacrum's name. Distances cannot tell them apart in a pelvis near
     equilateral; the other ASIS, level with an ASIS and ahead of the sacrum, can, unless
-    the distances fit the exchange more than 1.5 times worse (the ratio
-    :func:`~kisscal.tracking.labelling.spread.by_body_fit` asks of a clear answer).
+    the distances fit the exchange more than :data:`~.state.CLEAR_RATIO` times worse
+    (the ratio :func:`~kisscal.tracking.labelling.spread.by_body_fit` asks of a clear
+    answer).
     """
     front, back = pelvis_roles(state.names)
     changed = False
@@ -207,7 +208,7 @@ def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
             # the distances may not tell (a pelvis near equilateral) but must not clearly
             # disagree (sub_labels.c3d: an ASIS by wrongly named others)
             if _overlaps(state, move + rest, names) or not _fits_better(
-                state, j, other, move, worse=1.5
+                state, j, other, move, worse=CLEAR_RATIO
             ):
                 continue
             state.name_pos[[j, other]] = np.nan

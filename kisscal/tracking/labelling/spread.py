@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.labelling.learned import distance_statistics, trial_scores
 from kisscal.tracking.labelling.pieces import reaches
-from kisscal.tracking.labelling.state import LabelState
+from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
 from kisscal.tracking.labelling.window import match_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rigid import kabsch
@@ -121,9 +121,10 @@ def by_body_fit(
     piece keeps closest to, if clearly closer than any other free name (-1 if none).
 
     The median distance over the fields (:func:`body_fit_distances`) decides; the best
-    must be within ``label_tolerance_mm`` and the runner-up at least 1.5 times farther.
+    must be within ``label_tolerance_mm`` and the runner-up
+    :data:`~.state.CLEAR_RATIO` times farther.
     A single name in ``prefer`` (confirmed by one rigid partner) is taken when within
-    ``label_tolerance_mm`` and no other is 1.5 times closer.
+    ``label_tolerance_mm`` and no other is :data:`~.state.CLEAR_RATIO` times closer.
     """
     dist = body_fit_distances(piece_fields, piece_xyz, free, name_pos, template)
     # A row is NaN throughout or nowhere: the median of the rows with distances is the
@@ -136,9 +137,9 @@ def by_body_fit(
     best = score[order[0]]
     second = score[order[1]] if order.size > 1 else np.inf
     tolerance = params.label_tolerance_mm
-    if best <= tolerance and second >= 1.5 * best:
+    if best <= tolerance and second >= CLEAR_RATIO * best:
         return int(free[order[0]])
-    if free.size == 1 and best <= 2.0 * tolerance:
+    if free.size == 1 and best <= LONE_NAME_REACH * tolerance:
         # The only name the rigid partners leave: the body fit need only roughly agree
         # (the other side's marker of the pair would lie farther still).
         return int(free[0])
@@ -146,7 +147,7 @@ def by_body_fit(
         # The one name a rigid partner confirms wins unless the body clearly disagrees.
         k = int(np.flatnonzero(free == prefer[0])[0])
         others = np.delete(score, k)
-        if score[k] <= tolerance and not (others < score[k] / 1.5).any():
+        if score[k] <= tolerance and not (others < score[k] / CLEAR_RATIO).any():
             return int(prefer[0])
     return -1
 

@@ -27,6 +27,13 @@ RIGID_MATCH_MM = 15.0
 #: a length): a knee and a heel seen together in a few fields of one stance keep their
 #: distance by chance.
 MIN_SHARED_FIELDS = 10
+#: The body fit's answer is clear when the runner-up is this many times farther than
+#: the best name (:func:`.spread.by_body_fit`; also :func:`.unseen.name_by_segment` and
+#: :func:`.pelvis.settle_pelvis_offsets`).
+CLEAR_RATIO = 1.5
+#: The one name a piece's rigid partners leave needs the body fit within this many
+#: ``label_tolerance_mm`` only (:func:`.spread.by_body_fit`, :func:`.unseen.name_by_segment`).
+LONE_NAME_REACH = 2.0
 
 
 def rich_fields(present: NDArray) -> NDArray[np.int64]:

@@ -27,7 +27,13 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.learned import LONG_PIECE, trial_scores
 from kisscal.tracking.labelling.spread import body_fit_distances
-from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM, LabelState
+from kisscal.tracking.labelling.state import (
+    CLEAR_RATIO,
+    LONE_NAME_REACH,
+    MIN_SHARED_FIELDS,
+    RIGID_SPREAD_MM,
+    LabelState,
+)
 
 #: Floor (mm) of a template distance's spread: the piece's own noise and the subject's
 #: build against the template's.
@@ -44,12 +50,6 @@ MAX_FIT = 2.0
 #: distances to the near markers only, so :data:`~.learned.MARGIN` (3) is out of reach
 #: for it with spreads this wide.
 MARGIN = 1.5
-#: A piece rigid with a segment takes its name when the body fit puts the name within
-#: this many ``label_tolerance_mm`` of it, and every other free name this many times
-#: farther (:func:`name_by_segment`), as spreading's body fit asks of the one name a
-#: piece's rigid partners leave (:func:`~.spread.by_body_fit`).
-SEGMENT_REACH = 2.0
-SEGMENT_MARGIN = 1.5
 
 
 def template_scores(state: LabelState, t: int) -> NDArray[np.float64]:
@@ -116,8 +116,9 @@ def segment_claims(state: LabelState) -> dict[int, list[int]]:
 def name_by_segment(state: LabelState) -> bool:
     """Pieces rigid with a segment whose other name the trial never showed take it (see
     module): one piece claims it (:func:`segment_claims`), and the body fit
-    (:func:`~.spread.body_fit_distances`, median) puts it within :data:`SEGMENT_REACH`
-    label tolerances and every other free name :data:`SEGMENT_MARGIN` times farther: the
+    (:func:`~.spread.body_fit_distances`, median) puts it within
+    :data:`~.state.LONE_NAME_REACH` label tolerances and every other free name
+    :data:`~.state.CLEAR_RATIO` times farther: the
     marker sits off the template's place, but the other side's name or another limb's
     lies farther still. Returns whether any piece was named.
 
@@ -139,7 +140,7 @@ def name_by_segment(state: LabelState) -> bool:
             )
         own = dist[free == j][0]
         others = dist[free != j]
-        if own <= SEGMENT_REACH * tolerance and not (others < SEGMENT_MARGIN * own).any():
+        if own <= LONE_NAME_REACH * tolerance and not (others < CLEAR_RATIO * own).any():
             state.name_piece(pieces[0], j)
             named = True
     return named
