@@ -15,7 +15,10 @@ cameras, github OpenPTV/test_cavity, MIT) and prints one JSON line per image:
   ``target_recognition`` with the experiment's settings (``parameters/targ_rec.par``,
   high-pass as ``ptv.par`` asks), and the fraction of them kisscal finds within 1 px,
   and the same with both at the whole grey level nearest kisscal's derived threshold
-  (:func:`at_same_threshold`); otherwise blob counts only;
+  (:func:`at_same_threshold`); otherwise blob counts only; then a line per camera
+  scoring both against particles *tracked* through the five frames (:func:`tracked`,
+  :func:`tracked_scores`): a truth of the real frames that no threshold or splitting
+  convention of the frame scored sets;
 - cost (unless ``--no-cost``): peak memory of a fresh process that reads the image,
   derives the settings and detects its blobs, and the time of the detection alone
   against OpenCV's threshold + connected components with statistics and centroids on
@@ -29,6 +32,7 @@ frames for a particle frame. A closing line sums every camera up.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import resource
@@ -39,6 +43,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from kisscal.detect import Blobs, DetectionParams, detect_blobs
 from kisscal.detect import blobs as fl
@@ -69,8 +74,6 @@ def nearest(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance from each point of ``a`` to the nearest of ``b`` and its index."""
     if len(a) == 0 or len(b) == 0:
         return np.full(len(a), np.inf), np.zeros(len(a), dtype=int)
-    from scipy.spatial import cKDTree
-
     d, i = cKDTree(b).query(a)
     return d, i
 
@@ -83,8 +86,6 @@ def score_dots(blobs: Blobs, dots: np.ndarray, reference: np.ndarray) -> dict:
     split_part = (valid.flags[i] & SPLIT_FLAGS) != 0 if len(valid) else np.zeros(len(dots), bool)
     pieces = np.zeros(len(dots), dtype=int)
     if len(blobs):
-        from scipy.spatial import cKDTree
-
         pieces = np.asarray(
             cKDTree(blobs.xy_px).query_ball_point(dots, DOT_RADIUS_PX, return_length=True)
         )
@@ -199,6 +200,84 @@ def at_same_threshold(image: np.ndarray, params: DetectionParams, cam: int, data
     }
 
 
+#: A tracked particle has no other point this close (px) in the frames it is tracked in.
+TRACK_APART_PX = 5.0
+#: Farthest (px a frame) a particle moves (the cavity's: 1-2 px, 16 at most), and farthest
+#: (px) its point in a frame may lie from the line through two frames' points.
+TRACK_REACH_PX = 20.0
+TRACK_GATE_PX = 1.5
+#: Largest RMS (px) of a track about its parabola in time (centroids: about 0.1 px).
+TRACK_RMS_PX = 0.25
+
+
+def tracked(points: list[np.ndarray], k: int) -> np.ndarray:
+    """Positions in frame ``k`` of the particles tracked through every other frame.
+
+    A particle is tracked from the points of the frames before and after ``k``
+    (``points``: one (n, 2) array a frame) when it stands alone in each of the other
+    frames (:data:`TRACK_APART_PX`), the straight line between those two frames passes
+    within :data:`TRACK_GATE_PX` of one of its points in every other frame, the points
+    lie on a parabola in time (:data:`TRACK_RMS_PX`), and the track is the only one of
+    its points in the two frames; its position in frame ``k`` is that parabola's. It is
+    a truth for frame ``k`` that neither frame ``k``'s segmentation nor a threshold
+    sets: two particles that touch in frame ``k`` and not elsewhere are two tracks.
+    Needs a frame before and after ``k``, and four frames besides it (a parabola through
+    three points is no test).
+    """
+    times = np.array([t for t in range(len(points)) if t != k], dtype=float)
+    alone = []
+    for t in times.astype(int):
+        xy = points[t]
+        gap = cKDTree(xy).query(xy, 2)[0][:, 1] if len(xy) > 1 else np.full(len(xy), np.inf)
+        alone.append(xy[gap > TRACK_APART_PX])
+    if min(map(len, alone)) == 0:
+        return np.empty((0, 2))
+    a = int(np.searchsorted(times, k)) - 1
+    span = times[a + 1] - times[a]
+    pairs = cKDTree(alone[a]).sparse_distance_matrix(
+        cKDTree(alone[a + 1]), TRACK_REACH_PX * span, output_type="coo_matrix"
+    )
+    i, j = pairs.row, pairs.col
+    start, speed = alone[a][i], (alone[a + 1][j] - alone[a][i]) / span
+    track = np.empty((i.size, times.size, 2))
+    ok = np.ones(i.size, dtype=bool)
+    for f, t in enumerate(times):
+        d, at = cKDTree(alone[f]).query(start + speed * (t - times[a]))
+        ok &= d <= TRACK_GATE_PX
+        track[:, f] = alone[f][at]
+    powers = np.stack([np.ones_like(times), times, times**2], axis=1)
+    fit = np.einsum("ct,ntx->ncx", np.linalg.pinv(powers), track)
+    off = np.einsum("tc,ncx->ntx", powers, fit) - track
+    ok &= np.sqrt((off**2).sum(axis=2).mean(axis=1)) <= TRACK_RMS_PX
+    i, j, fit = i[ok], j[ok], fit[ok]
+    once = (np.bincount(i)[i] == 1) & (np.bincount(j)[j] == 1)  # one track a point
+    return np.einsum("c,ncx->nx", np.array([1.0, k, k * k]), fit[once])
+
+
+#: The two truths of :func:`tracked_scores`.
+TRUTHS = ("tracked", "either")
+
+
+def tracked_scores(found: list[np.ndarray], targets: list[np.ndarray]) -> dict:
+    """Particles tracked (:func:`tracked`) in every frame but the first and last, and how
+    many kisscal (``found``: valid blobs a frame) and OpenPTV (``targets``) find within
+    1 px: tracked from OpenPTV's targets (``tracked``: a truth kisscal's detection plays
+    no part in), and from either's (``either``: also the faint particles below OpenPTV's
+    limits that kisscal follows through the frames)."""
+    names = itertools.product(("", "kisscal_", "openptv_"), TRUTHS)
+    out = dict.fromkeys((who + on for who, on in names), 0)
+    for k in range(1, len(found) - 1):
+        theirs, ours = tracked(targets, k), tracked(found, k)
+        either = np.vstack([theirs, ours[nearest(ours, theirs)[0] > MATCH_PX]])
+        for on, truth in zip(TRUTHS, (theirs, either), strict=True):
+            out[on] += len(truth)
+            for who, xy in (("kisscal_", found[k]), ("openptv_", targets[k])):
+                out[who + on] += int((nearest(truth, xy)[0] <= MATCH_PX).sum())
+    for who, on in itertools.product(("kisscal_", "openptv_"), TRUTHS):
+        out[f"{who}{on}_pct"] = round(100 * out[who + on] / max(out[on], 1), 2)
+    return out
+
+
 def _dots(data: Path, cam: int) -> np.ndarray:
     rows = np.loadtxt(data / "cal" / f"cam{cam + 1}_dots.csv", delimiter=",", skiprows=1, ndmin=2)
     return rows[:, 4:6]
@@ -301,6 +380,7 @@ def main(argv: list[str] | None = None) -> None:
     for cam in range(4):
         frames = sorted((data / "img_1").glob(f"cam{cam + 1}.*"))
         params = _settings(frames)
+        seen: list[tuple[np.ndarray, np.ndarray]] = []
         for path in frames:
             image = read_image(path)
             line = {"image": str(path.relative_to(data))}
@@ -309,6 +389,7 @@ def main(argv: list[str] | None = None) -> None:
             if targets is None:
                 line.update({"valid_blobs": int(blobs.valid.sum()), "targets": None})
             else:
+                seen.append((blobs.valid_only().xy_px, targets))
                 line.update(score_targets(blobs, targets))
                 total["targets"] += line["targets"]
                 total["targets_found"] += line["found_1px"]
@@ -318,6 +399,11 @@ def main(argv: list[str] | None = None) -> None:
             if not args.no_cost:
                 line.update(cost(path, frames))
             print(json.dumps(line), flush=True)
+        if len(seen) >= 5:  # a frame before and after, four frames to track through
+            line = tracked_scores(*(list(x) for x in zip(*seen, strict=True)))
+            print(json.dumps({"camera": f"cam{cam + 1}", **line}), flush=True)
+            for key in (f"{who}{on}" for who in ("", "kisscal_") for on in TRUTHS):
+                total[key] = total.get(key, 0) + line[key]
     print(json.dumps({"summary": total}))
 
 
