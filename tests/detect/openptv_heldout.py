@@ -7,7 +7,9 @@ real frames kisscal was never tuned on can be checked the same way as the cavity
 (:mod:`tests.detect.real_acceptance`). Settings are derived per camera from that
 camera's frames in the folder, as ``kisscal detect`` derives them. One JSON line per
 camera: targets, found by a valid blob within 1 px, valid blobs more than 1 px from
-every target (extra). Frames without a targets file are skipped.
+every target (extra), and with five frames in a row or more, both detections scored
+against the particles tracked through them (:func:`tracked_scores`). Frames without a
+targets file are skipped.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 from kisscal.detect import detect_blobs
 from kisscal.detect.configure import configure_detection
 from kisscal.io.frames import read_image
-from tests.detect.real_acceptance import score_targets
+from tests.detect.real_acceptance import score_targets, tracked_scores
 
 
 def _frames(folder: Path) -> dict[str, list[Path]]:
@@ -51,12 +53,18 @@ def main(argv: list[str] | None = None) -> None:
         for cam, paths in _frames(folder).items():
             images = [read_image(p) for p in paths]
             params = configure_detection(images).params
-            total = defaultdict(int)
+            total: dict = defaultdict(int)
+            seen = []
             for path, image in zip(paths, images, strict=True):
-                score = score_targets(detect_blobs(image, params), _targets(path))
+                blobs, targets = detect_blobs(image, params), _targets(path)
+                score = score_targets(blobs, targets)
                 for key in ("targets", "found_1px", "valid_blobs", "extra"):
                     total[key] += score[key]
+                seen.append((blobs.valid_only().xy_px, targets))
             total["recall_pct"] = round(100 * total["found_1px"] / max(total["targets"], 1), 1)
+            numbers = [int(p.name.split(".")[-1]) for p in paths]
+            if len(paths) >= 5 and np.all(np.diff(numbers) == 1):  # frames in a row
+                total.update(tracked_scores(*(list(x) for x in zip(*seen, strict=True))))
             print(json.dumps({"folder": str(folder), "camera": cam, "frames": len(paths), **total}))
 
 

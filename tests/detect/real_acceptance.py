@@ -259,15 +259,17 @@ TRUTHS = ("tracked", "either")
 
 
 def tracked_scores(found: list[np.ndarray], targets: list[np.ndarray]) -> dict:
-    """Particles tracked (:func:`tracked`) in every frame but the first and last, and how
-    many kisscal (``found``: valid blobs a frame) and OpenPTV (``targets``) find within
-    1 px: tracked from OpenPTV's targets (``tracked``: a truth kisscal's detection plays
-    no part in), and from either's (``either``: also the faint particles below OpenPTV's
-    limits that kisscal follows through the frames)."""
+    """Particles tracked (:func:`tracked`, over the five frames around each) in every
+    frame but the first and last of five or more frames in a row, and how many kisscal
+    (``found``: valid blobs a frame) and OpenPTV (``targets``) find within 1 px: tracked
+    from OpenPTV's targets (``tracked``: a truth kisscal's detection plays no part in),
+    and from either's (``either``: also the faint particles below OpenPTV's limits that
+    kisscal follows through the frames)."""
     names = itertools.product(("", "kisscal_", "openptv_"), TRUTHS)
     out = dict.fromkeys((who + on for who, on in names), 0)
     for k in range(1, len(found) - 1):
-        theirs, ours = tracked(targets, k), tracked(found, k)
+        s = min(max(k - 2, 0), len(found) - 5)  # five frames: a parabola's motion
+        theirs, ours = tracked(targets[s : s + 5], k - s), tracked(found[s : s + 5], k - s)
         either = np.vstack([theirs, ours[nearest(ours, theirs)[0] > MATCH_PX]])
         for on, truth in zip(TRUTHS, (theirs, either), strict=True):
             out[on] += len(truth)
