@@ -208,6 +208,10 @@ TRACK_REACH_PX = 20.0
 TRACK_GATE_PX = 1.5
 #: Largest RMS (px) of a track about its parabola in time (centroids: about 0.1 px).
 TRACK_RMS_PX = 0.25
+#: Least a track moves (px, first frame to last): a spot that stays put (dust, a scratch,
+#: a particle stuck on the glass: a fifth of the cavity's tracks move less than 0.5 px
+#: in four frames) is no test of finding a moving particle.
+TRACK_MOVE_PX = 1.0
 
 
 def tracked(points: list[np.ndarray], k: int) -> np.ndarray:
@@ -217,8 +221,9 @@ def tracked(points: list[np.ndarray], k: int) -> np.ndarray:
     (``points``: one (n, 2) array a frame) when it stands alone in each of the other
     frames (:data:`TRACK_APART_PX`), the straight line between those two frames passes
     within :data:`TRACK_GATE_PX` of one of its points in every other frame, the points
-    lie on a parabola in time (:data:`TRACK_RMS_PX`), and the track is the only one of
-    its points in the two frames; its position in frame ``k`` is that parabola's. It is
+    lie on a parabola in time (:data:`TRACK_RMS_PX`), the track moves
+    (:data:`TRACK_MOVE_PX`) and is the only one of its points in the two frames; its
+    position in frame ``k`` is that parabola's. It is
     a truth for frame ``k`` that neither frame ``k``'s segmentation nor a threshold
     sets: two particles that touch in frame ``k`` and not elsewhere are two tracks.
     Needs a frame before and after ``k``, and four frames besides it (a parabola through
@@ -249,6 +254,7 @@ def tracked(points: list[np.ndarray], k: int) -> np.ndarray:
     fit = np.einsum("ct,ntx->ncx", np.linalg.pinv(powers), track)
     off = np.einsum("tc,ncx->ntx", powers, fit) - track
     ok &= np.sqrt((off**2).sum(axis=2).mean(axis=1)) <= TRACK_RMS_PX
+    ok &= np.hypot(*(track[:, -1] - track[:, 0]).T) >= TRACK_MOVE_PX
     i, j, fit = i[ok], j[ok], fit[ok]
     once = (np.bincount(i)[i] == 1) & (np.bincount(j)[j] == 1)  # one track a point
     return np.einsum("c,ncx->nx", np.array([1.0, k, k * k]), fit[once])
