@@ -75,7 +75,7 @@ class MergeScene:
     limit_px: float
 
 
-def _depth(dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]):
+def depth_of(dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]):
     """DLT denominators ``L9 X + L10 Y + L11 Z + 1`` (proportional to depth)."""
     return np.einsum("ij,ij->i", dlts[camera, 8:11], xyz) + 1.0
 
@@ -98,7 +98,7 @@ def near_blobs(
         if len(rows) == 0 or len(p_xyz) == 0:
             continue
         proj = project_rows(dlts, np.full(len(p_xyz), j), p_xyz)
-        front = _depth(dlts, np.full(len(p_xyz), j), p_xyz) > 0
+        front = depth_of(dlts, np.full(len(p_xyz), j), p_xyz) > 0
         pts = np.flatnonzero(front & np.all(np.isfinite(proj), axis=1))
         tree = cKDTree(embed_fields(uv[rows], field[rows]))
         hits = tree.query_ball_point(embed_fields(proj[pts], p_field[pts]), radius_px)
@@ -145,7 +145,7 @@ def _partners(
     return k[keep], u[keep]
 
 
-def _solve(
+def solve_deblended(
     dlts: NDArray[np.float64],
     cams: NDArray[np.int64],
     own_uv: NDArray[np.float64],
@@ -170,7 +170,7 @@ def _solve(
             n,
             reweight,
         )
-        depth = _depth(dlts, cams[:, 1], np.nan_to_num(t.xyz_mm))
+        depth = depth_of(dlts, cams[:, 1], np.nan_to_num(t.xyz_mm))
         w_own = np.where(np.abs(depth) > 0, 1.0 / np.maximum(depth * depth, 1e-18), w_known)
     return t.xyz_mm, t.rms_px, image
 
@@ -221,8 +221,8 @@ def deblend_merged(
     if len(k) == 0:
         return empty
     cams = np.column_stack([camera[u], camera[c[k]]])
-    depth = _depth(dlts, cams[:, 1], p_xyz[P[k]])
-    xyz, rms, image = _solve(
+    depth = depth_of(dlts, cams[:, 1], p_xyz[P[k]])
+    xyz, rms, image = solve_deblended(
         dlts, cams, uv[u], uv[c[k]], p_a[k], 1.0 / depth**2, 2, params.reweight_iterations
     )
     good = np.all(np.isfinite(xyz), axis=1) & (rms <= limit_px)
@@ -384,8 +384,8 @@ def _place_two(
         cams = np.column_stack([camera[a], j, camera[b], j]).ravel()
         t = triangulate_observations(dlts, np.repeat(np.arange(2 * n), 2), cams, obs, 2 * n, 0)
         xyz_a, xyz_b = t.xyz_mm[0::2], t.xyz_mm[1::2]
-        da = _depth(dlts, j, np.nan_to_num(xyz_a))
-        db = _depth(dlts, j, np.nan_to_num(xyz_b))
+        da = depth_of(dlts, j, np.nan_to_num(xyz_a))
+        db = depth_of(dlts, j, np.nan_to_num(xyz_b))
         wa, wb = 1.0 / np.maximum(da * da, 1e-18), 1.0 / np.maximum(db * db, 1e-18)
     sin = np.abs(la[:, 0] * lb[:, 1] - la[:, 1] * lb[:, 0])
     r = params.deblend_radius_px

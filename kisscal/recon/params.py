@@ -125,6 +125,12 @@ class ReconParams(Params):
         ``rms_px`` (a true merge pulls the pair off its epipolar lines; a blob beside the
         image of a marker hidden from its camera does not, and its residual is noise:
         lowcost seed 313, 0.07 px against a median of 0.04, deblended 14 mm off).
+    merged_pull_mm : float
+        A two-camera point one of whose blobs may be merged with another point's image
+        is refused (:func:`~kisscal.recon.unmerged.pulled_pairs`) when the deblended pair
+        fits its blobs better by more than the trial's median residual and lies farther
+        than this (mm) from it: the merge pulls the point along the other camera's ray by
+        that much.
     max_rms_px : float
         Largest reprojection ``rms_px`` (px) of a triple and of an accepted 3D marker;
         worse markers lose their worst observation (split) or are dropped. Generous on
@@ -196,6 +202,7 @@ class ReconParams(Params):
     deblend_max_cameras: int = param(4, ge=0)
     deblend_radius_px: float = param(3.0, unit="px", gt=0)
     merged_pair_rms_factor: float = param(3.0, gt=0)
+    merged_pull_mm: float = param(5.0, unit="mm", gt=0)
     max_rms_px: float = param(2.0, unit="px", gt=0)
     outlier_rms_factor: float = param(5.0, ge=0)
     outlier_floor_px: float = param(0.2, unit="px", gt=0)

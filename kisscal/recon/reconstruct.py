@@ -30,6 +30,7 @@ from kisscal.recon.unmerged import (
     merged_pairs,
     predicted_beside,
     predicted_pairs,
+    pulled_pairs,
     shared_blobs,
 )
 
@@ -283,6 +284,8 @@ def reconstruct_trial(
             if seeded is not pts:  # and the trajectories they start carried on
                 pts = _hidden(seeded, scene, body)
             pts = _ends(pts, scene)
+        pulled = pulled_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row, pts.rms_px)
+        pts = _without(pts, pulled)
     return pts
 
 

@@ -12,7 +12,7 @@ from kisscal.recon.deblend import MergeScene
 from kisscal.recon.epipolar import camera_centre_mm
 from kisscal.recon.group import residual_limit_px
 from kisscal.recon.reconstruct import hidden_over_pairs, points_from_markers, unmerged
-from kisscal.recon.unmerged import merged_pairs, predicted_pairs
+from kisscal.recon.unmerged import merged_pairs, predicted_pairs, pulled_pairs
 
 from .rig import SIZE_PX, make_rig
 from .scenario import observe
@@ -306,3 +306,29 @@ def test_a_pair_set_aside_that_nothing_replaces_is_put_back() -> None:
     order = np.lexsort(after.xyz_mm.T)
     np.testing.assert_array_equal(after.xyz_mm[order], pts.xyz_mm[np.lexsort(pts.xyz_mm.T)])
     np.testing.assert_array_equal(after.marker >= 0, pts.marker >= 0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_a_merge_pulls_off_its_marker_is_refused(seed: int) -> None:
+    # X hidden from camera 0: its pair of camera 2's own blob and camera 1's blob merged
+    # with H's image sits off X along camera 2's ray (lowcost seed 362 field 324's
+    # ankle, 14.3 mm off); deblended with H's projection, the blobs fit better, so the
+    # pair is no measurement. The pairs of own blobs beside H's image when H is hidden
+    # from camera 1 (seed 313) fit as well as ever: kept
+    dlts, xyz, visible, merged = _singly_merged_walk(seed)
+    visible[:, 0, 0] = False
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, merged)
+    x = np.flatnonzero((pts.n_cameras == 2) & np.isin(pts.field, np.flatnonzero(merged)))
+    x = x[np.linalg.norm(pts.xyz_mm[x] - xyz[pts.field[x], 0], axis=1) < 50.0]
+    error = np.linalg.norm(pts.xyz_mm[x] - xyz[pts.field[x], 0], axis=1)
+    assert len(x) == merged.sum() and np.median(error) > 5.0
+    flagged = pulled_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row, pts.rms_px)
+    assert set(np.flatnonzero(flagged)) <= set(x)  # H, T and the other markers kept
+    assert flagged[x].mean() >= 0.7
+    assert np.all(flagged[x[error > 2.0 * scene.params.merged_pull_mm]])
+    assert np.all(error[flagged[x]] > 0.5 * scene.params.merged_pull_mm)
+    dlts, xyz, visible, merged = _singly_merged_walk(seed, hidden=True)
+    tab = observe(dlts, SIZE_PX, xyz, visible, seed, noise_blobs=0, leds=False, merge="centroid")
+    pts, scene = _points(dlts, xyz, tab, {0: (1, 2), 1: (0, 3), 2: (1, 3)}, merged)
+    assert not pulled_pairs(scene, pts.field, pts.xyz_mm, pts.blob_row, pts.rms_px).any()
