@@ -29,7 +29,8 @@ Piece = tuple[NDArray[np.int64], NDArray[np.float64]]
 def unnamed_groups(state: LabelState, split: bool = False) -> list[NDArray[np.int64]]:
     """Groups of 2 to 4 unnamed pieces of at least ``min_body_fit_points`` points, each
     sharing at least three fields with another of its group, in order of their first
-    piece; with ``split``, the sub-groups (:func:`_rigid_split`) of the larger ones."""
+    piece; with ``split``, the sub-groups (:func:`_rigid_split`) of the larger ones, of
+    any size (their lengths bound the names, :func:`name_group`'s ``links``)."""
     cand = np.flatnonzero(
         (state.label_of < 0) & (state.n_measured >= state.params.min_body_fit_points)
     )
@@ -45,7 +46,7 @@ def unnamed_groups(state: LabelState, split: bool = False) -> list[NDArray[np.in
     if split:
         groups = [s for g in groups if g.size > 4 for s in _rigid_split(state, g)]
     groups.sort(key=lambda g: int(g[0]))
-    return [g for g in groups if 2 <= g.size <= 4]
+    return [g for g in groups if 2 <= g.size and (split or g.size <= 4)]
 
 
 def _rigid_split(state: LabelState, group: NDArray[np.int64]) -> list[NDArray[np.int64]]:
@@ -58,8 +59,14 @@ def _rigid_split(state: LabelState, group: NDArray[np.int64]) -> list[NDArray[np
     to name (kiss 3-camera seed 361: a heel and a toe from field 0 with shank and sacrum
     pieces in their fields); the pieces of one segment still keep its lengths.
     """
+    link = rigid_links(state, [state.piece(int(t)) for t in group])
+    _, component = connected_components(csr_matrix(link), directed=False)
+    return [group[component == c] for c in np.unique(component)]
+
+
+def rigid_links(state: LabelState, pieces: list[Piece]) -> NDArray[np.bool_]:
+    """Which two ``pieces`` could be a rigid pair of the set (:func:`_rigid_split`)."""
     lengths = state.template_distance[state.rigid_pairs()]
-    pieces = [state.piece(int(t)) for t in group]
     k = len(pieces)
     link = np.zeros((k, k), dtype=bool)
     for a, b in itertools.combinations(range(k), 2):
@@ -70,8 +77,7 @@ def _rigid_split(state: LabelState, group: NDArray[np.int64]) -> list[NDArray[np
             off = np.min(np.abs(lengths - np.median(d)), initial=np.inf)
             link[a, b] = np.std(d) < RIGID_SPREAD_MM
             link[a, b] &= off <= state.params.label_segment_tolerance_mm
-    _, component = connected_components(csr_matrix(link | link.T), directed=False)
-    return [group[component == c] for c in np.unique(component)]
+    return link | link.T
 
 
 def _between(pieces: list[Piece]) -> NDArray[np.float64]:
@@ -182,7 +188,16 @@ def _settle_rivals(
     return options[order[0]]
 
 
-def name_group(state: LabelState, pieces: list[Piece], rigid: NDArray) -> NDArray[np.int64] | None:
+def _fits_links(choice: tuple[int, ...], links: NDArray, apart: NDArray, rigid: NDArray) -> bool:
+    c = np.asarray(choice)
+    same = c[:, None] == c[None, :]
+    np.fill_diagonal(same, False)
+    return bool(apart[same].all() and rigid[np.ix_(c, c)][links].all())
+
+
+def name_group(
+    state: LabelState, pieces: list[Piece], rigid: NDArray, links: NDArray | None = None
+) -> NDArray[np.int64] | None:
     """Names for a group of unnamed pieces, chosen jointly by their rigid distances.
 
     Every one-to-one choice of free names is scored by the RMS difference between the
@@ -192,6 +207,12 @@ def name_group(state: LabelState, pieces: list[Piece], rigid: NDArray) -> NDArra
     twice better than any choice that differs in more than a left/right mirror; between a
     choice and its mirror image the rigid fit of the body decides. Returns None when the
     group cannot be named safely.
+
+    With ``links`` (pieces that keep a rigid length of the set, :func:`rigid_links`),
+    each linked pair must be named as a rigid pair, and pieces sharing no field may take
+    one name (a marker's pieces either side of a gap): kiss 3-camera seed 368's right
+    toe kept its heel's and ankle's lengths through two heel pieces, and choices that
+    left its 152 mm to the ankle unexplained rivalled the right one.
     """
     between = _between(pieces)
     to_named = _to_named(pieces, state.name_pos)
@@ -199,8 +220,12 @@ def name_group(state: LabelState, pieces: list[Piece], rigid: NDArray) -> NDArra
     if np.prod([len(o) for o in options], dtype=float) > MAX_GROUP_CHOICES:
         return None
     scored = []
+    if links is not None:
+        apart = np.array([[np.intersect1d(a, b).size == 0 for b, _ in pieces] for a, _ in pieces])
     for choice in itertools.product(*options):
-        if len(set(choice)) < len(pieces):
+        if links is None and len(set(choice)) < len(pieces):
+            continue
+        if links is not None and not _fits_links(choice, links, apart, rigid):
             continue
         rms = _choice_rms(choice, between, to_named, rigid, state.template_distance)
         if rms is not None:
@@ -225,7 +250,9 @@ def name_groups(state: LabelState) -> None:
     keeping its name's distances as the trial shows them (:func:`.learned.trial_scores`):
     one length alone fits many pairs of a set (a lower-limb file's RTIB and an extra
     shank-cluster marker, 108.5 mm apart, took the head's LFHD-RFHD), and the trial's
-    distances tell a foot from a head."""
+    distances tell a foot from a head. When two or more keep them, those are named and
+    spreading names the rest from them (kiss 3-camera seed 368: a shank's pieces misfit
+    the distances their names showed over 11 fields of another stride phase)."""
     rigid = state.rigid_pairs()
     for group in unnamed_groups(state):
         names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
@@ -236,13 +263,15 @@ def name_groups(state: LabelState) -> None:
     for group in unnamed_groups(state, split=True):
         if np.any(state.label_of[group] >= 0):
             continue  # named as names spread from an earlier group
-        names_for = name_group(state, [state.piece(int(t)) for t in group], rigid)
+        pieces = [state.piece(int(t)) for t in group]
+        names_for = name_group(state, pieces, rigid, rigid_links(state, pieces))
         if names_for is None:
             continue
         median, spreads = distance_statistics(state.name_pos)
         scores = [trial_scores(state, int(t), np.array([j]), median, spreads)[0]
                   for t, j in zip(group, names_for, strict=True)]  # fmt: skip
-        if max(scores) <= MAX_SCORE**2:
-            for t, j in zip(group, names_for, strict=True):
+        kept = np.asarray(scores) <= MAX_SCORE**2
+        if kept.sum() >= 2:
+            for t, j in zip(group[kept], names_for[kept], strict=True):
                 state.name_piece(int(t), int(j))
             spread(state)

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.blending import bridge_residual_mm
-from kisscal.tracking.labelling.learned import distance_statistics, trial_scores
+from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
 from kisscal.tracking.labelling.pieces import reaches
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
 from kisscal.tracking.labelling.window import match_window
@@ -236,6 +236,22 @@ def _trial_prefers_other(state: LabelState, t: int, names: NDArray, j: int) -> b
     return bool(np.isfinite(own) and np.any(score <= own - TRIAL_VETO))
 
 
+def _trial_disowns(state: LabelState, t: int, j: int) -> bool:
+    """Whether piece ``t`` keeps the distances the trial showed (:mod:`.learned`, within
+    ``MAX_SCORE`` spreads) for some free name but not for ``j``, a window's name for it.
+
+    A window's average pose, when its other core pieces are one leg's, places a marker
+    of the other foot by template distances that a stride bends (kiss 3-camera seed 368:
+    the right toe, 137 fields, took RKNE, a name never seen, and on its true path RANK,
+    seen for 11 fields); the trial's distances to the names around tell a foot marker.
+    """
+    f, _ = state.piece(t)
+    free = np.flatnonzero(~np.isfinite(state.name_pos[:, f, 0]).any(axis=1))
+    median, spread_sd = distance_statistics(state.name_pos, free)
+    kept = trial_scores(state, t, free, median, spread_sd) <= MAX_SCORE**2
+    return bool(kept.any() and not kept[free == j].any())
+
+
 def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool = False) -> int:
     """The name piece ``t`` takes now (-1: none yet), by its rigid partners, then by
     the body fit (with ``continuity``, then by :func:`by_continuity`); a short piece must
@@ -407,7 +423,9 @@ def rematch(state: LabelState) -> None:
     gives names only when it agrees with every name its core pieces already hold (a
     window that names the pelvis otherwise names the rest wrongly too) and its average
     pose fits the template at most ``SHORT_WINDOW_FIT`` times worse than the first
-    window's (a piece that holds two markers in turn bends the pose).
+    window's (a piece that holds two markers in turn bends the pose). A piece that keeps
+    a free name's distances as the trial showed them takes no name whose distances it
+    does not keep, or that the trial never showed (:func:`_trial_disowns`).
     """
     longest = state.window
     length = longest
@@ -446,5 +464,6 @@ def _rematch_windows(state: LabelState, agree: bool) -> None:
             t = state.long_ids[k]
             if j < 0 or state.label_of[t] >= 0:
                 continue
-            if not np.isfinite(state.name_pos[j, state.present[k], 0]).any():
+            free = not np.isfinite(state.name_pos[j, state.present[k], 0]).any()
+            if free and not _trial_disowns(state, int(t), int(j)):
                 state.name_piece(int(t), int(j))
