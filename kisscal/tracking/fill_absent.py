@@ -163,6 +163,8 @@ def place_absent(
     s, worst, err = _depths(c, d, p, length, sd)
     fits = (worst <= 3.0) & (err <= params.ray_length_max_error_mm)
     rows, x, err = rows[fits], c[fits] + s[fits, None] * d[fits], err[fits]
+    if rows.size == 0:  # no ray keeps the lengths
+        return out, along
     f = spare.field[rows]
     order = np.lexsort((err, f))
     rows, x, f, err = rows[order], x[order], f[order], err[order]

@@ -242,3 +242,14 @@ def test_a_knee_its_thigh_places_in_a_few_fields_waits_for_the_ankle_placed_afte
         assert rows.sum() > n / 3
         err = np.linalg.norm(out.xyz_mm[rows] - right[j, out.field[rows]], axis=1)
         assert np.sqrt(np.mean(err**2)) < 2.0 and err.max() < 5.0
+
+
+def test_blobs_that_fit_no_length_place_nothing():
+    # every free blob in an image corner: none keeps the ankle's lengths (kiss 3 cameras
+    # seed 103 raised IndexError when every ray of the fields with partners failed)
+    right, truth = _feet(22)
+    dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
+    spare = _cameras(right, 22, GAP)
+    corner = spare_blobs(spare.field, spare.camera, np.ones_like(spare.uv_px), spare.dlts)
+    rows = absent_rows(dense, LABELS, ("RANK",), corner, PARAMS)
+    assert not np.isfinite(rows).any() and corner.free.all()
