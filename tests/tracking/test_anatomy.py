@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from kisscal.markersets import marker_set
-from kisscal.synth.motion import walking_trial
+from kisscal.synth.body import PELVIS_MARKERS
+from kisscal.synth.motion import _leg_from_angles, gait_marker_names, walking_trial
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.anatomy import (
     Anatomy,
@@ -281,3 +282,71 @@ def test_the_sacrum_s_piece_named_an_asis_alone_takes_the_sacrum_by_the_other_as
     for pos in (walker(10, 75.0), walker(10, 75.0)[:, ::-1].copy()):
         again, _ = _pieces_state(pos)
         assert not settle_pelvis_offsets(again, walking_direction(again.name_pos))
+
+
+def squats(rate: float = 100.0, hop_mm: float = 0.0) -> tuple[tuple[str, ...], np.ndarray]:
+    """The synthetic walker's body (the kiss set, 1.755 m) squatting twice on one spot,
+    hips flexed to 90 and knees to 110 degrees, feet flat (a jump between the two when
+    ``hop_mm``): names and true positions (15, F, 3)."""
+    t = np.arange(int(2.6 * rate)) / rate
+
+    def bump(centre: float, half: float) -> np.ndarray:
+        return np.where(abs(t - centre) < half, 0.5 + 0.5 * np.cos(np.pi * (t - centre) / half), 0)
+
+    depth = bump(0.75, 0.45) + bump(1.75, 0.45)
+    hip, knee = np.radians(90.0) * depth, np.radians(110.0) * depth
+    legs = {s: _leg_from_angles(hip, knee, knee - hip, -1.0 if s == "R" else 1.0) for s in "RL"}
+    ankle = legs["R"]["ankle"]  # on one spot of the floor, but for the jump
+    origin = np.c_[-ankle[:, 0], np.zeros(t.size), 80.0 - ankle[:, 2] + hop_mm * bump(1.28, 0.25)]
+    names = gait_marker_names(15)
+    pelvis = {n: np.tile(p, (t.size, 1)) for n, p in PELVIS_MARKERS.items()}
+    pos = np.stack([pelvis[n] if n in pelvis else legs[n[0]][n[1:]] for n in names]) + origin
+    return names, pos @ np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]).T  # facing +Y
+
+
+@pytest.mark.parametrize("hop_mm", [0.0, 250.0])
+def test_a_squatting_or_jumping_body_s_true_names_are_not_doubted(hop_mm: float) -> None:
+    """A squat takes the pelvis 40 cm below its standing height, a jump every marker
+    25 cm above: the heights say nothing of the names there (main flagged the right
+    pelvis names of every squat: within the height tolerance in 79 % of the fields)."""
+    names, pos = squats(hop_mm=hop_mm)
+    kiss = marker_set("kiss").scaled(1755.0)
+    pos = pos[[names.index(n) for n in kiss.names]]
+    anatomy = Anatomy.of_set(kiss)
+    judged = judge_sides(
+        _labelling(pos, kiss.names), anatomy, kiss.template_mm, 100.0, TrackingParams()
+    )
+    assert judged.labels == kiss.names and judged.exchanged == ()
+    assert judged.flagged == ()
+    assert min(judged.confidence.values()) >= 0.85
+    # A name on the wrong marker is still doubted: the knee's on the ankle's trajectory.
+    wrong = pos.copy()
+    wrong[kiss.names.index("RKNE")] = pos[kiss.names.index("RANK")]
+    judged = judge_sides(
+        _labelling(wrong, kiss.names), anatomy, kiss.template_mm, 100.0, TrackingParams()
+    )
+    assert "RKNE" in judged.flagged
+
+
+def test_a_still_body_named_turned_round_is_not_certain() -> None:
+    """A body held still mid-stride fits the standing template turned round better than
+    as it is (legs split fore and aft): left and right legs exchanged and the pelvis'
+    names turned a third round its triangle. Standing, nothing checked that: main wrote
+    all 15 wrong names as certain. The pelvis then faces against the feet."""
+    m = walking_trial(1, 2, 50.0, path_mm=3400, model="grounded", height_m=1.7, heading_deg=40)
+    kiss = marker_set("kiss").scaled(1700.0)
+    pos = np.repeat(m.xyz_mm[:1], 100, axis=0).transpose(1, 0, 2)[
+        [m.names.index(n) for n in kiss.names]
+    ]
+    turned = {"SACR": "RASI", "RASI": "LASI", "LASI": "SACR"}
+    held = [turned[n] if n in turned else "LR"[n[0] == "L"] + n[1:] for n in kiss.names]
+    named = pos[[kiss.names.index(n) for n in held]]  # row of name n: the marker held
+    anatomy = Anatomy.of_set(kiss)
+    judged = judge_sides(
+        _labelling(named, kiss.names), anatomy, kiss.template_mm, 50.0, TrackingParams()
+    )
+    assert set(judged.flagged) == set(kiss.names)
+    right = judge_sides(
+        _labelling(pos, kiss.names), anatomy, kiss.template_mm, 50.0, TrackingParams()
+    )
+    assert not {"SACR", "RASI", "LASI", "RTHI", "LTHI"} & set(right.flagged)

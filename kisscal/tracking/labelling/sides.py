@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.labelling.anatomy import (
     Anatomy,
     check_anatomy,
+    feet_against_pelvis,
     floor_height,
     forward_directions,
     settle_sides,
@@ -198,8 +199,13 @@ def judge_sides(
     flagged |= _chained(moved, anatomy, ref, params, flagged)
     paired = {names[i] for pair in anatomy.pairs for i in pair}
     judged = check.forward != "none" and any(n in confidence for n in paired)
-    if not judged and not ratio >= MIRROR_MARGIN:
-        flagged |= paired & set(_relabelled(labelling, names, perm))
+    # A body that does not walk, its pelvis named facing against its feet: part of it is
+    # named turned round (a still mid-stride pose fits the template better so), and
+    # nothing tells which part: no side and no pelvis name is certain.
+    against = check.forward == "none" and feet_against_pelvis(moved, anatomy)
+    if (not judged and not ratio >= MIRROR_MARGIN) or against:
+        pelvis = {names[i] for i in anatomy.front + anatomy.back} if against else set()
+        flagged |= (paired | pelvis) & set(_relabelled(labelling, names, perm))
     # Names nothing tells apart from a close neighbour (a wrist bar's ends) are uncertain.
     flagged |= {names[i] for pair in anatomy.twins for i in pair} & set(labelling.labels)
     return replace(
