@@ -155,3 +155,23 @@ def test_the_second_pass_splines_a_short_run_beside_placed_samples_expecting_the
         dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
     )
     assert not [g for _, g in got if g.track == 3]
+
+
+def test_a_depth_fill_expects_the_error_its_spline_shows_in_the_gap_s_phase() -> None:
+    # kiss 3 seed 302's tibia: the runs beside the gap too short for a whole stretch, the
+    # two found 350 fields away in smooth motion (0.4, 1.6 mm); 2.9 mm off expecting 1.2
+    f = np.arange(400)
+    centre = np.array([0.0, -3000.0, 1000.0])
+    sight = np.stack([np.sin(f / 400), np.cos(f / 400), np.full(f.size, -0.3)], 1)
+    sight /= np.linalg.norm(sight, axis=1, keepdims=True)
+    # the depth jerks every 8 fields in the first 70 (the gap's phase), smooth after
+    depth = 3000.0 + 2.0 * f
+    depth += sum(3.0 * np.exp(-0.5 * ((f - c) / 1.5) ** 2) for c in np.arange(1.5, 70, 8))
+    series = np.full((f.size, 3), np.nan)
+    for a, b in ((0, 18), (26, 39), (96, 122), (300, 400)):
+        series[a:b] = centre + depth[a:b, None] * sight[a:b]
+    lo, hi = 18, 26
+    spline = _depth_spline(series, centre, lo, hi, PARAMS.fill_context_fields)
+    true = float(np.sqrt(np.mean((spline - depth[lo:hi]) ** 2)))
+    assert true > 3.0  # 3.3 mm
+    assert true <= 2.0 * depth_error(series, centre, lo, hi, PARAMS)  # before, 0.0
