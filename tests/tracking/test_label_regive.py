@@ -8,6 +8,7 @@ from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.regive import regive_doubted
 from kisscal.tracking.labelling.sides import judge_sides
+from kisscal.tracking.labelling.state import segment_mask
 from tests.tracking.test_anatomy import _labelling
 from tests.tracking.test_label_chains import CHAIN, FULL, _walk
 
@@ -21,7 +22,8 @@ def _judge(labelling):
 
 def _regiven(pos: np.ndarray, labels: tuple[str, ...]):
     judged = _judge(_labelling(pos, labels))
-    return judged, regive_doubted(judged, Anatomy.of_set(FULL), FULL.template_mm, _judge)
+    segments = segment_mask(FULL.names, FULL.segments)
+    return judged, regive_doubted(judged, Anatomy.of_set(FULL), FULL.template_mm, _judge, segments)
 
 
 def test_thigh_markers_named_fingers_take_the_free_thigh_names():
@@ -60,3 +62,37 @@ def test_a_labelling_with_nothing_doubted_is_left_as_it_is():
     held = [i for i, n in enumerate(names) if n[1:] not in ARMS]
     judged, regiven = _regiven(pos[held], tuple(names[i] for i in held))
     assert judged.flagged == () and regiven is judged
+
+
+def _swinging_legs() -> np.ndarray:
+    """:func:`_walk` with each leg swinging rigidly about its hip (30 degrees, in
+    opposition): a leg's markers keep their distances only to one another."""
+    pos, names = _walk(), FULL.names
+    angle = 0.5 * np.sin(np.arange(pos.shape[1]) / 8.0)
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        rows = [i for i, n in enumerate(names) if n[0] == side and n[1:] in LEG]
+        hip = pos[names.index(f"{side}ASI")] - [0.0, 0.0, 50.0]  # (F, 3)
+        c, s = np.cos(sign * angle), np.sin(sign * angle)
+        rel = pos[rows] - hip
+        pos[rows] = hip + np.stack(
+            [c * rel[..., 0] + s * rel[..., 2], rel[..., 1], -s * rel[..., 0] + c * rel[..., 2]], -1
+        )
+    return pos
+
+
+LEG = ("THI", "KNE", "TIB", "ANK", "HEE", "TOE")
+
+
+def test_a_thigh_marker_placed_high_takes_the_thigh_name_its_segment_vouches_for():
+    """Arms absent, the right thigh marker placed twice as far above the knee as the
+    template's (at wrist height, analogfpscale03.c3d) and named RWRA, RTHI free: it fits
+    the wrist's place better than the thigh's, but it keeps its distance to the knee
+    marker, RTHI's segment partner, while the leg swings; given again it is RTHI."""
+    pos, names = _swinging_legs(), FULL.names
+    knee, thigh = names.index("RKNE"), names.index("RTHI")
+    pos[thigh] = pos[knee] + 2.0 * (pos[thigh] - pos[knee])
+    keep = [i for i, n in enumerate(names) if n[1:] not in ARMS]
+    truth = tuple(names[i] for i in keep)
+    judged, regiven = _regiven(pos[keep], tuple({"RTHI": "RWRA"}.get(n, n) for n in truth))
+    assert "RWRA" in judged.flagged  # the judge doubts it (before)
+    assert regiven.labels == truth

@@ -329,7 +329,7 @@ def _label_upright(
         own = replace(labelling, flagged=found.flagged)
         return judge_sides(own, anatomy, template, rate_hz, params, scaled)
 
-    judged = regive_doubted(judge(found), anatomy, scaled, judge)
+    judged = regive_doubted(judge(found), anatomy, scaled, judge, segment_mask(names, segments))
     judged = replace(judged, exchanged=tuple(exchanged) + judged.exchanged)
     if partial and judged.fits_marker_set:
         # A part fits many statures, and a wrong one shifts names along the limbs where
