@@ -305,7 +305,7 @@ def deblend_pairs(
     c, a, b = free_triples(scene, marker, F)
     if len(c) == 0:
         return empty
-    xyz_a, xyz_b, ok = _place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
+    xyz_a, xyz_b, ok = place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
     c, a, b, xyz_a, xyz_b = c[ok], a[ok], b[ok], xyz_a[ok], xyz_b[ok]
     n = len(c)
     if n == 0:
@@ -346,7 +346,7 @@ def free_triples(
     return c[i1[keep]], o[i1[keep]], o[i2[keep]]
 
 
-def _place_two(
+def place_two(
     c: NDArray[np.int64],
     a: NDArray[np.int64],
     b: NDArray[np.int64],
@@ -450,7 +450,7 @@ def deblend_held(
     if len(k) == 0:
         return none
     P, c, a = P[k], c[k], a[k]
-    xyz_a, xyz_b, ok = _place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
+    xyz_a, xyz_b, ok = place_two(c, a, b, camera, uv, dlts, F, params, limit_px)
     # b is the point's own image in a third camera when the point projects onto it
     at_b = project_rows(dlts, camera[b], p_xyz[P])
     ok &= np.linalg.norm(at_b - uv[b], axis=1) > params.deblend_radius_px

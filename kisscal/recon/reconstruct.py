@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kisscal.errors import InputError
+from kisscal.recon.apart import deblend_apart
 from kisscal.recon.assign import check_table
 from kisscal.recon.body import RigidTriangles
 from kisscal.recon.deblend import (
@@ -376,9 +377,12 @@ def _held(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
 
 def _seeded(pts: Points3D, scene: MergeScene, body: RigidTriangles) -> Points3D:
     """``pts`` with the pairs of markers merged in one view and apart in one other that
-    :func:`~kisscal.recon.seeded.deblend_seeded` places from their pair points."""
-    new = deblend_seeded(scene, pts.marker, pts.field, pts.xyz_mm, body.lengths())
-    return _with_points(pts, new, scene.camera) if len(new.field) else pts
+    :func:`~kisscal.recon.seeded.deblend_seeded` places from their pair points, then those
+    each seen by one other camera (:func:`~kisscal.recon.apart.deblend_apart`)."""
+    for deblend in (deblend_seeded, deblend_apart):
+        new = deblend(scene, pts.marker, pts.field, pts.xyz_mm, body.lengths())
+        pts = _with_points(pts, new, scene.camera) if len(new.field) else pts
+    return pts
 
 
 def _ends(pts: Points3D, scene: MergeScene) -> Points3D:

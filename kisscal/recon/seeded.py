@@ -78,7 +78,7 @@ def deblend_seeded(
     ok = np.isfinite(off) & (off <= params.two_camera_body_mm)
     c, a, b, seed_a, seed_b, want = (v[ok] for v in (c, a, b, seed_a, seed_b, want))
     xa, xb, rms = solve_pair(scene, c, a, b, seed_a, seed_b, want)
-    good = _plausible(scene, c, (xa, xb, rms), (seed_a, seed_b), p_xyz, p_field)
+    good = plausible(scene, c, (xa, xb, rms), (seed_a, seed_b), p_xyz, p_field)
     c, a, b, xa, xb, rms = (v[good] for v in (c, a, b, xa, xb, rms))
     n = len(c)
     if n == 0:
@@ -110,7 +110,7 @@ def _pair_points(
     return t.xyz_mm
 
 
-def _plausible(
+def plausible(
     scene: MergeScene,
     c: NDArray[np.int64],
     solved: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
