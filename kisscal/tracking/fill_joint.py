@@ -80,7 +80,7 @@ def _group(
     return _Group(members, length, sd)
 
 
-def _member_rays(
+def member_rays(
     dense: NDArray,
     u: int,
     lo: int,
@@ -109,7 +109,7 @@ def _member_rays(
     return out
 
 
-def _pick_rays(cands: NDArray[np.int64]) -> NDArray[np.int64]:
+def pick_rays(cands: NDArray[np.int64]) -> NDArray[np.int64]:
     """One spare row per member and field from ``cands`` (m, n_cameras, n): the first
     camera's blob that no other member's path follows too, else the first camera's.
     Where two cameras see a marker and one of its blobs is shared (its image within a
@@ -194,7 +194,7 @@ def _best_start(
     return best
 
 
-def _edge_positions(series: NDArray, lo: int, hi: int, forward: bool) -> NDArray:
+def edge_positions(series: NDArray, lo: int, hi: int, forward: bool) -> NDArray:
     """Each of ``series`` (m, n_fields, 3) at its last known field before ``lo``
     (``forward``) or its first after ``hi - 1`` (NaN where none)."""
     ok = np.isfinite(series[:, :, 0])
@@ -214,7 +214,7 @@ def _walk(
     n = hi - lo
     xyz, err = np.full((n, 3), np.nan), np.full(n, np.nan)
     members = grp.members
-    last = _edge_positions(dense[members], lo, hi, forward)  # (m, 3), NaN where none
+    last = edge_positions(dense[members], lo, hi, forward)  # (m, 3), NaN where none
     edge, step = (lo - 1, -1) if forward else (hi, 1)
     stale = ~np.isfinite(dense[members, edge, 0])
     # a member never known on this side (a heel whose track starts after the gap) is
@@ -271,8 +271,8 @@ def joint_walks(
     grp = _group(dense, t, params, mirror)
     if grp is None:
         return None
-    rays = _pick_rays(
-        np.stack([_member_rays(dense, int(u), lo, hi, spare, params, mirror) for u in grp.members])
+    rays = pick_rays(
+        np.stack([member_rays(dense, int(u), lo, hi, spare, params, mirror) for u in grp.members])
     )
     if not np.any(rays[0] >= 0):
         return None

@@ -31,6 +31,7 @@ from kisscal.tracking.fill_ends import (
 )
 from kisscal.tracking.fill_held import held_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
+from kisscal.tracking.fill_hip import hip_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, take_placed, with_rays
@@ -271,12 +272,13 @@ SECOND_PASS = (
 #: before: a run it splits is walked by the chain fill from a placed edge (kiss 3 seed
 #: 306 RTIB, 4.6 mm RMS off expecting 2.7), and before the body it took lowcost 311
 #: RANK on the toe's sphere 19.7 mm off.
-#: Last, the same depth on the rays of blobs merged with a neighbour placed by then, its
-#: share taken out (:mod:`.fill_unmerged`; lowcost 311 RANK in line with its heel). On
-#: runs of any length: what is left of a gap may be shorter than a spline bridges.
+#: Then the marker solved with the pelvis carrying its hip centre on rays (:mod:`.fill_hip`);
+#: last, the same depth on the rays of blobs merged with a neighbour placed by then, its
+#: share out (:mod:`.fill_unmerged`; lowcost 311 RANK in line with its heel), on any run.
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
+    Fill("hip", _ray_placer(hip_ray_fill, "absent", "mirror", "errors"), rays=True, long_run=True),
     Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected", "mirror")),
 )
 
