@@ -166,7 +166,7 @@ def place_absent(
     f = spare.field[rows]
     order = np.lexsort((err, f))
     rows, x, f, err = rows[order], x[order], f[order], err[order]
-    first = np.r_[True, f[1:] != f[:-1]]
+    first = np.diff(f, prepend=-1) != 0  # empty when no blob fits
     lead = np.maximum.accumulate(np.where(first, np.arange(f.size), 0))
     apart = np.linalg.norm(x - x[lead], axis=1) > SAME_MM
     clash = np.zeros(dense.shape[1], dtype=bool)

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
-from kisscal.tracking.fill_absent import absent_rows, mirror_lengths
+from kisscal.tracking.fill_absent import absent_rows, mirror_lengths, place_absent
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged, fill_gaps_named
@@ -242,3 +242,15 @@ def test_a_knee_its_thigh_places_in_a_few_fields_waits_for_the_ankle_placed_afte
         assert rows.sum() > n / 3
         err = np.linalg.norm(out.xyz_mm[rows] - right[j, out.field[rows]], axis=1)
         assert np.sqrt(np.mean(err**2)) < 2.0 and err.max() < 5.0
+
+
+def test_no_blob_at_the_absent_marker_s_lengths_places_nothing():
+    """Lengths no free blob's ray keeps (modern 3 cameras seed 365 while its pelvis was
+    named otherwise) leave the marker unplaced, not an error."""
+    right, truth = _feet(22)
+    dense = _dense(_tracks_of(truth, {}))
+    partners, length, sd = mirror_lengths(dense, LABELS, "RANK", PARAMS)
+    row, along = place_absent(
+        dense, partners, length * 0 - 1000.0, sd, _cameras(right, 22, GAP), PARAMS
+    )
+    assert np.isnan(row).all() and np.isnan(along).all()
