@@ -15,7 +15,11 @@ from kisscal.tracking.labelling.anatomy import (
     settle_sides,
 )
 from kisscal.tracking.labelling.facing import walking_direction
-from kisscal.tracking.labelling.pelvis import settle_pelvis_offsets, settle_pelvis_pieces
+from kisscal.tracking.labelling.pelvis import (
+    across_walk_name,
+    settle_pelvis_offsets,
+    settle_pelvis_pieces,
+)
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
 from kisscal.tracking.labelling.state import LabelState
@@ -281,3 +285,23 @@ def test_the_sacrum_s_piece_named_an_asis_alone_takes_the_sacrum_by_the_other_as
     for pos in (walker(10, 75.0), walker(10, 75.0)[:, ::-1].copy()):
         again, _ = _pieces_state(pos)
         assert not settle_pelvis_offsets(again, walking_direction(again.name_pos))
+
+
+@pytest.mark.parametrize("backwards", [False, True])
+def test_a_lone_pelvis_piece_takes_the_name_its_side_of_the_walk_says(backwards: bool) -> None:
+    """Issue 27's modern 3 cameras seed 365: with no pelvis name held, a body fit from
+    the legs named the left ASIS's piece the sacrum (66 mm from the sacrum's expected
+    place, 294 mm from its own). Its side of the midline of the legs, across the walk,
+    gives each pelvis piece its name whatever the body fit said, walking backwards too
+    (the legs' names say which side is left)."""
+    pos = walker(10, 75.0)
+    state, _ = _pieces_state(pos[:, ::-1].copy() if backwards else pos)
+    pelvis = np.array([LOWER.index(n) for n in ("LASI", "RASI", "SACR")])
+    for t in len(LOWER) + pelvis:  # the pelvis' second halves, and its names there, unheld
+        state.label_of[t] = -1
+        state.name_pos[np.ix_(pelvis, state.piece(t)[0])] = np.nan
+    for i in pelvis:
+        for said in pelvis:
+            assert across_walk_name(state, len(LOWER) + i, pelvis, said) == i
+    # a piece seen with a pelvis name is left to the other rules
+    assert across_walk_name(state, pelvis[0], pelvis, pelvis[2]) == pelvis[2]
