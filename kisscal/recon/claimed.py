@@ -99,7 +99,11 @@ def claimed_pieces(
 ) -> NDArray[np.bool_]:
     """Which two-camera points lie on pieces whose rays other trajectories claim.
 
-    A ray (blob) is claimed at a piece's first (last) field when a trajectory absent
+    A piece is judged at the ends of its smooth runs, where its motion jumps as well as
+    where it begins and ends: a crossing that by nearness alone continues a marker's own
+    piece begins at such a jump (modern 3 cameras seed 365: a crossing on an iliac
+    spine's camera-2 ray, 92 mm from it for 46 fields, glued to that marker's piece).
+    A ray (blob) is claimed at a run's first (last) field when a trajectory absent
     from that field (no point, known or two-camera, within the tolerance of its
     prediction from the two fields before (after)) predicts a position within the
     tolerance of the ray and farther than that from the piece's point. A piece is
@@ -172,8 +176,8 @@ def claimed_pieces(
     span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
     trajectories = all_xyz[ok], all_field[ok], span[ok], chains
-    for side in (1, -1):  # the first field of a piece (from the field before), the last
-        ends = _piece_ends(label, field, side)
+    for side in (1, -1):  # the first field of a run (from the field before), the last
+        ends = _piece_ends(smooth, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
         gone = here.query(embed_fields(pred, p_field))[0] > tolerance_mm
         src = np.flatnonzero(ok)[gone]

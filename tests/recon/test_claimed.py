@@ -161,3 +161,30 @@ def test_crossing_of_a_whole_pelvis_lost_a_while_before_is_withdrawn() -> None:
     ghost = d.min(axis=1) > 10.0
     assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
     assert np.array_equal(np.unique(pts.field[d[:, 0] < 10.0]), np.r_[0:19, 50:n])
+
+
+def test_crossing_glued_to_a_markers_own_piece_is_withdrawn() -> None:
+    # every camera sees A and B up to field 9; then A is seen by cameras 1 and 2, B by 0
+    # and 1; from field 20 A by camera 2 alone and B by camera 1 alone. Camera 1's ray
+    # through B and camera 2's ray through A cross at G, 80 mm from A: a pair of A's own
+    # camera pair within a field's step of A's last point, so that by nearness alone it
+    # continues A's piece. Where it begins the motion jumps, and A's and B's trajectories,
+    # ending there, each predict a position on one of its rays (issue 27: modern 3
+    # cameras seed 365, SACR's camera-1 blob crossed with RASI's camera 2)
+    dlts = make_rig(7, n_cameras=3)
+    n = 40
+    g = np.array([-200.0, 0.0, 900.0]) + np.arange(n)[:, None] * [12.0, 2.0, 0.0]
+    c1, c2 = camera_centre_mm(dlts[1]), camera_centre_mm(dlts[2])
+    a = g + 80.0 * (c2 - g) / np.linalg.norm(c2 - g, axis=1, keepdims=True)
+    b = g + 250.0 * (c1 - g) / np.linalg.norm(c1 - g, axis=1, keepdims=True)
+    xyz = np.stack([a, b], axis=1)
+    seen = np.zeros((n, 2, 3), dtype=bool)
+    seen[:10] = True
+    seen[10:20, 0, 1:] = seen[10:20, 1, :2] = True
+    seen[20:, 0, 2] = seen[20:, 1, 1] = True
+    field, camera, uv = _table(dlts, xyz, seen, 4)
+    pts = reconstruct_trial(field, camera, uv, dlts)
+    d = np.linalg.norm(pts.xyz_mm[:, None] - xyz[pts.field], axis=2)
+    ghost = d.min(axis=1) > 10.0
+    assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
+    assert np.array_equal(np.unique(pts.field[d.min(axis=1) < 10.0]), np.arange(20))

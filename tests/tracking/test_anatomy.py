@@ -16,7 +16,11 @@ from kisscal.tracking.labelling.anatomy import (
     settle_sides,
 )
 from kisscal.tracking.labelling.facing import walking_direction
-from kisscal.tracking.labelling.pelvis import settle_pelvis_offsets, settle_pelvis_pieces
+from kisscal.tracking.labelling.pelvis import (
+    across_walk_name,
+    settle_pelvis_offsets,
+    settle_pelvis_pieces,
+)
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
 from kisscal.tracking.labelling.state import LabelState
@@ -350,3 +354,23 @@ def test_a_still_body_named_turned_round_is_not_certain() -> None:
         _labelling(pos, kiss.names), anatomy, kiss.template_mm, 50.0, TrackingParams()
     )
     assert not {"SACR", "RASI", "LASI", "RTHI", "LTHI"} & set(right.flagged)
+
+
+@pytest.mark.parametrize("backwards", [False, True])
+def test_a_lone_pelvis_piece_takes_the_name_its_side_of_the_walk_says(backwards: bool) -> None:
+    """Issue 27's modern 3 cameras seed 365: with no pelvis name held, a body fit from
+    the legs named the left ASIS's piece the sacrum (66 mm from the sacrum's expected
+    place, 294 mm from its own). Its side of the midline of the legs, across the walk,
+    gives each pelvis piece its name whatever the body fit said, walking backwards too
+    (the legs' names say which side is left)."""
+    pos = walker(10, 75.0)
+    state, _ = _pieces_state(pos[:, ::-1].copy() if backwards else pos)
+    pelvis = np.array([LOWER.index(n) for n in ("LASI", "RASI", "SACR")])
+    for t in len(LOWER) + pelvis:  # the pelvis' second halves, and its names there, unheld
+        state.label_of[t] = -1
+        state.name_pos[np.ix_(pelvis, state.piece(t)[0])] = np.nan
+    for i in pelvis:
+        for said in pelvis:
+            assert across_walk_name(state, len(LOWER) + i, pelvis, said) == i
+    # a piece seen with a pelvis name is left to the other rules
+    assert across_walk_name(state, pelvis[0], pelvis, pelvis[2]) == pelvis[2]

@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.pelvis import PELVIS_BACK, PELVIS_FRONT
+from kisscal.tracking.labelling.pelvis import PELVIS_BACK, PELVIS_FRONT, STEP_FIELDS
 from kisscal.tracking.labelling.state import LabelState
 
 #: The body moves at least this far (mm, horizontally) through a window for its
@@ -112,10 +112,6 @@ def better(state: LabelState, found, other) -> bool:
     return n_other > int(np.sum(found.assign >= 0)) and agrees(
         found.core, found.assign, other.core, other.assign
     )
-
-
-#: Fields either side over which a name's displacement gives the walking direction.
-STEP_FIELDS = 5
 
 
 def walking_direction(name_pos: NDArray) -> NDArray[np.float64]:

@@ -12,11 +12,15 @@ other way round in nearly every field (:func:`settle_pelvis`).
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LabelState
+
+#: Fields either side over which a name's displacement gives the walking direction.
+STEP_FIELDS = 5
 
 #: Anterior pelvis marker names (``LASI``, ``RASIS``) and posterior ones (``LPSI``,
 #: ``SACR``, ``SAC``), by the naming convention.
@@ -217,3 +221,58 @@ def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
             changed = True
             break
     return changed
+
+
+def across_walk_name(state: LabelState, t: int, names: NDArray, j: int) -> int:
+    """The pelvis name of ``names`` that piece ``t``, given pelvis name ``j`` while no
+    pelvis name is held in its fields, lies across the walk nearest to (its median
+    offset, left of the walking direction, from the midline of the mirror pairs held
+    with it, against the template's), if within half the gap to every other; -1 if
+    none; ``j`` itself when the rule does not apply.
+
+    A body fit from the legs alone turns with a thigh swinging +-25 degrees, so a lone
+    pelvis marker's expected place is 100-300 mm off, and in a near-equilateral pelvis
+    the sacrum's place may lie nearest an ASIS (modern 3 cameras seed 365: the left ASIS
+    66 mm from the sacrum's place, 294 mm from its own). The walk swings the legs along
+    it, hardly across: the side of the piece from the legs holds.
+    """
+    front, back = pelvis_roles(state.names)
+    pelvis = np.array(front + back, dtype=int)
+    fields, xyz = state.piece(t)
+    pos, mirror = state.name_pos, state.mirror_of
+    rivals = names[np.isin(names, pelvis) & (names != j)]
+    if mirror is None or j not in pelvis or rivals.size == 0:
+        return j
+    if np.isfinite(pos[pelvis][:, fields, 0]).any():
+        return j
+    plan = state.template[:, :2]
+    forward = plan[list(front)].mean(axis=0) - plan[list(back)].mean(axis=0)
+    left = np.array([-forward[1], forward[0]]) / np.linalg.norm(forward)
+    lateral = plan @ left  # each name's offset across the template
+    k, last = STEP_FIELDS, pos.shape[1] - 1
+    # the midline: midpoints of mirror pairs (RTHI, LTHI) held together, which a narrow
+    # or wide stance moves alike; which side is left, their names say (not the walk,
+    # which may go backwards)
+    a = np.flatnonzero(mirror > np.arange(mirror.size))
+    m = mirror[a]
+    both = np.isfinite(pos[a][:, fields, 0] + pos[m][:, fields, 0])  # (pairs, P)
+    mid = np.where(both[..., None], pos[a][:, fields, :2] + pos[m][:, fields, :2], np.nan) / 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # standing still, no pair held
+        step = np.nanmedian(
+            pos[:, np.minimum(fields + k, last), :2] - pos[:, np.maximum(fields - k, 0), :2], axis=0
+        )
+        across = np.stack([-step[:, 1], step[:, 0]], axis=1) / np.linalg.norm(step, axis=1)[:, None]
+        offset = np.sum((xyz[:, :2] - np.nanmean(mid, axis=0)) * across, axis=1)
+    width = np.sum((pos[a][:, fields, :2] - pos[m][:, fields, :2]) * across, axis=2)
+    if np.nansum(width) * np.sum(both * (lateral[a] - lateral[m])[:, None]) < 0:
+        offset = -offset
+    seen = np.isfinite(offset)
+    if seen.sum() < state.params.min_track_length:
+        return j
+    middle = np.mean(lateral[a] + lateral[m]) / 2  # the template's midline
+    own = np.r_[j, rivals]
+    miss = np.abs(np.median(offset[seen][:, None] - (lateral[None, own] - middle), axis=0))
+    gap = np.abs(lateral[own][:, None] - lateral[own][None])
+    best = int(np.argmin(miss))
+    return int(own[best]) if miss[best] < np.delete(gap[best], best).min() / 2 else -1

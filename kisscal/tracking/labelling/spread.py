@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
+from kisscal.tracking.labelling.pelvis import across_walk_name
 from kisscal.tracking.labelling.pieces import reaches
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
 from kisscal.tracking.labelling.window import match_window
@@ -284,6 +285,8 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool =
             rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
             if one_partner[np.argmin(rms)] != j:
                 j = -1
+        if j >= 0:
+            j = across_walk_name(state, t, undecided, j)
         if j >= 0 and _trial_prefers_other(state, t, undecided, j):
             j = -1
     if continuity and j < 0 and one_partner.size >= 2 and long:
