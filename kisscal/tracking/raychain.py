@@ -51,7 +51,7 @@ from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.fill_donors import unshared
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, placed_errors
-from kisscal.tracking.raywalk import agreed_pick, connected_picks, guide_partner, walk_picks
+from kisscal.tracking.raywalk import agreed_pick, connected_picks, walk_picks
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
@@ -375,6 +375,16 @@ def _walk_sides(target: NDArray, lo: int, hi: int, end: int) -> tuple[bool, bool
     return (fwd, False) if end > 0 else (False, bwd)
 
 
+def _guide(dense: NDArray, partners: NDArray, lo: int, hi: int) -> NDArray[np.float64]:
+    """The partner measured most in fields lo - 1 .. hi (NaN outside the trial), those
+    fields of it, (hi - lo + 2, 3)."""
+    f = np.arange(lo - 1, hi + 1)
+    inside = (f >= 0) & (f < dense.shape[1])
+    near = np.full((partners.size, f.size, 3), np.nan)
+    near[:, inside] = dense[partners][:, f[inside]]
+    return near[np.argmax(np.all(np.isfinite(near), axis=2).sum(axis=1))]
+
+
 def unit_weight(
     dense: NDArray,
     t: int,
@@ -457,15 +467,11 @@ def chain_fill(
         return None
     pts = {k: np.array([c[0] for c in v]) for k, v in cands.items()}
     order = sorted(pts)
-    guide = guide_partner(dense, partners, lo, hi)
-    coast, inside = params.ray_chain_coast_fields, end == 0  # inside: the walks check each other
-    fwd, no_f = (
-        walk_picks(pts, guide, target[lo - 1], -1, order, coast, inside) if walk[0] else ({}, set())
-    )
+    guide = _guide(dense, partners, lo, hi)
+    coast = params.ray_chain_coast_fields
+    fwd, no_f = walk_picks(pts, guide, target[lo - 1], -1, order, coast) if walk[0] else ({}, set())
     bwd, no_b = (
-        walk_picks(pts, guide, target[hi], hi - lo, order[::-1], coast, inside)
-        if walk[1]
-        else ({}, set())
+        walk_picks(pts, guide, target[hi], hi - lo, order[::-1], coast) if walk[1] else ({}, set())
     )
     near = (connected_picks(fwd, -1, coast), connected_picks(bwd, hi - lo, coast))
     if end or (fwd and bwd) or not steady:

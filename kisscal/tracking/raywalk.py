@@ -9,16 +9,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def guide_partner(dense: NDArray, partners: NDArray, lo: int, hi: int) -> NDArray[np.float64]:
-    """The partner measured most in fields lo - 1 .. hi (NaN outside the trial), those
-    fields of it, (hi - lo + 2, 3)."""
-    f = np.arange(lo - 1, hi + 1)
-    inside = (f >= 0) & (f < dense.shape[1])
-    near = np.full((partners.size, f.size, 3), np.nan)
-    near[:, inside] = dense[partners][:, f[inside]]
-    return near[np.argmax(np.all(np.isfinite(near), axis=2).sum(axis=1))]
-
-
 def walk_picks(
     cands: dict[int, NDArray],
     guide: NDArray,
@@ -26,7 +16,6 @@ def walk_picks(
     k_prev: int,
     ks: list[int],
     coast: int,
-    drifts: bool = False,
 ) -> tuple[dict[int, int], set[int]]:
     """Per gap field offset of ``ks`` (in the order walked), the candidate (index into
     ``cands[k]``, an (p, 3) array) nearest the path continued from ``start`` (at offset
@@ -36,25 +25,15 @@ def walk_picks(
     another branch (over 30 mm from its pick, or out of reach within ``coast`` fields
     of its last point) or its continuation (within 30 mm, half as far as the path): where a
     drifting length (thigh to shank) leaves only the ray's other depth, a point alone
-    is not the marker (modern 3 seed 332 RTHI 465-517: 87-262 mm off, expecting 2.47).
-    With ``drifts``, the path to the next field is also continued at the marker's own
-    velocity relative to ``guide`` over its last field, and the nearer of the two
-    counts: at 30 Hz an ankle in swing moves up to 40 mm a field more than its knee
-    (lowcost seed 311 RANK 62-66, 36 mm from the knee's step, on the ray 0.6-1.6 mm
-    off). Only where the other side's walk checks it (a gap, not a track's end:
-    lowcost 301 RKNE, 9 mm off), and not across a coast (over 16 fields a 4 mm drift
-    took the ray's other root)."""
+    is not the marker (modern 3 seed 332 RTHI 465-517: 87-262 mm off, expecting 2.47)."""
     out: dict[int, int] = {}
     refused: set[int] = set()
     prev, ref, k_ref = start, np.zeros((0, 3)), k_prev
-    drift = np.zeros(3)  # mm per field, relative to the guide
     for k in ks:
         gap = abs(k - k_prev)
         step = guide[k + 1] - guide[k_prev + 1]
         pred = prev + np.nan_to_num(step)
         dist = np.linalg.norm(cands[k] - pred, axis=1)
-        if gap == 1:  # not across a coast: the drift's noise grows with it
-            dist = np.minimum(dist, np.linalg.norm(cands[k] - pred - drift, axis=1))
         to_ref = np.linalg.norm(cands[k][:, None] - ref[None], axis=2).min(axis=1, initial=np.inf)
         other = (abs(k - k_ref) == 1) & (to_ref <= 30.0) & (2.0 * to_ref < dist)
         dist = np.where(other, np.inf, dist)
@@ -68,7 +47,6 @@ def walk_picks(
         refused |= {k} if other.any() else set()
         if picked:
             out[k] = i
-            drift = np.nan_to_num(cands[k][i] - prev - step) if drifts and gap == 1 else 0 * drift
             prev, k_prev = cands[k][i], k
     return out, refused
 

@@ -424,26 +424,3 @@ def test_a_length_held_only_over_a_phase_is_no_partner_s():
     got, placed, err = _chain_fill_with_partners(xyz, dlts, d, side, phase)
     assert placed.sum() >= 30 and np.all(err <= 2.0 * got.sd_mm[placed]), err.max()
     assert 2 not in got.partners
-
-
-def test_an_ankle_swinging_faster_than_its_knee_is_walked_through_its_gap():
-    # a shank at 30 Hz: the knee moves 30 mm a field, the ankle swings about it with the
-    # stride (33 fields), up to 38 mm a field faster; one camera sees the ankle through
-    # [LO, LO + 12), the knee and a tibia marker are measured (lowcost seed 311 RANK
-    # 62-66: the walk, moved only as the knee moved, missed it by 36 mm and refused it)
-    t = np.arange(200.0)
-    knee = np.stack([0 * t, 30.0 * t - 3000, 500 + 0 * t], 1)
-    angle = 0.5 * np.sin(2 * np.pi * t / 33)
-    shank = np.stack([0 * t, np.sin(angle), -np.cos(angle)], 1)
-    ankle, tibia = knee + 400.0 * shank, knee + 200.0 * shank + [60.0, 0, 0]
-    dense = np.stack([ankle, knee, tibia])
-    lo, hi = LO, LO + 12
-    dense[0, lo:hi] = np.nan
-    dlts = _look_at(np.array([1500.0, ankle[lo:hi, 1].mean(), 2500]), ankle[lo:hi].mean(0))[None]
-    f = np.arange(lo, hi)
-    uv = project_rows(dlts, np.zeros(f.size, dtype=int), ankle[lo:hi])
-    got = chain_fill(dense, 0, lo, hi, spare_blobs(f, np.zeros(f.size), uv, dlts), PARAMS)
-    assert got is not None
-    placed = np.isfinite(got.sd_mm)
-    err = np.linalg.norm(got.xyz_mm[placed] - ankle[lo:hi][placed], axis=1)
-    assert placed.all() and err.max() < 1.0, (placed, err)
