@@ -43,6 +43,7 @@ from kisscal.tracking.fill_joint import (
     ITERS,
     STEP_MM,
     edge_positions,
+    fit_summary,
     member_rays,
     pick_rays,
     tracks_of,
@@ -162,9 +163,7 @@ def _solve(z0: NDArray, kind: NDArray, base: NDArray, d: NDArray, grp: _Hip, sd:
             break
         step = np.clip(np.linalg.lstsq(info, jac.T @ r, rcond=None)[0], -100.0, 100.0)
         z -= step
-    if np.linalg.cond(info) > 1e8:
-        return z, float(np.abs(r).max()), np.inf
-    return z, float(np.abs(r).max()), float(np.sqrt(np.linalg.inv(info)[0, 0]))
+    return fit_summary(z, r, info)
 
 
 def _walk(

@@ -158,9 +158,16 @@ def _solve(
             break
         step = np.linalg.lstsq(info, jac.T @ res, rcond=None)[0]
         s -= np.clip(step, -100.0, 100.0)
+    return fit_summary(s, res, info)
+
+
+def fit_summary(x: NDArray, res: NDArray, info: NDArray) -> tuple[NDArray, float, float]:
+    """A Gauss-Newton length fit's unknowns ``x``, its largest residual (in SDs, of
+    ``res``) and the expected error of the first unknown from the information matrix
+    ``info`` (inf when the lengths do not fix it)."""
     if np.linalg.cond(info) > 1e8:
-        return s, float(np.abs(res).max()), np.inf
-    return s, float(np.abs(res).max()), float(np.sqrt(np.linalg.inv(info)[0, 0]))
+        return x, float(np.abs(res).max()), np.inf
+    return x, float(np.abs(res).max()), float(np.sqrt(np.linalg.inv(info)[0, 0]))
 
 
 def _best_start(
