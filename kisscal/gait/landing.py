@@ -44,6 +44,9 @@ def foot_strikes(
     for c in coarse:
         lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
         i = extremum(t, heel[:, 2], lo, hi, np.argmin)
+        if i is None:  # a gap or the trial's end after the landing: the part before it
+            i = extremum(t, heel[:, 2], lo, cut_window(t, heel[:, 2], lo, hi), np.argmin)
+            i = None if i == -1 else i  # still falling where the marker is lost
         if i == -1:  # a marker sinking on in stance: its lowest later, its landing here
             i = _sunk(t, heel[:, 2], lo, hi, c + params.strike_sink * stride_s, params)
         if i is not None and i >= 0:  # the corner; failing a clear one, the landing sample
@@ -147,6 +150,16 @@ def _sunk(t: NDArray, z: NDArray, lo: float, hi: float, until: float, params: Ga
         if z[j] <= ahead + params.strike_floor_mm and z[j] <= z[i] + params.heel_down_mm:
             return int(j)
     return -1
+
+
+def cut_window(t: NDArray, y: NDArray, lo: float, hi: float) -> float:
+    """``hi``, or, where a gap or the trial's end cuts the window [``lo``, ``hi``] after
+    a valid start, the time of the last valid sample but one before the cut (the
+    window then ends inside the data, as :func:`extremum` asks)."""
+    sel = np.flatnonzero((t >= lo) & (t <= hi))
+    lost = np.flatnonzero(~np.isfinite(y[sel]))
+    end = sel[lost[0]] if len(lost) else (len(t) if len(sel) and sel[-1] == len(t) - 1 else 0)
+    return float(t[end - 2]) if end >= 2 and len(sel) and end > sel[0] else hi
 
 
 def extremum(t: NDArray, y: NDArray, lo: float, hi: float, pick) -> int | None:

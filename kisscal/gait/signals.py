@@ -99,7 +99,9 @@ def hysteresis_crossings(
 
     The crossing reported is the last zero crossing between the two (linear
     interpolation); a NaN between them voids the crossing, and so does a stay below
-    ``low`` shorter than ``hold`` samples (a brief dip is not a change of phase).
+    ``low`` shorter than ``hold`` samples (a brief dip is not a change of phase), unless
+    a gap cuts the stay (the marker lost, not risen again; a stay cut by the end of the
+    signal is a stride cut by it, not counted).
     """
     state = np.where(signal > high, 1, np.where(signal < low, -1, 0))
     state[~np.isfinite(signal)] = 2
@@ -110,8 +112,10 @@ def hysteresis_crossings(
     out = []
     below = np.concatenate([signal < low, [False]])
     run_end = np.flatnonzero(~below)  # first sample at or after each index that is not below
+    risen = np.concatenate([np.isfinite(signal), [True]])  # or in a gap
     for a, b in zip(starts, ends, strict=True):  # one per stride
-        if run_end[np.searchsorted(run_end, b)] - b < hold:
+        end = run_end[np.searchsorted(run_end, b)]
+        if end - b < hold and risen[end]:
             continue
         seg = signal[a : b + 1]
         j = a + int(np.flatnonzero((seg[:-1] > 0) & (seg[1:] <= 0))[-1])

@@ -85,6 +85,25 @@ def test_a_gap_in_the_heel_loses_only_the_events_it_covers() -> None:
     assert np.abs(found.times("left", "foot_strike") - fs[1]).min() > 0.3
 
 
+def test_a_heel_lost_just_after_its_strike_keeps_the_strike() -> None:
+    """A heel marker lost in early stance (as in c3d.org's PlugInC3D and Vicon_analysis,
+    the heel gone 60-200 ms after a marked strike): the landing is in view, so the strike
+    is found, at the truth; the gap hides nothing else."""
+    tr = _synth.trial(9, 100.0, 80.0, 1.8, 1.0)
+    fs = tr.truth.events.times("left", "foot_strike")
+    for after_s in (0.06, 0.1):
+        heel = tr.markers.heel["left"].copy()
+        start = int(np.ceil((fs[1] + after_s) * 100))
+        heel[start : start + 40] = np.nan
+        markers = _synth.GaitMarkers(
+            tr.markers.pelvis, {**tr.markers.heel, "left": heel}, tr.markers.toe, 100.0, {}
+        )
+        found = detect_events(markers)
+        sc = _synth.score(found, tr.truth, (tr.motion.n_fields - 1) / 100.0)
+        assert sum(sc.extra.values()) == 0 and sum(sc.missed.values()) == 0, after_s
+        assert np.abs(found.times("left", "foot_strike") - fs[1]).min() < 0.010, after_s
+
+
 def test_standing_still_has_no_events() -> None:
     kiss = marker_set("kiss")
     still = np.broadcast_to(kiss.template_mm, (300, len(kiss), 3))
