@@ -44,8 +44,10 @@ def foot_strikes(
     for c in coarse:
         lo, hi = c + params.strike_window[0] * stride_s, c + params.strike_window[1] * stride_s
         i = extremum(t, heel[:, 2], lo, hi, np.argmin)
-        if i is None:  # a gap or the trial's end after the landing: the part before it
-            i = extremum(t, heel[:, 2], lo, cut_window(t, heel[:, 2], lo, hi), np.argmin)
+        if i is None:  # a gap or the trial's end after the landing: the part before it,
+            # up to where the heel or the toe is lost (the whole foot seen landing)
+            seen = heel[:, 2] if toe is None else heel[:, 2] + 0.0 * toe[:, 2]
+            i = extremum(t, heel[:, 2], lo, cut_window(t, seen, lo, hi), np.argmin)
             i = None if i == -1 else i  # still falling where the marker is lost
         if i == -1:  # a marker sinking on in stance: its lowest later, its landing here
             i = _sunk(t, heel[:, 2], lo, hi, c + params.strike_sink * stride_s, params)
