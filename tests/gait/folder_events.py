@@ -93,7 +93,7 @@ def table(paths: list[Path]) -> list[str]:
     for path in paths:
         try:
             markers, rate, _, marked = read(path)
-        except (OSError, RuntimeError, ValueError, IndexError) as e:  # ezc3d cannot read it
+        except (OSError, RuntimeError, ValueError, IndexError, ZeroDivisionError) as e:
             lines.append(f"{path.stem[:30]:<30} unreadable: {str(e).splitlines()[0][:60]}")
             continue
         gm = gait_trial(markers, rate) if marked else None
