@@ -1,6 +1,6 @@
 """Gait events of every C3D file in a folder against the events its lab marked (run it):
 
-    python -m tests.gait.folder_events FOLDER [FOLDER ...]
+    python -m tests.gait.folder_events FOLDER [FOLDER ...] [--worst N]
 
 Not needed by the tests (the files are not committed): a check of kisscal's foot strikes
 and foot offs on walking trials as labs keep them (Plug-in Gait names, with or without a
@@ -11,6 +11,8 @@ the same markers (:func:`tests.gait.real_events.coordinate_events`). Pooled agai
 the marked events a force plate confirms (one of its contacts, :func:`plate_events`,
 within :data:`ON_PLATE_S`) and over the others (marked by eye or by the lab's software).
 The biomechZoo fixtures (``fixtures/real/gait/zoo_*``) are a folder it reads too.
+``--worst N`` lists the N largest errors of each column (missed events first) with the
+file, side and marked time, and whether a plate confirms the marked event.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from kisscal.gait import GaitMarkers, detect_events, heel_from_ankle
 from kisscal.gait.table import EVENTS
 from tests.gait._real import mm_per_unit, read
 from tests.gait.make_real_fixtures import plate_events
-from tests.gait.real_events import Errors, coordinate_events, score
+from tests.gait.real_events import EDGE_S, MATCH_S, Errors, coordinate_events, score
 
 #: A marked event with a plate's contact of its side and kind this close (s) is the plate's.
 ON_PLATE_S = 0.02
@@ -81,7 +83,7 @@ def _cells(err: Errors) -> str:
     return "  ".join(out)
 
 
-def table(paths: list[Path]) -> list[str]:
+def table(paths: list[Path], worst: int = 0) -> list[str]:
     """One line per file with marked foot strikes and foot offs, then the pooled ones."""
     head = "bias  mean  worst mi"
     lines = [
@@ -90,6 +92,7 @@ def table(paths: list[Path]) -> list[str]:
         f"{'':<30} {'':>3}  {head:^20}  {head:^20}  {head:^20}  {head:^20}",
     ]
     pooled = {k: (Errors(), Errors()) for k in ("all", "on a plate", "not on a plate")}
+    rows: list[tuple[str, str, float, str]] = []  # column, event, |error| (inf: missed), line
     for path in paths:
         try:
             markers, rate, _, marked = read(path)
@@ -111,6 +114,8 @@ def table(paths: list[Path]) -> list[str]:
         n = sum(len(v) for v in marked.values())
         name = path.stem + ("*" if gm.heel_from_ankle else "")
         lines.append(f"{name[:30]:<30} {n:3d}  {_cells(ours)}  {_cells(zeni)}")
+        for method, detection in zip(("kisscal", "Zeni"), found, strict=True):
+            rows += _event_rows(name, method, detection, marked, on, duration)
     for key, (ours, zeni) in pooled.items():
         n = sum(len(v) for v in ours.errors.values()) + sum(ours.missed.values())
         if n:  # no plate in the files: no plate lines
@@ -118,7 +123,27 @@ def table(paths: list[Path]) -> list[str]:
     lines.append("ms; bias: mean signed error (detected - marked); mean: mean absolute error;")
     lines.append("worst: the largest in magnitude, signed; mi: marked events missed;")
     lines.append("* the ankle stands in for the heel")
+    for column in (f"{m} {e}" for m in ("kisscal", "Zeni") for e in EVENTS if worst):
+        lines.append(f"worst {worst}, {column}:")
+        ranked = sorted((r for r in rows if r[0] == column), key=lambda r: -r[1])
+        lines += [r[2] for r in ranked[:worst]]
     return lines
+
+
+def _event_rows(name, method, detection, marked, on, duration) -> list[tuple[str, float, str]]:
+    """(column, |error| or inf when missed, line) for every marked event scored."""
+    out = []
+    for (side, event), times in marked.items():
+        d = detection.times(side, event)
+        for t in times:
+            err = d[np.argmin(np.abs(d - t))] - t if len(d) else np.inf
+            if abs(err) > MATCH_S and not EDGE_S[0] <= t <= duration - EDGE_S[1]:
+                continue  # a stride cut by the trial's end: not scored
+            cell = "missed" if abs(err) > MATCH_S else f"{1000 * err:+7.1f} ms"
+            plate = " plate" if _near(on.get((side, event)), t) else ""
+            line = f"  {name[:30]:<30} {side:<5} {t:7.3f} s  {cell}{plate}"
+            out.append((f"{method} {event}", abs(err) if abs(err) <= MATCH_S else np.inf, line))
+    return out
 
 
 def _near(times: np.ndarray | None, t: float) -> bool:
@@ -126,8 +151,13 @@ def _near(times: np.ndarray | None, t: float) -> bool:
 
 
 def main(argv: list[str]) -> None:
-    paths = sorted(p for d in argv[1:] for p in Path(d).iterdir() if p.suffix.lower() == ".c3d")
-    print("\n".join(table(paths)))
+    folders, worst = list(argv[1:]), 0
+    if "--worst" in folders:
+        k = folders.index("--worst")
+        worst = int(folders[k + 1])
+        del folders[k : k + 2]
+    paths = sorted(p for d in folders for p in Path(d).iterdir() if p.suffix.lower() == ".c3d")
+    print("\n".join(table(paths, worst)))
 
 
 if __name__ == "__main__":
