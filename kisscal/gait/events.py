@@ -7,7 +7,8 @@ Two steps per event (the whole account, with the measured accuracy, is the secti
    to the pelvis, along the local direction of progression (:func:`progression`; on a
    treadmill the feet's, :func:`belt_speed`), turns from forward to backward just before
    foot strike, the toe's from backward to forward just after foot off; a hysteresis
-   rejects noise, and a stride cut by the trial's ends or a gap gives no event.
+   rejects noise, and a stride cut by the trial's ends or a gap gives no event (but a
+   foot seen landing before its markers are lost keeps its strike).
 2. **Instants** (fine), near each coarse event, with sub-field precision, each the
    corner of a broken-curve fit (two quadratics meeting at the event): foot strike where
    the heel's height turns as the heel meets the floor (Hreljac & Marshall 2000), looked
