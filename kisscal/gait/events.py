@@ -46,7 +46,9 @@ def progression(
     """Local direction of progression (n, 2), unit, and pelvis velocity (n, 3) in mm/s.
 
     The pelvis velocity is the mean velocity of the pelvis markers present at each
-    field; the direction is its horizontal part smoothed over ``params.direction_s``.
+    field (where none is, within ``params.direction_s`` of a field where one is, that
+    field's: walking speed changes little over it, and the feet may be seen before the
+    pelvis); the direction is its horizontal part smoothed over ``params.direction_s``.
     Where the pelvis moves slower than ``params.min_speed_mm_s`` but the feet still walk
     under it (a treadmill: :func:`belt_speed`), the direction is the feet's
     (:func:`foot_direction`); where neither moves, NaN (no walking, no events).
@@ -55,6 +57,7 @@ def progression(
     velocities = np.stack([derivative(p, rate, params.derivative_ms) for p in markers.pelvis])
     with np.errstate(invalid="ignore"), _quiet():
         pelvis_v = np.nanmean(velocities, axis=0)
+    pelvis_v = _hold(pelvis_v, round(params.direction_s * rate))
     flat = smooth(pelvis_v[:, :2], params.direction_s * rate)
     speed = np.linalg.norm(flat, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -66,6 +69,22 @@ def progression(
         if belt_speed(markers, feet, params) >= params.min_speed_mm_s:
             direction[still] = feet[still]
     return direction, pelvis_v
+
+
+def _hold(v: NDArray, reach: int) -> NDArray[np.float64]:
+    """``v`` (n, k) with each row missing within ``reach`` rows of a valid one given the
+    nearest valid row's value."""
+    ok = np.all(np.isfinite(v), axis=1)
+    if ok.all() or not ok.any():
+        return v
+    valid = np.flatnonzero(ok)
+    i = np.arange(len(v))
+    k = np.searchsorted(valid, i).clip(1, len(valid) - 1) if len(valid) > 1 else np.zeros_like(i)
+    near = np.where(np.abs(valid[k] - i) < np.abs(valid[k - 1] - i), valid[k], valid[k - 1])
+    out = v.copy()
+    fill = ~ok & (np.abs(near - i) <= reach)
+    out[fill] = v[near[fill]]
+    return out
 
 
 def belt_speed(

@@ -104,6 +104,22 @@ def test_a_heel_lost_just_after_its_strike_keeps_the_strike() -> None:
         assert np.abs(found.times("left", "foot_strike") - fs[1]).min() < 0.010, after_s
 
 
+def test_a_pelvis_seen_after_the_feet_keeps_the_strike_between() -> None:
+    """The pelvis markers found 80 ms after a foot strike, the feet seen before it (as in
+    c3d.org's Vicon_analysis): the pelvis keeps its first velocity back to the strike
+    (walking speed changes little within ``direction_s``), so the strike is found."""
+    tr = _synth.trial(9, 100.0, 80.0, 1.8, 1.0)
+    fs = tr.truth.events.times("left", "foot_strike")
+    pelvis = [p.copy() for p in tr.markers.pelvis]
+    for p in pelvis:
+        p[: int((fs[1] + 0.08) * 100)] = np.nan
+    markers = _synth.GaitMarkers(tuple(pelvis), tr.markers.heel, tr.markers.toe, 100.0, {})
+    found = detect_events(markers)
+    assert np.abs(found.times("left", "foot_strike") - fs[1]).min() < 0.010
+    sc = _synth.score(found, tr.truth, (tr.motion.n_fields - 1) / 100.0)
+    assert sum(sc.extra.values()) == 0
+
+
 def test_standing_still_has_no_events() -> None:
     kiss = marker_set("kiss")
     still = np.broadcast_to(kiss.template_mm, (300, len(kiss), 3))
