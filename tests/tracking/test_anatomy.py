@@ -101,6 +101,23 @@ def test_an_ankle_and_heel_swap_is_put_right() -> None:
     np.testing.assert_array_equal(moved, pos)
 
 
+@pytest.mark.parametrize("heading", [20.0, 200.0])
+def test_a_lone_knee_named_on_the_wrong_side_takes_its_free_mirror_name(heading: float) -> None:
+    """The right knee never seen, the left knee's trajectory named RKNE (kiss 3 cameras
+    seed 414): its pair has no partner to be judged against, the pelvis' midline tells."""
+    pos = walker(5, heading)
+    anatomy = Anatomy.of_set(PIG)
+    left, right = LOWER.index("LKNE"), LOWER.index("RKNE")
+    wrong = pos.copy()
+    wrong[right], wrong[left] = pos[left], np.nan
+    perm, done = settle_sides(wrong, anatomy, 50.0, 0.8)
+    assert done == [(left, right)]
+    assert perm[right] == left
+    true_lone = pos.copy()
+    true_lone[right] = np.nan  # the left knee named LKNE, its partner unseen: left alone
+    assert settle_sides(true_lone, anatomy, 50.0, 0.8)[1] == []
+
+
 def test_a_foreign_marker_on_an_elbows_name_is_not_given_the_pelvis_name() -> None:
     """A full-body set walking, a forearm marker below the elbow holding the elbow's name
     (the arm's other names free): the elbow's name sits below the pelvis' back marker of
