@@ -34,6 +34,7 @@ from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_hip import hip_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
+from kisscal.tracking.fill_pair import merged_pair_fill
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
@@ -274,12 +275,13 @@ SECOND_PASS = (
 #: RANK on the toe's sphere 19.7 mm off.
 #: Then the marker solved with the pelvis carrying its hip centre on rays (:mod:`.fill_hip`);
 #: last, the same depth on the rays of blobs merged with a neighbour placed by then, its
-#: share out (:mod:`.fill_unmerged`; lowcost 311 RANK in line with its heel), on any run.
+#: share out (:mod:`.fill_unmerged`), then both (:mod:`.fill_pair`), on any run (lowcost 311, 361).
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
     Fill("hip", _ray_placer(hip_ray_fill, "absent", "mirror", "errors"), rays=True, long_run=True),
     Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected", "mirror")),
+    Fill("merged pair", _ray_placer(merged_pair_fill, "known", "mirror")),
 )
 
 
