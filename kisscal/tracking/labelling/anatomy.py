@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from kisscal.markersets.model import MarkerSet
-from kisscal.tracking.labelling.pelvis import pelvis_roles, settle_pelvis
+from kisscal.tracking.labelling.pelvis import lone_wrong_side, pelvis_roles, settle_pelvis
 from kisscal.tracking.labelling.runnerup import TEMPLATE_NEIGHBOURS
 
 #: Marker pairs at least this far apart in the template's height, as a fraction of
@@ -416,45 +416,6 @@ def _near_height(pos: NDArray, anatomy: Anatomy, floor: float) -> tuple[NDArray,
         return np.abs(gap) < anatomy.height_tolerance_mm, ~((low < -half) | (high > half))
 
 
-def _midline(pos: NDArray, anatomy: Anatomy) -> NDArray[np.float64]:
-    """Per field, a point on the body's mid-sagittal plane (F, 3): the mean of the pelvis'
-    unpaired markers (the sacrum) and of its mirror pairs' midpoints where both are seen;
-    NaN where neither is. One ASIS with the sacrum would put it half a pelvis aside."""
-    pelvis = set(anatomy.front + anatomy.back)
-    paired = {i for pair in anatomy.pairs for i in pair}
-    middles = [pos[i] for i in sorted(pelvis - paired)]
-    middles += [0.5 * (pos[a] + pos[b]) for a, b in anatomy.pairs if {a, b} <= pelvis]
-    if not middles:
-        return np.full(pos.shape[1:], np.nan)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # fields where none is seen
-        return np.nanmean(np.stack(middles), axis=0)
-
-
-def _lone_wrong_side(
-    pos: NDArray, anatomy: Anatomy, left: NDArray, min_confidence: float
-) -> list[tuple[int, int]]:
-    """Mirror pairs of which one name is held and its partner never seen, whose held
-    trajectory lies on the other side of the body's midline (:func:`_midline`) in more
-    than ``min_confidence`` of the fields: a knee named right on the left leg, its
-    partner's name left free, which the pair's own check cannot see (kiss 3 cameras
-    seed 414, the right knee never seen by two cameras). Pelvis pairs are left to the
-    pelvis' checks (their midline is their own midpoint)."""
-    mid = _midline(pos, anatomy)
-    pelvis = set(anatomy.front + anatomy.back)
-    found = []
-    for a, b in anatomy.pairs:
-        seen_a, seen_b = np.isfinite(pos[a, :, 0]), np.isfinite(pos[b, :, 0])
-        if seen_a.any() == seen_b.any() or {a, b} & pelvis:
-            continue
-        held, sign = (a, 1.0) if seen_a.any() else (b, -1.0)
-        across = sign * np.sum((pos[held, :, :2] - mid[:, :2]) * left, axis=1)
-        right_way = _fraction(across > 0, np.isfinite(across))
-        if right_way < 1.0 - min_confidence:
-            found.append((a, b))
-    return found
-
-
 def settle_sides(
     pos: NDArray, anatomy: Anatomy, rate_hz: float, min_confidence: float
 ) -> tuple[NDArray[np.int64], list[tuple[int, int]]]:
@@ -480,7 +441,9 @@ def settle_sides(
         if right_way < 1.0 - min_confidence:
             perm[[a, b]] = perm[[b, a]]
             done.append((a, b))
-    for a, b in _lone_wrong_side(pos, anatomy, left, min_confidence):
+    for a, b in lone_wrong_side(
+        pos, anatomy.pairs, anatomy.front + anatomy.back, left, min_confidence
+    ):
         perm[[a, b]] = perm[[b, a]]
         done.append((a, b))
     moved = np.empty_like(pos)

@@ -276,3 +276,41 @@ def across_walk_name(state: LabelState, t: int, names: NDArray, j: int) -> int:
     gap = np.abs(lateral[own][:, None] - lateral[own][None])
     best = int(np.argmin(miss))
     return int(own[best]) if miss[best] < np.delete(gap[best], best).min() / 2 else -1
+
+
+def _midline(pos: NDArray, pairs: tuple, pelvis: tuple[int, ...]) -> NDArray[np.float64]:
+    """Per field, a point on the body's mid-sagittal plane (F, 3): the mean of the pelvis'
+    unpaired markers (the sacrum) and of its mirror pairs' midpoints where both are seen;
+    NaN where neither is. One ASIS with the sacrum would put it half a pelvis aside."""
+    paired = {i for pair in pairs for i in pair}
+    middles = [pos[i] for i in sorted(set(pelvis) - paired)]
+    middles += [0.5 * (pos[a] + pos[b]) for a, b in pairs if {a, b} <= set(pelvis)]
+    if not middles:
+        return np.full(pos.shape[1:], np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # fields where none is seen
+        return np.nanmean(np.stack(middles), axis=0)
+
+
+def lone_wrong_side(
+    pos: NDArray, pairs: tuple, pelvis: tuple[int, ...], left: NDArray, min_confidence: float
+) -> list[tuple[int, int]]:
+    """(left, right) mirror ``pairs`` of which one name is held and its partner never
+    seen, whose held trajectory (rows of ``pos``, (n, F, 3)) lies on the other side of the
+    body's midline (:func:`_midline`; ``left``, (F, 2), the subject's unit left) in more
+    than ``min_confidence`` of its fields: a knee named right on the left leg, its
+    partner's name left free, which the pair's own check cannot see (kiss 3 cameras seed
+    414, the right knee never seen by two cameras). Pairs of the ``pelvis`` are left to
+    the pelvis' checks (their midline is their own midpoint)."""
+    mid = _midline(pos, pairs, pelvis)
+    found = []
+    for a, b in pairs:
+        seen_a, seen_b = np.isfinite(pos[a, :, 0]).any(), np.isfinite(pos[b, :, 0]).any()
+        if seen_a == seen_b or {a, b} & set(pelvis):
+            continue
+        held, sign = (a, 1.0) if seen_a else (b, -1.0)
+        across = sign * np.sum((pos[held, :, :2] - mid[:, :2]) * left, axis=1)
+        valid = np.isfinite(across)
+        if valid.any() and np.mean(across[valid] > 0) < 1.0 - min_confidence:
+            found.append((a, b))
+    return found
