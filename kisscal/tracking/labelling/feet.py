@@ -37,6 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.facing import HEEL, foot_pairs, walking_direction
+from kisscal.tracking.labelling.footkeep import continued as _continued
+from kisscal.tracking.labelling.footkeep import fit_mm
 from kisscal.tracking.labelling.spread import continues, spread
 from kisscal.tracking.labelling.state import LabelState, median_distances
 
@@ -173,10 +175,7 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         d = median_distances(pos, np.arange(pos.shape[0]), np.arange(state.n_fields))
-    toe, heel = (
-        int(np.flatnonzero(foot.names == foot.toe)[0]),
-        int(np.flatnonzero(foot.names == foot.heel)[0]),
-    )
+    toe, heel = (int(np.flatnonzero(foot.names == n)[0]) for n in (foot.toe, foot.heel))
     behind = trailing(cand[:, None], cand[None, :], direction, params.facing_fraction)
     names = np.concatenate([foot.shank, foot.names])
     i, j = np.triu_indices(s + k, 1)
@@ -205,7 +204,10 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     _near_ties(state, foot, choices, scores, choices[best], scores[best])
     if np.array_equal(choices[best], held):
         return False
-    _rename_names(state, foot, held_any, pool, choices[best])
+    evidence = (d[s:, s:], behind, np.isfinite(cand[..., 0]), target[np.ix_(names[s:], names[s:])])
+    tolerance = params.label_segment_tolerance_mm
+    kept = _continued(choices[best], np.flatnonzero(held_any), evidence, (toe, heel), tolerance)
+    _rename_names(state, foot, held_any, pool, choices[best], kept)
     return True
 
 
@@ -221,15 +223,6 @@ def _near_ties(
     close = choices[scores <= FOOT_TIE * at]
     differ = (close != kept[None, :]).any(axis=0)
     state.doubtful |= {int(j) for j in foot.names[differ]}
-
-
-def fit_mm(dist: NDArray, target: NDArray, use: NDArray) -> NDArray:
-    """RMS (mm) of each way's (rows) distances ``dist`` against ``target`` over the pairs
-    in ``use``; infinite when a pair used was never seen together or none is used."""
-    miss = np.where(use, dist - target, 0.0)
-    seen = np.isfinite(miss).all(axis=-1) & use.any(axis=-1)
-    total = np.where(np.isfinite(miss), miss**2, 0.0).sum(axis=-1)
-    return np.where(seen, np.sqrt(total / np.maximum(use.sum(axis=-1), 1)), np.inf)
 
 
 def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> tuple[float, bool]:
@@ -274,10 +267,11 @@ def _near_unnamed(state: LabelState, foot: Foot, target: NDArray) -> NDArray[np.
 
 
 def _rename_names(
-    state: LabelState, foot: Foot, held_any: NDArray, pool: NDArray, choice: NDArray
+    state: LabelState, foot: Foot, held_any: NDArray, pool: NDArray, choice: NDArray, kept: dict
 ) -> None:
     """Foot name ``i`` to candidate ``choice[i]``: the pieces of a held name (candidates
-    first, in the foot's order) or an unnamed long piece of ``pool``; none for -1."""
+    first, in the foot's order) or an unnamed long piece of ``pool``; none for -1; and to
+    candidate ``kept[i]`` too when there is one."""
     held_names = foot.names[held_any]
     pieces = [np.flatnonzero(state.label_of == j) for j in held_names]
     pieces += [state.long_ids[[r]] for r in pool]
@@ -287,6 +281,9 @@ def _rename_names(
     for j, c in zip(foot.names, choice, strict=True):
         for t in pieces[c] if c >= 0 else ():
             state.name_piece(int(t), int(j))
+    for i, c in kept.items():
+        for t in pieces[c]:
+            state.name_piece(int(t), int(foot.names[i]))
 
 
 def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
