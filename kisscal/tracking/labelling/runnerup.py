@@ -33,7 +33,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.state import RIGID_SPREAD_MM
+from kisscal.tracking.labelling.state import RIGID_SPREAD_MM, median_distances
 
 #: Neighbours: named trajectories whose median distance is below this fraction of the
 #: template's height (a foot's names weighed by the shank and foot, not the head).
@@ -53,17 +53,6 @@ TEMPLATE_NEIGHBOURS = 3
 #: the held one is within this fraction of the template's (:func:`turned_round`; on the
 #: regression set a real head is 30 % longer than the set's template, scaled).
 TURNED_MATCH = 0.5
-
-
-def median_distances(pos: NDArray) -> NDArray[np.float64]:
-    """(n, n) median distance between named trajectories over the fields both are seen
-    in (NaN when never together), over at most :data:`MARGIN_FIELDS` fields."""
-    fields = np.flatnonzero(np.isfinite(pos[..., 0]).any(axis=0))
-    fields = fields[np.linspace(0, fields.size - 1, min(MARGIN_FIELDS, fields.size)).astype(int)]
-    p = pos[:, fields]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
-        return np.nanmedian(np.linalg.norm(p[:, None] - p[None, :], axis=3), axis=2)
 
 
 def name_margins(
@@ -124,7 +113,11 @@ def name_fits(
     distances to its neighbours and of its height."""
     n = pos.shape[0]
     fits = np.full((n, n), np.nan)
-    measured = median_distances(pos)
+    seen = np.flatnonzero(np.isfinite(pos[..., 0]).any(axis=0))  # at most MARGIN_FIELDS
+    seen = seen[np.linspace(0, seen.size - 1, min(MARGIN_FIELDS, seen.size)).astype(int)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        measured = median_distances(pos, np.arange(n), seen)
     tdist = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     near = np.isfinite(measured) & (measured < NEIGHBOUR_FRACTION * float(np.ptp(template[:, 2])))
     np.fill_diagonal(near, False)
