@@ -17,8 +17,8 @@ On real files, against a generic template, right names fall short of their runne
 by up to about 20 mm (marker placement differs from the template's); so the margin
 cannot certify a name (most names would have to be flagged), it can only catch a name
 that the evidence clearly contradicts. A name left free by the labelling is another
-matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
-better than the trajectory's own name is doubtful by a smaller margin
+matter (:func:`name_margins` ``among_free``): nothing else claims it, so a trajectory
+it fits better than the trajectory's own name is doubtful by a smaller margin
 (``free_deficit_fraction``), and by any margin when none of its nearest names in the
 template is held while the free name's are (:func:`strays`: a finger's name on a thigh
 marker with the whole arm free). A name held by a doubted trajectory is as good as free
@@ -77,7 +77,7 @@ def name_margins(
     exchange, and ``k`` is weighed as ``i``'s name. A name's mirror partner (``pairs``:
     left, right) is no runner-up: distances cannot tell a body from its mirror image,
     the anatomy's sides do. With ``among_free``, the other names weighed are only those
-    no trajectory holds (:func:`free_name_margins`); ``weighed`` ((n, n) bool), only the
+    no trajectory holds; ``weighed`` ((n, n) bool), only the
     names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
@@ -184,27 +184,6 @@ def chained(
         out = grown
 
 
-def free_name_margins(
-    pos: NDArray,
-    template: NDArray,
-    heights_mm: NDArray | None,
-    floor_mm: float,
-    pairs: tuple[tuple[int, int], ...] = (),
-) -> NDArray[np.float64]:
-    """:func:`name_margins` against the names no trajectory holds only.
-
-    A name held by another trajectory is a runner-up that can be right as well (two
-    neighbours fit each other's names nearly as well on a generic template), so it must
-    win clearly (``name_deficit_fraction``). A free name competes with nothing: when it
-    fits a trajectory better than the name the trajectory was given, the labelling
-    preferred a worse name while a better one was left unused, which happens when a
-    chain of names shifted along the body (a thigh marker named finger with the arms
-    absent, the thigh's name left free). With every name held (a complete set) this
-    weighs nothing (NaN).
-    """
-    return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
-
-
 def nearest_names(template: NDArray) -> NDArray[np.int64]:
     """(n, k) each name's :data:`TEMPLATE_NEIGHBOURS` nearest names in the template."""
     d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
@@ -235,7 +214,7 @@ def strays(
     trajectory a free name of a held group fits better, is a name the labelling pushed
     along the body onto a marker of that group (a thigh marker named finger in a trial
     without arms, the thigh's name free, the knee's held). Its distances may fit the free
-    name better by only a few millimetres (:func:`free_name_margins`), which a true
+    name better by only a few millimetres (the free names' margins), which a true
     name's can too, but a true name alone (a shoulder without the trunk's markers) is
     beaten by names of groups that are absent as well.
     """
