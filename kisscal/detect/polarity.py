@@ -22,14 +22,11 @@ bright-marker frame never turns on weak evidence. Statistics come from a sparse 
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-#: What ``[detection] polarity`` may say; "auto" decides from the images.
-Polarity = Literal["auto", "bright", "dark"]
 #: Pixels of the sparse sample the decision reads.
 SAMPLE_PIXELS = 60_000
 #: The dark tail must be this many times the bright tail for a bright background.

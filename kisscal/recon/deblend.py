@@ -81,27 +81,24 @@ def depth_of(dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[
 
 
 def near_blobs(
-    p_field: NDArray[np.int64],
-    p_xyz: NDArray[np.float64],
-    field: NDArray[np.int64],
-    camera: NDArray[np.int64],
-    uv: NDArray[np.float64],
-    candidate: NDArray[np.bool_],
-    dlts: NDArray[np.float64],
-    radius_px: float,
+    scene: MergeScene, p_field: NDArray[np.int64], p_xyz: NDArray[np.float64], candidate: NDArray
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-    """(point, blob, point's projection) for every ``candidate`` blob within ``radius_px``
-    of a point's projection into the blob's camera, in the point's field."""
+    """(point, blob, point's projection) for every ``candidate`` blob of the ``scene``
+    within its ``params.deblend_radius_px`` of a point's projection into the blob's
+    camera, in the point's field."""
     out_p, out_b, out_uv = [], [], []
+    dlts, field, uv = scene.dlts, scene.field, scene.uv
     for j in range(len(dlts)):
-        rows = np.flatnonzero(candidate & (camera == j))
+        rows = np.flatnonzero(candidate & (scene.camera == j))
         if len(rows) == 0 or len(p_xyz) == 0:
             continue
         proj = project_rows(dlts, np.full(len(p_xyz), j), p_xyz)
         front = depth_of(dlts, np.full(len(p_xyz), j), p_xyz) > 0
         pts = np.flatnonzero(front & np.all(np.isfinite(proj), axis=1))
         tree = cKDTree(embed_fields(uv[rows], field[rows]))
-        hits = tree.query_ball_point(embed_fields(proj[pts], p_field[pts]), radius_px)
+        hits = tree.query_ball_point(
+            embed_fields(proj[pts], p_field[pts]), scene.params.deblend_radius_px
+        )
         n_hits = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
         if n_hits.sum() == 0:
             continue
@@ -205,9 +202,7 @@ def deblend_merged(
     dlts, params, limit_px = scene.dlts, scene.params, scene.limit_px
     empty = Deblended.empty()
     free = np.flatnonzero((marker < 0) & usable)
-    P, c, p_a = near_blobs(
-        p_field, p_xyz, field, camera, uv, usable, dlts, params.deblend_radius_px
-    )
+    P, c, p_a = near_blobs(scene, p_field, p_xyz, usable)
     mine = (marker[c] < 0) | (marker[c] == P)
     P, c, p_a = P[mine], c[mine], p_a[mine]
     p_a = _projection_without(P, c, marker, camera, uv, dlts, p_a, params.reweight_iterations)

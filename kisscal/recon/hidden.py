@@ -41,19 +41,11 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from kisscal.dlt.model import pixel_size_mm, project_rows, ray_directions, ray_points
-from kisscal.recon.deblend import Deblended, MergeScene
+from kisscal.recon.deblend import Deblended, MergeScene, depth_of
 from kisscal.recon.group import embed_fields, near_cameras
 
 #: Points of the neighbouring field tried as a trajectory's previous position, nearest first.
 _NEIGHBOURS = 4
-
-
-def _depth_of(
-    dlts: NDArray[np.float64], camera: NDArray[np.int64], xyz: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """DLT denominators ``L9 X + L10 Y + L11 Z + 1`` (proportional to depth): an image's
-    area falls with its square."""
-    return np.einsum("ij,ij->i", dlts[camera, 8:11], xyz) + 1.0
 
 
 @dataclass(frozen=True)
@@ -198,7 +190,7 @@ def _merged_pairs(
         if len(rows) == 0 or len(pf) < 2:
             continue
         img = project_rows(dlts, np.full(len(pf), j), pxyz)
-        front = (_depth_of(dlts, np.full(len(pf), j), pxyz) > 0) & np.all(np.isfinite(img), axis=1)
+        front = (depth_of(dlts, np.full(len(pf), j), pxyz) > 0) & np.all(np.isfinite(img), axis=1)
         ids = np.flatnonzero(front)
         pairs = cKDTree(embed_fields(img[ids], pf[ids])).query_pairs(2.0 * r, output_type="ndarray")
         if len(pairs) == 0:
@@ -276,8 +268,8 @@ def solve_pair(
 
     def resid(s: NDArray[np.float64]) -> NDArray[np.float64]:
         xa, xb = a0 + s[:, :1] * ua, b0 + s[:, 1:] * ub
-        wa = 1.0 / np.maximum(_depth_of(dlts, j, xa) ** 2, 1e-18)
-        wb = 1.0 / np.maximum(_depth_of(dlts, j, xb) ** 2, 1e-18)
+        wa = 1.0 / np.maximum(depth_of(dlts, j, xa) ** 2, 1e-18)  # area falls with depth²
+        wb = 1.0 / np.maximum(depth_of(dlts, j, xb) ** 2, 1e-18)
         img = wa[:, None] * project_rows(dlts, j, xa) + wb[:, None] * project_rows(dlts, j, xb)
         cen = img / (wa + wb)[:, None] - uv[c]
         length = (np.linalg.norm(xa - xb, axis=1) - want) / px_mm

@@ -68,16 +68,7 @@ def shared_blobs(
     k, _ = np.nonzero(blob_row >= 0)
     owner[blob_row[blob_row >= 0]] = k
     held = owner >= 0
-    point, blob, _ = near_blobs(
-        p_field,
-        p_xyz,
-        scene.field,
-        scene.camera,
-        scene.uv,
-        held,
-        scene.dlts,
-        scene.params.deblend_radius_px,
-    )
+    point, blob, _ = near_blobs(scene, p_field, p_xyz, held)
     shared = np.zeros(len(scene.field), dtype=bool)
     shared[blob[owner[blob] != point]] = True  # near a point that is not its owner's
     return shared
@@ -190,16 +181,7 @@ def pulled_pairs(
     held = np.zeros(len(scene.field), dtype=bool)
     held[rows.ravel()] = True
     params = scene.params
-    q, b, proj = near_blobs(
-        p_field,
-        p_xyz,
-        scene.field,
-        scene.camera,
-        scene.uv,
-        held,
-        scene.dlts,
-        params.deblend_radius_px,
-    )
+    q, b, proj = near_blobs(scene, p_field, p_xyz, held)
     # every (pair, blob of it, other point near that blob); a blob may be two pairs'
     flat = rows.ravel()
     order = np.argsort(flat, kind="stable")

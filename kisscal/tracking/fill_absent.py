@@ -220,18 +220,6 @@ def _on_path(one: NDArray, pos: NDArray) -> NDArray[np.bool_]:
     return one
 
 
-def absent_rows(
-    dense: NDArray,
-    labels: Sequence[str] | None,
-    missing: Sequence[str],
-    spare: SpareBlobs | None,
-    params: TrackingParams,
-) -> NDArray[np.float64]:
-    """One row (n_fields, 3) per name of ``missing`` that :func:`place_absent` places
-    (:func:`absent_placed`; shape (m, n_fields, 3), m = 0 without ``spare``)."""
-    return absent_placed(dense, labels, missing, spare, params)[1]
-
-
 def absent_placed(
     dense: NDArray,
     labels: Sequence[str] | None,
@@ -239,8 +227,9 @@ def absent_placed(
     spare: SpareBlobs | None,
     params: TrackingParams,
 ) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`absent_rows` with, per row, its name and partners, and each placed field's
-    expected error along its ray ((m, n_fields), NaN where not placed). Only names
+    """Per name of ``missing`` that :func:`place_absent` places, its name and partners,
+    its row ((m, n_fields, 3); m = 0 without ``spare``) and each placed field's expected
+    error along its ray ((m, n_fields), NaN where not placed). Only names
     placed somewhere have a row; a row placed is a partner of the names placed after
     it, which are tried again while rows are added (kiss 3: an ankle that one camera
     sees, placed by its heel and toe, and its knee, which another camera sees, by the

@@ -39,18 +39,17 @@ from numpy.typing import NDArray
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd
 from kisscal.tracking.fill_joint import (
-    AGREE_MM,
     ITERS,
     STEP_MM,
+    agreed_fill,
     edge_positions,
     fit_summary,
     member_rays,
     pick_rays,
-    tracks_of,
 )
 from kisscal.tracking.joint_centres import joint_centres
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, length_partners, path_runs
+from kisscal.tracking.raychain import ChainFill, length_partners
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: Step (mm) of the numerical derivative of the lengths.
@@ -310,11 +309,4 @@ def hip_ray_fill(
     gate = 8.0 * params.ray_chain_gate_px
     fwd, e_f = _walk(dense, grp, rays, own, lo, hi, spare, True, gate)
     bwd, e_b = _walk(dense, grp, rays, own, lo, hi, spare, False, gate)
-    err = np.fmax(e_f, e_b)
-    good = (np.linalg.norm(fwd - bwd, axis=1) <= AGREE_MM) & (err <= params.ray_length_max_error_mm)
-    placed = path_runs(good)
-    if not placed.any():
-        return None
-    xyz = np.where(placed[:, None], (fwd + bwd) / 2, np.nan)
-    sd = np.where(placed, err, np.nan)
-    return ChainFill(xyz, sd, tracks_of(grp.members[1:], len(dense)), rays[0, placed])
+    return agreed_fill((grp, rays, fwd, e_f, bwd, e_b), len(dense), params)

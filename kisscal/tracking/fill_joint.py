@@ -269,7 +269,7 @@ def joint_walks(
     when the gap has no sides, the segment too few tracks, or the target no ray. The
     segment's members are tracks (rows of ``dense``) and markers no track took (rows of
     ``absent``, numbered on after the tracks:
-    :func:`~kisscal.tracking.fill_absent.absent_rows`); ``mirror``: each row's mirror
+    :func:`~kisscal.tracking.fill_absent.absent_placed`); ``mirror``: each row's mirror
     image's row (:func:`~.raychain.length_partners`)."""
     if absent is not None:
         dense = np.concatenate([dense, absent])
@@ -303,18 +303,22 @@ def joint_ray_fill(
     ones, partners by ``mirror`` too (:func:`joint_walks`); None when no field could be
     placed. The blobs taken are not marked used here."""
     walks = joint_walks(dense, t, lo, hi, spare, params, absent, mirror)
-    if walks is None:
-        return None
+    return None if walks is None else agreed_fill(walks, len(dense), params)
+
+
+def agreed_fill(walks: tuple, n_tracks: int, params: TrackingParams) -> ChainFill | None:
+    """The mean of the two walks of a segment (:func:`joint_walks`' answer) in the runs
+    of fields (:func:`~.raychain.path_runs`) where they agree within :data:`AGREE_MM`
+    and the larger expected error is within ``ray_length_max_error_mm``; None if none."""
     grp, rays, fwd, e_f, bwd, e_b = walks
-    agree = np.linalg.norm(fwd - bwd, axis=1) <= AGREE_MM
     err = np.fmax(e_f, e_b)
-    good = agree & (err <= params.ray_length_max_error_mm)
+    good = (np.linalg.norm(fwd - bwd, axis=1) <= AGREE_MM) & (err <= params.ray_length_max_error_mm)
     placed = path_runs(good)
     if not placed.any():
         return None
     xyz = np.where(placed[:, None], (fwd + bwd) / 2, np.nan)
     sd = np.where(placed, err, np.nan)
-    return ChainFill(xyz, sd, tracks_of(grp.members[1:], len(dense)), rays[0, placed])
+    return ChainFill(xyz, sd, tracks_of(grp.members[1:], n_tracks), rays[0, placed])
 
 
 def tracks_of(members: NDArray, n_tracks: int) -> tuple[int, ...]:

@@ -418,7 +418,7 @@ def fill_gaps_logged(
     With ``labels`` (one per track), the ends of each named track (not in
     ``unlabelled``) too, once every gap is filled
     (:func:`~kisscal.tracking.fill_ends.track_ends`). ``missing``: the set's names no
-    track took, placed on their blobs' rays (:func:`.fill_absent.absent_rows`) for the
+    track took, placed on their blobs' rays (:func:`.fill_absent.absent_placed`) for the
     joint fills, and those placed in ``min_track_length`` fields or more as tracks
     numbered after the given ones (:func:`fill_gaps_named` says which names).
 

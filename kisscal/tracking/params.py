@@ -240,7 +240,7 @@ class TrackingParams(Params):
         :mod:`~kisscal.tracking.labelling.runnerup`) is flagged as uncertain.
     free_deficit_fraction : float
         ... and a name that a name no trajectory holds fits better by more than this
-        fraction of stature (:func:`~kisscal.tracking.labelling.runnerup.free_name_margins`).
+        fraction of stature (:func:`~kisscal.tracking.labelling.runnerup.name_margins`).
         On the regression set (issue 26) names forced one marker along the body lose to a
         free name by 0.4-2.3 % (a thigh marker named finger, the thigh's name free), true
         names by up to 2.0 % (shoulders and elbows, the free names their arm's): the two

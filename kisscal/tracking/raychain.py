@@ -437,7 +437,7 @@ def chain_fill(
     measured, NaN where unknown), a partner another fill placed counts its fill's error
     (:func:`~kisscal.tracking.rayfill.placed_errors`). ``absent`` (m, n_fields, 3): rows
     of names no track took, placed on one camera's rays
-    (:func:`~kisscal.tracking.fill_absent.absent_rows`), partners too, numbered after
+    (:func:`~kisscal.tracking.fill_absent.absent_placed`), partners too, numbered after
     the tracks (kiss 3 seed 323: a heel on one camera held by its toe and the placed
     ankle). ``mirror``: each row's mirror's row (:func:`length_partners`; modern 3 seed
     353's RTHI). The blobs taken are not marked used here."""

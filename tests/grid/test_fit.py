@@ -19,15 +19,6 @@ def _fov_points(camera: BrownCamera, n: int = 4000, seed: int = 9):
     return ideal, camera.distort_px(ideal)
 
 
-def _corner_distortion(view) -> float:
-    """Largest distance of a distorted dot from the similarity-aligned ideal grid, px."""
-    return float(
-        np.linalg.norm(
-            view.distorted_uv - fit_similarity(view.ideal_uv, view.distorted_uv), axis=1
-        ).max()
-    )
-
-
 @pytest.mark.parametrize(
     "camera", [BrownCamera(k1=-0.07, k2=0.0), BrownCamera(k1=0.06, k2=0.0, p1=-5e-4)]
 )

@@ -15,7 +15,6 @@ from kisscal.tracking.labelling.anatomy import (
     forward_directions,
     settle_sides,
 )
-from kisscal.tracking.labelling.facing import walking_direction
 from kisscal.tracking.labelling.pelvis import (
     across_walk_name,
     settle_pelvis_offsets,
@@ -266,10 +265,10 @@ def test_pieces_of_an_asis_and_the_sacrum_named_the_other_way_round_are_put_righ
     i, j = LOWER.index(asis), LOWER.index("SACR")
     state.name_piece(len(LOWER) + i, j)
     state.name_piece(len(LOWER) + j, i)
-    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == [(i, j)]
+    assert settle_pelvis_pieces(state) == [(i, j)]
     np.testing.assert_array_equal(state.label_of, right)
     again, _ = _pieces_state(walker(10, 75.0))
-    assert settle_pelvis_pieces(again, walking_direction(again.name_pos)) == []
+    assert settle_pelvis_pieces(again) == []
 
 
 def test_pelvis_pieces_named_right_stay_so_when_the_subject_walks_backwards() -> None:
@@ -277,7 +276,7 @@ def test_pelvis_pieces_named_right_stay_so_when_the_subject_walks_backwards() ->
     trials where the walk was misjudged (test1, newwalk: right pelvis names exchanged,
     silently); the template's distances to the other names say the names are right."""
     state, right = _pieces_state(walker(10, 75.0)[:, ::-1].copy())
-    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == []
+    assert settle_pelvis_pieces(state) == []
     np.testing.assert_array_equal(state.label_of, right)
 
 
@@ -296,13 +295,13 @@ def test_the_sacrum_s_piece_named_an_asis_alone_takes_the_sacrum_by_the_other_as
     state.label_of[lost] = -1
     state.name_pos[np.ix_([i, j], state.piece(mine)[0])] = np.nan
     state.name_piece(mine, i)
-    assert settle_pelvis_pieces(state, walking_direction(state.name_pos)) == []
-    assert settle_pelvis_offsets(state, walking_direction(state.name_pos))
+    assert settle_pelvis_pieces(state) == []
+    assert settle_pelvis_offsets(state)
     right[lost] = -1
     np.testing.assert_array_equal(state.label_of, right)
     for pos in (walker(10, 75.0), walker(10, 75.0)[:, ::-1].copy()):
         again, _ = _pieces_state(pos)
-        assert not settle_pelvis_offsets(again, walking_direction(again.name_pos))
+        assert not settle_pelvis_offsets(again)
 
 
 def squats(rate: float = 100.0, hop_mm: float = 0.0) -> tuple[tuple[str, ...], np.ndarray]:

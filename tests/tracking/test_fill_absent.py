@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
-from kisscal.tracking.fill_absent import absent_rows, mirror_lengths
+from kisscal.tracking.fill_absent import absent_placed, mirror_lengths
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged, fill_gaps_named
@@ -72,7 +72,7 @@ def test_an_ankle_no_track_took_is_placed_on_its_one_camera_s_rays():
     right, truth = _feet(22)
     dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
     spare = _cameras(right, 22, GAP)
-    rows = absent_rows(dense, LABELS, ("RANK", "RKNE"), spare, PARAMS)
+    rows = absent_placed(dense, LABELS, ("RANK", "RKNE"), spare, PARAMS)[1]
     assert rows.shape == (1, *dense.shape[1:])  # RKNE has no mirror image tracked
     placed = np.isfinite(rows[0, :, 0])
     outside = np.ones(placed.size, dtype=bool)
@@ -134,7 +134,7 @@ def test_the_joint_solutions_smoothed_across_the_gap_place_what_each_alone_canno
     right, truth = _feet(24)
     dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
     spare = _cameras(right, 24, GAP)
-    absent = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)
+    absent = absent_placed(dense, LABELS, ("RANK",), spare, PARAMS)[1]
     # each field's solution alone too loose to keep (here: a limit below its error)
     loose = PARAMS.replace(ray_length_max_error_mm=1.0)
     assert joint_ray_fill(dense, 5, GAP.start, GAP.stop, spare, loose, absent) is None
@@ -157,7 +157,7 @@ def test_an_absent_ankle_s_field_off_its_path_is_not_placed(f: int):
     right, truth = _feet(21)
     dense = _dense(_tracks_of(truth, {}))
     dense[6, f] = np.nan
-    clean = absent_rows(dense, LABELS, ("RANK",), _cameras(right, 21, GAP), PARAMS)[0]
+    clean = absent_placed(dense, LABELS, ("RANK",), _cameras(right, 21, GAP), PARAMS)[1][0]
     heel, toe, ankle = dense[4, f], dense[5, f], right[2, f]
     axis = (toe - heel) / np.linalg.norm(toe - heel)
     centre = heel + np.dot(ankle - heel, axis) * axis
@@ -169,7 +169,7 @@ def test_an_absent_ankle_s_field_off_its_path_is_not_placed(f: int):
     own = project_rows(spare.dlts, [0], ankle[None])
     row = rows[np.argmin(np.linalg.norm(spare.uv_px[rows] - own, axis=1))]
     spare.uv_px[row] = project_rows(spare.dlts, [0], wrong[None])[0]
-    placed = absent_rows(dense, LABELS, ("RANK",), spare, PARAMS)[0]
+    placed = absent_placed(dense, LABELS, ("RANK",), spare, PARAMS)[1][0]
     assert np.isnan(placed[f, 0])
     assert spare.free[row]  # the wrong blob is not taken
     # the fields placed without it stay placed, where they were
@@ -251,5 +251,5 @@ def test_blobs_that_fit_no_length_place_nothing():
     dense = _dense(_tracks_of(truth, {5: GAP, 6: GAP}))
     spare = _cameras(right, 22, GAP)
     corner = spare_blobs(spare.field, spare.camera, np.ones_like(spare.uv_px), spare.dlts)
-    rows = absent_rows(dense, LABELS, ("RANK",), corner, PARAMS)
+    rows = absent_placed(dense, LABELS, ("RANK",), corner, PARAMS)[1]
     assert not np.isfinite(rows).any() and corner.free.all()

@@ -18,7 +18,6 @@ from kisscal.tracking.labelling.feet import (
     settle_feet,
 )
 from kisscal.tracking.labelling.runnerup import (
-    free_name_margins,
     isolated,
     name_margins,
     turned_round,
@@ -128,7 +127,7 @@ def test_a_name_a_free_name_fits_better_is_doubted():
 
     def margins(p):
         args = (p, KISS.template_mm, anatomy.heights_mm, floor_height(p, anatomy))
-        return free_name_margins(*args, anatomy.pairs)
+        return name_margins(*args, anatomy.pairs, among_free=True)
 
     free = pos.copy()
     free[[thigh, KISS.names.index("RTHI")]] = np.nan

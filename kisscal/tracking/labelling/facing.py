@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.pelvis import PELVIS_BACK, PELVIS_FRONT, STEP_FIELDS
+from kisscal.tracking.labelling.pelvis import PELVIS_BACK, PELVIS_FRONT
 from kisscal.tracking.labelling.state import LabelState
 
 #: The body moves at least this far (mm, horizontally) through a window for its
@@ -112,16 +112,3 @@ def better(state: LabelState, found, other) -> bool:
     return n_other > int(np.sum(found.assign >= 0)) and agrees(
         found.core, found.assign, other.core, other.assign
     )
-
-
-def walking_direction(name_pos: NDArray) -> NDArray[np.float64]:
-    """Per field, the horizontal direction the body moves (F, 2), not normalised: the
-    median over the names held of their displacement over :data:`STEP_FIELDS` fields
-    either side (NaN where unknown)."""
-    k = STEP_FIELDS
-    out = np.full((name_pos.shape[1], 2), np.nan)
-    step = name_pos[:, 2 * k :, :2] - name_pos[:, : -2 * k, :2]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
-        out[k:-k] = np.nanmedian(step, axis=0)
-    return out

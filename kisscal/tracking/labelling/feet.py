@@ -36,9 +36,10 @@ from itertools import permutations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.facing import HEEL, foot_pairs, walking_direction
+from kisscal.tracking.labelling.facing import HEEL, foot_pairs
 from kisscal.tracking.labelling.footkeep import continued as _continued
 from kisscal.tracking.labelling.footkeep import fit_mm
+from kisscal.tracking.labelling.pelvis import walking_direction
 from kisscal.tracking.labelling.spread import continues, spread
 from kisscal.tracking.labelling.state import LabelState, median_distances
 
@@ -131,8 +132,7 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
 
     References
     ----------
-    Winter 2009 (segment lengths proportional to stature, which a scaled template
-    assumes).
+    Winter 2009 (segment lengths proportional to stature, which a scaled template assumes).
     """
     target = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     direction = walking_direction(state.name_pos)

@@ -6,7 +6,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kisscal.errors import InputError
-from kisscal.tracking.labelling.facing import walking_direction
 from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.groups import name_groups
 from kisscal.tracking.labelling.learned import name_from_trial
@@ -104,8 +103,8 @@ def name_pieces(state: LabelState) -> bool:
         spread(state)
     spread(state, continuity=True)
     # A body fit from the legs alone can name the sacrum an ASIS (pelvis.py).
-    if settle_pelvis_offsets(state, walking_direction(state.name_pos)):
+    if settle_pelvis_offsets(state):
         spread(state, continuity=True)
     # A first window can name an ASIS and the sacrum the other way round (pelvis.py).
-    settle_pelvis_pieces(state, walking_direction(state.name_pos))
+    settle_pelvis_pieces(state)
     return True

@@ -124,11 +124,11 @@ def _fits_better(state: LabelState, f: int, b: int, wrong: list[int], worse: flo
     return misfit(pos[b], pos[f]) < worse * misfit(pos[f], pos[b])
 
 
-def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[int, int]]:
+def settle_pelvis_pieces(state: LabelState) -> list[tuple[int, int]]:
     """Exchange front and back pelvis names (``*ASI*``, ``SACR``/``*PSI*``) between the
-    pieces that hold them the wrong way round along the walk (``direction``, (F, 2),
-    e.g. :func:`~kisscal.tracking.labelling.facing.walking_direction`), when that leaves
-    no name on two pieces in one field; the (front, back) name pairs exchanged.
+    pieces that hold them the wrong way round along the walk (:func:`walking_direction`),
+    when that leaves no name on two pieces in one field; the (front, back) name pairs
+    exchanged.
 
     A short first window that sees one ASIS and the sacrum can name them the other way
     round (their distances to the other ASIS differ by a few centimetres); later windows
@@ -137,7 +137,7 @@ def settle_pelvis_pieces(state: LabelState, direction: NDArray) -> list[tuple[in
     to the other names held agree (:func:`_fits_better`).
     """
     front, back = pelvis_roles(state.names)
-    done = []
+    done, direction = [], walking_direction(state.name_pos)
     for f in front:
         for b in back:
             wrong = sorted(_wrong_way(state, f, b, direction))
@@ -180,7 +180,7 @@ def _offset_says(state: LabelState, t: int, j: int, other: int, direction: NDArr
     return votes.size >= least and votes.mean() > state.params.min_side_confidence
 
 
-def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
+def settle_pelvis_offsets(state: LabelState) -> bool:
     """Give a long piece named a front pelvis name the back one (or back the front) when
     its offset along the walk from the other pelvis names held says so
     (:func:`_offset_says`); the pieces holding that name in its fields take the piece's
@@ -197,7 +197,7 @@ def settle_pelvis_offsets(state: LabelState, direction: NDArray) -> bool:
     answer).
     """
     front, back = pelvis_roles(state.names)
-    changed = False
+    changed, direction = False, walking_direction(state.name_pos)
     for t in state.long_ids[np.isin(state.label_of[state.long_ids], front + back)].tolist():
         j = int(state.label_of[t])
         for other in back if j in front else front:
@@ -249,7 +249,6 @@ def across_walk_name(state: LabelState, t: int, names: NDArray, j: int) -> int:
     forward = plan[list(front)].mean(axis=0) - plan[list(back)].mean(axis=0)
     left = np.array([-forward[1], forward[0]]) / np.linalg.norm(forward)
     lateral = plan @ left  # each name's offset across the template
-    k, last = STEP_FIELDS, pos.shape[1] - 1
     # the midline: midpoints of mirror pairs (RTHI, LTHI) held together, which a narrow
     # or wide stance moves alike; which side is left, their names say (not the walk,
     # which may go backwards)
@@ -259,9 +258,7 @@ def across_walk_name(state: LabelState, t: int, names: NDArray, j: int) -> int:
     mid = np.where(both[..., None], pos[a][:, fields, :2] + pos[m][:, fields, :2], np.nan) / 2
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # standing still, no pair held
-        step = np.nanmedian(
-            pos[:, np.minimum(fields + k, last), :2] - pos[:, np.maximum(fields - k, 0), :2], axis=0
-        )
+        step = walking_direction(pos, fields)
         across = np.stack([-step[:, 1], step[:, 0]], axis=1) / np.linalg.norm(step, axis=1)[:, None]
         offset = np.sum((xyz[:, :2] - np.nanmean(mid, axis=0)) * across, axis=1)
     width = np.sum((pos[a][:, fields, :2] - pos[m][:, fields, :2]) * across, axis=2)
@@ -276,6 +273,23 @@ def across_walk_name(state: LabelState, t: int, names: NDArray, j: int) -> int:
     gap = np.abs(lateral[own][:, None] - lateral[own][None])
     best = int(np.argmin(miss))
     return int(own[best]) if miss[best] < np.delete(gap[best], best).min() / 2 else -1
+
+
+def walking_direction(name_pos: NDArray, fields: NDArray | None = None) -> NDArray[np.float64]:
+    """Per field (of ``fields``, every field by default), the horizontal direction the
+    body moves (F, 2), not normalised: the median over the names held of their
+    displacement over :data:`STEP_FIELDS` fields either side, which at given ``fields``
+    stops at the trial's ends. NaN where no name is held and, without ``fields``, in the
+    first and last :data:`STEP_FIELDS` fields."""
+    k, last = STEP_FIELDS, name_pos.shape[1] - 1
+    at = np.arange(last + 1) if fields is None else fields
+    step = name_pos[:, np.minimum(at + k, last), :2] - name_pos[:, np.maximum(at - k, 0), :2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
+        out = np.nanmedian(step, axis=0)
+    if fields is None:
+        out[:k] = out[-k:] = np.nan
+    return out
 
 
 def _midline(pos: NDArray, pairs: tuple, pelvis: tuple[int, ...]) -> NDArray[np.float64]:

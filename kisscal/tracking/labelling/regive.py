@@ -50,7 +50,7 @@ from kisscal.tracking.labelling.runnerup import (
     nearest_names,
 )
 from kisscal.tracking.labelling.sides import name_positions
-from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM
+from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, RIGID_SPREAD_MM, distance_spread
 
 #: Cost (mm) of a name that cannot be weighed for a trajectory, and of another held name.
 _BARRED_MM = 1e6
@@ -81,9 +81,8 @@ def vouched(pos: NDArray, segments: NDArray, template: NDArray) -> NDArray[np.bo
     fields = np.linspace(0, pos.shape[1] - 1, min(MARGIN_FIELDS, pos.shape[1])).astype(int)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # names never seen together
-        d = np.linalg.norm(pos[:, None, fields] - pos[None, :, fields], axis=3)
-        sd = np.nanstd(d, axis=2)
-    together = np.isfinite(d).sum(axis=2) >= MIN_SHARED_FIELDS
+        sd, shared = distance_spread(pos, np.arange(len(pos)), fields, shared=True)
+    together = shared >= MIN_SHARED_FIELDS
     np.fill_diagonal(together, False)
     still = together & (sd < RIGID_SPREAD_MM)
     moving = ~(still & segments).any(axis=1) & (still.sum(axis=1) < 0.5 * together.sum(axis=1))

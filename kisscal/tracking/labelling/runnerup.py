@@ -17,8 +17,8 @@ On real files, against a generic template, right names fall short of their runne
 by up to about 20 mm (marker placement differs from the template's); so the margin
 cannot certify a name (most names would have to be flagged), it can only catch a name
 that the evidence clearly contradicts. A name left free by the labelling is another
-matter (:func:`free_name_margins`): nothing else claims it, so a trajectory it fits
-better than the trajectory's own name is doubtful by a smaller margin
+matter (:func:`name_margins` ``among_free``): nothing else claims it, so a trajectory
+it fits better than the trajectory's own name is doubtful by a smaller margin
 (``free_deficit_fraction``), and by any margin when none of its nearest names in the
 template is held while the free name's are (:func:`strays`: a finger's name on a thigh
 marker with the whole arm free). A name held by a doubted trajectory is as good as free
@@ -33,7 +33,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.state import RIGID_SPREAD_MM
+from kisscal.tracking.labelling.state import RIGID_SPREAD_MM, median_distances
 
 #: Neighbours: named trajectories whose median distance is below this fraction of the
 #: template's height (a foot's names weighed by the shank and foot, not the head).
@@ -53,17 +53,6 @@ TEMPLATE_NEIGHBOURS = 3
 #: the held one is within this fraction of the template's (:func:`turned_round`; on the
 #: regression set a real head is 30 % longer than the set's template, scaled).
 TURNED_MATCH = 0.5
-
-
-def median_distances(pos: NDArray) -> NDArray[np.float64]:
-    """(n, n) median distance between named trajectories over the fields both are seen
-    in (NaN when never together), over at most :data:`MARGIN_FIELDS` fields."""
-    fields = np.flatnonzero(np.isfinite(pos[..., 0]).any(axis=0))
-    fields = fields[np.linspace(0, fields.size - 1, min(MARGIN_FIELDS, fields.size)).astype(int)]
-    p = pos[:, fields]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
-        return np.nanmedian(np.linalg.norm(p[:, None] - p[None, :], axis=3), axis=2)
 
 
 def name_margins(
@@ -88,7 +77,7 @@ def name_margins(
     exchange, and ``k`` is weighed as ``i``'s name. A name's mirror partner (``pairs``:
     left, right) is no runner-up: distances cannot tell a body from its mirror image,
     the anatomy's sides do. With ``among_free``, the other names weighed are only those
-    no trajectory holds (:func:`free_name_margins`); ``weighed`` ((n, n) bool), only the
+    no trajectory holds; ``weighed`` ((n, n) bool), only the
     names ``j`` with ``weighed[i, j]`` for trajectory ``i``.
     """
     n = pos.shape[0]
@@ -124,7 +113,11 @@ def name_fits(
     distances to its neighbours and of its height."""
     n = pos.shape[0]
     fits = np.full((n, n), np.nan)
-    measured = median_distances(pos)
+    seen = np.flatnonzero(np.isfinite(pos[..., 0]).any(axis=0))  # at most MARGIN_FIELDS
+    seen = seen[np.linspace(0, seen.size - 1, min(MARGIN_FIELDS, seen.size)).astype(int)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together
+        measured = median_distances(pos, np.arange(n), seen)
     tdist = np.linalg.norm(template[:, None] - template[None, :], axis=2)
     near = np.isfinite(measured) & (measured < NEIGHBOUR_FRACTION * float(np.ptp(template[:, 2])))
     np.fill_diagonal(near, False)
@@ -191,27 +184,6 @@ def chained(
         out = grown
 
 
-def free_name_margins(
-    pos: NDArray,
-    template: NDArray,
-    heights_mm: NDArray | None,
-    floor_mm: float,
-    pairs: tuple[tuple[int, int], ...] = (),
-) -> NDArray[np.float64]:
-    """:func:`name_margins` against the names no trajectory holds only.
-
-    A name held by another trajectory is a runner-up that can be right as well (two
-    neighbours fit each other's names nearly as well on a generic template), so it must
-    win clearly (``name_deficit_fraction``). A free name competes with nothing: when it
-    fits a trajectory better than the name the trajectory was given, the labelling
-    preferred a worse name while a better one was left unused, which happens when a
-    chain of names shifted along the body (a thigh marker named finger with the arms
-    absent, the thigh's name left free). With every name held (a complete set) this
-    weighs nothing (NaN).
-    """
-    return name_margins(pos, template, heights_mm, floor_mm, pairs, among_free=True)
-
-
 def nearest_names(template: NDArray) -> NDArray[np.int64]:
     """(n, k) each name's :data:`TEMPLATE_NEIGHBOURS` nearest names in the template."""
     d = np.linalg.norm(template[:, None] - template[None, :], axis=2)
@@ -242,7 +214,7 @@ def strays(
     trajectory a free name of a held group fits better, is a name the labelling pushed
     along the body onto a marker of that group (a thigh marker named finger in a trial
     without arms, the thigh's name free, the knee's held). Its distances may fit the free
-    name better by only a few millimetres (:func:`free_name_margins`), which a true
+    name better by only a few millimetres (the free names' margins), which a true
     name's can too, but a true name alone (a shoulder without the trunk's markers) is
     beaten by names of groups that are absent as well.
     """

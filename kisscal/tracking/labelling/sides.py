@@ -24,7 +24,6 @@ from kisscal.tracking.labelling.anatomy import (
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.runnerup import (
     chained,
-    free_name_margins,
     mirror_rows,
     name_fits,
     name_margins,
@@ -85,7 +84,7 @@ def doubted(
     args = (pos, reference, anatomy.heights_mm, floor, anatomy.pairs)
     with np.errstate(invalid="ignore"):
         out = name_margins(*args) < -params.name_deficit_fraction * stature
-        out |= free_name_margins(*args) < -params.free_deficit_fraction * stature
+        out |= name_margins(*args, among_free=True) < -params.free_deficit_fraction * stature
     out |= strays(*args)
     if anatomy.heights_mm is not None:
         out |= uneven_legs(pos, anatomy.heights_mm, anatomy.pairs, anatomy.front + anatomy.back)

@@ -52,9 +52,11 @@ def median_distances(dense: NDArray, tracks: NDArray, fields: NDArray) -> NDArra
     return np.nanmedian(_pair_distances(dense, tracks, fields), axis=2)
 
 
-def distance_spread(dense: NDArray, tracks: NDArray, fields: NDArray) -> NDArray:
-    """Standard deviation over ``fields`` of the distance between every pair of tracks."""
-    return np.nanstd(_pair_distances(dense, tracks, fields), axis=2)
+def distance_spread(dense: NDArray, tracks: NDArray, fields: NDArray, shared: bool = False):
+    """Standard deviation over ``fields`` of the distance between every pair of tracks
+    and, with ``shared``, the number of ``fields`` that hold both of a pair."""
+    d = _pair_distances(dense, tracks, fields)
+    return (np.nanstd(d, axis=2), np.isfinite(d).sum(axis=2)) if shared else np.nanstd(d, axis=2)
 
 
 def segment_mask(names: tuple[str, ...], segments: list | tuple | None) -> NDArray[np.bool_]:
