@@ -56,7 +56,7 @@ from kisscal.tracking.labelling.state import (
     segment_mask,
 )
 from kisscal.tracking.labelling.unseen import name_by_segment
-from kisscal.tracking.labelling.upright import capped_assignment, fit_pose, floor_lift
+from kisscal.tracking.labelling.upright import capped_assignment, fit_on_floor
 from kisscal.tracking.labelling.vertical import turned, upright_rotation
 from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
 from kisscal.tracking.params import TrackingParams
@@ -76,7 +76,7 @@ PRIOR_WEIGHT = 0.05
 
 def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
     """Stature (mm) whose scaled template the first window's average pose, stood on it,
-    fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_pose`), when
+    fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_on_floor`), when
     the trial holds only part of the set (NaN otherwise, or without a pose).
 
     Distances of a part of the set and of foreign markers do not match a scaled template
@@ -93,7 +93,7 @@ def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
     fits = []
     for height in PARTIAL_HEIGHTS_MM:
         template = marker_set.scaled(float(height)).template_mm
-        cost, r, t = fit_pose(pose[seen], template, cap, floor_lift(pos, template))
+        cost, r, t = fit_on_floor(pose[seen], pos, template, cap)
         held = capped_assignment(pose[seen] @ r.T + t, template, cap)[0].size
         fits.append((cost, float(height), held))
     cost, height, held = min(fits)
