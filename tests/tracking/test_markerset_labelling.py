@@ -9,14 +9,17 @@ import pytest
 from kisscal.markersets import marker_set
 from kisscal.tracking import TrackingParams, build_trajectories
 from kisscal.tracking.blending import blend_tracks
+from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import segment_mask
 from kisscal.tracking.labelling.subject import (
     HEIGHTS_MM,
+    _floor_seen,
     estimate_height,
     fit_template,
 )
 from kisscal.tracking.rigid import refine_by_swaps
 from kisscal.tracking.tracker import track_points
+from kisscal.tracking.tracks import make_tracks
 from tests.tracking._eval import score
 from tests.tracking.markerset_acceptance import LOWER, walker_trial, wrong_labels
 
@@ -117,3 +120,17 @@ def test_wrong_labels_of_a_full_body_set_on_foreign_markers_are_flagged():
         and label not in res.labelling.flagged
     ]
     assert silent == []
+
+
+def test_names_held_with_none_near_the_floor_stand_on_an_assumed_floor():
+    # shd01 (BTK), an upper body: its heights were judged from the lab's Z = 0, and its
+    # head, turned 60 degrees on the trunk, was named a quarter turn round by its place.
+    full = marker_set("plug-in-gait-full")
+
+    def seen(*names: str) -> bool:
+        k = np.arange(len(names))
+        tracks = make_tracks(0 * k, k, np.zeros((k.size, 3)), np.zeros((k.size, 3)), 0 * k, k)
+        return _floor_seen(Labelling(tracks, names, True, (), (), 0.0), full, TrackingParams())
+
+    assert not seen("LFHD", "C7", "LASI", "RWRA")  # the lowest, the wrist, 859 mm up
+    assert seen("LFHD", "LASI", "LANK") and seen("RTOE")

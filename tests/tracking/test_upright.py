@@ -63,7 +63,7 @@ def test_a_lower_body_with_foreign_markers_stands_on_the_full_body_template():
     lower = [n for n in FULL.names if n[0] in "LR" and n[1:] in
              ("ASI", "PSI", "THI", "KNE", "TIB", "ANK", "HEE", "TOE")]  # fmt: skip
     pos, rows = _walking_part(1, lower, 6, heading_deg=210.0)
-    pose = pose_on_template(pos, FULL.template_mm, 120.0)
+    pose, _ = pose_on_template(pos, FULL.template_mm, 120.0)
     found, names, _ = capped_assignment(pose, FULL.template_mm, 120.0)
     named = dict(zip(found.tolist(), names.tolist(), strict=True))
     right = sum(named.get(i) == rows[i] for i in range(len(rows)))
@@ -72,3 +72,19 @@ def test_a_lower_body_with_foreign_markers_stands_on_the_full_body_template():
     # the average pose is the standing pose: legs' swing averaged out
     pose0 = average_pose(pos)
     assert np.isfinite(pose0).all()
+
+
+def test_an_upper_body_without_feet_stands_on_the_lab_floor():
+    # shd01 (BTK): trunk, head, arms and pelvis, no leg marker. Stood with its lowest
+    # piece (a wrist) on the floor, its head took the pelvis' names.
+    upper = [n for n in FULL.names if n[1:] not in ("THI", "KNE", "TIB", "ANK", "HEE", "TOE")]
+    pos, rows = _walking_part(2, upper, 0, heading_deg=40.0)
+    pose, lab_floor = pose_on_template(pos, FULL.template_mm, 120.0)
+    found, names, _ = capped_assignment(pose, FULL.template_mm, 120.0)
+    named = dict(zip(found.tolist(), names.tolist(), strict=True))
+    right = sum(named.get(i) == rows[i] for i in range(len(rows)))
+    assert lab_floor and right >= len(rows) - 2
+    # 300 mm up in a lab whose zero is not the floor, the feet on it: the lowest piece
+    lower = [n for n in FULL.names if n[1:] in ("ASI", "PSI", "KNE", "ANK", "HEE", "TOE")]
+    pos, rows = _walking_part(3, lower, 0, heading_deg=40.0)
+    assert not pose_on_template(pos + [0.0, 0.0, 300.0], FULL.template_mm, 120.0)[1]

@@ -68,3 +68,18 @@ def test_floor_sign_finds_the_steady_end():
     assert floor_sign(height) == 1
     assert floor_sign(-height) == -1
     assert floor_sign(np.full((3, fields), 5.0)) == 0  # a still subject tells nothing
+
+
+def test_a_still_upper_body_is_not_stood_on_its_head():
+    # shd01 (BTK): trunk, head, arms and pelvis, no leg marker, barely moving. With its
+    # lowest piece (a wrist) put on the floor, it fitted the standing template better
+    # upside down; on the lab's own floor it stands.
+    full = marker_set("plug-in-gait-full")
+    keep = [n for n in full.names if n[1:] not in ("THI", "KNE", "TIB", "ANK", "HEE", "TOE")]
+    body = full.template_mm[[full.index(n) for n in keep]] @ axis_rotation(2, 1)
+    rng = np.random.default_rng(5)
+    sway = 20.0 * np.sin(np.linspace(0.0, np.pi, 100))[:, None, None] * [1.0, 0.5, 0.0]
+    xyz = body[None] + sway + [500.0, 300.0, 0.0] + rng.normal(0.0, 0.5, (100, len(keep), 3))
+    f, k = np.nonzero(np.isfinite(xyz[..., 0]))
+    pieces = blend_tracks(track_points(f, xyz[f, k], TrackingParams()), TrackingParams())
+    np.testing.assert_array_equal(upright_rotation(pieces, full, TrackingParams()), np.eye(3))

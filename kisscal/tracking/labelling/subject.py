@@ -56,7 +56,7 @@ from kisscal.tracking.labelling.state import (
     segment_mask,
 )
 from kisscal.tracking.labelling.unseen import name_by_segment
-from kisscal.tracking.labelling.upright import capped_assignment, fit_pose, floor_lift
+from kisscal.tracking.labelling.upright import capped_assignment, fit_on_floor
 from kisscal.tracking.labelling.vertical import turned, upright_rotation
 from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
 from kisscal.tracking.params import TrackingParams
@@ -76,7 +76,7 @@ PRIOR_WEIGHT = 0.05
 
 def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
     """Stature (mm) whose scaled template the first window's average pose, stood on it,
-    fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_pose`), when
+    fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_on_floor`), when
     the trial holds only part of the set (NaN otherwise, or without a pose).
 
     Distances of a part of the set and of foreign markers do not match a scaled template
@@ -93,7 +93,7 @@ def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
     fits = []
     for height in PARTIAL_HEIGHTS_MM:
         template = marker_set.scaled(float(height)).template_mm
-        cost, r, t = fit_pose(pose[seen], template, cap, floor_lift(pos, template))
+        cost, r, t = fit_on_floor(pose[seen], pos, template, cap)
         held = capped_assignment(pose[seen] @ r.T + t, template, cap)[0].size
         fits.append((cost, float(height), held))
     cost, height, held = min(fits)
@@ -340,13 +340,29 @@ def _label_upright(
         # (footorder.py), a heel's name with a foot marker behind it is doubted.
         judged = _doubting(judged, names, out_of_order_feet(judged, scaled_set, anatomy, rate_hz))
     tried = PARTIAL_HEIGHTS_MM if partial else HEIGHTS_MM
-    if (fitted in (tried[0], tried[-1]) or height != fitted) and judged.fits_marker_set:
+    bound = fitted in (tried[0], tried[-1]) or height != fitted
+    if (bound or not _floor_seen(judged, scaled_set, params)) and judged.fits_marker_set:
         # The floor fit's stature is a bound of the plausible range (the template fits
-        # this trial at no plausible stature), or the segments chose another: nothing
-        # named is certain.
+        # this trial at no plausible stature), or the segments chose another; or no name
+        # stands near the floor, whose height was then assumed: nothing named is certain.
         taken = set(judged.labels)
         return replace(judged, flagged=tuple(n for n in names if n in taken))
     return judged
+
+
+def _floor_seen(labelling: Labelling, marker_set: MarkerSet, params: TrackingParams) -> bool:
+    """Whether a name of ``labelling`` lies within ``label_tolerance_mm`` of the set's
+    lowest template height: without one (an upper body, shd01) the heights were judged
+    from a floor assumed (:func:`~kisscal.tracking.labelling.upright.fit_on_floor`), and
+    a head turned on the trunk can be named a quarter turn round by its place."""
+    unnamed = set(labelling.unlabelled)
+    held = [
+        marker_set.names.index(lab)
+        for t, lab in enumerate(labelling.labels)
+        if t not in unnamed and lab in marker_set.names
+    ]
+    z = marker_set.template_mm[:, 2]
+    return bool(held) and float(z[held].min()) <= z.min() + params.label_tolerance_mm
 
 
 def _doubting(labelling: Labelling, names: Sequence[str], doubted: Iterable[str]) -> Labelling:

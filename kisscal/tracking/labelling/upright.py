@@ -136,9 +136,32 @@ def floor_lift(pos: NDArray, template: NDArray) -> float:
     return float(template[:, 2].min() - low)
 
 
-def pose_on_template(pos: NDArray, template: NDArray, cap_mm: float) -> NDArray[np.float64]:
+def fit_on_floor(
+    pose: NDArray, pos: NDArray, template: NDArray, cap_mm: float
+) -> tuple[float, NDArray, NDArray]:
+    """:func:`fit_pose` of ``pose`` (the seen pieces' average pose of ``pos``) on either
+    floor, the lower capped cost: the lowest piece on the floor (:func:`floor_lift`),
+    or the lab's own (Z = 0, where a calibration puts it) when that lowers the body by
+    more than ``cap_mm``.
+
+    The lowest piece stands on the floor only when the feet are in view: an upper body
+    (shd01: no leg marker, its wrist 775 mm above the lab floor) put there named its
+    head as the pelvis and its trunk as the thighs. A lab whose zero is not its floor
+    fits the body worse there, and keeps the first.
+    """
+    lift = floor_lift(pos, template)
+    fits = [fit_pose(pose, template, cap_mm, lift)]
+    if lift < -cap_mm:
+        fits.append(fit_pose(pose, template, cap_mm, 0.0))
+    return min(fits, key=lambda fit: fit[0])
+
+
+def pose_on_template(
+    pos: NDArray, template: NDArray, cap_mm: float
+) -> tuple[NDArray[np.float64], bool]:
     """The pieces' average pose (:func:`average_pose`) turned about the vertical and moved
-    onto an upright ``template`` (k, 3; NaN for pieces not placed).
+    onto an upright ``template`` (k, 3; NaN for pieces not placed), and whether it stands
+    on the lab's own floor rather than on its lowest piece (:func:`fit_on_floor`).
 
     The pose is put on the template's floor, then fitted from :data:`HEADINGS` headings by
     alternating a capped one-to-one assignment (pieces farther than ``cap_mm`` from every
@@ -152,6 +175,6 @@ def pose_on_template(pos: NDArray, template: NDArray, cap_mm: float) -> NDArray[
     pose = average_pose(pos)
     seen = np.isfinite(pose[:, 0])
     if seen.sum() < 3:
-        return np.full_like(pose, np.nan)
-    _, r, t = fit_pose(pose[seen], template, cap_mm, floor_lift(pos, template))
-    return pose @ r.T + t
+        return np.full_like(pose, np.nan), False
+    _, r, t = fit_on_floor(pose[seen], pos, template, cap_mm)
+    return pose @ r.T + t, bool(t[2] == 0.0)

@@ -13,7 +13,8 @@ found from the data (:func:`upright_rotation`):
    (axes spreading at least :data:`TALL_FRACTION` as far stay candidates);
 2. **which end is the floor**: the first window's average pose, with each candidate
    (axis and sign) as up, is stood on the set's template (floor on floor) and fitted from
-   every heading (:func:`~kisscal.tracking.labelling.upright.fit_pose`); a body stood on
+   every heading (:func:`~kisscal.tracking.labelling.upright.fit_on_floor`: the lowest
+   piece on the floor, or the lab's own when the feet are not in view); a body stood on
    its head fits the standing template far worse (the capped cost), so the lowest cost
    wins. Lab Z up is kept unless another candidate fits clearly better
    (:data:`BETTER_FRACTION`).
@@ -33,7 +34,7 @@ from numpy.typing import NDArray
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.state import LabelState
-from kisscal.tracking.labelling.upright import average_pose, fit_pose, floor_lift
+from kisscal.tracking.labelling.upright import average_pose, fit_on_floor
 from kisscal.tracking.labelling.window import first_pose
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
@@ -83,7 +84,7 @@ def upright_rotation(
     References
     ----------
     Besl & McKay 1992 (alternating assignment and fit, through
-    :func:`~kisscal.tracking.labelling.upright.fit_pose`).
+    :func:`~kisscal.tracking.labelling.upright.fit_on_floor`).
     """
     eye = np.eye(3)
     template = marker_set.template_mm
@@ -105,8 +106,7 @@ def upright_rotation(
                 pose = average_pose(up)
             seen = np.isfinite(pose[:, 0])
             if seen.sum() >= 3:
-                lift = floor_lift(up, template)
-                costs[(int(axis), sign)] = fit_pose(pose[seen], template, cap, lift)[0]
+                costs[(int(axis), sign)] = fit_on_floor(pose[seen], up, template, cap)[0]
     if not costs:
         return eye
     best = min(costs, key=costs.get)

@@ -157,19 +157,24 @@ def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
     return bool(r[2, 2] > np.cos(np.pi / 4))
 
 
-def height_costs(dense: NDArray, core: NDArray, rich: NDArray, template: NDArray) -> tuple:
+def height_costs(
+    dense: NDArray, core: NDArray, rich: NDArray, template: NDArray, lab_floor: bool = False
+) -> tuple:
     """Median heights of the core pieces over ``rich``, and each piece's cost of each
     name: its height above the floor against the name's template height, in units of
     :data:`HEIGHT_SD_MM`, squared.
 
     The floor is where the lowest piece spends its lowest tenth of the time, put at the
-    template's lowest marker (the feet's markers sit a few centimetres above the floor).
+    template's lowest marker (the feet's markers sit a few centimetres above the floor);
+    with ``lab_floor``, it is the lab's Z = 0 (the feet are not in view,
+    :func:`~kisscal.tracking.labelling.upright.fit_on_floor`).
     """
     z = dense[np.ix_(core, rich)][..., 2]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         heights = np.nanmedian(z, axis=1)
         floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - template[:, 2].min()
+    floor = 0.0 if lab_floor else floor
     unary = ((heights - floor)[:, None] - template[None, :, 2]) ** 2 / HEIGHT_SD_MM**2
     return heights, unary
 
@@ -321,7 +326,7 @@ def drop_broken_pairs(
 
 def set_members(
     state: LabelState, core: NDArray, rich: NDArray
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64] | None]:
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64] | None, bool]:
     """The core pieces that belong to the set, and the names they hold: in the average
     pose stood on the template (:func:`~kisscal.tracking.labelling.upright.pose_on_template`),
     the one-to-one assignment of pieces to names within ``label_tolerance_mm`` (all core
@@ -331,18 +336,19 @@ def set_members(
     markers of another set: the swap search then names only these pieces, among only
     these names, instead of forcing absent names on foreign pieces. Returned with the
     pieces' places in the stood pose (None with all pieces and names): with fewer names,
-    distances alone tell less (a sternum from a back marker), the place tells more.
+    distances alone tell less (a sternum from a back marker), the place tells more; and
+    whether it stands on the lab's own floor (not on its lowest piece).
     """
-    everything = (core, np.arange(len(state.names)), None)
     cap = state.params.label_tolerance_mm
     few = rich[np.linspace(0, rich.size - 1, min(UPRIGHT_FIELDS, rich.size)).astype(int)]
-    pose = pose_on_template(state.dense[np.ix_(core, few)], state.template, cap)
+    pose, lab_floor = pose_on_template(state.dense[np.ix_(core, few)], state.template, cap)
     placed = np.flatnonzero(np.isfinite(pose[:, 0]))
     rows, cols, _ = capped_assignment(pose[placed], state.template, cap)
     if rows.size < 3 or rows.size >= (1 - PARTIAL_FRACTION) * len(state.names):
-        return everything  # (nearly) the whole set: the swap search sorts it out
+        # (nearly) the whole set: the swap search sorts it out
+        return core, np.arange(len(state.names)), None, lab_floor
     members = placed[rows]
-    return core[members], np.sort(cols), pose[members]
+    return core[members], np.sort(cols), pose[members], lab_floor
 
 
 def match_window(state: LabelState, centre: int) -> WindowMatch:
@@ -363,16 +369,16 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
     core = core_pieces(state.present, rich, state.dense)
     if core.size < 3:
         return none
-    names, pose = np.arange(len(state.names)), None
+    names, pose, lab_floor = np.arange(len(state.names)), None, False
     if state.upright and state.partial:
-        core, names, pose = set_members(state, core, rich)
+        core, names, pose, lab_floor = set_members(state, core, rich)
     median = median_distances(state.dense, core, rich)
     spread = distance_spread(state.dense, core, rich)
     weight = 1.0 / (spread**2 + SPREAD_FLOOR_MM**2)
     np.fill_diagonal(weight, 0.0)
     heights = unary = None
     if state.upright:
-        heights, unary = height_costs(state.dense, core, rich, state.template[names])
+        heights, unary = height_costs(state.dense, core, rich, state.template[names], lab_floor)
     if pose is not None:
         # Each piece's cost of a name: its distance from the name in the stood pose, in
         # label tolerances, squared.
