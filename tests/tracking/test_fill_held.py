@@ -126,3 +126,23 @@ def test_the_field_left_between_hinge_pieces_is_not_bridged_from_beyond_them():
         assert err[(f >= g.first_field) & (f < g.first_field + g.n_fields)].max() <= (
             2.0 * g.expected_error_mm
         )
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_tibia_on_one_camera_is_hinged_where_its_knee_is_placed(seed: int):
+    # lowcost 406 LTIB 203-222: the knee, on one camera too, placed in the first half of
+    # the tibia's gap alone; main refused the hinge for the whole gap (its donor absent
+    # in part of it) and the lengths fixed no depth on the glancing ray: 3-4 fields placed
+    dense, truth, spare = _ankle_off_its_heel(seed)
+    dense[2, PULLED] = truth[2, PULLED]
+    dense[1, GAP] = np.nan
+    dense[0, GAP.start + 15 : GAP.stop + 5] = np.nan
+    out, fills = fill_gaps_logged(_tracks(dense), PARAMS, spare)
+    rows = np.flatnonzero(is_filled(out.status) & (out.track == 1) & (out.field < GAP.start + 15))
+    f = out.field[rows]
+    assert f.tolist() == list(range(GAP.start, GAP.start + 15))
+    err = np.linalg.norm(out.xyz_mm[rows] - truth[1, f], axis=1)
+    assert err.max() < 1.5
+    for g in (g for g in fills if g.track == 1 and g.first_field < GAP.start + 15):
+        e = err[(f >= g.first_field) & (f < g.first_field + g.n_fields)]
+        assert np.sqrt(np.mean(e**2)) <= 2.0 * g.expected_error_mm
