@@ -27,9 +27,10 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
+from kisscal.tracking.fill_anchor import anchored, donor_noise
 from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
-from kisscal.tracking.fill_place import mirror_checked, with_rays
+from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
 from kisscal.tracking.fill_spline import spline_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
@@ -40,13 +41,34 @@ def out_of_shape_fields(
 ) -> NDArray[np.bool_]:
     """(n_tracks, hi - lo): the gap fields where each track other than ``t`` misses two
     of its segment's mates or more (:func:`~.fill_donors.misfit_fields`; one marker
-    pulled off misses all its mates, each of them misses it alone)."""
-    out = np.zeros((len(dense), hi - lo), dtype=bool)
+    pulled off misses all its mates, each of them misses it alone), or misses one that
+    misses no more there (:func:`unpinned_fields`)."""
+    return _flags(dense, t, lo, hi, params)[0]
+
+
+def unpinned_fields(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
+) -> NDArray[np.bool_]:
+    """(n_tracks, hi - lo): the gap fields where a track misses one mate of its segment
+    that misses no more there and not two: the miss is pinned on neither (as
+    :func:`~.fill_donors.unsound` says for a whole gap; lowcost 403, an ankle pulled 6 mm
+    by a merged blob missed only the heel, its tibia hidden, the knee's length within
+    its SDs), so both are flagged."""
+    return _flags(dense, t, lo, hi, params)[1]
+
+
+def _flags(
+    dense: NDArray, t: int, lo: int, hi: int, params: TrackingParams
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`out_of_shape_fields` and, of them, :func:`unpinned_fields`."""
+    miss = np.zeros((len(dense), len(dense), hi - lo), dtype=bool)
     seen = np.flatnonzero(np.isfinite(dense[:, lo:hi, 0]).any(axis=1))
     for k in seen[seen != t].tolist():
         # one track at a time: a fill's donors count as mates of each other
-        out[k] = misfit_fields(dense, t, (k,), lo, hi, params)[0].sum(axis=0) >= 2
-    return out
+        miss[k] = misfit_fields(dense, t, (k,), lo, hi, params)[0]
+    count = miss.sum(axis=1)
+    unpinned = (count == 1) & np.any(miss & (count[None] <= count[:, None, :]), axis=1)
+    return (count >= 2) | unpinned, unpinned
 
 
 def _bridged(dense: NDArray, flagged: NDArray, lo: int, params: TrackingParams) -> NDArray:
@@ -69,30 +91,50 @@ def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bo
     is out of shape in some of them (see module): the fill of least expected error, at
     most ``max_body_fill_error_mm``, made with those samples bridged, kept in the
     fields where none of its donors was; each piece moved onto the rays of blobs a
-    camera still sees there (:func:`~.fill_place.with_rays`) and, when a rigid fill
-    expecting at most ``ray_rest_max_error_mm``, written into ``gap.dense`` as context
-    (the fields dropped lie between its pieces). Returns the fields placed."""
-    flagged = out_of_shape_fields(gap.dense, gap.t, a, b, params)
-    if not flagged.any():
-        return np.zeros(b - a, dtype=bool)
-    src = _bridged(mirror_checked(gap.dense, gap.t, params, gap.mirror), flagged, a, params)
+    camera still sees there (:func:`~.fill_place.with_rays`; where a donor's miss is
+    pinned on neither, :func:`unpinned_fields`, only those), expecting at least its
+    donors' noise and the error of the fills beside it as the body's fills do, and, when
+    a rigid fill expecting at most ``ray_rest_max_error_mm``, written into ``gap.dense``
+    as context (the fields dropped lie between its pieces). Returns the fields placed."""
+    flagged, unpinned = _flags(gap.dense, gap.t, a, b, params)
     rays = gap.spare is not None and gap.spare.rows(a, b).size > 0
     centres = gap.spare.centres if rays else None
-    cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
-    chosen = best_candidate(cands, params)
+    seen = np.isfinite(gap.dense[:, a:b, 0])
+    absent = ~seen & seen.any(axis=1, keepdims=True)
+    absent[gap.t] = False
+    chosen = None
+    # then, where no fill is made so, the tracks absent in part of the run bridged too,
+    # and kept on rays alone as a miss pinned on neither (lowcost 406: a tibia on one
+    # camera whose knee was placed only in half of the run, 12 fields 0.6 mm RMS off)
+    for more in (np.zeros_like(absent), absent & rays):
+        if chosen is None and (flagged | more).any():
+            src = mirror_checked(gap.dense, gap.t, params, gap.mirror)
+            src = _bridged(src, flagged | more, a, params)
+            cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
+            chosen = best_candidate(cands, params)
+            flagged, unpinned = flagged | more, unpinned | more
     if chosen is None:
         return np.zeros(b - a, dtype=bool)
-    keep = ~flagged[list(chosen.fill.donors)].any(axis=0)
+    donors = list(chosen.fill.donors)
+    keep = ~flagged[donors].any(axis=0)
+    # a donor's miss pinned on neither: the fill is kept only where a camera's ray
+    # measures it (lowcost 311: a toe hinged about heel and ankle, the two missing each
+    # other in one field, 8 fields no camera saw 4.1 mm RMS off expecting 2.9)
+    rayed_only = bool(unpinned[donors].any())
     context = (
         chosen.fill.status == FILLED_RIGID
         and chosen.fill.expected_error_mm <= params.ray_rest_max_error_mm
     )
+    out: list = []
     for x, y in zip(*true_runs(keep), strict=True):
         fill = dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x)
         piece = Candidate(chosen.xyz_mm[x:y], fill, chosen.along_sight_mm)
         got = with_rays(piece, gap.spare, params) if rays else [(piece.xyz_mm, fill)]
-        gap.out.extend(got)
-        if context:
-            for xyz, f in got:
-                gap.dense[gap.t, f.first_field : f.first_field + f.n_fields] = xyz
-    return keep
+        got = [g for g in got if g[1].ray_fields or not rayed_only]
+        # as the body's fills (:func:`~.gaps._body`; lowcost 403 LTIB beside a chain
+        # fill expecting 3.4 mm, 1.1 mm RMS off expecting 0.6 on its ray)
+        out += anchored(donor_noise(got, gap.dense), gap.out, params.fill_context_fields)
+    gap.out.extend(out)
+    for xyz, f in out if context else ():
+        gap.dense[gap.t, f.first_field : f.first_field + f.n_fields] = xyz
+    return placed_mask(out, a, b)

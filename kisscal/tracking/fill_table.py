@@ -29,6 +29,16 @@ def enclosed(series: NDArray, a: int, b: int) -> bool:
     return 0 < a and b < len(series) and bool(np.all(np.isfinite(series[[a - 1, b]])))
 
 
+def hole_length(series: NDArray, a: int, b: int) -> int:
+    """Fields between the samples of ``series`` (n_fields, 3) beside the run [a, b): the
+    hole a spline through them bridges (at least ``b - a``; ``b - a`` at a track's end).
+    Fields left between fills not taken as context are part of it (a 60-field hinge's
+    hole of one field, spline through the samples beyond it: 96 mm off)."""
+    ok = np.flatnonzero(np.isfinite(series[:, 0]))
+    i = int(np.searchsorted(ok, a))
+    return max(b - a, int(ok[i] - ok[i - 1] - 1) if 0 < i < ok.size else 0)
+
+
 @dataclass(frozen=True)
 class Fill:
     """One way of filling missing fields of a track, and its reach.

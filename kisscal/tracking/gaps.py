@@ -38,7 +38,7 @@ from kisscal.tracking.fill_pair import merged_pair_fill
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
-from kisscal.tracking.fill_table import Fill
+from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
@@ -132,7 +132,8 @@ def _body(
     samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
     (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
     none = np.zeros(b - a, dtype=bool)
-    short = (spline or checked) and b - a <= params.max_fill_gap_fields
+    hole = hole_length(gap.dense[gap.t], a, b)  # what a spline bridges, not the run alone
+    short = (spline or checked) and hole <= params.max_fill_gap_fields
     if not short and b - a > params.max_body_fill_fields:
         return none
     spare = gap.spare
