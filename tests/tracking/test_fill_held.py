@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kisscal.tracking import TrackingParams
+from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_held import out_of_shape_fields
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.tracks import MEASURED, make_tracks
@@ -14,6 +14,7 @@ from tests.tracking.test_fill_neighbour_hinge import _leg
 PARAMS = TrackingParams()
 GAP = slice(100, 130)
 PULLED = 112
+HOLE = [114, 115]
 
 
 def _hidden_tibia(seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -56,3 +57,21 @@ def test_a_tibia_whose_ankle_is_pulled_in_one_field_is_filled_in_the_others():
         assert np.setdiff1d(np.arange(GAP.start, GAP.stop), fields).tolist() in ([], [PULLED])
         err = np.linalg.norm(out.xyz_mm[rows] - truth[1, fields], axis=1)
         assert err[fields != PULLED].max() < 3.0
+
+
+def test_a_heel_hidden_while_the_toe_misses_two_fields_is_filled_in_the_others():
+    # the toe's own spline fills its two fields, which the body does not read: its
+    # fills found one donor (the ankle) through the gap and left the heel open
+    spare = spare_blobs([], [], np.zeros((0, 2)), [[1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1e-3]])
+    for seed in (0, 1):
+        dense, truth = _leg(seed)
+        dense[3, GAP] = np.nan
+        dense[4, HOLE] = np.nan
+        out, fills = fill_gaps_logged(_tracks(dense), PARAMS, spare)
+        rows = (out.track == 3) & (out.field >= GAP.start) & (out.field < GAP.stop)
+        assert np.array_equal(out.field[rows], np.setdiff1d(np.arange(GAP.start, GAP.stop), HOLE))
+        err = np.linalg.norm(out.xyz_mm[rows] - truth[3, out.field[rows]], axis=1)
+        assert err.max() < 2.5
+        # true to its expected error
+        expected = max(g.expected_error_mm for g in fills if g.track == 3)
+        assert np.sqrt(np.mean(err**2)) <= 2.0 * expected
