@@ -271,24 +271,24 @@ SECOND_PASS = (
     Fill("body", partial(_body, checked=True), strict="always"),
 )
 
-#: The last pass, after the ends: :data:`SECOND_PASS`, then on what it left the depth
-#: fitted to the spline and the lengths of the partners placed since, their error
-#: counted, as their fills expect it where two partners check each other
-#: (:mod:`.fill_sphere`; lowcost 306 LTHI: one camera, its knee placed, the pelvis's
-#: sacrum only at its track's end, 0.9 mm expected: at ``ray_rest_max_error_mm`` each,
-#: 39-44 expected 3.2-3.7 mm, 0.5-1.7 mm off, and stayed open). Not
-#: before: a run it splits is walked by the chain fill from a placed edge (kiss 3 seed
-#: 306 RTIB, 4.6 mm RMS off expecting 2.7), and before the body it took lowcost 311
-#: RANK on the toe's sphere 19.7 mm off.
-#: Then the marker solved with the pelvis carrying its hip centre on rays (:mod:`.fill_hip`);
-#: last, the same depth on the rays of blobs merged with a neighbour placed by then, its
-#: share out (:mod:`.fill_unmerged`), then both (:mod:`.fill_pair`), on any run (lowcost 311, 361).
+#: The last pass, after the ends: :data:`SECOND_PASS`, then on what it left the depth fitted to the
+#: spline and the lengths of the partners placed since, their error counted, as their fills expect
+#: it where two partners check each other (:mod:`.fill_sphere`; lowcost 306 LTHI: one camera, its
+#: knee placed, the pelvis's sacrum only at its track's end, 0.9 mm expected: at
+#: ``ray_rest_max_error_mm`` each, 39-44 expected 3.2-3.7 mm, 0.5-1.7 mm off, and stayed open). Not
+#: before: a run it splits is walked by the chain fill from a placed edge (kiss 3 seed 306 RTIB, 4.6
+#: mm RMS off expecting 2.7), and before the body it took lowcost 311 RANK on the toe's sphere 19.7
+#: mm off. Then the marker solved with the pelvis carrying its hip centre on rays
+#: (:mod:`.fill_hip`); last, the same depth on the rays of blobs merged with a neighbour placed by
+#: then, its share out (:mod:`.fill_unmerged`), then both (:mod:`.fill_pair`), on any run (lowcost
+#: 311, 361); then the body over its donors' short holes (:func:`.fill_held.held_body`'s ``holes``).
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
     Fill("hip", _ray_placer(hip_ray_fill, "absent", "mirror", "errors"), rays=True, long_run=True),
     Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected", "mirror")),
     Fill("merged pair", _ray_placer(merged_pair_fill, "known", "mirror")),
+    Fill("body over holes", partial(held_body, holes=True), long_run=True, strict="always"),
 )
 
 
