@@ -169,8 +169,9 @@ def _track_trial(
 
 
 def _spare_blobs(config: SessionConfig, trial: str) -> SpareBlobs | None:
-    """The trial's 2D blobs no 3D point used (``points2d.csv``), linearised, with the
-    rig's cameras: for single-camera fill. None without the file or a calibrated rig."""
+    """The trial's 2D blobs (``points2d.csv``), linearised, with the rig's cameras and
+    the 3D point each went into: for single-camera fill (those of points no named
+    track holds are freed). None without the file or a calibrated rig."""
     store = SessionStore(config.root)
     if not store.trial(trial).points2d.is_file():
         return None
@@ -179,12 +180,12 @@ def _spare_blobs(config: SessionConfig, trial: str) -> SpareBlobs | None:
         obs = store.points2d(trial)
     except KisscalError:
         return None
-    unused = (obs.point < 0) & np.isin(obs.camera, rig.ids)
-    cam = np.array([rig.index(c) for c in obs.camera[unused]], dtype=np.int64)
+    ours = np.isin(obs.camera, rig.ids)
+    cam = np.array([rig.index(c) for c in obs.camera[ours]], dtype=np.int64)
     uv = np.zeros((cam.size, 2))
     for i, camera in enumerate(rig):
-        uv[cam == i] = camera.undistort_px(obs.xy_px[unused][cam == i])
-    return spare_blobs(obs.field[unused], cam, uv, rig.dlts)
+        uv[cam == i] = camera.undistort_px(obs.xy_px[ours][cam == i])
+    return spare_blobs(obs.field[ours], cam, uv, rig.dlts, obs.point[ours])
 
 
 def _residual_mm(config: SessionConfig, pts: Points3DFile) -> np.ndarray | None:

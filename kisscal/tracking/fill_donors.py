@@ -302,6 +302,8 @@ def shared_blobs(
         share = np.where(np.isfinite(z_m), z_o / (z_m + z_o), 1.0)
         reach = params.ray_chain_gate_px * share + 3.0 * params.ray_fill_px
         near = np.linalg.norm(uv - spare.uv_px[rows][:, None], axis=2) <= reach
+    if spare.track is not None:  # a point's image is no blob merged with that point's
+        near &= spare.track[rows][:, None] != others[None]
     return np.any(near, axis=1)
 
 

@@ -48,7 +48,7 @@ from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
-from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.rayfill import SpareBlobs, freed
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID, MEASURED, PREDICTED, Tracks, is_filled
 
 
@@ -449,8 +449,9 @@ def fill_gaps_named(
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
     measured = np.isfinite(dense[:, :, 0])
-    if spare is not None:
-        spare = dataclasses.replace(spare, free=spare.free.copy())
+    if spare is not None:  # and the blobs of points no named track holds
+        who = np.isin(tracks.track, list(unlabelled)) & meas & (tracks.point >= 0)
+        spare = freed(spare, tracks.point[who], tracks.track[who])
     who, absent, absent_sd = absent_placed(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)

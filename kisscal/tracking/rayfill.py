@@ -22,6 +22,7 @@ Gløersen & Federolf 2016 (filling from the other markers of the body).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,6 +49,11 @@ class SpareBlobs:
         DLT parameters of every camera.
     free : (n,) bool array
         Observations not yet taken by a fill (a blob fills one marker only).
+    point : (n,) int array or None
+        Row of the 3D point that used each observation, -1 for none (those of points
+        no named track holds are freed: :func:`freed`); None: only unused ones held.
+    track : (n,) int array or None
+        The track holding that point (:func:`freed`), -1 for none.
     """
 
     field: NDArray[np.int64]
@@ -55,6 +61,8 @@ class SpareBlobs:
     uv_px: NDArray[np.float64]
     dlts: NDArray[np.float64]
     free: NDArray[np.bool_]
+    point: NDArray[np.int64] | None = None
+    track: NDArray[np.int64] | None = None
 
     @property
     def centres(self) -> NDArray[np.float64]:
@@ -69,9 +77,14 @@ class SpareBlobs:
 
 
 def spare_blobs(
-    field: ArrayLike, camera: ArrayLike, uv_px: ArrayLike, dlts: ArrayLike
+    field: ArrayLike,
+    camera: ArrayLike,
+    uv_px: ArrayLike,
+    dlts: ArrayLike,
+    point: ArrayLike | None = None,
 ) -> SpareBlobs:
-    """Build :class:`SpareBlobs` from unused observations (any order) and the cameras.
+    """Build :class:`SpareBlobs` from unused observations (any order) and the cameras;
+    with ``point``, observations 3D points used too (the point's row, -1 for none).
 
     Raises
     ------
@@ -88,10 +101,27 @@ def spare_blobs(
         raise InputError(f"spare blobs: {f.size} fields, {c.size} cameras, {len(uv)} uv rows")
     if c.size and (c.min() < 0 or c.max() >= len(L)):
         raise InputError(f"spare blobs: camera index outside 0..{len(L) - 1}")
+    p = np.full(f.size, -1) if point is None else np.asarray(point, dtype=np.int64).ravel()
+    if p.size != f.size:
+        raise InputError(f"spare blobs: {f.size} fields, {p.size} points")
     order = np.argsort(f, kind="stable")
-    ok = np.all(np.isfinite(uv[order]), axis=1)
-    order = order[ok]
-    return SpareBlobs(f[order], c[order], uv[order], L, np.ones(order.size, dtype=bool))
+    order = order[np.all(np.isfinite(uv[order]), axis=1)]
+    p = None if point is None else p[order]
+    free = np.ones(order.size, dtype=bool) if p is None else p < 0
+    return SpareBlobs(f[order], c[order], uv[order], L, free, p)
+
+
+def freed(spare: SpareBlobs, point: NDArray, track: NDArray) -> SpareBlobs:
+    """``spare`` (``free`` copied) with the blobs of the points ``point`` (rows) free, each
+    marked with its track of ``track``: the points of tracks the labelling named no marker
+    hold blobs a named marker's fill may need (kiss 3 seed 415: the crossing of a heel's
+    and an ankle's single rays, 66 mm from the heel, held the heel's only blob 13 fields)."""
+    if spare.point is None:
+        return dataclasses.replace(spare, free=spare.free.copy())
+    of = np.full(max(int(spare.point.max(initial=-1)), int(point.max(initial=-1))) + 2, -1)
+    of[point] = track
+    own = of[spare.point]  # a point's row -1 reads the last slot, -1
+    return dataclasses.replace(spare, free=spare.free | (own >= 0), track=own)
 
 
 def _pick(

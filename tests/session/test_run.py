@@ -173,8 +173,10 @@ def test_single_camera_fill_reads_the_unused_blobs_in_the_rigs_pixels(processed:
     miss = np.linalg.norm(rig.project_rows(cam, pts.xyz_mm[obs.point[used]]) - uv, axis=1)
     assert np.median(miss) < 0.5
     spare = _spare_blobs(load_config(processed), "walk01")
-    assert spare is not None and spare.field.size == int((~used).sum())
-    assert np.array_equal(np.sort(spare.field), np.sort(obs.field[~used]))
+    # every blob, each with its point: the unused ones free, the used ones held
+    assert spare is not None and spare.field.size == obs.field.size
+    assert np.array_equal(np.sort(spare.field[spare.free]), np.sort(obs.field[~used]))
+    assert np.array_equal(spare.free, spare.point < 0)
     summary = json.loads(files.tracking.read_text())
     assert all("single_camera_fields" in g for g in summary["fills"])
 

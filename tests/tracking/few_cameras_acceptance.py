@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.io.points2d import observation_points
 from kisscal.recon import ReconParams, reconstruct_trial
 from kisscal.recon.body import RigidTriangles
 from kisscal.tracking import (
@@ -124,8 +125,10 @@ def rig_trial(
     body = RigidTriangles.from_marker_set(plan.marker_names, plan.template_mm, plan.segments)
     pts = reconstruct_trial(tab.field, tab.camera, tab.uv, dlts, RECON[0], motion.rate_hz, body)
     found, ghosts = found_and_ghosts(pts.field, pts.xyz_mm, motion.xyz_mm)
-    unused = (pts.marker < 0) & ~pts.stationary
-    spare = spare_blobs(tab.field[unused], tab.camera[unused], tab.uv[unused], dlts)
+    # the blobs no point used, and those of the points, each with its point's row
+    point = observation_points(pts.blob_row, len(tab.field))
+    rows = ((pts.marker < 0) & ~pts.stationary) | (point >= 0)
+    spare = spare_blobs(tab.field[rows], tab.camera[rows], tab.uv[rows], dlts, point[rows])
     return RigTrial(
         preset,
         seed,
