@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -74,7 +73,7 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     ]
 
 
-@dataclass
+@dataclasses.dataclass
 class _Gap:
     """One gap [lo, hi) of track ``t`` being filled: ``swept`` marks the fields placed by
     the sweeping fills, ``out`` collects the fills made. ``measured`` (n_fields,) bool:
