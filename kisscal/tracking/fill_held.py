@@ -27,9 +27,10 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
+from kisscal.tracking.fill_anchor import body_donors, donor_errors
 from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
-from kisscal.tracking.fill_place import mirror_checked, with_rays
+from kisscal.tracking.fill_place import with_rays
 from kisscal.tracking.fill_spline import spline_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
@@ -75,7 +76,7 @@ def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bo
     flagged = out_of_shape_fields(gap.dense, gap.t, a, b, params)
     if not flagged.any():
         return np.zeros(b - a, dtype=bool)
-    src = _bridged(mirror_checked(gap.dense, gap.t, params, gap.mirror), flagged, a, params)
+    src = _bridged(body_donors(gap, params), flagged, a, params)
     rays = gap.spare is not None and gap.spare.rows(a, b).size > 0
     centres = gap.spare.centres if rays else None
     cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
@@ -91,6 +92,7 @@ def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bo
         fill = dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x)
         piece = Candidate(chosen.xyz_mm[x:y], fill, chosen.along_sight_mm)
         got = with_rays(piece, gap.spare, params) if rays else [(piece.xyz_mm, fill)]
+        got = donor_errors(got, gap.errors)
         gap.out.extend(got)
         if context:
             for xyz, f in got:
