@@ -27,10 +27,10 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates, side_windows
-from kisscal.tracking.fill_anchor import anchored, donor_noise
+from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
-from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
+from kisscal.tracking.fill_place import placed_mask, with_rays
 from kisscal.tracking.fill_spline import spline_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
@@ -152,8 +152,7 @@ def held_body(
     # camera whose knee was placed only in half of the run, 12 fields 0.6 mm RMS off)
     for more in (np.zeros_like(absent), absent & (rays and not holes)):
         if chosen is None and (flagged | more).any():
-            src = mirror_checked(gap.dense, gap.t, params, gap.mirror)
-            src = _bridged(src, flagged | more, a, params)
+            src = _bridged(body_donors(gap, params), flagged | more, a, params)
             cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
             if holes:  # not a pattern: modern 3 353, a thigh on the other one, 2.8 mm off for 1.8
                 rigid = [c for c in cands if c.fill.status == FILLED_RIGID]
@@ -178,7 +177,7 @@ def held_body(
         fill = dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x)
         piece = Candidate(chosen.xyz_mm[x:y], fill, chosen.along_sight_mm)
         got = with_rays(piece, gap.spare, params) if rays else [(piece.xyz_mm, fill)]
-        got = [g for g in got if g[1].ray_fields or not rayed_only]
+        got = donor_errors([g for g in got if g[1].ray_fields or not rayed_only], gap.errors)
         # as the body's fills (:func:`~.gaps._body`; lowcost 403 LTIB beside a chain
         # fill expecting 3.4 mm, 1.1 mm RMS off expecting 0.6 on its ray)
         out += anchored(donor_noise(got, gap.dense), gap.out, params.fill_context_fields)

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tracks
-from kisscal.tracking.fill_anchor import anchored, donor_noise
+from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
@@ -35,7 +35,6 @@ from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_pair import merged_pair_fill
 from kisscal.tracking.fill_place import (
-    mirror_checked,
     pass_context,
     placed_mask,
     take_placed,
@@ -145,7 +144,7 @@ def _body(
     rays = spare is not None and spare.rows(a, b).size > 0
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
-    body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
+    body = body_donors(gap, params)
     cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
@@ -165,7 +164,8 @@ def _body(
             worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
             if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
                 return _body(gap, a, b, params, spline=False)  # the body, as without
-    gap.out.extend(anchored(donor_noise(got, gap.dense), gap.out, params.fill_context_fields))
+    got = donor_errors(donor_noise(got, gap.dense), gap.errors)
+    gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
 
@@ -192,13 +192,12 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
         lo, hi = (b - n, b - done) if after else (a + done, a + n)
         rays = gap.spare is not None and gap.spare.rows(lo, hi).size > 0
         centres = gap.spare.centres if rays else None
-        body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
-        cands = fill_candidates(body, gap.t, lo, hi, params, methods, centres)
+        cands = fill_candidates(body_donors(gap, params), gap.t, lo, hi, params, methods, centres)
         chosen = best_candidate(cands, params)
         if chosen is None:
             break
         got = with_rays(chosen, gap.spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
-        gap.out.extend(donor_noise(got, gap.dense))
+        gap.out.extend(donor_errors(donor_noise(got, gap.dense), gap.errors))
         placed[lo - a : hi - a] = mine = placed_mask(got, lo, hi, gap.dense[gap.t])
         if not mine.all():
             break  # its rays refused part of it: what lies beyond has no edge to walk from

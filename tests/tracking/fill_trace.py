@@ -50,7 +50,7 @@ def tracing(show: Callable) -> Iterator[None]:
     second = _traced(gaps.SECOND_PASS, "second", show)
     gaps.FILLS = _traced(gaps.FILLS, "first/end", show)
     gaps.LAST_PASS = _traced(gaps.LAST_PASS, "last", show)
-    gaps._second_pass.__defaults__ = (None, second, None)
+    gaps._second_pass.__defaults__ = (None, second, None, None)
     try:
         yield
     finally:
