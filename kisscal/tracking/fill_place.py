@@ -18,7 +18,7 @@ from kisscal.tracking.bodyfill import Candidate, GapFill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, length_partners
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
-from kisscal.tracking.tracks import FILLED, FILLED_RIGID
+from kisscal.tracking.tracks import FILLED_RIGID
 
 
 def take_placed(
@@ -118,36 +118,3 @@ def mirror_checked(
     out = dense.copy()
     out[drop] = np.nan
     return out
-
-
-def pass_context(
-    made: list[tuple[NDArray, GapFill]], dense: NDArray, measured: NDArray, params: TrackingParams
-) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
-    """The context of a later pass of the gap fills: the rigid and ray fills of ``made``
-    ((xyz, fill) pairs) expecting at most ``ray_rest_max_error_mm`` written into
-    ``dense`` (n_tracks, n_fields, 3), and so is a spline over one field between two of
-    their fields (not ``measured``) expecting as little: a one-field hole in a ray fill
-    is as good as the fill, and it lets a segment's partner be a donor through a gap
-    (kiss 3 seed 368: the ankle's ray fill had one at field 66, and the heel, hidden
-    from every camera over 42-80, had no hinge and stayed open). Not between measured
-    samples: there it gave kiss 3 seed 402's tibia a hinge fill with two samples on one
-    side, 2-4.4 mm off expecting 1.1. Returns the fields known or filled and each
-    placed sample's expected error (0 where measured)."""
-    done = np.isfinite(dense[:, :, 0])
-    expected = np.where(measured, 0.0, np.nan)
-    rest = params.ray_rest_max_error_mm
-    for xyz, fill in made:
-        span = slice(fill.first_field, fill.first_field + fill.n_fields)
-        done[fill.track, span] = True
-        if fill.status == FILLED_RIGID and fill.expected_error_mm <= rest:
-            dense[fill.track, span] = xyz
-            expected[fill.track, span] = fill.expected_error_mm
-    for xyz, fill in made:
-        t, f = fill.track, fill.first_field
-        side = [f - 1, f + 1]
-        if fill.status != FILLED or fill.n_fields != 1 or not 0 < f < dense.shape[1] - 1:
-            continue
-        if fill.expected_error_mm <= rest and not measured[t, side].any():
-            if np.isfinite(dense[t, side, 0]).all():
-                dense[t, f], expected[t, f] = xyz[0], fill.expected_error_mm
-    return done, expected

@@ -34,12 +34,7 @@ from kisscal.tracking.fill_hip import hip_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_pair import merged_pair_fill
-from kisscal.tracking.fill_place import (
-    pass_context,
-    placed_mask,
-    take_placed,
-    with_rays,
-)
+from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
 from kisscal.tracking.fill_table import Fill, hole_length
@@ -378,13 +373,19 @@ def _second_pass(
     heel, seen by another one, waits its turn has no partner to be placed by. Once the
     heel is placed, its length holds the toe on its ray as a measured heel's would.
     Spline and pattern fills are not context (one through a partner's wrong samples
-    would carry the marker onto them; but see :func:`.pass_context`), nor does the body
-    fill expect more than ``ray_rest_max_error_mm`` here (with the new context it went
-    12 mm off expecting 4).
+    would carry the marker onto them), nor does the body fill expect more than
+    ``ray_rest_max_error_mm`` here (with the new context it went 12 mm off expecting 4).
     """
     if spare is None:
         return []
-    done, expected = pass_context(made, dense, measured, params)
+    done = np.isfinite(dense[:, :, 0])
+    expected = np.where(measured, 0.0, np.nan)
+    for xyz, fill in made:
+        span = slice(fill.first_field, fill.first_field + fill.n_fields)
+        done[fill.track, span] = True
+        if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
+            dense[fill.track, span] = xyz
+            expected[fill.track, span] = fill.expected_error_mm
     out = []
     for t, lo, hi in gaps:
         left = ~done[t, lo:hi]
