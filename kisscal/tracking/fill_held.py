@@ -1,5 +1,5 @@
-"""Body fill of a gap through donors pulled out of shape, or lost, in a few of its
-fields: made across the whole gap, kept where its donors hold.
+"""Body fill of a gap through donors pulled out of shape in a few of its fields: made
+across the whole gap, kept where its donors hold.
 
 A donor whose blob merged with another marker's image is pulled off for a field or two
 (lowcost 312: an ankle 10 mm off in one field of an 11-field tibia gap). The body fills
@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates, side_windows
+from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
@@ -71,38 +71,6 @@ def _flags(
     return (count >= 2) | unpinned, unpinned
 
 
-def short_holes(dense: NDArray, t: int, lo: int, hi: int, longest: int) -> NDArray[np.bool_]:
-    """(n_tracks, hi - lo): the gap fields where a track other than ``t`` that misses
-    at most ``longest`` of them misses a run of at most that many, with samples on both
-    sides: its own spline fills them, which the body does not read as context (modern 3
-    seed 402: a toe lost for two fields of a 22-field heel gap no camera saw left the
-    foot one donor; bridged, the heel's hinge expected 0.6 mm, 0.55 off)."""
-    out = np.zeros((len(dense), hi - lo), dtype=bool)
-    w0, w1 = max(lo - longest, 0), min(hi + longest, dense.shape[1])
-    seen = np.isfinite(dense[:, w0:w1, 0])
-    lost = (~seen[:, lo - w0 : hi - w0]).sum(axis=1)
-    for k in np.flatnonzero(seen.any(axis=1) & (lost > 0) & (lost <= longest)):
-        if k == t:
-            continue
-        for a, b in zip(*true_runs(~seen[k]), strict=True):
-            if 0 < a and b < w1 - w0 and b - a <= longest:
-                out[k, max(a + w0 - lo, 0) : b + w0 - lo] = True
-    return out
-
-
-def _as_measured(
-    dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
-) -> bool:
-    """Whether the gap [lo, hi) of track ``t`` has, on each side, as many fields with it
-    and all its fill's ``donors`` known as the stretches its expected error is measured
-    on have (:func:`~.bodyfill.pseudo_gaps`' margin): kiss 3 seed 402's tibia, four such
-    fields before a 22-field gap, its hinge 3.3 mm RMS off expecting 1.1."""
-    n = params.body_context_fields // 2
-    known = np.all(np.isfinite(dense[[t, *donors], :, 0]), axis=0)
-    sides = side_windows(np.where(known[:, None], dense[t], np.nan), lo, hi, n)
-    return min(s.size for s in sides) >= n
-
-
 def _bridged(dense: NDArray, flagged: NDArray, lo: int, params: TrackingParams) -> NDArray:
     """A copy of ``dense`` whose samples ``flagged`` (n_tracks, m) from field ``lo`` are
     replaced by the spline through each track's samples beside them (NaN without)."""
@@ -117,9 +85,7 @@ def _bridged(dense: NDArray, flagged: NDArray, lo: int, params: TrackingParams) 
     return src
 
 
-def held_body(
-    gap: Any, a: int, b: int, params: TrackingParams, holes: bool = False
-) -> NDArray[np.bool_]:
+def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill what the body (with the hinge, :data:`~.fill_hinge.HINGE_METHODS`) can of
     fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) where some track
     is out of shape in some of them (see module): the fill of least expected error, at
@@ -129,18 +95,8 @@ def held_body(
     pinned on neither, :func:`unpinned_fields`, only those), expecting at least its
     donors' noise and the error of the fills beside it as the body's fills do, and, when
     a rigid fill expecting at most ``ray_rest_max_error_mm``, written into ``gap.dense``
-    as context (the fields dropped lie between its pieces). Returns the fields placed.
-
-    With ``holes``, the donors' :func:`short_holes` are bridged too, as the last fill of
-    the last pass: in the first, before the fills from the marker's own blobs, it took
-    modern 3 seed 404's toe 5.0 mm RMS off expecting 2.9, 14 fields of it seen by a
-    camera whose rays placed them later. Then only the segment's carriers fill (not a
-    pattern), where the gap's sides are known as the stretches its error is measured
-    on are (:func:`_as_measured`), and the fill is no context: kiss 3 seed 301's tibia,
-    walked on its ray from an ankle so placed, went 7.4 mm off expecting 2.4."""
+    as context (the fields dropped lie between its pieces). Returns the fields placed."""
     flagged, unpinned = _flags(gap.dense, gap.t, a, b, params)
-    if holes:
-        flagged = flagged | short_holes(gap.dense, gap.t, a, b, params.max_fill_gap_fields)
     rays = gap.spare is not None and gap.spare.rows(a, b).size > 0
     centres = gap.spare.centres if rays else None
     seen = np.isfinite(gap.dense[:, a:b, 0])
@@ -150,13 +106,10 @@ def held_body(
     # then, where no fill is made so, the tracks absent in part of the run bridged too,
     # and kept on rays alone as a miss pinned on neither (lowcost 406: a tibia on one
     # camera whose knee was placed only in half of the run, 12 fields 0.6 mm RMS off)
-    for more in (np.zeros_like(absent), absent & (rays and not holes)):
+    for more in (np.zeros_like(absent), absent & rays):
         if chosen is None and (flagged | more).any():
             src = _bridged(body_donors(gap, params), flagged | more, a, params)
             cands = fill_candidates(src, gap.t, a, b, params, HINGE_METHODS, centres)
-            if holes:  # not a pattern: modern 3 353, a thigh on the other one, 2.8 mm off for 1.8
-                rigid = [c for c in cands if c.fill.status == FILLED_RIGID]
-                cands = [c for c in rigid if _as_measured(src, gap.t, c.fill.donors, a, b, params)]
             chosen = best_candidate(cands, params)
             flagged, unpinned = flagged | more, unpinned | more
     if chosen is None:
@@ -168,8 +121,7 @@ def held_body(
     # other in one field, 8 fields no camera saw 4.1 mm RMS off expecting 2.9)
     rayed_only = bool(unpinned[donors].any())
     context = (
-        not holes
-        and chosen.fill.status == FILLED_RIGID
+        chosen.fill.status == FILLED_RIGID
         and chosen.fill.expected_error_mm <= params.ray_rest_max_error_mm
     )
     out: list = []

@@ -274,14 +274,13 @@ SECOND_PASS = (
 #: mm off. Then the marker solved with the pelvis carrying its hip centre on rays
 #: (:mod:`.fill_hip`); last, the same depth on the rays of blobs merged with a neighbour placed by
 #: then, its share out (:mod:`.fill_unmerged`), then both (:mod:`.fill_pair`), on any run (lowcost
-#: 311, 361); then the body over its donors' short holes (:func:`.fill_held.held_body`'s ``holes``).
+#: 311, 361).
 LAST_PASS = (
     *SECOND_PASS,
     *(f for f in FILLS if f.name == "sphere depth"),
     Fill("hip", _ray_placer(hip_ray_fill, "absent", "mirror", "errors"), rays=True, long_run=True),
     Fill("unmerged", _ray_placer(unmerged_depth_fill, "measured", "known", "expected", "mirror")),
     Fill("merged pair", _ray_placer(merged_pair_fill, "known", "mirror")),
-    Fill("body over holes", partial(held_body, holes=True), long_run=True, strict="always"),
 )
 
 
