@@ -20,9 +20,10 @@ That near tie between one foot's heel and toe, with every other name far worse, 
 settles when another piece is seen with this one at the template's heel-to-toe length:
 the one behind along the direction the body moves is the heel (:func:`foot_end`; kiss 3
 seed 421: a left foot's heel and toe pieces over its first two strides, its ankle and
-knee never seen, its names held only from its third); with no such piece, the one of
-the two names whose trajectory the piece alone continues past its end (kiss 3 seed 418:
-a heel seen again after its toe and ankle have gone).
+knee never seen, its names held only from its third). A piece with no such partner
+stays unnamed: the path it continues is no help while the foot's contest
+(:func:`~kisscal.tracking.labelling.feet.settle_feet`) may still exchange the two names'
+trajectories (kiss 3 seed 402: a toe piece so named moved with them to the heel).
 A marker whose name no trajectory holds has no such distances and is never named here;
 nor is a piece near the body that the trial never showed as a marker of the set (its
 distances do not keep any name's).
@@ -37,7 +38,6 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.facing import foot_pairs
 from kisscal.tracking.labelling.pelvis import walking_direction
-from kisscal.tracking.labelling.pieces import beside, reaches
 from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, LabelState
 
 #: Floor (mm) of the spread of a distance: two markers of one segment keep their distance
@@ -144,18 +144,7 @@ def foot_end(state: LabelState, t: int, toe: int, heel: int, direction: NDArray)
         verdicts.add(
             toe if (votes < 0).sum() >= frac else heel if (votes > 0).sum() >= frac else -1
         )
-    if verdicts:
-        return verdicts.pop() if len(verdicts) == 1 and -1 not in verdicts else None
-    # no partner: the name whose trajectory it continues (standing still or at its own
-    # velocity, :func:`~kisscal.tracking.labelling.pieces.reaches`), if only one's
-    hits = []
-    for m in (toe, heel):
-        x = beside(np.isfinite(state.name_pos[m, :, 0]), fields[0], fields[-1])
-        y = None if x is None else (fields[-1] if x > fields[-1] else fields[0])
-        none = state.name_pos[:0]
-        if x is not None and reaches(state.name_pos[m], none, x, y, xyz[fields == y], True):
-            hits.append(m)
-    return hits[0] if len(hits) == 1 else None
+    return verdicts.pop() if len(verdicts) == 1 and -1 not in verdicts else None
 
 
 def name_from_trial(state: LabelState) -> bool:

@@ -91,7 +91,7 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     )
 
 
-def beside(seen: NDArray, a: int, b: int) -> int | None:
+def _beside(seen: NDArray, a: int, b: int) -> int | None:
     """The field of ``seen``'s measured sample nearest outside ``[a, b]``, if only one
     side has one (the piece is past the trajectory's end or before its start)."""
     before, after = np.flatnonzero(seen[:a]), b + 1 + np.flatnonzero(seen[b + 1 :])
@@ -119,14 +119,14 @@ def _end_pairs(dense: NDArray, named: list, unnamed: list, params: TrackingParam
             a, b = np.flatnonzero(seen[u] | seen[v])[[0, -1]]
             d = np.linalg.norm(dense[u, both] - dense[v, both], axis=1)
             for t in named:
-                x = beside(seen[t], a, b)
+                x = _beside(seen[t], a, b)
                 if x is None:
                     continue
                 if t not in partners_of:
                     partners_of[t] = length_partners(dense, t, params)[0]
                 partners = partners_of[t]
                 for s in partners[np.isin(partners, named)]:
-                    z = beside(seen[s], a, b)
+                    z = _beside(seen[s], a, b)
                     if z is None or seen[s, a : b + 1].any():
                         continue
                     length = np.nanmedian(np.linalg.norm(dense[t] - dense[s], axis=1))
