@@ -298,6 +298,29 @@ def test_a_late_piece_with_no_partner_in_view_is_named_from_the_trial():
     assert state.label_of[owner == 8].tolist() == [-1, -1]
 
 
+def test_a_heel_piece_tied_with_its_toe_is_named_by_the_walk():
+    """Kiss 3 seed 421: over the left foot's first two strides its ankle and knee are
+    never seen, and its heel piece keeps the heel's and the toe's distances to the body
+    alike (within the margin): the toe's piece, seen with it at the foot's length, lies
+    ahead along the walk, so it is the heel. Without that piece it stays unnamed."""
+    truth = gait_truth(200, 0)
+    for drop_toe in (False, True):
+        tracks, owner = _pieces(truth, cuts={6: (120,), 7: (100,), 8: (100,)})
+        starts = tracks.field[tracks.bounds()[0]]
+        gone = np.flatnonzero(np.isin(owner, (6, 8) if drop_toe else (6,)) & (starts == 0))
+        tracks, owner = _without(tracks, owner, gone)
+        state = _state(tracks)
+        early = state.tracks.field[state.start] == 0
+        for t, m in enumerate(owner):
+            if m >= 0 and not (m in (7, 8) and early[t]):
+                state.name_piece(t, int(m))
+        state.rich = np.arange(100, 200, 5)
+        name_from_trial(state)
+        # the early pieces of the heel, and of the toe when it was seen
+        got = state.label_of[(owner >= 7) & (owner <= 8) & early].tolist()
+        assert got == ([-1] if drop_toe else [7, 8])
+
+
 def test_a_piece_that_fits_a_held_name_as_well_as_a_free_one_stays_unnamed():
     truth = gait_truth(200, 3)
     tracks, owner = _pieces(truth, cuts={7: (150,), 8: (150,)})

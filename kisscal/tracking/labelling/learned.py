@@ -16,6 +16,14 @@ from at least :data:`MIN_PARTNERS` names, and clearly better than any other name
 trial showed, held ones included (:data:`MARGIN`): a heel and a toe keep nearly the same
 distances to the rest of the body, so a heel piece whose own name a track holds wrongly
 would otherwise take the free toe name (kiss 3-camera seed 312).
+That near tie between one foot's heel and toe, with every other name far worse, the walk
+settles when another piece is seen with this one at the template's heel-to-toe length:
+the one behind along the direction the body moves is the heel (:func:`foot_end`; kiss 3
+seed 421: a left foot's heel and toe pieces over its first two strides, its ankle and
+knee never seen, its names held only from its third). A piece with no such partner
+stays unnamed: the path it continues is no help while the foot's contest
+(:func:`~kisscal.tracking.labelling.feet.settle_feet`) may still exchange the two names'
+trajectories (kiss 3 seed 402: a toe piece so named moved with them to the heel).
 A marker whose name no trajectory holds has no such distances and is never named here;
 nor is a piece near the body that the trial never showed as a marker of the set (its
 distances do not keep any name's).
@@ -28,6 +36,8 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.facing import foot_pairs
+from kisscal.tracking.labelling.pelvis import walking_direction
 from kisscal.tracking.labelling.state import MIN_SHARED_FIELDS, LabelState
 
 #: Floor (mm) of the spread of a distance: two markers of one segment keep their distance
@@ -100,6 +110,43 @@ def trial_scores(
     return np.where(partners >= MIN_PARTNERS, score, np.inf)
 
 
+def foot_end(state: LabelState, t: int, toe: int, heel: int, direction: NDArray) -> int | None:
+    """Of one foot's ``toe`` and ``heel`` names, the one piece ``t`` takes by the walk:
+    every other piece (named or not) seen with it in :data:`MIN_SHARED_FIELDS` fields at the
+    template's heel-to-toe length (RMS within ``label_segment_tolerance_mm``) lies behind it
+    along ``direction`` (F, 2) in ``facing_fraction`` of those fields (``t`` is the toe), or
+    each ahead of it (the heel); None with no such piece or when they disagree (Perry &
+    Burnfield 2010: the foot's pitch in gait never turns that order)."""
+    params = state.params
+    fields, xyz = state.piece(t)
+    length = state.template_distance[toe, heel]
+    verdicts = set()
+    for u in np.flatnonzero(state.n_measured >= MIN_SHARED_FIELDS).tolist():
+        if u == t:
+            continue
+        pos = np.full_like(xyz, np.nan)
+        f, x = state.piece(u)
+        at = np.searchsorted(fields, f)
+        inside = (at < fields.size) & (fields[np.minimum(at, fields.size - 1)] == f)
+        pos[at[inside]] = x[inside]
+        miss = np.linalg.norm(pos - xyz, axis=1) - length
+        miss = miss[np.isfinite(miss)]
+        if miss.size < MIN_SHARED_FIELDS or np.sqrt(np.mean(miss**2)) > (
+            params.label_segment_tolerance_mm
+        ):
+            continue
+        if state.label_of[u] >= 0 and state.label_of[u] not in (toe, heel):
+            return None  # rigid to another name at the foot's length: not this foot's end
+        # the other piece's offset along the walk (feet.trailing, which imports this module)
+        votes = np.sum((pos - xyz)[:, :2] * direction[fields], axis=1)
+        votes = votes[np.isfinite(votes)]
+        frac = params.facing_fraction * max(votes.size, 1)
+        verdicts.add(
+            toe if (votes < 0).sum() >= frac else heel if (votes > 0).sum() >= frac else -1
+        )
+    return verdicts.pop() if len(verdicts) == 1 and -1 not in verdicts else None
+
+
 def name_from_trial(state: LabelState) -> bool:
     """Phase 5 (see module): long unnamed pieces, longest first, take the free name whose
     trial distances they keep. Returns whether any piece was named."""
@@ -111,6 +158,8 @@ def name_from_trial(state: LabelState) -> bool:
     waiting = waiting[np.argsort(-state.n_measured[waiting], kind="stable")]
     median, spread = distance_statistics(state.name_pos)
     known = np.flatnonzero(np.isfinite(median).any(axis=1))
+    feet = {frozenset(p): p for p in foot_pairs(state.names)}
+    direction = walking_direction(state.name_pos)
     named = False
     for t in waiting.tolist():
         fields, _ = state.piece(t)
@@ -127,4 +176,13 @@ def name_from_trial(state: LabelState) -> bool:
         if is_free[order[0]] and best <= MAX_SCORE**2 and second - best >= MARGIN:
             state.name_piece(t, int(known[order[0]]))
             named = True
+            continue
+        # a heel and a toe keep alike distances to the rest of the body: the walk decides
+        pair = frozenset(known[order[:2]].tolist())
+        third = score[order[2]] if order.size > 2 else np.inf
+        if pair in feet and second <= MAX_SCORE**2 and third - second >= MARGIN:
+            j = foot_end(state, t, *feet[pair], direction)
+            if j is not None and is_free[np.flatnonzero(known == j)[0]]:
+                state.name_piece(t, j)
+                named = True
     return named
