@@ -76,10 +76,10 @@ def test_without_the_marker_s_blob_nothing_is_placed_on_a_noise_ray():
     assert not any(g.ray_fields and g.track == 3 for g in fills)
 
 
-def _labelling(xyz: np.ndarray, piece: slice, decoy: np.ndarray) -> Labelling:
-    """Markers 0-3 named A-D, D hidden in GAP, its samples in ``piece`` a separate
+def _labelling(xyz: np.ndarray, piece: slice, decoy: np.ndarray, hidden: slice = GAP) -> Labelling:
+    """Markers 0-3 named A-D, D hidden in ``hidden``, its samples in ``piece`` a separate
     unnamed track, and an unnamed decoy track in the same fields."""
-    tracks = _tracks_of(xyz, {3: GAP})
+    tracks = _tracks_of(xyz, {3: hidden})
     f = np.arange(piece.start, piece.stop)
     fields = np.r_[tracks.field, f, f]
     track = np.r_[tracks.track, np.full(f.size, 4), np.full(f.size, 5)]
@@ -98,6 +98,23 @@ def test_an_unnamed_piece_inside_a_named_gap_joins_it_and_a_decoy_does_not():
     meas = d & (got.tracks.status == MEASURED)
     assert np.isin(np.arange(110, 150), got.tracks.field[meas]).all()
     err = np.linalg.norm(got.tracks.xyz_mm[meas] - xyz[3, got.tracks.field[meas]], axis=1)
+    assert err.max() < 2.0
+    m1 = got.tracks.track == got.labels.index("M1")
+    assert np.allclose(got.tracks.xyz_mm[m1], decoy)
+
+
+def test_an_unnamed_piece_past_a_named_trajectory_s_end_joins_it_and_a_decoy_does_not():
+    # modern 3 cameras seed 419: SACR seen by one camera for 22 fields, then by two and
+    # three to the end of the walk as an unnamed piece; its span had no SACR sample
+    xyz = rigid_body(seed=5, noise_mm=0.2)
+    decoy = xyz[3, 222:] + [0.0, 0.0, 150.0]
+    got = join_gap_pieces(
+        _labelling(xyz, slice(222, 300), decoy, slice(200, 300)), TrackingParams()
+    )
+    assert got.labels.count("D") == 1 and got.unlabelled == (got.labels.index("M1"),)
+    d = got.tracks.track == got.labels.index("D")
+    assert np.isin(np.arange(222, xyz.shape[1]), got.tracks.field[d]).all()
+    err = np.linalg.norm(got.tracks.xyz_mm[d] - xyz[3, got.tracks.field[d]], axis=1)
     assert err.max() < 2.0
     m1 = got.tracks.track == got.labels.index("M1")
     assert np.allclose(got.tracks.xyz_mm[m1], decoy)

@@ -3,12 +3,13 @@
 With three or four cameras a marker is often measured by two cameras only while its
 segment's other markers are hidden too, so spreading (:mod:`.spread`) has no rigid
 partner to name the piece by, and it is left ``M<k>`` while its marker's trajectory has
-a gap exactly where the piece is. Such a piece joins the named trajectory when it lies
-inside one of its gaps (no field measured by both), continues its path at both ends of
-the gap (within ``30 mm`` per field crossed, 150 mm at most, beyond a partner's own motion
-or the trajectory's own velocity beside the gap, as :mod:`kisscal.tracking.raychain`
-follows a path) and keeps the trajectory's lengths
-to its segment's partners where they are seen (RMS difference at most
+a gap exactly where the piece is, or has ended (modern 3 cameras seed 419: SACR seen
+by one camera for 22 fields, then by two and three to the walk's end). Such a piece
+joins the named trajectory when it lies inside one of its gaps or past one of its ends
+(no field measured by both), continues its path at each end beside it (within ``30 mm``
+per field crossed, 150 mm at most, beyond a partner's own motion or the trajectory's own
+velocity beside the gap, as :mod:`kisscal.tracking.raychain` follows a path) and keeps
+the trajectory's lengths to its segment's partners where they are seen (RMS difference at most
 ``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
 when exactly one named trajectory is so continued and none is measured where the piece
 is (within :data:`SAME_MARKER_MM`: the same marker seen twice). Two pieces past the ends
@@ -68,16 +69,17 @@ def reaches(
 
 
 def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
-    """Whether piece ``u`` fills a gap of track ``t`` (see module)."""
+    """Whether piece ``u`` fills a gap of track ``t``, or continues it past an end (see
+    module)."""
     mine, piece = np.isfinite(dense[t, :, 0]), np.flatnonzero(np.isfinite(dense[u, :, 0]))
     a, b = piece[0], piece[-1]
-    if mine[a : b + 1].any() or not mine[:a].any() or not mine[b + 1 :].any():
+    if mine[a : b + 1].any() or not mine.any():
         return False
-    before = np.flatnonzero(mine[:a])[-1]
-    after = b + 1 + np.flatnonzero(mine[b + 1 :])[0]
+    # the trajectory's samples beside the piece: both sides of a gap, or one past its end
+    before, after = np.flatnonzero(mine[:a])[-1:], b + 1 + np.flatnonzero(mine[b + 1 :])[:1]
     partners, _ = length_partners(dense, t, params)
     partners = partners[partners != u]
-    for x, y in ((before, a), (after, b)):
+    for x, y in [(x, a) for x in before] + [(x, b) for x in after]:
         if not reaches(dense[t], dense[partners], x, y, dense[u, y], still=True):
             return False
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
@@ -157,9 +159,9 @@ def _end_pairs(dense: NDArray, named: list, unnamed: list, params: TrackingParam
 
 def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
     """``labelling`` with each unnamed piece that fills exactly one named trajectory's
-    gap, and each pair past two partners' ends (see module), joined to it; the coasted
-    samples it replaces are dropped and the remaining unnamed tracks renamed ``M1``,
-    ``M2``, ... in order."""
+    gap or continues it past an end, and each pair past two partners' ends (see module),
+    joined to it; the coasted samples it replaces are dropped and the remaining unnamed
+    tracks renamed ``M1``, ``M2``, ... in order."""
     if not labelling.unlabelled or not labelling.fits_marker_set:
         return labelling
     tr = labelling.tracks
