@@ -20,6 +20,7 @@ from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tracks
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
+from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
@@ -202,24 +203,22 @@ def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]
 
 #: The fills of a gap, in order: each is tried on the fields the ones before it left
 #: (see :class:`Fill` for the reach of each). The marker's own blobs placed on their rays
-#: by the segment's lengths to its measured markers
-#: (:func:`~kisscal.tracking.raychain.chain_fill`), then together with the segment's
-#: other markers on theirs (:func:`~kisscal.tracking.fill_joint.joint_ray_fill`); then
+#: by the segment's lengths to its measured markers (:func:`~.raychain.chain_fill`), then
+#: with the segment's other markers on theirs (:func:`~.fill_joint.joint_ray_fill`); then
 #: the spline (short runs) or the body (:func:`_body`), only expecting little error
 #: (``ray_rest_max_error_mm``) between fields placed on rays; where it finds none, the
-#: blobs of one camera at a spline's distance from it
-#: (:func:`~kisscal.tracking.fill_depth.depth_ray_fill`), or at the depth fitted to
-#: that spline and the segment's lengths together
-#: (:func:`~kisscal.tracking.fill_sphere.sphere_depth_fill`), and the fields left between
-#: them by the body expecting little error. At a named track's ends, once every gap is
-#: filled: the point where two or more cameras' rays of the marker's blobs meet
-#: (:func:`~kisscal.tracking.fill_ends.rays_end_fill`), the fields it left between
-#: them as a gap (:func:`_body`), the segment carrying it from one side
-#: (:func:`_end`), then beyond, its blobs in one camera placed on their rays by its
-#: segment's lengths (:func:`~kisscal.tracking.fill_ends.chain_end_fill`; after the
-#: segment, which carried kiss 3 seed 303's LTIB to 0.6 mm where one camera's ray took it
-#: to 2.3). Fields placed on rays have status ``filled_rigid``, every one counted in
-#: ``ray_fields``.
+#: blobs of one camera at a spline's distance from it (:func:`~.fill_depth.depth_ray_fill`),
+#: or at the depth fitted to that spline and the segment's lengths together
+#: (:func:`~.fill_sphere.sphere_depth_fill`), the body about a marker and a joint centre
+#: (:func:`~.fill_centre.centre_body`), and the fields left between them by the body
+#: expecting little error. At a named track's ends, once every gap is filled: the point
+#: where two or more cameras' rays of the marker's blobs meet
+#: (:func:`~.fill_ends.rays_end_fill`), the fields it left between them as a gap
+#: (:func:`_body`), the segment carrying it from one side (:func:`_end`), then beyond, its
+#: blobs in one camera placed on their rays by its segment's lengths
+#: (:func:`~.fill_ends.chain_end_fill`; after the segment, which carried kiss 3 seed 303's
+#: LTIB to 0.6 mm where one camera's ray took it to 2.3). Fields placed on rays have status
+#: ``filled_rigid``, every one counted in ``ray_fields``.
 #: Between the two, once every track's gaps are filled, and again after the ends, the
 #: fields they left are tried again with the partners placed since
 #: (:func:`_second_pass`: a tibia hidden from every camera while the knee, seen by one,
@@ -238,6 +237,7 @@ FILLS: tuple[Fill, ...] = (
         rays=True,
         long_run=True,
     ),
+    Fill("body about a joint centre", centre_body, long_run=True, strict="swept"),
     Fill("body between rays", _body, split_only=True, strict="always"),
     Fill("end rays", _ray_placer(rays_end_fill, "end"), ends=True),
     Fill("end holes", _body, ends=True, enclosed=True),
