@@ -198,7 +198,8 @@ def _settle_rivals(
     state: LabelState, pieces: list[Piece], best: tuple[int, ...], rivals: list[tuple]
 ) -> tuple[int, ...] | None:
     """Among the best choice and its rivals (only its mirror image, or the same names in
-    another order, may rival it), the one the body's rigid fit clearly prefers."""
+    another order, may rival it), the one the body's rigid fit clearly prefers and
+    places within ``label_tolerance_mm`` (:func:`_direction_misfit`)."""
     same = {frozenset(best)}
     if state.mirror_of is not None:
         same.add(frozenset(state.mirror_of[list(best)].tolist()))
@@ -209,7 +210,8 @@ def _settle_rivals(
     samples = _pair_samples(pieces, state.name_pos, state.template, reach)
     fits = [_direction_misfit(c, samples, state.template) for c in options]
     order = np.argsort(fits)
-    if not fits[order[1]] > 1.5 * fits[order[0]]:
+    # the best must also fit (walk.c3d: two trunk pieces 230 mm off T10-CLAV either way)
+    if not (fits[order[1]] > 1.5 * fits[order[0]] and fits[order[0]] <= reach):
         return None
     return options[order[0]]
 
