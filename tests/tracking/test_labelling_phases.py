@@ -404,3 +404,29 @@ def test_a_lone_asis_among_walking_legs_does_not_take_the_sacrums_name(seed, lon
     state.rich = np.arange(0, 100, 5)
     spread(state)
     assert state.label_of[piece] in (-1, lone)
+
+
+@pytest.mark.parametrize("seed", [2, 424])
+def test_an_asis_pair_and_the_sacrum_are_named_where_the_legs_fit_the_template(seed):
+    """Modern 3 cameras seed 424: both ASIS pieces from field 0, one seen on with the
+    sacrum, the rest of the pelvis unseen; the legs alone, mid-stride, fit the standing
+    template 200 mm RMS off, turned 45 degrees, and there the ASIS-sacrum vector read as
+    its mirror image: the group took the pair's names the other way round (99 identity
+    switches, filled RMS 72 mm). Where the legs fit the template best, it reads right."""
+    from kisscal.synth.motion import gait_segments, standing_template, walking_trial
+
+    walk = walking_trial(seed, 600, 100.0)
+    tracks, owner = _pieces(
+        np.transpose(walk.xyz_mm, (1, 0, 2)), {0: (56, 122), 1: (35,), 2: (64,)}
+    )
+    first = tracks.field[tracks.bounds()[0]]
+    kept = np.where(owner == 0, first == 56, first == 0)
+    tracks, owner = _without(tracks, owner, np.flatnonzero((owner < 3) & ~kept))
+    names = walk.names
+    state = LabelState.begin(tracks, names, standing_template(names), gait_segments(names), PARAMS)
+    pelvis = np.flatnonzero(owner < 3)
+    for t in np.flatnonzero(owner >= 3):
+        state.name_piece(int(t), int(owner[t]))
+    state.rich = np.arange(0, 600, 5)
+    name_groups(state)
+    np.testing.assert_array_equal(state.label_of[pelvis], owner[pelvis])
