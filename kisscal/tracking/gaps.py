@@ -449,7 +449,7 @@ def fill_gaps_named(
     measured = np.isfinite(dense[:, :, 0])
     if spare is not None:  # and the blobs of points no named track holds
         who = np.isin(tracks.track, list(unlabelled)) & meas & (tracks.point >= 0)
-        spare = freed(spare, tracks.point[who], tracks.track[who])
+        spare = freed(spare, tracks.point[who], tracks.track[who], tracks.point[meas])
     who, absent, absent_sd = absent_placed(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)

@@ -111,17 +111,28 @@ def spare_blobs(
     return SpareBlobs(f[order], c[order], uv[order], L, free, p)
 
 
-def freed(spare: SpareBlobs, point: NDArray, track: NDArray) -> SpareBlobs:
+def freed(
+    spare: SpareBlobs, point: NDArray, track: NDArray, held: NDArray | None = None
+) -> SpareBlobs:
     """``spare`` (``free`` copied) with the blobs of the points ``point`` (rows) free, each
     marked with its track of ``track``: the points of tracks the labelling named no marker
     hold blobs a named marker's fill may need (kiss 3 seed 415: the crossing of a heel's
-    and an ankle's single rays, 66 mm from the heel, held the heel's only blob 13 fields)."""
+    and an ankle's single rays, 66 mm from the heel, held the heel's only blob 13 fields).
+    With ``held`` (the rows of every point a track holds), the blobs of points no track
+    holds are free too (lowcost 4 seed 427: a 5-field ghost, its track too short to keep,
+    held an ankle's own blob in its second camera while the ankle's blob in the first was
+    merged with the heel's; on that blob alone the ankle was placed 16 mm off)."""
     if spare.point is None:
         return dataclasses.replace(spare, free=spare.free.copy())
     of = np.full(max(int(spare.point.max(initial=-1)), int(point.max(initial=-1))) + 2, -1)
     of[point] = track
     own = of[spare.point]  # a point's row -1 reads the last slot, -1
-    return dataclasses.replace(spare, free=spare.free | (own >= 0), track=own)
+    free = spare.free | (own >= 0)
+    if held is not None:
+        loose = spare.point >= 0
+        loose[np.isin(spare.point, held)] = False
+        free |= loose
+    return dataclasses.replace(spare, free=free, track=own)
 
 
 def _pick(

@@ -56,3 +56,17 @@ def test_a_blob_a_nameless_point_held_fills_the_named_marker_on_its_ray():
     # the same blobs held by a named track's points stay its own: nothing on the ray
     _, fills = fill_gaps_logged(tracks, params, held, labels[:4] + ("E",))
     assert not [g for g in fills if g.track == 3 and g.ray_fields]
+
+
+def test_a_blob_a_point_no_track_holds_fills_the_named_marker_on_its_ray():
+    """The ghost's track too short to keep (lowcost 4 seed 427: 5 fields): its points
+    are in no track, and the blob they used is the marker's for its fill again."""
+    xyz = rigid_body(seed=3, noise_mm=0.2)
+    tracks, spare, point = _with_ghost(xyz, 3)
+    held = spare_blobs(spare.field, spare.camera, spare.uv_px, spare.dlts, point)
+    kept = tracks.select(tracks.track != 4)
+    out, fills = fill_gaps_logged(kept, TrackingParams(), held, ("A", "B", "C", "D"))
+    assert sum(g.n_fields for g in fills if g.track == 3 and g.ray_fields) >= 30
+    rows = (out.track == 3) & np.isin(out.field, np.arange(GAP.start, GAP.stop))
+    err = np.linalg.norm(out.xyz_mm[rows] - xyz[3, out.field[rows]], axis=1)
+    assert np.sum(err < 3.0) >= 30
