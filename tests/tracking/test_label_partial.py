@@ -1,6 +1,8 @@
 """A part of a marker set: its stature judged by the rigid segments its names hold
 (kisscal/tracking/labelling/partial.py, issue 26)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,10 +11,13 @@ from kisscal.tracking import TrackingParams, build_trajectories
 from kisscal.tracking.labelling.partial import MIN_SEGMENT_GAIN, segment_score, unvouched
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import segment_mask
+from kisscal.tracking.labelling.subject import partial_height
+from kisscal.tracking.params import reconstructed_points
 from kisscal.tracking.tracks import make_tracks
 from tests.tracking.markerset_acceptance import LOWER, walker_trial, wrong_labels
 
 FULL = marker_set("plug-in-gait-full")
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "real"
 #: A leg's names shifted up by one marker (the thigh's name on the ASIS, the knee's on
 #: the thigh marker, ...), as a part fitted at a wrong stature named 2198928's legs.
 SHIFTED = {
@@ -112,3 +117,26 @@ def test_a_childs_lower_body_fitted_above_the_bound_gets_no_silent_wrong_name(se
     res = build_trajectories(field, xyz, TrackingParams(), marker_set=FULL, rate_hz=50.0)
     wrong = wrong_labels(res, truth, LOWER)
     assert [w for w in wrong if w[0] not in res.labelling.flagged] == []
+
+
+def test_a_set_crowded_by_another_sets_markers_is_not_taken_for_the_whole_set():
+    """pyCGM's Movement_trial (fixtures/real/pycgm/: its first second): Plug-in Gait's 39
+    markers and 42 of clusters and a foot model 36-143 mm from them. Stood on the
+    template, the foreign markers fill names within the tolerance, and taken for the whole
+    set its 81 pieces went to the swap search, which gave 0 of 39 names right (5 silent
+    wrong). The set's own markers alone are the whole set; with the others beside them
+    the trial is labelled as a part of the set among other markers (a stature found)."""
+    crop = np.load(FIXTURES / "pycgm" / "movement_trial_crop.npz")
+    xyz, labels = crop["xyz_mm"].astype(float), list(crop["labels"])
+    params = reconstructed_points(TrackingParams()).replace(label_window_fields=120)
+
+    def stature(channels: list[int]) -> float:
+        f, k = np.nonzero(np.isfinite(xyz[:, channels, 0]))
+        at = xyz[f, np.asarray(channels)[k]]
+        tracks = make_tracks(f, k, at, at, np.zeros(f.size, np.int8), np.arange(f.size))
+        return partial_height(tracks, FULL, params)
+
+    own = [i for i, name in enumerate(labels) if name in FULL.names]
+    assert len(own) == len(FULL.names) and len(labels) - len(own) == 42
+    assert np.isnan(stature(own))
+    assert np.isfinite(stature(list(range(len(labels)))))

@@ -31,6 +31,9 @@ WALKED_FACTOR = 2.0
 STILL_FRACTION = 0.1
 #: Fewest pieces whose median point and distance are trusted to tell a stray one.
 MIN_CLUSTER = 5
+#: The trial holds only part of the set when at least this fraction of its names finds no
+#: piece within a label tolerance, one to one, in the average pose stood on the template.
+PARTIAL_FRACTION = 1 / 3
 
 
 def far_from_body(pos: NDArray) -> NDArray[np.bool_]:
@@ -86,3 +89,17 @@ def core_pieces(present: NDArray, rich: NDArray, dense: NDArray | None = None) -
             break
         core = np.delete(core, int(np.argmax(never)))
     return core
+
+
+def held_whole(held: int, n_names: int) -> bool:
+    """Whether ``held`` names of ``n_names`` are (nearly) the whole set
+    (:data:`PARTIAL_FRACTION`)."""
+    return held >= (1 - PARTIAL_FRACTION) * n_names
+
+
+def crowded(n_pieces: int, n_names: int) -> bool:
+    """Whether a window holds more pieces than the set has names by over
+    :data:`PARTIAL_FRACTION`: markers of another set beside it (issue 26: pyCGM's
+    Movement_trial, 42 cluster and foot markers beside the 39 of Plug-in Gait), which the
+    swap search, naming only the pieces its start picked, would let take the set's names."""
+    return n_pieces > (1 + PARTIAL_FRACTION) * n_names

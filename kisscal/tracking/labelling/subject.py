@@ -39,6 +39,7 @@ from scipy.sparse import csr_matrix, identity, vstack
 
 from kisscal.markersets.model import MarkerSet
 from kisscal.tracking.labelling.anatomy import Anatomy, settle_sides
+from kisscal.tracking.labelling.core import crowded, held_whole
 from kisscal.tracking.labelling.feet import settle_feet
 from kisscal.tracking.labelling.footorder import out_of_order_feet
 from kisscal.tracking.labelling.groups import name_groups
@@ -58,7 +59,7 @@ from kisscal.tracking.labelling.state import (
 from kisscal.tracking.labelling.unseen import name_by_segment
 from kisscal.tracking.labelling.upright import capped_assignment, fit_on_floor
 from kisscal.tracking.labelling.vertical import turned, upright_rotation
-from kisscal.tracking.labelling.window import PARTIAL_FRACTION, first_pose, match_first_window
+from kisscal.tracking.labelling.window import first_pose, match_first_window
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import Tracks
 
@@ -77,7 +78,9 @@ PRIOR_WEIGHT = 0.05
 def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams) -> float:
     """Stature (mm) whose scaled template the first window's average pose, stood on it,
     fits best (capped cost, :func:`~kisscal.tracking.labelling.upright.fit_on_floor`), when
-    the trial holds only part of the set (NaN otherwise, or without a pose).
+    the trial holds only part of the set, or crowds it with other markers
+    (:func:`~kisscal.tracking.labelling.core.crowded`; NaN otherwise, or without a
+    pose).
 
     Distances of a part of the set and of foreign markers do not match a scaled template
     however tall; the pose stood on the floor does.
@@ -97,7 +100,8 @@ def partial_height(tracks: Tracks, marker_set: MarkerSet, params: TrackingParams
         held = capped_assignment(pose[seen] @ r.T + t, template, cap)[0].size
         fits.append((cost, float(height), held))
     cost, height, held = min(fits)
-    if held >= (1 - PARTIAL_FRACTION) * len(marker_set.names):
+    n = len(marker_set.names)
+    if held_whole(held, n) and not crowded(int(seen.sum()), n):
         return float("nan")
     return height
 

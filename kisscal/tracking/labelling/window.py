@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.labelling.core import core_pieces
+from kisscal.tracking.labelling.core import core_pieces, crowded, held_whole
 from kisscal.tracking.labelling.facing import better, facing
 from kisscal.tracking.labelling.state import (
     RIGID_MATCH_MM,
@@ -49,9 +49,6 @@ from kisscal.tracking.rigid import (
 SPREAD_FLOOR_MM = 3.0
 # Fields of a window the upright match turns onto the template (evenly spread).
 UPRIGHT_FIELDS = 20
-# The trial holds only part of the set when at least this fraction of its names finds no
-# piece within a label tolerance, one to one, in the average pose stood on the template.
-PARTIAL_FRACTION = 1 / 3
 # Rigid matches of the average pose (per mirror image) from which the swap search starts.
 SWAP_STARTS = 24
 # Correspondences whose swap cost is within this factor of the lowest are near ties that
@@ -334,7 +331,8 @@ def set_members(
 
     A trial may hold only part of the set (a full-body set on a lower-body file) and
     markers of another set: the swap search then names only these pieces, among only
-    these names, instead of forcing absent names on foreign pieces. Returned with the
+    these names, instead of forcing absent names on foreign pieces; so too when the
+    names are all held but the core is :func:`crowded` with other pieces. Returned with the
     pieces' places in the stood pose (None with all pieces and names): with fewer names,
     distances alone tell less (a sternum from a back marker), the place tells more; and
     whether it stands on the lab's own floor (not on its lowest piece).
@@ -344,8 +342,10 @@ def set_members(
     pose, lab_floor = pose_on_template(state.dense[np.ix_(core, few)], state.template, cap)
     placed = np.flatnonzero(np.isfinite(pose[:, 0]))
     rows, cols, _ = capped_assignment(pose[placed], state.template, cap)
-    if rows.size < 3 or rows.size >= (1 - PARTIAL_FRACTION) * len(state.names):
-        # (nearly) the whole set: the swap search sorts it out
+    if rows.size < 3 or (
+        held_whole(rows.size, len(state.names)) and not crowded(core.size, len(state.names))
+    ):
+        # (nearly) the whole set and few others: the swap search sorts it out
         return core, np.arange(len(state.names)), None, lab_floor
     members = placed[rows]
     return core[members], np.sort(cols), pose[members], lab_floor
