@@ -244,30 +244,35 @@ def _cycle_changes(w: NDArray, d: NDArray, gpp: NDArray, tpp: NDArray) -> NDArra
 def _best_moves(
     d: NDArray,
     w: NDArray,
-    wd: NDArray,
-    wdd: NDArray,
     template_distance: NDArray,
     p: NDArray,
+    on: NDArray,
     unary: NDArray | None = None,
-) -> tuple[tuple[float, float, float], tuple[tuple, tuple, tuple]]:
-    """Cost change of the best exchange, move to a free name and 3-cycle, and where."""
+    price: float | None = None,
+) -> tuple[tuple[float, ...], tuple[tuple, ...]]:
+    """Cost change of the best exchange, move to a free name and 3-cycle (and, with a
+    ``price``, of leaving a named track out), and where; ``on``: tracks named."""
+    q = np.where(on, p, 0)
+    wm = w * on[None, :]  # pairs with a track left out cost nothing
+    wd = wm * d
     # g[a, x] is track a's share of the cost were it named x.
-    tp = template_distance[:, p]  # (n_names, k)
-    g = wdd[:, None] - 2.0 * wd @ tp.T + w @ (tp.T**2)
-    own = g[np.arange(p.size), p]
-    t_ab = template_distance[np.ix_(p, p)]
+    tp = template_distance[:, q]  # (n_names, k)
+    g = (wd * d).sum(axis=1)[:, None] - 2.0 * wd @ tp.T + wm @ (tp.T**2)
+    own = np.where(on, g[np.arange(q.size), q], 0.0)
+    t_ab = template_distance[np.ix_(q, q)]
     keep_ab = w * ((d - t_ab) ** 2 - d**2)  # the a-b term, unchanged by the exchange
-    swap = 2.0 * (g[:, p] - own[:, None] + g[:, p].T - own[None, :] + 2.0 * keep_ab)
+    swap = 2.0 * (g[:, q] - own[:, None] + g[:, q].T - own[None, :] + 2.0 * keep_ab)
     np.fill_diagonal(swap, 0.0)
     move = 2.0 * (g - own[:, None])
-    move[:, p] = 0.0  # names already held are exchanged, not taken
-    cycle = _cycle_changes(w, d, g[:, p], t_ab)
+    move[:, q[on]] = 0.0  # names already held are exchanged, not taken
+    cycle = _cycle_changes(w, d, g[:, q], t_ab)
+    own_u = np.zeros(q.size)
     if unary is not None:
         # unary[a, x]: track a's own cost of name x, added once per track.
-        held = unary[:, p]  # held[a, b]: track a with track b's name
-        own_u = np.diagonal(held)
+        held = unary[:, q]  # held[a, b]: track a with track b's name
+        own_u = np.where(on, np.diagonal(held), 0.0)
         swap += held + held.T - own_u[:, None] - own_u[None, :]
-        free = ~np.isin(np.arange(unary.shape[1]), p)
+        free = ~np.isin(np.arange(unary.shape[1]), q[on])
         move += np.where(free[None, :], unary - own_u[:, None], 0.0)
         cycle += (
             held[:, :, None]
@@ -277,8 +282,16 @@ def _best_moves(
             - own_u[None, :, None]
             - own_u[None, None, :]
         )
-    at = tuple(np.unravel_index(np.argmin(m), m.shape) for m in (swap, move, cycle))
-    return (swap[at[0]], move[at[1]], cycle[at[2]]), at
+    changes = [swap, move, cycle]
+    if price is not None:
+        off = ~on
+        swap[off], swap[:, off] = np.inf, np.inf
+        cycle[off], cycle[:, off], cycle[:, :, off] = np.inf, np.inf, np.inf
+        move[off] -= price  # a left-out track named
+        move[:, q[on]] = 0.0
+        changes.append(np.where(on, price - 2.0 * own - own_u, np.inf))  # a named one left out
+    at = tuple(np.unravel_index(np.argmin(m), m.shape) for m in changes)
+    return tuple(m[a] for m, a in zip(changes, at, strict=True)), at
 
 
 def refine_by_swaps(
@@ -287,6 +300,7 @@ def refine_by_swaps(
     template_distance: NDArray,
     assign: NDArray,
     unary: NDArray | None = None,
+    price: float | None = None,
 ) -> NDArray[np.int64]:
     """Improve a track -> template assignment by exchanging labels (2-opt local search).
 
@@ -297,23 +311,24 @@ def refine_by_swaps(
     takes the steepest of all single exchanges, moves to a free name and 3-cycles of
     names, their cost changes computed at once. ``unary`` (tracks x names), when given,
     adds each track's own cost of its name (e.g. how far its height is from the name's).
+    With a ``price``, each track left out costs it, and a step may also leave a named
+    track out or name a left-out one (a marker of no name of the set need not take one).
 
     References
     ----------
     Croes 1958 (the 2-opt exchange search).
     """
     assign = assign.copy()
-    rows = np.flatnonzero(assign >= 0)
-    if rows.size < 3:
+    rows = np.flatnonzero(assign >= 0) if price is None else np.arange(assign.size)
+    if np.sum(assign >= 0) < 3:
         return assign
     d = np.nan_to_num(distance[np.ix_(rows, rows)])
     w = np.nan_to_num(weight[np.ix_(rows, rows)])
     p = assign[rows].copy()
+    on = p >= 0
     u = None if unary is None else unary[rows]
-    wd = w * d
-    wdd = (wd * d).sum(axis=1)
     for _ in range(20 * p.size):  # passes at most
-        gains, at = _best_moves(d, w, wd, wdd, template_distance, p, u)
+        gains, at = _best_moves(d, w, template_distance, p, on, u, price)
         if min(gains) > -1e-9:
             break
         kind = int(np.argmin(gains))
@@ -322,11 +337,13 @@ def refine_by_swaps(
             p[a], p[b] = p[b], p[a]
         elif kind == 1:
             am, x = at[1]
-            p[am] = x
-        else:
+            p[am], on[am] = x, True
+        elif kind == 2:
             ca, cb, cc = at[2]
             p[ca], p[cb], p[cc] = p[cb], p[cc], p[ca]
-    assign[rows] = p
+        else:
+            on[at[3][0]] = False
+    assign[rows] = np.where(on, p, -1)
     return assign
 
 
@@ -336,11 +353,13 @@ def refine_with_kicks(
     template_distance: NDArray,
     assign: NDArray,
     unary: NDArray | None = None,
+    price: float | None = None,
 ) -> NDArray[np.int64]:
     """:func:`refine_by_swaps`, then iterated local search: exchange the names of four
     random named tracks at a time (a kick out of the valley) and descend again; keep
     the best. When names are free (fewer tracks than names), as many kicks again give
-    four tracks names drawn from theirs and the free ones. Deterministic (a fixed seed).
+    four tracks names drawn from theirs and the free ones; with a ``price`` (a track
+    may be left out), only these, and none is a name too. Deterministic (a fixed seed).
 
     The exchange search only descends, and a walking trial's average pose blurs the
     feet so much that an assignment with three foot markers wrong in one exchange each
@@ -353,27 +372,36 @@ def refine_with_kicks(
     """
     rng = np.random.default_rng(0)
     kicks = 60  # exchanges of four named tracks; as many again with free names
-    best = refine_by_swaps(distance, weight, template_distance, assign, unary=unary)
-    best_cost = swap_cost(best, distance, weight, template_distance, unary)
+
+    def descend(trial: NDArray) -> tuple[NDArray, float]:
+        out = refine_by_swaps(distance, weight, template_distance, trial, unary, price)
+        return out, swap_cost(out, distance, weight, template_distance, unary, price)
+
+    best, best_cost = descend(assign)
     named = np.flatnonzero(best >= 0)
     if named.size < 5:
         return best
     n_names = template_distance.shape[0]
     free_rng = np.random.default_rng([0, 1])
-    has_free = n_names > named.size
-    for kick in range(kicks * (2 if has_free else 1)):
+    has_free = n_names > named.size or price is not None
+    # With a price, the exchanges of named tracks were tried before (without it).
+    for kick in range(kicks if price is not None else 0, kicks * (2 if has_free else 1)):
         trial = best.copy()
+        named = np.flatnonzero(best >= 0)
         if kick < kicks:
             idx = rng.choice(named, 4, replace=False)
             trial[idx] = trial[rng.permutation(idx)]
-        else:
+        elif price is None:
             # Names no track holds enter too: a segment named as its neighbour (a foot
             # as the shank's pair) moves to the free names only all at once.
             idx = free_rng.choice(named, 4, replace=False)
             pool = np.union1d(trial[idx], np.setdiff1d(np.arange(n_names), trial[named]))
             trial[idx] = free_rng.choice(pool, 4, replace=False)
-        trial = refine_by_swaps(distance, weight, template_distance, trial, unary=unary)
-        cost = swap_cost(trial, distance, weight, template_distance, unary)
+        else:  # and leaving a track out, or naming one left out
+            idx = free_rng.choice(best.size, 4, replace=False)
+            pool = np.setdiff1d(np.arange(n_names), np.delete(trial, idx))
+            trial[idx] = free_rng.choice(np.r_[pool, [-1] * 4], 4, replace=False)
+        trial, cost = descend(trial)
         if cost < best_cost - 1e-9:
             best, best_cost = trial, cost
     return best
@@ -385,15 +413,17 @@ def swap_cost(
     weight: NDArray,
     template_distance: NDArray,
     unary: NDArray | None = None,
+    price: float | None = None,
 ) -> float:
-    """The cost :func:`refine_by_swaps` minimises, of one assignment (``-1``: left out)."""
+    """The cost :func:`refine_by_swaps` minimises, of one assignment (``-1``: left out,
+    at ``price`` each when given)."""
     ok = assign >= 0
     names = assign[ok]
     diff = np.nan_to_num(distance[np.ix_(ok, ok)]) - template_distance[np.ix_(names, names)]
     cost = float((np.nan_to_num(weight[np.ix_(ok, ok)]) * diff**2).sum())
     if unary is not None:
         cost += float(unary[np.flatnonzero(ok), names].sum())
-    return cost
+    return cost + (price or 0.0) * float((~ok).sum())
 
 
 def field_fits(

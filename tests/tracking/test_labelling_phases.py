@@ -106,6 +106,23 @@ def test_first_window_names_the_core_right_whatever_the_heading(seed):
     assert state.fit_rms < 150.0 and state.rich.size > 0
 
 
+@pytest.mark.parametrize("seed", [0, 2])
+def test_first_window_leaves_markers_of_no_name_unnamed(seed):
+    # A fifth metatarsal beside each toe, and no RTIB marker: without a price for an
+    # unnamed piece the swap search names both and shifts the right foot's names along
+    # (main: 2-3 wrong names, a toe marker named LTOE).
+    truth = gait_truth(200, seed)
+    present = np.array([i for i, n in enumerate(NAMES) if n != "RTIB"])
+    f = np.arange(200)
+    toes = truth[[NAMES.index("RTOE"), NAMES.index("LTOE")]]
+    extra = [(f, toes[0] + [-60.0, -45.0, 0.0]), (f, toes[1] + [-60.0, 45.0, 0.0])]
+    tracks, owner = _pieces(truth[present], extra=extra)
+    owner = np.where(owner >= 0, present[np.maximum(owner, 0)], -1)
+    state = _state(tracks)
+    assert match_first_window(state)
+    np.testing.assert_array_equal(state.label_of, owner)  # every marker right, extras none
+
+
 def test_spread_names_later_pieces_and_not_a_ghost():
     truth = gait_truth(200, 2)
     ghost_fields = np.arange(120, 124)

@@ -33,6 +33,9 @@ from scipy.optimize import linear_sum_assignment
 HEADINGS = 12
 #: Rounds of assignment and fit per heading.
 ROUNDS = 8
+#: With an upright template: how far (SD, mm) a marker's median height while walking may
+#: lie from its template height (a heel rises in swing, knees flex).
+HEIGHT_SD_MM = 60.0
 
 
 def heading_fit(
@@ -178,3 +181,25 @@ def pose_on_template(
         return np.full_like(pose, np.nan), False
     _, r, t = fit_on_floor(pose[seen], pos, template, cap_mm)
     return pose @ r.T + t, bool(t[2] == 0.0)
+
+
+def height_costs(
+    dense: NDArray, core: NDArray, rich: NDArray, template: NDArray, lab_floor: bool = False
+) -> tuple:
+    """Median heights of the core pieces over ``rich``, and each piece's cost of each
+    name: its height above the floor against the name's template height, in units of
+    :data:`HEIGHT_SD_MM`, squared.
+
+    The floor is where the lowest piece spends its lowest tenth of the time, put at the
+    template's lowest marker (the feet's markers sit a few centimetres above the floor);
+    with ``lab_floor``, it is the lab's Z = 0 (the feet are not in view,
+    :func:`~kisscal.tracking.labelling.upright.fit_on_floor`).
+    """
+    z = dense[np.ix_(core, rich)][..., 2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        heights = np.nanmedian(z, axis=1)
+        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - template[:, 2].min()
+    floor = 0.0 if lab_floor else floor
+    unary = ((heights - floor)[:, None] - template[None, :, 2]) ** 2 / HEIGHT_SD_MM**2
+    return heights, unary

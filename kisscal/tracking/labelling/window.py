@@ -11,7 +11,6 @@ averages out the swing of the legs, which a single field's rigid fit cannot.
 from __future__ import annotations
 
 import itertools
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +29,7 @@ from kisscal.tracking.labelling.state import (
 from kisscal.tracking.labelling.upright import (
     average_pose,
     capped_assignment,
+    height_costs,
     pose_on_template,
 )
 from kisscal.tracking.rigid import (
@@ -58,9 +58,9 @@ NEAR_TIE = 1.05
 # A given rigid pair whose pieces point the other way than their names in more than this
 # fraction of the window's fields is exchanged (:func:`pair_direction`).
 PAIR_DIRECTION = 2 / 3
-# With an upright template: how far (SD, mm) a marker's median height while walking may
-# lie from its template height (a heel rises in swing, knees flex).
-HEIGHT_SD_MM = 60.0
+# Price of a core piece left unnamed by the swap search, in median shares of the cost of
+# its best naming (:func:`swap_refined`).
+LEAVE_PRICE = 8.0
 
 
 @dataclass(frozen=True)
@@ -106,20 +106,28 @@ def swap_refined(
     tolerance_mm: float,
     heights: NDArray | None = None,
     unary: NDArray | None = None,
-) -> list[tuple[float, NDArray[np.int64]]]:
+    leave: bool = False,
+) -> tuple[list[tuple[float, NDArray[np.int64]]], float | None]:
     """(cost, names) from every rigid match of the average pose and of its mirror image,
-    each improved by the swap search.
+    each improved by the swap search; and the price of a piece left unnamed (None
+    without ``leave``).
 
     With ``heights`` (the core pieces' median heights, template Z up), the average pose
     is stood up first (:func:`~kisscal.tracking.rigid.upright_pose`) and matches that
     turn it over are not used as starts; ``unary`` (core pieces x names) adds each
     piece's own cost of a name to the swap search.
+
+    With ``leave``, the best naming is searched again where a piece may be left unnamed
+    at :data:`LEAVE_PRICE` times the median piece's share of its cost: a marker of no
+    name of the set (a fifth metatarsal) then need not shift a chain of names to take
+    one, while a piece that fits no worse than most pieces of the body keeps its name.
+    The costs returned include the price.
     """
     embedded = classical_mds(median)
     if heights is not None:
         embedded = upright_pose(embedded, heights)
     n_names = template.shape[0]
-    refined = []
+    refined, ends = [], []
     for mirror in (1.0, -1.0):
         # Several rigid matches of the average pose serve as starts: the swap search
         # only descends, and one start can sit in a wrong valley.
@@ -140,12 +148,24 @@ def swap_refined(
             assign = refine_by_swaps(median, weight, template_distance, assign, unary=unary)
             cost = swap_cost(assign, median, weight, template_distance, unary)
             refined.append((cost, assign))
+        ends.append(len(refined))
     if refined:  # the best start, kicked out of its valley (cheaper than kicking every start)
         best = refine_with_kicks(
             median, weight, template_distance, min(refined, key=lambda c: c[0])[1], unary
         )
         refined.append((swap_cost(best, median, weight, template_distance, unary), best))
-    return refined
+    if not (refined and leave):
+        return refined, None
+    # A piece's share: what leaving it out of the best naming saves.
+    args, k = (median, weight, template_distance, unary), np.arange(best.size)
+    cut = np.array([swap_cost(np.where(k == i, -1, best), *args) for i in k])
+    price = LEAVE_PRICE * float(np.median(swap_cost(best, *args) - cut[best >= 0]))
+    out = [a for _, a in refined]
+    for side in (refined[: ends[0]], refined[ends[0] : ends[1]]):  # each mirror image's best
+        if side:
+            start = min(side, key=lambda c: c[0])[1]
+            out.append(refine_with_kicks(median, weight, template_distance, start, unary, price))
+    return [(swap_cost(a, *args, price), a) for a in out], price
 
 
 def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
@@ -154,34 +174,13 @@ def _kept_upright(pose: NDArray, template: NDArray, assign: NDArray) -> bool:
     return bool(r[2, 2] > np.cos(np.pi / 4))
 
 
-def height_costs(
-    dense: NDArray, core: NDArray, rich: NDArray, template: NDArray, lab_floor: bool = False
-) -> tuple:
-    """Median heights of the core pieces over ``rich``, and each piece's cost of each
-    name: its height above the floor against the name's template height, in units of
-    :data:`HEIGHT_SD_MM`, squared.
-
-    The floor is where the lowest piece spends its lowest tenth of the time, put at the
-    template's lowest marker (the feet's markers sit a few centimetres above the floor);
-    with ``lab_floor``, it is the lab's Z = 0 (the feet are not in view,
-    :func:`~kisscal.tracking.labelling.upright.fit_on_floor`).
-    """
-    z = dense[np.ix_(core, rich)][..., 2]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        heights = np.nanmedian(z, axis=1)
-        floor = np.nanmin(np.nanpercentile(z, 10, axis=1)) - template[:, 2].min()
-    floor = 0.0 if lab_floor else floor
-    unary = ((heights - floor)[:, None] - template[None, :, 2]) ** 2 / HEIGHT_SD_MM**2
-    return heights, unary
-
-
 def near_ties(
     refined: list,
     median: NDArray,
     weight: NDArray,
     template_distance: NDArray,
     unary: NDArray | None = None,
+    price: float | None = None,
 ) -> list[tuple[float, NDArray[np.int64]]]:
     """``refined`` plus the neighbours of its best correspondences (one piece moved to a
     free name, or two pieces' names exchanged) whose swap cost is within
@@ -212,7 +211,7 @@ def near_ties(
             if tuple(v) in seen_keys:
                 continue
             seen_keys.add(tuple(v))
-            c = swap_cost(v, median, weight, template_distance, unary)
+            c = swap_cost(v, median, weight, template_distance, unary, price)
             if c <= bound:
                 out.append((c, v))
     return out
@@ -384,7 +383,7 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
         # label tolerances, squared.
         gap = np.linalg.norm(pose[:, None] - state.template[names][None], axis=2)
         unary = unary + (gap / params.label_tolerance_mm) ** 2
-    refined = swap_refined(
+    refined, price = swap_refined(
         median,
         weight,
         state.template[names],
@@ -392,12 +391,12 @@ def match_window(state: LabelState, centre: int) -> WindowMatch:
         params.label_tolerance_mm,
         heights,
         unary,
+        leave=pose is None,
     )
     if not refined:
         return none
-    refined = near_ties(
-        refined, median, weight, state.template_distance[np.ix_(names, names)], unary
-    )
+    tdist = state.template_distance[np.ix_(names, names)]
+    refined = near_ties(refined, median, weight, tdist, unary, price)
     # Back to the set's name numbers.
     refined = [(cost, np.where(a >= 0, names[np.maximum(a, 0)], -1)) for cost, a in refined]
     candidates = left_right_fits(state, refined, core, rich)
