@@ -50,7 +50,6 @@ from kisscal.recon.group import (
     triangulate_markers,
 )
 from kisscal.recon.params import ReconParams
-from kisscal.recon.short import short_pieces
 
 #: Points of a neighbouring field tried as a point's previous (or next) position, nearest
 #: first: a marker moves less in one field than to beyond its third-nearest neighbour.
@@ -282,12 +281,13 @@ def match_two_camera(
     good = (t.rms_px <= limit_px) & ~near_cameras(t.xyz_mm, dlts, params.camera_clearance_mm)
     if led is not None:
         good &= ~(led[a] & led[b])
-    a, b, xyz, rms = a[good], b[good], t.xyz_mm[good], t.rms_px[good]
+    a, b, xyz = a[good], b[good], t.xyz_mm[good]
     if len(a) == 0:
         return out, limit_px
-    tri = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved)
-    m_xyz, m_field = tri.xyz_mm, np.zeros(len(tri.xyz_mm), dtype=np.int64)
-    m_field[marker[marker >= 0]] = field[marker >= 0]
+    known = np.flatnonzero(marker >= 0)
+    m_xyz = triangulate_markers(marker, camera, uv, dlts, params.reweight_iterations, solved).xyz_mm
+    m_field = np.zeros(len(m_xyz), dtype=np.int64)
+    m_field[marker[known]] = field[known]
     # a trajectory needs three fields; a shorter trial keeps the unambiguous pairs
     judge_motion = n_distinct(field) >= 3
     alone = len(dlts) <= params.two_camera_alone_max_cameras
@@ -308,12 +308,9 @@ def match_two_camera(
             continue
         keep = np.ones(len(a), dtype=bool)
         keep[claimed] = False
-        a, b, xyz, rms = a[keep], b[keep], xyz[keep], rms[keep]
+        a, b, xyz = a[keep], b[keep], xyz[keep]
         won = choose_pairs(a, b, xyz, field[a], m_xyz, m_field, params, judge_motion, alone)
-    pair = a, b, xyz, field[a]
-    won = body_pairs(pair, won, (m_xyz, m_field), body, params)
-    if alone:  # pieces too short to judge by motion, on their residuals (recon.short)
-        won = short_pieces(pair, rms, won, camera, (m_xyz, m_field, tri.rms_px), params)
+    won = body_pairs((a, b, xyz, field[a]), won, (m_xyz, m_field), body, params)
     order = np.argsort(field[a[won]], kind="stable")
     ids = int(marker.max(initial=-1)) + 1 + np.arange(len(order))
     out[a[won][order]] = ids

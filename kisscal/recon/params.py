@@ -75,13 +75,6 @@ class ReconParams(Params):
         modern 3 cameras seed 332: the whole pelvis was lost, each marker then seen by one
         camera, and the iliac spines' rays crossed 11 fields (73 ms) later into a ghost
         named SACR for 65 fields; 0 coasts none.
-    two_camera_short_rms_factor : float
-        A two-camera piece of three fields with no trajectory to continue, its pairs
-        sharing no blob, is taken when each pair's residual is within this many times
-        the trial's median marker residual (:mod:`kisscal.recon.short`): two rays
-        crossing by chance spread over the band up to the limit (5 times the median).
-        Issue 27, lowcost seeds at 30 Hz: true pieces' pairs at most 1.8 times the
-        median, ghost pieces' largest 2.0-4.9 times.
     deblend_merged : bool
         Make two-camera points of markers whose image merged with a known point's image
         into one blob (:mod:`kisscal.recon.deblend`): the blob's centroid, minus the known
@@ -202,7 +195,6 @@ class ReconParams(Params):
     two_camera_body_mm: float = param(10.0, unit="mm", gt=0)
     two_camera_carry_s: float = param(1.0, unit="s", ge=0)
     two_camera_coast_s: float = param(0.1, unit="s", ge=0)
-    two_camera_short_rms_factor: float = param(2.0, gt=0)
     deblend_merged: bool = param(True)
     deblend_held: bool = param(True)
     deblend_hidden: bool = param(True)
