@@ -160,23 +160,35 @@ def _pair_samples(
     mirror image (modern 3 cameras seed 424, 99 identity switches).
     """
     out = []
+    orientation: dict[int, tuple[float, NDArray] | None] = {}  # per field, shared by pairs
     for a, b in itertools.combinations(range(len(pieces)), 2):
         (fa, xa), (fb, xb) = pieces[a], pieces[b]
         shared, ia, ib = np.intersect1d(fa, fb, return_indices=True)
         fits, seen = [], []
-        for f, i, j in zip(shared, ia, ib, strict=True):
-            held = np.flatnonzero(np.isfinite(name_pos[:, f, 0]))
-            if held.size < 3:
+        for f, i, j in zip(shared.tolist(), ia, ib, strict=True):
+            if f not in orientation:
+                orientation[f] = _body_orientation(name_pos[:, f], template)
+            if orientation[f] is None:
                 continue
-            r, t = kabsch(name_pos[held, f], template[held])
-            miss = name_pos[held, f] @ r.T + t - template[held]
-            fits.append(np.sqrt(np.sum(miss**2) / held.size))
+            fit, r = orientation[f]
+            fits.append(fit)
             seen.append(r @ (xa[i] - xb[j]))
         best = np.argsort(fits, kind="stable")[:5]
         best = best[np.asarray(fits)[best] <= reach]
         if best.size:
             out.append((a, b, np.asarray(seen)[best]))
     return out
+
+
+def _body_orientation(pos: NDArray, template: NDArray) -> tuple[float, NDArray] | None:
+    """(RMS mm, rotation) of the rigid fit of the names held in one field's ``pos``
+    (names, 3) to ``template``; None with fewer than three held."""
+    held = np.flatnonzero(np.isfinite(pos[:, 0]))
+    if held.size < 3:
+        return None
+    r, t = kabsch(pos[held], template[held])
+    miss = pos[held] @ r.T + t - template[held]
+    return float(np.sqrt(np.sum(miss**2) / held.size)), r
 
 
 def _direction_misfit(
