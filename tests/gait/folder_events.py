@@ -105,7 +105,7 @@ def table(paths: list[Path], worst: int = 0, by_plates: bool = False) -> list[st
             lines.append(f"{path.stem[:30]:<30} unreadable: {str(e).splitlines()[0][:60]}")
             continue
         gm = gait_trial(markers, rate) if marked or by_plates else None
-        contacts = marked if by_plates and marked else plates(path, gm) if gm else {}
+        contacts = marked if by_plates and marked else plates(path, gm) if gm is not None else {}
         marked = contacts if by_plates else marked
         if gm is None or not marked:
             continue
