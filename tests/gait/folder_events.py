@@ -12,7 +12,11 @@ the marked events a force plate confirms (one of its contacts, :func:`plate_even
 within :data:`ON_PLATE_S`) and over the others (marked by eye or by the lab's software).
 The biomechZoo fixtures (``fixtures/real/gait/zoo_*``) are a folder it reads too.
 ``--worst N`` lists the N largest errors of each column (missed events first) with the
-file, side and marked time, and whether a plate confirms the marked event.
+file, side and marked time, and whether a plate confirms the marked event. ``--plates``
+scores against the force plates' contacts instead of the EVENT group (a fixture's
+``PLATE_EVENT`` group, else the plates of the file: walks that mark no events). Last,
+where the spread of each column comes from (:func:`spread`): offsets between trials, or
+scatter within a trial or within one foot of a trial.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import numpy as np
 
 from kisscal.gait import GaitMarkers, detect_events, heel_from_ankle
 from kisscal.gait.table import EVENTS
-from tests.gait._real import mm_per_unit, read
+from tests.gait._real import PLATE_GROUP, mm_per_unit, read
 from tests.gait.make_real_fixtures import plate_events
 from tests.gait.real_events import EDGE_S, MATCH_S, Errors, coordinate_events, score
 
@@ -83,8 +87,9 @@ def _cells(err: Errors) -> str:
     return "  ".join(out)
 
 
-def table(paths: list[Path], worst: int = 0) -> list[str]:
-    """One line per file with marked foot strikes and foot offs, then the pooled ones."""
+def table(paths: list[Path], worst: int = 0, by_plates: bool = False) -> list[str]:
+    """One line per file with marked foot strikes and foot offs (the plates' contacts if
+    ``by_plates``), then the pooled ones."""
     head = "bias  mean  worst mi"
     lines = [
         f"{'trial':<30} {'n':>3}  {'kisscal FS':^20}  {'kisscal FO':^20}"
@@ -92,17 +97,18 @@ def table(paths: list[Path], worst: int = 0) -> list[str]:
         f"{'':<30} {'':>3}  {head:^20}  {head:^20}  {head:^20}  {head:^20}",
     ]
     pooled = {k: (Errors(), Errors()) for k in ("all", "on a plate", "not on a plate")}
-    rows: list[tuple[str, str, float, str]] = []  # column, event, |error| (inf: missed), line
+    rows: list[tuple] = []  # column, |error| (inf: missed), line, trial, side, error
     for path in paths:
         try:
-            markers, rate, _, marked = read(path)
+            markers, rate, _, marked = read(path, PLATE_GROUP if by_plates else "EVENT")
         except (OSError, RuntimeError, ValueError, IndexError, ZeroDivisionError) as e:
             lines.append(f"{path.stem[:30]:<30} unreadable: {str(e).splitlines()[0][:60]}")
             continue
-        gm = gait_trial(markers, rate) if marked else None
-        if gm is None:
+        gm = gait_trial(markers, rate) if marked or by_plates else None
+        contacts = marked if by_plates and marked else plates(path, gm) if gm is not None else {}
+        marked = contacts if by_plates else marked
+        if gm is None or not marked:
             continue
-        contacts = plates(path, gm)
         on = {k: np.asarray([t for t in v if _near(contacts.get(k), t)]) for k, v in marked.items()}
         off = {k: np.setdiff1d(v, on[k]) for k, v in marked.items()}
         duration = gm.n_fields / rate
@@ -123,6 +129,15 @@ def table(paths: list[Path], worst: int = 0) -> list[str]:
     lines.append("ms; bias: mean signed error (detected - marked); mean: mean absolute error;")
     lines.append("worst: the largest in magnitude, signed; mi: marked events missed;")
     lines.append("* the ankle stands in for the heel")
+    for column in (f"{m} {e}" for m in ("kisscal", "Zeni") for e in EVENTS):
+        found = [(r[3], r[4], r[5]) for r in rows if r[0] == column and np.isfinite(r[1])]
+        if len(found) > 1:
+            sd = ", ".join(f"{1000 * x:.1f}" for x in spread(found))
+            n = f"{len(found)}, {len({x[0] for x in found})}, {len({x[:2] for x in found})}"
+            lines.append(
+                f"spread, {column} ({n} events, trials, feet): SD {sd} ms"
+                " (all; trial means; within a trial; within a foot)"
+            )
     for column in (f"{m} {e}" for m in ("kisscal", "Zeni") for e in EVENTS if worst):
         lines.append(f"worst {worst}, {column}:")
         ranked = sorted((r for r in rows if r[0] == column), key=lambda r: -r[1])
@@ -130,8 +145,27 @@ def table(paths: list[Path], worst: int = 0) -> list[str]:
     return lines
 
 
-def _event_rows(name, method, detection, marked, on, duration) -> list[tuple[str, float, str]]:
-    """(column, |error| or inf when missed, line) for every marked event scored."""
+def spread(errors: list[tuple[str, str, float]]) -> tuple[float, float, float, float]:
+    """Where the scatter of signed errors comes from: the SD of the ``(trial, side,
+    error)`` errors, of their trials' means (offsets between trials: lab, subject,
+    marker placement), and the pooled SD about their trial's mean and about their
+    trial's side's mean (scatter within a trial, within one foot; NaN where no group
+    holds two errors)."""
+    e = np.array([x[2] for x in errors])
+    out = [float(e.std())]
+    for labels in ([x[0] for x in errors], [x[:2] for x in errors]):
+        groups = [e[[i for i, x in enumerate(labels) if x == g]] for g in dict.fromkeys(labels)]
+        if len(out) == 1:
+            out.append(float(np.std([v.mean() for v in groups])))
+        dof = len(e) - len(groups)  # a group's mean takes one
+        sq = sum(float(np.sum((v - v.mean()) ** 2)) for v in groups)
+        out.append(float(np.sqrt(sq / dof)) if dof else float("nan"))
+    return out[0], out[1], out[2], out[3]
+
+
+def _event_rows(name, method, detection, marked, on, duration) -> list[tuple]:
+    """(column, |error| or inf when missed, line, trial, side, error) for every marked
+    event scored."""
     out = []
     for (side, event), times in marked.items():
         d = detection.times(side, event)
@@ -142,7 +176,8 @@ def _event_rows(name, method, detection, marked, on, duration) -> list[tuple[str
             cell = "missed" if abs(err) > MATCH_S else f"{1000 * err:+7.1f} ms"
             plate = " plate" if _near(on.get((side, event)), t) else ""
             line = f"  {name[:30]:<30} {side:<5} {t:7.3f} s  {cell}{plate}"
-            out.append((f"{method} {event}", abs(err) if abs(err) <= MATCH_S else np.inf, line))
+            size = abs(err) if abs(err) <= MATCH_S else np.inf
+            out.append((f"{method} {event}", size, line, name, side, err))
     return out
 
 
@@ -152,12 +187,14 @@ def _near(times: np.ndarray | None, t: float) -> bool:
 
 def main(argv: list[str]) -> None:
     folders, worst = list(argv[1:]), 0
+    by_plates = "--plates" in folders
+    folders = [f for f in folders if f != "--plates"]
     if "--worst" in folders:
         k = folders.index("--worst")
         worst = int(folders[k + 1])
         del folders[k : k + 2]
     paths = sorted(p for d in folders for p in Path(d).iterdir() if p.suffix.lower() == ".c3d")
-    print("\n".join(table(paths, worst)))
+    print("\n".join(table(paths, worst, by_plates)))
 
 
 if __name__ == "__main__":
