@@ -65,19 +65,61 @@ def _group(
     dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
 ) -> _Group | None:
     """Track ``t`` and its length partners (:func:`~.raychain.length_partners`, with
-    ``mirror``)."""
-    members = np.r_[t, length_partners(dense, t, params, mirror)[0]].astype(np.int64)
+    ``mirror``), and those measured with it too seldom to tell whose mirror images keep
+    their length (:func:`_mirror_members`)."""
+    own = length_partners(dense, t, params, mirror)[0]
+    m = _mirrors(mirror, len(dense))
+    extra = _mirror_members(dense, t, params, m)
+    members = np.r_[t, own, extra].astype(np.int64)
     if members.size < 3:
         return None
     sd = distance_sd(dense[members], dense[members])
+    dist = np.linalg.norm(dense[members][:, None] - dense[members][None], axis=3)
+    seen = np.isfinite(dist)
+    length = np.where(seen, dist, 0.0).sum(axis=2) / np.maximum(seen.sum(axis=2), 1)
+    if extra.size and np.all(m[members] >= 0):
+        # a pair with a member measured too seldom: its mirror pair's length, which the
+        # two sides share within mirror_length_sd_mm (markers placed by hand)
+        late = np.arange(members.size) > own.size
+        pair = (late[:, None] | late[None]) & (seen.sum(axis=2) < params.body_context_fields)
+        mine = dense[m[members]]
+        md = np.linalg.norm(mine[:, None] - mine[None], axis=3)
+        ms = np.isfinite(md)
+        enough = ms.sum(axis=2) >= params.body_context_fields
+        m_len = np.where(ms, md, 0.0).sum(axis=2) / np.maximum(ms.sum(axis=2), 1)
+        m_sd = np.where(enough, distance_sd(mine, mine), np.inf)
+        sd = np.where(pair, np.maximum(m_sd, params.mirror_length_sd_mm), sd)
+        length = np.where(pair, m_len, length)
     sd = np.where(
         sd <= params.rigid_fill_sd_mm, np.maximum(sd, params.ray_length_sd_floor_mm), np.inf
     )
     np.fill_diagonal(sd, np.inf)
-    dist = np.linalg.norm(dense[members][:, None] - dense[members][None], axis=3)
-    seen = np.isfinite(dist)
-    length = np.where(seen, dist, 0.0).sum(axis=2) / np.maximum(seen.sum(axis=2), 1)
     return _Group(members, length, sd)
+
+
+def _mirrors(mirror: NDArray | None, n: int) -> NDArray[np.int64]:
+    """Each of ``n`` rows' mirror image's row (``mirror``, cut or padded to ``n``), -1
+    for none or past ``n``."""
+    m = np.full(n, -1, dtype=np.int64) if mirror is None else np.r_[mirror, [-1] * n][:n]
+    return np.where(m < n, m, -1).astype(np.int64)
+
+
+def _mirror_members(
+    dense: NDArray, t: int, params: TrackingParams, m: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """Rows measured with track ``t`` in fewer than ``body_context_fields`` fields (too few
+    to judge their length, :func:`~.raychain.length_partners`) whose mirror image keeps
+    within ``rigid_fill_sd_mm`` of ``t``'s mirror image's over at least as many: kiss 3
+    seed 435's right ankle, one camera's all trial and measured in 10 fields, is the
+    toe's third point where the toe's ray is square to the heel."""
+    if m[t] < 0:
+        return np.zeros(0, dtype=np.int64)
+    seen = np.isfinite(dense[:, :, 0])
+    few = (seen & seen[t]).sum(axis=1) < max(params.body_context_fields, 4)
+    cand = np.flatnonzero(few & (m >= 0) & (np.arange(len(dense)) != t))
+    both = (seen[m[cand]] & seen[m[t]]).sum(axis=1) >= params.body_context_fields
+    sd = distance_sd(dense[m[cand]], dense[m[t]][None])[:, 0]
+    return cand[both & (sd <= params.rigid_fill_sd_mm)]
 
 
 def member_rays(

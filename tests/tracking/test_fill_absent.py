@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
-from kisscal.tracking.fill_absent import absent_placed, mirror_lengths
+from kisscal.tracking.fill_absent import absent_placed, mirror_lengths, mirror_tracks
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged, fill_gaps_named
@@ -253,3 +253,24 @@ def test_blobs_that_fit_no_length_place_nothing():
     corner = spare_blobs(spare.field, spare.camera, np.ones_like(spare.uv_px), spare.dlts)
     rows = absent_placed(dense, LABELS, ("RANK",), corner, PARAMS)[1]
     assert not np.isfinite(rows).any() and corner.free.all()
+
+
+def test_an_ankle_measured_in_a_few_fields_joins_the_toe_s_segment_by_its_mirror_image():
+    # kiss 3 seed 435: the right ankle, one camera's all trial, measured in 10 fields far
+    # from the toe's gap, too few to judge its length to the toe; the toe's one ray square
+    # to the heel-toe line. The left ankle's length to the left toe stands for it.
+    right, truth = _feet(23)
+    labels = (*LABELS, "RANK")
+    dense = _dense(_tracks_of(np.concatenate([truth, right[2][None]]), {5: GAP, 6: GAP}))
+    dense[7, :250] = dense[7, 260:] = np.nan
+    spare = _cameras(right, 23, GAP)
+    got = joint_ray_fill(
+        dense, 5, GAP.start, GAP.stop, spare, PARAMS, None, mirror_tracks(labels, 8)
+    )
+    assert got is not None and 7 in got.partners
+    # half the gap: where the heel's sphere and the ankle's ray fix the toe within
+    # ray_length_max_error_mm; each placed field within twice what it expects
+    placed = np.isfinite(got.sd_mm)
+    assert placed.sum() >= 15
+    err = np.linalg.norm(got.xyz_mm[placed] - right[1, GAP][placed], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0 and np.all(err <= 2.0 * got.sd_mm[placed])
