@@ -173,7 +173,9 @@ def claimed_pieces(
     here = cKDTree(embed_fields(all_xyz[ok], all_field[ok]))
     flagged = np.zeros(smooth.max() + 1, dtype=bool)
     # how many fields each trajectory holds: a known marker outlasts every piece
-    span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
+    span = np.r_[
+        _known_spans(known_xyz, known_field, step_mm, tolerance_mm), np.bincount(label)[label]
+    ]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
     trajectories = all_xyz[ok], all_field[ok], span[ok], chains
     judged = []
@@ -215,6 +217,21 @@ def claimed_pieces(
             withdrawn[smooth[ends[claimed]]] = True
         ghost[len(known_xyz) :] = withdrawn[smooth]
     out[withdrawn[smooth]] = True
+    return out
+
+
+def _known_spans(
+    xyz: NDArray[np.float64], field: NDArray[np.int64], step_mm: float, tolerance_mm: float
+) -> NDArray[np.float64]:
+    """Fields each known marker's run holds: infinite (it outlasts every piece) from the
+    four fields of a continuity window on; three rays of three markers that cross for a
+    field or two make a shorter one (lowcost seed 433: LKNE's camera 0, RKNE's camera 1
+    and LTIB's camera 2 for 2 fields, whose crossing withdrew LTIB's and LKNE's pieces)."""
+    out = np.full(len(xyz), np.inf)
+    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
+    run = pieces(xyz[ok], field[ok], np.zeros((len(ok), 2), dtype=np.int64), step_mm, tolerance_mm)
+    count = np.bincount(run)[run]
+    out[ok] = np.where(count >= 4, np.inf, count)
     return out
 
 
