@@ -217,3 +217,29 @@ def test_a_withdrawn_crossing_does_not_take_the_longer_piece_it_interrupts() -> 
     out = claimed_pieces(a, b, xyz, *known, (field, camera, uv), dlts, ReconParams())
     assert out[30:].all(), "the crossing is withdrawn"
     assert not out[:30].any(), "L's piece is kept"
+
+
+def test_a_crossing_of_three_rays_for_two_fields_steals_no_piece() -> None:
+    # T's two-camera piece (cameras 0 and 2) begins at field s; before it, three rays of
+    # three markers crossed at G, 150 mm beyond T on its camera-2 ray, for a few fields
+    # (a known marker). At field s the candidate pair of T's camera-2 blob with camera 1's
+    # blob at G lies on G's prediction. A known run of two fields has not shown itself a
+    # trajectory (a continuity window is four): it steals nothing; one of four fields does
+    # (lowcost seed 433: LKNE's camera 0, RKNE's 1 and LTIB's 2 for 2 fields)
+    dlts = make_rig(7, n_cameras=3)
+    t = np.arange(30)
+    tib = np.array([-200.0, 0.0, 900.0]) + t[:, None] * [10.0, 1.0, 0.0]
+    c2 = camera_centre_mm(dlts[2])
+    g = tib + 150.0 * (tib - c2) / np.linalg.norm(tib - c2, axis=1, keepdims=True)
+    s, n = 4, 15
+    rows = [(f, c, tib) for f in range(s, s + n) for c in (0, 2)] + [(s, 1, g)]
+    field = np.array([r[0] for r in rows])
+    camera = np.array([r[1] for r in rows])
+    uv = np.array([project(dlts[c], p[f][None])[0] for f, c, p in rows])
+    a, b = np.arange(0, 2 * n, 2), np.arange(1, 2 * n, 2)
+    rivals = np.r_[a, 1], np.r_[b, 2 * n], np.r_[tib[s : s + n], g[s : s + 1]]
+    for run, stolen in ((2, False), (4, True)):
+        known = g[s - run : s], t[s - run : s]
+        args = (field, camera, uv), dlts, ReconParams(), rivals
+        out = claimed_pieces(a, b, tib[s : s + n], *known, *args)
+        assert out.all() == stolen and out.any() == stolen, f"known run of {run} fields"
