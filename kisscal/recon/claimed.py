@@ -173,9 +173,12 @@ def claimed_pieces(
     here = cKDTree(embed_fields(all_xyz[ok], all_field[ok]))
     flagged = np.zeros(smooth.max() + 1, dtype=bool)
     # how many fields each trajectory holds: a known marker outlasts every piece
-    span = np.r_[np.full(len(known_xyz), np.inf), np.bincount(label)[label]]
+    span = np.r_[
+        _known_spans(known_xyz, known_field, step_mm, tolerance_mm), np.bincount(label)[label]
+    ]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
     trajectories = all_xyz[ok], all_field[ok], span[ok], chains
+    judged = []
     for side in (1, -1):  # the first field of a run (from the field before), the last
         ends = _piece_ends(smooth, field, side)
         pred, p_field = predictions(all_xyz, all_field, step_mm, side)
@@ -187,7 +190,7 @@ def claimed_pieces(
         claimers = pred[gone], p_field[gone], span[src]
         point = (xyz[ends], field[ends], np.bincount(label)[label[ends]])
         carry = carry_fields, coast_fields
-        lost = _carried_claimers(*trajectories, here, params, side, *carry)
+        *lost, lost_end = _carried_claimers(*trajectories, here, params, side, *carry)
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
@@ -195,14 +198,40 @@ def claimed_pieces(
             hits.append(_claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm))
             if rivals is not None:
                 stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
-        ha, hb = hits[0] >= 0, hits[1] >= 0
-        # two different trajectories, one on each ray (one near both is the point's own)
-        claimed = np.any(
-            ha[:, :, None] & hb[:, None, :] & (hits[0][:, :, None] != hits[1][:, None, :]),
-            axis=(1, 2),
-        )
-        flagged[smooth[ends[claimed | stolen]]] = True
-    out[flagged[smooth]] = True
+        flagged[smooth[ends[stolen]]] = True
+        judged.append((ends, *hits, np.r_[src, np.flatnonzero(ok)[lost_end]], point[2]))
+    # a ghost's own trajectory claims nothing: a piece withdrawn here does not claim a
+    # longer one (modern 3 cameras seed 429: a 4-field crossing on the ankle's camera-1
+    # ray, predicted back 32 mm off it, withdrew the ankle's 380-field piece with it)
+    ghost = np.zeros(len(all_xyz), dtype=bool)
+    for _ in range(2):  # all claims, then without those of withdrawn pieces
+        withdrawn = flagged.copy()
+        for ends, hit_a, hit_b, source, length in judged:
+            by = np.where(hit_a >= 0, source[hit_a], -1), np.where(hit_b >= 0, source[hit_b], -1)
+            ha, hb = ((h >= 0) & ~(ghost[h] & (span[h] < length[:, None])) for h in by)
+            # two different trajectories, one on each ray (one near both is the point's own)
+            claimed = np.any(
+                ha[:, :, None] & hb[:, None, :] & (by[0][:, :, None] != by[1][:, None, :]),
+                axis=(1, 2),
+            )
+            withdrawn[smooth[ends[claimed]]] = True
+        ghost[len(known_xyz) :] = withdrawn[smooth]
+    out[withdrawn[smooth]] = True
+    return out
+
+
+def _known_spans(
+    xyz: NDArray[np.float64], field: NDArray[np.int64], step_mm: float, tolerance_mm: float
+) -> NDArray[np.float64]:
+    """Fields each known marker's run holds: infinite (it outlasts every piece) from the
+    four fields of a continuity window on; three rays of three markers that cross for a
+    field or two make a shorter one (lowcost seed 433: LKNE's camera 0, RKNE's camera 1
+    and LTIB's camera 2 for 2 fields, whose crossing withdrew LTIB's and LKNE's pieces)."""
+    out = np.full(len(xyz), np.inf)
+    ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
+    run = pieces(xyz[ok], field[ok], np.zeros((len(ok), 2), dtype=np.int64), step_mm, tolerance_mm)
+    count = np.bincount(run)[run]
+    out[ok] = np.where(count >= 4, np.inf, count)
     return out
 
 
@@ -216,15 +245,15 @@ def _carried_claimers(
     side: int,
     fields: int,
     coast: int,
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
     """The trajectories lost a few fields before (after) a field, carried into it by a
     marker of their rigid body (:func:`~kisscal.recon.carried.carried`), where no point
-    lies within the tolerance: their positions, fields and spans."""
+    lies within the tolerance: their positions, fields, spans and ends (rows of ``xyz``)."""
     tolerance_mm = params.two_camera_continuity_mm
     step_mm = params.two_camera_step_mm
     pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields, coast)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
-    return pos[gone], p_field[gone], span[end[gone]]
+    return pos[gone], p_field[gone], span[end[gone]], end[gone]
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:

@@ -6,7 +6,7 @@ import numpy as np
 
 from kisscal.dlt.model import project
 from kisscal.recon import ReconParams, reconstruct_trial
-from kisscal.recon.claimed import pieces
+from kisscal.recon.claimed import claimed_pieces, pieces
 from kisscal.recon.epipolar import camera_centre_mm
 
 from .rig import make_rig
@@ -188,3 +188,58 @@ def test_crossing_glued_to_a_markers_own_piece_is_withdrawn() -> None:
     ghost = d.min(axis=1) > 10.0
     assert not ghost.any(), f"ghost points in fields {np.unique(pts.field[ghost])}"
     assert np.array_equal(np.unique(pts.field[d.min(axis=1) < 10.0]), np.arange(20))
+
+
+def test_a_withdrawn_crossing_does_not_take_the_longer_piece_it_interrupts() -> None:
+    # L, seen by cameras 0 and 1 over fields 0-29, loses camera 0; for fields 30-33
+    # camera 1's ray through L crosses camera 2's ray through H (whose other cameras left
+    # at field 30) 30 mm beyond L: a crossing, claimed at its first field by L's and H's
+    # trajectories, that predicted back lands on L's camera-1 ray at field 29, while a
+    # marker K beginning at field 30 predicts back onto L's camera-0 ray. Only the
+    # crossing is a ghost (modern 3 cameras seed 429: LANK's 380-field piece withdrawn
+    # with a 4-field crossing of its camera-1 ray with LHEE's camera 2)
+    dlts = make_rig(7, n_cameras=3)
+    t = np.arange(40)
+    lank = np.array([-200.0, 0.0, 900.0]) + t[:, None] * [10.0, 1.0, 0.0]
+    c0, c1, c2 = (camera_centre_mm(dlts[k]) for k in range(3))
+    ray = (lank - c1) / np.linalg.norm(lank - c1, axis=1, keepdims=True)
+    ghost = lank + 30.0 * ray
+    h = c2 + 0.9 * (ghost - c2)
+    k = lank + 60.0 * (lank - c0) / np.linalg.norm(lank - c0, axis=1, keepdims=True)
+    rows = [(f, c, p) for f in range(30) for c, p in ((0, lank), (1, lank))]
+    rows += [(f, c, p) for f in range(30, 34) for c, p in ((1, lank), (2, h))]
+    field = np.array([r[0] for r in rows])
+    camera = np.array([r[1] for r in rows])
+    uv = np.array([project(dlts[c], p[f][None])[0] for f, c, p in rows])
+    xyz = np.r_[lank[:30], ghost[30:34]]
+    known = np.r_[h[:30], k[30:]], t  # H seen by three cameras up to field 29, K from 30
+    a, b = np.arange(0, 68, 2), np.arange(1, 68, 2)  # L's pairs, then the crossing's
+    out = claimed_pieces(a, b, xyz, *known, (field, camera, uv), dlts, ReconParams())
+    assert out[30:].all(), "the crossing is withdrawn"
+    assert not out[:30].any(), "L's piece is kept"
+
+
+def test_a_crossing_of_three_rays_for_two_fields_steals_no_piece() -> None:
+    # T's two-camera piece (cameras 0 and 2) begins at field s; before it, three rays of
+    # three markers crossed at G, 150 mm beyond T on its camera-2 ray, for a few fields
+    # (a known marker). At field s the candidate pair of T's camera-2 blob with camera 1's
+    # blob at G lies on G's prediction. A known run of two fields has not shown itself a
+    # trajectory (a continuity window is four): it steals nothing; one of four fields does
+    # (lowcost seed 433: LKNE's camera 0, RKNE's 1 and LTIB's 2 for 2 fields)
+    dlts = make_rig(7, n_cameras=3)
+    t = np.arange(30)
+    tib = np.array([-200.0, 0.0, 900.0]) + t[:, None] * [10.0, 1.0, 0.0]
+    c2 = camera_centre_mm(dlts[2])
+    g = tib + 150.0 * (tib - c2) / np.linalg.norm(tib - c2, axis=1, keepdims=True)
+    s, n = 4, 15
+    rows = [(f, c, tib) for f in range(s, s + n) for c in (0, 2)] + [(s, 1, g)]
+    field = np.array([r[0] for r in rows])
+    camera = np.array([r[1] for r in rows])
+    uv = np.array([project(dlts[c], p[f][None])[0] for f, c, p in rows])
+    a, b = np.arange(0, 2 * n, 2), np.arange(1, 2 * n, 2)
+    rivals = np.r_[a, 1], np.r_[b, 2 * n], np.r_[tib[s : s + n], g[s : s + 1]]
+    for run, stolen in ((2, False), (4, True)):
+        known = g[s - run : s], t[s - run : s]
+        args = (field, camera, uv), dlts, ReconParams(), rivals
+        out = claimed_pieces(a, b, tib[s : s + n], *known, *args)
+        assert out.all() == stolen and out.any() == stolen, f"known run of {run} fields"
