@@ -249,7 +249,7 @@ def rigid_pair(
     each other (lowcost seed 437 RKNE, 12 fields hidden: thigh and tibia, refused)."""
     limit = params.rigid_fill_sd_mm
     near = np.flatnonzero(to_target <= limit)
-    near = near[np.argsort(to_target[near])]
+    near = near[np.argsort(to_target[near])][: params.rigid_fill_markers]  # memory k² x fields
     ok = np.triu(distance_sd(dense[cand[near]], dense[cand[near]]) <= limit, 1)
     if not ok.any():
         return None
