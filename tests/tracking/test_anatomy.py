@@ -7,7 +7,12 @@ import pytest
 
 from kisscal.markersets import marker_set
 from kisscal.synth.body import PELVIS_MARKERS
-from kisscal.synth.motion import _leg_from_angles, gait_marker_names, walking_trial
+from kisscal.synth.motion import (
+    _leg_from_angles,
+    gait_marker_names,
+    standing_template,
+    walking_trial,
+)
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.anatomy import (
     Anatomy,
@@ -22,6 +27,7 @@ from kisscal.tracking.labelling.pelvis import (
 )
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.sides import judge_sides, mirror_fit_ratio
+from kisscal.tracking.labelling.spread import spread
 from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.tracks import make_tracks
 
@@ -390,3 +396,39 @@ def test_a_lone_pelvis_piece_takes_the_name_its_side_of_the_walk_says(backwards:
             assert across_walk_name(state, len(LOWER) + i, pelvis, said) == i
     # a piece seen with a pelvis name is left to the other rules
     assert across_walk_name(state, pelvis[0], pelvis, pelvis[2]) == pelvis[2]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 10])
+@pytest.mark.parametrize("backwards", [False, True])
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_asis_pieces_held_by_the_sacrum_alone_take_the_names_of_their_side(
+    seed: int, backwards: bool, mirrored: bool
+) -> None:
+    """Issue 27's modern 3 cameras seed 432: no window held an ASIS with the other
+    names, so each ASIS piece was held by the sacrum alone (the set's segments), whose
+    distances to both ASIS names are equal, and the body fit from the legs put it
+    150-350 mm from either name's place: neither ASIS was named in 600 fields. Its side
+    of the legs' midline names it, on the side the legs' names say (legs named the
+    mirror way round, as the first window named them there, get their pelvis alike;
+    the sides are judged afterwards)."""
+    m = walking_trial(seed, 150, 50.0, path_mm=3600, heading_deg=70.0 * seed)
+    names, n = m.names, len(m.names)
+    pos = m.xyz_mm.transpose(1, 0, 2)
+    pos = pos[:, ::-1].copy() if backwards else pos
+    field = np.tile(np.arange(150), n)
+    piece = 2 * np.repeat(np.arange(n), 150) + (field >= 75)  # piece h n + i: half h of i
+    xyz = pos.reshape(-1, 3)
+    tracks = make_tracks(field, piece, xyz, xyz, np.zeros(n * 150), np.arange(n * 150))
+    params = TrackingParams()
+    state = LabelState.begin(tracks, names, standing_template(names), m.segments, params)
+    side = {"L": "R", "R": "L"} if mirrored else {"L": "L", "R": "R"}
+    said = [names.index(side.get(x[0], x[0]) + x[1:]) if x[1:] != "ASI" else i
+            for i, x in enumerate(names)]  # fmt: skip
+    asis = [names.index("LASI"), names.index("RASI")]
+    for t in range(2 * n):
+        if t % n not in asis:
+            state.name_piece(t, said[t % n])
+    spread(state)
+    want = [names.index(side[names[i][0]] + "ASI") for i in asis]
+    assert state.label_of[asis].tolist() == want
+    assert state.label_of[[n + i for i in asis]].tolist() == want

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
-from kisscal.tracking.labelling.pelvis import across_walk_name
+from kisscal.tracking.labelling.pelvis import across_walk_name, mirror_side_name
 from kisscal.tracking.labelling.pieces import reaches
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
 from kisscal.tracking.labelling.window import match_window
@@ -289,6 +289,12 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool =
             j = across_walk_name(state, t, undecided, j)
         if j >= 0 and _trial_prefers_other(state, t, undecided, j):
             j = -1
+    if j < 0 and long and one_partner.size == 2 and state.mirror_of is not None:
+        a, b = one_partner.tolist()
+        # a mirror pair by a partner on the midline, which keeps its distances alike
+        if state.mirror_of[a] == b and _held_through(state, f_t, rigid[a] & rigid[b]):
+            j = mirror_side_name(state, t, one_partner)
+            j = -1 if j >= 0 and _trial_prefers_other(state, t, undecided, j) else j
     if continuity and j < 0 and one_partner.size >= 2 and long:
         # Where the piece continues a name's trajectory and the body fit agrees, the
         # trial's own evidence outweighs the distance statistics' veto.
