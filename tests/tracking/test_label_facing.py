@@ -5,7 +5,9 @@ tested in ``test_foot_contest``)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from kisscal.tracking.labelling import spread as spread_phase
 from kisscal.tracking.labelling.facing import (
     better,
     facing,
@@ -77,3 +79,33 @@ def test_every_window_tied_for_most_whole_pieces_is_offered():
     offered = shorter_windows(_state(tracks))
     assert {c for c, n in offered if n == 100} >= {50, 150}
     assert offered[0] == (150, 100)  # the latest first, as before
+
+
+def test_one_name_holds_no_pose_and_does_not_overrule_a_window_naming_the_body():
+    # Kiss 3 cameras seed 434: the whole trial held three feet pieces whole, and their
+    # triangle's one name left (a heel named RASI) vetoed every window naming 11-13
+    # pieces right; the trial got no name.
+    tracks, owner = _pieces(gait_truth(200, 3))
+    state = _state(tracks)
+    rich = np.arange(0, 200, 5)
+    heel = np.flatnonzero(owner == INDEX["LHEE"])
+    one = WindowMatch(heel, np.array([INDEX["RASI"]]), 53.5, rich)
+    body = WindowMatch(np.arange(owner.size), owner.copy(), 150.0, rich)
+    assert better(state, one, body) and not better(state, body, one)
+
+
+@pytest.mark.parametrize("turn", [False, True])
+def test_a_later_window_named_turned_round_gives_no_name(monkeypatch, turn):
+    # Kiss 3 cameras seed 434: phase 3 matched the walk's first 116 fields turned round
+    # (heels named toes, left named right, the pelvis rotated), 10 of 10 names wrong,
+    # and gave them all: 154 identity switches.
+    tracks, owner = _pieces(gait_truth(200, 4))
+    state = _state(tracks)
+    state.window, state.rich, state.fit_rms = 100, np.arange(0, 200, 5), 150.0
+    core = np.arange(owner.size)
+    named = _turned(owner) if turn else owner.copy()
+    match = WindowMatch(core, named, 150.0, np.arange(0, 100, 5))
+    monkeypatch.setattr(spread_phase, "match_window", lambda state, centre: match)
+    spread_phase.rematch(state)
+    given = state.label_of[state.long_ids]
+    assert np.all(given == (-1 if turn else owner))

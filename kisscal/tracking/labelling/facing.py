@@ -26,6 +26,12 @@ from kisscal.tracking.labelling.state import LabelState
 #: The body moves at least this far (mm, horizontally) through a window for its
 #: walking direction to count.
 MIN_TRAVEL_MM = 100.0
+#: Fewest names of a window match that can overrule another's (:func:`better`): a rigid
+#: fit, the pose the names stand for, needs three points. Kiss 3 cameras seed 434: the
+#: whole trial held only three feet pieces whole; their triangle was named RASI, LKNE,
+#: LTIB, and with the two broken as a segment, its one name RASI (a heel) overruled
+#: shorter windows naming 11-13 pieces all right, and the trial got no name.
+MIN_POSE_NAMES = 3
 #: A heel marker name: its side prefix, then HEE, HEEL or CAL.
 HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
 
@@ -99,11 +105,13 @@ def better(state: LabelState, found, other) -> bool:
     A match facing forward (:func:`facing`) beats one turned round, whatever they name;
     otherwise ``other`` must name more pieces and agree with ``found`` on at least half
     of the pieces both name: a short window's pose does not average out the legs' swing, so it adds
-    names, it does not overrule longer windows alone.
+    names, it does not overrule longer windows alone. A ``found`` naming fewer than
+    :data:`MIN_POSE_NAMES` pieces holds no pose to agree with: any other naming more wins.
     """
     n_other = 0 if other.core is None else int(np.sum(other.assign >= 0))
-    if found.core is None or n_other == 0:
-        return n_other > 0
+    n_found = 0 if found.core is None else int(np.sum(found.assign >= 0))
+    if n_found < MIN_POSE_NAMES or n_other == 0:
+        return n_other > n_found
     fraction = state.params.facing_fraction
     a = _side(facing(state, found.core, found.assign, found.rich), fraction)
     b = _side(facing(state, other.core, other.assign, other.rich), fraction)
