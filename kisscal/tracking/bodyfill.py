@@ -242,19 +242,18 @@ AXIS_MAX_COS = 0.7
 def rigid_pair(
     dense: NDArray, cand: NDArray, to_target: NDArray, params: TrackingParams
 ) -> NDArray | None:
-    """The two of ``cand`` whose distances to the target (SD ``to_target``) and to each
-    other vary at most ``rigid_fill_sd_mm``, the target's holding best, or None: a
-    segment's axis to carry the target about. Not the two best for the target alone:
-    a knee keeps its lengths to the thigh and the shank, which do not keep theirs to
-    each other (lowcost seed 437 RKNE, 12 fields hidden: thigh and tibia, refused)."""
+    """The two of ``cand`` whose distance to the target (SD ``to_target``) holds best,
+    or None when theirs, or their own to each other, varies more than
+    ``rigid_fill_sd_mm``: a segment's axis to carry the target about."""
+    order = np.argsort(to_target)[:2]
+    pair = cand[order]
     limit = params.rigid_fill_sd_mm
-    near = np.flatnonzero(to_target <= limit)
-    near = near[np.argsort(to_target[near])][: params.rigid_fill_markers]  # memory k² x fields
-    ok = np.triu(distance_sd(dense[cand[near]], dense[cand[near]]) <= limit, 1)
-    if not ok.any():
+    if (
+        to_target[order].max() > limit
+        or distance_sd(dense[pair[:1]], dense[pair[1:]])[0, 0] > limit
+    ):
         return None
-    j = int(np.flatnonzero(ok.any(axis=0))[0])  # the worse of the pair, as good as can be
-    return cand[near[[int(np.flatnonzero(ok[:, j])[0]), j]]]
+    return pair
 
 
 def axis_fill(

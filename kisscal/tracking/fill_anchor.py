@@ -27,14 +27,10 @@ def anchored(
     got: list[tuple[NDArray, GapFill]],
     made: Sequence[tuple[NDArray, GapFill]],
     context: int,
-    errors: NDArray | None = None,
 ) -> list[tuple[NDArray, GapFill]]:
     """The fills ``got`` (xyz, fill) pairs, each expecting at least the largest expected
     error of the fills ``made`` before it in its track within ``context`` fields of
-    either side (the samples it was read off), and of its track's samples there in
-    ``errors`` (n_tracks, n_fields; NaN where none): the fills of the passes before
-    (lowcost seed 311: a tibia's hinge fill off a chain fill expecting 2.8 mm, 6.7 off,
-    4.3 mm off expecting 2.1).
+    either side (the samples it was read off).
 
     Parameters
     ----------
@@ -44,8 +40,6 @@ def anchored(
         The fills placed before them (context for them).
     context : int
         Fields on each side a fill reads (``fill_context_fields``).
-    errors : ndarray, optional
-        Every sample's expected error so far (0 measured).
 
     Returns
     -------
@@ -59,8 +53,6 @@ def anchored(
             for _, f in made
             if f.track == fill.track and f.first_field < hi and lo < f.first_field + f.n_fields
         ]
-        if errors is not None:
-            near += errors[fill.track, max(lo, 0) : hi].tolist()
         floor = np.nanmax(near) if near and np.isfinite(near).any() else np.nan
         if floor > fill.expected_error_mm:  # False with NaN on either side
             fill = dataclasses.replace(fill, expected_error_mm=float(floor))

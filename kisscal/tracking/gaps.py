@@ -161,7 +161,7 @@ def _body(
             if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
                 return _body(gap, a, b, params, spline=False)  # the body, as without
     got = donor_errors(donor_noise(got, gap.dense), gap.errors)
-    gap.out.extend(anchored(got, gap.out, params.fill_context_fields, gap.errors))
+    gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
 
 

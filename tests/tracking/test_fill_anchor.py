@@ -53,23 +53,3 @@ def test_fills_far_from_the_spline_leave_its_expectation() -> None:
         assert _body(gap, lo, hi, PARAMS).all()
         expected.append(gap.out[-1][1].expected_error_mm)
     assert expected[0] == expected[1] < 3.0
-
-
-def test_a_fill_off_an_earlier_pass_s_fields_expects_their_error() -> None:
-    """The same placement made by a pass before (known only by ``gap.errors``, as in the
-    second pass): its error carries into the spline read off it too."""
-    truth = _path()
-    rng = np.random.default_rng(4)
-    dense = (truth + rng.normal(0.0, 0.2, truth.shape))[None].copy()
-    lo, hi = 50, 66
-    dense[0, lo:hi] = truth[lo:hi] + np.array([0.0, 1.8, 2.4])
-    dense[0, lo + 12 : hi] = np.nan
-    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
-    errors[0, lo : lo + 12] = 3.0
-    gap = _Gap(dense, 0, lo + 12, hi, PARAMS, None, None, np.zeros(hi - lo - 12, bool), [])
-    gap.errors = errors
-    assert _body(gap, lo + 12, hi, PARAMS).all()
-    xyz, fill = gap.out[-1]
-    true_rms = np.sqrt(np.mean(np.sum((xyz - truth[lo + 12 : hi]) ** 2, axis=1)))
-    assert true_rms > 0.5
-    assert true_rms <= 2.0 * fill.expected_error_mm
