@@ -7,7 +7,6 @@ tracks or sessions.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -411,23 +410,30 @@ def field_fits(
     ``dense`` is (tracks, fields, 3) with NaN where a track is not seen; fields where
     fewer than three of the tracks are seen are left out.
     """
-    out = [
-        np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1)))
-        for src, dst, r, t in _field_kabsch(dense, fields, rows, cols, template)
-    ]
-    return np.asarray(out)
+    return _field_kabsch(dense, fields, rows, cols, template)[1]
 
 
 def _field_kabsch(
     dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
-) -> Iterator[tuple[NDArray, NDArray, NDArray, NDArray]]:
-    """Per field of ``fields`` where three or more of tracks ``rows`` are seen: their
-    points, the template's ``cols`` points and the proper rigid fit (r, t) between them."""
-    for f in fields:
-        ok = np.isfinite(dense[rows, f, 0])
-        if ok.sum() >= 3:
-            src, dst = dense[rows[ok], f], template[cols[ok]]
-            yield (src, dst, *kabsch(src, dst))
+) -> tuple[NDArray, NDArray]:
+    """Per field of ``fields`` where three or more of tracks ``rows`` are seen, the proper
+    rigid fit of their points onto the template's ``cols`` points (Kabsch 1976, all
+    fields at once): rotations (m, 3, 3) and fit RMS (m,)."""
+    src = np.transpose(dense[rows][:, fields], (1, 0, 2))  # (fields, k, 3)
+    ok = np.isfinite(src[..., :1])
+    keep = ok.sum(axis=(1, 2)) >= 3
+    ok, n = ok[keep], ok[keep].sum(axis=1)
+    src = np.where(ok, src[keep], 0.0)
+    dst = np.where(ok, template[cols][None], 0.0)
+    cs, ct = src.sum(axis=1) / n, dst.sum(axis=1) / n
+    h = np.einsum("fki,fkj->fij", np.where(ok, src - cs[:, None], 0.0), dst - ct[:, None])
+    u, _, vt = np.linalg.svd(h)
+    v, ut = np.transpose(vt, (0, 2, 1)), np.transpose(u, (0, 2, 1))
+    sign = np.sign(np.linalg.det(v @ ut))
+    v[:, :, 2] *= np.where(sign == 0, 1.0, sign)[:, None]
+    r = v @ ut
+    fit = src @ np.transpose(r, (0, 2, 1)) + (ct - np.einsum("fij,fj->fi", r, cs))[:, None]
+    return r, np.sqrt(np.sum(np.where(ok, fit - dst, 0.0) ** 2, axis=(1, 2)) / n[:, 0])
 
 
 def upright_fraction(
@@ -435,9 +441,8 @@ def upright_fraction(
 ) -> float:
     """Fraction of ``fields`` in which the proper rigid fit of tracks ``rows`` to template
     ``cols`` keeps the vertical within 45 degrees (both frames Z up)."""
-    fits = _field_kabsch(dense, fields, rows, cols, template)
-    upright = [r[2, 2] > np.cos(np.pi / 4) for _, _, r, _ in fits]
-    return float(np.mean(upright)) if upright else 0.0
+    r = _field_kabsch(dense, fields, rows, cols, template)[0]
+    return float(np.mean(r[:, 2, 2] > np.cos(np.pi / 4))) if len(r) else 0.0
 
 
 def upright_pose(pose: NDArray, heights: NDArray) -> NDArray[np.float64]:
