@@ -9,12 +9,13 @@ nearest-neighbour linking (:func:`benchmarks.bench_tracking.nearest_neighbour_li
 
 Stop 55 (issue 26: minutes per file), before -> after: ``farm-bench`` pairs in one run
 (A = s55-labspeed, B = main 9966019, taken in turns; whole process, CPU seconds; 2 cores
-shared with about ten other jobs, so wall seconds were 3-4 times these):
+shared with up to ten other jobs: walking5 and Movement_trial wall seconds were 3-4
+times these; test1 ran on a quiet machine, wall = CPU):
 
 =====================  =========  =========  ======
 file                   main       branch     ratio
 =====================  =========  =========  ======
-test1.c3d (1 pair)     99.9 s     43.7 s     0.44
+test1.c3d              92.9 s     40.8 s     0.44
 Movement_trial.c3d     19.7 s     13.1 s     0.66
 walking5.c3d           11.1 s     9.2 s      0.83
 =====================  =========  =========  ======
