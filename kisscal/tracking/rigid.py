@@ -7,7 +7,6 @@ tracks or sessions.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -181,63 +180,26 @@ def classical_mds(distance: NDArray, dims: int = 3) -> NDArray[np.float64]:
     return vecs[:, top] * np.sqrt(np.maximum(vals[top], 0.0))
 
 
-def _pairs3(x: NDArray) -> dict[str, NDArray]:
-    """``x[i, j]`` for the index pairs of a 3-cycle (a, b, c) on axes (0, 1, 2), as
-    broadcastable views (``"ab"`` is x[a, b], ``"aa"`` the diagonal at a, ...)."""
-    diag = np.diagonal(x)
-    return {
-        "ab": x[:, :, None],
-        "ac": x[:, None, :],
-        "ba": x.T[:, :, None],
-        "bc": x[None, :, :],
-        "ca": x.T[:, None, :],
-        "cb": x.T[None, :, :],
-        "aa": diag[:, None, None],
-        "bb": diag[None, :, None],
-        "cc": diag[None, None, :],
-    }
-
-
-def _cycle_changes(w: NDArray, d: NDArray, gpp: NDArray, tpp: NDArray) -> NDArray:
+def _cycle_changes(w: NDArray, d: NDArray, pair: NDArray, tpp: NDArray) -> NDArray:
     """Cost change of every 3-cycle of names (a takes b's, b takes c's, c takes a's) for
-    the cost of :func:`refine_by_swaps`; ``gpp[i, j]`` is track i's share were it named as
-    track j, ``tpp`` the template distances between the current names. (k, k, k), +inf
-    where indices repeat."""
-    k = w.shape[0]
-    w3, d3, g3, t3 = _pairs3(w), _pairs3(d), _pairs3(gpp), _pairs3(tpp)
-
-    def term(ij: str, t: NDArray) -> NDArray:
-        return w3[ij] * (d3[ij] - t) ** 2
-
-    # Each track's share with its new name, minus the part that pairs it with the other
-    # two (counted with their old names in gpp), ...
-    share = g3["ab"] - g3["aa"] + g3["bc"] - g3["bb"] + g3["ca"] - g3["cc"]
-    inner = (
-        term("ab", t3["bb"])
-        - term("ab", t3["ab"])
-        + term("ac", t3["bc"])
-        - term("ac", t3["ac"])
-        + term("ba", t3["ca"])
-        - term("ba", t3["ba"])
-        + term("bc", t3["cc"])
-        - term("bc", t3["bc"])
-        + term("ca", t3["aa"])
-        - term("ca", t3["ca"])
-        + term("cb", t3["ab"])
-        - term("cb", t3["cb"])
-    )
-    # ... plus the exact change of the three pairs inside the cycle.
-    within = 2.0 * (
-        term("ab", t3["bc"])
-        - term("ab", t3["ab"])
-        + term("ac", t3["ba"])
-        - term("ac", t3["ac"])
-        + term("bc", t3["ca"])
-        - term("bc", t3["bc"])
-    )
-    out = 2.0 * (share - inner) + within
-    a, b, c = np.arange(k)[:, None, None], np.arange(k)[None, :, None], np.arange(k)
-    out[(a == b) | (b == c) | (a == c)] = np.inf
+    the cost of :func:`refine_by_swaps`: ``pair[i, j]``, track i's change were it named
+    as track j, less its term with j (counted twice), is summed round the cycle; the
+    three terms inside it follow from ``tpp``, the template distances between the
+    current names. (k, k, k), +inf where indices repeat."""
+    ab, bc, ac = (slice(None), slice(None), None), (None, slice(None)), (slice(None), None)
+    out = np.add(pair[ab], pair[bc])
+    out += pair.T[ac]
+    x, y, w2, d2 = np.empty_like(out), np.empty_like(out), 2.0 * w, 2.0 * d
+    for ij, new, old in ((ac, ab, bc), (ab, bc, ac), (bc, ac, ab)):
+        # pair ij's template distance tpp[new] for tpp[old]: w (d-new)² - w (d-old)², twice
+        np.subtract(tpp[old], tpp[new], out=x)
+        np.subtract(d2[ij], tpp[old], out=y)
+        y -= tpp[new]
+        x *= y
+        x *= w2[ij]
+        out += x
+    i = np.arange(w.shape[0])
+    out[i, i], out[:, i, i], out[i, :, i] = np.inf, np.inf, np.inf
     return out
 
 
@@ -261,27 +223,21 @@ def _best_moves(
     own = np.where(on, g[np.arange(q.size), q], 0.0)
     t_ab = template_distance[np.ix_(q, q)]
     keep_ab = w * ((d - t_ab) ** 2 - d**2)  # the a-b term, unchanged by the exchange
-    swap = 2.0 * (g[:, q] - own[:, None] + g[:, q].T - own[None, :] + 2.0 * keep_ab)
-    np.fill_diagonal(swap, 0.0)
+    # pair[a, b]: track a's change were it named as track b, less its a-b term.
+    pair = 2.0 * (g[:, q] - own[:, None] + keep_ab)
     move = 2.0 * (g - own[:, None])
-    move[:, q[on]] = 0.0  # names already held are exchanged, not taken
-    cycle = _cycle_changes(w, d, g[:, q], t_ab)
     own_u = np.zeros(q.size)
     if unary is not None:
         # unary[a, x]: track a's own cost of name x, added once per track.
         held = unary[:, q]  # held[a, b]: track a with track b's name
         own_u = np.where(on, np.diagonal(held), 0.0)
-        swap += held + held.T - own_u[:, None] - own_u[None, :]
+        pair += held - own_u[:, None]
         free = ~np.isin(np.arange(unary.shape[1]), q[on])
         move += np.where(free[None, :], unary - own_u[:, None], 0.0)
-        cycle += (
-            held[:, :, None]
-            + held[None, :, :]
-            + held.T[:, None, :]
-            - own_u[:, None, None]
-            - own_u[None, :, None]
-            - own_u[None, None, :]
-        )
+    swap = pair + pair.T
+    np.fill_diagonal(swap, 0.0)
+    move[:, q[on]] = 0.0  # names already held are exchanged, not taken
+    cycle = _cycle_changes(w, d, pair, t_ab)
     changes = [swap, move, cycle]
     if price is not None:
         off = ~on
@@ -289,7 +245,8 @@ def _best_moves(
         cycle[off], cycle[:, off], cycle[:, :, off] = np.inf, np.inf, np.inf
         move[off] -= price  # a left-out track named
         move[:, q[on]] = 0.0
-        changes.append(np.where(on, price - 2.0 * own - own_u, np.inf))  # a named one left out
+        out = price - leave_savings(np.where(on, p, -1), d, w, template_distance, unary)
+        changes.append(np.where(on, out, np.inf))  # a named one left out
     at = tuple(np.unravel_index(np.argmin(m), m.shape) for m in changes)
     return tuple(m[a] for m, a in zip(changes, at, strict=True)), at
 
@@ -426,6 +383,25 @@ def swap_cost(
     return cost + (price or 0.0) * float((~ok).sum())
 
 
+def leave_savings(
+    assign: NDArray,
+    distance: NDArray,
+    weight: NDArray,
+    template_distance: NDArray,
+    unary: NDArray | None = None,
+) -> NDArray[np.float64]:
+    """What leaving each named track of ``assign`` out saves of :func:`swap_cost` (its
+    terms with the other named tracks, counted twice, and its own unary cost); 0 for
+    the tracks left out."""
+    on = assign >= 0
+    q = np.where(on, assign, 0)
+    w = np.nan_to_num(weight) * (on[:, None] & on[None, :])
+    out = 2.0 * (w * (np.nan_to_num(distance) - template_distance[np.ix_(q, q)]) ** 2).sum(1)
+    if unary is not None:
+        out += unary[np.arange(q.size), q]
+    return np.where(on, out, 0.0)
+
+
 def field_fits(
     dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
 ) -> NDArray[np.float64]:
@@ -434,23 +410,30 @@ def field_fits(
     ``dense`` is (tracks, fields, 3) with NaN where a track is not seen; fields where
     fewer than three of the tracks are seen are left out.
     """
-    out = [
-        np.sqrt(np.mean(np.sum((src @ r.T + t - dst) ** 2, axis=1)))
-        for src, dst, r, t in _field_kabsch(dense, fields, rows, cols, template)
-    ]
-    return np.asarray(out)
+    return _field_kabsch(dense, fields, rows, cols, template)[1]
 
 
 def _field_kabsch(
     dense: NDArray, fields: NDArray, rows: NDArray, cols: NDArray, template: NDArray
-) -> Iterator[tuple[NDArray, NDArray, NDArray, NDArray]]:
-    """Per field of ``fields`` where three or more of tracks ``rows`` are seen: their
-    points, the template's ``cols`` points and the proper rigid fit (r, t) between them."""
-    for f in fields:
-        ok = np.isfinite(dense[rows, f, 0])
-        if ok.sum() >= 3:
-            src, dst = dense[rows[ok], f], template[cols[ok]]
-            yield (src, dst, *kabsch(src, dst))
+) -> tuple[NDArray, NDArray]:
+    """Per field of ``fields`` where three or more of tracks ``rows`` are seen, the proper
+    rigid fit of their points onto the template's ``cols`` points (Kabsch 1976, all
+    fields at once): rotations (m, 3, 3) and fit RMS (m,)."""
+    src = np.transpose(dense[rows][:, fields], (1, 0, 2))  # (fields, k, 3)
+    ok = np.isfinite(src[..., :1])
+    keep = ok.sum(axis=(1, 2)) >= 3
+    ok, n = ok[keep], ok[keep].sum(axis=1)
+    src = np.where(ok, src[keep], 0.0)
+    dst = np.where(ok, template[cols][None], 0.0)
+    cs, ct = src.sum(axis=1) / n, dst.sum(axis=1) / n
+    h = np.einsum("fki,fkj->fij", np.where(ok, src - cs[:, None], 0.0), dst - ct[:, None])
+    u, _, vt = np.linalg.svd(h)
+    v, ut = np.transpose(vt, (0, 2, 1)), np.transpose(u, (0, 2, 1))
+    sign = np.sign(np.linalg.det(v @ ut))
+    v[:, :, 2] *= np.where(sign == 0, 1.0, sign)[:, None]
+    r = v @ ut
+    fit = src @ np.transpose(r, (0, 2, 1)) + (ct - np.einsum("fij,fj->fi", r, cs))[:, None]
+    return r, np.sqrt(np.sum(np.where(ok, fit - dst, 0.0) ** 2, axis=(1, 2)) / n[:, 0])
 
 
 def upright_fraction(
@@ -458,9 +441,8 @@ def upright_fraction(
 ) -> float:
     """Fraction of ``fields`` in which the proper rigid fit of tracks ``rows`` to template
     ``cols`` keeps the vertical within 45 degrees (both frames Z up)."""
-    fits = _field_kabsch(dense, fields, rows, cols, template)
-    upright = [r[2, 2] > np.cos(np.pi / 4) for _, _, r, _ in fits]
-    return float(np.mean(upright)) if upright else 0.0
+    r = _field_kabsch(dense, fields, rows, cols, template)[0]
+    return float(np.mean(r[:, 2, 2] > np.cos(np.pi / 4))) if len(r) else 0.0
 
 
 def upright_pose(pose: NDArray, heights: NDArray) -> NDArray[np.float64]:

@@ -53,7 +53,9 @@ def test_swap_search_recovers_names_needing_exchanges_and_cycles():
     wd = w * d
     tp = tdist[:, start]
     g = (wd * d).sum(1)[:, None] - 2 * wd @ tp.T + w @ (tp.T**2)
-    cyc = _cycle_changes(w, d, g[:, start], tdist[np.ix_(start, start)])
+    t_ab = tdist[np.ix_(start, start)]
+    pair = 2 * (g[:, start] - np.diagonal(g[:, start])[:, None] + w * ((d - t_ab) ** 2 - d**2))
+    cyc = _cycle_changes(w, d, pair, t_ab)
     q = start.copy()
     q[3], q[7], q[5] = start[7], start[5], start[3]
     assert cyc[3, 7, 5] == pytest.approx(cost(q) - cost(start), abs=1e-6)

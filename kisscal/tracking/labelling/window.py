@@ -36,6 +36,7 @@ from kisscal.tracking.rigid import (
     classical_mds,
     field_fits,
     kabsch,
+    leave_savings,
     refine_by_swaps,
     refine_with_kicks,
     rigid_matches,
@@ -157,9 +158,8 @@ def swap_refined(
     if not (refined and leave):
         return refined, None
     # A piece's share: what leaving it out of the best naming saves.
-    args, k = (median, weight, template_distance, unary), np.arange(best.size)
-    cut = np.array([swap_cost(np.where(k == i, -1, best), *args) for i in k])
-    price = LEAVE_PRICE * float(np.median(swap_cost(best, *args) - cut[best >= 0]))
+    args = (median, weight, template_distance, unary)
+    price = LEAVE_PRICE * float(np.median(leave_savings(best, *args)[best >= 0]))
     out = [a for _, a in refined]
     for side in (refined[: ends[0]], refined[ends[0] : ends[1]]):  # each mirror image's best
         if side:
