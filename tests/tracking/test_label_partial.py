@@ -140,3 +140,34 @@ def test_a_set_crowded_by_another_sets_markers_is_not_taken_for_the_whole_set():
     assert len(own) == len(FULL.names) and len(labels) - len(own) == 42
     assert np.isnan(stature(own))
     assert np.isfinite(stature(list(range(len(labels)))))
+
+
+def test_among_another_sets_markers_rigid_segments_do_not_vouch_for_names_shifted_along_a_leg():
+    """pyCGM's Movement_trial (fixtures/real/pycgm/) named as the first window matched it
+    at 1.85 m: the thigh's name on the knee marker, the knee's on a shank cluster marker
+    (*126), the right knee's on the tibia marker. The knee marker sits on the knee's axis,
+    rigid with the shank's cluster (5.5 mm SD), so the thigh segment held the shifted
+    names rigidly and vouched for them: 3 names wrong and silent over the trial. With the
+    other set's markers beside them, a name rigid to an unnamed marker is doubted; the
+    set's own markers alone keep every right name vouched."""
+    crop = np.load(FIXTURES / "pycgm" / "movement_trial_crop.npz")
+    xyz, labels = crop["xyz_mm"].astype(float), list(crop["labels"])
+
+    def labelling(held: dict[str, str], channels: list[int]) -> Labelling:
+        f, k = np.nonzero(np.isfinite(xyz[:, channels, 0]))
+        at = xyz[f, np.asarray(channels)[k]]
+        tracks = make_tracks(f, k, at, at, np.zeros(f.size, np.int8), np.arange(f.size))
+        name_of = {channels.index(labels.index(m)): n for n, m in held.items()}
+        named = tuple(name_of.get(t, f"M{t}") for t in range(len(channels)))
+        unnamed = tuple(t for t in range(len(channels)) if t not in name_of)
+        return Labelling(tracks, named, True, unnamed, (), 0.0)
+
+    right = {n: n for n in FULL.names}
+    own = [labels.index(n) for n in FULL.names]
+    assert unvouched(labelling(right, own), FULL) == ()
+    # The legs as the whole trial was named (main 9966019); the thighs' and the right
+    # knee's names were silent, the others flagged or on markers outside the set.
+    shift = {"LTHI": "LKNE", "LKNE": "*126", "LTIB": "*131", "LANK": "*128", "LTOE": "*133"}
+    shift |= {"RTHI": "RKNE", "RKNE": "RTIB", "RTIB": "RANK", "RANK": "*147", "RTOE": "*149"}
+    doubted = unvouched(labelling(right | shift, list(range(len(labels)))), FULL)
+    assert {"LTHI", "RTHI", "RKNE"} <= set(doubted)

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.markersets.model import MarkerSet
+from kisscal.tracking.labelling.core import crowded
 from kisscal.tracking.labelling.label import name_pieces
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.labelling.state import (
@@ -195,7 +196,13 @@ def unvouched(
     vouches for it while an unnamed trajectory keeps a rigid distance to it: that one is
     its segment's partner left unnamed, or the marker whose name it took when the names
     are shifted along the limb (see module). A name with no partner in the trial, and no
-    rigid unnamed neighbour, has nothing to be shifted onto from.
+    rigid unnamed neighbour, has nothing to be shifted onto from. Among markers of another
+    set (more trajectories seen at once than the set has names, :func:`crowded`: clusters
+    on the thigh and shank are rigid with the knee and ankle markers) a vouching segment
+    proves nothing when an unnamed trajectory keeps rigid to the name too: names shifted
+    along the limb onto those markers hold the segment as rigidly (issue 26: pyCGM's
+    Movement_trial, the thigh's name on the knee marker and the knee's on a shank
+    cluster marker, 5.5 mm SD).
 
     References
     ----------
@@ -215,9 +222,14 @@ def unvouched(
     breaks = np.bincount(np.r_[a[broken], b[broken]], minlength=n) > 0
     held = np.isfinite(pos[..., 0]).any(axis=1)
     others = unnamed_positions(labelling)
+    at_once = np.isfinite(pos[..., 0]).sum(axis=0) + np.isfinite(others[..., 0]).sum(axis=0)
+    many = at_once.any() and crowded(int(np.median(at_once[at_once > 0])), n)
     return tuple(
         name
         for i, name in enumerate(names)
         if held[i]
-        and (breaks[i] or (not vouched[i] and _rigid_to_unnamed(pos[i], others, min_shared)))
+        and (
+            breaks[i]
+            or ((many or not vouched[i]) and _rigid_to_unnamed(pos[i], others, min_shared))
+        )
     )
