@@ -43,6 +43,12 @@ from kisscal.tracking.tracks import FILLED_RIGID
 #: the ray on lowcost 413 RTHI's stretches and went 0.95 mm RMS off along it in the gap.
 CENTRE_METHODS = ((FILLED_RIGID, axis_fill),)
 
+#: Joint centres are sought among at most this many tracks: their rigid clusters
+#: (:func:`~.joint_centres.rigid_clusters`) compare every pair of tracks over the trial, a
+#: table of n² series (a real C3D file re-tracked from 1536 anonymous pieces asked for
+#: 37 GB). A body's markers and their pieces are a few dozen tracks.
+MAX_CENTRE_TRACKS = 100
+
 
 def centre_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill what :data:`CENTRE_METHODS` can of fields [a, b) of ``gap`` (a
@@ -50,9 +56,12 @@ def centre_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.
     (see module): the candidate of least expected error, at most
     ``max_body_fill_error_mm``, its centre's donors the cluster carrying it, moved onto
     the rays of blobs a camera still sees there, expecting at least its donors' noise and
-    errors and those of the fills beside it, as the body's fills do."""
+    errors and those of the fills beside it, as the body's fills do; none among more
+    than :data:`MAX_CENTRE_TRACKS` tracks."""
     none = np.zeros(b - a, dtype=bool)
     body = body_donors(gap, params)
+    if len(body) > MAX_CENTRE_TRACKS:
+        return none
     joints = joint_centres(body, gap.t, params, gap.mirror)
     if not joints.clusters:
         return none

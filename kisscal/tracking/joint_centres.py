@@ -92,29 +92,23 @@ def rigid_clusters(dense: NDArray, t: int, params: TrackingParams) -> list[NDArr
     """Clusters of at least :data:`MIN_CLUSTER` tracks of ``dense`` (n_tracks, n_fields,
     3) whose pairwise distances keep within ``rigid_fill_sd_mm`` SD over the trial,
     none of which keeps its distance to track ``t`` so (another segment than ``t``'s);
-    grown greedily from each such track, each once. Only tracks seen with ``t`` in
-    :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields are compared (a frame
-    must carry ``t`` that often, :func:`joint_centres`): all pairs of a re-tracked C3D
-    file's 1536 pieces asked for 37 GB."""
-    seen = np.isfinite(dense[:, :, 0])
-    near = np.flatnonzero((seen & seen[t]).sum(axis=1) >= MIN_TOGETHER * seen[t].sum())
-    sd = distance_sd(dense[near], dense[near])
+    grown greedily from each such track, each once."""
+    sd = distance_sd(dense, dense)
     rigid = sd <= params.rigid_fill_sd_mm
     np.fill_diagonal(rigid, False)
-    at = int(np.searchsorted(near, t))
-    other = ~rigid[at] & np.isfinite(sd[at])
-    other[at] = False
+    other = ~rigid[t] & np.isfinite(sd[t])
+    other[t] = False
     out: list[NDArray[np.int64]] = []
-    seen_keys: set[tuple[int, ...]] = set()
+    seen: set[tuple[int, ...]] = set()
     for u in np.flatnonzero(other).tolist():
         members = [u]
         for v in np.flatnonzero(rigid[u] & other).tolist():
             if rigid[v, members].all():
                 members.append(v)
         key = tuple(sorted(members))
-        if len(key) >= MIN_CLUSTER and key not in seen_keys:
-            seen_keys.add(key)
-            out.append(near[np.asarray(key, dtype=np.int64)])
+        if len(key) >= MIN_CLUSTER and key not in seen:
+            seen.add(key)
+            out.append(np.asarray(key, dtype=np.int64))
     return out
 
 
