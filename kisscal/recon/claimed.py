@@ -37,6 +37,11 @@ from kisscal.recon.carried import carried, links
 from kisscal.recon.group import embed_fields
 from kisscal.recon.params import ReconParams
 
+#: Consecutive positions by which the continuity check
+#: (:func:`kisscal.recon.pairs.continuity_mm`) judges a point: a known run shorter than
+#: this proves no continuity, so it does not outlast a piece (:func:`_known_spans`).
+CONTINUITY_FIELDS = 4
+
 
 def pieces(
     xyz: NDArray[np.float64],
@@ -231,7 +236,7 @@ def _known_spans(
     ok = np.flatnonzero(np.all(np.isfinite(xyz), axis=1))
     run = pieces(xyz[ok], field[ok], np.zeros((len(ok), 2), dtype=np.int64), step_mm, tolerance_mm)
     count = np.bincount(run)[run]
-    out[ok] = np.where(count >= 4, np.inf, count)
+    out[ok] = np.where(count >= CONTINUITY_FIELDS, np.inf, count)
     return out
 
 
