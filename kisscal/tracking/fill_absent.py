@@ -102,7 +102,7 @@ def mirror_lengths(
     n = seen.sum(axis=1)
     mean = np.where(seen, dist, 0.0).sum(axis=1) / np.maximum(n, 1)
     sd = np.sqrt(np.where(seen, (dist - mean[:, None]) ** 2, 0.0).sum(axis=1) / np.maximum(n, 1))
-    keep = (n >= max(params.body_context_fields, 4)) & (sd <= params.rigid_fill_sd_mm)
+    keep = (n >= params.length_fields) & (sd <= params.rigid_fill_sd_mm)
     return own[keep], mean[keep], np.maximum(sd[keep], params.mirror_length_sd_mm)
 
 

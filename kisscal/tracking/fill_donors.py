@@ -325,3 +325,17 @@ def unshared(
     free = spare.free.copy()
     free[rows[shared]] = False
     return dataclasses.replace(spare, free=free)
+
+
+def padded_mirrors(mirror: NDArray | None, n: int) -> NDArray[np.int64]:
+    """Each of ``n`` rows' mirror image's row: ``mirror`` cut or padded to ``n``, -1 for
+    none (``mirror`` None, rows past its end) and for a mirror past ``n`` (a track list
+    grows and shrinks while the mirror table is kept from the labels).
+
+    Examples
+    --------
+    >>> padded_mirrors(np.array([2, 5, 0]), 4).tolist()
+    [2, -1, 0, -1]
+    """
+    m = np.full(n, -1, dtype=np.int64) if mirror is None else np.r_[mirror, [-1] * n][:n]
+    return np.where(m < n, m, -1).astype(np.int64)

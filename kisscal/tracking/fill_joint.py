@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import distance_sd
-from kisscal.tracking.fill_donors import shared_blobs
+from kisscal.tracking.fill_donors import padded_mirrors, shared_blobs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import ChainFill, chain_blobs, length_partners, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
@@ -68,7 +68,7 @@ def _group(
     ``mirror``), and those measured with it too seldom to tell whose mirror images keep
     their length (:func:`_mirror_members`)."""
     own = length_partners(dense, t, params, mirror)[0]
-    m = _mirrors(mirror, len(dense))
+    m = padded_mirrors(mirror, len(dense))
     extra = _mirror_members(dense, t, params, m)
     members = np.r_[t, own, extra].astype(np.int64)
     if members.size < 3:
@@ -97,13 +97,6 @@ def _group(
     return _Group(members, length, sd)
 
 
-def _mirrors(mirror: NDArray | None, n: int) -> NDArray[np.int64]:
-    """Each of ``n`` rows' mirror image's row (``mirror``, cut or padded to ``n``), -1
-    for none or past ``n``."""
-    m = np.full(n, -1, dtype=np.int64) if mirror is None else np.r_[mirror, [-1] * n][:n]
-    return np.where(m < n, m, -1).astype(np.int64)
-
-
 def _mirror_members(
     dense: NDArray, t: int, params: TrackingParams, m: NDArray[np.int64]
 ) -> NDArray[np.int64]:
@@ -115,7 +108,7 @@ def _mirror_members(
     if m[t] < 0:
         return np.zeros(0, dtype=np.int64)
     seen = np.isfinite(dense[:, :, 0])
-    few = (seen & seen[t]).sum(axis=1) < max(params.body_context_fields, 4)
+    few = (seen & seen[t]).sum(axis=1) < params.length_fields
     cand = np.flatnonzero(few & (m >= 0) & (np.arange(len(dense)) != t))
     both = (seen[m[cand]] & seen[m[t]]).sum(axis=1) >= params.body_context_fields
     sd = distance_sd(dense[m[cand]], dense[m[t]][None])[:, 0]

@@ -141,7 +141,7 @@ def joint_centres(
     need ``body_context_fields`` samples in its frame."""
     n_fields = dense.shape[1]
     members = np.r_[t, length_partners(dense, t, params, mirror)[0]].astype(np.int64)
-    fewest = max(params.body_context_fields, 4)
+    fewest = params.length_fields
     mine = MIN_TOGETHER * np.isfinite(dense[t, :, 0]).sum()
     xyz, used = [], []
     for cluster in rigid_clusters(dense, t, params):

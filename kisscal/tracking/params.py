@@ -13,6 +13,11 @@ from typing import ClassVar
 
 from kisscal.params import Params, param
 
+#: Fewest fields a distance between two markers must be measured in before its mean and SD
+#: are trusted (a length partner, a rigid cluster, a broken-piece test), however small
+#: ``body_context_fields`` is set: with fewer, one noisy sample sets the SD.
+MIN_LENGTH_FIELDS = 4
+
 
 @dataclass(frozen=True)
 class TrackingParams(Params):
@@ -337,6 +342,12 @@ class TrackingParams(Params):
     name_deficit_fraction: float = param(0.04, ge=0)
     free_deficit_fraction: float = param(0.01, ge=0)
     smoothing: bool = param(False)
+
+    @property
+    def length_fields(self) -> int:
+        """Fields two markers must share before the SD of their distance is trusted:
+        ``body_context_fields``, at least :data:`MIN_LENGTH_FIELDS`."""
+        return max(self.body_context_fields, MIN_LENGTH_FIELDS)
 
 
 def reconstructed_points(params: TrackingParams) -> TrackingParams:

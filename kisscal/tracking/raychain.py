@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
-from kisscal.tracking.fill_donors import unshared
+from kisscal.tracking.fill_donors import padded_mirrors, unshared
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, placed_errors
 from kisscal.tracking.raywalk import agreed_pick, connected_picks, walk_picks
@@ -105,10 +105,9 @@ def length_partners(
     a pair across a knee held straight keeps its length while the other leg swings
     (kiss 3 seed 363, LTHI-LTIB 2.2 mm SD over LTIB's stance, RTHI-RTIB 19.9 mm there)."""
     seen = np.isfinite(dense[:, :, 0])
-    if mirror is not None:  # rows past the mirror's have none, nor mirrors past dense's
-        mirror = np.r_[mirror, [-1] * len(dense)][: len(dense)].astype(np.int64)
-        mirror[mirror >= len(dense)] = -1
-    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= max(params.body_context_fields, 4))
+    if mirror is not None:
+        mirror = padded_mirrors(mirror, len(dense))
+    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= params.length_fields)
     cand = cand[cand != t]
     sd = distance_sd(dense[cand], dense[t][None])[:, 0]
     keep = sd <= params.rigid_fill_sd_mm

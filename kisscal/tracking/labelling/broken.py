@@ -51,7 +51,7 @@ def broken_fields(dense: NDArray, t: int, params: TrackingParams) -> NDArray[np.
     dist = np.linalg.norm(dense - dense[t][None], axis=2)  # (n_tracks, n_fields)
     seen = np.isfinite(dist)
     seen[t] = False
-    enough = seen.sum(axis=1) >= max(params.body_context_fields, 4)
+    enough = seen.sum(axis=1) >= params.length_fields
     if not enough.any():
         return np.zeros(dense.shape[1], dtype=bool)
     dist, seen = dist[enough], seen[enough]
