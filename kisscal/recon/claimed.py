@@ -209,15 +209,21 @@ def claimed_pieces(
     # longer one (modern 3 cameras seed 429: a 4-field crossing on the ankle's camera-1
     # ray, predicted back 32 mm off it, withdrew the ankle's 380-field piece with it)
     ghost = np.zeros(len(all_xyz), dtype=bool)
+    # the trajectory of each claim's source: a two-camera piece is one, whichever of its
+    # points predicts or ends a chain (kiss 3 cameras seed 444: a 14-field ghost's
+    # prediction back from its first field and its position carried back from its second,
+    # where its chain of links begins, fell on the two rays of marker 1's 85-field piece
+    # and withdrew it as if two trajectories claimed them)
+    whose = np.r_[np.arange(len(known_xyz)), len(known_xyz) + label]
     for _ in range(2):  # all claims, then without those of withdrawn pieces
         withdrawn = flagged.copy()
         for ends, hit_a, hit_b, source, length in judged:
             by = np.where(hit_a >= 0, source[hit_a], -1), np.where(hit_b >= 0, source[hit_b], -1)
             ha, hb = ((h >= 0) & ~(ghost[h] & (span[h] < length[:, None])) for h in by)
+            wa, wb = (np.where(h >= 0, whose[h], -1) for h in by)
             # two different trajectories, one on each ray (one near both is the point's own)
             claimed = np.any(
-                ha[:, :, None] & hb[:, None, :] & (by[0][:, :, None] != by[1][:, None, :]),
-                axis=(1, 2),
+                ha[:, :, None] & hb[:, None, :] & (wa[:, :, None] != wb[:, None, :]), axis=(1, 2)
             )
             withdrawn[smooth[ends[claimed]]] = True
         ghost[len(known_xyz) :] = withdrawn[smooth]

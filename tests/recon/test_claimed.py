@@ -243,3 +243,34 @@ def test_a_crossing_of_three_rays_for_two_fields_steals_no_piece() -> None:
         args = (field, camera, uv), dlts, ReconParams(), rivals
         out = claimed_pieces(a, b, tib[s : s + n], *known, *args)
         assert out.all() == stolen and out.any() == stolen, f"known run of {run} fields"
+
+
+def test_two_claims_of_one_piece_count_as_one_trajectory() -> None:
+    # M, seen by cameras 0 and 2 over fields 0-29, is lost; from field 30 a 14-field piece
+    # G of cameras 0 and 1 runs 50 mm beyond M, between M's two rays. By nearness G's
+    # first point follows M's last, so G's chain of links begins at its second: G's
+    # prediction back from field 30 and its position coasted back from field 31 both lie
+    # on M's two rays at field 29, 50 mm from M. One trajectory near both rays claims
+    # nothing; only when G's first point is another piece (another camera pair) are they
+    # two (kiss 3 cameras seed 444: marker 1's 85-field piece withdrawn by a 14-field one)
+    dlts = make_rig(7, n_cameras=3)
+    n, s = 30, 14
+    t = np.arange(n + s)
+    m = np.array([-200.0, 0.0, 900.0]) + t[:, None] * [10.0, 1.0, 0.0]
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    depth = sum((m - c) / np.linalg.norm(m - c, axis=1, keepdims=True) for c in (c0, c2))
+    g = m + 50.0 * depth / np.linalg.norm(depth, axis=1, keepdims=True)
+    xyz = np.r_[m[:n], g[n:]]
+    a, b = np.arange(0, 2 * (n + s), 2), np.arange(1, 2 * (n + s), 2)
+    p = ReconParams()
+    carry = tuple(round(x * 50.0) for x in (p.two_camera_carry_s, p.two_camera_coast_s))
+    for first, withdrawn in (((0, 1), False), ((1, 2), True)):
+        cams = [(0, 2)] * n + [first] + [(0, 1)] * (s - 1)
+        rows = [(f, c) for f in t for c in cams[f]]
+        field = np.array([f for f, _ in rows])
+        camera = np.array([c for _, c in rows])
+        uv = np.array([project(dlts[c], xyz[f][None])[0] for f, c in rows])
+        none = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+        args = (field, camera, uv), dlts, p, None, *carry
+        out = claimed_pieces(a, b, xyz, *none, *args)
+        assert out[:n].all() == withdrawn and out[:n].any() == withdrawn, f"G begins {first}"
