@@ -106,10 +106,10 @@ def _overlaps(state: LabelState, pieces: list[int], names: list[int]) -> bool:
 def _carry_short(
     fields: list[NDArray], before: NDArray, after: NDArray, short: NDArray, pair: tuple[int, int]
 ) -> NDArray[np.int64]:
-    """Names of pieces (each seen in ``fields``) ``after`` an exchange of the two names of
-    ``pair`` between long pieces, with each ``short`` piece that kept its name (``before``)
-    while a renamed piece takes that name in a field of its own given the pair's other
-    name, in turn, until none is left so.
+    """The names of pieces seen in ``fields``, named ``before``, once the two names of
+    ``pair`` are exchanged between long pieces (``after``): a ``short`` piece that keeps
+    its name while a renamed piece takes that name in one of its fields takes the pair's
+    other name, and so on through the short pieces it then shares a name and field with.
 
     The walk cannot judge a short piece (:func:`_wrong_way` asks ``min_track_length``
     fields), but the naming that put the long pieces the wrong way round named it with
@@ -162,7 +162,8 @@ def settle_pelvis_pieces(state: LabelState) -> list[tuple[int, int]]:
     round (their distances to the other ASIS differ by a few centimetres); later windows
     name later pieces right, so a whole-name exchange (:func:`settle_pelvis`) would only
     move the error to the other part of the trial. Exchanged only where the template's distances
-    to the other names held agree (:func:`_fits_better`).
+    to the other names held agree (:func:`_fits_better`); short pieces named with the long
+    ones go with them (:func:`_carry_short`).
     """
     front, back = pelvis_roles(state.names)
     done, direction = [], walking_direction(state.name_pos)
