@@ -21,6 +21,7 @@ from kisscal.tracking.labelling.anatomy import (
     settle_sides,
 )
 from kisscal.tracking.labelling.pelvis import (
+    _carry_short,
     across_walk_name,
     settle_pelvis_offsets,
     settle_pelvis_pieces,
@@ -275,6 +276,55 @@ def test_pieces_of_an_asis_and_the_sacrum_named_the_other_way_round_are_put_righ
     np.testing.assert_array_equal(state.label_of, right)
     again, _ = _pieces_state(walker(10, 75.0))
     assert settle_pelvis_pieces(again) == []
+
+
+def test_a_short_piece_sharing_a_field_with_a_piece_that_takes_its_name_goes_with_it() -> None:
+    """Names 0 and 1 exchanged between long pieces 0 and 1: the short piece 2 holding
+    name 0 in a field where piece 1 now takes it takes name 1, and so in turn the short
+    piece 3 that then shares a field of name 1 with it; a short piece clear of the
+    takers (4), and a long piece (5), keep their names."""
+    fields = [np.arange(0, 20), np.arange(20, 40), np.arange(14, 21), np.arange(10, 15)]
+    fields += [np.arange(50, 55), np.arange(30, 45)]
+    before = np.array([1, 0, 0, 1, 0, 0])
+    after = np.array([0, 1, 0, 1, 0, 0])
+    short = np.array([False, False, True, True, True, False])
+    carried = _carry_short(fields, before, after, short, (0, 1))
+    assert carried.tolist() == [0, 1, 1, 0, 0, 0]
+    assert _carry_short(fields, before, before, short, (0, 1)).tolist() == before.tolist()
+
+
+@pytest.mark.parametrize("asis", ["LASI", "RASI"])
+def test_a_short_piece_named_with_the_pieces_the_other_way_round_goes_back_with_them(
+    asis: str,
+) -> None:
+    """Few-camera kiss 3 cameras seed 442: the sacrum's second half named an ASIS and
+    that ASIS's the sacrum, and an 8-field sacrum piece before its second half named
+    the ASIS too, sharing its last field with the ASIS's piece. The short piece goes
+    back with the exchange; left with the ASIS's name, it held it in a field of the
+    piece the exchange names so, and the exchange was refused (224 identity switches)."""
+    pos = walker(10, 75.0)
+    n, f, _ = pos.shape
+    half, i, j = f // 2, LOWER.index(asis), LOWER.index("SACR")
+    field = np.tile(np.arange(f), n)
+    piece = 2 * np.repeat(np.arange(n), f) + (field >= half)
+    sacrum = np.repeat(np.arange(n), f) == j
+    piece[sacrum & (field >= half - 7)] = 2 * n  # the short piece: fields half-7 to half
+    piece[sacrum & (field > half)] = 2 * n + 1
+    xyz = pos.reshape(-1, 3)
+    tracks = make_tracks(field, piece, xyz, xyz, np.zeros(n * f), np.arange(n * f))
+    state = LabelState.begin(tracks, LOWER, PIG.template_mm, None, TrackingParams())
+    owner = np.empty(tracks.n_tracks, dtype=int)
+    owner[tracks.track] = tracks.point // f  # the marker each piece is of
+    for t, k in enumerate(owner):
+        state.name_piece(t, k)
+    right = state.label_of.copy()
+    (short,) = np.setdiff1d(np.arange(tracks.n_tracks), state.long_ids)
+    assert owner[short] == j and state.piece(short)[0][-1] == half
+    for t in np.flatnonzero(np.isin(owner, (i, j))):
+        if t == short or state.piece(t)[0][0] >= half:  # named the other way round
+            state.name_piece(t, i + j - owner[t])
+    assert settle_pelvis_pieces(state) == [(i, j)]
+    np.testing.assert_array_equal(state.label_of, right)
 
 
 def test_pelvis_pieces_named_right_stay_so_when_the_subject_walks_backwards() -> None:

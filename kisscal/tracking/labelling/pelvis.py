@@ -103,6 +103,34 @@ def _overlaps(state: LabelState, pieces: list[int], names: list[int]) -> bool:
     return False
 
 
+def _carry_short(
+    fields: list[NDArray], before: NDArray, after: NDArray, short: NDArray, pair: tuple[int, int]
+) -> NDArray[np.int64]:
+    """The names of pieces seen in ``fields``, named ``before``, once the two names of
+    ``pair`` are exchanged between long pieces (``after``): a ``short`` piece that keeps
+    its name while a renamed piece takes that name in one of its fields takes the pair's
+    other name, and so on through the short pieces it then shares a name and field with.
+
+    The walk cannot judge a short piece (:func:`_wrong_way` asks ``min_track_length``
+    fields), but the naming that put the long pieces the wrong way round named it with
+    them: kiss 3 cameras seed 442, the sacrum's 7-field piece named the right ASIS, as
+    the sacrum's long piece after it, and sharing its last field with the ASIS's piece
+    named the sacrum. Left with its name, it would hold it in a field of the piece the
+    exchange gives it to, and the exchange would be refused (224 identity switches).
+    """
+    after = np.array(after, dtype=np.int64)
+    moved = after != np.asarray(before)
+    changed = True
+    while changed:
+        changed = False
+        for s in np.flatnonzero(short & ~moved):
+            takers = np.flatnonzero(moved & (after == after[s]))
+            if any(np.intersect1d(fields[s], fields[r]).size for r in takers):
+                after[s] = pair[0] if after[s] == pair[1] else pair[1]
+                moved[s] = changed = True
+    return after
+
+
 def _fits_better(state: LabelState, f: int, b: int, wrong: list[int], worse: float = 1.0) -> bool:
     """Whether the pieces ``wrong`` named the other way round (``f`` for ``b``) fit the
     template's distances to the other names held in their fields better than as named
@@ -134,7 +162,8 @@ def settle_pelvis_pieces(state: LabelState) -> list[tuple[int, int]]:
     round (their distances to the other ASIS differ by a few centimetres); later windows
     name later pieces right, so a whole-name exchange (:func:`settle_pelvis`) would only
     move the error to the other part of the trial. Exchanged only where the template's distances
-    to the other names held agree (:func:`_fits_better`).
+    to the other names held agree (:func:`_fits_better`); short pieces named with the long
+    ones go with them (:func:`_carry_short`).
     """
     front, back = pelvis_roles(state.names)
     done, direction = [], walking_direction(state.name_pos)
@@ -146,6 +175,13 @@ def settle_pelvis_pieces(state: LabelState) -> list[tuple[int, int]]:
             new = [b if state.label_of[t] == f else f for t in wrong]
             held = [int(t) for t in np.flatnonzero(np.isin(state.label_of, (f, b)))]
             names = [new[wrong.index(t)] if t in wrong else int(state.label_of[t]) for t in held]
+            names = _carry_short(
+                [state.piece(t)[0] for t in held],
+                state.label_of[held],
+                np.array(names),
+                ~np.isin(held, state.long_ids),
+                (f, b),
+            ).tolist()
             if _overlaps(state, held, names):
                 continue
             state.name_pos[[f, b]] = np.nan
