@@ -11,6 +11,7 @@ import pkgutil
 import sys
 
 import benchmarks
+from kisscal.cli import blas  # noqa: F401  (the command line's BLAS threads, before NumPy)
 
 
 def available() -> list[str]:

@@ -181,6 +181,26 @@ within 2x decode on both cores) is out of reach of plain costs: the run reads ev
 image (0.8x the decode) and detects it (1.4x, stop 42's parts), 2.2x before calibration,
 tracking, figures and the interpreter's start.
 
+Stop 57 (2026-12-01, main 1317951 and this branch, load 9 to 15 on the two cores): the
+command line now gives the BLAS libraries one thread per process
+(:mod:`kisscal.cli.blas`; stop 44 tried it and did not keep it), and this harness runs
+with it (``python -m benchmarks``). NumPy, SciPy and OpenCV each load an OpenBLAS of two
+threads here; under this load a 1000 x 12 SVD took 0.13 ms on one thread and a median of
+0.26-68 ms on two, and 900 small calls 0.6 s of processor time against 8.6-18 s (the
+waiting threads spin). The run itself makes too few such calls to show it: whole
+``kisscal run`` in turns with main, two rounds of three pairs, processor time 0.954x and
+1.034x main's (medians 23.2 against 24.5 s, 25.8 against 25.0 s), wall 0.91x and 1.24x;
+``python -m benchmarks small`` in turns, main 25.0 and 26.2 s of processor time (13.7x
+and 14.4x decode), this branch 25.5 and 27.4 s (17.1x and 17.8x: its decode reference,
+run with one BLAS thread too, took 1.5 s against main's 1.8 s). Every JSON, CSV, TOML,
+C3D, TRC, NPZ and PNG of ``out/`` byte-identical. Where the time goes
+(:mod:`benchmarks.bench_small_parts`, one process, decode 1.71 s): the rest of calibrate
+3.2x decode (its largest piece the rods-and-trials bundle, adjustment and
+leave-one-rod-out refits: 3.0 s of calibrate's 20.0 s under cProfile), figures 2.5x
+(Agg's ticks most of it), detection 2.2x, tracking 1.35x, exports 1.2x, image reading
+1.05x, DLT on the rods 0.8x, imports 0.5x: reading and detecting the images alone are
+3.2x the decode, above issue 28's 2x.
+
 Environment: ``KISSCAL_BENCH_SMALL`` the cache folder (default
 ``~/.cache/kisscal/bench-small``).
 """

@@ -161,8 +161,8 @@ def _run_here(
     import kisscal.session.figures as figures
     from kisscal.session.run import run
 
-    start = figures._start
-    figures._start = lambda: None  # figures drawn here, not in a background process
+    pool = figures.worker_pool
+    figures.worker_pool = lambda *_args: None  # figures drawn here, not in a background process
     if fresh:
         shutil.rmtree(root / "out", ignore_errors=True)
     try:
@@ -171,7 +171,7 @@ def _run_here(
             run(root, workers=1)
             return time.process_time() - t0
     finally:
-        figures._start = start
+        figures.worker_pool = pool
 
 
 def main() -> list[str]:

@@ -14,6 +14,7 @@ from typing import Any
 
 import typer
 
+from kisscal.cli import blas  # noqa: F401  (first of kisscal: sets the BLAS threads before NumPy)
 from kisscal.cli import commands as _commands  # noqa: F401  (registers the commands)
 from kisscal.cli.app import app
 from kisscal.cli.log import configure, level_from_flags
