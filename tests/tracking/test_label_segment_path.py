@@ -1,5 +1,5 @@
 """A foot piece with no rigid partner in view takes the name whose trajectory it
-continues, seen from the shank, over the body fit's (labelling.spread.by_segment_path;
+continues, seen from the shank, over the body fit's (labelling.paths.by_segment_path;
 modern 3 cameras seed 443: the left toe's last piece, its foot's other markers hidden,
 was named the heel by the standing template, 23 identity switches)."""
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from kisscal.tracking import TrackingParams
+from kisscal.tracking.labelling.paths import by_segment_path, segment_path
 from kisscal.tracking.labelling.pieces import step_from
-from kisscal.tracking.labelling.spread import by_segment_path, segment_path
 from kisscal.tracking.labelling.state import LabelState, segment_mask
 from kisscal.tracking.tracks import make_tracks
 from tests.tracking._data import NAMES, SEGMENTS, gait_truth, template

@@ -7,8 +7,8 @@ segment) stay at the template's distance from it, or, failing a clear answer, th
 whose expected position seen from the named markers around it the piece keeps to;
 with no rigid partner in view, a name whose trajectory the piece does not continue
 gives way to the one name whose trajectory it does, seen from the segment and the next
-(:func:`by_segment_path`). Naming one piece gives its neighbours a partner, so this
-repeats.
+(:func:`~.paths.by_segment_path`). Naming one piece gives its neighbours a partner, so
+this repeats.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.labelling.facing import facing
 from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
+from kisscal.tracking.labelling.paths import by_segment_path
 from kisscal.tracking.labelling.pelvis import across_walk_name, mirror_side_name
 from kisscal.tracking.labelling.pieces import reaches, step_from
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
@@ -221,50 +222,6 @@ def by_continuity(
     if not fitted.any():
         return -1
     return ok[0] if names[np.argmin(np.median(dist[fitted], axis=0))] == ok[0] else -1
-
-
-def segment_path(
-    state: LabelState, fields: NDArray, xyz: NDArray, names: NDArray, rigid: NDArray
-) -> NDArray[np.int8]:
-    """Per name of ``names``, whether a piece (``xyz`` at ``fields``) continues that
-    name's trajectory where it steps from it (:func:`~.pieces.step_from`): 1 when it
-    reaches every end beside it (:func:`~.pieces.reaches`), -1 when it misses one, 0
-    when the trajectory has no sample beside the piece.
-
-    A step is seen from the names along the name's segment and the next (two steps over
-    the ``rigid`` pairs: a toe's from the foot's and the shank's), held at both ends,
-    which move with it: a foot whose own markers are hidden swings with the shank.
-    """
-    pos = state.name_pos
-    at = {int(fields[0]): xyz[0], int(fields[-1]): xyz[-1]}
-    out = np.zeros(names.size, dtype=np.int8)
-    for i, j in enumerate(names.tolist()):
-        chain = rigid[j] | rigid[rigid[j]].any(axis=0)
-        chain[j] = False
-        ends = step_from(np.isfinite(pos[j, :, 0]), int(fields[0]), int(fields[-1]))
-        if ends:
-            kept = all(reaches(pos[j], pos[chain], x, y, at[y]) for x, y in ends)
-            out[i] = 1 if kept else -1
-    return out
-
-
-def by_segment_path(state: LabelState, t: int, names: NDArray, rigid: NDArray, j: int) -> int:
-    """The name piece ``t`` takes of ``names`` when the body fit gave it ``j`` with no
-    rigid partner in view: the one name whose trajectory it continues
-    (:func:`segment_path`) when it misses ``j``'s; ``j`` otherwise.
-
-    The body fit places the standing template around the piece; a walking foot sits
-    80-130 mm off it (:mod:`.feet`), so with the foot's other markers hidden its toe
-    lands nearer the heel's expected place (modern 3 cameras seed 443: LTOE's piece
-    named LHEE, 86 against 142 mm), while seen from the shank it steps on from where
-    the toe's trajectory left off (51 mm in 20 fields; from the heel's, 245 mm in 5).
-    """
-    fields, xyz = state.piece(t)
-    path = segment_path(state, fields, xyz, names, rigid)
-    kept = names[path == 1]
-    if path[names == j][0] < 0 and kept.size == 1:
-        return int(kept[0])
-    return j
 
 
 def _trial_prefers_other(state: LabelState, t: int, names: NDArray, j: int) -> bool:
