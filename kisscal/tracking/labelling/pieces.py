@@ -68,6 +68,16 @@ def reaches(
     return bool(step.min() <= min(REACH_MM_PER_FIELD * n, MAX_REACH_MM))
 
 
+def step_from(seen: NDArray, first: int, last: int) -> list[tuple[int, int]]:
+    """Where a piece over fields ``first`` to ``last`` steps from on a trajectory seen
+    where ``seen`` (F,) is True: ``(x, first)`` with ``x`` the trajectory's last field
+    before the piece, and ``(x, last)`` with ``x`` its first field after, for each side
+    that has one (both sides of a gap, or one past an end)."""
+    before = np.flatnonzero(seen[:first])[-1:]
+    after = last + 1 + np.flatnonzero(seen[last + 1 :])[:1]
+    return [(int(x), first) for x in before] + [(int(x), last) for x in after]
+
+
 def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     """Whether piece ``u`` fills a gap of track ``t``, or continues it past an end (see
     module)."""
@@ -75,11 +85,9 @@ def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
     a, b = piece[0], piece[-1]
     if mine[a : b + 1].any() or not mine.any():
         return False
-    # the trajectory's samples beside the piece: both sides of a gap, or one past its end
-    before, after = np.flatnonzero(mine[:a])[-1:], b + 1 + np.flatnonzero(mine[b + 1 :])[:1]
     partners, _ = length_partners(dense, t, params)
     partners = partners[partners != u]
-    for x, y in [(x, a) for x in before] + [(x, b) for x in after]:
+    for x, y in step_from(mine, a, b):
         if not reaches(dense[t], dense[partners], x, y, dense[u, y], still=True):
             return False
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)

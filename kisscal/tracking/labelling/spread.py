@@ -4,8 +4,11 @@ unnamed long pieces remain are matched again.
 A name is free for a piece if no trajectory holds it in the piece's fields; among the
 free names the piece takes the one whose rigid partners (markers on the same body
 segment) stay at the template's distance from it, or, failing a clear answer, the one
-whose expected position seen from the named markers around it the piece keeps to.
-Naming one piece gives its neighbours a partner, so this repeats.
+whose expected position seen from the named markers around it the piece keeps to;
+with no rigid partner in view, a name whose trajectory the piece does not continue
+gives way to the one name whose trajectory it does, seen from the segment and the next
+(:func:`~.paths.by_segment_path`). Naming one piece gives its neighbours a partner, so
+this repeats.
 """
 
 from __future__ import annotations
@@ -16,8 +19,9 @@ from numpy.typing import NDArray
 from kisscal.tracking.blending import bridge_residual_mm
 from kisscal.tracking.labelling.facing import facing
 from kisscal.tracking.labelling.learned import MAX_SCORE, distance_statistics, trial_scores
+from kisscal.tracking.labelling.paths import by_segment_path
 from kisscal.tracking.labelling.pelvis import across_walk_name, mirror_side_name
-from kisscal.tracking.labelling.pieces import reaches
+from kisscal.tracking.labelling.pieces import reaches, step_from
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LONE_NAME_REACH, LabelState
 from kisscal.tracking.labelling.window import match_window
 from kisscal.tracking.params import TrackingParams
@@ -205,12 +209,11 @@ def by_continuity(
     the sacrum of a pelvis whose sides are alike, once the other ASIS is out of view,
     are told apart by where each was last seen."""
     pos = state.name_pos
+    at = {int(fields[0]): xyz[0], int(fields[-1]): xyz[-1]}
     ok = []
     for j in names.tolist():
-        seen = np.flatnonzero(np.isfinite(pos[j, :, 0]))
-        before, after = seen[seen < fields[0]], seen[seen > fields[-1]]
-        ends = [(x, k) for near, k in ((before[-1:], 0), (after[:1], -1)) for x in near.tolist()]
-        if ends and all(reaches(pos[j], pos[rigid[j]], x, fields[k], xyz[k]) for x, k in ends):
+        ends = step_from(np.isfinite(pos[j, :, 0]), int(fields[0]), int(fields[-1]))
+        if ends and all(reaches(pos[j], pos[rigid[j]], x, y, at[y]) for x, y in ends):
             ok.append(j)
     if len(ok) != 1:
         return -1
@@ -286,6 +289,8 @@ def name_for_piece(state: LabelState, t: int, rigid: NDArray, continuity: bool =
             rms = _partner_rms(state, f_t, xyz_t, one_partner, rigid)
             if one_partner[np.argmin(rms)] != j:
                 j = -1
+        if j >= 0 and one_partner.size == 0:
+            j = by_segment_path(state, t, undecided, rigid, j)
         if j >= 0:
             j = across_walk_name(state, t, undecided, j)
         if j >= 0 and _trial_prefers_other(state, t, undecided, j):
