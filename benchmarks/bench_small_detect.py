@@ -46,7 +46,7 @@ def _settings(root: Path) -> dict[tuple[str, str], object]:
     config = load_config(root)
     params = stage_params(config, Overrides())
     return {
-        (cam.id, kind): camera_detection(root, config, cam, kind, params)
+        (cam.id, kind): camera_detection(config, cam, kind, params)
         for cam in config.cameras
         for kind in ("grid", "markers")
     }
