@@ -17,6 +17,20 @@ Every step stacked, cores, splits and moments included (2026-11-29, load about 3
 decode 2.38 s; per frame 15.48 s (6.52x); stacked 4.87 s (2.05x decode, 0.31 of the
 per-frame time); 0 frames differ to 1e-9 px; compared bit for bit in a second run:
 decode 2.32 s, per frame 15.43 s (6.64x), stacked 4.91 s (2.11x, 0.32), 0 frames differ.
+
+"read+detect" is a worker's path (:func:`kisscal.detect.sequence._detected` with the
+session's :func:`kisscal.io.frames.read_image` loader): reading and detection of each
+chunk together, the part issue 28's bar puts against decode. Stop 57 (2026-12-02, load
+about 10, main 2b96f23 and commit 77c3dac in turns): decode 1.59-1.61 s; stacked 2.08,
+2.10x -> 2.03, 2.07x; read+detect 3.25, 3.27x -> 3.27, 3.30x: no change measurable here.
+77c3dac writes each stack once (frames and zero gaps concatenated) and thresholds each
+image as the loader decodes it (its pixels still in the cache); timed alone over the
+frames (chunks not detected before, the parts wrapped; two paired rounds) stacking
+0.35 -> 0.22x decode, threshold/background/count 0.34 -> 0.27x, read + detect 3.67 ->
+3.48x and 3.67 -> 3.55x. Issue 28's bar (the whole session within 2x decode) is not met
+by reading and detection alone: reading is 1.10-1.14x decode (PNG decoding itself), and
+detection 2.0-2.4x, spread over many vectorised steps none above 0.35x (splits and
+moments 1.0x, grouping 0.57x, thresholding 0.27x, stacking 0.22x).
 """
 
 from __future__ import annotations
@@ -32,7 +46,8 @@ import numpy as np
 from benchmarks.bench_small import _synthesised
 from kisscal.detect import Blobs, detect_blobs
 from kisscal.detect.pipeline import detect_frames
-from kisscal.detect.sequence import CHUNK_IMAGES
+from kisscal.detect.sequence import CHUNK_IMAGES, ImageJob, _detected
+from kisscal.io.frames import read_image
 
 COLUMNS = ("x_px", "y_px", "x_binary_px", "y_binary_px", "pixels", "w_px", "h_px", "valid")
 
@@ -46,7 +61,7 @@ def _settings(root: Path) -> dict[tuple[str, str], object]:
     config = load_config(root)
     params = stage_params(config, Overrides())
     return {
-        (cam.id, kind): camera_detection(root, config, cam, kind, params)
+        (cam.id, kind): camera_detection(config, cam, kind, params)
         for cam in config.cameras
         for kind in ("grid", "markers")
     }
@@ -66,11 +81,12 @@ def main() -> list[str]:
     for p in sorted(root.rglob("*.png")):
         if p.relative_to(root).parts[0] in ("grid", "rods", "trials"):
             folders[p.parent].append(p)
-    spent = {"decode": 0.0, "per frame": 0.0, "stacked": 0.0}
+    spent = {"decode": 0.0, "per frame": 0.0, "stacked": 0.0, "read+detect": 0.0}
     frames = differ = 0
     for folder, paths in folders.items():
         kind = "grid" if folder.relative_to(root).parts[0] == "grid" else "markers"
         params = settings[(folder.name, kind)]
+        job = ImageJob(lambda i, paths=paths: read_image(paths[i]), len(paths), params)  # type: ignore[arg-type]
         for start in range(0, len(paths), CHUNK_IMAGES):
             chunk = paths[start : start + CHUNK_IMAGES]
             t0 = time.process_time()
@@ -80,6 +96,8 @@ def main() -> list[str]:
             t2 = time.process_time()
             stacked = detect_frames(images, params)  # type: ignore[arg-type]
             t3 = time.process_time()
+            _detected(job, start, start + len(chunk))  # a worker's chunk: read and detect
+            spent["read+detect"] += time.process_time() - t3
             spent["decode"] += t1 - t0
             spent["per frame"] += t2 - t1
             spent["stacked"] += t3 - t2

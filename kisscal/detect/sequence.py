@@ -11,6 +11,7 @@ camera's sample of frames surveyed in one worker, decoded there.
 from __future__ import annotations
 
 import functools
+import itertools
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor
@@ -56,20 +57,27 @@ def _chunk(
 
 
 def _detected(spec: ImageJob, start: int, stop: int) -> list[Blobs]:
-    """Blobs of images ``start:stop`` of ``spec``, loaded and detected a stack at a time
+    """Blobs of images ``start:stop`` of ``spec``, detected a stack at a time
     (:func:`~kisscal.detect.pipeline.detect_frames`): at most :data:`STACK_PX` pixels
-    of images held at once, however long the range (a video worker's share)."""
+    of images held at once, however long the range (a video worker's share). Each image
+    is loaded as the detection asks for it, so that it is thresholded straight after
+    its decoding (its pixels still in the cache)."""
+    images = (spec.load(i) for i in range(start, stop))
     out: list[Blobs] = []
-    held: list[NDArray] = []
-    pixels = 0
-    for i in range(start, stop):
-        image = spec.load(i)
-        if held and pixels + image.size > STACK_PX:
-            out += detect_frames(held, spec.params)
-            held, pixels = [], 0
-        held.append(image)
-        pixels += image.size
-    return out + detect_frames(held, spec.params)
+    ahead: list[NDArray] = []  # the image that did not fit the last stack
+
+    def stack() -> Iterator[NDArray]:
+        pixels = 0
+        for image in itertools.chain([ahead.pop()] if ahead else [], images):
+            if pixels and pixels + image.size > STACK_PX:
+                ahead.append(image)
+                return
+            pixels += image.size
+            yield image
+
+    while blobs := detect_frames(stack(), spec.params):
+        out += blobs
+    return out
 
 
 def _inherited_item(index: int) -> Any:
