@@ -39,7 +39,6 @@ from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
-from kisscal.tracking.fill_donors import merged_blobs
 from kisscal.tracking.fill_spline import context_noise
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
@@ -218,10 +217,6 @@ def depth_ray_fill(
     has[ks] = True
     # a second camera's blob off the point: one of the two is not the marker's alone
     has[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
-    # a blob another track's image may be merged into lies off the marker's ray, which
-    # the spline's depth does not see (lowcost seed 419: a heel's merged with the tibia's
-    # placed 19.8 mm off expecting 2.3, and the spline bridging to it 25 mm off)
-    has[ks[merged_blobs(dense, t, lo + ks, rows, at, spare, params)]] = False
     placed = path_runs(has)
     if not placed.any():
         return None

@@ -287,31 +287,13 @@ def shared_blobs(
     give or take three SDs of a blob's position (``ray_fill_px``). Farther, the blob is
     the marker's own, the other hidden from that camera or seen apart (lowcost 312: a
     toe's image 2.4 px from an ankle's own blob had cost a 1.5 mm fill)."""
-    if rows.size == 0 or len(dense) < 2:
-        return np.zeros(rows.size, dtype=bool)
-    seen = np.isfinite(dense[partners][:, max(lo - 1, 0) : lo + int(ks.max()) + 2, 0])
-    partner = int(partners[np.argmax(seen.sum(axis=1))])
-    own = _carried(dense, t, partner, lo + ks, params.max_fill_gap_fields)
-    return merged_blobs(dense, t, lo + ks, rows, own, spare, params)
-
-
-def merged_blobs(
-    dense: NDArray,
-    t: int,
-    fields: NDArray,
-    rows: NDArray,
-    own: NDArray,
-    spare: SpareBlobs,
-    params: TrackingParams,
-) -> NDArray[np.bool_]:
-    """Which blobs ``rows`` (at ``fields``) of track ``t``, about at ``own`` (m, 3), may
-    hold another track's image merged with the marker's (:func:`shared_blobs`, which
-    says how near that is)."""
     others = np.delete(np.arange(len(dense)), t)
     if rows.size == 0 or others.size == 0:
         return np.zeros(rows.size, dtype=bool)
-    pts = bridged(dense, others, fields, params.max_fill_gap_fields)  # (m, n_others, 3)
-    own = own[:, None]
+    pts = bridged(dense, others, lo + ks, params.max_fill_gap_fields)  # (m, n_others, 3)
+    seen = np.isfinite(dense[partners][:, max(lo - 1, 0) : lo + int(ks.max()) + 2, 0])
+    partner = int(partners[np.argmax(seen.sum(axis=1))])
+    own = _carried(dense, t, partner, lo + ks, params.max_fill_gap_fields)[:, None]
     centre = spare.centres[spare.camera[rows]][:, None]
     with np.errstate(invalid="ignore"):
         cams = np.repeat(spare.camera[rows], others.size)
