@@ -7,9 +7,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from kisscal.dlt.model import project_rows
+from kisscal.dlt.model import project_rows, ray_directions
 from kisscal.tracking import TrackingParams, spare_blobs
-from kisscal.tracking.fill_absent import absent_placed, mirror_lengths, mirror_tracks
+from kisscal.tracking.fill_absent import (
+    _depths,
+    absent_placed,
+    mirror_lengths,
+    mirror_tracks,
+    place_absent,
+)
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.gaps import fill_gaps_logged, fill_gaps_named
@@ -274,3 +280,43 @@ def test_an_ankle_measured_in_a_few_fields_joins_the_toe_s_segment_by_its_mirror
     assert placed.sum() >= 15
     err = np.linalg.norm(got.xyz_mm[placed] - right[1, GAP][placed], axis=1)
     assert np.sqrt(np.mean(err**2)) < 2.0 and np.all(err <= 2.0 * got.sd_mm[placed])
+
+
+def test_a_blob_that_keeps_the_lengths_leaves_the_field_open_though_its_depth_is_loose():
+    # a knee by its tibia and ankle: their spheres meet in a circle; the knee's own ray
+    # crosses it at a glancing angle (its depth loose, SD over ray_length_max_error_mm),
+    # a noise blob's ray 63 mm away crosses it squarely (kiss 3 seed 409: the knee's blob
+    # fit with an SD of 5.1 mm, a noise blob with 2.4 and was placed 91 mm off)
+    tib, ank = np.array([0.0, 0.0, 500.0]), np.array([60.0, 0.0, 290.0])
+    length, sd = np.array([210.0, 420.0]), np.array([2.0, 2.0])
+    axis = (ank - tib) / np.linalg.norm(ank - tib)
+    along = (length[0] ** 2 - length[1] ** 2 + np.linalg.norm(ank - tib) ** 2) / (
+        2 * np.linalg.norm(ank - tib)
+    )
+    u = np.cross(axis, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    radius = np.sqrt(length[0] ** 2 - along**2)
+    knee, noise = (
+        tib + along * axis + radius * (np.cos(a) * u + np.sin(a) * v) for a in (np.pi, np.pi + 0.8)
+    )
+    centre = knee + [0.0, 3000.0, 300.0]
+    dlts = _look_at(centre, knee)[None]
+    n = 12
+    dense = np.stack([np.tile(tib, (n, 1)), np.tile(ank, (n, 1))])
+    uv = project_rows(dlts, np.zeros(2, dtype=int), np.stack([knee, noise]))
+    spare = spare_blobs(np.repeat(np.arange(n), 2), np.zeros(2 * n), np.tile(uv, (n, 1)), dlts)
+    _, worst, err = _depths(
+        np.tile(centre, (2, 1)), ray_directions(dlts[[0, 0]], uv), dense[:, :2], length, sd
+    )
+    assert np.all(worst <= 3.0)  # both keep the lengths
+    assert err[0] > PARAMS.ray_length_max_error_mm >= err[1]
+    xyz, _ = place_absent(dense, np.array([0, 1]), length, sd, spare, PARAMS)
+    placed = np.isfinite(xyz[:, 0])
+    miss = np.linalg.norm(xyz[placed] - knee, axis=1)
+    assert np.all(miss < 3.0 * PARAMS.ray_length_max_error_mm)  # nothing placed off the knee
+    # the noise blob alone is placed: the lengths cannot tell it from the knee's
+    alone = spare_blobs(np.arange(n), np.zeros(n), np.tile(uv[1], (n, 1)), dlts)
+    assert np.isfinite(
+        place_absent(dense, np.array([0, 1]), length, sd, alone, PARAMS)[0][:, 0]
+    ).all()
