@@ -33,6 +33,13 @@ from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, tr
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.tracks import FILLED_RIGID
+
+#: The body's fills that carry the marker with its segment
+#: (:data:`~.fill_hinge.HINGE_METHODS` but the pattern fill): a pattern fill follows one
+#: neighbour whose offset may stray in the gap (lowcost 410 LTHI following LKNE, 10 mm
+#: RMS off expecting 5.0).
+RIGID_METHODS = tuple(m for m in HINGE_METHODS if m[0] == FILLED_RIGID)
 
 
 def counted(cands: list[Candidate], errors: NDArray | None) -> list[Candidate]:
@@ -40,6 +47,21 @@ def counted(cands: list[Candidate], errors: NDArray | None) -> list[Candidate]:
     samples over its fields (``errors``, (>= n_tracks, n_fields), NaN where none)."""
     got = donor_errors([(c.xyz_mm, c.fill) for c in cands], errors)
     return [dataclasses.replace(c, fill=f) for c, (_, f) in zip(cands, got, strict=True)]
+
+
+def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candidate]:
+    """``cands`` that follow a donor filled expecting over ``bar`` (mm) in the fields
+    they fill (``errors``, (>= n_tracks, n_fields), NaN where none): the ones the body's
+    fills could not make. The others they refused for reasons of their own."""
+    out = []
+    for c in cands:
+        rows = errors[
+            list(c.fill.donors), c.fill.first_field : c.fill.first_field + c.fill.n_fields
+        ]
+        with np.errstate(invalid="ignore"):
+            if np.any(rows > bar):
+                out.append(c)
+    return out
 
 
 def honest_best(cands: list[Candidate], limit: float) -> Candidate | None:
@@ -57,7 +79,7 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     its donors' noise and errors and those of the fills beside it, as the body's fills
     do. Returns the fields placed."""
     none = np.zeros(b - a, dtype=bool)
-    if b - a > params.max_body_fill_fields:
+    if gap.errors is None or b - a > params.max_body_fill_fields:
         return none
     limit = params.max_body_fill_error_mm
     body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
@@ -65,7 +87,8 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     spare = gap.spare
     rays = spare is not None and spare.rows(a, b).size > 0
     centres = spare.centres if rays else None
-    cands = fill_candidates(body, gap.t, a, b, params, HINGE_METHODS, centres)
+    cands = fill_candidates(body, gap.t, a, b, params, RIGID_METHODS, centres)
+    cands = over_bar(cands, gap.errors, params.ray_rest_max_error_mm)
     chosen = honest_best(counted(cands, gap.errors), limit)
     if chosen is None:
         return none
