@@ -8,11 +8,14 @@ the gap, where its donors are measured (kiss 3 seed 412). Yet where no camera se
 marker and one of its segment's mates is itself a fill expecting a little more, the gap
 stays open though the segment carries it well (modern 3 seed 446: LANK hidden from all
 three cameras for 40 fields, LTIB a fill expecting 3.3 mm there; with LKNE, a rigid
-fill 1.0 mm RMS off). So, last, once every other fill is made, the body is tried again
-with donors filled expecting up to ``max_body_fill_error_mm``, each candidate expecting
-at least the largest error of its donors' samples in the gap
-(:func:`~.fill_anchor.donor_errors`), and kept when that is at most
-``max_body_fill_error_mm``: a fill that says honestly how far off it may be.
+fill 1.0 mm RMS off expecting 0.5 from the stretches). So, last, once every other fill
+is made, the body's rigid fills are tried again with donors filled expecting up to
+``max_body_fill_error_mm``, each candidate expecting at least the largest error of its
+donors' samples in the gap (:func:`~.fill_anchor.donor_errors`), and kept when that is
+at most ``max_body_fill_error_mm``: a fill that says honestly how far off it may be.
+Only candidates that follow such a donor (:func:`over_bar`): the others the body's
+fills refused for reasons of their own (lowcost 322 RHEE from RANK and RTOE, 5.2 mm off
+expecting 1.4).
 
 References
 ----------
@@ -28,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.bodyfill import Candidate, fill_candidates
+from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
@@ -42,7 +45,7 @@ from kisscal.tracking.tracks import FILLED_RIGID
 RIGID_METHODS = tuple(m for m in HINGE_METHODS if m[0] == FILLED_RIGID)
 
 
-def counted(cands: list[Candidate], errors: NDArray | None) -> list[Candidate]:
+def counted(cands: list[Candidate], errors: NDArray) -> list[Candidate]:
     """``cands`` each expecting at least the largest expected error of its donors'
     samples over its fields (``errors``, (>= n_tracks, n_fields), NaN where none)."""
     got = donor_errors([(c.xyz_mm, c.fill) for c in cands], errors)
@@ -64,17 +67,12 @@ def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candid
     return out
 
 
-def honest_best(cands: list[Candidate], limit: float) -> Candidate | None:
-    """The candidate of smallest expected error, if at most ``limit`` (mm)."""
-    ok = [c for c in cands if c.fill.expected_error_mm <= limit]
-    return min(ok, key=lambda c: c.fill.expected_error_mm) if ok else None
-
-
 def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) from the
-    body (:data:`~.fill_hinge.HINGE_METHODS`) through donors filled expecting at most
-    ``max_body_fill_error_mm`` (see module): the candidate of least expected error, its
-    donors' errors counted, at most ``max_body_fill_error_mm``; moved onto the rays of
+    body (:data:`RIGID_METHODS`) through donors filled expecting at most
+    ``max_body_fill_error_mm``, one of them over ``ray_rest_max_error_mm`` (see module):
+    the candidate of least expected error, its donors' errors counted, at most
+    ``max_body_fill_error_mm``; moved onto the rays of
     blobs a camera still sees there (:func:`~.fill_place.with_rays`), expecting at least
     its donors' noise and errors and those of the fills beside it, as the body's fills
     do. Returns the fields placed."""
@@ -89,7 +87,7 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     centres = spare.centres if rays else None
     cands = fill_candidates(body, gap.t, a, b, params, RIGID_METHODS, centres)
     cands = over_bar(cands, gap.errors, params.ray_rest_max_error_mm)
-    chosen = honest_best(counted(cands, gap.errors), limit)
+    chosen = best_candidate(counted(cands, gap.errors), params)
     if chosen is None:
         return none
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]

@@ -369,9 +369,9 @@ def _second_pass(
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`SECOND_PASS`, or after the
-    ends :data:`LAST_PASS`), with its rigid and ray fills (status ``filled_rigid``)
-    expecting at most ``ray_rest_max_error_mm`` written into ``dense`` as context (for
-    these fills and the track ends after them).
+    ends :data:`LAST_PASS`, then :data:`TRUSTED_PASS`), with its rigid and ray fills
+    (status ``filled_rigid``) expecting at most ``ray_rest_max_error_mm`` written into
+    ``dense`` as context (for these fills and the track ends after them).
 
     Tracks are filled one after another, so a marker's gap is filled before its
     segment's partner's gap in the same fields is: a toe seen by one camera while the
