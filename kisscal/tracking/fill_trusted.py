@@ -35,6 +35,7 @@ from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
+from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
 
@@ -96,3 +97,8 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     got = [g for g in got if g[1].expected_error_mm <= limit]
     gap.out.extend(got)
     return placed_mask(got, a, b)
+
+
+#: The pass after :data:`~.gaps.LAST_PASS`, on what every fill left
+#: (:func:`~.gaps._second_pass`).
+TRUSTED_PASS = (Fill("trusted body", trusted_body),)

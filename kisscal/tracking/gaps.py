@@ -39,7 +39,7 @@ from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
 from kisscal.tracking.fill_table import Fill, hole_length
-from kisscal.tracking.fill_trusted import trusted_body
+from kisscal.tracking.fill_trusted import TRUSTED_PASS
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
@@ -284,11 +284,6 @@ LAST_PASS = (
     Fill("merged pair", _ray_placer(merged_pair_fill, "known", "mirror")),
 )
 
-#: After the last pass, on what every fill left: the body through donors that are fills
-#: expecting up to ``max_body_fill_error_mm``, their error counted (:mod:`.fill_trusted`;
-#: modern 3 seed 446: LANK hidden from every camera, its tibia a fill expecting 3.3 mm).
-TRUSTED_PASS = (Fill("trusted body", trusted_body),)
-
 
 def _left(a: int, placed: NDArray) -> list[tuple[int, int]]:
     """The runs of fields from ``a`` that ``placed`` leaves."""
@@ -473,13 +468,10 @@ def fill_gaps_named(
     )
     ends = track_ends(tracks, params, labels, unlabelled)
     made += _fill_runs(dense, ends, params, spare, measured, absent, errors, mirror)
-    # what is left, again with the ends placed: a knee seen by one camera carries a tibia
-    made += _second_pass(
-        dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors, mirror
-    )
-    made += _second_pass(
-        dense, gaps, params, spare, measured, made, absent, TRUSTED_PASS, errors, mirror
-    )
+    for last in (LAST_PASS, TRUSTED_PASS):  # the ends placed: a knee carries a tibia
+        made += _second_pass(
+            dense, gaps, params, spare, measured, made, absent, last, errors, mirror
+        )
     named, placed = absent_tracks(who, absent, absent_sd, tracks.n_tracks, params)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
