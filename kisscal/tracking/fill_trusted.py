@@ -31,12 +31,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
 from kisscal.tracking.fill_hinge import HINGE_METHODS
-from kisscal.tracking.fill_place import mirror_checked, placed_mask, with_rays
+from kisscal.tracking.fill_place import mirror_checked, placed_mask
 from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import FILLED_RIGID
 
 #: The body's fills that carry the marker with its segment
@@ -68,6 +70,16 @@ def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candid
     return out
 
 
+def unseen(chosen: Candidate, spare: SpareBlobs | None, params: TrackingParams) -> NDArray:
+    """(n,) bool: the fields of ``chosen`` where no unused blob's ray meets it
+    (:func:`~.rayfill.ray_correct`'s gate at its expected error)."""
+    n = len(chosen.xyz_mm)
+    if spare is None:
+        return np.ones(n, dtype=bool)
+    sd = chosen.fill.expected_error_mm
+    return ray_correct(chosen.xyz_mm, chosen.fill.first_field, sd, spare, params)[1] == 0
+
+
 def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) from the
     body (:data:`RIGID_METHODS`) through donors filled expecting at most
@@ -83,15 +95,16 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     limit = params.max_body_fill_error_mm
     body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
     body = trusted(body, gap.errors, gap.t, limit)
-    spare = gap.spare
-    rays = spare is not None and spare.rows(a, b).size > 0
-    centres = spare.centres if rays else None
-    cands = fill_candidates(body, gap.t, a, b, params, RIGID_METHODS, centres)
+    cands = fill_candidates(body, gap.t, a, b, params, RIGID_METHODS)
     cands = over_bar(cands, gap.errors, params.ray_rest_max_error_mm)
     chosen = best_candidate(counted(cands, gap.errors), params)
     if chosen is None:
         return none
-    got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
+    keep = unseen(chosen, gap.spare, params)
+    got = [
+        (chosen.xyz_mm[x:y], dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x))
+        for x, y in zip(*true_runs(keep), strict=True)
+    ]
     got = donor_errors(donor_noise(got, gap.dense), gap.errors)
     got = anchored(got, gap.out, params.fill_context_fields)
     got = [g for g in got if g[1].expected_error_mm <= limit]
