@@ -15,7 +15,10 @@ donors' samples in the gap (:func:`~.fill_anchor.donor_errors`), and kept when t
 at most ``max_body_fill_error_mm``: a fill that says honestly how far off it may be.
 Only candidates that follow such a donor (:func:`over_bar`): the others the body's
 fills refused for reasons of their own (lowcost 322 RHEE from RANK and RTOE, 5.2 mm off
-expecting 1.4).
+expecting 1.4). And only in the fields where no camera sees the marker (:func:`unseen`):
+where one does, the fills on its own rays had their say and left it, and a donor fill
+there is no better checked than they were (kiss 3 seed 412: RANK through RTOE, a chain
+fill 11.7 mm RMS off expecting 4.0, moved onto RANK's rays 11.1 mm off expecting 4.0).
 
 References
 ----------
@@ -85,10 +88,9 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
     body (:data:`RIGID_METHODS`) through donors filled expecting at most
     ``max_body_fill_error_mm``, one of them over ``ray_rest_max_error_mm`` (see module):
     the candidate of least expected error, its donors' errors counted, at most
-    ``max_body_fill_error_mm``; moved onto the rays of
-    blobs a camera still sees there (:func:`~.fill_place.with_rays`), expecting at least
-    its donors' noise and errors and those of the fills beside it, as the body's fills
-    do. Returns the fields placed."""
+    ``max_body_fill_error_mm``, kept in the fields no unused blob's ray meets
+    (:func:`unseen`), expecting at least its donors' noise and errors and those of the
+    fills beside it, as the body's fills do. Returns the fields placed."""
     none = np.zeros(b - a, dtype=bool)
     if gap.errors is None or b - a > params.max_body_fill_fields:
         return none
