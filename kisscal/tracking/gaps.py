@@ -39,6 +39,7 @@ from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
 from kisscal.tracking.fill_table import Fill, hole_length
+from kisscal.tracking.fill_trusted import TRUSTED_PASS
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
@@ -363,9 +364,9 @@ def _second_pass(
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`SECOND_PASS`, or after the
-    ends :data:`LAST_PASS`), with its rigid and ray fills (status ``filled_rigid``)
-    expecting at most ``ray_rest_max_error_mm`` written into ``dense`` as context (for
-    these fills and the track ends after them).
+    ends :data:`LAST_PASS`, then :data:`TRUSTED_PASS`), with its rigid and ray fills
+    (status ``filled_rigid``) expecting at most ``ray_rest_max_error_mm`` written into
+    ``dense`` as context (for these fills and the track ends after them).
 
     Tracks are filled one after another, so a marker's gap is filled before its
     segment's partner's gap in the same fields is: a toe seen by one camera while the
@@ -467,10 +468,10 @@ def fill_gaps_named(
     )
     ends = track_ends(tracks, params, labels, unlabelled)
     made += _fill_runs(dense, ends, params, spare, measured, absent, errors, mirror)
-    # what is left, again with the ends placed: a knee seen by one camera carries a tibia
-    made += _second_pass(
-        dense, gaps, params, spare, measured, made, absent, LAST_PASS, errors, mirror
-    )
+    for last in (LAST_PASS, TRUSTED_PASS):  # the ends placed: a knee carries a tibia
+        made += _second_pass(
+            dense, gaps, params, spare, measured, made, absent, last, errors, mirror
+        )
     named, placed = absent_tracks(who, absent, absent_sd, tracks.n_tracks, params)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]

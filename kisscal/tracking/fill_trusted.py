@@ -1,0 +1,119 @@
+"""Body fill of what every other fill left, through donors that are fills themselves,
+their error counted.
+
+The body fills follow only donors measured or filled expecting at most
+``ray_rest_max_error_mm`` (:func:`~.fill_anchor.body_donors`): a donor that is a poor fill
+in the gap carries the marker off unseen, since the fill's own error is measured beside
+the gap, where its donors are measured (kiss 3 seed 412). Yet where no camera sees a
+marker and one of its segment's mates is itself a fill expecting a little more, the gap
+stays open though the segment carries it well (modern 3 seed 446: LANK hidden from all
+three cameras for 40 fields, LTIB a fill expecting 3.3 mm there; with LKNE, a rigid
+fill 1.0 mm RMS off expecting 0.5 from the stretches). So, last, once every other fill
+is made, the body's rigid fills are tried again with donors filled expecting up to
+``max_body_fill_error_mm``, each candidate expecting at least the largest error of its
+donors' samples in the gap (:func:`~.fill_anchor.donor_errors`), and kept when that is
+at most ``max_body_fill_error_mm``: a fill that says honestly how far off it may be.
+Only candidates that follow such a donor (:func:`over_bar`): the others the body's
+fills refused for reasons of their own (lowcost 322 RHEE from RANK and RTOE, 5.2 mm off
+expecting 1.4). And only in the fields where no camera sees the marker (:func:`unseen`):
+where one does, the fills on its own rays had their say and left it, and a donor fill
+there is no better checked than they were (kiss 3 seed 412: RANK through RTOE, a chain
+fill 11.7 mm RMS off expecting 4.0, moved onto RANK's rays 11.1 mm off expecting 4.0).
+
+References
+----------
+Challis 1995 (segments as rigid bodies of markers); Gløersen & Federolf 2016 (gap
+filling from the other markers of the body).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kisscal._shared import true_runs
+from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
+from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
+from kisscal.tracking.fill_hinge import HINGE_METHODS
+from kisscal.tracking.fill_place import mirror_checked, placed_mask
+from kisscal.tracking.fill_table import Fill
+from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.rayfill import SpareBlobs, ray_correct
+from kisscal.tracking.tracks import FILLED_RIGID
+
+#: The body's fills that carry the marker with its segment
+#: (:data:`~.fill_hinge.HINGE_METHODS` but the pattern fill): a pattern fill follows one
+#: neighbour whose offset may stray in the gap (lowcost 410 LTHI following LKNE, 10 mm
+#: RMS off expecting 5.0).
+RIGID_METHODS = tuple(m for m in HINGE_METHODS if m[0] == FILLED_RIGID)
+
+
+def counted(cands: list[Candidate], errors: NDArray) -> list[Candidate]:
+    """``cands`` each expecting at least the largest expected error of its donors'
+    samples over its fields (``errors``, (>= n_tracks, n_fields), NaN where none)."""
+    got = donor_errors([(c.xyz_mm, c.fill) for c in cands], errors)
+    return [dataclasses.replace(c, fill=f) for c, (_, f) in zip(cands, got, strict=True)]
+
+
+def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candidate]:
+    """``cands`` that follow a donor filled expecting over ``bar`` (mm) in the fields
+    they fill (``errors``, (>= n_tracks, n_fields), NaN where none): the ones the body's
+    fills could not make. The others they refused for reasons of their own."""
+    out = []
+    for c in cands:
+        rows = errors[
+            list(c.fill.donors), c.fill.first_field : c.fill.first_field + c.fill.n_fields
+        ]
+        with np.errstate(invalid="ignore"):
+            if np.any(rows > bar):
+                out.append(c)
+    return out
+
+
+def unseen(chosen: Candidate, spare: SpareBlobs | None, params: TrackingParams) -> NDArray:
+    """(n,) bool: the fields of ``chosen`` where no unused blob's ray meets it
+    (:func:`~.rayfill.ray_correct`'s gate at its expected error)."""
+    n = len(chosen.xyz_mm)
+    if spare is None:
+        return np.ones(n, dtype=bool)
+    sd = chosen.fill.expected_error_mm
+    return ray_correct(chosen.xyz_mm, chosen.fill.first_field, sd, spare, params)[1] == 0
+
+
+def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """Fill fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) from the
+    body (:data:`RIGID_METHODS`) through donors filled expecting at most
+    ``max_body_fill_error_mm``, one of them over ``ray_rest_max_error_mm`` (see module):
+    the candidate of least expected error, its donors' errors counted, at most
+    ``max_body_fill_error_mm``, kept in the fields no unused blob's ray meets
+    (:func:`unseen`), expecting at least its donors' noise and errors and those of the
+    fills beside it, as the body's fills do. Returns the fields placed."""
+    none = np.zeros(b - a, dtype=bool)
+    if gap.errors is None or b - a > params.max_body_fill_fields:
+        return none
+    limit = params.max_body_fill_error_mm
+    body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
+    body = trusted(body, gap.errors, gap.t, limit)
+    cands = fill_candidates(body, gap.t, a, b, params, RIGID_METHODS)
+    cands = over_bar(cands, gap.errors, params.ray_rest_max_error_mm)
+    chosen = best_candidate(counted(cands, gap.errors), params)
+    if chosen is None:
+        return none
+    keep = unseen(chosen, gap.spare, params)
+    got = [
+        (chosen.xyz_mm[x:y], dataclasses.replace(chosen.fill, first_field=a + x, n_fields=y - x))
+        for x, y in zip(*true_runs(keep), strict=True)
+    ]
+    got = donor_errors(donor_noise(got, gap.dense), gap.errors)
+    got = anchored(got, gap.out, params.fill_context_fields)
+    got = [g for g in got if g[1].expected_error_mm <= limit]
+    gap.out.extend(got)
+    return placed_mask(got, a, b)
+
+
+#: The pass after :data:`~.gaps.LAST_PASS`, on what every fill left
+#: (:func:`~.gaps._second_pass`).
+TRUSTED_PASS = (Fill("trusted body", trusted_body),)
