@@ -22,6 +22,7 @@ from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tr
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
+from kisscal.tracking.fill_donors import merged_edges
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
     end_reach,
@@ -42,7 +43,7 @@ from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_trusted import TRUSTED_PASS
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill, parted
+from kisscal.tracking.raychain import chain_fill, length_partners, parted
 from kisscal.tracking.rayfill import SpareBlobs, freed
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID, MEASURED, PREDICTED, Tracks, is_filled
 
@@ -142,6 +143,13 @@ def _body(
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
     body = body_donors(gap, params)
+    if short and rays:  # not through an edge sample another marker's image pulled
+        partners = length_partners(gap.dense, gap.t, params, gap.mirror)[0]
+        edges = merged_edges(gap.dense, gap.t, a, b, spare, params, partners)
+        if edges:
+            body = body.copy()
+            body[gap.t, edges] = np.nan
+    series = body[gap.t]
     cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
@@ -152,8 +160,8 @@ def _body(
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     if short:  # after the rays (their gate is the stretches' error): through noisy samples
         n = max(params.fill_context_fields, 2)
-        noise = context_noise(gap.dense[gap.t], None, a, b, n)
-        along = sight_noise(gap.dense[gap.t], seen, a, b, n) if rays else noise
+        noise = context_noise(series, None, a, b, n)
+        along = sight_noise(series, seen, a, b, n) if rays else noise
         got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
