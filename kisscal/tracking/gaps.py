@@ -129,7 +129,9 @@ def _body(
     (:func:`~kisscal.tracking.fill_spline.context_noise`; lowcost 301-313: 98 samples over
     twice their spline's expected error, the stretches it is tried on quieter); moved
     onto a ray, what of that noise lies along the sight of the cameras whose blobs it
-    looked for (:func:`~kisscal.tracking.fill_spline.sight_noise`). With
+    looked for (:func:`~kisscal.tracking.fill_spline.sight_noise`). Not through a
+    measured sample at the gap's edge whose blob another track's image may share
+    (:func:`~kisscal.tracking.fill_donors.merged_edges`). With
     ``checked``, a spline is kept only when, counting the largest expected error of the
     samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
     (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
