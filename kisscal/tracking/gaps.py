@@ -22,7 +22,6 @@ from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tr
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
-from kisscal.tracking.fill_donors import merged_edges
 from kisscal.tracking.fill_ends import (
     chain_end_fill,
     end_reach,
@@ -38,12 +37,12 @@ from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_pair import merged_pair_fill
 from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
-from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
+from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
 from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_trusted import TRUSTED_PASS
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill, length_partners, parted
+from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs, freed
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID, MEASURED, PREDICTED, Tracks, is_filled
 
@@ -129,9 +128,7 @@ def _body(
     (:func:`~kisscal.tracking.fill_spline.context_noise`; lowcost 301-313: 98 samples over
     twice their spline's expected error, the stretches it is tried on quieter); moved
     onto a ray, what of that noise lies along the sight of the cameras whose blobs it
-    looked for (:func:`~kisscal.tracking.fill_spline.sight_noise`). Not through a
-    measured sample at the gap's edge whose blob another track's image may share
-    (:func:`~kisscal.tracking.fill_donors.merged_edges`). With
+    looked for (:func:`~kisscal.tracking.fill_spline.sight_noise`). With
     ``checked``, a spline is kept only when, counting the largest expected error of the
     samples it reads too (``gap.errors``), it expects at most ``max_body_fill_error_mm``
     (else the body: kiss 3 seed 303's toe, 5 fields beside a chain fill, left open)."""
@@ -144,16 +141,7 @@ def _body(
     rays = spare is not None and spare.rows(a, b).size > 0
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
-    body = body_donors(gap, params)
-    if short and rays:  # not through an edge sample another marker's image pulled
-        partners = length_partners(gap.dense, gap.t, params, gap.mirror)[0]
-        edges = _pulled(
-            gap.dense[gap.t], merged_edges(gap.dense, gap.t, a, b, spare, params, partners), params
-        )
-        if edges:
-            body = body.copy()
-            body[gap.t, edges] = np.nan
-    series = body[gap.t]
+    body = unpulled(body_donors(gap, params), gap, a, b, params, short and rays)
     cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
@@ -164,8 +152,8 @@ def _body(
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     if short:  # after the rays (their gate is the stretches' error): through noisy samples
         n = max(params.fill_context_fields, 2)
-        noise = context_noise(series, None, a, b, n)
-        along = sight_noise(series, seen, a, b, n) if rays else noise
+        noise = context_noise(body[gap.t], None, a, b, n)
+        along = sight_noise(body[gap.t], seen, a, b, n) if rays else noise
         got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
@@ -176,37 +164,6 @@ def _body(
     got = donor_errors(donor_noise(got, gap.dense), gap.errors)
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
-
-
-#: How far (in ``max_body_fill_error_mm``) a gap-edge sample on a blob another marker's
-#: image may share lies from the spline through the rest before a spline leaves it out
-#: (:func:`_pulled`). Two: a spline across the longer hole misses a moving foot by more
-#: than one (kiss 3 seed 424: samples on their own blobs 5.6 and 8.4 mm from it, left
-#: out, took its filled RMS 1.52 -> 2.50 mm); merged ones lay 21 mm from it (lowcost 437).
-EDGE_PULL_ERRORS = 2.0
-
-
-def _pulled(series: NDArray, edges: list[int], params: TrackingParams) -> list[int]:
-    """The samples of ``series`` at ``edges`` farther than :data:`EDGE_PULL_ERRORS`
-    times ``max_body_fill_error_mm`` from the spline through the rest
-    (:func:`spline_fill`): a blob another marker's image may share is not always merged
-    (the other's image hidden, or seen apart), and a sample on the marker's own blob is
-    the spline's best context (lowcost 412: leaving every such one out lost fills,
-    coverage min 100 -> 99.74 %)."""
-    if not edges:
-        return []
-    rest = series.copy()
-    rest[edges] = np.nan
-    out = []
-    for f in edges:
-        got = spline_fill(rest, rest[None], 0, f, f + 1, params)
-        if (
-            got is not None
-            and np.linalg.norm(got[0][0] - series[f])
-            > EDGE_PULL_ERRORS * params.max_body_fill_error_mm
-        ):
-            out.append(f)
-    return out
 
 
 def _at_least(fill: GapFill, err: float) -> GapFill:
