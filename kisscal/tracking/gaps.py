@@ -37,7 +37,7 @@ from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_pair import merged_pair_fill
 from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
-from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
+from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
 from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_trusted import TRUSTED_PASS
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
@@ -141,7 +141,7 @@ def _body(
     rays = spare is not None and spare.rows(a, b).size > 0
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
-    body = body_donors(gap, params)
+    body = unpulled(body_donors(gap, params), gap, a, b, params, short and rays)
     cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
@@ -152,8 +152,8 @@ def _body(
     got = with_rays(chosen, spare, params) if rays else [(chosen.xyz_mm, chosen.fill)]
     if short:  # after the rays (their gate is the stretches' error): through noisy samples
         n = max(params.fill_context_fields, 2)
-        noise = context_noise(gap.dense[gap.t], None, a, b, n)
-        along = sight_noise(gap.dense[gap.t], seen, a, b, n) if rays else noise
+        noise = context_noise(body[gap.t], None, a, b, n)
+        along = sight_noise(body[gap.t], seen, a, b, n) if rays else noise
         got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
