@@ -28,10 +28,9 @@ def _segment(n: int = 160) -> np.ndarray:
     return np.stack([x, y, z], axis=2) + base[None]
 
 
-def _fill(offset: float, donor_error: float) -> tuple[np.ndarray | None, float, float]:
-    """Fill the target's gap, donor 0 placed ``offset`` mm off across its axis to donor 1
-    in the gap by a fill expecting ``donor_error``: (the fill's true errors, its largest
-    expected error), (None, NaN) when not filled."""
+def offset_gap(offset: float, donor_error: float) -> tuple[_Gap, np.ndarray]:
+    """The target's gap, donor 0 placed ``offset`` mm off across its axis to donor 1 in
+    the gap by a fill expecting ``donor_error``; and the truth."""
     truth = _segment()
     rng = np.random.default_rng(7)
     dense = truth + rng.normal(0.0, 0.2, truth.shape)
@@ -44,6 +43,14 @@ def _fill(offset: float, donor_error: float) -> tuple[np.ndarray | None, float, 
     errors[0, LO:HI] = donor_error
     gap = _Gap(dense, 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [])
     gap.errors = errors
+    return gap, truth
+
+
+def _fill(offset: float, donor_error: float) -> tuple[np.ndarray | None, float, float]:
+    """Fill the target's gap, donor 0 placed ``offset`` mm off across its axis to donor 1
+    in the gap by a fill expecting ``donor_error``: (the fill's true errors, its largest
+    expected error), (None, NaN) when not filled."""
+    gap, truth = offset_gap(offset, donor_error)
     _body(gap, LO, HI, PARAMS)
     if not gap.out:
         return None, np.nan

@@ -12,34 +12,16 @@ import pytest
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_trusted import trusted_body
-from kisscal.tracking.gaps import _body, _Gap
-from tests.tracking.test_fill_donor_fills import HI, LO, _segment
+from kisscal.tracking.gaps import _body
+from tests.tracking.test_fill_donor_fills import HI, LO, offset_gap
 from tests.tracking.test_rayfill import _look_at
 
 PARAMS = TrackingParams()
 
 
-def _gap(offset: float, donor_error: float) -> tuple[_Gap, np.ndarray]:
-    """The target's gap, donor 0 placed ``offset`` mm off across its axis to donor 1 in
-    the gap by a fill expecting ``donor_error``; and the truth."""
-    truth = _segment()
-    rng = np.random.default_rng(7)
-    dense = truth + rng.normal(0.0, 0.2, truth.shape)
-    dense[2, LO:HI] = np.nan
-    axis = truth[1, LO:HI] - truth[0, LO:HI]
-    side = np.cross(axis, [0.0, 0.0, 1.0])
-    side /= np.linalg.norm(side, axis=1, keepdims=True)
-    dense[0, LO:HI] = truth[0, LO:HI] + offset * side  # an earlier fill, its length held
-    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
-    errors[0, LO:HI] = donor_error
-    gap = _Gap(dense, 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [])
-    gap.errors = errors
-    return gap, truth
-
-
 def _trusted(offset: float, donor_error: float):
     """:func:`trusted_body` on :func:`_gap`: (fields placed, true errors, expected)."""
-    gap, truth = _gap(offset, donor_error)
+    gap, truth = offset_gap(offset, donor_error)
     placed = trusted_body(gap, LO, HI, PARAMS)
     if not gap.out:
         return placed, None, np.nan
@@ -52,7 +34,7 @@ def _trusted(offset: float, donor_error: float):
 def test_a_donor_fill_over_the_body_bar_leaves_the_body_fill_open():
     # the premise: the body follows no fill expecting over ray_rest_max_error_mm
     donor_error = 0.5 * (PARAMS.ray_rest_max_error_mm + PARAMS.max_body_fill_error_mm)
-    gap, _ = _gap(0.5, donor_error)
+    gap, _ = offset_gap(0.5, donor_error)
     assert not _body(gap, LO, HI, PARAMS).any()
 
 
@@ -104,7 +86,7 @@ def test_fields_a_camera_sees_the_marker_in_are_left_to_its_rays():
     # kiss 3 seed 412: a body fill through a poor donor fill, moved onto the marker's
     # rays, 11 mm off expecting 4; where a camera sees it, its rays' fills had their say
     donor_error = 0.5 * (PARAMS.ray_rest_max_error_mm + PARAMS.max_body_fill_error_mm)
-    gap, truth = _gap(0.5, donor_error)
+    gap, truth = offset_gap(0.5, donor_error)
     seen = np.arange(LO, LO + 10)
     target = truth[2, seen].mean(axis=0)
     dlts = _look_at(target + [0.0, -3000.0, 300.0], target)[None]
