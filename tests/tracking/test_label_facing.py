@@ -94,6 +94,26 @@ def test_one_name_holds_no_pose_and_does_not_overrule_a_window_naming_the_body()
     assert better(state, one, body) and not better(state, body, one)
 
 
+def test_a_named_triangle_holds_no_pose_and_does_not_overrule_a_window_naming_the_body():
+    # Modern 3 cameras seed 409: a long window held three pieces whole; named as a
+    # template triangle of like distances (LASI, LTOE, RTIB as RASI, RANK, LTIB), they
+    # vetoed shorter windows naming 14 pieces right; 13 of 15 names went wrong.
+    tracks, owner = _pieces(gait_truth(200, 4))
+    state = _state(tracks)
+    rich = np.arange(0, 200, 5)
+    three = np.flatnonzero(np.isin(owner, [INDEX[n] for n in ("LASI", "LTOE", "RTIB")]))
+    wrong = np.array([INDEX[n] for n in ("RASI", "RANK", "LTIB")])[np.argsort(owner[three])]
+    triangle = WindowMatch(three, wrong, 71.7, rich)
+    body = WindowMatch(np.arange(owner.size), owner.copy(), 102.2, rich)
+    assert better(state, triangle, body) and not better(state, body, triangle)
+    # four names hold a pose: a window naming more must agree with them
+    four = np.flatnonzero(np.isin(owner, [INDEX[n] for n in ("LASI", "LTOE", "RTIB", "RKNE")]))
+    kept = WindowMatch(four, owner[four], 71.7, rich)
+    exchanged = owner.copy()
+    exchanged[four] = owner[four[[1, 0, 3, 2]]]
+    assert not better(state, kept, WindowMatch(np.arange(owner.size), exchanged, 102.2, rich))
+
+
 @pytest.mark.parametrize("turn", [False, True])
 def test_a_later_window_named_turned_round_gives_no_name(monkeypatch, turn):
     # Kiss 3 cameras seed 434: phase 3 matched the walk's first 116 fields turned round

@@ -26,12 +26,16 @@ from kisscal.tracking.labelling.state import LabelState
 #: The body moves at least this far (mm, horizontally) through a window for its
 #: walking direction to count.
 MIN_TRAVEL_MM = 100.0
-#: Fewest names of a window match that can overrule another's (:func:`better`): a rigid
-#: fit, the pose the names stand for, needs three points. Kiss 3 cameras seed 434: the
-#: whole trial held only three feet pieces whole; their triangle was named RASI, LKNE,
-#: LTIB, and with the two broken as a segment, its one name RASI (a heel) overruled
-#: shorter windows naming 11-13 pieces all right, and the trial got no name.
-MIN_POSE_NAMES = 3
+#: Fewest names of a window match that can overrule another's (:func:`better`). A rigid
+#: fit, the pose the names stand for, needs three points, but a triangle's three
+#: distances are matched by chance among the template's many triangles (455 of 15
+#: markers); four points' six distances are not. Kiss 3 cameras seed 434: the whole
+#: trial held only three feet pieces whole; their triangle was named RASI, LKNE, LTIB,
+#: and with the two broken as a segment, its one name RASI (a heel) overruled shorter
+#: windows naming 11-13 pieces all right, and the trial got no name. Modern 3 cameras
+#: seed 409: a long window's triangle (LASI, LTOE, RTIB named RASI, RANK, LTIB) vetoed
+#: shorter windows naming 14 pieces right, and 13 of 15 names went wrong.
+MIN_POSE_NAMES = 4
 #: A heel marker name: its side prefix, then HEE, HEEL or CAL.
 HEEL = re.compile(r"^(.*)(HEE|HEEL|CAL)$")
 
