@@ -13,12 +13,23 @@ is made, the body's rigid fills are tried again with donors filled expecting up 
 ``max_body_fill_error_mm``, each candidate expecting at least the largest error of its
 donors' samples in the gap (:func:`~.fill_anchor.donor_errors`), and kept when that is
 at most ``max_body_fill_error_mm``: a fill that says honestly how far off it may be.
-Only candidates that follow such a donor (:func:`over_bar`): the others the body's
-fills refused for reasons of their own (lowcost 322 RHEE from RANK and RTOE, 5.2 mm off
+Only candidates the body's fills could not make (:func:`over_bar`): those that follow
+such a donor, or that expect over ``ray_rest_max_error_mm`` themselves, the bar of the
+body's fills between fields placed on rays and in the second passes; the others they
+refused for reasons of their own (lowcost 322 RHEE from RANK and RTOE, 5.2 mm off
 expecting 1.4). And only in the fields where no camera sees the marker (:func:`unseen`):
 where one does, the fills on its own rays had their say and left it, and a donor fill
 there is no better checked than they were (kiss 3 seed 412: RANK through RTOE, a chain
 fill 11.7 mm RMS off expecting 4.0, moved onto RANK's rays 11.1 mm off expecting 4.0).
+
+Its donors are the second passes' context and, here, every fill placed on a camera's rays
+in all its fields expecting at most ``max_body_fill_error_mm`` (:func:`context`): a
+segment mate's spline moved onto its rays is not context before (a spline through a
+mate's wrong samples carries the marker onto them), and a mate missing one field of the
+gap is no donor through it (modern 3 seed 408: LTOE hidden from all three cameras for
+76 fields, LANK and LHEE seen by two in all but one of them, where their splines on
+their rays expect 0.6 mm; with them the two-marker fill, 4.2 mm RMS off, the toe's
+coverage 68.6 -> 100 %).
 
 References
 ----------
@@ -35,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.tracking.bodyfill import Candidate, best_candidate, fill_candidates
+from kisscal.tracking.bodyfill import Candidate, GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import mirror_checked, placed_mask
@@ -60,17 +71,31 @@ def counted(cands: list[Candidate], errors: NDArray) -> list[Candidate]:
 
 def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candidate]:
     """``cands`` that follow a donor filled expecting over ``bar`` (mm) in the fields
-    they fill (``errors``, (>= n_tracks, n_fields), NaN where none): the ones the body's
-    fills could not make. The others they refused for reasons of their own."""
+    they fill (``errors``, (>= n_tracks, n_fields), NaN where none), or that expect over
+    ``bar`` themselves: the ones the body's fills could not make. The others they
+    refused for reasons of their own."""
     out = []
     for c in cands:
         rows = errors[
             list(c.fill.donors), c.fill.first_field : c.fill.first_field + c.fill.n_fields
         ]
         with np.errstate(invalid="ignore"):
-            if np.any(rows > bar):
+            if np.any(rows > bar) or c.fill.expected_error_mm > bar:
                 out.append(c)
     return out
+
+
+def context(fill: GapFill, params: TrackingParams, trusting: bool) -> bool:
+    """Whether ``fill`` is context for the fills of a second pass (written into its
+    positions, :func:`~kisscal.tracking.gaps._second_pass`): a rigid or ray fill
+    (``filled_rigid``) expecting at most ``ray_rest_max_error_mm``; with ``trusting``
+    (:data:`TRUSTED_PASS`, whose fills count their donors' errors), also any fill placed
+    on a camera's rays in all its fields expecting at most ``max_body_fill_error_mm``
+    (see module)."""
+    if trusting and 0 < fill.ray_fields == fill.n_fields:
+        return bool(fill.expected_error_mm <= params.max_body_fill_error_mm)
+    bar = params.ray_rest_max_error_mm
+    return bool(fill.status == FILLED_RIGID and fill.expected_error_mm <= bar)
 
 
 def unseen(chosen: Candidate, spare: SpareBlobs | None, params: TrackingParams) -> NDArray:

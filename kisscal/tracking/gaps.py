@@ -39,7 +39,7 @@ from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
 from kisscal.tracking.fill_table import Fill, hole_length
-from kisscal.tracking.fill_trusted import TRUSTED_PASS
+from kisscal.tracking.fill_trusted import TRUSTED_PASS, context
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
@@ -365,16 +365,16 @@ def _second_pass(
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`SECOND_PASS`, or after the
     ends :data:`LAST_PASS`, then :data:`TRUSTED_PASS`), with its rigid and ray fills
-    (status ``filled_rigid``) expecting at most ``ray_rest_max_error_mm`` written into
-    ``dense`` as context (for these fills and the track ends after them).
+    expecting at most ``ray_rest_max_error_mm`` (:func:`~.fill_trusted.context`) written
+    into ``dense`` as context (for these fills and the track ends after them).
 
     Tracks are filled one after another, so a marker's gap is filled before its
     segment's partner's gap in the same fields is: a toe seen by one camera while the
     heel, seen by another one, waits its turn has no partner to be placed by. Once the
     heel is placed, its length holds the toe on its ray as a measured heel's would.
     Spline and pattern fills are not context (one through a partner's wrong samples
-    would carry the marker onto them), nor does the body fill expect more than
-    ``ray_rest_max_error_mm`` here (with the new context it went 12 mm off expecting 4).
+    would carry the marker onto them; on rays, the trusted pass's), nor does the body
+    expect over ``ray_rest_max_error_mm`` here (with the new context: 12 mm off expecting 4).
     """
     if spare is None:
         return []
@@ -383,7 +383,7 @@ def _second_pass(
     for xyz, fill in made:
         span = slice(fill.first_field, fill.first_field + fill.n_fields)
         done[fill.track, span] = True
-        if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
+        if context(fill, params, fills is TRUSTED_PASS):
             dense[fill.track, span] = xyz
             expected[fill.track, span] = fill.expected_error_mm
     out = []

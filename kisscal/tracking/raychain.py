@@ -23,8 +23,9 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
    gap is taken (or the only one, on a blob followed in the image, unless a walk took
    it for the ray's other depth; or, where the path from one side joins no point of
    the gap, the one the other side's path takes without a break, when every partner
-   was measured with the marker over most of its motion); free blobs in fields no
-   path reached are tried too, and kept only where both sides' paths agree;
+   was measured with the marker over most of its motion), where one reached it with its
+   depth told (:func:`~.raywalk.told`); free blobs in fields no path reached are tried
+   too, and kept only where both sides' paths agree;
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
@@ -51,7 +52,7 @@ from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
 from kisscal.tracking.fill_donors import padded_mirrors, unshared
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, placed_errors
-from kisscal.tracking.raywalk import agreed_pick, connected_picks, walk_picks
+from kisscal.tracking.raywalk import agreed_pick, connected_picks, told, walk_picks
 
 #: Fewest consecutive fields placed on rays for them to be kept.
 MIN_RUN = 2
@@ -481,9 +482,9 @@ def chain_fill(
         near = (set(), set())
     xyz, err = np.full((hi - lo, 3), np.nan), np.full(hi - lo, np.nan)
     rows = np.full(hi - lo, -1)
-    followed = set(chained.tolist())
+    followed, clear = set(chained.tolist()), told(cands, params.ray_length_max_error_mm)
     for k, c in cands.items():
-        i = agreed_pick(fwd.get(k), bwd.get(k), k in near[0], k in near[1])
+        i = agreed_pick(fwd.get(k), bwd.get(k), k in near[0], k in near[1]) if k in clear else None
         sure = len(c) == 1 and c[0][2] in followed and k not in no_f | no_b
         if i is not None or sure:
             x, e, row = c[0] if sure else c[i]

@@ -79,3 +79,28 @@ def agreed_pick(i: int | None, j: int | None, near_i: bool, near_j: bool) -> int
     if j is not None and near_j and i is None:
         return j
     return None
+
+
+def told(cands: dict[int, list], limit: float) -> set[int]:
+    """The gap offsets of ``cands`` (per offset, its points (xyz, expected error along
+    the ray, row)) a walk reaches from its side without passing a field whose depths are
+    untold (:func:`untold`): before the first such field, or after the last. There the
+    ray grazes the partners' spheres and its two depths meet: past it, a walk keeping to
+    the nearest point may go on along the other depth as smoothly as along the marker's,
+    and two walks that both passed one agree on nothing (modern 3 seed 430: RTIB, one
+    partner, both walks onto the other depth, 40 fields 93-160 mm off expecting 2.6-4.4)."""
+    order = sorted(cands)
+    blind = [k for k in order if untold(cands[k], limit)]
+    return {k for k in order if not blind or k < blind[0] or k > blind[-1]}
+
+
+def untold(points: list, limit: float) -> bool:
+    """Whether a field's ray ``points`` (xyz, expected error, row) leave its depth
+    untold: two of them nearer each other than three times the largest expected error,
+    and that over ``limit`` mm (a point alone is the only depth the lengths allow)."""
+    worst = max(p[1] for p in points)
+    if worst <= limit:
+        return False
+    xyz = np.array([p[0] for p in points])
+    apart = np.linalg.norm(xyz[:, None] - xyz[None], axis=2) + np.diag(np.full(len(xyz), np.inf))
+    return bool(apart.min() < 3.0 * worst)
