@@ -130,7 +130,11 @@ def claimed_pieces(
     its last) claim rays too, from where their rigid companions carry them
     (:func:`~kisscal.recon.carried.carried`), where no point lies: less exact than a
     prediction over one field, such a claim counts only farther than twice the tolerance
-    from the piece's point.
+    from the piece's point, and only where the same trajectory, carried one field into the
+    run, lies on the ray there too: a ghost's ray stays with its marker, while a carried
+    position tens of millimetres off crosses a true marker's ray by chance, for a field
+    (modern 3 cameras seed 325: LHEE and RHEE carried 46 and 15 fields, 48 and 60 mm off,
+    lay on RTIB's two rays at the last field of its 164-field piece).
 
     Parameters
     ----------
@@ -199,12 +203,28 @@ def claimed_pieces(
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
+        source = np.r_[src, np.flatnonzero(ok)[lost_end]]
+        inner = _inward(smooth, field, ends, side)
+        has = inner >= 0
+        point_in = (xyz[inner[has]], field[inner[has]], point[2][has])
         for blob in (a, b):  # each ray of the piece's end, against the claimers
-            hits.append(_claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm))
+            hit = _claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm)
+            # a carried position is inexact (a companion's displacement over many fields):
+            # its claim counts only if it holds the ray in the run's next field too
+            hit_in = _claims(blob[inner[has]], point_in, both, (camera, uv), dlts, tolerance_mm)
+            by = np.full(hit.shape, -1, dtype=np.int64)
+            by[hit >= 0] = source[hit[hit >= 0]]
+            by_in = np.full(hit_in.shape, -1, dtype=np.int64)
+            by_in[hit_in >= 0] = source[hit_in[hit_in >= 0]]
+            was = np.full((len(ends), hit_in.shape[1]), -1, dtype=np.int64)
+            was[has] = by_in
+            loose = (hit >= len(src)) & has[:, None]
+            held = np.any((by[:, :, None] == was[:, None, :]) & (by[:, :, None] >= 0), axis=2)
+            hits.append(np.where(loose & ~held, -1, hit))
             if rivals is not None:
                 stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
         flagged[smooth[ends[stolen]]] = True
-        judged.append((ends, *hits, np.r_[src, np.flatnonzero(ok)[lost_end]], point[2]))
+        judged.append((ends, *hits, source, point[2]))
     # a ghost's own trajectory claims nothing: a piece withdrawn here does not claim a
     # longer one (modern 3 cameras seed 429: a 4-field crossing on the ankle's camera-1
     # ray, predicted back 32 mm off it, withdrew the ankle's 380-field piece with it)
@@ -265,6 +285,19 @@ def _carried_claimers(
     pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields, coast)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]], end[gone]
+
+
+def _inward(
+    label: NDArray[np.int64], field: NDArray[np.int64], ends: NDArray[np.int64], side: int
+) -> NDArray[np.int64]:
+    """Index of the point of each end's run (``label``) one field inward (``side`` +1: the
+    run's first point, the next field), -1 for a run of one field."""
+    span = int(field.max()) + 2
+    key = label * span + field
+    order = np.argsort(key, kind="stable")
+    want = label[ends] * span + field[ends] + side
+    at = np.minimum(np.searchsorted(key[order], want), len(order) - 1)
+    return np.where(key[order][at] == want, order[at], -1)
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:

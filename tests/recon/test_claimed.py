@@ -274,3 +274,36 @@ def test_two_claims_of_one_piece_count_as_one_trajectory() -> None:
         args = (field, camera, uv), dlts, p, None, *carry
         out = claimed_pieces(a, b, xyz, *none, *args)
         assert out[:n].all() == withdrawn and out[:n].any() == withdrawn, f"G begins {first}"
+
+
+def test_carried_positions_that_cross_a_pieces_rays_for_one_field_claim_nothing() -> None:
+    # P, seen by cameras 0 and 2 over fields 0-19 (30 mm a field), is lost. X and Y begin
+    # at field 25, each carried back by a companion 100 mm from it (C, D, seen
+    # throughout): carried to field 19 they lie on P's camera-0 and camera-2 rays, 200 and
+    # 250 mm beyond P. Standing still, they left the rays a field before (30 mm across):
+    # two inexact positions that crossed P's rays by chance, which claim nothing (modern
+    # 3 cameras seed 325: RTIB's 164-field piece withdrawn by LHEE and RHEE carried 46 and
+    # 15 fields, 48 and 60 mm off). Moving with P they stay on its rays, and withdraw it
+    dlts = make_rig(7, n_cameras=3)
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    n, e, start = 40, 19, 25
+    t = np.arange(n)
+    p = np.array([-300.0, 0.0, 900.0]) + t[:, None] * [30.0, 0.0, 0.0]
+    on0 = p[e] + 200.0 * (p[e] - c0) / np.linalg.norm(p[e] - c0)
+    on2 = p[e] + 250.0 * (p[e] - c2) / np.linalg.norm(p[e] - c2)
+    rows = [(f, c) for f in range(e + 1) for c in (0, 2)]
+    field = np.array([f for f, _ in rows])
+    camera = np.array([c for _, c in rows])
+    uv = np.array([project(dlts[c], p[f][None])[0] for f, c in rows])
+    a, b = np.arange(0, len(rows), 2), np.arange(1, len(rows), 2)
+    params = ReconParams()
+    offset = np.array([0.0, 100.0, 0.0])
+    for speed, withdrawn in ((0.0, False), (30.0, True)):
+        move = (t - e)[:, None] * [speed, 0.0, 0.0]
+        x, y = on0 + move, on2 + move
+        later = t >= start
+        known = np.r_[x - offset, y - offset, x[later], y[later]]
+        known_field = np.r_[t, t, t[later], t[later]]
+        args = (field, camera, uv), dlts, params, None, 50, 5
+        out = claimed_pieces(a, b, p[: e + 1], known, known_field, *args)
+        assert out.all() == withdrawn and out.any() == withdrawn, f"carried at {speed} mm"
