@@ -122,7 +122,7 @@ def claimed_pieces(
     ray is enough when the claim comes with the ray's own pair: a candidate pair
     (``rivals``) of that field shares the blob with the piece's point, lies farther than
     the tolerance from it and within half the tolerance of the prediction of a
-    trajectory that outlasts the piece (a known marker, or a longer piece) and predicts
+    trajectory that outlasts the piece (a known marker, or a longer smooth run) and predicts
     farther than twice the tolerance from the piece's point. The piece then holds the
     blob that a marker's trajectory, continued into the piece's fields, needs: one
     marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
@@ -187,6 +187,7 @@ def claimed_pieces(
     ]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
     trajectories = all_xyz[ok], all_field[ok], span[ok], chains
+    smooth_span = np.r_[span[: len(known_xyz)], np.bincount(smooth)[smooth]]
     judged = []
     for side in (1, -1):  # the first field of a run (from the field before), the last
         ends = _piece_ends(smooth, field, side)
@@ -221,8 +222,11 @@ def claimed_pieces(
             loose = (hit >= len(src)) & has[:, None]
             held = np.any((by[:, :, None] == was[:, None, :]) & (by[:, :, None] >= 0), axis=2)
             hits.append(np.where(loose & ~held, -1, hit))
-            if rivals is not None:
-                stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
+            if rivals is not None:  # judged by smooth runs: nearness glues a ghost's
+                # crossing to other pieces (lowcost seed 427: a 168-field piece by
+                # nearness whose run onto RTOE's camera-1 ray was a few fields)
+                runs = pred[gone], p_field[gone], smooth_span[src]
+                stolen |= _rival_claims(blob[ends], point, rivals, runs, tolerance_mm)
         flagged[smooth[ends[stolen]]] = True
         judged.append((ends, *hits, source, point[2]))
     # a ghost's own trajectory claims nothing: a piece withdrawn here does not claim a
