@@ -207,21 +207,12 @@ def claimed_pieces(
         source = np.r_[src, np.flatnonzero(ok)[lost_end]]
         inner = _inward(smooth, field, ends, side)
         has = inner >= 0
-        point_in = (xyz[inner[has]], field[inner[has]], point[2][has])
+        at = point, (xyz[inner[has]], field[inner[has]], point[2][has])
         for blob in (a, b):  # each ray of the piece's end, against the claimers
-            hit = _claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm)
-            # a carried position is inexact (a companion's displacement over many fields):
-            # its claim counts only if it holds the ray in the run's next field too
-            hit_in = _claims(blob[inner[has]], point_in, both, (camera, uv), dlts, tolerance_mm)
-            by = np.full(hit.shape, -1, dtype=np.int64)
-            by[hit >= 0] = source[hit[hit >= 0]]
-            by_in = np.full(hit_in.shape, -1, dtype=np.int64)
-            by_in[hit_in >= 0] = source[hit_in[hit_in >= 0]]
-            was = np.full((len(ends), hit_in.shape[1]), -1, dtype=np.int64)
-            was[has] = by_in
-            loose = (hit >= len(src)) & has[:, None]
-            held = np.any((by[:, :, None] == was[:, None, :]) & (by[:, :, None] >= 0), axis=2)
-            hits.append(np.where(loose & ~held, -1, hit))
+            rays = blob[ends], blob[inner[has]], has
+            hits.append(
+                _lasting(rays, at, both, (camera, uv), dlts, tolerance_mm, source, len(src))
+            )
             if rivals is not None:  # judged by smooth runs: nearness glues a ghost's
                 # crossing to other pieces (lowcost seed 427: a 168-field piece by
                 # nearness whose run onto RTOE's camera-1 ray was a few fields)
@@ -289,6 +280,34 @@ def _carried_claimers(
     pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields, coast)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]], end[gone]
+
+
+def _lasting(
+    rays: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]],
+    at: tuple[tuple, tuple],
+    claimers: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], NDArray],
+    image: tuple[NDArray[np.int64], NDArray[np.float64]],
+    dlts: NDArray[np.float64],
+    tolerance_mm: float,
+    source: NDArray[np.int64],
+    n_predicted: int,
+) -> NDArray[np.int64]:
+    """:func:`_claims` on the blobs of runs' ends (``rays``: the end's blob, the blob one
+    field inward where ``has``; ``at``: the points there), a carried claim (claimer index
+    ``n_predicted`` on) kept only where the same trajectory (``source`` of each claimer)
+    claims the inward blob's ray too: a carried position is a companion's displacement
+    over many fields, and one that crosses a marker's ray by chance leaves it a field on."""
+    end, inward, has = rays
+    hit = _claims(end, at[0], claimers, image, dlts, tolerance_mm)
+    hit_in = _claims(inward, at[1], claimers, image, dlts, tolerance_mm)
+    by, by_in = np.full(hit.shape, -1), np.full(hit_in.shape, -1)
+    by[hit >= 0] = source[hit[hit >= 0]]
+    by_in[hit_in >= 0] = source[hit_in[hit_in >= 0]]
+    was = np.full((len(end), hit_in.shape[1]), -1)
+    was[has] = by_in
+    loose = (hit >= n_predicted) & has[:, None]
+    held = np.any((by[:, :, None] == was[:, None, :]) & (by[:, :, None] >= 0), axis=2)
+    return np.where(loose & ~held, -1, hit)
 
 
 def _inward(
