@@ -122,7 +122,7 @@ def claimed_pieces(
     ray is enough when the claim comes with the ray's own pair: a candidate pair
     (``rivals``) of that field shares the blob with the piece's point, lies farther than
     the tolerance from it and within half the tolerance of the prediction of a
-    trajectory that outlasts the piece (a known marker, or a longer piece) and predicts
+    trajectory that outlasts the piece (a known marker, or a longer smooth run) and predicts
     farther than twice the tolerance from the piece's point. The piece then holds the
     blob that a marker's trajectory, continued into the piece's fields, needs: one
     marker's ray crossed with a single-view marker's ray, the blob's true pair left out.
@@ -130,7 +130,11 @@ def claimed_pieces(
     its last) claim rays too, from where their rigid companions carry them
     (:func:`~kisscal.recon.carried.carried`), where no point lies: less exact than a
     prediction over one field, such a claim counts only farther than twice the tolerance
-    from the piece's point.
+    from the piece's point, and only where the same trajectory, carried one field into the
+    run, lies on the ray there too: a ghost's ray stays with its marker, while a carried
+    position tens of millimetres off crosses a true marker's ray by chance, for a field
+    (modern 3 cameras seed 325: LHEE and RHEE carried 46 and 15 fields, 48 and 60 mm off,
+    lay on RTIB's two rays at the last field of its 164-field piece).
 
     Parameters
     ----------
@@ -183,6 +187,7 @@ def claimed_pieces(
     ]
     chains = links(all_xyz[ok], all_field[ok], step_mm, tolerance_mm)
     trajectories = all_xyz[ok], all_field[ok], span[ok], chains
+    smooth_span = np.r_[span[: len(known_xyz)], np.bincount(smooth)[smooth]]
     judged = []
     for side in (1, -1):  # the first field of a run (from the field before), the last
         ends = _piece_ends(smooth, field, side)
@@ -199,12 +204,22 @@ def claimed_pieces(
         margin = np.r_[np.full(len(src), tolerance_mm), np.full(len(lost[0]), 2 * tolerance_mm)]
         both = (*(np.concatenate([c, m]) for c, m in zip(claimers, lost, strict=True)), margin)
         hits, stolen = [], np.zeros(len(ends), dtype=bool)
+        source = np.r_[src, np.flatnonzero(ok)[lost_end]]
+        inner = _inward(smooth, field, ends, side)
+        has = inner >= 0
+        at = point, (xyz[inner[has]], field[inner[has]], point[2][has])
         for blob in (a, b):  # each ray of the piece's end, against the claimers
-            hits.append(_claims(blob[ends], point, both, (camera, uv), dlts, tolerance_mm))
-            if rivals is not None:
-                stolen |= _rival_claims(blob[ends], point, rivals, claimers, tolerance_mm)
+            rays = blob[ends], blob[inner[has]], has
+            hits.append(
+                _lasting(rays, at, both, (camera, uv), dlts, tolerance_mm, source, len(src))
+            )
+            if rivals is not None:  # judged by smooth runs: nearness glues a ghost's
+                # crossing to other pieces (lowcost seed 427: a 168-field piece by
+                # nearness whose run onto RTOE's camera-1 ray was a few fields)
+                runs = pred[gone], p_field[gone], smooth_span[src]
+                stolen |= _rival_claims(blob[ends], point, rivals, runs, tolerance_mm)
         flagged[smooth[ends[stolen]]] = True
-        judged.append((ends, *hits, np.r_[src, np.flatnonzero(ok)[lost_end]], point[2]))
+        judged.append((ends, *hits, source, point[2]))
     # a ghost's own trajectory claims nothing: a piece withdrawn here does not claim a
     # longer one (modern 3 cameras seed 429: a 4-field crossing on the ankle's camera-1
     # ray, predicted back 32 mm off it, withdrew the ankle's 380-field piece with it)
@@ -265,6 +280,47 @@ def _carried_claimers(
     pos, p_field, end = carried(xyz, field, chains, step_mm, tolerance_mm, side, fields, coast)
     gone = here.query(embed_fields(pos, p_field))[0] > tolerance_mm
     return pos[gone], p_field[gone], span[end[gone]], end[gone]
+
+
+def _lasting(
+    rays: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]],
+    at: tuple[tuple, tuple],
+    claimers: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], NDArray],
+    image: tuple[NDArray[np.int64], NDArray[np.float64]],
+    dlts: NDArray[np.float64],
+    tolerance_mm: float,
+    source: NDArray[np.int64],
+    n_predicted: int,
+) -> NDArray[np.int64]:
+    """:func:`_claims` on the blobs of runs' ends (``rays``: the end's blob, the blob one
+    field inward where ``has``; ``at``: the points there), a carried claim (claimer index
+    ``n_predicted`` on) kept only where the same trajectory (``source`` of each claimer)
+    claims the inward blob's ray too: a carried position is a companion's displacement
+    over many fields, and one that crosses a marker's ray by chance leaves it a field on."""
+    end, inward, has = rays
+    hit = _claims(end, at[0], claimers, image, dlts, tolerance_mm)
+    hit_in = _claims(inward, at[1], claimers, image, dlts, tolerance_mm)
+    by, by_in = np.full(hit.shape, -1), np.full(hit_in.shape, -1)
+    by[hit >= 0] = source[hit[hit >= 0]]
+    by_in[hit_in >= 0] = source[hit_in[hit_in >= 0]]
+    was = np.full((len(end), hit_in.shape[1]), -1)
+    was[has] = by_in
+    loose = (hit >= n_predicted) & has[:, None]
+    held = np.any((by[:, :, None] == was[:, None, :]) & (by[:, :, None] >= 0), axis=2)
+    return np.where(loose & ~held, -1, hit)
+
+
+def _inward(
+    label: NDArray[np.int64], field: NDArray[np.int64], ends: NDArray[np.int64], side: int
+) -> NDArray[np.int64]:
+    """Index of the point of each end's run (``label``) one field inward (``side`` +1: the
+    run's first point, the next field), -1 for a run of one field."""
+    span = int(field.max()) + 2
+    key = label * span + field
+    order = np.argsort(key, kind="stable")
+    want = label[ends] * span + field[ends] + side
+    at = np.minimum(np.searchsorted(key[order], want), len(order) - 1)
+    return np.where(key[order][at] == want, order[at], -1)
 
 
 def _piece_ends(label: NDArray[np.int64], field: NDArray[np.int64], side: int) -> NDArray[np.int64]:

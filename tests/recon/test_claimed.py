@@ -274,3 +274,78 @@ def test_two_claims_of_one_piece_count_as_one_trajectory() -> None:
         args = (field, camera, uv), dlts, p, None, *carry
         out = claimed_pieces(a, b, xyz, *none, *args)
         assert out[:n].all() == withdrawn and out[:n].any() == withdrawn, f"G begins {first}"
+
+
+def test_carried_positions_that_cross_a_pieces_rays_for_one_field_claim_nothing() -> None:
+    # P, seen by cameras 0 and 2 over fields 0-19 (30 mm a field), is lost. X and Y begin
+    # at field 25, each carried back by a companion 100 mm from it (C, D, seen
+    # throughout): carried to field 19 they lie on P's camera-0 and camera-2 rays, 200 and
+    # 250 mm beyond P. Standing still, they left the rays a field before (30 mm across):
+    # two inexact positions that crossed P's rays by chance, which claim nothing (modern
+    # 3 cameras seed 325: RTIB's 164-field piece withdrawn by LHEE and RHEE carried 46 and
+    # 15 fields, 48 and 60 mm off). Moving with P they stay on its rays, and withdraw it
+    dlts = make_rig(7, n_cameras=3)
+    c0, c2 = camera_centre_mm(dlts[0]), camera_centre_mm(dlts[2])
+    n, e, start = 40, 19, 25
+    t = np.arange(n)
+    p = np.array([-300.0, 0.0, 900.0]) + t[:, None] * [30.0, 0.0, 0.0]
+    on0 = p[e] + 200.0 * (p[e] - c0) / np.linalg.norm(p[e] - c0)
+    on2 = p[e] + 250.0 * (p[e] - c2) / np.linalg.norm(p[e] - c2)
+    rows = [(f, c) for f in range(e + 1) for c in (0, 2)]
+    field = np.array([f for f, _ in rows])
+    camera = np.array([c for _, c in rows])
+    uv = np.array([project(dlts[c], p[f][None])[0] for f, c in rows])
+    a, b = np.arange(0, len(rows), 2), np.arange(1, len(rows), 2)
+    params = ReconParams()
+    offset = np.array([0.0, 100.0, 0.0])
+    for speed, withdrawn in ((0.0, False), (30.0, True)):
+        move = (t - e)[:, None] * [speed, 0.0, 0.0]
+        x, y = on0 + move, on2 + move
+        later = t >= start
+        known = np.r_[x - offset, y - offset, x[later], y[later]]
+        known_field = np.r_[t, t, t[later], t[later]]
+        args = (field, camera, uv), dlts, params, None, 50, 5
+        out = claimed_pieces(a, b, p[: e + 1], known, known_field, *args)
+        assert out.all() == withdrawn and out.any() == withdrawn, f"carried at {speed} mm"
+
+
+def test_a_rival_pair_steals_only_for_a_trajectory_that_moves_smoothly_longer() -> None:
+    # T's two-camera piece (cameras 0 and 2) begins at field s. Before it, a piece Q of
+    # cameras 0 and 1 ran for 17 fields, then jumped 100 mm onto G, 150 mm beyond T on
+    # its camera-2 ray, for 3 fields: at field s the candidate pair of T's camera-2 blob
+    # with camera 1's blob at G lies on Q's prediction. Q is 20 fields by nearness, but
+    # the run that predicts G is 3: it does not outlast T's 15 and steals nothing; moving
+    # smoothly onto G for all 20 fields it does (lowcost seed 427: RTOE's 14-field piece
+    # withdrawn for a 168-field crossing of its camera-1 ray with RANK's camera 2, glued
+    # by nearness)
+    dlts = make_rig(7, n_cameras=3)
+    s, n = 20, 15
+    t = np.arange(s + n)
+    tib = np.array([-200.0, 0.0, 900.0]) + t[:, None] * [10.0, 1.0, 0.0]
+    c2 = camera_centre_mm(dlts[2])
+    g = tib + 150.0 * (tib - c2) / np.linalg.norm(tib - c2, axis=1, keepdims=True)
+    for jump, stolen in ((100.0, False), (0.0, True)):
+        q = g[:s].copy()
+        q[: s - 3, 1] += jump
+        xyz = np.r_[tib[s:], q]
+        rows = [(f, c, tib) for f in range(s, s + n) for c in (0, 2)]
+        rows += [(f, c, g) for f in range(s - 3, s) for c in (0, 1)]
+        rows += [(s, 1, g)]
+        field = np.array([r[0] for r in rows])
+        camera = np.array([r[1] for r in rows])
+        uv = np.array([project(dlts[c], p[f][None])[0] for f, c, p in rows])
+        # Q's first 17 fields: blobs of their own (their images play no part here)
+        extra = [(f, c) for f in range(s - 3) for c in (0, 1)]
+        field = np.r_[field, [f for f, _ in extra]]
+        camera = np.r_[camera, [c for _, c in extra]]
+        uv = np.r_[uv, [project(dlts[c], q[f][None])[0] for f, c in extra]]
+        m = 2 * n + 6  # T's blobs, Q's last three fields', the rival's
+        a = np.r_[
+            np.arange(0, 2 * n, 2), m + 1 + np.arange(0, 2 * (s - 3), 2), np.arange(2 * n, m, 2)
+        ]
+        b = a + 1
+        rivals = np.r_[a[:n], 1], np.r_[b[:n], m], np.r_[tib[s : s + n], g[s : s + 1]]
+        xyz = np.r_[tib[s:], q[: s - 3], q[s - 3 :]]
+        none = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+        out = claimed_pieces(a, b, xyz, *none, (field, camera, uv), dlts, ReconParams(), rivals)
+        assert out[:n].all() == stolen and out[:n].any() == stolen, f"jump {jump} mm"
