@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
-from kisscal.tracking.fill_absent import absent_named, absent_placed, mirror_tracks
+from kisscal.tracking.fill_absent import absent_named, absent_placed, mirror_tracks, thin_names
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
@@ -447,11 +447,11 @@ def fill_gaps_named(
     n_fields = int(tracks.field.max()) + 1
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
-    measured = np.isfinite(dense[:, :, 0])
+    measured, thin = np.isfinite(dense[:, :, 0]), [*missing, *thin_names(dense, labels, params)]
     if spare is not None:  # and the blobs of points no named track holds
         who = np.isin(tracks.track, list(unlabelled)) & meas & (tracks.point >= 0)
         spare = freed(spare, tracks.point[who], tracks.track[who], tracks.point[meas])
-    absent_rows = who, absent, absent_sd = absent_placed(dense, labels, missing, spare, params)
+    absent_rows = who, absent, absent_sd = absent_placed(dense, labels, thin, spare, params)
     gaps = [
         (t, lo, hi)
         for t in range(tracks.n_tracks)
