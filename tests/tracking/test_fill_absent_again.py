@@ -11,16 +11,19 @@ import numpy as np
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.fill_absent import absent_named, absent_placed
+from kisscal.tracking.gaps import fill_gaps_named
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.sides import judge_sides
-from kisscal.tracking.tracks import FILLED_RIGID
+from kisscal.tracking.tracks import FILLED_RIGID, MEASURED
 from tests.tracking.test_anatomy import LOWER, PIG, _labelling, walker
 from tests.tracking.test_bodyfill import _tracks_of
-from tests.tracking.test_fill_absent import LABELS, PARAMS, _cameras, _feet
+from tests.tracking.test_fill_absent import GAP, LABELS, PARAMS, _cameras, _feet
 from tests.tracking.test_raychain import _dense
 
 #: The right toe and tibia measured in the first fields only (tracks 5 and 6).
 HIDDEN = slice(6, None)
+#: A piece of the right ankle measured in the first 5 fields only.
+THIN = slice(5, None)
 
 
 def _named(seed: int, filled: bool) -> tuple[list[str], list, np.ndarray]:
@@ -79,3 +82,23 @@ def test_a_missing_name_moves_with_its_exchanged_pair():
     assert judged.exchanged == (("LKNE", "RKNE"),)
     assert judged.labels == tuple(LOWER[i] for i in keep)
     assert judged.missing == ("RKNE",)
+
+
+def test_a_named_piece_too_short_to_know_its_lengths_is_placed_beside_its_samples():
+    # kiss 3 seed 439: a 5-field piece named LANK, the ankle one camera sees in 278
+    right, truth = _feet(28)
+    labels = (*LABELS, "RANK")
+    tracks = _tracks_of(np.concatenate([truth, right[2][None]]), {5: GAP, 6: GAP, 7: THIN})
+    spare = _cameras(right, 28, GAP)
+    out, fills = fill_gaps_named(tracks, PARAMS, spare, labels, (), ())[:2]
+    rows = out.track == 7
+    assert np.sum(rows & (out.status == MEASURED)) == THIN.start  # its samples kept
+    placed = rows & (out.status == FILLED_RIGID)
+    assert placed.sum() > 0.8 * (truth.shape[1] - (GAP.stop - GAP.start))
+    err = np.linalg.norm(out.xyz_mm[placed] - right[2, out.field[placed]], axis=1)
+    assert np.sqrt(np.mean(err**2)) < 2.0 and err.max() < 5.0
+    assert np.unique(out.field[rows]).size == rows.sum()  # one sample a field
+    for g in (g for g in fills if g.track == 7):  # each run's expected error is honest
+        f = (out.field[rows] >= g.first_field) & (out.field[rows] < g.first_field + g.n_fields)
+        miss = np.linalg.norm(out.xyz_mm[rows][f] - right[2, out.field[rows][f]], axis=1)
+        assert np.sqrt(np.mean(miss**2)) <= 2.0 * max(g.expected_error_mm, 0.5)
