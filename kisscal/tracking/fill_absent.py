@@ -301,6 +301,26 @@ def thin_names(dense: NDArray, labels: Sequence[str] | None, params: TrackingPar
     ]
 
 
+def absent_rows(
+    dense: NDArray,
+    labels: Sequence[str] | None,
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`absent_placed` of ``missing``, then of :func:`thin_names` with those rows
+    as partners: a thin name's marker may be one no camera sees, and a missing name's
+    blobs fit its lengths by chance (a thigh's whose knee waits for its ankle, kiss 3
+    seed 321), so it takes only the blobs the missing names leave."""
+    who, rows, sds = absent_placed(dense, labels, missing, spare, params)
+    thin = thin_names(dense, labels, params)
+    if not thin or spare is None or not labels:
+        return who, rows, sds
+    names = [*labels[: len(dense)], *(w[0] for w in who)]
+    more = absent_placed(np.concatenate([dense, rows]), names, thin, spare, params)
+    return [*who, *more[0]], np.concatenate([rows, more[1]]), np.concatenate([sds, more[2]])
+
+
 def absent_tracks(
     who: list[tuple[str, NDArray[np.int64]]],
     rows: NDArray,

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
-from kisscal.tracking.fill_absent import absent_named, absent_placed, mirror_tracks, thin_names
+from kisscal.tracking.fill_absent import absent_named, absent_rows, mirror_tracks
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
@@ -447,11 +447,11 @@ def fill_gaps_named(
     n_fields = int(tracks.field.max()) + 1
     dense = np.full((tracks.n_tracks, n_fields, 3), np.nan)
     dense[tracks.track[meas], tracks.field[meas]] = tracks.xyz_mm[meas]
-    measured, thin = np.isfinite(dense[:, :, 0]), [*missing, *thin_names(dense, labels, params)]
+    measured = np.isfinite(dense[:, :, 0])
     if spare is not None:  # and the blobs of points no named track holds
         who = np.isin(tracks.track, list(unlabelled)) & meas & (tracks.point >= 0)
         spare = freed(spare, tracks.point[who], tracks.track[who], tracks.point[meas])
-    absent_rows = who, absent, absent_sd = absent_placed(dense, labels, thin, spare, params)
+    again = who, absent, absent_sd = absent_rows(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)
         for t in range(tracks.n_tracks)
@@ -472,7 +472,7 @@ def fill_gaps_named(
         made += _second_pass(
             dense, gaps, params, spare, measured, made, absent, last, errors, mirror
         )
-    named, placed = absent_named(dense, measured, made, labels, absent_rows, missing, spare, params)
+    named, placed = absent_named(dense, measured, made, labels, again, missing, spare, params)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
