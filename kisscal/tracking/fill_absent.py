@@ -24,7 +24,11 @@ sees (kiss 3: a knee the other leg hides from two cameras). Where the toe is see
 camera and the ankle by another, neither fixes its own depth with the heel alone (a ray
 nearly square to the heel-toe line meets its sphere at a glancing angle); together, on
 two rays with three lengths, they are fixed (:mod:`kisscal.tracking.fill_joint`), and the
-ankle's blob is followed into the gap from the fields placed here.
+ankle's blob is followed into the gap from the fields placed here. A name placed too
+short to be named (or nowhere) is tried again once every gap is filled, its partners'
+ray fills its context (:func:`absent_named`: a knee whose tibia and ankle the same
+cameras miss); and a name whose track is measured in too few fields to learn its own
+lengths (:func:`thin_names`) is placed so too, beside its samples.
 
 References
 ----------
