@@ -24,7 +24,11 @@ sees (kiss 3: a knee the other leg hides from two cameras). Where the toe is see
 camera and the ankle by another, neither fixes its own depth with the heel alone (a ray
 nearly square to the heel-toe line meets its sphere at a glancing angle); together, on
 two rays with three lengths, they are fixed (:mod:`kisscal.tracking.fill_joint`), and the
-ankle's blob is followed into the gap from the fields placed here.
+ankle's blob is followed into the gap from the fields placed here. A name placed too
+short to be named (or nowhere) is tried again once every gap is filled, its partners'
+ray fills its context (:func:`absent_named`: a knee whose tibia and ankle the same
+cameras miss); and a name whose track is measured in too few fields to learn its own
+lengths (:func:`thin_names`) is placed so too, beside its samples.
 
 References
 ----------
@@ -110,7 +114,8 @@ def _depths(
     c: NDArray, d: NDArray, p: NDArray, length: NDArray, sd: NDArray
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Depth on each ray ``c + s d`` ((r, 3) each) fitting the lengths ``length`` (k,) to
-    the partners ``p`` (k, r, 3; NaN where not measured): the start of smallest worst
+    the partners ``p`` (k, r, 3; NaN where not measured), each SD ``sd`` (k,) or
+    (k, r): the start of smallest worst
     residual among the points where the ray meets each partner's sphere. Returns the
     depths (r,), the worst residual in SDs and the expected error (mm) along the ray."""
     known = np.isfinite(p[..., 0])
@@ -119,7 +124,7 @@ def _depths(
     root = np.sqrt(np.maximum(length[:, None] ** 2 - (np.sum(rel**2, axis=2) - b**2), 0.0))
     s = np.concatenate([b - root, b + root]).T  # (r, 2k) starts
     ok = np.concatenate([known, known]).T
-    w = (1.0 / sd)[:, None, None]
+    w = (1.0 / np.broadcast_to(sd.reshape(len(sd), -1), known.shape))[..., None]
     for _ in range(ITERS + 1):
         v = s[None, :, :, None] * d[None, :, None] - rel[:, :, None]  # (k, r, S, 3)
         dist = np.maximum(np.linalg.norm(v, axis=3), 1e-9)  # (k, r, S)
@@ -145,10 +150,13 @@ def place_absent(
     sd: NDArray,
     spare: SpareBlobs,
     params: TrackingParams,
+    errors: NDArray | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The absent marker's position per field (n_fields, 3; NaN where not placed) from
     the free blobs of ``spare`` and its lengths to ``partners`` (see module), and its
-    expected error along the ray (n_fields,); the blobs of the placed fields are taken."""
+    expected error along the ray (n_fields,); the blobs of the placed fields are taken.
+    ``errors`` (as ``dense[..., 0]``): each partner sample's expected error (0 where
+    measured), added to its length's SD."""
     out = np.full((dense.shape[1], 3), np.nan)
     along = np.full(dense.shape[1], np.nan)
     rows = np.flatnonzero(spare.free & (spare.field < dense.shape[1]))
@@ -157,6 +165,9 @@ def place_absent(
     rows, p = rows[enough], p[:, enough]
     if rows.size == 0:
         return out, along
+    if errors is not None:
+        e = np.nan_to_num(errors[partners][:, spare.field[rows]])
+        sd = np.sqrt(sd[:, None] ** 2 + e**2)
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
@@ -232,6 +243,7 @@ def absent_placed(
     missing: Sequence[str],
     spare: SpareBlobs | None,
     params: TrackingParams,
+    errors: NDArray | None = None,
 ) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
     """Per name of ``missing`` that :func:`place_absent` places, its name and partners,
     its row ((m, n_fields, 3); m = 0 without ``spare``) and each placed field's expected
@@ -240,7 +252,8 @@ def absent_placed(
     it, which are tried again while rows are added (kiss 3: an ankle that one camera
     sees, placed by its heel and toe, and its knee, which another camera sees, by the
     ankle and the tibia); a row placed in fewer than ``min_track_length`` fields (too
-    few to be named) waits until no other is added, its blobs free."""
+    few to be named) waits until no other is added, its blobs free. ``errors``: see
+    :func:`place_absent` (placed rows' own added as they are)."""
     rows, sds, who = [], [], []
     names = list(labels or ())
     waiting = list(missing) if spare is not None and labels else []
@@ -252,7 +265,7 @@ def absent_placed(
             row = np.full(dense.shape[1:], np.nan)
             if partners.size >= 2:
                 free = spare.free.copy()
-                row, err = place_absent(dense, partners, length, sd, spare, params)
+                row, err = place_absent(dense, partners, length, sd, spare, params, errors)
             n = np.isfinite(row[:, 0]).sum()
             if n == 0 or (n < params.min_track_length and not last):
                 # its blobs wait for the partners placed after it (kiss 3 seed 321: the
@@ -265,6 +278,8 @@ def absent_placed(
             sds.append(err)
             who.append((name, partners))
             dense = np.concatenate([dense, row[None]])
+            if errors is not None:
+                errors = np.concatenate([errors, err[None]])
             names.append(name)
         if len(left) == len(waiting):
             if last:
@@ -274,6 +289,40 @@ def absent_placed(
     if not rows:
         return [], np.zeros((0, *dense.shape[1:])), np.zeros((0, dense.shape[1]))
     return who, np.stack(rows), np.stack(sds)
+
+
+def thin_names(dense: NDArray, labels: Sequence[str] | None, params: TrackingParams) -> list[str]:
+    """Names of tracks of ``dense`` (measured samples; one label each) measured in
+    fewer than ``length_fields`` fields, with a mirror name: too few to learn their own
+    lengths, so no fill places them on their rays beyond their samples, while their
+    mirror images' lengths can (kiss 3 seed 439: a 5-field piece named LANK, the ankle
+    one camera sees in 278 fields, and its knee left without partners)."""
+    count = np.isfinite(dense[..., 0]).sum(axis=1)
+    return [
+        n
+        for n, c in zip(labels or (), count, strict=False)
+        if c < params.length_fields and mirror_name(n) is not None
+    ]
+
+
+def absent_rows(
+    dense: NDArray,
+    labels: Sequence[str] | None,
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`absent_placed` of ``missing``, then of :func:`thin_names` with those rows
+    as partners: a thin name's marker may be one no camera sees, and a missing name's
+    blobs fit its lengths by chance (a thigh's whose knee waits for its ankle, kiss 3
+    seed 321), so it takes only the blobs the missing names leave."""
+    who, rows, sds = absent_placed(dense, labels, missing, spare, params)
+    thin = thin_names(dense, labels, params)
+    if not thin or spare is None or not labels:
+        return who, rows, sds
+    names = [*labels[: len(dense)], *(w[0] for w in who)]
+    more = absent_placed(np.concatenate([dense, rows]), names, thin, spare, params)
+    return [*who, *more[0]], np.concatenate([rows, more[1]]), np.concatenate([sds, more[2]])
 
 
 def absent_tracks(
@@ -299,3 +348,101 @@ def absent_tracks(
             err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
             out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
     return names, out
+
+
+def absent_named(
+    dense: NDArray,
+    measured: NDArray,
+    made: Sequence[tuple[NDArray, GapFill]],
+    labels: Sequence[str] | None,
+    placed: tuple[list[tuple[str, NDArray[np.int64]]], NDArray, NDArray],
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> tuple[list[str], list[tuple[NDArray, GapFill]]]:
+    """:func:`absent_tracks` of :func:`absent_placed`'s result (``placed``), the names it
+    left unnamed (placed in fewer than ``min_track_length`` fields, or nowhere) tried
+    again once every gap is filled: with the tracks' measured samples (``dense`` where
+    ``measured``; n_tracks rows) and their ray fills of ``made`` trusted as context
+    (``filled_rigid``, expecting at most ``ray_rest_max_error_mm``; that error is added
+    to the lengths' SDs). The cameras that miss a knee mostly miss its tibia and ankle
+    too: kiss 3 seed 414's were measured together in 23 fields and placed on one
+    camera's rays in 226, so the knee, which one camera sees throughout, was placed in 4
+    fields and left unnamed. A name tried again keeps the fields placed before (their
+    blobs taken)."""
+    n = len(dense)
+    who, rows, sds = _again(dense, measured, made, labels, placed, missing, spare, params)
+    own = {name: t for t, name in enumerate((labels or ())[:n])}
+    new = [k for k, (name, _) in enumerate(who) if name not in own]
+    names, out = absent_tracks([who[k] for k in new], rows[new], sds[new], n, params)
+    return names, out + _beside(measured, made, who, rows, sds, own)
+
+
+def _beside(
+    measured: NDArray,
+    made: Sequence[tuple[NDArray, GapFill]],
+    who: list[tuple[str, NDArray[np.int64]]],
+    rows: NDArray,
+    sds: NDArray,
+    own: dict[str, int],
+) -> list[tuple[NDArray, GapFill]]:
+    """The placed rows of names a track holds (:func:`thin_names`) as fills of that
+    track, in the fields where it is neither measured nor filled (``made``)."""
+    taken = measured.copy()
+    for _, fill in made:
+        taken[fill.track, fill.first_field : fill.first_field + fill.n_fields] = True
+    out = []
+    for (name, partners), row, sd in zip(who, rows, sds, strict=True):
+        t = own.get(name)
+        if t is None:
+            continue
+        donors = tuple(partners[partners < len(measured)].tolist())
+        for a, b in zip(*true_runs(np.isfinite(row[:, 0]) & ~taken[t]), strict=True):
+            err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
+            out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
+    return out
+
+
+def _again(
+    dense: NDArray,
+    measured: NDArray,
+    made: Sequence[tuple[NDArray, GapFill]],
+    labels: Sequence[str] | None,
+    placed: tuple[list[tuple[str, NDArray[np.int64]]], NDArray, NDArray],
+    missing: Sequence[str],
+    spare: SpareBlobs | None,
+    params: TrackingParams,
+) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
+    who, rows, sds = placed
+    long = [
+        k for k in range(len(who)) if np.isfinite(rows[k, :, 0]).sum() >= params.min_track_length
+    ]
+    again = [n for n in missing if n not in {who[k][0] for k in long}]
+    if spare is None or not labels or not again:
+        return placed
+    n = len(dense)
+    context = np.where(measured[..., None], dense, np.nan)
+    errors = np.where(measured, 0.0, np.nan)
+    for xyz, fill in made:
+        span = slice(fill.first_field, fill.first_field + fill.n_fields)
+        if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
+            context[fill.track, span] = xyz
+            errors[fill.track, span] = fill.expected_error_mm
+    context = np.concatenate([context, rows[long]])
+    errors = np.concatenate([errors, sds[long]])
+    names = [*labels[:n], *(who[k][0] for k in long)]
+    new_who, new_rows, new_sds = absent_placed(context, names, again, spare, params, errors)
+    if not new_who:
+        return placed
+    before = {who[k][0]: k for k in range(len(who)) if k not in long}
+    for k, (name, _) in enumerate(new_who):  # fields placed before kept
+        if name in before:
+            old = np.isfinite(rows[before[name], :, 0])
+            new_rows[k, old], new_sds[k, old] = rows[before[name], old], sds[before[name], old]
+    short = [k for k in before.values() if who[k][0] not in {w[0] for w in new_who}]
+    keep = long + short
+    return (
+        [*(who[k] for k in keep), *new_who],
+        np.concatenate([rows[keep], new_rows]),
+        np.concatenate([sds[keep], new_sds]),
+    )

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
-from kisscal.tracking.fill_absent import absent_placed, absent_tracks, mirror_tracks
+from kisscal.tracking.fill_absent import absent_named, absent_rows, mirror_tracks
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_centre import centre_body
 from kisscal.tracking.fill_depth import depth_ray_fill
@@ -451,7 +451,7 @@ def fill_gaps_named(
     if spare is not None:  # and the blobs of points no named track holds
         who = np.isin(tracks.track, list(unlabelled)) & meas & (tracks.point >= 0)
         spare = freed(spare, tracks.point[who], tracks.track[who], tracks.point[meas])
-    who, absent, absent_sd = absent_placed(dense, labels, missing, spare, params)
+    again = who, absent, absent_sd = absent_rows(dense, labels, missing, spare, params)
     gaps = [
         (t, lo, hi)
         for t in range(tracks.n_tracks)
@@ -472,7 +472,7 @@ def fill_gaps_named(
         made += _second_pass(
             dense, gaps, params, spare, measured, made, absent, last, errors, mirror
         )
-    named, placed = absent_tracks(who, absent, absent_sd, tracks.n_tracks, params)
+    named, placed = absent_named(dense, measured, made, labels, again, missing, spare, params)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:
