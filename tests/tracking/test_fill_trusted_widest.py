@@ -87,3 +87,19 @@ def test_a_marker_of_one_segment_is_left_to_the_body_fills():
     gap, _ = _gap()
     gap.dense[ANK] = _leg()[ANK]
     assert widest_segment(gap.dense, HEE, LO, HI, PARAMS) is None
+
+
+def test_a_fill_whose_error_was_not_measured_does_not_take_its_donors_errors():
+    # kiss 3 seed 430: LANK's two-marker fill, its error unmeasured (NaN), expected 1.6
+    # mm from LHEE's spline fill of one field, 4.4 mm RMS off
+    from kisscal.tracking.bodyfill import Candidate, GapFill
+    from kisscal.tracking.fill_trusted import counted
+    from kisscal.tracking.tracks import FILLED_RIGID
+
+    errors = np.zeros((3, 20))
+    errors[1, 8] = 1.6
+    fill = GapFill(2, 5, 6, FILLED_RIGID, float("nan"), (0, 1))
+    assert counted([Candidate(np.zeros((6, 3)), fill, np.nan)], errors) == []
+    fill = GapFill(2, 5, 6, FILLED_RIGID, 0.5, (0, 1))
+    got = counted([Candidate(np.zeros((6, 3)), fill, np.nan)], errors)
+    assert [c.fill.expected_error_mm for c in got] == [1.6]
