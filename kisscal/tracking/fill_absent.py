@@ -342,12 +342,21 @@ def absent_tracks(
         placed = np.isfinite(row[:, 0])
         if placed.sum() < params.min_track_length:
             continue
-        t = first_track + len(names)
+        out += ray_runs(first_track + len(names), row, sd, placed, donors)
         names.append(name)
-        for a, b in zip(*true_runs(placed), strict=True):
-            err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
-            out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
     return names, out
+
+
+def ray_runs(
+    t: int, row: NDArray, sd: NDArray, where: NDArray, donors: tuple[int, ...]
+) -> list[tuple[NDArray, GapFill]]:
+    """One (xyz, fill) of track ``t`` per run of ``where`` in ``row`` (n_fields, 3),
+    ``filled_rigid`` on the rays of one camera, expecting the run's RMS of ``sd``."""
+    out = []
+    for a, b in zip(*true_runs(where), strict=True):
+        err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
+        out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
+    return out
 
 
 def absent_named(
@@ -397,9 +406,7 @@ def _beside(
         if t is None:
             continue
         donors = tuple(partners[partners < len(measured)].tolist())
-        for a, b in zip(*true_runs(np.isfinite(row[:, 0]) & ~taken[t]), strict=True):
-            err = float(np.sqrt(np.mean(sd[a:b] ** 2)))
-            out.append((row[a:b], GapFill(t, a, b - a, FILLED_RIGID, err, donors, b - a)))
+        out += ray_runs(t, row, sd, np.isfinite(row[:, 0]) & ~taken[t], donors)
     return out
 
 

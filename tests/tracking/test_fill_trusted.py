@@ -63,16 +63,28 @@ def test_a_donor_fill_over_the_fill_limit_is_not_followed():
 
 
 @pytest.mark.slow
-def test_modern_3_cameras_seed_446_ankle_hidden_from_all_is_filled_honestly():
+@pytest.mark.parametrize(
+    ("seed", "name", "span", "fewest", "rms_mm"),
+    [
+        # the 40 fields no camera saw the ankle in, over 3 mm donors' fills
+        (446, "LANK", (300, 360), 30, PARAMS.ray_rest_max_error_mm),
+        # the 76 fields no camera saw the toe in, its donors measured but for one field
+        # a spline on their rays placed (none filled before)
+        (408, "LTOE", (280, 370), 70, PARAMS.max_body_fill_error_mm),
+    ],
+)
+def test_modern_3_cameras_a_marker_hidden_from_all_is_filled_honestly(
+    seed: int, name: str, span: tuple[int, int], fewest: int, rms_mm: float
+):
     from tests.tracking.few_cameras_acceptance import rig_trial, track_trial
 
-    trial = rig_trial("modern", 446, 3)
+    trial = rig_trial("modern", seed, 3)
     res = track_trial(trial)
-    j = trial.names.index("LANK")
-    t = res.labels.index("LANK")
+    j = trial.names.index(name)
+    t = res.labels.index(name)
     hidden = np.flatnonzero(trial.visible[:, j].sum(axis=1) == 0)
-    hidden = hidden[(hidden >= 300) & (hidden < 360)]  # the 40 fields no camera saw
-    assert hidden.size >= 30
+    hidden = hidden[(hidden >= span[0]) & (hidden < span[1])]
+    assert hidden.size >= fewest
     tr = res.tracks
     rows = (tr.track == t) & np.isin(tr.field, hidden) & (tr.status >= 2)
     assert np.array_equal(np.sort(tr.field[rows]), hidden)  # all of them filled
@@ -82,7 +94,7 @@ def test_modern_3_cameras_seed_446_ankle_hidden_from_all_is_filled_honestly():
         if f.track == t:
             expected[f.first_field : f.first_field + f.n_fields] = f.expected_error_mm
     assert np.all(err <= 2.0 * expected[tr.field[rows]])
-    assert np.sqrt(np.mean(err**2)) < PARAMS.ray_rest_max_error_mm
+    assert np.sqrt(np.mean(err**2)) < rms_mm
 
 
 def test_fields_a_camera_sees_the_marker_in_are_left_to_its_rays():
@@ -168,26 +180,3 @@ def test_donors_missing_a_field_the_trusted_pass_follows_their_fills_on_rays():
     for xyz, f in got:
         err = np.linalg.norm(xyz - truth[2, f.first_field : f.first_field + f.n_fields], axis=1)
         assert np.all(err <= 2.0 * f.expected_error_mm)
-
-
-@pytest.mark.slow
-def test_modern_3_cameras_seed_408_toe_hidden_from_all_is_filled_honestly():
-    from tests.tracking.few_cameras_acceptance import rig_trial, track_trial
-
-    trial = rig_trial("modern", 408, 3)
-    res = track_trial(trial)
-    j = trial.names.index("LTOE")
-    t = res.labels.index("LTOE")
-    hidden = np.flatnonzero(trial.visible[:, j].sum(axis=1) == 0)
-    hidden = hidden[(hidden >= 280) & (hidden < 370)]  # the 76 fields no camera saw
-    assert hidden.size >= 70
-    tr = res.tracks
-    rows = (tr.track == t) & np.isin(tr.field, hidden) & (tr.status >= 2)
-    assert np.array_equal(np.sort(tr.field[rows]), hidden)  # on main none of them
-    err = np.linalg.norm(tr.xyz_mm[rows] - trial.truth[tr.field[rows], j], axis=1)
-    expected = np.full(len(trial.truth), np.nan)
-    for f in res.fills:
-        if f.track == t:
-            expected[f.first_field : f.first_field + f.n_fields] = f.expected_error_mm
-    assert np.all(err <= 2.0 * expected[tr.field[rows]])
-    assert np.sqrt(np.mean(err**2)) < PARAMS.max_body_fill_error_mm
