@@ -148,8 +148,15 @@ def test_two_pieces_past_two_partners_ends_join_them_when_they_keep_their_length
         assert np.isin(np.arange(165, 200), got.tracks.field[rows]).all()
         err = np.linalg.norm(got.tracks.xyz_mm[rows] - xyz[m, got.tracks.field[rows]], axis=1)
         assert err.max() < 2.0
-    # 55 mm apart, A-C's 80 less 25 (no pair of the body's is nearer than 70): unnamed
-    assert join_gap_pieces(_ends(xyz, -25.0), TrackingParams()).unlabelled == (4, 5)
+    # 55 mm apart, A-C's 80 less 25 (no pair of the body's is nearer than 70): not a
+    # pair; C's piece, on C's path, takes C's name by its path alone, A's (25 mm off A's
+    # path) none
+    got = join_gap_pieces(_ends(xyz, -25.0), TrackingParams())
+    assert got.labels == ("A", "B", "C", "D", "M1")
+    assert np.array_equal(np.unique(got.tracks.field[got.tracks.track == 4]), np.arange(160, 200))
+    rows = got.tracks.track == 2
+    err = np.linalg.norm(got.tracks.xyz_mm[rows] - xyz[2, got.tracks.field[rows]], axis=1)
+    assert err.max() < 2.0
 
 
 def _segment_on_rays(xyz: np.ndarray, seed: int, markers=(1, 2, 3)) -> object:

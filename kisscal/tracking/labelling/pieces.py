@@ -12,9 +12,15 @@ velocity beside the gap, as :mod:`kisscal.tracking.raychain` follows a path) and
 the trajectory's lengths to its segment's partners where they are seen (RMS difference at most
 ``label_segment_tolerance_mm``, over at least :data:`MIN_LENGTH_CHECKS` of them), and
 when exactly one named trajectory is so continued and none is measured where the piece
-is (within :data:`SAME_MARKER_MM`: the same marker seen twice). Two pieces past the ends
-of two segment partners, neither partner measured there, join them when their distance
-keeps the partners' length and one continues its name's path (:func:`_end_pairs`).
+is (within :data:`SAME_MARKER_MM`: the same marker seen twice). Where fewer than
+:data:`MIN_LENGTH_CHECKS` lengths can be checked (kiss 3 cameras seed 418: the right heel
+seen by two cameras at the walk's end, ankle and toe by one), those there must hold and the
+path alone names the piece: its start within a quarter of the trajectory's distance to its
+nearest other marker (:data:`PATH_ONLY_FRACTION`) of the trajectory's end moved across the
+gap at their two velocities' mean (:func:`bridge_mm`), unless a name its lengths confirm,
+or a pair below, takes the piece or the name. Two pieces past the ends of two segment
+partners, neither partner measured there, join them when their distance keeps the
+partners' length and one continues its name's path (:func:`_end_pairs`).
 
 References
 ----------
@@ -40,6 +46,11 @@ MIN_LENGTH_CHECKS = 3
 #: to a piece, beyond its segment partner's own motion.
 REACH_MM_PER_FIELD = 30.0
 MAX_REACH_MM = 150.0
+
+#: Largest part of a trajectory's distance to its nearest other marker that a piece named
+#: by its path alone (no lengths to check) may miss the path by: a neighbour's path is a
+#: whole distance off, and a wrong point between them (two blobs merged) half of it.
+PATH_ONLY_FRACTION = 0.25
 
 #: A piece nearer than this (mm, on average) to another trajectory where both are measured
 #: is that marker seen twice, and joins no gap.
@@ -78,27 +89,52 @@ def step_from(seen: NDArray, first: int, last: int) -> list[tuple[int, int]]:
     return [(int(x), first) for x in before] + [(int(x), last) for x in after]
 
 
-def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> bool:
+def _fits(dense: NDArray, t: int, u: int, params: TrackingParams) -> int:
     """Whether piece ``u`` fills a gap of track ``t``, or continues it past an end (see
-    module)."""
+    module): 2 by its path and lengths, 1 by its path alone (too few lengths to check),
+    0 not."""
     mine, piece = np.isfinite(dense[t, :, 0]), np.flatnonzero(np.isfinite(dense[u, :, 0]))
     a, b = piece[0], piece[-1]
     if mine[a : b + 1].any() or not mine.any():
-        return False
+        return 0
     partners, _ = length_partners(dense, t, params)
     partners = partners[partners != u]
-    for x, y in step_from(mine, a, b):
+    sides = step_from(mine, a, b)
+    for x, y in sides:
         if not reaches(dense[t], dense[partners], x, y, dense[u, y], still=True):
-            return False
+            return 0
     own = np.linalg.norm(dense[partners] - dense[t][None], axis=2)
     length = np.nanmedian(np.where(np.isfinite(own), own, np.nan), axis=1)
     there = np.linalg.norm(dense[partners][:, piece] - dense[u, piece][None], axis=2)
     miss = there - length[:, None]
     miss = miss[np.isfinite(miss)]
-    return (
-        miss.size >= MIN_LENGTH_CHECKS
-        and float(np.sqrt(np.mean(miss**2))) <= params.label_segment_tolerance_mm
+    if miss.size and float(np.sqrt(np.mean(miss**2))) > params.label_segment_tolerance_mm:
+        return 0
+    if miss.size >= MIN_LENGTH_CHECKS:
+        return 2
+    # too few lengths to check (the segment's partners hidden, or seen by one camera,
+    # where the piece is): the path alone names it, when the piece's start meets the
+    # trajectory's end moved at their two velocities' mean (a neighbour's path is
+    # offset by its distance whatever the body does, standing still is not enough:
+    # a body moving 5 mm a field brings a neighbour to the end's place) within a part
+    # of the trajectory's distance to its nearest other marker
+    near = np.linalg.norm(np.delete(dense, [t, u], axis=0) - dense[t][None], axis=2)
+    most = PATH_ONLY_FRACTION * float(np.nanmin(near, initial=np.inf))
+    return int(
+        bool(np.isfinite(most))
+        and all(bridge_mm(dense[t], dense[u], x, y) <= most for x, y in sides)
     )
+
+
+def bridge_mm(track: NDArray, piece: NDArray, x: int, y: int) -> float:
+    """How far (mm) ``piece`` (F, 3) in field ``y`` is from ``track``'s (F, 3) sample in
+    field ``x`` moved across the gap at the mean of the two velocities beside it (each
+    from its next field away from the gap; NaN when either has none)."""
+    s = 1 if y > x else -1
+    if not (0 <= x - s < track.shape[0] and 0 <= y + s < piece.shape[0]):
+        return float("nan")
+    mean_velocity = s * (track[x] - track[x - s] + piece[y + s] - piece[y]) / 2.0
+    return float(np.linalg.norm(piece[y] - track[x] - (y - x) * mean_velocity))
 
 
 def _beside(seen: NDArray, a: int, b: int) -> int | None:
@@ -177,7 +213,7 @@ def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
     dense = np.full((tr.n_tracks, int(tr.field.max()) + 1, 3), np.nan)
     dense[tr.track[meas], tr.field[meas]] = tr.xyz_mm[meas]
     named = [t for t in range(tr.n_tracks) if t not in set(labelling.unlabelled)]
-    into, free = np.arange(tr.n_tracks), []
+    into, free, by_path = np.arange(tr.n_tracks), [], {}
     with np.errstate(invalid="ignore"):
         for u in labelling.unlabelled:
             near = np.linalg.norm(dense[named] - dense[u][None], axis=2)
@@ -186,12 +222,22 @@ def join_gap_pieces(labelling: Labelling, params: TrackingParams) -> Labelling:
             if np.any(both.any(axis=1) & (mean < SAME_MARKER_MM)):
                 continue
             free.append(u)
-            hosts = [t for t in named if _fits(dense, t, u, params)]
-            if len(hosts) == 1:
-                into[u] = hosts[0]
-        for u, v, t, s in _end_pairs(dense, named, free, params):
+            fit = np.array([_fits(dense, t, u, params) for t in named], dtype=int)
+            hosts = np.flatnonzero(fit == 2)
+            if hosts.size == 1:
+                into[u] = named[int(hosts[0])]
+            elif hosts.size == 0 and np.sum(fit == 1) == 1:
+                by_path[u] = named[int(np.argmax(fit))]
+        pairs = _end_pairs(dense, named, free, params)
+        for u, v, t, s in pairs:
             if into[u] == u and into[v] == v:
                 into[u], into[v] = t, s
+        # a name its path alone gives last: a pair's lengths (modern 3 cameras seed 437:
+        # RTOE's piece and RHEE's past their ends) or a piece's own say more
+        paired = {int(k) for p in pairs for k in p}
+        for u, t in by_path.items():
+            if into[u] == u and t not in paired and u not in paired:
+                into[u] = t
     if np.all(into == np.arange(tr.n_tracks)):
         return labelling
     # the hosts' coasted samples where a joined piece was measured go
