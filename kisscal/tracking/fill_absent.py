@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import GapFill
+from kisscal.tracking.fill_trusted import context
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import path_runs
 from kisscal.tracking.rayfill import SpareBlobs
@@ -428,17 +429,17 @@ def _again(
     if spare is None or not labels or not again:
         return placed
     n = len(dense)
-    context = np.where(measured[..., None], dense, np.nan)
+    known = np.where(measured[..., None], dense, np.nan)
     errors = np.where(measured, 0.0, np.nan)
     for xyz, fill in made:
         span = slice(fill.first_field, fill.first_field + fill.n_fields)
-        if fill.status == FILLED_RIGID and fill.expected_error_mm <= params.ray_rest_max_error_mm:
-            context[fill.track, span] = xyz
+        if context(fill, params, trusting=False):  # the second passes' context
+            known[fill.track, span] = xyz
             errors[fill.track, span] = fill.expected_error_mm
-    context = np.concatenate([context, rows[long]])
+    known = np.concatenate([known, rows[long]])
     errors = np.concatenate([errors, sds[long]])
     names = [*labels[:n], *(who[k][0] for k in long)]
-    new_who, new_rows, new_sds = absent_placed(context, names, again, spare, params, errors)
+    new_who, new_rows, new_sds = absent_placed(known, names, again, spare, params, errors)
     if not new_who:
         return placed
     before = {who[k][0]: k for k in range(len(who)) if k not in long}
