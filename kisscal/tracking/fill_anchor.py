@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.fill_place import mirror_checked
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 
 
@@ -119,8 +119,8 @@ def donor_errors(
     return out
 
 
-def body_donors(gap: Any, params: TrackingParams) -> NDArray:
-    """The samples a body fill of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) may
+def body_donors(gap: Gap, params: TrackingParams) -> NDArray:
+    """The samples a body fill of ``gap`` (a :class:`~kisscal.tracking.gap_record.Gap`) may
     follow: :func:`~.fill_place.mirror_checked`'s, without other tracks' fills expecting
     more than ``ray_rest_max_error_mm`` (:func:`trusted`; the bar of a fill taken as
     context, :func:`~kisscal.tracking.gaps._second_pass`)."""

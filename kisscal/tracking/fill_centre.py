@@ -26,7 +26,6 @@ of markers); Gløersen & Federolf 2016 (gap filling from the other markers of th
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +33,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.bodyfill import axis_fill, best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_place import placed_mask, with_rays
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.joint_centres import joint_centres
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
@@ -50,9 +50,9 @@ CENTRE_METHODS = ((FILLED_RIGID, axis_fill),)
 MAX_CENTRE_TRACKS = 100
 
 
-def centre_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+def centre_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill what :data:`CENTRE_METHODS` can of fields [a, b) of ``gap`` (a
-    :class:`~kisscal.tracking.gaps._Gap`) about a pair one of which is a joint centre
+    :class:`~kisscal.tracking.gap_record.Gap`) about a pair one of which is a joint centre
     (see module): the candidate of least expected error, at most
     ``max_body_fill_error_mm``, its centre's donors the cluster carrying it, moved onto
     the rays of blobs a camera still sees there, expecting at least its donors' noise and

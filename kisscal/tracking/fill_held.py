@@ -20,7 +20,6 @@ Challis 1995 (segments as rigid bodies of markers).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +31,7 @@ from kisscal.tracking.fill_donors import misfit_fields
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import placed_mask, with_rays
 from kisscal.tracking.fill_spline import spline_fill
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_RIGID
 
@@ -85,9 +85,9 @@ def _bridged(dense: NDArray, flagged: NDArray, lo: int, params: TrackingParams) 
     return src
 
 
-def held_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+def held_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """Fill what the body (with the hinge, :data:`~.fill_hinge.HINGE_METHODS`) can of
-    fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) where some track
+    fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gap_record.Gap`) where some track
     is out of shape in some of them (see module): the fill of least expected error, at
     most ``max_body_fill_error_mm``, made with those samples bridged, kept in the
     fields where none of its donors was; each piece moved onto the rays of blobs a

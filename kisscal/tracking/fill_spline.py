@@ -9,14 +9,13 @@ show beside a gap few cameras see.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.fill_donors import merged_edges
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import length_partners
 
@@ -102,18 +101,14 @@ def _pulled(series: NDArray, edges: list[int], params: TrackingParams) -> list[i
     return out
 
 
-def unpulled(
-    dense: NDArray, gap: Any, lo: int, hi: int, params: TrackingParams, on: bool
-) -> NDArray:
-    """``dense`` with the samples of ``gap``'s track (a :class:`~kisscal.tracking.gaps._Gap`)
-    at the edges of [lo, hi) left out where one of their blobs another track's image may
-    share (:func:`~kisscal.tracking.fill_donors.merged_edges`) and they lie off the
-    spline through the rest (:func:`_pulled`); unchanged unless ``on`` (a spline with
-    blobs in its gap). A spline through such a sample carries its pull into the gap
-    (lowcost 4 seed 437: an ankle's sample 23 mm off, its blob in camera 1 merged with
-    the toe's, the spline 24 mm RMS off expecting 6.1)."""
-    if not on:
-        return dense
+def unpulled(dense: NDArray, gap: Gap, lo: int, hi: int, params: TrackingParams) -> NDArray:
+    """``dense`` with the samples of ``gap``'s track at the edges of [lo, hi) left out
+    where one of their blobs another track's image may share
+    (:func:`~kisscal.tracking.fill_donors.merged_edges`) and they lie off the spline
+    through the rest (:func:`_pulled`): for a spline with blobs in its gap. A spline
+    through such a sample carries its pull into the gap (lowcost 4 seed 437: an ankle's
+    sample 23 mm off, its blob in camera 1 merged with the toe's, the spline 24 mm RMS
+    off expecting 6.1)."""
     t, seen = gap.t, gap.dense  # the blobs are of every track's samples, not the donors'
     partners = length_partners(seen, t, params, gap.mirror)[0]
     edges = merged_edges(seen, t, lo, hi, gap.spare, params, partners)

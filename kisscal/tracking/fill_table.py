@@ -1,18 +1,19 @@
 """The reach of each way of filling a gap (:data:`~kisscal.tracking.gaps.FILLS`): which
 runs of missing fields it is tried on, and with which error limit. The fills themselves
-and the runner are in :mod:`kisscal.tracking.gaps`; a ``gap`` here is its ``_Gap``
-(the track's dense series, the gap's bounds, parameters and spare blobs).
+and the runner are in :mod:`kisscal.tracking.gaps`; a ``gap`` here is its record,
+:class:`~kisscal.tracking.gap_record.Gap` (the track's dense series, the gap's bounds,
+parameters and spare blobs).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 
 
@@ -68,7 +69,7 @@ class Fill:
     """
 
     name: str
-    fill: Callable[[Any, int, int, TrackingParams], NDArray[np.bool_]]
+    fill: Callable[[Gap, int, int, TrackingParams], NDArray[np.bool_]]
     sweep: bool = False
     rays: bool = False
     long_run: bool = False
@@ -77,7 +78,7 @@ class Fill:
     ends: bool = False
     enclosed: bool = False
 
-    def reaches(self, gap: Any, a: int, b: int, split: bool) -> bool:
+    def reaches(self, gap: Gap, a: int, b: int, split: bool) -> bool:
         """Whether this fill is tried on run [a, b) of ``gap``."""
         long_gap = gap.hi - gap.lo > gap.params.max_fill_gap_fields
         return (
@@ -88,7 +89,7 @@ class Fill:
             and (not self.enclosed or enclosed(gap.dense[gap.t], a, b))
         )
 
-    def params_for(self, gap: Any) -> TrackingParams:
+    def params_for(self, gap: Gap) -> TrackingParams:
         """The parameters this fill runs with in ``gap``."""
         if self.strict == "always" or (self.strict == "swept" and gap.swept.any()):
             return rest_params(gap.params)

@@ -50,7 +50,6 @@ filling from the other markers of the body).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,6 +66,7 @@ from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, tr
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import mirror_checked, placed_mask
 from kisscal.tracking.fill_table import Fill
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
 from kisscal.tracking.tracks import FILLED_RIGID
@@ -158,8 +158,8 @@ def unseen(chosen: Candidate, spare: SpareBlobs | None, params: TrackingParams) 
     return ray_correct(chosen.xyz_mm, chosen.fill.first_field, sd, spare, params)[1] == 0
 
 
-def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
-    """Fill fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gaps._Gap`) from the
+def trusted_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    """Fill fields [a, b) of ``gap`` (a :class:`~kisscal.tracking.gap_record.Gap`) from the
     body (:data:`RIGID_METHODS`) through donors filled expecting at most
     ``max_body_fill_error_mm``, one of them over ``ray_rest_max_error_mm`` (see module):
     the candidate of least expected error, its donors' errors counted, at most

@@ -41,6 +41,7 @@ from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill
 from kisscal.tracking.fill_table import Fill, hole_length
 from kisscal.tracking.fill_trusted import TRUSTED_PASS, context
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
+from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import chain_fill, parted
 from kisscal.tracking.rayfill import SpareBlobs, freed
@@ -69,44 +70,12 @@ def _track_gaps(tracks: Tracks, rows: slice, params: TrackingParams) -> list[tup
     ]
 
 
-@dataclasses.dataclass
-class _Gap:
-    """One gap [lo, hi) of track ``t`` being filled: ``swept`` marks the fields placed by
-    the sweeping fills, ``out`` collects the fills made. ``measured`` (n_fields,) bool:
-    the track's measured fields (for the depth fill's spline). ``end``: 0 for a gap
-    inside the track, -1 for the fields before its first measured sample, 1 after its
-    last. ``absent``: rows of markers no track took (:mod:`.fill_absent`), joint fills.
-    ``known`` (n_tracks, n_fields) bool: every track's measured samples (the second
-    passes': the sphere fill counts a placed partner's error). ``expected`` (n_tracks,
-    n_fields): the error of each track's known samples, NaN where none (the last
-    pass's, :mod:`.fill_unmerged`). ``errors`` (n_tracks + len(absent), n_fields):
-    every sample's expected error (0 measured, a fill's as it is made, :func:`_note`,
-    the ``absent`` rows' along their rays; NaN where none), for the chain fill's
-    placed partners."""
-
-    dense: NDArray
-    t: int
-    lo: int
-    hi: int
-    params: TrackingParams
-    spare: SpareBlobs | None
-    measured: NDArray | None
-    swept: NDArray
-    out: list
-    end: int = 0
-    absent: NDArray | None = None
-    known: NDArray | None = None
-    expected: NDArray | None = None
-    errors: NDArray | None = None
-    mirror: NDArray | None = None
-
-
 def _ray_placer(method: Callable, *extra: str) -> Callable:
     """A fill of :data:`FILLS` from a single-camera placer ``method(dense, t, a, b, spare,
     params, *extra)`` (a :class:`ChainFill` or None; ``extra`` names attributes of the
     gap): its fields written as context, their blobs taken (:func:`take_placed`)."""
 
-    def fill(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+    def fill(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
         got = method(gap.dense, gap.t, a, b, gap.spare, params, *(getattr(gap, n) for n in extra))
         if got is None:
             return np.zeros(b - a, dtype=bool)
@@ -117,7 +86,7 @@ def _ray_placer(method: Callable, *extra: str) -> Callable:
 
 
 def _body(
-    gap: _Gap, a: int, b: int, params: TrackingParams, spline: bool = True, checked: bool = False
+    gap: Gap, a: int, b: int, params: TrackingParams, spline: bool = True, checked: bool = False
 ) -> NDArray[np.bool_]:
     """Spline for short runs (unless not ``spline``), the body (:func:`best_candidate`)
     for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
@@ -141,7 +110,9 @@ def _body(
     rays = spare is not None and spare.rows(a, b).size > 0
     methods = ((FILLED, spline_fill),) if short else HINGE_METHODS
     centres = spare.centres if rays else None
-    body = unpulled(body_donors(gap, params), gap, a, b, params, short and rays)
+    body = body_donors(gap, params)
+    if short and rays:  # a spline with blobs in its gap
+        body = unpulled(body, gap, a, b, params)
     cands = fill_candidates(body, gap.t, a, b, params, methods, centres)
     chosen = cands[0] if short and cands else best_candidate(cands, params)
     # a spline has no error of its own to check: between samples the marker's own image
@@ -171,7 +142,7 @@ def _at_least(fill: GapFill, err: float) -> GapFill:
     return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
 
 
-def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
+def _end(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """The fields of the end [a, b) of a track next to its measured samples that its
     segment carries (:mod:`kisscal.tracking.fill_ends`): as far as all its donors are
     measured, by them or by its two most rigid markers; then as far as those two are,
@@ -291,7 +262,7 @@ def _left(a: int, placed: NDArray) -> list[tuple[int, int]]:
     return [(a + x, a + y) for x, y in zip(lo.tolist(), hi.tolist(), strict=True)]
 
 
-def _note(gap: _Gap, made: int) -> None:
+def _note(gap: Gap, made: int) -> None:
     """The expected error of the fills of ``gap.out`` from ``made`` on into
     ``gap.errors`` (read only where a fill's fields are in ``gap.dense``)."""
     for _, fill in gap.out[made:] if gap.errors is not None else ():
@@ -301,7 +272,7 @@ def _note(gap: _Gap, made: int) -> None:
 
 
 def _apply(
-    gap: _Gap, fills: tuple[Fill, ...], runs: list[tuple[int, int]], split: bool = False
+    gap: Gap, fills: tuple[Fill, ...], runs: list[tuple[int, int]], split: bool = False
 ) -> None:
     """Try ``fills[0]`` on each run of ``runs`` in its reach, the rest of ``fills`` on
     what it leaves (after all runs when it sweeps, run by run otherwise)."""
@@ -340,11 +311,24 @@ def _fill_runs(
 ) -> list[tuple[NDArray, GapFill]]:
     """Each run (track, lo, hi, end) filled by :data:`FILLS` in turn; placed fields become
     context (in ``dense``) for the rest. ``measured``: every track's measured fields;
-    ``end``, ``absent`` and ``errors``: see :class:`_Gap`."""
+    ``end``, ``absent`` and ``errors``: see :class:`~.gap_record.Gap`."""
     out = []
     for t, lo, hi, end in runs:
-        gap = _Gap(dense, t, lo, hi, params, spare, measured[t], np.zeros(hi - lo, bool), [])
-        gap.end, gap.absent, gap.errors, gap.mirror = end, absent, errors, mirror
+        gap = Gap(
+            dense,
+            t,
+            lo,
+            hi,
+            params,
+            spare,
+            measured[t],
+            np.zeros(hi - lo, bool),
+            [],
+            end=end,
+            absent=absent,
+            errors=errors,
+            mirror=mirror,
+        )
         _apply(gap, FILLS, [(lo, hi)])
         out += gap.out
     return out
@@ -391,9 +375,21 @@ def _second_pass(
         left = ~done[t, lo:hi]
         for a, b in zip(*true_runs(left), strict=True):
             run = (lo + a, lo + b)
-            gap = _Gap(dense, t, *run, params, spare, measured[t], np.zeros(b - a, bool), [])
-            gap.absent, gap.known, gap.expected = absent, measured, expected
-            gap.errors, gap.mirror = errors, mirror
+            gap = Gap(
+                dense,
+                t,
+                *run,
+                params,
+                spare,
+                measured[t],
+                np.zeros(b - a, bool),
+                [],
+                absent=absent,
+                known=measured,
+                expected=expected,
+                errors=errors,
+                mirror=mirror,
+            )
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out

@@ -8,7 +8,8 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.gaps import _body, _Gap
+from kisscal.tracking.gap_record import Gap
+from kisscal.tracking.gaps import _body
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID
 
 PARAMS = TrackingParams()
@@ -31,7 +32,7 @@ def test_a_spline_off_placed_fields_expects_their_error() -> None:
     placed = truth[lo : lo + 12] + off
     dense[0, lo : lo + 12] = placed
     made = [(placed, GapFill(0, lo, 12, FILLED_RIGID, 3.0, (), 12))]
-    gap = _Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
+    gap = Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
     assert _body(gap, lo + 12, hi, PARAMS).all()
     xyz, fill = gap.out[-1]
     assert fill.status == FILLED and fill.first_field == lo + 12
@@ -49,7 +50,7 @@ def test_fills_far_from_the_spline_leave_its_expectation() -> None:
     far = [(truth[20:30] + 3.0, GapFill(0, 20, 10, FILLED_RIGID, 3.0, (), 10))]
     expected = []
     for made in ([], far):
-        gap = _Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
+        gap = Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
         assert _body(gap, lo, hi, PARAMS).all()
         expected.append(gap.out[-1][1].expected_error_mm)
     assert expected[0] == expected[1] < 3.0

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.tracking import TrackingParams
-from kisscal.tracking.gaps import _body, _Gap
+from kisscal.tracking.gap_record import Gap
+from kisscal.tracking.gaps import _body
 
 PARAMS = TrackingParams()
 LO, HI = 60, 90
@@ -28,7 +29,7 @@ def _segment(n: int = 160) -> np.ndarray:
     return np.stack([x, y, z], axis=2) + base[None]
 
 
-def offset_gap(offset: float, donor_error: float) -> tuple[_Gap, np.ndarray]:
+def offset_gap(offset: float, donor_error: float) -> tuple[Gap, np.ndarray]:
     """The target's gap, donor 0 placed ``offset`` mm off across its axis to donor 1 in
     the gap by a fill expecting ``donor_error``; and the truth."""
     truth = _segment()
@@ -41,8 +42,7 @@ def offset_gap(offset: float, donor_error: float) -> tuple[_Gap, np.ndarray]:
     dense[0, LO:HI] = truth[0, LO:HI] + offset * side  # an earlier fill, its length held
     errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
     errors[0, LO:HI] = donor_error
-    gap = _Gap(dense, 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [])
-    gap.errors = errors
+    gap = Gap(dense, 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [], errors=errors)
     return gap, truth
 
 

@@ -9,13 +9,16 @@ and ankle each missed one of them."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_trusted import trusted_body
-from kisscal.tracking.gaps import _body, _Gap
+from kisscal.tracking.gap_record import Gap
+from kisscal.tracking.gaps import _body
 from tests.tracking.test_fill_donor_fills import HI, LO, offset_gap
 from tests.tracking.test_rayfill import _look_at
 
@@ -106,7 +109,7 @@ def test_fields_a_camera_sees_the_marker_in_are_left_to_its_rays():
     target = truth[2, seen].mean(axis=0)
     dlts = _look_at(target + [0.0, -3000.0, 300.0], target)[None]
     uv = project_rows(dlts, np.zeros(seen.size, dtype=int), truth[2, seen])
-    gap.spare = spare_blobs(seen, np.zeros(seen.size), uv, dlts)
+    gap = dataclasses.replace(gap, spare=spare_blobs(seen, np.zeros(seen.size), uv, dlts))
     placed = trusted_body(gap, LO, HI, PARAMS)
     assert not placed[: seen.size].any() and placed[seen.size :].all()
 
@@ -153,8 +156,10 @@ def test_a_body_fill_over_the_rest_bar_is_the_trusted_pass_s_where_no_camera_see
     from kisscal.tracking.fill_table import rest_params
 
     dense, truth, _ = _noisy_gap(hole=False)
-    gap = _Gap(dense.copy(), 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [])
-    gap.errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    gap = Gap(
+        dense.copy(), 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [], errors=errors
+    )
     assert not _body(gap, LO, HI, rest_params(PARAMS)).any()
     got = _second(dense.copy(), [], None)
     assert got

@@ -11,7 +11,8 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.fill_trusted import trusted_body, widest_segment
-from kisscal.tracking.gaps import _body, _Gap
+from kisscal.tracking.gap_record import Gap
+from kisscal.tracking.gaps import _body
 
 PARAMS = TrackingParams()
 LO, HI = 80, 120
@@ -40,7 +41,7 @@ def _leg(n: int = 200) -> np.ndarray:
     return np.stack([tib, hee, toe, ankle])
 
 
-def _gap() -> tuple[_Gap, np.ndarray]:
+def _gap() -> tuple[Gap, np.ndarray]:
     """The ankle's gap [LO, HI), the foot's markers 0.3 mm noisy, the tibia's 0.1 mm
     (it keeps its distance to the ankle best); and the truth."""
     truth = _leg()
@@ -49,8 +50,8 @@ def _gap() -> tuple[_Gap, np.ndarray]:
         truth + rng.normal(0.0, 1.0, truth.shape) * np.array([0.1, 0.3, 0.3, 0.3])[:, None, None]
     )
     dense[ANK, LO:HI] = np.nan
-    gap = _Gap(dense, ANK, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [])
-    gap.errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    errors = np.where(np.isfinite(dense[:, :, 0]), 0.0, np.nan)
+    gap = Gap(dense, ANK, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [], errors=errors)
     return gap, truth
 
 
