@@ -15,7 +15,7 @@ meets a partner's sphere). A field is placed where at least two partners are mea
 every length fits within three SDs, the expected error along the ray (the solution's
 SD) is at most ``ray_length_max_error_mm`` and no other blob fits at another place
 (two markers' blobs that fit are not told apart), in runs of at least
-:data:`~kisscal.tracking.raychain.MIN_RUN` fields; its blobs are taken.
+:data:`~kisscal.tracking.on_rays.MIN_RUN` fields; its blobs are taken.
 
 The placed marker is a row of context for the fills of its partners' gaps, and, placed
 in at least ``min_track_length`` fields, its name's trajectory (:func:`absent_tracks`):
@@ -48,8 +48,8 @@ from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.fill_trusted import context
+from kisscal.tracking.on_rays import path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import FILLED_RIGID
 

@@ -5,7 +5,7 @@ Where one camera alone sees a marker and neither the segment's lengths
 (:mod:`kisscal.tracking.raychain`, :mod:`kisscal.tracking.fill_joint`) nor a body fill
 place it (a shank marker whose partners are hidden too), two of its three coordinates are
 still measured: it lies on the ray of its own blob, followed in the image from both sides
-of the gap (:func:`~kisscal.tracking.raychain.chain_blobs`). The third, its distance from
+of the gap (:func:`~kisscal.tracking.blob_paths.chain_blobs`). The third, its distance from
 that camera, changes smoothly and is bridged by a cubic interpolating spline through the
 distances of the marker's measured samples on each side (``fill_context_fields``).
 
@@ -18,7 +18,7 @@ refused, a quadratic plus the stride's harmonics fitted to the samples over abou
 strides (:func:`_depth_periodic`) is tried the same way, expecting at least what its
 samples' noise carries and never without a stretch to try it on. A field is left out where a
 second camera's blob of the marker lies farther than ``ray_depth_max_error_mm`` from the
-point (:func:`~kisscal.tracking.raychain.off_rays`, as the sphere fill does): one of the
+point (:func:`~kisscal.tracking.blob_paths.off_rays`, as the sphere fill does): one of the
 two blobs is not the marker's alone (lowcost seed 306's heel, its image merged with the
 ankle's in the camera taken, 7-13 mm off expecting 2.5, its own blob in another).
 
@@ -38,16 +38,11 @@ from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
+from kisscal.tracking.blob_paths import chain_blobs, off_rays, one_camera_blobs
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
 from kisscal.tracking.fill_spline import context_noise
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import (
-    ChainFill,
-    chain_blobs,
-    off_rays,
-    one_camera_blobs,
-    path_runs,
-)
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: Fields on each side of a gap the periodic depth fit (:func:`_depth_periodic`) reads
@@ -177,7 +172,7 @@ def depth_ray_fill(
     3; NaN where not measured) on the rays of its own blobs in the camera that sees most
     of the gap, at the spline's distance from that camera (see module); None when the
     spline's expected error exceeds ``ray_depth_max_error_mm`` or no run of
-    :data:`~kisscal.tracking.raychain.MIN_RUN` fields has a blob. The blobs taken are not
+    :data:`~kisscal.tracking.on_rays.MIN_RUN` fields has a blob. The blobs taken are not
     marked used here. With ``measured`` ((n_fields,) bool), the spline and its error
     use only those samples of the track (not fields placed on rays by other fills),
     across the whole run of unmeasured fields around the gap."""

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.dlt.model import project_rows, ray_directions
+from kisscal.tracking.blob_paths import follow_blobs
 from kisscal.tracking.bodyfill import (
     AXIS_MAX_COS,
     FillMethod,
@@ -39,13 +40,9 @@ from kisscal.tracking.bodyfill import (
     segment_carriers,
 )
 from kisscal.tracking.fill_donors import lab_reference
+from kisscal.tracking.on_rays import MIN_RUN, ChainFill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import (
-    MIN_RUN,
-    ChainFill,
-    chain_fill,
-    follow_blobs,
-)
+from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.tracks import MEASURED, Tracks
 
@@ -294,13 +291,13 @@ def rays_end_fill(
     """Fields of the end [lo, hi) of track ``t`` (``end`` -1: before its first measured
     sample, 1: after its last) where two or more cameras still see the marker: its blob
     followed in each camera's image from the trajectory's edge (as
-    :func:`~kisscal.tracking.raychain.chain_blobs` follows it into a gap), the point
+    :func:`~kisscal.tracking.blob_paths.chain_blobs` follows it into a gap), the point
     where their rays meet, field by field out from the edge. A field is left out when it
     has fewer than two rays, the point is farther than ``ray_rest_max_error_mm`` from one
     of them (of three or more rays, the two or more that meet best are kept) or than
     :data:`STEP_MM` from the path continued at constant velocity; the walk stops after
     ``ray_chain_coast_fields`` such fields in a row. None when fewer than
-    :data:`~kisscal.tracking.raychain.MIN_RUN` fields are placed, or without ``spare``."""
+    :data:`~kisscal.tracking.on_rays.MIN_RUN` fields are placed, or without ``spare``."""
     if spare is None:
         return None
     series = dense[t]
@@ -340,7 +337,7 @@ def rays_end_fill(
 def _edge_run(placed: NDArray, end: int) -> NDArray[np.bool_]:
     """Of the fields ``placed`` at a track's end (1: after its last sample, -1: before
     its first), the run next to the measured side, if at least
-    :data:`~kisscal.tracking.raychain.MIN_RUN` long."""
+    :data:`~kisscal.tracking.on_rays.MIN_RUN` long."""
     seq = placed if end > 0 else placed[::-1]
     keep = np.zeros(seq.size, dtype=bool)
     lo, hi = true_runs(seq)

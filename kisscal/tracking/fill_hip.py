@@ -48,9 +48,10 @@ from kisscal.tracking.fill_joint import (
     pick_rays,
 )
 from kisscal.tracking.joint_centres import joint_centres
+from kisscal.tracking.on_rays import ChainFill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, length_partners
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.segment_lengths import length_partners
 
 #: Step (mm) of the numerical derivative of the lengths.
 EPS_MM = 1e-3

@@ -35,11 +35,13 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
+from kisscal.tracking.blob_paths import chain_blobs
 from kisscal.tracking.bodyfill import distance_sd
 from kisscal.tracking.fill_donors import padded_mirrors, shared_blobs
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_blobs, length_partners, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.segment_lengths import length_partners
 
 #: Largest distance (mm) between the solutions of the two walks for a field to be kept.
 AGREE_MM = 5.0
@@ -64,7 +66,7 @@ class _Group:
 def _group(
     dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
 ) -> _Group | None:
-    """Track ``t`` and its length partners (:func:`~.raychain.length_partners`, with
+    """Track ``t`` and its length partners (:func:`~.segment_lengths.length_partners`, with
     ``mirror``), and those measured with it too seldom to tell whose mirror images keep
     their length (:func:`_mirror_members`)."""
     own = length_partners(dense, t, params, mirror)[0]
@@ -101,7 +103,7 @@ def _mirror_members(
     dense: NDArray, t: int, params: TrackingParams, m: NDArray[np.int64]
 ) -> NDArray[np.int64]:
     """Rows measured with track ``t`` in fewer than ``body_context_fields`` fields (too few
-    to judge their length, :func:`~.raychain.length_partners`) whose mirror image keeps
+    to judge their length, :func:`~.segment_lengths.length_partners`) whose mirror image keeps
     within ``rigid_fill_sd_mm`` of ``t``'s mirror image's over at least as many: kiss 3
     seed 435's right ankle, one camera's all trial and measured in 10 fields, is the
     toe's third point where the toe's ray is square to the heel."""
@@ -305,7 +307,7 @@ def joint_walks(
     segment's members are tracks (rows of ``dense``) and markers no track took (rows of
     ``absent``, numbered on after the tracks:
     :func:`~kisscal.tracking.fill_absent.absent_placed`); ``mirror``: each row's mirror
-    image's row (:func:`~.raychain.length_partners`)."""
+    image's row (:func:`~.segment_lengths.length_partners`)."""
     if absent is not None:
         dense = np.concatenate([dense, absent])
     if lo < 2 or hi + 1 >= dense.shape[1] or not np.all(np.isfinite(dense[t, [lo - 1, hi]])):
@@ -343,7 +345,7 @@ def joint_ray_fill(
 
 def agreed_fill(walks: tuple, n_tracks: int, params: TrackingParams) -> ChainFill | None:
     """The mean of the two walks of a segment (:func:`joint_walks`' answer) in the runs
-    of fields (:func:`~.raychain.path_runs`) where they agree within :data:`AGREE_MM`
+    of fields (:func:`~.on_rays.path_runs`) where they agree within :data:`AGREE_MM`
     and the larger expected error is within ``ray_length_max_error_mm``; None if none."""
     grp, rays, fwd, e_f, bwd, e_b = walks
     err = np.fmax(e_f, e_b)

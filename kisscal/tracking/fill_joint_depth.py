@@ -16,7 +16,7 @@ meet: solve a field both, and agree within :data:`~kisscal.tracking.fill_joint.A
 wherever they both do (a walk from one side alone may drift on a wrong solution). A
 solution more than three SDs from the fit is dropped and the fit redone. A field is
 placed where the posterior SD of its depth is at most ``ray_depth_max_error_mm``, in
-runs of at least :data:`~kisscal.tracking.raychain.MIN_RUN` fields; that SD is its
+runs of at least :data:`~kisscal.tracking.on_rays.MIN_RUN` fields; that SD is its
 expected error.
 
 References
@@ -35,8 +35,8 @@ from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.fill_joint import AGREE_MM, joint_walks, tracks_of
 from kisscal.tracking.fill_sphere import MAX_ROUNDS, acceleration_sd, smooth_depth
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
 
 
@@ -93,7 +93,7 @@ def joint_depth_fill(
     """Place fields of the gap [lo, hi) of track ``t`` on the rays of its own blobs in
     the camera that sees most of the gap, at the depth fitted to its samples on each
     side and the joint fill's solutions (see module); None when no run of
-    :data:`~kisscal.tracking.raychain.MIN_RUN` fields is placed or no solution was
+    :data:`~kisscal.tracking.on_rays.MIN_RUN` fields is placed or no solution was
     used. With ``measured`` ((n_fields,) bool), the ends of the fit are only those
     samples of the track; ``absent``, ``mirror``: rows of markers no track took
     (:func:`~kisscal.tracking.fill_joint.joint_walks`). The blobs taken are not marked

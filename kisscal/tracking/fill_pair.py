@@ -11,7 +11,7 @@ deblend`). Per field, the six coordinates of the two markers are fitted by least
 
 * each merged blob's centroid (SD :data:`CENTROID_SD_PX`);
 * the pair's length and each one's length to the partners measured there (the trial's
-  lengths and SDs, :func:`~kisscal.tracking.raychain.length_partners`);
+  lengths and SDs, :func:`~kisscal.tracking.segment_lengths.length_partners`);
 * each marker's path across the gap from its samples on each side (a random walk on its
   acceleration, :func:`~kisscal.tracking.fill_sphere.smooth_depth`, per axis).
 
@@ -19,7 +19,7 @@ The expected error is the marker's part of the fit's covariance ``(JᵀJ)⁻¹``
 the three axes); a field is placed when it is at most ``ray_depth_max_error_mm``, every
 datum is within three SDs and the two images at the fit lie within ``ray_merge_px`` of
 each other (farther, the camera would have seen two blobs), in runs of at least
-:data:`~kisscal.tracking.raychain.MIN_RUN` fields. :class:`PairFit` says why a gap was
+:data:`~kisscal.tracking.on_rays.MIN_RUN` fields. :class:`PairFit` says why a gap was
 refused.
 
 References
@@ -41,9 +41,10 @@ from scipy.optimize import least_squares
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking.fill_sphere import smooth_depth
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, length_partners, partner_lengths, path_runs
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.segment_lengths import length_partners, partner_lengths
 
 #: SD (px) of a merged blob's centroid about the area-weighted mean of its two images: a
 #: detector's centroid of two touching images is off that mean by a fraction of a pixel.

@@ -15,9 +15,10 @@ from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import Candidate, GapFill
+from kisscal.tracking.on_rays import ChainFill
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, length_partners
 from kisscal.tracking.rayfill import SpareBlobs, ray_correct
+from kisscal.tracking.segment_lengths import length_partners
 from kisscal.tracking.tracks import FILLED_RIGID
 
 
@@ -105,7 +106,7 @@ def mirror_checked(
 ) -> NDArray:
     """``dense`` without the tracks whose length to track ``t`` holds over the trial while
     their mirror pair's does not over the same fields
-    (:func:`~kisscal.tracking.raychain.length_partners`): the body must not carry a marker
+    (:func:`~kisscal.tracking.segment_lengths.length_partners`): the body must not carry a marker
     by a length held in one phase of gait alone (modern 3 seed 353: RANK carried by RTHI,
     held only in RTHI's stance, 7.9 mm off expecting 1.8)."""
     if mirror is None:

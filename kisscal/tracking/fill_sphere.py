@@ -1,7 +1,7 @@
 """Single-camera fill with the depth from the body, smoothed across the gap.
 
 Where one camera alone sees a marker, it lies on the ray of its blob (followed in the
-image, :func:`~kisscal.tracking.raychain.chain_blobs`) and only its depth along the ray is
+image, :func:`~kisscal.tracking.blob_paths.chain_blobs`) and only its depth along the ray is
 unknown. Each partner of its segment measured in that field (a marker whose distance to
 it keeps within ``rigid_fill_sd_mm`` over the trial) puts it on a sphere about the
 partner, which the ray meets at two depths. :mod:`kisscal.tracking.raychain` takes such a
@@ -37,7 +37,7 @@ count, in one fit of the depth over the fields of the gap:
 
 A field is placed where the posterior SD of its depth (the fit's covariance) is at most
 ``ray_depth_max_error_mm``, in runs of at least
-:data:`~kisscal.tracking.raychain.MIN_RUN` fields; that SD is its expected error.
+:data:`~kisscal.tracking.on_rays.MIN_RUN` fields; that SD is its expected error.
 
 References
 ----------
@@ -52,20 +52,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.dlt.model import project_rows, ray_directions
+from kisscal.tracking.blob_paths import chain_blobs, off_rays, one_camera_blobs
 from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.joint_centres import joint_centres
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import (
-    MIN_TOGETHER,
-    ChainFill,
-    chain_blobs,
-    length_partners,
-    off_rays,
-    one_camera_blobs,
-    partner_lengths,
-    path_runs,
-)
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.segment_lengths import MIN_TOGETHER, length_partners, partner_lengths
 
 #: Smallest cosine between a ray and the direction from its root to the partner for the
 #: partner's length to fix a depth (nearer tangent, the two roots merge).
@@ -226,7 +219,7 @@ def _gap_data(
     SD (m,)) and a factor on each SD (:func:`_placed_factor`, with ``expected``; ones
     without ``known``).
     ``mine`` (n_fields,) bool: the marker's own samples (for :data:`MIN_TOGETHER`);
-    ``mirror``: each track's mirror image's (:func:`~.raychain.length_partners`)."""
+    ``mirror``: each track's mirror image's (:func:`~.segment_lengths.length_partners`)."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
@@ -308,7 +301,7 @@ def alone_blobs(
     dense: NDArray, t: int, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Gap offsets and rows of the blobs of track ``t`` followed in the image through the
-    gap [lo, hi) (:func:`~kisscal.tracking.raychain.chain_blobs`) that lie farther than
+    gap [lo, hi) (:func:`~kisscal.tracking.blob_paths.chain_blobs`) that lie farther than
     twice ``ray_chain_gate_px`` from every other track known there (:func:`_crowded`)."""
     ks, rows = chain_blobs(dense[t], lo, hi, spare, params)
     if ks.size == 0:
@@ -352,7 +345,7 @@ def sphere_depth_fill(
     3; NaN where not measured) on the rays of its own blobs in the camera that sees most
     of the gap, at the depth fitted to the spline across the gap and its segment's
     lengths (see module); None when no run of
-    :data:`~kisscal.tracking.raychain.MIN_RUN` fields is placed or no length was used.
+    :data:`~kisscal.tracking.on_rays.MIN_RUN` fields is placed or no length was used.
     With ``measured`` ((n_fields,) bool), the ends of the fit are only those samples of
     the track. With ``known`` ((n_tracks, n_fields) bool, the measured samples), a
     partner placed by another fill counts its error too (:func:`_placed_factor`):
@@ -360,7 +353,7 @@ def sphere_depth_fill(
     (each checks the other), what ``expected`` ((n_tracks, n_fields), each track's
     expected error, NaN where not known) says its fill expects there, if less.
     ``mirror``: each track's mirror image's track, -1 for none (the partners' test,
-    :func:`~kisscal.tracking.raychain.length_partners`). The
+    :func:`~kisscal.tracking.segment_lengths.length_partners`). The
     blobs taken are not marked used here. ``blobs``: the gap offsets and rows of the
     marker's blobs, when the caller chose them (:mod:`.fill_unmerged`); by default
     those followed in the image that no other track's image is near."""

@@ -17,7 +17,7 @@ from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.fill_donors import merged_edges
 from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import length_partners
+from kisscal.tracking.segment_lengths import length_partners
 
 
 def spline_fill(

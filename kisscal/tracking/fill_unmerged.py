@@ -33,9 +33,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.dlt.model import project_rows
+from kisscal.tracking.blob_paths import chain_blobs, ray_miss_mm
 from kisscal.tracking.fill_sphere import alone_blobs, sphere_depth_fill
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import ChainFill, chain_blobs, path_runs, ray_miss_mm
 from kisscal.tracking.rayfill import SpareBlobs
 
 #: SDs of the neighbour's error its ray must miss it by for a blob to count as merged.

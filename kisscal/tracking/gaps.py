@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
+from kisscal.tracking.blob_paths import parted
 from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
 from kisscal.tracking.fill_absent import absent_named, absent_rows, mirror_tracks
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
@@ -43,7 +44,7 @@ from kisscal.tracking.fill_trusted import TRUSTED_PASS, context
 from kisscal.tracking.fill_unmerged import unmerged_depth_fill
 from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import chain_fill, parted
+from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.rayfill import SpareBlobs, freed
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID, MEASURED, PREDICTED, Tracks, is_filled
 
@@ -92,7 +93,7 @@ def _body(
     for longer ones, as a fill of :data:`FILLS` expecting at least the error of the gap's
     fills it reads (:func:`anchored`); with spare blobs, each filled field a camera still
     sees moved onto its ray (:func:`with_rays`); no spline where the marker's blobs
-    followed in the image from the two sides part (:func:`~kisscal.tracking.raychain.parted`).
+    followed in the image from the two sides part (:func:`~kisscal.tracking.blob_paths.parted`).
     A spline expects at least what the noise of the samples it goes through carries
     (:func:`~kisscal.tracking.fill_spline.context_noise`; lowcost 301-313: 98 samples over
     twice their spline's expected error, the stretches it is tried on quieter); moved

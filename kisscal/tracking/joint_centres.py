@@ -21,7 +21,7 @@ point of the marker's segment, so it is kept only when at least one partner is f
 with the marker (seen over part of its motion alone, kiss 3 seed 303's RTIB, 106 fields,
 fits a sphere in the pelvis's frame within 1.5 mm that its truth misses by 20 mm SD), each
 radius keeps within ``rigid_fill_sd_mm`` SD over the trial, and the marker is seen in the
-cluster's frame in :data:`~kisscal.tracking.raychain.MIN_TOGETHER` of its fields (over
+cluster's frame in :data:`~kisscal.tracking.segment_lengths.MIN_TOGETHER` of its fields (over
 most of its motion, not a phase: modern 3 seed 307's LASI fitted one in the left shank's
 frame, known in 59 fields, within 2.1 mm, its truth 23 mm SD off it). The point, carried
 by the cluster into every field where its markers are known, is a partner of the
@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.bodyfill import batch_kabsch, distance_sd
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import MIN_TOGETHER, length_partners
+from kisscal.tracking.segment_lengths import MIN_TOGETHER, length_partners
 
 #: Fewest markers of a cluster whose frame carries a centre (a pose needs three).
 MIN_CLUSTER = 3
@@ -137,7 +137,7 @@ def joint_centres(
 ) -> Centres:
     """The joint centres track ``t`` of ``dense`` (n_tracks, n_fields, 3; NaN where not
     known) turns about (see module), one per cluster of :func:`rigid_clusters`; ``t`` and
-    a partner (:func:`~kisscal.tracking.raychain.length_partners`, ``mirror`` passed on)
+    a partner (:func:`~kisscal.tracking.segment_lengths.length_partners`, ``mirror`` passed on)
     need ``body_context_fields`` samples in its frame."""
     n_fields = dense.shape[1]
     members = np.r_[t, length_partners(dense, t, params, mirror)[0]].astype(np.int64)

@@ -8,14 +8,15 @@ across the ankle misses by centimetres), so :mod:`kisscal.tracking.rayfill` has 
 good to correct. The camera's blob is still there, unused by any 3D point: two of the
 marker's three coordinates lie on its ray, and the third, the depth along the ray, is
 fixed by the marker's distances to the other markers of its segment, constant in the
-trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe):
+trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe;
+:mod:`kisscal.tracking.segment_lengths`):
 
 1. the blob is followed through the gap in each camera's image, from the marker's
    projection on each side of the gap (constant-velocity prediction, the nearest free
    blob within ``ray_chain_gate_px`` plus half a field's motion, none when a second is
    less than twice as far; blobs another track's image may share taken out first,
    :func:`~kisscal.tracking.fill_donors.unshared`); the two directions must agree where
-   both found a blob;
+   both found a blob (:func:`~kisscal.tracking.blob_paths.chain_blobs`);
 2. on its ray, the depths where the distance to each partner equals its length (the
    ray meets the sphere) are refined by Gauss-Newton on all the partners' lengths at
    once (rays of two cameras: a point each, the one of smaller error kept where they
@@ -29,7 +30,7 @@ trial (the shank's knee, tibia and ankle markers; the foot's ankle, heel and toe
 3. the field is filled when every length agrees within three SDs and the expected error
    along the ray, ``1 / sqrt(sum cos² θ_u / σ_u²)`` (θ_u between the ray and the partner's
    direction, σ_u the SD of that length in the trial), is at most
-   ``ray_length_max_error_mm``, in runs of at least :data:`MIN_RUN` such fields;
+   ``ray_length_max_error_mm``, in runs of at least :data:`~.on_rays.MIN_RUN` such fields;
    otherwise it is left to the other fills.
 
 References
@@ -41,219 +42,18 @@ from the other markers of the body).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal._shared import true_runs
-from kisscal.dlt.model import project_rows, ray_directions
-from kisscal.tracking.bodyfill import distance_sd, ramp, side_windows
-from kisscal.tracking.fill_donors import padded_mirrors, unshared
+from kisscal.dlt.model import ray_directions
+from kisscal.tracking.blob_paths import chain_blobs
+from kisscal.tracking.bodyfill import side_windows
+from kisscal.tracking.fill_donors import unshared
+from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs, placed_errors
 from kisscal.tracking.raywalk import agreed_pick, connected_picks, told, walk_picks
-
-#: Fewest consecutive fields placed on rays for them to be kept.
-MIN_RUN = 2
-
-#: Fewest fields a partner is measured in together with the marker, as a share of the
-#: marker's measured fields: a thigh marker kept its distance to a shank one within
-#: 2 mm over the 44 % of the trial both were seen (the knee straight), and drifted by
-#: 10 mm in the swing the gap fell in.
-MIN_TOGETHER = 0.5
-
-
-def path_runs(placed: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The fields of ``placed`` in runs of at least :data:`MIN_RUN`: a path, not a
-    stray field."""
-    out = np.zeros(placed.shape, dtype=bool)
-    for a, b in zip(*true_runs(placed), strict=True):
-        out[a:b] = b - a >= MIN_RUN
-    return out
-
-
-@dataclass(frozen=True)
-class ChainFill:
-    """A gap's fields placed on the rays of the marker's own blobs.
-
-    Attributes
-    ----------
-    xyz_mm : (n, 3) float array
-        Position per gap field (NaN where none was placed).
-    sd_mm : (n,) float array
-        Expected error per field (NaN where none was placed).
-    partners : tuple of int
-        Tracks whose distances fixed the depth.
-    rows : int array
-        Rows of the spare blobs taken.
-    """
-
-    xyz_mm: NDArray[np.float64]
-    sd_mm: NDArray[np.float64]
-    partners: tuple[int, ...]
-    rows: NDArray[np.int64]
-
-
-def length_partners(
-    dense: NDArray, t: int, params: TrackingParams, mirror: NDArray | None = None
-) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Tracks whose distance to track ``t`` keeps within ``rigid_fill_sd_mm`` SD over the
-    trial (its segment's markers), measured together in at least ``body_context_fields``
-    fields (a few fields may agree by chance), and that SD (at least
-    ``ray_length_sd_floor_mm``). With ``mirror`` (each track's mirror image's track, -1
-    for none), not one whose mirror pair's distance varies by more over the same fields:
-    a pair across a knee held straight keeps its length while the other leg swings
-    (kiss 3 seed 363, LTHI-LTIB 2.2 mm SD over LTIB's stance, RTHI-RTIB 19.9 mm there)."""
-    seen = np.isfinite(dense[:, :, 0])
-    if mirror is not None:
-        mirror = padded_mirrors(mirror, len(dense))
-    cand = np.flatnonzero((seen & seen[t]).sum(axis=1) >= params.length_fields)
-    cand = cand[cand != t]
-    sd = distance_sd(dense[cand], dense[t][None])[:, 0]
-    keep = sd <= params.rigid_fill_sd_mm
-    if mirror is not None and mirror[t] >= 0:
-        m = mirror[cand]
-        both = np.where(seen[cand] & seen[t], 1.0, np.nan)[..., None]
-        pair = distance_sd(dense[np.maximum(m, 0)] * both, dense[mirror[t]][None])[:, 0]
-        keep &= ~((m >= 0) & np.isfinite(pair) & (pair > params.rigid_fill_sd_mm))
-    return cand[keep], np.maximum(sd[keep], params.ray_length_sd_floor_mm)
-
-
-def partner_lengths(dense: NDArray, t: int, partners: NDArray, lo: int, hi: int, n: int) -> NDArray:
-    """Length (mm) from track ``t`` to each partner per gap field (hi - lo, k): its mean
-    in the ``n`` fields each side (the trial's where a side has none), drifting linearly
-    across the gap."""
-    dist = np.linalg.norm(dense[partners] - dense[t][None], axis=2)  # (k, n_fields)
-    seen = np.isfinite(dist)
-    dist = np.where(seen, dist, 0.0)
-
-    def mean(f: NDArray | slice) -> NDArray:
-        count = seen[:, f].sum(axis=1)
-        return np.where(count > 0, dist[:, f].sum(axis=1) / np.maximum(count, 1), np.nan)
-
-    before, after = (mean(f) for f in side_windows(dense[t], lo, hi, n))
-    before = np.where(
-        np.isfinite(before), before, np.where(np.isfinite(after), after, mean(slice(None)))
-    )
-    after = np.where(np.isfinite(after), after, before)
-    w = ramp(lo, hi)[:, None]
-    return before[None] * (1 - w) + after[None] * w
-
-
-def follow_blobs(
-    spare: SpareBlobs, cam: int, uv: NDArray, vel: NDArray, fields: NDArray, params: TrackingParams
-) -> dict[int, int]:
-    """The blob rows of camera ``cam`` that continue a path in the image from ``uv`` with
-    velocity ``vel`` (px/field) over ``fields`` (consecutive, either direction); the
-    path coasts over at most ``ray_chain_coast_fields`` fields without a blob."""
-    found: dict[int, int] = {}
-    missed = 0
-    for f in fields.tolist():
-        pred = uv + vel
-        a, b = np.searchsorted(spare.field, [f, f + 1])
-        rows = np.arange(a, b)
-        rows = rows[spare.free[rows] & (spare.camera[rows] == cam)]
-        dist = np.sort(np.linalg.norm(spare.uv_px[rows] - pred, axis=1))
-        gate = params.ray_chain_gate_px + 0.5 * float(np.linalg.norm(vel))
-        if dist.size and dist[0] <= gate and (dist.size == 1 or dist[1] >= 2.0 * dist[0]):
-            row = int(rows[np.argmin(np.linalg.norm(spare.uv_px[rows] - pred, axis=1))])
-            found[f] = row
-            vel, uv, missed = spare.uv_px[row] - uv, spare.uv_px[row], 0
-            continue
-        uv, missed = pred, missed + 1
-        if missed > params.ray_chain_coast_fields:
-            break
-    return found
-
-
-def side_paths(
-    target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
-) -> list[tuple[dict[int, int], dict[int, int]]]:
-    """Per camera, the marker's blobs (field: spare row) in the gap [lo, hi) of
-    ``target`` (n_fields, 3) followed in the image from the side before the gap and from
-    the side after it (:func:`follow_blobs`, from the marker's projection there)."""
-    out = []
-    for cam in range(len(spare.dlts)):
-        picks = []
-        for edge, step, fields in (
-            (lo - 1, -1, np.arange(lo, hi)),
-            (hi, 1, np.arange(hi - 1, lo - 1, -1)),
-        ):
-            if not 0 <= edge < len(target):  # a run at the trial's start or end: one side
-                picks.append({})
-                continue
-            ends = target[[edge, edge + step if 0 <= edge + step < len(target) else edge]]
-            if not np.all(np.isfinite(ends[0])):
-                picks.append({})
-                continue
-            ends = np.where(np.isfinite(ends), ends, ends[:1])
-            uv = project_rows(spare.dlts, [cam, cam], ends)
-            picks.append(follow_blobs(spare, cam, uv[0], uv[0] - uv[1], fields, params))
-        out.append((picks[0], picks[1]))
-    return out
-
-
-def chain_blobs(
-    target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Gap field offsets and spare rows of the marker's blobs in the gap [lo, hi) of
-    ``target`` (n_fields, 3), followed in every camera from both sides (see module)."""
-    ks, rows = [], []
-    for fwd, bwd in side_paths(target, lo, hi, spare, params):
-        for f in sorted(set(fwd) | set(bwd)):
-            if f in fwd and f in bwd and fwd[f] != bwd[f]:
-                continue
-            ks.append(f - lo)
-            rows.append(fwd.get(f, bwd.get(f)))
-    return np.asarray(ks, dtype=np.int64), np.asarray(rows, dtype=np.int64)
-
-
-def parted(target: NDArray, lo: int, hi: int, spare: SpareBlobs, params: TrackingParams) -> bool:
-    """Whether the marker's blobs followed in a camera's image from the two sides of the
-    run [lo, hi) of ``target`` (n_fields, 3) part in some field (:func:`side_paths`):
-    the two sides' samples are then not ends of one path in the image, and one of them
-    may be another marker's (a sample of two merged images)."""
-    return any(
-        f in bwd and bwd[f] != row
-        for fwd, bwd in side_paths(target, lo, hi, spare, params)
-        for f, row in fwd.items()
-    )
-
-
-def one_camera_blobs(
-    ks: NDArray[np.int64], rows: NDArray[np.int64], spare: SpareBlobs
-) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
-    """The camera that sees most of a gap's blobs (``ks``, ``rows`` as
-    :func:`chain_blobs`), and its blobs, the first of each field."""
-    cam = int(np.bincount(spare.camera[rows]).argmax())
-    keep = spare.camera[rows] == cam
-    ks, first = np.unique(ks[keep], return_index=True)
-    return cam, ks, rows[keep][first]
-
-
-def off_rays(
-    at: NDArray, ks: NDArray, o_ks: NDArray, o_rows: NDArray, spare: SpareBlobs, gate: float
-) -> NDArray[np.int64]:
-    """Gap offsets of ``ks`` (ascending) whose point ``at`` (m, 3) lies farther than
-    ``gate`` mm from the ray of a blob of the marker there (offsets ``o_ks``, rows
-    ``o_rows``; the point's own blob is on its ray): a second camera's blob disagrees,
-    and one of the two is not the marker's alone (a merged blob's centroid lies off
-    both markers' rays)."""
-    if ks.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    i = np.searchsorted(ks, o_ks)
-    hit = (i < ks.size) & (ks[np.minimum(i, ks.size - 1)] == o_ks)
-    i, o_rows = i[hit], o_rows[hit]
-    return np.unique(ks[i[ray_miss_mm(spare, o_rows, at[i]) > gate]])
-
-
-def ray_miss_mm(spare: SpareBlobs, rows: NDArray, xyz: NDArray) -> NDArray[np.float64]:
-    """Distance (mm) of each lab point ``xyz`` (m, 3) from the ray of its blob ``rows``."""
-    cam = spare.camera[rows]
-    d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
-    rel = xyz - spare.centres[cam]
-    return np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
+from kisscal.tracking.segment_lengths import length_partners, partner_lengths, together
 
 
 def on_ray(
@@ -295,14 +95,6 @@ def on_ray(
         np.abs(res[keep]).max(axis=1),
         1.0 / np.sqrt(np.maximum(info[keep], 1e-12)),
     )
-
-
-def together(dense: NDArray, t: int, partners: NDArray) -> NDArray[np.bool_]:
-    """Whether each partner was measured with track ``t`` in at least
-    :data:`MIN_TOGETHER` of ``t``'s fields: its length then held over most of the
-    marker's motion, not only over a phase a joint held still in."""
-    seen = np.isfinite(dense[t, :, 0])
-    return (np.isfinite(dense[partners, :, 0]) & seen).sum(axis=1) >= MIN_TOGETHER * seen.sum()
 
 
 def _apart(a: tuple, b: tuple) -> float:
@@ -439,8 +231,9 @@ def chain_fill(
     of names no track took, placed on one camera's rays
     (:func:`~kisscal.tracking.fill_absent.absent_placed`), partners too, numbered after
     the tracks (kiss 3 seed 323: a heel on one camera held by its toe and the placed
-    ankle). ``mirror``: each row's mirror's row (:func:`length_partners`; modern 3 seed
-    353's RTHI). The blobs taken are not marked used here."""
+    ankle). ``mirror``: each row's mirror's row
+    (:func:`~.segment_lengths.length_partners`; modern 3 seed 353's RTHI). The blobs
+    taken are not marked used here."""
     if absent is not None and len(absent):
         dense = np.concatenate([dense, absent])
     target = dense[t]

@@ -12,7 +12,7 @@ from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.fill_donors import merged_edges
 from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.gaps import _body
-from kisscal.tracking.raychain import length_partners
+from kisscal.tracking.segment_lengths import length_partners
 from tests.tracking.test_fill_donors import _rolling_foot
 from tests.tracking.test_rayfill import _look_at
 

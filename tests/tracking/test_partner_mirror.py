@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.tracking import TrackingParams
-from kisscal.tracking.raychain import length_partners
+from kisscal.tracking.segment_lengths import length_partners
 
 
 def _legs(n: int = 200, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

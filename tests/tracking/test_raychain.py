@@ -8,12 +8,13 @@ from scipy.spatial.transform import Rotation
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import FILLED_RIGID, TrackingParams, spare_blobs
+from kisscal.tracking.blob_paths import parted
 from kisscal.tracking.fill_depth import depth_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.labelling import Labelling
 from kisscal.tracking.labelling.pieces import join_gap_pieces
-from kisscal.tracking.raychain import chain_fill, parted
+from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.raywalk import agreed_pick, connected_picks
 from kisscal.tracking.tracks import MEASURED, make_tracks
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.result import Labelling
 from kisscal.tracking.params import TrackingParams
-from kisscal.tracking.raychain import length_partners
+from kisscal.tracking.segment_lengths import length_partners
 from kisscal.tracking.tracks import MEASURED, make_tracks, numbering
 
 #: Fewest (partner, field) lengths a piece must keep to join a trajectory.
