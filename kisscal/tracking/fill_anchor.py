@@ -123,6 +123,6 @@ def body_donors(gap: Gap, params: TrackingParams) -> NDArray:
     """The samples a body fill of ``gap`` (a :class:`~kisscal.tracking.gap_record.Gap`) may
     follow: :func:`~.fill_place.mirror_checked`'s, without other tracks' fills expecting
     more than ``ray_rest_max_error_mm`` (:func:`trusted`; the bar of a fill taken as
-    context, :func:`~kisscal.tracking.gaps._second_pass`)."""
+    context, :func:`~kisscal.tracking.fill_runner.second_pass`)."""
     body = mirror_checked(gap.dense, gap.t, params, gap.mirror)
     return trusted(body, gap.errors, gap.t, params.ray_rest_max_error_mm)

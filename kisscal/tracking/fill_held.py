@@ -130,7 +130,7 @@ def held_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bo
         piece = Candidate(chosen.xyz_mm[x:y], fill, chosen.along_sight_mm)
         got = with_rays(piece, gap.spare, params) if rays else [(piece.xyz_mm, fill)]
         got = donor_errors([g for g in got if g[1].ray_fields or not rayed_only], gap.errors)
-        # as the body's fills (:func:`~.gaps._body`; lowcost 403 LTIB beside a chain
+        # as the body's fills (:func:`~.fill_body.spline_or_body`; lowcost 403 LTIB beside a chain
         # fill expecting 3.4 mm, 1.1 mm RMS off expecting 0.6 on its ray)
         out += anchored(donor_noise(got, gap.dense), gap.out, params.fill_context_fields)
     gap.out.extend(out)

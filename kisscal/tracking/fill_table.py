@@ -1,4 +1,4 @@
-"""The reach of each way of filling a gap (:data:`~kisscal.tracking.gaps.FILLS`): which
+"""The reach of each way of filling a gap (:data:`~kisscal.tracking.fill_passes.FILLS`): which
 runs of missing fields it is tried on, and with which error limit. The fills themselves
 and the runner are in :mod:`kisscal.tracking.gaps`; a ``gap`` here is its record,
 :class:`~kisscal.tracking.gap_record.Gap` (the track's dense series, the gap's bounds,

@@ -107,7 +107,7 @@ def over_bar(cands: list[Candidate], errors: NDArray, bar: float) -> list[Candid
 
 def context(fill: GapFill, params: TrackingParams, trusting: bool) -> bool:
     """Whether ``fill`` is context for the fills of a second pass (written into its
-    positions, :func:`~kisscal.tracking.gaps._second_pass`): a rigid or ray fill
+    positions, :func:`~kisscal.tracking.fill_runner.second_pass`): a rigid or ray fill
     (``filled_rigid``) expecting at most ``ray_rest_max_error_mm``; with ``trusting``
     (:data:`TRUSTED_PASS`, whose fills count their donors' errors), also any fill placed
     on a camera's rays in all its fields expecting at most ``max_body_fill_error_mm``
@@ -192,6 +192,6 @@ def trusted_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np
     return placed_mask(got, a, b)
 
 
-#: The pass after :data:`~.gaps.LAST_PASS`, on what every fill left
-#: (:func:`~.gaps._second_pass`).
+#: The pass after :data:`~.fill_passes.LAST_PASS`, on what every fill left
+#: (:func:`~.fill_runner.second_pass`).
 TRUSTED_PASS = (Fill("trusted body", trusted_body),)

@@ -1,7 +1,7 @@
 """The record of one gap of a track being filled: what every fill of
-:data:`~kisscal.tracking.gaps.FILLS` reads, and where it writes what it places.
+:data:`~kisscal.tracking.fill_passes.FILLS` reads, and where it writes what it places.
 
-Built once per run of missing fields by the runner (:mod:`kisscal.tracking.gaps`) and
+Built once per run of missing fields by the runner (:mod:`kisscal.tracking.fill_runner`) and
 handed to each fill in turn. Its fields are fixed; the arrays and list it carries are
 not: the fills write placed fields into ``dense`` (context for the fills after them),
 their expected errors into ``errors``, the fields the sweeping fills placed into

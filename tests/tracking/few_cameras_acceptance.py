@@ -303,7 +303,7 @@ def gap_table(preset: str, seed: int, noise_mm: float = 0.5, n_cuts: int = 4) ->
         pattern_fill,
         rigid_fill,
     )
-    from kisscal.tracking.gaps import spline_fill
+    from kisscal.tracking.fill_spline import spline_fill
 
     plan = plan_session(synth_options(preset, seed, fields=FIELDS[preset]))
     motion = plan.trials["walk01"]

@@ -6,7 +6,7 @@
 
 Issue 27's open gaps (:mod:`tests.tracking.coverage_gaps` lists them) are explained field
 by field here: the trial of :mod:`tests.tracking.few_cameras_acceptance` is tracked with
-every fill of :mod:`kisscal.tracking.gaps` (the first pass and the ends, the second pass,
+every fill of :mod:`kisscal.tracking.fill_passes` (the first pass and the ends, the second pass,
 the last pass) wrapped so that each call on the named marker's track over the fields
 asked for prints its pass, the gap and run it was given, and the fields it placed
 (``x``); a fill the runner does not call there (its reach, :class:`Fill`) is not
@@ -44,17 +44,17 @@ def _traced(fills: tuple[Fill, ...], tag: str, show: Callable) -> tuple[Fill, ..
 
 @contextmanager
 def tracing(show: Callable) -> Iterator[None]:
-    """Every pass's fills of :mod:`kisscal.tracking.gaps` traced by ``show`` (see
+    """Every pass's fills (:mod:`kisscal.tracking.fill_passes`, as
+    :func:`kisscal.tracking.gaps.fill_gaps_named` reads them) traced by ``show`` (see
     :func:`_traced`) while in the context."""
-    saved = gaps.FILLS, gaps.LAST_PASS, gaps._second_pass.__defaults__
-    second = _traced(gaps.SECOND_PASS, "second", show)
+    saved = gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS
     gaps.FILLS = _traced(gaps.FILLS, "first/end", show)
+    gaps.SECOND_PASS = _traced(gaps.SECOND_PASS, "second", show)
     gaps.LAST_PASS = _traced(gaps.LAST_PASS, "last", show)
-    gaps._second_pass.__defaults__ = (None, second, None, None)
     try:
         yield
     finally:
-        gaps.FILLS, gaps.LAST_PASS, gaps._second_pass.__defaults__ = saved
+        gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS = saved
 
 
 def trace(trial, name: str, lo: int, hi: int) -> list[str]:

@@ -8,8 +8,8 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import GapFill
+from kisscal.tracking.fill_body import spline_or_body
 from kisscal.tracking.gap_record import Gap
-from kisscal.tracking.gaps import _body
 from kisscal.tracking.tracks import FILLED, FILLED_RIGID
 
 PARAMS = TrackingParams()
@@ -33,7 +33,7 @@ def test_a_spline_off_placed_fields_expects_their_error() -> None:
     dense[0, lo : lo + 12] = placed
     made = [(placed, GapFill(0, lo, 12, FILLED_RIGID, 3.0, (), 12))]
     gap = Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
-    assert _body(gap, lo + 12, hi, PARAMS).all()
+    assert spline_or_body(gap, lo + 12, hi, PARAMS).all()
     xyz, fill = gap.out[-1]
     assert fill.status == FILLED and fill.first_field == lo + 12
     true_rms = np.sqrt(np.mean(np.sum((xyz - truth[lo + 12 : hi]) ** 2, axis=1)))
@@ -51,6 +51,6 @@ def test_fills_far_from_the_spline_leave_its_expectation() -> None:
     expected = []
     for made in ([], far):
         gap = Gap(dense, 0, lo, hi, PARAMS, None, None, np.zeros(hi - lo, bool), list(made))
-        assert _body(gap, lo, hi, PARAMS).all()
+        assert spline_or_body(gap, lo, hi, PARAMS).all()
         expected.append(gap.out[-1][1].expected_error_mm)
     assert expected[0] == expected[1] < 3.0

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.tracking import TrackingParams
+from kisscal.tracking.fill_body import spline_or_body
 from kisscal.tracking.gap_record import Gap
-from kisscal.tracking.gaps import _body
 
 PARAMS = TrackingParams()
 LO, HI = 60, 90
@@ -51,7 +51,7 @@ def _fill(offset: float, donor_error: float) -> tuple[np.ndarray | None, float, 
     in the gap by a fill expecting ``donor_error``: (the fill's true errors, its largest
     expected error), (None, NaN) when not filled."""
     gap, truth = offset_gap(offset, donor_error)
-    _body(gap, LO, HI, PARAMS)
+    spline_or_body(gap, LO, HI, PARAMS)
     if not gap.out:
         return None, np.nan
     xyz = np.concatenate([x for x, _ in gap.out])

@@ -1,5 +1,5 @@
 """Fill at a trajectory's ends (kisscal.tracking.fill_ends, the "end" fill of
-kisscal.tracking.gaps.FILLS) against truth."""
+kisscal.tracking.fill_passes.FILLS) against truth."""
 
 from __future__ import annotations
 

@@ -16,7 +16,9 @@ from kisscal.tracking.fill_depth import (
     depth_error,
     depth_ray_fill,
 )
-from kisscal.tracking.gaps import SECOND_PASS, _second_pass, fill_gaps_logged
+from kisscal.tracking.fill_passes import SECOND_PASS
+from kisscal.tracking.fill_runner import second_pass
+from kisscal.tracking.gaps import fill_gaps_logged
 from kisscal.tracking.raychain import chain_fill
 from kisscal.tracking.tracks import FILLED, FILLED_PATTERN
 from tests.tracking.test_bodyfill import _tracks_of, rigid_body
@@ -142,7 +144,7 @@ def test_the_second_pass_splines_a_short_run_beside_placed_samples_expecting_the
     uv = np.random.default_rng(4).uniform([0, 0], [640, 480], (f.size, 2))
     spare = spare_blobs(f, np.zeros(f.size), uv, _spare(xyz, 4).dlts)
     measured = np.isfinite(dense[:, :, 0])
-    got = _second_pass(
+    got = second_pass(
         dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
     )
     (fill,) = [g for _, g in got if g.track == 3]  # before, the second pass had no spline
@@ -151,7 +153,7 @@ def test_the_second_pass_splines_a_short_run_beside_placed_samples_expecting_the
     assert _rms(xyz3, xyz[3, run]) <= 2.0 * fill.expected_error_mm
     # beside samples expecting more than a body fill there may: refused
     errors[3, run.start - 6 : run.start] = 2.0 * PARAMS.ray_rest_max_error_mm
-    got = _second_pass(
+    got = second_pass(
         dense, [(3, run.start, run.stop)], PARAMS, spare, measured, [], None, SECOND_PASS, errors
     )
     assert not [g for _, g in got if g.track == 3]

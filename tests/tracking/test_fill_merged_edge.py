@@ -9,9 +9,9 @@ import numpy as np
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
+from kisscal.tracking.fill_body import spline_or_body
 from kisscal.tracking.fill_donors import merged_edges
 from kisscal.tracking.gap_record import Gap
-from kisscal.tracking.gaps import _body
 from kisscal.tracking.segment_lengths import length_partners
 from tests.tracking.test_fill_donors import _rolling_foot
 from tests.tracking.test_rayfill import _look_at
@@ -45,10 +45,10 @@ def _ankle_gap(pull_mm: float, behind: bool = True) -> tuple[np.ndarray, np.ndar
 
 
 def _spline(dense: np.ndarray, spare: object) -> tuple[np.ndarray, float]:
-    """The ankle's fill of [LO, HI) by :func:`_body` (a spline moved onto the rays) and
+    """The ankle's fill of [LO, HI) by :func:`spline_or_body` (a spline moved onto the rays) and
     its expected error."""
     gap = Gap(dense, 0, LO, HI, PARAMS, spare, np.isfinite(dense[0, :, 0]), np.zeros(4, bool), [])
-    _body(gap, LO, HI, PARAMS)
+    spline_or_body(gap, LO, HI, PARAMS)
     assert len(gap.out) >= 1
     xyz = np.concatenate([x for x, _ in gap.out])
     return xyz, max(f.expected_error_mm for _, f in gap.out)

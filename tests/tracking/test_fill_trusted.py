@@ -16,9 +16,9 @@ import pytest
 
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
+from kisscal.tracking.fill_body import spline_or_body
 from kisscal.tracking.fill_trusted import trusted_body
 from kisscal.tracking.gap_record import Gap
-from kisscal.tracking.gaps import _body
 from tests.tracking.test_fill_donor_fills import HI, LO, offset_gap
 from tests.tracking.test_rayfill import _look_at
 
@@ -41,7 +41,7 @@ def test_a_donor_fill_over_the_body_bar_leaves_the_body_fill_open():
     # the premise: the body follows no fill expecting over ray_rest_max_error_mm
     donor_error = 0.5 * (PARAMS.ray_rest_max_error_mm + PARAMS.max_body_fill_error_mm)
     gap, _ = offset_gap(0.5, donor_error)
-    assert not _body(gap, LO, HI, PARAMS).any()
+    assert not spline_or_body(gap, LO, HI, PARAMS).any()
 
 
 def test_the_last_pass_fills_it_expecting_the_donor_error():
@@ -135,10 +135,10 @@ def _noisy_gap(hole: bool) -> tuple[np.ndarray, np.ndarray, list]:
 
 
 def _second(dense: np.ndarray, made: list, fills: tuple) -> list:
-    """:func:`_second_pass` of the target's gap by ``fills`` (None: the trusted pass), no
+    """:func:`second_pass` of the target's gap by ``fills`` (None: the trusted pass), no
     blob left unused."""
+    from kisscal.tracking.fill_runner import second_pass
     from kisscal.tracking.fill_trusted import TRUSTED_PASS
-    from kisscal.tracking.gaps import _second_pass
 
     centre = np.array([0.0, -3000.0, 1000.0])
     spare = spare_blobs([], [], np.zeros((0, 2)), _look_at(centre, centre + [0, 1, 0])[None])
@@ -147,7 +147,7 @@ def _second(dense: np.ndarray, made: list, fills: tuple) -> list:
         errors[f.track, f.first_field] = f.expected_error_mm
     measured = np.isfinite(dense[:, :, 0])
     fills = TRUSTED_PASS if fills is None else fills
-    return _second_pass(dense, [(2, LO, HI)], PARAMS, spare, measured, made, None, fills, errors)
+    return second_pass(dense, [(2, LO, HI)], PARAMS, spare, measured, made, None, fills, errors)
 
 
 def test_a_body_fill_over_the_rest_bar_is_the_trusted_pass_s_where_no_camera_sees():
@@ -160,7 +160,7 @@ def test_a_body_fill_over_the_rest_bar_is_the_trusted_pass_s_where_no_camera_see
     gap = Gap(
         dense.copy(), 2, LO, HI, PARAMS, None, None, np.zeros(HI - LO, bool), [], errors=errors
     )
-    assert not _body(gap, LO, HI, rest_params(PARAMS)).any()
+    assert not spline_or_body(gap, LO, HI, rest_params(PARAMS)).any()
     got = _second(dense.copy(), [], None)
     assert got
     fields = np.concatenate([f.first_field + np.arange(f.n_fields) for _, f in got])
@@ -175,7 +175,7 @@ def test_donors_missing_a_field_the_trusted_pass_follows_their_fills_on_rays():
     dense, truth, made = _noisy_gap(hole=True)
     # the premise: before it, the fills on rays are not context, and the donors are not
     # measured through the gap
-    from kisscal.tracking.gaps import LAST_PASS
+    from kisscal.tracking.fill_passes import LAST_PASS
 
     assert not _second(dense.copy(), made, LAST_PASS)
     got = _second(dense.copy(), made, None)

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from kisscal.tracking import TrackingParams
+from kisscal.tracking.fill_body import spline_or_body
 from kisscal.tracking.fill_trusted import trusted_body, widest_segment
 from kisscal.tracking.gap_record import Gap
-from kisscal.tracking.gaps import _body
 
 PARAMS = TrackingParams()
 LO, HI = 80, 120
@@ -62,7 +62,7 @@ def test_the_body_fills_find_no_donors_for_the_two_segment_marker():
     sd = distance_sd(gap.dense[:ANK], gap.dense[ANK][None])[:, 0]
     assert sd.argmin() == TIB and sd.max() < PARAMS.rigid_fill_sd_mm  # rigid to all three
     assert distance_sd(gap.dense[TIB][None], gap.dense[HEE][None])[0, 0] > PARAMS.rigid_fill_sd_mm
-    assert not _body(gap, LO, HI, PARAMS).any()
+    assert not spline_or_body(gap, LO, HI, PARAMS).any()
 
 
 def test_the_widest_segment_hides_the_tibia_only():

@@ -1,4 +1,4 @@
-"""The one-camera depth fill of the gaps' second pass (kisscal.tracking.gaps.SECOND_PASS),
+"""The one-camera depth fill of the gaps' second pass (kisscal.tracking.fill_passes.SECOND_PASS),
 on partners placed since the first, against truth."""
 
 from __future__ import annotations
