@@ -40,6 +40,7 @@ body).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -360,32 +361,58 @@ def ray_runs(
     return out
 
 
-def absent_named(
-    dense: NDArray,
-    measured: NDArray,
-    made: Sequence[tuple[NDArray, GapFill]],
-    labels: Sequence[str] | None,
-    placed: tuple[list[tuple[str, NDArray[np.int64]]], NDArray, NDArray],
-    missing: Sequence[str],
-    spare: SpareBlobs | None,
-    params: TrackingParams,
-) -> tuple[list[str], list[tuple[NDArray, GapFill]]]:
-    """:func:`absent_tracks` of :func:`absent_placed`'s result (``placed``), the names it
-    left unnamed (placed in fewer than ``min_track_length`` fields, or nowhere) tried
-    again once every gap is filled: with the tracks' measured samples (``dense`` where
-    ``measured``; n_tracks rows) and their ray fills of ``made`` trusted as context
-    (``filled_rigid``, expecting at most ``ray_rest_max_error_mm``; that error is added
-    to the lengths' SDs). The cameras that miss a knee mostly miss its tibia and ankle
-    too: kiss 3 seed 414's were measured together in 23 fields and placed on one
-    camera's rays in 226, so the knee, which one camera sees throughout, was placed in 4
-    fields and left unnamed. A name tried again keeps the fields placed before (their
-    blobs taken)."""
-    n = len(dense)
-    who, rows, sds = _again(dense, measured, made, labels, placed, missing, spare, params)
-    own = {name: t for t, name in enumerate((labels or ())[:n])}
+@dataclass(frozen=True)
+class AbsentContext:
+    """What the names :func:`absent_placed` left unnamed are tried again with, once every
+    gap is filled (:func:`absent_named`).
+
+    Attributes
+    ----------
+    dense : (n_tracks, n_fields, 3) float array
+        The tracks' samples (read where ``measured``).
+    measured : (n_tracks, n_fields) bool array
+        The tracks' measured samples.
+    made : sequence of (xyz, GapFill)
+        The fills made; their ray fills are trusted as context
+        (:func:`~kisscal.tracking.fill_trusted.context`).
+    labels : sequence of str or None
+        One name per track.
+    placed : (who, rows, sds)
+        :func:`absent_rows`'s result: each placed name and its partners, its row
+        (m, n_fields, 3) and each field's expected error (m, n_fields).
+    missing : sequence of str
+        The set's names no track took.
+    spare : SpareBlobs or None
+        The blobs no 3D point used (None: none is tried again).
+    params : TrackingParams
+    """
+
+    dense: NDArray[np.float64]
+    measured: NDArray[np.bool_]
+    made: Sequence[tuple[NDArray, GapFill]]
+    labels: Sequence[str] | None
+    placed: tuple[list[tuple[str, NDArray[np.int64]]], NDArray, NDArray]
+    missing: Sequence[str]
+    spare: SpareBlobs | None
+    params: TrackingParams
+
+
+def absent_named(ctx: AbsentContext) -> tuple[list[str], list[tuple[NDArray, GapFill]]]:
+    """:func:`absent_tracks` of :func:`absent_placed`'s result (``ctx.placed``), the names
+    it left unnamed (placed in fewer than ``min_track_length`` fields, or nowhere) tried
+    again once every gap is filled: with the tracks' measured samples and their ray fills
+    of ``ctx.made`` trusted as context (``filled_rigid``, expecting at most
+    ``ray_rest_max_error_mm``; that error is added to the lengths' SDs). The cameras that
+    miss a knee mostly miss its tibia and ankle too: kiss 3 seed 414's were measured
+    together in 23 fields and placed on one camera's rays in 226, so the knee, which one
+    camera sees throughout, was placed in 4 fields and left unnamed. A name tried again
+    keeps the fields placed before (their blobs taken)."""
+    n = len(ctx.dense)
+    who, rows, sds = _again(ctx)
+    own = {name: t for t, name in enumerate((ctx.labels or ())[:n])}
     new = [k for k, (name, _) in enumerate(who) if name not in own]
-    names, out = absent_tracks([who[k] for k in new], rows[new], sds[new], n, params)
-    return names, out + _beside(measured, made, who, rows, sds, own)
+    names, out = absent_tracks([who[k] for k in new], rows[new], sds[new], n, ctx.params)
+    return names, out + _beside(ctx.measured, ctx.made, who, rows, sds, own)
 
 
 def _beside(
@@ -412,15 +439,13 @@ def _beside(
 
 
 def _again(
-    dense: NDArray,
-    measured: NDArray,
-    made: Sequence[tuple[NDArray, GapFill]],
-    labels: Sequence[str] | None,
-    placed: tuple[list[tuple[str, NDArray[np.int64]]], NDArray, NDArray],
-    missing: Sequence[str],
-    spare: SpareBlobs | None,
-    params: TrackingParams,
+    ctx: AbsentContext,
 ) -> tuple[list[tuple[str, NDArray[np.int64]]], NDArray[np.float64], NDArray[np.float64]]:
+    """The names of ``ctx.missing`` placed again (see :func:`absent_named`) with those
+    of ``ctx.placed`` kept: every row placed in ``min_track_length`` fields or more, and
+    each shorter one whose name was not placed again."""
+    dense, measured, made, labels = ctx.dense, ctx.measured, ctx.made, ctx.labels
+    placed, missing, spare, params = ctx.placed, ctx.missing, ctx.spare, ctx.params
     who, rows, sds = placed
     long = [
         k for k in range(len(who)) if np.isfinite(rows[k, :, 0]).sum() >= params.min_track_length

@@ -17,7 +17,12 @@ import numpy as np
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.fill_absent import absent_named, absent_rows, mirror_tracks
+from kisscal.tracking.fill_absent import (
+    AbsentContext,
+    absent_named,
+    absent_rows,
+    mirror_tracks,
+)
 from kisscal.tracking.fill_ends import track_ends
 from kisscal.tracking.fill_passes import FILLS, LAST_PASS, SECOND_PASS
 from kisscal.tracking.fill_runner import fill_runs, second_pass
@@ -122,7 +127,8 @@ def fill_gaps_named(
         made += second_pass(
             dense, gaps, params, spare, measured, made, absent, last, errors, mirror
         )
-    named, placed = absent_named(dense, measured, made, labels, again, missing, spare, params)
+    ctx = AbsentContext(dense, measured, made, labels, again, missing, spare, params)
+    named, placed = absent_named(ctx)
     made += placed
     filled_xyz, fills = [m[0] for m in made], [m[1] for m in made]
     if not fills:

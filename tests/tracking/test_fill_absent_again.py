@@ -10,7 +10,7 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.fill_absent import absent_named, absent_placed
+from kisscal.tracking.fill_absent import AbsentContext, absent_named, absent_placed
 from kisscal.tracking.gaps import fill_gaps_named
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.sides import judge_sides
@@ -49,7 +49,8 @@ def _named(seed: int, filled: bool) -> tuple[list[str], list, np.ndarray]:
         else []
     )
     measured = np.isfinite(dense[..., 0])
-    names, out = absent_named(dense, measured, made, LABELS, first, ("RANK",), spare, PARAMS)
+    ctx = AbsentContext(dense, measured, made, LABELS, first, ("RANK",), spare, PARAMS)
+    names, out = absent_named(ctx)
     return names, out, right[2]
 
 
