@@ -17,12 +17,8 @@ import numpy as np
 
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.fill_absent import (
-    AbsentContext,
-    absent_named,
-    absent_rows,
-    mirror_tracks,
-)
+from kisscal.tracking.fill_absent import absent_rows, mirror_tracks
+from kisscal.tracking.fill_absent_again import AbsentContext, absent_named
 from kisscal.tracking.fill_ends import track_ends
 from kisscal.tracking.fill_passes import FILLS, LAST_PASS, SECOND_PASS
 from kisscal.tracking.fill_runner import fill_runs, second_pass

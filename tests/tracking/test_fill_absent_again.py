@@ -1,5 +1,5 @@
 """A name no track took, tried again once its partners are placed on their rays
-(kisscal.tracking.fill_absent.absent_named), and a missing name that moves with its
+(kisscal.tracking.fill_absent_again.absent_named), and a missing name that moves with its
 exchanged pair (kisscal.tracking.labelling.sides), against truth."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ import numpy as np
 
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.bodyfill import GapFill
-from kisscal.tracking.fill_absent import AbsentContext, absent_named, absent_placed
+from kisscal.tracking.fill_absent import absent_placed
+from kisscal.tracking.fill_absent_again import AbsentContext, absent_named
 from kisscal.tracking.gaps import fill_gaps_named
 from kisscal.tracking.labelling.anatomy import Anatomy
 from kisscal.tracking.labelling.sides import judge_sides
