@@ -81,22 +81,10 @@ def fill_runs(
     every track's measured fields; ``end``, ``absent`` and ``errors``: see
     :class:`~.gap_record.Gap`."""
     out = []
+    shared = {"absent": absent, "errors": errors, "mirror": mirror}  # every run's
     for t, lo, hi, end in runs:
-        gap = Gap(
-            dense,
-            t,
-            lo,
-            hi,
-            params,
-            spare,
-            measured[t],
-            np.zeros(hi - lo, bool),
-            [],
-            end=end,
-            absent=absent,
-            errors=errors,
-            mirror=mirror,
-        )
+        swept = np.zeros(hi - lo, bool)
+        gap = Gap(dense, t, lo, hi, params, spare, measured[t], swept, [], end, **shared)
         _apply(gap, fills, [(lo, hi)])
         out += gap.out
     return out
@@ -139,26 +127,20 @@ def second_pass(
         if context(fill, params, fills is TRUSTED_PASS):
             dense[fill.track, span] = xyz
             expected[fill.track, span] = fill.expected_error_mm
+    shared = {  # every run's
+        "absent": absent,
+        "known": measured,
+        "expected": expected,
+        "errors": errors,
+        "mirror": mirror,
+    }
     out = []
     for t, lo, hi in gaps:
         left = ~done[t, lo:hi]
         for a, b in zip(*true_runs(left), strict=True):
             run = (lo + a, lo + b)
-            gap = Gap(
-                dense,
-                t,
-                *run,
-                params,
-                spare,
-                measured[t],
-                np.zeros(b - a, bool),
-                [],
-                absent=absent,
-                known=measured,
-                expected=expected,
-                errors=errors,
-                mirror=mirror,
-            )
+            swept = np.zeros(b - a, bool)
+            gap = Gap(dense, t, *run, params, spare, measured[t], swept, [], **shared)
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out
