@@ -39,11 +39,13 @@ from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.fill_spline import context_noise
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.raychain import (
     ChainFill,
     chain_blobs,
+    length_partners,
     off_rays,
     one_camera_blobs,
     path_runs,
@@ -215,6 +217,9 @@ def depth_ray_fill(
     at = centre + depth[ks, None] * d
     has = np.zeros(hi - lo, dtype=bool)
     has[ks] = True
+    partners = length_partners(dense, t, params)[0]
+    if partners.size:  # a merged blob's centroid lies off the marker's ray
+        has[ks[shared_blobs(dense, t, lo, ks, rows, spare, params, partners)]] = False
     # a second camera's blob off the point: one of the two is not the marker's alone
     has[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
     placed = path_runs(has)
