@@ -40,10 +40,12 @@ from scipy.interpolate import make_interp_spline
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.blob_paths import chain_blobs, off_rays, one_camera_blobs
 from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.fill_spline import context_noise
 from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
+from kisscal.tracking.segment_lengths import length_partners
 
 #: Fields on each side of a gap the periodic depth fit (:func:`_depth_periodic`) reads
 #: (at lowcost's 30 Hz about three strides), and its harmonics of the stride.
@@ -210,6 +212,9 @@ def depth_ray_fill(
     at = centre + depth[ks, None] * d
     has = np.zeros(hi - lo, dtype=bool)
     has[ks] = True
+    partners = length_partners(dense, t, params)[0]
+    if partners.size:  # a merged blob's centroid lies off the marker's ray
+        has[ks[shared_blobs(dense, t, lo, ks, rows, spare, params, partners)]] = False
     # a second camera's blob off the point: one of the two is not the marker's alone
     has[off_rays(at, ks, *every, spare, params.ray_depth_max_error_mm)] = False
     placed = path_runs(has)
