@@ -385,7 +385,8 @@ def _piece_better(
     own_trails = _trails_as(state, foot, fields, {n: xyz, m: other}, direction, fraction)
     alt_trails = _trails_as(state, foot, fields, {m: xyz, n: other}, direction, fraction)
     tolerance = state.params.label_segment_tolerance_mm
-    if max(_rms(dist - own_t), _rms(dist - alt_t)) <= tolerance:
+    fit = fit_mm(dist, np.stack([own_t, alt_t]), np.ones((2, dist.size), dtype=bool))
+    if fit.max() <= tolerance:
         # Both ways fit within noise (a heel and a toe seen with the shank alone: the
         # tibia and knee are about as far from either, kiss template 264 and 266 mm):
         # the scores' ratio is noise (0.4 against 0.9 mm), the walk decides.
@@ -393,10 +394,6 @@ def _piece_better(
     own = float(score(dist, own_t, own_trails, margin))
     alt = float(score(dist, alt_t, alt_trails, margin))
     return bool(np.isfinite(own) and alt <= margin * own)
-
-
-def _rms(miss: NDArray) -> float:
-    return float(np.sqrt(np.mean(miss**2)))
 
 
 def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
