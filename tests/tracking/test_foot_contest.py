@@ -240,3 +240,33 @@ def test_a_foot_s_later_pieces_keep_their_names_when_its_early_pieces_win_them()
     _rename(state, early, [-1, -1, -1])
     assert settle_feet(state, state.template)
     np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_a_toe_piece_named_ankle_takes_the_name_that_fits_best_not_the_first():
+    """Modern 3 cameras, seed 464: a ten-field toe piece named ankle where only the knee
+    was seen, the heel's own piece there unnamed. As heel it scores far better than as
+    ankle (the knee 29 mm farther than the shank's length), as toe better still (within
+    4 mm of the template's knee to toe); taking the first name that beat the ankle (the
+    heel's, in the foot's order) left the heel's piece unnamed beside it and put ten toe
+    samples in the heel's trajectory. The toe piece takes the toe's name, the heel's
+    piece the heel's."""
+    motion = walking_trial(3, 200)
+    names = motion.names
+    j = {n: k for k, n in enumerate(names)}
+    truth = motion.xyz_mm.transpose(1, 0, 2)
+    alone = {j[n] for n in ("LTIB", "LANK", "LHEE", "LTOE")}
+    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
+    spans += [(j["LTIB"], 0, 130), (j["LANK"], 0, 130), (j["LANK"], 170, 200)]
+    spans += [(j["LHEE"], 0, 130), (j["LHEE"], 130, 165), (j["LHEE"], 165, 200)]
+    spans += [(j["LTOE"], 0, 140), (j["LTOE"], 150, 160), (j["LTOE"], 170, 200)]
+    tracks, owner = _walk_pieces(truth, spans)
+    state = LabelState.begin(
+        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    )
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    heel = int(np.flatnonzero(owner == j["LHEE"])[1])
+    toe = int(np.flatnonzero(owner == j["LTOE"])[1])
+    _rename(state, [heel, toe], [-1, j["LANK"]])
+    assert settle_feet(state, state.template)
+    assert state.label_of[toe] == j["LTOE"] and state.label_of[heel] == j["LHEE"]

@@ -288,9 +288,11 @@ def _rename_names(
 
 def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """Each piece holding a foot name, shortest first, against each other foot name in
-    its fields: it takes that name, and its partner there takes its own, when the
-    :func:`score` of its distances to the shank and the rest of the foot is at most
-    ``foot_margin`` of its own. The partner is the name's holder in those fields, else an
+    its fields: it takes the name, and its partner there takes its own, whose
+    :func:`score` of its distances to the shank and the rest of the foot is lowest of
+    those at most ``foot_margin`` of its own (the first in the foot's order gave a toe
+    piece named ankle, seen with the knee alone, the heel's name though the toe's scored
+    better: modern 3 seed 464). The partner is the name's holder in those fields, else an
     unnamed piece at the template's distance between the two names (within
     ``label_segment_tolerance_mm``, median over the fields both are seen), else none."""
     moved = False
@@ -300,18 +302,20 @@ def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: ND
         fields = state.piece(p)[0]
         if n not in foot.names or fields.size < _MIN_SHARED:
             continue
+        ways = []
         for m in foot.names[foot.names != n].tolist():
             holders = _overlapping(state, np.flatnonzero(state.label_of == m), fields)
             # The name's holders there; where it is free, an unnamed partner or none.
             partners = [holders] if holders else [[u] for u in _partners(state, p, n, m)] + [[]]
-            for q in partners:
-                other = _positions(state, q, fields)
-                if _piece_better(state, foot, p, n, m, other, target, direction) and _exchange(
-                    state, p, n, m, q
-                ):
-                    moved = True
-                    break
-            if state.label_of[p] != n:
+            alt = [
+                _piece_better(state, foot, p, n, m, _positions(state, q, fields), target, direction)
+                for q in partners
+            ]
+            better = [(a, q) for a, q in zip(alt, partners, strict=True) if a is not None]
+            ways += [(better[0][0], m, q) for _, q in better]  # ranked by its first partner
+        for _, m, q in sorted(ways, key=lambda w: w[0]):  # stable: partners in order
+            if _exchange(state, p, n, m, q):
+                moved = True
                 break
     return moved
 
@@ -362,19 +366,20 @@ def _piece_better(
     other: NDArray,
     target: NDArray,
     direction: NDArray,
-) -> bool:
-    """Whether piece ``p`` (named ``n``) scores far better named ``m`` with its partner
-    at positions ``other`` (its fields) named ``n``. When the distances fit the template
-    both ways within ``label_segment_tolerance_mm`` (RMS), they cannot tell the names
-    apart and the walk alone decides: the exchange is better when the names as held put
-    the toe behind the heel and the exchange does not."""
+) -> float | None:
+    """The :func:`score` of piece ``p`` (named ``n``) named ``m`` with its partner at
+    positions ``other`` (its fields) named ``n``, when it is far better than as held;
+    None otherwise. When the distances fit the template both ways within
+    ``label_segment_tolerance_mm`` (RMS), they cannot tell the names apart and the walk
+    alone decides: the exchange is better when the names as held put the toe behind the
+    heel and the exchange does not."""
     fields, xyz = state.piece(p)
     refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
     pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
     d = np.linalg.norm(pos - xyz[None], axis=2)
     shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
     if not shared.any():
-        return False
+        return None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         dist = np.nanmedian(d[shared], axis=1)
@@ -385,18 +390,15 @@ def _piece_better(
     own_trails = _trails_as(state, foot, fields, {n: xyz, m: other}, direction, fraction)
     alt_trails = _trails_as(state, foot, fields, {m: xyz, n: other}, direction, fraction)
     tolerance = state.params.label_segment_tolerance_mm
-    if max(_rms(dist - own_t), _rms(dist - alt_t)) <= tolerance:
+    fit = fit_mm(dist, np.stack([own_t, alt_t]), np.ones((2, dist.size), dtype=bool))
+    own = float(score(dist, own_t, own_trails, margin))
+    alt = float(score(dist, alt_t, alt_trails, margin))
+    if fit.max() <= tolerance:
         # Both ways fit within noise (a heel and a toe seen with the shank alone: the
         # tibia and knee are about as far from either, kiss template 264 and 266 mm):
         # the scores' ratio is noise (0.4 against 0.9 mm), the walk decides.
-        return own_trails and not alt_trails
-    own = float(score(dist, own_t, own_trails, margin))
-    alt = float(score(dist, alt_t, alt_trails, margin))
-    return bool(np.isfinite(own) and alt <= margin * own)
-
-
-def _rms(miss: NDArray) -> float:
-    return float(np.sqrt(np.mean(miss**2)))
+        return alt if own_trails and not alt_trails else None
+    return alt if np.isfinite(own) and alt <= margin * own else None
 
 
 def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
