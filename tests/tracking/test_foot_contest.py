@@ -6,6 +6,7 @@ import kisscal.tracking.labelling.label as label_module
 from kisscal.synth.motion import standing_template, walking_trial
 from kisscal.tracking import TrackingParams
 from kisscal.tracking.labelling.feet import feet_of, score, settle_feet
+from kisscal.tracking.labelling.footwalk import ordered_pairs
 from kisscal.tracking.labelling.state import LabelState
 from kisscal.tracking.tracks import make_tracks
 from tests.tracking._data import NAMES, gait_truth
@@ -270,3 +271,44 @@ def test_a_toe_piece_named_ankle_takes_the_name_that_fits_best_not_the_first():
     _rename(state, [heel, toe], [-1, j["LANK"]])
     assert settle_feet(state, state.template)
     assert state.label_of[toe] == j["LTOE"] and state.label_of[heel] == j["LHEE"]
+
+
+def test_a_heel_named_ankle_and_the_ankle_named_heel_take_their_names_from_the_walk():
+    """Kiss 3 cameras, seed 460: the left knee and tibia never seen, the first window
+    named the heel's piece ankle (its distances, all across joints, fitted the ankle a
+    little better), and a ten-field piece of the ankle then took the heel's name at the
+    template's ankle-to-heel length, which is one number either way round; the toe,
+    rigid to the heel at the foot's length, fitted no name beside them and stayed
+    unnamed. The walk tells: the ankle lies ahead of the heel whatever the foot's pitch."""
+    motion = walking_trial(3, 200)
+    names = motion.names
+    j = {n: k for k, n in enumerate(names)}
+    truth = motion.xyz_mm.transpose(1, 0, 2)
+    alone = {j[n] for n in ("LKNE", "LTIB", "LANK")}
+    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
+    spans += [(j["LANK"], 150, 160)]
+    tracks, owner = _walk_pieces(truth, spans)
+    state = LabelState.begin(
+        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    )
+    for t, m in enumerate(owner):
+        state.name_piece(t, int(m))
+    settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)  # right names stay
+    heel, toe, ankle = (int(np.flatnonzero(owner == j[n])[0]) for n in ("LHEE", "LTOE", "LANK"))
+    _rename(state, [heel, ankle, toe], [j["LANK"], j["LHEE"], -1])
+    assert settle_feet(state, state.template)
+    np.testing.assert_array_equal(state.label_of, owner)
+
+
+def test_the_ankle_is_held_between_the_heel_and_the_toe_along_the_walk():
+    """The foot contest's order along the walk: in the kiss template the ankle sits 88
+    mm of the heel-to-toe line's 226 ahead of the heel, so it is ordered against both
+    ends; the toe stays ahead of the heel."""
+    right = next(f for f in feet_of(NAMES) if f.toe == TOE)
+    pairs = ordered_pairs(standing_template(NAMES), right.names, right.toe, right.heel)
+    named = {(NAMES[right.names[a]], NAMES[right.names[b]]) for a, b in pairs}
+    assert named == {("RANK", "RHEE"), ("RTOE", "RANK"), ("RTOE", "RHEE")}
+    assert [(NAMES[right.names[a]], NAMES[right.names[b]]) for a, b in right.order] == [
+        ("RTOE", "RHEE")
+    ]

@@ -9,18 +9,20 @@ rolls) can take its neighbour's name (an ankle piece of seven fields named heel 
 three cameras). Two things do not depend on the pose: the distances between a foot's
 markers and from them to the shank's (heel to toe is the foot's length, the ankle is the
 shank marker's neighbour), and the walk (a subject walks forward, so the toe lies ahead
-of the heel along the direction the body moves).
+of the heel and the ankle, and the ankle ahead of the heel, along the direction the body
+moves: :mod:`~kisscal.tracking.labelling.footwalk`).
 
 :func:`settle_feet` scores a way of giving a foot's names by one number,
 :func:`score`: the mean squared relative error of its distances against the template's,
-divided by ``foot_margin`` when its toe trails its heel along the walk in
-``facing_fraction`` of the fields. Another way replaces the labelling's own when it
-scores at most ``foot_margin`` times as much: first for the names' whole trajectories
-and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
-heel marker has, some names are left free), then for each piece holding a foot name (with
-the name's holder, or an unnamed piece at the foot's distance, as its partner: when
-its distances fit the template either way within ``label_segment_tolerance_mm``, as a
-heel's and a toe's to the shank alone do, their ratio is noise and the walk decides); last,
+divided by ``foot_margin`` when it puts two of the foot's markers out of that order
+along the walk in ``facing_fraction`` of the fields. Another way replaces the
+labelling's own when it scores at most ``foot_margin`` times as much: first for the
+names' whole trajectories and the unnamed pieces near the shank (with fewer of them than
+names, as a foot with no heel marker has, some names are left free), then for each piece
+holding a foot name (with the name's holder, or an unnamed piece at the foot's distance,
+as its partner: when its distances fit the template either way within
+``label_segment_tolerance_mm``, as a heel's and a toe's to the shank alone do, or a
+heel's and an ankle's to each other alone, their ratio is noise and the walk decides); last,
 unnamed pieces near the foot take a free foot name that scores far better than the
 others and fits the foot's rigid distances. It runs after the first window, after the
 first spreading (a foot named the wrong way round would give its neighbours' names to
@@ -39,6 +41,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.labelling.facing import HEEL, foot_pairs
 from kisscal.tracking.labelling.footkeep import continued as _continued
 from kisscal.tracking.labelling.footkeep import fit_mm
+from kisscal.tracking.labelling.footwalk import ordered_pairs, out_of_order, trailing
 from kisscal.tracking.labelling.pelvis import walking_direction
 from kisscal.tracking.labelling.spread import continues, spread
 from kisscal.tracking.labelling.state import LabelState, median_distances
@@ -59,12 +62,16 @@ FOOT_TIE = 1.25
 @dataclass(frozen=True)
 class Foot:
     """Name indices of one foot: the shank's, the foot's (ankle first when the set has
-    one), and the toe and heel among the foot's (positions in ``names``)."""
+    one), the toe and heel among the foot's (positions in ``names``), and the (front,
+    back) pairs of positions in ``names`` whose order along the walk the contest holds to
+    (:func:`~kisscal.tracking.labelling.footwalk.ordered_pairs`; the toe and heel alone
+    until :func:`settle_feet` reads them from its template)."""
 
     shank: NDArray[np.int64]
     names: NDArray[np.int64]
     toe: int
     heel: int
+    order: tuple[tuple[int, int], ...] = ()
 
 
 def feet_of(names: tuple[str, ...]) -> list[Foot]:
@@ -79,7 +86,8 @@ def feet_of(names: tuple[str, ...]) -> list[Foot]:
         shank = [index[side + s] for s in _SHANK if side + s in index]
         if shank:
             foot = np.array([*ankle, heel, toe], dtype=np.int64)
-            out.append(Foot(np.array(shank, dtype=np.int64), foot, toe, heel))
+            ends = ((len(ankle) + 1, len(ankle)),)  # the toe ahead of the heel
+            out.append(Foot(np.array(shank, dtype=np.int64), foot, toe, heel, ends))
     return out
 
 
@@ -89,7 +97,8 @@ def score(
     """The contest's score of each way of naming (rows): mean squared relative error of
     its distances ``dist`` against ``target`` (the last axis) over the pairs in ``use``
     (default all: a way that leaves a name free has no distance for it), divided by
-    ``margin`` where its toe ``trails`` its heel; infinite when a pair used was never
+    ``margin`` where it ``trails`` (puts two of the foot's markers out of their order
+    along the walk); infinite when a pair used was never
     seen together (a piece that fits by seeing little) or none is used."""
     use = np.ones(np.shape(dist), dtype=bool) if use is None else use
     rel = np.where(use, ((dist - target) / target) ** 2, 0.0)
@@ -107,16 +116,6 @@ def naming_choices(n_candidates: int, n_names: int) -> NDArray[np.int64]:
         return np.array(list(permutations(range(n_candidates), n_names)), dtype=np.int64)
     slots = list(range(n_candidates)) + [-1] * (n_names - n_candidates)
     return np.array(sorted(set(permutations(slots, n_names))), dtype=np.int64)
-
-
-def trailing(a: NDArray, b: NDArray, direction: NDArray, fraction: float) -> NDArray:
-    """Whether positions ``a`` (..., F, 3) lie behind ``b`` along the walk
-    ``direction`` (F, 2) in at least ``fraction`` of the fields both are seen."""
-    votes = np.sum((a[..., :2] - b[..., :2]) * direction, axis=-1)
-    ok = np.isfinite(votes)
-    n = ok.sum(axis=-1)
-    behind = np.sum(ok & (votes < 0), axis=-1)
-    return (n > 0) & (behind >= fraction * np.maximum(n, 1))
 
 
 def settle_feet(state: LabelState, template: NDArray) -> bool:
@@ -138,6 +137,7 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
     direction = walking_direction(state.name_pos)
     moved = False
     for foot in (_seen_shank(state, f) for f in feet_of(state.names)):
+        foot = replace(foot, order=ordered_pairs(template, foot.names, foot.toe, foot.heel))
         moved |= _name_contest(state, foot, target, direction)
         moved |= _piece_contest(state, foot, target, direction)
         moved |= _unnamed_contest(state, foot, target, direction)
@@ -158,8 +158,9 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     """The foot's names given among their trajectories and the unnamed pieces near the
     shank by the best :func:`score` when it is at most ``foot_margin`` of the held one;
     with fewer of them than names, as many names as there are candidates are given
-    (:func:`naming_choices`), the others left free. When the names as held put the toe
-    behind the heel, the best way that does not and fits the template within
+    (:func:`naming_choices`), the others left free. When the names as held put two
+    markers out of their order along the walk (the toe behind the heel, the ankle behind
+    the heel), the best way that does not and fits the template within
     ``label_segment_tolerance_mm`` (RMS) is taken whatever the scores' ratio: within
     noise, the walk decides (as in :func:`_piece_better`)."""
     params = state.params
@@ -175,7 +176,7 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         d = median_distances(pos, np.arange(pos.shape[0]), np.arange(state.n_fields))
-    toe, heel = (int(np.flatnonzero(foot.names == n)[0]) for n in (foot.toe, foot.heel))
+    order = foot.order
     behind = trailing(cand[:, None], cand[None, :], direction, params.facing_fraction)
     names = np.concatenate([foot.shank, foot.names])
     i, j = np.triu_indices(s + k, 1)
@@ -184,14 +185,13 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
     choices = naming_choices(cand.shape[0], k)
     given = np.where(choices >= 0, s + choices, -1)
     cols = np.concatenate([np.broadcast_to(np.arange(s), (len(choices), s)), given], 1)
-    both = (choices[:, toe] >= 0) & (choices[:, heel] >= 0)
-    trails = both & behind[choices[:, toe], choices[:, heel]]
+    both, trails = out_of_order(choices, behind, order)
     use = (cols[:, i] >= 0) & (cols[:, j] >= 0)
     dist, want = d[cols[:, i], cols[:, j]], target[names[i], names[j]]
     scores = score(dist, want, trails, params.foot_margin, use)
     held = np.where(held_any, np.cumsum(held_any) - 1, -1)
-    own, own_trails = _own_score(d, held, s, names, target, behind, toe, heel, params.foot_margin)
-    # A way that fits within noise with the toe ahead beats names whose toe trails.
+    own, own_trails = _own_score(d, held, s, names, target, behind, order, params.foot_margin)
+    # A way that fits within noise in the walk's order beats names out of it.
     forward = both & ~trails & (fit_mm(dist, want, use) <= params.label_segment_tolerance_mm)
     best = int(
         np.argmin(np.where(forward, scores, np.inf) if own_trails and forward.any() else scores)
@@ -206,7 +206,7 @@ def _name_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDA
         return False
     evidence = (d[s:, s:], behind, np.isfinite(cand[..., 0]), target[np.ix_(names[s:], names[s:])])
     tolerance = params.label_segment_tolerance_mm
-    kept = _continued(choices[best], np.flatnonzero(held_any), evidence, (toe, heel), tolerance)
+    kept = _continued(choices[best], np.flatnonzero(held_any), evidence, order, tolerance)
     _rename_names(state, foot, held_any, pool, choices[best], kept)
     return True
 
@@ -225,17 +225,16 @@ def _near_ties(
     state.doubtful |= {int(j) for j in foot.names[differ]}
 
 
-def _own_score(d, held, s, names, target, behind, toe, heel, margin) -> tuple[float, bool]:
+def _own_score(d, held, s, names, target, behind, order, margin) -> tuple[float, bool]:
     """:func:`score` of the names as held, over the names held (the shank's always), and
-    whether their toe trails their heel."""
+    whether they put a pair of ``order`` (positions) out of order along the walk."""
     given = np.flatnonzero(held >= 0)
     cols = np.concatenate([np.arange(s), s + held[given]])
     sub = np.concatenate([np.arange(s), s + given])
     i, j = np.triu_indices(cols.size, 1)
     keep = j >= s
     i, j = i[keep], j[keep]
-    trails = held[toe] >= 0 and held[heel] >= 0 and behind[held[toe], held[heel]]
-    trails = bool(trails)
+    trails = bool(out_of_order(held, behind, order)[1][0])
     return float(
         score(d[cols[i], cols[j]], target[names[sub[i]], names[sub[j]]], trails, margin)
     ), trails
@@ -371,8 +370,9 @@ def _piece_better(
     positions ``other`` (its fields) named ``n``, when it is far better than as held;
     None otherwise. When the distances fit the template both ways within
     ``label_segment_tolerance_mm`` (RMS), they cannot tell the names apart and the walk
-    alone decides: the exchange is better when the names as held put the toe behind the
-    heel and the exchange does not."""
+    alone decides: the exchange is better when the names as held put two of the foot's
+    markers out of order along the walk (:func:`_trails_as`) and the exchange does not
+    (kiss 3 seed 460: a heel named ankle, the ankle's piece heel)."""
     fields, xyz = state.piece(p)
     refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
     pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
@@ -402,11 +402,11 @@ def _piece_better(
 
 
 def _trails_as(state, foot, fields, at, direction, fraction) -> bool:
-    """Whether the toe trails the heel in ``fields`` with the names ``at`` placed so
-    (other names where the labelling has them)."""
-    toe = at.get(foot.toe, state.name_pos[foot.toe, fields])
-    heel = at.get(foot.heel, state.name_pos[foot.heel, fields])
-    return bool(trailing(toe, heel, direction[fields], fraction))
+    """Whether a pair of ``foot.order`` is the other way round along the walk in
+    ``fields`` with the names ``at`` placed so (other names where the labelling has
+    them): the toe trailing the heel or the ankle, the ankle the heel."""
+    pos = [at.get(j, state.name_pos[j, fields]) for j in foot.names.tolist()]
+    return any(bool(trailing(pos[f], pos[b], direction[fields], fraction)) for f, b in foot.order)
 
 
 def _exchange(state: LabelState, p: int, n: int, m: int, partners: list[int]) -> bool:
@@ -441,11 +441,12 @@ def _distances(state: LabelState, fields: NDArray, xyz: NDArray, refs: NDArray) 
 def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """Unnamed pieces near the foot, longest first, take a foot name free in all their
     fields: the one whose :func:`score` (distances to the shank and to the rest of the
-    foot) is at most ``foot_margin`` of every other free name's, with the toe not trailing
-    the heel, when the distances within the foot (a rigid segment) fit the state's
-    template within ``label_segment_tolerance_mm`` RMS (as spreading names requires: half
-    that for a piece shorter than ``min_track_length``, which must also continue the
-    name's trajectory)."""
+    foot) is at most ``foot_margin`` of every other free name's, with no two of the
+    foot's markers out of order along the walk (:func:`_trails_as`), when the distances
+    within the foot (a rigid segment) fit the state's template within
+    ``label_segment_tolerance_mm`` RMS (as spreading names requires: half that for a
+    piece shorter than ``min_track_length``, which must also continue the name's
+    trajectory)."""
     params = state.params
     cands = _near_pieces(state, foot, target)
     moved = False

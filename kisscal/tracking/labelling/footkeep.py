@@ -29,7 +29,11 @@ def fit_mm(dist: NDArray, target: NDArray, use: NDArray) -> NDArray:
 
 
 def continued(
-    choice: NDArray, held_at: NDArray, evidence: tuple, ends: tuple[int, int], tolerance: float
+    choice: NDArray,
+    held_at: NDArray,
+    evidence: tuple,
+    order: list[tuple[int, int]],
+    tolerance: float,
 ) -> dict[int, int]:
     """Held candidates the best way leaves unnamed that keep their name too.
 
@@ -43,8 +47,10 @@ def continued(
         The candidates' median distances (c, c), whether each trails each (c, c) along
         the walk, where each is seen (c, F), and the template's distances between the
         foot names (k, k).
-    ends : (int, int)
-        Positions of the toe and the heel among the foot names.
+    order : list of (int, int)
+        Positions among the foot names of the (front, back) pairs held to their order
+        along the walk (the toe and the heel; the ankle and either,
+        :func:`~kisscal.tracking.labelling.footwalk.ordered_pairs`).
     tolerance : float
         ``label_segment_tolerance_mm``: RMS fit of the kept candidates' distances.
 
@@ -53,8 +59,8 @@ def continued(
     dict
         Foot name position to held candidate, for the largest set of held candidates that
         share no field with their name's winner and whose distances to the foot's
-        holders (pairs seen together, one at least) fit within ``tolerance`` with no toe
-        trailing a heel; empty when none does.
+        holders (pairs seen together, one at least) fit within ``tolerance`` with no
+        pair of ``order`` the other way round; empty when none does.
     """
     d, behind, seen, want = evidence
     loose = [(int(i), c) for c, i in enumerate(held_at) if c not in choice and choice[i] >= 0]
@@ -65,8 +71,8 @@ def continued(
         dist = np.array([d[x[1], y[1]] for x, y in pairs])
         target = np.array([want[x[0], y[0]] for x, y in pairs])
         use = np.isfinite(dist)
-        wrong_way = any(behind[x[1], y[1]] for x, y in pairs if (x[0], y[0]) == ends)
-        wrong_way |= any(behind[y[1], x[1]] for x, y in pairs if (y[0], x[0]) == ends)
+        wrong_way = any(behind[x[1], y[1]] for x, y in pairs if (x[0], y[0]) in order)
+        wrong_way |= any(behind[y[1], x[1]] for x, y in pairs if (y[0], x[0]) in order)
         if use.any() and fit_mm(dist, target, use) <= tolerance and not wrong_way:
             return dict(keep)
     return {}
