@@ -64,7 +64,9 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
 )
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
+from kisscal.tracking.fill_centre import trusted_centre_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
+from kisscal.tracking.fill_hip import trusted_hip
 from kisscal.tracking.fill_place import mirror_checked, placed_mask
 from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.params import TrackingParams
@@ -194,4 +196,8 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
 
 #: The pass after :data:`~.gaps.LAST_PASS`, on what every fill left
 #: (:func:`~.gaps._second_pass`).
-TRUSTED_PASS = (Fill("trusted body", trusted_body),)
+TRUSTED_PASS = (
+    Fill("trusted body", trusted_body),
+    Fill("trusted body about a joint centre", trusted_centre_body),
+    Fill("trusted hip", trusted_hip, rays=True, long_run=True),
+)

@@ -35,7 +35,7 @@ from kisscal.tracking.fill_hip import hip_ray_fill
 from kisscal.tracking.fill_joint import joint_ray_fill
 from kisscal.tracking.fill_joint_depth import joint_depth_fill
 from kisscal.tracking.fill_pair import merged_pair_fill
-from kisscal.tracking.fill_place import placed_mask, take_placed, with_rays
+from kisscal.tracking.fill_place import at_least, placed_mask, take_placed, with_rays
 from kisscal.tracking.fill_sphere import sphere_depth_fill
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
 from kisscal.tracking.fill_table import Fill, hole_length
@@ -154,21 +154,16 @@ def _body(
         n = max(params.fill_context_fields, 2)
         noise = context_noise(body[gap.t], None, a, b, n)
         along = sight_noise(body[gap.t], seen, a, b, n) if rays else noise
-        got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
+        got = [(x, at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
-            got = [(x, _at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
+            got = [(x, at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
             worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
             if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
                 return _body(gap, a, b, params, spline=False)  # the body, as without
     got = donor_errors(donor_noise(got, gap.dense), gap.errors)
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
-
-
-def _at_least(fill: GapFill, err: float) -> GapFill:
-    """``fill`` expecting at least ``err`` (mm; a NaN leaves it)."""
-    return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
 
 
 def _end(gap: _Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
