@@ -23,7 +23,12 @@ a filled anchor's expected error added), from the previous field's solution, wal
 the gap from each side as the joint fill does; a field is kept where the lengths spare
 one, both walks agree within :data:`~kisscal.tracking.fill_joint.AGREE_MM`, every length
 fits within three SDs, and the target's expected error along its ray (the solution's
-covariance) is at most ``ray_length_max_error_mm``.
+covariance) is at most ``ray_length_max_error_mm``. In the trusted pass, once every other
+fill is made (:func:`trusted_hip`), the fill is made again with the fields placed since as
+edges (a thigh carried about the hip and its knee where no camera saw it), expecting up
+to :data:`TRUSTED_MAX_ERROR_MM`: where the knee is on a ray too, the covariance of the two
+depths says 5-5.5 mm along the thigh's ray; where the ray grazes the spheres it says more
+and the field is refused (modern 3 seed 436 RTHI: 6-11 mm expected, left open).
 
 References
 ----------

@@ -195,7 +195,9 @@ def trusted_body(gap: Any, a: int, b: int, params: TrackingParams) -> NDArray[np
 
 
 #: The pass after :data:`~.gaps.LAST_PASS`, on what every fill left
-#: (:func:`~.gaps._second_pass`).
+#: (:func:`~.gaps._second_pass`): the body through trusted donors, then the thigh about
+#: the hip and a knee no track took (:func:`~.fill_centre.trusted_centre_body`), then the
+#: hip fill from the edges those placed (:func:`~.fill_hip.trusted_hip`).
 TRUSTED_PASS = (
     Fill("trusted body", trusted_body),
     Fill("trusted body about a joint centre", trusted_centre_body),
