@@ -1,9 +1,10 @@
 """The trusted pass's thigh fills (kisscal.tracking.fill_centre.trusted_centre_body,
 kisscal.tracking.fill_hip.trusted_hip), against truth: modern 3 cameras seeds 409 and
-414, whose thigh marker one camera saw, then none, for 41-45 fields while its knee,
-a marker no track took, was placed on its one camera's rays: the centre fill had no knee
+414, whose thigh marker one camera saw, then none, for 41-45 fields. 409's knee, a
+marker no track took, was placed on its one camera's rays: the centre fill had no knee
 to carry the thigh about, and the hip fill's walks expected 5.0-5.5 mm along the ray
-and could not cross the fields no camera saw (coverage min 92.31 / 92.08 % on main)."""
+and could not cross the fields no camera saw; 414's knee is a track filled there only
+after the first pass, the centre fill's (coverage min 92.31 / 92.08 % on main)."""
 
 from __future__ import annotations
 
