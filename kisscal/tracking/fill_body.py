@@ -16,17 +16,15 @@ filling from the other markers of the body).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from numpy.typing import NDArray
 
 from kisscal.tracking.blob_paths import parted
-from kisscal.tracking.bodyfill import GapFill, best_candidate, fill_candidates
+from kisscal.tracking.bodyfill import best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
 from kisscal.tracking.fill_ends import end_reach, one_sided
 from kisscal.tracking.fill_hinge import HINGE_METHODS
-from kisscal.tracking.fill_place import placed_mask, with_rays
+from kisscal.tracking.fill_place import at_least, placed_mask, with_rays
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
 from kisscal.tracking.fill_table import hole_length
 from kisscal.tracking.gap_record import Gap
@@ -75,21 +73,16 @@ def spline_or_body(
         n = max(params.fill_context_fields, 2)
         noise = context_noise(body[gap.t], None, a, b, n)
         along = sight_noise(body[gap.t], seen, a, b, n) if rays else noise
-        got = [(x, _at_least(f, along if f.ray_fields else noise)) for x, f in got]
+        got = [(x, at_least(f, along if f.ray_fields else noise)) for x, f in got]
         if checked:
             near = gap.errors[gap.t, max(a - n, 0) : b + n] if gap.errors is not None else []
-            got = [(x, _at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
+            got = [(x, at_least(f, float(np.nanmax(np.r_[near, 0.0])))) for x, f in got]
             worst = np.max([f.expected_error_mm for _, f in got] or [np.inf])
             if not worst <= params.max_body_fill_error_mm:  # NaN: nothing to check it by
                 return spline_or_body(gap, a, b, params, spline=False)  # the body, as without
     got = donor_errors(donor_noise(got, gap.dense), gap.errors)
     gap.out.extend(anchored(got, gap.out, params.fill_context_fields))
     return placed_mask(got, a, b)
-
-
-def _at_least(fill: GapFill, err: float) -> GapFill:
-    """``fill`` expecting at least ``err`` (mm; a NaN leaves it)."""
-    return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
 
 
 def end_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:

@@ -88,6 +88,11 @@ def with_rays(
     return out
 
 
+def at_least(fill: GapFill, err: float) -> GapFill:
+    """``fill`` expecting at least ``err`` (mm; a NaN leaves it)."""
+    return dataclasses.replace(fill, expected_error_mm=float(np.fmax(fill.expected_error_mm, err)))
+
+
 def placed_mask(
     got: list[tuple[NDArray, GapFill]], a: int, b: int, series: NDArray | None = None
 ) -> NDArray[np.bool_]:

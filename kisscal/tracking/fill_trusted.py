@@ -63,7 +63,9 @@ from kisscal.tracking.bodyfill import (
     fill_candidates,
 )
 from kisscal.tracking.fill_anchor import anchored, donor_errors, donor_noise, trusted
+from kisscal.tracking.fill_centre import trusted_centre_body
 from kisscal.tracking.fill_hinge import HINGE_METHODS
+from kisscal.tracking.fill_hip import trusted_hip
 from kisscal.tracking.fill_place import mirror_checked, placed_mask
 from kisscal.tracking.fill_table import Fill
 from kisscal.tracking.gap_record import Gap
@@ -193,5 +195,11 @@ def trusted_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np
 
 
 #: The pass after :data:`~.fill_passes.LAST_PASS`, on what every fill left
-#: (:func:`~.fill_runner.second_pass`).
-TRUSTED_PASS = (Fill("trusted body", trusted_body),)
+#: (:func:`~.fill_runner.second_pass`): the body through trusted donors, then the thigh about
+#: the hip and a knee no track took (:func:`~.fill_centre.trusted_centre_body`), then the
+#: hip fill from the edges those placed (:func:`~.fill_hip.trusted_hip`).
+TRUSTED_PASS = (
+    Fill("trusted body", trusted_body),
+    Fill("trusted body about a joint centre", trusted_centre_body),
+    Fill("trusted hip", trusted_hip, rays=True, long_run=True),
+)
