@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.fill_table import Fill
-from kisscal.tracking.fill_trusted import TRUSTED_PASS, context
+from kisscal.tracking.fill_trusted import context
 from kisscal.tracking.gap_record import Gap
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
@@ -101,13 +101,15 @@ def second_pass(
     fills: tuple[Fill, ...],
     errors: NDArray | None = None,
     mirror: NDArray | None = None,
+    trusting: bool = False,
 ) -> list[tuple[NDArray, GapFill]]:
     """The fields of ``gaps`` (track, lo, hi) the first pass left (its fills ``made``,
     (xyz, fill) pairs), filled again by ``fills`` (:data:`~.fill_passes.SECOND_PASS`, or
     after the ends :data:`~.fill_passes.LAST_PASS`, then
     :data:`~.fill_trusted.TRUSTED_PASS`), with its rigid and ray fills expecting at most
     ``ray_rest_max_error_mm`` (:func:`~.fill_trusted.context`) written into ``dense`` as
-    context (for these fills and the track ends after them).
+    context (for these fills and the track ends after them); ``trusting`` for the trusted
+    pass, whose fills count their donors' errors.
 
     Tracks are filled one after another, so a marker's gap is filled before its
     segment's partner's gap in the same fields is: a toe seen by one camera while the
@@ -124,7 +126,7 @@ def second_pass(
     for xyz, fill in made:
         span = slice(fill.first_field, fill.first_field + fill.n_fields)
         done[fill.track, span] = True
-        if context(fill, params, fills is TRUSTED_PASS):
+        if context(fill, params, trusting):
             dense[fill.track, span] = xyz
             expected[fill.track, span] = fill.expected_error_mm
     shared = {  # every run's

@@ -119,9 +119,9 @@ def fill_gaps_named(
     )
     ends = track_ends(tracks, params, labels, unlabelled)
     made += fill_runs(dense, ends, params, spare, measured, absent, FILLS, errors, mirror)
-    for last in (LAST_PASS, TRUSTED_PASS):  # the ends placed: a knee carries a tibia
-        made += second_pass(
-            dense, gaps, params, spare, measured, made, absent, last, errors, mirror
+    for last, trusting in ((LAST_PASS, False), (TRUSTED_PASS, True)):  # the ends placed:
+        made += second_pass(  # a knee carries a tibia
+            dense, gaps, params, spare, measured, made, absent, last, errors, mirror, trusting
         )
     ctx = AbsentContext(dense, measured, made, labels, again, missing, spare, params)
     named, placed = absent_named(ctx)

@@ -47,14 +47,15 @@ def tracing(show: Callable) -> Iterator[None]:
     """Every pass's fills (:mod:`kisscal.tracking.fill_passes`, as
     :func:`kisscal.tracking.gaps.fill_gaps_named` reads them) traced by ``show`` (see
     :func:`_traced`) while in the context."""
-    saved = gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS
+    saved = gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS, gaps.TRUSTED_PASS
     gaps.FILLS = _traced(gaps.FILLS, "first/end", show)
     gaps.SECOND_PASS = _traced(gaps.SECOND_PASS, "second", show)
     gaps.LAST_PASS = _traced(gaps.LAST_PASS, "last", show)
+    gaps.TRUSTED_PASS = _traced(gaps.TRUSTED_PASS, "trusted", show)
     try:
         yield
     finally:
-        gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS = saved
+        gaps.FILLS, gaps.SECOND_PASS, gaps.LAST_PASS, gaps.TRUSTED_PASS = saved
 
 
 def trace(trial, name: str, lo: int, hi: int) -> list[str]:

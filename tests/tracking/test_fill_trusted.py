@@ -146,8 +146,10 @@ def _second(dense: np.ndarray, made: list, fills: tuple) -> list:
     for _, f in made:
         errors[f.track, f.first_field] = f.expected_error_mm
     measured = np.isfinite(dense[:, :, 0])
-    fills = TRUSTED_PASS if fills is None else fills
-    return second_pass(dense, [(2, LO, HI)], PARAMS, spare, measured, made, None, fills, errors)
+    trusting, fills = fills is None, TRUSTED_PASS if fills is None else fills
+    return second_pass(
+        dense, [(2, LO, HI)], PARAMS, spare, measured, made, None, fills, errors, None, trusting
+    )
 
 
 def test_a_body_fill_over_the_rest_bar_is_the_trusted_pass_s_where_no_camera_sees():
