@@ -128,25 +128,33 @@ def _walk_pieces(truth, spans):
     return tracks, np.array([spans[k][0] for k in order])
 
 
+def _named_walk(pieces: dict[str, list[tuple[int, int]]], named: bool = True) -> tuple:
+    """The state of a 200-field synthetic walk whose markers are each one piece over the
+    whole walk but those of ``pieces`` (name: its pieces' (first, end) fields; none:
+    never seen), every piece named its marker's name (unless not ``named``); with the
+    marker of each piece and the names' indices."""
+    motion = walking_trial(3, 200)
+    names = motion.names
+    j = {n: k for k, n in enumerate(names)}
+    truth = motion.xyz_mm.transpose(1, 0, 2)
+    spans = [(m, 0, 200) for m, n in enumerate(names) if n not in pieces]
+    spans += [(j[n], lo, hi) for n, runs in pieces.items() for lo, hi in runs]
+    tracks, owner = _walk_pieces(truth, spans)
+    state = LabelState.begin(
+        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    )
+    for t, m in enumerate(owner if named else ()):
+        state.name_piece(t, int(m))
+    return state, owner, j
+
+
 def test_a_heel_and_toe_the_shank_cannot_tell_apart_take_their_names_from_the_walk():
     """Kiss 3 cameras, seed 301, one more true ankle point: a window named the left heel's
     piece toe and the toe's piece heel, with no knee or ankle in their fields. The kiss
     template puts the tibia 264 and 266 mm from heel and toe, so their distances fit
     either way within noise (0.4 against 0.9 mm), and a ratio of such scores must not
     outweigh the walk, which puts the toe ahead in every field."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j["LKNE"], j["LANK"], j["LHEE"], j["LTOE"]}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j["LHEE"], 0, 150), (j["LTOE"], 0, 50)]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
-    )
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
+    state, owner, j = _named_walk({"LKNE": [], "LANK": [], "LHEE": [(0, 150)], "LTOE": [(0, 50)]})
     settle_feet(state, state.template)
     np.testing.assert_array_equal(state.label_of, owner)  # right names stay
     heel, toe = (int(np.flatnonzero(owner == j[n])[0]) for n in ("LHEE", "LTOE"))
@@ -160,20 +168,14 @@ def test_a_knee_never_seen_does_not_keep_a_heel_and_toe_exchanged():
     the window named the heel's trajectory toe and the toe's heel, and the ankle's piece
     stayed unnamed. A distance to a name never seen is unknown, not infinitely wrong: the
     tibia, the ankle's piece and the walk still give the foot its names."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j["LKNE"], j["LTIB"], j["LHEE"], j["LTOE"]}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j["LTIB"], 0, 60), (j["LHEE"], 0, 90), (j["LHEE"], 100, 200)]
-    spans += [(j["LTOE"], 0, 120), (j["LTOE"], 130, 200)]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    state, owner, j = _named_walk(
+        {
+            "LKNE": [],
+            "LTIB": [(0, 60)],
+            "LHEE": [(0, 90), (100, 200)],
+            "LTOE": [(0, 120), (130, 200)],
+        }
     )
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
     heel, toe = (np.flatnonzero(owner == j[n]).tolist() for n in ("LHEE", "LTOE"))
     ankle = int(np.flatnonzero(owner == j["LANK"])[0])
     _rename(state, [*heel, *toe, ankle], [j["LTOE"]] * 2 + [j["LHEE"]] * 2 + [-1])
@@ -189,16 +191,8 @@ def test_a_foot_the_window_named_the_wrong_way_round_is_settled_before_names_spr
     piece (its distances to the heel and toe as named are the other way round) and gave
     it the tibia's, the only name left, from a loose body fit; the foot contest at the
     end could not take it back. Settled before names spread, the ankle keeps its name."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j["LKNE"], j["LTIB"], j["LANK"]}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j["LTIB"], 0, 100), (j["LANK"], 0, 40), (j["LANK"], 140, 149)]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    state, owner, j = _named_walk(
+        {"LKNE": [], "LTIB": [(0, 100)], "LANK": [(0, 40), (140, 149)]}, named=False
     )
     ankle = np.flatnonzero(owner == j["LANK"])
     swap = {j["LHEE"]: j["LTOE"], j["LTOE"]: j["LHEE"]}
@@ -223,20 +217,15 @@ def test_a_foot_s_later_pieces_keep_their_names_when_its_early_pieces_win_them()
     left the later ones, the same markers at other times, unnamed (the foot named over a
     quarter of the trial). Sharing no field with the winners and rigid to each other at
     the template's distances, toe ahead, they keep their names."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j[n] for n in ("LKNE", "LTIB", "LANK", "LHEE", "LTOE")}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j[n], lo, hi) for n in ("LTIB", "LANK") for lo, hi in ((0, 60), (115, 127))]
-    spans += [(j[n], lo, hi) for n in ("LHEE", "LTOE") for lo, hi in ((0, 60), (65, 200))]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    state, owner, j = _named_walk(
+        {
+            "LKNE": [],
+            "LTIB": [(0, 60), (115, 127)],
+            "LANK": [(0, 60), (115, 127)],
+            "LHEE": [(0, 60), (65, 200)],
+            "LTOE": [(0, 60), (65, 200)],
+        }
     )
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
     early = [int(np.flatnonzero(owner == j[n])[0]) for n in ("LANK", "LHEE", "LTOE")]
     _rename(state, early, [-1, -1, -1])
     assert settle_feet(state, state.template)
@@ -251,21 +240,14 @@ def test_a_toe_piece_named_ankle_takes_the_name_that_fits_best_not_the_first():
     heel's, in the foot's order) left the heel's piece unnamed beside it and put ten toe
     samples in the heel's trajectory. The toe piece takes the toe's name, the heel's
     piece the heel's."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j[n] for n in ("LTIB", "LANK", "LHEE", "LTOE")}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j["LTIB"], 0, 130), (j["LANK"], 0, 130), (j["LANK"], 170, 200)]
-    spans += [(j["LHEE"], 0, 130), (j["LHEE"], 130, 165), (j["LHEE"], 165, 200)]
-    spans += [(j["LTOE"], 0, 140), (j["LTOE"], 150, 160), (j["LTOE"], 170, 200)]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
+    state, owner, j = _named_walk(
+        {
+            "LTIB": [(0, 130)],
+            "LANK": [(0, 130), (170, 200)],
+            "LHEE": [(0, 130), (130, 165), (165, 200)],
+            "LTOE": [(0, 140), (150, 160), (170, 200)],
+        }
     )
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
     heel = int(np.flatnonzero(owner == j["LHEE"])[1])
     toe = int(np.flatnonzero(owner == j["LTOE"])[1])
     _rename(state, [heel, toe], [-1, j["LANK"]])
@@ -280,19 +262,7 @@ def test_a_heel_named_ankle_and_the_ankle_named_heel_take_their_names_from_the_w
     template's ankle-to-heel length, which is one number either way round; the toe,
     rigid to the heel at the foot's length, fitted no name beside them and stayed
     unnamed. The walk tells: the ankle lies ahead of the heel whatever the foot's pitch."""
-    motion = walking_trial(3, 200)
-    names = motion.names
-    j = {n: k for k, n in enumerate(names)}
-    truth = motion.xyz_mm.transpose(1, 0, 2)
-    alone = {j[n] for n in ("LKNE", "LTIB", "LANK")}
-    spans = [(m, 0, 200) for m in range(len(names)) if m not in alone]
-    spans += [(j["LANK"], 150, 160)]
-    tracks, owner = _walk_pieces(truth, spans)
-    state = LabelState.begin(
-        tracks, names, standing_template(names), motion.segments, TrackingParams()
-    )
-    for t, m in enumerate(owner):
-        state.name_piece(t, int(m))
+    state, owner, j = _named_walk({"LKNE": [], "LTIB": [], "LANK": [(150, 160)]})
     settle_feet(state, state.template)
     np.testing.assert_array_equal(state.label_of, owner)  # right names stay
     heel, toe, ankle = (int(np.flatnonzero(owner == j[n])[0]) for n in ("LHEE", "LTOE", "LANK"))
