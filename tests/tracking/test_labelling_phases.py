@@ -262,7 +262,7 @@ def test_rigid_pairs_need_the_names_seen_together_in_enough_fields():
 def test_pair_direction_tells_a_heel_from_its_toe():
     """A heel and a toe named the wrong way round point backwards in nearly every field,
     whatever their distances to the rest of the body."""
-    from kisscal.tracking.labelling.window import pair_direction
+    from kisscal.tracking.labelling.pair_swaps import pair_direction
 
     tracks, owner = _pieces(gait_truth(100, 2))
     state = _state(tracks)
@@ -363,7 +363,7 @@ def test_a_pair_pointing_the_way_of_its_names_keeps_them_against_a_slightly_bett
     with the left ankle and toe exchanged, though the pair pointed the way of its names
     in every field; the exchange broke the leg's rigid pairs and the left leg lost its
     names (646 switches). A pair its direction confirms keeps its names."""
-    from kisscal.tracking.labelling.window import settle_rigid_swaps
+    from kisscal.tracking.labelling.pair_swaps import settle_rigid_swaps
     from kisscal.tracking.rigid import field_fits
 
     tracks, owner = _pieces(gait_truth(100, 2))

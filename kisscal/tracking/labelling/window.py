@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from kisscal.tracking.labelling.core import core_pieces, crowded, held_whole
 from kisscal.tracking.labelling.facing import better, facing
+from kisscal.tracking.labelling.pair_swaps import settle_rigid_swaps
 from kisscal.tracking.labelling.state import (
     RIGID_MATCH_MM,
     RIGID_SPREAD_MM,
@@ -56,9 +57,6 @@ SWAP_STARTS = 24
 # the rigid fit to the real fields decides (a body and its mirror image, an ASIS and the
 # sacrum when the pelvis' other markers are out of view).
 NEAR_TIE = 1.05
-# A given rigid pair whose pieces point the other way than their names in more than this
-# fraction of the window's fields is exchanged (:func:`pair_direction`).
-PAIR_DIRECTION = 2 / 3
 # Price of a core piece left unnamed by the swap search, in median shares of the cost of
 # its best naming (:func:`swap_refined`).
 LEAVE_PRICE = 8.0
@@ -244,62 +242,6 @@ def left_right_fits(
             rms = field_fits(state.dense, rich, core[ok], cand[ok], state.template)
             candidates.append((float(np.median(rms)) if rms.size else np.inf, cand))
     return candidates
-
-
-def settle_rigid_swaps(
-    state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, fit_rms: float
-) -> tuple[float, NDArray[np.int64]]:
-    """Exchange the names of two core pieces named as a given rigid pair when they point
-    the other way than their names in most fields (:func:`pair_direction`), or when the
-    real fields' rigid fit is clearly better so and their direction does not confirm
-    their names.
-
-    Two markers of one segment seen without their neighbours (a heel and a toe of a foot
-    whose ankle is hidden) can swap names at no cost in distances.
-    """
-    rigid = state.given_rigid[np.ix_(assign, assign)]
-    for a, b in zip(*np.nonzero(np.triu(rigid, 1)), strict=True):
-        if assign[a] < 0 or assign[b] < 0:
-            continue
-        variant = assign.copy()
-        variant[[a, b]] = assign[[b, a]]
-        ok = variant >= 0
-        rms = field_fits(state.dense, rich, core[ok], variant[ok], state.template)
-        if not rms.size:
-            continue
-        agree = pair_direction(state, core, rich, assign, a, b)
-        # The median fit of a walking body to the standing template is poor (legs swing,
-        # 100-150 mm): a few percent on it is no evidence against a pair that points the
-        # way its names do in most fields, so only an unconfirmed pair goes by the fit.
-        by_fit = np.median(rms) < 0.95 * fit_rms and not agree >= PAIR_DIRECTION
-        if by_fit or agree < 1 - PAIR_DIRECTION:
-            fit_rms, assign = float(np.median(rms)), variant
-    return fit_rms, assign
-
-
-def pair_direction(
-    state: LabelState, core: NDArray, rich: NDArray, assign: NDArray, a: int, b: int
-) -> float:
-    """Fraction of ``rich`` fields in which core pieces ``a`` and ``b`` point the way
-    their names do: the vector between them, turned into the template's frame by the
-    rigid fit of the other named core pieces, on the side of the template's vector
-    between the names (NaN without such a field).
-
-    A heel and a toe exchanged point backwards whatever the joints do; their distances
-    to the rest of the body, averaged over a stride, may favour either.
-    """
-    others = np.flatnonzero(assign >= 0)
-    others = others[(others != a) & (others != b)]
-    want = state.template[assign[a]] - state.template[assign[b]]
-    votes = []
-    for f in rich:
-        seen = others[np.isfinite(state.dense[core[others], f, 0])]
-        pair = state.dense[core[[a, b]], f]
-        if seen.size < 3 or not np.isfinite(pair).all():
-            continue
-        r, _ = kabsch(state.dense[core[seen], f], state.template[assign[seen]])
-        votes.append(float((pair[0] - pair[1]) @ r.T @ want) > 0)
-    return float(np.mean(votes)) if votes else float("nan")
 
 
 def drop_broken_pairs(
