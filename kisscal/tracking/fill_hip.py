@@ -26,7 +26,7 @@ fits within three SDs, and the target's expected error along its ray (the soluti
 covariance) is at most ``ray_length_max_error_mm``. In the trusted pass, once every other
 fill is made (:func:`trusted_hip`), the fill is made again with the fields placed since as
 edges (a thigh carried about the hip and its knee where no camera saw it), expecting up
-to :data:`TRUSTED_MAX_ERROR_MM`: where the knee is on a ray too, the covariance of the two
+to ``params.trusted_max_error_mm``: where the knee is on a ray too, the covariance of the two
 depths says 5-5.5 mm along the thigh's ray; where the ray grazes the spheres it says more
 and the field is refused (modern 3 seed 436 RTHI: 6-11 mm expected, left open).
 
@@ -320,21 +320,14 @@ def hip_ray_fill(
     return agreed_fill((grp, rays, fwd, e_f, bwd, e_b), len(dense), params)
 
 
-#: Largest expected error (mm) of the hip fill in the trusted pass (:func:`trusted_hip`).
-#: Where the knee too is on a camera's ray, the solution's covariance says 5.0-5.5 mm
-#: along the thigh's ray (modern 3 seed 409 RTHI 166-186, knee and thigh seen by one
-#: camera each; 0.5-2.1 mm off), over ``ray_length_max_error_mm``.
-TRUSTED_MAX_ERROR_MM = 6.0
-
-
 def trusted_hip(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.bool_]:
     """The hip fill (:func:`hip_ray_fill`) of fields [a, b) of ``gap`` (a
     :class:`~kisscal.tracking.gap_record.Gap`) once every other fill is made, the walks from
-    both sides agreeing, expecting at most :data:`TRUSTED_MAX_ERROR_MM` (its error along
+    both sides agreeing, expecting at most ``params.trusted_max_error_mm`` (its error along
     the ray from the lengths' geometry: where the ray meets the spheres at a glancing
     angle the covariance says so, and over that it is refused); placed fields are
     written into ``gap.dense`` and their blobs taken. Returns the fields placed."""
-    cap = max(params.ray_length_max_error_mm, TRUSTED_MAX_ERROR_MM)
+    cap = max(params.ray_length_max_error_mm, params.trusted_max_error_mm)
     got = hip_ray_fill(
         gap.dense,
         gap.t,

@@ -192,6 +192,12 @@ class TrackingParams(Params):
     ray_length_max_error_mm : float
         Largest expected error (mm) along the ray of a field placed on it by the
         segment's lengths.
+    trusted_max_error_mm : float
+        Largest expected error (mm) of a hip fill made in the trusted pass, once every
+        other fill is made (:func:`~kisscal.tracking.fill_hip.trusted_hip`): where the
+        knee too is on a camera's ray, the solution's covariance says 5.0-5.5 mm along the
+        thigh's ray (modern 3 seed 409 RTHI 166-186, 0.5-2.1 mm off), over
+        ``ray_length_max_error_mm``.
     ray_depth_max_error_mm : float
         Largest expected error (mm) of a marker's distance from the one camera that sees
         it, bridged by a spline across the gap, for its blob's ray to place it
@@ -321,6 +327,7 @@ class TrackingParams(Params):
     ray_chain_coast_fields: int = param(3, unit="fields", ge=0)
     ray_length_sd_floor_mm: float = param(1.0, unit="mm", gt=0)
     ray_length_max_error_mm: float = param(5.0, unit="mm", gt=0)
+    trusted_max_error_mm: float = param(6.0, unit="mm", gt=0)
     ray_depth_max_error_mm: float = param(3.0, unit="mm", gt=0)
     ray_merge_px: float = param(3.0, unit="px", gt=0)
     ray_rest_max_error_mm: float = param(3.0, unit="mm", gt=0)

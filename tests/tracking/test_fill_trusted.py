@@ -124,10 +124,8 @@ def test_modern_3_cameras_a_thigh_by_its_absent_knee_is_filled_honestly(
     fill's walks expected 5.0-5.5 mm along the ray and could not cross the fields no
     camera saw; 414's knee is a track filled there only after the first pass, the centre
     fill's (coverage min 92.31 / 92.08 % before)."""
-    from kisscal.tracking.fill_hip import TRUSTED_MAX_ERROR_MM
-
     err, expected, _ = _filled_against_truth(seed, name, np.arange(*span), span)
-    assert np.all(expected <= TRUSTED_MAX_ERROR_MM)
+    assert np.all(expected <= PARAMS.trusted_max_error_mm)
     assert np.all(err <= 2.0 * expected)
     assert np.sqrt(np.mean(err**2)) < PARAMS.ray_rest_max_error_mm
 
