@@ -81,10 +81,23 @@ def fill_runs(
     every track's measured fields; ``end``, ``absent`` and ``errors``: see
     :class:`~.gap_record.Gap`."""
     out = []
-    shared = {"absent": absent, "errors": errors, "mirror": mirror}  # every run's
     for t, lo, hi, end in runs:
         swept = np.zeros(hi - lo, bool)
-        gap = Gap(dense, t, lo, hi, params, spare, measured[t], swept, [], end, **shared)
+        gap = Gap(
+            dense,
+            t,
+            lo,
+            hi,
+            params,
+            spare,
+            measured[t],
+            swept,
+            [],
+            end,
+            absent=absent,
+            errors=errors,
+            mirror=mirror,
+        )
         _apply(gap, fills, [(lo, hi)])
         out += gap.out
     return out
@@ -129,20 +142,27 @@ def second_pass(
         if context(fill, params, trusting):
             dense[fill.track, span] = xyz
             expected[fill.track, span] = fill.expected_error_mm
-    shared = {  # every run's
-        "absent": absent,
-        "known": measured,
-        "expected": expected,
-        "errors": errors,
-        "mirror": mirror,
-    }
     out = []
     for t, lo, hi in gaps:
         left = ~done[t, lo:hi]
         for a, b in zip(*true_runs(left), strict=True):
             run = (lo + a, lo + b)
             swept = np.zeros(b - a, bool)
-            gap = Gap(dense, t, *run, params, spare, measured[t], swept, [], **shared)
+            gap = Gap(
+                dense,
+                t,
+                *run,
+                params,
+                spare,
+                measured[t],
+                swept,
+                [],
+                absent=absent,
+                known=measured,
+                expected=expected,
+                errors=errors,
+                mirror=mirror,
+            )
             _apply(gap, fills, [run])
             out.extend(gap.out)
     return out
