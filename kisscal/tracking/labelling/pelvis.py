@@ -22,6 +22,11 @@ from kisscal.tracking.labelling.state import CLEAR_RATIO, LabelState
 #: Fields either side over which a name's displacement gives the walking direction.
 STEP_FIELDS = 5
 
+#: Names whose steps a field's walking direction needs: the median of two is their mean,
+#: of one that marker's own motion, and a foot in stance (no step) or swing (twice the
+#: body's) is no measure of the body's; three let the median pass over one of them.
+STEP_NAMES = 3
+
 #: Anterior pelvis marker names (``LASI``, ``RASIS``) and posterior ones (``LPSI``,
 #: ``SACR``, ``SAC``), by the naming convention.
 PELVIS_FRONT = re.compile(r"ASI")
@@ -351,14 +356,15 @@ def walking_direction(name_pos: NDArray, fields: NDArray | None = None) -> NDArr
     """Per field (of ``fields``, every field by default), the horizontal direction the
     body moves (F, 2), not normalised: the median over the names held of their
     displacement over :data:`STEP_FIELDS` fields either side, which at given ``fields``
-    stops at the trial's ends. NaN where no name is held and, without ``fields``, in the
-    first and last :data:`STEP_FIELDS` fields."""
+    stops at the trial's ends. NaN where fewer than :data:`STEP_NAMES` names hold a step
+    and, without ``fields``, in the first and last :data:`STEP_FIELDS` fields."""
     k, last = STEP_FIELDS, name_pos.shape[1] - 1
     at = np.arange(last + 1) if fields is None else fields
     step = name_pos[:, np.minimum(at + k, last), :2] - name_pos[:, np.maximum(at - k, 0), :2]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
         out = np.nanmedian(step, axis=0)
+    out[np.isfinite(step[..., 0]).sum(axis=0) < STEP_NAMES] = np.nan
     if fields is None:
         out[:k] = out[-k:] = np.nan
     return out
