@@ -17,10 +17,16 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.tracking.labelling.pieces import reach_limit, reach_miss, step_from
 from kisscal.tracking.labelling.state import CLEAR_RATIO, LabelState
 
 #: Fields either side over which a name's displacement gives the walking direction.
 STEP_FIELDS = 5
+
+#: Names whose steps a field's walking direction needs: the median of two is their mean,
+#: of one that marker's own motion, and a foot in stance (no step) or swing (twice the
+#: body's) is no measure of the body's; three let the median pass over one of them.
+STEP_NAMES = 3
 
 #: Anterior pelvis marker names (``LASI``, ``RASIS``) and posterior ones (``LPSI``,
 #: ``SACR``, ``SAC``), by the naming convention.
@@ -216,6 +222,39 @@ def _offset_says(state: LabelState, t: int, j: int, other: int, direction: NDArr
     return votes.size >= least and votes.mean() > state.params.min_side_confidence
 
 
+def _path_miss(pos: NDArray, t_fields: NDArray, t_xyz: NDArray, j: int, rigid: NDArray) -> NDArray:
+    """Per side of a piece (``t_fields``, ``t_xyz``; before it, after it), how far it lies
+    from name ``j``'s trajectory in ``pos`` moved on to it (:func:`~.pieces.reach_miss`),
+    and the most it may (:func:`~.pieces.reach_limit`), shape (2, 2); NaN on a side
+    where the trajectory has no sample."""
+    first, last = int(t_fields[0]), int(t_fields[-1])
+    out = np.full((2, 2), np.nan)
+    for x, y in step_from(np.isfinite(pos[j, :, 0]), first, last):
+        after = x > y
+        at = t_xyz[-1] if after else t_xyz[0]
+        out[int(after)] = reach_miss(pos[j], pos[rigid[j]], x, y, at), reach_limit(x, y)
+    return out
+
+
+def _continues_other(state: LabelState, t: int, j: int, other: int, rigid: NDArray) -> bool:
+    """Whether piece ``t``, named ``j``, continues name ``other``'s trajectory on every
+    side it has one, and on each side ``j``'s has one, ``other``'s clearly better
+    (:data:`~.state.CLEAR_RATIO`): a marker's path does not jump a pelvis' width across
+    a gap, and a piece named by the path it continued
+    (:func:`~kisscal.tracking.labelling.spread.by_continuity`) is left between the
+    other name's pieces when an exchange renames its neighbours."""
+    fields, xyz = state.piece(t)
+    pos = state.name_pos.copy()
+    pos[j, fields] = np.nan  # the piece itself is no partner that moved
+    rival, own = _path_miss(pos, fields, xyz, other, rigid), _path_miss(pos, fields, xyz, j, rigid)
+    held = np.isfinite(rival[:, 0])
+    return bool(
+        held.any()
+        and np.all(rival[held, 0] <= rival[held, 1])
+        and np.all(np.isnan(own[:, 0]) | (CLEAR_RATIO * rival[:, 0] < own[:, 0]))
+    )
+
+
 def settle_pelvis_offsets(state: LabelState) -> bool:
     """Give a long piece named a front pelvis name the back one (or back the front) when
     its offset along the walk from the other pelvis names held says so
@@ -230,11 +269,21 @@ def settle_pelvis_offsets(state: LabelState) -> bool:
     equilateral; the other ASIS, level with an ASIS and ahead of the sacrum, can, unless
     the distances fit the exchange more than :data:`~.state.CLEAR_RATIO` times worse
     (the ratio :func:`~kisscal.tracking.labelling.spread.by_body_fit` asks of a clear
-    answer).
+    answer) while the piece's path does not continue the other name's
+    (:func:`_continues_other`): a stride moves the knees and feet tens of millimetres off
+    the standing template's distances, and over a few fields they can fit the wrong name
+    better (kiss 3 seed 470: the sacrum's 16-field piece, with the other ASIS, a knee, a
+    shank and the feet held, 16 mm from the ASIS's template distances and 26 mm from the
+    sacrum's; the sacrum's pieces on both sides continue it, the ASIS's lie 240 mm off).
+
+    The longest pieces go first: theirs is the surest walk, and renaming them puts
+    right the trajectories a shorter piece's path is judged against.
     """
     front, back = pelvis_roles(state.names)
     changed, direction = False, walking_direction(state.name_pos)
-    for t in state.long_ids[np.isin(state.label_of[state.long_ids], front + back)].tolist():
+    rigid = state.rigid_pairs()
+    ids = state.long_ids[np.isin(state.label_of[state.long_ids], front + back)]
+    for t in ids[np.argsort(-state.n_measured[ids], kind="stable")].tolist():
         j = int(state.label_of[t])
         for other in back if j in front else front:
             if not _offset_says(state, t, j, other, direction):
@@ -245,10 +294,14 @@ def settle_pelvis_offsets(state: LabelState) -> bool:
             rest = [int(u) for u in held if u not in move]
             names = [other if state.label_of[u] == j else j for u in move]
             names += [int(state.label_of[u]) for u in rest]
+            if _overlaps(state, move + rest, names):
+                continue
             # the distances may not tell (a pelvis near equilateral) but must not clearly
-            # disagree (sub_labels.c3d: an ASIS by wrongly named others)
-            if _overlaps(state, move + rest, names) or not _fits_better(
-                state, j, other, move, worse=CLEAR_RATIO
+            # disagree (sub_labels.c3d: an ASIS by wrongly named others), unless the
+            # piece's path continues the other name's
+            if not (
+                _fits_better(state, j, other, move, worse=CLEAR_RATIO)
+                or _continues_other(state, t, j, other, rigid)
             ):
                 continue
             state.name_pos[[j, other]] = np.nan
@@ -351,14 +404,15 @@ def walking_direction(name_pos: NDArray, fields: NDArray | None = None) -> NDArr
     """Per field (of ``fields``, every field by default), the horizontal direction the
     body moves (F, 2), not normalised: the median over the names held of their
     displacement over :data:`STEP_FIELDS` fields either side, which at given ``fields``
-    stops at the trial's ends. NaN where no name is held and, without ``fields``, in the
-    first and last :data:`STEP_FIELDS` fields."""
+    stops at the trial's ends. NaN where fewer than :data:`STEP_NAMES` names hold a step
+    and, without ``fields``, in the first and last :data:`STEP_FIELDS` fields."""
     k, last = STEP_FIELDS, name_pos.shape[1] - 1
     at = np.arange(last + 1) if fields is None else fields
     step = name_pos[:, np.minimum(at + k, last), :2] - name_pos[:, np.maximum(at - k, 0), :2]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # fields with no name held
         out = np.nanmedian(step, axis=0)
+    out[np.isfinite(step[..., 0]).sum(axis=0) < STEP_NAMES] = np.nan
     if fields is None:
         out[:k] = out[-k:] = np.nan
     return out

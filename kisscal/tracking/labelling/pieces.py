@@ -57,15 +57,14 @@ PATH_ONLY_FRACTION = 0.25
 SAME_MARKER_MM = 20.0
 
 
-def reaches(
+def reach_miss(
     track: NDArray, partners: NDArray, x: int, y: int, at_y: NDArray, still: bool = False
-) -> bool:
-    """Whether a piece at ``at_y`` in field ``y`` continues ``track`` (F, 3), whose
-    nearest sample is in field ``x``: within :data:`REACH_MM_PER_FIELD` per field crossed
-    (:data:`MAX_REACH_MM` at most) of that sample moved as a segment partner
+) -> float:
+    """How far (mm) a piece at ``at_y`` in field ``y`` lies from ``track`` (F, 3), whose
+    nearest sample is in field ``x``, moved on to ``y``: as a segment partner
     (``partners``, (k, F, 3)) moved from ``x`` to ``y``, or at the track's own velocity
-    beside ``x``, or (with ``still``, or when no partner is seen at both) standing still:
-    a partner that moved says the segment did."""
+    beside ``x``, or (with ``still``, or when no partner is seen at both) standing still,
+    whichever it lies nearest."""
     n, back = abs(y - x), (-1 if y > x else 1)
     # the step, less the partners' own or the trajectory's own motion at the gap (a
     # foot in swing moves fast, its marker with it)
@@ -76,7 +75,22 @@ def reaches(
         motion = np.r_[motion, (track[x] - track[x + back])[None] * n]
     motion = motion[np.all(np.isfinite(motion), axis=1)]
     step = np.linalg.norm(at_y - track[x] - motion, axis=1)
-    return bool(step.min() <= min(REACH_MM_PER_FIELD * n, MAX_REACH_MM))
+    return float(step.min())
+
+
+def reach_limit(x: int, y: int) -> float:
+    """The largest :func:`reach_miss` (mm) that continues a trajectory from field ``x``
+    to ``y``: :data:`REACH_MM_PER_FIELD` per field crossed, :data:`MAX_REACH_MM` at most."""
+    return min(REACH_MM_PER_FIELD * abs(y - x), MAX_REACH_MM)
+
+
+def reaches(
+    track: NDArray, partners: NDArray, x: int, y: int, at_y: NDArray, still: bool = False
+) -> bool:
+    """Whether a piece at ``at_y`` in field ``y`` continues ``track`` (F, 3), whose
+    nearest sample is in field ``x``: within :func:`reach_limit` of that sample moved on
+    (:func:`reach_miss`): a partner that moved says the segment did."""
+    return reach_miss(track, partners, x, y, at_y, still) <= reach_limit(x, y)
 
 
 def step_from(seen: NDArray, first: int, last: int) -> list[tuple[int, int]]:
