@@ -53,7 +53,8 @@ def settle_rigid_swaps(
         # way its names do in most fields, so only an unconfirmed pair goes by the fit.
         by_fit = np.median(rms) < 0.95 * fit_rms and not agree >= PAIR_DIRECTION
         if agree < 1 - PAIR_DIRECTION:
-            free = free_name_variant(state, core, rich, assign, a, b, 1.0 - agree)
+            exchange = (1.0 - agree, float(np.median(rms)))
+            free = free_name_variant(state, core, rich, assign, a, b, exchange)
             if free is not None:
                 ok = free >= 0
                 variant = free
@@ -70,27 +71,36 @@ def free_name_variant(
     assign: NDArray,
     a: int,
     b: int,
-    exchanged: float,
+    exchange: tuple[float, float],
 ) -> NDArray[np.int64] | None:
     """Names ``assign`` with core piece ``a`` or ``b`` (named as a given rigid pair that
     points the wrong way) given instead a name no core piece holds, rigid with the other's,
-    when the pair then points the way its names do in more fields than ``exchanged`` (the
-    exchange's :func:`pair_direction`); None when no such name does better.
+    when the pair then points the way its names do in more fields than the exchange does,
+    or in as many with a better rigid fit of the window (``exchange``: the exchange's
+    :func:`pair_direction` and median fit RMS); None when no such name does better.
 
     A wrong direction says that one of the two names is wrong, not that they are
     exchanged: in a pelvis near equilateral whose third marker is out of the window, an
     ASIS named sacrum beside the other ASIS points backwards too, and the exchange makes
-    two wrong names of one (kiss 3 cameras seed 468: 590 identity switches).
+    two wrong names of one (kiss 3 cameras seed 468: 590 identity switches). Where the
+    exchange, too, points its names' way in every field (the two ASIS, one named sacrum:
+    either order of left ASIS and sacrum points left), only the fit tells them apart: the
+    exchange moves the left ASIS to the sacrum's place (kiss 3 seed 473: 347 switches).
     """
     free = np.setdiff1d(np.arange(len(state.names)), assign[assign >= 0])
-    best, most = None, exchanged
+    best, most = None, (exchange[0], -exchange[1])
     for piece, other in ((a, b), (b, a)):
         for name in free[state.given_rigid[free, assign[other]]].tolist():
             variant = assign.copy()
             variant[piece] = name
             agree = pair_direction(state, core, rich, variant, a, b)
-            if agree > most:
-                best, most = variant, agree
+            if not agree >= most[0]:
+                continue
+            ok = variant >= 0
+            rms = field_fits(state.dense, rich, core[ok], variant[ok], state.template)
+            key = (agree, -float(np.median(rms)) if rms.size else -np.inf)
+            if key > most:
+                best, most = variant, key
     return best
 
 
