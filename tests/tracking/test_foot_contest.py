@@ -282,3 +282,28 @@ def test_the_ankle_is_held_between_the_heel_and_the_toe_along_the_walk():
     assert [(NAMES[right.names[a]], NAMES[right.names[b]]) for a, b in right.order] == [
         ("RTOE", "RHEE")
     ]
+
+
+def test_a_toe_named_ankle_with_nothing_named_beside_it_takes_its_name_from_its_heel():
+    """Kiss 3 cameras, seed 469: the knee and ankle never seen, the tibia unnamed, the
+    first window named the toe's piece ankle from distances across joints (345 identity
+    switches), and the heel, in three unnamed pieces, stayed rigid to it at the foot's
+    length, which is the heel-to-toe distance and no distance of the ankle's. The two
+    take the heel's and the toe's names, the toe ahead along the walk; an ankle named
+    right beside its heel keeps its name."""
+    heel_pieces = [(0, 60), (70, 130), (140, 200)]
+    state, owner, j = _named_walk({"LKNE": [], "LTIB": [], "LANK": [], "LHEE": heel_pieces})
+    heels = np.flatnonzero(owner == j["LHEE"]).tolist()
+    toe = int(np.flatnonzero(owner == j["LTOE"])[0])
+    _rename(state, [*heels, toe], [-1, -1, -1, j["LANK"]])
+    assert settle_feet(state, state.template)
+    assert state.label_of[toe] == j["LTOE"]
+    np.testing.assert_array_equal(state.label_of[heels], j["LHEE"])
+    # The same foot without its toe: the ankle named right, the heel unnamed beside it.
+    state, owner, j = _named_walk({"LKNE": [], "LTIB": [], "LTOE": [], "LHEE": heel_pieces})
+    heels = np.flatnonzero(owner == j["LHEE"]).tolist()
+    _rename(state, heels, [-1, -1, -1])
+    settle_feet(state, state.template)
+    ankle = int(np.flatnonzero(owner == j["LANK"])[0])
+    assert state.label_of[ankle] == j["LANK"]
+    assert all(state.label_of[h] in (-1, j["LHEE"]) for h in heels)

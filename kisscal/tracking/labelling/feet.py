@@ -16,9 +16,11 @@ moves: :mod:`~kisscal.tracking.labelling.footwalk`).
 :func:`score`: the mean squared relative error of its distances against the template's,
 divided by ``foot_margin`` when it puts two of the foot's markers out of that order
 along the walk in ``facing_fraction`` of the fields. Another way replaces the
-labelling's own when it scores at most ``foot_margin`` times as much: first for the
-names' whole trajectories and the unnamed pieces near the shank (with fewer of them than
-names, as a foot with no heel marker has, some names are left free), then for each piece
+labelling's own when it scores at most ``foot_margin`` times as much (a name seen with
+none of these is judged first by its rigid partner,
+:mod:`~kisscal.tracking.labelling.footpartner`): first for the names' whole trajectories
+and the unnamed pieces near the shank (with fewer of them than names, as a foot with no
+heel marker has, some names are left free), then for each piece
 holding a foot name (with the name's holder, or an unnamed piece at the foot's distance,
 as its partner: when its distances fit the template either way within
 ``label_segment_tolerance_mm``, as a heel's and a toe's to the shank alone do, or a
@@ -41,6 +43,11 @@ from numpy.typing import NDArray
 from kisscal.tracking.labelling.facing import HEEL, foot_pairs
 from kisscal.tracking.labelling.footkeep import continued as _continued
 from kisscal.tracking.labelling.footkeep import fit_mm
+from kisscal.tracking.labelling.footpartner import (
+    MIN_SHARED,
+    name_distances,
+    settle_lone_foot_names,
+)
 from kisscal.tracking.labelling.footwalk import ordered_pairs, out_of_order, trailing
 from kisscal.tracking.labelling.pelvis import walking_direction
 from kisscal.tracking.labelling.spread import continues, spread
@@ -50,8 +57,6 @@ from kisscal.tracking.labelling.state import LabelState, median_distances
 #: (``<side>HEE`` and ``<side>TOE``, :func:`~kisscal.tracking.labelling.facing.foot_pairs`).
 _ANKLE = ("ANK",)
 _SHANK = ("KNE", "KNEE", "TIB")
-#: Fields a piece must share with a name for their distance to count.
-_MIN_SHARED = 3
 #: A way of giving a foot's names that scores within this factor of the way kept is a
 #: near tie: the names the two give differently are doubtful (:func:`_near_ties`).
 #: Among foreign foot markers (pyCGM2's metatarsal heads), the ways that put the heel's
@@ -123,11 +128,14 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
     walk far better than the labelling's own, then spread names again; returns whether
     any name moved.
 
-    Three rounds with one :func:`score`: the foot's names as whole trajectories together
-    with up to ``foot_candidates`` unnamed long pieces within ``foot_reach`` of the shank
-    (:func:`_name_contest`); then each piece holding a foot name against the foot's other
-    names in its fields (:func:`_piece_contest`); then unnamed pieces near the foot for
-    the foot's names free in their fields (:func:`_unnamed_contest`).
+    A piece holding a foot name seen with none of the shank's and the foot's other names
+    is first judged by its rigid partner
+    (:func:`~kisscal.tracking.labelling.footpartner.settle_lone_foot_names`). Then three
+    rounds with one :func:`score`: the foot's names as whole trajectories together with up
+    to ``foot_candidates`` unnamed long pieces within ``foot_reach`` of the shank
+    (:func:`_name_contest`); each piece holding a foot name against the foot's other names
+    in its fields (:func:`_piece_contest`); unnamed pieces near the foot for the foot's
+    names free in their fields (:func:`_unnamed_contest`).
 
     References
     ----------
@@ -138,6 +146,7 @@ def settle_feet(state: LabelState, template: NDArray) -> bool:
     moved = False
     for foot in (_seen_shank(state, f) for f in feet_of(state.names)):
         foot = replace(foot, order=ordered_pairs(template, foot.names, foot.toe, foot.heel))
+        moved |= settle_lone_foot_names(state, foot.names, foot.shank, foot.order, direction)
         moved |= _name_contest(state, foot, target, direction)
         moved |= _piece_contest(state, foot, target, direction)
         moved |= _unnamed_contest(state, foot, target, direction)
@@ -299,7 +308,7 @@ def _piece_contest(state: LabelState, foot: Foot, target: NDArray, direction: ND
     for p in order[np.argsort(state.n_measured[order], kind="stable")].tolist():
         n = int(state.label_of[p])
         fields = state.piece(p)[0]
-        if n not in foot.names or fields.size < _MIN_SHARED:
+        if n not in foot.names or fields.size < MIN_SHARED:
             continue
         ways = []
         for m in foot.names[foot.names != n].tolist():
@@ -335,7 +344,7 @@ def _positions(state: LabelState, pieces: list[int], fields: NDArray) -> NDArray
 
 
 def _partners(state: LabelState, p: int, n: int, m: int) -> list[int]:
-    """Unnamed pieces seen with piece ``p`` in :data:`_MIN_SHARED` fields or more at the
+    """Unnamed pieces seen with piece ``p`` in :data:`MIN_SHARED` fields or more at the
     state's template distance between names ``n`` and ``m`` (within
     ``label_segment_tolerance_mm``, median)."""
     fields, xyz = state.piece(p)
@@ -349,7 +358,7 @@ def _partners(state: LabelState, p: int, n: int, m: int) -> list[int]:
         d = np.linalg.norm(other - xyz, axis=1)
         d = d[np.isfinite(d)]
         length = state.template_distance[n, m]
-        if d.size >= _MIN_SHARED and abs(np.median(d) - length) <= (
+        if d.size >= MIN_SHARED and abs(np.median(d) - length) <= (
             state.params.label_segment_tolerance_mm
         ):
             out.append(q)
@@ -377,7 +386,7 @@ def _piece_better(
     refs = np.concatenate([foot.shank, foot.names[(foot.names != n) & (foot.names != m)]])
     pos = np.concatenate([state.name_pos[refs][:, fields], other[None]])
     d = np.linalg.norm(pos - xyz[None], axis=2)
-    shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
+    shared = np.isfinite(d).sum(axis=1) >= MIN_SHARED
     if not shared.any():
         return None
     with warnings.catch_warnings():
@@ -427,17 +436,6 @@ def _exchange(state: LabelState, p: int, n: int, m: int, partners: list[int]) ->
     return True
 
 
-def _distances(state: LabelState, fields: NDArray, xyz: NDArray, refs: NDArray) -> NDArray:
-    """Median distance from positions ``xyz`` (at ``fields``) to each name of ``refs``
-    over the fields both are seen, NaN when fewer than :data:`_MIN_SHARED`."""
-    d = np.linalg.norm(state.name_pos[refs][:, fields] - xyz[None], axis=2)
-    shared = np.isfinite(d).sum(axis=1) >= _MIN_SHARED
-    out = np.full(refs.size, np.nan)
-    if shared.any():
-        out[shared] = np.nanmedian(d[shared], axis=1)
-    return out
-
-
 def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: NDArray) -> bool:
     """Unnamed pieces near the foot, longest first, take a foot name free in all their
     fields: the one whose :func:`score` (distances to the shank and to the rest of the
@@ -460,7 +458,7 @@ def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: 
         scores, fits = [], []
         for m in free:
             refs = np.concatenate([foot.shank, foot.names[foot.names != m]])
-            dist = _distances(state, fields, xyz, refs)
+            dist = name_distances(state, fields, xyz, refs)
             seen = np.isfinite(dist)
             if not seen.any():
                 scores.append(np.inf)
@@ -485,10 +483,10 @@ def _unnamed_contest(state: LabelState, foot: Foot, target: NDArray, direction: 
 
 
 def _near_pieces(state: LabelState, foot: Foot, target: NDArray) -> NDArray[np.int64]:
-    """Unnamed pieces of at least :data:`_MIN_SHARED` samples whose first sample lies
+    """Unnamed pieces of at least :data:`MIN_SHARED` samples whose first sample lies
     within ``foot_reach`` times the template's farthest foot distance of a shank or foot
     name seen there."""
-    cands = np.flatnonzero((state.label_of < 0) & (state.n_measured >= _MIN_SHARED))
+    cands = np.flatnonzero((state.label_of < 0) & (state.n_measured >= MIN_SHARED))
     if cands.size == 0:
         return cands
     refs = np.concatenate([foot.shank, foot.names])
