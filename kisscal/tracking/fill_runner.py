@@ -122,7 +122,8 @@ def second_pass(
     :data:`~.fill_trusted.TRUSTED_PASS`), with its rigid and ray fills expecting at most
     ``ray_rest_max_error_mm`` (:func:`~.fill_trusted.context`) written into ``dense`` as
     context (for these fills and the track ends after them); ``trusting`` for the trusted
-    pass, whose fills count their donors' errors.
+    pass, whose fills count their donors' errors and know which of their context samples
+    the passes before had not (``Gap.borrowed``).
 
     Tracks are filled one after another, so a marker's gap is filled before its
     segment's partner's gap in the same fields is: a toe seen by one camera while the
@@ -136,12 +137,14 @@ def second_pass(
         return []
     done = np.isfinite(dense[:, :, 0])
     expected = np.where(measured, 0.0, np.nan)
+    borrowed = np.zeros(done.shape, dtype=bool)
     for xyz, fill in made:
         span = slice(fill.first_field, fill.first_field + fill.n_fields)
         done[fill.track, span] = True
         if context(fill, params, trusting):
             dense[fill.track, span] = xyz
             expected[fill.track, span] = fill.expected_error_mm
+            borrowed[fill.track, span] = not context(fill, params, False)
     out = []
     for t, lo, hi in gaps:
         left = ~done[t, lo:hi]
@@ -162,6 +165,7 @@ def second_pass(
                 expected=expected,
                 errors=errors,
                 mirror=mirror,
+                borrowed=borrowed if trusting else None,
             )
             _apply(gap, fills, [run])
             out.extend(gap.out)

@@ -56,6 +56,10 @@ class Gap:
         partners.
     mirror : int array or None
         Each row's mirror image's row, -1 for none (:func:`.fill_absent.mirror_tracks`).
+    borrowed : (n_tracks, n_fields) bool array or None
+        The trusted pass's: samples written into ``dense`` as its context that the passes
+        before it did not have (:func:`~.fill_trusted.context`), so no body fill through
+        them was tried there.
     """
 
     dense: NDArray[np.float64]
@@ -73,3 +77,4 @@ class Gap:
     expected: NDArray[np.float64] | None = None
     errors: NDArray[np.float64] | None = None
     mirror: NDArray[np.int64] | None = None
+    borrowed: NDArray[np.bool_] | None = None
