@@ -96,25 +96,41 @@ def misfits(
 def misfit_fields(
     dense: NDArray, t: int, donors: tuple[int, ...], lo: int, hi: int, params: TrackingParams
 ) -> NDArray[np.bool_]:
-    """:func:`misfits` field by field: (len(donors), n_tracks, hi - lo)."""
+    """:func:`misfits` field by field: (len(donors), n_tracks, hi - lo).
+
+    Only tracks measured somewhere in the gap can miss there, so distances are taken to
+    those alone, one coordinate at a time (a whole trial of every donor against every
+    track made this the tracking stage's largest cost in a long trial).
+    """
     k = np.asarray(donors, dtype=np.int64)
-    if not k.size:
-        return np.zeros((0, len(dense), hi - lo), dtype=bool)
-    dist = np.linalg.norm(dense[k][:, None] - dense[None], axis=3)  # (k, n_tracks, n_fields)
+    out = np.zeros((k.size, len(dense), hi - lo), dtype=bool)
+    cols = np.flatnonzero(np.isfinite(dense[:, lo:hi]).all(axis=2).any(axis=1))
+    if not k.size or not cols.size:
+        return out
+    dist = _distances(dense[k], dense[cols])  # (k, cols, n_fields)
     seen = np.isfinite(dist)
     n = seen.sum(axis=2)
     mean = np.where(seen, dist, 0.0).sum(axis=2) / np.maximum(n, 1)
     var = np.where(seen, (dist - mean[..., None]) ** 2, 0.0).sum(axis=2) / np.maximum(n, 1)
     sd = np.where(n >= 4, np.sqrt(var), np.inf)
-    mates = (sd <= params.rigid_fill_sd_mm) | np.isin(np.arange(len(dense)), k)[None]
-    mates[:, t] = False
-    mates[np.arange(k.size), k] = False
+    mates = (sd <= params.rigid_fill_sd_mm) | np.isin(cols, k)[None]
+    mates &= (cols != t)[None] & (cols[None] != k[:, None])
     with np.errstate(invalid="ignore"):
         miss = (
             np.abs(dist[:, :, lo:hi] - mean[..., None])
             / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
         )
-        return mates[..., None] & (miss > DONOR_MISFIT_SD)
+    out[:, cols] = mates[..., None] & (miss > DONOR_MISFIT_SD)
+    return out
+
+
+def _distances(a: NDArray, b: NDArray) -> NDArray[np.float64]:
+    """Distances (len(a), len(b), n_fields) between tracks ``a`` and ``b`` (each
+    (m, n_fields, 3)), summed a coordinate at a time: no (m, n, n_fields, 3) temporary."""
+    sq = np.zeros((len(a), len(b), a.shape[1]))
+    for c in range(3):
+        sq += (a[:, None, :, c] - b[None, :, :, c]) ** 2
+    return np.sqrt(sq)
 
 
 def out_of_shape(

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from kisscal.dlt.model import project_rows
 from kisscal.tracking import TrackingParams, spare_blobs
 from kisscal.tracking.bodyfill import best_candidate, fill_candidates
-from kisscal.tracking.fill_donors import moved, out_of_shape
+from kisscal.tracking.fill_donors import DONOR_MISFIT_SD, misfit_fields, moved, out_of_shape
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.raychain import chain_fill
 from tests.tracking.test_rayfill import _look_at
@@ -172,3 +172,41 @@ def test_two_donors_never_measured_together_at_the_span_ends_move_nothing_silent
     assert moved_mm.tolist() == [0.0, 0.0]
     # Where both donors are measured at the ends, the roll about their axis is seen.
     assert moved(foot[2], _rolling_foot(0), (0, 1), spans)[0] > 10.0
+
+
+def _misfits_over_every_track(dense, t, donors, lo, hi, params) -> np.ndarray:
+    """The definition of :func:`misfit_fields` taken literally: every donor against every
+    track over the whole trial, then the gap's fields."""
+    k = np.asarray(donors, dtype=np.int64)
+    dist = np.linalg.norm(dense[k][:, None] - dense[None], axis=3)
+    seen = np.isfinite(dist)
+    n = seen.sum(axis=2)
+    mean = np.where(seen, dist, 0.0).sum(axis=2) / np.maximum(n, 1)
+    var = np.where(seen, (dist - mean[..., None]) ** 2, 0.0).sum(axis=2) / np.maximum(n, 1)
+    sd = np.where(n >= 4, np.sqrt(var), np.inf)
+    mates = (sd <= params.rigid_fill_sd_mm) | np.isin(np.arange(len(dense)), k)[None]
+    mates[:, t] = False
+    mates[np.arange(k.size), k] = False
+    with np.errstate(invalid="ignore"):
+        miss = (
+            np.abs(dist[:, :, lo:hi] - mean[..., None])
+            / np.maximum(sd, params.ray_length_sd_floor_mm)[..., None]
+        )
+    return mates[..., None] & (miss > DONOR_MISFIT_SD)
+
+
+def test_misfits_in_a_gap_are_those_of_every_track_over_the_whole_trial():
+    rng = np.random.default_rng(7)
+    feet = np.concatenate([_rolling_foot(s) for s in range(4)])  # 12 tracks, 4 rigid feet
+    dense = feet + np.repeat(rng.normal(0, 400, (4, 1, 3)), 3, axis=0)
+    for i in range(len(dense)):  # gaps everywhere, some tracks hidden through the gap
+        start = rng.integers(0, 280)
+        dense[i, start : start + rng.integers(5, 60)] = np.nan
+    dense[[4, 9], 100:130] = np.nan
+    dense[0, 110:118] += [0.0, 6.0, 0.0]  # an ankle pulled by a merged blob
+    for donors in [(0, 1), (1,), (0, 3, 6, 10), ()]:
+        got = misfit_fields(dense, 2, donors, 100, 130, PARAMS)
+        want = _misfits_over_every_track(dense, 2, donors, 100, 130, PARAMS)
+        assert got.shape == want.shape
+        assert np.array_equal(got, want)
+    assert misfit_fields(dense, 2, (0, 1), 100, 130, PARAMS)[0].any()  # the pull shows
