@@ -26,7 +26,13 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.fill_donors import axis_frames, lab_reference, phase_matched, sound_fill
+from kisscal.tracking.fill_donors import (
+    axis_frames,
+    distance_stats,
+    lab_reference,
+    phase_matched,
+    sound_fill,
+)
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
 
@@ -135,13 +141,8 @@ def ramp(lo: int, hi: int) -> NDArray[np.float64]:
 def distance_sd(a: NDArray, b: NDArray) -> NDArray[np.float64]:
     """SD (mm) over the trial of the distance between each series of ``a`` (k, n, 3) and
     each of ``b`` (m, n, 3), over the fields where both are measured: (k, m); inf with
-    fewer than 4 such fields."""
-    dist = np.linalg.norm(a[:, None] - b[None], axis=3)
-    seen = np.isfinite(dist)
-    n = np.maximum(seen.sum(axis=2), 1)
-    mean = np.where(seen, dist, 0.0).sum(axis=2) / n
-    var = np.where(seen, (dist - mean[..., None]) ** 2, 0.0).sum(axis=2) / n
-    return np.where(seen.sum(axis=2) >= 4, np.sqrt(var), np.inf)
+    fewer than 4 such fields (:func:`~.fill_donors.distance_stats`)."""
+    return distance_stats(a, b)[2]
 
 
 class MutualSD:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from kisscal.tracking.blob_paths import parted
 from kisscal.tracking.bodyfill import best_candidate, fill_candidates
 from kisscal.tracking.fill_anchor import anchored, body_donors, donor_errors, donor_noise
-from kisscal.tracking.fill_ends import end_reach, one_sided
+from kisscal.tracking.fill_ends import end_carriers, end_reach, one_sided
 from kisscal.tracking.fill_hinge import HINGE_METHODS
 from kisscal.tracking.fill_place import at_least, placed_mask, with_rays
 from kisscal.tracking.fill_spline import context_noise, sight_noise, spline_fill, unpulled
@@ -95,9 +95,11 @@ def end_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.boo
     placed = np.zeros(b - a, dtype=bool)
     after = gap.end < 0
     rigid, axis = (FILLED_RIGID, one_sided(after)), (FILLED_RIGID, one_sided(after, axis=True))
-    done = 0
+    done, donors = 0, None
     for k, methods in ((params.rigid_fill_markers, (rigid, axis)), (2, (axis,))):
-        n = end_reach(gap.dense, gap.t, a, b, after, params, k)
+        if donors is None:  # chosen again once a fill has changed the trial
+            donors = end_carriers(gap.dense, gap.t, a, b, after, params)
+        n = end_reach(gap.dense, donors[:k], a, b, after)
         if n <= done:
             continue
         lo, hi = (b - n, b - done) if after else (a + done, a + n)
@@ -112,5 +114,5 @@ def end_body(gap: Gap, a: int, b: int, params: TrackingParams) -> NDArray[np.boo
         placed[lo - a : hi - a] = mine = placed_mask(got, lo, hi, gap.dense[gap.t])
         if not mine.all():
             break  # its rays refused part of it: what lies beyond has no edge to walk from
-        done = n
+        done, donors = n, None
     return placed

@@ -107,12 +107,7 @@ def misfit_fields(
     cols = np.flatnonzero(np.isfinite(dense[:, lo:hi]).all(axis=2).any(axis=1))
     if not k.size or not cols.size:
         return out
-    dist = _distances(dense[k], dense[cols])  # (k, cols, n_fields)
-    seen = np.isfinite(dist)
-    n = seen.sum(axis=2)
-    mean = np.where(seen, dist, 0.0).sum(axis=2) / np.maximum(n, 1)
-    var = np.where(seen, (dist - mean[..., None]) ** 2, 0.0).sum(axis=2) / np.maximum(n, 1)
-    sd = np.where(n >= 4, np.sqrt(var), np.inf)
+    dist, mean, sd = distance_stats(dense[k], dense[cols])
     mates = (sd <= params.rigid_fill_sd_mm) | np.isin(cols, k)[None]
     mates &= (cols != t)[None] & (cols[None] != k[:, None])
     with np.errstate(invalid="ignore"):
@@ -124,13 +119,24 @@ def misfit_fields(
     return out
 
 
-def _distances(a: NDArray, b: NDArray) -> NDArray[np.float64]:
-    """Distances (len(a), len(b), n_fields) between tracks ``a`` and ``b`` (each
-    (m, n_fields, 3)), summed a coordinate at a time: no (m, n, n_fields, 3) temporary."""
+def distance_stats(a: NDArray, b: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Distances (k, m, n) between each series of ``a`` (k, n, 3) and each of ``b``
+    (m, n, 3), and their mean and SD (k, m) over the fields where both are measured (SD
+    inf with fewer than 4 such fields).
+
+    Summed a coordinate at a time: no (k, m, n, 3) temporary; over a long trial, with
+    every candidate fill asking, these were most of a re-track's time."""
     sq = np.zeros((len(a), len(b), a.shape[1]))
     for c in range(3):
         sq += (a[:, None, :, c] - b[None, :, :, c]) ** 2
-    return np.sqrt(sq)
+    dist = np.sqrt(sq)
+    seen = np.isfinite(dist)
+    count = seen.sum(axis=2)
+    n = np.maximum(count, 1)
+    mean = np.where(seen, dist, 0.0).sum(axis=2) / n
+    dev = np.where(seen, dist - mean[..., None], 0.0)
+    sd = np.sqrt((dev * dev).sum(axis=2) / n)
+    return dist, mean, np.where(count >= 4, sd, np.inf)
 
 
 def out_of_shape(

@@ -182,17 +182,22 @@ def _axis_frames_of(dense: NDArray, pair: NDArray, lo: int, hi: int) -> Callable
     return frames
 
 
-def end_reach(
-    dense: NDArray, t: int, lo: int, hi: int, after: bool, params: TrackingParams, k: int = 2
-) -> int:
-    """How many fields of the end [lo, hi) of track ``t`` (beside its measured samples
-    after ``hi`` when ``after``, else before ``lo``) the ``k`` first of its donors
-    (:func:`end_donors`; at least two) are all measured in, counted from the measured
-    side."""
+def end_carriers(
+    dense: NDArray, t: int, lo: int, hi: int, after: bool, params: TrackingParams
+) -> NDArray[np.int64]:
+    """The donors (:func:`end_donors`) of the end [lo, hi) of track ``t`` beside its
+    measured samples after ``hi`` when ``after``, else before ``lo``; none without two
+    measured samples there."""
     window = _window(dense[t], lo, hi, after, params.body_context_fields)
     if window.size < 2:
-        return 0
-    donors = end_donors(dense[t], dense, t, window, params, _edge(window, after))[0][:k]
+        return np.zeros(0, dtype=np.int64)
+    return end_donors(dense[t], dense, t, window, params, _edge(window, after))[0]
+
+
+def end_reach(dense: NDArray, donors: NDArray, lo: int, hi: int, after: bool) -> int:
+    """How many fields of the end [lo, hi) (beside measured samples after ``hi`` when
+    ``after``, else before ``lo``) the ``donors`` (:func:`end_carriers`; at least two) are
+    all measured in, counted from the measured side."""
     if donors.size < 2:
         return 0
     seen = np.all(np.isfinite(dense[donors, lo:hi]), axis=(0, 2))
