@@ -3,6 +3,13 @@ when pytest-xdist spreads the tests over several processes)."""
 
 from __future__ import annotations
 
+# One BLAS thread in every test process, as the command line gives its own processes, set
+# before NumPy loads: two test workers on two cores, each with a BLAS pool of two spinning
+# threads, took twice the processor time for the wand route's many small products (a
+# calibration of the wand session: 40-52 s of CPU against 22.5 s on one thread).
+from kisscal.cli import blas  # noqa: F401  (first: before anything imports NumPy)
+
+# isort: split
 import os
 from pathlib import Path
 
