@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.spatial import ConvexHull, QhullError
 
-from kisscal._shared import rms_px
+from kisscal._shared import as_points, rms_px
 from kisscal.camera import Camera, distort, distort_each
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.model import dlt_to_matrix
@@ -239,7 +239,7 @@ def within_hull(xyz: NDArray[np.float64], points_mm: ArrayLike) -> NDArray[np.bo
     """Whether each lab point lies within the convex hull of ``points_mm`` (Quickhull,
     Barber, Dobkin & Huhdanpaa 1996), its faces included to a millionth of the hull's
     size; all True when the points span no volume (fewer than 4, or flat)."""
-    pts = np.asarray(points_mm, dtype=float).reshape(-1, 3)
+    pts = as_points(points_mm, 3, "points_mm")
     try:
         faces = ConvexHull(pts).equations  # unit normal n and offset d: n.x + d <= 0 inside
     except (QhullError, ValueError):

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.bundle.params import DEFAULT_PARAMS, BundleParams
 
 
@@ -161,7 +162,7 @@ def find_wand_points(
         Fields with exactly one such set of points.
     """
     field = np.asarray(field, dtype=np.int64)
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
     s = np.asarray(markers_mm, dtype=float)
     frac = wand_fractions(s)
     length = float(s.max() - s.min())

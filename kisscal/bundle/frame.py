@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.errors import EstimationFailed
 
 
@@ -93,8 +94,8 @@ def recognise_object(xyz_mm: ArrayLike, object_mm: ArrayLike) -> ObjectMatch:
         by 5 % RMS or less (after the best common scale), or two that fit equally well
         (a symmetric object).
     """
-    pts = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-    obj = np.asarray(object_mm, dtype=float).reshape(-1, 3)
+    pts = as_points(xyz_mm, 3, "xyz_mm")
+    obj = as_points(object_mm, 3, "object_mm")
     n = len(obj)
     if len(pts) < n:
         raise EstimationFailed(
@@ -163,7 +164,7 @@ def average_static(frames_px: Sequence[ArrayLike], radius_px: float = 1.5) -> ND
     least half the frames; its position is their mean. Blobs that flicker (noise pixels)
     are dropped.
     """
-    frames = [np.asarray(f, dtype=float).reshape(-1, 2) for f in frames_px]
+    frames = [as_points(f, 2, "a frame of frames_px") for f in frames_px]
     if not frames or not len(frames[0]):
         return np.zeros((0, 2))
     seeds = frames[0]

@@ -10,6 +10,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import as_points
 from kisscal.params import Params, param
 
 
@@ -283,7 +284,7 @@ class RodMatch:
 
     def marker_uv(self, uv_px: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixel coordinates per rod marker, shape (n_rods, n_markers, 2), NaN if not found."""
-        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        uv = as_points(uv_px, 2, "uv_px")
         out = np.full((*self.blob_index.shape, 2), np.nan)
         found = self.blob_index >= 0
         out[found] = uv[self.blob_index[found]]

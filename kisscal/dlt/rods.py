@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod, RodMatch, marker_label
 from kisscal.dlt.rod_geometry import (
     apply_projectivity,
@@ -311,7 +312,7 @@ def recognise_rods(
         ``params.rod_refuse_unlisted``, a rod-like line of left-over blobs that matches no
         configured rod (a rod missing from ``[[rods.rod]]``).
     """
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    uv = as_points(uv_px, 2, "uv_px")
     validate_rods(rods, params)
     finite = np.flatnonzero(np.isfinite(uv).all(axis=1))
     uvf = uv[finite]

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from kisscal._shared import as_points
 from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid.params import GridParams
 from kisscal.grid.poly import poly_terms
@@ -163,7 +164,7 @@ def lattice_pixel_aspect(dots_uv: ArrayLike, cell_aspect: float = 1.0) -> float:
     >>> round(lattice_pixel_aspect(dots), 4)
     1.94
     """
-    dots = np.asarray(dots_uv, dtype=float).reshape(-1, 2)
+    dots = as_points(dots_uv, 2, "dots_uv")
     if len(dots) < 9:
         raise EstimationFailed(f"grid: {len(dots)} dots are too few for the lattice's pixel aspect")
     # lens distortion bends the outer rows and columns most: the steps near the middle of

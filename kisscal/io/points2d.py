@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.errors import InputError
 from kisscal.io.files import read_text, write_text
 
@@ -87,7 +88,7 @@ def write_points2d(
     Returns the path written."""
     camera = np.asarray(camera, dtype=np.int64)
     field = np.asarray(field, dtype=np.int64)
-    xy = np.asarray(xy_px, dtype=float).reshape(-1, 2)
+    xy = as_points(xy_px, 2, "xy_px")
     point = np.asarray(point, dtype=np.int64)
     weight = np.full(len(point), np.nan) if weight is None else np.asarray(weight, dtype=float)
     if not (len(camera) == len(field) == len(xy) == len(point) == len(weight)):

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.errors import InputError
 from kisscal.io.files import read_text, write_csv
 from kisscal.recon.reconstruct import Points3D
@@ -76,7 +77,7 @@ def write_points3d(
     """
     path = Path(path)
     field = np.asarray(field, dtype=np.int64)
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
     n_cam = np.asarray(n_cameras, dtype=np.int64)
     rms = np.asarray(rms_px, dtype=float)
     blob = np.asarray(blob, dtype=np.int64)

@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import as_points
 from kisscal.camera import Camera, distort, distortion_jacobian, normalised_to_px
 
 
@@ -334,7 +335,7 @@ def sphere_spots(
     The angular radius of a sphere at distance ``d`` is ``asin(r / d)``; its outline on the
     normalised image plane is mapped through the lens Jacobian and the principal distances.
     """
-    xyz_mm = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
+    xyz_mm = as_points(xyz_mm, 3, "xyz_mm")
     pc = camera.to_camera(xyz_mm)
     xn = pc[:, :2] / pc[:, 2:3]
     dist = np.linalg.norm(pc, axis=1)

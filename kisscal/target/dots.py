@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.target.params import DEFAULT_PARAMS, TargetParams
 
 
@@ -68,8 +69,8 @@ def find_dots(
 
 def dots_near(dots_px: ArrayLike, points_px: ArrayLike, radius_px: float) -> int:
     """How many of ``points_px`` have a dot within ``radius_px``."""
-    dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
-    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    dots = as_points(dots_px, 2, "dots_px")
+    pts = as_points(points_px, 2, "points_px")
     if not len(dots) or not len(pts):
         return 0
     d = np.linalg.norm(pts[:, None] - dots[None], axis=2).min(axis=1)

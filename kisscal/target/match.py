@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from kisscal._shared import rms_px
+from kisscal._shared import as_points, rms_px
 from kisscal.camera import Camera
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
@@ -266,8 +266,8 @@ def fit_camera(
     KisscalError
         Fewer than :data:`MIN_SEEDS` points, or points no camera fits.
     """
-    xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    xyz = as_points(xyz, 3, "xyz")
+    uv = as_points(uv, 2, "uv")
     if start is None:
         if len(xyz) < MIN_SEEDS or is_collinear(xyz, dlt):
             raise EstimationFailed(
@@ -319,10 +319,10 @@ def match_target(
         camera fits within ``max_rms_px`` (the message says when near-flat seeds under a
         narrow view are the likely cause).
     """
-    target = np.asarray(target_xyz, dtype=float).reshape(-1, 3)
-    dots = np.asarray(dots_px, dtype=float).reshape(-1, 2)
-    seeds_uv = np.asarray(seeds_uv, dtype=float).reshape(-1, 2)
-    seeds_xyz = np.asarray(seeds_xyz, dtype=float).reshape(-1, 3)
+    target = as_points(target_xyz, 3, "target_xyz")
+    dots = as_points(dots_px, 2, "dots_px")
+    seeds_uv = as_points(seeds_uv, 2, "seeds_uv")
+    seeds_xyz = as_points(seeds_xyz, 3, "seeds_xyz")
     starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params, dlt)
     rounds = [_rounds(target, dots, s, size_px, camera, params, dlt) for s in starts]
     best = max(range(len(rounds)), key=lambda i: (int((rounds[i][0] >= 0).sum()), -i))

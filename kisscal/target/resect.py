@@ -52,7 +52,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kisscal._shared import rms_px
+from kisscal._shared import as_points, rms_px
 from kisscal.bundle.model import State, project
 from kisscal.camera import LENS_TERMS, Camera, rotation_matrices
 from kisscal.dlt.linear import solve_dlt_matrix, spread_ratio
@@ -189,8 +189,8 @@ def refine(
     puts a point behind the camera is refused); terms not given are held at the pinhole's values
     (principal point at the image centre, square pixels, no lens).
     """
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
+    uv = as_points(uv_px, 2, "uv_px")
     cam = _pinhole_reset(start, terms, centre_px(size_px))
     r, J = _linearised(cam, xyz, uv, terms)
     cost, damping = float(r @ r), 1e-3
@@ -283,8 +283,8 @@ def resect(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) -> lis
         are distinct when they differ by more than a degree in direction or 2 % in focal
         length. Empty when no start converges.
     """
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
+    uv = as_points(uv_px, 2, "uv_px")
     found: list[tuple[float, Camera]] = []
     for start in _ladder_starts(xyz, uv, size_px, centre_px(size_px)):
         cam = refine(xyz, uv, start, size_px)
@@ -313,8 +313,8 @@ def off_centre(xyz_mm: ArrayLike, uv_px: ArrayLike, size_px: tuple[int, int]) ->
     uv_px : array_like, shape (n, 2)
     size_px : (int, int)
     """
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
+    uv = as_points(uv_px, 2, "uv_px")
     if len(xyz) < MIN_OFF_CENTRE_POINTS or spread_ratio(xyz) < NEAR_FLAT:
         return []
     principal = _dlt_principal_point(xyz, uv)
@@ -441,8 +441,8 @@ def choose_camera(
     need at least twice as many points as unknowns. ``kept``: terms the start already
     needed (an off-centre view's, :func:`off_centre`), kept free from the first fit.
     """
-    xyz = np.asarray(xyz_mm, dtype=float).reshape(-1, 3)
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    xyz = as_points(xyz_mm, 3, "xyz_mm")
+    uv = as_points(uv_px, 2, "uv_px")
     best = refine(xyz, uv, start, size_px, kept)
     table: dict[str, float] = {}
     if len(xyz) < 2 * n_unknowns(kept):

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kisscal._shared import as_points
 from kisscal.dlt.model import camera_centre_mm, pixel_size_mm, project_rows, ray_directions
 from kisscal.errors import InputError
 from kisscal.tracking.params import TrackingParams
@@ -93,7 +94,7 @@ def spare_blobs(
     """
     f = np.asarray(field, dtype=np.int64).ravel()
     c = np.asarray(camera, dtype=np.int64).ravel()
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    uv = as_points(uv_px, 2, "uv_px")
     L = np.asarray(dlts, dtype=float)
     if L.ndim != 2 or L.shape[1] != 11:
         raise InputError(f"dlts: expected (n_cameras, 11), got {L.shape}")
