@@ -31,6 +31,7 @@ from kisscal.tracking.fill_donors import (
     distance_stats,
     lab_reference,
     phase_matched,
+    phase_measured,
     sound_fill,
 )
 from kisscal.tracking.params import TrackingParams
@@ -384,12 +385,14 @@ def expected_errors(
     the RMS of its error along the line of sight of each camera of ``centres`` (n, 3):
     what is left once a single camera's ray fixes the other two coordinates
     (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``); with one or two
-    ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`):
+    ``donors``, or some across a joint, on stretches in the gap's phase of the motion
+    (:func:`phase_matched`):
     the first two it can be made on, or with ``spread`` all of the first
     :data:`SPREAD_STRETCHES` (its spread over that phase, not two samples of it)."""
     err, along = [], []
-    spans = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, 1 <= len(donors) <= 2)
     sd = params.rigid_fill_sd_mm
+    every = phase_measured(target, dense, donors, sd)
+    spans = pseudo_gaps(target, lo, hi, params.body_context_fields // 2, every)
     tried = phase_matched(spans, target, dense, donors, (lo, hi), sd)[:SPREAD_STRETCHES]
     for (plo, phi), turn in tried:
         cut = target.copy()

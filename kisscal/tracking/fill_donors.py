@@ -228,6 +228,24 @@ def moved(target: NDArray, dense: NDArray, donors: tuple[int, ...], spans: NDArr
     return np.where(inside.all(axis=1) & np.isfinite(d), d, 0.0)
 
 
+def across_joint(
+    target: NDArray, dense: NDArray, donors: tuple[int, ...], floor: float
+) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The two donors of the target's own segment and those across a joint, of a fill
+    through three or more ``donors`` whose segment has only two (the neighbours
+    :func:`~kisscal.tracking.bodyfill.segment_carriers` adds, most rigid first): those
+    whose distance to the target or to either of the first two varies over the trial
+    by more than ``floor`` mm (SD). ``(donors, ())`` when none is."""
+    if len(donors) < 3:
+        return donors, ()
+    k = list(donors)
+    sd = distance_stats(dense[k], np.stack([target, dense[k[0]], dense[k[1]]]))[2]
+    soft = np.flatnonzero(sd[2:].max(axis=1) > floor) + 2
+    if not soft.size or sd[:2, 0].max() > floor:
+        return donors, ()
+    return (donors[0], donors[1]), tuple(donors[i] for i in soft.tolist())
+
+
 def phase_matched(
     stretches: list[tuple[int, int]],
     target: NDArray,
@@ -238,8 +256,8 @@ def phase_matched(
 ) -> list[tuple[tuple[int, int], float]]:
     """``stretches`` (pseudo-gaps, nearest first,
     :func:`~kisscal.tracking.bodyfill.pseudo_gaps`) in the order to measure a fill of
-    ``gap`` (lo, hi) following one or two ``donors`` on (the first two the fill can be
-    made on), each with the factor its error is scaled up by.
+    ``gap`` (lo, hi) following ``donors`` on (the first two the fill can be made on),
+    each with the factor its error is scaled up by.
 
     One or two donors do not fix their segment's turn about them (a heel about its
     ankle, or about the ankle-toe axis, as the foot rolls at heel strike); the fills
@@ -249,14 +267,33 @@ def phase_matched(
     motion: those where the target moved in its donors' frame (:func:`moved`) most
     nearly as far as across the gap (by ratio; the nearer first among equals), their
     error scaled by ``(d_gap + floor) / (d_stretch + floor)`` where it moved less (a
-    share of the turn; moves under ``floor`` mm are noise). With three donors or more
-    (their frame turns with them), the two nearest, unscaled."""
-    if not 1 <= len(donors) <= 2 or not stretches:
+    share of the turn; moves under ``floor`` mm are noise).
+
+    Two donors of the segment and neighbours across a joint (:func:`across_joint`) fix
+    the turn by the neighbours, as far as the joint holds still: the fill misses as the
+    joint bends (lowcost 479: a toe carried by its heel and ankle and by the shank
+    through a push-off, 1.7-2.9 mm expected from stretches of the flat foot, 7-12 mm
+    off). So the phase is the joint's: how far the neighbours moved in the frame of the
+    two (the most of them). With three donors or more of one segment (their frame turns
+    with them), the two nearest, unscaled."""
+    core, joint = across_joint(target, dense, donors, floor)
+    if not stretches or not (1 <= len(donors) <= 2 or joint):
         return [(s, 1.0) for s in stretches[:2]]
-    ratio = (moved(target, dense, donors, np.array([gap, *stretches])) + floor) / floor
+    spans = np.array([gap, *stretches])
+    if joint:
+        far = np.max([moved(dense[j], dense, core, spans) for j in joint], axis=0)
+    else:
+        far = moved(target, dense, donors, spans)
+    ratio = (far + floor) / floor
     ratio = ratio[0] / ratio[1:]
     best = np.argsort(np.abs(np.log(ratio)), kind="stable")
     return [(stretches[i], max(1.0, float(ratio[i]))) for i in best.tolist()]
+
+
+def phase_measured(target: NDArray, dense: NDArray, donors: tuple[int, ...], floor: float) -> bool:
+    """Whether a fill through ``donors`` is measured on stretches in the gap's phase
+    (:func:`phase_matched`): one or two donors, or some across a joint."""
+    return 1 <= len(donors) <= 2 or bool(across_joint(target, dense, donors, floor)[1])
 
 
 def bridged(dense: NDArray, tracks: NDArray, fields: NDArray, reach: int) -> NDArray:
