@@ -290,12 +290,6 @@ def phase_matched(
     return [(stretches[i], max(1.0, float(ratio[i]))) for i in best.tolist()]
 
 
-def phase_measured(target: NDArray, dense: NDArray, donors: tuple[int, ...], floor: float) -> bool:
-    """Whether a fill through ``donors`` is measured on stretches in the gap's phase
-    (:func:`phase_matched`): one or two donors, or some across a joint."""
-    return 1 <= len(donors) <= 2 or bool(across_joint(target, dense, donors, floor)[1])
-
-
 def bridged(dense: NDArray, tracks: NDArray, fields: NDArray, reach: int) -> NDArray:
     """Positions (len(fields), len(tracks), 3) of ``tracks`` of ``dense`` at ``fields``:
     measured, or on the line between their samples on each side of a run of at most
