@@ -19,27 +19,16 @@ markers of the body).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.tracking.fill_donors import (
-    across_joint,
-    axis_frames,
-    distance_stats,
-    lab_reference,
-    phase_matched,
-    sound_fill,
-)
+from kisscal.tracking.fill_donors import axis_frames, distance_stats, lab_reference, sound_fill
 from kisscal.tracking.params import TrackingParams
+from kisscal.tracking.stretches import FillMethod, expected_errors
 from kisscal.tracking.tracks import FILLED_PATTERN, FILLED_RIGID
-
-#: (target's measured series (n_fields, 3), every track's (n_tracks, n_fields, 3), target
-#: index, first gap field, stop field, params) -> filled positions or None.
-FillMethod = Callable[..., NDArray[np.float64] | None]
 
 
 @dataclass(frozen=True)
@@ -332,118 +321,6 @@ def pattern_fill(
     return dense[d, lo:hi] + offset, (int(d),)
 
 
-def pseudo_gaps(
-    target: NDArray, lo: int, hi: int, margin: int, every: bool = False
-) -> list[tuple[int, int]]:
-    """Stretches of ``target``'s measured samples, with ``margin`` measured fields on each
-    side, where a fill is tried against measurement: two of the gap's length, in the
-    measured runs nearest the gap (beside it, or farther in the trial when the runs beside
-    it are too short: a shorter stretch, its error scaled up, tells less); failing those,
-    the nearest shorter ones (at least 3 fields). With ``every``, all, nearest first, and
-    one every half gap's length in each run (for :func:`phase_matched`)."""
-    ok = np.all(np.isfinite(target), axis=1)
-    padded = np.concatenate([[False], ok, [False]]).astype(np.int8)
-    d = np.diff(padded)
-    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    n = hi - lo
-    whole, short = [], []
-    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
-        room = b - a - 2 * margin
-        if room < 3 or (lo < b and a < hi):
-            continue
-        length = min(n, room)
-        # the stretch nearest the gap within the run
-        s = (b - margin - length, b - margin) if b <= lo else (a + margin, a + margin + length)
-        distance = lo - s[1] if b <= lo else s[0] - hi
-        (whole if length == n else short).append((distance, s))
-        if every and length == n:
-            x = np.arange(a + margin, b - margin - n + 1, max(n // 2, 1))
-            far = np.where(b <= lo, lo - x - n, x - hi)
-            whole.extend((int(f), (int(y), int(y) + n)) for f, y in zip(far, x, strict=True))
-    ranked = sorted(set(whole)) + sorted(short)
-    return [s for _, s in (ranked if every else ranked[:2])]
-
-
-#: Stretches of the motion a fill is tried on (:func:`expected_errors`), nearest the
-#: gap's phase first.
-SPREAD_STRETCHES = 6
-
-
-def expected_errors(
-    method: FillMethod,
-    target: NDArray,
-    dense: NDArray,
-    exclude: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-    centres: NDArray | None = None,
-    donors: tuple[int, ...] = (),
-    spread: bool = False,
-) -> tuple[float, float]:
-    """RMS error (mm) of ``method`` on :func:`pseudo_gaps` beside the gap [lo, hi), and
-    the RMS of its error along the line of sight of each camera of ``centres`` (n, 3):
-    what is left once a single camera's ray fixes the other two coordinates
-    (:mod:`kisscal.tracking.rayfill`; NaN without ``centres``); with one or two
-    ``donors``, on stretches in the gap's phase of the motion (:func:`phase_matched`):
-    the first two it can be made on, or with ``spread`` all of the first
-    :data:`SPREAD_STRETCHES` (its spread over that phase, not two samples of it). With
-    donors across a joint (:func:`~.fill_donors.across_joint`), the larger of the
-    errors in the joint's phase and beside the gap, and NaN when none can be made beside
-    it: the joint's phase alone passed an end fill that nothing beside the gap checked
-    (lowcost 432: a toe carried through the shank at the trial's end, 2.1 mm expected,
-    31 mm off)."""
-    sd = params.rigid_fill_sd_mm
-    joint = bool(across_joint(target, dense, donors, sd)[1])
-    margin = params.body_context_fields // 2
-    spans = pseudo_gaps(target, lo, hi, margin, 1 <= len(donors) <= 2 or joint)
-    tried = phase_matched(spans, target, dense, donors, (lo, hi), sd)[:SPREAD_STRETCHES]
-    args = (method, target, dense, exclude, lo, hi, params, centres)
-    got = _errors_on(*args, tried, spread)
-    if not joint:
-        return got
-    beside = _errors_on(*args, [(s, 1.0) for s in pseudo_gaps(target, lo, hi, margin)], False)
-    # NaN beside the gap stays NaN (nothing to check the fill by: not made, as before)
-    whole, along = (
-        b if np.isnan(g) else float(np.maximum(g, b)) for g, b in zip(got, beside, strict=True)
-    )
-    return whole, along
-
-
-def _errors_on(
-    method: FillMethod,
-    target: NDArray,
-    dense: NDArray,
-    exclude: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
-    centres: NDArray | None,
-    tried: list[tuple[tuple[int, int], float]],
-    spread: bool,
-) -> tuple[float, float]:
-    """:func:`expected_errors` on the stretches ``tried`` (each with its scale)."""
-    err, along = [], []
-    for (plo, phi), turn in tried:
-        cut = target.copy()
-        cut[plo:phi] = np.nan
-        enough = len(err) == 2 and not spread
-        got = None if enough else method(cut, dense, exclude, plo, phi, params)
-        if got is None:
-            continue
-        # a stretch shorter than the gap tells less: a fill's error grows about with the
-        # square of the time it bridges (a drift that accelerates), so scale it up so
-        scale = ((hi - lo) / (phi - plo)) ** 2 * turn
-        miss = got[0] - target[plo:phi]
-        err.append(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * scale)
-        if centres is not None:
-            sight = target[plo:phi][None] - centres[:, None]
-            sight /= np.linalg.norm(sight, axis=2, keepdims=True)
-            along.append(np.sqrt(np.mean(np.einsum("cnj,nj->cn", sight, miss) ** 2)) * scale)
-    rms = [float(np.sqrt(np.mean(np.square(e)))) if e else float("nan") for e in (err, along)]
-    return rms[0], rms[1]
-
-
 #: What a gap longer than ``max_fill_gap_fields`` may be filled with. Not the spline:
 #: beyond a few fields it misses a heel strike's stop, and its error measured beside the
 #: gap does not tell (a 7-field heel gap: 3 mm expected, 16 mm true).
@@ -474,9 +351,9 @@ def _pattern_errors(
     centres: NDArray | None,
     donors: tuple[int, ...],
 ) -> tuple[float, float]:
-    """A pattern fill's :func:`expected_errors` (whole, along the sight) following its
+    """A pattern fill's :func:`~.stretches.expected_errors` (whole, along the sight) following its
     neighbour (:func:`followed`): on the two stretches nearest the gap's phase, or on
-    all of the first :data:`SPREAD_STRETCHES` where more. Two may miss how far the
+    all of the first :data:`~.stretches.SPREAD_STRETCHES` where more. Two may miss how far the
     offset strays from a line over the motion (lowcost seed 311: a thigh following the
     pelvis, 3.9 mm on two, 9.2 on six, 6.6 mm off), six may dilute it (modern 3 seed
     301: a knee following the thigh, 3.7 on two, 2.9 on six, 3.4 mm off)."""
@@ -509,7 +386,7 @@ def fill_candidates(
 ) -> list[Candidate]:
     """Every fill of the gap [lo, hi) of track ``t`` that one of ``methods`` makes through
     donors that hold their shape in the gap (:func:`donors_hold`), with its
-    :func:`expected_errors` (along the sight of the cameras at ``centres`` too; a
+    :func:`~.stretches.expected_errors` (along the sight of the cameras at ``centres`` too; a
     pattern fill's following its one neighbour, :func:`_pattern_errors`). Where
     three donors or more do not hold and the misfit is one's (:func:`out_of_shape`), the
     method is made again without it (lowcost 312: a toe 5 mm off in an ankle's gap cost

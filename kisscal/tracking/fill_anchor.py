@@ -3,7 +3,7 @@
 A gap's fills are made one after another, the fields each places becoming context for
 the ones after it (:mod:`kisscal.tracking.gaps`). A spline or body fill between such
 fields is tried on stretches of the marker's samples beside it
-(:func:`~kisscal.tracking.bodyfill.expected_errors`), which tells how well it follows
+(:func:`~kisscal.tracking.stretches.expected_errors`), which tells how well it follows
 those samples, not how far they lie from the marker: where they are themselves fills,
 their own error carries into it (modern 3 cameras seed 301: a knee's two-field spline
 between fields placed on one camera's rays 3 mm off, 5.5 mm off expecting 0.64).

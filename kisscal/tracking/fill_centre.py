@@ -12,7 +12,7 @@ the wand's turn about the thigh's axis, which the thigh holds from one side of t
 the other. So the joint centre the marker turns about (:mod:`.joint_centres`, the hip
 carried by the pelvis) counts as a second carrier: the fills about a pair's axis are made
 with it as one of the pair, their error measured on stretches of the marker's own samples
-(:func:`~kisscal.tracking.bodyfill.expected_errors`), and moved onto the rays as the
+(:func:`~kisscal.tracking.stretches.expected_errors`), and moved onto the rays as the
 body's fills are (:func:`~kisscal.tracking.fill_place.with_rays`): on lowcost 413 RTHI
 1.28 mm RMS off (largest 2.13) expecting 1.36. Tried after the sphere fill: before it, it took
 lowcost 416 LTHI, which the hip's sphere fixes well, from it (0.49 -> 1.06 mm RMS).
@@ -47,7 +47,6 @@ from kisscal.tracking.bodyfill import (
     Candidate,
     axis_fill,
     best_candidate,
-    expected_errors,
     fill_candidates,
 )
 from kisscal.tracking.fill_anchor import (
@@ -64,6 +63,7 @@ from kisscal.tracking.joint_centres import Centres, joint_centres
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.segment_lengths import length_partners
+from kisscal.tracking.stretches import expected_errors
 from kisscal.tracking.tracks import FILLED_RIGID
 
 #: The fills about a pair's axis tried with a joint centre as one of the pair: the axis
@@ -122,7 +122,7 @@ def _bridging(
 ) -> Candidate:
     """``cand`` (an axis fill of part of ``hole``) expecting the error of the axis fill
     bridging the whole ``hole`` of track ``t`` through its donors (on stretches of the
-    track's own samples, :func:`~kisscal.tracking.bodyfill.expected_errors`)."""
+    track's own samples, :func:`~kisscal.tracking.stretches.expected_errors`)."""
     err, along = expected_errors(
         axis_fill, dense[t], dense, t, *hole, params, centres, cand.fill.donors
     )

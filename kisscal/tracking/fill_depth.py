@@ -10,7 +10,7 @@ that camera, changes smoothly and is bridged by a cubic interpolating spline thr
 distances of the marker's measured samples on each side (``fill_context_fields``).
 
 The fill is kept only when the same spline, run on stretches of the marker's own measured
-samples of the gap's length (:func:`~kisscal.tracking.bodyfill.pseudo_gaps`), misses their
+samples of the gap's length (:func:`~kisscal.tracking.stretches.pseudo_gaps`), misses their
 distance from the camera by at most ``ray_depth_max_error_mm`` RMS (or the noise of the
 samples it goes through carries more into the gap, :func:`context_noise`): a marker
 turning towards the camera in the gap is left to the other fills. Where the spline is
@@ -39,13 +39,14 @@ from scipy.interpolate import make_interp_spline
 
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.blob_paths import chain_blobs, off_rays, one_camera_blobs
-from kisscal.tracking.bodyfill import pseudo_gaps, side_windows
+from kisscal.tracking.bodyfill import side_windows
 from kisscal.tracking.fill_donors import shared_blobs
 from kisscal.tracking.fill_spline import context_noise
 from kisscal.tracking.on_rays import ChainFill, path_runs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 from kisscal.tracking.segment_lengths import length_partners
+from kisscal.tracking.stretches import pseudo_gaps
 
 #: Fields on each side of a gap the periodic depth fit (:func:`_depth_periodic`) reads
 #: (at lowcost's 30 Hz about three strides), and its harmonics of the stride.
@@ -113,7 +114,7 @@ def _stretch_error(
 ) -> float:
     """RMS miss (mm) of the depth fill on the measured stretch [plo, phi) of ``series``, scaled
     up to a gap of ``n`` fields as the square of the lengths' ratio (as
-    :func:`~kisscal.tracking.bodyfill.expected_errors`); NaN when it cannot be made."""
+    :func:`~kisscal.tracking.stretches.expected_errors`); NaN when it cannot be made."""
     cut = series.copy()
     cut[plo:phi] = np.nan
     if periodic:

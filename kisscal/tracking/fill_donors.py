@@ -1,7 +1,7 @@
 """Whether the markers a fill follows through a gap are measured sound there, and which
 blobs a single-camera fill may take as the marker's own (:func:`shared_blobs`).
 
-A body fill's expected error (:func:`~kisscal.tracking.bodyfill.expected_errors`) is
+A body fill's expected error (:func:`~kisscal.tracking.stretches.expected_errors`) is
 measured beside the gap, where its donors are sound. A donor measured wrong in the gap
 carries the fill with it, and nothing beside the gap shows it: in a lab of three or four
 cameras the hidden marker's image is often hidden *in* a donor's (their blobs merged), and
@@ -255,7 +255,7 @@ def phase_matched(
     floor: float,
 ) -> list[tuple[tuple[int, int], float]]:
     """``stretches`` (pseudo-gaps, nearest first,
-    :func:`~kisscal.tracking.bodyfill.pseudo_gaps`) in the order to measure a fill of
+    :func:`~kisscal.tracking.stretches.pseudo_gaps`) in the order to measure a fill of
     ``gap`` (lo, hi) following ``donors`` on (the first two the fill can be made on),
     each with the factor its error is scaled up by.
 

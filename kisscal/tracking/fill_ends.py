@@ -11,7 +11,7 @@ samples beside the end, is held and carried by their motion (Kabsch's fit in eac
 for as long as all of them stay measured, ``max_body_fill_fields`` at most.
 
 The fill is kept under the gap fills' guard: the same one-sided fill, run on stretches of
-the marker's own measured samples (:func:`~kisscal.tracking.bodyfill.expected_errors`),
+the marker's own measured samples (:func:`~kisscal.tracking.stretches.expected_errors`),
 must miss them by at most ``max_body_fill_error_mm`` RMS.
 
 References
@@ -166,7 +166,7 @@ def _axis_frames_of(dense: NDArray, pair: NDArray, lo: int, hi: int) -> Callable
     axis turns towards it over [lo, hi) (cosine over ``AXIS_MAX_COS``).
 
     The trial's direction, not the end's: the stretches its expected error is measured
-    on (:func:`~kisscal.tracking.bodyfill.expected_errors`) then use the frame the end
+    on (:func:`~kisscal.tracking.stretches.expected_errors`) then use the frame the end
     is filled with (per span, few-camera rigs 301-313: an end fill 6.2 times worse than
     it expected; per trial, 3.3 at most).
     """

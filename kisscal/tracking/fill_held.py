@@ -8,7 +8,7 @@ with only two donors the fill is lost for the whole gap. Yet a rigid, two-marker
 hinge fill places each field from its donors in that field alone: a donor's bad field
 spoils that field of the fill, not the others. So the samples out of shape are bridged
 by a spline through the donor's own (so the methods run across the gap, from the same
-side windows and with the same expected error, :func:`~.bodyfill.expected_errors`, as
+side windows and with the same expected error, :func:`~.stretches.expected_errors`, as
 without the pull), and the fields where the chosen fill's donors were bridged are
 dropped from it.
 

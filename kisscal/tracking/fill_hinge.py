@@ -17,7 +17,7 @@ against 0.7 on a 0.3 s gap with 0.3 mm noise); the place along the axis and the 
 from it drift linearly from each side's mean to the other's.
 
 Its expected error is measured as for the other body fills
-(:func:`~kisscal.tracking.bodyfill.expected_errors`, on stretches of the marker's own
+(:func:`~kisscal.tracking.stretches.expected_errors`, on stretches of the marker's own
 measured samples), which refuses it where the angle turns too fast for the cubic.
 
 References

@@ -45,7 +45,7 @@ def with_rays(
     """The ``chosen`` fill with its fields moved onto the rays of unused blobs
     (:func:`~kisscal.tracking.rayfill.ray_correct`): one :class:`GapFill` per run of
     fields with and without a ray. A run with rays expects the fill's error along the
-    cameras' sight (:func:`~kisscal.tracking.bodyfill.expected_errors`), or, when larger,
+    cameras' sight (:func:`~kisscal.tracking.stretches.expected_errors`), or, when larger,
     the one its move onto the rays tells: an error without a preferred direction is
     about 1/sqrt(2) of its part across the sight along it. A run without rays expects
     the fill's error, or, when larger, the whole error the move tells (sqrt(3/2) of its

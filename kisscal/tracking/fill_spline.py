@@ -3,7 +3,7 @@ the noise those samples carry into the gap.
 
 A spline fills the gaps too short for the body to matter; its expected error is at
 least what the scatter of the samples it goes through carries across the gap, which the
-stretches a fill is tried on (:func:`~kisscal.tracking.bodyfill.expected_errors`) do not
+stretches a fill is tried on (:func:`~kisscal.tracking.stretches.expected_errors`) do not
 show beside a gap few cameras see.
 """
 

@@ -7,8 +7,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from kisscal.tracking import TrackingParams
-from kisscal.tracking.bodyfill import axis_fill, expected_errors
+from kisscal.tracking.bodyfill import axis_fill
 from kisscal.tracking.fill_hinge import hinge_fill
+from kisscal.tracking.stretches import expected_errors
 from tests.tracking.test_bodyfill import pelvis
 
 N = 300
