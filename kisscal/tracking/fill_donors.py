@@ -253,6 +253,7 @@ def phase_matched(
     donors: tuple[int, ...],
     gap: tuple[int, int],
     floor: float,
+    split: tuple[tuple[int, ...], tuple[int, ...]] | None = None,
 ) -> list[tuple[tuple[int, int], float]]:
     """``stretches`` (pseudo-gaps, nearest first,
     :func:`~kisscal.tracking.stretches.pseudo_gaps`) in the order to measure a fill of
@@ -275,8 +276,9 @@ def phase_matched(
     through a push-off, 1.7-2.9 mm expected from stretches of the flat foot, 7-12 mm
     off). So the phase is the joint's: how far the neighbours moved in the frame of the
     two (the most of them). With three donors or more of one segment (their frame turns
-    with them), the two nearest, unscaled."""
-    core, joint = across_joint(target, dense, donors, floor)
+    with them), the two nearest, unscaled. ``split``: :func:`across_joint`'s result, when
+    the caller has it."""
+    core, joint = split if split is not None else across_joint(target, dense, donors, floor)
     if not stretches or not (1 <= len(donors) <= 2 or joint):
         return [(s, 1.0) for s in stretches[:2]]
     spans = np.array([gap, *stretches])

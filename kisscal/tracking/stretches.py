@@ -85,15 +85,19 @@ def expected_errors(
     (lowcost 432: a toe carried through the shank at the trial's end, 2.1 mm expected,
     31 mm off)."""
     sd = params.rigid_fill_sd_mm
-    joint = bool(across_joint(target, dense, donors, sd)[1])
+    split = across_joint(target, dense, donors, sd)
     margin = params.body_context_fields // 2
-    spans = pseudo_gaps(target, lo, hi, margin, 1 <= len(donors) <= 2 or joint)
-    tried = phase_matched(spans, target, dense, donors, (lo, hi), sd)[:SPREAD_STRETCHES]
-    args = (method, target, dense, exclude, lo, hi, params, centres)
-    got = _errors_on(*args, tried, spread)
-    if not joint:
+    spans = pseudo_gaps(target, lo, hi, margin, 1 <= len(donors) <= 2 or bool(split[1]))
+    tried = phase_matched(spans, target, dense, donors, (lo, hi), sd, split)
+
+    def made(cut: NDArray, plo: int, phi: int) -> tuple[NDArray, tuple[int, ...]] | None:
+        return method(cut, dense, exclude, plo, phi, params)
+
+    got = _errors_on(made, target, hi - lo, centres, tried[:SPREAD_STRETCHES], spread)
+    if not split[1]:
         return got
-    beside = _errors_on(*args, [(s, 1.0) for s in pseudo_gaps(target, lo, hi, margin)], False)
+    nearest = [(s, 1.0) for s in pseudo_gaps(target, lo, hi, margin)]
+    beside = _errors_on(made, target, hi - lo, centres, nearest, False)
     # NaN beside the gap stays NaN (nothing to check the fill by: not made, as before)
     whole, along = (
         b if np.isnan(g) else float(np.maximum(g, b)) for g, b in zip(got, beside, strict=True)
@@ -102,29 +106,26 @@ def expected_errors(
 
 
 def _errors_on(
-    method: FillMethod,
+    made: Callable[[NDArray, int, int], tuple[NDArray, tuple[int, ...]] | None],
     target: NDArray,
-    dense: NDArray,
-    exclude: int,
-    lo: int,
-    hi: int,
-    params: TrackingParams,
+    n_gap: int,
     centres: NDArray | None,
     tried: list[tuple[tuple[int, int], float]],
     spread: bool,
 ) -> tuple[float, float]:
-    """:func:`expected_errors` on the stretches ``tried`` (each with its scale)."""
+    """:func:`expected_errors` of a gap of ``n_gap`` fields on the stretches ``tried``
+    (each with its scale), the fill ``made(cut target, lo, hi)`` on each."""
     err, along = [], []
     for (plo, phi), turn in tried:
         cut = target.copy()
         cut[plo:phi] = np.nan
         enough = len(err) == 2 and not spread
-        got = None if enough else method(cut, dense, exclude, plo, phi, params)
+        got = None if enough else made(cut, plo, phi)
         if got is None:
             continue
         # a stretch shorter than the gap tells less: a fill's error grows about with the
         # square of the time it bridges (a drift that accelerates), so scale it up so
-        scale = ((hi - lo) / (phi - plo)) ** 2 * turn
+        scale = (n_gap / (phi - plo)) ** 2 * turn
         miss = got[0] - target[plo:phi]
         err.append(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * scale)
         if centres is not None:
