@@ -9,6 +9,7 @@ code 2; ``kisscal check`` exits 1 when a quality limit is exceeded; Ctrl-C print
 from __future__ import annotations
 
 import _thread
+import multiprocessing
 import sys
 from typing import Any
 
@@ -66,6 +67,7 @@ def main(argv: list[str] | None = None) -> None:
     except (typer.Abort, KeyboardInterrupt):  # Ctrl-C: worker processes ignore it
         rv = INTERRUPTED
     if rv == INTERRUPTED:  # typer turns a KeyboardInterrupt into this exit code
+        _end_workers()
         _fail(where, "interrupted", INTERRUPTED)
     sys.exit(rv if isinstance(rv, int) else 0)
 
@@ -82,6 +84,19 @@ def _keep_interrupts(unraisable: Any) -> None:
         _thread.interrupt_main()
         return
     sys.__unraisablehook__(unraisable)
+
+
+def _end_workers() -> None:
+    """Terminate every worker process still running when Ctrl-C stops a command.
+
+    The interrupted stage's pool normally ends its workers as the error leaves it. One
+    that is still referenced (a generator or a frame kept by the error's traceback) is
+    shut down only at exit, and the standard pool then finishes every task still queued
+    (the workers ignore Ctrl-C) before Python may exit: a whole-suite run saw ``kisscal
+    run`` print its ``interrupted`` line and wait over 120 s.
+    """
+    for child in multiprocessing.active_children():
+        child.terminate()
 
 
 def _fail(where: str, message: str, code: int) -> None:
