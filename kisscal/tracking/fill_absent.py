@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from kisscal._shared import true_runs
 from kisscal.dlt.model import ray_directions
 from kisscal.tracking.bodyfill import GapFill
+from kisscal.tracking.fill_donors import distance_stats
 from kisscal.tracking.on_rays import path_runs
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
@@ -58,6 +59,12 @@ ITERS = 8
 
 #: Largest distance (mm) between two blobs' fits for a field to count them as one place.
 SAME_MM = 5.0
+
+#: Largest distance (mm) from a blob's ray to a sample of another marker in its field
+#: for the blob to be that marker's image (a camera whose blob of a measured marker no
+#: point used), never the absent one's: its ray meets a sample within the noise of the
+#: two (tenths of a millimetre), a merged blob's a few millimetres off either marker.
+EXPLAINED_MM = 2.0
 
 #: A placed field is off its path (:func:`off_path`) when it lies farther than this
 #: from the midpoint of its two neighbours (mm) and this many times farther than either
@@ -112,13 +119,14 @@ def mirror_lengths(
 
 
 def _depths(
-    c: NDArray, d: NDArray, p: NDArray, length: NDArray, sd: NDArray
+    c: NDArray, d: NDArray, p: NDArray, length: NDArray, sd: NDArray, open_ok: bool = False
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Depth on each ray ``c + s d`` ((r, 3) each) fitting the lengths ``length`` (k,) to
     the partners ``p`` (k, r, 3; NaN where not measured), each SD ``sd`` (k,) or
     (k, r): the start of smallest worst
     residual among the points where the ray meets each partner's sphere. Returns the
-    depths (r,), the worst residual in SDs and the expected error (mm) along the ray."""
+    depths (r,), the worst residual in SDs (inf where another depth fits as well,
+    unless ``open_ok``) and the expected error (mm) along the ray."""
     known = np.isfinite(p[..., 0])
     rel = np.where(known[..., None], p, 0.0) - c[None]  # (k, r, 3)
     b = np.einsum("krj,rj->kr", rel, d)
@@ -140,7 +148,7 @@ def _depths(
     err = 1.0 / np.sqrt(np.maximum(info[pick], 1e-12))
     # two partners' spheres meet in a circle, which a ray may cross twice: a second
     # depth that fits as well leaves the blob's place open
-    other = (worst <= 3.0) & (np.abs(s - s[pick][:, None]) > SAME_MM)
+    other = (worst <= 3.0) & (np.abs(s - s[pick][:, None]) > SAME_MM) & (not open_ok)
     return s[pick], np.where(other.any(axis=1), np.inf, worst[pick]), err
 
 
@@ -166,13 +174,23 @@ def place_absent(
     rows, p = rows[enough], p[:, enough]
     if rows.size == 0:
         return out, along
-    if errors is not None:
-        e = np.nan_to_num(errors[partners][:, spare.field[rows]])
-        sd = np.sqrt(sd[:, None] ** 2 + e**2)
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
     c = spare.centres[cam]
+    # a blob on a sampled marker's ray is that marker's image
+    mine = ~explained(dense, spare.field[rows], c, d)
+    rows, p, c, d = rows[mine], p[:, mine], c[mine], d[mine]
+    if rows.size == 0:
+        return out, along
+    if errors is not None:
+        e = np.nan_to_num(errors[partners][:, spare.field[rows]])
+        sd = np.sqrt(sd[:, None] ** 2 + e**2)
     s, worst, err = _depths(c, d, p, length, sd)
+    # another marker's own blob may keep the lengths by chance (kiss 3 seed 484: a left
+    # knee's, 360 mm behind, placed the right knee, which no camera saw, 63 mm off: the
+    # left knee was in a gap, that camera alone saw it); a blob that keeps a hidden
+    # marker's own lengths better than these is that marker's
+    worst = np.where(claimed(dense, spare.field[rows], c, d, params) < worst, np.inf, worst)
     # every blob that keeps the lengths is a rival, even one whose depth is too loose to
     # be placed: left out, it would leave a wrong blob alone in its field (kiss 3 seed
     # 409: a knee's own blob fit with an SD of 5.1 mm, a noise blob with 2.4 and was
@@ -201,6 +219,43 @@ def place_absent(
     out[f[keep]], along[f[keep]] = x[keep], err[keep]
     spare.free[rows[one[f] & ~loose]] = False
     return out, along
+
+
+def explained(dense: NDArray, field: NDArray, c: NDArray, d: NDArray) -> NDArray[np.bool_]:
+    """Rays ``c + s d`` ((r, 3) each; in fields ``field``) that pass within
+    :data:`EXPLAINED_MM` of a sample of ``dense`` (n, n_fields, 3; NaN where none) in
+    their field, in front of their camera: the image of that marker."""
+    rel = dense[:, field] - c[None]  # (n, r, 3)
+    along = np.einsum("nrj,rj->nr", rel, d)
+    off = np.linalg.norm(rel - along[..., None] * d[None], axis=2)
+    with np.errstate(invalid="ignore"):
+        return ((off <= EXPLAINED_MM) & (along > 0)).any(axis=0)
+
+
+def claimed(
+    dense: NDArray, field: NDArray, c: NDArray, d: NDArray, params: TrackingParams
+) -> NDArray[np.float64]:
+    """How well each ray ``c + s d`` ((r, 3) each; in fields ``field``) keeps the lengths
+    of a marker of ``dense`` not sampled in its field (in a gap, its image one its own
+    fill may need) to at least two of its own partners sampled there (markers whose
+    distance to it keeps within ``rigid_fill_sd_mm`` SD over the trial): the smallest
+    worst residual in SDs over those markers, where within three; inf elsewhere."""
+    _, mean, sd = distance_stats(dense, dense)
+    out = np.full(len(field), np.inf)
+    for t in range(len(dense)):
+        own = np.isfinite(sd[t]) & (sd[t] <= params.rigid_fill_sd_mm)
+        own[t] = False
+        if own.sum() < 2:
+            continue
+        p = dense[own][:, field]  # (k, r, 3)
+        ask = ~np.isfinite(dense[t, field, 0]) & (np.isfinite(p[..., 0]).sum(axis=0) >= 2)
+        if not ask.any():
+            continue
+        floor = np.maximum(sd[t, own], params.ray_length_sd_floor_mm)
+        _, worst, _ = _depths(c[ask], d[ask], p[:, ask], mean[t, own], floor, open_ok=True)
+        at = np.flatnonzero(ask)
+        out[at] = np.minimum(out[at], np.where(worst <= 3.0, worst, np.inf))
+    return out
 
 
 def off_path(pos: NDArray) -> NDArray[np.bool_]:
