@@ -160,12 +160,14 @@ def place_absent(
     spare: SpareBlobs,
     params: TrackingParams,
     errors: NDArray | None = None,
+    own: int = -1,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The absent marker's position per field (n_fields, 3; NaN where not placed) from
     the free blobs of ``spare`` and its lengths to ``partners`` (see module), and its
     expected error along the ray (n_fields,); the blobs of the placed fields are taken.
     ``errors`` (as ``dense[..., 0]``): each partner sample's expected error (0 where
-    measured), added to its length's SD."""
+    measured), added to its length's SD. ``own``: the marker's own track in ``dense``
+    (a name a track holds, :func:`thin_names`; -1 for none), whose blobs are its own."""
     out = np.full((dense.shape[1], 3), np.nan)
     along = np.full(dense.shape[1], np.nan)
     rows = np.flatnonzero(spare.free & (spare.field < dense.shape[1]))
@@ -190,7 +192,10 @@ def place_absent(
     # knee's, 360 mm behind, placed the right knee, which no camera saw, 63 mm off: the
     # left knee was in a gap, that camera alone saw it); a blob that keeps a hidden
     # marker's own lengths better than these is that marker's
-    worst = np.where(claimed(dense, spare.field[rows], c, d, params) < worst, np.inf, worst)
+    claim = claimed(
+        np.delete(dense, own, axis=0) if own >= 0 else dense, spare.field[rows], c, d, params
+    )
+    worst = np.where(claim < worst, np.inf, worst)
     # every blob that keeps the lengths is a rival, even one whose depth is too loose to
     # be placed: left out, it would leave a wrong blob alone in its field (kiss 3 seed
     # 409: a knee's own blob fit with an SD of 5.1 mm, a noise blob with 2.4 and was
@@ -321,7 +326,8 @@ def absent_placed(
             row = np.full(dense.shape[1:], np.nan)
             if partners.size >= 2:
                 free = spare.free.copy()
-                row, err = place_absent(dense, partners, length, sd, spare, params, errors)
+                own = names.index(name) if name in names[: len(dense)] else -1
+                row, err = place_absent(dense, partners, length, sd, spare, params, errors, own)
             n = np.isfinite(row[:, 0]).sum()
             if n == 0 or (n < params.min_track_length and not last):
                 # its blobs wait for the partners placed after it (kiss 3 seed 321: the
