@@ -145,6 +145,14 @@ def ray_directions(L: NDArray, uv: NDArray) -> NDArray[np.float64]:
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
+def line_offsets(rel: NDArray, d: NDArray) -> tuple[NDArray, NDArray]:
+    """Where points lie along a line and how far off it: for offsets ``rel`` (..., 3) of
+    points from a point of the line and its unit direction ``d`` (broadcast against
+    ``rel``), the position along ``d`` and the distance from the line (both (...))."""
+    along = np.einsum("...j,...j->...", rel, d)
+    return along, np.linalg.norm(rel - along[..., None] * d, axis=-1)
+
+
 def ray_points(
     dlts: NDArray[np.float64],
     camera: NDArray[np.int64],

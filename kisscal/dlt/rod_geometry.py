@@ -19,6 +19,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal.dlt.model import line_offsets
 from kisscal.dlt.params import DEFAULT_PARAMS, DltParams, Rod
 from kisscal.errors import InputError
 
@@ -27,9 +28,7 @@ def rod_positions(p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[
     """1D positions (mm from the top marker along the rod) and off-line distances (mm)."""
     d = p[-1] - p[0]
     d = d / np.linalg.norm(d)
-    s = (p - p[0]) @ d
-    off = np.linalg.norm((p - p[0]) - s[:, None] * d, axis=1)
-    return s, off
+    return line_offsets(p - p[0], d)
 
 
 def fit_projectivity(

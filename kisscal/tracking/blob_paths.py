@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.model import project_rows, ray_directions
+from kisscal.dlt.model import line_offsets, project_rows, ray_directions
 from kisscal.tracking.params import TrackingParams
 from kisscal.tracking.rayfill import SpareBlobs
 
@@ -135,5 +135,4 @@ def ray_miss_mm(spare: SpareBlobs, rows: NDArray, xyz: NDArray) -> NDArray[np.fl
     """Distance (mm) of each lab point ``xyz`` (m, 3) from the ray of its blob ``rows``."""
     cam = spare.camera[rows]
     d = ray_directions(spare.dlts[cam], spare.uv_px[rows])
-    rel = xyz - spare.centres[cam]
-    return np.linalg.norm(rel - np.einsum("ij,ij->i", rel, d)[:, None] * d, axis=1)
+    return line_offsets(xyz - spare.centres[cam], d)[1]

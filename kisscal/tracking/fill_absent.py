@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kisscal._shared import true_runs
-from kisscal.dlt.model import ray_directions
+from kisscal.dlt.model import line_offsets, ray_directions
 from kisscal.tracking.bodyfill import GapFill
 from kisscal.tracking.fill_donors import distance_stats
 from kisscal.tracking.on_rays import path_runs
@@ -230,9 +230,7 @@ def explained(dense: NDArray, field: NDArray, c: NDArray, d: NDArray) -> NDArray
     """Rays ``c + s d`` ((r, 3) each; in fields ``field``) that pass within
     :data:`EXPLAINED_MM` of a sample of ``dense`` (n, n_fields, 3; NaN where none) in
     their field, in front of their camera: the image of that marker."""
-    rel = dense[:, field] - c[None]  # (n, r, 3)
-    along = np.einsum("nrj,rj->nr", rel, d)
-    off = np.linalg.norm(rel - along[..., None] * d[None], axis=2)
+    along, off = line_offsets(dense[:, field] - c[None], d[None])  # (n, r) each
     with np.errstate(invalid="ignore"):
         return ((off <= EXPLAINED_MM) & (along > 0)).any(axis=0)
 
