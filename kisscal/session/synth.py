@@ -61,6 +61,7 @@ def synthesise(
     wand_fields: int = 0,
     wand_only: bool = False,
     replay_in_view: bool = False,
+    trials: tuple[str, ...] | None = None,
 ) -> Path:
     """Write a synthetic session (images, ``session.toml``, ``truth/``) to ``out``.
 
@@ -71,7 +72,8 @@ def synthesise(
     ``wand_fields`` adds a wand trial ``wand01`` of that many fields and an L-frame
     (``[wand]``, ``[axes]``); ``wand_only`` leaves ``[grid]`` and ``[rods]`` out.
     ``replay_in_view`` cuts ``walk5`` to the fields the rig sees whole
-    (:class:`~kisscal.synth.plan.SynthOptions`).
+    (:class:`~kisscal.synth.plan.SynthOptions`). ``trials`` writes only those trials
+    (``walk01``, ``stick``, ``throw``, ``walk5``, ``wand01``), each as in the whole session.
     """
     echo = echo or quiet
     if n_markers not in (13, 15):
@@ -84,7 +86,11 @@ def synthesise(
         preset, seed, fields=fields, n_cameras=n_cameras, n_markers=n_markers, blur_px=blur_px
     )
     options = dataclasses.replace(
-        options, wand_fields=wand_fields, wand_only=wand_only, replay_in_view=replay_in_view
+        options,
+        wand_fields=wand_fields,
+        wand_only=wand_only,
+        replay_in_view=replay_in_view,
+        trials=trials,
     )
     replay = None
     if walking5:

@@ -132,6 +132,9 @@ class SynthOptions:
         control volume, as the rigs other than KISS always do: the KISS rig sees the middle
         2.4 m of the recorded 6.7 m walk, so the whole replay is covered in only part of
         its fields (the demo cuts it; the KISS preset keeps the whole walk by default).
+    trials : tuple of str, optional
+        Write only these of the trials (``walk01``, ``stick``, ``throw``, ``walk5``,
+        ``wand01``); each comes out as it does in the whole session. None: all of them.
     """
 
     seed: int = 1
@@ -147,6 +150,7 @@ class SynthOptions:
     wand_fields: int = 0
     wand_only: bool = False
     replay_in_view: bool = False
+    trials: tuple[str, ...] | None = None
 
 
 class _Memo(dict):
@@ -162,7 +166,8 @@ class SynthPlan:
 
     ``render`` is ``options.render`` with the rig's marker radius; ``rod_conflicts`` counts
     rod-marker images that touch an LED ring or another rod (0 but on crowded rigs).
-    ``memo`` keeps the latest camera's scenes and glow (:func:`_per_camera`).
+    ``memo`` keeps the latest camera's scenes and glow (:func:`_per_camera`);
+    ``trial_codes`` each trial's place among all the seed's trials (its images' noise).
     """
 
     options: SynthOptions
@@ -175,6 +180,7 @@ class SynthPlan:
     render: RenderParams = field(default_factory=RenderParams)
     rod_conflicts: int = 0
     axes_mm: NDArray[np.float64] | None = None
+    trial_codes: dict[str, int] = field(default_factory=dict)
     memo: _Memo = field(default_factory=_Memo, init=False, repr=False, compare=False)
 
 
@@ -195,12 +201,23 @@ def plan_session(options: SynthOptions, replay: Motion | None = None) -> SynthPl
         render = replace(render, marker_radius_mm=radius)
     trials = _trials(options, replay)
     gait = trials["walk01"]
+    # an image's noise is drawn from its trial's place among all of them: a trial
+    # written alone comes out as it does beside the others
+    codes = {name: k for k, name in enumerate(trials)}
+    if options.trials is not None:
+        unknown = sorted(set(options.trials) - set(trials))
+        if unknown:
+            raise InputError(
+                f"no trial {', '.join(unknown)} to synthesise; there are {', '.join(trials)}"
+            )
+        trials = {name: m for name, m in trials.items() if name in options.trials}
     rods, conflicts = _hang_rods(options, rig, render)
     return SynthPlan(
         options=options,
         rig=rig,
         rods=rods,
         trials=trials,
+        trial_codes=codes,
         marker_names=gait.names,
         template_mm=standing_template(gait.names),
         segments=gait.segments,
@@ -492,7 +509,7 @@ def render_trial(
     vis = visibility(cam, motion)
     leds = led_spots(cam, plan.rig, params)
     background = camera_glow(plan, cam_index)
-    trial_code = list(plan.trials).index(trial)
+    trial_code = plan.trial_codes[trial]
     for f in range(motion.n_fields):
         rng = image_rng(plan.options.seed, "trial", cam_index, f, trial_code)
         image, truth = render_markers(cam, motion.xyz_mm[f], vis[f], leds, rng, params, background)

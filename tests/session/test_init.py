@@ -55,7 +55,12 @@ def test_a_four_camera_lab_by_the_docs_alone(tmp_path: Path) -> None:
     from kisscal.cli import main
 
     lab = session.synthesise(
-        tmp_path / "lab-images", preset="modern", n_cameras=4, fields=40, walking5=False
+        tmp_path / "lab-images",
+        preset="modern",
+        n_cameras=4,
+        fields=40,
+        walking5=False,
+        trials=("walk01",),  # the one trial the newcomer copies in
     )
     new = tmp_path / "lab" / "2026-11-21"
 

@@ -14,6 +14,7 @@ import pytest
 
 from kisscal import session
 from kisscal.camera import Camera
+from kisscal.errors import InputError
 from kisscal.io.config import load_toml
 from kisscal.io.files import read_table
 from tests.synth.truth_cameras import camera_from_truth
@@ -158,6 +159,21 @@ def test_same_seed_same_bytes(tmp_path: Path) -> None:
         tmp_path / "c", seed=10, fields=12, n_cameras=2, walking5=False, n_jobs=1
     )
     assert (c / "grid/cam1/000000.png").read_bytes() != (a / "grid/cam1/000000.png").read_bytes()
+
+
+def test_a_trial_written_alone_is_the_trial_of_the_whole_session(tmp_path: Path) -> None:
+    """``trials=`` (tests that need one trial) gives that trial's images and truth as the
+    whole session has them: each image's noise comes from its trial's place among all."""
+    whole = session.synthesise(tmp_path / "a", seed=9, fields=12, n_cameras=2, walking5=False)
+    alone = session.synthesise(
+        tmp_path / "b", seed=9, fields=12, n_cameras=2, walking5=False, trials=("throw",)
+    )
+    assert not (alone / "trials" / "walk01").exists()
+    files = sorted(p.relative_to(alone) for p in (alone / "trials").rglob("*") if p.is_file())
+    assert len(files) > 20
+    assert [f for f in files if (alone / f).read_bytes() != (whole / f).read_bytes()] == []
+    with pytest.raises(InputError, match="no trial walk5"):
+        session.synthesise(tmp_path / "c", seed=9, fields=12, walking5=False, trials=("walk5",))
 
 
 def kisscal(*args: str) -> subprocess.CompletedProcess[str]:
