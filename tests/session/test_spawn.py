@@ -40,13 +40,14 @@ def _run(session_dir: Path, **env: str) -> dict[str, bytes]:
     return outputs(session_dir)
 
 
-def test_spawned_workers_give_the_forked_run_s_outputs(synthesised: Path, tmp_path: Path) -> None:
-    """The session run by ``kisscal run`` twice: workers started the default way (forked on
-    Linux), then spawned. Both through the command line, which sizes the BLAS thread
-    pools (:mod:`kisscal.cli.blas`): a run inside the test process keeps the pools NumPy
-    chose, and on some machines (AMD EPYC, OpenBLAS of NumPy 2.4) one thread or two
-    change the DLT's last digits (1e-12 relative)."""
-    a = _run(copy_of(synthesised, tmp_path / "forked"))
-    b = _run(copy_of(synthesised, tmp_path / "spawned"), **{START_METHOD_ENV: "spawn"})
+def test_spawned_workers_give_the_forked_run_s_outputs(processed: Path, tmp_path: Path) -> None:
+    """The session run by ``kisscal run`` with its workers spawned gives the outputs of the
+    shared run of conftest.py, whose workers were started the default way (forked on
+    Linux). Both size the BLAS thread pools the same way (:mod:`kisscal.cli.blas`, which
+    the tests' conftest.py imports first, as the command line does): on some machines
+    (AMD EPYC, OpenBLAS of NumPy 2.4) one thread or two change the DLT's last digits
+    (1e-12 relative)."""
+    a = outputs(processed)
+    b = _run(copy_of(processed, tmp_path / "spawned"), **{START_METHOD_ENV: "spawn"})
     assert len(a) > 20 and sorted(a) == sorted(b)
     assert [name for name in a if a[name] != b[name]] == []
