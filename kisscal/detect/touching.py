@@ -10,13 +10,15 @@ aspect first so that distances are round, and each peak's height is its marker's
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 import kisscal.detect.blobs as fl
 from kisscal.detect.advanced import Grouping, split_groups
-from kisscal.detect.groups import GroupTable, group_canvas, group_crops
+from kisscal.detect.groups import GroupTable, group_canvas
 from kisscal.detect.params import DetectionParams
 
 NECK = 0.8  # a neck is lower than this fraction of the lower of the two peaks
@@ -60,61 +62,74 @@ def marker_peaks(
         ``x, y`` of each peak in crop pixel coordinates and its height (the marker's
         radius in scan lines), highest first.
     """
-    stretch = max(round(pixel_aspect), 1)
-    tall = np.repeat(crop, stretch, axis=0)
-    dist = cv2.distanceTransform(tall, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    top = float(dist.max())
-    if top <= 0:
-        return np.zeros((0, 3))
-    ridge = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (dist >= 0.5 * top)
-    n, labels = cv2.connectedComponents(ridge.astype(np.uint8), connectivity=8)
-    peaks = []
-    for j in range(1, n):  # a handful of maxima per group
-        ys, xs = np.nonzero(labels == j)
-        height = float(dist[ys, xs].max())
-        peaks.append((xs.mean(), (ys.mean() + 0.5) / stretch - 0.5, height))
-    peaks.sort(key=lambda p: -p[2])
-    kept: list[tuple[float, float, float]] = []
-    for x, y, height in peaks:
-        # distance in round units (scan lines): x divided by the aspect
-        if all(
-            np.hypot((x - kx) / pixel_aspect, y - ky)
-            > min_separation * max(height, kh) / pixel_aspect
-            and _neck(dist, (x, y), (kx, ky), stretch) < NECK * min(height, kh)
-            for kx, ky, kh in kept
-        ):
-            kept.append((x, y, height))
-    out = np.array(kept, dtype=float).reshape(-1, 3)
-    out[:, 2] /= pixel_aspect  # x-pixel units to scan lines (round units)
-    return out
+    ridges = _Ridges.of(crop, np.zeros(1, np.int64), pixel_aspect)
+    return ridges.peaks(0, pixel_aspect, min_separation)
 
 
-def _several_maxima(
-    grouping: Grouping, table: GroupTable, idx: NDArray[np.int64], stretch: int = 1
-) -> NDArray[np.bool_]:
-    """Which of the groups ``idx`` have two or more ridges of high distance-transform
-    values, the only ones :func:`marker_peaks` can find two peaks in.
+@dataclass(frozen=True)
+class _Ridges:
+    """The distance transform of stacked crops (:func:`~kisscal.detect.groups.
+    group_canvas`, rows repeated ``stretch`` times) and its ridges: the connected sets
+    of local maxima at least half their crop's highest value. One distance transform,
+    maximum filter and labelling for all the crops instead of one per crop: on real
+    frames hundreds of irregular groups are examined. Each ridge's crop, mean ``x, y``
+    in its crop's (unstretched) pixels and height, the ridges of each crop in the order
+    labelling numbers them alone."""
 
-    One distance transform, maximum filter and labelling on a canvas of all the groups
-    (:func:`~kisscal.detect.groups.group_canvas`: each crop gets what it would alone)
-    instead of one per group: on real frames hundreds of irregular groups are examined
-    and nearly all have a single ridge. Rows are repeated ``stretch`` times, as
-    :func:`marker_peaks` repeats each crop's (each crop's border rows stay its own).
-    """
-    canvas, top = group_canvas(grouping.runs, table, idx)
-    if stretch > 1:
-        canvas, top = np.repeat(canvas, stretch, axis=0), top * stretch
-    dist = cv2.distanceTransform(canvas, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    crop = np.searchsorted(top, np.arange(canvas.shape[0]), side="right") - 1
-    highest = np.maximum.reduceat(dist.max(axis=1), top)
-    ridge = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (
-        dist >= 0.5 * highest[crop][:, None]
-    )
-    ridge &= dist > 0
-    n, _, stats, _ = cv2.connectedComponentsWithStats(ridge.astype(np.uint8), connectivity=8)
-    first_row = stats[1:n, cv2.CC_STAT_TOP]
-    count = np.bincount(crop[first_row], minlength=idx.size)
-    return count >= 2
+    dist: NDArray[np.float32]
+    top: NDArray[np.int64]  # first canvas row of each crop (stretched)
+    stretch: int
+    crop: NDArray[np.int64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    height: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, canvas: NDArray[np.uint8], top: NDArray[np.int64], pixel_aspect: float) -> _Ridges:
+        stretch = max(round(pixel_aspect), 1)
+        if stretch > 1:
+            canvas, top = np.repeat(canvas, stretch, axis=0), top * stretch
+        dist = cv2.distanceTransform(canvas, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        row_crop = np.searchsorted(top, np.arange(canvas.shape[0]), side="right") - 1
+        highest = np.maximum.reduceat(dist.max(axis=1), top)
+        ridge = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (
+            dist >= 0.5 * highest[row_crop][:, None]
+        )
+        ridge &= dist > 0
+        n, labels = cv2.connectedComponents(ridge.astype(np.uint8), connectivity=8)
+        ys, xs = np.nonzero(labels)
+        ridge_of = labels[ys, xs] - 1
+        count = np.bincount(ridge_of, minlength=n - 1).astype(float)
+        crop = np.zeros(n - 1, np.int64)
+        crop[ridge_of] = row_crop[ys]
+        height = np.zeros(n - 1, np.float32)
+        np.maximum.at(height, ridge_of, dist[ys, xs])
+        # the sums of whole pixel indices are exact: the crop's offset comes off before
+        # the division, so each mean is the one of the crop alone
+        sum_y = np.bincount(ridge_of, ys, n - 1) - count * top[crop]
+        x = np.bincount(ridge_of, xs, n - 1) / count
+        y = (sum_y / count + 0.5) / stretch - 0.5
+        return cls(dist, top, stretch, crop, x, y, height.astype(float))
+
+    def peaks(self, k: int, pixel_aspect: float, min_separation: float) -> NDArray[np.float64]:
+        """:func:`marker_peaks` of crop ``k``."""
+        mine = np.flatnonzero(self.crop == k)
+        mine = mine[np.argsort(-self.height[mine], kind="stable")]
+        end = self.top[k + 1] if k + 1 < len(self.top) else self.dist.shape[0]
+        dist = self.dist[self.top[k] : end]  # the crop's rows (and the gap after it)
+        kept: list[tuple[float, float, float]] = []
+        for x, y, height in zip(self.x[mine], self.y[mine], self.height[mine], strict=True):
+            # distance in round units (scan lines): x divided by the aspect
+            if all(
+                np.hypot((x - kx) / pixel_aspect, y - ky)
+                > min_separation * max(height, kh) / pixel_aspect
+                and _neck(dist, (x, y), (kx, ky), self.stretch) < NECK * min(height, kh)
+                for kx, ky, kh in kept
+            ):
+                kept.append((x, y, height))
+        out = np.array(kept, dtype=float).reshape(-1, 3)
+        out[:, 2] /= pixel_aspect  # x-pixel units to scan lines (round units)
+        return out
 
 
 def split_touching(
@@ -130,17 +145,18 @@ def split_touching(
     fairly; parts are flagged ``split_touching``.
     """
     idx = candidates.nonzero()[0]
-    if idx.size:
-        idx = idx[_several_maxima(grouping, table, idx, max(round(params.pixel_aspect), 1))]
     if idx.size == 0:
         return grouping
+    ridges = _Ridges.of(*group_canvas(grouping.runs, table, idx), params.pixel_aspect)
     labels, found = [], []
-    for i, x0, y0, crop in group_crops(grouping.runs, table, idx):  # a few groups per image
-        peaks = marker_peaks(crop, params.pixel_aspect, params.touching_separation)
+    # only crops with two ridges or more can hold two peaks: a few per image
+    for k in np.flatnonzero(np.bincount(ridges.crop, minlength=idx.size) >= 2):
+        peaks = ridges.peaks(int(k), params.pixel_aspect, params.touching_separation)
         # more peaks than a cluster of markers holds: a bright region, left whole
         if 2 <= len(peaks) <= params.split_max_markers:
-            peaks[:, 0] += x0
-            peaks[:, 1] += y0
+            i = idx[k]
+            peaks[:, 0] += table.x1[i] - 1
+            peaks[:, 1] += table.y1[i] - 1
             labels.append(table.label[i])
             found.append(peaks)
     if not labels:

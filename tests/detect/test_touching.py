@@ -7,10 +7,9 @@ import pytest
 
 from kisscal.detect import blobs as fl
 from kisscal.detect import detect_blobs
-from kisscal.detect.advanced import Grouping
-from kisscal.detect.groups import group_crops, measure_groups
+from kisscal.detect.groups import group_canvas, group_crops, measure_groups
 from kisscal.detect.scan import group_runs
-from kisscal.detect.touching import _several_maxima, marker_peaks
+from kisscal.detect.touching import _Ridges, marker_peaks
 from tests.detect.conftest import ASPECT, KISS, render
 
 
@@ -76,23 +75,28 @@ def test_two_touching_discs_have_two_peaks_with_their_radii():
     assert peaks[0, 2] > peaks[1, 2]  # the larger marker's peak is higher
 
 
-def test_canvas_ridges_keep_every_group_with_two_peaks():
-    """Every group in which marker_peaks finds two or more peaks on its own has two
-    ridges on the stretched canvas of all groups (and singles mostly do not)."""
+def test_peaks_of_all_groups_at_once_are_each_group_s_alone():
+    """The distance transform, ridges and peaks of every group on one stacked canvas give
+    each group what :func:`marker_peaks` gives it alone: the same peaks in the same
+    order, their heights to float32 precision (OpenCV's exact transform rounds a few
+    values of a large image one unit apart)."""
     rng = np.random.default_rng(5)
     centres = np.column_stack([rng.uniform(20, 730, 400), rng.uniform(10, 280, 400)])
     image = render(centres, rng.uniform(2.5, 6.0, 400))
     runs = group_runs(image >= 40)
-    grouping = Grouping.start(runs)
     table = measure_groups(runs)
     idx = np.flatnonzero(table.pixels >= 16)
-    several = _several_maxima(grouping, table, idx, round(ASPECT))
-    peaks = np.array(
-        [len(marker_peaks(c, ASPECT, 1.2)) for _, _, _, c in group_crops(runs, table, idx)]
-    )
-    assert (peaks >= 2).sum() >= 10  # touching pairs are there
-    assert several[peaks >= 2].all()
-    assert several.sum() < idx.size / 2  # and the canvas keeps most singles off
+    ridges = _Ridges.of(*group_canvas(runs, table, idx), ASPECT)
+    alone = [marker_peaks(c, ASPECT, 1.2) for _, _, _, c in group_crops(runs, table, idx)]
+    together = [ridges.peaks(k, ASPECT, 1.2) for k in range(idx.size)]
+    assert sum(len(p) >= 2 for p in alone) >= 10  # touching pairs are there
+    assert [len(p) for p in alone] == [len(p) for p in together]
+    a, b = np.concatenate(alone), np.concatenate(together)
+    assert np.array_equal(a[:, :2], b[:, :2]) and np.allclose(a[:, 2], b[:, 2], rtol=1e-6)
+    # a group with two peaks has two ridges; most single markers have one
+    ridges_per_group = np.bincount(ridges.crop, minlength=idx.size)
+    assert (ridges_per_group[[len(p) >= 2 for p in alone]] >= 2).all()
+    assert (ridges_per_group >= 2).sum() < idx.size / 2
 
 
 def test_after_a_split_only_the_parts_are_weighed_again(rng, monkeypatch):
