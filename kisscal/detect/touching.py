@@ -22,18 +22,6 @@ from kisscal.detect.groups import GroupTable, group_canvas
 from kisscal.detect.params import DetectionParams
 
 NECK = 0.8  # a neck is lower than this fraction of the lower of the two peaks
-
-
-def _neck(
-    dist: NDArray[np.float32], a: tuple[float, float], b: tuple[float, float], stretch: int
-) -> float:
-    """Lowest distance-transform value on the segment between two peaks (rows stretched)."""
-    xs = np.rint(a[0] + _ALONG * (b[0] - a[0])).astype(np.intp)
-    ys = np.rint((a[1] + _ALONG * (b[1] - a[1]) + 0.5) * stretch - 0.5).astype(np.intp)
-    np.minimum(np.maximum(ys, 0, out=ys), dist.shape[0] - 1, out=ys)
-    return float(dist[ys, xs].min())
-
-
 #: Where the segment between two peaks is sampled for a neck (fractions of its length).
 _ALONG = np.linspace(0.0, 1.0, 16)
 
@@ -63,7 +51,7 @@ def marker_peaks(
         radius in scan lines), highest first.
     """
     ridges = _Ridges.of(crop, np.zeros(1, np.int64), pixel_aspect)
-    return ridges.peaks(0, pixel_aspect, min_separation)
+    return ridges.peaks(np.zeros(1, np.int64), pixel_aspect, min_separation)[0]
 
 
 @dataclass(frozen=True)
@@ -111,25 +99,56 @@ class _Ridges:
         y = (sum_y / count + 0.5) / stretch - 0.5
         return cls(dist, top, stretch, crop, x, y, height.astype(float))
 
-    def peaks(self, k: int, pixel_aspect: float, min_separation: float) -> NDArray[np.float64]:
-        """:func:`marker_peaks` of crop ``k``."""
-        mine = np.flatnonzero(self.crop == k)
-        mine = mine[np.argsort(-self.height[mine], kind="stable")]
-        end = self.top[k + 1] if k + 1 < len(self.top) else self.dist.shape[0]
-        dist = self.dist[self.top[k] : end]  # the crop's rows (and the gap after it)
-        kept: list[tuple[float, float, float]] = []
-        for x, y, height in zip(self.x[mine], self.y[mine], self.height[mine], strict=True):
-            # distance in round units (scan lines): x divided by the aspect
-            if all(
-                np.hypot((x - kx) / pixel_aspect, y - ky)
-                > min_separation * max(height, kh) / pixel_aspect
-                and _neck(dist, (x, y), (kx, ky), self.stretch) < NECK * min(height, kh)
-                for kx, ky, kh in kept
-            ):
-                kept.append((x, y, height))
-        out = np.array(kept, dtype=float).reshape(-1, 3)
-        out[:, 2] /= pixel_aspect  # x-pixel units to scan lines (round units)
+    def peaks(
+        self, crops: NDArray[np.int64], pixel_aspect: float, min_separation: float
+    ) -> list[NDArray[np.float64]]:
+        """:func:`marker_peaks` of each crop of ``crops``: every pair of a crop's ridges
+        is judged at once (apart, with a neck between them), then each crop keeps its
+        ridges highest first that stand apart from every ridge kept before them."""
+        order = np.lexsort((-self.height, self.crop))  # by crop, highest first (stable)
+        first = np.searchsorted(self.crop[order], crops)
+        count = np.searchsorted(self.crop[order], crops, side="right") - first
+        ok = self._apart(order, first, count, pixel_aspect, min_separation)
+        out, at = [], 0
+        for start, c in zip(first.tolist(), count.tolist(), strict=True):
+            apart = ok[at : at + c * c].reshape(c, c)  # [kept before, candidate]
+            at += c * c
+            kept: list[int] = []
+            for j in range(c):
+                if apart[kept, j].all():
+                    kept.append(j)
+            ids = order[start + np.asarray(kept, dtype=np.int64)]
+            out.append(np.column_stack([self.x[ids], self.y[ids], self.height[ids] / pixel_aspect]))
         return out
+
+    def _apart(
+        self,
+        order: NDArray[np.int64],
+        first: NDArray[np.int64],
+        count: NDArray[np.int64],
+        pixel_aspect: float,
+        min_separation: float,
+    ) -> NDArray[np.bool_]:
+        """For every ordered pair (i, j) of each crop's ridges (crop after crop, i-major),
+        whether candidate j stands apart from i: further than ``min_separation`` times
+        the higher's height (in scan lines: x over the aspect) and with the distance
+        transform between them dropping below ``NECK`` times the lower's height."""
+        size = count * count
+        crop = np.arange(count.size).repeat(size)
+        p = np.arange(crop.size) - (size.cumsum() - size)[crop]
+        b = order[first[crop] + p // count[crop]]  # the ridge kept before
+        a = order[first[crop] + p % count[crop]]  # the candidate
+        x, y, h = self.x, self.y, self.height
+        far = np.hypot((x[a] - x[b]) / pixel_aspect, y[a] - y[b])
+        far = far > min_separation * np.maximum(h[a], h[b]) / pixel_aspect
+        xs = np.rint(x[a][:, None] + _ALONG * (x[b] - x[a])[:, None]).astype(np.intp)
+        ys = (y[a][:, None] + _ALONG * (y[b] - y[a])[:, None] + 0.5) * self.stretch - 0.5
+        ys = np.rint(ys).astype(np.intp)
+        top = self.top[self.crop[a]]
+        bottom = np.append(self.top[1:], self.dist.shape[0])[self.crop[a]]
+        np.clip(ys, 0, (bottom - top - 1)[:, None], out=ys)
+        neck = self.dist[ys + top[:, None], xs].min(axis=1, initial=np.inf)
+        return far & (neck < NECK * np.minimum(h[a], h[b]))
 
 
 def split_touching(
@@ -148,18 +167,17 @@ def split_touching(
     if idx.size == 0:
         return grouping
     ridges = _Ridges.of(*group_canvas(grouping.runs, table, idx), params.pixel_aspect)
-    labels, found = [], []
     # only crops with two ridges or more can hold two peaks: a few per image
-    for k in np.flatnonzero(np.bincount(ridges.crop, minlength=idx.size) >= 2):
-        peaks = ridges.peaks(int(k), params.pixel_aspect, params.touching_separation)
-        # more peaks than a cluster of markers holds: a bright region, left whole
-        if 2 <= len(peaks) <= params.split_max_markers:
-            i = idx[k]
-            peaks[:, 0] += table.x1[i] - 1
-            peaks[:, 1] += table.y1[i] - 1
-            labels.append(table.label[i])
-            found.append(peaks)
-    if not labels:
+    several = np.flatnonzero(np.bincount(ridges.crop, minlength=idx.size) >= 2)
+    found = ridges.peaks(several, params.pixel_aspect, params.touching_separation)
+    # more peaks than a cluster of markers holds: a bright region, left whole
+    keep = [k for k, peaks in enumerate(found) if 2 <= len(peaks) <= params.split_max_markers]
+    labels = table.label[idx[several[keep]]]
+    found = [found[k] for k in keep]
+    for i, peaks in zip(idx[several[keep]], found, strict=True):
+        peaks[:, 0] += table.x1[i] - 1
+        peaks[:, 1] += table.y1[i] - 1
+    if not found:
         return grouping
     k = max(len(p) for p in found)
     packed = np.full((len(labels), k, 3), np.nan)

@@ -88,7 +88,7 @@ def test_peaks_of_all_groups_at_once_are_each_group_s_alone():
     idx = np.flatnonzero(table.pixels >= 16)
     ridges = _Ridges.of(*group_canvas(runs, table, idx), ASPECT)
     alone = [marker_peaks(c, ASPECT, 1.2) for _, _, _, c in group_crops(runs, table, idx)]
-    together = [ridges.peaks(k, ASPECT, 1.2) for k in range(idx.size)]
+    together = ridges.peaks(np.arange(idx.size), ASPECT, 1.2)
     assert sum(len(p) >= 2 for p in alone) >= 10  # touching pairs are there
     assert [len(p) for p in alone] == [len(p) for p in together]
     a, b = np.concatenate(alone), np.concatenate(together)
