@@ -17,21 +17,20 @@ from kisscal.errors import InputError
 from kisscal.io.c3d import read_c3d_points
 from kisscal.io.files import staged_folder, table_to_csv, write_json, write_table
 from kisscal.synth.cameras import truth_dict
-from kisscal.synth.motion import Motion
+from kisscal.synth.motion import STICK_LENGTH_MM, Motion
 from kisscal.synth.plan import (
     SynthPlan,
     camera_glow,
     render_grid,
     render_rods,
     render_trial,
-    session_config,
     trial_visibility,
 )
 from kisscal.synth.render import SpotSizes
 from kisscal.synth.replay import replay_trial
 from kisscal.synth.scene import SIZE_LEVELS
 from kisscal.synth.truth import camera_detection_truth, session_detection_truth, size_ranges
-from kisscal.synth.wand import render_axes
+from kisscal.synth.wand import render_axes, wand_tables
 
 #: PNG compression level: fixed so that the same seed gives the same bytes.
 _PNG_LEVEL = 3
@@ -49,6 +48,30 @@ def _write_png(path: Path, image: np.ndarray, noisy: bool = False) -> None:
     if not ok:  # pragma: no cover - OpenCV failure
         raise OSError(f"could not encode {path}")
     path.write_bytes(buf.tobytes())
+
+
+def session_config(plan: SynthPlan, name: str) -> dict:
+    """The ``session.toml`` content (DESIGN.md schema) of a synthetic session."""
+    config = {
+        "session": {"name": name, "rate_hz": plan.options.rate_hz},
+        "cameras": [{"id": c.id, "size": list(c.size_px)} for c in plan.rig],
+        "grid": {"rows": 15, "cols": 20, "images": "grid/{camera}/*.png"},
+        "rods": {
+            "images": "rods/{camera}/*.png",
+            "rod": [{"name": r.name, "points_mm": r.points_mm.tolist()} for r in plan.rods],
+        },
+        "markers": {
+            "names": list(plan.marker_names),
+            "template_mm": np.round(plan.template_mm, 1).tolist(),
+            "segments": [list(s) for s in plan.segments],
+        },
+        "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
+    }
+    if "stick" in plan.trials:  # the report checks the stick trial against its true length
+        config["report"] = {"stick_length_mm": STICK_LENGTH_MM}
+    if plan.axes_mm is not None:
+        return wand_tables(config, plan.axes_mm, plan.options.wand_only)
+    return config
 
 
 def load_walking5(path: Path, rate_hz: float = 50.0) -> Motion:

@@ -18,7 +18,6 @@ from kisscal.camera import Camera
 from kisscal.errors import InputError
 from kisscal.synth.cameras import PIXEL_ASPECT, VOLUME_MM, kiss_rig, ring_rig
 from kisscal.synth.motion import (
-    STICK_LENGTH_MM,
     Motion,
     standing_template,
     stick_trial,
@@ -49,7 +48,7 @@ from kisscal.synth.scene import (
     rod_set,
     visibility,
 )
-from kisscal.synth.wand import AXES_POINTS_MM, WAND_TRIAL, wand_tables, wand_trial
+from kisscal.synth.wand import AXES_POINTS_MM, WAND_TRIAL, wand_trial
 
 Range = tuple[float, float]
 Volume = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -331,30 +330,6 @@ def _hang_rods(
         if conflicts == 0:
             break
     return best, fewest
-
-
-def session_config(plan: SynthPlan, name: str) -> dict:
-    """The ``session.toml`` content (DESIGN.md schema) of a synthetic session."""
-    config = {
-        "session": {"name": name, "rate_hz": plan.options.rate_hz},
-        "cameras": [{"id": c.id, "size": list(c.size_px)} for c in plan.rig],
-        "grid": {"rows": 15, "cols": 20, "images": "grid/{camera}/*.png"},
-        "rods": {
-            "images": "rods/{camera}/*.png",
-            "rod": [{"name": r.name, "points_mm": r.points_mm.tolist()} for r in plan.rods],
-        },
-        "markers": {
-            "names": list(plan.marker_names),
-            "template_mm": np.round(plan.template_mm, 1).tolist(),
-            "segments": [list(s) for s in plan.segments],
-        },
-        "trials": [{"name": t, "images": f"trials/{t}/{{camera}}/*.png"} for t in plan.trials],
-    }
-    if "stick" in plan.trials:  # the report checks the stick trial against its true length
-        config["report"] = {"stick_length_mm": STICK_LENGTH_MM}
-    if plan.axes_mm is not None:
-        return wand_tables(config, plan.axes_mm, plan.options.wand_only)
-    return config
 
 
 # ------------------------------------------------------------------------- rendering
