@@ -9,6 +9,15 @@ OpenCV's threshold at the same level (the local background's median added when t
 settings count from a local background) + ``connectedComponentsWithStats`` with its
 centroids; both on one thread. Issue 23's bar: detection within 3 times that, on frames
 of up to 5000 blobs. Skipped (one line) when the real data are not there.
+
+Recorded (2026-12-03, stop 64, 2 cores shared): median 11.3x, worst 18.9x (cal/cam3):
+not met. The target images spend most of their time in the window moments (three
+passes) and in splitting touching dots; the touching split now takes the peaks of all
+its candidate groups from one stacked canvas (cam3: 80 -> 26 ms a frame under the
+profiler; ``farm-bench`` of 5 detections of each target image, paired with the previous
+version: 0.91x processor time, imports and settings included). The particle frames
+(10-13x) spend a third of theirs labelling the lit structure's pieces at each cut level
+on a box as large as the frame.
 """
 
 from __future__ import annotations
