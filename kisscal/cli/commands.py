@@ -40,6 +40,7 @@ def demo(
         "kisscal synth /tmp/s2 --cameras 3",
         "kisscal synth /tmp/s3 --preset modern --seed 3 --cameras 12",
         "kisscal synth /tmp/s4 --wand 600 --wand-only",
+        "kisscal synth /tmp/s6 --preset lowcost --trials walk01",
         "kisscal synth /tmp/s5 --target stepped",
     )
 )
@@ -84,6 +85,14 @@ def synth(
     wand_only: Annotated[
         bool, typer.Option("--wand-only", help="Calibrate from the wand and L-frame alone.")
     ] = False,
+    trials: Annotated[
+        str | None,
+        typer.Option(
+            help="Only these trials, comma-separated (walk01, stick, throw, walk5, wand01), "
+            "each as in the whole session [default: all].",
+            show_default=False,
+        ),
+    ] = None,
     target: Annotated[
         Literal["planar", "stepped"] | None,
         typer.Option(
@@ -112,6 +121,7 @@ def synth(
         echo=say,
         wand_fields=wand,
         wand_only=wand_only,
+        trials=None if trials is None else tuple(t.strip() for t in trials.split(",")),
     )
 
 

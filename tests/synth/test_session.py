@@ -191,6 +191,7 @@ def kisscal(*args: str) -> subprocess.CompletedProcess[str]:
         (["--preset", "vicon"], "--preset"),
         (["--markers", "14"], "--markers"),
         (["--seed", "1.5"], "--seed"),
+        (["--trials", "walk01,walk9"], "no trial walk9 to synthesise; there are walk01"),
     ],
 )
 def test_bad_numbers_give_one_line_errors(tmp_path: Path, args: list[str], message: str) -> None:
