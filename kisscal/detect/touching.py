@@ -172,9 +172,9 @@ def split_touching(
     found = ridges.peaks(several, params.pixel_aspect, params.touching_separation)
     # more peaks than a cluster of markers holds: a bright region, left whole
     keep = [k for k, peaks in enumerate(found) if 2 <= len(peaks) <= params.split_max_markers]
-    labels = table.label[idx[several[keep]]]
-    found = [found[k] for k in keep]
-    for i, peaks in zip(idx[several[keep]], found, strict=True):
+    rows, found = idx[several[keep]], [found[k] for k in keep]
+    labels = table.label[rows]
+    for i, peaks in zip(rows, found, strict=True):
         peaks[:, 0] += table.x1[i] - 1
         peaks[:, 1] += table.y1[i] - 1
     if not found:

@@ -247,12 +247,12 @@ def record(
         image += sd
     elif params.noise_sigma > 0:
         image += rng.normal(0.0, params.noise_sigma, image.shape)
-    top = 255 if params.bit_depth == 8 else 2**params.bit_depth - 1
-    if params.bit_depth != 8:
+    eight = params.bit_depth == 8
+    if not eight:
         image *= params.dn_scale
     np.rint(image, out=image)
-    np.clip(image, 0, top, out=image)
-    return image.astype(np.uint8 if params.bit_depth == 8 else np.uint16)
+    np.clip(image, 0, 2**params.bit_depth - 1, out=image)
+    return image.astype(np.uint8 if eight else np.uint16)
 
 
 def glow_map(
