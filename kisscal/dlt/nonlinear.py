@@ -55,16 +55,44 @@ def lens_frame(P: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     positive definite: a linear DLT of too flat or too few points) gives NaN, which the
     refinement reports as a start it cannot take.
     """
-    M = np.asarray(P, dtype=float)[:, :3]
-    c = M[2]
-    cc = c @ c
-    centre = M[:2] @ c / cc
-    G = M[:2] @ M[:2].T / cc - np.outer(centre, centre)  # K2 K2^T
+    centre, A = lens_frames(np.asarray(P, dtype=float)[None])
+    return centre[0], A[0]
+
+
+def lens_frames(P: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`lens_frame` of a stack of matrices (..., 3, 4): centres (..., 2) and
+    shapes (..., 2, 2), each matrix's numbers whatever the stack (sums written out)."""
+    M = P[..., :3]
+    c = M[..., 2, :]
+    cc = _dot(c, c)
+    centre = np.stack([_dot(M[..., 0, :], c), _dot(M[..., 1, :], c)], axis=-1) / cc[..., None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        fv = np.sqrt(G[1, 1])
-        skew = G[0, 1] / fv
-        fu = np.sqrt(G[0, 0] - skew**2)
-        return centre, np.array([[1.0, skew / fu], [0.0, fv / fu]])
+        # K2 K2^T = M2 M2^T / cc - centre centre^T
+        g00 = _dot(M[..., 0, :], M[..., 0, :]) / cc - centre[..., 0] * centre[..., 0]
+        g01 = _dot(M[..., 0, :], M[..., 1, :]) / cc - centre[..., 0] * centre[..., 1]
+        g11 = _dot(M[..., 1, :], M[..., 1, :]) / cc - centre[..., 1] * centre[..., 1]
+        fv = np.sqrt(g11)
+        skew = g01 / fv
+        fu = np.sqrt(g00 - skew**2)
+        A = np.zeros((*cc.shape, 2, 2))
+        A[..., 0, 0] = 1.0
+        A[..., 0, 1] = skew / fu
+        A[..., 1, 1] = fv / fu
+    return centre, A
+
+
+def _product(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Matrix product ``a @ b`` of (stacks of) matrices with :func:`_dot`'s sums."""
+    return _dot(a[..., :, None, :], np.swapaxes(b, -1, -2)[..., None, :, :])
+
+
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sum of products over the last axis, term by term in order: the same rounding for
+    one row as for a stack of them (a BLAS product may not promise that)."""
+    out = a[..., 0] * b[..., 0]
+    for k in range(1, a.shape[-1]):
+        out = out + a[..., k] * b[..., k]
+    return out
 
 
 def lens_offsets(
@@ -97,15 +125,16 @@ def lens_offsets(
 
 
 def _lens_offsets_rows(
-    u: NDArray[np.float64], frames: list, lenses: NDArray[np.float64]
+    u: NDArray[np.float64],
+    frames: tuple[NDArray[np.float64], NDArray[np.float64]],
+    lenses: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """:func:`lens_offsets` of the same points ``u`` (N, 2) under each of several frames
-    and lenses (rows of ``lenses``), shape (H, N, 2): the same element-wise operations
-    on the same numbers, every row at once (the columns of a forward-difference
-    Jacobian)."""
+    (:func:`lens_frames` of a stack) and lenses (rows of ``lenses``), shape (H, N, 2):
+    the same element-wise operations on the same numbers, every row at once (the
+    columns of a forward-difference Jacobian)."""
     n = len(u)
-    centre = np.stack([f[0] for f in frames])[:, None, :]
-    A = np.stack([f[1] for f in frames])
+    centre, A = frames[0][:, None, :], frames[1]
     a01, a11 = A[:, 0, 1, None], A[:, 1, 1, None]
     d = u - centre
     eta = d[..., 1] / a11
@@ -145,12 +174,17 @@ class _Problem:
         self.theta_free = (P0n / P0n[2, 3]).ravel()[:11]
 
     def matrix(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
+        return self.matrices(np.asarray(theta)[None], constrained)[0]
+
+    def matrices(self, thetas: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
+        """The normalised 3 x 4 matrix of each row of ``thetas``, shape (H, 3, 4)."""
         if not constrained:
-            return np.concatenate([theta[:11], [1.0]]).reshape(3, 4)
-        fu, fv, u0, v0 = theta[:4]
-        K = np.array([[fu, 0.0, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
-        R = self.R0 @ Rotation.from_rotvec(theta[4:7]).as_matrix()
-        return K @ np.hstack([R, -(R @ theta[7:10])[:, None]])
+            return np.concatenate([thetas[:, :11], np.ones((len(thetas), 1))], 1).reshape(-1, 3, 4)
+        R = _product(self.R0, Rotation.from_rotvec(thetas[:, 4:7]).as_matrix())
+        Rt = np.concatenate([R, -_dot(R, thetas[:, None, 7:10])[..., None]], axis=-1)  # [R | -RC]
+        fu, fv, u0, v0 = thetas[:, :4, None].transpose(1, 0, 2)
+        # K [R | -RC], K = [[fu, 0, u0], [0, fv, v0], [0, 0, 1]]
+        return np.stack([fu * Rt[:, 0] + u0 * Rt[:, 2], fv * Rt[:, 1] + v0 * Rt[:, 2], Rt[:, 2]], 1)
 
     def n_camera(self, constrained: bool) -> int:
         return 10 if constrained else 11
@@ -163,28 +197,24 @@ class _Problem:
     def geometric(
         self, theta: NDArray[np.float64], constrained: bool, lens: bool
     ) -> NDArray[np.float64]:
-        P = self.matrix(theta, constrained)
-        h = self.X @ P.T
-        proj = h[:, :2] / h[:, 2:3]
-        u = self.u
-        if lens:
-            terms = self.lens_terms(theta, constrained)
-            u = u + lens_offsets(u, lens_frame(P), terms)
-        return (u - proj).ravel()
+        return self.geometric_rows(np.asarray(theta)[None], constrained, lens)[0]
 
     def geometric_rows(
         self, thetas: NDArray[np.float64], constrained: bool, lens: bool
     ) -> NDArray[np.float64]:
-        """:meth:`geometric` of each row of ``thetas``, the same numbers: each row's
-        matrix, projection and lens frame as there (small products, row by row), the
-        lens terms of every row at once."""
-        Ps = [self.matrix(theta, constrained) for theta in thetas]
-        h = np.stack([self.X @ P.T for P in Ps])
+        """:meth:`geometric` of each row of ``thetas`` (H, n), every row at once: a row's
+        numbers do not depend on the others (sums written out, no BLAS), so the moved
+        points of a forward-difference Jacobian get exactly one evaluation's numbers."""
+        Ps = self.matrices(thetas, constrained)
+        X = self.X[None, :, None, :3]  # (1, N, 1, 3): the homogeneous 1 is P's last column
+        h = _dot(X, Ps[:, None, :, :3]) + Ps[:, None, :, 3]  # (H, N, 3)
         proj = h[..., :2] / h[..., 2:3]
         u = np.broadcast_to(self.u, proj.shape)
         if lens:
-            terms = np.stack([self.lens_terms(theta, constrained) for theta in thetas])
-            u = u + _lens_offsets_rows(self.u, [lens_frame(P) for P in Ps], terms)
+            n_cam = self.n_camera(constrained)
+            terms = np.zeros((len(thetas), N_LENS))
+            terms[:, : thetas.shape[1] - n_cam] = thetas[:, n_cam:]
+            u = u + _lens_offsets_rows(self.u, lens_frames(Ps), terms)
         return (u - proj).reshape(len(thetas), -1)
 
     def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
