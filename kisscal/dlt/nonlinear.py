@@ -211,16 +211,16 @@ class _Problem:
         proj = h[..., :2] / h[..., 2:3]
         u = np.broadcast_to(self.u, proj.shape)
         if lens:
-            n_cam = self.n_camera(constrained)
-            terms = np.zeros((len(thetas), N_LENS))
-            terms[:, : thetas.shape[1] - n_cam] = thetas[:, n_cam:]
+            terms = self.lens_terms(thetas, constrained)
             u = u + _lens_offsets_rows(self.u, lens_frames(Ps), terms)
         return (u - proj).reshape(len(thetas), -1)
 
     def lens_terms(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
-        """L12..L16 (normalised) from the estimated first ones, the rest 0."""
-        est = theta[self.n_camera(constrained) :]
-        return np.concatenate([est, np.zeros(N_LENS - len(est))])
+        """L12..L16 (normalised) from the estimated first ones, the rest 0; of each row
+        of a stack of parameter vectors (..., n) too."""
+        est = theta[..., self.n_camera(constrained) :]
+        rest = np.zeros((*est.shape[:-1], N_LENS - est.shape[-1]))
+        return np.concatenate([est, rest], axis=-1)
 
     def to_dlt(self, theta: NDArray[np.float64], constrained: bool) -> NDArray[np.float64]:
         P = np.linalg.solve(self.T2, self.matrix(theta, constrained) @ self.T3)

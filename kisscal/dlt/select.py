@@ -229,8 +229,9 @@ def choose_model(
         # folds took two thirds of the comparison's time)
         runs = [_cross_validate(cameras, d, p, full) for d in designs] if carried else []
         for cam in cameras:
-            px = [px[cam] for *_, px in runs] or [np.inf]
-            held_px.setdefault(cam, {})[name] = float(np.sqrt(np.mean(np.square(px))))
+            rms_px = [per_camera[cam] for *_, per_camera in runs] or [np.inf]
+            # the designs' quadratic mean
+            held_px.setdefault(cam, {})[name] = float(np.sqrt(np.mean(np.square(rms_px))))
         ok = carried and all(len(e) > 0 for _, e, _ in runs)
         every = np.concatenate([e for _, e, _ in runs] or [np.zeros(0)])
         rms = [float(np.sqrt(np.mean(e**2))) for _, e, _ in runs] if ok else [np.inf]
