@@ -115,13 +115,7 @@ def lens_offsets(
     ``p2``, L16 its ``p1``), in the DLT literature's form (:func:`kisscal.dlt.lens.distort`).
     """
     centre, A = frame
-    d = uv - centre
-    eta = d[..., 1] / A[1, 1]
-    xi = d[..., 0] - A[0, 1] * eta
-    # L12 L13 L14 L15 L16 in OpenCV's order k1 k2 p1 p2 k3
-    brown = np.asarray(lens, dtype=float)[[0, 1, 4, 3, 2]]
-    dxi, deta = distort_xy(brown, xi, eta, dlt_form=True)
-    return np.stack([dxi + A[0, 1] * deta, A[1, 1] * deta], axis=-1)
+    return _offsets(uv - centre, A[0, 1], A[1, 1], np.asarray(lens, dtype=float))
 
 
 def _lens_offsets_rows(
@@ -133,15 +127,23 @@ def _lens_offsets_rows(
     (:func:`lens_frames` of a stack) and lenses (rows of ``lenses``), shape (H, N, 2):
     the same element-wise operations on the same numbers, every row at once (the
     columns of a forward-difference Jacobian)."""
-    n = len(u)
-    centre, A = frames[0][:, None, :], frames[1]
-    a01, a11 = A[:, 0, 1, None], A[:, 1, 1, None]
-    d = u - centre
+    centre, A = frames
+    return _offsets(u - centre[:, None, :], A[:, 0, 1, None], A[:, 1, 1, None], lenses[:, None])
+
+
+def _offsets(
+    d: NDArray[np.float64],
+    a01: float | NDArray[np.float64],
+    a11: float | NDArray[np.float64],
+    lens: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """The arithmetic of :func:`lens_offsets` on offsets ``d`` (..., 2) from the principal
+    point, ``A``'s two free entries and L12..L16 (shape (5,), or (..., 1, 5): a lens per
+    row of ``d``)."""
     eta = d[..., 1] / a11
     xi = d[..., 0] - a01 * eta
-    brown = np.repeat(lenses[:, [0, 1, 4, 3, 2]], n, axis=0)  # one lens per point
-    dxi, deta = distort_xy(brown, xi.ravel(), eta.ravel(), dlt_form=True)
-    dxi, deta = dxi.reshape(xi.shape), deta.reshape(xi.shape)
+    brown = lens[..., [0, 1, 4, 3, 2]]  # L12 L13 L14 L15 L16 in OpenCV's order k1 k2 p1 p2 k3
+    dxi, deta = distort_xy(brown, xi, eta, dlt_form=True)
     return np.stack([dxi + a01 * deta, a11 * deta], axis=-1)
 
 
