@@ -143,36 +143,62 @@ def draw_spots(image: NDArray[np.float64], spots: Spots, supersample: int = 4) -
     ellipse, estimated on ``supersample`` x ``supersample`` sub-pixels, each of which uses
     the signed distance of its centre to the outline over a ramp one sub-pixel wide. The
     centroid of a rendered spot is then its true centre to about 0.01 px.
-    Vectorised over all spots of a field: every spot is evaluated on a patch of the same
-    size, and the patches are combined with ``np.maximum.at``.
+    Vectorised over the spots of a field, a patch of one size for spots of about one
+    size (a camera's LED ring among markers a third of its size would make every patch
+    nine times larger), the patches combined with ``np.maximum.at``.
     """
-    n = len(spots.centre_px)
-    if n == 0:
+    if len(spots.centre_px) == 0:
         return
-    h, w = image.shape
-    radii = spots.radii_px
-    half = int(np.ceil(radii.max())) + 2
-    offs = np.arange(-half, half + 1)
+    half = np.ceil(spots.radii_px).astype(int) + 2  # (n, 2): along u and v
+    size_class = np.ceil(np.log2(half.max(axis=1))).astype(int)
+    for c in np.unique(size_class):
+        pick = np.flatnonzero(size_class == c)
+        part = Spots(spots.centre_px[pick], spots.shape[pick], spots.peak[pick])
+        rows, cols, value = _spot_patches(part, half[pick].max(axis=0), supersample)
+        h, w = image.shape
+        ok = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h) & (value > 0)
+        np.maximum.at(image, (rows[ok], cols[ok]), value[ok])
+
+
+def _spot_patches(
+    spots: Spots, half: NDArray[np.int64], supersample: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """Rows, columns and grey values (n, Pv, Pu each) of patches reaching ``half`` (u, v)
+    pixels either side of each spot's centre pixel: two beyond its half-extent along each
+    axis (a pixel farther out than its half-extent and a sub-pixel gets nothing: the
+    distance to the outline along the ray from the centre is never less than the distance
+    along an axis)."""
+    n = len(spots.centre_px)
     cu = np.rint(spots.centre_px[:, 0]).astype(int)
     cv = np.rint(spots.centre_px[:, 1]).astype(int)
-    px = cu[:, None, None] + offs[None, None, :]  # (n, 1, P)
-    py = cv[:, None, None] + offs[None, :, None]  # (n, P, 1)
+    px = cu[:, None, None] + np.arange(-half[0], half[0] + 1)[None, None, :]  # (n, 1, Pu)
+    py = cv[:, None, None] + np.arange(-half[1], half[1] + 1)[None, :, None]  # (n, Pv, 1)
     sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     inv = np.linalg.inv(spots.shape)
-    coverage = np.zeros((n, len(offs), len(offs)))
+    coverage = np.zeros((n, py.shape[1], px.shape[2]))
+    work = np.empty_like(coverage)  # one temporary for all passes (same numbers, in place)
     for sy in sub:  # supersample**2 passes, each vectorised over all spots and pixels
         for sx in sub:
             du = px + sx - spots.centre_px[:, 0, None, None]
             dv = py + sy - spots.centre_px[:, 1, None, None]
             a = inv[:, 0, 0, None, None] * du + inv[:, 0, 1, None, None] * dv
             b = inv[:, 1, 0, None, None] * du + inv[:, 1, 1, None, None] * dv
-            rho = np.sqrt(a * a + b * b)  # 1 on the outline
-            outside_px = np.hypot(du, dv) * (1.0 - 1.0 / np.maximum(rho, 1e-9))
-            coverage += np.clip(0.5 - outside_px * supersample, 0.0, 1.0)
+            np.multiply(a, a, out=a)
+            np.multiply(b, b, out=b)
+            np.add(a, b, out=a)
+            np.sqrt(a, out=a)  # rho: 1 on the outline
+            np.maximum(a, 1e-9, out=a)
+            np.divide(1.0, a, out=a)
+            np.subtract(1.0, a, out=a)
+            np.multiply(np.hypot(du, dv, out=work), a, out=work)  # px outside the outline
+            np.multiply(work, supersample, out=work)
+            np.subtract(0.5, work, out=work)
+            np.maximum(work, 0.0, out=work)
+            np.minimum(work, 1.0, out=work)
+            coverage += work
     value = coverage / supersample**2 * spots.peak[:, None, None]
-    pyb, pxb = np.broadcast_arrays(py, px)
-    ok = (pxb >= 0) & (pxb < w) & (pyb >= 0) & (pyb < h) & (value > 0)
-    np.maximum.at(image, (pyb[ok], pxb[ok]), value[ok])
+    rows, cols = np.broadcast_arrays(py, px)
+    return rows, cols, value
 
 
 def add_noise_pixels(
