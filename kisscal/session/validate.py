@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import no_points, read_c3d_points
 from kisscal.io.config import SessionConfig, TrialConfig
@@ -28,7 +30,7 @@ from kisscal.io.frames import (
 from kisscal.session.inputs import folders_hint, image_sources, loads_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.trials import CENTROID_COLUMNS
-from kisscal.target.match import too_few_seeds
+from kisscal.target.match import on_image, too_few_seeds
 
 #: ``Problem.scope`` of a problem that stops the whole session.
 SESSION = "session"
@@ -118,22 +120,24 @@ def _calibration_files(config: SessionConfig) -> list[str]:
             missing.append(f"{config.root / name}: calibration.{key} not found")
     for key in ("points", "seeds"):
         pattern = getattr(calibration, key)
-        for cam in config.camera_ids if pattern else ():
-            path = config.root / pattern.replace("{camera}", cam)
+        for cam in config.cameras if pattern else ():
+            path = config.root / pattern.replace("{camera}", cam.id)
             if not path.is_file():
-                missing.append(f"{path}: calibration {key} of camera {cam} not found")
+                missing.append(f"{path}: calibration {key} of camera {cam.id} not found")
             elif key == "seeds":
-                missing += _seed_problems(path, cam)
+                missing += _seed_problems(path, cam.id, cam.size_px)
     return missing
 
 
-def _seed_problems(path: Path, camera: str) -> list[str]:
-    """A camera's seeds file: readable, and as many seeds as ``calibrate`` needs."""
+def _seed_problems(path: Path, camera: str, size_px: tuple[int, int] | None) -> list[str]:
+    """A camera's seeds file: readable, and as many seeds on the image (clicks: where its
+    size is not given, not left of or above it) as ``calibrate`` needs."""
     try:
         uv, _, _ = read_control_points_csv(path)
     except KisscalError as exc:
         return [str(exc)]
-    few = too_few_seeds(len(uv))
+    clicks = on_image(uv, size_px) if size_px else np.all(uv >= -0.5, axis=1)
+    few = too_few_seeds(int(clicks.sum()))
     return [f"{path}: camera {camera}: {few}"] if few else []
 
 

@@ -160,8 +160,10 @@ def seed_models(
     camera: str,
     params: TargetParams = DEFAULT_PARAMS,
     dlt: DltParams = DLT_DEFAULTS,
+    rows: NDArray[np.int64] | None = None,
 ) -> list[_Start]:
-    """The first projections of the target the seeds allow, best first.
+    """The first projections of the target the seeds allow, best first; ``rows`` is each
+    seed's row in its file (messages name the file's line), by default its index.
 
     Raises
     ------
@@ -195,10 +197,11 @@ def seed_models(
     err = np.linalg.norm(starts[0].project(seeds_xyz) - seeds_uv, axis=1)
     if starts[0].seed_rms_px > params.seed_tol_px:
         worst = int(np.argmax(err))
+        line = (worst if rows is None else int(rows[worst])) + 2  # the header is line 1
         raise EstimationFailed(
             f"{where}the {len(seeds_uv)} seeds contradict each other: no camera puts them "
             f"where they were clicked (rms {starts[0].seed_rms_px:.1f} px; seed row "
-            f"{worst + 2} is off by {err[worst]:.1f} px); check each click is on the point "
+            f"{line} is off by {err[worst]:.1f} px); check each click is on the point "
             f"its x_mm,y_mm,z_mm name{off_centre_hint(len(seeds_uv))}"
         )
     return [s for s in starts if s.seed_rms_px <= params.seed_tol_px][:_MAX_CANDIDATES]
@@ -323,7 +326,9 @@ def match_target(
     dots = as_points(dots_px, 2, "dots_px")
     seeds_uv = as_points(seeds_uv, 2, "seeds_uv")
     seeds_xyz = as_points(seeds_xyz, 3, "seeds_xyz")
-    starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params, dlt)
+    rows = np.flatnonzero(on_image(seeds_uv, size_px))  # the others are no clicks
+    seeds_uv, seeds_xyz = seeds_uv[rows], seeds_xyz[rows]
+    starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params, dlt, rows)
     rounds = [_rounds(target, dots, s, size_px, camera, params, dlt) for s in starts]
     best = max(range(len(rounds)), key=lambda i: (int((rounds[i][0] >= 0).sum()), -i))
     dot, iterations, cam = rounds[best]
@@ -335,7 +340,7 @@ def match_target(
         )
     fit, final = _lens_rounds(target, dots, dot, size_px, cam, params, dlt, starts[best].terms)
     projected = fit.camera.project(target)
-    visible = _inside(projected, size_px)
+    visible = on_image(projected, size_px)
     seen = visible & _dot_near(projected, dots, params)
     m = final >= 0
     if m.sum() < params.min_matched * max(seen.sum(), 1):
@@ -492,6 +497,9 @@ def _dot_near(
     return cKDTree(dots_px).query(projected_px)[0] <= params.gate * spacing
 
 
-def _inside(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:
+def on_image(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:
+    """Whether pixels (n, 2) lie on an image of ``size_px`` (width, height): a click or a
+    projection there. A seed off the image is no click: MyPTV writes ``-1, -1`` for a
+    target point it was not given one for."""
     w, h = size_px
     return (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,32 @@ def test_contradicting_seeds_are_refused() -> None:
     swapped[[1, 4]] = swapped[[4, 1]]  # two clicks given each other's names
     with pytest.raises(KisscalError, match="contradict each other"):
         match_target(xyz, uv, swapped, dots, cam.size_px, cam.id)
+
+
+def test_a_seed_off_the_image_is_no_click() -> None:
+    """MyPTV writes ``-1, -1`` for a target point it was not given a click for (its
+    example's cam2 seeds); such a row is left out, and a message about a bad click names
+    the file's line of that click."""
+    xyz, cam, uv, picked, dots = _camera_view("stepped", 2, 0)
+    alone = match_target(xyz, uv, picked, dots, cam.size_px, cam.id)
+    with_gap = match_target(
+        xyz,
+        np.vstack([uv[:2], [-1.0, -1.0], uv[2:]]),
+        np.vstack([picked[:2], picked[1:]]),
+        dots,
+        cam.size_px,
+        cam.id,
+    )
+    np.testing.assert_array_equal(with_gap.dot, alone.dot)
+    assert with_gap.rms_px == pytest.approx(alone.rms_px)
+    swapped = picked.copy()
+    swapped[[1, 4]] = swapped[[4, 1]]  # two clicks given each other's names
+    with pytest.raises(KisscalError, match=r"seed row (\d+) is off") as plain:
+        match_target(xyz, uv, swapped, dots, cam.size_px, cam.id)
+    line = int(re.search(r"seed row (\d+)", str(plain.value)).group(1))
+    gap = np.vstack([uv[:1], [-1.0, -1.0], uv[1:]])  # the seeds' file with a line 3 added
+    with pytest.raises(KisscalError, match=rf"seed row {line + (line > 2)} is off"):
+        match_target(xyz, gap, np.vstack([swapped[:1], swapped]), dots, cam.size_px, cam.id)
 
 
 def test_seeds_on_one_line_are_refused() -> None:

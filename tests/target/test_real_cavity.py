@@ -136,6 +136,28 @@ def test_three_seeds_are_refused_by_validate_and_calibrate_alike(tmp_path: Path)
     assert problems[0].endswith(str(caught.value).split(": ", 1)[1])
 
 
+def test_seed_lines_off_the_image_are_no_clicks_to_validate_and_calibrate_alike(
+    tmp_path: Path,
+) -> None:
+    """MyPTV writes ``-1, -1`` for a target point it was not given a click for: such a
+    line is left out (the log names it), and does not count as a seed."""
+    unclicked = "-1,-1,0,0,0\n"
+    four = _cam1_session(tmp_path / "s4", 4)
+    seeds = four / "cam1_seeds.csv"
+    seeds.write_text(seeds.read_text() + unclicked)
+    assert validate(four) == []
+    said: list[str] = []
+    session.calibrate(four, echo=said.append)
+    assert any("seed line 6 of cam1_seeds.csv lies outside" in line for line in said), said
+    three = _cam1_session(tmp_path / "s3", 3)
+    seeds = three / "cam1_seeds.csv"
+    seeds.write_text(seeds.read_text() + unclicked)
+    problems = [str(p) for p in validate(three)]
+    assert len(problems) == 1 and "3 seeds; click at least 4" in problems[0]
+    with pytest.raises(KisscalError, match="3 seeds; click at least 4"):
+        session.calibrate(three)
+
+
 def test_points_route_needs_no_size_without_images(tmp_path: Path) -> None:
     """[calibration] points and no [[cameras]] size: the DLT of each camera's real
     points, as close to them as OpenPTV's calibration with refraction."""

@@ -31,7 +31,7 @@ from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_c
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
-from kisscal.target.match import TargetMatch, fit_camera, match_target
+from kisscal.target.match import TargetMatch, fit_camera, match_target, on_image
 from kisscal.target.resect import model_name
 
 ROUTE = "target"
@@ -60,7 +60,9 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         for cam in inputs.cameras:
             lin = inputs.linearisations[cam.id]
             seeds_uv, seeds_xyz, _ = read_control_points_csv(seed_paths[cam.id])
-            found = [find_target_dots(i, seeds_uv, inputs.params.target) for i in frames[cam.id]]
+            seeds_uv = _clicked(inputs, cam.id, cam.size_px, seeds_uv, seed_paths[cam.id].name)
+            clicks = seeds_uv[np.isfinite(seeds_uv[:, 0])]
+            found = [find_target_dots(i, clicks, inputs.params.target) for i in frames[cam.id]]
             dots[cam.id] = apply_linearisation(lin, average_static(found))
             seeds = (apply_linearisation(lin, seeds_uv), seeds_xyz)
             about = (cam.size_px, cam.id, inputs.params.target, inputs.params.dlt)
@@ -92,6 +94,21 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         inputs.params.dlt,
     )
     return run_keyed(store, target_json, stage, cached, compute)
+
+
+def _clicked(
+    inputs: RouteInputs, camera: str, size_px: tuple[int, int], uv: np.ndarray, name: str
+) -> np.ndarray:
+    """The seeds' pixels, NaN for those off the image (no click: MyPTV writes ``-1, -1``
+    for a target point it was not given one for), which the log names."""
+    off = ~on_image(uv, size_px)
+    if off.any():
+        lines = ", ".join(str(i + 2) for i in np.flatnonzero(off))
+        inputs.echo(
+            f"  calibrate {camera}: seed line {lines} of {name} lies outside the "
+            f"{size_px[0]} x {size_px[1]} image: left out (not a click)"
+        )
+    return np.where(off[:, None], np.nan, uv)
 
 
 def _report(matches: dict[str, TargetMatch], seconds: float) -> dict[str, Any]:
