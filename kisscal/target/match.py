@@ -302,7 +302,8 @@ def match_target(
     target_xyz : array_like, shape (n, 3)
         Every point of the target (``target.csv``), lab mm.
     seeds_uv, seeds_xyz : array_like, shapes (s, 2), (s, 3)
-        The clicked points, s >= :data:`MIN_SEEDS`.
+        The clicked points, at least :data:`MIN_SEEDS` on the image (rows off it, or
+        NaN, are no clicks and are left out).
     dots_px : array_like, shape (m, 2)
         The dots found in the camera's images (:mod:`kisscal.target.dots`).
     size_px : (int, int)
