@@ -30,7 +30,7 @@ from kisscal.io.frames import (
 from kisscal.session.inputs import folders_hint, image_sources, loads_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.trials import CENTROID_COLUMNS
-from kisscal.target.match import on_image, too_few_seeds
+from kisscal.target.seeds import on_image, too_few_seeds
 
 #: ``Problem.scope`` of a problem that stops the whole session.
 SESSION = "session"

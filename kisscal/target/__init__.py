@@ -8,7 +8,8 @@ for a session)::
     match.camera, match.dot, match.visible
 
 Modules: :mod:`~kisscal.target.dots` (dots under uneven light),
-:mod:`~kisscal.target.match` (first cameras from the seeds, matching rounds) and
+:mod:`~kisscal.target.seeds` (which rows of a seeds file are clicks, how many a camera
+needs), :mod:`~kisscal.target.match` (first cameras from the seeds, matching rounds) and
 :mod:`~kisscal.target.resect` (a pinhole resection from four or more points, and the terms
 beyond it that the held-out points ask for).
 """

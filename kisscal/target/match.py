@@ -56,12 +56,10 @@ from kisscal.target.resect import (
     refine,
     resect,
 )
+from kisscal.target.seeds import MIN_SEEDS, on_image, too_few_seeds
 
 Projector = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
-#: The least number of seeds per camera: a resection's pinhole camera is 7 numbers
-#: (focal length, rotation, position) and each seed gives two.
-MIN_SEEDS = 4
 #: Matches needed before the camera model beyond the pinhole is chosen.
 MIN_MATCHES = 12
 #: Cameras the seeds fit that are each matched (the best few).
@@ -105,17 +103,6 @@ class TargetMatch:
     @property
     def matched(self) -> NDArray[np.bool_]:
         return self.dot >= 0
-
-
-def too_few_seeds(n: int) -> str | None:
-    """Why ``n`` seeds are too few for a camera (None when they are enough); the one
-    rule ``kisscal validate`` and ``kisscal calibrate`` both apply."""
-    if n >= MIN_SEEDS:
-        return None
-    return (
-        f"{n} seeds; click at least {MIN_SEEDS} target points (a camera's focal length, "
-        "direction and position take 7 numbers, each seed gives 2)"
-    )
 
 
 def is_planar(xyz_mm: ArrayLike, dlt: DltParams = DLT_DEFAULTS) -> bool:
@@ -496,11 +483,3 @@ def _dot_near(
         return np.zeros(len(projected_px), dtype=bool)
     spacing = cKDTree(projected_px).query(projected_px, k=2)[0][:, 1]
     return cKDTree(dots_px).query(projected_px)[0] <= params.gate * spacing
-
-
-def on_image(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:
-    """Whether pixels (n, 2) lie on an image of ``size_px`` (width, height): a click or a
-    projection there. A seed off the image is no click: MyPTV writes ``-1, -1`` for a
-    target point it was not given one for."""
-    w, h = size_px
-    return (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)

@@ -31,8 +31,9 @@ from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_c
 from kisscal.session.routes.lens_files import write_lens_camera
 from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
-from kisscal.target.match import TargetMatch, fit_camera, match_target, on_image
+from kisscal.target.match import TargetMatch, fit_camera, match_target
 from kisscal.target.resect import model_name
+from kisscal.target.seeds import on_image
 
 ROUTE = "target"
 TARGET_COLUMNS = ("x_mm", "y_mm", "z_mm")
