@@ -171,6 +171,23 @@ def as_points(points: ArrayLike, dim: int, name: str = "points") -> NDArray[np.f
     return array
 
 
+def in_image(
+    uv_px: ArrayLike, size_px: tuple[int, int], margin_px: float = 0.0
+) -> NDArray[np.bool_]:
+    """Whether pixels (..., 2) lie on an image of ``size_px`` (width, height), ``margin_px``
+    inside its border: pixel centres are whole numbers, so the image spans -0.5 to
+    ``width - 0.5`` (NaN is on no image)."""
+    uv = np.asarray(uv_px, dtype=float)
+    w, h = size_px
+    lo = margin_px - 0.5
+    return (
+        (uv[..., 0] >= lo)
+        & (uv[..., 0] <= w - 0.5 - margin_px)
+        & (uv[..., 1] >= lo)
+        & (uv[..., 1] <= h - 0.5 - margin_px)
+    )
+
+
 def new_figure(width_in: float, height_in: float, constrained: bool = True) -> Figure:
     """A matplotlib figure on an Agg canvas: no pyplot state.
 

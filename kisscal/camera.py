@@ -61,6 +61,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from kisscal._shared import in_image
 from kisscal.dlt.camera import decompose_dlt
 from kisscal.dlt.lens import distort, undistort
 from kisscal.dlt.lens import distort_each as distort_each
@@ -254,15 +255,7 @@ class Camera:
         """Whether pixels lie on the image, ``margin_px`` inside its border."""
         if self.size_px is None:
             raise InputError(f"camera {self.id}: image size unknown")
-        uv = np.asarray(uv_px, dtype=float)
-        w, h = self.size_px
-        lo = margin_px - 0.5
-        return (
-            (uv[..., 0] >= lo)
-            & (uv[..., 0] <= w - 0.5 - margin_px)
-            & (uv[..., 1] >= lo)
-            & (uv[..., 1] <= h - 0.5 - margin_px)
-        )
+        return in_image(uv_px, self.size_px, margin_px)
 
     def transformed(self, rotation: ArrayLike, shift_mm: ArrayLike) -> Camera:
         """This camera after the lab frame changes by ``X' = rotation X + shift_mm``."""

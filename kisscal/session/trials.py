@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import in_image
 from kisscal.errors import InputError, MissingDataError
 from kisscal.io.config import SessionConfig, TrialConfig
 from kisscal.io.files import read_table
@@ -102,7 +103,7 @@ def _check_centroids(
         raise InputError(f"{path}: field numbers must be 0 or more")
     if size_px is not None:
         w, h = size_px
-        off = (xy[:, 0] < -0.5) | (xy[:, 0] > w - 0.5) | (xy[:, 1] < -0.5) | (xy[:, 1] > h - 0.5)
+        off = ~in_image(xy, size_px)
         if off.any():
             row = int(np.argmax(off))
             raise InputError(

@@ -14,8 +14,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from kisscal.errors import KisscalError
 from kisscal.io.c3d import no_points, read_c3d_points
 from kisscal.io.config import SessionConfig, TrialConfig
@@ -30,7 +28,7 @@ from kisscal.io.frames import (
 from kisscal.session.inputs import folders_hint, image_sources, loads_config, needs_calibration
 from kisscal.session.params import Overrides, stage_params
 from kisscal.session.trials import CENTROID_COLUMNS
-from kisscal.target.seeds import on_image, too_few_seeds
+from kisscal.target.seeds import clicked, too_few_seeds
 
 #: ``Problem.scope`` of a problem that stops the whole session.
 SESSION = "session"
@@ -136,8 +134,7 @@ def _seed_problems(path: Path, camera: str, size_px: tuple[int, int] | None) -> 
         uv, _, _ = read_control_points_csv(path)
     except KisscalError as exc:
         return [str(exc)]
-    clicks = on_image(uv, size_px) if size_px else np.all(uv >= -0.5, axis=1)
-    few = too_few_seeds(int(clicks.sum()))
+    few = too_few_seeds(int(clicked(uv, size_px).sum()))
     return [f"{path}: camera {camera}: {few}"] if few else []
 
 

@@ -149,13 +149,13 @@ def draw_spots(image: NDArray[np.float64], spots: Spots, supersample: int = 4) -
     """
     if len(spots.centre_px) == 0:
         return
+    h, w = image.shape
     half = np.ceil(spots.radii_px).astype(int) + 2  # (n, 2): along u and v
     size_class = np.ceil(np.log2(half.max(axis=1))).astype(int)
     for c in np.unique(size_class):
         pick = np.flatnonzero(size_class == c)
         part = Spots(spots.centre_px[pick], spots.shape[pick], spots.peak[pick])
         rows, cols, value = _spot_patches(part, half[pick].max(axis=0), supersample)
-        h, w = image.shape
         ok = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h) & (value > 0)
         np.maximum.at(image, (rows[ok], cols[ok]), value[ok])
 

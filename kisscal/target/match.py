@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from kisscal._shared import as_points, rms_px
+from kisscal._shared import as_points, in_image, rms_px
 from kisscal.camera import Camera
 from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DEFAULT_PARAMS as DLT_DEFAULTS
@@ -56,7 +56,7 @@ from kisscal.target.resect import (
     refine,
     resect,
 )
-from kisscal.target.seeds import MIN_SEEDS, on_image, too_few_seeds
+from kisscal.target.seeds import MIN_SEEDS, clicked, too_few_seeds
 
 Projector = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -314,7 +314,7 @@ def match_target(
     dots = as_points(dots_px, 2, "dots_px")
     seeds_uv = as_points(seeds_uv, 2, "seeds_uv")
     seeds_xyz = as_points(seeds_xyz, 3, "seeds_xyz")
-    rows = np.flatnonzero(on_image(seeds_uv, size_px))  # the others are no clicks
+    rows = np.flatnonzero(clicked(seeds_uv, size_px))  # the file's lines, for messages
     seeds_uv, seeds_xyz = seeds_uv[rows], seeds_xyz[rows]
     starts = seed_models(seeds_uv, seeds_xyz, target, size_px, camera, params, dlt, rows)
     rounds = [_rounds(target, dots, s, size_px, camera, params, dlt) for s in starts]
@@ -328,7 +328,7 @@ def match_target(
         )
     fit, final = _lens_rounds(target, dots, dot, size_px, cam, params, dlt, starts[best].terms)
     projected = fit.camera.project(target)
-    visible = on_image(projected, size_px)
+    visible = in_image(projected, size_px)
     seen = visible & _dot_near(projected, dots, params)
     m = final >= 0
     if m.sum() < params.min_matched * max(seen.sum(), 1):

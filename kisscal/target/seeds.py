@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kisscal._shared import in_image
+
 #: The least number of seeds per camera: a resection's pinhole camera is 7 numbers
 #: (focal length, rotation, position) and each seed gives two.
 MIN_SEEDS = 4
@@ -24,15 +26,16 @@ def too_few_seeds(n: int) -> str | None:
     )
 
 
-def on_image(uv: NDArray[np.float64], size_px: tuple[int, int]) -> NDArray[np.bool_]:
-    """Whether pixels (n, 2) lie on an image of ``size_px`` (width, height): a click or a
-    projection there. A seed off the image is no click: MyPTV writes ``-1, -1`` for a
-    target point it was not given one for.
+def clicked(uv: NDArray[np.float64], size_px: tuple[int, int] | None) -> NDArray[np.bool_]:
+    """Which seeds (n, 2) are clicks: those on an image of ``size_px`` (width, height), or,
+    its size unknown, not left of or above it. MyPTV writes ``-1, -1`` for a target point
+    it was not given a click for.
 
     Examples
     --------
-    >>> on_image(np.array([[10.0, 5.0], [-1.0, -1.0]]), (640, 480)).tolist()
+    >>> clicked(np.array([[10.0, 5.0], [-1.0, -1.0]]), (640, 480)).tolist()
     [True, False]
     """
-    w, h = size_px
-    return (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)
+    if size_px is None:
+        return np.all(np.asarray(uv) >= -0.5, axis=1)
+    return in_image(uv, size_px)

@@ -35,13 +35,10 @@ TARGETS = ("example", "example_fibers")
 def _points(target: str) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per camera: target positions (mm), image positions (px) and the point's number
     (shared by the cameras: the rank of its position among all the target's)."""
-    rows = {c: np.loadtxt(FIXTURES / target / f"{c}_cal_points", ndmin=2) for c in CAMERAS}
-    every = np.unique(np.concatenate([r[:, 2:5] for r in rows.values()]), axis=0)
-    out = {}
-    for cam, r in rows.items():
-        ids = np.array([np.flatnonzero(np.all(every == p, axis=1))[0] for p in r[:, 2:5]])
-        out[cam] = (r[:, 2:5], r[:, :2], ids)
-    return out
+    rows = [np.loadtxt(FIXTURES / target / f"{c}_cal_points", ndmin=2) for c in CAMERAS]
+    _, ids = np.unique(np.concatenate([r[:, 2:5] for r in rows]), axis=0, return_inverse=True)
+    ids = np.split(ids.ravel(), np.cumsum([len(r) for r in rows])[:-1])
+    return {c: (r[:, 2:5], r[:, :2], i) for c, r, i in zip(CAMERAS, rows, ids, strict=True)}
 
 
 def _odd_points_rms_mm(points: dict, model: str) -> float:

@@ -33,7 +33,7 @@ from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
 from kisscal.target.resect import model_name
-from kisscal.target.seeds import on_image
+from kisscal.target.seeds import clicked
 
 ROUTE = "target"
 TARGET_COLUMNS = ("x_mm", "y_mm", "z_mm")
@@ -100,9 +100,10 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
 def _clicked(
     inputs: RouteInputs, camera: str, size_px: tuple[int, int], uv: np.ndarray, name: str
 ) -> np.ndarray:
-    """The seeds' pixels, NaN for those off the image (no click: MyPTV writes ``-1, -1``
-    for a target point it was not given one for), which the log names."""
-    off = ~on_image(uv, size_px)
+    """The seeds' pixels, NaN for those that are no clicks (:func:`clicked`), which the
+    log names: NaN rather than dropped, so that the matching's messages keep the file's
+    line numbers, and no linearisation brings a row back onto the image."""
+    off = ~clicked(uv, size_px)
     if off.any():
         lines = ", ".join(str(i + 2) for i in np.flatnonzero(off))
         inputs.echo(
