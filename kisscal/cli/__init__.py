@@ -11,6 +11,7 @@ from __future__ import annotations
 import _thread
 import multiprocessing
 import sys
+import threading
 from typing import Any
 
 import typer
@@ -72,16 +73,23 @@ def main(argv: list[str] | None = None) -> None:
     sys.exit(rv if isinstance(rv, int) else 0)
 
 
+#: How long after a lost Ctrl-C :func:`_keep_interrupts` raises it again (s): time for
+#: the hook to return.
+_REPEAT_INTERRUPT_S = 0.01
+
+
 def _keep_interrupts(unraisable: Any) -> None:
     """Do not lose a Ctrl-C that Python could not raise where it arrived.
 
     A SIGINT that arrives while the process forks a worker is raised in a callback run
-    just after the fork (logging's lock release), where it is only printed and dropped.
-    It is raised again in the main thread instead, so the command stops with its one
-    ``interrupted`` line.
+    just after the fork (logging's lock release) or in a finaliser, where it is only
+    printed and dropped. It is raised again in the main thread instead, so the command
+    stops with its one ``interrupted`` line: from another thread, a moment later, as
+    raised here it would land in this hook and be dropped again (a whole-suite run saw
+    the traceback of this very line, and the run went on until a second Ctrl-C).
     """
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
-        _thread.interrupt_main()
+        threading.Timer(_REPEAT_INTERRUPT_S, _thread.interrupt_main).start()
         return
     sys.__unraisablehook__(unraisable)
 

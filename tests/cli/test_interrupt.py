@@ -25,11 +25,11 @@ def _as_a_terminal_starts_it() -> None:
 def _press_ctrl_c(run: subprocess.Popen) -> tuple[str, str, float]:
     """Ctrl-C to the run's process group; a second one if the first went unheard.
 
-    Once in a whole-suite run the run went on to the end after one Ctrl-C (0.5 s in, both
-    cores busy); 30 tries at 0-1.5 s, idle and on a loaded machine, did not show it again.
-    CPython may drop a KeyboardInterrupt that its signal handler raises inside C code that
-    discards errors; a user then presses again, and so does this test: what it asserts is
-    what the run does once it hears Ctrl-C.
+    Twice in whole-suite runs the run went on after one Ctrl-C (0.5 s in, both cores busy):
+    CPython drops a KeyboardInterrupt that its signal handler raises where errors are
+    discarded (a finaliser, a callback after a fork). The CLI raises it again
+    (``kisscal.cli._keep_interrupts``, tested in ``test_interrupt_pool.py``); a user who
+    is not heard presses again, and so does this test.
     """
     for _ in range(2):
         sent = time.perf_counter()

@@ -39,3 +39,39 @@ def test_an_interrupt_ends_a_pool_with_queued_work_at_once() -> None:
     assert run.returncode == 130, run.stderr[-2000:]
     assert run.stderr.strip().splitlines()[-1] == "kisscal stall: error: interrupted"
     assert took_s < 10, took_s  # the queue alone holds 20 s of work
+
+
+# A Ctrl-C that Python raises where it cannot propagate (a finaliser; after a fork, the
+# logging lock's release): printed as "Exception ignored" and dropped, unless kept.
+_LOST = textwrap.dedent(
+    """
+    import signal
+    import time
+    from kisscal import cli
+
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # as at a terminal
+
+    class Finalised:
+        def __del__(self) -> None:
+            raise KeyboardInterrupt
+
+    @cli.app.command("busy")
+    def busy() -> None:
+        Finalised()
+        start = time.perf_counter()
+        while time.perf_counter() - start < 20:
+            pass
+        print("went on")
+
+    cli.main(["busy"])
+    """
+)
+
+
+def test_an_interrupt_raised_in_a_finaliser_still_stops_the_command() -> None:
+    run = subprocess.run(
+        [sys.executable, "-c", _LOST], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
+    assert run.returncode == 130, run.stderr[-2000:]
+    assert "went on" not in run.stdout
+    assert run.stderr.strip().splitlines() == ["kisscal busy: error: interrupted"], run.stderr
