@@ -89,7 +89,9 @@ def _keep_interrupts(unraisable: Any) -> None:
     the traceback of this very line, and the run went on until a second Ctrl-C).
     """
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
-        threading.Timer(_REPEAT_INTERRUPT_S, _thread.interrupt_main).start()
+        later = threading.Timer(_REPEAT_INTERRUPT_S, _thread.interrupt_main)
+        later.daemon = True  # a command ending meanwhile does not wait for it
+        later.start()
         return
     sys.__unraisablehook__(unraisable)
 

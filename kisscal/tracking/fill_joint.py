@@ -50,8 +50,11 @@ AGREE_MM = 5.0
 #: velocity from the last field placed, expects it.
 STEP_MM = 20.0
 
-#: Gauss-Newton iterations per field.
+#: Most Gauss-Newton iterations per field.
 ITERS = 10
+#: A depth step this small (mm) ends the length fit (Gauss-Newton steps shrink
+#: quadratically: the next would move the depths by nanometres).
+CONVERGED_MM = 1e-4
 
 
 @dataclass(frozen=True)
@@ -175,6 +178,7 @@ def _solve(
     if i_idx.size < r + 1:
         return s0, np.inf, np.inf  # no length to spare: a wrong blob would go unseen
     s = s0.astype(float).copy()
+    done = False
     for it in range(ITERS + 1):
         x = centre + s[:, None] * d
         pts = np.concatenate([x, anchors])
@@ -191,10 +195,12 @@ def _solve(
             np.einsum("ij,ij->i", u[inner], d[j_idx[inner]]) * w[inner]
         )
         info = jac.T @ jac
-        if it == ITERS:
+        if done or it == ITERS:
             break
-        step = np.linalg.lstsq(info, jac.T @ res, rcond=None)[0]
-        s -= np.clip(step, -100.0, 100.0)
+        step = np.clip(np.linalg.lstsq(info, jac.T @ res, rcond=None)[0], -100.0, 100.0)
+        s -= step
+        # converged: what further steps would move is far below a micrometre
+        done = bool(np.abs(step).max() < CONVERGED_MM)
     return fit_summary(s, res, info)
 
 
