@@ -5,6 +5,15 @@ region, LSMR, the sparse Jacobian pattern) on the same adjustment of 100 fields,
 kisscal's sparse Levenberg-Marquardt with the Schur complement on the same 100 fields;
 then the whole wand-on-rods calibration (3D wand finding, adjustment with outlier passes)
 of 600 fields. Issue 16 asks for 600 fields x 6 cameras in under 60 s on 2 cores.
+
+Recorded (2026-12-03, stop 67, 2 cores shared): the normal equations' batched products by
+matmul instead of einsum, and ``W V^-1 W^T`` from the blocks above its diagonal written
+whole into the grid: within this benchmark's noise here (Schur 100 fields 0.048-0.050 s
+before, 0.049-0.053 s after; the 100 fields are too few for those products to weigh), but
+4 wand-on-rods calibrations of 1200 fields in one process (the size of the session tests'
+wand routes), paired by ``farm-bench -n 4`` with the previous version: 0.95x processor
+time (whole process, scene and imports included), every figure of
+``tests.bundle.wand_acceptance --quick`` identical.
 """
 
 from __future__ import annotations
