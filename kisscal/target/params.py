@@ -15,8 +15,8 @@ class TargetParams(Params):
     Attributes
     ----------
     dots : {"auto", "dark", "bright"}
-        Dots darker or lighter than the plate; ``auto`` takes the kind the clicked seeds
-        lie on.
+        Dots darker or lighter than the plate; ``auto`` takes the kind whose dots lie
+        nearest the clicked seeds (a click a few pixels off a large dot's centre counts).
     window_px : int
         Side (px, odd) of the neighbourhood whose mean a pixel is compared with (uneven
         light); at least twice a dot's diameter.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -31,3 +32,27 @@ def test_polarity_follows_the_seeds() -> None:
     dark = find_target_dots(image, seeds)
     bright = find_target_dots(255 - image, seeds)
     assert len(dark) >= len(xyz) and np.allclose(np.sort(dark, axis=0), np.sort(bright, axis=0))
+
+
+def test_polarity_follows_rough_clicks_on_large_dots_among_specks() -> None:
+    """Bright dots 22 x 12 px on a dark tank among bright specks, clicked 4-6 px off their
+    centres (as OpenPTV's users clicked github OpenPTV/example_2cam_90deg): the bright dots.
+    A count of dots within 3 px of the clicks found none of either polarity and took the
+    dark ones, and the target route then matched nothing."""
+    rng = np.random.default_rng(5)
+    image = np.full((400, 500), 12, np.uint8)
+    centres = np.array([(60.0 + 60 * i, 50.0 + 50 * j) for i in range(7) for j in range(7)])
+    for u, v in centres:
+        cv2.ellipse(image, (int(u), int(v)), (11, 6), 0, 0, 360, 200, -1)
+    specks = rng.integers((0, 0), (500, 400), (400, 2))
+    image[specks[:, 1], specks[:, 0]] = 160
+    image = cv2.GaussianBlur(image, (0, 0), 1.0)
+    angle = rng.uniform(0, 2 * np.pi, 4)
+    clicks = (
+        centres[[0, 6, 42, 48]]
+        + rng.uniform(4, 6, 4)[:, None] * np.c_[np.cos(angle), np.sin(angle)]
+    )
+    dots = find_target_dots(image, clicks)
+    d = np.linalg.norm(centres[:, None] - dots[None], axis=2).min(axis=1)
+    assert (d < 1.0).all(), d.max()
+    assert np.array_equal(dots, find_dots(image, "bright"))
