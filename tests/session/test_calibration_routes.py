@@ -128,8 +128,13 @@ def test_target_route_matches_every_point(tmp_path: Path) -> None:
     said: list[str] = []
     session.calibrate(root, echo=said.append)
     doc = json.loads((root / "out" / "dlt" / "target.json").read_text())
-    for entry in doc["cameras"].values():
+    for cam, entry in doc["cameras"].items():
         assert entry["matched"] == entry["visible"] and not entry["unmatched"]
+        # the log gives the calibration as written, beside the matching camera's fit
+        written = json.loads((root / "out" / "dlt" / f"{cam}.json").read_text())["rms_px"]
+        line = next(s for s in said if s.startswith(f"  calibrate {cam}: target"))
+        assert f"written as a DLT at {written:.3f} px" in line, line
+        assert f"at {entry['rms_px']:.3f} px" in line, line
     check = json.loads((root / "out" / "dlt" / "check.json").read_text())
     assert check["leave_out_mean_mm"] < 0.2
     failures = session.check(root, max_3d_mm=0.2)

@@ -93,8 +93,9 @@ def write_lens_camera(
     extra: Mapping[str, Any] | None = None,
     *,
     kinds: str | Sequence[str],
-) -> None:
-    """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``.
+) -> float:
+    """Write ``linearisation/<camera>.json`` and ``dlt/<camera>.json``; the written DLT's
+    RMS (px) on the points.
 
     ``points`` are the observations the camera was fitted to: lab mm, image px (the lens
     model's coordinates), residuals px and labels; the file lists them through the
@@ -119,3 +120,4 @@ def write_lens_camera(
     result = dlt_result(L, route, kolahi, res, hatze_violation(camera.dlt), iterations)
     path = inputs.store.dlt_path(cfg.id)
     write_dlt_json(path, cfg.id, result, xyz, written, labels, extra, kinds)
+    return float(result.rms_px)
