@@ -12,8 +12,9 @@ chosen and the reprojection RMS of kisscal's calibration on MyPTV's matched poin
 
 Measured (2026-12-03): example 431, 428, 423 of 437 points matched (420 of MyPTV's 421,
 424 of 432, 407 of 411), 0.37, 0.50, 0.54 px on MyPTV's points, held-out target points
-0.058 mm mean; example_fibers 480, 479, 480 of 480 (all of MyPTV's but one), 0.11, 0.19,
-0.16 px, 0.083 mm.
+0.059 mm mean (of the calibration as written: 0.058 for the matching's cameras);
+example_fibers 480, 479, 480 of 480 (all of MyPTV's but one), 0.11, 0.19, 0.16 px,
+0.082 mm (0.083).
 """
 
 from __future__ import annotations

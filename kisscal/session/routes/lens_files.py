@@ -77,10 +77,18 @@ def _fold_lens(
     }
     write_linearisation(lin_path, lin, cfg.id, refined=refined)
     written = apply_linearisation(lin, raw)
-    L = camera.dlt
-    if len(xyz) >= dlt.min_points and spread_ratio(xyz) >= dlt.min_spread_ratio:  # not flat
-        L = solve_dlt(xyz, written, dlt, camera=cfg.id)
-    return written, L
+    return written, written_dlt(camera, xyz, written, dlt, cfg.id)
+
+
+def written_dlt(
+    camera: Camera, xyz: NDArray, ideal_px: NDArray, dlt: DltParams, name: str
+) -> NDArray[np.float64]:
+    """The DLT written for ``camera`` fitted with its lens to ``xyz`` and ``ideal_px`` (the
+    points with the lens removed): refitted to them when they are not flat (a DLT's
+    skew and aspect follow a sensor the camera model has no term for), else its own."""
+    if len(xyz) >= dlt.min_points and spread_ratio(xyz) >= dlt.min_spread_ratio:
+        return solve_dlt(xyz, ideal_px, dlt, camera=name)
+    return camera.dlt
 
 
 def write_lens_camera(

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from kisscal.bundle.frame import average_static
-from kisscal.bundle.quality import triangulate_points
+from kisscal.dlt.triangulate import triangulate_observations
 from kisscal.errors import EstimationFailed, InputError
 from kisscal.grid import apply_linearisation
 from kisscal.io.dltfiles import read_control_points_csv
@@ -28,7 +28,7 @@ from kisscal.io.frames import source_files
 from kisscal.report.dlt import CameraResiduals, residual_figure
 from kisscal.session.inputs import figure
 from kisscal.session.routes import RouteInputs, frame_files, outputs_of, write_check
-from kisscal.session.routes.lens_files import write_lens_camera
+from kisscal.session.routes.lens_files import write_lens_camera, written_dlt
 from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
@@ -172,35 +172,38 @@ def _held_out(
     dots: dict[str, np.ndarray],
     target: np.ndarray,
 ) -> dict[str, Any]:
-    """Every ``holdout_step``-th matched point: fitted without, reconstructed from all."""
+    """Every ``holdout_step``-th matched point: each camera calibrated without them as it
+    is written (its lens, then the DLT refitted: :func:`written_dlt`), the points
+    reconstructed from all cameras."""
     step = inputs.params.target.holdout_step
     held = np.arange(len(target)) % step == step // 2
-    cameras, rows_cam, rows_pt, rows_uv = [], [], [], []
+    dlts, rows_cam, rows_pt, rows_uv = [], [], [], []
     for c, cfg in enumerate(inputs.cameras):
         m = matches[cfg.id]
         train = m.matched & ~held
-        cameras.append(
-            fit_camera(
-                target[train],
-                dots[cfg.id][m.dot[train]],
-                cfg.size_px,
-                m.camera,
-                inputs.params.target,
-                m.terms,
-                inputs.params.dlt,
-            )
+        uv = dots[cfg.id][m.dot[train]]
+        camera = fit_camera(
+            target[train],
+            uv,
+            cfg.size_px,
+            m.camera,
+            inputs.params.target,
+            m.terms,
+            inputs.params.dlt,
         )
+        ideal = camera.undistort_px(uv)
+        dlts.append(written_dlt(camera, target[train], ideal, inputs.params.dlt, cfg.id))
         test = np.flatnonzero(m.matched & held)
         rows_cam.append(np.full(len(test), c))
         rows_pt.append(test)
-        rows_uv.append(dots[cfg.id][m.dot[test]])
+        rows_uv.append(camera.undistort_px(dots[cfg.id][m.dot[test]]))
     pts = np.concatenate(rows_pt)
-    if len(cameras) < 2 or not len(pts):
+    if len(dlts) < 2 or not len(pts):
         return {"route": ROUTE}
     ids, point = np.unique(pts, return_inverse=True)
-    xyz = triangulate_points(
-        cameras, np.concatenate(rows_cam), point.ravel(), np.concatenate(rows_uv), len(ids)
-    )
+    xyz = triangulate_observations(
+        np.stack(dlts), point.ravel(), np.concatenate(rows_cam), np.concatenate(rows_uv), len(ids)
+    ).xyz_mm
     err = np.linalg.norm(xyz - target[ids], axis=1)
     err = err[np.isfinite(err)]
     if not len(err):
