@@ -32,6 +32,7 @@ from kisscal.session.routes.lens_files import write_lens_camera, written_dlt
 from kisscal.session.runner import run_keyed
 from kisscal.target.dots import find_target_dots
 from kisscal.target.match import TargetMatch, fit_camera, match_target
+from kisscal.target.one_plane import unmatched_beside_one_plane
 from kisscal.target.resect import model_name
 from kisscal.target.seeds import clicked
 
@@ -72,6 +73,9 @@ def calibrate_from_target(inputs: RouteInputs) -> dict[str, Any]:
         for cam in inputs.cameras:
             written = _write_camera(inputs, cam, matches[cam.id], dots[cam.id], target)
             doc["cameras"][cam.id]["written_rms_px"] = written
+            doc["cameras"][cam.id]["unmatched_beside_one_plane"] = unmatched_beside_one_plane(
+                target, dots[cam.id], matches[cam.id].dot, inputs.params.dlt
+            )
         check = _held_out(inputs, matches, dots, target) if inputs.whole_rig else {}
         write_json(target_json, doc)
         if inputs.whole_rig:
@@ -224,6 +228,14 @@ def _say(inputs: RouteInputs, doc: dict[str, Any], check: dict[str, Any]) -> Non
             f"matched (seeds {e['seed_rms_px']:.2f} px), model {e['model']} at "
             f"{e['rms_px']:.3f} px, written as a DLT at {e['written_rms_px']:.3f} px"
         )
+        stray = e.get("unmatched_beside_one_plane", 0)
+        if 2 * stray >= e["matched"]:
+            inputs.echo(
+                f"  warning: {cam}: the {e['matched']} points matched all lie in one plane "
+                f"of the target, and {stray} dots among their images were not matched: the "
+                "camera fits that plane alone and may be wrong off it; click seeds on two "
+                "or more levels of the target"
+            )
     if "leave_out_mean_mm" in check:
         inputs.echo(
             f"  held-out target points ({check['held_out_points']}): mean 3D error "
