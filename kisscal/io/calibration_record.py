@@ -148,6 +148,7 @@ class TargetMatchRecord:
     unmatched: int
     rms_px: float | None
     seed_rms_px: float | None
+    written_rms_px: float | None = None  # the calibration written (its DLT); older: none
 
 
 @dataclass(frozen=True)

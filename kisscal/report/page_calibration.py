@@ -138,12 +138,13 @@ def target_table(o: SessionOutputs) -> Html:
     record = o.target()
     if record is None:
         return Html("")
+    figures = ("visible", "matched", "unmatched", "rms_px", "written_rms_px", "seed_rms_px")
     rows = [
-        [tag("b", c), *map(fmt, (e.visible, e.matched, e.unmatched, e.rms_px, e.seed_rms_px))]
-        for c, e in record.cameras.items()
+        [tag("b", c), *(fmt(getattr(e, f)) for f in figures)] for c, e in record.cameras.items()
     ]
-    headers = ["camera", "visible points", "matched", "unmatched", "rms (px)", "seeds rms (px)"]
-    parts = [table(headers, rows, (1, 2, 3, 4, 5))]
+    headers = ["camera", "visible points", "matched", "unmatched", "matching rms (px)"]
+    headers += ["written rms (px)", "seeds rms (px)"]
+    parts = [table(headers, rows, (1, 2, 3, 4, 5, 6))]
     check = o.rig_check()
     if math.isfinite(check.leave_out_mean_mm):
         held = check.held_out_points if check.held_out_points is not None else ""

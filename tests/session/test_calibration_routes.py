@@ -141,7 +141,7 @@ def test_target_route_matches_every_point(tmp_path: Path) -> None:
     assert not failures
     session.report(root)
     page = (root / "out" / "report.html").read_text()
-    assert "seeds rms (px)" in page
+    assert "seeds rms (px)" in page and "written rms (px)" in page
     for cam, entry in doc["cameras"].items():
         assert f"<b>{cam}</b>" in page and f">{entry['matched']}<" in page
 
