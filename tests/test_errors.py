@@ -100,7 +100,7 @@ def test_triangulation_and_projection_entry_points_check_their_points() -> None:
 def test_target_and_object_entry_points_refuse_a_table_of_the_wrong_shape() -> None:
     """A (2, 6) table of lab points was reshaped into four points; now it is named."""
     from kisscal.bundle.frame import recognise_object
-    from kisscal.target.dots import dots_near
+    from kisscal.target.dots import seed_offsets_px
     from kisscal.target.resect import resect
 
     six = np.arange(12.0).reshape(2, 6)
@@ -109,8 +109,8 @@ def test_target_and_object_entry_points_refuse_a_table_of_the_wrong_shape() -> N
     with pytest.raises(InputError, match=r"object_mm must have shape \(n, 3\)"):
         recognise_object(np.zeros((4, 3)), six)
     with pytest.raises(InputError, match=r"points_px must have shape \(n, 2\), got \(1, 4\)"):
-        dots_near(np.zeros((3, 2)), [[0.0, 0.0, 1.0, 1.0]], 1.0)
-    assert dots_near(np.zeros((3, 2)), [0.5, 0.0], 1.0) == 1  # one point given flat
+        seed_offsets_px(np.zeros((3, 2)), [[0.0, 0.0, 1.0, 1.0]])
+    assert seed_offsets_px(np.zeros((3, 2)), [0.5, 0.0]).tolist() == [0.5]  # one point, flat
 
 
 def test_a_missing_file_is_missing_data(tmp_path: Path) -> None:
