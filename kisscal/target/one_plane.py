@@ -27,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kisscal.dlt.linear import spread_ratio
 from kisscal.dlt.params import DltParams
+from kisscal.target.match import is_planar
 
 
 def unmatched_beside_one_plane(
@@ -42,8 +42,7 @@ def unmatched_beside_one_plane(
     (:class:`~kisscal.target.match.TargetMatch`).
     """
     matched = dot >= 0
-    flat = spread_ratio(target_xyz) < dlt.min_spread_ratio
-    if flat or matched.sum() < 4 or spread_ratio(target_xyz[matched]) >= dlt.min_spread_ratio:
+    if is_planar(target_xyz, dlt) or matched.sum() < 4 or not is_planar(target_xyz[matched], dlt):
         return 0
     uv = dots_px[dot[matched]]
     free = np.ones(len(dots_px), dtype=bool)

@@ -25,7 +25,6 @@ from kisscal.camera import LENS_TERMS, Camera, camera_linearisation
 from kisscal.dlt import DltParams, correct_lens, project, solve_dlt
 from kisscal.dlt.calibrate import dlt_result
 from kisscal.dlt.camera import hatze_violation
-from kisscal.dlt.linear import spread_ratio
 from kisscal.grid import Linearisation, apply_linearisation, invert_linearisation
 from kisscal.io.config import CameraConfig
 from kisscal.io.dltfiles import write_dlt_json
@@ -37,6 +36,7 @@ from kisscal.io.linearisation import (
     write_linearisation,
 )
 from kisscal.session.routes import RouteInputs
+from kisscal.target.match import is_planar
 
 
 def grid_document(path: Path, has_grid: bool) -> dict[str, Any] | None:
@@ -86,7 +86,7 @@ def written_dlt(
     """The DLT written for ``camera`` fitted with its lens to ``xyz`` and ``ideal_px`` (the
     points with the lens removed): refitted to them when they are not flat (a DLT's
     skew and aspect follow a sensor the camera model has no term for), else its own."""
-    if len(xyz) >= dlt.min_points and spread_ratio(xyz) >= dlt.min_spread_ratio:
+    if len(xyz) >= dlt.min_points and not is_planar(xyz, dlt):
         return solve_dlt(xyz, ideal_px, dlt, camera=name)
     return camera.dlt
 
